@@ -1,10 +1,17 @@
 //! plcd: a real-time soft-PLC runtime.
 //!
+//! The crate is layered the way the PLC works:
 //! - [`config`]: the project file (TOML) parsed into typed, range-checked structs;
+//! - [`lang`]: the instruction-list language, parse → check → compile into [`lang::Program`];
 //! - [`device`]: device memory, its fixed layout and its address syntax;
-//! - [`diag`]: located diagnostics, all reported at once.
+//! - [`vm`]: executes compiled programs one instruction at a time, resumable between any two;
+//! - [`project`]: a config and all its programs, loaded and checked together.
 #![deny(unsafe_code)]
 
+pub mod commands;
 pub mod config;
 pub mod device;
 pub mod diag;
+pub mod lang;
+pub mod project;
+pub mod vm;

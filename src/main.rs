@@ -1,1 +1,32 @@
-fn main() {}
+//! The `plcd` binary: argument parsing and dispatch to [`plcd::commands`].
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(name = "plcd", version, about = "A real-time soft-PLC for Linux")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Load and validate the config and every program it names; run nothing.
+    Check {
+        /// The project's TOML config.
+        #[arg(long)]
+        config: PathBuf,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Check { config } => {
+            plcd::commands::check::run(&config, &mut std::io::stdout(), &mut std::io::stderr())
+        }
+    }
+}

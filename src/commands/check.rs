@@ -1,0 +1,30 @@
+//! `plcd check --config FILE`: load and validate the config and every program, run nothing.
+
+use std::io::Write;
+use std::path::Path;
+use std::process::ExitCode;
+
+use crate::project;
+
+/// Prints every diagnostic to `err` (exit 1), or a one-line summary to `out` (exit 0).
+pub fn run(config: &Path, out: &mut impl Write, err: &mut impl Write) -> ExitCode {
+    match project::load(config) {
+        Ok(project) => {
+            let instructions: usize = project.programs.iter().map(|p| p.code.len()).sum();
+            let _ = writeln!(
+                out,
+                "{}: ok: {} program(s), {} instruction(s), {} task(s)",
+                config.display(),
+                project.programs.len(),
+                instructions,
+                project.config.tasks.len()
+            );
+            ExitCode::SUCCESS
+        }
+        Err(diags) => {
+            let _ = write!(err, "{diags}");
+            let _ = writeln!(err, "{}: {} error(s)", config.display(), diags.len());
+            ExitCode::from(1)
+        }
+    }
+}

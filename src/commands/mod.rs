@@ -1,0 +1,3 @@
+//! The `plcd` subcommands, one file each; `main.rs` only parses arguments and dispatches.
+
+pub mod check;

@@ -1,0 +1,39 @@
+//! Compile: a checked program into its executable form — jump, call and loop targets resolved
+//! to program-counter values, source lines kept beside the code for diagnostics and debugging.
+
+use std::path::Path;
+
+use super::check::{CheckedProgram, Link};
+use super::ops::Op;
+use super::Program;
+
+/// Lowers a program the checker accepted. Cannot fail: every target was checked to exist.
+pub fn compile(name: &str, path: &Path, checked: CheckedProgram, edge_base: u32) -> Program {
+    let mut code = Vec::with_capacity(checked.instructions.len());
+    let mut lines = Vec::with_capacity(checked.instructions.len());
+    for instruction in &checked.instructions {
+        let op = match (instruction.op, instruction.link) {
+            (Op::Jmp { .. }, Some(Link::Jmp { routine, label })) => {
+                Op::Jmp { target: checked.labels[&(routine, label)] as u32 }
+            }
+            (Op::Call { .. }, Some(Link::Call(n))) => {
+                Op::Call { target: checked.subroutines[&n] as u32 + 1 }
+            }
+            (Op::For { count, .. }, Some(Link::For { next })) => {
+                Op::For { count, end: next as u32 + 1 }
+            }
+            (Op::Next { .. }, Some(Link::Next { for_ })) => Op::Next { body: for_ as u32 + 1 },
+            (op, _) => op,
+        };
+        code.push(op);
+        lines.push(instruction.line);
+    }
+    Program {
+        name: name.to_string(),
+        path: path.to_path_buf(),
+        code: code.into_boxed_slice(),
+        lines: lines.into_boxed_slice(),
+        edge_base,
+        edge_slots: checked.edge_slots,
+    }
+}

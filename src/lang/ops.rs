@@ -1,0 +1,233 @@
+//! The compiled, pre-decoded instruction form the VM executes.
+//!
+//! One [`Op`] per source instruction, so a step counted by the VM is a step the user wrote.
+//! Every operand is resolved: bits are a word index and a mask, words an index, constants their
+//! 16-bit pattern, jump and call targets program-counter values, edge memory a slot number.
+//! Rung structure is resolved too: a contact that opens a nested block (`LOAD` inside a rung)
+//! is a distinct `…Push` op, so the VM never has to guess where a rung starts.
+
+use crate::device::{BitRef, WordRef};
+
+/// A word operand: a device word or a constant (its 16-bit pattern).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Src {
+    Word(WordRef),
+    Const(u16),
+}
+
+/// Index into the VM's edge memory: one slot per edge-sensitive instruction instance.
+pub type EdgeSlot = u16;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CmpOp {
+    Eq,
+    Ne,
+    Gt,
+    Ge,
+    Lt,
+    Le,
+}
+
+impl CmpOp {
+    #[inline(always)]
+    pub fn eval(self, a: i16, b: i16) -> bool {
+        match self {
+            CmpOp::Eq => a == b,
+            CmpOp::Ne => a != b,
+            CmpOp::Gt => a > b,
+            CmpOp::Ge => a >= b,
+            CmpOp::Lt => a < b,
+            CmpOp::Le => a <= b,
+        }
+    }
+}
+
+/// How a contact combines with the rung result.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Combine {
+    /// Starts the rung (or, with `push`, a nested block whose result is pushed first).
+    Load {
+        push: bool,
+    },
+    And,
+    Or,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ArithOp {
+    Add,
+    Sub,
+    Mul,
+    Div,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TimerKind {
+    /// On delay.
+    Ton,
+    /// Off delay.
+    Toff,
+    /// Integrating (retentive) on delay, cleared only by `RST`.
+    Tmr,
+    /// Monostable: ignores its input while running.
+    Tmon,
+    /// Retriggerable monostable.
+    Trtg,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CounterKind {
+    Ctu,
+    Ctd,
+    Ctr,
+}
+
+/// An instruction the task engine acts on; the VM stops after executing it and reports it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SystemRequest {
+    /// `DI` (all tasks) or `DI n`.
+    DisableTasks(Option<u8>),
+    /// `EI` (all tasks) or `EI n`.
+    EnableTasks(Option<u8>),
+    /// `WDT`: restart the scan watchdog's elapsed time.
+    ResetWatchdog,
+    /// `INIT_DONE`: the initialization task is finished.
+    InitDone,
+    /// `STOP`: go to STOP mode after this instruction.
+    Stop,
+    /// `IORF`: refresh the I/O image now.
+    RefreshIo,
+}
+
+/// A compiled instruction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Op {
+    // Contacts. `Load` starts a rung; `LoadPush` pushes the rung result, then starts a block.
+    Load(BitRef),
+    LoadNot(BitRef),
+    LoadPush(BitRef),
+    LoadNotPush(BitRef),
+    And(BitRef),
+    AndNot(BitRef),
+    Or(BitRef),
+    OrNot(BitRef),
+    /// `LOADP`/`ANDP`/`ORP` (`rising`) and `LOADN`/`ANDN`/`ORN`.
+    EdgeContact {
+        bit: BitRef,
+        rising: bool,
+        how: Combine,
+        slot: EdgeSlot,
+    },
+    /// `LOAD>= a b` and friends.
+    Compare {
+        op: CmpOp,
+        a: Src,
+        b: Src,
+        how: Combine,
+    },
+    AndLoad,
+    OrLoad,
+    MPush,
+    MLoad,
+    MPop,
+    Not,
+
+    // Outputs.
+    Out(BitRef),
+    OutNot(BitRef),
+    /// `OUTP` (`rising`) / `OUTN`: ON for one execution at the rung's edge.
+    OutPulse {
+        bit: BitRef,
+        rising: bool,
+        slot: EdgeSlot,
+    },
+    Set(BitRef),
+    Rst(BitRef),
+    /// `RST Tn`: resets the timer.
+    RstTimer(u16),
+    /// `RST Cn`: resets the counter.
+    RstCounter(u16),
+    /// `FF x`: toggles at the rung's rising edge.
+    FlipFlop {
+        bit: BitRef,
+        slot: EdgeSlot,
+    },
+
+    // Timers and counters; the rung result is their input.
+    Timer {
+        kind: TimerKind,
+        timer: u16,
+        preset: Src,
+        base_ms: u16,
+    },
+    Counter {
+        kind: CounterKind,
+        counter: u16,
+        preset: Src,
+    },
+    /// `CTUD Cn up down preset`: counts while the rung is ON.
+    CounterUpDown {
+        counter: u16,
+        up: BitRef,
+        down: BitRef,
+        preset: Src,
+    },
+
+    // Data. `pulse`: the `P` form, executed only at the rung's rising edge.
+    Mov {
+        s: Src,
+        d: WordRef,
+        pulse: Option<EdgeSlot>,
+    },
+    Arith {
+        op: ArithOp,
+        a: Src,
+        b: Src,
+        d: WordRef,
+        pulse: Option<EdgeSlot>,
+    },
+    /// `INC d` (`step` 1) / `DEC d` (`step` -1).
+    Step {
+        d: WordRef,
+        up: bool,
+        pulse: Option<EdgeSlot>,
+    },
+
+    // Flow.
+    /// `CALL n`, resolved to the first instruction after `SBRT n`.
+    Call {
+        target: u32,
+    },
+    Ret,
+    /// `JMP n`, resolved to the `LABEL n` instruction.
+    Jmp {
+        target: u32,
+    },
+    /// `LABEL n`: a rung boundary.
+    Label,
+    /// `FOR n`: `end` is the instruction after the matching `NEXT`.
+    For {
+        count: Src,
+        end: u32,
+    },
+    /// `NEXT`: `body` is the instruction after the matching `FOR`.
+    Next {
+        body: u32,
+    },
+    Break,
+    End,
+    Nop,
+
+    // System.
+    System(SystemRequest),
+    /// `DUTY n1 n2 d`; `channel` 0..=4 is SM420+channel.
+    Duty {
+        channel: u8,
+        n1: Src,
+        n2: Src,
+        slot: EdgeSlot,
+    },
+}
+
+// The dispatch loop walks an array of these; keep them two to a cache line's quarter.
+const _: () = assert!(std::mem::size_of::<Op>() <= 16);

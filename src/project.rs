@@ -1,0 +1,129 @@
+//! A project: the config and every program it names, loaded and checked together, with the
+//! rules that span programs (the DUTY limits of the FX5 manual, edge memory, `DI n` numbers).
+
+use std::path::{Path, PathBuf};
+
+use crate::config::{self, Config, TaskRef};
+use crate::diag::{Diagnostic, Diagnostics};
+use crate::lang::{self, Context, DutySite, Program};
+
+/// FX5: "The DUTY instruction can be used up to 5 times (points)".
+pub const MAX_DUTY: usize = 5;
+
+/// A loaded, fully checked project.
+#[derive(Debug, Clone)]
+pub struct Project {
+    pub config: Config,
+    /// The programs, in the order of the config's `[[program]]` entries.
+    pub programs: Vec<Program>,
+}
+
+impl Project {
+    /// Edge memory slots all programs need together.
+    pub fn edge_slots(&self) -> u32 {
+        self.programs.iter().map(|p| p.edge_base + p.edge_slots).max().unwrap_or(0)
+    }
+
+    /// The programs of a task, in file order.
+    pub fn programs_of<'a>(&'a self, task: &'a TaskRef) -> impl Iterator<Item = &'a Program> + 'a {
+        self.config
+            .programs
+            .iter()
+            .zip(&self.programs)
+            .filter(move |(c, _)| &c.task == task)
+            .map(|(_, p)| p)
+    }
+}
+
+/// Loads the config at `path` and every program it names. Every diagnostic of the config and
+/// of all programs is returned at once.
+pub fn load(path: &Path) -> Result<Project, Diagnostics> {
+    let config = config::load(path)?;
+    from_config(config, |p| std::fs::read_to_string(p))
+}
+
+/// Assembles the programs of an already parsed config; `read` supplies each program's text.
+pub fn from_config(
+    config: Config,
+    read: impl Fn(&Path) -> std::io::Result<String>,
+) -> Result<Project, Diagnostics> {
+    let mut diags = Diagnostics::default();
+    let task_numbers: Vec<u8> = config.tasks.iter().map(|t| t.number).collect();
+    let timer_base = |n: u32| config.timers.base_ms(n);
+    let mut programs = Vec::with_capacity(config.programs.len());
+    let mut duty_sites = Vec::new();
+    let mut edge_base = 0u32;
+    for entry in &config.programs {
+        let source = match read(&entry.resolved) {
+            Ok(text) => text,
+            Err(e) => {
+                diags.push(Diagnostic::new(
+                    &config.path,
+                    entry.line,
+                    entry.col,
+                    format!(
+                        "program \"{}\": cannot read `{}`: {e}",
+                        entry.name,
+                        entry.resolved.display()
+                    ),
+                ));
+                continue;
+            }
+        };
+        let ctx = Context {
+            is_init: entry.task == TaskRef::Init,
+            task_numbers: &task_numbers,
+            timer_base_ms: &timer_base,
+            edge_base,
+        };
+        let (program, sites) =
+            lang::assemble_with_duty_sites(&entry.name, &entry.resolved, &source, &ctx);
+        duty_sites.push((entry.resolved.clone(), sites));
+        match program {
+            Ok(program) => {
+                edge_base += program.edge_slots;
+                programs.push(program);
+            }
+            Err(d) => diags.extend(d),
+        }
+    }
+    check_duty(&duty_sites, &mut diags);
+    // Grouped by file, in line order, whatever the order they were found in.
+    diags.0.sort();
+    if diags.is_empty() {
+        Ok(Project { config, programs })
+    } else {
+        Err(diags)
+    }
+}
+
+/// At most five DUTY instructions, and one per clock relay, across the whole project.
+fn check_duty(files: &[(PathBuf, Vec<DutySite>)], diags: &mut Diagnostics) {
+    let mut seen: Vec<(u8, &Path, u32)> = Vec::new();
+    for (path, sites) in files {
+        for site in sites {
+            let relay = 420 + u32::from(site.channel);
+            if let Some((_, first_path, first_line)) =
+                seen.iter().find(|(c, _, _)| *c == site.channel)
+            {
+                diags.push(Diagnostic::new(
+                    path,
+                    site.line,
+                    site.col,
+                    format!(
+                        "SM{relay} is already the clock relay of the DUTY at {}:{first_line}: one DUTY per relay",
+                        first_path.display()
+                    ),
+                ));
+            } else if seen.len() >= MAX_DUTY {
+                diags.push(Diagnostic::new(
+                    path,
+                    site.line,
+                    site.col,
+                    format!("more than {MAX_DUTY} DUTY instructions in the project"),
+                ));
+            }
+            seen.push((site.channel, path, site.line));
+        }
+    }
+}

@@ -1,0 +1,145 @@
+//! The five timers of XGB §5.2.5. A timer's state keeps elapsed time in nanoseconds, not in base
+//! ticks, so the remainder of a tick carries over from scan to scan: the error is at most one
+//! scan plus the time from step 0 to the instruction, never a whole base tick.
+
+use crate::device::{timer_done, timer_value, Memory};
+use crate::lang::ops::TimerKind;
+
+/// Run-time state of one timer number.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TimerState {
+    /// Time counted so far: elapsed for TON/TMR, elapsed since the start of the
+    /// countdown for TOFF/TMON/TRTG.
+    elapsed_ns: u64,
+    /// When `elapsed_ns` was last brought up to date.
+    last_ns: u64,
+    running: bool,
+    prev_input: bool,
+    /// The current value this timer last wrote; a different value in memory was written by the
+    /// program (`MOV 30 T0001`), and the timer continues from it.
+    shown: u16,
+}
+
+impl TimerState {
+    fn advance(&mut self, now_ns: u64) {
+        self.elapsed_ns += now_ns.saturating_sub(self.last_ns);
+        self.last_ns = now_ns;
+    }
+
+    fn start(&mut self, now_ns: u64) {
+        self.running = true;
+        self.elapsed_ns = 0;
+        self.last_ns = now_ns;
+    }
+}
+
+/// One execution of a timer instruction: which timer, and what it sees now.
+#[derive(Debug, Clone, Copy)]
+pub struct TimerInput {
+    pub kind: TimerKind,
+    pub timer: u16,
+    /// The rung result.
+    pub input: bool,
+    /// Preset in base units.
+    pub preset: u16,
+    pub base_ms: u16,
+    pub now_ns: u64,
+}
+
+/// Executes a timer instruction.
+pub fn execute(state: &mut TimerState, mem: &mut Memory, call: TimerInput) {
+    let TimerInput { kind, timer, input, preset, base_ms, now_ns } = call;
+    let base_ns = u64::from(base_ms) * 1_000_000;
+    let preset_ns = u64::from(preset) * base_ns;
+    let value_ref = timer_value(timer);
+    let done_ref = timer_done(timer);
+    let written = mem.word(value_ref);
+    let counts_down = matches!(kind, TimerKind::Toff | TimerKind::Tmon | TimerKind::Trtg);
+    if written != state.shown {
+        let ticks = if counts_down { preset.saturating_sub(written) } else { written.min(preset) };
+        state.elapsed_ns = u64::from(ticks) * base_ns;
+    }
+    let rising = input && !state.prev_input;
+    state.prev_input = input;
+    let ticks = |elapsed: u64| (elapsed / base_ns.max(1)).min(u64::from(preset)) as u16;
+
+    let (value, done) = match kind {
+        TimerKind::Ton => {
+            if input {
+                if state.running {
+                    state.advance(now_ns);
+                } else {
+                    state.start(now_ns);
+                }
+                state.elapsed_ns = state.elapsed_ns.min(preset_ns);
+                let value = ticks(state.elapsed_ns);
+                (value, value >= preset)
+            } else {
+                *state = TimerState { prev_input: false, ..TimerState::default() };
+                (0, false)
+            }
+        }
+        TimerKind::Tmr => {
+            if input {
+                if state.running {
+                    state.advance(now_ns);
+                } else {
+                    state.running = true;
+                    state.last_ns = now_ns;
+                }
+                state.elapsed_ns = state.elapsed_ns.min(preset_ns);
+            } else {
+                state.running = false;
+            }
+            let value = ticks(state.elapsed_ns);
+            (value, value >= preset)
+        }
+        TimerKind::Toff => {
+            if input {
+                state.running = false;
+                state.elapsed_ns = 0;
+                (preset, true)
+            } else if mem.bit(done_ref) {
+                if state.running {
+                    state.advance(now_ns);
+                } else {
+                    state.start(now_ns);
+                }
+                let value = preset - ticks(state.elapsed_ns);
+                if value == 0 {
+                    state.running = false;
+                }
+                (value, value > 0)
+            } else {
+                (0, false)
+            }
+        }
+        TimerKind::Tmon | TimerKind::Trtg => {
+            let retrigger = kind == TimerKind::Trtg && rising;
+            if state.running && !retrigger {
+                state.advance(now_ns);
+            } else if rising {
+                state.start(now_ns);
+            }
+            if state.running {
+                let value = preset - ticks(state.elapsed_ns);
+                if value == 0 {
+                    state.running = false;
+                }
+                (value, value > 0)
+            } else {
+                (0, false)
+            }
+        }
+    };
+    state.shown = value;
+    mem.set_word(value_ref, value);
+    mem.set_bit(done_ref, done);
+}
+
+/// `RST Tn`: current value 0, contact OFF, the timer idle.
+pub fn reset(state: &mut TimerState, mem: &mut Memory, timer: u16) {
+    *state = TimerState { prev_input: state.prev_input, ..TimerState::default() };
+    mem.set_word(timer_value(timer), 0);
+    mem.set_bit(timer_done(timer), false);
+}

@@ -1,0 +1,95 @@
+//! A scan loop for VM tests: one program, a hand-set clock, system requests recorded.
+//! The task engine proper is `plcd::engine`; this is only enough to scan a program.
+#![allow(dead_code)]
+
+use std::path::Path;
+
+use plcd::device::Address;
+use plcd::lang::{self, Context, Program};
+use plcd::vm::{ExecState, Exit, ManualClock, Vm};
+
+/// The default time bases of CONTRACT §2.
+pub fn default_timer_base(n: u32) -> Option<u32> {
+    match n {
+        0..=999 => Some(100),
+        1000..=1499 => Some(10),
+        1500..=2047 => Some(1),
+        _ => None,
+    }
+}
+
+pub fn context(is_init: bool) -> Context<'static> {
+    static TASKS: [u8; 24] =
+        [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23];
+    Context { is_init, task_numbers: &TASKS, timer_base_ms: &default_timer_base, edge_base: 0 }
+}
+
+/// Assembles `source`, panicking with the diagnostics if it does not.
+pub fn assemble(source: &str) -> Program {
+    lang::assemble("test", Path::new("test.il"), source, &context(false))
+        .unwrap_or_else(|d| panic!("does not assemble:\n{d}"))
+}
+
+/// The diagnostics of `source`, one string each.
+pub fn diagnostics(source: &str) -> Vec<String> {
+    match lang::assemble("test", Path::new("test.il"), source, &context(false)) {
+        Ok(_) => vec![],
+        Err(d) => d.iter().map(|d| d.to_string()).collect(),
+    }
+}
+
+pub struct Rig {
+    pub vm: Vm,
+    pub program: Program,
+    pub clock: ManualClock,
+    pub state: ExecState,
+    pub scans: u64,
+    /// Every non-END exit of the last scan.
+    pub exits: Vec<Exit>,
+}
+
+impl Rig {
+    pub fn new(source: &str) -> Rig {
+        let program = assemble(source);
+        let vm = Vm::for_programs([&program]);
+        Rig {
+            vm,
+            program,
+            clock: ManualClock::new(0),
+            state: ExecState::new(),
+            scans: 0,
+            exits: vec![],
+        }
+    }
+
+    /// One scan at the clock's current time: flags, the program to END, END processing.
+    pub fn scan(&mut self) -> &mut Rig {
+        self.vm.begin_scan(self.scans == 0, self.clock.get());
+        self.state.restart();
+        self.exits.clear();
+        loop {
+            match self.vm.run(&self.program, &mut self.state, &self.clock, u64::MAX) {
+                Exit::End => break,
+                other => self.exits.push(other),
+            }
+        }
+        self.vm.end_scan();
+        self.scans += 1;
+        self
+    }
+
+    /// Advances the clock by `ms`, then scans.
+    pub fn scan_at_ms(&mut self, ms: u64) -> &mut Rig {
+        self.clock.set(ms * 1_000_000);
+        self.scan()
+    }
+
+    pub fn get(&self, device: &str) -> i32 {
+        self.vm.mem.read(&Address::parse(device).unwrap())
+    }
+
+    pub fn set(&mut self, device: &str, value: i32) -> &mut Rig {
+        self.vm.mem.write(&Address::parse(device).unwrap(), value);
+        self
+    }
+}
