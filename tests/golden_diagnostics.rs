@@ -34,16 +34,45 @@ fn language_goldens() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
-#[test]
-fn check_reports_every_error_of_every_file() {
+/// `plcd check` on `tests/golden/<name>/plcd.toml` fails with exactly `expected.stderr`.
+fn check_golden(name: &str) {
+    let config = format!("tests/golden/{name}/plcd.toml");
     let output = Command::new(env!("CARGO_BIN_EXE_plcd"))
-        .args(["check", "--config", "tests/golden/project/plcd.toml"])
+        .args(["check", "--config", &config])
         .output()
         .unwrap();
     assert_eq!(output.status.code(), Some(1));
-    let expected = fs::read_to_string("tests/golden/project/expected.stderr").unwrap();
+    let expected = fs::read_to_string(format!("tests/golden/{name}/expected.stderr")).unwrap();
     assert_eq!(String::from_utf8_lossy(&output.stderr), expected);
     assert!(output.stdout.is_empty());
+}
+
+#[test]
+fn check_reports_every_error_of_every_file() {
+    check_golden("project");
+}
+
+#[test]
+fn check_reports_every_config_error() {
+    check_golden("config");
+}
+
+#[test]
+fn check_names_a_missing_config() {
+    let output = Command::new(env!("CARGO_BIN_EXE_plcd"))
+        .args(["check", "--config", "tests/golden/no-such.toml"])
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.starts_with("tests/golden/no-such.toml:0:0: error: "), "{stderr}");
+    assert!(stderr.contains("No such file"), "{stderr}");
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    let output = Command::new(env!("CARGO_BIN_EXE_plcd")).args(["check"]).output().unwrap();
+    assert_eq!(output.status.code(), Some(2));
 }
 
 #[test]

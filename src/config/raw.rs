@@ -448,10 +448,14 @@ fn deserialize<T: DeserializeOwned>(
             Some(key) => format!("{}: {message}", ctx.key(key)),
             None => format!("{}: {message}", ctx.subject()),
         };
+        let unknown = message.contains("unknown key `");
         sink.error(at.start, message);
         let key = key?;
         table.remove(key.as_str());
-        removed.push(key);
+        // An unknown key carries nothing the rest depends on: the entry is still checked.
+        if !unknown {
+            removed.push(key);
+        }
     }
 }
 

@@ -726,14 +726,26 @@ fn programs_name_existing_tasks() {
 
 #[test]
 fn a_task_with_errors_still_counts_as_defined() {
-    // Only the task's own error: the program's reference to it is not reported as well.
+    // Only the task's own errors (the unknown key, and the key it was meant to be): the
+    // program's reference to it is not reported as well.
     let text = format!(
         "{}[[program]]\nfile = \"a.il\"\ntask = \"fast\"\n",
         task("fast", "cycle", 0, "interval = 1")
     );
     let errs = errors(&with_scan(&text));
-    assert_eq!(errs.len(), 1, "{errs:?}");
-    assert!(errs[0].starts_with("6:1: task \"fast\": unknown key `interval`"), "{errs:?}");
+    assert_eq!(errs.len(), 2, "{errs:?}");
+    assert_eq!(errs[0], "1:1: task \"fast\": a cycle task needs `interval_ms`");
+    assert!(errs[1].starts_with("6:1: task \"fast\": unknown key `interval`"), "{errs:?}");
+}
+
+#[test]
+fn an_entry_with_an_unknown_key_is_still_validated() {
+    let text =
+        task("full", "device", 16, "device = \"M0000\"\ncondition = \">\"\nvalue = 5\ncolour = 1");
+    let errs = errors(&with_scan(&text));
+    assert_eq!(errs.len(), 2, "{errs:?}");
+    assert!(errs[0].contains("condition \">\": `M0000` is a bit device"), "{errs:?}");
+    assert!(errs[1].contains("unknown key `colour`"), "{errs:?}");
 }
 
 #[test]
