@@ -31,6 +31,15 @@ impl TimerState {
         self.elapsed_ns = 0;
         self.last_ns = now_ns;
     }
+
+    /// Counts on if running, else starts from zero.
+    fn run(&mut self, now_ns: u64) {
+        if self.running {
+            self.advance(now_ns);
+        } else {
+            self.start(now_ns);
+        }
+    }
 }
 
 /// One execution of a timer instruction: which timer, and what it sees now.
@@ -62,15 +71,19 @@ pub fn execute(state: &mut TimerState, mem: &mut Memory, call: TimerInput) {
     let rising = input && !state.prev_input;
     state.prev_input = input;
     let ticks = |elapsed: u64| (elapsed / base_ns.max(1)).min(u64::from(preset)) as u16;
+    // The down-counting timers: value = preset - elapsed ticks, contact OFF and idle at 0.
+    let count_down = |state: &mut TimerState| {
+        let value = preset - ticks(state.elapsed_ns);
+        if value == 0 {
+            state.running = false;
+        }
+        (value, value > 0)
+    };
 
     let (value, done) = match kind {
         TimerKind::Ton => {
             if input {
-                if state.running {
-                    state.advance(now_ns);
-                } else {
-                    state.start(now_ns);
-                }
+                state.run(now_ns);
                 state.elapsed_ns = state.elapsed_ns.min(preset_ns);
                 let value = ticks(state.elapsed_ns);
                 (value, value >= preset)
@@ -100,16 +113,8 @@ pub fn execute(state: &mut TimerState, mem: &mut Memory, call: TimerInput) {
                 state.elapsed_ns = 0;
                 (preset, true)
             } else if mem.bit(done_ref) {
-                if state.running {
-                    state.advance(now_ns);
-                } else {
-                    state.start(now_ns);
-                }
-                let value = preset - ticks(state.elapsed_ns);
-                if value == 0 {
-                    state.running = false;
-                }
-                (value, value > 0)
+                state.run(now_ns);
+                count_down(state)
             } else {
                 (0, false)
             }
@@ -122,11 +127,7 @@ pub fn execute(state: &mut TimerState, mem: &mut Memory, call: TimerInput) {
                 state.start(now_ns);
             }
             if state.running {
-                let value = preset - ticks(state.elapsed_ns);
-                if value == 0 {
-                    state.running = false;
-                }
-                (value, value > 0)
+                count_down(state)
             } else {
                 (0, false)
             }
