@@ -5,13 +5,18 @@
 //! - [`lang`]: the instruction-list language, parse → check → compile into [`lang::Program`];
 //! - [`device`]: device memory, its fixed layout and its address syntax;
 //! - [`vm`]: executes compiled programs one instruction at a time, resumable between any two;
-//! - [`project`]: a config and all its programs, loaded and checked together.
+//! - [`project`]: a config and all its programs, loaded and checked together;
+//! - [`engine`]: the task engine, pure and clock-injected: what runs when;
+//! - [`io`]: I/O backends behind one trait.
 #![deny(unsafe_code)]
 
 pub mod commands;
 pub mod config;
 pub mod device;
 pub mod diag;
+pub mod engine;
+pub mod io;
 pub mod lang;
 pub mod project;
+pub mod sim;
 pub mod vm;

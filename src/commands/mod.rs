@@ -1,3 +1,4 @@
 //! The `plcd` subcommands, one file each; `main.rs` only parses arguments and dispatches.
 
 pub mod check;
+pub mod sim;

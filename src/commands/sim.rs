@@ -1,0 +1,142 @@
+//! `plcd sim --config FILE --for DURATION [--inputs CSV] [--trace FILE|-] [--watch DEVICES]
+//! [--step-ns N] [--timeline]`: the engine in virtual time (CONTRACT §1, §4).
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+use crate::device::Address;
+use crate::engine::event::{Event, EventSink, Recorder};
+use crate::project;
+use crate::sim::{self, duration, stimulus, timeline, trace::TraceWriter, SimOptions};
+
+/// The command's arguments, as parsed by `main`.
+#[derive(Debug, Clone)]
+pub struct SimArgs {
+    pub config: PathBuf,
+    pub duration: String,
+    pub inputs: Option<PathBuf>,
+    pub trace: Option<String>,
+    pub watch: Option<String>,
+    pub step_ns: Option<u64>,
+    pub timeline: bool,
+    pub timeline_width: usize,
+}
+
+/// Forwards every event to both sinks.
+struct Tee<'a, A, B>(&'a mut A, &'a mut B);
+
+impl<A: EventSink, B: EventSink> EventSink for Tee<'_, A, B> {
+    fn event(&mut self, t_ns: u64, event: Event) {
+        self.0.event(t_ns, event);
+        self.1.event(t_ns, event);
+    }
+}
+
+/// Exit 0 when the run completed, 1 for an invalid config, program or inputs file, 2 for bad
+/// usage (CONTRACT §1). PLC errors are events, not failures.
+pub fn run(args: &SimArgs, err: &mut impl Write) -> ExitCode {
+    let duration_ns = match duration::parse_duration(&args.duration) {
+        Ok(ns) => ns,
+        Err(e) => return usage(err, &format!("--for {}: {e}", args.duration)),
+    };
+    let project = match project::load(&args.config) {
+        Ok(p) => p,
+        Err(diags) => {
+            let _ = write!(err, "{diags}");
+            return ExitCode::from(1);
+        }
+    };
+    let stimuli = match &args.inputs {
+        Some(path) => match stimulus::load(path) {
+            Ok(s) => s,
+            Err(diags) => {
+                let _ = write!(err, "{diags}");
+                return ExitCode::from(1);
+            }
+        },
+        None => Vec::new(),
+    };
+    let watch = match &args.watch {
+        Some(list) => match parse_watch(list) {
+            Ok(w) => w,
+            Err(e) => return usage(err, &format!("--watch: {e}")),
+        },
+        None => sim::output_bits(&project),
+    };
+    let step_ns = args.step_ns.unwrap_or(project.config.sim.step_ns);
+    if step_ns == 0 {
+        return usage(err, "--step-ns must be at least 1");
+    }
+    let options = SimOptions { duration_ns, step_ns };
+
+    let out: Box<dyn Write> = match args.trace.as_deref() {
+        None => Box::new(std::io::sink()),
+        Some("-") => Box::new(std::io::stdout().lock()),
+        Some(path) => match File::create(path) {
+            Ok(f) => Box::new(f),
+            Err(e) => {
+                let _ = writeln!(err, "{path}: cannot create the trace file: {e}");
+                return ExitCode::from(1);
+            }
+        },
+    };
+    let names = project_task_names(&project);
+    let watch_names = watch.iter().map(|a| a.to_string()).collect();
+    let program_lines =
+        project.programs.iter().map(|p| (p.name.clone(), p.lines.to_vec())).collect();
+    let mut writer =
+        TraceWriter::new(BufWriter::new(out), names.clone(), watch_names, program_lines);
+    let mut recorder = Recorder::default();
+    let started = Instant::now();
+    let engine = if args.timeline {
+        sim::simulate(&project, &stimuli, &watch, options, &mut Tee(&mut writer, &mut recorder))
+    } else {
+        sim::simulate(&project, &stimuli, &watch, options, &mut writer)
+    };
+    let elapsed = started.elapsed();
+    if let Err(e) = writer.finish() {
+        let _ = writeln!(err, "writing the trace: {e}");
+        return ExitCode::from(1);
+    }
+    if args.timeline {
+        let chart = timeline::render(&recorder.0, &names, duration_ns, args.timeline_width);
+        print!("{chart}");
+        if !chart.ends_with('\n') {
+            println!();
+        }
+    }
+    let scans = engine.scan_stats();
+    let _ = writeln!(
+        err,
+        "sim: {} of virtual time in {:.3} s: {} scans (max {}), {} steps, mode {}",
+        duration::format_ns(duration_ns),
+        elapsed.as_secs_f64(),
+        scans.count,
+        duration::format_ns(scans.max_ns),
+        engine.steps(),
+        engine.mode().as_str()
+    );
+    ExitCode::SUCCESS
+}
+
+fn project_task_names(project: &project::Project) -> Vec<String> {
+    let mut names = vec!["scan".to_string(), "init".to_string()];
+    names.extend(project.config.tasks.iter().map(|t| t.name.clone()));
+    names
+}
+
+fn parse_watch(list: &str) -> Result<Vec<Address>, String> {
+    list.split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|s| Address::parse(s).map_err(|e| e.to_string()))
+        .collect()
+}
+
+fn usage(err: &mut impl Write, message: &str) -> ExitCode {
+    let _ = writeln!(err, "plcd sim: {message}");
+    ExitCode::from(2)
+}

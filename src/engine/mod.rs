@@ -1,0 +1,724 @@
+//! The task engine: decides what runs when, per XGB chapter 5 and the Hitachi congestion rules.
+//!
+//! It is pure. Time comes from an injected [`Clock`]; events come from its driver
+//! ([`Engine::input_edge`], [`Engine::set_mode`], [`Engine::write`], and [`Engine::poll_time`]
+//! for time-driven work: cycle deadlines, the scan watchdog, congestion). [`Engine::run`]
+//! executes instructions on the VM and preempts between two of them. The simulator
+//! (`plcd sim`) and the real-time daemon drive this same engine.
+//!
+//! Scheduling rules, in one place:
+//! - Priorities 2 (highest) to 7; the scan program is below all of them. A pending request of a
+//!   higher priority than the executing task preempts it at the next instruction boundary,
+//!   nested to any depth. Equal priority never preempts.
+//! - Pending requests start by priority, then by request time, then — for requests at the same
+//!   instant — in config order (XGB §5.1.3: "in sequence of XG5000 setting").
+//! - A task holds at most one request: a request while it runs or waits is ignored.
+//! - `DI` holds task starts (requests stay pending, one each); `EI` releases them.
+//! - Internal-device conditions are sampled at END; their tasks, and every other pending task,
+//!   run before the next scan starts.
+
+pub mod event;
+
+use crate::config::{DeviceCondition, Edge, OnFault, TaskKind as ConfigTaskKind, TaskRef};
+use crate::device::{Address, BitRef, WordRef};
+use crate::io::Io;
+use crate::lang::ops::SystemRequest;
+use crate::lang::Program;
+use crate::project::Project;
+use crate::vm::{Clock, ExecState, Exit, Vm};
+use event::{ErrorKind, Event, EventSink, Ignored, Mode, TaskId, INIT, SCAN};
+
+const NS_PER_MS: u64 = 1_000_000;
+/// Priority of the scan program: below every task (2..=7).
+const SCAN_PRIORITY: u8 = 8;
+/// How often inputs are refreshed in STOP and ERROR.
+const STOP_REFRESH_NS: u64 = 10 * NS_PER_MS;
+
+/// What [`Engine::run`] leaves behind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Activity {
+    /// The step budget is spent with work left.
+    Busy,
+    /// Nothing to execute until an event or [`Engine::next_wakeup`].
+    Idle,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Condition {
+    Bit { bit: BitRef, when: DeviceCondition },
+    Word { word: WordRef, when: DeviceCondition },
+}
+
+#[derive(Debug, Clone)]
+enum Kind {
+    Scan,
+    Init,
+    Cycle { interval_ns: u64, next_ns: u64 },
+    Io { contact: u8, edge: Edge },
+    Device { condition: Condition, previous: i32 },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum State {
+    Idle,
+    /// Requested at `at_ns`; `order` is the config order for ties.
+    Pending {
+        at_ns: u64,
+    },
+    /// Started and not finished (executing or preempted).
+    Active {
+        preempted: bool,
+    },
+}
+
+/// Figures kept per task, without allocation.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TaskStats {
+    pub runs: u64,
+    pub ignored: u64,
+    /// Cycle deadlines that found the task running or waiting.
+    pub overruns: u64,
+}
+
+#[derive(Debug, Clone)]
+struct Task {
+    name: String,
+    kind: Kind,
+    priority: u8,
+    number: Option<u8>,
+    programs: Box<[u16]>,
+    current: usize,
+    exec: ExecState,
+    state: State,
+    disabled: bool,
+    max_exec_ns: Option<u64>,
+    used_ns: u64,
+    congested: bool,
+    stats: TaskStats,
+}
+
+impl Task {
+    fn new(name: &str, kind: Kind, priority: u8, number: Option<u8>, programs: Vec<u16>) -> Task {
+        Task {
+            name: name.to_string(),
+            kind,
+            priority,
+            number,
+            programs: programs.into_boxed_slice(),
+            current: 0,
+            exec: ExecState::new(),
+            state: State::Idle,
+            disabled: false,
+            max_exec_ns: None,
+            used_ns: 0,
+            congested: false,
+            stats: TaskStats::default(),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    /// Between two scans of a fixed scan period (tasks still run).
+    Idle,
+    /// The scan program (or the init task) is executing or preempted.
+    Scan,
+    /// After END: device tasks and every pending task run before the next scan.
+    AfterEnd,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Watch {
+    address: Address,
+    last: i32,
+}
+
+/// Scan time figures in ns.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ScanStats {
+    pub count: u64,
+    pub last_ns: u64,
+    pub min_ns: u64,
+    pub max_ns: u64,
+}
+
+/// The engine's settings, from `[plc]`.
+#[derive(Debug, Clone, Copy)]
+struct Settings {
+    watchdog_ns: u64,
+    watchdog_ms: u32,
+    on_fault: OnFault,
+    scan_period_ns: u64,
+    continue_on_congestion: bool,
+}
+
+/// The task engine.
+pub struct Engine {
+    programs: Vec<Program>,
+    vm: Vm,
+    tasks: Vec<Task>,
+    /// Active tasks, bottom to top; the top one executes.
+    stack: Vec<TaskId>,
+    mode: Mode,
+    phase: Phase,
+    settings: Settings,
+    init_done: bool,
+    init_done_requested: bool,
+    tasks_disabled: bool,
+    run_start_ns: u64,
+    scan_start_ns: u64,
+    watchdog_start_ns: u64,
+    next_scan_ns: u64,
+    next_stop_refresh_ns: u64,
+    scan: ScanStats,
+    watches: Vec<Watch>,
+}
+
+impl Engine {
+    /// An engine for `project`, in STOP; `watch` lists the devices whose changes are reported
+    /// as `set` events.
+    pub fn new(project: &Project, watch: &[Address]) -> Engine {
+        let config = &project.config;
+        let vm = Vm::for_programs(&project.programs);
+        let programs_of = |task: &TaskRef| -> Vec<u16> {
+            config
+                .programs
+                .iter()
+                .enumerate()
+                .filter(|(_, p)| &p.task == task)
+                .map(|(i, _)| i as u16)
+                .collect()
+        };
+        let mut tasks = vec![
+            Task::new("scan", Kind::Scan, SCAN_PRIORITY, None, programs_of(&TaskRef::Scan)),
+            Task::new("init", Kind::Init, 1, None, programs_of(&TaskRef::Init)),
+        ];
+        for task in &config.tasks {
+            let kind = match &task.kind {
+                ConfigTaskKind::Cycle { interval_ms } => {
+                    Kind::Cycle { interval_ns: u64::from(*interval_ms) * NS_PER_MS, next_ns: 0 }
+                }
+                ConfigTaskKind::Io { contact, edge } => {
+                    Kind::Io { contact: contact.bit.unwrap_or(0), edge: *edge }
+                }
+                ConfigTaskKind::Device { device, condition } => {
+                    let condition = match device.as_bit() {
+                        Ok(bit) if is_bit_condition(condition) => {
+                            Condition::Bit { bit, when: *condition }
+                        }
+                        _ => Condition::Word {
+                            word: device.as_word().expect("validated by the config"),
+                            when: *condition,
+                        },
+                    };
+                    Kind::Device { condition, previous: 0 }
+                }
+            };
+            let name = TaskRef::Named(task.name.clone());
+            let mut t =
+                Task::new(&task.name, kind, task.priority, Some(task.number), programs_of(&name));
+            t.max_exec_ns = task.max_exec_ms.map(|ms| u64::from(ms) * NS_PER_MS);
+            tasks.push(t);
+        }
+        let plc = &config.plc;
+        let capacity = tasks.len();
+        Engine {
+            programs: project.programs.clone(),
+            vm,
+            tasks,
+            stack: Vec::with_capacity(capacity),
+            mode: Mode::Stop,
+            phase: Phase::Idle,
+            settings: Settings {
+                watchdog_ns: u64::from(plc.watchdog_ms) * NS_PER_MS,
+                watchdog_ms: plc.watchdog_ms,
+                on_fault: plc.on_fault,
+                scan_period_ns: u64::from(plc.scan_period_ms) * NS_PER_MS,
+                continue_on_congestion: plc.continue_on_congestion,
+            },
+            init_done: false,
+            init_done_requested: false,
+            tasks_disabled: false,
+            run_start_ns: 0,
+            scan_start_ns: 0,
+            watchdog_start_ns: 0,
+            next_scan_ns: 0,
+            next_stop_refresh_ns: 0,
+            scan: ScanStats::default(),
+            watches: watch.iter().map(|a| Watch { address: *a, last: 0 }).collect(),
+        }
+    }
+
+    /// Task names by [`TaskId`], for traces.
+    pub fn task_names(&self) -> Vec<String> {
+        self.tasks.iter().map(|t| t.name.clone()).collect()
+    }
+
+    /// The programs, by the index error events use.
+    pub fn programs(&self) -> &[Program] {
+        &self.programs
+    }
+
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    pub fn vm(&self) -> &Vm {
+        &self.vm
+    }
+
+    /// Instructions executed so far.
+    pub fn steps(&self) -> u64 {
+        self.vm.steps()
+    }
+
+    pub fn scan_stats(&self) -> ScanStats {
+        self.scan
+    }
+
+    /// Figures of a task, by name.
+    pub fn task_stats(&self, name: &str) -> Option<TaskStats> {
+        self.tasks.iter().find(|t| t.name == name).map(|t| t.stats)
+    }
+
+    /// A mode command (the `MODE` pseudo-device, later the control socket). RUN is refused in
+    /// ERROR: the error is latched until a change to STOP.
+    pub fn set_mode(&mut self, mode: Mode, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
+        match (self.mode, mode) {
+            (Mode::Stop, Mode::Run) => self.enter_run(now, io, sink),
+            (Mode::Run | Mode::Error, Mode::Stop) => self.enter_stop(now, io, sink),
+            _ => {}
+        }
+    }
+
+    /// Writes a device from outside the program (a stimulus, later the control socket).
+    pub fn write(&mut self, address: &Address, value: i32) {
+        self.vm.mem.write(address, value);
+    }
+
+    /// An edge on contact P0000+`contact`: requests the I/O tasks waiting for it.
+    pub fn input_edge(&mut self, contact: u8, rising: bool, now: u64, sink: &mut impl EventSink) {
+        for id in 0..self.tasks.len() {
+            if let Kind::Io { contact: c, edge } = self.tasks[id].kind {
+                let wanted = match edge {
+                    Edge::Rising => rising,
+                    Edge::Falling => !rising,
+                    Edge::Both => true,
+                };
+                if c == contact && wanted {
+                    self.request(id as TaskId, now, sink);
+                }
+            }
+        }
+    }
+
+    /// Time-driven work due at `now`: cycle deadlines, the scan watchdog, congestion, and the
+    /// input refresh of STOP.
+    pub fn poll_time(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
+        if self.mode != Mode::Run {
+            if now >= self.next_stop_refresh_ns {
+                io.refresh_inputs(&mut self.vm.mem);
+                self.next_stop_refresh_ns = now + STOP_REFRESH_NS;
+            }
+            return;
+        }
+        for id in 0..self.tasks.len() {
+            while let Kind::Cycle { interval_ns, next_ns } = self.tasks[id].kind {
+                if next_ns > now {
+                    break;
+                }
+                self.tasks[id].kind = Kind::Cycle { interval_ns, next_ns: next_ns + interval_ns };
+                let why = self.request(id as TaskId, now, sink);
+                if matches!(why, Some(Ignored::Running | Ignored::Pending | Ignored::Disabled)) {
+                    self.tasks[id].stats.overruns += 1;
+                }
+            }
+        }
+        if self.phase != Phase::Idle && now - self.watchdog_start_ns > self.settings.watchdog_ns {
+            let scan = self.scan.count;
+            let limit_ms = self.settings.watchdog_ms;
+            self.fault(ErrorKind::Watchdog { scan, limit_ms }, now, io, sink);
+            return;
+        }
+        if let Some(&top) = self.stack.last() {
+            let task = &mut self.tasks[top as usize];
+            if let Some(max) = task.max_exec_ns {
+                if task.used_ns > max && !task.congested {
+                    task.congested = true;
+                    let kind =
+                        ErrorKind::Congestion { task: top, limit_ms: (max / NS_PER_MS) as u32 };
+                    if self.settings.continue_on_congestion {
+                        sink.event(now, Event::Error(kind));
+                    } else {
+                        self.fault(kind, now, io, sink);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The next time the engine needs [`Engine::poll_time`] or [`Engine::run`] without an
+    /// external event.
+    pub fn next_wakeup(&self, now: u64) -> Option<u64> {
+        if self.mode != Mode::Run {
+            return Some(self.next_stop_refresh_ns.max(now));
+        }
+        let mut next = u64::MAX;
+        for task in &self.tasks {
+            if let Kind::Cycle { next_ns, .. } = task.kind {
+                next = next.min(next_ns);
+            }
+        }
+        match self.phase {
+            Phase::Idle if self.stack.is_empty() => next = next.min(self.next_scan_ns),
+            Phase::Idle => {}
+            Phase::Scan | Phase::AfterEnd => {
+                next = next.min(self.watchdog_start_ns + self.settings.watchdog_ns + 1);
+            }
+        }
+        if let Some(&top) = self.stack.last() {
+            let task = &self.tasks[top as usize];
+            if let (Some(max), false) = (task.max_exec_ns, task.congested) {
+                next = next.min(now + max.saturating_sub(task.used_ns) + 1);
+            }
+        }
+        (next != u64::MAX).then_some(next.max(now))
+    }
+
+    /// Executes at most `max_steps` instructions: starts and preempts tasks, runs scans, END
+    /// processing and I/O refresh.
+    pub fn run<C: Clock>(
+        &mut self,
+        clock: &C,
+        io: &mut impl Io,
+        sink: &mut impl EventSink,
+        max_steps: u64,
+    ) -> Activity {
+        let limit = self.vm.steps().saturating_add(max_steps);
+        loop {
+            if self.mode != Mode::Run {
+                return Activity::Idle;
+            }
+            let now = clock.now_ns(self.vm.steps());
+            self.dispatch(now, sink);
+            let Some(&top) = self.stack.last() else {
+                match self.phase {
+                    Phase::AfterEnd => self.finish_scan(now, io, sink),
+                    Phase::Idle if now >= self.next_scan_ns => self.start_scan(now, io, sink),
+                    _ => return Activity::Idle,
+                }
+                continue;
+            };
+            let steps = self.vm.steps();
+            if steps >= limit {
+                return Activity::Busy;
+            }
+            let task = &mut self.tasks[top as usize];
+            if let State::Active { preempted: true } = task.state {
+                task.state = State::Active { preempted: false };
+                sink.event(now, Event::TaskResume { task: top });
+            }
+            let program_index = task.programs[task.current];
+            let program = &self.programs[program_index as usize];
+            let exit = self.vm.run(program, &mut task.exec, clock, limit - steps);
+            let after = clock.now_ns(self.vm.steps());
+            task.used_ns += after - now;
+            match exit {
+                Exit::Budget => return Activity::Busy,
+                Exit::End => self.program_end(top, after, sink),
+                Exit::System(request) => self.system(top, request, after, io, sink),
+                Exit::OperationError { code, pc } => {
+                    let kind = ErrorKind::Operation { code, task: top, program: program_index, pc };
+                    sink.event(after, Event::Error(kind));
+                }
+            }
+        }
+    }
+
+    /// Starts the best pending task if it may start now.
+    fn dispatch(&mut self, now: u64, sink: &mut impl EventSink) {
+        let top_priority = self.stack.last().map_or(u8::MAX, |&t| self.tasks[t as usize].priority);
+        let mut best: Option<(u8, u64, usize)> = None;
+        for (id, task) in self.tasks.iter().enumerate() {
+            if let State::Pending { at_ns } = task.state {
+                if self.tasks_disabled || task.disabled {
+                    continue;
+                }
+                let key = (task.priority, at_ns, id);
+                if best.is_none_or(|b| key < b) {
+                    best = Some(key);
+                }
+            }
+        }
+        let Some((priority, _, id)) = best else { return };
+        if priority >= top_priority {
+            return;
+        }
+        let id = id as TaskId;
+        if let Some(&top) = self.stack.last() {
+            // A task already preempted (its preemptor just ended) is not preempted twice.
+            let task = &mut self.tasks[top as usize];
+            if task.state == (State::Active { preempted: false }) {
+                task.state = State::Active { preempted: true };
+                sink.event(now, Event::TaskPreempt { task: top, by: id });
+            }
+        }
+        self.begin(id, now, sink);
+    }
+
+    fn begin(&mut self, id: TaskId, now: u64, sink: &mut impl EventSink) {
+        let task = &mut self.tasks[id as usize];
+        task.state = State::Active { preempted: false };
+        task.current = 0;
+        task.exec.restart();
+        task.used_ns = 0;
+        task.congested = false;
+        task.stats.runs += 1;
+        self.stack.push(id);
+        if id != SCAN {
+            sink.event(now, Event::TaskStart { task: id });
+        }
+    }
+
+    /// Registers a request; why it was ignored, if it was.
+    fn request(&mut self, id: TaskId, now: u64, sink: &mut impl EventSink) -> Option<Ignored> {
+        sink.event(now, Event::TaskRequest { task: id });
+        let task = &self.tasks[id as usize];
+        let why = match task.state {
+            _ if self.mode != Mode::Run => Some(Ignored::Stop),
+            _ if !self.init_done => Some(Ignored::Init),
+            State::Active { .. } => Some(Ignored::Running),
+            State::Pending { .. } if self.tasks_disabled || task.disabled => {
+                Some(Ignored::Disabled)
+            }
+            State::Pending { .. } => Some(Ignored::Pending),
+            State::Idle => None,
+        };
+        let task = &mut self.tasks[id as usize];
+        match why {
+            Some(why) => {
+                task.stats.ignored += 1;
+                sink.event(now, Event::TaskIgnored { task: id, why });
+            }
+            None => task.state = State::Pending { at_ns: now },
+        }
+        why
+    }
+
+    /// A program of task `id` reached END: the task's next program, or the task's end.
+    fn program_end(&mut self, id: TaskId, now: u64, sink: &mut impl EventSink) {
+        let task = &mut self.tasks[id as usize];
+        task.current += 1;
+        if task.current < task.programs.len() {
+            task.exec.restart();
+            return;
+        }
+        task.state = State::Idle;
+        self.stack.pop();
+        match id {
+            SCAN => {
+                sink.event(now, Event::ScanEnd { n: self.scan.count });
+                self.sample_device_conditions(now, sink);
+                self.phase = Phase::AfterEnd;
+            }
+            INIT => {
+                sink.event(now, Event::TaskEnd { task: INIT });
+                if self.init_done_requested {
+                    self.init_done = true;
+                    self.sample_device_conditions_quietly();
+                }
+                sink.event(now, Event::ScanEnd { n: self.scan.count });
+                self.phase = Phase::AfterEnd;
+            }
+            _ => {
+                sink.event(now, Event::TaskEnd { task: id });
+                self.check_watches(now, sink);
+            }
+        }
+    }
+
+    fn system(
+        &mut self,
+        id: TaskId,
+        request: SystemRequest,
+        now: u64,
+        io: &mut impl Io,
+        sink: &mut impl EventSink,
+    ) {
+        match request {
+            SystemRequest::DisableTasks(None) => self.tasks_disabled = true,
+            SystemRequest::EnableTasks(None) => self.tasks_disabled = false,
+            SystemRequest::DisableTasks(Some(n)) | SystemRequest::EnableTasks(Some(n)) => {
+                let disable = matches!(request, SystemRequest::DisableTasks(_));
+                for task in self.tasks.iter_mut().filter(|t| t.number == Some(n)) {
+                    task.disabled = disable;
+                }
+            }
+            SystemRequest::ResetWatchdog => self.watchdog_start_ns = now,
+            SystemRequest::InitDone => {
+                if id == INIT {
+                    self.init_done_requested = true;
+                }
+            }
+            SystemRequest::Stop => self.enter_stop(now, io, sink),
+            SystemRequest::RefreshIo => {
+                io.refresh_inputs(&mut self.vm.mem);
+                io.refresh_outputs(&self.vm.mem);
+                self.check_watches(now, sink);
+            }
+        }
+    }
+
+    fn enter_run(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
+        self.vm.reset_for_run(&[]);
+        for task in &mut self.tasks {
+            task.state = State::Idle;
+            task.disabled = false;
+            if let Kind::Cycle { interval_ns, .. } = task.kind {
+                task.kind = Kind::Cycle { interval_ns, next_ns: now + interval_ns };
+            }
+        }
+        self.stack.clear();
+        self.init_done = self.tasks[INIT as usize].programs.is_empty();
+        self.init_done_requested = false;
+        self.tasks_disabled = false;
+        self.run_start_ns = now;
+        self.scan = ScanStats::default();
+        self.mode = Mode::Run;
+        sink.event(now, Event::Mode(Mode::Run));
+        io.refresh_inputs(&mut self.vm.mem);
+        self.sample_device_conditions_quietly();
+        self.check_watches(now, sink);
+        self.phase = Phase::Idle;
+        self.next_scan_ns = now;
+    }
+
+    fn enter_stop(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
+        self.halt();
+        self.clear_outputs(io);
+        self.mode = Mode::Stop;
+        sink.event(now, Event::Mode(Mode::Stop));
+        self.check_watches(now, sink);
+        self.next_stop_refresh_ns = now + STOP_REFRESH_NS;
+    }
+
+    /// A stopping error: execution stops at once, outputs cleared or held, mode ERROR.
+    fn fault(&mut self, kind: ErrorKind, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
+        sink.event(now, Event::Error(kind));
+        self.halt();
+        if self.settings.on_fault == OnFault::Clear {
+            self.clear_outputs(io);
+        }
+        self.mode = Mode::Error;
+        sink.event(now, Event::Mode(Mode::Error));
+        self.check_watches(now, sink);
+        self.next_stop_refresh_ns = now + STOP_REFRESH_NS;
+    }
+
+    /// No task active or pending; DUTY stopped.
+    fn halt(&mut self) {
+        for task in &mut self.tasks {
+            task.state = State::Idle;
+        }
+        self.stack.clear();
+        self.phase = Phase::Idle;
+        self.vm.stop();
+    }
+
+    fn clear_outputs(&mut self, io: &mut impl Io) {
+        self.vm.mem.io_image_mut().fill(0);
+        io.refresh_outputs(&self.vm.mem);
+        io.refresh_inputs(&mut self.vm.mem);
+    }
+
+    fn start_scan(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
+        self.scan.count += 1;
+        self.scan_start_ns = now;
+        self.watchdog_start_ns = now;
+        self.vm.begin_scan(self.scan.count == 1, now - self.run_start_ns);
+        io.refresh_inputs(&mut self.vm.mem);
+        sink.event(now, Event::ScanStart { n: self.scan.count });
+        self.phase = Phase::Scan;
+        self.begin(if self.init_done { SCAN } else { INIT }, now, sink);
+    }
+
+    /// The rest of END processing once no task is left to run: DUTY, scan time, outputs.
+    fn finish_scan(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
+        self.vm.end_scan();
+        let took = now - self.scan_start_ns;
+        let scan = &mut self.scan;
+        scan.last_ns = took;
+        scan.min_ns = if scan.count == 1 { took } else { scan.min_ns.min(took) };
+        scan.max_ns = scan.max_ns.max(took);
+        let tenth_ms = |ns: u64| (ns / 100_000).min(u64::from(u16::MAX)) as u16;
+        self.vm.mem.set_scan_times(tenth_ms(took), tenth_ms(scan.min_ns), tenth_ms(scan.max_ns));
+        io.refresh_outputs(&self.vm.mem);
+        self.check_watches(now, sink);
+        self.phase = Phase::Idle;
+        let period = self.settings.scan_period_ns;
+        self.next_scan_ns = if period == 0 { now } else { (self.scan_start_ns + period).max(now) };
+    }
+
+    fn condition_value(&self, condition: Condition) -> i32 {
+        match condition {
+            Condition::Bit { bit, .. } => i32::from(self.vm.mem.bit(bit)),
+            Condition::Word { word, .. } => i32::from(self.vm.mem.word(word) as i16),
+        }
+    }
+
+    /// Takes the current samples as the "previous END" ones, without requesting anything.
+    fn sample_device_conditions_quietly(&mut self) {
+        for id in 0..self.tasks.len() {
+            if let Kind::Device { condition, .. } = self.tasks[id].kind {
+                let previous = self.condition_value(condition);
+                self.tasks[id].kind = Kind::Device { condition, previous };
+            }
+        }
+    }
+
+    /// END: samples every device condition and requests the tasks whose condition holds.
+    fn sample_device_conditions(&mut self, now: u64, sink: &mut impl EventSink) {
+        for id in 0..self.tasks.len() {
+            let Kind::Device { condition, previous } = self.tasks[id].kind else { continue };
+            let value = self.condition_value(condition);
+            self.tasks[id].kind = Kind::Device { condition, previous: value };
+            let holds = match condition {
+                Condition::Bit { when, .. } | Condition::Word { when, .. } => match when {
+                    DeviceCondition::Rising => previous == 0 && value != 0,
+                    DeviceCondition::Falling => previous != 0 && value == 0,
+                    DeviceCondition::Transition => previous != value,
+                    DeviceCondition::On => value != 0,
+                    DeviceCondition::Off => value == 0,
+                    DeviceCondition::Greater(limit) => value > i32::from(limit),
+                    DeviceCondition::GreaterEq(limit) => value >= i32::from(limit),
+                    DeviceCondition::Less(limit) => value < i32::from(limit),
+                    DeviceCondition::LessEq(limit) => value <= i32::from(limit),
+                },
+            };
+            if holds {
+                self.request(id as TaskId, now, sink);
+            }
+        }
+    }
+
+    fn check_watches(&mut self, now: u64, sink: &mut impl EventSink) {
+        for (index, watch) in self.watches.iter_mut().enumerate() {
+            let value = self.vm.mem.read(&watch.address);
+            if value != watch.last {
+                watch.last = value;
+                sink.event(now, Event::Set { watch: index as u16, value });
+            }
+        }
+    }
+}
+
+fn is_bit_condition(condition: &DeviceCondition) -> bool {
+    matches!(
+        condition,
+        DeviceCondition::Rising
+            | DeviceCondition::Falling
+            | DeviceCondition::Transition
+            | DeviceCondition::On
+            | DeviceCondition::Off
+    )
+}

@@ -1,0 +1,139 @@
+//! `plcd sim`: the task engine in virtual time, deterministically, as fast as the CPU allows.
+//!
+//! This driver only feeds the engine: stimulus changes at their times, and time itself. Every
+//! executed instruction costs `step_ns` of virtual time; END processing and I/O refresh cost
+//! none; while nothing runs, time jumps to the next event. The engine decides everything else,
+//! exactly as it does under the real-time driver.
+
+pub mod duration;
+pub mod stimulus;
+pub mod timeline;
+pub mod trace;
+
+use crate::device::{Address, Area};
+use crate::engine::event::{EventSink, Mode};
+use crate::engine::Engine;
+use crate::io::sim::SimIo;
+use crate::lang::ops::Op;
+use crate::project::Project;
+use crate::vm::{Clock, StepClock};
+use stimulus::{Stimulus, Target};
+
+/// How long and how fine.
+#[derive(Debug, Clone, Copy)]
+pub struct SimOptions {
+    /// Virtual time to run, from RUN start.
+    pub duration_ns: u64,
+    /// Virtual time one executed instruction costs.
+    pub step_ns: u64,
+}
+
+/// The default watch list: every P bit a program writes (the outputs), in address order.
+pub fn output_bits(project: &Project) -> Vec<Address> {
+    let mut words = [0u16; crate::device::layout::P_WORDS as usize];
+    let p_end = crate::device::layout::P_WORDS as u16;
+    for program in &project.programs {
+        for op in program.code.iter() {
+            let (bit, word) = match *op {
+                Op::Out(b) | Op::OutNot(b) | Op::Set(b) | Op::Rst(b) => (Some(b), None),
+                Op::OutPulse { bit, .. } | Op::FlipFlop { bit, .. } => (Some(bit), None),
+                Op::Mov { d, .. } | Op::Arith { d, .. } | Op::Step { d, .. } => (None, Some(d)),
+                _ => (None, None),
+            };
+            if let Some(b) = bit.filter(|b| b.word < p_end) {
+                words[b.word as usize] |= b.mask;
+            }
+            if let Some(w) = word.filter(|w| w.0 < p_end) {
+                words[w.0 as usize] = 0xFFFF;
+            }
+        }
+    }
+    for line in &project.config.io.outputs {
+        if let Some(bit) = line.device.bit {
+            words[line.device.number as usize] |= 1 << bit;
+        }
+    }
+    let mut bits = Vec::new();
+    for (word, mask) in words.iter().enumerate() {
+        for bit in 0..16u8 {
+            if mask & 1 << bit != 0 {
+                bits.push(Address { area: Area::P, number: word as u32, bit: Some(bit) });
+            }
+        }
+    }
+    bits
+}
+
+/// The simulated field: inputs are the io-task contacts, the configured `[[io.input]]`s and
+/// every P device the stimulus writes.
+pub fn sim_io(project: &Project, stimuli: &[Stimulus]) -> SimIo {
+    let mut io = SimIo::default();
+    for task in &project.config.tasks {
+        if let crate::config::TaskKind::Io { contact, .. } = &task.kind {
+            io.add_input(contact);
+        }
+    }
+    for line in &project.config.io.inputs {
+        io.add_input(&line.device);
+    }
+    for s in stimuli {
+        if let Target::Device(address) = &s.target {
+            io.add_input(address);
+        }
+    }
+    io
+}
+
+/// Runs `project` from RUN at t = 0 for `options.duration_ns` of virtual time. Returns the
+/// engine as the run left it, for its figures and device memory.
+pub fn simulate(
+    project: &Project,
+    stimuli: &[Stimulus],
+    watch: &[Address],
+    options: SimOptions,
+    sink: &mut impl EventSink,
+) -> Engine {
+    let mut engine = Engine::new(project, watch);
+    let mut io = sim_io(project, stimuli);
+    let step_ns = options.step_ns.max(1);
+    let mut clock = StepClock { origin_ns: 0, origin_steps: engine.steps(), step_ns };
+    engine.set_mode(Mode::Run, 0, &mut io, sink);
+    let mut next = 0;
+    loop {
+        let now = clock.now_ns(engine.steps());
+        while let Some(s) = stimuli.get(next).filter(|s| s.t_ns <= now) {
+            apply(&mut engine, &mut io, s, now, sink);
+            next += 1;
+        }
+        engine.poll_time(now, &mut io, sink);
+        if now >= options.duration_ns {
+            break;
+        }
+        let next_stimulus = stimuli.get(next).map_or(u64::MAX, |s| s.t_ns);
+        let until = next_stimulus
+            .min(options.duration_ns)
+            .min(engine.next_wakeup(now).unwrap_or(u64::MAX))
+            .max(now + 1);
+        let steps = (until - now).div_ceil(step_ns).max(1);
+        if engine.run(&clock, &mut io, sink, steps) == crate::engine::Activity::Idle {
+            let after = clock.now_ns(engine.steps());
+            if after < until {
+                clock.rebase(until, engine.steps());
+            }
+        }
+    }
+    engine
+}
+
+fn apply(engine: &mut Engine, io: &mut SimIo, s: &Stimulus, now: u64, sink: &mut impl EventSink) {
+    match &s.target {
+        Target::Mode(mode) => engine.set_mode(*mode, now, io, sink),
+        Target::Device(address) if SimIo::is_io(address) => {
+            let edges: Vec<_> = io.set_input(address, s.value).collect();
+            for edge in edges {
+                engine.input_edge(edge.contact, edge.rising, now, sink);
+            }
+        }
+        Target::Device(address) => engine.write(address, s.value),
+    }
+}

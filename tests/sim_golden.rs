@@ -1,0 +1,55 @@
+//! Golden traces: each directory under tests/sim holds a project (`plcd.toml` and programs),
+//! the arguments of its run (`args`, relative to the directory), usually an inputs CSV, and
+//! `expected.trace`, written by hand from the manuals (docs/EXECUTION.md says how). `plcd sim`
+//! must produce that trace byte for byte.
+
+use std::fs;
+use std::path::Path;
+use std::process::Command;
+
+/// `plcd sim` in `dir` with the scenario's `args`, or with `args` given here instead.
+fn sim(dir: &Path, args: Option<&[&str]>) -> (Option<i32>, Vec<u8>, String) {
+    let from_file = fs::read_to_string(dir.join("args")).unwrap();
+    let args: Vec<&str> =
+        args.map_or_else(|| from_file.split_whitespace().collect(), <[_]>::to_vec);
+    let output = Command::new(env!("CARGO_BIN_EXE_plcd"))
+        .current_dir(dir)
+        .args(["sim", "--config", "plcd.toml", "--trace", "-"])
+        .args(args)
+        .output()
+        .unwrap();
+    (output.status.code(), output.stdout, String::from_utf8_lossy(&output.stderr).into_owned())
+}
+
+#[test]
+fn golden_traces() {
+    let mut failures = Vec::new();
+    let mut count = 0;
+    let mut dirs: Vec<_> = fs::read_dir("tests/sim").unwrap().map(|e| e.unwrap().path()).collect();
+    dirs.sort();
+    for dir in dirs.iter().filter(|d| d.join("expected.trace").exists()) {
+        count += 1;
+        let expected = fs::read_to_string(dir.join("expected.trace")).unwrap();
+        let (code, stdout, stderr) = sim(dir, None);
+        let actual = String::from_utf8_lossy(&stdout);
+        if code != Some(0) || actual != expected {
+            failures.push(format!(
+                "{} (exit {code:?}, stderr: {stderr})\n--- expected\n{expected}--- actual\n{actual}",
+                dir.display()
+            ));
+        }
+    }
+    assert!(count >= 1, "no golden traces found");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn identical_inputs_give_identical_bytes() {
+    let dir = Path::new("tests/sim/xgb_example");
+    let args: &[&str] = &["--for", "1s", "--inputs", "inputs.csv"];
+    let first = sim(dir, Some(args));
+    let second = sim(dir, Some(args));
+    assert_eq!(first.0, Some(0));
+    assert!(first.1.len() > 1000);
+    assert!(first.1 == second.1, "two runs differ");
+}
