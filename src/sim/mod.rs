@@ -109,17 +109,18 @@ pub fn simulate(
         if now >= options.duration_ns {
             break;
         }
-        let next_stimulus = stimuli.get(next).map_or(u64::MAX, |s| s.t_ns);
-        let until = next_stimulus
-            .min(options.duration_ns)
-            .min(engine.next_wakeup(now).unwrap_or(u64::MAX))
-            .max(now + 1);
+        let next_stimulus = stimuli.get(next).map_or(u64::MAX, |s| s.t_ns).min(options.duration_ns);
+        // The next moment something happens: a stimulus, the end, or what the engine awaits.
+        let next_event = |engine: &Engine, now: u64| {
+            next_stimulus.min(engine.next_wakeup(now).unwrap_or(u64::MAX)).max(now + 1)
+        };
+        let until = next_event(&engine, now);
         let steps = (until - now).div_ceil(step_ns).max(1);
         if engine.run(&clock, &mut io, sink, steps) == crate::engine::Activity::Idle {
+            // Idle now, perhaps since an instant ago: skip to what the engine awaits from here.
             let after = clock.now_ns(engine.steps());
-            if after < until {
-                clock.rebase(until, engine.steps());
-            }
+            let until = next_event(&engine, after);
+            clock.rebase(until, engine.steps());
         }
     }
     engine
