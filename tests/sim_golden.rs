@@ -53,3 +53,52 @@ fn identical_inputs_give_identical_bytes() {
     assert!(first.1.len() > 1000);
     assert!(first.1 == second.1, "two runs differ");
 }
+
+fn plcd(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_plcd")).args(args).output().unwrap()
+}
+
+#[test]
+fn the_readme_run_command_draws_the_example_project() {
+    let out = plcd(&[
+        "sim",
+        "--config",
+        "etc/plcd.toml",
+        "--for",
+        "8s",
+        "--inputs",
+        "etc/stimulus.csv",
+        "--timeline",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let chart = String::from_utf8_lossy(&out.stdout);
+    for task in ["scan", "init", "blink_250ms", "count_p0000", "batch_full"] {
+        let row = chart.lines().find(|l| l.starts_with(task)).unwrap_or_else(|| panic!("{chart}"));
+        assert!(row.contains('#'), "{task} never ran:\n{chart}");
+    }
+}
+
+#[test]
+fn bad_inputs_exit_1_and_bad_usage_exit_2() {
+    let dir = std::env::temp_dir().join(format!("plcd-sim-{}", std::process::id()));
+    fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("bad.csv");
+    fs::write(&csv, "1ms, P0000, 1\nsoon, P0000, 0\n").unwrap();
+    let out = plcd(&[
+        "sim",
+        "--config",
+        "etc/plcd.toml",
+        "--for",
+        "1s",
+        "--inputs",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("bad.csv:2:1: error"), "{stderr}");
+    let out = plcd(&["sim", "--config", "etc/plcd.toml", "--for", "10 parsecs"]);
+    assert_eq!(out.status.code(), Some(2));
+    let out = plcd(&["sim", "--config", "tests/golden/project/plcd.toml", "--for", "1s"]);
+    assert_eq!(out.status.code(), Some(1));
+    fs::remove_dir_all(&dir).unwrap();
+}
