@@ -172,6 +172,9 @@ pub struct Engine {
     next_stop_refresh_ns: u64,
     scan: ScanStats,
     watches: Vec<Watch>,
+    /// A task with a congestion limit started: its deadline may come before the one the
+    /// driver planned for, so `run` hands back to let the driver plan again.
+    replan: bool,
 }
 
 impl Engine {
@@ -246,6 +249,7 @@ impl Engine {
             next_stop_refresh_ns: 0,
             scan: ScanStats::default(),
             watches: watch.iter().map(|a| Watch { address: *a, last: 0 }).collect(),
+            replan: false,
         }
     }
 
@@ -401,6 +405,9 @@ impl Engine {
             }
             let now = clock.now_ns(self.vm.steps());
             self.dispatch(now, sink);
+            if std::mem::take(&mut self.replan) {
+                return Activity::Busy;
+            }
             let Some(&top) = self.stack.last() else {
                 match self.phase {
                     Phase::AfterEnd => self.finish_scan(now, io, sink),
@@ -474,6 +481,7 @@ impl Engine {
         task.used_ns = 0;
         task.congested = false;
         task.stats.runs += 1;
+        self.replan |= task.max_exec_ns.is_some();
         self.stack.push(id);
         if id != SCAN {
             sink.event(now, Event::TaskStart { task: id });
