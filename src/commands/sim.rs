@@ -12,16 +12,32 @@ use crate::engine::event::{Event, EventSink, Recorder};
 use crate::project;
 use crate::sim::{self, duration, stimulus, timeline, trace::TraceWriter, SimOptions};
 
-/// The command's arguments, as parsed by `main`.
-#[derive(Debug, Clone)]
+/// The command's arguments (CONTRACT §1, plus `--timeline`).
+#[derive(Debug, Clone, clap::Args)]
 pub struct SimArgs {
+    /// The project's TOML config.
+    #[arg(long)]
     pub config: PathBuf,
+    /// Virtual time to run, e.g. `500ms`, `1.5s`.
+    #[arg(long = "for", value_name = "DURATION")]
     pub duration: String,
+    /// Input changes: CSV lines `time, device, value` (CONTRACT §4).
+    #[arg(long, value_name = "CSV")]
     pub inputs: Option<PathBuf>,
+    /// Write the trace (JSON Lines) to FILE, or `-` for standard output.
+    #[arg(long, value_name = "FILE|-")]
     pub trace: Option<String>,
+    /// Devices whose changes are traced, comma separated (default: every output P bit).
+    #[arg(long, value_name = "DEVICES")]
     pub watch: Option<String>,
+    /// Virtual time an executed instruction costs (default: `[sim] step_ns`).
+    #[arg(long, value_name = "N")]
     pub step_ns: Option<u64>,
+    /// Print a text Gantt chart of the run, one row per task.
+    #[arg(long)]
     pub timeline: bool,
+    /// Columns of the timeline.
+    #[arg(long, default_value_t = 100, value_name = "COLUMNS")]
     pub timeline_width: usize,
 }
 
