@@ -18,23 +18,6 @@ pub struct Project {
     pub programs: Vec<Program>,
 }
 
-impl Project {
-    /// Edge memory slots all programs need together.
-    pub fn edge_slots(&self) -> u32 {
-        self.programs.iter().map(|p| p.edge_base + p.edge_slots).max().unwrap_or(0)
-    }
-
-    /// The programs of a task, in file order.
-    pub fn programs_of<'a>(&'a self, task: &'a TaskRef) -> impl Iterator<Item = &'a Program> + 'a {
-        self.config
-            .programs
-            .iter()
-            .zip(&self.programs)
-            .filter(move |(c, _)| &c.task == task)
-            .map(|(_, p)| p)
-    }
-}
-
 /// Loads the config at `path` and every program it names. Every diagnostic of the config and
 /// of all programs is returned at once.
 pub fn load(path: &Path) -> Result<Project, Diagnostics> {

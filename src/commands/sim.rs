@@ -99,7 +99,7 @@ pub fn run(args: &SimArgs, err: &mut impl Write) -> ExitCode {
             }
         },
     };
-    let names = project_task_names(&project);
+    let names = crate::engine::task_names(&project.config);
     let watch_names = watch.iter().map(|a| a.to_string()).collect();
     let program_lines =
         project.programs.iter().map(|p| (p.name.clone(), p.lines.to_vec())).collect();
@@ -136,12 +136,6 @@ pub fn run(args: &SimArgs, err: &mut impl Write) -> ExitCode {
         engine.mode().as_str()
     );
     ExitCode::SUCCESS
-}
-
-fn project_task_names(project: &project::Project) -> Vec<String> {
-    let mut names = vec!["scan".to_string(), "init".to_string()];
-    names.extend(project.config.tasks.iter().map(|t| t.name.clone()));
-    names
 }
 
 fn parse_watch(list: &str) -> Result<Vec<Address>, String> {

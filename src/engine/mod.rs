@@ -19,7 +19,7 @@
 
 pub mod event;
 
-use crate::config::{DeviceCondition, Edge, OnFault, TaskKind as ConfigTaskKind, TaskRef};
+use crate::config::{Config, DeviceCondition, Edge, OnFault, TaskKind as ConfigTaskKind, TaskRef};
 use crate::device::{Address, BitRef, WordRef};
 use crate::io::Io;
 use crate::lang::ops::SystemRequest;
@@ -44,9 +44,9 @@ pub enum Activity {
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Condition {
-    Bit { bit: BitRef, when: DeviceCondition },
-    Word { word: WordRef, when: DeviceCondition },
+enum Sample {
+    Bit(BitRef),
+    Word(WordRef),
 }
 
 #[derive(Debug, Clone)]
@@ -55,13 +55,13 @@ enum Kind {
     Init,
     Cycle { interval_ns: u64, next_ns: u64 },
     Io { contact: u8, edge: Edge },
-    Device { condition: Condition, previous: i32 },
+    Device { sample: Sample, when: DeviceCondition, previous: i32 },
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum State {
     Idle,
-    /// Requested at `at_ns`; `order` is the config order for ties.
+    /// Requested at `at_ns` (ties of the same instant go by task id, which is config order).
     Pending {
         at_ns: u64,
     },
@@ -192,9 +192,16 @@ impl Engine {
                 .map(|(i, _)| i as u16)
                 .collect()
         };
+        let names = task_names(config);
         let mut tasks = vec![
-            Task::new("scan", Kind::Scan, SCAN_PRIORITY, None, programs_of(&TaskRef::Scan)),
-            Task::new("init", Kind::Init, 1, None, programs_of(&TaskRef::Init)),
+            Task::new(
+                &names[SCAN as usize],
+                Kind::Scan,
+                SCAN_PRIORITY,
+                None,
+                programs_of(&TaskRef::Scan),
+            ),
+            Task::new(&names[INIT as usize], Kind::Init, 1, None, programs_of(&TaskRef::Init)),
         ];
         for task in &config.tasks {
             let kind = match &task.kind {
@@ -205,16 +212,11 @@ impl Engine {
                     Kind::Io { contact: contact.bit.unwrap_or(0), edge: *edge }
                 }
                 ConfigTaskKind::Device { device, condition } => {
-                    let condition = match device.as_bit() {
-                        Ok(bit) if is_bit_condition(condition) => {
-                            Condition::Bit { bit, when: *condition }
-                        }
-                        _ => Condition::Word {
-                            word: device.as_word().expect("validated by the config"),
-                            when: *condition,
-                        },
+                    let sample = match device.as_bit() {
+                        Ok(bit) if is_bit_condition(condition) => Sample::Bit(bit),
+                        _ => Sample::Word(device.as_word().expect("validated by the config")),
                     };
-                    Kind::Device { condition, previous: 0 }
+                    Kind::Device { sample, when: *condition, previous: 0 }
                 }
             };
             let name = TaskRef::Named(task.name.clone());
@@ -667,19 +669,19 @@ impl Engine {
         self.next_scan_ns = if period == 0 { now } else { (self.scan_start_ns + period).max(now) };
     }
 
-    fn condition_value(&self, condition: Condition) -> i32 {
-        match condition {
-            Condition::Bit { bit, .. } => i32::from(self.vm.mem.bit(bit)),
-            Condition::Word { word, .. } => i32::from(self.vm.mem.word(word) as i16),
+    fn sample_value(&self, sample: Sample) -> i32 {
+        match sample {
+            Sample::Bit(bit) => i32::from(self.vm.mem.bit(bit)),
+            Sample::Word(word) => i32::from(self.vm.mem.word(word) as i16),
         }
     }
 
     /// Takes the current samples as the "previous END" ones, without requesting anything.
     fn sample_device_conditions_quietly(&mut self) {
         for id in 0..self.tasks.len() {
-            if let Kind::Device { condition, .. } = self.tasks[id].kind {
-                let previous = self.condition_value(condition);
-                self.tasks[id].kind = Kind::Device { condition, previous };
+            if let Kind::Device { sample, when, .. } = self.tasks[id].kind {
+                let previous = self.sample_value(sample);
+                self.tasks[id].kind = Kind::Device { sample, when, previous };
             }
         }
     }
@@ -687,21 +689,19 @@ impl Engine {
     /// END: samples every device condition and requests the tasks whose condition holds.
     fn sample_device_conditions(&mut self, now: u64, sink: &mut impl EventSink) {
         for id in 0..self.tasks.len() {
-            let Kind::Device { condition, previous } = self.tasks[id].kind else { continue };
-            let value = self.condition_value(condition);
-            self.tasks[id].kind = Kind::Device { condition, previous: value };
-            let holds = match condition {
-                Condition::Bit { when, .. } | Condition::Word { when, .. } => match when {
-                    DeviceCondition::Rising => previous == 0 && value != 0,
-                    DeviceCondition::Falling => previous != 0 && value == 0,
-                    DeviceCondition::Transition => previous != value,
-                    DeviceCondition::On => value != 0,
-                    DeviceCondition::Off => value == 0,
-                    DeviceCondition::Greater(limit) => value > i32::from(limit),
-                    DeviceCondition::GreaterEq(limit) => value >= i32::from(limit),
-                    DeviceCondition::Less(limit) => value < i32::from(limit),
-                    DeviceCondition::LessEq(limit) => value <= i32::from(limit),
-                },
+            let Kind::Device { sample, when, previous } = self.tasks[id].kind else { continue };
+            let value = self.sample_value(sample);
+            self.tasks[id].kind = Kind::Device { sample, when, previous: value };
+            let holds = match when {
+                DeviceCondition::Rising => previous == 0 && value != 0,
+                DeviceCondition::Falling => previous != 0 && value == 0,
+                DeviceCondition::Transition => previous != value,
+                DeviceCondition::On => value != 0,
+                DeviceCondition::Off => value == 0,
+                DeviceCondition::Greater(limit) => value > i32::from(limit),
+                DeviceCondition::GreaterEq(limit) => value >= i32::from(limit),
+                DeviceCondition::Less(limit) => value < i32::from(limit),
+                DeviceCondition::LessEq(limit) => value <= i32::from(limit),
             };
             if holds {
                 self.request(id as TaskId, now, sink);
@@ -718,6 +718,14 @@ impl Engine {
             }
         }
     }
+}
+
+/// Task names by [`TaskId`]: the scan program, the init task, then the `[[task]]`s in config
+/// order (also the order of ties between requests of the same instant).
+pub fn task_names(config: &Config) -> Vec<String> {
+    let mut names = vec![TaskRef::Scan.name().to_string(), TaskRef::Init.name().to_string()];
+    names.extend(config.tasks.iter().map(|t| t.name.clone()));
+    names
 }
 
 fn is_bit_condition(condition: &DeviceCondition) -> bool {
