@@ -1,7 +1,12 @@
 //! I/O backends behind one trait. The engine calls [`Io::refresh_inputs`] at the start of each
 //! scan (and for `IORF`), [`Io::refresh_outputs`] after END processing (and for `IORF`, STOP and
 //! stopping errors); a backend decides which P bits are its inputs.
+//!
+//! Edges that start I/O tasks do not go through this trait: a backend reports them as
+//! [`InputEdge`]s from its own event source (the gpiocdev line request's edge events, the sim
+//! backend's stimulus player), and the real-time driver hands them to the engine.
 
+pub mod gpio;
 pub mod sim;
 
 use crate::device::Memory;
@@ -12,4 +17,15 @@ pub trait Io {
     fn refresh_inputs(&mut self, mem: &mut Memory);
     /// Publishes the output bits of the P area.
     fn refresh_outputs(&mut self, mem: &Memory);
+}
+
+/// An edge on one of the contacts P0000–P0007 that I/O tasks start on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct InputEdge {
+    /// 0..=7: P0000..=P0007.
+    pub contact: u8,
+    /// true: OFF → ON (after `active_low` is applied).
+    pub rising: bool,
+    /// When the edge happened, CLOCK_MONOTONIC ns (the kernel's timestamp on gpiocdev).
+    pub stamp_ns: u64,
 }

@@ -1,0 +1,1 @@
+//! The gpiocdev backend (Linux GPIO character device). Being written.
