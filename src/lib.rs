@@ -19,4 +19,5 @@ pub mod io;
 pub mod lang;
 pub mod project;
 pub mod sim;
+pub mod stats;
 pub mod vm;

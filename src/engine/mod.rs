@@ -25,6 +25,7 @@ use crate::io::Io;
 use crate::lang::ops::SystemRequest;
 use crate::lang::Program;
 use crate::project::Project;
+use crate::stats::Histogram;
 use crate::vm::{Clock, ExecState, Exit, Vm};
 use event::{ErrorKind, Event, EventSink, Ignored, Mode, TaskId, INIT, SCAN};
 
@@ -72,12 +73,18 @@ enum State {
 }
 
 /// Figures kept per task, without allocation.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct TaskStats {
     pub runs: u64,
     pub ignored: u64,
     /// Cycle deadlines that found the task running or waiting.
     pub overruns: u64,
+    /// From the start condition (cycle deadline, the edge's timestamp, the END that sampled a
+    /// device condition) to the task's first instruction.
+    pub start_latency: Histogram,
+    /// The task's own execution time per run, from first instruction to END, without the time
+    /// higher-priority tasks took while it was preempted.
+    pub exec_time: Histogram,
 }
 
 #[derive(Debug, Clone)]
@@ -90,6 +97,8 @@ struct Task {
     current: usize,
     exec: ExecState,
     state: State,
+    /// When the start condition of the pending request occurred.
+    occurred_ns: u64,
     disabled: bool,
     max_exec_ns: Option<u64>,
     used_ns: u64,
@@ -108,6 +117,7 @@ impl Task {
             current: 0,
             exec: ExecState::new(),
             state: State::Idle,
+            occurred_ns: 0,
             disabled: false,
             max_exec_ns: None,
             used_ns: 0,
@@ -133,13 +143,15 @@ struct Watch {
     last: i32,
 }
 
-/// Scan time figures in ns.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+/// Scan time figures in ns (a scan: from its start to the end of END processing, tasks that
+/// ran meanwhile included).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct ScanStats {
     pub count: u64,
     pub last_ns: u64,
     pub min_ns: u64,
     pub max_ns: u64,
+    pub time: Histogram,
 }
 
 /// The engine's settings, from `[plc]`.
@@ -278,13 +290,38 @@ impl Engine {
         self.vm.steps()
     }
 
-    pub fn scan_stats(&self) -> ScanStats {
-        self.scan
+    pub fn scan_stats(&self) -> &ScanStats {
+        &self.scan
     }
 
     /// Figures of a task, by name.
-    pub fn task_stats(&self, name: &str) -> Option<TaskStats> {
-        self.tasks.iter().find(|t| t.name == name).map(|t| t.stats)
+    pub fn task_stats(&self, name: &str) -> Option<&TaskStats> {
+        self.tasks.iter().find(|t| t.name == name).map(|t| &t.stats)
+    }
+
+    /// Figures of every task by [`TaskId`] (the order of [`Engine::task_names`]).
+    pub fn all_task_stats(&self) -> impl Iterator<Item = &TaskStats> {
+        self.tasks.iter().map(|t| &t.stats)
+    }
+
+    /// When the scan watchdog expires, if it runs (RUN, a scan under way): the time after
+    /// which [`Engine::poll_time`] takes the watchdog error.
+    pub fn watchdog_deadline(&self) -> Option<u64> {
+        (self.mode == Mode::Run && self.phase != Phase::Idle)
+            .then_some(self.watchdog_start_ns + self.settings.watchdog_ns)
+    }
+
+    /// The deadlines of the cycle tasks in RUN: `(task number, next deadline, interval)`, all
+    /// in ns. A driver arms its timers with these; the engine itself decides at
+    /// [`Engine::poll_time`] which deadlines have passed.
+    pub fn cycle_deadlines(&self) -> impl Iterator<Item = (u8, u64, u64)> + '_ {
+        let running = self.mode == Mode::Run;
+        self.tasks.iter().filter_map(move |t| match (t.kind.clone(), t.number) {
+            (Kind::Cycle { interval_ns, next_ns }, Some(n)) if running => {
+                Some((n, next_ns, interval_ns))
+            }
+            _ => None,
+        })
     }
 
     /// A mode command (the `MODE` pseudo-device, later the control socket). RUN is refused in
@@ -302,8 +339,16 @@ impl Engine {
         self.vm.mem.write(address, value);
     }
 
-    /// An edge on contact P0000+`contact`: requests the I/O tasks waiting for it.
-    pub fn input_edge(&mut self, contact: u8, rising: bool, now: u64, sink: &mut impl EventSink) {
+    /// An edge on contact P0000+`contact` that happened at `stamp_ns` (<= `now`): requests the
+    /// I/O tasks waiting for it.
+    pub fn input_edge(
+        &mut self,
+        contact: u8,
+        rising: bool,
+        stamp_ns: u64,
+        now: u64,
+        sink: &mut impl EventSink,
+    ) {
         for id in 0..self.tasks.len() {
             if let Kind::Io { contact: c, edge } = self.tasks[id].kind {
                 let wanted = match edge {
@@ -312,7 +357,7 @@ impl Engine {
                     Edge::Both => true,
                 };
                 if c == contact && wanted {
-                    self.request(id as TaskId, now, sink);
+                    self.request(id as TaskId, stamp_ns.min(now), now, sink);
                 }
             }
         }
@@ -334,7 +379,7 @@ impl Engine {
                     break;
                 }
                 self.tasks[id].kind = Kind::Cycle { interval_ns, next_ns: next_ns + interval_ns };
-                let why = self.request(id as TaskId, now, sink);
+                let why = self.request(id as TaskId, next_ns, now, sink);
                 if matches!(why, Some(Ignored::Running | Ignored::Pending | Ignored::Disabled)) {
                     self.tasks[id].stats.overruns += 1;
                 }
@@ -483,6 +528,9 @@ impl Engine {
         task.used_ns = 0;
         task.congested = false;
         task.stats.runs += 1;
+        if id != SCAN && id != INIT {
+            task.stats.start_latency.record(now.saturating_sub(task.occurred_ns));
+        }
         self.replan |= task.max_exec_ns.is_some();
         self.stack.push(id);
         if id != SCAN {
@@ -490,8 +538,15 @@ impl Engine {
         }
     }
 
-    /// Registers a request; why it was ignored, if it was.
-    fn request(&mut self, id: TaskId, now: u64, sink: &mut impl EventSink) -> Option<Ignored> {
+    /// Registers a request whose start condition occurred at `occurred_ns`; why it was ignored,
+    /// if it was.
+    fn request(
+        &mut self,
+        id: TaskId,
+        occurred_ns: u64,
+        now: u64,
+        sink: &mut impl EventSink,
+    ) -> Option<Ignored> {
         sink.event(now, Event::TaskRequest { task: id });
         let task = &self.tasks[id as usize];
         let why = match task.state {
@@ -510,7 +565,10 @@ impl Engine {
                 task.stats.ignored += 1;
                 sink.event(now, Event::TaskIgnored { task: id, why });
             }
-            None => task.state = State::Pending { at_ns: now },
+            None => {
+                task.state = State::Pending { at_ns: now };
+                task.occurred_ns = occurred_ns;
+            }
         }
         why
     }
@@ -541,6 +599,7 @@ impl Engine {
                 self.phase = Phase::AfterEnd;
             }
             _ => {
+                task.stats.exec_time.record(task.used_ns);
                 sink.event(now, Event::TaskEnd { task: id });
                 self.check_watches(now, sink);
             }
@@ -660,6 +719,7 @@ impl Engine {
         scan.last_ns = took;
         scan.min_ns = if scan.count == 1 { took } else { scan.min_ns.min(took) };
         scan.max_ns = scan.max_ns.max(took);
+        scan.time.record(took);
         let tenth_ms = |ns: u64| (ns / 100_000).min(u64::from(u16::MAX)) as u16;
         self.vm.mem.set_scan_times(tenth_ms(took), tenth_ms(scan.min_ns), tenth_ms(scan.max_ns));
         io.refresh_outputs(&self.vm.mem);
@@ -704,7 +764,7 @@ impl Engine {
                 DeviceCondition::LessEq(limit) => value <= i32::from(limit),
             };
             if holds {
-                self.request(id as TaskId, now, sink);
+                self.request(id as TaskId, now, now, sink);
             }
         }
     }

@@ -132,7 +132,7 @@ fn apply(engine: &mut Engine, io: &mut SimIo, s: &Stimulus, now: u64, sink: &mut
         Target::Device(address) if SimIo::is_io(address) => {
             let edges: Vec<_> = io.set_input(address, s.value).collect();
             for edge in edges {
-                engine.input_edge(edge.contact, edge.rising, now, sink);
+                engine.input_edge(edge.contact, edge.rising, now, now, sink);
             }
         }
         Target::Device(address) => engine.write(address, s.value),
