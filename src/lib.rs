@@ -18,6 +18,7 @@ pub mod engine;
 pub mod io;
 pub mod lang;
 pub mod project;
+pub mod rt;
 pub mod sim;
 pub mod stats;
 pub mod vm;

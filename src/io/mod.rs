@@ -6,6 +6,7 @@
 //! [`InputEdge`]s from its own event source (the gpiocdev line request's edge events, the sim
 //! backend's stimulus player), and the real-time driver hands them to the engine.
 
+pub mod gate;
 pub mod gpio;
 pub mod sim;
 

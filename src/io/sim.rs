@@ -1,26 +1,38 @@
-//! The in-process simulated backend: input states set by a stimulus (the inputs CSV, a test),
-//! outputs kept as last published. Which P bits are inputs is given by a mask, so that input
-//! refresh never overwrites the program's outputs.
+//! The in-process simulated backend: input states set by a stimulus (the inputs CSV, a test,
+//! later the control socket), outputs kept as last published. Which P bits are inputs is given
+//! by a mask, so that input refresh never overwrites the program's outputs.
+//!
+//! The field (input and output states) is a [`SimField`] of atomics shared behind an `Arc`: in
+//! `plcd sim` one thread sets inputs and refreshes, in the daemon a stimulus thread sets inputs
+//! while the scan thread refreshes, and neither ever waits for the other.
+
+use std::sync::atomic::{AtomicU16, Ordering};
+use std::sync::Arc;
 
 use super::Io;
 use crate::device::layout::P_WORDS;
 use crate::device::{Address, Area, Memory};
 
-/// Simulated field I/O.
+const WORDS: usize = P_WORDS as usize;
+
+/// The simulated wiring: the state of every P word as the field sees it.
+#[derive(Debug)]
+pub struct SimField {
+    inputs: [AtomicU16; WORDS],
+    outputs: [AtomicU16; WORDS],
+    input_mask: [u16; WORDS],
+}
+
+/// Simulated field I/O: the scan side of a [`SimField`].
 #[derive(Debug, Clone)]
 pub struct SimIo {
-    inputs: [u16; P_WORDS as usize],
-    input_mask: [u16; P_WORDS as usize],
-    outputs: [u16; P_WORDS as usize],
+    field: Arc<SimField>,
+    input_mask: [u16; WORDS],
 }
 
 impl Default for SimIo {
     fn default() -> Self {
-        SimIo {
-            inputs: [0; P_WORDS as usize],
-            input_mask: [0; P_WORDS as usize],
-            outputs: [0; P_WORDS as usize],
-        }
+        SimIo::new(&[])
     }
 }
 
@@ -31,17 +43,42 @@ pub struct ContactEdge {
     pub rising: bool,
 }
 
+fn mask_of(address: &Address) -> Option<(usize, u16)> {
+    if address.area != Area::P {
+        return None;
+    }
+    Some((address.number as usize, address.bit.map_or(0xFFFF, |bit| 1 << bit)))
+}
+
 impl SimIo {
-    /// Marks a P bit (or every bit of a P word) as an input.
-    pub fn add_input(&mut self, address: &Address) {
-        if address.area != Area::P {
-            return;
+    /// A field whose inputs are the given P bits (or whole P words); other devices are ignored.
+    pub fn new(inputs: &[Address]) -> SimIo {
+        let mut input_mask = [0u16; WORDS];
+        for (word, mask) in inputs.iter().filter_map(mask_of) {
+            input_mask[word] |= mask;
         }
-        let word = address.number as usize;
-        self.input_mask[word] |= match address.bit {
-            Some(bit) => 1 << bit,
-            None => 0xFFFF,
+        let field = SimField {
+            inputs: std::array::from_fn(|_| AtomicU16::new(0)),
+            outputs: std::array::from_fn(|_| AtomicU16::new(0)),
+            input_mask,
         };
+        SimIo { field: Arc::new(field), input_mask }
+    }
+
+    /// Marks a P bit (or every bit of a P word) as an input. Only before the field is shared:
+    /// a [`SimField`] handed out earlier keeps the mask it was made with.
+    pub fn add_input(&mut self, address: &Address) {
+        if let Some((word, mask)) = mask_of(address) {
+            self.input_mask[word] |= mask;
+            let field = SimField {
+                inputs: std::array::from_fn(|w| {
+                    AtomicU16::new(self.field.inputs[w].load(Ordering::Relaxed))
+                }),
+                outputs: std::array::from_fn(|_| AtomicU16::new(0)),
+                input_mask: self.input_mask,
+            };
+            self.field = Arc::new(field);
+        }
     }
 
     /// True if the address is a P device.
@@ -49,46 +86,83 @@ impl SimIo {
         address.area == Area::P
     }
 
-    /// Sets an input (a P bit, or a P word) as the field sees it. Returns the edges this causes
-    /// on the contacts P0000–P0007, in bit order.
+    /// The field, for another thread to set inputs and read outputs.
+    pub fn field(&self) -> Arc<SimField> {
+        Arc::clone(&self.field)
+    }
+
+    /// Sets an input as the field sees it; the edges it causes on P0000–P0007.
     pub fn set_input(
         &mut self,
         address: &Address,
         value: i32,
     ) -> impl Iterator<Item = ContactEdge> {
+        self.field.set_input(address, value)
+    }
+
+    /// Output word `word` as last published.
+    pub fn output(&self, word: usize) -> u16 {
+        self.field.output(word)
+    }
+}
+
+impl SimField {
+    /// Sets an input (a P bit, or a P word) as the field sees it. Returns the edges this causes
+    /// on the contacts P0000–P0007, in bit order. One thread sets inputs at a time.
+    pub fn set_input(&self, address: &Address, value: i32) -> impl Iterator<Item = ContactEdge> {
         let word = address.number as usize;
-        let before = self.inputs[word];
-        let after = match address.bit {
-            Some(bit) if value != 0 => before | 1 << bit,
-            Some(bit) => before & !(1 << bit),
-            None => value as u16,
+        let cell = &self.inputs[word];
+        let before = match address.bit {
+            Some(bit) if value != 0 => cell.fetch_or(1 << bit, Ordering::Relaxed),
+            Some(bit) => cell.fetch_and(!(1 << bit), Ordering::Relaxed),
+            None => cell.swap(value as u16, Ordering::Relaxed),
         };
-        self.inputs[word] = after;
+        let after = cell.load(Ordering::Relaxed);
         let changed = if word == 0 { (before ^ after) & 0xFF } else { 0 };
         (0..8u8)
             .filter(move |b| changed & 1 << b != 0)
             .map(move |b| ContactEdge { contact: b, rising: after & 1 << b != 0 })
     }
 
-    /// The outputs as last published.
-    pub fn outputs(&self) -> &[u16] {
-        &self.outputs
+    /// Output word `word` as last published (input bits read 0).
+    pub fn output(&self, word: usize) -> u16 {
+        self.outputs[word].load(Ordering::Relaxed)
+    }
+
+    /// One output bit as last published.
+    pub fn output_bit(&self, address: &Address) -> bool {
+        let (word, mask) = mask_of(address).expect("a P device");
+        self.output(word) & mask != 0
+    }
+
+    /// Every output OFF at once (the watchdog's safe state); the scan thread's next refresh
+    /// publishes the program's image again.
+    pub fn clear_outputs(&self) {
+        for out in &self.outputs {
+            out.store(0, Ordering::Relaxed);
+        }
+    }
+
+    /// True if the bit is an input of this field.
+    pub fn is_input(&self, address: &Address) -> bool {
+        mask_of(address).is_some_and(|(word, mask)| self.input_mask[word] & mask != 0)
     }
 }
 
 impl Io for SimIo {
     fn refresh_inputs(&mut self, mem: &mut Memory) {
         let image = mem.io_image_mut();
-        for ((image, input), mask) in image.iter_mut().zip(&self.inputs).zip(&self.input_mask) {
-            *image = (*image & !mask) | (input & mask);
+        for ((image, input), mask) in image.iter_mut().zip(&self.field.inputs).zip(&self.input_mask)
+        {
+            *image = (*image & !mask) | (input.load(Ordering::Relaxed) & mask);
         }
     }
 
     fn refresh_outputs(&mut self, mem: &Memory) {
         for ((out, image), mask) in
-            self.outputs.iter_mut().zip(mem.io_image()).zip(&self.input_mask)
+            self.field.outputs.iter().zip(mem.io_image()).zip(&self.input_mask)
         {
-            *out = image & !mask;
+            out.store(image & !mask, Ordering::Relaxed);
         }
     }
 }
@@ -116,8 +190,8 @@ mod tests {
         assert_eq!(mem.read(&addr("P0001")), 0, "an input follows the field");
         assert_eq!(mem.read(&addr("P0040")), 1, "an output is the program's");
         io.refresh_outputs(&mem);
-        assert_eq!(io.outputs()[4], 1);
-        assert_eq!(io.outputs()[0], 0);
+        assert_eq!(io.output(4), 1);
+        assert_eq!(io.output(0), 0);
     }
 
     #[test]

@@ -1,0 +1,2 @@
+//! The real-time driver of `plcd run`.
+pub mod sys;

@@ -1,0 +1,215 @@
+//! The operating-system calls of the real-time driver, in one place: the monotonic clock,
+//! scheduling policy and priority, CPU affinity, memory locking, stack prefaulting, timerfd and
+//! eventfd. Everything here is a thin, safe wrapper; the one `unsafe` call has its `SAFETY:`
+//! note. Errors come back as [`SysError`], naming the call.
+
+use std::os::fd::{AsFd, BorrowedFd};
+
+use nix::errno::Errno;
+use nix::sched::{sched_setaffinity, CpuSet};
+use nix::sys::eventfd::{EfdFlags, EventFd};
+use nix::sys::mman::{mlockall, MlockAllFlags};
+use nix::sys::time::TimeSpec;
+use nix::sys::timerfd::{
+    ClockId as TimerClock, Expiration, TimerFd, TimerFlags, TimerSetTimeFlags,
+};
+use nix::time::{clock_gettime, ClockId};
+use nix::unistd::Pid;
+
+/// A failed system call, by name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("{call}: {errno}")]
+pub struct SysError {
+    pub call: &'static str,
+    pub errno: Errno,
+}
+
+fn check<T>(call: &'static str, result: nix::Result<T>) -> Result<T, SysError> {
+    result.map_err(|errno| SysError { call, errno })
+}
+
+/// CLOCK_MONOTONIC in ns: the time base of the engine in the daemon, of timerfd deadlines and
+/// of the kernel's GPIO edge timestamps, so all three compare directly.
+#[inline]
+pub fn now_ns() -> u64 {
+    // CLOCK_MONOTONIC cannot fail on Linux with a valid clock id.
+    let ts = clock_gettime(ClockId::CLOCK_MONOTONIC).unwrap_or(TimeSpec::new(0, 0));
+    ts.tv_sec() as u64 * 1_000_000_000 + ts.tv_nsec() as u64
+}
+
+fn timespec(ns: u64) -> TimeSpec {
+    TimeSpec::new((ns / 1_000_000_000) as i64, (ns % 1_000_000_000) as i64)
+}
+
+/// Puts the calling thread under SCHED_FIFO at `priority` (1..=99), with SCHED_RESET_ON_FORK
+/// so that children (none are expected) never inherit real-time priority.
+#[allow(unsafe_code)]
+pub fn set_fifo(priority: u8) -> Result<(), SysError> {
+    let param = libc::sched_param { sched_priority: i32::from(priority) };
+    // SAFETY: `param` is a valid, initialised sched_param that lives across the call; pid 0 is
+    // the calling thread; the call reads `param` and writes nothing through it.
+    let rc = unsafe {
+        libc::sched_setscheduler(0, libc::SCHED_FIFO | libc::SCHED_RESET_ON_FORK, &param)
+    };
+    check("sched_setscheduler(SCHED_FIFO)", Errno::result(rc).map(drop))
+}
+
+/// Restricts the calling thread to `cpus` (no-op when empty).
+pub fn set_affinity(cpus: &[u16]) -> Result<(), SysError> {
+    if cpus.is_empty() {
+        return Ok(());
+    }
+    let mut set = CpuSet::new();
+    for &cpu in cpus {
+        check("sched_setaffinity", set.set(usize::from(cpu)))?;
+    }
+    check("sched_setaffinity", sched_setaffinity(Pid::from_raw(0), &set))
+}
+
+/// Locks every present and future page of the process in RAM, so that no page fault of the
+/// scan path ever waits for the disk.
+pub fn lock_memory() -> Result<(), SysError> {
+    check("mlockall", mlockall(MlockAllFlags::MCL_CURRENT | MlockAllFlags::MCL_FUTURE))
+}
+
+/// Touches `bytes` of the calling thread's stack, so that with memory locked its pages exist
+/// before the first deadline needs them.
+#[inline(never)]
+pub fn prefault_stack(bytes: usize) {
+    const CHUNK: usize = 4096;
+    fn touch(left: usize) {
+        let page = [0u8; CHUNK];
+        std::hint::black_box(&page);
+        if left > CHUNK {
+            touch(left - CHUNK);
+        }
+    }
+    touch(bytes);
+}
+
+/// A CLOCK_MONOTONIC timerfd, armed with absolute deadlines; non-blocking.
+#[derive(Debug)]
+pub struct Timer(TimerFd);
+
+impl Timer {
+    pub fn new() -> Result<Timer, SysError> {
+        let flags = TimerFlags::TFD_NONBLOCK | TimerFlags::TFD_CLOEXEC;
+        check("timerfd_create", TimerFd::new(TimerClock::CLOCK_MONOTONIC, flags)).map(Timer)
+    }
+
+    /// Expires at `first_ns` (CLOCK_MONOTONIC), then every `interval_ns` (0: once).
+    pub fn arm(&self, first_ns: u64, interval_ns: u64) -> Result<(), SysError> {
+        // A zero it_value would disarm the timer: a deadline at 0 means "now".
+        let first = timespec(first_ns.max(1));
+        let expiration = if interval_ns == 0 {
+            Expiration::OneShot(first)
+        } else {
+            Expiration::IntervalDelayed(first, timespec(interval_ns))
+        };
+        check("timerfd_settime", self.0.set(expiration, TimerSetTimeFlags::TFD_TIMER_ABSTIME))
+    }
+
+    pub fn disarm(&self) -> Result<(), SysError> {
+        check("timerfd_settime", self.0.unset())
+    }
+
+    /// Expirations since the last read (0 if none: the read would block).
+    pub fn expirations(&self) -> Result<u64, SysError> {
+        let mut buf = [0u8; 8];
+        match nix::unistd::read(self.0.as_fd(), &mut buf) {
+            Ok(8) => Ok(u64::from_ne_bytes(buf)),
+            Ok(_) | Err(Errno::EAGAIN) => Ok(0),
+            Err(errno) => Err(SysError { call: "read(timerfd)", errno }),
+        }
+    }
+}
+
+impl AsFd for Timer {
+    fn as_fd(&self) -> BorrowedFd<'_> {
+        self.0.as_fd()
+    }
+}
+
+/// An eventfd used to wake a thread blocked in poll or epoll; non-blocking.
+#[derive(Debug)]
+pub struct Wake(EventFd);
+
+impl Wake {
+    pub fn new() -> Result<Wake, SysError> {
+        let flags = EfdFlags::EFD_NONBLOCK | EfdFlags::EFD_CLOEXEC;
+        check("eventfd", EventFd::from_flags(flags)).map(Wake)
+    }
+
+    /// Makes the fd readable. Cannot block: the counter would need 2^64 - 1 wakes to fill.
+    pub fn wake(&self) {
+        let _ = self.0.write(1);
+    }
+
+    /// Clears pending wakes.
+    pub fn drain(&self) {
+        let _ = self.0.read();
+    }
+}
+
+impl AsFd for Wake {
+    fn as_fd(&self) -> BorrowedFd<'_> {
+        self.0.as_fd()
+    }
+}
+
+/// Waits until one of `fds` is readable or `timeout_ns` passed (None: forever). Returns false on
+/// timeout. EINTR counts as a wake.
+pub fn wait_readable(fds: &[BorrowedFd<'_>], timeout_ns: Option<u64>) -> Result<bool, SysError> {
+    use nix::poll::{ppoll, PollFd, PollFlags};
+    let mut polls: [PollFd; 4] = std::array::from_fn(|_| PollFd::new(fds[0], PollFlags::empty()));
+    for (slot, fd) in polls.iter_mut().zip(fds) {
+        *slot = PollFd::new(*fd, PollFlags::POLLIN);
+    }
+    let timeout = timeout_ns.map(timespec);
+    match ppoll(&mut polls[..fds.len().min(4)], timeout, None) {
+        Ok(n) => Ok(n > 0),
+        Err(Errno::EINTR) => Ok(true),
+        Err(errno) => Err(SysError { call: "ppoll", errno }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_monotonic_clock_advances() {
+        let a = now_ns();
+        let b = now_ns();
+        assert!(a > 0 && b >= a);
+    }
+
+    #[test]
+    fn a_timer_armed_in_the_past_has_expired() {
+        let timer = Timer::new().unwrap();
+        assert_eq!(timer.expirations().unwrap(), 0);
+        timer.arm(1, 0).unwrap();
+        assert!(wait_readable(&[timer.as_fd()], Some(1_000_000_000)).unwrap());
+        assert_eq!(timer.expirations().unwrap(), 1);
+        // Periodic from long ago: every missed period counts as an expiration.
+        timer.arm(now_ns() - 10_000_000, 1_000_000).unwrap();
+        assert!(timer.expirations().unwrap() >= 10);
+        timer.disarm().unwrap();
+    }
+
+    #[test]
+    fn a_wake_makes_the_fd_readable_until_drained() {
+        let wake = Wake::new().unwrap();
+        assert!(!wait_readable(&[wake.as_fd()], Some(0)).unwrap());
+        wake.wake();
+        wake.wake();
+        assert!(wait_readable(&[wake.as_fd()], Some(0)).unwrap());
+        wake.drain();
+        assert!(!wait_readable(&[wake.as_fd()], Some(0)).unwrap());
+    }
+
+    #[test]
+    fn prefaulting_the_stack_returns() {
+        prefault_stack(256 * 1024);
+    }
+}
