@@ -408,6 +408,17 @@ impl Engine {
         }
     }
 
+    /// A watchdog outside the engine (the real-time driver's watchdog thread) saw the scan
+    /// watchdog expire and already put the outputs into their safe state: take the watchdog
+    /// error now, whatever this thread last saw of the scan.
+    pub fn watchdog_expired(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
+        if self.mode == Mode::Run {
+            let scan = self.scan.count;
+            let limit_ms = self.settings.watchdog_ms;
+            self.fault(ErrorKind::Watchdog { scan, limit_ms }, now, io, sink);
+        }
+    }
+
     /// The next time the engine needs [`Engine::poll_time`] or [`Engine::run`] without an
     /// external event.
     pub fn next_wakeup(&self, now: u64) -> Option<u64> {
