@@ -13,7 +13,8 @@
 //!    deserializes: every bad key is reported. A section then goes on with that key's
 //!    default; an entry with a bad key is left out of pass 2;
 //! 2. `validate`: ranges, kind-specific keys and cross-references (task numbers and names,
-//!    program tasks, I/O lines) are checked on everything that deserialized.
+//!    program tasks, I/O lines, the order of the `[rt]` priorities) are checked on everything
+//!    that deserialized.
 //!
 //! Every error of both passes is reported, in file order. A document with TOML syntax errors
 //! stops after pass 1: what the parser recovered may not be what was meant, and checking it
@@ -51,6 +52,8 @@ pub struct Config {
     pub tasks: Vec<TaskConfig>,
     /// `[io]`, `[[io.input]]` and `[[io.output]]`.
     pub io: IoConfig,
+    /// `[rt]`.
+    pub rt: RtConfig,
 }
 
 /// `[plc]`: the scan and what happens when it fails.
@@ -254,7 +257,7 @@ pub struct IoConfig {
     /// `[[io.output]]`, in file order (`bias` and `debounce_us` are not allowed).
     pub outputs: Vec<IoLine>,
     /// `stimulus`: a CSV of input changes (CONTRACT §4) for the sim backend, resolved relative
-    /// to the config file; default none. Ignored by gpiocdev.
+    /// to the config file; default none. An error with gpiocdev, whose inputs are the lines.
     pub stimulus: Option<PathBuf>,
     /// `stimulus_loop`: replay the stimulus from the start when it ends; default false.
     pub stimulus_loop: bool,
@@ -292,6 +295,72 @@ pub enum Bias {
     Disabled,
     PullUp,
     PullDown,
+}
+
+/// `[rt]`: the real-time threads of `plcd run` (checked by every command, used only by
+/// `plcd run`; `plcd sim` and `plcd check` start no real-time threads).
+///
+/// The three priorities must rise strictly: `scan_priority < event_priority <
+/// watchdog_priority`, so the watchdog can always preempt a runaway scan.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RtConfig {
+    /// `policy`: `"fifo"` (default: SCHED_FIFO) or `"other"` (SCHED_OTHER, no real time).
+    pub policy: RtPolicy,
+    /// `scan_priority`: SCHED_FIFO priority of the scan thread, 1..=99 and below
+    /// `event_priority`; default 80.
+    pub scan_priority: u8,
+    /// `event_priority`: of the event thread (timers, GPIO edges), 1..=99 and above
+    /// `scan_priority`; default 85.
+    pub event_priority: u8,
+    /// `watchdog_priority`: of the watchdog thread, 1..=99 and above `event_priority`;
+    /// default 90.
+    pub watchdog_priority: u8,
+    /// `scan_cpus`: CPU numbers the scan thread may run on (0..=1023, no duplicates);
+    /// default empty = any CPU.
+    pub scan_cpus: Vec<u16>,
+    /// `event_cpus`: the same for the event thread.
+    pub event_cpus: Vec<u16>,
+    /// `watchdog_cpus`: the same for the watchdog thread.
+    pub watchdog_cpus: Vec<u16>,
+    /// `lock_memory`: mlockall(MCL_CURRENT|MCL_FUTURE) at start; default true.
+    pub lock_memory: bool,
+    /// `require`: refuse to start when real-time scheduling or memory locking is not
+    /// permitted; default false (warn once and run without).
+    pub require: bool,
+}
+
+impl RtConfig {
+    /// The SCHED_FIFO priorities of Linux.
+    pub const PRIORITY: RangeInclusive<u8> = 1..=99;
+    /// The CPU numbers a CPU list may hold (a `cpu_set_t` has 1024).
+    pub const CPU: RangeInclusive<u16> = 0..=1023;
+}
+
+impl Default for RtConfig {
+    fn default() -> Self {
+        RtConfig {
+            policy: RtPolicy::Fifo,
+            scan_priority: 80,
+            event_priority: 85,
+            watchdog_priority: 90,
+            scan_cpus: Vec::new(),
+            event_cpus: Vec::new(),
+            watchdog_cpus: Vec::new(),
+            lock_memory: true,
+            require: false,
+        }
+    }
+}
+
+/// `rt.policy`: the scheduling policy of the real-time threads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RtPolicy {
+    /// `"fifo"`: SCHED_FIFO with the configured priorities (default).
+    #[default]
+    Fifo,
+    /// `"other"`: SCHED_OTHER, the normal time-sharing policy; the priorities are not used.
+    Other,
 }
 
 /// Parses and validates a config. Pure: `path` only names the file in diagnostics and is the

@@ -12,7 +12,7 @@ use serde::Deserialize;
 use toml::de::{DeTable, DeValue, ValueDeserializer};
 use toml::Spanned;
 
-use super::{Backend, Bias, Edge, OnFault, Sink};
+use super::{Backend, Bias, Edge, OnFault, RtPolicy, Sink};
 
 /// What a diagnostic is about: a section (`plc`) or one entry of an array of tables
 /// (`task "fast"`, `io.input #2`).
@@ -66,6 +66,7 @@ pub(super) struct RawDoc {
     pub tasks: Vec<Located<RawTask>>,
     pub inputs: Vec<Located<RawInput>>,
     pub outputs: Vec<Located<RawOutput>>,
+    pub rt: Option<RawRt>,
     pub failed: Failed,
 }
 
@@ -97,6 +98,22 @@ pub(super) struct RawPlc {
 #[serde(deny_unknown_fields)]
 pub(super) struct RawSim {
     pub step_ns: Option<Spanned<i64>>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawRt {
+    #[serde(default)]
+    pub policy: RtPolicy,
+    pub scan_priority: Option<Spanned<i64>>,
+    pub event_priority: Option<Spanned<i64>>,
+    pub watchdog_priority: Option<Spanned<i64>>,
+    pub scan_cpus: Option<Vec<Spanned<i64>>>,
+    pub event_cpus: Option<Vec<Spanned<i64>>>,
+    pub watchdog_cpus: Option<Vec<Spanned<i64>>>,
+    pub lock_memory: Option<bool>,
+    #[serde(default)]
+    pub require: bool,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -242,7 +259,7 @@ pub(super) struct RawOutput {
     pub debounce_us: Option<Spanned<IgnoredAny>>,
 }
 
-const TOP_LEVEL: &str = "`plc`, `sim`, `timers`, `program`, `task`, `io`";
+const TOP_LEVEL: &str = "`plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`";
 
 /// Pass 1. `None` if the TOML itself is malformed (the syntax errors are in `sink`).
 pub(super) fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
@@ -272,6 +289,7 @@ pub(super) fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
             "io" => &mut sections.io,
             "program" => &mut sections.program,
             "task" => &mut sections.task,
+            "rt" => &mut sections.rt,
             other => {
                 let message = format!("unknown key `{other}`, expected one of {TOP_LEVEL}");
                 sink.error(key.span().start, message);
@@ -301,6 +319,7 @@ pub(super) fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
         .filter_map(|entry| entry.map_err(|name| doc.failed.task_names.extend(name)).ok())
         .collect();
     read_io(sink, sections.io, &mut doc);
+    doc.rt = section(sink, sections.rt, "rt", &mut doc.failed.keys);
     Some(doc)
 }
 
@@ -313,6 +332,7 @@ struct Sections<'i> {
     io: Option<Spanned<DeValue<'i>>>,
     program: Option<Spanned<DeValue<'i>>>,
     task: Option<Spanned<DeValue<'i>>>,
+    rt: Option<Spanned<DeValue<'i>>>,
 }
 
 fn read_io(sink: &mut Sink, io: Option<Spanned<DeValue<'_>>>, doc: &mut RawDoc) {

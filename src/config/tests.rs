@@ -63,6 +63,20 @@ fn section_defaults_are_the_documented_ones() {
     assert_eq!(io.backend, Backend::Sim);
     assert_eq!((io.chip, io.stimulus, io.stimulus_loop), (None, None, false));
     assert!(io.inputs.is_empty() && io.outputs.is_empty());
+    assert_eq!(
+        RtConfig::default(),
+        RtConfig {
+            policy: RtPolicy::Fifo,
+            scan_priority: 80,
+            event_priority: 85,
+            watchdog_priority: 90,
+            scan_cpus: vec![],
+            event_cpus: vec![],
+            watchdog_cpus: vec![],
+            lock_memory: true,
+            require: false,
+        }
+    );
 }
 
 #[test]
@@ -73,6 +87,7 @@ fn a_minimal_config_takes_every_default() {
     assert_eq!(config.sim, SimConfig::default());
     assert_eq!(config.timers, TimerConfig::default());
     assert_eq!(config.io, IoConfig::default());
+    assert_eq!(config.rt, RtConfig::default());
     assert!(config.tasks.is_empty());
     assert_eq!(
         config.programs,
@@ -151,6 +166,7 @@ fn the_contract_example_parses_to_its_defaults() {
             col: 1,
         }],
         io: IoConfig::default(),
+        rt: RtConfig::default(),
     };
     assert_eq!(config, expected);
 }
@@ -219,8 +235,6 @@ condition = "transition"
 [io]
 backend = "gpiocdev"
 chip = "/dev/gpiochip0"
-stimulus = "sim/inputs.csv"
-stimulus_loop = true
 
 [[io.input]]
 device = "P0007"
@@ -310,8 +324,8 @@ line = 0
                 bias: Bias::Disabled,
                 debounce_us: 0,
             }],
-            stimulus: Some("etc/sim/inputs.csv".into()),
-            stimulus_loop: true,
+            stimulus: None,
+            stimulus_loop: false,
         }
     );
 }
@@ -385,7 +399,7 @@ fn syntax_errors_are_located_and_stop_the_checks() {
 fn unknown_keys_are_errors_at_the_key() {
     assert_eq!(
         errors(&with_scan("[plcc]\n")),
-        ["1:2: unknown key `plcc`, expected one of `plc`, `sim`, `timers`, `program`, `task`, `io`"]
+        ["1:2: unknown key `plcc`, expected one of `plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`"]
     );
     assert_eq!(
         errors(&with_scan("[plc]\nwatchdog = 5\n")),
@@ -963,11 +977,212 @@ fn gpiocdev_io_task_contacts_must_be_inputs() {
     };
     assert_eq!(
         errors(&with_scan(&format!("{}{io}", irq("P0000")))),
-        ["6:11: task \"irq\": contact P0000 is not an [[io.input]] device, which the gpiocdev backend needs"]
+        ["6:11: task \"irq\": contact P0000 is not wired: add an [[io.input]] with device = \"P0000\" \
+          (the gpiocdev backend could never start the task)"]
     );
     config(&with_scan(&format!("{}{io}", irq("P0001"))));
     // The sim backend drives any P bit: nothing to wire.
     config(&with_scan(&irq("P0000")));
+    // An output is not an input.
+    let output = "[[io.output]]\ndevice = \"P0002\"\nline = 4\n";
+    let errs = errors(&with_scan(&format!("{}{io}{output}", irq("P0002"))));
+    assert_eq!(errs.len(), 1, "{errs:?}");
+    assert!(errs[0].starts_with("6:11: task \"irq\": contact P0002 is not wired"), "{errs:?}");
+    // An input entry with errors may have been the contact's: only its own error is reported.
+    let broken = "[[io.input]]\ndevice = \"P0000\"\nline = \"x\"\n";
+    assert_eq!(
+        errors(&with_scan(&format!("{}{io}{broken}", irq("P0000")))),
+        ["16:8: io.input \"P0000\": line: invalid type: string \"x\", expected an integer"]
+    );
+}
+
+#[test]
+fn an_output_device_cannot_also_be_an_input() {
+    // The later entry is reported, naming the earlier (an output first: see above).
+    let text = "[[io.input]]\ndevice = \"P0000\"\nline = 1\n\
+                [[io.output]]\ndevice = \"P0000\"\nline = 2\n";
+    assert_eq!(
+        errors(&with_scan(text)),
+        ["5:10: io.output \"P0000\": device P0000 is already used by io.input \"P0000\""]
+    );
+}
+
+#[test]
+fn stimulus_is_for_the_sim_backend() {
+    let gpio = "[io]\nbackend = \"gpiocdev\"\nchip = \"gpiochip0\"\n";
+    assert_eq!(
+        errors(&with_scan(&format!("{gpio}stimulus = \"in.csv\""))),
+        ["4:12: io.stimulus is for the sim backend: the gpiocdev backend reads its inputs from \
+          the chip's lines"]
+    );
+    let config = config(&with_scan("[io]\nbackend = \"sim\"\nstimulus = \"in.csv\""));
+    assert_eq!(config.io.stimulus, Some(PathBuf::from("etc/in.csv")));
+}
+
+// ---- [rt] ----
+
+#[test]
+fn rt_keys_parse() {
+    let text = "[rt]\npolicy = \"other\"\nscan_priority = 1\nevent_priority = 2\n\
+                watchdog_priority = 99\nscan_cpus = [3, 1023]\nevent_cpus = [0]\n\
+                watchdog_cpus = []\nlock_memory = false\nrequire = true";
+    assert_eq!(
+        config(&with_scan(text)).rt,
+        RtConfig {
+            policy: RtPolicy::Other,
+            scan_priority: 1,
+            event_priority: 2,
+            watchdog_priority: 99,
+            scan_cpus: vec![3, 1023],
+            event_cpus: vec![0],
+            watchdog_cpus: vec![],
+            lock_memory: false,
+            require: true,
+        }
+    );
+    // A key not given keeps its default; one CPU may serve every thread.
+    let text = "[rt]\npolicy = \"fifo\"\nscan_priority = 50\nscan_cpus = [1]\nevent_cpus = [1]";
+    assert_eq!(
+        config(&with_scan(text)).rt,
+        RtConfig {
+            scan_priority: 50,
+            scan_cpus: vec![1],
+            event_cpus: vec![1],
+            ..RtConfig::default()
+        }
+    );
+    assert_eq!(config(&with_scan("[rt]\n")).rt, RtConfig::default());
+}
+
+#[test]
+fn rt_priorities_are_1_to_99() {
+    for (key, col) in [("scan_priority", 17), ("event_priority", 18), ("watchdog_priority", 21)] {
+        for value in [0, 100, -1, 256] {
+            assert_eq!(
+                errors(&with_scan(&format!("[rt]\n{key} = {value}"))),
+                [format!("2:{col}: rt.{key} {value} out of range 1..=99")]
+            );
+        }
+    }
+}
+
+#[test]
+fn rt_priorities_rise_from_scan_to_event_to_watchdog() {
+    // Both keys written: the error is at the later one.
+    assert_eq!(
+        errors(&with_scan("[rt]\nscan_priority = 85\nevent_priority = 85")),
+        ["3:18: rt.event_priority 85 must be above rt.scan_priority 85"]
+    );
+    assert_eq!(
+        errors(&with_scan("[rt]\nevent_priority = 70\nscan_priority = 75")),
+        ["3:17: rt.scan_priority 75 must be below rt.event_priority 70"]
+    );
+    // One written: the error is at it, naming the other's default.
+    assert_eq!(
+        errors(&with_scan("[rt]\nscan_priority = 86")),
+        ["2:17: rt.scan_priority 86 must be below rt.event_priority 85 (its default)"]
+    );
+    assert_eq!(
+        errors(&with_scan("[rt]\nevent_priority = 95")),
+        ["2:18: rt.event_priority 95 must be below rt.watchdog_priority 90 (its default)"]
+    );
+    assert_eq!(
+        errors(&with_scan("[rt]\nwatchdog_priority = 85")),
+        ["2:21: rt.watchdog_priority 85 must be above rt.event_priority 85 (its default)"]
+    );
+    // Both pairs out of order: both reported.
+    assert_eq!(
+        errors(&with_scan("[rt]\nscan_priority = 90\nevent_priority = 90\nwatchdog_priority = 90")),
+        [
+            "3:18: rt.event_priority 90 must be above rt.scan_priority 90",
+            "4:21: rt.watchdog_priority 90 must be above rt.event_priority 90",
+        ]
+    );
+    // With the event priority out of range, scan and watchdog are still compared.
+    assert_eq!(
+        errors(&with_scan("[rt]\nscan_priority = 95\nevent_priority = 0")),
+        [
+            "2:17: rt.scan_priority 95 must be below rt.watchdog_priority 90 (its default)",
+            "3:18: rt.event_priority 0 out of range 1..=99",
+        ]
+    );
+    // A malformed priority is unknown, not its default (80, which 70 would be below).
+    assert_eq!(
+        errors(&with_scan("[rt]\nscan_priority = \"high\"\nevent_priority = 70")),
+        ["2:17: rt.scan_priority: invalid type: string \"high\", expected an integer"]
+    );
+}
+
+#[test]
+fn rt_cpus_are_0_to_1023_each_listed_once() {
+    assert_eq!(
+        errors(&with_scan(
+            "[rt]\nscan_cpus = [0, -1, 1024]\nevent_cpus = [2, 3, 2, 3]\nwatchdog_cpus = [5, 5]"
+        )),
+        [
+            "2:17: rt.scan_cpus: CPU -1 out of range 0..=1023",
+            "2:21: rt.scan_cpus: CPU 1024 out of range 0..=1023",
+            "3:21: rt.event_cpus: CPU 2 is listed twice",
+            "3:24: rt.event_cpus: CPU 3 is listed twice",
+            "4:21: rt.watchdog_cpus: CPU 5 is listed twice",
+        ]
+    );
+}
+
+#[test]
+fn rt_unknown_keys_and_wrong_types() {
+    assert_eq!(
+        errors(&with_scan("[rt]\nscan_prio = 80")),
+        ["2:1: [rt]: unknown key `scan_prio`, expected one of `policy`, `scan_priority`, \
+          `event_priority`, `watchdog_priority`, `scan_cpus`, `event_cpus`, `watchdog_cpus`, \
+          `lock_memory`, `require`"]
+    );
+    assert_eq!(
+        errors(&with_scan(
+            "[rt]\npolicy = \"rr\"\nscan_cpus = 3\nevent_cpus = [1, \"2\"]\n\
+             lock_memory = \"yes\"\nrequire = 1"
+        )),
+        [
+            "2:10: rt.policy: unknown variant `rr`, expected `fifo` or `other`",
+            "3:13: rt.scan_cpus: invalid type: integer `3`, expected a sequence",
+            "4:18: rt.event_cpus: invalid type: string \"2\", expected an integer",
+            "5:15: rt.lock_memory: invalid type: string \"yes\", expected a boolean",
+            "6:11: rt.require: invalid type: integer `1`, expected a boolean",
+        ]
+    );
+    assert_eq!(errors(&with_scan("rt = 5")), ["1:6: `rt` must be a table, written [rt]"]);
+}
+
+#[test]
+fn every_rt_error_is_reported_at_once() {
+    let text = r#"[plc]
+watchdog_ms = 5
+
+[rt]
+policy = "realtime"
+scan_priority = 95
+event_priority = 100
+watchdog_priority = 80
+scan_cpus = [1, 1]
+event_cpus = [2048]
+lock_memory = "yes"
+priority = 5
+"#;
+    assert_eq!(
+        errors(&with_scan(text)),
+        [
+            "2:15: plc.watchdog_ms 5 out of range 10..=1000",
+            "5:10: rt.policy: unknown variant `realtime`, expected `fifo` or `other`",
+            "7:18: rt.event_priority 100 out of range 1..=99",
+            "8:21: rt.watchdog_priority 80 must be above rt.scan_priority 95",
+            "9:17: rt.scan_cpus: CPU 1 is listed twice",
+            "10:15: rt.event_cpus: CPU 2048 out of range 0..=1023",
+            "11:15: rt.lock_memory: invalid type: string \"yes\", expected a boolean",
+            "12:1: [rt]: unknown key `priority`, expected one of `policy`, `scan_priority`, \
+             `event_priority`, `watchdog_priority`, `scan_cpus`, `event_cpus`, `watchdog_cpus`, \
+             `lock_memory`, `require`",
+        ]
+    );
 }
 
 // ---- all errors at once ----

@@ -12,11 +12,11 @@ use toml::Spanned;
 
 use super::raw::{
     Ctx, Failed, Located, RawCondition, RawDoc, RawInput, RawIo, RawKind, RawOutput, RawPlc,
-    RawProgram, RawSim, RawTask, RawTimers,
+    RawProgram, RawRt, RawSim, RawTask, RawTimers,
 };
 use super::{
-    Backend, Config, DeviceCondition, IoConfig, IoLine, PlcConfig, ProgramConfig, SimConfig, Sink,
-    TaskConfig, TaskKind, TaskRef, TimerConfig,
+    Backend, Config, DeviceCondition, IoConfig, IoLine, PlcConfig, ProgramConfig, RtConfig,
+    SimConfig, Sink, TaskConfig, TaskKind, TaskRef, TimerConfig,
 };
 use crate::device::{Address, Area};
 use crate::diag::Diagnostic;
@@ -30,6 +30,7 @@ pub(super) fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
     let failed = &doc.failed.keys;
     let timers = doc.timers.and_then(|raw| timers(sink, raw, failed));
     let io = io(sink, doc.io, doc.inputs, doc.outputs, failed, &path);
+    let rt = doc.rt.and_then(|raw| rt(sink, raw, failed));
     // Programs may name a task whose entry has errors: that entry's own diagnostics say what
     // is wrong, so it still counts as defined.
     let task_names: Vec<String> = doc
@@ -48,6 +49,7 @@ pub(super) fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
         programs: programs?,
         tasks: tasks?,
         io: io?,
+        rt: rt?,
     })
 }
 
@@ -177,6 +179,103 @@ fn timer_range(text: &str) -> Result<Option<RangeInclusive<u32>>, String> {
 
 fn range_text(range: &RangeInclusive<u32>) -> String {
     format!("T{:04}-T{:04}", range.start(), range.end())
+}
+
+/// One `[rt]` priority after its range check.
+struct RtPriority {
+    name: &'static str,
+    /// The byte offset of the value, if the key was given.
+    at: Option<usize>,
+    /// `None` if out of range or malformed (already reported).
+    value: Option<u8>,
+}
+
+/// `failed`: malformed keys, already reported; their values are unknown, not the defaults.
+fn rt(sink: &mut Sink, raw: RawRt, failed: &[String]) -> Option<RtConfig> {
+    let ctx = Ctx::Section("rt");
+    let default = RtConfig::default();
+    let mut ok = true;
+    let priorities = [
+        ("scan_priority", raw.scan_priority, default.scan_priority),
+        ("event_priority", raw.event_priority, default.event_priority),
+        ("watchdog_priority", raw.watchdog_priority, default.watchdog_priority),
+    ];
+    let priorities = priorities.map(|(name, given, default)| match given {
+        Some(given) => {
+            let value = int(sink, &ctx, name, &given, widen(RtConfig::PRIORITY));
+            RtPriority { name, at: Some(given.span().start), value }
+        }
+        None => {
+            let malformed = failed.iter().any(|k| *k == ctx.key(name));
+            RtPriority { name, at: None, value: (!malformed).then_some(default) }
+        }
+    });
+
+    // scan < event < watchdog, between neighbours whose values are known (with the event
+    // priority unknown, scan < watchdog still holds).
+    let known: Vec<(&RtPriority, u8)> =
+        priorities.iter().filter_map(|p| p.value.map(|v| (p, v))).collect();
+    for pair in known.windows(2) {
+        let [(low, low_value), (high, high_value)] = [pair[0], pair[1]];
+        if high_value > low_value {
+            continue;
+        }
+        ok = false;
+        let given = |p: &RtPriority, value: u8| match p.at {
+            Some(_) => format!("{} {value}", ctx.key(p.name)),
+            None => format!("{} {value} (its default)", ctx.key(p.name)),
+        };
+        // Report at the later of the keys that were written (the defaults are in order).
+        let (at, message) = if high.at > low.at {
+            let message = format!("must be above {}", given(low, low_value));
+            (high.at, format!("{} {message}", given(high, high_value)))
+        } else {
+            let message = format!("must be below {}", given(high, high_value));
+            (low.at, format!("{} {message}", given(low, low_value)))
+        };
+        if let Some(at) = at {
+            sink.error(at, message);
+        }
+    }
+
+    let scan_cpus = cpus(sink, &ctx, "scan_cpus", raw.scan_cpus);
+    let event_cpus = cpus(sink, &ctx, "event_cpus", raw.event_cpus);
+    let watchdog_cpus = cpus(sink, &ctx, "watchdog_cpus", raw.watchdog_cpus);
+    let [scan, event, watchdog] = priorities.map(|p| p.value);
+    let rt = RtConfig {
+        policy: raw.policy,
+        scan_priority: scan?,
+        event_priority: event?,
+        watchdog_priority: watchdog?,
+        scan_cpus: scan_cpus?,
+        event_cpus: event_cpus?,
+        watchdog_cpus: watchdog_cpus?,
+        lock_memory: raw.lock_memory.unwrap_or(default.lock_memory),
+        require: raw.require,
+    };
+    ok.then_some(rt)
+}
+
+/// A CPU list of `[rt]`: each CPU in range and listed once, in the order written.
+fn cpus(sink: &mut Sink, ctx: &Ctx, key: &str, raw: Option<Vec<Spanned<i64>>>) -> Option<Vec<u16>> {
+    let mut ok = true;
+    let mut cpus: Vec<u16> = Vec::new();
+    for cpu in raw.unwrap_or_default() {
+        let (value, at) = (*cpu.get_ref(), cpu.span().start);
+        let Some(number) = u16::try_from(value).ok().filter(|n| RtConfig::CPU.contains(n)) else {
+            let (first, last) = (RtConfig::CPU.start(), RtConfig::CPU.end());
+            sink.error(at, format!("{}: CPU {value} out of range {first}..={last}", ctx.key(key)));
+            ok = false;
+            continue;
+        };
+        if cpus.contains(&number) {
+            sink.error(at, format!("{}: CPU {number} is listed twice", ctx.key(key)));
+            ok = false;
+            continue;
+        }
+        cpus.push(number);
+    }
+    ok.then_some(cpus)
 }
 
 fn programs(
@@ -477,7 +576,8 @@ fn io_contact(
     };
     if gpio_inputs.is_some_and(|inputs| !inputs.contains(&address)) {
         let message = format!(
-            "{}: contact {address} is not an [[io.input]] device, which the gpiocdev backend needs",
+            "{}: contact {address} is not wired: add an [[io.input]] with device = \"{address}\" \
+             (the gpiocdev backend could never start the task)",
             ctx.subject()
         );
         sink.error(at, message);
@@ -563,6 +663,16 @@ fn io(
             None => {}
         }
         match raw.stimulus {
+            // Inputs come from the chip's lines: a stimulus would be silently unused.
+            Some(file) if raw.backend == Backend::Gpiocdev => {
+                let message = format!(
+                    "{} is for the sim backend: the gpiocdev backend reads its inputs from the \
+                     chip's lines",
+                    ctx.key("stimulus")
+                );
+                sink.error(file.span().start, message);
+                ok = false;
+            }
             Some(file) if file.get_ref().trim().is_empty() => {
                 sink.error(file.span().start, format!("{} must not be empty", ctx.key("stimulus")));
                 ok = false;
