@@ -12,6 +12,7 @@
 
 pub mod commands;
 pub mod config;
+pub mod daemon;
 pub mod device;
 pub mod diag;
 pub mod engine;
