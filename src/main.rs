@@ -4,6 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use plcd::commands::run::RunArgs;
 use plcd::commands::sim::SimArgs;
 
 #[derive(Parser)]
@@ -15,6 +16,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The daemon, in the foreground: the project on real time and real I/O.
+    Run(RunArgs),
     /// Load and validate the config and every program it names; run nothing.
     Check {
         /// The project's TOML config.
@@ -28,6 +31,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
+        Command::Run(args) => plcd::commands::run::run(&args),
         Command::Check { config } => {
             plcd::commands::check::run(&config, &mut std::io::stdout(), &mut std::io::stderr())
         }

@@ -1,4 +1,5 @@
 //! The `plcd` subcommands, one file each; `main.rs` only parses arguments and dispatches.
 
 pub mod check;
+pub mod run;
 pub mod sim;

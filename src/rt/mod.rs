@@ -1,2 +1,271 @@
-//! The real-time driver of `plcd run`.
+//! The real-time driver of `plcd run`: the task engine on real time and real I/O.
+//!
+//! The engine decides what runs when; this module only feeds it events and time, as the
+//! simulator does in virtual time. Four threads:
+//!
+//! - **scan** (SCHED_FIFO, `scan_priority`): owns the [`Engine`] and the field I/O. It executes
+//!   in slices of [`SLICE_STEPS`] instructions and between two slices looks at an atomic set
+//!   of pending work (edges, cycle deadlines, commands, the watchdog, shutdown); it reads the
+//!   queues only when a flag says so. When the engine is idle (fixed scan period, STOP) it
+//!   sleeps on its own timerfd, armed at the engine's next wakeup, and an eventfd.
+//! - **events** ([`events`], `event_priority`, above scan): an epoll set of one timerfd per
+//!   cycle task (absolute CLOCK_MONOTONIC deadlines taken from the engine), the GPIO line
+//!   request's edge events, and a wake eventfd. It turns them into pending flags and wakes the
+//!   scan thread if it sleeps.
+//! - **watchdog** ([`watchdog`], `watchdog_priority`, the highest): puts the outputs into their
+//!   safe state within a millisecond of the scan watchdog's expiry even if the scan thread is
+//!   stuck, and makes the engine take its WDT path as soon as the scan thread runs again.
+//! - **stimulus** ([`stimulus`], sim backend only, not real time): plays the inputs file in
+//!   real time into the simulated field.
+//!
+//! The queues between threads are wait-free single-producer rings (`rtrb`), allocated at start;
+//! the scan path neither allocates nor takes a lock (the rare exceptions are named where they
+//! are: replacing the program, and the log line of an I/O error).
+
+pub mod events;
+pub mod io;
+pub mod scan;
+pub mod stimulus;
 pub mod sys;
+pub mod watchdog;
+
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering};
+
+use crate::config::{RtConfig, RtPolicy};
+use crate::device::Address;
+use crate::engine::event::{Event, Mode};
+use crate::engine::Engine;
+use crate::vm::Clock;
+use sys::{SysError, Wake};
+
+/// Instructions executed between two looks at the pending set: about a microsecond at 3 ns an
+/// instruction, so an event waits at most that long for the scan thread to notice it.
+pub const SLICE_STEPS: u64 = 256;
+
+/// Capacity of the edge queue (event or stimulus thread → scan thread).
+pub const EDGE_QUEUE: usize = 256;
+/// Capacity of the command queue (supervisor, stimulus → scan thread).
+pub const COMMAND_QUEUE: usize = 64;
+/// Capacity of the report queue (scan thread → supervisor).
+pub const REPORT_QUEUE: usize = 4096;
+
+/// Flags of [`Shared::pending`].
+pub mod pending {
+    /// A cycle timer expired.
+    pub const TIMER: u32 = 1;
+    /// Edges wait in the edge queue.
+    pub const EDGE: u32 = 1 << 1;
+    /// Commands wait in the command queue.
+    pub const COMMAND: u32 = 1 << 2;
+    /// The watchdog thread tripped the output gate.
+    pub const WATCHDOG: u32 = 1 << 3;
+    /// Stop between two instructions and return.
+    pub const SHUTDOWN: u32 = 1 << 4;
+}
+
+/// Cycle task numbers 0..=7: one timer each.
+pub const CYCLE_SLOTS: usize = 8;
+
+/// A request to the scan thread, applied between two instructions.
+pub enum Command {
+    /// RUN or STOP (STOP also leaves ERROR).
+    Mode(Mode, Source),
+    /// Writes a device (a stimulus line of a non-P device).
+    Write(Address, i32),
+    /// Replaces the engine (a reloaded project), keeping the mode: RUN stays RUN (a cold
+    /// restart of the new programs), STOP and ERROR become STOP. The old engine comes back as
+    /// [`Report::Retired`].
+    Replace(Box<Engine>),
+}
+
+/// Who asked for a mode change, for the log.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Source {
+    Startup,
+    Stimulus,
+    Signal,
+    Reload,
+}
+
+impl Source {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Source::Startup => "startup",
+            Source::Stimulus => "stimulus",
+            Source::Signal => "signal",
+            Source::Reload => "reload",
+        }
+    }
+}
+
+/// What the scan thread reports, in order.
+pub enum Report {
+    /// An engine event worth logging (mode, error, a watched output), at CLOCK_MONOTONIC ns.
+    Event(u64, Event),
+    /// A mode change asked by a command, before the events it causes.
+    ModeRequest(Mode, Source),
+    /// The engine a [`Command::Replace`] took out, to be dropped off the real-time thread.
+    Retired(Box<Engine>),
+}
+
+/// State shared by the threads: atomics only, allocated once.
+pub struct Shared {
+    /// [`pending`] flags; the scan thread takes them all at once.
+    pub pending: AtomicU32,
+    /// The scan thread sleeps (or is about to): producers wake it through `scan_wake`.
+    pub scan_idle: AtomicBool,
+    pub scan_wake: Wake,
+    /// Wakes the event thread: a new cycle plan, or shutdown.
+    pub event_wake: Wake,
+    pub shutdown: AtomicBool,
+    /// The engine's watchdog deadline (CLOCK_MONOTONIC ns), 0 while no scan runs.
+    pub watchdog_deadline: AtomicU64,
+    /// Times the watchdog thread tripped the gate, and how late after the expiry the outputs
+    /// were safe the last time (ns).
+    pub watchdog_trips: AtomicU64,
+    pub watchdog_late_ns: AtomicU64,
+    /// Bumped at every END and every pass of the STOP/ERROR loop: the service watchdog's
+    /// proof of life.
+    pub progress: AtomicU64,
+    /// The engine's mode ([`Mode`] as u8: 0 RUN, 1 STOP, 2 ERROR).
+    pub mode: AtomicU8,
+    /// Scans since RUN, and the last/min/max scan time in ns.
+    pub scans: AtomicU64,
+    pub scan_last_ns: AtomicU64,
+    pub scan_min_ns: AtomicU64,
+    pub scan_max_ns: AtomicU64,
+    /// The cycle timers' plan: `plan[n] = (first deadline, interval)` of cycle task number n,
+    /// first = 0 for none; `plan_generation` is bumped after every change.
+    pub plan: [[AtomicU64; 2]; CYCLE_SLOTS],
+    pub plan_generation: AtomicU64,
+    /// Timer expirations beyond the first between two reads by the event thread.
+    pub timer_missed: [AtomicU64; CYCLE_SLOTS],
+    /// Edges lost: by the kernel (sequence gaps) or to a full edge queue.
+    pub lost_edges: AtomicU64,
+    /// Reports dropped to a full report queue.
+    pub dropped_reports: AtomicU64,
+}
+
+impl Shared {
+    pub fn new() -> Result<Shared, SysError> {
+        Ok(Shared {
+            pending: AtomicU32::new(0),
+            scan_idle: AtomicBool::new(false),
+            scan_wake: Wake::new()?,
+            event_wake: Wake::new()?,
+            shutdown: AtomicBool::new(false),
+            watchdog_deadline: AtomicU64::new(0),
+            watchdog_trips: AtomicU64::new(0),
+            watchdog_late_ns: AtomicU64::new(0),
+            progress: AtomicU64::new(0),
+            mode: AtomicU8::new(mode_code(Mode::Stop)),
+            scans: AtomicU64::new(0),
+            scan_last_ns: AtomicU64::new(0),
+            scan_min_ns: AtomicU64::new(0),
+            scan_max_ns: AtomicU64::new(0),
+            plan: std::array::from_fn(|_| [AtomicU64::new(0), AtomicU64::new(0)]),
+            plan_generation: AtomicU64::new(0),
+            timer_missed: std::array::from_fn(|_| AtomicU64::new(0)),
+            lost_edges: AtomicU64::new(0),
+            dropped_reports: AtomicU64::new(0),
+        })
+    }
+
+    /// Raises pending flags and wakes the scan thread if it sleeps. SeqCst on both sides (here
+    /// and in the scan thread's sleep) so that a flag raised while it decides to sleep is seen
+    /// either by its last look or by this load of `scan_idle`.
+    pub fn signal(&self, flags: u32) {
+        self.pending.fetch_or(flags, Ordering::SeqCst);
+        if self.scan_idle.load(Ordering::SeqCst) {
+            self.scan_wake.wake();
+        }
+    }
+
+    pub fn mode(&self) -> Mode {
+        match self.mode.load(Ordering::Relaxed) {
+            0 => Mode::Run,
+            1 => Mode::Stop,
+            _ => Mode::Error,
+        }
+    }
+
+    /// Asks every thread to finish.
+    pub fn request_shutdown(&self) {
+        self.shutdown.store(true, Ordering::SeqCst);
+        self.signal(pending::SHUTDOWN);
+        self.event_wake.wake();
+    }
+}
+
+pub fn mode_code(mode: Mode) -> u8 {
+    match mode {
+        Mode::Run => 0,
+        Mode::Stop => 1,
+        Mode::Error => 2,
+    }
+}
+
+/// Real time as the VM and the engine see it: CLOCK_MONOTONIC.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Monotonic;
+
+impl Clock for Monotonic {
+    #[inline]
+    fn now_ns(&self, _steps: u64) -> u64 {
+        sys::now_ns()
+    }
+}
+
+/// Stack every real-time thread touches before its loop, so that with memory locked no page
+/// fault comes later.
+pub const PREFAULT_STACK: usize = 256 * 1024;
+/// Stack size of the real-time threads.
+pub const THREAD_STACK: usize = 1024 * 1024;
+
+/// Why a thread runs without what `[rt]` asked for.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{thread} thread: {error}")]
+pub struct RtSetupError {
+    pub thread: &'static str,
+    pub error: SysError,
+}
+
+/// Which thread, for its scheduling settings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    Scan,
+    Events,
+    Watchdog,
+}
+
+impl Role {
+    pub fn name(self) -> &'static str {
+        match self {
+            Role::Scan => "scan",
+            Role::Events => "events",
+            Role::Watchdog => "watchdog",
+        }
+    }
+}
+
+/// Applies `[rt]` to the calling thread: CPU affinity, then SCHED_FIFO at the role's priority
+/// (unless the policy is `other`), then a prefaulted stack. Errors are returned for the caller
+/// to warn about or refuse; the thread is usable either way.
+pub fn setup_thread(rt: &RtConfig, role: Role) -> Vec<RtSetupError> {
+    let (priority, cpus) = match role {
+        Role::Scan => (rt.scan_priority, &rt.scan_cpus),
+        Role::Events => (rt.event_priority, &rt.event_cpus),
+        Role::Watchdog => (rt.watchdog_priority, &rt.watchdog_cpus),
+    };
+    let mut errors = Vec::new();
+    if let Err(error) = sys::set_affinity(cpus) {
+        errors.push(RtSetupError { thread: role.name(), error });
+    }
+    if rt.policy == RtPolicy::Fifo {
+        if let Err(error) = sys::set_fifo(priority) {
+            errors.push(RtSetupError { thread: role.name(), error });
+        }
+    }
+    sys::prefault_stack(PREFAULT_STACK);
+    errors
+}

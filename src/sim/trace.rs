@@ -100,28 +100,7 @@ impl<W: Write> TraceWriter<W> {
                 let _ = write!(line, ",\"value\":{value}");
             }
             Event::Error(kind) => {
-                let (code, detail) = match kind {
-                    ErrorKind::Watchdog { scan, limit_ms } => {
-                        ("WDT".to_string(), format!("scan {scan} exceeded watchdog_ms {limit_ms}"))
-                    }
-                    ErrorKind::Congestion { task, limit_ms } => (
-                        "CONGESTION".to_string(),
-                        format!("task {} exceeded max_exec_ms {limit_ms}", task_name(names, task)),
-                    ),
-                    ErrorKind::Operation { code, task, program, pc } => {
-                        let place = match self.program_lines.get(usize::from(program)) {
-                            Some((name, lines)) => match lines.get(pc as usize) {
-                                Some(source_line) => format!("program {name}, line {source_line}"),
-                                None => format!("program {name}, step {pc}"),
-                            },
-                            None => format!("program #{program}, step {pc}"),
-                        };
-                        (
-                            format!("{code:04X}H"),
-                            format!("task {}, {place}", task_name(names, task)),
-                        )
-                    }
-                };
+                let (code, detail) = describe_error(kind, names, &self.program_lines);
                 push_str_field(line, "code", &code);
                 push_str_field(line, "detail", &detail);
             }
@@ -156,6 +135,35 @@ fn event_name(event: &Event) -> &'static str {
         Event::TaskResume { .. } => "task_resume",
         Event::Set { .. } => "set",
         Event::Error(_) => "error",
+    }
+}
+
+/// An error's `code` (`WDT`, `CONGESTION`, `3405H` …) and `detail` (what, and where in which
+/// program), as the trace and the daemon's log show them. `program_lines` is indexed like
+/// [`TraceWriter::new`]'s.
+pub fn describe_error(
+    kind: ErrorKind,
+    names: &[String],
+    program_lines: &[(String, Vec<u32>)],
+) -> (String, String) {
+    match kind {
+        ErrorKind::Watchdog { scan, limit_ms } => {
+            ("WDT".to_string(), format!("scan {scan} exceeded watchdog_ms {limit_ms}"))
+        }
+        ErrorKind::Congestion { task, limit_ms } => (
+            "CONGESTION".to_string(),
+            format!("task {} exceeded max_exec_ms {limit_ms}", task_name(names, task)),
+        ),
+        ErrorKind::Operation { code, task, program, pc } => {
+            let place = match program_lines.get(usize::from(program)) {
+                Some((name, lines)) => match lines.get(pc as usize) {
+                    Some(source_line) => format!("program {name}, line {source_line}"),
+                    None => format!("program {name}, step {pc}"),
+                },
+                None => format!("program #{program}, step {pc}"),
+            };
+            (format!("{code:04X}H"), format!("task {}, {place}", task_name(names, task)))
+        }
     }
 }
 

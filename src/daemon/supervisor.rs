@@ -1,0 +1,555 @@
+//! `plcd run`: starts the real-time driver on a loaded project, then supervises it from the
+//! main thread — signals, the service manager, the log, reloads — and shuts it down cleanly.
+//!
+//! Nothing here runs on a real-time thread, so this is where allocation, logging and blocking
+//! I/O belong.
+
+use std::io::Read;
+use std::os::fd::AsFd;
+use std::os::unix::net::UnixStream;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use super::notify::{self, Notifier};
+use super::report::{self, Names};
+use crate::config::{Backend, Edge, TaskKind};
+use crate::diag::Diagnostics;
+use crate::engine::event::{Event, Mode};
+use crate::engine::Engine;
+use crate::io::gate::OutputGate;
+use crate::io::gpio::{self, GpioError};
+use crate::io::InputEdge;
+use crate::project::{self, Project};
+use crate::rt::events::EventThread;
+use crate::rt::io::{FieldIo, GatedIo, SafeOutputs};
+use crate::rt::scan::ScanThread;
+use crate::rt::stimulus::StimulusThread;
+use crate::rt::sys::{self, SysError, Timer};
+use crate::rt::watchdog::WatchdogThread;
+use crate::rt::{
+    self, Command, Report, Role, RtSetupError, Shared, Source, COMMAND_QUEUE, EDGE_QUEUE,
+    REPORT_QUEUE, THREAD_STACK,
+};
+use crate::sim::stimulus;
+
+/// How often the supervisor looks at reports, the service watchdog and the status.
+const TICK: Duration = Duration::from_millis(50);
+/// How often `STATUS=` is refreshed.
+const STATUS_EVERY: Duration = Duration::from_secs(1);
+
+/// Why the daemon could not start or had to stop.
+#[derive(Debug, thiserror::Error)]
+pub enum DaemonError {
+    #[error("{0}")]
+    Invalid(Diagnostics),
+    #[error("{path}: {source}", path = .path.display())]
+    Stimulus { path: PathBuf, source: Diagnostics },
+    #[error("I/O: {0}")]
+    Io(#[from] GpioError),
+    #[error("{0}")]
+    Sys(#[from] SysError),
+    #[error("real time required by [rt] require = true, but: {}", list(.0))]
+    RtRefused(Vec<String>),
+    #[error("cannot start the {thread} thread: {source}")]
+    Spawn { thread: &'static str, source: std::io::Error },
+    #[error("the {0} thread ended unexpectedly")]
+    ThreadDied(&'static str),
+}
+
+fn list(items: &[String]) -> String {
+    items.join("; ")
+}
+
+/// The daemon's options from the command line.
+#[derive(Debug, Clone)]
+pub struct Options {
+    pub config: PathBuf,
+}
+
+/// Runs the daemon until SIGTERM or SIGINT. Ok after a clean stop.
+pub fn run(options: &Options) -> Result<(), DaemonError> {
+    let project = project::load(&options.config).map_err(DaemonError::Invalid)?;
+    let mut daemon = Daemon::start(&options.config, project)?;
+    daemon.supervise()
+}
+
+struct Threads {
+    scan: JoinHandle<Box<Engine>>,
+    events: JoinHandle<Result<(), SysError>>,
+    watchdog: JoinHandle<()>,
+    stimulus: Option<JoinHandle<()>>,
+}
+
+struct Daemon {
+    config_path: PathBuf,
+    project: Project,
+    shared: Arc<Shared>,
+    commands: Arc<Mutex<rtrb::Producer<Command>>>,
+    reports: rtrb::Consumer<Report>,
+    threads: Option<Threads>,
+    names: Names,
+    /// Names of a replacement engine, in use once the old one is retired.
+    next_names: Option<Names>,
+    log_outputs: log::Level,
+    notifier: Option<Notifier>,
+    /// The source of the mode change being applied, for the log line of its `mode` event.
+    mode_source: Option<Source>,
+    started: Instant,
+    signals: Signals,
+    /// Counters already reported, to log only increases.
+    seen_lost_edges: u64,
+    seen_dropped: u64,
+    seen_trips: u64,
+}
+
+impl Daemon {
+    fn start(config_path: &Path, project: Project) -> Result<Daemon, DaemonError> {
+        let config = &project.config;
+        let rt = config.rt.clone();
+        let mut problems: Vec<String> = Vec::new();
+        if rt.lock_memory {
+            if let Err(e) = sys::lock_memory() {
+                problems.push(format!("{e} (memory is not locked; page faults may stall)"));
+            }
+        }
+        let shared = Arc::new(Shared::new()?);
+        let gate = Arc::new(OutputGate::default());
+        let (edge_tx, edge_rx) = rtrb::RingBuffer::<InputEdge>::new(EDGE_QUEUE);
+        let (command_tx, command_rx) = rtrb::RingBuffer::<Command>::new(COMMAND_QUEUE);
+        let (report_tx, report_rx) = rtrb::RingBuffer::<Report>::new(REPORT_QUEUE);
+        let commands = Arc::new(Mutex::new(command_tx));
+
+        // The field.
+        let mut events = EventThread::new(Arc::clone(&shared))?;
+        let mut stimulus_thread = None;
+        let (field, safe) = match config.io.backend {
+            Backend::Sim => {
+                let stimuli = match &config.io.stimulus {
+                    Some(path) => stimulus::load(path)
+                        .map_err(|source| DaemonError::Stimulus { path: path.clone(), source })?,
+                    None => Vec::new(),
+                };
+                let io = crate::sim::sim_io(&project, &stimuli);
+                let field = io.field();
+                if !stimuli.is_empty() {
+                    stimulus_thread = Some(StimulusThread {
+                        shared: Arc::clone(&shared),
+                        stimuli,
+                        looped: config.io.stimulus_loop,
+                        origin_ns: 0,
+                        field: Arc::clone(&field),
+                        edges: edge_tx,
+                        commands: Arc::clone(&commands),
+                    });
+                }
+                (FieldIo::Sim(io), SafeOutputs::Sim(field))
+            }
+            Backend::Gpiocdev => {
+                let opened = gpio::open(&config.io, &edge_contacts(&project), "plcd")?;
+                events.gpio = opened.edges;
+                events.edges = Some(edge_tx);
+                (FieldIo::Gpio(opened.io), SafeOutputs::Gpio(opened.outputs))
+            }
+        };
+        let clear = config.plc.on_fault == crate::config::OnFault::Clear;
+        let io =
+            GatedIo { field, gate: Arc::clone(&gate), safe: safe.clone(), clear_on_trip: clear };
+
+        let watch = crate::sim::output_bits(&project);
+        let engine = Box::new(Engine::new(&project, &watch));
+        let names = Names::new(&project, &watch);
+        let log_outputs =
+            if config.io.backend == Backend::Sim { log::Level::Info } else { log::Level::Debug };
+
+        // The threads, each reporting how its [rt] setup went before it starts working.
+        let (setup_tx, setup_rx) = mpsc::channel::<Vec<RtSetupError>>();
+        let watchdog = spawn_rt(Role::Watchdog, &rt, setup_tx.clone(), {
+            let thread = WatchdogThread {
+                shared: Arc::clone(&shared),
+                gate: Arc::clone(&gate),
+                safe,
+                clear,
+            };
+            move || thread.run()
+        })?;
+        let events = spawn_rt(Role::Events, &rt, setup_tx.clone(), move || events.run())?;
+        let scan_thread = ScanThread {
+            engine,
+            io,
+            shared: Arc::clone(&shared),
+            edges: edge_rx,
+            commands: command_rx,
+            reports: report_tx,
+            timer: Timer::new()?,
+            watchdog: watchdog.thread().clone(),
+        };
+        let scan = spawn_rt(Role::Scan, &rt, setup_tx, move || scan_thread.run())?;
+        for _ in 0..3 {
+            let errors = setup_rx.recv().unwrap_or_default();
+            problems.extend(errors.iter().map(|e| e.to_string()));
+        }
+        let mut threads = Threads { scan, events, watchdog, stimulus: None };
+        if !problems.is_empty() {
+            if rt.require {
+                stop_threads(&shared, threads);
+                return Err(DaemonError::RtRefused(problems));
+            }
+            log::warn!(
+                "running without full real-time guarantees: {}; set [rt] policy = \"other\" to \
+                 silence this, or grant CAP_SYS_NICE and CAP_IPC_LOCK (see docs/CONFIG.md)",
+                problems.join("; ")
+            );
+        }
+        if let Some(mut player) = stimulus_thread {
+            player.origin_ns = sys::now_ns();
+            let handle = std::thread::Builder::new()
+                .name("plcd-stimulus".into())
+                .spawn(move || player.run())
+                .map_err(|source| DaemonError::Spawn { thread: "stimulus", source })?;
+            threads.stimulus = Some(handle);
+        }
+
+        let signals = Signals::register()?;
+        let daemon = Daemon {
+            config_path: config_path.to_path_buf(),
+            project,
+            shared,
+            commands,
+            reports: report_rx,
+            threads: Some(threads),
+            names,
+            next_names: None,
+            log_outputs,
+            notifier: Notifier::from_env(),
+            mode_source: None,
+            started: Instant::now(),
+            signals,
+            seen_lost_edges: 0,
+            seen_dropped: 0,
+            seen_trips: 0,
+        };
+        daemon.command(Command::Mode(Mode::Run, Source::Startup));
+        log::info!(
+            "plcd {} running {} ({} programs, {} tasks, {} backend)",
+            env!("CARGO_PKG_VERSION"),
+            config_path.display(),
+            daemon.project.programs.len(),
+            daemon.project.config.tasks.len(),
+            match daemon.project.config.io.backend {
+                Backend::Sim => "sim",
+                Backend::Gpiocdev => "gpiocdev",
+            }
+        );
+        if let Some(n) = &daemon.notifier {
+            let _ = n.ready();
+        }
+        Ok(daemon)
+    }
+
+    fn command(&self, command: Command) {
+        let pushed = self.commands.lock().map(|mut q| q.push(command).is_ok()).unwrap_or(false);
+        if pushed {
+            self.shared.signal(rt::pending::COMMAND);
+        } else {
+            log::error!("the command queue is full; a command was dropped");
+        }
+    }
+
+    fn supervise(&mut self) -> Result<(), DaemonError> {
+        let keepalive = notify::watchdog_interval().map(|full| full / 2);
+        let mut last_keepalive = Instant::now();
+        let mut progress_at_keepalive = u64::MAX;
+        let mut last_status = Instant::now() - STATUS_EVERY;
+        loop {
+            let signal = self.signals.wait(TICK);
+            self.drain_reports();
+            self.log_counters();
+            match signal {
+                Some(Signal::Stop(name)) => {
+                    log::info!("{name}: stopping");
+                    return self.shutdown();
+                }
+                Some(Signal::Reload) => self.reload(),
+                None => {}
+            }
+            if let Some(which) = self.dead_thread() {
+                log::error!("the {which} thread ended unexpectedly; stopping");
+                let _ = self.shutdown();
+                return Err(DaemonError::ThreadDied(which));
+            }
+            if let (Some(n), Some(interval)) = (&self.notifier, keepalive) {
+                let progress = self.shared.progress.load(Ordering::Relaxed);
+                if last_keepalive.elapsed() >= interval && progress != progress_at_keepalive {
+                    let _ = n.watchdog();
+                    last_keepalive = Instant::now();
+                    progress_at_keepalive = progress;
+                }
+            }
+            if last_status.elapsed() >= STATUS_EVERY {
+                last_status = Instant::now();
+                if let Some(n) = &self.notifier {
+                    let _ = n.status(&report::status_line(&self.shared, self.started.elapsed()));
+                }
+            }
+        }
+    }
+
+    fn dead_thread(&self) -> Option<&'static str> {
+        let threads = self.threads.as_ref()?;
+        if threads.scan.is_finished() {
+            Some("scan")
+        } else if threads.events.is_finished() {
+            Some("events")
+        } else if threads.watchdog.is_finished() {
+            Some("watchdog")
+        } else {
+            None
+        }
+    }
+
+    fn drain_reports(&mut self) {
+        while let Ok(report) = self.reports.pop() {
+            match report {
+                Report::ModeRequest(_, source) => self.mode_source = Some(source),
+                Report::Retired(old) => {
+                    drop(old);
+                    if let Some(names) = self.next_names.take() {
+                        self.names = names;
+                    }
+                }
+                Report::Event(_, event) => self.log_event(event),
+            }
+        }
+    }
+
+    fn log_event(&mut self, event: Event) {
+        match event {
+            Event::Mode(mode) => {
+                let why = match (self.mode_source.take(), mode) {
+                    (Some(source), _) => source.as_str(),
+                    (None, Mode::Error) => "error",
+                    (None, _) => "STOP instruction",
+                };
+                log::info!("mode {} ({why})", mode.as_str());
+            }
+            Event::Error(kind) => {
+                let (code, detail) = self.names.describe_error(kind);
+                log::error!("error {code}: {detail}");
+            }
+            Event::Set { watch, value } => {
+                log::log!(self.log_outputs, "{} = {value}", self.names.watch(watch));
+            }
+            _ => {}
+        }
+    }
+
+    fn log_counters(&mut self) {
+        let lost = self.shared.lost_edges.load(Ordering::Relaxed);
+        if lost > self.seen_lost_edges {
+            log::warn!("{} input edges lost ({lost} in all)", lost - self.seen_lost_edges);
+            self.seen_lost_edges = lost;
+        }
+        let dropped = self.shared.dropped_reports.load(Ordering::Relaxed);
+        if dropped > self.seen_dropped {
+            log::warn!(
+                "{} events not logged: the report queue was full",
+                dropped - self.seen_dropped
+            );
+            self.seen_dropped = dropped;
+        }
+        let trips = self.shared.watchdog_trips.load(Ordering::Relaxed);
+        if trips > self.seen_trips {
+            let late = self.shared.watchdog_late_ns.load(Ordering::Relaxed);
+            log::error!(
+                "watchdog: the scan thread did not finish the scan in time; outputs made safe \
+                 {:.3} ms after the expiry",
+                late as f64 / 1e6
+            );
+            self.seen_trips = trips;
+        }
+    }
+
+    /// SIGHUP: the config and programs are loaded and checked; on any error the diagnostics are
+    /// logged and the running project goes on untouched.
+    fn reload(&mut self) {
+        if let Some(n) = &self.notifier {
+            let _ = n.reloading();
+        }
+        log::info!("SIGHUP: reloading {}", self.config_path.display());
+        match project::load(&self.config_path) {
+            Err(diagnostics) => {
+                for d in diagnostics.iter() {
+                    log::error!("{d}");
+                }
+                log::error!(
+                    "reload refused ({} errors); still running the project loaded before",
+                    diagnostics.len()
+                );
+            }
+            Ok(new) => {
+                let old = &self.project.config;
+                let changed: Vec<&str> =
+                    [("[io]", new.config.io != old.io), ("[rt]", new.config.rt != old.rt)]
+                        .into_iter()
+                        .filter_map(|(name, changed)| changed.then_some(name))
+                        .collect();
+                if !changed.is_empty() {
+                    log::error!(
+                        "reload refused: {} changed, which takes a restart of the service; \
+                         still running the project loaded before",
+                        changed.join(" and ")
+                    );
+                } else {
+                    let watch = crate::sim::output_bits(&new);
+                    let engine = Box::new(Engine::new(&new, &watch));
+                    self.next_names = Some(Names::new(&new, &watch));
+                    log::info!(
+                        "reloaded: {} programs, {} tasks; restarting them",
+                        new.programs.len(),
+                        new.config.tasks.len()
+                    );
+                    self.project = new;
+                    self.command(Command::Replace(engine));
+                }
+            }
+        }
+        if let Some(n) = &self.notifier {
+            let _ = n.ready();
+        }
+    }
+
+    fn shutdown(&mut self) -> Result<(), DaemonError> {
+        if let Some(n) = &self.notifier {
+            let _ = n.stopping();
+        }
+        let Some(threads) = self.threads.take() else { return Ok(()) };
+        let engine = stop_threads(&self.shared, threads);
+        self.drain_reports();
+        self.log_counters();
+        if let Some(engine) = engine {
+            for line in report::statistics(&engine, &self.shared) {
+                log::info!("{line}");
+            }
+        }
+        log::info!("stopped; outputs off");
+        Ok(())
+    }
+}
+
+/// Stops every thread; the scan thread stops between two instructions and puts the outputs
+/// into their safe state first. Returns its engine unless it had died.
+fn stop_threads(shared: &Shared, threads: Threads) -> Option<Box<Engine>> {
+    shared.request_shutdown();
+    threads.watchdog.thread().unpark();
+    if let Some(stimulus) = &threads.stimulus {
+        stimulus.thread().unpark();
+    }
+    let engine = threads.scan.join().ok();
+    if let Ok(Err(e)) = threads.events.join() {
+        log::error!("event thread: {e}");
+    }
+    let _ = threads.watchdog.join();
+    if let Some(stimulus) = threads.stimulus {
+        let _ = stimulus.join();
+    }
+    engine
+}
+
+fn spawn_rt<T: Send + 'static>(
+    role: Role,
+    rt: &crate::config::RtConfig,
+    setup: mpsc::Sender<Vec<RtSetupError>>,
+    body: impl FnOnce() -> T + Send + 'static,
+) -> Result<JoinHandle<T>, DaemonError> {
+    let rt = rt.clone();
+    std::thread::Builder::new()
+        .name(format!("plcd-{}", role.name()))
+        .stack_size(THREAD_STACK)
+        .spawn(move || {
+            let _ = setup.send(rt::setup_thread(&rt, role));
+            body()
+        })
+        .map_err(|source| DaemonError::Spawn { thread: role.name(), source })
+}
+
+/// The contacts the io tasks start on, with the edges they need.
+fn edge_contacts(project: &Project) -> Vec<(u8, Edge)> {
+    project
+        .config
+        .tasks
+        .iter()
+        .filter_map(|t| match &t.kind {
+            TaskKind::Io { contact, edge } => Some((contact.bit.unwrap_or(0), *edge)),
+            _ => None,
+        })
+        .collect()
+}
+
+/// What the supervisor heard.
+enum Signal {
+    Stop(&'static str),
+    Reload,
+}
+
+/// SIGTERM, SIGINT and SIGHUP as flags, with a self-pipe that wakes the supervisor.
+struct Signals {
+    term: Arc<AtomicBool>,
+    int: Arc<AtomicBool>,
+    hup: Arc<AtomicBool>,
+    wake: UnixStream,
+}
+
+impl Signals {
+    fn register() -> Result<Signals, DaemonError> {
+        use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+        let to_sys = |call| {
+            move |e: std::io::Error| SysError {
+                call,
+                errno: nix::errno::Errno::from_raw(e.raw_os_error().unwrap_or(0)),
+            }
+        };
+        let (read, write) = UnixStream::pair().map_err(to_sys("socketpair"))?;
+        read.set_nonblocking(true).map_err(to_sys("fcntl"))?;
+        write.set_nonblocking(true).map_err(to_sys("fcntl"))?;
+        let signals = Signals {
+            term: Arc::new(AtomicBool::new(false)),
+            int: Arc::new(AtomicBool::new(false)),
+            hup: Arc::new(AtomicBool::new(false)),
+            wake: read,
+        };
+        for (signal, flag) in
+            [(SIGTERM, &signals.term), (SIGINT, &signals.int), (SIGHUP, &signals.hup)]
+        {
+            signal_hook::flag::register(signal, Arc::clone(flag)).map_err(to_sys("sigaction"))?;
+            let write = write.try_clone().map_err(to_sys("dup"))?;
+            signal_hook::low_level::pipe::register(signal, write).map_err(to_sys("sigaction"))?;
+        }
+        Ok(signals)
+    }
+
+    /// Waits up to `timeout` for a signal.
+    fn wait(&mut self, timeout: Duration) -> Option<Signal> {
+        if !self.pending() {
+            let _ = sys::wait_readable(&[self.wake.as_fd()], Some(timeout.as_nanos() as u64));
+        }
+        let mut buf = [0u8; 64];
+        while matches!(self.wake.read(&mut buf), Ok(n) if n > 0) {}
+        if self.term.swap(false, Ordering::SeqCst) {
+            return Some(Signal::Stop("SIGTERM"));
+        }
+        if self.int.swap(false, Ordering::SeqCst) {
+            return Some(Signal::Stop("SIGINT"));
+        }
+        if self.hup.swap(false, Ordering::SeqCst) {
+            return Some(Signal::Reload);
+        }
+        None
+    }
+
+    fn pending(&self) -> bool {
+        [&self.term, &self.int, &self.hup].iter().any(|f| f.load(Ordering::SeqCst))
+    }
+}
