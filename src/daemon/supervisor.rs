@@ -259,9 +259,7 @@ impl Daemon {
     }
 
     fn supervise(&mut self) -> Result<(), DaemonError> {
-        let keepalive = notify::watchdog_interval().map(|full| full / 2);
-        let mut last_keepalive = Instant::now();
-        let mut progress_at_keepalive = u64::MAX;
+        let mut keepalive = notify::watchdog_interval().map(|full| Keepalive::new(full / 2));
         let mut last_status = Instant::now() - STATUS_EVERY;
         loop {
             let signal = self.signals.wait(TICK);
@@ -280,12 +278,10 @@ impl Daemon {
                 let _ = self.shutdown();
                 return Err(DaemonError::ThreadDied(which));
             }
-            if let (Some(n), Some(interval)) = (&self.notifier, keepalive) {
+            if let (Some(n), Some(keepalive)) = (&self.notifier, &mut keepalive) {
                 let progress = self.shared.progress.load(Ordering::Relaxed);
-                if last_keepalive.elapsed() >= interval && progress != progress_at_keepalive {
+                if keepalive.due(Instant::now(), progress) {
                     let _ = n.watchdog();
-                    last_keepalive = Instant::now();
-                    progress_at_keepalive = progress;
                 }
             }
             if last_status.elapsed() >= STATUS_EVERY {
@@ -488,6 +484,32 @@ fn edge_contacts(project: &Project) -> Vec<(u8, Edge)> {
         .collect()
 }
 
+/// When to send `WATCHDOG=1`: every `interval` (half of `WATCHDOG_USEC`), and only if the
+/// engine made progress since the last one (a scan ended, or the STOP/ERROR loop went round),
+/// so that systemd restarts a daemon whose engine hangs even though this thread lives.
+struct Keepalive {
+    interval: Duration,
+    last: Option<(Instant, u64)>,
+}
+
+impl Keepalive {
+    fn new(interval: Duration) -> Keepalive {
+        Keepalive { interval, last: None }
+    }
+
+    /// True if a keepalive is to be sent now; records it.
+    fn due(&mut self, now: Instant, progress: u64) -> bool {
+        let due = match self.last {
+            None => true,
+            Some((at, seen)) => now.duration_since(at) >= self.interval && progress != seen,
+        };
+        if due {
+            self.last = Some((now, progress));
+        }
+        due
+    }
+}
+
 /// What the supervisor heard.
 enum Signal {
     Stop(&'static str),
@@ -551,5 +573,23 @@ impl Signals {
 
     fn pending(&self) -> bool {
         [&self.term, &self.int, &self.hup].iter().any(|f| f.load(Ordering::SeqCst))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keepalives_need_progress_and_the_interval() {
+        let t0 = Instant::now();
+        let ms = |n| t0 + Duration::from_millis(n);
+        let mut k = Keepalive::new(Duration::from_millis(100));
+        assert!(k.due(ms(0), 1), "the first one at once");
+        assert!(!k.due(ms(50), 2), "not before the interval");
+        assert!(k.due(ms(100), 2));
+        assert!(!k.due(ms(300), 2), "no progress: the engine hangs, systemd must see silence");
+        assert!(!k.due(ms(900), 2));
+        assert!(k.due(ms(901), 3), "progress again");
     }
 }

@@ -69,3 +69,97 @@ impl WatchdogThread {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::device::{Address, Memory};
+    use crate::io::sim::SimIo;
+    use crate::io::Io;
+    use std::time::Instant;
+
+    /// A watchdog thread over a sim field whose P0040 is ON, and the field.
+    fn setup() -> (Arc<Shared>, Arc<OutputGate>, Arc<crate::io::sim::SimField>) {
+        let mut io = SimIo::new(&[]);
+        let mut mem = Memory::new();
+        mem.write(&Address::parse("P0040").unwrap(), 1);
+        io.refresh_outputs(&mem);
+        let field = io.field();
+        assert_eq!(field.output(4), 1);
+        (Arc::new(Shared::new().unwrap()), Arc::new(OutputGate::default()), field)
+    }
+
+    fn start(
+        shared: &Arc<Shared>,
+        gate: &Arc<OutputGate>,
+        field: &Arc<crate::io::sim::SimField>,
+        clear: bool,
+    ) -> std::thread::JoinHandle<()> {
+        let thread = WatchdogThread {
+            shared: Arc::clone(shared),
+            gate: Arc::clone(gate),
+            safe: SafeOutputs::Sim(Arc::clone(field)),
+            clear,
+        };
+        std::thread::spawn(move || thread.run())
+    }
+
+    fn wait_for_trip(shared: &Shared) {
+        let start = Instant::now();
+        while shared.watchdog_trips.load(Ordering::Relaxed) == 0 {
+            assert!(start.elapsed() < Duration::from_secs(20), "the watchdog never tripped");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+
+    fn stop(shared: &Shared, handle: std::thread::JoinHandle<()>) {
+        shared.request_shutdown();
+        handle.thread().unpark();
+        handle.join().unwrap();
+    }
+
+    #[test]
+    fn a_stuck_scan_gets_its_outputs_cleared_and_the_engine_told() {
+        let (shared, gate, field) = setup();
+        let handle = start(&shared, &gate, &field, true);
+        // The scan thread arms the watchdog and never comes back.
+        let deadline = sys::now_ns() + 20_000_000;
+        shared.watchdog_deadline.store(deadline, Ordering::Release);
+        handle.thread().unpark();
+        wait_for_trip(&shared);
+        assert_eq!(field.output(4), 0, "outputs cleared");
+        assert!(gate.is_tripped(), "no further writes");
+        assert_ne!(shared.pending.load(Ordering::SeqCst) & pending::WATCHDOG, 0);
+        assert!(shared.watchdog_late_ns.load(Ordering::Relaxed) >= GRACE_NS);
+        stop(&shared, handle);
+    }
+
+    #[test]
+    fn with_hold_the_outputs_stay_but_writes_stop() {
+        let (shared, gate, field) = setup();
+        let handle = start(&shared, &gate, &field, false);
+        shared.watchdog_deadline.store(sys::now_ns() + 10_000_000, Ordering::Release);
+        handle.thread().unpark();
+        wait_for_trip(&shared);
+        assert_eq!(field.output(4), 1, "outputs held");
+        assert!(gate.is_tripped());
+        stop(&shared, handle);
+    }
+
+    #[test]
+    fn a_scan_that_keeps_finishing_never_trips() {
+        let (shared, gate, field) = setup();
+        let handle = start(&shared, &gate, &field, true);
+        // Scans end well before their deadline: each new scan publishes a later one.
+        for _ in 0..30 {
+            shared.watchdog_deadline.store(sys::now_ns() + 500_000_000, Ordering::Release);
+            handle.thread().unpark();
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        shared.watchdog_deadline.store(0, Ordering::Release);
+        assert_eq!(shared.watchdog_trips.load(Ordering::Relaxed), 0);
+        assert_eq!(field.output(4), 1);
+        assert!(!gate.is_tripped());
+        stop(&shared, handle);
+    }
+}

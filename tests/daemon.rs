@@ -1,0 +1,340 @@
+//! `plcd run` end to end on the sim backend, in real time: the binary is started on a project
+//! in a temporary directory, its log is read line by line, and it is stopped with signals.
+//! Timing bounds are loose (seconds): these tests check behaviour, the benchmarks measure time.
+
+use std::io::{BufRead, BufReader};
+use std::os::unix::net::UnixDatagram;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use nix::sys::signal::{kill, Signal};
+use nix::unistd::Pid;
+
+/// How long any expected log line may take to appear.
+const PATIENCE: Duration = Duration::from_secs(20);
+
+/// A project directory under the system's temp dir, removed on drop.
+struct Project {
+    dir: PathBuf,
+}
+
+impl Project {
+    fn new(name: &str, files: &[(&str, &str)]) -> Project {
+        let dir = std::env::temp_dir().join(format!("plcd-daemon-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let project = Project { dir };
+        for (file, text) in files {
+            project.write(file, text);
+        }
+        project
+    }
+
+    fn write(&self, file: &str, text: &str) {
+        std::fs::write(self.dir.join(file), text).unwrap();
+    }
+
+    fn config(&self) -> PathBuf {
+        self.dir.join("plcd.toml")
+    }
+}
+
+impl Drop for Project {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+/// A running daemon and everything it logged so far.
+struct Daemon {
+    child: Child,
+    log: Arc<Mutex<Vec<String>>>,
+}
+
+impl Daemon {
+    fn start(config: &Path, env: &[(&str, &str)]) -> Daemon {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_plcd"));
+        command
+            .args(["run", "--config"])
+            .arg(config)
+            .env_remove("NOTIFY_SOCKET")
+            .env_remove("WATCHDOG_USEC")
+            .env_remove("JOURNAL_STREAM")
+            .env_remove("INVOCATION_ID")
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped());
+        for (key, value) in env {
+            command.env(key, value);
+        }
+        let mut child = command.spawn().expect("plcd starts");
+        let log = Arc::new(Mutex::new(Vec::new()));
+        let stderr = child.stderr.take().unwrap();
+        let sink = Arc::clone(&log);
+        std::thread::spawn(move || {
+            for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+                sink.lock().unwrap().push(line);
+            }
+        });
+        Daemon { child, log }
+    }
+
+    fn lines(&self) -> Vec<String> {
+        self.log.lock().unwrap().clone()
+    }
+
+    /// Waits until a line after the first `after` lines contains `text`; its index.
+    fn wait_for_after(&self, after: usize, text: &str) -> usize {
+        let start = Instant::now();
+        loop {
+            if let Some(i) = self.lines().iter().skip(after).position(|l| l.contains(text)) {
+                return after + i;
+            }
+            if start.elapsed() > PATIENCE {
+                panic!(
+                    "no log line with {text:?} after line {after}; log:\n{}",
+                    self.lines().join("\n")
+                );
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    fn wait_for(&self, text: &str) -> usize {
+        self.wait_for_after(0, text)
+    }
+
+    fn signal(&self, signal: Signal) {
+        kill(Pid::from_raw(self.child.id() as i32), signal).unwrap();
+    }
+
+    /// Sends SIGTERM and returns the exit code.
+    fn stop(mut self) -> (i32, Vec<String>) {
+        self.signal(Signal::SIGTERM);
+        let status = self.wait_exit();
+        // The reader thread sees EOF once the process is gone.
+        std::thread::sleep(Duration::from_millis(50));
+        (status, self.lines())
+    }
+
+    fn wait_exit(&mut self) -> i32 {
+        let start = Instant::now();
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return status.code().unwrap_or(-1);
+            }
+            if start.elapsed() > PATIENCE {
+                let _ = self.child.kill();
+                panic!("plcd did not exit; log:\n{}", self.lines().join("\n"));
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+}
+
+impl Drop for Daemon {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+const CONVEYOR: &str = r#"
+[plc]
+scan_period_ms = 5
+
+[[program]]
+file = "main.il"
+
+[[program]]
+file = "blink.il"
+task = "blink"
+
+[[program]]
+file = "count.il"
+task = "count"
+
+[[task]]
+name = "blink"
+kind = "cycle"
+number = 0
+priority = 3
+interval_ms = 50
+
+[[task]]
+name = "count"
+kind = "io"
+number = 8
+priority = 2
+contact = "P0000"
+edge = "rising"
+
+[io]
+stimulus = "inputs.csv"
+"#;
+
+const MAIN: &str = "LOAD P0001\nOUT P0041\nLOAD>= D00000 3\nOUT P0042\nEND\n";
+const BLINK: &str = "LOAD NOT P0040\nOUT P0040\nEND\n";
+const COUNT: &str = "INC D00000\nEND\n";
+const INPUTS: &str = "100ms, P0000, 1\n150ms, P0000, 0\n200ms, P0000, 1\n250ms, P0000, 0\n\
+                      300ms, P0000, 1\n350ms, P0000, 0\n400ms, P0001, 1\n";
+
+fn conveyor(name: &str) -> Project {
+    Project::new(
+        name,
+        &[
+            ("plcd.toml", CONVEYOR),
+            ("main.il", MAIN),
+            ("blink.il", BLINK),
+            ("count.il", COUNT),
+            ("inputs.csv", INPUTS),
+        ],
+    )
+}
+
+#[test]
+fn runs_the_project_in_real_time_and_stops_cleanly_on_sigterm() {
+    let project = conveyor("run");
+    let daemon = Daemon::start(&project.config(), &[]);
+    daemon.wait_for("mode RUN (startup)");
+    // The cycle task blinks, the io task counts three edges of the stimulus, the scan follows
+    // P0001.
+    let on = daemon.wait_for("P0040 = 1");
+    daemon.wait_for_after(on, "P0040 = 0");
+    daemon.wait_for("P0042 = 1");
+    daemon.wait_for("P0041 = 1");
+    let (code, log) = daemon.stop();
+    assert_eq!(code, 0, "log:\n{}", log.join("\n"));
+    let text = log.join("\n");
+    let stopping = text.find("SIGTERM: stopping").expect("the signal is logged");
+    let after = &text[stopping..];
+    assert!(after.contains("mode STOP (signal)"), "{text}");
+    assert!(after.contains("P0041 = 0") && after.contains("P0042 = 0"), "outputs off:\n{text}");
+    assert!(text.contains("statistics: task count: 3 runs, 0 ignored"), "{text}");
+    assert!(text.contains("stopped; outputs off"), "{text}");
+}
+
+#[test]
+fn sighup_with_a_broken_program_keeps_the_running_one_then_a_good_one_replaces_it() {
+    let project = conveyor("reload");
+    let daemon = Daemon::start(&project.config(), &[]);
+    daemon.wait_for("P0040 = 1");
+
+    project.write("blink.il", "LOAD NOT P0040\nOUTT P0040\nEND\n");
+    daemon.signal(Signal::SIGHUP);
+    let refused = daemon.wait_for("reload refused (1 errors)");
+    let lines = daemon.lines();
+    assert!(
+        lines.iter().any(|l| l.contains("blink.il:2:1: error:")),
+        "the diagnostic names file, line and column:\n{}",
+        lines.join("\n")
+    );
+    // Still blinking: both edges again after the refusal.
+    let on = daemon.wait_for_after(refused, "P0040 = 1");
+    daemon.wait_for_after(on, "P0040 = 0");
+
+    project.write("blink.il", "LOAD NOT P0043\nOUT P0043\nEND\n");
+    daemon.signal(Signal::SIGHUP);
+    let reloaded = daemon.wait_for("reloaded: 3 programs, 2 tasks");
+    daemon.wait_for_after(reloaded, "P0043 = 1");
+    let (code, log) = daemon.stop();
+    assert_eq!(code, 0, "log:\n{}", log.join("\n"));
+}
+
+#[test]
+fn a_scan_that_never_ends_takes_the_watchdog_error_and_clears_the_outputs() {
+    let config = "[plc]\nwatchdog_ms = 50\n[[program]]\nfile = \"main.il\"\n\
+                  [io]\nstimulus = \"inputs.csv\"\n";
+    // P0040 is ON every scan; once P0001 is ON, the scan loops forever.
+    let main = "LOAD _ON\nOUT P0040\nLABEL 1\nLOAD P0001\nJMP 1\nEND\n";
+    let project = Project::new(
+        "wdt",
+        &[("plcd.toml", config), ("main.il", main), ("inputs.csv", "200ms, P0001, 1\n")],
+    );
+    let daemon = Daemon::start(&project.config(), &[]);
+    let on = daemon.wait_for("P0040 = 1");
+    let error = daemon.wait_for_after(on, "error WDT: scan");
+    assert!(daemon.lines()[error].contains("exceeded watchdog_ms 50"));
+    daemon.wait_for_after(on, "mode ERROR (error)");
+    daemon.wait_for_after(on, "P0040 = 0");
+    let (code, log) = daemon.stop();
+    assert_eq!(code, 0, "log:\n{}", log.join("\n"));
+}
+
+#[test]
+fn config_errors_stop_the_start_with_every_diagnostic() {
+    let config =
+        "[rt]\nscan_priority = 0\npolicy = \"round-robin\"\n[[program]]\nfile = \"main.il\"\n";
+    let project = Project::new("badrt", &[("plcd.toml", config), ("main.il", "END\n")]);
+    let mut daemon = Daemon::start(&project.config(), &[]);
+    assert_eq!(daemon.wait_exit(), 1);
+    std::thread::sleep(Duration::from_millis(50));
+    let log = daemon.lines().join("\n");
+    let path = project.config().display().to_string();
+    assert!(log.contains(&format!("{path}:2:17: error: rt.scan_priority 0 out of range")), "{log}");
+    assert!(log.contains(&format!("{path}:3:10: error:")), "{log}");
+    assert!(log.contains("not started: 2 errors in the project"), "{log}");
+}
+
+#[test]
+fn a_missing_gpio_chip_is_named() {
+    let config = "[[program]]\nfile = \"main.il\"\n[io]\nbackend = \"gpiocdev\"\n\
+                  chip = \"/dev/gpiochip-plcd-test\"\n\
+                  [[io.output]]\ndevice = \"P0040\"\nline = 3\n";
+    let project = Project::new("nochip", &[("plcd.toml", config), ("main.il", "END\n")]);
+    let mut daemon = Daemon::start(&project.config(), &[]);
+    assert_eq!(daemon.wait_exit(), 1);
+    std::thread::sleep(Duration::from_millis(50));
+    let log = daemon.lines().join("\n");
+    assert!(log.contains("GPIO chip `/dev/gpiochip-plcd-test` not found"), "{log}");
+}
+
+#[test]
+fn a_broken_stimulus_file_is_located() {
+    let config = "[[program]]\nfile = \"main.il\"\n[io]\nstimulus = \"inputs.csv\"\n";
+    let project = Project::new(
+        "badstim",
+        &[
+            ("plcd.toml", config),
+            ("main.il", "END\n"),
+            ("inputs.csv", "10ms, P0000, 1\nsoon, P0000, 0\n"),
+        ],
+    );
+    let mut daemon = Daemon::start(&project.config(), &[]);
+    assert_eq!(daemon.wait_exit(), 1);
+    std::thread::sleep(Duration::from_millis(50));
+    let log = daemon.lines().join("\n");
+    assert!(log.contains("inputs.csv:2:1: error:"), "{log}");
+}
+
+#[test]
+fn the_service_manager_hears_ready_status_watchdog_and_stopping() {
+    let project = conveyor("notify");
+    let socket = project.dir.join("notify.sock");
+    let listener = UnixDatagram::bind(&socket).unwrap();
+    listener.set_read_timeout(Some(PATIENCE)).unwrap();
+    let socket_env = socket.to_str().unwrap().to_string();
+    // WATCHDOG_USEC = 200 ms: keepalives every 100 ms while the engine makes progress.
+    let daemon = Daemon::start(
+        &project.config(),
+        &[("NOTIFY_SOCKET", &socket_env), ("WATCHDOG_USEC", "200000")],
+    );
+    let mut heard: Vec<String> = Vec::new();
+    let mut buf = [0u8; 4096];
+    while heard.iter().filter(|m| m.as_str() == "WATCHDOG=1").count() < 3
+        || !heard.iter().any(|m| m.starts_with("STATUS=RUN"))
+    {
+        let n = listener.recv(&mut buf).expect("a notification within the patience");
+        heard.push(String::from_utf8_lossy(&buf[..n]).to_string());
+    }
+    assert_eq!(heard[0], "READY=1", "{heard:?}");
+    let (code, _) = daemon.stop();
+    assert_eq!(code, 0);
+    let mut rest = Vec::new();
+    listener.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
+    while let Ok(n) = listener.recv(&mut buf) {
+        rest.push(String::from_utf8_lossy(&buf[..n]).to_string());
+    }
+    assert!(rest.iter().any(|m| m == "STOPPING=1"), "{rest:?}");
+}
