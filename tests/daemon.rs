@@ -338,3 +338,50 @@ fn the_service_manager_hears_ready_status_watchdog_and_stopping() {
     }
     assert!(rest.iter().any(|m| m == "STOPPING=1"), "{rest:?}");
 }
+
+#[test]
+fn real_time_that_cannot_be_had_is_a_warning_or_with_require_a_refusal() {
+    // CPU 1000 does not exist on the test machine: pinning the scan thread there fails, like a
+    // missing CAP_SYS_NICE would, on any machine and for any user.
+    let config = |require: bool| {
+        format!("[rt]\nscan_cpus = [1000]\nrequire = {require}\n[[program]]\nfile = \"main.il\"\n")
+    };
+    let project = Project::new("rtwarn", &[("plcd.toml", &config(false)), ("main.il", "END\n")]);
+    let daemon = Daemon::start(&project.config(), &[]);
+    let warning = daemon.wait_for("running without full real-time guarantees");
+    assert!(
+        daemon.lines()[warning].contains("scan thread: sched_setaffinity"),
+        "{:?}",
+        daemon.lines()
+    );
+    daemon.wait_for("mode RUN (startup)");
+    let (code, _) = daemon.stop();
+    assert_eq!(code, 0);
+
+    project.write("plcd.toml", &config(true));
+    let mut daemon = Daemon::start(&project.config(), &[]);
+    assert_eq!(daemon.wait_exit(), 1);
+    std::thread::sleep(Duration::from_millis(50));
+    let log = daemon.lines().join("\n");
+    assert!(
+        log.contains(
+            "real time required by [rt] require = true, but: scan thread: sched_setaffinity"
+        ),
+        "{log}"
+    );
+    assert!(!log.contains("mode RUN"), "{log}");
+}
+
+#[test]
+fn a_looping_stimulus_replays_its_edges() {
+    let config = CONVEYOR
+        .replace("stimulus = \"inputs.csv\"", "stimulus = \"inputs.csv\"\nstimulus_loop = true");
+    let project = conveyor("loop");
+    project.write("plcd.toml", &config);
+    // One pass is 400 ms with three edges; the ninth edge needs a third pass.
+    project.write("main.il", "LOAD>= D00000 9\nOUT P0042\nEND\n");
+    let daemon = Daemon::start(&project.config(), &[]);
+    daemon.wait_for("P0042 = 1");
+    let (code, _) = daemon.stop();
+    assert_eq!(code, 0);
+}

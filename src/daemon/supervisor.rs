@@ -112,7 +112,7 @@ impl Daemon {
         let mut problems: Vec<String> = Vec::new();
         if rt.lock_memory {
             if let Err(e) = sys::lock_memory() {
-                problems.push(format!("{e} (memory is not locked; page faults may stall)"));
+                problems.push(e);
             }
         }
         let shared = Arc::new(Shared::new()?);
@@ -198,8 +198,9 @@ impl Daemon {
                 return Err(DaemonError::RtRefused(problems));
             }
             log::warn!(
-                "running without full real-time guarantees: {}; set [rt] policy = \"other\" to \
-                 silence this, or grant CAP_SYS_NICE and CAP_IPC_LOCK (see docs/CONFIG.md)",
+                "running without full real-time guarantees: {}; grant CAP_SYS_NICE and \
+                 CAP_IPC_LOCK, or set [rt] policy = \"other\" and lock_memory = false to run \
+                 without them on purpose (docs/CONFIG.md)",
                 problems.join("; ")
             );
         }

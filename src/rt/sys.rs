@@ -68,8 +68,43 @@ pub fn set_affinity(cpus: &[u16]) -> Result<(), SysError> {
 
 /// Locks every present and future page of the process in RAM, so that no page fault of the
 /// scan path ever waits for the disk.
-pub fn lock_memory() -> Result<(), SysError> {
+///
+/// Only when it is safe: with MCL_FUTURE, every later mapping counts against RLIMIT_MEMLOCK, so
+/// under a finite limit and without CAP_IPC_LOCK a thread stack or a heap growth would fail
+/// later, far from here. Then memory stays unlocked and the reason is returned.
+pub fn lock_memory() -> Result<(), String> {
+    use nix::sys::resource::{getrlimit, Resource, RLIM_INFINITY};
+    let limit = getrlimit(Resource::RLIMIT_MEMLOCK).ok().map(|(soft, _)| soft);
+    let limit = limit.filter(|&soft| soft != RLIM_INFINITY);
+    memory_lock_allowed(has_capability(CAP_IPC_LOCK), limit)?;
     check("mlockall", mlockall(MlockAllFlags::MCL_CURRENT | MlockAllFlags::MCL_FUTURE))
+        .map_err(|e| e.to_string())
+}
+
+/// CAP_IPC_LOCK's bit in the capability sets.
+const CAP_IPC_LOCK: u32 = 14;
+
+/// Whether locking all memory for good is safe: with CAP_IPC_LOCK or no limit (`None`).
+fn memory_lock_allowed(capable: bool, limit: Option<u64>) -> Result<(), String> {
+    match limit {
+        Some(bytes) if !capable => Err(format!(
+            "memory not locked: RLIMIT_MEMLOCK is {} KiB and CAP_IPC_LOCK is missing (raise \
+             LimitMEMLOCK= to infinity or grant the capability)",
+            bytes / 1024
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// Whether the effective capability set holds capability number `cap`, from
+/// /proc/self/status (false if it cannot be read).
+pub fn has_capability(cap: u32) -> bool {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    status
+        .lines()
+        .find_map(|line| line.strip_prefix("CapEff:"))
+        .and_then(|hex| u64::from_str_radix(hex.trim(), 16).ok())
+        .is_some_and(|set| set & (1 << cap) != 0)
 }
 
 /// Touches `bytes` of the calling thread's stack, so that with memory locked its pages exist
@@ -206,6 +241,14 @@ mod tests {
         assert!(wait_readable(&[wake.as_fd()], Some(0)).unwrap());
         wake.drain();
         assert!(!wait_readable(&[wake.as_fd()], Some(0)).unwrap());
+    }
+
+    #[test]
+    fn memory_is_locked_only_when_later_mappings_cannot_fail() {
+        assert!(memory_lock_allowed(true, Some(65536)).is_ok());
+        assert!(memory_lock_allowed(false, None).is_ok());
+        let refused = memory_lock_allowed(false, Some(8 << 20)).unwrap_err();
+        assert!(refused.contains("RLIMIT_MEMLOCK is 8192 KiB"), "{refused}");
     }
 
     #[test]
