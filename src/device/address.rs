@@ -48,9 +48,9 @@ pub enum AddressError {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum UseError {
     #[error("`{0}` is a word device, a bit is needed here")]
-    NotABit(String),
+    NotABit(Address),
     #[error("`{0}` is a bit device, a word is needed here")]
-    NotAWord(String),
+    NotAWord(Address),
 }
 
 impl Address {
@@ -146,7 +146,7 @@ impl Address {
 
     /// The address used as a bit.
     pub fn as_bit(&self) -> Result<BitRef, UseError> {
-        let not_a_bit = || UseError::NotABit(self.to_string());
+        let not_a_bit = || UseError::NotABit(*self);
         let (word, bit) = match (self.area, self.bit) {
             (Area::P | Area::M | Area::K | Area::D, Some(bit)) => {
                 (self.area.base() + self.number, u32::from(bit))
@@ -169,7 +169,7 @@ impl Address {
 
     /// The address used as a word.
     pub fn as_word(&self) -> Result<WordRef, UseError> {
-        let not_a_word = || UseError::NotAWord(self.to_string());
+        let not_a_word = || UseError::NotAWord(*self);
         if self.bit.is_some() {
             return Err(not_a_word());
         }

@@ -52,6 +52,17 @@ pub struct ScanThread {
 impl ScanThread {
     /// Runs until shutdown: then STOP (outputs to the safe state) and returns the engine.
     pub fn run(mut self) -> Box<Engine> {
+        self.serve();
+        self.into_engine()
+    }
+
+    /// The engine, after [`ScanThread::serve`] returned.
+    pub fn into_engine(self) -> Box<Engine> {
+        self.engine
+    }
+
+    /// The scan loop, until shutdown, then STOP. Allocates nothing (tests/scan_no_alloc.rs).
+    pub fn serve(&mut self) {
         let mut next_wakeup = 0u64;
         let mut published_deadline = 0u64;
         let mut published_scans = u64::MAX;
@@ -153,7 +164,6 @@ impl ScanThread {
         self.engine.set_mode(Mode::Stop, sys::now_ns(), &mut self.io, &mut sink);
         self.shared.mode.store(mode_code(Mode::Stop), Ordering::Relaxed);
         self.shared.watchdog_deadline.store(0, Ordering::Release);
-        self.engine
     }
 
     /// Sleeps until `deadline` or a wake. Announces the sleep first, then looks at the pending

@@ -1,0 +1,184 @@
+//! The scan thread never allocates: a counting global allocator watches the scan thread of the
+//! real-time driver while it runs a project with a 1 ms cycle task, an I/O task fed with edges,
+//! device tasks, timers, counters and DUTY, through mode changes and device writes, until it
+//! stops on shutdown.
+#![allow(unsafe_code)]
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use plcd::config;
+use plcd::device::Address;
+use plcd::engine::event::Mode;
+use plcd::engine::Engine;
+use plcd::io::gate::OutputGate;
+use plcd::io::sim::SimIo;
+use plcd::io::InputEdge;
+use plcd::project;
+use plcd::rt::io::{FieldIo, GatedIo, SafeOutputs};
+use plcd::rt::scan::ScanThread;
+use plcd::rt::sys::{self, Timer};
+use plcd::rt::{pending, Command, Report, Shared, Source};
+
+struct Counting;
+
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+thread_local! {
+    static WATCHED: Cell<bool> = const { Cell::new(false) };
+}
+
+// SAFETY: every call is forwarded unchanged to the system allocator; the counter only reads a
+// thread-local flag (const-initialised, so reading it never allocates) and bumps an atomic.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if WATCHED.with(Cell::get) {
+            let n = ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+            if n < 3 && std::env::var_os("PLCD_ALLOC_TRACE").is_some() {
+                WATCHED.with(|w| w.set(false));
+                eprintln!("allocation {n}:\n{}", std::backtrace::Backtrace::force_capture());
+                WATCHED.with(|w| w.set(true));
+            }
+        }
+        // SAFETY: the caller's layout contract is passed on as is.
+        unsafe { System.alloc(layout) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        if WATCHED.with(Cell::get) {
+            ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        }
+        // SAFETY: `ptr` came from `System.alloc` with this layout.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+const CONFIG: &str = r#"
+[plc]
+scan_period_ms = 1
+[[program]]
+file = "main.il"
+[[program]]
+file = "tick.il"
+task = "tick"
+[[program]]
+file = "edge.il"
+task = "edge"
+[[program]]
+file = "full.il"
+task = "full"
+[[task]]
+name = "tick"
+kind = "cycle"
+number = 0
+priority = 3
+interval_ms = 1
+[[task]]
+name = "edge"
+kind = "io"
+number = 8
+priority = 2
+contact = "P0000"
+edge = "both"
+[[task]]
+name = "full"
+kind = "device"
+number = 16
+priority = 4
+device = "D00000"
+condition = ">="
+value = 50
+"#;
+
+const MAIN: &str = "LOAD _ON\nTON T1500 5\nLOAD T1500\nOUT P0040\nLOAD P0000\nCTU C0000 10\n\
+                    LOAD _1ON\nDUTY 2 3 SM420\nLOAD SM420\nOUT P0041\nEND\n";
+const TICK: &str = "INC D00001\nLOAD NOT P0042\nOUT P0042\nEND\n";
+const EDGE: &str = "INC D00000\nEND\n";
+const FULL: &str = "MOV 0 D00000\nINC D00002\nEND\n";
+
+#[test]
+fn the_scan_thread_does_not_allocate() {
+    let config = config::parse(CONFIG, Path::new("alloc.toml")).expect("config");
+    let project = project::from_config(config, |path| {
+        Ok(match path.file_name().unwrap().to_str().unwrap() {
+            "main.il" => MAIN,
+            "tick.il" => TICK,
+            "edge.il" => EDGE,
+            _ => FULL,
+        }
+        .to_string())
+    })
+    .expect("project");
+    let io = SimIo::new(&[Address::parse("P0000").unwrap()]);
+    let field = io.field();
+    let shared = Arc::new(Shared::new().unwrap());
+    let (mut edges, edge_rx) = rtrb::RingBuffer::<InputEdge>::new(256);
+    let (mut commands, command_rx) = rtrb::RingBuffer::<Command>::new(64);
+    let (report_tx, mut reports) = rtrb::RingBuffer::<Report>::new(4096);
+    let watch = plcd::sim::output_bits(&project);
+    let scan = ScanThread {
+        engine: Box::new(Engine::new(&project, &watch)),
+        io: GatedIo {
+            field: FieldIo::Sim(io),
+            gate: Arc::new(OutputGate::default()),
+            safe: SafeOutputs::Sim(Arc::clone(&field)),
+            clear_on_trip: true,
+        },
+        shared: Arc::clone(&shared),
+        edges: edge_rx,
+        commands: command_rx,
+        reports: report_tx,
+        timer: Timer::new().unwrap(),
+        watchdog: std::thread::current(),
+    };
+    let handle = std::thread::spawn(move || {
+        let mut scan = scan;
+        WATCHED.with(|w| w.set(true));
+        scan.serve();
+        WATCHED.with(|w| w.set(false));
+        scan.into_engine()
+    });
+    let command = |commands: &mut rtrb::Producer<Command>, c: Command| {
+        assert!(commands.push(c).is_ok());
+        shared.signal(pending::COMMAND);
+    };
+    command(&mut commands, Command::Mode(Mode::Run, Source::Startup));
+    let p0000 = Address::parse("P0000").unwrap();
+    for i in 0..300u32 {
+        for edge in field.set_input(&p0000, (i % 2) as i32) {
+            let edge =
+                InputEdge { contact: edge.contact, rising: edge.rising, stamp_ns: sys::now_ns() };
+            assert!(edges.push(edge).is_ok());
+        }
+        shared.signal(pending::EDGE);
+        if i == 100 {
+            command(&mut commands, Command::Mode(Mode::Stop, Source::Signal));
+        }
+        if i == 120 {
+            command(&mut commands, Command::Mode(Mode::Run, Source::Signal));
+        }
+        if i == 150 {
+            command(&mut commands, Command::Write(Address::parse("D00100").unwrap(), 7));
+        }
+        std::thread::sleep(Duration::from_millis(1));
+        while reports.pop().is_ok() {}
+    }
+    shared.request_shutdown();
+    let engine = handle.join().unwrap();
+    let count = ALLOCATIONS.load(Ordering::Relaxed);
+    assert_eq!(count, 0, "the scan thread allocated or freed {count} times");
+    // It did run: scans, the cycle task, the io task (one run per edge at most), the device task.
+    assert!(engine.scan_stats().count > 0 || engine.mode() == Mode::Stop);
+    let runs = |name: &str| engine.task_stats(name).unwrap().runs;
+    assert!(runs("tick") > 10, "tick ran {}", runs("tick"));
+    assert!(runs("edge") > 10, "edge ran {}", runs("edge"));
+    assert!(runs("full") >= 1, "full ran {}", runs("full"));
+    assert_eq!(engine.vm().mem.read(&Address::parse("D00100").unwrap()), 7);
+}
