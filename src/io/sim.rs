@@ -21,6 +21,8 @@ pub struct SimField {
     inputs: [AtomicU16; WORDS],
     outputs: [AtomicU16; WORDS],
     input_mask: [u16; WORDS],
+    /// Contacts of P0000–P0007 whose edges are reported.
+    edge_mask: u16,
 }
 
 /// Simulated field I/O: the scan side of a [`SimField`].
@@ -31,8 +33,9 @@ pub struct SimIo {
 }
 
 impl Default for SimIo {
+    /// No inputs; edges reported on every contact.
     fn default() -> Self {
-        SimIo::new(&[])
+        SimIo::new(&[], &[0, 1, 2, 3, 4, 5, 6, 7])
     }
 }
 
@@ -51,34 +54,22 @@ fn mask_of(address: &Address) -> Option<(usize, u16)> {
 }
 
 impl SimIo {
-    /// A field whose inputs are the given P bits (or whole P words); other devices are ignored.
-    pub fn new(inputs: &[Address]) -> SimIo {
+    /// A field whose inputs are the given P bits (or whole P words; other devices are
+    /// ignored), reporting edges of the given contacts (0..=7: those I/O tasks start on, as
+    /// the gpiocdev backend detects edges only there).
+    pub fn new(inputs: &[Address], edge_contacts: &[u8]) -> SimIo {
         let mut input_mask = [0u16; WORDS];
         for (word, mask) in inputs.iter().filter_map(mask_of) {
             input_mask[word] |= mask;
         }
+        let edge_mask = edge_contacts.iter().fold(0u16, |m, &c| m | 1 << (c & 7));
         let field = SimField {
             inputs: std::array::from_fn(|_| AtomicU16::new(0)),
             outputs: std::array::from_fn(|_| AtomicU16::new(0)),
             input_mask,
+            edge_mask,
         };
         SimIo { field: Arc::new(field), input_mask }
-    }
-
-    /// Marks a P bit (or every bit of a P word) as an input. Only before the field is shared:
-    /// a [`SimField`] handed out earlier keeps the mask it was made with.
-    pub fn add_input(&mut self, address: &Address) {
-        if let Some((word, mask)) = mask_of(address) {
-            self.input_mask[word] |= mask;
-            let field = SimField {
-                inputs: std::array::from_fn(|w| {
-                    AtomicU16::new(self.field.inputs[w].load(Ordering::Relaxed))
-                }),
-                outputs: std::array::from_fn(|_| AtomicU16::new(0)),
-                input_mask: self.input_mask,
-            };
-            self.field = Arc::new(field);
-        }
     }
 
     /// True if the address is a P device.
@@ -118,7 +109,7 @@ impl SimField {
             None => cell.swap(value as u16, Ordering::Relaxed),
         };
         let after = cell.load(Ordering::Relaxed);
-        let changed = if word == 0 { (before ^ after) & 0xFF } else { 0 };
+        let changed = if word == 0 { (before ^ after) & self.edge_mask } else { 0 };
         (0..8u8)
             .filter(move |b| changed & 1 << b != 0)
             .map(move |b| ContactEdge { contact: b, rising: after & 1 << b != 0 })
@@ -177,9 +168,7 @@ mod tests {
 
     #[test]
     fn input_refresh_keeps_outputs() {
-        let mut io = SimIo::default();
-        io.add_input(&addr("P0000"));
-        io.add_input(&addr("P0001"));
+        let mut io = SimIo::new(&[addr("P0000"), addr("P0001")], &[0]);
         let mut mem = Memory::new();
         mem.write(&addr("P0040"), 1);
         mem.write(&addr("P0001"), 1);
@@ -202,5 +191,8 @@ mod tests {
         let falling: Vec<_> = io.set_input(&addr("P0002"), 0).collect();
         assert_eq!(falling, [ContactEdge { contact: 2, rising: false }]);
         assert_eq!(io.set_input(&addr("P0010"), 1).count(), 0, "P0010 is not a task contact");
+        let mut io = SimIo::new(&[addr("P000")], &[1]);
+        let edges: Vec<_> = io.set_input(&addr("P000"), 0b11).collect();
+        assert_eq!(edges, [ContactEdge { contact: 1, rising: true }], "only watched contacts");
     }
 }

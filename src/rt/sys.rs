@@ -45,11 +45,21 @@ fn timespec(ns: u64) -> TimeSpec {
 /// so that children (none are expected) never inherit real-time priority.
 #[allow(unsafe_code)]
 pub fn set_fifo(priority: u8) -> Result<(), SysError> {
-    let param = libc::sched_param { sched_priority: i32::from(priority) };
+    // SAFETY: sched_param is a C struct of integers (glibc has one field, musl a few more for
+    // SCHED_SPORADIC); all zeroes is a valid value of it.
+    let mut param: libc::sched_param = unsafe { std::mem::zeroed() };
+    param.sched_priority = i32::from(priority);
+    // The system call itself, not libc's wrapper: musl's sched_setscheduler() always fails
+    // with ENOSYS (POSIX means the process, Linux sets one thread), and one thread is meant.
     // SAFETY: `param` is a valid, initialised sched_param that lives across the call; pid 0 is
-    // the calling thread; the call reads `param` and writes nothing through it.
+    // the calling thread; the kernel reads `param` and writes nothing through it.
     let rc = unsafe {
-        libc::sched_setscheduler(0, libc::SCHED_FIFO | libc::SCHED_RESET_ON_FORK, &param)
+        libc::syscall(
+            libc::SYS_sched_setscheduler,
+            0,
+            libc::SCHED_FIFO | libc::SCHED_RESET_ON_FORK,
+            &param as *const libc::sched_param,
+        )
     };
     check("sched_setscheduler(SCHED_FIFO)", Errno::result(rc).map(drop))
 }

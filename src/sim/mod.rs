@@ -67,21 +67,20 @@ pub fn output_bits(project: &Project) -> Vec<Address> {
 /// The simulated field: inputs are the io-task contacts, the configured `[[io.input]]`s and
 /// every P device the stimulus writes.
 pub fn sim_io(project: &Project, stimuli: &[Stimulus]) -> SimIo {
-    let mut io = SimIo::default();
+    let mut inputs = Vec::new();
+    let mut edge_contacts = Vec::new();
     for task in &project.config.tasks {
         if let crate::config::TaskKind::Io { contact, .. } = &task.kind {
-            io.add_input(contact);
+            inputs.push(*contact);
+            edge_contacts.push(contact.bit.unwrap_or(0));
         }
     }
-    for line in &project.config.io.inputs {
-        io.add_input(&line.device);
-    }
-    for s in stimuli {
-        if let Target::Device(address) = &s.target {
-            io.add_input(address);
-        }
-    }
-    io
+    inputs.extend(project.config.io.inputs.iter().map(|line| line.device));
+    inputs.extend(stimuli.iter().filter_map(|s| match s.target {
+        Target::Device(address) => Some(address),
+        Target::Mode(_) => None,
+    }));
+    SimIo::new(&inputs, &edge_contacts)
 }
 
 /// Runs `project` from RUN at t = 0 for `options.duration_ns` of virtual time. Returns the
