@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use super::notify::{self, Notifier};
 use super::report::{self, Names};
-use crate::config::{Backend, Edge, TaskKind};
+use crate::config::Backend;
 use crate::diag::Diagnostics;
 use crate::engine::event::{Event, Mode};
 use crate::engine::Engine;
@@ -148,7 +148,7 @@ impl Daemon {
                 (FieldIo::Sim(io), SafeOutputs::Sim(field))
             }
             Backend::Gpiocdev => {
-                let opened = gpio::open(&config.io, &edge_contacts(&project), "plcd")?;
+                let opened = gpio::open(&config.io, &config.edge_contacts(), "plcd")?;
                 events.gpio = opened.edges;
                 events.edges = Some(edge_tx);
                 (FieldIo::Gpio(opened.io), SafeOutputs::Gpio(opened.outputs))
@@ -470,19 +470,6 @@ fn spawn_rt<T: Send + 'static>(
             body()
         })
         .map_err(|source| DaemonError::Spawn { thread: role.name(), source })
-}
-
-/// The contacts the io tasks start on, with the edges they need.
-fn edge_contacts(project: &Project) -> Vec<(u8, Edge)> {
-    project
-        .config
-        .tasks
-        .iter()
-        .filter_map(|t| match &t.kind {
-            TaskKind::Io { contact, edge } => Some((contact.bit.unwrap_or(0), *edge)),
-            _ => None,
-        })
-        .collect()
 }
 
 /// When to send `WATCHDOG=1`: every `interval` (half of `WATCHDOG_USEC`), and only if the

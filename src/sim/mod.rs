@@ -67,15 +67,11 @@ pub fn output_bits(project: &Project) -> Vec<Address> {
 /// The simulated field: inputs are the io-task contacts, the configured `[[io.input]]`s and
 /// every P device the stimulus writes.
 pub fn sim_io(project: &Project, stimuli: &[Stimulus]) -> SimIo {
-    let mut inputs = Vec::new();
-    let mut edge_contacts = Vec::new();
-    for task in &project.config.tasks {
-        if let crate::config::TaskKind::Io { contact, .. } = &task.kind {
-            inputs.push(*contact);
-            edge_contacts.push(contact.bit.unwrap_or(0));
-        }
-    }
-    inputs.extend(project.config.io.inputs.iter().map(|line| line.device));
+    let config = &project.config;
+    let edge_contacts: Vec<u8> = config.edge_contacts().iter().map(|(c, _)| *c).collect();
+    let mut inputs: Vec<Address> =
+        edge_contacts.iter().map(|&c| Address { area: Area::P, number: 0, bit: Some(c) }).collect();
+    inputs.extend(config.io.inputs.iter().map(|line| line.device));
     inputs.extend(stimuli.iter().filter_map(|s| match s.target {
         Target::Device(address) => Some(address),
         Target::Mode(_) => None,
