@@ -81,6 +81,9 @@ struct Threads {
     events: JoinHandle<Result<(), SysError>>,
     watchdog: JoinHandle<()>,
     stimulus: Option<JoinHandle<()>>,
+    /// To make the outputs safe if the scan thread dies instead of stopping.
+    gate: Arc<OutputGate>,
+    safe: SafeOutputs,
 }
 
 struct Daemon {
@@ -170,7 +173,7 @@ impl Daemon {
             let thread = WatchdogThread {
                 shared: Arc::clone(&shared),
                 gate: Arc::clone(&gate),
-                safe,
+                safe: safe.clone(),
                 clear,
             };
             move || thread.run()
@@ -191,7 +194,7 @@ impl Daemon {
             let errors = setup_rx.recv().unwrap_or_default();
             problems.extend(errors.iter().map(|e| e.to_string()));
         }
-        let mut threads = Threads { scan, events, watchdog, stimulus: None };
+        let mut threads = Threads { scan, events, watchdog, stimulus: None, gate, safe };
         if !problems.is_empty() {
             if rt.require {
                 stop_threads(&shared, threads);
@@ -445,6 +448,12 @@ fn stop_threads(shared: &Shared, threads: Threads) -> Option<Box<Engine>> {
         stimulus.thread().unpark();
     }
     let engine = threads.scan.join().ok();
+    if engine.is_none() {
+        // The scan thread panicked: nobody took the outputs to STOP's safe state.
+        threads.gate.trip();
+        threads.safe.apply();
+        log::error!("the scan thread died; outputs switched off");
+    }
     if let Ok(Err(e)) = threads.events.join() {
         log::error!("event thread: {e}");
     }
