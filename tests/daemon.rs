@@ -237,7 +237,10 @@ fn sighup_with_a_broken_program_keeps_the_running_one_then_a_good_one_replaces_i
     project.write("blink.il", "LOAD NOT P0043\nOUT P0043\nEND\n");
     daemon.signal(Signal::SIGHUP);
     let reloaded = daemon.wait_for("reloaded: 3 programs, 2 tasks");
+    daemon.wait_for_after(reloaded, "mode STOP (reload)");
+    daemon.wait_for_after(reloaded, "mode RUN (reload)");
     daemon.wait_for_after(reloaded, "P0043 = 1");
+    assert!(!daemon.lines().iter().any(|l| l.contains("STOP instruction")), "{:?}", daemon.lines());
     let (code, log) = daemon.stop();
     assert_eq!(code, 0, "log:\n{}", log.join("\n"));
 }

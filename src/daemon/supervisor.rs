@@ -98,8 +98,6 @@ struct Daemon {
     next_names: Option<Names>,
     log_outputs: log::Level,
     notifier: Option<Notifier>,
-    /// The source of the mode change being applied, for the log line of its `mode` event.
-    mode_source: Option<Source>,
     started: Instant,
     signals: Signals,
     /// Counters already reported, to log only increases.
@@ -228,7 +226,6 @@ impl Daemon {
             next_names: None,
             log_outputs,
             notifier: Notifier::from_env(),
-            mode_source: None,
             started: Instant::now(),
             signals,
             seen_lost_edges: 0,
@@ -313,7 +310,14 @@ impl Daemon {
     fn drain_reports(&mut self) {
         while let Ok(report) = self.reports.pop() {
             match report {
-                Report::ModeRequest(_, source) => self.mode_source = Some(source),
+                Report::Mode(_, mode, source) => {
+                    let why = match (source, mode) {
+                        (Some(source), _) => source.as_str(),
+                        (None, Mode::Error) => "error",
+                        (None, _) => "STOP instruction",
+                    };
+                    log::info!("mode {} ({why})", mode.as_str());
+                }
                 Report::Retired(old) => {
                     drop(old);
                     if let Some(names) = self.next_names.take() {
@@ -327,14 +331,6 @@ impl Daemon {
 
     fn log_event(&mut self, event: Event) {
         match event {
-            Event::Mode(mode) => {
-                let why = match (self.mode_source.take(), mode) {
-                    (Some(source), _) => source.as_str(),
-                    (None, Mode::Error) => "error",
-                    (None, _) => "STOP instruction",
-                };
-                log::info!("mode {} ({why})", mode.as_str());
-            }
             Event::Error(kind) => {
                 let (code, detail) = self.names.describe_error(kind);
                 log::error!("error {code}: {detail}");

@@ -100,10 +100,11 @@ impl Source {
 
 /// What the scan thread reports, in order.
 pub enum Report {
-    /// An engine event worth logging (mode, error, a watched output), at CLOCK_MONOTONIC ns.
+    /// An engine event worth logging (an error, a watched output), at CLOCK_MONOTONIC ns.
     Event(u64, Event),
-    /// A mode change asked by a command, before the events it causes.
-    ModeRequest(Mode, Source),
+    /// A mode change, with who asked for it; `None`: the program or an error (STOP
+    /// instruction, a stopping error).
+    Mode(u64, Mode, Option<Source>),
     /// The engine a [`Command::Replace`] took out, to be dropped off the real-time thread.
     Retired(Box<Engine>),
 }

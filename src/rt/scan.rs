@@ -17,6 +17,8 @@ use crate::io::InputEdge;
 struct ReportSink<'a> {
     reports: &'a mut rtrb::Producer<Report>,
     shared: &'a Shared,
+    /// Who asked for the mode change being applied, if one is.
+    source: Option<Source>,
 }
 
 impl ReportSink<'_> {
@@ -29,8 +31,10 @@ impl ReportSink<'_> {
 
 impl EventSink for ReportSink<'_> {
     fn event(&mut self, t_ns: u64, event: Event) {
-        if matches!(event, Event::Mode(_) | Event::Error(_) | Event::Set { .. }) {
-            self.push(Report::Event(t_ns, event));
+        match event {
+            Event::Mode(mode) => self.push(Report::Mode(t_ns, mode, self.source)),
+            Event::Error(_) | Event::Set { .. } => self.push(Report::Event(t_ns, event)),
+            _ => {}
         }
     }
 }
@@ -74,29 +78,32 @@ impl ScanThread {
             if flags & pending::SHUTDOWN != 0 {
                 break;
             }
-            let mut sink = ReportSink { reports: &mut self.reports, shared: &self.shared };
+            let mut sink =
+                ReportSink { reports: &mut self.reports, shared: &self.shared, source: None };
             if flags & pending::COMMAND != 0 {
                 while let Ok(command) = self.commands.pop() {
                     match command {
                         Command::Mode(to, source) => {
-                            sink.push(Report::ModeRequest(to, source));
+                            sink.source = Some(source);
                             if to == Mode::Stop {
                                 // Leaving an error: the gate the watchdog closed opens again
                                 // so that STOP's cleared outputs are published.
                                 self.io.gate.reopen();
                             }
                             self.engine.set_mode(to, now, &mut self.io, &mut sink);
+                            sink.source = None;
                         }
                         Command::Write(address, value) => self.engine.write(&address, value),
                         Command::Replace(new) => {
                             let was = self.engine.mode();
+                            sink.source = Some(Source::Reload);
                             self.io.gate.reopen();
                             self.engine.set_mode(Mode::Stop, now, &mut self.io, &mut sink);
                             let old = std::mem::replace(&mut self.engine, new);
                             if was == Mode::Run {
-                                sink.push(Report::ModeRequest(Mode::Run, Source::Reload));
                                 self.engine.set_mode(Mode::Run, now, &mut self.io, &mut sink);
                             }
+                            sink.source = None;
                             // A full queue would drop (free) the old engine here: rare, and
                             // only on a reload.
                             sink.push(Report::Retired(old));
@@ -158,8 +165,11 @@ impl ScanThread {
                 self.sleep_until(next_wakeup);
             }
         }
-        let mut sink = ReportSink { reports: &mut self.reports, shared: &self.shared };
-        sink.push(Report::ModeRequest(Mode::Stop, Source::Signal));
+        let mut sink = ReportSink {
+            reports: &mut self.reports,
+            shared: &self.shared,
+            source: Some(Source::Signal),
+        };
         self.io.gate.reopen();
         self.engine.set_mode(Mode::Stop, sys::now_ns(), &mut self.io, &mut sink);
         self.shared.mode.store(mode_code(Mode::Stop), Ordering::Relaxed);
