@@ -51,6 +51,8 @@ impl Drop for Project {
 struct Daemon {
     child: Child,
     log: Arc<Mutex<Vec<String>>>,
+    /// Reads stderr until EOF, which comes when the process is gone.
+    reader: Option<std::thread::JoinHandle<()>>,
 }
 
 impl Daemon {
@@ -72,12 +74,12 @@ impl Daemon {
         let log = Arc::new(Mutex::new(Vec::new()));
         let stderr = child.stderr.take().unwrap();
         let sink = Arc::clone(&log);
-        std::thread::spawn(move || {
+        let reader = std::thread::spawn(move || {
             for line in BufReader::new(stderr).lines().map_while(Result::ok) {
                 sink.lock().unwrap().push(line);
             }
         });
-        Daemon { child, log }
+        Daemon { child, log, reader: Some(reader) }
     }
 
     fn lines(&self) -> Vec<String> {
@@ -109,12 +111,18 @@ impl Daemon {
         kill(Pid::from_raw(self.child.id() as i32), signal).unwrap();
     }
 
-    /// Sends SIGTERM and returns the exit code.
-    fn stop(mut self) -> (i32, Vec<String>) {
+    /// Sends SIGTERM; the exit code and the whole log.
+    fn stop(self) -> (i32, Vec<String>) {
         self.signal(Signal::SIGTERM);
+        self.finish()
+    }
+
+    /// Waits for the process to exit on its own; the exit code and the whole log.
+    fn finish(mut self) -> (i32, Vec<String>) {
         let status = self.wait_exit();
-        // The reader thread sees EOF once the process is gone.
-        std::thread::sleep(Duration::from_millis(50));
+        if let Some(reader) = self.reader.take() {
+            reader.join().unwrap();
+        }
         (status, self.lines())
     }
 
@@ -270,10 +278,12 @@ fn config_errors_stop_the_start_with_every_diagnostic() {
     let config =
         "[rt]\nscan_priority = 0\npolicy = \"round-robin\"\n[[program]]\nfile = \"main.il\"\n";
     let project = Project::new("badrt", &[("plcd.toml", config), ("main.il", "END\n")]);
-    let mut daemon = Daemon::start(&project.config(), &[]);
-    assert_eq!(daemon.wait_exit(), 1);
-    std::thread::sleep(Duration::from_millis(50));
-    let log = daemon.lines().join("\n");
+    let (code, log) = Daemon::start(&project.config(), &[]).finish();
+    assert_eq!(code, 1);
+    let log = log.join(
+        "
+",
+    );
     let path = project.config().display().to_string();
     assert!(log.contains(&format!("{path}:2:17: error: rt.scan_priority 0 out of range")), "{log}");
     assert!(log.contains(&format!("{path}:3:10: error:")), "{log}");
@@ -286,10 +296,12 @@ fn a_missing_gpio_chip_is_named() {
                   chip = \"/dev/gpiochip-plcd-test\"\n\
                   [[io.output]]\ndevice = \"P0040\"\nline = 3\n";
     let project = Project::new("nochip", &[("plcd.toml", config), ("main.il", "END\n")]);
-    let mut daemon = Daemon::start(&project.config(), &[]);
-    assert_eq!(daemon.wait_exit(), 1);
-    std::thread::sleep(Duration::from_millis(50));
-    let log = daemon.lines().join("\n");
+    let (code, log) = Daemon::start(&project.config(), &[]).finish();
+    assert_eq!(code, 1);
+    let log = log.join(
+        "
+",
+    );
     assert!(log.contains("GPIO chip `/dev/gpiochip-plcd-test` not found"), "{log}");
 }
 
@@ -304,10 +316,12 @@ fn a_broken_stimulus_file_is_located() {
             ("inputs.csv", "10ms, P0000, 1\nsoon, P0000, 0\n"),
         ],
     );
-    let mut daemon = Daemon::start(&project.config(), &[]);
-    assert_eq!(daemon.wait_exit(), 1);
-    std::thread::sleep(Duration::from_millis(50));
-    let log = daemon.lines().join("\n");
+    let (code, log) = Daemon::start(&project.config(), &[]).finish();
+    assert_eq!(code, 1);
+    let log = log.join(
+        "
+",
+    );
     assert!(log.contains("inputs.csv:2:1: error:"), "{log}");
 }
 
@@ -362,10 +376,12 @@ fn real_time_that_cannot_be_had_is_a_warning_or_with_require_a_refusal() {
     assert_eq!(code, 0);
 
     project.write("plcd.toml", &config(true));
-    let mut daemon = Daemon::start(&project.config(), &[]);
-    assert_eq!(daemon.wait_exit(), 1);
-    std::thread::sleep(Duration::from_millis(50));
-    let log = daemon.lines().join("\n");
+    let (code, log) = Daemon::start(&project.config(), &[]).finish();
+    assert_eq!(code, 1);
+    let log = log.join(
+        "
+",
+    );
     assert!(
         log.contains(
             "real time required by [rt] require = true, but: scan thread: sched_setaffinity"
