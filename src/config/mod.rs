@@ -54,6 +54,11 @@ pub struct Config {
     pub io: IoConfig,
     /// `[rt]`.
     pub rt: RtConfig,
+    /// `[control]`: the control socket.
+    pub control: ControlConfig,
+    /// `[switch]`: the RUN/STOP key switch; `None` when not configured (remote mode changes
+    /// are then always accepted).
+    pub switch: Option<SwitchConfig>,
 }
 
 impl Config {
@@ -362,6 +367,78 @@ impl Default for RtConfig {
             watchdog_cpus: Vec::new(),
             lock_memory: true,
             require: false,
+        }
+    }
+}
+
+/// `[control]`: the daemon's control socket (`plcctl`, scripts, HMI gateways).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ControlConfig {
+    /// `enabled`: serve the control socket; default true.
+    pub enabled: bool,
+    /// `socket`: the socket's path (relative to the config file's directory); default `None`:
+    /// `/run/plcd/plcd.sock`, or the fallbacks of
+    /// [`crate::control::protocol::default_socket_paths`] when that cannot be created.
+    pub socket: Option<PathBuf>,
+    /// `group`: the group that may connect (the socket is 0660, owned by the daemon's user and
+    /// this group); default `None`: the daemon's own group.
+    pub group: Option<String>,
+    /// `max_clients`: connections served at once, 1..=1024; default 64. More are refused with
+    /// a `busy` error.
+    pub max_clients: u32,
+    /// `max_request_bytes`: the longest request line, 256..=1048576; default 65536. A longer
+    /// line is answered with `too_long` and the connection closed.
+    pub max_request_bytes: u32,
+    /// `idle_timeout_s`: a connection that sends no complete request for this long is closed,
+    /// 0 = never; default 300.
+    pub idle_timeout_s: u32,
+}
+
+impl ControlConfig {
+    pub const MAX_CLIENTS: RangeInclusive<u32> = 1..=1024;
+    pub const MAX_REQUEST_BYTES: RangeInclusive<u32> = 256..=1_048_576;
+}
+
+impl Default for ControlConfig {
+    fn default() -> Self {
+        ControlConfig {
+            enabled: true,
+            socket: None,
+            group: None,
+            max_clients: 64,
+            max_request_bytes: 65_536,
+            idle_timeout_s: 300,
+        }
+    }
+}
+
+/// `[switch]`: a RUN/STOP key switch (XGB §5.2.3). With the switch at RUN the PLC runs and
+/// remote RUN/STOP/DEBUG are refused; at STOP the PLC is stopped and remote mode changes are
+/// accepted.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SwitchConfig {
+    /// `line`: the input line (offset on the `[io]` chip) that is active when the switch is at
+    /// RUN. Required with the gpiocdev backend, not allowed with the sim backend.
+    pub line: Option<u32>,
+    /// `active_low`: the line is active when low; default false.
+    pub active_low: bool,
+    /// `bias`: `"pull-up"`, `"pull-down"` or `"disabled"` (default).
+    pub bias: Bias,
+    /// `debounce_us`: the kernel's debounce period for the contact, 0..=1000000; default 10000.
+    pub debounce_us: u32,
+    /// `position`: sim backend only: where the simulated switch starts, `"run"` (default) or
+    /// `"stop"`; stimulus lines `SWITCH, RUN|STOP` move it.
+    pub position: crate::io::SwitchPosition,
+}
+
+impl Default for SwitchConfig {
+    fn default() -> Self {
+        SwitchConfig {
+            line: None,
+            active_low: false,
+            bias: Bias::Disabled,
+            debounce_us: 10_000,
+            position: crate::io::SwitchPosition::Run,
         }
     }
 }

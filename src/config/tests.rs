@@ -167,6 +167,8 @@ fn the_contract_example_parses_to_its_defaults() {
         }],
         io: IoConfig::default(),
         rt: RtConfig::default(),
+        control: crate::config::ControlConfig::default(),
+        switch: None,
     };
     assert_eq!(config, expected);
 }

@@ -15,8 +15,8 @@ use super::raw::{
     RawProgram, RawRt, RawSim, RawTask, RawTimers,
 };
 use super::{
-    Backend, Config, DeviceCondition, IoConfig, IoLine, PlcConfig, ProgramConfig, RtConfig,
-    SimConfig, Sink, TaskConfig, TaskKind, TaskRef, TimerConfig,
+    Backend, Config, ControlConfig, DeviceCondition, IoConfig, IoLine, PlcConfig, ProgramConfig,
+    RtConfig, SimConfig, Sink, TaskConfig, TaskKind, TaskRef, TimerConfig,
 };
 use crate::device::{Address, Area};
 use crate::diag::Diagnostic;
@@ -50,6 +50,8 @@ pub(super) fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
         tasks: tasks?,
         io: io?,
         rt: rt?,
+        control: ControlConfig::default(),
+        switch: None,
     })
 }
 

@@ -18,6 +18,22 @@ pub trait Io {
     fn refresh_inputs(&mut self, mem: &mut Memory);
     /// Publishes the output bits of the P area.
     fn refresh_outputs(&mut self, mem: &Memory);
+    /// The RUN/STOP key switch as of the last [`Io::refresh_inputs`], if the backend has one
+    /// (`[switch]`). The engine applies the mode rules of XGB §5.2.3 when it moves.
+    fn switch(&self) -> Option<SwitchPosition> {
+        None
+    }
+}
+
+/// The position of the RUN/STOP key switch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SwitchPosition {
+    /// Local RUN: the PLC runs; remote mode changes are refused.
+    #[default]
+    Run,
+    /// STOP: the PLC stops; remote RUN/STOP/DEBUG are accepted ("remote enabled").
+    Stop,
 }
 
 /// An edge on one of the contacts P0000–P0007 that I/O tasks start on.
