@@ -123,6 +123,10 @@ pub enum FlagBit {
     T20s,
     T60s,
     Err,
+    /// `_FORCE_IN`: ON while an input is forced.
+    ForceIn,
+    /// `_FORCE_OUT`: ON while an output is forced.
+    ForceOut,
 }
 
 /// The named flag words (area F), in their order after the flag bits.
@@ -146,7 +150,7 @@ impl FlagWord {
 }
 
 impl FlagBit {
-    pub(crate) const ALL: [FlagBit; 13] = [
+    pub(crate) const ALL: [FlagBit; 15] = [
         FlagBit::On,
         FlagBit::Off,
         FlagBit::FirstOn,
@@ -160,6 +164,8 @@ impl FlagBit {
         FlagBit::T20s,
         FlagBit::T60s,
         FlagBit::Err,
+        FlagBit::ForceIn,
+        FlagBit::ForceOut,
     ];
 
     pub(crate) fn from_code(code: u32) -> Option<FlagBit> {
@@ -183,8 +189,8 @@ impl FlagBit {
     }
 }
 
-/// Flag names; bit flags have codes 0..13, word flags codes from [`WORD_CODE_BASE`].
-const FLAG_NAMES: [(&str, u32); 17] = [
+/// Flag names; bit flags have codes 0..15, word flags codes from [`WORD_CODE_BASE`].
+const FLAG_NAMES: [(&str, u32); 19] = [
     ("_ON", 0),
     ("_OFF", 1),
     ("_1ON", 2),
@@ -198,6 +204,8 @@ const FLAG_NAMES: [(&str, u32); 17] = [
     ("_T20S", 10),
     ("_T60S", 11),
     ("_ERR", 12),
+    ("_FORCE_IN", 13),
+    ("_FORCE_OUT", 14),
     ("_SCAN_CUR", WORD_CODE_BASE),
     ("_SCAN_MIN", WORD_CODE_BASE + 1),
     ("_SCAN_MAX", WORD_CODE_BASE + 2),

@@ -156,6 +156,12 @@ impl Memory {
         self.set_constant_flags();
     }
 
+    /// Clears every area, retained ones included (a cold restart).
+    pub fn clear_all(&mut self) {
+        self.words.fill(0);
+        self.set_constant_flags();
+    }
+
     fn set_constant_flags(&mut self) {
         self.set_bit(flag_bit(FlagBit::On), true);
         self.set_bit(flag_bit(FlagBit::Off), false);
@@ -195,6 +201,12 @@ impl Memory {
     pub fn clear_operation_error(&mut self) {
         self.set_bit(ERR_FLAG, false);
         self.set_word(ERR_CODE, 0);
+    }
+
+    /// `_FORCE_IN` / `_FORCE_OUT`: whether any input / output is forced.
+    pub fn set_force_flags(&mut self, inputs: bool, outputs: bool) {
+        self.set_bit(flag_bit(FlagBit::ForceIn), inputs);
+        self.set_bit(flag_bit(FlagBit::ForceOut), outputs);
     }
 
     /// Publishes the scan time figures in 0.1 ms units (`_SCAN_CUR`, `_SCAN_MIN`, `_SCAN_MAX`).

@@ -18,6 +18,8 @@ pub enum Mode {
     Run,
     Stop,
     Error,
+    /// XGB §5.2 DEBUG: the programs run by `step` and `continue` only.
+    Debug,
 }
 
 impl Mode {
@@ -26,6 +28,7 @@ impl Mode {
             Mode::Run => "RUN",
             Mode::Stop => "STOP",
             Mode::Error => "ERROR",
+            Mode::Debug => "DEBUG",
         }
     }
 }
@@ -43,6 +46,8 @@ pub enum Ignored {
     Stop,
     /// The task's start is disabled and it already holds its one request.
     Disabled,
+    /// DEBUG mode, paused: nothing starts until `step` or `continue`.
+    Paused,
 }
 
 impl Ignored {
@@ -53,6 +58,7 @@ impl Ignored {
             Ignored::Init => "init",
             Ignored::Stop => "stop",
             Ignored::Disabled => "disabled",
+            Ignored::Paused => "paused",
         }
     }
 }

@@ -17,23 +17,54 @@
 //! - Internal-device conditions are sampled at END; their tasks, and every other pending task,
 //!   run before the next scan starts.
 
+pub mod debug;
 pub mod event;
+pub mod force;
+pub mod online;
 
 use crate::config::{Config, DeviceCondition, Edge, OnFault, TaskKind as ConfigTaskKind, TaskRef};
 use crate::device::{Address, BitRef, WordRef};
-use crate::io::Io;
+use crate::io::{Io, SwitchPosition};
 use crate::lang::ops::SystemRequest;
 use crate::lang::Program;
 use crate::project::Project;
 use crate::stats::Histogram;
 use crate::vm::{Clock, ExecState, Exit, Vm};
+use debug::{Breakpoint, DebugRun, Debugger};
 use event::{ErrorKind, Event, EventSink, Ignored, Mode, TaskId, INIT, SCAN};
+use force::Forces;
 
 const NS_PER_MS: u64 = 1_000_000;
 /// Priority of the scan program: below every task (2..=7).
 const SCAN_PRIORITY: u8 = 8;
 /// How often inputs are refreshed in STOP and ERROR.
 const STOP_REFRESH_NS: u64 = 10 * NS_PER_MS;
+
+/// A mode change asked for from outside the PLC (the control socket, an HMI): subject to the
+/// mode rules of XGB §5.2.3, see [`Engine::request_mode`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModeRequest {
+    Run,
+    Stop,
+    Debug,
+    /// Clears a latched error and goes to STOP; `cold` also clears retained memory (K).
+    Reset {
+        cold: bool,
+    },
+}
+
+/// Why a request was not carried out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum Refusal {
+    #[error("the RUN/STOP switch is at RUN (local mode): remote mode changes need it at STOP")]
+    SwitchAtRun,
+    #[error("the PLC is in ERROR: clear the error first (reset, or STOP)")]
+    ErrorLatched,
+    #[error("only in DEBUG mode")]
+    NotInDebug,
+    #[error("execution is paused inside a scan: step to its end first")]
+    MidScan,
+}
 
 /// What [`Engine::run`] leaves behind.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -187,6 +218,24 @@ pub struct Engine {
     /// A task with a congestion limit started: its deadline may come before the one the
     /// driver planned for, so `run` hands back to let the driver plan again.
     replan: bool,
+    forces: Forces,
+    debugger: Debugger,
+    /// A `[switch]` is configured.
+    has_switch: bool,
+    /// The switch position the mode rules last acted on (`None` before the first look).
+    switch: Option<SwitchPosition>,
+    /// A position read at an input refresh, not yet acted on.
+    switch_moved: Option<SwitchPosition>,
+    /// `run` hands back at the next scan boundary (the driver has commands for END).
+    hold_at_end: bool,
+    /// The stopping error of ERROR mode.
+    latched_error: Option<ErrorKind>,
+    /// The last operation error since RUN.
+    last_operation_error: Option<ErrorKind>,
+    /// The current scan paused in DEBUG: its duration is not a scan time.
+    scan_paused: bool,
+    /// `_FORCE_IN`/`_FORCE_OUT` may be ON.
+    force_flags_on: bool,
 }
 
 impl Engine {
@@ -264,6 +313,16 @@ impl Engine {
             scan: ScanStats::default(),
             watches: watch.iter().map(|a| Watch { address: *a, last: 0 }).collect(),
             replan: false,
+            forces: Forces::default(),
+            debugger: Debugger::default(),
+            has_switch: config.switch.is_some(),
+            switch: None,
+            switch_moved: None,
+            hold_at_end: false,
+            latched_error: None,
+            last_operation_error: None,
+            scan_paused: false,
+            force_flags_on: false,
         }
     }
 
@@ -307,15 +366,29 @@ impl Engine {
     /// When the scan watchdog expires, if it runs (RUN, a scan under way): the time after
     /// which [`Engine::poll_time`] takes the watchdog error.
     pub fn watchdog_deadline(&self) -> Option<u64> {
-        (self.mode == Mode::Run && self.phase != Phase::Idle)
+        (self.executing() && self.phase != Phase::Idle)
             .then_some(self.watchdog_start_ns + self.settings.watchdog_ns)
+    }
+
+    /// RUN, or DEBUG while `step` or `continue` lets the programs run.
+    fn executing(&self) -> bool {
+        match self.mode {
+            Mode::Run => true,
+            Mode::Debug => self.debugger.run != DebugRun::Paused,
+            Mode::Stop | Mode::Error => false,
+        }
+    }
+
+    /// RUN or DEBUG: the programs are loaded for execution (device memory initialized).
+    fn running(&self) -> bool {
+        matches!(self.mode, Mode::Run | Mode::Debug)
     }
 
     /// The deadlines of the cycle tasks in RUN: `(task number, next deadline, interval)`, all
     /// in ns. A driver arms its timers with these; the engine itself decides at
     /// [`Engine::poll_time`] which deadlines have passed.
     pub fn cycle_deadlines(&self) -> impl Iterator<Item = (u8, u64, u64)> + '_ {
-        let running = self.mode == Mode::Run;
+        let running = self.executing();
         self.tasks.iter().filter_map(move |t| match (t.kind.clone(), t.number) {
             (Kind::Cycle { interval_ns, next_ns }, Some(n)) if running => {
                 Some((n, next_ns, interval_ns))
@@ -324,14 +397,146 @@ impl Engine {
         })
     }
 
-    /// A mode command (the `MODE` pseudo-device, later the control socket). RUN is refused in
-    /// ERROR: the error is latched until a change to STOP.
+    /// A mode command of the driver itself (startup, the simulator's `MODE` pseudo-device,
+    /// shutdown), not subject to the key switch. RUN is refused in ERROR: the error is latched
+    /// until a change to STOP.
     pub fn set_mode(&mut self, mode: Mode, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
         match (self.mode, mode) {
-            (Mode::Stop, Mode::Run) => self.enter_run(now, io, sink),
-            (Mode::Run | Mode::Error, Mode::Stop) => self.enter_stop(now, io, sink),
+            (Mode::Stop, Mode::Run) => self.enter_run(Mode::Run, now, io, sink),
+            (Mode::Debug, Mode::Run) => self.leave_debug(now, sink),
+            (Mode::Run | Mode::Error | Mode::Debug, Mode::Stop) => self.enter_stop(now, io, sink),
+            (Mode::Stop, Mode::Debug) => self.enter_run(Mode::Debug, now, io, sink),
+            (Mode::Run, Mode::Debug) => self.enter_debug(now, sink),
             _ => {}
         }
+    }
+
+    /// A remote mode change, under the rules of XGB §5.2.3: accepted only when no key switch
+    /// is configured or the switch is at STOP ("remote enabled"); RUN and DEBUG are refused
+    /// while an error is latched. DEBUG entered from RUN pauses at the end of the current
+    /// scan. On success the mode after the change is [`Engine::mode`].
+    pub fn request_mode(
+        &mut self,
+        request: ModeRequest,
+        now: u64,
+        io: &mut impl Io,
+        sink: &mut impl EventSink,
+    ) -> Result<(), Refusal> {
+        if !self.remote_allowed() {
+            return Err(Refusal::SwitchAtRun);
+        }
+        match request {
+            ModeRequest::Run | ModeRequest::Debug if self.mode == Mode::Error => {
+                return Err(Refusal::ErrorLatched)
+            }
+            ModeRequest::Run => self.set_mode(Mode::Run, now, io, sink),
+            ModeRequest::Stop => self.set_mode(Mode::Stop, now, io, sink),
+            ModeRequest::Debug => self.set_mode(Mode::Debug, now, io, sink),
+            ModeRequest::Reset { cold } => {
+                if self.mode == Mode::Stop {
+                    self.latched_error = None;
+                    self.last_operation_error = None;
+                } else {
+                    self.enter_stop(now, io, sink);
+                }
+                if cold {
+                    self.vm.mem.clear_all();
+                    self.check_watches(now, sink);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// True when remote mode changes are accepted: no key switch, or the switch at STOP.
+    pub fn remote_allowed(&self) -> bool {
+        !self.has_switch || self.switch == Some(SwitchPosition::Stop)
+    }
+
+    /// The key switch position the engine acts on, if a switch is configured and was read.
+    pub fn switch(&self) -> Option<SwitchPosition> {
+        self.switch
+    }
+
+    /// DEBUG: runs to the end of the current scan (or through the next one when paused
+    /// between scans), or to a breakpoint.
+    pub fn debug_step(&mut self, now: u64) -> Result<(), Refusal> {
+        self.debug_resume(DebugRun::Scan, now)
+    }
+
+    /// DEBUG: runs scan after scan until a breakpoint.
+    pub fn debug_continue(&mut self, now: u64) -> Result<(), Refusal> {
+        self.debug_resume(DebugRun::Continue, now)
+    }
+
+    fn debug_resume(&mut self, run: DebugRun, now: u64) -> Result<(), Refusal> {
+        if self.mode != Mode::Debug {
+            return Err(Refusal::NotInDebug);
+        }
+        if self.debugger.run == DebugRun::Paused {
+            // The pause is not the program's time: the watchdog starts over.
+            self.watchdog_start_ns = now;
+            self.skip_cycle_deadlines(now);
+        }
+        if let Some((_, at)) = self.debugger.paused_at.take() {
+            self.debugger.resume_from = Some(at);
+        }
+        self.debugger.run = run;
+        Ok(())
+    }
+
+    pub fn debugger(&self) -> &Debugger {
+        &self.debugger
+    }
+
+    /// Breakpoints are set and removed here (resolved with [`debug::resolve`]).
+    pub fn debugger_mut(&mut self) -> &mut Debugger {
+        &mut self.debugger
+    }
+
+    /// Forces P bit `bit` to `on` from the next refresh on.
+    pub fn force(&mut self, bit: BitRef, on: bool, io: &impl Io) {
+        self.forces.set(bit, on, io.is_input(bit));
+    }
+
+    /// Removes a force; true if the bit was forced.
+    pub fn unforce(&mut self, bit: BitRef) -> bool {
+        self.forces.clear(bit)
+    }
+
+    pub fn unforce_all(&mut self) {
+        self.forces.clear_all();
+    }
+
+    pub fn forces(&self) -> &Forces {
+        &self.forces
+    }
+
+    /// Asks [`Engine::run`] to hand back at the next scan boundary (the driver has commands
+    /// to apply at END processing), or stops asking.
+    pub fn set_hold_at_end(&mut self, hold: bool) {
+        self.hold_at_end = hold;
+    }
+
+    /// True between two scans with no task executing (or nothing executing at all: STOP,
+    /// ERROR, DEBUG paused): where commands that change PLC state are applied.
+    pub fn at_scan_boundary(&self) -> bool {
+        !self.executing() || (self.phase == Phase::Idle && self.stack.is_empty())
+    }
+
+    /// The error latched in ERROR mode.
+    pub fn latched_error(&self) -> Option<ErrorKind> {
+        self.latched_error
+    }
+
+    /// The last operation error since RUN started.
+    pub fn last_operation_error(&self) -> Option<ErrorKind> {
+        self.last_operation_error
+    }
+
+    /// The current scan number (scans started since RUN).
+    pub fn scan_count(&self) -> u64 {
+        self.scan.count
     }
 
     /// Writes a device from outside the program (a stimulus, later the control socket).
@@ -366,10 +571,18 @@ impl Engine {
     /// Time-driven work due at `now`: cycle deadlines, the scan watchdog, congestion, and the
     /// input refresh of STOP.
     pub fn poll_time(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
-        if self.mode != Mode::Run {
+        if !self.running() {
             if now >= self.next_stop_refresh_ns {
-                io.refresh_inputs(&mut self.vm.mem);
+                self.refresh_inputs(io);
                 self.next_stop_refresh_ns = now + STOP_REFRESH_NS;
+            }
+            self.apply_switch(now, io, sink);
+            return;
+        }
+        self.apply_switch(now, io, sink);
+        if !self.executing() {
+            if self.mode == Mode::Debug {
+                self.skip_cycle_deadlines(now);
             }
             return;
         }
@@ -412,7 +625,7 @@ impl Engine {
     /// watchdog expire and already put the outputs into their safe state: take the watchdog
     /// error now, whatever this thread last saw of the scan.
     pub fn watchdog_expired(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
-        if self.mode == Mode::Run {
+        if self.executing() {
             let scan = self.scan.count;
             let limit_ms = self.settings.watchdog_ms;
             self.fault(ErrorKind::Watchdog { scan, limit_ms }, now, io, sink);
@@ -422,8 +635,13 @@ impl Engine {
     /// The next time the engine needs [`Engine::poll_time`] or [`Engine::run`] without an
     /// external event.
     pub fn next_wakeup(&self, now: u64) -> Option<u64> {
-        if self.mode != Mode::Run {
+        if !self.running() {
             return Some(self.next_stop_refresh_ns.max(now));
+        }
+        if !self.executing() {
+            // DEBUG, paused: only the cycle deadlines move on (see `poll_time`), and they may
+            // do so lazily; wake now and then to keep them close.
+            return Some(now + STOP_REFRESH_NS);
         }
         let mut next = u64::MAX;
         for task in &self.tasks {
@@ -458,7 +676,7 @@ impl Engine {
     ) -> Activity {
         let limit = self.vm.steps().saturating_add(max_steps);
         loop {
-            if self.mode != Mode::Run {
+            if !self.executing() {
                 return Activity::Idle;
             }
             let now = clock.now_ns(self.vm.steps());
@@ -468,7 +686,12 @@ impl Engine {
             }
             let Some(&top) = self.stack.last() else {
                 match self.phase {
-                    Phase::AfterEnd => self.finish_scan(now, io, sink),
+                    Phase::AfterEnd => {
+                        self.finish_scan(now, io, sink);
+                        if self.hold_at_end {
+                            return Activity::Busy;
+                        }
+                    }
                     Phase::Idle if now >= self.next_scan_ns => self.start_scan(now, io, sink),
                     _ => return Activity::Idle,
                 }
@@ -485,7 +708,19 @@ impl Engine {
             }
             let program_index = task.programs[task.current];
             let program = &self.programs[program_index as usize];
-            let exit = self.vm.run(program, &mut task.exec, clock, limit - steps);
+            let mut budget = limit - steps;
+            if self.mode == Mode::Debug && self.debugger.watches(program_index) {
+                // One instruction at a time, so that a breakpoint stops before its instruction.
+                let at = Breakpoint { program: program_index, pc: task.exec.pc() };
+                if self.debugger.stops_at(at) {
+                    self.debugger.run = DebugRun::Paused;
+                    self.debugger.paused_at = Some((top, at));
+                    self.scan_paused = true;
+                    return Activity::Idle;
+                }
+                budget = 1;
+            }
+            let exit = self.vm.run(program, &mut task.exec, clock, budget);
             let after = clock.now_ns(self.vm.steps());
             task.used_ns += after - now;
             match exit {
@@ -494,6 +729,7 @@ impl Engine {
                 Exit::System(request) => self.system(top, request, after, io, sink),
                 Exit::OperationError { code, pc } => {
                     let kind = ErrorKind::Operation { code, task: top, program: program_index, pc };
+                    self.last_operation_error = Some(kind);
                     sink.event(after, Event::Error(kind));
                 }
             }
@@ -561,7 +797,8 @@ impl Engine {
         sink.event(now, Event::TaskRequest { task: id });
         let task = &self.tasks[id as usize];
         let why = match task.state {
-            _ if self.mode != Mode::Run => Some(Ignored::Stop),
+            _ if !self.running() => Some(Ignored::Stop),
+            _ if !self.executing() => Some(Ignored::Paused),
             _ if !self.init_done => Some(Ignored::Init),
             State::Active { .. } => Some(Ignored::Running),
             State::Pending { .. } if self.tasks_disabled || task.disabled => {
@@ -642,14 +879,15 @@ impl Engine {
             }
             SystemRequest::Stop => self.enter_stop(now, io, sink),
             SystemRequest::RefreshIo => {
-                io.refresh_inputs(&mut self.vm.mem);
-                io.refresh_outputs(&self.vm.mem);
+                self.refresh_inputs(io);
+                self.refresh_outputs(io);
                 self.check_watches(now, sink);
             }
         }
     }
 
-    fn enter_run(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
+    /// RUN (or DEBUG, paused before the first scan) from STOP: device memory initialized.
+    fn enter_run(&mut self, mode: Mode, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
         self.vm.reset_for_run(&[]);
         for task in &mut self.tasks {
             task.state = State::Idle;
@@ -664,18 +902,67 @@ impl Engine {
         self.tasks_disabled = false;
         self.run_start_ns = now;
         self.scan = ScanStats::default();
-        self.mode = Mode::Run;
-        sink.event(now, Event::Mode(Mode::Run));
-        io.refresh_inputs(&mut self.vm.mem);
+        self.last_operation_error = None;
+        self.mode = mode;
+        self.debugger.run = DebugRun::Paused;
+        self.debugger.paused_at = None;
+        self.debugger.resume_from = None;
+        sink.event(now, Event::Mode(mode));
+        self.refresh_inputs(io);
         self.sample_device_conditions_quietly();
         self.check_watches(now, sink);
         self.phase = Phase::Idle;
         self.next_scan_ns = now;
     }
 
+    /// DEBUG from RUN: the current scan ends, then execution pauses.
+    fn enter_debug(&mut self, now: u64, sink: &mut impl EventSink) {
+        self.mode = Mode::Debug;
+        self.debugger.paused_at = None;
+        self.debugger.resume_from = None;
+        self.debugger.run =
+            if self.at_scan_boundary_in_run() { DebugRun::Paused } else { DebugRun::Scan };
+        sink.event(now, Event::Mode(Mode::Debug));
+    }
+
+    /// RUN from DEBUG: execution goes on where it stands, device memory kept.
+    fn leave_debug(&mut self, now: u64, sink: &mut impl EventSink) {
+        if self.debugger.run == DebugRun::Paused {
+            self.watchdog_start_ns = now;
+            self.skip_cycle_deadlines(now);
+        }
+        if let Some((_, at)) = self.debugger.paused_at.take() {
+            self.debugger.resume_from = Some(at);
+        }
+        self.debugger.run = DebugRun::Paused;
+        self.mode = Mode::Run;
+        sink.event(now, Event::Mode(Mode::Run));
+    }
+
+    /// DEBUG, paused: cycle deadlines that passed are dropped without requests, so that
+    /// resuming does not start with a burst of stale ones.
+    fn skip_cycle_deadlines(&mut self, now: u64) {
+        for task in &mut self.tasks {
+            if let Kind::Cycle { interval_ns, next_ns } = task.kind {
+                if next_ns < now {
+                    let missed = (now - next_ns).div_ceil(interval_ns);
+                    task.kind =
+                        Kind::Cycle { interval_ns, next_ns: next_ns + missed * interval_ns };
+                }
+            }
+        }
+    }
+
+    fn at_scan_boundary_in_run(&self) -> bool {
+        self.phase == Phase::Idle && self.stack.is_empty()
+    }
+
     fn enter_stop(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
         self.halt();
         self.clear_outputs(io);
+        self.latched_error = None;
+        self.debugger.paused_at = None;
+        self.debugger.resume_from = None;
         self.mode = Mode::Stop;
         sink.event(now, Event::Mode(Mode::Stop));
         self.check_watches(now, sink);
@@ -685,6 +972,8 @@ impl Engine {
     /// A stopping error: execution stops at once, outputs cleared or held, mode ERROR.
     fn fault(&mut self, kind: ErrorKind, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
         sink.event(now, Event::Error(kind));
+        self.latched_error = Some(kind);
+        self.debugger.paused_at = None;
         self.halt();
         if self.settings.on_fault == OnFault::Clear {
             self.clear_outputs(io);
@@ -705,10 +994,65 @@ impl Engine {
         self.vm.stop();
     }
 
+    /// The safe state: every output OFF, forces or not.
     fn clear_outputs(&mut self, io: &mut impl Io) {
         self.vm.mem.io_image_mut().fill(0);
         io.refresh_outputs(&self.vm.mem);
         io.refresh_inputs(&mut self.vm.mem);
+        self.note_switch(io);
+    }
+
+    /// Input refresh: the backend's inputs, then the forces over them, then a look at the key
+    /// switch.
+    fn refresh_inputs(&mut self, io: &mut impl Io) {
+        io.refresh_inputs(&mut self.vm.mem);
+        self.apply_forces();
+        self.note_switch(io);
+    }
+
+    /// Output refresh: the forces over what the program wrote, then the backend.
+    fn refresh_outputs(&mut self, io: &mut impl Io) {
+        self.apply_forces();
+        io.refresh_outputs(&self.vm.mem);
+    }
+
+    /// Writes the forced values over the I/O image; once more after the last force is gone, to
+    /// clear the force flags.
+    #[inline]
+    fn apply_forces(&mut self) {
+        if !self.forces.is_empty() || self.force_flags_on {
+            self.forces.apply(&mut self.vm.mem);
+            self.force_flags_on = !self.forces.is_empty();
+        }
+    }
+
+    fn note_switch(&mut self, io: &impl Io) {
+        if self.has_switch {
+            if let Some(position) = io.switch() {
+                if Some(position) != self.switch {
+                    self.switch_moved = Some(position);
+                }
+            }
+        }
+    }
+
+    /// Acts on a key switch move (XGB §5.2.3): to RUN starts the PLC from STOP (and leaves
+    /// DEBUG; RUN goes on without interruption; a latched error stays until the switch goes
+    /// to STOP); to STOP stops it from any mode, clearing an error.
+    fn apply_switch(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
+        let Some(position) = self.switch_moved.take() else { return };
+        if Some(position) == self.switch {
+            return;
+        }
+        self.switch = Some(position);
+        match (position, self.mode) {
+            (SwitchPosition::Run, Mode::Stop) => self.enter_run(Mode::Run, now, io, sink),
+            (SwitchPosition::Run, Mode::Debug) => self.leave_debug(now, sink),
+            (SwitchPosition::Stop, Mode::Run | Mode::Debug | Mode::Error) => {
+                self.enter_stop(now, io, sink)
+            }
+            _ => {}
+        }
     }
 
     fn start_scan(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
@@ -716,7 +1060,14 @@ impl Engine {
         self.scan_start_ns = now;
         self.watchdog_start_ns = now;
         self.vm.begin_scan(self.scan.count == 1, now - self.run_start_ns);
-        io.refresh_inputs(&mut self.vm.mem);
+        self.refresh_inputs(io);
+        if self.switch_moved.is_some() {
+            self.apply_switch(now, io, sink);
+            if !self.executing() {
+                return;
+            }
+        }
+        self.scan_paused = false;
         sink.event(now, Event::ScanStart { n: self.scan.count });
         self.phase = Phase::Scan;
         self.begin(if self.init_done { SCAN } else { INIT }, now, sink);
@@ -727,13 +1078,22 @@ impl Engine {
         self.vm.end_scan();
         let took = now - self.scan_start_ns;
         let scan = &mut self.scan;
-        scan.last_ns = took;
-        scan.min_ns = if scan.count == 1 { took } else { scan.min_ns.min(took) };
-        scan.max_ns = scan.max_ns.max(took);
-        scan.time.record(took);
+        // A scan that paused at a breakpoint took the engineer's time, not the program's.
+        if !self.scan_paused {
+            scan.last_ns = took;
+            scan.min_ns = if scan.time.count() == 0 { took } else { scan.min_ns.min(took) };
+            scan.max_ns = scan.max_ns.max(took);
+            scan.time.record(took);
+        }
         let tenth_ms = |ns: u64| (ns / 100_000).min(u64::from(u16::MAX)) as u16;
         self.vm.mem.set_scan_times(tenth_ms(took), tenth_ms(scan.min_ns), tenth_ms(scan.max_ns));
-        io.refresh_outputs(&self.vm.mem);
+        self.refresh_outputs(io);
+        if self.mode == Mode::Debug {
+            self.debugger.resume_from = None;
+            if self.debugger.run == DebugRun::Scan {
+                self.debugger.run = DebugRun::Paused;
+            }
+        }
         self.check_watches(now, sink);
         self.phase = Phase::Idle;
         let period = self.settings.scan_period_ns;

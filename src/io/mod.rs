@@ -10,7 +10,7 @@ pub mod gate;
 pub mod gpio;
 pub mod sim;
 
-use crate::device::Memory;
+use crate::device::{BitRef, Memory};
 
 /// An I/O backend as the task engine sees it.
 pub trait Io {
@@ -22,6 +22,11 @@ pub trait Io {
     /// (`[switch]`). The engine applies the mode rules of XGB §5.2.3 when it moves.
     fn switch(&self) -> Option<SwitchPosition> {
         None
+    }
+    /// True if `bit` of the P area is one of the backend's inputs (for the force flags).
+    fn is_input(&self, bit: BitRef) -> bool {
+        let _ = bit;
+        false
     }
 }
 

@@ -28,6 +28,12 @@ pub fn compile(name: &str, path: &Path, checked: CheckedProgram, edge_base: u32)
         code.push(op);
         lines.push(instruction.line);
     }
+    let sorted = |mut pairs: Vec<(u32, u32)>| {
+        pairs.sort_by_key(|&(_, pc)| pc);
+        pairs.into_boxed_slice()
+    };
+    let labels = sorted(checked.labels.iter().map(|(&(_, n), &pc)| (n, pc as u32)).collect());
+    let subroutines = sorted(checked.subroutines.iter().map(|(&n, &pc)| (n, pc as u32)).collect());
     Program {
         name: name.to_string(),
         path: path.to_path_buf(),
@@ -35,5 +41,7 @@ pub fn compile(name: &str, path: &Path, checked: CheckedProgram, edge_base: u32)
         lines: lines.into_boxed_slice(),
         edge_base,
         edge_slots: checked.edge_slots,
+        labels,
+        subroutines,
     }
 }

@@ -35,6 +35,11 @@ pub struct Program {
     /// This program's edge memory is `edge_base .. edge_base + edge_slots`.
     pub edge_base: u32,
     pub edge_slots: u32,
+    /// `LABEL n` instructions: `(n, pc)`, sorted by pc. A label number may appear once per
+    /// routine, so the same `n` can occur more than once.
+    pub labels: Box<[(u32, u32)]>,
+    /// `SBRT n` instructions: `(n, pc)`, sorted by pc.
+    pub subroutines: Box<[(u32, u32)]>,
 }
 
 impl Program {

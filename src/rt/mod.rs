@@ -128,7 +128,7 @@ pub struct Shared {
     /// Bumped at every END and every pass of the STOP/ERROR loop: the service watchdog's
     /// proof of life.
     pub progress: AtomicU64,
-    /// The engine's mode ([`Mode`] as u8: 0 RUN, 1 STOP, 2 ERROR).
+    /// The engine's mode ([`Mode`] as u8: 0 RUN, 1 STOP, 2 ERROR, 3 DEBUG).
     pub mode: AtomicU8,
     /// Scans since RUN, and the last/min/max scan time in ns.
     pub scans: AtomicU64,
@@ -186,6 +186,7 @@ impl Shared {
         match self.mode.load(Ordering::Relaxed) {
             0 => Mode::Run,
             1 => Mode::Stop,
+            3 => Mode::Debug,
             _ => Mode::Error,
         }
     }
@@ -203,6 +204,7 @@ pub fn mode_code(mode: Mode) -> u8 {
         Mode::Run => 0,
         Mode::Stop => 1,
         Mode::Error => 2,
+        Mode::Debug => 3,
     }
 }
 

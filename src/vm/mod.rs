@@ -125,6 +125,18 @@ impl ExecState {
     }
 }
 
+/// The initial state of an edge memory slot after an online change (see
+/// [`crate::engine::online`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EdgeInit {
+    /// The old edge memory's slot, of an unchanged program.
+    Keep(u32),
+    /// The bit's current value (a contact edge of a changed program).
+    FromBit(crate::device::BitRef),
+    /// A fixed state (a rung edge of a changed program).
+    Value(bool),
+}
+
 /// The machine: device memory and the state shared by all programs.
 pub struct Vm {
     pub mem: Memory,
@@ -153,6 +165,24 @@ impl Vm {
     pub fn for_programs<'a>(programs: impl IntoIterator<Item = &'a Program>) -> Vm {
         let slots = programs.into_iter().map(|p| p.edge_base + p.edge_slots).max().unwrap_or(0);
         Vm::new(slots)
+    }
+
+    /// Online change: takes the machine state of `old` (device memory, timers, counters, DUTY
+    /// clocks, the step count) by swapping, and sets up this VM's edge memory by `edges`. No
+    /// allocation.
+    pub fn take_over(&mut self, old: &mut Vm, edges: &[EdgeInit]) {
+        std::mem::swap(&mut self.mem, &mut old.mem);
+        std::mem::swap(&mut self.timers, &mut old.timers);
+        std::mem::swap(&mut self.counters, &mut old.counters);
+        self.duty = old.duty;
+        self.steps = old.steps;
+        for (slot, init) in self.edges.iter_mut().zip(edges) {
+            *slot = match *init {
+                EdgeInit::Keep(index) => old.edges.get(index as usize).copied().unwrap_or(false),
+                EdgeInit::FromBit(bit) => self.mem.bit(bit),
+                EdgeInit::Value(value) => value,
+            };
+        }
     }
 
     /// Instructions executed since the VM was created.

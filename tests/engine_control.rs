@@ -1,0 +1,446 @@
+//! What the control socket drives, in virtual time on the engine itself: forced I/O, the mode
+//! rules of XGB §5.2.3 with and without a key switch, a latched error and reset, DEBUG mode
+//! (step, breakpoints, continue), the scan-boundary hold and online change.
+
+use std::path::Path;
+
+use plcd::config::{self, SwitchConfig};
+use plcd::device::{Address, BitRef, Memory};
+use plcd::engine::debug;
+use plcd::engine::event::{Event, Mode, Recorder};
+use plcd::engine::{online, Activity, Engine, ModeRequest, Refusal};
+use plcd::io::{Io, SwitchPosition};
+use plcd::project::{self, Project};
+use plcd::vm::{Clock, StepClock};
+
+const MS: u64 = 1_000_000;
+
+/// A field the test holds in its hands: input words, the outputs as last refreshed, a switch.
+struct Field {
+    inputs: [u16; 128],
+    input_mask: [u16; 128],
+    outputs: [u16; 128],
+    switch: Option<SwitchPosition>,
+}
+
+impl Default for Field {
+    fn default() -> Self {
+        Field { inputs: [0; 128], input_mask: [0; 128], outputs: [0; 128], switch: None }
+    }
+}
+
+impl Io for Field {
+    fn refresh_inputs(&mut self, mem: &mut Memory) {
+        for (w, word) in mem.io_image_mut().iter_mut().enumerate() {
+            let m = self.input_mask[w];
+            *word = (*word & !m) | (self.inputs[w] & m);
+        }
+    }
+    fn refresh_outputs(&mut self, mem: &Memory) {
+        for (w, word) in mem.io_image().iter().enumerate() {
+            self.outputs[w] = word & !self.input_mask[w];
+        }
+    }
+    fn switch(&self) -> Option<SwitchPosition> {
+        self.switch
+    }
+    fn is_input(&self, bit: BitRef) -> bool {
+        self.input_mask[bit.word as usize] & bit.mask != 0
+    }
+}
+
+impl Field {
+    fn input(&mut self, dev: &str, on: bool) {
+        let b = bit(dev);
+        self.input_mask[b.word as usize] |= b.mask;
+        if on {
+            self.inputs[b.word as usize] |= b.mask;
+        } else {
+            self.inputs[b.word as usize] &= !b.mask;
+        }
+    }
+    fn output(&self, dev: &str) -> bool {
+        let b = bit(dev);
+        self.outputs[b.word as usize] & b.mask != 0
+    }
+}
+
+fn bit(dev: &str) -> BitRef {
+    Address::parse(dev).unwrap().as_bit().unwrap()
+}
+
+fn project(config: &str, programs: &[(&str, &str)], switch: bool) -> Project {
+    let mut config = config::parse(config, Path::new("control.toml")).expect("config");
+    if switch {
+        config.switch = Some(SwitchConfig::default());
+    }
+    project::from_config(config, |path| {
+        let name = path.file_name().unwrap().to_str().unwrap();
+        Ok(programs.iter().find(|(file, _)| *file == name).expect(name).1.to_string())
+    })
+    .expect("project")
+}
+
+/// The engine on a 1 µs-per-instruction clock, driven the way the simulator drives it.
+struct Plc {
+    engine: Engine,
+    field: Field,
+    events: Recorder,
+    clock: StepClock,
+}
+
+impl Plc {
+    fn new(project: &Project) -> Plc {
+        let engine = Engine::new(project, &[]);
+        let clock = StepClock { origin_ns: 0, origin_steps: engine.steps(), step_ns: 1000 };
+        Plc { engine, field: Field::default(), events: Recorder::default(), clock }
+    }
+
+    fn now(&self) -> u64 {
+        self.clock.now_ns(self.engine.steps())
+    }
+
+    fn run_for(&mut self, ns: u64) {
+        let end = self.now() + ns;
+        loop {
+            let now = self.now();
+            if now >= end {
+                break;
+            }
+            self.engine.poll_time(now, &mut self.field, &mut self.events);
+            if self.engine.run(&self.clock, &mut self.field, &mut self.events, 100)
+                == Activity::Idle
+            {
+                let next = self.engine.next_wakeup(now).unwrap_or(end).clamp(now + 1, end);
+                self.clock.rebase(next, self.engine.steps());
+            }
+        }
+    }
+
+    fn request(&mut self, request: ModeRequest) -> Result<(), Refusal> {
+        let now = self.now();
+        self.engine.request_mode(request, now, &mut self.field, &mut self.events)
+    }
+
+    fn read(&self, dev: &str) -> i32 {
+        self.engine.vm().mem.read(&Address::parse(dev).unwrap())
+    }
+
+    fn modes(&self) -> Vec<Mode> {
+        self.events
+            .0
+            .iter()
+            .filter_map(|(_, e)| match e {
+                Event::Mode(m) => Some(*m),
+                _ => None,
+            })
+            .collect()
+    }
+}
+
+const SCAN: &str = "[[program]]\nfile = \"main.il\"\n";
+
+#[test]
+fn forced_inputs_override_the_field_and_forced_outputs_the_program() {
+    let main = "LOAD P0000\nOUT P0040\nLOAD _FORCE_IN\nOUT M0000\nLOAD _FORCE_OUT\nOUT M0001\n\
+                LOAD _ON\nOUT P0041\nOUT P0042\nEND\n";
+    let p = project(SCAN, &[("main.il", main)], false);
+    let mut plc = Plc::new(&p);
+    plc.field.input("P0000", true);
+    plc.engine.set_mode(Mode::Run, 0, &mut plc.field, &mut plc.events);
+    plc.run_for(MS);
+    assert!(plc.field.output("P0040") && plc.field.output("P0041"));
+    assert_eq!((plc.read("M0000"), plc.read("M0001")), (0, 0));
+
+    plc.engine.force(bit("P0000"), false, &plc.field);
+    plc.engine.force(bit("P0041"), false, &plc.field);
+    plc.run_for(MS);
+    assert!(!plc.field.output("P0040"), "the program saw the forced input, not the field");
+    assert!(!plc.field.output("P0041"), "the forced output wins over OUT");
+    assert!(plc.field.output("P0042"));
+    assert_eq!((plc.read("M0000"), plc.read("M0001")), (1, 1), "_FORCE_IN, _FORCE_OUT");
+    let listed: Vec<(String, bool)> =
+        plc.engine.forces().iter().map(|(a, v)| (a.to_string(), v)).collect();
+    assert_eq!(listed, [("P0000".to_string(), false), ("P0041".to_string(), false)]);
+
+    // A forced ON output does not survive the safe state.
+    plc.engine.force(bit("P0043"), true, &plc.field);
+    plc.run_for(MS);
+    assert!(plc.field.output("P0043"));
+    plc.engine.set_mode(Mode::Stop, plc.now(), &mut plc.field, &mut plc.events);
+    assert!(!plc.field.output("P0043"), "STOP switches every output off, forced or not");
+    plc.engine.set_mode(Mode::Run, plc.now(), &mut plc.field, &mut plc.events);
+    plc.run_for(MS);
+    assert!(plc.field.output("P0043"), "the force applies again in RUN");
+
+    assert!(plc.engine.unforce(bit("P0000")));
+    plc.engine.unforce_all();
+    plc.run_for(MS);
+    assert!(plc.field.output("P0040") && plc.field.output("P0041"));
+    assert!(plc.field.output("P0043"), "an output the program does not write keeps the value");
+    assert_eq!((plc.read("M0000"), plc.read("M0001")), (0, 0), "flags cleared with the forces");
+}
+
+#[test]
+fn without_a_switch_remote_mode_changes_are_always_accepted() {
+    let p = project(SCAN, &[("main.il", "INC D00000\nEND\n")], false);
+    let mut plc = Plc::new(&p);
+    assert!(plc.engine.remote_allowed());
+    assert_eq!(plc.request(ModeRequest::Run), Ok(()));
+    plc.run_for(MS);
+    assert_eq!(plc.request(ModeRequest::Stop), Ok(()));
+    assert_eq!(plc.engine.mode(), Mode::Stop);
+    assert_eq!(plc.modes(), [Mode::Run, Mode::Stop]);
+}
+
+#[test]
+fn the_key_switch_decides_who_may_change_the_mode() {
+    let p = project(SCAN, &[("main.il", "INC D00000\nEND\n")], true);
+    let mut plc = Plc::new(&p);
+    plc.field.switch = Some(SwitchPosition::Run);
+    plc.run_for(MS);
+    assert_eq!(plc.engine.mode(), Mode::Run, "switch at RUN at power-up: local RUN");
+    assert!(!plc.engine.remote_allowed());
+    assert_eq!(plc.request(ModeRequest::Stop), Err(Refusal::SwitchAtRun));
+    assert_eq!(plc.request(ModeRequest::Debug), Err(Refusal::SwitchAtRun));
+    assert_eq!(plc.request(ModeRequest::Reset { cold: false }), Err(Refusal::SwitchAtRun));
+    assert_eq!(plc.engine.mode(), Mode::Run);
+
+    plc.field.switch = Some(SwitchPosition::Stop);
+    plc.run_for(MS);
+    assert_eq!(plc.engine.mode(), Mode::Stop, "RUN → STOP by the switch stops");
+    assert!(plc.engine.remote_allowed(), "switch at STOP: remote enabled");
+    assert_eq!(plc.request(ModeRequest::Run), Ok(()), "remote RUN");
+    plc.run_for(MS);
+    let scans = plc.engine.scan_count();
+    let counted = plc.read("D00000");
+    assert!(scans > 0);
+
+    // Remote RUN → RUN by the switch: the PLC goes on without interruption.
+    plc.field.switch = Some(SwitchPosition::Run);
+    plc.run_for(MS);
+    assert_eq!(plc.engine.mode(), Mode::Run);
+    assert!(plc.engine.scan_count() > scans, "no restart: the scan count goes on");
+    assert!(plc.read("D00000") > counted, "and device memory was not cleared");
+    assert_eq!(plc.request(ModeRequest::Stop), Err(Refusal::SwitchAtRun));
+
+    plc.field.switch = Some(SwitchPosition::Stop);
+    plc.run_for(MS);
+    assert_eq!(plc.engine.mode(), Mode::Stop);
+    assert_eq!(plc.modes(), [Mode::Run, Mode::Stop, Mode::Run, Mode::Stop]);
+}
+
+#[test]
+fn a_switch_at_stop_at_power_up_keeps_the_plc_stopped() {
+    let p = project(SCAN, &[("main.il", "END\n")], true);
+    let mut plc = Plc::new(&p);
+    plc.field.switch = Some(SwitchPosition::Stop);
+    plc.run_for(10 * MS);
+    assert_eq!(plc.engine.mode(), Mode::Stop);
+    assert_eq!(plc.engine.switch(), Some(SwitchPosition::Stop));
+    assert!(plc.modes().is_empty());
+}
+
+#[test]
+fn an_error_is_latched_until_reset_and_a_cold_reset_clears_retained_memory() {
+    let config = "[plc]\nwatchdog_ms = 10\n[[program]]\nfile = \"main.il\"\n";
+    let main = "INC K000\nLABEL 1\nLOAD M0000\nJMP 1\nEND\n";
+    let p = project(config, &[("main.il", main)], false);
+    let mut plc = Plc::new(&p);
+    assert_eq!(plc.request(ModeRequest::Run), Ok(()));
+    plc.run_for(MS);
+    plc.engine.write(&Address::parse("M0000").unwrap(), 1);
+    plc.run_for(50 * MS);
+    assert_eq!(plc.engine.mode(), Mode::Error, "the endless loop tripped the watchdog");
+    assert!(plc.engine.latched_error().is_some());
+    assert_eq!(plc.request(ModeRequest::Run), Err(Refusal::ErrorLatched));
+    assert_eq!(plc.request(ModeRequest::Debug), Err(Refusal::ErrorLatched));
+    let kept = plc.read("K000");
+    assert!(kept > 0);
+
+    assert_eq!(plc.request(ModeRequest::Reset { cold: false }), Ok(()));
+    assert_eq!(plc.engine.mode(), Mode::Stop);
+    assert_eq!(plc.engine.latched_error(), None);
+    assert_eq!(plc.read("K000"), kept, "a warm reset keeps K");
+    assert_eq!(plc.request(ModeRequest::Reset { cold: true }), Ok(()));
+    assert_eq!(plc.read("K000"), 0, "a cold reset clears it");
+    assert_eq!(plc.read("_ON"), 1, "system flags stay");
+}
+
+const DEBUG_MAIN: &str = "INC D00000\nINC D00001\nEND\n";
+
+fn debug_plc(extra: &str) -> Plc {
+    let config = format!("{SCAN}{extra}");
+    let p = project(&config, &[("main.il", DEBUG_MAIN), ("tick.il", "INC D00010\nEND\n")], false);
+    Plc::new(&p)
+}
+
+#[test]
+fn debug_runs_one_scan_per_step() {
+    let mut plc = debug_plc("");
+    assert_eq!(plc.engine.debug_step(0), Err(Refusal::NotInDebug));
+    assert_eq!(plc.request(ModeRequest::Debug), Ok(()));
+    assert_eq!(plc.engine.mode(), Mode::Debug);
+    plc.run_for(10 * MS);
+    assert_eq!(plc.engine.scan_count(), 0, "DEBUG starts paused before the first scan");
+    for n in 1..=3 {
+        plc.engine.debug_step(plc.now()).unwrap();
+        plc.run_for(10 * MS);
+        assert_eq!(plc.engine.scan_count(), n);
+        assert_eq!((plc.read("D00000"), plc.read("D00001")), (n as i32, n as i32));
+    }
+}
+
+#[test]
+fn a_breakpoint_stops_before_its_instruction() {
+    let mut plc = debug_plc("");
+    let at = debug::resolve(plc.engine.programs(), "main:2").unwrap();
+    plc.engine.debugger_mut().add(at).unwrap();
+    plc.request(ModeRequest::Debug).unwrap();
+    plc.engine.debug_continue(plc.now()).unwrap();
+    plc.run_for(10 * MS);
+    assert_eq!(plc.engine.debugger().paused_at().map(|(_, b)| b), Some(at));
+    assert_eq!((plc.read("D00000"), plc.read("D00001")), (1, 0), "line 1 ran, line 2 did not");
+
+    // Paused at a breakpoint far longer than the watchdog: no WDT.
+    plc.run_for(5_000 * MS);
+    assert_eq!(plc.engine.mode(), Mode::Debug);
+    assert_eq!(plc.engine.watchdog_deadline(), None);
+
+    plc.engine.debug_step(plc.now()).unwrap();
+    plc.run_for(10 * MS);
+    assert_eq!(plc.engine.debugger().paused_at(), None, "step ran to the end of the scan");
+    assert_eq!((plc.read("D00000"), plc.read("D00001")), (1, 1));
+    assert_eq!(plc.engine.scan_count(), 1);
+
+    plc.engine.debug_continue(plc.now()).unwrap();
+    plc.run_for(10 * MS);
+    assert_eq!(plc.engine.debugger().paused_at().map(|(_, b)| b), Some(at), "next scan, again");
+    assert_eq!((plc.read("D00000"), plc.read("D00001")), (2, 1));
+
+    // RUN from DEBUG goes on from the breakpoint, device memory kept.
+    plc.request(ModeRequest::Run).unwrap();
+    plc.run_for(MS);
+    assert_eq!(plc.engine.mode(), Mode::Run);
+    assert!(plc.read("D00001") > 1);
+    assert_eq!(plc.read("D00000") - plc.read("D00001"), 0, "line 2 ran after line 1 each scan");
+    assert_eq!(plc.modes(), [Mode::Debug, Mode::Run]);
+}
+
+#[test]
+fn paused_debug_starts_no_tasks_and_resumes_without_a_burst() {
+    let tick = "[[program]]\nfile = \"tick.il\"\ntask = \"tick\"\n[[task]]\nname = \"tick\"\n\
+                kind = \"cycle\"\nnumber = 0\npriority = 3\ninterval_ms = 1\n";
+    let mut plc = debug_plc(tick);
+    plc.request(ModeRequest::Debug).unwrap();
+    plc.run_for(100 * MS);
+    assert_eq!(plc.read("D00010"), 0, "no cycle task while paused");
+    let stats = plc.engine.task_stats("tick").unwrap();
+    assert_eq!((stats.runs, stats.overruns), (0, 0));
+    plc.engine.debug_continue(plc.now()).unwrap();
+    plc.run_for(10 * MS);
+    let ticks = plc.read("D00010");
+    assert!((9..=11).contains(&ticks), "about one per ms after resuming, no catch-up: {ticks}");
+    assert_eq!(plc.engine.task_stats("tick").unwrap().overruns, 0);
+}
+
+#[test]
+fn debug_entered_from_run_pauses_at_the_end_of_the_scan() {
+    let mut plc = debug_plc("");
+    plc.request(ModeRequest::Run).unwrap();
+    plc.run_for(MS);
+    plc.engine.run(&plc.clock, &mut plc.field, &mut plc.events, 1); // inside a scan
+    plc.request(ModeRequest::Debug).unwrap();
+    plc.run_for(10 * MS);
+    assert!(plc.engine.at_scan_boundary());
+    assert_eq!(plc.read("D00000"), plc.read("D00001"), "the scan was finished, not cut");
+    let scans = plc.engine.scan_count();
+    plc.run_for(10 * MS);
+    assert_eq!(plc.engine.scan_count(), scans);
+}
+
+#[test]
+fn hold_at_end_hands_back_at_the_scan_boundary() {
+    let p = project(SCAN, &[("main.il", &"INC D00000\n".repeat(50).add_end())], false);
+    let mut plc = Plc::new(&p);
+    plc.request(ModeRequest::Run).unwrap();
+    plc.engine.run(&plc.clock, &mut plc.field, &mut plc.events, 10);
+    assert!(!plc.engine.at_scan_boundary(), "in the middle of a scan");
+    plc.engine.set_hold_at_end(true);
+    let activity = plc.engine.run(&plc.clock, &mut plc.field, &mut plc.events, 1000);
+    assert_eq!(activity, Activity::Busy);
+    assert!(plc.engine.at_scan_boundary());
+    assert_eq!(plc.read("D00000"), 50, "exactly one whole scan");
+    plc.engine.set_hold_at_end(false);
+}
+
+trait AddEnd {
+    fn add_end(self) -> String;
+}
+
+impl AddEnd for String {
+    fn add_end(self) -> String {
+        self + "END\n"
+    }
+}
+
+#[test]
+fn online_change_keeps_memory_and_fires_no_edge() {
+    let old_main = "LOADP P0000\nINC D00001\nLOAD M0000\nOUTP M0001\nINC D00000\nEND\n";
+    let new_main = "LOADP P0000\nINC D00001\nLOAD M0000\nOUTP M0001\nINC D00000\nINC D00002\nEND\n";
+    let old = project(SCAN, &[("main.il", old_main)], false);
+    let new = project(SCAN, &[("main.il", new_main)], false);
+    let mut plc = Plc::new(&old);
+    plc.field.input("P0000", true);
+    plc.request(ModeRequest::Run).unwrap();
+    plc.engine.write(&Address::parse("M0000").unwrap(), 1);
+    plc.run_for(MS);
+    let scans = plc.engine.scan_count();
+    let counted = plc.read("D00000");
+    assert_eq!(plc.read("D00001"), 1, "one rising edge of P0000");
+
+    let change = online::prepare(&old, &new, &[]).expect("compatible");
+    plc.engine.set_hold_at_end(true);
+    plc.engine.run(&plc.clock, &mut plc.field, &mut plc.events, 1000);
+    assert!(plc.engine.at_scan_boundary());
+    let online::OnlineChange { mut engine, edges } = change;
+    engine.take_over(&mut plc.engine, &edges).unwrap();
+    plc.engine = *engine;
+    plc.run_for(MS);
+
+    assert_eq!(plc.engine.mode(), Mode::Run);
+    assert!(plc.engine.scan_count() > scans, "the scan count goes on");
+    assert!(plc.read("D00000") > counted, "device memory kept");
+    assert!(plc.read("D00002") > 0, "the new instruction runs");
+    assert_eq!(plc.read("D00001"), 1, "LOADP of a held input did not fire again");
+    assert_eq!(plc.read("M0001"), 0, "OUTP of a held rung did not pulse again");
+    plc.field.input("P0000", false);
+    plc.run_for(MS);
+    plc.field.input("P0000", true);
+    plc.run_for(MS);
+    assert_eq!(plc.read("D00001"), 2, "a real edge after the change still counts");
+}
+
+#[test]
+fn an_incompatible_online_change_is_refused_with_reasons() {
+    let task = |interval: u32, name: &str| {
+        format!(
+            "{SCAN}[[program]]\nfile = \"tick.il\"\ntask = \"{name}\"\n[[task]]\nname = \"{name}\"\n\
+             kind = \"cycle\"\nnumber = 0\npriority = 3\ninterval_ms = {interval}\n"
+        )
+    };
+    let programs = [("main.il", "END\n"), ("tick.il", "END\n")];
+    let old = project(&task(10, "tick"), &programs, false);
+    let slower = project(&task(20, "tick"), &programs, false);
+    let renamed = project(&task(10, "tock"), &programs, false);
+    let reasons = |new: &Project| online::prepare(&old, new, &[]).err().unwrap();
+    assert_eq!(
+        reasons(&slower),
+        ["task \"tick\" changed (its start condition); tasks can only \
+                                   change with the PLC in STOP"]
+    );
+    assert_eq!(reasons(&renamed), ["task \"tick\" is removed", "task \"tock\" is added"]);
+    let mut watchdog = old.clone();
+    watchdog.config.plc.watchdog_ms = 50;
+    assert_eq!(reasons(&watchdog), ["[plc] changed; it can only change with the PLC in STOP"]);
+}
