@@ -8,21 +8,25 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use plcd::config;
 use plcd::device::Address;
+use plcd::engine::debug::Breakpoint;
 use plcd::engine::event::Mode;
-use plcd::engine::Engine;
+use plcd::engine::{Engine, ModeRequest};
 use plcd::io::gate::OutputGate;
 use plcd::io::sim::SimIo;
 use plcd::io::InputEdge;
 use plcd::project;
 use plcd::rt::io::{FieldIo, GatedIo, SafeOutputs};
 use plcd::rt::scan::ScanThread;
+use plcd::rt::snapshot::Snapshot;
 use plcd::rt::sys::{self, Timer};
-use plcd::rt::{pending, Command, Report, Shared, Source};
+use plcd::rt::{
+    pending, Command, Completion, ControlCommand, Report, Shared, Source, WRITES_PER_COMMAND,
+};
 
 struct Counting;
 
@@ -122,6 +126,8 @@ fn the_scan_thread_does_not_allocate() {
     let (mut edges, edge_rx) = rtrb::RingBuffer::<InputEdge>::new(256);
     let (mut commands, command_rx) = rtrb::RingBuffer::<Command>::new(64);
     let (report_tx, mut reports) = rtrb::RingBuffer::<Report>::new(4096);
+    let (completion_tx, mut completions) = rtrb::RingBuffer::<Completion>::new(64);
+    let snapshot = Arc::new(Mutex::new(Snapshot::new()));
     let watch = plcd::sim::output_bits(&project);
     let scan = ScanThread {
         engine: Box::new(Engine::new(&project, &watch)),
@@ -135,6 +141,8 @@ fn the_scan_thread_does_not_allocate() {
         edges: edge_rx,
         commands: command_rx,
         reports: report_tx,
+        completions: completion_tx,
+        snapshot: Arc::clone(&snapshot),
         timer: Timer::new().unwrap(),
         watchdog: std::thread::current(),
     };
@@ -151,6 +159,7 @@ fn the_scan_thread_does_not_allocate() {
     };
     command(&mut commands, Command::Mode(Mode::Run, Source::Startup));
     let p0000 = Address::parse("P0000").unwrap();
+    let mut answered = Vec::new();
     for i in 0..300u32 {
         for edge in field.set_input(&p0000, (i % 2) as i32) {
             let edge =
@@ -167,8 +176,39 @@ fn the_scan_thread_does_not_allocate() {
         if i == 150 {
             command(&mut commands, Command::Write(Address::parse("D00100").unwrap(), 7));
         }
+        // The control socket's commands and snapshot reads, as the control thread sends them.
+        let p0043 = Address::parse("P0043").unwrap().as_bit().unwrap();
+        let control = match i {
+            160 => Some(ControlCommand::Force(p0043, true)),
+            170 => Some(ControlCommand::Unforce(p0043)),
+            180 => Some(ControlCommand::Mode(ModeRequest::Debug)),
+            181 => Some(ControlCommand::Break(Breakpoint { program: 0, pc: 2 })),
+            182 => Some(ControlCommand::Continue),
+            190 => Some(ControlCommand::Step),
+            200 => Some(ControlCommand::Mode(ModeRequest::Run)),
+            210 => {
+                let mut items = [(Address::parse("D00101").unwrap(), 0); WRITES_PER_COMMAND];
+                items[0].1 = 9;
+                Some(ControlCommand::Writes { items, len: 1 })
+            }
+            _ => None,
+        };
+        if let Some(c) = control {
+            command(&mut commands, Command::Control(u64::from(i), c));
+        }
+        if i % 10 == 5 {
+            let mut s = snapshot.lock().unwrap();
+            s.want[0] = Address::parse("D00001").unwrap().as_word().unwrap().0;
+            s.want_len = 1;
+            drop(s);
+            shared.snapshot_wanted.store(true, Ordering::Release);
+            shared.signal(pending::COMMAND);
+        }
         std::thread::sleep(Duration::from_millis(1));
         while reports.pop().is_ok() {}
+        while let Ok(c) = completions.pop() {
+            answered.push(c);
+        }
     }
     shared.request_shutdown();
     let engine = handle.join().unwrap();
@@ -181,4 +221,9 @@ fn the_scan_thread_does_not_allocate() {
     assert!(runs("edge") > 10, "edge ran {}", runs("edge"));
     assert!(runs("full") >= 1, "full ran {}", runs("full"));
     assert_eq!(engine.vm().mem.read(&Address::parse("D00100").unwrap()), 7);
+    assert_eq!(engine.vm().mem.read(&Address::parse("D00101").unwrap()), 9);
+    let tickets: Vec<u64> = answered.iter().map(|c| c.ticket).collect();
+    assert_eq!(tickets, [160, 170, 180, 181, 182, 190, 200, 210], "every command answered");
+    assert!(answered.iter().all(|c| c.result.is_ok()), "{answered:?}");
+    assert!(snapshot.lock().unwrap().generation > 10, "snapshots were captured");
 }

@@ -136,10 +136,11 @@ impl ResponseLine {
     }
 
     pub fn error(kind: ErrorKind, message: impl Into<String>) -> ResponseLine {
-        ResponseLine {
-            v: VERSION,
-            outcome: Outcome::Error(Failure { kind, message: message.into(), details: Vec::new() }),
-        }
+        ResponseLine::failure(Failure::new(kind, message))
+    }
+
+    pub fn failure(failure: Failure) -> ResponseLine {
+        ResponseLine { v: VERSION, outcome: Outcome::Error(failure) }
     }
 }
 

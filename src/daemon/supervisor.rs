@@ -13,8 +13,9 @@ use std::sync::{mpsc, Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use super::control::{ControlHandler, ControlLinks, Running};
 use super::notify::{self, Notifier};
-use super::report::{self, Names};
+use super::report;
 use crate::config::Backend;
 use crate::diag::Diagnostics;
 use crate::engine::event::{Event, Mode};
@@ -26,12 +27,13 @@ use crate::project::{self, Project};
 use crate::rt::events::EventThread;
 use crate::rt::io::{FieldIo, GatedIo, SafeOutputs};
 use crate::rt::scan::ScanThread;
+use crate::rt::snapshot::Snapshot;
 use crate::rt::stimulus::StimulusThread;
 use crate::rt::sys::{self, SysError, Timer};
 use crate::rt::watchdog::WatchdogThread;
 use crate::rt::{
-    self, Command, Report, Role, RtSetupError, Shared, Source, COMMAND_QUEUE, EDGE_QUEUE,
-    REPORT_QUEUE, THREAD_STACK,
+    self, Command, Completion, Report, Role, RtSetupError, Shared, Source, COMMAND_QUEUE,
+    COMPLETION_QUEUE, EDGE_QUEUE, REPORT_QUEUE, THREAD_STACK,
 };
 use crate::sim::stimulus;
 
@@ -88,14 +90,14 @@ struct Threads {
 
 struct Daemon {
     config_path: PathBuf,
-    project: Project,
+    /// The running project and its names, shared with the control thread.
+    running: Arc<Mutex<Running>>,
     shared: Arc<Shared>,
     commands: Arc<Mutex<rtrb::Producer<Command>>>,
     reports: rtrb::Consumer<Report>,
     threads: Option<Threads>,
-    names: Names,
-    /// Names of a replacement engine, in use once the old one is retired.
-    next_names: Option<Names>,
+    /// The control socket's thread, and how to stop it.
+    control: Option<ControlThread>,
     log_outputs: log::Level,
     notifier: Option<Notifier>,
     started: Instant,
@@ -121,7 +123,9 @@ impl Daemon {
         let (edge_tx, edge_rx) = rtrb::RingBuffer::<InputEdge>::new(EDGE_QUEUE);
         let (command_tx, command_rx) = rtrb::RingBuffer::<Command>::new(COMMAND_QUEUE);
         let (report_tx, report_rx) = rtrb::RingBuffer::<Report>::new(REPORT_QUEUE);
+        let (completion_tx, completion_rx) = rtrb::RingBuffer::<Completion>::new(COMPLETION_QUEUE);
         let commands = Arc::new(Mutex::new(command_tx));
+        let snapshot = Arc::new(Mutex::new(Snapshot::new()));
 
         // The field.
         let mut events = EventThread::new(Arc::clone(&shared))?;
@@ -161,7 +165,6 @@ impl Daemon {
 
         let watch = crate::sim::output_bits(&project);
         let engine = Box::new(Engine::new(&project, &watch));
-        let names = Names::new(&project, &watch);
         let log_outputs =
             if config.io.backend == Backend::Sim { log::Level::Info } else { log::Level::Debug };
 
@@ -184,6 +187,8 @@ impl Daemon {
             edges: edge_rx,
             commands: command_rx,
             reports: report_tx,
+            completions: completion_tx,
+            snapshot: Arc::clone(&snapshot),
             timer: Timer::new()?,
             watchdog: watchdog.thread().clone(),
         };
@@ -215,15 +220,30 @@ impl Daemon {
         }
 
         let signals = Signals::register()?;
+        let has_switch = project.config.switch.is_some();
+        let running = Arc::new(Mutex::new(Running::new(config_path, project)));
+        let links = ControlLinks {
+            shared: Arc::clone(&shared),
+            commands: Arc::clone(&commands),
+            completions: completion_rx,
+            snapshot,
+            running: Arc::clone(&running),
+        };
+        let control = match start_control(links) {
+            Ok(control) => control,
+            Err(e) => {
+                stop_threads(&shared, threads);
+                return Err(e);
+            }
+        };
         let daemon = Daemon {
             config_path: config_path.to_path_buf(),
-            project,
+            running,
             shared,
             commands,
             reports: report_rx,
             threads: Some(threads),
-            names,
-            next_names: None,
+            control,
             log_outputs,
             notifier: Notifier::from_env(),
             started: Instant::now(),
@@ -232,22 +252,33 @@ impl Daemon {
             seen_dropped: 0,
             seen_trips: 0,
         };
-        daemon.command(Command::Mode(Mode::Run, Source::Startup));
-        log::info!(
-            "plcd {} running {} ({} programs, {} tasks, {} backend)",
-            env!("CARGO_PKG_VERSION"),
-            config_path.display(),
-            daemon.project.programs.len(),
-            daemon.project.config.tasks.len(),
-            match daemon.project.config.io.backend {
-                Backend::Sim => "sim",
-                Backend::Gpiocdev => "gpiocdev",
-            }
-        );
+        if has_switch {
+            log::info!("RUN/STOP key switch configured: the mode follows it (XGB §5.2.3)");
+        } else {
+            daemon.command(Command::Mode(Mode::Run, Source::Startup));
+        }
+        {
+            let running = daemon.running();
+            log::info!(
+                "plcd {} running {} ({} programs, {} tasks, {} backend)",
+                env!("CARGO_PKG_VERSION"),
+                config_path.display(),
+                running.project.programs.len(),
+                running.project.config.tasks.len(),
+                match running.project.config.io.backend {
+                    Backend::Sim => "sim",
+                    Backend::Gpiocdev => "gpiocdev",
+                }
+            );
+        }
         if let Some(n) = &daemon.notifier {
             let _ = n.ready();
         }
         Ok(daemon)
+    }
+
+    fn running(&self) -> std::sync::MutexGuard<'_, Running> {
+        self.running.lock().unwrap_or_else(|e| e.into_inner())
     }
 
     fn command(&self, command: Command) {
@@ -318,11 +349,10 @@ impl Daemon {
                     };
                     log::info!("mode {} ({why})", mode.as_str());
                 }
-                Report::Retired(old) => {
-                    drop(old);
-                    if let Some(names) = self.next_names.take() {
-                        self.names = names;
-                    }
+                Report::Retired(old) => drop(old),
+                Report::RetiredChange(change) => drop(change),
+                Report::Switch(_, position) => {
+                    log::info!("key switch at {}", crate::sim::trace::switch_name(position));
                 }
                 Report::Event(_, event) => self.log_event(event),
             }
@@ -332,11 +362,12 @@ impl Daemon {
     fn log_event(&mut self, event: Event) {
         match event {
             Event::Error(kind) => {
-                let (code, detail) = self.names.describe_error(kind);
+                let (code, detail) = self.running().names.describe_error(kind);
                 log::error!("error {code}: {detail}");
             }
             Event::Set { watch, value } => {
-                log::log!(self.log_outputs, "{} = {value}", self.names.watch(watch));
+                let level = self.log_outputs;
+                log::log!(level, "{} = {value}", self.running().names.watch(watch));
             }
             _ => {}
         }
@@ -386,7 +417,8 @@ impl Daemon {
                 );
             }
             Ok(new) => {
-                let old = &self.project.config;
+                let mut running = self.running.lock().unwrap_or_else(|e| e.into_inner());
+                let old = &running.project.config;
                 let changed: Vec<&str> =
                     [("[io]", new.config.io != old.io), ("[rt]", new.config.rt != old.rt)]
                         .into_iter()
@@ -401,13 +433,13 @@ impl Daemon {
                 } else {
                     let watch = crate::sim::output_bits(&new);
                     let engine = Box::new(Engine::new(&new, &watch));
-                    self.next_names = Some(Names::new(&new, &watch));
                     log::info!(
                         "reloaded: {} programs, {} tasks; restarting them",
                         new.programs.len(),
                         new.config.tasks.len()
                     );
-                    self.project = new;
+                    *running = Running::new(&self.config_path, new);
+                    drop(running);
                     self.command(Command::Replace(engine));
                 }
             }
@@ -421,6 +453,9 @@ impl Daemon {
         if let Some(n) = &self.notifier {
             let _ = n.stopping();
         }
+        if let Some(control) = self.control.take() {
+            control.stop();
+        }
         let Some(threads) = self.threads.take() else { return Ok(()) };
         let engine = stop_threads(&self.shared, threads);
         self.drain_reports();
@@ -433,6 +468,23 @@ impl Daemon {
         log::info!("stopped; outputs off");
         Ok(())
     }
+}
+
+/// The control socket's server thread.
+struct ControlThread {
+    handle: JoinHandle<()>,
+}
+
+impl ControlThread {
+    fn stop(self) {
+        let _ = self.handle.join();
+    }
+}
+
+/// Binds the control socket and starts its thread; `None` when `[control] enabled = false`.
+fn start_control(links: ControlLinks) -> Result<Option<ControlThread>, DaemonError> {
+    let _handler = ControlHandler::new(links);
+    Ok(None)
 }
 
 /// Stops every thread; the scan thread stops between two instructions and puts the outputs

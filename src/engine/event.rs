@@ -110,6 +110,8 @@ pub enum Event {
         value: i32,
     },
     Error(ErrorKind),
+    /// The RUN/STOP key switch moved (a mode change it causes follows).
+    Switch(crate::io::SwitchPosition),
 }
 
 /// Receives events in time order; `t_ns` is the time since RUN started.

@@ -64,6 +64,10 @@ pub enum Refusal {
     NotInDebug,
     #[error("execution is paused inside a scan: step to its end first")]
     MidScan,
+    #[error("the PLC is in RUN: stop it first, or change online")]
+    Running,
+    #[error("at most 32 breakpoints")]
+    TooManyBreakpoints,
 }
 
 /// What [`Engine::run`] leaves behind.
@@ -1045,6 +1049,7 @@ impl Engine {
             return;
         }
         self.switch = Some(position);
+        sink.event(now, Event::Switch(position));
         match (position, self.mode) {
             (SwitchPosition::Run, Mode::Stop) => self.enter_run(Mode::Run, now, io, sink),
             (SwitchPosition::Run, Mode::Debug) => self.leave_debug(now, sink),

@@ -3,11 +3,11 @@
 
 use std::sync::Arc;
 
-use crate::device::Memory;
+use crate::device::{BitRef, Memory};
 use crate::io::gate::{AfterWrite, OutputGate};
 use crate::io::gpio::{GpioIo, GpioOutputs};
 use crate::io::sim::{SimField, SimIo};
-use crate::io::Io;
+use crate::io::{Io, SwitchPosition};
 
 /// The backend the scan thread refreshes.
 pub enum FieldIo {
@@ -29,6 +29,20 @@ impl Io for FieldIo {
         match self {
             FieldIo::Sim(io) => io.refresh_outputs(mem),
             FieldIo::Gpio(io) => io.refresh_outputs(mem),
+        }
+    }
+
+    fn switch(&self) -> Option<SwitchPosition> {
+        match self {
+            FieldIo::Sim(io) => io.switch(),
+            FieldIo::Gpio(io) => io.switch(),
+        }
+    }
+
+    fn is_input(&self, bit: BitRef) -> bool {
+        match self {
+            FieldIo::Sim(io) => io.is_input(bit),
+            FieldIo::Gpio(io) => io.is_input(bit),
         }
     }
 }
@@ -78,5 +92,13 @@ impl Io for GatedIo {
                 self.safe.apply();
             }
         }
+    }
+
+    fn switch(&self) -> Option<SwitchPosition> {
+        self.field.switch()
+    }
+
+    fn is_input(&self, bit: BitRef) -> bool {
+        self.field.is_input(bit)
     }
 }

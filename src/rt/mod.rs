@@ -25,6 +25,7 @@
 pub mod events;
 pub mod io;
 pub mod scan;
+pub mod snapshot;
 pub mod stimulus;
 pub mod sys;
 pub mod watchdog;
@@ -32,9 +33,13 @@ pub mod watchdog;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering};
 
 use crate::config::{RtConfig, RtPolicy};
-use crate::device::Address;
+use crate::device::{Address, BitRef};
+use crate::engine::debug::Breakpoint;
 use crate::engine::event::{Event, Mode};
+use crate::engine::online::OnlineChange;
 use crate::engine::Engine;
+use crate::engine::{ModeRequest, Refusal};
+use crate::io::SwitchPosition;
 use crate::vm::Clock;
 use sys::{SysError, Wake};
 
@@ -48,6 +53,12 @@ pub const EDGE_QUEUE: usize = 256;
 pub const COMMAND_QUEUE: usize = 64;
 /// Capacity of the report queue (scan thread → supervisor).
 pub const REPORT_QUEUE: usize = 4096;
+/// Capacity of the completion queue (scan thread → control thread): at least the command
+/// queue, so that a completion always finds room.
+pub const COMPLETION_QUEUE: usize = COMMAND_QUEUE;
+/// Writes one control command carries; a longer `set` is split over several commands that
+/// are applied at the same END.
+pub const WRITES_PER_COMMAND: usize = 16;
 
 /// Flags of [`Shared::pending`].
 pub mod pending {
@@ -76,6 +87,50 @@ pub enum Command {
     /// restart of the new programs), STOP and ERROR become STOP. The old engine comes back as
     /// [`Report::Retired`].
     Replace(Box<Engine>),
+    /// A command of the control socket, applied at a scan boundary and answered with a
+    /// [`Completion`] carrying `ticket`.
+    Control(u64, ControlCommand),
+}
+
+/// What the control socket asks of the scan thread.
+pub enum ControlCommand {
+    Mode(ModeRequest),
+    /// Device writes (the first `len`), applied together.
+    Writes {
+        items: [(Address, i32); WRITES_PER_COMMAND],
+        len: usize,
+    },
+    Force(BitRef, bool),
+    Unforce(BitRef),
+    UnforceAll,
+    Step,
+    Continue,
+    Break(Breakpoint),
+    /// One breakpoint, or all of them.
+    Unbreak(Option<Breakpoint>),
+    /// Replaces the engine; only in STOP or ERROR (the new one starts in STOP).
+    Load(Box<Engine>),
+    /// An online change (see [`crate::engine::online`]); in RUN or DEBUG at a scan boundary,
+    /// and in STOP or ERROR as a plain replacement.
+    Online(Box<OnlineChange>),
+}
+
+/// The outcome of a [`ControlCommand`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Completion {
+    pub ticket: u64,
+    pub result: Result<Applied, Refusal>,
+}
+
+/// The state right after a command was applied.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Applied {
+    pub mode: Mode,
+    /// Scans since RUN when it was applied.
+    pub scan: u64,
+    /// False when the command changed nothing: an unforce of a bit that was not forced, an
+    /// unbreak of a breakpoint that was not set.
+    pub changed: bool,
 }
 
 /// Who asked for a mode change, for the log.
@@ -85,6 +140,10 @@ pub enum Source {
     Stimulus,
     Signal,
     Reload,
+    /// The control socket (`plcctl`, an HMI).
+    Remote,
+    /// The RUN/STOP key switch.
+    Switch,
 }
 
 impl Source {
@@ -94,6 +153,8 @@ impl Source {
             Source::Stimulus => "stimulus",
             Source::Signal => "signal",
             Source::Reload => "reload",
+            Source::Remote => "control socket",
+            Source::Switch => "key switch",
         }
     }
 }
@@ -107,6 +168,11 @@ pub enum Report {
     Mode(u64, Mode, Option<Source>),
     /// The engine a [`Command::Replace`] took out, to be dropped off the real-time thread.
     Retired(Box<Engine>),
+    /// What an online change leaves behind (the old engine and the edge plan), or a refused
+    /// one, to be dropped off the real-time thread.
+    RetiredChange(Box<OnlineChange>),
+    /// The key switch moved.
+    Switch(u64, SwitchPosition),
 }
 
 /// State shared by the threads: atomics only, allocated once.
@@ -145,6 +211,10 @@ pub struct Shared {
     pub lost_edges: AtomicU64,
     /// Reports dropped to a full report queue.
     pub dropped_reports: AtomicU64,
+    /// The control thread wants a [`snapshot::Snapshot`] at the next scan boundary.
+    pub snapshot_wanted: AtomicBool,
+    /// Wakes the control thread: a completion or a snapshot is ready.
+    pub control_wake: Wake,
 }
 
 impl Shared {
@@ -169,6 +239,8 @@ impl Shared {
             timer_missed: std::array::from_fn(|_| AtomicU64::new(0)),
             lost_edges: AtomicU64::new(0),
             dropped_reports: AtomicU64::new(0),
+            snapshot_wanted: AtomicBool::new(false),
+            control_wake: Wake::new()?,
         })
     }
 

@@ -2,14 +2,18 @@
 //! threads between two slices of instructions.
 
 use std::sync::atomic::Ordering;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::thread::Thread;
 
 use super::io::GatedIo;
+use super::snapshot::Snapshot;
 use super::sys::{self, Timer};
-use super::{mode_code, pending, Command, Monotonic, Report, Shared, Source, SLICE_STEPS};
+use super::{
+    mode_code, pending, Applied, Command, Completion, ControlCommand, Monotonic, Report, Shared,
+    Source, SLICE_STEPS,
+};
 use crate::engine::event::{Event, EventSink, Mode};
-use crate::engine::{Activity, Engine};
+use crate::engine::{Activity, Engine, Refusal};
 use crate::io::InputEdge;
 
 /// Forwards the events worth logging to the supervisor; the others are counted by the engine's
@@ -33,6 +37,11 @@ impl EventSink for ReportSink<'_> {
     fn event(&mut self, t_ns: u64, event: Event) {
         match event {
             Event::Mode(mode) => self.push(Report::Mode(t_ns, mode, self.source)),
+            Event::Switch(position) => {
+                // What follows in this pass is the switch's doing.
+                self.source = Some(Source::Switch);
+                self.push(Report::Switch(t_ns, position));
+            }
             Event::Error(_) | Event::Set { .. } => self.push(Report::Event(t_ns, event)),
             _ => {}
         }
@@ -47,6 +56,10 @@ pub struct ScanThread {
     pub edges: rtrb::Consumer<InputEdge>,
     pub commands: rtrb::Consumer<Command>,
     pub reports: rtrb::Producer<Report>,
+    /// Answers to control commands.
+    pub completions: rtrb::Producer<Completion>,
+    /// Published at scan boundaries when the control thread asks.
+    pub snapshot: Arc<Mutex<Box<Snapshot>>>,
     /// Its idle timer, armed at the engine's next wakeup.
     pub timer: Timer,
     /// The watchdog thread, unparked when a scan arms the watchdog.
@@ -66,11 +79,16 @@ impl ScanThread {
     }
 
     /// The scan loop, until shutdown, then STOP. Allocates nothing (tests/scan_no_alloc.rs).
+    ///
+    /// Commands wait for a scan boundary: the engine is asked to hand back at END
+    /// ([`Engine::set_hold_at_end`]) while commands or a snapshot request wait, so they are
+    /// applied between two scans, never inside one.
     pub fn serve(&mut self) {
         let mut next_wakeup = 0u64;
         let mut published_deadline = 0u64;
         let mut published_scans = u64::MAX;
         let mut mode = self.engine.mode();
+        let mut commands_waiting = false;
         self.publish_plan();
         loop {
             let flags = self.shared.pending.swap(0, Ordering::AcqRel);
@@ -78,40 +96,39 @@ impl ScanThread {
             if flags & pending::SHUTDOWN != 0 {
                 break;
             }
-            let mut sink =
-                ReportSink { reports: &mut self.reports, shared: &self.shared, source: None };
-            if flags & pending::COMMAND != 0 {
-                while let Ok(command) = self.commands.pop() {
-                    match command {
-                        Command::Mode(to, source) => {
-                            sink.source = Some(source);
-                            if to == Mode::Stop {
-                                // Leaving an error: the gate the watchdog closed opens again
-                                // so that STOP's cleared outputs are published.
-                                self.io.gate.reopen();
-                            }
-                            self.engine.set_mode(to, now, &mut self.io, &mut sink);
-                            sink.source = None;
-                        }
-                        Command::Write(address, value) => self.engine.write(&address, value),
-                        Command::Replace(new) => {
-                            let was = self.engine.mode();
-                            sink.source = Some(Source::Reload);
-                            self.io.gate.reopen();
-                            self.engine.set_mode(Mode::Stop, now, &mut self.io, &mut sink);
-                            let old = std::mem::replace(&mut self.engine, new);
-                            if was == Mode::Run {
-                                self.engine.set_mode(Mode::Run, now, &mut self.io, &mut sink);
-                            }
-                            sink.source = None;
-                            // A full queue would drop (free) the old engine here: rare, and
-                            // only on a reload.
-                            sink.push(Report::Retired(old));
-                            mode = Mode::Stop;
-                        }
+            commands_waiting |= flags & pending::COMMAND != 0;
+            if flags & pending::WATCHDOG != 0 {
+                let mut sink =
+                    ReportSink { reports: &mut self.reports, shared: &self.shared, source: None };
+                self.engine.watchdog_expired(now, &mut self.io, &mut sink);
+            }
+            if self.engine.mode() == Mode::Error && self.io.gate.is_tripped() {
+                // The engine took the watchdog's verdict and writes no outputs in ERROR: the
+                // gate opens again, so that leaving ERROR (STOP, reset, the key switch)
+                // publishes its cleared outputs.
+                self.io.gate.reopen();
+            }
+            if self.engine.at_scan_boundary() {
+                if commands_waiting {
+                    commands_waiting = false;
+                    if self.apply_commands(now) {
+                        // Another engine: its plan, whatever the mode.
+                        mode = self.engine.mode();
+                        self.shared.mode.store(mode_code(mode), Ordering::Relaxed);
+                        self.publish_plan();
+                    }
+                }
+                if self.shared.snapshot_wanted.load(Ordering::Acquire) {
+                    if let Ok(mut snapshot) = self.snapshot.try_lock() {
+                        snapshot.capture(&self.engine, now);
+                        self.shared.snapshot_wanted.store(false, Ordering::Release);
+                        drop(snapshot);
+                        self.shared.control_wake.wake();
                     }
                 }
             }
+            let mut sink =
+                ReportSink { reports: &mut self.reports, shared: &self.shared, source: None };
             if flags & pending::EDGE != 0 {
                 while let Ok(edge) = self.edges.pop() {
                     self.engine.input_edge(
@@ -123,13 +140,16 @@ impl ScanThread {
                     );
                 }
             }
-            if flags & pending::WATCHDOG != 0 {
-                self.engine.watchdog_expired(now, &mut self.io, &mut sink);
-            }
             if flags != 0 || now >= next_wakeup {
                 self.engine.poll_time(now, &mut self.io, &mut sink);
             }
-            let activity = self.engine.run(&Monotonic, &mut self.io, &mut sink, SLICE_STEPS);
+            let hold = commands_waiting || self.shared.snapshot_wanted.load(Ordering::Relaxed);
+            self.engine.set_hold_at_end(hold);
+            let mut activity = self.engine.run(&Monotonic, &mut self.io, &mut sink, SLICE_STEPS);
+            if hold && self.engine.at_scan_boundary() {
+                // Round again at once: the boundary is now.
+                activity = Activity::Busy;
+            }
 
             // Publish what the other threads watch.
             if self.engine.mode() != mode {
@@ -159,7 +179,7 @@ impl ScanThread {
             next_wakeup = self.engine.next_wakeup(now).unwrap_or(u64::MAX);
             if activity == Activity::Idle && next_wakeup > now {
                 if mode != Mode::Run {
-                    // The STOP/ERROR loop is alive.
+                    // The STOP/ERROR/DEBUG loop is alive.
                     self.shared.progress.fetch_add(1, Ordering::Relaxed);
                 }
                 self.sleep_until(next_wakeup);
@@ -174,6 +194,110 @@ impl ScanThread {
         self.engine.set_mode(Mode::Stop, sys::now_ns(), &mut self.io, &mut sink);
         self.shared.mode.store(mode_code(Mode::Stop), Ordering::Relaxed);
         self.shared.watchdog_deadline.store(0, Ordering::Release);
+    }
+
+    /// Applies every queued command; true if the engine was replaced.
+    fn apply_commands(&mut self, now: u64) -> bool {
+        let mut replaced = false;
+        while let Ok(command) = self.commands.pop() {
+            match command {
+                Command::Mode(to, source) => {
+                    let mut sink = ReportSink {
+                        reports: &mut self.reports,
+                        shared: &self.shared,
+                        source: Some(source),
+                    };
+                    self.engine.set_mode(to, now, &mut self.io, &mut sink);
+                }
+                Command::Write(address, value) => self.engine.write(&address, value),
+                Command::Replace(new) => {
+                    let was = self.engine.mode();
+                    let mut sink = ReportSink {
+                        reports: &mut self.reports,
+                        shared: &self.shared,
+                        source: Some(Source::Reload),
+                    };
+                    self.engine.set_mode(Mode::Stop, now, &mut self.io, &mut sink);
+                    let old = std::mem::replace(&mut self.engine, new);
+                    if was == Mode::Run {
+                        self.engine.set_mode(Mode::Run, now, &mut self.io, &mut sink);
+                    }
+                    // A full queue would drop (free) the old engine here: rare, and only on a
+                    // reload.
+                    sink.push(Report::Retired(old));
+                    replaced = true;
+                }
+                Command::Control(ticket, command) => {
+                    let result = self.apply_control(command, now, &mut replaced);
+                    let completion = Completion { ticket, result };
+                    // The queue holds as many completions as there can be commands.
+                    let _ = self.completions.push(completion);
+                    self.shared.control_wake.wake();
+                }
+            }
+        }
+        replaced
+    }
+
+    fn apply_control(
+        &mut self,
+        command: ControlCommand,
+        now: u64,
+        replaced: &mut bool,
+    ) -> Result<Applied, Refusal> {
+        let mut changed = true;
+        let mut sink = ReportSink {
+            reports: &mut self.reports,
+            shared: &self.shared,
+            source: Some(Source::Remote),
+        };
+        let engine = &mut self.engine;
+        match command {
+            ControlCommand::Mode(request) => {
+                engine.request_mode(request, now, &mut self.io, &mut sink)?;
+            }
+            ControlCommand::Writes { items, len } => {
+                for (address, value) in &items[..len.min(items.len())] {
+                    engine.write(address, *value);
+                }
+            }
+            ControlCommand::Force(bit, on) => engine.force(bit, on, &self.io),
+            ControlCommand::Unforce(bit) => changed = engine.unforce(bit),
+            ControlCommand::UnforceAll => engine.unforce_all(),
+            ControlCommand::Step => engine.debug_step(now)?,
+            ControlCommand::Continue => engine.debug_continue(now)?,
+            ControlCommand::Break(at) => {
+                engine.debugger_mut().add(at).map_err(|_| Refusal::TooManyBreakpoints)?
+            }
+            ControlCommand::Unbreak(Some(at)) => changed = engine.debugger_mut().remove(at),
+            ControlCommand::Unbreak(None) => engine.debugger_mut().clear(),
+            ControlCommand::Load(new) => {
+                if matches!(engine.mode(), Mode::Run | Mode::Debug) {
+                    sink.push(Report::Retired(new));
+                    return Err(Refusal::Running);
+                }
+                engine.set_mode(Mode::Stop, now, &mut self.io, &mut sink);
+                let old = std::mem::replace(engine, new);
+                sink.push(Report::Retired(old));
+                *replaced = true;
+            }
+            ControlCommand::Online(mut change) => {
+                if matches!(engine.mode(), Mode::Stop | Mode::Error) {
+                    engine.set_mode(Mode::Stop, now, &mut self.io, &mut sink);
+                    std::mem::swap(engine, &mut change.engine);
+                } else {
+                    let taken = change.engine.take_over(engine, &change.edges);
+                    if let Err(refusal) = taken {
+                        sink.push(Report::RetiredChange(change));
+                        return Err(refusal);
+                    }
+                    std::mem::swap(engine, &mut change.engine);
+                }
+                sink.push(Report::RetiredChange(change));
+                *replaced = true;
+            }
+        }
+        Ok(Applied { mode: engine.mode(), scan: engine.scan_count(), changed })
     }
 
     /// Sleeps until `deadline` or a wake. Announces the sleep first, then looks at the pending

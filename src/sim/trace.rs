@@ -104,6 +104,9 @@ impl<W: Write> TraceWriter<W> {
                 push_str_field(line, "code", &code);
                 push_str_field(line, "detail", &detail);
             }
+            Event::Switch(position) => {
+                push_str_field(line, "position", switch_name(position));
+            }
         }
         line.push_str("}\n");
     }
@@ -121,6 +124,14 @@ impl<W: Write> EventSink for TraceWriter<W> {
     }
 }
 
+/// The position of the key switch as traces and logs write it.
+pub fn switch_name(position: crate::io::SwitchPosition) -> &'static str {
+    match position {
+        crate::io::SwitchPosition::Run => "RUN",
+        crate::io::SwitchPosition::Stop => "STOP",
+    }
+}
+
 /// The `ev` value of an event.
 fn event_name(event: &Event) -> &'static str {
     match event {
@@ -135,6 +146,7 @@ fn event_name(event: &Event) -> &'static str {
         Event::TaskResume { .. } => "task_resume",
         Event::Set { .. } => "set",
         Event::Error(_) => "error",
+        Event::Switch(_) => "switch",
     }
 }
 
