@@ -73,7 +73,7 @@ impl SimRig {
         let inputs: Vec<Address> = config.inputs.iter().map(|l| l.device).collect();
         let lines =
             config.inputs.iter().chain(&config.outputs).map(|l| (l.line, l.device)).collect();
-        SimRig { io: SimIo::new(&inputs, &[0]), lines, pending: Vec::new() }
+        SimRig { io: SimIo::new(&inputs, &[0], None), lines, pending: Vec::new() }
     }
 
     fn device(&self, line: u32) -> Address {
