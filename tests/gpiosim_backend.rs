@@ -1,7 +1,7 @@
 //! The same test bodies against every I/O backend: the in-process sim backend (always) and the
 //! gpiocdev backend on the kernel's gpio-sim (where it is available: root and the module;
-//! `tests/vm/run-gpiosim` runs these in a VM with such a kernel). Then the daemon itself on
-//! gpio-sim, end to end.
+//! `tests/vm/run-gpiosim` runs these in a VM with such a kernel). Then the RUN/STOP key switch's
+//! line settings and errors, and the daemon itself on gpio-sim, end to end.
 #[macro_use]
 mod common_gpiosim;
 
@@ -9,11 +9,11 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use plcd::config::{self, Edge, IoConfig};
+use plcd::config::{self, Config};
 use plcd::device::{Address, Memory};
 use plcd::io::gpio::{self, Gpio};
 use plcd::io::sim::SimIo;
-use plcd::io::{InputEdge, Io};
+use plcd::io::{InputEdge, Io, SwitchPosition};
 use plcd::rt::sys;
 
 /// The wiring every body uses: inputs P0000 (line 0, an io-task contact), P0001 (line 1),
@@ -33,6 +33,17 @@ device = "P0041"
 line = 9
 "#;
 
+/// The key switch of the rigs: line 12 on gpiocdev; on sim it starts at STOP, as the gpio-sim
+/// line does (gpio-sim pulls a line down until told otherwise).
+const SWITCH_LINE: u32 = 12;
+
+fn switch_section(backend: &str) -> String {
+    match backend {
+        "gpiocdev" => format!("[switch]\nline = {SWITCH_LINE}\n"),
+        _ => "[switch]\nposition = \"stop\"\n".to_string(),
+    }
+}
+
 fn addr(text: &str) -> Address {
     Address::parse(text).unwrap()
 }
@@ -49,16 +60,24 @@ trait Rig {
     fn edges(&mut self, wait: Duration) -> Vec<InputEdge>;
     /// The watchdog's safe state: every output off.
     fn safe_outputs(&self);
+    /// Turns the RUN/STOP key switch, as an operator would.
+    fn turn_switch(&mut self, position: SwitchPosition);
 }
 
-fn io_config(backend: &str, chip: Option<&str>) -> IoConfig {
+/// The rigs' config: [`WIRING`], an io task on P0000, and `extra` (a `[switch]`).
+fn rig_config(backend: &str, chip: Option<&str>, extra: &str) -> Config {
     let chip = chip.map(|c| format!("chip = \"{c}\"\n")).unwrap_or_default();
     let text = format!(
         "[[program]]\nfile = \"main.il\"\n[[task]]\nname = \"edge\"\nkind = \"io\"\n\
          number = 8\npriority = 2\ncontact = \"P0000\"\nedge = \"both\"\n\
-         [io]\nbackend = \"{backend}\"\n{chip}{WIRING}"
+         [io]\nbackend = \"{backend}\"\n{chip}{WIRING}{extra}"
     );
-    config::parse(&text, Path::new("rig.toml")).expect("config").io
+    config::parse(&text, Path::new("rig.toml")).expect("config")
+}
+
+/// Opens the gpiocdev backend on `config`.
+fn open(config: &Config, consumer: &str) -> Result<Gpio, gpio::GpioError> {
+    gpio::open(&config.io, config.switch.as_ref(), &config.edge_contacts(), consumer)
 }
 
 struct SimRig {
@@ -69,11 +88,12 @@ struct SimRig {
 
 impl SimRig {
     fn new() -> SimRig {
-        let config = io_config("sim", None);
-        let inputs: Vec<Address> = config.inputs.iter().map(|l| l.device).collect();
-        let lines =
-            config.inputs.iter().chain(&config.outputs).map(|l| (l.line, l.device)).collect();
-        SimRig { io: SimIo::new(&inputs, &[0]), lines, pending: Vec::new() }
+        let config = rig_config("sim", None, &switch_section("sim"));
+        let io = &config.io;
+        let inputs: Vec<Address> = io.inputs.iter().map(|l| l.device).collect();
+        let lines = io.inputs.iter().chain(&io.outputs).map(|l| (l.line, l.device)).collect();
+        let switch = config.switch.as_ref().map(|s| s.position);
+        SimRig { io: SimIo::new(&inputs, &[0], switch), lines, pending: Vec::new() }
     }
 
     fn device(&self, line: u32) -> Address {
@@ -105,6 +125,9 @@ impl Rig for SimRig {
     fn safe_outputs(&self) {
         self.io.field().clear_outputs();
     }
+    fn turn_switch(&mut self, position: SwitchPosition) {
+        assert!(self.io.field().set_switch(position), "the sim rig has a switch");
+    }
 }
 
 struct GpioRig {
@@ -119,8 +142,8 @@ impl GpioRig {
             .live()
             .unwrap_or_else(|e| panic!("gpio-sim chip does not go live: {e}"));
         let path = sim.chips()[0].dev_path().to_str().unwrap().to_string();
-        let config = io_config("gpiocdev", Some(&path));
-        let gpio = gpio::open(&config, &[(0, Edge::Both)], "plcd-test").expect("the backend opens");
+        let config = rig_config("gpiocdev", Some(&path), &switch_section("gpiocdev"));
+        let gpio = open(&config, "plcd-test").expect("the backend opens");
         GpioRig { sim, gpio }
     }
 }
@@ -154,6 +177,9 @@ impl Rig for GpioRig {
     }
     fn safe_outputs(&self) {
         self.gpio.outputs.set_all_inactive().unwrap();
+    }
+    fn turn_switch(&mut self, position: SwitchPosition) {
+        self.drive(SWITCH_LINE, position == SwitchPosition::Run);
     }
 }
 
@@ -206,6 +232,40 @@ fn contact_edges_are_stamped(rig: &mut dyn Rig) {
     assert!(rig.edges(Duration::from_millis(50)).is_empty(), "P0001 is no io-task contact");
 }
 
+/// Refreshes the inputs until the switch reads `want` (the kernel debounces the contact, 10 ms
+/// by default; the sim field is at once).
+fn refresh_until_switch(rig: &mut dyn Rig, mem: &mut Memory, want: SwitchPosition) {
+    let start = Instant::now();
+    loop {
+        rig.io().refresh_inputs(mem);
+        if rig.io().switch() == Some(want) {
+            return;
+        }
+        assert!(start.elapsed() < Duration::from_secs(2), "the switch never read {want:?}");
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+fn the_switch_follows_the_field(rig: &mut dyn Rig) {
+    let mut mem = Memory::new();
+    let _ = rig.edges(Duration::from_millis(10));
+    assert_eq!(rig.io().switch(), Some(SwitchPosition::Stop), "known before the first refresh");
+    let mut last = SwitchPosition::Stop;
+    for position in [SwitchPosition::Run, SwitchPosition::Stop, SwitchPosition::Run] {
+        rig.turn_switch(position);
+        assert_eq!(rig.io().switch(), Some(last), "the switch as of the last refresh");
+        refresh_until_switch(rig, &mut mem, position);
+        assert!(mem.io_image().iter().all(|&w| w == 0), "the switch is no P bit");
+        last = position;
+    }
+    // The inputs still refresh with it, in the same read.
+    rig.drive(1, true);
+    rig.turn_switch(SwitchPosition::Stop);
+    refresh_until_switch(rig, &mut mem, SwitchPosition::Stop);
+    assert_eq!(mem.read(&addr("P0001")), 1);
+    assert!(rig.edges(Duration::from_millis(50)).is_empty(), "the switch detects no edges");
+}
+
 macro_rules! on_every_backend {
     ($($body:ident),*) => {
         mod sim_backend {
@@ -220,15 +280,20 @@ macro_rules! on_every_backend {
     };
 }
 
-on_every_backend!(inputs_follow_the_field, outputs_reach_the_field, contact_edges_are_stamped);
+on_every_backend!(
+    inputs_follow_the_field,
+    outputs_reach_the_field,
+    contact_edges_are_stamped,
+    the_switch_follows_the_field
+);
 
 #[test]
 fn a_line_held_by_another_process_is_named() {
     require_gpiosim!();
     let rig = GpioRig::new("plcd-busy");
     let path = rig.sim.chips()[0].dev_path().to_str().unwrap().to_string();
-    let config = io_config("gpiocdev", Some(&path));
-    let error = gpio::open(&config, &[(0, Edge::Both)], "plcd-second").unwrap_err().to_string();
+    let config = rig_config("gpiocdev", Some(&path), "");
+    let error = open(&config, "plcd-second").unwrap_err().to_string();
     assert!(error.contains("line 0") && error.contains("P0000"), "{error}");
     assert!(error.contains("plcd-test"), "names the other consumer: {error}");
 }
@@ -238,9 +303,79 @@ fn a_line_beyond_the_chip_is_named() {
     require_gpiosim!();
     let sim = gpiosim::builder().with_bank(&gpiosim::Bank::new(4, "plcd-small")).live().unwrap();
     let path = sim.chips()[0].dev_path().to_str().unwrap().to_string();
-    let error =
-        gpio::open(&io_config("gpiocdev", Some(&path)), &[], "plcd").unwrap_err().to_string();
+    let error = open(&rig_config("gpiocdev", Some(&path), ""), "plcd").unwrap_err().to_string();
     assert!(error.contains("line 8") && error.contains("P0040"), "{error}");
+}
+
+/// The chip's path and the gpiocdev rig config with `[switch]` as given.
+fn switch_config(sim: &gpiosim::Sim, switch: &str) -> Config {
+    let path = sim.chips()[0].dev_path().to_str().unwrap().to_string();
+    rig_config("gpiocdev", Some(&path), switch)
+}
+
+#[test]
+fn the_switch_line_is_an_input_with_its_settings() {
+    require_gpiosim!();
+    let sim = gpiosim::builder().with_bank(&gpiosim::Bank::new(16, "plcd-switch")).live().unwrap();
+    let config = switch_config(
+        &sim,
+        "[switch]\nline = 12\nactive_low = true\nbias = \"pull-up\"\ndebounce_us = 2000\n",
+    );
+    let mut gpio = open(&config, "plcd-test").expect("the backend opens");
+    let chip = gpiocdev::Chip::from_path(sim.chips()[0].dev_path()).unwrap();
+    let info = chip.line_info(SWITCH_LINE).unwrap();
+    assert!(info.used && info.consumer == "plcd-test", "{info:?}");
+    assert_eq!(info.direction, gpiocdev::line::Direction::Input);
+    assert!(info.active_low, "{info:?}");
+    assert_eq!(info.bias, Some(gpiocdev::line::Bias::PullUp));
+    assert_eq!(info.edge_detection, None, "the switch detects no edges");
+    assert_eq!(info.debounce_period, Some(Duration::from_micros(2000)));
+    // Pulled up by its bias, active low: inactive, STOP, read at open.
+    assert_eq!(gpio.io.switch(), Some(SwitchPosition::Stop));
+    let mut mem = Memory::new();
+    sim.chips()[0].set_pull(SWITCH_LINE, gpiosim::Level::Low).unwrap();
+    let start = Instant::now();
+    while gpio.io.switch() != Some(SwitchPosition::Run) {
+        assert!(start.elapsed() < Duration::from_secs(2), "low never read as RUN");
+        std::thread::sleep(Duration::from_millis(1));
+        gpio.io.refresh_inputs(&mut mem);
+    }
+    // The default debounce is 10 ms.
+    drop(gpio);
+    let gpio = open(&switch_config(&sim, "[switch]\nline = 12\n"), "plcd-test").unwrap();
+    let info = chip.line_info(SWITCH_LINE).unwrap();
+    assert_eq!(info.debounce_period, Some(Duration::from_millis(10)));
+    assert!(!info.active_low);
+    drop(gpio);
+}
+
+#[test]
+fn a_switch_line_held_by_another_process_is_named() {
+    require_gpiosim!();
+    let sim = gpiosim::builder().with_bank(&gpiosim::Bank::new(16, "plcd-sw-busy")).live().unwrap();
+    let _held = gpiocdev::Request::builder()
+        .on_chip(sim.chips()[0].dev_path())
+        .with_consumer("key-holder")
+        .with_line(SWITCH_LINE)
+        .as_input()
+        .request()
+        .unwrap();
+    let error = open(&switch_config(&sim, &switch_section("gpiocdev")), "plcd").unwrap_err();
+    let error = error.to_string();
+    assert!(error.contains("line 12 (the RUN/STOP switch)"), "{error}");
+    assert!(error.contains("key-holder"), "names the other consumer: {error}");
+    assert!(error.contains("plcd-sw-busy"), "names the chip: {error}");
+}
+
+#[test]
+fn a_switch_line_beyond_the_chip_is_named() {
+    require_gpiosim!();
+    let sim =
+        gpiosim::builder().with_bank(&gpiosim::Bank::new(12, "plcd-sw-small")).live().unwrap();
+    let error = open(&switch_config(&sim, &switch_section("gpiocdev")), "plcd").unwrap_err();
+    let error = error.to_string();
+    assert!(error.contains("line 12 (the RUN/STOP switch) does not exist"), "{error}");
+    assert!(error.contains("the chip has 12 lines"), "{error}");
 }
 
 /// The daemon binary: cargo's when this test runs on the build machine, `/bin/plcd` in the VM.

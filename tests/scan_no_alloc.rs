@@ -120,7 +120,7 @@ fn the_scan_thread_does_not_allocate() {
         .to_string())
     })
     .expect("project");
-    let io = SimIo::new(&[Address::parse("P0000").unwrap()], &[0]);
+    let io = SimIo::new(&[Address::parse("P0000").unwrap()], &[0], None);
     let field = io.field();
     let shared = Arc::new(Shared::new().unwrap());
     let (mut edges, edge_rx) = rtrb::RingBuffer::<InputEdge>::new(256);

@@ -66,7 +66,7 @@ pub fn run(args: &SimArgs, err: &mut impl Write) -> ExitCode {
         }
     };
     let stimuli = match &args.inputs {
-        Some(path) => match stimulus::load(path) {
+        Some(path) => match stimulus::load_for(path, &project.config) {
             Ok(s) => s,
             Err(diags) => {
                 let _ = write!(err, "{diags}");

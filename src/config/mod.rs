@@ -376,12 +376,14 @@ impl Default for RtConfig {
 pub struct ControlConfig {
     /// `enabled`: serve the control socket; default true.
     pub enabled: bool,
-    /// `socket`: the socket's path (relative to the config file's directory); default `None`:
-    /// `/run/plcd/plcd.sock`, or the fallbacks of
-    /// [`crate::control::protocol::default_socket_paths`] when that cannot be created.
+    /// `socket`: the socket's path, resolved against the config file's directory when relative
+    /// (this is the resolved path; an absolute one is kept), not empty, at most
+    /// [`ControlConfig::MAX_SOCKET_PATH`] bytes; default `None`: `/run/plcd/plcd.sock`, or the
+    /// fallbacks of [`crate::control::protocol::default_socket_paths`] when that cannot be
+    /// created.
     pub socket: Option<PathBuf>,
     /// `group`: the group that may connect (the socket is 0660, owned by the daemon's user and
-    /// this group); default `None`: the daemon's own group.
+    /// this group), not empty; default `None`: the daemon's own group.
     pub group: Option<String>,
     /// `max_clients`: connections served at once, 1..=1024; default 64. More are refused with
     /// a `busy` error.
@@ -390,13 +392,15 @@ pub struct ControlConfig {
     /// line is answered with `too_long` and the connection closed.
     pub max_request_bytes: u32,
     /// `idle_timeout_s`: a connection that sends no complete request for this long is closed,
-    /// 0 = never; default 300.
+    /// 0..=4294967295 s, 0 = never; default 300.
     pub idle_timeout_s: u32,
 }
 
 impl ControlConfig {
     pub const MAX_CLIENTS: RangeInclusive<u32> = 1..=1024;
     pub const MAX_REQUEST_BYTES: RangeInclusive<u32> = 256..=1_048_576;
+    /// The longest path a Unix socket address holds (`sun_path` is 108 bytes with its NUL).
+    pub const MAX_SOCKET_PATH: usize = 107;
 }
 
 impl Default for ControlConfig {
@@ -417,18 +421,24 @@ impl Default for ControlConfig {
 /// accepted.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SwitchConfig {
-    /// `line`: the input line (offset on the `[io]` chip) that is active when the switch is at
-    /// RUN. Required with the gpiocdev backend, not allowed with the sim backend.
+    /// `line`: the input line (offset on the `[io]` chip, 0..=4294967295) that is active when
+    /// the switch is at RUN. Required with the gpiocdev backend, not allowed with the sim
+    /// backend; not the line of any `[[io.input]]` or `[[io.output]]`. The line is no P bit.
     pub line: Option<u32>,
-    /// `active_low`: the line is active when low; default false.
+    /// `active_low`: the line is active when low; default false. Unused by the sim backend.
     pub active_low: bool,
-    /// `bias`: `"pull-up"`, `"pull-down"` or `"disabled"` (default).
+    /// `bias`: `"pull-up"`, `"pull-down"` or `"disabled"` (default). Unused by the sim backend.
     pub bias: Bias,
-    /// `debounce_us`: the kernel's debounce period for the contact, 0..=1000000; default 10000.
+    /// `debounce_us`: the kernel's debounce period for the contact, 0..=1000000 µs (0: none);
+    /// default 10000. Unused by the sim backend.
     pub debounce_us: u32,
-    /// `position`: sim backend only: where the simulated switch starts, `"run"` (default) or
-    /// `"stop"`; stimulus lines `SWITCH, RUN|STOP` move it.
+    /// `position`: sim backend only (an error with gpiocdev): where the simulated switch
+    /// starts, `"run"` (default) or `"stop"`; stimulus lines `SWITCH, RUN|STOP` move it.
     pub position: crate::io::SwitchPosition,
+}
+
+impl SwitchConfig {
+    pub const DEBOUNCE_US: RangeInclusive<u32> = 0..=1_000_000;
 }
 
 impl Default for SwitchConfig {

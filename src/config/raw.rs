@@ -13,6 +13,7 @@ use toml::de::{DeTable, DeValue, ValueDeserializer};
 use toml::Spanned;
 
 use super::{Backend, Bias, Edge, OnFault, RtPolicy, Sink};
+use crate::io::SwitchPosition;
 
 /// What a diagnostic is about: a section (`plc`) or one entry of an array of tables
 /// (`task "fast"`, `io.input #2`).
@@ -67,6 +68,10 @@ pub(super) struct RawDoc {
     pub inputs: Vec<Located<RawInput>>,
     pub outputs: Vec<Located<RawOutput>>,
     pub rt: Option<RawRt>,
+    pub control: Option<RawControl>,
+    /// `[switch]`: `None` when the document has none (and when it is not a table, which is
+    /// reported); the span is its header.
+    pub switch: Option<Located<RawSwitch>>,
     pub failed: Failed,
 }
 
@@ -114,6 +119,30 @@ pub(super) struct RawRt {
     pub lock_memory: Option<bool>,
     #[serde(default)]
     pub require: bool,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawControl {
+    pub enabled: Option<bool>,
+    pub socket: Option<Spanned<String>>,
+    pub group: Option<Spanned<String>>,
+    pub max_clients: Option<Spanned<i64>>,
+    pub max_request_bytes: Option<Spanned<i64>>,
+    pub idle_timeout_s: Option<Spanned<i64>>,
+}
+
+/// `[switch]` with the keys of both backends; `validate` checks which belong.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawSwitch {
+    pub line: Option<Spanned<i64>>,
+    #[serde(default)]
+    pub active_low: bool,
+    #[serde(default)]
+    pub bias: Bias,
+    pub debounce_us: Option<Spanned<i64>>,
+    pub position: Option<Spanned<SwitchPosition>>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -259,7 +288,8 @@ pub(super) struct RawOutput {
     pub debounce_us: Option<Spanned<IgnoredAny>>,
 }
 
-const TOP_LEVEL: &str = "`plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`";
+const TOP_LEVEL: &str =
+    "`plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`, `control`, `switch`";
 
 /// Pass 1. `None` if the TOML itself is malformed (the syntax errors are in `sink`).
 pub(super) fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
@@ -290,6 +320,8 @@ pub(super) fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
             "program" => &mut sections.program,
             "task" => &mut sections.task,
             "rt" => &mut sections.rt,
+            "control" => &mut sections.control,
+            "switch" => &mut sections.switch,
             other => {
                 let message = format!("unknown key `{other}`, expected one of {TOP_LEVEL}");
                 sink.error(key.span().start, message);
@@ -320,6 +352,12 @@ pub(super) fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
         .collect();
     read_io(sink, sections.io, &mut doc);
     doc.rt = section(sink, sections.rt, "rt", &mut doc.failed.keys);
+    doc.control = section(sink, sections.control, "control", &mut doc.failed.keys);
+    doc.switch = sections.switch.and_then(|value| {
+        let span = value.span();
+        let value = section(sink, Some(value), "switch", &mut doc.failed.keys)?;
+        Some(Located { span, ctx: Ctx::Section("switch"), value })
+    });
     Some(doc)
 }
 
@@ -333,6 +371,8 @@ struct Sections<'i> {
     program: Option<Spanned<DeValue<'i>>>,
     task: Option<Spanned<DeValue<'i>>>,
     rt: Option<Spanned<DeValue<'i>>>,
+    control: Option<Spanned<DeValue<'i>>>,
+    switch: Option<Spanned<DeValue<'i>>>,
 }
 
 fn read_io(sink: &mut Sink, io: Option<Spanned<DeValue<'_>>>, doc: &mut RawDoc) {

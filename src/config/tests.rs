@@ -1,6 +1,7 @@
 use std::path::{Path, PathBuf};
 
 use super::*;
+use crate::io::SwitchPosition;
 
 const PATH: &str = "etc/plcd.toml";
 
@@ -77,6 +78,27 @@ fn section_defaults_are_the_documented_ones() {
             require: false,
         }
     );
+    assert_eq!(
+        ControlConfig::default(),
+        ControlConfig {
+            enabled: true,
+            socket: None,
+            group: None,
+            max_clients: 64,
+            max_request_bytes: 65_536,
+            idle_timeout_s: 300,
+        }
+    );
+    assert_eq!(
+        SwitchConfig::default(),
+        SwitchConfig {
+            line: None,
+            active_low: false,
+            bias: Bias::Disabled,
+            debounce_us: 10_000,
+            position: SwitchPosition::Run,
+        }
+    );
 }
 
 #[test]
@@ -88,6 +110,8 @@ fn a_minimal_config_takes_every_default() {
     assert_eq!(config.timers, TimerConfig::default());
     assert_eq!(config.io, IoConfig::default());
     assert_eq!(config.rt, RtConfig::default());
+    assert_eq!(config.control, ControlConfig::default());
+    assert_eq!(config.switch, None);
     assert!(config.tasks.is_empty());
     assert_eq!(
         config.programs,
@@ -401,7 +425,8 @@ fn syntax_errors_are_located_and_stop_the_checks() {
 fn unknown_keys_are_errors_at_the_key() {
     assert_eq!(
         errors(&with_scan("[plcc]\n")),
-        ["1:2: unknown key `plcc`, expected one of `plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`"]
+        ["1:2: unknown key `plcc`, expected one of `plc`, `sim`, `timers`, `program`, `task`, \
+          `io`, `rt`, `control`, `switch`"]
     );
     assert_eq!(
         errors(&with_scan("[plc]\nwatchdog = 5\n")),
@@ -1184,6 +1209,319 @@ priority = 5
              `event_priority`, `watchdog_priority`, `scan_cpus`, `event_cpus`, `watchdog_cpus`, \
              `lock_memory`, `require`",
         ]
+    );
+}
+
+// ---- [control] ----
+
+#[test]
+fn control_keys_parse() {
+    let text = "[control]\nenabled = false\nsocket = \"run/plcd.sock\"\ngroup = \"plc\"\n\
+                max_clients = 8\nmax_request_bytes = 4096\nidle_timeout_s = 0";
+    assert_eq!(
+        config(&with_scan(text)).control,
+        ControlConfig {
+            enabled: false,
+            socket: Some(PathBuf::from("etc/run/plcd.sock")),
+            group: Some("plc".into()),
+            max_clients: 8,
+            max_request_bytes: 4096,
+            idle_timeout_s: 0,
+        }
+    );
+    // A key not given keeps its default; an empty section is all defaults.
+    let control = config(&with_scan("[control]\nmax_clients = 2")).control;
+    assert_eq!(control, ControlConfig { max_clients: 2, ..ControlConfig::default() });
+    assert_eq!(config(&with_scan("[control]\n")).control, ControlConfig::default());
+}
+
+#[test]
+fn control_socket_resolves_against_the_config_directory() {
+    let socket = |config_path: &str, socket: &str| {
+        let text = with_scan(&format!("[control]\nsocket = \"{socket}\""));
+        parse(&text, Path::new(config_path)).unwrap().control.socket.unwrap()
+    };
+    assert_eq!(socket("etc/plcd.toml", "plcd.sock"), PathBuf::from("etc/plcd.sock"));
+    assert_eq!(
+        socket("/srv/plc/plcd.toml", "../s/plcd.sock"),
+        PathBuf::from("/srv/plc/../s/plcd.sock")
+    );
+    assert_eq!(socket("plcd.toml", "plcd.sock"), PathBuf::from("plcd.sock"));
+    assert_eq!(socket("etc/plcd.toml", "/run/plcd/x.sock"), PathBuf::from("/run/plcd/x.sock"));
+}
+
+#[test]
+fn control_socket_and_group_are_not_empty() {
+    assert_eq!(
+        errors(&with_scan("[control]\nsocket = \"\"\ngroup = \" \"")),
+        ["2:10: control.socket must not be empty", "3:9: control.group must not be empty"]
+    );
+}
+
+#[test]
+fn control_socket_fits_a_unix_socket_address() {
+    // 107 bytes resolved is the most; "etc/" counts.
+    let fits = format!("{}.sock", "s".repeat(107 - 4 - 5));
+    let socket = config(&with_scan(&format!("[control]\nsocket = \"{fits}\""))).control.socket;
+    assert_eq!(socket.unwrap().as_os_str().len(), 107);
+    let long = format!("{}.sock", "s".repeat(107 - 4 - 5 + 1));
+    assert_eq!(
+        errors(&with_scan(&format!("[control]\nsocket = \"{long}\""))),
+        [format!(
+            "2:10: control.socket \"{long}\" is 108 bytes long as resolved (etc/{long}); a Unix \
+             socket path holds at most 107"
+        )]
+    );
+}
+
+#[test]
+fn control_max_clients_is_1_to_1024() {
+    assert_eq!(config(&with_scan("[control]\nmax_clients = 1")).control.max_clients, 1);
+    assert_eq!(config(&with_scan("[control]\nmax_clients = 1024")).control.max_clients, 1024);
+    assert_eq!(
+        errors(&with_scan("[control]\nmax_clients = 0")),
+        ["2:15: control.max_clients 0 out of range 1..=1024"]
+    );
+    assert_eq!(
+        errors(&with_scan("[control]\nmax_clients = 1025")),
+        ["2:15: control.max_clients 1025 out of range 1..=1024"]
+    );
+}
+
+#[test]
+fn control_max_request_bytes_is_256_to_1048576() {
+    let bytes = |n: &str| config(&with_scan(&format!("[control]\nmax_request_bytes = {n}")));
+    assert_eq!(bytes("256").control.max_request_bytes, 256);
+    assert_eq!(bytes("1048576").control.max_request_bytes, 1_048_576);
+    assert_eq!(
+        errors(&with_scan("[control]\nmax_request_bytes = 255")),
+        ["2:21: control.max_request_bytes 255 out of range 256..=1048576"]
+    );
+    assert_eq!(
+        errors(&with_scan("[control]\nmax_request_bytes = 1048577")),
+        ["2:21: control.max_request_bytes 1048577 out of range 256..=1048576"]
+    );
+}
+
+#[test]
+fn control_idle_timeout_is_a_u32_and_0_is_never() {
+    assert_eq!(config(&with_scan("[control]\nidle_timeout_s = 0")).control.idle_timeout_s, 0);
+    let max = config(&with_scan("[control]\nidle_timeout_s = 4294967295")).control;
+    assert_eq!(max.idle_timeout_s, u32::MAX);
+    assert_eq!(
+        errors(&with_scan("[control]\nidle_timeout_s = -1\n")),
+        ["2:18: control.idle_timeout_s -1 out of range 0..=4294967295"]
+    );
+    assert_eq!(
+        errors(&with_scan("[control]\nidle_timeout_s = 4294967296\n")),
+        ["2:18: control.idle_timeout_s 4294967296 out of range 0..=4294967295"]
+    );
+}
+
+#[test]
+fn control_unknown_keys_and_wrong_types() {
+    assert_eq!(
+        errors(&with_scan("[control]\nsocket_path = \"x\"")),
+        ["2:1: [control]: unknown key `socket_path`, expected one of `enabled`, `socket`, `group`, \
+          `max_clients`, `max_request_bytes`, `idle_timeout_s`"]
+    );
+    assert_eq!(
+        errors(&with_scan(
+            "[control]\nenabled = \"yes\"\nsocket = 1\ngroup = 100\nmax_clients = \"8\"\n\
+             max_request_bytes = 1.5\nidle_timeout_s = true"
+        )),
+        [
+            "2:11: control.enabled: invalid type: string \"yes\", expected a boolean",
+            "3:10: control.socket: invalid type: integer `1`, expected a string",
+            "4:9: control.group: invalid type: integer `100`, expected a string",
+            "5:15: control.max_clients: invalid type: string \"8\", expected an integer",
+            "6:21: control.max_request_bytes: invalid type: floating point `1.5`, expected an \
+             integer",
+            "7:18: control.idle_timeout_s: invalid type: boolean `true`, expected an integer",
+        ]
+    );
+    assert_eq!(
+        errors(&with_scan("control = true")),
+        ["1:11: `control` must be a table, written [control]"]
+    );
+}
+
+#[test]
+fn every_control_error_is_reported_at_once() {
+    let text = "[control]\nsocket = \"\"\ngroup = \"\"\nmax_clients = 0\n\
+                max_request_bytes = 2000000\nidle_timeout_s = -5\ntimeout = 1\n";
+    assert_eq!(
+        errors(&with_scan(text)),
+        [
+            "2:10: control.socket must not be empty",
+            "3:9: control.group must not be empty",
+            "4:15: control.max_clients 0 out of range 1..=1024",
+            "5:21: control.max_request_bytes 2000000 out of range 256..=1048576",
+            "6:18: control.idle_timeout_s -5 out of range 0..=4294967295",
+            "7:1: [control]: unknown key `timeout`, expected one of `enabled`, `socket`, \
+             `group`, `max_clients`, `max_request_bytes`, `idle_timeout_s`",
+        ]
+    );
+}
+
+// ---- [switch] ----
+
+const GPIO: &str = "[io]\nbackend = \"gpiocdev\"\nchip = \"gpiochip0\"\n";
+
+#[test]
+fn no_switch_section_is_no_switch() {
+    assert_eq!(config(&with_scan("")).switch, None);
+    assert_eq!(config(&with_scan(GPIO)).switch, None);
+}
+
+#[test]
+fn a_sim_switch_starts_at_its_position() {
+    assert_eq!(config(&with_scan("[switch]\n")).switch, Some(SwitchConfig::default()));
+    let switch = config(&with_scan("[switch]\nposition = \"stop\"")).switch.unwrap();
+    assert_eq!(switch, SwitchConfig { position: SwitchPosition::Stop, ..SwitchConfig::default() });
+    let switch = config(&with_scan("[switch]\nposition = \"run\"")).switch.unwrap();
+    assert_eq!(switch.position, SwitchPosition::Run);
+    // The line settings mean nothing to the sim backend, but are not wrong there.
+    let text = "[switch]\nactive_low = true\nbias = \"pull-up\"\ndebounce_us = 0";
+    assert_eq!(config(&with_scan(text)).switch.unwrap().bias, Bias::PullUp);
+}
+
+#[test]
+fn a_gpio_switch_has_a_line_with_settings() {
+    let text = format!(
+        "{GPIO}[switch]\nline = 7\nactive_low = true\nbias = \"pull-down\"\ndebounce_us = 500"
+    );
+    assert_eq!(
+        config(&with_scan(&text)).switch,
+        Some(SwitchConfig {
+            line: Some(7),
+            active_low: true,
+            bias: Bias::PullDown,
+            debounce_us: 500,
+            position: SwitchPosition::Run,
+        })
+    );
+    let switch = config(&with_scan(&format!("{GPIO}[switch]\nline = 0"))).switch.unwrap();
+    assert_eq!(switch, SwitchConfig { line: Some(0), ..SwitchConfig::default() });
+    let text = format!("{GPIO}[switch]\nline = 4294967295");
+    assert_eq!(config(&with_scan(&text)).switch.unwrap().line, Some(u32::MAX));
+}
+
+#[test]
+fn the_switch_line_is_for_gpiocdev_and_required_there() {
+    assert_eq!(
+        errors(&with_scan(&format!("{GPIO}[switch]\nactive_low = true"))),
+        ["4:1: switch.line is required for the gpiocdev backend: the input line that is active \
+          at RUN"]
+    );
+    assert_eq!(
+        errors(&with_scan("[switch]\nline = 3")),
+        ["2:8: switch.line is for the gpiocdev backend: the sim backend simulates the switch \
+          (`position`, and `SWITCH` lines of a stimulus)"]
+    );
+    // The default backend is sim, with or without an [io] section.
+    assert_eq!(errors(&with_scan("[io]\n[switch]\nline = 3")).len(), 1);
+}
+
+#[test]
+fn the_switch_position_is_for_sim_only() {
+    assert_eq!(
+        errors(&with_scan(&format!("{GPIO}[switch]\nline = 1\nposition = \"run\""))),
+        ["6:12: switch.position is for the sim backend: the gpiocdev backend reads the switch \
+          from its line"]
+    );
+    assert_eq!(
+        errors(&with_scan("[switch]\nposition = \"middle\"")),
+        ["2:12: switch.position: unknown variant `middle`, expected `run` or `stop`"]
+    );
+}
+
+#[test]
+fn switch_ranges() {
+    let debounce = |us: &str| format!("{GPIO}[switch]\nline = 1\ndebounce_us = {us}");
+    assert_eq!(config(&with_scan(&debounce("0"))).switch.unwrap().debounce_us, 0);
+    assert_eq!(config(&with_scan(&debounce("1000000"))).switch.unwrap().debounce_us, 1_000_000);
+    assert_eq!(
+        errors(&with_scan(&debounce("1000001"))),
+        ["6:15: switch.debounce_us 1000001 out of range 0..=1000000"]
+    );
+    assert_eq!(
+        errors(&with_scan(&debounce("-1"))),
+        ["6:15: switch.debounce_us -1 out of range 0..=1000000"]
+    );
+    assert_eq!(
+        errors(&with_scan(&format!("{GPIO}[switch]\nline = -1"))),
+        ["5:8: switch.line -1 out of range 0..=4294967295"]
+    );
+    assert_eq!(
+        errors(&with_scan(&format!("{GPIO}[switch]\nline = 4294967296"))),
+        ["5:8: switch.line 4294967296 out of range 0..=4294967295"]
+    );
+}
+
+#[test]
+fn switch_bias_takes_the_input_values() {
+    for (text, bias) in
+        [("disabled", Bias::Disabled), ("pull-up", Bias::PullUp), ("pull-down", Bias::PullDown)]
+    {
+        let text = format!("{GPIO}[switch]\nline = 1\nbias = \"{text}\"");
+        assert_eq!(config(&with_scan(&text)).switch.unwrap().bias, bias);
+    }
+    assert_eq!(
+        errors(&with_scan(&format!("{GPIO}[switch]\nline = 1\nbias = \"up\""))),
+        ["6:8: switch.bias: unknown variant `up`, expected one of `disabled`, `pull-up`, \
+          `pull-down`"]
+    );
+}
+
+#[test]
+fn the_switch_line_is_no_io_line() {
+    let wiring = "[[io.input]]\ndevice = \"P0000\"\nline = 5\n\
+                  [[io.output]]\ndevice = \"P0040\"\nline = 6\n";
+    // The switch after the entries: reported at the switch, naming the entry.
+    assert_eq!(
+        errors(&with_scan(&format!("{GPIO}{wiring}[switch]\nline = 5"))),
+        ["11:8: switch.line 5 is already used by io.input \"P0000\""]
+    );
+    assert_eq!(
+        errors(&with_scan(&format!("{GPIO}{wiring}[switch]\nline = 6"))),
+        ["11:8: switch.line 6 is already used by io.output \"P0040\""]
+    );
+    // The switch before them: reported at the entry, naming the switch.
+    assert_eq!(
+        errors(&with_scan(&format!("[switch]\nline = 6\n{GPIO}{wiring}"))),
+        ["11:8: io.output \"P0040\": line 6 is already used by [switch]"]
+    );
+    config(&with_scan(&format!("{GPIO}{wiring}[switch]\nline = 7")));
+}
+
+#[test]
+fn switch_unknown_keys_and_malformed_keys() {
+    assert_eq!(
+        errors(&with_scan("[switch]\ninitial = \"run\"")),
+        ["2:1: [switch]: unknown key `initial`, expected one of `line`, `active_low`, `bias`, \
+          `debounce_us`, `position`"]
+    );
+    // A malformed line is not reported missing as well.
+    assert_eq!(
+        errors(&with_scan(&format!("{GPIO}[switch]\nline = \"7\"\nactive_low = 1"))),
+        [
+            "5:8: switch.line: invalid type: string \"7\", expected an integer",
+            "6:14: switch.active_low: invalid type: integer `1`, expected a boolean",
+        ]
+    );
+    assert_eq!(
+        errors(&with_scan("switch = \"run\"")),
+        ["1:10: `switch` must be a table, written [switch]"]
+    );
+}
+
+#[test]
+fn with_the_backend_unknown_the_switch_keys_of_both_pass() {
+    // io.backend is malformed: whether line or position belongs cannot be said.
+    assert_eq!(
+        errors(&with_scan("[io]\nbackend = \"gpio\"\n[switch]\nline = 1\nposition = \"stop\"")),
+        ["2:11: io.backend: unknown variant `gpio`, expected `sim` or `gpiocdev`"]
     );
 }
 

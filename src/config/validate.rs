@@ -11,12 +11,12 @@ use std::path::{Path, PathBuf};
 use toml::Spanned;
 
 use super::raw::{
-    Ctx, Failed, Located, RawCondition, RawDoc, RawInput, RawIo, RawKind, RawOutput, RawPlc,
-    RawProgram, RawRt, RawSim, RawTask, RawTimers,
+    Ctx, Failed, Located, RawCondition, RawControl, RawDoc, RawInput, RawIo, RawKind, RawOutput,
+    RawPlc, RawProgram, RawRt, RawSim, RawSwitch, RawTask, RawTimers,
 };
 use super::{
     Backend, Config, ControlConfig, DeviceCondition, IoConfig, IoLine, PlcConfig, ProgramConfig,
-    RtConfig, SimConfig, Sink, TaskConfig, TaskKind, TaskRef, TimerConfig,
+    RtConfig, SimConfig, Sink, SwitchConfig, TaskConfig, TaskKind, TaskRef, TimerConfig,
 };
 use crate::device::{Address, Area};
 use crate::diag::Diagnostic;
@@ -29,6 +29,15 @@ pub(super) fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
     let sim = doc.sim.and_then(|raw| sim(sink, raw));
     let failed = &doc.failed.keys;
     let timers = doc.timers.and_then(|raw| timers(sink, raw, failed));
+    let control = doc.control.and_then(|raw| control(sink, raw, &path));
+    // [switch] before [io] consumes its entries: the switch's line must be none of theirs.
+    let backend = doc
+        .io
+        .as_ref()
+        .map(|io| io.value.backend)
+        .filter(|_| !failed.iter().any(|k| k == "io.backend"));
+    let wired = wired_lines(&doc.inputs, &doc.outputs);
+    let switch = switch(sink, doc.switch, backend, &wired, failed);
     let io = io(sink, doc.io, doc.inputs, doc.outputs, failed, &path);
     let rt = doc.rt.and_then(|raw| rt(sink, raw, failed));
     // Programs may name a task whose entry has errors: that entry's own diagnostics say what
@@ -50,8 +59,8 @@ pub(super) fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
         tasks: tasks?,
         io: io?,
         rt: rt?,
-        control: ControlConfig::default(),
-        switch: None,
+        control: control?,
+        switch: switch?,
     })
 }
 
@@ -280,6 +289,209 @@ fn cpus(sink: &mut Sink, ctx: &Ctx, key: &str, raw: Option<Vec<Spanned<i64>>>) -
     ok.then_some(cpus)
 }
 
+/// `[control]`.
+fn control(sink: &mut Sink, raw: RawControl, config: &Path) -> Option<ControlConfig> {
+    let ctx = Ctx::Section("control");
+    let default = ControlConfig::default();
+    let max_clients = int_or(
+        sink,
+        &ctx,
+        "max_clients",
+        raw.max_clients,
+        widen(ControlConfig::MAX_CLIENTS),
+        default.max_clients,
+    );
+    let max_request_bytes = int_or(
+        sink,
+        &ctx,
+        "max_request_bytes",
+        raw.max_request_bytes,
+        widen(ControlConfig::MAX_REQUEST_BYTES),
+        default.max_request_bytes,
+    );
+    let idle_timeout_s = int_or(
+        sink,
+        &ctx,
+        "idle_timeout_s",
+        raw.idle_timeout_s,
+        0..=i64::from(u32::MAX),
+        default.idle_timeout_s,
+    );
+    let socket = match raw.socket {
+        None => Some(None),
+        Some(socket) if socket.get_ref().trim().is_empty() => {
+            sink.error(socket.span().start, format!("{} must not be empty", ctx.key("socket")));
+            None
+        }
+        Some(socket) => {
+            let resolved = resolve(config, socket.get_ref());
+            let bytes = resolved.as_os_str().len();
+            if bytes > ControlConfig::MAX_SOCKET_PATH {
+                let message = format!(
+                    "{} {:?} is {bytes} bytes long as resolved ({}); a Unix socket path holds \
+                     at most {}",
+                    ctx.key("socket"),
+                    socket.get_ref(),
+                    resolved.display(),
+                    ControlConfig::MAX_SOCKET_PATH,
+                );
+                sink.error(socket.span().start, message);
+                None
+            } else {
+                Some(Some(resolved))
+            }
+        }
+    };
+    let group = match raw.group {
+        None => Some(None),
+        Some(group) if group.get_ref().trim().is_empty() => {
+            sink.error(group.span().start, format!("{} must not be empty", ctx.key("group")));
+            None
+        }
+        Some(group) => Some(Some(group.into_inner())),
+    };
+    Some(ControlConfig {
+        enabled: raw.enabled.unwrap_or(default.enabled),
+        socket: socket?,
+        group: group?,
+        max_clients: max_clients?,
+        max_request_bytes: max_request_bytes?,
+        idle_timeout_s: idle_timeout_s?,
+    })
+}
+
+/// A line of `[[io.input]]` or `[[io.output]]` as written: its offset, where the offset is,
+/// and what the entry is called.
+struct WiredLine {
+    line: i64,
+    at: usize,
+    subject: String,
+}
+
+/// The lines of the `[[io.input]]` and `[[io.output]]` entries that deserialized.
+fn wired_lines(inputs: &[Located<RawInput>], outputs: &[Located<RawOutput>]) -> Vec<WiredLine> {
+    let inputs = inputs.iter().map(|e| (&e.ctx, &e.value.line));
+    let outputs = outputs.iter().map(|e| (&e.ctx, &e.value.line));
+    inputs
+        .chain(outputs)
+        .map(|(ctx, line)| WiredLine {
+            line: *line.get_ref(),
+            at: line.span().start,
+            subject: ctx.subject(),
+        })
+        .collect()
+}
+
+/// `[switch]`: `Some(None)` when there is none, `None` on errors. `backend` is `None` when
+/// it is unknown (malformed, already reported): the keys that depend on it are not checked.
+fn switch(
+    sink: &mut Sink,
+    raw: Option<Located<RawSwitch>>,
+    backend: Option<Backend>,
+    wired: &[WiredLine],
+    failed: &[String],
+) -> Option<Option<SwitchConfig>> {
+    let Some(Located { span, ctx, value: raw }) = raw else {
+        return Some(None);
+    };
+    let default = SwitchConfig::default();
+    let mut ok = true;
+    let debounce_us = int_or(
+        sink,
+        &ctx,
+        "debounce_us",
+        raw.debounce_us,
+        widen(SwitchConfig::DEBOUNCE_US),
+        default.debounce_us,
+    );
+    let line = match &raw.line {
+        Some(line) if backend == Some(Backend::Sim) => {
+            let message = format!(
+                "{} is for the gpiocdev backend: the sim backend simulates the switch \
+                 (`position`, and `SWITCH` lines of a stimulus)",
+                ctx.key("line")
+            );
+            sink.error(line.span().start, message);
+            ok = false;
+            None
+        }
+        Some(line) => match int::<u32>(sink, &ctx, "line", line, 0..=i64::from(u32::MAX)) {
+            Some(offset) => {
+                ok &= switch_line_is_free(sink, &ctx, offset, line.span().start, wired);
+                Some(offset)
+            }
+            None => {
+                ok = false;
+                None
+            }
+        },
+        // A malformed line is reported already, not missing.
+        None if backend == Some(Backend::Gpiocdev)
+            && !failed.iter().any(|k| *k == ctx.key("line")) =>
+        {
+            let message = format!(
+                "{} is required for the gpiocdev backend: the input line that is active at RUN",
+                ctx.key("line")
+            );
+            sink.error(span.start, message);
+            ok = false;
+            None
+        }
+        None => None,
+    };
+    let position = match raw.position {
+        Some(position) if backend == Some(Backend::Gpiocdev) => {
+            let message = format!(
+                "{} is for the sim backend: the gpiocdev backend reads the switch from its line",
+                ctx.key("position")
+            );
+            sink.error(position.span().start, message);
+            ok = false;
+            default.position
+        }
+        Some(position) => position.into_inner(),
+        None => default.position,
+    };
+    let switch = SwitchConfig {
+        line,
+        active_low: raw.active_low,
+        bias: raw.bias,
+        debounce_us: debounce_us?,
+        position,
+    };
+    ok.then_some(Some(switch))
+}
+
+/// The switch's line is no `[[io.input]]` or `[[io.output]]` line. As among those entries,
+/// the later one in the file is reported, naming the other.
+fn switch_line_is_free(
+    sink: &mut Sink,
+    ctx: &Ctx,
+    offset: u32,
+    at: usize,
+    wired: &[WiredLine],
+) -> bool {
+    let mut free = true;
+    for w in wired.iter().filter(|w| w.line == i64::from(offset)) {
+        let (at, message) = if w.at > at {
+            (w.at, format!("{}: line {offset} is already used by {}", w.subject, ctx.subject()))
+        } else {
+            (at, format!("{} {offset} is already used by {}", ctx.key("line"), w.subject))
+        };
+        sink.error(at, message);
+        free = false;
+    }
+    free
+}
+
+/// `file` relative to the config file's directory (unchanged if absolute).
+fn resolve(config: &Path, file: &str) -> PathBuf {
+    match config.parent() {
+        Some(dir) => dir.join(file),
+        None => PathBuf::from(file),
+    }
+}
+
 fn programs(
     sink: &mut Sink,
     raw: Vec<Located<RawProgram>>,
@@ -346,10 +558,7 @@ fn programs(
                 }
             },
         };
-        let resolved = match config.parent() {
-            Some(dir) => dir.join(&file),
-            None => PathBuf::from(&file),
-        };
+        let resolved = resolve(config, &file);
         programs.push(ProgramConfig {
             name: name.into_inner(),
             file: PathBuf::from(file),
@@ -679,12 +888,7 @@ fn io(
                 sink.error(file.span().start, format!("{} must not be empty", ctx.key("stimulus")));
                 ok = false;
             }
-            Some(file) => {
-                config_io.stimulus = Some(match config.parent() {
-                    Some(dir) => dir.join(file.get_ref()),
-                    None => PathBuf::from(file.get_ref()),
-                })
-            }
+            Some(file) => config_io.stimulus = Some(resolve(config, file.get_ref())),
             None => {}
         }
     }

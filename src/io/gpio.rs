@@ -1,5 +1,5 @@
-//! The gpiocdev backend: the P image's inputs and outputs on the lines of one GPIO chip, through
-//! the Linux GPIO character device (uAPI v2).
+//! The gpiocdev backend: the P image's inputs and outputs, and the RUN/STOP key switch, on the
+//! lines of one GPIO chip, through the Linux GPIO character device (uAPI v2).
 //!
 //! This module owns the chip lookup (a path, a `/dev` name or a chip label), the two line
 //! requests, the mapping between line offsets and P bits, and the reading of edge events. What
@@ -12,6 +12,11 @@
 //!   line of a request in one ioctl, so a refresh costs one syscall whatever the line count, and
 //!   every input of a scan is sampled at the same instant (no skew between lines that a
 //!   line-by-line loop would have).
+//! - **The key switch is one more input line.** `[switch]`'s line is in the input request with
+//!   its own bias, active-low and debounce, so the same get-values ioctl reads it; it maps to no
+//!   P bit and detects no edges (the engine looks at it at each input refresh, which is as often
+//!   as a mode change can take effect). It is read once at open too, so the position is known
+//!   before the first scan.
 //! - **One ioctl per refresh, no allocation.** The `Values` passed to gpiocdev are built at open
 //!   with every requested offset in them: with a non-empty `Values`, gpiocdev converts to and
 //!   from the kernel's bitmap on the stack. An ioctl error is counted and kept for the daemon to
@@ -46,8 +51,8 @@ use gpiocdev::line::{
 };
 use gpiocdev::{Chip, Request};
 
-use super::{InputEdge, Io};
-use crate::config::{Bias, Edge, IoConfig, IoLine};
+use super::{InputEdge, Io, SwitchPosition};
+use crate::config::{Bias, Edge, IoConfig, IoLine, SwitchConfig};
 use crate::device::layout::P_WORDS;
 use crate::device::{Address, Area, Memory};
 
@@ -117,7 +122,10 @@ pub enum GpioError {
     NotAPBit { device: Address },
 
     #[error("line {line} is wired to both {first} and {second}")]
-    DuplicateLine { line: u32, first: Address, second: Address },
+    DuplicateLine { line: u32, first: Wire, second: Wire },
+
+    #[error("[switch] has no line: the gpiocdev backend reads the RUN/STOP switch from a line")]
+    SwitchNotWired,
 
     #[error("{count} {direction} lines configured, but one GPIO line request holds at most {max}")]
     TooManyLines { direction: LineDirection, count: usize, max: usize },
@@ -130,12 +138,12 @@ pub enum GpioError {
     TooManySettings { direction: LineDirection, needed: usize, max: usize },
 
     #[error(
-        "GPIO chip {chip}: line {line} ({device}) does not exist, the chip has {num_lines} lines"
+        "GPIO chip {chip}: line {line} ({wire}) does not exist, the chip has {num_lines} lines"
     )]
-    LineOutOfRange { chip: Arc<str>, line: u32, device: Address, num_lines: u32 },
+    LineOutOfRange { chip: Arc<str>, line: u32, wire: Wire, num_lines: u32 },
 
-    #[error("GPIO chip {chip}: line {line} ({device}) is already in use{}", UsedBy(.consumer))]
-    LineBusy { chip: Arc<str>, line: u32, device: Address, consumer: Option<String> },
+    #[error("GPIO chip {chip}: line {line} ({wire}) is already in use{}", UsedBy(.consumer))]
+    LineBusy { chip: Arc<str>, line: u32, wire: Wire, consumer: Option<String> },
 
     #[error("GPIO chip {chip}: requesting the {count} {direction} lines failed: {source}")]
     Request {
@@ -153,6 +161,24 @@ pub enum GpioError {
         #[source]
         source: gpiocdev::Error,
     },
+}
+
+/// What a line is wired to, as errors name it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Wire {
+    /// The P bit of an `[[io.input]]` or `[[io.output]]`.
+    Device(Address),
+    /// The RUN/STOP key switch of `[switch]`.
+    Switch,
+}
+
+impl fmt::Display for Wire {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Wire::Device(device) => write!(f, "{device}"),
+            Wire::Switch => f.write_str("the RUN/STOP switch"),
+        }
+    }
 }
 
 /// A GPIO chip as the "not found" errors list it.
@@ -249,25 +275,27 @@ impl fmt::Display for IoOp {
 
 /// Opens the chip and requests the lines.
 ///
-/// `edge_contacts`: the contacts (0..=7, P0000..P0007) that I/O tasks start on and the edge each
-/// needs; several tasks on one contact merge. Edge detection is enabled only on those input
-/// lines. `consumer`: the consumer label the kernel shows for the lines ("plcd").
+/// `switch`: the `[switch]` config, whose `line` is requested as one more input (and must be
+/// set). `edge_contacts`: the contacts (0..=7, P0000..P0007) that I/O tasks start on and the
+/// edge each needs; several tasks on one contact merge. Edge detection is enabled only on those
+/// input lines. `consumer`: the consumer label the kernel shows for the lines ("plcd").
 ///
 /// No line is requested when there is nothing to request in a direction. Outputs start
-/// inactive.
+/// inactive. The switch is read once before this returns.
 pub fn open(
     config: &IoConfig,
+    switch: Option<&SwitchConfig>,
     edge_contacts: &[(u8, Edge)],
     consumer: &str,
 ) -> Result<Gpio, GpioError> {
     let asked = config.chip.as_deref().ok_or(GpioError::NoChip)?;
-    let plan = Plan::new(config, edge_contacts)?;
+    let plan = Plan::new(config, switch, edge_contacts)?;
     let found = find_chip(asked)?;
-    for (line, device) in plan.lines() {
-        found.check_line(line, device)?;
+    for (line, wire) in plan.lines() {
+        found.check_line(line, wire)?;
     }
 
-    let input_offsets: Vec<u32> = plan.inputs.iter().map(|i| i.line.line).collect();
+    let input_offsets: Vec<u32> = plan.inputs.iter().map(|i| i.line.offset).collect();
     let output_offsets: Vec<u32> = plan.outputs.iter().map(|o| o.line.line).collect();
     let inputs = if plan.inputs.is_empty() {
         None
@@ -296,13 +324,24 @@ pub fn open(
     };
     // Values holding every offset of their request: gpiocdev then never grows them, and
     // their order (sorted offsets) is the order of the plan's bits.
+    let mut inputs = inputs.map(|request| InputSide {
+        request,
+        values: Values::from_offsets(&input_offsets),
+        slots: plan.inputs.iter().map(|i| i.slot).collect(),
+    });
+    let mut switch = None;
+    if let Some(side) = inputs.as_mut().filter(|_| plan.has_switch()) {
+        side.request.values(&mut side.values).map_err(|source| GpioError::Io {
+            chip: found.name.clone(),
+            op: IoOp::ReadInputs,
+            source,
+        })?;
+        switch = switch_position(&side.slots, &side.values);
+    }
     let io = GpioIo {
         chip: found.name.clone(),
-        inputs: inputs.map(|request| InputSide {
-            request,
-            values: Values::from_offsets(&input_offsets),
-            bits: plan.inputs.iter().map(|i| i.bit).collect(),
-        }),
+        inputs,
+        switch,
         outputs: outputs.clone().map(|shared| OutputSide {
             shared,
             values: Values::from_offsets(&output_offsets),
@@ -329,7 +368,7 @@ fn request_inputs(
         // with_line selects just this line: what follows configures it alone.
         // `bias = "disabled"` is asked for explicitly, so that a pull left on by firmware or
         // a previous user does not linger on a line the config says has none.
-        builder.with_line(input.line.line).as_input().with_bias(line_bias(input.line.bias));
+        builder.with_line(input.line.offset).as_input().with_bias(line_bias(input.line.bias));
         if input.line.active_low {
             builder.as_active_low();
         }
@@ -347,7 +386,7 @@ fn request_inputs(
     builder.request().map_err(|source| {
         found.request_error(
             LineDirection::Input,
-            inputs.iter().map(|i| (i.line.line, i.line.device)),
+            inputs.iter().map(|i| (i.line.offset, i.wire())),
             source,
         )
     })
@@ -369,7 +408,7 @@ fn request_outputs(
     builder.request().map_err(|source| {
         found.request_error(
             LineDirection::Output,
-            outputs.iter().map(|o| (o.line.line, o.line.device)),
+            outputs.iter().map(|o| (o.line.line, Wire::Device(o.line.device))),
             source,
         )
     })
@@ -418,12 +457,12 @@ impl FoundChip {
 
     /// The line exists and nobody holds it. Checking `used` before requesting names the
     /// other consumer, which the request's EBUSY would not.
-    fn check_line(&self, line: u32, device: Address) -> Result<(), GpioError> {
+    fn check_line(&self, line: u32, wire: Wire) -> Result<(), GpioError> {
         if line >= self.num_lines {
             return Err(GpioError::LineOutOfRange {
                 chip: self.name.clone(),
                 line,
-                device,
+                wire,
                 num_lines: self.num_lines,
             });
         }
@@ -433,16 +472,16 @@ impl FoundChip {
             source,
         })?;
         if info.used {
-            return Err(self.busy(line, device, info.consumer));
+            return Err(self.busy(line, wire, info.consumer));
         }
         Ok(())
     }
 
-    fn busy(&self, line: u32, device: Address, consumer: String) -> GpioError {
+    fn busy(&self, line: u32, wire: Wire, consumer: String) -> GpioError {
         GpioError::LineBusy {
             chip: self.name.clone(),
             line,
-            device,
+            wire,
             consumer: (!consumer.is_empty()).then_some(consumer),
         }
     }
@@ -452,15 +491,15 @@ impl FoundChip {
     fn request_error(
         &self,
         direction: LineDirection,
-        lines: impl ExactSizeIterator<Item = (u32, Address)>,
+        lines: impl ExactSizeIterator<Item = (u32, Wire)>,
         source: gpiocdev::Error,
     ) -> GpioError {
         let count = lines.len();
         if is_errno(&source, libc::EBUSY) {
-            for (line, device) in lines {
+            for (line, wire) in lines {
                 if let Ok(info) = self.chip.line_info(line) {
                     if info.used {
-                        return self.busy(line, device, info.consumer);
+                        return self.busy(line, wire, info.consumer);
                     }
                 }
             }
@@ -544,7 +583,7 @@ fn is_errno(error: &gpiocdev::Error, code: i32) -> bool {
 }
 
 // ----------------------------------------------------------------------------------------------
-// The plan: which line is which P bit, and which lines detect edges. Pure.
+// The plan: which line is which P bit (or the key switch), and which lines detect edges. Pure.
 // ----------------------------------------------------------------------------------------------
 
 /// A bit of the P image: `mem.io_image()[word] & mask`.
@@ -565,12 +604,40 @@ impl ImageBit {
     }
 }
 
+/// An input line's offset and settings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct InputLine {
+    offset: u32,
+    active_low: bool,
+    bias: Bias,
+    debounce_us: u32,
+}
+
+/// Where an input line's value goes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum InputSlot {
+    /// A P bit: the device, and its place in the image.
+    Bit { device: Address, bit: ImageBit },
+    /// The key switch: no P bit; active is RUN.
+    Switch,
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct InputPlan {
-    line: IoLine,
-    bit: ImageBit,
-    /// The contact and the edges its tasks need, if any task starts on this line.
+    line: InputLine,
+    slot: InputSlot,
+    /// The contact and the edges its tasks need, if any task starts on this line (never the
+    /// switch).
     edge: Option<(u8, Edge)>,
+}
+
+impl InputPlan {
+    fn wire(&self) -> Wire {
+        match self.slot {
+            InputSlot::Bit { device, .. } => Wire::Device(device),
+            InputSlot::Switch => Wire::Switch,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -580,7 +647,8 @@ struct OutputPlan {
 }
 
 /// The lines of both requests, each sorted by offset: that is the order of the kernel's
-/// bitmaps and of gpiocdev's `Values`, so refresh walks both side by side.
+/// bitmaps and of gpiocdev's `Values`, so refresh walks both side by side. The key switch's
+/// line, if any, is among the inputs.
 #[derive(Debug, Clone, PartialEq, Eq)]
 struct Plan {
     inputs: Vec<InputPlan>,
@@ -588,28 +656,54 @@ struct Plan {
 }
 
 impl Plan {
-    fn new(config: &IoConfig, edge_contacts: &[(u8, Edge)]) -> Result<Plan, GpioError> {
+    fn new(
+        config: &IoConfig,
+        switch: Option<&SwitchConfig>,
+        edge_contacts: &[(u8, Edge)],
+    ) -> Result<Plan, GpioError> {
         let edges = contact_edges(edge_contacts)?;
-        check_unique_lines(config.inputs.iter().chain(&config.outputs))?;
+        let switch_line = match switch {
+            Some(switch) => Some(switch.line.ok_or(GpioError::SwitchNotWired)?),
+            None => None,
+        };
+        let devices = config.inputs.iter().chain(&config.outputs);
+        let wires = devices.map(|l| (l.line, Wire::Device(l.device)));
+        check_unique_lines(wires.chain(switch_line.map(|line| (line, Wire::Switch))))?;
 
         let mut wired = [false; CONTACTS];
-        let mut inputs = Vec::with_capacity(config.inputs.len());
+        let mut inputs = Vec::with_capacity(config.inputs.len() + 1);
         for line in &config.inputs {
             let contact = contact_of(&line.device);
             if let Some(c) = contact {
                 wired[c as usize] = true;
             }
             let edge = contact.and_then(|c| edges[c as usize].map(|e| (c, e)));
-            inputs.push(InputPlan { line: *line, bit: ImageBit::of(&line.device)?, edge });
+            let slot = InputSlot::Bit { device: line.device, bit: ImageBit::of(&line.device)? };
+            let settings = InputLine {
+                offset: line.line,
+                active_low: line.active_low,
+                bias: line.bias,
+                debounce_us: line.debounce_us,
+            };
+            inputs.push(InputPlan { line: settings, slot, edge });
         }
         if let Some(c) = (0..CONTACTS).find(|&c| edges[c].is_some() && !wired[c]) {
             return Err(GpioError::ContactNotWired { device: contact_device(c as u8) });
+        }
+        if let (Some(switch), Some(offset)) = (switch, switch_line) {
+            let settings = InputLine {
+                offset,
+                active_low: switch.active_low,
+                bias: switch.bias,
+                debounce_us: switch.debounce_us,
+            };
+            inputs.push(InputPlan { line: settings, slot: InputSlot::Switch, edge: None });
         }
         let mut outputs = Vec::with_capacity(config.outputs.len());
         for line in &config.outputs {
             outputs.push(OutputPlan { line: *line, bit: ImageBit::of(&line.device)? });
         }
-        inputs.sort_by_key(|i| i.line.line);
+        inputs.sort_by_key(|i| i.line.offset);
         outputs.sort_by_key(|o| o.line.line);
 
         for (direction, count) in
@@ -634,13 +728,17 @@ impl Plan {
         Ok(Plan { inputs, outputs })
     }
 
-    fn lines(&self) -> impl Iterator<Item = (u32, Address)> + '_ {
-        let inputs = self.inputs.iter().map(|i| (i.line.line, i.line.device));
-        inputs.chain(self.outputs.iter().map(|o| (o.line.line, o.line.device)))
+    fn lines(&self) -> impl Iterator<Item = (u32, Wire)> + '_ {
+        let inputs = self.inputs.iter().map(|i| (i.line.offset, i.wire()));
+        inputs.chain(self.outputs.iter().map(|o| (o.line.line, Wire::Device(o.line.device))))
     }
 
     fn edge_lines(&self) -> usize {
         self.inputs.iter().filter(|i| i.edge.is_some()).count()
+    }
+
+    fn has_switch(&self) -> bool {
+        self.inputs.iter().any(|i| i.slot == InputSlot::Switch)
     }
 }
 
@@ -675,17 +773,13 @@ fn contact_edges(edge_contacts: &[(u8, Edge)]) -> Result<[Option<Edge>; CONTACTS
     Ok(edges)
 }
 
-fn check_unique_lines<'a>(lines: impl Iterator<Item = &'a IoLine>) -> Result<(), GpioError> {
-    let mut seen: Vec<&IoLine> = Vec::new();
-    for line in lines {
-        if let Some(first) = seen.iter().find(|s| s.line == line.line) {
-            return Err(GpioError::DuplicateLine {
-                line: line.line,
-                first: first.device,
-                second: line.device,
-            });
+fn check_unique_lines(lines: impl Iterator<Item = (u32, Wire)>) -> Result<(), GpioError> {
+    let mut seen: Vec<(u32, Wire)> = Vec::new();
+    for (line, wire) in lines {
+        if let Some(&(_, first)) = seen.iter().find(|(l, _)| *l == line) {
+            return Err(GpioError::DuplicateLine { line, first, second: wire });
         }
-        seen.push(line);
+        seen.push((line, wire));
     }
     Ok(())
 }
@@ -709,16 +803,38 @@ fn extra_settings(inputs: &[InputPlan]) -> usize {
     flags.len().saturating_sub(1) + debounces.len()
 }
 
-/// Copies line values (in offset order) into their P bits; other bits are left alone.
-fn apply_inputs(image: &mut [u16], bits: &[ImageBit], values: &Values) {
-    for (bit, lv) in bits.iter().zip(values.iter()) {
-        if let Some(word) = image.get_mut(bit.word as usize) {
-            if lv.value == Value::Active {
-                *word |= bit.mask;
-            } else {
-                *word &= !bit.mask;
+/// Copies line values (in offset order) into their P bits; other bits are left alone. Returns
+/// the key switch's position if it is among the lines.
+fn apply_inputs(image: &mut [u16], slots: &[InputSlot], values: &Values) -> Option<SwitchPosition> {
+    let mut switch = None;
+    for (slot, lv) in slots.iter().zip(values.iter()) {
+        match slot {
+            InputSlot::Bit { bit, .. } => {
+                if let Some(word) = image.get_mut(bit.word as usize) {
+                    if lv.value == Value::Active {
+                        *word |= bit.mask;
+                    } else {
+                        *word &= !bit.mask;
+                    }
+                }
             }
+            InputSlot::Switch => switch = Some(position(lv.value)),
         }
+    }
+    switch
+}
+
+/// The key switch's position in line values (in offset order), if it is among the lines.
+fn switch_position(slots: &[InputSlot], values: &Values) -> Option<SwitchPosition> {
+    let mut lines = slots.iter().zip(values.iter());
+    lines.find(|(slot, _)| **slot == InputSlot::Switch).map(|(_, lv)| position(lv.value))
+}
+
+/// The switch's line is active at RUN (`active_low` is applied by the kernel).
+fn position(value: Value) -> SwitchPosition {
+    match value {
+        Value::Active => SwitchPosition::Run,
+        Value::Inactive => SwitchPosition::Stop,
     }
 }
 
@@ -739,6 +855,8 @@ fn collect_outputs(image: &[u16], bits: &[ImageBit], values: &mut Values) {
 pub struct GpioIo {
     chip: Arc<str>,
     inputs: Option<InputSide>,
+    /// The key switch as last read (at open, then at each input refresh); `None`: no switch.
+    switch: Option<SwitchPosition>,
     outputs: Option<OutputSide>,
     io_errors: u64,
     last_error: Option<GpioError>,
@@ -749,8 +867,8 @@ struct InputSide {
     request: Arc<Request>,
     /// Every input offset, sorted; gpiocdev fills in the values.
     values: Values,
-    /// The P bit of each entry of `values`.
-    bits: Box<[ImageBit]>,
+    /// Where each entry of `values` goes: a P bit or the key switch.
+    slots: Box<[InputSlot]>,
 }
 
 #[derive(Debug)]
@@ -785,11 +903,17 @@ impl GpioIo {
 }
 
 impl Io for GpioIo {
-    /// One get-values ioctl for all inputs.
+    /// One get-values ioctl for all inputs and the key switch. On an error the P bits and the
+    /// switch keep their last values.
     fn refresh_inputs(&mut self, mem: &mut Memory) {
         let Some(inputs) = &mut self.inputs else { return };
         match inputs.request.values(&mut inputs.values) {
-            Ok(()) => apply_inputs(mem.io_image_mut(), &inputs.bits, &inputs.values),
+            Ok(()) => {
+                let switch = apply_inputs(mem.io_image_mut(), &inputs.slots, &inputs.values);
+                if switch.is_some() {
+                    self.switch = switch;
+                }
+            }
             Err(e) => self.record(IoOp::ReadInputs, e),
         }
     }
@@ -801,6 +925,11 @@ impl Io for GpioIo {
         if let Err(e) = outputs.shared.request.set_values(&outputs.values) {
             self.record(IoOp::WriteOutputs, e);
         }
+    }
+
+    /// The key switch as read at the last input refresh (or at open, before the first).
+    fn switch(&self) -> Option<SwitchPosition> {
+        self.switch
     }
 }
 
@@ -922,7 +1051,7 @@ struct EdgeMap {
 impl EdgeMap {
     fn new(inputs: &[InputPlan]) -> EdgeMap {
         EdgeMap {
-            lines: inputs.iter().filter_map(|i| i.edge.map(|(c, _)| (i.line.line, c))).collect(),
+            lines: inputs.iter().filter_map(|i| i.edge.map(|(c, _)| (i.line.offset, c))).collect(),
             last_seqno: [0; CONTACTS],
             lost: 0,
         }
@@ -1010,6 +1139,14 @@ mod tests {
         }
     }
 
+    fn switch(line: u32) -> SwitchConfig {
+        SwitchConfig { line: Some(line), ..SwitchConfig::default() }
+    }
+
+    fn bit(device: &str) -> InputSlot {
+        InputSlot::Bit { device: addr(device), bit: ImageBit::of(&addr(device)).unwrap() }
+    }
+
     fn values(offsets: &[u32], active: &[u32]) -> Values {
         let mut values = Values::from_offsets(offsets);
         for &offset in active {
@@ -1074,15 +1211,15 @@ mod tests {
             vec![line("P0001", 9), line("P0000", 2), line("P0023", 5)],
             vec![line("P0041", 7), line("P0040", 3)],
         );
-        let plan = Plan::new(&cfg, &[]).unwrap();
-        let inputs: Vec<_> = plan.inputs.iter().map(|i| (i.line.line, i.bit)).collect();
+        let plan = Plan::new(&cfg, None, &[]).unwrap();
+        let inputs: Vec<_> = plan.inputs.iter().map(|i| (i.line.offset, i.slot)).collect();
+        let at = |device: &str, word, mask| InputSlot::Bit {
+            device: addr(device),
+            bit: ImageBit { word, mask },
+        };
         assert_eq!(
             inputs,
-            [
-                (2, ImageBit { word: 0, mask: 1 }),
-                (5, ImageBit { word: 2, mask: 1 << 3 }),
-                (9, ImageBit { word: 0, mask: 1 << 1 }),
-            ]
+            [(2, at("P0000", 0, 1)), (5, at("P0023", 2, 1 << 3)), (9, at("P0001", 0, 1 << 1))]
         );
         let outputs: Vec<_> = plan.outputs.iter().map(|o| (o.line.line, o.bit)).collect();
         assert_eq!(
@@ -1099,8 +1236,9 @@ mod tests {
             vec![],
         );
         let plan =
-            Plan::new(&cfg, &[(2, Edge::Rising), (0, Edge::Falling), (2, Edge::Falling)]).unwrap();
-        let edges: Vec<_> = plan.inputs.iter().map(|i| (i.line.line, i.edge)).collect();
+            Plan::new(&cfg, None, &[(2, Edge::Rising), (0, Edge::Falling), (2, Edge::Falling)])
+                .unwrap();
+        let edges: Vec<_> = plan.inputs.iter().map(|i| (i.line.offset, i.edge)).collect();
         assert_eq!(
             edges,
             [(10, Some((0, Edge::Falling))), (11, None), (12, Some((2, Edge::Both))), (13, None)]
@@ -1113,7 +1251,7 @@ mod tests {
     #[test]
     fn a_task_contact_must_be_an_input_line() {
         let cfg = config(vec![line("P0000", 1)], vec![line("P0003", 2)]);
-        let err = Plan::new(&cfg, &[(3, Edge::Rising)]).unwrap_err();
+        let err = Plan::new(&cfg, None, &[(3, Edge::Rising)]).unwrap_err();
         assert!(matches!(err, GpioError::ContactNotWired { device } if device == addr("P0003")));
         assert_eq!(
             err.to_string(),
@@ -1124,16 +1262,78 @@ mod tests {
     #[test]
     fn a_line_is_wired_once() {
         let cfg = config(vec![line("P0000", 4)], vec![line("P0040", 4)]);
-        let err = Plan::new(&cfg, &[]).unwrap_err();
+        let err = Plan::new(&cfg, None, &[]).unwrap_err();
         assert_eq!(err.to_string(), "line 4 is wired to both P0000 and P0040");
+        let cfg = config(vec![line("P0000", 4)], vec![line("P0040", 5)]);
+        let err = Plan::new(&cfg, Some(&switch(5)), &[]).unwrap_err();
+        assert_eq!(err.to_string(), "line 5 is wired to both P0040 and the RUN/STOP switch");
+    }
+
+    #[test]
+    fn the_switch_is_an_input_line_without_a_bit_or_an_edge() {
+        let cfg = config(vec![line("P0000", 10), line("P0001", 2)], vec![line("P0040", 3)]);
+        let mut sw = switch(6);
+        sw.active_low = true;
+        sw.bias = Bias::PullUp;
+        sw.debounce_us = 5_000;
+        let plan = Plan::new(&cfg, Some(&sw), &[(0, Edge::Both)]).unwrap();
+        let inputs: Vec<_> = plan.inputs.iter().map(|i| (i.line.offset, i.slot, i.edge)).collect();
+        assert_eq!(
+            inputs,
+            [
+                (2, bit("P0001"), None),
+                (6, InputSlot::Switch, None),
+                (10, bit("P0000"), Some((0, Edge::Both))),
+            ]
+        );
+        let settings = plan.inputs[1].line;
+        assert_eq!(
+            settings,
+            InputLine { offset: 6, active_low: true, bias: Bias::PullUp, debounce_us: 5_000 }
+        );
+        assert!(plan.has_switch());
+        assert_eq!(plan.edge_lines(), 1);
+        assert_eq!(EdgeMap::new(&plan.inputs).lines.as_ref(), &[(10, 0)]);
+        let lines: Vec<_> = plan.lines().collect();
+        assert_eq!(
+            lines,
+            [
+                (2, Wire::Device(addr("P0001"))),
+                (6, Wire::Switch),
+                (10, Wire::Device(addr("P0000"))),
+                (3, Wire::Device(addr("P0040"))),
+            ]
+        );
+        // A switch alone is an input request of one line.
+        let plan = Plan::new(&config(vec![], vec![]), Some(&switch(0)), &[]).unwrap();
+        assert_eq!(plan.inputs.len(), 1);
+        assert!(!Plan::new(&config(vec![], vec![]), None, &[]).unwrap().has_switch());
+    }
+
+    #[test]
+    fn a_switch_needs_a_line() {
+        let err =
+            Plan::new(&config(vec![], vec![]), Some(&SwitchConfig::default()), &[]).unwrap_err();
+        assert!(matches!(err, GpioError::SwitchNotWired), "{err:?}");
+        assert_eq!(
+            err.to_string(),
+            "[switch] has no line: the gpiocdev backend reads the RUN/STOP switch from a line"
+        );
     }
 
     #[test]
     fn a_request_holds_at_most_64_lines() {
         let inputs: Vec<_> =
             (0..65).map(|n| line(&format!("P{:03}{:X}", 10 + n / 16, n % 16), n)).collect();
-        assert!(Plan::new(&config(inputs[..64].to_vec(), vec![]), &[]).is_ok());
-        let err = Plan::new(&config(inputs, vec![]), &[]).unwrap_err();
+        assert!(Plan::new(&config(inputs[..64].to_vec(), vec![]), None, &[]).is_ok());
+        let err =
+            Plan::new(&config(inputs[..64].to_vec(), vec![]), Some(&switch(100)), &[]).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "65 input lines configured, but one GPIO line request holds at most 64",
+            "the switch's line is one of them"
+        );
+        let err = Plan::new(&config(inputs, vec![]), None, &[]).unwrap_err();
         assert_eq!(
             err.to_string(),
             "65 input lines configured, but one GPIO line request holds at most 64"
@@ -1160,16 +1360,23 @@ mod tests {
             l.debounce_us = us;
             inputs.push(l);
         }
-        let plan = Plan::new(&config(inputs.clone(), vec![]), &[]).unwrap();
+        let plan = Plan::new(&config(inputs.clone(), vec![]), None, &[]).unwrap();
+        assert_eq!(extra_settings(&plan.inputs), 10);
+        // The switch's settings count like any line's: its flags are among the above, its
+        // debounce period (by default 10 ms) is new.
+        let plan = Plan::new(&config(inputs.clone(), vec![]), Some(&switch(50)), &[]);
+        assert!(matches!(plan, Err(GpioError::TooManySettings { needed: 11, max: 10, .. })));
+        let quiet = SwitchConfig { debounce_us: 500, ..switch(50) };
+        let plan = Plan::new(&config(inputs.clone(), vec![]), Some(&quiet), &[]).unwrap();
         assert_eq!(extra_settings(&plan.inputs), 10);
 
         // An edge on a contact is one more flag combination: 11 is too many.
         inputs.push(line("P0000", 40));
         assert_eq!(
-            extra_settings(&Plan::new(&config(inputs.clone(), vec![]), &[]).unwrap().inputs),
+            extra_settings(&Plan::new(&config(inputs.clone(), vec![]), None, &[]).unwrap().inputs),
             10
         );
-        let err = Plan::new(&config(inputs, vec![]), &[(0, Edge::Rising)]).unwrap_err();
+        let err = Plan::new(&config(inputs, vec![]), None, &[(0, Edge::Rising)]).unwrap_err();
         assert!(matches!(err, GpioError::TooManySettings { needed: 11, max: 10, .. }));
     }
 
@@ -1178,21 +1385,39 @@ mod tests {
     #[test]
     fn inputs_write_their_bits_only() {
         let cfg = config(vec![line("P0001", 9), line("P0000", 2), line("P0023", 5)], vec![]);
-        let plan = Plan::new(&cfg, &[]).unwrap();
-        let bits: Vec<_> = plan.inputs.iter().map(|i| i.bit).collect();
+        let plan = Plan::new(&cfg, None, &[]).unwrap();
+        let slots: Vec<_> = plan.inputs.iter().map(|i| i.slot).collect();
         let mut image = [0u16; P_WORDS as usize];
         image[0] = 0b1000_0001; // P0000 (an input, will go OFF) and P0007 (not an input)
         image[4] = 1; // P0040, an output
-        apply_inputs(&mut image, &bits, &values(&[2, 5, 9], &[5, 9]));
+        let switch = apply_inputs(&mut image, &slots, &values(&[2, 5, 9], &[5, 9]));
         assert_eq!(image[0], 0b1000_0010);
         assert_eq!(image[2], 0b1000);
         assert_eq!(image[4], 1);
+        assert_eq!(switch, None);
+    }
+
+    #[test]
+    fn the_switch_line_is_read_with_the_inputs_into_no_bit() {
+        let cfg = config(vec![line("P0001", 9), line("P0000", 2)], vec![]);
+        let plan = Plan::new(&cfg, Some(&switch(4)), &[]).unwrap();
+        let slots: Vec<_> = plan.inputs.iter().map(|i| i.slot).collect();
+        let mut image = [0u16; P_WORDS as usize];
+        let active = values(&[2, 4, 9], &[4]);
+        assert_eq!(apply_inputs(&mut image, &slots, &active), Some(SwitchPosition::Run));
+        assert_eq!(switch_position(&slots, &active), Some(SwitchPosition::Run));
+        assert!(image.iter().all(|&w| w == 0), "no P bit for the switch: {:?}", &image[..1]);
+        let inactive = values(&[2, 4, 9], &[2, 9]);
+        assert_eq!(apply_inputs(&mut image, &slots, &inactive), Some(SwitchPosition::Stop));
+        assert_eq!(switch_position(&slots, &inactive), Some(SwitchPosition::Stop));
+        assert_eq!(image[0], 0b11);
+        assert_eq!(switch_position(&slots[..0], &values(&[], &[])), None);
     }
 
     #[test]
     fn outputs_take_their_bits() {
         let cfg = config(vec![], vec![line("P0041", 7), line("P0040", 3), line("P127F", 1)]);
-        let plan = Plan::new(&cfg, &[]).unwrap();
+        let plan = Plan::new(&cfg, None, &[]).unwrap();
         let bits: Vec<_> = plan.outputs.iter().map(|o| o.bit).collect();
         let mut image = [0u16; P_WORDS as usize];
         image[4] = 0b10;
@@ -1226,7 +1451,7 @@ mod tests {
     #[test]
     fn events_become_input_edges_and_gaps_count_per_line() {
         let cfg = config(vec![line("P0000", 10), line("P0002", 12), line("P0010", 3)], vec![]);
-        let plan = Plan::new(&cfg, &[(0, Edge::Both), (2, Edge::Rising)]).unwrap();
+        let plan = Plan::new(&cfg, None, &[(0, Edge::Both), (2, Edge::Rising)]).unwrap();
         let mut map = EdgeMap::new(&plan.inputs);
 
         let edge = map.edge(&event(10, 1, EdgeKind::Rising, 1_000)).unwrap();
@@ -1256,14 +1481,14 @@ mod tests {
     fn a_chip_is_required() {
         let mut cfg = config(vec![line("P0000", 1)], vec![]);
         cfg.chip = None;
-        assert!(matches!(open(&cfg, &[], "plcd"), Err(GpioError::NoChip)));
+        assert!(matches!(open(&cfg, None, &[], "plcd"), Err(GpioError::NoChip)));
     }
 
     #[test]
     fn a_missing_chip_path_names_what_was_asked() {
         let mut cfg = config(vec![line("P0000", 1)], vec![line("P0040", 2)]);
         cfg.chip = Some("/dev/gpiochip-does-not-exist".into());
-        let err = open(&cfg, &[(0, Edge::Rising)], "plcd").unwrap_err();
+        let err = open(&cfg, None, &[(0, Edge::Rising)], "plcd").unwrap_err();
         let GpioError::ChipNotFound { asked, .. } = &err else { panic!("{err:?}") };
         assert_eq!(asked, "/dev/gpiochip-does-not-exist");
         assert!(err
@@ -1275,7 +1500,7 @@ mod tests {
     fn a_label_that_matches_no_chip_names_what_was_asked() {
         let mut cfg = config(vec![line("P0000", 1)], vec![]);
         cfg.chip = Some("plcd-no-such-chip-label".into());
-        let err = open(&cfg, &[], "plcd").unwrap_err();
+        let err = open(&cfg, None, &[], "plcd").unwrap_err();
         let GpioError::ChipNotFound { asked, .. } = &err else { panic!("{err:?}") };
         assert_eq!(asked, "plcd-no-such-chip-label");
         assert!(err.to_string().starts_with("GPIO chip `plcd-no-such-chip-label` not found; "));
@@ -1285,7 +1510,7 @@ mod tests {
     fn a_path_that_is_not_a_chip_is_an_open_error() {
         let mut cfg = config(vec![line("P0000", 1)], vec![]);
         cfg.chip = Some("/dev/null".into());
-        let err = open(&cfg, &[], "plcd").unwrap_err();
+        let err = open(&cfg, None, &[], "plcd").unwrap_err();
         assert!(
             matches!(&err, GpioError::ChipOpen { chip, .. } if &**chip == "/dev/null"),
             "{err:?}"
@@ -1297,8 +1522,10 @@ mod tests {
     fn config_errors_come_before_the_chip() {
         let mut cfg = config(vec![line("P0001", 1)], vec![]);
         cfg.chip = Some("/dev/gpiochip-does-not-exist".into());
-        let err = open(&cfg, &[(0, Edge::Rising)], "plcd").unwrap_err();
+        let err = open(&cfg, None, &[(0, Edge::Rising)], "plcd").unwrap_err();
         assert!(matches!(err, GpioError::ContactNotWired { .. }), "{err:?}");
+        let err = open(&cfg, Some(&switch(1)), &[], "plcd").unwrap_err();
+        assert!(matches!(err, GpioError::DuplicateLine { .. }), "{err:?}");
     }
 
     #[test]
@@ -1323,7 +1550,7 @@ mod tests {
         let err = GpioError::LineOutOfRange {
             chip: chip.clone(),
             line: 58,
-            device: addr("P0040"),
+            wire: Wire::Device(addr("P0040")),
             num_lines: 58,
         };
         assert_eq!(
@@ -1334,7 +1561,7 @@ mod tests {
         let err = GpioError::LineBusy {
             chip: chip.clone(),
             line: 4,
-            device: addr("P0003"),
+            wire: Wire::Device(addr("P0003")),
             consumer: Some("gpio-keys".into()),
         };
         assert_eq!(
@@ -1344,10 +1571,32 @@ mod tests {
         let err = GpioError::LineBusy {
             chip: chip.clone(),
             line: 4,
-            device: addr("P0003"),
+            wire: Wire::Device(addr("P0003")),
             consumer: None,
         };
         assert!(err.to_string().ends_with("is already in use by another consumer"));
+        let err = GpioError::LineBusy {
+            chip: chip.clone(),
+            line: 5,
+            wire: Wire::Switch,
+            consumer: Some("gpio-keys".into()),
+        };
+        assert_eq!(
+            err.to_string(),
+            "GPIO chip gpiochip0 (pinctrl-bcm2711): line 5 (the RUN/STOP switch) is already in use \
+             by `gpio-keys`"
+        );
+        let err = GpioError::LineOutOfRange {
+            chip: chip.clone(),
+            line: 58,
+            wire: Wire::Switch,
+            num_lines: 58,
+        };
+        assert_eq!(
+            err.to_string(),
+            "GPIO chip gpiochip0 (pinctrl-bcm2711): line 58 (the RUN/STOP switch) does not exist, \
+             the chip has 58 lines"
+        );
         let err = GpioError::Io {
             chip,
             op: IoOp::ReadInputs,

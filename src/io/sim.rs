@@ -2,14 +2,15 @@
 //! later the control socket), outputs kept as last published. Which P bits are inputs is given
 //! by a mask, so that input refresh never overwrites the program's outputs.
 //!
-//! The field (input and output states) is a [`SimField`] of atomics shared behind an `Arc`: in
-//! `plcd sim` one thread sets inputs and refreshes, in the daemon a stimulus thread sets inputs
-//! while the scan thread refreshes, and neither ever waits for the other.
+//! The field (input and output states, and the RUN/STOP key switch when `[switch]` is
+//! configured) is a [`SimField`] of atomics shared behind an `Arc`: in `plcd sim` one thread
+//! sets inputs and refreshes, in the daemon a stimulus thread sets inputs while the scan thread
+//! refreshes, and neither ever waits for the other.
 
-use std::sync::atomic::{AtomicU16, Ordering};
+use std::sync::atomic::{AtomicU16, AtomicU8, Ordering};
 use std::sync::Arc;
 
-use super::Io;
+use super::{Io, SwitchPosition};
 use crate::device::layout::P_WORDS;
 use crate::device::{Address, Area, Memory};
 
@@ -23,6 +24,26 @@ pub struct SimField {
     input_mask: [u16; WORDS],
     /// Contacts of P0000–P0007 whose edges are reported.
     edge_mask: u16,
+    /// The key switch: [`NO_SWITCH`] when none is configured, else a [`switch_code`].
+    switch: AtomicU8,
+}
+
+/// [`SimField::switch`] when no `[switch]` is configured.
+const NO_SWITCH: u8 = 0;
+
+fn switch_code(position: SwitchPosition) -> u8 {
+    match position {
+        SwitchPosition::Run => 1,
+        SwitchPosition::Stop => 2,
+    }
+}
+
+fn switch_of(code: u8) -> Option<SwitchPosition> {
+    match code {
+        1 => Some(SwitchPosition::Run),
+        2 => Some(SwitchPosition::Stop),
+        _ => None,
+    }
 }
 
 /// Simulated field I/O: the scan side of a [`SimField`].
@@ -30,12 +51,14 @@ pub struct SimField {
 pub struct SimIo {
     field: Arc<SimField>,
     input_mask: [u16; WORDS],
+    /// The key switch as of the last input refresh (`None`: no switch).
+    switch: Option<SwitchPosition>,
 }
 
 impl Default for SimIo {
-    /// No inputs; edges reported on every contact.
+    /// No inputs; edges reported on every contact; no key switch.
     fn default() -> Self {
-        SimIo::new(&[], &[0, 1, 2, 3, 4, 5, 6, 7])
+        SimIo::new(&[], &[0, 1, 2, 3, 4, 5, 6, 7], None)
     }
 }
 
@@ -56,8 +79,9 @@ fn mask_of(address: &Address) -> Option<(usize, u16)> {
 impl SimIo {
     /// A field whose inputs are the given P bits (or whole P words; other devices are
     /// ignored), reporting edges of the given contacts (0..=7: those I/O tasks start on, as
-    /// the gpiocdev backend detects edges only there).
-    pub fn new(inputs: &[Address], edge_contacts: &[u8]) -> SimIo {
+    /// the gpiocdev backend detects edges only there). `switch`: the key switch's starting
+    /// position (`[switch] position`), `None` when no `[switch]` is configured.
+    pub fn new(inputs: &[Address], edge_contacts: &[u8], switch: Option<SwitchPosition>) -> SimIo {
         let mut input_mask = [0u16; WORDS];
         for (word, mask) in inputs.iter().filter_map(mask_of) {
             input_mask[word] |= mask;
@@ -68,8 +92,9 @@ impl SimIo {
             outputs: std::array::from_fn(|_| AtomicU16::new(0)),
             input_mask,
             edge_mask,
+            switch: AtomicU8::new(switch.map_or(NO_SWITCH, switch_code)),
         };
-        SimIo { field: Arc::new(field), input_mask }
+        SimIo { field: Arc::new(field), input_mask, switch }
     }
 
     /// True if the address is a P device.
@@ -94,6 +119,12 @@ impl SimIo {
     /// Output word `word` as last published.
     pub fn output(&self, word: usize) -> u16 {
         self.field.output(word)
+    }
+
+    /// Turns the key switch as the field sees it (the scan sees it at its next input
+    /// refresh); false, and nothing happens, when no `[switch]` is configured.
+    pub fn set_switch(&mut self, position: SwitchPosition) -> bool {
+        self.field.set_switch(position)
     }
 }
 
@@ -134,6 +165,22 @@ impl SimField {
         }
     }
 
+    /// Turns the key switch (a stimulus line `SWITCH, RUN|STOP`); the scan sees it at its next
+    /// input refresh. False, and nothing happens, when no `[switch]` is configured.
+    pub fn set_switch(&self, position: SwitchPosition) -> bool {
+        let code = switch_code(position);
+        self.switch
+            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |now| {
+                (now != NO_SWITCH).then_some(code)
+            })
+            .is_ok()
+    }
+
+    /// The key switch as the field sees it now; `None` when no `[switch]` is configured.
+    pub fn switch(&self) -> Option<SwitchPosition> {
+        switch_of(self.switch.load(Ordering::Relaxed))
+    }
+
     /// True if the bit is an input of this field.
     pub fn is_input(&self, address: &Address) -> bool {
         mask_of(address).is_some_and(|(word, mask)| self.input_mask[word] & mask != 0)
@@ -147,6 +194,7 @@ impl Io for SimIo {
         {
             *image = (*image & !mask) | (input.load(Ordering::Relaxed) & mask);
         }
+        self.switch = self.field.switch();
     }
 
     fn refresh_outputs(&mut self, mem: &Memory) {
@@ -155,6 +203,11 @@ impl Io for SimIo {
         {
             out.store(image & !mask, Ordering::Relaxed);
         }
+    }
+
+    /// The key switch as of the last input refresh (at first, its starting position).
+    fn switch(&self) -> Option<SwitchPosition> {
+        self.switch
     }
 }
 
@@ -168,7 +221,7 @@ mod tests {
 
     #[test]
     fn input_refresh_keeps_outputs() {
-        let mut io = SimIo::new(&[addr("P0000"), addr("P0001")], &[0]);
+        let mut io = SimIo::new(&[addr("P0000"), addr("P0001")], &[0], None);
         let mut mem = Memory::new();
         mem.write(&addr("P0040"), 1);
         mem.write(&addr("P0001"), 1);
@@ -191,8 +244,36 @@ mod tests {
         let falling: Vec<_> = io.set_input(&addr("P0002"), 0).collect();
         assert_eq!(falling, [ContactEdge { contact: 2, rising: false }]);
         assert_eq!(io.set_input(&addr("P0010"), 1).count(), 0, "P0010 is not a task contact");
-        let mut io = SimIo::new(&[addr("P000")], &[1]);
+        let mut io = SimIo::new(&[addr("P000")], &[1], None);
         let edges: Vec<_> = io.set_input(&addr("P000"), 0b11).collect();
         assert_eq!(edges, [ContactEdge { contact: 1, rising: true }], "only watched contacts");
+    }
+
+    #[test]
+    fn the_switch_is_seen_at_the_input_refresh() {
+        let mut io = SimIo::new(&[], &[], Some(SwitchPosition::Stop));
+        let field = io.field();
+        assert_eq!(io.switch(), Some(SwitchPosition::Stop), "the starting position at once");
+        assert!(field.set_switch(SwitchPosition::Run));
+        assert_eq!(field.switch(), Some(SwitchPosition::Run));
+        assert_eq!(io.switch(), Some(SwitchPosition::Stop), "not before the refresh");
+        let mut mem = Memory::new();
+        io.refresh_inputs(&mut mem);
+        assert_eq!(io.switch(), Some(SwitchPosition::Run));
+        assert!(io.set_switch(SwitchPosition::Stop));
+        io.refresh_inputs(&mut mem);
+        assert_eq!(io.switch(), Some(SwitchPosition::Stop));
+        assert_eq!(mem.io_image().iter().copied().max(), Some(0), "the switch is no P bit");
+    }
+
+    #[test]
+    fn without_a_switch_there_is_none_to_turn() {
+        let mut io = SimIo::new(&[addr("P0000")], &[0], None);
+        assert_eq!(io.switch(), None);
+        assert!(!io.set_switch(SwitchPosition::Stop));
+        io.refresh_inputs(&mut Memory::new());
+        assert_eq!(io.switch(), None);
+        assert_eq!(io.field().switch(), None);
+        assert_eq!(SimIo::default().switch(), None);
     }
 }

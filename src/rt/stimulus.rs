@@ -1,7 +1,7 @@
 //! The sim backend's field in real time: plays an inputs file (CONTRACT §4) against the
 //! simulated field, as `plcd sim` does in virtual time. Input changes go to the field and, when
 //! they are edges of P0000–P0007, to the edge queue stamped with the moment they happened;
-//! other devices and `MODE` become commands. Not a real-time thread: its lateness only shifts
+//! `SWITCH` turns the field's key switch; other devices and `MODE` become commands. Not a real-time thread: its lateness only shifts
 //! when an edge happens, and the stamp says when that was.
 
 use std::sync::atomic::Ordering;
@@ -82,6 +82,13 @@ impl StimulusThread {
             }
             Target::Device(address) => self.command(Command::Write(address, stimulus.value)),
             Target::Mode(mode) => self.command(Command::Mode(mode, Source::Stimulus)),
+            Target::Switch(position) => {
+                // The scan thread reads the switch at its next input refresh; a scan thread
+                // asleep (STOP, or between scans) is woken to look, with no flag raised.
+                if self.field.set_switch(position) {
+                    self.shared.signal(0);
+                }
+            }
         }
     }
 

@@ -80,7 +80,7 @@ mod tests {
 
     /// A watchdog thread over a sim field whose P0040 is ON, and the field.
     fn setup() -> (Arc<Shared>, Arc<OutputGate>, Arc<crate::io::sim::SimField>) {
-        let mut io = SimIo::new(&[], &[]);
+        let mut io = SimIo::new(&[], &[], None);
         let mut mem = Memory::new();
         mem.write(&Address::parse("P0040").unwrap(), 1);
         io.refresh_outputs(&mem);

@@ -65,7 +65,8 @@ pub fn output_bits(project: &Project) -> Vec<Address> {
 }
 
 /// The simulated field: inputs are the io-task contacts, the configured `[[io.input]]`s and
-/// every P device the stimulus writes.
+/// every P device the stimulus writes; the key switch, when `[switch]` is configured, starts at
+/// its `position`.
 pub fn sim_io(project: &Project, stimuli: &[Stimulus]) -> SimIo {
     let config = &project.config;
     let edge_contacts: Vec<u8> = config.edge_contacts().iter().map(|(c, _)| *c).collect();
@@ -74,9 +75,10 @@ pub fn sim_io(project: &Project, stimuli: &[Stimulus]) -> SimIo {
     inputs.extend(config.io.inputs.iter().map(|line| line.device));
     inputs.extend(stimuli.iter().filter_map(|s| match s.target {
         Target::Device(address) => Some(address),
-        Target::Mode(_) => None,
+        Target::Mode(_) | Target::Switch(_) => None,
     }));
-    SimIo::new(&inputs, &edge_contacts)
+    let switch = config.switch.as_ref().map(|s| s.position);
+    SimIo::new(&inputs, &edge_contacts, switch)
 }
 
 /// Runs `project` from RUN at t = 0 for `options.duration_ns` of virtual time. Returns the
@@ -124,6 +126,9 @@ pub fn simulate(
 fn apply(engine: &mut Engine, io: &mut SimIo, s: &Stimulus, now: u64, sink: &mut impl EventSink) {
     match &s.target {
         Target::Mode(mode) => engine.set_mode(*mode, now, io, sink),
+        Target::Switch(position) => {
+            io.set_switch(*position);
+        }
         Target::Device(address) if SimIo::is_io(address) => {
             let edges: Vec<_> = io.set_input(address, s.value).collect();
             for edge in edges {

@@ -6,17 +6,24 @@
 //! 6.5ms, P0000, 0
 //! 15ms,  M0000, 1
 //! 40ms,  MODE,  STOP
+//! 50ms,  SWITCH, STOP
 //! ```
 //!
 //! Fields are trimmed, `#` starts a comment anywhere on a line, blank lines are skipped. Every
 //! error of the file is reported at once, each at the line and column of the bad field.
+//!
+//! The pseudo-device `SWITCH` turns the simulated RUN/STOP key switch, which only a config with
+//! a `[switch]` has: [`load_for`] (used by `plcd sim` and the daemon) checks a file against the
+//! config, [`load`] and [`parse`] read it alone.
 
 use std::path::Path;
 
 use super::duration::parse_duration;
+use crate::config::Config;
 use crate::device::{Address, Area};
 use crate::diag::{Diagnostic, Diagnostics};
 use crate::engine::event::Mode;
+use crate::io::SwitchPosition;
 
 /// What a stimulus line changes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -25,6 +32,9 @@ pub enum Target {
     Device(Address),
     /// The pseudo-device `MODE`: a switch to RUN or STOP.
     Mode(Mode),
+    /// The pseudo-device `SWITCH`: the RUN/STOP key switch of `[switch]` turned to RUN or
+    /// STOP (the sim field's switch; the engine sees it at its next input refresh).
+    Switch(SwitchPosition),
 }
 
 /// One timed change.
@@ -34,28 +44,44 @@ pub struct Stimulus {
     pub t_ns: u64,
     pub target: Target,
     /// The new value: 0 or 1 for a bit device, `-32768..=65535` for a word device (hex
-    /// constants are read as unsigned, `hFFFF` is 65535), 0 for `MODE`.
+    /// constants are read as unsigned, `hFFFF` is 65535), 0 for `MODE` and `SWITCH`.
     pub value: i32,
     /// The line of the file, from 1.
     pub line: u32,
 }
 
-/// Reads and parses an inputs file.
+/// Reads and parses an inputs file, on its own: `SWITCH` lines are accepted. A project's
+/// inputs file is read with [`load_for`].
 pub fn load(path: &Path) -> Result<Vec<Stimulus>, Diagnostics> {
-    match std::fs::read_to_string(path) {
-        Ok(text) => parse(&text, path),
-        Err(e) => Err(Diagnostics(vec![Diagnostic::new(
-            path,
-            0,
-            0,
-            format!("cannot read the inputs file: {e}"),
-        )])),
-    }
+    read(path).and_then(|text| parse(&text, path))
+}
+
+/// Reads and parses the inputs file of a project, checked against its config: a `SWITCH` line
+/// is an error (at its line) when the config has no `[switch]`. `plcd sim --inputs` and the
+/// daemon's `io.stimulus` both load through this.
+pub fn load_for(path: &Path, config: &Config) -> Result<Vec<Stimulus>, Diagnostics> {
+    read(path).and_then(|text| parse_for(&text, path, config))
+}
+
+/// [`parse`], checked against `config` as [`load_for`] says.
+pub fn parse_for(text: &str, path: &Path, config: &Config) -> Result<Vec<Stimulus>, Diagnostics> {
+    parse_with(text, path, config.switch.is_some())
+}
+
+fn read(path: &Path) -> Result<String, Diagnostics> {
+    std::fs::read_to_string(path).map_err(|e| {
+        Diagnostics(vec![Diagnostic::new(path, 0, 0, format!("cannot read the inputs file: {e}"))])
+    })
 }
 
 /// Parses the text of an inputs file; `path` is only used in diagnostics. The result is sorted
 /// by time; changes at the same time keep their file order.
 pub fn parse(text: &str, path: &Path) -> Result<Vec<Stimulus>, Diagnostics> {
+    parse_with(text, path, true)
+}
+
+/// `switch`: the config has a `[switch]` (or there is no config to check against).
+fn parse_with(text: &str, path: &Path, switch: bool) -> Result<Vec<Stimulus>, Diagnostics> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut stimuli = Vec::new();
     let mut diags = Diagnostics::default();
@@ -114,6 +140,16 @@ pub fn parse(text: &str, path: &Path) -> Result<Vec<Stimulus>, Diagnostics> {
 
         let target = if device_text.eq_ignore_ascii_case("MODE") {
             Some(Kind::Mode)
+        } else if device_text.eq_ignore_ascii_case("SWITCH") {
+            if !switch {
+                error(
+                    device_col,
+                    "SWITCH: the config has no [switch], so there is no RUN/STOP key switch to \
+                     turn"
+                        .to_string(),
+                );
+            }
+            Some(Kind::Switch)
         } else if device_text.is_empty() {
             error(device_col, "missing device".to_string());
             None
@@ -141,6 +177,14 @@ pub fn parse(text: &str, path: &Path) -> Result<Vec<Stimulus>, Diagnostics> {
                 "STOP" => Some((Target::Mode(Mode::Stop), 0)),
                 _ => {
                     error(value_col, format!("`{value_text}`: MODE takes RUN or STOP"));
+                    None
+                }
+            },
+            Some(Kind::Switch) => match value_text.to_ascii_uppercase().as_str() {
+                "RUN" => Some((Target::Switch(SwitchPosition::Run), 0)),
+                "STOP" => Some((Target::Switch(SwitchPosition::Stop), 0)),
+                _ => {
+                    error(value_col, format!("`{value_text}`: SWITCH takes RUN or STOP"));
                     None
                 }
             },
@@ -193,6 +237,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Vec<Stimulus>, Diagnostics> {
 #[derive(Clone, Copy)]
 enum Kind {
     Mode,
+    Switch,
     Bit(Address),
     Word(Address),
 }
@@ -234,6 +279,17 @@ mod tests {
 
     fn mode(t_ns: u64, mode: Mode, line: u32) -> Stimulus {
         Stimulus { t_ns, target: Target::Mode(mode), value: 0, line }
+    }
+
+    fn switch(t_ns: u64, position: SwitchPosition, line: u32) -> Stimulus {
+        Stimulus { t_ns, target: Target::Switch(position), value: 0, line }
+    }
+
+    /// A config, with a `[switch]` or without.
+    fn config(with_switch: bool) -> Config {
+        let switch = if with_switch { "[switch]\n" } else { "" };
+        let text = format!("{switch}[[program]]\nfile = \"main.il\"\n");
+        crate::config::parse(&text, Path::new("plcd.toml")).unwrap()
     }
 
     fn ok(text: &str) -> Vec<Stimulus> {
@@ -385,5 +441,60 @@ mod tests {
         std::fs::remove_file(&path).unwrap();
         let times: Vec<u64> = result.unwrap().iter().map(|s| s.t_ns).collect();
         assert_eq!(times, vec![1_000_000, 2_000_000]);
+    }
+
+    #[test]
+    fn switch_lines_turn_the_key_switch() {
+        let text = "1ms, SWITCH, STOP\n2ms, switch, run\n3ms, Switch, Stop # mixed case\n";
+        let expected = vec![
+            switch(1_000_000, SwitchPosition::Stop, 1),
+            switch(2_000_000, SwitchPosition::Run, 2),
+            switch(3_000_000, SwitchPosition::Stop, 3),
+        ];
+        assert_eq!(ok(text), expected);
+        let checked = parse_for(text, Path::new("in.csv"), &config(true)).unwrap();
+        assert_eq!(checked, expected);
+        assert_eq!(
+            errors("1ms, SWITCH, 1\n2ms, SWITCH, DEBUG\n"),
+            vec![
+                "in.csv:1:14: error: `1`: SWITCH takes RUN or STOP",
+                "in.csv:2:14: error: `DEBUG`: SWITCH takes RUN or STOP",
+            ]
+        );
+    }
+
+    #[test]
+    fn a_switch_line_needs_a_switch_in_the_config() {
+        let text = "1ms, P0000, 1\n# the key\n5ms,  SWITCH, STOP\n6ms, SWITCH, OFF\n";
+        let diags = parse_for(text, Path::new("in.csv"), &config(false)).unwrap_err();
+        let errs: Vec<String> = diags.iter().map(ToString::to_string).collect();
+        assert_eq!(
+            errs,
+            vec![
+                "in.csv:3:7: error: SWITCH: the config has no [switch], so there is no RUN/STOP \
+                 key switch to turn",
+                "in.csv:4:6: error: SWITCH: the config has no [switch], so there is no RUN/STOP \
+                 key switch to turn",
+                "in.csv:4:14: error: `OFF`: SWITCH takes RUN or STOP",
+            ]
+        );
+        // Without SWITCH lines, any config will do.
+        let plain = parse_for("1ms, P0000, 1\n", Path::new("in.csv"), &config(false)).unwrap();
+        assert_eq!(plain, vec![dev(1_000_000, "P0000", 1, 1)]);
+    }
+
+    #[test]
+    fn load_for_checks_the_file_against_the_config() {
+        let path =
+            std::env::temp_dir().join(format!("plcd-stimulus-switch-{}.csv", std::process::id()));
+        std::fs::write(&path, "1ms, SWITCH, STOP\n").unwrap();
+        let with = load_for(&path, &config(true));
+        let without = load_for(&path, &config(false));
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(with.unwrap(), vec![switch(1_000_000, SwitchPosition::Stop, 1)]);
+        let text = without.unwrap_err().to_string();
+        assert!(text.starts_with(&format!("{}:1:6: error: SWITCH: ", path.display())), "{text}");
+        let missing = load_for(Path::new("/nonexistent/in.csv"), &config(true)).unwrap_err();
+        assert!(missing.to_string().contains("cannot read the inputs file"), "{missing}");
     }
 }
