@@ -444,3 +444,41 @@ fn an_incompatible_online_change_is_refused_with_reasons() {
     watchdog.config.plc.watchdog_ms = 50;
     assert_eq!(reasons(&watchdog), ["[plc] changed; it can only change with the PLC in STOP"]);
 }
+
+#[test]
+fn plcd_sim_follows_the_simulated_key_switch() {
+    use plcd::sim::stimulus::{Stimulus, Target};
+    use plcd::sim::{simulate, SimOptions};
+    let config =
+        "[io]\nbackend = \"sim\"\n[switch]\nposition = \"stop\"\n[[program]]\nfile = \"main.il\"\n";
+    let config = config::parse(config, Path::new("switch.toml")).expect("config");
+    let p = project::from_config(config, |_| Ok("INC D00000\nEND\n".to_string())).unwrap();
+    let switch = |ms: u64, position| Stimulus {
+        t_ns: ms * MS,
+        target: Target::Switch(position),
+        value: 0,
+        line: 1,
+    };
+    // In STOP the inputs (and the switch) are read every 10 ms, in RUN at every scan.
+    let stimuli = [switch(5, SwitchPosition::Run), switch(15, SwitchPosition::Stop)];
+    let mut events = Recorder::default();
+    let options = SimOptions { duration_ns: 20 * MS, step_ns: 1000 };
+    let engine = simulate(&p, &stimuli, &[], options, &mut events);
+    let seen: Vec<(u64, Event)> = events
+        .0
+        .into_iter()
+        .filter(|(_, e)| matches!(e, Event::Mode(_) | Event::Switch(_)))
+        .map(|(t, e)| (t / MS, e))
+        .collect();
+    assert_eq!(
+        seen,
+        [
+            (0, Event::Switch(SwitchPosition::Stop)),
+            (10, Event::Switch(SwitchPosition::Run)),
+            (10, Event::Mode(Mode::Run)),
+            (15, Event::Switch(SwitchPosition::Stop)),
+            (15, Event::Mode(Mode::Stop)),
+        ]
+    );
+    assert_eq!(engine.mode(), Mode::Stop);
+}

@@ -133,7 +133,7 @@ impl Daemon {
         let (field, safe) = match config.io.backend {
             Backend::Sim => {
                 let stimuli = match &config.io.stimulus {
-                    Some(path) => stimulus::load(path)
+                    Some(path) => stimulus::load_for(path, config)
                         .map_err(|source| DaemonError::Stimulus { path: path.clone(), source })?,
                     None => Vec::new(),
                 };

@@ -931,6 +931,14 @@ impl Io for GpioIo {
     fn switch(&self) -> Option<SwitchPosition> {
         self.switch
     }
+
+    fn is_input(&self, bit: crate::device::BitRef) -> bool {
+        self.inputs.as_ref().is_some_and(|inputs| {
+            inputs.slots.iter().any(|slot| {
+                matches!(slot, InputSlot::Bit { bit: b, .. } if b.word == bit.word && b.mask & bit.mask != 0)
+            })
+        })
+    }
 }
 
 // ----------------------------------------------------------------------------------------------

@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 use super::{Io, SwitchPosition};
 use crate::device::layout::P_WORDS;
-use crate::device::{Address, Area, Memory};
+use crate::device::{Address, Area, BitRef, Memory};
 
 const WORDS: usize = P_WORDS as usize;
 
@@ -208,6 +208,10 @@ impl Io for SimIo {
     /// The key switch as of the last input refresh (at first, its starting position).
     fn switch(&self) -> Option<SwitchPosition> {
         self.switch
+    }
+
+    fn is_input(&self, bit: BitRef) -> bool {
+        self.input_mask.get(usize::from(bit.word)).is_some_and(|m| m & bit.mask != 0)
     }
 }
 

@@ -81,8 +81,9 @@ pub fn sim_io(project: &Project, stimuli: &[Stimulus]) -> SimIo {
     SimIo::new(&inputs, &edge_contacts, switch)
 }
 
-/// Runs `project` from RUN at t = 0 for `options.duration_ns` of virtual time. Returns the
-/// engine as the run left it, for its figures and device memory.
+/// Runs `project` from RUN at t = 0 for `options.duration_ns` of virtual time (with a `[switch]`,
+/// the mode follows the simulated switch from t = 0 instead). Returns the engine as the run left
+/// it, for its figures and device memory.
 pub fn simulate(
     project: &Project,
     stimuli: &[Stimulus],
@@ -94,7 +95,9 @@ pub fn simulate(
     let mut io = sim_io(project, stimuli);
     let step_ns = options.step_ns.max(1);
     let mut clock = StepClock { origin_ns: 0, origin_steps: engine.steps(), step_ns };
-    engine.set_mode(Mode::Run, 0, &mut io, sink);
+    if project.config.switch.is_none() {
+        engine.set_mode(Mode::Run, 0, &mut io, sink);
+    }
     let mut next = 0;
     loop {
         let now = clock.now_ns(engine.steps());
