@@ -34,7 +34,7 @@ use crate::config::ControlConfig;
 
 /// The most answer bytes kept for a client that does not read them; past this it is dropped
 /// (a status line is a few KiB, so only a client that stopped reading gets here).
-pub const MAX_OUTPUT_BYTES: usize = 4 << 20;
+const MAX_OUTPUT_BYTES: usize = 4 << 20;
 /// The most read from one client per wake, so that one fast sender cannot starve the others.
 const READ_CHUNK: usize = 64 * 1024;
 /// How long a connection being closed (after `too_long`) may take to read its last line.
