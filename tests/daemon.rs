@@ -32,7 +32,14 @@ impl Project {
         project
     }
 
+    /// Writes a file of the project; a config gets its own control socket in the project's
+    /// directory, so that daemons of tests running at the same time do not meet.
     fn write(&self, file: &str, text: &str) {
+        let text = if file.ends_with(".toml") && !text.contains("[control]") {
+            format!("{text}\n[control]\nsocket = \"plcd.sock\"\n")
+        } else {
+            text.to_string()
+        };
         std::fs::write(self.dir.join(file), text).unwrap();
     }
 

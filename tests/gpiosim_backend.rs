@@ -400,6 +400,7 @@ fn the_daemon_drives_gpio_lines_and_counts_edges_by_interrupt() {
          [[program]]\nfile = \"main.il\"\n[[program]]\nfile = \"count.il\"\ntask = \"count\"\n\
          [[task]]\nname = \"count\"\nkind = \"io\"\nnumber = 8\npriority = 2\n\
          contact = \"P0000\"\nedge = \"rising\"\n\
+         [control]\nsocket = \"plcd.sock\"\n\
          [io]\nbackend = \"gpiocdev\"\nchip = \"{}\"\n{WIRING}",
         chip.dev_path().display()
     );

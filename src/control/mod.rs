@@ -32,7 +32,8 @@ pub trait Handler {
     /// that client (one outstanding request per client bounds what can queue up).
     fn request(&mut self, client: ClientId, peer: &Peer, request: Request) -> Option<ResponseLine>;
     /// Appends the answers that became ready. Called when [`Handler::wake_fd`] is readable and
-    /// at least every [`Handler::tick`] while answers are outstanding.
+    /// at least every [`Handler::tick`] while answers are outstanding. It must drain the wake
+    /// fd, or the server's poll returns at once again.
     fn completions(&mut self, ready: &mut Vec<(ClientId, ResponseLine)>);
     /// Becomes readable when completions may be ready.
     fn wake_fd(&self) -> Option<BorrowedFd<'_>>;

@@ -28,7 +28,7 @@ use nix::sys::socket::{
 };
 use nix::unistd::{Gid, Group};
 
-use super::protocol::{self, ErrorKind, Failure, Outcome, ResponseLine};
+use super::protocol::{self, ErrorKind, ResponseLine};
 use super::{ClientId, Handler, Peer};
 use crate::config::ControlConfig;
 
@@ -468,7 +468,7 @@ impl Client {
                 continue;
             }
             match protocol::parse_request(&line) {
-                Err(failure) => self.answer(&failure_line(failure), now, idle)?,
+                Err(failure) => self.answer(&ResponseLine::failure(failure), now, idle)?,
                 Ok(request) => match handler.request(id, &self.peer, request) {
                     Some(response) => self.answer(&response, now, idle)?,
                     None => {
@@ -485,10 +485,6 @@ impl Client {
     fn finished(&self) -> bool {
         (self.eof || self.closing) && !self.outstanding && self.output.is_empty()
     }
-}
-
-fn failure_line(failure: Failure) -> ResponseLine {
-    ResponseLine { v: protocol::VERSION, outcome: Outcome::Error(failure) }
 }
 
 /// One answer, best effort, on a connection that is closed right after (busy, denied): it is

@@ -17,6 +17,8 @@ use super::control::{ControlHandler, ControlLinks, Running};
 use super::notify::{self, Notifier};
 use super::report;
 use crate::config::Backend;
+use crate::config::ControlConfig;
+use crate::control::server::{ControlServer, ServerError, Stopper};
 use crate::diag::Diagnostics;
 use crate::engine::event::{Event, Mode};
 use crate::engine::Engine;
@@ -59,6 +61,8 @@ pub enum DaemonError {
     Spawn { thread: &'static str, source: std::io::Error },
     #[error("the {0} thread ended unexpectedly")]
     ThreadDied(&'static str),
+    #[error("control socket: {0}")]
+    Control(#[from] ServerError),
 }
 
 fn list(items: &[String]) -> String {
@@ -226,6 +230,7 @@ impl Daemon {
 
         let signals = Signals::register()?;
         let has_switch = project.config.switch.is_some();
+        let control_config = project.config.control.clone();
         let running = Arc::new(Mutex::new(Running::new(config_path, project)));
         let links = ControlLinks {
             shared: Arc::clone(&shared),
@@ -234,7 +239,7 @@ impl Daemon {
             snapshot,
             running: Arc::clone(&running),
         };
-        let control = match start_control(links) {
+        let control = match start_control(&control_config, links) {
             Ok(control) => control,
             Err(e) => {
                 stop_threads(&shared, threads);
@@ -478,18 +483,39 @@ impl Daemon {
 /// The control socket's server thread.
 struct ControlThread {
     handle: JoinHandle<()>,
+    stopper: Stopper,
 }
 
 impl ControlThread {
+    /// Stops serving; the socket file is removed when the server is dropped.
     fn stop(self) {
+        self.stopper.stop();
         let _ = self.handle.join();
     }
 }
 
 /// Binds the control socket and starts its thread; `None` when `[control] enabled = false`.
-fn start_control(links: ControlLinks) -> Result<Option<ControlThread>, DaemonError> {
-    let _handler = ControlHandler::new(links);
-    Ok(None)
+fn start_control(
+    config: &ControlConfig,
+    links: ControlLinks,
+) -> Result<Option<ControlThread>, DaemonError> {
+    if !config.enabled {
+        log::info!("control socket disabled ([control] enabled = false)");
+        return Ok(None);
+    }
+    let mut server = ControlServer::bind(config)?;
+    log::info!("control socket {}", server.path().display());
+    let stopper = server.stopper();
+    let handle = std::thread::Builder::new()
+        .name("plcd-control".into())
+        .spawn(move || {
+            let mut handler = ControlHandler::new(links);
+            if let Err(e) = server.serve(&mut handler) {
+                log::error!("control socket: {e}; plcctl cannot reach this daemon any more");
+            }
+        })
+        .map_err(|source| DaemonError::Spawn { thread: "control", source })?;
+    Ok(Some(ControlThread { handle, stopper }))
 }
 
 /// Stops every thread; the scan thread stops between two instructions and puts the outputs
