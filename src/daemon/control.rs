@@ -39,6 +39,8 @@ use crate::stats::Histogram;
 pub const STATUS_MAX_AGE: Duration = Duration::from_millis(20);
 /// How long a request may wait for the scan thread before it is answered `unavailable`.
 pub const ANSWER_TIMEOUT: Duration = Duration::from_secs(10);
+/// How often a `step` in progress is looked at.
+const STEP_POLL: Duration = Duration::from_millis(5);
 /// Devices one `get` may name.
 pub const MAX_GET: usize = MAX_READ_WORDS;
 
@@ -54,7 +56,9 @@ impl Running {
     pub fn new(config_path: &Path, project: Project) -> Running {
         let watch = crate::sim::output_bits(&project);
         let names = Names::new(&project, &watch);
-        Running { config_path: config_path.to_path_buf(), project, names }
+        let config_path =
+            std::fs::canonicalize(config_path).unwrap_or_else(|_| config_path.to_path_buf());
+        Running { config_path, project, names }
     }
 }
 
@@ -74,6 +78,8 @@ pub struct ControlHandler {
     waiting: Vec<Waiting>,
     /// The last snapshot generation seen, and until when `status` may use it.
     fresh_until: Option<(u64, Instant)>,
+    /// When a capture was last asked for.
+    last_want: Instant,
 }
 
 struct Waiting {
@@ -92,12 +98,28 @@ enum Stage {
 
 enum Then {
     Mode,
-    Written { count: usize },
-    Forces { unforced: Option<Address> },
-    Debug { unbroken: Option<String>, devices: Option<Vec<Address>> },
+    Written {
+        count: usize,
+    },
+    Forces {
+        unforced: Option<Address>,
+    },
+    /// `until_paused`: `step` answers once the step is done (execution paused again).
+    Debug {
+        unbroken: Option<String>,
+        devices: Option<Vec<Address>>,
+        until_paused: bool,
+    },
     Status,
-    Values { devices: Vec<Address> },
-    Loaded { online: bool, programs: usize, tasks: usize, previous: Option<Box<Running>> },
+    Values {
+        devices: Vec<Address>,
+    },
+    Loaded {
+        online: bool,
+        programs: usize,
+        tasks: usize,
+        previous: Option<Box<Running>>,
+    },
 }
 
 fn failure(kind: Kind, message: impl Into<String>) -> ResponseLine {
@@ -140,6 +162,7 @@ impl ControlHandler {
             next_ticket: 1,
             waiting: Vec::new(),
             fresh_until: None,
+            last_want: Instant::now(),
         }
     }
 
@@ -202,6 +225,7 @@ impl ControlHandler {
 
     /// Asks for a capture of every word the waiting requests need.
     fn want_snapshot(&mut self) {
+        self.last_want = Instant::now();
         if let Ok(mut snapshot) = self.links.snapshot.lock() {
             let mut len = 0;
             for waiting in &self.waiting {
@@ -331,28 +355,32 @@ impl ControlHandler {
             Request::Forces => {
                 return self.park_for_snapshot(client, Then::Forces { unforced: None })
             }
-            Request::Step => {
-                (Some(ControlCommand::Step), Then::Debug { unbroken: None, devices: None })
-            }
-            Request::Continue => {
-                (Some(ControlCommand::Continue), Then::Debug { unbroken: None, devices: None })
-            }
+            Request::Step => (
+                Some(ControlCommand::Step),
+                Then::Debug { unbroken: None, devices: None, until_paused: true },
+            ),
+            Request::Continue => (
+                Some(ControlCommand::Continue),
+                Then::Debug { unbroken: None, devices: None, until_paused: false },
+            ),
             Request::Break { at } => match self.resolve(&at) {
-                Ok(bp) => {
-                    (Some(ControlCommand::Break(bp)), Then::Debug { unbroken: None, devices: None })
-                }
+                Ok(bp) => (
+                    Some(ControlCommand::Break(bp)),
+                    Then::Debug { unbroken: None, devices: None, until_paused: false },
+                ),
                 Err(f) => return Some(ResponseLine::failure(f)),
             },
             Request::Unbreak { at: Some(at) } => match self.resolve(&at) {
                 Ok(bp) => (
                     Some(ControlCommand::Unbreak(Some(bp))),
-                    Then::Debug { unbroken: Some(at), devices: None },
+                    Then::Debug { unbroken: Some(at), devices: None, until_paused: false },
                 ),
                 Err(f) => return Some(ResponseLine::failure(f)),
             },
-            Request::Unbreak { at: None } => {
-                (Some(ControlCommand::Unbreak(None)), Then::Debug { unbroken: None, devices: None })
-            }
+            Request::Unbreak { at: None } => (
+                Some(ControlCommand::Unbreak(None)),
+                Then::Debug { unbroken: None, devices: None, until_paused: false },
+            ),
             Request::Load { config, online } => return self.load(client, &config, online),
         };
         self.park(client, commands.into_iter().collect(), then)
@@ -559,7 +587,18 @@ impl ControlHandler {
                     client,
                     ResponseLine::ok(Reply::Forces { forces: forces_of(&snapshot) }),
                 )),
-                Then::Debug { devices: None, unbroken } => {
+                Then::Debug { until_paused: true, unbroken, devices }
+                    if snapshot.mode == Mode::Debug && snapshot.debug_run != DebugRun::Paused =>
+                {
+                    // Still stepping: look again at the next round (see `completions`).
+                    self.waiting.push(Waiting {
+                        client,
+                        since: waiting.since,
+                        stage: Stage::Snapshot { after: generation },
+                        then: Then::Debug { unbroken, devices, until_paused: true },
+                    });
+                }
+                Then::Debug { devices: None, unbroken, .. } => {
                     let devices = self.paused_devices(&snapshot);
                     if devices.is_empty() {
                         ready.push((
@@ -572,7 +611,11 @@ impl ControlHandler {
                             client,
                             since: waiting.since,
                             stage: Stage::Snapshot { after: generation },
-                            then: Then::Debug { unbroken, devices: Some(devices) },
+                            then: Then::Debug {
+                                unbroken,
+                                devices: Some(devices),
+                                until_paused: false,
+                            },
                         });
                         again = true;
                     }
@@ -789,6 +832,15 @@ impl Handler for ControlHandler {
         {
             self.serve_snapshot(ready);
         }
+        // A step in progress is looked at again every few ms, not at every boundary: between
+        // two scans of a fixed period every pass of the scan thread is one.
+        let stepping = self.waiting.iter().any(|w| {
+            matches!(w.then, Then::Debug { until_paused: true, .. })
+                && matches!(w.stage, Stage::Snapshot { .. })
+        });
+        if stepping && self.last_want.elapsed() >= STEP_POLL {
+            self.want_snapshot();
+        }
         let now = Instant::now();
         let mut index = 0;
         while index < self.waiting.len() {
@@ -810,7 +862,11 @@ impl Handler for ControlHandler {
     }
 
     fn tick(&self) -> Duration {
-        Duration::from_millis(50)
+        if self.waiting.iter().any(|w| matches!(w.then, Then::Debug { until_paused: true, .. })) {
+            STEP_POLL
+        } else {
+            Duration::from_millis(50)
+        }
     }
 
     fn gone(&mut self, client: ClientId) {
