@@ -83,7 +83,7 @@ pub fn parse_value(text: &str) -> Result<i32, String> {
 }
 
 /// One `DEVICE  VALUE` line per device.
-pub fn render_values(_scan: u64, values: &[DeviceValue]) -> String {
+pub fn render_values(values: &[DeviceValue]) -> String {
     format::device_table(values)
 }
 

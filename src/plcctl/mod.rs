@@ -290,7 +290,7 @@ pub fn render(request: &Request, reply: &Reply) -> String {
     match reply {
         Reply::Status(s) => status::render(s),
         Reply::Mode { mode } => mode::render(*mode),
-        Reply::Values { scan, values } => devices::render_values(*scan, values),
+        Reply::Values { values, .. } => devices::render_values(values),
         Reply::Written { scan, count } => devices::render_written(*scan, *count),
         Reply::Forces { forces } => forces::render(forces),
         Reply::Loaded { online, programs, tasks, mode } => {
