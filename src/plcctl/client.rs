@@ -17,6 +17,8 @@ use nix::sys::time::TimeVal;
 use crate::control::protocol::{self, ErrorKind, Failure, Reply, Request, RequestLine};
 use crate::sim::duration::format_ns;
 
+use super::{EXIT_DAEMON_ERROR, EXIT_PROTOCOL, EXIT_UNREACHABLE};
+
 /// The longest answer line accepted. A status of thousands of tasks is far below it; more
 /// means the peer is not a plcd.
 pub const MAX_RESPONSE_BYTES: usize = 16 * 1024 * 1024;
@@ -82,15 +84,15 @@ impl ClientError {
     /// another version, closed before answering, an unexpected reply).
     pub fn exit_code(&self) -> u8 {
         match self {
-            ClientError::Daemon { .. } => 1,
+            ClientError::Daemon { .. } => EXIT_DAEMON_ERROR,
             ClientError::Connect { .. }
             | ClientError::ConnectTimeout { .. }
             | ClientError::Timeout { .. }
-            | ClientError::Io { .. } => 3,
+            | ClientError::Io { .. } => EXIT_UNREACHABLE,
             ClientError::Closed { .. }
             | ClientError::Malformed { .. }
             | ClientError::Version { .. }
-            | ClientError::UnexpectedReply { .. } => 4,
+            | ClientError::UnexpectedReply { .. } => EXIT_PROTOCOL,
         }
     }
 
