@@ -19,6 +19,7 @@ pub mod diag;
 pub mod engine;
 pub mod io;
 pub mod lang;
+pub mod plcctl;
 pub mod project;
 pub mod rt;
 pub mod sim;
