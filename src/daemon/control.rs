@@ -265,7 +265,11 @@ impl ControlHandler {
             Request::Run => (remote(ModeRequest::Run), Then::Mode),
             Request::Stop => (remote(ModeRequest::Stop), Then::Mode),
             Request::Reset { cold } => (remote(ModeRequest::Reset { cold }), Then::Mode),
-            Request::Debug => (remote(ModeRequest::Debug), Then::Mode),
+            // From RUN the current scan ends first: answered once paused.
+            Request::Debug => (
+                remote(ModeRequest::Debug),
+                Then::Debug { unbroken: None, devices: None, until_paused: true },
+            ),
             Request::Get { devices } => {
                 if devices.is_empty() {
                     return Some(failure(Kind::Invalid, "name at least one device"));
@@ -510,15 +514,24 @@ impl ControlHandler {
                 waiting.client,
                 ResponseLine::ok(Reply::Written { scan: applied.scan, count }),
             )),
-            Then::Loaded { online, programs, tasks, .. } => ready.push((
-                waiting.client,
-                ResponseLine::ok(Reply::Loaded {
-                    online,
-                    programs,
-                    tasks,
-                    mode: mode_name(applied.mode),
-                }),
-            )),
+            Then::Loaded { online, programs, tasks, .. } => {
+                let running = self.links.running.lock().unwrap_or_else(|e| e.into_inner());
+                log::info!(
+                    "loaded {} ({programs} programs, {tasks} tasks){}",
+                    running.config_path.display(),
+                    if online { " as an online change" } else { "" }
+                );
+                drop(running);
+                ready.push((
+                    waiting.client,
+                    ResponseLine::ok(Reply::Loaded {
+                        online,
+                        programs,
+                        tasks,
+                        mode: mode_name(applied.mode),
+                    }),
+                ));
+            }
             Then::Forces { unforced: Some(address) } if !applied.changed => ready
                 .push((waiting.client, failure(Kind::Invalid, format!("{address} is not forced")))),
             Then::Debug { unbroken: Some(at), .. } if !applied.changed => ready

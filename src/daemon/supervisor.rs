@@ -77,8 +77,12 @@ pub struct Options {
 
 /// Runs the daemon until SIGTERM or SIGINT. Ok after a clean stop.
 pub fn run(options: &Options) -> Result<(), DaemonError> {
-    let project = project::load(&options.config).map_err(DaemonError::Invalid)?;
-    let mut daemon = Daemon::start(&options.config, project)?;
+    // Absolute from the start, so that the paths in the config resolve the same way whether the
+    // project is reloaded by SIGHUP or loaded again by `plcctl load` (which sends an absolute
+    // path), and compare equal when nothing changed.
+    let config = std::fs::canonicalize(&options.config).unwrap_or_else(|_| options.config.clone());
+    let project = project::load(&config).map_err(DaemonError::Invalid)?;
+    let mut daemon = Daemon::start(&config, project)?;
     daemon.supervise()
 }
 
