@@ -404,3 +404,39 @@ fn fifty_clients_polling_status_lose_no_scan() {
     );
     plc.stop();
 }
+
+#[test]
+fn the_key_switch_rules_remote_mode_changes() {
+    // The simulated switch starts at RUN and is turned to STOP after 3 s.
+    let config = CONFIG.replace(
+        "[control]",
+        "[switch]\nposition = \"run\"\n[io]\nstimulus = \"switch.csv\"\n[control]",
+    );
+    let plc = Plc::start(
+        "switch",
+        &[
+            ("plcd.toml", &config),
+            ("main.il", MAIN),
+            ("tick.il", TICK),
+            ("switch.csv", "3s, SWITCH, STOP\n"),
+        ],
+    );
+    let status = plc.status();
+    if status["switch"] == "RUN" {
+        assert_eq!(status["remote_allowed"], false);
+        let refused = plc.ctl(&["stop"]);
+        assert_eq!(refused.status.code(), Some(1));
+        assert!(refused.stderr_text().contains("switch is at RUN"), "{}", refused.stderr_text());
+    }
+    plc.wait(|p| p.status()["mode"] == "STOP", "the switch turned to STOP");
+    assert_eq!(plc.status()["remote_allowed"], true);
+    assert!(plc.ok(&["run"]).contains("RUN"), "remote RUN with the switch at STOP");
+    let log = plc.stop();
+    for expected in ["mode RUN (key switch)", "key switch at STOP", "mode STOP (key switch)"] {
+        assert!(
+            log.iter().any(|l| l.contains(expected)),
+            "no {expected:?} in:\n{}",
+            log.join("\n")
+        );
+    }
+}

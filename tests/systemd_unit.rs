@@ -420,7 +420,8 @@ fn installed_files(prefix: &str) -> Vec<String> {
     .map(|s| s.to_string())
     .collect();
     files.push(format!("{prefix}/bin/plcd"));
-    for doc in ["DEPLOY.md", "DAEMON.md", "CONFIG.md"] {
+    files.push(format!("{prefix}/bin/plcctl"));
+    for doc in ["DEPLOY.md", "DAEMON.md", "CONFIG.md", "CONTROL.md", "PLCCTL.md"] {
         files.push(format!("{prefix}/share/doc/plcd/{doc}"));
     }
     for entry in fs::read_dir(repo().join("etc/programs")).unwrap() {
