@@ -151,7 +151,7 @@ fn main() {
     }
     for (name, f) in [("no clients", &quiet), ("clients", &loaded)] {
         println!(
-            "\n{name}: {} scans in {} ms periods; program counted {}; lost scans {}; {} status answers ({:.0}/s)",
+            "\n{name}: {} scans in {} ms; program counted {}; periods without a scan {}; {} status answers ({:.0}/s)",
             f.scans,
             f.periods,
             f.counted,

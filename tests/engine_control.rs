@@ -482,3 +482,29 @@ fn plcd_sim_follows_the_simulated_key_switch() {
     );
     assert_eq!(engine.mode(), Mode::Stop);
 }
+
+#[test]
+fn a_fixed_scan_period_keeps_its_grid_when_a_scan_starts_late() {
+    // The driver notices the scan time 80 µs late (its wake-up latency): the next scan is still
+    // due on the 10 ms grid, not 10 ms after the late start.
+    let p = project(
+        "[plc]\nscan_period_ms = 10\n[[program]]\nfile = \"main.il\"\n",
+        &[("main.il", "END\n")],
+        false,
+    );
+    let mut engine = Engine::new(&p, &[]);
+    let mut field = Field::default();
+    let mut events = Recorder::default();
+    let clock = plcd::vm::ManualClock::new(0);
+    engine.set_mode(Mode::Run, 0, &mut field, &mut events);
+    engine.run(&clock, &mut field, &mut events, 100);
+    assert_eq!(engine.next_wakeup(0), Some(10 * MS));
+    clock.set(10 * MS + 80_000);
+    engine.run(&clock, &mut field, &mut events, 100);
+    assert_eq!(engine.scan_count(), 2);
+    assert_eq!(engine.next_wakeup(10 * MS + 80_000), Some(20 * MS), "on the grid");
+    // A scan (here: its driver) 25 ms late skips the grid points it missed.
+    clock.set(45 * MS);
+    engine.run(&clock, &mut field, &mut events, 100);
+    assert_eq!(engine.next_wakeup(45 * MS), Some(50 * MS));
+}

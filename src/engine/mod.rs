@@ -1102,7 +1102,15 @@ impl Engine {
         self.check_watches(now, sink);
         self.phase = Phase::Idle;
         let period = self.settings.scan_period_ns;
-        self.next_scan_ns = if period == 0 { now } else { (self.scan_start_ns + period).max(now) };
+        // On the grid of the schedule, not counted from the (possibly late) start: a scan that
+        // started late — a driver's wake-up latency, a task that ran first — does not push
+        // every later one back. Grid points already passed are skipped, not caught up.
+        self.next_scan_ns = if period == 0 {
+            now
+        } else {
+            let next = self.next_scan_ns + period;
+            next + now.saturating_sub(next).div_ceil(period) * period
+        };
     }
 
     fn sample_value(&self, sample: Sample) -> i32 {
