@@ -154,6 +154,13 @@ fn parse_device(text: &str) -> Result<Address, Failure> {
     Address::parse(text.trim()).map_err(|e| Failure::new(Kind::Invalid, e.to_string()))
 }
 
+/// A device that can be forced: a P bit.
+fn parse_io_bit(text: &str) -> Result<(Address, crate::device::BitRef), Failure> {
+    let address = parse_device(text)?;
+    let bit = force::io_bit(&address).map_err(|e| Failure::new(Kind::Invalid, e.to_string()))?;
+    Ok((address, bit))
+}
+
 impl ControlHandler {
     pub fn new(links: ControlLinks) -> ControlHandler {
         ControlHandler {
@@ -326,13 +333,9 @@ impl ControlHandler {
                 return self.park(client, commands, Then::Written { count });
             }
             Request::Force { dev, value } => {
-                let address = match parse_device(&dev) {
-                    Ok(address) => address,
+                let (address, bit) = match parse_io_bit(&dev) {
+                    Ok(found) => found,
                     Err(f) => return Some(ResponseLine::failure(f)),
-                };
-                let bit = match force::io_bit(&address) {
-                    Ok(bit) => bit,
-                    Err(e) => return Some(failure(Kind::Invalid, e.to_string())),
                 };
                 if !(0..=1).contains(&value) {
                     return Some(failure(
@@ -343,13 +346,9 @@ impl ControlHandler {
                 (Some(ControlCommand::Force(bit, value == 1)), Then::Forces { unforced: None })
             }
             Request::Unforce { dev } => {
-                let address = match parse_device(&dev) {
-                    Ok(address) => address,
+                let (address, bit) = match parse_io_bit(&dev) {
+                    Ok(found) => found,
                     Err(f) => return Some(ResponseLine::failure(f)),
-                };
-                let bit = match force::io_bit(&address) {
-                    Ok(bit) => bit,
-                    Err(e) => return Some(failure(Kind::Invalid, e.to_string())),
                 };
                 (Some(ControlCommand::Unforce(bit)), Then::Forces { unforced: Some(address) })
             }

@@ -161,8 +161,9 @@ fn syslog_priority(level: Level) -> u8 {
     }
 }
 
-/// Appends `now` as `YYYY-MM-DDTHH:MM:SS.mmmZ`, rounded down to the millisecond.
-fn write_timestamp(out: &mut String, now: SystemTime) {
+/// Appends `now` as `YYYY-MM-DDTHH:MM:SS.mmmZ`, rounded down to the millisecond (also the time
+/// stamp of `plcctl watch`).
+pub fn write_timestamp(out: &mut String, now: SystemTime) {
     use std::fmt::Write as _;
 
     // A clock set before 1970 is wrong, but still deserves a well-formed line.

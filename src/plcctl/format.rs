@@ -1,6 +1,6 @@
 //! Human output: durations in readable units, aligned columns, labelled fields, time stamps.
 
-use std::time::{SystemTime, UNIX_EPOCH};
+use std::time::SystemTime;
 
 use crate::control::protocol::DeviceValue;
 
@@ -48,36 +48,9 @@ pub fn device_list(values: &[DeviceValue]) -> String {
 /// `time` as `YYYY-MM-DDTHH:MM:SS.mmmZ` (UTC, rounded down to the millisecond), the daemon's
 /// log format.
 pub fn timestamp(time: SystemTime) -> String {
-    let nanos: i128 = match time.duration_since(UNIX_EPOCH) {
-        Ok(d) => d.as_nanos() as i128,
-        Err(e) => -(e.duration().as_nanos() as i128),
-    };
-    let millis = nanos.div_euclid(1_000_000);
-    let secs = millis.div_euclid(1000) as i64;
-    let (year, month, day) = civil_from_days(secs.div_euclid(86_400));
-    let sec_of_day = secs.rem_euclid(86_400);
-    format!(
-        "{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}.{:03}Z",
-        sec_of_day / 3600,
-        sec_of_day / 60 % 60,
-        sec_of_day % 60,
-        millis.rem_euclid(1000)
-    )
-}
-
-/// The proleptic Gregorian (year, month, day) of `days` since 1970-01-01 (Howard Hinnant's
-/// `civil_from_days`, as in the daemon's logging).
-fn civil_from_days(days: i64) -> (i64, u32, u32) {
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z.rem_euclid(146_097);
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let day = (doy - (153 * mp + 2) / 5 + 1) as u32;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
-    let year = yoe + era * 400 + i64::from(month <= 2);
-    (year, month, day)
+    let mut out = String::with_capacity(24);
+    crate::daemon::logging::write_timestamp(&mut out, time);
+    out
 }
 
 /// How a column is aligned.
@@ -175,7 +148,7 @@ pub fn device_table(values: &[DeviceValue]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::time::Duration;
+    use std::time::{Duration, UNIX_EPOCH};
 
     #[test]
     fn durations() {
