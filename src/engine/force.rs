@@ -93,10 +93,6 @@ impl Forces {
         self.count == 0
     }
 
-    /// Forced bits in all.
-    pub fn len(&self) -> usize {
-        self.count as usize
-    }
 
     /// Writes the forced values over the I/O image and maintains the force flags.
     #[inline]
