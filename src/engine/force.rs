@@ -93,7 +93,6 @@ impl Forces {
         self.count == 0
     }
 
-
     /// Writes the forced values over the I/O image and maintains the force flags.
     #[inline]
     pub fn apply(&self, mem: &mut Memory) {
