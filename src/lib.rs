@@ -7,9 +7,11 @@
 //! - [`vm`]: executes compiled programs one instruction at a time, resumable between any two;
 //! - [`project`]: a config and all its programs, loaded and checked together;
 //! - [`engine`]: the task engine, pure and clock-injected: what runs when;
-//! - [`io`]: I/O backends behind one trait.
+//! - [`io`]: I/O backends behind one trait;
+//! - [`bench`]: measuring all of it on the machine it runs on (`plcd bench`, BENCHMARKS.md).
 #![deny(unsafe_code)]
 
+pub mod bench;
 pub mod commands;
 pub mod config;
 pub mod control;
