@@ -4,6 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use plcd::commands::bench::BenchArgs;
 use plcd::commands::run::RunArgs;
 use plcd::commands::sim::SimArgs;
 
@@ -26,6 +27,8 @@ enum Command {
     },
     /// Run the engine in virtual time, deterministically, as fast as the CPU allows.
     Sim(SimArgs),
+    /// Measure the real-time driver on this machine: cycle-task and edge latency.
+    Bench(BenchArgs),
 }
 
 fn main() -> ExitCode {
@@ -36,5 +39,8 @@ fn main() -> ExitCode {
             plcd::commands::check::run(&config, &mut std::io::stdout(), &mut std::io::stderr())
         }
         Command::Sim(args) => plcd::commands::sim::run(&args, &mut std::io::stderr()),
+        Command::Bench(args) => {
+            plcd::commands::bench::run(&args, &mut std::io::stdout(), &mut std::io::stderr())
+        }
     }
 }

@@ -105,6 +105,15 @@ impl Histogram {
         self.count
     }
 
+    /// The buckets in use, in order: (largest value of the bucket, count).
+    pub fn buckets(&self) -> impl Iterator<Item = (u64, u64)> + '_ {
+        self.counts
+            .iter()
+            .enumerate()
+            .filter(|&(_, &n)| n > 0)
+            .map(|(bucket, &n)| (bucket_top(bucket), n))
+    }
+
     /// The value below or at which a share `q` (0.0..=1.0) of the recorded values lie, rounded
     /// up to its bucket's upper edge and capped by the maximum; 0 when empty.
     pub fn quantile(&self, q: f64) -> u64 {
@@ -157,6 +166,19 @@ impl Summary {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn buckets_list_the_counts_in_use_by_their_upper_edge() {
+        let mut h = Histogram::new();
+        for v in [3, 3, 40_000, 1_000_000] {
+            h.record(v);
+        }
+        let buckets: Vec<(u64, u64)> = h.buckets().collect();
+        assert_eq!(buckets.len(), 3);
+        assert_eq!(buckets[0], (3, 2));
+        assert!(buckets[1].0 >= 40_000 && buckets[1].0 < 40_000 * 103 / 100, "{buckets:?}");
+        assert_eq!(buckets.iter().map(|b| b.1).sum::<u64>(), h.count());
+    }
 
     #[test]
     fn copy_from_equals_a_clone_whatever_was_there_before() {

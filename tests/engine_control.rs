@@ -508,3 +508,34 @@ fn a_fixed_scan_period_keeps_its_grid_when_a_scan_starts_late() {
     engine.run(&clock, &mut field, &mut events, 100);
     assert_eq!(engine.next_wakeup(45 * MS), Some(50 * MS));
 }
+
+#[test]
+fn deadlines_noticed_a_full_interval_late_are_counted_as_missed() {
+    // A 1 ms cycle task; the driver looks at the clock late: 0.9 ms after the 1 ms deadline
+    // (not missed), then at 5.5 ms (the deadlines of 2, 3, 4 and 5 ms passed, three of them a
+    // full interval or more before it looked).
+    let p = project(
+        "[plc]\nscan_period_ms = 10\n[[program]]\nfile = \"main.il\"\n\
+         [[program]]\nname = \"tick\"\nfile = \"tick.il\"\ntask = \"tick\"\n\
+         [[task]]\nname = \"tick\"\nkind = \"cycle\"\nnumber = 0\npriority = 2\ninterval_ms = 1\n",
+        &[("main.il", "END\n"), ("tick.il", "INC D00000\nEND\n")],
+        false,
+    );
+    let mut engine = Engine::new(&p, &[]);
+    let mut field = Field::default();
+    let mut events = Recorder::default();
+    let clock = plcd::vm::ManualClock::new(0);
+    engine.set_mode(Mode::Run, 0, &mut field, &mut events);
+    engine.run(&clock, &mut field, &mut events, 100);
+    for now in [MS + 900_000, 5 * MS + 500_000] {
+        clock.set(now);
+        engine.poll_time(now, &mut field, &mut events);
+        engine.run(&clock, &mut field, &mut events, 100);
+    }
+    assert_eq!(engine.missed_deadlines(), 3, "the deadlines of 2, 3 and 4 ms");
+    assert_eq!(engine.task_stats("tick").unwrap().runs, 2);
+    // RUN starts the count again.
+    engine.set_mode(Mode::Stop, 6 * MS, &mut field, &mut events);
+    engine.set_mode(Mode::Run, 6 * MS, &mut field, &mut events);
+    assert_eq!(engine.missed_deadlines(), 0);
+}

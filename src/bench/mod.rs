@@ -5,6 +5,7 @@
 //! into `target/bench-results/NAME.md`; `benches/refresh` runs them all and splices each
 //! fragment into BENCHMARKS.md between `<!-- BEGIN NAME -->` and `<!-- END NAME -->`.
 
+pub mod realtime;
 pub mod report;
 
 pub use report::{machine, write_fragment, Fragment};

@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use crate::daemon::logging;
 use crate::daemon::supervisor::{self, DaemonError, Options};
+use crate::rt::driver::DriverError;
 
 /// The command's arguments.
 #[derive(Debug, Clone, clap::Args)]
@@ -31,7 +32,7 @@ pub fn run(args: &RunArgs) -> ExitCode {
             log::error!("not started: {} errors in the project", diagnostics.len());
             ExitCode::from(1)
         }
-        Err(DaemonError::Stimulus { source, .. }) => {
+        Err(DaemonError::Driver(DriverError::Stimulus { source, .. })) => {
             for d in source.iter() {
                 log::error!("{d}");
             }

@@ -713,11 +713,7 @@ impl ControlHandler {
             },
             tasks,
             lost_edges: shared.lost_edges.load(Ordering::Relaxed),
-            missed_timer_expirations: shared
-                .timer_missed
-                .iter()
-                .map(|m| m.load(Ordering::Relaxed))
-                .sum(),
+            missed_timer_expirations: shared.missed_deadlines.load(Ordering::Relaxed),
             watchdog_trips: shared.watchdog_trips.load(Ordering::Relaxed),
             forces: forces_of(snapshot),
             debug: (mode == Mode::Debug).then(|| self.debug_state_with(snapshot, &running)),

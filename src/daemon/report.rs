@@ -88,10 +88,10 @@ pub fn statistics(engine: &Engine, shared: &Shared) -> Vec<String> {
             figures(&stats.exec_time.summary())
         ));
     }
-    let missed: u64 = shared.timer_missed.iter().map(|m| m.load(Ordering::Relaxed)).sum();
     lines.push(format!(
-        "statistics: {} lost edges, {missed} missed timer expirations, {} watchdog trips",
+        "statistics: {} lost edges, {} missed timer expirations, {} watchdog trips",
         shared.lost_edges.load(Ordering::Relaxed),
+        engine.missed_deadlines(),
         shared.watchdog_trips.load(Ordering::Relaxed)
     ));
     lines

@@ -9,7 +9,7 @@ use std::os::fd::AsFd;
 use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{mpsc, Arc, Mutex};
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -22,22 +22,10 @@ use crate::control::server::{ControlServer, ServerError, Stopper};
 use crate::diag::Diagnostics;
 use crate::engine::event::{Event, Mode};
 use crate::engine::Engine;
-use crate::io::gate::OutputGate;
-use crate::io::gpio::{self, GpioError};
-use crate::io::InputEdge;
 use crate::project::{self, Project};
-use crate::rt::events::EventThread;
-use crate::rt::io::{FieldIo, GatedIo, SafeOutputs};
-use crate::rt::scan::ScanThread;
-use crate::rt::snapshot::Snapshot;
-use crate::rt::stimulus::StimulusThread;
-use crate::rt::sys::{self, SysError, Timer};
-use crate::rt::watchdog::WatchdogThread;
-use crate::rt::{
-    self, Command, Completion, Report, Role, RtSetupError, Shared, Source, COMMAND_QUEUE,
-    COMPLETION_QUEUE, EDGE_QUEUE, REPORT_QUEUE, THREAD_STACK,
-};
-use crate::sim::stimulus;
+use crate::rt::driver::{Driver, DriverError, PLAIN_THREAD_STACK};
+use crate::rt::sys::{self, SysError};
+use crate::rt::{Command, Report, Shared, Source};
 
 /// How often the supervisor looks at reports, the service watchdog and the status.
 const TICK: Duration = Duration::from_millis(50);
@@ -49,24 +37,16 @@ const STATUS_EVERY: Duration = Duration::from_secs(1);
 pub enum DaemonError {
     #[error("{0}")]
     Invalid(Diagnostics),
-    #[error("{path}: {source}", path = .path.display())]
-    Stimulus { path: PathBuf, source: Diagnostics },
-    #[error("I/O: {0}")]
-    Io(#[from] GpioError),
+    #[error(transparent)]
+    Driver(#[from] DriverError),
     #[error("{0}")]
     Sys(#[from] SysError),
-    #[error("real time required by [rt] require = true, but: {}", list(.0))]
-    RtRefused(Vec<String>),
-    #[error("cannot start the {thread} thread: {source}")]
-    Spawn { thread: &'static str, source: std::io::Error },
     #[error("the {0} thread ended unexpectedly")]
     ThreadDied(&'static str),
+    #[error("cannot start the {thread} thread: {source}")]
+    Spawn { thread: &'static str, source: std::io::Error },
     #[error("control socket: {0}")]
     Control(#[from] ServerError),
-}
-
-fn list(items: &[String]) -> String {
-    items.join("; ")
 }
 
 /// The daemon's options from the command line.
@@ -86,24 +66,13 @@ pub fn run(options: &Options) -> Result<(), DaemonError> {
     daemon.supervise()
 }
 
-struct Threads {
-    scan: JoinHandle<Box<Engine>>,
-    events: JoinHandle<Result<(), SysError>>,
-    watchdog: JoinHandle<()>,
-    stimulus: Option<JoinHandle<()>>,
-    /// To make the outputs safe if the scan thread dies instead of stopping.
-    gate: Arc<OutputGate>,
-    safe: SafeOutputs,
-}
-
 struct Daemon {
     config_path: PathBuf,
     /// The running project and its names, shared with the control thread.
     running: Arc<Mutex<Running>>,
+    /// The real-time threads; `None` once shut down.
+    driver: Option<Driver>,
     shared: Arc<Shared>,
-    commands: Arc<Mutex<rtrb::Producer<Command>>>,
-    reports: rtrb::Consumer<Report>,
-    threads: Option<Threads>,
     /// The control socket's thread, and how to stop it.
     control: Option<ControlThread>,
     log_outputs: log::Level,
@@ -118,145 +87,43 @@ struct Daemon {
 
 impl Daemon {
     fn start(config_path: &Path, project: Project) -> Result<Daemon, DaemonError> {
-        let config = &project.config;
-        let rt = config.rt.clone();
-        let mut problems: Vec<String> = Vec::new();
-        if rt.lock_memory {
-            if let Err(e) = sys::lock_memory() {
-                problems.push(e);
-            }
-        }
-        let shared = Arc::new(Shared::new()?);
-        let gate = Arc::new(OutputGate::default());
-        let (edge_tx, edge_rx) = rtrb::RingBuffer::<InputEdge>::new(EDGE_QUEUE);
-        let (command_tx, command_rx) = rtrb::RingBuffer::<Command>::new(COMMAND_QUEUE);
-        let (report_tx, report_rx) = rtrb::RingBuffer::<Report>::new(REPORT_QUEUE);
-        let (completion_tx, completion_rx) = rtrb::RingBuffer::<Completion>::new(COMPLETION_QUEUE);
-        let commands = Arc::new(Mutex::new(command_tx));
-        let snapshot = Arc::new(Mutex::new(Snapshot::new()));
-
-        // The field.
-        let mut events = EventThread::new(Arc::clone(&shared))?;
-        let mut stimulus_thread = None;
-        let (field, safe) = match config.io.backend {
-            Backend::Sim => {
-                let stimuli = match &config.io.stimulus {
-                    Some(path) => stimulus::load_for(path, config)
-                        .map_err(|source| DaemonError::Stimulus { path: path.clone(), source })?,
-                    None => Vec::new(),
-                };
-                let io = crate::sim::sim_io(&project, &stimuli);
-                let field = io.field();
-                if !stimuli.is_empty() {
-                    stimulus_thread = Some(StimulusThread {
-                        shared: Arc::clone(&shared),
-                        stimuli,
-                        looped: config.io.stimulus_loop,
-                        origin_ns: 0,
-                        field: Arc::clone(&field),
-                        edges: edge_tx,
-                        commands: Arc::clone(&commands),
-                    });
-                }
-                (FieldIo::Sim(io), SafeOutputs::Sim(field))
-            }
-            Backend::Gpiocdev => {
-                let opened = gpio::open(
-                    &config.io,
-                    config.switch.as_ref(),
-                    &config.edge_contacts(),
-                    "plcd",
-                )?;
-                events.gpio = opened.edges;
-                events.edges = Some(edge_tx);
-                (FieldIo::Gpio(opened.io), SafeOutputs::Gpio(opened.outputs))
-            }
-        };
-        let clear = config.plc.on_fault == crate::config::OnFault::Clear;
-        let io =
-            GatedIo { field, gate: Arc::clone(&gate), safe: safe.clone(), clear_on_trip: clear };
-
-        let watch = crate::sim::output_bits(&project);
-        let engine = Box::new(Engine::new(&project, &watch));
-        let log_outputs =
-            if config.io.backend == Backend::Sim { log::Level::Info } else { log::Level::Debug };
-
-        // The threads, each reporting how its [rt] setup went before it starts working.
-        let (setup_tx, setup_rx) = mpsc::channel::<Vec<RtSetupError>>();
-        let watchdog = spawn_rt(Role::Watchdog, &rt, setup_tx.clone(), {
-            let thread = WatchdogThread {
-                shared: Arc::clone(&shared),
-                gate: Arc::clone(&gate),
-                safe: safe.clone(),
-                clear,
-            };
-            move || thread.run()
-        })?;
-        let events = spawn_rt(Role::Events, &rt, setup_tx.clone(), move || events.run())?;
-        let scan_thread = ScanThread {
-            engine,
-            io,
-            shared: Arc::clone(&shared),
-            edges: edge_rx,
-            commands: command_rx,
-            reports: report_tx,
-            completions: completion_tx,
-            snapshot: Arc::clone(&snapshot),
-            timer: Timer::new()?,
-            watchdog: watchdog.thread().clone(),
-        };
-        let scan = spawn_rt(Role::Scan, &rt, setup_tx, move || scan_thread.run())?;
-        for _ in 0..3 {
-            let errors = setup_rx.recv().unwrap_or_default();
-            problems.extend(errors.iter().map(|e| e.to_string()));
-        }
-        let mut threads = Threads { scan, events, watchdog, stimulus: None, gate, safe };
-        if !problems.is_empty() {
-            if rt.require {
-                stop_threads(&shared, threads);
-                return Err(DaemonError::RtRefused(problems));
-            }
+        let mut driver = Driver::start(&project)?;
+        if !driver.problems.is_empty() {
             log::warn!(
                 "running without full real-time guarantees: {}; grant CAP_SYS_NICE and \
                  CAP_IPC_LOCK, or set [rt] policy = \"other\" and lock_memory = false to run \
                  without them on purpose (docs/CONFIG.md)",
-                problems.join("; ")
+                driver.problems.join("; ")
             );
         }
-        if let Some(mut player) = stimulus_thread {
-            player.origin_ns = sys::now_ns();
-            let handle = std::thread::Builder::new()
-                .name("plcd-stimulus".into())
-                .spawn(move || player.run())
-                .map_err(|source| DaemonError::Spawn { thread: "stimulus", source })?;
-            threads.stimulus = Some(handle);
-        }
+        let log_outputs = if project.config.io.backend == Backend::Sim {
+            log::Level::Info
+        } else {
+            log::Level::Debug
+        };
+        let shared = Arc::clone(&driver.shared);
 
         let signals = Signals::register()?;
         let has_switch = project.config.switch.is_some();
         let control_config = project.config.control.clone();
         let running = Arc::new(Mutex::new(Running::new(config_path, project)));
+        let Some(completions) = driver.take_completions() else {
+            unreachable!("a new driver has its completions")
+        };
         let links = ControlLinks {
             shared: Arc::clone(&shared),
-            commands: Arc::clone(&commands),
-            completions: completion_rx,
-            snapshot,
+            commands: Arc::clone(&driver.commands),
+            completions,
+            snapshot: Arc::clone(&driver.snapshot),
             running: Arc::clone(&running),
         };
-        let control = match start_control(&control_config, links) {
-            Ok(control) => control,
-            Err(e) => {
-                stop_threads(&shared, threads);
-                return Err(e);
-            }
-        };
+        // On an error, dropping the driver stops the threads.
+        let control = start_control(&control_config, links)?;
         let daemon = Daemon {
             config_path: config_path.to_path_buf(),
             running,
+            driver: Some(driver),
             shared,
-            commands,
-            reports: report_rx,
-            threads: Some(threads),
             control,
             log_outputs,
             notifier: Notifier::from_env(),
@@ -296,10 +163,8 @@ impl Daemon {
     }
 
     fn command(&self, command: Command) {
-        let pushed = self.commands.lock().map(|mut q| q.push(command).is_ok()).unwrap_or(false);
-        if pushed {
-            self.shared.signal(rt::pending::COMMAND);
-        } else {
+        let pushed = self.driver.as_ref().is_some_and(|d| d.command(command));
+        if !pushed {
             log::error!("the command queue is full; a command was dropped");
         }
     }
@@ -340,20 +205,16 @@ impl Daemon {
     }
 
     fn dead_thread(&self) -> Option<&'static str> {
-        let threads = self.threads.as_ref()?;
-        if threads.scan.is_finished() {
-            Some("scan")
-        } else if threads.events.is_finished() {
-            Some("events")
-        } else if threads.watchdog.is_finished() {
-            Some("watchdog")
-        } else {
-            None
-        }
+        self.driver.as_ref()?.dead_thread()
     }
 
     fn drain_reports(&mut self) {
-        while let Ok(report) = self.reports.pop() {
+        let Some(driver) = &mut self.driver else { return };
+        let mut reports = Vec::new();
+        while let Ok(report) = driver.reports.pop() {
+            reports.push(report);
+        }
+        for report in reports {
             match report {
                 Report::Mode(_, mode, source) => {
                     let why = match (source, mode) {
@@ -470,9 +331,10 @@ impl Daemon {
         if let Some(control) = self.control.take() {
             control.stop();
         }
-        let Some(threads) = self.threads.take() else { return Ok(()) };
-        let engine = stop_threads(&self.shared, threads);
+        let Some(driver) = &mut self.driver else { return Ok(()) };
+        let engine = driver.stop();
         self.drain_reports();
+        self.driver = None;
         self.log_counters();
         if let Some(engine) = engine {
             for line in report::statistics(&engine, &self.shared) {
@@ -512,6 +374,7 @@ fn start_control(
     let stopper = server.stopper();
     let handle = std::thread::Builder::new()
         .name("plcd-control".into())
+        .stack_size(PLAIN_THREAD_STACK)
         .spawn(move || {
             let mut handler = ControlHandler::new(links);
             if let Err(e) = server.serve(&mut handler) {
@@ -520,48 +383,6 @@ fn start_control(
         })
         .map_err(|source| DaemonError::Spawn { thread: "control", source })?;
     Ok(Some(ControlThread { handle, stopper }))
-}
-
-/// Stops every thread; the scan thread stops between two instructions and puts the outputs
-/// into their safe state first. Returns its engine unless it had died.
-fn stop_threads(shared: &Shared, threads: Threads) -> Option<Box<Engine>> {
-    shared.request_shutdown();
-    threads.watchdog.thread().unpark();
-    if let Some(stimulus) = &threads.stimulus {
-        stimulus.thread().unpark();
-    }
-    let engine = threads.scan.join().ok();
-    if engine.is_none() {
-        // The scan thread panicked: nobody took the outputs to STOP's safe state.
-        threads.gate.trip();
-        threads.safe.apply();
-        log::error!("the scan thread died; outputs switched off");
-    }
-    if let Ok(Err(e)) = threads.events.join() {
-        log::error!("event thread: {e}");
-    }
-    let _ = threads.watchdog.join();
-    if let Some(stimulus) = threads.stimulus {
-        let _ = stimulus.join();
-    }
-    engine
-}
-
-fn spawn_rt<T: Send + 'static>(
-    role: Role,
-    rt: &crate::config::RtConfig,
-    setup: mpsc::Sender<Vec<RtSetupError>>,
-    body: impl FnOnce() -> T + Send + 'static,
-) -> Result<JoinHandle<T>, DaemonError> {
-    let rt = rt.clone();
-    std::thread::Builder::new()
-        .name(format!("plcd-{}", role.name()))
-        .stack_size(THREAD_STACK)
-        .spawn(move || {
-            let _ = setup.send(rt::setup_thread(&rt, role));
-            body()
-        })
-        .map_err(|source| DaemonError::Spawn { thread: role.name(), source })
 }
 
 /// When to send `WATCHDOG=1`: every `interval` (half of `WATCHDOG_USEC`), and only if the

@@ -236,6 +236,8 @@ pub struct Engine {
     latched_error: Option<ErrorKind>,
     /// The last operation error since RUN.
     last_operation_error: Option<ErrorKind>,
+    /// Cycle deadlines noticed a full interval or more after they passed, since RUN.
+    missed_deadlines: u64,
     /// The current scan paused in DEBUG: its duration is not a scan time.
     scan_paused: bool,
     /// `_FORCE_IN`/`_FORCE_OUT` may be ON.
@@ -325,6 +327,7 @@ impl Engine {
             hold_at_end: false,
             latched_error: None,
             last_operation_error: None,
+            missed_deadlines: 0,
             scan_paused: false,
             force_flags_on: false,
         }
@@ -538,6 +541,13 @@ impl Engine {
         self.last_operation_error
     }
 
+    /// Cycle deadlines noticed a full interval or more after they passed, since RUN: periods
+    /// the driver did not look at the clock (its thread starved or preempted), whatever
+    /// became of the requests (a late request is still served or counted as an overrun).
+    pub fn missed_deadlines(&self) -> u64 {
+        self.missed_deadlines
+    }
+
     /// The current scan number (scans started since RUN).
     pub fn scan_count(&self) -> u64 {
         self.scan.count
@@ -596,6 +606,9 @@ impl Engine {
                     break;
                 }
                 self.tasks[id].kind = Kind::Cycle { interval_ns, next_ns: next_ns + interval_ns };
+                if now - next_ns >= interval_ns {
+                    self.missed_deadlines += 1;
+                }
                 let why = self.request(id as TaskId, next_ns, now, sink);
                 if matches!(why, Some(Ignored::Running | Ignored::Pending | Ignored::Disabled)) {
                     self.tasks[id].stats.overruns += 1;
@@ -907,6 +920,7 @@ impl Engine {
         self.run_start_ns = now;
         self.scan = ScanStats::default();
         self.last_operation_error = None;
+        self.missed_deadlines = 0;
         self.mode = mode;
         self.debugger.run = DebugRun::Paused;
         self.debugger.paused_at = None;

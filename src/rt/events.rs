@@ -1,10 +1,15 @@
-//! The event thread: cycle timers and GPIO edges become pending work for the scan thread.
+//! The event thread: GPIO edges become pending work for the scan thread.
 //!
-//! It owns an epoll set of one timerfd per cycle task number (armed with the engine's absolute
-//! deadlines, periodic, so no drift accumulates), the GPIO input request's fd when edges are
-//! wanted, and its wake eventfd (a new timer plan, shutdown). It never touches the engine:
-//! which deadlines have passed, and what that starts, the engine decides when the scan thread
-//! polls it.
+//! It owns an epoll set of the GPIO input request's fd, when edges are wanted, and its wake
+//! eventfd (shutdown). It reads the kernel's edge events as soon as they arrive, above the
+//! scan thread's priority, queues them with their kernel timestamps and wakes the scan thread
+//! if it sleeps. It never touches the engine: what an edge starts, the engine decides when the
+//! scan thread polls it.
+//!
+//! Cycle deadlines need no thread of their own: the scan thread sleeps on a timerfd armed at
+//! the engine's next deadline and, while it executes, looks at the clock between two slices
+//! of instructions. (A timer here as well would wake two threads for every deadline, and the
+//! second wake-up, on the scan thread's CPU, would delay the task it announces.)
 
 use std::os::fd::AsFd;
 use std::sync::atomic::Ordering;
@@ -12,8 +17,8 @@ use std::sync::Arc;
 
 use nix::sys::epoll::{Epoll, EpollCreateFlags, EpollEvent, EpollFlags, EpollTimeout};
 
-use super::sys::{SysError, Timer};
-use super::{pending, Shared, CYCLE_SLOTS};
+use super::sys::SysError;
+use super::{pending, Shared};
 use crate::io::gpio::GpioEdges;
 use crate::io::InputEdge;
 
@@ -23,20 +28,14 @@ const GPIO: u64 = 101;
 /// Everything the event thread owns.
 pub struct EventThread {
     pub shared: Arc<Shared>,
-    pub timers: [Timer; CYCLE_SLOTS],
     pub gpio: Option<GpioEdges>,
     /// The edge queue's producer, when edges come from GPIO.
     pub edges: Option<rtrb::Producer<InputEdge>>,
 }
 
 impl EventThread {
-    pub fn new(shared: Arc<Shared>) -> Result<EventThread, SysError> {
-        let mut timers = Vec::with_capacity(CYCLE_SLOTS);
-        for _ in 0..CYCLE_SLOTS {
-            timers.push(Timer::new()?);
-        }
-        let timers = timers.try_into().unwrap_or_else(|_| unreachable!("CYCLE_SLOTS timers"));
-        Ok(EventThread { shared, timers, gpio: None, edges: None })
+    pub fn new(shared: Arc<Shared>) -> EventThread {
+        EventThread { shared, gpio: None, edges: None }
     }
 
     /// Runs until shutdown.
@@ -44,12 +43,6 @@ impl EventThread {
         let check = |call, r: nix::Result<()>| r.map_err(|errno| SysError { call, errno });
         let epoll = Epoll::new(EpollCreateFlags::EPOLL_CLOEXEC)
             .map_err(|errno| SysError { call: "epoll_create", errno })?;
-        for (slot, timer) in self.timers.iter().enumerate() {
-            check(
-                "epoll_ctl",
-                epoll.add(timer.as_fd(), EpollEvent::new(EpollFlags::EPOLLIN, slot as u64)),
-            )?;
-        }
         check(
             "epoll_ctl",
             epoll.add(self.shared.event_wake.as_fd(), EpollEvent::new(EpollFlags::EPOLLIN, WAKE)),
@@ -60,14 +53,8 @@ impl EventThread {
                 epoll.add(gpio.as_fd(), EpollEvent::new(EpollFlags::EPOLLIN, GPIO)),
             )?;
         }
-        let mut generation = u64::MAX;
-        let mut ready = [EpollEvent::empty(); CYCLE_SLOTS + 2];
+        let mut ready = [EpollEvent::empty(); 2];
         loop {
-            let plan = self.shared.plan_generation.load(Ordering::Acquire);
-            if plan != generation {
-                generation = plan;
-                self.arm_timers()?;
-            }
             let n = match epoll.wait(&mut ready, EpollTimeout::NONE) {
                 Ok(n) => n,
                 Err(nix::errno::Errno::EINTR) => continue,
@@ -77,18 +64,7 @@ impl EventThread {
             for event in &ready[..n] {
                 match event.data() {
                     WAKE => self.shared.event_wake.drain(),
-                    GPIO => flags |= self.read_edges(),
-                    slot => {
-                        let slot = slot as usize;
-                        let expirations = self.timers[slot].expirations()?;
-                        if expirations > 1 {
-                            self.shared.timer_missed[slot]
-                                .fetch_add(expirations - 1, Ordering::Relaxed);
-                        }
-                        if expirations > 0 {
-                            flags |= pending::TIMER;
-                        }
-                    }
+                    _ => flags |= self.read_edges(),
                 }
             }
             if self.shared.shutdown.load(Ordering::SeqCst) {
@@ -98,19 +74,6 @@ impl EventThread {
                 self.shared.signal(flags);
             }
         }
-    }
-
-    fn arm_timers(&self) -> Result<(), SysError> {
-        for (timer, slot) in self.timers.iter().zip(&self.shared.plan) {
-            let first = slot[0].load(Ordering::Relaxed);
-            let interval = slot[1].load(Ordering::Relaxed);
-            if first == 0 {
-                timer.disarm()?;
-            } else {
-                timer.arm(first, interval)?;
-            }
-        }
-        Ok(())
     }
 
     fn read_edges(&mut self) -> u32 {

@@ -8,10 +8,11 @@
 //!   of pending work (edges, cycle deadlines, commands, the watchdog, shutdown); it reads the
 //!   queues only when a flag says so. When the engine is idle (fixed scan period, STOP) it
 //!   sleeps on its own timerfd, armed at the engine's next wakeup, and an eventfd.
-//! - **events** ([`events`], `event_priority`, above scan): an epoll set of one timerfd per
-//!   cycle task (absolute CLOCK_MONOTONIC deadlines taken from the engine), the GPIO line
-//!   request's edge events, and a wake eventfd. It turns them into pending flags and wakes the
-//!   scan thread if it sleeps.
+//! - **events** ([`events`], `event_priority`, above scan): the GPIO line request's edge
+//!   events (with their kernel timestamps) become queued edges and a pending flag, and the
+//!   scan thread is woken if it sleeps. Cycle deadlines are the scan thread's own: its timerfd
+//!   is armed at the engine's next deadline (absolute CLOCK_MONOTONIC), and while it executes
+//!   it looks at the clock between two slices.
 //! - **watchdog** ([`watchdog`], `watchdog_priority`, the highest): puts the outputs into their
 //!   safe state within a millisecond of the scan watchdog's expiry even if the scan thread is
 //!   stuck, and makes the engine take its WDT path as soon as the scan thread runs again.
@@ -22,6 +23,7 @@
 //! the scan path neither allocates nor takes a lock (the rare exceptions are named where they
 //! are: replacing the program, and the log line of an I/O error).
 
+pub mod driver;
 pub mod events;
 pub mod io;
 pub mod scan;
@@ -62,8 +64,6 @@ pub const WRITES_PER_COMMAND: usize = 16;
 
 /// Flags of [`Shared::pending`].
 pub mod pending {
-    /// A cycle timer expired.
-    pub const TIMER: u32 = 1;
     /// Edges wait in the edge queue.
     pub const EDGE: u32 = 1 << 1;
     /// Commands wait in the command queue.
@@ -73,9 +73,6 @@ pub mod pending {
     /// Stop between two instructions and return.
     pub const SHUTDOWN: u32 = 1 << 4;
 }
-
-/// Cycle task numbers 0..=7: one timer each.
-pub const CYCLE_SLOTS: usize = 8;
 
 /// A request to the scan thread, applied between two instructions.
 pub enum Command {
@@ -182,11 +179,14 @@ pub struct Shared {
     /// The scan thread sleeps (or is about to): producers wake it through `scan_wake`.
     pub scan_idle: AtomicBool,
     pub scan_wake: Wake,
-    /// Wakes the event thread: a new cycle plan, or shutdown.
+    /// Wakes the event thread: shutdown.
     pub event_wake: Wake,
     pub shutdown: AtomicBool,
     /// The engine's watchdog deadline (CLOCK_MONOTONIC ns), 0 while no scan runs.
     pub watchdog_deadline: AtomicU64,
+    /// The watchdog thread sleeps with no deadline (or is about to): the scan thread unparks
+    /// it when it publishes one.
+    pub watchdog_idle: AtomicBool,
     /// Times the watchdog thread tripped the gate, and how late after the expiry the outputs
     /// were safe the last time (ns).
     pub watchdog_trips: AtomicU64,
@@ -201,12 +201,9 @@ pub struct Shared {
     pub scan_last_ns: AtomicU64,
     pub scan_min_ns: AtomicU64,
     pub scan_max_ns: AtomicU64,
-    /// The cycle timers' plan: `plan[n] = (first deadline, interval)` of cycle task number n,
-    /// first = 0 for none; `plan_generation` is bumped after every change.
-    pub plan: [[AtomicU64; 2]; CYCLE_SLOTS],
-    pub plan_generation: AtomicU64,
-    /// Timer expirations beyond the first between two reads by the event thread.
-    pub timer_missed: [AtomicU64; CYCLE_SLOTS],
+    /// Cycle deadlines the engine noticed a full interval or more late
+    /// ([`Engine::missed_deadlines`]), published at END.
+    pub missed_deadlines: AtomicU64,
     /// Edges lost: by the kernel (sequence gaps) or to a full edge queue.
     pub lost_edges: AtomicU64,
     /// Reports dropped to a full report queue.
@@ -226,6 +223,7 @@ impl Shared {
             event_wake: Wake::new()?,
             shutdown: AtomicBool::new(false),
             watchdog_deadline: AtomicU64::new(0),
+            watchdog_idle: AtomicBool::new(false),
             watchdog_trips: AtomicU64::new(0),
             watchdog_late_ns: AtomicU64::new(0),
             progress: AtomicU64::new(0),
@@ -234,9 +232,7 @@ impl Shared {
             scan_last_ns: AtomicU64::new(0),
             scan_min_ns: AtomicU64::new(0),
             scan_max_ns: AtomicU64::new(0),
-            plan: std::array::from_fn(|_| [AtomicU64::new(0), AtomicU64::new(0)]),
-            plan_generation: AtomicU64::new(0),
-            timer_missed: std::array::from_fn(|_| AtomicU64::new(0)),
+            missed_deadlines: AtomicU64::new(0),
             lost_edges: AtomicU64::new(0),
             dropped_reports: AtomicU64::new(0),
             snapshot_wanted: AtomicBool::new(false),
@@ -294,8 +290,10 @@ impl Clock for Monotonic {
 /// Stack every real-time thread touches before its loop, so that with memory locked no page
 /// fault comes later.
 pub const PREFAULT_STACK: usize = 256 * 1024;
-/// Stack size of the real-time threads.
-pub const THREAD_STACK: usize = 1024 * 1024;
+/// Stack size of the real-time threads: twice what they prefault. With memory locked all of it
+/// is resident, so it is sized to need, not to habit (the scan path does not recurse: calls
+/// and loops of PLC programs live in fixed arrays of their task's state).
+pub const THREAD_STACK: usize = 512 * 1024;
 
 /// Why a thread runs without what `[rt]` asked for.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

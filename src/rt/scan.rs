@@ -89,7 +89,6 @@ impl ScanThread {
         let mut published_scans = u64::MAX;
         let mut mode = self.engine.mode();
         let mut commands_waiting = false;
-        self.publish_plan();
         loop {
             let flags = self.shared.pending.swap(0, Ordering::AcqRel);
             let now = sys::now_ns();
@@ -115,7 +114,6 @@ impl ScanThread {
                         // Another engine: its plan, whatever the mode.
                         mode = self.engine.mode();
                         self.shared.mode.store(mode_code(mode), Ordering::Relaxed);
-                        self.publish_plan();
                     }
                 }
                 if self.shared.snapshot_wanted.load(Ordering::Acquire) {
@@ -143,10 +141,13 @@ impl ScanThread {
             if flags != 0 || now >= next_wakeup {
                 self.engine.poll_time(now, &mut self.io, &mut sink);
             }
-            let hold = commands_waiting || self.shared.snapshot_wanted.load(Ordering::Relaxed);
-            self.engine.set_hold_at_end(hold);
+            // Hand back at every END, not only every SLICE_STEPS instructions: a slice of a
+            // short program spans many scans, and their END processing and I/O refresh count no
+            // steps, so pending work (an edge, a deadline, a command) would wait for many scans.
+            self.engine.set_hold_at_end(true);
             let mut activity = self.engine.run(&Monotonic, &mut self.io, &mut sink, SLICE_STEPS);
-            if hold && self.engine.at_scan_boundary() {
+            let waiting = commands_waiting || self.shared.snapshot_wanted.load(Ordering::Relaxed);
+            if waiting && self.engine.at_scan_boundary() {
                 // Round again at once: the boundary is now.
                 activity = Activity::Busy;
             }
@@ -155,12 +156,14 @@ impl ScanThread {
             if self.engine.mode() != mode {
                 mode = self.engine.mode();
                 self.shared.mode.store(mode_code(mode), Ordering::Relaxed);
-                self.publish_plan();
             }
             let deadline = self.engine.watchdog_deadline().unwrap_or(0);
             if deadline != published_deadline {
-                self.shared.watchdog_deadline.store(deadline, Ordering::Release);
-                if published_deadline == 0 {
+                self.shared.watchdog_deadline.store(deadline, Ordering::SeqCst);
+                // Only a watchdog thread in its idle sleep needs the wake-up (a futex call,
+                // which would otherwise cost every scan: between two scans no deadline is
+                // published).
+                if published_deadline == 0 && self.shared.watchdog_idle.load(Ordering::SeqCst) {
                     self.watchdog.unpark();
                 }
                 published_deadline = deadline;
@@ -172,6 +175,8 @@ impl ScanThread {
                 self.shared.scan_last_ns.store(scan.last_ns, Ordering::Relaxed);
                 self.shared.scan_min_ns.store(scan.min_ns, Ordering::Relaxed);
                 self.shared.scan_max_ns.store(scan.max_ns, Ordering::Relaxed);
+                let missed = self.engine.missed_deadlines();
+                self.shared.missed_deadlines.store(missed, Ordering::Relaxed);
                 self.shared.progress.fetch_add(1, Ordering::Relaxed);
             }
 
@@ -329,19 +334,5 @@ impl ScanThread {
     fn wake_fd(&self) -> std::os::fd::BorrowedFd<'_> {
         use std::os::fd::AsFd;
         self.shared.scan_wake.as_fd()
-    }
-
-    /// Publishes the cycle deadlines for the event thread's timers (all off outside RUN).
-    fn publish_plan(&self) {
-        for slot in &self.shared.plan {
-            slot[0].store(0, Ordering::Relaxed);
-        }
-        for (number, next_ns, interval_ns) in self.engine.cycle_deadlines() {
-            let slot = &self.shared.plan[usize::from(number) % super::CYCLE_SLOTS];
-            slot[1].store(interval_ns, Ordering::Relaxed);
-            slot[0].store(next_ns, Ordering::Relaxed);
-        }
-        self.shared.plan_generation.fetch_add(1, Ordering::Release);
-        self.shared.event_wake.wake();
     }
 }

@@ -40,7 +40,14 @@ impl WatchdogThread {
         while !shared.shutdown.load(Ordering::SeqCst) {
             let deadline = shared.watchdog_deadline.load(Ordering::Acquire);
             if deadline == 0 {
-                std::thread::park_timeout(IDLE_SLEEP);
+                // Announce the idle sleep, then look once more: the scan thread either sees
+                // the announcement and unparks this thread, or armed its deadline before
+                // this last look (SeqCst on both sides).
+                shared.watchdog_idle.store(true, Ordering::SeqCst);
+                if shared.watchdog_deadline.load(Ordering::SeqCst) == 0 {
+                    std::thread::park_timeout(IDLE_SLEEP);
+                }
+                shared.watchdog_idle.store(false, Ordering::SeqCst);
                 continue;
             }
             let now = sys::now_ns();
