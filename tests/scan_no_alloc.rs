@@ -144,7 +144,6 @@ fn the_scan_thread_does_not_allocate() {
         completions: completion_tx,
         snapshot: Arc::clone(&snapshot),
         timer: Timer::new().unwrap(),
-        watchdog: std::thread::current(),
     };
     let handle = std::thread::spawn(move || {
         let mut scan = scan;

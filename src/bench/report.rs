@@ -19,7 +19,13 @@ pub fn machine() -> String {
         let dir = format!("/sys/devices/system/cpu/cpu0/cache/index{index}");
         let level = std::fs::read_to_string(format!("{dir}/level")).ok()?;
         let size = std::fs::read_to_string(format!("{dir}/size")).ok()?;
-        Some(format!("L{} {}", level.trim(), size.trim()))
+        let size = size.trim();
+        let size = match size.strip_suffix('K').and_then(|k| k.parse::<u64>().ok()) {
+            Some(k) if k >= 1024 && k % 1024 == 0 => format!("{} MiB", k / 1024),
+            Some(k) => format!("{k} KiB"),
+            None => size.to_string(),
+        };
+        Some(format!("L{} {size}", level.trim()))
     };
     let caches: Vec<String> = (2..=3).filter_map(cache).collect();
     let uname = nix::sys::utsname::uname().ok();

@@ -58,6 +58,8 @@ pub enum Bench {
         #[arg(long)]
         json: bool,
     },
+    /// Print the one-line description of this machine that BENCHMARKS.md quotes.
+    Machine,
 }
 
 /// Exit 0 with a report, 1 when the bench could not run, 2 for bad usage.
@@ -74,6 +76,10 @@ pub fn run(args: &BenchArgs, out: &mut impl Write, err: &mut impl Write) -> Exit
             .run(),
             *json,
         ),
+        Bench::Machine => {
+            let _ = writeln!(out, "{}", crate::bench::machine());
+            return ExitCode::SUCCESS;
+        }
         Bench::Edge { steps, edges, interval, priority, cpus, json } => (
             EdgeBench {
                 steps: *steps,

@@ -372,6 +372,11 @@ impl Engine {
 
     /// When the scan watchdog expires, if it runs (RUN, a scan under way): the time after
     /// which [`Engine::poll_time`] takes the watchdog error.
+    /// The scan watchdog time in ns (`[plc] watchdog_ms`).
+    pub fn watchdog_ns(&self) -> u64 {
+        self.settings.watchdog_ns
+    }
+
     pub fn watchdog_deadline(&self) -> Option<u64> {
         (self.executing() && self.phase != Phase::Idle)
             .then_some(self.watchdog_start_ns + self.settings.watchdog_ns)

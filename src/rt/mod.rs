@@ -184,9 +184,9 @@ pub struct Shared {
     pub shutdown: AtomicBool,
     /// The engine's watchdog deadline (CLOCK_MONOTONIC ns), 0 while no scan runs.
     pub watchdog_deadline: AtomicU64,
-    /// The watchdog thread sleeps with no deadline (or is about to): the scan thread unparks
-    /// it when it publishes one.
-    pub watchdog_idle: AtomicBool,
+    /// The watchdog time in ns: how long the watchdog thread may sleep while no deadline is
+    /// published. Set from the config at start, updated by the scan thread.
+    pub watchdog_period_ns: AtomicU64,
     /// Times the watchdog thread tripped the gate, and how late after the expiry the outputs
     /// were safe the last time (ns).
     pub watchdog_trips: AtomicU64,
@@ -223,7 +223,7 @@ impl Shared {
             event_wake: Wake::new()?,
             shutdown: AtomicBool::new(false),
             watchdog_deadline: AtomicU64::new(0),
-            watchdog_idle: AtomicBool::new(false),
+            watchdog_period_ns: AtomicU64::new(0),
             watchdog_trips: AtomicU64::new(0),
             watchdog_late_ns: AtomicU64::new(0),
             progress: AtomicU64::new(0),

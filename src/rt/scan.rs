@@ -3,7 +3,6 @@
 
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
-use std::thread::Thread;
 
 use super::io::GatedIo;
 use super::snapshot::Snapshot;
@@ -62,8 +61,6 @@ pub struct ScanThread {
     pub snapshot: Arc<Mutex<Box<Snapshot>>>,
     /// Its idle timer, armed at the engine's next wakeup.
     pub timer: Timer,
-    /// The watchdog thread, unparked when a scan arms the watchdog.
-    pub watchdog: Thread,
 }
 
 impl ScanThread {
@@ -159,13 +156,12 @@ impl ScanThread {
             }
             let deadline = self.engine.watchdog_deadline().unwrap_or(0);
             if deadline != published_deadline {
-                self.shared.watchdog_deadline.store(deadline, Ordering::SeqCst);
-                // Only a watchdog thread in its idle sleep needs the wake-up (a futex call,
-                // which would otherwise cost every scan: between two scans no deadline is
-                // published).
-                if published_deadline == 0 && self.shared.watchdog_idle.load(Ordering::SeqCst) {
-                    self.watchdog.unpark();
+                if deadline != 0 {
+                    // The watchdog thread's idle sleep (a reload may change the time).
+                    let period = self.engine.watchdog_ns();
+                    self.shared.watchdog_period_ns.store(period, Ordering::Relaxed);
                 }
+                self.shared.watchdog_deadline.store(deadline, Ordering::Release);
                 published_deadline = deadline;
             }
             let scan = self.engine.scan_stats();
@@ -318,10 +314,14 @@ impl ScanThread {
             };
             if armed.is_ok() {
                 let fds = [self.timer_fd(), self.wake_fd()];
-                let _ = sys::wait_readable(&fds, None);
+                // The timer's expiration count needs no read: arming it again resets it.
+                // The wake eventfd is drained only when it was written.
+                if sys::wait_any(&fds, None).map_or(true, |ready| ready & 0b10 != 0) {
+                    self.shared.scan_wake.drain();
+                }
+            } else {
+                self.shared.scan_wake.drain();
             }
-            let _ = self.timer.expirations();
-            self.shared.scan_wake.drain();
         }
         self.shared.scan_idle.store(false, Ordering::SeqCst);
     }

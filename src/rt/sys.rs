@@ -205,15 +205,26 @@ impl AsFd for Wake {
 /// Waits until one of `fds` is readable or `timeout_ns` passed (None: forever). Returns false on
 /// timeout. EINTR counts as a wake.
 pub fn wait_readable(fds: &[BorrowedFd<'_>], timeout_ns: Option<u64>) -> Result<bool, SysError> {
+    wait_any(fds, timeout_ns).map(|ready| ready != 0)
+}
+
+/// Waits as [`wait_readable`] for up to 4 fds; which are readable, as bit i for `fds[i]` (0 on
+/// timeout, all bits after EINTR), so that the caller reads only those.
+pub fn wait_any(fds: &[BorrowedFd<'_>], timeout_ns: Option<u64>) -> Result<u8, SysError> {
     use nix::poll::{ppoll, PollFd, PollFlags};
     let mut polls: [PollFd; 4] = std::array::from_fn(|_| PollFd::new(fds[0], PollFlags::empty()));
     for (slot, fd) in polls.iter_mut().zip(fds) {
         *slot = PollFd::new(*fd, PollFlags::POLLIN);
     }
     let timeout = timeout_ns.map(timespec);
-    match ppoll(&mut polls[..fds.len().min(4)], timeout, None) {
-        Ok(n) => Ok(n > 0),
-        Err(Errno::EINTR) => Ok(true),
+    let n = fds.len().min(4);
+    match ppoll(&mut polls[..n], timeout, None) {
+        Ok(_) => Ok(polls[..n]
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.revents().is_some_and(|r| !r.is_empty()))
+            .fold(0, |mask, (i, _)| mask | 1 << i)),
+        Err(Errno::EINTR) => Ok(u8::MAX),
         Err(errno) => Err(SysError { call: "ppoll", errno }),
     }
 }

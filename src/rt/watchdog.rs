@@ -21,10 +21,6 @@ use crate::io::gate::OutputGate;
 /// between slices), short enough that the outputs are safe well within 1 ms of the expiry.
 pub const GRACE_NS: u64 = 200_000;
 
-/// How long to sleep when no scan runs, between looks at the deadline. The scan thread
-/// unparks this thread when it arms the watchdog, so this is only a backstop.
-const IDLE_SLEEP: Duration = Duration::from_millis(100);
-
 /// Everything the watchdog thread owns.
 pub struct WatchdogThread {
     pub shared: Arc<Shared>,
@@ -40,14 +36,12 @@ impl WatchdogThread {
         while !shared.shutdown.load(Ordering::SeqCst) {
             let deadline = shared.watchdog_deadline.load(Ordering::Acquire);
             if deadline == 0 {
-                // Announce the idle sleep, then look once more: the scan thread either sees
-                // the announcement and unparks this thread, or armed its deadline before
-                // this last look (SeqCst on both sides).
-                shared.watchdog_idle.store(true, Ordering::SeqCst);
-                if shared.watchdog_deadline.load(Ordering::SeqCst) == 0 {
-                    std::thread::park_timeout(IDLE_SLEEP);
-                }
-                shared.watchdog_idle.store(false, Ordering::SeqCst);
+                // No scan runs. One that starts from now on has a deadline at least one
+                // watchdog time away, so looking again after that time is early enough, and
+                // the scan thread never has to wake this one (at a 10 ms scan period that
+                // would be a futex call and a context switch every scan).
+                let period = shared.watchdog_period_ns.load(Ordering::Relaxed);
+                std::thread::park_timeout(Duration::from_nanos(period.max(1_000_000)));
                 continue;
             }
             let now = sys::now_ns();
