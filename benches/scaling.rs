@@ -771,9 +771,9 @@ fn report(sizes: &[SizeRow], tasks: &[TaskRow], ends: &[EndRow]) -> Fragment {
         "**Scan time against program size**: one scan through `Engine::run` (input refresh, the \
          program, END processing, output refresh; {GEN_OUTPUTS} watched outputs), 100 ns of \
          virtual time a step. Blocks of 32 steps: 22 bit logic (LOAD, AND, OR, AND NOT, OR LOAD, \
-         OUT), LOAD>= + MOV, ADD, TON, CTU, LOADP + INC; devices reused cyclically ({GEN_M_WORDS} \
-         M words, {GEN_D_WORDS} D words, {GEN_TIMERS} timers, {GEN_COUNTERS} counters), so the \
-         data touched stops growing at 10⁴ steps and only the code grows. Code bytes = \
+         OUT), LOAD>= + MOV, ADD, TON, CTU, LOADP (LOAD in every other block) + INC; devices \
+         reused cyclically ({GEN_M_WORDS} M words, {GEN_D_WORDS} D words, {GEN_TIMERS} timers, \
+         {GEN_COUNTERS} counters), so the data touched stops growing at 10⁴ steps and only the code grows. Code bytes = \
          instructions × {op}. Each sample is timed on the wall clock and on the thread's CPU \
          clock: on this shared 2-core machine a sample of one long scan is seldom left alone \
          for its whole length, so the wall figures of the large sizes include other processes' \
