@@ -626,7 +626,8 @@ fn end_project(case: EndCase) -> (Project, Vec<Address>) {
                 };
                 let _ = write!(
                     tasks,
-                    "[[task]]\nname = \"{name}\"\nkind = \"device\"\nnumber = {}\npriority = 4\n{keys}",
+                    "[[task]]\nname = \"{name}\"\nkind = \"device\"\nnumber = {}\n\
+                     priority = 4\n{keys}",
                     16 + i
                 );
                 programs.push((format!("{name}.il"), "NOP\nEND\n".to_string()));
@@ -773,13 +774,13 @@ fn report(sizes: &[SizeRow], tasks: &[TaskRow], ends: &[EndRow]) -> Fragment {
          virtual time a step. Blocks of 32 steps: 22 bit logic (LOAD, AND, OR, AND NOT, OR LOAD, \
          OUT), LOAD>= + MOV, ADD, TON, CTU, LOADP (LOAD in every other block) + INC; devices \
          reused cyclically ({GEN_M_WORDS} M words, {GEN_D_WORDS} D words, {GEN_TIMERS} timers, \
-         {GEN_COUNTERS} counters), so the data touched stops growing at 10⁴ steps and only the code grows. Code bytes = \
-         instructions × {op}. Each sample is timed on the wall clock and on the thread's CPU \
-         clock: on this shared 2-core machine a sample of one long scan is seldom left alone \
-         for its whole length, so the wall figures of the large sizes include other processes' \
-         time slices and ns/step is taken from CPU time (which still counts the time the \
-         hypervisor gives this VM's CPU to others, and suffers neighbours' use of L3 and memory \
-         bandwidth: the minimum shows the program alone).\n"
+         {GEN_COUNTERS} counters), so the data touched stops growing at 10⁴ steps and only the \
+         code grows. Code bytes = instructions × {op}. Each sample is timed on the wall clock \
+         and on the thread's CPU clock: on this shared 2-core machine a sample of one long scan \
+         is seldom left alone for its whole length, so the wall figures of the large sizes \
+         include other processes' time slices and ns/step is taken from CPU time (which still \
+         counts the time the hypervisor gives this VM's CPU to others, and suffers neighbours' \
+         use of L3 and memory bandwidth: the minimum shows the program alone).\n"
     ));
     let per_step: Vec<f64> = sizes.iter().map(|r| r.cpu_median / r.steps as f64).collect();
     let base = per_step.first().copied().unwrap_or(1.0);
