@@ -23,7 +23,7 @@ pub mod force;
 pub mod online;
 
 use crate::config::{Config, DeviceCondition, Edge, OnFault, TaskKind as ConfigTaskKind, TaskRef};
-use crate::device::{Address, BitRef, WordRef};
+use crate::device::{Address, BitRef, Memory, WordRef};
 use crate::io::{Io, SwitchPosition};
 use crate::lang::ops::SystemRequest;
 use crate::lang::Program;
@@ -172,10 +172,32 @@ enum Phase {
     AfterEnd,
 }
 
+/// A watched device, resolved once: comparing it at every output refresh and task end is a
+/// load and a compare, not an address lookup.
 #[derive(Debug, Clone, Copy)]
 struct Watch {
-    address: Address,
+    at: Sample,
     last: i32,
+}
+
+impl Watch {
+    fn new(address: &Address) -> Watch {
+        // As `Memory::read` resolves it: a word if the address is one, else a bit.
+        let at = match address.as_word() {
+            Ok(word) => Sample::Word(word),
+            Err(_) => Sample::Bit(address.as_bit().expect("an address is a bit or a word")),
+        };
+        Watch { at, last: 0 }
+    }
+}
+
+/// A device's value as conditions and watches see it: a bit 0 or 1, a word signed.
+#[inline]
+fn read_sample(mem: &Memory, sample: Sample) -> i32 {
+    match sample {
+        Sample::Bit(bit) => i32::from(mem.bit(bit)),
+        Sample::Word(word) => i32::from(mem.word(word) as i16),
+    }
 }
 
 /// Scan time figures in ns (a scan: from its start to the end of END processing, tasks that
@@ -317,7 +339,7 @@ impl Engine {
             next_scan_ns: 0,
             next_stop_refresh_ns: 0,
             scan: ScanStats::default(),
-            watches: watch.iter().map(|a| Watch { address: *a, last: 0 }).collect(),
+            watches: watch.iter().map(Watch::new).collect(),
             replan: false,
             forces: Forces::default(),
             debugger: Debugger::default(),
@@ -1133,10 +1155,7 @@ impl Engine {
     }
 
     fn sample_value(&self, sample: Sample) -> i32 {
-        match sample {
-            Sample::Bit(bit) => i32::from(self.vm.mem.bit(bit)),
-            Sample::Word(word) => i32::from(self.vm.mem.word(word) as i16),
-        }
+        read_sample(&self.vm.mem, sample)
     }
 
     /// Takes the current samples as the "previous END" ones, without requesting anything.
@@ -1173,8 +1192,9 @@ impl Engine {
     }
 
     fn check_watches(&mut self, now: u64, sink: &mut impl EventSink) {
+        let mem = &self.vm.mem;
         for (index, watch) in self.watches.iter_mut().enumerate() {
-            let value = self.vm.mem.read(&watch.address);
+            let value = read_sample(mem, watch.at);
             if value != watch.last {
                 watch.last = value;
                 sink.event(now, Event::Set { watch: index as u16, value });

@@ -21,7 +21,7 @@ use crate::lang::ops::Op;
 use crate::project::Project;
 use crate::vm::EdgeInit;
 
-use super::{Engine, Phase, Refusal, State, Watch};
+use super::{read_sample, Engine, Phase, Refusal, State};
 
 /// A prepared online change: the new engine and the initial state of its edge memory.
 pub struct OnlineChange {
@@ -181,8 +181,8 @@ impl Engine {
         self.switch_moved = old.switch_moved;
         self.latched_error = old.latched_error;
         self.last_operation_error = None;
-        for Watch { address, last } in &mut self.watches {
-            *last = self.vm.mem.read(address);
+        for watch in &mut self.watches {
+            watch.last = read_sample(&self.vm.mem, watch.at);
         }
         Ok(())
     }
