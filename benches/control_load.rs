@@ -1,6 +1,6 @@
 //! Scan time with and without 50 clients polling `status` as fast as they can, side by side in
 //! one run: `cargo bench --bench control_load` (as root for SCHED_FIFO and mlockall, as the
-//! service runs). Prints a Markdown table for BENCHMARKS.md.
+//! service runs). Writes target/bench-results/control.md for BENCHMARKS.md.
 //!
 //! The daemon (the release `plcd` binary) runs a 1 ms fixed scan period with a 200-instruction
 //! program that counts its scans in D00000 and a 1 ms cycle task. Each phase starts from RUN
@@ -15,6 +15,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use plcd::bench::{write_fragment, Fragment};
 use plcd::control::protocol::{Reply, Request};
 use plcd::plcctl::client::Client;
 
@@ -139,26 +140,39 @@ fn main() {
     let _ = std::fs::remove_dir_all(&dir);
 
     let us = |ns: u64| format!("{:.1} µs", ns as f64 / 1000.0);
-    println!("| scan (1 ms period, 201 instructions) | no clients | {CLIENTS} clients polling `status` | ratio |");
-    println!("|---|---|---|---|");
-    for (name, a, b) in [
+    let mut f = Fragment::new("cargo bench --bench control_load");
+    f.line(format!(
+        "The daemon runs a 1 ms fixed scan period with a 201-instruction scan program and a 1 ms \
+         cycle task; each phase starts from RUN (which resets the figures) and lasts {} s; in the \
+         second, {CLIENTS} threads send `status` back to back on their own connections. Figures \
+         are the daemon's own histograms.\n",
+        PHASE.as_secs()
+    ));
+    let rows: Vec<Vec<String>> = [
         ("scan time p50", quiet.p50, loaded.p50),
         ("scan time p99", quiet.p99, loaded.p99),
         ("scan time max", quiet.max, loaded.max),
         ("cycle task start latency p99", quiet.tick_p99, loaded.tick_p99),
-    ] {
-        println!("| {name} | {} | {} | {:.2} |", us(a), us(b), b as f64 / a.max(1) as f64);
+    ]
+    .into_iter()
+    .map(|(name, a, b)| {
+        vec![name.into(), us(a), us(b), format!("{:.2}", b as f64 / a.max(1) as f64)]
+    })
+    .collect();
+    f.table(
+        &["figure", "no clients", &format!("{CLIENTS} clients polling `status`"), "ratio"],
+        &rows,
+    );
+    for (name, fig) in [("no clients", &quiet), ("clients", &loaded)] {
+        f.line(format!(
+            "- {name}: {} scans in {} ms; the program counted {}; {} `status` answers ({:.0}/s)",
+            fig.scans,
+            fig.periods,
+            fig.counted,
+            fig.answers,
+            fig.answers as f64 / PHASE.as_secs_f64()
+        ));
+        assert_eq!(fig.counted as u64, fig.scans, "every scan ran to its END");
     }
-    for (name, f) in [("no clients", &quiet), ("clients", &loaded)] {
-        println!(
-            "\n{name}: {} scans in {} ms; program counted {}; periods without a scan {}; {} status answers ({:.0}/s)",
-            f.scans,
-            f.periods,
-            f.counted,
-            f.periods.saturating_sub(f.scans),
-            f.answers,
-            f.answers as f64 / PHASE.as_secs_f64()
-        );
-        assert_eq!(f.counted as u64, f.scans, "every scan ran to its END");
-    }
+    write_fragment("control", &f).expect("fragment written");
 }
