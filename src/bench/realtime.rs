@@ -51,6 +51,9 @@ pub struct Scheduling {
     pub policy: &'static str,
     pub scan_priority: u8,
     pub memory_locked: bool,
+    /// A CPU wake-up latency of 0 is requested from PM QoS (`/dev/cpu_dma_latency`), as
+    /// cyclictest requests by default.
+    pub cpu_latency_0: bool,
     /// What `[rt]` asked for and did not get.
     pub problems: Vec<String>,
 }
@@ -247,7 +250,8 @@ fn rt_section(priority: u8, cpus: &[u16]) -> Result<String, BenchError> {
     let cpus = cpus.iter().map(u16::to_string).collect::<Vec<_>>().join(", ");
     Ok(format!(
         "\n[rt]\npolicy = \"fifo\"\nscan_priority = {}\nevent_priority = {}\n\
-         watchdog_priority = {}\nscan_cpus = [{cpus}]\nlock_memory = true\nrequire = false\n",
+         watchdog_priority = {}\nscan_cpus = [{cpus}]\nlock_memory = true\n\
+         cpu_dma_latency_us = 0\nrequire = false\n",
         priority,
         priority + 1,
         priority + 2
@@ -316,6 +320,7 @@ fn measure(
             },
             scan_priority: priority,
             memory_locked: locked,
+            cpu_latency_0: !problems.iter().any(|p| p.contains("cpu_dma_latency")),
             problems,
         },
         run_ns,

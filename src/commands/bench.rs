@@ -132,11 +132,12 @@ fn text(report: &LatencyReport) -> String {
         report.scan_time.micros()
     ));
     text.push_str(&format!(
-        "{} overruns; scheduling {} priority {}, memory {}\n",
+        "{} overruns; scheduling {} priority {}, memory {}, CPU latency request {}\n",
         report.overruns,
         s.policy,
         s.scan_priority,
-        if s.memory_locked { "locked" } else { "not locked" }
+        if s.memory_locked { "locked" } else { "not locked" },
+        if s.cpu_latency_0 { "0 µs" } else { "none" }
     ));
     for problem in &s.problems {
         text.push_str(&format!("warning: {problem}\n"));

@@ -343,6 +343,11 @@ pub struct RtConfig {
     pub watchdog_cpus: Vec<u16>,
     /// `lock_memory`: mlockall(MCL_CURRENT|MCL_FUTURE) at start; default true.
     pub lock_memory: bool,
+    /// `cpu_dma_latency_us`: a CPU wake-up latency to request from the kernel's PM QoS
+    /// (`/dev/cpu_dma_latency`, held while the driver runs, with policy fifo) so that idle CPUs
+    /// stay in shallow states, as cyclictest does by default; 0..=2000000000; default -1
+    /// (`None`): no request, the idle states are the system's.
+    pub cpu_dma_latency_us: Option<u32>,
     /// `require`: refuse to start when real-time scheduling or memory locking is not
     /// permitted; default false (warn once and run without).
     pub require: bool,
@@ -353,6 +358,8 @@ impl RtConfig {
     pub const PRIORITY: RangeInclusive<u8> = 1..=99;
     /// The CPU numbers a CPU list may hold (a `cpu_set_t` has 1024).
     pub const CPU: RangeInclusive<u16> = 0..=1023;
+    /// `cpu_dma_latency_us`: -1 (no request) or the kernel's PM QoS range in µs.
+    pub const CPU_DMA_LATENCY: RangeInclusive<i64> = -1..=2_000_000_000;
 }
 
 impl Default for RtConfig {
@@ -366,6 +373,7 @@ impl Default for RtConfig {
             event_cpus: Vec::new(),
             watchdog_cpus: Vec::new(),
             lock_memory: true,
+            cpu_dma_latency_us: None,
             require: false,
         }
     }

@@ -117,6 +117,7 @@ pub(super) struct RawRt {
     pub event_cpus: Option<Vec<Spanned<i64>>>,
     pub watchdog_cpus: Option<Vec<Spanned<i64>>>,
     pub lock_memory: Option<bool>,
+    pub cpu_dma_latency_us: Option<Spanned<i64>>,
     #[serde(default)]
     pub require: bool,
 }

@@ -75,6 +75,7 @@ fn section_defaults_are_the_documented_ones() {
             event_cpus: vec![],
             watchdog_cpus: vec![],
             lock_memory: true,
+            cpu_dma_latency_us: None,
             require: false,
         }
     );
@@ -1052,7 +1053,7 @@ fn stimulus_is_for_the_sim_backend() {
 fn rt_keys_parse() {
     let text = "[rt]\npolicy = \"other\"\nscan_priority = 1\nevent_priority = 2\n\
                 watchdog_priority = 99\nscan_cpus = [3, 1023]\nevent_cpus = [0]\n\
-                watchdog_cpus = []\nlock_memory = false\nrequire = true";
+                watchdog_cpus = []\nlock_memory = false\ncpu_dma_latency_us = 0\nrequire = true";
     assert_eq!(
         config(&with_scan(text)).rt,
         RtConfig {
@@ -1064,6 +1065,7 @@ fn rt_keys_parse() {
             event_cpus: vec![0],
             watchdog_cpus: vec![],
             lock_memory: false,
+            cpu_dma_latency_us: Some(0),
             require: true,
         }
     );
@@ -1162,7 +1164,7 @@ fn rt_unknown_keys_and_wrong_types() {
         errors(&with_scan("[rt]\nscan_prio = 80")),
         ["2:1: [rt]: unknown key `scan_prio`, expected one of `policy`, `scan_priority`, \
           `event_priority`, `watchdog_priority`, `scan_cpus`, `event_cpus`, `watchdog_cpus`, \
-          `lock_memory`, `require`"]
+          `lock_memory`, `cpu_dma_latency_us`, `require`"]
     );
     assert_eq!(
         errors(&with_scan(
@@ -1178,6 +1180,18 @@ fn rt_unknown_keys_and_wrong_types() {
         ]
     );
     assert_eq!(errors(&with_scan("rt = 5")), ["1:6: `rt` must be a table, written [rt]"]);
+}
+
+#[test]
+fn cpu_dma_latency_takes_microseconds_or_minus_one() {
+    let rt = |line: &str| config(&with_scan(&format!("[rt]\n{line}"))).rt.cpu_dma_latency_us;
+    assert_eq!(rt("cpu_dma_latency_us = 20"), Some(20));
+    assert_eq!(rt("cpu_dma_latency_us = 2000000000"), Some(2_000_000_000));
+    assert_eq!(rt("cpu_dma_latency_us = -1"), None);
+    assert_eq!(
+        errors(&with_scan("[rt]\ncpu_dma_latency_us = -2")),
+        ["2:22: rt.cpu_dma_latency_us -2 out of range -1..=2000000000"]
+    );
 }
 
 #[test]
@@ -1207,7 +1221,7 @@ priority = 5
             "11:15: rt.lock_memory: invalid type: string \"yes\", expected a boolean",
             "12:1: [rt]: unknown key `priority`, expected one of `policy`, `scan_priority`, \
              `event_priority`, `watchdog_priority`, `scan_cpus`, `event_cpus`, `watchdog_cpus`, \
-             `lock_memory`, `require`",
+             `lock_memory`, `cpu_dma_latency_us`, `require`",
         ]
     );
 }

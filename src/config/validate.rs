@@ -252,6 +252,13 @@ fn rt(sink: &mut Sink, raw: RawRt, failed: &[String]) -> Option<RtConfig> {
     let scan_cpus = cpus(sink, &ctx, "scan_cpus", raw.scan_cpus);
     let event_cpus = cpus(sink, &ctx, "event_cpus", raw.event_cpus);
     let watchdog_cpus = cpus(sink, &ctx, "watchdog_cpus", raw.watchdog_cpus);
+    let cpu_dma_latency_us = match &raw.cpu_dma_latency_us {
+        None => Some(default.cpu_dma_latency_us),
+        Some(value) => {
+            int::<i64>(sink, &ctx, "cpu_dma_latency_us", value, RtConfig::CPU_DMA_LATENCY)
+                .map(|us| u32::try_from(us).ok())
+        }
+    };
     let [scan, event, watchdog] = priorities.map(|p| p.value);
     let rt = RtConfig {
         policy: raw.policy,
@@ -262,6 +269,7 @@ fn rt(sink: &mut Sink, raw: RawRt, failed: &[String]) -> Option<RtConfig> {
         event_cpus: event_cpus?,
         watchdog_cpus: watchdog_cpus?,
         lock_memory: raw.lock_memory.unwrap_or(default.lock_memory),
+        cpu_dma_latency_us: cpu_dma_latency_us?,
         require: raw.require,
     };
     ok.then_some(rt)

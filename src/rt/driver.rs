@@ -21,7 +21,7 @@ use super::{
     pending, setup_thread, Command, Completion, Report, Role, RtSetupError, Shared, COMMAND_QUEUE,
     COMPLETION_QUEUE, EDGE_QUEUE, REPORT_QUEUE, THREAD_STACK,
 };
-use crate::config::{Backend, OnFault, RtConfig};
+use crate::config::{Backend, OnFault, RtConfig, RtPolicy};
 use crate::diag::Diagnostics;
 use crate::engine::Engine;
 use crate::io::gate::OutputGate;
@@ -73,6 +73,8 @@ pub struct Driver {
     /// warn about.
     pub problems: Vec<String>,
     threads: Option<Threads>,
+    /// `[rt] cpu_dma_latency_us`, held until the driver is dropped.
+    _cpu_latency: Option<sys::CpuLatencyRequest>,
 }
 
 impl Driver {
@@ -86,6 +88,13 @@ impl Driver {
         if rt.lock_memory {
             if let Err(e) = sys::lock_memory() {
                 problems.push(e);
+            }
+        }
+        let mut cpu_latency = None;
+        if let (RtPolicy::Fifo, Some(us)) = (rt.policy, rt.cpu_dma_latency_us) {
+            match sys::request_cpu_latency(us) {
+                Ok(request) => cpu_latency = Some(request),
+                Err(e) => problems.push(format!("cpu_dma_latency_us = {us}: {e}")),
             }
         }
         let shared = Arc::new(Shared::new()?);
@@ -179,6 +188,7 @@ impl Driver {
             snapshot,
             problems: Vec::new(),
             threads: Some(Threads { scan, events, watchdog, stimulus: None, gate, safe }),
+            _cpu_latency: cpu_latency,
         };
         if !problems.is_empty() && rt.require {
             driver.stop();

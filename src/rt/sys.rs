@@ -91,6 +91,26 @@ pub fn lock_memory() -> Result<(), String> {
         .map_err(|e| e.to_string())
 }
 
+/// A request to the kernel's PM QoS for a CPU wake-up latency, held while this lives (the
+/// kernel drops it when the file is closed).
+#[derive(Debug)]
+pub struct CpuLatencyRequest(#[allow(dead_code)] std::fs::File);
+
+/// Asks the kernel to keep every CPU's wake-up latency at or below `us` µs (idle states deeper
+/// than that are not entered) by writing it to `/dev/cpu_dma_latency`, as cyclictest does.
+pub fn request_cpu_latency(us: u32) -> Result<CpuLatencyRequest, SysError> {
+    use std::io::Write;
+    let as_errno = |e: std::io::Error| Errno::from_raw(e.raw_os_error().unwrap_or(libc::EIO));
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/cpu_dma_latency")
+        .map_err(|e| SysError { call: "open(/dev/cpu_dma_latency)", errno: as_errno(e) })?;
+    let value = i32::try_from(us).unwrap_or(i32::MAX);
+    file.write_all(&value.to_ne_bytes())
+        .map_err(|e| SysError { call: "write(/dev/cpu_dma_latency)", errno: as_errno(e) })?;
+    Ok(CpuLatencyRequest(file))
+}
+
 /// CAP_IPC_LOCK's bit in the capability sets.
 const CAP_IPC_LOCK: u32 = 14;
 
