@@ -219,6 +219,15 @@ impl Vm {
     /// Executes `program` from `state` for at most `max_steps` instructions. `clock` gives
     /// timers the current time; it is told the step count so a virtual clock can charge each
     /// instruction.
+    ///
+    /// The loop is split in two for speed. This function keeps the activation's registers
+    /// (program counter, rung result, rung stacks, remaining budget) in locals and executes the
+    /// frequent instructions — contacts, compares, outputs, rung stacks, unconditional data
+    /// moves and arithmetic, jumps — inline; every other instruction goes through
+    /// [`Vm::execute_rare`], which works on the saved [`ExecState`]. Keeping the rare
+    /// instructions (timers, counters, edges, calls, loops, system) out of line keeps the hot
+    /// loop's registers free and its per-instruction overhead to a bounds check, a budget
+    /// count and one indirect jump.
     pub fn run<C: Clock>(
         &mut self,
         program: &Program,
@@ -231,8 +240,9 @@ impl Vm {
         let mut rung = state.rung;
         let mut blocks = state.blocks;
         let mut branches = state.branches;
-        let mut steps = self.steps;
-        let limit = steps.saturating_add(max_steps);
+        // The budget counts down; the step count is `stop - left`.
+        let stop = self.steps.saturating_add(max_steps);
+        let mut left = stop - self.steps;
 
         macro_rules! save {
             () => {{
@@ -240,7 +250,7 @@ impl Vm {
                 state.rung = rung;
                 state.blocks = blocks;
                 state.branches = branches;
-                self.steps = steps;
+                self.steps = stop - left;
             }};
         }
         macro_rules! fail {
@@ -253,44 +263,37 @@ impl Vm {
         }
 
         loop {
-            if steps >= limit {
+            if left == 0 {
                 save!();
                 return Exit::Budget;
             }
-            let Some(&op) = code.get(pc) else {
+            let Some(op) = code.get(pc) else {
                 // Only a program without END could get here, and the checker refuses those.
                 state.finished = true;
                 save!();
                 return Exit::End;
             };
-            let at = pc as u32;
             pc += 1;
-            steps += 1;
+            left -= 1;
             let mem = &mut self.mem;
             match op {
-                Op::Load(b) => rung = mem.bit(b),
-                Op::LoadNot(b) => rung = !mem.bit(b),
+                Op::Load(b) => rung = mem.bit(*b),
+                Op::LoadNot(b) => rung = !mem.bit(*b),
                 Op::LoadPush(b) => {
                     blocks = (blocks << 1) | rung as u32;
-                    rung = mem.bit(b);
+                    rung = mem.bit(*b);
                 }
                 Op::LoadNotPush(b) => {
                     blocks = (blocks << 1) | rung as u32;
-                    rung = !mem.bit(b);
+                    rung = !mem.bit(*b);
                 }
-                Op::And(b) => rung &= mem.bit(b),
-                Op::AndNot(b) => rung &= !mem.bit(b),
-                Op::Or(b) => rung |= mem.bit(b),
-                Op::OrNot(b) => rung |= !mem.bit(b),
-                Op::EdgeContact { bit, rising, how, slot } => {
-                    let now = mem.bit(bit);
-                    let before = std::mem::replace(&mut self.edges[slot as usize], now);
-                    let edge = if rising { now && !before } else { !now && before };
-                    combine(how, edge, &mut rung, &mut blocks);
-                }
+                Op::And(b) => rung &= mem.bit(*b),
+                Op::AndNot(b) => rung &= !mem.bit(*b),
+                Op::Or(b) => rung |= mem.bit(*b),
+                Op::OrNot(b) => rung |= !mem.bit(*b),
                 Op::Compare { op, a, b, how } => {
-                    let result = op.eval(read(mem, a) as i16, read(mem, b) as i16);
-                    combine(how, result, &mut rung, &mut blocks);
+                    let result = op.eval(read(mem, *a) as i16, read(mem, *b) as i16);
+                    combine(*how, result, &mut rung, &mut blocks);
                 }
                 Op::AndLoad => {
                     rung &= blocks & 1 != 0;
@@ -307,194 +310,281 @@ impl Vm {
                     branches >>= 1;
                 }
                 Op::Not => rung = !rung,
-                Op::Out(b) => mem.set_bit(b, rung),
-                Op::OutNot(b) => mem.set_bit(b, !rung),
-                Op::OutPulse { bit, rising, slot } => {
-                    let before = std::mem::replace(&mut self.edges[slot as usize], rung);
-                    let edge = if rising { rung && !before } else { !rung && before };
-                    mem.set_bit(bit, edge);
-                }
+                Op::Out(b) => mem.set_bit(*b, rung),
+                Op::OutNot(b) => mem.set_bit(*b, !rung),
                 Op::Set(b) => {
                     if rung {
-                        mem.set_bit(b, true);
+                        mem.set_bit(*b, true);
                     }
                 }
                 Op::Rst(b) => {
                     if rung {
-                        mem.set_bit(b, false);
+                        mem.set_bit(*b, false);
                     }
                 }
-                Op::RstTimer(n) => {
+                Op::Mov { s, d, pulse: None } => {
                     if rung {
-                        timer::reset(&mut self.timers[n as usize], mem, n);
+                        let value = read(mem, *s);
+                        mem.set_word(*d, value);
                     }
                 }
-                Op::RstCounter(n) => {
+                Op::Arith { op, a, b, d, pulse: None } => {
                     if rung {
-                        counter::reset(&mut self.counters[n as usize], mem, n);
-                    }
-                }
-                Op::FlipFlop { bit, slot } => {
-                    if pulse(&mut self.edges, slot, rung) {
-                        mem.set_bit(bit, !mem.bit(bit));
-                    }
-                }
-                Op::Timer { kind, timer: n, preset, base_ms } => {
-                    let preset = read(mem, preset);
-                    let call = timer::TimerInput {
-                        kind,
-                        timer: n,
-                        input: rung,
-                        preset,
-                        base_ms,
-                        now_ns: clock.now_ns(steps),
-                    };
-                    timer::execute(&mut self.timers[n as usize], mem, call);
-                }
-                Op::Counter { kind, counter: n, preset } => {
-                    let preset = read(mem, preset);
-                    let c = &mut self.counters[n as usize];
-                    counter::execute(kind, c, mem, n, rung, preset);
-                }
-                Op::CounterUpDown { counter: n, up, down, preset } => {
-                    let preset = read(mem, preset);
-                    let c = &mut self.counters[n as usize];
-                    counter::execute_up_down(c, mem, n, rung, up, down, preset);
-                }
-                Op::Mov { s, d, pulse: p } => {
-                    if enabled(&mut self.edges, p, rung) {
-                        let value = read(mem, s);
-                        mem.set_word(d, value);
-                    }
-                }
-                Op::Arith { op, a, b, d, pulse: p } => {
-                    if enabled(&mut self.edges, p, rung) {
-                        let (a, b) = (read(mem, a) as i16, read(mem, b) as i16);
+                        let (a, b) = (read(mem, *a) as i16, read(mem, *b) as i16);
                         let value = match op {
                             ArithOp::Add => a.wrapping_add(b),
                             ArithOp::Sub => a.wrapping_sub(b),
                             ArithOp::Mul => a.wrapping_mul(b),
                             ArithOp::Div => {
                                 if b == 0 {
-                                    fail!(at, ERR_DIVIDE_BY_ZERO);
+                                    fail!(pc as u32 - 1, ERR_DIVIDE_BY_ZERO);
                                 }
                                 a.wrapping_div(b)
                             }
                         };
-                        mem.set_word(d, value as u16);
+                        mem.set_word(*d, value as u16);
                     }
                 }
-                Op::Step { d, up, pulse: p } => {
-                    if enabled(&mut self.edges, p, rung) {
-                        let value = mem.word(d);
-                        let value = if up { value.wrapping_add(1) } else { value.wrapping_sub(1) };
-                        mem.set_word(d, value);
-                    }
-                }
-                Op::Call { target } => {
+                Op::Step { d, up, pulse: None } => {
                     if rung {
-                        let depth = state.call_depth as usize;
-                        if depth >= CALL_DEPTH {
-                            fail!(at, ERR_CALL_DEPTH);
-                        }
-                        state.calls[depth] = CallFrame {
-                            return_pc: pc as u32,
-                            rung,
-                            blocks,
-                            branches,
-                            loop_depth: state.loop_depth,
-                        };
-                        state.call_depth += 1;
-                        pc = target as usize;
-                        rung = true;
-                        blocks = 0;
-                        branches = 0;
+                        let value = mem.word(*d);
+                        let value = if *up { value.wrapping_add(1) } else { value.wrapping_sub(1) };
+                        mem.set_word(*d, value);
                     }
-                }
-                Op::Ret => {
-                    if state.call_depth == 0 {
-                        // Unreachable for checked programs: RET ends a SBRT, reached by CALL.
-                        state.finished = true;
-                        save!();
-                        return Exit::End;
-                    }
-                    state.call_depth -= 1;
-                    let frame = state.calls[state.call_depth as usize];
-                    pc = frame.return_pc as usize;
-                    rung = frame.rung;
-                    blocks = frame.blocks;
-                    branches = frame.branches;
-                    state.loop_depth = frame.loop_depth;
                 }
                 Op::Jmp { target } => {
                     if rung {
-                        pc = target as usize;
+                        pc = *target as usize;
                     }
                 }
                 Op::Label => rung = true,
-                Op::For { count, end } => {
-                    if rung {
-                        let count = read(mem, count) as i16;
-                        let depth = state.loop_depth as usize;
-                        if count <= 0 {
-                            pc = end as usize;
-                        } else if depth >= LOOP_DEPTH {
-                            pc = end as usize;
-                            fail!(at, ERR_LOOP_DEPTH);
-                        } else {
-                            state.loops[depth] = LoopFrame { remaining: count as u16, end };
-                            state.loop_depth += 1;
-                        }
-                    } else {
-                        pc = end as usize;
-                    }
-                    rung = true;
-                }
-                Op::Next { body } => {
-                    if let Some(depth) = (state.loop_depth as usize).checked_sub(1) {
-                        let frame = &mut state.loops[depth];
-                        frame.remaining -= 1;
-                        if frame.remaining > 0 {
-                            pc = body as usize;
-                        } else {
-                            state.loop_depth -= 1;
-                        }
-                    }
-                    rung = true;
-                }
-                Op::Break => {
-                    if rung {
-                        if let Some(depth) = (state.loop_depth as usize).checked_sub(1) {
-                            pc = state.loops[depth].end as usize;
-                            state.loop_depth -= 1;
-                        }
-                    }
-                }
+                Op::Nop => {}
                 Op::End => {
                     state.finished = true;
                     save!();
                     return Exit::End;
                 }
-                Op::Nop => {}
-                Op::System(request) => {
-                    if rung {
-                        save!();
-                        return Exit::System(request);
+                _ => {
+                    save!();
+                    if let Some(exit) = self.execute_rare(op, state, clock) {
+                        return exit;
                     }
-                }
-                Op::Duty { channel, n1, n2, slot } => {
-                    let rising = pulse(&mut self.edges, slot, rung);
-                    if rung {
-                        let clock = &mut self.duty[channel as usize];
-                        if let Err(code) =
-                            duty::execute(clock, rising, read(mem, n1), read(mem, n2))
-                        {
-                            fail!(at, code);
-                        }
-                    }
+                    pc = state.pc as usize;
+                    rung = state.rung;
+                    blocks = state.blocks;
+                    branches = state.branches;
                 }
             }
         }
+    }
+
+    /// Executes one instruction that [`Vm::run`] does not handle inline, on the registers
+    /// saved in `state` (its `pc` already points past `op`, `self.steps` counts `op`). `Some`
+    /// when `run` must return.
+    #[inline(never)]
+    fn execute_rare<C: Clock>(
+        &mut self,
+        op: &Op,
+        state: &mut ExecState,
+        clock: &C,
+    ) -> Option<Exit> {
+        let at = state.pc - 1;
+        let mut pc = state.pc as usize;
+        let mut rung = state.rung;
+        let mut blocks = state.blocks;
+        let mut branches = state.branches;
+        let steps = self.steps;
+
+        macro_rules! save {
+            () => {{
+                state.pc = pc as u32;
+                state.rung = rung;
+                state.blocks = blocks;
+                state.branches = branches;
+            }};
+        }
+        macro_rules! fail {
+            ($at:expr, $code:expr) => {{
+                let code = $code;
+                self.mem.raise_operation_error(code);
+                save!();
+                return Some(Exit::OperationError { code, pc: $at });
+            }};
+        }
+
+        let mem = &mut self.mem;
+        match *op {
+            Op::EdgeContact { bit, rising, how, slot } => {
+                let now = mem.bit(bit);
+                let before = std::mem::replace(&mut self.edges[slot as usize], now);
+                let edge = if rising { now && !before } else { !now && before };
+                combine(how, edge, &mut rung, &mut blocks);
+            }
+            Op::OutPulse { bit, rising, slot } => {
+                let before = std::mem::replace(&mut self.edges[slot as usize], rung);
+                let edge = if rising { rung && !before } else { !rung && before };
+                mem.set_bit(bit, edge);
+            }
+            Op::RstTimer(n) => {
+                if rung {
+                    timer::reset(&mut self.timers[n as usize], mem, n);
+                }
+            }
+            Op::RstCounter(n) => {
+                if rung {
+                    counter::reset(&mut self.counters[n as usize], mem, n);
+                }
+            }
+            Op::FlipFlop { bit, slot } => {
+                if pulse(&mut self.edges, slot, rung) {
+                    mem.set_bit(bit, !mem.bit(bit));
+                }
+            }
+            Op::Timer { kind, timer: n, preset, base_ms } => {
+                let preset = read(mem, preset);
+                let call = timer::TimerInput {
+                    kind,
+                    timer: n,
+                    input: rung,
+                    preset,
+                    base_ms,
+                    now_ns: clock.now_ns(steps),
+                };
+                timer::execute(&mut self.timers[n as usize], mem, call);
+            }
+            Op::Counter { kind, counter: n, preset } => {
+                let preset = read(mem, preset);
+                let c = &mut self.counters[n as usize];
+                counter::execute(kind, c, mem, n, rung, preset);
+            }
+            Op::CounterUpDown { counter: n, up, down, preset } => {
+                let preset = read(mem, preset);
+                let c = &mut self.counters[n as usize];
+                counter::execute_up_down(c, mem, n, rung, up, down, preset);
+            }
+            Op::Mov { s, d, pulse: p } => {
+                if enabled(&mut self.edges, p, rung) {
+                    let value = read(mem, s);
+                    mem.set_word(d, value);
+                }
+            }
+            Op::Arith { op, a, b, d, pulse: p } => {
+                if enabled(&mut self.edges, p, rung) {
+                    let (a, b) = (read(mem, a) as i16, read(mem, b) as i16);
+                    let value = match op {
+                        ArithOp::Add => a.wrapping_add(b),
+                        ArithOp::Sub => a.wrapping_sub(b),
+                        ArithOp::Mul => a.wrapping_mul(b),
+                        ArithOp::Div => {
+                            if b == 0 {
+                                fail!(at, ERR_DIVIDE_BY_ZERO);
+                            }
+                            a.wrapping_div(b)
+                        }
+                    };
+                    mem.set_word(d, value as u16);
+                }
+            }
+            Op::Step { d, up, pulse: p } => {
+                if enabled(&mut self.edges, p, rung) {
+                    let value = mem.word(d);
+                    let value = if up { value.wrapping_add(1) } else { value.wrapping_sub(1) };
+                    mem.set_word(d, value);
+                }
+            }
+            Op::Call { target } => {
+                if rung {
+                    let depth = state.call_depth as usize;
+                    if depth >= CALL_DEPTH {
+                        fail!(at, ERR_CALL_DEPTH);
+                    }
+                    state.calls[depth] = CallFrame {
+                        return_pc: pc as u32,
+                        rung,
+                        blocks,
+                        branches,
+                        loop_depth: state.loop_depth,
+                    };
+                    state.call_depth += 1;
+                    pc = target as usize;
+                    rung = true;
+                    blocks = 0;
+                    branches = 0;
+                }
+            }
+            Op::Ret => {
+                if state.call_depth == 0 {
+                    // Unreachable for checked programs: RET ends a SBRT, reached by CALL.
+                    state.finished = true;
+                    save!();
+                    return Some(Exit::End);
+                }
+                state.call_depth -= 1;
+                let frame = state.calls[state.call_depth as usize];
+                pc = frame.return_pc as usize;
+                rung = frame.rung;
+                blocks = frame.blocks;
+                branches = frame.branches;
+                state.loop_depth = frame.loop_depth;
+            }
+            Op::For { count, end } => {
+                if rung {
+                    let count = read(mem, count) as i16;
+                    let depth = state.loop_depth as usize;
+                    if count <= 0 {
+                        pc = end as usize;
+                    } else if depth >= LOOP_DEPTH {
+                        pc = end as usize;
+                        fail!(at, ERR_LOOP_DEPTH);
+                    } else {
+                        state.loops[depth] = LoopFrame { remaining: count as u16, end };
+                        state.loop_depth += 1;
+                    }
+                } else {
+                    pc = end as usize;
+                }
+                rung = true;
+            }
+            Op::Next { body } => {
+                if let Some(depth) = (state.loop_depth as usize).checked_sub(1) {
+                    let frame = &mut state.loops[depth];
+                    frame.remaining -= 1;
+                    if frame.remaining > 0 {
+                        pc = body as usize;
+                    } else {
+                        state.loop_depth -= 1;
+                    }
+                }
+                rung = true;
+            }
+            Op::Break => {
+                if rung {
+                    if let Some(depth) = (state.loop_depth as usize).checked_sub(1) {
+                        pc = state.loops[depth].end as usize;
+                        state.loop_depth -= 1;
+                    }
+                }
+            }
+            Op::System(request) => {
+                if rung {
+                    save!();
+                    return Some(Exit::System(request));
+                }
+            }
+            Op::Duty { channel, n1, n2, slot } => {
+                let rising = pulse(&mut self.edges, slot, rung);
+                if rung {
+                    let clock = &mut self.duty[channel as usize];
+                    if let Err(code) = duty::execute(clock, rising, read(mem, n1), read(mem, n2)) {
+                        fail!(at, code);
+                    }
+                }
+            }
+            // `run` executes every other instruction inline and never passes it here.
+            _ => unreachable!("{op:?} is executed by Vm::run"),
+        }
+        save!();
+        None
     }
 }
 
