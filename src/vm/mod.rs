@@ -220,7 +220,7 @@ impl Vm {
 
     /// Executes `program` from `state` for at most `max_steps` instructions. `clock` gives
     /// timers the current time; it is told the step count so a virtual clock can charge each
-    /// instruction. See [`interpret`] for how the loop is kept fast.
+    /// instruction. How the loop is kept fast is told at `interpret`, below.
     pub fn run<C: Clock>(
         &mut self,
         program: &Program,
@@ -453,7 +453,7 @@ fn interpret<'a, C: Clock>(
                         input: rung,
                         preset: read(mem, *preset),
                         base_ms: *base_ms,
-                        now_ns: 0,
+                        now_ns: 0, // read by `run_timer`, out of the loop
                         value: mem.word(value_ref),
                         done: mem.bit(done_ref),
                     };
@@ -483,9 +483,9 @@ fn interpret<'a, C: Clock>(
                 Op::Duty { channel, n1, n2, slot } => {
                     let rising = pulse(edges, *slot, rung);
                     if rung {
-                        let clock = &mut duty[*channel as usize];
+                        let channel = &mut duty[*channel as usize];
                         let (n1, n2) = (read(mem, *n1), read(mem, *n2));
-                        if let Err(code) = duty::execute(clock, rising, n1, n2) {
+                        if let Err(code) = duty::execute(channel, rising, n1, n2) {
                             fail!(code);
                         }
                     }
