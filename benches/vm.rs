@@ -1327,7 +1327,8 @@ const HOW: &[&str] = &[
      costs one byte load, one indirect jump and one end test besides its own work.",
     "The rung result, the block and MPUSH stacks and the budget stay in registers; device \
      memory is a `&mut` parameter of its own, so the word array's address and length stay in \
-     registers too; timers and counters are memory-free state machines called out of line.",
+     registers too, and timers and counters never touch memory themselves (the loop reads \
+     their inputs and writes their results), so nothing the loop calls can move the words.",
     "No branch depends on device data: outputs, SET/RST and data instructions always store (the \
      old value when the rung is OFF) and compares evaluate through a truth table. What is left \
      per instruction is the dispatch and a bounds check on each device access.",

@@ -298,8 +298,9 @@ struct Machine<'a, C> {
 ///   `repr(u8)` and every variant has an arm, so dispatch is one byte load and one indirect
 ///   jump through a table without a range check.
 /// - Outputs, SET/RST and the data instructions write their destination whatever the rung
-///   result (the old value when it is OFF), and compares combine with the rung through a
-///   table: no branch depends on device data, which the processor cannot predict.
+///   result (the old value when it is OFF), compares evaluate through the truth table in
+///   [`CmpOp`](crate::lang::ops::CmpOp), and contacts combine with the rung arithmetically:
+///   no branch depends on device data, which the processor cannot predict.
 #[inline(never)]
 fn interpret<'a, C: Clock>(
     mem: &mut Memory,
@@ -636,8 +637,8 @@ fn read(mem: &Memory, src: Src) -> u16 {
     }
 }
 
-/// Combines a contact's `value` with the rung, without branches: the rung becomes
-/// `(value & (rung | !and)) | (rung & or)`, and the push is a select.
+/// Combines a contact's `value` with the rung: the rung becomes `(value & (rung | !and)) | (rung
+/// & or)`. Only `how`, fixed for each instruction, may be branched on, never `value`.
 #[inline(always)]
 fn combine(how: Combine, value: bool, rung: &mut bool, blocks: &mut u32) {
     // (AND: value needs the rung, OR: the rung stays, push).
