@@ -1,7 +1,9 @@
 //! The four counters of XGB §5.2.6. They count rising edges of their inputs, so each keeps the
 //! previous input; current values are unsigned 16-bit and saturate at 0 and 65535.
+//!
+//! The counters do not touch device memory: they take the current value the caller read and
+//! return the new value and contact for the caller to write.
 
-use crate::device::{counter_done, counter_value, BitRef, Memory};
 use crate::lang::ops::CounterKind;
 
 /// Run-time state of one counter number.
@@ -17,21 +19,19 @@ pub struct CounterState {
     is_down: bool,
 }
 
-/// Executes `CTU`, `CTD` or `CTR` with the rung result `input`.
+/// Executes `CTU`, `CTD` or `CTR` with the rung result `input` on current value `value`: the
+/// new value and contact.
 pub fn execute(
     kind: CounterKind,
     state: &mut CounterState,
-    mem: &mut Memory,
-    counter: u16,
     input: bool,
     preset: u16,
-) {
-    let value_ref = counter_value(counter);
+    mut value: u16,
+) -> (u16, bool) {
     let rising = input && !state.prev_input;
     state.prev_input = input;
     state.preset = preset;
     state.is_down = kind == CounterKind::Ctd;
-    let mut value = mem.word(value_ref);
     let done = match kind {
         CounterKind::Ctu => {
             if rising {
@@ -56,30 +56,25 @@ pub fn execute(
             value >= preset
         }
     };
-    mem.set_word(value_ref, value);
-    mem.set_bit(counter_done(counter), done);
+    (value, done)
 }
 
-/// Executes `CTUD`: while the rung is ON, rising edges of `up` count up and of `down` count down.
+/// Executes `CTUD` on current value `value`: while the rung is ON (`enabled`), rising edges of
+/// the up input (`up_now`) count up and of the down input count down. The new value and contact.
 pub fn execute_up_down(
     state: &mut CounterState,
-    mem: &mut Memory,
-    counter: u16,
     enabled: bool,
-    up: BitRef,
-    down: BitRef,
+    up_now: bool,
+    down_now: bool,
     preset: u16,
-) {
-    let up_now = mem.bit(up);
-    let down_now = mem.bit(down);
+    mut value: u16,
+) -> (u16, bool) {
     let up_edge = up_now && !state.prev_input;
     let down_edge = down_now && !state.prev_down;
     state.prev_input = up_now;
     state.prev_down = down_now;
     state.preset = preset;
     state.is_down = false;
-    let value_ref = counter_value(counter);
-    let mut value = mem.word(value_ref);
     if enabled {
         if up_edge {
             value = value.saturating_add(1);
@@ -88,13 +83,15 @@ pub fn execute_up_down(
             value = value.saturating_sub(1);
         }
     }
-    mem.set_word(value_ref, value);
-    mem.set_bit(counter_done(counter), value >= preset);
+    (value, value >= preset)
 }
 
-/// `RST Cn`: contact OFF; the current value 0, or the preset for a down counter.
-pub fn reset(state: &mut CounterState, mem: &mut Memory, counter: u16) {
-    let value = if state.is_down && state.loaded { state.preset } else { 0 };
-    mem.set_word(counter_value(counter), value);
-    mem.set_bit(counter_done(counter), false);
+/// `RST Cn`: the current value to write, 0 or the preset for a down counter (the contact goes
+/// OFF).
+pub fn reset(state: &CounterState) -> u16 {
+    if state.is_down && state.loaded {
+        state.preset
+    } else {
+        0
+    }
 }

@@ -2,7 +2,6 @@
 //! ticks, so the remainder of a tick carries over from scan to scan: the error is at most one
 //! scan plus the time from step 0 to the instruction, never a whole base tick.
 
-use crate::device::{timer_done, timer_value, Memory};
 use crate::lang::ops::TimerKind;
 
 /// Run-time state of one timer number.
@@ -42,27 +41,29 @@ impl TimerState {
     }
 }
 
-/// One execution of a timer instruction: which timer, and what it sees now.
+/// One execution of a timer instruction: what the timer sees now.
 #[derive(Debug, Clone, Copy)]
 pub struct TimerInput {
     pub kind: TimerKind,
-    pub timer: u16,
     /// The rung result.
     pub input: bool,
     /// Preset in base units.
     pub preset: u16,
     pub base_ms: u16,
     pub now_ns: u64,
+    /// The timer's current value in device memory (the program may have written it).
+    pub value: u16,
+    /// The timer's contact in device memory.
+    pub done: bool,
 }
 
-/// Executes a timer instruction.
-pub fn execute(state: &mut TimerState, mem: &mut Memory, call: TimerInput) {
-    let TimerInput { kind, timer, input, preset, base_ms, now_ns } = call;
+/// Executes a timer instruction: the new current value and contact, for the caller to write
+/// to device memory. (The timer does not touch memory itself, so that the interpreter loop
+/// can call it without giving up the memory's address held in registers.)
+pub fn execute(state: &mut TimerState, call: TimerInput) -> (u16, bool) {
+    let TimerInput { kind, input, preset, base_ms, now_ns, value: written, done: was_done } = call;
     let base_ns = u64::from(base_ms) * 1_000_000;
     let preset_ns = u64::from(preset) * base_ns;
-    let value_ref = timer_value(timer);
-    let done_ref = timer_done(timer);
-    let written = mem.word(value_ref);
     let counts_down = matches!(kind, TimerKind::Toff | TimerKind::Tmon | TimerKind::Trtg);
     if written != state.shown {
         let ticks = if counts_down { preset.saturating_sub(written) } else { written.min(preset) };
@@ -112,7 +113,7 @@ pub fn execute(state: &mut TimerState, mem: &mut Memory, call: TimerInput) {
                 state.running = false;
                 state.elapsed_ns = 0;
                 (preset, true)
-            } else if mem.bit(done_ref) {
+            } else if was_done {
                 state.run(now_ns);
                 count_down(state)
             } else {
@@ -134,13 +135,10 @@ pub fn execute(state: &mut TimerState, mem: &mut Memory, call: TimerInput) {
         }
     };
     state.shown = value;
-    mem.set_word(value_ref, value);
-    mem.set_bit(done_ref, done);
+    (value, done)
 }
 
-/// `RST Tn`: current value 0, contact OFF, the timer idle.
-pub fn reset(state: &mut TimerState, mem: &mut Memory, timer: u16) {
+/// `RST Tn`: the timer idle; the caller writes current value 0 and contact OFF.
+pub fn reset(state: &mut TimerState) {
     *state = TimerState { prev_input: state.prev_input, ..TimerState::default() };
-    mem.set_word(timer_value(timer), 0);
-    mem.set_bit(timer_done(timer), false);
 }
