@@ -110,27 +110,12 @@ fn write_fragment_to(dir: &Path, name: &str, fragment: &Fragment) -> std::io::Re
     Ok(path)
 }
 
-/// Today's date (UTC) as YYYY-MM-DD.
+/// Today's date (UTC) as YYYY-MM-DD: the date part of the log's timestamp.
 fn today() -> String {
-    let secs = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    let (y, m, d) = civil_from_days((secs / 86_400) as i64);
-    format!("{y:04}-{m:02}-{d:02}")
-}
-
-/// Days since 1970-01-01 → (year, month, day), proleptic Gregorian (H. Hinnant's algorithm).
-fn civil_from_days(z: i64) -> (i64, u32, u32) {
-    let z = z + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z.rem_euclid(146_097);
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = (doy - (153 * mp + 2) / 5 + 1) as u32;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    (y, m, d)
+    let mut stamp = String::new();
+    crate::daemon::logging::write_timestamp(&mut stamp, std::time::SystemTime::now());
+    stamp.truncate("YYYY-MM-DD".len());
+    stamp
 }
 
 #[cfg(test)]
@@ -138,10 +123,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn civil_dates() {
-        assert_eq!(civil_from_days(0), (1970, 1, 1));
-        assert_eq!(civil_from_days(20_413), (2025, 11, 21));
-        assert_eq!(civil_from_days(11_016), (2000, 2, 29));
+    fn today_is_a_date() {
+        let today = today();
+        let digits: Vec<&str> = today.split('-').collect();
+        assert_eq!(digits.iter().map(|d| d.len()).collect::<Vec<_>>(), [4, 2, 2], "{today}");
     }
 
     #[test]
