@@ -98,8 +98,6 @@ impl Driver {
             }
         }
         let shared = Arc::new(Shared::new()?);
-        let watchdog_ns = u64::from(config.plc.watchdog_ms) * 1_000_000;
-        shared.watchdog_period_ns.store(watchdog_ns, std::sync::atomic::Ordering::Relaxed);
         let gate = Arc::new(OutputGate::default());
         let (edge_tx, edge_rx) = rtrb::RingBuffer::<InputEdge>::new(EDGE_QUEUE);
         let (command_tx, command_rx) = rtrb::RingBuffer::<Command>::new(COMMAND_QUEUE);

@@ -185,7 +185,8 @@ pub struct Shared {
     /// The engine's watchdog deadline (CLOCK_MONOTONIC ns), 0 while no scan runs.
     pub watchdog_deadline: AtomicU64,
     /// The watchdog time in ns: how long the watchdog thread may sleep while no deadline is
-    /// published. Set from the config at start, updated by the scan thread.
+    /// published. Published by the scan thread when it starts and when it gets a new engine
+    /// (0 until then: the watchdog thread looks every millisecond).
     pub watchdog_period_ns: AtomicU64,
     /// Times the watchdog thread tripped the gate, and how late after the expiry the outputs
     /// were safe the last time (ns).

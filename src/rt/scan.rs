@@ -86,6 +86,7 @@ impl ScanThread {
         let mut published_scans = u64::MAX;
         let mut mode = self.engine.mode();
         let mut commands_waiting = false;
+        self.publish_watchdog_period();
         loop {
             let flags = self.shared.pending.swap(0, Ordering::AcqRel);
             let now = sys::now_ns();
@@ -111,6 +112,7 @@ impl ScanThread {
                         // Another engine: its plan, whatever the mode.
                         mode = self.engine.mode();
                         self.shared.mode.store(mode_code(mode), Ordering::Relaxed);
+                        self.publish_watchdog_period();
                     }
                 }
                 if self.shared.snapshot_wanted.load(Ordering::Acquire) {
@@ -156,11 +158,6 @@ impl ScanThread {
             }
             let deadline = self.engine.watchdog_deadline().unwrap_or(0);
             if deadline != published_deadline {
-                if deadline != 0 {
-                    // The watchdog thread's idle sleep (a reload may change the time).
-                    let period = self.engine.watchdog_ns();
-                    self.shared.watchdog_period_ns.store(period, Ordering::Relaxed);
-                }
                 self.shared.watchdog_deadline.store(deadline, Ordering::Release);
                 published_deadline = deadline;
             }
@@ -324,6 +321,13 @@ impl ScanThread {
             }
         }
         self.shared.scan_idle.store(false, Ordering::SeqCst);
+    }
+
+    /// The watchdog thread's idle sleep: the engine's watchdog time (a new engine may bring
+    /// another).
+    fn publish_watchdog_period(&self) {
+        let period = self.engine.watchdog_ns();
+        self.shared.watchdog_period_ns.store(period, Ordering::Relaxed);
     }
 
     fn timer_fd(&self) -> std::os::fd::BorrowedFd<'_> {
