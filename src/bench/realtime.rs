@@ -32,6 +32,8 @@ pub enum BenchError {
     Driver(#[from] DriverError),
     #[error("{0}")]
     Usage(String),
+    #[error("the scan thread died; no figures")]
+    ScanThreadDied,
 }
 
 /// The first diagnostics: a generated program of 10^6 lines could report as many.
@@ -277,7 +279,6 @@ fn measure(
     let project = project::load(config).map_err(BenchError::Project)?;
     let scan_steps =
         project.programs.iter().find(|p| p.name == "main").map_or(0, |p| p.code.len()) as u64;
-    let memory_locked = project.config.rt.lock_memory;
     let mut driver = Driver::start(&project)?;
     let problems = driver.problems.clone();
     let started = Instant::now();
@@ -303,24 +304,17 @@ fn measure(
         std::thread::sleep((next_check - now).min(Duration::from_millis(50)));
     }
     let run_ns = started.elapsed().as_nanos() as u64;
-    let engine = driver.stop().ok_or(DriverError::Spawn {
-        thread: "scan",
-        source: std::io::Error::other("the scan thread died"),
-    })?;
+    let granted = driver.granted;
+    let engine = driver.stop().ok_or(BenchError::ScanThreadDied)?;
     let stats = engine.task_stats(task).expect("the bench task exists");
     let scan = engine.scan_stats();
-    let locked = memory_locked && !problems.iter().any(|p| p.contains("memory"));
     Ok(LatencyReport {
         bench,
         scheduling: Scheduling {
-            policy: if problems.iter().any(|p| p.contains("SCHED_FIFO")) {
-                "other"
-            } else {
-                "fifo"
-            },
+            policy: if granted.fifo { "fifo" } else { "other" },
             scan_priority: priority,
-            memory_locked: locked,
-            cpu_latency_0: !problems.iter().any(|p| p.contains("cpu_dma_latency")),
+            memory_locked: granted.memory_locked,
+            cpu_latency_0: granted.cpu_latency_us == Some(0),
             problems,
         },
         run_ns,

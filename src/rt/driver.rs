@@ -59,6 +59,16 @@ struct Threads {
     safe: SafeOutputs,
 }
 
+/// What the driver got of what `[rt]` asked for.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Granted {
+    /// Every real-time thread runs under SCHED_FIFO.
+    pub fifo: bool,
+    pub memory_locked: bool,
+    /// The PM QoS wake-up latency held, in µs.
+    pub cpu_latency_us: Option<u32>,
+}
+
 /// The running real-time threads of one project, and the ends of their queues.
 pub struct Driver {
     pub shared: Arc<Shared>,
@@ -72,6 +82,7 @@ pub struct Driver {
     /// What `[rt]` asked for and did not get (only when `require = false`); for the caller to
     /// warn about.
     pub problems: Vec<String>,
+    pub granted: Granted,
     threads: Option<Threads>,
     /// `[rt] cpu_dma_latency_us`, held until the driver is dropped.
     _cpu_latency: Option<sys::CpuLatencyRequest>,
@@ -85,15 +96,20 @@ impl Driver {
         let config = &project.config;
         let rt = config.rt.clone();
         let mut problems: Vec<String> = Vec::new();
+        let mut granted = Granted { fifo: rt.policy == RtPolicy::Fifo, ..Granted::default() };
         if rt.lock_memory {
-            if let Err(e) = sys::lock_memory() {
-                problems.push(e);
+            match sys::lock_memory() {
+                Ok(()) => granted.memory_locked = true,
+                Err(e) => problems.push(e),
             }
         }
         let mut cpu_latency = None;
         if let (RtPolicy::Fifo, Some(us)) = (rt.policy, rt.cpu_dma_latency_us) {
             match sys::request_cpu_latency(us) {
-                Ok(request) => cpu_latency = Some(request),
+                Ok(request) => {
+                    cpu_latency = Some(request);
+                    granted.cpu_latency_us = Some(us);
+                }
                 Err(e) => problems.push(format!("cpu_dma_latency_us = {us}: {e}")),
             }
         }
@@ -176,6 +192,8 @@ impl Driver {
         let scan = spawn_rt(Role::Scan, &rt, setup_tx, move || scan_thread.run())?;
         for _ in 0..3 {
             let errors = setup_rx.recv().unwrap_or_default();
+            // set_fifo's is the one error that leaves a thread without SCHED_FIFO.
+            granted.fifo &= !errors.iter().any(|e| e.error.call.starts_with("sched_setscheduler"));
             problems.extend(errors.iter().map(|e| e.to_string()));
         }
         let mut driver = Driver {
@@ -185,6 +203,7 @@ impl Driver {
             completions: Some(completion_rx),
             snapshot,
             problems: Vec::new(),
+            granted,
             threads: Some(Threads { scan, events, watchdog, stimulus: None, gate, safe }),
             _cpu_latency: cpu_latency,
         };
