@@ -16,7 +16,7 @@
 //! native scan leaves device memory exactly as one VM scan does.
 
 use std::hint::black_box;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::{Duration, SystemTime};
 
 use criterion::{Criterion, Throughput};
@@ -1104,113 +1104,144 @@ fn configure<'a>(
     group
 }
 
+/// What a category is measured on: its program and how its memory starts.
+struct Spec<'s> {
+    name: &'static str,
+    target: f64,
+    source: &'s str,
+    init: fn(&mut Vm),
+    /// Inputs toggle before every scan (VM and native alike), so that timers and counters see
+    /// edges and run; the native side's clock is advanced by the caller's closure.
+    toggles: bool,
+}
+
+/// One category: one scan of the VM and of `check` must leave the same memory, then the VM and
+/// `native` (given the steps of a scan) are measured side by side in one criterion group.
+fn bench_category(
+    c: &mut Criterion,
+    spec: Spec<'_>,
+    check: impl FnOnce(&mut Words),
+    mut native: impl FnMut(&mut Words, u64),
+) -> Category {
+    check_same(spec.name, spec.source, spec.init, check);
+    let mut case = VmCase::new(spec.source, spec.init);
+    let mut words = Words::of(&case.vm);
+    let steps = case.steps_per_scan();
+    let mut group = configure(c, spec.name, steps);
+    if spec.toggles {
+        group.bench_function("vm", |b| {
+            b.iter(|| {
+                case.toggle_inputs();
+                case.scan()
+            })
+        });
+        group.bench_function("native", |b| {
+            b.iter(|| {
+                words.toggle_inputs();
+                native(black_box(&mut words), steps)
+            })
+        });
+    } else {
+        group.bench_function("vm", |b| b.iter(|| case.scan()));
+        group.bench_function("native", |b| b.iter(|| native(black_box(&mut words), steps)));
+    }
+    group.finish();
+    Category { name: spec.name, steps, target: spec.target }
+}
+
 fn bench_all(c: &mut Criterion) -> Vec<Category> {
-    let mut categories = Vec::new();
     let fresh_tc = || TcState {
         timers: vec![NTimer::default(); 2048],
         counters: vec![NCounter::default(); 2048],
         now: 0,
     };
+    let mut categories = Vec::new();
 
-    // bit
     let (source, groups) = bit_category();
-    let init = |vm: &mut Vm| randomize(vm, 1);
-    check_same("bit", &source, init, |w| bit_native(w, &groups));
-    let mut case = VmCase::new(&source, init);
-    let mut native = Words::of(&case.vm);
-    let steps = case.steps_per_scan();
-    let mut group = configure(c, "bit", steps);
-    group.bench_function("vm", |b| b.iter(|| case.scan()));
-    group.bench_function("native", |b| {
-        b.iter(|| bit_native(black_box(&mut native), black_box(&groups)))
-    });
-    group.finish();
-    categories.push(Category { name: "bit", steps, target: 3.0 });
+    let spec = Spec {
+        name: "bit",
+        target: 3.0,
+        source: &source,
+        init: |vm| randomize(vm, 1),
+        toggles: false,
+    };
+    categories.push(bench_category(
+        c,
+        spec,
+        |w| bit_native(w, &groups),
+        |w, _| bit_native(w, black_box(&groups)),
+    ));
 
-    // compare_arith
     let (source, groups) = compare_arith_category();
-    let init = |vm: &mut Vm| randomize(vm, 2);
-    check_same("compare_arith", &source, init, |w| compare_arith_native(w, &groups));
-    let mut case = VmCase::new(&source, init);
-    let mut native = Words::of(&case.vm);
-    let steps = case.steps_per_scan();
-    let mut group = configure(c, "compare_arith", steps);
-    group.bench_function("vm", |b| b.iter(|| case.scan()));
-    group.bench_function("native", |b| {
-        b.iter(|| compare_arith_native(black_box(&mut native), black_box(&groups)))
-    });
-    group.finish();
-    categories.push(Category { name: "compare_arith", steps, target: 6.0 });
+    let spec = Spec {
+        name: "compare_arith",
+        target: 6.0,
+        source: &source,
+        init: |vm| randomize(vm, 2),
+        toggles: false,
+    };
+    categories.push(bench_category(
+        c,
+        spec,
+        |w| compare_arith_native(w, &groups),
+        |w, _| compare_arith_native(w, black_box(&groups)),
+    ));
 
-    // timers_counters
     let (source, groups) = timers_counters_category();
-    let init = |vm: &mut Vm| randomize(vm, 3);
-    check_same("timers_counters", &source, init, |w| {
-        timers_counters_native(w, &mut fresh_tc(), &groups)
-    });
-    let mut case = VmCase::new(&source, init);
-    let mut native = Words::of(&case.vm);
+    let spec = Spec {
+        name: "timers_counters",
+        target: 6.0,
+        source: &source,
+        init: |vm| randomize(vm, 3),
+        toggles: true,
+    };
     let mut tc = fresh_tc();
-    let steps = case.steps_per_scan();
-    let mut group = configure(c, "timers_counters", steps);
-    group.bench_function("vm", |b| {
-        b.iter(|| {
-            case.toggle_inputs();
-            case.scan()
-        })
-    });
-    group.bench_function("native", |b| {
-        b.iter(|| {
-            native.toggle_inputs();
+    categories.push(bench_category(
+        c,
+        spec,
+        |w| timers_counters_native(w, &mut fresh_tc(), &groups),
+        |w, steps| {
             tc.now += steps * STEP_NS;
-            timers_counters_native(black_box(&mut native), &mut tc, black_box(&groups))
-        })
-    });
-    group.finish();
-    categories.push(Category { name: "timers_counters", steps, target: 6.0 });
+            timers_counters_native(w, &mut tc, black_box(&groups))
+        },
+    ));
 
-    // call
     let (source, groups) = call_category();
     let subs = Subs::new();
-    let init = |vm: &mut Vm| randomize(vm, 4);
-    check_same("call", &source, init, |w| call_native(w, &subs, &groups));
-    let mut case = VmCase::new(&source, init);
-    let mut native = Words::of(&case.vm);
-    let steps = case.steps_per_scan();
-    let mut group = configure(c, "call", steps);
-    group.bench_function("vm", |b| b.iter(|| case.scan()));
-    group.bench_function("native", |b| {
-        b.iter(|| call_native(black_box(&mut native), &subs, black_box(&groups)))
-    });
-    group.finish();
-    categories.push(Category { name: "call", steps, target: 6.0 });
+    let spec = Spec {
+        name: "call",
+        target: 6.0,
+        source: &source,
+        init: |vm| randomize(vm, 4),
+        toggles: false,
+    };
+    categories.push(bench_category(
+        c,
+        spec,
+        |w| call_native(w, &subs, &groups),
+        |w, _| call_native(w, &subs, black_box(&groups)),
+    ));
 
-    // realistic_10k
     let (source, mut stations) = realistic_category();
     let globals = Globals::new();
-    check_same("realistic_10k", &source, realistic_init, |w| {
-        realistic_native(w, &mut fresh_tc(), &globals, &mut stations.clone())
-    });
-    let mut case = VmCase::new(&source, realistic_init);
-    let mut native = Words::of(&case.vm);
+    let spec = Spec {
+        name: "realistic_10k",
+        target: 6.0,
+        source: &source,
+        init: realistic_init,
+        toggles: true,
+    };
+    let check_stations = stations.clone();
     let mut tc = fresh_tc();
-    let steps = case.steps_per_scan();
-    let mut group = configure(c, "realistic_10k", steps);
-    group.bench_function("vm", |b| {
-        b.iter(|| {
-            case.toggle_inputs();
-            case.scan()
-        })
-    });
-    group.bench_function("native", |b| {
-        b.iter(|| {
-            native.toggle_inputs();
+    categories.push(bench_category(
+        c,
+        spec,
+        |w| realistic_native(w, &mut fresh_tc(), &globals, &mut check_stations.clone()),
+        |w, steps| {
             tc.now += steps * STEP_NS;
-            realistic_native(black_box(&mut native), &mut tc, &globals, black_box(&mut stations))
-        })
-    });
-    group.finish();
-    categories.push(Category { name: "realistic_10k", steps, target: 6.0 });
+            realistic_native(w, &mut tc, &globals, black_box(&mut stations))
+        },
+    ));
 
     for c in &categories {
         eprintln!("{}: {} instructions executed per scan", c.name, c.steps);
@@ -1221,13 +1252,13 @@ fn bench_all(c: &mut Criterion) -> Vec<Category> {
 // ---------------------------------------------------------------------------------------------
 // The fragment for BENCHMARKS.md
 
-fn target_dir() -> PathBuf {
-    std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| "target".into(), PathBuf::from)
-}
-
 /// Criterion's median for `group/id` in ns, if this run (started at `since`) produced it.
 fn median_ns(group: &str, id: &str, since: SystemTime) -> Option<f64> {
-    let path = target_dir().join("criterion").join(group).join(id).join("new/estimates.json");
+    let path = plcd::bench::report::target_dir()
+        .join("criterion")
+        .join(group)
+        .join(id)
+        .join("new/estimates.json");
     let modified = std::fs::metadata(&path).and_then(|m| m.modified()).ok()?;
     if modified < since {
         return None;

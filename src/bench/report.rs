@@ -50,12 +50,15 @@ pub fn machine() -> String {
     line
 }
 
-/// Where fragments go: `$CARGO_TARGET_DIR/bench-results`, else `target/bench-results` under
-/// the current directory (cargo runs benches from the package root).
+/// Cargo's target directory: `$CARGO_TARGET_DIR`, else `target` under the current directory
+/// (cargo runs benches from the package root).
+pub fn target_dir() -> PathBuf {
+    std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| "target".into(), PathBuf::from)
+}
+
+/// Where fragments go: `bench-results` in the target directory.
 pub fn results_dir() -> PathBuf {
-    let target =
-        std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| "target".into(), PathBuf::from);
-    target.join("bench-results")
+    target_dir().join("bench-results")
 }
 
 /// A Markdown fragment under construction: a section body for BENCHMARKS.md.
