@@ -21,6 +21,7 @@ use plcd::io::sim::SimIo;
 use plcd::io::InputEdge;
 use plcd::project;
 use plcd::rt::io::{FieldIo, GatedIo, SafeOutputs};
+use plcd::rt::mirror::Mirror;
 use plcd::rt::scan::ScanThread;
 use plcd::rt::snapshot::Snapshot;
 use plcd::rt::sys::{self, Timer};
@@ -129,6 +130,8 @@ fn the_scan_thread_does_not_allocate() {
     let (completion_tx, mut completions) = rtrb::RingBuffer::<Completion>::new(64);
     let snapshot = Arc::new(Mutex::new(Snapshot::new()));
     let watch = plcd::sim::output_bits(&project);
+    let d0 = Address::parse("D00000").unwrap().as_word().unwrap().0;
+    let mirror = Arc::new(Mirror::new(vec![d0..d0 + 3]));
     let scan = ScanThread {
         engine: Box::new(Engine::new(&project, &watch)),
         io: GatedIo {
@@ -144,6 +147,7 @@ fn the_scan_thread_does_not_allocate() {
         completions: completion_tx,
         snapshot: Arc::clone(&snapshot),
         timer: Timer::new().unwrap(),
+        mirrors: vec![Arc::clone(&mirror)],
     };
     let handle = std::thread::spawn(move || {
         let mut scan = scan;
@@ -203,6 +207,11 @@ fn the_scan_thread_does_not_allocate() {
             shared.snapshot_wanted.store(true, Ordering::Release);
             shared.signal(pending::COMMAND);
         }
+        if i % 10 == 7 {
+            // The retain writer and the Modbus server ask for their mirrors like this.
+            mirror.request();
+            shared.signal(pending::MIRROR);
+        }
         std::thread::sleep(Duration::from_millis(1));
         while reports.pop().is_ok() {}
         while let Ok(c) = completions.pop() {
@@ -225,4 +234,7 @@ fn the_scan_thread_does_not_allocate() {
     assert_eq!(tickets, [160, 170, 180, 181, 182, 190, 200, 210], "every command answered");
     assert!(answered.iter().all(|c| c.result.is_ok()), "{answered:?}");
     assert!(snapshot.lock().unwrap().generation > 10, "snapshots were captured");
+    let image = mirror.lock();
+    assert!(image.generation > 10, "mirrors were copied: {}", image.generation);
+    assert!(image.words[1] > 0, "D00001 counts the tick task's runs: {:?}", image.words);
 }

@@ -279,7 +279,7 @@ fn measure(
     let project = project::load(config).map_err(BenchError::Project)?;
     let scan_steps =
         project.programs.iter().find(|p| p.name == "main").map_or(0, |p| p.code.len()) as u64;
-    let mut driver = Driver::start(&project)?;
+    let mut driver = Driver::start(&project, Vec::new())?;
     let problems = driver.problems.clone();
     let started = Instant::now();
     driver.command(Command::Mode(Mode::Run, Source::Startup));

@@ -87,7 +87,7 @@ struct Daemon {
 
 impl Daemon {
     fn start(config_path: &Path, project: Project) -> Result<Daemon, DaemonError> {
-        let mut driver = Driver::start(&project)?;
+        let mut driver = Driver::start(&project, Vec::new())?;
         if !driver.problems.is_empty() {
             log::warn!(
                 "running without full real-time guarantees: {}; grant CAP_SYS_NICE and \

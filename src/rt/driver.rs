@@ -12,6 +12,7 @@ use std::thread::JoinHandle;
 
 use super::events::EventThread;
 use super::io::{FieldIo, GatedIo, SafeOutputs};
+use super::mirror::Mirror;
 use super::scan::ScanThread;
 use super::snapshot::Snapshot;
 use super::stimulus::StimulusThread;
@@ -92,7 +93,10 @@ impl Driver {
     /// Locks memory (if `[rt] lock_memory`), opens the field and starts the threads; the engine
     /// starts in STOP. With `[rt] require = true`, any real-time setting refused is an error
     /// and nothing keeps running.
-    pub fn start(project: &Project) -> Result<Driver, DriverError> {
+    ///
+    /// `mirrors` are copied by the scan thread at scan boundaries when their consumers ask
+    /// (see [`super::mirror`]).
+    pub fn start(project: &Project, mirrors: Vec<Arc<Mirror>>) -> Result<Driver, DriverError> {
         let config = &project.config;
         let rt = config.rt.clone();
         let mut problems: Vec<String> = Vec::new();
@@ -188,6 +192,7 @@ impl Driver {
             completions: completion_tx,
             snapshot: Arc::clone(&snapshot),
             timer: Timer::new()?,
+            mirrors,
         };
         let scan = spawn_rt(Role::Scan, &rt, setup_tx, move || scan_thread.run())?;
         for _ in 0..3 {

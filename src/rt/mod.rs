@@ -26,6 +26,7 @@
 pub mod driver;
 pub mod events;
 pub mod io;
+pub mod mirror;
 pub mod scan;
 pub mod snapshot;
 pub mod stimulus;
@@ -72,6 +73,8 @@ pub mod pending {
     pub const WATCHDOG: u32 = 1 << 3;
     /// Stop between two instructions and return.
     pub const SHUTDOWN: u32 = 1 << 4;
+    /// A [`super::mirror::Mirror`] wants a copy at the next scan boundary.
+    pub const MIRROR: u32 = 1 << 5;
 }
 
 /// A request to the scan thread, applied between two instructions.

@@ -5,6 +5,7 @@ use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 
 use super::io::GatedIo;
+use super::mirror::Mirror;
 use super::snapshot::Snapshot;
 use super::sys::{self, Timer};
 use super::{
@@ -61,6 +62,8 @@ pub struct ScanThread {
     pub snapshot: Arc<Mutex<Box<Snapshot>>>,
     /// Its idle timer, armed at the engine's next wakeup.
     pub timer: Timer,
+    /// Device words copied at a scan boundary for the threads that ask (retain, Modbus).
+    pub mirrors: Vec<Arc<Mirror>>,
 }
 
 impl ScanThread {
@@ -123,6 +126,7 @@ impl ScanThread {
                         self.shared.control_wake.wake();
                     }
                 }
+                self.capture_mirrors(now);
             }
             let mut sink =
                 ReportSink { reports: &mut self.reports, shared: &self.shared, source: None };
@@ -145,7 +149,9 @@ impl ScanThread {
             // steps, so pending work (an edge, a deadline, a command) would wait for many scans.
             self.engine.set_hold_at_end(true);
             let mut activity = self.engine.run(&Monotonic, &mut self.io, &mut sink, SLICE_STEPS);
-            let waiting = commands_waiting || self.shared.snapshot_wanted.load(Ordering::Relaxed);
+            let waiting = commands_waiting
+                || self.shared.snapshot_wanted.load(Ordering::Relaxed)
+                || self.mirrors.iter().any(|m| m.is_wanted());
             if waiting && self.engine.at_scan_boundary() {
                 // Round again at once: the boundary is now.
                 activity = Activity::Busy;
@@ -321,6 +327,18 @@ impl ScanThread {
             }
         }
         self.shared.scan_idle.store(false, Ordering::SeqCst);
+    }
+
+    /// Copies the mirrors that asked for it (a boundary: after END, or any time in STOP).
+    fn capture_mirrors(&self, now: u64) {
+        if self.mirrors.is_empty() {
+            return;
+        }
+        let words = self.engine.vm().mem.words();
+        let (scans, mode) = (self.engine.scan_count(), self.engine.mode());
+        for mirror in &self.mirrors {
+            mirror.capture(words, scans, mode, now);
+        }
     }
 
     /// The watchdog thread's idle sleep: the engine's watchdog time (a new engine may bring

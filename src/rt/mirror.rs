@@ -1,0 +1,172 @@
+//! Copies of chosen device words for the threads off the real-time path (the retain writer,
+//! the Modbus server), taken by the scan thread at a scan boundary.
+//!
+//! A consumer asks for a copy ([`Mirror::request`]) and wakes the scan thread
+//! ([`super::Shared::signal`] with [`super::pending::MIRROR`]); at the next scan boundary (after
+//! END, or at once in STOP, ERROR or a paused DEBUG) the scan thread copies the mirror's word
+//! ranges into its image and notifies the waiting consumers. The image lives behind a mutex the
+//! scan thread only ever `try_lock`s: if a consumer holds it, the copy waits for the next
+//! boundary, so the scan never waits. The image is allocated once; copying allocates nothing.
+//!
+//! Word ranges are indices into [`crate::device::Memory::words`]: the device layout is fixed,
+//! so they stay valid when the engine is replaced (a reload, an online change).
+
+use std::ops::Range;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Condvar, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+use crate::engine::event::Mode;
+
+/// A set of device word ranges copied at scan boundaries on request.
+pub struct Mirror {
+    ranges: Box<[Range<u16>]>,
+    wanted: AtomicBool,
+    image: Mutex<MirrorImage>,
+    fresh: Condvar,
+}
+
+/// The mirrored words as of one scan boundary.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MirrorImage {
+    /// Bumped by each copy; 0 before the first.
+    pub generation: u64,
+    /// When it was taken (CLOCK_MONOTONIC ns).
+    pub at_ns: u64,
+    /// Scans since RUN at that boundary.
+    pub scans: u64,
+    pub mode: Mode,
+    /// The words of every range, range after range, in the order given to [`Mirror::new`].
+    pub words: Box<[u16]>,
+}
+
+impl Mirror {
+    /// A mirror of `ranges` (word indices of device memory).
+    pub fn new(ranges: Vec<Range<u16>>) -> Mirror {
+        let len = ranges.iter().map(|r| r.len()).sum::<usize>();
+        Mirror {
+            ranges: ranges.into_boxed_slice(),
+            wanted: AtomicBool::new(false),
+            image: Mutex::new(MirrorImage {
+                generation: 0,
+                at_ns: 0,
+                scans: 0,
+                mode: Mode::Stop,
+                words: vec![0; len].into_boxed_slice(),
+            }),
+            fresh: Condvar::new(),
+        }
+    }
+
+    pub fn ranges(&self) -> &[Range<u16>] {
+        &self.ranges
+    }
+
+    /// Asks for a copy at the next scan boundary. The caller then wakes the scan thread:
+    /// `shared.signal(pending::MIRROR)`.
+    pub fn request(&self) {
+        self.wanted.store(true, Ordering::Release);
+    }
+
+    /// A copy was asked for and not taken yet.
+    pub fn is_wanted(&self) -> bool {
+        self.wanted.load(Ordering::Acquire)
+    }
+
+    /// The last image, whatever its age.
+    pub fn lock(&self) -> MutexGuard<'_, MirrorImage> {
+        self.image.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    /// Waits until the image is newer than generation `than`, at most `timeout`. Returns the
+    /// image either way: the caller compares its generation to know which happened.
+    pub fn wait_newer(&self, than: u64, timeout: Duration) -> MutexGuard<'_, MirrorImage> {
+        let until = Instant::now() + timeout;
+        let mut image = self.lock();
+        while image.generation <= than {
+            let left = until.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                break;
+            }
+            image = match self.fresh.wait_timeout(image, left) {
+                Ok((image, _)) => image,
+                Err(poisoned) => poisoned.into_inner().0,
+            };
+        }
+        image
+    }
+
+    /// Scan thread, at a scan boundary: copies the ranges out of `words` if a copy was asked
+    /// for and no reader holds the image. True if it copied.
+    pub fn capture(&self, words: &[u16], scans: u64, mode: Mode, now_ns: u64) -> bool {
+        if !self.wanted.load(Ordering::Acquire) {
+            return false;
+        }
+        let Ok(mut image) = self.image.try_lock() else {
+            return false;
+        };
+        let mut at = 0;
+        for range in self.ranges.iter() {
+            let source = &words[usize::from(range.start)..usize::from(range.end)];
+            image.words[at..at + source.len()].copy_from_slice(source);
+            at += source.len();
+        }
+        image.generation += 1;
+        image.at_ns = now_ns;
+        image.scans = scans;
+        image.mode = mode;
+        self.wanted.store(false, Ordering::Release);
+        drop(image);
+        self.fresh.notify_all();
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn copies_its_ranges_in_order_only_when_asked() {
+        let mirror = Mirror::new(vec![4..6, 1..2]);
+        let words: Vec<u16> = (0..10).map(|i| i * 10).collect();
+        assert!(!mirror.capture(&words, 1, Mode::Run, 5), "nobody asked");
+        assert_eq!(mirror.lock().generation, 0);
+        mirror.request();
+        assert!(mirror.capture(&words, 7, Mode::Run, 9));
+        let image = mirror.lock();
+        assert_eq!(&*image.words, &[40, 50, 10]);
+        assert_eq!((image.generation, image.scans, image.at_ns), (1, 7, 9));
+        drop(image);
+        assert!(!mirror.is_wanted());
+    }
+
+    #[test]
+    fn a_reader_holding_the_image_defers_the_copy_to_the_next_boundary() {
+        let mirror = Mirror::new(vec![0..1]);
+        mirror.request();
+        let held = mirror.lock();
+        assert!(!mirror.capture(&[3], 1, Mode::Run, 1));
+        drop(held);
+        assert!(mirror.is_wanted(), "the request is still open");
+        assert!(mirror.capture(&[3], 2, Mode::Run, 2));
+        assert_eq!(mirror.lock().words[0], 3);
+    }
+
+    #[test]
+    fn wait_newer_returns_the_fresh_image_or_the_old_one_at_the_timeout() {
+        let mirror = std::sync::Arc::new(Mirror::new(vec![0..1]));
+        let stale = mirror.wait_newer(0, Duration::from_millis(1));
+        assert_eq!(stale.generation, 0);
+        drop(stale);
+        mirror.request();
+        let scan = {
+            let mirror = std::sync::Arc::clone(&mirror);
+            std::thread::spawn(move || while !mirror.capture(&[42], 1, Mode::Run, 1) {})
+        };
+        let image = mirror.wait_newer(0, Duration::from_secs(60));
+        assert_eq!((image.generation, image.words[0]), (1, 42));
+        drop(image);
+        scan.join().unwrap();
+    }
+}
