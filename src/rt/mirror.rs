@@ -42,10 +42,11 @@ pub struct MirrorImage {
 
 impl Mirror {
     /// A mirror of `ranges` (word indices of device memory).
-    pub fn new(ranges: Vec<Range<u16>>) -> Mirror {
+    pub fn new(ranges: impl IntoIterator<Item = Range<u16>>) -> Mirror {
+        let ranges: Box<[Range<u16>]> = ranges.into_iter().collect();
         let len = ranges.iter().map(|r| r.len()).sum::<usize>();
         Mirror {
-            ranges: ranges.into_boxed_slice(),
+            ranges,
             wanted: AtomicBool::new(false),
             image: Mutex::new(MirrorImage {
                 generation: 0,
@@ -128,7 +129,7 @@ mod tests {
 
     #[test]
     fn copies_its_ranges_in_order_only_when_asked() {
-        let mirror = Mirror::new(vec![4..6, 1..2]);
+        let mirror = Mirror::new([4..6, 1..2]);
         let words: Vec<u16> = (0..10).map(|i| i * 10).collect();
         assert!(!mirror.capture(&words, 1, Mode::Run, 5), "nobody asked");
         assert_eq!(mirror.lock().generation, 0);
@@ -143,7 +144,7 @@ mod tests {
 
     #[test]
     fn a_reader_holding_the_image_defers_the_copy_to_the_next_boundary() {
-        let mirror = Mirror::new(vec![0..1]);
+        let mirror = Mirror::new([0..1]);
         mirror.request();
         let held = mirror.lock();
         assert!(!mirror.capture(&[3], 1, Mode::Run, 1));
@@ -155,7 +156,7 @@ mod tests {
 
     #[test]
     fn wait_newer_returns_the_fresh_image_or_the_old_one_at_the_timeout() {
-        let mirror = std::sync::Arc::new(Mirror::new(vec![0..1]));
+        let mirror = std::sync::Arc::new(Mirror::new([0..1]));
         let stale = mirror.wait_newer(0, Duration::from_millis(1));
         assert_eq!(stale.generation, 0);
         drop(stale);
