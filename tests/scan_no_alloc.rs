@@ -131,7 +131,7 @@ fn the_scan_thread_does_not_allocate() {
     let snapshot = Arc::new(Mutex::new(Snapshot::new()));
     let watch = plcd::sim::output_bits(&project);
     let d0 = Address::parse("D00000").unwrap().as_word().unwrap().0;
-    let mirror = Arc::new(Mirror::new([d0..d0 + 3]));
+    let mirror = Arc::new(Mirror::new(std::iter::once(d0..d0 + 3)));
     let scan = ScanThread {
         engine: Box::new(Engine::new(&project, &watch)),
         io: GatedIo {

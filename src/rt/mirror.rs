@@ -144,7 +144,7 @@ mod tests {
 
     #[test]
     fn a_reader_holding_the_image_defers_the_copy_to_the_next_boundary() {
-        let mirror = Mirror::new([0..1]);
+        let mirror = Mirror::new(std::iter::once(0..1));
         mirror.request();
         let held = mirror.lock();
         assert!(!mirror.capture(&[3], 1, Mode::Run, 1));
@@ -156,7 +156,7 @@ mod tests {
 
     #[test]
     fn wait_newer_returns_the_fresh_image_or_the_old_one_at_the_timeout() {
-        let mirror = std::sync::Arc::new(Mirror::new([0..1]));
+        let mirror = std::sync::Arc::new(Mirror::new(std::iter::once(0..1)));
         let stale = mirror.wait_newer(0, Duration::from_millis(1));
         assert_eq!(stale.generation, 0);
         drop(stale);
