@@ -47,6 +47,9 @@ fn latency_reports_one_start_per_deadline_and_cleans_up() {
     // overrun); how far past the 25th it stops depends on the machine's load.
     let overruns = report["overruns"].as_u64().unwrap();
     assert!(samples + overruns >= 25, "{samples} + {overruns} for 25 deadlines");
+    // Every start was noticed first; one deadline may be noticed and not started when it stops.
+    let noticed = check_distribution(&report["notice_latency"], "notice_latency");
+    assert!((samples..=samples + 1).contains(&noticed), "{noticed} noticed, {samples} started");
     check_distribution(&report["scan_time"], "scan_time");
     assert!(["fifo", "other"].contains(&report["scheduling"]["policy"].as_str().unwrap()));
     assert_eq!(std::fs::read_dir(&tmp).unwrap().count(), 0, "the generated project is removed");
@@ -64,6 +67,8 @@ fn edge_reports_the_io_task_and_the_scan_length() {
     assert_eq!(report["scan_steps"], 400, "133 rungs of three and END");
     let samples = check_distribution(&report["start_latency"], "start_latency");
     assert!(samples >= 20, "{samples} edges for 20");
+    let noticed = check_distribution(&report["notice_latency"], "notice_latency");
+    assert!((samples..=samples + 1).contains(&noticed), "{noticed} noticed, {samples} started");
     assert_eq!(std::fs::read_dir(&tmp).unwrap().count(), 0);
     std::fs::remove_dir_all(tmp).unwrap();
 }

@@ -56,6 +56,9 @@ fn start_latency_is_the_di_section_that_holds_the_request() {
     assert_eq!(stats.runs, 1);
     let latency = stats.start_latency.summary();
     assert_eq!((latency.min, latency.max), (91 * US, 91 * US), "{latency:?}");
+    // The engine knew of the edge at once: all 91 µs are the DI section's, none the driver's.
+    let noticed = stats.notice_latency.summary();
+    assert_eq!((noticed.count, noticed.max), (1, 0), "{noticed:?}");
     let exec = stats.exec_time.summary();
     assert_eq!((exec.min, exec.max), (3 * US, 3 * US), "INC, INC, END");
     assert_eq!((stats.overruns, stats.ignored), (0, 0));
@@ -77,6 +80,10 @@ fn cycle_latency_counts_from_the_deadline() {
     let engine = run(tasks, &programs, &stimuli, 5);
     let tick = engine.task_stats("tick").unwrap().start_latency.summary();
     assert_eq!((tick.count, tick.min, tick.max), (4, 200 * US, 200 * US), "{tick:?}");
+    let noticed = engine.task_stats("tick").unwrap().notice_latency.summary();
+    // Five deadlines in 5 ms, the last at the end of the run (noticed, not yet started); virtual
+    // time notices each on time.
+    assert_eq!((noticed.count, noticed.max), (5, 0), "{noticed:?}");
     let edge = engine.task_stats("edge").unwrap().start_latency.summary();
     assert_eq!((edge.count, edge.max), (4, 0), "{edge:?}");
 }

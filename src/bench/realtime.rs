@@ -116,6 +116,10 @@ pub struct LatencyReport {
     pub run_ns: u64,
     /// The task's start latency.
     pub start_latency: Distribution,
+    /// Its first part: start condition → the engine told of it (the scan thread's wake-up
+    /// after a deadline; an edge through the event path). `start_latency` minus this is plcd's
+    /// own dispatch.
+    pub notice_latency: Distribution,
     /// Scan time of the scan program over the run.
     pub scan_time: Distribution,
     pub scans: u64,
@@ -319,6 +323,7 @@ fn measure(
         },
         run_ns,
         start_latency: Distribution::of(&stats.start_latency),
+        notice_latency: Distribution::of(&stats.notice_latency),
         scan_time: Distribution::of(&scan.time),
         scans: scan.count,
         overruns: stats.overruns,

@@ -125,6 +125,11 @@ fn text(report: &LatencyReport) -> String {
         _ => "io task start latency (edge stamp → first instruction)",
     };
     text.push_str(&format!("{what}\n  {}\n", report.start_latency.micros()));
+    let notice = match report.bench {
+        "cycle" => "of which the scan thread's wake-up (deadline → engine told)",
+        _ => "of which the event path (edge stamp → engine told)",
+    };
+    text.push_str(&format!("{notice}\n  {}\n", report.notice_latency.micros()));
     text.push_str(&format!(
         "scan time ({} steps, {} scans)\n  {}\n",
         report.scan_steps,

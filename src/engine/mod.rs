@@ -117,6 +117,10 @@ pub struct TaskStats {
     /// From the start condition (cycle deadline, the edge's timestamp, the END that sampled a
     /// device condition) to the task's first instruction.
     pub start_latency: Histogram,
+    /// The part of `start_latency` before the engine learned of the start condition: how late
+    /// the driver woke up for a cycle deadline, the edge's way through the event path. The
+    /// rest is the engine's own: dispatch, and waiting for higher-priority tasks.
+    pub notice_latency: Histogram,
     /// The task's own execution time per run, from first instruction to END, without the time
     /// higher-priority tasks took while it was preempted.
     pub exec_time: Histogram,
@@ -860,6 +864,9 @@ impl Engine {
             None => {
                 task.state = State::Pending { at_ns: now };
                 task.occurred_ns = occurred_ns;
+                if id != SCAN && id != INIT {
+                    task.stats.notice_latency.record(now.saturating_sub(occurred_ns));
+                }
             }
         }
         why

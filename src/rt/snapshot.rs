@@ -96,6 +96,7 @@ impl Snapshot {
             dst.ignored = src.ignored;
             dst.overruns = src.overruns;
             dst.start_latency.copy_from(&src.start_latency);
+            dst.notice_latency.copy_from(&src.notice_latency);
             dst.exec_time.copy_from(&src.exec_time);
             self.task_count += 1;
         }
