@@ -21,6 +21,7 @@
 //! would mostly report consequences of the syntax error.
 
 mod raw;
+mod retain;
 mod validate;
 
 #[cfg(test)]
@@ -32,6 +33,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use crate::device::Address;
+pub use retain::{Restart, RetainArea, RetainConfig, RetainRange};
 use crate::diag::{Diagnostic, Diagnostics};
 
 /// A whole, valid configuration.
@@ -59,6 +61,8 @@ pub struct Config {
     /// `[switch]`: the RUN/STOP key switch; `None` when not configured (remote mode changes
     /// are then always accepted).
     pub switch: Option<SwitchConfig>,
+    /// `[retain]`: retained memory (docs/RETAIN.md).
+    pub retain: RetainConfig,
 }
 
 impl Config {
