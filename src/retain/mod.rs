@@ -11,6 +11,7 @@
 
 pub mod format;
 pub mod layout;
+pub mod service;
 pub mod store;
 pub mod writer;
 
