@@ -23,8 +23,8 @@ struct Project {
 
 impl Project {
     fn new(name: &str) -> Project {
-        let dir = std::env::temp_dir()
-            .join(format!("plcd-retain-daemon-{name}-{}", std::process::id()));
+        let dir =
+            std::env::temp_dir().join(format!("plcd-retain-daemon-{name}-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         Project { dir }
@@ -48,7 +48,8 @@ impl Project {
 
     /// Starts `plcd run`, its log appended to plcd.log.
     fn start(&self) -> Daemon {
-        let log = File::options().create(true).append(true).open(self.dir.join("plcd.log")).unwrap();
+        let log =
+            File::options().create(true).append(true).open(self.dir.join("plcd.log")).unwrap();
         let child = Command::new(env!("CARGO_BIN_EXE_plcd"))
             .args(["run", "--config"])
             .arg(self.config())
@@ -221,7 +222,10 @@ fn warm_restarts_keep_counting_a_cold_one_clears_everything() {
         assert_eq!(daemon.stop(), 0);
         assert_eq!(runs(&newest_in(&project.retain_dir()).unwrap()), (n, n));
     }
-    project.write("plcd.toml", &warm.replace("interval_ms = 10", "interval_ms = 10\nrestart = \"cold\""));
+    project.write(
+        "plcd.toml",
+        &warm.replace("interval_ms = 10", "interval_ms = 10\nrestart = \"cold\""),
+    );
     let seq = newest_in(&project.retain_dir()).unwrap().seq;
     let daemon = project.start();
     let g = project.wait_for_generation("a write of the cold start", |g| g.seq > seq);
@@ -281,8 +285,10 @@ fn files_of_other_ranges_are_set_aside_and_the_daemon_starts_cleared() {
     assert_eq!(daemon.stop(), 0);
     let log = project.log();
     assert!(
-        log.contains("not restored: the file retains K000-K255, D00000-D00000; the config retains \
-                      K000-K255, D00000-D00009"),
+        log.contains(
+            "not restored: the file retains K000-K255, D00000-D00000; the config retains \
+                      K000-K255, D00000-D00009"
+        ),
         "{log}"
     );
     let kept: Vec<String> = std::fs::read_dir(project.retain_dir())

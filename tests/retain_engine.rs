@@ -160,7 +160,8 @@ fn a_replacement_engine_takes_the_retained_devices_over() {
 #[test]
 fn retained_counters_count_on_without_a_phantom_edge_and_keep_a_down_count() {
     // C0000 retained, C0001 not; C0002 a retained down counter.
-    let main = "LOAD P0000\nCTU C0000 100\nLOAD P0000\nCTU C0001 100\nLOAD P0001\nCTD C0002 5\nEND\n";
+    let main =
+        "LOAD P0000\nCTU C0000 100\nLOAD P0000\nCTU C0001 100\nLOAD P0001\nCTD C0002 5\nEND\n";
     let mut plc = Plc::new(&project(RANGES, main));
     plc.input(0, true);
     plc.mode(Mode::Run);

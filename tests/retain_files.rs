@@ -29,7 +29,10 @@ impl Drop for TempDir {
 }
 
 fn set() -> RetainSet {
-    set_of(&[RetainRange::parse("D00000-D00009").unwrap(), RetainRange::parse("C0000-C0003").unwrap()])
+    set_of(&[
+        RetainRange::parse("D00000-D00009").unwrap(),
+        RetainRange::parse("C0000-C0003").unwrap(),
+    ])
 }
 
 /// The retained words with every word `value`.
@@ -43,8 +46,13 @@ fn words(set: &RetainSet, value: u16) -> Vec<u16> {
 /// Writes generation `old` then `new` (values 1 then 2) with a fresh writer; the newer file.
 fn two_generations(dir: &TempDir, set: &RetainSet) -> PathBuf {
     let start = retain::startup(&Store::open(&dir.0).unwrap(), set, Restart::Warm);
-    let mut writer =
-        Writer::new(Store::open(&dir.0).unwrap(), &set.words, start.next_slot, start.next_seq, None);
+    let mut writer = Writer::new(
+        Store::open(&dir.0).unwrap(),
+        &set.words,
+        start.next_slot,
+        start.next_seq,
+        None,
+    );
     assert!(writer.write_if_changed(&mut words(set, 1)).unwrap());
     assert!(!writer.write_if_changed(&mut words(set, 1)).unwrap(), "unchanged: not written");
     assert!(writer.write_if_changed(&mut words(set, 2)).unwrap());

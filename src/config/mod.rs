@@ -33,8 +33,8 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use crate::device::Address;
-pub use retain::{Restart, RetainArea, RetainConfig, RetainRange};
 use crate::diag::{Diagnostic, Diagnostics};
+pub use retain::{Restart, RetainArea, RetainConfig, RetainRange};
 
 /// A whole, valid configuration.
 #[derive(Debug, Clone, PartialEq, Eq)]

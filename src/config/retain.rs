@@ -170,6 +170,7 @@ pub(super) fn validate(sink: &mut Sink, raw: RawRetain, config: &Path) -> Option
         }
         Some(dir) => Some(Some(resolve(config, dir.get_ref()))),
     };
-    let retain = RetainConfig { ranges, interval_ms: interval_ms?, dir: dir?, restart: raw.restart };
+    let retain =
+        RetainConfig { ranges, interval_ms: interval_ms?, dir: dir?, restart: raw.restart };
     ok.then_some(retain)
 }

@@ -309,8 +309,8 @@ impl Daemon {
                     ("[retain]", new.config.retain != old.retain),
                 ]
                 .into_iter()
-                        .filter_map(|(name, changed)| changed.then_some(name))
-                        .collect();
+                .filter_map(|(name, changed)| changed.then_some(name))
+                .collect();
                 if !changed.is_empty() {
                     log::error!(
                         "reload refused: {} changed, which takes a restart of the service; \

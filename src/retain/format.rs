@@ -58,7 +58,13 @@ pub enum DecodeError {
 
 /// The bytes of a file holding `words` (of `ranges`, as [`super::RetainSet::capture`] made
 /// them), into `out`.
-pub fn encode(seq: u64, written_unix_ms: u64, ranges: &[RetainedWords], words: &[u16], out: &mut Vec<u8>) {
+pub fn encode(
+    seq: u64,
+    written_unix_ms: u64,
+    ranges: &[RetainedWords],
+    words: &[u16],
+    out: &mut Vec<u8>,
+) {
     out.clear();
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&VERSION.to_le_bytes());
@@ -210,7 +216,8 @@ mod tests {
 
     fn file(seq: u64, words: &[u16]) -> Vec<u8> {
         let mut out = Vec::new();
-        let ranges = [RetainedWords { start: K.start, end: K.start + words.len() as u16, mask: !0 }];
+        let ranges =
+            [RetainedWords { start: K.start, end: K.start + words.len() as u16, mask: !0 }];
         encode(seq, 1_700_000_000_000, &ranges, words, &mut out);
         out
     }

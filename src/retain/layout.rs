@@ -161,7 +161,8 @@ fn describe_one(w: &RetainedWords) -> Option<String> {
         format!("T{:04}-T{:04}", start - layout::TV, last - layout::TV)
     } else if in_area(layout::CV, layout::TC_COUNT) {
         format!("C{:04}-C{:04}", start - layout::CV, last - layout::CV)
-    } else if in_area(layout::TB, layout::TC_COUNT / 16) || in_area(layout::CB, layout::TC_COUNT / 16)
+    } else if in_area(layout::TB, layout::TC_COUNT / 16)
+        || in_area(layout::CB, layout::TC_COUNT / 16)
     {
         // Done contacts follow their values; they add nothing a reader needs.
         return None;
@@ -181,7 +182,7 @@ pub fn difference(file: &[RetainedWords], configured: &[RetainedWords]) -> Strin
     }
 }
 
-/// Keeps `RetainRange` reachable from here for callers building sets by hand (tests, benches).
+/// The set of K and `ranges` (as `[retain] ranges` would name them), for tests and benches.
 pub fn set_of(ranges: &[RetainRange]) -> RetainSet {
     RetainSet::new(&RetainConfig { ranges: ranges.to_vec(), ..RetainConfig::default() })
 }
@@ -198,7 +199,8 @@ mod tests {
     #[test]
     fn k_always_then_the_ranges_with_done_bits_masked() {
         let set = set_of(&[range("D00010-D00012"), range("C0014-C0033")]);
-        let (k, d, cv, cb) = (layout::K as u16, layout::D as u16, layout::CV as u16, layout::CB as u16);
+        let (k, d, cv, cb) =
+            (layout::K as u16, layout::D as u16, layout::CV as u16, layout::CB as u16);
         assert_eq!(
             &*set.words,
             &[
@@ -210,7 +212,8 @@ mod tests {
                 RetainedWords { start: cb + 2, end: cb + 3, mask: 0x0003 },
             ]
         );
-        assert_eq!(&*set.counters, &[14..34]);
+        assert_eq!(set.counters.len(), 1);
+        assert_eq!(set.counters[0], 14..34);
         assert!(set.timers.is_empty());
         assert_eq!(set.word_count(), 256 + 3 + 20 + 3);
         assert_eq!(describe(&set.words), "K000-K255, D00010-D00012, C0014-C0033");
