@@ -23,6 +23,7 @@ pub mod io;
 pub mod lang;
 pub mod plcctl;
 pub mod project;
+pub mod retain;
 pub mod rt;
 pub mod sim;
 pub mod stats;

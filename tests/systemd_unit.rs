@@ -140,6 +140,21 @@ fn the_unit_passes_systemd_analyze_verify() {
     );
 }
 
+#[test]
+fn retained_memory_has_a_state_directory_under_the_full_hardening() {
+    // The daemon writes its retain files to $STATE_DIRECTORY (docs/RETAIN.md), which systemd
+    // sets from StateDirectory=; everything else stays read-only.
+    let unit = fs::read_to_string(unit_file()).unwrap();
+    let lines: Vec<&str> = unit.lines().map(str::trim).collect();
+    for directive in ["StateDirectory=plcd", "StateDirectoryMode=0750", "ProtectSystem=strict"] {
+        assert!(lines.contains(&directive), "the unit lacks {directive}");
+    }
+    assert!(
+        !lines.iter().any(|l| l.starts_with("ReadWritePaths=")),
+        "no other writable path: the state directory is the one place the daemon writes"
+    );
+}
+
 /// `systemd-analyze security --offline=true` of the unit installed in `root`, its drop-ins
 /// included.
 fn security_in(root: &Scratch) -> Output {
@@ -217,8 +232,8 @@ fn exposure_lines_parse() {
 
 /// Every system call plcd makes (strace -f of `plcd run` on the example project, with
 /// NOTIFY_SOCKET, WATCHDOG_USEC, [rt] *_cpus, a SIGHUP and a SIGTERM, on x86_64), the ones of the
-/// gpiocdev backend and of other architectures' libc, and the ones the control socket and the
-/// retained memory will need.
+/// gpiocdev backend and of other architectures' libc, and the ones of the control socket and
+/// the retained memory.
 const PLCD_SYSCALLS: &[&str] = &[
     // the runtime: glibc, the Rust standard library, threads
     "access",
@@ -291,7 +306,8 @@ const PLCD_SYSCALLS: &[&str] = &[
     "sendmsg",
     "recvfrom",
     "recvmsg",
-    // to come: the control socket (/run/plcd/plcd.sock) and retained memory (/var/lib/plcd)
+    // the control socket (/run/plcd/plcd.sock) and retained memory (/var/lib/plcd: create the
+    // directory, write a temporary file, fsync it, rename it, fsync the directory)
     "bind",
     "listen",
     "accept4",

@@ -21,6 +21,7 @@
 //! would mostly report consequences of the syntax error.
 
 mod raw;
+mod retain;
 mod validate;
 
 #[cfg(test)]
@@ -33,6 +34,7 @@ use serde::Deserialize;
 
 use crate::device::Address;
 use crate::diag::{Diagnostic, Diagnostics};
+pub use retain::{Restart, RetainArea, RetainConfig, RetainRange};
 
 /// A whole, valid configuration.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -59,6 +61,8 @@ pub struct Config {
     /// `[switch]`: the RUN/STOP key switch; `None` when not configured (remote mode changes
     /// are then always accepted).
     pub switch: Option<SwitchConfig>,
+    /// `[retain]`: retained memory (docs/RETAIN.md).
+    pub retain: RetainConfig,
 }
 
 impl Config {

@@ -72,6 +72,7 @@ pub(super) struct RawDoc {
     /// `[switch]`: `None` when the document has none (and when it is not a table, which is
     /// reported); the span is its header.
     pub switch: Option<Located<RawSwitch>>,
+    pub retain: Option<super::retain::RawRetain>,
     pub failed: Failed,
 }
 
@@ -290,7 +291,7 @@ pub(super) struct RawOutput {
 }
 
 const TOP_LEVEL: &str =
-    "`plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`, `control`, `switch`";
+    "`plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`, `control`, `switch`, `retain`";
 
 /// Pass 1. `None` if the TOML itself is malformed (the syntax errors are in `sink`).
 pub(super) fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
@@ -323,6 +324,7 @@ pub(super) fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
             "rt" => &mut sections.rt,
             "control" => &mut sections.control,
             "switch" => &mut sections.switch,
+            "retain" => &mut sections.retain,
             other => {
                 let message = format!("unknown key `{other}`, expected one of {TOP_LEVEL}");
                 sink.error(key.span().start, message);
@@ -359,6 +361,7 @@ pub(super) fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
         let value = section(sink, Some(value), "switch", &mut doc.failed.keys)?;
         Some(Located { span, ctx: Ctx::Section("switch"), value })
     });
+    doc.retain = section(sink, sections.retain, "retain", &mut doc.failed.keys);
     Some(doc)
 }
 
@@ -374,6 +377,7 @@ struct Sections<'i> {
     rt: Option<Spanned<DeValue<'i>>>,
     control: Option<Spanned<DeValue<'i>>>,
     switch: Option<Spanned<DeValue<'i>>>,
+    retain: Option<Spanned<DeValue<'i>>>,
 }
 
 fn read_io(sink: &mut Sink, io: Option<Spanned<DeValue<'_>>>, doc: &mut RawDoc) {

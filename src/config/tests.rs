@@ -194,6 +194,7 @@ fn the_contract_example_parses_to_its_defaults() {
         rt: RtConfig::default(),
         control: crate::config::ControlConfig::default(),
         switch: None,
+        retain: RetainConfig::default(),
     };
     assert_eq!(config, expected);
 }
@@ -427,7 +428,7 @@ fn unknown_keys_are_errors_at_the_key() {
     assert_eq!(
         errors(&with_scan("[plcc]\n")),
         ["1:2: unknown key `plcc`, expected one of `plc`, `sim`, `timers`, `program`, `task`, \
-          `io`, `rt`, `control`, `switch`"]
+          `io`, `rt`, `control`, `switch`, `retain`"]
     );
     assert_eq!(
         errors(&with_scan("[plc]\nwatchdog = 5\n")),
@@ -1636,5 +1637,54 @@ fn load_reads_the_file_and_resolves_against_its_directory() {
         d.message.starts_with(&format!("cannot read {}: ", missing.display())),
         "{}",
         d.message
+    );
+}
+
+// ---- [retain] ----
+
+#[test]
+fn retain_keys_parse_with_their_defaults() {
+    let defaults = config(SCAN).retain;
+    assert_eq!(defaults, RetainConfig::default());
+    assert_eq!((defaults.interval_ms, defaults.restart, defaults.dir), (1000, Restart::Warm, None));
+    let text = "[retain]\nranges = [\"D00000-D00099\", \"C0000-C0015\", \"T0002-T0002\"]\n\
+                interval_ms = 10\ndir = \"state\"\nrestart = \"cold\"\n";
+    let retain = config(&with_scan(text)).retain;
+    assert_eq!(
+        retain.ranges,
+        [
+            RetainRange { area: RetainArea::D, first: 0, last: 99 },
+            RetainRange { area: RetainArea::C, first: 0, last: 15 },
+            RetainRange { area: RetainArea::T, first: 2, last: 2 },
+        ]
+    );
+    assert_eq!(retain.interval_ms, 10);
+    assert_eq!(retain.dir, Some(PathBuf::from("etc/state")));
+    assert_eq!(retain.restart, Restart::Cold);
+}
+
+#[test]
+fn retain_errors_name_the_key_and_the_range() {
+    let text = "[retain]\nranges = [\"D00000-D00099\", \"D00050-D00150\", \"K000-K010\", \
+                \"M000-M001\", \"D00010\", \"D00009-D00001\", \"D00001-C0002\", \"D00001.3-D00002\"]\n\
+                interval_ms = 9\ndir = \"\"\nrestart = \"hot\"\n";
+    assert_eq!(
+        errors(&with_scan(text)),
+        [
+            "2:28: retain.ranges: D00050-D00150 overlaps D00000-D00099",
+            "2:45: retain.ranges: `K000-K010`: the K area is always retained",
+            "2:58: retain.ranges: `M000-M001`: M cannot be retained; D, T and C ranges can (K always is)",
+            "2:71: retain.ranges: `D00010` is not a range: write it `D00000-D00099`",
+            "2:81: retain.ranges: `D00009-D00001`: the first device is after the last",
+            "2:98: retain.ranges: `D00001-C0002`: both ends must be of one area",
+            "2:114: retain.ranges: `D00001.3-D00002`: a range of words, not of bits",
+            "3:15: retain.interval_ms 9 out of range 10..=3600000",
+            "4:7: retain.dir must not be empty",
+            "5:11: retain.restart: unknown variant `hot`, expected `warm` or `cold`",
+        ]
+    );
+    assert_eq!(
+        errors(&with_scan("[retain]\nperiod = 3\n"))[0],
+        "2:1: [retain]: unknown key `period`, expected one of `ranges`, `interval_ms`, `dir`, `restart`"
     );
 }

@@ -40,6 +40,7 @@ pub(super) fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
     let switch = switch(sink, doc.switch, backend, &wired, failed);
     let io = io(sink, doc.io, doc.inputs, doc.outputs, failed, &path);
     let rt = doc.rt.and_then(|raw| rt(sink, raw, failed));
+    let retain = doc.retain.and_then(|raw| super::retain::validate(sink, raw, &path));
     // Programs may name a task whose entry has errors: that entry's own diagnostics say what
     // is wrong, so it still counts as defined.
     let task_names: Vec<String> = doc
@@ -61,6 +62,7 @@ pub(super) fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
         rt: rt?,
         control: control?,
         switch: switch?,
+        retain: retain?,
     })
 }
 
@@ -493,7 +495,7 @@ fn switch_line_is_free(
 }
 
 /// `file` relative to the config file's directory (unchanged if absolute).
-fn resolve(config: &Path, file: &str) -> PathBuf {
+pub(super) fn resolve(config: &Path, file: &str) -> PathBuf {
     match config.parent() {
         Some(dir) => dir.join(file),
         None => PathBuf::from(file),
@@ -1028,7 +1030,7 @@ fn io_line(
 }
 
 /// `value` if it is within `range` (and so fits `T`); otherwise reports it, naming the key.
-fn int<T: TryFrom<i64>>(
+pub(super) fn int<T: TryFrom<i64>>(
     sink: &mut Sink,
     ctx: &Ctx,
     key: &str,
@@ -1051,7 +1053,7 @@ fn int<T: TryFrom<i64>>(
 }
 
 /// [`int`] for an optional key with a default.
-fn int_or<T: TryFrom<i64>>(
+pub(super) fn int_or<T: TryFrom<i64>>(
     sink: &mut Sink,
     ctx: &Ctx,
     key: &str,
@@ -1065,7 +1067,7 @@ fn int_or<T: TryFrom<i64>>(
     }
 }
 
-fn widen<T: Copy + Into<i64>>(range: RangeInclusive<T>) -> RangeInclusive<i64> {
+pub(super) fn widen<T: Copy + Into<i64>>(range: RangeInclusive<T>) -> RangeInclusive<i64> {
     (*range.start()).into()..=(*range.end()).into()
 }
 

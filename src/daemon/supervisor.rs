@@ -83,11 +83,16 @@ struct Daemon {
     seen_lost_edges: u64,
     seen_dropped: u64,
     seen_trips: u64,
+    /// Retained memory: restored at start, written in the background (docs/RETAIN.md).
+    retain: crate::retain::service::Persistence,
 }
 
 impl Daemon {
     fn start(config_path: &Path, project: Project) -> Result<Daemon, DaemonError> {
-        let mut driver = Driver::start(&project, Vec::new())?;
+        let mut retain = crate::retain::service::Persistence::open(&project.config);
+        let mut driver =
+            Driver::start_with(&project, retain.mirrors(), |engine| retain.restore_into(engine))?;
+        retain.start(Arc::clone(&driver.shared));
         if !driver.problems.is_empty() {
             log::warn!(
                 "running without full real-time guarantees: {}; grant CAP_SYS_NICE and \
@@ -132,6 +137,7 @@ impl Daemon {
             seen_lost_edges: 0,
             seen_dropped: 0,
             seen_trips: 0,
+            retain,
         };
         if has_switch {
             log::info!("RUN/STOP key switch configured: the mode follows it (XGB §5.2.3)");
@@ -223,6 +229,9 @@ impl Daemon {
                         (None, _) => "STOP instruction",
                     };
                     log::info!("mode {} ({why})", mode.as_str());
+                    if mode == Mode::Stop {
+                        self.retain.flush();
+                    }
                 }
                 Report::Retired(old) => drop(old),
                 Report::RetiredChange(change) => drop(change),
@@ -294,11 +303,14 @@ impl Daemon {
             Ok(new) => {
                 let mut running = self.running.lock().unwrap_or_else(|e| e.into_inner());
                 let old = &running.project.config;
-                let changed: Vec<&str> =
-                    [("[io]", new.config.io != old.io), ("[rt]", new.config.rt != old.rt)]
-                        .into_iter()
-                        .filter_map(|(name, changed)| changed.then_some(name))
-                        .collect();
+                let changed: Vec<&str> = [
+                    ("[io]", new.config.io != old.io),
+                    ("[rt]", new.config.rt != old.rt),
+                    ("[retain]", new.config.retain != old.retain),
+                ]
+                .into_iter()
+                .filter_map(|(name, changed)| changed.then_some(name))
+                .collect();
                 if !changed.is_empty() {
                     log::error!(
                         "reload refused: {} changed, which takes a restart of the service; \
@@ -332,7 +344,9 @@ impl Daemon {
             control.stop();
         }
         let Some(driver) = &mut self.driver else { return Ok(()) };
+        self.retain.stop_writer();
         let engine = driver.stop();
+        self.retain.final_write(engine.as_deref());
         self.drain_reports();
         self.driver = None;
         self.log_counters();

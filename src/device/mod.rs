@@ -143,17 +143,27 @@ impl Memory {
         }
     }
 
-    /// Clears every area except the retained ones (K, and the word ranges in `retained`), as
-    /// at the start of RUN.
-    pub fn clear_for_run(&mut self, retained: &[std::ops::Range<usize>]) {
+    /// Clears every area except the retained ones (K, and the bits of `retained`), as at the
+    /// start of RUN. No allocation.
+    pub fn clear_for_run(&mut self, retained: &[crate::retain::RetainedWords]) {
         let k = layout::K as usize..(layout::K + layout::MK_WORDS) as usize;
-        for index in 0..self.words.len() {
-            if k.contains(&index) || retained.iter().any(|r| r.contains(&index)) {
+        for (index, word) in self.words.iter_mut().enumerate() {
+            if k.contains(&index) {
                 continue;
             }
-            self.words[index] = 0;
+            let keep = retained
+                .iter()
+                .filter(|r| usize::from(r.start) <= index && index < usize::from(r.end))
+                .fold(0, |mask, r| mask | r.mask);
+            *word &= keep;
         }
         self.set_constant_flags();
+    }
+
+    /// Every word, for restoring retained memory (and nothing else: programs and tools write
+    /// through [`Memory::write`] and the references).
+    pub fn words_mut(&mut self) -> &mut [u16] {
+        &mut self.words
     }
 
     /// Clears every area, retained ones included (a cold restart).
@@ -273,8 +283,14 @@ mod tests {
         m.write(&addr("M001"), 7);
         m.write(&addr("D00100"), 7);
         m.write(&addr("D00200"), 7);
-        let d100 = addr("D00100").as_word().unwrap().0 as usize;
-        m.clear_for_run(std::slice::from_ref(&(d100..d100 + 1)));
+        m.write(&addr("D00300"), 0b1011);
+        let d100 = addr("D00100").as_word().unwrap().0;
+        let d300 = addr("D00300").as_word().unwrap().0;
+        m.clear_for_run(&[
+            crate::retain::RetainedWords { start: d100, end: d100 + 1, mask: 0xFFFF },
+            crate::retain::RetainedWords { start: d300, end: d300 + 1, mask: 0b0011 },
+        ]);
+        assert_eq!(m.read(&addr("D00300")), 0b0011);
         assert_eq!(m.read(&addr("K001")), 7);
         assert_eq!(m.read(&addr("M001")), 0);
         assert_eq!(m.read(&addr("D00100")), 7);

@@ -264,6 +264,11 @@ pub struct Engine {
     last_operation_error: Option<ErrorKind>,
     /// Cycle deadlines noticed a full interval or more after they passed, since RUN.
     missed_deadlines: u64,
+    /// What `[retain]` keeps across RUN starts and restarts (docs/RETAIN.md).
+    retain: crate::retain::RetainSet,
+    /// The retained devices hold values to keep (restored, or a RUN happened since the memory
+    /// was cleared): a warm RUN start; false after a cold start or `reset --cold`.
+    warm: bool,
     /// The current scan paused in DEBUG: its duration is not a scan time.
     scan_paused: bool,
     /// `_FORCE_IN`/`_FORCE_OUT` may be ON.
@@ -354,9 +359,36 @@ impl Engine {
             latched_error: None,
             last_operation_error: None,
             missed_deadlines: 0,
+            retain: crate::retain::RetainSet::new(&config.retain),
+            warm: false,
             scan_paused: false,
             force_flags_on: false,
         }
+    }
+
+    /// The retained words (K and the `[retain]` ranges).
+    pub fn retain_set(&self) -> &crate::retain::RetainSet {
+        &self.retain
+    }
+
+    /// Restores retained memory at start (the words as [`crate::retain::RetainSet::capture`]
+    /// lays them out, of a generation whose layout matches): the next RUN start is warm.
+    pub fn restore_retained(&mut self, words: &[u16]) {
+        self.retain.restore(words, self.vm.mem.words_mut());
+        self.warm = true;
+    }
+
+    /// A replacement engine (reload, `plcctl load`) takes the retained devices of the one it
+    /// replaces, so that a new program does not reset a counter: copies the retained bits of
+    /// `old`'s memory and its warm flag. No allocation (the scan thread calls it).
+    pub fn inherit_retained(&mut self, old: &Engine) {
+        let (from, to) = (old.vm.mem.words(), self.vm.mem.words_mut());
+        for r in self.retain.words.iter() {
+            for i in usize::from(r.start)..usize::from(r.end) {
+                to[i] = (to[i] & !r.mask) | (from[i] & r.mask);
+            }
+        }
+        self.warm = old.warm;
     }
 
     /// Task names by [`TaskId`], for traces.
@@ -479,6 +511,7 @@ impl Engine {
                 }
                 if cold {
                     self.vm.mem.clear_all();
+                    self.warm = false;
                     self.check_watches(now, sink);
                 }
             }
@@ -939,7 +972,8 @@ impl Engine {
 
     /// RUN (or DEBUG, paused before the first scan) from STOP: device memory initialized.
     fn enter_run(&mut self, mode: Mode, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
-        self.vm.reset_for_run(&[]);
+        self.vm.reset_for_run(&self.retain, self.warm);
+        self.warm = true;
         for task in &mut self.tasks {
             task.state = State::Idle;
             task.disabled = false;

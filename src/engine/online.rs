@@ -43,6 +43,7 @@ pub fn incompatibilities(old: &Project, new: &Project) -> Vec<String> {
     section("[io]", a.io != b.io);
     section("[rt]", a.rt != b.rt);
     section("[switch]", a.switch != b.switch);
+    section("[retain]", a.retain != b.retain);
     for task in &a.tasks {
         match b.tasks.iter().find(|t| t.name == task.name) {
             None => reasons.push(format!("task \"{}\" is removed", task.name)),

@@ -97,6 +97,16 @@ impl Driver {
     /// `mirrors` are copied by the scan thread at scan boundaries when their consumers ask
     /// (see [`super::mirror`]).
     pub fn start(project: &Project, mirrors: Vec<Arc<Mirror>>) -> Result<Driver, DriverError> {
+        Driver::start_with(project, mirrors, |_| {})
+    }
+
+    /// [`Driver::start`], with `prepare` applied to the new engine before the threads start
+    /// (the retained memory restored at start).
+    pub fn start_with(
+        project: &Project,
+        mirrors: Vec<Arc<Mirror>>,
+        prepare: impl FnOnce(&mut Engine),
+    ) -> Result<Driver, DriverError> {
         let config = &project.config;
         let rt = config.rt.clone();
         let mut problems: Vec<String> = Vec::new();
@@ -168,7 +178,8 @@ impl Driver {
             GatedIo { field, gate: Arc::clone(&gate), safe: safe.clone(), clear_on_trip: clear };
 
         let watch = crate::sim::output_bits(project);
-        let engine = Box::new(Engine::new(project, &watch));
+        let mut engine = Box::new(Engine::new(project, &watch));
+        prepare(&mut engine);
 
         // The threads, each reporting how its [rt] setup went before it starts working.
         let (setup_tx, setup_rx) = mpsc::channel::<Vec<RtSetupError>>();

@@ -223,6 +223,7 @@ impl ScanThread {
                     };
                     self.engine.set_mode(Mode::Stop, now, &mut self.io, &mut sink);
                     let old = std::mem::replace(&mut self.engine, new);
+                    self.engine.inherit_retained(&old);
                     if was == Mode::Run {
                         self.engine.set_mode(Mode::Run, now, &mut self.io, &mut sink);
                     }
@@ -282,6 +283,7 @@ impl ScanThread {
                 }
                 engine.set_mode(Mode::Stop, now, &mut self.io, &mut sink);
                 let old = std::mem::replace(engine, new);
+                engine.inherit_retained(&old);
                 sink.push(Report::Retired(old));
                 *replaced = true;
             }
@@ -289,6 +291,7 @@ impl ScanThread {
                 if matches!(engine.mode(), Mode::Stop | Mode::Error) {
                     engine.set_mode(Mode::Stop, now, &mut self.io, &mut sink);
                     std::mem::swap(engine, &mut change.engine);
+                    engine.inherit_retained(&change.engine);
                 } else {
                     let taken = change.engine.take_over(engine, &change.edges);
                     if let Err(refusal) = taken {

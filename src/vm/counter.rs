@@ -19,6 +19,16 @@ pub struct CounterState {
     is_down: bool,
 }
 
+impl CounterState {
+    /// A retained counter at the start of RUN with its value kept (docs/RETAIN.md): a down
+    /// counter does not load its preset again, and an input already ON at its first execution
+    /// is no rising edge (it may have been ON before the restart: counting it would count one
+    /// part twice).
+    pub fn warm() -> CounterState {
+        CounterState { prev_input: true, prev_down: true, loaded: true, ..CounterState::default() }
+    }
+}
+
 /// Executes `CTU`, `CTD` or `CTR` with the rung result `input` on current value `value`: the
 /// new value and contact.
 pub fn execute(

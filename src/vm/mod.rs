@@ -192,12 +192,21 @@ impl Vm {
         self.steps
     }
 
-    /// RUN start: data areas cleared except K and `retained` word ranges; timers, counters,
-    /// edges and DUTY clocks back to their initial state.
-    pub fn reset_for_run(&mut self, retained: &[std::ops::Range<usize>]) {
-        self.mem.clear_for_run(retained);
+    /// RUN start: data areas cleared except the retained words (K and the `[retain]` ranges);
+    /// timers, edges and DUTY clocks back to their initial state (a retained timer's current
+    /// value is in memory: TMR counts on from it, the others start timing over); counters too,
+    /// except that with `warm` (retained values are meaningful: not after a cold start) the
+    /// retained ones keep counting from their value ([`counter::CounterState::warm`]).
+    pub fn reset_for_run(&mut self, retained: &crate::retain::RetainSet, warm: bool) {
+        self.mem.clear_for_run(&retained.words);
         self.timers.fill(timer::TimerState::default());
-        self.counters.fill(counter::CounterState::default());
+        for (n, state) in self.counters.iter_mut().enumerate() {
+            *state = if warm && retained.retains_counter(n) {
+                counter::CounterState::warm()
+            } else {
+                counter::CounterState::default()
+            };
+        }
         self.edges.fill(false);
         self.duty = [duty::DutyClock::default(); duty::CHANNELS];
     }
