@@ -20,6 +20,7 @@
 //! stops after pass 1: what the parser recovered may not be what was meant, and checking it
 //! would mostly report consequences of the syntax error.
 
+mod modbus;
 mod raw;
 mod validate;
 
@@ -33,6 +34,8 @@ use serde::Deserialize;
 
 use crate::device::Address;
 use crate::diag::{Diagnostic, Diagnostics};
+
+pub use modbus::{ModbusConfig, ModbusRange, ModbusTable};
 
 /// A whole, valid configuration.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -59,6 +62,8 @@ pub struct Config {
     /// `[switch]`: the RUN/STOP key switch; `None` when not configured (remote mode changes
     /// are then always accepted).
     pub switch: Option<SwitchConfig>,
+    /// `[modbus]`: the Modbus TCP server (off unless `listen` is given) and its map.
+    pub modbus: ModbusConfig,
 }
 
 impl Config {

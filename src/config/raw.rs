@@ -72,6 +72,8 @@ pub(super) struct RawDoc {
     /// `[switch]`: `None` when the document has none (and when it is not a table, which is
     /// reported); the span is its header.
     pub switch: Option<Located<RawSwitch>>,
+    /// `[modbus]` and its tables; `None` when the document has none.
+    pub modbus: Option<super::modbus::RawModbusDoc>,
     pub failed: Failed,
 }
 
@@ -290,7 +292,7 @@ pub(super) struct RawOutput {
 }
 
 const TOP_LEVEL: &str =
-    "`plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`, `control`, `switch`";
+    "`plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`, `control`, `switch`, `modbus`";
 
 /// Pass 1. `None` if the TOML itself is malformed (the syntax errors are in `sink`).
 pub(super) fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
@@ -323,6 +325,7 @@ pub(super) fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
             "rt" => &mut sections.rt,
             "control" => &mut sections.control,
             "switch" => &mut sections.switch,
+            "modbus" => &mut sections.modbus,
             other => {
                 let message = format!("unknown key `{other}`, expected one of {TOP_LEVEL}");
                 sink.error(key.span().start, message);
@@ -359,6 +362,7 @@ pub(super) fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
         let value = section(sink, Some(value), "switch", &mut doc.failed.keys)?;
         Some(Located { span, ctx: Ctx::Section("switch"), value })
     });
+    doc.modbus = super::modbus::read(sink, sections.modbus);
     Some(doc)
 }
 
@@ -374,6 +378,7 @@ struct Sections<'i> {
     rt: Option<Spanned<DeValue<'i>>>,
     control: Option<Spanned<DeValue<'i>>>,
     switch: Option<Spanned<DeValue<'i>>>,
+    modbus: Option<Spanned<DeValue<'i>>>,
 }
 
 fn read_io(sink: &mut Sink, io: Option<Spanned<DeValue<'_>>>, doc: &mut RawDoc) {
@@ -407,7 +412,7 @@ fn read_io(sink: &mut Sink, io: Option<Spanned<DeValue<'_>>>, doc: &mut RawDoc) 
 
 /// A top-level table: its default when absent, `None` when it cannot be deserialized. Its
 /// malformed keys are left out (taking their defaults) and noted in `failed` as `name.key`.
-fn section<T: DeserializeOwned + Default>(
+pub(super) fn section<T: DeserializeOwned + Default>(
     sink: &mut Sink,
     value: Option<Spanned<DeValue<'_>>>,
     name: &'static str,
@@ -434,7 +439,7 @@ fn section<T: DeserializeOwned + Default>(
 ///
 /// `name_of` peeks at an entry's raw table for what to call it in messages (`task "fast"`);
 /// without one the entry is called by its position (`task #2`).
-fn entries<T: DeserializeOwned>(
+pub(super) fn entries<T: DeserializeOwned>(
     sink: &mut Sink,
     value: Option<Spanned<DeValue<'_>>>,
     name: &str,

@@ -194,6 +194,7 @@ fn the_contract_example_parses_to_its_defaults() {
         rt: RtConfig::default(),
         control: crate::config::ControlConfig::default(),
         switch: None,
+        modbus: crate::config::ModbusConfig::default(),
     };
     assert_eq!(config, expected);
 }
@@ -427,7 +428,7 @@ fn unknown_keys_are_errors_at_the_key() {
     assert_eq!(
         errors(&with_scan("[plcc]\n")),
         ["1:2: unknown key `plcc`, expected one of `plc`, `sim`, `timers`, `program`, `task`, \
-          `io`, `rt`, `control`, `switch`"]
+          `io`, `rt`, `control`, `switch`, `modbus`"]
     );
     assert_eq!(
         errors(&with_scan("[plc]\nwatchdog = 5\n")),

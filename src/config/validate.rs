@@ -50,6 +50,7 @@ pub(super) fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
         .collect();
     let tasks = tasks(sink, doc.tasks, gpio_inputs.as_deref());
     let programs = programs(sink, doc.programs, &task_names, &doc.failed, &path);
+    let modbus = super::modbus::validate(sink, doc.modbus);
     Some(Config {
         path,
         plc: plc?,
@@ -61,6 +62,7 @@ pub(super) fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
         rt: rt?,
         control: control?,
         switch: switch?,
+        modbus: modbus?,
     })
 }
 
@@ -1028,7 +1030,7 @@ fn io_line(
 }
 
 /// `value` if it is within `range` (and so fits `T`); otherwise reports it, naming the key.
-fn int<T: TryFrom<i64>>(
+pub(super) fn int<T: TryFrom<i64>>(
     sink: &mut Sink,
     ctx: &Ctx,
     key: &str,
@@ -1051,7 +1053,7 @@ fn int<T: TryFrom<i64>>(
 }
 
 /// [`int`] for an optional key with a default.
-fn int_or<T: TryFrom<i64>>(
+pub(super) fn int_or<T: TryFrom<i64>>(
     sink: &mut Sink,
     ctx: &Ctx,
     key: &str,
@@ -1065,7 +1067,7 @@ fn int_or<T: TryFrom<i64>>(
     }
 }
 
-fn widen<T: Copy + Into<i64>>(range: RangeInclusive<T>) -> RangeInclusive<i64> {
+pub(super) fn widen<T: Copy + Into<i64>>(range: RangeInclusive<T>) -> RangeInclusive<i64> {
     (*range.start()).into()..=(*range.end()).into()
 }
 
