@@ -153,9 +153,7 @@ impl ModbusTable {
     fn areas_text(self) -> &'static str {
         match self {
             ModbusTable::Coils => "P, M or K bits",
-            ModbusTable::DiscreteInputs => {
-                "P, M or K bits, T or C done bits, or flag bits (_ON …)"
-            }
+            ModbusTable::DiscreteInputs => "P, M or K bits, T or C done bits, or flag bits (_ON …)",
             ModbusTable::HoldingRegisters => {
                 "P, M, K or D words or T or C current values (writable only where programs may \
                  write)"
@@ -594,9 +592,8 @@ mod tests {
         assert_eq!(errs.len(), 5, "{errs:#?}");
         assert!(errs[0].starts_with("3:10: modbus.coils \"D00000\": device: D00000 cannot start"));
         assert!(errs[0].ends_with("they map P, M or K bits"), "{}", errs[0]);
-        assert!(errs[1].contains(
-            "modbus.discrete_inputs \"P0000\": writable: discrete inputs are read-only"
-        ));
+        assert!(errs[1]
+            .contains("modbus.discrete_inputs \"P0000\": writable: discrete inputs are read-only"));
         assert!(errs[2].contains("input_registers \"P0000\": device: P0000 cannot start"));
         assert!(errs[3].contains("holding_registers \"_SCAN_CUR\": device: _SCAN_CUR cannot"));
         assert!(errs[4].contains("`D0000X` is not a device address"), "{}", errs[4]);

@@ -426,6 +426,7 @@ impl ControlHandler {
             ("[rt]", new.config.rt != old.rt),
             ("[control]", new.config.control != old.control),
             ("[switch]", new.config.switch != old.switch),
+            ("[modbus]", new.config.modbus != old.modbus),
         ]
         .into_iter()
         .filter(|(_, changed)| *changed)

@@ -47,6 +47,8 @@ pub enum DaemonError {
     Spawn { thread: &'static str, source: std::io::Error },
     #[error("control socket: {0}")]
     Control(#[from] ServerError),
+    #[error(transparent)]
+    Modbus(#[from] crate::modbus::ModbusError),
 }
 
 /// The daemon's options from the command line.
@@ -75,6 +77,8 @@ struct Daemon {
     shared: Arc<Shared>,
     /// The control socket's thread, and how to stop it.
     control: Option<ControlThread>,
+    /// The Modbus TCP server (`[modbus] listen`).
+    modbus: Option<crate::modbus::RunningServer>,
     log_outputs: log::Level,
     notifier: Option<Notifier>,
     started: Instant,
@@ -87,7 +91,10 @@ struct Daemon {
 
 impl Daemon {
     fn start(config_path: &Path, project: Project) -> Result<Daemon, DaemonError> {
-        let mut driver = Driver::start(&project, Vec::new())?;
+        // Bound before the real-time threads start: a port in use stops the start.
+        let modbus = crate::modbus::ModbusServer::bind(&project.config.modbus)?;
+        let mirrors = modbus.iter().map(|m| m.mirror()).collect();
+        let mut driver = Driver::start(&project, mirrors)?;
         if !driver.problems.is_empty() {
             log::warn!(
                 "running without full real-time guarantees: {}; grant CAP_SYS_NICE and \
@@ -118,6 +125,18 @@ impl Daemon {
             running: Arc::clone(&running),
         };
         // On an error, dropping the driver stops the threads.
+        let modbus = match modbus {
+            Some(server) => {
+                let links = crate::modbus::ModbusLinks {
+                    shared: Arc::clone(&shared),
+                    commands: Arc::clone(&driver.commands),
+                };
+                let server = server.start(links)?;
+                log::info!("modbus: serving {}", server.local_addr());
+                Some(server)
+            }
+            None => None,
+        };
         let control = start_control(&control_config, links)?;
         let daemon = Daemon {
             config_path: config_path.to_path_buf(),
@@ -125,6 +144,7 @@ impl Daemon {
             driver: Some(driver),
             shared,
             control,
+            modbus,
             log_outputs,
             notifier: Notifier::from_env(),
             started: Instant::now(),
@@ -294,11 +314,14 @@ impl Daemon {
             Ok(new) => {
                 let mut running = self.running.lock().unwrap_or_else(|e| e.into_inner());
                 let old = &running.project.config;
-                let changed: Vec<&str> =
-                    [("[io]", new.config.io != old.io), ("[rt]", new.config.rt != old.rt)]
-                        .into_iter()
-                        .filter_map(|(name, changed)| changed.then_some(name))
-                        .collect();
+                let changed: Vec<&str> = [
+                    ("[io]", new.config.io != old.io),
+                    ("[rt]", new.config.rt != old.rt),
+                    ("[modbus]", new.config.modbus != old.modbus),
+                ]
+                .into_iter()
+                .filter_map(|(name, changed)| changed.then_some(name))
+                .collect();
                 if !changed.is_empty() {
                     log::error!(
                         "reload refused: {} changed, which takes a restart of the service; \
@@ -330,6 +353,9 @@ impl Daemon {
         }
         if let Some(control) = self.control.take() {
             control.stop();
+        }
+        if let Some(modbus) = self.modbus.take() {
+            modbus.stop();
         }
         let Some(driver) = &mut self.driver else { return Ok(()) };
         let engine = driver.stop();
