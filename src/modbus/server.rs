@@ -221,9 +221,13 @@ impl Inner {
             .stack_size(PLAIN_THREAD_STACK)
             .spawn(move || {
                 log::debug!("modbus: {peer} connected");
-                let why = inner.serve(stream);
-                log::debug!("modbus: {peer} closed: {why}");
+                let mut stream = stream;
+                let why = inner.serve(&mut stream);
+                // Out of the table before the socket closes: a client that saw the close
+                // finds the room it left.
                 inner.connections.lock().unwrap_or_else(|e| e.into_inner()).remove(&id);
+                drop(stream);
+                log::debug!("modbus: {peer} closed: {why}");
             });
         if let Err(e) = spawned {
             log::warn!("modbus: cannot serve {peer}: {e}");
@@ -234,7 +238,7 @@ impl Inner {
     }
 
     /// Serves one connection until it closes; why it ended.
-    fn serve(&self, mut stream: TcpStream) -> String {
+    fn serve(&self, stream: &mut TcpStream) -> String {
         let _ = stream.set_nonblocking(false);
         let _ = stream.set_nodelay(true);
         let _ = stream.set_write_timeout(Some(WRITE_TIMEOUT));
@@ -247,7 +251,7 @@ impl Inner {
         let mut scratch = Box::<Scratch>::default();
         loop {
             let deadline = idle.map(|d| Instant::now() + d);
-            match read_exact(&mut stream, &mut frame[..HEADER], deadline) {
+            match read_exact(stream, &mut frame[..HEADER], deadline) {
                 Ok(()) => {}
                 Err(ReadEnd::Closed(0)) => return "by the client".into(),
                 Err(end) => return end.why("the MBAP header"),
@@ -261,7 +265,7 @@ impl Inner {
                 return format!("MBAP length {length} is outside 2..=254");
             }
             let size = 6 + length;
-            if let Err(end) = read_exact(&mut stream, &mut frame[HEADER..size], deadline) {
+            if let Err(end) = read_exact(stream, &mut frame[HEADER..size], deadline) {
                 return end.why("the PDU");
             }
             let hdr = Header {
