@@ -62,8 +62,19 @@ impl Plc {
         let mut plc = Plc { dir, child: Some(child), log, addr: "0.0.0.0:0".parse().unwrap() };
         let line = plc.wait_for_log("modbus: serving ");
         plc.addr = line.rsplit(' ').next().unwrap().parse().unwrap();
-        plc.wait(|p| p.read_holdings(1050, 1)[0] > 2, "scans");
+        // Through the control socket: a Modbus probe would take one of the connections that
+        // a test may limit.
+        plc.wait(|p| p.scans() > 2, "scans");
         plc
+    }
+
+    /// D00400, the scan counter, through `plcctl --json get`.
+    fn scans(&self) -> i64 {
+        let out = self.ctl(&["--json", "get", "D00400"]);
+        serde_json::from_slice::<serde_json::Value>(&out.stdout)
+            .ok()
+            .and_then(|v| v["values"][0]["value"].as_i64())
+            .unwrap_or(-1)
     }
 
     fn connect(&self) -> TcpStream {
