@@ -8,6 +8,7 @@
 //! - [`project`]: a config and all its programs, loaded and checked together;
 //! - [`engine`]: the task engine, pure and clock-injected: what runs when;
 //! - [`io`]: I/O backends behind one trait;
+//! - [`modbus`]: the Modbus TCP server and its register map;
 //! - [`bench`]: measuring all of it on the machine it runs on (`plcd bench`, BENCHMARKS.md).
 #![deny(unsafe_code)]
 
@@ -21,6 +22,7 @@ pub mod diag;
 pub mod engine;
 pub mod io;
 pub mod lang;
+pub mod modbus;
 pub mod plcctl;
 pub mod project;
 pub mod retain;

@@ -1,7 +1,7 @@
 //! The scan thread never allocates: a counting global allocator watches the scan thread of the
 //! real-time driver while it runs a project with a 1 ms cycle task, an I/O task fed with edges,
 //! device tasks, timers, counters and DUTY, through mode changes and device writes, until it
-//! stops on shutdown.
+//! stops on shutdown. The commands include the control socket's and a two-part Modbus word write.
 #![allow(unsafe_code)]
 
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -26,7 +26,8 @@ use plcd::rt::scan::ScanThread;
 use plcd::rt::snapshot::Snapshot;
 use plcd::rt::sys::{self, Timer};
 use plcd::rt::{
-    pending, Command, Completion, ControlCommand, Report, Shared, Source, WRITES_PER_COMMAND,
+    pending, Command, Completion, ControlCommand, Report, Shared, Source, WordWrite, WordWrites,
+    WORDS_PER_COMMAND, WRITES_PER_COMMAND,
 };
 
 struct Counting;
@@ -199,6 +200,21 @@ fn the_scan_thread_does_not_allocate() {
         if let Some(c) = control {
             command(&mut commands, Command::Control(u64::from(i), c));
         }
+        if i == 220 {
+            // A Modbus write of 40 words (D00200..D00239) in two parts, pushed as one chunk.
+            let d200 = Address::parse("D00200").unwrap().as_word().unwrap().0;
+            let parts = (0..2).map(|part| {
+                let mut items = [WordWrite::default(); WORDS_PER_COMMAND];
+                for (n, item) in items.iter_mut().enumerate() {
+                    let k = (part * WORDS_PER_COMMAND + n) as u16;
+                    *item = WordWrite { word: d200 + k, mask: 0xFFFF, value: 1000 + k };
+                }
+                let len = if part == 0 { WORDS_PER_COMMAND } else { 40 - WORDS_PER_COMMAND };
+                Command::Words(WordWrites { seq: 5, last: part == 1, len: len as u8, items })
+            });
+            assert_eq!(commands.write_chunk_uninit(2).unwrap().fill_from_iter(parts), 2);
+            shared.signal(pending::COMMAND);
+        }
         if i % 10 == 5 {
             let mut s = snapshot.lock().unwrap();
             s.want[0] = Address::parse("D00001").unwrap().as_word().unwrap().0;
@@ -230,6 +246,10 @@ fn the_scan_thread_does_not_allocate() {
     assert!(runs("full") >= 1, "full ran {}", runs("full"));
     assert_eq!(engine.vm().mem.read(&Address::parse("D00100").unwrap()), 7);
     assert_eq!(engine.vm().mem.read(&Address::parse("D00101").unwrap()), 9);
+    assert_eq!(engine.vm().mem.read(&Address::parse("D00200").unwrap()), 1000);
+    assert_eq!(engine.vm().mem.read(&Address::parse("D00239").unwrap()), 1039);
+    assert_eq!(engine.vm().mem.read(&Address::parse("D00240").unwrap()), 0, "only `len` items");
+    assert_eq!(shared.words_applied.load(Ordering::Relaxed), 5, "the last part was applied");
     let tickets: Vec<u64> = answered.iter().map(|c| c.ticket).collect();
     assert_eq!(tickets, [160, 170, 180, 181, 182, 190, 200, 210], "every command answered");
     assert!(answered.iter().all(|c| c.result.is_ok()), "{answered:?}");

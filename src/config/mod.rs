@@ -20,6 +20,7 @@
 //! stops after pass 1: what the parser recovered may not be what was meant, and checking it
 //! would mostly report consequences of the syntax error.
 
+mod modbus;
 mod raw;
 mod retain;
 mod validate;
@@ -35,6 +36,8 @@ use serde::Deserialize;
 use crate::device::Address;
 use crate::diag::{Diagnostic, Diagnostics};
 pub use retain::{Restart, RetainArea, RetainConfig, RetainRange};
+
+pub use modbus::{ModbusConfig, ModbusRange, ModbusTable};
 
 /// A whole, valid configuration.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -63,6 +66,8 @@ pub struct Config {
     pub switch: Option<SwitchConfig>,
     /// `[retain]`: retained memory (docs/RETAIN.md).
     pub retain: RetainConfig,
+    /// `[modbus]`: the Modbus TCP server (off unless `listen` is given) and its map.
+    pub modbus: ModbusConfig,
 }
 
 impl Config {

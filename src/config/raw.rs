@@ -73,6 +73,8 @@ pub(super) struct RawDoc {
     /// reported); the span is its header.
     pub switch: Option<Located<RawSwitch>>,
     pub retain: Option<super::retain::RawRetain>,
+    /// `[modbus]` and its tables; `None` when the document has none.
+    pub modbus: Option<super::modbus::RawModbusDoc>,
     pub failed: Failed,
 }
 
@@ -291,7 +293,7 @@ pub(super) struct RawOutput {
 }
 
 const TOP_LEVEL: &str =
-    "`plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`, `control`, `switch`, `retain`";
+    "`plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`, `control`, `switch`, `retain`, `modbus`";
 
 /// Pass 1. `None` if the TOML itself is malformed (the syntax errors are in `sink`).
 pub(super) fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
@@ -325,6 +327,7 @@ pub(super) fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
             "control" => &mut sections.control,
             "switch" => &mut sections.switch,
             "retain" => &mut sections.retain,
+            "modbus" => &mut sections.modbus,
             other => {
                 let message = format!("unknown key `{other}`, expected one of {TOP_LEVEL}");
                 sink.error(key.span().start, message);
@@ -362,6 +365,7 @@ pub(super) fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
         Some(Located { span, ctx: Ctx::Section("switch"), value })
     });
     doc.retain = section(sink, sections.retain, "retain", &mut doc.failed.keys);
+    doc.modbus = super::modbus::read(sink, sections.modbus);
     Some(doc)
 }
 
@@ -378,6 +382,7 @@ struct Sections<'i> {
     control: Option<Spanned<DeValue<'i>>>,
     switch: Option<Spanned<DeValue<'i>>>,
     retain: Option<Spanned<DeValue<'i>>>,
+    modbus: Option<Spanned<DeValue<'i>>>,
 }
 
 fn read_io(sink: &mut Sink, io: Option<Spanned<DeValue<'_>>>, doc: &mut RawDoc) {
@@ -411,7 +416,7 @@ fn read_io(sink: &mut Sink, io: Option<Spanned<DeValue<'_>>>, doc: &mut RawDoc) 
 
 /// A top-level table: its default when absent, `None` when it cannot be deserialized. Its
 /// malformed keys are left out (taking their defaults) and noted in `failed` as `name.key`.
-fn section<T: DeserializeOwned + Default>(
+pub(super) fn section<T: DeserializeOwned + Default>(
     sink: &mut Sink,
     value: Option<Spanned<DeValue<'_>>>,
     name: &'static str,
@@ -438,7 +443,7 @@ fn section<T: DeserializeOwned + Default>(
 ///
 /// `name_of` peeks at an entry's raw table for what to call it in messages (`task "fast"`);
 /// without one the entry is called by its position (`task #2`).
-fn entries<T: DeserializeOwned>(
+pub(super) fn entries<T: DeserializeOwned>(
     sink: &mut Sink,
     value: Option<Spanned<DeValue<'_>>>,
     name: &str,

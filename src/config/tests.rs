@@ -195,6 +195,7 @@ fn the_contract_example_parses_to_its_defaults() {
         control: crate::config::ControlConfig::default(),
         switch: None,
         retain: RetainConfig::default(),
+        modbus: crate::config::ModbusConfig::default(),
     };
     assert_eq!(config, expected);
 }
@@ -428,7 +429,7 @@ fn unknown_keys_are_errors_at_the_key() {
     assert_eq!(
         errors(&with_scan("[plcc]\n")),
         ["1:2: unknown key `plcc`, expected one of `plc`, `sim`, `timers`, `program`, `task`, \
-          `io`, `rt`, `control`, `switch`, `retain`"]
+          `io`, `rt`, `control`, `switch`, `retain`, `modbus`"]
     );
     assert_eq!(
         errors(&with_scan("[plc]\nwatchdog = 5\n")),

@@ -51,6 +51,7 @@ pub(super) fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
         .collect();
     let tasks = tasks(sink, doc.tasks, gpio_inputs.as_deref());
     let programs = programs(sink, doc.programs, &task_names, &doc.failed, &path);
+    let modbus = super::modbus::validate(sink, doc.modbus);
     Some(Config {
         path,
         plc: plc?,
@@ -63,6 +64,7 @@ pub(super) fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
         control: control?,
         switch: switch?,
         retain: retain?,
+        modbus: modbus?,
     })
 }
 

@@ -427,6 +427,7 @@ impl ControlHandler {
             ("[control]", new.config.control != old.control),
             ("[switch]", new.config.switch != old.switch),
             ("[retain]", new.config.retain != old.retain),
+            ("[modbus]", new.config.modbus != old.modbus),
         ]
         .into_iter()
         .filter(|(_, changed)| *changed)

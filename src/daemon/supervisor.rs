@@ -47,6 +47,8 @@ pub enum DaemonError {
     Spawn { thread: &'static str, source: std::io::Error },
     #[error("control socket: {0}")]
     Control(#[from] ServerError),
+    #[error(transparent)]
+    Modbus(#[from] crate::modbus::ModbusError),
 }
 
 /// The daemon's options from the command line.
@@ -75,6 +77,8 @@ struct Daemon {
     shared: Arc<Shared>,
     /// The control socket's thread, and how to stop it.
     control: Option<ControlThread>,
+    /// The Modbus TCP server (`[modbus] listen`).
+    modbus: Option<crate::modbus::RunningServer>,
     log_outputs: log::Level,
     notifier: Option<Notifier>,
     started: Instant,
@@ -89,9 +93,13 @@ struct Daemon {
 
 impl Daemon {
     fn start(config_path: &Path, project: Project) -> Result<Daemon, DaemonError> {
+        // Bound before the real-time threads start: a port in use stops the start.
+        let modbus = crate::modbus::ModbusServer::bind(&project.config.modbus)?;
         let mut retain = crate::retain::service::Persistence::open(&project.config);
+        let mut mirrors = retain.mirrors();
+        mirrors.extend(modbus.iter().map(|m| m.mirror()));
         let mut driver =
-            Driver::start_with(&project, retain.mirrors(), |engine| retain.restore_into(engine))?;
+            Driver::start_with(&project, mirrors, |engine| retain.restore_into(engine))?;
         retain.start(Arc::clone(&driver.shared));
         if !driver.problems.is_empty() {
             log::warn!(
@@ -123,6 +131,18 @@ impl Daemon {
             running: Arc::clone(&running),
         };
         // On an error, dropping the driver stops the threads.
+        let modbus = match modbus {
+            Some(server) => {
+                let links = crate::modbus::ModbusLinks {
+                    shared: Arc::clone(&shared),
+                    commands: Arc::clone(&driver.commands),
+                };
+                let server = server.start(links)?;
+                log::info!("modbus: serving {}", server.local_addr());
+                Some(server)
+            }
+            None => None,
+        };
         let control = start_control(&control_config, links)?;
         let daemon = Daemon {
             config_path: config_path.to_path_buf(),
@@ -130,6 +150,7 @@ impl Daemon {
             driver: Some(driver),
             shared,
             control,
+            modbus,
             log_outputs,
             notifier: Notifier::from_env(),
             started: Instant::now(),
@@ -307,6 +328,7 @@ impl Daemon {
                     ("[io]", new.config.io != old.io),
                     ("[rt]", new.config.rt != old.rt),
                     ("[retain]", new.config.retain != old.retain),
+                    ("[modbus]", new.config.modbus != old.modbus),
                 ]
                 .into_iter()
                 .filter_map(|(name, changed)| changed.then_some(name))
@@ -342,6 +364,9 @@ impl Daemon {
         }
         if let Some(control) = self.control.take() {
             control.stop();
+        }
+        if let Some(modbus) = self.modbus.take() {
+            modbus.stop();
         }
         let Some(driver) = &mut self.driver else { return Ok(()) };
         self.retain.stop_writer();

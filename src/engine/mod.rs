@@ -622,6 +622,16 @@ impl Engine {
         self.vm.mem.write(address, value);
     }
 
+    /// Writes the bits of `mask` of word `word` (an index of device memory) from `value`;
+    /// an index beyond device memory is ignored.
+    pub fn write_masked(&mut self, word: u16, mask: u16, value: u16) {
+        if u32::from(word) < crate::device::layout::TOTAL_WORDS {
+            let at = crate::device::WordRef(word);
+            let old = self.vm.mem.word(at);
+            self.vm.mem.set_word(at, (old & !mask) | (value & mask));
+        }
+    }
+
     /// An edge on contact P0000+`contact` that happened at `stamp_ns` (<= `now`): requests the
     /// I/O tasks waiting for it.
     pub fn input_edge(

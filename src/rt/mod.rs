@@ -90,6 +90,34 @@ pub enum Command {
     /// A command of the control socket, applied at a scan boundary and answered with a
     /// [`Completion`] carrying `ticket`.
     Control(u64, ControlCommand),
+    /// Device words written by the Modbus server (see [`WordWrites`]).
+    Words(WordWrites),
+}
+
+/// Words one [`Command::Words`] carries.
+pub const WORDS_PER_COMMAND: usize = 32;
+
+/// One device word changed under a mask: `word = (word & !mask) | (value & mask)`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct WordWrite {
+    /// A word index of device memory ([`crate::device::Memory::words`]).
+    pub word: u16,
+    pub mask: u16,
+    pub value: u16,
+}
+
+/// Word writes of one request of a client off the real-time path, applied at a scan boundary
+/// in every mode. A request longer than [`WORDS_PER_COMMAND`] spans several commands with the
+/// same `seq`, pushed in one chunk (`rtrb::Producer::write_chunk_uninit`) so that the scan
+/// thread pops all of them in the same pass; after the one marked `last` it raises
+/// [`Shared::words_applied`] to `seq`. Sequence numbers rise in queue order.
+#[derive(Debug, Clone, Copy)]
+pub struct WordWrites {
+    pub seq: u64,
+    pub last: bool,
+    /// The first `len` items are written.
+    pub len: u8,
+    pub items: [WordWrite; WORDS_PER_COMMAND],
 }
 
 /// What the control socket asks of the scan thread.
@@ -216,6 +244,8 @@ pub struct Shared {
     pub snapshot_wanted: AtomicBool,
     /// Wakes the control thread: a completion or a snapshot is ready.
     pub control_wake: Wake,
+    /// The `seq` of the last [`Command::Words`] request applied.
+    pub words_applied: AtomicU64,
 }
 
 impl Shared {
@@ -241,6 +271,7 @@ impl Shared {
             dropped_reports: AtomicU64::new(0),
             snapshot_wanted: AtomicBool::new(false),
             control_wake: Wake::new()?,
+            words_applied: AtomicU64::new(0),
         })
     }
 

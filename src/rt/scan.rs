@@ -232,6 +232,15 @@ impl ScanThread {
                     sink.push(Report::Retired(old));
                     replaced = true;
                 }
+                Command::Words(writes) => {
+                    let len = usize::from(writes.len).min(writes.items.len());
+                    for w in &writes.items[..len] {
+                        self.engine.write_masked(w.word, w.mask, w.value);
+                    }
+                    if writes.last {
+                        self.shared.words_applied.fetch_max(writes.seq, Ordering::AcqRel);
+                    }
+                }
                 Command::Control(ticket, command) => {
                     let result = self.apply_control(command, now, &mut replaced);
                     let completion = Completion { ticket, result };
