@@ -146,7 +146,7 @@ fn main() {
     fragment.line(format!(
         "{} cycles of {} µs per method and condition, in {rounds} alternating rounds; \
          SCHED_FIFO 80: {fifo}, memory locked: {locked}, PM QoS 0 µs: {}. Wake-up lateness \
-         after the deadline, µs.",
+         after the deadline, µs.\n",
         cycles * rounds,
         interval_ns / 1000,
         _qos.is_some()
