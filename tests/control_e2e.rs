@@ -4,15 +4,20 @@
 //! Real time is only waited on, never asserted: each check waits for a state with a generous
 //! bound (the daemon is a separate process), and figures are printed, not compared.
 
+#[path = "common_daemon/mod.rs"]
+mod common_daemon;
+
 use std::io::{BufRead, BufReader, Read, Write};
 use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Child, Command, Output};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use nix::sys::signal::{kill, Signal};
 use nix::unistd::Pid;
+
+use common_daemon::{spawn_plcd, Spawned};
 
 const PATIENCE: Duration = Duration::from_secs(10);
 
@@ -40,24 +45,7 @@ impl Plc {
         for (file, text) in files {
             std::fs::write(dir.join(file), text).unwrap();
         }
-        let mut child = Command::new(env!("CARGO_BIN_EXE_plcd"))
-            .args(["run", "--config"])
-            .arg(dir.join("plcd.toml"))
-            .env_remove("NOTIFY_SOCKET")
-            .env_remove("WATCHDOG_USEC")
-            .env_remove("JOURNAL_STREAM")
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("plcd starts");
-        let log = Arc::new(Mutex::new(Vec::new()));
-        let sink = Arc::clone(&log);
-        let stderr = child.stderr.take().unwrap();
-        std::thread::spawn(move || {
-            for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-                sink.lock().unwrap().push(line);
-            }
-        });
+        let Spawned { child, log, .. } = spawn_plcd(&[], &dir.join("plcd.toml"), &[]);
         let plc = Plc { dir, child: Some(child), log };
         plc.wait_for_log("control socket");
         plc.wait(|p| p.ctl(&["status"]).stdout_text().contains("RUN"), "RUN");

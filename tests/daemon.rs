@@ -2,15 +2,19 @@
 //! in a temporary directory, its log is read line by line, and it is stopped with signals.
 //! Timing bounds are loose (seconds): these tests check behaviour, the benchmarks measure time.
 
-use std::io::{BufRead, BufReader};
+#[path = "common_daemon/mod.rs"]
+mod common_daemon;
+
 use std::os::unix::net::UnixDatagram;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::Child;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use nix::sys::signal::{kill, Signal};
 use nix::unistd::Pid;
+
+use common_daemon::{spawn_plcd, Spawned};
 
 /// How long any expected log line may take to appear.
 const PATIENCE: Duration = Duration::from_secs(20);
@@ -64,28 +68,7 @@ struct Daemon {
 
 impl Daemon {
     fn start(config: &Path, env: &[(&str, &str)]) -> Daemon {
-        let mut command = Command::new(env!("CARGO_BIN_EXE_plcd"));
-        command
-            .args(["run", "--config"])
-            .arg(config)
-            .env_remove("NOTIFY_SOCKET")
-            .env_remove("WATCHDOG_USEC")
-            .env_remove("JOURNAL_STREAM")
-            .env_remove("INVOCATION_ID")
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped());
-        for (key, value) in env {
-            command.env(key, value);
-        }
-        let mut child = command.spawn().expect("plcd starts");
-        let log = Arc::new(Mutex::new(Vec::new()));
-        let stderr = child.stderr.take().unwrap();
-        let sink = Arc::clone(&log);
-        let reader = std::thread::spawn(move || {
-            for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-                sink.lock().unwrap().push(line);
-            }
-        });
+        let Spawned { child, log, reader } = spawn_plcd(&[], config, env);
         Daemon { child, log, reader: Some(reader) }
     }
 

@@ -6,15 +6,20 @@
 //! Real time is only waited on, never asserted: each check waits for a state with a generous
 //! bound, and the one timing assertion (the idle timeout) is a lower bound.
 
-use std::io::{BufRead, BufReader, Read, Write};
+#[path = "common_daemon/mod.rs"]
+mod common_daemon;
+
+use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::path::PathBuf;
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Child, Command, Output};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use nix::sys::signal::{kill, Signal};
 use nix::unistd::Pid;
+
+use common_daemon::{spawn_plcd, Spawned};
 
 const PATIENCE: Duration = Duration::from_secs(20);
 
@@ -160,24 +165,8 @@ impl Drop for Plc {
 }
 
 fn spawn(dir: &std::path::Path) -> (Child, Arc<Mutex<Vec<String>>>) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_plcd"))
-        .args(["run", "--log-level", "debug", "--config"])
-        .arg(dir.join("plcd.toml"))
-        .env_remove("NOTIFY_SOCKET")
-        .env_remove("WATCHDOG_USEC")
-        .env_remove("JOURNAL_STREAM")
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("plcd starts");
-    let log = Arc::new(Mutex::new(Vec::new()));
-    let sink = Arc::clone(&log);
-    let stderr = child.stderr.take().unwrap();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            sink.lock().unwrap().push(line);
-        }
-    });
+    let Spawned { child, log, .. } =
+        spawn_plcd(&["--log-level", "debug"], &dir.join("plcd.toml"), &[]);
     (child, log)
 }
 
