@@ -9,11 +9,11 @@ use std::time::{Duration, Instant};
 use plcd::bench::{write_fragment, Fragment};
 use plcd::config::{Restart, RetainRange};
 use plcd::device::layout;
+use plcd::device::RetainSet;
+use plcd::drivers::real_time::mirror::Mirror;
 use plcd::engine::event::Mode;
-use plcd::retain::layout::set_of;
-use plcd::retain::writer::Writer;
-use plcd::retain::{self, RetainSet, Store};
-use plcd::rt::mirror::Mirror;
+use plcd::services::retain::writer::Writer;
+use plcd::services::retain::{self, Store};
 
 const CAPTURES: usize = 20_000;
 const WRITES: usize = 200;
@@ -27,14 +27,14 @@ struct Case {
 fn cases() -> Vec<Case> {
     let r = |t: &str| RetainRange::parse(t).unwrap();
     vec![
-        Case { name: "K only (no `[retain]`)", set: set_of(&[]) },
+        Case { name: "K only (no `[retain]`)", set: RetainSet::new(&[]) },
         Case {
             name: "K + D00000-D00099 + C0000-C0015",
-            set: set_of(&[r("D00000-D00099"), r("C0000-C0015")]),
+            set: RetainSet::new(&[r("D00000-D00099"), r("C0000-C0015")]),
         },
         Case {
             name: "K + all D, T and C",
-            set: set_of(&[r("D00000-D32767"), r("T0000-T2047"), r("C0000-C2047")]),
+            set: RetainSet::new(&[r("D00000-D32767"), r("T0000-T2047"), r("C0000-C2047")]),
         },
     ]
 }
@@ -84,7 +84,7 @@ fn main() {
     // The END copies on a thread of their own, as the scan thread runs: SCHED_FIFO 80 where
     // permitted. The writes and restores below run on this (normal) thread, as the writer's.
     let (fifo, copies) = std::thread::spawn(|| {
-        let fifo = plcd::rt::sys::set_fifo(80).is_ok();
+        let fifo = plcd::drivers::real_time::sys::set_fifo(80).is_ok();
         (fifo, cases().iter().map(|case| capture_times(&case.set)).collect::<Vec<_>>())
     })
     .join()

@@ -31,7 +31,7 @@ use plcd::config;
 use plcd::device::Address;
 use plcd::engine::event::{Event, EventSink, Mode};
 use plcd::engine::{Activity, Engine};
-use plcd::io::sim::SimIo;
+use plcd::io::simulated::SimulatedIo;
 use plcd::lang::Op;
 use plcd::project::{self, Project};
 use plcd::vm::{Clock, StepClock};
@@ -173,7 +173,7 @@ fn thread_cpu_ns() -> u64 {
 
 struct Rig {
     engine: Engine,
-    io: SimIo,
+    io: SimulatedIo,
     clock: StepClock,
     sink: Null,
 }
@@ -181,7 +181,7 @@ struct Rig {
 impl Rig {
     fn new(project: &Project, watch: &[Address], step_ns: u64) -> Rig {
         let mut engine = Engine::new(project, watch);
-        let mut io = plcd::sim::sim_io(project, &[]);
+        let mut io = plcd::io::simulated::SimulatedIo::for_project(project, &[]);
         let mut sink = Null::default();
         engine.set_mode(Mode::Run, 0, &mut io, &mut sink);
         // `run` hands back after END processing: one call, one scan.
@@ -355,7 +355,7 @@ fn scan_sizes(sizes: &[usize], rounds: usize) -> Vec<SizeRow> {
         let code = &project.programs[0].code;
         let code_bytes = code.len() * std::mem::size_of::<Op>();
         // The daemon's and the simulator's watch list: every output bit the program writes.
-        let watch = plcd::sim::output_bits(&project);
+        let watch = project.output_bits();
         assert_eq!(watch.len(), GEN_OUTPUTS.min((size / 32) as u32) as usize);
         // 100 ns a step: 10⁶ steps are 100 ms of virtual time, within the watchdog.
         let mut rig = Rig::new(&project, &watch, 100);
@@ -485,8 +485,8 @@ struct Run {
 /// stimulus generated on the fly: P0000–P0007 all toggle every 1 ms, half a millisecond after
 /// each cycle deadline. The engine is built before the clock starts.
 fn drive(project: &Project, duration_ns: u64) -> Run {
-    let mut engine = Engine::new(project, &plcd::sim::output_bits(project));
-    let mut io = plcd::sim::sim_io(project, &[]);
+    let mut engine = Engine::new(project, &project.output_bits());
+    let mut io = plcd::io::simulated::SimulatedIo::for_project(project, &[]);
     let field = io.field();
     let p000 = Address::parse("P000").unwrap();
     let mut sink = Null::default();

@@ -26,7 +26,7 @@ use nix::sys::timerfd::{
 };
 use nix::time::{clock_nanosleep, ClockId, ClockNanosleepFlags};
 use plcd::bench::{write_fragment, Fragment};
-use plcd::rt::sys::{self, Timer, Wake};
+use plcd::drivers::real_time::sys::{self, Timer, Wake};
 use plcd::stats::Histogram;
 
 #[derive(Clone, Copy, PartialEq, Eq)]

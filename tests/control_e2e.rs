@@ -57,7 +57,7 @@ impl Plc {
     }
 
     fn ctl(&self, args: &[&str]) -> Output {
-        Command::new(env!("CARGO_BIN_EXE_plcctl"))
+        Command::new(common_daemon::plcctl_binary())
             .arg("--socket")
             .arg(self.socket())
             .args(args)
@@ -266,7 +266,7 @@ fn a_peer_that_is_not_allowed_is_refused() {
     std::fs::set_permissions(&socket, std::os::unix::fs::PermissionsExt::from_mode(0o666)).unwrap();
     let out = {
         use std::os::unix::process::CommandExt;
-        Command::new(env!("CARGO_BIN_EXE_plcctl"))
+        Command::new(common_daemon::plcctl_binary())
             .arg("--socket")
             .arg(&socket)
             .arg("status")

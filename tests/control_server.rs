@@ -21,11 +21,11 @@ use std::time::{Duration, Instant};
 
 use nix::sys::eventfd::{EfdFlags, EventFd};
 use plcd::config::ControlConfig;
-use plcd::control::protocol::{
+use plcd::services::control::server::{ControlServer, ServerError, Stopper};
+use plcd::services::control::{ClientId, Handler, Peer};
+use plcd_ipc::{
     self, DebugState, DeviceValue, ErrorKind, ModeName, Outcome, Reply, Request, ResponseLine,
 };
-use plcd::control::server::{ControlServer, ServerError, Stopper};
-use plcd::control::{ClientId, Handler, Peer};
 
 /// The loose bound for anything that must happen "promptly".
 const WAIT: Duration = Duration::from_secs(5);
@@ -330,7 +330,7 @@ fn a_request_is_answered() {
     let dir = TempDir::new("round-trip");
     let running = start(&dir.config());
     let response = running.connect().request(STATUS);
-    assert_eq!(response.v, protocol::VERSION);
+    assert_eq!(response.v, plcd_ipc::VERSION);
     assert_status_ok(&response);
 }
 
@@ -460,7 +460,7 @@ fn malformed_lines_are_answered_and_the_connection_kept() {
         let response = client.recv();
         assert_eq!(error_kind(&response), Some(kind), "{}", String::from_utf8_lossy(line));
         // The daemon's version, so that an old client can tell.
-        assert_eq!(response.v, protocol::VERSION);
+        assert_eq!(response.v, plcd_ipc::VERSION);
         assert_status_ok(&client.request(STATUS));
     }
 }
@@ -635,7 +635,7 @@ fn a_client_that_does_not_read_its_answers_is_dropped() {
     // ~10 KiB requests with ~25 KiB answers, never read: the answers pass the server's output
     // bound long before 2000 of them.
     let devices: Vec<String> = (0..1000).map(|i| format!("D{i:05}")).collect();
-    let request = protocol::to_line(&protocol::RequestLine::new(Request::Get { devices }));
+    let request = plcd_ipc::to_line(&plcd_ipc::RequestLine::new(Request::Get { devices }));
     let mut failed = None;
     for _ in 0..2000 {
         if let Err(e) = client.reader.get_mut().write_all(&request) {

@@ -12,10 +12,10 @@ use std::path::Path;
 
 use plcd::config;
 use plcd::device::Address;
+use plcd::drivers::virtual_time::{simulate, SimOptions};
 use plcd::engine::event::{Event, Recorder};
 use plcd::project;
-use plcd::sim::stimulus::{Stimulus, Target};
-use plcd::sim::{simulate, SimOptions};
+use plcd::stimulus::{Stimulus, Target};
 
 const SCAN: &str = "INC D00100\nLOAD= D00100 2\nOR= D00100 3\nOUT M0000\n\
                     LOAD>= D00100 2\nMOV 5 D00000\nLOAD>= D00100 4\nMOV 6 D00000\nEND\n";

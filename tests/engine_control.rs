@@ -447,8 +447,8 @@ fn an_incompatible_online_change_is_refused_with_reasons() {
 
 #[test]
 fn plcd_sim_follows_the_simulated_key_switch() {
-    use plcd::sim::stimulus::{Stimulus, Target};
-    use plcd::sim::{simulate, SimOptions};
+    use plcd::drivers::virtual_time::{simulate, SimOptions};
+    use plcd::stimulus::{Stimulus, Target};
     let config =
         "[io]\nbackend = \"sim\"\n[switch]\nposition = \"stop\"\n[[program]]\nfile = \"main.il\"\n";
     let config = config::parse(config, Path::new("switch.toml")).expect("config");

@@ -6,11 +6,11 @@ use std::path::Path;
 
 use plcd::config;
 use plcd::device::Address;
+use plcd::drivers::virtual_time::{simulate, SimOptions};
 use plcd::engine::event::Recorder;
 use plcd::engine::Engine;
 use plcd::project;
-use plcd::sim::stimulus::{Stimulus, Target};
-use plcd::sim::{simulate, SimOptions};
+use plcd::stimulus::{Stimulus, Target};
 
 const US: u64 = 1000;
 
@@ -148,7 +148,7 @@ fn a_late_poll_counts_from_the_deadline_not_from_the_poll() {
     let config = config::parse(text, Path::new("late.toml")).expect("config");
     let project = project::from_config(config, |_| Ok("END\n".to_string())).expect("project");
     let mut engine = Engine::new(&project, &[]);
-    let mut io = plcd::io::sim::SimIo::default();
+    let mut io = plcd::io::simulated::SimulatedIo::default();
     let mut sink = Recorder::default();
     let clock = plcd::vm::ManualClock::new(0);
     engine.set_mode(plcd::engine::event::Mode::Run, 0, &mut io, &mut sink);

@@ -8,9 +8,9 @@ use std::path::Path;
 
 use plcd::config;
 use plcd::device::Address;
+use plcd::drivers::virtual_time::{simulate, SimOptions};
 use plcd::engine::event::{Event, Recorder};
 use plcd::project;
-use plcd::sim::{simulate, SimOptions};
 
 const CONFIG: &str = r#"
 [sim]

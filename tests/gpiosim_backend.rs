@@ -1,6 +1,6 @@
 //! The same test bodies against every I/O backend: the in-process sim backend (always) and the
 //! gpiocdev backend on the kernel's gpio-sim (where it is available: root and the module;
-//! `tests/vm/run-gpiosim` runs these in a VM with such a kernel). Then the RUN/STOP key switch's
+//! `tests/qemu/run-gpiosim` runs these in a VM with such a kernel). Then the RUN/STOP key switch's
 //! line settings and errors, and the daemon itself on gpio-sim, end to end.
 #[macro_use]
 mod common_gpiosim;
@@ -11,10 +11,10 @@ use std::time::{Duration, Instant};
 
 use plcd::config::{self, Config};
 use plcd::device::{Address, Memory};
+use plcd::drivers::real_time::sys;
 use plcd::io::gpio::{self, Gpio};
-use plcd::io::sim::SimIo;
+use plcd::io::simulated::SimulatedIo;
 use plcd::io::{InputEdge, Io, SwitchPosition};
-use plcd::rt::sys;
 
 /// The wiring every body uses: inputs P0000 (line 0, an io-task contact), P0001 (line 1),
 /// outputs P0040 (line 8), P0041 (line 9).
@@ -81,7 +81,7 @@ fn open(config: &Config, consumer: &str) -> Result<Gpio, gpio::GpioError> {
 }
 
 struct SimRig {
-    io: SimIo,
+    io: SimulatedIo,
     lines: Vec<(u32, Address)>,
     pending: Vec<InputEdge>,
 }
@@ -93,7 +93,7 @@ impl SimRig {
         let inputs: Vec<Address> = io.inputs.iter().map(|l| l.device).collect();
         let lines = io.inputs.iter().chain(&io.outputs).map(|l| (l.line, l.device)).collect();
         let switch = config.switch.as_ref().map(|s| s.position);
-        SimRig { io: SimIo::new(&inputs, &[0], switch), lines, pending: Vec::new() }
+        SimRig { io: SimulatedIo::new(&inputs, &[0], switch), lines, pending: Vec::new() }
     }
 
     fn device(&self, line: u32) -> Address {

@@ -2,7 +2,7 @@
 //! edge events on inputs, levels of outputs, and a line held by one request only.
 //!
 //! These need gpio-sim (root, configfs, the gpio-sim module); elsewhere each test says
-//! `skipped: <reason>` and passes. `tests/vm/run-gpiosim` runs them in a VM with a kernel that
+//! `skipped: <reason>` and passes. `tests/qemu/run-gpiosim` runs them in a VM with a kernel that
 //! has it.
 #[macro_use]
 mod common_gpiosim;

@@ -100,7 +100,7 @@ impl Plc {
     }
 
     fn ctl(&self, args: &[&str]) -> Output {
-        Command::new(env!("CARGO_BIN_EXE_plcctl"))
+        Command::new(common_daemon::plcctl_binary())
             .arg("--socket")
             .arg(self.dir.join("plcd.sock"))
             .args(args)

@@ -5,7 +5,7 @@
 //!
 //! What the writer acknowledged is what the generation files hold: a file exists only after
 //! its write, fsync and rename, so reading and decoding the newest intact one
-//! ([`plcd::retain::newest_in`]) is reading the last acknowledged write. Every assertion is an
+//! ([`plcd::services::retain::newest_in`]) is reading the last acknowledged write. Every assertion is an
 //! ordering or a lower bound; waits are for an event, bounded by a generous patience.
 
 use std::fs::File;
@@ -13,7 +13,11 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use plcd::retain::{newest_in, Generation};
+use plcd::services::retain::{newest_in, Generation};
+
+#[allow(dead_code)]
+// this test starts plcd its own way: its log goes to a file that survives kill -9
+mod common_daemon;
 
 const PATIENCE: Duration = Duration::from_secs(20);
 
@@ -247,7 +251,7 @@ fn reset_cold_empties_the_persisted_image_and_a_reload_may_not_change_retain() {
     let daemon = project.start();
     project.wait_for_generation("the first RUN", |g| runs(g) == (1, 1));
     let plcctl = |args: &[&str]| {
-        let out = Command::new(env!("CARGO_BIN_EXE_plcctl"))
+        let out = Command::new(common_daemon::plcctl_binary())
             .arg("--socket")
             .arg(project.dir.join("plcd.sock"))
             .args(args)

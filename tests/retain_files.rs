@@ -6,10 +6,10 @@
 use std::path::PathBuf;
 
 use plcd::config::{Restart, RetainRange};
-use plcd::retain::layout::set_of;
-use plcd::retain::store::SLOT_NAMES;
-use plcd::retain::writer::Writer;
-use plcd::retain::{self, RetainSet, Store};
+use plcd::device::RetainSet;
+use plcd::services::retain::store::SLOT_NAMES;
+use plcd::services::retain::writer::Writer;
+use plcd::services::retain::{self, Store};
 
 struct TempDir(PathBuf);
 
@@ -29,7 +29,7 @@ impl Drop for TempDir {
 }
 
 fn set() -> RetainSet {
-    set_of(&[
+    RetainSet::new(&[
         RetainRange::parse("D00000-D00009").unwrap(),
         RetainRange::parse("C0000-C0003").unwrap(),
     ])
@@ -136,7 +136,7 @@ fn files_of_other_ranges_are_set_aside_not_restored_and_never_overwritten() {
     two_generations(&dir, &old_set);
     let a = std::fs::read(dir.0.join(SLOT_NAMES[0])).unwrap();
     let b = std::fs::read(dir.0.join(SLOT_NAMES[1])).unwrap();
-    let new_set = set_of(&[RetainRange::parse("D00000-D00019").unwrap()]);
+    let new_set = RetainSet::new(&[RetainRange::parse("D00000-D00019").unwrap()]);
     let start = retain::startup(&Store::open(&dir.0).unwrap(), &new_set, Restart::Warm);
     assert_eq!(start.words, None, "restored nothing");
     assert_eq!(start.next_seq, 3);

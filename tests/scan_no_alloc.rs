@@ -13,22 +13,22 @@ use std::time::Duration;
 
 use plcd::config;
 use plcd::device::Address;
+use plcd::drivers::real_time::io::{FieldIo, GatedIo, SafeOutputs};
+use plcd::drivers::real_time::mirror::Mirror;
+use plcd::drivers::real_time::scan::ScanThread;
+use plcd::drivers::real_time::snapshot::Snapshot;
+use plcd::drivers::real_time::sys::{self, Timer};
+use plcd::drivers::real_time::{
+    pending, Command, Completion, ControlCommand, Report, Shared, Source, WordWrite, WordWrites,
+    WORDS_PER_COMMAND, WRITES_PER_COMMAND,
+};
 use plcd::engine::debug::Breakpoint;
 use plcd::engine::event::Mode;
 use plcd::engine::{Engine, ModeRequest};
 use plcd::io::gate::OutputGate;
-use plcd::io::sim::SimIo;
+use plcd::io::simulated::SimulatedIo;
 use plcd::io::InputEdge;
 use plcd::project;
-use plcd::rt::io::{FieldIo, GatedIo, SafeOutputs};
-use plcd::rt::mirror::Mirror;
-use plcd::rt::scan::ScanThread;
-use plcd::rt::snapshot::Snapshot;
-use plcd::rt::sys::{self, Timer};
-use plcd::rt::{
-    pending, Command, Completion, ControlCommand, Report, Shared, Source, WordWrite, WordWrites,
-    WORDS_PER_COMMAND, WRITES_PER_COMMAND,
-};
 
 struct Counting;
 
@@ -122,7 +122,7 @@ fn the_scan_thread_does_not_allocate() {
         .to_string())
     })
     .expect("project");
-    let io = SimIo::new(&[Address::parse("P0000").unwrap()], &[0], None);
+    let io = SimulatedIo::new(&[Address::parse("P0000").unwrap()], &[0], None);
     let field = io.field();
     let shared = Arc::new(Shared::new().unwrap());
     let (mut edges, edge_rx) = rtrb::RingBuffer::<InputEdge>::new(256);
@@ -130,7 +130,7 @@ fn the_scan_thread_does_not_allocate() {
     let (report_tx, mut reports) = rtrb::RingBuffer::<Report>::new(4096);
     let (completion_tx, mut completions) = rtrb::RingBuffer::<Completion>::new(64);
     let snapshot = Arc::new(Mutex::new(Snapshot::new()));
-    let watch = plcd::sim::output_bits(&project);
+    let watch = project.output_bits();
     let d0 = Address::parse("D00000").unwrap().as_word().unwrap().0;
     let mirror = Arc::new(Mirror::new(std::iter::once(d0..d0 + 3)));
     let scan = ScanThread {

@@ -10,9 +10,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use plcctl::client::Client;
 use plcd::bench::Fragment;
-use plcd::control::protocol::{Reply, Request};
-use plcd::plcctl::client::Client;
+use plcd_ipc::{Reply, Request};
 
 pub const PHASE: Duration = Duration::from_secs(5);
 

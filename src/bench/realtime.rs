@@ -15,10 +15,10 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 
 use crate::diag::Diagnostics;
+use crate::drivers::real_time::driver::{Driver, DriverError};
+use crate::drivers::real_time::{Command, Source};
 use crate::engine::event::Mode;
-use crate::project;
-use crate::rt::driver::{Driver, DriverError};
-use crate::rt::{Command, Source};
+use crate::files;
 use crate::stats::{Histogram, Summary};
 
 /// Why a bench could not run.
@@ -280,7 +280,7 @@ fn measure(
     priority: u8,
     interval_ns: u64,
 ) -> Result<LatencyReport, BenchError> {
-    let project = project::load(config).map_err(BenchError::Project)?;
+    let project = files::project(config).map_err(BenchError::Project)?;
     let scan_steps =
         project.programs.iter().find(|p| p.name == "main").map_or(0, |p| p.code.len()) as u64;
     let mut driver = Driver::start(&project, Vec::new())?;

@@ -116,7 +116,7 @@ fn write_fragment_to(dir: &Path, name: &str, fragment: &Fragment) -> std::io::Re
 /// Today's date (UTC) as YYYY-MM-DD: the date part of the log's timestamp.
 fn today() -> String {
     let mut stamp = String::new();
-    crate::daemon::logging::write_timestamp(&mut stamp, std::time::SystemTime::now());
+    crate::timestamp::write_timestamp(&mut stamp, std::time::SystemTime::now());
     stamp.truncate("YYYY-MM-DD".len());
     stamp
 }

@@ -5,7 +5,7 @@ use std::io::Write;
 use std::process::ExitCode;
 
 use crate::bench::realtime::{BenchError, CycleBench, EdgeBench, LatencyReport};
-use crate::sim::duration;
+use crate::duration;
 
 /// The command's arguments.
 #[derive(Debug, Clone, clap::Args)]

@@ -4,11 +4,11 @@ use std::io::Write;
 use std::path::Path;
 use std::process::ExitCode;
 
-use crate::project;
+use crate::files;
 
 /// Prints every diagnostic to `err` (exit 1), or a one-line summary to `out` (exit 0).
 pub fn run(config: &Path, out: &mut impl Write, err: &mut impl Write) -> ExitCode {
-    match project::load(config) {
+    match files::project(config) {
         Ok(project) => {
             let instructions: usize = project.programs.iter().map(|p| p.code.len()).sum();
             let _ = writeln!(

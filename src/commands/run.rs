@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use crate::daemon::logging;
 use crate::daemon::supervisor::{self, DaemonError, Options};
-use crate::rt::driver::DriverError;
+use crate::drivers::real_time::driver::DriverError;
 
 /// The command's arguments.
 #[derive(Debug, Clone, clap::Args)]

@@ -1,5 +1,5 @@
 //! `plcd sim --config FILE --for DURATION [--inputs CSV] [--trace FILE|-] [--watch DEVICES]
-//! [--step-ns N] [--timeline]`: the engine in virtual time (CONTRACT §1, §4).
+//! [--step-ns N] [--timeline]`: the engine in virtual time (docs/SIMULATION.md).
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -8,11 +8,11 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use crate::device::Address;
+use crate::drivers::virtual_time::{self, timeline, trace::TraceWriter, SimOptions};
 use crate::engine::event::{Event, EventSink, Recorder};
-use crate::project;
-use crate::sim::{self, duration, stimulus, timeline, trace::TraceWriter, SimOptions};
+use crate::{duration, files};
 
-/// The command's arguments (CONTRACT §1, plus `--timeline`).
+/// The command's arguments.
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimArgs {
     /// The project's TOML config.
@@ -21,7 +21,7 @@ pub struct SimArgs {
     /// Virtual time to run, e.g. `500ms`, `1.5s`.
     #[arg(long = "for", value_name = "DURATION")]
     pub duration: String,
-    /// Input changes: CSV lines `time, device, value` (CONTRACT §4).
+    /// Input changes: CSV lines `time, device, value`.
     #[arg(long, value_name = "CSV")]
     pub inputs: Option<PathBuf>,
     /// Write the trace (JSON Lines) to FILE, or `-` for standard output.
@@ -52,13 +52,13 @@ impl<A: EventSink, B: EventSink> EventSink for Tee<'_, A, B> {
 }
 
 /// Exit 0 when the run completed, 1 for an invalid config, program or inputs file, 2 for bad
-/// usage (CONTRACT §1). PLC errors are events, not failures.
+/// usage. PLC errors are events, not failures.
 pub fn run(args: &SimArgs, err: &mut impl Write) -> ExitCode {
     let duration_ns = match duration::parse_duration(&args.duration) {
         Ok(ns) => ns,
         Err(e) => return usage(err, &format!("--for {}: {e}", args.duration)),
     };
-    let project = match project::load(&args.config) {
+    let project = match files::project(&args.config) {
         Ok(p) => p,
         Err(diags) => {
             let _ = write!(err, "{diags}");
@@ -66,7 +66,7 @@ pub fn run(args: &SimArgs, err: &mut impl Write) -> ExitCode {
         }
     };
     let stimuli = match &args.inputs {
-        Some(path) => match stimulus::load_for(path, &project.config) {
+        Some(path) => match files::stimulus_for(path, &project.config) {
             Ok(s) => s,
             Err(diags) => {
                 let _ = write!(err, "{diags}");
@@ -80,7 +80,7 @@ pub fn run(args: &SimArgs, err: &mut impl Write) -> ExitCode {
             Ok(w) => w,
             Err(e) => return usage(err, &format!("--watch: {e}")),
         },
-        None => sim::output_bits(&project),
+        None => project.output_bits(),
     };
     let step_ns = args.step_ns.unwrap_or(project.config.sim.step_ns);
     if step_ns == 0 {
@@ -108,9 +108,15 @@ pub fn run(args: &SimArgs, err: &mut impl Write) -> ExitCode {
     let mut recorder = Recorder::default();
     let started = Instant::now();
     let engine = if args.timeline {
-        sim::simulate(&project, &stimuli, &watch, options, &mut Tee(&mut writer, &mut recorder))
+        virtual_time::simulate(
+            &project,
+            &stimuli,
+            &watch,
+            options,
+            &mut Tee(&mut writer, &mut recorder),
+        )
     } else {
-        sim::simulate(&project, &stimuli, &watch, options, &mut writer)
+        virtual_time::simulate(&project, &stimuli, &watch, options, &mut writer)
     };
     let elapsed = started.elapsed();
     if let Err(e) = writer.finish() {

@@ -5,10 +5,10 @@ use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use crate::device::Address;
+use crate::drivers::real_time::Shared;
 use crate::engine::event::ErrorKind;
 use crate::engine::Engine;
 use crate::project::Project;
-use crate::rt::Shared;
 use crate::stats::Summary;
 
 /// Task, watch and program names of one project, for log lines.
@@ -37,7 +37,7 @@ impl Names {
     }
 
     pub fn describe_error(&self, kind: ErrorKind) -> (String, String) {
-        crate::sim::trace::describe_error(kind, &self.tasks, &self.program_lines)
+        kind.describe(&self.tasks, &self.program_lines)
     }
 }
 

@@ -13,19 +13,20 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use super::control::{ControlHandler, ControlLinks, Running};
 use super::notify::{self, Notifier};
 use super::report;
+use super::requests::{ControlHandler, ControlLinks, Running};
 use crate::config::Backend;
 use crate::config::ControlConfig;
-use crate::control::server::{ControlServer, ServerError, Stopper};
 use crate::diag::Diagnostics;
+use crate::drivers::real_time::driver::{Driver, DriverError, PLAIN_THREAD_STACK};
+use crate::drivers::real_time::sys::{self, SysError};
+use crate::drivers::real_time::{Command, Report, Shared, Source};
 use crate::engine::event::{Event, Mode};
 use crate::engine::Engine;
-use crate::project::{self, Project};
-use crate::rt::driver::{Driver, DriverError, PLAIN_THREAD_STACK};
-use crate::rt::sys::{self, SysError};
-use crate::rt::{Command, Report, Shared, Source};
+use crate::files;
+use crate::project::Project;
+use crate::services::control::server::{ControlServer, ServerError, Stopper};
 
 /// How often the supervisor looks at reports, the service watchdog and the status.
 const TICK: Duration = Duration::from_millis(50);
@@ -48,7 +49,7 @@ pub enum DaemonError {
     #[error("control socket: {0}")]
     Control(#[from] ServerError),
     #[error(transparent)]
-    Modbus(#[from] crate::modbus::ModbusError),
+    Modbus(#[from] crate::services::modbus::ModbusError),
 }
 
 /// The daemon's options from the command line.
@@ -63,7 +64,7 @@ pub fn run(options: &Options) -> Result<(), DaemonError> {
     // project is reloaded by SIGHUP or loaded again by `plcctl load` (which sends an absolute
     // path), and compare equal when nothing changed.
     let config = std::fs::canonicalize(&options.config).unwrap_or_else(|_| options.config.clone());
-    let project = project::load(&config).map_err(DaemonError::Invalid)?;
+    let project = files::project(&config).map_err(DaemonError::Invalid)?;
     let mut daemon = Daemon::start(&config, project)?;
     daemon.supervise()
 }
@@ -78,7 +79,7 @@ struct Daemon {
     /// The control socket's thread, and how to stop it.
     control: Option<ControlThread>,
     /// The Modbus TCP server (`[modbus] listen`).
-    modbus: Option<crate::modbus::RunningServer>,
+    modbus: Option<crate::services::modbus::RunningServer>,
     log_outputs: log::Level,
     notifier: Option<Notifier>,
     started: Instant,
@@ -88,14 +89,14 @@ struct Daemon {
     seen_dropped: u64,
     seen_trips: u64,
     /// Retained memory: restored at start, written in the background (docs/RETAIN.md).
-    retain: crate::retain::service::Persistence,
+    retain: crate::services::retain::service::Persistence,
 }
 
 impl Daemon {
     fn start(config_path: &Path, project: Project) -> Result<Daemon, DaemonError> {
         // Bound before the real-time threads start: a port in use stops the start.
-        let modbus = crate::modbus::ModbusServer::bind(&project.config.modbus)?;
-        let mut retain = crate::retain::service::Persistence::open(&project.config);
+        let modbus = crate::services::modbus::ModbusServer::bind(&project.config.modbus)?;
+        let mut retain = crate::services::retain::service::Persistence::open(&project.config);
         let mut mirrors = retain.mirrors();
         mirrors.extend(modbus.iter().map(|m| m.mirror()));
         let mut driver =
@@ -133,7 +134,7 @@ impl Daemon {
         // On an error, dropping the driver stops the threads.
         let modbus = match modbus {
             Some(server) => {
-                let links = crate::modbus::ModbusLinks {
+                let links = crate::services::modbus::ModbusLinks {
                     shared: Arc::clone(&shared),
                     commands: Arc::clone(&driver.commands),
                 };
@@ -257,7 +258,7 @@ impl Daemon {
                 Report::Retired(old) => drop(old),
                 Report::RetiredChange(change) => drop(change),
                 Report::Switch(_, position) => {
-                    log::info!("key switch at {}", crate::sim::trace::switch_name(position));
+                    log::info!("key switch at {}", position.as_str());
                 }
                 Report::Event(_, event) => self.log_event(event),
             }
@@ -311,7 +312,7 @@ impl Daemon {
             let _ = n.reloading();
         }
         log::info!("SIGHUP: reloading {}", self.config_path.display());
-        match project::load(&self.config_path) {
+        match files::project(&self.config_path) {
             Err(diagnostics) => {
                 for d in diagnostics.iter() {
                     log::error!("{d}");
@@ -340,7 +341,7 @@ impl Daemon {
                         changed.join(" and ")
                     );
                 } else {
-                    let watch = crate::sim::output_bits(&new);
+                    let watch = new.output_bits();
                     let engine = Box::new(Engine::new(&new, &watch));
                     log::info!(
                         "reloaded: {} programs, {} tasks; restarting them",

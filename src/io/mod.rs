@@ -1,53 +1,15 @@
-//! I/O backends behind one trait. The engine calls [`Io::refresh_inputs`] at the start of each
-//! scan (and for `IORF`), [`Io::refresh_outputs`] after END processing (and for `IORF`, STOP and
-//! stopping errors); a backend decides which P bits are its inputs.
+//! The I/O backends: where the P image's inputs come from and its outputs go, each behind the
+//! core's [`Io`] trait (re-exported here with the key switch and edge types).
 //!
-//! Edges that start I/O tasks do not go through this trait: a backend reports them as
-//! [`InputEdge`]s from its own event source (the gpiocdev line request's edge events, the sim
-//! backend's stimulus player), and the real-time driver hands them to the engine.
+//! - [`simulated`]: the in-process field (`[io] backend = "sim"`, the default): inputs set by
+//!   a stimulus, outputs kept as last published;
+//! - [`gpio`]: the lines of a GPIO chip through the Linux GPIO character device
+//!   (`backend = "gpiocdev"`);
+//! - [`gate`]: the output gate between the scan thread and the watchdog thread, which any
+//!   backend's outputs pass.
 
 pub mod gate;
 pub mod gpio;
-pub mod sim;
+pub mod simulated;
 
-use crate::device::{BitRef, Memory};
-
-/// An I/O backend as the task engine sees it.
-pub trait Io {
-    /// Copies the current input states into the input bits of the P area.
-    fn refresh_inputs(&mut self, mem: &mut Memory);
-    /// Publishes the output bits of the P area.
-    fn refresh_outputs(&mut self, mem: &Memory);
-    /// The RUN/STOP key switch as of the last [`Io::refresh_inputs`], if the backend has one
-    /// (`[switch]`). The engine applies the mode rules of XGB §5.2.3 when it moves.
-    fn switch(&self) -> Option<SwitchPosition> {
-        None
-    }
-    /// True if `bit` of the P area is one of the backend's inputs (for the force flags).
-    fn is_input(&self, bit: BitRef) -> bool {
-        let _ = bit;
-        false
-    }
-}
-
-/// The position of the RUN/STOP key switch.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum SwitchPosition {
-    /// Local RUN: the PLC runs; remote mode changes are refused.
-    #[default]
-    Run,
-    /// STOP: the PLC stops; remote RUN/STOP/DEBUG are accepted ("remote enabled").
-    Stop,
-}
-
-/// An edge on one of the contacts P0000–P0007 that I/O tasks start on.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct InputEdge {
-    /// 0..=7: P0000..=P0007.
-    pub contact: u8,
-    /// true: OFF → ON (after `active_low` is applied).
-    pub rising: bool,
-    /// When the edge happened, CLOCK_MONOTONIC ns (the kernel's timestamp on gpiocdev).
-    pub stamp_ns: u64,
-}
+pub use plcd_core::io::{InputEdge, Io, SwitchPosition};

@@ -1,7 +1,7 @@
 //! A client of the daemon's control socket: connect, send one request, read its one answer,
 //! and turn everything that can go wrong on the way into one [`ClientError`].
 //!
-//! The framing and the types are those of [`crate::control::protocol`]; this module adds
+//! The framing and the types are those of [`plcd_ipc`]; this module adds
 //! timeouts, checks the protocol version and the kind of the reply, and keeps the `ok` value
 //! as the daemon sent it (fields this build does not know included) for `--json`.
 
@@ -14,8 +14,8 @@ use nix::errno::Errno;
 use nix::sys::socket::{self, sockopt, AddressFamily, SockFlag, SockType, UnixAddr};
 use nix::sys::time::TimeVal;
 
-use crate::control::protocol::{self, ErrorKind, Failure, Reply, Request, RequestLine};
-use crate::sim::duration::format_ns;
+use plcd_core::duration::format_ns;
+use plcd_ipc::{self as protocol, ErrorKind, Failure, Reply, Request, RequestLine};
 
 use super::{EXIT_DAEMON_ERROR, EXIT_PROTOCOL, EXIT_UNREACHABLE};
 
@@ -389,7 +389,7 @@ fn quote(bytes: &[u8]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::control::protocol::ModeName;
+    use plcd_ipc::ModeName;
 
     #[test]
     fn responses() {

@@ -1,7 +1,7 @@
 //! `debug`, `step`, `continue`, `break AT`, `unbreak [AT]`: the debugger, answered with its
 //! state.
 
-use crate::control::protocol::DebugState;
+use plcd_ipc::DebugState;
 
 use super::format;
 
@@ -71,7 +71,7 @@ pub fn render(state: &DebugState) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::control::protocol::{DeviceValue, Location};
+    use plcd_ipc::{DeviceValue, Location};
 
     #[test]
     fn states() {

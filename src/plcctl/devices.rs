@@ -2,8 +2,8 @@
 
 use std::time::{Duration, Instant, SystemTime};
 
-use crate::control::protocol::{DeviceValue, Reply, Request};
-use crate::device::Address;
+use plcd_core::device::Address;
+use plcd_ipc::{DeviceValue, Reply, Request};
 
 use super::client::Answer;
 use super::{format, json_line, parse_positive_duration, Session, EXIT_OK};

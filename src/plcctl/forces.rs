@@ -1,7 +1,7 @@
 //! `forces`, `force DEV=VALUE`, `unforce DEV`, `unforce --all`: the force table, answered
 //! with the table after the command.
 
-use crate::control::protocol::{DeviceValue, Request};
+use plcd_ipc::{DeviceValue, Request};
 
 use super::devices::{parse_device, parse_write};
 use super::format;

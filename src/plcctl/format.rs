@@ -2,11 +2,11 @@
 
 use std::time::SystemTime;
 
-use crate::control::protocol::DeviceValue;
+use plcd_ipc::DeviceValue;
 
 /// A duration for a human, rounded to a resolution that suits its size: `850 ns`, `6.5 µs`,
 /// `1.20 ms`, `2.50 s`. (The exact form, which reads back, is
-/// [`crate::sim::duration::format_ns`].)
+/// [`plcd_core::duration::format_ns`].)
 pub fn human_ns(ns: u64) -> String {
     let ns = u128::from(ns);
     if ns < 1_000 {
@@ -49,7 +49,7 @@ pub fn device_list(values: &[DeviceValue]) -> String {
 /// log format.
 pub fn timestamp(time: SystemTime) -> String {
     let mut out = String::with_capacity(24);
-    crate::daemon::logging::write_timestamp(&mut out, time);
+    plcd_core::timestamp::write_timestamp(&mut out, time);
     out
 }
 

@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::control::protocol::{ModeName, Request};
+use plcd_ipc::{ModeName, Request};
 
 /// `load`'s arguments.
 #[derive(Debug, Clone, clap::Args)]

@@ -1,6 +1,6 @@
 //! `run`, `stop`, `reset [--cold]`: mode changes, answered with the mode after the command.
 
-use crate::control::protocol::ModeName;
+use plcd_ipc::ModeName;
 
 /// `reset`'s arguments.
 #[derive(Debug, Clone, clap::Args)]

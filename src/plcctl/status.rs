@@ -1,6 +1,6 @@
 //! `status`: the daemon's figures for a human.
 
-use crate::control::protocol::{Status, SwitchName};
+use plcd_ipc::{Status, SwitchName};
 
 use super::debug;
 use super::format::{self, human_ns, Align, Table};

@@ -2,7 +2,7 @@
 //! may have inherited, with its log (stderr) collected line by line.
 
 use std::io::{BufRead, BufReader};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -43,4 +43,19 @@ pub fn spawn_plcd(extra: &[&str], config: &Path, env: &[(&str, &str)]) -> Spawne
         }
     });
     Spawned { child, log, reader }
+}
+
+/// The `plcctl` binary. It is a package of its own (it builds without the daemon), so cargo
+/// gives this package no `CARGO_BIN_EXE_plcctl`; `cargo test` at the workspace root builds it
+/// beside `plcd` (plcctl's own tests need it), in the same directory.
+#[allow(dead_code)] // not every test that starts plcd runs plcctl
+pub fn plcctl_binary() -> PathBuf {
+    let path = Path::new(env!("CARGO_BIN_EXE_plcd")).with_file_name("plcctl");
+    assert!(
+        path.is_file(),
+        "{} is missing: run the tests from the workspace root with `cargo test` (it builds \
+         plcctl), or `cargo build -p plcctl` first",
+        path.display()
+    );
+    path
 }

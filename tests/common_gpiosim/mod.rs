@@ -15,7 +15,7 @@
 //!
 //! Where gpio-sim is missing (this kernel has no configfs or no gpio-sim module loaded) or not
 //! usable (not root), each test writes `skipped: <reason>` to stderr and passes. With
-//! `PLCD_REQUIRE_GPIOSIM=1` in the environment, as `tests/vm/run-gpiosim` sets it in its guest,
+//! `PLCD_REQUIRE_GPIOSIM=1` in the environment, as `tests/qemu/run-gpiosim` sets it in its guest,
 //! a missing gpio-sim fails the test instead, so a suite that ran nothing cannot pass.
 //!
 //! The check only looks: it never loads a module. The gpiosim crate runs `modprobe gpio-sim`
@@ -94,7 +94,7 @@ pub fn skip(test: &str) -> bool {
     // parallel do not mix: the test harness captures eprintln! of passing tests, and a skip must
     // be seen in a plain `cargo test`.
     let line = format!(
-        "{test}: skipped: gpio-sim unavailable: {reason}; tests/vm/run-gpiosim runs it in a VM\n"
+        "{test}: skipped: gpio-sim unavailable: {reason}; tests/qemu/run-gpiosim runs it in a VM\n"
     );
     let _ = std::io::stderr().write_all(line.as_bytes());
     true

@@ -1,0 +1,186 @@
+//! Online change: new programs swapped in at a scan boundary of a running PLC, without losing a
+//! scan and without touching device memory, timers, counters, DUTY clocks or the task figures.
+//!
+//! The work is split the way the threads are. [`prepare`] runs off the real-time path: it checks
+//! that the new project is compatible with the running one (the same tasks, `[plc]`, `[timers]`,
+//! `[io]`, `[rt]` and `[switch]` — only programs may change) and builds the new engine and the
+//! plan for its edge memory. [`Engine::take_over`] runs on the scan thread at a scan boundary:
+//! it moves the running state into the new engine by swapping and copying, allocating nothing.
+//!
+//! Edge memory is the one piece of state that belongs to instructions rather than devices. A
+//! program whose code is unchanged keeps its slots. In a changed program an edge instruction
+//! must neither fire because of the change nor miss a real edge later, so each slot starts as
+//! if the instruction had already executed in the previous scan with the state of now: a
+//! contact edge (`LOADP`/`LOADN`/…) remembers the contact's current value; a rung edge
+//! (`OUTP`, `FF`, `MOVP`, `DUTY`, …) remembers "ON" for rising and "OFF" for falling, so it
+//! first fires at a transition that happens after the change.
+
+use crate::config::{TaskConfig, TaskKind};
+use crate::device::Address;
+use crate::lang::ops::{EdgeMemory, Op};
+use crate::project::Project;
+use crate::vm::EdgeInit;
+
+use super::{read_sample, Engine, Phase, Refusal, State};
+
+/// A prepared online change: the new engine and the initial state of its edge memory.
+pub struct OnlineChange {
+    pub engine: Box<Engine>,
+    pub edges: Box<[EdgeInit]>,
+}
+
+/// Why the new project cannot replace the running one online, one reason per entry.
+pub fn incompatibilities(old: &Project, new: &Project) -> Vec<String> {
+    let (a, b) = (&old.config, &new.config);
+    let mut reasons = Vec::new();
+    let mut section = |name: &str, changed: bool| {
+        if changed {
+            reasons.push(format!("{name} changed; it can only change with the PLC in STOP"));
+        }
+    };
+    section("[plc]", a.plc != b.plc);
+    section("[timers]", a.timers != b.timers);
+    section("[io]", a.io != b.io);
+    section("[rt]", a.rt != b.rt);
+    section("[switch]", a.switch != b.switch);
+    section("[retain]", a.retain != b.retain);
+    for task in &a.tasks {
+        match b.tasks.iter().find(|t| t.name == task.name) {
+            None => reasons.push(format!("task \"{}\" is removed", task.name)),
+            Some(new_task) => {
+                let changed = task_changes(task, new_task);
+                if !changed.is_empty() {
+                    reasons.push(format!(
+                        "task \"{}\" changed ({}); tasks can only change with the PLC in STOP",
+                        task.name,
+                        changed.join(", ")
+                    ));
+                }
+            }
+        }
+    }
+    for task in &b.tasks {
+        if !a.tasks.iter().any(|t| t.name == task.name) {
+            reasons.push(format!("task \"{}\" is added", task.name));
+        }
+    }
+    if reasons.is_empty() && a.tasks.iter().map(|t| &t.name).ne(b.tasks.iter().map(|t| &t.name)) {
+        reasons.push("the [[task]] order changed (it decides ties between requests)".into());
+    }
+    reasons
+}
+
+fn task_changes(a: &TaskConfig, b: &TaskConfig) -> Vec<&'static str> {
+    let mut changed = Vec::new();
+    if a.number != b.number {
+        changed.push("number");
+    }
+    if a.priority != b.priority {
+        changed.push("priority");
+    }
+    if a.max_exec_ms != b.max_exec_ms {
+        changed.push("max_exec_ms");
+    }
+    match (&a.kind, &b.kind) {
+        (TaskKind::Cycle { .. }, TaskKind::Cycle { .. })
+        | (TaskKind::Io { .. }, TaskKind::Io { .. })
+        | (TaskKind::Device { .. }, TaskKind::Device { .. }) => {
+            if a.kind != b.kind {
+                changed.push("its start condition");
+            }
+        }
+        _ => changed.push("kind"),
+    }
+    changed
+}
+
+/// Checks `new` against the running project `old` and builds what the scan thread needs to
+/// swap it in. Runs off the real-time path.
+pub fn prepare(
+    old: &Project,
+    new: &Project,
+    watch: &[Address],
+) -> Result<OnlineChange, Vec<String>> {
+    let reasons = incompatibilities(old, new);
+    if !reasons.is_empty() {
+        return Err(reasons);
+    }
+    let mut edges = Vec::new();
+    for program in &new.programs {
+        let unchanged =
+            old.programs.iter().find(|p| p.name == program.name && p.code == program.code);
+        match unchanged {
+            Some(before) => {
+                edges.extend((0..program.edge_slots).map(|i| EdgeInit::Keep(before.edge_base + i)))
+            }
+            None => {
+                let first = edges.len();
+                edges.resize(first + program.edge_slots as usize, EdgeInit::Value(false));
+                for op in program.code.iter() {
+                    if let Some((slot, init)) = fresh_edge(op) {
+                        edges[first + (u32::from(slot) - program.edge_base) as usize] = init;
+                    }
+                }
+            }
+        }
+    }
+    Ok(OnlineChange { engine: Box::new(Engine::new(new, watch)), edges: edges.into_boxed_slice() })
+}
+
+/// The initial state of a changed program's edge slot: as if the instruction had executed in
+/// the previous scan with the state of now. A rung edge remembers the state it waits to leave
+/// (ON for a rising edge, OFF for a falling one), so it fires at the first real transition.
+fn fresh_edge(op: &Op) -> Option<(u16, EdgeInit)> {
+    op.edge_memory().map(|(slot, memory)| match memory {
+        EdgeMemory::Contact(bit) => (slot, EdgeInit::FromBit(bit)),
+        EdgeMemory::Rung { rising } => (slot, EdgeInit::Value(rising)),
+    })
+}
+
+impl Engine {
+    /// Scan thread, at a scan boundary: this (new, prepared) engine takes over the running
+    /// state of `old` — mode, device memory, timers, counters, DUTY clocks, task states and
+    /// figures, forces, the key switch — with its edge memory set up by `edges`. Breakpoints
+    /// are cleared (they named the old programs). Allocates nothing.
+    pub fn take_over(&mut self, old: &mut Engine, edges: &[EdgeInit]) -> Result<(), Refusal> {
+        if old.phase != Phase::Idle || !old.stack.is_empty() {
+            return Err(Refusal::MidScan);
+        }
+        self.vm.take_over(&mut old.vm, edges);
+        for (new, old) in self.tasks.iter_mut().zip(old.tasks.iter_mut()) {
+            new.kind = old.kind.clone();
+            new.state = match old.state {
+                State::Pending { at_ns } => State::Pending { at_ns },
+                _ => State::Idle,
+            };
+            new.occurred_ns = old.occurred_ns;
+            new.disabled = old.disabled;
+            std::mem::swap(&mut new.stats, &mut old.stats);
+        }
+        self.mode = old.mode;
+        self.phase = Phase::Idle;
+        self.init_done = old.init_done;
+        self.init_done_requested = old.init_done_requested;
+        self.tasks_disabled = old.tasks_disabled;
+        self.run_start_ns = old.run_start_ns;
+        self.scan_start_ns = old.scan_start_ns;
+        self.watchdog_start_ns = old.watchdog_start_ns;
+        self.next_scan_ns = old.next_scan_ns;
+        self.next_stop_refresh_ns = old.next_stop_refresh_ns;
+        std::mem::swap(&mut self.scan, &mut old.scan);
+        self.forces = old.forces.clone();
+        self.force_flags_on = old.force_flags_on;
+        std::mem::swap(&mut self.debugger, &mut old.debugger);
+        self.debugger.clear();
+        self.debugger.paused_at = None;
+        self.debugger.resume_from = None;
+        self.switch = old.switch;
+        self.switch_moved = old.switch_moved;
+        self.latched_error = old.latched_error;
+        self.last_operation_error = None;
+        for watch in &mut self.watches {
+            watch.last = read_sample(&self.vm.mem, watch.at);
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,797 @@
+//! The instruction VM: executes compiled programs one instruction at a time.
+//!
+//! The VM owns the machine state every program shares — device memory, timer and counter
+//! state, edge memory, the DUTY clocks and the executed-step count. What one activation of a
+//! program needs to be resumed (program counter, rung result, rung stacks, call and loop
+//! frames) lives in an [`ExecState`], one per task, so the task engine can stop a program
+//! between any two instructions, run a higher-priority one, and resume the first.
+//!
+//! [`Vm::run`] returns on `END`, when its step budget is spent, after a system instruction
+//! (`DI`, `EI`, `WDT`, `INIT_DONE`, `STOP`, `IORF`) whose effect belongs to the task engine,
+//! and after an operation error (which has already set `_ERR`/`_ERR_CODE`). Nothing here
+//! allocates after construction.
+
+pub mod clock;
+pub mod counter;
+pub mod duty;
+pub mod timer;
+
+pub use clock::{Clock, ManualClock, StepClock};
+
+use crate::device::{
+    counter_done, counter_value, timer_done, timer_value, BitRef, Memory, WordRef,
+};
+use crate::lang::ops::{ArithOp, Combine, Op, Src, SystemRequest};
+use crate::lang::{Program, CALL_DEPTH, LOOP_DEPTH};
+
+/// Operation error: division by zero.
+pub const ERR_DIVIDE_BY_ZERO: u16 = 0x3400;
+/// Operation error: a value out of range (DUTY n1/n2 from a device).
+pub const ERR_VALUE_RANGE: u16 = duty::ERR_DUTY_RANGE;
+/// Operation error: `CALL` nested deeper than [`CALL_DEPTH`].
+pub const ERR_CALL_DEPTH: u16 = 0x4210;
+/// Operation error: `FOR` nested deeper than [`LOOP_DEPTH`] at run time (through `CALL`).
+pub const ERR_LOOP_DEPTH: u16 = 0x4211;
+
+/// Why [`Vm::run`] returned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Exit {
+    /// The program executed `END`; its state is finished.
+    End,
+    /// The step budget is spent; call `run` again to go on.
+    Budget,
+    /// A system instruction executed; the engine acts on it, then calls `run` again.
+    System(SystemRequest),
+    /// An operation error occurred (`_ERR` and `_ERR_CODE` are set); execution may go on.
+    OperationError { code: u16, pc: u32 },
+}
+
+/// The code of an operation error as PLC manuals write it, e.g. `3405H`.
+pub fn error_code_text(code: u16) -> String {
+    format!("{code:04X}H")
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct CallFrame {
+    return_pc: u32,
+    rung: bool,
+    blocks: u32,
+    branches: u32,
+    loop_depth: u8,
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct LoopFrame {
+    remaining: u16,
+    end: u32,
+}
+
+/// Where one activation of a program stands.
+#[derive(Debug, Clone)]
+pub struct ExecState {
+    pc: u32,
+    /// The rung result.
+    rung: bool,
+    /// The block stack of `LOAD … AND LOAD/OR LOAD`, one bit a level, top in bit 0.
+    blocks: u32,
+    /// The `MPUSH` stack, one bit a level, top in bit 0.
+    branches: u32,
+    calls: [CallFrame; CALL_DEPTH],
+    call_depth: u8,
+    loops: [LoopFrame; LOOP_DEPTH],
+    loop_depth: u8,
+    finished: bool,
+}
+
+impl Default for ExecState {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ExecState {
+    /// A state at the program's first instruction.
+    pub fn new() -> ExecState {
+        ExecState {
+            pc: 0,
+            rung: true,
+            blocks: 0,
+            branches: 0,
+            calls: [CallFrame::default(); CALL_DEPTH],
+            call_depth: 0,
+            loops: [LoopFrame::default(); LOOP_DEPTH],
+            loop_depth: 0,
+            finished: false,
+        }
+    }
+
+    /// Back to the first instruction, for the next execution of the program.
+    pub fn restart(&mut self) {
+        self.pc = 0;
+        self.rung = true;
+        self.blocks = 0;
+        self.branches = 0;
+        self.call_depth = 0;
+        self.loop_depth = 0;
+        self.finished = false;
+    }
+
+    /// The next instruction to execute.
+    pub fn pc(&self) -> u32 {
+        self.pc
+    }
+
+    /// True once the program has executed `END`.
+    pub fn is_finished(&self) -> bool {
+        self.finished
+    }
+}
+
+/// The initial state of an edge memory slot after an online change (see
+/// [`crate::engine::online`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EdgeInit {
+    /// The old edge memory's slot, of an unchanged program.
+    Keep(u32),
+    /// The bit's current value (a contact edge of a changed program).
+    FromBit(crate::device::BitRef),
+    /// A fixed state (a rung edge of a changed program).
+    Value(bool),
+}
+
+/// The machine: device memory and the state shared by all programs.
+pub struct Vm {
+    pub mem: Memory,
+    timers: Box<[timer::TimerState]>,
+    counters: Box<[counter::CounterState]>,
+    duty: [duty::DutyClock; duty::CHANNELS],
+    edges: Box<[bool]>,
+    steps: u64,
+}
+
+impl Vm {
+    /// A VM with `edge_slots` slots of edge memory (the sum over the project's programs).
+    pub fn new(edge_slots: u32) -> Vm {
+        let tc = crate::device::layout::TC_COUNT as usize;
+        Vm {
+            mem: Memory::new(),
+            timers: vec![timer::TimerState::default(); tc].into_boxed_slice(),
+            counters: vec![counter::CounterState::default(); tc].into_boxed_slice(),
+            duty: [duty::DutyClock::default(); duty::CHANNELS],
+            edges: vec![false; edge_slots as usize].into_boxed_slice(),
+            steps: 0,
+        }
+    }
+
+    /// A VM sized for `programs`.
+    pub fn for_programs<'a>(programs: impl IntoIterator<Item = &'a Program>) -> Vm {
+        let slots = programs.into_iter().map(|p| p.edge_base + p.edge_slots).max().unwrap_or(0);
+        Vm::new(slots)
+    }
+
+    /// Online change: takes the machine state of `old` (device memory, timers, counters, DUTY
+    /// clocks, the step count) by swapping, and sets up this VM's edge memory by `edges`. No
+    /// allocation.
+    pub fn take_over(&mut self, old: &mut Vm, edges: &[EdgeInit]) {
+        std::mem::swap(&mut self.mem, &mut old.mem);
+        std::mem::swap(&mut self.timers, &mut old.timers);
+        std::mem::swap(&mut self.counters, &mut old.counters);
+        self.duty = old.duty;
+        self.steps = old.steps;
+        for (slot, init) in self.edges.iter_mut().zip(edges) {
+            *slot = match *init {
+                EdgeInit::Keep(index) => old.edges.get(index as usize).copied().unwrap_or(false),
+                EdgeInit::FromBit(bit) => self.mem.bit(bit),
+                EdgeInit::Value(value) => value,
+            };
+        }
+    }
+
+    /// Instructions executed since the VM was created.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// RUN start: data areas cleared except the retained words (K and the `[retain]` ranges);
+    /// timers, edges and DUTY clocks back to their initial state (a retained timer's current
+    /// value is in memory: TMR counts on from it, the others start timing over); counters too,
+    /// except that with `warm` (retained values are meaningful: not after a cold start) the
+    /// retained ones keep counting from their value ([`counter::CounterState::warm`]).
+    pub fn reset_for_run(&mut self, retained: &crate::device::RetainSet, warm: bool) {
+        self.mem.clear_for_run(&retained.words);
+        self.timers.fill(timer::TimerState::default());
+        for (n, state) in self.counters.iter_mut().enumerate() {
+            *state = if warm && retained.retains_counter(n) {
+                counter::CounterState::warm()
+            } else {
+                counter::CounterState::default()
+            };
+        }
+        self.edges.fill(false);
+        self.duty = [duty::DutyClock::default(); duty::CHANNELS];
+    }
+
+    /// Start of a scan: system flags (see [`Memory::begin_scan`]) and `_ERR` cleared.
+    pub fn begin_scan(&mut self, first_scan: bool, since_run_ns: u64) {
+        self.mem.begin_scan(first_scan, since_run_ns);
+        self.mem.clear_operation_error();
+    }
+
+    /// END processing of the VM's own devices: the DUTY clocks.
+    pub fn end_scan(&mut self) {
+        duty::end_scan(&mut self.duty, &mut self.mem);
+    }
+
+    /// STOP: DUTY clocks stop.
+    pub fn stop(&mut self) {
+        duty::stop(&mut self.duty, &mut self.mem);
+    }
+
+    /// Executes `program` from `state` for at most `max_steps` instructions. `clock` gives
+    /// timers the current time; it is told the step count so a virtual clock can charge each
+    /// instruction. How the loop is kept fast is told at `interpret`, below.
+    pub fn run<C: Clock>(
+        &mut self,
+        program: &Program,
+        state: &mut ExecState,
+        clock: &C,
+        max_steps: u64,
+    ) -> Exit {
+        let code: &[Op] = &program.code;
+        // The budget counts down; the step count is `stop - left`.
+        let stop = self.steps.saturating_add(max_steps);
+        let mut regs = Regs {
+            rest: code.get(state.pc as usize..).unwrap_or_default(),
+            rung: state.rung,
+            blocks: state.blocks,
+            branches: state.branches,
+            left: stop - self.steps,
+        };
+        let machine = Machine {
+            edges: &mut self.edges,
+            timers: &mut self.timers,
+            counters: &mut self.counters,
+            duty: &mut self.duty,
+            clock,
+            stop,
+        };
+        let exit = interpret(&mut self.mem, machine, state, code, &mut regs);
+        state.pc = (code.len() - regs.rest.len()) as u32;
+        state.rung = regs.rung;
+        state.blocks = regs.blocks;
+        state.branches = regs.branches;
+        self.steps = stop - regs.left;
+        exit
+    }
+}
+
+/// The registers of an activation while [`Vm::run`] executes it.
+#[derive(Clone, Copy)]
+struct Regs<'a> {
+    /// The instructions from the next one on: the program counter is `code.len() -
+    /// rest.len()`.
+    rest: &'a [Op],
+    rung: bool,
+    blocks: u32,
+    branches: u32,
+    /// Instructions left in the step budget.
+    left: u64,
+}
+
+/// The VM's state besides device memory, borrowed for [`interpret`], and the time.
+struct Machine<'a, C> {
+    edges: &'a mut [bool],
+    timers: &'a mut [timer::TimerState],
+    counters: &'a mut [counter::CounterState],
+    duty: &'a mut [duty::DutyClock; duty::CHANNELS],
+    clock: &'a C,
+    /// The step count at which the budget is spent.
+    stop: u64,
+}
+
+/// The interpreter loop: executes `code` from `regs` until `END`, a system instruction, an
+/// operation error or the end of the budget. `state` holds the call and loop frames.
+///
+/// How it is kept fast (see `benches/vm.rs`):
+/// - The activation's registers are locals for the whole loop and go back to `regs` only on
+///   return.
+/// - `mem` is a parameter of its own rather than a field behind `&mut Vm`: as a `&mut`
+///   parameter it cannot alias anything else, so the words' address and length stay in
+///   registers instead of being reloaded after every store. For the same reason nothing the
+///   loop calls takes `&mut Memory`: timers and counters are state machines that take the
+///   values the loop read and return the values it writes.
+/// - The loop runs in chunks of as many instructions as the budget and the end of the code
+///   allow, so each instruction costs one end test (a slice iterator's) instead of a budget
+///   test and a bounds test. A jump ends the chunk.
+/// - Ops are matched by reference, so each arm loads only its own operands; [`Op`] is
+///   `repr(u8)` and every variant has an arm, so dispatch is one byte load and one indirect
+///   jump through a table without a range check.
+/// - Outputs, SET/RST and the data instructions write their destination whatever the rung
+///   result (the old value when it is OFF), compares evaluate through the truth table in
+///   [`CmpOp`](crate::lang::ops::CmpOp), and contacts combine with the rung arithmetically:
+///   no branch depends on device data, which the processor cannot predict.
+#[inline(never)]
+fn interpret<'a, C: Clock>(
+    mem: &mut Memory,
+    machine: Machine<'_, C>,
+    state: &mut ExecState,
+    code: &'a [Op],
+    regs: &mut Regs<'a>,
+) -> Exit {
+    let Machine { edges, timers, counters, duty, clock, stop } = machine;
+    let Regs { mut rest, mut rung, mut blocks, mut branches, mut left } = *regs;
+
+    // The chunk: its length, and the instructions of it still ahead.
+    let mut run;
+    let mut ops: std::slice::Iter<'a, Op>;
+    // Instructions executed in this chunk, the one being executed included.
+    macro_rules! taken {
+        () => {
+            run - ops.len()
+        };
+    }
+    // The program counter: the instruction after the one being executed.
+    macro_rules! pc {
+        () => {
+            code.len() - rest.len() + taken!()
+        };
+    }
+    // Ends the chunk: `rest` and `left` catch up with the instructions executed.
+    macro_rules! sync {
+        () => {{
+            let taken = taken!();
+            rest = &rest[taken..];
+            left -= taken as u64;
+        }};
+    }
+    // Returns `$halt`, evaluated after the chunk is synced (so it must not use `pc!()`).
+    macro_rules! halt {
+        ($halt:expr) => {{
+            sync!();
+            *regs = Regs { rest, rung, blocks, branches, left };
+            return $halt;
+        }};
+    }
+    macro_rules! fail {
+        ($code:expr) => {{
+            let code = $code;
+            mem.raise_operation_error(code);
+            let pc = (pc!() - 1) as u32;
+            halt!(Exit::OperationError { code, pc });
+        }};
+    }
+
+    'chunk: loop {
+        run = rest.len().min(usize::try_from(left).unwrap_or(usize::MAX));
+        ops = rest[..run].iter();
+        // A jump ends the chunk (a macro here, where it can see the loop's label).
+        macro_rules! jump {
+            ($target:expr) => {{
+                left -= taken!() as u64;
+                rest = code.get($target as usize..).unwrap_or_default();
+                continue 'chunk;
+            }};
+        }
+        loop {
+            let Some(op) = ops.next() else {
+                // The chunk is done: the budget is spent, or the code is (only a program
+                // without END gets there, and the checker refuses those).
+                if left == run as u64 {
+                    halt!(Exit::Budget);
+                }
+                state.finished = true;
+                halt!(Exit::End);
+            };
+            match op {
+                Op::Load(b) => rung = mem.bit(*b),
+                Op::LoadNot(b) => rung = !mem.bit(*b),
+                Op::LoadPush(b) => {
+                    blocks = (blocks << 1) | rung as u32;
+                    rung = mem.bit(*b);
+                }
+                Op::LoadNotPush(b) => {
+                    blocks = (blocks << 1) | rung as u32;
+                    rung = !mem.bit(*b);
+                }
+                Op::And(b) => rung &= mem.bit(*b),
+                Op::AndNot(b) => rung &= !mem.bit(*b),
+                Op::Or(b) => rung |= mem.bit(*b),
+                Op::OrNot(b) => rung |= !mem.bit(*b),
+                Op::EdgeContact { bit, rising, how, slot } => {
+                    let now = mem.bit(*bit);
+                    let before = std::mem::replace(&mut edges[*slot as usize], now);
+                    let edge = if *rising { now && !before } else { !now && before };
+                    combine(*how, edge, &mut rung, &mut blocks);
+                }
+                Op::Compare { op, a, b, how } => {
+                    let result = op.eval(read(mem, *a) as i16, read(mem, *b) as i16);
+                    combine(*how, result, &mut rung, &mut blocks);
+                }
+                Op::AndLoad => {
+                    rung &= blocks & 1 != 0;
+                    blocks >>= 1;
+                }
+                Op::OrLoad => {
+                    rung |= blocks & 1 != 0;
+                    blocks >>= 1;
+                }
+                Op::MPush => branches = (branches << 1) | rung as u32,
+                Op::MLoad => rung = branches & 1 != 0,
+                Op::MPop => {
+                    rung = branches & 1 != 0;
+                    branches >>= 1;
+                }
+                Op::Not => rung = !rung,
+                Op::Out(b) => write_bit(mem, *b, rung),
+                Op::OutNot(b) => write_bit(mem, *b, !rung),
+                Op::OutPulse { bit, rising, slot } => {
+                    let before = std::mem::replace(&mut edges[*slot as usize], rung);
+                    let edge = if *rising { rung && !before } else { !rung && before };
+                    write_bit(mem, *bit, edge);
+                }
+                Op::Set(b) => {
+                    let word = mem.word(WordRef(b.word));
+                    mem.set_word(WordRef(b.word), word | (b.mask & all(rung)));
+                }
+                Op::Rst(b) => {
+                    let word = mem.word(WordRef(b.word));
+                    mem.set_word(WordRef(b.word), word & !(b.mask & all(rung)));
+                }
+                Op::FlipFlop { bit, slot } => {
+                    if pulse(edges, *slot, rung) {
+                        mem.set_bit(*bit, !mem.bit(*bit));
+                    }
+                }
+                Op::RstTimer(n) => {
+                    if rung {
+                        timer::reset(&mut timers[*n as usize]);
+                        mem.set_word(timer_value(*n), 0);
+                        write_bit(mem, timer_done(*n), false);
+                    }
+                }
+                Op::RstCounter(n) => {
+                    if rung {
+                        let value = counter::reset(&counters[*n as usize]);
+                        mem.set_word(counter_value(*n), value);
+                        write_bit(mem, counter_done(*n), false);
+                    }
+                }
+                Op::Timer { kind, timer: n, preset, base_ms } => {
+                    let (value_ref, done_ref) = (timer_value(*n), timer_done(*n));
+                    let call = timer::TimerInput {
+                        kind: *kind,
+                        input: rung,
+                        preset: read(mem, *preset),
+                        base_ms: *base_ms,
+                        now_ns: 0, // read by `run_timer`, out of the loop
+                        value: mem.word(value_ref),
+                        done: mem.bit(done_ref),
+                    };
+                    let steps = stop - left + taken!() as u64;
+                    let (value, done) = run_timer(&mut timers[*n as usize], call, clock, steps);
+                    mem.set_word(value_ref, value);
+                    write_bit(mem, done_ref, done);
+                }
+                Op::Counter { kind, counter: n, preset } => {
+                    let preset = read(mem, *preset);
+                    let value_ref = counter_value(*n);
+                    let c = &mut counters[*n as usize];
+                    let (value, done) =
+                        counter::execute(*kind, c, rung, preset, mem.word(value_ref));
+                    mem.set_word(value_ref, value);
+                    write_bit(mem, counter_done(*n), done);
+                }
+                Op::CounterUpDown { counter: n, up, down, preset } => {
+                    let preset = read(mem, *preset);
+                    let value_ref = counter_value(*n);
+                    let (up, down, value) = (mem.bit(*up), mem.bit(*down), mem.word(value_ref));
+                    let c = &mut counters[*n as usize];
+                    let (value, done) = counter::execute_up_down(c, rung, up, down, preset, value);
+                    mem.set_word(value_ref, value);
+                    write_bit(mem, counter_done(*n), done);
+                }
+                Op::Duty { channel, n1, n2, slot } => {
+                    let rising = pulse(edges, *slot, rung);
+                    if rung {
+                        let channel = &mut duty[*channel as usize];
+                        let (n1, n2) = (read(mem, *n1), read(mem, *n2));
+                        if let Err(code) = duty::execute(channel, rising, n1, n2) {
+                            fail!(code);
+                        }
+                    }
+                }
+                Op::Mov { s, d, pulse: p } => {
+                    let on = enabled(edges, *p, rung);
+                    let value = read(mem, *s);
+                    let old = mem.word(*d);
+                    mem.set_word(*d, if on { value } else { old });
+                }
+                Op::Arith { op, a, b, d, pulse: p } => {
+                    let on = enabled(edges, *p, rung);
+                    let (a, b) = (read(mem, *a) as i16, read(mem, *b) as i16);
+                    let value = match op {
+                        ArithOp::Add => a.wrapping_add(b),
+                        ArithOp::Sub => a.wrapping_sub(b),
+                        ArithOp::Mul => a.wrapping_mul(b),
+                        ArithOp::Div => {
+                            if !on {
+                                continue;
+                            }
+                            if b == 0 {
+                                fail!(ERR_DIVIDE_BY_ZERO);
+                            }
+                            a.wrapping_div(b)
+                        }
+                    };
+                    let old = mem.word(*d);
+                    mem.set_word(*d, if on { value as u16 } else { old });
+                }
+                Op::Step { d, up, pulse: p } => {
+                    let on = enabled(edges, *p, rung);
+                    let old = mem.word(*d);
+                    let step = if *up { 1u16 } else { u16::MAX };
+                    mem.set_word(*d, old.wrapping_add(step & all(on)));
+                }
+                Op::Call { target } => {
+                    if rung {
+                        let depth = state.call_depth as usize;
+                        if depth >= CALL_DEPTH {
+                            fail!(ERR_CALL_DEPTH);
+                        }
+                        state.calls[depth] = CallFrame {
+                            return_pc: pc!() as u32,
+                            rung,
+                            blocks,
+                            branches,
+                            loop_depth: state.loop_depth,
+                        };
+                        state.call_depth += 1;
+                        rung = true;
+                        blocks = 0;
+                        branches = 0;
+                        jump!(*target);
+                    }
+                }
+                Op::Ret => {
+                    let Some(depth) = state.call_depth.checked_sub(1) else {
+                        // Unreachable for checked programs: RET ends a SBRT, reached by CALL.
+                        state.finished = true;
+                        halt!(Exit::End);
+                    };
+                    state.call_depth = depth;
+                    let frame = state.calls[depth as usize];
+                    rung = frame.rung;
+                    blocks = frame.blocks;
+                    branches = frame.branches;
+                    state.loop_depth = frame.loop_depth;
+                    jump!(frame.return_pc);
+                }
+                Op::Jmp { target } => {
+                    if rung {
+                        jump!(*target);
+                    }
+                }
+                Op::Label => rung = true,
+                Op::For { count, end } => {
+                    let count = read(mem, *count) as i16;
+                    let depth = state.loop_depth as usize;
+                    if rung && count > 0 && depth >= LOOP_DEPTH {
+                        // 4211H; the loop is skipped, the rung result left as it is.
+                        let pc = (pc!() - 1) as u32;
+                        left -= taken!() as u64;
+                        rest = code.get(*end as usize..).unwrap_or_default();
+                        mem.raise_operation_error(ERR_LOOP_DEPTH);
+                        *regs = Regs { rest, rung, blocks, branches, left };
+                        return Exit::OperationError { code: ERR_LOOP_DEPTH, pc };
+                    }
+                    let enter = rung && count > 0;
+                    rung = true;
+                    if enter {
+                        state.loops[depth] = LoopFrame { remaining: count as u16, end: *end };
+                        state.loop_depth += 1;
+                    } else {
+                        jump!(*end);
+                    }
+                }
+                Op::Next { body } => {
+                    rung = true;
+                    if let Some(depth) = (state.loop_depth as usize).checked_sub(1) {
+                        let frame = &mut state.loops[depth];
+                        frame.remaining -= 1;
+                        if frame.remaining > 0 {
+                            jump!(*body);
+                        }
+                        state.loop_depth -= 1;
+                    }
+                }
+                Op::Break => {
+                    if rung {
+                        if let Some(depth) = (state.loop_depth as usize).checked_sub(1) {
+                            state.loop_depth -= 1;
+                            jump!(state.loops[depth].end);
+                        }
+                    }
+                }
+                Op::End => {
+                    state.finished = true;
+                    halt!(Exit::End);
+                }
+                Op::Nop => {}
+                Op::System(request) => {
+                    if rung {
+                        halt!(Exit::System(*request));
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// A timer instruction, out of line: its state machine is long next to a contact's.
+#[inline(never)]
+fn run_timer<C: Clock>(
+    state: &mut timer::TimerState,
+    call: timer::TimerInput,
+    clock: &C,
+    steps: u64,
+) -> (u16, bool) {
+    timer::execute(state, timer::TimerInput { now_ns: clock.now_ns(steps), ..call })
+}
+
+#[inline(always)]
+fn read(mem: &Memory, src: Src) -> u16 {
+    match src {
+        Src::Word(w) => mem.word(w),
+        Src::Const(c) => c,
+    }
+}
+
+/// Combines a contact's `value` with the rung: the rung becomes `(value & (rung | !and)) | (rung
+/// & or)`. Only `how`, fixed for each instruction, may be branched on, never `value`.
+#[inline(always)]
+fn combine(how: Combine, value: bool, rung: &mut bool, blocks: &mut u32) {
+    // (AND: value needs the rung, OR: the rung stays, push).
+    let (and, or, push) = match how {
+        Combine::Load { push } => (false, false, push),
+        Combine::And => (true, false, false),
+        Combine::Or => (false, true, false),
+    };
+    let pushed = (*blocks << 1) | *rung as u32;
+    *blocks = if push { pushed } else { *blocks };
+    *rung = (value & (*rung | !and)) | (*rung & or);
+}
+
+/// All ones when `on`, else zero: a mask for branch-free writes.
+#[inline(always)]
+fn all(on: bool) -> u16 {
+    u16::from(on).wrapping_neg()
+}
+
+/// Sets or clears `bit` without a branch.
+#[inline(always)]
+fn write_bit(mem: &mut Memory, bit: BitRef, on: bool) {
+    let word = mem.word(WordRef(bit.word));
+    mem.set_word(WordRef(bit.word), (word & !bit.mask) | (bit.mask & all(on)));
+}
+
+/// True at the rising edge of `rung` as seen by edge slot `slot`.
+#[inline(always)]
+fn pulse(edges: &mut [bool], slot: u16, rung: bool) -> bool {
+    let before = std::mem::replace(&mut edges[slot as usize], rung);
+    rung && !before
+}
+
+/// Whether a data instruction executes: on the rung, or on its rising edge for the `P` form.
+#[inline(always)]
+fn enabled(edges: &mut [bool], slot: Option<u16>, rung: bool) -> bool {
+    match slot {
+        None => rung,
+        Some(slot) => pulse(edges, slot, rung),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::device::Address;
+    use crate::lang::{self, Context};
+    use std::path::Path;
+
+    fn assemble(source: &str) -> Program {
+        let base = |n: u32| Some(if n >= 1500 { 1 } else { 100 });
+        let ctx = Context { is_init: false, task_numbers: &[], timer_base_ms: &base, edge_base: 0 };
+        lang::assemble("t", Path::new("t.il"), source, &ctx)
+            .unwrap_or_else(|d| panic!("does not assemble: {d:?}"))
+    }
+
+    fn word(vm: &Vm, device: &str) -> i32 {
+        vm.mem.read(&Address::parse(device).unwrap())
+    }
+
+    /// Every instruction kind, an operation error of each kind the loop raises, a system
+    /// request, and timers on a clock that charges each step.
+    const EVERYTHING: &str = "\
+        LOAD _ON\nFOR 3\nINC D00001\nLOAD= D00001 5\nBREAK\nNEXT\n\
+        LOAD _ON\nJMP 1\nINC D00002\nLABEL 1\n\
+        CALL 1\n\
+        LOAD _ON\nDIV D00003 D00004 D00005\nADD D00001 2 D00003\n\
+        LOAD NOT M0005\nOUT M0005\n\
+        LOADP M0005\nOUTP M0002\nLOAD M0005\nMOVP D00001 D00006\nINCP D00008\n\
+        LOAD M0005\nTON T1500 3\nLOAD T1500\nOUT M0004\nCTU C0001 2\n\
+        LOAD M0005\nTOFF T1501 2\nTMR T1502 9\nLOAD M0005\nCTUD C0002 M0005 M0004 3\n\
+        LOAD C0001\nRST C0001\nLOAD T1500\nRST T1502\n\
+        LOAD M0005\nLOAD M0004\nOR LOAD\nMPUSH\nOUT M0006\nMPOP\nNOT\nOUT M0007\n\
+        LOAD>= D00001 3\nAND<> D00002 1\nSET M0008\nLOAD< D00001 0\nRST M0008\n\
+        LOAD _ON\nTON T1503 1000\nDUTY 1 1 SM420\nWDT\nFF M0009\nEND\n\
+        SBRT 1\nINC D00007\nLOAD< D00007 20\nCALL 1\nRET\n";
+
+    /// Scans `program` five times, giving `run` `budget` steps at a time: every exit but
+    /// `Budget` with the pc and step count it left, and the memory at the end.
+    fn trace(program: &Program, budget: u64) -> (Vec<(Exit, u32, u64)>, Vec<u16>) {
+        let mut vm = Vm::for_programs([program]);
+        let clock = StepClock { origin_ns: 0, origin_steps: 0, step_ns: 250_000 };
+        let mut state = ExecState::new();
+        let mut exits = Vec::new();
+        for _ in 0..5 {
+            vm.begin_scan(false, 0);
+            state.restart();
+            loop {
+                match vm.run(program, &mut state, &clock, budget) {
+                    Exit::Budget => continue,
+                    exit => exits.push((exit, state.pc(), vm.steps())),
+                }
+                if state.is_finished() {
+                    break;
+                }
+            }
+            vm.end_scan();
+        }
+        (exits, vm.mem.words().to_vec())
+    }
+
+    #[test]
+    fn any_budget_gives_the_same_exits_steps_and_memory() {
+        let program = assemble(EVERYTHING);
+        let whole = trace(&program, u64::MAX);
+        let errors = |code| {
+            whole
+                .0
+                .iter()
+                .filter(|e| matches!(e.0, Exit::OperationError { code: c, .. } if c == code))
+                .count()
+        };
+        assert_eq!(errors(ERR_DIVIDE_BY_ZERO), 5);
+        assert_eq!(errors(ERR_CALL_DEPTH), 1);
+        assert!(whole.0.iter().any(|e| e.0 == Exit::System(SystemRequest::ResetWatchdog)));
+        for budget in [1, 2, 3, 5, 8, 13] {
+            assert!(trace(&program, budget) == whole, "budget {budget} differs");
+        }
+    }
+
+    #[test]
+    fn an_operation_error_reports_its_own_instruction() {
+        let program = assemble("NOP\nNOP\nLOAD _ON\nDIV 1 D00000 D00001\nNOP\nEND");
+        let mut vm = Vm::for_programs([&program]);
+        let mut state = ExecState::new();
+        let exit = vm.run(&program, &mut state, &ManualClock::new(0), u64::MAX);
+        assert_eq!(exit, Exit::OperationError { code: ERR_DIVIDE_BY_ZERO, pc: 3 });
+        assert_eq!((state.pc(), vm.steps()), (4, 4));
+        assert_eq!(vm.run(&program, &mut state, &ManualClock::new(0), u64::MAX), Exit::End);
+        assert_eq!(vm.steps(), 6);
+    }
+
+    #[test]
+    fn timers_see_the_step_clock_at_their_own_instruction() {
+        // T1500 has a 1 ms base; each step costs 1 ms.
+        let program = assemble("NOP\nNOP\nLOAD _ON\nTON T1500 100\nEND");
+        let mut vm = Vm::for_programs([&program]);
+        let clock = StepClock { origin_ns: 0, origin_steps: 0, step_ns: 1_000_000 };
+        let mut state = ExecState::new();
+        assert_eq!(vm.run(&program, &mut state, &clock, u64::MAX), Exit::End);
+        assert_eq!(word(&vm, "T1500"), 0, "started at step 4");
+        state.restart();
+        assert_eq!(vm.run(&program, &mut state, &clock, 2), Exit::Budget);
+        assert_eq!(vm.run(&program, &mut state, &clock, u64::MAX), Exit::End);
+        assert_eq!(word(&vm, "T1500"), 5, "step 9 is 5 ms after step 4");
+    }
+}

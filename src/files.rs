@@ -1,0 +1,129 @@
+//! Reading a project's files from disk: the config, the programs it names, a simulation inputs
+//! file. The core parses text and never opens a file; this is where the text comes from. A file
+//! that cannot be read is a diagnostic like any other (line 0: the whole file), so a caller
+//! reports it with the rest and keeps what it was running.
+
+use std::path::Path;
+
+use crate::config::{self, Config};
+use crate::diag::{Diagnostic, Diagnostics};
+use crate::project::{self, Project};
+use crate::stimulus::{self, Stimulus};
+
+/// Reads the config file at `path` and parses it ([`config::parse`]).
+pub fn config(path: &Path) -> Result<Config, Diagnostics> {
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        Diagnostics(vec![Diagnostic::new(
+            path,
+            0,
+            0,
+            format!("cannot read {}: {e}", path.display()),
+        )])
+    })?;
+    config::parse(&text, path)
+}
+
+/// Loads the config at `path` and every program it names. Every diagnostic of the config and
+/// of all programs is returned at once.
+pub fn project(path: &Path) -> Result<Project, Diagnostics> {
+    let config = config(path)?;
+    project::from_config(config, |p| std::fs::read_to_string(p))
+}
+
+/// Reads and parses an inputs file on its own: `SWITCH` lines are accepted
+/// ([`stimulus::parse`]).
+pub fn stimulus(path: &Path) -> Result<Vec<Stimulus>, Diagnostics> {
+    read_stimulus(path).and_then(|text| stimulus::parse(&text, path))
+}
+
+/// Reads and parses the inputs file of a project, checked against its config
+/// ([`stimulus::parse_for`]). `plcd sim --inputs` and the daemon's `io.stimulus` both load
+/// through this.
+pub fn stimulus_for(path: &Path, config: &Config) -> Result<Vec<Stimulus>, Diagnostics> {
+    read_stimulus(path).and_then(|text| stimulus::parse_for(&text, path, config))
+}
+
+fn read_stimulus(path: &Path) -> Result<String, Diagnostics> {
+    std::fs::read_to_string(path).map_err(|e| {
+        Diagnostics(vec![Diagnostic::new(path, 0, 0, format!("cannot read the inputs file: {e}"))])
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::SwitchPosition;
+    use crate::stimulus::Target;
+
+    /// A config, with a `[switch]` or without.
+    fn config_with(with_switch: bool) -> Config {
+        let switch = if with_switch { "[switch]\n" } else { "" };
+        let text = format!("{switch}[[program]]\nfile = \"main.il\"\n");
+        config::parse(&text, Path::new("plcd.toml")).unwrap()
+    }
+
+    #[test]
+    fn a_missing_inputs_file_is_one_diagnostic() {
+        let path = Path::new("/nonexistent/plcd-inputs.csv");
+        let diags = stimulus(path).unwrap_err();
+        assert_eq!(diags.len(), 1);
+        let text = diags.to_string();
+        assert!(text.starts_with("/nonexistent/plcd-inputs.csv:0:0: error: cannot read"), "{text}");
+    }
+
+    #[test]
+    fn an_inputs_file_is_read_and_sorted() {
+        let path = std::env::temp_dir().join(format!("plcd-stimulus-{}.csv", std::process::id()));
+        std::fs::write(&path, "2ms, P0001, 1\n1ms, P0000, 1\n").unwrap();
+        let result = stimulus(&path);
+        std::fs::remove_file(&path).unwrap();
+        let times: Vec<u64> = result.unwrap().iter().map(|s| s.t_ns).collect();
+        assert_eq!(times, vec![1_000_000, 2_000_000]);
+    }
+
+    #[test]
+    fn a_projects_inputs_file_is_checked_against_its_config() {
+        let path =
+            std::env::temp_dir().join(format!("plcd-stimulus-switch-{}.csv", std::process::id()));
+        std::fs::write(&path, "1ms, SWITCH, STOP\n").unwrap();
+        let with = stimulus_for(&path, &config_with(true));
+        let without = stimulus_for(&path, &config_with(false));
+        std::fs::remove_file(&path).unwrap();
+        let expected = Stimulus {
+            t_ns: 1_000_000,
+            target: Target::Switch(SwitchPosition::Stop),
+            value: 0,
+            line: 1,
+        };
+        assert_eq!(with.unwrap(), vec![expected]);
+        let text = without.unwrap_err().to_string();
+        assert!(text.starts_with(&format!("{}:1:6: error: SWITCH: ", path.display())), "{text}");
+        let missing =
+            stimulus_for(Path::new("/nonexistent/in.csv"), &config_with(true)).unwrap_err();
+        assert!(missing.to_string().contains("cannot read the inputs file"), "{missing}");
+    }
+
+    #[test]
+    fn a_config_is_read_and_resolved_against_its_directory() {
+        let dir = std::env::temp_dir().join(format!("plcd-config-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("plcd.toml");
+        std::fs::write(&path, "[[program]]\nfile = \"main.il\"\n").unwrap();
+        let loaded = config(&path);
+        std::fs::remove_dir_all(&dir).unwrap();
+        let loaded = loaded.unwrap();
+        assert_eq!(loaded.path, path);
+        assert_eq!(loaded.programs[0].resolved, dir.join("main.il"));
+
+        let missing = dir.join("missing.toml");
+        let diags = config(&missing).unwrap_err();
+        assert_eq!(diags.len(), 1);
+        let d = &diags.0[0];
+        assert_eq!((d.path.as_path(), d.line, d.col), (missing.as_path(), 0, 0));
+        assert!(
+            d.message.starts_with(&format!("cannot read {}: ", missing.display())),
+            "{}",
+            d.message
+        );
+    }
+}

@@ -1,0 +1,44 @@
+//! The control socket of the daemon: the Unix socket server ([`server`]) that carries the
+//! protocol `plcctl` speaks (the `plcd-ipc` crate), and the interface between that server and
+//! whatever answers the requests ([`Handler`]: the daemon's [`crate::daemon::requests`], or a
+//! test's fake).
+//!
+//! Nothing here runs on a real-time thread. The server never waits for the scan thread: a
+//! request the daemon cannot answer at once (it is applied at the next END) is answered later,
+//! through [`Handler::completions`], while the server goes on serving the other clients.
+
+pub mod server;
+
+use std::os::fd::BorrowedFd;
+use std::time::Duration;
+
+use plcd_ipc::{Request, ResponseLine};
+
+/// A connection of the control server, unique for the server's lifetime.
+pub type ClientId = u64;
+
+/// The credentials of a connected peer, from `SO_PEERCRED`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Peer {
+    pub pid: i32,
+    pub uid: u32,
+    pub gid: u32,
+}
+
+/// What answers the requests of admitted clients.
+pub trait Handler {
+    /// A request from `client`. `Some`: the answer, sent at once. `None`: the answer comes
+    /// later through [`Handler::completions`]; until then the server reads nothing more from
+    /// that client (one outstanding request per client bounds what can queue up).
+    fn request(&mut self, client: ClientId, peer: &Peer, request: Request) -> Option<ResponseLine>;
+    /// Appends the answers that became ready. Called when [`Handler::wake_fd`] is readable and
+    /// at least every [`Handler::tick`] while answers are outstanding. It must drain the wake
+    /// fd, or the server's poll returns at once again.
+    fn completions(&mut self, ready: &mut Vec<(ClientId, ResponseLine)>);
+    /// Becomes readable when completions may be ready.
+    fn wake_fd(&self) -> Option<BorrowedFd<'_>>;
+    /// The longest the server may sleep while an answer is outstanding.
+    fn tick(&self) -> Duration;
+    /// `client` disconnected; an outstanding answer for it is to be dropped.
+    fn gone(&mut self, client: ClientId);
+}

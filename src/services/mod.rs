@@ -1,0 +1,13 @@
+//! The services around a running real-time driver, each on threads of its own that never make
+//! the scan wait: they reach the PLC only through the driver's queues, mirrors and snapshots,
+//! at scan boundaries.
+//!
+//! - [`control`]: the control socket that `plcctl` and scripts talk to (the protocol is the
+//!   `plcd-ipc` crate); what the requests do is the daemon's ([`crate::daemon::requests`]);
+//! - [`modbus`]: the Modbus TCP server and its register map;
+//! - [`retain`]: retained memory on disk: the generation files, the writer thread, restore at
+//!   start.
+
+pub mod control;
+pub mod modbus;
+pub mod retain;

@@ -1,0 +1,236 @@
+//! One Modbus request PDU in, one response ADU out: the function codes, their checks in the
+//! order of the Modbus application protocol (function → quantity and structure → addresses →
+//! execution), and the exceptions. Decoding and encoding are modbus-core's; what a request does
+//! to the PLC goes through [`Plc`], so that this is testable without a scan thread.
+
+use std::time::Instant;
+
+use modbus_core::tcp::server::encode_response;
+use modbus_core::tcp::{Header, ResponseAdu};
+use modbus_core::{
+    Coils, Data, Error as FrameError, Exception, ExceptionResponse, FunctionCode, Request,
+    Response, ResponsePdu,
+};
+
+use super::map::{Map, MapError};
+use crate::config::ModbusTable;
+use crate::drivers::real_time::WordWrite;
+
+/// The longest Modbus TCP frame: the 7-byte MBAP header and a PDU of at most 253 bytes.
+pub const MAX_ADU: usize = 260;
+/// The MBAP header: transaction id, protocol id, length, unit id.
+pub const HEADER: usize = 7;
+/// The Modbus TCP "no unit" identifier, served as well as `unit_id`.
+pub const ANY_UNIT: u8 = 0xFF;
+
+/// The PLC as the server sees it: reads from the mirror image, writes at a scan boundary.
+pub trait Plc {
+    /// Calls `read` with a mirror image captured at a scan boundary after this call began.
+    /// `Err` (exception 04) if none came before `deadline`.
+    fn read(&self, deadline: Instant, read: &mut dyn FnMut(&[u16])) -> Result<(), Exception>;
+    /// Applies `writes` together at one scan boundary and returns once they are applied:
+    /// `Err(ServerDeviceBusy)` (06) when the command queue has no room (nothing was queued),
+    /// `Err(ServerDeviceFailure)` (04) when they were not applied before `deadline`.
+    fn write(&self, writes: &[WordWrite], deadline: Instant) -> Result<(), Exception>;
+}
+
+/// Scratch space for one response, kept by the connection.
+pub struct Scratch {
+    /// The response frame.
+    pub out: [u8; MAX_ADU],
+    buffers: Buffers,
+}
+
+struct Buffers {
+    bits: [bool; 2000],
+    packed: [u8; 250],
+    words: [u16; 125],
+    bytes: [u8; 250],
+    writes: Vec<WordWrite>,
+}
+
+impl Default for Scratch {
+    fn default() -> Self {
+        Scratch {
+            out: [0; MAX_ADU],
+            buffers: Buffers {
+                bits: [false; 2000],
+                packed: [0; 250],
+                words: [0; 125],
+                bytes: [0; 250],
+                writes: Vec::with_capacity(128),
+            },
+        }
+    }
+}
+
+/// Answers one request. `pdu` is not empty. Returns the response's length in `scratch.out`,
+/// or `None`
+/// when the request is no Modbus request at all (a function code of 128 or more, which only
+/// responses carry): the connection is then closed.
+pub fn answer(
+    map: &Map,
+    plc: &dyn Plc,
+    unit_id: u8,
+    hdr: Header,
+    pdu: &[u8],
+    deadline: Instant,
+    scratch: &mut Scratch,
+) -> Option<usize> {
+    let fc = *pdu.first()?;
+    if fc >= 0x80 {
+        return None;
+    }
+    let result = if hdr.unit_id != unit_id && hdr.unit_id != ANY_UNIT {
+        Err(Exception::GatewayTargetDevice)
+    } else {
+        serve(map, plc, pdu, deadline, &mut scratch.buffers)
+    };
+    let pdu = ResponsePdu(
+        result
+            .map_err(|exception| ExceptionResponse { function: FunctionCode::new(fc), exception }),
+    );
+    encode_response(ResponseAdu { hdr, pdu }, &mut scratch.out).ok()
+}
+
+/// An exception response to function `fc` (below 128).
+pub fn exception(hdr: Header, fc: u8, exception: Exception, out: &mut [u8; MAX_ADU]) -> usize {
+    let function = FunctionCode::new(fc & 0x7F);
+    let pdu = ResponsePdu(Err(ExceptionResponse { function, exception }));
+    encode_response(ResponseAdu { hdr, pdu }, out).unwrap_or(0)
+}
+
+fn address_error(_: MapError) -> Exception {
+    Exception::IllegalDataAddress
+}
+
+/// Exception 03 unless `ok`.
+fn value(ok: bool) -> Result<(), Exception> {
+    if ok {
+        Ok(())
+    } else {
+        Err(Exception::IllegalDataValue)
+    }
+}
+
+fn serve<'s>(
+    map: &Map,
+    plc: &dyn Plc,
+    pdu: &[u8],
+    deadline: Instant,
+    scratch: &'s mut Buffers,
+) -> Result<Response<'s>, Exception> {
+    let fc = pdu[0];
+    let request = match Request::try_from(pdu) {
+        Ok(request) => request,
+        // A function served here whose PDU is too short for it, or whose byte count runs
+        // past the PDU, or a coil value other than 0000/FF00: the structure is wrong (03).
+        Err(FrameError::BufferSize | FrameError::ByteCount(_) | FrameError::CoilValue(_))
+            if matches!(fc, 1..=6 | 15 | 16 | 23) =>
+        {
+            return Err(Exception::IllegalDataValue)
+        }
+        Err(_) => return Err(Exception::IllegalFunction),
+    };
+    let Buffers { bits, packed, words, bytes, writes } = scratch;
+    writes.clear();
+    match request {
+        Request::ReadCoils(start, count) | Request::ReadDiscreteInputs(start, count) => {
+            let table = if fc == 1 { ModbusTable::Coils } else { ModbusTable::DiscreteInputs };
+            value(pdu.len() == 5 && (1..=2000).contains(&count))?;
+            map.check(table, start, count, false).map_err(address_error)?;
+            let bits = &mut bits[..usize::from(count)];
+            plc.read(deadline, &mut |image| map.read_bits(table, start, image, bits))?;
+            packed.fill(0);
+            let coils =
+                Coils::from_bools(bits, packed).map_err(|_| Exception::ServerDeviceFailure)?;
+            Ok(if fc == 1 {
+                Response::ReadCoils(coils)
+            } else {
+                Response::ReadDiscreteInputs(coils)
+            })
+        }
+        Request::ReadHoldingRegisters(start, count) | Request::ReadInputRegisters(start, count) => {
+            let table =
+                if fc == 3 { ModbusTable::HoldingRegisters } else { ModbusTable::InputRegisters };
+            value(pdu.len() == 5 && (1..=125).contains(&count))?;
+            map.check(table, start, count, false).map_err(address_error)?;
+            let words = &mut words[..usize::from(count)];
+            plc.read(deadline, &mut |image| map.read_words(table, start, image, words))?;
+            let data =
+                Data::from_words(words, bytes).map_err(|_| Exception::ServerDeviceFailure)?;
+            Ok(if fc == 3 {
+                Response::ReadHoldingRegisters(data)
+            } else {
+                Response::ReadInputRegisters(data)
+            })
+        }
+        Request::WriteSingleCoil(address, on) => {
+            value(pdu.len() == 5)?;
+            map.check(ModbusTable::Coils, address, 1, true).map_err(address_error)?;
+            map.coil_writes(address, std::iter::once(on), writes);
+            plc.write(writes, deadline)?;
+            // The response echoes the request (modbus-core's WriteSingleCoil response carries
+            // the address only).
+            bytes[..4].copy_from_slice(&pdu[1..5]);
+            Ok(Response::Custom(FunctionCode::WriteSingleCoil, &bytes[..4]))
+        }
+        Request::WriteSingleRegister(address, word) => {
+            value(pdu.len() == 5)?;
+            map.check(ModbusTable::HoldingRegisters, address, 1, true).map_err(address_error)?;
+            map.register_writes(address, std::iter::once(word), writes);
+            plc.write(writes, deadline)?;
+            Ok(Response::WriteSingleRegister(address, word))
+        }
+        Request::WriteMultipleCoils(start, coils) => {
+            let count = coils.len();
+            let byte_count = usize::from(pdu[5]);
+            value(
+                (1..=1968).contains(&count)
+                    && byte_count == count.div_ceil(8)
+                    && pdu.len() == 6 + byte_count,
+            )?;
+            map.check(ModbusTable::Coils, start, count as u16, true).map_err(address_error)?;
+            map.coil_writes(start, coils.into_iter(), writes);
+            plc.write(writes, deadline)?;
+            Ok(Response::WriteMultipleCoils(start, count as u16))
+        }
+        Request::WriteMultipleRegisters(start, data) => {
+            let count = data.len();
+            let byte_count = usize::from(pdu[5]);
+            value(
+                (1..=123).contains(&count)
+                    && byte_count == 2 * count
+                    && pdu.len() == 6 + byte_count,
+            )?;
+            map.check(ModbusTable::HoldingRegisters, start, count as u16, true)
+                .map_err(address_error)?;
+            map.register_writes(start, data.into_iter(), writes);
+            plc.write(writes, deadline)?;
+            Ok(Response::WriteMultipleRegisters(start, count as u16))
+        }
+        Request::ReadWriteMultipleRegisters(read_start, read_count, write_start, data) => {
+            let write_count = data.len();
+            let byte_count = usize::from(pdu[9]);
+            value(
+                (1..=125).contains(&read_count)
+                    && (1..=121).contains(&write_count)
+                    && byte_count == 2 * write_count
+                    && pdu.len() == 10 + byte_count,
+            )?;
+            let table = ModbusTable::HoldingRegisters;
+            map.check(table, write_start, write_count as u16, true).map_err(address_error)?;
+            map.check(table, read_start, read_count, false).map_err(address_error)?;
+            // The write first, then the read (Modbus application protocol, 6.17): the image
+            // read is captured after the boundary that applied the write.
+            map.register_writes(write_start, data.into_iter(), writes);
+            plc.write(writes, deadline)?;
+            let words = &mut words[..usize::from(read_count)];
+            plc.read(deadline, &mut |image| map.read_words(table, read_start, image, words))?;
+            let data =
+                Data::from_words(words, bytes).map_err(|_| Exception::ServerDeviceFailure)?;
+            Ok(Response::ReadWriteMultipleRegisters(data))
+        }
+        _ => Err(Exception::IllegalFunction),
+    }
+}

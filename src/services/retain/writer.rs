@@ -1,0 +1,202 @@
+//! The retain writer: not real time, never in the scan thread's way.
+//!
+//! Every `interval_ms` (or at once when asked: STOP) it asks the scan thread for a copy of the
+//! retained words through its [`Mirror`] — taken at the next scan boundary, after END, so the
+//! copy is one scan's consistent state — and writes it to the older generation file if it
+//! differs from the last one written. A failing write (full disk, read-only file system) is
+//! logged once per condition; the next interval tries again, and success is logged once.
+
+use std::sync::{Arc, Condvar, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use super::{RetainError, Store};
+use crate::device::RetainedWords;
+use crate::drivers::real_time::mirror::Mirror;
+use crate::drivers::real_time::{pending, Shared};
+
+/// How long the writer waits for the scan thread's copy before trying again at the next
+/// interval (a scan lasts at most the watchdog time, 1 s).
+const COPY_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// Figures of the writer, for the log and the bench.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct WriterStats {
+    pub writes: u64,
+    pub failures: u64,
+    pub bytes_per_write: usize,
+    pub longest_write: Duration,
+}
+
+/// The writing state: the files, what was written last and where the next write goes. The
+/// thread owns it while it runs; the daemon's main thread takes it back for the final write.
+pub struct Writer {
+    store: Store,
+    ranges: Box<[RetainedWords]>,
+    next_slot: usize,
+    next_seq: u64,
+    /// The words of the last acknowledged (durably written) generation.
+    last: Option<Vec<u16>>,
+    buf: Vec<u8>,
+    /// The condition of the failing writes, while they fail.
+    failing: Option<String>,
+    pub stats: WriterStats,
+}
+
+impl Writer {
+    /// `last`: the words restored at start (the file already holds them), if any.
+    pub fn new(
+        store: Store,
+        ranges: &[RetainedWords],
+        next_slot: usize,
+        next_seq: u64,
+        last: Option<Vec<u16>>,
+    ) -> Writer {
+        Writer {
+            store,
+            ranges: ranges.into(),
+            next_slot,
+            next_seq,
+            last,
+            buf: Vec::new(),
+            failing: None,
+            stats: WriterStats::default(),
+        }
+    }
+
+    /// Writes `words` (the retained ranges, range after range; masked here) unless they equal
+    /// the last generation written. Ok(true) when a generation was written and is durable.
+    pub fn write_if_changed(&mut self, words: &mut [u16]) -> Result<bool, RetainError> {
+        let mut at = 0;
+        for r in self.ranges.iter() {
+            for w in &mut words[at..at + r.len()] {
+                *w &= r.mask;
+            }
+            at += r.len();
+        }
+        if self.last.as_deref() == Some(&*words) {
+            return Ok(false);
+        }
+        let (slot, seq) = (self.next_slot, self.next_seq);
+        super::format::encode(seq, super::unix_ms(), &self.ranges, words, &mut self.buf);
+        let began = Instant::now();
+        // The sequence number is used up either way: a failed write may have left it on disk.
+        self.next_seq += 1;
+        match self.store.write(slot, seq, &self.buf) {
+            Ok(()) => {
+                let took = began.elapsed();
+                self.stats.writes += 1;
+                self.stats.bytes_per_write = self.buf.len();
+                self.stats.longest_write = self.stats.longest_write.max(took);
+                self.next_slot = 1 - slot;
+                match &mut self.last {
+                    Some(last) => last.clone_from_slice(words),
+                    None => self.last = Some(words.to_vec()),
+                }
+                let path = self.store.slot_path(slot);
+                if self.failing.take().is_some() {
+                    log::info!(
+                        "retain: writing works again: wrote generation {} (seq {seq})",
+                        path.display()
+                    );
+                } else {
+                    log::debug!("retain: wrote generation {} (seq {seq})", path.display());
+                }
+                Ok(true)
+            }
+            Err(e) => {
+                self.stats.failures += 1;
+                let condition = e.condition();
+                if self.failing.as_deref() != Some(condition.as_str()) {
+                    log::error!(
+                        "retain: {e}; the PLC keeps running, the last generation written stays \
+                         on disk, and the writer tries again every interval (logged again only \
+                         when the error changes)"
+                    );
+                    self.failing = Some(condition);
+                }
+                Err(e)
+            }
+        }
+    }
+
+    /// The directory and the slot the next write goes to.
+    pub fn store(&self) -> &Store {
+        &self.store
+    }
+}
+
+#[derive(Default)]
+struct Control {
+    stop: bool,
+    flush: bool,
+}
+
+/// The writer's thread.
+pub struct WriterThread {
+    handle: JoinHandle<Writer>,
+    control: Arc<(Mutex<Control>, Condvar)>,
+}
+
+impl WriterThread {
+    /// Starts writing every `interval` what `mirror` copies; `shared` wakes the scan thread.
+    pub fn spawn(
+        mut writer: Writer,
+        mirror: Arc<Mirror>,
+        shared: Arc<Shared>,
+        interval: Duration,
+    ) -> std::io::Result<WriterThread> {
+        let control = Arc::new((Mutex::new(Control::default()), Condvar::new()));
+        let ctl = Arc::clone(&control);
+        let handle = std::thread::Builder::new()
+            .name("plcd-retain".into())
+            .stack_size(crate::drivers::real_time::driver::PLAIN_THREAD_STACK)
+            .spawn(move || {
+                let mut seen = mirror.lock().generation;
+                let mut words: Vec<u16> = Vec::with_capacity(mirror.lock().words.len());
+                loop {
+                    {
+                        let (lock, wake) = &*ctl;
+                        let guard = lock.lock().unwrap_or_else(|e| e.into_inner());
+                        let (mut guard, _) = wake
+                            .wait_timeout_while(guard, interval, |c| !c.stop && !c.flush)
+                            .unwrap_or_else(|e| e.into_inner());
+                        if guard.stop {
+                            break;
+                        }
+                        guard.flush = false;
+                    }
+                    mirror.request();
+                    shared.signal(pending::MIRROR);
+                    {
+                        let image = mirror.wait_newer(seen, COPY_TIMEOUT);
+                        if image.generation == seen {
+                            continue;
+                        }
+                        seen = image.generation;
+                        words.clear();
+                        words.extend_from_slice(&image.words);
+                    }
+                    // Errors are logged by the writer; the next interval tries again.
+                    let _ = writer.write_if_changed(&mut words);
+                }
+                writer
+            })?;
+        Ok(WriterThread { handle, control })
+    }
+
+    /// Asks for a write as soon as possible (STOP).
+    pub fn flush(&self) {
+        let (lock, wake) = &*self.control;
+        lock.lock().unwrap_or_else(|e| e.into_inner()).flush = true;
+        wake.notify_all();
+    }
+
+    /// Stops the thread (after the write it may be doing) and gives the writer back.
+    pub fn stop(self) -> Option<Writer> {
+        let (lock, wake) = &*self.control;
+        lock.lock().unwrap_or_else(|e| e.into_inner()).stop = true;
+        wake.notify_all();
+        self.handle.join().ok()
+    }
+}
