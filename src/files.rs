@@ -52,8 +52,8 @@ fn read_stimulus(path: &Path) -> Result<String, Diagnostics> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::SwitchPosition;
     use crate::stimulus::Target;
+    use plcd_core::io::SwitchPosition;
 
     /// A config, with a `[switch]` or without.
     fn config_with(with_switch: bool) -> Config {

@@ -6,6 +6,8 @@
 //! group that renders its replies for a human. `main.rs` only parses and calls
 //! [`run`].
 
+#![forbid(unsafe_code)]
+
 pub mod client;
 pub mod debug;
 pub mod devices;

@@ -43,7 +43,7 @@ pub use modbus::{ModbusConfig, ModbusRange, ModbusTable};
 /// A whole, valid configuration.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Config {
-    /// The config file, as given to [`parse`] or [`load`].
+    /// The config file, as given to [`parse`].
     pub path: PathBuf,
     /// `[plc]`.
     pub plc: PlcConfig,

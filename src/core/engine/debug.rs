@@ -3,7 +3,7 @@
 //! instruction with device memory as that instruction will see it.
 //!
 //! This module owns the breakpoint syntax, its resolution against the loaded programs, and the
-//! debugger's state. The engine asks [`Debugger::stops_at`] before each instruction while a
+//! debugger's state. The engine asks `Debugger::stops_at` before each instruction while a
 //! breakpoint is set in the program it executes; without breakpoints the VM runs at full speed
 //! even in DEBUG.
 

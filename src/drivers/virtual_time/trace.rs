@@ -29,7 +29,7 @@ pub struct TraceWriter<W: Write> {
 }
 
 impl<W: Write> TraceWriter<W> {
-    /// `task_names` is indexed by [`TaskId`] (`scan`, `init`, then the configured tasks),
+    /// `task_names` is indexed by [`TaskId`](crate::engine::event::TaskId) (`scan`, `init`, then the configured tasks),
     /// `watch_names` by the `watch` of [`Event::Set`] (`"P0040"`), and `program_lines` by the
     /// `program` of an operation error: the program's name and the source line of each
     /// instruction (index = pc).

@@ -3,7 +3,7 @@
 //! Which device words are retained (K always, the `[retain]` ranges) is device memory's rule:
 //! [`crate::device::retained`].
 //!
-//! - [`format`]: the generation file and which of the two generations wins — pure functions;
+//! - [`format`](mod@format): the generation file and which of the two generations wins — pure functions;
 //! - [`store`]: the files: atomic, durable replacement, reading, setting aside;
 //! - [`writer`]: the background thread writing the scan thread's END snapshots (taken through
 //!   a [`crate::drivers::real_time::mirror::Mirror`]) while values change, at STOP and at shutdown;
