@@ -1,4 +1,4 @@
-//! `plcd run --config FILE`: the daemon, in the foreground (CONTRACT §1).
+//! `plcd run --config FILE`: the daemon, in the foreground (docs/DAEMON.md).
 
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -20,7 +20,7 @@
 use std::path::Path;
 
 use crate::config::Config;
-use crate::device::{Address, Area};
+use crate::device::{Address, Writer, WORD_VALUES};
 use crate::diag::{Diagnostic, Diagnostics};
 use crate::duration::parse_duration;
 use crate::engine::event::Mode;
@@ -139,7 +139,7 @@ fn parse_with(text: &str, path: &Path, switch: bool) -> Result<Vec<Stimulus>, Di
             None
         } else {
             match Address::parse(device_text) {
-                Ok(address) if address.area == Area::F => {
+                Ok(address) if !address.writable_by(Writer::Stimulus) => {
                     error(
                         device_col,
                         format!("`{device_text}` is a system flag, a stimulus cannot drive it"),
@@ -231,7 +231,7 @@ fn parse_value(text: &str) -> Result<i32, String> {
     if text.is_empty() {
         return Err("missing value".to_string());
     }
-    let bad = || format!("`{text}` is not a value (decimal -32768..=65535 or hex h0000..=hFFFF)");
+    let bad = || format!("`{text}` is not a value (decimal {WORD_VALUES:?} or hex h0000..=hFFFF)");
     if let Some(hex) = text.strip_prefix(['h', 'H']) {
         if hex.is_empty() || hex.len() > 4 || !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
             return Err(bad());
@@ -243,8 +243,8 @@ fn parse_value(text: &str) -> Result<i32, String> {
         return Err(bad());
     }
     let value: i32 = text.parse().map_err(|_| bad())?;
-    if !(-32768..=65535).contains(&value) {
-        return Err(format!("`{text}` is out of range (-32768..=65535)"));
+    if !WORD_VALUES.contains(&value) {
+        return Err(format!("`{text}` is out of range ({WORD_VALUES:?})"));
     }
     Ok(value)
 }

@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 
 use super::report::Names;
 use crate::config::Backend;
-use crate::device::{Address, Area};
+use crate::device::{Address, Area, Writer, WORD_VALUES};
 use crate::drivers::real_time::snapshot::{Snapshot, MAX_READ_WORDS};
 use crate::drivers::real_time::{
     pending, Applied, Command, Completion, ControlCommand, Shared, WRITES_PER_COMMAND,
@@ -307,16 +307,16 @@ impl ControlHandler {
                         Ok(address) => address,
                         Err(f) => return Some(ResponseLine::failure(f)),
                     };
-                    if matches!(address.area, Area::F | Area::SM | Area::SD) {
+                    if !address.writable_by(Writer::Client) {
                         return Some(failure(
                             Kind::Invalid,
                             format!("{address} is a system device; the PLC maintains it"),
                         ));
                     }
-                    if !(-32768..=65535).contains(value) {
+                    if !WORD_VALUES.contains(value) {
                         return Some(failure(
                             Kind::Invalid,
-                            format!("{address}={value}: a value is 16 bits (-32768..=65535)"),
+                            format!("{address}={value}: a value is 16 bits ({WORD_VALUES:?})"),
                         ));
                     }
                     items.push((address, *value));

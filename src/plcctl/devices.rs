@@ -2,7 +2,7 @@
 
 use std::time::{Duration, Instant, SystemTime};
 
-use plcd_core::device::Address;
+use plcd_core::device::{Address, WORD_VALUES};
 use plcd_ipc::{DeviceValue, Reply, Request};
 
 use super::client::Answer;
@@ -76,7 +76,7 @@ pub fn parse_value(text: &str) -> Result<i32, String> {
         }
         None => t.parse().map_err(|_| bad())?,
     };
-    if !(-32768..=65535).contains(&value) {
+    if !(i64::from(*WORD_VALUES.start())..=i64::from(*WORD_VALUES.end())).contains(&value) {
         return Err(bad());
     }
     Ok(if value > 32767 { (value - 65536) as i32 } else { value as i32 })

@@ -8,7 +8,7 @@ use plcd::device::Address;
 use plcd::lang::{self, Context, Program};
 use plcd::vm::{ExecState, Exit, ManualClock, Vm};
 
-/// The default time bases of CONTRACT §2.
+/// The default time bases of `[timers]` (docs/CONFIG.md).
 pub fn default_timer_base(n: u32) -> Option<u32> {
     match n {
         0..=999 => Some(100),

@@ -285,7 +285,7 @@ pub struct IoConfig {
     pub inputs: Vec<IoLine>,
     /// `[[io.output]]`, in file order (`bias` and `debounce_us` are not allowed).
     pub outputs: Vec<IoLine>,
-    /// `stimulus`: a CSV of input changes (CONTRACT §4) for the sim backend, resolved relative
+    /// `stimulus`: a CSV of input changes (docs/SIMULATION.md) for the sim backend, resolved relative
     /// to the config file; default none. An error with gpiocdev, whose inputs are the lines.
     pub stimulus: Option<PathBuf>,
     /// `stimulus_loop`: replay the stimulus from the start when it ends; default false.

@@ -28,7 +28,7 @@ use toml::Spanned;
 use super::raw::{entries, section, Ctx, Located};
 use super::validate::{int, int_or, widen};
 use super::Sink;
-use crate::device::{layout, Address, Area};
+use crate::device::{layout, Address, Area, Writer};
 
 /// `[modbus]`: the Modbus TCP server. Off unless `listen` is given.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -449,7 +449,7 @@ fn range(sink: &mut Sink, table: ModbusTable, entry: &Located<RawRange>) -> Opti
             wrong_kind(sink);
             return None;
         };
-        if writable && !device.word_writable() {
+        if writable && !device.writable_by(Writer::Client) {
             wrong_kind(sink);
             return None;
         }

@@ -127,8 +127,8 @@ fn a_minimal_config_takes_every_default() {
     );
 }
 
-/// CONTRACT §2's example, verbatim.
-const CONTRACT_EXAMPLE: &str = r#"[plc]
+/// The full example of docs/CONFIG.md, verbatim: every section and kind of task.
+const FULL_EXAMPLE: &str = r#"[plc]
 watchdog_ms = 200          # scan watchdog, 10..=1000 (1 ms unit)
 on_fault = "clear"         # outputs on a stopping error: "clear" or "hold"
 scan_period_ms = 0         # 0 = free-running scan; N = a new scan starts every N ms
@@ -167,7 +167,7 @@ backend = "sim"            # "sim" (in-process, the default) | "gpiocdev"
 
 #[test]
 fn the_contract_example_parses_to_its_defaults() {
-    let config = config(CONTRACT_EXAMPLE);
+    let config = config(FULL_EXAMPLE);
     let expected = Config {
         path: PATH.into(),
         plc: PlcConfig::default(),

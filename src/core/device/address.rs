@@ -44,6 +44,19 @@ pub enum AddressError {
     UnknownFlag(String),
 }
 
+/// Who writes a device, for [`Address::writable_by`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Writer {
+    /// A program's instruction that uses the address as a bit.
+    ProgramBit,
+    /// A program's instruction that uses the address as a word.
+    ProgramWord,
+    /// A client of the running PLC: the control socket, a Modbus master.
+    Client,
+    /// A simulation's inputs file (`plcd sim --inputs`, `[io] stimulus`).
+    Stimulus,
+}
+
 /// How an address can be used where a bit or a word is expected.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum UseError {
@@ -187,16 +200,25 @@ impl Address {
         Ok(WordRef(index as u16))
     }
 
-    /// True where programs may write this address used as a bit (OUT, SET, RST, FF).
-    /// Timer and counter contacts belong to their instructions, SM and F to the system.
-    pub fn bit_writable(&self) -> bool {
-        matches!(self.area, Area::P | Area::M | Area::K | Area::D)
-    }
-
-    /// True where programs may write this address used as a word (MOV, ADD …). Current values
-    /// of timers and counters may be written, as on the XGB; SD and F belong to the system.
-    pub fn word_writable(&self) -> bool {
-        matches!(self.area, Area::P | Area::M | Area::K | Area::D | Area::T | Area::C)
+    /// True where `writer` may write this address: the one rule of who writes what.
+    ///
+    /// - A program's bit instructions (`OUT`, `SET`, `RST`, `FF`) write P, M, K and D bits:
+    ///   timer and counter contacts belong to their instructions, SM and F to the system.
+    /// - A program's word instructions (`MOV`, `ADD` …) write P, M, K and D words and, as on the
+    ///   XGB, the current values of timers and counters; SD and F belong to the system.
+    /// - A client of the running PLC (`plcctl set`, a Modbus write) writes every device but the
+    ///   system's own: F, SM and SD, which the PLC maintains.
+    /// - A simulation's inputs file may drive anything (it stands in for the whole world,
+    ///   SM relays and SD registers included) except the flags, which the PLC recomputes.
+    pub fn writable_by(&self, writer: Writer) -> bool {
+        match writer {
+            Writer::ProgramBit => matches!(self.area, Area::P | Area::M | Area::K | Area::D),
+            Writer::ProgramWord => {
+                matches!(self.area, Area::P | Area::M | Area::K | Area::D | Area::T | Area::C)
+            }
+            Writer::Client => !matches!(self.area, Area::F | Area::SM | Area::SD),
+            Writer::Stimulus => self.area != Area::F,
+        }
     }
 
     /// True for the timing clock relays SM420–SM424 and their aliases SM8330–SM8334.
@@ -282,8 +304,8 @@ mod tests {
         assert_eq!(t.as_bit().unwrap(), BitRef { word: (layout::TB + 1) as u16, mask: 2 });
         assert_eq!(t.as_word().unwrap(), WordRef((layout::TV + 17) as u16));
         assert!(Address::parse("T2048").is_err());
-        assert!(!t.bit_writable());
-        assert!(t.word_writable());
+        assert!(!t.writable_by(Writer::ProgramBit));
+        assert!(t.writable_by(Writer::ProgramWord));
     }
 
     #[test]
@@ -295,7 +317,7 @@ mod tests {
         assert!(Address::parse("SM8335").is_err());
         assert_eq!(parse("SM8331").duty_channel(), Some(1));
         assert_eq!(parse("SM400").duty_channel(), None);
-        assert!(!parse("SM420").bit_writable());
+        assert!(!parse("SM420").writable_by(Writer::ProgramBit));
     }
 
     #[test]

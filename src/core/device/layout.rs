@@ -1,7 +1,7 @@
 //! The fixed layout of device memory: one flat array of 16-bit words, each area at a constant
 //! offset, so that every operand of a compiled program is a word index and a bit mask.
 
-/// A device area of CONTRACT §3.
+/// A device area (docs/LANGUAGE.md, Devices).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Area {
     P,

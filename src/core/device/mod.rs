@@ -1,4 +1,4 @@
-//! Device memory: every area of CONTRACT §3 in one preallocated, fixed-size array of words.
+//! Device memory: every area of docs/LANGUAGE.md in one preallocated, fixed-size array of words.
 //!
 //! This module owns the layout ([`layout`]), the address syntax ([`address`]) and the
 //! system-maintained devices (SM400–SM403, the F flags, the scan-time words). Nothing here
@@ -8,9 +8,13 @@ pub mod address;
 pub mod layout;
 pub mod retained;
 
-pub use address::{Address, AddressError, BitRef, UseError, WordRef};
+pub use address::{Address, AddressError, BitRef, UseError, WordRef, Writer};
 pub use layout::{Area, FlagBit, FlagWord};
 pub use retained::{RetainSet, RetainedWords};
+
+/// The values a device word takes from outside a program (a constant, a stimulus, a client):
+/// its 16 bits read as a signed (down to -32768) or an unsigned (up to 65535) number.
+pub const WORD_VALUES: std::ops::RangeInclusive<i32> = -32768..=65535;
 
 /// The PLC's device memory.
 #[derive(Clone)]

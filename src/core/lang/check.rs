@@ -14,7 +14,7 @@ use super::ops::{
 };
 use super::parse::{SourceLine, Token};
 use super::{LOOP_DEPTH, RUNG_STACK_DEPTH};
-use crate::device::{Address, Area, BitRef, WordRef};
+use crate::device::{Address, Area, BitRef, WordRef, Writer, WORD_VALUES};
 use crate::diag::{Diagnostic, Diagnostics};
 
 /// What the checker needs to know about the project around a program.
@@ -658,7 +658,7 @@ impl<'a, 'c> Checker<'a, 'c> {
             Kind::Bit => address.as_bit().map(Operand::Bit).map_err(|e| e.to_string()),
             Kind::BitOut => {
                 let bit = address.as_bit().map_err(|e| e.to_string())?;
-                if !address.bit_writable() {
+                if !address.writable_by(Writer::ProgramBit) {
                     return Err(read_only(&address));
                 }
                 Ok(Operand::Bit(bit))
@@ -673,7 +673,7 @@ impl<'a, 'c> Checker<'a, 'c> {
             }
             Kind::WordOut => {
                 let w = address.as_word().map_err(|e| e.to_string())?;
-                if !address.word_writable() {
+                if !address.writable_by(Writer::ProgramWord) {
                     return Err(read_only(&address));
                 }
                 Ok(Operand::Dest(w))
@@ -1062,8 +1062,8 @@ pub fn parse_constant(text: &str) -> Result<Option<i32>, String> {
     let is_decimal = bytes.first().is_some_and(|b| b.is_ascii_digit() || *b == b'-' || *b == b'+');
     if is_decimal {
         return match text.parse::<i32>() {
-            Ok(v) if (-32768..=65535).contains(&v) => Ok(Some(v)),
-            _ => Err(format!("constant `{text}` is not a 16-bit value (-32768..=65535)")),
+            Ok(v) if WORD_VALUES.contains(&v) => Ok(Some(v)),
+            _ => Err(format!("constant `{text}` is not a 16-bit value ({WORD_VALUES:?})")),
         };
     }
     if let Some(hex) = text.strip_prefix(['h', 'H']) {

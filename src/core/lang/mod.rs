@@ -1,4 +1,4 @@
-//! The instruction-list language of CONTRACT §3: parse → check → compile.
+//! The instruction-list language (docs/LANGUAGE.md): parse → check → compile.
 //!
 //! [`parse`](parse::parse) splits text into tokens with columns, [`check`](check::check) resolves
 //! mnemonics and operands and enforces every structural rule (collecting all errors),

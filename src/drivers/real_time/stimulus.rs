@@ -1,4 +1,4 @@
-//! The sim backend's field in real time: plays an inputs file (CONTRACT §4) against the
+//! The simulated field in real time: plays an inputs file (docs/SIMULATION.md) against the
 //! simulated field, as `plcd sim` does in virtual time. Input changes go to the field and, when
 //! they are edges of P0000–P0007, to the edge queue stamped with the moment they happened;
 //! `SWITCH` turns the field's key switch; other devices and `MODE` become commands. Not a real-time thread: its lateness only shifts
