@@ -74,10 +74,12 @@ fn repository_files() -> Vec<PathBuf> {
 #[test]
 fn nothing_points_outside_the_repository() {
     // Built from pieces, so that this file does not name them itself.
-    let needles =
-        [concat!("..", "/shared"), concat!("shared", "/spec"), concat!("shared", "/seeds"), concat!(
-            "CONT", "RACT"
-        )];
+    let needles = [
+        concat!("..", "/shared"),
+        concat!("shared", "/spec"),
+        concat!("shared", "/seeds"),
+        concat!("CONT", "RACT"),
+    ];
     let mut found = Vec::new();
     for file in repository_files() {
         let Ok(bytes) = std::fs::read(root().join(&file)) else { continue };
@@ -109,11 +111,8 @@ fn fenced_blocks(text: &str, lang: &str) -> Vec<(usize, String)> {
                 open = Some((index + 1, info == lang, String::new()));
             }
             None => {}
-            Some((at, wanted, body)) if fence => {
-                if wanted {
-                    blocks.push((at, body));
-                }
-            }
+            Some((at, true, body)) if fence => blocks.push((at, body)),
+            Some((_, false, _)) if fence => {}
             Some((at, wanted, mut body)) => {
                 body.push_str(line);
                 body.push('\n');
@@ -259,7 +258,9 @@ fn every_error() -> Vec<ErrorKind> {
     ];
     for error in &all {
         match error {
-            ErrorKind::Watchdog { .. } | ErrorKind::Congestion { .. } | ErrorKind::Operation { .. } => {}
+            ErrorKind::Watchdog { .. }
+            | ErrorKind::Congestion { .. }
+            | ErrorKind::Operation { .. } => {}
         }
     }
     all
@@ -289,7 +290,9 @@ fn keys_of(line: &str) -> Vec<String> {
         let end = after.find('"').unwrap();
         let word = &after[..end];
         rest = &after[end + 1..];
-        if rest.starts_with(':') && keys.contains(&word.to_string()) && !ordered.iter().any(|k| k == word)
+        if rest.starts_with(':')
+            && keys.contains(&word.to_string())
+            && !ordered.iter().any(|k| k == word)
         {
             ordered.push(word.to_string());
         }
@@ -303,7 +306,8 @@ fn every_trace_event_is_documented() {
     let doc = read("docs/SIMULATION.md");
     let rows = table_rows(&doc);
     let row_of = |first: &str| -> Option<&Vec<String>> {
-        rows.iter().find(|row| row.first().is_some_and(|cell| code_spans(cell).iter().any(|c| c == first)))
+        rows.iter()
+            .find(|row| row.first().is_some_and(|cell| code_spans(cell).iter().any(|c| c == first)))
     };
     let mut missing = Vec::new();
 
@@ -426,7 +430,8 @@ fn every_plcctl_command_and_option_is_documented() {
 
 /// `plcd ARGS --help`, as the user sees it.
 fn plcd_help(args: &[&str]) -> String {
-    let output = Command::new(env!("CARGO_BIN_EXE_plcd")).args(args).arg("--help").output().unwrap();
+    let output =
+        Command::new(env!("CARGO_BIN_EXE_plcd")).args(args).arg("--help").output().unwrap();
     assert!(output.status.success(), "plcd {args:?} --help failed");
     String::from_utf8(output.stdout).unwrap()
 }
@@ -509,9 +514,10 @@ const PROBE: &str = "zz_no_such_key";
 /// `None` if it gave none (the place is no table).
 fn expected_keys(config: &str) -> Option<Vec<String>> {
     let diags = plcd::config::parse(config, Path::new("plcd.toml")).err()?;
-    let message = diags.iter().map(|d| d.message.clone()).find(|m| {
-        m.contains(&format!("unknown key `{PROBE}`"))
-    })?;
+    let message = diags
+        .iter()
+        .map(|d| d.message.clone())
+        .find(|m| m.contains(&format!("unknown key `{PROBE}`")))?;
     // "…, expected one of `a`, `b`", "expected `a` or `b`", "expected `a`".
     let (_, expected) = message.split_once("expected")?;
     Some(code_spans(expected))
@@ -600,7 +606,8 @@ fn every_config_key_is_documented() {
         }
     }
     for section in documented.keys().filter(|s| !parser.contains_key(s)) {
-        problems.push(format!("the heading names `{}`, which the parser does not know", section.name));
+        problems
+            .push(format!("the heading names `{}`, which the parser does not know", section.name));
     }
     assert!(problems.is_empty(), "docs/CONFIG.md:\n{}", problems.join("\n"));
 }
