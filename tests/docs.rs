@@ -12,7 +12,8 @@
 //! - Every config key the parser accepts is in a key table of docs/CONFIG.md, under the heading
 //!   of its section, and every key those tables name is accepted. The keys are not listed here:
 //!   the parser names them itself, in its "unknown key `x`, expected one of …" diagnostics.
-//! - Every path of the repository the docs cite (`src/…`, `tests/…`) exists.
+//! - Every path of the repository the docs cite (`src/…`, `tests/…`) exists, and so does every
+//!   one the files of `etc/` and `systemd/` cite.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -655,6 +656,15 @@ fn every_cited_path_exists() {
     let mut missing = Vec::new();
     let mut pages = pages();
     pages.push(("BENCHMARKS.md".into(), read("BENCHMARKS.md")));
+    // The comments of the example project and of the service files point into the docs too.
+    for file in repository_files() {
+        let relative = file.to_string_lossy().into_owned();
+        if relative.starts_with("etc/") || relative.starts_with("systemd/") {
+            if let Ok(text) = std::fs::read_to_string(root().join(&file)) {
+                pages.push((relative, text));
+            }
+        }
+    }
     for (page, text) in pages {
         for path in cited_paths(&text).into_iter().filter(|p| !exists(p)) {
             missing.push(format!("{page}: {path}"));
