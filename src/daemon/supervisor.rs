@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use super::notify::{self, Notifier};
 use super::report;
-use super::requests::{ControlHandler, ControlLinks, Running};
+use super::requests::{RequestHandler, RequestLinks, Running};
 use crate::config::Backend;
 use crate::config::ControlConfig;
 use crate::diag::Diagnostics;
@@ -124,7 +124,7 @@ impl Daemon {
         let Some(completions) = driver.take_completions() else {
             unreachable!("a new driver has its completions")
         };
-        let links = ControlLinks {
+        let links = RequestLinks {
             shared: Arc::clone(&shared),
             commands: Arc::clone(&driver.commands),
             completions,
@@ -403,7 +403,7 @@ impl ControlThread {
 /// Binds the control socket and starts its thread; `None` when `[control] enabled = false`.
 fn start_control(
     config: &ControlConfig,
-    links: ControlLinks,
+    links: RequestLinks,
 ) -> Result<Option<ControlThread>, DaemonError> {
     if !config.enabled {
         log::info!("control socket disabled ([control] enabled = false)");
@@ -416,7 +416,7 @@ fn start_control(
         .name("plcd-control".into())
         .stack_size(PLAIN_THREAD_STACK)
         .spawn(move || {
-            let mut handler = ControlHandler::new(links);
+            let mut handler = RequestHandler::new(links);
             if let Err(e) = server.serve(&mut handler) {
                 log::error!("control socket: {e}; plcctl cannot reach this daemon any more");
             }
