@@ -16,8 +16,7 @@ use std::time::{Duration, Instant};
 use super::notify::{self, Notifier};
 use super::report;
 use super::requests::{RequestHandler, RequestLinks, Running};
-use crate::config::Backend;
-use crate::config::ControlConfig;
+use crate::config::{Backend, ControlConfig, ProjectChange};
 use crate::diag::Diagnostics;
 use crate::drivers::real_time::driver::{Driver, DriverError, PLAIN_THREAD_STACK};
 use crate::drivers::real_time::sys::{self, SysError};
@@ -324,16 +323,8 @@ impl Daemon {
             }
             Ok(new) => {
                 let mut running = self.running.lock().unwrap_or_else(|e| e.into_inner());
-                let old = &running.project.config;
-                let changed: Vec<&str> = [
-                    ("[io]", new.config.io != old.io),
-                    ("[rt]", new.config.rt != old.rt),
-                    ("[retain]", new.config.retain != old.retain),
-                    ("[modbus]", new.config.modbus != old.modbus),
-                ]
-                .into_iter()
-                .filter_map(|(name, changed)| changed.then_some(name))
-                .collect();
+                let changed =
+                    running.project.config.refused_sections(&new.config, ProjectChange::Reload);
                 if !changed.is_empty() {
                     log::error!(
                         "reload refused: {} changed, which takes a restart of the service; \

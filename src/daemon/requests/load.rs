@@ -9,6 +9,7 @@ use std::path::Path;
 use super::mode::mode_name;
 use super::waiting::Then;
 use super::{failure, RequestHandler, Running};
+use crate::config::ProjectChange;
 use crate::drivers::real_time::{Applied, ControlCommand};
 use crate::engine::event::Mode;
 use crate::engine::{online, Engine};
@@ -47,19 +48,13 @@ impl RequestHandler {
             }
         };
         let mut running = self.running();
-        let old = &running.project.config;
-        let restart: Vec<String> = [
-            ("[io]", new.config.io != old.io),
-            ("[rt]", new.config.rt != old.rt),
-            ("[control]", new.config.control != old.control),
-            ("[switch]", new.config.switch != old.switch),
-            ("[retain]", new.config.retain != old.retain),
-            ("[modbus]", new.config.modbus != old.modbus),
-        ]
-        .into_iter()
-        .filter(|(_, changed)| *changed)
-        .map(|(name, _)| format!("{name} changed, which takes a restart of the service"))
-        .collect();
+        let restart: Vec<String> = running
+            .project
+            .config
+            .refused_sections(&new.config, ProjectChange::Load)
+            .into_iter()
+            .map(|name| format!("{name} changed, which takes a restart of the service"))
+            .collect();
         if !restart.is_empty() {
             return Some(ResponseLine::failure(
                 Failure::new(Kind::Refused, "load refused; the running project is unchanged")
