@@ -74,7 +74,7 @@ const SECTIONS: [Section; 9] = [
 
 impl Config {
     /// The sections that differ between this (the running) config and `new` and that `change`
-    /// cannot take, in the order of [`SECTIONS`]; empty when it can take `new`.
+    /// cannot take, in the order of the table (`SECTIONS`); empty when it can take `new`.
     pub fn refused_sections(&self, new: &Config, change: ProjectChange) -> Vec<&'static str> {
         SECTIONS
             .iter()

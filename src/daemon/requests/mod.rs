@@ -6,12 +6,11 @@
 //!
 //! - Commands that change PLC state (mode, writes, forces, debugger, programs) go through the
 //!   command queue and are applied by the scan thread at a scan boundary; each carries a ticket
-//!   that its [`Completion`](crate::drivers::real_time::Completion) answers.
-//! - Reads come from the [`Snapshot`](crate::drivers::real_time::snapshot::Snapshot) the scan
-//!   thread publishes at a scan boundary when asked. Device reads always wait for a capture
-//!   taken after the request; `status` accepts one younger than [`STATUS_MAX_AGE`] as long as
-//!   no command completed since, so that any number of clients polling `status` cost the scan
-//!   at most one capture per that period.
+//!   that its [`Completion`] answers.
+//! - Reads come from the [`Snapshot`] the scan thread publishes at a scan boundary when asked.
+//!   Device reads always wait for a capture taken after the request; `status` accepts one
+//!   younger than [`STATUS_MAX_AGE`] as long as no command completed since, so that any number
+//!   of clients polling `status` cost the scan at most one capture per that period.
 //!
 //! One file a request family, each with its requests and its replies: `mode` (run, stop,
 //! reset, debug), `devices` (get, set), `forces`, `debugger` (step, continue, breakpoints, where
@@ -103,7 +102,7 @@ impl RequestHandler {
         }
     }
 
-    /// The running project, whoever held the lock last.
+    /// The running project; a lock poisoned by a holder that panicked is taken all the same.
     fn running(&self) -> std::sync::MutexGuard<'_, Running> {
         self.links.running.lock().unwrap_or_else(|e| e.into_inner())
     }

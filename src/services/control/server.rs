@@ -8,9 +8,9 @@
 //! request outstanding; its further lines stay unread (in its buffer and then in the kernel's)
 //! until the answer comes, which bounds what one client can queue up.
 //!
-//! The rooms around the loop: [`super::socket`] places the socket file (path, directory, mode,
-//! group, stale sockets, removal), [`super::access`] decides who is admitted, and
-//! [`super::client`] holds one connection's buffers, framing and bounds.
+//! The rooms around the loop: `socket` places the socket file (path, directory, mode, group,
+//! stale sockets, removal), `access` decides who is admitted, and `client` holds one
+//! connection's buffers, framing and bounds.
 
 use std::collections::BTreeMap;
 use std::io;
