@@ -15,12 +15,12 @@ use std::time::{Duration, Instant};
 
 use super::notify::{self, Notifier};
 use super::report;
-use super::requests::{ControlHandler, ControlLinks, Running};
-use crate::config::Backend;
-use crate::config::ControlConfig;
+use super::requests::{RequestHandler, RequestLinks, Running};
+use crate::config::{Backend, ControlConfig, ProjectChange};
 use crate::diag::Diagnostics;
-use crate::drivers::real_time::driver::{Driver, DriverError, PLAIN_THREAD_STACK};
+use crate::drivers::real_time::driver::{Driver, DriverError};
 use crate::drivers::real_time::sys::{self, SysError};
+use crate::drivers::real_time::PLAIN_THREAD_STACK;
 use crate::drivers::real_time::{Command, Report, Shared, Source};
 use crate::engine::event::{Event, Mode};
 use crate::engine::Engine;
@@ -124,7 +124,7 @@ impl Daemon {
         let Some(completions) = driver.take_completions() else {
             unreachable!("a new driver has its completions")
         };
-        let links = ControlLinks {
+        let links = RequestLinks {
             shared: Arc::clone(&shared),
             commands: Arc::clone(&driver.commands),
             completions,
@@ -324,16 +324,8 @@ impl Daemon {
             }
             Ok(new) => {
                 let mut running = self.running.lock().unwrap_or_else(|e| e.into_inner());
-                let old = &running.project.config;
-                let changed: Vec<&str> = [
-                    ("[io]", new.config.io != old.io),
-                    ("[rt]", new.config.rt != old.rt),
-                    ("[retain]", new.config.retain != old.retain),
-                    ("[modbus]", new.config.modbus != old.modbus),
-                ]
-                .into_iter()
-                .filter_map(|(name, changed)| changed.then_some(name))
-                .collect();
+                let changed =
+                    running.project.config.refused_sections(&new.config, ProjectChange::Reload);
                 if !changed.is_empty() {
                     log::error!(
                         "reload refused: {} changed, which takes a restart of the service; \
@@ -403,7 +395,7 @@ impl ControlThread {
 /// Binds the control socket and starts its thread; `None` when `[control] enabled = false`.
 fn start_control(
     config: &ControlConfig,
-    links: ControlLinks,
+    links: RequestLinks,
 ) -> Result<Option<ControlThread>, DaemonError> {
     if !config.enabled {
         log::info!("control socket disabled ([control] enabled = false)");
@@ -416,7 +408,7 @@ fn start_control(
         .name("plcd-control".into())
         .stack_size(PLAIN_THREAD_STACK)
         .spawn(move || {
-            let mut handler = ControlHandler::new(links);
+            let mut handler = RequestHandler::new(links);
             if let Err(e) = server.serve(&mut handler) {
                 log::error!("control socket: {e}; plcctl cannot reach this daemon any more");
             }

@@ -21,6 +21,7 @@
 //! stops after pass 1: what the parser recovered may not be what was meant, and checking it
 //! would mostly report consequences of the syntax error.
 
+mod change;
 mod modbus;
 mod raw;
 mod retain;
@@ -36,6 +37,7 @@ use serde::Deserialize;
 
 use crate::device::Address;
 use crate::diag::{Diagnostic, Diagnostics};
+pub use change::ProjectChange;
 pub use retain::{Restart, RetainArea, RetainConfig, RetainRange};
 
 pub use modbus::{ModbusConfig, ModbusRange, ModbusTable};

@@ -2,10 +2,11 @@
 //! scan and without touching device memory, timers, counters, DUTY clocks or the task figures.
 //!
 //! The work is split the way the threads are. [`prepare`] runs off the real-time path: it checks
-//! that the new project is compatible with the running one (the same tasks, `[plc]`, `[timers]`,
-//! `[io]`, `[rt]` and `[switch]` — only programs may change) and builds the new engine and the
-//! plan for its edge memory. [`Engine::take_over`] runs on the scan thread at a scan boundary:
-//! it moves the running state into the new engine by swapping and copying, allocating nothing.
+//! that the new project is compatible with the running one (the same tasks, none of the sections
+//! [`crate::config::Config::refused_sections`] names for an online change) and builds the new
+//! engine and the plan for its edge memory. [`Engine::take_over`] runs on the scan thread at a
+//! scan boundary: it moves the running state into the new engine by swapping and copying,
+//! allocating nothing.
 //!
 //! Edge memory is the one piece of state that belongs to instructions rather than devices. A
 //! program whose code is unchanged keeps its slots. In a changed program an edge instruction
@@ -15,7 +16,7 @@
 //! (`OUTP`, `FF`, `MOVP`, `DUTY`, …) remembers "ON" for rising and "OFF" for falling, so it
 //! first fires at a transition that happens after the change.
 
-use crate::config::{TaskConfig, TaskKind};
+use crate::config::{ProjectChange, TaskConfig, TaskKind};
 use crate::device::Address;
 use crate::lang::ops::{EdgeMemory, Op};
 use crate::project::Project;
@@ -33,17 +34,9 @@ pub struct OnlineChange {
 pub fn incompatibilities(old: &Project, new: &Project) -> Vec<String> {
     let (a, b) = (&old.config, &new.config);
     let mut reasons = Vec::new();
-    let mut section = |name: &str, changed: bool| {
-        if changed {
-            reasons.push(format!("{name} changed; it can only change with the PLC in STOP"));
-        }
-    };
-    section("[plc]", a.plc != b.plc);
-    section("[timers]", a.timers != b.timers);
-    section("[io]", a.io != b.io);
-    section("[rt]", a.rt != b.rt);
-    section("[switch]", a.switch != b.switch);
-    section("[retain]", a.retain != b.retain);
+    for name in a.refused_sections(b, ProjectChange::Online) {
+        reasons.push(format!("{name} changed; it can only change with the PLC in STOP"));
+    }
     for task in &a.tasks {
         match b.tasks.iter().find(|t| t.name == task.name) {
             None => reasons.push(format!("task \"{}\" is removed", task.name)),

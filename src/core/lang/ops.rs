@@ -4,7 +4,8 @@
 //! Every operand is resolved: bits are a word index and a mask, words an index, constants their
 //! 16-bit pattern, jump and call targets program-counter values, edge memory a slot number.
 //! Rung structure is resolved too: a contact that opens a nested block (`LOAD` inside a rung)
-//! is a distinct `…Push` op, so the VM never has to guess where a rung starts.
+//! is a distinct op (`LoadPush`, `LoadNotPush`, or an edge or compare contact whose
+//! [`Combine::Load`] has `push`), so the VM never has to guess where a rung starts.
 
 use crate::device::{BitRef, WordRef};
 
@@ -190,7 +191,7 @@ pub enum Op {
         d: WordRef,
         pulse: Option<EdgeSlot>,
     },
-    /// `INC d` (`step` 1) / `DEC d` (`step` -1).
+    /// `INC d` (`up`) / `DEC d`.
     Step {
         d: WordRef,
         up: bool,
@@ -279,7 +280,7 @@ impl Op {
     }
 }
 
-// The dispatch loop walks an array of these; keep them two to a cache line's quarter.
+// The dispatch loop walks an array of these; keep each within 16 bytes, four to a cache line.
 const _: () = assert!(std::mem::size_of::<Op>() <= 16);
 
 #[cfg(test)]

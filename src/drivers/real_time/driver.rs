@@ -1,6 +1,6 @@
 //! The real-time driver as one object: [`Driver::start`] opens the field of a loaded project,
-//! starts the scan, event and watchdog threads (and the stimulus player of the sim backend)
-//! under `[rt]`, and hands out the ends of the queues that talk to them; [`Driver::stop`]
+//! starts the scan, event and watchdog threads (and, with the simulated field, the stimulus
+//! player) under `[rt]`, and hands out the ends of the queues that talk to them; [`Driver::stop`]
 //! takes the outputs to STOP's safe state and gives the engine back.
 //!
 //! The daemon supervises one (`plcd run`), and `plcd bench` runs one to measure it: the same
@@ -20,7 +20,7 @@ use super::sys::{self, SysError, Timer};
 use super::watchdog::WatchdogThread;
 use super::{
     pending, setup_thread, Command, Completion, Report, Role, RtSetupError, Shared, COMMAND_QUEUE,
-    COMPLETION_QUEUE, EDGE_QUEUE, REPORT_QUEUE, THREAD_STACK,
+    COMPLETION_QUEUE, EDGE_QUEUE, PLAIN_THREAD_STACK, REPORT_QUEUE, THREAD_STACK,
 };
 use crate::config::{Backend, OnFault, RtConfig, RtPolicy};
 use crate::diag::Diagnostics;
@@ -31,10 +31,6 @@ use crate::io::gpio::{self, GpioError};
 use crate::io::simulated::SimulatedIo;
 use crate::io::InputEdge;
 use crate::project::Project;
-
-/// Stack of the threads that are not real-time (the stimulus player): they neither recurse
-/// nor keep large buffers on the stack, and with memory locked every byte of it is resident.
-pub const PLAIN_THREAD_STACK: usize = 256 * 1024;
 
 /// Why the driver could not start.
 #[derive(Debug, thiserror::Error)]
@@ -74,7 +70,8 @@ pub struct Granted {
 /// The running real-time threads of one project, and the ends of their queues.
 pub struct Driver {
     pub shared: Arc<Shared>,
-    /// Commands to the scan thread; shared with the stimulus player and the control socket.
+    /// Commands to the scan thread; shared with the stimulus player, the control socket's
+    /// requests and the Modbus server.
     pub commands: Arc<Mutex<rtrb::Producer<Command>>>,
     /// What the scan thread reports, in order.
     pub reports: rtrb::Consumer<Report>,

@@ -1,27 +1,33 @@
 //! The real-time driver of `plcd run`: the task engine on real time and real I/O.
 //!
 //! The engine decides what runs when; this module only feeds it events and time, as the
-//! simulator does in virtual time. Four threads:
+//! virtual-time driver (`plcd sim`) does in virtual time. Four threads:
 //!
 //! - **scan** (SCHED_FIFO, `scan_priority`): owns the [`Engine`] and the field I/O. It executes
-//!   in slices of [`SLICE_STEPS`] instructions and between two slices looks at an atomic set
-//!   of pending work (edges, cycle deadlines, commands, the watchdog, shutdown); it reads the
-//!   queues only when a flag says so. When the engine is idle (fixed scan period, STOP) it
-//!   sleeps on its own timerfd, armed at the engine's next wakeup, and an eventfd.
+//!   in slices of [`SLICE_STEPS`] instructions and between two slices takes the [`pending`]
+//!   flags all at once — edges queued, commands queued (or a snapshot wanted), the watchdog
+//!   tripped, a mirror copy wanted, shutdown — and reads a queue only when its flag says so.
+//!   Cycle deadlines need no flag: they are the engine's, and the scan thread looks at the clock
+//!   between two slices. When the engine is idle (fixed scan period, STOP) it sleeps on its own
+//!   timerfd, armed at the engine's next wakeup (absolute CLOCK_MONOTONIC), and an eventfd that
+//!   the other threads write to wake it.
 //! - **events** ([`events`], `event_priority`, above scan): the GPIO line request's edge
 //!   events (with their kernel timestamps) become queued edges and a pending flag, and the
-//!   scan thread is woken if it sleeps. Cycle deadlines are the scan thread's own: its timerfd
-//!   is armed at the engine's next deadline (absolute CLOCK_MONOTONIC), and while it executes
-//!   it looks at the clock between two slices.
+//!   scan thread is woken if it sleeps.
 //! - **watchdog** ([`watchdog`], `watchdog_priority`, the highest): puts the outputs into their
 //!   safe state within a millisecond of the scan watchdog's expiry even if the scan thread is
 //!   stuck, and makes the engine take its WDT path as soon as the scan thread runs again.
-//! - **stimulus** ([`stimulus`], sim backend only, not real time): plays the inputs file in
-//!   real time into the simulated field.
+//! - **stimulus** ([`stimulus`], with the simulated field only, not real time): plays the inputs
+//!   file in real time into the simulated field.
 //!
-//! The queues between threads are wait-free single-producer rings (`rtrb`), allocated at start;
-//! the scan path neither allocates nor takes a lock (the rare exceptions are named where they
-//! are: replacing the program, and the log line of an I/O error).
+//! The queues between threads are wait-free single-producer single-consumer rings (`rtrb`),
+//! allocated at start. The command queue has several producers (the supervisor, the control
+//! socket's requests, the Modbus server, the stimulus player): they share its producer end
+//! behind a mutex, which the scan thread, its consumer, never takes. The snapshot and the
+//! mirrors sit behind mutexes the scan thread only `try_lock`s. So the scan path neither
+//! allocates nor waits for a lock (the rare exceptions are named where they are: an engine
+//! dropped when the report queue is full, and the log line of an output that cannot be
+//! switched off).
 
 pub mod driver;
 pub mod events;
@@ -52,7 +58,8 @@ pub const SLICE_STEPS: u64 = 256;
 
 /// Capacity of the edge queue (event or stimulus thread → scan thread).
 pub const EDGE_QUEUE: usize = 256;
-/// Capacity of the command queue (supervisor, stimulus → scan thread).
+/// Capacity of the command queue (supervisor, control socket, Modbus server, stimulus → scan
+/// thread).
 pub const COMMAND_QUEUE: usize = 64;
 /// Capacity of the report queue (scan thread → supervisor).
 pub const REPORT_QUEUE: usize = 4096;
@@ -329,6 +336,12 @@ pub const PREFAULT_STACK: usize = 256 * 1024;
 /// is resident, so it is sized to need, not to habit (the scan path does not recurse: calls
 /// and loops of PLC programs live in fixed arrays of their task's state).
 pub const THREAD_STACK: usize = 512 * 1024;
+/// Stack size of the process's threads that are not real time: the stimulus player, the
+/// control socket's server, the Modbus server's listener and connection threads, the retain
+/// writer. It lives beside [`THREAD_STACK`] for the same reason: once [`sys::lock_memory`] has
+/// locked every later mapping too, each of these stacks is resident in full, so it is sized to
+/// need (none of them recurses or keeps large buffers on its stack).
+pub const PLAIN_THREAD_STACK: usize = 256 * 1024;
 
 /// Why a thread runs without what `[rt]` asked for.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

@@ -1,13 +1,22 @@
-//! The control socket of the daemon: the Unix socket server ([`server`]) that carries the
-//! protocol `plcctl` speaks (the `plcd-ipc` crate), and the interface between that server and
-//! whatever answers the requests ([`Handler`]: the daemon's [`crate::daemon::requests`], or a
-//! test's fake).
+//! The control socket of the daemon: the Unix socket server that carries the protocol `plcctl`
+//! speaks (the `plcd-ipc` crate), and the interface between that server and whatever answers
+//! the requests ([`Handler`]: the daemon's [`crate::daemon::requests`], or a test's fake).
+//!
+//! - [`server`]: the server and its poll loop: accepting, reading, writing, handing requests
+//!   to the [`Handler`] and delivering its answers, closing;
+//! - `socket`: where the socket file lives (the path and its fallbacks, the directory, a stale
+//!   socket), its mode 0660 and group, and its removal when the server goes;
+//! - `access`: who may connect (root, the daemon's user, one group);
+//! - `client`: one connection: its buffers, the line framing, the bounds and deadlines.
 //!
 //! Nothing here runs on a real-time thread. The server never waits for the scan thread: a
 //! request the daemon cannot answer at once (it is applied at the next END) is answered later,
 //! through [`Handler::completions`], while the server goes on serving the other clients.
 
+mod access;
+mod client;
 pub mod server;
+mod socket;
 
 use std::os::fd::BorrowedFd;
 use std::time::Duration;

@@ -28,9 +28,9 @@ use super::map::Map;
 use super::pdu::{self, Plc, Scratch, HEADER, MAX_ADU};
 use super::ModbusError;
 use crate::config::ModbusConfig;
-use crate::drivers::real_time::driver::PLAIN_THREAD_STACK;
 use crate::drivers::real_time::mirror::Mirror;
 use crate::drivers::real_time::sys::{self, Wake};
+use crate::drivers::real_time::PLAIN_THREAD_STACK;
 use crate::drivers::real_time::{
     pending, Command, Shared, WordWrite, WordWrites, WORDS_PER_COMMAND,
 };

@@ -3,13 +3,23 @@
 //! Which device words are retained (K always, the `[retain]` ranges) is device memory's rule:
 //! [`crate::device::retained`].
 //!
-//! - [`format`](mod@format): the generation file and which of the two generations wins — pure functions;
+//! - [`format`](mod@format): the generation file and which of the two generations wins — pure
+//!   functions;
 //! - [`store`]: the files: atomic, durable replacement, reading, setting aside;
-//! - [`writer`]: the background thread writing the scan thread's END snapshots (taken through
-//!   a [`crate::drivers::real_time::mirror::Mirror`]) while values change, at STOP and at shutdown;
-//! - [`startup`]: what the daemon restores at start.
+//! - [`startup`]: what the daemon restores at start;
+//! - [`writer`]: the background thread writing the retained words while they change, at STOP
+//!   and at shutdown;
+//! - [`service`]: the daemon's retained memory as one object ([`service::Persistence`]): the
+//!   files read at start, the restore, the writer thread, the final write.
 //!
-//! Nothing here runs on the scan thread.
+//! No code of this module runs on the scan thread. The restore runs on the main thread before
+//! the scan thread starts (the driver applies [`service::Persistence::restore_into`] to the new
+//! engine first); the writer's copies of the retained words are taken by the scan thread at a
+//! scan boundary, without allocating, through a
+//! [`Mirror`](crate::drivers::real_time::mirror::Mirror) that the writer asks on its own thread;
+//! the final write reads the stopped engine on the main thread. Taking the retained words over
+//! into a replacement engine (a reload, a load) and clearing them (`reset --cold`) are the
+//! engine's, on the scan thread.
 
 pub mod format;
 pub mod service;

@@ -150,7 +150,7 @@ impl WriterThread {
         let ctl = Arc::clone(&control);
         let handle = std::thread::Builder::new()
             .name("plcd-retain".into())
-            .stack_size(crate::drivers::real_time::driver::PLAIN_THREAD_STACK)
+            .stack_size(crate::drivers::real_time::PLAIN_THREAD_STACK)
             .spawn(move || {
                 let mut seen = mirror.lock().generation;
                 let mut words: Vec<u16> = Vec::with_capacity(mirror.lock().words.len());

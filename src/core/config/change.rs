@@ -1,0 +1,130 @@
+//! What may change while plcd runs: which config sections each way of taking a new project can
+//! take a new value of. The daemon's SIGHUP reload, `plcctl load` and the engine's online
+//! change all ask [`Config::refused_sections`]; the answer is the one table below.
+//!
+//! `[[program]]` entries are what every change is for. `[[task]]` entries are taken by a reload
+//! and a load (the engine starts anew); an online change compares them task by task
+//! (`engine::online`), because its reasons name the task and what changed in it.
+
+use super::Config;
+
+/// A way a running plcd takes a new project.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ProjectChange {
+    /// SIGHUP: the daemon reads its config file again and replaces the engine. A section it
+    /// cannot take needs a restart of the service.
+    Reload,
+    /// `plcctl load`, with or without `--online`. A section it cannot take needs a restart of
+    /// the service.
+    Load,
+    /// An online change (`plcctl load --online` in RUN or DEBUG): the new engine takes the
+    /// running one's state over at a scan boundary. A section it cannot take can only change
+    /// with the PLC in STOP. The daemon asks [`ProjectChange::Load`] first, so what only a
+    /// restart can change never gets here.
+    Online,
+}
+
+/// One config section and which changes take a new value of it.
+struct Section {
+    name: &'static str,
+    differs: fn(&Config, &Config) -> bool,
+    reload: bool,
+    load: bool,
+    online: bool,
+}
+
+impl Section {
+    fn takes(&self, change: ProjectChange) -> bool {
+        match change {
+            ProjectChange::Reload => self.reload,
+            ProjectChange::Load => self.load,
+            ProjectChange::Online => self.online,
+        }
+    }
+}
+
+const fn section(
+    name: &'static str,
+    differs: fn(&Config, &Config) -> bool,
+    [reload, load, online]: [bool; 3],
+) -> Section {
+    Section { name, differs, reload, load, online }
+}
+
+/// Every section, in the order the refusals name them, and whether a reload, a load and an
+/// online change take a new value of it. The online column is what the running engine can take
+/// over; what a load refuses never reaches it.
+#[rustfmt::skip]
+const SECTIONS: [Section; 9] = [
+    //       section      differs                              reload  load   online
+    section("[plc]",     |a, b| a.plc != b.plc,              [true,  true,  false]),
+    // Read by `plcd sim` alone.
+    section("[sim]",     |a, b| a.sim != b.sim,              [true,  true,  true ]),
+    section("[timers]",  |a, b| a.timers != b.timers,        [true,  true,  false]),
+    section("[io]",      |a, b| a.io != b.io,                [false, false, false]),
+    section("[rt]",      |a, b| a.rt != b.rt,                [false, false, false]),
+    // A known difference, kept for now: a reload does not refuse a new [control] or [switch],
+    // although it sets up neither the control socket nor the field's switch line again;
+    // `plcctl load` refuses both.
+    section("[control]", |a, b| a.control != b.control,      [true,  false, true ]),
+    section("[switch]",  |a, b| a.switch != b.switch,        [true,  false, false]),
+    section("[retain]",  |a, b| a.retain != b.retain,        [false, false, false]),
+    section("[modbus]",  |a, b| a.modbus != b.modbus,        [false, false, true ]),
+];
+
+impl Config {
+    /// The sections that differ between this (the running) config and `new` and that `change`
+    /// cannot take, in the order of the table (`SECTIONS`); empty when it can take `new`.
+    pub fn refused_sections(&self, new: &Config, change: ProjectChange) -> Vec<&'static str> {
+        SECTIONS
+            .iter()
+            .filter(|section| !section.takes(change) && (section.differs)(self, new))
+            .map(|section| section.name)
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+    use crate::config::parse;
+
+    const PROGRAM: &str = "[[program]]\nfile = \"main.il\"\n";
+
+    #[test]
+    fn an_unchanged_config_is_taken_by_every_change() {
+        let config = parse(PROGRAM, Path::new("a.toml")).unwrap();
+        for change in [ProjectChange::Reload, ProjectChange::Load, ProjectChange::Online] {
+            assert!(config.refused_sections(&config.clone(), change).is_empty(), "{change:?}");
+        }
+    }
+
+    #[test]
+    fn each_change_refuses_its_sections_in_order() {
+        let old = parse(PROGRAM, Path::new("a.toml")).unwrap();
+        let switched = format!("[switch]\nposition = \"stop\"\n{PROGRAM}");
+        let mut new = parse(&switched, Path::new("a.toml")).unwrap();
+        new.plc.watchdog_ms += 1;
+        new.sim.step_ns += 1;
+        new.timers.ms100 = Some(0..=9);
+        new.io.stimulus_loop = !new.io.stimulus_loop;
+        new.rt.scan_priority -= 1;
+        new.control.max_clients += 1;
+        new.retain.interval_ms += 1;
+        new.modbus.unit_id += 1;
+        assert_eq!(
+            old.refused_sections(&new, ProjectChange::Reload),
+            ["[io]", "[rt]", "[retain]", "[modbus]"]
+        );
+        assert_eq!(
+            old.refused_sections(&new, ProjectChange::Load),
+            ["[io]", "[rt]", "[control]", "[switch]", "[retain]", "[modbus]"]
+        );
+        assert_eq!(
+            old.refused_sections(&new, ProjectChange::Online),
+            ["[plc]", "[timers]", "[io]", "[rt]", "[switch]", "[retain]"]
+        );
+    }
+}

@@ -1,0 +1,184 @@
+//! Debugger requests: `step` (answered once execution is paused again), `continue`, `break AT`
+//! and `unbreak [AT]`, applied at a scan boundary; each answers with the debugger's state:
+//! where execution is paused, that source line as written now and the values of the devices it
+//! names, and the breakpoints. `status` shows the same state in DEBUG.
+
+use std::path::Path;
+
+use super::devices::{value_in, word_of};
+use super::waiting::{Outcome, Then};
+use super::{failure, RequestHandler, Running};
+use crate::device::Address;
+use crate::drivers::real_time::snapshot::Snapshot;
+use crate::drivers::real_time::ControlCommand;
+use crate::engine::debug::{self, Breakpoint, DebugRun};
+use crate::engine::event::Mode;
+use crate::services::control::ClientId;
+use plcd_ipc::{
+    DebugState, DeviceValue, ErrorKind as Kind, Failure, Location, Reply, ResponseLine,
+};
+
+impl RequestHandler {
+    pub(super) fn step(&mut self, client: ClientId) -> Option<ResponseLine> {
+        let then = Then::Debug { unbroken: None, devices: None, until_paused: true };
+        self.park(client, vec![ControlCommand::Step], then)
+    }
+
+    pub(super) fn continue_(&mut self, client: ClientId) -> Option<ResponseLine> {
+        let then = Then::Debug { unbroken: None, devices: None, until_paused: false };
+        self.park(client, vec![ControlCommand::Continue], then)
+    }
+
+    pub(super) fn set_breakpoint(&mut self, client: ClientId, at: &str) -> Option<ResponseLine> {
+        match self.resolve(at) {
+            Ok(bp) => {
+                let then = Then::Debug { unbroken: None, devices: None, until_paused: false };
+                self.park(client, vec![ControlCommand::Break(bp)], then)
+            }
+            Err(f) => Some(ResponseLine::failure(f)),
+        }
+    }
+
+    /// One breakpoint (`at`), or every one.
+    pub(super) fn unbreak(&mut self, client: ClientId, at: Option<String>) -> Option<ResponseLine> {
+        match at {
+            Some(at) => match self.resolve(&at) {
+                Ok(bp) => {
+                    let then =
+                        Then::Debug { unbroken: Some(at), devices: None, until_paused: false };
+                    self.park(client, vec![ControlCommand::Unbreak(Some(bp))], then)
+                }
+                Err(f) => Some(ResponseLine::failure(f)),
+            },
+            None => {
+                let then = Then::Debug { unbroken: None, devices: None, until_paused: false };
+                self.park(client, vec![ControlCommand::Unbreak(None)], then)
+            }
+        }
+    }
+
+    fn resolve(&self, at: &str) -> Result<Breakpoint, Failure> {
+        let running = self.running();
+        debug::resolve(&running.project.programs, at)
+            .map_err(|e| Failure::new(Kind::Invalid, e.to_string()))
+    }
+
+    /// What a debugger request's snapshot wait comes to: wait while a step still runs; once
+    /// paused at a line that names devices, wait once more for a capture of them; then the
+    /// debugger's state.
+    pub(super) fn debug_outcome(
+        &self,
+        unbroken: Option<String>,
+        devices: Option<Vec<Address>>,
+        until_paused: bool,
+        snapshot: &Snapshot,
+    ) -> Outcome {
+        if until_paused && snapshot.mode == Mode::Debug && snapshot.debug_run != DebugRun::Paused {
+            // Still stepping: look again at the next round (see `collect_answers`).
+            let then = Then::Debug { unbroken, devices, until_paused: true };
+            return Outcome::Wait { then, again: false };
+        }
+        if devices.is_none() {
+            let devices = self.paused_devices(snapshot);
+            if !devices.is_empty() {
+                // Paused at a breakpoint: read the devices its line names.
+                let then = Then::Debug { unbroken, devices: Some(devices), until_paused: false };
+                return Outcome::Wait { then, again: true };
+            }
+        }
+        Outcome::Answer(ResponseLine::ok(Reply::Debug(self.debug_state(snapshot))))
+    }
+
+    fn debug_state(&self, snapshot: &Snapshot) -> DebugState {
+        let running = self.running();
+        debug_state_with(snapshot, &running)
+    }
+
+    /// The devices named on the line execution is paused before.
+    fn paused_devices(&self, snapshot: &Snapshot) -> Vec<Address> {
+        let Some((_, at)) = snapshot.paused_at else { return Vec::new() };
+        let running = self.running();
+        let Some(program) = running.project.programs.get(at.program as usize) else {
+            return Vec::new();
+        };
+        devices_named(&source_line(&program.path, program.line_of(at.pc as usize)))
+    }
+}
+
+/// The answer to an `unbreak AT` where no breakpoint was.
+pub(super) fn no_breakpoint(at: &str) -> ResponseLine {
+    failure(Kind::Invalid, format!("no breakpoint at {at}"))
+}
+
+/// The debugger's state in `snapshot`, named after the `running` project.
+pub(super) fn debug_state_with(snapshot: &Snapshot, running: &Running) -> DebugState {
+    let programs = &running.project.programs;
+    let paused_at = snapshot.paused_at.map(|(task, at)| {
+        let program = programs.get(at.program as usize);
+        let line = program.map_or(0, |p| p.line_of(at.pc as usize));
+        let source = program.map(|p| source_line(&p.path, line)).unwrap_or_default();
+        let devices = devices_named(&source)
+            .into_iter()
+            .filter_map(|d| {
+                snapshot
+                    .word(word_of(&d))
+                    .map(|w| DeviceValue { dev: d.to_string(), value: value_in(&d, w) })
+            })
+            .collect();
+        Location {
+            program: program.map_or_else(String::new, |p| p.name.clone()),
+            line,
+            task: crate::engine::task_names(&running.project.config)
+                .get(usize::from(task))
+                .cloned()
+                .unwrap_or_default(),
+            source,
+            devices,
+        }
+    });
+    DebugState {
+        paused_at,
+        running: snapshot.mode == Mode::Debug && snapshot.debug_run != DebugRun::Paused,
+        scan: snapshot.scan.count,
+        breakpoints: snapshot.breakpoints[..snapshot.breakpoint_count]
+            .iter()
+            .map(|b| debug::describe(programs, *b))
+            .collect(),
+    }
+}
+
+/// Line `line` (1-based) of a program file as written now, without its comment.
+fn source_line(path: &Path, line: u32) -> String {
+    let text = std::fs::read_to_string(path).unwrap_or_default();
+    let raw = text.lines().nth((line as usize).saturating_sub(1)).unwrap_or("");
+    let code = raw.split(';').next().unwrap_or("");
+    let code = code.split("//").next().unwrap_or("");
+    code.trim().to_string()
+}
+
+/// The operands of an instruction line that are devices (not constants, not mnemonics).
+fn devices_named(source: &str) -> Vec<Address> {
+    let mut devices: Vec<Address> = Vec::new();
+    for token in source.split_whitespace().skip(1) {
+        if let Ok(address) = Address::parse(token) {
+            if !devices.contains(&address) {
+                devices.push(address);
+            }
+        }
+    }
+    devices
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn devices_of_a_source_line() {
+        let named = |s: &str| devices_named(s).iter().map(|a| a.to_string()).collect::<Vec<_>>();
+        assert_eq!(named("LOAD P0000"), ["P0000"]);
+        assert_eq!(named("ADD D00001 5 D00002"), ["D00001", "D00002"]);
+        assert_eq!(named("TON T0001 50"), ["T0001"]);
+        assert_eq!(named("END"), Vec::<String>::new());
+    }
+}

@@ -1,0 +1,84 @@
+//! Force requests: `force`, `unforce`, `unforce-all` change the force table at a scan boundary
+//! (only P bits can be forced); each, and `forces`, answers with the table as a snapshot
+//! captured after it shows it.
+
+use super::devices::parse_device;
+use super::waiting::Then;
+use super::{failure, RequestHandler};
+use crate::device::{Address, BitRef};
+use crate::drivers::real_time::snapshot::Snapshot;
+use crate::drivers::real_time::ControlCommand;
+use crate::engine::force;
+use crate::services::control::ClientId;
+use plcd_ipc::{DeviceValue, ErrorKind as Kind, Failure, Reply, ResponseLine};
+
+impl RequestHandler {
+    pub(super) fn force(
+        &mut self,
+        client: ClientId,
+        dev: &str,
+        value: i32,
+    ) -> Option<ResponseLine> {
+        let (address, bit) = match parse_io_bit(dev) {
+            Ok(found) => found,
+            Err(f) => return Some(ResponseLine::failure(f)),
+        };
+        if !(0..=1).contains(&value) {
+            return Some(failure(
+                Kind::Invalid,
+                format!("{address}={value}: a bit is forced to 0 or 1"),
+            ));
+        }
+        self.park(
+            client,
+            vec![ControlCommand::Force(bit, value == 1)],
+            Then::Forces { unforced: None },
+        )
+    }
+
+    pub(super) fn unforce(&mut self, client: ClientId, dev: &str) -> Option<ResponseLine> {
+        let (address, bit) = match parse_io_bit(dev) {
+            Ok(found) => found,
+            Err(f) => return Some(ResponseLine::failure(f)),
+        };
+        self.park(
+            client,
+            vec![ControlCommand::Unforce(bit)],
+            Then::Forces { unforced: Some(address) },
+        )
+    }
+
+    pub(super) fn unforce_all(&mut self, client: ClientId) -> Option<ResponseLine> {
+        self.park(client, vec![ControlCommand::UnforceAll], Then::Forces { unforced: None })
+    }
+
+    pub(super) fn forces(&mut self, client: ClientId) -> Option<ResponseLine> {
+        self.park_for_snapshot(client, Then::Forces { unforced: None })
+    }
+}
+
+/// A device that can be forced: a P bit.
+fn parse_io_bit(text: &str) -> Result<(Address, BitRef), Failure> {
+    let address = parse_device(text)?;
+    let bit = force::io_bit(&address).map_err(|e| Failure::new(Kind::Invalid, e.to_string()))?;
+    Ok((address, bit))
+}
+
+/// The answer to an `unforce` of a bit that was not forced.
+pub(super) fn not_forced(address: &Address) -> ResponseLine {
+    failure(Kind::Invalid, format!("{address} is not forced"))
+}
+
+/// The answer of every force request: the force table of `snapshot`.
+pub(super) fn table(snapshot: &Snapshot) -> ResponseLine {
+    ResponseLine::ok(Reply::Forces { forces: forces_of(snapshot) })
+}
+
+/// The forced bits and their values, as `status` and the force requests list them.
+pub(super) fn forces_of(snapshot: &Snapshot) -> Vec<DeviceValue> {
+    snapshot
+        .forces
+        .iter()
+        .map(|(a, on)| DeviceValue { dev: a.to_string(), value: i32::from(on) })
+        .collect()
+}
