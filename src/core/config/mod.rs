@@ -25,6 +25,7 @@ mod modbus;
 mod raw;
 mod retain;
 mod validate;
+pub mod wiring;
 
 #[cfg(test)]
 mod tests;
@@ -75,13 +76,7 @@ impl Config {
     /// The contacts (0..=7 for P0000..=P0007) that io tasks start on, with the edge each task
     /// wants, in task order: the edges an I/O backend must report.
     pub fn edge_contacts(&self) -> Vec<(u8, Edge)> {
-        self.tasks
-            .iter()
-            .filter_map(|t| match &t.kind {
-                TaskKind::Io { contact, edge } => Some((contact.bit.unwrap_or(0), *edge)),
-                _ => None,
-            })
-            .collect()
+        wiring::edge_contacts(&self.tasks)
     }
 }
 

@@ -14,6 +14,7 @@ use super::raw::{
     Ctx, Failed, Located, RawCondition, RawControl, RawDoc, RawInput, RawIo, RawKind, RawOutput,
     RawPlc, RawProgram, RawRt, RawSim, RawSwitch, RawTask, RawTimers,
 };
+use super::wiring::{self, Place};
 use super::{
     Backend, Config, ControlConfig, DeviceCondition, IoConfig, IoLine, PlcConfig, ProgramConfig,
     RtConfig, SimConfig, Sink, SwitchConfig, TaskConfig, TaskKind, TaskRef, TimerConfig,
@@ -37,6 +38,10 @@ pub(super) fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
         .map(|io| io.value.backend)
         .filter(|_| !failed.iter().any(|k| k == "io.backend"));
     let wired = wired_lines(&doc.inputs, &doc.outputs);
+    let switch_place = doc.switch.as_ref().map(|s| Place {
+        at: s.value.line.as_ref().map_or(s.span.start, |line| line.span().start),
+        subject: s.ctx.subject(),
+    });
     let switch = switch(sink, doc.switch, backend, &wired, failed);
     let io = io(sink, doc.io, doc.inputs, doc.outputs, failed, &path);
     let rt = doc.rt.and_then(|raw| rt(sink, raw, failed));
@@ -52,6 +57,14 @@ pub(super) fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
     let tasks = tasks(sink, doc.tasks, gpio_inputs.as_deref());
     let programs = programs(sink, doc.programs, &task_names, &doc.failed, &path);
     let modbus = super::modbus::validate(sink, doc.modbus);
+    if let Some((io, inputs, outputs)) =
+        io.as_ref().filter(|(io, ..)| io.backend == Backend::Gpiocdev)
+    {
+        let switch = switch.as_ref().and_then(Option::as_ref).zip(switch_place);
+        let tasks = tasks.as_deref().unwrap_or_default();
+        wiring::check(sink, io, (inputs, outputs), switch, tasks);
+    }
+    let io = io.map(|(io, ..)| io);
     Some(Config {
         path,
         plc: plc?,
@@ -865,7 +878,7 @@ fn io(
     outputs: Vec<Located<RawOutput>>,
     failed: &[String],
     config: &Path,
-) -> Option<IoConfig> {
+) -> Option<(IoConfig, Vec<Place>, Vec<Place>)> {
     let mut ok = raw.is_some();
     let mut config_io = IoConfig::default();
     if let Some(Located { span, ctx, value: raw }) = raw {
@@ -976,14 +989,18 @@ fn io(
             ok = false;
         }
     }
+    let (mut inputs, mut outputs) = (Vec::new(), Vec::new());
     for w in wired {
+        let place = Place { at: w.at, subject: w.ctx.subject() };
         if w.input {
             config_io.inputs.push(w.line);
+            inputs.push(place);
         } else {
             config_io.outputs.push(w.line);
+            outputs.push(place);
         }
     }
-    ok.then_some(config_io)
+    ok.then_some((config_io, inputs, outputs))
 }
 
 /// A valid `[[io.input]]` or `[[io.output]]`, with what the uniqueness checks report.
