@@ -13,9 +13,9 @@
 //! What only `plcd run` can find, because it needs the hardware: the chip not found, its label
 //! matching several chips, the chip not opening (permissions, not a GPIO chip), a line offset
 //! at or beyond the chip's line count, a line already held by another consumer (named when the
-//! kernel says who), and a request the chip's driver refuses (EINVAL for a bias or debounce
-//! period the hardware cannot do, for instance). Everything else about the wiring is the
-//! config's and fails `plcd check` too.
+//! kernel says who), a request the kernel or the chip's driver refuses for what the chip is
+//! (a setting its hardware cannot do), and any ioctl that fails while the lines are in use.
+//! Everything else about the wiring is the config's and fails `plcd check` too.
 //!
 //! Why it is built this way:
 //! - **One request per direction.** All inputs are one line request, all outputs another, each
@@ -30,8 +30,8 @@
 //!   before the first scan.
 //! - **One ioctl per refresh, no allocation.** The `Values` passed to gpiocdev are built at open
 //!   with every requested offset in them: with a non-empty `Values`, gpiocdev converts to and
-//!   from the kernel's bitmap on the stack. An ioctl error is counted and kept for the daemon to
-//!   log; the scan never panics on I/O.
+//!   from the kernel's bitmap on the stack. An ioctl error is counted and the last one kept
+//!   ([`GpioIo::io_errors`], [`GpioIo::take_error`]); the scan never panics on I/O.
 //! - **Active-low in the kernel.** Lines are requested with the `active_low` flag, so the values
 //!   and the edges the kernel reports are already logical (a rising edge is OFF → ON of the
 //!   device), as the engine expects.
