@@ -77,7 +77,7 @@ fn rig_config(backend: &str, chip: Option<&str>, extra: &str) -> Config {
 
 /// Opens the gpiocdev backend on `config`.
 fn open(config: &Config, consumer: &str) -> Result<Gpio, gpio::GpioError> {
-    gpio::open(&config.io, config.switch.as_ref(), &config.edge_contacts(), consumer)
+    gpio::open(config, consumer)
 }
 
 struct SimRig {
@@ -305,6 +305,43 @@ fn a_line_beyond_the_chip_is_named() {
     let path = sim.chips()[0].dev_path().to_str().unwrap().to_string();
     let error = open(&rig_config("gpiocdev", Some(&path), ""), "plcd").unwrap_err().to_string();
     assert!(error.contains("line 8") && error.contains("P0040"), "{error}");
+}
+
+#[test]
+fn the_kernel_takes_a_plan_at_its_limits() {
+    // What `plcd check` accepts at the edge of GPIO_V2_LINES_MAX and
+    // GPIO_V2_LINE_NUM_ATTRS_MAX, the kernel takes: 64 input lines (the switch's among them)
+    // whose settings need 10 attributes besides the request's default flags.
+    let mut text = String::from(
+        "[[program]]\nfile = \"main.il\"\n[[task]]\nname = \"edge\"\nkind = \"io\"\n\
+         number = 8\npriority = 2\ncontact = \"P0000\"\nedge = \"both\"\n\
+         [io]\nbackend = \"gpiocdev\"\nchip = \"CHIP\"\n[switch]\nline = 63\n",
+    );
+    // 2 active levels × 3 biases, and the edge on P0000: 6 flag combinations besides the
+    // default; 3 debounce periods and the switch's 10 ms default: 4 more.
+    let biases = ["disabled", "pull-up", "pull-down"];
+    for n in 0..63u32 {
+        let device = format!("P{:03}{:X}", n / 16, n % 16);
+        let (active_low, bias) = ((n % 6) >= 3, biases[n as usize % 3]);
+        let debounce = [0, 100, 200, 300][n as usize % 4];
+        text += &format!(
+            "[[io.input]]\ndevice = \"{device}\"\nline = {n}\nactive_low = {active_low}\n\
+             bias = \"{bias}\"\ndebounce_us = {debounce}\n"
+        );
+    }
+    let plan = config::parse(&text, Path::new("limits.toml")).expect("at the limits");
+    assert_eq!(plan.wiring().unwrap().inputs.len(), 64);
+    // One more debounce period is one attribute too many: refused by the config already.
+    let over = text.replacen("debounce_us = 0\n", "debounce_us = 500\n", 1);
+    let errors = config::parse(&over, Path::new("limits.toml")).unwrap_err().to_string();
+    assert!(errors.contains("the input lines need 11 distinct line settings"), "{errors}");
+
+    require_gpiosim!();
+    let sim = gpiosim::builder().with_bank(&gpiosim::Bank::new(128, "plcd-limits")).live().unwrap();
+    let text = text.replace("CHIP", sim.chips()[0].dev_path().to_str().unwrap());
+    let config = config::parse(&text, Path::new("limits.toml")).unwrap();
+    let gpio = open(&config, "plcd-test").expect("the kernel takes the plan");
+    assert!(gpio.edges.is_some());
 }
 
 /// The chip's path and the gpiocdev rig config with `[switch]` as given.

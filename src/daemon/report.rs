@@ -96,3 +96,110 @@ pub fn statistics(engine: &Engine, shared: &Shared) -> Vec<String> {
     ));
     lines
 }
+
+/// What the supervisor last said about failed reads of GPIO edge events
+/// ([`crate::drivers::real_time::events::EdgeReadFaults`]), so that a condition is logged once:
+/// when reads start failing, when the errno changes, and when they work again; never once a
+/// failure, which a fault that persists would turn into a log line a second.
+#[derive(Debug, Default)]
+pub struct EdgeReadLog {
+    /// The failure count already accounted for.
+    seen: u64,
+    /// The errno of the failure being reported, while reads fail.
+    reported: Option<i32>,
+}
+
+impl EdgeReadLog {
+    /// The line to log, if any, given the event thread's counters: `count` failures since
+    /// start, the last one's `errno`, and whether the last read `failing`.
+    pub fn update(
+        &mut self,
+        count: u64,
+        errno: i32,
+        failing: bool,
+    ) -> Option<(log::Level, String)> {
+        let new = count.saturating_sub(self.seen);
+        self.seen = count;
+        let error = describe_errno(errno);
+        match (failing, self.reported) {
+            (true, Some(reported)) if reported == errno => None,
+            (true, Some(_)) => {
+                self.reported = Some(errno);
+                Some((
+                    log::Level::Error,
+                    format!("reading GPIO edge events now fails with {error}"),
+                ))
+            }
+            (true, None) => {
+                self.reported = Some(errno);
+                Some((
+                    log::Level::Error,
+                    format!(
+                        "reading GPIO edge events failed: {error}; io tasks start on no edge \
+                         until a read works again (retried at most once a second)"
+                    ),
+                ))
+            }
+            (false, Some(_)) => {
+                self.reported = None;
+                Some((
+                    log::Level::Warn,
+                    format!("GPIO edge events are read again, after {count} failed reads in all"),
+                ))
+            }
+            (false, None) if new > 0 => Some((
+                log::Level::Warn,
+                format!(
+                    "{new} reads of GPIO edge events failed (the last with {error}); the next \
+                     one worked"
+                ),
+            )),
+            (false, None) => None,
+        }
+    }
+}
+
+/// An errno as the log says it; 0 is a failure without one (a short read).
+fn describe_errno(errno: i32) -> String {
+    if errno == 0 {
+        "a short read".to_string()
+    } else {
+        std::io::Error::from_raw_os_error(errno).to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_failing_read_is_logged_once_per_condition() {
+        let mut log = EdgeReadLog::default();
+        assert_eq!(log.update(0, 0, false), None, "nothing failed");
+        let (level, line) = log.update(1, libc::ENODEV, true).unwrap();
+        assert_eq!(level, log::Level::Error);
+        assert!(line.starts_with("reading GPIO edge events failed: No such device"), "{line}");
+        // The same fault, however often it recurs: nothing more.
+        assert_eq!(log.update(2, libc::ENODEV, true), None);
+        assert_eq!(log.update(500, libc::ENODEV, true), None);
+        // Another errno is another condition.
+        let (level, line) = log.update(501, libc::EIO, true).unwrap();
+        assert_eq!(level, log::Level::Error);
+        assert!(line.starts_with("reading GPIO edge events now fails with Input/output"), "{line}");
+        assert_eq!(log.update(502, libc::EIO, true), None);
+        // It clears.
+        let (level, line) = log.update(502, libc::EIO, false).unwrap();
+        assert_eq!(level, log::Level::Warn);
+        assert_eq!(line, "GPIO edge events are read again, after 502 failed reads in all");
+        assert_eq!(log.update(502, libc::EIO, false), None);
+        // Failures that came and went between two looks: one line.
+        let (_, line) = log.update(505, 0, false).unwrap();
+        assert_eq!(
+            line,
+            "3 reads of GPIO edge events failed (the last with a short read); the next one worked"
+        );
+        assert_eq!(log.update(505, 0, false), None);
+        // Failing again after it cleared is news again.
+        assert!(log.update(506, libc::ENODEV, true).is_some());
+    }
+}

@@ -88,6 +88,8 @@ struct Daemon {
     seen_lost_edges: u64,
     seen_dropped: u64,
     seen_trips: u64,
+    /// What was logged about failed reads of GPIO edge events.
+    edge_reads: report::EdgeReadLog,
     /// Retained memory: restored at start, written in the background (docs/RETAIN.md).
     retain: crate::services::retain::service::Persistence,
 }
@@ -159,6 +161,7 @@ impl Daemon {
             seen_lost_edges: 0,
             seen_dropped: 0,
             seen_trips: 0,
+            edge_reads: report::EdgeReadLog::default(),
             retain,
         };
         if has_switch {
@@ -284,6 +287,14 @@ impl Daemon {
         if lost > self.seen_lost_edges {
             log::warn!("{} input edges lost ({lost} in all)", lost - self.seen_lost_edges);
             self.seen_lost_edges = lost;
+        }
+        let faults = &self.shared.edge_reads;
+        // The count first (the event thread raises it last), so the errno is at least as new.
+        let count = faults.count.load(Ordering::Acquire);
+        let (errno, failing) =
+            (faults.errno.load(Ordering::Relaxed), faults.failing.load(Ordering::Relaxed));
+        if let Some((level, line)) = self.edge_reads.update(count, errno, failing) {
+            log::log!(level, "{line}");
         }
         let dropped = self.shared.dropped_reports.load(Ordering::Relaxed);
         if dropped > self.seen_dropped {

@@ -12,7 +12,7 @@
 //! writable = true
 //! ```
 //!
-//! Both passes of the config live here: [`read`] (pass 1, called by `raw`) turns the `[modbus]`
+//! Both passes of the config live here: [`read`] (pass 1, called by the driver in `mod.rs`) turns the `[modbus]`
 //! table and its four arrays of tables into loosely typed entries; [`validate`] (pass 2) checks
 //! the ranges, the devices each table may map and the overlaps, and resolves every range to the
 //! word or bit indices of device memory once, so the server never parses an address.
@@ -25,8 +25,7 @@ use serde::Deserialize;
 use toml::de::DeValue;
 use toml::Spanned;
 
-use super::raw::{entries, section, Ctx, Located};
-use super::validate::{int, int_or, widen};
+use super::common::{entries, int, int_or, section, widen, Ctx, Located};
 use super::Sink;
 use crate::device::{layout, Address, Area, Writer};
 

@@ -7,8 +7,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::raw::Ctx;
-use super::validate::{int_or, resolve, widen};
+use super::common::{int_or, resolve, widen, Ctx};
 use super::Sink;
 pub use crate::device::retained::{RetainArea, RetainRange};
 

@@ -160,12 +160,7 @@ impl Driver {
                 (FieldIo::Sim(io), SafeOutputs::Sim(field))
             }
             Backend::Gpiocdev => {
-                let opened = gpio::open(
-                    &config.io,
-                    config.switch.as_ref(),
-                    &config.edge_contacts(),
-                    "plcd",
-                )?;
+                let opened = gpio::open(config, "plcd")?;
                 events.gpio = opened.edges;
                 events.edges = Some(edge_tx);
                 (FieldIo::Gpio(opened.io), SafeOutputs::Gpio(opened.outputs))

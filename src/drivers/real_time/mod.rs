@@ -245,6 +245,8 @@ pub struct Shared {
     pub missed_deadlines: AtomicU64,
     /// Edges lost: by the kernel (sequence gaps) or to a full edge queue.
     pub lost_edges: AtomicU64,
+    /// Failed reads of GPIO edge events, for the supervisor to log.
+    pub edge_reads: events::EdgeReadFaults,
     /// Reports dropped to a full report queue.
     pub dropped_reports: AtomicU64,
     /// The control thread wants a [`snapshot::Snapshot`] at the next scan boundary.
@@ -275,6 +277,7 @@ impl Shared {
             scan_max_ns: AtomicU64::new(0),
             missed_deadlines: AtomicU64::new(0),
             lost_edges: AtomicU64::new(0),
+            edge_reads: events::EdgeReadFaults::default(),
             dropped_reports: AtomicU64::new(0),
             snapshot_wanted: AtomicBool::new(false),
             control_wake: Wake::new()?,
