@@ -21,7 +21,9 @@ use crate::lang::ops::{EdgeMemory, Op};
 use crate::project::Project;
 use crate::vm::EdgeInit;
 
-use super::{read_sample, Engine, Phase, Refusal, State};
+use super::scan::Phase;
+use super::task::{read_sample, State};
+use super::{Engine, Refusal};
 
 /// A prepared online change: the new engine and the initial state of its edge memory.
 pub struct OnlineChange {

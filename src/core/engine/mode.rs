@@ -1,0 +1,269 @@
+//! Modes and the moves between them (XGB §5.2.3): RUN, STOP, DEBUG and ERROR, what the driver
+//! may command ([`Engine::set_mode`]), what a remote client may ask ([`Engine::request_mode`],
+//! under the key switch), DEBUG's pause and resume, a stopping error, and the key switch: read
+//! at each input refresh, acted on where the mode may change.
+
+use crate::config::OnFault;
+use crate::io::{Io, SwitchPosition};
+
+use super::debug::DebugRun;
+use super::event::{ErrorKind, Event, EventSink, Mode, INIT};
+use super::scan::{Phase, ScanStats};
+use super::task::{Kind, State};
+use super::{Engine, Refusal, STOP_REFRESH_NS};
+
+/// A mode change asked for from outside the PLC (the control socket, an HMI): subject to the
+/// mode rules of XGB §5.2.3, see [`Engine::request_mode`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModeRequest {
+    Run,
+    Stop,
+    Debug,
+    /// Clears a latched error and goes to STOP; `cold` also clears retained memory (K).
+    Reset {
+        cold: bool,
+    },
+}
+
+impl Engine {
+    /// A mode command of the driver itself (startup, the simulator's `MODE` pseudo-device,
+    /// shutdown), not subject to the key switch. RUN is refused in ERROR: the error is latched
+    /// until a change to STOP.
+    pub fn set_mode(&mut self, mode: Mode, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
+        match (self.mode, mode) {
+            (Mode::Stop, Mode::Run) => self.enter_run(Mode::Run, now, io, sink),
+            (Mode::Debug, Mode::Run) => self.leave_debug(now, sink),
+            (Mode::Run | Mode::Error | Mode::Debug, Mode::Stop) => self.enter_stop(now, io, sink),
+            (Mode::Stop, Mode::Debug) => self.enter_run(Mode::Debug, now, io, sink),
+            (Mode::Run, Mode::Debug) => self.enter_debug(now, sink),
+            _ => {}
+        }
+    }
+
+    /// A remote mode change, under the rules of XGB §5.2.3: accepted only when no key switch
+    /// is configured or the switch is at STOP ("remote enabled"); RUN and DEBUG are refused
+    /// while an error is latched. DEBUG entered from RUN pauses at the end of the current
+    /// scan. On success the mode after the change is [`Engine::mode`].
+    pub fn request_mode(
+        &mut self,
+        request: ModeRequest,
+        now: u64,
+        io: &mut impl Io,
+        sink: &mut impl EventSink,
+    ) -> Result<(), Refusal> {
+        if !self.remote_allowed() {
+            return Err(Refusal::SwitchAtRun);
+        }
+        match request {
+            ModeRequest::Run | ModeRequest::Debug if self.mode == Mode::Error => {
+                return Err(Refusal::ErrorLatched)
+            }
+            ModeRequest::Run => self.set_mode(Mode::Run, now, io, sink),
+            ModeRequest::Stop => self.set_mode(Mode::Stop, now, io, sink),
+            ModeRequest::Debug => self.set_mode(Mode::Debug, now, io, sink),
+            ModeRequest::Reset { cold } => {
+                if self.mode == Mode::Stop {
+                    self.latched_error = None;
+                    self.last_operation_error = None;
+                } else {
+                    self.enter_stop(now, io, sink);
+                }
+                if cold {
+                    self.vm.mem.clear_all();
+                    self.warm = false;
+                    self.check_watches(now, sink);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// True when remote mode changes are accepted: no key switch, or the switch at STOP.
+    pub fn remote_allowed(&self) -> bool {
+        !self.has_switch || self.switch == Some(SwitchPosition::Stop)
+    }
+
+    /// The key switch position the engine acts on, if a switch is configured and was read.
+    pub fn switch(&self) -> Option<SwitchPosition> {
+        self.switch
+    }
+
+    /// True between two scans with no task executing (or nothing executing at all: STOP,
+    /// ERROR, DEBUG paused): where commands that change PLC state are applied.
+    pub fn at_scan_boundary(&self) -> bool {
+        !self.executing() || (self.phase == Phase::Idle && self.stack.is_empty())
+    }
+
+    /// DEBUG: runs to the end of the current scan (or through the next one when paused
+    /// between scans), or to a breakpoint.
+    pub fn debug_step(&mut self, now: u64) -> Result<(), Refusal> {
+        self.debug_resume(DebugRun::Scan, now)
+    }
+
+    /// DEBUG: runs scan after scan until a breakpoint.
+    pub fn debug_continue(&mut self, now: u64) -> Result<(), Refusal> {
+        self.debug_resume(DebugRun::Continue, now)
+    }
+
+    fn debug_resume(&mut self, run: DebugRun, now: u64) -> Result<(), Refusal> {
+        if self.mode != Mode::Debug {
+            return Err(Refusal::NotInDebug);
+        }
+        if self.debugger.run == DebugRun::Paused {
+            // The pause is not the program's time: the watchdog starts over.
+            self.watchdog_start_ns = now;
+            self.skip_cycle_deadlines(now);
+        }
+        if let Some((_, at)) = self.debugger.paused_at.take() {
+            self.debugger.resume_from = Some(at);
+        }
+        self.debugger.run = run;
+        Ok(())
+    }
+
+    /// RUN, or DEBUG while `step` or `continue` lets the programs run.
+    pub(super) fn executing(&self) -> bool {
+        match self.mode {
+            Mode::Run => true,
+            Mode::Debug => self.debugger.run != DebugRun::Paused,
+            Mode::Stop | Mode::Error => false,
+        }
+    }
+
+    /// RUN or DEBUG: the programs are loaded for execution (device memory initialized).
+    pub(super) fn running(&self) -> bool {
+        matches!(self.mode, Mode::Run | Mode::Debug)
+    }
+
+    /// RUN (or DEBUG, paused before the first scan) from STOP: device memory initialized.
+    fn enter_run(&mut self, mode: Mode, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
+        self.vm.reset_for_run(&self.retain, self.warm);
+        self.warm = true;
+        for task in &mut self.tasks {
+            task.state = State::Idle;
+            task.disabled = false;
+            if let Kind::Cycle { interval_ns, .. } = task.kind {
+                task.kind = Kind::Cycle { interval_ns, next_ns: now + interval_ns };
+            }
+        }
+        self.stack.clear();
+        self.init_done = self.tasks[INIT as usize].programs.is_empty();
+        self.init_done_requested = false;
+        self.tasks_disabled = false;
+        self.run_start_ns = now;
+        self.scan = ScanStats::default();
+        self.last_operation_error = None;
+        self.missed_deadlines = 0;
+        self.mode = mode;
+        self.debugger.run = DebugRun::Paused;
+        self.debugger.paused_at = None;
+        self.debugger.resume_from = None;
+        sink.event(now, Event::Mode(mode));
+        self.refresh_inputs(io);
+        self.sample_device_conditions_quietly();
+        self.check_watches(now, sink);
+        self.phase = Phase::Idle;
+        self.next_scan_ns = now;
+    }
+
+    /// DEBUG from RUN: the current scan ends, then execution pauses.
+    fn enter_debug(&mut self, now: u64, sink: &mut impl EventSink) {
+        self.mode = Mode::Debug;
+        self.debugger.paused_at = None;
+        self.debugger.resume_from = None;
+        self.debugger.run =
+            if self.at_scan_boundary_in_run() { DebugRun::Paused } else { DebugRun::Scan };
+        sink.event(now, Event::Mode(Mode::Debug));
+    }
+
+    /// RUN from DEBUG: execution goes on where it stands, device memory kept.
+    fn leave_debug(&mut self, now: u64, sink: &mut impl EventSink) {
+        if self.debugger.run == DebugRun::Paused {
+            self.watchdog_start_ns = now;
+            self.skip_cycle_deadlines(now);
+        }
+        if let Some((_, at)) = self.debugger.paused_at.take() {
+            self.debugger.resume_from = Some(at);
+        }
+        self.debugger.run = DebugRun::Paused;
+        self.mode = Mode::Run;
+        sink.event(now, Event::Mode(Mode::Run));
+    }
+
+    fn at_scan_boundary_in_run(&self) -> bool {
+        self.phase == Phase::Idle && self.stack.is_empty()
+    }
+
+    pub(super) fn enter_stop(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
+        self.halt();
+        self.clear_outputs(io);
+        self.latched_error = None;
+        self.debugger.paused_at = None;
+        self.debugger.resume_from = None;
+        self.mode = Mode::Stop;
+        sink.event(now, Event::Mode(Mode::Stop));
+        self.check_watches(now, sink);
+        self.next_stop_refresh_ns = now + STOP_REFRESH_NS;
+    }
+
+    /// A stopping error: execution stops at once, outputs cleared or held, mode ERROR.
+    pub(super) fn fault(
+        &mut self,
+        kind: ErrorKind,
+        now: u64,
+        io: &mut impl Io,
+        sink: &mut impl EventSink,
+    ) {
+        sink.event(now, Event::Error(kind));
+        self.latched_error = Some(kind);
+        self.debugger.paused_at = None;
+        self.halt();
+        if self.settings.on_fault == OnFault::Clear {
+            self.clear_outputs(io);
+        }
+        self.mode = Mode::Error;
+        sink.event(now, Event::Mode(Mode::Error));
+        self.check_watches(now, sink);
+        self.next_stop_refresh_ns = now + STOP_REFRESH_NS;
+    }
+
+    /// No task active or pending; DUTY stopped.
+    fn halt(&mut self) {
+        for task in &mut self.tasks {
+            task.state = State::Idle;
+        }
+        self.stack.clear();
+        self.phase = Phase::Idle;
+        self.vm.stop();
+    }
+
+    pub(super) fn note_switch(&mut self, io: &impl Io) {
+        if self.has_switch {
+            if let Some(position) = io.switch() {
+                if Some(position) != self.switch {
+                    self.switch_moved = Some(position);
+                }
+            }
+        }
+    }
+
+    /// Acts on a key switch move (XGB §5.2.3): to RUN starts the PLC from STOP (and leaves
+    /// DEBUG; RUN goes on without interruption; a latched error stays until the switch goes
+    /// to STOP); to STOP stops it from any mode, clearing an error.
+    pub(super) fn apply_switch(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
+        let Some(position) = self.switch_moved.take() else { return };
+        if Some(position) == self.switch {
+            return;
+        }
+        self.switch = Some(position);
+        sink.event(now, Event::Switch(position));
+        match (position, self.mode) {
+            (SwitchPosition::Run, Mode::Stop) => self.enter_run(Mode::Run, now, io, sink),
+            (SwitchPosition::Run, Mode::Debug) => self.leave_debug(now, sink),
+            (SwitchPosition::Stop, Mode::Run | Mode::Debug | Mode::Error) => {
+                self.enter_stop(now, io, sink)
+            }
+            _ => {}
+        }
+    }
+}
