@@ -137,8 +137,6 @@ pub struct Engine {
     warm: bool,
     /// The current scan paused in DEBUG: its duration is not a scan time.
     scan_paused: bool,
-    /// `_FORCE_IN`/`_FORCE_OUT` may be ON.
-    force_flags_on: bool,
 }
 
 impl Engine {
@@ -187,7 +185,6 @@ impl Engine {
             retain: crate::device::RetainSet::new(&config.retain.ranges),
             warm: false,
             scan_paused: false,
-            force_flags_on: false,
         }
     }
 

@@ -171,7 +171,6 @@ impl Engine {
         self.next_stop_refresh_ns = old.next_stop_refresh_ns;
         std::mem::swap(&mut self.scan, &mut old.scan);
         self.forces = old.forces.clone();
-        self.force_flags_on = old.force_flags_on;
         std::mem::swap(&mut self.debugger, &mut old.debugger);
         self.debugger.clear();
         self.debugger.paused_at = None;

@@ -118,24 +118,14 @@ impl Engine {
     /// switch.
     pub(super) fn refresh_inputs(&mut self, io: &mut impl Io) {
         io.refresh_inputs(&mut self.vm.mem);
-        self.apply_forces();
+        self.forces.refresh(&mut self.vm.mem);
         self.note_switch(io);
     }
 
     /// Output refresh: the forces over what the program wrote, then the backend.
     pub(super) fn refresh_outputs(&mut self, io: &mut impl Io) {
-        self.apply_forces();
+        self.forces.refresh(&mut self.vm.mem);
         io.refresh_outputs(&self.vm.mem);
-    }
-
-    /// Writes the forced values over the I/O image; once more after the last force is gone, to
-    /// clear the force flags.
-    #[inline]
-    fn apply_forces(&mut self) {
-        if !self.forces.is_empty() || self.force_flags_on {
-            self.forces.apply(&mut self.vm.mem);
-            self.force_flags_on = !self.forces.is_empty();
-        }
     }
 
     pub(super) fn check_watches(&mut self, now: u64, sink: &mut impl EventSink) {
