@@ -81,6 +81,19 @@ pub enum Activity {
     Idle,
 }
 
+/// What the retained devices hold (docs/RETAIN.md): it decides whether a RUN start keeps
+/// them (warm) or clears them with the rest (cold). A RUN makes them worth keeping; only
+/// clearing the memory makes them not.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Retained {
+    /// Nothing to keep: a fresh engine never restored, or `reset --cold`. The next RUN start is
+    /// cold.
+    Cold,
+    /// Values to keep: restored at start, inherited from the engine this one replaces, or
+    /// written by a RUN since the memory was last cleared. The next RUN start is warm.
+    Warm,
+}
+
 /// The engine's settings, from `[plc]`.
 #[derive(Debug, Clone, Copy)]
 struct Settings {
@@ -132,9 +145,8 @@ pub struct Engine {
     missed_deadlines: u64,
     /// What `[retain]` keeps across RUN starts and restarts (docs/RETAIN.md).
     retain: crate::device::RetainSet,
-    /// The retained devices hold values to keep (restored, or a RUN happened since the memory
-    /// was cleared): a warm RUN start; false after a cold start or `reset --cold`.
-    warm: bool,
+    /// Whether the retained devices hold values to keep, which the next RUN start honours.
+    retained: Retained,
     /// The current scan paused in DEBUG: its duration is not a scan time.
     scan_paused: bool,
 }
@@ -183,7 +195,7 @@ impl Engine {
             last_operation_error: None,
             missed_deadlines: 0,
             retain: crate::device::RetainSet::new(&config.retain.ranges),
-            warm: false,
+            retained: Retained::Cold,
             scan_paused: false,
         }
     }
@@ -197,12 +209,13 @@ impl Engine {
     /// lays them out, of a generation whose layout matches): the next RUN start is warm.
     pub fn restore_retained(&mut self, words: &[u16]) {
         self.retain.restore(words, self.vm.mem.words_mut());
-        self.warm = true;
+        self.retained = Retained::Warm;
     }
 
     /// A replacement engine (reload, `plcctl load`) takes the retained devices of the one it
     /// replaces, so that a new program does not reset a counter: copies the retained bits of
-    /// `old`'s memory and its warm flag. No allocation (the scan thread calls it).
+    /// `old`'s memory and whether they are worth keeping. No allocation (the scan thread calls
+    /// it).
     pub fn inherit_retained(&mut self, old: &Engine) {
         let (from, to) = (old.vm.mem.words(), self.vm.mem.words_mut());
         for r in self.retain.words.iter() {
@@ -210,7 +223,7 @@ impl Engine {
                 to[i] = (to[i] & !r.mask) | (from[i] & r.mask);
             }
         }
-        self.warm = old.warm;
+        self.retained = old.retained;
     }
 
     /// Task names by [`TaskId`], for traces.

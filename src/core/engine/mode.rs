@@ -10,7 +10,7 @@ use super::debug::DebugRun;
 use super::event::{ErrorKind, Event, EventSink, Mode, INIT};
 use super::scan::{Phase, ScanStats};
 use super::task::{Kind, State};
-use super::{Engine, Refusal, STOP_REFRESH_NS};
+use super::{Engine, Refusal, Retained, STOP_REFRESH_NS};
 
 /// A mode change asked for from outside the PLC (the control socket, an HMI): subject to the
 /// mode rules of XGB §5.2.3, see [`Engine::request_mode`].
@@ -70,7 +70,7 @@ impl Engine {
                 }
                 if cold {
                     self.vm.mem.clear_all();
-                    self.warm = false;
+                    self.retained = Retained::Cold;
                     self.check_watches(now, sink);
                 }
             }
@@ -137,8 +137,8 @@ impl Engine {
 
     /// RUN (or DEBUG, paused before the first scan) from STOP: device memory initialized.
     fn enter_run(&mut self, mode: Mode, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
-        self.vm.reset_for_run(&self.retain, self.warm);
-        self.warm = true;
+        self.vm.reset_for_run(&self.retain, self.retained == Retained::Warm);
+        self.retained = Retained::Warm;
         for task in &mut self.tasks {
             task.state = State::Idle;
             task.disabled = false;
