@@ -81,6 +81,19 @@ pub enum Activity {
     Idle,
 }
 
+/// Why [`Engine::run`] returns to its driver with work left and budget to spare: one reason
+/// from each side of the call. They are independent (either, both or neither may hold), so
+/// they are two fields, not one enum.
+#[derive(Debug, Clone, Copy, Default)]
+struct HandBack {
+    /// The engine's, consumed by the return: a task with a congestion limit started, and its
+    /// limit may fall before the wake-up the driver planned, so the driver plans again.
+    replan: bool,
+    /// The driver's, until it withdraws it ([`Engine::set_hold_at_end`]): it has commands to
+    /// apply at END processing, so `run` returns at each scan boundary.
+    at_scan_end: bool,
+}
+
 /// What the retained devices hold (docs/RETAIN.md): it decides whether a RUN start keeps
 /// them (warm) or clears them with the rest (cold). A RUN makes them worth keeping; only
 /// clearing the memory makes them not.
@@ -124,9 +137,7 @@ pub struct Engine {
     next_stop_refresh_ns: u64,
     scan: ScanStats,
     watches: Vec<Watch>,
-    /// A task with a congestion limit started: its deadline may come before the one the
-    /// driver planned for, so `run` hands back to let the driver plan again.
-    replan: bool,
+    hand_back: HandBack,
     forces: Forces,
     debugger: Debugger,
     /// A `[switch]` is configured.
@@ -135,8 +146,6 @@ pub struct Engine {
     switch: Option<SwitchPosition>,
     /// A position read at an input refresh, not yet acted on.
     switch_moved: Option<SwitchPosition>,
-    /// `run` hands back at the next scan boundary (the driver has commands for END).
-    hold_at_end: bool,
     /// The stopping error of ERROR mode.
     latched_error: Option<ErrorKind>,
     /// The last operation error since RUN.
@@ -184,13 +193,12 @@ impl Engine {
             next_stop_refresh_ns: 0,
             scan: ScanStats::default(),
             watches: watch.iter().map(Watch::new).collect(),
-            replan: false,
+            hand_back: HandBack::default(),
             forces: Forces::default(),
             debugger: Debugger::default(),
             has_switch: config.switch.is_some(),
             switch: None,
             switch_moved: None,
-            hold_at_end: false,
             latched_error: None,
             last_operation_error: None,
             missed_deadlines: 0,
@@ -298,7 +306,7 @@ impl Engine {
     /// Asks [`Engine::run`] to hand back at the next scan boundary (the driver has commands
     /// to apply at END processing), or stops asking.
     pub fn set_hold_at_end(&mut self, hold: bool) {
-        self.hold_at_end = hold;
+        self.hand_back.at_scan_end = hold;
     }
 
     /// The error latched in ERROR mode.
@@ -354,14 +362,14 @@ impl Engine {
             }
             let now = clock.now_ns(self.vm.steps());
             self.dispatch(now, sink);
-            if std::mem::take(&mut self.replan) {
+            if std::mem::take(&mut self.hand_back.replan) {
                 return Activity::Busy;
             }
             let Some(&top) = self.stack.last() else {
                 match self.phase {
                     Phase::AfterEnd => {
                         self.finish_scan(now, io, sink);
-                        if self.hold_at_end {
+                        if self.hand_back.at_scan_end {
                             return Activity::Busy;
                         }
                     }

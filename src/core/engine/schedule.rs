@@ -199,7 +199,7 @@ impl Engine {
         if id != SCAN && id != INIT {
             task.stats.start_latency.record(now.saturating_sub(task.occurred_ns));
         }
-        self.replan |= task.max_exec_ns.is_some();
+        self.hand_back.replan |= task.max_exec_ns.is_some();
         self.stack.push(id);
         if id != SCAN {
             sink.event(now, Event::TaskStart { task: id });
