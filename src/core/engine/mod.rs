@@ -41,13 +41,14 @@ pub use task::{task_names, TaskStats};
 
 use crate::config::OnFault;
 use crate::device::{Address, BitRef};
-use crate::io::{Io, SwitchPosition};
+use crate::io::Io;
 use crate::lang::Program;
 use crate::project::Project;
 use crate::vm::{Clock, Exit, Vm};
 use debug::{Breakpoint, DebugRun, Debugger};
 use event::{ErrorKind, Event, EventSink, Mode, TaskId};
 use force::Forces;
+use mode::KeySwitch;
 use scan::{Phase, Watch};
 use task::{State, Task};
 
@@ -140,12 +141,8 @@ pub struct Engine {
     hand_back: HandBack,
     forces: Forces,
     debugger: Debugger,
-    /// A `[switch]` is configured.
-    has_switch: bool,
-    /// The switch position the mode rules last acted on (`None` before the first look).
-    switch: Option<SwitchPosition>,
-    /// A position read at an input refresh, not yet acted on.
-    switch_moved: Option<SwitchPosition>,
+    /// The key switch, if a `[switch]` is configured.
+    switch: Option<KeySwitch>,
     /// The stopping error of ERROR mode.
     latched_error: Option<ErrorKind>,
     /// The last operation error since RUN.
@@ -196,9 +193,7 @@ impl Engine {
             hand_back: HandBack::default(),
             forces: Forces::default(),
             debugger: Debugger::default(),
-            has_switch: config.switch.is_some(),
-            switch: None,
-            switch_moved: None,
+            switch: config.switch.as_ref().map(|_| KeySwitch::default()),
             latched_error: None,
             last_operation_error: None,
             missed_deadlines: 0,

@@ -25,6 +25,37 @@ pub enum ModeRequest {
     },
 }
 
+/// The RUN/STOP key switch of a `[switch]`. The engine keeps an `Option<KeySwitch>`, `None`
+/// without a configured switch, so no position can be held for a switch that does not exist.
+///
+/// Invariant: `moved`, when set, differs from `acted_on` — a refresh keeps only a position the
+/// rules have not acted on, and acting on it takes it.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(super) struct KeySwitch {
+    /// The position the mode rules last acted on; `None` before the first look.
+    acted_on: Option<SwitchPosition>,
+    /// A position read at an input refresh, not yet acted on.
+    moved: Option<SwitchPosition>,
+}
+
+impl KeySwitch {
+    /// True when an input refresh saw the switch move and the rules have yet to act.
+    #[inline]
+    pub(super) fn has_moved(&self) -> bool {
+        self.moved.is_some()
+    }
+
+    /// The position to act on now, if the switch moved; it becomes the one acted on.
+    fn take_move(&mut self) -> Option<SwitchPosition> {
+        let position = self.moved.take()?;
+        if Some(position) == self.acted_on {
+            return None;
+        }
+        self.acted_on = Some(position);
+        Some(position)
+    }
+}
+
 impl Engine {
     /// A mode command of the driver itself (startup, the simulator's `MODE` pseudo-device,
     /// shutdown), not subject to the key switch. RUN is refused in ERROR: the error is latched
@@ -80,12 +111,12 @@ impl Engine {
 
     /// True when remote mode changes are accepted: no key switch, or the switch at STOP.
     pub fn remote_allowed(&self) -> bool {
-        !self.has_switch || self.switch == Some(SwitchPosition::Stop)
+        self.switch.is_none_or(|switch| switch.acted_on == Some(SwitchPosition::Stop))
     }
 
     /// The key switch position the engine acts on, if a switch is configured and was read.
     pub fn switch(&self) -> Option<SwitchPosition> {
-        self.switch
+        self.switch.and_then(|switch| switch.acted_on)
     }
 
     /// True between two scans with no task executing (or nothing executing at all: STOP,
@@ -237,11 +268,13 @@ impl Engine {
         self.vm.stop();
     }
 
+    /// An input refresh's look at the key switch: a position the rules have not acted on is
+    /// kept for [`Engine::apply_switch`], which acts where the mode may change.
     pub(super) fn note_switch(&mut self, io: &impl Io) {
-        if self.has_switch {
+        if let Some(switch) = &mut self.switch {
             if let Some(position) = io.switch() {
-                if Some(position) != self.switch {
-                    self.switch_moved = Some(position);
+                if Some(position) != switch.acted_on {
+                    switch.moved = Some(position);
                 }
             }
         }
@@ -251,11 +284,7 @@ impl Engine {
     /// DEBUG; RUN goes on without interruption; a latched error stays until the switch goes
     /// to STOP); to STOP stops it from any mode, clearing an error.
     pub(super) fn apply_switch(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
-        let Some(position) = self.switch_moved.take() else { return };
-        if Some(position) == self.switch {
-            return;
-        }
-        self.switch = Some(position);
+        let Some(position) = self.switch.as_mut().and_then(KeySwitch::take_move) else { return };
         sink.event(now, Event::Switch(position));
         match (position, self.mode) {
             (SwitchPosition::Run, Mode::Stop) => self.enter_run(Mode::Run, now, io, sink),

@@ -175,8 +175,10 @@ impl Engine {
         self.debugger.clear();
         self.debugger.paused_at = None;
         self.debugger.resume_from = None;
-        self.switch = old.switch;
-        self.switch_moved = old.switch_moved;
+        // Whether there is a switch at all is the new config's to say.
+        if let (Some(switch), Some(old)) = (&mut self.switch, old.switch) {
+            *switch = old;
+        }
         self.latched_error = old.latched_error;
         self.last_operation_error = None;
         for watch in &mut self.watches {

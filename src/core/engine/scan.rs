@@ -9,6 +9,7 @@ use crate::stats::Histogram;
 
 use super::debug::DebugRun;
 use super::event::{Event, EventSink, Mode, INIT, SCAN};
+use super::mode::KeySwitch;
 use super::task::{read_sample, Sample};
 use super::Engine;
 
@@ -59,7 +60,7 @@ impl Engine {
         self.watchdog_start_ns = now;
         self.vm.begin_scan(self.scan.count == 1, now - self.run_start_ns);
         self.refresh_inputs(io);
-        if self.switch_moved.is_some() {
+        if self.switch.as_ref().is_some_and(KeySwitch::has_moved) {
             self.apply_switch(now, io, sink);
             if !self.executing() {
                 return;
