@@ -48,7 +48,7 @@ use crate::vm::{Clock, Exit, Vm};
 use debug::{Breakpoint, DebugRun, Debugger};
 use event::{ErrorKind, Event, EventSink, Mode, TaskId};
 use force::Forces;
-use mode::KeySwitch;
+use mode::{KeySwitch, Operation};
 use scan::{Phase, Watch};
 use task::{State, Task};
 
@@ -125,8 +125,8 @@ pub struct Engine {
     tasks: Vec<Task>,
     /// Active tasks, bottom to top; the top one executes.
     stack: Vec<TaskId>,
-    mode: Mode,
-    phase: Phase,
+    /// The mode, with what only that mode has.
+    op: Operation,
     settings: Settings,
     init_done: bool,
     init_done_requested: bool,
@@ -143,8 +143,6 @@ pub struct Engine {
     debugger: Debugger,
     /// The key switch, if a `[switch]` is configured.
     switch: Option<KeySwitch>,
-    /// The stopping error of ERROR mode.
-    latched_error: Option<ErrorKind>,
     /// The last operation error since RUN.
     last_operation_error: Option<ErrorKind>,
     /// Cycle deadlines noticed a full interval or more after they passed, since RUN.
@@ -171,8 +169,7 @@ impl Engine {
             vm,
             tasks,
             stack: Vec::with_capacity(capacity),
-            mode: Mode::Stop,
-            phase: Phase::Idle,
+            op: Operation::Stop,
             settings: Settings {
                 watchdog_ns: u64::from(plc.watchdog_ms) * NS_PER_MS,
                 watchdog_ms: plc.watchdog_ms,
@@ -194,7 +191,6 @@ impl Engine {
             forces: Forces::default(),
             debugger: Debugger::default(),
             switch: config.switch.as_ref().map(|_| KeySwitch::default()),
-            latched_error: None,
             last_operation_error: None,
             missed_deadlines: 0,
             retain: crate::device::RetainSet::new(&config.retain.ranges),
@@ -240,7 +236,7 @@ impl Engine {
     }
 
     pub fn mode(&self) -> Mode {
-        self.mode
+        self.op.mode()
     }
 
     pub fn vm(&self) -> &Vm {
@@ -306,7 +302,10 @@ impl Engine {
 
     /// The error latched in ERROR mode.
     pub fn latched_error(&self) -> Option<ErrorKind> {
-        self.latched_error
+        match self.op {
+            Operation::Error(kind) => Some(kind),
+            Operation::Stop | Operation::Run(_) | Operation::Debug(_) => None,
+        }
     }
 
     /// The last operation error since RUN started.
@@ -361,7 +360,7 @@ impl Engine {
                 return Activity::Busy;
             }
             let Some(&top) = self.stack.last() else {
-                match self.phase {
+                match self.phase() {
                     Phase::AfterEnd => {
                         self.finish_scan(now, io, sink);
                         if self.hand_back.at_scan_end {
@@ -385,7 +384,7 @@ impl Engine {
             let program_index = task.programs[task.current];
             let program = &self.programs[program_index as usize];
             let mut budget = limit - steps;
-            if self.mode == Mode::Debug && self.debugger.watches(program_index) {
+            if matches!(self.op, Operation::Debug(_)) && self.debugger.watches(program_index) {
                 // One instruction at a time, so that a breakpoint stops before its instruction.
                 let at = Breakpoint { program: program_index, pc: task.exec.pc() };
                 if self.debugger.stops_at(at) {

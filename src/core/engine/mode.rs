@@ -25,6 +25,40 @@ pub enum ModeRequest {
     },
 }
 
+/// The operating state: the mode, carrying what only that mode has — ERROR its stopping error,
+/// RUN and DEBUG the state of a started program. A latched error outside ERROR, or a scan phase
+/// in STOP, cannot be written; [`Engine::mode`] and [`Engine::latched_error`] read it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Operation {
+    /// Nothing executes; inputs are refreshed every 10 ms.
+    Stop,
+    /// Stopped by a stopping error, latched until a change to STOP.
+    Error(ErrorKind),
+    /// The programs execute.
+    Run(Running),
+    /// The programs execute only as the engineer lets them (`step`, `continue`).
+    Debug(Running),
+}
+
+impl Operation {
+    pub(super) fn mode(self) -> Mode {
+        match self {
+            Operation::Stop => Mode::Stop,
+            Operation::Error(_) => Mode::Error,
+            Operation::Run(_) => Mode::Run,
+            Operation::Debug(_) => Mode::Debug,
+        }
+    }
+}
+
+/// What RUN and DEBUG share, from a RUN start to the next stop: a change between the two keeps
+/// it, so a scan DEBUG paused goes on in RUN where it stood.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct Running {
+    /// How far the current scan is.
+    pub(super) phase: Phase,
+}
+
 /// The RUN/STOP key switch of a `[switch]`. The engine keeps an `Option<KeySwitch>`, `None`
 /// without a configured switch, so no position can be held for a switch that does not exist.
 ///
@@ -61,7 +95,7 @@ impl Engine {
     /// shutdown), not subject to the key switch. RUN is refused in ERROR: the error is latched
     /// until a change to STOP.
     pub fn set_mode(&mut self, mode: Mode, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
-        match (self.mode, mode) {
+        match (self.mode(), mode) {
             (Mode::Stop, Mode::Run) => self.enter_run(Mode::Run, now, io, sink),
             (Mode::Debug, Mode::Run) => self.leave_debug(now, sink),
             (Mode::Run | Mode::Error | Mode::Debug, Mode::Stop) => self.enter_stop(now, io, sink),
@@ -86,15 +120,14 @@ impl Engine {
             return Err(Refusal::SwitchAtRun);
         }
         match request {
-            ModeRequest::Run | ModeRequest::Debug if self.mode == Mode::Error => {
+            ModeRequest::Run | ModeRequest::Debug if self.mode() == Mode::Error => {
                 return Err(Refusal::ErrorLatched)
             }
             ModeRequest::Run => self.set_mode(Mode::Run, now, io, sink),
             ModeRequest::Stop => self.set_mode(Mode::Stop, now, io, sink),
             ModeRequest::Debug => self.set_mode(Mode::Debug, now, io, sink),
             ModeRequest::Reset { cold } => {
-                if self.mode == Mode::Stop {
-                    self.latched_error = None;
+                if self.op == Operation::Stop {
                     self.last_operation_error = None;
                 } else {
                     self.enter_stop(now, io, sink);
@@ -122,7 +155,7 @@ impl Engine {
     /// True between two scans with no task executing (or nothing executing at all: STOP,
     /// ERROR, DEBUG paused): where commands that change PLC state are applied.
     pub fn at_scan_boundary(&self) -> bool {
-        !self.executing() || (self.phase == Phase::Idle && self.stack.is_empty())
+        !self.executing() || (self.phase() == Phase::Idle && self.stack.is_empty())
     }
 
     /// DEBUG: runs to the end of the current scan (or through the next one when paused
@@ -137,7 +170,7 @@ impl Engine {
     }
 
     fn debug_resume(&mut self, run: DebugRun, now: u64) -> Result<(), Refusal> {
-        if self.mode != Mode::Debug {
+        if self.mode() != Mode::Debug {
             return Err(Refusal::NotInDebug);
         }
         if self.debugger.run == DebugRun::Paused {
@@ -154,16 +187,35 @@ impl Engine {
 
     /// RUN, or DEBUG while `step` or `continue` lets the programs run.
     pub(super) fn executing(&self) -> bool {
-        match self.mode {
-            Mode::Run => true,
-            Mode::Debug => self.debugger.run != DebugRun::Paused,
-            Mode::Stop | Mode::Error => false,
+        match self.op {
+            Operation::Run(_) => true,
+            Operation::Debug(_) => self.debugger.run != DebugRun::Paused,
+            Operation::Stop | Operation::Error(_) => false,
         }
     }
 
     /// RUN or DEBUG: the programs are loaded for execution (device memory initialized).
     pub(super) fn running(&self) -> bool {
-        matches!(self.mode, Mode::Run | Mode::Debug)
+        matches!(self.op, Operation::Run(_) | Operation::Debug(_))
+    }
+
+    /// The phase of the scan; outside RUN and DEBUG there is no scan, which reads as between
+    /// two.
+    #[inline]
+    pub(super) fn phase(&self) -> Phase {
+        match self.op {
+            Operation::Run(running) | Operation::Debug(running) => running.phase,
+            Operation::Stop | Operation::Error(_) => Phase::Idle,
+        }
+    }
+
+    /// What RUN and DEBUG share; `None` in STOP and ERROR.
+    #[inline]
+    pub(super) fn running_mut(&mut self) -> Option<&mut Running> {
+        match &mut self.op {
+            Operation::Run(running) | Operation::Debug(running) => Some(running),
+            Operation::Stop | Operation::Error(_) => None,
+        }
     }
 
     /// RUN (or DEBUG, paused before the first scan) from STOP: device memory initialized.
@@ -185,7 +237,11 @@ impl Engine {
         self.scan = ScanStats::default();
         self.last_operation_error = None;
         self.missed_deadlines = 0;
-        self.mode = mode;
+        let running = Running { phase: Phase::Idle };
+        self.op = match mode {
+            Mode::Debug => Operation::Debug(running),
+            _ => Operation::Run(running),
+        };
         self.debugger.run = DebugRun::Paused;
         self.debugger.paused_at = None;
         self.debugger.resume_from = None;
@@ -193,13 +249,13 @@ impl Engine {
         self.refresh_inputs(io);
         self.sample_device_conditions_quietly();
         self.check_watches(now, sink);
-        self.phase = Phase::Idle;
         self.next_scan_ns = now;
     }
 
     /// DEBUG from RUN: the current scan ends, then execution pauses.
     fn enter_debug(&mut self, now: u64, sink: &mut impl EventSink) {
-        self.mode = Mode::Debug;
+        let Operation::Run(running) = self.op else { return };
+        self.op = Operation::Debug(running);
         self.debugger.paused_at = None;
         self.debugger.resume_from = None;
         self.debugger.run =
@@ -209,6 +265,7 @@ impl Engine {
 
     /// RUN from DEBUG: execution goes on where it stands, device memory kept.
     fn leave_debug(&mut self, now: u64, sink: &mut impl EventSink) {
+        let Operation::Debug(running) = self.op else { return };
         if self.debugger.run == DebugRun::Paused {
             self.watchdog_start_ns = now;
             self.skip_cycle_deadlines(now);
@@ -217,21 +274,20 @@ impl Engine {
             self.debugger.resume_from = Some(at);
         }
         self.debugger.run = DebugRun::Paused;
-        self.mode = Mode::Run;
+        self.op = Operation::Run(running);
         sink.event(now, Event::Mode(Mode::Run));
     }
 
     fn at_scan_boundary_in_run(&self) -> bool {
-        self.phase == Phase::Idle && self.stack.is_empty()
+        self.phase() == Phase::Idle && self.stack.is_empty()
     }
 
     pub(super) fn enter_stop(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
         self.halt();
         self.clear_outputs(io);
-        self.latched_error = None;
         self.debugger.paused_at = None;
         self.debugger.resume_from = None;
-        self.mode = Mode::Stop;
+        self.op = Operation::Stop;
         sink.event(now, Event::Mode(Mode::Stop));
         self.check_watches(now, sink);
         self.next_stop_refresh_ns = now + STOP_REFRESH_NS;
@@ -246,13 +302,12 @@ impl Engine {
         sink: &mut impl EventSink,
     ) {
         sink.event(now, Event::Error(kind));
-        self.latched_error = Some(kind);
         self.debugger.paused_at = None;
         self.halt();
         if self.settings.on_fault == OnFault::Clear {
             self.clear_outputs(io);
         }
-        self.mode = Mode::Error;
+        self.op = Operation::Error(kind);
         sink.event(now, Event::Mode(Mode::Error));
         self.check_watches(now, sink);
         self.next_stop_refresh_ns = now + STOP_REFRESH_NS;
@@ -264,7 +319,6 @@ impl Engine {
             task.state = State::Idle;
         }
         self.stack.clear();
-        self.phase = Phase::Idle;
         self.vm.stop();
     }
 
@@ -286,7 +340,7 @@ impl Engine {
     pub(super) fn apply_switch(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
         let Some(position) = self.switch.as_mut().and_then(KeySwitch::take_move) else { return };
         sink.event(now, Event::Switch(position));
-        match (position, self.mode) {
+        match (position, self.mode()) {
             (SwitchPosition::Run, Mode::Stop) => self.enter_run(Mode::Run, now, io, sink),
             (SwitchPosition::Run, Mode::Debug) => self.leave_debug(now, sink),
             (SwitchPosition::Stop, Mode::Run | Mode::Debug | Mode::Error) => {

@@ -145,7 +145,7 @@ impl Engine {
     /// figures, forces, the key switch — with its edge memory set up by `edges`. Breakpoints
     /// are cleared (they named the old programs). Allocates nothing.
     pub fn take_over(&mut self, old: &mut Engine, edges: &[EdgeInit]) -> Result<(), Refusal> {
-        if old.phase != Phase::Idle || !old.stack.is_empty() {
+        if old.phase() != Phase::Idle || !old.stack.is_empty() {
             return Err(Refusal::MidScan);
         }
         self.vm.take_over(&mut old.vm, edges);
@@ -159,8 +159,7 @@ impl Engine {
             new.disabled = old.disabled;
             std::mem::swap(&mut new.stats, &mut old.stats);
         }
-        self.mode = old.mode;
-        self.phase = Phase::Idle;
+        self.op = old.op;
         self.init_done = old.init_done;
         self.init_done_requested = old.init_done_requested;
         self.tasks_disabled = old.tasks_disabled;
@@ -179,7 +178,6 @@ impl Engine {
         if let (Some(switch), Some(old)) = (&mut self.switch, old.switch) {
             *switch = old;
         }
-        self.latched_error = old.latched_error;
         self.last_operation_error = None;
         for watch in &mut self.watches {
             watch.last = read_sample(&self.vm.mem, watch.at);

@@ -8,8 +8,8 @@ use crate::io::Io;
 use crate::stats::Histogram;
 
 use super::debug::DebugRun;
-use super::event::{Event, EventSink, Mode, INIT, SCAN};
-use super::mode::KeySwitch;
+use super::event::{Event, EventSink, INIT, SCAN};
+use super::mode::{KeySwitch, Operation};
 use super::task::{read_sample, Sample};
 use super::Engine;
 
@@ -54,6 +54,14 @@ pub struct ScanStats {
 }
 
 impl Engine {
+    /// The phase of a scan, which only RUN and DEBUG have.
+    #[inline]
+    pub(super) fn set_phase(&mut self, phase: Phase) {
+        if let Some(running) = self.running_mut() {
+            running.phase = phase;
+        }
+    }
+
     pub(super) fn start_scan(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
         self.scan.count += 1;
         self.scan_start_ns = now;
@@ -68,7 +76,7 @@ impl Engine {
         }
         self.scan_paused = false;
         sink.event(now, Event::ScanStart { n: self.scan.count });
-        self.phase = Phase::Scan;
+        self.set_phase(Phase::Scan);
         self.begin(if self.init_done { SCAN } else { INIT }, now, sink);
     }
 
@@ -87,14 +95,14 @@ impl Engine {
         let tenth_ms = |ns: u64| (ns / 100_000).min(u64::from(u16::MAX)) as u16;
         self.vm.mem.set_scan_times(tenth_ms(took), tenth_ms(scan.min_ns), tenth_ms(scan.max_ns));
         self.refresh_outputs(io);
-        if self.mode == Mode::Debug {
+        if matches!(self.op, Operation::Debug(_)) {
             self.debugger.resume_from = None;
             if self.debugger.run == DebugRun::Scan {
                 self.debugger.run = DebugRun::Paused;
             }
         }
         self.check_watches(now, sink);
-        self.phase = Phase::Idle;
+        self.set_phase(Phase::Idle);
         let period = self.settings.scan_period_ns;
         // On the grid of the schedule, not counted from the (possibly late) start: a scan that
         // started late — a driver's wake-up latency, a task that ran first — does not push

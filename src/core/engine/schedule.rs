@@ -7,7 +7,8 @@ use crate::config::{DeviceCondition, Edge};
 use crate::io::Io;
 use crate::lang::ops::SystemRequest;
 
-use super::event::{ErrorKind, Event, EventSink, Ignored, Mode, TaskId, INIT, SCAN};
+use super::event::{ErrorKind, Event, EventSink, Ignored, TaskId, INIT, SCAN};
+use super::mode::Operation;
 use super::scan::Phase;
 use super::task::{read_sample, Kind, Sample, State};
 use super::{Engine, NS_PER_MS, STOP_REFRESH_NS};
@@ -29,7 +30,7 @@ impl Engine {
     /// When the scan watchdog expires, if it runs (RUN, a scan under way): the time after
     /// which [`Engine::poll_time`] takes the watchdog error.
     pub fn watchdog_deadline(&self) -> Option<u64> {
-        (self.executing() && self.phase != Phase::Idle)
+        (self.executing() && self.phase() != Phase::Idle)
             .then_some(self.watchdog_start_ns + self.settings.watchdog_ns)
     }
 
@@ -70,7 +71,7 @@ impl Engine {
         }
         self.apply_switch(now, io, sink);
         if !self.executing() {
-            if self.mode == Mode::Debug {
+            if matches!(self.op, Operation::Debug(_)) {
                 self.skip_cycle_deadlines(now);
             }
             return;
@@ -90,7 +91,7 @@ impl Engine {
                 }
             }
         }
-        if self.phase != Phase::Idle && now - self.watchdog_start_ns > self.settings.watchdog_ns {
+        if self.phase() != Phase::Idle && now - self.watchdog_start_ns > self.settings.watchdog_ns {
             let scan = self.scan.count;
             let limit_ms = self.settings.watchdog_ms;
             self.fault(ErrorKind::Watchdog { scan, limit_ms }, now, io, sink);
@@ -141,7 +142,7 @@ impl Engine {
                 next = next.min(next_ns);
             }
         }
-        match self.phase {
+        match self.phase() {
             Phase::Idle if self.stack.is_empty() => next = next.min(self.next_scan_ns),
             Phase::Idle => {}
             Phase::Scan | Phase::AfterEnd => {
@@ -259,7 +260,7 @@ impl Engine {
             SCAN => {
                 sink.event(now, Event::ScanEnd { n: self.scan.count });
                 self.sample_device_conditions(now, sink);
-                self.phase = Phase::AfterEnd;
+                self.set_phase(Phase::AfterEnd);
             }
             INIT => {
                 sink.event(now, Event::TaskEnd { task: INIT });
@@ -268,7 +269,7 @@ impl Engine {
                     self.sample_device_conditions_quietly();
                 }
                 sink.event(now, Event::ScanEnd { n: self.scan.count });
-                self.phase = Phase::AfterEnd;
+                self.set_phase(Phase::AfterEnd);
             }
             _ => {
                 task.stats.exec_time.record(task.used_ns);
