@@ -9,6 +9,7 @@ use crate::io::{Io, SwitchPosition};
 use super::debug::DebugRun;
 use super::event::{ErrorKind, Event, EventSink, Mode, INIT};
 use super::scan::{Phase, ScanStats};
+use super::schedule::{Init, Starts};
 use super::task::{Kind, State};
 use super::{Engine, Refusal, Retained, STOP_REFRESH_NS};
 
@@ -57,6 +58,10 @@ impl Operation {
 pub(super) struct Running {
     /// How far the current scan is.
     pub(super) phase: Phase,
+    /// How far the init task is.
+    pub(super) init: Init,
+    /// Whether `DI` (all tasks) holds task starts.
+    pub(super) starts: Starts,
 }
 
 /// The RUN/STOP key switch of a `[switch]`. The engine keeps an `Option<KeySwitch>`, `None`
@@ -224,20 +229,19 @@ impl Engine {
         self.retained = Retained::Warm;
         for task in &mut self.tasks {
             task.state = State::Idle;
-            task.disabled = false;
+            task.starts = Starts::Enabled;
             if let Kind::Cycle { interval_ns, .. } = task.kind {
                 task.kind = Kind::Cycle { interval_ns, next_ns: now + interval_ns };
             }
         }
         self.stack.clear();
-        self.init_done = self.tasks[INIT as usize].programs.is_empty();
-        self.init_done_requested = false;
-        self.tasks_disabled = false;
         self.run_start_ns = now;
         self.scan = ScanStats::default();
         self.last_operation_error = None;
         self.missed_deadlines = 0;
-        let running = Running { phase: Phase::Idle };
+        let init =
+            if self.tasks[INIT as usize].programs.is_empty() { Init::Done } else { Init::Running };
+        let running = Running { phase: Phase::Idle, init, starts: Starts::Enabled };
         self.op = match mode {
             Mode::Debug => Operation::Debug(running),
             _ => Operation::Run(running),

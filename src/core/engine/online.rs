@@ -156,13 +156,10 @@ impl Engine {
                 _ => State::Idle,
             };
             new.occurred_ns = old.occurred_ns;
-            new.disabled = old.disabled;
+            new.starts = old.starts;
             std::mem::swap(&mut new.stats, &mut old.stats);
         }
         self.op = old.op;
-        self.init_done = old.init_done;
-        self.init_done_requested = old.init_done_requested;
-        self.tasks_disabled = old.tasks_disabled;
         self.run_start_ns = old.run_start_ns;
         self.scan_start_ns = old.scan_start_ns;
         self.watchdog_start_ns = old.watchdog_start_ns;

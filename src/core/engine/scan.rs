@@ -10,6 +10,7 @@ use crate::stats::Histogram;
 use super::debug::DebugRun;
 use super::event::{Event, EventSink, INIT, SCAN};
 use super::mode::{KeySwitch, Operation};
+use super::schedule::Init;
 use super::task::{read_sample, Sample};
 use super::Engine;
 
@@ -76,8 +77,10 @@ impl Engine {
         }
         self.scan_paused = false;
         sink.event(now, Event::ScanStart { n: self.scan.count });
-        self.set_phase(Phase::Scan);
-        self.begin(if self.init_done { SCAN } else { INIT }, now, sink);
+        let Some(running) = self.running_mut() else { return };
+        running.phase = Phase::Scan;
+        let task = if running.init == Init::Done { SCAN } else { INIT };
+        self.begin(task, now, sink);
     }
 
     /// The rest of END processing once no task is left to run: DUTY, scan time, outputs.

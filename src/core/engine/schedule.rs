@@ -13,6 +13,55 @@ use super::scan::Phase;
 use super::task::{read_sample, Kind, Sample, State};
 use super::{Engine, NS_PER_MS, STOP_REFRESH_NS};
 
+/// How far the init task is, from a RUN start: XGB runs the init programs instead of the scan
+/// program, scan after scan, until one executes `INIT_DONE`. One value where two flags could
+/// have said "done" without "requested".
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Init {
+    /// Each scan runs the init task; requests of other tasks are ignored.
+    Running,
+    /// `INIT_DONE` executed: the init task runs on to its end, then the init is done.
+    DoneRequested,
+    /// The scan program runs and tasks start (from the start if there are no init programs).
+    Done,
+}
+
+impl Init {
+    /// `INIT_DONE` in the init task.
+    fn done_requested(&mut self) {
+        if *self == Init::Running {
+            *self = Init::DoneRequested;
+        }
+    }
+
+    /// The init task reached its end: true if that ends the init.
+    fn task_ended(&mut self) -> bool {
+        let ends = *self == Init::DoneRequested;
+        if ends {
+            *self = Init::Done;
+        }
+        ends
+    }
+}
+
+/// Whether `DI` holds task starts, for all tasks (the engine's, in RUN and DEBUG) or one task
+/// number (the task's): held requests stay pending, one each, until `EI`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Starts {
+    Enabled,
+    Held,
+}
+
+impl Starts {
+    /// What a `DI` or `EI` asks for.
+    fn of(request: SystemRequest) -> Starts {
+        match request {
+            SystemRequest::DisableTasks(_) => Starts::Held,
+            _ => Starts::Enabled,
+        }
+    }
+}
+
 impl Engine {
     /// The deadlines of the cycle tasks in RUN: `(task number, next deadline, interval)`, all
     /// in ns. A driver arms its timers with these; the engine itself decides at
@@ -161,10 +210,14 @@ impl Engine {
     /// Starts the best pending task if it may start now.
     pub(super) fn dispatch(&mut self, now: u64, sink: &mut impl EventSink) {
         let top_priority = self.stack.last().map_or(u8::MAX, |&t| self.tasks[t as usize].priority);
+        let all_held = matches!(
+            self.op,
+            Operation::Run(running) | Operation::Debug(running) if running.starts == Starts::Held
+        );
         let mut best: Option<(u8, u64, usize)> = None;
         for (id, task) in self.tasks.iter().enumerate() {
             if let State::Pending { at_ns } = task.state {
-                if self.tasks_disabled || task.disabled {
+                if all_held || task.starts == Starts::Held {
                     continue;
                 }
                 let key = (task.priority, at_ns, id);
@@ -218,16 +271,20 @@ impl Engine {
     ) -> Option<Ignored> {
         sink.event(now, Event::TaskRequest { task: id });
         let task = &self.tasks[id as usize];
-        let why = match task.state {
-            _ if !self.running() => Some(Ignored::Stop),
+        let why = match self.op {
+            Operation::Stop | Operation::Error(_) => Some(Ignored::Stop),
             _ if !self.executing() => Some(Ignored::Paused),
-            _ if !self.init_done => Some(Ignored::Init),
-            State::Active { .. } => Some(Ignored::Running),
-            State::Pending { .. } if self.tasks_disabled || task.disabled => {
-                Some(Ignored::Disabled)
-            }
-            State::Pending { .. } => Some(Ignored::Pending),
-            State::Idle => None,
+            Operation::Run(running) | Operation::Debug(running) => match task.state {
+                _ if running.init != Init::Done => Some(Ignored::Init),
+                State::Active { .. } => Some(Ignored::Running),
+                State::Pending { .. }
+                    if running.starts == Starts::Held || task.starts == Starts::Held =>
+                {
+                    Some(Ignored::Disabled)
+                }
+                State::Pending { .. } => Some(Ignored::Pending),
+                State::Idle => None,
+            },
         };
         let task = &mut self.tasks[id as usize];
         match why {
@@ -264,8 +321,7 @@ impl Engine {
             }
             INIT => {
                 sink.event(now, Event::TaskEnd { task: INIT });
-                if self.init_done_requested {
-                    self.init_done = true;
+                if self.running_mut().is_some_and(|running| running.init.task_ended()) {
                     self.sample_device_conditions_quietly();
                 }
                 sink.event(now, Event::ScanEnd { n: self.scan.count });
@@ -288,18 +344,23 @@ impl Engine {
         sink: &mut impl EventSink,
     ) {
         match request {
-            SystemRequest::DisableTasks(None) => self.tasks_disabled = true,
-            SystemRequest::EnableTasks(None) => self.tasks_disabled = false,
+            SystemRequest::DisableTasks(None) | SystemRequest::EnableTasks(None) => {
+                if let Some(running) = self.running_mut() {
+                    running.starts = Starts::of(request);
+                }
+            }
             SystemRequest::DisableTasks(Some(n)) | SystemRequest::EnableTasks(Some(n)) => {
-                let disable = matches!(request, SystemRequest::DisableTasks(_));
+                let starts = Starts::of(request);
                 for task in self.tasks.iter_mut().filter(|t| t.number == Some(n)) {
-                    task.disabled = disable;
+                    task.starts = starts;
                 }
             }
             SystemRequest::ResetWatchdog => self.watchdog_start_ns = now,
             SystemRequest::InitDone => {
                 if id == INIT {
-                    self.init_done_requested = true;
+                    if let Some(running) = self.running_mut() {
+                        running.init.done_requested();
+                    }
                 }
             }
             SystemRequest::Stop => self.enter_stop(now, io, sink),

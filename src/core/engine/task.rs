@@ -8,6 +8,7 @@ use crate::stats::Histogram;
 use crate::vm::ExecState;
 
 use super::event::{INIT, SCAN};
+use super::schedule::Starts;
 use super::NS_PER_MS;
 
 /// Priority of the scan program: below every task (2..=7).
@@ -72,7 +73,8 @@ pub(super) struct Task {
     pub(super) state: State,
     /// When the start condition of the pending request occurred.
     pub(super) occurred_ns: u64,
-    pub(super) disabled: bool,
+    /// Whether `DI n` holds this task's starts.
+    pub(super) starts: Starts,
     pub(super) max_exec_ns: Option<u64>,
     pub(super) used_ns: u64,
     pub(super) congested: bool,
@@ -91,7 +93,7 @@ impl Task {
             exec: ExecState::new(),
             state: State::Idle,
             occurred_ns: 0,
-            disabled: false,
+            starts: Starts::Enabled,
             max_exec_ns: None,
             used_ns: 0,
             congested: false,
