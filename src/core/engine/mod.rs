@@ -45,7 +45,7 @@ use crate::io::Io;
 use crate::lang::Program;
 use crate::project::Project;
 use crate::vm::{Clock, Exit, Vm};
-use debug::{Breakpoint, DebugRun, Debugger};
+use debug::{Breakpoint, DebugView, Debugger};
 use event::{ErrorKind, Event, EventSink, Mode, TaskId};
 use force::Forces;
 use mode::{KeySwitch, Operation};
@@ -148,8 +148,6 @@ pub struct Engine {
     retain: crate::device::RetainSet,
     /// Whether the retained devices hold values to keep, which the next RUN start honours.
     retained: Retained,
-    /// The current scan paused in DEBUG: its duration is not a scan time.
-    scan_paused: bool,
 }
 
 impl Engine {
@@ -189,7 +187,6 @@ impl Engine {
             missed_deadlines: 0,
             retain: crate::device::RetainSet::new(&config.retain.ranges),
             retained: Retained::Cold,
-            scan_paused: false,
         }
     }
 
@@ -261,8 +258,12 @@ impl Engine {
         self.settings.watchdog_ns
     }
 
-    pub fn debugger(&self) -> &Debugger {
-        &self.debugger
+    pub fn debugger(&self) -> DebugView<'_> {
+        let session = match self.op {
+            Operation::Debug(_, session) => Some(session),
+            Operation::Stop | Operation::Error(_) | Operation::Run(_) => None,
+        };
+        DebugView::new(&self.debugger, session)
     }
 
     /// Breakpoints are set and removed here (resolved with [`debug::resolve`]).
@@ -298,7 +299,7 @@ impl Engine {
     pub fn latched_error(&self) -> Option<ErrorKind> {
         match self.op {
             Operation::Error(kind) => Some(kind),
-            Operation::Stop | Operation::Run(_) | Operation::Debug(_) => None,
+            Operation::Stop | Operation::Run(_) | Operation::Debug(..) => None,
         }
     }
 
@@ -355,7 +356,7 @@ impl Engine {
             }
             let Some(&top) = self.stack.last() else {
                 match self.phase() {
-                    Phase::AfterEnd => {
+                    Phase::AfterEnd { .. } => {
                         self.finish_scan(now, io, sink);
                         if self.hand_back.at_scan_end {
                             return Activity::Busy;
@@ -378,16 +379,17 @@ impl Engine {
             let program_index = task.programs[task.current];
             let program = &self.programs[program_index as usize];
             let mut budget = limit - steps;
-            if matches!(self.op, Operation::Debug(_)) && self.debugger.watches(program_index) {
-                // One instruction at a time, so that a breakpoint stops before its instruction.
-                let at = Breakpoint { program: program_index, pc: task.exec.pc() };
-                if self.debugger.stops_at(at) {
-                    self.debugger.run = DebugRun::Paused;
-                    self.debugger.paused_at = Some((top, at));
-                    self.scan_paused = true;
-                    return Activity::Idle;
+            if let Operation::Debug(running, session) = &mut self.op {
+                if self.debugger.watches(program_index) {
+                    // One instruction at a time, so that a breakpoint stops before its
+                    // instruction.
+                    let at = Breakpoint { program: program_index, pc: task.exec.pc() };
+                    if session.pauses_before(top, at, &self.debugger) {
+                        running.phase.pause();
+                        return Activity::Idle;
+                    }
+                    budget = 1;
                 }
-                budget = 1;
             }
             let exit = self.vm.run(program, &mut task.exec, clock, budget);
             let after = clock.now_ns(self.vm.steps());

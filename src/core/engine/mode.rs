@@ -6,7 +6,7 @@
 use crate::config::OnFault;
 use crate::io::{Io, SwitchPosition};
 
-use super::debug::DebugRun;
+use super::debug::{Session, Until};
 use super::event::{ErrorKind, Event, EventSink, Mode, INIT};
 use super::scan::{Phase, ScanStats};
 use super::schedule::{Init, Starts};
@@ -37,8 +37,9 @@ pub(super) enum Operation {
     Error(ErrorKind),
     /// The programs execute.
     Run(Running),
-    /// The programs execute only as the engineer lets them (`step`, `continue`).
-    Debug(Running),
+    /// The programs execute only as the engineer lets them (`step`, `continue`), as far as
+    /// the session says.
+    Debug(Running, Session),
 }
 
 impl Operation {
@@ -47,7 +48,7 @@ impl Operation {
             Operation::Stop => Mode::Stop,
             Operation::Error(_) => Mode::Error,
             Operation::Run(_) => Mode::Run,
-            Operation::Debug(_) => Mode::Debug,
+            Operation::Debug(..) => Mode::Debug,
         }
     }
 }
@@ -85,6 +86,7 @@ impl KeySwitch {
     }
 
     /// The position to act on now, if the switch moved; it becomes the one acted on.
+    #[inline]
     fn take_move(&mut self) -> Option<SwitchPosition> {
         let position = self.moved.take()?;
         if Some(position) == self.acted_on {
@@ -160,48 +162,52 @@ impl Engine {
     /// True between two scans with no task executing (or nothing executing at all: STOP,
     /// ERROR, DEBUG paused): where commands that change PLC state are applied.
     pub fn at_scan_boundary(&self) -> bool {
-        !self.executing() || (self.phase() == Phase::Idle && self.stack.is_empty())
+        !self.executing() || self.between_scans()
+    }
+
+    /// No scan under way and no task active.
+    fn between_scans(&self) -> bool {
+        self.phase() == Phase::Idle && self.stack.is_empty()
     }
 
     /// DEBUG: runs to the end of the current scan (or through the next one when paused
     /// between scans), or to a breakpoint.
     pub fn debug_step(&mut self, now: u64) -> Result<(), Refusal> {
-        self.debug_resume(DebugRun::Scan, now)
+        self.debug_resume(Until::ScanEnd, now)
     }
 
     /// DEBUG: runs scan after scan until a breakpoint.
     pub fn debug_continue(&mut self, now: u64) -> Result<(), Refusal> {
-        self.debug_resume(DebugRun::Continue, now)
+        self.debug_resume(Until::Breakpoint, now)
     }
 
-    fn debug_resume(&mut self, run: DebugRun, now: u64) -> Result<(), Refusal> {
-        if self.mode() != Mode::Debug {
+    fn debug_resume(&mut self, until: Until, now: u64) -> Result<(), Refusal> {
+        let Operation::Debug(running, session) = self.op else {
             return Err(Refusal::NotInDebug);
-        }
-        if self.debugger.run == DebugRun::Paused {
+        };
+        if !session.executes() {
             // The pause is not the program's time: the watchdog starts over.
             self.watchdog_start_ns = now;
             self.skip_cycle_deadlines(now);
         }
-        if let Some((_, at)) = self.debugger.paused_at.take() {
-            self.debugger.resume_from = Some(at);
-        }
-        self.debugger.run = run;
+        self.op = Operation::Debug(running, session.resumed(until));
         Ok(())
     }
 
     /// RUN, or DEBUG while `step` or `continue` lets the programs run.
+    #[inline]
     pub(super) fn executing(&self) -> bool {
         match self.op {
             Operation::Run(_) => true,
-            Operation::Debug(_) => self.debugger.run != DebugRun::Paused,
+            Operation::Debug(_, session) => session.executes(),
             Operation::Stop | Operation::Error(_) => false,
         }
     }
 
     /// RUN or DEBUG: the programs are loaded for execution (device memory initialized).
+    #[inline]
     pub(super) fn running(&self) -> bool {
-        matches!(self.op, Operation::Run(_) | Operation::Debug(_))
+        matches!(self.op, Operation::Run(_) | Operation::Debug(..))
     }
 
     /// The phase of the scan; outside RUN and DEBUG there is no scan, which reads as between
@@ -209,7 +215,7 @@ impl Engine {
     #[inline]
     pub(super) fn phase(&self) -> Phase {
         match self.op {
-            Operation::Run(running) | Operation::Debug(running) => running.phase,
+            Operation::Run(running) | Operation::Debug(running, _) => running.phase,
             Operation::Stop | Operation::Error(_) => Phase::Idle,
         }
     }
@@ -218,7 +224,7 @@ impl Engine {
     #[inline]
     pub(super) fn running_mut(&mut self) -> Option<&mut Running> {
         match &mut self.op {
-            Operation::Run(running) | Operation::Debug(running) => Some(running),
+            Operation::Run(running) | Operation::Debug(running, _) => Some(running),
             Operation::Stop | Operation::Error(_) => None,
         }
     }
@@ -243,12 +249,9 @@ impl Engine {
             if self.tasks[INIT as usize].programs.is_empty() { Init::Done } else { Init::Running };
         let running = Running { phase: Phase::Idle, init, starts: Starts::Enabled };
         self.op = match mode {
-            Mode::Debug => Operation::Debug(running),
+            Mode::Debug => Operation::Debug(running, Session::BETWEEN_SCANS),
             _ => Operation::Run(running),
         };
-        self.debugger.run = DebugRun::Paused;
-        self.debugger.paused_at = None;
-        self.debugger.resume_from = None;
         sink.event(now, Event::Mode(mode));
         self.refresh_inputs(io);
         self.sample_device_conditions_quietly();
@@ -259,38 +262,30 @@ impl Engine {
     /// DEBUG from RUN: the current scan ends, then execution pauses.
     fn enter_debug(&mut self, now: u64, sink: &mut impl EventSink) {
         let Operation::Run(running) = self.op else { return };
-        self.op = Operation::Debug(running);
-        self.debugger.paused_at = None;
-        self.debugger.resume_from = None;
-        self.debugger.run =
-            if self.at_scan_boundary_in_run() { DebugRun::Paused } else { DebugRun::Scan };
+        let session = if self.between_scans() {
+            Session::BETWEEN_SCANS
+        } else {
+            Session::Executing { until: Until::ScanEnd, resume_from: None }
+        };
+        self.op = Operation::Debug(running, session);
         sink.event(now, Event::Mode(Mode::Debug));
     }
 
     /// RUN from DEBUG: execution goes on where it stands, device memory kept.
     fn leave_debug(&mut self, now: u64, sink: &mut impl EventSink) {
-        let Operation::Debug(running) = self.op else { return };
-        if self.debugger.run == DebugRun::Paused {
+        let Operation::Debug(running, session) = self.op else { return };
+        if !session.executes() {
             self.watchdog_start_ns = now;
             self.skip_cycle_deadlines(now);
         }
-        if let Some((_, at)) = self.debugger.paused_at.take() {
-            self.debugger.resume_from = Some(at);
-        }
-        self.debugger.run = DebugRun::Paused;
         self.op = Operation::Run(running);
         sink.event(now, Event::Mode(Mode::Run));
     }
 
-    fn at_scan_boundary_in_run(&self) -> bool {
-        self.phase() == Phase::Idle && self.stack.is_empty()
-    }
-
+    /// STOP from RUN, DEBUG or ERROR: execution stops, every output OFF, an error cleared.
     pub(super) fn enter_stop(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
         self.halt();
         self.clear_outputs(io);
-        self.debugger.paused_at = None;
-        self.debugger.resume_from = None;
         self.op = Operation::Stop;
         sink.event(now, Event::Mode(Mode::Stop));
         self.check_watches(now, sink);
@@ -306,7 +301,6 @@ impl Engine {
         sink: &mut impl EventSink,
     ) {
         sink.event(now, Event::Error(kind));
-        self.debugger.paused_at = None;
         self.halt();
         if self.settings.on_fault == OnFault::Clear {
             self.clear_outputs(io);

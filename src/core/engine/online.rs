@@ -21,6 +21,7 @@ use crate::lang::ops::{EdgeMemory, Op};
 use crate::project::Project;
 use crate::vm::EdgeInit;
 
+use super::mode::Operation;
 use super::scan::Phase;
 use super::task::{read_sample, State};
 use super::{Engine, Refusal};
@@ -159,7 +160,12 @@ impl Engine {
             new.starts = old.starts;
             std::mem::swap(&mut new.stats, &mut old.stats);
         }
-        self.op = old.op;
+        self.op = match old.op {
+            Operation::Debug(running, session) => {
+                Operation::Debug(running, session.without_places())
+            }
+            op => op,
+        };
         self.run_start_ns = old.run_start_ns;
         self.scan_start_ns = old.scan_start_ns;
         self.watchdog_start_ns = old.watchdog_start_ns;
@@ -167,10 +173,9 @@ impl Engine {
         self.next_stop_refresh_ns = old.next_stop_refresh_ns;
         std::mem::swap(&mut self.scan, &mut old.scan);
         self.forces = old.forces.clone();
+        // Breakpoints name instructions of the old programs: neither engine keeps them.
         std::mem::swap(&mut self.debugger, &mut old.debugger);
         self.debugger.clear();
-        self.debugger.paused_at = None;
-        self.debugger.resume_from = None;
         // Whether there is a switch at all is the new config's to say.
         if let (Some(switch), Some(old)) = (&mut self.switch, old.switch) {
             *switch = old;

@@ -7,21 +7,42 @@ use crate::device::Address;
 use crate::io::Io;
 use crate::stats::Histogram;
 
-use super::debug::DebugRun;
 use super::event::{Event, EventSink, INIT, SCAN};
 use super::mode::{KeySwitch, Operation};
 use super::schedule::Init;
 use super::task::{read_sample, Sample};
 use super::Engine;
 
+/// How far the current scan is; only RUN and DEBUG have one. `paused` says the scan stopped at
+/// a DEBUG breakpoint, so that its duration is the engineer's, not a scan time: it lives in the
+/// scan it describes, set when the scan starts and gone between scans, and it survives a
+/// change from DEBUG to RUN in the middle of the scan.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Phase {
     /// Between two scans of a fixed scan period (tasks still run).
     Idle,
     /// The scan program (or the init task) is executing or preempted.
-    Scan,
+    Scan { paused: bool },
     /// After END: device tasks and every pending task run before the next scan.
-    AfterEnd,
+    AfterEnd { paused: bool },
+}
+
+impl Phase {
+    #[inline]
+    pub(super) fn paused(self) -> bool {
+        match self {
+            Phase::Idle => false,
+            Phase::Scan { paused } | Phase::AfterEnd { paused } => paused,
+        }
+    }
+
+    /// A breakpoint paused execution: the scan under way, if one is, is no longer timed.
+    #[inline]
+    pub(super) fn pause(&mut self) {
+        if let Phase::Scan { paused } | Phase::AfterEnd { paused } = self {
+            *paused = true;
+        }
+    }
 }
 
 /// A watched device, resolved once: comparing it at every output refresh and task end is a
@@ -55,11 +76,11 @@ pub struct ScanStats {
 }
 
 impl Engine {
-    /// The phase of a scan, which only RUN and DEBUG have.
+    /// END of the scan program (or of the init task's scan): the tasks after END come next.
     #[inline]
-    pub(super) fn set_phase(&mut self, phase: Phase) {
+    pub(super) fn scan_program_ended(&mut self) {
         if let Some(running) = self.running_mut() {
-            running.phase = phase;
+            running.phase = Phase::AfterEnd { paused: running.phase.paused() };
         }
     }
 
@@ -75,10 +96,9 @@ impl Engine {
                 return;
             }
         }
-        self.scan_paused = false;
         sink.event(now, Event::ScanStart { n: self.scan.count });
         let Some(running) = self.running_mut() else { return };
-        running.phase = Phase::Scan;
+        running.phase = Phase::Scan { paused: false };
         let task = if running.init == Init::Done { SCAN } else { INIT };
         self.begin(task, now, sink);
     }
@@ -87,9 +107,10 @@ impl Engine {
     pub(super) fn finish_scan(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
         self.vm.end_scan();
         let took = now - self.scan_start_ns;
+        let paused = self.phase().paused();
         let scan = &mut self.scan;
         // A scan that paused at a breakpoint took the engineer's time, not the program's.
-        if !self.scan_paused {
+        if !paused {
             scan.last_ns = took;
             scan.min_ns = if scan.time.count() == 0 { took } else { scan.min_ns.min(took) };
             scan.max_ns = scan.max_ns.max(took);
@@ -98,14 +119,15 @@ impl Engine {
         let tenth_ms = |ns: u64| (ns / 100_000).min(u64::from(u16::MAX)) as u16;
         self.vm.mem.set_scan_times(tenth_ms(took), tenth_ms(scan.min_ns), tenth_ms(scan.max_ns));
         self.refresh_outputs(io);
-        if matches!(self.op, Operation::Debug(_)) {
-            self.debugger.resume_from = None;
-            if self.debugger.run == DebugRun::Scan {
-                self.debugger.run = DebugRun::Paused;
+        match &mut self.op {
+            Operation::Run(running) => running.phase = Phase::Idle,
+            Operation::Debug(running, session) => {
+                running.phase = Phase::Idle;
+                session.scan_ended();
             }
+            Operation::Stop | Operation::Error(_) => {}
         }
         self.check_watches(now, sink);
-        self.set_phase(Phase::Idle);
         let period = self.settings.scan_period_ns;
         // On the grid of the schedule, not counted from the (possibly late) start: a scan that
         // started late — a driver's wake-up latency, a task that ran first — does not push

@@ -28,6 +28,7 @@ pub(super) enum Init {
 
 impl Init {
     /// `INIT_DONE` in the init task.
+    #[inline]
     fn done_requested(&mut self) {
         if *self == Init::Running {
             *self = Init::DoneRequested;
@@ -35,6 +36,7 @@ impl Init {
     }
 
     /// The init task reached its end: true if that ends the init.
+    #[inline]
     fn task_ended(&mut self) -> bool {
         let ends = *self == Init::DoneRequested;
         if ends {
@@ -54,6 +56,7 @@ pub(super) enum Starts {
 
 impl Starts {
     /// What a `DI` or `EI` asks for.
+    #[inline]
     fn of(request: SystemRequest) -> Starts {
         match request {
             SystemRequest::DisableTasks(_) => Starts::Held,
@@ -120,7 +123,7 @@ impl Engine {
         }
         self.apply_switch(now, io, sink);
         if !self.executing() {
-            if matches!(self.op, Operation::Debug(_)) {
+            if matches!(self.op, Operation::Debug(..)) {
                 self.skip_cycle_deadlines(now);
             }
             return;
@@ -194,7 +197,7 @@ impl Engine {
         match self.phase() {
             Phase::Idle if self.stack.is_empty() => next = next.min(self.next_scan_ns),
             Phase::Idle => {}
-            Phase::Scan | Phase::AfterEnd => {
+            Phase::Scan { .. } | Phase::AfterEnd { .. } => {
                 next = next.min(self.watchdog_start_ns + self.settings.watchdog_ns + 1);
             }
         }
@@ -212,7 +215,7 @@ impl Engine {
         let top_priority = self.stack.last().map_or(u8::MAX, |&t| self.tasks[t as usize].priority);
         let all_held = matches!(
             self.op,
-            Operation::Run(running) | Operation::Debug(running) if running.starts == Starts::Held
+            Operation::Run(running) | Operation::Debug(running, _) if running.starts == Starts::Held
         );
         let mut best: Option<(u8, u64, usize)> = None;
         for (id, task) in self.tasks.iter().enumerate() {
@@ -273,8 +276,8 @@ impl Engine {
         let task = &self.tasks[id as usize];
         let why = match self.op {
             Operation::Stop | Operation::Error(_) => Some(Ignored::Stop),
-            _ if !self.executing() => Some(Ignored::Paused),
-            Operation::Run(running) | Operation::Debug(running) => match task.state {
+            Operation::Debug(_, session) if !session.executes() => Some(Ignored::Paused),
+            Operation::Run(running) | Operation::Debug(running, _) => match task.state {
                 _ if running.init != Init::Done => Some(Ignored::Init),
                 State::Active { .. } => Some(Ignored::Running),
                 State::Pending { .. }
@@ -317,7 +320,7 @@ impl Engine {
             SCAN => {
                 sink.event(now, Event::ScanEnd { n: self.scan.count });
                 self.sample_device_conditions(now, sink);
-                self.set_phase(Phase::AfterEnd);
+                self.scan_program_ended();
             }
             INIT => {
                 sink.event(now, Event::TaskEnd { task: INIT });
@@ -325,7 +328,7 @@ impl Engine {
                     self.sample_device_conditions_quietly();
                 }
                 sink.event(now, Event::ScanEnd { n: self.scan.count });
-                self.set_phase(Phase::AfterEnd);
+                self.scan_program_ended();
             }
             _ => {
                 task.stats.exec_time.record(task.used_ns);
