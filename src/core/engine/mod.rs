@@ -24,6 +24,11 @@
 //! engine's state, its construction, its accessors and [`Engine::run`], which ties them
 //! together. [`debug`], [`event`], [`force`] and [`online`] are the debugger, the events, forced
 //! I/O and online change.
+//!
+//! The engine's state is typed so that a combination the rules never produce cannot be
+//! written: the mode (`mode::ModeState`) carries what only that mode has — ERROR its error, RUN
+//! and DEBUG the scan's phase, the init task's progress and `DI`, DEBUG its session — and the
+//! key switch, the retained memory and the force flags each have a type of their own.
 
 pub mod debug;
 pub mod event;
@@ -48,7 +53,7 @@ use crate::vm::{Clock, Exit, Vm};
 use debug::{Breakpoint, DebugView, Debugger};
 use event::{ErrorKind, Event, EventSink, Mode, TaskId};
 use force::Forces;
-use mode::{KeySwitch, Operation};
+use mode::{KeySwitch, ModeState};
 use scan::{Phase, Watch};
 use task::{State, Task};
 
@@ -126,7 +131,7 @@ pub struct Engine {
     /// Active tasks, bottom to top; the top one executes.
     stack: Vec<TaskId>,
     /// The mode, with what only that mode has.
-    op: Operation,
+    mode: ModeState,
     settings: Settings,
     run_start_ns: u64,
     scan_start_ns: u64,
@@ -164,7 +169,7 @@ impl Engine {
             vm,
             tasks,
             stack: Vec::with_capacity(capacity),
-            op: Operation::Stop,
+            mode: ModeState::Stop,
             settings: Settings {
                 watchdog_ns: u64::from(plc.watchdog_ms) * NS_PER_MS,
                 watchdog_ms: plc.watchdog_ms,
@@ -227,7 +232,7 @@ impl Engine {
     }
 
     pub fn mode(&self) -> Mode {
-        self.op.mode()
+        self.mode.mode()
     }
 
     pub fn vm(&self) -> &Vm {
@@ -259,9 +264,9 @@ impl Engine {
     }
 
     pub fn debugger(&self) -> DebugView<'_> {
-        let session = match self.op {
-            Operation::Debug(_, session) => Some(session),
-            Operation::Stop | Operation::Error(_) | Operation::Run(_) => None,
+        let session = match self.mode {
+            ModeState::Debug(_, session) => Some(session),
+            ModeState::Stop | ModeState::Error(_) | ModeState::Run(_) => None,
         };
         DebugView::new(&self.debugger, session)
     }
@@ -297,9 +302,9 @@ impl Engine {
 
     /// The error latched in ERROR mode.
     pub fn latched_error(&self) -> Option<ErrorKind> {
-        match self.op {
-            Operation::Error(kind) => Some(kind),
-            Operation::Stop | Operation::Run(_) | Operation::Debug(..) => None,
+        match self.mode {
+            ModeState::Error(kind) => Some(kind),
+            ModeState::Stop | ModeState::Run(_) | ModeState::Debug(..) => None,
         }
     }
 
@@ -379,7 +384,7 @@ impl Engine {
             let program_index = task.programs[task.current];
             let program = &self.programs[program_index as usize];
             let mut budget = limit - steps;
-            if let Operation::Debug(running, session) = &mut self.op {
+            if let ModeState::Debug(running, session) = &mut self.mode {
                 if self.debugger.watches(program_index) {
                     // One instruction at a time, so that a breakpoint stops before its
                     // instruction.

@@ -26,11 +26,12 @@ pub enum ModeRequest {
     },
 }
 
-/// The operating state: the mode, carrying what only that mode has — ERROR its stopping error,
-/// RUN and DEBUG the state of a started program. A latched error outside ERROR, or a scan phase
-/// in STOP, cannot be written; [`Engine::mode`] and [`Engine::latched_error`] read it.
+/// The mode, carrying what only that mode has: ERROR its stopping error, RUN and DEBUG the state
+/// of a started program, DEBUG its session. A latched error outside ERROR, a scan phase in
+/// STOP or a breakpoint pause in RUN cannot be written; [`Engine::mode`] and
+/// [`Engine::latched_error`] read it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Operation {
+pub(super) enum ModeState {
     /// Nothing executes; inputs are refreshed every 10 ms.
     Stop,
     /// Stopped by a stopping error, latched until a change to STOP.
@@ -42,13 +43,13 @@ pub(super) enum Operation {
     Debug(Running, Session),
 }
 
-impl Operation {
+impl ModeState {
     pub(super) fn mode(self) -> Mode {
         match self {
-            Operation::Stop => Mode::Stop,
-            Operation::Error(_) => Mode::Error,
-            Operation::Run(_) => Mode::Run,
-            Operation::Debug(..) => Mode::Debug,
+            ModeState::Stop => Mode::Stop,
+            ModeState::Error(_) => Mode::Error,
+            ModeState::Run(_) => Mode::Run,
+            ModeState::Debug(..) => Mode::Debug,
         }
     }
 }
@@ -134,7 +135,7 @@ impl Engine {
             ModeRequest::Stop => self.set_mode(Mode::Stop, now, io, sink),
             ModeRequest::Debug => self.set_mode(Mode::Debug, now, io, sink),
             ModeRequest::Reset { cold } => {
-                if self.op == Operation::Stop {
+                if self.mode == ModeState::Stop {
                     self.last_operation_error = None;
                 } else {
                     self.enter_stop(now, io, sink);
@@ -182,7 +183,7 @@ impl Engine {
     }
 
     fn debug_resume(&mut self, until: Until, now: u64) -> Result<(), Refusal> {
-        let Operation::Debug(running, session) = self.op else {
+        let ModeState::Debug(running, session) = self.mode else {
             return Err(Refusal::NotInDebug);
         };
         if !session.executes() {
@@ -190,42 +191,42 @@ impl Engine {
             self.watchdog_start_ns = now;
             self.skip_cycle_deadlines(now);
         }
-        self.op = Operation::Debug(running, session.resumed(until));
+        self.mode = ModeState::Debug(running, session.resumed(until));
         Ok(())
     }
 
     /// RUN, or DEBUG while `step` or `continue` lets the programs run.
     #[inline]
     pub(super) fn executing(&self) -> bool {
-        match self.op {
-            Operation::Run(_) => true,
-            Operation::Debug(_, session) => session.executes(),
-            Operation::Stop | Operation::Error(_) => false,
+        match self.mode {
+            ModeState::Run(_) => true,
+            ModeState::Debug(_, session) => session.executes(),
+            ModeState::Stop | ModeState::Error(_) => false,
         }
     }
 
     /// RUN or DEBUG: the programs are loaded for execution (device memory initialized).
     #[inline]
     pub(super) fn running(&self) -> bool {
-        matches!(self.op, Operation::Run(_) | Operation::Debug(..))
+        matches!(self.mode, ModeState::Run(_) | ModeState::Debug(..))
     }
 
     /// The phase of the scan; outside RUN and DEBUG there is no scan, which reads as between
     /// two.
     #[inline]
     pub(super) fn phase(&self) -> Phase {
-        match self.op {
-            Operation::Run(running) | Operation::Debug(running, _) => running.phase,
-            Operation::Stop | Operation::Error(_) => Phase::Idle,
+        match self.mode {
+            ModeState::Run(running) | ModeState::Debug(running, _) => running.phase,
+            ModeState::Stop | ModeState::Error(_) => Phase::Idle,
         }
     }
 
     /// What RUN and DEBUG share; `None` in STOP and ERROR.
     #[inline]
     pub(super) fn running_mut(&mut self) -> Option<&mut Running> {
-        match &mut self.op {
-            Operation::Run(running) | Operation::Debug(running, _) => Some(running),
-            Operation::Stop | Operation::Error(_) => None,
+        match &mut self.mode {
+            ModeState::Run(running) | ModeState::Debug(running, _) => Some(running),
+            ModeState::Stop | ModeState::Error(_) => None,
         }
     }
 
@@ -248,9 +249,9 @@ impl Engine {
         let init =
             if self.tasks[INIT as usize].programs.is_empty() { Init::Done } else { Init::Running };
         let running = Running { phase: Phase::Idle, init, starts: Starts::Enabled };
-        self.op = match mode {
-            Mode::Debug => Operation::Debug(running, Session::BETWEEN_SCANS),
-            _ => Operation::Run(running),
+        self.mode = match mode {
+            Mode::Debug => ModeState::Debug(running, Session::BETWEEN_SCANS),
+            _ => ModeState::Run(running),
         };
         sink.event(now, Event::Mode(mode));
         self.refresh_inputs(io);
@@ -261,24 +262,24 @@ impl Engine {
 
     /// DEBUG from RUN: the current scan ends, then execution pauses.
     fn enter_debug(&mut self, now: u64, sink: &mut impl EventSink) {
-        let Operation::Run(running) = self.op else { return };
+        let ModeState::Run(running) = self.mode else { return };
         let session = if self.between_scans() {
             Session::BETWEEN_SCANS
         } else {
             Session::Executing { until: Until::ScanEnd, resume_from: None }
         };
-        self.op = Operation::Debug(running, session);
+        self.mode = ModeState::Debug(running, session);
         sink.event(now, Event::Mode(Mode::Debug));
     }
 
     /// RUN from DEBUG: execution goes on where it stands, device memory kept.
     fn leave_debug(&mut self, now: u64, sink: &mut impl EventSink) {
-        let Operation::Debug(running, session) = self.op else { return };
+        let ModeState::Debug(running, session) = self.mode else { return };
         if !session.executes() {
             self.watchdog_start_ns = now;
             self.skip_cycle_deadlines(now);
         }
-        self.op = Operation::Run(running);
+        self.mode = ModeState::Run(running);
         sink.event(now, Event::Mode(Mode::Run));
     }
 
@@ -286,7 +287,7 @@ impl Engine {
     pub(super) fn enter_stop(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
         self.halt();
         self.clear_outputs(io);
-        self.op = Operation::Stop;
+        self.mode = ModeState::Stop;
         sink.event(now, Event::Mode(Mode::Stop));
         self.check_watches(now, sink);
         self.next_stop_refresh_ns = now + STOP_REFRESH_NS;
@@ -305,7 +306,7 @@ impl Engine {
         if self.settings.on_fault == OnFault::Clear {
             self.clear_outputs(io);
         }
-        self.op = Operation::Error(kind);
+        self.mode = ModeState::Error(kind);
         sink.event(now, Event::Mode(Mode::Error));
         self.check_watches(now, sink);
         self.next_stop_refresh_ns = now + STOP_REFRESH_NS;

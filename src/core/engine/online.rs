@@ -21,7 +21,7 @@ use crate::lang::ops::{EdgeMemory, Op};
 use crate::project::Project;
 use crate::vm::EdgeInit;
 
-use super::mode::Operation;
+use super::mode::ModeState;
 use super::scan::Phase;
 use super::task::{read_sample, State};
 use super::{Engine, Refusal};
@@ -160,11 +160,11 @@ impl Engine {
             new.starts = old.starts;
             std::mem::swap(&mut new.stats, &mut old.stats);
         }
-        self.op = match old.op {
-            Operation::Debug(running, session) => {
-                Operation::Debug(running, session.without_places())
+        self.mode = match old.mode {
+            ModeState::Debug(running, session) => {
+                ModeState::Debug(running, session.without_places())
             }
-            op => op,
+            mode => mode,
         };
         self.run_start_ns = old.run_start_ns;
         self.scan_start_ns = old.scan_start_ns;

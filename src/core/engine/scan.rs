@@ -8,7 +8,7 @@ use crate::io::Io;
 use crate::stats::Histogram;
 
 use super::event::{Event, EventSink, INIT, SCAN};
-use super::mode::{KeySwitch, Operation};
+use super::mode::{KeySwitch, ModeState};
 use super::schedule::Init;
 use super::task::{read_sample, Sample};
 use super::Engine;
@@ -119,13 +119,13 @@ impl Engine {
         let tenth_ms = |ns: u64| (ns / 100_000).min(u64::from(u16::MAX)) as u16;
         self.vm.mem.set_scan_times(tenth_ms(took), tenth_ms(scan.min_ns), tenth_ms(scan.max_ns));
         self.refresh_outputs(io);
-        match &mut self.op {
-            Operation::Run(running) => running.phase = Phase::Idle,
-            Operation::Debug(running, session) => {
+        match &mut self.mode {
+            ModeState::Run(running) => running.phase = Phase::Idle,
+            ModeState::Debug(running, session) => {
                 running.phase = Phase::Idle;
                 session.scan_ended();
             }
-            Operation::Stop | Operation::Error(_) => {}
+            ModeState::Stop | ModeState::Error(_) => {}
         }
         self.check_watches(now, sink);
         let period = self.settings.scan_period_ns;

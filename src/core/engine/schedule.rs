@@ -8,7 +8,7 @@ use crate::io::Io;
 use crate::lang::ops::SystemRequest;
 
 use super::event::{ErrorKind, Event, EventSink, Ignored, TaskId, INIT, SCAN};
-use super::mode::Operation;
+use super::mode::ModeState;
 use super::scan::Phase;
 use super::task::{read_sample, Kind, Sample, State};
 use super::{Engine, NS_PER_MS, STOP_REFRESH_NS};
@@ -123,7 +123,7 @@ impl Engine {
         }
         self.apply_switch(now, io, sink);
         if !self.executing() {
-            if matches!(self.op, Operation::Debug(..)) {
+            if matches!(self.mode, ModeState::Debug(..)) {
                 self.skip_cycle_deadlines(now);
             }
             return;
@@ -214,8 +214,8 @@ impl Engine {
     pub(super) fn dispatch(&mut self, now: u64, sink: &mut impl EventSink) {
         let top_priority = self.stack.last().map_or(u8::MAX, |&t| self.tasks[t as usize].priority);
         let all_held = matches!(
-            self.op,
-            Operation::Run(running) | Operation::Debug(running, _) if running.starts == Starts::Held
+            self.mode,
+            ModeState::Run(running) | ModeState::Debug(running, _) if running.starts == Starts::Held
         );
         let mut best: Option<(u8, u64, usize)> = None;
         for (id, task) in self.tasks.iter().enumerate() {
@@ -274,10 +274,10 @@ impl Engine {
     ) -> Option<Ignored> {
         sink.event(now, Event::TaskRequest { task: id });
         let task = &self.tasks[id as usize];
-        let why = match self.op {
-            Operation::Stop | Operation::Error(_) => Some(Ignored::Stop),
-            Operation::Debug(_, session) if !session.executes() => Some(Ignored::Paused),
-            Operation::Run(running) | Operation::Debug(running, _) => match task.state {
+        let why = match self.mode {
+            ModeState::Stop | ModeState::Error(_) => Some(Ignored::Stop),
+            ModeState::Debug(_, session) if !session.executes() => Some(Ignored::Paused),
+            ModeState::Run(running) | ModeState::Debug(running, _) => match task.state {
                 _ if running.init != Init::Done => Some(Ignored::Init),
                 State::Active { .. } => Some(Ignored::Running),
                 State::Pending { .. }
