@@ -14,8 +14,8 @@ use super::task::{read_sample, Kind, Sample, State};
 use super::{Engine, NS_PER_MS, STOP_REFRESH_NS};
 
 /// How far the init task is, from a RUN start: XGB runs the init programs instead of the scan
-/// program, scan after scan, until one executes `INIT_DONE`. One value where two flags could
-/// have said "done" without "requested".
+/// program, scan after scan, until one executes `INIT_DONE`. It only moves forward, `Running`
+/// to `DoneRequested` to `Done`, until a RUN start sets it afresh.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Init {
     /// Each scan runs the init task; requests of other tasks are ignored.

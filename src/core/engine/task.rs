@@ -14,12 +14,15 @@ use super::NS_PER_MS;
 /// Priority of the scan program: below every task (2..=7).
 const SCAN_PRIORITY: u8 = 8;
 
+/// A device a condition or a watch reads, resolved once so that reading it is a load.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Sample {
     Bit(BitRef),
     Word(WordRef),
 }
 
+/// What starts a task, with the state its start condition moves through: a cycle task's next
+/// deadline, a device task's sample at the previous END.
 #[derive(Debug, Clone)]
 pub(super) enum Kind {
     Scan,
@@ -29,17 +32,15 @@ pub(super) enum Kind {
     Device { sample: Sample, when: DeviceCondition, previous: i32 },
 }
 
+/// Where a task stands. Invariant: a task is on the engine's stack exactly while `Active`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum State {
+    /// Neither requested nor started.
     Idle,
     /// Requested at `at_ns` (ties of the same instant go by task id, which is config order).
-    Pending {
-        at_ns: u64,
-    },
+    Pending { at_ns: u64 },
     /// Started and not finished (executing or preempted).
-    Active {
-        preempted: bool,
-    },
+    Active { preempted: bool },
 }
 
 /// Figures kept per task, without allocation.
@@ -61,6 +62,9 @@ pub struct TaskStats {
     pub exec_time: Histogram,
 }
 
+/// A task: its start condition, priority and programs, where it stands, and its figures.
+/// `current`, `exec`, `used_ns` and `congested` describe the run under way, set afresh when it
+/// begins.
 #[derive(Debug, Clone)]
 pub(super) struct Task {
     pub(super) name: String,
