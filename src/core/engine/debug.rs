@@ -225,7 +225,7 @@ impl Session {
     }
 
     #[inline]
-    pub(super) fn run_state(self) -> DebugRun {
+    fn run_state(self) -> DebugRun {
         match self {
             Session::Paused { .. } => DebugRun::Paused,
             Session::Executing { until: Until::ScanEnd, .. } => DebugRun::Scan,
@@ -234,7 +234,7 @@ impl Session {
     }
 
     #[inline]
-    pub(super) fn paused_at(self) -> Option<(TaskId, Breakpoint)> {
+    fn paused_at(self) -> Option<(TaskId, Breakpoint)> {
         match self {
             Session::Paused { at } => at,
             Session::Executing { .. } => None,

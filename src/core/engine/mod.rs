@@ -263,6 +263,8 @@ impl Engine {
         self.settings.watchdog_ns
     }
 
+    /// The breakpoints and, in DEBUG, where the session stands; a view, because the session
+    /// lives in the mode and ends with DEBUG.
     pub fn debugger(&self) -> DebugView<'_> {
         let session = match self.mode {
             ModeState::Debug(_, session) => Some(session),

@@ -29,7 +29,7 @@ pub(super) enum Phase {
 
 impl Phase {
     #[inline]
-    pub(super) fn paused(self) -> bool {
+    fn paused(self) -> bool {
         match self {
             Phase::Idle => false,
             Phase::Scan { paused } | Phase::AfterEnd { paused } => paused,
@@ -84,6 +84,8 @@ impl Engine {
         }
     }
 
+    /// A scan starts: input refresh, a key switch move acted on (which may stop the PLC before
+    /// the scan begins), then the scan program, or the init task until it is done.
     pub(super) fn start_scan(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
         self.scan.count += 1;
         self.scan_start_ns = now;
