@@ -2,10 +2,11 @@
 //! time (`step`), or until a breakpoint (`continue`) — and stop *before* a breakpoint's
 //! instruction with device memory as that instruction will see it.
 //!
-//! This module owns the breakpoint syntax, its resolution against the loaded programs, and the
-//! debugger's state. The engine asks `Debugger::stops_at` before each instruction while a
-//! breakpoint is set in the program it executes; without breakpoints the VM runs at full speed
-//! even in DEBUG.
+//! This module owns the breakpoint syntax, its resolution against the loaded programs, the
+//! breakpoints (kept across DEBUG sessions) and the state of a DEBUG session, which only the
+//! engine's DEBUG mode holds. The engine asks `Session::pauses_before` before each instruction
+//! while a breakpoint is set in the program it executes; without breakpoints the VM runs at full
+//! speed even in DEBUG.
 
 use crate::lang::Program;
 
@@ -130,7 +131,8 @@ pub fn describe(programs: &[Program], at: Breakpoint) -> String {
 /// What the programs may do in DEBUG.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum DebugRun {
-    /// Nothing executes: between two scans, or before a breakpoint's instruction.
+    /// Nothing executes: between two scans, or before a breakpoint's instruction. Also what
+    /// [`DebugView::run_state`] says outside DEBUG, where there is no session.
     Paused,
     /// Execute to the end of the current (or the next) scan, or to a breakpoint.
     Scan,
@@ -138,40 +140,22 @@ pub enum DebugRun {
     Continue,
 }
 
-/// The debugger's state, kept by the engine across DEBUG sessions (breakpoints stay set).
+/// The breakpoints, kept by the engine across DEBUG sessions (they stay set). Where execution
+/// stands in a session is the session's, which ends with DEBUG (see [`DebugView`]).
 #[derive(Debug, Clone)]
 pub struct Debugger {
     breakpoints: Vec<Breakpoint>,
-    pub(super) run: DebugRun,
-    /// The task and instruction execution waits before.
-    pub(super) paused_at: Option<(TaskId, Breakpoint)>,
-    /// The breakpoint execution resumes from: passed once, not stopped at again.
-    pub(super) resume_from: Option<Breakpoint>,
 }
 
 impl Default for Debugger {
     fn default() -> Self {
-        Debugger {
-            breakpoints: Vec::with_capacity(MAX_BREAKPOINTS),
-            run: DebugRun::Paused,
-            paused_at: None,
-            resume_from: None,
-        }
+        Debugger { breakpoints: Vec::with_capacity(MAX_BREAKPOINTS) }
     }
 }
 
 impl Debugger {
     pub fn breakpoints(&self) -> &[Breakpoint] {
         &self.breakpoints
-    }
-
-    pub fn run_state(&self) -> DebugRun {
-        self.run
-    }
-
-    /// The task and instruction execution waits before, if paused at a breakpoint.
-    pub fn paused_at(&self) -> Option<(TaskId, Breakpoint)> {
-        self.paused_at
     }
 
     /// Adds a breakpoint (setting one twice is fine).
@@ -204,13 +188,137 @@ impl Debugger {
     pub(super) fn watches(&self, program: u16) -> bool {
         self.breakpoints.iter().any(|b| b.program == program)
     }
+}
 
-    /// True if execution must stop before `at`.
-    pub(super) fn stops_at(&mut self, at: Breakpoint) -> bool {
-        if self.resume_from.take() == Some(at) {
+/// How far a DEBUG `step` or `continue` lets the programs run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Until {
+    /// To the end of the current (or the next) scan, or to a breakpoint: `step`.
+    ScanEnd,
+    /// Scan after scan, to a breakpoint: `continue`.
+    Breakpoint,
+}
+
+/// The state of a DEBUG session. Only the engine's DEBUG mode holds one, so a pause, a place to
+/// resume from or a running `step` cannot outlive DEBUG.
+///
+/// Invariants, by construction: a breakpoint execution waits before exists only while paused;
+/// the breakpoint to pass once exists only while executing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Session {
+    /// Nothing executes: between two scans (`at: None`), or before the instruction `at` names
+    /// in a task.
+    Paused { at: Option<(TaskId, Breakpoint)> },
+    /// The programs execute, as far as `until` says. `resume_from` is the breakpoint execution
+    /// resumed from: passed once, not stopped at again.
+    Executing { until: Until, resume_from: Option<Breakpoint> },
+}
+
+impl Session {
+    /// Paused between two scans: DEBUG entered from STOP or at a scan boundary of RUN.
+    pub(super) const BETWEEN_SCANS: Session = Session::Paused { at: None };
+
+    /// True while `step` or `continue` lets the programs run.
+    #[inline]
+    pub(super) fn executes(self) -> bool {
+        matches!(self, Session::Executing { .. })
+    }
+
+    #[inline]
+    fn run_state(self) -> DebugRun {
+        match self {
+            Session::Paused { .. } => DebugRun::Paused,
+            Session::Executing { until: Until::ScanEnd, .. } => DebugRun::Scan,
+            Session::Executing { until: Until::Breakpoint, .. } => DebugRun::Continue,
+        }
+    }
+
+    #[inline]
+    fn paused_at(self) -> Option<(TaskId, Breakpoint)> {
+        match self {
+            Session::Paused { at } => at,
+            Session::Executing { .. } => None,
+        }
+    }
+
+    /// `step` or `continue`: a breakpoint execution waited before is passed once; a resume
+    /// while executing keeps the one not yet passed.
+    #[inline]
+    pub(super) fn resumed(self, until: Until) -> Session {
+        let resume_from = match self {
+            Session::Paused { at } => at.map(|(_, at)| at),
+            Session::Executing { resume_from, .. } => resume_from,
+        };
+        Session::Executing { until, resume_from }
+    }
+
+    /// END processing finished a scan: a `step` pauses here, and what it resumed from is
+    /// behind it either way.
+    #[inline]
+    pub(super) fn scan_ended(&mut self) {
+        match self {
+            Session::Executing { until: Until::ScanEnd, .. } => *self = Session::BETWEEN_SCANS,
+            Session::Executing { resume_from, .. } => *resume_from = None,
+            Session::Paused { .. } => {}
+        }
+    }
+
+    /// Before instruction `at` of `task`: true, and paused there, if a breakpoint is set at it
+    /// and it is not the one execution resumes from. That one is passed only as the next
+    /// instruction looked at: any other look forgets it.
+    pub(super) fn pauses_before(
+        &mut self,
+        task: TaskId,
+        at: Breakpoint,
+        debugger: &Debugger,
+    ) -> bool {
+        if let Session::Executing { resume_from, .. } = self {
+            if resume_from.take() == Some(at) {
+                return false;
+            }
+        }
+        if !debugger.breakpoints.contains(&at) {
             return false;
         }
-        self.breakpoints.contains(&at)
+        *self = Session::Paused { at: Some((task, at)) };
+        true
+    }
+
+    /// The session an online change carries over, at a scan boundary: the places it names
+    /// (a breakpoint waited before, one to pass) are in the old programs, so they are dropped.
+    pub(super) fn without_places(self) -> Session {
+        match self {
+            Session::Paused { .. } => Session::BETWEEN_SCANS,
+            Session::Executing { until, .. } => Session::Executing { until, resume_from: None },
+        }
+    }
+}
+
+/// The debugger as [`Engine::debugger`](super::Engine::debugger) shows it: the breakpoints,
+/// and the DEBUG session's state if the PLC is in DEBUG.
+#[derive(Debug, Clone, Copy)]
+pub struct DebugView<'a> {
+    debugger: &'a Debugger,
+    session: Option<Session>,
+}
+
+impl<'a> DebugView<'a> {
+    pub(super) fn new(debugger: &'a Debugger, session: Option<Session>) -> DebugView<'a> {
+        DebugView { debugger, session }
+    }
+
+    pub fn breakpoints(&self) -> &'a [Breakpoint] {
+        &self.debugger.breakpoints
+    }
+
+    /// What the programs may do in DEBUG; [`DebugRun::Paused`] outside DEBUG.
+    pub fn run_state(&self) -> DebugRun {
+        self.session.map_or(DebugRun::Paused, Session::run_state)
+    }
+
+    /// The task and instruction execution waits before, if paused at a breakpoint.
+    pub fn paused_at(&self) -> Option<(TaskId, Breakpoint)> {
+        self.session.and_then(Session::paused_at)
     }
 }
 
@@ -296,12 +404,22 @@ mod tests {
         d.add(Breakpoint { program: 0, pc: 0 }).unwrap();
         assert_eq!(d.add(Breakpoint { program: 0, pc: 99 }), Err(BreakError::TooMany));
         let at = Breakpoint { program: 0, pc: 3 };
-        assert!(d.stops_at(at));
-        d.resume_from = Some(at);
-        assert!(!d.stops_at(at), "resuming executes the instruction it stopped before");
-        assert!(d.stops_at(at), "and stops there the next time");
+        let mut session = Session::BETWEEN_SCANS.resumed(Until::Breakpoint);
+        assert!(session.pauses_before(2, at, &d));
+        assert_eq!(session.paused_at(), Some((2, at)));
+        assert_eq!(session.run_state(), DebugRun::Paused);
+        session = session.resumed(Until::ScanEnd);
+        assert_eq!(session.run_state(), DebugRun::Scan);
+        assert!(
+            !session.pauses_before(2, at, &d),
+            "resuming executes the instruction it stopped before"
+        );
+        assert!(session.pauses_before(2, at, &d), "and stops there the next time");
+        session = session.resumed(Until::ScanEnd);
+        session.scan_ended();
+        assert_eq!(session, Session::BETWEEN_SCANS, "a step pauses at the end of the scan");
         assert!(d.remove(at));
-        assert!(!d.stops_at(at));
+        assert!(!session.resumed(Until::Breakpoint).pauses_before(2, at, &d));
         assert!(d.watches(0) && !d.watches(1));
     }
 }

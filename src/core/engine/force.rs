@@ -19,8 +19,8 @@ pub enum ForceError {
     NotAnIoBit(Address),
 }
 
-/// The force table of the I/O image.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// The force table of the I/O image, and what it last left in the force flags.
+#[derive(Debug, Clone, Eq)]
 pub struct Forces {
     /// Forced bits per P word.
     mask: [u16; P_WORDS as usize],
@@ -30,6 +30,10 @@ pub struct Forces {
     input: [u16; P_WORDS as usize],
     /// Forced bits in all.
     count: u32,
+    /// The last [`Forces::refresh`] wrote the force flags with a force set, so they may be ON:
+    /// the refresh after the last force is removed must still write them (OFF). It outlives
+    /// [`Forces::clear_all`], which empties the table but cannot reach the memory.
+    flags_on: bool,
 }
 
 impl Default for Forces {
@@ -39,7 +43,19 @@ impl Default for Forces {
             value: [0; P_WORDS as usize],
             input: [0; P_WORDS as usize],
             count: 0,
+            flags_on: false,
         }
+    }
+}
+
+/// Two tables are equal when they force the same bits to the same values: what the flags of a
+/// memory still hold is that memory's state, not the table's.
+impl PartialEq for Forces {
+    fn eq(&self, other: &Forces) -> bool {
+        self.mask == other.mask
+            && self.value == other.value
+            && self.input == other.input
+            && self.count == other.count
     }
 }
 
@@ -85,7 +101,7 @@ impl Forces {
     }
 
     pub fn clear_all(&mut self) {
-        *self = Forces::default();
+        *self = Forces { flags_on: self.flags_on, ..Forces::default() };
     }
 
     #[inline]
@@ -107,6 +123,17 @@ impl Forces {
             }
         }
         mem.set_force_flags(inputs, outputs);
+    }
+
+    /// A refresh point of the I/O image: writes the forced values over it, and once more after
+    /// the last force is gone, to clear the force flags; after that, nothing until the next
+    /// force, so that a PLC without forces pays no word loop per refresh.
+    #[inline]
+    pub(super) fn refresh(&mut self, mem: &mut Memory) {
+        if self.count != 0 || self.flags_on {
+            self.apply(mem);
+            self.flags_on = self.count != 0;
+        }
     }
 
     /// Every forced bit with its value, in address order.
@@ -166,5 +193,21 @@ mod tests {
         assert!(forces.is_empty());
         forces.apply(&mut mem);
         assert_eq!(mem.read(&Address::parse("_FORCE_OUT").unwrap()), 0);
+    }
+
+    #[test]
+    fn the_refresh_after_the_last_force_clears_the_flags() {
+        let mut mem = Memory::new();
+        let mut forces = Forces::default();
+        forces.set(bit("P0041"), true, false);
+        forces.refresh(&mut mem);
+        assert_eq!(mem.read(&Address::parse("_FORCE_OUT").unwrap()), 1);
+        forces.clear_all();
+        assert_eq!(forces, Forces::default(), "the same (empty) table");
+        forces.refresh(&mut mem);
+        assert_eq!(mem.read(&Address::parse("_FORCE_OUT").unwrap()), 0, "cleared once more");
+        mem.set_force_flags(false, true);
+        forces.refresh(&mut mem);
+        assert_eq!(mem.read(&Address::parse("_FORCE_OUT").unwrap()), 1, "then not written");
     }
 }

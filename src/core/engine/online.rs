@@ -22,7 +22,10 @@ use crate::lang::ops::{EdgeMemory, Op};
 use crate::project::Project;
 use crate::vm::EdgeInit;
 
-use super::{read_sample, Engine, Phase, Refusal, State};
+use super::mode::ModeState;
+use super::scan::Phase;
+use super::task::{read_sample, State};
+use super::{Engine, Refusal};
 
 /// A prepared online change: the new engine and the initial state of its edge memory.
 pub struct OnlineChange {
@@ -136,7 +139,7 @@ impl Engine {
     /// figures, forces, the key switch — with its edge memory set up by `edges`. Breakpoints
     /// are cleared (they named the old programs). Allocates nothing.
     pub fn take_over(&mut self, old: &mut Engine, edges: &[EdgeInit]) -> Result<(), Refusal> {
-        if old.phase != Phase::Idle || !old.stack.is_empty() {
+        if old.phase() != Phase::Idle || !old.stack.is_empty() {
             return Err(Refusal::MidScan);
         }
         self.vm.take_over(&mut old.vm, edges);
@@ -147,14 +150,15 @@ impl Engine {
                 _ => State::Idle,
             };
             new.occurred_ns = old.occurred_ns;
-            new.disabled = old.disabled;
+            new.starts = old.starts;
             std::mem::swap(&mut new.stats, &mut old.stats);
         }
-        self.mode = old.mode;
-        self.phase = Phase::Idle;
-        self.init_done = old.init_done;
-        self.init_done_requested = old.init_done_requested;
-        self.tasks_disabled = old.tasks_disabled;
+        self.mode = match old.mode {
+            ModeState::Debug(running, session) => {
+                ModeState::Debug(running, session.without_places())
+            }
+            mode => mode,
+        };
         self.run_start_ns = old.run_start_ns;
         self.scan_start_ns = old.scan_start_ns;
         self.watchdog_start_ns = old.watchdog_start_ns;
@@ -162,14 +166,13 @@ impl Engine {
         self.next_stop_refresh_ns = old.next_stop_refresh_ns;
         std::mem::swap(&mut self.scan, &mut old.scan);
         self.forces = old.forces.clone();
-        self.force_flags_on = old.force_flags_on;
+        // Breakpoints name instructions of the old programs: neither engine keeps them.
         std::mem::swap(&mut self.debugger, &mut old.debugger);
         self.debugger.clear();
-        self.debugger.paused_at = None;
-        self.debugger.resume_from = None;
-        self.switch = old.switch;
-        self.switch_moved = old.switch_moved;
-        self.latched_error = old.latched_error;
+        // Whether there is a switch at all is the new config's to say.
+        if let (Some(switch), Some(old)) = (&mut self.switch, old.switch) {
+            *switch = old;
+        }
         self.last_operation_error = None;
         for watch in &mut self.watches {
             watch.last = read_sample(&self.vm.mem, watch.at);
