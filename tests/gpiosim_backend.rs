@@ -7,11 +7,13 @@ mod common_gpiosim;
 
 use std::path::Path;
 use std::process::{Command, Stdio};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use plcd::config::{self, Config};
 use plcd::device::{Address, Memory};
 use plcd::drivers::real_time::sys;
+use plcd::io::faults::FieldFaults;
 use plcd::io::gpio::{self, Gpio};
 use plcd::io::simulated::SimulatedIo;
 use plcd::io::{InputEdge, Io, SwitchPosition};
@@ -77,7 +79,7 @@ fn rig_config(backend: &str, chip: Option<&str>, extra: &str) -> Config {
 
 /// Opens the gpiocdev backend on `config`.
 fn open(config: &Config, consumer: &str) -> Result<Gpio, gpio::GpioError> {
-    gpio::open(config, consumer)
+    gpio::open(config, consumer, Arc::default())
 }
 
 struct SimRig {
@@ -296,6 +298,32 @@ fn a_line_held_by_another_process_is_named() {
     let error = open(&config, "plcd-second").unwrap_err().to_string();
     assert!(error.contains("line 0") && error.contains("P0000"), "{error}");
     assert!(error.contains("plcd-test"), "names the other consumer: {error}");
+}
+
+#[test]
+fn a_chip_that_goes_away_fails_refreshes_that_are_counted_not_fatal() {
+    require_gpiosim!();
+    let sim = gpiosim::builder().with_bank(&gpiosim::Bank::new(16, "plcd-gone")).live().unwrap();
+    let path = sim.chips()[0].dev_path().to_str().unwrap().to_string();
+    let faults = Arc::new(FieldFaults::default());
+    let mut gpio = gpio::open(&rig_config("gpiocdev", Some(&path), ""), "plcd", faults.clone())
+        .expect("the backend opens");
+    let mut mem = Memory::new();
+    gpio.io.refresh_inputs(&mut mem);
+    gpio.io.refresh_outputs(&mem);
+    assert_eq!(faults.input_reads.state().count, 0);
+    assert_eq!(faults.output_writes.state().count, 0);
+    // The chip is unplugged under the open line requests: every ioctl on them fails from now on.
+    drop(sim);
+    mem.write(&addr("P0001"), 1);
+    for _ in 0..3 {
+        gpio.io.refresh_inputs(&mut mem);
+        gpio.io.refresh_outputs(&mem);
+    }
+    let (reads, writes) = (faults.input_reads.state(), faults.output_writes.state());
+    assert!(reads.failing && reads.count == 3 && reads.errno != 0, "{reads:?}");
+    assert!(writes.failing && writes.count == 3 && writes.errno != 0, "{writes:?}");
+    assert_eq!(mem.read(&addr("P0001")), 1, "a failed read leaves the inputs as they were");
 }
 
 #[test]

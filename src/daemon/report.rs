@@ -8,6 +8,7 @@ use crate::device::Address;
 use crate::drivers::real_time::Shared;
 use crate::engine::event::ErrorKind;
 use crate::engine::Engine;
+use crate::io::faults::FaultState;
 use crate::project::Project;
 use crate::stats::Summary;
 
@@ -97,61 +98,74 @@ pub fn statistics(engine: &Engine, shared: &Shared) -> Vec<String> {
     lines
 }
 
-/// What the supervisor last said about failed reads of GPIO edge events
-/// ([`crate::drivers::real_time::events::EdgeReadFaults`]), so that a condition is logged once:
-/// when reads start failing, when the errno changes, and when they work again; never once a
-/// failure, which a fault that persists would turn into a log line a second.
-#[derive(Debug, Default)]
-pub struct EdgeReadLog {
+/// What the supervisor last said about the failures of one I/O path of the field
+/// ([`crate::io::faults::Faults`]), so that a condition is logged once: when the path starts
+/// failing, when the errno changes, and when it works again; never once a failure, which a
+/// fault that persists would turn into a log line a scan.
+#[derive(Debug)]
+pub struct FaultLog {
+    /// The path, as a log line starts: `reading GPIO edge events`.
+    what: &'static str,
+    /// What a failure means for the PLC until the path works again.
+    meanwhile: &'static str,
     /// The failure count already accounted for.
     seen: u64,
-    /// The errno of the failure being reported, while reads fail.
+    /// The errno of the failure being reported, while the path fails.
     reported: Option<i32>,
 }
 
-impl EdgeReadLog {
-    /// The line to log, if any, given the event thread's counters: `count` failures since
-    /// start, the last one's `errno`, and whether the last read `failing`.
-    pub fn update(
-        &mut self,
-        count: u64,
-        errno: i32,
-        failing: bool,
-    ) -> Option<(log::Level, String)> {
-        let new = count.saturating_sub(self.seen);
+impl FaultLog {
+    pub const fn new(what: &'static str, meanwhile: &'static str) -> FaultLog {
+        FaultLog { what, meanwhile, seen: 0, reported: None }
+    }
+
+    /// The field's three paths: inputs, outputs and edge events, in that order.
+    pub fn field() -> [FaultLog; 3] {
+        [
+            FaultLog::new(
+                "reading the GPIO inputs",
+                "the inputs keep their last values until a read works again (retried every scan)",
+            ),
+            FaultLog::new(
+                "writing the GPIO outputs",
+                "the lines keep what was last written until a write works again (retried every \
+                 scan)",
+            ),
+            FaultLog::new(
+                "reading GPIO edge events",
+                "io tasks start on no edge until a read works again (retried at most once a \
+                 second)",
+            ),
+        ]
+    }
+
+    /// The line to log, if any, given the path's counters.
+    pub fn update(&mut self, state: FaultState) -> Option<(log::Level, String)> {
+        let FaultState { count, errno, failing } = state;
+        let (what, new) = (self.what, count.saturating_sub(self.seen));
         self.seen = count;
         let error = describe_errno(errno);
         match (failing, self.reported) {
             (true, Some(reported)) if reported == errno => None,
             (true, Some(_)) => {
                 self.reported = Some(errno);
-                Some((
-                    log::Level::Error,
-                    format!("reading GPIO edge events now fails with {error}"),
-                ))
+                Some((log::Level::Error, format!("{what} now fails with {error}")))
             }
             (true, None) => {
                 self.reported = Some(errno);
-                Some((
-                    log::Level::Error,
-                    format!(
-                        "reading GPIO edge events failed: {error}; io tasks start on no edge \
-                         until a read works again (retried at most once a second)"
-                    ),
-                ))
+                Some((log::Level::Error, format!("{what} failed: {error}; {}", self.meanwhile)))
             }
             (false, Some(_)) => {
                 self.reported = None;
                 Some((
                     log::Level::Warn,
-                    format!("GPIO edge events are read again, after {count} failed reads in all"),
+                    format!("{what} works again, after {count} failures in all"),
                 ))
             }
             (false, None) if new > 0 => Some((
                 log::Level::Warn,
                 format!(
-                    "{new} reads of GPIO edge events failed (the last with {error}); the next \
-                     one worked"
+                    "{what} failed {new} times (the last with {error}); the next attempt worked"
                 ),
             )),
             (false, None) => None,
@@ -173,33 +187,50 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_failing_read_is_logged_once_per_condition() {
-        let mut log = EdgeReadLog::default();
-        assert_eq!(log.update(0, 0, false), None, "nothing failed");
-        let (level, line) = log.update(1, libc::ENODEV, true).unwrap();
+    fn a_failing_path_is_logged_once_per_condition() {
+        let state = |count, errno, failing| FaultState { count, errno, failing };
+        let [_, _, mut log] = FaultLog::field();
+        assert_eq!(log.update(state(0, 0, false)), None, "nothing failed");
+        let (level, line) = log.update(state(1, libc::ENODEV, true)).unwrap();
         assert_eq!(level, log::Level::Error);
         assert!(line.starts_with("reading GPIO edge events failed: No such device"), "{line}");
+        assert!(line.ends_with("io tasks start on no edge until a read works again (retried at most once a second)"), "{line}");
         // The same fault, however often it recurs: nothing more.
-        assert_eq!(log.update(2, libc::ENODEV, true), None);
-        assert_eq!(log.update(500, libc::ENODEV, true), None);
+        assert_eq!(log.update(state(2, libc::ENODEV, true)), None);
+        assert_eq!(log.update(state(500, libc::ENODEV, true)), None);
         // Another errno is another condition.
-        let (level, line) = log.update(501, libc::EIO, true).unwrap();
+        let (level, line) = log.update(state(501, libc::EIO, true)).unwrap();
         assert_eq!(level, log::Level::Error);
         assert!(line.starts_with("reading GPIO edge events now fails with Input/output"), "{line}");
-        assert_eq!(log.update(502, libc::EIO, true), None);
+        assert_eq!(log.update(state(502, libc::EIO, true)), None);
         // It clears.
-        let (level, line) = log.update(502, libc::EIO, false).unwrap();
+        let (level, line) = log.update(state(502, libc::EIO, false)).unwrap();
         assert_eq!(level, log::Level::Warn);
-        assert_eq!(line, "GPIO edge events are read again, after 502 failed reads in all");
-        assert_eq!(log.update(502, libc::EIO, false), None);
+        assert_eq!(line, "reading GPIO edge events works again, after 502 failures in all");
+        assert_eq!(log.update(state(502, libc::EIO, false)), None);
         // Failures that came and went between two looks: one line.
-        let (_, line) = log.update(505, 0, false).unwrap();
+        let (_, line) = log.update(state(505, 0, false)).unwrap();
         assert_eq!(
             line,
-            "3 reads of GPIO edge events failed (the last with a short read); the next one worked"
+            "reading GPIO edge events failed 3 times (the last with a short read); the next \
+             attempt worked"
         );
-        assert_eq!(log.update(505, 0, false), None);
+        assert_eq!(log.update(state(505, 0, false)), None);
         // Failing again after it cleared is news again.
-        assert!(log.update(506, libc::ENODEV, true).is_some());
+        assert!(log.update(state(506, libc::ENODEV, true)).is_some());
+    }
+
+    #[test]
+    fn each_path_of_the_field_says_what_failed_and_what_it_means() {
+        let [mut inputs, mut outputs, _] = FaultLog::field();
+        let failing = FaultState { count: 1, errno: libc::EIO, failing: true };
+        let (_, line) = inputs.update(failing).unwrap();
+        assert_eq!(
+            line,
+            "reading the GPIO inputs failed: Input/output error (os error 5); the inputs keep \
+             their last values until a read works again (retried every scan)"
+        );
+        let (_, line) = outputs.update(failing).unwrap();
+        assert!(line.starts_with("writing the GPIO outputs failed: Input/output error"), "{line}");
     }
 }

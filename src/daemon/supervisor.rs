@@ -89,7 +89,8 @@ struct Daemon {
     seen_dropped: u64,
     seen_trips: u64,
     /// What was logged about failed reads of GPIO edge events.
-    edge_reads: report::EdgeReadLog,
+    /// What was last logged about each I/O path of the field (`FaultLog::field`'s order).
+    field_faults: [report::FaultLog; 3],
     /// Retained memory: restored at start, written in the background (docs/RETAIN.md).
     retain: crate::services::retain::service::Persistence,
 }
@@ -161,7 +162,7 @@ impl Daemon {
             seen_lost_edges: 0,
             seen_dropped: 0,
             seen_trips: 0,
-            edge_reads: report::EdgeReadLog::default(),
+            field_faults: report::FaultLog::field(),
             retain,
         };
         if has_switch {
@@ -288,13 +289,12 @@ impl Daemon {
             log::warn!("{} input edges lost ({lost} in all)", lost - self.seen_lost_edges);
             self.seen_lost_edges = lost;
         }
-        let faults = &self.shared.edge_reads;
-        // The count first (the event thread raises it last), so the errno is at least as new.
-        let count = faults.count.load(Ordering::Acquire);
-        let (errno, failing) =
-            (faults.errno.load(Ordering::Relaxed), faults.failing.load(Ordering::Relaxed));
-        if let Some((level, line)) = self.edge_reads.update(count, errno, failing) {
-            log::log!(level, "{line}");
+        let faults = &self.shared.field_faults;
+        let paths = [&faults.input_reads, &faults.output_writes, &faults.edge_reads];
+        for (log, path) in self.field_faults.iter_mut().zip(paths) {
+            if let Some((level, line)) = log.update(path.state()) {
+                log::log!(level, "{line}");
+            }
         }
         let dropped = self.shared.dropped_reports.load(Ordering::Relaxed);
         if dropped > self.seen_dropped {

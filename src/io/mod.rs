@@ -6,8 +6,10 @@
 //! - [`gpio`]: the lines of a GPIO chip through the Linux GPIO character device
 //!   (`backend = "gpiocdev"`);
 //! - [`gate`]: the output gate between the scan thread and the watchdog thread, which any
-//!   backend's outputs pass.
+//!   backend's outputs pass;
+//! - [`faults`]: failures of the field's I/O paths, counted for the supervisor to log.
 
+pub mod faults;
 pub mod gate;
 pub mod gpio;
 pub mod simulated;

@@ -160,7 +160,7 @@ impl Driver {
                 (FieldIo::Sim(io), SafeOutputs::Sim(field))
             }
             Backend::Gpiocdev => {
-                let opened = gpio::open(config, "plcd")?;
+                let opened = gpio::open(config, "plcd", Arc::clone(&shared.field_faults))?;
                 events.gpio = opened.edges;
                 events.edges = Some(edge_tx);
                 (FieldIo::Gpio(opened.io), SafeOutputs::Gpio(opened.outputs))

@@ -8,7 +8,7 @@
 //!
 //! A read of the edge events that fails is not logged here (logging allocates, and a fault
 //! that persists would log in a loop at this thread's priority): it is counted in
-//! [`Shared::edge_reads`] with its errno, and the supervisor logs once when reads start failing,
+//! `Shared::field_faults` with its errno, and the supervisor logs once when reads start failing,
 //! when the errno changes and when they work again. Nor is the fd read again at once: a fault
 //! that persists (a chip unplugged, a driver gone) leaves it readable, and `epoll_wait` would
 //! return at once forever, a busy loop above the scan thread. After a failure the fd leaves the
@@ -24,7 +24,7 @@
 //! second wake-up, on the scan thread's CPU, would delay the task it announces.)
 
 use std::os::fd::AsFd;
-use std::sync::atomic::{AtomicBool, AtomicI32, AtomicU64, Ordering};
+use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
 use nix::sys::epoll::{Epoll, EpollCreateFlags, EpollEvent, EpollFlags, EpollTimeout};
@@ -40,18 +40,6 @@ const GPIO: u64 = 101;
 /// The first back-off after a failed read, and the longest.
 const BACKOFF_FIRST_MS: u16 = 1;
 const BACKOFF_MAX_MS: u16 = 1000;
-
-/// Failed reads of GPIO edge events, published for the supervisor to log: atomics, written
-/// without allocating.
-#[derive(Debug, Default)]
-pub struct EdgeReadFaults {
-    /// Reads that failed since start.
-    pub count: AtomicU64,
-    /// The errno of the last failure; 0 when it had none (a short read).
-    pub errno: AtomicI32,
-    /// The last read failed: the thread backs off until one works.
-    pub failing: AtomicBool,
-}
 
 /// How long the fd stays out of the epoll set after `consecutive` failed reads (1, 2, …): 1 ms,
 /// doubling, at most 1 s.
@@ -145,7 +133,7 @@ impl EventThread {
     }
 
     /// Reads the edges waiting; the pending flags to raise, or `Err` when the read failed
-    /// (counted in [`Shared::edge_reads`]).
+    /// (counted in `Shared::field_faults`).
     fn read_edges(&mut self) -> Result<u32, ()> {
         let (Some(gpio), Some(queue)) = (&mut self.gpio, &mut self.edges) else { return Ok(0) };
         let shared = &self.shared;
@@ -159,20 +147,18 @@ impl EventThread {
         });
         // Edges the kernel dropped (sequence gaps); the supervisor logs the count.
         shared.lost_edges.fetch_add(gpio.lost_edges() - lost_before, Ordering::Relaxed);
-        let faults = &shared.edge_reads;
+        let faults = &shared.field_faults.edge_reads;
         // Edges handed on before a failure are still pending work.
         let flags = if any { pending::EDGE } else { 0 };
         match result {
             Ok(_) => {
-                faults.failing.store(false, Ordering::Relaxed);
+                faults.worked();
                 Ok(flags)
             }
             Err(e) => {
                 // The errno, not the error: the error holds a String in some variants, and it
                 // is the supervisor's to describe.
-                faults.errno.store(e.errno().unwrap_or(0), Ordering::Relaxed);
-                faults.failing.store(true, Ordering::Relaxed);
-                faults.count.fetch_add(1, Ordering::Release);
+                faults.failed(e.errno().unwrap_or(0));
                 if flags != 0 {
                     shared.signal(flags);
                 }

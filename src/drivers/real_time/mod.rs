@@ -40,6 +40,7 @@ pub mod sys;
 pub mod watchdog;
 
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicU8, Ordering};
+use std::sync::Arc;
 
 use crate::config::{RtConfig, RtPolicy};
 use crate::device::{Address, BitRef};
@@ -48,6 +49,7 @@ use crate::engine::event::{Event, Mode};
 use crate::engine::online::OnlineChange;
 use crate::engine::Engine;
 use crate::engine::{ModeRequest, Refusal};
+use crate::io::faults::FieldFaults;
 use crate::io::SwitchPosition;
 use crate::vm::Clock;
 use sys::{SysError, Wake};
@@ -245,8 +247,9 @@ pub struct Shared {
     pub missed_deadlines: AtomicU64,
     /// Edges lost: by the kernel (sequence gaps) or to a full edge queue.
     pub lost_edges: AtomicU64,
-    /// Failed reads of GPIO edge events, for the supervisor to log.
-    pub edge_reads: events::EdgeReadFaults,
+    /// Failed refreshes and edge reads of the field, for the supervisor to log: the scan
+    /// side's backend and the event thread count into it.
+    pub field_faults: Arc<FieldFaults>,
     /// Reports dropped to a full report queue.
     pub dropped_reports: AtomicU64,
     /// The control thread wants a [`snapshot::Snapshot`] at the next scan boundary.
@@ -277,7 +280,7 @@ impl Shared {
             scan_max_ns: AtomicU64::new(0),
             missed_deadlines: AtomicU64::new(0),
             lost_edges: AtomicU64::new(0),
-            edge_reads: events::EdgeReadFaults::default(),
+            field_faults: Arc::default(),
             dropped_reports: AtomicU64::new(0),
             snapshot_wanted: AtomicBool::new(false),
             control_wake: Wake::new()?,

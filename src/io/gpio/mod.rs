@@ -30,8 +30,9 @@
 //!   before the first scan.
 //! - **One ioctl per refresh, no allocation.** The `Values` passed to gpiocdev are built at open
 //!   with every requested offset in them: with a non-empty `Values`, gpiocdev converts to and
-//!   from the kernel's bitmap on the stack. An ioctl error is counted and the last one kept
-//!   ([`GpioIo::io_errors`], [`GpioIo::take_error`]); the scan never panics on I/O.
+//!   from the kernel's bitmap on the stack. A failed ioctl is counted with its errno
+//!   ([`crate::io::faults`]) for the supervisor to log once per condition; the scan never
+//!   panics on I/O and goes on with the inputs it last read.
 //! - **Active-low in the kernel.** Lines are requested with the `active_low` flag, so the values
 //!   and the edges the kernel reports are already logical (a rising edge is OFF → ON of the
 //!   device), as the engine expects.
@@ -67,6 +68,7 @@ use gpiocdev::Request;
 use crate::config::wiring::{ImageBit, InputSlot, InputWire, OutputWire, CONTACTS};
 pub use crate::config::wiring::{LineDirection, Wire};
 use crate::config::{Bias, Config, Edge};
+use crate::io::faults::FieldFaults;
 use chip::{find_chip, FoundChip};
 use edges::EdgeMap;
 pub use edges::GpioEdges;
@@ -94,11 +96,12 @@ pub struct Gpio {
 /// Opens the chip `config`'s `io.chip` names and requests the lines of its wiring plan
 /// (`Config::wiring`): the `[[io.input]]` lines and the `[switch]` line as one request, with
 /// edge detection on the contacts io tasks start on, the `[[io.output]]` lines as another.
-/// `consumer`: the consumer label the kernel shows for the lines ("plcd").
+/// `consumer`: the consumer label the kernel shows for the lines ("plcd"); `faults`: where
+/// the scan's side counts failed refreshes.
 ///
 /// No line is requested when there is nothing to request in a direction. Outputs start
 /// inactive. The switch is read once before this returns.
-pub fn open(config: &Config, consumer: &str) -> Result<Gpio, GpioError> {
+pub fn open(config: &Config, consumer: &str, faults: Arc<FieldFaults>) -> Result<Gpio, GpioError> {
     let asked = config.io.chip.as_deref().ok_or(GpioError::NoChip)?;
     let plan = config.wiring().map_err(GpioError::Wiring)?;
     let found = find_chip(asked)?;
@@ -158,8 +161,7 @@ pub fn open(config: &Config, consumer: &str) -> Result<Gpio, GpioError> {
             values: Values::from_offsets(&output_offsets),
             bits: plan.outputs.iter().map(|o| o.bit).collect(),
         }),
-        io_errors: 0,
-        last_error: None,
+        faults,
     };
     Ok(Gpio { io, edges, outputs: GpioOutputs { shared: outputs } })
 }
@@ -273,14 +275,14 @@ mod tests {
     fn a_chip_is_required() {
         let mut cfg = config("gpiochip0", "");
         cfg.io.chip = None;
-        assert!(matches!(open(&cfg, "plcd"), Err(GpioError::NoChip)));
+        assert!(matches!(open(&cfg, "plcd", Arc::default()), Err(GpioError::NoChip)));
     }
 
     #[test]
     fn a_missing_chip_path_names_what_was_asked() {
         let cfg =
             config("/dev/gpiochip-does-not-exist", "[[io.output]]\ndevice = \"P0040\"\nline = 2\n");
-        let err = open(&cfg, "plcd").unwrap_err();
+        let err = open(&cfg, "plcd", Arc::default()).unwrap_err();
         let GpioError::ChipNotFound { asked, .. } = &err else { panic!("{err:?}") };
         assert_eq!(asked, "/dev/gpiochip-does-not-exist");
         assert!(err
@@ -290,7 +292,7 @@ mod tests {
 
     #[test]
     fn a_label_that_matches_no_chip_names_what_was_asked() {
-        let err = open(&config("plcd-no-such-chip-label", ""), "plcd").unwrap_err();
+        let err = open(&config("plcd-no-such-chip-label", ""), "plcd", Arc::default()).unwrap_err();
         let GpioError::ChipNotFound { asked, .. } = &err else { panic!("{err:?}") };
         assert_eq!(asked, "plcd-no-such-chip-label");
         assert!(err.to_string().starts_with("GPIO chip `plcd-no-such-chip-label` not found; "));
@@ -298,7 +300,7 @@ mod tests {
 
     #[test]
     fn a_path_that_is_not_a_chip_is_an_open_error() {
-        let err = open(&config("/dev/null", ""), "plcd").unwrap_err();
+        let err = open(&config("/dev/null", ""), "plcd", Arc::default()).unwrap_err();
         assert!(
             matches!(&err, GpioError::ChipOpen { chip, .. } if &**chip == "/dev/null"),
             "{err:?}"
@@ -312,7 +314,7 @@ mod tests {
         let mut cfg = config("/dev/gpiochip-does-not-exist", "");
         let line = cfg.io.inputs[0];
         cfg.io.inputs = (0..65).map(|n| crate::config::IoLine { line: n, ..line }).collect();
-        let err = open(&cfg, "plcd").unwrap_err();
+        let err = open(&cfg, "plcd", Arc::default()).unwrap_err();
         assert_eq!(
             err.to_string(),
             "65 input lines configured, but one GPIO line request holds at most 64"

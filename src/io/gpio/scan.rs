@@ -7,9 +7,11 @@ use std::sync::Arc;
 use gpiocdev::line::{Value, Values};
 use gpiocdev::Request;
 
+use super::error::errno;
 use super::watchdog::OutputShared;
-use super::{GpioError, ImageBit, InputSlot, IoOp};
+use super::{ImageBit, InputSlot};
 use crate::device::Memory;
+use crate::io::faults::FieldFaults;
 use crate::io::{Io, SwitchPosition};
 
 /// The scan's side of the backend: refreshes the P image from and to the lines.
@@ -20,8 +22,8 @@ pub struct GpioIo {
     /// The key switch as last read (at open, then at each input refresh); `None`: no switch.
     pub(super) switch: Option<SwitchPosition>,
     pub(super) outputs: Option<OutputSide>,
-    pub(super) io_errors: u64,
-    pub(super) last_error: Option<GpioError>,
+    /// Where failed refreshes are counted, for the supervisor to log.
+    pub(super) faults: Arc<FieldFaults>,
 }
 
 #[derive(Debug)]
@@ -45,38 +47,23 @@ impl GpioIo {
     pub fn chip(&self) -> &str {
         &self.chip
     }
-
-    /// The number of refreshes that failed since open.
-    pub fn io_errors(&self) -> u64 {
-        self.io_errors
-    }
-
-    /// The last refresh error, if one happened since the last call; for the daemon to log
-    /// (outside the scan, since logging allocates).
-    pub fn take_error(&mut self) -> Option<GpioError> {
-        self.last_error.take()
-    }
-
-    fn record(&mut self, op: IoOp, source: gpiocdev::Error) {
-        self.io_errors = self.io_errors.saturating_add(1);
-        // An Arc clone and a move: the error path does not allocate either.
-        self.last_error = Some(GpioError::Io { chip: self.chip.clone(), op, source });
-    }
 }
 
 impl Io for GpioIo {
     /// One get-values ioctl for all inputs and the key switch. On an error the P bits and the
-    /// switch keep their last values.
+    /// switch keep their last values, and the failure is counted (its errno, not the error:
+    /// the error may hold a String, and describing it is the supervisor's).
     fn refresh_inputs(&mut self, mem: &mut Memory) {
         let Some(inputs) = &mut self.inputs else { return };
         match inputs.request.values(&mut inputs.values) {
             Ok(()) => {
+                self.faults.input_reads.worked();
                 let switch = apply_inputs(mem.io_image_mut(), &inputs.slots, &inputs.values);
                 if switch.is_some() {
                     self.switch = switch;
                 }
             }
-            Err(e) => self.record(IoOp::ReadInputs, e),
+            Err(e) => self.faults.input_reads.failed(errno(&e).unwrap_or(0)),
         }
     }
 
@@ -84,8 +71,9 @@ impl Io for GpioIo {
     fn refresh_outputs(&mut self, mem: &Memory) {
         let Some(outputs) = &mut self.outputs else { return };
         collect_outputs(mem.io_image(), &outputs.bits, &mut outputs.values);
-        if let Err(e) = outputs.shared.request.set_values(&outputs.values) {
-            self.record(IoOp::WriteOutputs, e);
+        match outputs.shared.request.set_values(&outputs.values) {
+            Ok(()) => self.faults.output_writes.worked(),
+            Err(e) => self.faults.output_writes.failed(errno(&e).unwrap_or(0)),
         }
     }
 
