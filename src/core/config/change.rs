@@ -55,7 +55,7 @@ const fn section(
 /// online change take a new value of it. The online column is what the running engine can take
 /// over; what a load refuses never reaches it.
 #[rustfmt::skip]
-const SECTIONS: [Section; 9] = [
+const SECTIONS: [Section; 10] = [
     //       section      differs                              reload  load   online
     section("[plc]",     |a, b| a.plc != b.plc,              [true,  true,  false]),
     // Read by `plcd sim` alone.
@@ -70,6 +70,10 @@ const SECTIONS: [Section; 9] = [
     section("[switch]",  |a, b| a.switch != b.switch,        [true,  false, false]),
     section("[retain]",  |a, b| a.retain != b.retain,        [false, false, false]),
     section("[modbus]",  |a, b| a.modbus != b.modbus,        [false, false, true ]),
+    // Not a section but what the field was opened for: the edge detection of the contacts io
+    // tasks start on (an online change refuses any task change on its own, task by task).
+    section("the contacts and edges io tasks start on",
+        |a, b| a.edge_detection() != b.edge_detection(),    [false, false, true ]),
 ];
 
 impl Config {
@@ -99,6 +103,33 @@ mod tests {
         for change in [ProjectChange::Reload, ProjectChange::Load, ProjectChange::Online] {
             assert!(config.refused_sections(&config.clone(), change).is_empty(), "{change:?}");
         }
+    }
+
+    #[test]
+    fn new_edges_for_io_tasks_take_a_restart_of_the_field() {
+        let task = |contact: &str, edge: &str| {
+            format!(
+                "{PROGRAM}[[task]]\nname = \"edge\"\nkind = \"io\"\nnumber = 8\npriority = 2\n\
+                 contact = \"{contact}\"\nedge = \"{edge}\"\n"
+            )
+        };
+        let old = parse(&task("P0000", "rising"), Path::new("a.toml")).unwrap();
+        let name = "the contacts and edges io tasks start on";
+        for (contact, edge) in [("P0001", "rising"), ("P0000", "both")] {
+            let new = parse(&task(contact, edge), Path::new("a.toml")).unwrap();
+            assert_eq!(
+                old.refused_sections(&new, ProjectChange::Reload),
+                [name],
+                "{contact} {edge}"
+            );
+            assert_eq!(old.refused_sections(&new, ProjectChange::Load), [name], "{contact} {edge}");
+            // An online change refuses the changed task itself (engine::online).
+            assert!(old.refused_sections(&new, ProjectChange::Online).is_empty());
+        }
+        // A program without io tasks, or the same edges from a renamed task: nothing to refuse.
+        let renamed = task("P0000", "rising").replace("\"edge\"", "\"sensor\"");
+        let new = parse(&renamed, Path::new("a.toml")).unwrap();
+        assert!(old.refused_sections(&new, ProjectChange::Reload).is_empty());
     }
 
     #[test]

@@ -362,6 +362,16 @@ pub fn merge_edge(a: Edge, b: Edge) -> Edge {
     }
 }
 
+impl Config {
+    /// The edges the field must report, per contact P0000..=P0007: what the io tasks start on,
+    /// merged per contact. A driver sets its field up for these once, when it opens it (the
+    /// GPIO line request's edge detection, the simulated field's edge mask), which is why a
+    /// change of them takes a restart ([`super::ProjectChange`]).
+    pub fn edge_detection(&self) -> [Option<Edge>; CONTACTS] {
+        contact_edges(&self.edge_contacts())
+    }
+}
+
 /// Per contact, the edges its tasks need (merged), or `None` if no task starts on it. A
 /// contact beyond P0007 starts no task (the validator refuses it).
 fn contact_edges(edge_contacts: &[(u8, Edge)]) -> [Option<Edge>; CONTACTS] {
