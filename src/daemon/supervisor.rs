@@ -178,10 +178,7 @@ impl Daemon {
                 config_path.display(),
                 running.project.programs.len(),
                 running.project.config.tasks.len(),
-                match running.project.config.io.backend {
-                    Backend::Sim => "sim",
-                    Backend::Gpiocdev => "gpiocdev",
-                }
+                running.project.config.io.backend.as_str()
             );
         }
         if let Some(n) = &daemon.notifier {

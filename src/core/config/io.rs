@@ -42,6 +42,16 @@ pub enum Backend {
     Gpiocdev,
 }
 
+impl Backend {
+    /// The value as `[io] backend` writes it (and the log and `plcctl status` show it).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Backend::Sim => "sim",
+            Backend::Gpiocdev => "gpiocdev",
+        }
+    }
+}
+
 /// One `[[io.input]]` or `[[io.output]]`: a P bit wired to a GPIO line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct IoLine {

@@ -11,7 +11,7 @@ use super::forces::forces_of;
 use super::mode::mode_name;
 use super::waiting::Then;
 use super::RequestHandler;
-use crate::config::{Backend, TaskKind, TaskRef};
+use crate::config::{TaskKind, TaskRef};
 use crate::drivers::real_time::snapshot::Snapshot;
 use crate::engine::event::Mode;
 use crate::io::SwitchPosition;
@@ -77,12 +77,7 @@ impl RequestHandler {
         Status {
             version: env!("CARGO_PKG_VERSION").to_string(),
             config: running.config_path.display().to_string(),
-            // The `[io] backend` value as the config writes it.
-            backend: match config.io.backend {
-                Backend::Sim => "sim",
-                Backend::Gpiocdev => "gpiocdev",
-            }
-            .to_string(),
+            backend: config.io.backend.as_str().to_string(),
             uptime_ms: self.started.elapsed().as_millis() as u64,
             mode: mode_name(mode),
             error,
