@@ -1,7 +1,7 @@
 //! Golden diagnostics: every `.il` under tests/golden/lang must produce exactly the lines of
 //! its `.expected` file, and `plcd check` on tests/golden/project exactly `expected.stderr`.
 //! The expected files are written by hand from the rules in docs/LANGUAGE.md.
-mod common;
+mod harness;
 
 use std::fs;
 use std::path::Path;
@@ -19,11 +19,15 @@ fn language_goldens() {
         let source = fs::read_to_string(&path).unwrap();
         let expected = fs::read_to_string(path.with_extension("expected")).unwrap();
         let relative = Path::new("tests/golden/lang").join(path.file_name().unwrap());
-        let actual =
-            match plcd::lang::assemble("golden", &relative, &source, &common::context(false)) {
-                Ok(_) => String::new(),
-                Err(diags) => diags.to_string(),
-            };
+        let actual = match plcd::lang::assemble(
+            "golden",
+            &relative,
+            &source,
+            &harness::vm::context(false),
+        ) {
+            Ok(_) => String::new(),
+            Err(diags) => diags.to_string(),
+        };
         if actual != expected {
             failures
                 .push(format!("{}:\n--- expected\n{expected}--- actual\n{actual}", path.display()));

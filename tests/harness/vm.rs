@@ -1,41 +1,35 @@
-//! A scan loop for VM tests: one program, a hand-set clock, system requests recorded.
-//! The task engine proper is `plcd::engine`; this is only enough to scan a program.
-#![allow(dead_code)]
+//! A scan loop for VM tests: one program, a hand-set clock, system requests recorded. The task
+//! engine proper is [`super::engine`]; this is only enough to scan a program.
 
 use std::path::Path;
 
+use plcd::config::TimerConfig;
 use plcd::device::Address;
+use plcd::diag::Diagnostics;
 use plcd::lang::{self, Context, Program};
 use plcd::vm::{ExecState, Exit, ManualClock, Vm};
 
-/// The default time bases of `[timers]` (docs/CONFIG.md).
-pub fn default_timer_base(n: u32) -> Option<u32> {
-    match n {
-        0..=999 => Some(100),
-        1000..=1499 => Some(10),
-        1500..=2047 => Some(1),
-        _ => None,
-    }
+/// The time base of timer `n` under the default `[timers]`.
+fn default_timer_base(n: u32) -> Option<u32> {
+    TimerConfig::default().base_ms(n)
 }
 
+/// What the assembler knows of the project around a program: tasks 0..=23 exist, the default
+/// timer bases, edge memory from 0.
 pub fn context(is_init: bool) -> Context<'static> {
     static TASKS: [u8; 24] =
         [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23];
     Context { is_init, task_numbers: &TASKS, timer_base_ms: &default_timer_base, edge_base: 0 }
 }
 
-/// Assembles `source`, panicking with the diagnostics if it does not.
-pub fn assemble(source: &str) -> Program {
+/// Assembles `source` as `test.il` of a scan program.
+pub fn try_assemble(source: &str) -> Result<Program, Diagnostics> {
     lang::assemble("test", Path::new("test.il"), source, &context(false))
-        .unwrap_or_else(|d| panic!("does not assemble:\n{d}"))
 }
 
-/// The diagnostics of `source`, one string each.
-pub fn diagnostics(source: &str) -> Vec<String> {
-    match lang::assemble("test", Path::new("test.il"), source, &context(false)) {
-        Ok(_) => vec![],
-        Err(d) => d.iter().map(|d| d.to_string()).collect(),
-    }
+/// Assembles `source`, panicking with the diagnostics if it does not.
+pub fn assemble(source: &str) -> Program {
+    try_assemble(source).unwrap_or_else(|d| panic!("does not assemble:\n{d}"))
 }
 
 pub struct Rig {
@@ -78,7 +72,7 @@ impl Rig {
         self
     }
 
-    /// Advances the clock by `ms`, then scans.
+    /// Sets the clock to `ms`, then scans.
     pub fn scan_at_ms(&mut self, ms: u64) -> &mut Rig {
         self.clock.set(ms * 1_000_000);
         self.scan()
