@@ -1,11 +1,12 @@
 //! Any text either assembles or yields diagnostics, never a panic; and any program that
 //! assembles runs (within a step budget) without a panic.
-mod common;
+mod harness;
 
 use proptest::prelude::*;
-use std::path::Path;
 
 use plcd::vm::{ExecState, Exit, ManualClock, Vm};
+
+use harness::vm::try_assemble as assemble;
 
 const MNEMONICS: &[&str] = &[
     "LOAD",
@@ -116,10 +117,6 @@ fn line() -> impl Strategy<Value = String> {
 
 fn program() -> impl Strategy<Value = String> {
     prop::collection::vec(line(), 0..40).prop_map(|lines| lines.join("\n"))
-}
-
-fn assemble(text: &str) -> Result<plcd::lang::Program, plcd::diag::Diagnostics> {
-    plcd::lang::assemble("p", Path::new("p.il"), text, &common::context(false))
 }
 
 fn run_bounded(program: &plcd::lang::Program) {

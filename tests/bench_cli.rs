@@ -2,22 +2,19 @@
 //! the commands report and that they clean up, never how fast anything is (figures belong to
 //! BENCHMARKS.md).
 
-use std::path::Path;
+mod harness;
+
 use std::process::{Command, Output};
 
-fn plcd(tmp: &Path, args: &[&str]) -> Output {
+use harness::tempdir::TempDir;
+
+/// `plcd ARGS` with `tmp` as its temp directory, where a bench writes its generated project.
+fn plcd(tmp: &TempDir, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_plcd"))
         .args(args)
-        .env("TMPDIR", tmp)
+        .env("TMPDIR", tmp.path())
         .output()
         .expect("plcd runs")
-}
-
-fn tmpdir(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("plcd-bench-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 /// The checks every report passes: quantiles in order, the histogram adds up.
@@ -36,7 +33,7 @@ fn check_distribution(d: &serde_json::Value, what: &str) -> u64 {
 
 #[test]
 fn latency_reports_one_start_per_deadline_and_cleans_up() {
-    let tmp = tmpdir("latency");
+    let tmp = TempDir::new("bench-latency");
     let out = plcd(&tmp, &["bench", "latency", "--interval", "2ms", "--cycles", "25", "--json"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
@@ -52,13 +49,12 @@ fn latency_reports_one_start_per_deadline_and_cleans_up() {
     assert!((samples..=samples + 1).contains(&noticed), "{noticed} noticed, {samples} started");
     check_distribution(&report["scan_time"], "scan_time");
     assert!(["fifo", "other"].contains(&report["scheduling"]["policy"].as_str().unwrap()));
-    assert_eq!(std::fs::read_dir(&tmp).unwrap().count(), 0, "the generated project is removed");
-    std::fs::remove_dir_all(tmp).unwrap();
+    assert_eq!(tmp.entries(), Vec::<String>::new(), "the generated project is removed");
 }
 
 #[test]
 fn edge_reports_the_io_task_and_the_scan_length() {
-    let tmp = tmpdir("edge");
+    let tmp = TempDir::new("bench-edge");
     let args = ["bench", "edge", "--steps", "400", "--edges", "20", "--interval", "1ms", "--json"];
     let out = plcd(&tmp, &args);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -69,13 +65,12 @@ fn edge_reports_the_io_task_and_the_scan_length() {
     assert!(samples >= 20, "{samples} edges for 20");
     let noticed = check_distribution(&report["notice_latency"], "notice_latency");
     assert!((samples..=samples + 1).contains(&noticed), "{noticed} noticed, {samples} started");
-    assert_eq!(std::fs::read_dir(&tmp).unwrap().count(), 0);
-    std::fs::remove_dir_all(tmp).unwrap();
+    assert_eq!(tmp.entries(), Vec::<String>::new(), "the generated project is removed");
 }
 
 #[test]
 fn text_output_and_usage_errors() {
-    let tmp = tmpdir("usage");
+    let tmp = TempDir::new("bench-usage");
     let out = plcd(&tmp, &["bench", "latency", "--cycles", "3"]);
     assert!(out.status.success());
     let text = String::from_utf8(out.stdout).unwrap();
@@ -94,5 +89,4 @@ fn text_output_and_usage_errors() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(says), "{args:?}: {err}");
     }
-    std::fs::remove_dir_all(tmp).unwrap();
 }

@@ -4,20 +4,18 @@
 //! Real time is only waited on, never asserted: each check waits for a state with a generous
 //! bound (the daemon is a separate process), and figures are printed, not compared.
 
-#[path = "common_daemon/mod.rs"]
-mod common_daemon;
+mod harness;
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output};
-use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::process::Output;
+use std::sync::Arc;
+use std::time::Duration;
 
-use nix::sys::signal::{kill, Signal};
-use nix::unistd::Pid;
-
-use common_daemon::{spawn_plcd, Spawned};
+use harness::daemon::{plcctl_binary, Daemon, Project};
+use harness::nobody::{self, NOBODY};
+use harness::tempdir::TempDir;
 
 const PATIENCE: Duration = Duration::from_secs(10);
 
@@ -31,38 +29,31 @@ const CONFIG: &str = "[plc]\nscan_period_ms = 2\nwatchdog_ms = 100\n\
 const MAIN: &str = "INC D00000\n; copy\nLOAD P0000\nOUT P0040\nLOAD _FORCE_OUT\nOUT M0001\nEND\n";
 const TICK: &str = "INC D00001\nEND\n";
 
+/// The daemon on a project of its own (a directory every user can reach, for the peer test),
+/// in RUN.
 struct Plc {
-    dir: PathBuf,
-    child: Option<Child>,
-    log: Arc<Mutex<Vec<String>>>,
+    // Declared first, dropped first: the daemon is gone before its directory is removed.
+    daemon: Daemon,
+    project: Project,
 }
 
 impl Plc {
     fn start(name: &str, files: &[(&str, &str)]) -> Plc {
-        let dir = std::env::temp_dir().join(format!("plcd-e2e-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        for (file, text) in files {
-            std::fs::write(dir.join(file), text).unwrap();
-        }
-        let Spawned { child, log, .. } = spawn_plcd(&[], &dir.join("plcd.toml"), &[]);
-        let plc = Plc { dir, child: Some(child), log };
-        plc.wait_for_log("control socket");
-        plc.wait(|p| p.ctl(&["status"]).stdout_text().contains("RUN"), "RUN");
+        let project = Project::in_dir(TempDir::for_everyone(&format!("e2e-{name}")), files);
+        let daemon = project.start().with_patience(PATIENCE);
+        let plc = Plc { daemon, project };
+        plc.daemon.wait_for("control socket");
+        // The mode itself: the human status also says RUN for a key switch at RUN.
+        plc.wait(|p| p.status()["mode"] == "RUN", "RUN");
         plc
     }
 
     fn socket(&self) -> PathBuf {
-        self.dir.join("plcd.sock")
+        self.project.socket()
     }
 
     fn ctl(&self, args: &[&str]) -> Output {
-        Command::new(common_daemon::plcctl_binary())
-            .arg("--socket")
-            .arg(self.socket())
-            .args(args)
-            .output()
-            .expect("plcctl runs")
+        self.project.plcctl(args)
     }
 
     /// `plcctl ARGS` that must succeed; its stdout.
@@ -90,42 +81,16 @@ impl Plc {
     }
 
     fn wait(&self, mut done: impl FnMut(&Plc) -> bool, what: &str) {
-        let start = Instant::now();
-        while !done(self) {
-            assert!(
-                start.elapsed() < PATIENCE,
-                "waited for {what}; log:\n{}",
-                self.log().join("\n")
-            );
-            std::thread::sleep(Duration::from_millis(20));
-        }
+        self.daemon.wait(what, || done(self));
     }
 
-    fn log(&self) -> Vec<String> {
-        self.log.lock().unwrap().clone()
-    }
-
-    fn wait_for_log(&self, text: &str) {
-        self.wait(|p| p.log().iter().any(|l| l.contains(text)), text);
-    }
-
-    fn stop(mut self) -> Vec<String> {
-        let mut child = self.child.take().unwrap();
-        kill(Pid::from_raw(child.id() as i32), Signal::SIGTERM).unwrap();
-        let status = child.wait().unwrap();
-        assert_eq!(status.code(), Some(0), "clean stop");
-        assert!(!self.socket().exists(), "the socket is removed at exit");
-        self.log()
-    }
-}
-
-impl Drop for Plc {
-    fn drop(&mut self) {
-        if let Some(mut child) = self.child.take() {
-            let _ = child.kill();
-            let _ = child.wait();
-        }
-        let _ = std::fs::remove_dir_all(&self.dir);
+    /// SIGTERM: a clean stop that removes the socket; the whole log.
+    fn stop(self) -> Vec<String> {
+        let socket = self.socket();
+        let (code, log) = self.daemon.stop();
+        assert_eq!(code, 0, "clean stop:\n{}", log.join("\n"));
+        assert!(!socket.exists(), "the socket is removed at exit");
+        log
     }
 }
 
@@ -185,9 +150,9 @@ fn every_plcctl_command_against_the_daemon() {
     // Modes.
     assert!(plc.ok(&["stop"]).contains("STOP"));
     assert_eq!(plc.status()["mode"], "STOP");
-    let stopped_at = plc.get("D00000");
     assert!(plc.ok(&["run"]).contains("RUN"));
-    plc.wait(|p| p.get("D00000") < stopped_at || p.get("D00000") > 0, "RUN again");
+    let first = plc.get("D00000");
+    plc.wait(|p| p.get("D00000") != first, "RUN again: the scan counts");
     plc.ok(&["set", "K010=7"]);
     plc.ok(&["reset"]);
     assert_eq!(plc.status()["mode"], "STOP");
@@ -196,7 +161,9 @@ fn every_plcctl_command_against_the_daemon() {
     assert_eq!(plc.get("K010"), 0, "a cold reset clears it");
 
     // DEBUG: break before line 3, step, continue, back to RUN.
-    assert!(plc.ok(&["debug"]).contains("0 scans") || plc.status()["mode"] == "DEBUG");
+    // From STOP, DEBUG starts paused before the first scan.
+    let debug = plc.ok(&["debug"]);
+    assert!(debug.starts_with("between scans; 0 scans completed\n"), "{debug}");
     assert_eq!(plc.status()["mode"], "DEBUG");
     plc.ok(&["break", "main:3"]);
     let paused = plc.ok(&["--json", "continue"]);
@@ -219,7 +186,7 @@ fn every_plcctl_command_against_the_daemon() {
     assert_eq!(plc.ctl(&["step"]).status.code(), Some(1), "step only in DEBUG");
 
     // load: refused in RUN, online change keeps memory, offline in STOP, a broken project.
-    let dir = plc.dir.clone();
+    let dir = plc.project.dir.path().to_path_buf();
     std::fs::write(dir.join("main2.il"), "INC D00000\nINC D00002\nLOAD P0000\nOUT P0040\nEND\n")
         .unwrap();
     std::fs::write(dir.join("new.toml"), CONFIG.replace("main.il", "main2.il")).unwrap();
@@ -256,32 +223,18 @@ fn every_plcctl_command_against_the_daemon() {
 
 #[test]
 fn a_peer_that_is_not_allowed_is_refused() {
-    if !nix::unistd::geteuid().is_root() {
-        println!("skipped: needs root (to connect as another user)");
-        return;
+    if let Some(reason) = nobody::unavailable() {
+        return harness::skip::skip(None, &reason);
     }
     let plc = plc("peer");
     // The file mode would already stop the connect; open it so SO_PEERCRED has to decide.
     let socket = plc.socket();
     std::fs::set_permissions(&socket, std::os::unix::fs::PermissionsExt::from_mode(0o666)).unwrap();
-    let out = {
-        use std::os::unix::process::CommandExt;
-        Command::new(common_daemon::plcctl_binary())
-            .arg("--socket")
-            .arg(&socket)
-            .arg("status")
-            .uid(65534)
-            .gid(65534)
-            .output()
-            .unwrap()
-    };
-    if out.status.code() == Some(3) && out.stderr_text().contains("ermission") {
-        println!("skipped: uid 65534 cannot reach the temp directory here");
-        return;
-    }
+    let plcctl = nobody::Copy::of(&plcctl_binary());
+    let out = nobody::output(plcctl.command(NOBODY).arg("--socket").arg(&socket).arg("status"));
     assert_eq!(out.status.code(), Some(1), "{}", out.stderr_text());
     assert!(out.stderr_text().contains("not allowed"), "{}", out.stderr_text());
-    plc.wait_for_log("65534");
+    plc.daemon.wait_for("65534");
     assert_eq!(plc.status()["mode"], "RUN", "the daemon goes on");
     plc.stop();
 }
@@ -409,14 +362,32 @@ fn the_key_switch_rules_remote_mode_changes() {
             ("switch.csv", "3s, SWITCH, STOP\n"),
         ],
     );
-    let status = plc.status();
+    // The switch's position as the scan thread's snapshot has it, once it has one.
+    let mut status = plc.status();
+    plc.wait(
+        |p| {
+            status = p.status();
+            !status["switch"].is_null()
+        },
+        "the switch in the status",
+    );
     if status["switch"] == "RUN" {
         assert_eq!(status["remote_allowed"], false);
         let refused = plc.ctl(&["stop"]);
         assert_eq!(refused.status.code(), Some(1));
         assert!(refused.stderr_text().contains("switch is at RUN"), "{}", refused.stderr_text());
+    } else {
+        harness::skip::skip(None, "the switch turned to STOP before a remote STOP could be tried");
     }
-    plc.wait(|p| p.status()["mode"] == "STOP", "the switch turned to STOP");
+    // The mode in a status answer is the live one, the switch and remote_allowed come from the
+    // scan thread's last snapshot: wait until both say STOP.
+    plc.wait(
+        |p| {
+            let status = p.status();
+            status["mode"] == "STOP" && status["switch"] == "STOP"
+        },
+        "the switch turned to STOP",
+    );
     assert_eq!(plc.status()["remote_allowed"], true);
     assert!(plc.ok(&["run"]).contains("RUN"), "remote RUN with the switch at STOP");
     let log = plc.stop();

@@ -2,139 +2,32 @@
 //! in a temporary directory, its log is read line by line, and it is stopped with signals.
 //! Timing bounds are loose (seconds): these tests check behaviour, the benchmarks measure time.
 
-#[path = "common_daemon/mod.rs"]
-mod common_daemon;
+mod harness;
 
 use std::os::unix::net::UnixDatagram;
-use std::path::{Path, PathBuf};
-use std::process::Child;
-use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use nix::sys::signal::{kill, Signal};
-use nix::unistd::Pid;
+use nix::sys::signal::Signal;
 
-use common_daemon::{spawn_plcd, Spawned};
+use harness::daemon::Project;
+use harness::log::PATIENCE;
 
-/// How long any expected log line may take to appear.
-const PATIENCE: Duration = Duration::from_secs(20);
-
-/// A project directory under the system's temp dir, removed on drop.
-struct Project {
-    dir: PathBuf,
+/// A project whose configs get their own control socket in the project's directory, so that
+/// daemons of tests running at the same time do not meet.
+fn project(name: &str, files: &[(&str, &str)]) -> Project {
+    let project = Project::new(name, &[]);
+    for (file, text) in files {
+        write(&project, file, text);
+    }
+    project
 }
 
-impl Project {
-    fn new(name: &str, files: &[(&str, &str)]) -> Project {
-        let dir = std::env::temp_dir().join(format!("plcd-daemon-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        let project = Project { dir };
-        for (file, text) in files {
-            project.write(file, text);
-        }
-        project
-    }
-
-    /// Writes a file of the project; a config gets its own control socket in the project's
-    /// directory, so that daemons of tests running at the same time do not meet.
-    fn write(&self, file: &str, text: &str) {
-        let text = if file.ends_with(".toml") && !text.contains("[control]") {
-            format!("{text}\n[control]\nsocket = \"plcd.sock\"\n")
-        } else {
-            text.to_string()
-        };
-        std::fs::write(self.dir.join(file), text).unwrap();
-    }
-
-    fn config(&self) -> PathBuf {
-        self.dir.join("plcd.toml")
-    }
-}
-
-impl Drop for Project {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.dir);
-    }
-}
-
-/// A running daemon and everything it logged so far.
-struct Daemon {
-    child: Child,
-    log: Arc<Mutex<Vec<String>>>,
-    /// Reads stderr until EOF, which comes when the process is gone.
-    reader: Option<std::thread::JoinHandle<()>>,
-}
-
-impl Daemon {
-    fn start(config: &Path, env: &[(&str, &str)]) -> Daemon {
-        let Spawned { child, log, reader } = spawn_plcd(&[], config, env);
-        Daemon { child, log, reader: Some(reader) }
-    }
-
-    fn lines(&self) -> Vec<String> {
-        self.log.lock().unwrap().clone()
-    }
-
-    /// Waits until a line after the first `after` lines contains `text`; its index.
-    fn wait_for_after(&self, after: usize, text: &str) -> usize {
-        let start = Instant::now();
-        loop {
-            if let Some(i) = self.lines().iter().skip(after).position(|l| l.contains(text)) {
-                return after + i;
-            }
-            if start.elapsed() > PATIENCE {
-                panic!(
-                    "no log line with {text:?} after line {after}; log:\n{}",
-                    self.lines().join("\n")
-                );
-            }
-            std::thread::sleep(Duration::from_millis(10));
-        }
-    }
-
-    fn wait_for(&self, text: &str) -> usize {
-        self.wait_for_after(0, text)
-    }
-
-    fn signal(&self, signal: Signal) {
-        kill(Pid::from_raw(self.child.id() as i32), signal).unwrap();
-    }
-
-    /// Sends SIGTERM; the exit code and the whole log.
-    fn stop(self) -> (i32, Vec<String>) {
-        self.signal(Signal::SIGTERM);
-        self.finish()
-    }
-
-    /// Waits for the process to exit on its own; the exit code and the whole log.
-    fn finish(mut self) -> (i32, Vec<String>) {
-        let status = self.wait_exit();
-        if let Some(reader) = self.reader.take() {
-            reader.join().unwrap();
-        }
-        (status, self.lines())
-    }
-
-    fn wait_exit(&mut self) -> i32 {
-        let start = Instant::now();
-        loop {
-            if let Some(status) = self.child.try_wait().unwrap() {
-                return status.code().unwrap_or(-1);
-            }
-            if start.elapsed() > PATIENCE {
-                let _ = self.child.kill();
-                panic!("plcd did not exit; log:\n{}", self.lines().join("\n"));
-            }
-            std::thread::sleep(Duration::from_millis(10));
-        }
-    }
-}
-
-impl Drop for Daemon {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+/// Writes a file of the project; a config without `[control]` gets `socket = "plcd.sock"`.
+fn write(project: &Project, file: &str, text: &str) {
+    if file.ends_with(".toml") && !text.contains("[control]") {
+        project.write(file, &format!("{text}\n[control]\nsocket = \"plcd.sock\"\n"));
+    } else {
+        project.write(file, text);
     }
 }
 
@@ -179,7 +72,7 @@ const INPUTS: &str = "100ms, P0000, 1\n150ms, P0000, 0\n200ms, P0000, 1\n250ms, 
                       300ms, P0000, 1\n350ms, P0000, 0\n400ms, P0001, 1\n";
 
 fn conveyor(name: &str) -> Project {
-    Project::new(
+    project(
         name,
         &[
             ("plcd.toml", CONVEYOR),
@@ -194,7 +87,7 @@ fn conveyor(name: &str) -> Project {
 #[test]
 fn runs_the_project_in_real_time_and_stops_cleanly_on_sigterm() {
     let project = conveyor("run");
-    let daemon = Daemon::start(&project.config(), &[]);
+    let daemon = project.start();
     daemon.wait_for("mode RUN (startup)");
     // The cycle task blinks, the io task counts three edges of the stimulus, the scan follows
     // P0001.
@@ -216,10 +109,10 @@ fn runs_the_project_in_real_time_and_stops_cleanly_on_sigterm() {
 #[test]
 fn sighup_with_a_broken_program_keeps_the_running_one_then_a_good_one_replaces_it() {
     let project = conveyor("reload");
-    let daemon = Daemon::start(&project.config(), &[]);
+    let daemon = project.start();
     daemon.wait_for("P0040 = 1");
 
-    project.write("blink.il", "LOAD NOT P0040\nOUTT P0040\nEND\n");
+    write(&project, "blink.il", "LOAD NOT P0040\nOUTT P0040\nEND\n");
     daemon.signal(Signal::SIGHUP);
     let refused = daemon.wait_for("reload refused (1 errors)");
     let lines = daemon.lines();
@@ -232,7 +125,7 @@ fn sighup_with_a_broken_program_keeps_the_running_one_then_a_good_one_replaces_i
     let on = daemon.wait_for_after(refused, "P0040 = 1");
     daemon.wait_for_after(on, "P0040 = 0");
 
-    project.write("blink.il", "LOAD NOT P0043\nOUT P0043\nEND\n");
+    write(&project, "blink.il", "LOAD NOT P0043\nOUT P0043\nEND\n");
     daemon.signal(Signal::SIGHUP);
     let reloaded = daemon.wait_for("reloaded: 3 programs, 2 tasks");
     daemon.wait_for_after(reloaded, "mode STOP (reload)");
@@ -249,11 +142,11 @@ fn a_scan_that_never_ends_takes_the_watchdog_error_and_clears_the_outputs() {
                   [io]\nstimulus = \"inputs.csv\"\n";
     // P0040 is ON every scan; once P0001 is ON, the scan loops forever.
     let main = "LOAD _ON\nOUT P0040\nLABEL 1\nLOAD P0001\nJMP 1\nEND\n";
-    let project = Project::new(
+    let project = project(
         "wdt",
         &[("plcd.toml", config), ("main.il", main), ("inputs.csv", "200ms, P0001, 1\n")],
     );
-    let daemon = Daemon::start(&project.config(), &[]);
+    let daemon = project.start();
     let on = daemon.wait_for("P0040 = 1");
     let error = daemon.wait_for_after(on, "error WDT: scan");
     assert!(daemon.lines()[error].contains("exceeded watchdog_ms 50"));
@@ -267,13 +160,10 @@ fn a_scan_that_never_ends_takes_the_watchdog_error_and_clears_the_outputs() {
 fn config_errors_stop_the_start_with_every_diagnostic() {
     let config =
         "[rt]\nscan_priority = 0\npolicy = \"round-robin\"\n[[program]]\nfile = \"main.il\"\n";
-    let project = Project::new("badrt", &[("plcd.toml", config), ("main.il", "END\n")]);
-    let (code, log) = Daemon::start(&project.config(), &[]).finish();
+    let project = project("badrt", &[("plcd.toml", config), ("main.il", "END\n")]);
+    let (code, log) = project.start().finish();
     assert_eq!(code, 1);
-    let log = log.join(
-        "
-",
-    );
+    let log = log.join("\n");
     let path = project.config().display().to_string();
     assert!(log.contains(&format!("{path}:2:17: error: rt.scan_priority 0 out of range")), "{log}");
     assert!(log.contains(&format!("{path}:3:10: error:")), "{log}");
@@ -285,20 +175,17 @@ fn a_missing_gpio_chip_is_named() {
     let config = "[[program]]\nfile = \"main.il\"\n[io]\nbackend = \"gpiocdev\"\n\
                   chip = \"/dev/gpiochip-plcd-test\"\n\
                   [[io.output]]\ndevice = \"P0040\"\nline = 3\n";
-    let project = Project::new("nochip", &[("plcd.toml", config), ("main.il", "END\n")]);
-    let (code, log) = Daemon::start(&project.config(), &[]).finish();
+    let project = project("nochip", &[("plcd.toml", config), ("main.il", "END\n")]);
+    let (code, log) = project.start().finish();
     assert_eq!(code, 1);
-    let log = log.join(
-        "
-",
-    );
+    let log = log.join("\n");
     assert!(log.contains("GPIO chip `/dev/gpiochip-plcd-test` not found"), "{log}");
 }
 
 #[test]
 fn a_broken_stimulus_file_is_located() {
     let config = "[[program]]\nfile = \"main.il\"\n[io]\nstimulus = \"inputs.csv\"\n";
-    let project = Project::new(
+    let project = project(
         "badstim",
         &[
             ("plcd.toml", config),
@@ -306,27 +193,22 @@ fn a_broken_stimulus_file_is_located() {
             ("inputs.csv", "10ms, P0000, 1\nsoon, P0000, 0\n"),
         ],
     );
-    let (code, log) = Daemon::start(&project.config(), &[]).finish();
+    let (code, log) = project.start().finish();
     assert_eq!(code, 1);
-    let log = log.join(
-        "
-",
-    );
+    let log = log.join("\n");
     assert!(log.contains("inputs.csv:2:1: error:"), "{log}");
 }
 
 #[test]
 fn the_service_manager_hears_ready_status_watchdog_and_stopping() {
     let project = conveyor("notify");
-    let socket = project.dir.join("notify.sock");
+    let socket = project.path("notify.sock");
     let listener = UnixDatagram::bind(&socket).unwrap();
     listener.set_read_timeout(Some(PATIENCE)).unwrap();
     let socket_env = socket.to_str().unwrap().to_string();
     // WATCHDOG_USEC = 200 ms: keepalives every 100 ms while the engine makes progress.
-    let daemon = Daemon::start(
-        &project.config(),
-        &[("NOTIFY_SOCKET", &socket_env), ("WATCHDOG_USEC", "200000")],
-    );
+    let daemon =
+        project.start_with(&[], &[("NOTIFY_SOCKET", &socket_env), ("WATCHDOG_USEC", "200000")]);
     let mut heard: Vec<String> = Vec::new();
     let mut buf = [0u8; 4096];
     while heard.iter().filter(|m| m.as_str() == "WATCHDOG=1").count() < 3
@@ -353,8 +235,8 @@ fn real_time_that_cannot_be_had_is_a_warning_or_with_require_a_refusal() {
     let config = |require: bool| {
         format!("[rt]\nscan_cpus = [1000]\nrequire = {require}\n[[program]]\nfile = \"main.il\"\n")
     };
-    let project = Project::new("rtwarn", &[("plcd.toml", &config(false)), ("main.il", "END\n")]);
-    let daemon = Daemon::start(&project.config(), &[]);
+    let project = project("rtwarn", &[("plcd.toml", &config(false)), ("main.il", "END\n")]);
+    let daemon = project.start();
     let warning = daemon.wait_for("running without full real-time guarantees");
     assert!(
         daemon.lines()[warning].contains("scan thread: sched_setaffinity"),
@@ -365,13 +247,10 @@ fn real_time_that_cannot_be_had_is_a_warning_or_with_require_a_refusal() {
     let (code, _) = daemon.stop();
     assert_eq!(code, 0);
 
-    project.write("plcd.toml", &config(true));
-    let (code, log) = Daemon::start(&project.config(), &[]).finish();
+    write(&project, "plcd.toml", &config(true));
+    let (code, log) = project.start().finish();
     assert_eq!(code, 1);
-    let log = log.join(
-        "
-",
-    );
+    let log = log.join("\n");
     assert!(
         log.contains(
             "real time required by [rt] require = true, but: scan thread: sched_setaffinity"
@@ -386,10 +265,10 @@ fn a_looping_stimulus_replays_its_edges() {
     let config = CONVEYOR
         .replace("stimulus = \"inputs.csv\"", "stimulus = \"inputs.csv\"\nstimulus_loop = true");
     let project = conveyor("loop");
-    project.write("plcd.toml", &config);
+    write(&project, "plcd.toml", &config);
     // One pass is 400 ms with three edges; the ninth edge needs a third pass.
-    project.write("main.il", "LOAD>= D00000 9\nOUT P0042\nEND\n");
-    let daemon = Daemon::start(&project.config(), &[]);
+    write(&project, "main.il", "LOAD>= D00000 9\nOUT P0042\nEND\n");
+    let daemon = project.start();
     daemon.wait_for("P0042 = 1");
     let (code, _) = daemon.stop();
     assert_eq!(code, 0);

@@ -8,13 +8,10 @@
 //!
 //! (The first END compares with the sample taken at RUN start: M0000 = 0.)
 
-use std::path::Path;
+mod harness;
 
-use plcd::config;
 use plcd::device::Address;
-use plcd::drivers::virtual_time::{simulate, SimOptions};
-use plcd::engine::event::{Event, Recorder};
-use plcd::project;
+use plcd::engine::event::Event;
 use plcd::stimulus::{Stimulus, Target};
 
 const SCAN: &str = "INC D00100\nLOAD= D00100 2\nOR= D00100 3\nOUT M0000\n\
@@ -32,14 +29,10 @@ fn starts(tasks: &[(&str, &str)], stimuli: &[Stimulus]) -> Vec<(String, usize)> 
         let kind_number = if condition.contains("\"io\"") { 8 } else { 16 };
         text += &format!("number = {}\n", kind_number + number);
     }
-    let config = config::parse(&text, Path::new("conditions.toml")).expect("config");
-    let project = project::from_config(config, |path| {
-        Ok(if path.ends_with("scan.il") { SCAN.to_string() } else { "END\n".to_string() })
-    })
-    .expect("project");
-    let mut recorder = Recorder::default();
-    let options = SimOptions { duration_ns: 1_000_000, step_ns: 1000 };
-    let engine = simulate(&project, stimuli, &[], options, &mut recorder);
+    let project = harness::engine::project_from(harness::engine::config(&text), |file| {
+        if file == "scan.il" { SCAN } else { "END\n" }.to_string()
+    });
+    let (engine, recorder) = harness::engine::sim(&project, stimuli, &[], 1_000_000);
     let names = engine.task_names();
     let sixth = recorder.0.iter().position(|(_, e)| *e == Event::ScanStart { n: 6 }).unwrap();
     tasks

@@ -2,140 +2,24 @@
 //! rules of XGB §5.2.3 with and without a key switch, a latched error and reset, DEBUG mode
 //! (step, breakpoints, continue), the scan-boundary hold and online change.
 
-use std::path::Path;
+mod harness;
 
-use plcd::config::{self, SwitchConfig};
-use plcd::device::{Address, BitRef, Memory};
+use plcd::config::SwitchConfig;
 use plcd::engine::debug;
 use plcd::engine::event::{Event, Mode, Recorder};
 use plcd::engine::{online, Activity, Engine, ModeRequest, Refusal};
-use plcd::io::{Io, SwitchPosition};
-use plcd::project::{self, Project};
-use plcd::vm::{Clock, StepClock};
+use plcd::io::SwitchPosition;
+use plcd::project::Project;
 
-const MS: u64 = 1_000_000;
+use harness::engine::{bit, project_of, Field, Plc, MS};
 
-/// A field the test holds in its hands: input words, the outputs as last refreshed, a switch.
-struct Field {
-    inputs: [u16; 128],
-    input_mask: [u16; 128],
-    outputs: [u16; 128],
-    switch: Option<SwitchPosition>,
-}
-
-impl Default for Field {
-    fn default() -> Self {
-        Field { inputs: [0; 128], input_mask: [0; 128], outputs: [0; 128], switch: None }
-    }
-}
-
-impl Io for Field {
-    fn refresh_inputs(&mut self, mem: &mut Memory) {
-        for (w, word) in mem.io_image_mut().iter_mut().enumerate() {
-            let m = self.input_mask[w];
-            *word = (*word & !m) | (self.inputs[w] & m);
-        }
-    }
-    fn refresh_outputs(&mut self, mem: &Memory) {
-        for (w, word) in mem.io_image().iter().enumerate() {
-            self.outputs[w] = word & !self.input_mask[w];
-        }
-    }
-    fn switch(&self) -> Option<SwitchPosition> {
-        self.switch
-    }
-    fn is_input(&self, bit: BitRef) -> bool {
-        self.input_mask[bit.word as usize] & bit.mask != 0
-    }
-}
-
-impl Field {
-    fn input(&mut self, dev: &str, on: bool) {
-        let b = bit(dev);
-        self.input_mask[b.word as usize] |= b.mask;
-        if on {
-            self.inputs[b.word as usize] |= b.mask;
-        } else {
-            self.inputs[b.word as usize] &= !b.mask;
-        }
-    }
-    fn output(&self, dev: &str) -> bool {
-        let b = bit(dev);
-        self.outputs[b.word as usize] & b.mask != 0
-    }
-}
-
-fn bit(dev: &str) -> BitRef {
-    Address::parse(dev).unwrap().as_bit().unwrap()
-}
-
+/// A project of `config` and `programs`, with a key switch (`[switch]` as default) or without.
 fn project(config: &str, programs: &[(&str, &str)], switch: bool) -> Project {
-    let mut config = config::parse(config, Path::new("control.toml")).expect("config");
+    let mut config = harness::engine::config(config);
     if switch {
         config.switch = Some(SwitchConfig::default());
     }
-    project::from_config(config, |path| {
-        let name = path.file_name().unwrap().to_str().unwrap();
-        Ok(programs.iter().find(|(file, _)| *file == name).expect(name).1.to_string())
-    })
-    .expect("project")
-}
-
-/// The engine on a 1 µs-per-instruction clock, driven the way the simulator drives it.
-struct Plc {
-    engine: Engine,
-    field: Field,
-    events: Recorder,
-    clock: StepClock,
-}
-
-impl Plc {
-    fn new(project: &Project) -> Plc {
-        let engine = Engine::new(project, &[]);
-        let clock = StepClock { origin_ns: 0, origin_steps: engine.steps(), step_ns: 1000 };
-        Plc { engine, field: Field::default(), events: Recorder::default(), clock }
-    }
-
-    fn now(&self) -> u64 {
-        self.clock.now_ns(self.engine.steps())
-    }
-
-    fn run_for(&mut self, ns: u64) {
-        let end = self.now() + ns;
-        loop {
-            let now = self.now();
-            if now >= end {
-                break;
-            }
-            self.engine.poll_time(now, &mut self.field, &mut self.events);
-            if self.engine.run(&self.clock, &mut self.field, &mut self.events, 100)
-                == Activity::Idle
-            {
-                let next = self.engine.next_wakeup(now).unwrap_or(end).clamp(now + 1, end);
-                self.clock.rebase(next, self.engine.steps());
-            }
-        }
-    }
-
-    fn request(&mut self, request: ModeRequest) -> Result<(), Refusal> {
-        let now = self.now();
-        self.engine.request_mode(request, now, &mut self.field, &mut self.events)
-    }
-
-    fn read(&self, dev: &str) -> i32 {
-        self.engine.vm().mem.read(&Address::parse(dev).unwrap())
-    }
-
-    fn modes(&self) -> Vec<Mode> {
-        self.events
-            .0
-            .iter()
-            .filter_map(|(_, e)| match e {
-                Event::Mode(m) => Some(*m),
-                _ => None,
-            })
-            .collect()
-    }
+    project_of(config, programs)
 }
 
 const SCAN: &str = "[[program]]\nfile = \"main.il\"\n";
@@ -249,7 +133,7 @@ fn an_error_is_latched_until_reset_and_a_cold_reset_clears_retained_memory() {
     let mut plc = Plc::new(&p);
     assert_eq!(plc.request(ModeRequest::Run), Ok(()));
     plc.run_for(MS);
-    plc.engine.write(&Address::parse("M0000").unwrap(), 1);
+    plc.write("M0000", 1);
     plc.run_for(50 * MS);
     assert_eq!(plc.engine.mode(), Mode::Error, "the endless loop tripped the watchdog");
     assert!(plc.engine.latched_error().is_some());
@@ -393,7 +277,7 @@ fn online_change_keeps_memory_and_fires_no_edge() {
     let mut plc = Plc::new(&old);
     plc.field.input("P0000", true);
     plc.request(ModeRequest::Run).unwrap();
-    plc.engine.write(&Address::parse("M0000").unwrap(), 1);
+    plc.write("M0000", 1);
     plc.run_for(MS);
     let scans = plc.engine.scan_count();
     let counted = plc.read("D00000");
@@ -447,12 +331,10 @@ fn an_incompatible_online_change_is_refused_with_reasons() {
 
 #[test]
 fn plcd_sim_follows_the_simulated_key_switch() {
-    use plcd::drivers::virtual_time::{simulate, SimOptions};
     use plcd::stimulus::{Stimulus, Target};
     let config =
         "[io]\nbackend = \"sim\"\n[switch]\nposition = \"stop\"\n[[program]]\nfile = \"main.il\"\n";
-    let config = config::parse(config, Path::new("switch.toml")).expect("config");
-    let p = project::from_config(config, |_| Ok("INC D00000\nEND\n".to_string())).unwrap();
+    let p = project(config, &[("main.il", "INC D00000\nEND\n")], false);
     let switch = |ms: u64, position| Stimulus {
         t_ns: ms * MS,
         target: Target::Switch(position),
@@ -461,9 +343,7 @@ fn plcd_sim_follows_the_simulated_key_switch() {
     };
     // In STOP the inputs (and the switch) are read every 10 ms, in RUN at every scan.
     let stimuli = [switch(5, SwitchPosition::Run), switch(15, SwitchPosition::Stop)];
-    let mut events = Recorder::default();
-    let options = SimOptions { duration_ns: 20 * MS, step_ns: 1000 };
-    let engine = simulate(&p, &stimuli, &[], options, &mut events);
+    let (engine, events) = harness::engine::sim(&p, &stimuli, &[], 20 * MS);
     let seen: Vec<(u64, Event)> = events
         .0
         .into_iter()

@@ -2,31 +2,20 @@
 //! execution time without preemption, overruns, ignored requests and scan time. Every
 //! instruction costs 1 µs, so each figure is known exactly from the programs.
 
-use std::path::Path;
+mod harness;
 
-use plcd::config;
 use plcd::device::Address;
-use plcd::drivers::virtual_time::{simulate, SimOptions};
 use plcd::engine::event::Recorder;
 use plcd::engine::Engine;
-use plcd::project;
 use plcd::stimulus::{Stimulus, Target};
 
 const US: u64 = 1000;
 
 /// Runs `tasks` (TOML) with programs by file name for `ms` of virtual time.
 fn run(tasks: &str, programs: &[(&str, &str)], stimuli: &[Stimulus], ms: u64) -> Engine {
-    let mut text = String::from("[sim]\nstep_ns = 1000\n");
-    text += tasks;
-    let config = config::parse(&text, Path::new("stats.toml")).expect("config");
-    let project = project::from_config(config, |path| {
-        let name = path.file_name().unwrap().to_str().unwrap();
-        let source = programs.iter().find(|(file, _)| *file == name).expect(name).1;
-        Ok(source.to_string())
-    })
-    .expect("project");
-    let options = SimOptions { duration_ns: ms * 1_000_000, step_ns: 1000 };
-    simulate(&project, stimuli, &[], options, &mut Recorder::default())
+    let text = format!("[sim]\nstep_ns = 1000\n{tasks}");
+    let project = harness::engine::project(&text, programs);
+    harness::engine::sim(&project, stimuli, &[], ms * 1_000_000).0
 }
 
 /// A scan program of `n` instructions.
@@ -145,8 +134,7 @@ fn a_late_poll_counts_from_the_deadline_not_from_the_poll() {
         "[[program]]\nfile = \"scan.il\"\n[[program]]\nfile = \"tick.il\"\ntask = \"tick\"\n\
                 [[task]]\nname = \"tick\"\nkind = \"cycle\"\nnumber = 0\npriority = 3\n\
                 interval_ms = 1\n[plc]\nscan_period_ms = 100\n";
-    let config = config::parse(text, Path::new("late.toml")).expect("config");
-    let project = project::from_config(config, |_| Ok("END\n".to_string())).expect("project");
+    let project = harness::engine::project(text, &[("scan.il", "END\n"), ("tick.il", "END\n")]);
     let mut engine = Engine::new(&project, &[]);
     let mut io = plcd::io::simulated::SimulatedIo::default();
     let mut sink = Recorder::default();

@@ -4,13 +4,10 @@
 //! address once and compares the resolved device (benches/scaling.rs: the comparison runs for
 //! every output bit at every END and task end).
 
-use std::path::Path;
+mod harness;
 
-use plcd::config;
 use plcd::device::Address;
-use plcd::drivers::virtual_time::{simulate, SimOptions};
-use plcd::engine::event::{Event, Recorder};
-use plcd::project;
+use plcd::engine::event::Event;
 
 const CONFIG: &str = r#"
 [sim]
@@ -39,16 +36,10 @@ const WATCH: [&str; 8] = ["P0040", "M0005", "D00011", "T1500", "T1500", "C0000",
 
 #[test]
 fn watched_devices_report_their_values_at_end_and_task_end() {
-    let config = config::parse(CONFIG, Path::new("watches.toml")).expect("config");
-    let project = project::from_config(config, |path| {
-        Ok(if path.ends_with("scan.il") { SCAN } else { TICK }.to_string())
-    })
-    .expect("project");
+    let project = harness::engine::project(CONFIG, &[("scan.il", SCAN), ("tick.il", TICK)]);
     // T1500 twice: as a word (its current value); "T1500" is never a bit address.
     let watch: Vec<Address> = WATCH.iter().map(|a| Address::parse(a).unwrap()).collect();
-    let options = SimOptions { duration_ns: 5_000_000, step_ns: 1000 };
-    let mut recorder = Recorder::default();
-    let engine = simulate(&project, &[], &watch, options, &mut recorder);
+    let (engine, recorder) = harness::engine::sim(&project, &[], &watch, 5_000_000);
 
     let sets = |index: u16| -> Vec<(u64, i32)> {
         recorder

@@ -1,11 +1,75 @@
-//! Golden diagnostics: every `.il` under tests/golden/lang must produce exactly the lines of
-//! its `.expected` file, and `plcd check` on tests/golden/project exactly `expected.stderr`.
-//! The expected files are written by hand from the rules in docs/LANGUAGE.md.
-mod common;
+//! Golden diagnostics: what `plcd check` and `plcd sim --inputs` print for a broken project,
+//! byte for byte.
+//!
+//! - Every error at once: each `.il` under `tests/golden/lang` produces exactly the lines of its
+//!   `.expected` file, and `plcd check` on `tests/golden/config` and `tests/golden/project`
+//!   exactly their `expected.stderr`.
+//! - One case per diagnostic: each directory `tests/golden/<area>/<diagnostic>/` is a minimal
+//!   project that makes the real binary report that one diagnostic and nothing else, with its
+//!   stderr in `expected.stderr`. The areas are where the message comes from: `lang` (the
+//!   assembler), `config` (the config file), `project` (the rules across programs) and
+//!   `stimulus` (an inputs file). A case is `plcd check --config plcd.toml` run in its
+//!   directory, or `plcd sim --config plcd.toml --for 1ms --inputs inputs.csv` when it has an
+//!   `inputs.csv`; either must exit 1 with nothing on stdout.
+//!
+//! `PLCD_BLESS=1 cargo test --test golden_diagnostics` writes what the binary prints to every
+//! expected file that differs (and says which) instead of failing; `git diff` then shows what
+//! changed. A case that reports other than one diagnostic fails either way.
+
+mod harness;
 
 use std::fs;
-use std::path::Path;
-use std::process::Command;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The variable that rewrites expected files instead of comparing them.
+const BLESS: &str = "PLCD_BLESS";
+
+/// The directories of one case per diagnostic, by where the messages come from.
+const AREAS: [&str; 4] = ["lang", "config", "project", "stimulus"];
+
+/// The cases whose diagnostic never comes alone, and how many diagnostics they report.
+const NOT_ALONE: &[(&str, usize)] = &[
+    // A subroutine before `END` leaves the main routine there: the `END` that follows is
+    // outside it, and without one the program has no `END`.
+    ("lang/sbrt-before-end", 2),
+];
+
+fn bless() -> bool {
+    harness::skip::required(BLESS)
+}
+
+/// Compares `actual` with the file `expected`; `None` when they agree or the file was blessed,
+/// else what differs.
+fn compare_or_bless(expected: &Path, actual: &str) -> Option<String> {
+    let old = fs::read_to_string(expected).unwrap_or_default();
+    if old == actual {
+        return None;
+    }
+    if bless() {
+        fs::write(expected, actual).unwrap_or_else(|e| panic!("{}: {e}", expected.display()));
+        let line = format!("{BLESS}: rewrote {}\n", expected.display());
+        let _ = std::io::stderr().write_all(line.as_bytes());
+        return None;
+    }
+    Some(format!(
+        "{} (PLCD_BLESS=1 rewrites it):\n--- expected\n{old}--- actual\n{actual}",
+        expected.display()
+    ))
+}
+
+fn plcd(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_plcd")).current_dir(dir).args(args).output().unwrap()
+}
+
+fn stdout(output: &Output) -> String {
+    String::from_utf8_lossy(&output.stdout).into_owned()
+}
+
+fn stderr(output: &Output) -> String {
+    String::from_utf8_lossy(&output.stderr).into_owned()
+}
 
 #[test]
 fn language_goldens() {
@@ -17,17 +81,17 @@ fn language_goldens() {
             continue;
         }
         let source = fs::read_to_string(&path).unwrap();
-        let expected = fs::read_to_string(path.with_extension("expected")).unwrap();
         let relative = Path::new("tests/golden/lang").join(path.file_name().unwrap());
-        let actual =
-            match plcd::lang::assemble("golden", &relative, &source, &common::context(false)) {
-                Ok(_) => String::new(),
-                Err(diags) => diags.to_string(),
-            };
-        if actual != expected {
-            failures
-                .push(format!("{}:\n--- expected\n{expected}--- actual\n{actual}", path.display()));
-        }
+        let actual = match plcd::lang::assemble(
+            "golden",
+            &relative,
+            &source,
+            &harness::vm::context(false),
+        ) {
+            Ok(_) => String::new(),
+            Err(diags) => diags.to_string(),
+        };
+        failures.extend(compare_or_bless(&path.with_extension("expected"), &actual));
         checked += 1;
     }
     assert!(checked >= 4, "golden files missing");
@@ -37,14 +101,13 @@ fn language_goldens() {
 /// `plcd check` on `tests/golden/<name>/plcd.toml` fails with exactly `expected.stderr`.
 fn check_golden(name: &str) {
     let config = format!("tests/golden/{name}/plcd.toml");
-    let output = Command::new(env!("CARGO_BIN_EXE_plcd"))
-        .args(["check", "--config", &config])
-        .output()
-        .unwrap();
-    assert_eq!(output.status.code(), Some(1));
-    let expected = fs::read_to_string(format!("tests/golden/{name}/expected.stderr")).unwrap();
-    assert_eq!(String::from_utf8_lossy(&output.stderr), expected);
-    assert!(output.stdout.is_empty());
+    let output = plcd(Path::new("."), &["check", "--config", &config]);
+    assert_eq!(output.status.code(), Some(1), "{}", stderr(&output));
+    let expected = format!("tests/golden/{name}/expected.stderr");
+    if let Some(failure) = compare_or_bless(Path::new(&expected), &stderr(&output)) {
+        panic!("{failure}");
+    }
+    assert_eq!(stdout(&output), "");
 }
 
 #[test]
@@ -57,30 +120,76 @@ fn check_reports_every_config_error() {
     check_golden("config");
 }
 
+/// The case directories of one area, sorted.
+fn cases(area: &str) -> Vec<PathBuf> {
+    let mut dirs: Vec<PathBuf> = fs::read_dir(Path::new("tests/golden").join(area))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_dir())
+        .collect();
+    dirs.sort();
+    dirs
+}
+
+/// Runs one case; what is wrong with it, if anything.
+fn run_case(dir: &Path) -> Option<String> {
+    // A symlink counts, dangling or not: the case of an inputs file that cannot be read.
+    let sim = fs::symlink_metadata(dir.join("inputs.csv")).is_ok();
+    let output = if sim {
+        plcd(dir, &["sim", "--config", "plcd.toml", "--for", "1ms", "--inputs", "inputs.csv"])
+    } else {
+        plcd(dir, &["check", "--config", "plcd.toml"])
+    };
+    let (out, err) = (stdout(&output), stderr(&output));
+    if output.status.code() != Some(1) || !out.is_empty() {
+        return Some(format!(
+            "{}: exit {:?}, expected 1 with nothing on stdout\n--- stdout\n{out}--- stderr\n{err}",
+            dir.display(),
+            output.status.code()
+        ));
+    }
+    // One diagnostic (or the few of a case in NOT_ALONE), and for `check` their count.
+    let case = dir.strip_prefix("tests/golden").unwrap().to_string_lossy().into_owned();
+    let wanted = NOT_ALONE.iter().find(|(c, _)| *c == case).map_or(1, |(_, n)| *n);
+    let reported = err.lines().filter(|l| l.contains(": error: ")).count();
+    let counted = sim || err.ends_with(&format!("plcd.toml: {wanted} error(s)\n"));
+    if reported != wanted || !counted {
+        return Some(format!("{}: {reported} diagnostics, not {wanted}:\n{err}", dir.display()));
+    }
+    compare_or_bless(&dir.join("expected.stderr"), &err)
+}
+
+#[test]
+fn one_golden_file_per_diagnostic() {
+    let mut failures = Vec::new();
+    let mut counted = Vec::new();
+    for area in AREAS {
+        let cases = cases(area);
+        counted.push(format!("{area}: {}", cases.len()));
+        assert!(!cases.is_empty(), "no cases under tests/golden/{area}");
+        failures.extend(cases.iter().filter_map(|dir| run_case(dir)));
+    }
+    assert!(failures.is_empty(), "{}\n\n{}", failures.join("\n"), counted.join(", "));
+}
+
 #[test]
 fn check_names_a_missing_config() {
-    let output = Command::new(env!("CARGO_BIN_EXE_plcd"))
-        .args(["check", "--config", "tests/golden/no-such.toml"])
-        .output()
-        .unwrap();
+    let output = plcd(Path::new("."), &["check", "--config", "tests/golden/no-such.toml"]);
     assert_eq!(output.status.code(), Some(1));
-    let stderr = String::from_utf8_lossy(&output.stderr);
+    let stderr = stderr(&output);
     assert!(stderr.starts_with("tests/golden/no-such.toml:0:0: error: "), "{stderr}");
     assert!(stderr.contains("No such file"), "{stderr}");
 }
 
 #[test]
 fn usage_errors_exit_2() {
-    let output = Command::new(env!("CARGO_BIN_EXE_plcd")).args(["check"]).output().unwrap();
+    let output = plcd(Path::new("."), &["check"]);
     assert_eq!(output.status.code(), Some(2));
 }
 
 #[test]
 fn check_accepts_the_example_project() {
-    let output = Command::new(env!("CARGO_BIN_EXE_plcd"))
-        .args(["check", "--config", "etc/plcd.toml"])
-        .output()
-        .unwrap();
-    assert_eq!(output.status.code(), Some(0), "{}", String::from_utf8_lossy(&output.stderr));
-    assert!(String::from_utf8_lossy(&output.stdout).contains("ok: 5 program(s)"));
+    let output = plcd(Path::new("."), &["check", "--config", "etc/plcd.toml"]);
+    assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
+    assert!(stdout(&output).contains("ok: 5 program(s)"));
 }

@@ -6,22 +6,17 @@
 //! Real time is only waited on, never asserted: each check waits for a state with a generous
 //! bound, and the one timing assertion (the idle timeout) is a lower bound.
 
-#[path = "common_daemon/mod.rs"]
-mod common_daemon;
+mod harness;
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
-use std::path::PathBuf;
-use std::process::{Child, Command, Output};
-use std::sync::{Arc, Mutex};
+use std::process::Output;
 use std::time::{Duration, Instant};
 
-use nix::sys::signal::{kill, Signal};
-use nix::unistd::Pid;
+use nix::sys::signal::Signal;
 
-use common_daemon::{spawn_plcd, Spawned};
-
-const PATIENCE: Duration = Duration::from_secs(20);
+use harness::daemon::{Daemon, Project};
+use harness::log::PATIENCE;
 
 /// Scan program: D00400 counts scans (holding register 1050); M0000 is copied to M0010 (coil 16); P0000 to P0040;
 /// D00300 counts the scans that saw D00000 differ from D00122 or M0000 from M007F.
@@ -50,23 +45,19 @@ fn config(modbus: &str) -> String {
 }
 
 struct Plc {
-    dir: PathBuf,
-    child: Option<Child>,
-    log: Arc<Mutex<Vec<String>>>,
+    // Declared first, dropped first: the daemon is gone before its directory is removed.
+    daemon: Daemon,
+    project: Project,
     addr: SocketAddr,
 }
 
 impl Plc {
     fn start(name: &str, modbus: &str) -> Plc {
-        let dir = std::env::temp_dir().join(format!("plcd-modbus-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        std::fs::write(dir.join("plcd.toml"), config(modbus)).unwrap();
-        std::fs::write(dir.join("main.il"), MAIN).unwrap();
-        let (child, log) = spawn(&dir);
-        let mut plc = Plc { dir, child: Some(child), log, addr: "0.0.0.0:0".parse().unwrap() };
-        let line = plc.wait_for_log("modbus: serving ");
-        plc.addr = line.rsplit(' ').next().unwrap().parse().unwrap();
+        let project = project(name, modbus);
+        let daemon = start(&project);
+        let line = daemon.wait_for_line("modbus: serving ");
+        let addr = line.rsplit(' ').next().unwrap().parse().unwrap();
+        let plc = Plc { daemon, project, addr };
         // Through the control socket: a Modbus probe would take one of the connections that
         // a test may limit.
         plc.wait(|p| p.scans() > 2, "scans");
@@ -100,74 +91,36 @@ impl Plc {
     }
 
     fn ctl(&self, args: &[&str]) -> Output {
-        Command::new(common_daemon::plcctl_binary())
-            .arg("--socket")
-            .arg(self.dir.join("plcd.sock"))
-            .args(args)
-            .output()
-            .expect("plcctl runs")
+        self.project.plcctl(args)
     }
 
     fn wait(&self, mut done: impl FnMut(&Plc) -> bool, what: &str) {
-        let start = Instant::now();
-        while !done(self) {
-            assert!(
-                start.elapsed() < PATIENCE,
-                "waited for {what}; log:\n{}",
-                self.log().join("\n")
-            );
-            std::thread::sleep(Duration::from_millis(10));
-        }
+        self.daemon.wait(what, || done(self));
     }
 
-    fn log(&self) -> Vec<String> {
-        self.log.lock().unwrap().clone()
-    }
-
-    fn wait_for_log(&self, text: &str) -> String {
-        let mut found = String::new();
-        self.wait(
-            |p| match p.log().iter().find(|l| l.contains(text)) {
-                Some(line) => {
-                    found = line.clone();
-                    true
-                }
-                None => false,
-            },
-            text,
-        );
-        found
-    }
-
-    /// The scan count goes on and a new connection is answered.
-    fn assert_unharmed(&self) {
+    /// The daemon still runs, the scan count goes on and a new connection is answered.
+    fn assert_unharmed(&mut self) {
+        assert!(self.daemon.running(), "plcd exited:\n{}", self.daemon.log().text());
         let before = self.read_holdings(1050, 1)[0];
         self.wait(|p| p.read_holdings(1050, 1)[0] != before, "the scan to go on");
-        assert!(self.child.as_ref().is_some(), "still running");
     }
 
-    fn stop(mut self) -> Vec<String> {
-        let mut child = self.child.take().unwrap();
-        kill(Pid::from_raw(child.id() as i32), Signal::SIGTERM).unwrap();
-        assert_eq!(child.wait().unwrap().code(), Some(0), "clean stop");
-        self.log()
-    }
-}
-
-impl Drop for Plc {
-    fn drop(&mut self) {
-        if let Some(mut child) = self.child.take() {
-            let _ = child.kill();
-            let _ = child.wait();
-        }
-        let _ = std::fs::remove_dir_all(&self.dir);
+    /// SIGTERM: a clean stop; the whole log.
+    fn stop(self) -> Vec<String> {
+        let (code, log) = self.daemon.stop();
+        assert_eq!(code, 0, "clean stop:\n{}", log.join("\n"));
+        log
     }
 }
 
-fn spawn(dir: &std::path::Path) -> (Child, Arc<Mutex<Vec<String>>>) {
-    let Spawned { child, log, .. } =
-        spawn_plcd(&["--log-level", "debug"], &dir.join("plcd.toml"), &[]);
-    (child, log)
+/// A project of the scan program and a config with `modbus` added to `[modbus]`.
+fn project(name: &str, modbus: &str) -> Project {
+    Project::new(&format!("modbus-{name}"), &[("plcd.toml", &config(modbus)), ("main.il", MAIN)])
+}
+
+/// The daemon on `project`, logging at debug level.
+fn start(project: &Project) -> Daemon {
+    project.start_with(&["--log-level", "debug"], &[])
 }
 
 fn frame(transaction: u16, unit: u8, pdu: &[u8]) -> Vec<u8> {
@@ -355,7 +308,7 @@ fn every_exception_is_answered_and_the_connection_stays_usable() {
 
 #[test]
 fn malformed_frames_close_the_connection_and_leave_the_daemon_unharmed() {
-    let plc = Plc::start("malformed", "");
+    let mut plc = Plc::start("malformed", "");
     let garbage: Vec<(&str, Vec<u8>)> = vec![
         ("a truncated MBAP header", vec![0, 1, 0, 0]),
         ("a frame cut short", frame(1, 1, &read(3, 0, 1))[..9].to_vec()),
@@ -411,7 +364,7 @@ fn malformed_frames_close_the_connection_and_leave_the_daemon_unharmed() {
 
 #[test]
 fn twenty_concurrent_clients_each_read_their_own_writes() {
-    let plc = Plc::start("clients", "");
+    let mut plc = Plc::start("clients", "");
     let addr = plc.addr;
     let clients: Vec<_> = (0..20u16)
         .map(|k| {
@@ -472,7 +425,7 @@ fn connections_and_idle_time_are_bounded() {
     let mut third = plc.connect();
     let _ = third.write_all(&frame(1, 1, &read(3, 0, 1)));
     assert!(closed(&mut third), "a third connection is closed at once");
-    plc.wait_for_log("max_connections");
+    plc.daemon.wait_for("max_connections");
     // Idle for a second: closed, not before.
     assert!(closed(&mut a));
     assert!(idle.elapsed() >= Duration::from_secs(1), "closed after {:?}", idle.elapsed());
@@ -506,12 +459,12 @@ fn writes_in_stop_are_applied_and_forced_bits_keep_their_force() {
 
 #[test]
 fn a_reload_with_another_map_is_refused_and_the_old_map_served() {
-    let plc = Plc::start("reload", "");
-    let path = plc.dir.join("plcd.toml");
+    let mut plc = Plc::start("reload", "");
+    let path = plc.project.config();
     let text = std::fs::read_to_string(&path).unwrap().replace("start = 1050", "start = 1051");
-    std::fs::write(&path, text).unwrap();
-    kill(Pid::from_raw(plc.child.as_ref().unwrap().id() as i32), Signal::SIGHUP).unwrap();
-    plc.wait_for_log("reload refused: [modbus] changed");
+    plc.project.write("plcd.toml", &text);
+    plc.daemon.signal(Signal::SIGHUP);
+    plc.daemon.wait_for("reload refused: [modbus] changed");
     assert_eq!(plc.request(&read(3, 1051, 1)), exception(3, 2), "the new map is not served");
     plc.assert_unharmed();
     plc.stop();
@@ -521,17 +474,12 @@ fn a_reload_with_another_map_is_refused_and_the_old_map_served() {
 fn a_port_in_use_stops_the_start() {
     let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let port = taken.local_addr().unwrap().port();
-    let dir = std::env::temp_dir().join(format!("plcd-modbus-inuse-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let project = project("inuse", "");
     let text = config("").replace("127.0.0.1:0", &format!("127.0.0.1:{port}"));
-    std::fs::write(dir.join("plcd.toml"), text).unwrap();
-    std::fs::write(dir.join("main.il"), MAIN).unwrap();
-    let (mut child, log) = spawn(&dir);
-    let status = child.wait().unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
-    std::thread::sleep(Duration::from_millis(50));
-    let log = log.lock().unwrap().join("\n");
-    assert_eq!(status.code(), Some(1), "{log}");
+    project.write("plcd.toml", &text);
+    // The daemon exits by itself; its last line is read before the log is looked at.
+    let (code, log) = start(&project).finish();
+    let log = log.join("\n");
+    assert_eq!(code, 1, "{log}");
     assert!(log.contains(&format!("cannot listen on 127.0.0.1:{port}")), "{log}");
 }

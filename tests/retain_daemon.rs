@@ -8,130 +8,60 @@
 //! ([`plcd::services::retain::newest_in`]) is reading the last acknowledged write. Every assertion is an
 //! ordering or a lower bound; waits are for an event, bounded by a generous patience.
 
+mod harness;
+
 use std::fs::File;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
+use std::time::Duration;
 
+use nix::sys::signal::Signal;
 use plcd::services::retain::{newest_in, Generation};
 
-#[allow(dead_code)]
-// this test starts plcd its own way: its log goes to a file that survives kill -9
-mod common_daemon;
+use harness::daemon::{Daemon, Project};
+use harness::log::{wait_until, PATIENCE};
 
-const PATIENCE: Duration = Duration::from_secs(20);
+/// The log file of every start of a project's daemon: appended to, it survives `kill -9`.
+const LOG: &str = "plcd.log";
 
-struct Project {
-    dir: PathBuf,
-}
+/// A project of these tests: its retain files go to `retain/`, its log to [`LOG`].
+struct Retained(Project);
 
-impl Project {
-    fn new(name: &str) -> Project {
-        let dir =
-            std::env::temp_dir().join(format!("plcd-retain-daemon-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Project { dir }
+impl Retained {
+    fn new(name: &str) -> Retained {
+        Retained(Project::new(&format!("retain-daemon-{name}"), &[]))
     }
 
     fn write(&self, file: &str, text: &str) {
-        std::fs::write(self.dir.join(file), text).unwrap();
-    }
-
-    fn config(&self) -> PathBuf {
-        self.dir.join("plcd.toml")
+        self.0.write(file, text);
     }
 
     fn retain_dir(&self) -> PathBuf {
-        self.dir.join("retain")
+        self.0.path("retain")
     }
 
     fn log(&self) -> String {
-        std::fs::read_to_string(self.dir.join("plcd.log")).unwrap_or_default()
+        harness::log::Log::File(self.0.path(LOG)).text()
     }
 
-    /// Starts `plcd run`, its log appended to plcd.log.
+    /// Starts `plcd run`, its log appended to [`LOG`].
     fn start(&self) -> Daemon {
-        let log =
-            File::options().create(true).append(true).open(self.dir.join("plcd.log")).unwrap();
-        let child = Command::new(env!("CARGO_BIN_EXE_plcd"))
-            .args(["run", "--config"])
-            .arg(self.config())
-            .env_remove("NOTIFY_SOCKET")
-            .env_remove("WATCHDOG_USEC")
-            .env_remove("JOURNAL_STREAM")
-            .env_remove("STATE_DIRECTORY")
-            .stdout(Stdio::null())
-            .stderr(Stdio::from(log))
-            .spawn()
-            .expect("plcd starts");
-        Daemon { child }
+        self.0.start_logging_to(LOG)
     }
 
     /// Waits until the newest generation on disk satisfies `done`; it.
     fn wait_for_generation(&self, what: &str, done: impl Fn(&Generation) -> bool) -> Generation {
-        let start = Instant::now();
-        loop {
-            if let Some(g) = newest_in(&self.retain_dir()).filter(|g| done(g)) {
-                return g;
-            }
-            if start.elapsed() > PATIENCE {
-                panic!("no generation with {what}; log:\n{}", self.log());
-            }
-            std::thread::sleep(Duration::from_millis(2));
-        }
-    }
-
-    fn wait_for_log(&self, text: &str) {
-        let start = Instant::now();
-        while !self.log().contains(text) {
-            if start.elapsed() > PATIENCE {
-                panic!("no log line with {text:?}; log:\n{}", self.log());
-            }
-            std::thread::sleep(Duration::from_millis(5));
-        }
-    }
-}
-
-impl Drop for Project {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.dir);
-    }
-}
-
-struct Daemon {
-    child: Child,
-}
-
-impl Daemon {
-    fn kill9(mut self) {
-        self.child.kill().unwrap(); // SIGKILL
-        self.child.wait().unwrap();
-    }
-
-    fn signal(&self, signal: nix::sys::signal::Signal) {
-        let pid = nix::unistd::Pid::from_raw(self.child.id() as i32);
-        nix::sys::signal::kill(pid, signal).unwrap();
-    }
-
-    /// SIGTERM; the exit code.
-    fn stop(mut self) -> i32 {
-        self.signal(nix::sys::signal::Signal::SIGTERM);
-        let start = Instant::now();
-        loop {
-            if let Some(status) = self.child.try_wait().unwrap() {
-                return status.code().unwrap_or(-1);
-            }
-            assert!(start.elapsed() < PATIENCE, "plcd did not stop");
-            std::thread::sleep(Duration::from_millis(5));
-        }
-    }
-}
-
-impl Drop for Daemon {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        let mut found = None;
+        wait_until(
+            PATIENCE,
+            &format!("a generation with {what}"),
+            || self.log(),
+            || {
+                found = newest_in(&self.retain_dir()).filter(|g| done(g));
+                found.is_some()
+            },
+        );
+        found.unwrap()
     }
 }
 
@@ -164,7 +94,7 @@ fn checked(g: &Generation, when: &str) -> u32 {
 
 #[test]
 fn kill_9_at_random_moments_never_loses_an_acknowledged_write() {
-    let project = Project::new("kill9");
+    let project = Retained::new("kill9");
     project.write("plcd.toml", &config("ranges = [\"D00000-D00001\"]\ninterval_ms = 10", false));
     project.write("main.il", COUNT_SCANS);
     let mut rng = 0x9E37_79B9_7F4A_7C15_u64;
@@ -216,14 +146,14 @@ fn runs(g: &Generation) -> (u16, u16) {
 
 #[test]
 fn warm_restarts_keep_counting_a_cold_one_clears_everything() {
-    let project = Project::new("warmcold");
+    let project = Retained::new("warmcold");
     let warm = config("ranges = [\"D00000-D00000\"]\ninterval_ms = 10", false);
     project.write("plcd.toml", &warm);
     project.write("main.il", COUNT_RUNS);
     for n in 1..=3u16 {
         let daemon = project.start();
         project.wait_for_generation("this start counted", |g| runs(g) == (n, n));
-        assert_eq!(daemon.stop(), 0);
+        assert_eq!(daemon.stop().0, 0);
         assert_eq!(runs(&newest_in(&project.retain_dir()).unwrap()), (n, n));
     }
     project.write(
@@ -234,29 +164,24 @@ fn warm_restarts_keep_counting_a_cold_one_clears_everything() {
     let daemon = project.start();
     let g = project.wait_for_generation("a write of the cold start", |g| g.seq > seq);
     assert_eq!(runs(&g), (1, 1), "cold: K and D started cleared");
-    assert_eq!(daemon.stop(), 0);
+    assert_eq!(daemon.stop().0, 0);
     assert!(project.log().contains("restart = \"cold\""));
     project.write("plcd.toml", &warm);
     let daemon = project.start();
     project.wait_for_generation("warm again, from the cold run's values", |g| runs(g) == (2, 2));
-    assert_eq!(daemon.stop(), 0);
+    assert_eq!(daemon.stop().0, 0);
 }
 
 #[test]
 fn reset_cold_empties_the_persisted_image_and_a_reload_may_not_change_retain() {
-    let project = Project::new("resetcold");
+    let project = Retained::new("resetcold");
     let text = config("ranges = [\"D00000-D00000\"]\ninterval_ms = 10", true);
     project.write("plcd.toml", &text);
     project.write("main.il", COUNT_RUNS);
     let daemon = project.start();
     project.wait_for_generation("the first RUN", |g| runs(g) == (1, 1));
     let plcctl = |args: &[&str]| {
-        let out = Command::new(common_daemon::plcctl_binary())
-            .arg("--socket")
-            .arg(project.dir.join("plcd.sock"))
-            .args(args)
-            .output()
-            .unwrap();
+        let out = project.0.plcctl(args);
         assert!(out.status.success(), "plcctl {args:?}: {}", String::from_utf8_lossy(&out.stderr));
     };
     plcctl(&["reset", "--cold"]);
@@ -266,27 +191,27 @@ fn reset_cold_empties_the_persisted_image_and_a_reload_may_not_change_retain() {
 
     // A reload that changes [retain] is refused; the running project goes on.
     project.write("plcd.toml", &text.replace("D00000-D00000", "D00000-D00001"));
-    daemon.signal(nix::sys::signal::Signal::SIGHUP);
-    project.wait_for_log("reload refused: [retain] changed");
+    daemon.signal(Signal::SIGHUP);
+    daemon.wait_for("reload refused: [retain] changed");
     plcctl(&["stop"]);
     plcctl(&["run"]);
     project.wait_for_generation("the old project still counts", |g| runs(g) == (2, 2));
-    assert_eq!(daemon.stop(), 0);
+    assert_eq!(daemon.stop().0, 0);
 }
 
 #[test]
 fn files_of_other_ranges_are_set_aside_and_the_daemon_starts_cleared() {
-    let project = Project::new("mismatch");
+    let project = Retained::new("mismatch");
     project.write("plcd.toml", &config("ranges = [\"D00000-D00000\"]\ninterval_ms = 10", false));
     project.write("main.il", COUNT_RUNS);
     let daemon = project.start();
     project.wait_for_generation("the first RUN", |g| runs(g) == (1, 1));
-    assert_eq!(daemon.stop(), 0);
+    assert_eq!(daemon.stop().0, 0);
     project.write("plcd.toml", &config("ranges = [\"D00000-D00009\"]\ninterval_ms = 10", false));
     let daemon = project.start();
     let g = project.wait_for_generation("a write with the new ranges", |g| g.words.len() == 266);
     assert_eq!(runs(&g), (1, 1), "started cleared, not from the other file's 1");
-    assert_eq!(daemon.stop(), 0);
+    assert_eq!(daemon.stop().0, 0);
     let log = project.log();
     assert!(
         log.contains(
@@ -308,7 +233,7 @@ fn files_of_other_ranges_are_set_aside_and_the_daemon_starts_cleared() {
 struct Tmpfs(PathBuf);
 
 impl Tmpfs {
-    /// None (after printing why) when mounting is not permitted here.
+    /// None (after a skip line saying why) when mounting is not permitted here.
     fn mount(dir: &Path, size: &str) -> Option<Tmpfs> {
         std::fs::create_dir_all(dir).unwrap();
         let out = Command::new("mount")
@@ -318,11 +243,12 @@ impl Tmpfs {
         match out {
             Ok(out) if out.status.success() => Some(Tmpfs(dir.to_path_buf())),
             Ok(out) => {
-                println!("skipped: cannot mount a tmpfs: {}", String::from_utf8_lossy(&out.stderr));
+                let why = String::from_utf8_lossy(&out.stderr);
+                harness::skip::skip(None, &format!("cannot mount a tmpfs: {}", why.trim()));
                 None
             }
             Err(e) => {
-                println!("skipped: cannot run mount: {e}");
+                harness::skip::skip(None, &format!("cannot run mount: {e}"));
                 None
             }
         }
@@ -347,7 +273,7 @@ impl Drop for Tmpfs {
 /// The daemon runs while the writes fail, the failure is logged once, and writing resumes
 /// once `heal` ran.
 fn survives_failing_writes(
-    project: &Project,
+    project: &Retained,
     error: &str,
     break_it: impl FnOnce(),
     heal: impl FnOnce(),
@@ -355,29 +281,42 @@ fn survives_failing_writes(
     let daemon = project.start();
     let before = project.wait_for_generation("a first write", |g| checked(g, "first") > 0);
     break_it();
-    // Many intervals pass: a failure is logged once, however often the writer tries again.
-    project.wait_for_log(error);
+    daemon.wait_for(error);
     let seq_when_broken = newest_in(&project.retain_dir()).unwrap().seq;
+    // Many intervals (10 ms) pass with the writes failing; the writer tries at each.
     std::thread::sleep(Duration::from_millis(300));
-    let log = project.log();
-    assert_eq!(log.matches(error).count(), 1, "logged once, not every interval:\n{log}");
     assert!(
         newest_in(&project.retain_dir()).unwrap().seq == seq_when_broken,
         "the last good generation stays on disk"
     );
     heal();
-    project.wait_for_log("retain: writing works again");
+    let healed = daemon.wait_for_line("retain: writing works again");
     let after = project.wait_for_generation("a write after healing", |g| g.seq > seq_when_broken);
     assert!(
         checked(&after, "healed") > checked(&before, "before"),
         "the PLC kept counting while the writes failed"
     );
-    assert_eq!(daemon.stop(), 0);
+    // Every attempt uses up a sequence number, a failed one too: the first write after healing
+    // says how often the writer tried while it could not write.
+    let first_seq: u64 = healed
+        .rsplit_once("(seq ")
+        .and_then(|(_, rest)| rest.strip_suffix(')'))
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no sequence number in {healed:?}"));
+    let attempts = first_seq - seq_when_broken - 1;
+    assert!(attempts >= 2, "the writer tried {attempts} time(s) while the writes failed");
+    let log = project.log();
+    assert_eq!(
+        log.matches(error).count(),
+        1,
+        "logged once, not at each of {attempts} attempts:\n{log}"
+    );
+    assert_eq!(daemon.stop().0, 0);
 }
 
 #[test]
 fn a_full_file_system_is_logged_once_and_the_writer_retries() {
-    let project = Project::new("full");
+    let project = Retained::new("full");
     project.write("plcd.toml", &config("ranges = [\"D00000-D00001\"]\ninterval_ms = 10", false));
     project.write("main.il", COUNT_SCANS);
     let Some(_tmpfs) = Tmpfs::mount(&project.retain_dir(), "64k") else { return };
@@ -389,6 +328,7 @@ fn a_full_file_system_is_logged_once_and_the_writer_retries() {
             let mut file = File::create(&filler).unwrap();
             let block = vec![0xA5u8; 4096];
             while std::io::Write::write_all(&mut file, &block).is_ok() {}
+            // What a failed block left: that one byte fits or not, the file system is full.
             let _ = std::io::Write::write_all(&mut file, &[0]);
         },
         || std::fs::remove_file(&filler).unwrap(),
@@ -397,7 +337,7 @@ fn a_full_file_system_is_logged_once_and_the_writer_retries() {
 
 #[test]
 fn a_read_only_directory_is_logged_once_and_the_writer_retries() {
-    let project = Project::new("readonly");
+    let project = Retained::new("readonly");
     project.write("plcd.toml", &config("ranges = [\"D00000-D00001\"]\ninterval_ms = 10", false));
     project.write("main.il", COUNT_SCANS);
     if nix::unistd::geteuid().is_root() {

@@ -3,6 +3,8 @@
 //! back to the older intact generation, never restores garbage. A file of other ranges is set
 //! aside under a name the writer never uses, and nothing is restored.
 
+mod harness;
+
 use std::path::PathBuf;
 
 use plcd::config::{Restart, RetainRange};
@@ -11,22 +13,7 @@ use plcd::services::retain::store::SLOT_NAMES;
 use plcd::services::retain::writer::Writer;
 use plcd::services::retain::{self, Store};
 
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> TempDir {
-        let dir = std::env::temp_dir().join(format!("plcd-retain-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        TempDir(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+use harness::tempdir::TempDir;
 
 fn set() -> RetainSet {
     RetainSet::new(&[
@@ -45,9 +32,9 @@ fn words(set: &RetainSet, value: u16) -> Vec<u16> {
 
 /// Writes generation `old` then `new` (values 1 then 2) with a fresh writer; the newer file.
 fn two_generations(dir: &TempDir, set: &RetainSet) -> PathBuf {
-    let start = retain::startup(&Store::open(&dir.0).unwrap(), set, Restart::Warm);
+    let start = retain::startup(&Store::open(dir.path()).unwrap(), set, Restart::Warm);
     let mut writer = Writer::new(
-        Store::open(&dir.0).unwrap(),
+        Store::open(dir.path()).unwrap(),
         &set.words,
         start.next_slot,
         start.next_seq,
@@ -56,33 +43,33 @@ fn two_generations(dir: &TempDir, set: &RetainSet) -> PathBuf {
     assert!(writer.write_if_changed(&mut words(set, 1)).unwrap());
     assert!(!writer.write_if_changed(&mut words(set, 1)).unwrap(), "unchanged: not written");
     assert!(writer.write_if_changed(&mut words(set, 2)).unwrap());
-    let newest = retain::newest_in(&dir.0).unwrap();
+    let newest = retain::newest_in(dir.path()).unwrap();
     assert_eq!((newest.seq, newest.words[0]), (2, 2));
-    dir.0.join(SLOT_NAMES[1])
+    dir.join(SLOT_NAMES[1])
 }
 
 #[test]
 fn the_newest_generation_is_restored_and_the_writer_goes_on_in_the_other_slot() {
-    let dir = TempDir::new("newest");
+    let dir = TempDir::new("retain-newest");
     let set = set();
     two_generations(&dir, &set);
-    let start = retain::startup(&Store::open(&dir.0).unwrap(), &set, Restart::Warm);
+    let start = retain::startup(&Store::open(dir.path()).unwrap(), &set, Restart::Warm);
     assert_eq!(start.words, Some(words(&set, 2)));
     assert_eq!((start.next_slot, start.next_seq), (0, 3));
-    let cold = retain::startup(&Store::open(&dir.0).unwrap(), &set, Restart::Cold);
+    let cold = retain::startup(&Store::open(dir.path()).unwrap(), &set, Restart::Cold);
     assert_eq!(cold.words, None, "restart = cold restores nothing");
     assert_eq!(cold.next_seq, 3, "and still never reuses a sequence number");
 }
 
 #[test]
 fn a_newer_generation_truncated_at_any_byte_falls_back_to_the_older_one() {
-    let dir = TempDir::new("truncated");
+    let dir = TempDir::new("retain-truncated");
     let set = set();
     let newer = two_generations(&dir, &set);
     let bytes = std::fs::read(&newer).unwrap();
     for len in 0..bytes.len() {
         std::fs::write(&newer, &bytes[..len]).unwrap();
-        let start = retain::startup(&Store::open(&dir.0).unwrap(), &set, Restart::Warm);
+        let start = retain::startup(&Store::open(dir.path()).unwrap(), &set, Restart::Warm);
         assert_eq!(start.words, Some(words(&set, 1)), "truncated to {len} bytes");
         assert_eq!((start.next_slot, start.next_seq), (1, 2), "the broken slot is written next");
     }
@@ -90,7 +77,7 @@ fn a_newer_generation_truncated_at_any_byte_falls_back_to_the_older_one() {
 
 #[test]
 fn random_bit_flips_fall_back_to_the_older_generation() {
-    let dir = TempDir::new("flips");
+    let dir = TempDir::new("retain-flips");
     let set = set();
     let newer = two_generations(&dir, &set);
     let bytes = std::fs::read(&newer).unwrap();
@@ -112,53 +99,53 @@ fn random_bit_flips_fall_back_to_the_older_generation() {
             continue; // the flips cancelled out
         }
         std::fs::write(&newer, &damaged).unwrap();
-        let start = retain::startup(&Store::open(&dir.0).unwrap(), &set, Restart::Warm);
+        let start = retain::startup(&Store::open(dir.path()).unwrap(), &set, Restart::Warm);
         assert_eq!(start.words, Some(words(&set, 1)), "round {round}: {flips} bits flipped");
     }
 }
 
 #[test]
 fn both_generations_broken_restores_nothing() {
-    let dir = TempDir::new("both");
+    let dir = TempDir::new("retain-both");
     let set = set();
     two_generations(&dir, &set);
     for name in SLOT_NAMES {
-        std::fs::write(dir.0.join(name), b"PLCDRTN\0 garbage").unwrap();
+        std::fs::write(dir.join(name), b"PLCDRTN\0 garbage").unwrap();
     }
-    let start = retain::startup(&Store::open(&dir.0).unwrap(), &set, Restart::Warm);
+    let start = retain::startup(&Store::open(dir.path()).unwrap(), &set, Restart::Warm);
     assert_eq!(start.words, None);
 }
 
 #[test]
 fn files_of_other_ranges_are_set_aside_not_restored_and_never_overwritten() {
-    let dir = TempDir::new("mismatch");
+    let dir = TempDir::new("retain-mismatch");
     let old_set = set();
     two_generations(&dir, &old_set);
-    let a = std::fs::read(dir.0.join(SLOT_NAMES[0])).unwrap();
-    let b = std::fs::read(dir.0.join(SLOT_NAMES[1])).unwrap();
+    let a = std::fs::read(dir.join(SLOT_NAMES[0])).unwrap();
+    let b = std::fs::read(dir.join(SLOT_NAMES[1])).unwrap();
     let new_set = RetainSet::new(&[RetainRange::parse("D00000-D00019").unwrap()]);
-    let start = retain::startup(&Store::open(&dir.0).unwrap(), &new_set, Restart::Warm);
+    let start = retain::startup(&Store::open(dir.path()).unwrap(), &new_set, Restart::Warm);
     assert_eq!(start.words, None, "restored nothing");
     assert_eq!(start.next_seq, 3);
-    assert!(!dir.0.join(SLOT_NAMES[0]).exists() && !dir.0.join(SLOT_NAMES[1]).exists());
-    let kept_a = dir.0.join(format!("{}.mismatch", SLOT_NAMES[0]));
-    let kept_b = dir.0.join(format!("{}.mismatch", SLOT_NAMES[1]));
+    assert!(!dir.join(SLOT_NAMES[0]).exists() && !dir.join(SLOT_NAMES[1]).exists());
+    let kept_a = dir.join(format!("{}.mismatch", SLOT_NAMES[0]));
+    let kept_b = dir.join(format!("{}.mismatch", SLOT_NAMES[1]));
     assert_eq!(std::fs::read(&kept_a).unwrap(), a, "kept byte for byte");
     assert_eq!(std::fs::read(&kept_b).unwrap(), b);
 
     // The writer goes on with the new ranges and leaves the set-aside files alone; a second
     // mismatch later gets a name of its own.
     let mut writer = Writer::new(
-        Store::open(&dir.0).unwrap(),
+        Store::open(dir.path()).unwrap(),
         &new_set.words,
         start.next_slot,
         start.next_seq,
         None,
     );
     assert!(writer.write_if_changed(&mut vec![5; new_set.word_count()]).unwrap());
-    let again = retain::startup(&Store::open(&dir.0).unwrap(), &old_set, Restart::Warm);
+    let again = retain::startup(&Store::open(dir.path()).unwrap(), &old_set, Restart::Warm);
     assert_eq!(again.words, None);
-    assert!(dir.0.join(format!("{}.mismatch.2", SLOT_NAMES[start.next_slot])).exists());
+    assert!(dir.join(format!("{}.mismatch.2", SLOT_NAMES[start.next_slot])).exists());
     assert_eq!(std::fs::read(&kept_a).unwrap(), a);
     assert_eq!(std::fs::read(&kept_b).unwrap(), b);
 }

@@ -4,14 +4,14 @@
 //! stops on shutdown. The commands include the control socket's and a two-part Modbus word write.
 #![allow(unsafe_code)]
 
+mod harness;
+
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
-use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use plcd::config;
 use plcd::device::Address;
 use plcd::drivers::real_time::io::{FieldIo, GatedIo, SafeOutputs};
 use plcd::drivers::real_time::mirror::Mirror;
@@ -28,7 +28,6 @@ use plcd::engine::{Engine, ModeRequest};
 use plcd::io::gate::OutputGate;
 use plcd::io::simulated::SimulatedIo;
 use plcd::io::InputEdge;
-use plcd::project;
 
 struct Counting;
 
@@ -111,17 +110,10 @@ const FULL: &str = "MOV 0 D00000\nINC D00002\nEND\n";
 
 #[test]
 fn the_scan_thread_does_not_allocate() {
-    let config = config::parse(CONFIG, Path::new("alloc.toml")).expect("config");
-    let project = project::from_config(config, |path| {
-        Ok(match path.file_name().unwrap().to_str().unwrap() {
-            "main.il" => MAIN,
-            "tick.il" => TICK,
-            "edge.il" => EDGE,
-            _ => FULL,
-        }
-        .to_string())
-    })
-    .expect("project");
+    let project = harness::engine::project(
+        CONFIG,
+        &[("main.il", MAIN), ("tick.il", TICK), ("edge.il", EDGE), ("full.il", FULL)],
+    );
     let io = SimulatedIo::new(&[Address::parse("P0000").unwrap()], &[0], None);
     let field = io.field();
     let shared = Arc::new(Shared::new().unwrap());
@@ -238,8 +230,10 @@ fn the_scan_thread_does_not_allocate() {
     let engine = handle.join().unwrap();
     let count = ALLOCATIONS.load(Ordering::Relaxed);
     assert_eq!(count, 0, "the scan thread allocated or freed {count} times");
-    // It did run: scans, the cycle task, the io task (one run per edge at most), the device task.
-    assert!(engine.scan_stats().count > 0 || engine.mode() == Mode::Stop);
+    // Shutdown stopped it, and it did run: scans since its last RUN (STOP keeps the count), the
+    // cycle task, the io task (one run per edge at most), the device task.
+    assert_eq!(engine.mode(), Mode::Stop, "shutdown leaves the PLC in STOP");
+    assert!(engine.scan_stats().count > 0, "no scan since the last RUN");
     let runs = |name: &str| engine.task_stats(name).unwrap().runs;
     assert!(runs("tick") > 10, "tick ran {}", runs("tick"));
     assert!(runs("edge") > 10, "edge ran {}", runs("edge"));

@@ -3,9 +3,13 @@
 //! `expected.trace`, written by hand from the manuals (docs/EXECUTION.md says how). `plcd sim`
 //! must produce that trace byte for byte.
 
+mod harness;
+
 use std::fs;
 use std::path::Path;
 use std::process::Command;
+
+use harness::tempdir::TempDir;
 
 /// `plcd sim` in `dir` with the scenario's `args`, or with `args` given here instead.
 fn sim(dir: &Path, args: Option<&[&str]>) -> (Option<i32>, Vec<u8>, String) {
@@ -80,10 +84,8 @@ fn the_readme_run_command_draws_the_example_project() {
 
 #[test]
 fn bad_inputs_exit_1_and_bad_usage_exit_2() {
-    let dir = std::env::temp_dir().join(format!("plcd-sim-{}", std::process::id()));
-    fs::create_dir_all(&dir).unwrap();
-    let csv = dir.join("bad.csv");
-    fs::write(&csv, "1ms, P0000, 1\nsoon, P0000, 0\n").unwrap();
+    let dir = TempDir::new("sim-bad-inputs");
+    let csv = dir.write("bad.csv", "1ms, P0000, 1\nsoon, P0000, 0\n");
     let out = plcd(&[
         "sim",
         "--config",
@@ -100,5 +102,4 @@ fn bad_inputs_exit_1_and_bad_usage_exit_2() {
     assert_eq!(out.status.code(), Some(2));
     let out = plcd(&["sim", "--config", "tests/golden/project/plcd.toml", "--for", "1s"]);
     assert_eq!(out.status.code(), Some(1));
-    fs::remove_dir_all(&dir).unwrap();
 }

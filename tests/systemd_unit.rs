@@ -3,18 +3,26 @@
 //!
 //! Wherever `systemd-analyze` exists: the unit passes `systemd-analyze verify` without a word,
 //! `systemd-analyze security --offline=true` rates its exposure at 2.0 or less, and its
-//! `SystemCallFilter=` lets through every system call plcd makes. Elsewhere each of these tests
-//! writes `skipped: <reason>` to stderr and passes. systemd need not run (it is not PID 1 in a
-//! container or on a CI runner): these commands only read unit files.
+//! `SystemCallFilter=` lets through every system call plcd makes. systemd need not run (it is not
+//! PID 1 in a container or on a CI runner): these commands only read unit files.
 //!
 //! The install script is run with `--dry-run` (it must name every file it would install, and
 //! change nothing) and, where `systemd-sysusers` exists, for real into a scratch root.
+//!
+//! Where `systemd-analyze` or `systemd-sysusers` is missing, each test that needs it writes
+//! `<test>: skipped: <reason>` to stderr and passes, so a plain `cargo test` works everywhere.
+//! With `PLCD_REQUIRE_SYSTEMD=1` in the environment (anything but empty or `0`), as `.ci/run`
+//! sets it, every such skip is a failure instead, so a suite that checked nothing cannot pass.
+
+mod harness;
 
 use std::collections::BTreeSet;
 use std::fs;
 use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+
+use harness::tempdir::TempDir;
 
 /// The worst exposure `systemd-analyze security` may give the unit (the bound).
 const MAX_EXPOSURE: f64 = 2.0;
@@ -27,15 +35,19 @@ fn unit_file() -> PathBuf {
     repo().join("systemd/plcd.service")
 }
 
-/// A directory under the system's temp dir, removed on drop.
-struct Scratch(PathBuf);
+/// The variable that turns every skip of these tests into a failure.
+const REQUIRE: &str = "PLCD_REQUIRE_SYSTEMD";
+
+/// A scratch root for systemd's tools, removed on drop.
+struct Scratch(TempDir);
 
 impl Scratch {
     fn new(name: &str) -> Scratch {
-        let dir = std::env::temp_dir().join(format!("plcd-systemd-{name}-{}", std::process::id()));
-        let _ = fs::remove_dir_all(&dir);
-        fs::create_dir_all(&dir).unwrap();
-        Scratch(dir)
+        Scratch(TempDir::new(&format!("systemd-{name}")))
+    }
+
+    fn root(&self) -> &Path {
+        self.0.path()
     }
 
     fn path(&self, relative: &str) -> PathBuf {
@@ -44,10 +56,9 @@ impl Scratch {
 
     /// Writes `text` at `relative`, creating directories, with `mode`.
     fn write(&self, relative: &str, text: &str, mode: u32) {
-        let path = self.path(relative);
-        fs::create_dir_all(path.parent().unwrap()).unwrap();
-        fs::write(&path, text).unwrap();
-        fs::set_permissions(&path, fs::Permissions::from_mode(mode)).unwrap();
+        let relative = relative.trim_start_matches('/');
+        self.0.write(relative, text);
+        self.0.chmod(relative, mode);
     }
 
     /// Places the plcd binary of this build at `relative`: a hard link, or a copy across file
@@ -55,17 +66,10 @@ impl Scratch {
     fn plcd_at(&self, relative: &str) {
         let path = self.path(relative);
         fs::create_dir_all(path.parent().unwrap()).unwrap();
-        let _ = fs::remove_file(&path);
         let built = Path::new(env!("CARGO_BIN_EXE_plcd"));
         if fs::hard_link(built, &path).is_err() {
             fs::copy(built, &path).unwrap();
         }
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = fs::remove_dir_all(&self.0);
     }
 }
 
@@ -78,8 +82,16 @@ fn available(program: &str) -> Result<(), String> {
     }
 }
 
-fn skip(test: &str, reason: &str) {
-    eprintln!("{test}: skipped: {reason}");
+/// Whether `program` can be run here; when not, the running test reports a skip of what needs
+/// it, or fails when [`REQUIRE`] is set.
+fn have(program: &str) -> bool {
+    match available(program) {
+        Ok(()) => true,
+        Err(reason) => {
+            harness::skip::skip(Some(REQUIRE), &reason);
+            false
+        }
+    }
 }
 
 fn text(out: &Output) -> String {
@@ -105,7 +117,7 @@ fn verify_root(name: &str, unit_text: &str) -> Scratch {
 fn verify(root: &Scratch) -> Output {
     Command::new("systemd-analyze")
         .arg("verify")
-        .arg(format!("--root={}", root.0.display()))
+        .arg(format!("--root={}", root.root().display()))
         .arg("plcd.service")
         .output()
         .expect("systemd-analyze verify")
@@ -122,8 +134,8 @@ fn assert_clean(out: &Output) {
 
 #[test]
 fn the_unit_passes_systemd_analyze_verify() {
-    if let Err(reason) = available("systemd-analyze") {
-        return skip("the_unit_passes_systemd_analyze_verify", &reason);
+    if !have("systemd-analyze") {
+        return;
     }
     let unit = fs::read_to_string(unit_file()).unwrap();
     let root = verify_root("verify", &unit);
@@ -160,7 +172,7 @@ fn retained_memory_has_a_state_directory_under_the_full_hardening() {
 fn security_in(root: &Scratch) -> Output {
     Command::new("systemd-analyze")
         .args(["security", "--offline=true", "--no-pager"])
-        .arg(format!("--root={}", root.0.display()))
+        .arg(format!("--root={}", root.root().display()))
         .arg("plcd.service")
         .output()
         .expect("systemd-analyze security")
@@ -168,8 +180,8 @@ fn security_in(root: &Scratch) -> Output {
 
 #[test]
 fn each_example_drop_in_keeps_the_unit_clean_and_at_most_2_0() {
-    if let Err(reason) = available("systemd-analyze") {
-        return skip("each_example_drop_in_keeps_the_unit_clean_and_at_most_2_0", &reason);
+    if !have("systemd-analyze") {
+        return;
     }
     let unit = fs::read_to_string(unit_file()).unwrap();
     let mut seen = 0;
@@ -207,8 +219,8 @@ fn exposure(output: &str) -> Option<f64> {
 
 #[test]
 fn the_exposure_is_at_most_2_0() {
-    if let Err(reason) = available("systemd-analyze") {
-        return skip("the_exposure_is_at_most_2_0", &reason);
+    if !have("systemd-analyze") {
+        return;
     }
     let out = Command::new("systemd-analyze")
         .args(["security", "--offline=true", "--no-pager"])
@@ -382,8 +394,8 @@ fn allowed_syscalls(unit: &str, groups: &[(String, Vec<String>)]) -> BTreeSet<St
 
 #[test]
 fn the_system_call_filter_lets_every_plcd_call_through() {
-    if let Err(reason) = available("systemd-analyze") {
-        return skip("the_system_call_filter_lets_every_plcd_call_through", &reason);
+    if !have("systemd-analyze") {
+        return;
     }
     let out = Command::new("systemd-analyze")
         .args(["syscall-filter", "--no-pager"])
@@ -473,7 +485,7 @@ fn tree(dir: &Path) -> Vec<PathBuf> {
 #[test]
 fn the_install_dry_run_names_every_file_and_changes_nothing() {
     let root = Scratch::new("dry-run");
-    let root_arg = root.0.to_str().unwrap();
+    let root_arg = root.root().to_str().unwrap();
     let out = install(&["--dry-run", "--root", root_arg, "--binary", env!("CARGO_BIN_EXE_plcd")]);
     assert!(out.status.success(), "{}", text(&out));
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -485,7 +497,7 @@ fn the_install_dry_run_names_every_file_and_changes_nothing() {
             text(&out)
         );
     }
-    assert!(tree(&root.0).is_empty(), "a dry run changed {:?}", tree(&root.0));
+    assert!(tree(root.root()).is_empty(), "a dry run changed {:?}", tree(root.root()));
 
     // The prefix moves the binary and the documentation.
     let out = install(&["--dry-run", "--root", root_arg, "--prefix", "/opt/plcd"]);
@@ -506,14 +518,11 @@ fn the_install_script_refuses_bad_arguments() {
 
 #[test]
 fn the_install_script_installs_into_a_root_idempotently_and_uninstalls() {
-    if let Err(reason) = available("systemd-sysusers") {
-        return skip(
-            "the_install_script_installs_into_a_root_idempotently_and_uninstalls",
-            &reason,
-        );
+    if !have("systemd-sysusers") {
+        return;
     }
     let root = Scratch::new("install");
-    let root_arg = root.0.to_str().unwrap();
+    let root_arg = root.root().to_str().unwrap();
     let args =
         ["--root", root_arg, "--prefix", "/opt/plcd", "--binary", env!("CARGO_BIN_EXE_plcd")];
 
@@ -546,7 +555,7 @@ fn the_install_script_installs_into_a_root_idempotently_and_uninstalls() {
     assert!(!root.path("etc/plcd/programs/main.il").exists(), "a user's project was completed");
 
     // The installed unit, with its prefix, passes verify in that tree.
-    if available("systemd-analyze").is_ok() {
+    if have("systemd-analyze") {
         root.write("usr/lib/systemd/system/sysinit.target", "[Unit]\nDescription=stub\n", 0o644);
         root.write("bin/kill", "#!/bin/sh\nexit 0\n", 0o755);
         assert_clean(&verify(&root));

@@ -1,6 +1,6 @@
 //! Counters per XGB §5.2.6: rising edges counted, reset by RST.
-mod common;
-use common::Rig;
+mod harness;
+use harness::vm::Rig;
 
 /// Pulses P0000 once (ON scan, OFF scan) and returns (current value, contact via M0100).
 fn pulse(rig: &mut Rig, counter: &str) -> (i32, i32) {

@@ -1,6 +1,6 @@
 //! Data instructions: 16-bit two's-complement arithmetic, operation errors, `P` forms.
-mod common;
-use common::Rig;
+mod harness;
+use harness::vm::Rig;
 use plcd::vm::Exit;
 
 #[test]

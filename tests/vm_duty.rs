@@ -1,6 +1,6 @@
 //! DUTY per the Mitsubishi FX5 page.
-mod common;
-use common::Rig;
+mod harness;
+use harness::vm::Rig;
 use plcd::vm::Exit;
 
 /// SM420 after END of each of `scans` scans, as seen by the next scan's program.

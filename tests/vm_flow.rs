@@ -1,7 +1,7 @@
 //! Subroutines, jumps, loops, system requests, step counting, and resumption between any two
 //! instructions.
-mod common;
-use common::{assemble, Rig};
+mod harness;
+use harness::vm::{assemble, context, Rig};
 use plcd::lang::ops::SystemRequest;
 use plcd::vm::{ExecState, Exit, ManualClock, Vm};
 
@@ -115,7 +115,7 @@ fn init_done_surfaces_in_init_programs() {
         "init",
         std::path::Path::new("init.il"),
         "MOV 1 D00000\nINIT_DONE\nEND",
-        &common::context(true),
+        &context(true),
     )
     .unwrap();
     let mut vm = Vm::for_programs([&program]);

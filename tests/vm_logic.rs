@@ -1,6 +1,6 @@
 //! Contacts, block logic, stacks, edges and outputs.
-mod common;
-use common::Rig;
+mod harness;
+use harness::vm::Rig;
 
 /// Truth table of `f` over inputs P0000/P0001/P0002, checked on output P0040.
 fn truth(source: &str, f: impl Fn(bool, bool, bool) -> bool) {

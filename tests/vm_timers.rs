@@ -1,7 +1,7 @@
 //! Timers against the timing diagrams of XGB §5.2.5, on a hand-set clock.
 //! T1000–T1499 have a 10 ms base, T0000–T0999 100 ms, T1500–T2047 1 ms (the defaults).
-mod common;
-use common::Rig;
+mod harness;
+use harness::vm::Rig;
 
 /// Scans at each `(ms, input P0000, expected current value, expected contact)`; the programs
 /// mirror the timer's contact to M0100.

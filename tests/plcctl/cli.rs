@@ -9,7 +9,6 @@ use std::io::{BufRead, BufReader, Write};
 use std::os::unix::net::{UnixListener, UnixStream};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc;
 use std::thread::JoinHandle;
 use std::time::Duration;
@@ -18,31 +17,20 @@ use plcctl::client::{Client, ClientError};
 use plcd_ipc::{self as protocol, ModeName, Reply, Request};
 use serde_json::{json, Value};
 
-/// A directory under the system's temp dir, removed on drop.
-struct TempDir(PathBuf);
+// The parts of the suite's harness (tests/harness) that need nothing of plcd: this package
+// builds without the daemon, so its test includes those files alone. Each is only partly used
+// here (the rest serves the root package's tests), hence the allowances.
+#[allow(dead_code)]
+#[path = "../harness/nobody.rs"]
+mod nobody;
+#[allow(dead_code)]
+#[path = "../harness/skip.rs"]
+mod skip;
+#[allow(dead_code)]
+#[path = "../harness/tempdir.rs"]
+mod tempdir;
 
-impl TempDir {
-    fn new(name: &str) -> TempDir {
-        // Tests run in parallel in one process: a counter keeps their directories apart.
-        static NEXT: AtomicUsize = AtomicUsize::new(0);
-        let n = NEXT.fetch_add(1, Ordering::Relaxed);
-        let dir = std::env::temp_dir().join(format!("plcctl-{name}-{}-{n}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        // The path the child sees as its current directory (temp_dir may be a symlink).
-        TempDir(dir.canonicalize().unwrap())
-    }
-
-    fn path(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+use tempdir::TempDir;
 
 /// What the fake daemon does next.
 #[derive(Debug, Clone)]
@@ -484,28 +472,23 @@ fn a_socket_nobody_listens_on_exits_3() {
 #[test]
 fn a_socket_without_permission_exits_3() {
     use std::os::unix::fs::PermissionsExt;
-    use std::os::unix::process::CommandExt;
 
     let fake = Fake::start("denied", vec![]);
     std::fs::set_permissions(&fake.path, std::fs::Permissions::from_mode(0o600)).unwrap();
-    let mut command = Command::new(env!("CARGO_BIN_EXE_plcctl"));
-    command.args(["--socket", fake.socket(), "status"]).env_remove("PLCD_SOCKET");
-    if nix::unistd::geteuid().is_root() {
-        // Root connects anyway: ask as nobody.
-        command.uid(65534).gid(65534).current_dir("/");
-    } else {
-        std::fs::set_permissions(&fake.path, std::fs::Permissions::from_mode(0o000)).unwrap();
-    }
-    let output = match command.output() {
-        Ok(output) => output,
-        // The binary is not reachable for nobody (a private target directory): nothing to see.
-        Err(e) if nix::unistd::geteuid().is_root() => {
-            eprintln!("skipped, cannot run plcctl as nobody: {e}");
-            fake.requests();
-            return;
+    // Root connects anyway: then ask as nobody, from a copy of plcctl that user can run.
+    let copy = nobody::unavailable()
+        .is_none()
+        .then(|| nobody::Copy::of(Path::new(env!("CARGO_BIN_EXE_plcctl"))));
+    let mut command = match &copy {
+        Some(copy) => copy.command(nobody::NOBODY),
+        None => {
+            std::fs::set_permissions(&fake.path, std::fs::Permissions::from_mode(0o000)).unwrap();
+            Command::new(env!("CARGO_BIN_EXE_plcctl"))
         }
-        Err(e) => panic!("{e}"),
     };
+    let output = nobody::output(
+        command.args(["--socket", fake.socket(), "status"]).env_remove("PLCD_SOCKET"),
+    );
     let stderr = String::from_utf8(output.stderr).unwrap();
     assert_eq!(fake.requests(), Vec::<String>::new());
     assert_eq!(output.status.code(), Some(3), "{stderr}");
@@ -784,7 +767,7 @@ fn the_socket_comes_from_the_flag_then_plcd_socket_then_the_defaults() {
     // Neither: the first default that exists, here $XDG_RUNTIME_DIR/plcd.sock (unless a real
     // daemon's socket is on this machine, which would come first).
     if Path::new("/run/plcd/plcd.sock").exists() {
-        return;
+        return skip::skip(None, "a daemon's /run/plcd/plcd.sock comes before the other defaults");
     }
     let fake = Fake::start("xdg", vec![Step::Answer(stop)]);
     let xdg = fake.dir.path().to_str().unwrap().to_string();
@@ -797,8 +780,9 @@ fn the_socket_comes_from_the_flag_then_plcd_socket_then_the_defaults() {
     let dir = TempDir::new("nodefault");
     let xdg = dir.path().to_str().unwrap().to_string();
     let run = plcctl_in(dir.path(), &["stop"], &[("XDG_RUNTIME_DIR", &xdg)]);
-    if Path::new(&format!("/tmp/plcd-{}/plcd.sock", nix::unistd::geteuid())).exists() {
-        return;
+    let tmp_socket = format!("/tmp/plcd-{}/plcd.sock", nix::unistd::geteuid());
+    if Path::new(&tmp_socket).exists() {
+        return skip::skip(None, &format!("a daemon's {tmp_socket} is found before nothing is"));
     }
     assert_eq!(run.code, 3, "{run:?}");
     assert!(run.stderr.starts_with("plcctl: cannot connect to /run/plcd/plcd.sock: "), "{run:?}");

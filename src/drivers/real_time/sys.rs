@@ -292,8 +292,30 @@ mod tests {
         assert!(refused.contains("RLIMIT_MEMLOCK is 8192 KiB"), "{refused}");
     }
 
+    /// Page faults of the calling thread so far.
+    fn faults() -> i64 {
+        use nix::sys::resource::{getrusage, UsageWho};
+        let usage = getrusage(UsageWho::RUSAGE_THREAD).unwrap();
+        usage.minor_page_faults() + usage.major_page_faults()
+    }
+
     #[test]
-    fn prefaulting_the_stack_returns() {
-        prefault_stack(256 * 1024);
+    fn a_prefaulted_stack_takes_no_page_fault_down_to_its_depth() {
+        // A fresh thread's stack (1 MiB: too small for a huge page) is mapped, not yet present.
+        let (first, again) = std::thread::Builder::new()
+            .stack_size(1 << 20)
+            .spawn(|| {
+                let before = faults();
+                prefault_stack(512 * 1024);
+                let first = faults() - before;
+                let before = faults();
+                prefault_stack(512 * 1024);
+                (first, faults() - before)
+            })
+            .unwrap()
+            .join()
+            .unwrap();
+        assert!(first > 0, "the first pass found the stack already present");
+        assert_eq!(again, 0, "{again} page faults on a prefaulted stack ({first} the first time)");
     }
 }

@@ -1,0 +1,24 @@
+//! The test suite's one harness, included by each test that needs it with `mod harness;`:
+//!
+//! - [`tempdir`]: scratch directories, removed on drop;
+//! - [`nobody`]: running a program as uid 65534, from a copy that user can reach;
+//! - [`skip`]: visible skips, failures where a `PLCD_REQUIRE_*` variable says so;
+//! - [`log`]: a process's log, and waiting for another process's events;
+//! - [`daemon`]: a project directory, the real `plcd run` on it, `plcctl` against it;
+//! - [`engine`]: the engine in virtual time on a project from literal texts, with a field;
+//! - [`vm`]: one program scanned by the VM alone, and the assembler's context.
+//!
+//! `tempdir` and `nobody` need nothing of plcd: the plcctl package's test includes those two
+//! files alone.
+
+// Every test crate compiles the whole harness and uses the part it needs: what one crate leaves
+// unused another uses, so dead code is expected here, and only here.
+#![allow(dead_code)]
+
+pub mod daemon;
+pub mod engine;
+pub mod log;
+pub mod nobody;
+pub mod skip;
+pub mod tempdir;
+pub mod vm;
