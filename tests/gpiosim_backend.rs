@@ -3,10 +3,9 @@
 //! `tests/qemu/run-gpiosim` runs these in a VM with such a kernel). Then the RUN/STOP key switch's
 //! line settings and errors, and the daemon itself on gpio-sim, end to end.
 #[macro_use]
-mod common_gpiosim;
+mod harness;
 
 use std::path::Path;
-use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -17,6 +16,8 @@ use plcd::io::faults::FieldFaults;
 use plcd::io::gpio::{self, Gpio};
 use plcd::io::simulated::SimulatedIo;
 use plcd::io::{InputEdge, Io, SwitchPosition};
+
+use harness::daemon::Project;
 
 /// The wiring every body uses: inputs P0000 (line 0, an io-task contact), P0001 (line 1),
 /// outputs P0040 (line 8), P0041 (line 9).
@@ -444,22 +445,11 @@ fn a_switch_line_beyond_the_chip_is_named() {
 }
 
 /// The daemon binary: cargo's when this test runs on the build machine, `/bin/plcd` in the VM.
-fn plcd_binary() -> String {
-    let built = env!("CARGO_BIN_EXE_plcd");
-    if Path::new(built).exists() {
-        built.to_string()
-    } else {
-        "/bin/plcd".to_string()
-    }
-}
-
 #[test]
 fn the_daemon_drives_gpio_lines_and_counts_edges_by_interrupt() {
     require_gpiosim!();
     let sim = gpiosim::builder().with_bank(&gpiosim::Bank::new(16, "plcd-daemon")).live().unwrap();
     let chip = &sim.chips()[0];
-    let dir = std::env::temp_dir().join(format!("plcd-gpiosim-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
     let config = format!(
         "[plc]\nscan_period_ms = 2\n\
          [[program]]\nfile = \"main.il\"\n[[program]]\nfile = \"count.il\"\ntask = \"count\"\n\
@@ -469,43 +459,33 @@ fn the_daemon_drives_gpio_lines_and_counts_edges_by_interrupt() {
          [io]\nbackend = \"gpiocdev\"\nchip = \"{}\"\n{WIRING}",
         chip.dev_path().display()
     );
-    std::fs::write(dir.join("plcd.toml"), config).unwrap();
     // P0040 follows P0001; P0041 comes on at the third counted edge.
-    std::fs::write(dir.join("main.il"), "LOAD P0001\nOUT P0040\nLOAD>= D00000 3\nOUT P0041\nEND\n")
-        .unwrap();
-    std::fs::write(dir.join("count.il"), "INC D00000\nEND\n").unwrap();
-    let mut child = Command::new(plcd_binary())
-        .args(["run", "--config"])
-        .arg(dir.join("plcd.toml"))
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("plcd starts");
-    let wait_level = |line: u32, high: bool| {
-        let start = Instant::now();
-        while (chip.get_level(line).unwrap() == gpiosim::Level::High) != high {
-            assert!(start.elapsed() < Duration::from_secs(20), "line {line} never went {high}");
-            std::thread::sleep(Duration::from_millis(5));
-        }
-    };
-    // Wait for RUN: the scan copies P0001 to P0040.
+    let project = Project::new(
+        "gpiosim-daemon",
+        &[
+            ("plcd.toml", &config),
+            ("main.il", "LOAD P0001\nOUT P0040\nLOAD>= D00000 3\nOUT P0041\nEND\n"),
+            ("count.il", "INC D00000\nEND\n"),
+        ],
+    );
+    let daemon = project.start();
+    let high = |line: u32| chip.get_level(line).unwrap() == gpiosim::Level::High;
+    // RUN: the scan copies P0001 to P0040.
     chip.set_pull(1, gpiosim::Level::High).unwrap();
-    wait_level(8, true);
-    for _ in 0..3 {
-        assert!(!chip.get_level(9).unwrap().eq(&gpiosim::Level::High), "P0041 before 3 edges");
+    daemon.wait("P0040 (line 8) to follow P0001", || high(8));
+    for edge in 1..=3 {
+        assert!(!high(9), "P0041 before 3 edges");
         chip.set_pull(0, gpiosim::Level::High).unwrap();
-        std::thread::sleep(Duration::from_millis(20));
+        // The counting task ran when P0041's condition moved, or, before the third edge, when
+        // the count did: read it back through the control socket.
+        daemon.wait("the edge to be counted", || {
+            let out = project.plcctl(&["--json", "get", "D00000"]);
+            String::from_utf8_lossy(&out.stdout).contains(&format!("\"value\":{edge}"))
+        });
         chip.set_pull(0, gpiosim::Level::Low).unwrap();
-        std::thread::sleep(Duration::from_millis(20));
     }
-    wait_level(9, true);
-    nix::sys::signal::kill(
-        nix::unistd::Pid::from_raw(child.id() as i32),
-        nix::sys::signal::SIGTERM,
-    )
-    .unwrap();
-    let status = child.wait().unwrap();
-    assert_eq!(status.code(), Some(0));
-    assert_eq!(chip.get_level(8).unwrap(), gpiosim::Level::Low, "outputs off after SIGTERM");
-    assert_eq!(chip.get_level(9).unwrap(), gpiosim::Level::Low);
-    let _ = std::fs::remove_dir_all(&dir);
+    daemon.wait("P0041 (line 9) on at the third edge", || high(9));
+    let (code, log) = daemon.stop();
+    assert_eq!(code, 0, "{}", log.join("\n"));
+    assert!(!high(8) && !high(9), "outputs off after SIGTERM");
 }

@@ -5,7 +5,7 @@
 //! `skipped: <reason>` and passes. `tests/qemu/run-gpiosim` runs them in a VM with a kernel that
 //! has it.
 #[macro_use]
-mod common_gpiosim;
+mod harness;
 
 use std::time::Duration;
 

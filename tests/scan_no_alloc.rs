@@ -128,9 +128,9 @@ fn the_scan_thread_does_not_allocate() {
     let scan = ScanThread {
         engine: Box::new(Engine::new(&project, &watch)),
         io: GatedIo {
-            field: FieldIo::Sim(io),
+            field: FieldIo::Simulated(io),
             gate: Arc::new(OutputGate::default()),
-            safe: SafeOutputs::Sim(Arc::clone(&field)),
+            safe: SafeOutputs::Simulated(Arc::clone(&field)),
             clear_on_trip: true,
         },
         shared: Arc::clone(&shared),

@@ -13,9 +13,15 @@ use nix::unistd::Pid;
 use super::log::{wait_until, Log, PATIENCE};
 use super::tempdir::TempDir;
 
-/// The `plcd` binary of this build.
-pub fn plcd_binary() -> &'static Path {
-    Path::new(env!("CARGO_BIN_EXE_plcd"))
+/// The `plcd` binary of this build; in the gpio-sim VM of `tests/qemu/run-gpiosim`, where the
+/// test binaries run without their build tree, the `/bin/plcd` it installs beside them.
+pub fn plcd_binary() -> PathBuf {
+    let built = Path::new(env!("CARGO_BIN_EXE_plcd"));
+    if built.exists() {
+        built.to_path_buf()
+    } else {
+        PathBuf::from("/bin/plcd")
+    }
 }
 
 /// The `plcctl` binary. It is a package of its own (it builds without the daemon), so cargo

@@ -6,7 +6,9 @@
 //! - [`log`]: a process's log, and waiting for another process's events;
 //! - [`daemon`]: a project directory, the real `plcd run` on it, `plcctl` against it;
 //! - [`engine`]: the engine in virtual time on a project from literal texts, with a field;
-//! - [`vm`]: one program scanned by the VM alone, and the assembler's context.
+//! - [`vm`]: one program scanned by the VM alone, and the assembler's context;
+//! - [`gpiosim`]: whether the kernel's gpio-sim is here, and `require_gpiosim!` (include the
+//!   harness with `#[macro_use]` to use it).
 //!
 //! `tempdir` and `nobody` need nothing of plcd: the plcctl package's test includes those two
 //! files alone.
@@ -17,6 +19,8 @@
 
 pub mod daemon;
 pub mod engine;
+#[macro_use]
+pub mod gpiosim;
 pub mod log;
 pub mod nobody;
 pub mod skip;

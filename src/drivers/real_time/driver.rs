@@ -157,7 +157,7 @@ impl Driver {
                         commands: Arc::clone(&commands),
                     });
                 }
-                (FieldIo::Sim(io), SafeOutputs::Sim(field))
+                (FieldIo::Simulated(io), SafeOutputs::Simulated(field))
             }
             Backend::Gpiocdev => {
                 let opened = gpio::open(config, "plcd", Arc::clone(&shared.field_faults))?;

@@ -11,7 +11,7 @@ use crate::io::{Io, SwitchPosition};
 
 /// The backend the scan thread refreshes.
 pub enum FieldIo {
-    Sim(SimulatedIo),
+    Simulated(SimulatedIo),
     Gpio(GpioIo),
 }
 
@@ -19,7 +19,7 @@ impl Io for FieldIo {
     #[inline]
     fn refresh_inputs(&mut self, mem: &mut Memory) {
         match self {
-            FieldIo::Sim(io) => io.refresh_inputs(mem),
+            FieldIo::Simulated(io) => io.refresh_inputs(mem),
             FieldIo::Gpio(io) => io.refresh_inputs(mem),
         }
     }
@@ -27,21 +27,21 @@ impl Io for FieldIo {
     #[inline]
     fn refresh_outputs(&mut self, mem: &Memory) {
         match self {
-            FieldIo::Sim(io) => io.refresh_outputs(mem),
+            FieldIo::Simulated(io) => io.refresh_outputs(mem),
             FieldIo::Gpio(io) => io.refresh_outputs(mem),
         }
     }
 
     fn switch(&self) -> Option<SwitchPosition> {
         match self {
-            FieldIo::Sim(io) => io.switch(),
+            FieldIo::Simulated(io) => io.switch(),
             FieldIo::Gpio(io) => io.switch(),
         }
     }
 
     fn is_input(&self, bit: BitRef) -> bool {
         match self {
-            FieldIo::Sim(io) => io.is_input(bit),
+            FieldIo::Simulated(io) => io.is_input(bit),
             FieldIo::Gpio(io) => io.is_input(bit),
         }
     }
@@ -50,14 +50,14 @@ impl Io for FieldIo {
 /// Every output OFF, from any thread, without the scan thread's help.
 #[derive(Clone)]
 pub enum SafeOutputs {
-    Sim(Arc<SimulatedField>),
+    Simulated(Arc<SimulatedField>),
     Gpio(GpioOutputs),
 }
 
 impl SafeOutputs {
     pub fn apply(&self) {
         match self {
-            SafeOutputs::Sim(field) => field.clear_outputs(),
+            SafeOutputs::Simulated(field) => field.clear_outputs(),
             SafeOutputs::Gpio(outputs) => {
                 if let Err(e) = outputs.set_all_inactive() {
                     // Logging allocates, but this is the error path of the error path: the

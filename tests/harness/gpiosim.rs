@@ -4,7 +4,7 @@
 //!
 //! ```ignore
 //! #[macro_use]
-//! mod common_gpiosim;
+//! mod harness;
 //!
 //! #[test]
 //! fn something() {
@@ -20,9 +20,6 @@
 //!
 //! The check only looks: it never loads a module. The gpiosim crate runs `modprobe gpio-sim`
 //! when `/sys/kernel/config/gpio-sim` is missing, so a test must not reach it then.
-#![allow(dead_code)]
-
-use std::io::Write;
 use std::path::Path;
 
 /// The environment variable that turns a skip into a failure.
@@ -80,39 +77,26 @@ fn mounted(dir: &str, fstype: &str) -> bool {
     })
 }
 
-/// Whether the calling test should return at once: writes why to stderr when so. Panics
-/// instead when [`REQUIRE_ENV`] is set to anything but empty or `0`.
-pub fn skip(test: &str) -> bool {
+/// Whether the calling test should return at once: says why on stderr when so
+/// ([`super::skip::skip`]), or fails when [`REQUIRE_ENV`] is set.
+pub fn skip() -> bool {
     let Err(reason) = gpiosim_available() else {
         return false;
     };
-    let required = std::env::var_os(REQUIRE_ENV).is_some_and(|v| !v.is_empty() && v != "0");
-    if required {
-        panic!("gpio-sim is required ({REQUIRE_ENV} is set) but unavailable: {reason}");
-    }
-    // Straight to the stderr handle, as one write so that the lines of tests running in
-    // parallel do not mix: the test harness captures eprintln! of passing tests, and a skip must
-    // be seen in a plain `cargo test`.
-    let line = format!(
-        "{test}: skipped: gpio-sim unavailable: {reason}; tests/qemu/run-gpiosim runs it in a VM\n"
+    super::skip::skip(
+        Some(REQUIRE_ENV),
+        &format!("gpio-sim unavailable: {reason}; tests/qemu/run-gpiosim runs it in a VM"),
     );
-    let _ = std::io::stderr().write_all(line.as_bytes());
     true
-}
-
-/// The running test's name, as the test harness named its thread.
-pub fn test_name() -> String {
-    match std::thread::current().name() {
-        Some(name) if name != "main" => name.to_string(),
-        _ => "gpiosim test".to_string(),
-    }
 }
 
 /// Returns from the calling test, which then passes, when gpio-sim is unavailable here; panics
 /// instead when `PLCD_REQUIRE_GPIOSIM` is set. See the module's documentation.
+// Every test crate compiles the harness; only the gpio-sim tests use this.
+#[allow(unused_macros)]
 macro_rules! require_gpiosim {
     () => {
-        if $crate::common_gpiosim::skip(&$crate::common_gpiosim::test_name()) {
+        if $crate::harness::gpiosim::skip() {
             return;
         }
     };
