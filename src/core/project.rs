@@ -108,7 +108,9 @@ pub fn from_config(
     }
 }
 
-/// At most five DUTY instructions, and one per clock relay, across the whole project.
+/// At most five DUTY instructions, and one per clock relay, across the whole project. Five
+/// relays with one DUTY each make five; the limit of five bites when a relay is named twice as
+/// well (six DUTYs, one of them a duplicate: both errors).
 fn check_duty(files: &[(PathBuf, Vec<DutySite>)], diags: &mut Diagnostics) {
     let mut seen: Vec<(u8, &Path, u32)> = Vec::new();
     for (path, sites) in files {

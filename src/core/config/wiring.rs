@@ -4,7 +4,7 @@
 //!
 //! A plan is pure data: which line offset is which P bit (or the key switch), with which
 //! settings, in which request, and which lines detect which edges. `plcd check` builds it while
-//! it validates a gpiocdev config ([`check`], every violation located and reported with the
+//! it validates a gpiocdev config (`check`, every violation located and reported with the
 //! rest), and `plcd run` builds the same plan from the validated config ([`Config::wiring`])
 //! and hands it to the backend, which only applies it to a chip. So a config `plcd check`
 //! accepts never fails at `plcd run` for a reason the config alone shows; what is left for
@@ -12,7 +12,7 @@
 //! support for a setting).
 //!
 //! The rules each key obeys on its own, which every backend shares, are checked where the key
-//! is ([`super::io`], [`super::switch`], [`super::task`]): devices are P bits, lines and
+//! is (the `io`, `switch` and `task` modules): devices are P bits, lines and
 //! devices are unique across inputs, outputs and the switch, a gpiocdev switch has a line, an
 //! io task's contact is an input line. The plan relies on them.
 
