@@ -83,6 +83,29 @@ fn the_readme_run_command_draws_the_example_project() {
 }
 
 #[test]
+fn every_output_of_the_example_project_moves() {
+    // What the README promises of it: the blink lamp, the conveyor motor, the DUTY heartbeat
+    // and the batch lamp each change within the 8 s of the stimulus.
+    let out = plcd(&[
+        "sim",
+        "--config",
+        "etc/plcd.toml",
+        "--for",
+        "8s",
+        "--inputs",
+        "etc/stimulus.csv",
+        "--trace",
+        "-",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let trace = String::from_utf8_lossy(&out.stdout);
+    for output in ["P0040", "P0041", "P0042", "P0043"] {
+        let on = format!("\"ev\":\"set\",\"dev\":\"{output}\",\"value\":1");
+        assert!(trace.contains(&on), "{output} never comes on");
+    }
+}
+
+#[test]
 fn bad_inputs_exit_1_and_bad_usage_exit_2() {
     let dir = TempDir::new("sim-bad-inputs");
     let csv = dir.write("bad.csv", "1ms, P0000, 1\nsoon, P0000, 0\n");
