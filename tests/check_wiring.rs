@@ -3,29 +3,22 @@
 //! check needs no GPIO chip (the config's chip need not exist), and reports every such error
 //! with the config's others, located.
 
-use std::path::{Path, PathBuf};
+mod harness;
+
 use std::process::Command;
 
-/// A fresh directory with `plcd.toml` = `config` and an empty scan program.
-fn project(name: &str, config: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("plcd-check-wiring-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join("main.il"), "END\n").unwrap();
-    std::fs::write(dir.join("plcd.toml"), config).unwrap();
+use harness::tempdir::TempDir;
+
+/// A fresh project directory with `plcd.toml` = `config` and an empty scan program.
+fn project(name: &str, config: &str) -> TempDir {
+    let dir = TempDir::new(&format!("check-wiring-{name}"));
+    dir.write("main.il", "END\n");
+    dir.write("plcd.toml", config);
     dir
 }
 
-/// Removes a project directory when the test is done with it.
-struct Cleanup(PathBuf);
-
-impl Drop for Cleanup {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 /// `plcd check` on the project: its exit code and stderr.
-fn check(dir: &Path) -> (Option<i32>, String) {
+fn check(dir: &TempDir) -> (Option<i32>, String) {
     let output = Command::new(env!("CARGO_BIN_EXE_plcd"))
         .args(["check", "--config"])
         .arg(dir.join("plcd.toml"))
@@ -45,7 +38,6 @@ fn input(n: u32, extra: &str) -> String {
 fn too_many_lines_for_one_request() {
     let inputs: String = (0..65).map(|n| input(n, "")).collect();
     let dir = project("lines", &format!("{HEAD}{inputs}"));
-    let _cleanup = Cleanup(dir.clone());
     let (code, stderr) = check(&dir);
     let path = dir.join("plcd.toml");
     assert_eq!(code, Some(1), "{stderr}");
@@ -61,7 +53,6 @@ fn too_many_lines_for_one_request() {
     // 64 are fine, without the chip.
     let inputs: String = (0..64).map(|n| input(n, "")).collect();
     let dir = project("lines-ok", &format!("{HEAD}{inputs}"));
-    let _cleanup_ok = Cleanup(dir.clone());
     let (code, stderr) = check(&dir);
     assert_eq!(code, Some(0), "{stderr}");
 }
@@ -72,7 +63,6 @@ fn too_many_line_settings_with_the_other_errors() {
     let inputs: String =
         (0..11).map(|n| input(n, &format!("debounce_us = {}\n", 100 * (n + 1)))).collect();
     let dir = project("settings", &format!("[plc]\nwatchdog_ms = 5\n{HEAD}{inputs}"));
-    let _cleanup = Cleanup(dir.clone());
     let (code, stderr) = check(&dir);
     let path = dir.join("plcd.toml");
     assert_eq!(code, Some(1), "{stderr}");

@@ -62,20 +62,18 @@ fn plcd(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_plcd")).args(args).output().unwrap()
 }
 
+/// The README's example: `plcd sim` of `etc/plcd.toml` for 8 s with `etc/stimulus.csv`, and
+/// `output` (`--timeline`, `--trace -`); its standard output, once it exited 0.
+fn example(output: &str) -> String {
+    let args = ["sim", "--config", "etc/plcd.toml", "--for", "8s", "--inputs", "etc/stimulus.csv"];
+    let out = plcd(&[&args[..], &output.split_whitespace().collect::<Vec<_>>()].concat());
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
 #[test]
 fn the_readme_run_command_draws_the_example_project() {
-    let out = plcd(&[
-        "sim",
-        "--config",
-        "etc/plcd.toml",
-        "--for",
-        "8s",
-        "--inputs",
-        "etc/stimulus.csv",
-        "--timeline",
-    ]);
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let chart = String::from_utf8_lossy(&out.stdout);
+    let chart = example("--timeline");
     for task in ["scan", "init", "blink_250ms", "count_p0000", "batch_full"] {
         let row = chart.lines().find(|l| l.starts_with(task)).unwrap_or_else(|| panic!("{chart}"));
         assert!(row.contains('#'), "{task} never ran:\n{chart}");
@@ -86,19 +84,7 @@ fn the_readme_run_command_draws_the_example_project() {
 fn every_output_of_the_example_project_moves() {
     // What the README promises of it: the blink lamp, the conveyor motor, the DUTY heartbeat
     // and the batch lamp each change within the 8 s of the stimulus.
-    let out = plcd(&[
-        "sim",
-        "--config",
-        "etc/plcd.toml",
-        "--for",
-        "8s",
-        "--inputs",
-        "etc/stimulus.csv",
-        "--trace",
-        "-",
-    ]);
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let trace = String::from_utf8_lossy(&out.stdout);
+    let trace = example("--trace -");
     for output in ["P0040", "P0041", "P0042", "P0043"] {
         let on = format!("\"ev\":\"set\",\"dev\":\"{output}\",\"value\":1");
         assert!(trace.contains(&on), "{output} never comes on");
