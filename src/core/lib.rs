@@ -7,17 +7,17 @@
 //! `plcd sim`, real time for `plcd run`) feed this same engine; docs/ARCHITECTURE.md draws the
 //! layers.
 //!
-//! Bottom up:
+//! The modules (docs/ARCHITECTURE.md ranks them: each imports only modules below its own):
 //! - [`diag`]: located diagnostics (`path:line:col: error: message`), all reported at once;
 //! - [`duration`], [`timestamp`]: how durations and time stamps are written;
+//! - [`stats`]: allocation-free histograms for latencies and execution times;
 //! - [`device`]: device memory, its fixed layout, the address syntax, which devices are
-//!   retained;
+//!   retained and who may write which;
+//! - [`io`]: the field as the engine sees it (the [`io::Io`] trait);
 //! - [`config`]: the project's TOML config parsed into typed, range-checked structs;
 //! - [`lang`]: the instruction-list language, parse → check → compile into [`lang::Program`];
 //! - [`vm`]: executes compiled programs one instruction at a time, resumable between any two;
 //! - [`project`]: a config and all its programs, checked together;
-//! - [`io`]: the field as the engine sees it (the [`io::Io`] trait);
-//! - [`stats`]: allocation-free histograms for latencies and execution times;
 //! - [`engine`]: the task engine: what runs when;
 //! - [`stimulus`]: the simulation inputs file (timed device changes), parsed.
 #![forbid(unsafe_code)]
