@@ -8,7 +8,7 @@ use crate::device::Address;
 use crate::drivers::real_time::Shared;
 use crate::engine::event::ErrorKind;
 use crate::engine::Engine;
-use crate::io::faults::FaultState;
+use crate::io::faults::{FaultState, FieldFaults};
 use crate::project::Project;
 use crate::stats::Summary;
 
@@ -103,7 +103,7 @@ pub fn statistics(engine: &Engine, shared: &Shared) -> Vec<String> {
 /// failing, when the errno changes, and when it works again; never once a failure, which a
 /// fault that persists would turn into a log line a scan.
 #[derive(Debug)]
-pub struct FaultLog {
+struct FaultLog {
     /// The path, as a log line starts: `reading GPIO edge events`.
     what: &'static str,
     /// What a failure means for the PLC until the path works again.
@@ -115,32 +115,12 @@ pub struct FaultLog {
 }
 
 impl FaultLog {
-    pub const fn new(what: &'static str, meanwhile: &'static str) -> FaultLog {
+    const fn new(what: &'static str, meanwhile: &'static str) -> FaultLog {
         FaultLog { what, meanwhile, seen: 0, reported: None }
     }
 
-    /// The field's three paths: inputs, outputs and edge events, in that order.
-    pub fn field() -> [FaultLog; 3] {
-        [
-            FaultLog::new(
-                "reading the GPIO inputs",
-                "the inputs keep their last values until a read works again (retried every scan)",
-            ),
-            FaultLog::new(
-                "writing the GPIO outputs",
-                "the lines keep what was last written until a write works again (retried every \
-                 scan)",
-            ),
-            FaultLog::new(
-                "reading GPIO edge events",
-                "io tasks start on no edge until a read works again (retried at most once a \
-                 second)",
-            ),
-        ]
-    }
-
     /// The line to log, if any, given the path's counters.
-    pub fn update(&mut self, state: FaultState) -> Option<(log::Level, String)> {
+    fn update(&mut self, state: FaultState) -> Option<(log::Level, String)> {
         let FaultState { count, errno, failing } = state;
         let (what, new) = (self.what, count.saturating_sub(self.seen));
         self.seen = count;
@@ -173,6 +153,49 @@ impl FaultLog {
     }
 }
 
+/// What was last logged about each I/O path of the field, each log beside the path it reads.
+#[derive(Debug)]
+pub struct FieldFaultLog {
+    input_reads: FaultLog,
+    output_writes: FaultLog,
+    edge_reads: FaultLog,
+}
+
+impl Default for FieldFaultLog {
+    fn default() -> Self {
+        FieldFaultLog {
+            input_reads: FaultLog::new(
+                "reading the GPIO inputs",
+                "the inputs keep their last values until a read works again (retried every scan)",
+            ),
+            output_writes: FaultLog::new(
+                "writing the GPIO outputs",
+                "the lines keep what was last written until a write works again (retried every \
+                 scan)",
+            ),
+            edge_reads: FaultLog::new(
+                "reading GPIO edge events",
+                "io tasks start on no edge until a read works again (retried at most once a \
+                 second)",
+            ),
+        }
+    }
+}
+
+impl FieldFaultLog {
+    /// The lines to log about `faults`, path by path.
+    pub fn update(&mut self, faults: &FieldFaults) -> Vec<(log::Level, String)> {
+        [
+            (&mut self.input_reads, &faults.input_reads),
+            (&mut self.output_writes, &faults.output_writes),
+            (&mut self.edge_reads, &faults.edge_reads),
+        ]
+        .into_iter()
+        .filter_map(|(log, path)| log.update(path.state()))
+        .collect()
+    }
+}
+
 /// An errno as the log says it; 0 is a failure without one (a short read).
 fn describe_errno(errno: i32) -> String {
     if errno == 0 {
@@ -189,7 +212,7 @@ mod tests {
     #[test]
     fn a_failing_path_is_logged_once_per_condition() {
         let state = |count, errno, failing| FaultState { count, errno, failing };
-        let [_, _, mut log] = FaultLog::field();
+        let mut log = FieldFaultLog::default().edge_reads;
         assert_eq!(log.update(state(0, 0, false)), None, "nothing failed");
         let (level, line) = log.update(state(1, libc::ENODEV, true)).unwrap();
         assert_eq!(level, log::Level::Error);
@@ -222,7 +245,8 @@ mod tests {
 
     #[test]
     fn each_path_of_the_field_says_what_failed_and_what_it_means() {
-        let [mut inputs, mut outputs, _] = FaultLog::field();
+        let FieldFaultLog { input_reads: mut inputs, output_writes: mut outputs, .. } =
+            FieldFaultLog::default();
         let failing = FaultState { count: 1, errno: libc::EIO, failing: true };
         let (_, line) = inputs.update(failing).unwrap();
         assert_eq!(

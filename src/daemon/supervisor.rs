@@ -88,9 +88,8 @@ struct Daemon {
     seen_lost_edges: u64,
     seen_dropped: u64,
     seen_trips: u64,
-    /// What was logged about failed reads of GPIO edge events.
-    /// What was last logged about each I/O path of the field (`FaultLog::field`'s order).
-    field_faults: [report::FaultLog; 3],
+    /// What was last logged about each I/O path of the field.
+    field_faults: report::FieldFaultLog,
     /// Retained memory: restored at start, written in the background (docs/RETAIN.md).
     retain: crate::services::retain::service::Persistence,
 }
@@ -162,7 +161,7 @@ impl Daemon {
             seen_lost_edges: 0,
             seen_dropped: 0,
             seen_trips: 0,
-            field_faults: report::FaultLog::field(),
+            field_faults: report::FieldFaultLog::default(),
             retain,
         };
         if has_switch {
@@ -286,12 +285,8 @@ impl Daemon {
             log::warn!("{} input edges lost ({lost} in all)", lost - self.seen_lost_edges);
             self.seen_lost_edges = lost;
         }
-        let faults = &self.shared.field_faults;
-        let paths = [&faults.input_reads, &faults.output_writes, &faults.edge_reads];
-        for (log, path) in self.field_faults.iter_mut().zip(paths) {
-            if let Some((level, line)) = log.update(path.state()) {
-                log::log!(level, "{line}");
-            }
+        for (level, line) in self.field_faults.update(&self.shared.field_faults) {
+            log::log!(level, "{line}");
         }
         let dropped = self.shared.dropped_reports.load(Ordering::Relaxed);
         if dropped > self.seen_dropped {
