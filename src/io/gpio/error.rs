@@ -119,7 +119,6 @@ impl fmt::Display for UsedBy<'_> {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum IoOp {
     ReadInputs,
-    WriteOutputs,
     ForceInactive,
     ReadEdges,
     ChipInfo,
@@ -130,7 +129,6 @@ impl fmt::Display for IoOp {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             IoOp::ReadInputs => f.write_str("reading the inputs"),
-            IoOp::WriteOutputs => f.write_str("writing the outputs"),
             IoOp::ForceInactive => f.write_str("forcing the outputs inactive"),
             IoOp::ReadEdges => f.write_str("reading edge events"),
             IoOp::ChipInfo => f.write_str("reading the chip info"),

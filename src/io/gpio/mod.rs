@@ -153,7 +153,6 @@ pub fn open(config: &Config, consumer: &str, faults: Arc<FieldFaults>) -> Result
         switch = switch_position(&side.slots, &side.values);
     }
     let io = GpioIo {
-        chip: found.name.clone(),
         inputs,
         switch,
         outputs: outputs.clone().map(|shared| OutputSide {

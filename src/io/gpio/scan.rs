@@ -17,7 +17,6 @@ use crate::io::{Io, SwitchPosition};
 /// The scan's side of the backend: refreshes the P image from and to the lines.
 #[derive(Debug)]
 pub struct GpioIo {
-    pub(super) chip: Arc<str>,
     pub(super) inputs: Option<InputSide>,
     /// The key switch as last read (at open, then at each input refresh); `None`: no switch.
     pub(super) switch: Option<SwitchPosition>,
@@ -40,13 +39,6 @@ pub(super) struct OutputSide {
     pub shared: Arc<OutputShared>,
     pub values: Values,
     pub bits: Box<[ImageBit]>,
-}
-
-impl GpioIo {
-    /// How errors name the chip.
-    pub fn chip(&self) -> &str {
-        &self.chip
-    }
 }
 
 impl Io for GpioIo {
