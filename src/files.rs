@@ -30,12 +30,6 @@ pub fn project(path: &Path) -> Result<Project, Diagnostics> {
     project::from_config(config, |p| std::fs::read_to_string(p))
 }
 
-/// Reads and parses an inputs file on its own: `SWITCH` lines are accepted
-/// ([`stimulus::parse`]).
-pub fn stimulus(path: &Path) -> Result<Vec<Stimulus>, Diagnostics> {
-    read_stimulus(path).and_then(|text| stimulus::parse(&text, path))
-}
-
 /// Reads and parses the inputs file of a project, checked against its config
 /// ([`stimulus::parse_for`]). `plcd sim --inputs` and the daemon's `io.stimulus` both load
 /// through this.
@@ -65,7 +59,7 @@ mod tests {
     #[test]
     fn a_missing_inputs_file_is_one_diagnostic() {
         let path = Path::new("/nonexistent/plcd-inputs.csv");
-        let diags = stimulus(path).unwrap_err();
+        let diags = stimulus_for(path, &config_with(false)).unwrap_err();
         assert_eq!(diags.len(), 1);
         let text = diags.to_string();
         assert!(text.starts_with("/nonexistent/plcd-inputs.csv:0:0: error: cannot read"), "{text}");
@@ -75,7 +69,7 @@ mod tests {
     fn an_inputs_file_is_read_and_sorted() {
         let path = std::env::temp_dir().join(format!("plcd-stimulus-{}.csv", std::process::id()));
         std::fs::write(&path, "2ms, P0001, 1\n1ms, P0000, 1\n").unwrap();
-        let result = stimulus(&path);
+        let result = stimulus_for(&path, &config_with(false));
         std::fs::remove_file(&path).unwrap();
         let times: Vec<u64> = result.unwrap().iter().map(|s| s.t_ns).collect();
         assert_eq!(times, vec![1_000_000, 2_000_000]);
