@@ -32,5 +32,7 @@ pub mod lang;
 pub mod project;
 pub mod stats;
 pub mod stimulus;
+pub mod st;
 pub mod timestamp;
+pub mod value;
 pub mod vm;

@@ -37,7 +37,11 @@ pub fn compile(name: &str, path: &Path, checked: CheckedProgram, edge_base: u32)
     Program {
         name: name.to_string(),
         path: path.to_path_buf(),
+        language: super::Language::InstructionList,
         code: code.into_boxed_slice(),
+        consts: Box::new([]),
+        frame_bytes: 0,
+        regions: Box::new([]),
         lines: lines.into_boxed_slice(),
         edge_base,
         edge_slots: checked.edge_slots,

@@ -12,7 +12,9 @@ pub mod parse;
 use std::path::{Path, PathBuf};
 
 pub use check::{Context, DutySite};
-pub use ops::Op;
+pub use ops::{Op, Place};
+
+use crate::value::{Elem, Symbol};
 
 use crate::diag::Diagnostics;
 
@@ -24,12 +26,37 @@ pub const LOOP_DEPTH: usize = 16;
 /// Nesting limit of `CALL`, checked at run time (error 4210H).
 pub const CALL_DEPTH: usize = 16;
 
+/// Slots of a task's evaluation stack for Structured Text expressions; the compiler refuses an
+/// expression that needs more.
+pub const EVAL_DEPTH: usize = 64;
+/// Nesting limit of Structured Text FUNCTION and FUNCTION_BLOCK calls (recursion is refused),
+/// checked when the program is compiled.
+pub const ST_CALL_DEPTH: usize = 32;
+
+/// The language a program was written in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Language {
+    InstructionList,
+    StructuredText,
+}
+
 /// An executable program.
 #[derive(Debug, Clone)]
 pub struct Program {
+    /// The instance name (the `[[program]]`'s `name`).
     pub name: String,
     pub path: PathBuf,
+    pub language: Language,
     pub code: Box<[Op]>,
+    /// Wide constants of `Op::PushConst` and of the IL double-word and real instructions.
+    pub consts: Box<[u64]>,
+    /// Bytes of frame area the program needs (Structured Text: the deepest chain of calls'
+    /// locals and temporaries); 0 for the instruction list.
+    pub frame_bytes: u32,
+    /// Code compiled from other files than `path` (a FUNCTION declared in another `.st` file):
+    /// `(first pc, file)` of each stretch, sorted by pc. A stretch runs to the next one; code
+    /// before the first is from `path`.
+    pub regions: Box<[(u32, PathBuf)]>,
     /// The source line of each instruction.
     pub lines: Box<[u32]>,
     /// This program's edge memory is `edge_base .. edge_base + edge_slots`.
@@ -47,6 +74,31 @@ impl Program {
     pub fn line_of(&self, pc: usize) -> u32 {
         self.lines.get(pc).copied().unwrap_or(0)
     }
+
+    /// The source file of the instruction at `pc`.
+    pub fn file_of(&self, pc: usize) -> &Path {
+        let after = self.regions.partition_point(|(start, _)| *start as usize <= pc);
+        match after.checked_sub(1) {
+            Some(i) => &self.regions[i].1,
+            None => &self.path,
+        }
+    }
+}
+
+/// The variable memory of a project's Structured Text programs (their instances, the FB
+/// instances inside them, the globals): its contents at RUN start, what a warm restart keeps,
+/// the located variables' initial values, and every variable by name.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Variables {
+    /// The memory's contents at RUN start; its length is the memory's size.
+    pub initial: Box<[u8]>,
+    /// `(offset, len)` of the `RETAIN` variables' bytes, kept over a warm restart.
+    pub retained: Box<[(u32, u32)]>,
+    /// Located variables with an initial value: written to their devices at RUN start, after
+    /// the device areas are cleared.
+    pub located_init: Box<[(Place, Elem, u64)]>,
+    /// Every variable, one leaf each, in declaration order.
+    pub symbols: Vec<Symbol>,
 }
 
 /// Assembles one program text: every diagnostic of the file, or the program.

@@ -8,6 +8,7 @@
 //! [`Combine::Load`] has `push`), so the VM never has to guess where a rung starts.
 
 use crate::device::{BitRef, WordRef};
+use crate::value::{BinOp, Elem, UnOp};
 
 /// A word operand: a device word or a constant (its 16-bit pattern).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -232,6 +233,135 @@ pub enum Op {
         n2: Src,
         slot: EdgeSlot,
     },
+
+    // The typed stack machine of Structured Text. Each op is one step, like an IL
+    // instruction, so a task can be preempted between any two. Operands are slots on the
+    // activation's evaluation stack (see `crate::value` for their encoding); "pops b, a" means
+    // `b` is on top.
+    /// Pushes a constant, sign-extended from 32 bits.
+    PushInt(i32),
+    /// Pushes `Program::consts[index]`.
+    PushConst(u32),
+    /// Pushes the value at `at`.
+    Fetch {
+        elem: Elem,
+        at: Place,
+    },
+    /// Pops a value and stores it at `at`.
+    Store {
+        elem: Elem,
+        at: Place,
+    },
+    /// Pushes a pointer to `at`.
+    AddrOf(Place),
+    /// Pops an index and a pointer to an array's first element; pushes a pointer to element
+    /// `index - lo` (`stride` bytes, or words, or bits apart, by the pointer's space). An
+    /// index outside `lo .. lo + len` pushes the discard pointer and raises an operation error.
+    Index {
+        lo: i32,
+        len: u32,
+        stride: u32,
+    },
+    /// Pops a pointer, pushes it moved by `n` (a struct member, an FB instance's variable).
+    Offset(u32),
+    /// Pops a pointer, pushes the value it points to.
+    FetchInd(Elem),
+    /// Pops a value, then a pointer; stores the value there.
+    StoreInd(Elem),
+    /// Pops a source pointer, then a destination pointer; copies `n` bytes (arrays, structs).
+    Copy(u32),
+    /// Pops b, a; pushes `a op b`. A failed operation pushes 0 and raises an operation error.
+    Bin {
+        op: BinOp,
+        elem: Elem,
+    },
+    /// Pops a; pushes `op a`.
+    Un {
+        op: UnOp,
+        elem: Elem,
+    },
+    /// Pops b, a; pushes the BOOL `a op b`.
+    Cmp {
+        op: CmpOp,
+        elem: Elem,
+    },
+    /// Pops a slot of `from`, pushes it converted to `to`.
+    Conv {
+        from: Elem,
+        to: Elem,
+    },
+    /// Pushes a copy of the top slot.
+    Dup,
+    /// Pops and forgets the top slot.
+    Drop,
+    /// Goes on at `target`.
+    Goto(u32),
+    /// Pops a BOOL; goes on at `target` when it equals `when`.
+    GotoIf {
+        target: u32,
+        when: bool,
+    },
+    /// Calls the FUNCTION at `target`: its frame starts `frame` bytes after the caller's base
+    /// (the caller has already stored the arguments there).
+    CallFn {
+        target: u32,
+        frame: u32,
+    },
+    /// Pops a pointer to an FB instance and calls the FUNCTION_BLOCK body at `target` with it
+    /// as `this`; its frame (`VAR_TEMP`) starts `frame` bytes after the caller's base.
+    CallFb {
+        target: u32,
+        frame: u32,
+    },
+    /// Returns from a FUNCTION or FUNCTION_BLOCK body to its caller.
+    Return,
+    /// Pushes the clock's time in nanoseconds (an `I64`), for the standard timers.
+    Now,
+    /// A string operation on pointers; `cap` is the destination's capacity.
+    Str {
+        op: StrOp,
+        cap: u16,
+    },
+}
+
+/// Where a typed operand of Structured Text lives, resolved when the program is compiled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Place {
+    /// Variable memory (program instances and globals), byte offset.
+    Var(u32),
+    /// The current activation's frame (function locals, `VAR_TEMP`, temporaries), byte offset
+    /// from the frame's base.
+    Frame(u32),
+    /// The current FB instance (`this`, a pointer set by [`Op::CallFb`]), byte offset into it.
+    This(u32),
+    /// A device word, and for 32/64-bit values the words after it (low word first).
+    Word(WordRef),
+    /// A device bit (a BOOL located at a bit device).
+    Bit(BitRef),
+}
+
+/// A string operation. Strings are passed as pointers ([`crate::value::Pointer`] slots) to
+/// `STRING[n]` storage: a length byte, then `n` bytes. `cap` of [`Op::Str`] is the capacity of
+/// the destination; a longer result is cut to it. Stack effects (top last):
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum StrOp {
+    /// `dst src` → ``: copies `src` into `dst`.
+    Move,
+    /// `s` → `len` (an `I64`).
+    Len,
+    /// `dst s n` → ``: the first `n` characters of `s` into `dst`.
+    Left,
+    /// `dst s n` → ``: the last `n`.
+    Right,
+    /// `dst s n p` → ``: `n` characters from position `p` (1-based).
+    Mid,
+    /// `dst a b` → ``: `a` then `b`.
+    Concat,
+    /// `a b` → `p`: the 1-based position of `b` in `a`, 0 if absent (an `I64`).
+    Find,
+    /// `a b` → `order`: -1, 0 or 1 as an `I64` (byte-wise), for the comparisons.
+    Compare,
 }
 
 /// The device an instruction writes as its result.

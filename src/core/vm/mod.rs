@@ -622,6 +622,7 @@ fn interpret<'a, C: Clock>(
                         halt!(Exit::System(*request));
                     }
                 }
+                _ => unimplemented!("vm-typed helper"),
             }
         }
     }

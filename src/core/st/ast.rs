@@ -1,0 +1,303 @@
+//! The syntax tree of a Structured Text file, as the parser builds it and the checker reads
+//! it. Every node keeps the place it was written at, for diagnostics; names keep the spelling
+//! they were written with and compare case-insensitively ([`Ident::is`]).
+
+use std::path::PathBuf;
+
+/// A place in a source file: 1-based line and column of a node's first character.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub struct Span {
+    pub line: u32,
+    pub col: u32,
+}
+
+/// A name as written.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Ident {
+    pub name: String,
+    pub span: Span,
+}
+
+impl Ident {
+    /// Whether this is `other`, ignoring case (IEC names are case-insensitive).
+    pub fn is(&self, other: &str) -> bool {
+        self.name.eq_ignore_ascii_case(other)
+    }
+}
+
+/// One parsed `.st` file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct File {
+    pub path: PathBuf,
+    pub items: Vec<Item>,
+}
+
+/// A top-level declaration.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Item {
+    Pou(Pou),
+    /// `TYPE … END_TYPE` (one item per type declared in the block).
+    Type(TypeDecl),
+    /// A top-level `VAR_GLOBAL … END_VAR` block.
+    Globals(VarBlock),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PouKind {
+    Program,
+    Function,
+    FunctionBlock,
+}
+
+/// A PROGRAM, FUNCTION or FUNCTION_BLOCK.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pou {
+    pub kind: PouKind,
+    pub name: Ident,
+    /// A FUNCTION's result type (`FUNCTION F : INT`).
+    pub return_type: Option<TypeRef>,
+    pub vars: Vec<VarBlock>,
+    pub body: Vec<Stmt>,
+    /// Where the POU's keyword is.
+    pub span: Span,
+    /// Where its `END_…` keyword is (the line a breakpoint on the end stops at).
+    pub end: Span,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum VarKind {
+    /// `VAR`
+    Local,
+    /// `VAR_INPUT`
+    Input,
+    /// `VAR_OUTPUT`
+    Output,
+    /// `VAR_IN_OUT`
+    InOut,
+    /// `VAR_TEMP`
+    Temp,
+    /// `VAR_GLOBAL`
+    Global,
+    /// `VAR_EXTERNAL`
+    External,
+}
+
+/// A `VAR… END_VAR` block.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VarBlock {
+    pub kind: VarKind,
+    /// `CONSTANT`
+    pub constant: bool,
+    /// `RETAIN` (`NON_RETAIN` is the default and parses as `false`).
+    pub retain: bool,
+    pub span: Span,
+    pub decls: Vec<VarDecl>,
+}
+
+/// `a, b AT %D00100 : INT := 5;`
+#[derive(Debug, Clone, PartialEq)]
+pub struct VarDecl {
+    pub names: Vec<Ident>,
+    /// The text after `AT %` (`D00100`, `IX0.0`), with the place of the `%`.
+    pub location: Option<Ident>,
+    pub ty: TypeRef,
+    pub init: Option<Init>,
+    pub span: Span,
+}
+
+/// A type as written where a type is expected.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TypeRef {
+    /// An elementary type, a declared TYPE or a FUNCTION_BLOCK, by name.
+    Named(Ident),
+    /// `STRING` (length 80) or `STRING[n]` / `STRING(n)`.
+    String { len: Option<Box<Expr>>, span: Span },
+    /// `ARRAY [lo..hi, lo..hi] OF T`.
+    Array { dims: Vec<(Expr, Expr)>, of: Box<TypeRef>, span: Span },
+    /// An inline enumeration `(A, B := 5, C)`, in a variable declaration.
+    Enum(EnumDef),
+    /// A subrange `INT (0..100)`.
+    Subrange { base: Ident, lo: Box<Expr>, hi: Box<Expr>, span: Span },
+}
+
+/// `TYPE Name : … END_TYPE`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TypeDecl {
+    pub name: Ident,
+    pub def: TypeDef,
+    pub span: Span,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum TypeDef {
+    /// `TYPE Speed : INT := 10; END_TYPE`, `TYPE Buf : ARRAY [0..9] OF INT; END_TYPE`.
+    Alias { ty: TypeRef, init: Option<Init> },
+    /// `STRUCT … END_STRUCT`.
+    Struct { members: Vec<VarDecl> },
+    /// `(Idle, Run := 5, Fault) := Idle` or with a base type `INT (…)`.
+    Enum { def: EnumDef, init: Option<Ident> },
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct EnumDef {
+    /// `INT (A, B)`: the base type, `INT` when absent.
+    pub base: Option<Ident>,
+    pub values: Vec<(Ident, Option<Expr>)>,
+    pub span: Span,
+}
+
+/// An initial value.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Init {
+    Expr(Expr),
+    /// `[1, 2, 3(0)]`: elements, `n(value)` repeats; `n()` repeats the default.
+    Array { elems: Vec<ArrayInit>, span: Span },
+    /// `(a := 1, b := TRUE)`.
+    Struct { members: Vec<(Ident, Init)>, span: Span },
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum ArrayInit {
+    One(Init),
+    Repeat { count: Expr, value: Option<Init> },
+}
+
+/// A statement.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stmt {
+    pub kind: StmtKind,
+    pub span: Span,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum StmtKind {
+    /// `target := value`
+    Assign { target: Expr, value: Expr },
+    /// A call as a statement: an FB instance (`t1(IN := x, PT := T#1s);`) or a function
+    /// whose result is not used.
+    Call(Expr),
+    If {
+        /// `IF c THEN …`, then each `ELSIF c THEN …`.
+        branches: Vec<(Expr, Vec<Stmt>)>,
+        /// `ELSE …`, with the place of `ELSE`.
+        otherwise: Option<(Span, Vec<Stmt>)>,
+    },
+    Case {
+        selector: Expr,
+        arms: Vec<CaseArm>,
+        otherwise: Option<(Span, Vec<Stmt>)>,
+    },
+    For {
+        var: Ident,
+        from: Expr,
+        to: Expr,
+        by: Option<Expr>,
+        body: Vec<Stmt>,
+    },
+    While {
+        cond: Expr,
+        body: Vec<Stmt>,
+    },
+    Repeat {
+        body: Vec<Stmt>,
+        until: Expr,
+    },
+    Exit,
+    Continue,
+    Return,
+    /// A lone `;`.
+    Empty,
+}
+
+/// `1, 3..5, Red: …`
+#[derive(Debug, Clone, PartialEq)]
+pub struct CaseArm {
+    pub labels: Vec<CaseLabel>,
+    pub body: Vec<Stmt>,
+    pub span: Span,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum CaseLabel {
+    Value(Expr),
+    Range(Expr, Expr),
+}
+
+/// An expression.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Expr {
+    pub kind: ExprKind,
+    pub span: Span,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum ExprKind {
+    Literal(Literal),
+    /// A variable, an enumeration value, a constant, by name.
+    Name(Ident),
+    /// `a.b`: a struct member, an FB instance's variable, a program's variable.
+    Member(Box<Expr>, Ident),
+    /// `a[i, j]`
+    Index(Box<Expr>, Vec<Expr>),
+    /// `a.3`: a bit of an integer or bit string (IEC partial access).
+    Bit(Box<Expr>, u8),
+    Unary(UnaryOp, Box<Expr>),
+    Binary(BinaryOp, Box<Expr>, Box<Expr>),
+    /// `f(…)`, `fb(…)`, `inst.fb(…)`.
+    Call { callee: Box<Expr>, args: Vec<Arg> },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum UnaryOp {
+    Neg,
+    Plus,
+    Not,
+}
+
+/// The binary operators; their precedence is the parser's (docs/ST.md has the table).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BinaryOp {
+    Or,
+    Xor,
+    And,
+    Eq,
+    Ne,
+    Lt,
+    Le,
+    Gt,
+    Ge,
+    Add,
+    Sub,
+    Mul,
+    Div,
+    Mod,
+    Pow,
+}
+
+/// A call argument.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Arg {
+    Positional(Expr),
+    /// `IN := x`
+    Input { name: Ident, value: Expr },
+    /// `Q => y`, or `NOT Q => y` when `negated`.
+    Output { name: Ident, target: Expr, negated: bool },
+}
+
+/// A literal as written; its type is decided by the checker from the prefix or the context.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Literal {
+    /// `42`, `16#FF`, `2#1010`, `8#17`, `1_000`; the sign is a unary minus around it.
+    Int(u128),
+    /// `1.5`, `1.0E-3`.
+    Real(f64),
+    /// `TRUE`, `FALSE`.
+    Bool(bool),
+    /// `T#1s500ms`, `TIME#…`, `LTIME#…`: nanoseconds.
+    Time(i128),
+    /// `'text'` with `$` escapes resolved.
+    String(String),
+    /// `INT#5`, `REAL#1`, `BOOL#1`, `Color#Red`: a prefix naming the type, and the literal or
+    /// name after `#`.
+    Typed { ty: Ident, value: Box<Expr> },
+}

@@ -1,0 +1,14 @@
+//! Structured Text (IEC 61131-3), docs/ST.md: parse → check → compile into
+//! [`Program`](crate::lang::Program)s of the same VM the instruction list runs on.
+//!
+//! - [`ast`]: the syntax tree;
+//! - [`syntax`]: text → tree, with every syntax error of a file;
+//! - [`compile`]: trees of all the project's `.st` files → one program per `[[program]]`
+//!   instance, the variable memory's layout and initial image, and every variable by name.
+
+pub mod ast;
+pub mod compile;
+pub mod syntax;
+
+pub use compile::{compile, Compiled, Instance};
+pub use syntax::parse_file;
