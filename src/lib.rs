@@ -12,7 +12,8 @@
 
 // The pure core.
 pub use plcd_core::{
-    config, device, diag, duration, engine, lang, project, stats, stimulus, timestamp, vm,
+    config, device, diag, duration, engine, lang, project, st, stats, stimulus, timestamp, value,
+    vm,
 };
 
 // The edge of the process.

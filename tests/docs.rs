@@ -183,6 +183,7 @@ fn every_event() -> Vec<Event> {
         Event::TaskPreempt { task: 0, by: 2 },
         Event::TaskResume { task: 0 },
         Event::Set { watch: 0, value: 1 },
+        Event::SetVariable { watch: 0, slot: 1 },
         Event::Error(ErrorKind::Watchdog { scan: 1, limit_ms: 200 }),
         Event::Switch(SwitchPosition::Run),
     ];
@@ -201,9 +202,10 @@ fn every_event() -> Vec<Event> {
             Event::Set { .. } => 9,
             Event::Error(_) => 10,
             Event::Switch(_) => 11,
+            Event::SetVariable { .. } => 12,
         })
         .collect();
-    assert_eq!(kinds.len(), 12, "every_event must hold each variant of Event");
+    assert_eq!(kinds.len(), 13, "every_event must hold each variant of Event");
     events
 }
 

@@ -7,7 +7,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use crate::device::Address;
+use crate::project::{split_names, Project, Watched};
+use crate::value::ValueType;
 use crate::drivers::virtual_time::{self, timeline, trace::TraceWriter, SimOptions};
 use crate::engine::event::{Event, EventSink, Recorder};
 use crate::{duration, files};
@@ -27,9 +28,10 @@ pub struct SimArgs {
     /// Write the trace (JSON Lines) to FILE, or `-` for standard output.
     #[arg(long, value_name = "FILE|-")]
     pub trace: Option<String>,
-    /// Devices whose changes are traced, comma separated (default: every output P bit).
-    #[arg(long, value_name = "DEVICES")]
-    pub watch: Option<String>,
+    /// Devices and Structured Text variables whose changes are traced, comma separated, and
+    /// the option may be repeated (default: every output P bit).
+    #[arg(long, value_name = "NAMES", action = clap::ArgAction::Append)]
+    pub watch: Vec<String>,
     /// Virtual time an executed instruction costs (default: `[sim] step_ns`).
     #[arg(long, value_name = "N")]
     pub step_ns: Option<u64>,
@@ -75,12 +77,13 @@ pub fn run(args: &SimArgs, err: &mut impl Write) -> ExitCode {
         },
         None => Vec::new(),
     };
-    let watch = match &args.watch {
-        Some(list) => match parse_watch(list) {
+    let watch = if args.watch.is_empty() {
+        project.output_bits().into_iter().map(Watched::Device).collect()
+    } else {
+        match parse_watch(&project, &args.watch) {
             Ok(w) => w,
             Err(e) => return usage(err, &format!("--watch: {e}")),
-        },
-        None => project.output_bits(),
+        }
     };
     let step_ns = args.step_ns.unwrap_or(project.config.sim.step_ns);
     if step_ns == 0 {
@@ -100,11 +103,12 @@ pub fn run(args: &SimArgs, err: &mut impl Write) -> ExitCode {
         },
     };
     let names = crate::engine::task_names(&project.config);
-    let watch_names = watch.iter().map(|a| a.to_string()).collect();
+    let watch_names = watch.iter().map(Watched::name).collect();
     let program_lines =
         project.programs.iter().map(|p| (p.name.clone(), p.lines.to_vec())).collect();
     let mut writer =
-        TraceWriter::new(BufWriter::new(out), names.clone(), watch_names, program_lines);
+        TraceWriter::new(BufWriter::new(out), names.clone(), watch_names, program_lines)
+            .with_types(watch.iter().map(watched_type).collect());
     let mut recorder = Recorder::default();
     let started = Instant::now();
     let engine = if args.timeline {
@@ -144,12 +148,23 @@ pub fn run(args: &SimArgs, err: &mut impl Write) -> ExitCode {
     ExitCode::SUCCESS
 }
 
-fn parse_watch(list: &str) -> Result<Vec<Address>, String> {
-    list.split(',')
-        .map(str::trim)
-        .filter(|s| !s.is_empty())
-        .map(|s| Address::parse(s).map_err(|e| e.to_string()))
-        .collect()
+/// Every `--watch` list, split at the commas outside `[…]`, each name resolved.
+fn parse_watch(project: &Project, lists: &[String]) -> Result<Vec<Watched>, String> {
+    let mut watch = Vec::new();
+    for list in lists {
+        for name in split_names(list) {
+            watch.extend(project.watched(name)?);
+        }
+    }
+    Ok(watch)
+}
+
+/// How the trace writes a watched value: a device's as a number, a variable's by its type.
+fn watched_type(watched: &Watched) -> Option<ValueType> {
+    match watched {
+        Watched::Device(_) => None,
+        Watched::Variable(symbol) => Some(symbol.ty.clone()),
+    }
 }
 
 fn usage(err: &mut impl Write, message: &str) -> ExitCode {

@@ -3,11 +3,13 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::config::{Config, TaskRef};
+use crate::config::{Config, Language, TaskRef};
 use crate::device::{layout, Address, Area};
 use crate::diag::{Diagnostic, Diagnostics};
 use crate::lang::ops::Written;
-use crate::lang::{self, Context, DutySite, Program};
+use crate::lang::{self, Context, DutySite, Program, Variables};
+use crate::st;
+use crate::value::Symbol;
 
 /// FX5: "The DUTY instruction can be used up to 5 times (points)".
 pub const MAX_DUTY: usize = 5;
@@ -18,9 +20,17 @@ pub struct Project {
     pub config: Config,
     /// The programs, in the order of the config's `[[program]]` entries.
     pub programs: Vec<Program>,
+    /// The Structured Text programs' variable memory and every variable by name (empty
+    /// without Structured Text).
+    pub variables: Variables,
 }
 
 impl Project {
+    /// The frame area each task needs: the most any program asks for.
+    pub fn frame_bytes(&self) -> u32 {
+        self.programs.iter().map(|p| p.frame_bytes).max().unwrap_or(0)
+    }
+
     /// The outputs, in address order: every P bit a program writes (a word written whole
     /// counts as its 16 bits) and every configured `[[io.output]]`. The default watch list of
     /// traces and logs.
@@ -53,6 +63,120 @@ impl Project {
     }
 }
 
+/// What a trace or a log watches: a device, or a Structured Text variable.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Watched {
+    Device(Address),
+    Variable(Symbol),
+}
+
+impl Watched {
+    /// The name traces and logs show: the device as written canonically (`P0040`), the
+    /// variable with its declaration's spelling (`main.pid.out`).
+    pub fn name(&self) -> String {
+        match self {
+            Watched::Device(address) => address.to_string(),
+            Watched::Variable(symbol) => symbol.name.clone(),
+        }
+    }
+}
+
+impl From<Address> for Watched {
+    fn from(address: Address) -> Watched {
+        Watched::Device(address)
+    }
+}
+
+impl From<&Watched> for Watched {
+    fn from(watched: &Watched) -> Watched {
+        watched.clone()
+    }
+}
+
+impl From<&Address> for Watched {
+    fn from(address: &Address) -> Watched {
+        Watched::Device(*address)
+    }
+}
+
+impl Project {
+    /// The Structured Text variable `name` (case-insensitive), one leaf.
+    pub fn variable(&self, name: &str) -> Option<&Symbol> {
+        let name = name.trim();
+        self.variables.symbols.iter().find(|s| names_match(&s.name, name))
+    }
+
+    /// What `name` watches: a device address, a variable, or every variable under a
+    /// struct, array, FB instance or program instance (`main.pid` → `main.pid.out`, …).
+    pub fn watched(&self, name: &str) -> Result<Vec<Watched>, String> {
+        let name = name.trim();
+        if let Ok(address) = Address::parse(name) {
+            return Ok(vec![Watched::Device(address)]);
+        }
+        if let Some(symbol) = self.variable(name) {
+            return Ok(vec![Watched::Variable(symbol.clone())]);
+        }
+        let under: Vec<Watched> = self
+            .variables
+            .symbols
+            .iter()
+            .filter(|s| is_under(&s.name, name))
+            .map(|s| Watched::Variable(s.clone()))
+            .collect();
+        if under.is_empty() {
+            Err(match Address::parse(name) {
+                Err(e) if !name.contains('.') => e.to_string(),
+                _ => format!("`{name}` is neither a device nor a variable of the project"),
+            })
+        } else {
+            Ok(under)
+        }
+    }
+}
+
+/// Whether two variable names are the same: case-insensitive, spaces inside `[…]` ignored.
+fn names_match(declared: &str, given: &str) -> bool {
+    let mut a = declared.chars().filter(|c| !c.is_whitespace());
+    let mut b = given.chars().filter(|c| !c.is_whitespace());
+    loop {
+        match (a.next(), b.next()) {
+            (None, None) => return true,
+            (Some(x), Some(y)) if x.eq_ignore_ascii_case(&y) => {}
+            _ => return false,
+        }
+    }
+}
+
+/// Whether `name` is a variable inside `prefix` (`main.pid.out` is inside `main.pid` and
+/// `main`; `main.buf[3]` inside `main.buf`).
+fn is_under(name: &str, prefix: &str) -> bool {
+    let prefix: String = prefix.chars().filter(|c| !c.is_whitespace()).collect();
+    let compact: String = name.chars().filter(|c| !c.is_whitespace()).collect();
+    compact.len() > prefix.len()
+        && compact[..prefix.len()].eq_ignore_ascii_case(&prefix)
+        && matches!(compact.as_bytes()[prefix.len()], b'.' | b'[')
+}
+
+/// Splits a watch list at the commas that are not inside `[…]` (`main.m[1,2],P0040`).
+pub fn split_names(list: &str) -> Vec<&str> {
+    let mut names = Vec::new();
+    let (mut depth, mut start) = (0u32, 0);
+    for (i, c) in list.char_indices() {
+        match c {
+            '[' => depth += 1,
+            ']' => depth = depth.saturating_sub(1),
+            ',' if depth == 0 => {
+                names.push(list[start..i].trim());
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    names.push(list[start..].trim());
+    names.retain(|n| !n.is_empty());
+    names
+}
+
 /// Assembles the programs of an already parsed config; `read` supplies each program's text.
 pub fn from_config(
     config: Config,
@@ -61,25 +185,19 @@ pub fn from_config(
     let mut diags = Diagnostics::default();
     let task_numbers: Vec<u8> = config.tasks.iter().map(|t| t.number).collect();
     let timer_base = |n: u32| config.timers.base_ms(n);
-    let mut programs = Vec::with_capacity(config.programs.len());
+    let mut programs: Vec<Option<Program>> = Vec::with_capacity(config.programs.len());
     let mut duty_sites = Vec::new();
     let mut edge_base = 0u32;
+    let mut reader = Reader { config: &config, read: &read, diags: &mut diags };
     for entry in &config.programs {
-        let source = match read(&entry.resolved) {
-            Ok(text) => text,
-            Err(e) => {
-                diags.push(Diagnostic::new(
-                    &config.path,
-                    entry.line,
-                    entry.col,
-                    format!(
-                        "program \"{}\": cannot read `{}`: {e}",
-                        entry.name,
-                        entry.resolved.display()
-                    ),
-                ));
-                continue;
-            }
+        if entry.language == Language::StructuredText {
+            // Compiled below, all together: the files share their declarations.
+            programs.push(None);
+            continue;
+        }
+        let Some(source) = reader.read(&entry.resolved, entry.line, entry.col, &entry.name)
+        else {
+            continue;
         };
         let ctx = Context {
             is_init: entry.task == TaskRef::Init,
@@ -93,18 +211,115 @@ pub fn from_config(
         match program {
             Ok(program) => {
                 edge_base += program.edge_slots;
-                programs.push(program);
+                programs.push(Some(program));
             }
-            Err(d) => diags.extend(d),
+            Err(d) => reader.diags.extend(d),
         }
     }
+    let variables = match compile_structured_text(&config, &mut reader) {
+        Some(compiled) => {
+            let mut st_programs = compiled.programs.into_iter();
+            for slot in programs.iter_mut().filter(|p| p.is_none()) {
+                *slot = st_programs.next().map(|mut program| {
+                    program.edge_base = edge_base;
+                    program
+                });
+            }
+            compiled.variables
+        }
+        None => Variables::default(),
+    };
     check_duty(&duty_sites, &mut diags);
     // Grouped by file, in line order, whatever the order they were found in.
     diags.0.sort();
     if diags.is_empty() {
-        Ok(Project { config, programs })
+        let programs = programs.into_iter().flatten().collect();
+        Ok(Project { config, programs, variables })
     } else {
         Err(diags)
+    }
+}
+
+/// Reads program files, a diagnostic at the config entry that names a file it cannot read.
+struct Reader<'a, R> {
+    config: &'a Config,
+    read: &'a R,
+    diags: &'a mut Diagnostics,
+}
+
+impl<R: Fn(&Path) -> std::io::Result<String>> Reader<'_, R> {
+    fn read(&mut self, path: &Path, line: u32, col: u32, what: &str) -> Option<String> {
+        match (self.read)(path) {
+            Ok(text) => Some(text),
+            Err(e) => {
+                self.diags.push(Diagnostic::new(
+                    &self.config.path,
+                    line,
+                    col,
+                    format!("{what}: cannot read `{}`: {e}", path.display()),
+                ));
+                None
+            }
+        }
+    }
+}
+
+/// Parses every `.st` file of the project (its Structured Text programs and `[st] library`)
+/// and compiles one instance per Structured Text `[[program]]`, in config order. `None` when
+/// there is none, or on errors (in `reader.diags`): the syntax errors of every file, or, when
+/// every file parses, every error the compiler finds.
+fn compile_structured_text<R: Fn(&Path) -> std::io::Result<String>>(
+    config: &Config,
+    reader: &mut Reader<'_, R>,
+) -> Option<st::Compiled> {
+    let entries: Vec<_> =
+        config.programs.iter().filter(|p| p.language == Language::StructuredText).collect();
+    if entries.is_empty() {
+        return None;
+    }
+    let mut paths: Vec<(&Path, u32, u32, String)> = Vec::new();
+    for entry in &entries {
+        let what = format!("program \"{}\"", entry.name);
+        paths.push((&entry.resolved, entry.line, entry.col, what));
+    }
+    for library in &config.st.library {
+        paths.push((&library.resolved, library.line, library.col, "st.library".to_string()));
+    }
+    let mut files = Vec::new();
+    let mut ok = true;
+    for (path, line, col, what) in paths {
+        if files.iter().any(|f: &st::ast::File| f.path == path) {
+            continue;
+        }
+        let Some(text) = reader.read(path, line, col, &what) else {
+            ok = false;
+            continue;
+        };
+        let (file, errors) = st::parse_file(path, &text);
+        ok &= errors.is_empty();
+        reader.diags.extend(errors);
+        files.push(file);
+    }
+    if !ok {
+        return None;
+    }
+    let instances: Vec<st::Instance<'_>> = entries
+        .iter()
+        .map(|entry| st::Instance {
+            name: &entry.name,
+            pou: entry.pou.as_deref(),
+            file: &entry.resolved,
+            config: &config.path,
+            line: entry.line,
+            col: entry.col,
+        })
+        .collect();
+    match st::compile(&files, &instances) {
+        Ok(compiled) => Some(compiled),
+        Err(errors) => {
+            reader.diags.extend(errors);
+            None
+        }
     }
 }
 

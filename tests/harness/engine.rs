@@ -9,7 +9,7 @@ use plcd::drivers::virtual_time::{simulate, SimOptions};
 use plcd::engine::event::{Event, Mode, Recorder};
 use plcd::engine::{Activity, Engine, ModeRequest, Refusal};
 use plcd::io::{Io, SwitchPosition};
-use plcd::project::{self, Project};
+use plcd::project::{self, Project, Watched};
 use plcd::stimulus::Stimulus;
 use plcd::vm::{Clock, StepClock};
 
@@ -49,6 +49,17 @@ pub fn sim(
     project: &Project,
     stimuli: &[Stimulus],
     watch: &[Address],
+    duration_ns: u64,
+) -> (Engine, Recorder) {
+    let watch: Vec<Watched> = watch.iter().map(Watched::from).collect();
+    sim_watching(project, stimuli, &watch, duration_ns)
+}
+
+/// [`sim`] watching devices and Structured Text variables.
+pub fn sim_watching(
+    project: &Project,
+    stimuli: &[Stimulus],
+    watch: &[Watched],
     duration_ns: u64,
 ) -> (Engine, Recorder) {
     let mut events = Recorder::default();

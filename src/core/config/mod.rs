@@ -34,6 +34,7 @@ mod io;
 mod modbus;
 mod plc;
 mod program;
+mod st;
 mod retain;
 mod rt;
 mod sim;
@@ -72,7 +73,8 @@ pub use control::ControlConfig;
 pub use io::{Backend, Bias, IoConfig, IoLine};
 pub use modbus::{ModbusConfig, ModbusRange, ModbusTable};
 pub use plc::{OnFault, PlcConfig};
-pub use program::{ProgramConfig, TaskRef};
+pub use program::{Language, ProgramConfig, TaskRef};
+pub use st::{LibraryFile, StConfig};
 pub use retain::{Restart, RetainArea, RetainConfig, RetainRange};
 pub use rt::{RtConfig, RtPolicy};
 pub use sim::SimConfig;
@@ -109,6 +111,8 @@ pub struct Config {
     pub retain: RetainConfig,
     /// `[modbus]`: the Modbus TCP server (off unless `listen` is given) and its map.
     pub modbus: ModbusConfig,
+    /// `[st]`: the Structured Text declaration files.
+    pub st: StConfig,
 }
 
 impl Config {
@@ -189,6 +193,7 @@ struct RawDoc {
     pub retain: Option<retain::RawRetain>,
     /// `[modbus]` and its tables; `None` when the document has none.
     pub modbus: Option<modbus::RawModbusDoc>,
+    pub st: Option<st::RawSt>,
     pub failed: Failed,
 }
 
@@ -206,7 +211,7 @@ struct Failed {
 }
 
 const TOP_LEVEL: &str =
-    "`plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`, `control`, `switch`, `retain`, `modbus`";
+    "`plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `st`";
 
 /// Pass 1. `None` if the TOML itself is malformed (the syntax errors are in `sink`).
 fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
@@ -241,6 +246,7 @@ fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
             "switch" => &mut sections.switch,
             "retain" => &mut sections.retain,
             "modbus" => &mut sections.modbus,
+            "st" => &mut sections.st,
             other => {
                 let message = format!("unknown key `{other}`, expected one of {TOP_LEVEL}");
                 sink.error(key.span().start, message);
@@ -279,6 +285,7 @@ fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
     });
     doc.retain = section(sink, sections.retain, "retain", &mut doc.failed.keys);
     doc.modbus = modbus::read(sink, sections.modbus);
+    doc.st = section(sink, sections.st, "st", &mut doc.failed.keys);
     Some(doc)
 }
 
@@ -296,6 +303,7 @@ struct Sections<'i> {
     switch: Option<Spanned<DeValue<'i>>>,
     retain: Option<Spanned<DeValue<'i>>>,
     modbus: Option<Spanned<DeValue<'i>>>,
+    st: Option<Spanned<DeValue<'i>>>,
 }
 
 /// Pass 2. `None` if anything is wrong (and then `sink` says what).
@@ -333,6 +341,7 @@ fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
     let tasks = task::validate(sink, doc.tasks, gpio_inputs.as_deref());
     let programs = program::validate(sink, doc.programs, &task_names, &doc.failed, &path);
     let modbus = modbus::validate(sink, doc.modbus);
+    let st = st::validate(sink, doc.st.unwrap_or_default(), &path);
     if let Some((io, inputs, outputs)) =
         io.as_ref().filter(|(io, ..)| io.backend == Backend::Gpiocdev)
     {
@@ -354,5 +363,6 @@ fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
         switch: switch?,
         retain: retain?,
         modbus: modbus?,
+        st: st?,
     })
 }

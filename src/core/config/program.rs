@@ -21,10 +21,34 @@ pub struct ProgramConfig {
     pub resolved: PathBuf,
     /// `task`: `"init"`, `"scan"` (default) or the name of a `[[task]]`.
     pub task: TaskRef,
+    /// The language, by the file's extension: `.st` is Structured Text, anything else the
+    /// instruction list.
+    pub language: Language,
+    /// `pou`: the PROGRAM of a `.st` file to instantiate; default the file's only PROGRAM.
+    pub pou: Option<String>,
     /// Line of the `file` value in the config, for diagnostics about the program file.
     pub line: u32,
     /// Column of the `file` value.
     pub col: u32,
+}
+
+/// The language of a program file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Language {
+    /// The instruction list (docs/LANGUAGE.md).
+    InstructionList,
+    /// Structured Text (docs/ST.md): a file whose name ends in `.st`.
+    StructuredText,
+}
+
+impl Language {
+    /// The language of `file`, by its extension.
+    pub fn of(file: &Path) -> Language {
+        match file.extension() {
+            Some(ext) if ext.eq_ignore_ascii_case("st") => Language::StructuredText,
+            _ => Language::InstructionList,
+        }
+    }
 }
 
 /// The task a program runs in.
@@ -56,6 +80,7 @@ pub(super) struct RawProgram {
     pub name: Option<Spanned<String>>,
     pub file: Spanned<String>,
     pub task: Option<Spanned<String>>,
+    pub pou: Option<Spanned<String>>,
 }
 
 pub(super) fn validate(
@@ -124,12 +149,32 @@ pub(super) fn validate(
                 }
             },
         };
+        let language = Language::of(Path::new(&file));
+        let pou = match raw.pou {
+            Some(pou) if language != Language::StructuredText => {
+                let message = format!(
+                    "{} names a PROGRAM of a Structured Text file, and `{file}` is not a `.st` file",
+                    ctx.key("pou")
+                );
+                sink.error(pou.span().start, message);
+                ok = false;
+                continue;
+            }
+            Some(pou) if pou.get_ref().trim().is_empty() => {
+                sink.error(pou.span().start, format!("{} must not be empty", ctx.key("pou")));
+                ok = false;
+                continue;
+            }
+            pou => pou.map(Spanned::into_inner),
+        };
         let resolved = resolve(config, &file);
         programs.push(ProgramConfig {
             name: name.into_inner(),
             file: PathBuf::from(file),
             resolved,
             task,
+            language,
+            pou,
             line,
             col,
         });

@@ -1663,3 +1663,46 @@ fn retain_errors_name_the_key_and_the_range() {
         "2:1: [retain]: unknown key `period`, expected one of `ranges`, `interval_ms`, `dir`, `restart`"
     );
 }
+
+#[test]
+fn a_st_program_is_known_by_its_extension_and_may_name_its_pou() {
+    let c = config(
+        "[[program]]\nfile = \"main.il\"\n\
+         [[program]]\nname = \"tank\"\nfile = \"level.ST\"\npou = \"Level\"\n\
+         [[program]]\nfile = \"other.st\"\n",
+    );
+    let languages: Vec<_> = c.programs.iter().map(|p| (p.language, p.pou.as_deref())).collect();
+    assert_eq!(
+        languages,
+        [
+            (Language::InstructionList, None),
+            (Language::StructuredText, Some("Level")),
+            (Language::StructuredText, None),
+        ]
+    );
+}
+
+#[test]
+fn pou_is_for_st_files_only_and_not_empty() {
+    assert_eq!(
+        errors("[[program]]\nfile = \"main.il\"\npou = \"Main\"\n"),
+        ["3:7: program \"main\": pou names a PROGRAM of a Structured Text file, and `main.il` is not a `.st` file"]
+    );
+    assert_eq!(
+        errors("[[program]]\nfile = \"main.st\"\npou = \" \"\n"),
+        ["3:7: program \"main\": pou must not be empty"]
+    );
+}
+
+#[test]
+fn st_library_lists_st_files_once_each() {
+    let c = config(&with_scan("[st]\nlibrary = [\"types.st\", \"lib/pid.st\"]\n"));
+    let files: Vec<_> = c.st.library.iter().map(|l| l.resolved.clone()).collect();
+    assert_eq!(files, [Path::new("etc/types.st"), Path::new("etc/lib/pid.st")]);
+    assert_eq!(c.st.library[1].line, 2);
+    assert_eq!(
+        errors(&with_scan("[st]\nlibrary = [\"a.st\", \"b.il\", \"a.st\"]\n")),
+        ["2:20: st.library: `b.il` is not a `.st` file", "2:28: st.library: `a.st` is listed twice"]
+    );
+    assert_eq!(config(&with_scan("")).st, StConfig::default());
+}

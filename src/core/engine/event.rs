@@ -153,6 +153,13 @@ pub enum Event {
         watch: u16,
         value: i32,
     },
+    /// Watched Structured Text variable number `watch` changed to `slot` (a value encoded as
+    /// `crate::value` says; the watch's type tells how to show it). A `STRING` variable's
+    /// change comes through [`EventSink::text`] instead.
+    SetVariable {
+        watch: u16,
+        slot: u64,
+    },
     Error(ErrorKind),
     /// The RUN/STOP key switch moved (a mode change it causes follows).
     Switch(SwitchPosition),
@@ -161,6 +168,13 @@ pub enum Event {
 /// Receives events in time order; `t_ns` is the time since RUN started.
 pub trait EventSink {
     fn event(&mut self, t_ns: u64, event: Event);
+
+    /// Watched `STRING` variable number `watch` changed to `text` (its bytes, borrowed from
+    /// the variable's memory so that reporting allocates nothing). Ignored unless a sink wants
+    /// it.
+    fn text(&mut self, t_ns: u64, watch: u16, text: &[u8]) {
+        let _ = (t_ns, watch, text);
+    }
 }
 
 /// A sink that keeps every event, for tests.

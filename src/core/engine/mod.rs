@@ -48,7 +48,7 @@ use crate::config::OnFault;
 use crate::device::{Address, BitRef};
 use crate::io::Io;
 use crate::lang::Program;
-use crate::project::Project;
+use crate::project::{Project, Watched};
 use crate::vm::{Clock, Exit, Vm};
 use debug::{Breakpoint, DebugView, Debugger};
 use event::{ErrorKind, Event, EventSink, Mode, TaskId};
@@ -156,9 +156,12 @@ pub struct Engine {
 }
 
 impl Engine {
-    /// An engine for `project`, in STOP; `watch` lists the devices whose changes are reported
-    /// as `set` events.
-    pub fn new(project: &Project, watch: &[Address]) -> Engine {
+    /// An engine for `project`, in STOP; `watch` lists the devices and variables whose changes
+    /// are reported as `set` events.
+    pub fn new<W>(project: &Project, watch: &[W]) -> Engine
+    where
+        for<'w> &'w W: Into<Watched>,
+    {
         let config = &project.config;
         let vm = Vm::for_programs(&project.programs);
         let tasks = task::tasks_of(config);
@@ -183,7 +186,7 @@ impl Engine {
             next_scan_ns: 0,
             next_stop_refresh_ns: 0,
             scan: ScanStats::default(),
-            watches: watch.iter().map(Watch::new).collect(),
+            watches: watch.iter().map(|w| Watch::new(&w.into())).collect(),
             hand_back: HandBack::default(),
             forces: Forces::default(),
             debugger: Debugger::default(),

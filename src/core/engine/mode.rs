@@ -256,6 +256,11 @@ impl Engine {
         sink.event(now, Event::Mode(mode));
         self.refresh_inputs(io);
         self.sample_device_conditions_quietly();
+        // Variables start at their initial values, which are not changes; devices were
+        // cleared, and an output that was on and is now off is one.
+        for watch in self.watches.iter_mut().filter(|w| !w.watches_device()) {
+            watch.sample_quietly(&self.vm);
+        }
         self.check_watches(now, sink);
         self.next_scan_ns = now;
     }

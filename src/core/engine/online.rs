@@ -24,7 +24,7 @@ use crate::vm::EdgeInit;
 
 use super::mode::ModeState;
 use super::scan::Phase;
-use super::task::{read_sample, State};
+use super::task::State;
 use super::{Engine, Refusal};
 
 /// A prepared online change: the new engine and the initial state of its edge memory.
@@ -174,9 +174,7 @@ impl Engine {
             *switch = old;
         }
         self.last_operation_error = None;
-        for watch in &mut self.watches {
-            watch.last = read_sample(&self.vm.mem, watch.at);
-        }
+        self.sample_watches_quietly();
         Ok(())
     }
 }

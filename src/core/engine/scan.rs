@@ -3,7 +3,6 @@
 //! refresh, the next scan on the grid of the scan period), the refresh points of the I/O image
 //! with the forces written over it, and the watched devices compared at each of them.
 
-use crate::device::Address;
 use crate::io::Io;
 use crate::stats::Histogram;
 
@@ -11,6 +10,9 @@ use super::event::{Event, EventSink, INIT, SCAN};
 use super::mode::{KeySwitch, ModeState};
 use super::schedule::Init;
 use super::task::{read_sample, Sample};
+use crate::project::Watched;
+use crate::value::{Elem, Pointer, ValueType};
+use crate::vm::Vm;
 use super::Engine;
 
 /// How far the current scan is; only RUN and DEBUG have one. `paused` says the scan stopped at
@@ -47,20 +49,65 @@ impl Phase {
 
 /// A watched device, resolved once: comparing it at every output refresh and task end is a
 /// load and a compare, not an address lookup.
+/// Where a watch reads.
 #[derive(Debug, Clone, Copy)]
+pub(super) enum WatchAt {
+    /// A device, as conditions read it.
+    Device(Sample),
+    /// A Structured Text variable of an elementary type.
+    Value { at: Pointer, elem: Elem },
+    /// A `STRING` variable.
+    Text { at: Pointer },
+}
+
+/// A watched device or variable and the value last reported (for a `STRING`, its bytes).
+#[derive(Debug, Clone)]
 pub(super) struct Watch {
-    pub(super) at: Sample,
-    pub(super) last: i32,
+    pub(super) at: WatchAt,
+    pub(super) last: u64,
+    pub(super) text: Box<[u8]>,
 }
 
 impl Watch {
-    pub(super) fn new(address: &Address) -> Watch {
-        // As `Memory::read` resolves it: a word if the address is one, else a bit.
-        let at = match address.as_word() {
-            Ok(word) => Sample::Word(word),
-            Err(_) => Sample::Bit(address.as_bit().expect("an address is a bit or a word")),
+    pub(super) fn new(watched: &Watched) -> Watch {
+        let (at, text) = match watched {
+            // As `Memory::read` resolves it: a word if the address is one, else a bit.
+            Watched::Device(address) => (
+                WatchAt::Device(match address.as_word() {
+                    Ok(word) => Sample::Word(word),
+                    Err(_) => {
+                        Sample::Bit(address.as_bit().expect("an address is a bit or a word"))
+                    }
+                }),
+                Box::default(),
+            ),
+            Watched::Variable(symbol) => match symbol.ty {
+                ValueType::String { cap } => (
+                    WatchAt::Text { at: symbol.at },
+                    vec![0; cap as usize + 1].into_boxed_slice(),
+                ),
+                ref ty => (WatchAt::Value { at: symbol.at, elem: ty.elem() }, Box::default()),
+            },
         };
-        Watch { at, last: 0 }
+        Watch { at, last: 0, text }
+    }
+
+    pub(super) fn watches_device(&self) -> bool {
+        matches!(self.at, WatchAt::Device(_))
+    }
+
+    /// Takes the current value as the last one reported, without reporting it.
+    pub(super) fn sample_quietly(&mut self, vm: &Vm) {
+        match self.at {
+            WatchAt::Device(sample) => self.last = read_sample(&vm.mem, sample) as u64,
+            WatchAt::Value { at, elem } => self.last = vm.read_value(at, elem),
+            WatchAt::Text { at } => {
+                let now = vm.string_bytes(at);
+                let len = now.len().min(self.text.len() - 1);
+                self.text[0] = len as u8;
+                self.text[1..=len].copy_from_slice(&now[..len]);
+            }
+        }
     }
 }
 
@@ -165,13 +212,42 @@ impl Engine {
     }
 
     pub(super) fn check_watches(&mut self, now: u64, sink: &mut impl EventSink) {
-        let mem = &self.vm.mem;
+        let vm = &self.vm;
         for (index, watch) in self.watches.iter_mut().enumerate() {
-            let value = read_sample(mem, watch.at);
-            if value != watch.last {
-                watch.last = value;
-                sink.event(now, Event::Set { watch: index as u16, value });
+            let index = index as u16;
+            match watch.at {
+                WatchAt::Device(sample) => {
+                    let value = read_sample(&vm.mem, sample);
+                    if value as u64 != watch.last {
+                        watch.last = value as u64;
+                        sink.event(now, Event::Set { watch: index, value });
+                    }
+                }
+                WatchAt::Value { at, elem } => {
+                    let slot = vm.read_value(at, elem);
+                    if slot != watch.last {
+                        watch.last = slot;
+                        sink.event(now, Event::SetVariable { watch: index, slot });
+                    }
+                }
+                WatchAt::Text { at } => {
+                    let now_text = vm.string_bytes(at);
+                    let len = now_text.len().min(watch.text.len() - 1);
+                    if watch.text[1..=usize::from(watch.text[0])] != now_text[..len] {
+                        watch.text[0] = len as u8;
+                        watch.text[1..=len].copy_from_slice(&now_text[..len]);
+                        sink.text(now, index, &now_text[..len]);
+                    }
+                }
             }
+        }
+    }
+
+    /// RUN start, online change: the watches take the values they see as reported, so that
+    /// a variable's initial value is never an event.
+    pub(super) fn sample_watches_quietly(&mut self) {
+        for watch in &mut self.watches {
+            watch.sample_quietly(&self.vm);
         }
     }
 }

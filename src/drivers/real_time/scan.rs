@@ -42,7 +42,9 @@ impl EventSink for ReportSink<'_> {
                 self.source = Some(Source::Switch);
                 self.push(Report::Switch(t_ns, position));
             }
-            Event::Error(_) | Event::Set { .. } => self.push(Report::Event(t_ns, event)),
+            Event::Error(_) | Event::Set { .. } | Event::SetVariable { .. } => {
+                self.push(Report::Event(t_ns, event))
+            }
             _ => {}
         }
     }

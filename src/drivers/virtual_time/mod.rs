@@ -13,7 +13,7 @@ use crate::device::Address;
 use crate::engine::event::{EventSink, Mode};
 use crate::engine::{Activity, Engine};
 use crate::io::simulated::SimulatedIo;
-use crate::project::Project;
+use crate::project::{Project, Watched};
 use crate::stimulus::{Stimulus, Target};
 use crate::vm::{Clock, StepClock};
 
@@ -32,7 +32,7 @@ pub struct SimOptions {
 pub fn simulate(
     project: &Project,
     stimuli: &[Stimulus],
-    watch: &[Address],
+    watch: &[Watched],
     options: SimOptions,
     sink: &mut impl EventSink,
 ) -> Engine {

@@ -138,7 +138,11 @@ impl Track {
                 }
                 self.ignored.push(t);
             }
-            Event::Mode(_) | Event::Set { .. } | Event::Error(_) | Event::Switch(_) => return,
+            Event::Mode(_)
+            | Event::Set { .. }
+            | Event::SetVariable { .. }
+            | Event::Error(_)
+            | Event::Switch(_) => return,
         }
         self.last_request = request;
     }
@@ -167,7 +171,11 @@ fn task_of(event: &Event) -> Option<TaskId> {
         | Event::TaskEnd { task }
         | Event::TaskPreempt { task, .. }
         | Event::TaskResume { task } => Some(task),
-        Event::Mode(_) | Event::Set { .. } | Event::Error(_) | Event::Switch(_) => None,
+        Event::Mode(_)
+            | Event::Set { .. }
+            | Event::SetVariable { .. }
+            | Event::Error(_)
+            | Event::Switch(_) => None,
     }
 }
 

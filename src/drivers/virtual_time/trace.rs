@@ -11,6 +11,7 @@ use std::fmt::Write as _;
 use std::io::{self, Write};
 
 use crate::engine::event::{task_name, Event, EventSink};
+use crate::value::ValueType;
 
 /// Writes events as JSON Lines.
 ///
@@ -23,6 +24,8 @@ pub struct TraceWriter<W: Write> {
     out: W,
     task_names: Vec<String>,
     watch_names: Vec<String>,
+    /// The type of each watched variable (`None` for a device), to write its values.
+    watch_types: Vec<Option<ValueType>>,
     program_lines: Vec<(String, Vec<u32>)>,
     line: String,
     error: Option<io::Error>,
@@ -43,10 +46,18 @@ impl<W: Write> TraceWriter<W> {
             out,
             task_names,
             watch_names,
+            watch_types: Vec::new(),
             program_lines,
             line: String::with_capacity(128),
             error: None,
         }
+    }
+
+    /// The types of the watched variables, by the `watch` of [`Event::SetVariable`]: how their
+    /// values are written (a number, a `"T#1s500ms"` TIME, an enumeration value's name).
+    pub fn with_types(mut self, watch_types: Vec<Option<ValueType>>) -> Self {
+        self.watch_types = watch_types;
+        self
     }
 
     /// The first write error, if one happened (the writer has stopped writing since).
@@ -92,12 +103,20 @@ impl<W: Write> TraceWriter<W> {
                 push_str_field(line, "by", &task_name(names, by));
             }
             Event::Set { watch, value } => {
-                let dev = match self.watch_names.get(usize::from(watch)) {
-                    Some(name) => name.clone(),
-                    None => format!("#{watch}"),
-                };
+                let dev = watch_name(&self.watch_names, watch);
                 push_str_field(line, "dev", &dev);
                 let _ = write!(line, ",\"value\":{value}");
+            }
+            Event::SetVariable { watch, slot } => {
+                let dev = watch_name(&self.watch_names, watch);
+                push_str_field(line, "dev", &dev);
+                line.push_str(",\"value\":");
+                match self.watch_types.get(usize::from(watch)) {
+                    Some(Some(ty)) => push_json_value(line, ty, slot),
+                    _ => {
+                        let _ = write!(line, "{slot}");
+                    }
+                }
             }
             Event::Error(kind) => {
                 let (code, detail) = kind.describe(names, &self.program_lines);
@@ -112,15 +131,60 @@ impl<W: Write> TraceWriter<W> {
     }
 }
 
+impl<W: Write> TraceWriter<W> {
+    fn write_line(&mut self) {
+        if let Err(e) = self.out.write_all(self.line.as_bytes()) {
+            self.error = Some(e);
+        }
+    }
+}
+
 impl<W: Write> EventSink for TraceWriter<W> {
     fn event(&mut self, t_ns: u64, event: Event) {
         if self.error.is_some() {
             return;
         }
         self.format(t_ns, event);
-        if let Err(e) = self.out.write_all(self.line.as_bytes()) {
-            self.error = Some(e);
+        self.write_line();
+    }
+
+    fn text(&mut self, t_ns: u64, watch: u16, text: &[u8]) {
+        if self.error.is_some() {
+            return;
         }
+        let dev = watch_name(&self.watch_names, watch);
+        let line = &mut self.line;
+        line.clear();
+        let _ = write!(line, "{{\"t_ns\":{t_ns},\"ev\":\"set\"");
+        push_str_field(line, "dev", &dev);
+        push_str_field(line, "value", &String::from_utf8_lossy(text));
+        line.push_str("}\n");
+        self.write_line();
+    }
+}
+
+/// A watch's name, or `#` and its number for one outside the table (only a bug gives that).
+fn watch_name(names: &[String], watch: u16) -> String {
+    match names.get(usize::from(watch)) {
+        Some(name) => name.clone(),
+        None => format!("#{watch}"),
+    }
+}
+
+/// Appends a variable's value as JSON: a number for integers, bit strings and reals (a real
+/// that is not finite as the string `"NaN"`, `"inf"` or `"-inf"`), 0/1 for BOOL, a string for
+/// TIME (an IEC literal) and for an enumeration (its value's name).
+fn push_json_value(line: &mut String, ty: &ValueType, slot: u64) {
+    let text = crate::value::format(ty, slot);
+    let numeric = match ty {
+        ValueType::Real(_) => text.parse::<f64>().is_ok_and(f64::is_finite),
+        ValueType::Time | ValueType::Enum { .. } | ValueType::String { .. } => false,
+        _ => true,
+    };
+    if numeric {
+        line.push_str(&text);
+    } else {
+        push_json_string(line, &text);
     }
 }
 
