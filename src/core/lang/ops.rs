@@ -41,6 +41,17 @@ impl CmpOp {
         let order = u8::from(a >= b) + u8::from(a > b);
         (self as u8 >> order) & 1 != 0
     }
+
+    /// Whether the comparison holds for operands that compare as `order`; `None` (a NaN
+    /// operand) satisfies only `<>`.
+    #[inline(always)]
+    pub fn holds(self, order: Option<std::cmp::Ordering>) -> bool {
+        match order {
+            // Less, Equal, Greater are -1, 0, 1: shifted to 0, 1, 2.
+            Some(order) => (self as u8 >> (order as i8 + 1)) & 1 != 0,
+            None => self == CmpOp::Ne,
+        }
+    }
 }
 
 /// How a contact combines with the rung result.
