@@ -22,7 +22,7 @@ pub use clock::{Clock, ManualClock, StepClock};
 use crate::device::{
     counter_done, counter_value, timer_done, timer_value, BitRef, Memory, WordRef,
 };
-use crate::lang::ops::{ArithOp, Combine, Op, Src, SystemRequest};
+use crate::lang::ops::{ArithOp, Combine, Op, Src, SystemRequest, Wide, WideConv};
 use crate::lang::{Program, Variables, CALL_DEPTH, LOOP_DEPTH, ST_CALL_DEPTH};
 use crate::value::{self, Elem, Pointer};
 use typed::EvalStack;
@@ -778,6 +778,60 @@ fn interpret<'a, C: Clock>(
                     }
                 }
 
+                // The instruction list's double-word and real instructions.
+                Op::DMov { s, d, pulse: p } => {
+                    if enabled(edges, *p, rung) {
+                        let value = read_wide(mem, consts, *s);
+                        write_wide(mem, *d, value);
+                    }
+                }
+                Op::DArith { op, a, b, d, pulse: p } => {
+                    if enabled(edges, *p, rung) {
+                        let (a, b) = (read_wide(mem, consts, *a), read_wide(mem, consts, *b));
+                        match wide_arith(*op, Elem::I32, a, b) {
+                            Some(value) => write_wide(mem, *d, value),
+                            None => fail!(ERR_DIVIDE_BY_ZERO),
+                        }
+                    }
+                }
+                Op::RArith { op, a, b, d, pulse: p } => {
+                    if enabled(edges, *p, rung) {
+                        let (a, b) = (read_wide(mem, consts, *a), read_wide(mem, consts, *b));
+                        match wide_arith(*op, Elem::F32, a, b) {
+                            Some(value) => write_wide(mem, *d, value),
+                            None => fail!(ERR_DIVIDE_BY_ZERO),
+                        }
+                    }
+                }
+                Op::DStep { d, up, pulse: p } => {
+                    if enabled(edges, *p, rung) {
+                        let value = read_wide(mem, consts, Wide::Word(*d));
+                        let step = if *up { 1u32 } else { u32::MAX };
+                        write_wide(mem, *d, value.wrapping_add(step));
+                    }
+                }
+                Op::DCompare { op, a, b, how } => {
+                    let a = read_wide(mem, consts, *a) as i32;
+                    let b = read_wide(mem, consts, *b) as i32;
+                    combine(*how, op.holds(Some(a.cmp(&b))), &mut rung, &mut blocks);
+                }
+                Op::RCompare { op, a, b, how } => {
+                    let a = f32::from_bits(read_wide(mem, consts, *a));
+                    let b = f32::from_bits(read_wide(mem, consts, *b));
+                    combine(*how, op.holds(a.partial_cmp(&b)), &mut rung, &mut blocks);
+                }
+                Op::Convert { conv, s, d, pulse: p } => {
+                    if enabled(edges, *p, rung) {
+                        let value = wide_convert(*conv, read_wide(mem, consts, *s));
+                        if conv.to_one_word() {
+                            if (d.0 as usize) < mem.words().len() {
+                                mem.set_word(*d, value as u16);
+                            }
+                        } else {
+                            write_wide(mem, *d, value);
+                        }
+                    }
+                }
                 // The typed stack machine (crate::value, st-ir.md).
                 Op::PushInt(v) => state.eval.push(i64::from(*v) as u64),
                 Op::PushConst(index) => {
@@ -911,6 +965,59 @@ fn read(mem: &Memory, src: Src) -> u16 {
         Src::Word(w) => mem.word(w),
         Src::Const(c) => c,
     }
+}
+
+/// A double-word operand's value: the word and the next (low word first), or the constant's
+/// low 32 bits. A word outside memory (never, in a checked program) reads 0.
+#[inline(always)]
+fn read_wide(mem: &Memory, consts: &[u64], w: Wide) -> u32 {
+    match w {
+        Wide::Word(w) => {
+            let words = mem.words();
+            let lo = words.get(w.0 as usize).copied().unwrap_or(0);
+            let hi = words.get(w.0 as usize + 1).copied().unwrap_or(0);
+            u32::from(lo) | u32::from(hi) << 16
+        }
+        Wide::Const(index) => consts.get(index as usize).copied().unwrap_or(0) as u32,
+    }
+}
+
+/// Writes a double word at `d` and the word after it; nothing outside memory.
+#[inline(always)]
+fn write_wide(mem: &mut Memory, d: WordRef, value: u32) {
+    if (d.0 as usize + 1) < mem.words().len() {
+        mem.set_word(d, value as u16);
+        mem.set_word(WordRef(d.0 + 1), (value >> 16) as u16);
+    }
+}
+
+/// `a op b` of the `D` (`elem` I32) or `R` (F32) instructions; `None` on a division by zero.
+#[inline(never)]
+fn wide_arith(op: ArithOp, elem: Elem, a: u32, b: u32) -> Option<u32> {
+    let op = match op {
+        ArithOp::Add => value::BinOp::Add,
+        ArithOp::Sub => value::BinOp::Sub,
+        ArithOp::Mul => value::BinOp::Mul,
+        ArithOp::Div => value::BinOp::Div,
+    };
+    // I32 slots are sign-extended, F32 slots the bits.
+    let slot = |v: u32| if elem == Elem::I32 { v as i32 as i64 as u64 } else { u64::from(v) };
+    value::binary(op, elem, slot(a), slot(b)).ok().map(|r| r as u32)
+}
+
+/// A conversion of `I2D`, `D2R`, …: `s` is the source's word (16-bit sources use its low half),
+/// the result's low 16 or 32 bits are the destination's.
+#[inline(never)]
+fn wide_convert(conv: WideConv, s: u32) -> u32 {
+    let (from, to, slot) = match conv {
+        WideConv::IntToDint => (Elem::I16, Elem::I32, s as i16 as i64 as u64),
+        WideConv::IntToReal => (Elem::I16, Elem::F32, s as i16 as i64 as u64),
+        WideConv::DintToInt => (Elem::I32, Elem::I16, s as i32 as i64 as u64),
+        WideConv::DintToReal => (Elem::I32, Elem::F32, s as i32 as i64 as u64),
+        WideConv::RealToInt => (Elem::F32, Elem::I16, u64::from(s)),
+        WideConv::RealToDint => (Elem::F32, Elem::I32, u64::from(s)),
+    };
+    value::convert(from, to, slot) as u32
 }
 
 /// Combines a contact's `value` with the rung: the rung becomes `(value & (rung | !and)) | (rung
