@@ -372,7 +372,7 @@ fn a_fixed_scan_period_keeps_its_grid_when_a_scan_starts_late() {
         &[("main.il", "END\n")],
         false,
     );
-    let mut engine = Engine::new(&p, &[]);
+    let mut engine = Engine::new::<plcd::device::Address>(&p, &[]);
     let mut field = Field::default();
     let mut events = Recorder::default();
     let clock = plcd::vm::ManualClock::new(0);
@@ -401,7 +401,7 @@ fn deadlines_noticed_a_full_interval_late_are_counted_as_missed() {
         &[("main.il", "END\n"), ("tick.il", "INC D00000\nEND\n")],
         false,
     );
-    let mut engine = Engine::new(&p, &[]);
+    let mut engine = Engine::new::<plcd::device::Address>(&p, &[]);
     let mut field = Field::default();
     let mut events = Recorder::default();
     let clock = plcd::vm::ManualClock::new(0);

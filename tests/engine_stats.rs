@@ -135,7 +135,7 @@ fn a_late_poll_counts_from_the_deadline_not_from_the_poll() {
                 [[task]]\nname = \"tick\"\nkind = \"cycle\"\nnumber = 0\npriority = 3\n\
                 interval_ms = 1\n[plc]\nscan_period_ms = 100\n";
     let project = harness::engine::project(text, &[("scan.il", "END\n"), ("tick.il", "END\n")]);
-    let mut engine = Engine::new(&project, &[]);
+    let mut engine = Engine::new::<plcd::device::Address>(&project, &[]);
     let mut io = plcd::io::simulated::SimulatedIo::default();
     let mut sink = Recorder::default();
     let clock = plcd::vm::ManualClock::new(0);

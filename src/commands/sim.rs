@@ -7,10 +7,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use crate::project::{split_names, Project, Watched};
-use crate::value::ValueType;
 use crate::drivers::virtual_time::{self, timeline, trace::TraceWriter, SimOptions};
 use crate::engine::event::{Event, EventSink, Recorder};
+use crate::project::{split_names, Project, Watched};
+use crate::value::ValueType;
 use crate::{duration, files};
 
 /// The command's arguments.

@@ -200,8 +200,8 @@ pub fn from_config(
             programs.push(None);
             continue;
         }
-        let Some(source) = reader.read(&entry.resolved, entry.line, entry.col, &entry.name)
-        else {
+        let what = format!("program \"{}\"", entry.name);
+        let Some(source) = reader.read(&entry.resolved, entry.line, entry.col, &what) else {
             continue;
         };
         let ctx = Context {

@@ -456,6 +456,20 @@ pub enum ValueType {
     },
 }
 
+impl ValueType {
+    /// How a value of this type is stored and computed; a `STRING` has no slot (its bytes are
+    /// read through a pointer) and answers `U8`, its length byte.
+    pub fn elem(&self) -> Elem {
+        match self {
+            ValueType::Bool => Elem::Bool,
+            ValueType::Signed(elem) | ValueType::Unsigned(elem) | ValueType::Real(elem) => *elem,
+            ValueType::Time => Elem::I64,
+            ValueType::Enum { .. } => Elem::I32,
+            ValueType::String { .. } => Elem::U8,
+        }
+    }
+}
+
 /// A named variable of Structured Text, one leaf of the tree of program instances (a struct
 /// member, an array element, an FB instance's variable): what `--watch`, `plcctl get/set`,
 /// the trace and the retain files see.

@@ -137,7 +137,7 @@ pub struct Plc {
 
 impl Plc {
     pub fn new(project: &Project) -> Plc {
-        let engine = Engine::new(project, &[]);
+        let engine = Engine::new::<Address>(project, &[]);
         let clock = StepClock { origin_ns: 0, origin_steps: engine.steps(), step_ns: STEP_NS };
         Plc { engine, field: Field::default(), events: Recorder::default(), clock }
     }

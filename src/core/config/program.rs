@@ -156,14 +156,15 @@ pub(super) fn validate(
                     "{} names a PROGRAM of a Structured Text file, and `{file}` is not a `.st` file",
                     ctx.key("pou")
                 );
+                // The entry stays: its other keys are right (it may be the scan program).
                 sink.error(pou.span().start, message);
                 ok = false;
-                continue;
+                None
             }
             Some(pou) if pou.get_ref().trim().is_empty() => {
                 sink.error(pou.span().start, format!("{} must not be empty", ctx.key("pou")));
                 ok = false;
-                continue;
+                None
             }
             pou => pou.map(Spanned::into_inner),
         };

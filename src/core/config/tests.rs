@@ -121,6 +121,8 @@ fn a_minimal_config_takes_every_default() {
             file: "main.il".into(),
             resolved: "etc/main.il".into(),
             task: TaskRef::Scan,
+            language: Language::InstructionList,
+            pou: None,
             line: 2,
             col: 8,
         }]
@@ -178,6 +180,8 @@ fn the_contract_example_parses_to_its_defaults() {
             file: "main.il".into(),
             resolved: "etc/main.il".into(),
             task: TaskRef::Scan,
+            language: Language::InstructionList,
+            pou: None,
             line: 17,
             col: 8,
         }],
@@ -196,6 +200,7 @@ fn the_contract_example_parses_to_its_defaults() {
         switch: None,
         retain: RetainConfig::default(),
         modbus: crate::config::ModbusConfig::default(),
+        st: StConfig::default(),
     };
     assert_eq!(config, expected);
 }
@@ -429,7 +434,7 @@ fn unknown_keys_are_errors_at_the_key() {
     assert_eq!(
         errors(&with_scan("[plcc]\n")),
         ["1:2: unknown key `plcc`, expected one of `plc`, `sim`, `timers`, `program`, `task`, \
-          `io`, `rt`, `control`, `switch`, `retain`, `modbus`"]
+          `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `st`"]
     );
     assert_eq!(
         errors(&with_scan("[plc]\nwatchdog = 5\n")),
@@ -1702,7 +1707,10 @@ fn st_library_lists_st_files_once_each() {
     assert_eq!(c.st.library[1].line, 2);
     assert_eq!(
         errors(&with_scan("[st]\nlibrary = [\"a.st\", \"b.il\", \"a.st\"]\n")),
-        ["2:20: st.library: `b.il` is not a `.st` file", "2:28: st.library: `a.st` is listed twice"]
+        [
+            "2:20: st.library: `b.il` is not a `.st` file",
+            "2:28: st.library: `a.st` is listed twice"
+        ]
     );
     assert_eq!(config(&with_scan("")).st, StConfig::default());
 }

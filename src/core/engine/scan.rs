@@ -10,10 +10,10 @@ use super::event::{Event, EventSink, INIT, SCAN};
 use super::mode::{KeySwitch, ModeState};
 use super::schedule::Init;
 use super::task::{read_sample, Sample};
+use super::Engine;
 use crate::project::Watched;
 use crate::value::{Elem, Pointer, ValueType};
 use crate::vm::Vm;
-use super::Engine;
 
 /// How far the current scan is; only RUN and DEBUG have one. `paused` says the scan stopped at
 /// a DEBUG breakpoint, so that its duration is the engineer's, not a scan time: it lives in the
@@ -75,17 +75,14 @@ impl Watch {
             Watched::Device(address) => (
                 WatchAt::Device(match address.as_word() {
                     Ok(word) => Sample::Word(word),
-                    Err(_) => {
-                        Sample::Bit(address.as_bit().expect("an address is a bit or a word"))
-                    }
+                    Err(_) => Sample::Bit(address.as_bit().expect("an address is a bit or a word")),
                 }),
                 Box::default(),
             ),
             Watched::Variable(symbol) => match symbol.ty {
-                ValueType::String { cap } => (
-                    WatchAt::Text { at: symbol.at },
-                    vec![0; cap as usize + 1].into_boxed_slice(),
-                ),
+                ValueType::String { cap } => {
+                    (WatchAt::Text { at: symbol.at }, vec![0; cap as usize + 1].into_boxed_slice())
+                }
                 ref ty => (WatchAt::Value { at: symbol.at, elem: ty.elem() }, Box::default()),
             },
         };

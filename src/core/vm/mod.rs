@@ -274,6 +274,12 @@ impl Vm {
         typed::string_text(&self.vars, p)
     }
 
+    /// [`Vm::read_string`] without a copy: the characters, borrowed (what watches compare, in
+    /// the scan path).
+    pub fn string_bytes(&self, p: Pointer) -> &[u8] {
+        typed::string_chars(&self.vars, p)
+    }
+
     /// Writes the `STRING[cap]` at `p` in variable memory, cut to `cap` characters.
     pub fn write_string(&mut self, p: Pointer, cap: u32, text: &[u8]) {
         typed::write_string_bytes(&mut self.vars, p, cap, text);

@@ -325,6 +325,11 @@ pub(super) fn string_text(vars: &[u8], p: Pointer) -> Vec<u8> {
     chars(vars, &[], p).to_vec()
 }
 
+/// The characters of the string at `p` in variable memory, borrowed.
+pub(super) fn string_chars(vars: &[u8], p: Pointer) -> &[u8] {
+    chars(vars, &[], p)
+}
+
 /// Writes `text` (cut to `cap`) as the string at `p` in variable memory, for tools.
 pub(super) fn write_string_bytes(vars: &mut [u8], p: Pointer, cap: u32, text: &[u8]) {
     if p.space != Space::Var {

@@ -9,7 +9,6 @@
 pub mod timeline;
 pub mod trace;
 
-use crate::device::Address;
 use crate::engine::event::{EventSink, Mode};
 use crate::engine::{Activity, Engine};
 use crate::io::simulated::SimulatedIo;

@@ -172,10 +172,10 @@ fn task_of(event: &Event) -> Option<TaskId> {
         | Event::TaskPreempt { task, .. }
         | Event::TaskResume { task } => Some(task),
         Event::Mode(_)
-            | Event::Set { .. }
-            | Event::SetVariable { .. }
-            | Event::Error(_)
-            | Event::Switch(_) => None,
+        | Event::Set { .. }
+        | Event::SetVariable { .. }
+        | Event::Error(_)
+        | Event::Switch(_) => None,
     }
 }
 

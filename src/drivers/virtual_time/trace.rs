@@ -200,7 +200,7 @@ fn event_name(event: &Event) -> &'static str {
         Event::TaskEnd { .. } => "task_end",
         Event::TaskPreempt { .. } => "task_preempt",
         Event::TaskResume { .. } => "task_resume",
-        Event::Set { .. } => "set",
+        Event::Set { .. } | Event::SetVariable { .. } => "set",
         Event::Error(_) => "error",
         Event::Switch(_) => "switch",
     }
