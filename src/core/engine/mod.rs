@@ -140,6 +140,9 @@ pub struct Engine {
     next_stop_refresh_ns: u64,
     scan: ScanStats,
     watches: Vec<Watch>,
+    /// Prepared for an online change: the variables this engine keeps from the one it takes
+    /// over (`online::kept_variables`).
+    kept_variables: Box<[(u32, u32, u32)]>,
     hand_back: HandBack,
     forces: Forces,
     debugger: Debugger,
@@ -163,8 +166,17 @@ impl Engine {
         for<'w> &'w W: Into<Watched>,
     {
         let config = &project.config;
-        let vm = Vm::for_programs(&project.programs);
-        let tasks = task::tasks_of(config);
+        let mut vm = Vm::for_programs(&project.programs);
+        vm.set_variables(&project.variables);
+        let mut tasks = task::tasks_of(config);
+        // Each task's frame area holds the deepest Structured Text call chain of any program
+        // (a task may run several), allocated once here.
+        let frame_bytes = project.frame_bytes();
+        if frame_bytes > 0 {
+            for task in &mut tasks {
+                task.exec = crate::vm::ExecState::with_frame(frame_bytes);
+            }
+        }
         let plc = &config.plc;
         let capacity = tasks.len();
         Engine {
@@ -187,6 +199,7 @@ impl Engine {
             next_stop_refresh_ns: 0,
             scan: ScanStats::default(),
             watches: watch.iter().map(|w| Watch::new(&w.into())).collect(),
+            kept_variables: Box::default(),
             hand_back: HandBack::default(),
             forces: Forces::default(),
             debugger: Debugger::default(),

@@ -16,9 +16,13 @@
 //! (`OUTP`, `FF`, `MOVP`, `DUTY`, …) remembers "ON" for rising and "OFF" for falling, so it
 //! first fires at a transition that happens after the change.
 
+use std::collections::HashMap;
+
 use crate::config::{ProjectChange, TaskConfig, TaskKind};
 use crate::device::Address;
 use crate::lang::ops::{EdgeMemory, Op};
+use crate::lang::Variables;
+use crate::value::{Space, Symbol, ValueType};
 use crate::project::Project;
 use crate::vm::EdgeInit;
 
@@ -120,7 +124,31 @@ pub fn prepare(
             }
         }
     }
-    Ok(OnlineChange { engine: Box::new(Engine::new(new, watch)), edges: edges.into_boxed_slice() })
+    let mut engine = Box::new(Engine::new(new, watch));
+    engine.kept_variables = kept_variables(&old.variables, &new.variables);
+    Ok(OnlineChange { engine, edges: edges.into_boxed_slice() })
+}
+
+/// The Structured Text variables an online change keeps: each of the new project whose name
+/// (case-insensitive) and type are those of one of the old, as `(old offset, new offset,
+/// bytes)` in variable memory. Any other starts from its initial value.
+pub fn kept_variables(old: &Variables, new: &Variables) -> Box<[(u32, u32, u32)]> {
+    let by_name: HashMap<String, &Symbol> =
+        old.symbols.iter().map(|s| (s.name.to_ascii_lowercase(), s)).collect();
+    new.symbols
+        .iter()
+        .filter_map(|symbol| {
+            let before = by_name.get(&symbol.name.to_ascii_lowercase())?;
+            let in_vars = |s: &Symbol| s.at.space == Space::Var;
+            (before.ty == symbol.ty && in_vars(before) && in_vars(symbol)).then(|| {
+                let bytes = match symbol.ty {
+                    ValueType::String { cap } => cap + 1,
+                    ref ty => ty.elem().size(),
+                };
+                (before.at.offset, symbol.at.offset, bytes)
+            })
+        })
+        .collect()
 }
 
 /// The initial state of a changed program's edge slot: as if the instruction had executed in
@@ -143,6 +171,7 @@ impl Engine {
             return Err(Refusal::MidScan);
         }
         self.vm.take_over(&mut old.vm, edges);
+        self.vm.keep_variables(&old.vm, &self.kept_variables);
         for (new, old) in self.tasks.iter_mut().zip(old.tasks.iter_mut()) {
             new.kind = old.kind.clone();
             new.state = match old.state {

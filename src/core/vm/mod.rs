@@ -293,12 +293,13 @@ impl Vm {
 
     /// Online change: takes the machine state of `old` (device memory, timers, counters, DUTY
     /// clocks, the step count) by swapping, and sets up this VM's edge memory by `edges`. No
-    /// allocation.
+    /// allocation. Variable memory is [`Vm::keep_variables`]'s.
     pub fn take_over(&mut self, old: &mut Vm, edges: &[EdgeInit]) {
         std::mem::swap(&mut self.mem, &mut old.mem);
         std::mem::swap(&mut self.timers, &mut old.timers);
         std::mem::swap(&mut self.counters, &mut old.counters);
-        std::mem::swap(&mut self.vars, &mut old.vars);
+        // Variable memory is not swapped: the new programs may lay it out differently. This
+        // VM starts from its own initial image; `keep_variables` brings over what is kept.
         self.duty = old.duty;
         self.steps = old.steps;
         for (slot, init) in self.edges.iter_mut().zip(edges) {
@@ -307,6 +308,19 @@ impl Vm {
                 EdgeInit::FromBit(bit) => self.mem.bit(bit),
                 EdgeInit::Value(value) => value,
             };
+        }
+    }
+
+    /// Online change: copies the variables the change keeps from `old`'s variable memory,
+    /// `(old offset, new offset, bytes)` each (see `engine::online`). No allocation.
+    pub fn keep_variables(&mut self, old: &Vm, keep: &[(u32, u32, u32)]) {
+        for &(from, to, len) in keep {
+            let (from, to, len) = (from as usize, to as usize, len as usize);
+            if let (Some(src), Some(dst)) =
+                (old.vars.get(from..from + len), self.vars.get_mut(to..to + len))
+            {
+                dst.copy_from_slice(src);
+            }
         }
     }
 
