@@ -1,0 +1,325 @@
+//! Structured Text syntax: the lexer ([`lex`]) and the recursive-descent parser ([`parse`]).
+//!
+//! [`parse_file`] reports every syntax error of a file at once. Every message the lexer and the
+//! parser can emit is a [`Msg`]; [`message_templates`] lists them all with `{}` for the parts
+//! that vary, and the golden cases under `tests/golden/st-syntax` cover each template.
+
+mod lex;
+mod parse;
+#[cfg(test)]
+mod tests;
+
+use std::path::Path;
+
+use crate::diag::{Diagnostic, Diagnostics};
+use crate::st::ast;
+
+/// Parses one file: the tree of everything that parsed, and every syntax error.
+pub fn parse_file(path: &Path, text: &str) -> (ast::File, Diagnostics) {
+    let lexed = lex::lex(text);
+    let (items, mut errors) = parse::parse(text, lexed.tokens, lexed.eof_in_comment, lexed.quiet);
+    errors.extend(lexed.errors);
+    errors.sort_by_key(|(span, _)| (span.line, span.col));
+    let mut diags = Diagnostics::default();
+    for (span, msg) in errors {
+        diags.push(Diagnostic::new(path, span.line, span.col, msg.to_string()));
+    }
+    (ast::File { path: path.to_path_buf(), items }, diags)
+}
+
+/// Every message the lexer and the parser can emit, with `{}` where the message varies.
+pub fn message_templates() -> Vec<String> {
+    Msg::templates().iter().map(Msg::to_string).collect()
+}
+
+/// What the parser expected where it found something else.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Want {
+    SemiAfterStmt,
+    SemiAfterDecl,
+    Stmt,
+    Expr,
+    RParen,
+    RBracket,
+    LBracket,
+    CommaOrRParen,
+    CommaOrRBracket,
+    Assign,
+    Then,
+    Do,
+    Of,
+    To,
+    EndRepeat,
+    Colon,
+    Name,
+    Type,
+    DotDot,
+    Item,
+    VarDecl,
+    TypeDecl,
+    StructMember,
+    Location,
+    Field,
+    TypedValue,
+    CaseLabel,
+}
+
+impl Want {
+    pub(crate) const ALL: [Want; 27] = [
+        Want::SemiAfterStmt,
+        Want::SemiAfterDecl,
+        Want::Stmt,
+        Want::Expr,
+        Want::RParen,
+        Want::RBracket,
+        Want::LBracket,
+        Want::CommaOrRParen,
+        Want::CommaOrRBracket,
+        Want::Assign,
+        Want::Then,
+        Want::Do,
+        Want::Of,
+        Want::To,
+        Want::EndRepeat,
+        Want::Colon,
+        Want::Name,
+        Want::Type,
+        Want::DotDot,
+        Want::Item,
+        Want::VarDecl,
+        Want::TypeDecl,
+        Want::StructMember,
+        Want::Location,
+        Want::Field,
+        Want::TypedValue,
+        Want::CaseLabel,
+    ];
+
+    fn text(self) -> &'static str {
+        match self {
+            Want::SemiAfterStmt => "`;` after the statement",
+            Want::SemiAfterDecl => "`;` after the declaration",
+            Want::Stmt => "a statement",
+            Want::Expr => "an expression",
+            Want::RParen => "`)`",
+            Want::RBracket => "`]`",
+            Want::LBracket => "`[`",
+            Want::CommaOrRParen => "`,` or `)`",
+            Want::CommaOrRBracket => "`,` or `]`",
+            Want::Assign => "`:=`",
+            Want::Then => "`THEN`",
+            Want::Do => "`DO`",
+            Want::Of => "`OF`",
+            Want::To => "`TO`",
+            Want::EndRepeat => "`END_REPEAT`",
+            Want::Colon => "`:`",
+            Want::Name => "a name",
+            Want::Type => "a type",
+            Want::DotDot => "`..`",
+            Want::Item => "`PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE` or `VAR_GLOBAL`",
+            Want::VarDecl => "a variable name or `END_VAR`",
+            Want::TypeDecl => "a type name or `END_TYPE`",
+            Want::StructMember => "a member name or `END_STRUCT`",
+            Want::Location => "an address `%…` after `AT`",
+            Want::Field => "a member name or a bit number after `.`",
+            Want::TypedValue => "a literal after the type prefix",
+            Want::CaseLabel => "a case label",
+        }
+    }
+}
+
+/// A construct that an `END_…` keyword closes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Closer {
+    If,
+    Case,
+    For,
+    While,
+    Repeat,
+    Program,
+    Function,
+    FunctionBlock,
+    Type,
+    Struct,
+    Var,
+}
+
+impl Closer {
+    pub(crate) const ALL: [Closer; 11] = [
+        Closer::If,
+        Closer::Case,
+        Closer::For,
+        Closer::While,
+        Closer::Repeat,
+        Closer::Program,
+        Closer::Function,
+        Closer::FunctionBlock,
+        Closer::Type,
+        Closer::Struct,
+        Closer::Var,
+    ];
+
+    /// The keyword that closes it.
+    pub(crate) fn end(self) -> &'static str {
+        match self {
+            Closer::If => "END_IF",
+            Closer::Case => "END_CASE",
+            Closer::For => "END_FOR",
+            Closer::While => "END_WHILE",
+            Closer::Repeat => "UNTIL",
+            Closer::Program => "END_PROGRAM",
+            Closer::Function => "END_FUNCTION",
+            Closer::FunctionBlock => "END_FUNCTION_BLOCK",
+            Closer::Type => "END_TYPE",
+            Closer::Struct => "END_STRUCT",
+            Closer::Var => "END_VAR",
+        }
+    }
+
+    /// The keyword that opens it (a VAR block names its own keyword).
+    fn opener(self) -> &'static str {
+        match self {
+            Closer::If => "IF",
+            Closer::Case => "CASE",
+            Closer::For => "FOR",
+            Closer::While => "WHILE",
+            Closer::Repeat => "REPEAT",
+            Closer::Program => "PROGRAM",
+            Closer::Function => "FUNCTION",
+            Closer::FunctionBlock => "FUNCTION_BLOCK",
+            Closer::Type => "TYPE",
+            Closer::Struct => "STRUCT",
+            Closer::Var => "{}",
+        }
+    }
+}
+
+/// One diagnostic message. The variable parts are text, so that [`Msg::templates`] can fill
+/// them with `{}`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) enum Msg {
+    /// `expected X, found Y`: `found` is a token in backticks or `end of file`.
+    Expected {
+        want: Want,
+        found: String,
+    },
+    /// `END_IF` expected to close the IF at line 3, found `END_PROGRAM`.
+    Unclosed {
+        closer: Closer,
+        opener: String,
+        line: String,
+        found: String,
+    },
+    UnterminatedComment {
+        line: String,
+    },
+    UnterminatedPragma {
+        line: String,
+    },
+    UnterminatedString,
+    WString,
+    NotANumber {
+        text: String,
+    },
+    OutOfRange {
+        text: String,
+    },
+    DurationUnit {
+        text: String,
+        unit: String,
+    },
+    DurationNoUnit {
+        text: String,
+        after: String,
+    },
+    DurationNoNumber {
+        text: String,
+        found: String,
+    },
+    BadEscape {
+        escape: String,
+    },
+    UnexpectedChar {
+        ch: String,
+    },
+    NoAddress,
+    BitTooLarge {
+        text: String,
+    },
+    TooDeep,
+}
+
+/// How deeply expressions, statements and initial values may nest.
+pub(crate) const MAX_DEPTH: usize = 64;
+
+impl Msg {
+    /// One message of each kind, its varying parts `{}`.
+    pub(crate) fn templates() -> Vec<Msg> {
+        let h = || "{}".to_string();
+        let mut all: Vec<Msg> =
+            Want::ALL.iter().map(|&want| Msg::Expected { want, found: h() }).collect();
+        all.extend(Closer::ALL.iter().map(|&closer| Msg::Unclosed {
+            closer,
+            opener: h(),
+            line: h(),
+            found: h(),
+        }));
+        all.extend([
+            Msg::UnterminatedComment { line: h() },
+            Msg::UnterminatedPragma { line: h() },
+            Msg::UnterminatedString,
+            Msg::WString,
+            Msg::NotANumber { text: h() },
+            Msg::OutOfRange { text: h() },
+            Msg::DurationUnit { text: h(), unit: h() },
+            Msg::DurationNoUnit { text: h(), after: h() },
+            Msg::DurationNoNumber { text: h(), found: h() },
+            Msg::BadEscape { escape: h() },
+            Msg::UnexpectedChar { ch: h() },
+            Msg::NoAddress,
+            Msg::BitTooLarge { text: h() },
+            Msg::TooDeep,
+        ]);
+        all
+    }
+}
+
+impl std::fmt::Display for Msg {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Msg::Expected { want, found } => write!(f, "expected {}, found {found}", want.text()),
+            Msg::Unclosed { closer, opener, line, found } => {
+                let opener = if *closer == Closer::Var { opener } else { closer.opener() };
+                write!(
+                    f,
+                    "`{}` expected to close the {opener} at line {line}, found {found}",
+                    closer.end()
+                )
+            }
+            Msg::UnterminatedComment { line } => {
+                write!(f, "unterminated comment (opened at line {line})")
+            }
+            Msg::UnterminatedPragma { line } => {
+                write!(f, "unterminated pragma (opened at line {line})")
+            }
+            Msg::UnterminatedString => write!(f, "unterminated string"),
+            Msg::WString => write!(f, "WSTRING is not supported"),
+            Msg::NotANumber { text } => write!(f, "`{text}` is not a number"),
+            Msg::OutOfRange { text } => write!(f, "`{text}` is out of range"),
+            Msg::DurationUnit { text, unit } => {
+                write!(f, "`{text}` is not a duration: unknown unit `{unit}`")
+            }
+            Msg::DurationNoUnit { text, after } => {
+                write!(f, "`{text}` is not a duration: missing unit after `{after}`")
+            }
+            Msg::DurationNoNumber { text, found } => {
+                write!(f, "`{text}` is not a duration: expected a number, found {found}")
+            }
+            Msg::BadEscape { escape } => write!(f, "invalid escape `{escape}` in a string"),
+            Msg::UnexpectedChar { ch } => write!(f, "unexpected character `{ch}`"),
+            Msg::NoAddress => write!(f, "expected an address after `%`"),
+            Msg::BitTooLarge { text } => write!(f, "bit number `{text}` is too large"),
+            Msg::TooDeep => write!(f, "nested more than {MAX_DEPTH} levels deep"),
+        }
+    }
+}

@@ -1,0 +1,1263 @@
+//! The recursive-descent parser: tokens → [`ast::Item`]s, with every syntax error.
+//!
+//! Recovery: an error inside a statement skips to its `;` (or to the next statement keyword or
+//! block keyword), inside a declaration to its `;` (or `END_VAR`). A construct whose `END_…`
+//! is missing is reported once, where something else was found; a stray `END_…` that closes
+//! nothing open is taken for a misspelt end of the innermost construct. At most one error is
+//! reported at any one token, so one mistake makes one diagnostic.
+
+use super::lex::{Kw, Tok, Token, P};
+use super::{Closer, Msg, Want, MAX_DEPTH};
+use crate::st::ast::*;
+
+/// An error was reported; the caller recovers.
+#[derive(Debug)]
+pub(crate) struct Failed;
+
+type PResult<T> = Result<T, Failed>;
+
+/// Parses a whole file.
+pub(crate) fn parse(
+    text: &str,
+    tokens: Vec<Token>,
+    eof_in_comment: bool,
+    quiet: Vec<usize>,
+) -> (Vec<Item>, Vec<(Span, Msg)>) {
+    let mut parser = Parser::new(text, tokens, eof_in_comment);
+    parser.quiet = quiet;
+    let items = parser.file();
+    (items, parser.errors)
+}
+
+/// Parses one expression that must fill `text` (for the tests).
+#[cfg(test)]
+pub(crate) fn parse_expr(text: &str) -> Result<Expr, Vec<(Span, Msg)>> {
+    let lexed = super::lex::lex(text);
+    let mut parser = Parser::new(text, lexed.tokens, false);
+    let expr = parser.expr();
+    if expr.is_ok() && !parser.at(&Tok::Eof) {
+        let _ = parser.fail(Want::Semi);
+    }
+    let mut errors = lexed.errors;
+    errors.extend(parser.errors);
+    match expr {
+        Ok(expr) if errors.is_empty() => Ok(expr),
+        _ => Err(errors),
+    }
+}
+
+#[cfg(test)]
+impl Want {
+    #[allow(non_upper_case_globals)]
+    const Semi: Want = Want::SemiAfterStmt;
+}
+
+pub(crate) struct Parser<'a> {
+    text: &'a str,
+    tokens: Vec<Token>,
+    pos: usize,
+    errors: Vec<(Span, Msg)>,
+    /// The token of the last error: no second error there.
+    last_error: Option<usize>,
+    /// Whether that error was a missing `END_…` (several may be missing at one token).
+    last_unclosed: bool,
+    eof_in_comment: bool,
+    /// Tokens where no error is reported (see `Lexed::quiet`), sorted.
+    quiet: Vec<usize>,
+    /// The constructs open around the current statement, innermost last.
+    open: Vec<Closer>,
+    depth: usize,
+}
+
+/// The binary operators' levels, lowest first; unary operators sit between `*` and `**`.
+const LEVEL_OR: u8 = 1;
+const LEVEL_MUL: u8 = 7;
+
+fn binary_op(tok: &Tok, level: u8) -> Option<BinaryOp> {
+    let op = match tok {
+        Tok::Kw(Kw::Or) => BinaryOp::Or,
+        Tok::Kw(Kw::Xor) => BinaryOp::Xor,
+        Tok::Kw(Kw::And) | Tok::P(P::Amp) => BinaryOp::And,
+        Tok::P(P::Eq) => BinaryOp::Eq,
+        Tok::P(P::Ne) => BinaryOp::Ne,
+        Tok::P(P::Lt) => BinaryOp::Lt,
+        Tok::P(P::Le) => BinaryOp::Le,
+        Tok::P(P::Gt) => BinaryOp::Gt,
+        Tok::P(P::Ge) => BinaryOp::Ge,
+        Tok::P(P::Plus) => BinaryOp::Add,
+        Tok::P(P::Minus) => BinaryOp::Sub,
+        Tok::P(P::Star) => BinaryOp::Mul,
+        Tok::P(P::Slash) => BinaryOp::Div,
+        Tok::Kw(Kw::Mod) => BinaryOp::Mod,
+        _ => return None,
+    };
+    (op_level(op) == level).then_some(op)
+}
+
+/// The level of a binary operator: 1 (`OR`) to 7 (`*`), and 9 for `**`.
+pub(crate) fn op_level(op: BinaryOp) -> u8 {
+    match op {
+        BinaryOp::Or => 1,
+        BinaryOp::Xor => 2,
+        BinaryOp::And => 3,
+        BinaryOp::Eq | BinaryOp::Ne => 4,
+        BinaryOp::Lt | BinaryOp::Le | BinaryOp::Gt | BinaryOp::Ge => 5,
+        BinaryOp::Add | BinaryOp::Sub => 6,
+        BinaryOp::Mul | BinaryOp::Div | BinaryOp::Mod => 7,
+        BinaryOp::Pow => 9,
+    }
+}
+
+fn unary_op(tok: &Tok) -> Option<UnaryOp> {
+    match tok {
+        Tok::P(P::Minus) => Some(UnaryOp::Neg),
+        Tok::P(P::Plus) => Some(UnaryOp::Plus),
+        Tok::Kw(Kw::Not) => Some(UnaryOp::Not),
+        _ => None,
+    }
+}
+
+fn var_kind(tok: &Tok) -> Option<VarKind> {
+    Some(match tok {
+        Tok::Kw(Kw::Var) => VarKind::Local,
+        Tok::Kw(Kw::VarInput) => VarKind::Input,
+        Tok::Kw(Kw::VarOutput) => VarKind::Output,
+        Tok::Kw(Kw::VarInOut) => VarKind::InOut,
+        Tok::Kw(Kw::VarTemp) => VarKind::Temp,
+        Tok::Kw(Kw::VarGlobal) => VarKind::Global,
+        Tok::Kw(Kw::VarExternal) => VarKind::External,
+        _ => return None,
+    })
+}
+
+/// Keywords that start a top-level item, and the end of the file.
+fn is_top(tok: &Tok) -> bool {
+    matches!(tok, Tok::Eof | Tok::Kw(Kw::Program | Kw::Function | Kw::FunctionBlock | Kw::Type))
+}
+
+fn is_stmt_keyword(tok: &Tok) -> bool {
+    matches!(
+        tok,
+        Tok::Kw(
+            Kw::If
+                | Kw::Case
+                | Kw::For
+                | Kw::While
+                | Kw::Repeat
+                | Kw::Exit
+                | Kw::Continue
+                | Kw::Return
+        )
+    )
+}
+
+fn is_pou_end(kw: Kw) -> bool {
+    matches!(kw, Kw::EndProgram | Kw::EndFunction | Kw::EndFunctionBlock)
+}
+
+/// `END_…`, `ELSE`, `ELSIF`, `UNTIL`: what ends a list of statements.
+fn is_closer(tok: &Tok) -> bool {
+    match tok {
+        Tok::Kw(kw) => kw.is_end() || matches!(kw, Kw::Else | Kw::Elsif | Kw::Until),
+        _ => false,
+    }
+}
+
+impl Closer {
+    /// Whether `kw` continues or ends this construct.
+    fn accepts(self, kw: Kw) -> bool {
+        match self {
+            Closer::If => matches!(kw, Kw::Elsif | Kw::Else | Kw::EndIf),
+            Closer::Case => matches!(kw, Kw::Else | Kw::EndCase),
+            Closer::For => kw == Kw::EndFor,
+            Closer::While => kw == Kw::EndWhile,
+            Closer::Repeat => kw == Kw::Until,
+            Closer::Program => kw == Kw::EndProgram,
+            Closer::Function => kw == Kw::EndFunction,
+            Closer::FunctionBlock => kw == Kw::EndFunctionBlock,
+            Closer::Type => kw == Kw::EndType,
+            Closer::Struct => kw == Kw::EndStruct,
+            Closer::Var => kw == Kw::EndVar,
+        }
+    }
+
+    fn end_kw(self) -> Kw {
+        match self {
+            Closer::If => Kw::EndIf,
+            Closer::Case => Kw::EndCase,
+            Closer::For => Kw::EndFor,
+            Closer::While => Kw::EndWhile,
+            Closer::Repeat => Kw::Until,
+            Closer::Program => Kw::EndProgram,
+            Closer::Function => Kw::EndFunction,
+            Closer::FunctionBlock => Kw::EndFunctionBlock,
+            Closer::Type => Kw::EndType,
+            Closer::Struct => Kw::EndStruct,
+            Closer::Var => Kw::EndVar,
+        }
+    }
+}
+
+fn dummy_expr(span: Span) -> Expr {
+    Expr { kind: ExprKind::Literal(Literal::Bool(false)), span }
+}
+
+impl<'a> Parser<'a> {
+    fn new(text: &'a str, tokens: Vec<Token>, eof_in_comment: bool) -> Parser<'a> {
+        Parser {
+            text,
+            tokens,
+            pos: 0,
+            errors: Vec::new(),
+            last_error: None,
+            last_unclosed: false,
+            eof_in_comment,
+            quiet: Vec::new(),
+            open: Vec::new(),
+            depth: 0,
+        }
+    }
+
+    // ----- tokens -----
+
+    fn tok(&self) -> &Tok {
+        &self.tokens[self.pos].kind
+    }
+
+    fn tok_at(&self, n: usize) -> &Tok {
+        let last = self.tokens.len() - 1;
+        &self.tokens[(self.pos + n).min(last)].kind
+    }
+
+    fn span(&self) -> Span {
+        self.tokens[self.pos].span
+    }
+
+    fn at(&self, tok: &Tok) -> bool {
+        self.tok() == tok
+    }
+
+    fn at_kw(&self, kw: Kw) -> bool {
+        *self.tok() == Tok::Kw(kw)
+    }
+
+    fn at_p(&self, p: P) -> bool {
+        *self.tok() == Tok::P(p)
+    }
+
+    fn text_of(&self, index: usize) -> &'a str {
+        let t = &self.tokens[index];
+        &self.text[t.start as usize..t.end as usize]
+    }
+
+    /// Moves on (never past the end of file).
+    fn bump(&mut self) -> usize {
+        let at = self.pos;
+        if self.pos + 1 < self.tokens.len() {
+            self.pos += 1;
+        }
+        at
+    }
+
+    fn eat_kw(&mut self, kw: Kw) -> bool {
+        let yes = self.at_kw(kw);
+        if yes {
+            self.bump();
+        }
+        yes
+    }
+
+    fn eat_p(&mut self, p: P) -> bool {
+        let yes = self.at_p(p);
+        if yes {
+            self.bump();
+        }
+        yes
+    }
+
+    /// The current token for a message: `` `x` `` or `end of file`.
+    fn found(&self) -> String {
+        if self.at(&Tok::Eof) {
+            return "end of file".to_string();
+        }
+        let text = self.text_of(self.pos);
+        if text.chars().count() > 30 {
+            let short: String = text.chars().take(29).collect();
+            format!("`{short}…`")
+        } else {
+            format!("`{text}`")
+        }
+    }
+
+    // ----- errors -----
+
+    /// Reports `msg` at the current token, unless an error was already reported there (or the
+    /// file ends in an unterminated comment, reported by the lexer).
+    fn report(&mut self, msg: Msg) {
+        let unclosed = matches!(msg, Msg::Unclosed { .. });
+        let again = self.last_error == Some(self.pos) && !(unclosed && self.last_unclosed);
+        let quiet = self.quiet.binary_search(&self.pos).is_ok();
+        if again || quiet || (self.eof_in_comment && self.at(&Tok::Eof)) {
+            return;
+        }
+        self.last_error = Some(self.pos);
+        self.last_unclosed = unclosed;
+        let span = self.span();
+        self.errors.push((span, msg));
+    }
+
+    fn fail(&mut self, want: Want) -> Failed {
+        let found = self.found();
+        self.report(Msg::Expected { want, found });
+        Failed
+    }
+
+    fn expect_p(&mut self, p: P, want: Want) -> PResult<()> {
+        if self.eat_p(p) {
+            Ok(())
+        } else {
+            Err(self.fail(want))
+        }
+    }
+
+    /// Like `expect_p`, but goes on as if the keyword were there.
+    fn expect_kw_soft(&mut self, kw: Kw, want: Want) {
+        if !self.eat_kw(kw) {
+            let _ = self.fail(want);
+        }
+    }
+
+    fn expect_p_soft(&mut self, p: P, want: Want) {
+        if !self.eat_p(p) {
+            let _ = self.fail(want);
+        }
+    }
+
+    fn ident(&mut self) -> PResult<Ident> {
+        if self.at(&Tok::Ident) {
+            let span = self.span();
+            let name = {
+                let at = self.bump();
+                self.text_of(at)
+            }
+            .to_string();
+            Ok(Ident { name, span })
+        } else {
+            Err(self.fail(Want::Name))
+        }
+    }
+
+    fn enter(&mut self) -> PResult<()> {
+        if self.depth >= MAX_DEPTH {
+            self.report(Msg::TooDeep);
+            return Err(Failed);
+        }
+        self.depth += 1;
+        Ok(())
+    }
+
+    /// The keyword `closer` ends the construct opened at `opened` (its keyword `opener`): its
+    /// place, or `None` after reporting that it is missing.
+    fn close(&mut self, closer: Closer, opener: &str, opened: Span) -> Option<Span> {
+        let span = self.span();
+        if self.eat_kw(closer.end_kw()) {
+            return Some(span);
+        }
+        let found = self.found();
+        self.report(Msg::Unclosed {
+            closer,
+            opener: opener.to_string(),
+            line: opened.line.to_string(),
+            found,
+        });
+        // A stray `END_…` that closes nothing open is a misspelt end: a statement's of a
+        // statement, a POU's of a POU.
+        if let Tok::Kw(kw) = *self.tok() {
+            let misspelt = match closer {
+                Closer::Program | Closer::Function | Closer::FunctionBlock => is_pou_end(kw),
+                Closer::Type | Closer::Struct | Closer::Var => false,
+                _ => kw.is_end() && !is_pou_end(kw),
+            };
+            if misspelt && !self.open.iter().any(|c| c.accepts(kw)) {
+                self.bump();
+            }
+        }
+        None
+    }
+
+    /// After an error in a statement: on to the next `;` (past it), statement keyword, block
+    /// keyword or the end.
+    fn sync_stmt(&mut self) {
+        loop {
+            let tok = self.tok();
+            if *tok == Tok::P(P::Semi) {
+                self.bump();
+                return;
+            }
+            if is_top(tok) || is_stmt_keyword(tok) || is_closer(tok) || var_kind(tok).is_some() {
+                return;
+            }
+            self.bump();
+        }
+    }
+
+    /// After an error in a declaration: on to the next `;` (past it), `END_…` or block keyword.
+    fn sync_decl(&mut self) {
+        loop {
+            let tok = self.tok();
+            if *tok == Tok::P(P::Semi) {
+                self.bump();
+                return;
+            }
+            if is_top(tok) || is_stmt_keyword(tok) || is_closer(tok) || var_kind(tok).is_some() {
+                return;
+            }
+            self.bump();
+        }
+    }
+
+    // ----- the file -----
+
+    fn file(&mut self) -> Vec<Item> {
+        let mut items = Vec::new();
+        loop {
+            match *self.tok() {
+                Tok::Eof => return items,
+                Tok::Kw(Kw::Program) => items.push(Item::Pou(self.pou(PouKind::Program))),
+                Tok::Kw(Kw::Function) => items.push(Item::Pou(self.pou(PouKind::Function))),
+                Tok::Kw(Kw::FunctionBlock) => {
+                    items.push(Item::Pou(self.pou(PouKind::FunctionBlock)))
+                }
+                Tok::Kw(Kw::Type) => items.extend(self.type_block().into_iter().map(Item::Type)),
+                Tok::Kw(Kw::VarGlobal) => items.push(Item::Globals(self.var_block())),
+                _ => {
+                    let _ = self.fail(Want::Item);
+                    self.bump();
+                    while !is_top(self.tok()) && !self.at_kw(Kw::VarGlobal) {
+                        self.bump();
+                    }
+                }
+            }
+        }
+    }
+
+    fn pou(&mut self, kind: PouKind) -> Pou {
+        let span = self.span();
+        let opener = {
+            let at = self.bump();
+            self.text_of(at)
+        }
+        .to_ascii_uppercase();
+        let name = self.ident().unwrap_or_else(|_| Ident { name: String::new(), span });
+        let mut return_type = None;
+        if kind == PouKind::Function && self.eat_p(P::Colon) {
+            match self.type_ref() {
+                Ok(ty) => return_type = Some(ty),
+                Err(_) => {
+                    while !is_top(self.tok())
+                        && var_kind(self.tok()).is_none()
+                        && !self.at_p(P::Semi)
+                    {
+                        self.bump();
+                    }
+                }
+            }
+        }
+        let mut vars = Vec::new();
+        while var_kind(self.tok()).is_some() {
+            vars.push(self.var_block());
+        }
+        let closer = match kind {
+            PouKind::Program => Closer::Program,
+            PouKind::Function => Closer::Function,
+            PouKind::FunctionBlock => Closer::FunctionBlock,
+        };
+        self.open.push(closer);
+        let body = self.stmt_list(false, false);
+        self.open.pop();
+        let here = self.span();
+        let end = self.close(closer, &opener, span).unwrap_or(here);
+        Pou { kind, name, return_type, vars, body, span, end }
+    }
+
+    // ----- declarations -----
+
+    fn var_block(&mut self) -> VarBlock {
+        let span = self.span();
+        let kind = var_kind(self.tok()).unwrap_or(VarKind::Local);
+        let opener = {
+            let at = self.bump();
+            self.text_of(at)
+        }
+        .to_ascii_uppercase();
+        let (mut constant, mut retain) = (false, false);
+        loop {
+            if self.eat_kw(Kw::Constant) {
+                constant = true;
+            } else if self.eat_kw(Kw::Retain) {
+                retain = true;
+            } else if !self.eat_kw(Kw::NonRetain) {
+                break;
+            }
+        }
+        let mut decls = Vec::new();
+        loop {
+            let tok = self.tok();
+            if self.at_decl() {
+                match self.var_decl(Want::SemiAfterDecl) {
+                    Ok(decl) => decls.push(decl),
+                    Err(_) => self.sync_decl(),
+                }
+            } else if *tok == Tok::Kw(Kw::EndVar) {
+                self.bump();
+                break;
+            } else if *tok == Tok::Ident
+                || is_top(tok)
+                || is_stmt_keyword(tok)
+                || is_closer(tok)
+                || var_kind(tok).is_some()
+            {
+                self.close(Closer::Var, &opener, span);
+                break;
+            } else {
+                let _ = self.fail(Want::VarDecl);
+                self.bump();
+                self.sync_decl();
+            }
+        }
+        VarBlock { kind, constant, retain, span, decls }
+    }
+
+    /// Whether a declaration starts here: a name not followed by `:=`, `(`, `[` or `.` (which
+    /// make it a statement after a missing `END_VAR`).
+    fn at_decl(&self) -> bool {
+        *self.tok() == Tok::Ident
+            && !matches!(self.tok_at(1), Tok::P(P::Assign | P::LParen | P::LBracket | P::Dot))
+    }
+
+    /// `a, b AT %D0 : INT := 5;`
+    fn var_decl(&mut self, semi: Want) -> PResult<VarDecl> {
+        let span = self.span();
+        let mut names = vec![self.ident()?];
+        while self.eat_p(P::Comma) {
+            names.push(self.ident()?);
+        }
+        let mut location = None;
+        if self.eat_kw(Kw::At) {
+            if !self.at(&Tok::Location) {
+                return Err(self.fail(Want::Location));
+            }
+            let span = self.span();
+            let name = {
+                let at = self.bump();
+                self.text_of(at)
+            }[1..]
+                .to_string();
+            location = Some(Ident { name, span });
+        }
+        self.expect_p(P::Colon, Want::Colon)?;
+        let ty = self.type_ref()?;
+        let init = if self.eat_p(P::Assign) { Some(self.init()?) } else { None };
+        self.end_decl(semi);
+        Ok(VarDecl { names, location, ty, init, span })
+    }
+
+    /// The `;` after a declaration; when it is missing, goes on at the next one.
+    fn end_decl(&mut self, semi: Want) {
+        if !self.eat_p(P::Semi) {
+            let _ = self.fail(semi);
+            if !self.at(&Tok::Ident) {
+                self.sync_decl();
+            }
+        }
+    }
+
+    fn type_ref(&mut self) -> PResult<TypeRef> {
+        let span = self.span();
+        match *self.tok() {
+            Tok::Ident => {
+                let name = self.ident()?;
+                if !self.at_p(P::LParen) {
+                    return Ok(TypeRef::Named(name));
+                }
+                self.bump();
+                // `INT (0..100)` or `INT (A, B := 5)`.
+                let first_span = self.span();
+                let first = self.expr()?;
+                if self.eat_p(P::DotDot) {
+                    let hi = self.expr()?;
+                    self.expect_p(P::RParen, Want::RParen)?;
+                    return Ok(TypeRef::Subrange {
+                        base: name,
+                        lo: Box::new(first),
+                        hi: Box::new(hi),
+                        span,
+                    });
+                }
+                let ExprKind::Name(value) = first.kind else {
+                    self.pos = self.tokens.iter().position(|t| t.span == first_span).unwrap_or(0);
+                    return Err(self.fail(Want::Name));
+                };
+                let def = self.enum_values(Some(name), value, span)?;
+                Ok(TypeRef::Enum(def))
+            }
+            Tok::Kw(Kw::String) => {
+                self.bump();
+                let len = if self.eat_p(P::LBracket) {
+                    let len = self.expr()?;
+                    self.expect_p(P::RBracket, Want::RBracket)?;
+                    Some(Box::new(len))
+                } else if self.eat_p(P::LParen) {
+                    let len = self.expr()?;
+                    self.expect_p(P::RParen, Want::RParen)?;
+                    Some(Box::new(len))
+                } else {
+                    None
+                };
+                Ok(TypeRef::String { len, span })
+            }
+            Tok::Kw(Kw::Array) => {
+                self.bump();
+                self.expect_p(P::LBracket, Want::LBracket)?;
+                let mut dims = Vec::new();
+                loop {
+                    let lo = self.expr()?;
+                    self.expect_p(P::DotDot, Want::DotDot)?;
+                    let hi = self.expr()?;
+                    dims.push((lo, hi));
+                    if self.eat_p(P::Comma) {
+                        continue;
+                    }
+                    self.expect_p(P::RBracket, Want::CommaOrRBracket)?;
+                    break;
+                }
+                if !self.eat_kw(Kw::Of) {
+                    return Err(self.fail(Want::Of));
+                }
+                self.enter()?;
+                let of = self.type_ref();
+                self.depth -= 1;
+                Ok(TypeRef::Array { dims, of: Box::new(of?), span })
+            }
+            Tok::P(P::LParen) => {
+                self.bump();
+                let first = self.ident()?;
+                Ok(TypeRef::Enum(self.enum_values(None, first, span)?))
+            }
+            _ => Err(self.fail(Want::Type)),
+        }
+    }
+
+    /// The values of an enumeration after its first name, to its `)`.
+    fn enum_values(&mut self, base: Option<Ident>, first: Ident, span: Span) -> PResult<EnumDef> {
+        let mut values = Vec::new();
+        let mut name = first;
+        loop {
+            let value = if self.eat_p(P::Assign) { Some(self.expr()?) } else { None };
+            values.push((name, value));
+            if self.eat_p(P::Comma) {
+                name = self.ident()?;
+                continue;
+            }
+            self.expect_p(P::RParen, Want::CommaOrRParen)?;
+            return Ok(EnumDef { base, values, span });
+        }
+    }
+
+    /// `TYPE … END_TYPE`: its declarations.
+    fn type_block(&mut self) -> Vec<TypeDecl> {
+        let opened = self.span();
+        self.bump();
+        let mut decls = Vec::new();
+        loop {
+            let tok = self.tok();
+            if *tok == Tok::Ident {
+                match self.type_decl() {
+                    Ok(decl) => decls.push(decl),
+                    Err(_) => self.sync_decl(),
+                }
+            } else if *tok == Tok::Kw(Kw::EndType) {
+                self.bump();
+                return decls;
+            } else if is_top(tok)
+                || is_stmt_keyword(tok)
+                || is_closer(tok)
+                || var_kind(tok).is_some()
+            {
+                self.close(Closer::Type, "TYPE", opened);
+                return decls;
+            } else {
+                let _ = self.fail(Want::TypeDecl);
+                self.bump();
+                self.sync_decl();
+            }
+        }
+    }
+
+    fn type_decl(&mut self) -> PResult<TypeDecl> {
+        let span = self.span();
+        let name = self.ident()?;
+        self.expect_p(P::Colon, Want::Colon)?;
+        let def = if self.at_kw(Kw::Struct) {
+            let opened = self.span();
+            self.bump();
+            let mut members = Vec::new();
+            loop {
+                let tok = self.tok();
+                if self.at_decl() {
+                    match self.var_decl(Want::SemiAfterDecl) {
+                        Ok(decl) => members.push(decl),
+                        Err(_) => self.sync_decl(),
+                    }
+                } else if *tok == Tok::Kw(Kw::EndStruct) {
+                    self.bump();
+                    break;
+                } else if *tok == Tok::Ident
+                    || is_top(tok)
+                    || is_stmt_keyword(tok)
+                    || is_closer(tok)
+                    || var_kind(tok).is_some()
+                {
+                    self.close(Closer::Struct, "STRUCT", opened);
+                    if !self.at_p(P::Semi) {
+                        return Ok(TypeDecl { name, def: TypeDef::Struct { members }, span });
+                    }
+                    break;
+                } else {
+                    let _ = self.fail(Want::StructMember);
+                    self.bump();
+                    self.sync_decl();
+                }
+            }
+            TypeDef::Struct { members }
+        } else {
+            match self.type_ref()? {
+                TypeRef::Enum(def) => {
+                    let init = if self.eat_p(P::Assign) { Some(self.ident()?) } else { None };
+                    TypeDef::Enum { def, init }
+                }
+                ty => {
+                    let init = if self.eat_p(P::Assign) { Some(self.init()?) } else { None };
+                    TypeDef::Alias { ty, init }
+                }
+            }
+        };
+        self.end_decl(Want::SemiAfterDecl);
+        Ok(TypeDecl { name, def, span })
+    }
+
+    /// An initial value: an expression, `[…]` for an array, `(a := …)` for a struct.
+    fn init(&mut self) -> PResult<Init> {
+        self.enter()?;
+        let init = self.init_inner();
+        self.depth -= 1;
+        init
+    }
+
+    fn init_inner(&mut self) -> PResult<Init> {
+        let span = self.span();
+        if self.eat_p(P::LBracket) {
+            let mut elems = Vec::new();
+            loop {
+                if matches!(self.tok(), Tok::Int(_)) && *self.tok_at(1) == Tok::P(P::LParen) {
+                    let count = self.primary()?;
+                    self.bump();
+                    let value = if self.eat_p(P::RParen) {
+                        None
+                    } else {
+                        let value = self.init()?;
+                        self.expect_p(P::RParen, Want::RParen)?;
+                        Some(value)
+                    };
+                    elems.push(ArrayInit::Repeat { count, value });
+                } else {
+                    elems.push(ArrayInit::One(self.init()?));
+                }
+                if self.eat_p(P::Comma) {
+                    continue;
+                }
+                self.expect_p(P::RBracket, Want::CommaOrRBracket)?;
+                return Ok(Init::Array { elems, span });
+            }
+        }
+        if self.at_p(P::LParen)
+            && *self.tok_at(1) == Tok::Ident
+            && *self.tok_at(2) == Tok::P(P::Assign)
+        {
+            self.bump();
+            let mut members = Vec::new();
+            loop {
+                let name = self.ident()?;
+                self.expect_p(P::Assign, Want::Assign)?;
+                members.push((name, self.init()?));
+                if self.eat_p(P::Comma) {
+                    continue;
+                }
+                self.expect_p(P::RParen, Want::CommaOrRParen)?;
+                return Ok(Init::Struct { members, span });
+            }
+        }
+        Ok(Init::Expr(self.expr()?))
+    }
+
+    // ----- statements -----
+
+    /// Statements up to the keyword that ends their list. `nested`: inside a statement (a
+    /// stray `END_…` then ends the list, for the statement to report); `in_case`: a CASE arm
+    /// (a label ends the list).
+    fn stmt_list(&mut self, nested: bool, in_case: bool) -> Vec<Stmt> {
+        let mut stmts = Vec::new();
+        loop {
+            let tok = self.tok().clone();
+            if is_top(&tok) {
+                return stmts;
+            }
+            if let Tok::Kw(kw) = tok {
+                if is_closer(&tok) {
+                    let open = self.open.iter().any(|c| c.accepts(kw));
+                    if open || (nested && kw.is_end()) || is_pou_end(kw) {
+                        return stmts;
+                    }
+                    let _ = self.fail(Want::Stmt);
+                    self.bump();
+                    continue;
+                }
+                if var_kind(&tok).is_some() {
+                    let _ = self.fail(Want::Stmt);
+                    self.var_block();
+                    continue;
+                }
+            }
+            if in_case && self.at_case_label() {
+                return stmts;
+            }
+            match self.stmt() {
+                Ok(stmt) => stmts.push(stmt),
+                Err(_) => self.sync_stmt(),
+            }
+        }
+    }
+
+    fn stmt(&mut self) -> PResult<Stmt> {
+        let span = self.span();
+        let kind = match *self.tok() {
+            Tok::P(P::Semi) => {
+                self.bump();
+                return Ok(Stmt { kind: StmtKind::Empty, span });
+            }
+            Tok::Kw(Kw::If) => self.if_stmt()?,
+            Tok::Kw(Kw::Case) => self.case_stmt()?,
+            Tok::Kw(Kw::For) => self.for_stmt()?,
+            Tok::Kw(Kw::While) => self.while_stmt()?,
+            Tok::Kw(Kw::Repeat) => self.repeat_stmt()?,
+            Tok::Kw(Kw::Exit) => {
+                self.bump();
+                StmtKind::Exit
+            }
+            Tok::Kw(Kw::Continue) => {
+                self.bump();
+                StmtKind::Continue
+            }
+            Tok::Kw(Kw::Return) => {
+                self.bump();
+                StmtKind::Return
+            }
+            Tok::Ident => {
+                let target = self.postfix()?;
+                if self.eat_p(P::Assign) {
+                    let value = self.expr()?;
+                    StmtKind::Assign { target, value }
+                } else if matches!(target.kind, ExprKind::Call { .. }) {
+                    StmtKind::Call(target)
+                } else {
+                    return Err(self.fail(Want::Assign));
+                }
+            }
+            _ => return Err(self.fail(Want::Stmt)),
+        };
+        if !self.eat_p(P::Semi) {
+            let _ = self.fail(Want::SemiAfterStmt);
+        }
+        Ok(Stmt { kind, span })
+    }
+
+    /// A condition or bound up to one of `stops`; after an error, skips to one of them and
+    /// stands in `FALSE`.
+    fn expr_until(&mut self, stops: &[Kw]) -> Expr {
+        let span = self.span();
+        match self.expr() {
+            Ok(expr) => expr,
+            Err(_) => {
+                loop {
+                    let tok = self.tok();
+                    if matches!(tok, Tok::Kw(kw) if stops.contains(kw)) {
+                        break;
+                    }
+                    if *tok == Tok::P(P::Semi)
+                        || is_top(tok)
+                        || is_stmt_keyword(tok)
+                        || is_closer(tok)
+                        || var_kind(tok).is_some()
+                    {
+                        // No error at the token where the skip ended: one was just reported.
+                        self.last_error = Some(self.pos);
+                        break;
+                    }
+                    self.bump();
+                }
+                dummy_expr(span)
+            }
+        }
+    }
+
+    /// A nested list of statements inside `closer`.
+    fn block(&mut self, closer: Closer, in_case: bool) -> PResult<Vec<Stmt>> {
+        self.enter()?;
+        self.open.push(closer);
+        let body = self.stmt_list(true, in_case);
+        self.open.pop();
+        self.depth -= 1;
+        Ok(body)
+    }
+
+    fn if_stmt(&mut self) -> PResult<StmtKind> {
+        let opened = self.span();
+        self.bump();
+        let mut branches = Vec::new();
+        let mut otherwise = None;
+        loop {
+            let cond = self.expr_until(&[Kw::Then]);
+            self.expect_kw_soft(Kw::Then, Want::Then);
+            branches.push((cond, self.block(Closer::If, false)?));
+            if self.eat_kw(Kw::Elsif) {
+                continue;
+            }
+            let span = self.span();
+            if self.eat_kw(Kw::Else) {
+                otherwise = Some((span, self.block(Closer::If, false)?));
+            }
+            break;
+        }
+        self.close(Closer::If, "IF", opened);
+        Ok(StmtKind::If { branches, otherwise })
+    }
+
+    /// Whether a CASE label (`1`, `-2`, `Red`, `Color#Red`, `3..5`) starts here.
+    fn at_case_label(&self) -> bool {
+        match self.tok() {
+            Tok::Int(_)
+            | Tok::Real(_)
+            | Tok::Str(_)
+            | Tok::Time(_)
+            | Tok::TypedPrefix
+            | Tok::P(P::Minus | P::Plus)
+            | Tok::Kw(Kw::True | Kw::False) => true,
+            Tok::Ident => {
+                let mut n = 1;
+                while *self.tok_at(n) == Tok::P(P::Dot) && *self.tok_at(n + 1) == Tok::Ident {
+                    n += 2;
+                }
+                matches!(self.tok_at(n), Tok::P(P::Colon | P::Comma | P::DotDot))
+            }
+            _ => false,
+        }
+    }
+
+    fn case_stmt(&mut self) -> PResult<StmtKind> {
+        let opened = self.span();
+        self.bump();
+        let selector = self.expr_until(&[Kw::Of]);
+        self.expect_kw_soft(Kw::Of, Want::Of);
+        let mut arms = Vec::new();
+        let mut otherwise = None;
+        self.open.push(Closer::Case);
+        loop {
+            let tok = self.tok();
+            if *tok == Tok::Kw(Kw::Else) {
+                let span = self.span();
+                self.bump();
+                self.open.pop();
+                otherwise = Some((span, self.block(Closer::Case, false)?));
+                self.open.push(Closer::Case);
+                break;
+            }
+            if is_top(tok) || is_closer(tok) || var_kind(tok).is_some() {
+                break;
+            }
+            if !self.at_case_label() {
+                let _ = self.fail(Want::CaseLabel);
+                self.sync_stmt();
+                continue;
+            }
+            match self.case_arm() {
+                Ok(arm) => arms.push(arm),
+                Err(_) => self.sync_stmt(),
+            }
+        }
+        self.open.pop();
+        self.close(Closer::Case, "CASE", opened);
+        Ok(StmtKind::Case { selector, arms, otherwise })
+    }
+
+    fn case_arm(&mut self) -> PResult<CaseArm> {
+        let span = self.span();
+        let mut labels = Vec::new();
+        loop {
+            let value = self.expr()?;
+            if self.eat_p(P::DotDot) {
+                labels.push(CaseLabel::Range(value, self.expr()?));
+            } else {
+                labels.push(CaseLabel::Value(value));
+            }
+            if !self.eat_p(P::Comma) {
+                break;
+            }
+        }
+        self.expect_p(P::Colon, Want::Colon)?;
+        self.open.pop();
+        let body = self.block(Closer::Case, true);
+        self.open.push(Closer::Case);
+        Ok(CaseArm { labels, body: body?, span })
+    }
+
+    fn for_stmt(&mut self) -> PResult<StmtKind> {
+        let opened = self.span();
+        self.bump();
+        let var = match self.ident() {
+            Ok(var) => var,
+            Err(_) => {
+                // `FOR 1 := …`: on after the bad token.
+                if *self.tok_at(1) == Tok::P(P::Assign) {
+                    self.bump();
+                }
+                Ident { name: String::new(), span: opened }
+            }
+        };
+        self.expect_p_soft(P::Assign, Want::Assign);
+        let from = self.expr_until(&[Kw::To]);
+        self.expect_kw_soft(Kw::To, Want::To);
+        let to = self.expr_until(&[Kw::By, Kw::Do]);
+        let by = if self.eat_kw(Kw::By) { Some(self.expr_until(&[Kw::Do])) } else { None };
+        self.expect_kw_soft(Kw::Do, Want::Do);
+        let body = self.block(Closer::For, false)?;
+        self.close(Closer::For, "FOR", opened);
+        Ok(StmtKind::For { var, from, to, by, body })
+    }
+
+    fn while_stmt(&mut self) -> PResult<StmtKind> {
+        let opened = self.span();
+        self.bump();
+        let cond = self.expr_until(&[Kw::Do]);
+        self.expect_kw_soft(Kw::Do, Want::Do);
+        let body = self.block(Closer::While, false)?;
+        self.close(Closer::While, "WHILE", opened);
+        Ok(StmtKind::While { cond, body })
+    }
+
+    fn repeat_stmt(&mut self) -> PResult<StmtKind> {
+        let opened = self.span();
+        self.bump();
+        let body = self.block(Closer::Repeat, false)?;
+        let span = self.span();
+        if self.close(Closer::Repeat, "REPEAT", opened).is_none() {
+            return Ok(StmtKind::Repeat { body, until: dummy_expr(span) });
+        }
+        let until = self.expr_until(&[Kw::EndRepeat]);
+        self.expect_kw_soft(Kw::EndRepeat, Want::EndRepeat);
+        Ok(StmtKind::Repeat { body, until })
+    }
+
+    // ----- expressions -----
+
+    pub(crate) fn expr(&mut self) -> PResult<Expr> {
+        self.enter()?;
+        let expr = self.binary(LEVEL_OR);
+        self.depth -= 1;
+        expr
+    }
+
+    /// Binary operators of `level` and above, left-associative.
+    fn binary(&mut self, level: u8) -> PResult<Expr> {
+        if level > LEVEL_MUL {
+            return self.unary();
+        }
+        let span = self.span();
+        let mut lhs = self.binary(level + 1)?;
+        while let Some(op) = binary_op(self.tok(), level) {
+            self.bump();
+            let rhs = self.binary(level + 1)?;
+            lhs = Expr { kind: ExprKind::Binary(op, Box::new(lhs), Box::new(rhs)), span };
+        }
+        Ok(lhs)
+    }
+
+    /// `-x`, `+x`, `NOT x`: below `**`, so `-2 ** 2` is `-(2 ** 2)`.
+    fn unary(&mut self) -> PResult<Expr> {
+        let span = self.span();
+        match unary_op(self.tok()) {
+            Some(op) => {
+                self.bump();
+                self.enter()?;
+                let operand = self.unary();
+                self.depth -= 1;
+                Ok(Expr { kind: ExprKind::Unary(op, Box::new(operand?)), span })
+            }
+            None => self.power(),
+        }
+    }
+
+    /// `a ** b ** c` is `(a ** b) ** c`.
+    fn power(&mut self) -> PResult<Expr> {
+        let span = self.span();
+        let mut lhs = self.power_operand()?;
+        while self.eat_p(P::Power) {
+            let rhs = self.power_operand()?;
+            lhs =
+                Expr { kind: ExprKind::Binary(BinaryOp::Pow, Box::new(lhs), Box::new(rhs)), span };
+        }
+        Ok(lhs)
+    }
+
+    /// An operand of `**`: a signed one is accepted (`2 ** -1`), binding to the operand only.
+    fn power_operand(&mut self) -> PResult<Expr> {
+        let span = self.span();
+        match unary_op(self.tok()) {
+            Some(op) => {
+                self.bump();
+                self.enter()?;
+                let operand = self.power_operand();
+                self.depth -= 1;
+                Ok(Expr { kind: ExprKind::Unary(op, Box::new(operand?)), span })
+            }
+            None => self.postfix(),
+        }
+    }
+
+    /// A primary and its `.member`, `.3`, `[i, j]` and `(args)`.
+    fn postfix(&mut self) -> PResult<Expr> {
+        let span = self.span();
+        let mut expr = self.primary()?;
+        loop {
+            let kind = match *self.tok() {
+                Tok::P(P::Dot) => {
+                    self.bump();
+                    match *self.tok() {
+                        Tok::Ident => ExprKind::Member(Box::new(expr), self.ident()?),
+                        Tok::Int(n) => {
+                            let Ok(bit) = u8::try_from(n) else {
+                                let text = self.text_of(self.pos).to_string();
+                                self.report(Msg::BitTooLarge { text });
+                                return Err(Failed);
+                            };
+                            self.bump();
+                            ExprKind::Bit(Box::new(expr), bit)
+                        }
+                        _ => return Err(self.fail(Want::Field)),
+                    }
+                }
+                Tok::P(P::LBracket) => {
+                    self.bump();
+                    let mut index = vec![self.expr()?];
+                    while self.eat_p(P::Comma) {
+                        index.push(self.expr()?);
+                    }
+                    self.expect_p(P::RBracket, Want::CommaOrRBracket)?;
+                    ExprKind::Index(Box::new(expr), index)
+                }
+                Tok::P(P::LParen) => {
+                    self.bump();
+                    let args = self.args()?;
+                    ExprKind::Call { callee: Box::new(expr), args }
+                }
+                _ => return Ok(expr),
+            };
+            expr = Expr { kind, span };
+        }
+    }
+
+    /// A call's arguments after its `(`, through its `)`.
+    fn args(&mut self) -> PResult<Vec<Arg>> {
+        let mut args = Vec::new();
+        if self.eat_p(P::RParen) {
+            return Ok(args);
+        }
+        loop {
+            let arg = match (self.tok(), self.tok_at(1), self.tok_at(2)) {
+                (Tok::Ident, Tok::P(P::Assign), _) => {
+                    let name = self.ident()?;
+                    self.bump();
+                    Arg::Input { name, value: self.expr()? }
+                }
+                (Tok::Ident, Tok::P(P::Arrow), _) => {
+                    let name = self.ident()?;
+                    self.bump();
+                    Arg::Output { name, target: self.expr()?, negated: false }
+                }
+                (Tok::Kw(Kw::Not), Tok::Ident, Tok::P(P::Arrow)) => {
+                    self.bump();
+                    let name = self.ident()?;
+                    self.bump();
+                    Arg::Output { name, target: self.expr()?, negated: true }
+                }
+                _ => Arg::Positional(self.expr()?),
+            };
+            args.push(arg);
+            if self.eat_p(P::Comma) {
+                continue;
+            }
+            self.expect_p(P::RParen, Want::CommaOrRParen)?;
+            return Ok(args);
+        }
+    }
+
+    fn primary(&mut self) -> PResult<Expr> {
+        let span = self.span();
+        let literal = match self.tok() {
+            Tok::Int(n) => Literal::Int(*n),
+            Tok::Real(x) => Literal::Real(*x),
+            Tok::Time(ns) => Literal::Time(*ns),
+            Tok::Str(s) => Literal::String(s.clone()),
+            Tok::Kw(Kw::True) => Literal::Bool(true),
+            Tok::Kw(Kw::False) => Literal::Bool(false),
+            Tok::Ident => return Ok(Expr { kind: ExprKind::Name(self.ident()?), span }),
+            Tok::TypedPrefix => {
+                let text = {
+                    let at = self.bump();
+                    self.text_of(at)
+                };
+                let ty = Ident { name: text[..text.len() - 1].to_string(), span };
+                let value = self.typed_value()?;
+                let kind = ExprKind::Literal(Literal::Typed { ty, value: Box::new(value) });
+                return Ok(Expr { kind, span });
+            }
+            Tok::P(P::LParen) => {
+                self.bump();
+                let inner = self.expr()?;
+                self.expect_p(P::RParen, Want::RParen)?;
+                return Ok(inner);
+            }
+            _ => return Err(self.fail(Want::Expr)),
+        };
+        self.bump();
+        Ok(Expr { kind: ExprKind::Literal(literal), span })
+    }
+
+    /// What follows `INT#`: a literal or a name, signed or not.
+    fn typed_value(&mut self) -> PResult<Expr> {
+        let span = self.span();
+        if let Some(op @ (UnaryOp::Neg | UnaryOp::Plus)) = unary_op(self.tok()) {
+            self.bump();
+            let operand = self.typed_value()?;
+            return Ok(Expr { kind: ExprKind::Unary(op, Box::new(operand)), span });
+        }
+        match self.tok() {
+            Tok::Int(_)
+            | Tok::Real(_)
+            | Tok::Str(_)
+            | Tok::Time(_)
+            | Tok::Ident
+            | Tok::Kw(Kw::True | Kw::False) => self.primary(),
+            _ => Err(self.fail(Want::TypedValue)),
+        }
+    }
+}
