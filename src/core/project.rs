@@ -32,6 +32,11 @@ impl Project {
                 match op.writes() {
                     Some(Written::Bit(b)) if b.word < p_end => words[b.word as usize] |= b.mask,
                     Some(Written::Word(w)) if w.0 < p_end => words[w.0 as usize] = 0xFFFF,
+                    Some(Written::DoubleWord(w)) => {
+                        for word in [w.0, w.0.wrapping_add(1)].into_iter().filter(|&w| w < p_end) {
+                            words[word as usize] = 0xFFFF;
+                        }
+                    }
                     _ => {}
                 }
             }

@@ -125,28 +125,220 @@ impl Elem {
 
 /// `raw` (any bits) as a normalized slot of `elem`: truncated to the width, then sign- or
 /// zero-extended; `Bool` is 1 for any non-zero value.
+#[inline]
 pub fn normalize(elem: Elem, raw: u64) -> u64 {
-    let _ = (elem, raw);
-    unimplemented!("vm-typed helper")
+    match elem {
+        Elem::Bool => u64::from(raw != 0),
+        _ => wrap(elem, raw),
+    }
+}
+
+/// `raw` truncated to the width of `elem` and extended: like [`normalize`], except that a
+/// `Bool` keeps bit 0 (a 1-bit unsigned integer), which is what arithmetic on it gives.
+#[inline]
+fn wrap(elem: Elem, raw: u64) -> u64 {
+    match elem {
+        Elem::Bool => raw & 1,
+        Elem::I8 => raw as i8 as i64 as u64,
+        Elem::I16 => raw as i16 as i64 as u64,
+        Elem::I32 => raw as i32 as i64 as u64,
+        Elem::U8 => raw as u8 as u64,
+        Elem::U16 => raw as u16 as u64,
+        Elem::U32 | Elem::F32 => raw as u32 as u64,
+        Elem::I64 | Elem::U64 | Elem::F64 => raw,
+    }
+}
+
+/// Bits of the value: 1 for `Bool`.
+#[inline]
+const fn width(elem: Elem) -> u32 {
+    match elem {
+        Elem::Bool => 1,
+        _ => elem.size() * 8,
+    }
+}
+
+/// The value of an F32 or F64 slot as an `f64` (exactly).
+#[inline]
+fn to_f64(elem: Elem, a: u64) -> f64 {
+    match elem {
+        Elem::F32 => f64::from(f32::from_bits(a as u32)),
+        Elem::F64 => f64::from_bits(a),
+        _ if elem.is_signed() => a as i64 as f64,
+        _ => a as f64,
+    }
+}
+
+/// The float operations, once for `f32` and once for `f64`, each in its own precision.
+macro_rules! float_ops {
+    ($bin:ident, $un:ident, $t:ty, $bits:ty) => {
+        fn $bin(op: BinOp, a: u64, b: u64) -> Result<u64, OpError> {
+            let (x, y) = (<$t>::from_bits(a as $bits), <$t>::from_bits(b as $bits));
+            let r: $t = match op {
+                BinOp::Add => x + y,
+                BinOp::Sub => x - y,
+                BinOp::Mul => x * y,
+                BinOp::Div if y == 0.0 => return Err(OpError::DivideByZero),
+                BinOp::Div => x / y,
+                BinOp::Mod if y == 0.0 => return Err(OpError::DivideByZero),
+                BinOp::Mod => x % y,
+                BinOp::Expt => x.powf(y),
+                BinOp::Min => x.min(y),
+                BinOp::Max => x.max(y),
+                // Not emitted for floats: defined on the bits, for totality.
+                BinOp::And
+                | BinOp::Or
+                | BinOp::Xor
+                | BinOp::Shl
+                | BinOp::Shr
+                | BinOp::Rol
+                | BinOp::Ror => {
+                    let elem = if <$bits>::BITS == 32 { Elem::U32 } else { Elem::U64 };
+                    return int_binary(op, elem, a, b);
+                }
+            };
+            Ok(r.to_bits() as u64)
+        }
+
+        fn $un(op: UnOp, a: u64) -> u64 {
+            let x = <$t>::from_bits(a as $bits);
+            let r: $t = match op {
+                UnOp::Neg => -x,
+                UnOp::Not => return (!(a as $bits)) as u64,
+                UnOp::Abs => x.abs(),
+                UnOp::Sqrt => x.sqrt(),
+                UnOp::Ln => x.ln(),
+                UnOp::Log => x.log10(),
+                UnOp::Exp => x.exp(),
+                UnOp::Sin => x.sin(),
+                UnOp::Cos => x.cos(),
+                UnOp::Tan => x.tan(),
+                UnOp::Asin => x.asin(),
+                UnOp::Acos => x.acos(),
+                UnOp::Atan => x.atan(),
+                UnOp::Trunc => x.trunc(),
+            };
+            r.to_bits() as u64
+        }
+    };
+}
+
+float_ops!(f32_binary, f32_unary, f32, u32);
+float_ops!(f64_binary, f64_unary, f64, u64);
+
+/// `a op b` on integers (and `Bool`, a 1-bit unsigned integer).
+fn int_binary(op: BinOp, elem: Elem, a: u64, b: u64) -> Result<u64, OpError> {
+    let signed = elem.is_signed();
+    let bits = width(elem);
+    // The value's own bits, for shifts and rotations.
+    let pattern = a & (u64::MAX >> (64 - bits));
+    let r = match op {
+        BinOp::Add => a.wrapping_add(b),
+        BinOp::Sub => a.wrapping_sub(b),
+        BinOp::Mul => a.wrapping_mul(b),
+        BinOp::Div | BinOp::Mod if wrap(elem, b) == 0 => return Err(OpError::DivideByZero),
+        BinOp::Div if signed => (a as i64).wrapping_div(b as i64) as u64,
+        BinOp::Div => a / b,
+        BinOp::Mod if signed => (a as i64).wrapping_rem(b as i64) as u64,
+        BinOp::Mod => a % b,
+        BinOp::Expt => int_power(elem, a, b)?,
+        BinOp::And => a & b,
+        BinOp::Or => a | b,
+        BinOp::Xor => a ^ b,
+        BinOp::Shl | BinOp::Shr => {
+            // A negative count (of a signed type) shifts by nothing.
+            let count = if signed && (b as i64) < 0 { 0 } else { b };
+            if count >= u64::from(bits) {
+                0
+            } else if op == BinOp::Shl {
+                pattern << count
+            } else {
+                pattern >> count
+            }
+        }
+        BinOp::Rol | BinOp::Ror => {
+            let count = if signed {
+                (b as i64).rem_euclid(i64::from(bits)) as u32
+            } else {
+                (b % u64::from(bits)) as u32
+            };
+            let count = if op == BinOp::Ror { (bits - count) % bits } else { count };
+            if count == 0 {
+                pattern
+            } else {
+                (pattern << count) | (pattern >> (bits - count))
+            }
+        }
+        BinOp::Min | BinOp::Max => {
+            let less = if signed { (a as i64) < (b as i64) } else { a < b };
+            if less == (op == BinOp::Min) {
+                a
+            } else {
+                b
+            }
+        }
+    };
+    Ok(wrap(elem, r))
+}
+
+/// `a ** b` on integers, wrapping; a negative exponent gives the integer part of the inverse
+/// (0 but for bases 1 and -1), and a division by zero for base 0.
+fn int_power(elem: Elem, a: u64, b: u64) -> Result<u64, OpError> {
+    let negative = elem.is_signed() && (b as i64) < 0;
+    if negative {
+        return match a as i64 {
+            0 => Err(OpError::DivideByZero),
+            1 => Ok(1),
+            -1 => Ok(if b & 1 == 0 { 1 } else { u64::MAX }),
+            _ => Ok(0),
+        };
+    }
+    // Square and multiply on the low 64 bits, which the width's wrap then cuts.
+    let (mut base, mut exp, mut r) = (a, b, 1u64);
+    while exp > 0 {
+        if exp & 1 == 1 {
+            r = r.wrapping_mul(base);
+        }
+        base = base.wrapping_mul(base);
+        exp >>= 1;
+    }
+    Ok(r)
 }
 
 /// `a op b`, both normalized slots of `elem`.
 pub fn binary(op: BinOp, elem: Elem, a: u64, b: u64) -> Result<u64, OpError> {
-    let _ = (op, elem, a, b);
-    unimplemented!("vm-typed helper")
+    match elem {
+        Elem::F32 => f32_binary(op, a, b),
+        Elem::F64 => f64_binary(op, a, b),
+        _ => int_binary(op, elem, a, b),
+    }
 }
 
 /// `op a`.
 pub fn unary(op: UnOp, elem: Elem, a: u64) -> u64 {
-    let _ = (op, elem, a);
-    unimplemented!("vm-typed helper")
+    match elem {
+        Elem::F32 => f32_unary(op, a),
+        Elem::F64 => f64_unary(op, a),
+        _ => match op {
+            UnOp::Neg => wrap(elem, a.wrapping_neg()),
+            UnOp::Not => wrap(elem, !a),
+            UnOp::Abs if elem.is_signed() => wrap(elem, (a as i64).wrapping_abs() as u64),
+            UnOp::Abs | UnOp::Trunc => a,
+            // The float functions on an integer: through LREAL and back.
+            _ => convert(Elem::F64, elem, f64_unary(op, convert(elem, Elem::F64, a))),
+        },
+    }
 }
 
 /// How `a` compares with `b`; `None` when a float operand is NaN (every comparison but `<>`
 /// is then false).
 pub fn compare(elem: Elem, a: u64, b: u64) -> Option<Ordering> {
-    let _ = (elem, a, b);
-    unimplemented!("vm-typed helper")
+    match elem {
+        Elem::F32 => f32::from_bits(a as u32).partial_cmp(&f32::from_bits(b as u32)),
+        Elem::F64 => f64::from_bits(a).partial_cmp(&f64::from_bits(b)),
+        _ if elem.is_signed() => Some((a as i64).cmp(&(b as i64))),
+        _ => Some(a.cmp(&b)),
+    }
 }
 
 /// Converts a slot of `from` into a slot of `to`. Integer to integer wraps; float to integer
@@ -154,8 +346,47 @@ pub fn compare(elem: Elem, a: u64, b: u64) -> Option<Ordering> {
 /// 0; integer to float is the nearest float; `Bool` from anything is `value <> 0`, to anything
 /// 0 or 1.
 pub fn convert(from: Elem, to: Elem, a: u64) -> u64 {
-    let _ = (from, to, a);
-    unimplemented!("vm-typed helper")
+    if to == Elem::Bool {
+        return match from {
+            Elem::F32 => u64::from(f32::from_bits(a as u32) != 0.0),
+            Elem::F64 => u64::from(f64::from_bits(a) != 0.0),
+            _ => u64::from(a != 0),
+        };
+    }
+    match (from.is_float(), to) {
+        (false, Elem::F32) => {
+            let x = if from.is_signed() { a as i64 as f32 } else { a as f32 };
+            x.to_bits() as u64
+        }
+        (false, Elem::F64) => {
+            let x = if from.is_signed() { a as i64 as f64 } else { a as f64 };
+            x.to_bits()
+        }
+        (false, _) => wrap(to, a),
+        (true, Elem::F32) => match from {
+            Elem::F64 => (f64::from_bits(a) as f32).to_bits() as u64,
+            _ => a,
+        },
+        (true, Elem::F64) => to_f64(from, a).to_bits(),
+        (true, _) => {
+            // `as` saturates and gives 0 for NaN; `round` is half away from zero. An f32 is
+            // rounded as an f32 (exactly: its integral values are f32s).
+            let x = match from {
+                Elem::F32 => f64::from(f32::from_bits(a as u32).round()),
+                _ => f64::from_bits(a).round(),
+            };
+            match to {
+                Elem::I8 => x as i8 as i64 as u64,
+                Elem::I16 => x as i16 as i64 as u64,
+                Elem::I32 => x as i32 as i64 as u64,
+                Elem::I64 => x as i64 as u64,
+                Elem::U8 => x as u8 as u64,
+                Elem::U16 => x as u16 as u64,
+                Elem::U32 => x as u32 as u64,
+                _ => x as u64,
+            }
+        }
+    }
 }
 
 /// Where a value lives, as a run-time pointer: `space << 32 | offset`.
@@ -215,9 +446,14 @@ pub enum ValueType {
     /// `TIME`: nanoseconds in an `I64`, shown as an IEC literal (`T#1s500ms`).
     Time,
     /// An enumeration: its values' names and numbers, stored as an `I32`.
-    Enum { type_name: String, values: Vec<(String, i64)> },
+    Enum {
+        type_name: String,
+        values: Vec<(String, i64)>,
+    },
     /// `STRING[cap]`: a length byte, then `cap` bytes.
-    String { cap: u32 },
+    String {
+        cap: u32,
+    },
 }
 
 /// A named variable of Structured Text, one leaf of the tree of program instances (a struct
@@ -233,4 +469,557 @@ pub struct Symbol {
     pub retain: bool,
     /// `CONSTANT`: a client may not write it.
     pub constant: bool,
+}
+
+/// The IEC name of an elementary type as tools name it in messages.
+fn type_name(ty: &ValueType) -> String {
+    match ty {
+        ValueType::Bool => "BOOL".into(),
+        ValueType::Signed(e) | ValueType::Unsigned(e) | ValueType::Real(e) => match e {
+            Elem::Bool => "BOOL",
+            Elem::I8 => "SINT",
+            Elem::I16 => "INT",
+            Elem::I32 => "DINT",
+            Elem::I64 => "LINT",
+            Elem::U8 => "USINT",
+            Elem::U16 => "UINT",
+            Elem::U32 => "UDINT",
+            Elem::U64 => "ULINT",
+            Elem::F32 => "REAL",
+            Elem::F64 => "LREAL",
+        }
+        .into(),
+        ValueType::Time => "TIME".into(),
+        ValueType::Enum { type_name, .. } => type_name.clone(),
+        ValueType::String { cap } => format!("STRING[{cap}]"),
+    }
+}
+
+/// The text of a value as the trace and `plcctl get` show it: integers in decimal, `BOOL` as
+/// `0`/`1` (like the bits of the instruction list), `REAL`/`LREAL` as the shortest text that
+/// reads back to the same value (`1.5`, `1.0`, `1e-7`, `NaN`, `inf`), `TIME` as an IEC literal
+/// (`T#1s500ms`, `T#0s`, `T#-5s`), an enumeration by its value's name (or the number when no
+/// value has it). Strings are not slots: see [`format_string`].
+pub fn format(ty: &ValueType, slot: u64) -> String {
+    match ty {
+        ValueType::Bool => if slot != 0 { "1" } else { "0" }.into(),
+        ValueType::Signed(e) => (normalize(*e, slot) as i64).to_string(),
+        ValueType::Unsigned(e) => normalize(*e, slot).to_string(),
+        ValueType::Real(Elem::F32) => format!("{:?}", f32::from_bits(slot as u32)),
+        ValueType::Real(_) => format!("{:?}", f64::from_bits(slot)),
+        ValueType::Time => format_time(slot as i64),
+        ValueType::Enum { values, .. } => {
+            let n = i64::from(slot as i32);
+            match values.iter().find(|(_, v)| *v == n) {
+                Some((name, _)) => name.clone(),
+                None => n.to_string(),
+            }
+        }
+        ValueType::String { .. } => String::new(),
+    }
+}
+
+const TIME_UNITS: [(&str, u64); 7] = [
+    ("d", 86_400_000_000_000),
+    ("h", 3_600_000_000_000),
+    ("m", 60_000_000_000),
+    ("s", 1_000_000_000),
+    ("ms", 1_000_000),
+    ("us", 1_000),
+    ("ns", 1),
+];
+
+/// Nanoseconds as an IEC `TIME` literal: `T#1h2m3s4ms`, `T#0s`, `T#-250ms`.
+pub fn format_time(ns: i64) -> String {
+    let mut text = String::from("T#");
+    if ns < 0 {
+        text.push('-');
+    }
+    let mut rest = ns.unsigned_abs();
+    if rest == 0 {
+        text.push_str("0s");
+    }
+    for (unit, size) in TIME_UNITS {
+        let n = rest / size;
+        rest %= size;
+        if n > 0 {
+            text.push_str(&n.to_string());
+            text.push_str(unit);
+        }
+    }
+    text
+}
+
+/// The characters of a `STRING` as an IEC literal: `'abc'`, with `$'`, `$$`, `$N`, `$R`,
+/// `$T` and `$hh` (two hex digits) for the quote, the dollar and the other non-printing bytes.
+pub fn format_string(chars: &[u8]) -> String {
+    let mut text = String::with_capacity(chars.len() + 2);
+    text.push('\'');
+    for &c in chars {
+        match c {
+            b'\'' => text.push_str("$'"),
+            b'$' => text.push_str("$$"),
+            b'\n' => text.push_str("$N"),
+            b'\r' => text.push_str("$R"),
+            b'\t' => text.push_str("$T"),
+            0x20..=0x7E => text.push(c as char),
+            _ => text.push_str(&format!("${c:02X}")),
+        }
+    }
+    text.push('\'');
+    text
+}
+
+/// The characters of a string value as a client writes it (`plcctl set main.s 'abc'`): an IEC
+/// literal in single quotes with its `$` escapes, or bare text taken as it is. More than `cap`
+/// characters is an error.
+pub fn parse_string(text: &str, cap: u32) -> Result<Vec<u8>, String> {
+    let chars = match text.strip_prefix('\'').and_then(|t| t.strip_suffix('\'')) {
+        None => text.as_bytes().to_vec(),
+        Some(inner) => {
+            let mut out = Vec::with_capacity(inner.len());
+            let mut bytes = inner.bytes();
+            while let Some(c) = bytes.next() {
+                if c != b'$' {
+                    out.push(c);
+                    continue;
+                }
+                let escape = bytes.next().ok_or("`$` at the end of the string")?;
+                out.push(match escape.to_ascii_uppercase() {
+                    b'$' => b'$',
+                    b'\'' => b'\'',
+                    b'N' | b'L' => b'\n',
+                    b'R' => b'\r',
+                    b'T' => b'\t',
+                    b'P' => 0x0C,
+                    hi if hi.is_ascii_hexdigit() => {
+                        let lo = bytes.next().filter(u8::is_ascii_hexdigit);
+                        let lo = lo.ok_or("`$` must be followed by two hex digits")?;
+                        let digit = |d: u8| (d as char).to_digit(16).unwrap_or(0) as u8;
+                        digit(hi) << 4 | digit(lo)
+                    }
+                    _ => return Err(format!("unknown escape `${}`", escape as char)),
+                });
+            }
+            out
+        }
+    };
+    if chars.len() > cap as usize {
+        return Err(format!("{} characters do not fit in a STRING[{cap}]", chars.len()));
+    }
+    Ok(chars)
+}
+
+/// A value as a client writes it (`plcctl set main.x 5`), as a slot of `ty`:
+/// - integers: decimal (`-5`, `1_000`), or based `16#FF`, `8#17`, `2#1010`, which give the bit
+///   pattern (`16#FFFF` is -1 in an `INT`); out of the type's range is an error naming it;
+/// - `BOOL`: `TRUE`, `FALSE`, `1`, `0` (any case);
+/// - `REAL`/`LREAL`: a decimal number (`1.5`, `-2`, `1e-3`), `inf`, `NaN`;
+/// - `TIME`: `T#1s500ms`, `TIME#-5s`, or the duration alone (`1.5s`, `250ms`), units `d`, `h`,
+///   `m`, `s`, `ms`, `us`, `ns`;
+/// - an enumeration: one of its value names (`Red`, `Color#Red`, any case).
+///
+/// Strings are not slots: see [`parse_string`].
+pub fn parse(ty: &ValueType, text: &str) -> Result<u64, String> {
+    let text = text.trim();
+    match ty {
+        ValueType::Bool => match text.to_ascii_uppercase().as_str() {
+            "TRUE" | "1" => Ok(1),
+            "FALSE" | "0" => Ok(0),
+            _ => Err(format!("`{text}` is not a BOOL (TRUE, FALSE, 1 or 0)")),
+        },
+        ValueType::Signed(e) | ValueType::Unsigned(e) => parse_integer(ty, *e, text),
+        ValueType::Real(e) => parse_real(*e, text),
+        ValueType::Time => parse_time(text).map(|ns| ns as u64),
+        ValueType::Enum { type_name, values } => {
+            let name = match text.split_once('#') {
+                Some((t, name)) if t.eq_ignore_ascii_case(type_name) => name,
+                _ => text,
+            };
+            match values.iter().find(|(n, _)| n.eq_ignore_ascii_case(name)) {
+                Some((_, v)) => Ok(normalize(Elem::I32, *v as u64)),
+                None => {
+                    let names: Vec<&str> = values.iter().map(|(n, _)| n.as_str()).collect();
+                    Err(format!("`{text}` is not a value of {type_name} ({})", names.join(", ")))
+                }
+            }
+        }
+        ValueType::String { cap } => {
+            Err(format!("a STRING[{cap}] is not a single value: write its text"))
+        }
+    }
+}
+
+fn parse_integer(ty: &ValueType, elem: Elem, text: &str) -> Result<u64, String> {
+    let bits = width(elem);
+    let (min, max): (i128, i128) = if elem.is_signed() {
+        (-(1i128 << (bits - 1)), (1i128 << (bits - 1)) - 1)
+    } else {
+        (0, (1i128 << bits) - 1)
+    };
+    let range = || format!("`{text}` is out of range for {} ({min}..={max})", type_name(ty));
+    let digits = |s: &str, radix: u32| -> Option<i128> {
+        let s: String = s.chars().filter(|&c| c != '_').collect();
+        if s.is_empty() || s.starts_with(['+', '-']) {
+            return None;
+        }
+        i128::from_str_radix(&s, radix).ok()
+    };
+    if let Some((base, rest)) = text.split_once('#') {
+        let radix = match base {
+            "16" => 16,
+            "8" => 8,
+            "2" => 2,
+            "10" => 10,
+            _ => return Err(format!("`{text}` is not an integer")),
+        };
+        let value = digits(rest, radix).ok_or_else(|| format!("`{text}` is not an integer"))?;
+        if radix != 10 {
+            // A bit pattern of the width.
+            if value >= 1i128 << bits {
+                return Err(range());
+            }
+            return Ok(wrap(elem, value as u64));
+        }
+        return if (min..=max).contains(&value) {
+            Ok(wrap(elem, value as u64))
+        } else {
+            Err(range())
+        };
+    }
+    let (negative, unsigned) = match text.strip_prefix('-') {
+        Some(rest) => (true, rest),
+        None => (false, text.strip_prefix('+').unwrap_or(text)),
+    };
+    let magnitude = digits(unsigned, 10).ok_or_else(|| format!("`{text}` is not an integer"))?;
+    let value = if negative { -magnitude } else { magnitude };
+    if (min..=max).contains(&value) {
+        Ok(wrap(elem, value as u64))
+    } else {
+        Err(range())
+    }
+}
+
+fn parse_real(elem: Elem, text: &str) -> Result<u64, String> {
+    let clean: String = text.chars().filter(|&c| c != '_').collect();
+    let not = || format!("`{text}` is not a {}", if elem == Elem::F32 { "REAL" } else { "LREAL" });
+    let infinite_text = clean.to_ascii_lowercase().contains("inf");
+    if elem == Elem::F32 {
+        let x: f32 = clean.parse().map_err(|_| not())?;
+        if x.is_infinite() && !infinite_text {
+            return Err(format!("`{text}` is out of range for REAL (±3.4028235e38)"));
+        }
+        Ok(x.to_bits() as u64)
+    } else {
+        let x: f64 = clean.parse().map_err(|_| not())?;
+        if x.is_infinite() && !infinite_text {
+            return Err(format!("`{text}` is out of range for LREAL (±1.7976931348623157e308)"));
+        }
+        Ok(x.to_bits())
+    }
+}
+
+/// A `TIME` literal or a duration (`T#1s500ms`, `1.5s`, `-250ms`) in nanoseconds.
+pub fn parse_time(text: &str) -> Result<i64, String> {
+    let bad = |why: &str| format!("`{text}` is not a TIME ({why}; e.g. T#1s500ms)");
+    let upper = text.to_ascii_uppercase();
+    let body = ["LTIME#", "TIME#", "LT#", "T#"]
+        .iter()
+        .find_map(|p| upper.strip_prefix(p))
+        .unwrap_or(&upper);
+    let (negative, body) = match body.strip_prefix('-') {
+        Some(rest) => (true, rest),
+        None => (false, body.strip_prefix('+').unwrap_or(body)),
+    };
+    let body: String = body.chars().filter(|&c| c != '_').collect();
+    if body.is_empty() {
+        return Err(bad("no duration"));
+    }
+    let mut total: i128 = 0;
+    let mut rest = body.as_str();
+    while !rest.is_empty() {
+        let number_len =
+            rest.find(|c: char| !(c.is_ascii_digit() || c == '.')).unwrap_or(rest.len());
+        let (number, after) = rest.split_at(number_len);
+        let unit_len = after.find(|c: char| !c.is_ascii_alphabetic()).unwrap_or(after.len());
+        let (unit, after) = after.split_at(unit_len);
+        if number.is_empty() {
+            return Err(bad("a number must come before each unit"));
+        }
+        let size = TIME_UNITS
+            .iter()
+            .find(|(u, _)| u.eq_ignore_ascii_case(unit))
+            .map(|(_, size)| *size)
+            .ok_or_else(|| {
+                bad(if unit.is_empty() { "a unit is missing" } else { "unknown unit" })
+            })?;
+        let (whole, fraction) = number.split_once('.').unwrap_or((number, ""));
+        let whole: i128 = if whole.is_empty() {
+            0
+        } else {
+            whole.parse().map_err(|_| bad("a number is too long"))?
+        };
+        total = total.saturating_add(whole.saturating_mul(i128::from(size)));
+        if !fraction.is_empty() {
+            if fraction.contains('.') {
+                return Err(bad("a number has two points"));
+            }
+            // The fraction's digits, to the nanosecond (digits beyond it are cut).
+            let mut scale = i128::from(size);
+            for digit in fraction.bytes() {
+                scale /= 10;
+                total += i128::from(digit - b'0') * scale;
+            }
+        }
+        rest = after;
+    }
+    let ns = if negative { -total } else { total };
+    i64::try_from(ns).map_err(|_| {
+        format!("`{text}` is out of range for TIME (about ±106751 days, T#-106751d..T#106751d)")
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use BinOp::*;
+    use Elem::*;
+
+    fn i(elem: Elem, v: i64) -> u64 {
+        normalize(elem, v as u64)
+    }
+    fn f32s(x: f32) -> u64 {
+        x.to_bits() as u64
+    }
+    fn f64s(x: f64) -> u64 {
+        x.to_bits()
+    }
+    fn bin(op: BinOp, elem: Elem, a: i64, b: i64) -> Result<i64, OpError> {
+        binary(op, elem, i(elem, a), i(elem, b)).map(|r| r as i64)
+    }
+
+    #[test]
+    fn normalize_truncates_and_extends() {
+        assert_eq!(normalize(I8, 0x1FF), u64::MAX);
+        assert_eq!(normalize(U8, 0x1FF), 0xFF);
+        assert_eq!(normalize(I16, 0x8000), 0xFFFF_FFFF_FFFF_8000);
+        assert_eq!(normalize(U32, u64::MAX), 0xFFFF_FFFF);
+        assert_eq!(normalize(F32, u64::MAX), 0xFFFF_FFFF);
+        assert_eq!(normalize(Bool, 2), 1);
+        assert_eq!(normalize(Bool, 0), 0);
+        assert_eq!(normalize(I64, 5), 5);
+    }
+
+    #[test]
+    fn integer_arithmetic_wraps() {
+        assert_eq!(bin(Add, I8, 127, 1), Ok(-128));
+        assert_eq!(bin(Sub, U8, 0, 1), Ok(255));
+        assert_eq!(bin(Mul, I16, 300, 300), Ok(24464));
+        assert_eq!(bin(Add, I64, i64::MAX, 1), Ok(i64::MIN));
+        assert_eq!(bin(Mul, U32, 0x10000, 0x10000), Ok(0));
+    }
+
+    #[test]
+    fn division_truncates_and_mod_takes_the_dividends_sign() {
+        assert_eq!(bin(Div, I32, -7, 2), Ok(-3));
+        assert_eq!(bin(Mod, I32, -7, 2), Ok(-1));
+        assert_eq!(bin(Mod, I32, 7, -2), Ok(1));
+        assert_eq!(bin(Div, I8, -128, -1), Ok(-128));
+        assert_eq!(bin(Mod, I8, -128, -1), Ok(0));
+        assert_eq!(bin(Div, U16, 65535, 2), Ok(32767));
+        assert_eq!(bin(Div, I16, 5, 0), Err(OpError::DivideByZero));
+        assert_eq!(bin(Mod, U64, 5, 0), Err(OpError::DivideByZero));
+        assert_eq!(binary(Div, F32, f32s(1.0), f32s(0.0)), Err(OpError::DivideByZero));
+        assert_eq!(binary(Div, F64, f64s(1.0), f64s(-0.0)), Err(OpError::DivideByZero));
+        assert_eq!(binary(Mod, F64, f64s(1.0), f64s(0.0)), Err(OpError::DivideByZero));
+        assert_eq!(binary(Div, F64, f64s(7.0), f64s(2.0)), Ok(f64s(3.5)));
+    }
+
+    #[test]
+    fn shifts_and_rotations() {
+        assert_eq!(bin(Shl, U8, 0x81, 1), Ok(0x02));
+        assert_eq!(bin(Shr, U8, 0x81, 1), Ok(0x40));
+        assert_eq!(bin(Shl, U16, 1, 16), Ok(0));
+        assert_eq!(bin(Shr, U64, -1, 64), Ok(0));
+        assert_eq!(bin(Shl, U64, 1, 63), Ok(i64::MIN));
+        // Shifts are logical on the value's bits, for signed types too.
+        assert_eq!(bin(Shr, I8, -128, 1), Ok(64));
+        assert_eq!(bin(Shl, I8, 64, 1), Ok(-128));
+        // A negative count shifts by nothing.
+        assert_eq!(bin(Shl, I16, 5, -1), Ok(5));
+        assert_eq!(bin(Rol, U8, 0x81, 1), Ok(0x03));
+        assert_eq!(bin(Ror, U8, 0x81, 1), Ok(0xC0));
+        assert_eq!(bin(Rol, U8, 0x81, 9), Ok(0x03));
+        assert_eq!(bin(Ror, U16, 1, 16), Ok(1));
+        assert_eq!(bin(Rol, I8, 1, -1), Ok(-128), "ROL by -1 is ROR by 1");
+        assert_eq!(bin(Rol, U32, 0x8000_0000, 1), Ok(1));
+        assert_eq!(bin(Ror, U64, 1, 1), Ok(i64::MIN));
+    }
+
+    #[test]
+    fn logic_min_max_and_power() {
+        assert_eq!(bin(And, U8, 0xF0, 0x3C), Ok(0x30));
+        assert_eq!(bin(Or, I16, -2, 1), Ok(-1));
+        assert_eq!(bin(Xor, Bool, 1, 1), Ok(0));
+        assert_eq!(bin(And, Bool, 1, 1), Ok(1));
+        assert_eq!(bin(Min, I32, -5, 3), Ok(-5));
+        assert_eq!(bin(Max, U32, 0xFFFF_FFFF, 3), Ok(0xFFFF_FFFF));
+        assert_eq!(bin(Expt, I32, 3, 4), Ok(81));
+        assert_eq!(bin(Expt, I8, 2, 7), Ok(-128));
+        assert_eq!(bin(Expt, I32, 2, -1), Ok(0));
+        assert_eq!(bin(Expt, I32, -1, -3), Ok(-1));
+        assert_eq!(bin(Expt, I32, 0, -1), Err(OpError::DivideByZero));
+        assert_eq!(binary(Expt, F64, f64s(2.0), f64s(0.5)), Ok(f64s(2f64.sqrt())));
+        assert_eq!(binary(Max, F32, f32s(f32::NAN), f32s(1.0)), Ok(f32s(1.0)));
+    }
+
+    #[test]
+    fn bool_is_a_one_bit_integer() {
+        assert_eq!(bin(Add, Bool, 1, 1), Ok(0));
+        assert_eq!(unary(UnOp::Not, Bool, 1), 0);
+        assert_eq!(unary(UnOp::Not, Bool, 0), 1);
+        assert_eq!(unary(UnOp::Neg, Bool, 1), 1);
+    }
+
+    #[test]
+    fn unary_operations() {
+        assert_eq!(unary(UnOp::Neg, I8, i(I8, -128)), i(I8, -128));
+        assert_eq!(unary(UnOp::Abs, I16, i(I16, -5)), 5);
+        assert_eq!(unary(UnOp::Abs, I16, i(I16, -32768)), i(I16, -32768));
+        assert_eq!(unary(UnOp::Not, U8, 0x0F), 0xF0);
+        assert_eq!(unary(UnOp::Not, I32, 0), i(I32, -1));
+        assert_eq!(unary(UnOp::Sqrt, F32, f32s(9.0)), f32s(3.0));
+        assert_eq!(unary(UnOp::Trunc, F64, f64s(-2.7)), f64s(-2.0));
+        assert_eq!(unary(UnOp::Log, F64, f64s(1000.0)), f64s(3.0));
+        assert_eq!(unary(UnOp::Neg, F32, f32s(1.5)), f32s(-1.5));
+        assert_eq!(unary(UnOp::Sqrt, I32, 17), 4, "through LREAL, rounded");
+        assert!(f32::from_bits(unary(UnOp::Ln, F32, f32s(-1.0)) as u32).is_nan());
+    }
+
+    #[test]
+    fn comparisons() {
+        assert_eq!(compare(I8, i(I8, -1), 1), Some(Ordering::Less));
+        assert_eq!(compare(U8, 255, 1), Some(Ordering::Greater));
+        assert_eq!(compare(F32, f32s(-0.0), f32s(0.0)), Some(Ordering::Equal));
+        assert_eq!(compare(F64, f64s(f64::NAN), f64s(0.0)), None);
+        assert_eq!(compare(Bool, 1, 0), Some(Ordering::Greater));
+    }
+
+    #[test]
+    fn conversions() {
+        assert_eq!(convert(I16, U8, i(I16, -1)), 255);
+        assert_eq!(convert(U16, I8, 0xFF80), i(I8, -128));
+        assert_eq!(convert(I8, U64, i(I8, -1)), u64::MAX);
+        assert_eq!(convert(F32, I16, f32s(2.5)), 3);
+        assert_eq!(convert(F32, I16, f32s(-2.5)), i(I16, -3));
+        assert_eq!(convert(F64, I16, f64s(1e9)), i(I16, 32767));
+        assert_eq!(convert(F64, U8, f64s(-3.0)), 0);
+        assert_eq!(convert(F64, I32, f64s(f64::NAN)), 0);
+        assert_eq!(convert(F64, I64, f64s(-1e300)), i64::MIN as u64);
+        assert_eq!(convert(I32, F32, 16_777_217), f32s(16_777_216.0));
+        assert_eq!(convert(U64, F64, u64::MAX), f64s(18446744073709551615.0));
+        assert_eq!(convert(I64, F64, i(I64, -3)), f64s(-3.0));
+        assert_eq!(convert(F32, F64, f32s(0.1)), f64s(f64::from(0.1f32)));
+        assert_eq!(convert(F64, F32, f64s(0.1)), f32s(0.1));
+        assert_eq!(convert(F64, Bool, f64s(0.5)), 1);
+        assert_eq!(convert(F32, Bool, f32s(-0.0)), 0);
+        assert_eq!(convert(I32, Bool, i(I32, -7)), 1);
+        assert_eq!(convert(Bool, F32, 1), f32s(1.0));
+        assert_eq!(convert(Bool, I16, 1), 1);
+        assert_eq!(convert(U8, U8, 7), 7);
+    }
+
+    #[test]
+    fn formats_values() {
+        assert_eq!(format(&ValueType::Bool, 1), "1");
+        assert_eq!(format(&ValueType::Signed(I16), i(I16, -5)), "-5");
+        assert_eq!(format(&ValueType::Unsigned(U64), u64::MAX), "18446744073709551615");
+        assert_eq!(format(&ValueType::Real(F32), f32s(1.5)), "1.5");
+        assert_eq!(format(&ValueType::Real(F32), f32s(0.1)), "0.1");
+        assert_eq!(format(&ValueType::Real(F64), f64s(2.0)), "2.0");
+        assert_eq!(format(&ValueType::Real(F64), f64s(1e-7)), "1e-7");
+        assert_eq!(format(&ValueType::Time, 1_500_000_000), "T#1s500ms");
+        assert_eq!(format(&ValueType::Time, 0), "T#0s");
+        assert_eq!(format(&ValueType::Time, (-5_000_000_000i64) as u64), "T#-5s");
+        assert_eq!(format(&ValueType::Time, 90 * 60 * 1_000_000_000 + 7), "T#1h30m7ns");
+        assert_eq!(format(&ValueType::Time, i64::MIN as u64), "T#-106751d23h47m16s854ms775us808ns");
+        let color = ValueType::Enum {
+            type_name: "Color".into(),
+            values: vec![("Red".into(), 0), ("Green".into(), 1), ("Blue".into(), -2)],
+        };
+        assert_eq!(format(&color, 1), "Green");
+        assert_eq!(format(&color, i(I32, -2)), "Blue");
+        assert_eq!(format(&color, 7), "7");
+        assert_eq!(format_string(b"it's $5\n\x01"), "'it$'s $$5$N$01'");
+    }
+
+    #[test]
+    fn parses_values() {
+        let sint = ValueType::Signed(I8);
+        assert_eq!(parse(&sint, "-128"), Ok(i(I8, -128)));
+        assert_eq!(parse(&sint, "16#FF"), Ok(i(I8, -1)));
+        assert_eq!(parse(&sint, "2#0111_1111"), Ok(127));
+        assert_eq!(parse(&sint, "128"), Err("`128` is out of range for SINT (-128..=127)".into()));
+        assert_eq!(
+            parse(&sint, "16#100"),
+            Err("`16#100` is out of range for SINT (-128..=127)".into())
+        );
+        assert!(parse(&sint, "x").is_err());
+        assert!(parse(&sint, "--1").is_err());
+        let word = ValueType::Unsigned(U16);
+        assert_eq!(parse(&word, "65535"), Ok(65535));
+        assert_eq!(parse(&word, "+1_000"), Ok(1000));
+        assert_eq!(parse(&word, "-1"), Err("`-1` is out of range for UINT (0..=65535)".into()));
+        assert_eq!(parse(&ValueType::Unsigned(U64), "18446744073709551615"), Ok(u64::MAX));
+        assert_eq!(parse(&ValueType::Signed(I64), "-9223372036854775808"), Ok(i64::MIN as u64));
+        assert_eq!(parse(&ValueType::Bool, "true"), Ok(1));
+        assert_eq!(parse(&ValueType::Bool, "0"), Ok(0));
+        assert!(parse(&ValueType::Bool, "2").is_err());
+        assert_eq!(parse(&ValueType::Real(F32), "1.5"), Ok(f32s(1.5)));
+        assert_eq!(parse(&ValueType::Real(F32), "-2"), Ok(f32s(-2.0)));
+        assert_eq!(parse(&ValueType::Real(F64), "1e-3"), Ok(f64s(1e-3)));
+        assert!(parse(&ValueType::Real(F32), "1e40").is_err());
+        assert_eq!(parse(&ValueType::Real(F32), "inf"), Ok(f32s(f32::INFINITY)));
+        assert_eq!(parse(&ValueType::Time, "T#1s500ms"), Ok(1_500_000_000));
+        assert_eq!(parse(&ValueType::Time, "time#-5s"), Ok((-5_000_000_000i64) as u64));
+        assert_eq!(parse(&ValueType::Time, "1.5s"), Ok(1_500_000_000));
+        assert_eq!(parse(&ValueType::Time, "1m30s"), Ok(90_000_000_000));
+        assert_eq!(parse(&ValueType::Time, "250ms"), Ok(250_000_000));
+        assert_eq!(parse(&ValueType::Time, "T#1d_2h"), Ok(93_600_000_000_000));
+        assert!(parse(&ValueType::Time, "5").is_err());
+        assert!(parse(&ValueType::Time, "5x").is_err());
+        assert!(parse(&ValueType::Time, "T#200000d").is_err());
+        let color = ValueType::Enum {
+            type_name: "Color".into(),
+            values: vec![("Red".into(), 0), ("Blue".into(), -2)],
+        };
+        assert_eq!(parse(&color, "blue"), Ok(i(I32, -2)));
+        assert_eq!(parse(&color, "Color#Red"), Ok(0));
+        assert_eq!(parse(&color, "Pink"), Err("`Pink` is not a value of Color (Red, Blue)".into()));
+        assert_eq!(parse_string("'a$'b$24'", 10), Ok(b"a'b$".to_vec()));
+        assert_eq!(parse_string("abc", 3), Ok(b"abc".to_vec()));
+        assert!(parse_string("abcd", 3).is_err());
+    }
+
+    #[test]
+    fn format_and_parse_round_trip() {
+        for ns in [0i64, 1, -1, 1_500_000_000, i64::MAX, i64::MIN, 86_400_000_000_123] {
+            assert_eq!(parse(&ValueType::Time, &format_time(ns)), Ok(ns as u64));
+        }
+        for x in [0.1f32, 1.0, -3.25e-20, f32::MAX, f32::MIN_POSITIVE] {
+            let ty = ValueType::Real(F32);
+            assert_eq!(parse(&ty, &format(&ty, f32s(x))), Ok(f32s(x)));
+        }
+        for x in [0.1f64, 1e300, -2.5] {
+            let ty = ValueType::Real(F64);
+            assert_eq!(parse(&ty, &format(&ty, f64s(x))), Ok(f64s(x)));
+        }
+    }
+
+    #[test]
+    fn pointers_round_trip() {
+        let p = Pointer { space: Space::Bit, offset: 1234 };
+        assert_eq!(Pointer::from_slot(p.to_slot()), p);
+        assert_eq!(Pointer::from_slot(99 << 32).space, Space::Discard);
+    }
 }

@@ -39,7 +39,7 @@ pub fn compile(name: &str, path: &Path, checked: CheckedProgram, edge_base: u32)
         path: path.to_path_buf(),
         language: super::Language::InstructionList,
         code: code.into_boxed_slice(),
-        consts: Box::new([]),
+        consts: checked.consts.into_boxed_slice(),
         frame_bytes: 0,
         regions: Box::new([]),
         lines: lines.into_boxed_slice(),

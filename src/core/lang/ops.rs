@@ -17,6 +17,33 @@ pub enum Src {
     Const(u16),
 }
 
+/// A double-word operand of the instruction list's `D` and `R` instructions: a device word and
+/// the one after it (the low word first), or a constant: an index into `Program::consts`, whose
+/// low 32 bits are the value (a `DINT` pattern, or a `REAL`'s bits).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Wide {
+    Word(WordRef),
+    Const(u16),
+}
+
+/// A conversion between the instruction list's 16-bit, 32-bit and real values (`I2D`, `D2R`, …).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum WideConv {
+    /// 16-bit signed word to double word (`I2D`).
+    IntToDint,
+    /// Double word to 16-bit word, wrapping (`D2I`).
+    DintToInt,
+    /// 16-bit signed word to `REAL` (`I2R`).
+    IntToReal,
+    /// `REAL` to 16-bit word, rounded, saturated (`R2I`).
+    RealToInt,
+    /// Double word to `REAL` (`D2R`).
+    DintToReal,
+    /// `REAL` to double word, rounded, saturated (`R2D`).
+    RealToDint,
+}
+
 /// Index into the VM's edge memory: one slot per edge-sensitive instruction instance.
 pub type EdgeSlot = u16;
 
@@ -40,6 +67,17 @@ impl CmpOp {
         // 0 for a < b, 1 for a = b, 2 for a > b.
         let order = u8::from(a >= b) + u8::from(a > b);
         (self as u8 >> order) & 1 != 0
+    }
+
+    /// Whether the comparison holds for operands that compare as `order`; `None` (a NaN
+    /// operand) satisfies only `<>`.
+    #[inline(always)]
+    pub fn holds(self, order: Option<std::cmp::Ordering>) -> bool {
+        match order {
+            // Less, Equal, Greater are -1, 0, 1: shifted to 0, 1, 2.
+            Some(order) => (self as u8 >> (order as i8 + 1)) & 1 != 0,
+            None => self == CmpOp::Ne,
+        }
     }
 }
 
@@ -234,6 +272,60 @@ pub enum Op {
         slot: EdgeSlot,
     },
 
+    // The instruction list's double-word (32-bit signed) and real (`REAL`) instructions, on the
+    // typed operations of `crate::value`. A double-word destination `d` is `d` (low word) and
+    // the word after it.
+    /// `DMOV s d` (and `RMOV`): moves a double word.
+    DMov {
+        s: Wide,
+        d: WordRef,
+        pulse: Option<EdgeSlot>,
+    },
+    /// `DADD`, `DSUB`, `DMUL`, `DDIV`: 32-bit signed, wrapping.
+    DArith {
+        op: ArithOp,
+        a: Wide,
+        b: Wide,
+        d: WordRef,
+        pulse: Option<EdgeSlot>,
+    },
+    /// `RADD`, `RSUB`, `RMUL`, `RDIV`: `REAL`.
+    RArith {
+        op: ArithOp,
+        a: Wide,
+        b: Wide,
+        d: WordRef,
+        pulse: Option<EdgeSlot>,
+    },
+    /// `DINC d` (`up`) / `DDEC d`.
+    DStep {
+        d: WordRef,
+        up: bool,
+        pulse: Option<EdgeSlot>,
+    },
+    /// `LOADD= a b` and friends: 32-bit signed compare contacts.
+    DCompare {
+        op: CmpOp,
+        a: Wide,
+        b: Wide,
+        how: Combine,
+    },
+    /// `LOADR= a b` and friends: `REAL` compare contacts (a NaN operand satisfies only `<>`).
+    RCompare {
+        op: CmpOp,
+        a: Wide,
+        b: Wide,
+        how: Combine,
+    },
+    /// `I2D s d`, `D2R s d`, …: `s` is one word for the conversions from a 16-bit word (its
+    /// `Wide::Word`), `d` one word for those to one.
+    Convert {
+        conv: WideConv,
+        s: Wide,
+        d: WordRef,
+        pulse: Option<EdgeSlot>,
+    },
+
     // The typed stack machine of Structured Text. Each op is one step, like an IL
     // instruction, so a task can be preempted between any two. Operands are slots on the
     // activation's evaluation stack (see `crate::value` for their encoding); "pops b, a" means
@@ -369,6 +461,8 @@ pub enum StrOp {
 pub enum Written {
     Bit(BitRef),
     Word(WordRef),
+    /// A double word: the word and the one after it.
+    DoubleWord(WordRef),
 }
 
 /// What an instruction keeps in its edge-memory slot, to see an edge at its next execution.
@@ -389,6 +483,13 @@ impl Op {
             Op::Out(b) | Op::OutNot(b) | Op::Set(b) | Op::Rst(b) => Some(Written::Bit(b)),
             Op::OutPulse { bit, .. } | Op::FlipFlop { bit, .. } => Some(Written::Bit(bit)),
             Op::Mov { d, .. } | Op::Arith { d, .. } | Op::Step { d, .. } => Some(Written::Word(d)),
+            Op::DMov { d, .. }
+            | Op::DArith { d, .. }
+            | Op::RArith { d, .. }
+            | Op::DStep { d, .. } => Some(Written::DoubleWord(d)),
+            Op::Convert { conv, d, .. } => {
+                Some(if conv.to_one_word() { Written::Word(d) } else { Written::DoubleWord(d) })
+            }
             _ => None,
         }
     }
@@ -404,9 +505,28 @@ impl Op {
             }
             Op::Mov { pulse: Some(slot), .. }
             | Op::Arith { pulse: Some(slot), .. }
-            | Op::Step { pulse: Some(slot), .. } => Some((slot, EdgeMemory::Rung { rising: true })),
+            | Op::Step { pulse: Some(slot), .. }
+            | Op::DMov { pulse: Some(slot), .. }
+            | Op::DArith { pulse: Some(slot), .. }
+            | Op::RArith { pulse: Some(slot), .. }
+            | Op::DStep { pulse: Some(slot), .. }
+            | Op::Convert { pulse: Some(slot), .. } => {
+                Some((slot, EdgeMemory::Rung { rising: true }))
+            }
             _ => None,
         }
+    }
+}
+
+impl WideConv {
+    /// Whether the source is one 16-bit word.
+    pub fn from_one_word(self) -> bool {
+        matches!(self, WideConv::IntToDint | WideConv::IntToReal)
+    }
+
+    /// Whether the destination is one 16-bit word.
+    pub fn to_one_word(self) -> bool {
+        matches!(self, WideConv::DintToInt | WideConv::RealToInt)
     }
 }
 

@@ -151,9 +151,15 @@ pub struct EnumDef {
 pub enum Init {
     Expr(Expr),
     /// `[1, 2, 3(0)]`: elements, `n(value)` repeats; `n()` repeats the default.
-    Array { elems: Vec<ArrayInit>, span: Span },
+    Array {
+        elems: Vec<ArrayInit>,
+        span: Span,
+    },
     /// `(a := 1, b := TRUE)`.
-    Struct { members: Vec<(Ident, Init)>, span: Span },
+    Struct {
+        members: Vec<(Ident, Init)>,
+        span: Span,
+    },
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -172,7 +178,10 @@ pub struct Stmt {
 #[derive(Debug, Clone, PartialEq)]
 pub enum StmtKind {
     /// `target := value`
-    Assign { target: Expr, value: Expr },
+    Assign {
+        target: Expr,
+        value: Expr,
+    },
     /// A call as a statement: an FB instance (`t1(IN := x, PT := T#1s);`) or a function
     /// whose result is not used.
     Call(Expr),
@@ -244,7 +253,10 @@ pub enum ExprKind {
     Unary(UnaryOp, Box<Expr>),
     Binary(BinaryOp, Box<Expr>, Box<Expr>),
     /// `f(…)`, `fb(…)`, `inst.fb(…)`.
-    Call { callee: Box<Expr>, args: Vec<Arg> },
+    Call {
+        callee: Box<Expr>,
+        args: Vec<Arg>,
+    },
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -279,9 +291,16 @@ pub enum BinaryOp {
 pub enum Arg {
     Positional(Expr),
     /// `IN := x`
-    Input { name: Ident, value: Expr },
+    Input {
+        name: Ident,
+        value: Expr,
+    },
     /// `Q => y`, or `NOT Q => y` when `negated`.
-    Output { name: Ident, target: Expr, negated: bool },
+    Output {
+        name: Ident,
+        target: Expr,
+        negated: bool,
+    },
 }
 
 /// A literal as written; its type is decided by the checker from the prefix or the context.

@@ -15,20 +15,27 @@ pub mod clock;
 pub mod counter;
 pub mod duty;
 pub mod timer;
+mod typed;
 
 pub use clock::{Clock, ManualClock, StepClock};
 
 use crate::device::{
     counter_done, counter_value, timer_done, timer_value, BitRef, Memory, WordRef,
 };
-use crate::lang::ops::{ArithOp, Combine, Op, Src, SystemRequest};
-use crate::lang::{Program, CALL_DEPTH, LOOP_DEPTH};
+use crate::lang::ops::{ArithOp, Combine, Op, Src, SystemRequest, Wide, WideConv};
+use crate::lang::{Program, Variables, CALL_DEPTH, LOOP_DEPTH, ST_CALL_DEPTH};
+use crate::value::{self, Elem, Pointer};
+use typed::EvalStack;
 
 /// Operation error: division by zero.
 pub const ERR_DIVIDE_BY_ZERO: u16 = 0x3400;
 /// Operation error: a value out of range (DUTY n1/n2 from a device).
 pub const ERR_VALUE_RANGE: u16 = duty::ERR_DUTY_RANGE;
-/// Operation error: `CALL` nested deeper than [`CALL_DEPTH`].
+/// Operation error: an array index outside the array's bounds (Structured Text); the access
+/// goes to the discard pointer.
+pub const ERR_INDEX_RANGE: u16 = 0x3402;
+/// Operation error: `CALL` nested deeper than [`CALL_DEPTH`] (and, impossible for a checked
+/// program, a Structured Text call deeper than [`ST_CALL_DEPTH`]).
 pub const ERR_CALL_DEPTH: u16 = 0x4210;
 /// Operation error: `FOR` nested deeper than [`LOOP_DEPTH`] at run time (through `CALL`).
 pub const ERR_LOOP_DEPTH: u16 = 0x4211;
@@ -60,6 +67,14 @@ struct CallFrame {
     loop_depth: u8,
 }
 
+/// A Structured Text call: where to return, and the caller's frame base and FB instance.
+#[derive(Debug, Clone, Copy, Default)]
+struct StFrame {
+    return_pc: u32,
+    base: u32,
+    this: u64,
+}
+
 #[derive(Debug, Clone, Copy, Default)]
 struct LoopFrame {
     remaining: u16,
@@ -81,6 +96,14 @@ pub struct ExecState {
     loops: [LoopFrame; LOOP_DEPTH],
     loop_depth: u8,
     finished: bool,
+    /// Structured Text: the evaluation stack, the calls, the current frame base (a byte offset
+    /// into `frame`) and FB instance (a pointer slot), and the frame area.
+    eval: EvalStack,
+    st_calls: [StFrame; ST_CALL_DEPTH],
+    st_depth: u8,
+    base: u32,
+    this: u64,
+    frame: Box<[u8]>,
 }
 
 impl Default for ExecState {
@@ -90,8 +113,15 @@ impl Default for ExecState {
 }
 
 impl ExecState {
-    /// A state at the program's first instruction.
+    /// A state at the program's first instruction, without frame area (enough for the
+    /// instruction list).
     pub fn new() -> ExecState {
+        ExecState::with_frame(0)
+    }
+
+    /// A state at the program's first instruction with `bytes` of frame area: the largest
+    /// [`Program::frame_bytes`] of the programs the task runs.
+    pub fn with_frame(bytes: u32) -> ExecState {
         ExecState {
             pc: 0,
             rung: true,
@@ -102,7 +132,23 @@ impl ExecState {
             loops: [LoopFrame::default(); LOOP_DEPTH],
             loop_depth: 0,
             finished: false,
+            eval: EvalStack::new(),
+            st_calls: [StFrame::default(); ST_CALL_DEPTH],
+            st_depth: 0,
+            base: 0,
+            this: Pointer::DISCARD.to_slot(),
+            frame: vec![0; bytes as usize].into_boxed_slice(),
         }
+    }
+
+    /// Bytes of frame area.
+    pub fn frame_bytes(&self) -> u32 {
+        self.frame.len() as u32
+    }
+
+    /// Slots on the evaluation stack (0 between statements of a checked program).
+    pub fn eval_depth(&self) -> usize {
+        self.eval.depth()
     }
 
     /// Back to the first instruction, for the next execution of the program.
@@ -114,6 +160,10 @@ impl ExecState {
         self.call_depth = 0;
         self.loop_depth = 0;
         self.finished = false;
+        self.eval.clear();
+        self.st_depth = 0;
+        self.base = 0;
+        self.this = Pointer::DISCARD.to_slot();
     }
 
     /// The next instruction to execute.
@@ -147,6 +197,12 @@ pub struct Vm {
     duty: [duty::DutyClock; duty::CHANNELS],
     edges: Box<[bool]>,
     steps: u64,
+    /// Structured Text's variable memory, and what RUN start sets it up from.
+    vars: Box<[u8]>,
+    initial: Box<[u8]>,
+    /// The byte ranges that are not retained, sorted: what a warm RUN start re-initializes.
+    fresh: Box<[(u32, u32)]>,
+    located_init: Box<[(crate::lang::Place, Elem, u64)]>,
 }
 
 impl Vm {
@@ -160,7 +216,67 @@ impl Vm {
             duty: [duty::DutyClock::default(); duty::CHANNELS],
             edges: vec![false; edge_slots as usize].into_boxed_slice(),
             steps: 0,
+            vars: Box::new([]),
+            initial: Box::new([]),
+            fresh: Box::new([]),
+            located_init: Box::new([]),
         }
+    }
+
+    /// Sets up Structured Text's variable memory: its image at RUN start (copied in now), what
+    /// a warm RUN start keeps, the located variables' initial values.
+    pub fn set_variables(&mut self, variables: &Variables) {
+        self.initial = variables.initial.clone();
+        self.vars = variables.initial.clone();
+        let size = variables.initial.len() as u32;
+        let mut kept: Vec<(u32, u32)> = variables
+            .retained
+            .iter()
+            .map(|&(offset, len)| (offset.min(size), offset.saturating_add(len).min(size)))
+            .collect();
+        kept.sort_unstable();
+        // The complement of the retained ranges, as (start, end).
+        let mut fresh = Vec::new();
+        let mut at = 0;
+        for (start, end) in kept {
+            if start > at {
+                fresh.push((at, start));
+            }
+            at = at.max(end);
+        }
+        if at < size {
+            fresh.push((at, size));
+        }
+        self.fresh = fresh.into_boxed_slice();
+        self.located_init = variables.located_init.clone();
+    }
+
+    /// Structured Text's variable memory.
+    pub fn vars(&self) -> &[u8] {
+        &self.vars
+    }
+
+    /// The value of `elem` at `p`, for tools (a pointer into a frame reads 0: frames belong to
+    /// the tasks).
+    pub fn read_value(&self, p: Pointer, elem: Elem) -> u64 {
+        typed::load(&self.mem, &self.vars, &[], p, elem)
+    }
+
+    /// Writes `value` (any bits: it is normalized) as `elem` at `p`, for tools.
+    pub fn write_value(&mut self, p: Pointer, elem: Elem, value: u64) {
+        let value = value::normalize(elem, value);
+        typed::store(&mut self.mem, &mut self.vars, &mut [], p, elem, value);
+    }
+
+    /// The characters of the `STRING` at `p` in variable memory, for tools (see
+    /// [`value::format_string`]).
+    pub fn read_string(&self, p: Pointer) -> Vec<u8> {
+        typed::string_text(&self.vars, p)
+    }
+
+    /// Writes the `STRING[cap]` at `p` in variable memory, cut to `cap` characters.
+    pub fn write_string(&mut self, p: Pointer, cap: u32, text: &[u8]) {
+        typed::write_string_bytes(&mut self.vars, p, cap, text);
     }
 
     /// A VM sized for `programs`.
@@ -176,6 +292,7 @@ impl Vm {
         std::mem::swap(&mut self.mem, &mut old.mem);
         std::mem::swap(&mut self.timers, &mut old.timers);
         std::mem::swap(&mut self.counters, &mut old.counters);
+        std::mem::swap(&mut self.vars, &mut old.vars);
         self.duty = old.duty;
         self.steps = old.steps;
         for (slot, init) in self.edges.iter_mut().zip(edges) {
@@ -209,6 +326,23 @@ impl Vm {
         }
         self.edges.fill(false);
         self.duty = [duty::DutyClock::default(); duty::CHANNELS];
+        if warm {
+            for &(start, end) in self.fresh.iter() {
+                let range = start as usize..end as usize;
+                if let (Some(to), Some(from)) =
+                    (self.vars.get_mut(range.clone()), self.initial.get(range))
+                {
+                    to.copy_from_slice(from);
+                }
+            }
+        } else {
+            let n = self.vars.len().min(self.initial.len());
+            self.vars[..n].copy_from_slice(&self.initial[..n]);
+        }
+        for &(at, elem, value) in self.located_init.iter() {
+            let p = typed::pointer(at, 0, Pointer::DISCARD.to_slot());
+            typed::store(&mut self.mem, &mut self.vars, &mut [], p, elem, value);
+        }
     }
 
     /// Start of a scan: system flags (see [`Memory::begin_scan`]) and `_ERR` cleared.
@@ -252,6 +386,8 @@ impl Vm {
             timers: &mut self.timers,
             counters: &mut self.counters,
             duty: &mut self.duty,
+            vars: &mut self.vars,
+            consts: &program.consts,
             clock,
             stop,
         };
@@ -284,6 +420,10 @@ struct Machine<'a, C> {
     timers: &'a mut [timer::TimerState],
     counters: &'a mut [counter::CounterState],
     duty: &'a mut [duty::DutyClock; duty::CHANNELS],
+    /// Structured Text's variable memory.
+    vars: &'a mut [u8],
+    /// The program's wide constants.
+    consts: &'a [u64],
     clock: &'a C,
     /// The step count at which the budget is spent.
     stop: u64,
@@ -318,7 +458,7 @@ fn interpret<'a, C: Clock>(
     code: &'a [Op],
     regs: &mut Regs<'a>,
 ) -> Exit {
-    let Machine { edges, timers, counters, duty, clock, stop } = machine;
+    let Machine { edges, timers, counters, duty, vars, consts, clock, stop } = machine;
     let Regs { mut rest, mut rung, mut blocks, mut branches, mut left } = *regs;
 
     // The chunk: its length, and the instructions of it still ahead.
@@ -370,6 +510,21 @@ fn interpret<'a, C: Clock>(
                 left -= taken!() as u64;
                 rest = code.get($target as usize..).unwrap_or_default();
                 continue 'chunk;
+            }};
+        }
+        // A Structured Text call: a frame for the return, the callee's base and `this`.
+        macro_rules! st_call {
+            ($target:expr, $frame:expr, $this:expr) => {{
+                let depth = state.st_depth as usize;
+                if depth >= ST_CALL_DEPTH {
+                    fail!(ERR_CALL_DEPTH);
+                }
+                state.st_calls[depth] =
+                    StFrame { return_pc: pc!() as u32, base: state.base, this: state.this };
+                state.st_depth += 1;
+                state.base = state.base.wrapping_add($frame);
+                state.this = $this;
+                jump!($target);
             }};
         }
         loop {
@@ -622,7 +777,172 @@ fn interpret<'a, C: Clock>(
                         halt!(Exit::System(*request));
                     }
                 }
-                _ => unimplemented!("vm-typed helper"),
+
+                // The instruction list's double-word and real instructions.
+                Op::DMov { s, d, pulse: p } => {
+                    if enabled(edges, *p, rung) {
+                        let value = read_wide(mem, consts, *s);
+                        write_wide(mem, *d, value);
+                    }
+                }
+                Op::DArith { op, a, b, d, pulse: p } => {
+                    if enabled(edges, *p, rung) {
+                        let (a, b) = (read_wide(mem, consts, *a), read_wide(mem, consts, *b));
+                        match wide_arith(*op, Elem::I32, a, b) {
+                            Some(value) => write_wide(mem, *d, value),
+                            None => fail!(ERR_DIVIDE_BY_ZERO),
+                        }
+                    }
+                }
+                Op::RArith { op, a, b, d, pulse: p } => {
+                    if enabled(edges, *p, rung) {
+                        let (a, b) = (read_wide(mem, consts, *a), read_wide(mem, consts, *b));
+                        match wide_arith(*op, Elem::F32, a, b) {
+                            Some(value) => write_wide(mem, *d, value),
+                            None => fail!(ERR_DIVIDE_BY_ZERO),
+                        }
+                    }
+                }
+                Op::DStep { d, up, pulse: p } => {
+                    if enabled(edges, *p, rung) {
+                        let value = read_wide(mem, consts, Wide::Word(*d));
+                        let step = if *up { 1u32 } else { u32::MAX };
+                        write_wide(mem, *d, value.wrapping_add(step));
+                    }
+                }
+                Op::DCompare { op, a, b, how } => {
+                    let a = read_wide(mem, consts, *a) as i32;
+                    let b = read_wide(mem, consts, *b) as i32;
+                    combine(*how, op.holds(Some(a.cmp(&b))), &mut rung, &mut blocks);
+                }
+                Op::RCompare { op, a, b, how } => {
+                    let a = f32::from_bits(read_wide(mem, consts, *a));
+                    let b = f32::from_bits(read_wide(mem, consts, *b));
+                    combine(*how, op.holds(a.partial_cmp(&b)), &mut rung, &mut blocks);
+                }
+                Op::Convert { conv, s, d, pulse: p } => {
+                    if enabled(edges, *p, rung) {
+                        let value = wide_convert(*conv, read_wide(mem, consts, *s));
+                        if conv.to_one_word() {
+                            if (d.0 as usize) < mem.words().len() {
+                                mem.set_word(*d, value as u16);
+                            }
+                        } else {
+                            write_wide(mem, *d, value);
+                        }
+                    }
+                }
+                // The typed stack machine (crate::value, st-ir.md).
+                Op::PushInt(v) => state.eval.push(i64::from(*v) as u64),
+                Op::PushConst(index) => {
+                    state.eval.push(consts.get(*index as usize).copied().unwrap_or(0));
+                }
+                Op::Fetch { elem, at } => {
+                    let p = typed::pointer(*at, state.base, state.this);
+                    let v = typed::load(mem, vars, &state.frame, p, *elem);
+                    state.eval.push(v);
+                }
+                Op::Store { elem, at } => {
+                    let v = state.eval.pop();
+                    let p = typed::pointer(*at, state.base, state.this);
+                    typed::store(mem, vars, &mut state.frame, p, *elem, v);
+                }
+                Op::AddrOf(at) => {
+                    state.eval.push(typed::pointer(*at, state.base, state.this).to_slot());
+                }
+                Op::Index { lo, len, stride } => {
+                    let index = state.eval.pop() as i64;
+                    let element = index.wrapping_sub(i64::from(*lo));
+                    if (0..i64::from(*len)).contains(&element) {
+                        let p = Pointer::from_slot(state.eval.top());
+                        let p = typed::moved(p, (element as u32).wrapping_mul(*stride));
+                        state.eval.set_top(p.to_slot());
+                    } else {
+                        state.eval.set_top(Pointer::DISCARD.to_slot());
+                        fail!(ERR_INDEX_RANGE);
+                    }
+                }
+                Op::Offset(n) => {
+                    let p = typed::moved(Pointer::from_slot(state.eval.top()), *n);
+                    state.eval.set_top(p.to_slot());
+                }
+                Op::FetchInd(elem) => {
+                    let p = Pointer::from_slot(state.eval.top());
+                    let v = typed::load(mem, vars, &state.frame, p, *elem);
+                    state.eval.set_top(v);
+                }
+                Op::StoreInd(elem) => {
+                    let v = state.eval.pop();
+                    let p = Pointer::from_slot(state.eval.pop());
+                    typed::store(mem, vars, &mut state.frame, p, *elem, v);
+                }
+                Op::Copy(n) => {
+                    let src = Pointer::from_slot(state.eval.pop());
+                    let dst = Pointer::from_slot(state.eval.pop());
+                    typed::copy(vars, &mut state.frame, dst, src, *n as usize);
+                }
+                Op::Bin { op, elem } => {
+                    let b = state.eval.pop();
+                    let a = state.eval.top();
+                    match value::binary(*op, *elem, a, b) {
+                        Ok(r) => state.eval.set_top(r),
+                        Err(value::OpError::DivideByZero) => {
+                            state.eval.set_top(0);
+                            fail!(ERR_DIVIDE_BY_ZERO);
+                        }
+                    }
+                }
+                Op::Un { op, elem } => {
+                    let a = state.eval.top();
+                    state.eval.set_top(value::unary(*op, *elem, a));
+                }
+                Op::Cmp { op, elem } => {
+                    let b = state.eval.pop();
+                    let a = state.eval.top();
+                    let holds = op.holds(value::compare(*elem, a, b));
+                    state.eval.set_top(u64::from(holds));
+                }
+                Op::Conv { from, to } => {
+                    let a = state.eval.top();
+                    state.eval.set_top(value::convert(*from, *to, a));
+                }
+                Op::Dup => state.eval.push(state.eval.top()),
+                Op::Drop => {
+                    state.eval.pop();
+                }
+                Op::Goto(target) => jump!(*target),
+                Op::GotoIf { target, when } => {
+                    if (state.eval.pop() != 0) == *when {
+                        jump!(*target);
+                    }
+                }
+                Op::CallFn { target, frame } => {
+                    let this = state.this;
+                    st_call!(*target, *frame, this);
+                }
+                Op::CallFb { target, frame } => {
+                    let this = state.eval.pop();
+                    st_call!(*target, *frame, this);
+                }
+                Op::Return => {
+                    let Some(depth) = state.st_depth.checked_sub(1) else {
+                        // Unreachable for checked programs: a PROGRAM body ends with END.
+                        state.finished = true;
+                        halt!(Exit::End);
+                    };
+                    state.st_depth = depth;
+                    let frame = state.st_calls[depth as usize];
+                    state.base = frame.base;
+                    state.this = frame.this;
+                    jump!(frame.return_pc);
+                }
+                Op::Now => {
+                    let steps = stop - left + taken!() as u64;
+                    state.eval.push(clock.now_ns(steps));
+                }
+                Op::Str { op, cap } => {
+                    typed::string_op(&mut state.eval, vars, &mut state.frame, *op, *cap);
+                }
             }
         }
     }
@@ -645,6 +965,59 @@ fn read(mem: &Memory, src: Src) -> u16 {
         Src::Word(w) => mem.word(w),
         Src::Const(c) => c,
     }
+}
+
+/// A double-word operand's value: the word and the next (low word first), or the constant's
+/// low 32 bits. A word outside memory (never, in a checked program) reads 0.
+#[inline(always)]
+fn read_wide(mem: &Memory, consts: &[u64], w: Wide) -> u32 {
+    match w {
+        Wide::Word(w) => {
+            let words = mem.words();
+            let lo = words.get(w.0 as usize).copied().unwrap_or(0);
+            let hi = words.get(w.0 as usize + 1).copied().unwrap_or(0);
+            u32::from(lo) | u32::from(hi) << 16
+        }
+        Wide::Const(index) => consts.get(index as usize).copied().unwrap_or(0) as u32,
+    }
+}
+
+/// Writes a double word at `d` and the word after it; nothing outside memory.
+#[inline(always)]
+fn write_wide(mem: &mut Memory, d: WordRef, value: u32) {
+    if (d.0 as usize + 1) < mem.words().len() {
+        mem.set_word(d, value as u16);
+        mem.set_word(WordRef(d.0 + 1), (value >> 16) as u16);
+    }
+}
+
+/// `a op b` of the `D` (`elem` I32) or `R` (F32) instructions; `None` on a division by zero.
+#[inline(never)]
+fn wide_arith(op: ArithOp, elem: Elem, a: u32, b: u32) -> Option<u32> {
+    let op = match op {
+        ArithOp::Add => value::BinOp::Add,
+        ArithOp::Sub => value::BinOp::Sub,
+        ArithOp::Mul => value::BinOp::Mul,
+        ArithOp::Div => value::BinOp::Div,
+    };
+    // I32 slots are sign-extended, F32 slots the bits.
+    let slot = |v: u32| if elem == Elem::I32 { v as i32 as i64 as u64 } else { u64::from(v) };
+    value::binary(op, elem, slot(a), slot(b)).ok().map(|r| r as u32)
+}
+
+/// A conversion of `I2D`, `D2R`, …: `s` is the source's word (16-bit sources use its low half),
+/// the result's low 16 or 32 bits are the destination's.
+#[inline(never)]
+fn wide_convert(conv: WideConv, s: u32) -> u32 {
+    let (from, to, slot) = match conv {
+        WideConv::IntToDint => (Elem::I16, Elem::I32, s as i16 as i64 as u64),
+        WideConv::IntToReal => (Elem::I16, Elem::F32, s as i16 as i64 as u64),
+        WideConv::DintToInt => (Elem::I32, Elem::I16, s as i32 as i64 as u64),
+        WideConv::DintToReal => (Elem::I32, Elem::F32, s as i32 as i64 as u64),
+        WideConv::RealToInt => (Elem::F32, Elem::I16, u64::from(s)),
+        WideConv::RealToDint => (Elem::F32, Elem::I32, u64::from(s)),
+    };
+    value::convert(from, to, slot) as u32
 }
 
 /// Combines a contact's `value` with the rung: the rung becomes `(value & (rung | !and)) | (rung

@@ -4,9 +4,9 @@
 //! edge-memory slot given to each edge-sensitive instruction.
 
 use super::mnemonic::Mnemonic;
-use super::operand::{self, bit, counter, dest, number, word, Kind, Operand};
+use super::operand::{self, bit, counter, dest, number, wide_dest, word, Kind, Operand};
 use super::{Checker, DutySite, MAX_EDGE_SLOTS};
-use crate::lang::ops::{Combine, EdgeSlot, Op, SystemRequest};
+use crate::lang::ops::{Combine, EdgeSlot, Op, Src, SystemRequest, Wide, WideConv};
 use crate::lang::parse::Token;
 
 impl Checker<'_, '_> {
@@ -16,6 +16,32 @@ impl Checker<'_, '_> {
         self.next_slot += 1;
         // Out-of-range slots are reported once at the end; keep going with a wrapped value.
         (slot % MAX_EDGE_SLOTS) as EdgeSlot
+    }
+
+    /// A double-word operand, its constant kept among the program's constants; `None` when the
+    /// operand was wrong (reported), or when there are more constants than a `Wide` can index
+    /// (reported here).
+    fn wide(&mut self, operand: Option<Operand>, line: u32, col: u32) -> Option<Wide> {
+        match operand? {
+            Operand::WideWord(w) | Operand::WideDest(w) => Some(Wide::Word(w)),
+            Operand::Word(Src::Word(w)) => Some(Wide::Word(w)),
+            Operand::Word(Src::Const(c)) => self.constant(u64::from(c), line, col),
+            Operand::WideConst(slot) => self.constant(slot, line, col),
+            _ => None,
+        }
+    }
+
+    fn constant(&mut self, slot: u64, line: u32, col: u32) -> Option<Wide> {
+        if let Some(&index) = self.const_index.get(&slot) {
+            return Some(Wide::Const(index));
+        }
+        let Ok(index) = u16::try_from(self.consts.len()) else {
+            self.error(line, col, "more than 65536 different double-word and real constants");
+            return None;
+        };
+        self.consts.push(slot);
+        self.const_index.insert(slot, index);
+        Some(Wide::Const(index))
     }
 
     /// Resolves operands and builds the op; `None` when an operand was wrong (reported).
@@ -193,6 +219,63 @@ impl Checker<'_, '_> {
                 };
                 self.duty_sites.push(DutySite { channel, line, col: operands[2].col });
                 Some(Op::Duty { channel, n1: n1?, n2: n2?, slot: self.slot() })
+            }
+            M::DMov { pulse, real } => {
+                let value = if real { Kind::RWord } else { Kind::DWord };
+                let s = get(self, 0, value);
+                let d = wide_dest(get(self, 1, Kind::DWordOut));
+                let s = self.wide(s, line, operands[0].col);
+                let pulse = pulse.then(|| self.slot());
+                Some(Op::DMov { s: s?, d: d?, pulse })
+            }
+            M::DArith { op, pulse, real } => {
+                let value = if real { Kind::RWord } else { Kind::DWord };
+                let a = get(self, 0, value);
+                let b = get(self, 1, value);
+                let d = wide_dest(get(self, 2, Kind::DWordOut));
+                let a = self.wide(a, line, operands[0].col);
+                let b = self.wide(b, line, operands[1].col);
+                let pulse = pulse.then(|| self.slot());
+                let (a, b, d) = (a?, b?, d?);
+                Some(if real {
+                    Op::RArith { op, a, b, d, pulse }
+                } else {
+                    Op::DArith { op, a, b, d, pulse }
+                })
+            }
+            M::DStep { up, pulse } => {
+                let d = wide_dest(get(self, 0, Kind::DWordOut));
+                let pulse = pulse.then(|| self.slot());
+                Some(Op::DStep { d: d?, up, pulse })
+            }
+            M::DCompare { how, op, real } => {
+                let value = if real { Kind::RWord } else { Kind::DWord };
+                let a = get(self, 0, value);
+                let b = get(self, 1, value);
+                let a = self.wide(a, line, operands[0].col);
+                let b = self.wide(b, line, operands[1].col);
+                let (a, b) = (a?, b?);
+                Some(if real {
+                    Op::RCompare { op, a, b, how }
+                } else {
+                    Op::DCompare { op, a, b, how }
+                })
+            }
+            M::Convert { conv, pulse } => {
+                let source = match conv {
+                    WideConv::IntToDint | WideConv::IntToReal => Kind::Word,
+                    WideConv::RealToInt | WideConv::RealToDint => Kind::RWord,
+                    WideConv::DintToInt | WideConv::DintToReal => Kind::DWord,
+                };
+                let s = get(self, 0, source);
+                let out = if conv.to_one_word() { Kind::WordOut } else { Kind::DWordOut };
+                let d = match get(self, 1, out) {
+                    Some(Operand::Dest(d) | Operand::WideDest(d)) => Some(d),
+                    _ => None,
+                };
+                let s = self.wide(s, line, operands[0].col);
+                let pulse = pulse.then(|| self.slot());
+                Some(Op::Convert { conv, s: s?, d: d?, pulse })
             }
         };
         if ok {

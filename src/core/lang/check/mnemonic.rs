@@ -2,15 +2,24 @@
 //! resolved into a [`Mnemonic`], with what each one means for its rung ([`RungRole`]) and the
 //! names of the operands it takes, for the messages that count or name them.
 
-use crate::lang::ops::{ArithOp, CmpOp, Combine, CounterKind, TimerKind};
+use crate::lang::ops::{ArithOp, CmpOp, Combine, CounterKind, TimerKind, WideConv};
 use crate::lang::parse::Token;
 
 /// The mnemonics, after joining two-word forms (`LOAD NOT`, `AND LOAD` …).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Mnemonic {
-    Contact { how: Combine, negate: bool },
-    Edge { how: Combine, rising: bool },
-    Compare { how: Combine, op: CmpOp },
+    Contact {
+        how: Combine,
+        negate: bool,
+    },
+    Edge {
+        how: Combine,
+        rising: bool,
+    },
+    Compare {
+        how: Combine,
+        op: CmpOp,
+    },
     AndLoad,
     OrLoad,
     MPush,
@@ -19,16 +28,26 @@ pub(super) enum Mnemonic {
     Not,
     Out,
     OutNot,
-    OutPulse { rising: bool },
+    OutPulse {
+        rising: bool,
+    },
     Set,
     Rst,
     FlipFlop,
     Timer(TimerKind),
     Counter(CounterKind),
     CounterUpDown,
-    Mov { pulse: bool },
-    Arith { op: ArithOp, pulse: bool },
-    Step { up: bool, pulse: bool },
+    Mov {
+        pulse: bool,
+    },
+    Arith {
+        op: ArithOp,
+        pulse: bool,
+    },
+    Step {
+        up: bool,
+        pulse: bool,
+    },
     Call,
     Sbrt,
     Ret,
@@ -46,6 +65,33 @@ pub(super) enum Mnemonic {
     End,
     Nop,
     Duty,
+    /// `DMOV` (`real`: `RMOV`, which takes a real constant).
+    DMov {
+        pulse: bool,
+        real: bool,
+    },
+    /// `DADD` … (`real`: `RADD` …).
+    DArith {
+        op: ArithOp,
+        pulse: bool,
+        real: bool,
+    },
+    /// `DINC` (`up`), `DDEC`.
+    DStep {
+        up: bool,
+        pulse: bool,
+    },
+    /// `LOADD= a b` … (`real`: `LOADR=` …).
+    DCompare {
+        how: Combine,
+        op: CmpOp,
+        real: bool,
+    },
+    /// `I2D`, `D2I`, `I2R`, `R2I`, `D2R`, `R2D`.
+    Convert {
+        conv: WideConv,
+        pulse: bool,
+    },
 }
 
 /// How an instruction relates to the rung it stands in.
@@ -83,8 +129,15 @@ pub(super) fn mnemonic_of(tokens: &[Token<'_>]) -> Option<(Mnemonic, usize)> {
         _ => {}
     }
     for (prefix, how) in [("LOAD", load), ("AND", Combine::And), ("OR", Combine::Or)] {
-        if let Some(op) = first.strip_prefix(prefix).and_then(compare_op) {
-            return Some((M::Compare { how, op }, 1));
+        if let Some(rest) = first.strip_prefix(prefix) {
+            if let Some(op) = compare_op(rest) {
+                return Some((M::Compare { how, op }, 1));
+            }
+            for (kind, real) in [('D', false), ('R', true)] {
+                if let Some(op) = rest.strip_prefix(kind).and_then(compare_op) {
+                    return Some((M::DCompare { how, op, real }, 1));
+                }
+            }
         }
     }
     let m = match first.as_str() {
@@ -147,9 +200,46 @@ pub(super) fn mnemonic_of(tokens: &[Token<'_>]) -> Option<(Mnemonic, usize)> {
         "END" => M::End,
         "NOP" => M::Nop,
         "DUTY" => M::Duty,
-        _ => return None,
+        _ => return wide_mnemonic(&first).map(|m| (m, 1)),
     };
     Some((m, 1))
+}
+
+/// The double-word, real and conversion instructions, each with its `P` form.
+fn wide_mnemonic(upper: &str) -> Option<Mnemonic> {
+    use Mnemonic as M;
+    let (base, pulse) = match upper.strip_suffix('P') {
+        Some(base) => (base, true),
+        None => (upper, false),
+    };
+    let arith = |name: &str| match name {
+        "ADD" => Some(ArithOp::Add),
+        "SUB" => Some(ArithOp::Sub),
+        "MUL" => Some(ArithOp::Mul),
+        "DIV" => Some(ArithOp::Div),
+        _ => None,
+    };
+    Some(match base {
+        "DMOV" => M::DMov { pulse, real: false },
+        "RMOV" => M::DMov { pulse, real: true },
+        "DINC" => M::DStep { up: true, pulse },
+        "DDEC" => M::DStep { up: false, pulse },
+        "I2D" => M::Convert { conv: WideConv::IntToDint, pulse },
+        "D2I" => M::Convert { conv: WideConv::DintToInt, pulse },
+        "I2R" => M::Convert { conv: WideConv::IntToReal, pulse },
+        "R2I" => M::Convert { conv: WideConv::RealToInt, pulse },
+        "D2R" => M::Convert { conv: WideConv::DintToReal, pulse },
+        "R2D" => M::Convert { conv: WideConv::RealToDint, pulse },
+        _ => {
+            let (kind, name) = base.split_at_checked(1)?;
+            let op = arith(name)?;
+            match kind {
+                "D" => M::DArith { op, pulse, real: false },
+                "R" => M::DArith { op, pulse, real: true },
+                _ => return None,
+            }
+        }
+    })
 }
 
 fn compare_op(s: &str) -> Option<CmpOp> {
@@ -170,8 +260,13 @@ impl Mnemonic {
         match self {
             M::Contact { how: Combine::Load { .. }, .. }
             | M::Edge { how: Combine::Load { .. }, .. }
-            | M::Compare { how: Combine::Load { .. }, .. } => RungRole::Start,
-            M::Contact { .. } | M::Edge { .. } | M::Compare { .. } | M::Not => RungRole::Combine,
+            | M::Compare { how: Combine::Load { .. }, .. }
+            | M::DCompare { how: Combine::Load { .. }, .. } => RungRole::Start,
+            M::Contact { .. }
+            | M::Edge { .. }
+            | M::Compare { .. }
+            | M::DCompare { .. }
+            | M::Not => RungRole::Combine,
             M::AndLoad | M::OrLoad | M::MPush | M::MLoad | M::MPop => RungRole::Stack,
             M::Label | M::Next | M::End | M::Sbrt | M::Ret => RungRole::Boundary,
             M::Nop => RungRole::Neutral,
@@ -185,15 +280,15 @@ impl Mnemonic {
         use Mnemonic as M;
         match self {
             M::Contact { .. } | M::Edge { .. } => &["bit device"],
-            M::Compare { .. } => &["first value", "second value"],
+            M::Compare { .. } | M::DCompare { .. } => &["first value", "second value"],
             M::Out | M::OutNot | M::OutPulse { .. } | M::Set | M::FlipFlop => &["bit device"],
             M::Rst => &["bit device, timer or counter"],
             M::Timer(_) => &["timer", "preset"],
             M::Counter(_) => &["counter", "preset"],
             M::CounterUpDown => &["counter", "up input", "down input", "preset"],
-            M::Mov { .. } => &["source", "destination"],
-            M::Arith { .. } => &["first value", "second value", "destination"],
-            M::Step { .. } => &["destination"],
+            M::Mov { .. } | M::DMov { .. } | M::Convert { .. } => &["source", "destination"],
+            M::Arith { .. } | M::DArith { .. } => &["first value", "second value", "destination"],
+            M::Step { .. } | M::DStep { .. } => &["destination"],
             M::Call | M::Sbrt => &["subroutine number"],
             M::Jmp | M::Label => &["label number"],
             M::For => &["repeat count"],

@@ -80,6 +80,8 @@ pub struct CheckedProgram {
     /// `SBRT n` → index of the `SBRT` instruction.
     pub subroutines: HashMap<u32, usize>,
     pub edge_slots: u32,
+    /// The constants of the double-word and real instructions (`Program::consts`).
+    pub consts: Vec<u64>,
 }
 
 /// Hardest limit of edge memory: slots are 16-bit.
@@ -95,6 +97,9 @@ struct Checker<'a, 'c> {
     // Op building: the next edge-memory slot, and the DUTY instructions.
     next_slot: u32,
     duty_sites: Vec<DutySite>,
+    /// The double-word and real constants, each once, and where each is.
+    consts: Vec<u64>,
+    const_index: HashMap<u64, u16>,
     // Structure.
     region: Region,
     routines: usize,
@@ -129,6 +134,8 @@ pub fn check(
         out: Vec::new(),
         next_slot: ctx.edge_base,
         duty_sites: Vec::new(),
+        consts: Vec::new(),
+        const_index: HashMap::new(),
         region: Region::Main,
         routines: 1,
         sbrt_open: None,
@@ -158,6 +165,7 @@ pub fn check(
             labels,
             subroutines: c.subroutines,
             edge_slots: c.next_slot - ctx.edge_base,
+            consts: c.consts,
         };
         (Ok(checked), duty_sites)
     } else {

@@ -5,7 +5,7 @@
 
 use super::mnemonic::Mnemonic;
 use super::Checker;
-use crate::device::{Address, Area, BitRef, WordRef, Writer, WORD_VALUES};
+use crate::device::{layout, Address, Area, BitRef, WordRef, Writer, WORD_VALUES};
 use crate::lang::ops::{Op, Src};
 use crate::lang::parse::Token;
 
@@ -19,6 +19,12 @@ pub(super) enum Operand {
     Number(u32),
     /// `RST` on a timer or counter.
     ResetTarget(Op),
+    /// A double-word value: a device word and the next, or a constant's slot (the checker
+    /// keeps it among the program's constants).
+    WideWord(WordRef),
+    WideConst(u64),
+    /// A double-word destination.
+    WideDest(WordRef),
 }
 
 /// What an operand position accepts.
@@ -34,6 +40,12 @@ pub(super) enum Kind {
     Number(u32),
     DutyScans,
     DutyRelay,
+    /// A 32-bit signed value: two words or an integer constant.
+    DWord,
+    /// A `REAL` value: two words or a real constant.
+    RWord,
+    /// Two words the program may write.
+    DWordOut,
 }
 
 impl Checker<'_, '_> {
@@ -70,6 +82,9 @@ impl Checker<'_, '_> {
 /// Resolves one operand as `kind`; `name` is the mnemonic, for the message.
 pub(super) fn resolve(token: &Token<'_>, kind: Kind, name: &str) -> Result<Operand, String> {
     let text = token.text;
+    if matches!(kind, Kind::DWord | Kind::RWord | Kind::DWordOut) {
+        return resolve_wide(text, kind, name);
+    }
     if let Kind::Number(max) = kind {
         return match text.parse::<u32>() {
             Ok(n) if n <= max => Ok(Operand::Number(n)),
@@ -121,7 +136,98 @@ pub(super) fn resolve(token: &Token<'_>, kind: Kind, name: &str) -> Result<Opera
                 "DUTY clock relay `{text}` is not one of SM420-SM424, SM8330-SM8334 (2820H)"
             )),
         },
-        Kind::Number(_) => unreachable!("handled above"),
+        Kind::Number(_) | Kind::DWord | Kind::RWord | Kind::DWordOut => {
+            unreachable!("handled above")
+        }
+    }
+}
+
+/// A double-word operand: a constant (an integer for `D` instructions, a real for `R` ones), or
+/// a word device whose next word exists in the same area.
+fn resolve_wide(text: &str, kind: Kind, name: &str) -> Result<Operand, String> {
+    if kind != Kind::DWordOut {
+        if let Some(slot) = parse_wide_constant(text, kind == Kind::RWord, name)? {
+            return Ok(Operand::WideConst(slot));
+        }
+    } else if parse_wide_constant(text, false, name).is_ok_and(|c| c.is_some()) || looks_real(text)
+    {
+        return Err(format!("`{name}` needs a device here, found constant `{text}`"));
+    }
+    let address = Address::parse(text).map_err(|e| e.to_string())?;
+    let w = address.as_word().map_err(|e| e.to_string())?;
+    let last = match address.area {
+        Area::SD => layout::SD_FIRST + layout::SD_WORDS - 1,
+        Area::F => {
+            return Err(format!(
+                "`{address}` is a single word: a double word needs a device and the word after it"
+            ))
+        }
+        area => area.word_count() - 1,
+    };
+    if address.number >= last {
+        let next = Address { number: address.number + 1, ..address };
+        return Err(format!(
+            "`{address}` as a double word needs `{next}` too, which is out of range ({})",
+            address.area.range_text()
+        ));
+    }
+    if kind == Kind::DWordOut {
+        if !address.writable_by(Writer::ProgramWord) {
+            return Err(read_only(&address));
+        }
+        return Ok(Operand::WideDest(w));
+    }
+    Ok(Operand::WideWord(w))
+}
+
+/// Whether `text` is written as a real number (`1.5`, `2e3`, `.5`), not an integer.
+fn looks_real(text: &str) -> bool {
+    let digits = text.strip_prefix(['-', '+']).unwrap_or(text);
+    digits.bytes().next().is_some_and(|b| b.is_ascii_digit() || b == b'.')
+        && digits.bytes().any(|b| matches!(b, b'.' | b'e' | b'E'))
+        && digits.parse::<f64>().is_ok()
+}
+
+/// A double-word constant as a slot (its low 32 bits are what the instruction uses): for `D`
+/// instructions decimal `-2147483648..=4294967295` or hex `h0`..=`hFFFFFFFF`, for `R` ones a
+/// decimal real (`1.5`, `-2`, `1e-3`). `Ok(None)` when the text is not a constant at all.
+pub fn parse_wide_constant(text: &str, real: bool, name: &str) -> Result<Option<u64>, String> {
+    let bytes = text.as_bytes();
+    let is_decimal =
+        bytes.first().is_some_and(|b| b.is_ascii_digit() || matches!(b, b'-' | b'+' | b'.'));
+    let hex = text
+        .strip_prefix(['h', 'H'])
+        .filter(|hex| !hex.is_empty() && hex.bytes().all(|b| b.is_ascii_hexdigit()));
+    if real {
+        if let Some(_hex) = hex {
+            return Err(format!("`{name}` needs a real constant (like 1.5), found `{text}`"));
+        }
+        if !is_decimal {
+            return Ok(None);
+        }
+        return match text.parse::<f32>() {
+            Ok(x) if x.is_finite() => Ok(Some(u64::from(x.to_bits()))),
+            _ if text.parse::<f64>().is_ok() => {
+                Err(format!("constant `{text}` is not a REAL value (±3.4028235e38)"))
+            }
+            _ => Err(format!("constant `{text}` is not a real number")),
+        };
+    }
+    if let Some(hex) = hex {
+        return match u64::from_str_radix(hex, 16) {
+            Ok(v) if v <= 0xFFFF_FFFF => Ok(Some(v)),
+            _ => Err(format!("constant `{text}` is not a 32-bit value (h0..=hFFFFFFFF)")),
+        };
+    }
+    if !is_decimal {
+        return Ok(None);
+    }
+    if looks_real(text) {
+        return Err(format!("`{name}` needs an integer constant, found real constant `{text}`"));
+    }
+    match text.parse::<i64>() {
+        Ok(v) if (-(1i64 << 31)..1i64 << 32).contains(&v) => Ok(Some(u64::from(v as u32))),
+        _ => Err(format!("constant `{text}` is not a 32-bit value (-2147483648..=4294967295)")),
     }
 }
 
@@ -146,6 +252,13 @@ pub(super) fn bit(o: Option<Operand>) -> Option<BitRef> {
 pub(super) fn word(o: Option<Operand>) -> Option<Src> {
     match o {
         Some(Operand::Word(s)) => Some(s),
+        _ => None,
+    }
+}
+
+pub(super) fn wide_dest(o: Option<Operand>) -> Option<WordRef> {
+    match o {
+        Some(Operand::WideDest(d)) => Some(d),
         _ => None,
     }
 }
@@ -207,5 +320,26 @@ mod tests {
         assert!(parse_constant("70000").is_err());
         assert!(parse_constant("h10000").is_err());
         assert!(parse_constant("12ab").is_err());
+    }
+
+    #[test]
+    fn wide_constants() {
+        let d = |t| parse_wide_constant(t, false, "DMOV");
+        let r = |t| parse_wide_constant(t, true, "RMOV");
+        assert_eq!(d("-1"), Ok(Some(0xFFFF_FFFF)));
+        assert_eq!(d("4294967295"), Ok(Some(0xFFFF_FFFF)));
+        assert_eq!(d("-2147483648"), Ok(Some(0x8000_0000)));
+        assert_eq!(d("h12345678"), Ok(Some(0x1234_5678)));
+        assert_eq!(d("D00010"), Ok(None));
+        assert!(d("4294967296").is_err());
+        assert!(d("h100000000").is_err());
+        assert!(d("1.5").is_err());
+        assert_eq!(r("1.5"), Ok(Some(u64::from(1.5f32.to_bits()))));
+        assert_eq!(r("-2"), Ok(Some(u64::from((-2f32).to_bits()))));
+        assert_eq!(r(".5"), Ok(Some(u64::from(0.5f32.to_bits()))));
+        assert_eq!(r("1e-3"), Ok(Some(u64::from(1e-3f32.to_bits()))));
+        assert_eq!(r("D00010"), Ok(None));
+        assert!(r("1e39").is_err());
+        assert!(r("h10").is_err());
     }
 }

@@ -331,6 +331,12 @@ fn push_variant(op: Op) -> Op {
             Op::EdgeContact { bit, rising, how: Combine::Load { push: true }, slot }
         }
         Op::Compare { op, a, b, .. } => Op::Compare { op, a, b, how: Combine::Load { push: true } },
+        Op::DCompare { op, a, b, .. } => {
+            Op::DCompare { op, a, b, how: Combine::Load { push: true } }
+        }
+        Op::RCompare { op, a, b, .. } => {
+            Op::RCompare { op, a, b, how: Combine::Load { push: true } }
+        }
         other => other,
     }
 }
