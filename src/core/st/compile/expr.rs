@@ -1093,6 +1093,7 @@ impl<'a> Ctx<'a> {
                     _ => BinOp::Xor,
                 };
                 match p {
+                    _ if ty == Ty::IntLit => self.make_bin(bop, a, b, ty, span, file),
                     Some(p) if (p == Prim::Bool || p.is_bits()) && !is_enum => {
                         self.make_bin(bop, a, b, ty, span, file)
                     }
@@ -1127,6 +1128,10 @@ impl<'a> Ctx<'a> {
             }
             BinaryOp::Pow => {
                 let (a, b, ty) = match (&a.ty, p) {
+                    (Ty::IntLit | Ty::RealLit, _) if a.is_const() && b.is_const() => {
+                        let (a, b) = (to_real_lit(a), to_real_lit(b));
+                        return self.make_bin(BinOp::Expt, a, b, Ty::RealLit, span, file);
+                    }
                     (Ty::IntLit | Ty::RealLit, _) => {
                         let a = self.coerce(to_real_lit(a), &Ty::Prim(Prim::LReal), file);
                         let b = self.coerce(to_real_lit(b), &Ty::Prim(Prim::LReal), file);
