@@ -11,13 +11,17 @@ use plcd_core::vm::{ExecState, Exit, ManualClock, Vm};
 
 /// Compiles `src` as `main.st` with one instance `main`.
 fn try_build(src: &str) -> Result<Compiled, String> {
+    try_build_pou(src, None)
+}
+
+fn try_build_pou(src: &str, pou: Option<&str>) -> Result<Compiled, String> {
     let (file, diags) = parse_file(Path::new("main.st"), src);
     if !diags.is_empty() {
         return Err(diags.to_string());
     }
     let inst = Instance {
         name: "main",
-        pou: None,
+        pou,
         file: Path::new("main.st"),
         config: Path::new("plcd.toml"),
         line: 1,
@@ -557,4 +561,53 @@ fn strings() {
     assert_eq!(r.string("main.u"), "ell");
     assert_eq!(r.int("main.c"), 1);
     assert_eq!(r.string("main.d"), "loHx");
+}
+
+/// Each `tests/golden/st/<case>/main.st` reports exactly the diagnostic lines of its
+/// `expected.stderr` (the final `plcd.toml: N error(s)` line is the binary's, left out here);
+/// `PLCD_BLESS=1` rewrites the expected files that differ.
+#[test]
+fn golden_diagnostics() {
+    let bless = std::env::var_os("PLCD_BLESS").is_some_and(|v| v == "1");
+    let mut failures = Vec::new();
+    let mut cases: Vec<PathBuf> = fs::read_dir("tests/golden/st")
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_dir())
+        .collect();
+    cases.sort();
+    assert!(!cases.is_empty());
+    for dir in &cases {
+        let src = fs::read_to_string(dir.join("main.st")).unwrap();
+        let toml = fs::read_to_string(dir.join("plcd.toml")).unwrap_or_default();
+        let pou = toml
+            .lines()
+            .find_map(|l| l.strip_prefix("pou = "))
+            .map(|v| v.trim_matches('"').to_string());
+        let actual = try_build_pou(&src, pou.as_deref()).err().unwrap_or_default();
+        let count = actual.lines().count();
+        if count != 1 {
+            failures.push(format!("{}: {count} diagnostics:\n{actual}", dir.display()));
+            continue;
+        }
+        let expected_path = dir.join("expected.stderr");
+        let expected = fs::read_to_string(&expected_path).unwrap_or_default();
+        let expected_lines: String = expected
+            .lines()
+            .filter(|l| !l.starts_with("plcd.toml: "))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        if expected_lines != actual {
+            if bless {
+                fs::write(&expected_path, format!("{actual}plcd.toml: 1 error(s)\n")).unwrap();
+                eprintln!("PLCD_BLESS: rewrote {}", expected_path.display());
+            } else {
+                failures.push(format!(
+                    "{}:\n--- expected\n{expected_lines}--- actual\n{actual}",
+                    dir.display()
+                ));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }

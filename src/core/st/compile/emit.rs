@@ -651,7 +651,7 @@ impl<'c, 'a> Em<'c, 'a> {
 
     /// Output stores of an FB: `reloc` in the ops means instance-relative (not callee).
     fn store_ops_instance(&mut self, target: &TExpr, ops: Vec<(Op, bool)>) {
-        self.store(target, Src::Ops(ops.into_iter().map(|(o, r)| (o, r)).collect()));
+        self.store(target, Src::Ops(ops));
     }
 
     fn push_src(&mut self, src: &Src<'_>) {

@@ -6,7 +6,7 @@ use crate::lang::ops::CmpOp;
 use crate::st::ast::{
     self, Arg, BinaryOp, Expr, ExprKind, Literal, PouKind, Span, UnaryOp, VarKind,
 };
-use crate::value::{BinOp, Elem, UnOp};
+use crate::value::{BinOp, UnOp};
 
 use super::ctx::{suggest, Ctx, Cv, Scope, Storage};
 use super::stdlib::Std;
@@ -107,10 +107,7 @@ impl TExpr {
 
     /// Whether it names memory (a variable, a member, an element).
     pub fn is_place(&self) -> bool {
-        match &self.k {
-            TK::Var { .. } | TK::Index(..) | TK::Member(..) => true,
-            _ => false,
-        }
+        matches!(self.k, TK::Var { .. } | TK::Index(..) | TK::Member(..))
     }
 }
 
@@ -598,13 +595,17 @@ impl<'a> Ctx<'a> {
                     }
                 }
             }
-            _ => {
-                if access != Access::Read {
+            _ => match access {
+                Access::Read => self.check_expr(e, scope, expected),
+                Access::Write => {
                     self.error(file, span, "only a variable can be assigned");
-                    return TExpr::error(span);
+                    TExpr::error(span)
                 }
-                self.check_expr(e, scope, expected)
-            }
+                Access::Ref => {
+                    self.error(file, span, "a VAR_IN_OUT argument must be a variable");
+                    TExpr::error(span)
+                }
+            },
         }
     }
 

@@ -346,15 +346,11 @@ fn check_recursion(cx: &mut Ctx<'_>) {
             visit(cx, p, &mut state, &mut depth, &mut Vec::new());
         }
     }
-    for p in 0..n {
-        if cx.pous[p].kind == PouKind::Program && depth[p] > ST_CALL_DEPTH {
+    for (p, &d) in depth.iter().enumerate() {
+        if cx.pous[p].kind == PouKind::Program && d > ST_CALL_DEPTH {
             let (file, span, name) =
                 (cx.pous[p].file, cx.pous[p].ast.name.span, cx.pous[p].name.clone());
-            cx.error(
-                file,
-                span,
-                format!("`{name}` nests calls {} deep (limit {ST_CALL_DEPTH})", depth[p]),
-            );
+            cx.error(file, span, format!("`{name}` nests calls {d} deep (limit {ST_CALL_DEPTH})"));
         }
     }
 }

@@ -14,7 +14,11 @@ pub struct TStmt {
     pub line: u32,
 }
 
+/// One CASE arm: its inclusive label ranges and its statements.
+pub type Arm = (Vec<(i128, i128)>, Vec<TStmt>);
+
 #[derive(Debug, Clone, PartialEq)]
+#[allow(clippy::large_enum_variant)]
 pub enum TS {
     Assign(TExpr, TExpr),
     /// A FUNCTION call whose result is dropped.
@@ -25,7 +29,7 @@ pub enum TS {
     Case {
         sel: TExpr,
         /// Inclusive ranges of each arm.
-        arms: Vec<(Vec<(i128, i128)>, Vec<TStmt>)>,
+        arms: Vec<Arm>,
         otherwise: Vec<TStmt>,
     },
     For {
@@ -184,7 +188,7 @@ impl<'a> Ctx<'a> {
         let v = self.check_place(&ve, scope, Access::Write, None);
         let mut ok = !v.ty.is_error();
         let p = v.ty.prim(&self.types);
-        if ok && !(p.is_some_and(Prim::is_int) && !matches!(v.ty, Ty::Enum(_))) {
+        if ok && (!p.is_some_and(Prim::is_int) || matches!(v.ty, Ty::Enum(_))) {
             let n = self.ty_name(&v.ty);
             self.error(
                 file,
