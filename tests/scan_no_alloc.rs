@@ -2,6 +2,9 @@
 //! real-time driver while it runs a project with a 1 ms cycle task, an I/O task fed with edges,
 //! device tasks, timers, counters and DUTY, through mode changes and device writes, until it
 //! stops on shutdown. The commands include the control socket's and a two-part Modbus word write.
+//! The main program uses the double-word and real instructions too; and a hand-built program of
+//! the typed stack machine (calls, FB instances, strings, an index error, a division by zero)
+//! runs scans and RUN starts without allocating.
 #![allow(unsafe_code)]
 
 mod harness;
@@ -103,10 +106,123 @@ value = 50
 "#;
 
 const MAIN: &str = "LOAD _ON\nTON T1500 5\nLOAD T1500\nOUT P0040\nLOAD P0000\nCTU C0000 10\n\
-                    LOAD _1ON\nDUTY 2 3 SM420\nLOAD SM420\nOUT P0041\nEND\n";
+                    LOAD _1ON\nDUTY 2 3 SM420\nLOAD SM420\nOUT P0041\n\
+                    LOAD _ON\nDADD D00010 70000 D00010\nRADD D00020 0.5 D00020\n\
+                    LOADR> D00020 1e6\nRMOV 0 D00020\nLOADD< D00010 0\nDMOV 0 D00010\n\
+                    LOAD P0000\nDINCP D00030\nI2R D00001 D00040\nR2D D00040 D00042\n\
+                    DDIV D00010 D00050 D00052\nEND\n";
 const TICK: &str = "INC D00001\nLOAD NOT P0042\nOUT P0042\nEND\n";
 const EDGE: &str = "INC D00000\nEND\n";
 const FULL: &str = "MOV 0 D00000\nINC D00002\nEND\n";
+
+#[test]
+fn typed_programs_do_not_allocate() {
+    use plcd::lang::ops::{CmpOp, Op::*, Place, StrOp};
+    use plcd::lang::{Language, Program, Variables};
+    use plcd::vm::{ExecState, Exit, StepClock, Vm};
+    use plcd_core::device::RetainSet;
+    use plcd_core::value::{BinOp, Elem};
+
+    let d = |text: &str| Place::Word(Address::parse(text).unwrap().as_word().unwrap());
+    let code = vec![
+        // 0: a FUNCTION call and an FB call.
+        PushInt(20),
+        Store { elem: Elem::I16, at: Place::Frame(8 + 2) },
+        CallFn { target: 21, frame: 8 },
+        Fetch { elem: Elem::I16, at: Place::Frame(8) },
+        Store { elem: Elem::I16, at: Place::Var(0) },
+        AddrOf(Place::Var(10)),
+        CallFb { target: 26, frame: 8 },
+        // 7: an index out of range, a division by zero, a REAL into a device, a string.
+        AddrOf(Place::Var(16)),
+        PushInt(9),
+        Index { lo: 0, len: 4, stride: 1 },
+        FetchInd(Elem::U8),
+        PushInt(0),
+        Bin { op: BinOp::Div, elem: Elem::U8 },
+        Drop,
+        PushConst(0),
+        Store { elem: Elem::F32, at: d("D00100") },
+        AddrOf(Place::Var(32)),
+        AddrOf(Place::Var(32)),
+        AddrOf(Place::Var(32)),
+        Str { op: StrOp::Concat, cap: 16 },
+        End,
+        // 21: a FUNCTION: result := x * 2.
+        Fetch { elem: Elem::I16, at: Place::Frame(2) },
+        PushInt(2),
+        Bin { op: BinOp::Mul, elem: Elem::I16 },
+        Store { elem: Elem::I16, at: Place::Frame(0) },
+        Return,
+        // 26: an FB: count += 1 while count < 1000.
+        Fetch { elem: Elem::I16, at: Place::This(0) },
+        PushInt(1000),
+        Cmp { op: CmpOp::Lt, elem: Elem::I16 },
+        GotoIf { target: 34, when: false },
+        Fetch { elem: Elem::I16, at: Place::This(0) },
+        PushInt(1),
+        Bin { op: BinOp::Add, elem: Elem::I16 },
+        Store { elem: Elem::I16, at: Place::This(0) },
+        Return,
+    ];
+    let n = code.len();
+    let program = Program {
+        name: "typed".into(),
+        path: "typed.st".into(),
+        language: Language::StructuredText,
+        code: code.into(),
+        consts: vec![u64::from(1.5f32.to_bits())].into(),
+        frame_bytes: 16,
+        regions: Box::new([]),
+        lines: vec![1; n].into(),
+        edge_base: 0,
+        edge_slots: 0,
+        labels: Box::new([]),
+        subroutines: Box::new([]),
+    };
+    let mut vm = Vm::for_programs([&program]);
+    let mut initial = vec![0u8; 64];
+    initial[32..35].copy_from_slice(&[2, b'a', b'b']);
+    vm.set_variables(&Variables {
+        initial: initial.into(),
+        retained: vec![(10, 2)].into(),
+        located_init: vec![(d("D00102"), Elem::I32, 7)].into(),
+        symbols: vec![],
+    });
+    let mut state = ExecState::with_frame(program.frame_bytes);
+    let retain = RetainSet::default();
+    let clock = StepClock { origin_ns: 0, origin_steps: 0, step_ns: 1000 };
+    let mut errors = 0;
+    WATCHED.with(|w| w.set(true));
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    for run in 0..4 {
+        vm.reset_for_run(&retain, run % 2 == 1);
+        for scan in 0..50 {
+            vm.begin_scan(scan == 0, 0);
+            state.restart();
+            loop {
+                match vm.run(&program, &mut state, &clock, 7) {
+                    Exit::End => break,
+                    Exit::OperationError { .. } => errors += 1,
+                    _ => {}
+                }
+            }
+        }
+    }
+    let count = ALLOCATIONS.load(Ordering::Relaxed) - before;
+    WATCHED.with(|w| w.set(false));
+    assert_eq!(count, 0, "the typed program allocated or freed {count} times");
+    assert_eq!(errors, 4 * 50 * 2, "an index error and a division by zero each scan");
+    assert_eq!(
+        vm.read_value(
+            plcd_core::value::Pointer { space: plcd_core::value::Space::Var, offset: 0 },
+            Elem::I16
+        ),
+        40
+    );
+    // Cold, warm, cold, warm: 50 + 50 counted over the last warm start.
+    assert_eq!(vm.vars()[10], 100, "the FB's retained count");
+}
 
 #[test]
 fn the_scan_thread_does_not_allocate() {

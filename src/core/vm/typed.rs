@@ -138,6 +138,8 @@ pub(super) fn store(
     elem: Elem,
     value: u64,
 ) {
+    // A BOOL is 0 or 1 in memory whatever the slot held.
+    let value = if elem == Elem::Bool { u64::from(value != 0) } else { value };
     match p.space {
         Space::Var | Space::Frame => {
             let buf = if p.space == Space::Var { vars } else { frame };

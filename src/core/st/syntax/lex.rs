@@ -206,6 +206,9 @@ pub(crate) struct Lexed {
     /// The text ends inside a comment or pragma (already reported: the parser stays quiet
     /// about the end of file).
     pub eof_in_comment: bool,
+    /// The tokens that follow an unterminated string, in order: what the parser finds wrong
+    /// there is the string's fault, already reported.
+    pub quiet: Vec<usize>,
 }
 
 /// Splits `text` into tokens; the last is [`Tok::Eof`].
@@ -219,9 +222,15 @@ pub(crate) fn lex(text: &str) -> Lexed {
         tokens: Vec::with_capacity(text.len() / 4 + 1),
         errors: Vec::new(),
         eof_in_comment: false,
+        quiet: Vec::new(),
     };
     lexer.run();
-    Lexed { tokens: lexer.tokens, errors: lexer.errors, eof_in_comment: lexer.eof_in_comment }
+    Lexed {
+        tokens: lexer.tokens,
+        errors: lexer.errors,
+        eof_in_comment: lexer.eof_in_comment,
+        quiet: lexer.quiet,
+    }
 }
 
 struct Lexer<'a> {
@@ -233,6 +242,7 @@ struct Lexer<'a> {
     tokens: Vec<Token>,
     errors: Vec<(Span, Msg)>,
     eof_in_comment: bool,
+    quiet: Vec<usize>,
 }
 
 fn is_word(b: u8) -> bool {
@@ -527,8 +537,7 @@ impl Lexer<'_> {
     fn string(&mut self, start: usize, span: Span) {
         self.bump();
         let mut value = String::new();
-        loop {
-            let Some(b) = self.peek() else { break };
+        while let Some(b) = self.peek() {
             match b {
                 b'\'' => {
                     self.bump();
@@ -575,6 +584,7 @@ impl Lexer<'_> {
         }
         self.error(span, Msg::UnterminatedString);
         self.push(Tok::Str(value), span, start);
+        self.quiet.push(self.tokens.len());
     }
 
     /// `"…"`: reported, and read as an empty string.

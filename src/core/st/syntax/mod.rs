@@ -17,7 +17,7 @@ use crate::st::ast;
 /// Parses one file: the tree of everything that parsed, and every syntax error.
 pub fn parse_file(path: &Path, text: &str) -> (ast::File, Diagnostics) {
     let lexed = lex::lex(text);
-    let (items, mut errors) = parse::parse(text, lexed.tokens, lexed.eof_in_comment);
+    let (items, mut errors) = parse::parse(text, lexed.tokens, lexed.eof_in_comment, lexed.quiet);
     errors.extend(lexed.errors);
     errors.sort_by_key(|(span, _)| (span.line, span.col));
     let mut diags = Diagnostics::default();

@@ -21,8 +21,10 @@ pub(crate) fn parse(
     text: &str,
     tokens: Vec<Token>,
     eof_in_comment: bool,
+    quiet: Vec<usize>,
 ) -> (Vec<Item>, Vec<(Span, Msg)>) {
     let mut parser = Parser::new(text, tokens, eof_in_comment);
+    parser.quiet = quiet;
     let items = parser.file();
     (items, parser.errors)
 }
@@ -60,6 +62,8 @@ pub(crate) struct Parser<'a> {
     /// Whether that error was a missing `END_…` (several may be missing at one token).
     last_unclosed: bool,
     eof_in_comment: bool,
+    /// Tokens where no error is reported (see `Lexed::quiet`), sorted.
+    quiet: Vec<usize>,
     /// The constructs open around the current statement, innermost last.
     open: Vec<Closer>,
     depth: usize,
@@ -147,6 +151,10 @@ fn is_stmt_keyword(tok: &Tok) -> bool {
     )
 }
 
+fn is_pou_end(kw: Kw) -> bool {
+    matches!(kw, Kw::EndProgram | Kw::EndFunction | Kw::EndFunctionBlock)
+}
+
 /// `END_…`, `ELSE`, `ELSIF`, `UNTIL`: what ends a list of statements.
 fn is_closer(tok: &Tok) -> bool {
     match tok {
@@ -204,6 +212,7 @@ impl<'a> Parser<'a> {
             last_error: None,
             last_unclosed: false,
             eof_in_comment,
+            quiet: Vec::new(),
             open: Vec::new(),
             depth: 0,
         }
@@ -287,7 +296,8 @@ impl<'a> Parser<'a> {
     fn report(&mut self, msg: Msg) {
         let unclosed = matches!(msg, Msg::Unclosed { .. });
         let again = self.last_error == Some(self.pos) && !(unclosed && self.last_unclosed);
-        if again || (self.eof_in_comment && self.at(&Tok::Eof)) {
+        let quiet = self.quiet.binary_search(&self.pos).is_ok();
+        if again || quiet || (self.eof_in_comment && self.at(&Tok::Eof)) {
             return;
         }
         self.last_error = Some(self.pos);
@@ -360,10 +370,15 @@ impl<'a> Parser<'a> {
             line: opened.line.to_string(),
             found,
         });
-        // A stray `END_…` that closes nothing open is a statement's misspelt end.
-        let declaration = matches!(closer, Closer::Type | Closer::Struct | Closer::Var);
+        // A stray `END_…` that closes nothing open is a misspelt end: a statement's of a
+        // statement, a POU's of a POU.
         if let Tok::Kw(kw) = *self.tok() {
-            if !declaration && kw.is_end() && !self.open.iter().any(|c| c.accepts(kw)) {
+            let misspelt = match closer {
+                Closer::Program | Closer::Function | Closer::FunctionBlock => is_pou_end(kw),
+                Closer::Type | Closer::Struct | Closer::Var => false,
+                _ => kw.is_end() && !is_pou_end(kw),
+            };
+            if misspelt && !self.open.iter().any(|c| c.accepts(kw)) {
                 self.bump();
             }
         }
@@ -800,7 +815,7 @@ impl<'a> Parser<'a> {
             if let Tok::Kw(kw) = tok {
                 if is_closer(&tok) {
                     let open = self.open.iter().any(|c| c.accepts(kw));
-                    if open || (nested && kw.is_end()) {
+                    if open || (nested && kw.is_end()) || is_pou_end(kw) {
                         return stmts;
                     }
                     let _ = self.fail(Want::Stmt);

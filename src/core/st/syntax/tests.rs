@@ -983,20 +983,49 @@ fn reports_declaration_errors() {
 
 #[test]
 fn reports_every_error_of_a_file_once() {
-    let text = "PROGRAM p\nVAR\n  a : INT\n  b : 16#FG;\nEND_VAR\nIF a THEN\n  b := 'x\nc := 1 + ;\nd := T#5x;\nWHILE a DO\n  e := 1;\nEND_PROGRAM\n(* open";
+    let text = "PROGRAM p\nVAR\n  a : INT\n  b : INT := 16#FG;\nEND_VAR\nIF a THEN\n  b := 'x\nc := 1 + ;\nd := T#5x;\nWHILE a DO\n  e := 1;\nEND_PROGRAM\n(* open";
     assert_eq!(
         errors(text),
         [
             "4:3: expected `;` after the declaration, found `b`",
-            "4:7: expected a type, found `16#FG`",
-            "4:7: `16#FG` is not a number",
+            "4:14: `16#FG` is not a number",
             "7:8: unterminated string",
-            "8:1: expected `;` after the statement, found `c`",
             "8:10: expected an expression, found `;`",
             "9:6: `T#5x` is not a duration: unknown unit `x`",
             "12:1: `END_WHILE` expected to close the WHILE at line 10, found `END_PROGRAM`",
             "12:1: `END_IF` expected to close the IF at line 6, found `END_PROGRAM`",
             "13:8: unterminated comment (opened at line 13)",
+        ]
+    );
+}
+
+#[test]
+fn an_unterminated_string_hides_what_follows_it() {
+    // The `;` is in the string: the missing `;` is the string's fault.
+    assert_eq!(body_errors("x := 'abc;\ny := 1;"), ["2:6: unterminated string"]);
+    // Only the next token is quiet.
+    assert_eq!(
+        body_errors("x := 'abc;\ny := 1\nz := 2;"),
+        ["2:6: unterminated string", "4:1: expected `;` after the statement, found `z`"]
+    );
+}
+
+#[test]
+fn a_wrong_pou_end_closes_the_pou() {
+    assert_eq!(
+        errors("FUNCTION f : INT\nf := 1;\nEND_FUNCTION_BLOCK\nPROGRAM p END_PROGRAM"),
+        ["3:1: `END_FUNCTION` expected to close the FUNCTION at line 1, found `END_FUNCTION_BLOCK`"]
+    );
+    // Inside a statement, the statement's end is missing; the POU's end is then fine.
+    assert_eq!(
+        errors("FUNCTION f : INT\nIF TRUE THEN f := 1;\nEND_FUNCTION"),
+        ["3:1: `END_IF` expected to close the IF at line 2, found `END_FUNCTION`"]
+    );
+    assert_eq!(
+        errors("PROGRAM p\nIF TRUE THEN x := 1;\nEND_FUNCTION"),
+        [
+            "3:1: `END_IF` expected to close the IF at line 2, found `END_FUNCTION`",
+            "3:1: `END_PROGRAM` expected to close the PROGRAM at line 1, found `END_FUNCTION`",
         ]
     );
 }

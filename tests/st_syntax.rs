@@ -1,0 +1,188 @@
+//! Golden syntax diagnostics of Structured Text: what `plcd_core::st::parse_file` reports for a
+//! broken file, byte for byte.
+//!
+//! - One case per message: each directory `tests/golden/st-syntax/<case>/` holds a `main.st`
+//!   that makes the parser report that one diagnostic and nothing else, in `expected.stderr`
+//!   (`main.st:line:col: error: message`). The case `many-errors` reports several at once.
+//! - Every message template of the parser (`st::syntax::message_templates`) has a case, and
+//!   every case's message is one of the templates.
+//! - A realistic program (`tests/golden/st-syntax/realistic.st`) parses without an error.
+//!
+//! `PLCD_BLESS=1 cargo test --test st_syntax` writes what the parser reports to every expected
+//! file that differs (and says which) instead of failing; `git diff` then shows what changed.
+//! A case that reports other than one diagnostic fails either way.
+
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use plcd_core::st::{ast, parse_file, syntax};
+
+const ROOT: &str = "tests/golden/st-syntax";
+
+/// The variable that rewrites expected files instead of comparing them.
+const BLESS: &str = "PLCD_BLESS";
+
+/// The cases that report several diagnostics, and how many.
+const SEVERAL: &[(&str, usize)] = &[("many-errors", 8)];
+
+fn bless() -> bool {
+    std::env::var_os(BLESS).is_some_and(|v| !v.is_empty() && v != "0")
+}
+
+/// The case directories, sorted.
+fn cases() -> Vec<PathBuf> {
+    let mut dirs: Vec<PathBuf> =
+        fs::read_dir(ROOT).unwrap().map(|e| e.unwrap().path()).filter(|p| p.is_dir()).collect();
+    dirs.sort();
+    dirs
+}
+
+/// What the parser reports for a case's `main.st`, read as `main.st`.
+fn report(dir: &Path) -> String {
+    let text = fs::read_to_string(dir.join("main.st")).unwrap();
+    let (_, diags) = parse_file(Path::new("main.st"), &text);
+    diags.to_string()
+}
+
+/// Compares `actual` with the file `expected`; `None` when they agree or the file was blessed,
+/// else what differs.
+fn compare_or_bless(expected: &Path, actual: &str) -> Option<String> {
+    let old = fs::read_to_string(expected).unwrap_or_default();
+    if old == actual {
+        return None;
+    }
+    if bless() {
+        fs::write(expected, actual).unwrap_or_else(|e| panic!("{}: {e}", expected.display()));
+        let line = format!("{BLESS}: rewrote {}\n", expected.display());
+        let _ = std::io::stderr().write_all(line.as_bytes());
+        return None;
+    }
+    Some(format!(
+        "{} ({BLESS}=1 rewrites it):\n--- expected\n{old}--- actual\n{actual}",
+        expected.display()
+    ))
+}
+
+/// The message of a diagnostic line `main.st:L:C: error: message`.
+fn message(line: &str) -> &str {
+    line.split_once(": error: ").map_or(line, |(_, m)| m)
+}
+
+/// Whether `message` is `template` with its `{}` filled in.
+fn matches(template: &str, message: &str) -> bool {
+    let parts: Vec<&str> = template.split("{}").collect();
+    let (first, last) = (parts[0], parts[parts.len() - 1]);
+    if parts.len() == 1 {
+        return template == message;
+    }
+    if !message.starts_with(first) || !message.ends_with(last) {
+        return false;
+    }
+    if message.len() < first.len() + last.len() {
+        return false;
+    }
+    let mut rest = &message[first.len()..message.len() - last.len()];
+    for middle in &parts[1..parts.len() - 1] {
+        match rest.find(middle) {
+            Some(at) => rest = &rest[at + middle.len()..],
+            None => return false,
+        }
+    }
+    true
+}
+
+#[test]
+fn every_case_reports_exactly_its_diagnostics() {
+    let cases = cases();
+    assert!(cases.len() > 40, "cases missing under {ROOT}");
+    let mut failures = Vec::new();
+    for dir in &cases {
+        let actual = report(dir);
+        let name = dir.file_name().unwrap().to_string_lossy().into_owned();
+        let wanted = SEVERAL.iter().find(|(c, _)| *c == name).map_or(1, |(_, n)| *n);
+        let reported = actual.lines().count();
+        if reported != wanted {
+            failures.push(format!("{name}: {reported} diagnostics, not {wanted}:\n{actual}"));
+            continue;
+        }
+        failures.extend(compare_or_bless(&dir.join("expected.stderr"), &actual));
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn every_message_template_has_a_case() {
+    let templates = syntax::message_templates();
+    let mut covered = vec![false; templates.len()];
+    let mut unknown = Vec::new();
+    for dir in cases() {
+        let expected = fs::read_to_string(dir.join("expected.stderr")).unwrap_or_default();
+        for line in expected.lines() {
+            assert!(line.starts_with("main.st:"), "{}: {line}", dir.display());
+            let msg = message(line);
+            let mut known = false;
+            for (t, template) in templates.iter().enumerate() {
+                if matches(template, msg) {
+                    covered[t] = true;
+                    known = true;
+                }
+            }
+            if !known {
+                unknown.push(format!("{}: {msg}", dir.display()));
+            }
+        }
+    }
+    let missing: Vec<&String> =
+        templates.iter().zip(&covered).filter(|(_, c)| !**c).map(|(t, _)| t).collect();
+    assert!(missing.is_empty(), "templates without a golden case:\n{missing:#?}");
+    assert!(unknown.is_empty(), "messages of no template:\n{unknown:#?}");
+}
+
+#[test]
+fn template_matching_is_exact_enough() {
+    assert!(matches("expected {}, found {}", "expected `;`, found `x`"));
+    assert!(matches("`{}` is not a number", "`16#FG` is not a number"));
+    assert!(!matches("`{}` is not a number", "`T#5x` is not a duration: unknown unit `x`"));
+    assert!(matches("unterminated string", "unterminated string"));
+    assert!(!matches("unterminated string", "unterminated strings"));
+}
+
+#[test]
+fn a_realistic_program_parses_without_errors() {
+    let path = Path::new(ROOT).join("realistic.st");
+    let text = fs::read_to_string(&path).unwrap();
+    assert!(text.lines().count() >= 300);
+    let (file, diags) = parse_file(&path, &text);
+    assert!(diags.is_empty(), "{diags}");
+    let pous: Vec<(&str, ast::PouKind)> = file
+        .items
+        .iter()
+        .filter_map(|item| match item {
+            ast::Item::Pou(pou) => Some((pou.name.name.as_str(), pou.kind)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        pous,
+        [
+            ("PID", ast::PouKind::FunctionBlock),
+            ("Clamp", ast::PouKind::Function),
+            ("ScaleRaw", ast::PouKind::Function),
+            ("Logger", ast::PouKind::FunctionBlock),
+            ("Debounce", ast::PouKind::FunctionBlock),
+            ("main", ast::PouKind::Program),
+        ]
+    );
+    let types = file.items.iter().filter(|i| matches!(i, ast::Item::Type(_))).count();
+    let globals = file.items.iter().filter(|i| matches!(i, ast::Item::Globals(_))).count();
+    assert_eq!((types, globals), (8, 2));
+    // The state machine: a CASE over the enumeration, five arms and an ELSE.
+    let Some(ast::Item::Pou(main)) = file.items.last() else { panic!() };
+    let ast::StmtKind::For { body, .. } = &main.body[4].kind else { panic!("{:?}", main.body[4]) };
+    let case = body.iter().find_map(|s| match &s.kind {
+        ast::StmtKind::Case { arms, otherwise, .. } => Some((arms.len(), otherwise.is_some())),
+        _ => None,
+    });
+    assert_eq!(case, Some((5, true)));
+}
