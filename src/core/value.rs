@@ -46,21 +46,29 @@ pub enum BinOp {
     Div,
     /// The remainder with the sign of the dividend (`-7 MOD 2 = -1`); by zero: an error.
     Mod,
-    /// `**` / `EXPT`, on floats only.
+    /// `**` / `EXPT`, emitted on floats only. Defined on integers too: wrapping, and a
+    /// negative exponent gives the integer part of the inverse (0, except ±1 for bases ±1; a
+    /// division by zero for base 0).
     Expt,
     /// Bitwise on bit strings and integers, logical on `Bool`.
     And,
     Or,
     Xor,
-    /// `SHL`/`SHR`: the count is the second operand (any non-negative count; ≥ width gives 0).
+    /// `SHL`/`SHR`: the count is the second operand (any non-negative count; ≥ width gives 0;
+    /// a negative count, of a signed type, shifts by nothing). Both are logical on the value's
+    /// bits, for signed types too (`SHR` of `SINT` -128 by 1 is 64).
     Shl,
     Shr,
-    /// `ROL`/`ROR`: the count is taken modulo the width.
+    /// `ROL`/`ROR`: the count is taken modulo the width (a negative count too: `ROL` by -1 is
+    /// `ROR` by 1).
     Rol,
     Ror,
+    /// `MIN`/`MAX`; on floats a NaN operand is ignored (IEEE minNum/maxNum).
     Min,
     Max,
 }
+// On floats the bitwise, shift and rotate operations act on the bits (as `U32`/`U64`): never
+// emitted, defined so that every operation has a result.
 
 /// A unary operation on one slot.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

@@ -1,11 +1,53 @@
 //! Structured Text compiler: resolves names and types across every file of a project, checks
 //! (every error at once), lays out variable memory and generates VM code.
+//!
+//! - [`types`]: the type model and IEC's implicit conversions;
+//! - `ctx`: the compiler's state, names and suggestions;
+//! - `decl`: declarations: types, globals, POU interfaces, memory layout, initial images,
+//!   located variables (the IEC direct address table is at `decl::iec_address`);
+//! - `expr`, `stmt`, `stdlib`: checking into a typed tree;
+//! - `emit`: the typed tree to ops; `link` (here): one program per instance, symbols.
+//!
+//! Choices (docs/ST.md repeats them):
+//! - Globals are visible in every POU without VAR_EXTERNAL (as in CODESYS); a VAR_EXTERNAL
+//!   must name a VAR_GLOBAL of the same type.
+//! - Enumerations are stored as DINT unless they declare an integer base type (`INT (A, B)`);
+//!   their default is the first value (or the declared initial value).
+//! - A subrange computes as its base type; constants assigned to it are checked against it.
+//! - FOR: the bound and the step are evaluated once, at entry; the loop ends without ever
+//!   wrapping around (`FOR i := 0 TO 32767` on an INT ends); after the loop the variable holds
+//!   the last value the body ran with (its initial value when the body never ran). A constant
+//!   step of 0 is refused; a variable step of 0 loops for ever (the step budget ends the scan).
+//! - Positional arguments go to VAR_INPUT and VAR_IN_OUT in declaration order; outputs only
+//!   with `=>`. Positional and named arguments cannot be mixed.
+//! - FUNCTION variables are initialized at each call; `VAR_TEMP` of a PROGRAM or FB at each
+//!   execution.
 
-use std::path::Path;
+mod ctx;
+mod decl;
+mod emit;
+mod expr;
+mod stdlib;
+mod stmt;
+pub mod types;
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 
 use super::ast;
-use crate::diag::Diagnostics;
-use crate::lang::{Program, Variables};
+use crate::diag::{Diagnostic, Diagnostics};
+use crate::lang::{Language, Op, Place, Program, Variables, ST_CALL_DEPTH};
+use crate::st::ast::{PouKind, VarKind};
+use crate::value::{Pointer, Space, Symbol, ValueType};
+
+use ctx::{Ctx, Storage};
+use types::{Prim, Ty};
+
+pub use decl::iec_address;
+
+/// The standard function blocks, written in Structured Text.
+const PRELUDE: &str = include_str!("prelude.st");
+const PRELUDE_PATH: &str = "<prelude>";
 
 /// One `[[program]]` of Structured Text: the instance to create.
 #[derive(Debug, Clone, Copy)]
@@ -32,6 +74,499 @@ pub struct Compiled {
 
 /// Compiles every instance against the declarations of all `files`.
 pub fn compile(files: &[ast::File], instances: &[Instance<'_>]) -> Result<Compiled, Diagnostics> {
-    let _ = (files, instances);
-    unimplemented!("compiler helper")
+    let (prelude, prelude_diags) = super::syntax::parse_file(Path::new(PRELUDE_PATH), PRELUDE);
+    let mut diags: Vec<Diagnostic> = prelude_diags.0;
+    let mut refs: Vec<&ast::File> = files.iter().collect();
+    refs.push(&prelude);
+    let prelude_file = refs.len() - 1;
+    let mut cx = Ctx {
+        files: refs,
+        types: types::Types::default(),
+        diags: Vec::new(),
+        type_decls: Vec::new(),
+        type_names: HashMap::new(),
+        pous: Vec::new(),
+        pou_names: HashMap::new(),
+        globals: Vec::new(),
+        global_names: HashMap::new(),
+        global_blocks: Vec::new(),
+        image: Vec::new(),
+        retained: Vec::new(),
+        located_init: Vec::new(),
+        enum_values: HashMap::new(),
+        in_prelude: false,
+        prelude_file,
+        for_vars: Vec::new(),
+        loop_depth: 0,
+        result_assigned: false,
+    };
+    cx.collect();
+    cx.resolve_all();
+
+    // the instances, in variable memory after the globals
+    let mut placed: Vec<Option<(usize, u32)>> = Vec::new();
+    for inst in instances {
+        let pou = pick_program(&mut cx, inst);
+        placed.push(pou.map(|p| {
+            let img = cx.pous[p].image.clone();
+            (p, cx.alloc_var(&img))
+        }));
+    }
+
+    // check every user POU; the prelude's only when used
+    let user: Vec<usize> =
+        (0..cx.pous.len()).filter(|&p| cx.pous[p].file != prelude_file).collect();
+    for p in user {
+        check_and_compile(&mut cx, p);
+    }
+    let mut i = 0;
+    while i < cx.pous.len() {
+        // the prelude's POUs that user code calls, transitively
+        let used =
+            cx.pous.iter().any(|q| q.body.is_some() && q.callees.iter().any(|(c, _)| *c == i));
+        if used && cx.pous[i].body.is_none() && !cx.pous[i].checked {
+            check_and_compile(&mut cx, i);
+            i = 0;
+            continue;
+        }
+        i += 1;
+    }
+    check_recursion(&mut cx);
+
+    if !cx.diags.is_empty() || !diags.is_empty() {
+        diags.append(&mut cx.diags);
+        return Err(sorted(diags));
+    }
+
+    let mut programs = Vec::new();
+    let mut symbols = Vec::new();
+    for g in 0..cx.globals.len() {
+        let v = cx.globals[g].clone();
+        let at = match v.storage {
+            Storage::Global(o) => Pointer { space: Space::Var, offset: o },
+            Storage::Word(w) => Pointer { space: Space::Word, offset: u32::from(w) },
+            Storage::Bit(b) => Pointer {
+                space: Space::Bit,
+                offset: u32::from(b.word) * 16 + b.mask.trailing_zeros(),
+            },
+            _ => continue,
+        };
+        leaves(&cx, &v.name, &v.ty, at, v.retain, v.constant, &mut symbols);
+    }
+    for (inst, placed) in instances.iter().zip(&placed) {
+        let (p, base) = placed.expect("no errors");
+        if let Err(d) = link(&cx, inst, p, base, &mut programs) {
+            diags.push(d);
+            continue;
+        }
+        let pou = &cx.pous[p];
+        for v in &pou.vars {
+            if matches!(v.kind, VarKind::Temp | VarKind::External | VarKind::InOut) {
+                continue;
+            }
+            let at = match v.storage {
+                Storage::Inst(o) => Pointer { space: Space::Var, offset: base + o },
+                Storage::Word(w) => Pointer { space: Space::Word, offset: u32::from(w) },
+                Storage::Bit(b) => Pointer {
+                    space: Space::Bit,
+                    offset: u32::from(b.word) * 16 + b.mask.trailing_zeros(),
+                },
+                _ => continue,
+            };
+            let name = format!("{}.{}", inst.name, v.name);
+            leaves(&cx, &name, &v.ty, at, v.retain, v.constant, &mut symbols);
+        }
+    }
+    if !diags.is_empty() {
+        return Err(sorted(diags));
+    }
+    let mut retained = cx.retained.clone();
+    for (inst, placed) in instances.iter().zip(&placed) {
+        let _ = inst;
+        let (p, base) = placed.expect("no errors");
+        for v in &cx.pous[p].vars {
+            if let Storage::Inst(o) = v.storage {
+                if v.kind == VarKind::Temp || v.by_ref {
+                    continue;
+                }
+                retained_in(&cx, &v.ty, base + o, v.retain, &mut retained);
+            }
+        }
+    }
+    retained.sort_unstable();
+    let variables = Variables {
+        initial: cx.image.clone().into_boxed_slice(),
+        retained: merge_ranges(retained).into_boxed_slice(),
+        located_init: cx.located_init.clone().into_boxed_slice(),
+        symbols,
+    };
+    Ok(Compiled { programs, variables })
+}
+
+fn sorted(mut d: Vec<Diagnostic>) -> Diagnostics {
+    d.sort();
+    d.dedup();
+    Diagnostics(d)
+}
+
+fn merge_ranges(r: Vec<(u32, u32)>) -> Vec<(u32, u32)> {
+    let mut out: Vec<(u32, u32)> = Vec::new();
+    for (o, l) in r {
+        if l == 0 {
+            continue;
+        }
+        match out.last_mut() {
+            Some((po, pl)) if *po + *pl >= o => *pl = (*pl).max(o + l - *po),
+            _ => out.push((o, l)),
+        }
+    }
+    out
+}
+
+/// The byte ranges of RETAIN variables inside a value at `at` (all of it when `all`).
+fn retained_in(cx: &Ctx<'_>, ty: &Ty, at: u32, all: bool, out: &mut Vec<(u32, u32)>) {
+    if all {
+        out.push((at, cx.types.size(ty)));
+        return;
+    }
+    match ty {
+        Ty::Fb(p) => {
+            for v in &cx.pous[*p].vars {
+                if let Storage::Inst(o) = v.storage {
+                    if v.kind != VarKind::Temp && !v.by_ref {
+                        retained_in(cx, &v.ty, at + o, v.retain, out);
+                    }
+                }
+            }
+        }
+        Ty::Struct(_) | Ty::Array(_) => {
+            // retained only as a whole
+        }
+        _ => {}
+    }
+}
+
+fn check_and_compile(cx: &mut Ctx<'_>, p: usize) {
+    cx.pous[p].checked = true;
+    let body = cx.check_pou_body(p);
+    let compiled = emit::compile_body(cx, p, &body);
+    cx.pous[p].body = Some(compiled);
+}
+
+/// The PROGRAM an instance names.
+fn pick_program(cx: &mut Ctx<'_>, inst: &Instance<'_>) -> Option<usize> {
+    let file = cx.files.iter().position(|f| f.path == inst.file);
+    let programs: Vec<usize> = (0..cx.pous.len())
+        .filter(|&p| cx.pous[p].kind == PouKind::Program && Some(cx.pous[p].file) == file)
+        .collect();
+    let here = |msg: String| Diagnostic::new(inst.config, inst.line, inst.col, msg);
+    let names = |cx: &Ctx<'_>| -> String {
+        programs.iter().map(|&p| format!("`{}`", cx.pous[p].name)).collect::<Vec<_>>().join(", ")
+    };
+    match inst.pou {
+        Some(name) => {
+            match programs.iter().find(|&&p| cx.pous[p].name.eq_ignore_ascii_case(name)) {
+                Some(&p) => Some(p),
+                None => {
+                    let msg = if programs.is_empty() {
+                        format!(
+                            "no PROGRAM `{name}` in `{}`: it declares no PROGRAM",
+                            inst.file.display()
+                        )
+                    } else {
+                        format!(
+                            "no PROGRAM `{name}` in `{}` (it declares {})",
+                            inst.file.display(),
+                            names(cx)
+                        )
+                    };
+                    cx.diags.push(here(msg));
+                    None
+                }
+            }
+        }
+        None => match programs.len() {
+            1 => Some(programs[0]),
+            0 => {
+                cx.diags.push(here(format!("`{}` declares no PROGRAM", inst.file.display())));
+                None
+            }
+            _ => {
+                let msg = format!(
+                    "`{}` declares more than one PROGRAM ({}): name one with `pou`",
+                    inst.file.display(),
+                    names(cx)
+                );
+                cx.diags.push(here(msg));
+                None
+            }
+        },
+    }
+}
+
+/// Reports each cycle of calls once, at the call that closes it; checks the static depth.
+fn check_recursion(cx: &mut Ctx<'_>) {
+    let n = cx.pous.len();
+    let mut state = vec![0u8; n]; // 0 new, 1 on the path, 2 done
+    let mut depth = vec![0usize; n];
+    fn visit(
+        cx: &mut Ctx<'_>,
+        p: usize,
+        state: &mut [u8],
+        depth: &mut [usize],
+        path: &mut Vec<usize>,
+    ) {
+        state[p] = 1;
+        path.push(p);
+        let callees = cx.pous[p].callees.clone();
+        let mut d = 0;
+        for (c, span) in callees {
+            match state[c] {
+                1 => {
+                    let from = path.iter().position(|&x| x == c).unwrap_or(0);
+                    let mut names: Vec<String> =
+                        path[from..].iter().map(|&x| format!("`{}`", cx.pous[x].name)).collect();
+                    names.push(format!("`{}`", cx.pous[c].name));
+                    let file = cx.pous[p].file;
+                    cx.error(file, span, format!("recursive call: {}", names.join(" → ")));
+                }
+                0 => {
+                    visit(cx, c, state, depth, path);
+                    d = d.max(depth[c]);
+                }
+                _ => d = d.max(depth[c]),
+            }
+        }
+        depth[p] = d + usize::from(cx.pous[p].kind != PouKind::Program);
+        path.pop();
+        state[p] = 2;
+    }
+    for p in 0..n {
+        if state[p] == 0 {
+            visit(cx, p, &mut state, &mut depth, &mut Vec::new());
+        }
+    }
+    for (p, &d) in depth.iter().enumerate() {
+        if cx.pous[p].kind == PouKind::Program && d > ST_CALL_DEPTH {
+            let (file, span, name) =
+                (cx.pous[p].file, cx.pous[p].ast.name.span, cx.pous[p].name.clone());
+            cx.error(file, span, format!("`{name}` nests calls {d} deep (limit {ST_CALL_DEPTH})"));
+        }
+    }
+}
+
+/// One instance's program: its body, then the bodies it calls.
+fn link(
+    cx: &Ctx<'_>,
+    inst: &Instance<'_>,
+    p: usize,
+    base: u32,
+    out: &mut Vec<Program>,
+) -> Result<(), Diagnostic> {
+    // the POUs reachable from the program, in first-call order
+    let mut order = vec![p];
+    let mut i = 0;
+    while i < order.len() {
+        for (c, _) in &cx.pous[order[i]].callees {
+            if !order.contains(c) {
+                order.push(*c);
+            }
+        }
+        i += 1;
+    }
+    let mut code: Vec<Op> = Vec::new();
+    let mut lines: Vec<u32> = Vec::new();
+    let mut consts: Vec<u64> = Vec::new();
+    let mut starts: HashMap<usize, u32> = HashMap::new();
+    let mut regions: Vec<(u32, PathBuf)> = Vec::new();
+    let main_path = cx.path(cx.pous[p].file).to_path_buf();
+    let mut current = main_path.clone();
+    for &q in &order {
+        let body = cx.pous[q].body.as_ref().expect("compiled");
+        let start = code.len() as u32;
+        starts.insert(q, start);
+        let path = cx.path(cx.pous[q].file).to_path_buf();
+        if path != current {
+            regions.push((start, path.clone()));
+            current = path;
+        }
+        let cbase = consts.len() as u32;
+        consts.extend_from_slice(&body.consts);
+        for op in &body.code {
+            code.push(match *op {
+                Op::Goto(t) => Op::Goto(t + start),
+                Op::GotoIf { target, when } => Op::GotoIf { target: target + start, when },
+                Op::PushConst(i) => Op::PushConst(i + cbase),
+                other => other,
+            });
+        }
+        lines.extend_from_slice(&body.lines);
+        let s = start as usize;
+        if q == p {
+            for &r in &body.var_relocs {
+                code[s + r] = match code[s + r] {
+                    Op::Fetch { elem, at: Place::Var(o) } => {
+                        Op::Fetch { elem, at: Place::Var(o + base) }
+                    }
+                    Op::Store { elem, at: Place::Var(o) } => {
+                        Op::Store { elem, at: Place::Var(o + base) }
+                    }
+                    Op::AddrOf(Place::Var(o)) => Op::AddrOf(Place::Var(o + base)),
+                    other => other,
+                };
+            }
+        }
+        for &r in &body.callee_relocs {
+            let f = body.frame;
+            code[s + r] = match code[s + r] {
+                Op::Fetch { elem, at: Place::Frame(o) } => {
+                    Op::Fetch { elem, at: Place::Frame(o + f) }
+                }
+                Op::Store { elem, at: Place::Frame(o) } => {
+                    Op::Store { elem, at: Place::Frame(o + f) }
+                }
+                Op::AddrOf(Place::Frame(o)) => Op::AddrOf(Place::Frame(o + f)),
+                Op::CallFn { target, frame } => Op::CallFn { target, frame: frame + f },
+                Op::CallFb { target, frame } => Op::CallFb { target, frame: frame + f },
+                other => other,
+            };
+        }
+    }
+    // call targets
+    for &q in &order {
+        let body = cx.pous[q].body.as_ref().expect("compiled");
+        let s = starts[&q] as usize;
+        for &(at, callee) in &body.calls {
+            let t = starts[&callee];
+            code[s + at] = match code[s + at] {
+                Op::CallFn { frame, .. } => Op::CallFn { target: t, frame },
+                Op::CallFb { frame, .. } => Op::CallFb { target: t, frame },
+                other => other,
+            };
+        }
+    }
+    // the deepest chain of frames
+    fn need(cx: &Ctx<'_>, q: usize, memo: &mut HashMap<usize, u32>) -> u32 {
+        if let Some(&n) = memo.get(&q) {
+            return n;
+        }
+        let body = cx.pous[q].body.as_ref().expect("compiled");
+        let deepest = cx.pous[q].callees.iter().map(|(c, _)| need(cx, *c, memo)).max().unwrap_or(0);
+        let n = body.frame + deepest;
+        memo.insert(q, n);
+        n
+    }
+    let frame_bytes = need(cx, p, &mut HashMap::new());
+    if frame_bytes > decl::MAX_FRAME {
+        let pou = &cx.pous[p];
+        return Err(Diagnostic::new(
+            cx.path(pou.file),
+            pou.ast.name.span.line,
+            pou.ast.name.span.col,
+            format!(
+                "`{}` needs {frame_bytes} bytes of frame with its calls (limit 1 MiB)",
+                pou.name
+            ),
+        ));
+    }
+    out.push(Program {
+        name: inst.name.to_string(),
+        path: main_path,
+        language: Language::StructuredText,
+        code: code.into_boxed_slice(),
+        consts: consts.into_boxed_slice(),
+        frame_bytes,
+        regions: regions.into_boxed_slice(),
+        lines: lines.into_boxed_slice(),
+        edge_base: 0,
+        edge_slots: 0,
+        labels: Box::new([]),
+        subroutines: Box::new([]),
+    });
+    Ok(())
+}
+
+fn value_type(cx: &Ctx<'_>, ty: &Ty) -> Option<ValueType> {
+    Some(match ty {
+        Ty::Prim(p) | Ty::Sub(p, _, _) => p.value_type(),
+        Ty::Enum(e) => {
+            let en = &cx.types.enums[*e];
+            if en.declared_base && en.base != Prim::DInt {
+                en.base.value_type()
+            } else {
+                ValueType::Enum {
+                    type_name: en.name.clone(),
+                    values: en.values.iter().map(|(n, v)| (n.clone(), *v as i64)).collect(),
+                }
+            }
+        }
+        Ty::Str(n) => ValueType::String { cap: *n },
+        _ => return None,
+    })
+}
+
+/// One symbol per scalar leaf of a variable.
+fn leaves(
+    cx: &Ctx<'_>,
+    name: &str,
+    ty: &Ty,
+    at: Pointer,
+    retain: bool,
+    constant: bool,
+    out: &mut Vec<Symbol>,
+) {
+    if let Some(vt) = value_type(cx, ty) {
+        out.push(Symbol { name: name.to_string(), ty: vt, at, retain, constant });
+        return;
+    }
+    match ty {
+        Ty::Array(a) => {
+            let unit = if at.space == Space::Word {
+                a.of.elem(&cx.types).map_or(1, |e| e.words())
+            } else {
+                a.elem_size
+            };
+            let count = a.count();
+            let mut idx: Vec<i64> = a.dims.iter().map(|d| d.0).collect();
+            for k in 0..count {
+                let text: Vec<String> = idx.iter().map(|i| i.to_string()).collect();
+                let el = format!("{name}[{}]", text.join(","));
+                let p = Pointer { space: at.space, offset: at.offset + k as u32 * unit };
+                leaves(cx, &el, &a.of, p, retain, constant, out);
+                for d in (0..idx.len()).rev() {
+                    if idx[d] < a.dims[d].1 {
+                        idx[d] += 1;
+                        break;
+                    }
+                    idx[d] = a.dims[d].0;
+                }
+            }
+        }
+        Ty::Struct(s) => {
+            for m in &cx.types.structs[*s].members {
+                let p = Pointer { space: at.space, offset: at.offset + m.offset };
+                leaves(cx, &format!("{name}.{}", m.name), &m.ty, p, retain, constant, out);
+            }
+        }
+        Ty::Fb(p) => {
+            for v in &cx.pous[*p].vars {
+                if matches!(v.kind, VarKind::Temp | VarKind::External | VarKind::InOut) {
+                    continue;
+                }
+                if let Storage::Inst(o) = v.storage {
+                    let ptr = Pointer { space: at.space, offset: at.offset + o };
+                    leaves(
+                        cx,
+                        &format!("{name}.{}", v.name),
+                        &v.ty,
+                        ptr,
+                        retain || v.retain,
+                        constant || v.constant,
+                        out,
+                    );
+                }
+            }
+        }
+        _ => {}
+    }
 }

@@ -1,0 +1,233 @@
+//! The compiler's state: every declaration of every file by name, the type tables, the
+//! variable memory being laid out, and the diagnostics gathered so far.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use crate::device::{Address, BitRef};
+use crate::diag::Diagnostic;
+use crate::lang::Place;
+use crate::st::ast::{self, PouKind, Span, VarKind};
+use crate::value::Elem;
+
+use super::emit::Body;
+use super::types::{Ty, Types};
+
+/// A compile-time constant. BOOL, TIME and enumeration values are integers.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Cv {
+    Int(i128),
+    Real(f64),
+    Str(String),
+}
+
+/// Where a variable is, relative to what owns it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Storage {
+    /// Byte offset in the owner's instance (a PROGRAM's: variable memory at the instance's
+    /// base; an FB's: `this`).
+    Inst(u32),
+    /// Byte offset in the activation's frame (FUNCTION variables, `VAR_TEMP`).
+    Frame(u32),
+    /// Absolute byte offset in variable memory (VAR_GLOBAL).
+    Global(u32),
+    /// A device word (and the words after it).
+    Word(u16),
+    /// A device bit.
+    Bit(BitRef),
+}
+
+/// A declared variable.
+#[derive(Debug, Clone)]
+pub struct VarInfo {
+    pub name: String,
+    pub kind: VarKind,
+    pub ty: Ty,
+    pub constant: bool,
+    pub retain: bool,
+    pub storage: Storage,
+    /// VAR_IN_OUT: the storage holds a pointer to the value.
+    pub by_ref: bool,
+    /// The value of a CONSTANT scalar.
+    pub value: Option<Cv>,
+    pub span: Span,
+    /// The device a located variable is at.
+    pub located: Option<Address>,
+    /// VAR_EXTERNAL: the VAR_GLOBAL it stands for.
+    pub global: Option<usize>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum State {
+    Todo,
+    Busy,
+    Done,
+}
+
+/// A PROGRAM, FUNCTION or FUNCTION_BLOCK.
+#[derive(Debug)]
+pub struct PouInfo<'a> {
+    pub ast: &'a ast::Pou,
+    pub file: usize,
+    pub name: String,
+    pub kind: PouKind,
+    pub vars: Vec<VarInfo>,
+    pub names: HashMap<String, usize>,
+    /// A FUNCTION's result type ([`Ty::Void`] without one).
+    pub result: Ty,
+    /// PROGRAM / FUNCTION_BLOCK: bytes of an instance and its initial image.
+    pub inst_size: u32,
+    pub image: Vec<u8>,
+    /// FUNCTION: bytes of its variables in the frame (result, parameters, locals, temps);
+    /// PROGRAM / FUNCTION_BLOCK: bytes of its `VAR_TEMP`.
+    pub frame_vars: u32,
+    /// The initial image of those frame variables.
+    pub frame_image: Vec<u8>,
+    /// Where that image is kept in variable memory, once a call needs it.
+    pub frame_template: Option<u32>,
+    pub state: State,
+    /// VAR_INPUT and VAR_IN_OUT in declaration order (positional arguments).
+    pub positional: Vec<usize>,
+    pub body: Option<Body>,
+    /// The POUs its body calls, with the first call's place.
+    pub callees: Vec<(usize, Span)>,
+    /// Whether the body has been checked (diagnostics given once).
+    pub checked: bool,
+}
+
+impl PouInfo<'_> {
+    pub fn lookup(&self, name: &str) -> Option<usize> {
+        self.names.get(&name.to_ascii_lowercase()).copied()
+    }
+}
+
+/// A TYPE declaration, resolved on first use.
+#[derive(Debug)]
+pub struct TypeEntry<'a> {
+    pub decl: &'a ast::TypeDecl,
+    pub file: usize,
+    pub state: State,
+    pub ty: Ty,
+    /// An alias's own initial value, as an image.
+    pub image: Option<Vec<u8>>,
+}
+
+/// Where names are looked up: a POU's variables (the first `visible` of them, while its
+/// declarations are read), then the globals and the enumeration values.
+#[derive(Debug, Clone, Copy)]
+pub struct Scope {
+    pub pou: Option<usize>,
+    pub visible: usize,
+    pub file: usize,
+}
+
+pub struct Ctx<'a> {
+    pub files: Vec<&'a ast::File>,
+    pub types: Types,
+    pub diags: Vec<Diagnostic>,
+    pub type_decls: Vec<TypeEntry<'a>>,
+    pub type_names: HashMap<String, usize>,
+    pub pous: Vec<PouInfo<'a>>,
+    pub pou_names: HashMap<String, usize>,
+    pub globals: Vec<VarInfo>,
+    pub global_names: HashMap<String, usize>,
+    /// Globals' declaration blocks, resolved in order: `(file, block)`.
+    pub global_blocks: Vec<(usize, &'a ast::VarBlock)>,
+    /// Variable memory laid out so far, and its image at RUN start.
+    pub image: Vec<u8>,
+    /// `(offset, len)` of RETAIN bytes.
+    pub retained: Vec<(u32, u32)>,
+    pub located_init: Vec<(Place, Elem, u64)>,
+    /// Plain enumeration value names → `(enum, value)` of each enumeration declaring it.
+    pub enum_values: HashMap<String, Vec<(usize, i128)>>,
+    /// Whether the POU being checked is the prelude's (may call `__` builtins).
+    pub in_prelude: bool,
+    pub prelude_file: usize,
+    /// While checking a body: the FOR variables of the enclosing loops, the loop depth, and
+    /// whether a FUNCTION's result has been assigned.
+    pub for_vars: Vec<String>,
+    pub loop_depth: usize,
+    pub result_assigned: bool,
+}
+
+impl<'a> Ctx<'a> {
+    pub fn path(&self, file: usize) -> &'a Path {
+        &self.files[file].path
+    }
+
+    pub fn error(&mut self, file: usize, span: Span, msg: impl Into<String>) {
+        let d = Diagnostic::new(self.path(file), span.line, span.col, msg);
+        self.diags.push(d);
+    }
+
+    pub fn ty_name(&self, ty: &Ty) -> String {
+        self.types.name(ty)
+    }
+
+    /// Reserves `len` bytes of variable memory with their initial image.
+    pub fn alloc_var(&mut self, bytes: &[u8]) -> u32 {
+        let at = self.image.len() as u32;
+        self.image.extend_from_slice(bytes);
+        at
+    }
+
+    /// Every name a scope can see, for suggestions.
+    pub fn names_in(&self, scope: Scope) -> Vec<String> {
+        let mut names = Vec::new();
+        if let Some(p) = scope.pou {
+            let pou = &self.pous[p];
+            names.extend(pou.vars.iter().take(scope.visible).map(|v| v.name.clone()));
+            if pou.kind == PouKind::Function {
+                names.push(pou.name.clone());
+            }
+        }
+        names.extend(self.globals.iter().map(|g| g.name.clone()));
+        for e in &self.types.enums {
+            names.extend(e.values.iter().map(|v| v.0.clone()));
+        }
+        names
+    }
+}
+
+/// The edit distance of two names, ignoring case.
+pub fn distance(a: &str, b: &str) -> usize {
+    let a: Vec<char> = a.to_ascii_lowercase().chars().collect();
+    let b: Vec<char> = b.to_ascii_lowercase().chars().collect();
+    let mut prev: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.iter().enumerate() {
+        let mut cur = vec![i + 1; b.len() + 1];
+        for (j, cb) in b.iter().enumerate() {
+            let cost = usize::from(ca != cb);
+            cur[j + 1] = (prev[j] + cost).min(prev[j + 1] + 1).min(cur[j] + 1);
+        }
+        prev = cur;
+    }
+    prev[b.len()]
+}
+
+/// ` (did you mean `x`?)` for the nearest of `names`, when near enough.
+pub fn suggest<'n>(name: &str, names: impl IntoIterator<Item = &'n str>) -> String {
+    let limit = (name.len() / 3).max(1);
+    let best = names
+        .into_iter()
+        .filter(|n| !n.starts_with("__"))
+        .map(|n| (distance(name, n), n))
+        .filter(|(d, _)| *d <= limit)
+        .min_by_key(|(d, _)| *d);
+    match best {
+        Some((_, n)) => format!(" (did you mean `{n}`?)"),
+        None => String::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn suggestions_are_near_names() {
+        assert_eq!(distance("spead", "speed"), 1);
+        assert_eq!(suggest("spead", ["speed", "count"]), " (did you mean `speed`?)");
+        assert_eq!(suggest("xyz", ["speed"]), "");
+    }
+}

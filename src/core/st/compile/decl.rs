@@ -1,0 +1,1132 @@
+//! Declarations: every TYPE, POU and VAR_GLOBAL of every file by name, their types resolved,
+//! their variables laid out (instances inline, FUNCTION variables in the frame), their initial
+//! images, and the located variables' devices.
+
+use std::collections::HashMap;
+use std::rc::Rc;
+
+use crate::device::{Address, Writer};
+use crate::lang::Place;
+use crate::st::ast::{self, ArrayInit, Init, Item, PouKind, Span, TypeDef, TypeRef, VarKind};
+
+use super::ctx::{suggest, Ctx, Cv, PouInfo, Scope, State, Storage, TypeEntry, VarInfo};
+use super::types::{fits, ArrayTy, EnumTy, Member, Prim, StructTy, Ty};
+
+/// The largest frame or instance the compiler accepts.
+pub const MAX_FRAME: u32 = 1 << 20;
+/// The largest variable memory (globals, instances, templates).
+pub const MAX_MEMORY: u64 = 64 << 20;
+
+fn key(name: &str) -> String {
+    name.to_ascii_lowercase()
+}
+
+impl<'a> Ctx<'a> {
+    fn reserved(&mut self, file: usize, id: &ast::Ident) {
+        if file != self.prelude_file && id.name.starts_with("__") {
+            self.error(
+                file,
+                id.span,
+                format!("`{}`: names starting with `__` are reserved", id.name),
+            );
+        }
+    }
+
+    fn first_at(&self, file: usize, span: Span, here: usize) -> String {
+        if file == here {
+            format!("line {}", span.line)
+        } else {
+            format!("`{}` line {}", self.path(file).display(), span.line)
+        }
+    }
+
+    /// Registers every top-level name; reports duplicates.
+    pub fn collect(&mut self) {
+        let files = self.files.clone();
+        let mut seen: HashMap<String, (usize, Span)> = HashMap::new();
+        for (fi, file) in files.iter().enumerate() {
+            for item in &file.items {
+                let (id, is_type) = match item {
+                    Item::Type(d) => (&d.name, true),
+                    Item::Pou(p) => (&p.name, false),
+                    Item::Globals(b) => {
+                        self.global_blocks.push((fi, b));
+                        continue;
+                    }
+                };
+                self.reserved(fi, id);
+                if Prim::from_name(&id.name).is_some() || id.is("STRING") {
+                    self.error(fi, id.span, format!("`{}` is an elementary type", id.name));
+                    continue;
+                }
+                if let Some(&(f0, s0)) = seen.get(&key(&id.name)) {
+                    let first = self.first_at(f0, s0, fi);
+                    self.error(fi, id.span, format!("`{}` is already declared ({first})", id.name));
+                    continue;
+                }
+                seen.insert(key(&id.name), (fi, id.span));
+                match item {
+                    Item::Type(d) => {
+                        self.type_names.insert(key(&d.name.name), self.type_decls.len());
+                        self.type_decls.push(TypeEntry {
+                            decl: d,
+                            file: fi,
+                            state: State::Todo,
+                            ty: Ty::Error,
+                            image: None,
+                        });
+                    }
+                    Item::Pou(p) => {
+                        self.pou_names.insert(key(&p.name.name), self.pous.len());
+                        self.pous.push(PouInfo {
+                            ast: p,
+                            file: fi,
+                            name: p.name.name.clone(),
+                            kind: p.kind,
+                            vars: Vec::new(),
+                            names: HashMap::new(),
+                            result: Ty::Void,
+                            inst_size: 0,
+                            image: Vec::new(),
+                            frame_vars: 0,
+                            frame_image: Vec::new(),
+                            frame_template: None,
+                            state: State::Todo,
+                            positional: Vec::new(),
+                            body: None,
+                            callees: Vec::new(),
+                            checked: false,
+                        });
+                    }
+                    Item::Globals(_) => {}
+                }
+                let _ = is_type;
+            }
+        }
+        self.types.fbs = self
+            .pous
+            .iter()
+            .map(|p| (p.kind == PouKind::FunctionBlock).then(|| (p.name.clone(), 0)))
+            .collect();
+    }
+
+    /// Resolves every declaration: types, globals, POU interfaces.
+    pub fn resolve_all(&mut self) {
+        for i in 0..self.type_decls.len() {
+            self.resolve_type_decl(i);
+        }
+        let blocks = self.global_blocks.clone();
+        for (file, block) in blocks {
+            self.resolve_globals(file, block);
+        }
+        for p in 0..self.pous.len() {
+            self.resolve_pou(p);
+        }
+    }
+
+    fn global_scope(&self, file: usize) -> Scope {
+        Scope { pou: None, visible: 0, file }
+    }
+
+    /// A constant integer expression (array bounds, string lengths, repeat counts).
+    pub fn const_int(&mut self, e: &ast::Expr, scope: Scope) -> Option<i128> {
+        let te = self.check_expr(e, scope, None);
+        match (&te.k, &te.ty) {
+            (_, Ty::Error) => None,
+            (super::expr::TK::Const(Cv::Int(v)), ty)
+                if matches!(ty, Ty::IntLit)
+                    || ty.prim(&self.types).is_some_and(Prim::is_integral) =>
+            {
+                Some(*v)
+            }
+            (super::expr::TK::Const(_), ty) => {
+                let n = self.ty_name(ty);
+                self.error(
+                    scope.file,
+                    e.span,
+                    format!("an integer constant is needed here, not `{n}`"),
+                );
+                None
+            }
+            _ => {
+                self.error(scope.file, e.span, "a constant expression is needed here");
+                None
+            }
+        }
+    }
+
+    pub fn resolve_type_ref(&mut self, tr: &TypeRef, scope: Scope) -> Ty {
+        let file = scope.file;
+        match tr {
+            TypeRef::Named(id) => {
+                if let Some(p) = Prim::from_name(&id.name) {
+                    return Ty::Prim(p);
+                }
+                if id.is("STRING") {
+                    return Ty::Str(80);
+                }
+                if let Some(&t) = self.type_names.get(&key(&id.name)) {
+                    return self.resolve_type_decl(t);
+                }
+                if let Some(&p) = self.pou_names.get(&key(&id.name)) {
+                    if self.pous[p].kind != PouKind::FunctionBlock {
+                        self.error(file, id.span, format!("`{}` is not a type", id.name));
+                        return Ty::Error;
+                    }
+                    if self.pous[p].state == State::Busy {
+                        self.error(
+                            file,
+                            id.span,
+                            format!("`{}` contains an instance of itself", self.pous[p].name),
+                        );
+                        return Ty::Error;
+                    }
+                    self.resolve_pou(p);
+                    return Ty::Fb(p);
+                }
+                let mut names: Vec<String> =
+                    self.type_decls.iter().map(|t| t.decl.name.name.clone()).collect();
+                names.extend(
+                    self.pous
+                        .iter()
+                        .filter(|p| p.kind == PouKind::FunctionBlock)
+                        .map(|p| p.name.clone()),
+                );
+                names.extend(super::types::ALL_PRIMS.iter().map(|p| p.name().to_string()));
+                names.push("STRING".into());
+                let hint = suggest(&id.name, names.iter().map(String::as_str));
+                self.error(file, id.span, format!("unknown type `{}`{hint}", id.name));
+                Ty::Error
+            }
+            TypeRef::String { len, span } => {
+                let Some(len) = len else { return Ty::Str(80) };
+                match self.const_int(len, scope) {
+                    Some(n) if (1..=255).contains(&n) => Ty::Str(n as u32),
+                    Some(n) => {
+                        self.error(
+                            file,
+                            *span,
+                            format!("a STRING's length must be 1..255, not {n}"),
+                        );
+                        Ty::Error
+                    }
+                    None => Ty::Error,
+                }
+            }
+            TypeRef::Array { dims, of, span } => {
+                let mut out = Vec::new();
+                let mut bad = false;
+                for (lo, hi) in dims {
+                    let l = self.const_int(lo, scope);
+                    let h = self.const_int(hi, scope);
+                    match (l, h) {
+                        (Some(l), Some(h))
+                            if l <= h && l >= i32::MIN as i128 && h <= i32::MAX as i128 =>
+                        {
+                            out.push((l as i64, h as i64))
+                        }
+                        (Some(l), Some(h)) => {
+                            self.error(
+                                file,
+                                lo.span,
+                                format!("empty or too large array range `{l}..{h}`"),
+                            );
+                            bad = true;
+                        }
+                        _ => bad = true,
+                    }
+                }
+                let of = self.resolve_type_ref(of, scope);
+                if bad || of.is_error() {
+                    return Ty::Error;
+                }
+                let elem_size = self.types.size(&of);
+                let arr = ArrayTy { dims: out, of, elem_size };
+                if arr.count().saturating_mul(u64::from(elem_size)) > MAX_MEMORY {
+                    self.error(file, *span, "the array is too large");
+                    return Ty::Error;
+                }
+                Ty::Array(Rc::new(arr))
+            }
+            TypeRef::Enum(def) => {
+                let name = format!(
+                    "({})",
+                    def.values.iter().map(|v| v.0.name.as_str()).collect::<Vec<_>>().join(", ")
+                );
+                self.make_enum(name, def, None, scope)
+            }
+            TypeRef::Subrange { base, lo, hi, span } => {
+                let Some(p) = Prim::from_name(&base.name).filter(|p| p.is_integral()) else {
+                    self.error(
+                        file,
+                        base.span,
+                        format!("a subrange needs an integer type, not `{}`", base.name),
+                    );
+                    return Ty::Error;
+                };
+                let (Some(l), Some(h)) = (self.const_int(lo, scope), self.const_int(hi, scope))
+                else {
+                    return Ty::Error;
+                };
+                if l > h || !fits(p, l) || !fits(p, h) {
+                    self.error(
+                        file,
+                        *span,
+                        format!("`{l}..{h}` is not a subrange of `{}`", p.name()),
+                    );
+                    return Ty::Error;
+                }
+                Ty::Sub(p, l, h)
+            }
+        }
+    }
+
+    fn make_enum(
+        &mut self,
+        name: String,
+        def: &ast::EnumDef,
+        init: Option<&ast::Ident>,
+        scope: Scope,
+    ) -> Ty {
+        let file = scope.file;
+        let (base, declared) = match &def.base {
+            Some(b) => match Prim::from_name(&b.name).filter(|p| p.is_integral()) {
+                Some(p) => (p, true),
+                None => {
+                    self.error(
+                        file,
+                        b.span,
+                        format!("an enumeration's base must be an integer type, not `{}`", b.name),
+                    );
+                    (Prim::DInt, false)
+                }
+            },
+            None => (Prim::DInt, false),
+        };
+        let mut values: Vec<(String, i128)> = Vec::new();
+        let mut next = 0i128;
+        for (id, v) in &def.values {
+            let value = match v {
+                Some(e) => self.const_int(e, scope).unwrap_or(next),
+                None => next,
+            };
+            if values.iter().any(|(n, _)| n.eq_ignore_ascii_case(&id.name)) {
+                self.error(
+                    file,
+                    id.span,
+                    format!("`{}` is already a value of this enumeration", id.name),
+                );
+                continue;
+            }
+            if !fits(base, value) {
+                self.error(
+                    file,
+                    id.span,
+                    format!("constant `{value}` does not fit `{}`", base.name()),
+                );
+            }
+            values.push((id.name.clone(), value));
+            next = value + 1;
+        }
+        let mut initial = values.first().map_or(0, |v| v.1);
+        if let Some(init) = init {
+            match values.iter().find(|(n, _)| init.is(n)) {
+                Some(v) => initial = v.1,
+                None => {
+                    self.error(file, init.span, format!("`{name}` has no value `{}`", init.name))
+                }
+            }
+        }
+        let index = self.types.enums.len();
+        for (n, v) in &values {
+            self.enum_values.entry(key(n)).or_default().push((index, *v));
+        }
+        self.types.enums.push(EnumTy {
+            name,
+            base,
+            values,
+            init: initial,
+            declared_base: declared,
+        });
+        Ty::Enum(index)
+    }
+
+    pub fn resolve_type_decl(&mut self, t: usize) -> Ty {
+        let entry = &self.type_decls[t];
+        let (decl, file) = (entry.decl, entry.file);
+        match entry.state {
+            State::Done => return entry.ty.clone(),
+            State::Busy => {
+                self.error(
+                    file,
+                    decl.name.span,
+                    format!("type `{}` is defined in terms of itself", decl.name.name),
+                );
+                return Ty::Error;
+            }
+            State::Todo => {}
+        }
+        self.type_decls[t].state = State::Busy;
+        let scope = self.global_scope(file);
+        let mut image = None;
+        let ty = match &decl.def {
+            TypeDef::Alias { ty, init } => {
+                let resolved = self.resolve_type_ref(ty, scope);
+                if let Some(init) = init {
+                    if !resolved.is_error() {
+                        image = Some(self.init_image(
+                            &resolved,
+                            Some(ty),
+                            Some(init),
+                            scope,
+                            &decl.name.name,
+                        ));
+                    }
+                }
+                resolved
+            }
+            TypeDef::Struct { members } => {
+                let mut out: Vec<Member> = Vec::new();
+                let mut img = Vec::new();
+                for m in members {
+                    let mty = self.resolve_type_ref(&m.ty, scope);
+                    if let Some(loc) = &m.location {
+                        self.error(file, loc.span, "a STRUCT member cannot be located");
+                    }
+                    for id in &m.names {
+                        if out.iter().any(|x| id.is(&x.name)) {
+                            self.error(
+                                file,
+                                id.span,
+                                format!("`{}` is already declared in this STRUCT", id.name),
+                            );
+                            continue;
+                        }
+                        let bytes =
+                            self.init_image(&mty, Some(&m.ty), m.init.as_ref(), scope, &id.name);
+                        out.push(Member {
+                            name: id.name.clone(),
+                            ty: mty.clone(),
+                            offset: img.len() as u32,
+                        });
+                        img.extend_from_slice(&bytes);
+                    }
+                }
+                let index = self.types.structs.len();
+                self.types.structs.push(StructTy {
+                    name: decl.name.name.clone(),
+                    members: out,
+                    size: img.len() as u32,
+                    image: img,
+                });
+                Ty::Struct(index)
+            }
+            TypeDef::Enum { def, init } => {
+                self.make_enum(decl.name.name.clone(), def, init.as_ref(), scope)
+            }
+        };
+        let entry = &mut self.type_decls[t];
+        entry.state = State::Done;
+        entry.ty = ty.clone();
+        entry.image = image;
+        ty
+    }
+
+    /// The default value of a type as bytes (a declared alias's own initial value included).
+    pub fn default_image(&self, ty: &Ty, tr: Option<&TypeRef>) -> Vec<u8> {
+        if let Some(TypeRef::Named(id)) = tr {
+            if let Some(&t) = self.type_names.get(&key(&id.name)) {
+                if let Some(img) = &self.type_decls[t].image {
+                    return img.clone();
+                }
+            }
+        }
+        match ty {
+            Ty::Sub(p, lo, hi) if !(*lo..=*hi).contains(&0) => {
+                slot_bytes(super::types::int_slot(*p, *lo), p.elem().size())
+            }
+            Ty::Enum(i) => {
+                let e = &self.types.enums[*i];
+                slot_bytes(super::types::int_slot(e.base, e.init), e.base.elem().size())
+            }
+            Ty::Array(a) => {
+                let one = self.default_image(&a.of, None);
+                let mut out = Vec::with_capacity(one.len() * a.count() as usize);
+                for _ in 0..a.count() {
+                    out.extend_from_slice(&one);
+                }
+                out
+            }
+            Ty::Struct(i) => self.types.structs[*i].image.clone(),
+            Ty::Fb(p) => self.pous[*p].image.clone(),
+            _ => vec![0; self.types.size(ty) as usize],
+        }
+    }
+
+    /// The image of a value of `ty` with its initializer.
+    pub fn init_image(
+        &mut self,
+        ty: &Ty,
+        tr: Option<&TypeRef>,
+        init: Option<&Init>,
+        scope: Scope,
+        what: &str,
+    ) -> Vec<u8> {
+        let mut img = self.default_image(ty, tr);
+        if let Some(init) = init {
+            self.write_init(&mut img, 0, ty, init, scope, what);
+        }
+        img
+    }
+
+    fn write_init(
+        &mut self,
+        img: &mut [u8],
+        at: usize,
+        ty: &Ty,
+        init: &Init,
+        scope: Scope,
+        what: &str,
+    ) {
+        let file = scope.file;
+        match (init, ty) {
+            (_, Ty::Error) => {}
+            (Init::Expr(e), _) if !matches!(ty, Ty::Array(_) | Ty::Struct(_) | Ty::Fb(_)) => {
+                if let Some(bytes) = self.const_bytes(e, ty, scope, what) {
+                    img[at..at + bytes.len()].copy_from_slice(&bytes);
+                }
+            }
+            (Init::Array { elems, span }, Ty::Array(a)) => {
+                let size = a.elem_size as usize;
+                let count = a.count() as usize;
+                let mut i = 0usize;
+                let mut over = false;
+                for el in elems {
+                    let (n, value) = match el {
+                        ArrayInit::One(v) => (1, Some(v)),
+                        ArrayInit::Repeat { count, value } => {
+                            let n = self.const_int(count, scope).unwrap_or(0).max(0) as usize;
+                            (n, value.as_ref())
+                        }
+                    };
+                    let one = match value {
+                        Some(v) => {
+                            let mut one = self.default_image(&a.of, None);
+                            self.write_init(&mut one, 0, &a.of, v, scope, what);
+                            one
+                        }
+                        None => self.default_image(&a.of, None),
+                    };
+                    for _ in 0..n {
+                        if i >= count {
+                            over = true;
+                            break;
+                        }
+                        img[at + i * size..at + (i + 1) * size].copy_from_slice(&one);
+                        i += 1;
+                    }
+                }
+                if over {
+                    self.error(
+                        file,
+                        *span,
+                        format!("too many initial values for `{what}` ({count} elements)"),
+                    );
+                }
+            }
+            (Init::Struct { members, .. }, Ty::Struct(s)) => {
+                for (id, v) in members {
+                    let found =
+                        self.types.structs[*s].members.iter().find(|m| id.is(&m.name)).cloned();
+                    match found {
+                        Some(m) => {
+                            self.write_init(img, at + m.offset as usize, &m.ty, v, scope, &m.name)
+                        }
+                        None => {
+                            let n = self.types.structs[*s].name.clone();
+                            let names: Vec<String> = self.types.structs[*s]
+                                .members
+                                .iter()
+                                .map(|m| m.name.clone())
+                                .collect();
+                            let hint = suggest(&id.name, names.iter().map(String::as_str));
+                            self.error(
+                                file,
+                                id.span,
+                                format!("`{n}` has no member `{}`{hint}", id.name),
+                            );
+                        }
+                    }
+                }
+            }
+            (Init::Struct { members, .. }, Ty::Fb(p)) => {
+                for (id, v) in members {
+                    let found =
+                        self.pous[*p].lookup(&id.name).map(|i| self.pous[*p].vars[i].clone());
+                    match found {
+                        Some(VarInfo {
+                            storage: Storage::Inst(off),
+                            ty,
+                            by_ref: false,
+                            kind,
+                            ..
+                        }) if kind != VarKind::External => {
+                            self.write_init(img, at + off as usize, &ty, v, scope, &id.name)
+                        }
+                        _ => {
+                            let n = self.pous[*p].name.clone();
+                            self.error(
+                                file,
+                                id.span,
+                                format!("`{n}` has no variable `{}` to initialize", id.name),
+                            );
+                        }
+                    }
+                }
+            }
+            (Init::Expr(e), _) => {
+                let n = self.ty_name(ty);
+                self.error(
+                    file,
+                    e.span,
+                    format!("`{what}` is `{n}`: its initial value must be written `[…]` or `(…)`"),
+                );
+            }
+            (Init::Array { span, .. } | Init::Struct { span, .. }, _) => {
+                let n = self.ty_name(ty);
+                self.error(file, *span, format!("this initial value does not fit `{n}`"));
+            }
+        }
+    }
+
+    /// A scalar or string constant of `ty` as its bytes.
+    fn const_bytes(&mut self, e: &ast::Expr, ty: &Ty, scope: Scope, what: &str) -> Option<Vec<u8>> {
+        let te = self.check_expr(e, scope, Some(ty));
+        let te = self.coerce(te, ty, scope.file);
+        if te.ty.is_error() {
+            return None;
+        }
+        match (&te.k, ty) {
+            (super::expr::TK::Const(Cv::Str(s)), Ty::Str(n)) => {
+                let mut b = vec![0u8; *n as usize + 1];
+                let len = s.len().min(*n as usize);
+                b[0] = len as u8;
+                b[1..=len].copy_from_slice(&s.as_bytes()[..len]);
+                Some(b)
+            }
+            (super::expr::TK::Const(cv), _) => {
+                let p = ty.prim(&self.types)?;
+                Some(slot_bytes(super::expr::cv_slot(cv, p), p.elem().size()))
+            }
+            _ => {
+                self.error(
+                    scope.file,
+                    e.span,
+                    format!("the initial value of `{what}` must be a constant expression"),
+                );
+                None
+            }
+        }
+    }
+
+    /// The constant value of a scalar initializer, for CONSTANT variables.
+    fn const_value(&mut self, init: Option<&Init>, ty: &Ty, scope: Scope) -> Option<Cv> {
+        let Some(Init::Expr(e)) = init else {
+            return match ty {
+                Ty::Prim(_) | Ty::Sub(..) => Some(Cv::Int(0)).map(|c| match ty.prim(&self.types) {
+                    Some(p) if p.is_real() => Cv::Real(0.0),
+                    _ => c,
+                }),
+                Ty::Enum(i) => Some(Cv::Int(self.types.enums[*i].init)),
+                _ => None,
+            };
+        };
+        let saved = self.diags.len();
+        let te = self.check_expr(e, scope, Some(ty));
+        let te = self.coerce(te, ty, scope.file);
+        self.diags.truncate(saved);
+        match te.k {
+            super::expr::TK::Const(c) => Some(c),
+            _ => None,
+        }
+    }
+
+    fn resolve_globals(&mut self, file: usize, block: &'a ast::VarBlock) {
+        let scope = self.global_scope(file);
+        for decl in &block.decls {
+            let ty = self.resolve_type_ref(&decl.ty, scope);
+            for id in &decl.names {
+                self.reserved(file, id);
+                if let Some(&g) = self.global_names.get(&key(&id.name)) {
+                    let first = self.globals[g].span;
+                    self.error(
+                        file,
+                        id.span,
+                        format!("`{}` is already declared (line {})", id.name, first.line),
+                    );
+                    continue;
+                }
+                let mut located = None;
+                let storage = match &decl.location {
+                    Some(loc) => match self.locate(file, loc, &ty, &id.name) {
+                        Some((s, a)) => {
+                            located = Some(a);
+                            self.located_init_for(
+                                s,
+                                &ty,
+                                &decl.ty,
+                                decl.init.as_ref(),
+                                scope,
+                                &id.name,
+                            );
+                            s
+                        }
+                        None => Storage::Global(0),
+                    },
+                    None => {
+                        let img = self.init_image(
+                            &ty,
+                            Some(&decl.ty),
+                            decl.init.as_ref(),
+                            scope,
+                            &id.name,
+                        );
+                        let at = self.alloc_var(&img);
+                        if block.retain {
+                            self.retained.push((at, img.len() as u32));
+                        }
+                        Storage::Global(at)
+                    }
+                };
+                let value = if block.constant {
+                    self.const_value(decl.init.as_ref(), &ty, scope)
+                } else {
+                    None
+                };
+                self.global_names.insert(key(&id.name), self.globals.len());
+                self.globals.push(VarInfo {
+                    name: id.name.clone(),
+                    kind: VarKind::Global,
+                    ty: ty.clone(),
+                    constant: block.constant,
+                    retain: block.retain,
+                    storage,
+                    by_ref: false,
+                    value,
+                    span: id.span,
+                    located,
+                    global: None,
+                });
+            }
+        }
+    }
+
+    /// Resolves a POU's interface (its variables, their layout and images).
+    pub fn resolve_pou(&mut self, p: usize) {
+        if self.pous[p].state != State::Todo {
+            return;
+        }
+        self.pous[p].state = State::Busy;
+        let pou: &'a ast::Pou = self.pous[p].ast;
+        let file = self.pous[p].file;
+        let kind = pou.kind;
+        let mut scope = Scope { pou: Some(p), visible: 0, file };
+        let mut inst: Vec<u8> = Vec::new();
+        let mut frame: Vec<u8> = Vec::new();
+        if kind == PouKind::Function {
+            let result = match &pou.return_type {
+                Some(tr) => self.resolve_type_ref(tr, scope),
+                None => Ty::Void,
+            };
+            if matches!(result, Ty::Fb(_)) {
+                self.error(file, pou.name.span, "a FUNCTION cannot return a function block");
+            }
+            frame = self.default_image(&result, pou.return_type.as_ref());
+            self.pous[p].result = result;
+        }
+        for block in &pou.vars {
+            if block.kind == VarKind::Global {
+                self.error(file, block.span, "VAR_GLOBAL is declared outside the POUs");
+                continue;
+            }
+            if kind == PouKind::Function && block.retain {
+                self.error(file, block.span, "a FUNCTION's variables cannot be RETAIN");
+            }
+            for decl in &block.decls {
+                let ty = self.resolve_type_ref(&decl.ty, scope);
+                if kind == PouKind::Function && matches!(ty, Ty::Fb(_)) {
+                    self.error(file, decl.span, "a FUNCTION cannot hold a function block instance");
+                }
+                for id in &decl.names {
+                    self.reserved(file, id);
+                    if let Some(i) = self.pous[p].lookup(&id.name) {
+                        let first = self.pous[p].vars[i].span;
+                        self.error(
+                            file,
+                            id.span,
+                            format!("`{}` is already declared (line {})", id.name, first.line),
+                        );
+                        continue;
+                    }
+                    if kind == PouKind::Function && id.is(&pou.name.name) {
+                        self.error(
+                            file,
+                            id.span,
+                            format!("`{}` is the FUNCTION's own name", id.name),
+                        );
+                        continue;
+                    }
+                    let mut info = VarInfo {
+                        name: id.name.clone(),
+                        kind: block.kind,
+                        ty: ty.clone(),
+                        constant: block.constant,
+                        retain: block.retain,
+                        storage: Storage::Inst(0),
+                        by_ref: block.kind == VarKind::InOut,
+                        value: None,
+                        span: id.span,
+                        located: None,
+                        global: None,
+                    };
+                    if block.kind == VarKind::External {
+                        match self.global_names.get(&key(&id.name)).copied() {
+                            Some(g) => {
+                                let gv = &self.globals[g];
+                                if gv.ty != ty && !ty.is_error() && !gv.ty.is_error() {
+                                    let (a, b) = (self.ty_name(&ty), self.ty_name(&gv.ty));
+                                    self.error(
+                                        file,
+                                        id.span,
+                                        format!("VAR_EXTERNAL `{}` is `{a}` but the VAR_GLOBAL is `{b}`", id.name),
+                                    );
+                                }
+                                let gv = &self.globals[g];
+                                if gv.constant && !block.constant {
+                                    self.error(file, id.span, format!("VAR_EXTERNAL `{}` must be CONSTANT like its VAR_GLOBAL", id.name));
+                                }
+                                let gv = &self.globals[g];
+                                info.ty = gv.ty.clone();
+                                info.storage = gv.storage;
+                                info.located = gv.located;
+                                info.value = gv.value.clone();
+                                info.constant = gv.constant || block.constant;
+                                info.global = Some(g);
+                            }
+                            None => {
+                                let names: Vec<String> =
+                                    self.globals.iter().map(|g| g.name.clone()).collect();
+                                let hint = suggest(&id.name, names.iter().map(String::as_str));
+                                self.error(
+                                    file,
+                                    id.span,
+                                    format!("VAR_EXTERNAL `{}` has no VAR_GLOBAL{hint}", id.name),
+                                );
+                                info.ty = Ty::Error;
+                            }
+                        }
+                    } else if let Some(loc) = &decl.location {
+                        if kind != PouKind::Program {
+                            self.error(
+                                file,
+                                loc.span,
+                                "only a PROGRAM's or a VAR_GLOBAL's variables can be located",
+                            );
+                        } else if matches!(block.kind, VarKind::InOut | VarKind::Temp) {
+                            self.error(
+                                file,
+                                loc.span,
+                                "a VAR_IN_OUT or VAR_TEMP cannot be located",
+                            );
+                        } else if let Some((s, a)) = self.locate(file, loc, &ty, &id.name) {
+                            info.storage = s;
+                            info.located = Some(a);
+                            self.located_init_for(
+                                s,
+                                &ty,
+                                &decl.ty,
+                                decl.init.as_ref(),
+                                scope,
+                                &id.name,
+                            );
+                        }
+                    } else {
+                        let img = if block.kind == VarKind::InOut {
+                            if let Some(init) = &decl.init {
+                                let sp = init_span(init, decl.span);
+                                self.error(file, sp, "a VAR_IN_OUT has no initial value");
+                            }
+                            vec![0u8; 8]
+                        } else {
+                            self.init_image(
+                                &ty,
+                                Some(&decl.ty),
+                                decl.init.as_ref(),
+                                scope,
+                                &id.name,
+                            )
+                        };
+                        let in_frame = kind == PouKind::Function || block.kind == VarKind::Temp;
+                        if in_frame {
+                            info.storage = Storage::Frame(frame.len() as u32);
+                            frame.extend_from_slice(&img);
+                        } else {
+                            info.storage = Storage::Inst(inst.len() as u32);
+                            inst.extend_from_slice(&img);
+                        }
+                    }
+                    if block.constant {
+                        if block.kind != VarKind::External {
+                            info.value = self.const_value(decl.init.as_ref(), &ty, scope);
+                        }
+                        if matches!(block.kind, VarKind::InOut | VarKind::Output | VarKind::Input) {
+                            self.error(
+                                file,
+                                id.span,
+                                "only VAR, VAR_GLOBAL and VAR_EXTERNAL can be CONSTANT",
+                            );
+                        }
+                    }
+                    let index = self.pous[p].vars.len();
+                    if matches!(block.kind, VarKind::Input | VarKind::InOut) {
+                        self.pous[p].positional.push(index);
+                    }
+                    self.pous[p].names.insert(key(&id.name), index);
+                    self.pous[p].vars.push(info);
+                    scope.visible = index + 1;
+                }
+            }
+        }
+        if inst.len() as u64 > MAX_MEMORY {
+            self.error(
+                file,
+                pou.name.span,
+                format!("an instance of `{}` takes more than 64 MiB", pou.name.name),
+            );
+        }
+        if frame.len() as u32 > MAX_FRAME {
+            self.error(
+                file,
+                pou.name.span,
+                format!(
+                    "the variables of `{}` need {} bytes of frame (limit 1 MiB)",
+                    pou.name.name,
+                    frame.len()
+                ),
+            );
+        }
+        let info = &mut self.pous[p];
+        info.inst_size = inst.len() as u32;
+        info.image = inst;
+        info.frame_vars = frame.len() as u32;
+        info.frame_image = frame;
+        info.state = State::Done;
+        if kind == PouKind::FunctionBlock {
+            self.types.fbs[p] = Some((pou.name.name.clone(), self.pous[p].inst_size));
+        }
+    }
+
+    /// The device of `AT %…` for a variable of `ty`.
+    fn locate(
+        &mut self,
+        file: usize,
+        loc: &ast::Ident,
+        ty: &Ty,
+        name: &str,
+    ) -> Option<(Storage, Address)> {
+        let text = loc.name.as_str();
+        let (addr_text, size_bits) = match iec_address(text) {
+            Ok(Some(x)) => x,
+            Ok(None) => (text.to_string(), None),
+            Err(msg) => {
+                self.error(file, loc.span, msg);
+                return None;
+            }
+        };
+        let addr = match Address::parse(&addr_text) {
+            Ok(a) => a,
+            Err(e) => {
+                self.error(file, loc.span, e.to_string());
+                return None;
+            }
+        };
+        let (elem_ty, count) = match ty {
+            Ty::Error => return None,
+            Ty::Array(a) if a.of.prim(&self.types).is_some() => (a.of.clone(), a.count()),
+            Ty::Prim(_) | Ty::Sub(..) | Ty::Enum(_) => (ty.clone(), 1),
+            _ => {
+                let n = self.ty_name(ty);
+                self.error(
+                    file,
+                    loc.span,
+                    format!(
+                        "`{name}` is `{n}`: only elementary types and their arrays can be located"
+                    ),
+                );
+                return None;
+            }
+        };
+        let prim = elem_ty.prim(&self.types).expect("scalar");
+        if let Some(bits) = size_bits {
+            if bits != prim.bits() && !(bits == 1 && prim == Prim::Bool) {
+                self.error(
+                    file,
+                    loc.span,
+                    format!("`%{text}` is a {bits}-bit location, `{name}` is `{}`", prim.name()),
+                );
+                return None;
+            }
+        }
+        if prim == Prim::Bool && count == 1 {
+            return match addr.as_bit() {
+                Ok(b) => Some((Storage::Bit(b), addr)),
+                Err(e) => {
+                    self.error(file, loc.span, e.to_string());
+                    None
+                }
+            };
+        }
+        let word = match addr.as_word() {
+            Ok(w) => w,
+            Err(e) => {
+                self.error(file, loc.span, e.to_string());
+                return None;
+            }
+        };
+        let words = u64::from(prim.elem().words()) * count;
+        if words > 1 {
+            let last = Address { number: addr.number + words as u32 - 1, ..addr };
+            let ok = Address::parse(&last.to_string()).ok().and_then(|a| a.as_word().ok());
+            if ok.is_none_or(|w| u64::from(w.0) != u64::from(word.0) + words - 1) {
+                self.error(
+                    file,
+                    loc.span,
+                    format!("`{name}` needs {words} words from `{addr}`: past the end of its area"),
+                );
+                return None;
+            }
+        }
+        Some((Storage::Word(word.0), addr))
+    }
+
+    fn located_init_for(
+        &mut self,
+        s: Storage,
+        ty: &Ty,
+        tr: &TypeRef,
+        init: Option<&Init>,
+        scope: Scope,
+        what: &str,
+    ) {
+        let Some(init) = init else { return };
+        let img = self.init_image(ty, Some(tr), Some(init), scope, what);
+        let (elem_ty, count) = match ty {
+            Ty::Array(a) => (a.of.clone(), a.count()),
+            _ => (ty.clone(), 1),
+        };
+        let Some(p) = elem_ty.prim(&self.types) else { return };
+        let e = p.elem();
+        let size = e.size() as usize;
+        for i in 0..count as usize {
+            let mut raw = [0u8; 8];
+            raw[..size].copy_from_slice(&img[i * size..(i + 1) * size]);
+            let mut slot = u64::from_le_bytes(raw);
+            if e.is_signed() && size < 8 {
+                let shift = 64 - size * 8;
+                slot = (((slot << shift) as i64) >> shift) as u64;
+            }
+            let place = match s {
+                Storage::Bit(b) => Place::Bit(b),
+                Storage::Word(w) => {
+                    Place::Word(crate::device::WordRef(w + (i as u32 * e.words()) as u16))
+                }
+                _ => return,
+            };
+            self.located_init.push((place, e, slot));
+        }
+    }
+
+    /// Whether a program may write the device of a located variable.
+    pub fn writable(&self, addr: &Address, ty: &Ty) -> bool {
+        let bit = ty.is_bool() && addr.as_bit().is_ok();
+        addr.writable_by(if bit { Writer::ProgramBit } else { Writer::ProgramWord })
+    }
+}
+
+fn init_span(init: &Init, or: Span) -> Span {
+    match init {
+        Init::Expr(e) => e.span,
+        Init::Array { span, .. } | Init::Struct { span, .. } => *span,
+    }
+    .max(or)
+}
+
+/// The first `size` bytes of a slot, little-endian.
+pub fn slot_bytes(slot: u64, size: u32) -> Vec<u8> {
+    slot.to_le_bytes()[..size as usize].to_vec()
+}
+
+/// An IEC direct address (`IX0.3`, `QW5`, `MD10`) as a plcd device address and its size in
+/// bits; `Ok(None)` for a plcd device address.
+///
+/// | IEC            | plcd                                   |
+/// |----------------|----------------------------------------|
+/// | `%IXa.b` `%QXa.b` | bit `b` (0..15) of P word `a`: `Paaab` |
+/// | `%IWa` `%QWa` (`%IDa`, `%ILa`, …) | P word `a` (and the words after it) |
+/// | `%MXa.b`       | bit `b` of M word `a`: `Maaab`         |
+/// | `%MWa` `%MDa` `%MLa` `%MBa` | M word `a` (a `D` takes `a, a+1`, an `L` four words) |
+pub fn iec_address(text: &str) -> Result<Option<(String, Option<u32>)>, String> {
+    let upper = text.to_ascii_uppercase();
+    let mut chars = upper.chars();
+    let area = match chars.next() {
+        Some('I' | 'Q') => 'P',
+        Some('M') => 'M',
+        _ => return Ok(None),
+    };
+    let rest = chars.as_str();
+    let Some(size) = rest.chars().next() else { return Ok(None) };
+    let bits = match size {
+        'X' => 1,
+        'B' => 8,
+        'W' => 16,
+        'D' => 32,
+        'L' => 64,
+        _ => return Ok(None),
+    };
+    let digits = &rest[1..];
+    if digits.is_empty() || !digits.starts_with(|c: char| c.is_ascii_digit()) {
+        return Ok(None);
+    }
+    let bad = || format!("`%{text}` is not a valid direct address");
+    if bits == 1 {
+        let (w, b) = digits.split_once('.').ok_or_else(bad)?;
+        let w: u32 = w.parse().map_err(|_| bad())?;
+        let b: u32 = b.parse().map_err(|_| bad())?;
+        if b > 15 || w > 999 {
+            return Err(bad());
+        }
+        Ok(Some((format!("{area}{w:03}{b:X}"), Some(1))))
+    } else {
+        let w: u32 = digits.parse().map_err(|_| bad())?;
+        if w > 999 {
+            return Err(bad());
+        }
+        Ok(Some((format!("{area}{w:03}"), Some(bits))))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn iec_addresses_map_to_p_and_m() {
+        assert_eq!(iec_address("IX0.3").unwrap(), Some(("P0003".into(), Some(1))));
+        assert_eq!(iec_address("QX12.15").unwrap(), Some(("P012F".into(), Some(1))));
+        assert_eq!(iec_address("IW5").unwrap(), Some(("P005".into(), Some(16))));
+        assert_eq!(iec_address("MD10").unwrap(), Some(("M010".into(), Some(32))));
+        assert_eq!(iec_address("D00100").unwrap(), None);
+        assert_eq!(iec_address("M0010").unwrap(), None);
+        assert!(iec_address("IX0.16").is_err());
+    }
+}

@@ -1,0 +1,1152 @@
+//! Code generation: a checked POU body to typed stack ops (st-ir.md). Each body is compiled
+//! once, with its jump targets relative to its own start, its calls by POU, its PROGRAM
+//! variables relative to the instance and its argument stores relative to the callee's frame
+//! area; [`super::link`] places the bodies one after the other and resolves all of that.
+
+use crate::device::WordRef;
+use crate::lang::ops::{CmpOp, StrOp};
+use crate::lang::{Op, Place, EVAL_DEPTH};
+use crate::st::ast::PouKind;
+use crate::value::{BinOp, Elem, UnOp};
+
+use super::ctx::{Ctx, Cv, Storage};
+use super::decl::MAX_FRAME;
+use super::expr::{cv_slot, ArgT, CallT, TExpr, TK};
+use super::stdlib::Std;
+use super::stmt::{TStmt, TS};
+use super::types::{Prim, Ty};
+
+/// A compiled POU body before linking.
+#[derive(Debug, Clone, Default)]
+pub struct Body {
+    pub code: Vec<Op>,
+    pub lines: Vec<u32>,
+    pub consts: Vec<u64>,
+    /// Ops whose `Place::Var` offset is relative to the PROGRAM instance.
+    pub var_relocs: Vec<usize>,
+    /// `CallFn`/`CallFb` ops and the POU each calls.
+    pub calls: Vec<(usize, usize)>,
+    /// Ops whose frame offset (a `Place::Frame` or a call's `frame`) is relative to the callee
+    /// area, which starts at the end of this body's own frame.
+    pub callee_relocs: Vec<usize>,
+    /// Bytes of this body's own frame (variables and temporaries).
+    pub frame: u32,
+}
+
+/// What pushes a value: an expression, or ops computed by the caller (an output read).
+enum Src<'e> {
+    Expr(&'e TExpr),
+    /// Ops and whether each is relative to the callee area.
+    Ops(Vec<(Op, bool)>),
+}
+
+#[derive(Default)]
+struct Loop {
+    breaks: Vec<usize>,
+    continues: Vec<usize>,
+}
+
+/// A place known when compiling, and whether it is relative to the PROGRAM instance.
+#[derive(Debug, Clone, Copy)]
+struct Static {
+    place: Place,
+    reloc: bool,
+}
+
+impl Static {
+    fn plus(self, n: u32) -> Static {
+        let place = match self.place {
+            Place::Var(o) => Place::Var(o + n),
+            Place::Frame(o) => Place::Frame(o + n),
+            Place::This(o) => Place::This(o + n),
+            Place::Word(w) => Place::Word(WordRef(w.0 + n as u16)),
+            Place::Bit(b) => Place::Bit(b),
+        };
+        Static { place, reloc: self.reloc }
+    }
+    fn is_word(&self) -> bool {
+        matches!(self.place, Place::Word(_))
+    }
+}
+
+pub struct Em<'c, 'a> {
+    cx: &'c mut Ctx<'a>,
+    kind: PouKind,
+    file: usize,
+    b: Body,
+    line: u32,
+    sp: usize,
+    max_sp: usize,
+    tmp: u32,
+    loops: Vec<Loop>,
+    returns: Vec<usize>,
+    depth_reported: bool,
+}
+
+fn unsigned(e: Elem) -> Elem {
+    match e {
+        Elem::I8 => Elem::U8,
+        Elem::I16 => Elem::U16,
+        Elem::I32 => Elem::U32,
+        Elem::I64 => Elem::U64,
+        other => other,
+    }
+}
+
+fn effect(op: &Op) -> isize {
+    match op {
+        Op::PushInt(_)
+        | Op::PushConst(_)
+        | Op::Fetch { .. }
+        | Op::AddrOf(_)
+        | Op::Dup
+        | Op::Now => 1,
+        Op::Store { .. }
+        | Op::Index { .. }
+        | Op::Bin { .. }
+        | Op::Cmp { .. }
+        | Op::Drop
+        | Op::GotoIf { .. } => -1,
+        Op::CallFb { .. } => -1,
+        Op::StoreInd(_) | Op::Copy(_) => -2,
+        Op::Str { op, .. } => match op {
+            StrOp::Move => -2,
+            StrOp::Len => 0,
+            StrOp::Left | StrOp::Right | StrOp::Concat => -3,
+            StrOp::Mid => -4,
+            StrOp::Find | StrOp::Compare => -1,
+        },
+        _ => 0,
+    }
+}
+
+impl<'c, 'a> Em<'c, 'a> {
+    fn op(&mut self, op: Op) -> usize {
+        let at = self.b.code.len();
+        self.sp = (self.sp as isize + effect(&op)).max(0) as usize;
+        self.max_sp = self.max_sp.max(self.sp);
+        self.b.code.push(op);
+        self.b.lines.push(self.line);
+        at
+    }
+
+    fn op_callee(&mut self, op: Op) -> usize {
+        let at = self.op(op);
+        self.b.callee_relocs.push(at);
+        at
+    }
+
+    fn op_static(&mut self, op: Op, s: Static) -> usize {
+        let at = self.op(op);
+        if s.reloc {
+            self.b.var_relocs.push(at);
+        }
+        at
+    }
+
+    fn pc(&self) -> u32 {
+        self.b.code.len() as u32
+    }
+
+    fn patch(&mut self, at: usize, target: u32) {
+        match &mut self.b.code[at] {
+            Op::Goto(t) => *t = target,
+            Op::GotoIf { target: t, .. } => *t = target,
+            _ => unreachable!("not a jump"),
+        }
+    }
+
+    fn alloc_tmp(&mut self, size: u32) -> u32 {
+        let at = self.tmp;
+        self.tmp += size;
+        self.b.frame = self.b.frame.max(self.tmp);
+        at
+    }
+
+    fn push_slot(&mut self, slot: u64) {
+        if slot == (slot as i32) as i64 as u64 {
+            self.op(Op::PushInt(slot as i32));
+        } else {
+            let i = match self.b.consts.iter().position(|&c| c == slot) {
+                Some(i) => i,
+                None => {
+                    self.b.consts.push(slot);
+                    self.b.consts.len() - 1
+                }
+            };
+            self.op(Op::PushConst(i as u32));
+        }
+    }
+
+    fn push_int(&mut self, e: Elem, v: i128) {
+        let p = match e {
+            Elem::Bool => Prim::Bool,
+            Elem::I8 => Prim::SInt,
+            Elem::I16 => Prim::Int,
+            Elem::I32 => Prim::DInt,
+            Elem::I64 => Prim::LInt,
+            Elem::U8 => Prim::USInt,
+            Elem::U16 => Prim::UInt,
+            Elem::U32 => Prim::UDInt,
+            Elem::U64 => Prim::ULInt,
+            Elem::F32 => Prim::Real,
+            Elem::F64 => Prim::LReal,
+        };
+        self.push_slot(cv_slot(&Cv::Int(v), p));
+    }
+
+    fn elem(&self, ty: &Ty) -> Elem {
+        ty.elem(&self.cx.types).unwrap_or(Elem::I64)
+    }
+
+    fn size(&self, ty: &Ty) -> u32 {
+        self.cx.types.size(ty)
+    }
+
+    fn storage(&self, s: Storage) -> Static {
+        match s {
+            Storage::Inst(o) if self.kind == PouKind::Program => {
+                Static { place: Place::Var(o), reloc: true }
+            }
+            Storage::Inst(o) => Static { place: Place::This(o), reloc: false },
+            Storage::Frame(o) => Static { place: Place::Frame(o), reloc: false },
+            Storage::Global(o) => Static { place: Place::Var(o), reloc: false },
+            Storage::Word(w) => Static { place: Place::Word(WordRef(w)), reloc: false },
+            Storage::Bit(b) => Static { place: Place::Bit(b), reloc: false },
+        }
+    }
+
+    /// The place of an expression, when it is known at compile time.
+    fn static_place(&self, e: &TExpr) -> Option<Static> {
+        match &e.k {
+            TK::Var { storage, by_ref: false } => Some(self.storage(*storage)),
+            TK::Member(b, off, _) => {
+                let s = self.static_place(b)?;
+                (!s.is_word()).then(|| s.plus(*off))
+            }
+            TK::Index(b, ix) => {
+                let s = self.static_place(b)?;
+                let Ty::Array(a) = &b.ty else { return None };
+                let mut lin: i64 = 0;
+                for (i, (lo, hi)) in ix.iter().zip(&a.dims) {
+                    let v = i.const_int()? as i64;
+                    if v < *lo || v > *hi {
+                        return None;
+                    }
+                    lin = lin * (hi - lo + 1) + (v - lo);
+                }
+                let unit = if s.is_word() { self.elem(&a.of).words() } else { a.elem_size };
+                Some(s.plus(lin as u32 * unit))
+            }
+            _ => None,
+        }
+    }
+
+    /// Whether a place expression is at a device word (a located array).
+    fn at_word(&self, e: &TExpr) -> bool {
+        match &e.k {
+            TK::Var { storage: Storage::Word(_), .. } => true,
+            TK::Member(b, _, _) | TK::Index(b, _) => self.at_word(b),
+            _ => false,
+        }
+    }
+
+    /// Pushes a pointer to a place expression (or to an aggregate value).
+    fn addr(&mut self, e: &TExpr) {
+        if let Some(s) = self.static_place(e) {
+            self.op_static(Op::AddrOf(s.place), s);
+            return;
+        }
+        match &e.k {
+            TK::Var { storage, by_ref: true } => {
+                let s = self.storage(*storage);
+                self.op_static(Op::Fetch { elem: Elem::U64, at: s.place }, s);
+            }
+            TK::Member(b, off, _) => {
+                self.addr(b);
+                if *off != 0 {
+                    self.op(Op::Offset(*off));
+                }
+            }
+            TK::Index(b, ix) => {
+                let Ty::Array(a) = &b.ty else { unreachable!("checked") };
+                let word = self.at_word(b);
+                let unit = if word { self.elem(&a.of).words() } else { a.elem_size };
+                self.addr(b);
+                for (k, (i, (lo, hi))) in ix.iter().zip(&a.dims).enumerate() {
+                    let inner: u64 =
+                        a.dims[k + 1..].iter().map(|(l, h)| (h - l + 1) as u64).product();
+                    self.value(i);
+                    self.op(Op::Index {
+                        lo: *lo as i32,
+                        len: (hi - lo + 1) as u32,
+                        stride: (inner as u32) * unit,
+                    });
+                }
+            }
+            _ => {
+                // an aggregate value (a call's result, a string operation): its pointer
+                self.value(e);
+            }
+        }
+    }
+
+    /// Pushes a scalar's value, or an aggregate's pointer.
+    fn value(&mut self, e: &TExpr) {
+        match &e.k {
+            TK::Const(cv) => match (cv, &e.ty) {
+                (Cv::Str(s), _) => {
+                    let mut bytes = vec![s.len() as u8];
+                    bytes.extend_from_slice(s.as_bytes());
+                    let at = self.cx.alloc_var(&bytes);
+                    self.op(Op::AddrOf(Place::Var(at)));
+                }
+                (cv, ty) => {
+                    let p = ty.prim(&self.cx.types).unwrap_or(Prim::LInt);
+                    self.push_slot(cv_slot(cv, p));
+                }
+            },
+            TK::Var { .. } | TK::Member(..) | TK::Index(..) => {
+                if e.ty.is_aggregate() {
+                    self.addr(e);
+                    return;
+                }
+                let elem = self.elem(&e.ty);
+                if let Some(s) = self.static_place(e) {
+                    self.op_static(Op::Fetch { elem, at: s.place }, s);
+                } else {
+                    self.addr(e);
+                    self.op(Op::FetchInd(elem));
+                }
+            }
+            TK::Bit(b, n) => {
+                let be = self.elem(&b.ty);
+                self.value(b);
+                self.push_int(be, 1i128 << n);
+                self.op(Op::Bin { op: BinOp::And, elem: be });
+                self.op(Op::Conv { from: be, to: Elem::Bool });
+            }
+            TK::Un(op, a) => {
+                self.value(a);
+                let elem = self.elem(&e.ty);
+                self.op(Op::Un { op: *op, elem });
+            }
+            TK::Bin(op, a, b) => {
+                self.value(a);
+                self.value(b);
+                let elem = self.elem(&e.ty);
+                self.op(Op::Bin { op: *op, elem });
+            }
+            TK::Cmp(op, a, b) => {
+                self.value(a);
+                self.value(b);
+                if matches!(a.ty, Ty::Str(_)) {
+                    self.op(Op::Str { op: StrOp::Compare, cap: 0 });
+                    self.op(Op::PushInt(0));
+                    self.op(Op::Cmp { op: *op, elem: Elem::I64 });
+                } else {
+                    let elem = self.elem(&a.ty);
+                    self.op(Op::Cmp { op: *op, elem });
+                }
+            }
+            TK::Conv(a) => {
+                self.value(a);
+                let (from, to) = (self.elem(&a.ty), self.elem(&e.ty));
+                if from != to {
+                    self.op(Op::Conv { from, to });
+                }
+            }
+            TK::Call(call) => self.call_fn(call, &e.ty, true),
+            TK::Std(op, args) => self.std(*op, args, &e.ty),
+        }
+    }
+
+    fn std(&mut self, op: Std, args: &[TExpr], ty: &Ty) {
+        match op {
+            Std::Now => {
+                self.op(Op::Now);
+            }
+            Std::Sel => {
+                let base = self.sp;
+                self.value(&args[0]);
+                let to_in0 = self.op(Op::GotoIf { target: 0, when: false });
+                self.value(&args[2]);
+                let to_end = self.op(Op::Goto(0));
+                let l0 = self.pc();
+                self.patch(to_in0, l0);
+                self.sp = base;
+                self.value(&args[1]);
+                let end = self.pc();
+                self.patch(to_end, end);
+            }
+            Std::Mux => {
+                let base = self.sp;
+                let ke = self.elem(&args[0].ty);
+                self.value(&args[0]);
+                let inputs = &args[1..];
+                let mut jumps = Vec::new();
+                for i in 0..inputs.len() - 1 {
+                    self.op(Op::Dup);
+                    self.push_int(ke, i as i128);
+                    self.op(Op::Cmp { op: CmpOp::Eq, elem: ke });
+                    jumps.push(self.op(Op::GotoIf { target: 0, when: true }));
+                }
+                let mut ends = Vec::new();
+                self.op(Op::Drop);
+                self.value(&inputs[inputs.len() - 1]);
+                ends.push(self.op(Op::Goto(0)));
+                for (i, j) in jumps.into_iter().enumerate() {
+                    let here = self.pc();
+                    self.patch(j, here);
+                    self.sp = base + 1;
+                    self.op(Op::Drop);
+                    self.value(&inputs[i]);
+                    ends.push(self.op(Op::Goto(0)));
+                }
+                let end = self.pc();
+                for j in ends {
+                    self.patch(j, end);
+                }
+                self.sp = base + 1;
+            }
+            Std::Len => {
+                self.value(&args[0]);
+                self.op(Op::Str { op: StrOp::Len, cap: 0 });
+                self.op(Op::Conv { from: Elem::I64, to: Elem::I16 });
+            }
+            Std::Find => {
+                self.value(&args[0]);
+                self.value(&args[1]);
+                self.op(Op::Str { op: StrOp::Find, cap: 0 });
+                self.op(Op::Conv { from: Elem::I64, to: Elem::I16 });
+            }
+            Std::Left | Std::Right | Std::Mid | Std::Concat => {
+                let cap = match ty {
+                    Ty::Str(n) => *n,
+                    _ => 255,
+                };
+                let tmp = self.alloc_tmp(cap + 1);
+                self.op(Op::AddrOf(Place::Frame(tmp)));
+                for a in args {
+                    self.value(a);
+                }
+                let sop = match op {
+                    Std::Left => StrOp::Left,
+                    Std::Right => StrOp::Right,
+                    Std::Mid => StrOp::Mid,
+                    _ => StrOp::Concat,
+                };
+                self.op(Op::Str { op: sop, cap: cap as u16 });
+                self.op(Op::AddrOf(Place::Frame(tmp)));
+            }
+        }
+    }
+
+    fn template(&mut self, p: usize) -> Option<u32> {
+        let pou = &self.cx.pous[p];
+        if pou.frame_vars == 0 {
+            return None;
+        }
+        if let Some(t) = pou.frame_template {
+            return Some(t);
+        }
+        let img = pou.frame_image.clone();
+        let at = self.cx.alloc_var(&img);
+        self.cx.pous[p].frame_template = Some(at);
+        Some(at)
+    }
+
+    /// Copies `size` bytes (or a string) from the pointer on top into the pointer below.
+    fn copy(&mut self, ty: &Ty) {
+        match ty {
+            Ty::Str(n) => self.op(Op::Str { op: StrOp::Move, cap: *n as u16 }),
+            _ => {
+                let n = self.size(ty);
+                self.op(Op::Copy(n))
+            }
+        };
+    }
+
+    /// A FUNCTION call; leaves its result (a scalar, or a pointer to a copy) when `want`.
+    fn call_fn(&mut self, call: &CallT, ty: &Ty, want: bool) {
+        // arguments that call functions themselves: into temporaries first
+        let mut pre: Vec<Option<u32>> = Vec::new();
+        for a in &call.args {
+            if a.value.has_call() {
+                let size = if a.by_ref { 8 } else { self.size(&a.ty).max(self.size(&a.value.ty)) };
+                let t = self.alloc_tmp(size);
+                if a.by_ref {
+                    self.addr(&a.value);
+                    self.op(Op::Store { elem: Elem::U64, at: Place::Frame(t) });
+                } else if a.ty.is_aggregate() {
+                    self.op(Op::AddrOf(Place::Frame(t)));
+                    self.value(&a.value);
+                    self.copy(&a.ty);
+                } else {
+                    self.value(&a.value);
+                    let elem = self.elem(&a.ty);
+                    self.op(Op::Store { elem, at: Place::Frame(t) });
+                }
+                pre.push(Some(t));
+            } else {
+                pre.push(None);
+            }
+        }
+        if let Some(t) = self.template(call.pou) {
+            let n = self.cx.pous[call.pou].frame_vars;
+            self.op_callee(Op::AddrOf(Place::Frame(0)));
+            self.op(Op::AddrOf(Place::Var(t)));
+            self.op(Op::Copy(n));
+        }
+        for (a, t) in call.args.iter().zip(pre) {
+            self.store_arg(a, t, None);
+        }
+        let at = self.op_callee(Op::CallFn { target: 0, frame: 0 });
+        self.b.calls.push((at, call.pou));
+        if want && *ty != Ty::Void {
+            if ty.is_aggregate() {
+                let size = self.size(ty);
+                let t = self.alloc_tmp(size);
+                self.op(Op::AddrOf(Place::Frame(t)));
+                self.op_callee(Op::AddrOf(Place::Frame(0)));
+                self.copy(ty);
+                self.op(Op::AddrOf(Place::Frame(t)));
+            } else {
+                let elem = self.elem(ty);
+                self.op_callee(Op::Fetch { elem, at: Place::Frame(0) });
+            }
+        }
+        for o in &call.outs {
+            let elem = self.elem(&o.ty);
+            let mut ops = vec![(Op::Fetch { elem, at: Place::Frame(o.offset) }, true)];
+            self.out_tail(&mut ops, o.negated, &o.ty, &o.target.ty);
+            self.store(&o.target, Src::Ops(ops));
+        }
+    }
+
+    fn out_tail(&self, ops: &mut Vec<(Op, bool)>, negated: bool, from: &Ty, to: &Ty) {
+        if negated {
+            ops.push((Op::Un { op: UnOp::Not, elem: Elem::Bool }, false));
+        }
+        let (f, t) = (self.elem(from), self.elem(to));
+        if f != t && !from.is_aggregate() {
+            ops.push((Op::Conv { from: f, to: t }, false));
+        }
+    }
+
+    /// Stores one argument: into the callee's frame (`inst` None) or into an FB instance.
+    fn store_arg(&mut self, a: &ArgT, pre: Option<u32>, inst: Option<Inst>) {
+        let elem = if a.by_ref { Elem::U64 } else { self.elem(&a.ty) };
+        let agg = !a.by_ref && a.ty.is_aggregate();
+        // destination
+        let dest = match inst {
+            None => Dest::Callee(a.offset),
+            Some(Inst::Static(s)) => Dest::Static(s.plus(a.offset)),
+            Some(Inst::Ptr(t)) => Dest::Ptr(t, a.offset),
+        };
+        if agg {
+            self.dest_addr(&dest);
+            match pre {
+                Some(t) => {
+                    self.op(Op::AddrOf(Place::Frame(t)));
+                }
+                None => self.value(&a.value),
+            }
+            self.copy(&a.ty);
+            return;
+        }
+        if let Dest::Ptr(..) = dest {
+            self.dest_addr(&dest);
+        }
+        match (pre, a.by_ref) {
+            (Some(t), _) => {
+                self.op(Op::Fetch { elem, at: Place::Frame(t) });
+            }
+            (None, true) => self.addr(&a.value),
+            (None, false) => self.value(&a.value),
+        }
+        match dest {
+            Dest::Callee(off) => {
+                self.op_callee(Op::Store { elem, at: Place::Frame(off) });
+            }
+            Dest::Static(s) => {
+                self.op_static(Op::Store { elem, at: s.place }, s);
+            }
+            Dest::Ptr(..) => {
+                self.op(Op::StoreInd(elem));
+            }
+        }
+    }
+
+    fn dest_addr(&mut self, d: &Dest) {
+        match *d {
+            Dest::Callee(off) => {
+                self.op_callee(Op::AddrOf(Place::Frame(off)));
+            }
+            Dest::Static(s) => {
+                self.op_static(Op::AddrOf(s.place), s);
+            }
+            Dest::Ptr(t, off) => {
+                self.op(Op::Fetch { elem: Elem::U64, at: Place::Frame(t) });
+                if off != 0 {
+                    self.op(Op::Offset(off));
+                }
+            }
+        }
+    }
+
+    fn fb_call(&mut self, inst: &TExpr, call: &CallT) {
+        let where_ = match self.static_place(inst) {
+            Some(s) => Inst::Static(s),
+            None => {
+                let t = self.alloc_tmp(8);
+                self.addr(inst);
+                self.op(Op::Store { elem: Elem::U64, at: Place::Frame(t) });
+                Inst::Ptr(t)
+            }
+        };
+        for a in &call.args {
+            self.store_arg(a, None, Some(where_));
+        }
+        match where_ {
+            Inst::Static(s) => {
+                self.op_static(Op::AddrOf(s.place), s);
+            }
+            Inst::Ptr(t) => {
+                self.op(Op::Fetch { elem: Elem::U64, at: Place::Frame(t) });
+            }
+        }
+        let at = self.op_callee(Op::CallFb { target: 0, frame: 0 });
+        self.b.calls.push((at, call.pou));
+        for o in &call.outs {
+            let elem = self.elem(&o.ty);
+            let mut ops = match where_ {
+                Inst::Static(s) => {
+                    let s = s.plus(o.offset);
+                    vec![(Op::Fetch { elem, at: s.place }, s.reloc)]
+                }
+                Inst::Ptr(t) => vec![
+                    (Op::Fetch { elem: Elem::U64, at: Place::Frame(t) }, false),
+                    (Op::Offset(o.offset), false),
+                    (Op::FetchInd(elem), false),
+                ],
+            };
+            if o.ty.is_aggregate() {
+                // a pointer to the output: drop the FetchInd / make it an address
+                ops = match where_ {
+                    Inst::Static(s) => {
+                        let s = s.plus(o.offset);
+                        vec![(Op::AddrOf(s.place), s.reloc)]
+                    }
+                    Inst::Ptr(t) => vec![
+                        (Op::Fetch { elem: Elem::U64, at: Place::Frame(t) }, false),
+                        (Op::Offset(o.offset), false),
+                    ],
+                };
+            }
+            self.out_tail(&mut ops, o.negated, &o.ty, &o.target.ty);
+            self.store_ops_instance(&o.target, ops);
+        }
+    }
+
+    /// Output stores of an FB: `reloc` in the ops means instance-relative (not callee).
+    fn store_ops_instance(&mut self, target: &TExpr, ops: Vec<(Op, bool)>) {
+        self.store(target, Src::Ops(ops));
+    }
+
+    fn push_src(&mut self, src: &Src<'_>) {
+        match src {
+            Src::Expr(e) => self.value(e),
+            Src::Ops(ops) => {
+                for (op, rel) in ops {
+                    let at = self.op(*op);
+                    if *rel {
+                        match op {
+                            Op::Fetch { at: Place::Frame(_), .. } | Op::AddrOf(Place::Frame(_)) => {
+                                self.b.callee_relocs.push(at)
+                            }
+                            _ => self.b.var_relocs.push(at),
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// `target := src`.
+    fn store(&mut self, target: &TExpr, src: Src<'_>) {
+        let ty = &target.ty;
+        if let TK::Bit(b, n) = &target.k {
+            let be = self.elem(&b.ty);
+            let mask = 1i128 << n;
+            let full: i128 = if be.size() == 8 { -1 } else { (1i128 << (be.size() * 8)) - 1 };
+            let stat = self.static_place(b);
+            match stat {
+                Some(s) => {
+                    self.op_static(Op::Fetch { elem: be, at: s.place }, s);
+                }
+                None => {
+                    self.addr(b);
+                    self.op(Op::Dup);
+                    self.op(Op::FetchInd(be));
+                }
+            }
+            self.push_int(be, full & !mask);
+            self.op(Op::Bin { op: BinOp::And, elem: be });
+            self.push_src(&src);
+            self.op(Op::Conv { from: Elem::Bool, to: be });
+            self.push_int(be, i128::from(*n));
+            self.op(Op::Bin { op: BinOp::Shl, elem: be });
+            self.op(Op::Bin { op: BinOp::Or, elem: be });
+            match stat {
+                Some(s) => {
+                    self.op_static(Op::Store { elem: be, at: s.place }, s);
+                }
+                None => {
+                    self.op(Op::StoreInd(be));
+                }
+            }
+            return;
+        }
+        if ty.is_aggregate() {
+            let located = self.at_word(target) || matches!(&src, Src::Expr(e) if self.at_word(e));
+            if located {
+                if let (Src::Expr(e), Ty::Array(a)) = (&src, ty) {
+                    self.copy_elementwise(target, e, a.count());
+                    return;
+                }
+            }
+            self.addr(target);
+            self.push_src(&src);
+            self.copy(ty);
+            return;
+        }
+        let elem = self.elem(ty);
+        match self.static_place(target) {
+            Some(s) => {
+                self.push_src(&src);
+                self.op_static(Op::Store { elem, at: s.place }, s);
+            }
+            None => {
+                self.addr(target);
+                self.push_src(&src);
+                self.op(Op::StoreInd(elem));
+            }
+        }
+    }
+
+    /// An array assignment where one side is at device words: element by element.
+    fn copy_elementwise(&mut self, target: &TExpr, src: &TExpr, count: u64) {
+        let Ty::Array(a) = &target.ty else { return };
+        let elem = self.elem(&a.of);
+        let (tw, sw) = (self.at_word(target), self.at_word(src));
+        let step = |word: bool| if word { elem.words() } else { a.elem_size };
+        for i in 0..count as u32 {
+            self.addr(target);
+            if i > 0 {
+                self.op(Op::Offset(i * step(tw)));
+            }
+            self.addr(src);
+            if i > 0 {
+                self.op(Op::Offset(i * step(sw)));
+            }
+            self.op(Op::FetchInd(elem));
+            self.op(Op::StoreInd(elem));
+        }
+    }
+
+    fn stmts(&mut self, body: &[TStmt]) {
+        for s in body {
+            self.stmt(s);
+        }
+    }
+
+    fn stmt(&mut self, s: &TStmt) {
+        let saved_line = self.line;
+        let saved_tmp = self.tmp;
+        self.line = s.line;
+        self.sp = 0;
+        self.max_sp = 0;
+        match &s.k {
+            TS::Assign(t, v) => self.store(t, Src::Expr(v)),
+            TS::Eval(e) => {
+                if let TK::Call(call) = &e.k {
+                    self.call_fn(call, &e.ty, false);
+                } else {
+                    self.value(e);
+                    if e.ty != Ty::Void {
+                        self.op(Op::Drop);
+                    }
+                }
+            }
+            TS::FbCall(inst, call) => self.fb_call(inst, call),
+            TS::If(branches, otherwise) => {
+                let mut ends = Vec::new();
+                let mut done = false;
+                for (c, body) in branches {
+                    self.line = s.line.max(c.span.line);
+                    match c.const_int() {
+                        Some(0) => continue,
+                        Some(_) => {
+                            self.stmts(body);
+                            done = true;
+                            break;
+                        }
+                        None => {}
+                    }
+                    self.sp = 0;
+                    self.value(c);
+                    self.check_depth();
+                    let skip = self.op(Op::GotoIf { target: 0, when: false });
+                    self.stmts(body);
+                    self.line = s.line;
+                    ends.push(self.op(Op::Goto(0)));
+                    let next = self.pc();
+                    self.patch(skip, next);
+                }
+                if !done {
+                    self.stmts(otherwise);
+                }
+                let end = self.pc();
+                for j in ends {
+                    self.patch(j, end);
+                }
+            }
+            TS::Case { sel, arms, otherwise } => {
+                let elem = self.elem(&sel.ty);
+                let place = match self.static_place(sel) {
+                    Some(s) => s,
+                    None => {
+                        let t = self.alloc_tmp(8);
+                        self.value(sel);
+                        self.op(Op::Store { elem, at: Place::Frame(t) });
+                        Static { place: Place::Frame(t), reloc: false }
+                    }
+                };
+                let mut to_arm = Vec::new();
+                for (i, (ranges, _)) in arms.iter().enumerate() {
+                    for &(lo, hi) in ranges {
+                        self.op_static(Op::Fetch { elem, at: place.place }, place);
+                        self.push_int(elem, lo);
+                        if lo == hi {
+                            self.op(Op::Cmp { op: CmpOp::Eq, elem });
+                        } else {
+                            self.op(Op::Cmp { op: CmpOp::Ge, elem });
+                            self.op_static(Op::Fetch { elem, at: place.place }, place);
+                            self.push_int(elem, hi);
+                            self.op(Op::Cmp { op: CmpOp::Le, elem });
+                            self.op(Op::Bin { op: BinOp::And, elem: Elem::Bool });
+                        }
+                        to_arm.push((self.op(Op::GotoIf { target: 0, when: true }), i));
+                    }
+                }
+                self.check_depth();
+                self.stmts(otherwise);
+                self.line = s.line;
+                let mut ends = vec![self.op(Op::Goto(0))];
+                for (i, (_, body)) in arms.iter().enumerate() {
+                    let here = self.pc();
+                    for (j, arm) in &to_arm {
+                        if *arm == i {
+                            let j = *j;
+                            self.patch(j, here);
+                        }
+                    }
+                    self.stmts(body);
+                    self.line = s.line;
+                    ends.push(self.op(Op::Goto(0)));
+                }
+                let end = self.pc();
+                for j in ends {
+                    self.patch(j, end);
+                }
+            }
+            TS::While(c, body) => {
+                let head = self.pc();
+                self.loops.push(Loop::default());
+                let exit = match c.const_int() {
+                    Some(0) => {
+                        self.loops.pop();
+                        self.tmp = saved_tmp;
+                        self.line = saved_line;
+                        return;
+                    }
+                    Some(_) => None,
+                    None => {
+                        self.value(c);
+                        self.check_depth();
+                        Some(self.op(Op::GotoIf { target: 0, when: false }))
+                    }
+                };
+                self.stmts(body);
+                self.line = s.line;
+                self.op(Op::Goto(head));
+                let end = self.pc();
+                let l = self.loops.pop().expect("pushed");
+                if let Some(e) = exit {
+                    self.patch(e, end);
+                }
+                self.close_loop(l, head, end);
+            }
+            TS::Repeat(body, c) => {
+                let head = self.pc();
+                self.loops.push(Loop::default());
+                self.stmts(body);
+                self.line = c.span.line;
+                let cont = self.pc();
+                self.sp = 0;
+                self.value(c);
+                self.check_depth();
+                self.op(Op::GotoIf { target: head, when: false });
+                let end = self.pc();
+                let l = self.loops.pop().expect("pushed");
+                self.close_loop(l, cont, end);
+            }
+            TS::For { var, from, to, by, body } => self.for_loop(s.line, var, from, to, by, body),
+            TS::Exit => {
+                let j = self.op(Op::Goto(0));
+                if let Some(l) = self.loops.last_mut() {
+                    l.breaks.push(j);
+                }
+            }
+            TS::Continue => {
+                let j = self.op(Op::Goto(0));
+                if let Some(l) = self.loops.last_mut() {
+                    l.continues.push(j);
+                }
+            }
+            TS::Return => {
+                if self.kind == PouKind::Program {
+                    let j = self.op(Op::Goto(0));
+                    self.returns.push(j);
+                } else {
+                    self.op(Op::Return);
+                }
+            }
+        }
+        self.check_depth();
+        self.tmp = saved_tmp;
+        self.line = saved_line;
+    }
+
+    fn close_loop(&mut self, l: Loop, cont: u32, end: u32) {
+        for j in l.breaks {
+            self.patch(j, end);
+        }
+        for j in l.continues {
+            self.patch(j, cont);
+        }
+    }
+
+    fn check_depth(&mut self) {
+        if self.max_sp > EVAL_DEPTH && !self.depth_reported {
+            self.depth_reported = true;
+            let msg = format!(
+                "this statement needs {} evaluation stack slots (limit {EVAL_DEPTH})",
+                self.max_sp
+            );
+            self.cx.error(self.file, crate::st::ast::Span { line: self.line, col: 1 }, msg);
+        }
+    }
+
+    fn for_loop(
+        &mut self,
+        line: u32,
+        var: &TExpr,
+        from: &TExpr,
+        to: &TExpr,
+        by: &TExpr,
+        body: &[TStmt],
+    ) {
+        let elem = self.elem(&var.ty);
+        let ue = unsigned(elem);
+        let v = self.static_place(var).expect("a FOR variable is a local");
+        let fetch_v = |em: &mut Self| {
+            em.op_static(Op::Fetch { elem, at: v.place }, v);
+        };
+        self.value(from);
+        self.op_static(Op::Store { elem, at: v.place }, v);
+        // bound and step, evaluated once
+        let to_tmp = if to.is_const() {
+            None
+        } else {
+            let t = self.alloc_tmp(8);
+            self.value(to);
+            self.op(Op::Store { elem, at: Place::Frame(t) });
+            Some(t)
+        };
+        let by_const = by.const_int();
+        let by_tmp = if by_const.is_some() {
+            None
+        } else {
+            let t = self.alloc_tmp(8);
+            self.value(by);
+            self.op(Op::Store { elem, at: Place::Frame(t) });
+            Some(t)
+        };
+        let push_to = |em: &mut Self| match to_tmp {
+            Some(t) => {
+                em.op(Op::Fetch { elem, at: Place::Frame(t) });
+            }
+            None => em.value(to),
+        };
+        let push_by = |em: &mut Self| match by_tmp {
+            Some(t) => {
+                em.op(Op::Fetch { elem, at: Place::Frame(t) });
+            }
+            None => em.push_int(elem, by_const.unwrap_or(1)),
+        };
+        let mut exits = Vec::new();
+        // the entry test
+        let neg_test = |em: &mut Self, exits: &mut Vec<usize>| {
+            fetch_v(em);
+            push_to(em);
+            em.op(Op::Cmp { op: CmpOp::Lt, elem });
+            exits.push(em.op(Op::GotoIf { target: 0, when: true }));
+        };
+        let pos_test = |em: &mut Self, exits: &mut Vec<usize>| {
+            fetch_v(em);
+            push_to(em);
+            em.op(Op::Cmp { op: CmpOp::Gt, elem });
+            exits.push(em.op(Op::GotoIf { target: 0, when: true }));
+        };
+        match by_const {
+            Some(b) if b > 0 => pos_test(self, &mut exits),
+            Some(_) => neg_test(self, &mut exits),
+            None => {
+                push_by(self);
+                self.push_int(elem, 0);
+                self.op(Op::Cmp { op: CmpOp::Lt, elem });
+                let to_neg = self.op(Op::GotoIf { target: 0, when: true });
+                pos_test(self, &mut exits);
+                let to_body = self.op(Op::Goto(0));
+                let here = self.pc();
+                self.patch(to_neg, here);
+                neg_test(self, &mut exits);
+                let body_at = self.pc();
+                self.patch(to_body, body_at);
+            }
+        }
+        let body_at = self.pc();
+        self.loops.push(Loop::default());
+        self.stmts(body);
+        self.line = line;
+        let cont = self.pc();
+        self.sp = 0;
+        // the remaining distance to the bound, unsigned, against the step: no wrap-around
+        let pos_rest = |em: &mut Self, exits: &mut Vec<usize>| {
+            push_to(em);
+            fetch_v(em);
+            em.op(Op::Bin { op: BinOp::Sub, elem });
+            if ue != elem {
+                em.op(Op::Conv { from: elem, to: ue });
+            }
+            push_by(em);
+            if ue != elem {
+                em.op(Op::Conv { from: elem, to: ue });
+            }
+            em.op(Op::Cmp { op: CmpOp::Lt, elem: ue });
+            exits.push(em.op(Op::GotoIf { target: 0, when: true }));
+        };
+        let neg_rest = |em: &mut Self, exits: &mut Vec<usize>| {
+            fetch_v(em);
+            push_to(em);
+            em.op(Op::Bin { op: BinOp::Sub, elem });
+            if ue != elem {
+                em.op(Op::Conv { from: elem, to: ue });
+            }
+            push_by(em);
+            em.op(Op::Un { op: UnOp::Neg, elem });
+            if ue != elem {
+                em.op(Op::Conv { from: elem, to: ue });
+            }
+            em.op(Op::Cmp { op: CmpOp::Lt, elem: ue });
+            exits.push(em.op(Op::GotoIf { target: 0, when: true }));
+        };
+        match by_const {
+            Some(b) if b > 0 => pos_rest(self, &mut exits),
+            Some(_) => neg_rest(self, &mut exits),
+            None => {
+                push_by(self);
+                self.push_int(elem, 0);
+                self.op(Op::Cmp { op: CmpOp::Lt, elem });
+                let to_neg = self.op(Op::GotoIf { target: 0, when: true });
+                pos_rest(self, &mut exits);
+                let to_inc = self.op(Op::Goto(0));
+                let here = self.pc();
+                self.patch(to_neg, here);
+                neg_rest(self, &mut exits);
+                let inc = self.pc();
+                self.patch(to_inc, inc);
+            }
+        }
+        fetch_v(self);
+        push_by(self);
+        self.op(Op::Bin { op: BinOp::Add, elem });
+        self.op_static(Op::Store { elem, at: v.place }, v);
+        self.op(Op::Goto(body_at));
+        let end = self.pc();
+        for j in exits {
+            self.patch(j, end);
+        }
+        let l = self.loops.pop().expect("pushed");
+        self.close_loop(l, cont, end);
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Inst {
+    Static(Static),
+    /// A frame temporary holding the instance's pointer.
+    Ptr(u32),
+}
+
+enum Dest {
+    Callee(u32),
+    Static(Static),
+    Ptr(u32, u32),
+}
+
+/// Compiles a checked body.
+pub fn compile_body(cx: &mut Ctx<'_>, p: usize, body: &[TStmt]) -> Body {
+    let kind = cx.pous[p].kind;
+    let file = cx.pous[p].file;
+    let frame_vars = cx.pous[p].frame_vars;
+    let end_line = cx.pous[p].ast.end.line;
+    let start_line = cx.pous[p].ast.span.line;
+    let mut em = Em {
+        cx,
+        kind,
+        file,
+        b: Body { frame: frame_vars, ..Body::default() },
+        line: start_line,
+        sp: 0,
+        max_sp: 0,
+        tmp: frame_vars,
+        loops: Vec::new(),
+        returns: Vec::new(),
+        depth_reported: false,
+    };
+    // VAR_TEMP of a PROGRAM or FB starts from its initial values at each call
+    if kind != PouKind::Function {
+        if let Some(t) = em.template(p) {
+            em.op(Op::AddrOf(Place::Frame(0)));
+            em.op(Op::AddrOf(Place::Var(t)));
+            em.op(Op::Copy(frame_vars));
+        }
+    }
+    em.stmts(body);
+    em.line = end_line;
+    let end = em.pc();
+    for j in std::mem::take(&mut em.returns) {
+        em.patch(j, end);
+    }
+    em.op(if kind == PouKind::Program { Op::End } else { Op::Return });
+    let b = em.b;
+    if b.frame > MAX_FRAME {
+        let name = cx.pous[p].name.clone();
+        let span = cx.pous[p].ast.name.span;
+        cx.error(file, span, format!("`{name}` needs {} bytes of frame (limit 1 MiB)", b.frame));
+    }
+    b
+}

@@ -1,0 +1,1558 @@
+//! Expressions: names resolved, types checked and made explicit (implicit widenings become
+//! conversion nodes), constants folded with the VM's wrapping rules, calls bound to their
+//! parameters. The result is a typed tree the code generator walks.
+
+use crate::lang::ops::CmpOp;
+use crate::st::ast::{
+    self, Arg, BinaryOp, Expr, ExprKind, Literal, PouKind, Span, UnaryOp, VarKind,
+};
+use crate::value::{BinOp, UnOp};
+
+use super::ctx::{suggest, Ctx, Cv, Scope, Storage};
+use super::stdlib::Std;
+use super::types::{fits, int_slot, real_slot, wrap, Prim, Ty};
+
+/// A typed expression.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TExpr {
+    pub k: TK,
+    pub ty: Ty,
+    pub span: Span,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum TK {
+    Const(Cv),
+    /// A variable: where it is, and whether that place holds a pointer to it (VAR_IN_OUT).
+    Var {
+        storage: Storage,
+        by_ref: bool,
+    },
+    /// A struct member or an FB instance's variable, at a byte offset; `by_ref` when that
+    /// variable holds a pointer (an instance's VAR_IN_OUT).
+    Member(Box<TExpr>, u32, bool),
+    Index(Box<TExpr>, Vec<TExpr>),
+    Bit(Box<TExpr>, u8),
+    Un(UnOp, Box<TExpr>),
+    /// Both operands of the node's type (comparisons excepted: [`TK::Cmp`]).
+    Bin(BinOp, Box<TExpr>, Box<TExpr>),
+    /// Operands of the same type; the node is a BOOL.
+    Cmp(CmpOp, Box<TExpr>, Box<TExpr>),
+    /// The operand converted to the node's type.
+    Conv(Box<TExpr>),
+    /// A user FUNCTION.
+    Call(Box<CallT>),
+    /// A standard function needing more than one op.
+    Std(Std, Vec<TExpr>),
+}
+
+/// A call's bound arguments.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CallT {
+    pub pou: usize,
+    /// Values of inputs (`by_ref`: VAR_IN_OUT, the argument is a place) at their offsets
+    /// (the callee's frame for a FUNCTION, the instance for an FB).
+    pub args: Vec<ArgT>,
+    pub outs: Vec<OutT>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArgT {
+    pub offset: u32,
+    pub ty: Ty,
+    pub by_ref: bool,
+    pub value: TExpr,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutT {
+    pub offset: u32,
+    /// The output's own type.
+    pub ty: Ty,
+    pub target: TExpr,
+    pub negated: bool,
+}
+
+impl TExpr {
+    pub fn error(span: Span) -> TExpr {
+        TExpr { k: TK::Const(Cv::Int(0)), ty: Ty::Error, span }
+    }
+
+    pub fn konst(cv: Cv, ty: Ty, span: Span) -> TExpr {
+        TExpr { k: TK::Const(cv), ty, span }
+    }
+
+    pub fn is_const(&self) -> bool {
+        matches!(self.k, TK::Const(_))
+    }
+
+    pub fn const_int(&self) -> Option<i128> {
+        match self.k {
+            TK::Const(Cv::Int(v)) => Some(v),
+            _ => None,
+        }
+    }
+
+    /// Whether evaluating it calls a FUNCTION (whose frame area another call would reuse).
+    pub fn has_call(&self) -> bool {
+        match &self.k {
+            TK::Const(_) | TK::Var { .. } => false,
+            TK::Call(_) => true,
+            TK::Member(a, _, _) | TK::Bit(a, _) | TK::Un(_, a) | TK::Conv(a) => a.has_call(),
+            TK::Index(a, ix) => a.has_call() || ix.iter().any(TExpr::has_call),
+            TK::Bin(_, a, b) | TK::Cmp(_, a, b) => a.has_call() || b.has_call(),
+            TK::Std(_, args) => args.iter().any(TExpr::has_call),
+        }
+    }
+
+    /// Whether it names memory (a variable, a member, an element).
+    pub fn is_place(&self) -> bool {
+        matches!(self.k, TK::Var { .. } | TK::Index(..) | TK::Member(..))
+    }
+}
+
+/// The slot of a constant as a value of `p`.
+pub fn cv_slot(cv: &Cv, p: Prim) -> u64 {
+    match cv {
+        Cv::Int(v) if p.is_real() => real_slot(p, *v as f64),
+        Cv::Int(v) => int_slot(p, *v),
+        Cv::Real(f) if p.is_real() => real_slot(p, *f),
+        Cv::Real(f) => int_slot(p, *f as i128),
+        Cv::Str(_) => 0,
+    }
+}
+
+/// A conversion folded, with `crate::value::convert`'s rules.
+pub fn fold_conv(cv: &Cv, from: Prim, to: Prim) -> Cv {
+    let as_f64 = |cv: &Cv| match cv {
+        Cv::Int(v) => *v as f64,
+        Cv::Real(f) => *f,
+        Cv::Str(_) => 0.0,
+    };
+    if to == Prim::Bool {
+        return Cv::Int(i128::from(as_f64(cv) != 0.0 || matches!(cv, Cv::Int(v) if *v != 0)));
+    }
+    if to.is_real() {
+        let f = as_f64(cv);
+        return Cv::Real(if to == Prim::Real { f64::from(f as f32) } else { f });
+    }
+    match cv {
+        Cv::Int(v) => Cv::Int(wrap(to, *v)),
+        Cv::Real(f) => {
+            let _ = from;
+            if f.is_nan() {
+                return Cv::Int(0);
+            }
+            let r = f.round();
+            let (lo, hi) = to.range().expect("integer");
+            Cv::Int((r.clamp(lo as f64, hi as f64)) as i128)
+        }
+        Cv::Str(_) => Cv::Int(0),
+    }
+}
+
+/// A binary operation folded with the VM's rules (wrapping, truncating division); `None` on a
+/// division by zero.
+pub fn fold_bin(op: BinOp, p: Option<Prim>, a: &Cv, b: &Cv) -> Option<Cv> {
+    match (a, b) {
+        (Cv::Int(x), Cv::Int(y)) if !p.is_some_and(Prim::is_real) => {
+            let (x, y) = (*x, *y);
+            let r = match op {
+                BinOp::Add => x.checked_add(y)?,
+                BinOp::Sub => x.checked_sub(y)?,
+                BinOp::Mul => x.checked_mul(y)?,
+                BinOp::Div => x.checked_div(y)?,
+                BinOp::Mod => x.checked_rem(y)?,
+                BinOp::And => x & y,
+                BinOp::Or => x | y,
+                BinOp::Xor => x ^ y,
+                BinOp::Min => x.min(y),
+                BinOp::Max => x.max(y),
+                BinOp::Shl | BinOp::Shr | BinOp::Rol | BinOp::Ror => {
+                    let p = p?;
+                    let bits = p.bits() as i128;
+                    let mask = (1u128 << bits) - 1;
+                    let ux = (x as u128) & mask;
+                    let n = y.max(0);
+                    let r = match op {
+                        BinOp::Shl if n >= bits => 0,
+                        BinOp::Shr if n >= bits => 0,
+                        BinOp::Shl => (ux << n) & mask,
+                        BinOp::Shr => ux >> n,
+                        BinOp::Rol => {
+                            let n = n % bits;
+                            ((ux << n) | (ux >> ((bits - n) % bits))) & mask
+                        }
+                        _ => {
+                            let n = n % bits;
+                            ((ux >> n) | (ux << ((bits - n) % bits))) & mask
+                        }
+                    };
+                    r as i128
+                }
+                BinOp::Expt => return None,
+            };
+            Some(Cv::Int(match p {
+                Some(p) => wrap(p, r),
+                None => r,
+            }))
+        }
+        _ => {
+            let f = |c: &Cv| match c {
+                Cv::Int(v) => *v as f64,
+                Cv::Real(f) => *f,
+                Cv::Str(_) => 0.0,
+            };
+            let (x, y) = (f(a), f(b));
+            let r = match op {
+                BinOp::Add => x + y,
+                BinOp::Sub => x - y,
+                BinOp::Mul => x * y,
+                BinOp::Div if y == 0.0 => return None,
+                BinOp::Div => x / y,
+                BinOp::Expt => x.powf(y),
+                BinOp::Min => x.min(y),
+                BinOp::Max => x.max(y),
+                _ => return None,
+            };
+            Some(Cv::Real(if p == Some(Prim::Real) { f64::from(r as f32) } else { r }))
+        }
+    }
+}
+
+fn fold_cmp(op: CmpOp, a: &Cv, b: &Cv) -> Option<bool> {
+    use std::cmp::Ordering;
+    let ord = match (a, b) {
+        (Cv::Int(x), Cv::Int(y)) => Some(x.cmp(y)),
+        (Cv::Str(x), Cv::Str(y)) => Some(x.as_bytes().cmp(y.as_bytes())),
+        (Cv::Real(x), Cv::Real(y)) => x.partial_cmp(y),
+        (Cv::Int(x), Cv::Real(y)) => (*x as f64).partial_cmp(y),
+        (Cv::Real(x), Cv::Int(y)) => x.partial_cmp(&(*y as f64)),
+        _ => return None,
+    };
+    Some(match ord {
+        None => op == CmpOp::Ne,
+        Some(Ordering::Less) => matches!(op, CmpOp::Lt | CmpOp::Le | CmpOp::Ne),
+        Some(Ordering::Equal) => matches!(op, CmpOp::Eq | CmpOp::Le | CmpOp::Ge),
+        Some(Ordering::Greater) => matches!(op, CmpOp::Gt | CmpOp::Ge | CmpOp::Ne),
+    })
+}
+
+pub fn op_text(op: BinaryOp) -> &'static str {
+    match op {
+        BinaryOp::Or => "OR",
+        BinaryOp::Xor => "XOR",
+        BinaryOp::And => "AND",
+        BinaryOp::Eq => "=",
+        BinaryOp::Ne => "<>",
+        BinaryOp::Lt => "<",
+        BinaryOp::Le => "<=",
+        BinaryOp::Gt => ">",
+        BinaryOp::Ge => ">=",
+        BinaryOp::Add => "+",
+        BinaryOp::Sub => "-",
+        BinaryOp::Mul => "*",
+        BinaryOp::Div => "/",
+        BinaryOp::Mod => "MOD",
+        BinaryOp::Pow => "**",
+    }
+}
+
+/// How a place is used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Access {
+    Read,
+    /// Assigned (`:=`, `=>`, a FOR variable).
+    Write,
+    /// Passed to a VAR_IN_OUT: read and written.
+    Ref,
+}
+
+impl<'a> Ctx<'a> {
+    /// Checks an expression; `expected` guides untyped literals and ambiguous enumeration
+    /// values (the result may still need [`Ctx::coerce`]).
+    pub fn check_expr(&mut self, e: &Expr, scope: Scope, expected: Option<&Ty>) -> TExpr {
+        let span = e.span;
+        let file = scope.file;
+        match &e.kind {
+            ExprKind::Literal(lit) => self.literal(lit, span, scope, expected),
+            ExprKind::Name(_) | ExprKind::Member(..) | ExprKind::Index(..) | ExprKind::Bit(..) => {
+                self.check_place(e, scope, Access::Read, expected)
+            }
+            ExprKind::Unary(op, a) => {
+                let a = self.check_expr(a, scope, expected);
+                self.unary(*op, a, span, file)
+            }
+            ExprKind::Binary(op, a, b) => {
+                let (ea, eb) = match op {
+                    BinaryOp::Eq
+                    | BinaryOp::Ne
+                    | BinaryOp::Lt
+                    | BinaryOp::Le
+                    | BinaryOp::Gt
+                    | BinaryOp::Ge => (None, None),
+                    _ => (expected, expected),
+                };
+                let ta = self.check_expr(a, scope, ea);
+                let hint = if matches!(ta.ty, Ty::IntLit | Ty::RealLit | Ty::Error) {
+                    eb
+                } else {
+                    Some(&ta.ty)
+                };
+                let hint = hint.cloned();
+                let tb = self.check_expr(b, scope, hint.as_ref());
+                let ta = if matches!(ta.ty, Ty::IntLit | Ty::RealLit)
+                    && !matches!(tb.ty, Ty::IntLit | Ty::RealLit)
+                {
+                    // an enumeration value on the left guessed without context: nothing to redo
+                    ta
+                } else {
+                    ta
+                };
+                self.binary_op(*op, ta, tb, span, file)
+            }
+            ExprKind::Call { callee, args } => {
+                self.check_call_expr(callee, args, span, scope, expected)
+            }
+        }
+    }
+
+    fn literal(&mut self, lit: &Literal, span: Span, scope: Scope, expected: Option<&Ty>) -> TExpr {
+        let file = scope.file;
+        match lit {
+            Literal::Int(v) => {
+                let v = *v as i128;
+                TExpr::konst(Cv::Int(v), Ty::IntLit, span)
+            }
+            Literal::Real(f) => TExpr::konst(Cv::Real(*f), Ty::RealLit, span),
+            Literal::Bool(b) => TExpr::konst(Cv::Int(i128::from(*b)), Ty::Prim(Prim::Bool), span),
+            Literal::Time(ns) => {
+                let p = match expected.and_then(|t| t.prim(&self.types)) {
+                    Some(Prim::LTime) => Prim::LTime,
+                    _ => Prim::Time,
+                };
+                if !fits(Prim::LInt, *ns) {
+                    self.error(file, span, "the duration does not fit `TIME`");
+                    return TExpr::error(span);
+                }
+                TExpr::konst(Cv::Int(*ns), Ty::Prim(p), span)
+            }
+            Literal::String(s) => {
+                if s.len() > 255 {
+                    self.error(file, span, "a string constant is at most 255 characters");
+                    return TExpr::error(span);
+                }
+                TExpr::konst(Cv::Str(s.clone()), Ty::Str(s.len().max(1) as u32), span)
+            }
+            Literal::Typed { ty, value } => {
+                if let Some(p) = Prim::from_name(&ty.name) {
+                    let inner = self.check_expr(value, scope, Some(&Ty::Prim(p)));
+                    if p == Prim::Bool {
+                        if let Some(v @ (0 | 1)) =
+                            inner.const_int().filter(|_| inner.ty == Ty::IntLit)
+                        {
+                            return TExpr::konst(Cv::Int(v), Ty::Prim(Prim::Bool), span);
+                        }
+                    }
+                    return self.coerce(inner, &Ty::Prim(p), file);
+                }
+                if ty.is("STRING") {
+                    let inner = self.check_expr(value, scope, None);
+                    return inner;
+                }
+                // `Color#Red`
+                let Some(&t) = self.type_names.get(&ty.name.to_ascii_lowercase()) else {
+                    self.error(file, ty.span, format!("unknown type `{}`", ty.name));
+                    return TExpr::error(span);
+                };
+                let enum_ty = self.resolve_type_decl(t);
+                let Ty::Enum(ei) = enum_ty else {
+                    let inner = self.check_expr(value, scope, Some(&enum_ty));
+                    return self.coerce(inner, &enum_ty, file);
+                };
+                let ExprKind::Name(id) = &value.kind else {
+                    self.error(file, value.span, format!("`{}#` needs a value name", ty.name));
+                    return TExpr::error(span);
+                };
+                let en = &self.types.enums[ei];
+                match en.values.iter().find(|(n, _)| id.is(n)) {
+                    Some((_, v)) => TExpr::konst(Cv::Int(*v), Ty::Enum(ei), span),
+                    None => {
+                        let hint = suggest(&id.name, en.values.iter().map(|v| v.0.as_str()));
+                        let n = en.name.clone();
+                        self.error(
+                            file,
+                            id.span,
+                            format!("`{n}` has no value `{}`{hint}", id.name),
+                        );
+                        TExpr::error(span)
+                    }
+                }
+            }
+        }
+    }
+
+    /// A name, member, element or bit, as a value or as a place to write.
+    pub fn check_place(
+        &mut self,
+        e: &Expr,
+        scope: Scope,
+        access: Access,
+        expected: Option<&Ty>,
+    ) -> TExpr {
+        let span = e.span;
+        let file = scope.file;
+        match &e.kind {
+            ExprKind::Name(id) => self.name(id, scope, access, expected),
+            ExprKind::Member(base, id) => {
+                let b = self.check_place(
+                    base,
+                    scope,
+                    if access == Access::Read { Access::Read } else { Access::Ref },
+                    None,
+                );
+                match b.ty.clone() {
+                    Ty::Error => TExpr::error(span),
+                    Ty::Struct(s) => {
+                        let st = &self.types.structs[s];
+                        match st.members.iter().find(|m| id.is(&m.name)) {
+                            Some(m) => {
+                                let (ty, off) = (m.ty.clone(), m.offset);
+                                TExpr { k: TK::Member(Box::new(b), off, false), ty, span }
+                            }
+                            None => {
+                                let hint =
+                                    suggest(&id.name, st.members.iter().map(|m| m.name.as_str()));
+                                let n = st.name.clone();
+                                self.error(
+                                    file,
+                                    id.span,
+                                    format!("`{n}` has no member `{}`{hint}", id.name),
+                                );
+                                TExpr::error(span)
+                            }
+                        }
+                    }
+                    Ty::Fb(p) => {
+                        let pou = &self.pous[p];
+                        let Some(v) = pou.lookup(&id.name).map(|i| pou.vars[i].clone()) else {
+                            let names: Vec<&str> = pou
+                                .vars
+                                .iter()
+                                .filter(|v| matches!(v.kind, VarKind::Input | VarKind::Output))
+                                .map(|v| v.name.as_str())
+                                .collect();
+                            let hint = suggest(&id.name, names);
+                            let n = pou.name.clone();
+                            self.error(
+                                file,
+                                id.span,
+                                format!("`{n}` has no input or output `{}`{hint}", id.name),
+                            );
+                            return TExpr::error(span);
+                        };
+                        let n = pou.name.clone();
+                        let Storage::Inst(off) = v.storage else {
+                            self.error(
+                                file,
+                                id.span,
+                                format!("`{}` is not an input or output of `{n}`", id.name),
+                            );
+                            return TExpr::error(span);
+                        };
+                        match (v.kind, access) {
+                            (VarKind::Input | VarKind::Output, Access::Read)
+                            | (VarKind::Input, _) => {}
+                            (VarKind::Output, _) => {
+                                self.error(
+                                    file,
+                                    id.span,
+                                    format!(
+                                        "`{}` is a VAR_OUTPUT of `{n}`: it cannot be written here",
+                                        id.name
+                                    ),
+                                );
+                                return TExpr::error(span);
+                            }
+                            _ => {
+                                self.error(
+                                    file,
+                                    id.span,
+                                    format!("`{}` is not an input or output of `{n}`", id.name),
+                                );
+                                return TExpr::error(span);
+                            }
+                        }
+                        TExpr { k: TK::Member(Box::new(b), off, false), ty: v.ty, span }
+                    }
+                    other => {
+                        let n = self.ty_name(&other);
+                        self.error(
+                            file,
+                            id.span,
+                            format!("`{n}` has no members (looking for `{}`)", id.name),
+                        );
+                        TExpr::error(span)
+                    }
+                }
+            }
+            ExprKind::Index(base, idx) => {
+                let b = self.check_place(
+                    base,
+                    scope,
+                    if access == Access::Read { Access::Read } else { Access::Ref },
+                    None,
+                );
+                let mut ix = Vec::new();
+                for i in idx {
+                    let t = self.check_expr(i, scope, Some(&Ty::Prim(Prim::DInt)));
+                    let t = match &t.ty {
+                        Ty::IntLit => self.coerce(t, &Ty::Prim(Prim::DInt), file),
+                        Ty::Error => t,
+                        ty if ty.prim(&self.types).is_some_and(Prim::is_integral)
+                            && !matches!(ty, Ty::Enum(_)) =>
+                        {
+                            t
+                        }
+                        ty => {
+                            let n = self.ty_name(ty);
+                            self.error(
+                                file,
+                                i.span,
+                                format!("an array index must be an integer, not `{n}`"),
+                            );
+                            TExpr::error(i.span)
+                        }
+                    };
+                    ix.push(t);
+                }
+                match b.ty.clone() {
+                    Ty::Error => TExpr::error(span),
+                    Ty::Array(a) => {
+                        if a.dims.len() != ix.len() {
+                            let name = expr_text(base);
+                            self.error(
+                                file,
+                                span,
+                                format!(
+                                    "`{name}` has {} dimension(s), {} index(es) given",
+                                    a.dims.len(),
+                                    ix.len()
+                                ),
+                            );
+                            return TExpr::error(span);
+                        }
+                        for (t, (lo, hi)) in ix.iter().zip(&a.dims) {
+                            if let Some(v) = t.const_int() {
+                                if v < i128::from(*lo) || v > i128::from(*hi) {
+                                    self.error(
+                                        file,
+                                        t.span,
+                                        format!("index {v} is out of the bounds `{lo}..{hi}`"),
+                                    );
+                                }
+                            }
+                        }
+                        TExpr { k: TK::Index(Box::new(b), ix), ty: a.of.clone(), span }
+                    }
+                    other => {
+                        let n = self.ty_name(&other);
+                        let name = expr_text(base);
+                        self.error(file, span, format!("`{name}` is `{n}`, not an array"));
+                        TExpr::error(span)
+                    }
+                }
+            }
+            ExprKind::Bit(base, n) => {
+                if access == Access::Ref {
+                    self.error(file, span, "a bit of a variable cannot be passed to a VAR_IN_OUT");
+                    return TExpr::error(span);
+                }
+                let b = self.check_place(base, scope, access, None);
+                if b.ty.is_error() {
+                    return b;
+                }
+                match b.ty.prim(&self.types) {
+                    Some(p) if p.is_integral() && !matches!(b.ty, Ty::Enum(_)) => {
+                        if u32::from(*n) >= p.bits() {
+                            self.error(file, span, format!("`{}` has no bit {n}", p.name()));
+                            return TExpr::error(span);
+                        }
+                        if let TK::Const(Cv::Int(v)) = b.k {
+                            let bit = (v as u128 >> n) & 1;
+                            return TExpr::konst(Cv::Int(bit as i128), Ty::Prim(Prim::Bool), span);
+                        }
+                        TExpr { k: TK::Bit(Box::new(b), *n), ty: Ty::Prim(Prim::Bool), span }
+                    }
+                    _ => {
+                        let t = self.ty_name(&b.ty);
+                        self.error(
+                            file,
+                            span,
+                            format!("bit access needs an integer or bit string, not `{t}`"),
+                        );
+                        TExpr::error(span)
+                    }
+                }
+            }
+            _ => match access {
+                Access::Read => self.check_expr(e, scope, expected),
+                Access::Write => {
+                    self.error(file, span, "only a variable can be assigned");
+                    TExpr::error(span)
+                }
+                Access::Ref => {
+                    self.error(file, span, "a VAR_IN_OUT argument must be a variable");
+                    TExpr::error(span)
+                }
+            },
+        }
+    }
+
+    fn name(
+        &mut self,
+        id: &ast::Ident,
+        scope: Scope,
+        access: Access,
+        expected: Option<&Ty>,
+    ) -> TExpr {
+        let span = id.span;
+        let file = scope.file;
+        if let Some(p) = scope.pou {
+            let pou = &self.pous[p];
+            if let Some(i) = pou.lookup(&id.name).filter(|&i| i < scope.visible) {
+                let v = pou.vars[i].clone();
+                let kind = pou.kind;
+                if access != Access::Read {
+                    if v.kind == VarKind::Input && !(kind == PouKind::Program) {
+                        self.error(
+                            file,
+                            span,
+                            format!("`{}` is a VAR_INPUT: it cannot be written here", v.name),
+                        );
+                        return TExpr::error(span);
+                    }
+                    if v.constant {
+                        self.error(
+                            file,
+                            span,
+                            format!("`{}` is CONSTANT: it cannot be written", v.name),
+                        );
+                        return TExpr::error(span);
+                    }
+                    if let Some(a) = v.located {
+                        if !self.writable(&a, &v.ty) {
+                            self.error(
+                                file,
+                                span,
+                                format!("`{}` is at `{a}`, which a program cannot write", v.name),
+                            );
+                            return TExpr::error(span);
+                        }
+                    }
+                    if access == Access::Write && self.for_vars.iter().any(|f| id.is(f)) {
+                        self.error(
+                            file,
+                            span,
+                            format!(
+                                "`{}` is the FOR variable: it cannot be written in the loop",
+                                v.name
+                            ),
+                        );
+                        return TExpr::error(span);
+                    }
+                } else if let (true, Some(cv)) = (v.constant, &v.value) {
+                    return TExpr::konst(cv.clone(), v.ty.clone(), span);
+                }
+                return TExpr {
+                    k: TK::Var { storage: v.storage, by_ref: v.by_ref },
+                    ty: v.ty,
+                    span,
+                };
+            }
+            if pou.kind == PouKind::Function && id.is(&pou.name) && scope.visible == pou.vars.len()
+            {
+                if access != Access::Read {
+                    self.result_assigned = true;
+                }
+                let ty = pou.result.clone();
+                if ty == Ty::Void {
+                    self.error(file, span, format!("`{}` has no result type", pou.name));
+                    return TExpr::error(span);
+                }
+                return TExpr {
+                    k: TK::Var { storage: Storage::Frame(0), by_ref: false },
+                    ty,
+                    span,
+                };
+            }
+        }
+        if let Some(&g) = self.global_names.get(&id.name.to_ascii_lowercase()) {
+            let v = self.globals[g].clone();
+            if access != Access::Read {
+                if v.constant {
+                    self.error(
+                        file,
+                        span,
+                        format!("`{}` is CONSTANT: it cannot be written", v.name),
+                    );
+                    return TExpr::error(span);
+                }
+                if let Some(a) = v.located {
+                    if !self.writable(&a, &v.ty) {
+                        self.error(
+                            file,
+                            span,
+                            format!("`{}` is at `{a}`, which a program cannot write", v.name),
+                        );
+                        return TExpr::error(span);
+                    }
+                }
+                if access == Access::Write && self.for_vars.iter().any(|f| id.is(f)) {
+                    self.error(
+                        file,
+                        span,
+                        format!(
+                            "`{}` is the FOR variable: it cannot be written in the loop",
+                            v.name
+                        ),
+                    );
+                    return TExpr::error(span);
+                }
+            } else if let (true, Some(cv)) = (v.constant, &v.value) {
+                return TExpr::konst(cv.clone(), v.ty.clone(), span);
+            }
+            return TExpr { k: TK::Var { storage: v.storage, by_ref: false }, ty: v.ty, span };
+        }
+        if let Some(cands) = self.enum_values.get(&id.name.to_ascii_lowercase()).cloned() {
+            if access != Access::Read {
+                self.error(file, span, "only a variable can be assigned");
+                return TExpr::error(span);
+            }
+            let pick = if cands.len() == 1 {
+                Some(cands[0])
+            } else {
+                match expected {
+                    Some(Ty::Enum(e)) => cands.iter().find(|c| c.0 == *e).copied(),
+                    _ => None,
+                }
+            };
+            return match pick {
+                Some((e, v)) => TExpr::konst(Cv::Int(v), Ty::Enum(e), span),
+                None => {
+                    let names: Vec<String> =
+                        cands.iter().map(|c| format!("`{}`", self.types.enums[c.0].name)).collect();
+                    self.error(
+                        file,
+                        span,
+                        format!(
+                            "`{}` is ambiguous: a value of {} (write `{}#{}`)",
+                            id.name,
+                            names.join(" and "),
+                            self.types.enums[cands[0].0].name,
+                            id.name
+                        ),
+                    );
+                    TExpr::error(span)
+                }
+            };
+        }
+        if let Some(&p) = self.pou_names.get(&id.name.to_ascii_lowercase()) {
+            let kind = match self.pous[p].kind {
+                PouKind::Function => "a FUNCTION: call it with `(…)`",
+                PouKind::FunctionBlock => "a FUNCTION_BLOCK type, not a variable",
+                PouKind::Program => "a PROGRAM, not a variable",
+            };
+            self.error(file, span, format!("`{}` is {kind}", id.name));
+            return TExpr::error(span);
+        }
+        let names = self.names_in(scope);
+        let hint = suggest(&id.name, names.iter().map(String::as_str));
+        self.error(file, span, format!("`{}` is not declared{hint}", id.name));
+        TExpr::error(span)
+    }
+
+    /// `te` as a value of `to`: an implicit widening, a literal typed, or an error.
+    pub fn coerce(&mut self, te: TExpr, to: &Ty, file: usize) -> TExpr {
+        let span = te.span;
+        if te.ty.is_error() || to.is_error() {
+            return TExpr { ty: to.clone(), ..te };
+        }
+        if &te.ty == to {
+            return te;
+        }
+        match (&te.ty, to) {
+            (Ty::IntLit, _) => {
+                let v = te.const_int().unwrap_or(0);
+                match to {
+                    Ty::Sub(_, lo, hi) => {
+                        if v < *lo || v > *hi {
+                            let n = self.ty_name(to);
+                            self.error(file, span, format!("constant `{v}` is outside `{n}`"));
+                            return TExpr::error(span);
+                        }
+                        TExpr::konst(Cv::Int(v), to.clone(), span)
+                    }
+                    Ty::Prim(p) if p.is_integral() => {
+                        if !fits(*p, v) {
+                            self.error(
+                                file,
+                                span,
+                                format!("constant `{v}` does not fit `{}`", p.name()),
+                            );
+                            return TExpr::error(span);
+                        }
+                        TExpr::konst(Cv::Int(v), to.clone(), span)
+                    }
+                    Ty::Prim(p) if p.is_real() => {
+                        TExpr::konst(fold_conv(&Cv::Int(v), Prim::LInt, *p), to.clone(), span)
+                    }
+                    _ => self.mismatch(te, to, file),
+                }
+            }
+            (Ty::RealLit, Ty::Prim(p)) if p.is_real() => {
+                let TK::Const(cv) = &te.k else { unreachable!() };
+                TExpr::konst(fold_conv(cv, Prim::LReal, *p), to.clone(), span)
+            }
+            (Ty::Str(_), Ty::Str(_)) => TExpr { ty: to.clone(), ..te },
+            (Ty::Sub(a, _, _), _) | (Ty::Prim(a), _)
+                if to.prim(&self.types).is_some() && !matches!(to, Ty::Enum(_)) =>
+            {
+                let b = to.prim(&self.types).expect("scalar");
+                if let (Ty::Sub(_, lo, hi), Some(v)) = (to, te.const_int()) {
+                    if v < *lo || v > *hi {
+                        let n = self.ty_name(to);
+                        self.error(file, span, format!("constant `{v}` is outside `{n}`"));
+                        return TExpr::error(span);
+                    }
+                }
+                if *a == b {
+                    return TExpr { ty: to.clone(), ..te };
+                }
+                if a.widens_to(b) {
+                    return self.conv(te, b, to.clone());
+                }
+                self.mismatch(te, to, file)
+            }
+            _ => self.mismatch(te, to, file),
+        }
+    }
+
+    /// A conversion node (folded for a constant).
+    pub fn conv(&mut self, te: TExpr, to_prim: Prim, to: Ty) -> TExpr {
+        let span = te.span;
+        let from = te.ty.prim(&self.types);
+        if let (TK::Const(cv), Some(from)) = (&te.k, from) {
+            return TExpr::konst(fold_conv(cv, from, to_prim), to, span);
+        }
+        if let (TK::Const(cv), Ty::IntLit) = (&te.k, &te.ty) {
+            return TExpr::konst(fold_conv(cv, Prim::LInt, to_prim), to, span);
+        }
+        if let (TK::Const(cv), Ty::RealLit) = (&te.k, &te.ty) {
+            return TExpr::konst(fold_conv(cv, Prim::LReal, to_prim), to, span);
+        }
+        if from == Some(to_prim) {
+            return TExpr { ty: to, ..te };
+        }
+        TExpr { k: TK::Conv(Box::new(te)), ty: to, span }
+    }
+
+    fn mismatch(&mut self, te: TExpr, to: &Ty, file: usize) -> TExpr {
+        let span = te.span;
+        let (a, b) = (self.ty_name(&te.ty), self.ty_name(to));
+        let hint = match (te.ty.prim(&self.types), to.prim(&self.types)) {
+            (Some(x), Some(y)) if !matches!(te.ty, Ty::Enum(_)) && !matches!(to, Ty::Enum(_)) => {
+                format!(" (use {}_TO_{})", x.name(), y.name())
+            }
+            _ => String::new(),
+        };
+        let a = match te.ty {
+            Ty::IntLit => format!("integer constant `{}`", te.const_int().unwrap_or(0)),
+            Ty::RealLit => "a real constant".to_string(),
+            _ => format!("`{a}`"),
+        };
+        self.error(file, span, format!("type mismatch: {a} cannot be assigned to `{b}`{hint}"));
+        TExpr::error(span)
+    }
+
+    fn unary(&mut self, op: UnaryOp, a: TExpr, span: Span, file: usize) -> TExpr {
+        if a.ty.is_error() {
+            return a;
+        }
+        match op {
+            UnaryOp::Plus => {
+                if matches!(a.ty, Ty::IntLit | Ty::RealLit)
+                    || a.ty.prim(&self.types).is_some_and(|p| p.is_num() || p.is_time())
+                {
+                    return TExpr { span, ..a };
+                }
+                let n = self.ty_name(&a.ty);
+                self.error(file, span, format!("`+` cannot be applied to `{n}`"));
+                TExpr::error(span)
+            }
+            UnaryOp::Neg => match (&a.k, &a.ty) {
+                (TK::Const(Cv::Int(v)), Ty::IntLit) => TExpr::konst(Cv::Int(-v), Ty::IntLit, span),
+                (TK::Const(Cv::Real(v)), Ty::RealLit) => {
+                    TExpr::konst(Cv::Real(-v), Ty::RealLit, span)
+                }
+                _ => match a.ty.prim(&self.types) {
+                    Some(p) if (p.is_num() || p.is_time()) && !matches!(a.ty, Ty::Enum(_)) => {
+                        if let TK::Const(cv) = &a.k {
+                            let r =
+                                fold_bin(BinOp::Sub, Some(p), &zero(p), cv).expect("no division");
+                            return TExpr::konst(r, Ty::Prim(p), span);
+                        }
+                        TExpr { k: TK::Un(UnOp::Neg, Box::new(a)), ty: Ty::Prim(p), span }
+                    }
+                    _ => {
+                        let n = self.ty_name(&a.ty);
+                        self.error(file, span, format!("`-` cannot be applied to `{n}`"));
+                        TExpr::error(span)
+                    }
+                },
+            },
+            UnaryOp::Not => match a.ty.prim(&self.types) {
+                Some(p) if (p == Prim::Bool || p.is_bits()) && !matches!(a.ty, Ty::Enum(_)) => {
+                    if let TK::Const(Cv::Int(v)) = a.k {
+                        let r = if p == Prim::Bool { i128::from(v == 0) } else { wrap(p, !v) };
+                        return TExpr::konst(Cv::Int(r), Ty::Prim(p), span);
+                    }
+                    TExpr { k: TK::Un(UnOp::Not, Box::new(a)), ty: Ty::Prim(p), span }
+                }
+                _ => {
+                    let n = self.ty_name(&a.ty);
+                    self.error(file, span, format!("`NOT` cannot be applied to `{n}`"));
+                    TExpr::error(span)
+                }
+            },
+        }
+    }
+
+    /// Brings two operands to one type: `None` (after an error) when they have none.
+    pub fn unify(
+        &mut self,
+        a: TExpr,
+        b: TExpr,
+        what: &str,
+        span: Span,
+        file: usize,
+    ) -> Option<(TExpr, TExpr, Ty)> {
+        if a.ty.is_error() || b.ty.is_error() {
+            return None;
+        }
+        let lit = |t: &Ty| matches!(t, Ty::IntLit | Ty::RealLit);
+        match (&a.ty, &b.ty) {
+            (Ty::IntLit, Ty::IntLit) => Some((a, b, Ty::IntLit)),
+            (Ty::RealLit | Ty::IntLit, Ty::RealLit | Ty::IntLit) => {
+                let a = to_real_lit(a);
+                let b = to_real_lit(b);
+                Some((a, b, Ty::RealLit))
+            }
+            (x, y) if lit(x) && !lit(y) => {
+                let ty = base_ty(y, &self.types);
+                let a = self.coerce(a, &ty, file);
+                if a.ty.is_error() {
+                    return None;
+                }
+                let b = TExpr { ty: ty.clone(), ..b };
+                Some((a, b, ty))
+            }
+            (x, y) if !lit(x) && lit(y) => {
+                let ty = base_ty(x, &self.types);
+                let b = self.coerce(b, &ty, file);
+                if b.ty.is_error() {
+                    return None;
+                }
+                let a = TExpr { ty: ty.clone(), ..a };
+                Some((a, b, ty))
+            }
+            (Ty::Enum(x), Ty::Enum(y)) if x == y => {
+                let t = a.ty.clone();
+                Some((a, b, t))
+            }
+            (Ty::Str(_), Ty::Str(_)) => {
+                let t = a.ty.clone();
+                Some((a, b, t))
+            }
+            (x, y)
+                if !matches!(x, Ty::Enum(_))
+                    && !matches!(y, Ty::Enum(_))
+                    && x.prim(&self.types).is_some()
+                    && y.prim(&self.types).is_some() =>
+            {
+                let (px, py) =
+                    (x.prim(&self.types).expect("scalar"), y.prim(&self.types).expect("scalar"));
+                match Prim::common(px, py) {
+                    Some(c) => {
+                        let a = self.conv(a, c, Ty::Prim(c));
+                        let b = self.conv(b, c, Ty::Prim(c));
+                        Some((a, b, Ty::Prim(c)))
+                    }
+                    None => {
+                        self.error(
+                            file,
+                            span,
+                            format!(
+                                "`{what}` cannot be applied to `{}` and `{}`",
+                                px.name(),
+                                py.name()
+                            ),
+                        );
+                        None
+                    }
+                }
+            }
+            (x, y) => {
+                let (nx, ny) = (self.ty_name(x), self.ty_name(y));
+                self.error(file, span, format!("`{what}` cannot be applied to `{nx}` and `{ny}`"));
+                None
+            }
+        }
+    }
+
+    pub fn binary_op(
+        &mut self,
+        op: BinaryOp,
+        a: TExpr,
+        b: TExpr,
+        span: Span,
+        file: usize,
+    ) -> TExpr {
+        let what = op_text(op);
+        if a.ty.is_error() || b.ty.is_error() {
+            return TExpr::error(span);
+        }
+        // TIME * integer, TIME / integer
+        if matches!(op, BinaryOp::Mul | BinaryOp::Div) {
+            let time = |t: &Ty, s: &Self| t.prim(&s.types).is_some_and(Prim::is_time);
+            let int = |t: &Ty, s: &Self| {
+                matches!(t, Ty::IntLit)
+                    || (t.prim(&s.types).is_some_and(Prim::is_int) && !matches!(t, Ty::Enum(_)))
+            };
+            if time(&a.ty, self) && int(&b.ty, self)
+                || (op == BinaryOp::Mul && int(&a.ty, self) && time(&b.ty, self))
+            {
+                let (t, n) = if time(&a.ty, self) { (a, b) } else { (b, a) };
+                let tp = t.ty.prim(&self.types).expect("time");
+                let n = if n.ty == Ty::IntLit {
+                    self.coerce(n, &Ty::Prim(Prim::LInt), file)
+                } else {
+                    self.conv(n, Prim::LInt, Ty::Prim(Prim::LInt))
+                };
+                let n = TExpr { ty: Ty::Prim(tp), ..n };
+                let bop = if op == BinaryOp::Mul { BinOp::Mul } else { BinOp::Div };
+                return self.make_bin(bop, t, n, Ty::Prim(tp), span, file);
+            }
+        }
+        let Some((a, b, ty)) = self.unify(a, b, what, span, file) else {
+            return TExpr::error(span);
+        };
+        let p = ty.prim(&self.types);
+        let name = self.ty_name(&ty);
+        let is_lit = matches!(ty, Ty::IntLit | Ty::RealLit);
+        let is_enum = matches!(ty, Ty::Enum(_));
+        let bad = |s: &mut Self| {
+            s.error(file, span, format!("`{what}` cannot be applied to `{name}`"));
+            TExpr::error(span)
+        };
+        match op {
+            BinaryOp::Eq
+            | BinaryOp::Ne
+            | BinaryOp::Lt
+            | BinaryOp::Le
+            | BinaryOp::Gt
+            | BinaryOp::Ge => {
+                let cmp = match op {
+                    BinaryOp::Eq => CmpOp::Eq,
+                    BinaryOp::Ne => CmpOp::Ne,
+                    BinaryOp::Lt => CmpOp::Lt,
+                    BinaryOp::Le => CmpOp::Le,
+                    BinaryOp::Gt => CmpOp::Gt,
+                    _ => CmpOp::Ge,
+                };
+                if matches!(ty, Ty::Array(_) | Ty::Struct(_) | Ty::Fb(_)) {
+                    return bad(self);
+                }
+                if let (TK::Const(x), TK::Const(y)) = (&a.k, &b.k) {
+                    if let Some(r) = fold_cmp(cmp, x, y) {
+                        return TExpr::konst(Cv::Int(i128::from(r)), Ty::Prim(Prim::Bool), span);
+                    }
+                }
+                let (a, b) = if is_lit {
+                    // both literals but not folded: cannot happen; type them anyway
+                    let t = if ty == Ty::IntLit { Prim::LInt } else { Prim::LReal };
+                    (self.coerce(a, &Ty::Prim(t), file), self.coerce(b, &Ty::Prim(t), file))
+                } else {
+                    (a, b)
+                };
+                TExpr { k: TK::Cmp(cmp, Box::new(a), Box::new(b)), ty: Ty::Prim(Prim::Bool), span }
+            }
+            BinaryOp::And | BinaryOp::Or | BinaryOp::Xor => {
+                let bop = match op {
+                    BinaryOp::And => BinOp::And,
+                    BinaryOp::Or => BinOp::Or,
+                    _ => BinOp::Xor,
+                };
+                match p {
+                    _ if ty == Ty::IntLit => self.make_bin(bop, a, b, ty, span, file),
+                    Some(p) if (p == Prim::Bool || p.is_bits()) && !is_enum => {
+                        self.make_bin(bop, a, b, ty, span, file)
+                    }
+                    _ => bad(self),
+                }
+            }
+            BinaryOp::Add | BinaryOp::Sub | BinaryOp::Mul | BinaryOp::Div | BinaryOp::Mod => {
+                let bop = match op {
+                    BinaryOp::Add => BinOp::Add,
+                    BinaryOp::Sub => BinOp::Sub,
+                    BinaryOp::Mul => BinOp::Mul,
+                    BinaryOp::Div => BinOp::Div,
+                    _ => BinOp::Mod,
+                };
+                let ok = is_lit && !(op == BinaryOp::Mod && ty == Ty::RealLit)
+                    || match p {
+                        Some(p) if !is_enum => {
+                            if op == BinaryOp::Mod {
+                                p.is_int()
+                            } else if matches!(op, BinaryOp::Add | BinaryOp::Sub) {
+                                p.is_num() || p.is_time()
+                            } else {
+                                p.is_num()
+                            }
+                        }
+                        _ => false,
+                    };
+                if !ok {
+                    return bad(self);
+                }
+                self.make_bin(bop, a, b, ty, span, file)
+            }
+            BinaryOp::Pow => {
+                let (a, b, ty) = match (&a.ty, p) {
+                    (Ty::IntLit | Ty::RealLit, _) if a.is_const() && b.is_const() => {
+                        let (a, b) = (to_real_lit(a), to_real_lit(b));
+                        return self.make_bin(BinOp::Expt, a, b, Ty::RealLit, span, file);
+                    }
+                    (Ty::IntLit | Ty::RealLit, _) => {
+                        let a = self.coerce(to_real_lit(a), &Ty::Prim(Prim::LReal), file);
+                        let b = self.coerce(to_real_lit(b), &Ty::Prim(Prim::LReal), file);
+                        (a, b, Ty::Prim(Prim::LReal))
+                    }
+                    (_, Some(p)) if p.is_real() => (a, b, ty),
+                    _ => {
+                        self.error(
+                            file,
+                            span,
+                            format!("`**` needs a `REAL` or `LREAL` base, not `{name}`"),
+                        );
+                        return TExpr::error(span);
+                    }
+                };
+                self.make_bin(BinOp::Expt, a, b, ty, span, file)
+            }
+        }
+    }
+
+    /// A binary node, folded when both sides are constants.
+    pub fn make_bin(
+        &mut self,
+        op: BinOp,
+        a: TExpr,
+        b: TExpr,
+        ty: Ty,
+        span: Span,
+        file: usize,
+    ) -> TExpr {
+        if let (TK::Const(x), TK::Const(y)) = (&a.k, &b.k) {
+            let p = ty.prim(&self.types);
+            match fold_bin(op, p, x, y) {
+                Some(r) => return TExpr::konst(r, ty, span),
+                None if matches!(op, BinOp::Div | BinOp::Mod) => {
+                    self.error(file, b.span, "division by zero");
+                    return TExpr::error(span);
+                }
+                None => {}
+            }
+        }
+        if matches!(op, BinOp::Div | BinOp::Mod) && matches!(b.k, TK::Const(Cv::Int(0))) {
+            self.error(file, b.span, "division by zero");
+            return TExpr::error(span);
+        }
+        TExpr { k: TK::Bin(op, Box::new(a), Box::new(b)), ty, span }
+    }
+
+    fn check_call_expr(
+        &mut self,
+        callee: &Expr,
+        args: &[Arg],
+        span: Span,
+        scope: Scope,
+        expected: Option<&Ty>,
+    ) -> TExpr {
+        let file = scope.file;
+        if let ExprKind::Name(id) = &callee.kind {
+            let is_var = scope
+                .pou
+                .is_some_and(|p| self.pous[p].lookup(&id.name).is_some_and(|i| i < scope.visible))
+                || self.global_names.contains_key(&id.name.to_ascii_lowercase());
+            if !is_var {
+                if let Some(&p) = self.pou_names.get(&id.name.to_ascii_lowercase()) {
+                    return match self.pous[p].kind {
+                        PouKind::Function => self.function_call(p, args, span, scope),
+                        PouKind::Program => {
+                            self.error(
+                                file,
+                                span,
+                                format!("`{}` is a PROGRAM: a PROGRAM cannot be called", id.name),
+                            );
+                            TExpr::error(span)
+                        }
+                        PouKind::FunctionBlock => {
+                            self.error(
+                                file,
+                                span,
+                                format!("`{}` is a function block type: declare an instance and call that", id.name),
+                            );
+                            TExpr::error(span)
+                        }
+                    };
+                }
+                return self.std_call(id, args, span, scope, expected);
+            }
+        }
+        let inst = self.check_place(callee, scope, Access::Read, None);
+        match inst.ty {
+            Ty::Error => inst,
+            Ty::Fb(_) => {
+                self.error(file, span, "a function block call is a statement, not a value");
+                TExpr::error(span)
+            }
+            _ => {
+                let n = expr_text(callee);
+                self.error(
+                    file,
+                    span,
+                    format!("`{n}` is not a function or a function block instance"),
+                );
+                TExpr::error(span)
+            }
+        }
+    }
+
+    fn record_call(&mut self, scope: Scope, callee: usize, span: Span) {
+        if let Some(p) = scope.pou {
+            let calls = &mut self.pous[p].callees;
+            if !calls.iter().any(|(c, _)| *c == callee) {
+                calls.push((callee, span));
+            }
+        }
+    }
+
+    fn function_call(&mut self, p: usize, args: &[Arg], span: Span, scope: Scope) -> TExpr {
+        let file = scope.file;
+        if scope.pou.is_none() || scope.visible < self.pous[scope.pou.unwrap_or(0)].vars.len() {
+            self.error(file, span, "a constant expression is needed here");
+            return TExpr::error(span);
+        }
+        self.record_call(scope, p, span);
+        let bound = self.bind_args(p, args, span, scope);
+        let ty = self.pous[p].result.clone();
+        match bound {
+            Some((args, outs)) => {
+                TExpr { k: TK::Call(Box::new(CallT { pou: p, args, outs })), ty, span }
+            }
+            None => TExpr::error(span),
+        }
+    }
+
+    /// A function block instance called as a statement.
+    pub fn fb_call(
+        &mut self,
+        callee: &Expr,
+        args: &[Arg],
+        span: Span,
+        scope: Scope,
+    ) -> Option<(TExpr, CallT)> {
+        let file = scope.file;
+        let inst = self.check_place(callee, scope, Access::Ref, None);
+        match inst.ty {
+            Ty::Error => None,
+            Ty::Fb(p) => {
+                self.record_call(scope, p, span);
+                let (args, outs) = self.bind_args(p, args, span, scope)?;
+                Some((inst, CallT { pou: p, args, outs }))
+            }
+            _ => {
+                let n = expr_text(callee);
+                self.error(
+                    file,
+                    span,
+                    format!("`{n}` is not a function or a function block instance"),
+                );
+                None
+            }
+        }
+    }
+
+    /// Binds a call's arguments to `p`'s parameters.
+    fn bind_args(
+        &mut self,
+        p: usize,
+        args: &[Arg],
+        span: Span,
+        scope: Scope,
+    ) -> Option<(Vec<ArgT>, Vec<OutT>)> {
+        let file = scope.file;
+        let name = self.pous[p].name.clone();
+        let positional = args.iter().any(|a| matches!(a, Arg::Positional(_)));
+        let named = args.iter().any(|a| !matches!(a, Arg::Positional(_)));
+        let mut ok = true;
+        if positional && named {
+            self.error(
+                file,
+                span,
+                format!("the call of `{name}` mixes positional and named arguments"),
+            );
+            return None;
+        }
+        let mut given: Vec<usize> = Vec::new();
+        let mut out_args = Vec::new();
+        let mut outs = Vec::new();
+        let mut pos = 0usize;
+        for arg in args {
+            let (vi, value) = match arg {
+                Arg::Positional(e) => {
+                    let Some(&vi) = self.pous[p].positional.get(pos) else {
+                        let n = self.pous[p].positional.len();
+                        self.error(
+                            file,
+                            e.span,
+                            format!("too many arguments for `{name}` (it takes {n})"),
+                        );
+                        return None;
+                    };
+                    pos += 1;
+                    (vi, e)
+                }
+                Arg::Input { name: pn, value } => {
+                    let Some(vi) = self.param(p, pn, file) else {
+                        ok = false;
+                        continue;
+                    };
+                    match self.pous[p].vars[vi].kind {
+                        VarKind::Input | VarKind::InOut => {}
+                        VarKind::Output => {
+                            self.error(
+                                file,
+                                pn.span,
+                                format!("`{}` is an output of `{name}`: use `=>`", pn.name),
+                            );
+                            ok = false;
+                            continue;
+                        }
+                        _ => {
+                            self.error(
+                                file,
+                                pn.span,
+                                format!("`{}` is not a parameter of `{name}`", pn.name),
+                            );
+                            ok = false;
+                            continue;
+                        }
+                    }
+                    (vi, value)
+                }
+                Arg::Output { name: pn, target, negated } => {
+                    let Some(vi) = self.param(p, pn, file) else {
+                        ok = false;
+                        continue;
+                    };
+                    let v = self.pous[p].vars[vi].clone();
+                    match v.kind {
+                        VarKind::Output => {}
+                        VarKind::Input | VarKind::InOut => {
+                            self.error(
+                                file,
+                                pn.span,
+                                format!("`{}` is an input of `{name}`: use `:=`", pn.name),
+                            );
+                            ok = false;
+                            continue;
+                        }
+                        _ => {
+                            self.error(
+                                file,
+                                pn.span,
+                                format!("`{}` is not a parameter of `{name}`", pn.name),
+                            );
+                            ok = false;
+                            continue;
+                        }
+                    }
+                    if given.contains(&vi) {
+                        self.error(file, pn.span, format!("`{}` is given twice", pn.name));
+                        ok = false;
+                        continue;
+                    }
+                    given.push(vi);
+                    let t = self.check_place(target, scope, Access::Write, None);
+                    if t.ty.is_error() || v.ty.is_error() {
+                        ok = false;
+                        continue;
+                    }
+                    if *negated && !v.ty.is_bool() {
+                        self.error(
+                            file,
+                            pn.span,
+                            format!("`NOT {} =>` needs a BOOL output", pn.name),
+                        );
+                        ok = false;
+                        continue;
+                    }
+                    if !self.assignable(&v.ty, &t.ty) {
+                        let (a, b) = (self.ty_name(&v.ty), self.ty_name(&t.ty));
+                        self.error(
+                            file,
+                            target.span,
+                            format!("type mismatch: `{a}` cannot be assigned to `{b}`"),
+                        );
+                        ok = false;
+                        continue;
+                    }
+                    let (Storage::Inst(off) | Storage::Frame(off)) = v.storage else { continue };
+                    outs.push(OutT { offset: off, ty: v.ty, target: t, negated: *negated });
+                    continue;
+                }
+            };
+            let v = self.pous[p].vars[vi].clone();
+            if given.contains(&vi) {
+                self.error(file, value.span, format!("`{}` is given twice", v.name));
+                ok = false;
+                continue;
+            }
+            given.push(vi);
+            let (Storage::Inst(off) | Storage::Frame(off)) = v.storage else { continue };
+            if v.by_ref {
+                let t = self.check_place(value, scope, Access::Ref, None);
+                if t.ty.is_error() || v.ty.is_error() {
+                    ok = false;
+                    continue;
+                }
+                if !t.is_place() {
+                    self.error(
+                        file,
+                        value.span,
+                        format!("VAR_IN_OUT `{}` of `{name}` needs a variable", v.name),
+                    );
+                    ok = false;
+                    continue;
+                }
+                if t.ty != v.ty && !matches!((&t.ty, &v.ty), (Ty::Str(_), Ty::Str(_))) {
+                    let (a, b) = (self.ty_name(&v.ty), self.ty_name(&t.ty));
+                    self.error(
+                        file,
+                        value.span,
+                        format!(
+                            "VAR_IN_OUT `{}` of `{name}` needs a `{a}` variable, not `{b}`",
+                            v.name
+                        ),
+                    );
+                    ok = false;
+                    continue;
+                }
+                out_args.push(ArgT { offset: off, ty: v.ty, by_ref: true, value: t });
+            } else {
+                let t = self.check_expr(value, scope, Some(&v.ty));
+                let t = self.coerce(t, &v.ty, file);
+                if t.ty.is_error() {
+                    ok = false;
+                    continue;
+                }
+                out_args.push(ArgT { offset: off, ty: v.ty, by_ref: false, value: t });
+            }
+        }
+        let missing: Vec<String> = self.pous[p]
+            .vars
+            .iter()
+            .enumerate()
+            .filter(|(i, v)| v.kind == VarKind::InOut && !given.contains(i))
+            .map(|(_, v)| v.name.clone())
+            .collect();
+        for m in missing {
+            self.error(file, span, format!("the call of `{name}` is missing VAR_IN_OUT `{m}`"));
+            ok = false;
+        }
+        ok.then_some((out_args, outs))
+    }
+
+    fn param(&mut self, p: usize, pn: &ast::Ident, file: usize) -> Option<usize> {
+        let pou = &self.pous[p];
+        match pou.lookup(&pn.name) {
+            Some(i) => Some(i),
+            None => {
+                let names: Vec<&str> = pou
+                    .vars
+                    .iter()
+                    .filter(|v| matches!(v.kind, VarKind::Input | VarKind::Output | VarKind::InOut))
+                    .map(|v| v.name.as_str())
+                    .collect();
+                let hint = suggest(&pn.name, names);
+                let n = pou.name.clone();
+                self.error(file, pn.span, format!("`{n}` has no parameter `{}`{hint}", pn.name));
+                None
+            }
+        }
+    }
+
+    /// Whether a value of `from` may be stored in a `to` without a conversion.
+    pub fn assignable(&self, from: &Ty, to: &Ty) -> bool {
+        if from == to {
+            return true;
+        }
+        match (from, to) {
+            (Ty::Str(_), Ty::Str(_)) => true,
+            (Ty::Enum(_), _) | (_, Ty::Enum(_)) => false,
+            _ => match (from.prim(&self.types), to.prim(&self.types)) {
+                (Some(a), Some(b)) => a.widens_to(b),
+                _ => false,
+            },
+        }
+    }
+}
+
+fn zero(p: Prim) -> Cv {
+    if p.is_real() {
+        Cv::Real(0.0)
+    } else {
+        Cv::Int(0)
+    }
+}
+
+fn to_real_lit(e: TExpr) -> TExpr {
+    match (&e.k, &e.ty) {
+        (TK::Const(Cv::Int(v)), Ty::IntLit) => {
+            TExpr::konst(Cv::Real(*v as f64), Ty::RealLit, e.span)
+        }
+        _ => e,
+    }
+}
+
+/// A subrange computes as its base type.
+fn base_ty(t: &Ty, _types: &super::types::Types) -> Ty {
+    match t {
+        Ty::Sub(p, _, _) => Ty::Prim(*p),
+        other => other.clone(),
+    }
+}
+
+/// An expression as the user wrote it (a name path), for messages.
+pub fn expr_text(e: &Expr) -> String {
+    match &e.kind {
+        ExprKind::Name(id) => id.name.clone(),
+        ExprKind::Member(b, id) => format!("{}.{}", expr_text(b), id.name),
+        ExprKind::Index(b, _) => format!("{}[…]", expr_text(b)),
+        ExprKind::Bit(b, n) => format!("{}.{n}", expr_text(b)),
+        ExprKind::Call { callee, .. } => format!("{}(…)", expr_text(callee)),
+        _ => "expression".into(),
+    }
+}

@@ -1,0 +1,915 @@
+//! The standard functions of IEC 61131-3, checked and lowered to the typed ops: numeric
+//! (ABS SQRT LN LOG EXP EXPT SIN COS TAN ASIN ACOS ATAN, ADD SUB MUL DIV MOD, MIN MAX LIMIT,
+//! SEL MUX, MOVE, TRUNC), bit strings (SHL SHR ROL ROR, AND OR XOR NOT), every `<T1>_TO_<T2>`
+//! between elementary types, and strings (LEN LEFT RIGHT MID CONCAT FIND INSERT DELETE REPLACE).
+//!
+//! Conversions of TIME follow CODESYS: `TIME_TO_DINT(T#1s)` is 1000 (milliseconds, truncated
+//! toward zero), `DINT_TO_TIME(1000)` is `T#1s`; `TIME_TO_REAL` gives milliseconds with their
+//! fraction. Conversions between numbers and STRING are not supported (an error says so).
+//! `MUX` with a selector beyond its inputs gives the last input.
+
+use crate::st::ast::{Arg, BinaryOp, Expr, Ident, Span};
+use crate::value::{BinOp, UnOp};
+
+use super::ctx::{suggest, Ctx, Cv, Scope};
+use super::expr::{TExpr, TK};
+use super::types::{Prim, Ty};
+
+/// A standard function that is more than one op.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Std {
+    /// `SEL(G, IN0, IN1)`: args `[G, IN0, IN1]`.
+    Sel,
+    /// `MUX(K, IN0, …)`.
+    Mux,
+    /// `__NOW()`: the clock, a TIME.
+    Now,
+    /// `LEN(s)`, an INT.
+    Len,
+    /// `LEFT(IN, L)`, `RIGHT(IN, L)`, `MID(IN, L, P)`, `CONCAT(a, b)`: a STRING (the node's
+    /// type gives the capacity); the counts are LINT.
+    Left,
+    Right,
+    Mid,
+    Concat,
+    /// `FIND(IN1, IN2)`, an INT.
+    Find,
+}
+
+const NAMES: &[&str] = &[
+    "ABS", "SQRT", "LN", "LOG", "EXP", "EXPT", "SIN", "COS", "TAN", "ASIN", "ACOS", "ATAN", "ADD",
+    "SUB", "MUL", "DIV", "MOD", "MIN", "MAX", "LIMIT", "SEL", "MUX", "SHL", "SHR", "ROL", "ROR",
+    "AND", "OR", "XOR", "NOT", "MOVE", "TRUNC", "LEN", "LEFT", "RIGHT", "MID", "CONCAT", "FIND",
+    "INSERT", "DELETE", "REPLACE",
+];
+
+/// The formal parameter names of a standard function with `n` arguments.
+fn formals(name: &str, n: usize) -> Vec<String> {
+    let fixed: &[&str] = match name {
+        "LIMIT" => &["MN", "IN", "MX"],
+        "SEL" => &["G", "IN0", "IN1"],
+        "SHL" | "SHR" | "ROL" | "ROR" => &["IN", "N"],
+        "LEFT" | "RIGHT" => &["IN", "L"],
+        "MID" => &["IN", "L", "P"],
+        "INSERT" => &["IN1", "IN2", "P"],
+        "DELETE" => &["IN", "L", "P"],
+        "REPLACE" => &["IN1", "IN2", "L", "P"],
+        "MUX" => {
+            let mut v = vec!["K".to_string()];
+            v.extend((0..n.saturating_sub(1)).map(|i| format!("IN{i}")));
+            return v;
+        }
+        "EXPT" | "SUB" | "DIV" | "MOD" | "FIND" => &["IN1", "IN2"],
+        "ADD" | "MUL" | "MIN" | "MAX" | "AND" | "OR" | "XOR" | "CONCAT" => {
+            return (1..=n).map(|i| format!("IN{i}")).collect();
+        }
+        _ => &["IN"],
+    };
+    fixed.iter().map(|s| s.to_string()).collect()
+}
+
+impl<'a> Ctx<'a> {
+    fn std_args<'e>(
+        &mut self,
+        name: &str,
+        args: &'e [Arg],
+        span: Span,
+        file: usize,
+    ) -> Option<Vec<&'e Expr>> {
+        let names = formals(name, args.len());
+        let mut out: Vec<Option<&Expr>> = vec![None; names.len().max(args.len())];
+        let mut named = false;
+        for (i, a) in args.iter().enumerate() {
+            match a {
+                Arg::Positional(e) => out[i] = Some(e),
+                Arg::Input { name: pn, value } => {
+                    named = true;
+                    match names.iter().position(|n| pn.is(n)) {
+                        Some(k) => out[k] = Some(value),
+                        None => {
+                            let hint = suggest(&pn.name, names.iter().map(String::as_str));
+                            self.error(
+                                file,
+                                pn.span,
+                                format!("`{name}` has no parameter `{}`{hint}", pn.name),
+                            );
+                            return None;
+                        }
+                    }
+                }
+                Arg::Output { name: pn, .. } => {
+                    self.error(file, pn.span, format!("`{name}` has no output `{}`", pn.name));
+                    return None;
+                }
+            }
+        }
+        if named && args.iter().any(|a| matches!(a, Arg::Positional(_))) {
+            self.error(
+                file,
+                span,
+                format!("the call of `{name}` mixes positional and named arguments"),
+            );
+            return None;
+        }
+        let given: Vec<&Expr> =
+            out.iter().take_while(|e| e.is_some()).map(|e| e.expect("some")).collect();
+        if given.len() != out.iter().filter(|e| e.is_some()).count() {
+            self.error(file, span, format!("the call of `{name}` leaves out an argument"));
+            return None;
+        }
+        Some(given)
+    }
+
+    fn arity(
+        &mut self,
+        name: &str,
+        n: usize,
+        min: usize,
+        max: usize,
+        span: Span,
+        file: usize,
+    ) -> bool {
+        if n < min || n > max {
+            let want = if min == max {
+                format!("{min}")
+            } else if max == usize::MAX {
+                format!("at least {min}")
+            } else {
+                format!("{min} to {max}")
+            };
+            self.error(file, span, format!("`{name}` takes {want} argument(s), {n} given"));
+            return false;
+        }
+        true
+    }
+
+    /// A value of an elementary type from an argument (literals given `lit` when untyped).
+    fn scalar_arg(&mut self, e: &Expr, scope: Scope, expected: Option<&Ty>, lit: Prim) -> TExpr {
+        let t = self.check_expr(e, scope, expected);
+        match t.ty {
+            Ty::IntLit | Ty::RealLit => {
+                let to = match expected.and_then(|x| x.prim(&self.types)) {
+                    Some(p)
+                        if !matches!(expected, Some(Ty::Enum(_)))
+                            && (p.is_num() || t.ty == Ty::IntLit && p.is_bits()) =>
+                    {
+                        p
+                    }
+                    _ if t.ty == Ty::RealLit && !lit.is_real() => Prim::LReal,
+                    _ => lit,
+                };
+                self.coerce(t, &Ty::Prim(to), scope.file)
+            }
+            Ty::Sub(p, _, _) => TExpr { ty: Ty::Prim(p), ..t },
+            _ => t,
+        }
+    }
+
+    fn want(&mut self, t: &TExpr, ok: bool, fname: &str, what: &str, file: usize) -> bool {
+        if t.ty.is_error() {
+            return false;
+        }
+        if !ok {
+            let n = self.ty_name(&t.ty);
+            self.error(file, t.span, format!("`{fname}` needs {what}, not `{n}`"));
+        }
+        ok
+    }
+
+    /// A call of a standard function (or an unknown name).
+    pub fn std_call(
+        &mut self,
+        id: &Ident,
+        args: &[Arg],
+        span: Span,
+        scope: Scope,
+        expected: Option<&Ty>,
+    ) -> TExpr {
+        let file = scope.file;
+        let upper = id.name.to_ascii_uppercase();
+        if upper == "__NOW" && self.in_prelude {
+            if !args.is_empty() {
+                self.error(file, span, "`__NOW` takes no arguments");
+            }
+            return TExpr { k: TK::Std(Std::Now, vec![]), ty: Ty::Prim(Prim::Time), span };
+        }
+        if let Some((from, to)) = upper.split_once("_TO_") {
+            let src =
+                Prim::from_name(from).map(Ty::Prim).or((from == "STRING").then_some(Ty::Str(80)));
+            let dst = Prim::from_name(to).map(Ty::Prim).or((to == "STRING").then_some(Ty::Str(80)));
+            if let (Some(src), Some(dst)) = (src, dst) {
+                return self.convert_call(&upper, src, dst, args, span, scope);
+            }
+        }
+        if !NAMES.contains(&upper.as_str()) {
+            let mut names: Vec<String> = self
+                .pous
+                .iter()
+                .filter(|p| p.kind == crate::st::ast::PouKind::Function)
+                .map(|p| p.name.clone())
+                .collect();
+            names.extend(NAMES.iter().map(|s| s.to_string()));
+            names.extend(self.names_in(scope));
+            let hint = suggest(&id.name, names.iter().map(String::as_str));
+            self.error(file, id.span, format!("`{}` is not declared{hint}", id.name));
+            return TExpr::error(span);
+        }
+        let Some(a) = self.std_args(&upper, args, span, file) else {
+            return TExpr::error(span);
+        };
+        let n = a.len();
+        let name = upper.as_str();
+        match name {
+            "ABS" => {
+                if !self.arity(name, n, 1, 1, span, file) {
+                    return TExpr::error(span);
+                }
+                let t = self.scalar_arg(a[0], scope, expected, Prim::DInt);
+                let p = t.ty.prim(&self.types);
+                if !self.want(
+                    &t,
+                    p.is_some_and(Prim::is_num) && !matches!(t.ty, Ty::Enum(_)),
+                    name,
+                    "a number",
+                    file,
+                ) {
+                    return TExpr::error(span);
+                }
+                self.un(UnOp::Abs, t, span)
+            }
+            "SQRT" | "LN" | "LOG" | "EXP" | "SIN" | "COS" | "TAN" | "ASIN" | "ACOS" | "ATAN" => {
+                if !self.arity(name, n, 1, 1, span, file) {
+                    return TExpr::error(span);
+                }
+                let t = self.scalar_arg(a[0], scope, expected, Prim::LReal);
+                let p = t.ty.prim(&self.types);
+                if !self.want(&t, p.is_some_and(Prim::is_real), name, "a `REAL` or `LREAL`", file) {
+                    return TExpr::error(span);
+                }
+                let op = match name {
+                    "SQRT" => UnOp::Sqrt,
+                    "LN" => UnOp::Ln,
+                    "LOG" => UnOp::Log,
+                    "EXP" => UnOp::Exp,
+                    "SIN" => UnOp::Sin,
+                    "COS" => UnOp::Cos,
+                    "TAN" => UnOp::Tan,
+                    "ASIN" => UnOp::Asin,
+                    "ACOS" => UnOp::Acos,
+                    _ => UnOp::Atan,
+                };
+                self.un(op, t, span)
+            }
+            "TRUNC" => {
+                if !self.arity(name, n, 1, 1, span, file) {
+                    return TExpr::error(span);
+                }
+                let t = self.scalar_arg(a[0], scope, None, Prim::LReal);
+                let p = t.ty.prim(&self.types);
+                if !self.want(&t, p.is_some_and(Prim::is_real), name, "a `REAL` or `LREAL`", file) {
+                    return TExpr::error(span);
+                }
+                let t = self.un(UnOp::Trunc, t, span);
+                self.conv(t, Prim::DInt, Ty::Prim(Prim::DInt))
+            }
+            "MOVE" => {
+                if !self.arity(name, n, 1, 1, span, file) {
+                    return TExpr::error(span);
+                }
+                self.check_expr(a[0], scope, expected)
+            }
+            "EXPT" => {
+                if !self.arity(name, n, 2, 2, span, file) {
+                    return TExpr::error(span);
+                }
+                let x = self.scalar_arg(a[0], scope, expected, Prim::LReal);
+                let p = x.ty.prim(&self.types);
+                if !self.want(
+                    &x,
+                    p.is_some_and(Prim::is_real),
+                    name,
+                    "a `REAL` or `LREAL` base",
+                    file,
+                ) {
+                    return TExpr::error(span);
+                }
+                let p = p.expect("real");
+                let y = self.scalar_arg(a[1], scope, Some(&Ty::Prim(p)), p);
+                let yp = y.ty.prim(&self.types);
+                if !self.want(&y, yp.is_some_and(Prim::is_num), name, "a number exponent", file) {
+                    return TExpr::error(span);
+                }
+                let y = self.conv(y, p, Ty::Prim(p));
+                self.make_bin(BinOp::Expt, x, y, Ty::Prim(p), span, file)
+            }
+            "ADD" | "MUL" | "SUB" | "DIV" | "MOD" | "AND" | "OR" | "XOR" => {
+                let (min, max) =
+                    if matches!(name, "SUB" | "DIV" | "MOD") { (2, 2) } else { (2, usize::MAX) };
+                if !self.arity(name, n, min, max, span, file) {
+                    return TExpr::error(span);
+                }
+                let op = match name {
+                    "ADD" => BinaryOp::Add,
+                    "MUL" => BinaryOp::Mul,
+                    "SUB" => BinaryOp::Sub,
+                    "DIV" => BinaryOp::Div,
+                    "MOD" => BinaryOp::Mod,
+                    "AND" => BinaryOp::And,
+                    "OR" => BinaryOp::Or,
+                    _ => BinaryOp::Xor,
+                };
+                let mut acc = self.check_expr(a[0], scope, expected);
+                for e in &a[1..] {
+                    let hint = if matches!(acc.ty, Ty::IntLit | Ty::RealLit) {
+                        expected.cloned()
+                    } else {
+                        Some(acc.ty.clone())
+                    };
+                    let b = self.check_expr(e, scope, hint.as_ref());
+                    acc = self.binary_pub(op, acc, b, span, file);
+                }
+                acc
+            }
+            "MIN" | "MAX" | "LIMIT" => {
+                let (min, max) = if name == "LIMIT" { (3, 3) } else { (1, usize::MAX) };
+                if !self.arity(name, n, min, max, span, file) {
+                    return TExpr::error(span);
+                }
+                let mut items: Vec<TExpr> = Vec::new();
+                for e in &a {
+                    let t = self.check_expr(e, scope, expected);
+                    items.push(t);
+                }
+                // one type for all
+                let mut ty = items[0].ty.clone();
+                for t in &items[1..] {
+                    let probe_a = TExpr { k: TK::Const(Cv::Int(0)), ty: ty.clone(), span };
+                    let probe_b =
+                        TExpr { k: TK::Const(Cv::Int(0)), ty: t.ty.clone(), span: t.span };
+                    let saved = self.diags.len();
+                    match self.unify(probe_a, probe_b, name, t.span, file) {
+                        Some((_, _, u)) => ty = u,
+                        None => {
+                            if self.diags.len() == saved {
+                                return TExpr::error(span);
+                            }
+                            return TExpr::error(span);
+                        }
+                    }
+                }
+                if matches!(ty, Ty::IntLit | Ty::RealLit) {
+                    ty = match expected.and_then(|e| e.prim(&self.types)) {
+                        Some(p) if p.is_num() => Ty::Prim(p),
+                        _ if ty == Ty::RealLit => Ty::Prim(Prim::LReal),
+                        _ => Ty::Prim(Prim::DInt),
+                    };
+                }
+                let Some(p) = ty.prim(&self.types) else {
+                    let tn = self.ty_name(&ty);
+                    self.error(file, span, format!("`{name}` needs elementary values, not `{tn}`"));
+                    return TExpr::error(span);
+                };
+                let mut conv: Vec<TExpr> = Vec::new();
+                for t in items {
+                    let t = if matches!(t.ty, Ty::IntLit | Ty::RealLit) {
+                        self.coerce(t, &ty, file)
+                    } else if matches!(ty, Ty::Enum(_)) {
+                        t
+                    } else {
+                        self.conv(t, p, ty.clone())
+                    };
+                    if t.ty.is_error() {
+                        return TExpr::error(span);
+                    }
+                    conv.push(t);
+                }
+                if name == "LIMIT" {
+                    let mx = conv.pop().expect("3");
+                    let x = conv.pop().expect("3");
+                    let mn = conv.pop().expect("3");
+                    let lo = self.make_bin(BinOp::Max, x, mn, ty.clone(), span, file);
+                    return self.make_bin(BinOp::Min, lo, mx, ty, span, file);
+                }
+                let op = if name == "MIN" { BinOp::Min } else { BinOp::Max };
+                let mut it = conv.into_iter();
+                let mut acc = it.next().expect("1");
+                for b in it {
+                    acc = self.make_bin(op, acc, b, ty.clone(), span, file);
+                }
+                acc
+            }
+            "SEL" => {
+                if !self.arity(name, n, 3, 3, span, file) {
+                    return TExpr::error(span);
+                }
+                let g = self.check_expr(a[0], scope, Some(&Ty::Prim(Prim::Bool)));
+                let g = self.coerce(g, &Ty::Prim(Prim::Bool), file);
+                let x = self.check_expr(a[1], scope, expected);
+                let y = self.check_expr(a[2], scope, expected);
+                let Some((x, y, ty)) = self.unify_values(x, y, expected, name, span, file) else {
+                    return TExpr::error(span);
+                };
+                if g.ty.is_error() {
+                    return TExpr::error(span);
+                }
+                if let Some(v) = g.const_int() {
+                    return if v != 0 { y } else { x };
+                }
+                TExpr { k: TK::Std(Std::Sel, vec![g, x, y]), ty, span }
+            }
+            "MUX" => {
+                if !self.arity(name, n, 2, usize::MAX, span, file) {
+                    return TExpr::error(span);
+                }
+                let k = self.scalar_arg(a[0], scope, None, Prim::DInt);
+                let kp = k.ty.prim(&self.types);
+                if !self.want(
+                    &k,
+                    kp.is_some_and(Prim::is_integral) && !matches!(k.ty, Ty::Enum(_)),
+                    name,
+                    "an integer selector",
+                    file,
+                ) {
+                    return TExpr::error(span);
+                }
+                let mut vals = vec![self.check_expr(a[1], scope, expected)];
+                for e in &a[2..] {
+                    let t = self.check_expr(e, scope, expected);
+                    let first = vals[0].clone();
+                    let Some((_, _, ty)) =
+                        self.unify_values(first, t.clone(), expected, name, e.span, file)
+                    else {
+                        return TExpr::error(span);
+                    };
+                    vals[0].ty = vals[0].ty.clone();
+                    vals.push(t);
+                    let _ = ty;
+                }
+                // bring all to one type
+                let mut ty = vals[0].ty.clone();
+                for v in &vals[1..] {
+                    let pa = TExpr { k: TK::Const(Cv::Int(0)), ty: ty.clone(), span };
+                    if let Some((_, _, u)) =
+                        self.unify_values(pa, v.clone(), expected, name, v.span, file)
+                    {
+                        ty = u;
+                    }
+                }
+                let mut out = vec![k];
+                for v in vals {
+                    let v = self.value_as(v, &ty, file);
+                    if v.ty.is_error() {
+                        return TExpr::error(span);
+                    }
+                    out.push(v);
+                }
+                TExpr { k: TK::Std(Std::Mux, out), ty, span }
+            }
+            "SHL" | "SHR" | "ROL" | "ROR" => {
+                if !self.arity(name, n, 2, 2, span, file) {
+                    return TExpr::error(span);
+                }
+                let x = self.scalar_arg(a[0], scope, expected, Prim::DWord);
+                let p = x.ty.prim(&self.types);
+                if !self.want(
+                    &x,
+                    p.is_some_and(Prim::is_bits) && !matches!(x.ty, Ty::Enum(_)),
+                    name,
+                    "a bit string (BYTE, WORD, DWORD, LWORD)",
+                    file,
+                ) {
+                    return TExpr::error(span);
+                }
+                let p = p.expect("bits");
+                let c = self.scalar_arg(a[1], scope, None, Prim::DInt);
+                let cp = c.ty.prim(&self.types);
+                if !self.want(&c, cp.is_some_and(Prim::is_int), name, "an integer count", file) {
+                    return TExpr::error(span);
+                }
+                let c = if c.is_const() {
+                    let v = c.const_int().unwrap_or(0).clamp(0, 1 << 20);
+                    TExpr::konst(Cv::Int(v), Ty::Prim(p), c.span)
+                } else {
+                    let c = self.conv(c, Prim::LInt, Ty::Prim(Prim::LInt));
+                    // counts are non-negative; their bits, reinterpreted, are the count
+                    self.conv(c, p, Ty::Prim(p))
+                };
+                let op = match name {
+                    "SHL" => BinOp::Shl,
+                    "SHR" => BinOp::Shr,
+                    "ROL" => BinOp::Rol,
+                    _ => BinOp::Ror,
+                };
+                self.make_bin(op, x, c, Ty::Prim(p), span, file)
+            }
+            "NOT" => {
+                if !self.arity(name, n, 1, 1, span, file) {
+                    return TExpr::error(span);
+                }
+                let t = self.scalar_arg(a[0], scope, expected, Prim::DWord);
+                let p = t.ty.prim(&self.types);
+                if !self.want(
+                    &t,
+                    p.is_some_and(|p| p.is_bits() || p == Prim::Bool)
+                        && !matches!(t.ty, Ty::Enum(_)),
+                    name,
+                    "a BOOL or bit string",
+                    file,
+                ) {
+                    return TExpr::error(span);
+                }
+                if let Some(v) = t.const_int() {
+                    let p = p.expect("bits");
+                    let r = if p == Prim::Bool {
+                        i128::from(v == 0)
+                    } else {
+                        super::types::wrap(p, !v)
+                    };
+                    return TExpr::konst(Cv::Int(r), t.ty, span);
+                }
+                let ty = t.ty.clone();
+                TExpr { k: TK::Un(UnOp::Not, Box::new(t)), ty, span }
+            }
+            "LEN" => {
+                if !self.arity(name, n, 1, 1, span, file) {
+                    return TExpr::error(span);
+                }
+                let Some(s) = self.string_arg(a[0], scope, name) else { return TExpr::error(span) };
+                if let TK::Const(Cv::Str(v)) = &s.k {
+                    return TExpr::konst(Cv::Int(v.len() as i128), Ty::Prim(Prim::Int), span);
+                }
+                TExpr { k: TK::Std(Std::Len, vec![s]), ty: Ty::Prim(Prim::Int), span }
+            }
+            "FIND" => {
+                if !self.arity(name, n, 2, 2, span, file) {
+                    return TExpr::error(span);
+                }
+                let (Some(x), Some(y)) =
+                    (self.string_arg(a[0], scope, name), self.string_arg(a[1], scope, name))
+                else {
+                    return TExpr::error(span);
+                };
+                TExpr { k: TK::Std(Std::Find, vec![x, y]), ty: Ty::Prim(Prim::Int), span }
+            }
+            "LEFT" | "RIGHT" | "MID" => {
+                let k = if name == "MID" { 3 } else { 2 };
+                if !self.arity(name, n, k, k, span, file) {
+                    return TExpr::error(span);
+                }
+                let Some(s) = self.string_arg(a[0], scope, name) else { return TExpr::error(span) };
+                let mut out = vec![s.clone()];
+                for e in &a[1..] {
+                    let Some(c) = self.count_arg(e, scope, name) else { return TExpr::error(span) };
+                    out.push(c);
+                }
+                let op = match name {
+                    "LEFT" => Std::Left,
+                    "RIGHT" => Std::Right,
+                    _ => Std::Mid,
+                };
+                TExpr { k: TK::Std(op, out), ty: s.ty, span }
+            }
+            "CONCAT" => {
+                if !self.arity(name, n, 2, usize::MAX, span, file) {
+                    return TExpr::error(span);
+                }
+                let Some(mut acc) = self.string_arg(a[0], scope, name) else {
+                    return TExpr::error(span);
+                };
+                for e in &a[1..] {
+                    let Some(b) = self.string_arg(e, scope, name) else {
+                        return TExpr::error(span);
+                    };
+                    acc = concat(acc, b, span);
+                }
+                acc
+            }
+            "INSERT" | "DELETE" | "REPLACE" => {
+                // composed of LEFT, RIGHT, LEN and CONCAT
+                let k = match name {
+                    "INSERT" => 3,
+                    "DELETE" => 3,
+                    _ => 4,
+                };
+                if !self.arity(name, n, k, k, span, file) {
+                    return TExpr::error(span);
+                }
+                let Some(s) = self.string_arg(a[0], scope, name) else { return TExpr::error(span) };
+                let (mid, l, p) = match name {
+                    "INSERT" => {
+                        let Some(m) = self.string_arg(a[1], scope, name) else {
+                            return TExpr::error(span);
+                        };
+                        let Some(p) = self.count_arg(a[2], scope, name) else {
+                            return TExpr::error(span);
+                        };
+                        // INSERT(IN1, IN2, P) = LEFT(IN1, P) & IN2 & RIGHT(IN1, LEN(IN1) - P)
+                        let len = self.lint_len(&s, span);
+                        let left = TExpr {
+                            k: TK::Std(Std::Left, vec![s.clone(), p.clone()]),
+                            ty: s.ty.clone(),
+                            span,
+                        };
+                        let rest =
+                            self.make_bin(BinOp::Sub, len, p, Ty::Prim(Prim::LInt), span, file);
+                        let right = TExpr {
+                            k: TK::Std(Std::Right, vec![s.clone(), rest]),
+                            ty: s.ty.clone(),
+                            span,
+                        };
+                        return concat(concat(left, m, span), right, span);
+                    }
+                    "DELETE" => {
+                        let Some(l) = self.count_arg(a[1], scope, name) else {
+                            return TExpr::error(span);
+                        };
+                        let Some(p) = self.count_arg(a[2], scope, name) else {
+                            return TExpr::error(span);
+                        };
+                        (None, l, p)
+                    }
+                    _ => {
+                        let Some(m) = self.string_arg(a[1], scope, name) else {
+                            return TExpr::error(span);
+                        };
+                        let Some(l) = self.count_arg(a[2], scope, name) else {
+                            return TExpr::error(span);
+                        };
+                        let Some(p) = self.count_arg(a[3], scope, name) else {
+                            return TExpr::error(span);
+                        };
+                        (Some(m), l, p)
+                    }
+                };
+                // LEFT(IN, P - 1) [& IN2] & RIGHT(IN, LEN(IN) - (P - 1) - L)
+                let one = TExpr::konst(Cv::Int(1), Ty::Prim(Prim::LInt), span);
+                let before = self.make_bin(BinOp::Sub, p, one, Ty::Prim(Prim::LInt), span, file);
+                let left = TExpr {
+                    k: TK::Std(Std::Left, vec![s.clone(), before.clone()]),
+                    ty: s.ty.clone(),
+                    span,
+                };
+                let len = self.lint_len(&s, span);
+                let rest = self.make_bin(BinOp::Sub, len, before, Ty::Prim(Prim::LInt), span, file);
+                let rest = self.make_bin(BinOp::Sub, rest, l, Ty::Prim(Prim::LInt), span, file);
+                let right =
+                    TExpr { k: TK::Std(Std::Right, vec![s.clone(), rest]), ty: s.ty.clone(), span };
+                match mid {
+                    Some(m) => concat(concat(left, m, span), right, span),
+                    None => concat(left, right, span),
+                }
+            }
+            _ => unreachable!("listed in NAMES"),
+        }
+    }
+
+    fn lint_len(&mut self, s: &TExpr, span: Span) -> TExpr {
+        let len = TExpr { k: TK::Std(Std::Len, vec![s.clone()]), ty: Ty::Prim(Prim::Int), span };
+        self.conv(len, Prim::LInt, Ty::Prim(Prim::LInt))
+    }
+
+    fn string_arg(&mut self, e: &Expr, scope: Scope, fname: &str) -> Option<TExpr> {
+        let t = self.check_expr(e, scope, None);
+        match t.ty {
+            Ty::Error => None,
+            Ty::Str(_) => Some(t),
+            _ => {
+                let n = self.ty_name(&t.ty);
+                self.error(scope.file, t.span, format!("`{fname}` needs a STRING, not `{n}`"));
+                None
+            }
+        }
+    }
+
+    fn count_arg(&mut self, e: &Expr, scope: Scope, fname: &str) -> Option<TExpr> {
+        let t = self.scalar_arg(e, scope, None, Prim::LInt);
+        let p = t.ty.prim(&self.types);
+        if !self.want(&t, p.is_some_and(Prim::is_int), fname, "an integer", scope.file) {
+            return None;
+        }
+        Some(self.conv(t, Prim::LInt, Ty::Prim(Prim::LInt)))
+    }
+
+    fn un(&mut self, op: UnOp, t: TExpr, span: Span) -> TExpr {
+        let ty = t.ty.clone();
+        if let (TK::Const(cv), Some(p)) = (&t.k, ty.prim(&self.types)) {
+            if let Some(r) = fold_un(op, p, cv) {
+                return TExpr::konst(r, ty, span);
+            }
+        }
+        TExpr { k: TK::Un(op, Box::new(t)), ty, span }
+    }
+
+    /// Two values of one type (SEL, MUX): numbers unify, other types must be equal.
+    fn unify_values(
+        &mut self,
+        x: TExpr,
+        y: TExpr,
+        expected: Option<&Ty>,
+        name: &str,
+        span: Span,
+        file: usize,
+    ) -> Option<(TExpr, TExpr, Ty)> {
+        if let (Ty::Str(a), Ty::Str(b)) = (&x.ty, &y.ty) {
+            let ty = Ty::Str(*a.max(b));
+            return Some((x, y, ty));
+        }
+        if matches!(x.ty, Ty::Array(_) | Ty::Struct(_))
+            || matches!(y.ty, Ty::Array(_) | Ty::Struct(_))
+        {
+            if x.ty == y.ty {
+                let ty = x.ty.clone();
+                return Some((x, y, ty));
+            }
+            let (a, b) = (self.ty_name(&x.ty), self.ty_name(&y.ty));
+            self.error(file, span, format!("`{name}` cannot be applied to `{a}` and `{b}`"));
+            return None;
+        }
+        let (x, y, ty) = self.unify(x, y, name, span, file)?;
+        if matches!(ty, Ty::IntLit | Ty::RealLit) {
+            let to = match expected.and_then(|e| e.prim(&self.types)) {
+                Some(p) if p.is_num() => Ty::Prim(p),
+                _ if ty == Ty::RealLit => Ty::Prim(Prim::LReal),
+                _ => Ty::Prim(Prim::DInt),
+            };
+            let x = self.coerce(x, &to, file);
+            let y = self.coerce(y, &to, file);
+            return Some((x, y, to));
+        }
+        Some((x, y, ty))
+    }
+
+    fn value_as(&mut self, v: TExpr, ty: &Ty, file: usize) -> TExpr {
+        if matches!(ty, Ty::Str(_)) && matches!(v.ty, Ty::Str(_)) {
+            return v;
+        }
+        if &v.ty == ty {
+            return v;
+        }
+        if matches!(v.ty, Ty::IntLit | Ty::RealLit) {
+            return self.coerce(v, ty, file);
+        }
+        match ty.prim(&self.types) {
+            Some(p) if !matches!(ty, Ty::Enum(_)) => self.conv(v, p, ty.clone()),
+            _ => v,
+        }
+    }
+
+    fn convert_call(
+        &mut self,
+        name: &str,
+        src: Ty,
+        dst: Ty,
+        args: &[Arg],
+        span: Span,
+        scope: Scope,
+    ) -> TExpr {
+        let file = scope.file;
+        if matches!(src, Ty::Str(_)) || matches!(dst, Ty::Str(_)) {
+            self.error(
+                file,
+                span,
+                format!(
+                    "`{name}` is not supported: conversions to and from STRING are not available"
+                ),
+            );
+            return TExpr::error(span);
+        }
+        let Some(a) = self.std_args("CONV", args, span, file) else {
+            return TExpr::error(span);
+        };
+        if !self.arity(name, a.len(), 1, 1, span, file) {
+            return TExpr::error(span);
+        }
+        let (sp, dp) = (src.prim(&self.types).expect("prim"), dst.prim(&self.types).expect("prim"));
+        let t = self.check_expr(a[0], scope, Some(&src));
+        let t = if t.ty == Ty::IntLit && sp == Prim::Bool {
+            match t.const_int() {
+                Some(v @ (0 | 1)) => TExpr::konst(Cv::Int(v), src.clone(), t.span),
+                _ => self.coerce(t, &src, file),
+            }
+        } else {
+            self.coerce(t, &src, file)
+        };
+        if t.ty.is_error() {
+            return TExpr::error(span);
+        }
+        let ns = |v: i128| TExpr::konst(Cv::Int(v), Ty::Prim(Prim::LInt), span);
+        let ns_real = |v: f64| TExpr::konst(Cv::Real(v), Ty::Prim(Prim::LReal), span);
+        match (sp.is_time(), dp.is_time()) {
+            (true, true) => self.conv(t, dp, dst),
+            (true, false) => {
+                // milliseconds
+                let t = TExpr { ty: Ty::Prim(Prim::LInt), ..t };
+                if dp.is_real() {
+                    let f = self.conv(t, Prim::LReal, Ty::Prim(Prim::LReal));
+                    let ms = self.make_bin(
+                        BinOp::Div,
+                        f,
+                        ns_real(1e6),
+                        Ty::Prim(Prim::LReal),
+                        span,
+                        file,
+                    );
+                    self.conv(ms, dp, dst)
+                } else {
+                    let ms = self.make_bin(
+                        BinOp::Div,
+                        t,
+                        ns(1_000_000),
+                        Ty::Prim(Prim::LInt),
+                        span,
+                        file,
+                    );
+                    self.conv(ms, dp, dst)
+                }
+            }
+            (false, true) => {
+                if sp.is_real() {
+                    let f = self.conv(t, Prim::LReal, Ty::Prim(Prim::LReal));
+                    let n = self.make_bin(
+                        BinOp::Mul,
+                        f,
+                        ns_real(1e6),
+                        Ty::Prim(Prim::LReal),
+                        span,
+                        file,
+                    );
+                    let n = self.conv(n, Prim::LInt, Ty::Prim(Prim::LInt));
+                    TExpr { ty: dst, ..n }
+                } else {
+                    let i = self.conv(t, Prim::LInt, Ty::Prim(Prim::LInt));
+                    let n = self.make_bin(
+                        BinOp::Mul,
+                        i,
+                        ns(1_000_000),
+                        Ty::Prim(Prim::LInt),
+                        span,
+                        file,
+                    );
+                    TExpr { ty: dst, ..n }
+                }
+            }
+            (false, false) => self.conv(t, dp, dst),
+        }
+    }
+
+    /// Binary operators for the function forms (`ADD(a, b)`).
+    pub fn binary_pub(
+        &mut self,
+        op: BinaryOp,
+        a: TExpr,
+        b: TExpr,
+        span: Span,
+        file: usize,
+    ) -> TExpr {
+        self.binary_op(op, a, b, span, file)
+    }
+}
+
+fn concat(a: TExpr, b: TExpr, span: Span) -> TExpr {
+    if let (TK::Const(Cv::Str(x)), TK::Const(Cv::Str(y))) = (&a.k, &b.k) {
+        let s = format!("{x}{y}");
+        let n = s.len().clamp(1, 255) as u32;
+        let s: String = s.chars().take(255).collect();
+        return TExpr::konst(Cv::Str(s), Ty::Str(n), span);
+    }
+    let cap = match (&a.ty, &b.ty) {
+        (Ty::Str(x), Ty::Str(y)) => (x + y).min(255),
+        _ => 255,
+    };
+    TExpr { k: TK::Std(Std::Concat, vec![a, b]), ty: Ty::Str(cap), span }
+}
+
+fn fold_un(op: UnOp, p: Prim, cv: &Cv) -> Option<Cv> {
+    let f = match cv {
+        Cv::Int(v) => {
+            return match op {
+                UnOp::Abs => Some(Cv::Int(super::types::wrap(p, v.abs()))),
+                _ => None,
+            }
+        }
+        Cv::Real(f) => *f,
+        Cv::Str(_) => return None,
+    };
+    let r = match op {
+        UnOp::Abs => f.abs(),
+        UnOp::Sqrt => f.sqrt(),
+        UnOp::Ln => f.ln(),
+        UnOp::Log => f.log10(),
+        UnOp::Exp => f.exp(),
+        UnOp::Sin => f.sin(),
+        UnOp::Cos => f.cos(),
+        UnOp::Tan => f.tan(),
+        UnOp::Asin => f.asin(),
+        UnOp::Acos => f.acos(),
+        UnOp::Atan => f.atan(),
+        UnOp::Trunc => f.trunc(),
+        _ => return None,
+    };
+    // a REAL is computed in f32 by the VM: fold only what f64 rounds the same way
+    if p == Prim::Real && !matches!(op, UnOp::Abs | UnOp::Trunc) {
+        return None;
+    }
+    Some(Cv::Real(r))
+}

@@ -1,0 +1,613 @@
+//! The Structured Text compiler: one golden case per diagnostic (tests/golden/st), and
+//! programs compiled and run on the VM, their variables read by name.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use plcd_core::lang::Program;
+use plcd_core::st::{compile, parse_file, Compiled, Instance};
+use plcd_core::value::{Elem, Pointer, ValueType};
+use plcd_core::vm::{ExecState, Exit, ManualClock, Vm};
+
+/// Compiles `src` as `main.st` with one instance `main`.
+fn try_build(src: &str) -> Result<Compiled, String> {
+    try_build_pou(src, None)
+}
+
+fn try_build_pou(src: &str, pou: Option<&str>) -> Result<Compiled, String> {
+    let (file, diags) = parse_file(Path::new("main.st"), src);
+    if !diags.is_empty() {
+        return Err(diags.to_string());
+    }
+    let inst = Instance {
+        name: "main",
+        pou,
+        file: Path::new("main.st"),
+        config: Path::new("plcd.toml"),
+        line: 1,
+        col: 1,
+    };
+    compile(&[file], &[inst]).map_err(|d| d.to_string())
+}
+
+fn build(src: &str) -> Compiled {
+    try_build(src).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn errors(src: &str) -> String {
+    match try_build(src) {
+        Ok(_) => String::new(),
+        Err(e) => e,
+    }
+}
+
+/// A compiled project on a VM.
+struct Run {
+    c: Compiled,
+    vm: Vm,
+    state: ExecState,
+    clock: ManualClock,
+    exits: Vec<Exit>,
+}
+
+impl Run {
+    fn new(src: &str) -> Run {
+        let c = build(src);
+        let mut vm = Vm::for_programs(&c.programs);
+        vm.set_variables(&c.variables);
+        vm.reset_for_run(&plcd_core::device::RetainSet::default(), false);
+        let frame = c.programs.iter().map(|p| p.frame_bytes).max().unwrap_or(0);
+        Run {
+            c,
+            vm,
+            state: ExecState::with_frame(frame),
+            clock: ManualClock::new(0),
+            exits: Vec::new(),
+        }
+    }
+
+    fn program(&self) -> &Program {
+        &self.c.programs[0]
+    }
+
+    /// One scan: runs to `End`, collecting operation errors.
+    fn scan(&mut self) {
+        self.state.restart();
+        let program = self.c.programs[0].clone();
+        for _ in 0..100_000 {
+            match self.vm.run(&program, &mut self.state, &self.clock, 1_000_000) {
+                Exit::End => return,
+                e => self.exits.push(e),
+            }
+            if self.exits.len() > 1000 {
+                panic!("no END");
+            }
+        }
+    }
+
+    fn sym(&self, name: &str) -> (Pointer, ValueType) {
+        let s = self
+            .c
+            .variables
+            .symbols
+            .iter()
+            .find(|s| s.name.eq_ignore_ascii_case(name))
+            .unwrap_or_else(|| panic!("no symbol {name}"));
+        (s.at, s.ty.clone())
+    }
+
+    fn raw(&self, name: &str) -> (u64, Elem) {
+        let (at, ty) = self.sym(name);
+        let elem = match ty {
+            ValueType::Bool => Elem::Bool,
+            ValueType::Signed(e) | ValueType::Unsigned(e) | ValueType::Real(e) => e,
+            ValueType::Time => Elem::I64,
+            ValueType::Enum { .. } => Elem::I32,
+            ValueType::String { .. } => panic!("{name} is a string"),
+        };
+        (self.vm.read_value(at, elem), elem)
+    }
+
+    fn int(&self, name: &str) -> i128 {
+        let (v, e) = self.raw(name);
+        match e {
+            Elem::I8 | Elem::I16 | Elem::I32 | Elem::I64 => v as i64 as i128,
+            Elem::F32 | Elem::F64 => panic!("{name} is a real"),
+            _ => v as i128,
+        }
+    }
+
+    fn real(&self, name: &str) -> f64 {
+        let (v, e) = self.raw(name);
+        match e {
+            Elem::F32 => f64::from(f32::from_bits(v as u32)),
+            Elem::F64 => f64::from_bits(v),
+            _ => panic!("{name} is not a real"),
+        }
+    }
+
+    fn string(&self, name: &str) -> String {
+        let (at, _) = self.sym(name);
+        String::from_utf8_lossy(&self.vm.read_string(at)).into_owned()
+    }
+
+    fn errors(&self) -> Vec<u16> {
+        self.exits
+            .iter()
+            .filter_map(|e| match e {
+                Exit::OperationError { code, .. } => Some(*code),
+                _ => None,
+            })
+            .collect()
+    }
+}
+
+/// Runs `body` once in a PROGRAM with `vars` declared.
+fn once(vars: &str, body: &str) -> Run {
+    let src = format!("PROGRAM main\nVAR\n{vars}\nEND_VAR\n{body}\nEND_PROGRAM\n");
+    let mut r = Run::new(&src);
+    r.scan();
+    r
+}
+
+#[test]
+fn smoke() {
+    let r = once("x : INT; y : DINT := 7;", "x := 3 + 4 * 2; y := y * x;");
+    assert_eq!(r.int("main.x"), 11);
+    assert_eq!(r.int("main.y"), 77);
+}
+
+#[test]
+fn precedence_and_operators() {
+    let r = once(
+        "a : INT; b : INT; c : BOOL; d : BOOL; e : BOOL; f : REAL; g : INT; h : BOOL; w : WORD; m : INT; n : INT;",
+        "a := 2 + 3 * 4 - 10 / 3;      (* 2 + 12 - 3 = 11 *)
+         b := -2 * -3 + 7 MOD 4;       (* 6 + 3 = 9 *)
+         c := 1 < 2 AND 3 > 4 OR TRUE XOR FALSE;  (* (F) OR (T) = T *)
+         d := NOT TRUE OR 2 = 2 AND 3 <> 3;        (* F OR (T AND F) = F *)
+         e := 2 ** 3 = 8.0;
+         f := 2.0 ** 10.0;
+         g := (2 + 3) * 4;
+         h := 5 >= 5 AND 4 <= 3 = FALSE;         (* T AND ((4<=3)=F) = T *)
+         w := 16#F0F0 AND 16#FF00 OR 16#000F;    (* F000 OR 000F = F00F *)
+         m := -7 MOD 2;
+         n := -7 / 2;",
+    );
+    assert_eq!(r.int("main.a"), 11);
+    assert_eq!(r.int("main.b"), 9);
+    assert_eq!(r.int("main.c"), 1);
+    assert_eq!(r.int("main.d"), 0);
+    assert_eq!(r.int("main.e"), 1);
+    assert_eq!(r.real("main.f"), 1024.0);
+    assert_eq!(r.int("main.g"), 20);
+    assert_eq!(r.int("main.h"), 1);
+    assert_eq!(r.int("main.w"), 0xF00F);
+    assert_eq!(r.int("main.m"), -1);
+    assert_eq!(r.int("main.n"), -3);
+}
+
+#[test]
+fn runtime_operators_on_variables() {
+    let r = once(
+        "x : INT := 7; y : INT := -3; s : SINT := 100; u : USINT := 250; q : INT; p : INT; o : SINT; v : USINT;
+         l : LINT := 9000000000; k : LINT; z : DINT; t : BOOL; bw : BYTE := 16#0F; nb : BYTE; rr : LREAL; i : INT := 0;",
+        "q := x / y; p := x MOD y; o := s + s; v := u + 10; k := l * 2; z := x * y - y;
+         t := x > y AND NOT (x = y); nb := NOT bw; rr := INT_TO_LREAL(x) / 2.0;",
+    );
+    assert_eq!(r.int("main.q"), -2);
+    assert_eq!(r.int("main.p"), 1);
+    assert_eq!(r.int("main.o"), -56); // 200 wraps in SINT
+    assert_eq!(r.int("main.v"), 4); // 260 wraps in USINT
+    assert_eq!(r.int("main.k"), 18_000_000_000);
+    assert_eq!(r.int("main.z"), -18);
+    assert_eq!(r.int("main.t"), 1);
+    assert_eq!(r.int("main.nb"), 0xF0);
+    assert_eq!(r.real("main.rr"), 3.5);
+}
+
+#[test]
+fn integer_wrap() {
+    let r = once(
+        "a : INT := 32767; b : DINT := -2147483648; c : UINT := 0; d : SINT := -128; e : UDINT := 4294967295;",
+        "a := a + 1; b := b - 1; c := c - 1; d := -d; e := e + 2;",
+    );
+    assert_eq!(r.int("main.a"), -32768);
+    assert_eq!(r.int("main.b"), 2147483647);
+    assert_eq!(r.int("main.c"), 65535);
+    assert_eq!(r.int("main.d"), -128);
+    assert_eq!(r.int("main.e"), 1);
+}
+
+#[test]
+fn if_elsif_else() {
+    let src = "x : INT; r1 : INT; r2 : INT; r3 : INT;";
+    let r = once(
+        src,
+        "x := 5;
+         IF x > 10 THEN r1 := 1; ELSIF x > 3 THEN r1 := 2; ELSE r1 := 3; END_IF;
+         IF x < 0 THEN r2 := 1; ELSIF x = 0 THEN r2 := 2; ELSE r2 := 3; END_IF;
+         IF TRUE THEN r3 := 7; END_IF;",
+    );
+    assert_eq!(r.int("main.r1"), 2);
+    assert_eq!(r.int("main.r2"), 3);
+    assert_eq!(r.int("main.r3"), 7);
+}
+
+#[test]
+fn case_values_ranges_and_else() {
+    let r = once(
+        "i : INT; a : INT; b : INT; c : INT; d : INT;",
+        "i := 4; CASE i OF 1: a := 10; 2, 3: a := 20; 4..6: a := 30; ELSE a := 40; END_CASE;
+         i := 9; CASE i OF 1: b := 10; 4..6: b := 30; ELSE b := 40; END_CASE;
+         i := -2; CASE i OF -5..-1: c := 1; 0: c := 2; END_CASE;
+         i := 3; CASE i * 2 OF 6: d := 66; END_CASE;",
+    );
+    assert_eq!(r.int("main.a"), 30);
+    assert_eq!(r.int("main.b"), 40);
+    assert_eq!(r.int("main.c"), 1);
+    assert_eq!(r.int("main.d"), 66);
+}
+
+#[test]
+fn enumerations_inline_and_declared() {
+    let src = "TYPE Color : (Red, Green := 5, Blue); END_TYPE
+TYPE Mode : INT (Off, Auto := 10) := Auto; END_TYPE
+PROGRAM main
+VAR c : Color; d : Color := Blue; m : Mode; s : (Idle, Busy); n : INT; k : INT; END_VAR
+  CASE d OF Red: n := 1; Green: n := 2; Blue: n := 3; END_CASE;
+  IF m = Mode#Auto THEN k := 1; END_IF;
+  s := Busy;
+  c := Color#Green;
+END_PROGRAM";
+    let mut r = Run::new(src);
+    r.scan();
+    assert_eq!(r.int("main.n"), 3);
+    assert_eq!(r.int("main.k"), 1);
+    assert_eq!(r.int("main.c"), 5);
+    assert_eq!(r.int("main.d"), 6);
+    assert_eq!(r.int("main.s"), 1);
+}
+
+#[test]
+fn for_loops_count_up_down_and_stop_at_the_type_end() {
+    let r = once(
+        "i : INT; s : INT; t : INT; u : INT; k : SINT; n : INT; j : INT; st : INT := 3; e : INT;",
+        "FOR i := 1 TO 10 DO s := s + i; END_FOR;
+         FOR i := 10 TO 1 BY -3 DO t := t * 10 + i; END_FOR;  (* 10 7 4 1 *)
+         FOR k := 120 TO 127 DO n := n + 1; END_FOR;          (* no wrap: 8 times *)
+         FOR i := 0 TO 20 BY st DO u := u + 1; END_FOR;        (* 0 3 .. 18: 7 times *)
+         FOR j := 5 TO 1 DO e := 99; END_FOR;",
+    );
+    assert_eq!(r.int("main.s"), 55);
+    assert_eq!(r.int("main.t"), ((10 * 10 + 7) * 10 + 4) * 10 + 1);
+    assert_eq!(r.int("main.n"), 8);
+    assert_eq!(r.int("main.k"), 127);
+    assert_eq!(r.int("main.u"), 7);
+    assert_eq!(r.int("main.i"), 18);
+    assert_eq!(r.int("main.e"), 0);
+    assert_eq!(r.int("main.j"), 5);
+}
+
+#[test]
+fn while_repeat_exit_continue() {
+    let r = once(
+        "i : INT; a : INT; b : INT; c : INT; d : INT;",
+        "i := 0; WHILE i < 10 DO i := i + 1; IF i MOD 2 = 0 THEN CONTINUE; END_IF; a := a + i; END_WHILE;
+         i := 0; REPEAT i := i + 1; b := b + 2; UNTIL i >= 5 END_REPEAT;
+         i := 0; WHILE TRUE DO i := i + 1; IF i = 7 THEN EXIT; END_IF; END_WHILE; c := i;
+         FOR i := 1 TO 100 DO IF i > 4 THEN EXIT; END_IF; d := d + i; END_FOR;",
+    );
+    assert_eq!(r.int("main.a"), 1 + 3 + 5 + 7 + 9);
+    assert_eq!(r.int("main.b"), 10);
+    assert_eq!(r.int("main.c"), 7);
+    assert_eq!(r.int("main.d"), 10);
+}
+
+#[test]
+fn return_in_a_program_ends_the_scan() {
+    let r = once("a : INT; b : INT;", "a := 1; IF a = 1 THEN RETURN; END_IF; b := 2;");
+    assert_eq!(r.int("main.a"), 1);
+    assert_eq!(r.int("main.b"), 0);
+}
+
+#[test]
+fn arrays_structs_and_copies() {
+    let src = "TYPE Point : STRUCT x : INT := 1; y : REAL := 2.5; END_STRUCT; END_TYPE
+PROGRAM main
+VAR
+  a : ARRAY [1..5] OF INT := [10, 20, 3(7)];
+  b : ARRAY [1..5] OF INT;
+  m : ARRAY [-1..1, 0..2] OF DINT;
+  p : Point; q : Point; ps : ARRAY [0..2] OF Point;
+  i : INT; j : INT; s : DINT; t : INT;
+END_VAR
+  b := a;
+  b[2] := 99;
+  FOR i := -1 TO 1 DO FOR j := 0 TO 2 DO m[i, j] := i * 10 + j; END_FOR; END_FOR;
+  s := m[1, 2] + m[-1, 0];
+  q := p; q.x := 5;
+  ps[1] := q; ps[2].y := 7.0;
+  i := 3; t := a[i] + a[i - 2];
+END_PROGRAM";
+    let mut r = Run::new(src);
+    r.scan();
+    assert_eq!(r.int("main.b[1]"), 10);
+    assert_eq!(r.int("main.b[2]"), 99);
+    assert_eq!(r.int("main.a[2]"), 20);
+    assert_eq!(r.int("main.b[5]"), 7);
+    assert_eq!(r.int("main.m[0,1]"), 1);
+    assert_eq!(r.int("main.s"), 12 - 10);
+    assert_eq!(r.int("main.q.x"), 5);
+    assert_eq!(r.int("main.p.x"), 1);
+    assert_eq!(r.real("main.q.y"), 2.5);
+    assert_eq!(r.int("main.ps[1].x"), 5);
+    assert_eq!(r.real("main.ps[2].y"), 7.0);
+    assert_eq!(r.int("main.ps[0].x"), 1);
+    assert_eq!(r.int("main.t"), 7 + 10);
+}
+
+#[test]
+fn bit_access_reads_and_writes() {
+    let r = once(
+        "w : WORD := 16#0008; b : BOOL; c : BOOL; i : INT := 2; d : DINT := -1;",
+        "b := w.3; c := w.4; w.0 := TRUE; w.3 := FALSE; w.15 := b; d.31 := FALSE;",
+    );
+    assert_eq!(r.int("main.b"), 1);
+    assert_eq!(r.int("main.c"), 0);
+    assert_eq!(r.int("main.w"), 0x8001);
+    assert_eq!(r.int("main.d"), 0x7FFF_FFFF);
+}
+
+#[test]
+fn division_by_zero_and_index_out_of_range_raise_errors_without_harm() {
+    let r = once(
+        "a : ARRAY [0..3] OF INT; guard : INT := 55; x : INT := 10; z : INT; q : INT; i : INT := 4; r : REAL; f : REAL := 1.0;",
+        "q := x / z; a[i] := 7; i := -1; a[i] := 8; x := a[i]; r := f / 0.0;",
+    );
+    assert_eq!(r.int("main.q"), 0);
+    assert_eq!(r.int("main.guard"), 55);
+    assert_eq!(r.int("main.x"), 0);
+    for k in 0..4 {
+        assert_eq!(r.int(&format!("main.a[{k}]")), 0);
+    }
+    assert_eq!(r.errors(), vec![0x3400, 0x3402, 0x3402, 0x3402, 0x3400]);
+}
+
+#[test]
+fn user_functions_with_locals_outputs_and_in_out() {
+    let src = "FUNCTION Sq : DINT
+VAR_INPUT x : DINT; END_VAR
+VAR t : DINT := 1; END_VAR
+  t := t + x * x;   (* t starts from 1 at every call *)
+  Sq := t - 1;
+END_FUNCTION
+FUNCTION Swap : BOOL
+VAR_IN_OUT a : INT; b : INT; END_VAR
+VAR t : INT; END_VAR
+  t := a; a := b; b := t; Swap := TRUE;
+END_FUNCTION
+FUNCTION Split : INT
+VAR_INPUT v : INT; END_VAR
+VAR_OUTPUT hi : INT; lo : INT; END_VAR
+  hi := v / 100; lo := v MOD 100; Split := v;
+END_FUNCTION
+PROGRAM main
+VAR a : DINT; b : DINT; x : INT := 1; y : INT := 2; ok : BOOL; h : INT; l : INT; n : DINT; END_VAR
+  a := Sq(3) + Sq(x := 4);
+  b := Sq(Sq(2));
+  ok := Swap(x, y);
+  Split(v := 1234, hi => h, lo => l);
+  n := Sq(Sq(1) + Sq(2)) + 1;
+END_PROGRAM";
+    let mut r = Run::new(src);
+    r.scan();
+    assert_eq!(r.int("main.a"), 25);
+    assert_eq!(r.int("main.b"), 16);
+    assert_eq!(r.int("main.x"), 2);
+    assert_eq!(r.int("main.y"), 1);
+    assert_eq!(r.int("main.ok"), 1);
+    assert_eq!(r.int("main.h"), 12);
+    assert_eq!(r.int("main.l"), 34);
+    assert_eq!(r.int("main.n"), 26);
+}
+
+#[test]
+fn function_blocks_keep_state_across_scans() {
+    let src = "FUNCTION_BLOCK Counter
+VAR_INPUT up : BOOL; step : INT := 1; END_VAR
+VAR_OUTPUT count : INT; END_VAR
+VAR edge : R_TRIG; END_VAR
+  edge(CLK := up);
+  IF edge.Q THEN count := count + step; END_IF;
+END_FUNCTION_BLOCK
+PROGRAM main
+VAR c1 : Counter; c2 : Counter := (step := 10); cs : ARRAY [0..1] OF Counter; n : INT; m : INT; k : INT; in : BOOL; i : INT; END_VAR
+  in := NOT in;
+  c1(up := in, count => n);
+  c2(up := in);
+  m := c2.count;
+  FOR i := 0 TO 1 DO cs[i](up := in, step := i + 1); END_FOR;
+  k := cs[1].count;
+END_PROGRAM";
+    let mut r = Run::new(src);
+    for _ in 0..5 {
+        r.scan();
+    }
+    // in: T F T F T → three rising edges
+    assert_eq!(r.int("main.n"), 3);
+    assert_eq!(r.int("main.m"), 30);
+    assert_eq!(r.int("main.k"), 6);
+    assert_eq!(r.int("main.cs[0].count"), 3);
+    assert_eq!(r.int("main.c1.edge.M"), 1);
+}
+
+#[test]
+fn ton_times_with_the_clock() {
+    let src = "PROGRAM main
+VAR t : TON; go : BOOL; q : BOOL; et : TIME; END_VAR
+  t(IN := go, PT := T#100ms, Q => q, ET => et);
+END_PROGRAM";
+    let mut r = Run::new(src);
+    r.scan();
+    assert_eq!(r.int("main.q"), 0);
+    let (at, _) = r.sym("main.go");
+    r.vm.write_value(at, Elem::Bool, 1);
+    r.scan();
+    r.clock.advance(60_000_000);
+    r.scan();
+    assert_eq!(r.int("main.q"), 0);
+    assert_eq!(r.int("main.et"), 60_000_000);
+    r.clock.advance(50_000_000);
+    r.scan();
+    assert_eq!(r.int("main.q"), 1);
+    assert_eq!(r.int("main.et"), 100_000_000);
+}
+
+#[test]
+fn functions_are_reentrant_across_two_exec_states() {
+    let src = "FUNCTION Slow : DINT
+VAR_INPUT n : DINT; END_VAR
+VAR acc : DINT; i : DINT; END_VAR
+  FOR i := 1 TO n DO acc := acc + i; END_FOR;
+  Slow := acc;
+END_FUNCTION
+PROGRAM main
+VAR a : DINT; b : DINT; END_VAR
+  a := Slow(100);
+  b := Slow(10);
+END_PROGRAM";
+    let c = build(src);
+    let program = c.programs[0].clone();
+    let mut vm = Vm::for_programs(&c.programs);
+    vm.set_variables(&c.variables);
+    let mut s1 = ExecState::with_frame(program.frame_bytes);
+    let mut s2 = ExecState::with_frame(program.frame_bytes);
+    let clock = ManualClock::new(0);
+    // interleave two activations a few steps at a time
+    let (mut d1, mut d2) = (false, false);
+    while !(d1 && d2) {
+        if !d1 {
+            d1 = vm.run(&program, &mut s1, &clock, 7) == Exit::End;
+        }
+        if !d2 {
+            d2 = vm.run(&program, &mut s2, &clock, 5) == Exit::End;
+        }
+    }
+    let sym = |n: &str| c.variables.symbols.iter().find(|s| s.name == n).unwrap().at;
+    assert_eq!(vm.read_value(sym("main.a"), Elem::I32), 5050);
+    assert_eq!(vm.read_value(sym("main.b"), Elem::I32), 55);
+}
+
+#[test]
+fn an_endless_while_spends_the_budget() {
+    let c = build(
+        "PROGRAM main VAR i : DINT; END_VAR WHILE TRUE DO i := i + 1; END_WHILE; END_PROGRAM",
+    );
+    let program = c.programs[0].clone();
+    let mut vm = Vm::for_programs(&c.programs);
+    vm.set_variables(&c.variables);
+    let mut s = ExecState::with_frame(program.frame_bytes);
+    let clock = ManualClock::new(0);
+    for _ in 0..50 {
+        assert_eq!(vm.run(&program, &mut s, &clock, 1000), Exit::Budget);
+    }
+}
+
+#[test]
+fn globals_externals_constants_and_located_variables() {
+    let src = "VAR_GLOBAL g : INT := 5; limit : INT := 3; END_VAR
+VAR_GLOBAL CONSTANT K : INT := 7; END_VAR
+VAR_GLOBAL out AT %QX1.2 : BOOL; w AT %D00100 : DINT := 70000; END_VAR
+PROGRAM main
+VAR_EXTERNAL g : INT; END_VAR
+VAR a : INT; b : ARRAY [0..K] OF INT; in AT %IW3 : INT; m AT %MW2 : WORD; x AT %P0040 : BOOL; END_VAR
+  a := g + K + limit;
+  g := g + 1;
+  out := TRUE;
+  w := w + 1;
+  m := 16#1234;
+  x := NOT x;
+END_PROGRAM";
+    let mut r = Run::new(src);
+    r.scan();
+    assert_eq!(r.int("main.a"), 15);
+    assert_eq!(r.int("g"), 6);
+    assert_eq!(r.int("out"), 1);
+    assert_eq!(r.int("w"), 70001);
+    assert_eq!(r.int("main.m"), 0x1234);
+    assert_eq!(r.c.variables.located_init.len(), 1);
+    let (at, _) = r.sym("out");
+    assert_eq!(at.space, plcd_core::value::Space::Bit);
+    assert_eq!(at.offset, 16 + 2);
+    assert!(r.c.variables.symbols.iter().any(|s| s.name == "main.b[7]"));
+}
+
+#[test]
+fn strings() {
+    let r = once(
+        "s : STRING := 'Hello'; t : STRING[10]; u : STRING; n : INT; p : INT; l : STRING; c : BOOL; d : STRING;",
+        "t := CONCAT(s, ', world!');
+         n := LEN(s);
+         p := FIND(t, 'wor');
+         l := LEFT(s, 2);
+         u := MID(s, 3, 2);
+         c := s = 'Hello' AND s < 'Help';
+         d := CONCAT(RIGHT(s, 2), LEFT(s, 1), 'x');",
+    );
+    assert_eq!(r.string("main.t"), "Hello, wor");
+    assert_eq!(r.int("main.n"), 5);
+    assert_eq!(r.int("main.p"), 8);
+    assert_eq!(r.string("main.l"), "He");
+    assert_eq!(r.string("main.u"), "ell");
+    assert_eq!(r.int("main.c"), 1);
+    assert_eq!(r.string("main.d"), "loHx");
+}
+
+/// Each `tests/golden/st/<case>/main.st` reports exactly the diagnostic lines of its
+/// `expected.stderr` (the final `plcd.toml: N error(s)` line is the binary's, left out here);
+/// `PLCD_BLESS=1` rewrites the expected files that differ.
+#[test]
+fn golden_diagnostics() {
+    let bless = std::env::var_os("PLCD_BLESS").is_some_and(|v| v == "1");
+    let mut failures = Vec::new();
+    let mut cases: Vec<PathBuf> = fs::read_dir("tests/golden/st")
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_dir())
+        .collect();
+    cases.sort();
+    assert!(!cases.is_empty());
+    for dir in &cases {
+        let src = fs::read_to_string(dir.join("main.st")).unwrap();
+        let toml = fs::read_to_string(dir.join("plcd.toml")).unwrap_or_default();
+        let pou = toml
+            .lines()
+            .find_map(|l| l.strip_prefix("pou = "))
+            .map(|v| v.trim_matches('"').to_string());
+        let actual = try_build_pou(&src, pou.as_deref()).err().unwrap_or_default();
+        let count = actual.lines().count();
+        if count != 1 {
+            failures.push(format!("{}: {count} diagnostics:\n{actual}", dir.display()));
+            continue;
+        }
+        let expected_path = dir.join("expected.stderr");
+        let expected = fs::read_to_string(&expected_path).unwrap_or_default();
+        let expected_lines: String = expected
+            .lines()
+            .filter(|l| !l.starts_with("plcd.toml: "))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        if expected_lines != actual {
+            if bless {
+                fs::write(&expected_path, format!("{actual}plcd.toml: 1 error(s)\n")).unwrap();
+                eprintln!("PLCD_BLESS: rewrote {}", expected_path.display());
+            } else {
+                failures.push(format!(
+                    "{}:\n--- expected\n{expected_lines}--- actual\n{actual}",
+                    dir.display()
+                ));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
