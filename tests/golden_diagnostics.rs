@@ -27,7 +27,7 @@ use std::process::{Command, Output};
 const BLESS: &str = "PLCD_BLESS";
 
 /// The directories of one case per diagnostic, by where the messages come from.
-const AREAS: [&str; 4] = ["lang", "config", "project", "stimulus"];
+const AREAS: [&str; 5] = ["lang", "config", "project", "stimulus", "st"];
 
 /// The cases whose diagnostic never comes alone, and how many diagnostics they report.
 const NOT_ALONE: &[(&str, usize)] = &[

@@ -24,8 +24,8 @@ fn try_build_pou(src: &str, pou: Option<&str>) -> Result<Compiled, String> {
         pou,
         file: Path::new("main.st"),
         config: Path::new("plcd.toml"),
-        line: 1,
-        col: 1,
+        line: 2,
+        col: 8,
     };
     compile(&[file], &[inst]).map_err(|d| d.to_string())
 }
@@ -438,7 +438,7 @@ END_PROGRAM";
     assert_eq!(r.int("main.m"), 30);
     assert_eq!(r.int("main.k"), 6);
     assert_eq!(r.int("main.cs[0].count"), 3);
-    assert_eq!(r.int("main.c1.edge.M"), 1);
+    assert_eq!(r.int("main.c1.edge.was_high"), 1);
 }
 
 #[test]

@@ -1063,19 +1063,20 @@ impl<'c, 'a> Em<'c, 'a> {
             em.op(Op::Cmp { op: CmpOp::Lt, elem: ue });
             exits.push(em.op(Op::GotoIf { target: 0, when: true }));
         };
+        let mut rest_exits = Vec::new();
         match by_const {
-            Some(b) if b > 0 => pos_rest(self, &mut exits),
-            Some(_) => neg_rest(self, &mut exits),
+            Some(b) if b > 0 => pos_rest(self, &mut rest_exits),
+            Some(_) => neg_rest(self, &mut rest_exits),
             None => {
                 push_by(self);
                 self.push_int(elem, 0);
                 self.op(Op::Cmp { op: CmpOp::Lt, elem });
                 let to_neg = self.op(Op::GotoIf { target: 0, when: true });
-                pos_rest(self, &mut exits);
+                pos_rest(self, &mut rest_exits);
                 let to_inc = self.op(Op::Goto(0));
                 let here = self.pc();
                 self.patch(to_neg, here);
-                neg_rest(self, &mut exits);
+                neg_rest(self, &mut rest_exits);
                 let inc = self.pc();
                 self.patch(to_inc, inc);
             }
@@ -1085,6 +1086,16 @@ impl<'c, 'a> Em<'c, 'a> {
         self.op(Op::Bin { op: BinOp::Add, elem });
         self.op_static(Op::Store { elem, at: v.place }, v);
         self.op(Op::Goto(body_at));
+        // Past the bound: the variable takes the first value that fails the test, as CODESYS
+        // leaves it (the step is added with wrap-around; the test before it never wraps).
+        let past = self.pc();
+        for j in rest_exits {
+            self.patch(j, past);
+        }
+        fetch_v(self);
+        push_by(self);
+        self.op(Op::Bin { op: BinOp::Add, elem });
+        self.op_static(Op::Store { elem, at: v.place }, v);
         let end = self.pc();
         for j in exits {
             self.patch(j, end);
