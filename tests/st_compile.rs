@@ -611,3 +611,133 @@ fn golden_diagnostics() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+#[test]
+fn standard_functions() {
+    let r = once(
+        "a : INT; b : REAL; c : LREAL; d : DINT; e : DINT; f : INT; g : INT; h : WORD; i : BYTE; j : BYTE; k : INT;
+         l : DINT; m : DINT; n : DINT; o : BOOL; p : INT; q : REAL; s : DINT; t : DINT; u : TIME; v : REAL; w : INT;
+         x : LREAL; y : BYTE; z : INT; neg : INT := -5; big : LREAL := 2.5; gsel : BOOL := TRUE; k3 : INT := 2;",
+        "a := ABS(neg);                  (* 5 *)
+         b := SQRT(16.0);                (* 4 *)
+         c := EXPT(2.0, 3);               (* 8 *)
+         d := ADD(1, 2, 3, 4);            (* 10 *)
+         e := MUL(2, 3, 4) - SUB(10, 4);  (* 24 - 6 = 18 *)
+         f := DIV(17, 5) * 10 + 17 MOD 5; (* 32; MOD(…), AND(…) are keywords to the parser *)
+         g := MAX(3, neg, 9, 4) + MIN(3, neg);   (* 9 - 5 = 4 *)
+         h := SHL(WORD#16#00F0, 4);       (* 16#0F00 *)
+         i := ROL(BYTE#16#81, 1);         (* 16#03 *)
+         j := ROR(BYTE#16#81, 1);         (* 16#C0 *)
+         k := LIMIT(0, 150, 100);         (* 100 *)
+         l := SEL(gsel, 10, 20);           (* 20 *)
+         m := MUX(k3, 100, 200, 300, 400); (* 300 *)
+         n := TRUNC(-2.7);                (* -2 *)
+         o := MAX(FALSE, TRUE);          (* TRUE *)
+         p := REAL_TO_INT(2.5) + REAL_TO_INT(-2.5);  (* 3 + -3 = 0 *)
+         q := INT_TO_REAL(neg) / 2.0;     (* -2.5 *)
+         s := TIME_TO_DINT(T#1s500ms);    (* 1500 *)
+         t := BOOL_TO_DINT(gsel) + DINT#16#7FFFFFFF;  (* wraps to -2147483648 *)
+         u := DINT_TO_TIME(250);          (* 250 ms *)
+         v := LREAL_TO_REAL(big) * 2.0;   (* 5 *)
+         w := DINT_TO_INT(70000);         (* 70000 - 65536 = 4464 *)
+         x := LN(1.0) + LOG(100.0) + EXP(0.0) + SIN(0.0) + COS(0.0) + TAN(0.0) + ASIN(0.0) + ACOS(1.0) + ATAN(0.0); (* 0+2+1+0+1+0+0+0+0 = 4 *)
+         y := NOT BYTE#16#0F AND 16#3C;   (* F0 AND 3C = 30 *)
+         z := MOVE(neg);",
+    );
+    assert_eq!(r.int("main.a"), 5);
+    assert_eq!(r.real("main.b"), 4.0);
+    assert_eq!(r.real("main.c"), 8.0);
+    assert_eq!(r.int("main.d"), 10);
+    assert_eq!(r.int("main.e"), 18);
+    assert_eq!(r.int("main.f"), 32);
+    assert_eq!(r.int("main.g"), 4);
+    assert_eq!(r.int("main.h"), 0x0F00);
+    assert_eq!(r.int("main.i"), 0x03);
+    assert_eq!(r.int("main.j"), 0xC0);
+    assert_eq!(r.int("main.k"), 100);
+    assert_eq!(r.int("main.l"), 20);
+    assert_eq!(r.int("main.m"), 300);
+    assert_eq!(r.int("main.n"), -2);
+    assert_eq!(r.int("main.o"), 1);
+    assert_eq!(r.int("main.p"), 0);
+    assert_eq!(r.real("main.q"), -2.5);
+    assert_eq!(r.int("main.s"), 1500);
+    assert_eq!(r.int("main.t"), -2147483648);
+    assert_eq!(r.int("main.u"), 250_000_000);
+    assert_eq!(r.real("main.v"), 5.0);
+    assert_eq!(r.int("main.w"), 4464);
+    assert_eq!(r.real("main.x"), 4.0);
+    assert_eq!(r.int("main.y"), 0x30);
+    assert_eq!(r.int("main.z"), -5);
+}
+
+#[test]
+fn standard_functions_on_variables_at_run_time() {
+    let r = once(
+        "x : REAL := 9.0; n : INT := 3; w : WORD := 16#8001; c : INT := 1; s : BOOL; r1 : REAL; r2 : INT; r3 : WORD; r4 : INT; r5 : INT; r6 : DINT; r7 : TIME; t : TIME := T#2s;",
+        "r1 := SQRT(x) + EXPT(x, 0.5);          (* 6 *)
+         r2 := MAX(n, 7) - MIN(n, -1) + LIMIT(0, n * 100, 250); (* 7 + 1 + 250 = 258 *)
+         r3 := ROL(w, c) OR SHR(w, 15);         (* 16#0003 OR 1 = 3 *)
+         r4 := SEL(s, n, n * 2);                (* FALSE: 3 *)
+         r5 := MUX(n - 2, 10, 20, 30);          (* 20 *)
+         r6 := TIME_TO_DINT(t * 3 / 2);         (* 3000 *)
+         r7 := t - T#500ms;",
+    );
+    assert_eq!(r.real("main.r1"), 6.0);
+    assert_eq!(r.int("main.r2"), 258);
+    assert_eq!(r.int("main.r3"), 3);
+    assert_eq!(r.int("main.r4"), 3);
+    assert_eq!(r.int("main.r5"), 20);
+    assert_eq!(r.int("main.r6"), 3000);
+    assert_eq!(r.int("main.r7"), 1_500_000_000);
+}
+
+#[test]
+fn string_insert_delete_replace() {
+    let r = once(
+        "s : STRING := 'abcdef'; a : STRING; b : STRING; c : STRING;",
+        "a := INSERT(s, 'XY', 2); b := DELETE(s, 2, 3); c := REPLACE(s, 'Z', 3, 2);",
+    );
+    assert_eq!(r.string("main.a"), "abXYcdef");
+    assert_eq!(r.string("main.b"), "abef");
+    assert_eq!(r.string("main.c"), "aZef");
+}
+
+#[test]
+fn every_error_of_every_file_at_once() {
+    let e = errors(
+        "PROGRAM main
+VAR a : INT; r : REAL; END_VAR
+  a := r;
+  b := 1;
+  a := 70000;
+END_PROGRAM",
+    );
+    assert_eq!(e.lines().count(), 3, "{e}");
+}
+
+/// A generated 10,000-line project compiles (its time measured in release for the report).
+#[test]
+fn ten_thousand_lines() {
+    let mut src = String::new();
+    for f in 0..200 {
+        src.push_str(&format!("FUNCTION F{f} : DINT\nVAR_INPUT x : DINT; END_VAR\nVAR i : DINT; acc : DINT; END_VAR\n"));
+        for k in 0..20 {
+            src.push_str(&format!("  acc := acc + x * {k} - i;\n"));
+        }
+        src.push_str("  FOR i := 1 TO 10 DO\n    IF i MOD 2 = 0 THEN acc := acc + i; ELSE acc := acc - 1; END_IF;\n  END_FOR;\n");
+        src.push_str(&format!("  F{f} := acc;\nEND_FUNCTION\n"));
+    }
+    src.push_str("PROGRAM main\nVAR a : ARRAY [0..199] OF DINT; END_VAR\n");
+    for f in 0..200 {
+        src.push_str(&format!("  a[{f}] := F{f}({f});\n"));
+    }
+    src.push_str("END_PROGRAM\n");
+    while src.lines().count() < 10_000 {
+        src.push_str("(* padding *)\n");
+    }
+    let start = std::time::Instant::now();
+    let c = build(&src);
+    eprintln!("{} lines compiled in {:?}", src.lines().count(), start.elapsed());
+    assert!(c.programs[0].code.len() > 10_000);
+}
