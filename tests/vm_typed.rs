@@ -573,14 +573,16 @@ fn run_start_initializes_variables_keeping_the_retained_ones_when_warm() {
 }
 
 #[test]
-fn take_over_swaps_variable_memory() {
+fn take_over_keeps_the_variables_it_is_told_to() {
     let program = program(vec![End], vec![], 0);
     let mut old = Vm::for_programs([&program]);
-    old.set_variables(&Variables { initial: vec![7; 4].into(), ..Variables::default() });
+    old.set_variables(&Variables { initial: vec![7, 8, 9, 10].into(), ..Variables::default() });
     let mut new = Vm::for_programs([&program]);
     new.set_variables(&Variables { initial: vec![0; 4].into(), ..Variables::default() });
     new.take_over(&mut old, &[]);
-    assert_eq!(new.vars(), [7, 7, 7, 7]);
+    assert_eq!(new.vars(), [0, 0, 0, 0], "the new layout starts from its own image");
+    new.keep_variables(&old, &[(2, 0, 2)]);
+    assert_eq!(new.vars(), [9, 10, 0, 0]);
 }
 
 #[test]

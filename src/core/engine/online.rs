@@ -22,8 +22,8 @@ use crate::config::{ProjectChange, TaskConfig, TaskKind};
 use crate::device::Address;
 use crate::lang::ops::{EdgeMemory, Op};
 use crate::lang::Variables;
-use crate::value::{Space, Symbol, ValueType};
 use crate::project::Project;
+use crate::value::{Space, Symbol, ValueType};
 use crate::vm::EdgeInit;
 
 use super::mode::ModeState;

@@ -366,6 +366,10 @@ impl<'c, 'a> Em<'c, 'a> {
             Std::Now => {
                 self.op(Op::Now);
             }
+            Std::System(request) => {
+                self.op(Op::System(request));
+                self.op(Op::PushInt(1));
+            }
             Std::Sel => {
                 let base = self.sp;
                 self.value(&args[0]);

@@ -24,6 +24,9 @@ pub enum Std {
     Mux,
     /// `__NOW()`: the clock, a TIME.
     Now,
+    /// plcd's system functions, the instruction list's system instructions: `INIT_DONE()`
+    /// (the init task is finished) and `WDT()` (restart the scan watchdog). TRUE.
+    System(crate::lang::ops::SystemRequest),
     /// `LEN(s)`, an INT.
     Len,
     /// `LEFT(IN, L)`, `RIGHT(IN, L)`, `MID(IN, L, P)`, `CONCAT(a, b)`: a STRING (the node's
@@ -192,6 +195,21 @@ impl<'a> Ctx<'a> {
                 self.error(file, span, "`__NOW` takes no arguments");
             }
             return TExpr { k: TK::Std(Std::Now, vec![]), ty: Ty::Prim(Prim::Time), span };
+        }
+        let system = match upper.as_str() {
+            "INIT_DONE" => Some(crate::lang::ops::SystemRequest::InitDone),
+            "WDT" => Some(crate::lang::ops::SystemRequest::ResetWatchdog),
+            _ => None,
+        };
+        if let Some(request) = system {
+            if !args.is_empty() {
+                self.error(file, span, format!("`{upper}` takes no arguments"));
+            }
+            return TExpr {
+                k: TK::Std(Std::System(request), vec![]),
+                ty: Ty::Prim(Prim::Bool),
+                span,
+            };
         }
         if let Some((from, to)) = upper.split_once("_TO_") {
             let src =

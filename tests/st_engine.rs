@@ -1,0 +1,232 @@
+//! Structured Text on the engine, in virtual time: in every kind of task, preempted between two
+//! VM steps like the instruction list (an io task's latency does not depend on the length of an
+//! ST scan), an endless loop tripping the scan watchdog, IL and ST sharing devices, watches of
+//! variables by name, and an online change keeping the variables it can.
+
+mod harness;
+
+use harness::engine::{project, sim, sim_watching, MS, STEP_NS};
+use plcd::engine::event::{ErrorKind, Event, Mode};
+use plcd::project::Watched;
+use plcd::stimulus::{Stimulus, Target};
+
+fn input(t_ns: u64, dev: &str, value: i32) -> Stimulus {
+    Stimulus {
+        t_ns,
+        target: Target::Device(plcd::device::Address::parse(dev).unwrap()),
+        value,
+        line: 1,
+    }
+}
+
+const TASKS: &str = r#"
+[plc]
+scan_period_ms = 10
+[[program]]
+name = "boot"
+file = "boot.st"
+task = "init"
+[[program]]
+name = "main"
+file = "main.st"
+[[program]]
+name = "il"
+file = "il.il"
+[[program]]
+name = "fast"
+file = "fast.st"
+task = "fast"
+[[program]]
+name = "edge"
+file = "edge.st"
+task = "edge"
+[[program]]
+name = "dev"
+file = "dev.st"
+task = "dev"
+[[task]]
+name = "fast"
+kind = "cycle"
+number = 0
+priority = 3
+interval_ms = 5
+[[task]]
+name = "edge"
+kind = "io"
+number = 8
+priority = 2
+contact = "P0000"
+edge = "rising"
+[[task]]
+name = "dev"
+kind = "device"
+number = 16
+priority = 4
+device = "M0000"
+condition = "rising"
+"#;
+
+/// Each program counts its runs into a device the others can see.
+fn tasks_project() -> plcd::project::Project {
+    project(
+        TASKS,
+        &[
+            (
+                "boot.st",
+                "PROGRAM Boot VAR n AT %D00001 : INT; END_VAR n := n + 1; INIT_DONE(); END_PROGRAM",
+            ),
+            (
+                "main.st",
+                "PROGRAM Main VAR scans AT %D00002 : DINT; i : INT; acc : DINT; go AT %M0000 : BOOL; END_VAR
+                   scans := scans + 1;
+                   FOR i := 1 TO 200 DO acc := acc + i; END_FOR;
+                   go := (scans MOD 4) = 0;
+                 END_PROGRAM",
+            ),
+            ("il.il", "LOAD _ON\nINC D00010\nEND\n"),
+            ("fast.st", "PROGRAM Fast VAR n AT %D00004 : INT; END_VAR n := n + 1; END_PROGRAM"),
+            ("edge.st", "PROGRAM Edge VAR n AT %D00005 : INT; END_VAR n := n + 1; END_PROGRAM"),
+            ("dev.st", "PROGRAM Dev VAR n AT %D00006 : INT; END_VAR n := n + 1; END_PROGRAM"),
+        ],
+    )
+}
+
+#[test]
+fn st_programs_run_in_every_kind_of_task_beside_il() {
+    let project = tasks_project();
+    let stimuli = [input(12 * MS, "P0000", 1), input(13 * MS, "P0000", 0)];
+    let (engine, events) = sim(&project, &stimuli, &[], 100 * MS);
+    let read = |dev: &str| engine.vm().mem.read(&plcd::device::Address::parse(dev).unwrap());
+    assert_eq!(read("D00001"), 1, "init ran once, then INIT_DONE");
+    let scans = engine.scan_stats().count as i32;
+    assert!(scans >= 9, "{scans} scans");
+    assert_eq!(read("D00002"), scans - 1, "the init scan is not a scan of main");
+    assert_eq!(read("D00010"), scans - 1, "IL shares the scan");
+    assert!(read("D00004") >= 19, "the 5 ms cycle task: {}", read("D00004"));
+    assert_eq!(read("D00005"), 1, "one rising edge of P0000");
+    assert_eq!(read("D00006"), (scans - 1) / 4, "M0000 rises every 4th scan");
+    assert!(!events.0.iter().any(|(_, e)| matches!(e, Event::Error(_))), "{:?}", events.0);
+}
+
+#[test]
+fn an_io_task_preempts_a_long_st_scan_within_one_step() {
+    let project = project(
+        r#"
+[[program]]
+file = "main.st"
+[[program]]
+name = "edge"
+file = "edge.st"
+task = "edge"
+[[task]]
+name = "edge"
+kind = "io"
+number = 8
+priority = 2
+contact = "P0000"
+edge = "rising"
+"#,
+        &[
+            (
+                "main.st",
+                "PROGRAM Main VAR i : DINT; acc : DINT; END_VAR
+                   FOR i := 1 TO 20000 DO acc := acc + i; END_FOR;
+                 END_PROGRAM",
+            ),
+            ("edge.st", "PROGRAM Edge VAR n AT %D00005 : INT; END_VAR n := n + 1; END_PROGRAM"),
+        ],
+    );
+    // The edge comes in the middle of a scan many ms long.
+    let at = 7 * MS + 300;
+    let (_, events) = sim(&project, &[input(at, "P0000", 1)], &[], 50 * MS);
+    let start = events
+        .0
+        .iter()
+        .find(|(_, e)| matches!(e, Event::TaskStart { task } if *task > 1))
+        .map(|(t, _)| *t)
+        .expect("the io task started");
+    assert!(start - at <= STEP_NS, "the io task started {} ns after its edge", start - at);
+    assert!(events.0.iter().any(|(_, e)| matches!(e, Event::TaskPreempt { task: 0, .. })));
+}
+
+#[test]
+fn an_endless_while_trips_the_scan_watchdog() {
+    let project = project(
+        "[plc]\nwatchdog_ms = 20\n[[program]]\nfile = \"main.st\"\n",
+        &[(
+            "main.st",
+            "PROGRAM Main VAR n : DINT; END_VAR WHILE TRUE DO n := n + 1; END_WHILE; END_PROGRAM",
+        )],
+    );
+    let (engine, events) = sim(&project, &[], &[], 100 * MS);
+    let wdt = events
+        .0
+        .iter()
+        .find(|(_, e)| matches!(e, Event::Error(ErrorKind::Watchdog { .. })))
+        .map(|(t, _)| *t)
+        .expect("a WDT error");
+    assert!((20 * MS..=21 * MS).contains(&wdt), "WDT at {wdt}");
+    assert_eq!(engine.mode(), Mode::Error);
+}
+
+#[test]
+fn watched_variables_report_changes_by_type_never_their_initial_value() {
+    let project = project(
+        "[plc]\nscan_period_ms = 1\n[[program]]\nfile = \"main.st\"\n",
+        &[(
+            "main.st",
+            "PROGRAM Main VAR n : DINT := 5; r : REAL; t : TIME; END_VAR
+               n := n + 1; r := 0.5; t := T#1s500ms;
+             END_PROGRAM",
+        )],
+    );
+    let watch: Vec<Watched> =
+        ["MAIN.N", "main.r", "main.t"].iter().flat_map(|n| project.watched(n).unwrap()).collect();
+    assert_eq!(watch.iter().map(Watched::name).collect::<Vec<_>>(), ["main.n", "main.r", "main.t"]);
+    let (_, events) = sim_watching(&project, &[], &watch, 3 * MS + 500_000);
+    let sets: Vec<(u16, u64)> = events
+        .0
+        .iter()
+        .filter_map(|(_, e)| match e {
+            Event::SetVariable { watch, slot } => Some((*watch, *slot)),
+            _ => None,
+        })
+        .collect();
+    let n: Vec<u64> = sets.iter().filter(|(w, _)| *w == 0).map(|(_, s)| *s).collect();
+    assert_eq!(n, [6, 7, 8, 9], "5 is the initial value: no event for it");
+    assert_eq!(
+        sets.iter().filter(|(w, _)| *w == 1).map(|(_, s)| *s).collect::<Vec<_>>(),
+        [u64::from(0.5f32.to_bits())]
+    );
+    assert_eq!(
+        sets.iter().filter(|(w, _)| *w == 2).map(|(_, s)| *s).collect::<Vec<_>>(),
+        [1_500_000_000]
+    );
+    assert!(project.watched("main.nope").is_err());
+}
+
+#[test]
+fn an_online_change_keeps_variables_of_unchanged_name_and_type() {
+    let old = project(
+        "[[program]]\nfile = \"main.st\"\n",
+        &[(
+            "main.st",
+            "PROGRAM Main VAR n : DINT; gone : INT; kind : INT; END_VAR
+               n := n + 1; gone := 7; kind := 3;
+             END_PROGRAM",
+        )],
+    );
+    let new = project(
+        "[[program]]\nfile = \"main.st\"\n",
+        &[(
+            "main.st",
+            "PROGRAM Main VAR fresh : INT := 4; kind : DINT; N : DINT; END_VAR
+               n := n + 10;
+             END_PROGRAM",
+        )],
+    );
+    let kept = plcd::engine::online::kept_variables(&old.variables, &new.variables);
+    let n_old = old.variable("main.n").unwrap().at.offset;
+    let n_new = new.variable("main.n").unwrap().at.offset;
+    assert_eq!(&kept[..], [(n_old, n_new, 4)], "only n: same name (any case) and type");
+}
