@@ -18,13 +18,10 @@
 
 mod harness;
 
+use harness::golden::compare_or_bless;
 use std::fs;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-/// The variable that rewrites expected files instead of comparing them.
-const BLESS: &str = "PLCD_BLESS";
 
 /// The directories of one case per diagnostic, by where the messages come from.
 const AREAS: [&str; 5] = ["lang", "config", "project", "stimulus", "st"];
@@ -35,29 +32,6 @@ const NOT_ALONE: &[(&str, usize)] = &[
     // outside it, and without one the program has no `END`.
     ("lang/sbrt-before-end", 2),
 ];
-
-fn bless() -> bool {
-    harness::skip::required(BLESS)
-}
-
-/// Compares `actual` with the file `expected`; `None` when they agree or the file was blessed,
-/// else what differs.
-fn compare_or_bless(expected: &Path, actual: &str) -> Option<String> {
-    let old = fs::read_to_string(expected).unwrap_or_default();
-    if old == actual {
-        return None;
-    }
-    if bless() {
-        fs::write(expected, actual).unwrap_or_else(|e| panic!("{}: {e}", expected.display()));
-        let line = format!("{BLESS}: rewrote {}\n", expected.display());
-        let _ = std::io::stderr().write_all(line.as_bytes());
-        return None;
-    }
-    Some(format!(
-        "{} (PLCD_BLESS=1 rewrites it):\n--- expected\n{old}--- actual\n{actual}",
-        expected.display()
-    ))
-}
 
 fn plcd(dir: &Path, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_plcd")).current_dir(dir).args(args).output().unwrap()

@@ -12,23 +12,18 @@
 //! file that differs (and says which) instead of failing; `git diff` then shows what changed.
 //! A case that reports other than one diagnostic fails either way.
 
+mod harness;
+
+use harness::golden::compare_or_bless;
 use std::fs;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use plcd_core::st::{ast, parse_file, syntax};
 
 const ROOT: &str = "tests/golden/st-syntax";
 
-/// The variable that rewrites expected files instead of comparing them.
-const BLESS: &str = "PLCD_BLESS";
-
 /// The cases that report several diagnostics, and how many.
 const SEVERAL: &[(&str, usize)] = &[("many-errors", 8)];
-
-fn bless() -> bool {
-    std::env::var_os(BLESS).is_some_and(|v| !v.is_empty() && v != "0")
-}
 
 /// The case directories, sorted.
 fn cases() -> Vec<PathBuf> {
@@ -43,25 +38,6 @@ fn report(dir: &Path) -> String {
     let text = fs::read_to_string(dir.join("main.st")).unwrap();
     let (_, diags) = parse_file(Path::new("main.st"), &text);
     diags.to_string()
-}
-
-/// Compares `actual` with the file `expected`; `None` when they agree or the file was blessed,
-/// else what differs.
-fn compare_or_bless(expected: &Path, actual: &str) -> Option<String> {
-    let old = fs::read_to_string(expected).unwrap_or_default();
-    if old == actual {
-        return None;
-    }
-    if bless() {
-        fs::write(expected, actual).unwrap_or_else(|e| panic!("{}: {e}", expected.display()));
-        let line = format!("{BLESS}: rewrote {}\n", expected.display());
-        let _ = std::io::stderr().write_all(line.as_bytes());
-        return None;
-    }
-    Some(format!(
-        "{} ({BLESS}=1 rewrites it):\n--- expected\n{old}--- actual\n{actual}",
-        expected.display()
-    ))
 }
 
 /// The message of a diagnostic line `main.st:L:C: error: message`.

@@ -7,6 +7,7 @@
 //! - [`daemon`]: a project directory, the real `plcd run` on it, `plcctl` against it;
 //! - [`engine`]: the engine in virtual time on a project from literal texts, with a field;
 //! - [`vm`]: one program scanned by the VM alone, and the assembler's context;
+//! - [`golden`]: golden files compared, or rewritten with `PLCD_BLESS=1`;
 //! - [`gpiosim`]: whether the kernel's gpio-sim is here, and `require_gpiosim!` (include the
 //!   harness with `#[macro_use]` to use it).
 //!
@@ -19,6 +20,7 @@
 
 pub mod daemon;
 pub mod engine;
+pub mod golden;
 #[macro_use]
 pub mod gpiosim;
 pub mod log;
