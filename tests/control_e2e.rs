@@ -174,7 +174,11 @@ fn every_plcctl_command_against_the_daemon() {
     assert_eq!(at["debug"]["paused_at"]["devices"][0]["dev"], "P0000");
     let counted = plc.get("D00000");
     let step: serde_json::Value = serde_json::from_str(&plc.ok(&["--json", "step"])).unwrap();
-    assert_eq!(step["running"], false, "step answers once the scan is done: {step}");
+    assert_eq!(step["paused_at"]["line"], 4, "step goes to the next line: {step}");
+    assert_eq!(step["paused_at"]["source"], "OUT P0040");
+    let step: serde_json::Value =
+        serde_json::from_str(&plc.ok(&["--json", "step", "--scan"])).unwrap();
+    assert_eq!(step["running"], false, "step --scan answers once the scan is done: {step}");
     assert!(step.get("paused_at").is_none(), "between scans: {step}");
     assert_eq!(plc.get("D00000"), counted, "line 1 ran before the breakpoint, not again");
     plc.ok(&["continue"]);

@@ -92,7 +92,7 @@ impl Handler for Fake {
                     .collect();
                 Some(ResponseLine::ok(Reply::Values { scan: client, values }))
             }
-            Request::Step => {
+            Request::Step { .. } => {
                 self.pending.push_back(client);
                 let _ = self.seen.send(Seen::Deferred(client));
                 None

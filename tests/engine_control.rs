@@ -178,7 +178,7 @@ fn debug_runs_one_scan_per_step() {
 #[test]
 fn a_breakpoint_stops_before_its_instruction() {
     let mut plc = debug_plc("");
-    let at = debug::resolve(plc.engine.programs(), "main:2").unwrap();
+    let at = debug::resolve(plc.engine.programs(), "main:2").unwrap()[0];
     plc.engine.debugger_mut().add(at).unwrap();
     plc.request(ModeRequest::Debug).unwrap();
     plc.engine.debug_continue(plc.now()).unwrap();
@@ -191,7 +191,7 @@ fn a_breakpoint_stops_before_its_instruction() {
     assert_eq!(plc.engine.mode(), Mode::Debug);
     assert_eq!(plc.engine.watchdog_deadline(), None);
 
-    plc.engine.debug_step(plc.now()).unwrap();
+    plc.engine.debug_step_scan(plc.now()).unwrap();
     plc.run_for(10 * MS);
     assert_eq!(plc.engine.debugger().paused_at(), None, "step ran to the end of the scan");
     assert_eq!((plc.read("D00000"), plc.read("D00001")), (1, 1));
@@ -209,6 +209,73 @@ fn a_breakpoint_stops_before_its_instruction() {
     assert!(plc.read("D00001") > 1);
     assert_eq!(plc.read("D00000") - plc.read("D00001"), 0, "line 2 ran after line 1 each scan");
     assert_eq!(plc.modes(), [Mode::Debug, Mode::Run]);
+}
+
+/// The line execution is paused before, if paused in a program.
+fn paused_line(plc: &Plc) -> Option<u32> {
+    let (_, at) = plc.engine.debugger().paused_at()?;
+    Some(plc.engine.programs()[at.program as usize].line_of(at.pc as usize))
+}
+
+/// `step` until it pauses between scans, the lines it paused at in order.
+fn step_through(plc: &mut Plc) -> Vec<u32> {
+    let mut lines = Vec::new();
+    for _ in 0..100 {
+        plc.engine.debug_step(plc.now()).unwrap();
+        plc.run_for(MS);
+        match paused_line(plc) {
+            Some(line) => lines.push(line),
+            None => return lines,
+        }
+    }
+    panic!("no end of the scan after 100 steps: {lines:?}");
+}
+
+#[test]
+fn step_goes_line_by_line_from_a_breakpoint_over_calls() {
+    let main = "INC D00000\nCALL 1\nINC D00001\nEND\nSBRT 1\nINC D00002\nRET\n";
+    let p = project(SCAN, &[("main.il", main)], false);
+    let mut plc = Plc::new(&p);
+    let first = debug::resolve(plc.engine.programs(), "main:1").unwrap()[0];
+    plc.engine.debugger_mut().add(first).unwrap();
+    plc.request(ModeRequest::Debug).unwrap();
+    plc.engine.debug_continue(plc.now()).unwrap();
+    plc.run_for(MS);
+    assert_eq!(paused_line(&plc), Some(1));
+
+    plc.engine.debug_step(plc.now()).unwrap();
+    plc.run_for(MS);
+    assert_eq!(paused_line(&plc), Some(2));
+    assert_eq!(plc.read("D00000"), 1, "line 1 ran");
+    plc.engine.debug_step(plc.now()).unwrap();
+    plc.run_for(MS);
+    assert_eq!(paused_line(&plc), Some(3), "the subroutine was stepped over");
+    assert_eq!(plc.read("D00002"), 1, "and it ran");
+    assert_eq!(step_through(&mut plc), [4], "END is a line; then the scan ends");
+    assert_eq!(plc.engine.scan_count(), 1);
+    assert_eq!(plc.read("D00001"), 1);
+
+    // Between scans, step runs a whole scan, stopping at the breakpoint on the way.
+    plc.engine.debug_step(plc.now()).unwrap();
+    plc.run_for(MS);
+    assert_eq!(paused_line(&plc), Some(1));
+    // A breakpoint inside the call stops the step over it.
+    let inside = debug::resolve(plc.engine.programs(), "main:6").unwrap()[0];
+    plc.engine.debugger_mut().add(inside).unwrap();
+    assert_eq!(step_through(&mut plc), [2, 6, 7, 3, 4], "in the subroutine, steps go on there");
+    assert_eq!(plc.engine.scan_count(), 2);
+
+    // step --scan from a pause inside the program: to the end of the scan.
+    plc.engine.debug_step(plc.now()).unwrap();
+    plc.run_for(MS);
+    assert_eq!(paused_line(&plc), Some(1));
+    plc.engine.debug_step_scan(plc.now()).unwrap();
+    plc.run_for(MS);
+    assert_eq!(paused_line(&plc), Some(6), "a breakpoint still stops it");
+    plc.engine.debug_step_scan(plc.now()).unwrap();
+    plc.run_for(MS);
+    assert_eq!(paused_line(&plc), None);
+    assert_eq!(plc.engine.scan_count(), 3);
 }
 
 #[test]

@@ -175,6 +175,7 @@ fn typed_programs_do_not_allocate() {
         frame_bytes: 16,
         regions: Box::new([]),
         lines: vec![1; n].into(),
+        statements: Box::new([0]),
         edge_base: 0,
         edge_slots: 0,
         labels: Box::new([]),
@@ -296,7 +297,7 @@ fn the_scan_thread_does_not_allocate() {
             180 => Some(ControlCommand::Mode(ModeRequest::Debug)),
             181 => Some(ControlCommand::Break(Breakpoint { program: 0, pc: 2 })),
             182 => Some(ControlCommand::Continue),
-            190 => Some(ControlCommand::Step),
+            190 => Some(ControlCommand::Step { scan: false }),
             200 => Some(ControlCommand::Mode(ModeRequest::Run)),
             210 => {
                 let mut items = [(Address::parse("D00101").unwrap(), 0); WRITES_PER_COMMAND];

@@ -582,6 +582,7 @@ fn program(code: Vec<Op>, consts: Vec<u64>) -> Program {
         frame_bytes: 0,
         regions: Box::new([]),
         lines: vec![1; n].into(),
+        statements: Box::new([0]),
         edge_base: 0,
         edge_slots: 0,
         labels: Box::new([]),

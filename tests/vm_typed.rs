@@ -28,6 +28,7 @@ fn program(code: Vec<Op>, consts: Vec<u64>, frame_bytes: u32) -> Program {
         frame_bytes,
         regions: Box::new([]),
         lines: vec![1; n].into(),
+        statements: Box::new([0]),
         edge_base: 0,
         edge_slots: 0,
         labels: Box::new([]),

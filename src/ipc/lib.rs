@@ -86,13 +86,19 @@ pub enum Request {
     },
     /// DEBUG mode (XGB §5.2): the program runs only by `step` and `continue`. [`Reply::Debug`].
     Debug,
-    /// In DEBUG: runs to the end of the current or the next scan, or to a breakpoint.
-    /// [`Reply::Debug`].
-    Step,
+    /// In DEBUG, paused before an instruction: runs to the next statement of that task on
+    /// another line (calls are stepped over); paused between two scans, or with `scan`: to the
+    /// end of the current or the next scan. A breakpoint on the way stops it first. Answered
+    /// once execution is paused again: [`Reply::Debug`].
+    Step {
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        scan: bool,
+    },
     /// In DEBUG: runs until a breakpoint is reached. [`Reply::Debug`].
     Continue,
-    /// Sets a breakpoint: `PROGRAM:LINE`, `PROGRAM:LABEL n`, `LINE` or `LABEL n` (the program
-    /// may be left out when only one program fits). [`Reply::Debug`].
+    /// Sets a breakpoint: `PROGRAM:LINE`, `FILE:LINE` (a Structured Text file: wherever its
+    /// code runs), `PROGRAM:LABEL n`, `LINE` or `LABEL n` (the program may be left out when
+    /// only one program fits). [`Reply::Debug`].
     Break { at: String },
     /// Removes a breakpoint, or all of them when `at` is absent. [`Reply::Debug`].
     Unbreak {
@@ -117,7 +123,7 @@ impl Request {
             Request::Forces => "forces",
             Request::Load { .. } => "load",
             Request::Debug => "debug",
-            Request::Step => "step",
+            Request::Step { .. } => "step",
             Request::Continue => "continue",
             Request::Break { .. } => "break",
             Request::Unbreak { .. } => "unbreak",
@@ -357,7 +363,7 @@ pub struct DebugState {
     pub running: bool,
     /// Scans completed since RUN.
     pub scan: u64,
-    /// The breakpoints, as `PROGRAM:LINE`.
+    /// The breakpoints, as `PROGRAM:LINE` (instruction list) or `FILE:LINE` (Structured Text).
     pub breakpoints: Vec<String>,
 }
 
@@ -366,6 +372,10 @@ pub struct DebugState {
 pub struct Location {
     pub program: String,
     pub line: u32,
+    /// The name of the source file `line` is in, for Structured Text (whose program may run
+    /// code of other files); empty for the instruction list, whose line is the program's.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub file: String,
     /// The task executing it.
     pub task: String,
     /// The source line, as written.
@@ -452,7 +462,8 @@ mod tests {
             Request::Forces,
             Request::Load { config: "/etc/plcd/plcd.toml".into(), online: true },
             Request::Debug,
-            Request::Step,
+            Request::Step { scan: false },
+            Request::Step { scan: true },
             Request::Continue,
             Request::Break { at: "main:12".into() },
             Request::Unbreak { at: Some("main:12".into()) },
@@ -520,6 +531,7 @@ mod tests {
                 paused_at: Some(Location {
                     program: "main".into(),
                     line: 3,
+                    file: String::new(),
                     task: "scan".into(),
                     source: "LOAD P0000".into(),
                     devices: vec![DeviceValue { dev: "P0000".into(), value: 0 }],

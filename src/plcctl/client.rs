@@ -322,7 +322,7 @@ pub fn expected_reply(request: &Request) -> &'static str {
         }
         Request::Load { .. } => "loaded",
         Request::Debug
-        | Request::Step
+        | Request::Step { .. }
         | Request::Continue
         | Request::Break { .. }
         | Request::Unbreak { .. } => "debug",

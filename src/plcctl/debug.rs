@@ -5,11 +5,19 @@ use plcd_ipc::DebugState;
 
 use super::format;
 
+/// `step`'s arguments.
+#[derive(Debug, Clone, clap::Args)]
+pub struct StepArgs {
+    /// Run to the end of the current scan instead of to the next line.
+    #[arg(long)]
+    pub scan: bool,
+}
+
 /// `break`'s arguments.
 #[derive(Debug, Clone, clap::Args)]
 pub struct BreakArgs {
-    /// Where: `PROGRAM:LINE`, `PROGRAM:LABEL n`, `LINE` or `LABEL n` (the words are joined
-    /// with spaces, so `break main:LABEL 3` needs no quotes).
+    /// Where: `PROGRAM:LINE`, `FILE:LINE` (`main.st:12`), `PROGRAM:LABEL n`, `LINE` or
+    /// `LABEL n` (the words are joined with spaces, so `break main:LABEL 3` needs no quotes).
     #[arg(required = true, value_name = "AT")]
     pub at: Vec<String>,
 }
@@ -44,8 +52,14 @@ pub fn lines(state: &DebugState) -> Vec<String> {
     let mut lines = Vec::new();
     match &state.paused_at {
         Some(at) => {
-            lines
-                .push(format!("paused at {}:{} in task {}; {scans}", at.program, at.line, at.task));
+            lines.push(if at.file.is_empty() {
+                format!("paused at {}:{} in task {}; {scans}", at.program, at.line, at.task)
+            } else {
+                format!(
+                    "paused at {}:{} in program {}, task {}; {scans}",
+                    at.file, at.line, at.program, at.task
+                )
+            });
             if !at.source.is_empty() {
                 lines.push(format!("  {}", at.source));
             }
@@ -88,6 +102,7 @@ mod tests {
         state.paused_at = Some(Location {
             program: "main".into(),
             line: 3,
+            file: String::new(),
             task: "scan".into(),
             source: "LOAD P0000".into(),
             devices: vec![DeviceValue { dev: "P0000".into(), value: 1 }],

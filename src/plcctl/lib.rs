@@ -89,8 +89,9 @@ pub enum Command {
     Reset(mode::ResetArgs),
     /// Enter DEBUG mode: the program runs only by `step` and `continue`.
     Debug,
-    /// In DEBUG: run to the end of the scan, or to a breakpoint.
-    Step,
+    /// In DEBUG: run to the next line (paused in a program) or through a scan, or to a
+    /// breakpoint.
+    Step(debug::StepArgs),
     /// In DEBUG: run until a breakpoint is reached.
     Continue,
     /// Set a breakpoint.
@@ -129,7 +130,7 @@ impl Command {
             Command::Stop => Request::Stop,
             Command::Reset(args) => Request::Reset { cold: args.cold },
             Command::Debug => Request::Debug,
-            Command::Step => Request::Step,
+            Command::Step(args) => Request::Step { scan: args.scan },
             Command::Continue => Request::Continue,
             Command::Break(args) => Request::Break { at: args.at() },
             Command::Unbreak(args) => Request::Unbreak { at: args.at() },

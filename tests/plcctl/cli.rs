@@ -287,6 +287,13 @@ fn debugger_commands() {
     });
     let paused_text = "paused at main:12 in task fast; 41 scans completed\n  OUT P0040\n  \
                        P0040=0, M0001=1\nbreakpoints: main:12, main:LABEL 3\n";
+    let st = json!({
+        "kind": "debug", "running": false, "scan": 2, "breakpoints": ["lib.st:3"],
+        "paused_at": {"program": "main", "line": 3, "file": "lib.st", "task": "scan",
+                      "source": "Twice := x * 2;"}
+    });
+    let st_text = "paused at lib.st:3 in program main, task scan; 2 scans completed\n  \
+                   Twice := x * 2;\nbreakpoints: lib.st:3\n";
     let between = json!({"kind": "debug", "running": false, "scan": 1, "breakpoints": []});
     let between_text = "between scans; 1 scan completed\nbreakpoints: none\n";
     let running = json!({"kind": "debug", "running": true, "scan": 7, "breakpoints": ["main:3"]});
@@ -294,6 +301,8 @@ fn debugger_commands() {
     for (args, request, ok, text) in [
         (&["debug"][..], r#"{"v":1,"cmd":"debug"}"#, &between, between_text),
         (&["step"], r#"{"v":1,"cmd":"step"}"#, &paused, paused_text),
+        (&["step", "--scan"], r#"{"v":1,"cmd":"step","scan":true}"#, &between, between_text),
+        (&["break", "lib.st:3"], r#"{"v":1,"cmd":"break","at":"lib.st:3"}"#, &st, st_text),
         (&["continue"], r#"{"v":1,"cmd":"continue"}"#, &running, running_text),
         (&["break", "main:12"], r#"{"v":1,"cmd":"break","at":"main:12"}"#, &paused, paused_text),
         (

@@ -8,6 +8,8 @@
 //! while a breakpoint is set in the program it executes; without breakpoints the VM runs at full
 //! speed even in DEBUG.
 
+use std::path::Path;
+
 use crate::lang::Program;
 
 use super::event::TaskId;
@@ -25,16 +27,18 @@ pub struct Breakpoint {
 /// Why a breakpoint text does not name an instruction.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum BreakError {
-    #[error("`{0}` is not a breakpoint: write PROGRAM:LINE, PROGRAM:LABEL n, PROGRAM:SBRT n, or leave the program out when only one fits")]
+    #[error("`{0}` is not a breakpoint: write PROGRAM:LINE, FILE:LINE, PROGRAM:LABEL n, PROGRAM:SBRT n, or leave the program out when only one fits")]
     Syntax(String),
-    #[error("no program is called \"{0}\" (programs: {1})")]
+    #[error("no program or program file is called \"{0}\" (programs: {1})")]
     UnknownProgram(String, String),
-    #[error("{program}:{line} has no instruction (a comment, a blank line, or beyond the end)")]
+    #[error("{program}:{line} has no statement (a comment, a declaration, a blank line, or beyond the end)")]
     NoInstruction { program: String, line: u32 },
     #[error("no program has {0}")]
     NotFound(String),
     #[error("{what} is in more than one place ({places}): name the program, PROGRAM:{what}")]
     Ambiguous { what: String, places: String },
+    #[error("`{name}` is more than one file ({places}): write more of its path")]
+    AmbiguousFile { name: String, places: String },
     #[error("at most {MAX_BREAKPOINTS} breakpoints")]
     TooMany,
 }
@@ -59,12 +63,19 @@ fn parse_target(text: &str) -> Option<Target> {
     number(t).filter(|&n| n > 0).map(Target::Line)
 }
 
-/// The instructions `target` names in `program`.
+/// The first statement at `line` of `file` in `program`, if the program has code there.
+fn statement_at(program: &Program, file: &Path, line: u32) -> Option<u32> {
+    program
+        .statements
+        .iter()
+        .copied()
+        .find(|&pc| program.line_of(pc as usize) == line && program.file_of(pc as usize) == file)
+}
+
+/// The instructions `target` names in `program`; a line in the program's own file.
 fn find(program: &Program, target: Target) -> Vec<u32> {
     match target {
-        Target::Line(line) => {
-            program.lines.iter().position(|&l| l == line).map(|pc| pc as u32).into_iter().collect()
-        }
+        Target::Line(line) => statement_at(program, &program.path, line).into_iter().collect(),
         Target::Label(n) => {
             program.labels.iter().filter(|(l, _)| *l == n).map(|&(_, pc)| pc).collect()
         }
@@ -82,23 +93,39 @@ fn target_text(target: Target) -> String {
     }
 }
 
-/// Resolves a breakpoint text against the programs: `PROGRAM:LINE`, `PROGRAM:LABEL n`,
-/// `PROGRAM:SBRT n`, or any of these without `PROGRAM:` when exactly one program has it. A line
-/// stops before its first instruction.
-pub fn resolve(programs: &[Program], text: &str) -> Result<Breakpoint, BreakError> {
+/// The source files `name` may mean: the files of the programs' code whose path is `name` or
+/// ends with it (`main.st`, `st/main.st`, the full path), each once.
+fn files_named<'p>(programs: &'p [Program], name: &str) -> Vec<&'p Path> {
+    let wanted = Path::new(name);
+    let mut files: Vec<&Path> = Vec::new();
+    for program in programs {
+        let own = std::iter::once(program.path.as_path());
+        for file in own.chain(program.regions.iter().map(|(_, f)| f.as_path())) {
+            if file.ends_with(wanted) && !files.contains(&file) {
+                files.push(file);
+            }
+        }
+    }
+    files
+}
+
+/// Resolves a breakpoint text against the programs: `PROGRAM:LINE`, `FILE:LINE`,
+/// `PROGRAM:LABEL n`, `PROGRAM:SBRT n`, or a line, label or subroutine without `PROGRAM:` when
+/// exactly one program has it. A line stops before its first statement. `FILE:LINE` names a
+/// line of a source file wherever its code runs: a FUNCTION or FUNCTION_BLOCK of a Structured
+/// Text file is compiled into every program that calls it, so it may be several instructions,
+/// one per program. `PROGRAM:` is tried before `FILE:`.
+pub fn resolve(programs: &[Program], text: &str) -> Result<Vec<Breakpoint>, BreakError> {
     let syntax = || BreakError::Syntax(text.to_string());
-    let (program, target) = match text.rsplit_once(':') {
+    let (place, target) = match text.rsplit_once(':') {
         Some((name, rest)) => (Some(name.trim()), parse_target(rest).ok_or_else(syntax)?),
         None => (None, parse_target(text).ok_or_else(syntax)?),
     };
-    let candidates: Vec<usize> = match program {
-        Some(name) => {
-            let index = programs.iter().position(|p| p.name == name).ok_or_else(|| {
-                let names: Vec<&str> = programs.iter().map(|p| p.name.as_str()).collect();
-                BreakError::UnknownProgram(name.to_string(), names.join(", "))
-            })?;
-            vec![index]
-        }
+    let candidates: Vec<usize> = match place {
+        Some(name) => match programs.iter().position(|p| p.name == name) {
+            Some(index) => vec![index],
+            None => return resolve_in_file(programs, name, target, text),
+        },
         None => (0..programs.len()).collect(),
     };
     let mut found = Vec::new();
@@ -107,8 +134,8 @@ pub fn resolve(programs: &[Program], text: &str) -> Result<Breakpoint, BreakErro
             found.push(Breakpoint { program: index as u16, pc });
         }
     }
-    match (found.len(), target, program) {
-        (1, _, _) => Ok(found[0]),
+    match (found.len(), target, place) {
+        (1, _, _) => Ok(found),
         (0, Target::Line(line), Some(name)) => {
             Err(BreakError::NoInstruction { program: name.to_string(), line })
         }
@@ -120,11 +147,54 @@ pub fn resolve(programs: &[Program], text: &str) -> Result<Breakpoint, BreakErro
     }
 }
 
-/// `PROGRAM:LINE` of an instruction.
+/// `FILE:LINE`: the line's first statement in every program whose code comes from the file.
+fn resolve_in_file(
+    programs: &[Program],
+    name: &str,
+    target: Target,
+    text: &str,
+) -> Result<Vec<Breakpoint>, BreakError> {
+    let files = files_named(programs, name);
+    if files.is_empty() {
+        let names: Vec<&str> = programs.iter().map(|p| p.name.as_str()).collect();
+        return Err(BreakError::UnknownProgram(name.to_string(), names.join(", ")));
+    }
+    if files.len() > 1 {
+        let places: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+        return Err(BreakError::AmbiguousFile {
+            name: name.to_string(),
+            places: places.join(", "),
+        });
+    }
+    let Target::Line(line) = target else { return Err(BreakError::Syntax(text.to_string())) };
+    let found: Vec<Breakpoint> = programs
+        .iter()
+        .enumerate()
+        .filter_map(|(index, program)| {
+            let pc = statement_at(program, files[0], line)?;
+            Some(Breakpoint { program: index as u16, pc })
+        })
+        .collect();
+    if found.is_empty() {
+        return Err(BreakError::NoInstruction { program: name.to_string(), line });
+    }
+    Ok(found)
+}
+
+/// Where an instruction is, as a breakpoint is written: `PROGRAM:LINE` for the instruction
+/// list, `FILE:LINE` (the file's name) for Structured Text.
 pub fn describe(programs: &[Program], at: Breakpoint) -> String {
-    match programs.get(at.program as usize) {
-        Some(p) => format!("{}:{}", p.name, p.line_of(at.pc as usize)),
-        None => format!("#{}:{}", at.program, at.pc),
+    let Some(p) = programs.get(at.program as usize) else {
+        return format!("#{}:{}", at.program, at.pc);
+    };
+    let line = p.line_of(at.pc as usize);
+    match p.language {
+        crate::lang::Language::InstructionList => format!("{}:{line}", p.name),
+        crate::lang::Language::StructuredText => {
+            let file = p.file_of(at.pc as usize);
+            let name = file.file_name().unwrap_or(file.as_os_str());
+            format!("{}:{line}", name.to_string_lossy())
+        }
     }
 }
 
@@ -193,10 +263,15 @@ impl Debugger {
 /// How far a DEBUG `step` or `continue` lets the programs run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Until {
-    /// To the end of the current (or the next) scan, or to a breakpoint: `step`.
+    /// To the end of the current (or the next) scan, or to a breakpoint: `step` between two
+    /// scans, `step --scan`.
     ScanEnd,
     /// Scan after scan, to a breakpoint: `continue`.
     Breakpoint,
+    /// `step` from a pause before an instruction: to the next statement of `task` on another
+    /// line than `from`, at a call depth of at most `depth` (calls are stepped over), or to a
+    /// breakpoint. When the task's programs end first, to the end of the scan.
+    NextLine { task: TaskId, from: Breakpoint, depth: u32 },
 }
 
 /// The state of a DEBUG session. Only the engine's DEBUG mode holds one, so a pause, a place to
@@ -228,13 +303,16 @@ impl Session {
     fn run_state(self) -> DebugRun {
         match self {
             Session::Paused { .. } => DebugRun::Paused,
-            Session::Executing { until: Until::ScanEnd, .. } => DebugRun::Scan,
+            Session::Executing { until: Until::ScanEnd | Until::NextLine { .. }, .. } => {
+                DebugRun::Scan
+            }
             Session::Executing { until: Until::Breakpoint, .. } => DebugRun::Continue,
         }
     }
 
+    /// The task and instruction execution waits before, if paused inside a program.
     #[inline]
-    fn paused_at(self) -> Option<(TaskId, Breakpoint)> {
+    pub(super) fn paused_at(self) -> Option<(TaskId, Breakpoint)> {
         match self {
             Session::Paused { at } => at,
             Session::Executing { .. } => None,
@@ -257,7 +335,9 @@ impl Session {
     #[inline]
     pub(super) fn scan_ended(&mut self) {
         match self {
-            Session::Executing { until: Until::ScanEnd, .. } => *self = Session::BETWEEN_SCANS,
+            Session::Executing { until: Until::ScanEnd | Until::NextLine { .. }, .. } => {
+                *self = Session::BETWEEN_SCANS
+            }
             Session::Executing { resume_from, .. } => *resume_from = None,
             Session::Paused { .. } => {}
         }
@@ -284,11 +364,66 @@ impl Session {
         true
     }
 
+    /// True while a line step runs in `task`: the engine then executes it one instruction at
+    /// a time.
+    #[inline]
+    pub(super) fn steps_lines_of(self, task: TaskId) -> bool {
+        matches!(self, Session::Executing { until: Until::NextLine { task: t, .. }, .. } if t == task)
+    }
+
+    /// Before instruction `at` of `task`, at call depth `depth`, during a line step: true, and
+    /// paused there, if it starts a statement of `task` on another line than the one the step
+    /// started from (another program, file or line), no deeper in calls.
+    pub(super) fn pauses_at_line(
+        &mut self,
+        task: TaskId,
+        at: Breakpoint,
+        depth: u32,
+        programs: &[Program],
+    ) -> bool {
+        let Session::Executing {
+            until: Until::NextLine { task: t, from, depth: from_depth }, ..
+        } = *self
+        else {
+            return false;
+        };
+        if t != task || depth > from_depth {
+            return false;
+        }
+        let Some(program) = programs.get(at.program as usize) else { return false };
+        if !program.starts_statement(at.pc) {
+            return false;
+        }
+        let same_line = at.program == from.program && {
+            let (pc, from_pc) = (at.pc as usize, from.pc as usize);
+            program.line_of(pc) == program.line_of(from_pc)
+                && program.file_of(pc) == program.file_of(from_pc)
+        };
+        if same_line {
+            return false;
+        }
+        *self = Session::Paused { at: Some((task, at)) };
+        true
+    }
+
+    /// The task executing a line step finished its programs: the step runs to the end of the
+    /// scan.
+    pub(super) fn task_finished(&mut self, task: TaskId) {
+        if let Session::Executing { until: until @ Until::NextLine { .. }, .. } = self {
+            if matches!(until, Until::NextLine { task: t, .. } if *t == task) {
+                *until = Until::ScanEnd;
+            }
+        }
+    }
+
     /// The session an online change carries over, at a scan boundary: the places it names
     /// (a breakpoint waited before, one to pass) are in the old programs, so they are dropped.
     pub(super) fn without_places(self) -> Session {
         match self {
             Session::Paused { .. } => Session::BETWEEN_SCANS,
+            Session::Executing { until: Until::NextLine { .. }, .. } => {
+                Session::Executing { until: Until::ScanEnd, resume_from: None }
+            }
             Session::Executing { until, .. } => Session::Executing { until, resume_from: None },
         }
     }
@@ -331,7 +466,7 @@ mod tests {
     fn program(name: &str, source: &str, edge_base: u32) -> Program {
         let base = |_n: u32| Some(100);
         let ctx = Context { is_init: false, task_numbers: &[], timer_base_ms: &base, edge_base };
-        assemble(name, Path::new(&format!("{name}.il")), source, &ctx).unwrap()
+        assemble(name, Path::new(&format!("dir/{name}.il")), source, &ctx).unwrap()
     }
 
     fn programs() -> Vec<Program> {
@@ -348,9 +483,11 @@ mod tests {
     #[test]
     fn lines_labels_and_subroutines_resolve() {
         let p = programs();
-        let at = |t: &str| resolve(&p, t).map(|b| describe(&p, b));
+        let at = |t: &str| resolve(&p, t).map(|b| describe(&p, b[0]));
         assert_eq!(at("main:2"), Ok("main:2".into()));
-        assert_eq!(resolve(&p, "main:2"), Ok(Breakpoint { program: 0, pc: 0 }));
+        assert_eq!(resolve(&p, "main:2"), Ok(vec![Breakpoint { program: 0, pc: 0 }]));
+        assert_eq!(at("main.il:3"), Ok("main:3".into()), "the file's name");
+        assert_eq!(at("dir/other.il:3"), Ok("other:3".into()), "more of its path");
         assert_eq!(at("other:3"), Ok("other:3".into()));
         assert_eq!(
             at("main:LABEL 3"),
@@ -382,7 +519,7 @@ mod tests {
             Err(BreakError::UnknownProgram("nope".into(), "main, other".into()))
         );
         assert_eq!(
-            resolve(&p, "2").map(|b| describe(&p, b)),
+            resolve(&p, "2").map(|b| describe(&p, b[0])),
             Ok("main:2".into()),
             "other:2 is blank, so only main fits"
         );
@@ -392,6 +529,15 @@ mod tests {
         );
         assert!(matches!(resolve(&p, "LABEL 99"), Err(BreakError::NotFound(_))));
         assert!(matches!(resolve(&p, "main:x"), Err(BreakError::Syntax(_))));
+        assert_eq!(
+            resolve(&p, "nope.st:3"),
+            Err(BreakError::UnknownProgram("nope.st".into(), "main, other".into()))
+        );
+        assert_eq!(
+            resolve(&p, "other.il:2"),
+            Err(BreakError::NoInstruction { program: "other.il".into(), line: 2 })
+        );
+        assert!(matches!(resolve(&p, "main.il:LABEL 3"), Err(BreakError::Syntax(_))));
         assert!(matches!(resolve(&p, "main:0"), Err(BreakError::Syntax(_))));
     }
 

@@ -403,11 +403,15 @@ impl Engine {
             let program = &self.programs[program_index as usize];
             let mut budget = limit - steps;
             if let ModeState::Debug(running, session) = &mut self.mode {
-                if self.debugger.watches(program_index) {
-                    // One instruction at a time, so that a breakpoint stops before its
-                    // instruction.
+                let stepping = session.steps_lines_of(top);
+                if stepping || self.debugger.watches(program_index) {
+                    // One instruction at a time, so that a breakpoint or a line step stops
+                    // before its instruction.
                     let at = Breakpoint { program: program_index, pc: task.exec.pc() };
-                    if session.pauses_before(top, at, &self.debugger) {
+                    let depth = task.exec.call_depth();
+                    if session.pauses_before(top, at, &self.debugger)
+                        || session.pauses_at_line(top, at, depth, &self.programs)
+                    {
                         running.phase.pause();
                         return Activity::Idle;
                     }

@@ -171,9 +171,26 @@ impl Engine {
         self.phase() == Phase::Idle && self.stack.is_empty()
     }
 
-    /// DEBUG: runs to the end of the current scan (or through the next one when paused
-    /// between scans), or to a breakpoint.
+    /// DEBUG `step`: paused before an instruction (at a breakpoint, or after a step), runs to
+    /// the next statement of that task on another line, stepping over calls; paused between
+    /// two scans, runs through the next scan. A breakpoint on the way stops it first.
     pub fn debug_step(&mut self, now: u64) -> Result<(), Refusal> {
+        let until = match self.mode {
+            ModeState::Debug(_, session) => match session.paused_at() {
+                Some((task, from)) => {
+                    let depth = self.tasks[usize::from(task)].exec.call_depth();
+                    Until::NextLine { task, from, depth }
+                }
+                None => Until::ScanEnd,
+            },
+            _ => Until::ScanEnd,
+        };
+        self.debug_resume(until, now)
+    }
+
+    /// DEBUG `step --scan`: runs to the end of the current scan (or through the next one when
+    /// paused between scans), or to a breakpoint.
+    pub fn debug_step_scan(&mut self, now: u64) -> Result<(), Refusal> {
         self.debug_resume(Until::ScanEnd, now)
     }
 

@@ -316,6 +316,9 @@ impl Engine {
         }
         task.state = State::Idle;
         self.stack.pop();
+        if let ModeState::Debug(_, session) = &mut self.mode {
+            session.task_finished(id);
+        }
         match id {
             SCAN => {
                 sink.event(now, Event::ScanEnd { n: self.scan.count });

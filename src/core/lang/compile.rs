@@ -42,6 +42,7 @@ pub fn compile(name: &str, path: &Path, checked: CheckedProgram, edge_base: u32)
         consts: checked.consts.into_boxed_slice(),
         frame_bytes: 0,
         regions: Box::new([]),
+        statements: (0..lines.len() as u32).collect(),
         lines: lines.into_boxed_slice(),
         edge_base,
         edge_slots: checked.edge_slots,

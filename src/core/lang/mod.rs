@@ -59,6 +59,11 @@ pub struct Program {
     pub regions: Box<[(u32, PathBuf)]>,
     /// The source line of each instruction.
     pub lines: Box<[u32]>,
+    /// The first instruction of each statement, sorted: where a breakpoint set at a line stops
+    /// and where `step` stops going line by line. Every instruction of the instruction list;
+    /// in Structured Text each statement, each `ELSIF` condition, the `UNTIL` test, the
+    /// increment of a `FOR` loop and the `END_*` of each POU.
+    pub statements: Box<[u32]>,
     /// This program's edge memory is `edge_base .. edge_base + edge_slots`.
     pub edge_base: u32,
     pub edge_slots: u32,
@@ -73,6 +78,11 @@ impl Program {
     /// The source line of the instruction at `pc`.
     pub fn line_of(&self, pc: usize) -> u32 {
         self.lines.get(pc).copied().unwrap_or(0)
+    }
+
+    /// True if `pc` is the first instruction of a statement (see [`Program::statements`]).
+    pub fn starts_statement(&self, pc: u32) -> bool {
+        self.statements.binary_search(&pc).is_ok()
     }
 
     /// The source file of the instruction at `pc`.

@@ -171,6 +171,12 @@ impl ExecState {
         self.pc
     }
 
+    /// Calls under way: `CALL`s of the instruction list and Structured Text FUNCTION and
+    /// FUNCTION_BLOCK calls (a line step steps over deeper ones).
+    pub fn call_depth(&self) -> u32 {
+        u32::from(self.call_depth) + u32::from(self.st_depth)
+    }
+
     /// True once the program has executed `END`.
     pub fn is_finished(&self) -> bool {
         self.finished

@@ -13,15 +13,16 @@ use crate::drivers::real_time::snapshot::Snapshot;
 use crate::drivers::real_time::ControlCommand;
 use crate::engine::debug::{self, Breakpoint, DebugRun};
 use crate::engine::event::Mode;
+use crate::lang::Language;
 use crate::services::control::ClientId;
 use plcd_ipc::{
     DebugState, DeviceValue, ErrorKind as Kind, Failure, Location, Reply, ResponseLine,
 };
 
 impl RequestHandler {
-    pub(super) fn step(&mut self, client: ClientId) -> Option<ResponseLine> {
+    pub(super) fn step(&mut self, client: ClientId, scan: bool) -> Option<ResponseLine> {
         let then = Then::Debug { unbroken: None, devices: None, until_paused: true };
-        self.park(client, vec![ControlCommand::Step], then)
+        self.park(client, vec![ControlCommand::Step { scan }], then)
     }
 
     pub(super) fn continue_(&mut self, client: ClientId) -> Option<ResponseLine> {
@@ -31,9 +32,9 @@ impl RequestHandler {
 
     pub(super) fn set_breakpoint(&mut self, client: ClientId, at: &str) -> Option<ResponseLine> {
         match self.resolve(at) {
-            Ok(bp) => {
+            Ok(places) => {
                 let then = Then::Debug { unbroken: None, devices: None, until_paused: false };
-                self.park(client, vec![ControlCommand::Break(bp)], then)
+                self.park(client, places.into_iter().map(ControlCommand::Break).collect(), then)
             }
             Err(f) => Some(ResponseLine::failure(f)),
         }
@@ -43,10 +44,12 @@ impl RequestHandler {
     pub(super) fn unbreak(&mut self, client: ClientId, at: Option<String>) -> Option<ResponseLine> {
         match at {
             Some(at) => match self.resolve(&at) {
-                Ok(bp) => {
+                Ok(places) => {
                     let then =
                         Then::Debug { unbroken: Some(at), devices: None, until_paused: false };
-                    self.park(client, vec![ControlCommand::Unbreak(Some(bp))], then)
+                    let commands =
+                        places.into_iter().map(|bp| ControlCommand::Unbreak(Some(bp))).collect();
+                    self.park(client, commands, then)
                 }
                 Err(f) => Some(ResponseLine::failure(f)),
             },
@@ -57,7 +60,8 @@ impl RequestHandler {
         }
     }
 
-    fn resolve(&self, at: &str) -> Result<Breakpoint, Failure> {
+    /// Every instruction a breakpoint text names (one per program running a file's line).
+    fn resolve(&self, at: &str) -> Result<Vec<Breakpoint>, Failure> {
         let running = self.running();
         debug::resolve(&running.project.programs, at)
             .map_err(|e| Failure::new(Kind::Invalid, e.to_string()))
@@ -101,7 +105,14 @@ impl RequestHandler {
         let Some(program) = running.project.programs.get(at.program as usize) else {
             return Vec::new();
         };
-        devices_named(&source_line(&program.path, program.line_of(at.pc as usize)))
+        if program.language != Language::InstructionList {
+            return Vec::new();
+        }
+        devices_named(&source_line(
+            &program.path,
+            program.line_of(at.pc as usize),
+            program.language,
+        ))
     }
 }
 
@@ -116,8 +127,14 @@ pub(super) fn debug_state_with(snapshot: &Snapshot, running: &Running) -> DebugS
     let paused_at = snapshot.paused_at.map(|(task, at)| {
         let program = programs.get(at.program as usize);
         let line = program.map_or(0, |p| p.line_of(at.pc as usize));
-        let source = program.map(|p| source_line(&p.path, line)).unwrap_or_default();
-        let devices = devices_named(&source)
+        let file = program.map(|p| p.file_of(at.pc as usize));
+        let language = program.map_or(Language::InstructionList, |p| p.language);
+        let source = file.map(|f| source_line(f, line, language)).unwrap_or_default();
+        let named = match language {
+            Language::InstructionList => devices_named(&source),
+            Language::StructuredText => Vec::new(),
+        };
+        let devices = named
             .into_iter()
             .filter_map(|d| {
                 snapshot
@@ -128,6 +145,10 @@ pub(super) fn debug_state_with(snapshot: &Snapshot, running: &Running) -> DebugS
         Location {
             program: program.map_or_else(String::new, |p| p.name.clone()),
             line,
+            file: match (language, file.and_then(|f| f.file_name())) {
+                (Language::StructuredText, Some(name)) => name.to_string_lossy().into_owned(),
+                _ => String::new(),
+            },
             task: crate::engine::task_names(&running.project.config)
                 .get(usize::from(task))
                 .cloned()
@@ -140,18 +161,32 @@ pub(super) fn debug_state_with(snapshot: &Snapshot, running: &Running) -> DebugS
         paused_at,
         running: snapshot.mode == Mode::Debug && snapshot.debug_run != DebugRun::Paused,
         scan: snapshot.scan.count,
-        breakpoints: snapshot.breakpoints[..snapshot.breakpoint_count]
-            .iter()
-            .map(|b| debug::describe(programs, *b))
-            .collect(),
+        breakpoints: breakpoint_texts(programs, &snapshot.breakpoints[..snapshot.breakpoint_count]),
     }
 }
 
-/// Line `line` (1-based) of a program file as written now, without its comment.
-fn source_line(path: &Path, line: u32) -> String {
+/// The breakpoints as they are written, each once: a line of a Structured Text file that runs
+/// in several programs is one breakpoint per program, and one `FILE:LINE`.
+fn breakpoint_texts(programs: &[crate::lang::Program], breakpoints: &[Breakpoint]) -> Vec<String> {
+    let mut texts: Vec<String> = Vec::with_capacity(breakpoints.len());
+    for b in breakpoints {
+        let text = debug::describe(programs, *b);
+        if !texts.contains(&text) {
+            texts.push(text);
+        }
+    }
+    texts
+}
+
+/// Line `line` (1-based) of a program file as written now, without its comment (`;` or `//`
+/// in the instruction list, `//` in Structured Text, where `;` ends a statement).
+fn source_line(path: &Path, line: u32, language: Language) -> String {
     let text = std::fs::read_to_string(path).unwrap_or_default();
     let raw = text.lines().nth((line as usize).saturating_sub(1)).unwrap_or("");
-    let code = raw.split(';').next().unwrap_or("");
+    let code = match language {
+        Language::InstructionList => raw.split(';').next().unwrap_or(""),
+        Language::StructuredText => raw,
+    };
     let code = code.split("//").next().unwrap_or("");
     code.trim().to_string()
 }

@@ -121,7 +121,7 @@ impl RequestHandler {
             Request::Unforce { dev } => self.unforce(client, &dev),
             Request::UnforceAll => self.unforce_all(client),
             Request::Forces => self.forces(client),
-            Request::Step => self.step(client),
+            Request::Step { scan } => self.step(client, scan),
             Request::Continue => self.continue_(client),
             Request::Break { at } => self.set_breakpoint(client, &at),
             Request::Unbreak { at } => self.unbreak(client, at),

@@ -140,7 +140,10 @@ pub enum ControlCommand {
     Force(BitRef, bool),
     Unforce(BitRef),
     UnforceAll,
-    Step,
+    /// `step`, or `step --scan` (`scan: true`).
+    Step {
+        scan: bool,
+    },
     Continue,
     Break(Breakpoint),
     /// One breakpoint, or all of them.

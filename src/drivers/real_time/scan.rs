@@ -280,7 +280,8 @@ impl ScanThread {
             ControlCommand::Force(bit, on) => engine.force(bit, on, &self.io),
             ControlCommand::Unforce(bit) => changed = engine.unforce(bit),
             ControlCommand::UnforceAll => engine.unforce_all(),
-            ControlCommand::Step => engine.debug_step(now)?,
+            ControlCommand::Step { scan: false } => engine.debug_step(now)?,
+            ControlCommand::Step { scan: true } => engine.debug_step_scan(now)?,
             ControlCommand::Continue => engine.debug_continue(now)?,
             ControlCommand::Break(at) => {
                 engine.debugger_mut().add(at).map_err(|_| Refusal::TooManyBreakpoints)?

@@ -21,6 +21,8 @@ use super::types::{Prim, Ty};
 pub struct Body {
     pub code: Vec<Op>,
     pub lines: Vec<u32>,
+    /// The first op of each statement (see `lang::Program::statements`), ascending.
+    pub statements: Vec<u32>,
     pub consts: Vec<u64>,
     /// Ops whose `Place::Var` offset is relative to the PROGRAM instance.
     pub var_relocs: Vec<usize>,
@@ -128,6 +130,14 @@ impl<'c, 'a> Em<'c, 'a> {
         self.b.code.push(op);
         self.b.lines.push(self.line);
         at
+    }
+
+    /// The next op starts a statement: a place a breakpoint and a line step stop at.
+    fn mark_statement(&mut self) {
+        let at = self.b.code.len() as u32;
+        if self.b.statements.last() != Some(&at) {
+            self.b.statements.push(at);
+        }
     }
 
     fn op_callee(&mut self, op: Op) -> usize {
@@ -771,6 +781,7 @@ impl<'c, 'a> Em<'c, 'a> {
         self.line = s.line;
         self.sp = 0;
         self.max_sp = 0;
+        self.mark_statement();
         match &s.k {
             TS::Assign(t, v) => self.store(t, Src::Expr(v)),
             TS::Eval(e) => {
@@ -787,8 +798,11 @@ impl<'c, 'a> Em<'c, 'a> {
             TS::If(branches, otherwise) => {
                 let mut ends = Vec::new();
                 let mut done = false;
-                for (c, body) in branches {
+                for (i, (c, body)) in branches.iter().enumerate() {
                     self.line = s.line.max(c.span.line);
+                    if i > 0 {
+                        self.mark_statement();
+                    }
                     match c.const_int() {
                         Some(0) => continue,
                         Some(_) => {
@@ -897,6 +911,7 @@ impl<'c, 'a> Em<'c, 'a> {
                 self.loops.push(Loop::default());
                 self.stmts(body);
                 self.line = c.span.line;
+                self.mark_statement();
                 let cont = self.pc();
                 self.sp = 0;
                 self.value(c);
@@ -1035,6 +1050,7 @@ impl<'c, 'a> Em<'c, 'a> {
         self.loops.push(Loop::default());
         self.stmts(body);
         self.line = line;
+        self.mark_statement();
         let cont = self.pc();
         self.sp = 0;
         // the remaining distance to the bound, unsigned, against the step: no wrap-around
@@ -1152,6 +1168,7 @@ pub fn compile_body(cx: &mut Ctx<'_>, p: usize, body: &[TStmt]) -> Body {
     }
     em.stmts(body);
     em.line = end_line;
+    em.mark_statement();
     let end = em.pc();
     for j in std::mem::take(&mut em.returns) {
         em.patch(j, end);

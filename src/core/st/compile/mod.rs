@@ -376,6 +376,7 @@ fn link(
     }
     let mut code: Vec<Op> = Vec::new();
     let mut lines: Vec<u32> = Vec::new();
+    let mut statements: Vec<u32> = Vec::new();
     let mut consts: Vec<u64> = Vec::new();
     let mut starts: HashMap<usize, u32> = HashMap::new();
     let mut regions: Vec<(u32, PathBuf)> = Vec::new();
@@ -401,6 +402,7 @@ fn link(
             });
         }
         lines.extend_from_slice(&body.lines);
+        statements.extend(body.statements.iter().map(|&pc| pc + start));
         let s = start as usize;
         if q == p {
             for &r in &body.var_relocs {
@@ -478,6 +480,7 @@ fn link(
         frame_bytes,
         regions: regions.into_boxed_slice(),
         lines: lines.into_boxed_slice(),
+        statements: statements.into_boxed_slice(),
         edge_base: 0,
         edge_slots: 0,
         labels: Box::new([]),
