@@ -118,6 +118,12 @@ fn project(name: &str, modbus: &str) -> Project {
     Project::new(&format!("modbus-{name}"), &[("plcd.toml", &config(modbus)), ("main.il", MAIN)])
 }
 
+/// A Structured Text program whose located variables are holding registers 100-105 of the map:
+/// a DINT and a REAL take two registers each, low word first.
+const METER: &str = "PROGRAM Meter\nVAR\n  total AT %D00100 : DINT;\n  flow AT %D00102 : REAL;\n  \
+                     setpoint AT %D00104 : INT;\n  doubled AT %D00105 : INT;\nEND_VAR\n\
+                     total := 100000;\nflow := 1.5;\ndoubled := setpoint * 2;\nEND_PROGRAM\n";
+
 /// The daemon on `project`, logging at debug level.
 fn start(project: &Project) -> Daemon {
     project.start_with(&["--log-level", "debug"], &[])
@@ -251,6 +257,27 @@ fn every_function_code_reads_and_writes_device_memory() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("4660"), "{text}");
     drop(c);
+    let log = plc.stop();
+    assert!(!log.iter().any(|l| l.contains("ERROR")), "{}", log.join("\n"));
+}
+
+#[test]
+fn located_structured_text_variables_are_registers() {
+    let config = format!("{}[[program]]\nname = \"meter\"\nfile = \"meter.st\"\n", config(""));
+    let project = Project::new(
+        "modbus-st",
+        &[("plcd.toml", &config), ("main.il", MAIN), ("meter.st", METER)],
+    );
+    let daemon = start(&project);
+    let line = daemon.wait_for_line("modbus: serving ");
+    let addr = line.rsplit(' ').next().unwrap().parse().unwrap();
+    let plc = Plc { daemon, project, addr };
+    plc.wait(|p| p.read_holdings(100, 4) != [0; 4], "the program to run");
+    // 100000 = 0x0001_86A0, 1.5 = 0x3FC0_0000: low words first.
+    assert_eq!(plc.read_holdings(100, 4), [0x86A0, 0x0001, 0x0000, 0x3FC0]);
+    // An HMI writes the INT set point; the program sees it at the next scan.
+    assert_eq!(plc.request(&[6, 0, 104, 0, 21]), [6, 0, 104, 0, 21]);
+    plc.wait(|p| p.read_holdings(105, 1) == [42], "doubled = 2 × the set point");
     let log = plc.stop();
     assert!(!log.iter().any(|l| l.contains("ERROR")), "{}", log.join("\n"));
 }

@@ -74,7 +74,7 @@ fn example(output: &str) -> String {
 #[test]
 fn the_readme_run_command_draws_the_example_project() {
     let chart = example("--timeline");
-    for task in ["scan", "init", "blink_250ms", "count_p0000", "batch_full"] {
+    for task in ["scan", "init", "blink_250ms", "tank_10ms", "count_p0000", "batch_full"] {
         let row = chart.lines().find(|l| l.starts_with(task)).unwrap_or_else(|| panic!("{chart}"));
         assert!(row.contains('#'), "{task} never ran:\n{chart}");
     }
@@ -83,12 +83,41 @@ fn the_readme_run_command_draws_the_example_project() {
 #[test]
 fn every_output_of_the_example_project_moves() {
     // What the README promises of it: the blink lamp, the conveyor motor, the DUTY heartbeat
-    // and the batch lamp each change within the 8 s of the stimulus.
+    // and the batch lamp each change within the 8 s of the stimulus; and the tank's level loop
+    // (level.st on tank_model.st): the low alarm on the empty tank, the pump once the set point
+    // goes to 85 %, the high alarm once it goes to 95 %, each alarm clearing again.
     let trace = example("--trace -");
-    for output in ["P0040", "P0041", "P0042", "P0043"] {
-        let on = format!("\"ev\":\"set\",\"dev\":\"{output}\",\"value\":1");
-        assert!(trace.contains(&on), "{output} never comes on");
+    let set = |output: &str, value: u8| {
+        let event = format!("\"ev\":\"set\",\"dev\":\"{output}\",\"value\":{value}");
+        trace.find(&event).unwrap_or_else(|| panic!("{output} never goes to {value}"))
+    };
+    for output in ["P0040", "P0041", "P0042", "P0043", "P0044", "P0045", "P0046"] {
+        set(output, 1);
     }
+    assert!(set("P0045", 0) > set("P0045", 1), "the low alarm clears as the tank fills");
+    assert!(set("P0044", 0) > set("P0044", 1), "the high alarm closes the valve and clears");
+}
+
+#[test]
+fn the_level_loop_holds_its_set_point() {
+    // The PI loop of level.st on the tank model: with the set point at 50 % (the stimulus
+    // sets it at 100 ms), the level settles within 2 % of it, and the pump stays off (it
+    // starts at 70 %).
+    let args =
+        ["sim", "--config", "etc/plcd.toml", "--for", "2.4s", "--inputs", "etc/stimulus.csv"];
+    let out = plcd(&[&args[..], &["--trace", "-", "--watch", "level.level_pct,P0046"]].concat());
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let trace = String::from_utf8_lossy(&out.stdout);
+    let mut last = None;
+    for line in trace.lines() {
+        let event: serde_json::Value = serde_json::from_str(line).unwrap();
+        assert_ne!(event["dev"], "P0046", "the pump started: {line}");
+        if event["dev"] == "level.level_pct" {
+            last = event["value"].as_f64();
+        }
+    }
+    let level = last.expect("the level moves");
+    assert!((48.0..=52.0).contains(&level), "level {level} % after 2.4 s");
 }
 
 #[test]

@@ -230,3 +230,27 @@ fn an_online_change_keeps_variables_of_unchanged_name_and_type() {
     let n_new = new.variable("main.n").unwrap().at.offset;
     assert_eq!(&kept[..], [(n_old, n_new, 4)], "only n: same name (any case) and type");
 }
+
+#[test]
+fn located_outputs_written_by_st_are_outputs() {
+    // The default watch list of traces and logs: every P bit a program writes, IL or ST,
+    // whole words of located INT/DINT/LREAL included; an input only read is not one.
+    let p = project(
+        "[[program]]\nname = \"main\"\nfile = \"main.st\"\n",
+        &[(
+            "main.st",
+            "PROGRAM Main VAR lamp AT %QX4.4 : BOOL; word AT %P005 : INT; \
+             wide AT %P006 : DINT; long AT %P008 : LREAL; button AT %IX0.1 : BOOL; END_VAR \
+             lamp := button; word := 1; wide := 2; long := 3.0; END_PROGRAM",
+        )],
+    );
+    let outputs: Vec<String> = p.output_bits().iter().map(|a| a.to_string()).collect();
+    let words = ["P005", "P006", "P007", "P008", "P009", "P010", "P011"]; // word numbers are decimal
+    assert_eq!(outputs.len(), 1 + 16 * words.len(), "{outputs:?}");
+    assert_eq!(outputs[0], "P0044");
+    for word in words {
+        let (first, last) = (format!("{word}0"), format!("{word}F"));
+        assert!(outputs.contains(&first) && outputs.contains(&last), "{word}: {outputs:?}");
+    }
+    assert!(!outputs.iter().any(|o| o == "P0001"), "an input it reads");
+}

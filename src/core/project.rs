@@ -41,13 +41,14 @@ impl Project {
             for op in program.code.iter() {
                 match op.writes() {
                     Some(Written::Bit(b)) if b.word < p_end => words[b.word as usize] |= b.mask,
-                    Some(Written::Word(w)) if w.0 < p_end => words[w.0 as usize] = 0xFFFF,
-                    Some(Written::DoubleWord(w)) => {
-                        for word in [w.0, w.0.wrapping_add(1)].into_iter().filter(|&w| w < p_end) {
+                    Some(written) => {
+                        let Some((first, count)) = written.words() else { continue };
+                        let written = (0..count).map(|i| first.0.saturating_add(i));
+                        for word in written.filter(|&w| w < p_end) {
                             words[word as usize] = 0xFFFF;
                         }
                     }
-                    _ => {}
+                    None => {}
                 }
             }
         }

@@ -463,6 +463,20 @@ pub enum Written {
     Word(WordRef),
     /// A double word: the word and the one after it.
     DoubleWord(WordRef),
+    /// Four words from this one (a 64-bit Structured Text value located at a word device).
+    QuadWord(WordRef),
+}
+
+impl Written {
+    /// The device words written whole: `(first, count)`; `None` for a bit.
+    pub fn words(self) -> Option<(WordRef, u16)> {
+        match self {
+            Written::Bit(_) => None,
+            Written::Word(w) => Some((w, 1)),
+            Written::DoubleWord(w) => Some((w, 2)),
+            Written::QuadWord(w) => Some((w, 4)),
+        }
+    }
 }
 
 /// What an instruction keeps in its edge-memory slot, to see an edge at its next execution.
@@ -490,6 +504,14 @@ impl Op {
             Op::Convert { conv, d, .. } => {
                 Some(if conv.to_one_word() { Written::Word(d) } else { Written::DoubleWord(d) })
             }
+            // Structured Text: a store to a located variable. Stores through a pointer (an
+            // element of a located array at a variable index) are not known before they run.
+            Op::Store { at: Place::Bit(b), .. } => Some(Written::Bit(b)),
+            Op::Store { elem, at: Place::Word(w) } => Some(match elem.words() {
+                1 => Written::Word(w),
+                2 => Written::DoubleWord(w),
+                _ => Written::QuadWord(w),
+            }),
             _ => None,
         }
     }
