@@ -32,8 +32,9 @@ impl GetArgs {
 pub struct SetArgs {
     /// Devices and variables with their values, as `NAME=VALUE` or `NAME VALUE`, written
     /// together at one END: `D00010=-5 M0001=1 D00011=h7FFF`, `main.speed 5`, `main.t T#2s`,
-    /// `main.mode Running`, `main.s 'hello'`.
-    #[arg(required = true, value_name = "NAME=VALUE", allow_hyphen_values = true)]
+    /// `main.mode Running`, `main.s 'hello'` (a value that starts with `-` and is no number
+    /// goes after `=`: `main.r=-inf`).
+    #[arg(required = true, value_name = "NAME=VALUE", allow_negative_numbers = true)]
     pub writes: Vec<String>,
 }
 

@@ -212,7 +212,8 @@ pub fn run(cli: &Cli, out: &mut dyn Write, err: &mut dyn Write) -> ExitCode {
         Ok(Action::Request(request)) => session.one_shot(&request),
         Ok(Action::Watch(args)) => devices::watch(&mut session, args),
         Err(usage) => {
-            let _ = writeln!(session.err, "plcctl: {usage}");
+            // As clap reports the errors it finds.
+            let _ = writeln!(session.err, "error: {usage}\n\nFor more information, try '--help'.");
             EXIT_USAGE
         }
     };
