@@ -160,8 +160,16 @@ fn get_and_set_every_kind_of_variable_by_name() {
     // Initial values, typed as the trace writes them; names case-insensitive, answered with the
     // declaration's spelling.
     let values = plc.values(&[
-        "MAIN.speed", "main.r", "main.flag", "main.t", "main.s", "main.mode", "main.buf[3]",
-        "main.m[1,2]", "total_parts", "D00000",
+        "MAIN.speed",
+        "main.r",
+        "main.flag",
+        "main.t",
+        "main.s",
+        "main.mode",
+        "main.buf[3]",
+        "main.m[1,2]",
+        "total_parts",
+        "D00000",
     ]);
     let pairs: Vec<(String, Value, Value)> = values
         .iter()
@@ -194,16 +202,47 @@ fn get_and_set_every_kind_of_variable_by_name() {
 
     // Every type written in one request, at one END, read back.
     let written = plc.ok(&[
-        "set", "main.speed", "-5", "main.big=-9223372036854775808", "main.u",
-        "18446744073709551615", "main.r", "0.1", "main.lr=1e300", "main.flag", "FALSE", "main.t",
-        "T#2s", "main.s", "'it$'s'", "main.mode", "fault", "main.buf[2]", "99", "main.m[2,1]=-3",
-        "main.axis.pos", "2.5", "total_parts", "16#10",
+        "set",
+        "main.speed",
+        "-5",
+        "main.big=-9223372036854775808",
+        "main.u",
+        "18446744073709551615",
+        "main.r",
+        "0.1",
+        "main.lr=1e300",
+        "main.flag",
+        "FALSE",
+        "main.t",
+        "T#2s",
+        "main.s",
+        "'it$'s'",
+        "main.mode",
+        "fault",
+        "main.buf[2]",
+        "99",
+        "main.m[2,1]=-3",
+        "main.axis.pos",
+        "2.5",
+        "total_parts",
+        "16#10",
     ]);
     assert!(written.starts_with("13 writes applied at the END of scan "), "{written}");
     let got: Vec<Value> = plc
         .values(&[
-            "main.speed", "main.big", "main.u", "main.r", "main.lr", "main.flag", "main.t",
-            "main.s", "main.mode", "main.buf[2]", "main.m[2,1]", "main.axis.pos", "total_parts",
+            "main.speed",
+            "main.big",
+            "main.u",
+            "main.r",
+            "main.lr",
+            "main.flag",
+            "main.t",
+            "main.s",
+            "main.mode",
+            "main.buf[2]",
+            "main.m[2,1]",
+            "main.axis.pos",
+            "total_parts",
         ])
         .iter()
         .map(|v| v["value"].clone())
@@ -229,7 +268,10 @@ fn get_and_set_every_kind_of_variable_by_name() {
     // The human form: a STRING as a literal, the type beside the value.
     let human = plc.ok(&["get", "main.s", "main.t", "D00000"]);
     let lines: Vec<&str> = human.lines().collect();
-    assert_eq!(lines[0].split_whitespace().collect::<Vec<_>>(), ["main.s", "'it$'s'", "STRING[20]"]);
+    assert_eq!(
+        lines[0].split_whitespace().collect::<Vec<_>>(),
+        ["main.s", "'it$'s'", "STRING[20]"]
+    );
     assert_eq!(lines[1].split_whitespace().collect::<Vec<_>>(), ["main.t", "T#2s", "TIME"]);
     assert_eq!(lines[2].split_whitespace().next(), Some("D00000"));
 
@@ -245,8 +287,10 @@ fn get_and_set_every_kind_of_variable_by_name() {
 
     // A located DINT is its two D words, low word first.
     plc.ok(&["set", "main.pos", "16#12345678"]);
-    assert_eq!(plc.values(&["D00200", "D00201"]).iter().map(|v| v["value"].clone()).collect::<Vec<_>>(),
-        [json!(0x5678), json!(0x1234)]);
+    assert_eq!(
+        plc.values(&["D00200", "D00201"]).iter().map(|v| v["value"].clone()).collect::<Vec<_>>(),
+        [json!(0x5678), json!(0x1234)]
+    );
     plc.ok(&["set", "D00200=1", "D00201=0"]);
     assert_eq!(plc.get("main.pos"), json!(1));
 
@@ -273,7 +317,10 @@ fn get_and_set_every_kind_of_variable_by_name() {
     let err = plc.refused(&["set", "main.buf[5]", "1"]);
     assert!(err.contains("no device or variable `main.buf[5]`"), "{err}");
     let err = plc.refused(&["get", "main.spede"]);
-    assert!(err.contains("no device or variable `main.spede` (did you mean `main.Speed`?)"), "{err}");
+    assert!(
+        err.contains("no device or variable `main.spede` (did you mean `main.Speed`?)"),
+        "{err}"
+    );
     let err = plc.refused(&["get", "D99999"]);
     assert!(err.contains("out of range"), "{err}");
     let out = plc.ctl(&["set", "main.speed"]);
@@ -327,7 +374,9 @@ fn force_by_name_and_names_of_a_new_project() {
     );
     plc.ok(&["unforce", "--all"]);
 
-    for (name, shown) in [("main.flag", "main.flag"), ("main.pos", "main.pos"), ("main.axis", "main.axis")] {
+    for (name, shown) in
+        [("main.flag", "main.flag"), ("main.pos", "main.pos"), ("main.axis", "main.axis")]
+    {
         let err = plc.refused(&["force", name, "1"]);
         assert!(
             err.contains(&format!(
@@ -337,13 +386,17 @@ fn force_by_name_and_names_of_a_new_project() {
         );
     }
     let err = plc.refused(&["force", "main.lampp", "1"]);
-    assert!(err.contains("no device or variable `main.lampp` (did you mean `main.lamp`?)"), "{err}");
+    assert!(
+        err.contains("no device or variable `main.lampp` (did you mean `main.lamp`?)"),
+        "{err}"
+    );
 
     // An online change: names resolve against the new project, kept variables keep their
     // values, a new one starts from its initial value.
     plc.ok(&["set", "main.speed", "42"]);
     let dir = plc.project.dir.path().to_path_buf();
-    let changed = MAIN.replace("    i : INT;\n", "    i : INT;\n    extra : INT := 5;\n")
+    let changed = MAIN
+        .replace("    i : INT;\n", "    i : INT;\n    extra : INT := 5;\n")
         .replace("    Speed : INT := 7;\n", "    Speed : INT := 7;\n    gone_soon : BOOL;\n");
     std::fs::write(dir.join("main2.st"), changed).unwrap();
     std::fs::write(dir.join("new.toml"), CONFIG.replace("main.st", "main2.st")).unwrap();

@@ -22,19 +22,19 @@ use plcd::drivers::real_time::io::{FieldIo, GatedIo, SafeOutputs};
 use plcd::drivers::real_time::mirror::Mirror;
 use plcd::drivers::real_time::scan::ScanThread;
 use plcd::drivers::real_time::snapshot::Snapshot;
+use plcd::drivers::real_time::snapshot::VarRead;
 use plcd::drivers::real_time::sys::{self, Timer};
 use plcd::drivers::real_time::{
     pending, Command, Completion, ControlCommand, Report, Shared, Source, TextWrite, WordWrite,
     WordWrites, Write, MAX_TEXT_WRITE, WORDS_PER_COMMAND, WRITES_PER_COMMAND,
 };
-use plcd::drivers::real_time::snapshot::VarRead;
-use plcd::value::Elem;
 use plcd::engine::debug::Breakpoint;
 use plcd::engine::event::Mode;
 use plcd::engine::{Engine, ModeRequest};
 use plcd::io::gate::OutputGate;
 use plcd::io::simulated::SimulatedIo;
 use plcd::io::InputEdge;
+use plcd::value::Elem;
 
 struct Counting;
 
@@ -236,7 +236,13 @@ fn typed_programs_do_not_allocate() {
 fn the_scan_thread_does_not_allocate() {
     let project = harness::engine::project(
         CONFIG,
-        &[("main.il", MAIN), ("tick.il", TICK), ("edge.il", EDGE), ("full.il", FULL), ("vars.st", VARS)],
+        &[
+            ("main.il", MAIN),
+            ("tick.il", TICK),
+            ("edge.il", EDGE),
+            ("full.il", FULL),
+            ("vars.st", VARS),
+        ],
     );
     let at = |name: &str| project.variable(name).unwrap().at;
     let (n, r, s_at, pos) = (at("vars.n"), at("vars.r"), at("vars.s"), at("vars.pos"));

@@ -161,8 +161,11 @@ impl Project {
     /// The variable name nearest to `name` (case-insensitive edit distance, at most about a
     /// quarter of its length), with its declaration's spelling.
     pub fn closest_variable(&self, name: &str) -> Option<&str> {
-        let given: Vec<u8> =
-            name.bytes().filter(|c| !c.is_ascii_whitespace()).map(|c| c.to_ascii_lowercase()).collect();
+        let given: Vec<u8> = name
+            .bytes()
+            .filter(|c| !c.is_ascii_whitespace())
+            .map(|c| c.to_ascii_lowercase())
+            .collect();
         let limit = (given.len() / 4).clamp(1, 3);
         let mut best: Option<(usize, &str)> = None;
         for symbol in &self.variables.symbols {
@@ -414,5 +417,48 @@ fn check_duty(files: &[(PathBuf, Vec<DutySite>)], diags: &mut Diagnostics) {
             }
             seen.push((site.channel, path, site.line));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn project(st: &str) -> Project {
+        let config = crate::config::parse(
+            "[[program]]\nname = \"main\"\nfile = \"main.st\"\n",
+            Path::new("/p/plcd.toml"),
+        )
+        .unwrap();
+        from_config(config, |_| Ok(st.to_string())).unwrap()
+    }
+
+    #[test]
+    fn names_resolve_or_say_what_is_close() {
+        let p = project(
+            "PROGRAM Main\nVAR\n  Speed : INT;\n  buf : ARRAY [1..2] OF INT;\nEND_VAR\nEND_PROGRAM\n",
+        );
+        let names = |text: &str| -> Vec<String> {
+            p.resolve(text).unwrap().iter().map(Watched::name).collect()
+        };
+        assert_eq!(names("MAIN.SPEED"), ["main.Speed"]);
+        assert_eq!(names("main.buf"), ["main.buf[1]", "main.buf[2]"]);
+        assert_eq!(names("d10"), ["D00010"]);
+        assert_eq!(
+            p.resolve("main.spede").unwrap_err(),
+            "no device or variable `main.spede` (did you mean `main.Speed`?)"
+        );
+        assert_eq!(
+            p.resolve("main.buf[3]").unwrap_err(),
+            "no device or variable `main.buf[3]` (did you mean `main.buf[1]`?)"
+        );
+        assert_eq!(
+            p.resolve("nothing_like_it").unwrap_err(),
+            "no device or variable `nothing_like_it`"
+        );
+        assert!(p.resolve("D99999").unwrap_err().contains("out of range"));
+        assert_eq!(p.resolve("_NOPE").unwrap_err(), "unknown flag `_NOPE`");
+        assert_eq!(edit_distance(b"Speed", b"spede"), 2);
+        assert_eq!(edit_distance(b"", b"ab"), 2);
     }
 }

@@ -544,7 +544,10 @@ mod tests {
             Request::Set {
                 writes: vec![
                     NamedValue::write("main.t", Value::from("T#2s")),
-                    NamedValue::write("main.r", Value::Number(serde_json::Number::from_f64(1.5).unwrap())),
+                    NamedValue::write(
+                        "main.r",
+                        Value::Number(serde_json::Number::from_f64(1.5).unwrap()),
+                    ),
                     NamedValue::write("main.big", Value::from(u64::MAX)),
                     NamedValue::write("main.small", Value::from(i64::MIN)),
                 ],
@@ -650,9 +653,21 @@ mod tests {
                         value: Value::Number(serde_json::Number::from_f64(0.1).unwrap()),
                         ty: Some("REAL".into()),
                     },
-                    NamedValue { dev: "main.r2".into(), value: "NaN".into(), ty: Some("LREAL".into()) },
-                    NamedValue { dev: "main.u".into(), value: u64::MAX.into(), ty: Some("ULINT".into()) },
-                    NamedValue { dev: "main.s".into(), value: "it's".into(), ty: Some("STRING[80]".into()) },
+                    NamedValue {
+                        dev: "main.r2".into(),
+                        value: "NaN".into(),
+                        ty: Some("LREAL".into()),
+                    },
+                    NamedValue {
+                        dev: "main.u".into(),
+                        value: u64::MAX.into(),
+                        ty: Some("ULINT".into()),
+                    },
+                    NamedValue {
+                        dev: "main.s".into(),
+                        value: "it's".into(),
+                        ty: Some("STRING[80]".into()),
+                    },
                 ],
             },
             Reply::Written { scan: 9, count: 1 },
@@ -740,8 +755,14 @@ mod tests {
         assert_eq!(Value::from(7).to_string(), "7");
         // Neither a number nor a string.
         let kind = |b: &[u8]| parse_request(b).unwrap_err().kind;
-        assert_eq!(kind(br#"{"v":1,"cmd":"set","writes":[{"dev":"a","value":true}]}"#), ErrorKind::BadRequest);
-        assert_eq!(kind(br#"{"v":1,"cmd":"set","writes":[{"dev":"a","value":[1]}]}"#), ErrorKind::BadRequest);
+        assert_eq!(
+            kind(br#"{"v":1,"cmd":"set","writes":[{"dev":"a","value":true}]}"#),
+            ErrorKind::BadRequest
+        );
+        assert_eq!(
+            kind(br#"{"v":1,"cmd":"set","writes":[{"dev":"a","value":[1]}]}"#),
+            ErrorKind::BadRequest
+        );
     }
 
     #[test]

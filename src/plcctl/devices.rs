@@ -255,8 +255,17 @@ mod tests {
         let text = |name: &str, value: &str| NamedValue::write(name, Value::from(value));
         assert_eq!(
             parse_writes(&words(&[
-                "main.speed", "5", "D10=h7FFF", "main.s", "a=b", "main.m[1,2]=-3", "main.t",
-                "T#2s", "M0001", "1", "main.e=x=y"
+                "main.speed",
+                "5",
+                "D10=h7FFF",
+                "main.s",
+                "a=b",
+                "main.m[1,2]=-3",
+                "main.t",
+                "T#2s",
+                "M0001",
+                "1",
+                "main.e=x=y"
             ])),
             Ok(vec![
                 text("main.speed", "5"),

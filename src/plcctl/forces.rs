@@ -20,7 +20,9 @@ impl ForceArgs {
         let (name, value) = match self.words.as_slice() {
             [one] => match one.split_once('=') {
                 Some((name, value)) => (name, value),
-                None => return Err(format!("`{one}` has no value: write NAME=VALUE or NAME VALUE")),
+                None => {
+                    return Err(format!("`{one}` has no value: write NAME=VALUE or NAME VALUE"))
+                }
             },
             [name, value] => (name.as_str(), value.as_str()),
             _ => return Err("write NAME=VALUE or NAME VALUE".to_string()),
@@ -70,9 +72,8 @@ mod tests {
 
     #[test]
     fn force_words() {
-        let force = |w: &[&str]| {
-            ForceArgs { words: w.iter().map(|s| s.to_string()).collect() }.request()
-        };
+        let force =
+            |w: &[&str]| ForceArgs { words: w.iter().map(|s| s.to_string()).collect() }.request();
         let request = |dev: &str, value| Ok(Request::Force { dev: dev.into(), value });
         assert_eq!(force(&["P0040=1"]), request("P0040", 1));
         assert_eq!(force(&["main.lamp", "true"]), request("main.lamp", 1));

@@ -337,7 +337,12 @@ fn force_commands() {
             &table,
             table_text,
         ),
-        (&["unforce", "main.lamp"], r#"{"v":1,"cmd":"unforce","dev":"main.lamp"}"#, &table, table_text),
+        (
+            &["unforce", "main.lamp"],
+            r#"{"v":1,"cmd":"unforce","dev":"main.lamp"}"#,
+            &table,
+            table_text,
+        ),
     ] {
         let out = exchange("forces", args, request, ok.clone());
         assert_eq!(out, text, "{args:?}");

@@ -198,10 +198,7 @@ mod tests {
         // An M bit (the word after the P area), a BOOL in variable memory, a word.
         assert_eq!(variable_io_bit(&symbol(ValueType::Bool, Space::Bit, P_WORDS * 16)), None);
         assert_eq!(variable_io_bit(&symbol(ValueType::Bool, Space::Var, 0)), None);
-        assert_eq!(
-            variable_io_bit(&symbol(ValueType::Signed(Elem::I16), Space::Word, 4)),
-            None
-        );
+        assert_eq!(variable_io_bit(&symbol(ValueType::Signed(Elem::I16), Space::Word, 4)), None);
     }
 
     #[test]

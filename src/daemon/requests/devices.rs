@@ -58,6 +58,9 @@ impl RequestHandler {
             Ok(items) => items,
             Err(f) => return Some(ResponseLine::failure(f)),
         };
+        if items.iter().any(|i| matches!(i, Item::Variable(_))) && self.loading() {
+            return Some(ResponseLine::failure(loading()));
+        }
         self.park_for_snapshot(client, Then::Values { items })
     }
 
@@ -75,9 +78,24 @@ impl RequestHandler {
                 }
             }
         }
+        let variables = pending.iter().any(|p| !matches!(p, Pending::Write(Write::Device(..))));
+        if variables && self.loading() {
+            return Some(ResponseLine::failure(loading()));
+        }
         let count = pending.len();
         self.park(client, commands(pending), Then::Written { count })
     }
+
+    /// Whether a `load` is on its way to the scan thread: the running project is already the
+    /// new one, the engine not yet, so a variable's place is not known for sure.
+    pub(super) fn loading(&self) -> bool {
+        self.waiting.iter().any(|w| matches!(w.then, Then::Loaded { .. }))
+    }
+}
+
+/// The answer to a request that names variables while a `load` is under way.
+pub(super) fn loading() -> Failure {
+    Failure::new(Kind::Busy, "a load is under way; name variables again once it is answered")
 }
 
 /// Every device and variable `names` stand for, in order, a prefix expanded in place; at most
@@ -224,9 +242,10 @@ pub(super) fn values(items: &[Item], snapshot: &Snapshot) -> ResponseLine {
     let values = items
         .iter()
         .map(|item| match item {
-            Item::Device(d) => {
-                NamedValue::device(d.to_string(), value_in(d, snapshot.word(word_of(d)).unwrap_or(0)))
-            }
+            Item::Device(d) => NamedValue::device(
+                d.to_string(),
+                value_in(d, snapshot.word(word_of(d)).unwrap_or(0)),
+            ),
             Item::Variable(symbol) => variable_value(symbol, snapshot),
         })
         .collect();
@@ -241,7 +260,9 @@ fn variable_value(symbol: &Symbol, snapshot: &Snapshot) -> NamedValue {
             let chars = snapshot.text(at, cap).unwrap_or_default();
             Value::Text(String::from_utf8_lossy(chars).into_owned())
         }
-        VarRead::Value { at, elem } => json_value(&symbol.ty, snapshot.value(at, elem).unwrap_or(0)),
+        VarRead::Value { at, elem } => {
+            json_value(&symbol.ty, snapshot.value(at, elem).unwrap_or(0))
+        }
     };
     NamedValue { dev: symbol.name.clone(), value, ty: Some(value::type_name(&symbol.ty)) }
 }
@@ -309,5 +330,156 @@ mod tests {
         assert_eq!(json_value(&mode, 5), Value::from("Running"));
         // As the trace writes it today (docs/ST.md says a JSON number).
         assert_eq!(json_value(&mode, 7), Value::from("7"));
+    }
+
+    /// The handler without a scan thread: the test takes its commands and answers them.
+    struct Bench {
+        handler: RequestHandler,
+        commands: rtrb::Consumer<crate::drivers::real_time::Command>,
+        completions: rtrb::Producer<crate::drivers::real_time::Completion>,
+        dir: std::path::PathBuf,
+    }
+
+    impl Drop for Bench {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.dir);
+        }
+    }
+
+    const MAIN: &str = "PROGRAM Main\nVAR\n    speed : INT;\n    s : STRING[4];\n\
+        pos AT %D00200 : DINT;\n    flag : BOOL;\nEND_VAR\nVAR CONSTANT\n    k : INT := 3;\n\
+        END_VAR\n    speed := speed + 1;\nEND_PROGRAM\n";
+
+    fn bench(name: &str) -> Bench {
+        use crate::drivers::real_time::{Command, Completion, Shared};
+        use std::sync::{Arc, Mutex};
+        let dir = std::env::temp_dir().join(format!("plcd-requests-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let config = "[[program]]\nname = \"main\"\nfile = \"main.st\"\n";
+        std::fs::write(dir.join("plcd.toml"), config).unwrap();
+        std::fs::write(dir.join("main.st"), MAIN).unwrap();
+        let project = crate::files::project(&dir.join("plcd.toml")).unwrap();
+        let (producer, commands) = rtrb::RingBuffer::<Command>::new(64);
+        let (completions, consumer) = rtrb::RingBuffer::<Completion>::new(64);
+        let links = super::super::RequestLinks {
+            shared: Arc::new(Shared::new().unwrap()),
+            commands: Arc::new(Mutex::new(producer)),
+            completions: consumer,
+            snapshot: Arc::new(Mutex::new(Snapshot::new())),
+            running: Arc::new(Mutex::new(super::super::Running::new(
+                &dir.join("plcd.toml"),
+                project,
+            ))),
+        };
+        Bench { handler: RequestHandler::new(links), commands, completions, dir }
+    }
+
+    fn failure_of(answer: Option<ResponseLine>) -> Failure {
+        match answer.map(|a| a.outcome) {
+            Some(plcd_ipc::Outcome::Error(f)) => f,
+            other => panic!("not a failure: {other:?}"),
+        }
+    }
+
+    fn set(dev: &str, value: &str) -> plcd_ipc::Request {
+        plcd_ipc::Request::Set { writes: vec![NamedValue::write(dev, Value::from(value))] }
+    }
+
+    #[test]
+    fn a_set_is_typed_and_checked_before_anything_is_queued() {
+        use crate::drivers::real_time::Command;
+        let mut b = bench("set");
+        let f = failure_of(b.handler.handle(1, set("main.k", "1")));
+        assert_eq!(
+            (f.kind, f.message.as_str()),
+            (Kind::Invalid, "main.k is CONSTANT (INT): it cannot be written")
+        );
+        let f = failure_of(b.handler.handle(1, set("main.speed", "1.5")));
+        assert_eq!(f.message, "main.speed (INT): `1.5` is not an integer");
+        let f = failure_of(b.handler.handle(1, set("D00010", "x")));
+        assert!(
+            f.message.starts_with("D00010=x: a device value is an integer of 16 bits"),
+            "{}",
+            f.message
+        );
+        assert!(b.commands.pop().is_err(), "nothing queued");
+
+        // A located DINT is one typed write at its device word; a STRING a command of its own,
+        // in request order, all pushed together.
+        let writes = vec![
+            NamedValue::write("MAIN.POS", Value::from(0x1234_5678)),
+            NamedValue::write("main.s", Value::from("'a$'b'")),
+            NamedValue::device("D00010", 7),
+        ];
+        assert!(b.handler.handle(1, plcd_ipc::Request::Set { writes }).is_none(), "parked");
+        let d200 = Address::parse("D00200").unwrap().as_word().unwrap().0;
+        let Ok(Command::Control(_, ControlCommand::Writes { items, len: 1 })) = b.commands.pop()
+        else {
+            panic!("the DINT first")
+        };
+        assert_eq!(
+            items[0],
+            Write::Value {
+                at: value::Pointer { space: value::Space::Word, offset: u32::from(d200) },
+                elem: value::Elem::I32,
+                slot: 0x1234_5678
+            }
+        );
+        let Ok(Command::Control(_, ControlCommand::WriteText(text))) = b.commands.pop() else {
+            panic!("then the STRING")
+        };
+        assert_eq!((&text.chars[..usize::from(text.len)], text.cap), (&b"a'b"[..], 4));
+        let Ok(Command::Control(_, ControlCommand::Writes { items, len: 1 })) = b.commands.pop()
+        else {
+            panic!("then the device")
+        };
+        assert_eq!(items[0], Write::Device(Address::parse("D00010").unwrap(), 7));
+        let _ = &b.completions;
+    }
+
+    #[test]
+    fn names_wait_for_a_load_under_way() {
+        use crate::drivers::real_time::{Command, Completion};
+        use crate::engine::event::Mode;
+        let mut b = bench("loading");
+        let renamed = MAIN.replace("speed", "velocity");
+        std::fs::write(b.dir.join("main2.st"), renamed).unwrap();
+        let config = "[[program]]\nname = \"main\"\nfile = \"main2.st\"\n";
+        std::fs::write(b.dir.join("new.toml"), config).unwrap();
+        let new = b.dir.join("new.toml").to_str().unwrap().to_string();
+        let load = plcd_ipc::Request::Load { config: new, online: false };
+        assert!(b.handler.handle(1, load).is_none(), "the load waits for the scan thread");
+        let get = |names: &[&str]| plcd_ipc::Request::Get {
+            devices: names.iter().map(|n| n.to_string()).collect(),
+        };
+        // Devices go on; variables wait for the new engine.
+        assert!(b.handler.handle(2, get(&["D00010"])).is_none());
+        for request in [get(&["main.velocity"]), set("main.velocity", "1")] {
+            let f = failure_of(b.handler.handle(3, request));
+            assert_eq!(f.kind, Kind::Busy, "{}", f.message);
+        }
+        let f = failure_of(
+            b.handler.handle(3, plcd_ipc::Request::Force { dev: "main.flag".into(), value: 1 }),
+        );
+        assert_eq!(f.kind, Kind::Busy);
+        // The scan thread takes the load: names resolve against the new project.
+        let Ok(Command::Control(ticket, ControlCommand::Load(_))) = b.commands.pop() else {
+            panic!("the load")
+        };
+        let applied = Applied { mode: Mode::Stop, scan: 0, changed: true };
+        assert!(b.completions.push(Completion { ticket, result: Ok(applied) }).is_ok());
+        let mut ready = Vec::new();
+        b.handler.collect_answers(&mut ready);
+        assert_eq!(ready.len(), 1, "the load is answered");
+        assert!(b.handler.handle(4, get(&["main.velocity"])).is_none(), "parked for a capture");
+        let f = failure_of(b.handler.handle(5, get(&["main.speed"])));
+        assert_eq!(f.message, "no device or variable `main.speed`", "nothing close");
+        let f = failure_of(
+            b.handler.handle(5, plcd_ipc::Request::Force { dev: "main.flag".into(), value: 1 }),
+        );
+        assert_eq!(
+            f.message,
+            "main.flag is not an I/O bit: only P bits, or BOOL variables located at one, can be forced"
+        );
     }
 }

@@ -20,7 +20,7 @@ impl RequestHandler {
         dev: &str,
         value: i32,
     ) -> Option<ResponseLine> {
-        let found = parse_io_bit(&self.running().project, dev);
+        let found = self.io_bit(dev);
         let (shown, bit) = match found {
             Ok(found) => found,
             Err(f) => return Some(ResponseLine::failure(f)),
@@ -39,12 +39,16 @@ impl RequestHandler {
     }
 
     pub(super) fn unforce(&mut self, client: ClientId, dev: &str) -> Option<ResponseLine> {
-        let found = parse_io_bit(&self.running().project, dev);
+        let found = self.io_bit(dev);
         let (shown, bit) = match found {
             Ok(found) => found,
             Err(f) => return Some(ResponseLine::failure(f)),
         };
-        self.park(client, vec![ControlCommand::Unforce(bit)], Then::Forces { unforced: Some(shown) })
+        self.park(
+            client,
+            vec![ControlCommand::Unforce(bit)],
+            Then::Forces { unforced: Some(shown) },
+        )
     }
 
     pub(super) fn unforce_all(&mut self, client: ClientId) -> Option<ResponseLine> {
@@ -53,6 +57,14 @@ impl RequestHandler {
 
     pub(super) fn forces(&mut self, client: ClientId) -> Option<ResponseLine> {
         self.park_for_snapshot(client, Then::Forces { unforced: None })
+    }
+
+    /// The P bit `dev` names; a variable only once a `load` under way is answered.
+    fn io_bit(&self, dev: &str) -> Result<(String, BitRef), Failure> {
+        if Address::parse(dev.trim()).is_err() && self.loading() {
+            return Err(super::devices::loading());
+        }
+        parse_io_bit(&self.running().project, dev)
     }
 }
 

@@ -14,7 +14,9 @@ use std::time::Instant;
 use super::devices::{self, word_of, Item};
 use super::{debugger, failure, forces, mode, RequestHandler, Running, ANSWER_TIMEOUT, STEP_POLL};
 use crate::device::Address;
-use crate::drivers::real_time::snapshot::{VarRead, MAX_READ_TEXT, MAX_READ_VALUES, MAX_READ_WORDS};
+use crate::drivers::real_time::snapshot::{
+    VarRead, MAX_READ_TEXT, MAX_READ_VALUES, MAX_READ_WORDS,
+};
 use crate::drivers::real_time::{pending, Applied, Command, Completion, ControlCommand};
 use crate::engine::Refusal;
 use crate::services::control::ClientId;
@@ -126,7 +128,10 @@ impl RequestHandler {
         self.next_ticket += count as u64;
         let tickets: Vec<u64> = (first..first + count as u64).collect();
         let pushed = chunk.fill_from_iter(
-            tickets.iter().zip(commands).map(|(&ticket, command)| Command::Control(ticket, command)),
+            tickets
+                .iter()
+                .zip(commands)
+                .map(|(&ticket, command)| Command::Control(ticket, command)),
         );
         debug_assert_eq!(pushed, count);
         drop(queue);

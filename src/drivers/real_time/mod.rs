@@ -138,7 +138,11 @@ pub struct WordWrites {
 pub enum Write {
     Device(Address, i32),
     /// `slot` stored as `elem` at `at`, as the VM stores it.
-    Value { at: Pointer, elem: Elem, slot: u64 },
+    Value {
+        at: Pointer,
+        elem: Elem,
+        slot: u64,
+    },
 }
 
 impl Default for Write {
