@@ -46,7 +46,7 @@ fn var_read(symbol: &Symbol) -> VarRead {
 /// One write of a `set`, checked and typed.
 enum Pending {
     Write(Write),
-    Text(TextWrite),
+    Text(Box<TextWrite>),
 }
 
 impl RequestHandler {
@@ -183,7 +183,7 @@ fn checked_write(project: &Project, write: &NamedValue) -> Result<Pending, Failu
                 chars: [0; MAX_TEXT_WRITE],
             };
             write.chars[..chars.len()].copy_from_slice(&chars);
-            Ok(Pending::Text(write))
+            Ok(Pending::Text(Box::new(write)))
         }
         ref other => {
             let slot = value::parse(other, &text).map_err(bad)?;
@@ -214,7 +214,7 @@ fn commands(pending: Vec<Pending>) -> Vec<ControlCommand> {
                     commands.push(ControlCommand::Writes { items, len });
                     len = 0;
                 }
-                commands.push(ControlCommand::WriteText(text));
+                commands.push(ControlCommand::WriteText(*text));
             }
         }
     }
