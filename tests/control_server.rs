@@ -25,7 +25,7 @@ use plcd::config::ControlConfig;
 use plcd::services::control::server::{ControlServer, ServerError, Stopper};
 use plcd::services::control::{ClientId, Handler, Peer};
 use plcd_ipc::{
-    self, DebugState, DeviceValue, ErrorKind, ModeName, Outcome, Reply, Request, ResponseLine,
+    self, DebugState, ErrorKind, ModeName, NamedValue, Outcome, Reply, Request, ResponseLine,
 };
 
 use harness::nobody::{self, NOBODY};
@@ -88,7 +88,7 @@ impl Handler for Fake {
                 let values = devices
                     .into_iter()
                     .enumerate()
-                    .map(|(i, dev)| DeviceValue { dev, value: i as i32 })
+                    .map(|(i, dev)| NamedValue::device(dev, i as i32))
                     .collect();
                 Some(ResponseLine::ok(Reply::Values { scan: client, values }))
             }

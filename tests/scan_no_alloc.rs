@@ -1,7 +1,9 @@
 //! The scan thread never allocates: a counting global allocator watches the scan thread of the
 //! real-time driver while it runs a project with a 1 ms cycle task, an I/O task fed with edges,
 //! device tasks, timers, counters and DUTY, through mode changes and device writes, until it
-//! stops on shutdown. The commands include the control socket's and a two-part Modbus word write.
+//! stops on shutdown. The commands include the control socket's (device and Structured Text
+//! variable writes, a STRING among them) and a two-part Modbus word write; the snapshot reads
+//! device words and variables, a STRING's characters among them.
 //! The main program uses the double-word and real instructions too; and a hand-built program of
 //! the typed stack machine (calls, FB instances, strings, an index error, a division by zero)
 //! runs scans and RUN starts without allocating.
@@ -20,10 +22,11 @@ use plcd::drivers::real_time::io::{FieldIo, GatedIo, SafeOutputs};
 use plcd::drivers::real_time::mirror::Mirror;
 use plcd::drivers::real_time::scan::ScanThread;
 use plcd::drivers::real_time::snapshot::Snapshot;
+use plcd::drivers::real_time::snapshot::VarRead;
 use plcd::drivers::real_time::sys::{self, Timer};
 use plcd::drivers::real_time::{
-    pending, Command, Completion, ControlCommand, Report, Shared, Source, WordWrite, WordWrites,
-    WORDS_PER_COMMAND, WRITES_PER_COMMAND,
+    pending, Command, Completion, ControlCommand, Report, Shared, Source, TextWrite, WordWrite,
+    WordWrites, Write, MAX_TEXT_WRITE, WORDS_PER_COMMAND, WRITES_PER_COMMAND,
 };
 use plcd::engine::debug::Breakpoint;
 use plcd::engine::event::Mode;
@@ -31,6 +34,7 @@ use plcd::engine::{Engine, ModeRequest};
 use plcd::io::gate::OutputGate;
 use plcd::io::simulated::SimulatedIo;
 use plcd::io::InputEdge;
+use plcd::value::Elem;
 
 struct Counting;
 
@@ -82,6 +86,8 @@ task = "edge"
 [[program]]
 file = "full.il"
 task = "full"
+[[program]]
+file = "vars.st"
 [[task]]
 name = "tick"
 kind = "cycle"
@@ -114,6 +120,8 @@ const MAIN: &str = "LOAD _ON\nTON T1500 5\nLOAD T1500\nOUT P0040\nLOAD P0000\nCT
 const TICK: &str = "INC D00001\nLOAD NOT P0042\nOUT P0042\nEND\n";
 const EDGE: &str = "INC D00000\nEND\n";
 const FULL: &str = "MOV 0 D00000\nINC D00002\nEND\n";
+const VARS: &str = "PROGRAM Vars\nVAR\n    n : DINT;\n    r : REAL;\n    s : STRING[10] := 'ab';\n\
+                    pos AT %D00300 : DINT;\nEND_VAR\n    n := n + 1;\nEND_PROGRAM\n";
 
 #[test]
 fn typed_programs_do_not_allocate() {
@@ -121,7 +129,7 @@ fn typed_programs_do_not_allocate() {
     use plcd::lang::{Language, Program, Variables};
     use plcd::vm::{ExecState, Exit, StepClock, Vm};
     use plcd_core::device::RetainSet;
-    use plcd_core::value::{BinOp, Elem};
+    use plcd_core::value::BinOp;
 
     let d = |text: &str| Place::Word(Address::parse(text).unwrap().as_word().unwrap());
     let code = vec![
@@ -229,8 +237,16 @@ fn typed_programs_do_not_allocate() {
 fn the_scan_thread_does_not_allocate() {
     let project = harness::engine::project(
         CONFIG,
-        &[("main.il", MAIN), ("tick.il", TICK), ("edge.il", EDGE), ("full.il", FULL)],
+        &[
+            ("main.il", MAIN),
+            ("tick.il", TICK),
+            ("edge.il", EDGE),
+            ("full.il", FULL),
+            ("vars.st", VARS),
+        ],
     );
+    let at = |name: &str| project.variable(name).unwrap().at;
+    let (n, r, s_at, pos) = (at("vars.n"), at("vars.r"), at("vars.s"), at("vars.pos"));
     let io = SimulatedIo::new(&[Address::parse("P0000").unwrap()], &[0], None);
     let field = io.field();
     let shared = Arc::new(Shared::new().unwrap());
@@ -300,9 +316,16 @@ fn the_scan_thread_does_not_allocate() {
             190 => Some(ControlCommand::Step { scan: false }),
             200 => Some(ControlCommand::Mode(ModeRequest::Run)),
             210 => {
-                let mut items = [(Address::parse("D00101").unwrap(), 0); WRITES_PER_COMMAND];
-                items[0].1 = 9;
-                Some(ControlCommand::Writes { items, len: 1 })
+                let mut items = [Write::default(); WRITES_PER_COMMAND];
+                items[0] = Write::Device(Address::parse("D00101").unwrap(), 9);
+                items[1] = Write::Value { at: r, elem: Elem::F32, slot: 2.5f32.to_bits().into() };
+                items[2] = Write::Value { at: pos, elem: Elem::I32, slot: 0x1234_5678 };
+                Some(ControlCommand::Writes { items, len: 3 })
+            }
+            211 => {
+                let mut chars = [0; MAX_TEXT_WRITE];
+                chars[..3].copy_from_slice(b"xyz");
+                Some(ControlCommand::WriteText(TextWrite { at: s_at, cap: 10, len: 3, chars }))
             }
             _ => None,
         };
@@ -328,6 +351,9 @@ fn the_scan_thread_does_not_allocate() {
             let mut s = snapshot.lock().unwrap();
             s.want[0] = Address::parse("D00001").unwrap().as_word().unwrap().0;
             s.want_len = 1;
+            s.want_vars[0] = VarRead::Value { at: n, elem: Elem::I32 };
+            s.want_vars[1] = VarRead::Text { at: s_at, cap: 10 };
+            s.want_vars_len = 2;
             drop(s);
             shared.snapshot_wanted.store(true, Ordering::Release);
             shared.signal(pending::COMMAND);
@@ -362,9 +388,16 @@ fn the_scan_thread_does_not_allocate() {
     assert_eq!(engine.vm().mem.read(&Address::parse("D00240").unwrap()), 0, "only `len` items");
     assert_eq!(shared.words_applied.load(Ordering::Relaxed), 5, "the last part was applied");
     let tickets: Vec<u64> = answered.iter().map(|c| c.ticket).collect();
-    assert_eq!(tickets, [160, 170, 180, 181, 182, 190, 200, 210], "every command answered");
+    assert_eq!(tickets, [160, 170, 180, 181, 182, 190, 200, 210, 211], "every command answered");
     assert!(answered.iter().all(|c| c.result.is_ok()), "{answered:?}");
-    assert!(snapshot.lock().unwrap().generation > 10, "snapshots were captured");
+    assert_eq!(f32::from_bits(engine.vm().read_value(r, Elem::F32) as u32), 2.5);
+    assert_eq!(engine.vm().mem.read(&Address::parse("D00300").unwrap()), 0x5678);
+    assert_eq!(engine.vm().mem.read(&Address::parse("D00301").unwrap()), 0x1234);
+    let captured = snapshot.lock().unwrap();
+    assert!(captured.generation > 10, "snapshots were captured");
+    assert!(captured.value(n, Elem::I32).is_some_and(|n| n > 0), "the ST program counts");
+    assert_eq!(captured.text(s_at, 10), Some(&b"xyz"[..]), "the STRING written, read back");
+    drop(captured);
     let image = mirror.lock();
     assert!(image.generation > 10, "mirrors were copied: {}", image.generation);
     assert!(image.words[1] > 0, "D00001 counts the tick task's runs: {:?}", image.words);

@@ -124,7 +124,7 @@ pub fn phase<T: Send + 'static>(
         other => panic!("{other:?}"),
     };
     let counted = match c.request(&Request::Get { devices: vec!["D00000".into()] }).expect("get") {
-        Reply::Values { values, .. } => i64::from(values[0].value),
+        Reply::Values { values, .. } => values[0].value.as_i64().expect("a device is an integer"),
         other => panic!("{other:?}"),
     };
     let tick = s.tasks.iter().find(|t| t.name == "tick").expect("tick task");

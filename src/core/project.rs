@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::config::{Config, Language, TaskRef};
-use crate::device::{layout, Address, Area};
+use crate::device::{layout, Address, AddressError, Area};
 use crate::diag::{Diagnostic, Diagnostics};
 use crate::lang::ops::Written;
 use crate::lang::{self, Context, DutySite, Program, Variables};
@@ -138,6 +138,65 @@ impl Project {
             Ok(under)
         }
     }
+}
+
+impl Project {
+    /// What a client of the running PLC names (`plcctl get`, `set`, `force`): as
+    /// [`Project::watched`], with an error for a name that is neither a device nor a variable
+    /// that says so and suggests the closest variable name (`no device or variable
+    /// `main.spede` (did you mean `main.speed`?)`), or, for a device out of range or an
+    /// unknown flag, what is wrong with the address.
+    pub fn resolve(&self, name: &str) -> Result<Vec<Watched>, String> {
+        let name = name.trim();
+        self.watched(name).map_err(|_| match Address::parse(name) {
+            Err(e @ (AddressError::OutOfRange { .. } | AddressError::UnknownFlag(_))) => {
+                e.to_string()
+            }
+            _ => match self.closest_variable(name) {
+                Some(close) => format!("no device or variable `{name}` (did you mean `{close}`?)"),
+                None => format!("no device or variable `{name}`"),
+            },
+        })
+    }
+
+    /// The variable name nearest to `name` (case-insensitive edit distance, at most about a
+    /// quarter of its length), with its declaration's spelling.
+    pub fn closest_variable(&self, name: &str) -> Option<&str> {
+        let given: Vec<u8> = name
+            .bytes()
+            .filter(|c| !c.is_ascii_whitespace())
+            .map(|c| c.to_ascii_lowercase())
+            .collect();
+        let limit = (given.len() / 4).clamp(1, 3);
+        let mut best: Option<(usize, &str)> = None;
+        for symbol in &self.variables.symbols {
+            let declared = symbol.name.as_bytes();
+            if declared.len().abs_diff(given.len()) > limit {
+                continue;
+            }
+            let distance = edit_distance(declared, &given);
+            if distance <= limit && best.is_none_or(|(d, _)| distance < d) {
+                best = Some((distance, &symbol.name));
+            }
+        }
+        best.map(|(_, name)| name)
+    }
+}
+
+/// Levenshtein distance, `a` compared case-insensitively with the lowercase `b`.
+fn edit_distance(a: &[u8], b: &[u8]) -> usize {
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, &x) in a.iter().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, &y) in b.iter().enumerate() {
+            let above = row[j + 1];
+            let cost = usize::from(x.to_ascii_lowercase() != y);
+            row[j + 1] = (diagonal + cost).min(above + 1).min(row[j] + 1);
+            diagonal = above;
+        }
+    }
+    row[b.len()]
 }
 
 /// Whether two variable names are the same: case-insensitive, spaces inside `[…]` ignored.
@@ -359,5 +418,48 @@ fn check_duty(files: &[(PathBuf, Vec<DutySite>)], diags: &mut Diagnostics) {
             }
             seen.push((site.channel, path, site.line));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn project(st: &str) -> Project {
+        let config = crate::config::parse(
+            "[[program]]\nname = \"main\"\nfile = \"main.st\"\n",
+            Path::new("/p/plcd.toml"),
+        )
+        .unwrap();
+        from_config(config, |_| Ok(st.to_string())).unwrap()
+    }
+
+    #[test]
+    fn names_resolve_or_say_what_is_close() {
+        let p = project(
+            "PROGRAM Main\nVAR\n  Speed : INT;\n  buf : ARRAY [1..2] OF INT;\nEND_VAR\nEND_PROGRAM\n",
+        );
+        let names = |text: &str| -> Vec<String> {
+            p.resolve(text).unwrap().iter().map(Watched::name).collect()
+        };
+        assert_eq!(names("MAIN.SPEED"), ["main.Speed"]);
+        assert_eq!(names("main.buf"), ["main.buf[1]", "main.buf[2]"]);
+        assert_eq!(names("d10"), ["D00010"]);
+        assert_eq!(
+            p.resolve("main.spede").unwrap_err(),
+            "no device or variable `main.spede` (did you mean `main.Speed`?)"
+        );
+        assert_eq!(
+            p.resolve("main.buf[3]").unwrap_err(),
+            "no device or variable `main.buf[3]` (did you mean `main.buf[1]`?)"
+        );
+        assert_eq!(
+            p.resolve("nothing_like_it").unwrap_err(),
+            "no device or variable `nothing_like_it`"
+        );
+        assert!(p.resolve("D99999").unwrap_err().contains("out of range"));
+        assert_eq!(p.resolve("_NOPE").unwrap_err(), "unknown flag `_NOPE`");
+        assert_eq!(edit_distance(b"Speed", b"spede"), 2);
+        assert_eq!(edit_distance(b"", b"ab"), 2);
     }
 }

@@ -494,7 +494,7 @@ pub struct Symbol {
 }
 
 /// The IEC name of an elementary type as tools name it in messages.
-fn type_name(ty: &ValueType) -> String {
+pub fn type_name(ty: &ValueType) -> String {
     match ty {
         ValueType::Bool => "BOOL".into(),
         ValueType::Signed(e) | ValueType::Unsigned(e) | ValueType::Real(e) => match e {

@@ -17,8 +17,8 @@
 //! Within one version, fields are only ever added; readers ignore fields they do not know.
 //!
 //! ```text
-//! → {"v":1,"cmd":"get","devices":["D00010","P0040"]}
-//! ← {"v":1,"ok":{"kind":"values","scan":1234,"values":[{"dev":"D00010","value":7},{"dev":"P0040","value":1}]}}
+//! → {"v":1,"cmd":"get","devices":["D00010","P0040","main.t1.ET"]}
+//! ← {"v":1,"ok":{"kind":"values","scan":1234,"values":[{"dev":"D00010","value":7},{"dev":"P0040","value":1},{"dev":"main.t1.ET","value":"T#1s500ms","type":"TIME"}]}}
 //! → {"v":1,"cmd":"run"}
 //! ← {"v":1,"error":{"kind":"refused","message":"the RUN/STOP switch is at RUN: …"}}
 //! ```
@@ -63,14 +63,19 @@ pub enum Request {
         #[serde(default)]
         cold: bool,
     },
-    /// Current values, from the snapshot of the last END. [`Reply::Values`].
+    /// Current values, from a snapshot taken at a scan boundary after the request. Each entry
+    /// is a device or a Structured Text variable name (`main.pid.out`, `main.buf[3]`, a global);
+    /// a struct, array, FB or program instance stands for each of its variables. Values come in
+    /// this order. [`Reply::Values`].
     Get { devices: Vec<String> },
-    /// Writes devices at the next END processing. [`Reply::Written`].
-    Set { writes: Vec<DeviceValue> },
-    /// Forces a P bit: a forced input overrides the refreshed image, a forced output overrides
-    /// the program. [`Reply::Forces`].
+    /// Writes devices and variables at the next END processing, all at the same one.
+    /// [`Reply::Written`].
+    Set { writes: Vec<NamedValue> },
+    /// Forces a P bit (`dev` a P bit, or a BOOL variable located at one): a forced input
+    /// overrides the refreshed image, a forced output overrides the program. [`Reply::Forces`].
     Force { dev: String, value: i32 },
-    /// Removes the force of one device. [`Reply::Forces`].
+    /// Removes the force of one device (or of the BOOL variable located at it).
+    /// [`Reply::Forces`].
     Unforce { dev: String },
     /// Removes every force. [`Reply::Forces`].
     UnforceAll,
@@ -212,6 +217,95 @@ pub struct DeviceValue {
     pub value: i32,
 }
 
+/// A value of a device or of a variable of any type, as the `plcd sim` trace writes it:
+/// a JSON number for integers, bit strings, reals and devices (`BOOL` and bits as 0 or 1); a
+/// string for `TIME` (an IEC literal, `"T#1s500ms"`), an enumeration (its value's name), a
+/// `STRING` (its characters) and a real that is not finite (`"NaN"`, `"inf"`, `"-inf"`).
+///
+/// Written by a client, a number or a string is read against the variable's type: `5`, `"5"`,
+/// `"16#FF"`, `"TRUE"`, `1.5`, `"T#2s"`, `"Running"`, and for a `STRING` its text (an IEC
+/// literal in single quotes, `"'a$'b'"`, is unescaped). A device takes a JSON integer.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Value {
+    Number(serde_json::Number),
+    Text(String),
+}
+
+impl Value {
+    /// The integer, if the value is one that fits an `i64`.
+    pub fn as_i64(&self) -> Option<i64> {
+        match self {
+            Value::Number(n) => n.as_i64(),
+            Value::Text(_) => None,
+        }
+    }
+
+    /// The value as text: a number as JSON writes it, a string as it is.
+    pub fn text(&self) -> std::borrow::Cow<'_, str> {
+        match self {
+            Value::Number(n) => std::borrow::Cow::Owned(n.to_string()),
+            Value::Text(t) => std::borrow::Cow::Borrowed(t),
+        }
+    }
+}
+
+impl std::fmt::Display for Value {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.text())
+    }
+}
+
+impl From<i32> for Value {
+    fn from(n: i32) -> Value {
+        Value::Number(n.into())
+    }
+}
+
+impl From<i64> for Value {
+    fn from(n: i64) -> Value {
+        Value::Number(n.into())
+    }
+}
+
+impl From<u64> for Value {
+    fn from(n: u64) -> Value {
+        Value::Number(n.into())
+    }
+}
+
+impl From<&str> for Value {
+    fn from(text: &str) -> Value {
+        Value::Text(text.to_string())
+    }
+}
+
+/// A device or a variable and its value: what `get` answers and `set` writes. A device's value
+/// is a JSON integer (bits 0/1, words their signed 16-bit value) and it has no `type`; a
+/// variable's value is typed ([`Value`]) and, in answers, `type` names its type (`DINT`,
+/// `STRING[80]`, `TIME`, an enumeration's name).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct NamedValue {
+    /// The device or the variable's full name (answers give a variable the spelling of its
+    /// declaration).
+    pub dev: String,
+    pub value: Value,
+    #[serde(rename = "type", default, skip_serializing_if = "Option::is_none")]
+    pub ty: Option<String>,
+}
+
+impl NamedValue {
+    /// A device's value (no type).
+    pub fn device(dev: impl Into<String>, value: i32) -> NamedValue {
+        NamedValue { dev: dev.into(), value: value.into(), ty: None }
+    }
+
+    /// A value to write (the daemon knows the type).
+    pub fn write(dev: impl Into<String>, value: Value) -> NamedValue {
+        NamedValue { dev: dev.into(), value, ty: None }
+    }
+}
+
 /// A successful answer. Tagged by `"kind"`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -221,10 +315,11 @@ pub enum Reply {
     Mode {
         mode: ModeName,
     },
-    /// Values of the requested devices, in request order, as of the END of scan `scan`.
+    /// Values of the requested devices and variables, in request order (a prefix expanded in
+    /// place), as of the END of scan `scan`.
     Values {
         scan: u64,
-        values: Vec<DeviceValue>,
+        values: Vec<NamedValue>,
     },
     /// The writes were applied at the END of scan `scan`.
     Written {
@@ -455,7 +550,19 @@ mod tests {
             Request::Reset { cold: false },
             Request::Reset { cold: true },
             Request::Get { devices: vec!["D00010".into(), "P0040".into()] },
-            Request::Set { writes: vec![DeviceValue { dev: "D00001".into(), value: -5 }] },
+            Request::Set { writes: vec![NamedValue::device("D00001", -5)] },
+            Request::Set {
+                writes: vec![
+                    NamedValue::write("main.t", Value::from("T#2s")),
+                    NamedValue::write(
+                        "main.r",
+                        Value::Number(serde_json::Number::from_f64(1.5).unwrap()),
+                    ),
+                    NamedValue::write("main.big", Value::from(u64::MAX)),
+                    NamedValue::write("main.small", Value::from(i64::MIN)),
+                ],
+            },
+            Request::Get { devices: vec!["main.m[1,2]".into(), "total".into()] },
             Request::Force { dev: "P0000".into(), value: 1 },
             Request::Unforce { dev: "P0000".into() },
             Request::UnforceAll,
@@ -544,7 +651,37 @@ mod tests {
         for reply in [
             Reply::Status(Box::new(status)),
             Reply::Mode { mode: ModeName::Debug },
-            Reply::Values { scan: 9, values: vec![DeviceValue { dev: "D00000".into(), value: 3 }] },
+            Reply::Values { scan: 9, values: vec![NamedValue::device("D00000", 3)] },
+            Reply::Values {
+                scan: 9,
+                values: vec![
+                    NamedValue {
+                        dev: "main.t1.ET".into(),
+                        value: "T#1s500ms".into(),
+                        ty: Some("TIME".into()),
+                    },
+                    NamedValue {
+                        dev: "main.r".into(),
+                        value: Value::Number(serde_json::Number::from_f64(0.1).unwrap()),
+                        ty: Some("REAL".into()),
+                    },
+                    NamedValue {
+                        dev: "main.r2".into(),
+                        value: "NaN".into(),
+                        ty: Some("LREAL".into()),
+                    },
+                    NamedValue {
+                        dev: "main.u".into(),
+                        value: u64::MAX.into(),
+                        ty: Some("ULINT".into()),
+                    },
+                    NamedValue {
+                        dev: "main.s".into(),
+                        value: "it's".into(),
+                        ty: Some("STRING[80]".into()),
+                    },
+                ],
+            },
             Reply::Written { scan: 9, count: 1 },
             Reply::Forces { forces: vec![] },
             Reply::Loaded { online: true, programs: 2, tasks: 1, mode: ModeName::Run },
@@ -560,6 +697,84 @@ mod tests {
         }
         let back: ResponseLine = serde_json::from_slice(&to_line(&failure)).unwrap();
         assert_eq!(back, failure);
+    }
+
+    #[test]
+    fn values_keep_the_integer_form_of_devices() {
+        // The form of the first clients: a device and a JSON integer, no type.
+        assert_eq!(
+            parse_request(br#"{"v":1,"cmd":"set","writes":[{"dev":"D00001","value":-5}]}"#),
+            Ok(Request::Set { writes: vec![NamedValue::device("D00001", -5)] })
+        );
+        let reply = Reply::Values { scan: 3, values: vec![NamedValue::device("D00010", 7)] };
+        assert_eq!(
+            serde_json::to_string(&reply).unwrap(),
+            r#"{"kind":"values","scan":3,"values":[{"dev":"D00010","value":7}]}"#
+        );
+        let old: Reply = serde_json::from_str(
+            r#"{"kind":"values","scan":3,"values":[{"dev":"D00010","value":-7}],"more":1}"#,
+        )
+        .unwrap();
+        assert_eq!(old, Reply::Values { scan: 3, values: vec![NamedValue::device("D00010", -7)] });
+    }
+
+    #[test]
+    fn typed_values_on_the_wire() {
+        let line = |values: Vec<NamedValue>| {
+            serde_json::to_string(&Reply::Values { scan: 1, values }).unwrap()
+        };
+        let typed = |dev: &str, value: Value, ty: &str| NamedValue {
+            dev: dev.into(),
+            value,
+            ty: Some(ty.into()),
+        };
+        let real = |x: f64| Value::Number(serde_json::Number::from_f64(x).unwrap());
+        assert_eq!(
+            line(vec![
+                typed("main.t", "T#1s500ms".into(), "TIME"),
+                typed("main.r", real(0.1), "REAL"),
+                typed("main.x", real(1.0), "LREAL"),
+                typed("main.n", "-inf".into(), "REAL"),
+                typed("main.u", u64::MAX.into(), "ULINT"),
+                typed("main.i", i64::MIN.into(), "LINT"),
+                typed("main.mode", "Running".into(), "Mode"),
+                typed("main.s", "a\"b".into(), "STRING[10]"),
+            ]),
+            concat!(
+                r#"{"kind":"values","scan":1,"values":["#,
+                r#"{"dev":"main.t","value":"T#1s500ms","type":"TIME"},"#,
+                r#"{"dev":"main.r","value":0.1,"type":"REAL"},"#,
+                r#"{"dev":"main.x","value":1.0,"type":"LREAL"},"#,
+                r#"{"dev":"main.n","value":"-inf","type":"REAL"},"#,
+                r#"{"dev":"main.u","value":18446744073709551615,"type":"ULINT"},"#,
+                r#"{"dev":"main.i","value":-9223372036854775808,"type":"LINT"},"#,
+                r#"{"dev":"main.mode","value":"Running","type":"Mode"},"#,
+                r#"{"dev":"main.s","value":"a\"b","type":"STRING[10]"}]}"#
+            )
+        );
+        // Numbers and strings both parse, whatever the field order.
+        let parsed = parse_request(
+            br#"{"v":1,"cmd":"set","writes":[{"value":2.5,"dev":"main.r"},{"dev":"main.t","value":"T#2s"},{"dev":"main.u","value":18446744073709551615}]}"#,
+        )
+        .unwrap();
+        let Request::Set { writes } = parsed else { panic!("{parsed:?}") };
+        assert_eq!(writes[0].value, real(2.5));
+        assert_eq!(writes[0].value.text(), "2.5");
+        assert_eq!(writes[1].value, Value::from("T#2s"));
+        assert_eq!(writes[2].value, Value::from(u64::MAX));
+        assert_eq!(writes[2].value.as_i64(), None);
+        assert_eq!(Value::from(-3).as_i64(), Some(-3));
+        assert_eq!(Value::from(7).to_string(), "7");
+        // Neither a number nor a string.
+        let kind = |b: &[u8]| parse_request(b).unwrap_err().kind;
+        assert_eq!(
+            kind(br#"{"v":1,"cmd":"set","writes":[{"dev":"a","value":true}]}"#),
+            ErrorKind::BadRequest
+        );
+        assert_eq!(
+            kind(br#"{"v":1,"cmd":"set","writes":[{"dev":"a","value":[1]}]}"#),
+            ErrorKind::BadRequest
+        );
     }
 
     #[test]

@@ -1,9 +1,12 @@
-//! `get DEV…`, `set DEV=VALUE…`, `watch DEV…`: device values.
+//! `get NAME…`, `set NAME=VALUE…`, `watch NAME…`: values of devices and Structured Text
+//! variables. A name is a device (`D00010`, `P0040`) or a variable (`main.speed`,
+//! `main.m[1,2]`, `main.pid`, a global); the daemon resolves it against the running project.
 
 use std::time::{Duration, Instant, SystemTime};
 
 use plcd_core::device::{Address, WORD_VALUES};
-use plcd_ipc::{DeviceValue, Reply, Request};
+use plcd_core::project::split_names;
+use plcd_ipc::{NamedValue, Reply, Request, Value};
 
 use super::client::Answer;
 use super::{format, json_line, parse_positive_duration, Session, EXIT_OK};
@@ -11,18 +14,34 @@ use super::{format, json_line, parse_positive_duration, Session, EXIT_OK};
 /// `get`'s arguments.
 #[derive(Debug, Clone, PartialEq, Eq, clap::Args)]
 pub struct GetArgs {
-    /// Devices: `P0040`, `M0001`, `D00010`, `D00010.3`, `T0005`, `SM420`, `_T1S`, …
-    #[arg(required = true, value_name = "DEV", value_parser = parse_device)]
-    pub devices: Vec<String>,
+    /// Devices (`P0040`, `D00010`, `D00010.3`, `T0005`, `SM420`, `_T1S`, …) and Structured
+    /// Text variables (`main.speed`, `main.buf[3]`, `main.m[1,2]`, a global; a structure,
+    /// array or instance such as `main.pid` for each of its variables); commas also separate.
+    #[arg(required = true, value_name = "NAME", value_parser = parse_name)]
+    pub names: Vec<String>,
+}
+
+impl GetArgs {
+    pub fn request(&self) -> Request {
+        Request::Get { devices: names(&self.names) }
+    }
 }
 
 /// `set`'s arguments.
 #[derive(Debug, Clone, PartialEq, Eq, clap::Args)]
 pub struct SetArgs {
-    /// Devices and values, e.g. `D00010=-5 M0001=1 D00011=h7FFF`, written together at one
-    /// END.
-    #[arg(required = true, value_name = "DEV=VALUE", value_parser = parse_write)]
-    pub writes: Vec<DeviceValue>,
+    /// Devices and variables with their values, as `NAME=VALUE` or `NAME VALUE`, written
+    /// together at one END: `D00010=-5 M0001=1 D00011=h7FFF`, `main.speed 5`, `main.t T#2s`,
+    /// `main.mode Running`, `main.s 'hello'` (a value that starts with `-` and is no number
+    /// goes after `=`: `main.r=-inf`).
+    #[arg(required = true, value_name = "NAME=VALUE", allow_negative_numbers = true)]
+    pub writes: Vec<String>,
+}
+
+impl SetArgs {
+    pub fn request(&self) -> Result<Request, String> {
+        parse_writes(&self.writes).map(|writes| Request::Set { writes })
+    }
 }
 
 /// `watch`'s arguments.
@@ -35,26 +54,61 @@ pub struct WatchArgs {
     /// Stop after N samples (default: run until interrupted).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub count: Option<u64>,
-    /// The devices to read.
-    #[arg(required = true, value_name = "DEV", value_parser = parse_device)]
-    pub devices: Vec<String>,
+    /// The devices and variables to read, as for `get`.
+    #[arg(required = true, value_name = "NAME", value_parser = parse_name)]
+    pub names: Vec<String>,
 }
 
-/// A device name, checked with [`Address::parse`] for an early error; sent as written (the
-/// daemon resolves it).
-pub fn parse_device(text: &str) -> Result<String, String> {
-    Address::parse(text).map_err(|e| e.to_string())?;
-    Ok(text.to_string())
+/// A device or variable name, sent as written (the daemon resolves it; names are
+/// case-insensitive).
+pub fn parse_name(text: &str) -> Result<String, String> {
+    if text.trim().is_empty() {
+        return Err("a name is empty".to_string());
+    }
+    Ok(text.trim().to_string())
 }
 
-/// `DEV=VALUE`.
-pub fn parse_write(text: &str) -> Result<DeviceValue, String> {
-    let Some((dev, value)) = text.split_once('=') else {
-        return Err(format!("`{text}` is not DEV=VALUE"));
+/// The names of the command line, a comma list split outside `[…]` (`main.m[1,2],P0040`).
+pub fn names(args: &[String]) -> Vec<String> {
+    args.iter().flat_map(|a| split_names(a)).map(str::to_string).collect()
+}
+
+/// `NAME=VALUE` (split at the first `=`) or `NAME VALUE`, left to right: a word without `=`
+/// is a name and the next word its value, whatever it holds.
+pub fn parse_writes(words: &[String]) -> Result<Vec<NamedValue>, String> {
+    let mut writes = Vec::new();
+    let mut words = words.iter();
+    while let Some(word) = words.next() {
+        let (name, value) = match word.split_once('=') {
+            Some((name, value)) => (name, value.to_string()),
+            None => match words.next() {
+                Some(value) => (word.as_str(), value.clone()),
+                None => {
+                    return Err(format!("`{word}` has no value: write NAME=VALUE or NAME VALUE"))
+                }
+            },
+        };
+        writes.push(parse_write_of(name, &value)?);
+    }
+    Ok(writes)
+}
+
+/// One write: a device's value is parsed here (decimal or hex, 16 bits), a variable's is sent
+/// as written, for the daemon to read against the variable's type.
+fn parse_write_of(name: &str, value: &str) -> Result<NamedValue, String> {
+    let name = parse_name(name)?;
+    if Address::parse(&name).is_ok() {
+        return Ok(NamedValue::device(name, parse_value(value)?));
+    }
+    Ok(NamedValue::write(name, Value::Text(value.to_string())))
+}
+
+/// `DEV=VALUE` or `NAME=VALUE`: one write.
+pub fn parse_write(text: &str) -> Result<NamedValue, String> {
+    let Some((name, value)) = text.split_once('=') else {
+        return Err(format!("`{text}` is not NAME=VALUE"));
     };
-    let dev = parse_device(dev.trim())?;
-    let value = parse_value(value)?;
-    Ok(DeviceValue { dev, value })
+    parse_write_of(name.trim(), value)
 }
 
 /// A value as the instruction list writes constants: decimal `-32768` to `65535`, or hex
@@ -82,9 +136,9 @@ pub fn parse_value(text: &str) -> Result<i32, String> {
     Ok(if value > 32767 { (value - 65536) as i32 } else { value as i32 })
 }
 
-/// One `DEVICE  VALUE` line per device.
-pub fn render_values(values: &[DeviceValue]) -> String {
-    format::device_table(values)
+/// One `NAME  VALUE  TYPE` line per device or variable (devices have no type).
+pub fn render_values(values: &[NamedValue]) -> String {
+    format::value_table(values)
 }
 
 /// `2 writes applied at the END of scan 1234`.
@@ -96,7 +150,7 @@ pub fn render_written(scan: u64, count: usize) -> String {
 /// A `get` every interval on one connection (a new one when the daemon closed it, idle, in
 /// between), one line per sample, until `--count` samples or an error.
 pub fn watch(session: &mut Session, args: &WatchArgs) -> u8 {
-    let request = Request::Get { devices: args.devices.clone() };
+    let request = Request::Get { devices: names(&args.names) };
     let mut client = match session.connect() {
         Ok(client) => client,
         Err(e) => return session.fail(&e),
@@ -149,7 +203,7 @@ pub fn sample_line(json: bool, now: SystemTime, request: &Request, answer: &Answ
             let mut line = format!("{time}  scan {scan}");
             for v in values {
                 // Wide enough for any 16-bit value, so that columns stay put.
-                line.push_str(&format!("  {:<13}", format!("{}={}", v.dev, v.value)));
+                line.push_str(&format!("  {:<13}", format!("{}={}", v.dev, format::value_text(v))));
             }
             let mut line = line.trim_end().to_string();
             line.push('\n');
@@ -188,11 +242,47 @@ mod tests {
 
     #[test]
     fn writes() {
-        assert_eq!(parse_write("D00010=-5"), Ok(DeviceValue { dev: "D00010".into(), value: -5 }));
-        assert!(parse_write("D00010").unwrap_err().contains("DEV=VALUE"));
-        assert!(parse_write("Q1=1").unwrap_err().contains("not a device"));
-        assert!(parse_device("P0040").is_ok());
-        assert!(parse_device("D99999").is_err());
+        assert_eq!(parse_write("D00010=-5"), Ok(NamedValue::device("D00010", -5)));
+        assert!(parse_write("D00010").unwrap_err().contains("NAME=VALUE"));
+        assert!(parse_write("D00010=x").unwrap_err().contains("not a value"));
+        assert_eq!(parse_write("main.x=1"), Ok(NamedValue::write("main.x", "1".into())));
+        assert!(parse_name(" ").is_err());
+    }
+
+    #[test]
+    fn names_and_values_in_both_forms() {
+        let words = |w: &[&str]| w.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let text = |name: &str, value: &str| NamedValue::write(name, Value::from(value));
+        assert_eq!(
+            parse_writes(&words(&[
+                "main.speed",
+                "5",
+                "D10=h7FFF",
+                "main.s",
+                "a=b",
+                "main.m[1,2]=-3",
+                "main.t",
+                "T#2s",
+                "M0001",
+                "1",
+                "main.e=x=y"
+            ])),
+            Ok(vec![
+                text("main.speed", "5"),
+                NamedValue::device("D10", 32767),
+                text("main.s", "a=b"),
+                text("main.m[1,2]", "-3"),
+                text("main.t", "T#2s"),
+                NamedValue::device("M0001", 1),
+                text("main.e", "x=y"),
+            ])
+        );
+        assert!(parse_writes(&words(&["main.speed"])).unwrap_err().contains("no value"));
+        assert!(parse_writes(&words(&["D10", "x"])).unwrap_err().contains("not a value"));
+        assert_eq!(
+            names(&words(&["main.m[1,2],P0040", "main.pid"])),
+            ["main.m[1,2]", "P0040", "main.pid"]
+        );
     }
 
     #[test]

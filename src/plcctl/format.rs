@@ -2,7 +2,7 @@
 
 use std::time::SystemTime;
 
-use plcd_ipc::DeviceValue;
+use plcd_ipc::{DeviceValue, NamedValue, Value};
 
 /// A duration for a human, rounded to a resolution that suits its size: `850 ns`, `6.5 µs`,
 /// `1.20 ms`, `2.50 s`. (The exact form, which reads back, is
@@ -136,6 +136,26 @@ pub fn fields(fields: &[(&str, Vec<String>)]) -> String {
     text
 }
 
+/// A value for a human: a number or text as the daemon sent it, a `STRING` as an IEC literal
+/// (`'it$'s'`), so that what `set` reads back is what it shows.
+pub fn value_text(v: &NamedValue) -> String {
+    match (&v.value, v.ty.as_deref()) {
+        (Value::Text(text), Some(ty)) if ty.starts_with("STRING") => {
+            plcd_core::value::format_string(text.as_bytes())
+        }
+        (value, _) => value.to_string(),
+    }
+}
+
+/// One `NAME  VALUE  TYPE` line per device or variable, aligned (a device has no type).
+pub fn value_table(values: &[NamedValue]) -> String {
+    let mut table = Table::bare(&[Align::Left, Align::Right, Align::Left]);
+    for v in values {
+        table.row(vec![v.dev.clone(), value_text(v), v.ty.clone().unwrap_or_default()]);
+    }
+    table.render()
+}
+
 /// One `DEVICE  VALUE` line per device, aligned.
 pub fn device_table(values: &[DeviceValue]) -> String {
     let mut table = Table::bare(&[Align::Left, Align::Right]);
@@ -181,6 +201,27 @@ mod tests {
         let at = UNIX_EPOCH + Duration::from_millis(1_795_258_008_123) + Duration::from_micros(999);
         assert_eq!(timestamp(at), "2026-11-21T10:46:48.123Z");
         assert_eq!(timestamp(UNIX_EPOCH), "1970-01-01T00:00:00.000Z");
+    }
+
+    #[test]
+    fn typed_values() {
+        let typed = |dev: &str, value: Value, ty: &str| NamedValue {
+            dev: dev.into(),
+            value,
+            ty: Some(ty.into()),
+        };
+        assert_eq!(
+            value_table(&[
+                NamedValue::device("D00010", -5),
+                typed("main.t1.ET", "T#1s500ms".into(), "TIME"),
+                typed("main.s", "it's".into(), "STRING[80]"),
+                typed("main.mode", "Running".into(), "Mode"),
+            ]),
+            "D00010             -5\n\
+             main.t1.ET  T#1s500ms  TIME\n\
+             main.s        'it$'s'  STRING[80]\n\
+             main.mode     Running  Mode\n"
+        );
     }
 
     #[test]

@@ -100,15 +100,15 @@ pub enum Command {
     Unbreak(debug::UnbreakArgs),
     /// Show the force table.
     Forces,
-    /// Force a P bit to a value.
+    /// Force a P bit (or a BOOL variable located at one) to a value.
     Force(forces::ForceArgs),
-    /// Remove the force of one device, or of all.
+    /// Remove the force of one P bit (or BOOL variable located at one), or of all.
     Unforce(forces::UnforceArgs),
-    /// Read devices (as of the last END).
+    /// Read devices and variables (as of a scan boundary).
     Get(devices::GetArgs),
-    /// Write devices at the next END, all in one request.
+    /// Write devices and variables at the next END, all in one request.
     Set(devices::SetArgs),
-    /// Read devices every interval, one line per sample, until --count or Ctrl-C.
+    /// Read devices and variables every interval, one line per sample, until --count or Ctrl-C.
     Watch(devices::WatchArgs),
     /// Validate a project and swap it in (in STOP, or online in RUN).
     Load(load::LoadArgs),
@@ -122,9 +122,10 @@ pub enum Action<'a> {
 }
 
 impl Command {
-    /// The request of a command, or `watch`.
-    pub fn action(&self) -> Action<'_> {
-        Action::Request(match self {
+    /// The request of a command, or `watch`; a usage error the parser could not see (a `set`
+    /// name without its value).
+    pub fn action(&self) -> Result<Action<'_>, String> {
+        Ok(Action::Request(match self {
             Command::Status => Request::Status,
             Command::Run => Request::Run,
             Command::Stop => Request::Stop,
@@ -135,15 +136,13 @@ impl Command {
             Command::Break(args) => Request::Break { at: args.at() },
             Command::Unbreak(args) => Request::Unbreak { at: args.at() },
             Command::Forces => Request::Forces,
-            Command::Force(args) => {
-                Request::Force { dev: args.write.dev.clone(), value: args.write.value }
-            }
+            Command::Force(args) => args.request()?,
             Command::Unforce(args) => args.request(),
-            Command::Get(args) => Request::Get { devices: args.devices.clone() },
-            Command::Set(args) => Request::Set { writes: args.writes.clone() },
-            Command::Watch(args) => return Action::Watch(args),
+            Command::Get(args) => args.request(),
+            Command::Set(args) => args.request()?,
+            Command::Watch(args) => return Ok(Action::Watch(args)),
             Command::Load(args) => args.request(),
-        })
+        }))
     }
 }
 
@@ -211,8 +210,13 @@ pub fn run(cli: &Cli, out: &mut dyn Write, err: &mut dyn Write) -> ExitCode {
         err,
     };
     let status = match cli.command.action() {
-        Action::Request(request) => session.one_shot(&request),
-        Action::Watch(args) => devices::watch(&mut session, args),
+        Ok(Action::Request(request)) => session.one_shot(&request),
+        Ok(Action::Watch(args)) => devices::watch(&mut session, args),
+        Err(usage) => {
+            // As clap reports the errors it finds.
+            let _ = writeln!(session.err, "error: {usage}\n\nFor more information, try '--help'.");
+            EXIT_USAGE
+        }
     };
     ExitCode::from(status)
 }

@@ -340,6 +340,18 @@ fn force_commands() {
         ),
         (&["unforce", "P0041"], r#"{"v":1,"cmd":"unforce","dev":"P0041"}"#, &table, table_text),
         (&["unforce", "--all"], r#"{"v":1,"cmd":"unforce_all"}"#, &empty, "no forces\n"),
+        (
+            &["force", "main.lamp", "TRUE"],
+            r#"{"v":1,"cmd":"force","dev":"main.lamp","value":1}"#,
+            &table,
+            table_text,
+        ),
+        (
+            &["unforce", "main.lamp"],
+            r#"{"v":1,"cmd":"unforce","dev":"main.lamp"}"#,
+            &table,
+            table_text,
+        ),
     ] {
         let out = exchange("forces", args, request, ok.clone());
         assert_eq!(out, text, "{args:?}");
@@ -378,6 +390,39 @@ fn set_sends_every_write_in_one_request() {
         ok,
     );
     assert_eq!(out, "2 writes applied at the END of scan 10\n");
+
+    // Variables: `NAME VALUE` or `NAME=VALUE`, the value sent as written for the daemon to
+    // read against the variable's type; devices beside them as before.
+    let ok = json!({"kind": "written", "scan": 11, "count": 4});
+    let out = exchange(
+        "set-names",
+        &["set", "main.t", "T#2s", "D00010=h10", "main.speed", "-5", "main.s=a b"],
+        r#"{"v":1,"cmd":"set","writes":[{"dev":"main.t","value":"T#2s"},{"dev":"D00010","value":16},{"dev":"main.speed","value":"-5"},{"dev":"main.s","value":"a b"}]}"#,
+        ok,
+    );
+    assert_eq!(out, "4 writes applied at the END of scan 11\n");
+}
+
+#[test]
+fn get_reads_variables_with_their_types() {
+    let ok = json!({"kind": "values", "scan": 7, "values": [
+        {"dev": "main.Speed", "value": 5, "type": "INT"},
+        {"dev": "main.t1.ET", "value": "T#1s500ms", "type": "TIME"},
+        {"dev": "main.s", "value": "it's", "type": "STRING[20]"},
+        {"dev": "D00010", "value": -5}]});
+    let out = exchange(
+        "get-names",
+        &["get", "MAIN.SPEED,main.t1.ET", "main.s", "D00010"],
+        r#"{"v":1,"cmd":"get","devices":["MAIN.SPEED","main.t1.ET","main.s","D00010"]}"#,
+        ok,
+    );
+    assert_eq!(
+        out,
+        "main.Speed          5  INT\n\
+         main.t1.ET  T#1s500ms  TIME\n\
+         main.s        'it$'s'  STRING[20]\n\
+         D00010             -5\n"
+    );
 }
 
 #[test]
@@ -689,9 +734,11 @@ fn usage_errors_exit_2_without_connecting() {
         &[][..],
         &["frobnicate"],
         &["get"],
-        &["get", "Q1"],
-        &["get", "D99999"],
+        &["get", ""],
         &["set"],
+        &["set", "main.speed"],
+        &["set", "main.x", "1", "main.y"],
+        &["force", "main.lamp", "2"],
         &["set", "D00010"],
         &["set", "D00010=abc"],
         &["set", "D00010=70000"],

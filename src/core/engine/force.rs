@@ -11,6 +11,7 @@
 
 use crate::device::layout::P_WORDS;
 use crate::device::{Address, Area, BitRef, Memory};
+use crate::value::{Space, Symbol, ValueType};
 
 /// Why a device cannot be forced.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
@@ -65,6 +66,17 @@ pub fn io_bit(address: &Address) -> Result<BitRef, ForceError> {
         (Area::P, Some(_)) => address.as_bit().map_err(|_| ForceError::NotAnIoBit(*address)),
         _ => Err(ForceError::NotAnIoBit(*address)),
     }
+}
+
+/// The P bit a Structured Text variable is, if it is one: a `BOOL` located at a P bit
+/// (`lamp AT %QX4.4 : BOOL` is P0044). Any other variable cannot be forced.
+pub fn variable_io_bit(symbol: &Symbol) -> Option<(Address, BitRef)> {
+    if symbol.ty != ValueType::Bool || symbol.at.space != Space::Bit {
+        return None;
+    }
+    let (word, bit) = (symbol.at.offset / 16, (symbol.at.offset % 16) as u8);
+    let address = Address { area: Area::P, number: word, bit: Some(bit) };
+    (word < P_WORDS).then(|| io_bit(&address).ok().map(|b| (address, b))).flatten()
 }
 
 impl Forces {
@@ -167,6 +179,26 @@ mod tests {
             assert_eq!(io_bit(&address), Err(ForceError::NotAnIoBit(address)), "{text}");
         }
         assert!(io_bit(&Address::parse("P127F").unwrap()).is_ok());
+    }
+
+    #[test]
+    fn a_bool_located_at_a_p_bit_is_that_bit() {
+        use crate::value::{Elem, Pointer};
+        let symbol = |ty: ValueType, space: Space, offset: u32| Symbol {
+            name: "main.x".into(),
+            ty,
+            at: Pointer { space, offset },
+            retain: false,
+            constant: false,
+        };
+        let lamp = symbol(ValueType::Bool, Space::Bit, 4 * 16 + 4);
+        assert_eq!(variable_io_bit(&lamp), Some((Address::parse("P0044").unwrap(), bit("P0044"))));
+        let last = symbol(ValueType::Bool, Space::Bit, P_WORDS * 16 - 1);
+        assert_eq!(variable_io_bit(&last).map(|(a, _)| a.to_string()), Some("P127F".into()));
+        // An M bit (the word after the P area), a BOOL in variable memory, a word.
+        assert_eq!(variable_io_bit(&symbol(ValueType::Bool, Space::Bit, P_WORDS * 16)), None);
+        assert_eq!(variable_io_bit(&symbol(ValueType::Bool, Space::Var, 0)), None);
+        assert_eq!(variable_io_bit(&symbol(ValueType::Signed(Elem::I16), Space::Word, 4)), None);
     }
 
     #[test]

@@ -358,6 +358,19 @@ impl Engine {
         }
     }
 
+    /// Writes a Structured Text variable from outside the program (the control socket):
+    /// `slot` as `elem` at `at`, as the program would store it (a located variable writes its
+    /// device words). Allocates nothing.
+    pub fn write_value(&mut self, at: crate::value::Pointer, elem: crate::value::Elem, slot: u64) {
+        self.vm.write_value(at, elem, slot);
+    }
+
+    /// Writes the `STRING[cap]` variable at `at` from outside the program, cut to `cap`
+    /// characters. Allocates nothing.
+    pub fn write_string(&mut self, at: crate::value::Pointer, cap: u32, chars: &[u8]) {
+        self.vm.write_string(at, cap, chars);
+    }
+
     /// Executes at most `max_steps` instructions: starts and preempts tasks, runs scans, END
     /// processing and I/O refresh.
     pub fn run<C: Clock>(

@@ -1,70 +1,227 @@
-//! Device requests: `get` reads devices from a snapshot captured after the request arrived, so
-//! that `set` then `get` shows the new value; `set` writes devices at the next scan boundary,
-//! all of one request at the same END. Also how a device is found in its word of the
-//! snapshot, which the debugger's device values use too.
+//! Device and variable requests: `get` reads devices and Structured Text variables from a
+//! snapshot captured after the request arrived, so that `set` then `get` shows the new value;
+//! `set` writes devices and variables at the next scan boundary, all of one request at the
+//! same END. Names are resolved against the running project (a new one from the moment a
+//! `load` is sent). Also how a device is found in its word of the snapshot, which the
+//! debugger's device values use too.
 
 use super::waiting::Then;
 use super::{failure, RequestHandler, MAX_GET};
-use crate::device::{Address, Area, Writer, WORD_VALUES};
-use crate::drivers::real_time::snapshot::Snapshot;
-use crate::drivers::real_time::{Applied, ControlCommand, WRITES_PER_COMMAND};
+use crate::device::{Address, Writer, WORD_VALUES};
+use crate::drivers::real_time::snapshot::{Snapshot, VarRead, MAX_READ_TEXT};
+use crate::drivers::real_time::{
+    Applied, ControlCommand, TextWrite, Write, MAX_TEXT_WRITE, WRITES_PER_COMMAND,
+};
+use crate::drivers::virtual_time::trace::push_json_value;
+use crate::project::{Project, Watched};
 use crate::services::control::ClientId;
-use plcd_ipc::{DeviceValue, ErrorKind as Kind, Failure, Reply, ResponseLine};
+use crate::value::{self, Symbol, ValueType};
+use plcd_ipc::{ErrorKind as Kind, Failure, NamedValue, Reply, ResponseLine, Value};
+
+/// What a `get` reads: a device, or one variable of an elementary type or a `STRING`.
+pub(super) enum Item {
+    Device(Address),
+    Variable(Symbol),
+}
+
+impl Item {
+    /// What the snapshot reads for a variable.
+    pub(super) fn var_read(&self) -> Option<VarRead> {
+        match self {
+            Item::Device(_) => None,
+            Item::Variable(symbol) => Some(var_read(symbol)),
+        }
+    }
+}
+
+fn var_read(symbol: &Symbol) -> VarRead {
+    match symbol.ty {
+        ValueType::String { cap } => {
+            VarRead::Text { at: symbol.at, cap: cap.min(MAX_TEXT_WRITE as u32) as u8 }
+        }
+        ref ty => VarRead::Value { at: symbol.at, elem: ty.elem() },
+    }
+}
+
+/// One write of a `set`, checked and typed.
+enum Pending {
+    Write(Write),
+    Text(Box<TextWrite>),
+}
 
 impl RequestHandler {
-    pub(super) fn get(&mut self, client: ClientId, devices: &[String]) -> Option<ResponseLine> {
-        if devices.is_empty() {
-            return Some(failure(Kind::Invalid, "name at least one device"));
+    pub(super) fn get(&mut self, client: ClientId, names: &[String]) -> Option<ResponseLine> {
+        if names.is_empty() {
+            return Some(failure(Kind::Invalid, "name at least one device or variable"));
         }
-        if devices.len() > MAX_GET {
-            return Some(failure(Kind::Invalid, format!("at most {MAX_GET} devices per get")));
+        let items = match resolve_reads(&self.running().project, names) {
+            Ok(items) => items,
+            Err(f) => return Some(ResponseLine::failure(f)),
+        };
+        if items.iter().any(|i| matches!(i, Item::Variable(_))) && self.loading() {
+            return Some(ResponseLine::failure(loading()));
         }
-        let mut parsed = Vec::with_capacity(devices.len());
-        for text in devices {
-            match parse_device(text) {
-                Ok(address) => parsed.push(address),
-                Err(f) => return Some(ResponseLine::failure(f)),
-            }
-        }
-        self.park_for_snapshot(client, Then::Values { devices: parsed })
+        self.park_for_snapshot(client, Then::Values { items })
     }
 
-    pub(super) fn set(&mut self, client: ClientId, writes: &[DeviceValue]) -> Option<ResponseLine> {
+    pub(super) fn set(&mut self, client: ClientId, writes: &[NamedValue]) -> Option<ResponseLine> {
         if writes.is_empty() {
             return Some(failure(Kind::Invalid, "name at least one DEVICE=VALUE"));
         }
-        let mut items = Vec::with_capacity(writes.len());
-        for DeviceValue { dev, value } in writes {
-            let address = match parse_device(dev) {
-                Ok(address) => address,
-                Err(f) => return Some(ResponseLine::failure(f)),
-            };
-            if !address.writable_by(Writer::Client) {
-                return Some(failure(
-                    Kind::Invalid,
-                    format!("{address} is a system device; the PLC maintains it"),
-                ));
+        let mut pending = Vec::with_capacity(writes.len());
+        {
+            let running = self.running();
+            for write in writes {
+                match checked_write(&running.project, write) {
+                    Ok(p) => pending.push(p),
+                    Err(f) => return Some(ResponseLine::failure(f)),
+                }
             }
-            if !WORD_VALUES.contains(value) {
-                return Some(failure(
-                    Kind::Invalid,
-                    format!("{address}={value}: a value is 16 bits ({WORD_VALUES:?})"),
-                ));
-            }
-            items.push((address, *value));
         }
-        let count = items.len();
-        let commands = items
-            .chunks(WRITES_PER_COMMAND)
-            .map(|chunk| {
-                let mut fixed =
-                    [(Address { area: Area::D, number: 0, bit: None }, 0); WRITES_PER_COMMAND];
-                fixed[..chunk.len()].copy_from_slice(chunk);
-                ControlCommand::Writes { items: fixed, len: chunk.len() }
-            })
-            .collect();
-        self.park(client, commands, Then::Written { count })
+        let variables = pending.iter().any(|p| !matches!(p, Pending::Write(Write::Device(..))));
+        if variables && self.loading() {
+            return Some(ResponseLine::failure(loading()));
+        }
+        let count = pending.len();
+        self.park(client, commands(pending), Then::Written { count })
     }
+
+    /// Whether a `load` is on its way to the scan thread: the running project is already the
+    /// new one, the engine not yet, so a variable's place is not known for sure.
+    pub(super) fn loading(&self) -> bool {
+        self.waiting.iter().any(|w| matches!(w.then, Then::Loaded { .. }))
+    }
+}
+
+/// The answer to a request that names variables while a `load` is under way.
+pub(super) fn loading() -> Failure {
+    Failure::new(Kind::Busy, "a load is under way; name variables again once it is answered")
+}
+
+/// Every device and variable `names` stand for, in order, a prefix expanded in place; at most
+/// [`MAX_GET`] of them, their `STRING`s within [`MAX_READ_TEXT`] characters, so that one
+/// capture holds all of them.
+pub(super) fn resolve_reads(project: &Project, names: &[String]) -> Result<Vec<Item>, Failure> {
+    let invalid = |message: String| Failure::new(Kind::Invalid, message);
+    let mut items = Vec::with_capacity(names.len());
+    let mut text = 0;
+    for name in names {
+        for watched in project.resolve(name).map_err(invalid)? {
+            let item = match watched {
+                Watched::Device(address) => Item::Device(address),
+                Watched::Variable(symbol) => Item::Variable(symbol),
+            };
+            text += item.var_read().map_or(0, |r| r.text_bytes());
+            items.push(item);
+        }
+        if items.len() > MAX_GET {
+            return Err(invalid(format!(
+                "at most {MAX_GET} devices and variables per get: `{}` brings them to {}; name \
+                 fewer, or parts of a structure",
+                name.trim(),
+                items.len()
+            )));
+        }
+        if text > MAX_READ_TEXT {
+            return Err(invalid(format!(
+                "the STRING variables of one get may hold at most {MAX_READ_TEXT} characters: \
+                 `{}` brings them to {text}",
+                name.trim()
+            )));
+        }
+    }
+    Ok(items)
+}
+
+/// One `{"dev","value"}` of a `set`, checked against the running project: a device takes a
+/// 16-bit integer and must be writable by a client; a variable takes a value of its type and
+/// must not be `CONSTANT`.
+fn checked_write(project: &Project, write: &NamedValue) -> Result<Pending, Failure> {
+    let invalid = |message: String| Failure::new(Kind::Invalid, message);
+    let name = write.dev.trim();
+    if let Ok(address) = Address::parse(name) {
+        if !address.writable_by(Writer::Client) {
+            return Err(invalid(format!("{address} is a system device; the PLC maintains it")));
+        }
+        let value = write.value.as_i64().and_then(|v| i32::try_from(v).ok());
+        return match value {
+            Some(value) if WORD_VALUES.contains(&value) => {
+                Ok(Pending::Write(Write::Device(address, value)))
+            }
+            _ => Err(invalid(format!(
+                "{address}={}: a device value is an integer of 16 bits ({WORD_VALUES:?})",
+                write.value
+            ))),
+        };
+    }
+    let symbol = match project.variable(name) {
+        Some(symbol) => symbol,
+        None => {
+            return Err(invalid(match project.resolve(name) {
+                Ok(leaves) => format!(
+                    "`{name}` holds {} variables: write them one by one (`{}`, …)",
+                    leaves.len(),
+                    leaves.first().map(Watched::name).unwrap_or_default()
+                ),
+                Err(e) => e,
+            }))
+        }
+    };
+    let ty = value::type_name(&symbol.ty);
+    if symbol.constant {
+        return Err(invalid(format!("{} is CONSTANT ({ty}): it cannot be written", symbol.name)));
+    }
+    let text = write.value.text();
+    let bad = |e: String| invalid(format!("{} ({ty}): {e}", symbol.name));
+    match symbol.ty {
+        ValueType::String { cap } => {
+            let chars = value::parse_string(&text, cap).map_err(bad)?;
+            let mut write = TextWrite {
+                at: symbol.at,
+                cap: cap.min(MAX_TEXT_WRITE as u32) as u8,
+                len: chars.len() as u8,
+                chars: [0; MAX_TEXT_WRITE],
+            };
+            write.chars[..chars.len()].copy_from_slice(&chars);
+            Ok(Pending::Text(Box::new(write)))
+        }
+        ref other => {
+            let slot = value::parse(other, &text).map_err(bad)?;
+            Ok(Pending::Write(Write::Value { at: symbol.at, elem: other.elem(), slot }))
+        }
+    }
+}
+
+/// The commands of one `set`, writes in request order: runs of elementary writes in
+/// [`ControlCommand::Writes`] of at most [`WRITES_PER_COMMAND`], each `STRING` in a
+/// [`ControlCommand::WriteText`]. They are queued together and applied at the same END.
+fn commands(pending: Vec<Pending>) -> Vec<ControlCommand> {
+    let mut commands = Vec::new();
+    let mut items = [Write::default(); WRITES_PER_COMMAND];
+    let mut len = 0;
+    for p in pending {
+        match p {
+            Pending::Write(write) => {
+                items[len] = write;
+                len += 1;
+                if len == WRITES_PER_COMMAND {
+                    commands.push(ControlCommand::Writes { items, len });
+                    len = 0;
+                }
+            }
+            Pending::Text(text) => {
+                if len > 0 {
+                    commands.push(ControlCommand::Writes { items, len });
+                    len = 0;
+                }
+                commands.push(ControlCommand::WriteText(*text));
+            }
+        }
+    }
+    if len > 0 {
+        commands.push(ControlCommand::Writes { items, len });
+    }
+    commands
 }
 
 /// The answer to an applied `set`.
@@ -72,16 +229,49 @@ pub(super) fn written(applied: Applied, count: usize) -> ResponseLine {
     ResponseLine::ok(Reply::Written { scan: applied.scan, count })
 }
 
-/// The answer to a `get`, from a capture that holds every device it names.
-pub(super) fn values(devices: &[Address], snapshot: &Snapshot) -> ResponseLine {
-    let values = devices
+/// Whether a capture holds everything `items` read.
+pub(super) fn captured(items: &[Item], snapshot: &Snapshot) -> bool {
+    items.iter().all(|item| match item {
+        Item::Device(d) => snapshot.word(word_of(d)).is_some(),
+        Item::Variable(symbol) => snapshot.has(&var_read(symbol)),
+    })
+}
+
+/// The answer to a `get`, from a capture that holds everything it reads.
+pub(super) fn values(items: &[Item], snapshot: &Snapshot) -> ResponseLine {
+    let values = items
         .iter()
-        .map(|d| DeviceValue {
-            dev: d.to_string(),
-            value: value_in(d, snapshot.word(word_of(d)).unwrap_or(0)),
+        .map(|item| match item {
+            Item::Device(d) => NamedValue::device(
+                d.to_string(),
+                value_in(d, snapshot.word(word_of(d)).unwrap_or(0)),
+            ),
+            Item::Variable(symbol) => variable_value(symbol, snapshot),
         })
         .collect();
     ResponseLine::ok(Reply::Values { scan: snapshot.scan.count, values })
+}
+
+/// A variable's value as the trace writes it (a number, 0/1, `"T#1s500ms"`, an enumeration
+/// value's name, a `STRING`'s characters), with its type.
+fn variable_value(symbol: &Symbol, snapshot: &Snapshot) -> NamedValue {
+    let value = match var_read(symbol) {
+        VarRead::Text { at, cap } => {
+            let chars = snapshot.text(at, cap).unwrap_or_default();
+            Value::Text(String::from_utf8_lossy(chars).into_owned())
+        }
+        VarRead::Value { at, elem } => {
+            json_value(&symbol.ty, snapshot.value(at, elem).unwrap_or(0))
+        }
+    };
+    NamedValue { dev: symbol.name.clone(), value, ty: Some(value::type_name(&symbol.ty)) }
+}
+
+/// A slot of `ty` as the protocol's value: the trace's JSON, read back.
+pub(super) fn json_value(ty: &ValueType, slot: u64) -> Value {
+    let mut json = String::new();
+    push_json_value(&mut json, ty, slot);
+    serde_json::from_str(&json).unwrap_or(Value::Text(json))
 }
 
 pub(super) fn parse_device(text: &str) -> Result<Address, Failure> {
@@ -106,6 +296,7 @@ pub(super) fn value_in(address: &Address, word: u16) -> i32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::value::Elem;
 
     #[test]
     fn bits_and_words_read_from_their_word() {
@@ -115,5 +306,180 @@ mod tests {
         let word = Address::parse("D00001").unwrap();
         assert_eq!(value_in(&word, 0xFFFF), -1);
         assert_eq!(word_of(&bit), word_of(&Address::parse("P004").unwrap()));
+    }
+
+    #[test]
+    fn variable_values_are_the_traces() {
+        let real = |x: f64| Value::Number(serde_json::Number::from_f64(x).unwrap());
+        assert_eq!(json_value(&ValueType::Bool, 1), Value::from(1));
+        assert_eq!(json_value(&ValueType::Signed(Elem::I16), 0xFFFF), Value::from(-1));
+        assert_eq!(json_value(&ValueType::Unsigned(Elem::U64), u64::MAX), Value::from(u64::MAX));
+        assert_eq!(json_value(&ValueType::Signed(Elem::I64), 1 << 63), Value::from(i64::MIN));
+        assert_eq!(json_value(&ValueType::Real(Elem::F32), 0.1f32.to_bits().into()), real(0.1));
+        assert_eq!(json_value(&ValueType::Real(Elem::F64), 1.0f64.to_bits()), real(1.0));
+        assert_eq!(
+            json_value(&ValueType::Real(Elem::F32), f32::NEG_INFINITY.to_bits().into()),
+            Value::from("-inf")
+        );
+        assert_eq!(json_value(&ValueType::Real(Elem::F64), f64::NAN.to_bits()), Value::from("NaN"));
+        assert_eq!(json_value(&ValueType::Time, 1_500_000_000), Value::from("T#1s500ms"));
+        let mode = ValueType::Enum {
+            type_name: "Mode".into(),
+            values: vec![("Idle".into(), 0), ("Running".into(), 5)],
+        };
+        assert_eq!(json_value(&mode, 5), Value::from("Running"));
+        // As the trace writes it today (docs/ST.md says a JSON number).
+        assert_eq!(json_value(&mode, 7), Value::from("7"));
+    }
+
+    /// The handler without a scan thread: the test takes its commands and answers them.
+    struct Bench {
+        handler: RequestHandler,
+        commands: rtrb::Consumer<crate::drivers::real_time::Command>,
+        completions: rtrb::Producer<crate::drivers::real_time::Completion>,
+        dir: std::path::PathBuf,
+    }
+
+    impl Drop for Bench {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.dir);
+        }
+    }
+
+    const MAIN: &str = "PROGRAM Main\nVAR\n    speed : INT;\n    s : STRING[4];\n\
+        pos AT %D00200 : DINT;\n    flag : BOOL;\nEND_VAR\nVAR CONSTANT\n    k : INT := 3;\n\
+        END_VAR\n    speed := speed + 1;\nEND_PROGRAM\n";
+
+    fn bench(name: &str) -> Bench {
+        use crate::drivers::real_time::{Command, Completion, Shared};
+        use std::sync::{Arc, Mutex};
+        let dir = std::env::temp_dir().join(format!("plcd-requests-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let config = "[[program]]\nname = \"main\"\nfile = \"main.st\"\n";
+        std::fs::write(dir.join("plcd.toml"), config).unwrap();
+        std::fs::write(dir.join("main.st"), MAIN).unwrap();
+        let project = crate::files::project(&dir.join("plcd.toml")).unwrap();
+        let (producer, commands) = rtrb::RingBuffer::<Command>::new(64);
+        let (completions, consumer) = rtrb::RingBuffer::<Completion>::new(64);
+        let links = super::super::RequestLinks {
+            shared: Arc::new(Shared::new().unwrap()),
+            commands: Arc::new(Mutex::new(producer)),
+            completions: consumer,
+            snapshot: Arc::new(Mutex::new(Snapshot::new())),
+            running: Arc::new(Mutex::new(super::super::Running::new(
+                &dir.join("plcd.toml"),
+                project,
+            ))),
+        };
+        Bench { handler: RequestHandler::new(links), commands, completions, dir }
+    }
+
+    fn failure_of(answer: Option<ResponseLine>) -> Failure {
+        match answer.map(|a| a.outcome) {
+            Some(plcd_ipc::Outcome::Error(f)) => f,
+            other => panic!("not a failure: {other:?}"),
+        }
+    }
+
+    fn set(dev: &str, value: &str) -> plcd_ipc::Request {
+        plcd_ipc::Request::Set { writes: vec![NamedValue::write(dev, Value::from(value))] }
+    }
+
+    #[test]
+    fn a_set_is_typed_and_checked_before_anything_is_queued() {
+        use crate::drivers::real_time::Command;
+        let mut b = bench("set");
+        let f = failure_of(b.handler.handle(1, set("main.k", "1")));
+        assert_eq!(
+            (f.kind, f.message.as_str()),
+            (Kind::Invalid, "main.k is CONSTANT (INT): it cannot be written")
+        );
+        let f = failure_of(b.handler.handle(1, set("main.speed", "1.5")));
+        assert_eq!(f.message, "main.speed (INT): `1.5` is not an integer");
+        let f = failure_of(b.handler.handle(1, set("D00010", "x")));
+        assert!(
+            f.message.starts_with("D00010=x: a device value is an integer of 16 bits"),
+            "{}",
+            f.message
+        );
+        assert!(b.commands.pop().is_err(), "nothing queued");
+
+        // A located DINT is one typed write at its device word; a STRING a command of its own,
+        // in request order, all pushed together.
+        let writes = vec![
+            NamedValue::write("MAIN.POS", Value::from(0x1234_5678)),
+            NamedValue::write("main.s", Value::from("'a$'b'")),
+            NamedValue::device("D00010", 7),
+        ];
+        assert!(b.handler.handle(1, plcd_ipc::Request::Set { writes }).is_none(), "parked");
+        let d200 = Address::parse("D00200").unwrap().as_word().unwrap().0;
+        let Ok(Command::Control(_, ControlCommand::Writes { items, len: 1 })) = b.commands.pop()
+        else {
+            panic!("the DINT first")
+        };
+        assert_eq!(
+            items[0],
+            Write::Value {
+                at: value::Pointer { space: value::Space::Word, offset: u32::from(d200) },
+                elem: value::Elem::I32,
+                slot: 0x1234_5678
+            }
+        );
+        let Ok(Command::Control(_, ControlCommand::WriteText(text))) = b.commands.pop() else {
+            panic!("then the STRING")
+        };
+        assert_eq!((&text.chars[..usize::from(text.len)], text.cap), (&b"a'b"[..], 4));
+        let Ok(Command::Control(_, ControlCommand::Writes { items, len: 1 })) = b.commands.pop()
+        else {
+            panic!("then the device")
+        };
+        assert_eq!(items[0], Write::Device(Address::parse("D00010").unwrap(), 7));
+        let _ = &b.completions;
+    }
+
+    #[test]
+    fn names_wait_for_a_load_under_way() {
+        use crate::drivers::real_time::{Command, Completion};
+        use crate::engine::event::Mode;
+        let mut b = bench("loading");
+        let renamed = MAIN.replace("speed", "velocity");
+        std::fs::write(b.dir.join("main2.st"), renamed).unwrap();
+        let config = "[[program]]\nname = \"main\"\nfile = \"main2.st\"\n";
+        std::fs::write(b.dir.join("new.toml"), config).unwrap();
+        let new = b.dir.join("new.toml").to_str().unwrap().to_string();
+        let load = plcd_ipc::Request::Load { config: new, online: false };
+        assert!(b.handler.handle(1, load).is_none(), "the load waits for the scan thread");
+        let get = |names: &[&str]| plcd_ipc::Request::Get {
+            devices: names.iter().map(|n| n.to_string()).collect(),
+        };
+        // Devices go on; variables wait for the new engine.
+        assert!(b.handler.handle(2, get(&["D00010"])).is_none());
+        for request in [get(&["main.velocity"]), set("main.velocity", "1")] {
+            let f = failure_of(b.handler.handle(3, request));
+            assert_eq!(f.kind, Kind::Busy, "{}", f.message);
+        }
+        let f = failure_of(
+            b.handler.handle(3, plcd_ipc::Request::Force { dev: "main.flag".into(), value: 1 }),
+        );
+        assert_eq!(f.kind, Kind::Busy);
+        // The scan thread takes the load: names resolve against the new project.
+        let Ok(Command::Control(ticket, ControlCommand::Load(_))) = b.commands.pop() else {
+            panic!("the load")
+        };
+        let applied = Applied { mode: Mode::Stop, scan: 0, changed: true };
+        assert!(b.completions.push(Completion { ticket, result: Ok(applied) }).is_ok());
+        let mut ready = Vec::new();
+        b.handler.collect_answers(&mut ready);
+        assert_eq!(ready.len(), 1, "the load is answered");
+        assert!(b.handler.handle(4, get(&["main.velocity"])).is_none(), "parked for a capture");
+        let f = failure_of(b.handler.handle(5, get(&["main.speed"])));
+        assert_eq!(f.message, "no device or variable `main.speed`", "nothing close");
+        let f = failure_of(
+            b.handler.handle(5, plcd_ipc::Request::Force { dev: "main.flag".into(), value: 1 }),
+        );
+        assert_eq!(
+            f.message,
+            "main.flag is not an I/O bit: only P bits, or BOOL variables located at one, can be forced"
+        );
     }
 }

@@ -11,10 +11,12 @@
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
-use super::devices::{self, word_of};
+use super::devices::{self, word_of, Item};
 use super::{debugger, failure, forces, mode, RequestHandler, Running, ANSWER_TIMEOUT, STEP_POLL};
 use crate::device::Address;
-use crate::drivers::real_time::snapshot::MAX_READ_WORDS;
+use crate::drivers::real_time::snapshot::{
+    VarRead, MAX_READ_TEXT, MAX_READ_VALUES, MAX_READ_WORDS,
+};
 use crate::drivers::real_time::{pending, Applied, Command, Completion, ControlCommand};
 use crate::engine::Refusal;
 use crate::services::control::ClientId;
@@ -42,8 +44,10 @@ pub(super) enum Then {
     Written {
         count: usize,
     },
+    /// `unforced`: the bit an `unforce` names, as its answer shows it (`P0040`,
+    /// `main.lamp (P0040)`).
     Forces {
-        unforced: Option<Address>,
+        unforced: Option<String>,
     },
     /// `until_paused`: `step` answers once the step is done (execution paused again).
     Debug {
@@ -53,7 +57,7 @@ pub(super) enum Then {
     },
     Status,
     Values {
-        devices: Vec<Address>,
+        items: Vec<Item>,
     },
     Loaded {
         online: bool,
@@ -64,12 +68,37 @@ pub(super) enum Then {
 }
 
 impl Then {
-    /// The devices the answer reads from the snapshot.
-    fn devices(&self) -> &[Address] {
+    /// The device words the answer reads from the snapshot.
+    fn words(&self) -> Vec<u16> {
         match self {
-            Then::Values { devices } => devices,
-            Then::Debug { devices: Some(devices), .. } => devices,
-            _ => &[],
+            Then::Values { items } => items
+                .iter()
+                .filter_map(|i| match i {
+                    Item::Device(d) => Some(word_of(d)),
+                    Item::Variable(_) => None,
+                })
+                .collect(),
+            Then::Debug { devices: Some(devices), .. } => devices.iter().map(word_of).collect(),
+            _ => Vec::new(),
+        }
+    }
+
+    /// The variables the answer reads from the snapshot.
+    fn var_reads(&self) -> Vec<VarRead> {
+        match self {
+            Then::Values { items } => items.iter().filter_map(Item::var_read).collect(),
+            _ => Vec::new(),
+        }
+    }
+
+    /// Whether `snapshot` holds everything the answer reads.
+    fn captured(&self, snapshot: &crate::drivers::real_time::snapshot::Snapshot) -> bool {
+        match self {
+            Then::Values { items } => devices::captured(items, snapshot),
+            Then::Debug { devices: Some(devices), .. } => {
+                devices.iter().all(|d| snapshot.word(word_of(d)).is_some())
+            }
+            _ => true,
         }
     }
 }
@@ -85,22 +114,26 @@ pub(super) enum Outcome {
 }
 
 impl RequestHandler {
-    /// Queues control commands; their tickets, or `busy` when the queue is full.
+    /// Queues control commands, all in one chunk so that the scan thread takes all of them in
+    /// the same pass (the writes of one `set` at the same END); their tickets, or `busy` when
+    /// the queue has no room for all.
     pub(super) fn send(&mut self, commands: Vec<ControlCommand>) -> Result<Vec<u64>, Failure> {
         let busy = || Failure::new(Kind::Busy, "the command queue is full; try again");
         let mut queue = self.links.commands.lock().unwrap_or_else(|e| e.into_inner());
-        if queue.slots() < commands.len() {
+        let count = commands.len();
+        let Ok(chunk) = queue.write_chunk_uninit(count) else {
             return Err(busy());
-        }
-        let mut tickets = Vec::with_capacity(commands.len());
-        for command in commands {
-            let ticket = self.next_ticket;
-            self.next_ticket += 1;
-            if queue.push(Command::Control(ticket, command)).is_err() {
-                return Err(busy());
-            }
-            tickets.push(ticket);
-        }
+        };
+        let first = self.next_ticket;
+        self.next_ticket += count as u64;
+        let tickets: Vec<u64> = (first..first + count as u64).collect();
+        let pushed = chunk.fill_from_iter(
+            tickets
+                .iter()
+                .zip(commands)
+                .map(|(&ticket, command)| Command::Control(ticket, command)),
+        );
+        debug_assert_eq!(pushed, count);
         drop(queue);
         self.links.shared.signal(pending::COMMAND);
         Ok(tickets)
@@ -150,21 +183,31 @@ impl RequestHandler {
         self.links.snapshot.lock().map(|s| s.generation).unwrap_or(0)
     }
 
-    /// Asks for a capture of every word the waiting requests need.
+    /// Asks for a capture of every word and variable the waiting requests need, as many as
+    /// one capture holds (the others at the next: a request is answered from a capture that
+    /// holds all it reads, and one request alone always fits).
     fn want_snapshot(&mut self) {
         self.last_want = Instant::now();
         if let Ok(mut snapshot) = self.links.snapshot.lock() {
-            let mut len = 0;
+            let (mut len, mut vars, mut text) = (0, 0, 0);
             for waiting in &self.waiting {
-                for device in waiting.then.devices() {
-                    let word = word_of(device);
+                for word in waiting.then.words() {
                     if !snapshot.want[..len].contains(&word) && len < MAX_READ_WORDS {
                         snapshot.want[len] = word;
                         len += 1;
                     }
                 }
+                for read in waiting.then.var_reads() {
+                    let fits = vars < MAX_READ_VALUES && text + read.text_bytes() <= MAX_READ_TEXT;
+                    if fits && !snapshot.want_vars[..vars].contains(&read) {
+                        snapshot.want_vars[vars] = read;
+                        vars += 1;
+                        text += read.text_bytes();
+                    }
+                }
             }
             snapshot.want_len = len;
+            snapshot.want_vars_len = vars;
         }
         self.links.shared.snapshot_wanted.store(true, Ordering::Release);
         self.links.shared.signal(pending::COMMAND);
@@ -245,8 +288,8 @@ impl RequestHandler {
             Then::Loaded { online, programs, tasks, .. } => {
                 self.loaded(online, programs, tasks, applied)
             }
-            Then::Forces { unforced: Some(address) } if !applied.changed => {
-                forces::not_forced(&address)
+            Then::Forces { unforced: Some(shown) } if !applied.changed => {
+                forces::not_forced(&shown)
             }
             Then::Debug { unbroken: Some(at), .. } if !applied.changed => {
                 debugger::no_breakpoint(&at)
@@ -281,8 +324,7 @@ impl RequestHandler {
                 index += 1;
                 continue;
             }
-            let needs = self.waiting[index].then.devices();
-            if needs.iter().any(|d| snapshot.word(word_of(d)).is_none()) {
+            if !self.waiting[index].then.captured(&snapshot) {
                 // Another request's words filled the capture: next round.
                 self.waiting[index].stage = Stage::Snapshot { after: generation };
                 again = true;
@@ -295,7 +337,7 @@ impl RequestHandler {
                 Then::Status => Outcome::Answer(ResponseLine::ok(Reply::Status(Box::new(
                     self.status(&snapshot),
                 )))),
-                Then::Values { devices } => Outcome::Answer(devices::values(&devices, &snapshot)),
+                Then::Values { items } => Outcome::Answer(devices::values(&items, &snapshot)),
                 Then::Forces { .. } => Outcome::Answer(forces::table(&snapshot)),
                 Then::Debug { unbroken, devices, until_paused } => {
                     self.debug_outcome(unbroken, devices, until_paused, &snapshot)

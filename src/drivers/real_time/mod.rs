@@ -51,6 +51,7 @@ use crate::engine::Engine;
 use crate::engine::{ModeRequest, Refusal};
 use crate::io::faults::FieldFaults;
 use crate::io::SwitchPosition;
+use crate::value::{Elem, Pointer};
 use crate::vm::Clock;
 use sys::{SysError, Wake};
 
@@ -71,6 +72,8 @@ pub const COMPLETION_QUEUE: usize = COMMAND_QUEUE;
 /// Writes one control command carries; a longer `set` is split over several commands that
 /// are applied at the same END.
 pub const WRITES_PER_COMMAND: usize = 16;
+/// The longest `STRING` a [`TextWrite`] carries: `STRING[255]`, the longest there is.
+pub const MAX_TEXT_WRITE: usize = 255;
 
 /// Flags of [`Shared::pending`].
 pub mod pending {
@@ -129,14 +132,45 @@ pub struct WordWrites {
     pub items: [WordWrite; WORDS_PER_COMMAND],
 }
 
+/// One write of a control `set`: a device, or a Structured Text variable of an elementary
+/// type (a located one writes its device words: a `DINT` at D00200 both D00200 and D00201).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Write {
+    Device(Address, i32),
+    /// `slot` stored as `elem` at `at`, as the VM stores it.
+    Value {
+        at: Pointer,
+        elem: Elem,
+        slot: u64,
+    },
+}
+
+impl Default for Write {
+    fn default() -> Write {
+        Write::Value { at: Pointer::DISCARD, elem: Elem::Bool, slot: 0 }
+    }
+}
+
+/// The characters a `STRING[cap]` variable is set to (the first `len` of `chars`, at most
+/// `cap`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TextWrite {
+    pub at: Pointer,
+    pub cap: u8,
+    pub len: u8,
+    pub chars: [u8; MAX_TEXT_WRITE],
+}
+
 /// What the control socket asks of the scan thread.
 pub enum ControlCommand {
     Mode(ModeRequest),
-    /// Device writes (the first `len`), applied together.
+    /// Device and variable writes (the first `len`), applied together, in order.
     Writes {
-        items: [(Address, i32); WRITES_PER_COMMAND],
+        items: [Write; WRITES_PER_COMMAND],
         len: usize,
     },
+    /// A `STRING` variable written; the commands of one `set` are applied at the same END.
+    WriteText(TextWrite),
     Force(BitRef, bool),
     Unforce(BitRef),
     UnforceAll,

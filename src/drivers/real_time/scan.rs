@@ -10,7 +10,7 @@ use super::snapshot::Snapshot;
 use super::sys::{self, Timer};
 use super::{
     mode_code, pending, Applied, Command, Completion, ControlCommand, Monotonic, Report, Shared,
-    Source, SLICE_STEPS,
+    Source, Write, SLICE_STEPS,
 };
 use crate::engine::event::{Event, EventSink, Mode};
 use crate::engine::{Activity, Engine, Refusal};
@@ -273,9 +273,16 @@ impl ScanThread {
                 engine.request_mode(request, now, &mut self.io, &mut sink)?;
             }
             ControlCommand::Writes { items, len } => {
-                for (address, value) in &items[..len.min(items.len())] {
-                    engine.write(address, *value);
+                for write in &items[..len.min(items.len())] {
+                    match *write {
+                        Write::Device(address, value) => engine.write(&address, value),
+                        Write::Value { at, elem, slot } => engine.write_value(at, elem, slot),
+                    }
                 }
+            }
+            ControlCommand::WriteText(text) => {
+                let len = usize::from(text.len.min(text.cap));
+                engine.write_string(text.at, u32::from(text.cap), &text.chars[..len]);
             }
             ControlCommand::Force(bit, on) => engine.force(bit, on, &self.io),
             ControlCommand::Unforce(bit) => changed = engine.unforce(bit),

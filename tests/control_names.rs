@@ -1,0 +1,411 @@
+//! `plcctl get`, `set`, `watch`, `force` and `unforce` by Structured Text variable name, against
+//! a real daemon on the sim backend: every kind of value read and written back, located
+//! variables as their devices, the refusals (CONSTANT, out of range, bad syntax, a structure, an
+//! unknown name, a variable that is no I/O bit), the writes of one `set` at one END, and names
+//! resolved against a project loaded online.
+//!
+//! Real time is only waited on, never asserted: `set` answers once its writes are applied and
+//! `get` from a capture taken after the request, so a value written is read back at once; only
+//! what the program itself does (a forced input copied to an output) is waited for.
+
+mod harness;
+
+use std::io::{BufRead, BufReader, Write};
+use std::os::unix::net::UnixStream;
+use std::process::Output;
+use std::time::Duration;
+
+use harness::daemon::{Daemon, Project};
+use serde_json::{json, Value};
+
+const PATIENCE: Duration = Duration::from_secs(10);
+
+const CONFIG: &str = "[plc]\nscan_period_ms = 1\nwatchdog_ms = 100\n\
+    [[program]]\nname = \"main\"\nfile = \"main.st\"\n\
+    [st]\nlibrary = [\"types.st\"]\n\
+    [control]\nsocket = \"plcd.sock\"\n";
+
+const TYPES: &str = "\
+TYPE
+    Mode : (Idle, Running := 5, Fault);
+    Axis : STRUCT
+        pos : REAL;
+        homed : BOOL;
+    END_STRUCT;
+END_TYPE
+VAR_GLOBAL
+    Total_Parts : DINT := 12;
+END_VAR
+";
+
+/// `lamp` copies the input `inp`; `scans` counts; `torn` counts the scans that saw the twenty
+/// elements of `same` differ (the writes of one `set` split over two ENDs).
+const MAIN: &str = "\
+PROGRAM Main
+VAR
+    Speed : INT := 7;
+    big : LINT;
+    u : ULINT;
+    r : REAL := 1.5;
+    lr : LREAL;
+    flag : BOOL := TRUE;
+    t : TIME := T#1s500ms;
+    s : STRING[20] := 'hi';
+    mode : Mode := Running;
+    buf : ARRAY [1..4] OF INT := [10, 20, 30, 40];
+    m : ARRAY [1..2, 1..2] OF DINT;
+    axis : Axis;
+    t1 : TON;
+    lamp AT %QX4.0 : BOOL;
+    inp AT %IX0.1 : BOOL;
+    pos AT %D00200 : DINT;
+    same : ARRAY [1..20] OF INT;
+    scans : DINT;
+    torn : DINT;
+    i : INT;
+END_VAR
+VAR CONSTANT
+    kmax : INT := 10;
+END_VAR
+    scans := scans + 1;
+    lamp := inp;
+    FOR i := 2 TO 20 DO
+        IF same[i] <> same[1] THEN
+            torn := torn + 1;
+        END_IF;
+    END_FOR;
+END_PROGRAM
+";
+
+struct Plc {
+    daemon: Daemon,
+    project: Project,
+}
+
+impl Plc {
+    fn start(name: &str) -> Plc {
+        let project = Project::new(
+            &format!("names-{name}"),
+            &[("plcd.toml", CONFIG), ("types.st", TYPES), ("main.st", MAIN)],
+        );
+        let daemon = project.start().with_patience(PATIENCE);
+        let plc = Plc { daemon, project };
+        plc.daemon.wait_for("control socket");
+        plc.daemon.wait("RUN", || plc.json(&["status"])["mode"] == "RUN");
+        plc
+    }
+
+    fn ctl(&self, args: &[&str]) -> Output {
+        self.project.plcctl(args)
+    }
+
+    fn ok(&self, args: &[&str]) -> String {
+        let out = self.ctl(args);
+        let text = String::from_utf8_lossy(&out.stdout).into_owned();
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "plcctl {args:?}: {text}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        text
+    }
+
+    fn json(&self, args: &[&str]) -> Value {
+        let mut all = vec!["--json"];
+        all.extend_from_slice(args);
+        serde_json::from_str(&self.ok(&all)).unwrap()
+    }
+
+    /// `get` of names: the `values` array.
+    fn values(&self, names: &[&str]) -> Vec<Value> {
+        let mut args = vec!["get"];
+        args.extend_from_slice(names);
+        self.json(&args)["values"].as_array().unwrap().clone()
+    }
+
+    /// The value of one name.
+    fn get(&self, name: &str) -> Value {
+        self.values(&[name])[0]["value"].clone()
+    }
+
+    /// `plcctl ARGS` that must fail with the daemon's error; its message.
+    fn refused(&self, args: &[&str]) -> String {
+        let out = self.ctl(args);
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert_eq!(out.status.code(), Some(1), "plcctl {args:?} must fail: {err}");
+        err
+    }
+
+    /// One raw request line; its answer.
+    fn raw(&self, request: &Value) -> Value {
+        let mut stream = UnixStream::connect(self.project.socket()).unwrap();
+        stream.set_read_timeout(Some(PATIENCE)).unwrap();
+        stream.write_all(format!("{request}\n").as_bytes()).unwrap();
+        let mut line = String::new();
+        BufReader::new(stream).read_line(&mut line).unwrap();
+        serde_json::from_str(&line).unwrap()
+    }
+
+    fn stop(self) {
+        let (code, log) = self.daemon.stop();
+        assert_eq!(code, 0, "clean stop:\n{}", log.join("\n"));
+    }
+}
+
+#[test]
+fn get_and_set_every_kind_of_variable_by_name() {
+    let plc = Plc::start("types");
+
+    // Initial values, typed as the trace writes them; names case-insensitive, answered with the
+    // declaration's spelling.
+    let values = plc.values(&[
+        "MAIN.speed",
+        "main.r",
+        "main.flag",
+        "main.t",
+        "main.s",
+        "main.mode",
+        "main.buf[3]",
+        "main.m[1,2]",
+        "total_parts",
+        "D00000",
+    ]);
+    let pairs: Vec<(String, Value, Value)> = values
+        .iter()
+        .map(|v| (v["dev"].as_str().unwrap().to_string(), v["value"].clone(), v["type"].clone()))
+        .collect();
+    let expected = [
+        ("main.Speed", json!(7), json!("INT")),
+        ("main.r", json!(1.5), json!("REAL")),
+        ("main.flag", json!(1), json!("BOOL")),
+        ("main.t", json!("T#1s500ms"), json!("TIME")),
+        ("main.s", json!("hi"), json!("STRING[20]")),
+        ("main.mode", json!("Running"), json!("Mode")),
+        ("main.buf[3]", json!(30), json!("INT")),
+        ("main.m[1,2]", json!(0), json!("DINT")),
+        ("Total_Parts", json!(12), json!("DINT")),
+        ("D00000", json!(0), Value::Null),
+    ];
+    for (got, (dev, value, ty)) in pairs.iter().zip(expected) {
+        assert_eq!(got, &(dev.to_string(), value, ty), "{values:?}");
+    }
+    // A prefix stands for every variable under it, in place.
+    let axis = plc.values(&["main.axis", "main.speed"]);
+    let names: Vec<&str> = axis.iter().map(|v| v["dev"].as_str().unwrap()).collect();
+    assert_eq!(names, ["main.axis.pos", "main.axis.homed", "main.Speed"]);
+    let timer = plc.values(&["main.t1"]);
+    assert!(timer.iter().any(|v| v["dev"] == "main.t1.ET" && v["value"] == "T#0s"), "{timer:?}");
+    assert!(timer.iter().all(|v| v["dev"].as_str().unwrap().starts_with("main.t1.")));
+    // A comma list, split outside brackets.
+    assert_eq!(plc.values(&["main.m[1,2],main.buf[1]"]).len(), 2);
+
+    // Every type written in one request, at one END, read back.
+    let written = plc.ok(&[
+        "set",
+        "main.speed",
+        "-5",
+        "main.big=-9223372036854775808",
+        "main.u",
+        "18446744073709551615",
+        "main.r",
+        "0.1",
+        "main.lr=1e300",
+        "main.flag",
+        "FALSE",
+        "main.t",
+        "T#2s",
+        "main.s",
+        "'it$'s'",
+        "main.mode",
+        "fault",
+        "main.buf[2]",
+        "99",
+        "main.m[2,1]=-3",
+        "main.axis.pos",
+        "2.5",
+        "total_parts",
+        "16#10",
+    ]);
+    assert!(written.starts_with("13 writes applied at the END of scan "), "{written}");
+    let got: Vec<Value> = plc
+        .values(&[
+            "main.speed",
+            "main.big",
+            "main.u",
+            "main.r",
+            "main.lr",
+            "main.flag",
+            "main.t",
+            "main.s",
+            "main.mode",
+            "main.buf[2]",
+            "main.m[2,1]",
+            "main.axis.pos",
+            "total_parts",
+        ])
+        .iter()
+        .map(|v| v["value"].clone())
+        .collect();
+    assert_eq!(
+        got,
+        [
+            json!(-5),
+            json!(i64::MIN),
+            json!(u64::MAX),
+            json!(0.1),
+            json!(1e300),
+            json!(0),
+            json!("T#2s"),
+            json!("it's"),
+            json!("Fault"),
+            json!(99),
+            json!(-3),
+            json!(2.5),
+            json!(16),
+        ]
+    );
+    // The human form: a STRING as a literal, the type beside the value.
+    let human = plc.ok(&["get", "main.s", "main.t", "D00000"]);
+    let lines: Vec<&str> = human.lines().collect();
+    assert_eq!(
+        lines[0].split_whitespace().collect::<Vec<_>>(),
+        ["main.s", "'it$'s'", "STRING[20]"]
+    );
+    assert_eq!(lines[1].split_whitespace().collect::<Vec<_>>(), ["main.t", "T#2s", "TIME"]);
+    assert_eq!(lines[2].split_whitespace().next(), Some("D00000"));
+
+    // JSON numbers and strings from a client other than plcctl; a non-finite real.
+    let answer = plc.raw(&json!({"v": 1, "cmd": "set", "writes": [
+        {"dev": "main.r", "value": 2.25}, {"dev": "main.speed", "value": -4},
+        {"dev": "main.lr", "value": "-inf"}, {"dev": "D00010", "value": 9}]}));
+    assert_eq!(answer["ok"]["count"], 4, "{answer}");
+    assert_eq!(plc.get("main.r"), json!(2.25));
+    assert_eq!(plc.get("main.speed"), json!(-4));
+    assert_eq!(plc.get("main.lr"), json!("-inf"));
+    assert_eq!(plc.get("D00010"), json!(9));
+
+    // A located DINT is its two D words, low word first.
+    plc.ok(&["set", "main.pos", "16#12345678"]);
+    assert_eq!(
+        plc.values(&["D00200", "D00201"]).iter().map(|v| v["value"].clone()).collect::<Vec<_>>(),
+        [json!(0x5678), json!(0x1234)]
+    );
+    plc.ok(&["set", "D00200=1", "D00201=0"]);
+    assert_eq!(plc.get("main.pos"), json!(1));
+
+    // `watch` by name.
+    let watched = plc.ok(&["watch", "--count", "2", "--interval", "10ms", "main.t", "main.s"]);
+    assert_eq!(watched.lines().count(), 2, "{watched}");
+    assert!(watched.lines().all(|l| l.contains("main.t=T#2s") && l.contains("main.s='it$'s'")));
+
+    // Refusals: nothing of a refused request is written.
+    let before = plc.get("main.speed");
+    let err = plc.refused(&["set", "main.speed", "1", "main.kmax", "1"]);
+    assert!(err.contains("main.kmax is CONSTANT (INT): it cannot be written"), "{err}");
+    assert_eq!(plc.get("main.speed"), before);
+    let err = plc.refused(&["set", "main.speed", "70000"]);
+    assert!(err.contains("main.Speed (INT): `70000` is out of range for INT"), "{err}");
+    let err = plc.refused(&["set", "main.t", "5"]);
+    assert!(err.contains("main.t (TIME)") && err.contains("is not a TIME"), "{err}");
+    let err = plc.refused(&["set", "main.mode", "Walking"]);
+    assert!(err.contains("is not a value of Mode (Idle, Running, Fault)"), "{err}");
+    let err = plc.refused(&["set", "main.s", "123456789012345678901"]);
+    assert!(err.contains("21 characters do not fit in a STRING[20]"), "{err}");
+    let err = plc.refused(&["set", "main.axis", "1"]);
+    assert!(err.contains("`main.axis` holds 2 variables"), "{err}");
+    let err = plc.refused(&["set", "main.buf[5]", "1"]);
+    assert!(err.contains("no device or variable `main.buf[5]`"), "{err}");
+    let err = plc.refused(&["get", "main.spede"]);
+    assert!(
+        err.contains("no device or variable `main.spede` (did you mean `main.Speed`?)"),
+        "{err}"
+    );
+    let err = plc.refused(&["get", "D99999"]);
+    assert!(err.contains("out of range"), "{err}");
+    let out = plc.ctl(&["set", "main.speed"]);
+    assert_eq!(out.status.code(), Some(2), "a name without its value is a usage error");
+    plc.stop();
+}
+
+#[test]
+fn the_writes_of_one_set_land_at_one_end() {
+    let plc = Plc::start("one-end");
+    // Twenty elements (two commands of writes) and a STRING between them, twenty times over;
+    // a scan that saw them differ counts in `torn`.
+    for round in 1..=20 {
+        let mut args: Vec<String> = vec!["set".into()];
+        for i in 1..=20 {
+            args.push(format!("main.same[{i}]={round}"));
+            if i == 10 {
+                args.push(format!("main.s=round {round}"));
+            }
+        }
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        assert!(plc.ok(&args).starts_with("21 writes"));
+    }
+    assert_eq!(plc.get("main.same[20]"), json!(20));
+    assert_eq!(plc.get("main.s"), json!("round 20"));
+    assert_eq!(plc.get("main.torn"), json!(0), "every set applied at one END");
+    // The check itself sees a partial write.
+    plc.ok(&["set", "main.same[1]=99"]);
+    plc.daemon.wait("a scan that sees the elements differ", || plc.get("main.torn") != json!(0));
+    plc.stop();
+}
+
+#[test]
+fn force_by_name_and_names_of_a_new_project() {
+    let plc = Plc::start("force");
+    // A BOOL located at a P bit is that bit.
+    let forced = plc.json(&["force", "main.inp", "1"]);
+    assert_eq!(forced["forces"], json!([{"dev": "P0001", "value": 1}]));
+    plc.daemon.wait("the forced input copied to the lamp", || plc.get("main.lamp") == json!(1));
+    assert_eq!(plc.get("P0040"), json!(1));
+    assert_eq!(plc.get("main.inp"), json!(1));
+    plc.ok(&["unforce", "MAIN.INP"]);
+    let err = plc.refused(&["unforce", "main.inp"]);
+    assert!(err.contains("main.inp (P0001) is not forced"), "{err}");
+    // Forcing the output itself by its name.
+    plc.ok(&["force", "main.lamp=0"]);
+    plc.ok(&["force", "main.inp=1"]);
+    assert_eq!(
+        plc.json(&["forces"])["forces"],
+        json!([{"dev": "P0001", "value": 1}, {"dev": "P0040", "value": 0}])
+    );
+    plc.ok(&["unforce", "--all"]);
+
+    for (name, shown) in
+        [("main.flag", "main.flag"), ("main.pos", "main.pos"), ("main.axis", "main.axis")]
+    {
+        let err = plc.refused(&["force", name, "1"]);
+        assert!(
+            err.contains(&format!(
+                "{shown} is not an I/O bit: only P bits, or BOOL variables located at one, can be forced"
+            )),
+            "{err}"
+        );
+    }
+    let err = plc.refused(&["force", "main.lampp", "1"]);
+    assert!(
+        err.contains("no device or variable `main.lampp` (did you mean `main.lamp`?)"),
+        "{err}"
+    );
+
+    // An online change: names resolve against the new project, kept variables keep their
+    // values, a new one starts from its initial value.
+    plc.ok(&["set", "main.speed", "42"]);
+    let dir = plc.project.dir.path().to_path_buf();
+    let changed = MAIN
+        .replace("    i : INT;\n", "    i : INT;\n    extra : INT := 5;\n")
+        .replace("    Speed : INT := 7;\n", "    Speed : INT := 7;\n    gone_soon : BOOL;\n");
+    std::fs::write(dir.join("main2.st"), changed).unwrap();
+    std::fs::write(dir.join("new.toml"), CONFIG.replace("main.st", "main2.st")).unwrap();
+    let new = dir.join("new.toml");
+    plc.ok(&["load", "--config", new.to_str().unwrap(), "--online"]);
+    assert_eq!(plc.get("main.extra"), json!(5));
+    assert_eq!(plc.get("main.speed"), json!(42));
+    assert_eq!(plc.get("main.gone_soon"), json!(0));
+    let err = plc.refused(&["get", "main.extraa"]);
+    assert!(err.contains("did you mean `main.extra`?"), "{err}");
+    plc.stop();
+}
