@@ -165,5 +165,5 @@ fn usage_errors_exit_2() {
 fn check_accepts_the_example_project() {
     let output = plcd(Path::new("."), &["check", "--config", "etc/plcd.toml"]);
     assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
-    assert!(stdout(&output).contains("ok: 5 program(s)"));
+    assert!(stdout(&output).contains("ok: 7 program(s)"), "{}", stdout(&output));
 }
