@@ -97,7 +97,7 @@ impl Run {
             ValueType::Bool => Elem::Bool,
             ValueType::Signed(e) | ValueType::Unsigned(e) | ValueType::Real(e) => e,
             ValueType::Time => Elem::I64,
-            ValueType::Enum { .. } => Elem::I32,
+            ValueType::Enum { base, .. } => base,
             ValueType::String { .. } => panic!("{name} is a string"),
         };
         (self.vm.read_value(at, elem), elem)

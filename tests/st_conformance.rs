@@ -212,12 +212,9 @@ fn run_case(case: &Path) -> Vec<String> {
 /// Cases where the compiler and the expectation (docs/ST.md) still disagree, each with the
 /// decision it waits for. They must fail: when one passes, it leaves this list.
 const KNOWN_GAPS: &[(&str, &str)] = &[
-    ("enums/enum_base", "an enumeration with a declared base type is shown as its number"),
     ("errors/mux_range", "MUX with a selector past its inputs gives the last input, no 3402H"),
     ("fbs/outputs_arrow", "the compiler refuses one output bound twice (`over =>`, `NOT over =>`)"),
-    ("literals/typed_int", "the compiler refuses `INT#16#FFFF` (a bit pattern for a signed type)"),
     ("located/array_located", "an ARRAY OF BOOL at bit devices is refused"),
-    ("located/bool_word", "a BOOL at a word device is refused"),
 ];
 
 fn gap(case: &Path) -> Option<&'static str> {

@@ -453,10 +453,12 @@ pub enum ValueType {
     Real(Elem),
     /// `TIME`: nanoseconds in an `I64`, shown as an IEC literal (`T#1s500ms`).
     Time,
-    /// An enumeration: its values' names and numbers, stored as an `I32`.
+    /// An enumeration: its values' names and numbers, stored as its base type (`I32` for
+    /// `DINT`, the default; `TYPE Code : INT (…)` is an `I16`).
     Enum {
         type_name: String,
         values: Vec<(String, i64)>,
+        base: Elem,
     },
     /// `STRING[cap]`: a length byte, then `cap` bytes.
     String {
@@ -472,7 +474,7 @@ impl ValueType {
             ValueType::Bool => Elem::Bool,
             ValueType::Signed(elem) | ValueType::Unsigned(elem) | ValueType::Real(elem) => *elem,
             ValueType::Time => Elem::I64,
-            ValueType::Enum { .. } => Elem::I32,
+            ValueType::Enum { base, .. } => *base,
             ValueType::String { .. } => Elem::U8,
         }
     }
@@ -530,8 +532,8 @@ pub fn format(ty: &ValueType, slot: u64) -> String {
         ValueType::Real(Elem::F32) => format!("{:?}", f32::from_bits(slot as u32)),
         ValueType::Real(_) => format!("{:?}", f64::from_bits(slot)),
         ValueType::Time => format_time(slot as i64),
-        ValueType::Enum { values, .. } => {
-            let n = i64::from(slot as i32);
+        ValueType::Enum { values, base, .. } => {
+            let n = normalize(*base, slot) as i64;
             match values.iter().find(|(_, v)| *v == n) {
                 Some((name, _)) => name.clone(),
                 None => n.to_string(),
@@ -653,13 +655,13 @@ pub fn parse(ty: &ValueType, text: &str) -> Result<u64, String> {
         ValueType::Signed(e) | ValueType::Unsigned(e) => parse_integer(ty, *e, text),
         ValueType::Real(e) => parse_real(*e, text),
         ValueType::Time => parse_time(text).map(|ns| ns as u64),
-        ValueType::Enum { type_name, values } => {
+        ValueType::Enum { type_name, values, base } => {
             let name = match text.split_once('#') {
                 Some((t, name)) if t.eq_ignore_ascii_case(type_name) => name,
                 _ => text,
             };
             match values.iter().find(|(n, _)| n.eq_ignore_ascii_case(name)) {
-                Some((_, v)) => Ok(normalize(Elem::I32, *v as u64)),
+                Some((_, v)) => Ok(normalize(*base, *v as u64)),
                 None => {
                     let names: Vec<&str> = values.iter().map(|(n, _)| n.as_str()).collect();
                     Err(format!("`{text}` is not a value of {type_name} ({})", names.join(", ")))
@@ -968,6 +970,7 @@ mod tests {
         let color = ValueType::Enum {
             type_name: "Color".into(),
             values: vec![("Red".into(), 0), ("Green".into(), 1), ("Blue".into(), -2)],
+            base: I32,
         };
         assert_eq!(format(&color, 1), "Green");
         assert_eq!(format(&color, i(I32, -2)), "Blue");
@@ -1014,6 +1017,7 @@ mod tests {
         let color = ValueType::Enum {
             type_name: "Color".into(),
             values: vec![("Red".into(), 0), ("Blue".into(), -2)],
+            base: I32,
         };
         assert_eq!(parse(&color, "blue"), Ok(i(I32, -2)));
         assert_eq!(parse(&color, "Color#Red"), Ok(0));

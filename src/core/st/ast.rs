@@ -306,8 +306,11 @@ pub enum Arg {
 /// A literal as written; its type is decided by the checker from the prefix or the context.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Literal {
-    /// `42`, `16#FF`, `2#1010`, `8#17`, `1_000`; the sign is a unary minus around it.
+    /// `42`, `1_000`; the sign is a unary minus around it.
     Int(u128),
+    /// `16#FF`, `2#1010`, `8#17`: an integer written with a base, which a signed type also
+    /// takes as the bit pattern of its width (`INT#16#FFFF` is -1, as in CODESYS).
+    Based(u128),
     /// `1.5`, `1.0E-3`.
     Real(f64),
     /// `TRUE`, `FALSE`.

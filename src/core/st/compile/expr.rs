@@ -324,6 +324,19 @@ impl<'a> Ctx<'a> {
                 let v = *v as i128;
                 TExpr::konst(Cv::Int(v), Ty::IntLit, span)
             }
+            Literal::Based(v) => {
+                let mut v = *v as i128;
+                // Where a signed integer is expected, a pattern past its maximum that fits
+                // its width is the two's complement value: 16#FFFF for an INT is -1.
+                if let Some(p) = expected.and_then(|t| t.prim(&self.types)) {
+                    if let Some((_, hi)) = p.range().filter(|_| p.elem().is_signed()) {
+                        if v > hi && v < 1i128 << p.bits() {
+                            v -= 1i128 << p.bits();
+                        }
+                    }
+                }
+                TExpr::konst(Cv::Int(v), Ty::IntLit, span)
+            }
             Literal::Real(f) => TExpr::konst(Cv::Real(*f), Ty::RealLit, span),
             Literal::Bool(b) => TExpr::konst(Cv::Int(i128::from(*b)), Ty::Prim(Prim::Bool), span),
             Literal::Time(ns) => {

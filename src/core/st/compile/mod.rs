@@ -41,7 +41,7 @@ use crate::st::ast::{PouKind, VarKind};
 use crate::value::{Pointer, Space, Symbol, ValueType};
 
 use ctx::{Ctx, Storage};
-use types::{Prim, Ty};
+use types::Ty;
 
 pub use decl::iec_address;
 
@@ -494,13 +494,10 @@ fn value_type(cx: &Ctx<'_>, ty: &Ty) -> Option<ValueType> {
         Ty::Prim(p) | Ty::Sub(p, _, _) => p.value_type(),
         Ty::Enum(e) => {
             let en = &cx.types.enums[*e];
-            if en.declared_base && en.base != Prim::DInt {
-                en.base.value_type()
-            } else {
-                ValueType::Enum {
-                    type_name: en.name.clone(),
-                    values: en.values.iter().map(|(n, v)| (n.clone(), *v as i64)).collect(),
-                }
+            ValueType::Enum {
+                type_name: en.name.clone(),
+                values: en.values.iter().map(|(n, v)| (n.clone(), *v as i64)).collect(),
+                base: en.base.elem(),
             }
         }
         Ty::Str(n) => ValueType::String { cap: *n },

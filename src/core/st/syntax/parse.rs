@@ -1213,6 +1213,7 @@ impl<'a> Parser<'a> {
     fn primary(&mut self) -> PResult<Expr> {
         let span = self.span();
         let literal = match self.tok() {
+            Tok::Int(n) if self.text_of(self.pos).contains('#') => Literal::Based(*n),
             Tok::Int(n) => Literal::Int(*n),
             Tok::Real(x) => Literal::Real(*x),
             Tok::Time(ns) => Literal::Time(*ns),
@@ -1220,6 +1221,20 @@ impl<'a> Parser<'a> {
             Tok::Kw(Kw::True) => Literal::Bool(true),
             Tok::Kw(Kw::False) => Literal::Bool(false),
             Tok::Ident => return Ok(Expr { kind: ExprKind::Name(self.ident()?), span }),
+            // The operators that are also standard functions, in their call form: `AND(a, b)`,
+            // `MOD(a, b)` (IEC 61131-3 lists them among the functions).
+            Tok::Kw(kw @ (Kw::And | Kw::Or | Kw::Xor | Kw::Mod))
+                if *self.tok_at(1) == Tok::P(P::LParen) =>
+            {
+                let name = match kw {
+                    Kw::And => "AND",
+                    Kw::Or => "OR",
+                    Kw::Xor => "XOR",
+                    _ => "MOD",
+                };
+                self.bump();
+                return Ok(Expr { kind: ExprKind::Name(Ident { name: name.into(), span }), span });
+            }
             Tok::TypedPrefix => {
                 let text = {
                     let at = self.bump();

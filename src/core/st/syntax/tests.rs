@@ -100,7 +100,7 @@ fn sx(e: &Expr) -> String {
 
 fn lit(l: &Literal) -> String {
     match l {
-        Literal::Int(n) => n.to_string(),
+        Literal::Int(n) | Literal::Based(n) => n.to_string(),
         Literal::Real(x) => format!("{x:?}"),
         Literal::Bool(b) => if *b { "TRUE" } else { "FALSE" }.to_string(),
         Literal::Time(ns) => format!("T{ns}"),
@@ -1148,6 +1148,7 @@ fn print_args(args: &[Arg], print: fn(&Expr) -> String) -> String {
 fn print_literal(l: &Literal) -> String {
     match l {
         Literal::Int(n) => n.to_string(),
+        Literal::Based(n) => format!("16#{n:X}"),
         Literal::Real(x) => format!("{x:?}"),
         Literal::Bool(b) => if *b { "TRUE" } else { "FALSE" }.to_string(),
         Literal::Time(ns) => format!("T#{ns}ns"),
