@@ -212,8 +212,6 @@ fn run_case(case: &Path) -> Vec<String> {
 /// Cases where the compiler and the expectation (docs/ST.md) still disagree, each with the
 /// decision it waits for. They must fail: when one passes, it leaves this list.
 const KNOWN_GAPS: &[(&str, &str)] = &[
-    ("errors/mux_range", "MUX with a selector past its inputs gives the last input, no 3402H"),
-    ("fbs/outputs_arrow", "the compiler refuses one output bound twice (`over =>`, `NOT over =>`)"),
     ("located/array_located", "an ARRAY OF BOOL at bit devices is refused"),
 ];
 

@@ -394,26 +394,34 @@ impl<'c, 'a> Em<'c, 'a> {
                 self.patch(to_end, end);
             }
             Std::Mux => {
+                // K is kept in a temporary and compared with 0, 1, … in turn; a K that selects
+                // no input gives the default (0, '') and raises 3402H, as an index out of
+                // bounds does.
                 let base = self.sp;
                 let ke = self.elem(&args[0].ty);
+                let k = self.alloc_tmp(8);
                 self.value(&args[0]);
+                self.op(Op::Store { elem: ke, at: Place::Frame(k) });
                 let inputs = &args[1..];
                 let mut jumps = Vec::new();
-                for i in 0..inputs.len() - 1 {
-                    self.op(Op::Dup);
+                for i in 0..inputs.len() {
+                    self.op(Op::Fetch { elem: ke, at: Place::Frame(k) });
                     self.push_int(ke, i as i128);
                     self.op(Op::Cmp { op: CmpOp::Eq, elem: ke });
                     jumps.push(self.op(Op::GotoIf { target: 0, when: true }));
                 }
-                let mut ends = Vec::new();
-                self.op(Op::Drop);
-                self.value(&inputs[inputs.len() - 1]);
-                ends.push(self.op(Op::Goto(0)));
+                self.op(Op::AddrOf(Place::Frame(k)));
+                self.op(Op::Fetch { elem: ke, at: Place::Frame(k) });
+                self.op(Op::Index { lo: 0, len: 0, stride: 0 });
+                if !matches!(ty, Ty::Str(_)) {
+                    let elem = self.elem(ty);
+                    self.op(Op::FetchInd(elem));
+                }
+                let mut ends = vec![self.op(Op::Goto(0))];
                 for (i, j) in jumps.into_iter().enumerate() {
                     let here = self.pc();
                     self.patch(j, here);
-                    self.sp = base + 1;
-                    self.op(Op::Drop);
+                    self.sp = base;
                     self.value(&inputs[i]);
                     ends.push(self.op(Op::Goto(0)));
                 }

@@ -1402,12 +1402,8 @@ impl<'a> Ctx<'a> {
                             continue;
                         }
                     }
-                    if given.contains(&vi) {
-                        self.error(file, pn.span, format!("`{}` is given twice", pn.name));
-                        ok = false;
-                        continue;
-                    }
-                    given.push(vi);
+                    // An output may be bound more than once (`Q => a, NOT Q => b`): each binding
+                    // is an assignment from it after the call.
                     let t = self.check_place(target, scope, Access::Write, None);
                     if t.ty.is_error() || v.ty.is_error() {
                         ok = false;
