@@ -209,17 +209,6 @@ fn run_case(case: &Path) -> Vec<String> {
     failures
 }
 
-/// Cases where the compiler and the expectation (docs/ST.md) still disagree, each with the
-/// decision it waits for. They must fail: when one passes, it leaves this list.
-const KNOWN_GAPS: &[(&str, &str)] = &[
-    ("located/array_located", "an ARRAY OF BOOL at bit devices is refused"),
-];
-
-fn gap(case: &Path) -> Option<&'static str> {
-    let name = case.with_extension("");
-    KNOWN_GAPS.iter().find(|(gap, _)| name.ends_with(gap)).map(|(_, why)| *why)
-}
-
 fn cases() -> Vec<PathBuf> {
     let mut cases = Vec::new();
     for area in fs::read_dir("tests/st").unwrap() {
@@ -246,18 +235,10 @@ fn every_conformance_case_holds() {
     let mut failed_cases = 0;
     for case in &cases {
         let f = run_case(case);
-        match gap(case) {
-            Some(_) if f.is_empty() => {
-                failures.push(format!("{}: passes now; take it off KNOWN_GAPS", case.display()))
-            }
-            Some(_) => {}
-            None => {
-                if !f.is_empty() {
-                    failed_cases += 1;
-                }
-                failures.extend(f);
-            }
+        if !f.is_empty() {
+            failed_cases += 1;
         }
+        failures.extend(f);
     }
     assert!(
         failures.is_empty(),

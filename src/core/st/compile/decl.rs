@@ -5,7 +5,7 @@
 use std::collections::HashMap;
 use std::rc::Rc;
 
-use crate::device::{Address, Writer};
+use crate::device::{Address, BitRef, Writer};
 use crate::lang::Place;
 use crate::st::ast::{self, ArrayInit, Init, Item, PouKind, Span, TypeDef, TypeRef, VarKind};
 
@@ -986,6 +986,41 @@ impl<'a> Ctx<'a> {
                 }
             };
         }
+        if prim == Prim::Bool {
+            // An ARRAY OF BOOL at a bit device: consecutive bits (`AT %P0050`: P0050, P0051, …,
+            // P005F, P0060, …). Like a BOOL, never at a word device.
+            let first = match addr.as_bit() {
+                Ok(b) => b,
+                Err(e) => {
+                    self.error(file, loc.span, e.to_string());
+                    return None;
+                }
+            };
+            {
+                let bit = u64::from(first.word) * 16 + u64::from(first.mask.trailing_zeros());
+                let last = bit + count - 1;
+                let last_address = Address {
+                    number: addr.number + (last / 16 - bit / 16) as u32,
+                    bit: Some((last % 16) as u8),
+                    ..addr
+                };
+                if Address::parse(&last_address.to_string())
+                    .ok()
+                    .and_then(|a| a.as_bit().ok())
+                    .is_none()
+                {
+                    self.error(
+                        file,
+                        loc.span,
+                        format!(
+                            "`{name}` needs {count} bits from `{addr}`: past the end of its area"
+                        ),
+                    );
+                    return None;
+                }
+                return Some((Storage::Bit(first), addr));
+            }
+        }
         let word = match addr.as_word() {
             Ok(w) => w,
             Err(e) => {
@@ -1036,7 +1071,10 @@ impl<'a> Ctx<'a> {
                 slot = (((slot << shift) as i64) >> shift) as u64;
             }
             let place = match s {
-                Storage::Bit(b) => Place::Bit(b),
+                Storage::Bit(b) => {
+                    let bit = u32::from(b.word) * 16 + b.mask.trailing_zeros() + i as u32;
+                    Place::Bit(BitRef { word: (bit / 16) as u16, mask: 1 << (bit % 16) })
+                }
                 Storage::Word(w) => {
                     Place::Word(crate::device::WordRef(w + (i as u32 * e.words()) as u16))
                 }

@@ -3,7 +3,7 @@
 //! variables relative to the instance and its argument stores relative to the callee's frame
 //! area; [`super::link`] places the bodies one after the other and resolves all of that.
 
-use crate::device::WordRef;
+use crate::device::{BitRef, WordRef};
 use crate::lang::ops::{CmpOp, StrOp};
 use crate::lang::{Op, Place, EVAL_DEPTH};
 use crate::st::ast::PouKind;
@@ -14,7 +14,7 @@ use super::decl::MAX_FRAME;
 use super::expr::{cv_slot, ArgT, CallT, TExpr, TK};
 use super::stdlib::Std;
 use super::stmt::{TStmt, TS};
-use super::types::{Prim, Ty};
+use super::types::{ArrayTy, Prim, Ty};
 
 /// A compiled POU body before linking.
 #[derive(Debug, Clone, Default)]
@@ -62,12 +62,42 @@ impl Static {
             Place::Frame(o) => Place::Frame(o + n),
             Place::This(o) => Place::This(o + n),
             Place::Word(w) => Place::Word(WordRef(w.0 + n as u16)),
-            Place::Bit(b) => Place::Bit(b),
+            Place::Bit(b) => {
+                let bit = u32::from(b.word) * 16 + b.mask.trailing_zeros() + n;
+                Place::Bit(BitRef { word: (bit / 16) as u16, mask: 1 << (bit % 16) })
+            }
         };
         Static { place, reloc: self.reloc }
     }
-    fn is_word(&self) -> bool {
-        matches!(self.place, Place::Word(_))
+
+    /// Where the place is, and so the unit of its offsets.
+    fn memory(&self) -> Memory {
+        match self.place {
+            Place::Word(_) => Memory::Words,
+            Place::Bit(_) => Memory::Bits,
+            _ => Memory::Bytes,
+        }
+    }
+}
+
+/// Where a variable's storage is, which sets the unit of offsets into it: bytes of variable or
+/// frame memory, device words (a located array of words), device bits (a located ARRAY OF
+/// BOOL at a bit device).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Memory {
+    Bytes,
+    Words,
+    Bits,
+}
+
+impl Memory {
+    /// The distance between two elements of `a` stored here.
+    fn stride(self, a: &ArrayTy, elem: Elem) -> u32 {
+        match self {
+            Memory::Bytes => a.elem_size,
+            Memory::Words => elem.words(),
+            Memory::Bits => 1,
+        }
     }
 }
 
@@ -232,7 +262,7 @@ impl<'c, 'a> Em<'c, 'a> {
             TK::Var { storage, by_ref: false } => Some(self.storage(*storage)),
             TK::Member(b, off, _) => {
                 let s = self.static_place(b)?;
-                (!s.is_word()).then(|| s.plus(*off))
+                (s.memory() == Memory::Bytes).then(|| s.plus(*off))
             }
             TK::Index(b, ix) => {
                 let s = self.static_place(b)?;
@@ -245,19 +275,20 @@ impl<'c, 'a> Em<'c, 'a> {
                     }
                     lin = lin * (hi - lo + 1) + (v - lo);
                 }
-                let unit = if s.is_word() { self.elem(&a.of).words() } else { a.elem_size };
+                let unit = s.memory().stride(a, self.elem(&a.of));
                 Some(s.plus(lin as u32 * unit))
             }
             _ => None,
         }
     }
 
-    /// Whether a place expression is at a device word (a located array).
-    fn at_word(&self, e: &TExpr) -> bool {
+    /// Where a place expression's storage is (device words or bits for a located array).
+    fn memory(&self, e: &TExpr) -> Memory {
         match &e.k {
-            TK::Var { storage: Storage::Word(_), .. } => true,
-            TK::Member(b, _, _) | TK::Index(b, _) => self.at_word(b),
-            _ => false,
+            TK::Var { storage: Storage::Word(_), .. } => Memory::Words,
+            TK::Var { storage: Storage::Bit(_), .. } => Memory::Bits,
+            TK::Member(b, _, _) | TK::Index(b, _) => self.memory(b),
+            _ => Memory::Bytes,
         }
     }
 
@@ -280,8 +311,7 @@ impl<'c, 'a> Em<'c, 'a> {
             }
             TK::Index(b, ix) => {
                 let Ty::Array(a) = &b.ty else { unreachable!("checked") };
-                let word = self.at_word(b);
-                let unit = if word { self.elem(&a.of).words() } else { a.elem_size };
+                let unit = self.memory(b).stride(a, self.elem(&a.of));
                 self.addr(b);
                 for (k, (i, (lo, hi))) in ix.iter().zip(&a.dims).enumerate() {
                     let inner: u64 =
@@ -731,7 +761,8 @@ impl<'c, 'a> Em<'c, 'a> {
             return;
         }
         if ty.is_aggregate() {
-            let located = self.at_word(target) || matches!(&src, Src::Expr(e) if self.at_word(e));
+            let at_device = |e: &TExpr| self.memory(e) != Memory::Bytes;
+            let located = at_device(target) || matches!(&src, Src::Expr(e) if at_device(e));
             if located {
                 if let (Src::Expr(e), Ty::Array(a)) = (&src, ty) {
                     self.copy_elementwise(target, e, a.count());
@@ -757,20 +788,19 @@ impl<'c, 'a> Em<'c, 'a> {
         }
     }
 
-    /// An array assignment where one side is at device words: element by element.
+    /// An array assignment where one side is at devices: element by element.
     fn copy_elementwise(&mut self, target: &TExpr, src: &TExpr, count: u64) {
         let Ty::Array(a) = &target.ty else { return };
         let elem = self.elem(&a.of);
-        let (tw, sw) = (self.at_word(target), self.at_word(src));
-        let step = |word: bool| if word { elem.words() } else { a.elem_size };
+        let (tw, sw) = (self.memory(target).stride(a, elem), self.memory(src).stride(a, elem));
         for i in 0..count as u32 {
             self.addr(target);
             if i > 0 {
-                self.op(Op::Offset(i * step(tw)));
+                self.op(Op::Offset(i * tw));
             }
             self.addr(src);
             if i > 0 {
-                self.op(Op::Offset(i * step(sw)));
+                self.op(Op::Offset(i * sw));
             }
             self.op(Op::FetchInd(elem));
             self.op(Op::StoreInd(elem));

@@ -521,10 +521,10 @@ fn leaves(
     }
     match ty {
         Ty::Array(a) => {
-            let unit = if at.space == Space::Word {
-                a.of.elem(&cx.types).map_or(1, |e| e.words())
-            } else {
-                a.elem_size
+            let unit = match at.space {
+                Space::Word => a.of.elem(&cx.types).map_or(1, |e| e.words()),
+                Space::Bit => 1,
+                _ => a.elem_size,
             };
             let count = a.count();
             let mut idx: Vec<i64> = a.dims.iter().map(|d| d.0).collect();
