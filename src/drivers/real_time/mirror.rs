@@ -158,7 +158,7 @@ impl Mirror {
     /// Scan thread, at a scan boundary: copies the ranges out of `words` if a copy was asked
     /// for and no reader holds the image. True if it copied.
     pub fn capture(&self, words: &[u16], scans: u64, mode: Mode, now_ns: u64) -> bool {
-        self.capture_with(words, None, scans, mode, now_ns)
+        self.capture_with_variables(words, None, scans, mode, now_ns)
     }
 
     /// Scan thread, at a scan boundary: [`Mirror::capture`] of `engine`'s device memory and,
@@ -166,10 +166,15 @@ impl Mirror {
     pub fn capture_engine(&self, engine: &Engine, now_ns: u64) -> bool {
         let (vm, layout) = (engine.vm(), engine.retained_variables());
         let variables = Some((layout, vm.vars()));
-        self.capture_with(vm.mem.words(), variables, engine.scan_count(), engine.mode(), now_ns)
+        let words = vm.mem.words();
+        self.capture_with_variables(words, variables, engine.scan_count(), engine.mode(), now_ns)
     }
 
-    fn capture_with(
+    /// [`Mirror::capture`] with the retained variables `variables` (their layout and variable
+    /// memory), for a mirror [`Mirror::with_variables`]. Not taken (false, the request stays)
+    /// when the image needs the consumer first: room for a larger layout, or a replaced
+    /// layout to drop.
+    pub fn capture_with_variables(
         &self,
         words: &[u16],
         variables: Option<(&Arc<RetainedVariables>, &[u8])>,
@@ -233,6 +238,78 @@ mod tests {
         assert_eq!((image.generation, image.scans, image.at_ns), (1, 7, 9));
         drop(image);
         assert!(!mirror.is_wanted());
+    }
+
+    fn layout(names: &[&str]) -> Arc<RetainedVariables> {
+        use crate::value::{Elem, Pointer, Space, Symbol, ValueType};
+        let symbols = (0..names.len() as u32)
+            .map(|i| Symbol {
+                name: names[i as usize].into(),
+                ty: ValueType::Signed(Elem::I16),
+                at: Pointer { space: Space::Var, offset: 2 * i },
+                retain: true,
+                constant: false,
+            })
+            .collect();
+        let variables =
+            crate::lang::Variables { initial: vec![0; 16].into(), symbols, ..Default::default() };
+        Arc::new(RetainedVariables::new(&variables))
+    }
+
+    #[test]
+    fn copies_the_retained_variables_with_the_words() {
+        let mirror = Mirror::with_variables([1..2]);
+        let one = layout(&["a", "b"]);
+        mirror.prepare(&one);
+        let vars: Vec<u8> = (10..26).collect();
+        mirror.request();
+        assert!(mirror.capture_with_variables(&[5, 6], Some((&one, &vars)), 1, Mode::Run, 1));
+        let image = mirror.lock();
+        assert_eq!((&*image.words, &image.vars[..]), (&[6][..], &[10, 11, 12, 13][..]));
+        assert!(Arc::ptr_eq(image.layout.as_ref().unwrap(), &one));
+        assert!(image.replaced.is_none());
+        drop(image);
+        // A mirror without variables ignores them.
+        let plain = Mirror::new([0..1]);
+        plain.request();
+        assert!(plain.capture_with_variables(&[5], Some((&one, &vars)), 1, Mode::Run, 1));
+        assert!(plain.lock().vars.is_empty() && plain.lock().layout.is_none());
+    }
+
+    #[test]
+    fn a_new_layout_waits_for_the_reader_to_make_room_and_to_drop_the_replaced_one() {
+        let mirror = Mirror::with_variables([0..1]);
+        let (one, two, three) =
+            (layout(&["a"]), layout(&["a", "b", "c", "d", "e"]), layout(&["c"]));
+        mirror.prepare(&one);
+        let vars: Vec<u8> = (0..16).collect();
+        let copy = |l: &Arc<RetainedVariables>| {
+            mirror.request();
+            mirror.capture_with_variables(&[0], Some((l, &vars)), 1, Mode::Run, 1)
+        };
+        assert!(copy(&one));
+        // Larger than the image's room: not taken, the reader is asked for room.
+        assert!(!copy(&two));
+        {
+            let mut image = mirror.lock();
+            assert_eq!((image.room, image.waiting_for_reader), (10, true));
+            assert!(image.serve_reader(), "a copy waited");
+            assert!(image.vars.capacity() >= 10);
+            assert!(!image.serve_reader(), "served");
+        }
+        assert!(mirror.is_wanted(), "the request stays open");
+        assert!(copy(&two));
+        assert_eq!(&mirror.lock().vars[..], &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9]);
+        assert!(Arc::ptr_eq(mirror.lock().replaced.as_ref().unwrap(), &one));
+        // Another layout before the reader took the replaced one: the scan thread would free
+        // it, so the copy waits.
+        assert!(!copy(&three));
+        assert!(mirror.lock().waiting_for_reader);
+        assert_eq!(Arc::strong_count(&one), 2, "the test's and the image's");
+        assert!(mirror.lock().serve_reader());
+        assert_eq!(Arc::strong_count(&one), 1, "dropped by the reader");
+        assert!(copy(&three));
+        assert_eq!(&mirror.lock().vars[..], &[0, 1]);
     }
 
     #[test]
