@@ -258,7 +258,7 @@ mod tests {
 
     #[test]
     fn copies_the_retained_variables_with_the_words() {
-        let mirror = Mirror::with_variables([1..2]);
+        let mirror = Mirror::with_variables(std::iter::once(1..2));
         let one = layout(&["a", "b"]);
         mirror.prepare(&one);
         let vars: Vec<u8> = (10..26).collect();
@@ -270,7 +270,7 @@ mod tests {
         assert!(image.replaced.is_none());
         drop(image);
         // A mirror without variables ignores them.
-        let plain = Mirror::new([0..1]);
+        let plain = Mirror::new(std::iter::once(0..1));
         plain.request();
         assert!(plain.capture_with_variables(&[5], Some((&one, &vars)), 1, Mode::Run, 1));
         assert!(plain.lock().vars.is_empty() && plain.lock().layout.is_none());
@@ -278,7 +278,7 @@ mod tests {
 
     #[test]
     fn a_new_layout_waits_for_the_reader_to_make_room_and_to_drop_the_replaced_one() {
-        let mirror = Mirror::with_variables([0..1]);
+        let mirror = Mirror::with_variables(std::iter::once(0..1));
         let (one, two, three) =
             (layout(&["a"]), layout(&["a", "b", "c", "d", "e"]), layout(&["c"]));
         mirror.prepare(&one);
