@@ -171,9 +171,9 @@ impl Mirror {
     }
 
     /// [`Mirror::capture`] with the retained variables `variables` (their layout and variable
-    /// memory), for a mirror [`Mirror::with_variables`]. Not taken (false, the request stays)
-    /// when the image needs the consumer first: room for a larger layout, or a replaced
-    /// layout to drop.
+    /// memory), for a mirror [`Mirror::with_variables`]. Not taken (false, and the request
+    /// withdrawn) when the image needs the consumer first — room for a larger layout, or a
+    /// replaced layout to drop: the consumer is woken to serve it and ask again.
     pub fn capture_with_variables(
         &self,
         words: &[u16],
@@ -191,9 +191,11 @@ impl Mirror {
         if let (true, Some((layout, vars))) = (self.variables, variables) {
             let new_layout = !image.layout.as_ref().is_some_and(|l| Arc::ptr_eq(l, layout));
             if layout.bytes() > image.vars.capacity() || (new_layout && image.replaced.is_some()) {
-                // Not without allocating or freeing: the consumer makes room first.
+                // Not without allocating or freeing: the consumer makes room first, then asks
+                // again (the request is withdrawn, so the scan thread does not spin on it).
                 image.room = image.room.max(layout.bytes());
                 image.waiting_for_reader = true;
+                self.wanted.store(false, Ordering::Release);
                 drop(image);
                 self.fresh.notify_all();
                 return false;
@@ -297,7 +299,7 @@ mod tests {
             assert!(image.vars.capacity() >= 10);
             assert!(!image.serve_reader(), "served");
         }
-        assert!(mirror.is_wanted(), "the request stays open");
+        assert!(!mirror.is_wanted(), "withdrawn: the scan thread does not spin on it");
         assert!(copy(&two));
         assert_eq!(&mirror.lock().vars[..], &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9]);
         assert!(Arc::ptr_eq(mirror.lock().replaced.as_ref().unwrap(), &one));

@@ -199,9 +199,10 @@ impl WriterThread {
                         guard.flush = false;
                     }
                     // A copy the scan thread could not take without allocating or freeing is
-                    // asked for again once the image is served.
+                    // asked for again once the image is served (each time, one more engine
+                    // replaced it: this ends).
                     let mut copied = false;
-                    for _ in 0..3 {
+                    loop {
                         mirror.request();
                         shared.signal(pending::MIRROR);
                         let mut image = mirror.wait_newer(seen, COPY_TIMEOUT);
