@@ -6,7 +6,9 @@
 //! device words and variables, a STRING's characters among them.
 //! The main program uses the double-word and real instructions too; and a hand-built program of
 //! the typed stack machine (calls, FB instances, strings, an index error, a division by zero)
-//! runs scans and RUN starts without allocating.
+//! runs scans and RUN starts without allocating. The retain writer's copies of the retained
+//! Structured Text variables, through a reload and a load that change their layout, allocate
+//! nothing on the scan thread either.
 #![allow(unsafe_code)]
 
 mod harness;
@@ -401,4 +403,119 @@ fn the_scan_thread_does_not_allocate() {
     let image = mirror.lock();
     assert!(image.generation > 10, "mirrors were copied: {}", image.generation);
     assert!(image.words[1] > 0, "D00001 counts the tick task's runs: {:?}", image.words);
+}
+
+const ST_CONFIG: &str =
+    "[plc]\nscan_period_ms = 1\n[[program]]\nname = \"main\"\nfile = \"main.st\"\n";
+
+/// Counts scans in a retained variable; a retained STRING too.
+const ST_SMALL: &str = "PROGRAM Main
+VAR RETAIN count : DINT; label : STRING[10] := 'abc'; END_VAR
+    count := count + 1;
+END_PROGRAM";
+
+/// The same, with many more retained bytes: a new layout the mirror has no room for.
+const ST_LARGE: &str = "PROGRAM Main
+VAR RETAIN extra : ARRAY [1..40] OF LINT; count : DINT; END_VAR
+    count := count + 1; extra[1] := extra[1] + 1;
+END_PROGRAM";
+
+/// The retain writer's copies of the retained ST variables: the scan thread copies them at scan
+/// boundaries, and takes over a reloaded project's (a larger layout: room to make) and a loaded
+/// one's (a smaller layout again: the replaced one to drop) without allocating or freeing —
+/// the writer thread makes the room and drops the layouts. The files hold the variables of
+/// each layout, and `count` counts on through both replacements.
+#[test]
+fn retained_variables_are_copied_and_taken_over_without_allocating() {
+    use plcd::device::RetainSet;
+    use plcd::services::retain::writer::{Writer, WriterThread};
+    use plcd::services::retain::{newest_in, Generation, Store};
+
+    let small = harness::engine::project(ST_CONFIG, &[("main.st", ST_SMALL)]);
+    let large = harness::engine::project(ST_CONFIG, &[("main.st", ST_LARGE)]);
+    let dir = harness::tempdir::TempDir::new("scan-no-alloc-retain");
+    let set = RetainSet::k_only();
+    let mirror = Arc::new(Mirror::with_variables(set.words.iter().map(|w| w.range())));
+    let engine = Box::new(Engine::new::<Address>(&small, &[]));
+    mirror.prepare(engine.retained_variables());
+    let io = SimulatedIo::new(&[], &[], None);
+    let field = io.field();
+    let shared = Arc::new(Shared::new().unwrap());
+    let (_edges, edge_rx) = rtrb::RingBuffer::<InputEdge>::new(4);
+    let (mut commands, command_rx) = rtrb::RingBuffer::<Command>::new(16);
+    let (report_tx, mut reports) = rtrb::RingBuffer::<Report>::new(4096);
+    let (completion_tx, mut completions) = rtrb::RingBuffer::<Completion>::new(16);
+    let scan = ScanThread {
+        engine,
+        io: GatedIo {
+            field: FieldIo::Simulated(io),
+            gate: Arc::new(OutputGate::default()),
+            safe: SafeOutputs::Simulated(Arc::clone(&field)),
+            clear_on_trip: true,
+        },
+        shared: Arc::clone(&shared),
+        edges: edge_rx,
+        commands: command_rx,
+        reports: report_tx,
+        completions: completion_tx,
+        snapshot: Arc::new(Mutex::new(Snapshot::new())),
+        timer: Timer::new().unwrap(),
+        mirrors: vec![Arc::clone(&mirror)],
+    };
+    let handle = std::thread::spawn(move || {
+        let mut scan = scan;
+        WATCHED.with(|w| w.set(true));
+        scan.serve();
+        WATCHED.with(|w| w.set(false));
+        scan.into_engine()
+    });
+    let writer = Writer::new(Store::open(dir.path()).unwrap(), &set.words, 0, 1, None);
+    let writer = WriterThread::spawn(
+        writer,
+        Arc::clone(&mirror),
+        Arc::clone(&shared),
+        Duration::from_millis(2),
+    )
+    .unwrap();
+    let mut command = |c: Command| {
+        assert!(commands.push(c).is_ok());
+        shared.signal(pending::COMMAND);
+    };
+    // Waits for a generation on disk; drops the engines the scan thread retired meanwhile.
+    let mut wait_for = |what: &str, done: &dyn Fn(&Generation) -> bool| -> Generation {
+        let mut found = None;
+        harness::log::wait_until(harness::log::PATIENCE, what, String::new, || {
+            while reports.pop().is_ok() {}
+            while completions.pop().is_ok() {}
+            found = newest_in(dir.path()).filter(|g| done(g));
+            found.is_some()
+        });
+        found.unwrap()
+    };
+    let count = |g: &Generation| {
+        let v = g.variables.iter().find(|v| v.name == "main.count").expect("main.count saved");
+        i32::from_le_bytes(v.bytes[..4].try_into().unwrap())
+    };
+    let has = |g: &Generation, name: &str| g.variables.iter().any(|v| v.name == name);
+
+    command(Command::Mode(Mode::Run, Source::Startup));
+    let first = wait_for("the small layout counting", &|g| has(g, "main.label") && count(g) > 5);
+    assert_eq!(first.variables[1].bytes[..4], [3, b'a', b'b', b'c'], "the STRING's bytes");
+    command(Command::Replace(Box::new(Engine::new::<Address>(&large, &[]))));
+    let reloaded = wait_for("the large layout", &|g| has(g, "main.extra[40]") && count(g) > 0);
+    assert!(count(&reloaded) > count(&first), "count kept over the reload and counting on");
+    command(Command::Mode(Mode::Stop, Source::Signal));
+    let load = ControlCommand::Load(Box::new(Engine::new::<Address>(&small, &[])));
+    command(Command::Control(1, load));
+    command(Command::Mode(Mode::Run, Source::Signal));
+    let loaded =
+        wait_for("the small layout again", &|g| g.seq > reloaded.seq && has(g, "main.label"));
+    assert!(count(&loaded) >= count(&reloaded), "count kept over the load");
+    assert_eq!(loaded.variables.len(), 2);
+
+    shared.request_shutdown();
+    handle.join().unwrap();
+    writer.stop().unwrap();
+    let count = ALLOCATIONS.load(Ordering::Relaxed);
+    assert_eq!(count, 0, "the scan thread allocated or freed {count} times");
 }

@@ -156,6 +156,9 @@ pub struct Engine {
     retain: crate::device::RetainSet,
     /// Whether the retained devices hold values to keep, which the next RUN start honours.
     retained: Retained,
+    /// The retained Structured Text variables, leaf by leaf; shared with the retain writer's
+    /// copies.
+    retained_variables: std::sync::Arc<crate::vm::retained::RetainedVariables>,
 }
 
 impl Engine {
@@ -208,6 +211,9 @@ impl Engine {
             missed_deadlines: 0,
             retain: crate::device::RetainSet::new(&config.retain.ranges),
             retained: Retained::Cold,
+            retained_variables: std::sync::Arc::new(crate::vm::retained::RetainedVariables::new(
+                &project.variables,
+            )),
         }
     }
 
@@ -225,8 +231,9 @@ impl Engine {
 
     /// A replacement engine (reload, `plcctl load`) takes the retained devices of the one it
     /// replaces, so that a new program does not reset a counter: copies the retained bits of
-    /// `old`'s memory and whether they are worth keeping. No allocation (the scan thread calls
-    /// it).
+    /// `old`'s memory, its retained variables whose name and type the new programs retain too
+    /// (the others start from their initial values), and whether they are worth keeping. No
+    /// allocation (the scan thread calls it).
     pub fn inherit_retained(&mut self, old: &Engine) {
         let (from, to) = (old.vm.mem.words(), self.vm.mem.words_mut());
         for r in self.retain.words.iter() {
@@ -234,7 +241,31 @@ impl Engine {
                 to[i] = (to[i] & !r.mask) | (from[i] & r.mask);
             }
         }
+        let vm = &mut self.vm;
+        self.retained_variables.for_each_same(&old.retained_variables, |new, was| {
+            vm.copy_variable_from(&old.vm, was.at, new.at, new.len)
+        });
         self.retained = old.retained;
+    }
+
+    /// The retained Structured Text variables (docs/RETAIN.md), leaf by leaf.
+    pub fn retained_variables(&self) -> &std::sync::Arc<crate::vm::retained::RetainedVariables> {
+        &self.retained_variables
+    }
+
+    /// Restores retained variables at start from `saved` (a retain file's, restored with its
+    /// device words by [`Engine::restore_retained`]): each into the leaf of the same name and
+    /// type. What was restored, dropped and left at its initial value, for the log.
+    pub fn restore_retained_variables(
+        &mut self,
+        saved: &[crate::vm::retained::SavedVariable],
+    ) -> crate::vm::retained::RestorePlan {
+        let plan = self.retained_variables.plan_restore(saved);
+        for &(leaf, s) in &plan.restore {
+            self.vm.restore_variable(self.retained_variables.leaves()[leaf].at, &saved[s].bytes);
+        }
+        self.retained = Retained::Warm;
+        plan
     }
 
     /// Task names by [`TaskId`], for traces.

@@ -142,6 +142,7 @@ impl Engine {
                 }
                 if cold {
                     self.vm.mem.clear_all();
+                    self.vm.reset_variables();
                     self.retained = Retained::Cold;
                     self.check_watches(now, sink);
                 }

@@ -203,6 +203,8 @@ impl Engine {
             *switch = old;
         }
         self.last_operation_error = None;
+        // The running engine's retained memory is this one's now: the next RUN start is warm.
+        self.retained = old.retained;
         self.sample_watches_quietly();
         Ok(())
     }

@@ -14,6 +14,7 @@
 pub mod clock;
 pub mod counter;
 pub mod duty;
+pub mod retained;
 pub mod timer;
 mod typed;
 
@@ -328,6 +329,27 @@ impl Vm {
                 dst.copy_from_slice(src);
             }
         }
+    }
+
+    /// Retained variables (docs/RETAIN.md): copies `len` bytes at `from` of `old`'s variable
+    /// memory to `to` of this one's. No allocation.
+    pub fn copy_variable_from(&mut self, old: &Vm, from: u32, to: u32, len: u32) {
+        self.keep_variables(old, &[(from, to, len)]);
+    }
+
+    /// Retained variables restored at start: writes `bytes` at byte `at` of variable memory
+    /// (nothing if they do not fit).
+    pub fn restore_variable(&mut self, at: u32, bytes: &[u8]) {
+        let at = at as usize;
+        if let Some(to) = self.vars.get_mut(at..at + bytes.len()) {
+            to.copy_from_slice(bytes);
+        }
+    }
+
+    /// A cold reset: every variable back to its initial value, the retained ones too.
+    pub fn reset_variables(&mut self) {
+        let n = self.vars.len().min(self.initial.len());
+        self.vars[..n].copy_from_slice(&self.initial[..n]);
     }
 
     /// Instructions executed since the VM was created.

@@ -10,17 +10,29 @@
 //!
 //! Word ranges are indices into [`crate::device::Memory::words`]: the device layout is fixed,
 //! so they stay valid when the engine is replaced (a reload, an online change).
+//!
+//! A mirror made [`Mirror::with_variables`] (the retain writer's) also copies the engine's
+//! retained Structured Text variables ([`crate::vm::retained::RetainedVariables`]), whose
+//! layout does change with the engine: the image holds the layout of its copy (an `Arc` the
+//! engine shares). The scan thread neither allocates nor frees for it: a copy that would need
+//! a larger buffer, or would drop the last reference to a replaced layout, is not taken; the
+//! image says why ([`MirrorImage::waiting_for_reader`]) and the consumer, woken, makes room or
+//! drops the replaced layout ([`MirrorImage::serve_reader`]) and asks again.
 
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Condvar, Mutex, MutexGuard};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use crate::engine::event::Mode;
+use crate::engine::Engine;
+use crate::vm::retained::RetainedVariables;
 
 /// A set of device word ranges copied at scan boundaries on request.
 pub struct Mirror {
     ranges: Box<[Range<u16>]>,
+    /// Copies the retained variables too.
+    variables: bool,
     wanted: AtomicBool,
     image: Mutex<MirrorImage>,
     fresh: Condvar,
@@ -38,6 +50,30 @@ pub struct MirrorImage {
     pub mode: Mode,
     /// The words of every range, range after range, in the order given to [`Mirror::new`].
     pub words: Box<[u16]>,
+    /// The retained variables' bytes ([`RetainedVariables::copy`]) of a mirror made
+    /// [`Mirror::with_variables`]; empty for the others.
+    pub vars: Vec<u8>,
+    /// The layout of `vars`: the copied engine's retained variables.
+    pub layout: Option<Arc<RetainedVariables>>,
+    /// The layout a copy replaced, for the consumer to drop (the scan thread never frees).
+    pub replaced: Option<Arc<RetainedVariables>>,
+    /// Bytes `vars` must have room for before the next copy can be taken (0: enough).
+    pub room: usize,
+    /// A copy was not taken until the consumer serves the image ([`MirrorImage::serve_reader`]).
+    pub waiting_for_reader: bool,
+}
+
+impl MirrorImage {
+    /// Consumer side, with the image locked: reserves the room a copy needs and drops a
+    /// replaced layout, so that the next copy is taken. True if a copy waited for it.
+    pub fn serve_reader(&mut self) -> bool {
+        if self.room > self.vars.capacity() {
+            self.vars.reserve(self.room - self.vars.len());
+        }
+        self.room = 0;
+        self.replaced = None;
+        std::mem::take(&mut self.waiting_for_reader)
+    }
 }
 
 impl Mirror {
@@ -47,6 +83,7 @@ impl Mirror {
         let len = ranges.iter().map(|r| r.len()).sum::<usize>();
         Mirror {
             ranges,
+            variables: false,
             wanted: AtomicBool::new(false),
             image: Mutex::new(MirrorImage {
                 generation: 0,
@@ -54,9 +91,29 @@ impl Mirror {
                 scans: 0,
                 mode: Mode::Stop,
                 words: vec![0; len].into_boxed_slice(),
+                vars: Vec::new(),
+                layout: None,
+                replaced: None,
+                room: 0,
+                waiting_for_reader: false,
             }),
             fresh: Condvar::new(),
         }
+    }
+
+    /// A mirror of `ranges` and of the engine's retained variables (the retain writer's).
+    pub fn with_variables(ranges: impl IntoIterator<Item = Range<u16>>) -> Mirror {
+        Mirror { variables: true, ..Mirror::new(ranges) }
+    }
+
+    /// Before the scan thread starts: room for `layout`'s copies, and `layout` as the image's,
+    /// so that the first copies need nothing from the consumer.
+    pub fn prepare(&self, layout: &Arc<RetainedVariables>) {
+        let mut image = self.lock();
+        let need = layout.bytes();
+        let len = image.vars.len();
+        image.vars.reserve(need.saturating_sub(len));
+        image.layout = Some(Arc::clone(layout));
     }
 
     pub fn ranges(&self) -> &[Range<u16>] {
@@ -79,12 +136,13 @@ impl Mirror {
         self.image.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
     }
 
-    /// Waits until the image is newer than generation `than`, at most `timeout`. Returns the
-    /// image either way: the caller compares its generation to know which happened.
+    /// Waits until the image is newer than generation `than`, or waits for the reader
+    /// ([`MirrorImage::waiting_for_reader`]), at most `timeout`. Returns the image either way:
+    /// the caller compares its generation to know which happened.
     pub fn wait_newer(&self, than: u64, timeout: Duration) -> MutexGuard<'_, MirrorImage> {
         let until = Instant::now() + timeout;
         let mut image = self.lock();
-        while image.generation <= than {
+        while image.generation <= than && !image.waiting_for_reader {
             let left = until.saturating_duration_since(Instant::now());
             if left.is_zero() {
                 break;
@@ -100,12 +158,54 @@ impl Mirror {
     /// Scan thread, at a scan boundary: copies the ranges out of `words` if a copy was asked
     /// for and no reader holds the image. True if it copied.
     pub fn capture(&self, words: &[u16], scans: u64, mode: Mode, now_ns: u64) -> bool {
+        self.capture_with_variables(words, None, scans, mode, now_ns)
+    }
+
+    /// Scan thread, at a scan boundary: [`Mirror::capture`] of `engine`'s device memory and,
+    /// for a mirror [`Mirror::with_variables`], of its retained variables.
+    pub fn capture_engine(&self, engine: &Engine, now_ns: u64) -> bool {
+        let (vm, layout) = (engine.vm(), engine.retained_variables());
+        let variables = Some((layout, vm.vars()));
+        let words = vm.mem.words();
+        self.capture_with_variables(words, variables, engine.scan_count(), engine.mode(), now_ns)
+    }
+
+    /// [`Mirror::capture`] with the retained variables `variables` (their layout and variable
+    /// memory), for a mirror [`Mirror::with_variables`]. Not taken (false, and the request
+    /// withdrawn) when the image needs the consumer first — room for a larger layout, or a
+    /// replaced layout to drop: the consumer is woken to serve it and ask again.
+    pub fn capture_with_variables(
+        &self,
+        words: &[u16],
+        variables: Option<(&Arc<RetainedVariables>, &[u8])>,
+        scans: u64,
+        mode: Mode,
+        now_ns: u64,
+    ) -> bool {
         if !self.wanted.load(Ordering::Acquire) {
             return false;
         }
         let Ok(mut image) = self.image.try_lock() else {
             return false;
         };
+        if let (true, Some((layout, vars))) = (self.variables, variables) {
+            let new_layout = !image.layout.as_ref().is_some_and(|l| Arc::ptr_eq(l, layout));
+            if layout.bytes() > image.vars.capacity() || (new_layout && image.replaced.is_some()) {
+                // Not without allocating or freeing: the consumer makes room first, then asks
+                // again (the request is withdrawn, so the scan thread does not spin on it).
+                image.room = image.room.max(layout.bytes());
+                image.waiting_for_reader = true;
+                self.wanted.store(false, Ordering::Release);
+                drop(image);
+                self.fresh.notify_all();
+                return false;
+            }
+            if new_layout {
+                image.replaced = image.layout.replace(Arc::clone(layout));
+            }
+            image.vars.clear();
+            layout.copy(vars, &mut image.vars);
+        }
         let mut at = 0;
         for range in self.ranges.iter() {
             let source = &words[usize::from(range.start)..usize::from(range.end)];
@@ -140,6 +240,78 @@ mod tests {
         assert_eq!((image.generation, image.scans, image.at_ns), (1, 7, 9));
         drop(image);
         assert!(!mirror.is_wanted());
+    }
+
+    fn layout(names: &[&str]) -> Arc<RetainedVariables> {
+        use crate::value::{Elem, Pointer, Space, Symbol, ValueType};
+        let symbols = (0..names.len() as u32)
+            .map(|i| Symbol {
+                name: names[i as usize].into(),
+                ty: ValueType::Signed(Elem::I16),
+                at: Pointer { space: Space::Var, offset: 2 * i },
+                retain: true,
+                constant: false,
+            })
+            .collect();
+        let variables =
+            crate::lang::Variables { initial: vec![0; 16].into(), symbols, ..Default::default() };
+        Arc::new(RetainedVariables::new(&variables))
+    }
+
+    #[test]
+    fn copies_the_retained_variables_with_the_words() {
+        let mirror = Mirror::with_variables(std::iter::once(1..2));
+        let one = layout(&["a", "b"]);
+        mirror.prepare(&one);
+        let vars: Vec<u8> = (10..26).collect();
+        mirror.request();
+        assert!(mirror.capture_with_variables(&[5, 6], Some((&one, &vars)), 1, Mode::Run, 1));
+        let image = mirror.lock();
+        assert_eq!((&*image.words, &image.vars[..]), (&[6][..], &[10, 11, 12, 13][..]));
+        assert!(Arc::ptr_eq(image.layout.as_ref().unwrap(), &one));
+        assert!(image.replaced.is_none());
+        drop(image);
+        // A mirror without variables ignores them.
+        let plain = Mirror::new(std::iter::once(0..1));
+        plain.request();
+        assert!(plain.capture_with_variables(&[5], Some((&one, &vars)), 1, Mode::Run, 1));
+        assert!(plain.lock().vars.is_empty() && plain.lock().layout.is_none());
+    }
+
+    #[test]
+    fn a_new_layout_waits_for_the_reader_to_make_room_and_to_drop_the_replaced_one() {
+        let mirror = Mirror::with_variables(std::iter::once(0..1));
+        let (one, two, three) =
+            (layout(&["a"]), layout(&["a", "b", "c", "d", "e"]), layout(&["c"]));
+        mirror.prepare(&one);
+        let vars: Vec<u8> = (0..16).collect();
+        let copy = |l: &Arc<RetainedVariables>| {
+            mirror.request();
+            mirror.capture_with_variables(&[0], Some((l, &vars)), 1, Mode::Run, 1)
+        };
+        assert!(copy(&one));
+        // Larger than the image's room: not taken, the reader is asked for room.
+        assert!(!copy(&two));
+        {
+            let mut image = mirror.lock();
+            assert_eq!((image.room, image.waiting_for_reader), (10, true));
+            assert!(image.serve_reader(), "a copy waited");
+            assert!(image.vars.capacity() >= 10);
+            assert!(!image.serve_reader(), "served");
+        }
+        assert!(!mirror.is_wanted(), "withdrawn: the scan thread does not spin on it");
+        assert!(copy(&two));
+        assert_eq!(&mirror.lock().vars[..], &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9]);
+        assert!(Arc::ptr_eq(mirror.lock().replaced.as_ref().unwrap(), &one));
+        // Another layout before the reader took the replaced one: the scan thread would free
+        // it, so the copy waits.
+        assert!(!copy(&three));
+        assert!(mirror.lock().waiting_for_reader);
+        assert_eq!(Arc::strong_count(&one), 2, "the test's and the image's");
+        assert!(mirror.lock().serve_reader());
+        assert_eq!(Arc::strong_count(&one), 1, "dropped by the reader");
+        assert!(copy(&three));
+        assert_eq!(&mirror.lock().vars[..], &[0, 1]);
     }
 
     #[test]

@@ -356,10 +356,8 @@ impl ScanThread {
         if self.mirrors.is_empty() {
             return;
         }
-        let words = self.engine.vm().mem.words();
-        let (scans, mode) = (self.engine.scan_count(), self.engine.mode());
         for mirror in &self.mirrors {
-            mirror.capture(words, scans, mode, now);
+            mirror.capture_engine(&self.engine, now);
         }
     }
 

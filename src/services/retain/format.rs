@@ -6,25 +6,34 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 8 | magic `PLCDRTN\0` |
-//! | 8 | 2 | format version, 1 |
+//! | 8 | 2 | format version, 2 (version 1 files are read too) |
 //! | 10 | 2 | n: the number of word ranges |
 //! | 12 | 4 | w: the number of payload words |
 //! | 16 | 8 | sequence number, one more for every write, across restarts |
 //! | 24 | 8 | when the snapshot was taken, ms since the Unix epoch (for the log only) |
 //! | 32 | 4 | words of device memory in the build that wrote it (the device layout) |
-//! | 36 | 4 | reserved, 0 |
+//! | 36 | 4 | v: bytes of the variables section (version 1: reserved, 0, and no section) |
 //! | 40 | 6·n | the ranges: first word index, word count, bit mask (u16 each) |
 //! | 40+6n | 2·w | the payload: the words of every range, range after range |
+//! | 40+6n+2w | v | the variables section: the retained Structured Text variables |
 //! | end−4 | 4 | CRC-32C (Castagnoli) of every byte before it |
 //!
+//! The variables section: a u32 count, then for each variable its name, its type text and its
+//! bytes, each a u32 length followed by that many bytes (the name and the type in UTF-8).
+//!
 //! The ranges are the layout: a file is restored only if they and the device layout equal the
-//! configured ones exactly.
+//! configured ones exactly. Variables are restored by name and type
+//! ([`crate::vm::retained::RetainedVariables::plan_restore`]).
 
 use crate::device::layout;
 use crate::device::retained::{difference, RetainedWords};
+use crate::vm::retained::{RetainedVariables, SavedVariable};
 
 pub const MAGIC: [u8; 8] = *b"PLCDRTN\0";
-pub const VERSION: u16 = 1;
+/// The version this build writes.
+pub const VERSION: u16 = 2;
+/// The first version, without variables, still read.
+pub const VERSION_1: u16 = 1;
 pub const HEADER: usize = 40;
 const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI);
 
@@ -37,6 +46,10 @@ pub struct Generation {
     pub device_words: u32,
     pub ranges: Vec<RetainedWords>,
     pub words: Vec<u16>,
+    /// The format version of the file.
+    pub version: u16,
+    /// The retained Structured Text variables (none in a version 1 file), in the order written.
+    pub variables: Vec<SavedVariable>,
 }
 
 /// Why bytes are not a generation.
@@ -46,7 +59,7 @@ pub enum DecodeError {
     TooShort(usize),
     #[error("not a retain file (bad magic)")]
     Magic,
-    #[error("format version {0}, this build reads version {VERSION}")]
+    #[error("format version {0}, this build reads versions {VERSION_1} and {VERSION}")]
     Version(u16),
     #[error("{len} bytes where the header announces {expected} (truncated or extended)")]
     Length { len: usize, expected: usize },
@@ -54,15 +67,47 @@ pub enum DecodeError {
     Crc { stored: u32, computed: u32 },
     #[error("the ranges hold {ranges} words, the payload {words}")]
     Inconsistent { ranges: usize, words: usize },
+    #[error("the variables section is malformed at byte {0} of it")]
+    Variables(usize),
+}
+
+/// The variables section of a file holding `variables` (name, type text, bytes each), into
+/// `out`.
+pub fn encode_variables<'v>(
+    variables: impl ExactSizeIterator<Item = (&'v str, &'v str, &'v [u8])>,
+    out: &mut Vec<u8>,
+) {
+    out.clear();
+    out.extend_from_slice(&(variables.len() as u32).to_le_bytes());
+    for (name, ty, bytes) in variables {
+        for field in [name.as_bytes(), ty.as_bytes(), bytes] {
+            out.extend_from_slice(&(field.len() as u32).to_le_bytes());
+            out.extend_from_slice(field);
+        }
+    }
+}
+
+/// The variables section of `layout`'s leaves, their bytes taken from `copy` (as
+/// [`RetainedVariables::copy`] made it), into `out`.
+pub fn encode_leaves(layout: &RetainedVariables, copy: &[u8], out: &mut Vec<u8>) {
+    let leaves = layout.leaves().iter();
+    encode_variables(leaves.map(|l| (l.name.as_str(), l.ty.as_str(), layout.leaf_in(l, copy))), out)
+}
+
+/// The variables section of saved variables (what a file held), into `out`.
+pub fn encode_saved(saved: &[SavedVariable], out: &mut Vec<u8>) {
+    let saved = saved.iter();
+    encode_variables(saved.map(|v| (v.name.as_str(), v.ty.as_str(), &v.bytes[..])), out)
 }
 
 /// The bytes of a file holding `words` (of `ranges`, as [`super::RetainSet::capture`] made
-/// them), into `out`.
+/// them) and the variables section `variables` (as [`encode_variables`] made it), into `out`.
 pub fn encode(
     seq: u64,
     written_unix_ms: u64,
     ranges: &[RetainedWords],
     words: &[u16],
+    variables: &[u8],
     out: &mut Vec<u8>,
 ) {
     out.clear();
@@ -73,7 +118,7 @@ pub fn encode(
     out.extend_from_slice(&seq.to_le_bytes());
     out.extend_from_slice(&written_unix_ms.to_le_bytes());
     out.extend_from_slice(&layout::TOTAL_WORDS.to_le_bytes());
-    out.extend_from_slice(&0u32.to_le_bytes());
+    out.extend_from_slice(&(variables.len() as u32).to_le_bytes());
     for r in ranges {
         for v in [r.start, r.end - r.start, r.mask] {
             out.extend_from_slice(&v.to_le_bytes());
@@ -82,6 +127,7 @@ pub fn encode(
     for w in words {
         out.extend_from_slice(&w.to_le_bytes());
     }
+    out.extend_from_slice(variables);
     let crc = CRC.checksum(out);
     out.extend_from_slice(&crc.to_le_bytes());
 }
@@ -107,12 +153,13 @@ pub fn decode(bytes: &[u8]) -> Result<Generation, DecodeError> {
         return Err(DecodeError::Magic);
     }
     let version = u16_at(bytes, 8);
-    if version != VERSION {
+    if version != VERSION && version != VERSION_1 {
         return Err(DecodeError::Version(version));
     }
     let n = usize::from(u16_at(bytes, 10));
     let w = u32_at(bytes, 12) as usize;
-    let expected = HEADER + 6 * n + 2 * w + 4;
+    let v = if version == VERSION_1 { 0 } else { u32_at(bytes, 36) as usize };
+    let expected = HEADER + 6 * n + 2 * w + v + 4;
     if bytes.len() != expected {
         return Err(DecodeError::Length { len: bytes.len(), expected });
     }
@@ -136,13 +183,60 @@ pub fn decode(bytes: &[u8]) -> Result<Generation, DecodeError> {
     }
     let payload = HEADER + 6 * n;
     let words = (0..w).map(|i| u16_at(bytes, payload + 2 * i)).collect();
+    let section = payload + 2 * w;
+    let variables = if version == VERSION_1 {
+        Vec::new()
+    } else {
+        decode_variables(&bytes[section..section + v])?
+    };
     Ok(Generation {
         seq: u64_at(bytes, 16),
         written_unix_ms: u64_at(bytes, 24),
         device_words: u32_at(bytes, 32),
         ranges,
         words,
+        version,
+        variables,
     })
+}
+
+/// The variables of a variables section, checked: every length within the section, names and
+/// types UTF-8, nothing left over.
+pub fn decode_variables(section: &[u8]) -> Result<Vec<SavedVariable>, DecodeError> {
+    let mut at = 0;
+    let take = |at: &mut usize, len: usize| -> Result<&[u8], DecodeError> {
+        let field = section.get(*at..at.checked_add(len).ok_or(DecodeError::Variables(*at))?);
+        let field = field.ok_or(DecodeError::Variables(*at))?;
+        *at += len;
+        Ok(field)
+    };
+    let length = |at: &mut usize| -> Result<usize, DecodeError> {
+        let b = take(at, 4)?;
+        Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize)
+    };
+    let text = |at: &mut usize| -> Result<String, DecodeError> {
+        let start = *at;
+        let len = length(at)?;
+        let b = take(at, len)?;
+        String::from_utf8(b.to_vec()).map_err(|_| DecodeError::Variables(start))
+    };
+    let count = length(&mut at)?;
+    // At least 12 bytes a variable: a count beyond that is garbage, not an allocation.
+    if count > section.len() / 12 {
+        return Err(DecodeError::Variables(0));
+    }
+    let mut variables = Vec::with_capacity(count);
+    for _ in 0..count {
+        let name = text(&mut at)?;
+        let ty = text(&mut at)?;
+        let len = length(&mut at)?;
+        let bytes = take(&mut at, len)?.to_vec();
+        variables.push(SavedVariable { name, ty, bytes });
+    }
+    if at != section.len() {
+        return Err(DecodeError::Variables(at));
+    }
+    Ok(variables)
 }
 
 /// `None` if `generation` can be restored into the configured `ranges`; else what differs.
@@ -215,11 +309,32 @@ mod tests {
     const K: RetainedWords = RetainedWords { start: 384, end: 386, mask: 0xFFFF };
 
     fn file(seq: u64, words: &[u16]) -> Vec<u8> {
+        file_with(seq, words, &[])
+    }
+
+    fn file_with(seq: u64, words: &[u16], variables: &[SavedVariable]) -> Vec<u8> {
         let mut out = Vec::new();
         let ranges =
             [RetainedWords { start: K.start, end: K.start + words.len() as u16, mask: !0 }];
-        encode(seq, 1_700_000_000_000, &ranges, words, &mut out);
+        let mut section = Vec::new();
+        encode_saved(variables, &mut section);
+        encode(seq, 1_700_000_000_000, &ranges, words, &section, &mut out);
         out
+    }
+
+    /// A version 1 file, as the builds before variables wrote it.
+    fn version_1_file(seq: u64, words: &[u16]) -> Vec<u8> {
+        let mut bytes = file(seq, words);
+        bytes.truncate(bytes.len() - 8); // the CRC and the empty variables section
+        bytes[8] = 1;
+        bytes[36..40].copy_from_slice(&[0, 0, 0, 0]);
+        let crc = CRC.checksum(&bytes);
+        bytes.extend_from_slice(&crc.to_le_bytes());
+        bytes
+    }
+
+    fn saved(name: &str, ty: &str, bytes: &[u8]) -> SavedVariable {
+        SavedVariable { name: name.into(), ty: ty.into(), bytes: bytes.into() }
     }
 
     fn generation(seq: u64, words: &[u16]) -> Generation {
@@ -228,23 +343,93 @@ mod tests {
 
     #[test]
     fn the_bytes_of_a_small_file() {
-        let bytes = file(5, &[0x1234, 0xBEEF]);
+        let bytes = file_with(5, &[0x1234, 0xBEEF], &[saved("main.n", "INT", &[7, 0])]);
         let total = layout::TOTAL_WORDS.to_le_bytes();
         let mut expected: Vec<u8> = Vec::new();
         expected.extend(b"PLCDRTN\0");
-        expected.extend([1, 0, 1, 0, 2, 0, 0, 0]);
+        expected.extend([2, 0, 1, 0, 2, 0, 0, 0]);
         expected.extend([5, 0, 0, 0, 0, 0, 0, 0]);
         expected.extend(1_700_000_000_000u64.to_le_bytes());
         expected.extend(total);
-        expected.extend([0, 0, 0, 0]);
+        expected.extend([27, 0, 0, 0]);
         expected.extend([0x80, 0x01, 2, 0, 0xFF, 0xFF]);
         expected.extend([0x34, 0x12, 0xEF, 0xBE]);
+        expected.extend([1, 0, 0, 0]);
+        expected.extend([6, 0, 0, 0]);
+        expected.extend(b"main.n");
+        expected.extend([3, 0, 0, 0]);
+        expected.extend(b"INT");
+        expected.extend([2, 0, 0, 0, 7, 0]);
         assert_eq!(&bytes[..bytes.len() - 4], &expected[..]);
-        assert_eq!(bytes.len(), HEADER + 6 + 4 + 4);
+        assert_eq!(bytes.len(), HEADER + 6 + 4 + 27 + 4);
         let decoded = decode(&bytes).unwrap();
         assert_eq!((decoded.seq, &decoded.words[..]), (5, &[0x1234, 0xBEEF][..]));
         assert_eq!(decoded.ranges, [K]);
+        assert_eq!(decoded.version, 2);
+        assert_eq!(decoded.variables, [saved("main.n", "INT", &[7, 0])]);
         assert_eq!(layout_difference(&decoded, &[K]), None);
+    }
+
+    #[test]
+    fn variables_round_trip() {
+        let variables = [
+            saved("main.count", "DINT", &[1, 2, 3, 4]),
+            saved("main.s", "STRING[3]", &[2, b'a', b'b', 0]),
+            saved("Größe", "Color(Red:=0,Green:=1)", &[1, 0, 0, 0]),
+            saved("main.empty", "STRING[0]", &[0]),
+        ];
+        let decoded = decode(&file_with(3, &[9], &variables)).unwrap();
+        assert_eq!(decoded.variables, variables);
+        assert_eq!(decoded.words, [9]);
+        assert!(decode(&file(3, &[9])).unwrap().variables.is_empty());
+    }
+
+    #[test]
+    fn a_version_1_file_restores_devices_and_no_variables() {
+        let bytes = version_1_file(4, &[0x1234, 0xBEEF]);
+        assert_eq!(bytes.len(), HEADER + 6 + 4 + 4, "the size of a version 1 file");
+        let decoded = decode(&bytes).unwrap();
+        assert_eq!(decoded.version, 1);
+        assert_eq!((decoded.seq, &decoded.words[..]), (4, &[0x1234, 0xBEEF][..]));
+        assert!(decoded.variables.is_empty());
+        assert_eq!(layout_difference(&decoded, &[K]), None);
+        for len in 0..bytes.len() {
+            assert!(decode(&bytes[..len]).is_err(), "truncated at {len}");
+        }
+        for bit in 0..bytes.len() * 8 {
+            let mut flipped = bytes.clone();
+            flipped[bit / 8] ^= 1 << (bit % 8);
+            assert!(decode(&flipped).is_err(), "bit {bit} flipped went unnoticed");
+        }
+    }
+
+    #[test]
+    fn a_malformed_variables_section_is_rejected_even_with_its_crc() {
+        let good = file_with(1, &[1], &[saved("main.n", "INT", &[7, 0])]);
+        let section = HEADER + 6 + 2;
+        let with_crc = |mut bytes: Vec<u8>| {
+            let len = bytes.len();
+            let crc = CRC.checksum(&bytes[..len - 4]);
+            bytes[len - 4..].copy_from_slice(&crc.to_le_bytes());
+            bytes
+        };
+        // A name longer than the section.
+        let mut bytes = good.clone();
+        bytes[section + 4] = 200;
+        assert_eq!(decode(&with_crc(bytes)), Err(DecodeError::Variables(8)));
+        // A count of more variables than the section can hold.
+        let mut bytes = good.clone();
+        bytes[section] = 9;
+        assert_eq!(decode(&with_crc(bytes)), Err(DecodeError::Variables(0)));
+        // A name that is not UTF-8.
+        let mut bytes = good.clone();
+        bytes[section + 8] = 0xFF;
+        assert_eq!(decode(&with_crc(bytes)), Err(DecodeError::Variables(4)));
+        // Bytes left over after the last variable.
+        let mut bytes = good.clone();
+        bytes[section + 21] = 1; // the value's length 2 → 1
+        assert_eq!(decode(&with_crc(bytes)), Err(DecodeError::Variables(26)));
+        assert!(decode(&good).is_ok());
     }
 
     #[test]
@@ -255,7 +440,7 @@ mod tests {
 
     #[test]
     fn every_truncation_is_rejected() {
-        let bytes = file(9, &[1, 2]);
+        let bytes = file_with(9, &[1, 2], &[saved("main.n", "INT", &[7, 0])]);
         for len in 0..bytes.len() {
             let error = decode(&bytes[..len]).unwrap_err();
             if len < HEADER + 4 {
@@ -271,7 +456,7 @@ mod tests {
 
     #[test]
     fn every_single_bit_flip_is_rejected() {
-        let bytes = file(9, &[1, 2]);
+        let bytes = file_with(9, &[1, 2], &[saved("main.n", "INT", &[7, 0])]);
         for bit in 0..bytes.len() * 8 {
             let mut flipped = bytes.clone();
             flipped[bit / 8] ^= 1 << (bit % 8);
@@ -285,8 +470,11 @@ mod tests {
         bytes[0] = b'X';
         assert_eq!(decode(&bytes), Err(DecodeError::Magic));
         let mut bytes = file(1, &[1]);
-        bytes[8] = 2;
-        assert_eq!(decode(&bytes), Err(DecodeError::Version(2)));
+        bytes[8] = 3;
+        assert_eq!(decode(&bytes), Err(DecodeError::Version(3)));
+        let mut bytes = file(1, &[1]);
+        bytes[8] = 0;
+        assert_eq!(decode(&bytes), Err(DecodeError::Version(0)));
     }
 
     #[test]

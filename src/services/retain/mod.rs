@@ -1,7 +1,8 @@
 //! Retained memory that survives crashes and power loss (docs/RETAIN.md).
 //!
 //! Which device words are retained (K always, the `[retain]` ranges) is device memory's rule:
-//! [`crate::device::retained`].
+//! [`crate::device::retained`]; which Structured Text variables are, leaf by leaf, and which of
+//! them a changed program keeps, is the VM's: [`crate::vm::retained`].
 //!
 //! - [`format`](mod@format): the generation file and which of the two generations wins — pure
 //!   functions;
@@ -17,9 +18,9 @@
 //! engine first); the writer's copies of the retained words are taken by the scan thread at a
 //! scan boundary, without allocating, through a
 //! [`Mirror`](crate::drivers::real_time::mirror::Mirror) that the writer asks on its own thread;
-//! the final write reads the stopped engine on the main thread. Taking the retained words over
-//! into a replacement engine (a reload, a load) and clearing them (`reset --cold`) are the
-//! engine's, on the scan thread.
+//! the final write reads the stopped engine on the main thread. Taking the retained words and
+//! variables over into a replacement engine (a reload, a load) and clearing them (`reset
+//! --cold`) are the engine's, on the scan thread.
 
 pub mod format;
 pub mod service;
@@ -73,6 +74,10 @@ pub fn directory(config: &RetainConfig, state_directory: Option<&str>) -> Option
 pub struct Startup {
     /// The retained words to restore (as [`RetainSet::capture`] lays them out), if any.
     pub words: Option<Vec<u16>>,
+    /// The retained variables of the same generation (none from a version 1 file).
+    pub variables: Vec<crate::vm::retained::SavedVariable>,
+    /// The restored file's format version.
+    pub version: u16,
     /// The file they came from and its sequence number.
     pub from: Option<(PathBuf, u64)>,
     /// Where the writer goes on.
@@ -120,6 +125,8 @@ pub fn startup(store: &Store, set: &RetainSet, restart: Restart) -> Startup {
     });
     let mut startup = Startup {
         words: None,
+        variables: Vec::new(),
+        version: format::VERSION,
         from: None,
         next_slot: choice.next_slot,
         next_seq: choice.next_seq,
@@ -128,6 +135,8 @@ pub fn startup(store: &Store, set: &RetainSet, restart: Restart) -> Startup {
     match (restored, restart) {
         (Some((i, g)), Restart::Warm) => {
             startup.words = Some(g.words.clone());
+            startup.variables = g.variables.clone();
+            startup.version = g.version;
             startup.from = Some((store.slot_path(i), g.seq));
         }
         (Some((i, _)), Restart::Cold) => log::info!(

@@ -11,6 +11,10 @@ use crate::config::Config;
 use crate::drivers::real_time::mirror::Mirror;
 use crate::drivers::real_time::Shared;
 use crate::engine::Engine;
+use crate::vm::retained::list_names;
+
+/// The names a log line lists at most (then how many more).
+const NAMES_LOGGED: usize = 20;
 
 /// The daemon's retained memory.
 pub struct Persistence {
@@ -28,7 +32,7 @@ impl Persistence {
     /// directory that cannot be created is logged and nothing is persisted.
     pub fn open(config: &Config) -> Persistence {
         let set = RetainSet::new(&config.retain.ranges);
-        let mirror = Arc::new(Mirror::new(set.words.iter().map(|w| w.range())));
+        let mirror = Arc::new(Mirror::with_variables(set.words.iter().map(|w| w.range())));
         let state_directory = std::env::var("STATE_DIRECTORY").ok();
         let mut persistence = Persistence {
             mirror,
@@ -59,7 +63,8 @@ impl Persistence {
             startup.next_slot,
             startup.next_seq,
             startup.words.clone(),
-        );
+        )
+        .with_last_variables(&startup.variables);
         persistence.writer = Some(writer);
         persistence.startup = Some(startup);
         persistence
@@ -70,16 +75,45 @@ impl Persistence {
         vec![Arc::clone(&self.mirror)]
     }
 
-    /// Before the driver starts the engine: the restored words, if any.
+    /// Before the driver starts the engine: the restored words and variables, if any; the
+    /// mirror made ready for the engine's retained variables.
     pub fn restore_into(&self, engine: &mut Engine) {
+        self.mirror.prepare(engine.retained_variables());
         let Some(startup) = &self.startup else { return };
-        if let (Some(words), Some((path, seq))) = (&startup.words, &startup.from) {
-            engine.restore_retained(words);
+        let (Some(words), Some((path, seq))) = (&startup.words, &startup.from) else { return };
+        engine.restore_retained(words);
+        let plan = engine.restore_retained_variables(&startup.variables);
+        log::info!(
+            "retain: restored generation {} (seq {seq}, {} words, {} variables) in {:.3} ms",
+            path.display(),
+            words.len(),
+            plan.restore.len(),
+            startup.took.as_secs_f64() * 1e3
+        );
+        if startup.version == super::format::VERSION_1 {
+            if !plan.new.is_empty() {
+                log::info!(
+                    "retain: {} is a version 1 file, without variables: the RETAIN variables \
+                     start from their initial values",
+                    path.display()
+                );
+            }
+            return;
+        }
+        if !plan.dropped.is_empty() {
+            log::warn!(
+                "retain: {} saved variable(s) not restored, the program no longer retains them \
+                 with that name and type: {}",
+                plan.dropped.len(),
+                list_names(&plan.dropped, NAMES_LOGGED)
+            );
+        }
+        if !plan.new.is_empty() {
             log::info!(
-                "retain: restored generation {} (seq {seq}, {} words) in {:.3} ms",
-                path.display(),
-                words.len(),
-                startup.took.as_secs_f64() * 1e3
+                "retain: {} RETAIN variable(s) not in the file start from their initial values: \
+                 {}",
+                plan.new.len(),
+                list_names(&plan.new, NAMES_LOGGED)
             );
         }
     }
@@ -122,7 +156,9 @@ impl Persistence {
         };
         let mut words = Vec::new();
         self.set.capture(engine.vm().mem.words(), &mut words);
-        match writer.write_if_changed(&mut words) {
+        let (layout, mut vars) = (engine.retained_variables(), Vec::new());
+        layout.copy(engine.vm().vars(), &mut vars);
+        match writer.write_state(&mut words, Some((layout, &vars))) {
             Ok(true) => log::info!("retain: final state written"),
             Ok(false) => log::info!("retain: final state already on disk"),
             Err(_) => {}

@@ -1,9 +1,9 @@
 //! The retain writer: not real time, never in the scan thread's way.
 //!
 //! Every `interval_ms` (or at once when asked: STOP) it asks the scan thread for a copy of the
-//! retained words through its [`Mirror`] — taken at the next scan boundary, after END, so the
-//! copy is one scan's consistent state — and writes it to the older generation file if it
-//! differs from the last one written. A failing write (full disk, read-only file system) is
+//! retained words and variables through its [`Mirror`] — taken at the next scan boundary, after
+//! END, so the copy is one scan's consistent state — and writes it to the older generation file
+//! if it differs from the last one written. A failing write (full disk, read-only file system) is
 //! logged once per condition; the next interval tries again, and success is logged once.
 
 use std::sync::{Arc, Condvar, Mutex};
@@ -14,6 +14,7 @@ use super::{RetainError, Store};
 use crate::device::RetainedWords;
 use crate::drivers::real_time::mirror::Mirror;
 use crate::drivers::real_time::{pending, Shared};
+use crate::vm::retained::{RetainedVariables, SavedVariable};
 
 /// How long the writer waits for the scan thread's copy before trying again at the next
 /// interval (a scan lasts at most the watchdog time, 1 s).
@@ -37,6 +38,10 @@ pub struct Writer {
     next_seq: u64,
     /// The words of the last acknowledged (durably written) generation.
     last: Option<Vec<u16>>,
+    /// Its variables section.
+    last_variables: Vec<u8>,
+    /// The variables section being written.
+    variables: Vec<u8>,
     buf: Vec<u8>,
     /// The condition of the failing writes, while they fail.
     failing: Option<String>,
@@ -58,15 +63,34 @@ impl Writer {
             next_slot,
             next_seq,
             last,
+            last_variables: Vec::new(),
+            variables: Vec::new(),
             buf: Vec::new(),
             failing: None,
             stats: WriterStats::default(),
         }
     }
 
-    /// Writes `words` (the retained ranges, range after range; masked here) unless they equal
-    /// the last generation written. Ok(true) when a generation was written and is durable.
+    /// The variables the restored generation held (the file already holds them).
+    pub fn with_last_variables(mut self, saved: &[SavedVariable]) -> Writer {
+        super::format::encode_saved(saved, &mut self.last_variables);
+        self
+    }
+
+    /// Writes `words` (the retained ranges, range after range; masked here) and no variables
+    /// unless they equal the last generation written. Ok(true) when a generation was written
+    /// and is durable.
     pub fn write_if_changed(&mut self, words: &mut [u16]) -> Result<bool, RetainError> {
+        self.write_state(words, None)
+    }
+
+    /// [`Writer::write_if_changed`] with the retained variables: `copy` (as
+    /// [`RetainedVariables::copy`] made it) of `layout`'s leaves.
+    pub fn write_state(
+        &mut self,
+        words: &mut [u16],
+        variables: Option<(&RetainedVariables, &[u8])>,
+    ) -> Result<bool, RetainError> {
         let mut at = 0;
         for r in self.ranges.iter() {
             for w in &mut words[at..at + r.len()] {
@@ -74,11 +98,16 @@ impl Writer {
             }
             at += r.len();
         }
-        if self.last.as_deref() == Some(&*words) {
+        match variables {
+            Some((layout, copy)) => super::format::encode_leaves(layout, copy, &mut self.variables),
+            None => super::format::encode_variables(std::iter::empty(), &mut self.variables),
+        }
+        if self.last.as_deref() == Some(&*words) && self.last_variables == self.variables {
             return Ok(false);
         }
         let (slot, seq) = (self.next_slot, self.next_seq);
-        super::format::encode(seq, super::unix_ms(), &self.ranges, words, &mut self.buf);
+        let ms = super::unix_ms();
+        super::format::encode(seq, ms, &self.ranges, words, &self.variables, &mut self.buf);
         let began = Instant::now();
         // The sequence number is used up either way: a failed write may have left it on disk.
         self.next_seq += 1;
@@ -93,6 +122,7 @@ impl Writer {
                     Some(last) => last.clone_from_slice(words),
                     None => self.last = Some(words.to_vec()),
                 }
+                std::mem::swap(&mut self.last_variables, &mut self.variables);
                 let path = self.store.slot_path(slot);
                 if self.failing.take().is_some() {
                     log::info!(
@@ -154,6 +184,8 @@ impl WriterThread {
             .spawn(move || {
                 let mut seen = mirror.lock().generation;
                 let mut words: Vec<u16> = Vec::with_capacity(mirror.lock().words.len());
+                let mut vars: Vec<u8> = Vec::new();
+                let mut layout = None;
                 loop {
                     {
                         let (lock, wake) = &*ctl;
@@ -166,19 +198,34 @@ impl WriterThread {
                         }
                         guard.flush = false;
                     }
-                    mirror.request();
-                    shared.signal(pending::MIRROR);
-                    {
-                        let image = mirror.wait_newer(seen, COPY_TIMEOUT);
-                        if image.generation == seen {
-                            continue;
+                    // A copy the scan thread could not take without allocating or freeing is
+                    // asked for again once the image is served (each time, one more engine
+                    // replaced it: this ends).
+                    let mut copied = false;
+                    loop {
+                        mirror.request();
+                        shared.signal(pending::MIRROR);
+                        let mut image = mirror.wait_newer(seen, COPY_TIMEOUT);
+                        let waited = image.serve_reader();
+                        if image.generation != seen {
+                            seen = image.generation;
+                            words.clear();
+                            words.extend_from_slice(&image.words);
+                            vars.clear();
+                            vars.extend_from_slice(&image.vars);
+                            layout.clone_from(&image.layout);
+                            copied = true;
+                            break;
                         }
-                        seen = image.generation;
-                        words.clear();
-                        words.extend_from_slice(&image.words);
+                        if !waited {
+                            break;
+                        }
                     }
-                    // Errors are logged by the writer; the next interval tries again.
-                    let _ = writer.write_if_changed(&mut words);
+                    if copied {
+                        // Errors are logged by the writer; the next interval tries again.
+                        let variables = layout.as_deref().map(|l| (l, &vars[..]));
+                        let _ = writer.write_state(&mut words, variables);
+                    }
                 }
                 writer
             })?;

@@ -1,0 +1,235 @@
+//! Retained Structured Text variables (docs/RETAIN.md), in virtual time and on a real
+//! directory: a warm RUN start keeps them and a cold reset sets their initial values at once;
+//! a replacement engine (a reload, `plcctl load`, an online change in STOP) and an online
+//! change in RUN keep those of unchanged name and type; the retain files store them with the
+//! device words and a restore into a changed program restores exactly those of unchanged name
+//! and type.
+
+mod harness;
+
+use plcd::config::Restart;
+use plcd::engine::event::Mode;
+use plcd::engine::ModeRequest;
+use plcd::project::Project;
+use plcd::services::retain::writer::Writer;
+use plcd::services::retain::{self, Store};
+use plcd::value::{Elem, ValueType};
+
+use harness::engine::{project, Plc, MS};
+use harness::tempdir::TempDir;
+
+const CONFIG: &str = "[[program]]\nname = \"main\"\nfile = \"main.st\"\n";
+
+fn st(main: &str) -> Project {
+    project(CONFIG, &[("main.st", main)])
+}
+
+/// The value of the variable `name` of `plc`'s project `p`.
+fn var(plc: &Plc, p: &Project, name: &str) -> i64 {
+    let symbol = p.variable(name).unwrap_or_else(|| panic!("no variable {name}"));
+    let value = plc.engine.vm().read_value(symbol.at, symbol.ty.elem());
+    match symbol.ty {
+        ValueType::Signed(Elem::I16) => i64::from(value as i16),
+        ValueType::Signed(Elem::I32) => i64::from(value as i32),
+        _ => value as i64,
+    }
+}
+
+/// Runs `ns`, then on to the end of the scan under way: every statement of a scan executed.
+fn run_scans(plc: &mut Plc, ns: u64) {
+    plc.run_for(ns);
+    plc.engine.set_hold_at_end(true);
+    while !plc.engine.at_scan_boundary() {
+        plc.engine.run(&plc.clock, &mut plc.field, &mut plc.events, 1);
+    }
+    plc.engine.set_hold_at_end(false);
+}
+
+/// Counts every scan in a retained and in a plain variable, and in a retained FB instance's
+/// counter, a retained global and an FB's own RETAIN member.
+const COUNTING: &str = "
+VAR_GLOBAL RETAIN total : DINT; END_VAR
+FUNCTION_BLOCK Keeper
+VAR RETAIN kept : INT; END_VAR
+VAR lost : INT; END_VAR
+    kept := kept + 1; lost := lost + 1;
+END_FUNCTION_BLOCK
+PROGRAM Main
+VAR RETAIN count : DINT := 100; ctr : CTU; END_VAR
+VAR scans : DINT; k : Keeper; END_VAR
+    count := count + 1; scans := scans + 1; total := total + 2;
+    ctr(CU := NOT ctr.CU, PV := 30000);
+    k();
+END_PROGRAM
+";
+
+#[test]
+fn a_warm_run_start_keeps_them_a_cold_reset_sets_their_initial_values_at_once() {
+    let p = st(COUNTING);
+    let mut plc = Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    plc.set_mode(Mode::Stop);
+    let scans = var(&plc, &p, "main.scans");
+    assert!(scans > 5, "it ran: {scans}");
+    assert_eq!(var(&plc, &p, "main.count"), 100 + scans);
+    assert_eq!(var(&plc, &p, "total"), 2 * scans);
+    assert_eq!(var(&plc, &p, "main.k.kept"), scans);
+    let cv = var(&plc, &p, "main.ctr.CV");
+    assert!(cv > 0);
+
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    plc.set_mode(Mode::Stop);
+    let again = var(&plc, &p, "main.scans");
+    assert!(again > 0 && again < scans + 10, "not retained: started over");
+    assert_eq!(var(&plc, &p, "main.count"), 100 + scans + again, "retained: counted on");
+    assert_eq!(var(&plc, &p, "total"), 2 * (scans + again), "a retained global");
+    assert_eq!(var(&plc, &p, "main.k.kept"), scans + again, "an FB's RETAIN member");
+    assert_eq!(var(&plc, &p, "main.k.lost"), again, "its other member started over");
+    assert!(var(&plc, &p, "main.ctr.CV") > cv, "a retained FB instance counted on");
+
+    plc.request(ModeRequest::Reset { cold: true }).unwrap();
+    assert_eq!(var(&plc, &p, "main.count"), 100, "the initial value, already in STOP");
+    assert_eq!(var(&plc, &p, "total"), 0);
+    assert_eq!(var(&plc, &p, "main.ctr.CV"), 0);
+    plc.set_mode(Mode::Run);
+    plc.run_for(MS);
+    let scans = var(&plc, &p, "main.scans");
+    assert_eq!(var(&plc, &p, "main.count"), 100 + scans, "counted from the initial value");
+}
+
+const OLD: &str = "
+PROGRAM Main
+VAR RETAIN count : DINT; renamed : DINT; retyped : INT; removed : INT; END_VAR
+VAR plain : DINT; END_VAR
+    count := count + 1; renamed := renamed + 1; retyped := retyped + 1;
+    removed := removed + 1; plain := plain + 1;
+END_PROGRAM
+";
+
+/// The same program changed: `count` moved (another offset, another spelling), `renamed`
+/// renamed, `retyped` of another type, `removed` removed, `fresh` new; `plain` made RETAIN.
+const NEW: &str = "
+PROGRAM Main
+VAR RETAIN fresh : INT := 5; retyped : DINT := 9; COUNT : DINT; renamed2 : DINT := 3;
+    plain : DINT := 1; END_VAR
+    ;
+END_PROGRAM
+";
+
+fn assert_changed_program(plc: &Plc, p: &Project, count: i64) {
+    assert_eq!(var(plc, p, "main.count"), count, "same name and type: kept");
+    assert_eq!(var(plc, p, "main.renamed2"), 3, "renamed: its initial value");
+    assert_eq!(var(plc, p, "main.retyped"), 9, "retyped: its initial value");
+    assert_eq!(var(plc, p, "main.fresh"), 5, "new: its initial value");
+    assert_eq!(var(plc, p, "main.plain"), 1, "retained only now: its initial value");
+}
+
+#[test]
+fn a_replacement_engine_keeps_those_of_unchanged_name_and_type() {
+    let (old_p, new_p) = (st(OLD), st(NEW));
+    let mut old = Plc::new(&old_p);
+    old.set_mode(Mode::Run);
+    run_scans(&mut old, MS);
+    old.set_mode(Mode::Stop);
+    let count = var(&old, &old_p, "main.count");
+    assert!(count > 5);
+    let mut new = Plc::new(&new_p);
+    new.engine.inherit_retained(&old.engine);
+    assert_changed_program(&new, &new_p, count);
+    // And the first RUN start is warm: it keeps them.
+    new.set_mode(Mode::Run);
+    new.run_for(MS);
+    assert_eq!(var(&new, &new_p, "main.count"), count);
+}
+
+#[test]
+fn after_an_online_change_in_run_the_next_run_start_is_still_warm() {
+    let (old_p, new_p) = (st(OLD), st(&OLD.replace("plain + 1", "plain + 2")));
+    let mut plc = Plc::new(&old_p);
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    let mut change = plcd::engine::online::prepare(&old_p, &new_p, &[]).unwrap();
+    change.engine.take_over(&mut plc.engine, &change.edges).unwrap();
+    std::mem::swap(&mut plc.engine, &mut change.engine);
+    run_scans(&mut plc, MS);
+    plc.set_mode(Mode::Stop);
+    let count = var(&plc, &new_p, "main.count");
+    assert!(count > var(&plc, &new_p, "main.plain") / 2, "counted through the change");
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    let scans = var(&plc, &new_p, "main.plain") / 2;
+    assert_eq!(var(&plc, &new_p, "main.count"), count + scans, "warm: counted on");
+}
+
+#[test]
+fn the_files_hold_them_and_a_changed_program_restores_those_of_unchanged_name_and_type() {
+    let dir = TempDir::new("retain-variables");
+    let (old_p, new_p) = (st(OLD), st(NEW));
+    let mut old = Plc::new(&old_p);
+    old.set_mode(Mode::Run);
+    run_scans(&mut old, MS);
+    old.set_mode(Mode::Stop);
+    let count = var(&old, &old_p, "main.count");
+
+    // What the writer writes: the device words and the variables, in one generation.
+    let set = old.engine.retain_set().clone();
+    let start = retain::startup(&Store::open(dir.path()).unwrap(), &set, Restart::Warm);
+    let mut writer =
+        Writer::new(Store::open(dir.path()).unwrap(), &set.words, 0, start.next_seq, None);
+    let mut words = Vec::new();
+    set.capture(old.engine.vm().mem.words(), &mut words);
+    let layout = old.engine.retained_variables();
+    let mut copy = Vec::new();
+    layout.copy(old.engine.vm().vars(), &mut copy);
+    assert!(writer.write_state(&mut words.clone(), Some((layout, &copy))).unwrap());
+    assert!(
+        !writer.write_state(&mut words.clone(), Some((layout, &copy))).unwrap(),
+        "unchanged: not written again"
+    );
+    let g = retain::newest_in(dir.path()).unwrap();
+    assert_eq!(g.version, 2);
+    let names: Vec<(&str, &str)> =
+        g.variables.iter().map(|v| (v.name.as_str(), v.ty.as_str())).collect();
+    assert_eq!(
+        names,
+        [
+            ("main.count", "DINT"),
+            ("main.renamed", "DINT"),
+            ("main.retyped", "INT"),
+            ("main.removed", "INT")
+        ]
+    );
+    assert_eq!(g.variables[0].bytes, (count as i32).to_le_bytes());
+
+    // The same program restores everything.
+    let start = retain::startup(&Store::open(dir.path()).unwrap(), &set, Restart::Warm);
+    let mut same = Plc::new(&old_p);
+    same.engine.restore_retained(start.words.as_deref().unwrap());
+    let plan = same.engine.restore_retained_variables(&start.variables);
+    assert_eq!((plan.restore.len(), plan.dropped.len(), plan.new.len()), (4, 0, 0));
+    assert_eq!(var(&same, &old_p, "main.removed"), count);
+
+    // The changed one restores `count` only, and says what it dropped and what is new.
+    let mut new = Plc::new(&new_p);
+    new.engine.restore_retained(start.words.as_deref().unwrap());
+    let plan = new.engine.restore_retained_variables(&start.variables);
+    assert_changed_program(&new, &new_p, count);
+    assert_eq!(
+        plan.dropped,
+        [
+            "main.renamed (DINT): not a RETAIN variable of the program",
+            "main.retyped (INT): now DINT",
+            "main.removed (INT): not a RETAIN variable of the program",
+        ]
+    );
+    assert_eq!(plan.new, ["main.fresh", "main.retyped", "main.renamed2", "main.plain"]);
+    new.set_mode(Mode::Run);
+    new.run_for(MS);
+    assert_eq!(var(&new, &new_p, "main.count"), count, "the restore makes the RUN start warm");
+
+    // restart = "cold" restores nothing.
+    let cold = retain::startup(&Store::open(dir.path()).unwrap(), &set, Restart::Cold);
+    assert!(cold.words.is_none() && cold.variables.is_empty());
+}
