@@ -91,9 +91,11 @@ pub fn type_text(ty: &ValueType) -> String {
         ValueType::Bool => "BOOL".into(),
         ValueType::Signed(e) | ValueType::Unsigned(e) | ValueType::Real(e) => elem(e).into(),
         ValueType::Time => "TIME".into(),
-        ValueType::Enum { type_name, values } => {
+        ValueType::Enum { type_name, values, base } => {
             let values: Vec<String> = values.iter().map(|(n, v)| format!("{n}:={v}")).collect();
-            format!("{type_name}({})", values.join(","))
+            // The base type is written when it is not the default DINT: `Code:INT(Ok:=0,…)`.
+            let base = if *base == Elem::I32 { String::new() } else { format!(":{}", elem(base)) };
+            format!("{type_name}{base}({})", values.join(","))
         }
         ValueType::String { cap } => format!("STRING[{cap}]"),
     }
@@ -320,8 +322,15 @@ mod tests {
         let color = ValueType::Enum {
             type_name: "Color".into(),
             values: vec![("Red".into(), 0), ("Green".into(), 5)],
+            base: Elem::I32,
         };
         assert_eq!(type_text(&color), "Color(Red:=0,Green:=5)");
+        let code = ValueType::Enum {
+            type_name: "Color".into(),
+            values: vec![("Red".into(), 0), ("Green".into(), 5)],
+            base: Elem::I16,
+        };
+        assert_eq!(type_text(&code), "Color:INT(Red:=0,Green:=5)");
     }
 
     #[test]
