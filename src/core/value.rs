@@ -16,6 +16,7 @@
 //! Nothing here knows about devices, memory or programs.
 
 use std::cmp::Ordering;
+use std::fmt;
 
 /// An elementary type as stored: its width, and whether it is signed, unsigned or floating.
 /// `TIME` is an [`Elem::I64`] of nanoseconds; `BYTE`…`LWORD` are `U8`…`U64`.
@@ -526,12 +527,6 @@ pub fn type_name(ty: &ValueType) -> String {
 /// value has it). Strings are not slots: see [`format_string`].
 pub fn format(ty: &ValueType, slot: u64) -> String {
     match ty {
-        ValueType::Bool => if slot != 0 { "1" } else { "0" }.into(),
-        ValueType::Signed(e) => (normalize(*e, slot) as i64).to_string(),
-        ValueType::Unsigned(e) => normalize(*e, slot).to_string(),
-        ValueType::Real(Elem::F32) => format!("{:?}", f32::from_bits(slot as u32)),
-        ValueType::Real(_) => format!("{:?}", f64::from_bits(slot)),
-        ValueType::Time => format_time(slot as i64),
         ValueType::Enum { values, base, .. } => {
             let n = normalize(*base, slot) as i64;
             match values.iter().find(|(_, v)| *v == n) {
@@ -540,6 +535,51 @@ pub fn format(ty: &ValueType, slot: u64) -> String {
             }
         }
         ValueType::String { .. } => String::new(),
+        scalar => {
+            let mut text = String::new();
+            if let Some(scalar) = scalar.scalar() {
+                // Writing into a String cannot fail.
+                let _ = write_scalar(&mut text, scalar, slot);
+            }
+            text
+        }
+    }
+}
+
+/// A scalar type: what [`write_scalar`] writes and [`scalar_from_text`] reads, without
+/// allocating (the conversions to and from STRING run on the scan thread).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scalar {
+    Bool,
+    Signed(Elem),
+    Unsigned(Elem),
+    Real(Elem),
+    Time,
+}
+
+impl ValueType {
+    /// The scalar this type is; `None` for an enumeration and a `STRING`.
+    pub fn scalar(&self) -> Option<Scalar> {
+        Some(match self {
+            ValueType::Bool => Scalar::Bool,
+            ValueType::Signed(e) => Scalar::Signed(*e),
+            ValueType::Unsigned(e) => Scalar::Unsigned(*e),
+            ValueType::Real(e) => Scalar::Real(*e),
+            ValueType::Time => Scalar::Time,
+            ValueType::Enum { .. } | ValueType::String { .. } => return None,
+        })
+    }
+}
+
+/// Writes a scalar's text as [`format`] describes it (`BOOL` as `0`/`1`).
+pub fn write_scalar(out: &mut impl fmt::Write, scalar: Scalar, slot: u64) -> fmt::Result {
+    match scalar {
+        Scalar::Bool => out.write_str(if slot != 0 { "1" } else { "0" }),
+        Scalar::Signed(e) => write!(out, "{}", normalize(e, slot) as i64),
+        Scalar::Unsigned(e) => write!(out, "{}", normalize(e, slot)),
+        Scalar::Real(Elem::F32) => write!(out, "{:?}", f32::from_bits(slot as u32)),
+        Scalar::Real(_) => write!(out, "{:?}", f64::from_bits(slot)),
+        Scalar::Time => write_time(out, slot as i64),
     }
 }
 
@@ -555,23 +595,27 @@ const TIME_UNITS: [(&str, u64); 7] = [
 
 /// Nanoseconds as an IEC `TIME` literal: `T#1h2m3s4ms`, `T#0s`, `T#-250ms`.
 pub fn format_time(ns: i64) -> String {
-    let mut text = String::from("T#");
-    if ns < 0 {
-        text.push('-');
-    }
+    let mut text = String::new();
+    // Writing into a String cannot fail.
+    let _ = write_time(&mut text, ns);
+    text
+}
+
+/// Writes [`format_time`]'s text.
+pub fn write_time(out: &mut impl fmt::Write, ns: i64) -> fmt::Result {
+    out.write_str(if ns < 0 { "T#-" } else { "T#" })?;
     let mut rest = ns.unsigned_abs();
     if rest == 0 {
-        text.push_str("0s");
+        out.write_str("0s")?;
     }
     for (unit, size) in TIME_UNITS {
         let n = rest / size;
         rest %= size;
         if n > 0 {
-            text.push_str(&n.to_string());
-            text.push_str(unit);
+            write!(out, "{n}{unit}")?;
         }
     }
-    text
+    Ok(())
 }
 
 /// The characters of a `STRING` as an IEC literal: `'abc'`, with `$'`, `$$`, `$N`, `$R`,
@@ -647,14 +691,6 @@ pub fn parse_string(text: &str, cap: u32) -> Result<Vec<u8>, String> {
 pub fn parse(ty: &ValueType, text: &str) -> Result<u64, String> {
     let text = text.trim();
     match ty {
-        ValueType::Bool => match text.to_ascii_uppercase().as_str() {
-            "TRUE" | "1" => Ok(1),
-            "FALSE" | "0" => Ok(0),
-            _ => Err(format!("`{text}` is not a BOOL (TRUE, FALSE, 1 or 0)")),
-        },
-        ValueType::Signed(e) | ValueType::Unsigned(e) => parse_integer(ty, *e, text),
-        ValueType::Real(e) => parse_real(*e, text),
-        ValueType::Time => parse_time(text).map(|ns| ns as u64),
         ValueType::Enum { type_name, values, base } => {
             let name = match text.split_once('#') {
                 Some((t, name)) if t.eq_ignore_ascii_case(type_name) => name,
@@ -671,23 +707,105 @@ pub fn parse(ty: &ValueType, text: &str) -> Result<u64, String> {
         ValueType::String { cap } => {
             Err(format!("a STRING[{cap}] is not a single value: write its text"))
         }
+        scalar => {
+            let Some(scalar) = scalar.scalar() else { unreachable!("every other type is scalar") };
+            scalar_from_text(scalar, text).map_err(|e| e.message(ty, text))
+        }
     }
 }
 
-fn parse_integer(ty: &ValueType, elem: Elem, text: &str) -> Result<u64, String> {
+/// A `TIME` literal or a duration (`T#1s500ms`, `1.5s`, `-250ms`) in nanoseconds.
+pub fn parse_time(text: &str) -> Result<i64, String> {
+    time_from_text(text).map_err(|e| e.message(&ValueType::Time, text))
+}
+
+/// Why a text is not a value of a scalar type: [`TextError::message`] says it in words; a
+/// `STRING_TO_*` conversion, which must not allocate, only needs to know that it is not one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TextError {
+    NotBool,
+    NotInteger,
+    NotReal,
+    /// Not a `TIME`, and why.
+    NotTime(&'static str),
+    /// A value of the type's form beyond its range.
+    OutOfRange,
+}
+
+impl TextError {
+    /// The error as a client reads it, naming `text` and the type `ty`.
+    pub fn message(self, ty: &ValueType, text: &str) -> String {
+        match (self, ty) {
+            (TextError::NotBool, _) => format!("`{text}` is not a BOOL (TRUE, FALSE, 1 or 0)"),
+            (TextError::NotInteger, _) => format!("`{text}` is not an integer"),
+            (TextError::NotReal, _) => format!("`{text}` is not a {}", type_name(ty)),
+            (TextError::NotTime(why), _) => {
+                format!("`{text}` is not a TIME ({why}; e.g. T#1s500ms)")
+            }
+            (TextError::OutOfRange, ValueType::Real(Elem::F32)) => {
+                format!("`{text}` is out of range for REAL (±3.4028235e38)")
+            }
+            (TextError::OutOfRange, ValueType::Real(_)) => {
+                format!("`{text}` is out of range for LREAL (±1.7976931348623157e308)")
+            }
+            (TextError::OutOfRange, ValueType::Time) => format!(
+                "`{text}` is out of range for TIME (about ±106751 days, T#-106751d..T#106751d)"
+            ),
+            (TextError::OutOfRange, ValueType::Signed(e) | ValueType::Unsigned(e)) => {
+                let (min, max) = integer_range(*e);
+                format!("`{text}` is out of range for {} ({min}..={max})", type_name(ty))
+            }
+            (TextError::OutOfRange, _) => format!("`{text}` is out of range for {}", type_name(ty)),
+        }
+    }
+}
+
+/// The value a text gives a scalar, as [`parse`] describes it, without allocating.
+pub fn scalar_from_text(scalar: Scalar, text: &str) -> Result<u64, TextError> {
+    let text = text.trim();
+    match scalar {
+        Scalar::Bool if text.eq_ignore_ascii_case("TRUE") || text == "1" => Ok(1),
+        Scalar::Bool if text.eq_ignore_ascii_case("FALSE") || text == "0" => Ok(0),
+        Scalar::Bool => Err(TextError::NotBool),
+        Scalar::Signed(e) | Scalar::Unsigned(e) => integer_from_text(e, text),
+        Scalar::Real(e) => real_from_text(e, text),
+        Scalar::Time => time_from_text(text).map(|ns| ns as u64),
+    }
+}
+
+fn integer_range(elem: Elem) -> (i128, i128) {
     let bits = width(elem);
-    let (min, max): (i128, i128) = if elem.is_signed() {
+    if elem.is_signed() {
         (-(1i128 << (bits - 1)), (1i128 << (bits - 1)) - 1)
     } else {
         (0, (1i128 << bits) - 1)
-    };
-    let range = || format!("`{text}` is out of range for {} ({min}..={max})", type_name(ty));
-    let digits = |s: &str, radix: u32| -> Option<i128> {
-        let s: String = s.chars().filter(|&c| c != '_').collect();
+    }
+}
+
+/// Room for a number's characters without its `_` separators: longer texts are no number of
+/// any type plcd has.
+const NUMBER_TEXT: usize = 128;
+
+/// `text` without its `_` digit separators, in `buf`; `None` when it does not fit.
+fn without_underscores<'b>(text: &str, buf: &'b mut [u8; NUMBER_TEXT]) -> Option<&'b str> {
+    let mut len = 0;
+    for b in text.bytes().filter(|&b| b != b'_') {
+        *buf.get_mut(len)? = b;
+        len += 1;
+    }
+    std::str::from_utf8(&buf[..len]).ok()
+}
+
+fn integer_from_text(elem: Elem, text: &str) -> Result<u64, TextError> {
+    let bits = width(elem);
+    let (min, max) = integer_range(elem);
+    let mut buf = [0u8; NUMBER_TEXT];
+    let digits = |s: &str, radix: u32, buf: &mut [u8; NUMBER_TEXT]| -> Option<i128> {
+        let s = without_underscores(s, buf)?;
         if s.is_empty() || s.starts_with(['+', '-']) {
             return None;
         }
-        i128::from_str_radix(&s, radix).ok()
+        i128::from_str_radix(s, radix).ok()
     };
     if let Some((base, rest)) = text.split_once('#') {
         let radix = match base {
@@ -695,72 +813,76 @@ fn parse_integer(ty: &ValueType, elem: Elem, text: &str) -> Result<u64, String> 
             "8" => 8,
             "2" => 2,
             "10" => 10,
-            _ => return Err(format!("`{text}` is not an integer")),
+            _ => return Err(TextError::NotInteger),
         };
-        let value = digits(rest, radix).ok_or_else(|| format!("`{text}` is not an integer"))?;
+        let value = digits(rest, radix, &mut buf).ok_or(TextError::NotInteger)?;
         if radix != 10 {
             // A bit pattern of the width.
             if value >= 1i128 << bits {
-                return Err(range());
+                return Err(TextError::OutOfRange);
             }
             return Ok(wrap(elem, value as u64));
         }
         return if (min..=max).contains(&value) {
             Ok(wrap(elem, value as u64))
         } else {
-            Err(range())
+            Err(TextError::OutOfRange)
         };
     }
     let (negative, unsigned) = match text.strip_prefix('-') {
         Some(rest) => (true, rest),
         None => (false, text.strip_prefix('+').unwrap_or(text)),
     };
-    let magnitude = digits(unsigned, 10).ok_or_else(|| format!("`{text}` is not an integer"))?;
+    let magnitude = digits(unsigned, 10, &mut buf).ok_or(TextError::NotInteger)?;
     let value = if negative { -magnitude } else { magnitude };
     if (min..=max).contains(&value) {
         Ok(wrap(elem, value as u64))
     } else {
-        Err(range())
+        Err(TextError::OutOfRange)
     }
 }
 
-fn parse_real(elem: Elem, text: &str) -> Result<u64, String> {
-    let clean: String = text.chars().filter(|&c| c != '_').collect();
-    let not = || format!("`{text}` is not a {}", if elem == Elem::F32 { "REAL" } else { "LREAL" });
-    let infinite_text = clean.to_ascii_lowercase().contains("inf");
+fn real_from_text(elem: Elem, text: &str) -> Result<u64, TextError> {
+    let mut buf = [0u8; NUMBER_TEXT];
+    let clean = without_underscores(text, &mut buf).ok_or(TextError::NotReal)?;
+    let infinite_text = clean.as_bytes().windows(3).any(|w| w.eq_ignore_ascii_case(b"inf"));
     if elem == Elem::F32 {
-        let x: f32 = clean.parse().map_err(|_| not())?;
+        let x: f32 = clean.parse().map_err(|_| TextError::NotReal)?;
         if x.is_infinite() && !infinite_text {
-            return Err(format!("`{text}` is out of range for REAL (±3.4028235e38)"));
+            return Err(TextError::OutOfRange);
         }
         Ok(x.to_bits() as u64)
     } else {
-        let x: f64 = clean.parse().map_err(|_| not())?;
+        let x: f64 = clean.parse().map_err(|_| TextError::NotReal)?;
         if x.is_infinite() && !infinite_text {
-            return Err(format!("`{text}` is out of range for LREAL (±1.7976931348623157e308)"));
+            return Err(TextError::OutOfRange);
         }
         Ok(x.to_bits())
     }
 }
 
-/// A `TIME` literal or a duration (`T#1s500ms`, `1.5s`, `-250ms`) in nanoseconds.
-pub fn parse_time(text: &str) -> Result<i64, String> {
-    let bad = |why: &str| format!("`{text}` is not a TIME ({why}; e.g. T#1s500ms)");
-    let upper = text.to_ascii_uppercase();
+/// A `TIME` literal or a duration in nanoseconds, without allocating.
+fn time_from_text(text: &str) -> Result<i64, TextError> {
+    let bad = TextError::NotTime;
+    let text = text.trim();
     let body = ["LTIME#", "TIME#", "LT#", "T#"]
         .iter()
-        .find_map(|p| upper.strip_prefix(p))
-        .unwrap_or(&upper);
+        .find_map(|p| {
+            let head = text.get(..p.len())?;
+            head.eq_ignore_ascii_case(p).then(|| &text[p.len()..])
+        })
+        .unwrap_or(text);
     let (negative, body) = match body.strip_prefix('-') {
         Some(rest) => (true, rest),
         None => (false, body.strip_prefix('+').unwrap_or(body)),
     };
-    let body: String = body.chars().filter(|&c| c != '_').collect();
+    let mut buf = [0u8; NUMBER_TEXT];
+    let body = without_underscores(body, &mut buf).ok_or(bad("too long"))?;
     if body.is_empty() {
         return Err(bad("no duration"));
     }
     let mut total: i128 = 0;
-    let mut rest = body.as_str();
+    let mut rest = body;
     while !rest.is_empty() {
         let number_len =
             rest.find(|c: char| !(c.is_ascii_digit() || c == '.')).unwrap_or(rest.len());
@@ -774,9 +896,7 @@ pub fn parse_time(text: &str) -> Result<i64, String> {
             .iter()
             .find(|(u, _)| u.eq_ignore_ascii_case(unit))
             .map(|(_, size)| *size)
-            .ok_or_else(|| {
-                bad(if unit.is_empty() { "a unit is missing" } else { "unknown unit" })
-            })?;
+            .ok_or(bad(if unit.is_empty() { "a unit is missing" } else { "unknown unit" }))?;
         let (whole, fraction) = number.split_once('.').unwrap_or((number, ""));
         let whole: i128 = if whole.is_empty() {
             0
@@ -798,9 +918,7 @@ pub fn parse_time(text: &str) -> Result<i64, String> {
         rest = after;
     }
     let ns = if negative { -total } else { total };
-    i64::try_from(ns).map_err(|_| {
-        format!("`{text}` is out of range for TIME (about ±106751 days, T#-106751d..T#106751d)")
-    })
+    i64::try_from(ns).map_err(|_| TextError::OutOfRange)
 }
 
 #[cfg(test)]
