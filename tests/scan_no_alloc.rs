@@ -123,7 +123,10 @@ const TICK: &str = "INC D00001\nLOAD NOT P0042\nOUT P0042\nEND\n";
 const EDGE: &str = "INC D00000\nEND\n";
 const FULL: &str = "MOV 0 D00000\nINC D00002\nEND\n";
 const VARS: &str = "PROGRAM Vars\nVAR\n    n : DINT;\n    r : REAL;\n    s : STRING[10] := 'ab';\n\
-                    pos AT %D00300 : DINT;\nEND_VAR\n    n := n + 1;\nEND_PROGRAM\n";
+                    pos AT %D00300 : DINT;\n    t : STRING;\n    x : REAL;\n    m : DINT;\nEND_VAR\n\
+                    n := n + 1;\n    t := REAL_TO_STRING(x + 0.5);\n    x := STRING_TO_REAL(t);\n\
+                    t := TIME_TO_STRING(DINT_TO_TIME(n));\n    m := STRING_TO_DINT(DINT_TO_STRING(n));\n\
+                    END_PROGRAM\n";
 
 #[test]
 fn typed_programs_do_not_allocate() {

@@ -454,6 +454,12 @@ pub enum StrOp {
     Find,
     /// `a b` → `order`: -1, 0 or 1 as an `I64` (byte-wise), for the comparisons.
     Compare,
+    /// `dst v` → ``: the text of the value `v` of a scalar type into `dst` (`*_TO_STRING`):
+    /// `BOOL` as `TRUE`/`FALSE`, the others as `value::write_scalar` writes them.
+    FromValue(crate::value::Scalar),
+    /// `s` → `v`: the value the text `s` gives a scalar type (`STRING_TO_*`), as
+    /// `value::scalar_from_text` reads it; 0 for a text that is none.
+    ToValue(crate::value::Scalar),
 }
 
 /// The device an instruction writes as its result.

@@ -11,7 +11,8 @@
 use crate::device::{BitRef, Memory, WordRef};
 use crate::lang::ops::{Place, StrOp};
 use crate::lang::EVAL_DEPTH;
-use crate::value::{normalize, Elem, Pointer, Space};
+use crate::value::{normalize, Elem, Pointer, Scalar, Space};
+use std::fmt::Write as _;
 
 const _: () = assert!(EVAL_DEPTH.is_power_of_two(), "the evaluation stack is a masked ring");
 const MASK: usize = EVAL_DEPTH - 1;
@@ -317,6 +318,58 @@ pub(super) fn string_op(
             let order = chars(vars, frame, a).cmp(chars(vars, frame, b));
             stack.push(order as i8 as i64 as u64);
         }
+        StrOp::FromValue(scalar) => {
+            let (v, dst) = (stack.pop(), ptr(stack.pop()));
+            let mut text = TextBuf::default();
+            // The longest text of a scalar (a TIME, an LREAL) is far below the buffer's size:
+            // writing cannot fail.
+            let _ = match scalar {
+                Scalar::Bool => text.write_str(if v != 0 { "TRUE" } else { "FALSE" }),
+                _ => crate::value::write_scalar(&mut text, scalar, v),
+            };
+            write_chars(vars, frame, dst, &text.bytes[..text.len.min(cap)]);
+        }
+        StrOp::ToValue(scalar) => {
+            let s = ptr(stack.pop());
+            let text = std::str::from_utf8(chars(vars, frame, s)).unwrap_or("");
+            stack.push(crate::value::scalar_from_text(scalar, text).unwrap_or(0));
+        }
+    }
+}
+
+/// The text of a scalar value, on the stack: a `*_TO_STRING` conversion allocates nothing.
+struct TextBuf {
+    bytes: [u8; 96],
+    len: usize,
+}
+
+impl Default for TextBuf {
+    fn default() -> Self {
+        TextBuf { bytes: [0; 96], len: 0 }
+    }
+}
+
+impl std::fmt::Write for TextBuf {
+    fn write_str(&mut self, s: &str) -> std::fmt::Result {
+        let end = self.len + s.len();
+        let room = self.bytes.get_mut(self.len..end).ok_or(std::fmt::Error)?;
+        room.copy_from_slice(s.as_bytes());
+        self.len = end;
+        Ok(())
+    }
+}
+
+/// Writes `text` as the whole string at `p` (the caller cut it to the capacity).
+fn write_chars(vars: &mut [u8], frame: &mut [u8], p: Pointer, text: &[u8]) {
+    let buf = match p.space {
+        Space::Var => vars,
+        Space::Frame => frame,
+        _ => return,
+    };
+    let start = p.offset as usize;
+    if let Some(room) = buf.get_mut(start + 1..start + 1 + text.len()) {
+        room.copy_from_slice(text);
+        buf[start] = text.len() as u8;
     }
 }
 

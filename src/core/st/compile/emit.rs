@@ -142,8 +142,8 @@ fn effect(op: &Op) -> isize {
         Op::CallFb { .. } => -1,
         Op::StoreInd(_) | Op::Copy(_) => -2,
         Op::Str { op, .. } => match op {
-            StrOp::Move => -2,
-            StrOp::Len => 0,
+            StrOp::Move | StrOp::FromValue(_) => -2,
+            StrOp::Len | StrOp::ToValue(_) => 0,
             StrOp::Left | StrOp::Right | StrOp::Concat => -3,
             StrOp::Mid => -4,
             StrOp::Find | StrOp::Compare => -1,
@@ -471,6 +471,21 @@ impl<'c, 'a> Em<'c, 'a> {
                 self.value(&args[1]);
                 self.op(Op::Str { op: StrOp::Find, cap: 0 });
                 self.op(Op::Conv { from: Elem::I64, to: Elem::I16 });
+            }
+            Std::ToString(scalar) => {
+                let cap = match ty {
+                    Ty::Str(n) => *n,
+                    _ => 255,
+                };
+                let tmp = self.alloc_tmp(cap + 1);
+                self.op(Op::AddrOf(Place::Frame(tmp)));
+                self.value(&args[0]);
+                self.op(Op::Str { op: StrOp::FromValue(scalar), cap: cap as u16 });
+                self.op(Op::AddrOf(Place::Frame(tmp)));
+            }
+            Std::FromString(scalar) => {
+                self.value(&args[0]);
+                self.op(Op::Str { op: StrOp::ToValue(scalar), cap: 0 });
             }
             Std::Left | Std::Right | Std::Mid | Std::Concat => {
                 let cap = match ty {

@@ -37,6 +37,10 @@ pub enum Std {
     Concat,
     /// `FIND(IN1, IN2)`, an INT.
     Find,
+    /// `<T>_TO_STRING(v)`: the text of a scalar (the node's type gives the capacity).
+    ToString(crate::value::Scalar),
+    /// `STRING_TO_<T>(s)`: the value a text gives a scalar, 0 for one it does not.
+    FromString(crate::value::Scalar),
 }
 
 const NAMES: &[&str] = &[
@@ -773,6 +777,46 @@ impl<'a> Ctx<'a> {
         }
     }
 
+    /// `<T>_TO_STRING`, `STRING_TO_<T>` (and `STRING_TO_STRING`, a copy).
+    fn string_conversion(
+        &mut self,
+        name: &str,
+        src: Ty,
+        dst: Ty,
+        arg: &Expr,
+        span: Span,
+        scope: Scope,
+    ) -> TExpr {
+        let file = scope.file;
+        let scalar = |cx: &Self, t: &Ty| t.prim(&cx.types).and_then(|p| p.value_type().scalar());
+        match (&src, &dst) {
+            (Ty::Str(_), Ty::Str(_)) => {
+                let t = self.check_expr(arg, scope, None);
+                self.want(&t, matches!(t.ty, Ty::Str(_)), name, "a STRING", file).then_some(t)
+            }
+            (Ty::Str(_), _) => {
+                let t = self.check_expr(arg, scope, None);
+                let to = scalar(self, &dst).expect("a prim");
+                self.want(&t, matches!(t.ty, Ty::Str(_)), name, "a STRING", file).then(|| TExpr {
+                    k: TK::Std(Std::FromString(to), vec![t]),
+                    ty: dst,
+                    span,
+                })
+            }
+            _ => {
+                let t = self.check_expr(arg, scope, Some(&src));
+                let t = self.coerce(t, &src, file);
+                let from = scalar(self, &src).expect("a prim");
+                (!t.ty.is_error()).then(|| TExpr {
+                    k: TK::Std(Std::ToString(from), vec![t]),
+                    ty: dst,
+                    span,
+                })
+            }
+        }
+        .unwrap_or_else(|| TExpr::error(span))
+    }
+
     fn convert_call(
         &mut self,
         name: &str,
@@ -783,21 +827,14 @@ impl<'a> Ctx<'a> {
         scope: Scope,
     ) -> TExpr {
         let file = scope.file;
-        if matches!(src, Ty::Str(_)) || matches!(dst, Ty::Str(_)) {
-            self.error(
-                file,
-                span,
-                format!(
-                    "`{name}` is not supported: conversions to and from STRING are not available"
-                ),
-            );
-            return TExpr::error(span);
-        }
         let Some(a) = self.std_args("CONV", args, span, file) else {
             return TExpr::error(span);
         };
         if !self.arity(name, a.len(), 1, 1, span, file) {
             return TExpr::error(span);
+        }
+        if matches!(src, Ty::Str(_)) || matches!(dst, Ty::Str(_)) {
+            return self.string_conversion(name, src, dst, a[0], span, scope);
         }
         let (sp, dp) = (src.prim(&self.types).expect("prim"), dst.prim(&self.types).expect("prim"));
         let t = self.check_expr(a[0], scope, Some(&src));
