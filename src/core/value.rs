@@ -479,6 +479,15 @@ impl ValueType {
             ValueType::String { .. } => Elem::U8,
         }
     }
+
+    /// The bytes a value of this type takes in variable memory (a `STRING[n]`: its length
+    /// byte and `n` characters).
+    pub fn bytes(&self) -> u32 {
+        match self {
+            ValueType::String { cap } => cap + 1,
+            ty => ty.elem().size(),
+        }
+    }
 }
 
 /// A named variable of Structured Text, one leaf of the tree of program instances (a struct

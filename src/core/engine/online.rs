@@ -23,7 +23,7 @@ use crate::device::Address;
 use crate::lang::ops::{EdgeMemory, Op};
 use crate::lang::Variables;
 use crate::project::Project;
-use crate::value::{Space, Symbol, ValueType};
+use crate::value::{Space, Symbol};
 use crate::vm::EdgeInit;
 
 use super::mode::ModeState;
@@ -140,13 +140,8 @@ pub fn kept_variables(old: &Variables, new: &Variables) -> Box<[(u32, u32, u32)]
         .filter_map(|symbol| {
             let before = by_name.get(&symbol.name.to_ascii_lowercase())?;
             let in_vars = |s: &Symbol| s.at.space == Space::Var;
-            (before.ty == symbol.ty && in_vars(before) && in_vars(symbol)).then(|| {
-                let bytes = match symbol.ty {
-                    ValueType::String { cap } => cap + 1,
-                    ref ty => ty.elem().size(),
-                };
-                (before.at.offset, symbol.at.offset, bytes)
-            })
+            (before.ty == symbol.ty && in_vars(before) && in_vars(symbol))
+                .then(|| (before.at.offset, symbol.at.offset, symbol.ty.bytes()))
         })
         .collect()
 }

@@ -61,43 +61,21 @@ pub struct RestorePlan {
     pub new: Vec<String>,
 }
 
-/// The bytes a leaf of type `ty` takes in variable memory.
-pub fn leaf_bytes(ty: &ValueType) -> u32 {
-    match ty {
-        ValueType::String { cap } => cap + 1,
-        ty => ty.elem().size(),
-    }
-}
-
 /// The text of a type as the retain files store it: the IEC name of an elementary type (`DINT`,
 /// `UDINT`, `LREAL`, `TIME`), `STRING[n]`, an enumeration with its values (`Color(Red:=0,
 /// Green:=1)`). Two types with the same text are stored the same way.
 pub fn type_text(ty: &ValueType) -> String {
-    use crate::value::Elem;
-    let elem = |e: &Elem| match e {
-        Elem::Bool => "BOOL",
-        Elem::I8 => "SINT",
-        Elem::I16 => "INT",
-        Elem::I32 => "DINT",
-        Elem::I64 => "LINT",
-        Elem::U8 => "USINT",
-        Elem::U16 => "UINT",
-        Elem::U32 => "UDINT",
-        Elem::U64 => "ULINT",
-        Elem::F32 => "REAL",
-        Elem::F64 => "LREAL",
-    };
     match ty {
-        ValueType::Bool => "BOOL".into(),
-        ValueType::Signed(e) | ValueType::Unsigned(e) | ValueType::Real(e) => elem(e).into(),
-        ValueType::Time => "TIME".into(),
         ValueType::Enum { type_name, values, base } => {
             let values: Vec<String> = values.iter().map(|(n, v)| format!("{n}:={v}")).collect();
             // The base type is written when it is not the default DINT: `Code:INT(Ok:=0,…)`.
-            let base = if *base == Elem::I32 { String::new() } else { format!(":{}", elem(base)) };
+            let base = match base {
+                crate::value::Elem::I32 => String::new(),
+                e => format!(":{}", crate::value::type_name(&ValueType::Signed(*e))),
+            };
             format!("{type_name}{base}({})", values.join(","))
         }
-        ValueType::String { cap } => format!("STRING[{cap}]"),
+        other => crate::value::type_name(other),
     }
 }
 
@@ -115,7 +93,7 @@ impl RetainedVariables {
                 key: s.name.to_ascii_lowercase(),
                 ty: type_text(&s.ty),
                 at: s.at.offset,
-                len: leaf_bytes(&s.ty),
+                len: s.ty.bytes(),
                 pos: 0,
             })
             .filter(|l| u64::from(l.at) + u64::from(l.len) <= size)
