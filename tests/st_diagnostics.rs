@@ -1,0 +1,473 @@
+//! Every error message of the Structured Text compiler has a golden case.
+//!
+//! The compiler (`src/core/st/compile/`) reports its errors with `format!` texts. Each text,
+//! with every `{…}` written `{}`, is a *template*; [`MESSAGES`] names, for each template, a case
+//! `tests/golden/st/<case>/` whose `expected.stderr` shows it (`tests/golden_diagnostics.rs` runs
+//! the cases through the real `plcd check`). The tests here keep the three in step:
+//!
+//! - every row's case exists and reports a message of its template;
+//! - every string literal of the compiler sources that holds a space (outside `#[cfg(test)]`
+//!   and the texts of `expect`, `unreachable!` and `panic!`) is a template of [`MESSAGES`], of
+//!   [`UNREACHABLE`], or a part messages are built from ([`PARTS`]); every entry of the three
+//!   is such a literal, so a reworded message cannot leave a stale row behind;
+//! - every case under `tests/golden/st/` is the case of some row.
+//!
+//! To add a message: write the minimal project that reports it and nothing else in
+//! `tests/golden/st/<kebab-name>/` (`plcd.toml` with `[[program]] file = "main.st"`, and
+//! `main.st`), run `PLCD_BLESS=1 cargo test --test golden_diagnostics`, read the new
+//! `expected.stderr` (the message, at the right `line:col`), and add the row
+//! `("<template>", "<kebab-name>")` to [`MESSAGES`]. A literal that is only a part of messages
+//! (a word given to a shared helper, a hint appended to a message) goes to [`PARTS`]; a message
+//! no program can reach goes to [`UNREACHABLE`] with the reason.
+
+use std::fs;
+use std::path::Path;
+
+const CASES: &str = "tests/golden/st";
+const SOURCES: &str = "src/core/st/compile";
+
+/// Each message template of the compiler and a golden case that reports it. A template may
+/// have several rows (one per case that shows it).
+const MESSAGES: &[(&str, &str)] = &[
+    // decl.rs: declarations, types, initial values, locations
+    ("`{}`: names starting with `__` are reserved", "reserved-name"),
+    ("`{}` is an elementary type", "elementary-type-name"),
+    ("`{}` is already declared ({})", "already-declared"),
+    ("an integer constant is needed here, not `{}`", "integer-constant-needed"),
+    ("a constant expression is needed here", "constant-expression-needed"),
+    ("`{}` is not a type", "not-a-type"),
+    ("`{}` contains an instance of itself", "fb-contains-itself"),
+    ("unknown type `{}`{}", "unknown-type"),
+    ("a STRING's length must be 1..255, not {}", "string-length"),
+    ("empty or too large array range `{}..{}`", "empty-array-range"),
+    ("the array is too large", "array-too-large"),
+    ("a subrange needs an integer type, not `{}`", "subrange-base"),
+    ("`{}..{}` is not a subrange of `{}`", "subrange-bounds"),
+    ("an enumeration's base must be an integer type, not `{}`", "enum-base-not-integer"),
+    ("`{}` is already a value of this enumeration", "duplicate-enum-value"),
+    ("constant `{}` does not fit `{}`", "constant-does-not-fit"),
+    ("`{}` has no value `{}`", "enum-init-no-value"),
+    ("type `{}` is defined in terms of itself", "self-referential-type"),
+    ("a STRUCT member cannot be located", "located-struct-member"),
+    ("`{}` is already declared in this STRUCT", "duplicate-struct-member"),
+    ("too many initial values for `{}` ({} elements)", "too-many-initial-values"),
+    ("`{}` has no member `{}`{}", "no-member"),
+    ("`{}` has no variable `{}` to initialize", "fb-init-no-variable"),
+    ("`{}` is `{}`: its initial value must be written `[…]` or `(…)`", "init-needs-brackets"),
+    ("this initial value does not fit `{}`", "init-does-not-fit"),
+    ("the initial value of `{}` must be a constant expression", "init-not-constant"),
+    ("`{}` is already declared (line {})", "already-declared"),
+    ("a FUNCTION cannot return a function block", "function-returns-fb"),
+    ("VAR_GLOBAL is declared outside the POUs", "global-in-pou"),
+    ("a FUNCTION's variables cannot be RETAIN", "function-retain"),
+    ("a FUNCTION cannot hold a function block instance", "function-holds-fb"),
+    ("`{}` is the FUNCTION's own name", "function-own-name"),
+    ("VAR_EXTERNAL `{}` is `{}` but the VAR_GLOBAL is `{}`", "external-type-differs"),
+    ("VAR_EXTERNAL `{}` must be CONSTANT like its VAR_GLOBAL", "external-not-constant"),
+    ("VAR_EXTERNAL `{}` has no VAR_GLOBAL{}", "external-without-global"),
+    ("only a PROGRAM's or a VAR_GLOBAL's variables can be located", "located-in-fb"),
+    ("a VAR_IN_OUT or VAR_TEMP cannot be located", "located-temp"),
+    ("a VAR_IN_OUT has no initial value", "in-out-initial-value"),
+    ("only VAR, VAR_GLOBAL and VAR_EXTERNAL can be CONSTANT", "constant-input"),
+    ("an instance of `{}` takes more than 64 MiB", "instance-too-large"),
+    ("the variables of `{}` need {} bytes of frame (limit 1 MiB)", "function-frame-too-large"),
+    ("`{}` is `{}`: only elementary types and their arrays can be located", "located-struct"),
+    ("`%{}` is a {}-bit location, `{}` is `{}`", "iec-size-mismatch"),
+    ("`{}` needs {} bits from `{}`: past the end of its area", "bit-array-past-end"),
+    ("`{}` needs {} words from `{}`: past the end of its area", "past-area-end"),
+    ("`%{}` is not a valid direct address", "bad-iec-address"),
+    // emit.rs: code generation
+    ("this statement needs {} evaluation stack slots (limit {})", "statement-stack-too-deep"),
+    ("`{}` needs {} bytes of frame (limit 1 MiB)", "statement-frame-too-large"),
+    // expr.rs: expressions, places, calls
+    ("a string constant is at most 255 characters", "string-constant-too-long"),
+    ("unknown type `{}`", "typed-literal-unknown-type"),
+    ("`{}#` needs a value name", "typed-literal-needs-name"),
+    ("`{}` has no value `{}`{}", "no-enum-value"),
+    ("`{}` has no input or output `{}`{}", "fb-no-such-member"),
+    ("`{}` is not an input or output of `{}`", "fb-no-input-or-output"),
+    ("`{}` is a VAR_OUTPUT of `{}`: it cannot be written here", "fb-output-not-writable"),
+    ("`{}` has no members (looking for `{}`)", "no-members"),
+    ("an array index must be an integer, not `{}`", "index-not-integer"),
+    ("`{}` has {} dimension(s), {} index(es) given", "wrong-dimensions"),
+    ("index {} is out of the bounds `{}..{}`", "index-out-of-bounds"),
+    ("`{}` is `{}`, not an array", "not-an-array"),
+    ("a bit of a variable cannot be passed to a VAR_IN_OUT", "bit-to-in-out"),
+    ("`{}` has no bit {}", "bit-out-of-range"),
+    ("bit access needs an integer or bit string, not `{}`", "bit-of-non-integer"),
+    ("only a variable can be assigned", "only-variable-assigned"),
+    ("a VAR_IN_OUT argument must be a variable", "in-out-needs-variable"),
+    ("`{}` is a VAR_INPUT: it cannot be written here", "input-not-writable"),
+    ("`{}` is CONSTANT: it cannot be written", "constant-not-writable"),
+    ("`{}` is at `{}`, which a program cannot write", "device-not-writable"),
+    ("`{}` is the FOR variable: it cannot be written in the loop", "for-variable-written"),
+    ("`{}` has no result type", "no-result-type"),
+    ("`{}` is ambiguous: a value of {} (write `{}#{}`)", "ambiguous-enum-value"),
+    ("`{}` is {}", "function-as-variable"),
+    ("`{}` is not declared{}", "not-declared"),
+    ("`{}` is not declared{}", "no-result"),
+    ("constant `{}` is outside `{}`", "subrange-out"),
+    ("type mismatch: {} cannot be assigned to `{}`{}", "type-mismatch"),
+    ("`+` cannot be applied to `{}`", "unary-plus-operand"),
+    ("`-` cannot be applied to `{}`", "neg-operand"),
+    ("`NOT` cannot be applied to `{}`", "not-operand"),
+    ("`{}` cannot be applied to `{}` and `{}`", "operator-types"),
+    ("`{}` cannot be applied to `{}`", "operator-not-applicable"),
+    ("`**` needs a `REAL` or `LREAL` base, not `{}`", "pow-base"),
+    ("division by zero", "division-by-zero"),
+    ("`{}` is a PROGRAM: a PROGRAM cannot be called", "program-called"),
+    ("`{}` is a function block type: declare an instance and call that", "fb-type-called"),
+    ("a function block call is a statement, not a value", "fb-call-as-value"),
+    ("`{}` is not a function or a function block instance", "not-callable"),
+    ("the call of `{}` mixes positional and named arguments", "mixed-arguments"),
+    ("too many arguments for `{}` (it takes {})", "too-many-arguments"),
+    ("`{}` is an output of `{}`: use `=>`", "output-with-assign"),
+    ("`{}` is not a parameter of `{}`", "not-a-parameter"),
+    ("`{}` is an input of `{}`: use `:=`", "input-with-arrow"),
+    ("`NOT {} =>` needs a BOOL output", "negated-output-not-bool"),
+    ("type mismatch: `{}` cannot be assigned to `{}`", "output-type-mismatch"),
+    ("`{}` is given twice", "parameter-given-twice"),
+    ("VAR_IN_OUT `{}` of `{}` needs a `{}` variable, not `{}`", "in-out-type"),
+    ("the call of `{}` is missing VAR_IN_OUT `{}`", "missing-in-out"),
+    ("`{}` has no parameter `{}`{}", "unknown-parameter"),
+    // mod.rs: instances, call graph, linking
+    ("no PROGRAM `{}` in `{}`: it declares no PROGRAM", "program-file-without-program"),
+    ("no PROGRAM `{}` in `{}` (it declares {})", "unknown-pou"),
+    ("`{}` declares no PROGRAM", "no-program"),
+    ("`{}` declares more than one PROGRAM ({}): name one with `pou`", "several-programs"),
+    ("recursive call: {}", "recursive-call"),
+    ("`{}` nests calls {} deep (limit {})", "calls-nested-too-deep"),
+    ("`{}` needs {} bytes of frame with its calls (limit 1 MiB)", "call-chain-frame-too-large"),
+    // stdlib.rs: standard functions
+    ("`{}` has no output `{}`", "std-no-output"),
+    ("the call of `{}` leaves out an argument", "std-argument-left-out"),
+    ("`{}` takes {} argument(s), {} given", "std-arity"),
+    ("`{}` needs {}, not `{}`", "std-argument-type"),
+    ("`{}` takes no arguments", "std-no-arguments"),
+    ("`{}` needs elementary values, not `{}`", "std-elementary-values"),
+    ("`{}` needs a STRING, not `{}`", "std-string-argument"),
+    (
+        "`{}` is not supported: conversions to and from STRING are not available",
+        "string-conversion",
+    ),
+    // stmt.rs: statements
+    ("the condition of {} must be `BOOL`, not `{}`", "condition-not-bool"),
+    ("a function block instance cannot be assigned", "fb-assigned"),
+    ("`{}` has no result", "void-function-value"),
+    ("`{}` outside a loop", "exit-outside-loop"),
+    ("`{}` outside a loop", "continue-outside-loop"),
+    ("the FOR variable `{}` must be an integer, not `{}`", "for-variable-not-integer"),
+    ("the FOR variable `{}` must be a local variable of the POU", "for-variable-not-local"),
+    ("a FOR step of 0 never ends the loop", "for-step-zero"),
+    ("a CASE selector must be an integer or an enumeration, not `{}`", "case-selector-type"),
+    ("the CASE range `{}..{}` is empty", "empty-case-range"),
+    ("duplicate CASE label `{}` (also at line {})", "duplicate-case-label"),
+    ("CASE labels `{}` and `{}` overlap (line {})", "overlapping-case-labels"),
+    ("unreachable `ELSE`: the labels cover every value of `{}`", "unreachable-else"),
+    ("a CASE label must be a constant", "case-label-not-constant"),
+    ("a CASE label of type `{}` does not match the selector's type `{}`", "case-label-type"),
+    ("`{}` never assigns its result", "result-never-assigned"),
+];
+
+/// The messages of device addresses (`src/core/device/address.rs`) that the compiler passes on
+/// for a variable's `AT %…`, and their cases.
+const DEVICE_MESSAGES: &[(&str, &str)] = &[
+    ("`{}` is not a device address", "bad-device"),
+    ("`{}` is out of range ({})", "address-out-of-range"),
+    ("unknown flag `{}`", "unknown-flag"),
+    ("`{}` is a word device, a bit is needed here", "bit-needed"),
+    ("`{}` is a bit device, a word is needed here", "word-needed"),
+];
+
+/// Messages of the compiler that no program can make it report, and why.
+const UNREACHABLE: &[(&str, &str)] = &[
+    (
+        "the duration does not fit `TIME`",
+        "the lexer already rejects a duration of more nanoseconds than an i64 holds",
+    ),
+    (
+        "`__NOW` takes no arguments",
+        "only the prelude may call `__NOW`, and it calls it without arguments",
+    ),
+    (
+        "VAR_IN_OUT `{}` of `{}` needs a variable",
+        "a place checked for a VAR_IN_OUT is a variable, an element or a member, or an error \
+         reported already",
+    ),
+    (
+        "this expression does nothing: a statement is needed",
+        "the parser makes a statement of an expression only when the expression is a call",
+    ),
+];
+
+/// Literals of the compiler sources that are not messages by themselves: words and hints that
+/// messages are built from, and type names.
+const PARTS: &[&str] = &[
+    " (did you mean `{}`?)",
+    "line {}",
+    "`{}` line {}",
+    ", ",
+    " and ",
+    " → ",
+    " (use {}_TO_{})",
+    "integer constant `{}`",
+    "a real constant",
+    // what `{}` is, in "`{}` is {}"
+    "a FUNCTION: call it with `(…)`",
+    "a FUNCTION_BLOCK type, not a variable",
+    "a PROGRAM, not a variable",
+    // the argument counts of "`{}` takes {} argument(s), {} given"
+    "at least {}",
+    "{} to {}",
+    // what a standard function needs, in "`{}` needs {}, not `{}`"
+    "a number",
+    "a `REAL` or `LREAL`",
+    "a `REAL` or `LREAL` base",
+    "a number exponent",
+    "an integer selector",
+    "a bit string (BYTE, WORD, DWORD, LWORD)",
+    "an integer count",
+    "a BOOL or bit string",
+    "an integer",
+    // the loop of "the condition of {} must be `BOOL`, not `{}`"
+    "REPEAT … UNTIL",
+    // type names
+    "{} ({}..{})",
+    "ARRAY [{}] OF {}",
+    "no value",
+];
+
+/// The message of a diagnostic line `file:line:col: error: message`.
+fn message(line: &str) -> Option<&str> {
+    line.split_once(": error: ").map(|(_, m)| m)
+}
+
+/// Whether `message` is `template` with its `{}` filled in.
+fn matches(template: &str, message: &str) -> bool {
+    let parts: Vec<&str> = template.split("{}").collect();
+    let (first, last) = (parts[0], parts[parts.len() - 1]);
+    if parts.len() == 1 {
+        return template == message;
+    }
+    if !message.starts_with(first)
+        || !message.ends_with(last)
+        || message.len() < first.len() + last.len()
+    {
+        return false;
+    }
+    let mut rest = &message[first.len()..message.len() - last.len()];
+    for middle in &parts[1..parts.len() - 1] {
+        match rest.find(middle) {
+            Some(at) => rest = &rest[at + middle.len()..],
+            None => return false,
+        }
+    }
+    true
+}
+
+/// A format string with each `{…}` written `{}` (and `{{` `}}` as the braces they stand for).
+fn template(format: &str) -> String {
+    let mut out = String::new();
+    let mut chars = format.chars().peekable();
+    while let Some(c) = chars.next() {
+        match c {
+            '{' if chars.peek() == Some(&'{') => {
+                chars.next();
+                out.push('{');
+            }
+            '}' if chars.peek() == Some(&'}') => {
+                chars.next();
+                out.push('}');
+            }
+            '{' => {
+                for d in chars.by_ref() {
+                    if d == '}' {
+                        break;
+                    }
+                }
+                out.push_str("{}");
+            }
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// The string literals of Rust source text up to its `#[cfg(test)]`, each with its line,
+/// leaving out comments and the texts of `expect`, `unreachable!` and `panic!`.
+fn literals(source: &str) -> Vec<(usize, String)> {
+    let text = source.split("#[cfg(test)]").next().unwrap_or("");
+    let chars: Vec<char> = text.chars().collect();
+    let mut out = Vec::new();
+    let (mut i, mut line) = (0, 1);
+    while i < chars.len() {
+        match chars[i] {
+            '\n' => line += 1,
+            '/' if chars.get(i + 1) == Some(&'/') => {
+                while i < chars.len() && chars[i] != '\n' {
+                    i += 1;
+                }
+                continue;
+            }
+            // a char literal (`'"'`, `'\''`); a lifetime is passed over
+            '\'' if chars.get(i + 1) == Some(&'\\') => {
+                i += 3;
+                while i < chars.len() && chars[i] != '\'' {
+                    i += 1;
+                }
+            }
+            '\'' if chars.get(i + 2) == Some(&'\'') => i += 2,
+            '"' => {
+                let (start, before) = (line, chars[..i].iter().collect::<String>());
+                let mut lit = String::new();
+                i += 1;
+                while i < chars.len() && chars[i] != '"' {
+                    if chars[i] == '\n' {
+                        line += 1;
+                    }
+                    if chars[i] == '\\' {
+                        i += 1;
+                        match chars[i] {
+                            'n' => lit.push('\n'),
+                            't' => lit.push('\t'),
+                            '\n' => {
+                                line += 1;
+                                while chars[i + 1].is_whitespace() {
+                                    if chars[i + 1] == '\n' {
+                                        line += 1;
+                                    }
+                                    i += 1;
+                                }
+                            }
+                            c => lit.push(c),
+                        }
+                    } else {
+                        lit.push(chars[i]);
+                    }
+                    i += 1;
+                }
+                let before = before.trim_end();
+                let panics = ["expect(", "unreachable!(", "panic!("];
+                if !panics.iter().any(|p| before.ends_with(p)) {
+                    out.push((start, lit));
+                }
+            }
+            _ => {}
+        }
+        i += 1;
+    }
+    out
+}
+
+/// The templates of the literals with a space in the compiler sources, each with where it is.
+fn source_templates() -> Vec<(String, String)> {
+    let mut files: Vec<_> = fs::read_dir(SOURCES)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "rs"))
+        .collect();
+    files.sort();
+    assert!(files.len() >= 7, "compiler sources missing under {SOURCES}");
+    let mut out = Vec::new();
+    for path in files {
+        let source = fs::read_to_string(&path).unwrap();
+        for (line, lit) in literals(&source) {
+            if lit.contains(' ') {
+                out.push((template(&lit), format!("{}:{line}", path.display())));
+            }
+        }
+    }
+    out
+}
+
+/// The messages of a case's `expected.stderr`.
+fn case_messages(case: &str) -> Vec<String> {
+    let path = Path::new(CASES).join(case).join("expected.stderr");
+    let text = fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    text.lines().filter_map(message).map(str::to_string).collect()
+}
+
+#[test]
+fn every_row_case_reports_its_message() {
+    let mut failures = Vec::new();
+    for (template, case) in MESSAGES.iter().chain(DEVICE_MESSAGES) {
+        let messages = case_messages(case);
+        if !messages.iter().any(|m| matches(template, m)) {
+            failures.push(format!("{case}: no message of `{template}` in {messages:?}"));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn every_message_of_the_compiler_is_listed() {
+    let found = source_templates();
+    let listed = |t: &str| {
+        MESSAGES.iter().any(|(m, _)| *m == t)
+            || UNREACHABLE.iter().any(|(m, _)| *m == t)
+            || PARTS.contains(&t)
+    };
+    let unlisted: Vec<String> =
+        found.iter().filter(|(t, _)| !listed(t)).map(|(t, at)| format!("{at}: \"{t}\"")).collect();
+    assert!(
+        unlisted.is_empty(),
+        "messages with no golden case (add one, see this file's doc comment):\n{}",
+        unlisted.join("\n")
+    );
+    let stale: Vec<&str> = MESSAGES
+        .iter()
+        .map(|(m, _)| *m)
+        .chain(UNREACHABLE.iter().map(|(m, _)| *m))
+        .chain(PARTS.iter().copied())
+        .filter(|t| !found.iter().any(|(f, _)| f == t))
+        .collect();
+    assert!(stale.is_empty(), "listed but not in {SOURCES}: {stale:#?}");
+}
+
+#[test]
+fn every_device_message_is_in_the_address_source() {
+    let source = fs::read_to_string("src/core/device/address.rs").unwrap();
+    let found: Vec<String> = literals(&source).into_iter().map(|(_, l)| template(&l)).collect();
+    for (t, _) in DEVICE_MESSAGES {
+        assert!(found.iter().any(|f| f == t), "`{t}` is not a message of address.rs");
+    }
+}
+
+#[test]
+fn every_case_is_the_case_of_a_row() {
+    let mut orphans = Vec::new();
+    for entry in fs::read_dir(CASES).unwrap() {
+        let path = entry.unwrap().path();
+        if !path.is_dir() {
+            continue;
+        }
+        let case = path.file_name().unwrap().to_string_lossy().into_owned();
+        if !MESSAGES.iter().chain(DEVICE_MESSAGES).any(|(_, c)| *c == case) {
+            orphans.push(case);
+        }
+    }
+    orphans.sort();
+    assert!(orphans.is_empty(), "cases of no row in MESSAGES: {orphans:?}");
+}
+
+#[test]
+fn the_scanner_reads_literals_and_templates() {
+    let source = "let a = format!(\"`{name}` is {} {{x}}\"); // \"comment\"\n\
+                  let c = '\"'; let d = '\\''; let l: &'a str = \"two words\";\n\
+                  x.expect(\"a panic text\"); let e = \"long \\\n    line\";\n\
+                  #[cfg(test)]\nmod tests { const T: &str = \"in a test\"; }";
+    let lits = literals(source);
+    let texts: Vec<(usize, String)> = lits.iter().map(|(l, t)| (*l, template(t))).collect();
+    assert_eq!(
+        texts,
+        [
+            (1, "`{}` is {} {x}".to_string()),
+            (2, "two words".to_string()),
+            (3, "long line".to_string()),
+        ]
+    );
+    assert!(matches("`{}` has no bit {}", "`INT` has no bit 16"));
+    assert!(!matches("`{}` has no result", "`f` has no result type"));
+    assert!(matches("division by zero", "division by zero"));
+    assert!(!matches("division by zero", "division by zeros"));
+}
