@@ -58,7 +58,10 @@ const MESSAGES: &[(&str, &str)] = &[
     ("the initial value of `{}` must be a constant expression", "init-not-constant"),
     ("`{}` is already declared (line {})", "already-declared"),
     ("a FUNCTION cannot return a function block", "function-returns-fb"),
-    ("VAR_GLOBAL is declared outside the POUs", "global-in-pou"),
+    (
+        "VAR_GLOBAL belongs outside the POUs: declare globals at the top level of a file",
+        "global-in-pou",
+    ),
     ("a FUNCTION's variables cannot be RETAIN", "function-retain"),
     ("a FUNCTION cannot hold a function block instance", "function-holds-fb"),
     ("`{}` is the FUNCTION's own name", "function-own-name"),
@@ -146,10 +149,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` takes no arguments", "std-no-arguments"),
     ("`{}` needs elementary values, not `{}`", "std-elementary-values"),
     ("`{}` needs a STRING, not `{}`", "std-string-argument"),
-    (
-        "`{}` is not supported: conversions to and from STRING are not available",
-        "string-conversion",
-    ),
+    ("`{}` needs {}, not `{}`", "string-conversion"),
     // stmt.rs: statements
     ("the condition of {} must be `BOOL`, not `{}`", "condition-not-bool"),
     ("a function block instance cannot be assigned", "fb-assigned"),
@@ -225,6 +225,7 @@ const PARTS: &[&str] = &[
     "a `REAL` or `LREAL` base",
     "a number exponent",
     "an integer selector",
+    "a STRING",
     "a bit string (BYTE, WORD, DWORD, LWORD)",
     "an integer count",
     "a BOOL or bit string",

@@ -746,7 +746,7 @@ impl<'a> Ctx<'a> {
         }
         for block in &pou.vars {
             if block.kind == VarKind::Global {
-                self.error(file, block.span, "VAR_GLOBAL is declared outside the POUs");
+                self.error(file, block.span, "VAR_GLOBAL belongs outside the POUs: declare globals at the top level of a file");
                 continue;
             }
             if kind == PouKind::Function && block.retain {

@@ -1228,7 +1228,8 @@ pub fn compile_body(cx: &mut Ctx<'_>, p: usize, body: &[TStmt]) -> Body {
     }
     em.op(if kind == PouKind::Program { Op::End } else { Op::Return });
     let b = em.b;
-    if b.frame > MAX_FRAME {
+    // Variables alone past the limit were reported with the declarations.
+    if b.frame > MAX_FRAME && cx.pous[p].frame_vars <= MAX_FRAME {
         let name = cx.pous[p].name.clone();
         let span = cx.pous[p].ast.name.span;
         cx.error(file, span, format!("`{name}` needs {} bytes of frame (limit 1 MiB)", b.frame));
