@@ -19,7 +19,6 @@ use nix::sys::signal::Signal;
 use plcd::services::retain::{newest_in, Generation};
 
 use harness::daemon::{Daemon, Project};
-use harness::log::{wait_until, PATIENCE};
 
 /// The log file of every start of a project's daemon: appended to, it survives `kill -9`.
 const LOG: &str = "plcd.log";
@@ -51,17 +50,7 @@ impl Retained {
 
     /// Waits until the newest generation on disk satisfies `done`; it.
     fn wait_for_generation(&self, what: &str, done: impl Fn(&Generation) -> bool) -> Generation {
-        let mut found = None;
-        wait_until(
-            PATIENCE,
-            &format!("a generation with {what}"),
-            || self.log(),
-            || {
-                found = newest_in(&self.retain_dir()).filter(|g| done(g));
-                found.is_some()
-            },
-        );
-        found.unwrap()
+        harness::log::wait_for_generation(&self.retain_dir(), || self.log(), what, done)
     }
 }
 

@@ -12,7 +12,6 @@ use nix::sys::signal::Signal;
 use plcd::services::retain::{newest_in, Generation};
 
 use harness::daemon::{Daemon, Project};
-use harness::log::{wait_until, PATIENCE};
 
 const LOG: &str = "plcd.log";
 
@@ -57,17 +56,7 @@ impl St {
     }
 
     fn wait_for_generation(&self, what: &str, done: impl Fn(&Generation) -> bool) -> Generation {
-        let mut found = None;
-        wait_until(
-            PATIENCE,
-            &format!("a generation with {what}"),
-            || self.log(),
-            || {
-                found = self.newest().filter(|g| done(g));
-                found.is_some()
-            },
-        );
-        found.unwrap()
+        harness::log::wait_for_generation(&self.0.path("retain"), || self.log(), what, done)
     }
 
     fn plcctl(&self, args: &[&str]) {

@@ -94,3 +94,19 @@ pub fn wait_until(
         std::thread::sleep(POLL);
     }
 }
+
+/// Waits until the newest intact retain generation in `dir` (what the daemon's writer last
+/// acknowledged) satisfies `done`; it. `context` gives the log shown on a timeout.
+pub fn wait_for_generation(
+    dir: &std::path::Path,
+    context: impl Fn() -> String,
+    what: &str,
+    done: impl Fn(&plcd::services::retain::Generation) -> bool,
+) -> plcd::services::retain::Generation {
+    let mut found = None;
+    wait_until(PATIENCE, &format!("a generation with {what}"), context, || {
+        found = plcd::services::retain::newest_in(dir).filter(|g| done(g));
+        found.is_some()
+    });
+    found.expect("waited for it")
+}
