@@ -128,6 +128,56 @@ const VARS: &str = "PROGRAM Vars\nVAR\n    n : DINT;\n    r : REAL;\n    s : STR
                     t := TIME_TO_STRING(DINT_TO_TIME(n));\n    m := STRING_TO_DINT(DINT_TO_STRING(n));\n\
                     END_PROGRAM\n";
 
+/// A scan thread serving `engine` on its own thread, counting allocations, and the other ends
+/// of its queues.
+struct Rig {
+    field: Arc<plcd::io::simulated::SimulatedField>,
+    shared: Arc<Shared>,
+    edges: rtrb::Producer<InputEdge>,
+    commands: rtrb::Producer<Command>,
+    reports: rtrb::Consumer<Report>,
+    completions: rtrb::Consumer<Completion>,
+    snapshot: Arc<Mutex<Box<Snapshot>>>,
+    handle: std::thread::JoinHandle<Box<Engine>>,
+}
+
+impl Rig {
+    fn start(engine: Box<Engine>, io: SimulatedIo, mirror: &Arc<Mirror>) -> Rig {
+        let field = io.field();
+        let shared = Arc::new(Shared::new().unwrap());
+        let (edges, edge_rx) = rtrb::RingBuffer::<InputEdge>::new(256);
+        let (commands, command_rx) = rtrb::RingBuffer::<Command>::new(64);
+        let (report_tx, reports) = rtrb::RingBuffer::<Report>::new(4096);
+        let (completion_tx, completions) = rtrb::RingBuffer::<Completion>::new(64);
+        let snapshot = Arc::new(Mutex::new(Snapshot::new()));
+        let scan = ScanThread {
+            engine,
+            io: GatedIo {
+                field: FieldIo::Simulated(io),
+                gate: Arc::new(OutputGate::default()),
+                safe: SafeOutputs::Simulated(Arc::clone(&field)),
+                clear_on_trip: true,
+            },
+            shared: Arc::clone(&shared),
+            edges: edge_rx,
+            commands: command_rx,
+            reports: report_tx,
+            completions: completion_tx,
+            snapshot: Arc::clone(&snapshot),
+            timer: Timer::new().unwrap(),
+            mirrors: vec![Arc::clone(mirror)],
+        };
+        let handle = std::thread::spawn(move || {
+            let mut scan = scan;
+            WATCHED.with(|w| w.set(true));
+            scan.serve();
+            WATCHED.with(|w| w.set(false));
+            scan.into_engine()
+        });
+        Rig { field, shared, edges, commands, reports, completions, snapshot, handle }
+    }
+}
+
 #[test]
 fn typed_programs_do_not_allocate() {
     use plcd::lang::ops::{CmpOp, Op::*, Place, StrOp};
@@ -253,40 +303,19 @@ fn the_scan_thread_does_not_allocate() {
     let at = |name: &str| project.variable(name).unwrap().at;
     let (n, r, s_at, pos) = (at("vars.n"), at("vars.r"), at("vars.s"), at("vars.pos"));
     let io = SimulatedIo::new(&[Address::parse("P0000").unwrap()], &[0], None);
-    let field = io.field();
-    let shared = Arc::new(Shared::new().unwrap());
-    let (mut edges, edge_rx) = rtrb::RingBuffer::<InputEdge>::new(256);
-    let (mut commands, command_rx) = rtrb::RingBuffer::<Command>::new(64);
-    let (report_tx, mut reports) = rtrb::RingBuffer::<Report>::new(4096);
-    let (completion_tx, mut completions) = rtrb::RingBuffer::<Completion>::new(64);
-    let snapshot = Arc::new(Mutex::new(Snapshot::new()));
     let watch = project.output_bits();
     let d0 = Address::parse("D00000").unwrap().as_word().unwrap().0;
     let mirror = Arc::new(Mirror::new(std::iter::once(d0..d0 + 3)));
-    let scan = ScanThread {
-        engine: Box::new(Engine::new(&project, &watch)),
-        io: GatedIo {
-            field: FieldIo::Simulated(io),
-            gate: Arc::new(OutputGate::default()),
-            safe: SafeOutputs::Simulated(Arc::clone(&field)),
-            clear_on_trip: true,
-        },
-        shared: Arc::clone(&shared),
-        edges: edge_rx,
-        commands: command_rx,
-        reports: report_tx,
-        completions: completion_tx,
-        snapshot: Arc::clone(&snapshot),
-        timer: Timer::new().unwrap(),
-        mirrors: vec![Arc::clone(&mirror)],
-    };
-    let handle = std::thread::spawn(move || {
-        let mut scan = scan;
-        WATCHED.with(|w| w.set(true));
-        scan.serve();
-        WATCHED.with(|w| w.set(false));
-        scan.into_engine()
-    });
+    let Rig {
+        field,
+        shared,
+        mut edges,
+        mut commands,
+        mut reports,
+        mut completions,
+        snapshot,
+        handle,
+    } = Rig::start(Box::new(Engine::new(&project, &watch)), io, &mirror);
     let command = |commands: &mut rtrb::Producer<Command>, c: Command| {
         assert!(commands.push(c).is_ok());
         shared.signal(pending::COMMAND);
@@ -442,36 +471,8 @@ fn retained_variables_are_copied_and_taken_over_without_allocating() {
     let engine = Box::new(Engine::new::<Address>(&small, &[]));
     mirror.prepare(engine.retained_variables());
     let io = SimulatedIo::new(&[], &[], None);
-    let field = io.field();
-    let shared = Arc::new(Shared::new().unwrap());
-    let (_edges, edge_rx) = rtrb::RingBuffer::<InputEdge>::new(4);
-    let (mut commands, command_rx) = rtrb::RingBuffer::<Command>::new(16);
-    let (report_tx, mut reports) = rtrb::RingBuffer::<Report>::new(4096);
-    let (completion_tx, mut completions) = rtrb::RingBuffer::<Completion>::new(16);
-    let scan = ScanThread {
-        engine,
-        io: GatedIo {
-            field: FieldIo::Simulated(io),
-            gate: Arc::new(OutputGate::default()),
-            safe: SafeOutputs::Simulated(Arc::clone(&field)),
-            clear_on_trip: true,
-        },
-        shared: Arc::clone(&shared),
-        edges: edge_rx,
-        commands: command_rx,
-        reports: report_tx,
-        completions: completion_tx,
-        snapshot: Arc::new(Mutex::new(Snapshot::new())),
-        timer: Timer::new().unwrap(),
-        mirrors: vec![Arc::clone(&mirror)],
-    };
-    let handle = std::thread::spawn(move || {
-        let mut scan = scan;
-        WATCHED.with(|w| w.set(true));
-        scan.serve();
-        WATCHED.with(|w| w.set(false));
-        scan.into_engine()
-    });
+    let Rig { shared, mut commands, mut reports, mut completions, handle, .. } =
+        Rig::start(engine, io, &mirror);
     let writer = Writer::new(Store::open(dir.path()).unwrap(), &set.words, 0, 1, None);
     let writer = WriterThread::spawn(
         writer,
