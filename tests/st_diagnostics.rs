@@ -20,8 +20,12 @@
 //! (a word given to a shared helper, a hint appended to a message) goes to [`PARTS`]; a message
 //! no program can reach goes to [`UNREACHABLE`] with the reason.
 
+mod harness;
+
 use std::fs;
 use std::path::Path;
+
+use harness::golden::matches_template;
 
 const CASES: &str = "tests/golden/st";
 const SOURCES: &str = "src/core/st/compile";
@@ -243,29 +247,6 @@ fn message(line: &str) -> Option<&str> {
     line.split_once(": error: ").map(|(_, m)| m)
 }
 
-/// Whether `message` is `template` with its `{}` filled in.
-fn matches(template: &str, message: &str) -> bool {
-    let parts: Vec<&str> = template.split("{}").collect();
-    let (first, last) = (parts[0], parts[parts.len() - 1]);
-    if parts.len() == 1 {
-        return template == message;
-    }
-    if !message.starts_with(first)
-        || !message.ends_with(last)
-        || message.len() < first.len() + last.len()
-    {
-        return false;
-    }
-    let mut rest = &message[first.len()..message.len() - last.len()];
-    for middle in &parts[1..parts.len() - 1] {
-        match rest.find(middle) {
-            Some(at) => rest = &rest[at + middle.len()..],
-            None => return false,
-        }
-    }
-    true
-}
-
 /// A format string with each `{…}` written `{}` (and `{{` `}}` as the braces they stand for).
 fn template(format: &str) -> String {
     let mut out = String::new();
@@ -393,7 +374,7 @@ fn every_row_case_reports_its_message() {
     let mut failures = Vec::new();
     for (template, case) in MESSAGES.iter().chain(DEVICE_MESSAGES) {
         let messages = case_messages(case);
-        if !messages.iter().any(|m| matches(template, m)) {
+        if !messages.iter().any(|m| matches_template(template, m)) {
             failures.push(format!("{case}: no message of `{template}` in {messages:?}"));
         }
     }
@@ -467,8 +448,8 @@ fn the_scanner_reads_literals_and_templates() {
             (3, "long line".to_string()),
         ]
     );
-    assert!(matches("`{}` has no bit {}", "`INT` has no bit 16"));
-    assert!(!matches("`{}` has no result", "`f` has no result type"));
-    assert!(matches("division by zero", "division by zero"));
-    assert!(!matches("division by zero", "division by zeros"));
+    assert!(matches_template("`{}` has no bit {}", "`INT` has no bit 16"));
+    assert!(!matches_template("`{}` has no result", "`f` has no result type"));
+    assert!(matches_template("division by zero", "division by zero"));
+    assert!(!matches_template("division by zero", "division by zeros"));
 }

@@ -31,3 +31,27 @@ pub fn compare_or_bless(expected: &Path, actual: &str) -> Option<String> {
         expected.display()
     ))
 }
+
+/// Whether `message` is `template` with each `{}` filled in: how a diagnostic golden case is
+/// matched to the message template of the source that produced it.
+pub fn matches_template(template: &str, message: &str) -> bool {
+    let parts: Vec<&str> = template.split("{}").collect();
+    let (first, last) = (parts[0], parts[parts.len() - 1]);
+    if parts.len() == 1 {
+        return template == message;
+    }
+    if !message.starts_with(first)
+        || !message.ends_with(last)
+        || message.len() < first.len() + last.len()
+    {
+        return false;
+    }
+    let mut rest = &message[first.len()..message.len() - last.len()];
+    for middle in &parts[1..parts.len() - 1] {
+        match rest.find(middle) {
+            Some(at) => rest = &rest[at + middle.len()..],
+            None => return false,
+        }
+    }
+    true
+}
