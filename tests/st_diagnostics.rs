@@ -151,6 +151,8 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` takes {} argument(s), {} given", "std-arity"),
     ("`{}` needs {}, not `{}`", "std-argument-type"),
     ("`{}` takes no arguments", "std-no-arguments"),
+    ("`{}` takes a task number from {} to {}, not {}", "task-number-range"),
+    ("`{}` takes one task number or nothing", "task-number-arguments"),
     ("`{}` needs elementary values, not `{}`", "std-elementary-values"),
     ("`{}` needs a STRING, not `{}`", "std-string-argument"),
     ("`{}` needs {}, not `{}`", "string-conversion"),

@@ -254,3 +254,65 @@ fn located_outputs_written_by_st_are_outputs() {
     }
     assert!(!outputs.iter().any(|o| o == "P0001"), "an input it reads");
 }
+
+#[test]
+fn st_system_functions_disable_tasks_stop_and_refresh_io() {
+    // DI(0)/EI(0) gate the 1 ms cycle task while M0000 is on; DI()/EI() all interrupt tasks
+    // while M0002 is; STOP() stops the PLC when M0001 comes on. IORF() writes P0040 to the
+    // field in the middle of the scan, before the loop after it ends.
+    let config = "[plc]\nscan_period_ms = 10\nwatchdog_ms = 1000\n\
+                  [[program]]\nname = \"main\"\nfile = \"main.st\"\n\
+                  [[program]]\nfile = \"tick.il\"\ntask = \"tick\"\n\
+                  [[task]]\nname = \"tick\"\nkind = \"cycle\"\nnumber = 0\npriority = 3\n\
+                  interval_ms = 1\n";
+    let main = "PROGRAM Main
+VAR
+    hold AT %M0000 : BOOL;
+    halt AT %M0001 : BOOL;
+    all AT %M0002 : BOOL;
+    lamp AT %P0040 : BOOL;
+    i : DINT;
+END_VAR
+    IF hold THEN DI(0); ELSE EI(0); END_IF;
+    IF all THEN DI(); ELSE EI(); END_IF;
+    lamp := TRUE;
+    IORF();
+    FOR i := 1 TO 200 DO END_FOR;
+    IF halt THEN STOP(); END_IF;
+END_PROGRAM";
+    let p = project(config, &[("main.st", main), ("tick.il", "INC D00010\nEND\n")]);
+    let mut plc = harness::engine::Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    // The first scan: step until IORF has run (the loop after it takes hundreds of steps).
+    let mut steps = 0;
+    while !plc.field.output("P0040") {
+        plc.engine.run(&plc.clock, &mut plc.field, &mut plc.events, 1);
+        steps += 1;
+        assert!(steps < 200, "IORF did not write the output");
+    }
+    assert!(!plc.engine.at_scan_boundary(), "IORF wrote P0040 in the middle of the first scan");
+
+    plc.run_for(50 * MS);
+    let ticks = plc.read("D00010");
+    assert!(ticks > 30, "the cycle task runs: {ticks}");
+    plc.write("M0000", 1);
+    plc.run_for(50 * MS);
+    let held = plc.read("D00010");
+    plc.run_for(50 * MS);
+    assert_eq!(plc.read("D00010"), held, "DI(0) holds task 0");
+    plc.write("M0000", 0);
+    plc.run_for(50 * MS);
+    assert!(plc.read("D00010") > held + 30, "EI(0) lets it run again");
+    plc.write("M0002", 1);
+    plc.run_for(50 * MS);
+    let held = plc.read("D00010");
+    plc.run_for(50 * MS);
+    assert_eq!(plc.read("D00010"), held, "DI() holds every interrupt task");
+    plc.write("M0002", 0);
+    plc.run_for(20 * MS);
+    assert!(plc.read("D00010") > held, "EI() again");
+
+    plc.write("M0001", 1);
+    plc.run_for(50 * MS);
+    assert_eq!(plc.engine.mode(), Mode::Stop, "STOP() stopped the PLC");
+}

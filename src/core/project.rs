@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use crate::config::{Config, Language, TaskRef};
 use crate::device::{layout, Address, AddressError, Area};
 use crate::diag::{Diagnostic, Diagnostics};
-use crate::lang::ops::Written;
+use crate::lang::ops::{Op, SystemRequest, Written};
 use crate::lang::{self, Context, DutySite, Program, Variables};
 use crate::st;
 use crate::value::Symbol;
@@ -283,6 +283,7 @@ pub fn from_config(
     }
     let variables = match compile_structured_text(&config, &mut reader) {
         Some(compiled) => {
+            check_task_numbers(&compiled.programs, &task_numbers, &mut reader.diags);
             let mut st_programs = compiled.programs.into_iter();
             for slot in programs.iter_mut().filter(|p| p.is_none()) {
                 *slot = st_programs.next().map(|mut program| {
@@ -384,6 +385,28 @@ fn compile_structured_text<R: Fn(&Path) -> std::io::Result<String>>(
         Err(errors) => {
             reader.diags.extend(errors);
             None
+        }
+    }
+}
+
+/// `DI(n)` and `EI(n)` of Structured Text name a configured task, as the instruction list's
+/// `DI n` must (its assembler checks it; the ST compiler does not know the config).
+fn check_task_numbers(programs: &[Program], task_numbers: &[u8], diags: &mut Diagnostics) {
+    for program in programs {
+        for (pc, op) in program.code.iter().enumerate() {
+            let (name, n) = match op {
+                Op::System(SystemRequest::DisableTasks(Some(n))) => ("DI", *n),
+                Op::System(SystemRequest::EnableTasks(Some(n))) => ("EI", *n),
+                _ => continue,
+            };
+            if !task_numbers.contains(&n) {
+                diags.push(Diagnostic::new(
+                    program.file_of(pc),
+                    program.line_of(pc),
+                    1,
+                    format!("`{name}({n})`: no task has number {n} in the configuration"),
+                ));
+            }
         }
     }
 }

@@ -79,7 +79,7 @@ pub use rt::{RtConfig, RtPolicy};
 pub use sim::SimConfig;
 pub use st::{LibraryFile, StConfig};
 pub use switch::SwitchConfig;
-pub use task::{DeviceCondition, Edge, TaskConfig, TaskKind};
+pub use task::{DeviceCondition, Edge, TaskConfig, TaskKind, TASK_NUMBERS};
 pub use timers::TimerConfig;
 
 /// A whole, valid configuration.

@@ -72,6 +72,9 @@ pub enum DeviceCondition {
     LessEq(i16),
 }
 
+/// Every number a task may have, whatever its kind (`DI n`, `EI n` name one).
+pub const TASK_NUMBERS: std::ops::RangeInclusive<i64> = 0..=23;
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub(super) enum RawKind {

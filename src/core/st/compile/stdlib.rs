@@ -200,13 +200,50 @@ impl<'a> Ctx<'a> {
             }
             return TExpr { k: TK::Std(Std::Now, vec![]), ty: Ty::Prim(Prim::Time), span };
         }
+        use crate::lang::ops::SystemRequest;
         let system = match upper.as_str() {
-            "INIT_DONE" => Some(crate::lang::ops::SystemRequest::InitDone),
-            "WDT" => Some(crate::lang::ops::SystemRequest::ResetWatchdog),
+            "INIT_DONE" => Some(SystemRequest::InitDone),
+            "WDT" => Some(SystemRequest::ResetWatchdog),
+            "STOP" => Some(SystemRequest::Stop),
+            "IORF" => Some(SystemRequest::RefreshIo),
+            "DI" | "EI" => {
+                // `DI()` all tasks, `DI(n)` the task numbered n (a constant; the project checks
+                // that a task has it).
+                let task = match args {
+                    [] => None,
+                    [Arg::Positional(e)] => {
+                        let Some(n) = self.const_int(e, scope) else {
+                            return TExpr::error(span);
+                        };
+                        let numbers = crate::config::TASK_NUMBERS;
+                        if !i64::try_from(n).is_ok_and(|n| numbers.contains(&n)) {
+                            let (lo, hi) = (numbers.start(), numbers.end());
+                            let msg =
+                                format!("`{upper}` takes a task number from {lo} to {hi}, not {n}");
+                            self.error(file, e.span, msg);
+                            return TExpr::error(span);
+                        }
+                        Some(n as u8)
+                    }
+                    _ => {
+                        self.error(
+                            file,
+                            span,
+                            format!("`{upper}` takes one task number or nothing"),
+                        );
+                        return TExpr::error(span);
+                    }
+                };
+                Some(if upper == "DI" {
+                    SystemRequest::DisableTasks(task)
+                } else {
+                    SystemRequest::EnableTasks(task)
+                })
+            }
             _ => None,
         };
         if let Some(request) = system {
-            if !args.is_empty() {
+            if !args.is_empty() && !matches!(upper.as_str(), "DI" | "EI") {
                 self.error(file, span, format!("`{upper}` takes no arguments"));
             }
             return TExpr {
