@@ -283,7 +283,7 @@ pub fn from_config(
     }
     let variables = match compile_structured_text(&config, &mut reader) {
         Some(compiled) => {
-            check_task_numbers(&compiled.programs, &task_numbers, &mut reader.diags);
+            check_task_numbers(&compiled.programs, &task_numbers, reader.diags);
             let mut st_programs = compiled.programs.into_iter();
             for slot in programs.iter_mut().filter(|p| p.is_none()) {
                 *slot = st_programs.next().map(|mut program| {
