@@ -858,14 +858,14 @@ fn interpret<'a, C: Clock>(
                     state.eval.push(consts.get(*index as usize).copied().unwrap_or(0));
                 }
                 Op::Fetch { elem, at } => {
-                    let p = typed::pointer(*at, state.base, state.this);
-                    let v = typed::load(mem, vars, &state.frame, p, *elem);
+                    let v =
+                        typed::load_place(mem, vars, &state.frame, *at, state.base, state.this, *elem);
                     state.eval.push(v);
                 }
                 Op::Store { elem, at } => {
                     let v = state.eval.pop();
-                    let p = typed::pointer(*at, state.base, state.this);
-                    typed::store(mem, vars, &mut state.frame, p, *elem, v);
+                    let (base, this) = (state.base, state.this);
+                    typed::store_place(mem, vars, &mut state.frame, *at, base, this, *elem, v);
                 }
                 Op::AddrOf(at) => {
                     state.eval.push(typed::pointer(*at, state.base, state.this).to_slot());
@@ -888,13 +888,13 @@ fn interpret<'a, C: Clock>(
                 }
                 Op::FetchInd(elem) => {
                     let p = Pointer::from_slot(state.eval.top());
-                    let v = typed::load(mem, vars, &state.frame, p, *elem);
+                    let v = typed::load_at(mem, vars, &state.frame, p, *elem);
                     state.eval.set_top(v);
                 }
                 Op::StoreInd(elem) => {
                     let v = state.eval.pop();
                     let p = Pointer::from_slot(state.eval.pop());
-                    typed::store(mem, vars, &mut state.frame, p, *elem, v);
+                    typed::store_at(mem, vars, &mut state.frame, p, *elem, v);
                 }
                 Op::Copy(n) => {
                     let src = Pointer::from_slot(state.eval.pop());
@@ -904,7 +904,7 @@ fn interpret<'a, C: Clock>(
                 Op::Bin { op, elem } => {
                     let b = state.eval.pop();
                     let a = state.eval.top();
-                    match value::binary(*op, *elem, a, b) {
+                    match typed::binary(*op, *elem, a, b) {
                         Ok(r) => state.eval.set_top(r),
                         Err(value::OpError::DivideByZero) => {
                             state.eval.set_top(0);
@@ -914,7 +914,7 @@ fn interpret<'a, C: Clock>(
                 }
                 Op::Un { op, elem } => {
                     let a = state.eval.top();
-                    state.eval.set_top(value::unary(*op, *elem, a));
+                    state.eval.set_top(typed::unary(*op, *elem, a));
                 }
                 Op::Cmp { op, elem } => {
                     let b = state.eval.pop();
@@ -924,7 +924,7 @@ fn interpret<'a, C: Clock>(
                 }
                 Op::Conv { from, to } => {
                     let a = state.eval.top();
-                    state.eval.set_top(value::convert(*from, *to, a));
+                    state.eval.set_top(typed::convert(*from, *to, a));
                 }
                 Op::Dup => state.eval.push(state.eval.top()),
                 Op::Drop => {
