@@ -202,7 +202,18 @@ const BIT_SENSORS: [bool; 8] = [true, true, true, false, true, false, false, tru
 impl Bits {
     fn new() -> Bits {
         let [start, stop, estop, guard, ready, auto, manual, jog] = BIT_INPUTS;
-        Bits { start, stop, estop, guard, ready, auto, manual, jog, s: BIT_SENSORS, ..Bits::default() }
+        Bits {
+            start,
+            stop,
+            estop,
+            guard,
+            ready,
+            auto,
+            manual,
+            jog,
+            s: BIT_SENSORS,
+            ..Bits::default()
+        }
     }
 
     #[inline(never)]
@@ -607,9 +618,15 @@ struct Workload {
     steps: u64,
 }
 
-fn configure<'a>(c: &'a mut Criterion, name: &str) -> BenchmarkGroup<'a, criterion::measurement::WallTime> {
+fn configure<'a>(
+    c: &'a mut Criterion,
+    name: &str,
+) -> BenchmarkGroup<'a, criterion::measurement::WallTime> {
     let mut group = c.benchmark_group(format!("st_{name}"));
-    group.sample_size(40).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(3));
+    group
+        .sample_size(40)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(3));
     group
 }
 
@@ -651,8 +668,22 @@ fn bench_workloads(c: &mut Criterion) -> Vec<Workload> {
             IntLoops::scan,
             int_loops_compare,
         ),
-        bench_workload(c, "pid", st("pid.st", include_str!("st/pid.st")), Pid::new, Pid::scan, pid_compare),
-        bench_workload(c, "sort", st("sort.st", include_str!("st/sort.st")), Sort::new, Sort::scan, sort_compare),
+        bench_workload(
+            c,
+            "pid",
+            st("pid.st", include_str!("st/pid.st")),
+            Pid::new,
+            Pid::scan,
+            pid_compare,
+        ),
+        bench_workload(
+            c,
+            "sort",
+            st("sort.st", include_str!("st/sort.st")),
+            Sort::new,
+            Sort::scan,
+            sort_compare,
+        ),
         bench_workload(
             c,
             "state_machine",
@@ -734,7 +765,10 @@ fn ten_thousand_lines() -> (String, String, usize) {
 fn bench_compile(c: &mut Criterion) -> usize {
     let (main, lib, lines) = ten_thousand_lines();
     let mut group = c.benchmark_group("st_compile");
-    group.sample_size(10).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(8));
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(8));
     group.bench_function("10k_lines", |b| {
         b.iter(|| compile_files(black_box(&[("main.st", &main), ("lib.st", &lib)])))
     });
@@ -784,7 +818,15 @@ fn report(workloads: &[Workload], lines: usize, since: SystemTime) {
          side in this run; VM steps: the ops the VM executed in that scan.\n",
     );
     f.table(
-        &["workload", "VM steps per scan", "VM median", "native median", "VM ns/step", "VM/native", "target"],
+        &[
+            "workload",
+            "VM steps per scan",
+            "VM median",
+            "native median",
+            "VM ns/step",
+            "VM/native",
+            "target",
+        ],
         &rows,
     );
     let compile = criterion_median_ns("st_compile", "10k_lines", since);

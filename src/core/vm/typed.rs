@@ -8,7 +8,7 @@
 //! of failing (the compiler checks every expression's depth, so a checked program never does).
 //! Nothing here allocates.
 
-use crate::device::{BitRef, Memory, WordRef};
+use crate::device::{BitRef, Memory};
 use crate::lang::ops::{Place, StrOp};
 use crate::lang::EVAL_DEPTH;
 use crate::value::{self, normalize, BinOp, Elem, OpError, Pointer, Space, UnOp};
@@ -37,6 +37,38 @@ impl EvalStack {
         self.sp
     }
 
+    /// The index of the next free slot, for a loop that keeps it in a register and passes it
+    /// to the `_at` methods; [`EvalStack::set_sp`] puts it back.
+    pub(super) fn sp(&self) -> usize {
+        self.sp
+    }
+
+    pub(super) fn set_sp(&mut self, sp: usize) {
+        self.sp = sp & MASK;
+    }
+
+    #[inline(always)]
+    pub(super) fn push_at(&mut self, sp: &mut usize, value: u64) {
+        self.slots[*sp & MASK] = value;
+        *sp = (*sp + 1) & MASK;
+    }
+
+    #[inline(always)]
+    pub(super) fn pop_at(&self, sp: &mut usize) -> u64 {
+        *sp = sp.wrapping_sub(1) & MASK;
+        self.slots[*sp]
+    }
+
+    #[inline(always)]
+    pub(super) fn top_at(&self, sp: usize) -> u64 {
+        self.slots[sp.wrapping_sub(1) & MASK]
+    }
+
+    #[inline(always)]
+    pub(super) fn set_top_at(&mut self, sp: usize, value: u64) {
+        self.slots[sp.wrapping_sub(1) & MASK] = value;
+    }
+
     #[inline(always)]
     pub(super) fn push(&mut self, value: u64) {
         self.slots[self.sp & MASK] = value;
@@ -47,16 +79,6 @@ impl EvalStack {
     pub(super) fn pop(&mut self) -> u64 {
         self.sp = self.sp.wrapping_sub(1) & MASK;
         self.slots[self.sp]
-    }
-
-    #[inline(always)]
-    pub(super) fn top(&self) -> u64 {
-        self.slots[self.sp.wrapping_sub(1) & MASK]
-    }
-
-    #[inline(always)]
-    pub(super) fn set_top(&mut self, value: u64) {
-        self.slots[self.sp.wrapping_sub(1) & MASK] = value;
     }
 }
 
@@ -174,7 +196,7 @@ pub(super) fn load_at(mem: &Memory, vars: &[u8], frame: &[u8], p: Pointer, elem:
     match p.space {
         Space::Var => load_bytes(vars, p.offset, elem),
         Space::Frame => load_bytes(frame, p.offset, elem),
-        _ => load(mem, vars, frame, p, elem),
+        _ => load(mem.words(), vars, frame, p, elem),
     }
 }
 
@@ -191,19 +213,22 @@ pub(super) fn store_at(
     match p.space {
         Space::Var => store_bytes(vars, p.offset, elem, value),
         Space::Frame => store_bytes(frame, p.offset, elem, value),
-        _ => store(mem, vars, frame, p, elem, value),
+        _ => store(mem.words_mut(), vars, frame, p, elem, value),
     }
 }
 
 /// Loads the value of `elem` at `p`: little-endian bytes in variable memory and the frame,
-/// words low word first in device memory (an 8-bit value in the low byte of its word), a bit.
+/// words low word first in device memory (`words`; an 8-bit value in the low byte of its
+/// word), a bit.
+///
+/// Device memory comes as its words, never as `&mut Memory`: the interpreter keeps the words'
+/// address and length in registers only while nothing it calls out of line could move them.
 #[inline(never)]
-pub(super) fn load(mem: &Memory, vars: &[u8], frame: &[u8], p: Pointer, elem: Elem) -> u64 {
+pub(super) fn load(words: &[u16], vars: &[u8], frame: &[u8], p: Pointer, elem: Elem) -> u64 {
     match p.space {
         Space::Var => load_bytes(vars, p.offset, elem),
         Space::Frame => load_bytes(frame, p.offset, elem),
         Space::Word => {
-            let words = mem.words();
             let start = p.offset as usize;
             let raw = match words.get(start..start + elem.words() as usize) {
                 Some(ws) => ws.iter().rev().fold(0u64, |raw, &w| raw << 16 | u64::from(w)),
@@ -212,7 +237,7 @@ pub(super) fn load(mem: &Memory, vars: &[u8], frame: &[u8], p: Pointer, elem: El
             normalize(elem, raw)
         }
         Space::Bit => {
-            let word = mem.words().get((p.offset / 16) as usize).copied().unwrap_or(0);
+            let word = words.get((p.offset / 16) as usize).copied().unwrap_or(0);
             normalize(elem, u64::from(word >> (p.offset % 16) & 1))
         }
         Space::Discard => 0,
@@ -223,7 +248,7 @@ pub(super) fn load(mem: &Memory, vars: &[u8], frame: &[u8], p: Pointer, elem: El
 /// writes the whole word, the value sign- or zero-extended to 16 bits.
 #[inline(never)]
 pub(super) fn store(
-    mem: &mut Memory,
+    words: &mut [u16],
     vars: &mut [u8],
     frame: &mut [u8],
     p: Pointer,
@@ -238,17 +263,16 @@ pub(super) fn store(
             let value = if elem == Elem::Bool { u64::from(value != 0) } else { value };
             let n = elem.words();
             let end = u64::from(p.offset) + u64::from(n);
-            if end <= mem.words().len() as u64 {
+            if end <= words.len() as u64 {
                 for i in 0..n {
-                    mem.set_word(WordRef((p.offset + i) as u16), (value >> (16 * i)) as u16);
+                    words[(p.offset + i) as usize] = (value >> (16 * i)) as u16;
                 }
             }
         }
         Space::Bit => {
-            let word = p.offset / 16;
-            if (word as usize) < mem.words().len() {
-                let bit = BitRef { word: word as u16, mask: 1 << (p.offset % 16) };
-                mem.set_bit(bit, value != 0);
+            if let Some(word) = words.get_mut((p.offset / 16) as usize) {
+                let mask = 1u16 << (p.offset % 16);
+                *word = if value != 0 { *word | mask } else { *word & !mask };
             }
         }
         Space::Discard => {}
@@ -266,8 +290,8 @@ fn wrapped(elem: Elem, raw: u64) -> u64 {
     }
 }
 
-/// [`value::binary`] with its commonest operations inline: integer `+ - *` and the bitwise
-/// and logical operations, REAL and LREAL `+ - *`; the others through it. The results are
+/// [`value::binary`] with its commonest operations inline: integer `+ - * / MOD` and the
+/// bitwise and logical operations, REAL and LREAL `+ - *`; the others through it. The results are
 /// `value::binary`'s to the bit (tested below).
 #[inline(always)]
 pub(super) fn binary(op: BinOp, elem: Elem, a: u64, b: u64) -> Result<u64, OpError> {
@@ -291,6 +315,13 @@ pub(super) fn binary(op: BinOp, elem: Elem, a: u64, b: u64) -> Result<u64, OpErr
                 BinOp::Add => a.wrapping_add(b),
                 BinOp::Sub => a.wrapping_sub(b),
                 BinOp::Mul => a.wrapping_mul(b),
+                BinOp::Div | BinOp::Mod if wrapped(elem, b) == 0 => {
+                    return Err(OpError::DivideByZero)
+                }
+                BinOp::Div if elem.is_signed() => (a as i64).wrapping_div(b as i64) as u64,
+                BinOp::Div => a / b,
+                BinOp::Mod if elem.is_signed() => (a as i64).wrapping_rem(b as i64) as u64,
+                BinOp::Mod => a % b,
                 BinOp::And => a & b,
                 BinOp::Or => a | b,
                 BinOp::Xor => a ^ b,
@@ -537,8 +568,10 @@ mod tests {
     fn slots() -> Vec<u64> {
         let mut v = vec![0, 1, 2, 7, u64::MAX, 0x80, 0xFF, 0x8000, 0xFFFF, 0x8000_0000];
         v.extend([0xFFFF_FFFF, 1 << 63, (1 << 63) - 1, 0x1234_5678_9ABC_DEF0]);
-        v.extend([-1.5f32, 0.1, -0.0, f32::NAN, f32::INFINITY, f32::MIN_POSITIVE / 2.0]
-            .map(|x| u64::from(x.to_bits())));
+        v.extend(
+            [-1.5f32, 0.1, -0.0, f32::NAN, f32::INFINITY, f32::MIN_POSITIVE / 2.0]
+                .map(|x| u64::from(x.to_bits())),
+        );
         v.extend([-1.5f64, 0.1, -0.0, f64::NAN, f64::NEG_INFINITY, 1e300].map(f64::to_bits));
         let mut x = 0x9E37_79B9_7F4A_7C15u64;
         for _ in 0..40 {
@@ -555,11 +588,14 @@ mod tests {
         let slots = slots();
         for elem in ELEMS {
             // Slots as the VM holds them: normalized, and raw (a bad program's garbage).
-            let values: Vec<u64> =
-                slots.iter().flat_map(|&s| [normalize(elem, s), s]).collect();
+            let values: Vec<u64> = slots.iter().flat_map(|&s| [normalize(elem, s), s]).collect();
             for &a in &values {
                 for op in UN_OPS {
-                    assert_eq!(unary(op, elem, a), value::unary(op, elem, a), "{op:?} {elem:?} {a:#x}");
+                    assert_eq!(
+                        unary(op, elem, a),
+                        value::unary(op, elem, a),
+                        "{op:?} {elem:?} {a:#x}"
+                    );
                 }
                 for to in ELEMS {
                     let (fast, slow) = (convert(elem, to, a), value::convert(elem, to, a));
