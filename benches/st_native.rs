@@ -364,7 +364,7 @@ impl PidCtl {
     #[inline(always)]
     fn call(&mut self) {
         let err = self.sp - self.pv;
-        self.integral = self.integral + self.ki * err * self.dt;
+        self.integral += self.ki * err * self.dt;
         if self.integral > self.hi {
             self.integral = self.hi;
         } else if self.integral < self.lo {
