@@ -20,6 +20,7 @@ use std::path::Path;
 use std::time::{Duration, SystemTime};
 
 use criterion::{Criterion, Throughput};
+use plcd::bench::report::criterion_median_ns as median_ns;
 use plcd::bench::{write_fragment, Fragment};
 use plcd::device::{Address, BitRef, WordRef};
 use plcd::lang::{self, Context, Program};
@@ -1251,22 +1252,6 @@ fn bench_all(c: &mut Criterion) -> Vec<Category> {
 
 // ---------------------------------------------------------------------------------------------
 // The fragment for BENCHMARKS.md
-
-/// Criterion's median for `group/id` in ns, if this run (started at `since`) produced it.
-fn median_ns(group: &str, id: &str, since: SystemTime) -> Option<f64> {
-    let path = plcd::bench::report::target_dir()
-        .join("criterion")
-        .join(group)
-        .join(id)
-        .join("new/estimates.json");
-    let modified = std::fs::metadata(&path).and_then(|m| m.modified()).ok()?;
-    if modified < since {
-        return None;
-    }
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(path).ok()?).ok()?;
-    json["median"]["point_estimate"].as_f64()
-}
 
 fn scan_time(ns: f64) -> String {
     if ns >= 1000.0 {

@@ -56,6 +56,19 @@ pub fn target_dir() -> PathBuf {
     std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| "target".into(), PathBuf::from)
 }
 
+/// Criterion's median for `group/id` in ns (its `new/estimates.json` under the target
+/// directory), if a run started at `since` produced it: a figure of an earlier run is `None`.
+pub fn criterion_median_ns(group: &str, id: &str, since: std::time::SystemTime) -> Option<f64> {
+    let path = target_dir().join("criterion").join(group).join(id).join("new/estimates.json");
+    let modified = std::fs::metadata(&path).and_then(|m| m.modified()).ok()?;
+    if modified < since {
+        return None;
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).ok()?).ok()?;
+    json["median"]["point_estimate"].as_f64()
+}
+
 /// Where fragments go: `bench-results` in the target directory.
 pub fn results_dir() -> PathBuf {
     target_dir().join("bench-results")

@@ -266,13 +266,13 @@ impl Vm {
     /// The value of `elem` at `p`, for tools (a pointer into a frame reads 0: frames belong to
     /// the tasks).
     pub fn read_value(&self, p: Pointer, elem: Elem) -> u64 {
-        typed::load(&self.mem, &self.vars, &[], p, elem)
+        typed::load(self.mem.words(), &self.vars, &[], p, elem)
     }
 
     /// Writes `value` (any bits: it is normalized) as `elem` at `p`, for tools.
     pub fn write_value(&mut self, p: Pointer, elem: Elem, value: u64) {
         let value = value::normalize(elem, value);
-        typed::store(&mut self.mem, &mut self.vars, &mut [], p, elem, value);
+        typed::store(self.mem.words_mut(), &mut self.vars, &mut [], p, elem, value);
     }
 
     /// The characters of the `STRING` at `p` in variable memory, for tools (see
@@ -389,7 +389,7 @@ impl Vm {
         }
         for &(at, elem, value) in self.located_init.iter() {
             let p = typed::pointer(at, 0, Pointer::DISCARD.to_slot());
-            typed::store(&mut self.mem, &mut self.vars, &mut [], p, elem, value);
+            typed::store(self.mem.words_mut(), &mut self.vars, &mut [], p, elem, value);
         }
     }
 
@@ -508,6 +508,30 @@ fn interpret<'a, C: Clock>(
 ) -> Exit {
     let Machine { edges, timers, counters, duty, vars, consts, clock, stop } = machine;
     let Regs { mut rest, mut rung, mut blocks, mut branches, mut left } = *regs;
+    // The evaluation stack's pointer, in a register; back in `state` at every exit.
+    let mut sp = state.eval.sp();
+    macro_rules! push {
+        ($value:expr) => {{
+            let value = $value;
+            state.eval.push_at(&mut sp, value);
+        }};
+    }
+    macro_rules! pop {
+        () => {
+            state.eval.pop_at(&mut sp)
+        };
+    }
+    macro_rules! top {
+        () => {
+            state.eval.top_at(sp)
+        };
+    }
+    macro_rules! set_top {
+        ($value:expr) => {{
+            let value = $value;
+            state.eval.set_top_at(sp, value);
+        }};
+    }
 
     // The chunk: its length, and the instructions of it still ahead.
     let mut run;
@@ -537,6 +561,7 @@ fn interpret<'a, C: Clock>(
         ($halt:expr) => {{
             sync!();
             *regs = Regs { rest, rung, blocks, branches, left };
+            state.eval.set_sp(sp);
             return $halt;
         }};
     }
@@ -785,6 +810,7 @@ fn interpret<'a, C: Clock>(
                         rest = code.get(*end as usize..).unwrap_or_default();
                         mem.raise_operation_error(ERR_LOOP_DEPTH);
                         *regs = Regs { rest, rung, blocks, branches, left };
+                        state.eval.set_sp(sp);
                         return Exit::OperationError { code: ERR_LOOP_DEPTH, pc };
                     }
                     let enter = rung && count > 0;
@@ -881,86 +907,93 @@ fn interpret<'a, C: Clock>(
                     }
                 }
                 // The typed stack machine (crate::value, st-ir.md).
-                Op::PushInt(v) => state.eval.push(i64::from(*v) as u64),
+                Op::PushInt(v) => push!(i64::from(*v) as u64),
                 Op::PushConst(index) => {
-                    state.eval.push(consts.get(*index as usize).copied().unwrap_or(0));
+                    push!(consts.get(*index as usize).copied().unwrap_or(0));
                 }
                 Op::Fetch { elem, at } => {
-                    let p = typed::pointer(*at, state.base, state.this);
-                    let v = typed::load(mem, vars, &state.frame, p, *elem);
-                    state.eval.push(v);
+                    let v = typed::load_place(
+                        mem,
+                        vars,
+                        &state.frame,
+                        *at,
+                        state.base,
+                        state.this,
+                        *elem,
+                    );
+                    push!(v);
                 }
                 Op::Store { elem, at } => {
-                    let v = state.eval.pop();
-                    let p = typed::pointer(*at, state.base, state.this);
-                    typed::store(mem, vars, &mut state.frame, p, *elem, v);
+                    let v = pop!();
+                    let (base, this) = (state.base, state.this);
+                    typed::store_place(mem, vars, &mut state.frame, *at, base, this, *elem, v);
                 }
                 Op::AddrOf(at) => {
-                    state.eval.push(typed::pointer(*at, state.base, state.this).to_slot());
+                    push!(typed::pointer(*at, state.base, state.this).to_slot());
                 }
                 Op::Index { lo, len, stride } => {
-                    let index = state.eval.pop() as i64;
+                    let index = pop!() as i64;
                     let element = index.wrapping_sub(i64::from(*lo));
                     if (0..i64::from(*len)).contains(&element) {
-                        let p = Pointer::from_slot(state.eval.top());
+                        let p = Pointer::from_slot(top!());
                         let p = typed::moved(p, (element as u32).wrapping_mul(*stride));
-                        state.eval.set_top(p.to_slot());
+                        set_top!(p.to_slot());
                     } else {
-                        state.eval.set_top(Pointer::DISCARD.to_slot());
+                        set_top!(Pointer::DISCARD.to_slot());
                         fail!(ERR_INDEX_RANGE);
                     }
                 }
                 Op::Offset(n) => {
-                    let p = typed::moved(Pointer::from_slot(state.eval.top()), *n);
-                    state.eval.set_top(p.to_slot());
+                    let p = typed::moved(Pointer::from_slot(top!()), *n);
+                    set_top!(p.to_slot());
                 }
                 Op::FetchInd(elem) => {
-                    let p = Pointer::from_slot(state.eval.top());
-                    let v = typed::load(mem, vars, &state.frame, p, *elem);
-                    state.eval.set_top(v);
+                    let p = Pointer::from_slot(top!());
+                    let v = typed::load_at(mem, vars, &state.frame, p, *elem);
+                    set_top!(v);
                 }
                 Op::StoreInd(elem) => {
-                    let v = state.eval.pop();
-                    let p = Pointer::from_slot(state.eval.pop());
-                    typed::store(mem, vars, &mut state.frame, p, *elem, v);
+                    let v = pop!();
+                    let p = Pointer::from_slot(pop!());
+                    typed::store_at(mem, vars, &mut state.frame, p, *elem, v);
                 }
                 Op::Copy(n) => {
-                    let src = Pointer::from_slot(state.eval.pop());
-                    let dst = Pointer::from_slot(state.eval.pop());
+                    let src = Pointer::from_slot(pop!());
+                    let dst = Pointer::from_slot(pop!());
                     typed::copy(vars, &mut state.frame, dst, src, *n as usize);
                 }
                 Op::Bin { op, elem } => {
-                    let b = state.eval.pop();
-                    let a = state.eval.top();
-                    match value::binary(*op, *elem, a, b) {
-                        Ok(r) => state.eval.set_top(r),
+                    let b = pop!();
+                    let a = top!();
+                    match typed::binary(*op, *elem, a, b) {
+                        Ok(r) => set_top!(r),
                         Err(value::OpError::DivideByZero) => {
-                            state.eval.set_top(0);
+                            set_top!(0);
                             fail!(ERR_DIVIDE_BY_ZERO);
                         }
                     }
                 }
                 Op::Un { op, elem } => {
-                    let a = state.eval.top();
-                    state.eval.set_top(value::unary(*op, *elem, a));
+                    let a = top!();
+                    set_top!(typed::unary(*op, *elem, a));
                 }
                 Op::Cmp { op, elem } => {
-                    let b = state.eval.pop();
-                    let a = state.eval.top();
+                    let b = pop!();
+                    let a = top!();
                     let holds = op.holds(value::compare(*elem, a, b));
-                    state.eval.set_top(u64::from(holds));
+                    set_top!(u64::from(holds));
                 }
                 Op::Conv { from, to } => {
-                    let a = state.eval.top();
-                    state.eval.set_top(value::convert(*from, *to, a));
+                    let a = top!();
+                    set_top!(typed::convert(*from, *to, a));
                 }
-                Op::Dup => state.eval.push(state.eval.top()),
+                Op::Dup => push!(top!()),
                 Op::Drop => {
-                    state.eval.pop();
+                    pop!();
                 }
                 Op::Goto(target) => jump!(*target),
                 Op::GotoIf { target, when } => {
-                    if (state.eval.pop() != 0) == *when {
+                    if (pop!() != 0) == *when {
                         jump!(*target);
                     }
                 }
@@ -969,7 +1002,7 @@ fn interpret<'a, C: Clock>(
                     st_call!(*target, *frame, this);
                 }
                 Op::CallFb { target, frame } => {
-                    let this = state.eval.pop();
+                    let this = pop!();
                     st_call!(*target, *frame, this);
                 }
                 Op::Return => {
@@ -986,10 +1019,12 @@ fn interpret<'a, C: Clock>(
                 }
                 Op::Now => {
                     let steps = stop - left + taken!() as u64;
-                    state.eval.push(clock.now_ns(steps));
+                    push!(clock.now_ns(steps));
                 }
                 Op::Str { op, cap } => {
+                    state.eval.set_sp(sp);
                     typed::string_op(&mut state.eval, vars, &mut state.frame, *op, *cap);
+                    sp = state.eval.sp();
                 }
             }
         }

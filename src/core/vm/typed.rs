@@ -8,10 +8,10 @@
 //! of failing (the compiler checks every expression's depth, so a checked program never does).
 //! Nothing here allocates.
 
-use crate::device::{BitRef, Memory, WordRef};
+use crate::device::{BitRef, Memory};
 use crate::lang::ops::{Place, StrOp};
 use crate::lang::EVAL_DEPTH;
-use crate::value::{normalize, Elem, Pointer, Scalar, Space};
+use crate::value::{self, normalize, BinOp, Elem, OpError, Pointer, Scalar, Space, UnOp};
 use std::fmt::Write as _;
 
 const _: () = assert!(EVAL_DEPTH.is_power_of_two(), "the evaluation stack is a masked ring");
@@ -38,6 +38,38 @@ impl EvalStack {
         self.sp
     }
 
+    /// The index of the next free slot, for a loop that keeps it in a register and passes it
+    /// to the `_at` methods; [`EvalStack::set_sp`] puts it back.
+    pub(super) fn sp(&self) -> usize {
+        self.sp
+    }
+
+    pub(super) fn set_sp(&mut self, sp: usize) {
+        self.sp = sp & MASK;
+    }
+
+    #[inline(always)]
+    pub(super) fn push_at(&mut self, sp: &mut usize, value: u64) {
+        self.slots[*sp & MASK] = value;
+        *sp = (*sp + 1) & MASK;
+    }
+
+    #[inline(always)]
+    pub(super) fn pop_at(&self, sp: &mut usize) -> u64 {
+        *sp = sp.wrapping_sub(1) & MASK;
+        self.slots[*sp]
+    }
+
+    #[inline(always)]
+    pub(super) fn top_at(&self, sp: usize) -> u64 {
+        self.slots[sp.wrapping_sub(1) & MASK]
+    }
+
+    #[inline(always)]
+    pub(super) fn set_top_at(&mut self, sp: usize, value: u64) {
+        self.slots[sp.wrapping_sub(1) & MASK] = value;
+    }
+
     #[inline(always)]
     pub(super) fn push(&mut self, value: u64) {
         self.slots[self.sp & MASK] = value;
@@ -48,16 +80,6 @@ impl EvalStack {
     pub(super) fn pop(&mut self) -> u64 {
         self.sp = self.sp.wrapping_sub(1) & MASK;
         self.slots[self.sp]
-    }
-
-    #[inline(always)]
-    pub(super) fn top(&self) -> u64 {
-        self.slots[self.sp.wrapping_sub(1) & MASK]
-    }
-
-    #[inline(always)]
-    pub(super) fn set_top(&mut self, value: u64) {
-        self.slots[self.sp.wrapping_sub(1) & MASK] = value;
     }
 }
 
@@ -87,51 +109,101 @@ pub(super) fn moved(p: Pointer, n: u32) -> Pointer {
     Pointer { space: p.space, offset: p.offset.wrapping_add(n) }
 }
 
-/// The bytes of a value in a byte space, if they are all inside it.
+/// The `N` bytes at `at` of `buf`, if they are all inside it.
 #[inline(always)]
-fn bytes(buf: &[u8], offset: u32, size: usize) -> Option<&[u8]> {
-    let start = offset as usize;
-    buf.get(start..start + size)
+fn le<const N: usize>(buf: &[u8], at: usize) -> Option<[u8; N]> {
+    buf.get(at..at.checked_add(N)?).map(|b| b.try_into().unwrap_or([0; N]))
 }
 
-/// Loads the value of `elem` at `p`: little-endian bytes in variable memory and the frame,
-/// words low word first in device memory (an 8-bit value in the low byte of its word), a bit.
-#[inline(never)]
-pub(super) fn load(mem: &Memory, vars: &[u8], frame: &[u8], p: Pointer, elem: Elem) -> u64 {
-    let raw = match p.space {
-        Space::Var | Space::Frame => {
-            let buf = if p.space == Space::Var { vars } else { frame };
-            let size = elem.size() as usize;
-            match bytes(buf, p.offset, size) {
-                Some(b) => {
-                    let mut le = [0u8; 8];
-                    le[..size].copy_from_slice(b);
-                    u64::from_le_bytes(le)
-                }
-                None => 0,
-            }
-        }
-        Space::Word => {
-            let words = mem.words();
-            let start = p.offset as usize;
-            match words.get(start..start + elem.words() as usize) {
-                Some(ws) => ws.iter().rev().fold(0u64, |raw, &w| raw << 16 | u64::from(w)),
-                None => 0,
-            }
-        }
-        Space::Bit => {
-            let word = mem.words().get((p.offset / 16) as usize).copied().unwrap_or(0);
-            u64::from(word >> (p.offset % 16) & 1)
-        }
-        Space::Discard => 0,
-    };
-    normalize(elem, raw)
+/// Loads the value of `elem` from the little-endian bytes at `offset` of `buf` (variable
+/// memory or the frame), as a slot; 0 when they are not all inside it. One fixed-size read for
+/// each type: this is the loop's own path for every load from a byte space.
+#[inline(always)]
+pub(super) fn load_bytes(buf: &[u8], offset: u32, elem: Elem) -> u64 {
+    let at = offset as usize;
+    // `as u64` from a signed type sign-extends, from an unsigned one zero-extends: the slot.
+    match elem {
+        Elem::Bool => le::<1>(buf, at).map_or(0, |b| u64::from(b[0] != 0)),
+        Elem::I8 => le::<1>(buf, at).map_or(0, |b| b[0] as i8 as u64),
+        Elem::U8 => le::<1>(buf, at).map_or(0, |b| u64::from(b[0])),
+        Elem::I16 => le(buf, at).map_or(0, |b| i16::from_le_bytes(b) as u64),
+        Elem::U16 => le(buf, at).map_or(0, |b| u64::from(u16::from_le_bytes(b))),
+        Elem::I32 => le(buf, at).map_or(0, |b| i32::from_le_bytes(b) as u64),
+        Elem::U32 | Elem::F32 => le(buf, at).map_or(0, |b| u64::from(u32::from_le_bytes(b))),
+        Elem::I64 | Elem::U64 | Elem::F64 => le(buf, at).map_or(0, u64::from_le_bytes),
+    }
 }
 
-/// Stores `value` (a slot of `elem`) at `p`; see [`load`]. An 8-bit value at a word device
-/// writes the whole word, the value sign- or zero-extended to 16 bits.
-#[inline(never)]
-pub(super) fn store(
+/// Stores the slot `value` of `elem` as little-endian bytes at `offset` of `buf`; nothing when
+/// they are not all inside it. A BOOL is 0 or 1 in memory whatever the slot held.
+#[inline(always)]
+pub(super) fn store_bytes(buf: &mut [u8], offset: u32, elem: Elem, value: u64) {
+    fn put<const N: usize>(buf: &mut [u8], at: usize, bytes: [u8; N]) {
+        if let Some(b) = at.checked_add(N).and_then(|end| buf.get_mut(at..end)) {
+            b.copy_from_slice(&bytes);
+        }
+    }
+    let at = offset as usize;
+    match elem {
+        Elem::Bool => put(buf, at, [u8::from(value != 0)]),
+        Elem::I8 | Elem::U8 => put(buf, at, [value as u8]),
+        Elem::I16 | Elem::U16 => put(buf, at, (value as u16).to_le_bytes()),
+        Elem::I32 | Elem::U32 | Elem::F32 => put(buf, at, (value as u32).to_le_bytes()),
+        Elem::I64 | Elem::U64 | Elem::F64 => put(buf, at, value.to_le_bytes()),
+    }
+}
+
+/// [`load`] of the value at `at` in the current activation, with the byte spaces inline.
+#[inline(always)]
+pub(super) fn load_place(
+    mem: &Memory,
+    vars: &[u8],
+    frame: &[u8],
+    at: Place,
+    base: u32,
+    this: u64,
+    elem: Elem,
+) -> u64 {
+    match at {
+        Place::Var(offset) => load_bytes(vars, offset, elem),
+        Place::Frame(offset) => load_bytes(frame, base.wrapping_add(offset), elem),
+        _ => load_at(mem, vars, frame, pointer(at, base, this), elem),
+    }
+}
+
+/// [`store`] at `at` in the current activation, with the byte spaces inline.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn store_place(
+    mem: &mut Memory,
+    vars: &mut [u8],
+    frame: &mut [u8],
+    at: Place,
+    base: u32,
+    this: u64,
+    elem: Elem,
+    value: u64,
+) {
+    match at {
+        Place::Var(offset) => store_bytes(vars, offset, elem, value),
+        Place::Frame(offset) => store_bytes(frame, base.wrapping_add(offset), elem, value),
+        _ => store_at(mem, vars, frame, pointer(at, base, this), elem, value),
+    }
+}
+
+/// [`load`], with the byte spaces inline.
+#[inline(always)]
+pub(super) fn load_at(mem: &Memory, vars: &[u8], frame: &[u8], p: Pointer, elem: Elem) -> u64 {
+    match p.space {
+        Space::Var => load_bytes(vars, p.offset, elem),
+        Space::Frame => load_bytes(frame, p.offset, elem),
+        _ => load(mem.words(), vars, frame, p, elem),
+    }
+}
+
+/// [`store`], with the byte spaces inline.
+#[inline(always)]
+pub(super) fn store_at(
     mem: &mut Memory,
     vars: &mut [u8],
     frame: &mut [u8],
@@ -139,34 +211,146 @@ pub(super) fn store(
     elem: Elem,
     value: u64,
 ) {
-    // A BOOL is 0 or 1 in memory whatever the slot held.
-    let value = if elem == Elem::Bool { u64::from(value != 0) } else { value };
     match p.space {
-        Space::Var | Space::Frame => {
-            let buf = if p.space == Space::Var { vars } else { frame };
-            let size = elem.size() as usize;
-            let start = p.offset as usize;
-            if let Some(b) = buf.get_mut(start..start + size) {
-                b.copy_from_slice(&value.to_le_bytes()[..size]);
-            }
-        }
+        Space::Var => store_bytes(vars, p.offset, elem, value),
+        Space::Frame => store_bytes(frame, p.offset, elem, value),
+        _ => store(mem.words_mut(), vars, frame, p, elem, value),
+    }
+}
+
+/// Loads the value of `elem` at `p`: little-endian bytes in variable memory and the frame,
+/// words low word first in device memory (`words`; an 8-bit value in the low byte of its
+/// word), a bit.
+///
+/// Device memory comes as its words, never as `&mut Memory`: the interpreter keeps the words'
+/// address and length in registers only while nothing it calls out of line could move them.
+#[inline(never)]
+pub(super) fn load(words: &[u16], vars: &[u8], frame: &[u8], p: Pointer, elem: Elem) -> u64 {
+    match p.space {
+        Space::Var => load_bytes(vars, p.offset, elem),
+        Space::Frame => load_bytes(frame, p.offset, elem),
         Space::Word => {
+            let start = p.offset as usize;
+            let raw = match words.get(start..start + elem.words() as usize) {
+                Some(ws) => ws.iter().rev().fold(0u64, |raw, &w| raw << 16 | u64::from(w)),
+                None => 0,
+            };
+            normalize(elem, raw)
+        }
+        Space::Bit => {
+            let word = words.get((p.offset / 16) as usize).copied().unwrap_or(0);
+            normalize(elem, u64::from(word >> (p.offset % 16) & 1))
+        }
+        Space::Discard => 0,
+    }
+}
+
+/// Stores `value` (a slot of `elem`) at `p`; see [`load`]. An 8-bit value at a word device
+/// writes the whole word, the value sign- or zero-extended to 16 bits.
+#[inline(never)]
+pub(super) fn store(
+    words: &mut [u16],
+    vars: &mut [u8],
+    frame: &mut [u8],
+    p: Pointer,
+    elem: Elem,
+    value: u64,
+) {
+    match p.space {
+        Space::Var => store_bytes(vars, p.offset, elem, value),
+        Space::Frame => store_bytes(frame, p.offset, elem, value),
+        Space::Word => {
+            // A BOOL is 0 or 1 whatever the slot held.
+            let value = if elem == Elem::Bool { u64::from(value != 0) } else { value };
             let n = elem.words();
             let end = u64::from(p.offset) + u64::from(n);
-            if end <= mem.words().len() as u64 {
+            if end <= words.len() as u64 {
                 for i in 0..n {
-                    mem.set_word(WordRef((p.offset + i) as u16), (value >> (16 * i)) as u16);
+                    words[(p.offset + i) as usize] = (value >> (16 * i)) as u16;
                 }
             }
         }
         Space::Bit => {
-            let word = p.offset / 16;
-            if (word as usize) < mem.words().len() {
-                let bit = BitRef { word: word as u16, mask: 1 << (p.offset % 16) };
-                mem.set_bit(bit, value != 0);
+            if let Some(word) = words.get_mut((p.offset / 16) as usize) {
+                let mask = 1u16 << (p.offset % 16);
+                *word = if value != 0 { *word | mask } else { *word & !mask };
             }
         }
         Space::Discard => {}
+    }
+}
+
+/// `raw` cut to the width of `elem` and extended, as `value` wraps an operation's result (a
+/// `Bool` keeps bit 0: a 1-bit unsigned integer).
+#[inline(always)]
+fn wrapped(elem: Elem, raw: u64) -> u64 {
+    if elem == Elem::Bool {
+        raw & 1
+    } else {
+        normalize(elem, raw)
+    }
+}
+
+/// [`value::binary`] with its commonest operations inline: integer `+ - * / MOD` and the
+/// bitwise and logical operations, REAL and LREAL `+ - *`; the others through it. The results are
+/// `value::binary`'s to the bit (tested below).
+#[inline(always)]
+pub(super) fn binary(op: BinOp, elem: Elem, a: u64, b: u64) -> Result<u64, OpError> {
+    macro_rules! float {
+        ($t:ty, $bits:ty) => {{
+            let (x, y) = (<$t>::from_bits(a as $bits), <$t>::from_bits(b as $bits));
+            let r = match op {
+                BinOp::Add => x + y,
+                BinOp::Sub => x - y,
+                BinOp::Mul => x * y,
+                _ => return value::binary(op, elem, a, b),
+            };
+            Ok(u64::from(r.to_bits()))
+        }};
+    }
+    match elem {
+        Elem::F32 => float!(f32, u32),
+        Elem::F64 => float!(f64, u64),
+        _ => {
+            let r = match op {
+                BinOp::Add => a.wrapping_add(b),
+                BinOp::Sub => a.wrapping_sub(b),
+                BinOp::Mul => a.wrapping_mul(b),
+                BinOp::Div | BinOp::Mod if wrapped(elem, b) == 0 => {
+                    return Err(OpError::DivideByZero)
+                }
+                BinOp::Div if elem.is_signed() => (a as i64).wrapping_div(b as i64) as u64,
+                BinOp::Div => a / b,
+                BinOp::Mod if elem.is_signed() => (a as i64).wrapping_rem(b as i64) as u64,
+                BinOp::Mod => a % b,
+                BinOp::And => a & b,
+                BinOp::Or => a | b,
+                BinOp::Xor => a ^ b,
+                _ => return value::binary(op, elem, a, b),
+            };
+            Ok(wrapped(elem, r))
+        }
+    }
+}
+
+/// [`value::unary`] with the integer and logical `NOT` and the integer negation inline.
+#[inline(always)]
+pub(super) fn unary(op: UnOp, elem: Elem, a: u64) -> u64 {
+    match (op, elem) {
+        (_, Elem::F32 | Elem::F64) => value::unary(op, elem, a),
+        (UnOp::Not, _) => wrapped(elem, !a),
+        (UnOp::Neg, _) => wrapped(elem, a.wrapping_neg()),
+        _ => value::unary(op, elem, a),
+    }
+}
+
+/// [`value::convert`] with the integer-to-integer conversions inline (they wrap).
+#[inline(always)]
+pub(super) fn convert(from: Elem, to: Elem, a: u64) -> u64 {
+    if from.is_float() || to.is_float() || to == Elem::Bool {
+        value::convert(from, to, a)
+    } else {
+        normalize(to, a)
     }
 }
 
@@ -393,5 +577,133 @@ pub(super) fn write_string_bytes(vars: &mut [u8], p: Pointer, cap: u32, text: &[
     if let Some(b) = vars.get_mut(start..start + 1 + n) {
         b[0] = n as u8;
         b[1..].copy_from_slice(&text[..n]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const ELEMS: [Elem; 11] = [
+        Elem::Bool,
+        Elem::I8,
+        Elem::I16,
+        Elem::I32,
+        Elem::I64,
+        Elem::U8,
+        Elem::U16,
+        Elem::U32,
+        Elem::U64,
+        Elem::F32,
+        Elem::F64,
+    ];
+    const BIN_OPS: [BinOp; 15] = [
+        BinOp::Add,
+        BinOp::Sub,
+        BinOp::Mul,
+        BinOp::Div,
+        BinOp::Mod,
+        BinOp::Expt,
+        BinOp::And,
+        BinOp::Or,
+        BinOp::Xor,
+        BinOp::Shl,
+        BinOp::Shr,
+        BinOp::Rol,
+        BinOp::Ror,
+        BinOp::Min,
+        BinOp::Max,
+    ];
+    const UN_OPS: [UnOp; 3] = [UnOp::Neg, UnOp::Not, UnOp::Abs];
+
+    /// Slots of every kind: small, extreme, garbage in the high bits, float bit patterns
+    /// (NaN, infinities, signed zeros, subnormals).
+    fn slots() -> Vec<u64> {
+        let mut v = vec![0, 1, 2, 7, u64::MAX, 0x80, 0xFF, 0x8000, 0xFFFF, 0x8000_0000];
+        v.extend([0xFFFF_FFFF, 1 << 63, (1 << 63) - 1, 0x1234_5678_9ABC_DEF0]);
+        v.extend(
+            [-1.5f32, 0.1, -0.0, f32::NAN, f32::INFINITY, f32::MIN_POSITIVE / 2.0]
+                .map(|x| u64::from(x.to_bits())),
+        );
+        v.extend([-1.5f64, 0.1, -0.0, f64::NAN, f64::NEG_INFINITY, 1e300].map(f64::to_bits));
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        for _ in 0..40 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            v.push(x);
+        }
+        v
+    }
+
+    #[test]
+    fn the_inline_operations_are_value_s_to_the_bit() {
+        let slots = slots();
+        for elem in ELEMS {
+            // Slots as the VM holds them: normalized, and raw (a bad program's garbage).
+            let values: Vec<u64> = slots.iter().flat_map(|&s| [normalize(elem, s), s]).collect();
+            for &a in &values {
+                for op in UN_OPS {
+                    assert_eq!(
+                        unary(op, elem, a),
+                        value::unary(op, elem, a),
+                        "{op:?} {elem:?} {a:#x}"
+                    );
+                }
+                for to in ELEMS {
+                    let (fast, slow) = (convert(elem, to, a), value::convert(elem, to, a));
+                    assert_eq!(fast, slow, "{elem:?} → {to:?} {a:#x}");
+                }
+                for &b in &values {
+                    for op in BIN_OPS {
+                        let (fast, slow) = (binary(op, elem, a, b), value::binary(op, elem, a, b));
+                        assert_eq!(fast, slow, "{op:?} {elem:?} {a:#x} {b:#x}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// The bytes of a value read as the slot the VM gives it: zero-extended little-endian,
+    /// normalized.
+    fn reference_load(buf: &[u8], offset: u32, elem: Elem) -> u64 {
+        let (start, size) = (offset as usize, elem.size() as usize);
+        match buf.get(start..start + size) {
+            Some(b) => {
+                let mut le = [0u8; 8];
+                le[..size].copy_from_slice(b);
+                normalize(elem, u64::from_le_bytes(le))
+            }
+            None => 0,
+        }
+    }
+
+    #[test]
+    fn byte_loads_and_stores_keep_the_layout_and_stay_inside() {
+        let slots = slots();
+        let image: Vec<u8> = (0..24u8).map(|i| i.wrapping_mul(97) ^ 0xA5).collect();
+        for elem in ELEMS {
+            let size = elem.size();
+            for offset in [0, 1, 5, 24 - size, 25 - size, 24, u32::MAX - 3, u32::MAX] {
+                let got = load_bytes(&image, offset, elem);
+                assert_eq!(got, reference_load(&image, offset, elem), "{elem:?} at {offset}");
+                for &v in &slots {
+                    let mut buf = image.clone();
+                    store_bytes(&mut buf, offset, elem, v);
+                    let mut want = image.clone();
+                    let start = offset as usize;
+                    if let Some(b) = want.get_mut(start..start.saturating_add(size as usize)) {
+                        let v = if elem == Elem::Bool { u64::from(v != 0) } else { v };
+                        b.copy_from_slice(&v.to_le_bytes()[..size as usize]);
+                    }
+                    assert_eq!(buf, want, "{elem:?} {v:#x} at {offset}");
+                    if start + size as usize <= buf.len() {
+                        let back = load_bytes(&buf, offset, elem);
+                        let v = if elem == Elem::Bool { u64::from(v != 0) } else { v };
+                        assert_eq!(back, normalize(elem, v), "{elem:?} {v:#x} back");
+                    }
+                }
+            }
+        }
     }
 }

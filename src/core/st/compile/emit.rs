@@ -851,9 +851,9 @@ impl<'c, 'a> Em<'c, 'a> {
             TS::If(branches, otherwise) => {
                 let mut ends = Vec::new();
                 let mut done = false;
-                for (i, (c, body)) in branches.iter().enumerate() {
+                for (k, (c, body)) in branches.iter().enumerate() {
                     self.line = s.line.max(c.span.line);
-                    if i > 0 {
+                    if k > 0 {
                         self.mark_statement();
                     }
                     match c.const_int() {
@@ -871,7 +871,10 @@ impl<'c, 'a> Em<'c, 'a> {
                     let skip = self.op(Op::GotoIf { target: 0, when: false });
                     self.stmts(body);
                     self.line = s.line;
-                    ends.push(self.op(Op::Goto(0)));
+                    // The last branch without ELSE ends where the statement does: no jump.
+                    if k + 1 < branches.len() || !otherwise.is_empty() {
+                        ends.push(self.op(Op::Goto(0)));
+                    }
                     let next = self.pc();
                     self.patch(skip, next);
                 }
@@ -925,7 +928,10 @@ impl<'c, 'a> Em<'c, 'a> {
                     }
                     self.stmts(body);
                     self.line = s.line;
-                    ends.push(self.op(Op::Goto(0)));
+                    // The last arm ends where the statement does: no jump.
+                    if i + 1 < arms.len() {
+                        ends.push(self.op(Op::Goto(0)));
+                    }
                 }
                 let end = self.pc();
                 for j in ends {
@@ -1138,6 +1144,14 @@ impl<'c, 'a> Em<'c, 'a> {
         };
         let mut rest_exits = Vec::new();
         match by_const {
+            // A step of 1 or -1: the distance is less than the step exactly when it is 0, when
+            // the variable is at the bound (4 ops where the general test takes 8).
+            Some(1 | -1) => {
+                fetch_v(self);
+                push_to(self);
+                self.op(Op::Cmp { op: CmpOp::Eq, elem });
+                rest_exits.push(self.op(Op::GotoIf { target: 0, when: true }));
+            }
             Some(b) if b > 0 => pos_rest(self, &mut rest_exits),
             Some(_) => neg_rest(self, &mut rest_exits),
             None => {

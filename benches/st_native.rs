@@ -1,0 +1,868 @@
+//! Structured Text against native Rust: five workloads written once in ST (`benches/st/*.st`)
+//! and once as plain Rust, measured side by side, and the compile time of a 10,000-line ST
+//! project.
+//!
+//! `cargo bench --bench st_native` (criterion filters work: `cargo bench --bench st_native --
+//! pid`). After criterion has run, the bench reads criterion's medians back and writes the
+//! fragment `target/bench-results/st_native.md` for BENCHMARKS.md; a figure this run did not
+//! produce reads "not run".
+//!
+//! The ST side is the real path: `st::parse_file` and `st::compile` (as a project load does),
+//! a `Vm` with the compiled variable image, and each iteration one scan as the engine executes
+//! it (`ExecState::restart`, then `Vm::run` to `END`). The native side is the same logic over a
+//! struct holding the same variables, each iteration one call of its `scan` through
+//! `black_box(&mut state)`, so the compiler can neither fold the inputs nor drop the outputs.
+//! Before measuring, the bench runs both sides for `CHECK_SCANS` scans and checks that every
+//! variable the workload computes holds the same value on both (REALs bit for bit).
+
+use std::hint::black_box;
+use std::path::Path;
+use std::time::{Duration, SystemTime};
+
+use criterion::{BenchmarkGroup, Criterion};
+use plcd::bench::report::criterion_median_ns;
+use plcd::bench::{write_fragment, Fragment};
+use plcd_core::st::{compile, parse_file, Compiled, Instance};
+use plcd_core::value::{Elem, Pointer};
+use plcd_core::vm::{ExecState, Exit, ManualClock, Vm};
+
+const COMMAND: &str = "cargo bench --bench st_native";
+/// Scans both sides run before their variables are compared.
+const CHECK_SCANS: usize = 300;
+/// The target: the VM within this factor of native on every workload.
+const TARGET_RATIO: f64 = 5.0;
+/// The target for the 10,000-line project, in seconds.
+const TARGET_COMPILE_S: f64 = 1.0;
+
+// ---------------------------------------------------------------------------------------------
+// The ST side
+
+/// Parses and compiles `files` (path, text) with one instance `main` of the PROGRAM in the
+/// first file, as a project load does.
+fn compile_files(files: &[(&str, &str)]) -> Compiled {
+    let mut parsed = Vec::new();
+    for (path, text) in files {
+        let (file, diags) = parse_file(Path::new(path), text);
+        assert!(diags.is_empty(), "{diags}");
+        parsed.push(file);
+    }
+    let inst = Instance {
+        name: "main",
+        pou: None,
+        file: Path::new(files[0].0),
+        config: Path::new("plcd.toml"),
+        line: 1,
+        col: 1,
+    };
+    compile(&parsed, &[inst]).unwrap_or_else(|d| panic!("{d}"))
+}
+
+/// One compiled ST program on its VM.
+struct StCase {
+    c: Compiled,
+    vm: Vm,
+    state: ExecState,
+    clock: ManualClock,
+}
+
+impl StCase {
+    fn new(path: &str, source: &str) -> StCase {
+        let c = compile_files(&[(path, source)]);
+        let mut vm = Vm::for_programs(&c.programs);
+        vm.set_variables(&c.variables);
+        vm.reset_for_run(&plcd_core::device::RetainSet::default(), false);
+        let state = ExecState::with_frame(c.programs[0].frame_bytes);
+        StCase { c, vm, state, clock: ManualClock::new(0) }
+    }
+
+    // Not inlined, so that a profiler sees one scan as one call (`StCase::scan`).
+    #[inline(never)]
+    fn scan(&mut self) {
+        self.state.restart();
+        let exit = self.vm.run(&self.c.programs[0], &mut self.state, &self.clock, u64::MAX);
+        debug_assert_eq!(exit, Exit::End);
+        black_box(exit);
+    }
+
+    /// One scan that must end without an operation error.
+    fn checked_scan(&mut self) {
+        self.state.restart();
+        let exit = self.vm.run(&self.c.programs[0], &mut self.state, &self.clock, u64::MAX);
+        assert_eq!(exit, Exit::End, "the ST program did not run to END");
+    }
+
+    /// VM steps of one scan.
+    fn steps_per_scan(&mut self) -> u64 {
+        let before = self.vm.steps();
+        self.scan();
+        self.vm.steps() - before
+    }
+
+    fn at(&self, name: &str) -> (Pointer, Elem) {
+        let name = format!("main.{name}");
+        let s = self
+            .c
+            .variables
+            .symbols
+            .iter()
+            .find(|s| s.name.eq_ignore_ascii_case(&name))
+            .unwrap_or_else(|| panic!("no variable {name}"));
+        (s.at, s.ty.elem())
+    }
+
+    /// A variable's slot (value.rs's encoding: signed sign-extended, REAL the f32 bits).
+    fn slot(&self, name: &str) -> u64 {
+        let (at, elem) = self.at(name);
+        self.vm.read_value(at, elem)
+    }
+
+    fn set(&mut self, name: &str, slot: u64) {
+        let (at, elem) = self.at(name);
+        self.vm.write_value(at, elem, slot);
+    }
+}
+
+/// Slots of native values, in the VM's encoding.
+trait Slot {
+    fn slot(self) -> u64;
+}
+
+impl Slot for bool {
+    fn slot(self) -> u64 {
+        u64::from(self)
+    }
+}
+
+impl Slot for i16 {
+    fn slot(self) -> u64 {
+        self as i64 as u64
+    }
+}
+
+impl Slot for i32 {
+    fn slot(self) -> u64 {
+        self as i64 as u64
+    }
+}
+
+impl Slot for f32 {
+    fn slot(self) -> u64 {
+        u64::from(self.to_bits())
+    }
+}
+
+/// Collects the mismatches between the VM's variables and the native values.
+#[derive(Default)]
+struct Compare(Vec<String>);
+
+impl Compare {
+    fn var(&mut self, st: &StCase, name: &str, native: impl Slot) {
+        let (vm, native) = (st.slot(name), native.slot());
+        if vm != native {
+            self.0.push(format!("{name}: VM {vm:#x}, native {native:#x}"));
+        }
+    }
+
+    fn done(self, workload: &str) {
+        assert!(
+            self.0.is_empty(),
+            "{workload}: the VM and native disagree after {CHECK_SCANS} scans:\n{}",
+            self.0.join("\n")
+        );
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// bit: rungs on BOOL variables (benches/st/bit.st)
+
+#[derive(Default)]
+struct Bits {
+    start: bool,
+    stop: bool,
+    estop: bool,
+    guard: bool,
+    ready: bool,
+    auto: bool,
+    manual: bool,
+    jog: bool,
+    s: [bool; 8],
+    run: bool,
+    fault: bool,
+    m: [bool; 6],
+    q: [bool; 8],
+    s1_before: bool,
+    s1_rise: bool,
+    flip: bool,
+}
+
+const BIT_NAMES: [&str; 8] = ["start", "stop", "estop", "guard", "ready", "auto", "manual", "jog"];
+const BIT_INPUTS: [bool; 8] = [true, false, false, true, true, true, false, false];
+const BIT_SENSORS: [bool; 8] = [true, true, true, false, true, false, false, true];
+
+impl Bits {
+    fn new() -> Bits {
+        let [start, stop, estop, guard, ready, auto, manual, jog] = BIT_INPUTS;
+        Bits {
+            start,
+            stop,
+            estop,
+            guard,
+            ready,
+            auto,
+            manual,
+            jog,
+            s: BIT_SENSORS,
+            ..Bits::default()
+        }
+    }
+
+    #[inline(never)]
+    fn scan(&mut self) {
+        let [s1, s2, s3, s4, s5, s6, s7, s8] = self.s;
+        self.run = (self.start | self.run) & !self.stop & !self.estop & self.guard;
+        self.fault = self.estop | (self.fault & !self.ready);
+        let m1 = self.run & self.auto & !self.manual;
+        let m2 = self.run & self.manual & self.jog;
+        let m3 = (s1 & s2) | (s3 & !s4);
+        let m4 = (s5 | s6) & !(s7 ^ s8);
+        let m5 = m1 & (m3 | m4);
+        let m6 = m2 | (m1 & !m3);
+        self.m = [m1, m2, m3, m4, m5, m6];
+        self.s1_rise = s1 & !self.s1_before;
+        self.s1_before = s1;
+        let q1 = m5 & !self.fault;
+        let q2 = m6 & !self.fault;
+        let q3 = (q1 | q2) & self.ready;
+        if self.s1_rise & self.run {
+            self.flip = !self.flip;
+        }
+        let q4 = self.flip & !self.fault;
+        let mut q5 = self.q[4];
+        if s2 & s3 {
+            q5 = true;
+        }
+        if s4 | self.fault {
+            q5 = false;
+        }
+        let q6 = (s1 & s2 & s3) | (s4 & s5 & s6) | (s7 & s8);
+        let q7 = !(q1 | q2 | q3) & self.auto;
+        let q8 = (q6 ^ q7) | (m4 & !m5);
+        self.q = [q1, q2, q3, q4, q5, q6, q7, q8];
+    }
+}
+
+fn bit_st() -> StCase {
+    let mut st = StCase::new("bit.st", include_str!("st/bit.st"));
+    for (name, on) in BIT_NAMES.iter().zip(BIT_INPUTS) {
+        st.set(name, on.slot());
+    }
+    for (k, on) in BIT_SENSORS.iter().enumerate() {
+        st.set(&format!("s{}", k + 1), on.slot());
+    }
+    st
+}
+
+fn bit_compare(st: &StCase, n: &Bits) {
+    let mut c = Compare::default();
+    c.var(st, "run", n.run);
+    c.var(st, "fault", n.fault);
+    c.var(st, "s1_before", n.s1_before);
+    c.var(st, "s1_rise", n.s1_rise);
+    c.var(st, "flip", n.flip);
+    for (k, &m) in n.m.iter().enumerate() {
+        c.var(st, &format!("m{}", k + 1), m);
+    }
+    for (k, &q) in n.q.iter().enumerate() {
+        c.var(st, &format!("q{}", k + 1), q);
+    }
+    c.done("bit");
+}
+
+// ---------------------------------------------------------------------------------------------
+// int_loops: nested FOR loops of DINT arithmetic (benches/st/int_loops.st)
+
+struct IntLoops {
+    n: i32,
+    m: i32,
+    i: i32,
+    j: i32,
+    acc: i32,
+    odd: i32,
+    total: i32,
+}
+
+impl IntLoops {
+    fn new() -> IntLoops {
+        IntLoops { n: 100, m: 10, i: 0, j: 0, acc: 0, odd: 0, total: 0 }
+    }
+
+    #[inline(never)]
+    fn scan(&mut self) {
+        self.acc = 0;
+        self.odd = 0;
+        // A FOR loop leaves its variable at the first value past the bound (docs/ST.md).
+        self.i = 1;
+        while self.i <= self.n {
+            self.j = 1;
+            while self.j <= self.m {
+                let r = self.i.wrapping_mul(self.j) % 7;
+                self.acc = self.acc.wrapping_add(r).wrapping_sub(self.j);
+                self.j += 1;
+            }
+            if self.acc % 2 != 0 {
+                self.odd += 1;
+            }
+            self.i += 1;
+        }
+        self.total = self.total.wrapping_add(self.acc).wrapping_add(self.odd);
+    }
+}
+
+fn int_loops_compare(st: &StCase, n: &IntLoops) {
+    let mut c = Compare::default();
+    c.var(st, "i", n.i);
+    c.var(st, "j", n.j);
+    c.var(st, "acc", n.acc);
+    c.var(st, "odd", n.odd);
+    c.var(st, "total", n.total);
+    c.done("int_loops");
+}
+
+// ---------------------------------------------------------------------------------------------
+// pid: 100 REAL PID function block instances, each with its plant (benches/st/pid.st)
+
+#[derive(Clone, Copy)]
+struct PidCtl {
+    sp: f32,
+    pv: f32,
+    kp: f32,
+    ki: f32,
+    kd: f32,
+    dt: f32,
+    lo: f32,
+    hi: f32,
+    out: f32,
+    integral: f32,
+    prev_err: f32,
+}
+
+impl PidCtl {
+    const NEW: PidCtl = PidCtl {
+        sp: 0.0,
+        pv: 0.0,
+        kp: 1.2,
+        ki: 0.3,
+        kd: 0.05,
+        dt: 0.01,
+        lo: 0.0,
+        hi: 100.0,
+        out: 0.0,
+        integral: 0.0,
+        prev_err: 0.0,
+    };
+
+    #[inline(always)]
+    fn call(&mut self) {
+        let err = self.sp - self.pv;
+        self.integral += self.ki * err * self.dt;
+        if self.integral > self.hi {
+            self.integral = self.hi;
+        } else if self.integral < self.lo {
+            self.integral = self.lo;
+        }
+        let d = (err - self.prev_err) / self.dt;
+        self.prev_err = err;
+        self.out = self.kp * err + self.integral + self.kd * d;
+        if self.out > self.hi {
+            self.out = self.hi;
+        } else if self.out < self.lo {
+            self.out = self.lo;
+        }
+    }
+}
+
+struct Pid {
+    loops: [PidCtl; 100],
+    pv: [f32; 100],
+    sp: f32,
+    gain: f32,
+}
+
+impl Pid {
+    fn new() -> Pid {
+        Pid { loops: [PidCtl::NEW; 100], pv: [0.0; 100], sp: 50.0, gain: 0.05 }
+    }
+
+    #[inline(never)]
+    fn scan(&mut self) {
+        for i in 0..100 {
+            let pid = &mut self.loops[i];
+            pid.sp = self.sp;
+            pid.pv = self.pv[i];
+            pid.call();
+            self.pv[i] = self.pv[i] + (pid.out - self.pv[i]) * self.gain;
+        }
+    }
+}
+
+fn pid_compare(st: &StCase, n: &Pid) {
+    let mut c = Compare::default();
+    for (k, (l, pv)) in n.loops.iter().zip(n.pv).enumerate() {
+        let i = k + 1;
+        c.var(st, &format!("pv[{i}]"), pv);
+        c.var(st, &format!("loops[{i}].out"), l.out);
+        c.var(st, &format!("loops[{i}].integral"), l.integral);
+        c.var(st, &format!("loops[{i}].prev_err"), l.prev_err);
+    }
+    c.done("pid");
+}
+
+// ---------------------------------------------------------------------------------------------
+// sort: 100 DINTs from a generator, insertion-sorted (benches/st/sort.st)
+
+struct Sort {
+    a: [i32; 100],
+    seed: i32,
+}
+
+impl Sort {
+    fn new() -> Sort {
+        Sort { a: [0; 100], seed: 12345 }
+    }
+
+    #[inline(never)]
+    fn scan(&mut self) {
+        let mut x = self.seed;
+        for v in &mut self.a {
+            x = x.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            *v = (x / 65536) % 32768;
+        }
+        self.seed = x;
+        for i in 1..self.a.len() {
+            let key = self.a[i];
+            let mut j = i;
+            while j > 0 {
+                if self.a[j - 1] <= key {
+                    break;
+                }
+                self.a[j] = self.a[j - 1];
+                j -= 1;
+            }
+            self.a[j] = key;
+        }
+    }
+}
+
+fn sort_compare(st: &StCase, n: &Sort) {
+    let mut c = Compare::default();
+    c.var(st, "seed", n.seed);
+    for (i, &v) in n.a.iter().enumerate() {
+        c.var(st, &format!("a[{i}]"), v);
+    }
+    c.done("sort");
+    assert!(n.a.windows(2).all(|w| w[0] <= w[1]), "sort: the native array is not sorted");
+}
+
+// ---------------------------------------------------------------------------------------------
+// state_machine: 32 batch stations, a CASE on an enumeration each (benches/st/state_machine.st)
+
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+#[repr(i32)]
+enum Phase {
+    Idle,
+    Filling,
+    Heating,
+    Draining,
+    Fault,
+}
+
+#[derive(Clone, Copy)]
+struct Station {
+    start: bool,
+    level: i16,
+    temp: i16,
+    valve_in: bool,
+    heater: bool,
+    valve_out: bool,
+    alarm: bool,
+    phase: Phase,
+    ticks: i16,
+    batches: i32,
+}
+
+impl Station {
+    const NEW: Station = Station {
+        start: false,
+        level: 0,
+        temp: 0,
+        valve_in: false,
+        heater: false,
+        valve_out: false,
+        alarm: false,
+        phase: Phase::Idle,
+        ticks: 0,
+        batches: 0,
+    };
+
+    #[inline(always)]
+    fn call(&mut self) {
+        self.ticks = self.ticks.wrapping_add(1);
+        match self.phase {
+            Phase::Idle => {
+                self.valve_in = false;
+                self.heater = false;
+                self.valve_out = false;
+                if self.start {
+                    self.phase = Phase::Filling;
+                    self.ticks = 0;
+                }
+            }
+            Phase::Filling => {
+                self.valve_in = true;
+                if self.level >= 800 {
+                    self.valve_in = false;
+                    self.phase = Phase::Heating;
+                    self.ticks = 0;
+                } else if self.ticks > 50 {
+                    self.phase = Phase::Fault;
+                }
+            }
+            Phase::Heating => {
+                self.heater = self.temp < 70;
+                if self.temp >= 70 && self.ticks >= 5 {
+                    self.heater = false;
+                    self.phase = Phase::Draining;
+                    self.ticks = 0;
+                }
+            }
+            Phase::Draining => {
+                self.valve_out = true;
+                if self.level <= 100 {
+                    self.valve_out = false;
+                    self.phase = Phase::Idle;
+                    self.batches = self.batches.wrapping_add(1);
+                }
+            }
+            Phase::Fault => {
+                self.alarm = true;
+                self.valve_in = false;
+                self.heater = false;
+                self.valve_out = false;
+                if !self.start {
+                    self.alarm = false;
+                    self.phase = Phase::Idle;
+                }
+            }
+        }
+    }
+}
+
+struct Machines {
+    st: [Station; 32],
+    level: [i16; 32],
+    temp: [i16; 32],
+}
+
+impl Machines {
+    fn new() -> Machines {
+        Machines { st: [Station::NEW; 32], level: [0; 32], temp: [0; 32] }
+    }
+
+    #[inline(never)]
+    fn scan(&mut self) {
+        for i in 0..32 {
+            let s = &mut self.st[i];
+            s.start = !s.alarm;
+            s.level = self.level[i];
+            s.temp = self.temp[i];
+            s.call();
+            if s.valve_in {
+                self.level[i] = self.level[i].wrapping_add(10).wrapping_add(i as i16);
+            }
+            if s.valve_out {
+                self.level[i] = self.level[i].wrapping_sub(20);
+            }
+            if s.heater {
+                self.temp[i] = self.temp[i].wrapping_add(3);
+            } else if self.temp[i] > 20 {
+                self.temp[i] = self.temp[i].wrapping_sub(1);
+            }
+        }
+    }
+}
+
+fn state_machine_compare(st: &StCase, n: &Machines) {
+    let mut c = Compare::default();
+    for (i, s) in n.st.iter().enumerate() {
+        c.var(st, &format!("level[{i}]"), n.level[i]);
+        c.var(st, &format!("temp[{i}]"), n.temp[i]);
+        c.var(st, &format!("st[{i}].phase"), s.phase as i32);
+        c.var(st, &format!("st[{i}].ticks"), s.ticks);
+        c.var(st, &format!("st[{i}].batches"), s.batches);
+        c.var(st, &format!("st[{i}].alarm"), s.alarm);
+        c.var(st, &format!("st[{i}].valve_in"), s.valve_in);
+        c.var(st, &format!("st[{i}].heater"), s.heater);
+        c.var(st, &format!("st[{i}].valve_out"), s.valve_out);
+    }
+    c.done("state_machine");
+    let batches: i32 = n.st.iter().map(|s| s.batches).sum();
+    assert!(batches > 0, "state_machine: no batch completed in {CHECK_SCANS} scans");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Measurement
+
+/// A workload: its name, and the VM steps one scan executed.
+struct Workload {
+    name: &'static str,
+    steps: u64,
+}
+
+fn configure<'a>(
+    c: &'a mut Criterion,
+    name: &str,
+) -> BenchmarkGroup<'a, criterion::measurement::WallTime> {
+    let mut group = c.benchmark_group(format!("st_{name}"));
+    group
+        .sample_size(40)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(3));
+    group
+}
+
+/// One workload: both sides run `CHECK_SCANS` scans and `compare` checks them; then fresh
+/// copies of both are measured side by side in one criterion group.
+fn bench_workload<N>(
+    c: &mut Criterion,
+    name: &'static str,
+    st: impl Fn() -> StCase,
+    native: impl Fn() -> N,
+    scan: fn(&mut N),
+    compare: fn(&StCase, &N),
+) -> Workload {
+    let (mut vm, mut nat) = (st(), native());
+    for _ in 0..CHECK_SCANS {
+        vm.checked_scan();
+        scan(&mut nat);
+    }
+    compare(&vm, &nat);
+
+    let (mut vm, mut nat) = (st(), native());
+    let steps = vm.steps_per_scan();
+    let mut group = configure(c, name);
+    group.bench_function("vm", |b| b.iter(|| vm.scan()));
+    group.bench_function("native", |b| b.iter(|| scan(black_box(&mut nat))));
+    group.finish();
+    Workload { name, steps }
+}
+
+fn bench_workloads(c: &mut Criterion) -> Vec<Workload> {
+    let st = |path: &'static str, text: &'static str| move || StCase::new(path, text);
+    vec![
+        bench_workload(c, "bit", bit_st, Bits::new, Bits::scan, bit_compare),
+        bench_workload(
+            c,
+            "int_loops",
+            st("int_loops.st", include_str!("st/int_loops.st")),
+            IntLoops::new,
+            IntLoops::scan,
+            int_loops_compare,
+        ),
+        bench_workload(
+            c,
+            "pid",
+            st("pid.st", include_str!("st/pid.st")),
+            Pid::new,
+            Pid::scan,
+            pid_compare,
+        ),
+        bench_workload(
+            c,
+            "sort",
+            st("sort.st", include_str!("st/sort.st")),
+            Sort::new,
+            Sort::scan,
+            sort_compare,
+        ),
+        bench_workload(
+            c,
+            "state_machine",
+            st("state_machine.st", include_str!("st/state_machine.st")),
+            Machines::new,
+            Machines::scan,
+            state_machine_compare,
+        ),
+    ]
+}
+
+// ---------------------------------------------------------------------------------------------
+// Compile time: a generated 10,000-line project
+
+/// A project of `lines` lines (at least) in two files, as a plant's code might look: a library
+/// of enumerations, structs, function blocks (a CASE sequence, timers, REAL scaling, alarms)
+/// and functions, and a program that instantiates every block in arrays and calls each in a
+/// FOR loop.
+fn project(lines: usize) -> (String, String) {
+    let mut lib = String::new();
+    let mut blocks = 0;
+    // The program: 8 lines, and 3 for each block.
+    let main_lines = |blocks: usize| 8 + 3 * blocks;
+    // One unit: an enumeration, a struct, a function and a function block, about 70 lines.
+    while lib.lines().count() + main_lines(blocks) < lines {
+        let k = blocks;
+        lib.push_str(&format!(
+            "TYPE\n    Step{k} : (Wait{k}, Run{k}, Hold{k}, Done{k});\n    Rec{k} : STRUCT\n        \
+             raw : INT;\n        scaled : REAL;\n        ok : BOOL;\n    END_STRUCT;\nEND_TYPE\n\n"
+        ));
+        lib.push_str(&format!(
+            "FUNCTION Scale{k} : REAL\nVAR_INPUT\n    raw : INT;\n    lo, hi : REAL;\nEND_VAR\n    \
+             Scale{k} := lo + (hi - lo) * INT_TO_REAL(LIMIT(0, raw, 27648)) / 27648.0;\n\
+             END_FUNCTION\n\n"
+        ));
+        lib.push_str(&format!(
+            "FUNCTION_BLOCK Unit{k}\nVAR_INPUT\n    go : BOOL;\n    raw : INT;\n    limit : REAL := \
+             {k}.5;\nEND_VAR\nVAR_OUTPUT\n    busy, alarm : BOOL;\n    count : DINT;\nEND_VAR\nVAR\n    \
+             step : Step{k} := Wait{k};\n    rec : Rec{k};\n    delay : TON;\n    history : ARRAY \
+             [0..7] OF REAL;\n    n, j : INT;\nEND_VAR\n    rec.raw := raw;\n    rec.scaled := \
+             Scale{k}(raw := raw, lo := 0.0, hi := 100.0);\n    rec.ok := rec.scaled <= limit;\n    \
+             delay(IN := step = Run{k}, PT := T#{k}ms);\n    CASE step OF\n        Wait{k}:\n            \
+             IF go AND rec.ok THEN\n                step := Run{k};\n            END_IF;\n        \
+             Run{k}:\n            busy := TRUE;\n            IF NOT rec.ok THEN\n                step \
+             := Hold{k};\n            ELSIF delay.Q THEN\n                step := Done{k};\n            \
+             END_IF;\n        Hold{k}:\n            alarm := TRUE;\n            IF rec.ok THEN\n                \
+             alarm := FALSE;\n                step := Run{k};\n            END_IF;\n        Done{k}:\n            \
+             busy := FALSE;\n            count := count + 1;\n            step := Wait{k};\n    \
+             END_CASE;\n    history[n MOD 8] := rec.scaled;\n    n := n + 1;\n    \
+             FOR j := 0 TO 7 DO\n        rec.scaled := MAX(rec.scaled, history[j]);\n    \
+             END_FOR;\nEND_FUNCTION_BLOCK\n\n"
+        ));
+        blocks += 1;
+    }
+    let mut main = String::from("PROGRAM Plant\nVAR\n    i : INT;\n    total : DINT;\n");
+    for k in 0..blocks {
+        main.push_str(&format!("    u{k} : ARRAY [1..4] OF Unit{k};\n"));
+    }
+    main.push_str("    raw : ARRAY [1..4] OF INT;\nEND_VAR\n    FOR i := 1 TO 4 DO\n");
+    for k in 0..blocks {
+        main.push_str(&format!(
+            "        u{k}[i](go := i MOD 2 = 0, raw := raw[i]);\n        total := total + u{k}[i].count;\n"
+        ));
+    }
+    main.push_str("    END_FOR;\nEND_PROGRAM\n");
+    (main, lib)
+}
+
+/// The project's files, checked once: it compiles, and has at least 10,000 lines.
+fn ten_thousand_lines() -> (String, String, usize) {
+    let (main, lib) = project(10_000);
+    let lines = main.lines().count() + lib.lines().count();
+    assert!(lines >= 10_000, "the generated project has {lines} lines");
+    let c = compile_files(&[("main.st", &main), ("lib.st", &lib)]);
+    assert!(c.programs[0].code.len() > 10_000, "{} ops", c.programs[0].code.len());
+    (main, lib, lines)
+}
+
+fn bench_compile(c: &mut Criterion) -> usize {
+    let (main, lib, lines) = ten_thousand_lines();
+    let mut group = c.benchmark_group("st_compile");
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(8));
+    group.bench_function("10k_lines", |b| {
+        b.iter(|| compile_files(black_box(&[("main.st", &main), ("lib.st", &lib)])))
+    });
+    group.finish();
+    lines
+}
+
+// ---------------------------------------------------------------------------------------------
+// The fragment for BENCHMARKS.md
+
+fn time(ns: f64) -> String {
+    match ns {
+        ns if ns >= 1e6 => format!("{:.1} ms", ns / 1e6),
+        ns if ns >= 1e3 => format!("{:.2} µs", ns / 1e3),
+        ns => format!("{ns:.0} ns"),
+    }
+}
+
+fn report(workloads: &[Workload], lines: usize, since: SystemTime) {
+    let not_run = || "not run".to_string();
+    let mut rows = Vec::new();
+    for w in workloads {
+        let group = format!("st_{}", w.name);
+        let vm = criterion_median_ns(&group, "vm", since);
+        let native = criterion_median_ns(&group, "native", since);
+        let (ratio, target) = match (vm, native) {
+            (Some(v), Some(n)) => {
+                let r = v / n;
+                let met = if r <= TARGET_RATIO { "met" } else { "missed" };
+                (format!("{r:.1}×"), format!("≤ {TARGET_RATIO}×: {met}"))
+            }
+            _ => (not_run(), format!("≤ {TARGET_RATIO}×")),
+        };
+        rows.push(vec![
+            format!("`{}`", w.name),
+            w.steps.to_string(),
+            vm.map_or_else(not_run, time),
+            native.map_or_else(not_run, time),
+            vm.map_or_else(not_run, |v| format!("{:.2}", v / w.steps as f64)),
+            ratio,
+            target,
+        ]);
+    }
+    let mut f = Fragment::new(COMMAND);
+    f.line(
+        "Criterion's median time of one scan of each workload, the VM and native measured side by \
+         side in this run; VM steps: the ops the VM executed in that scan.\n",
+    );
+    f.table(
+        &[
+            "workload",
+            "VM steps per scan",
+            "VM median",
+            "native median",
+            "VM ns/step",
+            "VM/native",
+            "target",
+        ],
+        &rows,
+    );
+    let compile = criterion_median_ns("st_compile", "10k_lines", since);
+    let verdict = |ns: f64| if ns / 1e9 < TARGET_COMPILE_S { "met" } else { "missed" };
+    f.table(
+        &["project", "lines", "parse + compile median", "target"],
+        &[vec![
+            "generated (`project` in benches/st_native.rs)".to_string(),
+            lines.to_string(),
+            compile.map_or_else(not_run, time),
+            compile.map_or_else(
+                || format!("< {TARGET_COMPILE_S} s"),
+                |ns| format!("< {TARGET_COMPILE_S} s: {}", verdict(ns)),
+            ),
+        ]],
+    );
+    if let Err(e) = write_fragment("st_native", &f) {
+        eprintln!("cannot write the fragment: {e}");
+    }
+}
+
+fn main() {
+    let since = SystemTime::now();
+    let mut c = Criterion::default().configure_from_args();
+    let workloads = bench_workloads(&mut c);
+    let lines = bench_compile(&mut c);
+    c.final_summary();
+    for w in &workloads {
+        eprintln!("{}: {} VM steps per scan", w.name, w.steps);
+    }
+    // `cargo bench` passes --bench; `cargo test --benches` does not, and `--test` (run each
+    // benchmark once) and `--list` measure nothing.
+    let args: Vec<String> = std::env::args().collect();
+    let measured = |a: &String| a == "--bench";
+    let probe = |a: &String| a == "--test" || a == "--list";
+    if args.iter().any(measured) && !args.iter().any(probe) {
+        report(&workloads, lines, since);
+    }
+}
