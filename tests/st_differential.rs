@@ -9,7 +9,10 @@
 //! list shrinks the expressions (an exhausted list picks variables). Constant subexpressions are
 //! folded by the compiler, so the same property checks the folding against the VM's rules.
 //! A second property renders the same trees with the fewest parentheses the precedence table of
-//! docs/ST.md allows.
+//! docs/ST.md allows (and `&` for `AND`).
+//!
+//! Each bug the properties found is a minimized `#[ignore]`d test at the end, and an `AVOID_*`
+//! switch keeps the generator off it: set the switch to `false` once the bug is fixed.
 
 use std::cmp::Ordering;
 use std::fmt::Write as _;
