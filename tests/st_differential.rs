@@ -11,8 +11,10 @@
 //! A second property renders the same trees with the fewest parentheses the precedence table of
 //! docs/ST.md allows (and `&` for `AND`).
 //!
-//! Each bug the properties found is a minimized `#[ignore]`d test at the end, and an `AVOID_*`
-//! switch keeps the generator off it: set the switch to `false` once the bug is fixed.
+//! Each bug the properties found is a minimized test at the end, kept after its fix: shift
+//! counts (negative, beyond IN's width, beyond DINT), the folding of constants (REAL to a
+//! 64-bit integer saturates, a 64-bit integer to REAL rounds once, -0.0), and a based literal
+//! inside an expression taking its own operation's type.
 
 use std::cmp::Ordering;
 use std::fmt::Write as _;
@@ -698,7 +700,7 @@ impl Render<'_> {
             Expr::Lit(v, form) => out.push_str(&match form {
                 Form::Bare => v.literal(!bare, false),
                 Form::Typed => v.literal(true, false),
-                Form::Based => v.literal(!bare || v.int() < 0 || AVOID_BASED_LITERAL_BUG, true),
+                Form::Based => v.literal(!bare || v.int() < 0, true),
             }),
             Expr::Neg(a) | Expr::Not(a) => {
                 out.push_str(if matches!(e, Expr::Neg(_)) { "-" } else { "NOT " });
@@ -812,11 +814,6 @@ fn args_bare<'e>(vars: &Vars, xs: Vec<&'e Expr>, t: T) -> Vec<(&'e Expr, bool)> 
 
 // ---------------------------------------------------------------------------------------------
 // Generation
-
-/// `SHL`, `SHR`, `ROL`, `ROR` take their count modulo 2^(IN's width) (a constant one clamped to
-/// 0 … 2^20) instead of as an unsigned 64-bit number: see `shift_count_*`. While so, the counts
-/// generated are within 0 … 2^width − 1 and at most 2^20 (at most 16 bits when not literals).
-const AVOID_SHIFT_COUNT_BUG: bool = true;
 
 /// Random choices from a list proptest generates and shrinks; 0 once the list is used up.
 struct Choices<'a> {
@@ -980,22 +977,13 @@ fn gen(t: T, depth: u32, vars: &Vars, c: &mut Choices) -> Expr {
                     1 => c.pick(&[256, 65_536, 65_537, 1 << 32, (1 << 32) + 3, 1 << 40]),
                     _ => i128::from(c.next() % 80),
                 };
-                let v =
-                    if AVOID_SHIFT_COUNT_BUG { v.rem_euclid(1 << t.width().min(20)) } else { v };
                 if i32::try_from(v).is_ok() {
                     Expr::Lit(V::DInt(v as i32), c.pick(&[Form::Bare, Form::Typed]))
                 } else {
-                    // typed: an untyped count beyond DINT is refused (`shift_count_*`)
+                    // beyond DINT: a bare literal is a LINT, a typed one as it says
                     let v = if v < 0 { V::LInt(v as i64) } else { V::ULInt(v as u64) };
-                    Expr::Lit(v, Form::Typed)
+                    Expr::Lit(v, c.pick(&[Form::Bare, Form::Typed]))
                 }
-            } else if AVOID_SHIFT_COUNT_BUG {
-                // unsigned and no wider than IN: within 0 .. 2^width
-                let nts: Vec<T> = [T::USInt, T::UInt, T::UDInt, T::ULInt]
-                    .into_iter()
-                    .filter(|n| n.width() <= t.width().min(16))
-                    .collect();
-                sub(nts[c.below(nts.len())], c)
             } else {
                 let nt = c.pick(&[T::SInt, T::Int, T::DInt, T::LInt, T::USInt, T::UInt, T::UDInt]);
                 sub(nt, c)
@@ -1060,33 +1048,13 @@ fn binary_of(op: Bin, t: T, depth: u32, vars: &Vars, c: &mut Choices) -> Expr {
     Expr::Bin(op, Box::new(a), Box::new(b))
 }
 
-/// A constant REAL or LREAL converted to `LINT`, `ULINT` or `LWORD` beyond the target's range
-/// is folded to the wrapped bound instead of the bound (see `constant_real_to_64_bit_*`); while
-/// so, such a constant becomes a variable.
-const AVOID_FOLDED_64_BIT_SATURATION_BUG: bool = true;
-
-/// The negation of a constant REAL or LREAL zero is folded to `+0.0`, where the VM's negation
-/// gives `-0.0` (see `constant_negated_real_zero_*`); while so, such a constant becomes a
-/// variable.
-const AVOID_FOLDED_NEGATIVE_ZERO_BUG: bool = true;
-
-/// A constant `LINT`, `ULINT` or `LWORD` converted to REAL is folded through an LREAL, rounding
-/// twice (see `constant_64_bit_to_real_*`); while so, such a constant becomes a variable.
-const AVOID_FOLDED_DOUBLE_ROUNDING_BUG: bool = true;
-
-/// An untyped based literal (`16#B2`) is read with the type the enclosing operation expects
-/// (`SINT` in `s + (16#B2 + d)`) instead of its own operation's (`DINT`), so as a negative bit
-/// pattern of a narrower signed type (see `based_literal_takes_the_outer_type`); while so,
-/// based literals are written typed.
-const AVOID_BASED_LITERAL_BUG: bool = true;
-
 /// A variable of type `t`.
 fn var_of(t: T) -> Expr {
     Expr::Var(TYPES.iter().position(|&x| x == t).expect("type") * 2)
 }
 
-/// Makes `e` compile and keeps it off the known bugs: a divisor the compiler sees as the
-/// constant zero is a check error, so such a divisor becomes a variable of its type.
+/// Makes `e` compile: a divisor the compiler sees as the constant zero is a check error, so
+/// such a divisor becomes a variable of its type.
 fn fix_up(e: &mut Expr, vars: &Vars) {
     avoid_constant_zero_divisors(e, vars);
 }
@@ -1094,37 +1062,8 @@ fn fix_up(e: &mut Expr, vars: &Vars) {
 fn avoid_constant_zero_divisors(e: &mut Expr, vars: &Vars) {
     match e {
         Expr::Var(_) | Expr::Lit(..) => {}
-        Expr::Neg(a) => {
-            avoid_constant_zero_divisors(a, vars);
-            if AVOID_FOLDED_NEGATIVE_ZERO_BUG
-                && a.ty(vars).real()
-                && a.constant(vars)
-                && a.eval(vars, &mut 0).zero()
-            {
-                **a = var_of(a.ty(vars));
-            }
-        }
-        Expr::Not(a) | Expr::Abs(a) | Expr::Trunc(a) => avoid_constant_zero_divisors(a, vars),
-        Expr::Conv(to, a) => {
-            avoid_constant_zero_divisors(a, vars);
-            if AVOID_FOLDED_64_BIT_SATURATION_BUG
-                && matches!(to, T::LInt | T::ULInt | T::LWord)
-                && a.constant(vars)
-            {
-                if let Scalar::Float(f) = a.eval(vars, &mut 0).scalar() {
-                    let limit = if *to == T::LInt { 2f64.powi(63) } else { 2f64.powi(64) };
-                    if f.round() >= limit {
-                        **a = var_of(a.ty(vars));
-                    }
-                }
-            }
-            if AVOID_FOLDED_DOUBLE_ROUNDING_BUG
-                && *to == T::Real
-                && matches!(a.ty(vars), T::LInt | T::ULInt | T::LWord)
-                && a.constant(vars)
-            {
-                **a = var_of(a.ty(vars));
-            }
+        Expr::Neg(a) | Expr::Not(a) | Expr::Abs(a) | Expr::Trunc(a) | Expr::Conv(_, a) => {
+            avoid_constant_zero_divisors(a, vars)
         }
         Expr::Bin(op, a, b) => {
             avoid_constant_zero_divisors(a, vars);
@@ -1360,7 +1299,6 @@ fn assert_values(actual: &[V], expected: &[V]) {
 /// negative count shifts everything out and rotates the other way; a count at or beyond the
 /// width shifts everything out.
 #[test]
-#[ignore = "bug: a constant negative shift count is taken as 0"]
 fn shift_count_negative_constant() {
     let r = run(
         "w : WORD := 16#00FF; b : BYTE := 16#81; a : WORD; c : BYTE;",
@@ -1371,7 +1309,6 @@ fn shift_count_negative_constant() {
 }
 
 #[test]
-#[ignore = "bug: a shift count is reduced modulo 2^(the width of IN)"]
 fn shift_count_beyond_the_type_of_in() {
     let r = run(
         "w : WORD := 16#00FF; n : DINT := 65537; a : WORD; c : WORD;",
@@ -1384,7 +1321,6 @@ fn shift_count_beyond_the_type_of_in() {
 /// docs/ST.md, expressions: a literal-only expression without a context type is a DINT, or a
 /// LINT when a literal needs it.
 #[test]
-#[ignore = "bug: an untyped shift count beyond DINT is refused"]
 fn shift_count_untyped_beyond_dint() {
     let r = run("d : DWORD := 1; a : DWORD;", "a := ROL(d, 4294967297);", &[("a", T::DWord)]);
     assert_values(&r, &[V::DWord(2)]);
@@ -1394,7 +1330,6 @@ fn shift_count_untyped_beyond_dint() {
 /// The VM does; the folding of a constant wraps the bound, as 2^63 − 1 and 2^64 − 1 are no
 /// LREALs and round up.
 #[test]
-#[ignore = "bug: a constant LREAL beyond LINT/ULINT/LWORD is folded to the wrapped bound"]
 fn constant_real_to_64_bit_saturates() {
     let r = run(
         "x : LREAL := 1.0E30; a, b : LINT; c, d : ULINT;",
@@ -1411,7 +1346,6 @@ fn constant_real_to_64_bit_saturates() {
 /// the folding of a constant rounds to LREAL first, then to REAL: 2^62 + 2^38 + 1 is nearer
 /// 2^62 + 2^39, but its LREAL, 2^62 + 2^38, is a tie that rounds to even, 2^62.
 #[test]
-#[ignore = "bug: a constant LINT/ULINT/LWORD converted to REAL is rounded twice"]
 fn constant_64_bit_to_real_rounds_once() {
     let r = run(
         "u : ULINT := 16#4000004000000001; a, b : REAL;",
@@ -1425,7 +1359,6 @@ fn constant_64_bit_to_real_rounds_once() {
 /// Unary minus on a REAL is the IEEE negation, as the VM does at run time: -0.0 for 0.0. The
 /// folding of a typed constant computes 0 - x, which is +0.0.
 #[test]
-#[ignore = "bug: the negation of a constant REAL/LREAL zero is folded to +0.0"]
 fn constant_negated_real_zero() {
     let r = run(
         "z : REAL := 0.0; a, b : REAL; c : LREAL;",
@@ -1436,11 +1369,10 @@ fn constant_negated_real_zero() {
 }
 
 /// docs/ST.md, expressions: an untyped literal takes the type of the other operand: in
-/// `16#B2 + d` a DINT, 178. The compiler gives it the type the outer operation expects (SINT,
-/// from `s`), where the based literal reads as the bit pattern −78.
+/// `16#B2 + d` a DINT, 178, not the type the outer operation expects (SINT, from `s`), where
+/// the based literal would read as the bit pattern −78 (it once did).
 #[test]
-#[ignore = "bug: an untyped based literal takes the outer operation's type"]
-fn based_literal_takes_the_outer_type() {
+fn based_literal_takes_its_own_operations_type() {
     let r = run(
         "s : SINT; d : DINT; r : DINT; c : BOOL;",
         "r := s + (16#B2 + d); c := s < (16#B2 + d);",
@@ -1449,11 +1381,10 @@ fn based_literal_takes_the_outer_type() {
     assert_values(&r, &[V::DInt(178), V::Bool(true)]);
 }
 
-/// The same, where the literal's own operation is on a USINT: `16#B2 * u` is refused as
-/// "constant `-78` does not fit `USINT`".
+/// The same, where the literal's own operation is on a USINT: `16#B2 * u` is 178 of a USINT
+/// (it was once refused as "constant `-78` does not fit `USINT`").
 #[test]
-#[ignore = "bug: an untyped based literal takes the outer operation's type"]
-fn based_literal_takes_the_outer_type_and_is_refused() {
+fn based_literal_in_a_narrower_operation_keeps_its_value() {
     let r = run(
         "s : SINT; d : DINT; u : USINT := 1; q : DINT;",
         "q := s + ((16#B2 * u) + d);",

@@ -601,7 +601,7 @@ impl<'a> Ctx<'a> {
 
     /// A scalar or string constant of `ty` as its bytes.
     fn const_bytes(&mut self, e: &ast::Expr, ty: &Ty, scope: Scope, what: &str) -> Option<Vec<u8>> {
-        let te = self.check_expr(e, scope, Some(ty));
+        let te = self.check_given(e, scope, ty);
         let te = self.coerce(te, ty, scope.file);
         if te.ty.is_error() {
             return None;
@@ -642,7 +642,7 @@ impl<'a> Ctx<'a> {
             };
         };
         let saved = self.diags.len();
-        let te = self.check_expr(e, scope, Some(ty));
+        let te = self.check_given(e, scope, ty);
         let te = self.coerce(te, ty, scope.file);
         self.diags.truncate(saved);
         match te.k {

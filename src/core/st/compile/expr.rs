@@ -133,8 +133,13 @@ pub fn fold_conv(cv: &Cv, from: Prim, to: Prim) -> Cv {
         return Cv::Int(i128::from(as_f64(cv) != 0.0 || matches!(cv, Cv::Int(v) if *v != 0)));
     }
     if to.is_real() {
-        let f = as_f64(cv);
-        return Cv::Real(if to == Prim::Real { f64::from(f as f32) } else { f });
+        // An integer goes to the nearest REAL in one rounding, as the VM converts (through an
+        // LREAL, a 64-bit integer would be rounded twice).
+        return Cv::Real(match (cv, to) {
+            (Cv::Int(v), Prim::Real) => f64::from(*v as f32),
+            (_, Prim::Real) => f64::from(as_f64(cv) as f32),
+            _ => as_f64(cv),
+        });
     }
     match cv {
         Cv::Int(v) => Cv::Int(wrap(to, *v)),
@@ -143,9 +148,10 @@ pub fn fold_conv(cv: &Cv, from: Prim, to: Prim) -> Cv {
             if f.is_nan() {
                 return Cv::Int(0);
             }
-            let r = f.round();
+            // Saturated in integers: the bounds of the 64-bit types are no LREALs (2^63 - 1
+            // rounds up to 2^63), and a float cast to i128 saturates at i128's range.
             let (lo, hi) = to.range().expect("integer");
-            Cv::Int((r.clamp(lo as f64, hi as f64)) as i128)
+            Cv::Int((f.round() as i128).clamp(lo, hi))
         }
         Cv::Str(_) => Cv::Int(0),
     }
@@ -317,6 +323,25 @@ impl<'a> Ctx<'a> {
         }
     }
 
+    /// An expression given whole to a value of `ty` (assigned to it, its initial value, the
+    /// value of a typed literal): as [`Ctx::check_expr`] with `ty` expected, except that a
+    /// based literal given to a signed integer type may be the bit pattern of its width
+    /// (`x := 16#FFFF` for an INT is -1, `INT#16#FFFF` too, as in CODESYS). Only given whole:
+    /// inside an expression a literal takes the type of its own operation.
+    pub fn check_given(&mut self, e: &Expr, scope: Scope, ty: &Ty) -> TExpr {
+        if let ExprKind::Literal(Literal::Based(v)) = &e.kind {
+            let signed = ty.prim(&self.types).filter(|p| p.is_int() && p.elem().is_signed());
+            if let Some(p) = signed.filter(|_| !matches!(ty, Ty::Enum(_))) {
+                let (v, width) = (*v as i128, 1i128 << p.bits());
+                let max = p.range().map_or(i128::MAX, |(_, hi)| hi);
+                if v > max && v < width {
+                    return TExpr::konst(Cv::Int(v - width), Ty::IntLit, e.span);
+                }
+            }
+        }
+        self.check_expr(e, scope, Some(ty))
+    }
+
     fn literal(&mut self, lit: &Literal, span: Span, scope: Scope, expected: Option<&Ty>) -> TExpr {
         let file = scope.file;
         match lit {
@@ -324,19 +349,7 @@ impl<'a> Ctx<'a> {
                 let v = *v as i128;
                 TExpr::konst(Cv::Int(v), Ty::IntLit, span)
             }
-            Literal::Based(v) => {
-                let mut v = *v as i128;
-                // Where a signed integer is expected, a pattern past its maximum that fits
-                // its width is the two's complement value: 16#FFFF for an INT is -1.
-                if let Some(p) = expected.and_then(|t| t.prim(&self.types)) {
-                    if let Some((_, hi)) = p.range().filter(|_| p.elem().is_signed()) {
-                        if v > hi && v < 1i128 << p.bits() {
-                            v -= 1i128 << p.bits();
-                        }
-                    }
-                }
-                TExpr::konst(Cv::Int(v), Ty::IntLit, span)
-            }
+            Literal::Based(v) => TExpr::konst(Cv::Int(*v as i128), Ty::IntLit, span),
             Literal::Real(f) => TExpr::konst(Cv::Real(*f), Ty::RealLit, span),
             Literal::Bool(b) => TExpr::konst(Cv::Int(i128::from(*b)), Ty::Prim(Prim::Bool), span),
             Literal::Time(ns) => {
@@ -359,7 +372,7 @@ impl<'a> Ctx<'a> {
             }
             Literal::Typed { ty, value } => {
                 if let Some(p) = Prim::from_name(&ty.name) {
-                    let inner = self.check_expr(value, scope, Some(&Ty::Prim(p)));
+                    let inner = self.check_given(value, scope, &Ty::Prim(p));
                     if p == Prim::Bool {
                         if let Some(v @ (0 | 1)) =
                             inner.const_int().filter(|_| inner.ty == Ty::IntLit)
@@ -911,8 +924,13 @@ impl<'a> Ctx<'a> {
                 _ => match a.ty.prim(&self.types) {
                     Some(p) if (p.is_num() || p.is_time()) && !matches!(a.ty, Ty::Enum(_)) => {
                         if let TK::Const(cv) = &a.k {
-                            let r =
-                                fold_bin(BinOp::Sub, Some(p), &zero(p), cv).expect("no division");
+                            // A real is negated as IEEE does it (-0.0 for 0.0, as the VM),
+                            // not as 0 - x.
+                            let r = match cv {
+                                Cv::Real(x) if p.is_real() => Cv::Real(-x),
+                                _ => fold_bin(BinOp::Sub, Some(p), &zero(p), cv)
+                                    .expect("no division"),
+                            };
                             return TExpr::konst(r, Ty::Prim(p), span);
                         }
                         TExpr { k: TK::Un(UnOp::Neg, Box::new(a)), ty: Ty::Prim(p), span }

@@ -540,24 +540,35 @@ impl<'a> Ctx<'a> {
                     return TExpr::error(span);
                 }
                 let p = p.expect("bits");
-                let c = self.scalar_arg(a[1], scope, None, Prim::DInt);
+                let c = self.scalar_arg(a[1], scope, None, Prim::LInt);
                 let cp = c.ty.prim(&self.types);
                 if !self.want(&c, cp.is_some_and(Prim::is_int), name, "an integer count", file) {
                     return TExpr::error(span);
                 }
-                let c = if c.is_const() {
-                    let v = c.const_int().unwrap_or(0).clamp(0, 1 << 20);
-                    TExpr::konst(Cv::Int(v), Ty::Prim(p), c.span)
-                } else {
-                    let c = self.conv(c, Prim::LInt, Ty::Prim(Prim::LInt));
-                    // counts are non-negative; their bits, reinterpreted, are the count
-                    self.conv(c, p, Ty::Prim(p))
-                };
                 let op = match name {
                     "SHL" => BinOp::Shl,
                     "SHR" => BinOp::Shr,
                     "ROL" => BinOp::Rol,
                     _ => BinOp::Ror,
+                };
+                // The count is N taken as an unsigned 64-bit number (a negative N is huge),
+                // brought into IN's type without changing what it does: a shift by the width
+                // or more gives 0, so it is capped at the width; a rotation is by N modulo the
+                // width. Both fit any bit string type.
+                let rotate = matches!(op, BinOp::Rol | BinOp::Ror);
+                let width = u64::from(p.bits());
+                let c = if c.is_const() {
+                    let n = (c.const_int().unwrap_or(0) as i64) as u64;
+                    let n = if rotate { n % width } else { n.min(width) };
+                    TExpr::konst(Cv::Int(i128::from(n)), Ty::Prim(p), c.span)
+                } else {
+                    let ulint = Ty::Prim(Prim::ULInt);
+                    let c = self.conv(c, Prim::LInt, Ty::Prim(Prim::LInt));
+                    let c = self.conv(c, Prim::ULInt, ulint.clone());
+                    let w = TExpr::konst(Cv::Int(i128::from(width)), ulint.clone(), span);
+                    let bring = if rotate { BinOp::Mod } else { BinOp::Min };
+                    let c = self.make_bin(bring, c, w, ulint, span, file);
+                    self.conv(c, p, Ty::Prim(p))
                 };
                 self.make_bin(op, x, c, Ty::Prim(p), span, file)
             }

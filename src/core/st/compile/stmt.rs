@@ -72,7 +72,7 @@ impl<'a> Ctx<'a> {
             StmtKind::Empty => return None,
             StmtKind::Assign { target, value } => {
                 let t = self.check_place(target, scope, Access::Write, None);
-                let v = self.check_expr(value, scope, Some(&t.ty));
+                let v = self.check_given(value, scope, &t.ty);
                 if t.ty.is_error() || v.ty.is_error() {
                     return None;
                 }
