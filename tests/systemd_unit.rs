@@ -454,7 +454,7 @@ fn installed_files(prefix: &str) -> Vec<String> {
     }
     for entry in fs::read_dir(repo().join("etc/programs")).unwrap() {
         let name = entry.unwrap().file_name().into_string().unwrap();
-        if name.ends_with(".il") {
+        if name.ends_with(".il") || name.ends_with(".st") {
             files.push(format!("/etc/plcd/programs/{name}"));
         }
     }
