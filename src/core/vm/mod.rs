@@ -24,7 +24,7 @@ use crate::device::{
     counter_done, counter_value, timer_done, timer_value, BitRef, Memory, WordRef,
 };
 use crate::lang::ops::{ArithOp, Combine, Op, Src, SystemRequest, Wide, WideConv};
-use crate::lang::{Program, Variables, CALL_DEPTH, LOOP_DEPTH, ST_CALL_DEPTH};
+use crate::lang::{Language, Program, Variables, CALL_DEPTH, LOOP_DEPTH, ST_CALL_DEPTH};
 use crate::value::{self, Elem, Pointer};
 use typed::EvalStack;
 
@@ -439,7 +439,14 @@ impl Vm {
             clock,
             stop,
         };
-        let exit = interpret(&mut self.mem, machine, state, code, &mut regs);
+        let exit = match program.language {
+            Language::InstructionList => {
+                interpret::<false, C>(&mut self.mem, machine, state, code, &mut regs)
+            }
+            Language::StructuredText => {
+                interpret::<true, C>(&mut self.mem, machine, state, code, &mut regs)
+            }
+        };
         state.pc = (code.len() - regs.rest.len()) as u32;
         state.rung = regs.rung;
         state.blocks = regs.blocks;
@@ -494,12 +501,17 @@ struct Machine<'a, C> {
 /// - Ops are matched by reference, so each arm loads only its own operands; [`Op`] is
 ///   `repr(u8)` and every variant has an arm, so dispatch is one byte load and one indirect
 ///   jump through a table without a range check.
+/// - One loop per language: `ST` selects the arms of the Structured Text ops, `!ST` those of
+///   the instruction list (a program holds only its own language's ops). The other
+///   language's arms are compiled out of each instantiation, so neither loop carries the
+///   other's code: the instruction list's loop is as small as before Structured Text, and
+///   keeps its registers across `CALL` and `RET`.
 /// - Outputs, SET/RST and the data instructions write their destination whatever the rung
 ///   result (the old value when it is OFF), compares evaluate through the truth table in
 ///   [`CmpOp`](crate::lang::ops::CmpOp), and contacts combine with the rung arithmetically:
 ///   no branch depends on device data, which the processor cannot predict.
 #[inline(never)]
-fn interpret<'a, C: Clock>(
+fn interpret<'a, const ST: bool, C: Clock>(
     mem: &mut Memory,
     machine: Machine<'_, C>,
     state: &mut ExecState,
@@ -611,80 +623,80 @@ fn interpret<'a, C: Clock>(
                 halt!(Exit::End);
             };
             match op {
-                Op::Load(b) => rung = mem.bit(*b),
-                Op::LoadNot(b) => rung = !mem.bit(*b),
-                Op::LoadPush(b) => {
+                Op::Load(b) if !ST => rung = mem.bit(*b),
+                Op::LoadNot(b) if !ST => rung = !mem.bit(*b),
+                Op::LoadPush(b) if !ST => {
                     blocks = (blocks << 1) | rung as u32;
                     rung = mem.bit(*b);
                 }
-                Op::LoadNotPush(b) => {
+                Op::LoadNotPush(b) if !ST => {
                     blocks = (blocks << 1) | rung as u32;
                     rung = !mem.bit(*b);
                 }
-                Op::And(b) => rung &= mem.bit(*b),
-                Op::AndNot(b) => rung &= !mem.bit(*b),
-                Op::Or(b) => rung |= mem.bit(*b),
-                Op::OrNot(b) => rung |= !mem.bit(*b),
-                Op::EdgeContact { bit, rising, how, slot } => {
+                Op::And(b) if !ST => rung &= mem.bit(*b),
+                Op::AndNot(b) if !ST => rung &= !mem.bit(*b),
+                Op::Or(b) if !ST => rung |= mem.bit(*b),
+                Op::OrNot(b) if !ST => rung |= !mem.bit(*b),
+                Op::EdgeContact { bit, rising, how, slot } if !ST => {
                     let now = mem.bit(*bit);
                     let before = std::mem::replace(&mut edges[*slot as usize], now);
                     let edge = if *rising { now && !before } else { !now && before };
                     combine(*how, edge, &mut rung, &mut blocks);
                 }
-                Op::Compare { op, a, b, how } => {
+                Op::Compare { op, a, b, how } if !ST => {
                     let result = op.eval(read(mem, *a) as i16, read(mem, *b) as i16);
                     combine(*how, result, &mut rung, &mut blocks);
                 }
-                Op::AndLoad => {
+                Op::AndLoad if !ST => {
                     rung &= blocks & 1 != 0;
                     blocks >>= 1;
                 }
-                Op::OrLoad => {
+                Op::OrLoad if !ST => {
                     rung |= blocks & 1 != 0;
                     blocks >>= 1;
                 }
-                Op::MPush => branches = (branches << 1) | rung as u32,
-                Op::MLoad => rung = branches & 1 != 0,
-                Op::MPop => {
+                Op::MPush if !ST => branches = (branches << 1) | rung as u32,
+                Op::MLoad if !ST => rung = branches & 1 != 0,
+                Op::MPop if !ST => {
                     rung = branches & 1 != 0;
                     branches >>= 1;
                 }
-                Op::Not => rung = !rung,
-                Op::Out(b) => write_bit(mem, *b, rung),
-                Op::OutNot(b) => write_bit(mem, *b, !rung),
-                Op::OutPulse { bit, rising, slot } => {
+                Op::Not if !ST => rung = !rung,
+                Op::Out(b) if !ST => write_bit(mem, *b, rung),
+                Op::OutNot(b) if !ST => write_bit(mem, *b, !rung),
+                Op::OutPulse { bit, rising, slot } if !ST => {
                     let before = std::mem::replace(&mut edges[*slot as usize], rung);
                     let edge = if *rising { rung && !before } else { !rung && before };
                     write_bit(mem, *bit, edge);
                 }
-                Op::Set(b) => {
+                Op::Set(b) if !ST => {
                     let word = mem.word(WordRef(b.word));
                     mem.set_word(WordRef(b.word), word | (b.mask & all(rung)));
                 }
-                Op::Rst(b) => {
+                Op::Rst(b) if !ST => {
                     let word = mem.word(WordRef(b.word));
                     mem.set_word(WordRef(b.word), word & !(b.mask & all(rung)));
                 }
-                Op::FlipFlop { bit, slot } => {
+                Op::FlipFlop { bit, slot } if !ST => {
                     if pulse(edges, *slot, rung) {
                         mem.set_bit(*bit, !mem.bit(*bit));
                     }
                 }
-                Op::RstTimer(n) => {
+                Op::RstTimer(n) if !ST => {
                     if rung {
                         timer::reset(&mut timers[*n as usize]);
                         mem.set_word(timer_value(*n), 0);
                         write_bit(mem, timer_done(*n), false);
                     }
                 }
-                Op::RstCounter(n) => {
+                Op::RstCounter(n) if !ST => {
                     if rung {
                         let value = counter::reset(&counters[*n as usize]);
                         mem.set_word(counter_value(*n), value);
                         write_bit(mem, counter_done(*n), false);
                     }
                 }
-                Op::Timer { kind, timer: n, preset, base_ms } => {
+                Op::Timer { kind, timer: n, preset, base_ms } if !ST => {
                     let (value_ref, done_ref) = (timer_value(*n), timer_done(*n));
                     let call = timer::TimerInput {
                         kind: *kind,
@@ -700,7 +712,7 @@ fn interpret<'a, C: Clock>(
                     mem.set_word(value_ref, value);
                     write_bit(mem, done_ref, done);
                 }
-                Op::Counter { kind, counter: n, preset } => {
+                Op::Counter { kind, counter: n, preset } if !ST => {
                     let preset = read(mem, *preset);
                     let value_ref = counter_value(*n);
                     let c = &mut counters[*n as usize];
@@ -709,7 +721,7 @@ fn interpret<'a, C: Clock>(
                     mem.set_word(value_ref, value);
                     write_bit(mem, counter_done(*n), done);
                 }
-                Op::CounterUpDown { counter: n, up, down, preset } => {
+                Op::CounterUpDown { counter: n, up, down, preset } if !ST => {
                     let preset = read(mem, *preset);
                     let value_ref = counter_value(*n);
                     let (up, down, value) = (mem.bit(*up), mem.bit(*down), mem.word(value_ref));
@@ -718,7 +730,7 @@ fn interpret<'a, C: Clock>(
                     mem.set_word(value_ref, value);
                     write_bit(mem, counter_done(*n), done);
                 }
-                Op::Duty { channel, n1, n2, slot } => {
+                Op::Duty { channel, n1, n2, slot } if !ST => {
                     let rising = pulse(edges, *slot, rung);
                     if rung {
                         let channel = &mut duty[*channel as usize];
@@ -728,13 +740,13 @@ fn interpret<'a, C: Clock>(
                         }
                     }
                 }
-                Op::Mov { s, d, pulse: p } => {
+                Op::Mov { s, d, pulse: p } if !ST => {
                     let on = enabled(edges, *p, rung);
                     let value = read(mem, *s);
                     let old = mem.word(*d);
                     mem.set_word(*d, if on { value } else { old });
                 }
-                Op::Arith { op, a, b, d, pulse: p } => {
+                Op::Arith { op, a, b, d, pulse: p } if !ST => {
                     let on = enabled(edges, *p, rung);
                     let (a, b) = (read(mem, *a) as i16, read(mem, *b) as i16);
                     let value = match op {
@@ -754,13 +766,13 @@ fn interpret<'a, C: Clock>(
                     let old = mem.word(*d);
                     mem.set_word(*d, if on { value as u16 } else { old });
                 }
-                Op::Step { d, up, pulse: p } => {
+                Op::Step { d, up, pulse: p } if !ST => {
                     let on = enabled(edges, *p, rung);
                     let old = mem.word(*d);
                     let step = if *up { 1u16 } else { u16::MAX };
                     mem.set_word(*d, old.wrapping_add(step & all(on)));
                 }
-                Op::Call { target } => {
+                Op::Call { target } if !ST => {
                     if rung {
                         let depth = state.call_depth as usize;
                         if depth >= CALL_DEPTH {
@@ -780,7 +792,7 @@ fn interpret<'a, C: Clock>(
                         jump!(*target);
                     }
                 }
-                Op::Ret => {
+                Op::Ret if !ST => {
                     let Some(depth) = state.call_depth.checked_sub(1) else {
                         // Unreachable for checked programs: RET ends a SBRT, reached by CALL.
                         state.finished = true;
@@ -794,13 +806,13 @@ fn interpret<'a, C: Clock>(
                     state.loop_depth = frame.loop_depth;
                     jump!(frame.return_pc);
                 }
-                Op::Jmp { target } => {
+                Op::Jmp { target } if !ST => {
                     if rung {
                         jump!(*target);
                     }
                 }
-                Op::Label => rung = true,
-                Op::For { count, end } => {
+                Op::Label if !ST => rung = true,
+                Op::For { count, end } if !ST => {
                     let count = read(mem, *count) as i16;
                     let depth = state.loop_depth as usize;
                     if rung && count > 0 && depth >= LOOP_DEPTH {
@@ -822,7 +834,7 @@ fn interpret<'a, C: Clock>(
                         jump!(*end);
                     }
                 }
-                Op::Next { body } => {
+                Op::Next { body } if !ST => {
                     rung = true;
                     if let Some(depth) = (state.loop_depth as usize).checked_sub(1) {
                         let frame = &mut state.loops[depth];
@@ -833,7 +845,7 @@ fn interpret<'a, C: Clock>(
                         state.loop_depth -= 1;
                     }
                 }
-                Op::Break => {
+                Op::Break if !ST => {
                     if rung {
                         if let Some(depth) = (state.loop_depth as usize).checked_sub(1) {
                             state.loop_depth -= 1;
@@ -853,13 +865,13 @@ fn interpret<'a, C: Clock>(
                 }
 
                 // The instruction list's double-word and real instructions.
-                Op::DMov { s, d, pulse: p } => {
+                Op::DMov { s, d, pulse: p } if !ST => {
                     if enabled(edges, *p, rung) {
                         let value = read_wide(mem, consts, *s);
                         write_wide(mem, *d, value);
                     }
                 }
-                Op::DArith { op, a, b, d, pulse: p } => {
+                Op::DArith { op, a, b, d, pulse: p } if !ST => {
                     if enabled(edges, *p, rung) {
                         let (a, b) = (read_wide(mem, consts, *a), read_wide(mem, consts, *b));
                         match wide_arith(*op, Elem::I32, a, b) {
@@ -868,7 +880,7 @@ fn interpret<'a, C: Clock>(
                         }
                     }
                 }
-                Op::RArith { op, a, b, d, pulse: p } => {
+                Op::RArith { op, a, b, d, pulse: p } if !ST => {
                     if enabled(edges, *p, rung) {
                         let (a, b) = (read_wide(mem, consts, *a), read_wide(mem, consts, *b));
                         match wide_arith(*op, Elem::F32, a, b) {
@@ -877,24 +889,24 @@ fn interpret<'a, C: Clock>(
                         }
                     }
                 }
-                Op::DStep { d, up, pulse: p } => {
+                Op::DStep { d, up, pulse: p } if !ST => {
                     if enabled(edges, *p, rung) {
                         let value = read_wide(mem, consts, Wide::Word(*d));
                         let step = if *up { 1u32 } else { u32::MAX };
                         write_wide(mem, *d, value.wrapping_add(step));
                     }
                 }
-                Op::DCompare { op, a, b, how } => {
+                Op::DCompare { op, a, b, how } if !ST => {
                     let a = read_wide(mem, consts, *a) as i32;
                     let b = read_wide(mem, consts, *b) as i32;
                     combine(*how, op.holds(Some(a.cmp(&b))), &mut rung, &mut blocks);
                 }
-                Op::RCompare { op, a, b, how } => {
+                Op::RCompare { op, a, b, how } if !ST => {
                     let a = f32::from_bits(read_wide(mem, consts, *a));
                     let b = f32::from_bits(read_wide(mem, consts, *b));
                     combine(*how, op.holds(a.partial_cmp(&b)), &mut rung, &mut blocks);
                 }
-                Op::Convert { conv, s, d, pulse: p } => {
+                Op::Convert { conv, s, d, pulse: p } if !ST => {
                     if enabled(edges, *p, rung) {
                         let value = wide_convert(*conv, read_wide(mem, consts, *s));
                         if conv.to_one_word() {
@@ -907,11 +919,11 @@ fn interpret<'a, C: Clock>(
                     }
                 }
                 // The typed stack machine (crate::value, st-ir.md).
-                Op::PushInt(v) => push!(i64::from(*v) as u64),
-                Op::PushConst(index) => {
+                Op::PushInt(v) if ST => push!(i64::from(*v) as u64),
+                Op::PushConst(index) if ST => {
                     push!(consts.get(*index as usize).copied().unwrap_or(0));
                 }
-                Op::Fetch { elem, at } => {
+                Op::Fetch { elem, at } if ST => {
                     let v = typed::load_place(
                         mem,
                         vars,
@@ -923,15 +935,15 @@ fn interpret<'a, C: Clock>(
                     );
                     push!(v);
                 }
-                Op::Store { elem, at } => {
+                Op::Store { elem, at } if ST => {
                     let v = pop!();
                     let (base, this) = (state.base, state.this);
                     typed::store_place(mem, vars, &mut state.frame, *at, base, this, *elem, v);
                 }
-                Op::AddrOf(at) => {
+                Op::AddrOf(at) if ST => {
                     push!(typed::pointer(*at, state.base, state.this).to_slot());
                 }
-                Op::Index { lo, len, stride } => {
+                Op::Index { lo, len, stride } if ST => {
                     let index = pop!() as i64;
                     let element = index.wrapping_sub(i64::from(*lo));
                     if (0..i64::from(*len)).contains(&element) {
@@ -943,26 +955,26 @@ fn interpret<'a, C: Clock>(
                         fail!(ERR_INDEX_RANGE);
                     }
                 }
-                Op::Offset(n) => {
+                Op::Offset(n) if ST => {
                     let p = typed::moved(Pointer::from_slot(top!()), *n);
                     set_top!(p.to_slot());
                 }
-                Op::FetchInd(elem) => {
+                Op::FetchInd(elem) if ST => {
                     let p = Pointer::from_slot(top!());
                     let v = typed::load_at(mem, vars, &state.frame, p, *elem);
                     set_top!(v);
                 }
-                Op::StoreInd(elem) => {
+                Op::StoreInd(elem) if ST => {
                     let v = pop!();
                     let p = Pointer::from_slot(pop!());
                     typed::store_at(mem, vars, &mut state.frame, p, *elem, v);
                 }
-                Op::Copy(n) => {
+                Op::Copy(n) if ST => {
                     let src = Pointer::from_slot(pop!());
                     let dst = Pointer::from_slot(pop!());
                     typed::copy(vars, &mut state.frame, dst, src, *n as usize);
                 }
-                Op::Bin { op, elem } => {
+                Op::Bin { op, elem } if ST => {
                     let b = pop!();
                     let a = top!();
                     match typed::binary(*op, *elem, a, b) {
@@ -973,39 +985,39 @@ fn interpret<'a, C: Clock>(
                         }
                     }
                 }
-                Op::Un { op, elem } => {
+                Op::Un { op, elem } if ST => {
                     let a = top!();
                     set_top!(typed::unary(*op, *elem, a));
                 }
-                Op::Cmp { op, elem } => {
+                Op::Cmp { op, elem } if ST => {
                     let b = pop!();
                     let a = top!();
                     let holds = op.holds(value::compare(*elem, a, b));
                     set_top!(u64::from(holds));
                 }
-                Op::Conv { from, to } => {
+                Op::Conv { from, to } if ST => {
                     let a = top!();
                     set_top!(typed::convert(*from, *to, a));
                 }
-                Op::Dup => push!(top!()),
-                Op::Drop => {
+                Op::Dup if ST => push!(top!()),
+                Op::Drop if ST => {
                     pop!();
                 }
-                Op::Goto(target) => jump!(*target),
-                Op::GotoIf { target, when } => {
+                Op::Goto(target) if ST => jump!(*target),
+                Op::GotoIf { target, when } if ST => {
                     if (pop!() != 0) == *when {
                         jump!(*target);
                     }
                 }
-                Op::CallFn { target, frame } => {
+                Op::CallFn { target, frame } if ST => {
                     let this = state.this;
                     st_call!(*target, *frame, this);
                 }
-                Op::CallFb { target, frame } => {
+                Op::CallFb { target, frame } if ST => {
                     let this = pop!();
                     st_call!(*target, *frame, this);
                 }
-                Op::Return => {
+                Op::Return if ST => {
                     let Some(depth) = state.st_depth.checked_sub(1) else {
                         // Unreachable for checked programs: a PROGRAM body ends with END.
                         state.finished = true;
@@ -1017,15 +1029,18 @@ fn interpret<'a, C: Clock>(
                     state.this = frame.this;
                     jump!(frame.return_pc);
                 }
-                Op::Now => {
+                Op::Now if ST => {
                     let steps = stop - left + taken!() as u64;
                     push!(clock.now_ns(steps));
                 }
-                Op::Str { op, cap } => {
+                Op::Str { op, cap } if ST => {
                     state.eval.set_sp(sp);
                     typed::string_op(&mut state.eval, vars, &mut state.frame, *op, *cap);
                     sp = state.eval.sp();
                 }
+                // An op of the other language: never in a program of this one (the assembler
+                // emits the instruction list's ops, the Structured Text compiler its own).
+                _ => debug_assert!(false, "{op:?} in a program of the other language"),
             }
         }
     }
