@@ -14,36 +14,6 @@ use plcd::vm::{ExecState, Exit, ManualClock, Vm, ERR_DIVIDE_BY_ZERO};
 use plcd_core::value::{self, BinOp, Elem, OpError, UnOp};
 use proptest::prelude::*;
 
-const ELEMS: [Elem; 11] = [
-    Elem::Bool,
-    Elem::I8,
-    Elem::I16,
-    Elem::I32,
-    Elem::I64,
-    Elem::U8,
-    Elem::U16,
-    Elem::U32,
-    Elem::U64,
-    Elem::F32,
-    Elem::F64,
-];
-const BINOPS: [BinOp; 15] = [
-    BinOp::Add,
-    BinOp::Sub,
-    BinOp::Mul,
-    BinOp::Div,
-    BinOp::Mod,
-    BinOp::Expt,
-    BinOp::And,
-    BinOp::Or,
-    BinOp::Xor,
-    BinOp::Shl,
-    BinOp::Shr,
-    BinOp::Rol,
-    BinOp::Ror,
-    BinOp::Min,
-    BinOp::Max,
-];
 const UNOPS: [UnOp; 14] = [
     UnOp::Neg,
     UnOp::Not,
@@ -402,7 +372,7 @@ fn slot(elem: Elem, pick: u8, bits: u64) -> u64 {
 }
 
 fn elem() -> impl Strategy<Value = Elem> {
-    (0..ELEMS.len()).prop_map(|i| ELEMS[i])
+    (0..Elem::ALL.len()).prop_map(|i| Elem::ALL[i])
 }
 
 fn same_bits(a: u64, b: u64, elem: Elem) -> bool {
@@ -421,10 +391,10 @@ proptest! {
 
     #[test]
     fn binary_matches_native(
-        op in 0..BINOPS.len(), elem in elem(), pa in any::<u8>(), a in any::<u64>(),
+        op in 0..BinOp::ALL.len(), elem in elem(), pa in any::<u8>(), a in any::<u64>(),
         pb in any::<u8>(), b in any::<u64>(),
     ) {
-        let op = BINOPS[op];
+        let op = BinOp::ALL[op];
         let (a, b) = (slot(elem, pa, a), slot(elem, pb, b));
         if let Some(expected) = ref_binary(op, elem, a, b) {
             let actual = value::binary(op, elem, a, b);
@@ -481,7 +451,7 @@ enum Step {
 fn step() -> impl Strategy<Value = Step> {
     prop_oneof![
         3 => (elem(), any::<u8>(), any::<u64>()).prop_map(|(e, p, b)| Step::Push(e, p, b)),
-        3 => (0..BINOPS.len()).prop_map(Step::Bin),
+        3 => (0..BinOp::ALL.len()).prop_map(Step::Bin),
         1 => (0..UNOPS.len()).prop_map(Step::Un),
         1 => elem().prop_map(Step::Conv),
         1 => (0..CMPOPS.len()).prop_map(Step::Cmp),
@@ -522,7 +492,7 @@ fn build(steps: &[Step]) -> Built {
                 stack.push((elem, v));
             }
             Step::Bin(op) if stack.len() >= 2 => {
-                let op = BINOPS[op];
+                let op = BinOp::ALL[op];
                 let elem = stack[stack.len() - 2].0;
                 if stack[stack.len() - 1].0 != elem {
                     conv(&mut code, &mut stack, elem);

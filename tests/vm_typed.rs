@@ -721,20 +721,7 @@ fn any_budget_gives_the_same_exits_steps_and_memory() {
 
 /// A typed op with operands from random numbers (targets and offsets partly in range).
 fn garbage_op(kind: u8, a: u32, b: u32, c: u8) -> Op {
-    const ELEMS: [Elem; 11] = [
-        Elem::Bool,
-        Elem::I8,
-        Elem::I16,
-        Elem::I32,
-        Elem::I64,
-        Elem::U8,
-        Elem::U16,
-        Elem::U32,
-        Elem::U64,
-        Elem::F32,
-        Elem::F64,
-    ];
-    let elem = ELEMS[c as usize % 11];
+    let elem = Elem::ALL[c as usize % Elem::ALL.len()];
     let place = match b % 5 {
         0 => Place::Var(a % 80),
         1 => Place::Frame(a % 80),
@@ -760,7 +747,7 @@ fn garbage_op(kind: u8, a: u32, b: u32, c: u8) -> Op {
         },
         11 => Un { op: [UnOp::Neg, UnOp::Ln, UnOp::Abs][a as usize % 3], elem },
         12 => Cmp { op: CmpOp::Lt, elem },
-        13 => Conv { from: elem, to: ELEMS[a as usize % 11] },
+        13 => Conv { from: elem, to: Elem::ALL[a as usize % Elem::ALL.len()] },
         14 => Dup,
         15 => Drop,
         16 => Goto(target),

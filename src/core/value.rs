@@ -71,6 +71,27 @@ pub enum BinOp {
 // On floats the bitwise, shift and rotate operations act on the bits (as `U32`/`U64`): never
 // emitted, defined so that every operation has a result.
 
+impl BinOp {
+    /// Every binary operation, for tests that go through them all.
+    pub const ALL: [BinOp; 15] = [
+        BinOp::Add,
+        BinOp::Sub,
+        BinOp::Mul,
+        BinOp::Div,
+        BinOp::Mod,
+        BinOp::Expt,
+        BinOp::And,
+        BinOp::Or,
+        BinOp::Xor,
+        BinOp::Shl,
+        BinOp::Shr,
+        BinOp::Rol,
+        BinOp::Ror,
+        BinOp::Min,
+        BinOp::Max,
+    ];
+}
+
 /// A unary operation on one slot.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[repr(u8)]
@@ -103,6 +124,21 @@ pub enum OpError {
 }
 
 impl Elem {
+    /// Every element type, for tests and tools that go through them all.
+    pub const ALL: [Elem; 11] = [
+        Elem::Bool,
+        Elem::I8,
+        Elem::I16,
+        Elem::I32,
+        Elem::I64,
+        Elem::U8,
+        Elem::U16,
+        Elem::U32,
+        Elem::U64,
+        Elem::F32,
+        Elem::F64,
+    ];
+
     /// Bytes the value takes in variable memory.
     pub const fn size(self) -> u32 {
         match self {

@@ -584,36 +584,6 @@ pub(super) fn write_string_bytes(vars: &mut [u8], p: Pointer, cap: u32, text: &[
 mod tests {
     use super::*;
 
-    const ELEMS: [Elem; 11] = [
-        Elem::Bool,
-        Elem::I8,
-        Elem::I16,
-        Elem::I32,
-        Elem::I64,
-        Elem::U8,
-        Elem::U16,
-        Elem::U32,
-        Elem::U64,
-        Elem::F32,
-        Elem::F64,
-    ];
-    const BIN_OPS: [BinOp; 15] = [
-        BinOp::Add,
-        BinOp::Sub,
-        BinOp::Mul,
-        BinOp::Div,
-        BinOp::Mod,
-        BinOp::Expt,
-        BinOp::And,
-        BinOp::Or,
-        BinOp::Xor,
-        BinOp::Shl,
-        BinOp::Shr,
-        BinOp::Rol,
-        BinOp::Ror,
-        BinOp::Min,
-        BinOp::Max,
-    ];
     const UN_OPS: [UnOp; 3] = [UnOp::Neg, UnOp::Not, UnOp::Abs];
 
     /// Slots of every kind: small, extreme, garbage in the high bits, float bit patterns
@@ -639,7 +609,7 @@ mod tests {
     #[test]
     fn the_inline_operations_are_value_s_to_the_bit() {
         let slots = slots();
-        for elem in ELEMS {
+        for elem in Elem::ALL {
             // Slots as the VM holds them: normalized, and raw (a bad program's garbage).
             let values: Vec<u64> = slots.iter().flat_map(|&s| [normalize(elem, s), s]).collect();
             for &a in &values {
@@ -650,12 +620,12 @@ mod tests {
                         "{op:?} {elem:?} {a:#x}"
                     );
                 }
-                for to in ELEMS {
+                for to in Elem::ALL {
                     let (fast, slow) = (convert(elem, to, a), value::convert(elem, to, a));
                     assert_eq!(fast, slow, "{elem:?} → {to:?} {a:#x}");
                 }
                 for &b in &values {
-                    for op in BIN_OPS {
+                    for op in BinOp::ALL {
                         let (fast, slow) = (binary(op, elem, a, b), value::binary(op, elem, a, b));
                         assert_eq!(fast, slow, "{op:?} {elem:?} {a:#x} {b:#x}");
                     }
@@ -682,7 +652,7 @@ mod tests {
     fn byte_loads_and_stores_keep_the_layout_and_stay_inside() {
         let slots = slots();
         let image: Vec<u8> = (0..24u8).map(|i| i.wrapping_mul(97) ^ 0xA5).collect();
-        for elem in ELEMS {
+        for elem in Elem::ALL {
             let size = elem.size();
             for offset in [0, 1, 5, 24 - size, 25 - size, 24, u32::MAX - 3, u32::MAX] {
                 let got = load_bytes(&image, offset, elem);
