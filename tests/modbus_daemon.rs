@@ -283,13 +283,51 @@ fn located_structured_text_variables_are_registers() {
 }
 
 #[test]
+fn mask_write_server_id_device_identification_and_unit_zero() {
+    let plc = Plc::start("more-fcs", "");
+    let mut c = plc.connect();
+    // FC 22 with the Modbus specification's example: 0x12 AND 0xF2 OR 0x25 gives 0x17; the
+    // bits the AND mask keeps are the register's at the scan boundary that applies it.
+    assert_eq!(transact(&mut c, 1, 1, &[6, 0, 7, 0x12, 0x12]), [6, 0, 7, 0x12, 0x12]);
+    let mask = [22, 0, 7, 0xFF, 0xF2, 0x00, 0x25];
+    assert_eq!(transact(&mut c, 2, 1, &mask), mask, "the response echoes the request");
+    assert_eq!(plc.read_holdings(7, 1), [0x1217]);
+    // FC 17: the byte count, the server id (unit_id and the product), the run indicator (RUN).
+    let r = transact(&mut c, 3, 1, &[17]);
+    let version = env!("CARGO_PKG_VERSION");
+    let text = format!("plcd {version}");
+    assert_eq!(r[..3], [17, 2 + text.len() as u8, 1]);
+    assert_eq!(&r[3..r.len() - 1], text.as_bytes());
+    assert_eq!(r[r.len() - 1], 0xFF, "the run indicator, last");
+    // FC 43/14, the basic objects as a stream from object 0, and object 2 alone.
+    let r = transact(&mut c, 4, 1, &[43, 14, 1, 0]);
+    let mut basic = vec![43, 14, 1, 0x81, 0, 0, 3];
+    for (id, text) in ["plcd", "plcd", version].iter().enumerate() {
+        basic.extend([id as u8, text.len() as u8]);
+        basic.extend(text.as_bytes());
+    }
+    assert_eq!(r, basic);
+    let r = transact(&mut c, 5, 1, &[43, 14, 4, 2]);
+    assert_eq!(r[..9], [43, 14, 4, 0x81, 0, 0, 1, 2, version.len() as u8]);
+    // Unit id 0 is served like 255 and the configured one (the TCP implementation guide).
+    assert_eq!(transact(&mut c, 6, 0, &read(3, 7, 1)), [3, 2, 0x12, 0x17]);
+    let log = plc.stop();
+    assert!(!log.iter().any(|l| l.contains("ERROR")), "{}", log.join("\n"));
+}
+
+#[test]
 fn every_exception_is_answered_and_the_connection_stays_usable() {
     let plc = Plc::start("exceptions", "max_request_bytes = 200\n");
     let mut c = plc.connect();
     let cases: Vec<(&str, u8, Vec<u8>, Vec<u8>)> = vec![
         ("FC 7 (serial only)", 1, vec![7], exception(7, 1)),
-        ("FC 22 mask write", 1, vec![22, 0, 0, 0xFF, 0xFF, 0, 0], exception(22, 1)),
-        ("FC 43 device id", 1, vec![43, 14, 1, 0], exception(43, 1)),
+        ("FC 22 a byte short", 1, vec![22, 0, 0, 0xFF, 0xFF, 0], exception(22, 3)),
+        ("FC 22 unmapped", 1, vec![22, 0, 200, 0xFF, 0xFF, 0, 0], exception(22, 2)),
+        ("FC 22 read-only", 1, vec![22, 0, 125, 0xFF, 0xFF, 0, 0], exception(22, 2)),
+        ("FC 17 with data", 1, vec![17, 0], exception(17, 3)),
+        ("FC 43 MEI type 13", 1, vec![43, 13, 1, 0], exception(43, 1)),
+        ("FC 43 read code 5", 1, vec![43, 14, 5, 0], exception(43, 3)),
+        ("FC 43 object 7 alone", 1, vec![43, 14, 4, 7], exception(43, 2)),
         ("FC 0", 1, vec![0], exception(0, 1)),
         ("FC 1 quantity 0", 1, read(1, 0, 0), exception(1, 3)),
         ("FC 1 quantity 2001", 1, read(1, 0, 2001), exception(1, 3)),

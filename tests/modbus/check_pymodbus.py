@@ -189,6 +189,19 @@ def function_codes(port):
     check("FC 4 reads T current values", not r.isError() and r.registers == [0, 0], r)
     r = c.read_holding_registers(1050, count=1, device_id=255)
     check("unit id 255 is served", not r.isError(), r)
+    r = c.read_holding_registers(1050, count=1, device_id=0)
+    check("unit id 0 is served", not r.isError(), r)
+    # FC 22: 0x12 AND 0xF2 OR 0x25 = 0x17 (the Modbus specification's example).
+    c.write_register(7, 0x12)
+    r = c.mask_write_register(address=7, and_mask=0xF2, or_mask=0x25)
+    check("FC 22 mask write register", not r.isError(), r)
+    r = c.read_holding_registers(7, count=1)
+    check("FC 22 wrote (0x12 AND 0xF2) OR (0x25 AND NOT 0xF2)", not r.isError() and r.registers == [0x17], r)
+    r = c.report_device_id()
+    check("FC 17 report server id: RUN, plcd", not r.isError() and r.status and b"plcd" in r.identifier, r)
+    r = c.read_device_information()
+    info = getattr(r, "information", {}) if not r.isError() else {}
+    check("FC 43/14 basic device identification", info.get(0) == b"plcd" and info.get(1) == b"plcd" and 2 in info, r)
     c.close()
 
 
@@ -196,8 +209,7 @@ def exceptions(port):
     c = client(port)
     cases = [
         ("01 for FC 7 read exception status", lambda: c.read_exception_status(), 1),
-        ("01 for FC 17 report server id", lambda: c.report_device_id(), 1),
-        ("01 for FC 22 mask write register", lambda: c.mask_write_register(address=0, and_mask=0xFFFF, or_mask=0), 1),
+        ("02 for FC 22 to a read-only register", lambda: c.mask_write_register(address=125, and_mask=0xFFFF, or_mask=0), 2),
         ("02 for FC 1 unmapped", lambda: c.read_coils(1968, count=1), 2),
         ("02 for FC 1 across the end of a range", lambda: c.read_coils(1960, count=10), 2),
         ("02 for FC 2 unmapped", lambda: c.read_discrete_inputs(16, count=1), 2),
@@ -226,7 +238,7 @@ def exceptions(port):
         ("03 for FC 16 byte count not 2 x quantity", bytes([16, 0, 0, 0, 2, 2, 0, 1]), 3),
         ("03 for FC 15 byte count short", bytes([15, 0, 0, 0, 9, 1, 0xFF]), 3),
         ("03 for FC 23 read quantity 126", bytes([23, 0, 0, 0, 126, 0, 0, 0, 1, 2, 0, 1]), 3),
-        ("01 for FC 43 read device identification", bytes([43, 14, 1, 0]), 1),
+        ("01 for FC 43 MEI type 13", bytes([43, 13, 1, 0]), 1),
     ]
     for name, pdu, code in raw_cases:
         data, _ = raw(port, mbap(0x4242, 1, pdu))

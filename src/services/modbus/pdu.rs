@@ -20,8 +20,14 @@ use crate::drivers::real_time::WordWrite;
 pub const MAX_ADU: usize = 260;
 /// The MBAP header: transaction id, protocol id, length, unit id.
 pub const HEADER: usize = 7;
-/// The Modbus TCP "no unit" identifier, served as well as `unit_id`.
-pub const ANY_UNIT: u8 = 0xFF;
+/// The Modbus TCP "no unit" identifiers, served as well as `unit_id`: 0xFF and 0 (the
+/// Modbus TCP implementation guide, 4.4.1.2: a TCP device accepts both).
+pub const ANY_UNIT: [u8; 2] = [0xFF, 0];
+
+/// What FC 43/14 (read device identification) and FC 17 (report server id) tell a client.
+const VENDOR_NAME: &str = "plcd";
+const PRODUCT_CODE: &str = "plcd";
+const REVISION: &str = env!("CARGO_PKG_VERSION");
 
 /// The PLC as the server sees it: reads from the mirror image, writes at a scan boundary.
 pub trait Plc {
@@ -32,6 +38,8 @@ pub trait Plc {
     /// `Err(ServerDeviceBusy)` (06) when the command queue has no room (nothing was queued),
     /// `Err(ServerDeviceFailure)` (04) when they were not applied before `deadline`.
     fn write(&self, writes: &[WordWrite], deadline: Instant) -> Result<(), Exception>;
+    /// True while the PLC is in RUN (FC 17's run indicator).
+    fn running(&self) -> bool;
 }
 
 /// Scratch space for one response, kept by the connection.
@@ -81,10 +89,10 @@ pub fn answer(
     if fc >= 0x80 {
         return None;
     }
-    let result = if hdr.unit_id != unit_id && hdr.unit_id != ANY_UNIT {
+    let result = if hdr.unit_id != unit_id && !ANY_UNIT.contains(&hdr.unit_id) {
         Err(Exception::GatewayTargetDevice)
     } else {
-        serve(map, plc, pdu, deadline, &mut scratch.buffers)
+        serve(map, plc, unit_id, pdu, deadline, &mut scratch.buffers)
     };
     let pdu = ResponsePdu(
         result
@@ -116,11 +124,19 @@ fn value(ok: bool) -> Result<(), Exception> {
 fn serve<'s>(
     map: &Map,
     plc: &dyn Plc,
+    unit_id: u8,
     pdu: &[u8],
     deadline: Instant,
     scratch: &'s mut Buffers,
 ) -> Result<Response<'s>, Exception> {
     let fc = pdu[0];
+    // The function codes modbus-core leaves to the application, on the PDU's bytes.
+    match fc {
+        0x16 => return mask_write(map, plc, pdu, deadline, scratch),
+        0x11 => return report_server_id(plc, unit_id, pdu, &mut scratch.bytes),
+        0x2B => return device_identification(pdu, &mut scratch.bytes),
+        _ => {}
+    }
     let request = match Request::try_from(pdu) {
         Ok(request) => request,
         // A function served here whose PDU is too short for it, or whose byte count runs
@@ -233,4 +249,84 @@ fn serve<'s>(
         }
         _ => Err(Exception::IllegalFunction),
     }
+}
+
+/// FC 22, mask write register: `(current AND and_mask) OR (or_mask AND NOT and_mask)`, applied
+/// at one scan boundary as a masked word write (the program cannot change the word between a
+/// read and the write). The response echoes the request.
+fn mask_write<'s>(
+    map: &Map,
+    plc: &dyn Plc,
+    pdu: &[u8],
+    deadline: Instant,
+    scratch: &'s mut Buffers,
+) -> Result<Response<'s>, Exception> {
+    value(pdu.len() == 7)?;
+    let word = |at: usize| u16::from_be_bytes([pdu[at], pdu[at + 1]]);
+    let (address, and_mask, or_mask) = (word(1), word(3), word(5));
+    map.check(ModbusTable::HoldingRegisters, address, 1, true).map_err(address_error)?;
+    scratch.writes.clear();
+    map.register_writes(address, std::iter::once(or_mask), &mut scratch.writes);
+    for write in scratch.writes.iter_mut() {
+        write.mask = !and_mask;
+    }
+    plc.write(&scratch.writes, deadline)?;
+    scratch.bytes[..6].copy_from_slice(&pdu[1..7]);
+    Ok(Response::Custom(FunctionCode::new(0x16), &scratch.bytes[..6]))
+}
+
+/// FC 17, report server id: the byte count, the server id (device specific: the configured
+/// unit id, then the product and its version as text, `plcd 0.1.0`), and the run indicator
+/// last (FF in RUN, 00 otherwise), with no additional data: clients that read the indicator
+/// as the last byte (pymodbus does) read it right.
+fn report_server_id<'s>(
+    plc: &dyn Plc,
+    unit_id: u8,
+    pdu: &[u8],
+    out: &'s mut [u8; 250],
+) -> Result<Response<'s>, Exception> {
+    value(pdu.len() == 1)?;
+    let run = if plc.running() { 0xFF } else { 0x00 };
+    let mut end = 1;
+    for part in [&[unit_id][..], PRODUCT_CODE.as_bytes(), b" ", REVISION.as_bytes(), &[run]] {
+        out[end..end + part.len()].copy_from_slice(part);
+        end += part.len();
+    }
+    out[0] = (end - 1) as u8;
+    Ok(Response::Custom(FunctionCode::new(0x11), &out[..end]))
+}
+
+/// FC 43, MEI type 14: read device identification, the basic objects (0 vendor name, 1
+/// product code, 2 major.minor revision), by stream (read codes 01, 02, 03: the basic
+/// objects are all this server has) or one at a time (04). Conformity level 81: basic
+/// identification, stream and individual access.
+fn device_identification<'s>(
+    pdu: &[u8],
+    out: &'s mut [u8; 250],
+) -> Result<Response<'s>, Exception> {
+    const OBJECTS: [&str; 3] = [VENDOR_NAME, PRODUCT_CODE, REVISION];
+    if pdu.get(1) != Some(&0x0E) {
+        // Other MEI types (13, CANopen general reference) are not served.
+        return Err(Exception::IllegalFunction);
+    }
+    value(pdu.len() == 4)?;
+    let (code, object) = (pdu[2], usize::from(pdu[3]));
+    let objects = match code {
+        // A stream from `object`; an id past the basic ones starts over at 0 (MODBUS
+        // application protocol 6.21).
+        1..=3 => (if object < OBJECTS.len() { object } else { 0 })..OBJECTS.len(),
+        4 if object < OBJECTS.len() => object..object + 1,
+        4 => return Err(Exception::IllegalDataAddress),
+        _ => return Err(Exception::IllegalDataValue),
+    };
+    out[..6].copy_from_slice(&[0x0E, code, 0x81, 0x00, 0x00, objects.len() as u8]);
+    let mut at = 6;
+    for id in objects {
+        let text = OBJECTS[id].as_bytes();
+        out[at] = id as u8;
+        out[at + 1] = text.len() as u8;
+        out[at + 2..at + 2 + text.len()].copy_from_slice(text);
+        at += 2 + text.len();
+    }
+    Ok(Response::Custom(FunctionCode::new(0x2B), &out[..at]))
 }

@@ -368,6 +368,10 @@ impl Plc for ScanPlc {
         Ok(())
     }
 
+    fn running(&self) -> bool {
+        self.shared.mode() == crate::engine::event::Mode::Run
+    }
+
     fn write(&self, writes: &[WordWrite], deadline: Instant) -> Result<(), Exception> {
         if writes.is_empty() {
             return Ok(());
