@@ -8,7 +8,7 @@ use crate::st::ast::{
 };
 use crate::value::{BinOp, UnOp};
 
-use super::ctx::{suggest, Ctx, Cv, Scope, Storage};
+use super::ctx::{suggest, Ctx, Cv, Scope, Storage, VarInfo};
 use super::stdlib::Std;
 use super::types::{fits, int_slot, real_slot, wrap, Prim, Ty};
 
@@ -635,6 +635,30 @@ impl<'a> Ctx<'a> {
         }
     }
 
+    /// Whether the variable `v` (a local or a global) that `id` names may be written (or
+    /// passed to a VAR_IN_OUT) here: not CONSTANT, not at a device a program cannot write, not
+    /// the variable of an enclosing FOR loop. Reports why not.
+    fn may_write(&mut self, v: &VarInfo, id: &ast::Ident, access: Access, file: usize) -> bool {
+        let span = id.span;
+        if v.constant {
+            self.error(file, span, format!("`{}` is CONSTANT: it cannot be written", v.name));
+            return false;
+        }
+        if let Some(a) = v.located {
+            if !self.writable(&a, &v.ty) {
+                let msg = format!("`{}` is at `{a}`, which a program cannot write", v.name);
+                self.error(file, span, msg);
+                return false;
+            }
+        }
+        if access == Access::Write && self.for_vars.iter().any(|f| id.is(f)) {
+            let msg = format!("`{}` is the FOR variable: it cannot be written in the loop", v.name);
+            self.error(file, span, msg);
+            return false;
+        }
+        true
+    }
+
     fn name(
         &mut self,
         id: &ast::Ident,
@@ -658,33 +682,7 @@ impl<'a> Ctx<'a> {
                         );
                         return TExpr::error(span);
                     }
-                    if v.constant {
-                        self.error(
-                            file,
-                            span,
-                            format!("`{}` is CONSTANT: it cannot be written", v.name),
-                        );
-                        return TExpr::error(span);
-                    }
-                    if let Some(a) = v.located {
-                        if !self.writable(&a, &v.ty) {
-                            self.error(
-                                file,
-                                span,
-                                format!("`{}` is at `{a}`, which a program cannot write", v.name),
-                            );
-                            return TExpr::error(span);
-                        }
-                    }
-                    if access == Access::Write && self.for_vars.iter().any(|f| id.is(f)) {
-                        self.error(
-                            file,
-                            span,
-                            format!(
-                                "`{}` is the FOR variable: it cannot be written in the loop",
-                                v.name
-                            ),
-                        );
+                    if !self.may_write(&v, id, access, file) {
                         return TExpr::error(span);
                     }
                 } else if let (true, Some(cv)) = (v.constant, &v.value) {
@@ -716,33 +714,7 @@ impl<'a> Ctx<'a> {
         if let Some(&g) = self.global_names.get(&id.name.to_ascii_lowercase()) {
             let v = self.globals[g].clone();
             if access != Access::Read {
-                if v.constant {
-                    self.error(
-                        file,
-                        span,
-                        format!("`{}` is CONSTANT: it cannot be written", v.name),
-                    );
-                    return TExpr::error(span);
-                }
-                if let Some(a) = v.located {
-                    if !self.writable(&a, &v.ty) {
-                        self.error(
-                            file,
-                            span,
-                            format!("`{}` is at `{a}`, which a program cannot write", v.name),
-                        );
-                        return TExpr::error(span);
-                    }
-                }
-                if access == Access::Write && self.for_vars.iter().any(|f| id.is(f)) {
-                    self.error(
-                        file,
-                        span,
-                        format!(
-                            "`{}` is the FOR variable: it cannot be written in the loop",
-                            v.name
-                        ),
-                    );
+                if !self.may_write(&v, id, access, file) {
                     return TExpr::error(span);
                 }
             } else if let (true, Some(cv)) = (v.constant, &v.value) {
