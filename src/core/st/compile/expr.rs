@@ -1338,60 +1338,18 @@ impl<'a> Ctx<'a> {
                     (vi, e)
                 }
                 Arg::Input { name: pn, value } => {
-                    let Some(vi) = self.param(p, pn, file) else {
+                    let Some(vi) = self.formal_param(p, pn, false, &name, file) else {
                         ok = false;
                         continue;
                     };
-                    match self.pous[p].vars[vi].kind {
-                        VarKind::Input | VarKind::InOut => {}
-                        VarKind::Output => {
-                            self.error(
-                                file,
-                                pn.span,
-                                format!("`{}` is an output of `{name}`: use `=>`", pn.name),
-                            );
-                            ok = false;
-                            continue;
-                        }
-                        _ => {
-                            self.error(
-                                file,
-                                pn.span,
-                                format!("`{}` is not a parameter of `{name}`", pn.name),
-                            );
-                            ok = false;
-                            continue;
-                        }
-                    }
                     (vi, value)
                 }
                 Arg::Output { name: pn, target, negated } => {
-                    let Some(vi) = self.param(p, pn, file) else {
+                    let Some(vi) = self.formal_param(p, pn, true, &name, file) else {
                         ok = false;
                         continue;
                     };
                     let v = self.pous[p].vars[vi].clone();
-                    match v.kind {
-                        VarKind::Output => {}
-                        VarKind::Input | VarKind::InOut => {
-                            self.error(
-                                file,
-                                pn.span,
-                                format!("`{}` is an input of `{name}`: use `:=`", pn.name),
-                            );
-                            ok = false;
-                            continue;
-                        }
-                        _ => {
-                            self.error(
-                                file,
-                                pn.span,
-                                format!("`{}` is not a parameter of `{name}`", pn.name),
-                            );
-                            ok = false;
-                            continue;
-                        }
-                    }
                     // An output may be bound more than once (`Q => a, NOT Q => b`): each binding
                     // is an assignment from it after the call.
                     let t = self.check_place(target, scope, Access::Write, None);
@@ -1482,6 +1440,30 @@ impl<'a> Ctx<'a> {
             ok = false;
         }
         ok.then_some((out_args, outs))
+    }
+
+    /// The parameter `pn` of `name` given as a formal argument: an input or in-out with `:=`,
+    /// an output with `=>` (`output`). Reports a name that is no parameter, and a parameter
+    /// given the wrong way.
+    fn formal_param(
+        &mut self,
+        p: usize,
+        pn: &ast::Ident,
+        output: bool,
+        name: &str,
+        file: usize,
+    ) -> Option<usize> {
+        let vi = self.param(p, pn, file)?;
+        let msg = match (self.pous[p].vars[vi].kind, output) {
+            (VarKind::Input | VarKind::InOut, false) | (VarKind::Output, true) => return Some(vi),
+            (VarKind::Output, false) => format!("`{}` is an output of `{name}`: use `=>`", pn.name),
+            (VarKind::Input | VarKind::InOut, true) => {
+                format!("`{}` is an input of `{name}`: use `:=`", pn.name)
+            }
+            _ => format!("`{}` is not a parameter of `{name}`", pn.name),
+        };
+        self.error(file, pn.span, msg);
+        None
     }
 
     fn param(&mut self, p: usize, pn: &ast::Ident, file: usize) -> Option<usize> {
