@@ -181,7 +181,7 @@ impl Rig {
 #[test]
 fn typed_programs_do_not_allocate() {
     use plcd::lang::ops::{CmpOp, Op::*, Place, StrOp};
-    use plcd::lang::{Language, Program, Variables};
+    use plcd::lang::Variables;
     use plcd::vm::{ExecState, Exit, StepClock, Vm};
     use plcd_core::device::RetainSet;
     use plcd_core::value::BinOp;
@@ -228,22 +228,7 @@ fn typed_programs_do_not_allocate() {
         Store { elem: Elem::I16, at: Place::This(0) },
         Return,
     ];
-    let n = code.len();
-    let program = Program {
-        name: "typed".into(),
-        path: "typed.st".into(),
-        language: Language::StructuredText,
-        code: code.into(),
-        consts: vec![u64::from(1.5f32.to_bits())].into(),
-        frame_bytes: 16,
-        regions: Box::new([]),
-        lines: vec![1; n].into(),
-        statements: Box::new([0]),
-        edge_base: 0,
-        edge_slots: 0,
-        labels: Box::new([]),
-        subroutines: Box::new([]),
-    };
+    let program = harness::vm::typed_program("typed", code, vec![u64::from(1.5f32.to_bits())], 16);
     let mut vm = Vm::for_programs([&program]);
     let mut initial = vec![0u8; 64];
     initial[32..35].copy_from_slice(&[2, b'a', b'b']);

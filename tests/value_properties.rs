@@ -6,10 +6,9 @@
 mod harness;
 
 use std::cmp::Ordering;
-use std::path::PathBuf;
 
 use plcd::lang::ops::{CmpOp, Op, Place};
-use plcd::lang::{Language, Program, Variables};
+use plcd::lang::{Program, Variables};
 use plcd::vm::{ExecState, Exit, ManualClock, Vm, ERR_DIVIDE_BY_ZERO};
 use plcd_core::value::{self, BinOp, Elem, OpError, UnOp};
 use proptest::prelude::*;
@@ -542,22 +541,7 @@ fn build(steps: &[Step]) -> Built {
 }
 
 fn program(code: Vec<Op>, consts: Vec<u64>) -> Program {
-    let n = code.len();
-    Program {
-        name: "expr".into(),
-        path: PathBuf::from("expr.st"),
-        language: Language::StructuredText,
-        code: code.into(),
-        consts: consts.into(),
-        frame_bytes: 0,
-        regions: Box::new([]),
-        lines: vec![1; n].into(),
-        statements: Box::new([0]),
-        edge_base: 0,
-        edge_slots: 0,
-        labels: Box::new([]),
-        subroutines: Box::new([]),
-    }
+    harness::vm::typed_program("expr", code, consts, 0)
 }
 
 proptest! {

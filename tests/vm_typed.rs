@@ -4,11 +4,9 @@
 //! at any budget, and no panic on garbage.
 mod harness;
 
-use std::path::PathBuf;
-
 use plcd::device::Address;
 use plcd::lang::ops::{CmpOp, Op, Place, StrOp};
-use plcd::lang::{Language, Program, Variables};
+use plcd::lang::{Program, Variables};
 use plcd::vm::{
     Clock, ExecState, Exit, ManualClock, StepClock, Vm, ERR_CALL_DEPTH, ERR_DIVIDE_BY_ZERO,
     ERR_INDEX_RANGE,
@@ -18,22 +16,7 @@ use plcd_core::value::{BinOp, Elem, Pointer, Space, UnOp};
 use proptest::prelude::*;
 
 fn program(code: Vec<Op>, consts: Vec<u64>, frame_bytes: u32) -> Program {
-    let n = code.len();
-    Program {
-        name: "main".into(),
-        path: PathBuf::from("main.st"),
-        language: Language::StructuredText,
-        code: code.into(),
-        consts: consts.into(),
-        frame_bytes,
-        regions: Box::new([]),
-        lines: vec![1; n].into(),
-        statements: Box::new([0]),
-        edge_base: 0,
-        edge_slots: 0,
-        labels: Box::new([]),
-        subroutines: Box::new([]),
-    }
+    harness::vm::typed_program("main", code, consts, frame_bytes)
 }
 
 struct Rig {

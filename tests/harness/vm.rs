@@ -87,3 +87,29 @@ impl Rig {
         self
     }
 }
+
+/// A Structured Text program of hand-written typed ops (as the compiler would emit them), one
+/// source line, for the tests of the typed VM.
+pub fn typed_program(
+    name: &str,
+    code: Vec<lang::ops::Op>,
+    consts: Vec<u64>,
+    frame_bytes: u32,
+) -> Program {
+    let n = code.len();
+    Program {
+        name: name.into(),
+        path: format!("{name}.st").into(),
+        language: lang::Language::StructuredText,
+        code: code.into(),
+        consts: consts.into(),
+        frame_bytes,
+        regions: Box::new([]),
+        lines: vec![1; n].into(),
+        statements: Box::new([0]),
+        edge_base: 0,
+        edge_slots: 0,
+        labels: Box::new([]),
+        subroutines: Box::new([]),
+    }
+}
