@@ -34,8 +34,10 @@ mod io;
 mod modbus;
 mod plc;
 mod program;
+mod remote;
 mod retain;
 mod rt;
+mod serial;
 mod sim;
 mod st;
 mod switch;
@@ -71,11 +73,16 @@ use crate::device::Address;
 pub use change::ProjectChange;
 pub use control::ControlConfig;
 pub use io::{Backend, Bias, IoConfig, IoLine};
-pub use modbus::{ModbusConfig, ModbusRange, ModbusTable};
+pub use modbus::{ModbusConfig, ModbusRange, ModbusRtuConfig, ModbusTable};
 pub use plc::{OnFault, PlcConfig};
 pub use program::{Language, ProgramConfig, TaskRef};
+pub use remote::{
+    OnLoss, RemoteDevice, RemoteRead, RemoteStatusBit, RemoteTable, RemoteTransport, RemoteWrite,
+    WriteOn,
+};
 pub use retain::{Restart, RetainArea, RetainConfig, RetainRange};
 pub use rt::{RtConfig, RtPolicy};
+pub use serial::{Parity, SerialLine};
 pub use sim::SimConfig;
 pub use st::{LibraryFile, StConfig};
 pub use switch::SwitchConfig;
@@ -113,6 +120,8 @@ pub struct Config {
     pub modbus: ModbusConfig,
     /// `[st]`: the Structured Text declaration files.
     pub st: StConfig,
+    /// `[[remote]]`: Modbus devices polled as remote I/O, in file order. Names are unique.
+    pub remotes: Vec<RemoteDevice>,
 }
 
 impl Config {
@@ -364,5 +373,6 @@ fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
         retain: retain?,
         modbus: modbus?,
         st: st?,
+        remotes: Vec::new(),
     })
 }

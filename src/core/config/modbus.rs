@@ -26,6 +26,7 @@ use toml::de::DeValue;
 use toml::Spanned;
 
 use super::common::{entries, int, int_or, section, widen, Ctx, Located};
+use super::serial::SerialLine;
 use super::Sink;
 use crate::device::{layout, Address, Area, Writer};
 
@@ -61,6 +62,23 @@ pub struct ModbusConfig {
     pub holding_registers: Vec<ModbusRange>,
     /// `[[modbus.input_registers]]`: words, read-only, FC 4.
     pub input_registers: Vec<ModbusRange>,
+    /// `[modbus.rtu]`: the same map served as a Modbus RTU server on a serial line; default
+    /// none.
+    pub rtu: Option<ModbusRtuConfig>,
+}
+
+/// `[modbus.rtu]`: the register map of `[modbus]` served on a serial line (docs/MODBUS.md).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ModbusRtuConfig {
+    /// `port`, `baud`, `parity`, `data_bits`, `stop_bits`, `frame_gap_us`.
+    pub line: SerialLine,
+    /// `unit_id`: the address served, [`ModbusRtuConfig::UNIT_ID`]; default 1. Requests to
+    /// 0 (broadcast) are carried out and not answered; other addresses are not for us.
+    pub unit_id: u8,
+}
+
+impl ModbusRtuConfig {
+    pub const UNIT_ID: RangeInclusive<u8> = 1..=247;
 }
 
 impl ModbusConfig {
@@ -94,6 +112,7 @@ impl Default for ModbusConfig {
             discrete_inputs: Vec::new(),
             holding_registers: Vec::new(),
             input_registers: Vec::new(),
+            rtu: None,
         }
     }
 }
