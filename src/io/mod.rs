@@ -7,11 +7,13 @@
 //!   (`backend = "gpiocdev"`);
 //! - [`gate`]: the output gate between the scan thread and the watchdog thread, which any
 //!   backend's outputs pass;
-//! - [`faults`]: failures of the field's I/O paths, counted for the supervisor to log.
+//! - [`faults`]: failures of the field's I/O paths, counted for the supervisor to log;
+//! - [`serial`]: serial ports opened with a Modbus RTU line's settings.
 
 pub mod faults;
 pub mod gate;
 pub mod gpio;
+pub mod serial;
 pub mod simulated;
 
 pub use plcd_core::io::{InputEdge, Io, SwitchPosition};
