@@ -8,11 +8,13 @@
 //! - [`gate`]: the output gate between the scan thread and the watchdog thread, which any
 //!   backend's outputs pass;
 //! - [`faults`]: failures of the field's I/O paths, counted for the supervisor to log;
-//! - [`serial`]: serial ports opened with a Modbus RTU line's settings.
+//! - [`serial`]: serial ports opened with a Modbus RTU line's settings;
+//! - [`remote`]: Modbus TCP and RTU devices polled as remote I/O (`[[remote]]`).
 
 pub mod faults;
 pub mod gate;
 pub mod gpio;
+pub mod remote;
 pub mod serial;
 pub mod simulated;
 
