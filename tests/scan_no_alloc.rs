@@ -20,7 +20,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use plcd::device::Address;
-use plcd::drivers::real_time::io::{FieldIo, GatedIo, SafeOutputs};
+use plcd::drivers::real_time::io::{FieldIo, FieldSafeOutputs, GatedIo, SafeOutputs};
 use plcd::drivers::real_time::mirror::Mirror;
 use plcd::drivers::real_time::scan::ScanThread;
 use plcd::drivers::real_time::snapshot::Snapshot;
@@ -139,6 +139,47 @@ struct Rig {
     completions: rtrb::Consumer<Completion>,
     snapshot: Arc<Mutex<Box<Snapshot>>>,
     handle: std::thread::JoinHandle<Box<Engine>>,
+    /// The poller thread of the remote device the scan thread refreshes too.
+    _remote: plcd::io::remote::RemoteService,
+}
+
+/// A remote TCP device nobody answers for (its port refuses), read into P0100–P010F and
+/// D00500–D00503 and written from P0040–P0043 (outputs that change every scan), so that the
+/// scan thread's remote refreshes and wake-ups run at every scan.
+fn remote_device() -> plcd::config::RemoteDevice {
+    use plcd::config::{
+        ModbusTable, OnLoss, RemoteDevice, RemoteRead, RemoteTable, RemoteTransport, RemoteWrite,
+        WriteOn,
+    };
+    let refused = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let table = |table: ModbusTable, device: &str, count: u16| {
+        let device = Address::parse(device).unwrap();
+        let first = match device.as_bit() {
+            Ok(bit) if table.is_bits() => u32::from(bit.word) * 16 + bit.mask.trailing_zeros(),
+            _ => u32::from(device.as_word().unwrap().0),
+        };
+        RemoteTable { table, address: 0, count, device, first, swap_bytes: false, swap_words: true }
+    };
+    RemoteDevice {
+        name: "refused".into(),
+        transport: RemoteTransport::Tcp { address: refused.to_string() },
+        unit_id: 1,
+        period_ms: 1,
+        timeout_ms: 10,
+        on_loss: OnLoss::Clear,
+        loss_after: 1,
+        reconnect_ms: 10,
+        reconnect_max_ms: 20,
+        status: None,
+        reads: vec![
+            RemoteRead { table: table(ModbusTable::DiscreteInputs, "P0100", 16), period_ms: 1 },
+            RemoteRead { table: table(ModbusTable::InputRegisters, "D00500", 4), period_ms: 1 },
+        ],
+        writes: vec![RemoteWrite {
+            table: RemoteTable { swap_words: false, ..table(ModbusTable::Coils, "P0040", 4) },
+            on: WriteOn::Change { refresh_ms: 5 },
+        }],
+    }
 }
 
 impl Rig {
@@ -150,12 +191,18 @@ impl Rig {
         let (report_tx, reports) = rtrb::RingBuffer::<Report>::new(4096);
         let (completion_tx, completions) = rtrb::RingBuffer::<Completion>::new(64);
         let snapshot = Arc::new(Mutex::new(Snapshot::new()));
+        let (remote, remote_service) = plcd::io::remote::start(&[remote_device()]).unwrap();
+        let safe = SafeOutputs {
+            field: FieldSafeOutputs::Simulated(Arc::clone(&field)),
+            remote: remote.safe_state(),
+        };
         let scan = ScanThread {
             engine,
             io: GatedIo {
                 field: FieldIo::Simulated(io),
+                remote,
                 gate: Arc::new(OutputGate::default()),
-                safe: SafeOutputs::Simulated(Arc::clone(&field)),
+                safe,
                 clear_on_trip: true,
             },
             shared: Arc::clone(&shared),
@@ -174,7 +221,17 @@ impl Rig {
             WATCHED.with(|w| w.set(false));
             scan.into_engine()
         });
-        Rig { field, shared, edges, commands, reports, completions, snapshot, handle }
+        Rig {
+            field,
+            shared,
+            edges,
+            commands,
+            reports,
+            completions,
+            snapshot,
+            handle,
+            _remote: remote_service,
+        }
     }
 }
 
@@ -300,6 +357,7 @@ fn the_scan_thread_does_not_allocate() {
         mut completions,
         snapshot,
         handle,
+        _remote,
     } = Rig::start(Box::new(Engine::new(&project, &watch)), io, &mirror);
     let command = |commands: &mut rtrb::Producer<Command>, c: Command| {
         assert!(commands.push(c).is_ok());

@@ -132,6 +132,7 @@ impl Daemon {
             completions,
             snapshot: Arc::clone(&driver.snapshot),
             running: Arc::clone(&running),
+            remote: driver.remote_board(),
         };
         // On an error, dropping the driver stops the threads.
         let modbus = match modbus {

@@ -401,6 +401,41 @@ pub struct Status {
     pub forces: Vec<DeviceValue>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub debug: Option<DebugState>,
+    /// The remote I/O devices (`[[remote]]`), in config order; absent when there are none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub remotes: Vec<RemoteFigures>,
+}
+
+/// One remote I/O device's figures since start.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RemoteFigures {
+    pub name: String,
+    /// `tcp HOST:PORT` or `rtu PORT`.
+    pub transport: String,
+    /// `starting` (not every read table read yet), `online`, `lost`.
+    pub state: String,
+    /// Exchanges tried.
+    pub requests: u64,
+    /// Exchanges that failed.
+    pub failures: u64,
+    /// Failures by kind (`timeout`, `exception`, `wrong_unit`, `wrong_transaction`,
+    /// `bad_crc`, `garbage`, `connect`, `closed`, `io`), the kinds seen only.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub faults: Vec<(String, u64)>,
+    /// Answers that came after their request had timed out, dropped.
+    pub late: u64,
+    /// Writes that succeeded.
+    pub writes: u64,
+    /// Times the device was lost.
+    pub losses: u64,
+    /// The last failure, as logged.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub last_error: Option<String>,
+    /// How long ago the last failure was, ms.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub last_error_age_ms: Option<u64>,
+    /// Round trips of answered exchanges.
+    pub round_trip: Percentiles,
 }
 
 /// An error as the PLC reports it.
@@ -647,6 +682,20 @@ mod tests {
                 scan: 7,
                 breakpoints: vec!["main:3".into()],
             }),
+            remotes: vec![RemoteFigures {
+                name: "rack1".into(),
+                transport: "tcp 127.0.0.1:1502".into(),
+                state: "lost".into(),
+                requests: 10,
+                failures: 2,
+                faults: vec![("timeout".into(), 2)],
+                late: 1,
+                writes: 3,
+                losses: 1,
+                last_error: Some("read of coils 0..=7: no answer in time".into()),
+                last_error_age_ms: Some(1500),
+                round_trip: Percentiles { p50_ns: 1, p99_ns: 2, p999_ns: 3, max_ns: 4 },
+            }],
         };
         for reply in [
             Reply::Status(Box::new(status)),

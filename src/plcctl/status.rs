@@ -1,6 +1,6 @@
 //! `status`: the daemon's figures for a human.
 
-use plcd_ipc::{Status, SwitchName};
+use plcd_ipc::{RemoteFigures, Status, SwitchName};
 
 use super::debug;
 use super::format::{self, human_ns, Align, Table};
@@ -92,5 +92,93 @@ pub fn render(status: &Status) -> String {
         ]);
     }
     text.push_str(&table.render());
+    if !status.remotes.is_empty() {
+        text.push('\n');
+        text.push_str(&remotes(&status.remotes));
+    }
     text
+}
+
+/// The remote I/O devices: a table, then each device's last error and fault counts.
+fn remotes(remotes: &[RemoteFigures]) -> String {
+    let mut table = Table::new(&[
+        ("REMOTE", Align::Left),
+        ("TRANSPORT", Align::Left),
+        ("STATE", Align::Left),
+        ("REQUESTS", Align::Right),
+        ("FAILURES", Align::Right),
+        ("LATE", Align::Right),
+        ("WRITES", Align::Right),
+        ("LOST", Align::Right),
+        ("RTT P50", Align::Right),
+        ("RTT P99", Align::Right),
+    ]);
+    for remote in remotes {
+        table.row(vec![
+            remote.name.clone(),
+            remote.transport.clone(),
+            remote.state.clone(),
+            remote.requests.to_string(),
+            remote.failures.to_string(),
+            remote.late.to_string(),
+            remote.writes.to_string(),
+            remote.losses.to_string(),
+            human_ns(remote.round_trip.p50_ns),
+            human_ns(remote.round_trip.p99_ns),
+        ]);
+    }
+    let mut text = table.render();
+    for remote in remotes {
+        if let Some(error) = &remote.last_error {
+            let faults: Vec<String> =
+                remote.faults.iter().map(|(kind, count)| format!("{kind} {count}")).collect();
+            let age = remote
+                .last_error_age_ms
+                .map(|ms| format!(", {} ago", format::human_uptime(ms)))
+                .unwrap_or_default();
+            text.push_str(&format!(
+                "{}: last error: {error}{age} (failures: {})\n",
+                remote.name,
+                faults.join(", ")
+            ));
+        }
+    }
+    text
+}
+
+#[cfg(test)]
+mod tests {
+    use plcd_ipc::{Percentiles, RemoteFigures};
+
+    #[test]
+    fn remote_devices_show_their_state_counters_and_last_error() {
+        let remote = |name: &str, state: &str, error: Option<&str>| RemoteFigures {
+            name: name.into(),
+            transport: "tcp 10.0.0.5:502".into(),
+            state: state.into(),
+            requests: 1200,
+            failures: if error.is_some() { 3 } else { 0 },
+            faults: if error.is_some() { vec![("timeout".into(), 3)] } else { vec![] },
+            late: 1,
+            writes: 40,
+            losses: u64::from(error.is_some()),
+            last_error: error.map(String::from),
+            last_error_age_ms: error.map(|_| 65_000),
+            round_trip: Percentiles { p50_ns: 850_000, p99_ns: 2_100_000, ..Default::default() },
+        };
+        let text = super::remotes(&[
+            remote("rack1", "online", None),
+            remote("rack2", "lost", Some("read of coils 0..=7: no answer in time")),
+        ]);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 4, "{text}");
+        assert!(lines[0].starts_with("REMOTE  TRANSPORT") && lines[0].ends_with("RTT P99"));
+        assert!(lines[1].starts_with("rack1   tcp 10.0.0.5:502  online"), "{}", lines[1]);
+        assert!(lines[2].contains("lost") && lines[2].contains("2.10 ms"), "{}", lines[2]);
+        assert_eq!(
+            lines[3],
+            "rack2: last error: read of coils 0..=7: no answer in time, 1m 05s ago (failures: \
+             timeout 3)"
+        );
+    }
 }

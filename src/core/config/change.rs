@@ -55,7 +55,7 @@ const fn section(
 /// online change take a new value of it. The online column is what the running engine can take
 /// over; what a load refuses never reaches it.
 #[rustfmt::skip]
-const SECTIONS: [Section; 11] = [
+const SECTIONS: [Section; 12] = [
     //       section      differs                              reload  load   online
     section("[plc]",     |a, b| a.plc != b.plc,              [true,  true,  false]),
     // Read by `plcd sim` alone.
@@ -70,6 +70,8 @@ const SECTIONS: [Section; 11] = [
     section("[switch]",  |a, b| a.switch != b.switch,        [true,  false, false]),
     section("[retain]",  |a, b| a.retain != b.retain,        [false, false, false]),
     section("[modbus]",  |a, b| a.modbus != b.modbus,        [false, false, true ]),
+    // The poller threads and their links are set up at start.
+    section("[[remote]]", |a, b| a.remotes != b.remotes,     [false, false, true ]),
     // Program code, like `[[program]]`: an online change keeps the variables it can.
     section("[st]",      |a, b| a.st != b.st,                [true,  true,  true ]),
     // Not a section but what the field was opened for: the edge detection of the contacts io

@@ -371,6 +371,7 @@ mod tests {
                 &dir.join("plcd.toml"),
                 project,
             ))),
+            remote: Default::default(),
         };
         Bench { handler: RequestHandler::new(links), commands, completions, dir }
     }

@@ -72,6 +72,8 @@ pub struct RequestLinks {
     pub completions: rtrb::Consumer<Completion>,
     pub snapshot: Arc<Mutex<Box<Snapshot>>>,
     pub running: Arc<Mutex<Running>>,
+    /// The remote I/O devices' counters.
+    pub remote: crate::io::remote::RemoteBoard,
 }
 
 /// Answers the control socket's requests. See the module docs.

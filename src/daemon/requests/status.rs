@@ -14,11 +14,14 @@ use super::RequestHandler;
 use crate::config::{TaskKind, TaskRef};
 use crate::drivers::real_time::snapshot::Snapshot;
 use crate::engine::event::Mode;
+use crate::io::remote::frame::FaultKind;
+use crate::io::remote::DeviceReport;
 use crate::io::SwitchPosition;
 use crate::services::control::ClientId;
 use crate::stats::Histogram;
 use plcd_ipc::{
-    ErrorInfo, Percentiles, Reply, ResponseLine, ScanFigures, Status, SwitchName, TaskFigures,
+    ErrorInfo, Percentiles, RemoteFigures, Reply, ResponseLine, ScanFigures, Status, SwitchName,
+    TaskFigures,
 };
 
 impl RequestHandler {
@@ -100,7 +103,31 @@ impl RequestHandler {
             watchdog_trips: shared.watchdog_trips.load(Ordering::Relaxed),
             forces: forces_of(snapshot),
             debug: (mode == Mode::Debug).then(|| debug_state_with(snapshot, &running)),
+            remotes: self.links.remote.reports().into_iter().map(remote_figures).collect(),
         }
+    }
+}
+
+fn remote_figures(report: DeviceReport) -> RemoteFigures {
+    let stats = report.stats;
+    RemoteFigures {
+        name: report.name,
+        transport: report.transport,
+        state: stats.state.as_str().to_string(),
+        requests: stats.requests,
+        failures: stats.failures,
+        faults: FaultKind::ALL
+            .iter()
+            .zip(stats.by_kind)
+            .filter(|(_, count)| *count > 0)
+            .map(|(kind, count)| (kind.name().to_string(), count))
+            .collect(),
+        late: stats.late,
+        writes: stats.writes,
+        losses: stats.losses,
+        last_error: stats.last_error.map(|(text, _)| text),
+        last_error_age_ms: report.last_error_age_ms,
+        round_trip: percentiles(&stats.round_trip),
     }
 }
 

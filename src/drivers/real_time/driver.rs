@@ -11,7 +11,7 @@ use std::sync::{mpsc, Arc, Mutex};
 use std::thread::JoinHandle;
 
 use super::events::EventThread;
-use super::io::{FieldIo, GatedIo, SafeOutputs};
+use super::io::{FieldIo, FieldSafeOutputs, GatedIo, SafeOutputs};
 use super::mirror::Mirror;
 use super::scan::ScanThread;
 use super::snapshot::Snapshot;
@@ -28,6 +28,7 @@ use crate::engine::Engine;
 use crate::files;
 use crate::io::gate::OutputGate;
 use crate::io::gpio::{self, GpioError};
+use crate::io::remote::{self, RemoteError, RemoteService};
 use crate::io::simulated::SimulatedIo;
 use crate::io::InputEdge;
 use crate::project::Project;
@@ -45,6 +46,8 @@ pub enum DriverError {
     RtRefused(Vec<String>),
     #[error("cannot start the {thread} thread: {source}")]
     Spawn { thread: &'static str, source: std::io::Error },
+    #[error("{0}")]
+    Remote(#[from] RemoteError),
 }
 
 struct Threads {
@@ -83,6 +86,8 @@ pub struct Driver {
     pub problems: Vec<String>,
     pub granted: Granted,
     threads: Option<Threads>,
+    /// The poller threads of the remote devices (`[[remote]]`).
+    remote: Option<RemoteService>,
     /// `[rt] cpu_dma_latency_us`, held until the driver is dropped.
     _cpu_latency: Option<sys::CpuLatencyRequest>,
 }
@@ -157,18 +162,25 @@ impl Driver {
                         commands: Arc::clone(&commands),
                     });
                 }
-                (FieldIo::Simulated(io), SafeOutputs::Simulated(field))
+                (FieldIo::Simulated(io), FieldSafeOutputs::Simulated(field))
             }
             Backend::Gpiocdev => {
                 let opened = gpio::open(config, "plcd", Arc::clone(&shared.field_faults))?;
                 events.gpio = opened.edges;
                 events.edges = Some(edge_tx);
-                (FieldIo::Gpio(opened.io), SafeOutputs::Gpio(opened.outputs))
+                (FieldIo::Gpio(opened.io), FieldSafeOutputs::Gpio(opened.outputs))
             }
         };
+        let (remote, remote_service) = remote::start(&config.remotes)?;
+        let safe = SafeOutputs { field: safe, remote: remote.safe_state() };
         let clear = config.plc.on_fault == OnFault::Clear;
-        let io =
-            GatedIo { field, gate: Arc::clone(&gate), safe: safe.clone(), clear_on_trip: clear };
+        let io = GatedIo {
+            field,
+            remote,
+            gate: Arc::clone(&gate),
+            safe: safe.clone(),
+            clear_on_trip: clear,
+        };
 
         let watch = project.output_bits();
         let mut engine = Box::new(Engine::new(project, &watch));
@@ -214,6 +226,7 @@ impl Driver {
             problems: Vec::new(),
             granted,
             threads: Some(Threads { scan, events, watchdog, stimulus: None, gate, safe }),
+            remote: Some(remote_service),
             _cpu_latency: cpu_latency,
         };
         if !problems.is_empty() && rt.require {
@@ -257,6 +270,11 @@ impl Driver {
         self.completions.take()
     }
 
+    /// The remote devices' counters, for `plcctl status`.
+    pub fn remote_board(&self) -> remote::RemoteBoard {
+        self.remote.as_ref().map(RemoteService::board).unwrap_or_default()
+    }
+
     /// The real-time thread that ended although no stop was asked for, if one did.
     pub fn dead_thread(&self) -> Option<&'static str> {
         let threads = self.threads.as_ref()?;
@@ -289,6 +307,10 @@ impl Driver {
             threads.safe.apply();
             log::error!("the scan thread died; outputs switched off");
         }
+        // The remote devices' outputs go to their safe state too: their pollers write zeros
+        // to every write table (each within its timeout) before they stop.
+        threads.safe.remote.apply();
+        drop(self.remote.take());
         if let Ok(Err(e)) = threads.events.join() {
             log::error!("event thread: {e}");
         }

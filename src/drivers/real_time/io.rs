@@ -1,11 +1,12 @@
-//! The field I/O of the daemon: the configured backend, behind the output gate, and the safe
-//! output state the watchdog thread applies on its own.
+//! The field I/O of the daemon: the configured backend and the remote devices, behind the
+//! output gate, and the safe output state the watchdog thread applies on its own.
 
 use std::sync::Arc;
 
 use crate::device::{BitRef, Memory};
 use crate::io::gate::{AfterWrite, OutputGate};
 use crate::io::gpio::{GpioIo, GpioOutputs};
+use crate::io::remote::{RemoteIo, RemoteSafeState};
 use crate::io::simulated::{SimulatedField, SimulatedIo};
 use crate::io::{Io, SwitchPosition};
 
@@ -47,18 +48,41 @@ impl Io for FieldIo {
     }
 }
 
-/// Every output OFF, from any thread, without the scan thread's help.
+/// Every output OFF, from any thread, without the scan thread's help: the field's, and every
+/// remote write table's (its poller writes zeros).
 #[derive(Clone)]
-pub enum SafeOutputs {
+pub struct SafeOutputs {
+    pub field: FieldSafeOutputs,
+    pub remote: RemoteSafeState,
+}
+
+impl SafeOutputs {
+    /// The simulated field's, without remote devices.
+    pub fn simulated(field: Arc<SimulatedField>) -> SafeOutputs {
+        SafeOutputs {
+            field: FieldSafeOutputs::Simulated(field),
+            remote: RemoteSafeState::default(),
+        }
+    }
+
+    pub fn apply(&self) {
+        self.field.apply();
+        self.remote.apply();
+    }
+}
+
+/// The field backend's outputs OFF.
+#[derive(Clone)]
+pub enum FieldSafeOutputs {
     Simulated(Arc<SimulatedField>),
     Gpio(GpioOutputs),
 }
 
-impl SafeOutputs {
+impl FieldSafeOutputs {
     pub fn apply(&self) {
         match self {
-            SafeOutputs::Simulated(field) => field.clear_outputs(),
-            SafeOutputs::Gpio(outputs) => {
+            FieldSafeOutputs::Simulated(field) => field.clear_outputs(),
+            FieldSafeOutputs::Gpio(outputs) => {
                 if let Err(e) = outputs.set_all_inactive() {
                     // Logging allocates, but this is the error path of the error path: the
                     // outputs could not be switched off, which the operator must hear about.
@@ -72,6 +96,8 @@ impl SafeOutputs {
 /// The scan thread's I/O: outputs pass the gate, which the watchdog thread closes.
 pub struct GatedIo {
     pub field: FieldIo,
+    /// The remote devices (`[[remote]]`), after the field at each refresh.
+    pub remote: RemoteIo,
     pub gate: Arc<OutputGate>,
     pub safe: SafeOutputs,
     /// `on_fault = "clear"`: a write that overlapped the gate's closing is undone.
@@ -82,12 +108,14 @@ impl Io for GatedIo {
     #[inline]
     fn refresh_inputs(&mut self, mem: &mut Memory) {
         self.field.refresh_inputs(mem);
+        self.remote.refresh_inputs(mem);
     }
 
     #[inline]
     fn refresh_outputs(&mut self, mem: &Memory) {
         if self.gate.begin_write() {
             self.field.refresh_outputs(mem);
+            self.remote.refresh_outputs(mem);
             if self.gate.end_write() == AfterWrite::ApplySafeState && self.clear_on_trip {
                 self.safe.apply();
             }
@@ -99,6 +127,6 @@ impl Io for GatedIo {
     }
 
     fn is_input(&self, bit: BitRef) -> bool {
-        self.field.is_input(bit)
+        self.field.is_input(bit) || self.remote.is_input(bit)
     }
 }

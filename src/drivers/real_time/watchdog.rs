@@ -99,7 +99,7 @@ mod tests {
         let thread = WatchdogThread {
             shared: Arc::clone(shared),
             gate: Arc::clone(gate),
-            safe: SafeOutputs::Simulated(Arc::clone(field)),
+            safe: SafeOutputs::simulated(Arc::clone(field)),
             clear,
         };
         std::thread::spawn(move || thread.run())

@@ -172,21 +172,33 @@ pub struct DeviceReport {
     pub last_error_age_ms: Option<u64>,
 }
 
-/// The poller threads; dropping it stops and joins them.
-pub struct RemoteService {
-    stop: Arc<AtomicBool>,
-    threads: Vec<JoinHandle<()>>,
-    devices: Vec<(String, String, Arc<Mutex<DeviceStats>>)>,
+/// Every device's counters, for the status request (cheap to clone, any thread).
+#[derive(Clone)]
+pub struct RemoteBoard {
+    devices: Arc<[BoardEntry]>,
     epoch: Instant,
 }
 
-impl RemoteService {
-    /// Every device's figures now.
+/// One device on the board.
+struct BoardEntry {
+    name: String,
+    transport: String,
+    stats: Arc<Mutex<DeviceStats>>,
+}
+
+impl Default for RemoteBoard {
+    fn default() -> Self {
+        RemoteBoard { devices: Arc::new([]), epoch: Instant::now() }
+    }
+}
+
+impl RemoteBoard {
+    /// Every device's figures now, in config order.
     pub fn reports(&self) -> Vec<DeviceReport> {
         let now = self.epoch.elapsed().as_nanos() as u64;
         self.devices
             .iter()
-            .map(|(name, transport, stats)| {
+            .map(|BoardEntry { name, transport, stats }| {
                 let stats = stats.lock().unwrap_or_else(|p| p.into_inner()).clone();
                 DeviceReport {
                     name: name.clone(),
@@ -200,9 +212,18 @@ impl RemoteService {
             })
             .collect()
     }
+}
 
-    pub fn is_empty(&self) -> bool {
-        self.devices.is_empty()
+/// The poller threads; dropping it stops them (after their last writes) and joins them.
+pub struct RemoteService {
+    stop: Arc<AtomicBool>,
+    threads: Vec<JoinHandle<()>>,
+    board: RemoteBoard,
+}
+
+impl RemoteService {
+    pub fn board(&self) -> RemoteBoard {
+        self.board.clone()
     }
 }
 
@@ -226,14 +247,18 @@ pub fn start(devices: &[RemoteDevice]) -> Result<(RemoteIo, RemoteService), Remo
     let stop = Arc::new(AtomicBool::new(false));
     let safe = Arc::new(AtomicBool::new(false));
     let mut io = RemoteIo { devices: Vec::new(), safe: Arc::clone(&safe) };
-    let mut service =
-        RemoteService { stop: Arc::clone(&stop), threads: Vec::new(), devices: Vec::new(), epoch };
+    let mut handles = Vec::new();
+    let mut boards = Vec::new();
     // Devices grouped by link: each TCP device alone, RTU devices by port. `members` are
     // indices into `io.devices`, whose threads are known once the group's thread runs.
     let mut groups: Vec<(threads::Group, Vec<usize>, String)> = Vec::new();
     for device in devices {
         let (scan_side, poller) = pair(device, &safe);
-        service.devices.push((device.name.clone(), device.transport.describe(), poller.stats()));
+        boards.push(BoardEntry {
+            name: device.name.clone(),
+            transport: device.transport.describe(),
+            stats: poller.stats(),
+        });
         io.devices.push(scan_side);
         let index = io.devices.len() - 1;
         let shared_port = match &device.transport {
@@ -270,9 +295,10 @@ pub fn start(devices: &[RemoteDevice]) -> Result<(RemoteIo, RemoteService), Remo
         for index in members {
             io.devices[index].thread = Some(handle.thread().clone());
         }
-        service.threads.push(handle);
+        handles.push(handle);
     }
-    Ok((io, service))
+    let board = RemoteBoard { devices: boards.into(), epoch };
+    Ok((io, RemoteService { stop, threads: handles, board }))
 }
 
 /// A device's scan side and poller, joined by their two triple buffers.

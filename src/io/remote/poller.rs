@@ -245,6 +245,11 @@ impl Poller {
         Arc::clone(&self.stats)
     }
 
+    /// How many write tables it has.
+    pub fn write_tables(&self) -> usize {
+        self.writes.len()
+    }
+
     /// The inputs image's length in words (the scan side's layout must match).
     pub fn image_words(&self) -> usize {
         self.image.len()

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use super::link::Link;
-use super::poller::{Notice, Poller};
+use super::poller::{Job, Notice, Poller};
 use crate::config::OnLoss;
 
 /// The longest sleep between two looks at the stop flag.
@@ -26,7 +26,11 @@ pub fn run(mut group: Group, stop: Arc<AtomicBool>, epoch: Instant) {
     let count = group.pollers.len();
     // Devices on one line take turns when several are due.
     let mut next_first = 0;
-    while !stop.load(Ordering::Acquire) {
+    loop {
+        if stop.load(Ordering::Acquire) {
+            finish_writes(&mut group, clock());
+            return;
+        }
         let now = clock();
         let mut wake = u64::MAX;
         let mut chosen = None;
@@ -57,6 +61,28 @@ pub fn run(mut group: Group, stop: Arc<AtomicBool>, epoch: Instant) {
         poller.finish(job, clock(), round_trip, result, late);
         for notice in poller.take_notices() {
             log_notice(poller, &notice);
+        }
+    }
+}
+
+/// At stop: each write that is due now (the safe state's zeros) is carried out once, so that
+/// the devices' outputs do not stay as they were.
+fn finish_writes(group: &mut Group, now: u64) {
+    for poller in &mut group.pollers {
+        let mut tries = poller.write_tables();
+        while tries > 0 {
+            tries -= 1;
+            let Ok(job @ Job::Write(_)) = poller.next_job(now) else {
+                break;
+            };
+            let unit = poller.unit;
+            let timeout = Duration::from_millis(u64::from(poller.timeout_ms));
+            let (ask, values) = poller.prepare(job);
+            let result = group.link.exchange(unit, &ask, values, timeout);
+            poller.finish(job, now, 0, result, 0);
+            for notice in poller.take_notices() {
+                log_notice(poller, &notice);
+            }
         }
     }
 }
