@@ -5,13 +5,20 @@
 //! executed instruction costs `step_ns` of virtual time; END processing and I/O refresh cost
 //! none; while nothing runs, time jumps to the next event. The engine decides everything else,
 //! exactly as it does under the real-time driver.
+//!
+//! Remote devices (`[[remote]]`) are not polled in virtual time: the devices their read tables
+//! feed are plain devices the stimulus drives, and each status bit is held ON at every input
+//! refresh, as a device that always answers, until the stimulus writes it (`5s, M0100, 0`
+//! simulates a loss; `1` brings the device back).
 
 pub mod timeline;
 pub mod trace;
 
+use crate::device::{Address, BitRef, Memory};
 use crate::engine::event::{EventSink, Mode};
 use crate::engine::{Activity, Engine};
 use crate::io::simulated::SimulatedIo;
+use crate::io::{Io, SwitchPosition};
 use crate::project::{Project, Watched};
 use crate::stimulus::{Stimulus, Target};
 use crate::vm::{Clock, StepClock};
@@ -36,7 +43,16 @@ pub fn simulate(
     sink: &mut impl EventSink,
 ) -> Engine {
     let mut engine = Engine::new(project, watch);
-    let mut io = SimulatedIo::for_project(project, stimuli);
+    let mut io = SimIo {
+        field: SimulatedIo::for_project(project, stimuli),
+        remote_status: project
+            .config
+            .remotes
+            .iter()
+            .filter_map(|remote| remote.status)
+            .map(|status| (status.device, status.bit, true))
+            .collect(),
+    };
     let step_ns = options.step_ns.max(1);
     let mut clock = StepClock { origin_ns: 0, origin_steps: engine.steps(), step_ns };
     if project.config.switch.is_none() {
@@ -70,20 +86,50 @@ pub fn simulate(
     engine
 }
 
-fn apply(
-    engine: &mut Engine,
-    io: &mut SimulatedIo,
-    s: &Stimulus,
-    now: u64,
-    sink: &mut impl EventSink,
-) {
+/// The simulated field, and the status bits of the remote devices (see the module
+/// documentation).
+struct SimIo {
+    field: SimulatedIo,
+    /// Each status bit's device, place and simulated state.
+    remote_status: Vec<(Address, BitRef, bool)>,
+}
+
+impl Io for SimIo {
+    fn refresh_inputs(&mut self, mem: &mut Memory) {
+        self.field.refresh_inputs(mem);
+        for (_, bit, on) in &self.remote_status {
+            mem.set_bit(*bit, *on);
+        }
+    }
+
+    fn refresh_outputs(&mut self, mem: &Memory) {
+        self.field.refresh_outputs(mem);
+    }
+
+    fn switch(&self) -> Option<SwitchPosition> {
+        self.field.switch()
+    }
+
+    fn is_input(&self, bit: BitRef) -> bool {
+        self.field.is_input(bit) || self.remote_status.iter().any(|(_, b, _)| *b == bit)
+    }
+}
+
+fn apply(engine: &mut Engine, io: &mut SimIo, s: &Stimulus, now: u64, sink: &mut impl EventSink) {
     match &s.target {
         Target::Mode(mode) => engine.set_mode(*mode, now, io, sink),
         Target::Switch(position) => {
-            io.set_switch(*position);
+            io.field.set_switch(*position);
+        }
+        Target::Device(address) if io.remote_status.iter().any(|(a, ..)| a == address) => {
+            for (status, _, on) in &mut io.remote_status {
+                if status == address {
+                    *on = s.value != 0;
+                }
+            }
         }
         Target::Device(address) if SimulatedIo::is_io(address) => {
-            let edges: Vec<_> = io.set_input(address, s.value).collect();
+            let edges: Vec<_> = io.field.set_input(address, s.value).collect();
             for edge in edges {
                 engine.input_edge(edge.contact, edge.rising, now, now, sink);
             }
