@@ -17,7 +17,6 @@ use crate::config::{ModbusTable, SerialLine};
 /// What the peer does about one request.
 enum Act {
     Send(Vec<u8>),
-    Sleep(u64),
     Close,
 }
 
@@ -59,7 +58,6 @@ fn tcp_peer(
                 for act in script(n - 1, tid, header[6]) {
                     match act {
                         Act::Send(bytes) => stream.write_all(&bytes).unwrap(),
-                        Act::Sleep(ms) => std::thread::sleep(Duration::from_millis(ms)),
                         Act::Close => break 'connection,
                     }
                 }
