@@ -465,6 +465,13 @@ fn rtu_server(sink: &mut Sink, rtu: Located<RawModbusRtu>) -> Option<ModbusRtuCo
     Some(ModbusRtuConfig { line: line?, unit_id: unit_id? })
 }
 
+/// Where `[modbus.rtu] port` is and what it says, for the check that no `[[remote]]` polls
+/// the port the server answers on.
+pub(super) fn rtu_port(raw: Option<&RawModbusDoc>) -> Option<(String, usize)> {
+    let port = raw?.rtu.as_ref()?.value.port.as_ref()?;
+    Some((port.get_ref().clone(), port.span().start))
+}
+
 /// One entry of a table, resolved to device memory.
 fn range(sink: &mut Sink, table: ModbusTable, entry: &Located<RawRange>) -> Option<ModbusRange> {
     let Located { ctx, value: raw, .. } = entry;

@@ -12,7 +12,7 @@ use std::path::PathBuf;
 
 use toml::Spanned;
 
-use super::common::{int, int_or, widen, Ctx};
+use super::common::{int, int_or, start, widen, Ctx};
 use super::Sink;
 
 /// The parity bit of a serial character.
@@ -131,6 +131,22 @@ pub(super) struct RawSerial {
     pub data_bits: Option<Spanned<i64>>,
     pub stop_bits: Option<Spanned<i64>>,
     pub frame_gap_us: Option<Spanned<i64>>,
+}
+
+impl RawSerial {
+    /// The keys given, each with where it is, in the order of the docs.
+    pub fn given(&self) -> impl Iterator<Item = (&'static str, usize)> {
+        [
+            ("port", start(&self.port)),
+            ("baud", start(&self.baud)),
+            ("parity", start(&self.parity)),
+            ("data_bits", start(&self.data_bits)),
+            ("stop_bits", start(&self.stop_bits)),
+            ("frame_gap_us", start(&self.frame_gap_us)),
+        ]
+        .into_iter()
+        .filter_map(|(key, at)| Some((key, at?)))
+    }
 }
 
 /// Pass 2 of the serial line's keys: `None` if any is wrong (reported). Every key is checked
