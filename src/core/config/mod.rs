@@ -341,7 +341,10 @@ fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
     // [[remote]] before [io] and [modbus] consume their entries: remote reads must write no
     // P bit of the local I/O, and no port is both polled and served.
     let neighbours = remote::Neighbours {
-        io_bits: remote::io_bits(&doc.inputs, &doc.outputs),
+        io_bits: remote::io_bits(&doc.inputs, &doc.outputs)
+            .into_iter()
+            .chain(remote::contact_bits(&doc.tasks))
+            .collect(),
         rtu_server: modbus::rtu_port(doc.modbus.as_ref()),
     };
     let remotes = remote::validate(sink, doc.remotes, &neighbours);

@@ -461,7 +461,8 @@ pub(super) fn read(sink: &mut Sink, value: Option<Spanned<DeValue<'_>>>) -> RawR
 /// What the remotes are checked against in other sections.
 #[derive(Debug, Default)]
 pub(super) struct Neighbours {
-    /// The P bits of `[[io.input]]` and `[[io.output]]`, which the local backend owns.
+    /// The P bits of `[[io.input]]` and `[[io.output]]`, which the local backend owns, and
+    /// the contacts io tasks start on.
     pub io_bits: Vec<Owner>,
     /// `[modbus.rtu] port` and where it is.
     pub rtu_server: Option<(String, usize)>,
@@ -484,6 +485,9 @@ enum OwnerKind {
     Status { subject: String, bit: Address },
     /// An `[[io.input]]` or `[[io.output]]`: its subject and its P bit.
     Io { subject: String, bit: Address },
+    /// The contact an io task starts on: the task's subject and the P bit. Its edges come
+    /// from the field's line, so no remote may write it.
+    Contact { subject: String, bit: Address },
 }
 
 impl Owner {
@@ -496,6 +500,9 @@ impl Owner {
             OwnerKind::Status { subject, bit } => format!("the status bit of {subject} ({bit})"),
             OwnerKind::Io { subject, .. } => {
                 format!("{subject}, which the local I/O backend owns")
+            }
+            OwnerKind::Contact { subject, bit } => {
+                format!("the contact {subject} starts on ({bit}), whose edges come from the field")
             }
         }
     }
@@ -510,7 +517,9 @@ impl Owner {
             OwnerKind::Status { subject, bit } => {
                 format!("{subject}: status {bit} overlaps {other}")
             }
-            OwnerKind::Io { subject, bit } => format!("{subject}: device {bit} overlaps {other}"),
+            OwnerKind::Io { subject, bit } | OwnerKind::Contact { subject, bit } => {
+                format!("{subject}: device {bit} overlaps {other}")
+            }
         }
     }
 }
@@ -529,6 +538,23 @@ pub(super) fn io_bits(inputs: &[Located<RawInput>], outputs: &[Located<RawOutput
                 at: device.span().start,
                 bits: index..index + 1,
                 what: OwnerKind::Io { subject: ctx.subject(), bit },
+            })
+        })
+        .collect()
+}
+
+/// The contacts of the `[[task]]` entries of kind io that deserialized.
+pub(super) fn contact_bits(tasks: &[Located<super::task::RawTask>]) -> Vec<Owner> {
+    tasks
+        .iter()
+        .filter_map(|task| {
+            let contact = task.value.contact.as_ref()?;
+            let bit = Address::parse(contact.get_ref()).ok()?;
+            let index = bit_index(&bit).filter(|_| bit.area == Area::P)?;
+            Some(Owner {
+                at: contact.span().start,
+                bits: index..index + 1,
+                what: OwnerKind::Contact { subject: task.ctx.subject(), bit },
             })
         })
         .collect()
@@ -1854,6 +1880,25 @@ mod tests {
             errors(read),
             ["10:13: remote \"a\" read #1: period_ms 0 out of range 1..=3600000"]
         );
+    }
+
+    #[test]
+    fn no_remote_writes_the_contact_an_io_task_starts_on() {
+        let task = "[[task]]\nname = \"edge\"\nkind = \"io\"\nnumber = 8\npriority = 2\n\
+                    contact = \"P0002\"\nedge = \"rising\"\n";
+        let remote = "[[remote]]\nname = \"a\"\ntransport = \"tcp\"\naddress = \"10.0.0.5:502\"\n\
+                      [[remote.read]]\ntable = \"discrete_inputs\"\naddress = 0\ncount = 8\n\
+                      device = \"P0000\"\n";
+        assert_eq!(
+            errors(&format!("{task}{remote}")),
+            ["16:10: remote \"a\" read #1: device P0000-P0007 overlaps the contact task \"edge\" \
+              starts on (P0002), whose edges come from the field"]
+        );
+        // The contacts io tasks do not use are free.
+        config(&format!(
+            "{task}{}",
+            remote.replace("count = 8", "count = 4").replace("P0000", "P0004")
+        ));
     }
 
     #[test]
