@@ -253,6 +253,15 @@ pub fn start(devices: &[RemoteDevice]) -> Result<(RemoteIo, RemoteService), Remo
     // indices into `io.devices`, whose threads are known once the group's thread runs.
     let mut groups: Vec<(threads::Group, Vec<usize>, String)> = Vec::new();
     for device in devices {
+        log::info!(
+            "remote {}: polling {} unit {} every {} ms ({} read and {} write tables)",
+            device.name,
+            device.transport.describe(),
+            device.unit_id,
+            device.shortest_period_ms(),
+            device.reads.len(),
+            device.writes.len()
+        );
         let (scan_side, poller) = pair(device, &safe);
         boards.push(BoardEntry {
             name: device.name.clone(),
