@@ -1125,15 +1125,17 @@ fn writes_do_not_overlap(sink: &mut Sink, writes: &[(RemoteWrite, usize, String)
     ok
 }
 
-/// Device bits have one writer among remote reads, status bits and the local I/O lines: at
+/// Device bits have one writer among remote reads, status bits, the local I/O lines and io
+/// tasks' contacts: at
 /// each overlap the later in the file is reported, naming the earlier.
 fn owners_do_not_overlap(sink: &mut Sink, mut owners: Vec<Owner>) -> bool {
     owners.sort_by_key(|o| o.at);
     let mut ok = true;
     for (i, later) in owners.iter().enumerate() {
         for earlier in &owners[..i] {
-            let io = |o: &Owner| matches!(o.what, OwnerKind::Io { .. });
-            // Lines against lines are `io`'s to report.
+            let io = |o: &Owner| matches!(o.what, OwnerKind::Io { .. } | OwnerKind::Contact { .. });
+            // Lines and contacts against each other are `io`'s and `task`'s to report (a
+            // contact is usually an input line).
             if io(later) && io(earlier) {
                 continue;
             }
