@@ -1897,10 +1897,10 @@ mod tests {
               starts on (P0002), whose edges come from the field"]
         );
         // The contacts io tasks do not use are free.
-        config(&format!(
-            "{task}{}",
-            remote.replace("count = 8", "count = 4").replace("P0000", "P0004")
-        ));
+        let free = remote.replace("count = 8", "count = 4").replace("P0000", "P0004");
+        config(&format!("{task}{free}"));
+        // A contact is usually an input line too: that is no overlap of the remotes'.
+        config(&format!("{task}[[io.input]]\ndevice = \"P0002\"\nline = 2\n{free}"));
     }
 
     #[test]
