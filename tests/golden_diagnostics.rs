@@ -172,3 +172,14 @@ fn check_accepts_the_example_project() {
     assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
     assert!(stdout(&output).contains("ok: 7 program(s)"), "{}", stdout(&output));
 }
+
+#[test]
+fn check_counts_the_remote_devices_of_a_valid_project() {
+    let dir = Path::new("tests/sim/remote_devices");
+    let output = plcd(dir, &["check", "--config", "plcd.toml"]);
+    assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
+    assert_eq!(
+        stdout(&output),
+        "plcd.toml: ok: 1 program(s), 6 instruction(s), 0 task(s), 1 remote device(s)\n"
+    );
+}

@@ -11,9 +11,13 @@ pub fn run(config: &Path, out: &mut impl Write, err: &mut impl Write) -> ExitCod
     match files::project(config) {
         Ok(project) => {
             let instructions: usize = project.programs.iter().map(|p| p.code.len()).sum();
+            let remotes = match project.config.remotes.len() {
+                0 => String::new(),
+                n => format!(", {n} remote device(s)"),
+            };
             let _ = writeln!(
                 out,
-                "{}: ok: {} program(s), {} instruction(s), {} task(s)",
+                "{}: ok: {} program(s), {} instruction(s), {} task(s){remotes}",
                 config.display(),
                 project.programs.len(),
                 instructions,

@@ -363,6 +363,8 @@ impl Poller {
                     }
                     let lost_ms = (now - self.lost_at) / MS;
                     self.condition = None;
+                    // The episode is over: the next late answer is news again.
+                    self.late_seen = false;
                     self.notices.push(Notice::Back {
                         failures: self.failed_since_ok,
                         lost_ms: Some(lost_ms),
@@ -396,6 +398,7 @@ impl Poller {
                 }
                 self.in_a_row = 0;
                 if self.condition.take().is_some() {
+                    self.late_seen = false;
                     self.notices
                         .push(Notice::Back { failures: self.failed_since_ok, lost_ms: None });
                 }

@@ -221,6 +221,16 @@ fn each_condition_is_noticed_once_until_an_exchange_succeeds() {
     let notices = poller.take_notices();
     assert_eq!(notices, [Notice::Late, Notice::Back { failures: 7, lost_ms: None }]);
     assert_eq!(poller.stats().lock().unwrap().late, 2);
+    // Within one episode, late answers are counted, not noticed again.
+    let at = u64::MAX / 2 + 100 * MS;
+    for late in [1, 1] {
+        let job = poller.next_job(at).unwrap();
+        poller.prepare(job);
+        poller.finish(job, at, 0, Err(Fault::Timeout), late);
+    }
+    let notices = poller.take_notices();
+    assert_eq!(notices.iter().filter(|n| **n == Notice::Late).count(), 1, "{notices:?}");
+    assert_eq!(poller.stats().lock().unwrap().late, 4);
 }
 
 #[test]
