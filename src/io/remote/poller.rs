@@ -27,6 +27,9 @@ use crate::stats::Histogram;
 
 const MS: u64 = 1_000_000;
 
+/// The most words a table's values take: 125 registers, or 2000 bits packed in 125 words.
+const MAX_TABLE_WORDS: usize = 125;
+
 /// What the scan thread takes at its input refresh: every read table's values (in
 /// [`super::RemoteIo`]'s layout), and whether the device is online. Published whole.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -236,7 +239,7 @@ impl Poller {
             late_seen: false,
             stats: Arc::new(Mutex::new(DeviceStats::default())),
             notices: Vec::new(),
-            scratch: vec![0; 2000usize.div_ceil(16).max(125)],
+            scratch: vec![0; MAX_TABLE_WORDS],
         }
     }
 
