@@ -73,7 +73,9 @@ impl SerialLine {
 
     /// Bits on the wire per character: start, data, parity, stop.
     pub fn char_bits(&self) -> u32 {
-        1 + u32::from(self.data_bits) + u32::from(self.parity != Parity::None) + u32::from(self.stop_bits)
+        1 + u32::from(self.data_bits)
+            + u32::from(self.parity != Parity::None)
+            + u32::from(self.stop_bits)
     }
 
     /// One character's time on the wire, in ns.
