@@ -116,7 +116,8 @@ pub struct Config {
     pub switch: Option<SwitchConfig>,
     /// `[retain]`: retained memory (docs/RETAIN.md).
     pub retain: RetainConfig,
-    /// `[modbus]`: the Modbus TCP server (off unless `listen` is given) and its map.
+    /// `[modbus]`: the Modbus TCP server (off unless `listen` is given), the RTU server
+    /// (`[modbus.rtu]`, off unless given) and the map both serve.
     pub modbus: ModbusConfig,
     /// `[st]`: the Structured Text declaration files.
     pub st: StConfig,
