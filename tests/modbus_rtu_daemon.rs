@@ -34,12 +34,14 @@ const MAP: &str = "[[modbus.coils]]\nstart = 0\ndevice = \"M0000\"\ncount = 32\n
 /// The unit the daemon serves.
 const UNIT: u8 = 7;
 
-/// `[modbus]` with `modbus` in it, `[modbus.rtu]` on `port`, the map.
+/// `[modbus]` with `modbus` in it, `[modbus.rtu]` on `port` (no parity: a pty carries bytes,
+/// and the kernel may refuse PARENB on one), the map.
 fn config(modbus: &str, port: &str) -> String {
     format!(
         "[plc]\nscan_period_ms = 1\n[rt]\npolicy = \"other\"\nlock_memory = false\n\
          [control]\nsocket = \"plcd.sock\"\n[[program]]\nfile = \"main.il\"\n\
-         [modbus]\n{modbus}\n[modbus.rtu]\nport = \"{port}\"\nbaud = 115200\nunit_id = {UNIT}\n\
+         [modbus]\n{modbus}\n[modbus.rtu]\nport = \"{port}\"\nbaud = 115200\nparity = \"none\"\n\
+         unit_id = {UNIT}\n\
          {MAP}"
     )
 }
