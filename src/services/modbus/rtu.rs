@@ -430,7 +430,9 @@ impl Line<'_> {
             return Ok(());
         }
         let Some(n) = answer else { return Ok(()) };
-        self.quiet()?;
+        if !self.quiet(deadline + self.answer_timeout)? {
+            return Ok(());
+        }
         let Line { port, scratch, .. } = self;
         open(port)?
             .send(&scratch.out[..n])
@@ -440,14 +442,18 @@ impl Line<'_> {
     }
 
     /// Waits until the line has been silent for t3.5 (`frame_gap_ns`) since the last byte
-    /// came; bytes that come meanwhile are kept for the next frame.
-    fn quiet(&mut self) -> io::Result<()> {
+    /// came; bytes that come meanwhile are kept for the next frame. False if it was not by
+    /// `give_up` (bytes without end: the answer is not sent).
+    fn quiet(&mut self, give_up: Instant) -> io::Result<bool> {
         let gap = self.config.line.frame_gap_ns();
         loop {
             let until = self.framer.last_ns() + gap;
             let now = now_ns();
             if now >= until {
-                return Ok(());
+                return Ok(true);
+            }
+            if Instant::now() >= give_up {
+                return Ok(false);
             }
             self.receive(Duration::from_nanos(until - now))?;
         }
