@@ -334,6 +334,8 @@ const PLCD_SYSCALLS: &[&str] = &[
     "renameat",
     "renameat2",
     "mkdirat",
+    // serial ports ([modbus.rtu]): opened exclusively (TIOCEXCL and flock), termios by ioctl
+    "flock",
 ];
 
 /// The groups `systemd-analyze syscall-filter` lists, each with its members (calls or groups).

@@ -78,7 +78,7 @@ struct Daemon {
     shared: Arc<Shared>,
     /// The control socket's thread, and how to stop it.
     control: Option<ControlThread>,
-    /// The Modbus TCP server (`[modbus] listen`).
+    /// The Modbus servers (`[modbus] listen`, `[modbus.rtu]`).
     modbus: Option<crate::services::modbus::RunningServer>,
     log_outputs: log::Level,
     notifier: Option<Notifier>,
@@ -142,7 +142,9 @@ impl Daemon {
                     commands: Arc::clone(&driver.commands),
                 };
                 let server = server.start(links)?;
-                log::info!("modbus: serving {}", server.local_addr());
+                for what in server.serving() {
+                    log::info!("modbus: serving {what}");
+                }
                 Some(server)
             }
             None => None,

@@ -54,7 +54,10 @@ def wait_for(what, probe, patience=PATIENCE):
 
 
 class Daemon:
-    def __init__(self, plcd, project):
+    """`plcd run` on a copy of `project`, listening on a free port, with `extra` appended to
+    its config."""
+
+    def __init__(self, plcd, project, extra=""):
         self.dir = tempfile.mkdtemp(prefix="plcd-pymodbus-")
         for name in os.listdir(project):
             shutil.copy(os.path.join(project, name), self.dir)
@@ -62,7 +65,7 @@ class Daemon:
         with open(config) as f:
             text = f.read()
         with open(config, "w") as f:
-            f.write(re.sub(r'listen = "[^"]*"', 'listen = "127.0.0.1:0"', text))
+            f.write(re.sub(r'listen = "[^"]*"', 'listen = "127.0.0.1:0"', text) + extra)
         self.log = []
         self.proc = subprocess.Popen(
             [plcd, "run", "--log-level", "debug", "--config", config],

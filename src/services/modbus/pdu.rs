@@ -1,7 +1,8 @@
-//! One Modbus request PDU in, one response ADU out: the function codes, their checks in the
-//! order of the Modbus application protocol (function → quantity and structure → addresses →
-//! execution), and the exceptions. Decoding and encoding are modbus-core's; what a request does
-//! to the PLC goes through [`Plc`], so that this is testable without a scan thread.
+//! One Modbus request PDU in, one response ADU out, framed for TCP or RTU: the function codes,
+//! their checks in the order of the Modbus application protocol (function → quantity and
+//! structure → addresses → execution), and the exceptions. Decoding and encoding are
+//! modbus-core's; what a request does to the PLC goes through [`Plc`], so that this is
+//! testable without a scan thread.
 
 use std::time::Instant;
 
@@ -72,10 +73,9 @@ impl Default for Scratch {
     }
 }
 
-/// Answers one request. `pdu` is not empty. Returns the response's length in `scratch.out`,
-/// or `None`
-/// when the request is no Modbus request at all (a function code of 128 or more, which only
-/// responses carry): the connection is then closed.
+/// Answers one Modbus TCP request. `pdu` is not empty. Returns the response's length in
+/// `scratch.out`, or `None` when the request is no Modbus request at all (a function code of
+/// 128 or more, which only responses carry): the connection is then closed.
 pub fn answer(
     map: &Map,
     plc: &dyn Plc,
@@ -85,11 +85,47 @@ pub fn answer(
     deadline: Instant,
     scratch: &mut Scratch,
 ) -> Option<usize> {
+    let other_unit = hdr.unit_id != unit_id && !ANY_UNIT.contains(&hdr.unit_id);
+    respond(map, plc, unit_id, other_unit, pdu, deadline, scratch, |pdu, out| {
+        encode_response(ResponseAdu { hdr, pdu }, out)
+    })
+}
+
+/// Answers one Modbus RTU request to `unit_id` (or a broadcast, whose answer the caller does
+/// not send): the same handling as [`answer`], framed with the address and the CRC. `pdu` is
+/// not empty. `None` for a function code of 128 or more.
+pub fn answer_rtu(
+    map: &Map,
+    plc: &dyn Plc,
+    unit_id: u8,
+    pdu: &[u8],
+    deadline: Instant,
+    scratch: &mut Scratch,
+) -> Option<usize> {
+    respond(map, plc, unit_id, false, pdu, deadline, scratch, |pdu, out| {
+        let hdr = modbus_core::rtu::Header { slave: unit_id };
+        modbus_core::rtu::server::encode_response(modbus_core::rtu::ResponseAdu { hdr, pdu }, out)
+    })
+}
+
+/// Serves `pdu` (exception 0B instead when `other_unit`) and encodes the response with
+/// `encode`.
+#[allow(clippy::too_many_arguments)]
+fn respond(
+    map: &Map,
+    plc: &dyn Plc,
+    unit_id: u8,
+    other_unit: bool,
+    pdu: &[u8],
+    deadline: Instant,
+    scratch: &mut Scratch,
+    encode: impl FnOnce(ResponsePdu<'_>, &mut [u8]) -> Result<usize, FrameError>,
+) -> Option<usize> {
     let fc = *pdu.first()?;
     if fc >= 0x80 {
         return None;
     }
-    let result = if hdr.unit_id != unit_id && !ANY_UNIT.contains(&hdr.unit_id) {
+    let result = if other_unit {
         Err(Exception::GatewayTargetDevice)
     } else {
         serve(map, plc, unit_id, pdu, deadline, &mut scratch.buffers)
@@ -98,7 +134,12 @@ pub fn answer(
         result
             .map_err(|exception| ExceptionResponse { function: FunctionCode::new(fc), exception }),
     );
-    encode_response(ResponseAdu { hdr, pdu }, &mut scratch.out).ok()
+    encode(pdu, &mut scratch.out).ok()
+}
+
+/// Whether function `fc` writes: the functions a broadcast (Modbus RTU address 0) may carry.
+pub fn writes(fc: u8) -> bool {
+    matches!(fc, 5 | 6 | 15 | 16 | 22 | 23)
 }
 
 /// An exception response to function `fc` (below 128).

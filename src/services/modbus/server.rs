@@ -1,6 +1,7 @@
-//! The Modbus TCP server: a listener thread and one thread per connection, none of them real
-//! time, bounded in number (`max_connections`), frame size (`max_request_bytes`) and idle time
-//! (`idle_timeout_s`).
+//! The Modbus servers of `[modbus]`: over TCP, a listener thread and one thread per
+//! connection, none of them real time, bounded in number (`max_connections`), frame size
+//! (`max_request_bytes`) and idle time (`idle_timeout_s`); on a serial line (`[modbus.rtu]`),
+//! one thread ([`super::rtu`]). Both read the same mirror and write through the same queue.
 //!
 //! Blocking sockets and a thread per connection rather than one poll loop: a request waits
 //! for a scan boundary (a read for the next mirror capture, a write until it was applied), and
@@ -26,6 +27,7 @@ use modbus_core::Exception;
 
 use super::map::Map;
 use super::pdu::{self, Plc, Scratch, HEADER, MAX_ADU};
+use super::rtu;
 use super::ModbusError;
 use crate::config::ModbusConfig;
 use crate::drivers::real_time::mirror::Mirror;
@@ -34,6 +36,7 @@ use crate::drivers::real_time::PLAIN_THREAD_STACK;
 use crate::drivers::real_time::{
     pending, Command, Shared, WordWrite, WordWrites, WORDS_PER_COMMAND,
 };
+use crate::io::serial::Port;
 
 /// How long writing a response may take before the connection is given up (a client that
 /// does not read).
@@ -42,10 +45,13 @@ const WRITE_TIMEOUT: Duration = Duration::from_secs(10);
 const REFUSED_WARN_EVERY: Duration = Duration::from_secs(10);
 
 /// A bound server, not yet serving: the daemon binds before it starts the real-time threads
-/// (so a port in use stops the start) and hands [`ModbusServer::mirror`] to the driver.
+/// (so a port in use, or a serial port that cannot be opened, stops the start) and hands
+/// [`ModbusServer::mirror`] to the driver.
 pub struct ModbusServer {
-    listener: TcpListener,
-    local: SocketAddr,
+    /// `[modbus] listen`, bound, and the address it has.
+    tcp: Option<(TcpListener, SocketAddr)>,
+    /// `[modbus.rtu]`'s port, open.
+    rtu: Option<Port>,
     config: ModbusConfig,
     map: Arc<Map>,
     mirror: Arc<Mirror>,
@@ -60,9 +66,12 @@ pub struct ModbusLinks {
 
 /// A serving server; [`RunningServer::stop`] ends it.
 pub struct RunningServer {
-    local: SocketAddr,
+    local: Option<SocketAddr>,
     inner: Arc<Inner>,
+    /// The TCP listener's thread.
     thread: Option<JoinHandle<()>>,
+    /// The serial line's thread.
+    rtu_thread: Option<JoinHandle<()>>,
 }
 
 struct Inner {
@@ -77,21 +86,35 @@ struct Inner {
 }
 
 impl ModbusServer {
-    /// Binds `[modbus] listen`; `None` when it is not set (the server is off).
+    /// Binds `[modbus] listen` and opens `[modbus.rtu]`'s port, those of them that are set;
+    /// `None` when neither is (the server is off).
     pub fn bind(config: &ModbusConfig) -> Result<Option<ModbusServer>, ModbusError> {
-        let Some(addr) = config.listen else { return Ok(None) };
-        let listener =
-            TcpListener::bind(addr).map_err(|source| ModbusError::Bind { addr, source })?;
-        let local = listener.local_addr().map_err(|source| ModbusError::Bind { addr, source })?;
-        listener.set_nonblocking(true).map_err(|source| ModbusError::Bind { addr, source })?;
+        if config.listen.is_none() && config.rtu.is_none() {
+            return Ok(None);
+        }
+        let tcp = match config.listen {
+            Some(addr) => {
+                let bind = |source| ModbusError::Bind { addr, source };
+                let listener = TcpListener::bind(addr).map_err(bind)?;
+                let local = listener.local_addr().map_err(bind)?;
+                listener.set_nonblocking(true).map_err(bind)?;
+                Some((listener, local))
+            }
+            None => None,
+        };
+        let rtu = match &config.rtu {
+            Some(rtu) => Some(Port::open(&rtu.line).map_err(ModbusError::Serial)?),
+            None => None,
+        };
         let map = Arc::new(Map::new(config));
         let mirror = Arc::new(Mirror::new(map.mirror_ranges().iter().cloned()));
-        Ok(Some(ModbusServer { listener, local, config: config.clone(), map, mirror }))
+        Ok(Some(ModbusServer { tcp, rtu, config: config.clone(), map, mirror }))
     }
 
-    /// The address it listens on (with the port chosen when `listen` said port 0).
-    pub fn local_addr(&self) -> SocketAddr {
-        self.local
+    /// The address it listens on (with the port chosen when `listen` said port 0); `None`
+    /// without `listen`.
+    pub fn local_addr(&self) -> Option<SocketAddr> {
+        self.tcp.as_ref().map(|(_, local)| *local)
     }
 
     /// The mirror of the mapped words, for [`crate::drivers::real_time::driver::Driver::start`].
@@ -99,7 +122,7 @@ impl ModbusServer {
         Arc::clone(&self.mirror)
     }
 
-    /// Starts the listener thread.
+    /// Starts the listener thread and the serial line's.
     pub fn start(self, links: ModbusLinks) -> Result<RunningServer, ModbusError> {
         let wake = Wake::new().map_err(|e| ModbusError::Sys(e.to_string()))?;
         let inner = Arc::new(Inner {
@@ -116,22 +139,49 @@ impl ModbusServer {
             connections: Mutex::new(HashMap::new()),
             next_id: AtomicU64::new(0),
         });
-        let listener = self.listener;
-        let thread = std::thread::Builder::new()
-            .name("plcd-modbus".into())
-            .stack_size(PLAIN_THREAD_STACK)
-            .spawn({
-                let inner = Arc::clone(&inner);
-                move || inner.listen(listener)
-            })
-            .map_err(|source| ModbusError::Spawn { source })?;
-        Ok(RunningServer { local: self.local, inner, thread: Some(thread) })
+        // Stopped and joined on drop if the second thread cannot start.
+        let mut running = RunningServer {
+            local: self.tcp.as_ref().map(|(_, local)| *local),
+            inner,
+            thread: None,
+            rtu_thread: None,
+        };
+        if let Some((listener, _)) = self.tcp {
+            let inner = Arc::clone(&running.inner);
+            let thread = std::thread::Builder::new()
+                .name("plcd-modbus".into())
+                .stack_size(PLAIN_THREAD_STACK)
+                .spawn(move || inner.listen(listener))
+                .map_err(|source| ModbusError::Spawn { source })?;
+            running.thread = Some(thread);
+        }
+        if let Some(port) = self.rtu {
+            let inner = Arc::clone(&running.inner);
+            let thread = std::thread::Builder::new()
+                .name("plcd-modbus-rtu".into())
+                .stack_size(PLAIN_THREAD_STACK)
+                .spawn(move || inner.serve_rtu(port))
+                .map_err(|source| ModbusError::Spawn { source })?;
+            running.rtu_thread = Some(thread);
+        }
+        Ok(running)
     }
 }
 
 impl RunningServer {
-    pub fn local_addr(&self) -> SocketAddr {
+    /// The TCP address served, if any.
+    pub fn local_addr(&self) -> Option<SocketAddr> {
         self.local
+    }
+
+    /// What is served, for the log: the TCP address, `rtu PORT`.
+    pub fn serving(&self) -> Vec<String> {
+        let rtu = self.rtu_thread.as_ref().and(self.inner.config.rtu.as_ref());
+        self.local
+            .map(|local| local.to_string())
+            .into_iter()
+            .chain(rtu.map(|rtu| format!("rtu {}", rtu.line.port.display())))
+            .collect()
     }
 
     /// Connections open now.
@@ -146,10 +196,19 @@ impl RunningServer {
     }
 
     fn shut(&mut self) {
-        let Some(thread) = self.thread.take() else { return };
+        let (thread, rtu_thread) = (self.thread.take(), self.rtu_thread.take());
+        if thread.is_none() && rtu_thread.is_none() {
+            return;
+        }
         self.inner.stop.store(true, Ordering::SeqCst);
         self.inner.wake.wake();
-        let _ = thread.join();
+        if let Some(thread) = thread {
+            let _ = thread.join();
+        }
+        // A request being answered finishes first, within `answer_timeout_ms`.
+        if let Some(thread) = rtu_thread {
+            let _ = thread.join();
+        }
         if let Ok(connections) = self.inner.connections.lock() {
             for stream in connections.values() {
                 let _ = stream.shutdown(Shutdown::Both);
@@ -171,6 +230,12 @@ impl Drop for RunningServer {
 }
 
 impl Inner {
+    fn serve_rtu(self: Arc<Self>, port: Port) {
+        let Some(rtu) = &self.config.rtu else { return };
+        let answer_timeout = Duration::from_millis(u64::from(self.config.answer_timeout_ms));
+        rtu::serve(port, rtu, &self.map, &self.scan, answer_timeout, &self.stop);
+    }
+
     fn listen(self: Arc<Self>, listener: TcpListener) {
         let mut last_warned: Option<Instant> = None;
         let mut refused = 0u64;
