@@ -104,7 +104,8 @@ impl TcpLink {
             read_until(stream, &mut header, deadline)?;
             let (answer_tid, pdu_len) = frame::check_mbap(&header).map_err(|f| (f, true))?;
             let mut pdu = [0u8; MAX_ADU];
-            read_until(stream, &mut pdu[..pdu_len], deadline)?;
+            // Its header is read: whatever stops the rest leaves the stream out of step.
+            read_until(stream, &mut pdu[..pdu_len], deadline).map_err(|(f, _)| (f, true))?;
             if answer_tid != tid {
                 // An answer to an earlier request that timed out: drop it, wait for ours.
                 if tid.wrapping_sub(answer_tid) < RECENT_TIDS {
@@ -116,7 +117,12 @@ impl TcpLink {
             if header[6] != unit {
                 return Err((Fault::WrongUnit(header[6]), false));
             }
-            return frame::check_answer(ask, &pdu[..pdu_len], values).map_err(|f| (f, false));
+            // An exception is an answer; an answer that does not fit the request is garbage,
+            // and a stream that carried garbage cannot be trusted.
+            return frame::check_answer(ask, &pdu[..pdu_len], values).map_err(|f| {
+                let garbage = matches!(f, Fault::Garbage(_));
+                (f, garbage)
+            });
         }
     }
 }

@@ -17,6 +17,7 @@ use crate::config::{ModbusTable, SerialLine};
 /// What the peer does about one request.
 enum Act {
     Send(Vec<u8>),
+    Sleep(u64),
     Close,
 }
 
@@ -58,6 +59,7 @@ fn tcp_peer(
                 for act in script(n - 1, tid, header[6]) {
                     match act {
                         Act::Send(bytes) => stream.write_all(&bytes).unwrap(),
+                        Act::Sleep(ms) => std::thread::sleep(Duration::from_millis(ms)),
                         Act::Close => break 'connection,
                     }
                 }
@@ -108,7 +110,8 @@ fn tcp_answers_faults_and_when_the_connection_is_dropped() {
     assert!(matches!(&short, Err(Fault::Garbage(m)) if m.contains("4 bytes for 2")), "{short:?}");
     assert_eq!(exchange(&mut link, 1000), Err(Fault::Closed));
     assert_eq!(exchange(&mut link, 1000), Ok([0x1234, 0xABCD]), "reconnected");
-    assert_eq!(connections.load(Ordering::SeqCst), 3);
+    // Garbage twice (a protocol id, an answer that does not fit), a close: three new ones.
+    assert_eq!(connections.load(Ordering::SeqCst), 4);
 }
 
 #[test]
@@ -138,6 +141,30 @@ fn a_late_tcp_answer_is_dropped_and_counted_and_the_next_one_is_awaited() {
     assert_eq!(link.take_late(), 1);
     assert_eq!(link.take_late(), 0);
     assert_eq!(connections.load(Ordering::SeqCst), 1, "a timeout keeps the connection");
+}
+
+#[test]
+fn an_answer_cut_short_after_its_header_drops_the_connection() {
+    let (address, connections) = tcp_peer(
+        |n, tid, unit| match n {
+            // The header in time, the rest after the timeout.
+            0 => {
+                let answer = mbap(tid, unit, &READ_2);
+                vec![
+                    Act::Send(answer[..7].to_vec()),
+                    Act::Sleep(300),
+                    Act::Send(answer[7..].to_vec()),
+                ]
+            }
+            _ => vec![Act::Send(mbap(tid, unit, &[0x03, 4, 0, 7, 0, 8]))],
+        },
+        |_| {},
+    );
+    let mut link = TcpLink::new(&address);
+    assert_eq!(exchange(&mut link, 100), Err(Fault::Timeout));
+    // The rest of that answer is never read as the next answer's header.
+    assert_eq!(exchange(&mut link, 2000), Ok([7, 8]));
+    assert_eq!(connections.load(Ordering::SeqCst), 2);
 }
 
 #[test]

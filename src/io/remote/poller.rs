@@ -127,6 +127,8 @@ struct WriteSlot {
     retry_at: u64,
     offset: usize,
     written: Option<Vec<u16>>,
+    /// Failed writes since its last good one: while it is not 0 the device is not healthy.
+    failed_in_a_row: u32,
 }
 
 /// See the module documentation.
@@ -199,6 +201,7 @@ impl Poller {
                     retry_at: 0,
                     offset,
                     written: None,
+                    failed_in_a_row: 0,
                 };
                 offset += words_of(&write.table);
                 slot
@@ -265,11 +268,19 @@ impl Poller {
             if now < self.retry_at {
                 return Err(self.retry_at);
             }
-            // One exchange tells whether it is back: a read, or a write when it has none.
+            // One exchange tells whether it is back: a write that failed (a device that answers
+            // reads but refuses a write is not back until the write goes through), else a
+            // read, else a write.
+            let captured = self.outputs.output_buffer().captured;
+            if let Some(i) = self.writes.iter().position(|w| w.failed_in_a_row > 0) {
+                if captured {
+                    return Ok(Job::Write(i));
+                }
+            }
             if !self.reads.is_empty() {
                 return Ok(Job::Read(0));
             }
-            if self.outputs.output_buffer().captured {
+            if captured && !self.writes.is_empty() {
                 return Ok(Job::Write(0));
             }
             return Err(now + self.period);
@@ -358,21 +369,6 @@ impl Poller {
         }
         match result {
             Ok(()) => {
-                if self.lost {
-                    // Back: every table is due at once (the one just read is done).
-                    self.lost = false;
-                    for slot in &mut self.reads {
-                        slot.due = now;
-                    }
-                    let lost_ms = (now - self.lost_at) / MS;
-                    self.condition = None;
-                    // The episode is over: the next late answer is news again.
-                    self.late_seen = false;
-                    self.notices.push(Notice::Back {
-                        failures: self.failed_since_ok,
-                        lost_ms: Some(lost_ms),
-                    });
-                }
                 match job {
                     Job::Read(i) => {
                         let slot = &mut self.reads[i];
@@ -390,6 +386,7 @@ impl Poller {
                         // What was written, as the scan sees it (the swaps undone).
                         swap(&slot.table, &mut values);
                         slot.written = Some(values);
+                        slot.failed_in_a_row = 0;
                         slot.due = match slot.on {
                             WriteOn::Change { refresh_ms } => now + u64::from(refresh_ms) * MS,
                             WriteOn::Period { period_ms } => {
@@ -400,12 +397,35 @@ impl Poller {
                     }
                 }
                 self.in_a_row = 0;
-                if self.condition.take().is_some() {
+                // Healthy: no write waits to be retried. Until then an answer does not end the
+                // fault, so a device that reads well and refuses a write neither comes back
+                // nor logs again at each turn.
+                let healthy = self.writes.iter().all(|w| w.failed_in_a_row == 0);
+                if healthy && self.lost {
+                    // Back: every table not read since the loss is due at once.
+                    self.lost = false;
+                    for slot in self.reads.iter_mut().filter(|slot| !slot.fresh) {
+                        slot.due = now;
+                    }
+                    let lost_ms = (now - self.lost_at) / MS;
+                    self.condition = None;
+                    // The episode is over: the next late answer is news again.
+                    self.late_seen = false;
+                    self.notices.push(Notice::Back {
+                        failures: self.failed_since_ok,
+                        lost_ms: Some(lost_ms),
+                    });
+                } else if healthy && self.condition.take().is_some() {
                     self.late_seen = false;
                     self.notices
                         .push(Notice::Back { failures: self.failed_since_ok, lost_ms: None });
+                } else if self.lost {
+                    // Another write that failed is tried at once.
+                    self.retry_at = now;
                 }
-                self.failed_since_ok = 0;
+                if healthy {
+                    self.failed_since_ok = 0;
+                }
             }
             Err(fault) => {
                 let ask = match job {
@@ -423,8 +443,16 @@ impl Poller {
                         let slot = &mut self.reads[i];
                         slot.due = next_due(slot.due, slot.period, now);
                     }
-                    Job::Write(i) => self.writes[i].retry_at = now + self.period,
+                    Job::Write(i) => {
+                        let slot = &mut self.writes[i];
+                        slot.retry_at = now + self.period;
+                        slot.failed_in_a_row = slot.failed_in_a_row.saturating_add(1);
+                    }
                 }
+                let table_in_a_row = match job {
+                    Job::Write(i) => self.writes[i].failed_in_a_row,
+                    Job::Read(_) => 0,
+                };
                 if self.condition != Some(fault.condition()) {
                     self.condition = Some(fault.condition());
                     self.notices.push(Notice::Fault { ask, fault });
@@ -432,7 +460,7 @@ impl Poller {
                 if self.lost {
                     self.retry_at = now + self.backoff;
                     self.backoff = (self.backoff * 2).min(self.reconnect.1);
-                } else if self.in_a_row >= self.loss_after {
+                } else if self.in_a_row.max(table_in_a_row) >= self.loss_after {
                     self.lost = true;
                     self.lost_at = now;
                     stats.losses += 1;
@@ -444,8 +472,8 @@ impl Poller {
                     if self.on_loss == OnLoss::Clear {
                         self.image.fill(0);
                     }
-                    self.notices
-                        .push(Notice::Lost { failures: self.in_a_row, on_loss: self.on_loss });
+                    let failures = self.in_a_row.max(table_in_a_row);
+                    self.notices.push(Notice::Lost { failures, on_loss: self.on_loss });
                 }
             }
         }

@@ -332,3 +332,41 @@ fn register_tables_swap_bytes_and_words_both_ways() {
     io.refresh_inputs(&mut mem);
     assert_eq!((word(&mem, "D00020"), word(&mem, "D00021")), (0x7856, 0x3412));
 }
+
+#[test]
+fn a_device_that_reads_well_and_refuses_a_write_is_lost_once_until_the_write_goes_through() {
+    let mut config = device();
+    config.loss_after = 2;
+    let (mut io, mut poller) = pair_for_tests(&config);
+    let mut mem = mem();
+    io.refresh_outputs(&mem);
+    let refused = Err(Fault::Exception(2));
+    assert_eq!(run(&mut poller, 0, &[], refused.clone()), Job::Write(0));
+    // The reads go on and succeed, but the device stays unhealthy: no "answering again".
+    assert_eq!(run(&mut poller, 0, &[1, 0], Ok(())), Job::Read(0));
+    assert_eq!(run(&mut poller, 0, &[2, 0], Ok(())), Job::Read(1));
+    io.refresh_inputs(&mut mem);
+    assert!(bit(&mem, "M0100"), "one refused write of two allowed: still online");
+    assert_eq!(run(&mut poller, 10 * MS, &[], refused.clone()), Job::Write(0));
+    io.refresh_inputs(&mut mem);
+    assert!(!bit(&mem, "M0100"), "the write failed twice in a row: lost");
+    // Lost: the write is what is tried, with backoff; the reads wait.
+    let mut at = 10 * MS;
+    for wait in [100, 200, 400] {
+        at += wait * MS;
+        assert_eq!(poller.next_job(at - 1), Err(at));
+        assert_eq!(run(&mut poller, at, &[], refused.clone()), Job::Write(0));
+    }
+    let notices = poller.take_notices();
+    assert_eq!(notices.len(), 2, "one fault, one loss: {notices:?}");
+    assert!(matches!(notices[1], Notice::Lost { failures: 2, .. }));
+    at += 500 * MS;
+    assert_eq!(run(&mut poller, at, &[], Ok(())), Job::Write(0));
+    assert!(matches!(poller.take_notices()[..], [Notice::Back { failures: 5, lost_ms: Some(_) }]));
+    // Back: the reads come at once, and the status with them.
+    assert_eq!(run(&mut poller, at, &[1, 0], Ok(())), Job::Read(0));
+    assert_eq!(run(&mut poller, at, &[2, 0], Ok(())), Job::Read(1));
+    io.refresh_inputs(&mut mem);
+    assert!(bit(&mem, "M0100"));
+    assert_eq!(poller.stats().lock().unwrap().losses, 1);
+}
