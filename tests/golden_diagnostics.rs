@@ -2,8 +2,8 @@
 //! byte for byte.
 //!
 //! - Every error at once: each `.il` under `tests/golden/lang` produces exactly the lines of its
-//!   `.expected` file, and `plcd check` on `tests/golden/config` and `tests/golden/project`
-//!   exactly their `expected.stderr`.
+//!   `.expected` file, and `plcd check` on `tests/golden/config`, `tests/golden/remote` (remote
+//!   I/O) and `tests/golden/project` exactly their `expected.stderr`.
 //! - One case per diagnostic: each directory `tests/golden/<area>/<diagnostic>/` is a minimal
 //!   project that makes the real binary report that one diagnostic and nothing else, with its
 //!   stderr in `expected.stderr`. The areas are where the message comes from: `lang` (the
@@ -92,6 +92,11 @@ fn check_reports_every_error_of_every_file() {
 #[test]
 fn check_reports_every_config_error() {
     check_golden("config");
+}
+
+#[test]
+fn check_reports_every_remote_io_error() {
+    check_golden("remote");
 }
 
 /// The case directories of one area, sorted.

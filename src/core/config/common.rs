@@ -80,6 +80,18 @@ pub(super) fn entries<T: DeserializeOwned>(
     name: &str,
     name_of: impl Fn(&DeTable) -> Option<String>,
 ) -> Vec<Result<Located<T>, Option<String>>> {
+    entries_as(sink, value, name, name, name_of)
+}
+
+/// [`entries`] of an array whose entries are called `label "x"` or `label #2` rather than by
+/// the array's dotted `name` (the tables of one `[[remote]]`: `remote "rack1" read #2`).
+pub(super) fn entries_as<T: DeserializeOwned>(
+    sink: &mut Sink,
+    value: Option<Spanned<DeValue<'_>>>,
+    name: &str,
+    label: &str,
+    name_of: impl Fn(&DeTable) -> Option<String>,
+) -> Vec<Result<Located<T>, Option<String>>> {
     let Some(value) = value else {
         return Vec::new();
     };
@@ -99,8 +111,8 @@ pub(super) fn entries<T: DeserializeOwned>(
         };
         let peeked = name_of(&table);
         let ctx = match &peeked {
-            Some(entry_name) => Ctx::Entry(format!("{name} {entry_name:?}")),
-            None => Ctx::Entry(format!("{name} #{}", index + 1)),
+            Some(entry_name) => Ctx::Entry(format!("{label} {entry_name:?}")),
+            None => Ctx::Entry(format!("{label} #{}", index + 1)),
         };
         out.push(match deserialize(sink, table, span.clone(), &ctx) {
             Some((value, removed)) if removed.is_empty() => Ok(Located { span, ctx, value }),

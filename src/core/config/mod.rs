@@ -6,10 +6,11 @@
 //! program is, and loading it is the project loader's job.
 //!
 //! The config is split by section, one file each (`plc`, `sim`, `timers`, `program`, `task`,
-//! `io`, `rt`, `control`, `switch`, `retain`, `modbus`): its typed struct with the key's
-//! defaults and ranges, its raw form as serde reads it, and its checks. How the wiring maps
-//! onto GPIO line requests, the kernel's limits included, is [`wiring`]. What every section
-//! shares is `common`; this file drives the two passes over all of them.
+//! `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `remote`): its typed struct with the
+//! key's defaults and ranges, its raw form as serde reads it, and its checks. How the wiring
+//! maps onto GPIO line requests, the kernel's limits included, is [`wiring`]. What every
+//! section shares is `common`, and `serial` the keys of a serial line that `[modbus.rtu]` and
+//! `[[remote]]` share; this file drives the two passes over all of them.
 //!
 //! [`parse`] is pure: text in, [`Config`] or [`Diagnostics`] out (`plcd::files` reads the file).
 //! Parsing runs in two passes so that one mistake does not hide the next:
@@ -116,7 +117,8 @@ pub struct Config {
     pub switch: Option<SwitchConfig>,
     /// `[retain]`: retained memory (docs/RETAIN.md).
     pub retain: RetainConfig,
-    /// `[modbus]`: the Modbus TCP server (off unless `listen` is given) and its map.
+    /// `[modbus]`: the Modbus TCP server (off unless `listen` is given), the RTU server
+    /// (`[modbus.rtu]`, off unless given) and the map both serve.
     pub modbus: ModbusConfig,
     /// `[st]`: the Structured Text declaration files.
     pub st: StConfig,
@@ -202,6 +204,8 @@ struct RawDoc {
     pub retain: Option<retain::RawRetain>,
     /// `[modbus]` and its tables; `None` when the document has none.
     pub modbus: Option<modbus::RawModbusDoc>,
+    /// `[[remote]]` and the tables of each.
+    pub remotes: remote::RawRemotes,
     pub st: Option<st::RawSt>,
     pub failed: Failed,
 }
@@ -219,8 +223,8 @@ struct Failed {
     pub input: bool,
 }
 
-const TOP_LEVEL: &str =
-    "`plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `st`";
+const TOP_LEVEL: &str = "`plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`, `control`, \
+                         `switch`, `retain`, `modbus`, `st`, `remote`";
 
 /// Pass 1. `None` if the TOML itself is malformed (the syntax errors are in `sink`).
 fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
@@ -256,6 +260,7 @@ fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
             "retain" => &mut sections.retain,
             "modbus" => &mut sections.modbus,
             "st" => &mut sections.st,
+            "remote" => &mut sections.remote,
             other => {
                 let message = format!("unknown key `{other}`, expected one of {TOP_LEVEL}");
                 sink.error(key.span().start, message);
@@ -295,6 +300,7 @@ fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
     doc.retain = section(sink, sections.retain, "retain", &mut doc.failed.keys);
     doc.modbus = modbus::read(sink, sections.modbus);
     doc.st = section(sink, sections.st, "st", &mut doc.failed.keys);
+    doc.remotes = remote::read(sink, sections.remote);
     Some(doc)
 }
 
@@ -313,6 +319,7 @@ struct Sections<'i> {
     retain: Option<Spanned<DeValue<'i>>>,
     modbus: Option<Spanned<DeValue<'i>>>,
     st: Option<Spanned<DeValue<'i>>>,
+    remote: Option<Spanned<DeValue<'i>>>,
 }
 
 /// Pass 2. `None` if anything is wrong (and then `sink` says what).
@@ -331,6 +338,16 @@ fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
         .map(|io| io.value.backend)
         .filter(|_| !failed.iter().any(|k| k == "io.backend"));
     let wired = io::wired_lines(&doc.inputs, &doc.outputs);
+    // [[remote]] before [io] and [modbus] consume their entries: remote reads must write no
+    // P bit of the local I/O, and no port is both polled and served.
+    let neighbours = remote::Neighbours {
+        io_bits: remote::io_bits(&doc.inputs, &doc.outputs)
+            .into_iter()
+            .chain(remote::contact_bits(&doc.tasks))
+            .collect(),
+        rtu_server: modbus::rtu_port(doc.modbus.as_ref()),
+    };
+    let remotes = remote::validate(sink, doc.remotes, &neighbours);
     let switch_place = doc.switch.as_ref().map(|s| Place {
         at: s.value.line.as_ref().map_or(s.span.start, |line| line.span().start),
         subject: s.ctx.subject(),
@@ -373,6 +390,6 @@ fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
         retain: retain?,
         modbus: modbus?,
         st: st?,
-        remotes: Vec::new(),
+        remotes: remotes?,
     })
 }

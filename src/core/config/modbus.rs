@@ -1,4 +1,5 @@
-//! `[modbus]`: the Modbus TCP server of `plcd run` and its register map (docs/MODBUS.md).
+//! `[modbus]`: the Modbus TCP server of `plcd run`, its register map, and `[modbus.rtu]`, the
+//! same map served on a serial line (docs/MODBUS.md).
 //!
 //! ```toml
 //! [modbus]
@@ -10,12 +11,19 @@
 //! device = "P0040"
 //! count = 16
 //! writable = true
+//!
+//! [modbus.rtu]                   # no [modbus.rtu]: no RTU server (the default)
+//! port = "/dev/ttyUSB0"
+//! baud = 19200
+//! unit_id = 1
 //! ```
 //!
-//! Both passes of the config live here: [`read`] (pass 1, called by the driver in `mod.rs`) turns the `[modbus]`
-//! table and its four arrays of tables into loosely typed entries; [`validate`] (pass 2) checks
-//! the ranges, the devices each table may map and the overlaps, and resolves every range to the
-//! word or bit indices of device memory once, so the server never parses an address.
+//! Both passes of the config live here: [`read`] (pass 1, called by the driver in `mod.rs`)
+//! turns the `[modbus]` table, `[modbus.rtu]` and the four arrays of tables into loosely typed
+//! entries; [`validate`] (pass 2) checks the ranges, the devices each table may map and the
+//! overlaps, and resolves every range to the word or bit indices of device memory once, so the
+//! server never parses an address. The serial line's keys are checked by `serial`, which
+//! `[[remote]]` shares.
 
 use std::net::SocketAddr;
 use std::ops::{Range, RangeInclusive};
@@ -26,11 +34,12 @@ use toml::de::DeValue;
 use toml::Spanned;
 
 use super::common::{entries, int, int_or, section, widen, Ctx, Located};
-use super::serial::SerialLine;
+use super::serial::{self, Parity, RawSerial, SerialLine};
 use super::Sink;
 use crate::device::{layout, Address, Area, Writer};
 
-/// `[modbus]`: the Modbus TCP server. Off unless `listen` is given.
+/// `[modbus]`: the Modbus TCP server, off unless `listen` is given, and the RTU server, off
+/// unless `[modbus.rtu]` is given; both serve the one map.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ModbusConfig {
     /// `listen`: the IP address and TCP port to serve, `"127.0.0.1:1502"` or `"[::1]:1502"`;
@@ -238,6 +247,21 @@ pub(super) struct RawModbus {
     _holding_registers: Option<IgnoredAny>,
     #[serde(rename = "input_registers")]
     _input_registers: Option<IgnoredAny>,
+    #[serde(rename = "rtu")]
+    _rtu: Option<IgnoredAny>,
+}
+
+/// `[modbus.rtu]`: the serial line's keys (see [`RawSerial`]) and the unit served.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawModbusRtu {
+    pub port: Option<Spanned<String>>,
+    pub baud: Option<Spanned<i64>>,
+    pub parity: Option<Spanned<Parity>>,
+    pub data_bits: Option<Spanned<i64>>,
+    pub stop_bits: Option<Spanned<i64>>,
+    pub frame_gap_us: Option<Spanned<i64>>,
+    pub unit_id: Option<Spanned<i64>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -253,6 +277,8 @@ pub(super) struct RawRange {
 #[derive(Debug, Default)]
 pub(super) struct RawModbusDoc {
     pub section: Option<Located<RawModbus>>,
+    /// `[modbus.rtu]`, when the document has one and it deserialized.
+    pub rtu: Option<Located<RawModbusRtu>>,
     /// The entries of each table that deserialized, in [`ModbusTable::ALL`] order.
     pub tables: [Vec<Located<RawRange>>; 4],
     /// Some entry or key had errors (already reported).
@@ -270,6 +296,7 @@ pub(super) fn read(sink: &mut Sink, value: Option<Spanned<DeValue<'_>>>) -> Opti
         return Some(doc);
     };
     let arrays = ModbusTable::ALL.map(|t| table.remove(t.key()));
+    let rtu = table.remove("rtu");
     let rest = Spanned::new(span.clone(), DeValue::Table(table));
     let mut failed_keys = Vec::new();
     doc.section = section(sink, Some(rest), "modbus", &mut failed_keys).map(|value| Located {
@@ -277,6 +304,15 @@ pub(super) fn read(sink: &mut Sink, value: Option<Spanned<DeValue<'_>>>) -> Opti
         ctx: Ctx::Section("modbus"),
         value,
     });
+    if let Some(rtu) = rtu {
+        let span = rtu.span();
+        doc.rtu = section(sink, Some(rtu), "modbus.rtu", &mut failed_keys).map(|value| Located {
+            span,
+            ctx: Ctx::Section("modbus.rtu"),
+            value,
+        });
+        doc.failed |= doc.rtu.is_none();
+    }
     doc.failed |= doc.section.is_none() || !failed_keys.is_empty();
     for ((table, array), slot) in ModbusTable::ALL.iter().zip(arrays).zip(doc.tables.iter_mut()) {
         let name = format!("modbus.{}", table.key());
@@ -365,6 +401,12 @@ pub(super) fn validate(sink: &mut Sink, raw: Option<RawModbusDoc>) -> Option<Mod
             _ => ok = false,
         }
     }
+    if let Some(rtu) = raw.rtu {
+        match rtu_server(sink, rtu) {
+            Some(rtu) => config.rtu = Some(rtu),
+            None => ok = false,
+        }
+    }
     for (table, entries) in ModbusTable::ALL.into_iter().zip(raw.tables) {
         let mut ranges: Vec<(ModbusRange, usize, String)> = Vec::new();
         for entry in entries {
@@ -401,6 +443,33 @@ pub(super) fn validate(sink: &mut Sink, raw: Option<RawModbusDoc>) -> Option<Mod
         }
     }
     ok.then_some(config)
+}
+
+/// `[modbus.rtu]`: the serial line and the unit served.
+fn rtu_server(sink: &mut Sink, rtu: Located<RawModbusRtu>) -> Option<ModbusRtuConfig> {
+    let Located { span, ctx, value: raw } = rtu;
+    let serial = RawSerial {
+        port: raw.port,
+        baud: raw.baud,
+        parity: raw.parity,
+        data_bits: raw.data_bits,
+        stop_bits: raw.stop_bits,
+        frame_gap_us: raw.frame_gap_us,
+    };
+    let line = serial::line(sink, &ctx, &serial, |sink| {
+        let message =
+            format!("{} needs `port`: the serial device, as \"/dev/ttyUSB0\"", ctx.subject());
+        sink.error(span.start, message);
+    });
+    let unit_id = int_or(sink, &ctx, "unit_id", raw.unit_id, widen(ModbusRtuConfig::UNIT_ID), 1);
+    Some(ModbusRtuConfig { line: line?, unit_id: unit_id? })
+}
+
+/// Where `[modbus.rtu] port` is and what it says, for the check that no `[[remote]]` polls
+/// the port the server answers on.
+pub(super) fn rtu_port(raw: Option<&RawModbusDoc>) -> Option<(String, usize)> {
+    let port = raw?.rtu.as_ref()?.value.port.as_ref()?;
+    Some((port.get_ref().clone(), port.span().start))
 }
 
 /// One entry of a table, resolved to device memory.
@@ -591,7 +660,7 @@ mod tests {
                 "8:1: [modbus]: unknown key `port`, expected one of `listen`, `unit_id`, \
                  `max_connections`, `max_request_bytes`, `idle_timeout_s`, \
                  `answer_timeout_ms`, `coils`, `discrete_inputs`, `holding_registers`, \
-                 `input_registers`",
+                 `input_registers`, `rtu`",
             ]
         );
         assert_eq!(config("[modbus]\nlisten = \"[::1]:0\"\n").modbus.listen.unwrap().port(), 0);
@@ -659,5 +728,102 @@ mod tests {
         assert_eq!(errs.len(), 2, "{errs:#?}");
         assert!(errs[0].contains("modbus.coils \"M0000\": missing key `count`"), "{}", errs[0]);
         assert!(errs[1].contains("unknown key `writeable`"), "{}", errs[1]);
+    }
+
+    #[test]
+    fn an_rtu_section_serves_on_a_serial_line_with_the_modbus_defaults() {
+        // Without `listen` the TCP server stays off; the RTU server serves the same map.
+        let modbus = config("[modbus.rtu]\nport = \"/dev/ttyUSB0\"\n").modbus;
+        assert_eq!(modbus.listen, None);
+        let rtu = modbus.rtu.expect("an RTU server");
+        assert_eq!(rtu, ModbusRtuConfig { line: SerialLine::new("/dev/ttyUSB0"), unit_id: 1 });
+        assert_eq!(
+            (rtu.line.baud, rtu.line.parity, rtu.line.data_bits, rtu.line.stop_bits),
+            (19_200, Parity::Even, 8, 1)
+        );
+        assert_eq!(rtu.line.frame_gap_us, None);
+        assert_eq!(config("").modbus.rtu, None);
+        // With `listen`, both.
+        let modbus =
+            config("[modbus]\nlisten = \"127.0.0.1:1502\"\n[modbus.rtu]\nport = \"/dev/ttyS1\"\n")
+                .modbus;
+        assert!(modbus.listen.is_some() && modbus.rtu.is_some());
+    }
+
+    #[test]
+    fn every_rtu_key_resolves() {
+        let rtu = config(
+            "[modbus.rtu]\nport = \"/dev/serial/by-id/usb-FTDI-if00\"\nbaud = 115200\n\
+             parity = \"none\"\ndata_bits = 8\nstop_bits = 2\nframe_gap_us = 5000\n\
+             unit_id = 247\n",
+        )
+        .modbus
+        .rtu
+        .unwrap();
+        assert_eq!(
+            rtu,
+            ModbusRtuConfig {
+                line: SerialLine {
+                    port: "/dev/serial/by-id/usb-FTDI-if00".into(),
+                    baud: 115_200,
+                    parity: Parity::None,
+                    data_bits: 8,
+                    stop_bits: 2,
+                    frame_gap_us: Some(5000),
+                },
+                unit_id: 247,
+            }
+        );
+        let odd = config("[modbus.rtu]\nport = \"COM3 \"\nparity = \"odd\"\n").modbus.rtu.unwrap();
+        assert_eq!((odd.line.port.to_str(), odd.line.parity), (Some("COM3 "), Parity::Odd));
+    }
+
+    #[test]
+    fn rtu_keys_are_range_checked_all_at_once() {
+        assert_eq!(
+            errors(
+                "[modbus.rtu]\nport = \" \"\nbaud = 299\nparity = \"mark\"\ndata_bits = 7\n\
+                 stop_bits = 3\nframe_gap_us = 99\nunit_id = 0\nspeed = 9600\n"
+            ),
+            [
+                "2:8: modbus.rtu.port must not be empty",
+                "3:8: modbus.rtu.baud 299 out of range 300..=4000000",
+                "4:10: modbus.rtu.parity: unknown variant `mark`, expected one of `none`, \
+                 `even`, `odd`",
+                "5:13: modbus.rtu.data_bits 7: 7 data bits is the Modbus ASCII mode, which plcd \
+                 does not speak; Modbus RTU has 8",
+                "6:13: modbus.rtu.stop_bits 3 out of range 1..=2",
+                "7:16: modbus.rtu.frame_gap_us 99 out of range 100..=1000000",
+                "8:11: modbus.rtu.unit_id 0 out of range 1..=247",
+                "9:1: [modbus.rtu]: unknown key `speed`, expected one of `port`, `baud`, \
+                 `parity`, `data_bits`, `stop_bits`, `frame_gap_us`, `unit_id`",
+            ]
+        );
+        assert_eq!(
+            errors(
+                "[modbus.rtu]\nbaud = 4000001\ndata_bits = 9\nunit_id = 248\nframe_gap_us = \
+                 1000001\n"
+            ),
+            [
+                "1:1: [modbus.rtu] needs `port`: the serial device, as \"/dev/ttyUSB0\"",
+                "2:8: modbus.rtu.baud 4000001 out of range 300..=4000000",
+                "3:13: modbus.rtu.data_bits 9 must be 8: Modbus RTU characters have 8 data bits",
+                "4:11: modbus.rtu.unit_id 248 out of range 1..=247",
+                "5:16: modbus.rtu.frame_gap_us 1000001 out of range 100..=1000000",
+            ]
+        );
+        assert_eq!(
+            errors("[modbus]\nrtu = \"/dev/ttyUSB0\"\n"),
+            ["2:7: `modbus.rtu` must be a table, written [modbus.rtu]"]
+        );
+        // The range edges are accepted.
+        let rtu = config(
+            "[modbus.rtu]\nport = \"/dev/ttyS0\"\nbaud = 300\nframe_gap_us = 100\nunit_id = 1\n",
+        )
+        .modbus
+        .rtu
+        .unwrap();
+        assert_eq!((rtu.line.baud, rtu.line.frame_gap_us), (300, Some(100)));
+        config("[modbus.rtu]\nport = \"/dev/ttyS0\"\nbaud = 4000000\nframe_gap_us = 1000000\n");
     }
 }

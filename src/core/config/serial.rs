@@ -10,6 +10,11 @@
 use std::ops::RangeInclusive;
 use std::path::PathBuf;
 
+use toml::Spanned;
+
+use super::common::{int, int_or, start, widen, Ctx};
+use super::Sink;
+
 /// The parity bit of a serial character.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -110,6 +115,118 @@ impl SerialLine {
     /// agree on them).
     pub fn conflicts_with(&self, other: &SerialLine) -> bool {
         self.port == other.port && self != other
+    }
+}
+
+// ---- the keys, both passes ----
+
+/// The serial line's keys as written, shared by `[modbus.rtu]` and a `[[remote]]` of
+/// transport `"rtu"`. serde cannot flatten them into those tables and still deny unknown
+/// keys, so each raw table declares them and hands them over in this.
+#[derive(Debug, Default)]
+pub(super) struct RawSerial {
+    pub port: Option<Spanned<String>>,
+    pub baud: Option<Spanned<i64>>,
+    pub parity: Option<Spanned<Parity>>,
+    pub data_bits: Option<Spanned<i64>>,
+    pub stop_bits: Option<Spanned<i64>>,
+    pub frame_gap_us: Option<Spanned<i64>>,
+}
+
+impl RawSerial {
+    /// The keys given, each with where it is, in the order of the docs.
+    pub fn given(&self) -> impl Iterator<Item = (&'static str, usize)> {
+        [
+            ("port", start(&self.port)),
+            ("baud", start(&self.baud)),
+            ("parity", start(&self.parity)),
+            ("data_bits", start(&self.data_bits)),
+            ("stop_bits", start(&self.stop_bits)),
+            ("frame_gap_us", start(&self.frame_gap_us)),
+        ]
+        .into_iter()
+        .filter_map(|(key, at)| Some((key, at?)))
+    }
+}
+
+/// Pass 2 of the serial line's keys: `None` if any is wrong (reported). Every key is checked
+/// even when `port` is missing; `no_port` reports that.
+pub(super) fn line(
+    sink: &mut Sink,
+    ctx: &Ctx,
+    raw: &RawSerial,
+    no_port: impl FnOnce(&mut Sink),
+) -> Option<SerialLine> {
+    let port = match &raw.port {
+        Some(port) if port.get_ref().trim().is_empty() => {
+            sink.error(port.span().start, format!("{} must not be empty", ctx.key("port")));
+            None
+        }
+        // Kept as given: a serial device is named by its path, not relative to the config.
+        Some(port) => Some(PathBuf::from(port.get_ref())),
+        None => {
+            no_port(sink);
+            None
+        }
+    };
+    let baud = int_or(
+        sink,
+        ctx,
+        "baud",
+        raw.baud.clone(),
+        widen(SerialLine::BAUD),
+        SerialLine::DEFAULT_BAUD,
+    );
+    let data_bits = match &raw.data_bits {
+        Some(bits) if *bits.get_ref() == 8 => Some(8),
+        Some(bits) if *bits.get_ref() == 7 => {
+            let message = format!(
+                "{} 7: 7 data bits is the Modbus ASCII mode, which plcd does not speak; Modbus \
+                 RTU has 8",
+                ctx.key("data_bits")
+            );
+            sink.error(bits.span().start, message);
+            None
+        }
+        Some(bits) => {
+            let message = format!(
+                "{} {} must be 8: Modbus RTU characters have 8 data bits",
+                ctx.key("data_bits"),
+                bits.get_ref()
+            );
+            sink.error(bits.span().start, message);
+            None
+        }
+        None => Some(8),
+    };
+    let stop_bits = int_or(sink, ctx, "stop_bits", raw.stop_bits.clone(), 1..=2, 1);
+    let frame_gap_us = match &raw.frame_gap_us {
+        Some(gap) => int(sink, ctx, "frame_gap_us", gap, widen(SerialLine::FRAME_GAP_US)).map(Some),
+        None => Some(None),
+    };
+    Some(SerialLine {
+        port: port?,
+        baud: baud?,
+        parity: raw.parity.as_ref().map_or_else(Parity::default, |p| *p.get_ref()),
+        data_bits: data_bits?,
+        stop_bits: stop_bits?,
+        frame_gap_us: frame_gap_us?,
+    })
+}
+
+impl SerialLine {
+    /// `19200 baud 8E1`, with the frame gap if set: what devices on one port disagree on.
+    pub fn describe_settings(&self) -> String {
+        let parity = match self.parity {
+            Parity::None => 'N',
+            Parity::Even => 'E',
+            Parity::Odd => 'O',
+        };
+        let mut text = format!("{} baud {}{parity}{}", self.baud, self.data_bits, self.stop_bits);
+        if let Some(gap) = self.frame_gap_us {
+            text.push_str(&format!(", frame_gap_us {gap}"));
+        }
+        text
     }
 }
 

@@ -435,7 +435,7 @@ fn unknown_keys_are_errors_at_the_key() {
     assert_eq!(
         errors(&with_scan("[plcc]\n")),
         ["1:2: unknown key `plcc`, expected one of `plc`, `sim`, `timers`, `program`, `task`, \
-          `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `st`"]
+          `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `st`, `remote`"]
     );
     assert_eq!(
         errors(&with_scan("[plc]\nwatchdog = 5\n")),

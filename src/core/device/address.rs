@@ -55,6 +55,9 @@ pub enum Writer {
     Client,
     /// A simulation's inputs file (`plcd sim --inputs`, `[io] stimulus`).
     Stimulus,
+    /// Remote I/O: what a Modbus device polled by `plcd run` answers (`[[remote.read]]`, and
+    /// a remote's `status` bit).
+    RemoteInput,
 }
 
 /// How an address can be used where a bit or a word is expected.
@@ -210,6 +213,8 @@ impl Address {
     ///   system's own: F, SM and SD, which the PLC maintains.
     /// - A simulation's inputs file may drive anything (it stands in for the whole world,
     ///   SM relays and SD registers included) except the flags, which the PLC recomputes.
+    /// - Remote I/O writes P, M, K and D, the devices a program's inputs may be: timers,
+    ///   counters, SM, SD and the flags have writers of their own.
     pub fn writable_by(&self, writer: Writer) -> bool {
         match writer {
             Writer::ProgramBit => matches!(self.area, Area::P | Area::M | Area::K | Area::D),
@@ -218,6 +223,7 @@ impl Address {
             }
             Writer::Client => !matches!(self.area, Area::F | Area::SM | Area::SD),
             Writer::Stimulus => self.area != Area::F,
+            Writer::RemoteInput => matches!(self.area, Area::P | Area::M | Area::K | Area::D),
         }
     }
 

@@ -350,3 +350,6 @@ pub(crate) fn pair_for_tests(device: &RemoteDevice) -> (RemoteIo, Poller) {
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod link_tests;
