@@ -15,19 +15,27 @@ function code's length. It prints `faulty_proxy: listening on HOST:PORT` (tcp) o
 
 The control socket is a Unix stream socket speaking lines:
 
-    mode NAME [ARG]   -> ok          every frame from now on gets fault NAME
-    stats             -> {JSON}      what passed, what was broken, connections accepted
+    mode NAME [ARG] [unit=U] [count=N]   -> ok
+        every exchange from now on gets fault NAME (only those addressed to unit U; only
+        the next N, then it is back to pass); the fault of an exchange is chosen when its
+        request passes, and its answer gets the same
+    stats   -> {JSON}   the exchanges seen, the faults applied, connections accepted
 
 Faults (NAME):
     pass               everything passes (the default)
     drop               requests are swallowed: no answer (silence)
     delay MS           answers are held MS milliseconds (late answers), in order
+    split MS           tcp: the answer's MBAP header goes at once, the rest MS milliseconds later
     exception          the request's start address is moved to 0x8000, outside the server's
                        datastore (the CRC fixed over RTU): the server itself answers 02
     wrong_unit         the answer's unit id becomes 99 (the CRC fixed over RTU)
     wrong_transaction  tcp: the answer's transaction id is moved 0x4000 away
     bad_crc            rtu: the answer's last byte is flipped
-    garbage            the answer is replaced by bytes that are no Modbus answer
+    garbage            tcp: the answer is replaced by bytes that are no MBAP frame;
+                       rtu: by the right unit id, a function code no answer has, and noise
+    wrong_function     tcp: the answer's function code is another one (a well-framed answer
+                       to another request)
+    cut                rtu: only the answer's first 3 bytes are sent (a frame cut short)
     close              tcp: the connection is closed when a request arrives
 """
 
@@ -36,7 +44,6 @@ import asyncio
 import json
 import os
 import select
-import socket
 import socketserver
 import struct
 import sys
@@ -45,8 +52,20 @@ import threading
 import time
 import tty
 
-TCP_FAULTS = {"pass", "drop", "delay", "exception", "wrong_unit", "wrong_transaction", "garbage", "close"}
-RTU_FAULTS = {"pass", "drop", "delay", "exception", "wrong_unit", "bad_crc", "garbage"}
+TCP_FAULTS = {
+    "pass",
+    "drop",
+    "delay",
+    "split",
+    "exception",
+    "wrong_unit",
+    "wrong_transaction",
+    "garbage",
+    "wrong_function",
+    "close",
+}
+RTU_FAULTS = {"pass", "drop", "delay", "exception", "wrong_unit", "bad_crc", "garbage", "cut"}
+PASS = ("pass", 0)
 GARBAGE_TCP = b"garbage!garbage!"
 
 
@@ -56,32 +75,58 @@ class Faults:
     def __init__(self, allowed):
         self.allowed = allowed
         self.lock = threading.Lock()
-        self.name = "pass"
-        self.arg = 0
+        self.name, self.arg, self.unit, self.left = "pass", 0, None, None
         self.stats = {"requests": 0, "answers": 0, "broken": {}, "connections": 0}
 
-    def set(self, name, arg):
+    def set(self, name, arg=0, unit=None, count=None):
         if name not in self.allowed:
             raise ValueError(f"unknown fault {name!r} (one of {', '.join(sorted(self.allowed))})")
-        if name == "delay" and arg <= 0:
-            raise ValueError("delay needs a positive number of milliseconds")
+        if name in ("delay", "split") and arg <= 0:
+            raise ValueError(f"{name} needs a positive number of milliseconds")
+        if count is not None and count <= 0:
+            raise ValueError("count needs a positive number")
         with self.lock:
-            self.name, self.arg = name, arg
+            self.name, self.arg, self.unit, self.left = name, arg, unit, count
 
-    def current(self):
+    def decide(self, unit):
+        """The fault of an exchange whose request to `unit` is passing now."""
         with self.lock:
-            return self.name, self.arg
+            self.stats["requests"] += 1
+            if self.name == "pass" or (self.unit is not None and unit != self.unit):
+                return PASS
+            fault = (self.name, self.arg)
+            self.stats["broken"][self.name] = self.stats["broken"].get(self.name, 0) + 1
+            if self.left is not None:
+                self.left -= 1
+                if self.left == 0:
+                    self.name, self.arg, self.unit, self.left = "pass", 0, None, None
+            return fault
 
-    def count(self, what, fault=None):
+    def count(self, what):
         with self.lock:
-            if what:
-                self.stats[what] += 1
-            if fault and fault != "pass":
-                self.stats["broken"][fault] = self.stats["broken"].get(fault, 0) + 1
+            self.stats[what] += 1
 
     def snapshot(self):
         with self.lock:
-            return json.loads(json.dumps({**self.stats, "mode": self.name, "arg": self.arg}))
+            return json.loads(
+                json.dumps(
+                    {**self.stats, "mode": self.name, "arg": self.arg, "unit": self.unit, "left": self.left}
+                )
+            )
+
+
+def parse_mode(words):
+    """`NAME [ARG] [unit=U] [count=N]` as the arguments of Faults.set."""
+    name, rest = words[0], words[1:]
+    options = {"arg": 0}
+    for word in rest:
+        key, eq, value = word.partition("=")
+        if not eq:
+            key, value = "arg", word
+        if key not in ("arg", "unit", "count"):
+            raise ValueError(f"unknown option {key!r}")
+        options[key] = int(value)
+    return name, options
 
 
 def serve_control(path, faults, extra):
@@ -92,13 +137,14 @@ def serve_control(path, faults, extra):
             for raw in self.rfile:
                 words = raw.decode(errors="replace").split()
                 try:
-                    if words[:1] == ["mode"] and len(words) in (2, 3):
-                        faults.set(words[1], int(words[2]) if len(words) == 3 else 0)
+                    if words[:1] == ["mode"] and len(words) >= 2:
+                        name, options = parse_mode(words[1:])
+                        faults.set(name, **options)
                         answer = "ok"
                     elif words == ["stats"]:
                         answer = json.dumps({**faults.snapshot(), **extra})
                     else:
-                        answer = "error: mode NAME [ARG] | stats"
+                        answer = "error: mode NAME [ARG] [unit=U] [count=N] | stats"
                 except ValueError as e:
                     answer = f"error: {e}"
                 self.wfile.write(answer.encode() + b"\n")
@@ -138,6 +184,8 @@ def break_tcp_answer(adu, fault):
         return struct.pack(">H", (tid + 0x4000) & 0xFFFF) + adu[2:]
     if fault == "garbage":
         return GARBAGE_TCP
+    if fault == "wrong_function":
+        return adu[:7] + bytes([0x03 if adu[7] == 0x04 else 0x04]) + adu[8:]
     return adu
 
 
@@ -158,17 +206,20 @@ async def tcp_connection(client_reader, client_writer, upstream, faults):
             except Exception:  # noqa: BLE001 - closing twice is fine
                 pass
 
+    # The fault chosen for each request in flight, by transaction id.
+    chosen = {}
+
     async def requests():
         while True:
             adu = await read_adu(client_reader)
             if adu is None:
                 break
-            fault, _ = faults.current()
-            faults.count("requests", fault if fault in ("drop", "exception", "close") else None)
+            fault, arg = faults.decide(adu[6])
             if fault == "drop":
                 continue
             if fault == "close":
                 break
+            chosen[adu[:2]] = (fault, arg)
             up_writer.write(break_tcp_request(adu, fault))
             await up_writer.drain()
         close_both()
@@ -178,10 +229,13 @@ async def tcp_connection(client_reader, client_writer, upstream, faults):
             adu = await read_adu(up_reader)
             if adu is None:
                 break
-            fault, arg = faults.current()
-            release = time.monotonic() + (arg / 1000 if fault == "delay" else 0)
-            if fault not in ("pass", "drop", "exception", "close"):
-                faults.count(None, fault)
+            fault, arg = chosen.pop(adu[:2], PASS)
+            now = time.monotonic()
+            if fault == "split":
+                await outbox.put((now, adu[:7]))
+                await outbox.put((now + arg / 1000, adu[7:]))
+                continue
+            release = now + (arg / 1000 if fault == "delay" else 0)
             await outbox.put((release, break_tcp_answer(adu, fault)))
         await outbox.put(None)
 
@@ -268,6 +322,8 @@ def break_rtu_answer(frame, fault):
     if fault == "garbage":
         # A function code no Modbus answer has, then noise; its unit is the right one.
         return frame[:1] + b"\x41\x13\x37garbage"
+    if fault == "cut":
+        return frame[:3]
     return frame
 
 
@@ -283,6 +339,7 @@ def run_rtu(client_path, server_path, faults):
     from_client, from_server = b"", b""
     last_client = last_server = time.monotonic()
     pending = []  # (release time, bytes) for the client, in order
+    in_flight = PASS
     resync = 0.05  # a frame whose rest has not come after this long is noise: dropped
     while True:
         now = time.monotonic()
@@ -304,9 +361,10 @@ def run_rtu(client_path, server_path, faults):
             if len(from_client) < n:
                 break
             frame, from_client = from_client[:n], from_client[n:]
-            fault, _ = faults.current()
-            faults.count("requests", fault if fault in ("drop", "exception") else None)
+            fault, arg = faults.decide(frame[0])
             if fault != "drop":
+                # One exchange at a time on a serial line: the next answer is this one's.
+                in_flight = (fault, arg)
                 os.write(server, break_rtu_request(frame, fault))
         while (n := answer_len(from_server)) is not None:
             if n == 0:
@@ -315,9 +373,8 @@ def run_rtu(client_path, server_path, faults):
             if len(from_server) < n:
                 break
             frame, from_server = from_server[:n], from_server[n:]
-            fault, arg = faults.current()
-            if fault not in ("pass", "drop", "exception"):
-                faults.count(None, fault)
+            fault, arg = in_flight
+            in_flight = PASS
             release = now + (arg / 1000 if fault == "delay" else 0)
             pending.append((release, break_rtu_answer(frame, fault)))
         if from_client and now - last_client > resync:
