@@ -1222,7 +1222,9 @@ def tcp_faults(t):
     bystanders = ("rack", "rtu3", "rtu4")
     for mode, arg, kind, late, reconnects in (
         ("drop", None, "timeout", False, False),
-        ("delay", TCP_DELAY_MS, "timeout", True, False),
+        # (Whether the connection is kept is not checked: an answer whose header comes in the
+        # last moment of a timeout is a frame cut short, and may be dropped with its stream.)
+        ("delay", TCP_DELAY_MS, "timeout", True, None),
         # The MBAP header in time, the rest after the timeout: no complete answer in time, or a
         # frame cut short; either way the next answer must not be read from the middle of this
         # one (no answer's data taken for an MBAP header).
