@@ -1110,12 +1110,19 @@ def refused_writes(t):
         d.get("M0107"),
     )
     peers.set(e, 1, HOLDING, 0, [777])
-    equal_within("refused writes: its reads still come (D00600)", lambda: d.get("D00600")["D00600"], 777)
+    # Lost until the write goes through: the refused write is what is retried, with backoff,
+    # and the inputs are cleared (on_loss = "clear") although the device would answer reads.
+    wait_for(lambda: d.remotes()["wr"]["faults"].get("exception", 0)
+             >= before["faults"].get("exception", 0) + 6)
+    check("refused writes: while lost, its inputs stay cleared (D00600)",
+          d.get("D00600")["D00600"] == 0, d.get("D00600"))
     now = d.remotes()["wr"]
     lines = log_lines(d, log_from, "wr", "failed:")
     failed_writes = now["faults"].get("exception", 0) - before["faults"].get("exception", 0)
-    print(
-        f"      ({len(lines)} fault log lines and {now['losses'] - before['losses']} losses for {failed_writes} refused writes)"
+    check(
+        "refused writes: ONE fault line and ONE loss, however many refused writes",
+        len(lines) == 1 and now["losses"] - before["losses"] == 1,
+        f"{len(lines)} fault log lines and {now['losses'] - before['losses']} losses for {failed_writes} refused writes",
     )
     rec.refuse = False
     equal_within(
@@ -1125,6 +1132,7 @@ def refused_writes(t):
     )
     back = wait_for(lambda: d.remotes()["wr"]["state"] == "online" and d.get("M0107")["M0107"] == 1)
     check("refused writes: online again, M0107 ON, without a restart", bool(back), d.remotes()["wr"])
+    equal_within("refused writes: back, its reads come again (D00600)", lambda: d.get("D00600")["D00600"], 777)
 
 
 def big_tables(t):
