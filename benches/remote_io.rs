@@ -258,15 +258,15 @@ fn tcp_remote(name: &str, address: SocketAddr) -> String {
     )
 }
 
+/// What the driver got of `[rt]`, for the text; what it did not get goes to stderr.
 fn scheduling(granted: &Granted, problems: &[String]) -> String {
-    if granted.fifo && granted.memory_locked {
-        "SCHED_FIFO, memory locked".into()
-    } else {
-        format!(
-            "not real time ({}): {}",
-            if granted.fifo { "SCHED_FIFO" } else { "SCHED_OTHER" },
-            problems.join("; ")
-        )
+    for problem in problems {
+        eprintln!("remote_io: [rt]: {problem}");
+    }
+    match (granted.fifo, granted.memory_locked) {
+        (true, true) => "SCHED_FIFO, memory locked".into(),
+        (true, false) => "SCHED_FIFO, memory not locked".into(),
+        (false, _) => "not real time: SCHED_OTHER, not root".into(),
     }
 }
 
@@ -809,7 +809,7 @@ fn report_age(f: &mut Fragment, age: &Age) {
                 format!("{} (unseen: {})", a.len(), age.unseen),
             ],
             vec![
-                "expected in this run: U(0, 10 ms) + the smallest age".into(),
+                "U(0, 10 ms) + the smallest age (this run's phase)".into(),
                 ms(this_run(0.5)),
                 ms(this_run(0.99)),
                 ms(this_run(1.0)),
@@ -918,7 +918,12 @@ fn report_refresh(f: &mut Fragment, refresh: &[Refresh; 2]) {
         if refresh[0].fifo { "granted" } else { "refused: not real time either" }
     ));
     let mut rows = Vec::new();
-    for (thread, r) in ["SCHED_FIFO 80", "SCHED_OTHER"].iter().zip(refresh) {
+    for (k, r) in refresh.iter().enumerate() {
+        let thread = match (k, r.fifo) {
+            (0, true) => "SCHED_FIFO 80",
+            (0, false) => "SCHED_OTHER (SCHED_FIFO refused)",
+            _ => "SCHED_OTHER",
+        };
         let mut row = |name: &str, v: &[u64]| {
             rows.push(vec![
                 thread.to_string(),
