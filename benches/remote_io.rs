@@ -741,6 +741,7 @@ fn main() {
     if std::env::args().any(|a| a == "--list") {
         return; // `cargo test --benches` probes benches with --list
     }
+    let load_before = load_average();
     let stores: Vec<Arc<Store>> = (0..DEVICES).map(|_| Store::new()).collect();
     let addresses: Vec<SocketAddr> = stores.iter().map(|s| tcp_device(Arc::clone(s))).collect();
 
@@ -763,11 +764,24 @@ fn main() {
         .collect();
 
     let mut f = Fragment::new("cargo bench --bench remote_io");
+    f.line(format!(
+        "Load average (1 min) of this shared machine before the run: {load_before}, after it: \
+         {} (the bench's own threads count in the second).\n",
+        load_average()
+    ));
     report_age(&mut f, &age);
     report_load(&mut f, &quiet, &loaded, reads, writes);
     report_refresh(&mut f, &refresh);
     report_lines(&mut f, &lines);
     write_fragment("remote", &f).expect("fragment written");
+}
+
+/// The 1-minute load average, as /proc/loadavg says.
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|l| l.split_whitespace().next().map(str::to_string))
+        .unwrap_or_else(|| "unknown".into())
 }
 
 fn report_age(f: &mut Fragment, age: &Age) {
