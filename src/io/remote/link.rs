@@ -28,6 +28,19 @@ pub trait Link {
 
     /// Answers that came too late for their request and were dropped, since the last call.
     fn take_late(&mut self) -> u32;
+
+    /// The last exchange's round trip, ns: from its request sent (after the connect, after
+    /// the line's silence) to its answer checked; `None` when no answer came (an exception
+    /// is an answer).
+    fn round_trip_ns(&self) -> Option<u64>;
+}
+
+/// The round trip of an exchange that ended with `result`, its request sent at `sent`.
+fn round_trip(sent: Option<Instant>, result: &Result<(), Fault>) -> Option<u64> {
+    match result {
+        Ok(()) | Err(Fault::Exception(_)) => sent.map(|at| at.elapsed().as_nanos() as u64),
+        Err(_) => None,
+    }
 }
 
 /// A Modbus TCP connection, made when needed and dropped when the stream cannot be trusted
@@ -38,6 +51,8 @@ pub struct TcpLink {
     next_tid: u16,
     buf: [u8; MAX_ADU],
     late: u32,
+    sent: Option<Instant>,
+    round_trip_ns: Option<u64>,
 }
 
 /// How many of the latest transaction ids an answer may carry and count as late rather than
@@ -52,6 +67,8 @@ impl TcpLink {
             next_tid: 1,
             buf: [0; MAX_ADU],
             late: 0,
+            sent: None,
+            round_trip_ns: None,
         }
     }
 
@@ -98,7 +115,9 @@ impl TcpLink {
         let Some(stream) = self.stream.as_mut() else { unreachable!("connected above") };
         stream.set_write_timeout(Some(timeout)).map_err(|e| (Fault::Io(e.to_string()), true))?;
         stream.write_all(&request[..len]).map_err(|e| (io_fault(e), true))?;
-        let deadline = Instant::now() + timeout;
+        let sent = Instant::now();
+        self.sent = Some(sent);
+        let deadline = sent + timeout;
         loop {
             let mut header = [0u8; MBAP];
             read_until(stream, &mut header, deadline)?;
@@ -135,16 +154,24 @@ impl Link for TcpLink {
         values: &mut [u16],
         timeout: Duration,
     ) -> Result<(), Fault> {
-        self.exchange_on(unit, ask, values, timeout).map_err(|(fault, drop_stream)| {
-            if drop_stream {
-                self.stream = None;
-            }
-            fault
-        })
+        self.sent = None;
+        let result =
+            self.exchange_on(unit, ask, values, timeout).map_err(|(fault, drop_stream)| {
+                if drop_stream {
+                    self.stream = None;
+                }
+                fault
+            });
+        self.round_trip_ns = round_trip(self.sent, &result);
+        result
     }
 
     fn take_late(&mut self) -> u32 {
         std::mem::take(&mut self.late)
+    }
+
+    fn round_trip_ns(&self) -> Option<u64> {
+        self.round_trip_ns
     }
 }
 
@@ -199,6 +226,8 @@ pub struct RtuLink {
     quiet_since: Instant,
     buf: [u8; MAX_ADU],
     late: u32,
+    sent: Option<Instant>,
+    round_trip_ns: Option<u64>,
 }
 
 /// Slack for a non-real-time thread between bytes of one answer: the kernel hands a UART's
@@ -213,6 +242,8 @@ impl RtuLink {
             quiet_since: Instant::now(),
             buf: [0; MAX_ADU],
             late: 0,
+            sent: None,
+            round_trip_ns: None,
         }
     }
 
@@ -243,6 +274,7 @@ impl RtuLink {
         }
         let mut request = [0u8; MAX_ADU];
         let len = frame::encode_rtu(unit, ask, values, &mut request);
+        self.sent = Some(Instant::now());
         port.send(&request[..len]).map_err(|e| Fault::Io(e.to_string()))?;
         let sent = Instant::now();
         // The answer must begin within the timeout, and then arrive at the line's rate.
@@ -301,15 +333,21 @@ impl Link for RtuLink {
         values: &mut [u16],
         timeout: Duration,
     ) -> Result<(), Fault> {
+        self.sent = None;
         let result = self.exchange_on(unit, ask, values, timeout);
         if let Err(Fault::Io(_)) = result {
             // A port that fails (an adapter unplugged) is opened again at the next exchange.
             self.port = None;
         }
+        self.round_trip_ns = round_trip(self.sent, &result);
         result
     }
 
     fn take_late(&mut self) -> u32 {
         std::mem::take(&mut self.late)
+    }
+
+    fn round_trip_ns(&self) -> Option<u64> {
+        self.round_trip_ns
     }
 }

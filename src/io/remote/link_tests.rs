@@ -99,8 +99,11 @@ fn tcp_answers_faults_and_when_the_connection_is_dropped() {
     );
     let mut link = TcpLink::new(&address);
     assert_eq!(exchange(&mut link, 1000), Ok([0x1234, 0xABCD]));
+    assert!(link.round_trip_ns().is_some());
     assert_eq!(exchange(&mut link, 1000), Err(Fault::Exception(2)));
+    assert!(link.round_trip_ns().is_some(), "an exception is an answer");
     assert_eq!(exchange(&mut link, 1000), Err(Fault::WrongUnit(9)));
+    assert_eq!(link.round_trip_ns(), None);
     assert!(matches!(exchange(&mut link, 1000), Err(Fault::WrongTransaction(_))));
     assert_eq!(connections.load(Ordering::SeqCst), 1, "those faults keep the connection");
     assert!(

@@ -32,6 +32,8 @@ use poller::{DeviceStats, InputImage, OutputImage, Poller};
 /// Why remote I/O could not start.
 #[derive(Debug, thiserror::Error)]
 pub enum RemoteError {
+    #[error("{0} remote devices; at most {max}", max = RemoteDevice::MAX_DEVICES)]
+    TooMany(usize),
     #[error("cannot start the poller thread of remote {name}: {source}")]
     Spawn {
         name: String,
@@ -44,6 +46,8 @@ pub enum RemoteError {
 #[derive(Default)]
 pub struct RemoteIo {
     devices: Vec<ScanSide>,
+    /// The poller threads, one per TCP device or RTU port.
+    threads: Vec<Thread>,
     safe: Arc<AtomicBool>,
 }
 
@@ -56,7 +60,8 @@ struct ScanSide {
     /// The write tables as last published.
     last: Vec<u16>,
     captured: bool,
-    thread: Option<Thread>,
+    /// Its poller thread, an index into [`RemoteIo::threads`].
+    thread: usize,
 }
 
 impl RemoteIo {
@@ -90,6 +95,9 @@ impl RemoteIo {
     pub fn refresh_outputs(&mut self, mem: &Memory) {
         // Outputs published again: the safe state of a watchdog trip is over.
         self.safe.store(false, Ordering::Release);
+        // Each poller thread is woken once, however many of its devices changed (the devices
+        // of one serial port share a thread): a wake-up is a system call.
+        let mut wake: u64 = 0;
         for device in &mut self.devices {
             if device.writes.is_empty() {
                 continue;
@@ -119,9 +127,14 @@ impl RemoteIo {
             device.captured = true;
             device.outputs.publish();
             if changed {
-                if let Some(thread) = &device.thread {
-                    thread.unpark();
-                }
+                wake |= 1 << device.thread;
+            }
+        }
+        while wake != 0 {
+            let thread = wake.trailing_zeros() as usize;
+            wake &= wake - 1;
+            if let Some(thread) = self.threads.get(thread) {
+                thread.unpark();
             }
         }
     }
@@ -134,10 +147,7 @@ impl RemoteIo {
 
     /// The remote outputs' safe state, for the watchdog thread.
     pub fn safe_state(&self) -> RemoteSafeState {
-        RemoteSafeState {
-            safe: Arc::clone(&self.safe),
-            threads: self.devices.iter().filter_map(|d| d.thread.clone()).collect(),
-        }
+        RemoteSafeState { safe: Arc::clone(&self.safe), threads: self.threads.clone() }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -243,10 +253,15 @@ impl Drop for RemoteService {
 /// side and the service that owns the threads. Nothing is connected yet: a device that does
 /// not answer is lost and tried again, it does not stop the start.
 pub fn start(devices: &[RemoteDevice]) -> Result<(RemoteIo, RemoteService), RemoteError> {
+    // The wake-up mask of `RemoteIo::refresh_outputs` has a bit per poller thread.
+    const _: () = assert!(RemoteDevice::MAX_DEVICES <= 64);
+    if devices.len() > RemoteDevice::MAX_DEVICES {
+        return Err(RemoteError::TooMany(devices.len()));
+    }
     let epoch = Instant::now();
     let stop = Arc::new(AtomicBool::new(false));
     let safe = Arc::new(AtomicBool::new(false));
-    let mut io = RemoteIo { devices: Vec::new(), safe: Arc::clone(&safe) };
+    let mut io = RemoteIo { devices: Vec::new(), threads: Vec::new(), safe: Arc::clone(&safe) };
     let mut handles = Vec::new();
     let mut boards = Vec::new();
     // Devices grouped by link: each TCP device alone, RTU devices by port. `members` are
@@ -302,8 +317,9 @@ pub fn start(devices: &[RemoteDevice]) -> Result<(RemoteIo, RemoteService), Remo
             .spawn(move || threads::run(group, stop, epoch))
             .map_err(|source| RemoteError::Spawn { name, source })?;
         for index in members {
-            io.devices[index].thread = Some(handle.thread().clone());
+            io.devices[index].thread = io.threads.len();
         }
+        io.threads.push(handle.thread().clone());
         handles.push(handle);
     }
     let board = RemoteBoard { devices: boards.into(), epoch };
@@ -345,7 +361,7 @@ fn pair(device: &RemoteDevice, safe: &Arc<AtomicBool>) -> (ScanSide, Poller) {
         writes,
         last: vec![0; offset],
         captured: false,
-        thread: None,
+        thread: 0,
     };
     (scan, poller)
 }
@@ -354,7 +370,7 @@ fn pair(device: &RemoteDevice, safe: &Arc<AtomicBool>) -> (ScanSide, Poller) {
 pub(crate) fn pair_for_tests(device: &RemoteDevice) -> (RemoteIo, Poller) {
     let safe = Arc::new(AtomicBool::new(false));
     let (scan, poller) = pair(device, &safe);
-    (RemoteIo { devices: vec![scan], safe }, poller)
+    (RemoteIo { devices: vec![scan], threads: Vec::new(), safe }, poller)
 }
 
 #[cfg(test)]

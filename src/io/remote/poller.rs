@@ -344,14 +344,14 @@ impl Poller {
         }
     }
 
-    /// The exchange of `job` ended at `now` after `round_trip_ns` with `result`; `late`
-    /// answers were dropped on the way. A read's values are in the slice
+    /// The exchange of `job` ended at `now` with `result`, its answer after `round_trip_ns`
+    /// if one came; `late` answers were dropped on the way. A read's values are in the slice
     /// [`Poller::prepare`] gave.
     pub fn finish(
         &mut self,
         job: Job,
         now: u64,
-        round_trip_ns: u64,
+        round_trip_ns: Option<u64>,
         result: Result<(), Fault>,
         late: u32,
     ) {
@@ -364,8 +364,8 @@ impl Poller {
                 self.notices.push(Notice::Late);
             }
         }
-        if matches!(result, Ok(()) | Err(Fault::Exception(_))) {
-            stats.round_trip.record(round_trip_ns);
+        if let Some(ns) = round_trip_ns {
+            stats.round_trip.record(ns);
         }
         match result {
             Ok(()) => {

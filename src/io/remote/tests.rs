@@ -54,7 +54,9 @@ fn run(poller: &mut Poller, now: u64, values: &[u16], result: Result<(), Fault>)
     if let Job::Read(_) = job {
         slice[..values.len()].copy_from_slice(values);
     }
-    poller.finish(job, now, 1000, result, 0);
+    // The link measures a round trip when an answer came (an exception is one).
+    let round_trip = matches!(result, Ok(()) | Err(Fault::Exception(_))).then_some(1000);
+    poller.finish(job, now, round_trip, result, 0);
     job
 }
 
@@ -196,7 +198,7 @@ fn each_condition_is_noticed_once_until_an_exchange_succeeds() {
             poller.next_job(due).unwrap()
         });
         poller.prepare(job);
-        poller.finish(job, at, 0, Err(fault), 0);
+        poller.finish(job, at, None, Err(fault), 0);
     }
     let kinds: Vec<String> = poller
         .take_notices()
@@ -217,7 +219,7 @@ fn each_condition_is_noticed_once_until_an_exchange_succeeds() {
     );
     let job = poller.next_job(u64::MAX / 2).unwrap();
     poller.prepare(job);
-    poller.finish(job, u64::MAX / 2, 0, Ok(()), 2);
+    poller.finish(job, u64::MAX / 2, None, Ok(()), 2);
     let notices = poller.take_notices();
     assert_eq!(notices, [Notice::Late, Notice::Back { failures: 7, lost_ms: None }]);
     assert_eq!(poller.stats().lock().unwrap().late, 2);
@@ -226,7 +228,7 @@ fn each_condition_is_noticed_once_until_an_exchange_succeeds() {
     for late in [1, 1] {
         let job = poller.next_job(at).unwrap();
         poller.prepare(job);
-        poller.finish(job, at, 0, Err(Fault::Timeout), late);
+        poller.finish(job, at, None, Err(Fault::Timeout), late);
     }
     let notices = poller.take_notices();
     assert_eq!(notices.iter().filter(|n| **n == Notice::Late).count(), 1, "{notices:?}");
@@ -247,19 +249,19 @@ fn writes_wait_for_a_capture_then_follow_changes_refreshes_and_retries() {
     let (ask, values) = poller.prepare(job);
     assert!(ask.write);
     assert_eq!(values, [0b0010]);
-    poller.finish(job, 0, 0, Ok(()), 0);
+    poller.finish(job, 0, None, Ok(()), 0);
     io.refresh_outputs(&mem);
     assert_eq!(poller.next_job(MS), Err(1000 * MS), "unchanged: only the refresh is due");
     mem.set_bit(Address::parse("P0143").unwrap().as_bit().unwrap(), true);
     io.refresh_outputs(&mem);
     let job = poller.next_job(2 * MS).unwrap();
     assert_eq!(poller.prepare(job).1, [0b1010]);
-    poller.finish(job, 2 * MS, 0, Err(Fault::Timeout), 0);
+    poller.finish(job, 2 * MS, None, Err(Fault::Timeout), 0);
     // Lost (loss_after 1): retried after reconnect_ms, with the values wanted now.
     assert_eq!(poller.next_job(3 * MS), Err(102 * MS));
     let job = poller.next_job(102 * MS).unwrap();
     assert_eq!(poller.prepare(job).1, [0b1010]);
-    poller.finish(job, 102 * MS, 0, Ok(()), 0);
+    poller.finish(job, 102 * MS, None, Ok(()), 0);
     assert_eq!(poller.next_job(103 * MS), Err(1102 * MS));
     assert_eq!(poller.next_job(1102 * MS), Ok(Job::Write(0)), "the refresh");
     assert_eq!(poller.stats().lock().unwrap().writes, 2);
@@ -275,11 +277,11 @@ fn a_watchdog_trip_writes_zeros_until_the_scan_publishes_again() {
     io.refresh_outputs(&mem);
     let job = poller.next_job(0).unwrap();
     poller.prepare(job);
-    poller.finish(job, 0, 0, Ok(()), 0);
+    poller.finish(job, 0, None, Ok(()), 0);
     io.safe_state().apply();
     let job = poller.next_job(MS).unwrap();
     assert_eq!(poller.prepare(job).1, [0]);
-    poller.finish(job, MS, 0, Ok(()), 0);
+    poller.finish(job, MS, None, Ok(()), 0);
     assert!(poller.next_job(2 * MS).is_err(), "zeros written: nothing more until the refresh");
     io.refresh_outputs(&mem);
     let job = poller.next_job(3 * MS).unwrap();
@@ -327,7 +329,7 @@ fn register_tables_swap_bytes_and_words_both_ways() {
     io.refresh_outputs(&mem);
     let job = poller.next_job(0).unwrap();
     assert_eq!(poller.prepare(job).1, [0x1234, 0x5678], "a DINT goes high word first");
-    poller.finish(job, 0, 0, Ok(()), 0);
+    poller.finish(job, 0, None, Ok(()), 0);
     run(&mut poller, 0, &[0x1234, 0x5678], Ok(()));
     io.refresh_inputs(&mut mem);
     assert_eq!((word(&mem, "D00020"), word(&mem, "D00021")), (0x7856, 0x3412));

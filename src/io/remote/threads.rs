@@ -54,11 +54,9 @@ pub fn run(mut group: Group, stop: Arc<AtomicBool>, epoch: Instant) {
         let unit = poller.unit;
         let timeout = Duration::from_millis(u64::from(poller.timeout_ms));
         let (ask, values) = poller.prepare(job);
-        let started = Instant::now();
         let result = group.link.exchange(unit, &ask, values, timeout);
-        let round_trip = started.elapsed().as_nanos() as u64;
         let late = group.link.take_late();
-        poller.finish(job, clock(), round_trip, result, late);
+        poller.finish(job, clock(), group.link.round_trip_ns(), result, late);
         for notice in poller.take_notices() {
             log_notice(poller, &notice);
         }
@@ -79,7 +77,7 @@ fn finish_writes(group: &mut Group, now: u64) {
             let timeout = Duration::from_millis(u64::from(poller.timeout_ms));
             let (ask, values) = poller.prepare(job);
             let result = group.link.exchange(unit, &ask, values, timeout);
-            poller.finish(job, now, 0, result, 0);
+            poller.finish(job, now, None, result, 0);
             for notice in poller.take_notices() {
                 log_notice(poller, &notice);
             }
