@@ -569,24 +569,9 @@ fn range(sink: &mut Sink, table: ModbusTable, entry: &Located<RawRange>) -> Opti
 
 #[cfg(test)]
 mod tests {
-    use std::path::Path;
-
-    use super::super::{parse, Config};
     use super::*;
 
-    const SCAN: &str = "\n[[program]]\nfile = \"main.il\"\n";
-
-    fn config(text: &str) -> Config {
-        parse(&format!("{text}{SCAN}"), Path::new("plcd.toml"))
-            .unwrap_or_else(|d| panic!("unexpected errors:\n{d}"))
-    }
-
-    fn errors(text: &str) -> Vec<String> {
-        match parse(&format!("{text}{SCAN}"), Path::new("plcd.toml")) {
-            Ok(c) => panic!("expected errors, got {:#?}", c.modbus),
-            Err(d) => d.iter().map(|d| format!("{}:{}: {}", d.line, d.col, d.message)).collect(),
-        }
-    }
+    use super::super::tests::{scan_config as config, scan_errors as errors};
 
     #[test]
     fn without_a_section_the_server_is_off_with_the_documented_defaults() {

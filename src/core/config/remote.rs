@@ -1224,24 +1224,9 @@ fn endpoints_are_consistent(
 
 #[cfg(test)]
 mod tests {
-    use std::path::Path;
-
-    use super::super::{parse, Config};
     use super::*;
 
-    const SCAN: &str = "\n[[program]]\nfile = \"main.il\"\n";
-
-    fn config(text: &str) -> Config {
-        parse(&format!("{text}{SCAN}"), Path::new("plcd.toml"))
-            .unwrap_or_else(|d| panic!("unexpected errors:\n{d}"))
-    }
-
-    fn errors(text: &str) -> Vec<String> {
-        match parse(&format!("{text}{SCAN}"), Path::new("plcd.toml")) {
-            Ok(c) => panic!("expected errors, got {:#?}", c.remotes),
-            Err(d) => d.iter().map(|d| format!("{}:{}: {}", d.line, d.col, d.message)).collect(),
-        }
-    }
+    use super::super::tests::{scan_config as config, scan_errors as errors};
 
     /// A TCP remote named `name` on 10.0.0.5:502, with `extra` keys and one coil written from
     /// M1000, to make it valid (write tables may share their devices).

@@ -27,6 +27,21 @@ fn with_scan(text: &str) -> String {
     format!("{text}{SCAN}")
 }
 
+/// The config of `text` followed by a scan program (so `text`'s lines count from 1), for the
+/// literal tests of each section's module.
+pub(super) fn scan_config(text: &str) -> Config {
+    parse(&with_scan(text), Path::new("plcd.toml"))
+        .unwrap_or_else(|d| panic!("unexpected errors:\n{d}"))
+}
+
+/// Every diagnostic of `text` followed by a scan program, as `line:col: message`.
+pub(super) fn scan_errors(text: &str) -> Vec<String> {
+    match parse(&with_scan(text), Path::new("plcd.toml")) {
+        Ok(config) => panic!("expected errors, got {config:#?}"),
+        Err(d) => d.iter().map(|d| format!("{}:{}: {}", d.line, d.col, d.message)).collect(),
+    }
+}
+
 fn addr(text: &str) -> Address {
     Address::parse(text).unwrap()
 }

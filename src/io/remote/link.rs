@@ -1,7 +1,7 @@
-//! The two ways to a remote device: a Modbus TCP connection ([`TcpLink`]) and a Modbus RTU
-//! serial line shared by the devices on it ([`RtuLink`]). A link carries one exchange at a
-//! time, a request and its answer, and turns everything that can go wrong on the way into a
-//! [`Fault`].
+//! The two ways to a remote device, each a [`Transport`]: a Modbus TCP connection and a
+//! Modbus RTU serial line shared by the devices on it. A [`Link`] carries one exchange at a
+//! time, a request and its answer, over either, turns everything that can go wrong on the way
+//! into a [`Fault`], and notes the round trip and the late answers dropped.
 //!
 //! Both run on a poller thread (not real time), so they block, each wait bounded by the
 //! device's `timeout_ms`.
@@ -14,45 +14,86 @@ use super::frame::{self, Ask, Fault, MAX_ADU, MBAP};
 use crate::config::SerialLine;
 use crate::io::serial::Port;
 
-/// One exchange at a time with a device.
-pub trait Link {
+/// One exchange at a time with a device, over a TCP connection or an RTU line, and what it
+/// notes about the last one.
+pub struct Link {
+    transport: Box<dyn Transport + Send>,
+    tally: Tally,
+}
+
+/// What an exchange notes besides its result.
+#[derive(Debug, Default)]
+pub struct Tally {
+    /// Answers dropped as too late for their request, since the last [`Link::take_late`].
+    late: u32,
+    /// When the exchange's request was sent, if it was.
+    sent: Option<Instant>,
+    round_trip_ns: Option<u64>,
+}
+
+/// A way to a device: one exchange, its faults classified.
+pub trait Transport {
     /// Sends the request of `ask` to `unit` (a write's values from `values`) and checks the
-    /// answer (a read's values into `values`).
+    /// answer (a read's values into `values`); notes in `tally` when the request was sent and
+    /// the late answers dropped on the way.
     fn exchange(
         &mut self,
         unit: u8,
         ask: &Ask,
         values: &mut [u16],
         timeout: Duration,
+        tally: &mut Tally,
     ) -> Result<(), Fault>;
-
-    /// Answers that came too late for their request and were dropped, since the last call.
-    fn take_late(&mut self) -> u32;
-
-    /// The last exchange's round trip, ns: from its request sent (after the connect, after
-    /// the line's silence) to its answer checked; `None` when no answer came (an exception
-    /// is an answer).
-    fn round_trip_ns(&self) -> Option<u64>;
 }
 
-/// The round trip of an exchange that ended with `result`, its request sent at `sent`.
-fn round_trip(sent: Option<Instant>, result: &Result<(), Fault>) -> Option<u64> {
-    match result {
-        Ok(()) | Err(Fault::Exception(_)) => sent.map(|at| at.elapsed().as_nanos() as u64),
-        Err(_) => None,
+impl Link {
+    pub fn tcp(address: &str) -> Link {
+        Link { transport: Box::new(TcpLink::new(address)), tally: Tally::default() }
+    }
+
+    pub fn rtu(line: &SerialLine) -> Link {
+        Link { transport: Box::new(RtuLink::new(line)), tally: Tally::default() }
+    }
+
+    /// See [`Transport::exchange`].
+    pub fn exchange(
+        &mut self,
+        unit: u8,
+        ask: &Ask,
+        values: &mut [u16],
+        timeout: Duration,
+    ) -> Result<(), Fault> {
+        self.tally.sent = None;
+        let result = self.transport.exchange(unit, ask, values, timeout, &mut self.tally);
+        self.tally.round_trip_ns = match result {
+            // An exception is an answer.
+            Ok(()) | Err(Fault::Exception(_)) => {
+                self.tally.sent.map(|at| at.elapsed().as_nanos() as u64)
+            }
+            Err(_) => None,
+        };
+        result
+    }
+
+    /// Answers that came too late for their request and were dropped, since the last call.
+    pub fn take_late(&mut self) -> u32 {
+        std::mem::take(&mut self.tally.late)
+    }
+
+    /// The last exchange's round trip, ns: from its request sent (after the connect, after
+    /// the line's silence) to its answer checked; `None` when no answer came.
+    pub fn round_trip_ns(&self) -> Option<u64> {
+        self.tally.round_trip_ns
     }
 }
 
 /// A Modbus TCP connection, made when needed and dropped when the stream cannot be trusted
 /// any more (closed, an error, a frame cut short, garbage): the next exchange reconnects.
-pub struct TcpLink {
+struct TcpLink {
     address: String,
     stream: Option<TcpStream>,
     next_tid: u16,
     buf: [u8; MAX_ADU],
-    late: u32,
-    sent: Option<Instant>,
-    round_trip_ns: Option<u64>,
 }
 
 /// How many of the latest transaction ids an answer may carry and count as late rather than
@@ -60,16 +101,8 @@ pub struct TcpLink {
 const RECENT_TIDS: u16 = 64;
 
 impl TcpLink {
-    pub fn new(address: &str) -> TcpLink {
-        TcpLink {
-            address: address.to_string(),
-            stream: None,
-            next_tid: 1,
-            buf: [0; MAX_ADU],
-            late: 0,
-            sent: None,
-            round_trip_ns: None,
-        }
+    fn new(address: &str) -> TcpLink {
+        TcpLink { address: address.to_string(), stream: None, next_tid: 1, buf: [0; MAX_ADU] }
     }
 
     fn connect(&mut self, timeout: Duration) -> Result<(), Fault> {
@@ -106,6 +139,7 @@ impl TcpLink {
         ask: &Ask,
         values: &mut [u16],
         timeout: Duration,
+        tally: &mut Tally,
     ) -> Result<(), (Fault, bool)> {
         let tid = self.next_tid;
         self.next_tid = self.next_tid.wrapping_add(1);
@@ -116,7 +150,7 @@ impl TcpLink {
         stream.set_write_timeout(Some(timeout)).map_err(|e| (Fault::Io(e.to_string()), true))?;
         stream.write_all(&request[..len]).map_err(|e| (io_fault(e), true))?;
         let sent = Instant::now();
-        self.sent = Some(sent);
+        tally.sent = Some(sent);
         let deadline = sent + timeout;
         loop {
             let mut header = [0u8; MBAP];
@@ -128,7 +162,7 @@ impl TcpLink {
             if answer_tid != tid {
                 // An answer to an earlier request that timed out: drop it, wait for ours.
                 if tid.wrapping_sub(answer_tid) < RECENT_TIDS {
-                    self.late += 1;
+                    tally.late += 1;
                     continue;
                 }
                 return Err((Fault::WrongTransaction(answer_tid), false));
@@ -146,32 +180,21 @@ impl TcpLink {
     }
 }
 
-impl Link for TcpLink {
+impl Transport for TcpLink {
     fn exchange(
         &mut self,
         unit: u8,
         ask: &Ask,
         values: &mut [u16],
         timeout: Duration,
+        tally: &mut Tally,
     ) -> Result<(), Fault> {
-        self.sent = None;
-        let result =
-            self.exchange_on(unit, ask, values, timeout).map_err(|(fault, drop_stream)| {
-                if drop_stream {
-                    self.stream = None;
-                }
-                fault
-            });
-        self.round_trip_ns = round_trip(self.sent, &result);
-        result
-    }
-
-    fn take_late(&mut self) -> u32 {
-        std::mem::take(&mut self.late)
-    }
-
-    fn round_trip_ns(&self) -> Option<u64> {
-        self.round_trip_ns
+        self.exchange_on(unit, ask, values, timeout, tally).map_err(|(fault, drop_stream)| {
+            if drop_stream {
+                self.stream = None;
+            }
+            fault
+        })
     }
 }
 
@@ -219,15 +242,12 @@ fn read_until(
 /// A serial line and the devices on it, polled in turn: before each request the line has
 /// been silent for the frame gap (t3.5 or `frame_gap_us`), and whatever arrived since the
 /// last answer (a late answer, noise) is dropped.
-pub struct RtuLink {
+struct RtuLink {
     line: SerialLine,
     port: Option<Port>,
     /// When the line last carried a frame (or a frame's wait ended).
     quiet_since: Instant,
     buf: [u8; MAX_ADU],
-    late: u32,
-    sent: Option<Instant>,
-    round_trip_ns: Option<u64>,
 }
 
 /// Slack for a non-real-time thread between bytes of one answer: the kernel hands a UART's
@@ -235,16 +255,8 @@ pub struct RtuLink {
 const SCHEDULING_SLACK: Duration = Duration::from_millis(20);
 
 impl RtuLink {
-    pub fn new(line: &SerialLine) -> RtuLink {
-        RtuLink {
-            line: line.clone(),
-            port: None,
-            quiet_since: Instant::now(),
-            buf: [0; MAX_ADU],
-            late: 0,
-            sent: None,
-            round_trip_ns: None,
-        }
+    fn new(line: &SerialLine) -> RtuLink {
+        RtuLink { line: line.clone(), port: None, quiet_since: Instant::now(), buf: [0; MAX_ADU] }
     }
 
     fn exchange_on(
@@ -253,6 +265,7 @@ impl RtuLink {
         ask: &Ask,
         values: &mut [u16],
         timeout: Duration,
+        tally: &mut Tally,
     ) -> Result<(), Fault> {
         if self.port.is_none() {
             let port = Port::open(&self.line).map_err(|e| Fault::Connect(e.to_string()))?;
@@ -269,12 +282,12 @@ impl RtuLink {
             .read_within(&mut self.buf, Duration::ZERO)
             .map_err(|e| Fault::Io(e.to_string()))?;
         if stale > 0 {
-            self.late += 1;
+            tally.late += 1;
             port.discard_input().map_err(|e| Fault::Io(e.to_string()))?;
         }
         let mut request = [0u8; MAX_ADU];
         let len = frame::encode_rtu(unit, ask, values, &mut request);
-        self.sent = Some(Instant::now());
+        tally.sent = Some(Instant::now());
         port.send(&request[..len]).map_err(|e| Fault::Io(e.to_string()))?;
         let sent = Instant::now();
         // The answer must begin within the timeout, and then arrive at the line's rate.
@@ -325,29 +338,20 @@ impl RtuLink {
     }
 }
 
-impl Link for RtuLink {
+impl Transport for RtuLink {
     fn exchange(
         &mut self,
         unit: u8,
         ask: &Ask,
         values: &mut [u16],
         timeout: Duration,
+        tally: &mut Tally,
     ) -> Result<(), Fault> {
-        self.sent = None;
-        let result = self.exchange_on(unit, ask, values, timeout);
+        let result = self.exchange_on(unit, ask, values, timeout, tally);
         if let Err(Fault::Io(_)) = result {
             // A port that fails (an adapter unplugged) is opened again at the next exchange.
             self.port = None;
         }
-        self.round_trip_ns = round_trip(self.sent, &result);
         result
-    }
-
-    fn take_late(&mut self) -> u32 {
-        std::mem::take(&mut self.late)
-    }
-
-    fn round_trip_ns(&self) -> Option<u64> {
-        self.round_trip_ns
     }
 }

@@ -11,7 +11,7 @@ use std::time::Duration;
 use serialport::SerialPort;
 
 use super::frame::{Ask, Fault};
-use super::link::{Link, RtuLink, TcpLink};
+use super::link::Link;
 use crate::config::{ModbusTable, SerialLine};
 
 /// What the peer does about one request.
@@ -76,7 +76,7 @@ fn ask() -> Ask {
     Ask { table: ModbusTable::HoldingRegisters, address: 0, count: 2, write: false }
 }
 
-fn exchange(link: &mut impl Link, timeout_ms: u64) -> Result<[u16; 2], Fault> {
+fn exchange(link: &mut Link, timeout_ms: u64) -> Result<[u16; 2], Fault> {
     let mut values = [0u16; 2];
     link.exchange(1, &ask(), &mut values, Duration::from_millis(timeout_ms)).map(|()| values)
 }
@@ -97,7 +97,7 @@ fn tcp_answers_faults_and_when_the_connection_is_dropped() {
         },
         |_| {},
     );
-    let mut link = TcpLink::new(&address);
+    let mut link = Link::tcp(&address);
     assert_eq!(exchange(&mut link, 1000), Ok([0x1234, 0xABCD]));
     assert!(link.round_trip_ns().is_some());
     assert_eq!(exchange(&mut link, 1000), Err(Fault::Exception(2)));
@@ -137,7 +137,7 @@ fn a_late_tcp_answer_is_dropped_and_counted_and_the_next_one_is_awaited() {
             }
         },
     );
-    let mut link = TcpLink::new(&address);
+    let mut link = Link::tcp(&address);
     assert_eq!(exchange(&mut link, 100), Err(Fault::Timeout));
     late_sent.recv_timeout(Duration::from_secs(10)).unwrap();
     assert_eq!(exchange(&mut link, 1000), Ok([7, 8]));
@@ -163,7 +163,7 @@ fn an_answer_cut_short_after_its_header_drops_the_connection() {
         },
         |_| {},
     );
-    let mut link = TcpLink::new(&address);
+    let mut link = Link::tcp(&address);
     assert_eq!(exchange(&mut link, 100), Err(Fault::Timeout));
     // The rest of that answer is never read as the next answer's header.
     assert_eq!(exchange(&mut link, 2000), Ok([7, 8]));
@@ -173,9 +173,9 @@ fn an_answer_cut_short_after_its_header_drops_the_connection() {
 #[test]
 fn a_refused_tcp_connection_is_a_connect_fault() {
     let refused = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
-    let mut link = TcpLink::new(&refused.to_string());
+    let mut link = Link::tcp(&refused.to_string());
     assert!(matches!(exchange(&mut link, 200), Err(Fault::Connect(_))));
-    let mut link = TcpLink::new("no-such-host.invalid:502");
+    let mut link = Link::tcp("no-such-host.invalid:502");
     assert!(matches!(exchange(&mut link, 200), Err(Fault::Connect(m)) if m.contains("resolve")));
 }
 
@@ -230,7 +230,7 @@ fn rtu_answers_and_faults_over_a_pseudo_terminal() {
         // The device end stays open until the link has read: a closed end is a hangup.
         (requests, device)
     });
-    let mut link = RtuLink::new(&line);
+    let mut link = Link::rtu(&line);
     assert_eq!(exchange(&mut link, 500), Ok([0x1234, 0xABCD]));
     assert_eq!(exchange(&mut link, 500), Err(Fault::BadCrc));
     assert_eq!(exchange(&mut link, 500), Err(Fault::WrongUnit(2)));
@@ -263,7 +263,7 @@ fn bytes_left_on_the_line_are_dropped_before_the_next_request_as_a_late_answer()
         // The device end stays open until the link has read: a closed end is a hangup.
         device
     });
-    let mut link = RtuLink::new(&line);
+    let mut link = Link::rtu(&line);
     assert_eq!(exchange(&mut link, 100), Err(Fault::Timeout));
     late_sent.recv_timeout(Duration::from_secs(10)).unwrap();
     // Written is not yet readable at this end: let the pseudo terminal pass the bytes on.

@@ -297,9 +297,9 @@ pub fn start(devices: &[RemoteDevice]) -> Result<(RemoteIo, RemoteService), Remo
                 groups[g].1.push(index);
             }
             None => {
-                let link: Box<dyn link::Link + Send> = match &device.transport {
-                    RemoteTransport::Tcp { address } => Box::new(link::TcpLink::new(address)),
-                    RemoteTransport::Rtu(line) => Box::new(link::RtuLink::new(line)),
+                let link = match &device.transport {
+                    RemoteTransport::Tcp { address } => link::Link::tcp(address),
+                    RemoteTransport::Rtu(line) => link::Link::rtu(line),
                 };
                 let key = match &device.transport {
                     RemoteTransport::Tcp { .. } => format!("tcp {}", device.name),

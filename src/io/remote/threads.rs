@@ -17,7 +17,7 @@ const STOP_CHECK: Duration = Duration::from_millis(200);
 /// The pollers that share a link, and the link.
 pub struct Group {
     pub pollers: Vec<Poller>,
-    pub link: Box<dyn Link + Send>,
+    pub link: Link,
 }
 
 /// The thread's loop, until `stop`. `epoch` is the pollers' clock's zero.
