@@ -17,6 +17,7 @@ use nix::sys::signal::Signal;
 
 use harness::daemon::{Daemon, Project};
 use harness::log::PATIENCE;
+use harness::modbus::{bits, exception, read, words, write_coils, write_registers};
 
 /// Scan program: D00400 counts scans (holding register 1050); M0000 is copied to M0010 (coil 16); P0000 to P0040;
 /// D00300 counts the scans that saw D00000 differ from D00122 or M0000 from M007F.
@@ -155,50 +156,6 @@ fn response(stream: &mut TcpStream, transaction: u16, unit: u8) -> Vec<u8> {
     let mut pdu = vec![0u8; len - 1];
     stream.read_exact(&mut pdu).expect("the response PDU");
     pdu
-}
-
-fn read(fc: u8, start: u16, count: u16) -> Vec<u8> {
-    let mut p = vec![fc];
-    p.extend_from_slice(&start.to_be_bytes());
-    p.extend_from_slice(&count.to_be_bytes());
-    p
-}
-
-fn write_registers(start: u16, values: &[u16]) -> Vec<u8> {
-    let mut p = vec![16];
-    p.extend_from_slice(&start.to_be_bytes());
-    p.extend_from_slice(&(values.len() as u16).to_be_bytes());
-    p.push(2 * values.len() as u8);
-    for v in values {
-        p.extend_from_slice(&v.to_be_bytes());
-    }
-    p
-}
-
-fn write_coils(start: u16, values: &[bool]) -> Vec<u8> {
-    let mut p = vec![15];
-    p.extend_from_slice(&start.to_be_bytes());
-    p.extend_from_slice(&(values.len() as u16).to_be_bytes());
-    let mut packed = vec![0u8; values.len().div_ceil(8)];
-    for (i, on) in values.iter().enumerate() {
-        packed[i / 8] |= u8::from(*on) << (i % 8);
-    }
-    p.push(packed.len() as u8);
-    p.extend_from_slice(&packed);
-    p
-}
-
-fn words(bytes: &[u8]) -> Vec<u16> {
-    bytes.chunks(2).map(|c| u16::from_be_bytes([c[0], c[1]])).collect()
-}
-
-fn bits(bytes: &[u8], count: usize) -> Vec<bool> {
-    (0..count).map(|i| bytes[i / 8] >> (i % 8) & 1 == 1).collect()
-}
-
-/// An exception response to `fc` with `code`.
-fn exception(fc: u8, code: u8) -> Vec<u8> {
-    vec![fc | 0x80, code]
 }
 
 /// The server closed the connection: a read sees the end (or a reset).

@@ -19,6 +19,7 @@ use serialport::{SerialPort, TTYPort};
 
 use harness::daemon::{Daemon, Project};
 use harness::log::PATIENCE;
+use harness::modbus::{bits, read, words, write_registers};
 
 /// Scan program: D00400 counts scans; M0000 is copied to M0010 (coil 16); D00300 counts the
 /// scans that saw D00000 differ from D00122 (the first and last words of a 123-register write).
@@ -166,32 +167,6 @@ impl Plc {
         assert_eq!(code, 0, "clean stop:\n{}", log.join("\n"));
         log
     }
-}
-
-fn read(fc: u8, start: u16, count: u16) -> Vec<u8> {
-    let mut p = vec![fc];
-    p.extend_from_slice(&start.to_be_bytes());
-    p.extend_from_slice(&count.to_be_bytes());
-    p
-}
-
-fn write_registers(start: u16, values: &[u16]) -> Vec<u8> {
-    let mut p = vec![16];
-    p.extend_from_slice(&start.to_be_bytes());
-    p.extend_from_slice(&(values.len() as u16).to_be_bytes());
-    p.push(2 * values.len() as u8);
-    for v in values {
-        p.extend_from_slice(&v.to_be_bytes());
-    }
-    p
-}
-
-fn words(bytes: &[u8]) -> Vec<u16> {
-    bytes.chunks(2).map(|c| u16::from_be_bytes([c[0], c[1]])).collect()
-}
-
-fn bits(bytes: &[u8], count: usize) -> Vec<bool> {
-    (0..count).map(|i| bytes[i / 8] >> (i % 8) & 1 == 1).collect()
 }
 
 #[test]

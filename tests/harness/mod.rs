@@ -8,6 +8,7 @@
 //! - [`engine`]: the engine in virtual time on a project from literal texts, with a field;
 //! - [`vm`]: one program scanned by the VM alone, and the assembler's context;
 //! - [`golden`]: golden files compared, or rewritten with `PLCD_BLESS=1`;
+//! - [`modbus`]: Modbus PDUs built and taken apart by hand;
 //! - [`gpiosim`]: whether the kernel's gpio-sim is here, and `require_gpiosim!` (include the
 //!   harness with `#[macro_use]` to use it).
 //!
@@ -24,6 +25,7 @@ pub mod golden;
 #[macro_use]
 pub mod gpiosim;
 pub mod log;
+pub mod modbus;
 pub mod nobody;
 pub mod skip;
 pub mod tempdir;
