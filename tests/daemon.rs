@@ -273,3 +273,31 @@ fn a_looping_stimulus_replays_its_edges() {
     let (code, _) = daemon.stop();
     assert_eq!(code, 0);
 }
+
+#[test]
+fn sighup_refuses_a_new_control_socket_or_key_switch_and_keeps_running() {
+    let project = conveyor("reload-control");
+    let daemon = project.start();
+    daemon.wait_for("P0040 = 1");
+    let config = std::fs::read_to_string(project.config()).unwrap();
+    assert!(config.contains("[control]\n"), "{config}");
+    for (changed, section) in [
+        (config.replacen("[control]\n", "[control]\nmax_clients = 3\n", 1), "[control]"),
+        (format!("{config}\n[switch]\nposition = \"stop\"\n"), "[switch]"),
+    ] {
+        let before = daemon.lines().len();
+        std::fs::write(project.config(), &changed).unwrap();
+        daemon.signal(Signal::SIGHUP);
+        let refused = daemon.wait_for_after(
+            before,
+            &format!("reload refused: {section} changed, which takes a restart of the service"),
+        );
+        // The running project goes on: the cycle task still blinks.
+        let on = daemon.wait_for_after(refused, "P0040 = 1");
+        daemon.wait_for_after(on, "P0040 = 0");
+    }
+    std::fs::write(project.config(), config).unwrap();
+    let (code, log) = daemon.stop();
+    assert_eq!(code, 0, "log:\n{}", log.join("\n"));
+    assert!(!log.iter().any(|l| l.contains("reloaded:")), "{}", log.join("\n"));
+}

@@ -63,11 +63,10 @@ const SECTIONS: [Section; 12] = [
     section("[timers]",  |a, b| a.timers != b.timers,        [true,  true,  false]),
     section("[io]",      |a, b| a.io != b.io,                [false, false, false]),
     section("[rt]",      |a, b| a.rt != b.rt,                [false, false, false]),
-    // A known difference, kept for now: a reload does not refuse a new [control] or [switch],
-    // although it sets up neither the control socket nor the field's switch line again;
-    // `plcctl load` refuses both.
-    section("[control]", |a, b| a.control != b.control,      [true,  false, true ]),
-    section("[switch]",  |a, b| a.switch != b.switch,        [true,  false, false]),
+    // The control socket and the field's switch line are set up at start: like `plcctl
+    // load`, a reload refuses a new [control] or [switch] rather than take it and not apply it.
+    section("[control]", |a, b| a.control != b.control,      [false, false, true ]),
+    section("[switch]",  |a, b| a.switch != b.switch,        [false, false, false]),
     section("[retain]",  |a, b| a.retain != b.retain,        [false, false, false]),
     section("[modbus]",  |a, b| a.modbus != b.modbus,        [false, false, true ]),
     // The poller threads and their links are set up at start.
@@ -149,13 +148,23 @@ mod tests {
         new.control.max_clients += 1;
         new.retain.interval_ms += 1;
         new.modbus.unit_id += 1;
+        new.remotes = parse(
+            &format!(
+                "{PROGRAM}[[remote]]\nname = \"a\"\ntransport = \"tcp\"\n\
+                 address = \"10.0.0.5:502\"\n[[remote.read]]\ntable = \"coils\"\n\
+                 address = 0\ncount = 1\ndevice = \"M0000\"\n"
+            ),
+            Path::new("a.toml"),
+        )
+        .unwrap()
+        .remotes;
         assert_eq!(
             old.refused_sections(&new, ProjectChange::Reload),
-            ["[io]", "[rt]", "[retain]", "[modbus]"]
+            ["[io]", "[rt]", "[control]", "[switch]", "[retain]", "[modbus]", "[[remote]]"]
         );
         assert_eq!(
             old.refused_sections(&new, ProjectChange::Load),
-            ["[io]", "[rt]", "[control]", "[switch]", "[retain]", "[modbus]"]
+            ["[io]", "[rt]", "[control]", "[switch]", "[retain]", "[modbus]", "[[remote]]"]
         );
         assert_eq!(
             old.refused_sections(&new, ProjectChange::Online),
