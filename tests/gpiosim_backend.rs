@@ -82,7 +82,9 @@ impl Lines {
     fn offset(line: &config::LineRef) -> u32 {
         match line {
             config::LineRef::Offset(offset) => *offset,
-            config::LineRef::Name(name) => LINE_NAMES.iter().position(|n| n == name).unwrap() as u32,
+            config::LineRef::Name(name) => {
+                LINE_NAMES.iter().position(|n| n == name).unwrap() as u32
+            }
         }
     }
 }
@@ -171,8 +173,12 @@ impl SimRig {
         let config = rig_config_with(lines.wiring(), "sim", None, &switch_section("sim"));
         let io = &config.io;
         let inputs: Vec<Address> = io.inputs.iter().map(|l| l.device).collect();
-        let lines =
-            io.inputs.iter().chain(&io.outputs).map(|l| (Lines::offset(&l.line), l.device)).collect();
+        let lines = io
+            .inputs
+            .iter()
+            .chain(&io.outputs)
+            .map(|l| (Lines::offset(&l.line), l.device))
+            .collect();
         let switch = config.switch.as_ref().map(|s| s.position);
         SimRig { io: SimulatedIo::new(&inputs, &[0], switch), lines, pending: Vec::new() }
     }
@@ -462,7 +468,7 @@ fn the_kernel_takes_a_plan_at_its_limits() {
         );
     }
     let plan = config::parse(&text, Path::new("limits.toml")).expect("at the limits");
-    assert_eq!(plan.wiring().unwrap().inputs.len(), 64);
+    assert_eq!(plan.wiring(&[]).unwrap().inputs.len(), 64);
     // One more debounce period is one attribute too many: refused by the config already.
     let over = text.replacen("debounce_us = 0\n", "debounce_us = 500\n", 1);
     let errors = config::parse(&over, Path::new("limits.toml")).unwrap_err().to_string();
@@ -548,8 +554,7 @@ fn a_name_and_an_offset_of_one_line_are_refused_naming_both() {
 #[test]
 fn a_chip_without_line_names_says_so() {
     require_gpiosim!();
-    let sim =
-        gpiosim::builder().with_bank(&gpiosim::Bank::new(16, "plcd-unnamed")).live().unwrap();
+    let sim = gpiosim::builder().with_bank(&gpiosim::Bank::new(16, "plcd-unnamed")).live().unwrap();
     let error = named_open_error(&sim, "GPIO17", "");
     assert!(
         error.contains(
