@@ -384,8 +384,9 @@ macro_rules! on_every_backend {
             use super::Lines;
             $(#[test] fn $body() {
                 require_gpiosim!();
-                // The label is the only way to the chip: unique per test.
-                let label = concat!("plcd-named-", stringify!($body));
+                // The label is the only way to the chip: unique per test, and at most the 31
+                // bytes the kernel reports of a label.
+                let label = concat!("n-", stringify!($body));
                 super::$body(&mut super::GpioRig::new(label, Lines::Names));
             })*
         }

@@ -26,8 +26,9 @@ use crate::device::{Address, Area};
 pub struct IoConfig {
     /// `backend`: `"sim"` (default, in-process) or `"gpiocdev"` (Linux GPIO character device).
     pub backend: Backend,
-    /// `chip`: the GPIO chip, a path (`/dev/gpiochip0`) or a label; required for gpiocdev,
-    /// ignored by sim. Default none.
+    /// `chip`: the GPIO chip, a path (`/dev/gpiochip0`, starting with `/`), a name under
+    /// `/dev` or a label (at most [`LINE_NAME_MAX`] bytes); required for gpiocdev, ignored by
+    /// sim. Default none.
     pub chip: Option<String>,
     /// `[[io.input]]`, in file order. Devices and lines are unique across inputs and outputs.
     pub inputs: Vec<IoLine>,
@@ -84,9 +85,9 @@ pub enum LineRef {
     Name(String),
 }
 
-/// The longest line name the kernel reports: its GPIO uAPI carries names in 32 bytes
-/// (`GPIO_MAX_NAME_SIZE`), the terminating NUL included, and cuts longer ones there. A longer
-/// name in the config could never match.
+/// The longest line name (and chip label) the kernel reports: its GPIO uAPI carries them in 32
+/// bytes (`GPIO_MAX_NAME_SIZE`), the terminating NUL included, and cuts longer ones there. A
+/// longer name or label in the config could never match.
 pub const LINE_NAME_MAX: usize = 31;
 
 impl LineRef {
@@ -291,6 +292,21 @@ pub(super) fn validate(
         match raw.chip {
             Some(chip) if chip.get_ref().trim().is_empty() => {
                 sink.error(chip.span().start, format!("{} must not be empty", ctx.key("chip")));
+                ok = false;
+            }
+            // The kernel reports labels cut to the size it reports line names in: a longer
+            // one would never match (found out on gpio-sim, whose labels are the user's).
+            Some(chip)
+                if !chip.get_ref().starts_with('/') && chip.get_ref().len() > LINE_NAME_MAX =>
+            {
+                let message = format!(
+                    "{} {:?} is {} bytes long, but the kernel reports chip labels of at most \
+                     {LINE_NAME_MAX} bytes: no chip is labelled so (a path starts with `/`)",
+                    ctx.key("chip"),
+                    chip.get_ref(),
+                    chip.get_ref().len()
+                );
+                sink.error(chip.span().start, message);
                 ok = false;
             }
             Some(chip) => config_io.chip = Some(chip.into_inner()),

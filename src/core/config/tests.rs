@@ -957,6 +957,24 @@ fn gpiocdev_needs_a_chip() {
 }
 
 #[test]
+fn a_chip_label_is_at_most_31_bytes() {
+    let gpio = |chip: &str| format!("[io]\nbackend = \"gpiocdev\"\nchip = {chip:?}\n");
+    let label = "pinctrl-of-a-board-with-a-long-name";
+    assert_eq!(
+        errors(&with_scan(&gpio(label))),
+        [format!(
+            "3:8: io.chip {label:?} is 35 bytes long, but the kernel reports chip labels of at \
+             most 31 bytes: no chip is labelled so (a path starts with `/`)"
+        )]
+    );
+    let at_most = "x".repeat(LINE_NAME_MAX);
+    assert_eq!(config(&with_scan(&gpio(&at_most))).io.chip, Some(at_most));
+    // A path may be longer.
+    let path = "/dev/gpio/by-label/pinctrl-of-a-board-with-a-long-name";
+    assert_eq!(config(&with_scan(&gpio(path))).io.chip.as_deref(), Some(path));
+}
+
+#[test]
 fn io_devices_are_p_bits() {
     for device in ["M0000", "P000", "D00001.1"] {
         let text = format!("[[io.input]]\ndevice = \"{device}\"\nline = 1");
