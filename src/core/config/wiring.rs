@@ -404,6 +404,7 @@ impl Wiring {
             return Err(errors);
         }
 
+        // No error: every line has its offset.
         let mut inputs = Vec::with_capacity(io.inputs.len() + 1);
         for (line, offset) in io.inputs.iter().zip(input_offsets) {
             let settings = InputLine {
