@@ -1,7 +1,8 @@
 //! `plcd check` refuses a gpiocdev wiring the kernel would refuse at `plcd run`: more lines
 //! than one line request holds, or more distinct line settings than a request carries. The
-//! check needs no GPIO chip (the config's chip need not exist), and reports every such error
-//! with the config's others, located.
+//! check needs no GPIO chip (the config's chip need not exist), lines by name included, and
+//! reports every such error with the config's others, located. It accepts the Raspberry Pi
+//! examples of `etc/`, wired by line names.
 
 mod harness;
 
@@ -77,4 +78,59 @@ fn too_many_line_settings_with_the_other_errors() {
             path = path.display()
         )
     );
+}
+
+#[test]
+fn too_many_lines_by_name_without_the_chip() {
+    // Names are resolved only on the chip; how many lines there are, the config says.
+    let inputs: String = (0..65)
+        .map(|n| {
+            format!(
+                "[[io.input]]\ndevice = \"P{:03}{:X}\"\nline = \"IN{n}\"\n",
+                10 + n / 16,
+                n % 16
+            )
+        })
+        .collect();
+    let dir = project("names", &format!("{HEAD}{inputs}"));
+    let (code, stderr) = check(&dir);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains(
+            ":198:1: error: io.input \"P0140\": 65 input lines configured, but one GPIO \
+                         line request holds at most 64\n"
+        ),
+        "{stderr}"
+    );
+}
+
+/// `plcd check` accepts `etc/pi4.toml` and `etc/pi5.toml` as they are (the header's chips by
+/// label, the lines by name: nothing that needs the board), and they differ in the chip only.
+#[test]
+fn the_raspberry_pi_examples_check() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    for board in ["pi4", "pi5"] {
+        let output = Command::new(env!("CARGO_BIN_EXE_plcd"))
+            .args(["check", "--config"])
+            .arg(root.join(format!("etc/{board}.toml")))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(0), "etc/{board}.toml: {stderr}");
+        let config = plcd::config::parse(
+            &std::fs::read_to_string(root.join(format!("etc/{board}.toml"))).unwrap(),
+            &root.join(format!("etc/{board}.toml")),
+        )
+        .unwrap();
+        assert_eq!(config.io.backend, plcd::config::Backend::Gpiocdev);
+        assert!(config.uses_line_names(), "etc/{board}.toml wires by names");
+        let label = if board == "pi4" { "pinctrl-bcm2711" } else { "pinctrl-rp1" };
+        assert_eq!(config.io.chip.as_deref(), Some(label));
+    }
+    let text =
+        |board: &str| std::fs::read_to_string(root.join(format!("etc/{board}.toml"))).unwrap();
+    let (pi4, pi5) = (text("pi4"), text("pi5"));
+    let differ: Vec<(&str, &str)> = pi4.lines().zip(pi5.lines()).filter(|(a, b)| a != b).collect();
+    assert_eq!(differ.len(), 2, "the header comment and the chip: {differ:#?}");
+    assert_eq!(pi4.lines().count(), pi5.lines().count());
 }

@@ -1,7 +1,9 @@
 //! The same test bodies against every I/O backend: the in-process sim backend (always) and the
 //! gpiocdev backend on the kernel's gpio-sim (where it is available: root and the module;
-//! `tests/qemu/run-gpiosim` runs these in a VM with such a kernel). Then the RUN/STOP key switch's
-//! line settings and errors, and the daemon itself on gpio-sim, end to end.
+//! `tests/qemu/run-gpiosim` runs these in a VM with such a kernel), each wired by line offsets
+//! and by line names (on gpio-sim, a chip with named lines found by its label). Then line names
+//! the chip lacks or shares, the RUN/STOP key switch's line settings and errors, and the daemon
+//! itself on gpio-sim, end to end.
 #[macro_use]
 mod harness;
 
@@ -36,15 +38,85 @@ device = "P0041"
 line = 9
 "#;
 
+/// The names the rigs wired by name give their chip's 16 lines, by offset: Raspberry Pi header
+/// names, in an order unlike their numbers, so that a name taken for its digits would miss.
+const LINE_NAMES: [&str; 16] = [
+    "GPIO17", "GPIO27", "GPIO22", "GPIO10", "GPIO9", "GPIO11", "GPIO0", "GPIO1", "GPIO23",
+    "GPIO24", "GPIO25", "GPIO8", "GPIO5", "GPIO6", "GPIO12", "GPIO13",
+];
+
+/// [`WIRING`] by the lines' names ([`LINE_NAMES`]): the same offsets.
+const NAMED_WIRING: &str = r#"
+[[io.input]]
+device = "P0000"
+line = "GPIO17"
+[[io.input]]
+device = "P0001"
+line = "GPIO27"
+[[io.output]]
+device = "P0040"
+line = "GPIO23"
+[[io.output]]
+device = "P0041"
+line = "GPIO24"
+"#;
+
+/// How a rig's config names its lines.
+#[derive(Clone, Copy, PartialEq)]
+enum Lines {
+    /// By offset ([`WIRING`]), the chip by its path.
+    Offsets,
+    /// By name ([`NAMED_WIRING`], the switch's `"GPIO5"`), the chip by its label.
+    Names,
+}
+
+impl Lines {
+    fn wiring(self) -> &'static str {
+        match self {
+            Lines::Offsets => WIRING,
+            Lines::Names => NAMED_WIRING,
+        }
+    }
+
+    /// A line's offset on the rigs' chip, as written in the config.
+    fn offset(line: &config::LineRef) -> u32 {
+        match line {
+            config::LineRef::Offset(offset) => *offset,
+            config::LineRef::Name(name) => {
+                LINE_NAMES.iter().position(|n| n == name).unwrap() as u32
+            }
+        }
+    }
+}
+
 /// The key switch of the rigs: line 12 on gpiocdev; on sim it starts at STOP, as the gpio-sim
 /// line does (gpio-sim pulls a line down until told otherwise).
 const SWITCH_LINE: u32 = 12;
 
 fn switch_section(backend: &str) -> String {
-    match backend {
-        "gpiocdev" => format!("[switch]\nline = {SWITCH_LINE}\n"),
+    switch_section_by(backend, Lines::Offsets)
+}
+
+fn switch_section_by(backend: &str, lines: Lines) -> String {
+    match (backend, lines) {
+        ("gpiocdev", Lines::Offsets) => format!("[switch]\nline = {SWITCH_LINE}\n"),
+        ("gpiocdev", Lines::Names) => {
+            format!("[switch]\nline = {:?}\n", LINE_NAMES[SWITCH_LINE as usize])
+        }
         _ => "[switch]\nposition = \"stop\"\n".to_string(),
     }
+}
+
+/// A live gpio-sim chip of 16 lines labelled `label`, its lines named [`LINE_NAMES`].
+fn named_sim(label: &str) -> gpiosim::Sim {
+    let mut bank = gpiosim::Bank::new(16, label);
+    for (offset, name) in (0..).zip(LINE_NAMES) {
+        bank.name(offset, name);
+    }
+    gpiosim::builder()
+        .with_bank(&bank)
+        .live()
+        .unwrap_or_else(|e| panic!("gpio-sim chip {label:?} does not go live: {e}"))
 }
 
 fn addr(text: &str) -> Address {
@@ -69,11 +141,16 @@ trait Rig {
 
 /// The rigs' config: [`WIRING`], an io task on P0000, and `extra` (a `[switch]`).
 fn rig_config(backend: &str, chip: Option<&str>, extra: &str) -> Config {
+    rig_config_with(WIRING, backend, chip, extra)
+}
+
+/// The rigs' config with `wiring` for [`WIRING`].
+fn rig_config_with(wiring: &str, backend: &str, chip: Option<&str>, extra: &str) -> Config {
     let chip = chip.map(|c| format!("chip = \"{c}\"\n")).unwrap_or_default();
     let text = format!(
         "[[program]]\nfile = \"main.il\"\n[[task]]\nname = \"edge\"\nkind = \"io\"\n\
          number = 8\npriority = 2\ncontact = \"P0000\"\nedge = \"both\"\n\
-         [io]\nbackend = \"{backend}\"\n{chip}{WIRING}{extra}"
+         [io]\nbackend = \"{backend}\"\n{chip}{wiring}{extra}"
     );
     config::parse(&text, Path::new("rig.toml")).expect("config")
 }
@@ -90,11 +167,18 @@ struct SimRig {
 }
 
 impl SimRig {
-    fn new() -> SimRig {
-        let config = rig_config("sim", None, &switch_section("sim"));
+    /// The sim backend on the rigs' wiring by `lines`: the sim backend wires devices, not
+    /// lines, so names and offsets alike only tell the rig which device a line is.
+    fn new(lines: Lines) -> SimRig {
+        let config = rig_config_with(lines.wiring(), "sim", None, &switch_section("sim"));
         let io = &config.io;
         let inputs: Vec<Address> = io.inputs.iter().map(|l| l.device).collect();
-        let lines = io.inputs.iter().chain(&io.outputs).map(|l| (l.line, l.device)).collect();
+        let lines = io
+            .inputs
+            .iter()
+            .chain(&io.outputs)
+            .map(|l| (Lines::offset(&l.line), l.device))
+            .collect();
         let switch = config.switch.as_ref().map(|s| s.position);
         SimRig { io: SimulatedIo::new(&inputs, &[0], switch), lines, pending: Vec::new() }
     }
@@ -139,13 +223,22 @@ struct GpioRig {
 }
 
 impl GpioRig {
-    fn new(name: &str) -> GpioRig {
-        let sim = gpiosim::builder()
-            .with_bank(&gpiosim::Bank::new(16, name))
-            .live()
-            .unwrap_or_else(|e| panic!("gpio-sim chip does not go live: {e}"));
-        let path = sim.chips()[0].dev_path().to_str().unwrap().to_string();
-        let config = rig_config("gpiocdev", Some(&path), &switch_section("gpiocdev"));
+    /// A chip labelled `name`: by `Lines::Offsets` an unnamed one opened by its path, by
+    /// `Lines::Names` one with named lines ([`LINE_NAMES`]) opened by its label.
+    fn new(name: &str, lines: Lines) -> GpioRig {
+        let (sim, chip) = match lines {
+            Lines::Offsets => {
+                let sim = gpiosim::builder()
+                    .with_bank(&gpiosim::Bank::new(16, name))
+                    .live()
+                    .unwrap_or_else(|e| panic!("gpio-sim chip does not go live: {e}"));
+                let path = sim.chips()[0].dev_path().to_str().unwrap().to_string();
+                (sim, path)
+            }
+            Lines::Names => (named_sim(name), name.to_string()),
+        };
+        let switch = switch_section_by("gpiocdev", lines);
+        let config = rig_config_with(lines.wiring(), "gpiocdev", Some(&chip), &switch);
         let gpio = open(&config, "plcd-test").expect("the backend opens");
         GpioRig { sim, gpio }
     }
@@ -272,12 +365,29 @@ fn the_switch_follows_the_field(rig: &mut dyn Rig) {
 macro_rules! on_every_backend {
     ($($body:ident),*) => {
         mod sim_backend {
-            $(#[test] fn $body() { super::$body(&mut super::SimRig::new()); })*
+            use super::Lines;
+            $(#[test] fn $body() { super::$body(&mut super::SimRig::new(Lines::Offsets)); })*
+        }
+        mod sim_backend_by_names {
+            use super::Lines;
+            $(#[test] fn $body() { super::$body(&mut super::SimRig::new(Lines::Names)); })*
         }
         mod gpiocdev_backend {
+            use super::Lines;
             $(#[test] fn $body() {
                 require_gpiosim!();
-                super::$body(&mut super::GpioRig::new(concat!("plcd-", stringify!($body))));
+                let label = concat!("plcd-", stringify!($body));
+                super::$body(&mut super::GpioRig::new(label, Lines::Offsets));
+            })*
+        }
+        mod gpiocdev_backend_by_names {
+            use super::Lines;
+            $(#[test] fn $body() {
+                require_gpiosim!();
+                // The label is the only way to the chip: unique per test, and at most the 31
+                // bytes the kernel reports of a label.
+                let label = concat!("n-", stringify!($body));
+                super::$body(&mut super::GpioRig::new(label, Lines::Names));
             })*
         }
     };
@@ -293,7 +403,7 @@ on_every_backend!(
 #[test]
 fn a_line_held_by_another_process_is_named() {
     require_gpiosim!();
-    let rig = GpioRig::new("plcd-busy");
+    let rig = GpioRig::new("plcd-busy", Lines::Offsets);
     let path = rig.sim.chips()[0].dev_path().to_str().unwrap().to_string();
     let config = rig_config("gpiocdev", Some(&path), "");
     let error = open(&config, "plcd-second").unwrap_err().to_string();
@@ -359,7 +469,7 @@ fn the_kernel_takes_a_plan_at_its_limits() {
         );
     }
     let plan = config::parse(&text, Path::new("limits.toml")).expect("at the limits");
-    assert_eq!(plan.wiring().unwrap().inputs.len(), 64);
+    assert_eq!(plan.wiring(&[]).unwrap().inputs.len(), 64);
     // One more debounce period is one attribute too many: refused by the config already.
     let over = text.replacen("debounce_us = 0\n", "debounce_us = 500\n", 1);
     let errors = config::parse(&over, Path::new("limits.toml")).unwrap_err().to_string();
@@ -371,6 +481,111 @@ fn the_kernel_takes_a_plan_at_its_limits() {
     let config = config::parse(&text, Path::new("limits.toml")).unwrap();
     let gpio = open(&config, "plcd-test").expect("the kernel takes the plan");
     assert!(gpio.edges.is_some());
+}
+
+/// The error of opening the rigs' config wired by names, with `P0000`'s line named `p0000` and
+/// `[switch]` as given, on `sim`'s chip (by its path).
+fn named_open_error(sim: &gpiosim::Sim, p0000: &str, switch: &str) -> String {
+    let path = sim.chips()[0].dev_path().to_str().unwrap().to_string();
+    let wiring = NAMED_WIRING.replacen("\"GPIO17\"", &format!("{p0000:?}"), 1);
+    let config = rig_config_with(&wiring, "gpiocdev", Some(&path), switch);
+    let error = open(&config, "plcd-test").expect_err("names the chip cannot resolve");
+    // Nothing was requested: the names are resolved first.
+    let chip = gpiocdev::Chip::from_path(sim.chips()[0].dev_path()).unwrap();
+    for offset in 0..16 {
+        assert!(!chip.line_info(offset).unwrap().used, "line {offset} requested: {error}");
+    }
+    error.to_string()
+}
+
+#[test]
+fn a_line_name_the_chip_lacks_stops_the_start_with_the_near_names() {
+    require_gpiosim!();
+    let sim = named_sim("plcd-no-such-name");
+    let path = sim.chips()[0].dev_path().display().to_string();
+    let error = named_open_error(&sim, "GPIO71", "");
+    assert_eq!(
+        error,
+        format!(
+            "GPIO chip {path} (plcd-no-such-name): io.input \"P0000\": no line of the chip is \
+             named \"GPIO71\"; near names: \"GPIO17\" (line 0), \"GPIO11\" (line 5), \"GPIO1\" \
+             (line 7), \"GPIO27\" (line 1), \"GPIO22\" (line 2)"
+        )
+    );
+    // Another case: the kernel's name first. Every bad entry at once, the switch's too.
+    let error = named_open_error(&sim, "gpio17", "[switch]\nline = \"GPIO55\"\n");
+    assert!(error.contains("named \"gpio17\"; near names: \"GPIO17\" (line 0)"), "{error}");
+    assert!(error.contains("; [switch]: no line of the chip is named \"GPIO55\"; "), "{error}");
+}
+
+#[test]
+fn a_line_name_two_lines_share_is_refused_with_their_offsets() {
+    require_gpiosim!();
+    let mut bank = gpiosim::Bank::new(16, "plcd-shared-name");
+    for (offset, name) in (0..).zip(LINE_NAMES) {
+        bank.name(offset, name);
+    }
+    bank.name(3, "BUTTON").name(13, "BUTTON");
+    let sim = gpiosim::builder().with_bank(&bank).live().unwrap();
+    let error = named_open_error(&sim, "BUTTON", "");
+    assert!(
+        error.ends_with(
+            "io.input \"P0000\": line name \"BUTTON\" is shared by lines 3 and 13 of the chip: \
+             give the line's offset instead"
+        ),
+        "{error}"
+    );
+}
+
+#[test]
+fn a_name_and_an_offset_of_one_line_are_refused_naming_both() {
+    require_gpiosim!();
+    let sim = named_sim("plcd-name-and-offset");
+    // The switch by offset 0, which is P0000's "GPIO17".
+    let error = named_open_error(&sim, "GPIO17", "[switch]\nline = 0\n");
+    assert!(
+        error.ends_with(
+            "[switch] (line 0) and io.input \"P0000\" (line \"GPIO17\") are the same line, \
+             offset 0 of the chip"
+        ),
+        "{error}"
+    );
+}
+
+#[test]
+fn a_chip_without_line_names_says_so() {
+    require_gpiosim!();
+    let sim = gpiosim::builder().with_bank(&gpiosim::Bank::new(16, "plcd-unnamed")).live().unwrap();
+    let error = named_open_error(&sim, "GPIO17", "");
+    assert!(
+        error.contains(
+            "io.input \"P0000\": no line of the chip is named \"GPIO17\"; none of the chip's 16 \
+             lines has a name: give the line's offset"
+        ),
+        "{error}"
+    );
+}
+
+#[test]
+fn lines_by_name_are_requested_at_their_offsets() {
+    require_gpiosim!();
+    let label = "plcd-named-offsets";
+    let sim = named_sim(label);
+    let config = rig_config_with(
+        NAMED_WIRING,
+        "gpiocdev",
+        Some(label),
+        &switch_section_by("gpiocdev", Lines::Names),
+    );
+    let _gpio = open(&config, "plcd-named").expect("the backend opens by label and names");
+    let chip = gpiocdev::Chip::from_path(sim.chips()[0].dev_path()).unwrap();
+    let used: Vec<(u32, gpiocdev::line::Direction)> = (0..16)
+        .map(|o| chip.line_info(o).unwrap())
+        .filter(|info| info.used && info.consumer == "plcd-named")
+        .map(|info| (info.offset, info.direction))
+        .collect();
+    use gpiocdev::line::Direction::{Input, Output};
+    assert_eq!(used, [(0, Input), (1, Input), (8, Output), (9, Output), (12, Input)]);
 }
 
 /// The chip's path and the gpiocdev rig config with `[switch]` as given.
@@ -488,4 +703,38 @@ fn the_daemon_drives_gpio_lines_and_counts_edges_by_interrupt() {
     let (code, log) = daemon.stop();
     assert_eq!(code, 0, "{}", log.join("\n"));
     assert!(!high(8) && !high(9), "outputs off after SIGTERM");
+}
+
+#[test]
+fn the_daemon_does_not_start_on_a_line_name_the_chip_lacks() {
+    require_gpiosim!();
+    let label = "plcd-daemon-names";
+    let sim = named_sim(label);
+    let config = format!(
+        "[[program]]\nfile = \"main.il\"\n[control]\nsocket = \"plcd.sock\"\n\
+         [io]\nbackend = \"gpiocdev\"\nchip = \"{label}\"\n{}",
+        NAMED_WIRING.replace("\"GPIO24\"", "\"GPIO42\"")
+    );
+    let project = Project::new(
+        "gpiosim-daemon-names",
+        &[("plcd.toml", &config), ("main.il", "LOAD P0001\nOUT P0040\nEND\n")],
+    );
+    // `plcd check` has nothing against it: only the chip knows its names.
+    let check = std::process::Command::new(harness::daemon::plcd_binary())
+        .args(["check", "--config"])
+        .arg(project.config())
+        .output()
+        .unwrap();
+    assert!(check.status.success(), "{}", String::from_utf8_lossy(&check.stderr));
+    let (code, log) = project.start().finish();
+    let log = log.join("\n");
+    assert_ne!(code, 0, "{log}");
+    let path = sim.chips()[0].dev_path().display().to_string();
+    assert!(
+        log.contains(&format!(
+            "GPIO chip {path} ({label}): io.output \"P0041\": no line of the chip is named \
+             \"GPIO42\"; near names: \"GPIO24\" (line 9), \"GPIO22\" (line 2)"
+        )),
+        "{log}"
+    );
 }

@@ -1,11 +1,18 @@
 //! `[io]`, `[[io.input]]` and `[[io.output]]`: the backend, the chip, and the P bits wired to
 //! its lines. How the lines make up the gpiocdev backend's line requests is [`super::wiring`].
+//!
+//! A `line` (here and in `[switch]`) is an offset on the chip or the kernel's name of a line
+//! ([`LineRef`]). What the config alone can say about a name is checked here: it is not empty,
+//! not longer than the kernel reports, not a number in quotes, and no two entries name the same
+//! line. Whether the chip has it, and whether a name and an offset are one line, only the chip
+//! can say: names are resolved when `plcd run` opens it ([`super::wiring`]).
 
 use std::collections::HashMap;
+use std::fmt;
 use std::path::{Path, PathBuf};
 
-use serde::de::IgnoredAny;
-use serde::Deserialize;
+use serde::de::{self, IgnoredAny, Visitor};
+use serde::{Deserialize, Deserializer};
 use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
@@ -19,8 +26,9 @@ use crate::device::{Address, Area};
 pub struct IoConfig {
     /// `backend`: `"sim"` (default, in-process) or `"gpiocdev"` (Linux GPIO character device).
     pub backend: Backend,
-    /// `chip`: the GPIO chip, a path (`/dev/gpiochip0`) or a label; required for gpiocdev,
-    /// ignored by sim. Default none.
+    /// `chip`: the GPIO chip, a path (`/dev/gpiochip0`, starting with `/`), a name under
+    /// `/dev` or a label (at most [`LINE_NAME_MAX`] bytes); required for gpiocdev, ignored by
+    /// sim. Default none.
     pub chip: Option<String>,
     /// `[[io.input]]`, in file order. Devices and lines are unique across inputs and outputs.
     pub inputs: Vec<IoLine>,
@@ -53,18 +61,138 @@ impl Backend {
 }
 
 /// One `[[io.input]]` or `[[io.output]]`: a P bit wired to a GPIO line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct IoLine {
     /// `device`: a P bit (P0000..=P127F); required.
     pub device: Address,
-    /// `line`: the line offset on the chip, 0..=4294967295; required.
-    pub line: u32,
+    /// `line`: the line on the chip, an offset or a name; required.
+    pub line: LineRef,
     /// `active_low`: the device is ON when the line is low; default false.
     pub active_low: bool,
     /// `bias`: inputs only, `"disabled"` (default), `"pull-up"` or `"pull-down"`.
     pub bias: Bias,
     /// `debounce_us`: inputs only, 0..=4294967295 µs; default 0 (none).
     pub debounce_us: u32,
+}
+
+/// `line` of `[[io.input]]`, `[[io.output]]` and `[switch]`: which line of the `[io]` chip.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub enum LineRef {
+    /// An integer: the line's offset on the chip, 0..=4294967295.
+    Offset(u32),
+    /// A string: the line's name as the kernel reports it (`"GPIO17"`), 1..=[`LINE_NAME_MAX`]
+    /// bytes and not only digits. `plcd run` looks it up on the chip when it opens it.
+    Name(String),
+}
+
+/// The longest line name (and chip label) the kernel reports: its GPIO uAPI carries them in 32
+/// bytes (`GPIO_MAX_NAME_SIZE`), the terminating NUL included, and cuts longer ones there. A
+/// longer name or label in the config could never match.
+pub const LINE_NAME_MAX: usize = 31;
+
+impl LineRef {
+    /// The offset, if the line is given by one.
+    pub fn offset(&self) -> Option<u32> {
+        match self {
+            LineRef::Offset(offset) => Some(*offset),
+            LineRef::Name(_) => None,
+        }
+    }
+
+    /// The name, if the line is given by one.
+    pub fn name(&self) -> Option<&str> {
+        match self {
+            LineRef::Offset(_) => None,
+            LineRef::Name(name) => Some(name),
+        }
+    }
+}
+
+/// As messages write it: `17`, or the name in quotes, `"GPIO17"`.
+impl fmt::Display for LineRef {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LineRef::Offset(offset) => write!(f, "{offset}"),
+            LineRef::Name(name) => write!(f, "{name:?}"),
+        }
+    }
+}
+
+/// `line` as written: an integer or a string, checked by [`line_ref`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(super) enum RawLine {
+    Offset(i64),
+    Name(String),
+}
+
+impl RawLine {
+    /// Whether this is `line`, as the uniqueness checks compare lines: offsets by value, names
+    /// as written (the kernel's names are case-sensitive).
+    pub fn is(&self, line: &LineRef) -> bool {
+        match (self, line) {
+            (RawLine::Offset(a), LineRef::Offset(b)) => *a == i64::from(*b),
+            (RawLine::Name(a), LineRef::Name(b)) => a == b,
+            _ => false,
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for RawLine {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct LineVisitor;
+
+        impl Visitor<'_> for LineVisitor {
+            type Value = RawLine;
+
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a line offset (an integer) or a line name (a string)")
+            }
+
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<RawLine, E> {
+                Ok(RawLine::Offset(v))
+            }
+
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<RawLine, E> {
+                // Past i64 it is out of range all the same; say so with the number.
+                i64::try_from(v)
+                    .map(RawLine::Offset)
+                    .map_err(|_| E::invalid_value(de::Unexpected::Unsigned(v), &self))
+            }
+
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<RawLine, E> {
+                Ok(RawLine::Name(v.to_string()))
+            }
+        }
+
+        deserializer.deserialize_any(LineVisitor)
+    }
+}
+
+/// A `line` as written, checked: an offset in range, or a name the kernel could report.
+pub(super) fn line_ref(sink: &mut Sink, ctx: &Ctx, line: &Spanned<RawLine>) -> Option<LineRef> {
+    let at = line.span().start;
+    let key = ctx.key("line");
+    let message = match line.get_ref() {
+        RawLine::Offset(offset) => {
+            let offset = Spanned::new(line.span(), *offset);
+            return int(sink, ctx, "line", &offset, 0..=i64::from(u32::MAX)).map(LineRef::Offset);
+        }
+        RawLine::Name(name) if name.is_empty() => {
+            format!("{key} must not be empty: a line name (\"GPIO17\") or an offset (17)")
+        }
+        RawLine::Name(name) if name.len() > LINE_NAME_MAX => format!(
+            "{key} {name:?} is {} bytes long, but the kernel reports line names of at most \
+             {LINE_NAME_MAX} bytes: no line is named so",
+            name.len()
+        ),
+        RawLine::Name(name) if name.bytes().all(|b| b.is_ascii_digit()) => format!(
+            "{key} {name:?} is a number in quotes: an offset is written without them \
+             (line = {name})"
+        ),
+        RawLine::Name(name) => return Some(LineRef::Name(name.clone())),
+    };
+    sink.error(at, message);
+    None
 }
 
 /// `bias` of an input line.
@@ -98,7 +226,7 @@ pub(super) struct RawIo {
 #[serde(deny_unknown_fields)]
 pub(super) struct RawInput {
     pub device: Spanned<String>,
-    pub line: Spanned<i64>,
+    pub line: Spanned<RawLine>,
     #[serde(default)]
     pub active_low: bool,
     #[serde(default)]
@@ -112,7 +240,7 @@ pub(super) struct RawInput {
 #[serde(deny_unknown_fields)]
 pub(super) struct RawOutput {
     pub device: Spanned<String>,
-    pub line: Spanned<i64>,
+    pub line: Spanned<RawLine>,
     #[serde(default)]
     pub active_low: bool,
     pub bias: Option<Spanned<IgnoredAny>>,
@@ -166,6 +294,21 @@ pub(super) fn validate(
                 sink.error(chip.span().start, format!("{} must not be empty", ctx.key("chip")));
                 ok = false;
             }
+            // The kernel reports labels cut to the size it reports line names in: a longer
+            // one would never match (found out on gpio-sim, whose labels are the user's).
+            Some(chip)
+                if !chip.get_ref().starts_with('/') && chip.get_ref().len() > LINE_NAME_MAX =>
+            {
+                let message = format!(
+                    "{} {:?} is {} bytes long, but the kernel reports chip labels of at most \
+                     {LINE_NAME_MAX} bytes: no chip is labelled so (a path starts with `/`)",
+                    ctx.key("chip"),
+                    chip.get_ref(),
+                    chip.get_ref().len()
+                );
+                sink.error(chip.span().start, message);
+                ok = false;
+            }
             Some(chip) => config_io.chip = Some(chip.into_inner()),
             // A malformed chip is reported already, not missing.
             None if raw.backend == Backend::Gpiocdev && !failed.iter().any(|k| k == "io.chip") => {
@@ -196,7 +339,8 @@ pub(super) fn validate(
     }
 
     // Inputs and outputs share the P image and the chip, so devices and lines are unique
-    // across both; the later one in the file is the one reported.
+    // across both; the later one in the file is the one reported. Lines are compared as
+    // written: two offsets, or two names; whether a name is an offset's line only the chip says.
     let mut wired: Vec<Wired> = Vec::new();
     for input in inputs {
         let Located { span, ctx, value: raw } = input;
@@ -241,7 +385,7 @@ pub(super) fn validate(
 
     wired.sort_by_key(|w| w.at);
     let mut devices: HashMap<Address, &Wired> = HashMap::new();
-    let mut offsets: HashMap<u32, &Wired> = HashMap::new();
+    let mut lines: HashMap<&LineRef, &Wired> = HashMap::new();
     for w in &wired {
         if let Some(first) = devices.insert(w.line.device, w) {
             let message = format!(
@@ -254,7 +398,7 @@ pub(super) fn validate(
             devices.insert(w.line.device, first);
             ok = false;
         }
-        if let Some(first) = offsets.insert(w.line.line, w) {
+        if let Some(first) = lines.insert(&w.line.line, w) {
             let message = format!(
                 "{}: line {} is already used by {}",
                 w.ctx.subject(),
@@ -262,7 +406,7 @@ pub(super) fn validate(
                 first.ctx.subject()
             );
             sink.error(w.line_at, message);
-            offsets.insert(w.line.line, first);
+            lines.insert(&w.line.line, first);
             ok = false;
         }
     }
@@ -291,12 +435,12 @@ struct Wired {
     ctx: Ctx,
 }
 
-/// The keys inputs and outputs share: a P bit and a line offset.
+/// The keys inputs and outputs share: a P bit and a line.
 fn io_line(
     sink: &mut Sink,
     ctx: &Ctx,
     device: &Spanned<String>,
-    line: &Spanned<i64>,
+    line: &Spanned<RawLine>,
     active_low: bool,
 ) -> Option<IoLine> {
     let address = match Address::parse(device.get_ref()) {
@@ -315,20 +459,20 @@ fn io_line(
             None
         }
     };
-    let offset = int(sink, ctx, "line", line, 0..=i64::from(u32::MAX));
+    let line = line_ref(sink, ctx, line);
     Some(IoLine {
         device: address?,
-        line: offset?,
+        line: line?,
         active_low,
         bias: Default::default(),
         debounce_us: 0,
     })
 }
 
-/// A line of `[[io.input]]` or `[[io.output]]` as written: its offset, where the offset is,
-/// and what the entry is called.
+/// A line of `[[io.input]]` or `[[io.output]]` as written: the line, where it is, and what the
+/// entry is called.
 pub(super) struct WiredLine {
-    pub line: i64,
+    pub line: RawLine,
     pub at: usize,
     pub subject: String,
 }
@@ -343,7 +487,7 @@ pub(super) fn wired_lines(
     inputs
         .chain(outputs)
         .map(|(ctx, line)| WiredLine {
-            line: *line.get_ref(),
+            line: line.get_ref().clone(),
             at: line.span().start,
             subject: ctx.subject(),
         })

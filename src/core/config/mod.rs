@@ -73,7 +73,7 @@ use crate::device::Address;
 
 pub use change::ProjectChange;
 pub use control::ControlConfig;
-pub use io::{Backend, Bias, IoConfig, IoLine};
+pub use io::{Backend, Bias, IoConfig, IoLine, LineRef, LINE_NAME_MAX};
 pub use modbus::{ModbusConfig, ModbusRange, ModbusRtuConfig, ModbusTable};
 pub use plc::{OnFault, PlcConfig};
 pub use program::{Language, ProgramConfig, TaskRef};

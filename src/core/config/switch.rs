@@ -6,8 +6,8 @@ use std::ops::RangeInclusive;
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::common::{int, int_or, widen, Ctx, Located};
-use super::io::{Backend, Bias, WiredLine};
+use super::common::{int_or, widen, Ctx, Located};
+use super::io::{line_ref, Backend, Bias, LineRef, RawLine, WiredLine};
 use super::Sink;
 use crate::io::SwitchPosition;
 
@@ -16,10 +16,11 @@ use crate::io::SwitchPosition;
 /// accepted.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SwitchConfig {
-    /// `line`: the input line (offset on the `[io]` chip, 0..=4294967295) that is active when
-    /// the switch is at RUN. Required with the gpiocdev backend, not allowed with the sim
-    /// backend; not the line of any `[[io.input]]` or `[[io.output]]`. The line is no P bit.
-    pub line: Option<u32>,
+    /// `line`: the input line of the `[io]` chip (an offset, 0..=4294967295, or a name) that is
+    /// active when the switch is at RUN. Required with the gpiocdev backend, not allowed with
+    /// the sim backend; not the line of any `[[io.input]]` or `[[io.output]]`. The line is no
+    /// P bit.
+    pub line: Option<LineRef>,
     /// `active_low`: the line is active when low; default false. Unused by the sim backend.
     pub active_low: bool,
     /// `bias`: `"pull-up"`, `"pull-down"` or `"disabled"` (default). Unused by the sim backend.
@@ -52,7 +53,7 @@ impl Default for SwitchConfig {
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct RawSwitch {
-    pub line: Option<Spanned<i64>>,
+    pub line: Option<Spanned<RawLine>>,
     #[serde(default)]
     pub active_low: bool,
     #[serde(default)]
@@ -94,10 +95,10 @@ pub(super) fn validate(
             ok = false;
             None
         }
-        Some(line) => match int::<u32>(sink, &ctx, "line", line, 0..=i64::from(u32::MAX)) {
-            Some(offset) => {
-                ok &= switch_line_is_free(sink, &ctx, offset, line.span().start, wired);
-                Some(offset)
+        Some(raw) => match line_ref(sink, &ctx, raw) {
+            Some(line) => {
+                ok &= switch_line_is_free(sink, &ctx, &line, raw.span().start, wired);
+                Some(line)
             }
             None => {
                 ok = false;
@@ -141,21 +142,22 @@ pub(super) fn validate(
     ok.then_some(Some(switch))
 }
 
-/// The switch's line is no `[[io.input]]` or `[[io.output]]` line. As among those entries,
-/// the later one in the file is reported, naming the other.
+/// The switch's line is no `[[io.input]]` or `[[io.output]]` line (compared as written, as
+/// among those entries). As among them, the later one in the file is reported, naming the
+/// other.
 fn switch_line_is_free(
     sink: &mut Sink,
     ctx: &Ctx,
-    offset: u32,
+    line: &LineRef,
     at: usize,
     wired: &[WiredLine],
 ) -> bool {
     let mut free = true;
-    for w in wired.iter().filter(|w| w.line == i64::from(offset)) {
+    for w in wired.iter().filter(|w| w.line.is(line)) {
         let (at, message) = if w.at > at {
-            (w.at, format!("{}: line {offset} is already used by {}", w.subject, ctx.subject()))
+            (w.at, format!("{}: line {line} is already used by {}", w.subject, ctx.subject()))
         } else {
-            (at, format!("{} {offset} is already used by {}", ctx.key("line"), w.subject))
+            (at, format!("{} {line} is already used by {}", ctx.key("line"), w.subject))
         };
         sink.error(at, message);
         free = false;

@@ -362,14 +362,14 @@ line = 0
             chip: Some("/dev/gpiochip0".into()),
             inputs: vec![IoLine {
                 device: addr("P0007"),
-                line: 17,
+                line: LineRef::Offset(17),
                 active_low: true,
                 bias: Bias::PullUp,
                 debounce_us: u32::MAX,
             }],
             outputs: vec![IoLine {
                 device: addr("P0040"),
-                line: 0,
+                line: LineRef::Offset(0),
                 active_low: false,
                 bias: Bias::Disabled,
                 debounce_us: 0,
@@ -957,6 +957,24 @@ fn gpiocdev_needs_a_chip() {
 }
 
 #[test]
+fn a_chip_label_is_at_most_31_bytes() {
+    let gpio = |chip: &str| format!("[io]\nbackend = \"gpiocdev\"\nchip = {chip:?}\n");
+    let label = "pinctrl-of-a-board-with-a-long-name";
+    assert_eq!(
+        errors(&with_scan(&gpio(label))),
+        [format!(
+            "3:8: io.chip {label:?} is 35 bytes long, but the kernel reports chip labels of at \
+             most 31 bytes: no chip is labelled so (a path starts with `/`)"
+        )]
+    );
+    let at_most = "x".repeat(LINE_NAME_MAX);
+    assert_eq!(config(&with_scan(&gpio(&at_most))).io.chip, Some(at_most));
+    // A path may be longer.
+    let path = "/dev/gpio/by-label/pinctrl-of-a-board-with-a-long-name";
+    assert_eq!(config(&with_scan(&gpio(path))).io.chip.as_deref(), Some(path));
+}
+
+#[test]
 fn io_devices_are_p_bits() {
     for device in ["M0000", "P000", "D00001.1"] {
         let text = format!("[[io.input]]\ndevice = \"{device}\"\nline = 1");
@@ -1040,10 +1058,11 @@ fn gpiocdev_io_task_contacts_must_be_inputs() {
     assert_eq!(errs.len(), 1, "{errs:?}");
     assert!(errs[0].starts_with("6:11: task \"irq\": contact P0002 is not wired"), "{errs:?}");
     // An input entry with errors may have been the contact's: only its own error is reported.
-    let broken = "[[io.input]]\ndevice = \"P0000\"\nline = \"x\"\n";
+    let broken = "[[io.input]]\ndevice = \"P0000\"\nline = true\n";
     assert_eq!(
         errors(&with_scan(&format!("{}{io}{broken}", irq("P0000")))),
-        ["16:8: io.input \"P0000\": line: invalid type: string \"x\", expected an integer"]
+        ["16:8: io.input \"P0000\": line: invalid type: boolean `true`, expected a line offset \
+          (an integer) or a line name (a string)"]
     );
 }
 
@@ -1412,6 +1431,103 @@ fn no_switch_section_is_no_switch() {
 }
 
 #[test]
+fn io_lines_are_offsets_or_names() {
+    let text = "[[io.input]]\ndevice = \"P0000\"\nline = \"GPIO17\"\n\
+                [[io.input]]\ndevice = \"P0001\"\nline = 27\n\
+                [[io.output]]\ndevice = \"P0040\"\nline = \"GPIO23\"\nactive_low = true\n";
+    for backend in ["sim", "gpiocdev"] {
+        let io = format!("[io]\nbackend = \"{backend}\"\nchip = \"pinctrl-bcm2711\"\n{text}");
+        let config = config(&with_scan(&io));
+        let lines: Vec<&LineRef> =
+            config.io.inputs.iter().chain(&config.io.outputs).map(|l| &l.line).collect();
+        assert_eq!(
+            lines,
+            [
+                &LineRef::Name("GPIO17".into()),
+                &LineRef::Offset(27),
+                &LineRef::Name("GPIO23".into())
+            ]
+        );
+        assert!(config.io.outputs[0].active_low);
+        assert!(config.uses_line_names());
+    }
+    assert!(!config(&with_scan("[[io.input]]\ndevice = \"P0000\"\nline = 17")).uses_line_names());
+    // Any name the kernel could report: spaces, punctuation, other scripts.
+    for name in ["-", "PIN 11", "RP1 RUN", "Ünter_3", "a", &"X".repeat(LINE_NAME_MAX)] {
+        let text = format!("[[io.input]]\ndevice = \"P0000\"\nline = {name:?}");
+        assert_eq!(config(&with_scan(&text)).io.inputs[0].line, LineRef::Name(name.to_string()));
+    }
+    assert_eq!(LineRef::Name("GPIO17".into()).to_string(), "\"GPIO17\"");
+    assert_eq!(LineRef::Offset(17).to_string(), "17");
+    assert_eq!(LineRef::Offset(17).offset(), Some(17));
+    assert_eq!(LineRef::Name("GPIO17".into()).name(), Some("GPIO17"));
+}
+
+#[test]
+fn what_a_line_name_must_be() {
+    let input = |line: &str| with_scan(&format!("[[io.input]]\ndevice = \"P0000\"\nline = {line}"));
+    assert_eq!(
+        errors(&input("\"\"")),
+        ["3:8: io.input \"P0000\": line must not be empty: a line name (\"GPIO17\") or an offset \
+          (17)"]
+    );
+    // The kernel reports names in 32 bytes with their NUL: 31 is the most that can match.
+    let long = "GPIO_OF_A_NAME_LONGER_THAN_31_BYTES";
+    assert_eq!(
+        errors(&input(&format!("{long:?}"))),
+        [format!(
+            "3:8: io.input \"P0000\": line {long:?} is 35 bytes long, but the kernel reports line \
+             names of at most 31 bytes: no line is named so"
+        )]
+    );
+    // Bytes, not characters: 16 two-byte characters are 32 bytes.
+    assert_eq!(errors(&input(&format!("{:?}", "é".repeat(16)))).len(), 1);
+    assert_eq!(
+        errors(&input("\"17\"")),
+        ["3:8: io.input \"P0000\": line \"17\" is a number in quotes: an offset is written \
+          without them (line = 17)"]
+    );
+    assert_eq!(
+        errors(&input("[17]")),
+        ["3:8: io.input \"P0000\": line: invalid type: sequence, expected a line offset (an \
+          integer) or a line name (a string)"]
+    );
+    assert_eq!(
+        errors(&with_scan(&format!("{GPIO}[switch]\nline = \"\""))),
+        ["5:8: switch.line must not be empty: a line name (\"GPIO17\") or an offset (17)"]
+    );
+}
+
+#[test]
+fn a_line_name_is_used_once() {
+    // As with offsets: the later entry is reported, naming the earlier.
+    let text = "[[io.input]]\ndevice = \"P0000\"\nline = \"GPIO17\"\n\
+                [[io.output]]\ndevice = \"P0040\"\nline = \"GPIO17\"\n";
+    assert_eq!(
+        errors(&with_scan(text)),
+        ["6:8: io.output \"P0040\": line \"GPIO17\" is already used by io.input \"P0000\""]
+    );
+    // Names are the kernel's, case-sensitive: these are two names (a chip may have both, and
+    // if it has one only, the other fails `plcd run` with it as a near name).
+    config(&with_scan(&text.replacen("\"GPIO17\"", "\"gpio17\"", 1)));
+    // A name and an offset may be one line: only the chip can tell (`plcd run`).
+    config(&with_scan(&text.replacen("\"GPIO17\"", "17", 1)));
+    // The switch's line too, whichever comes first in the file.
+    let wiring = "[[io.input]]\ndevice = \"P0000\"\nline = \"GPIO5\"\n";
+    assert_eq!(
+        errors(&with_scan(&format!("{GPIO}{wiring}[switch]\nline = \"GPIO5\""))),
+        ["8:8: switch.line \"GPIO5\" is already used by io.input \"P0000\""]
+    );
+    assert_eq!(
+        errors(&with_scan(&format!("{GPIO}[switch]\nline = \"GPIO5\"\n{wiring}"))),
+        ["8:8: io.input \"P0000\": line \"GPIO5\" is already used by [switch]"]
+    );
+    config(&with_scan(&format!("{GPIO}{wiring}[switch]\nline = 5")));
+    let switch = config(&with_scan(&format!("{GPIO}[switch]\nline = \"KEY\""))).switch.unwrap();
+    assert_eq!(switch.line, Some(LineRef::Name("KEY".into())));
+}
+
+#[test]
 fn a_sim_switch_starts_at_its_position() {
     assert_eq!(config(&with_scan("[switch]\n")).switch, Some(SwitchConfig::default()));
     let switch = config(&with_scan("[switch]\nposition = \"stop\"")).switch.unwrap();
@@ -1431,7 +1547,7 @@ fn a_gpio_switch_has_a_line_with_settings() {
     assert_eq!(
         config(&with_scan(&text)).switch,
         Some(SwitchConfig {
-            line: Some(7),
+            line: Some(LineRef::Offset(7)),
             active_low: true,
             bias: Bias::PullDown,
             debounce_us: 500,
@@ -1439,9 +1555,9 @@ fn a_gpio_switch_has_a_line_with_settings() {
         })
     );
     let switch = config(&with_scan(&format!("{GPIO}[switch]\nline = 0"))).switch.unwrap();
-    assert_eq!(switch, SwitchConfig { line: Some(0), ..SwitchConfig::default() });
+    assert_eq!(switch, SwitchConfig { line: Some(LineRef::Offset(0)), ..SwitchConfig::default() });
     let text = format!("{GPIO}[switch]\nline = 4294967295");
-    assert_eq!(config(&with_scan(&text)).switch.unwrap().line, Some(u32::MAX));
+    assert_eq!(config(&with_scan(&text)).switch.unwrap().line, Some(LineRef::Offset(u32::MAX)));
 }
 
 #[test]
@@ -1541,9 +1657,10 @@ fn switch_unknown_keys_and_malformed_keys() {
     );
     // A malformed line is not reported missing as well.
     assert_eq!(
-        errors(&with_scan(&format!("{GPIO}[switch]\nline = \"7\"\nactive_low = 1"))),
+        errors(&with_scan(&format!("{GPIO}[switch]\nline = 7.5\nactive_low = 1"))),
         [
-            "5:8: switch.line: invalid type: string \"7\", expected an integer",
+            "5:8: switch.line: invalid type: floating point `7.5`, expected a line offset (an \
+             integer) or a line name (a string)",
             "6:14: switch.active_low: invalid type: integer `1`, expected a boolean",
         ]
     );

@@ -3,23 +3,34 @@
 //! included.
 //!
 //! A plan is pure data: which line offset is which P bit (or the key switch), with which
-//! settings, in which request, and which lines detect which edges. `plcd check` builds it while
-//! it validates a gpiocdev config (`check`, every violation located and reported with the
-//! rest), and `plcd run` builds the same plan from the validated config ([`Config::wiring`])
-//! and hands it to the backend, which only applies it to a chip. So a config `plcd check`
-//! accepts never fails at `plcd run` for a reason the config alone shows; what is left for
-//! `plcd run` needs the hardware (the chip, its line count, who holds a line, the driver's
-//! support for a setting).
+//! settings, in which request, and which lines detect which edges. `plcd check` checks the
+//! kernel's limits while it validates a gpiocdev config (`check`, every violation located and
+//! reported with the rest), and `plcd run` builds the plan from the validated config
+//! ([`Config::wiring`]) and hands it to the backend, which only applies it to a chip. So a
+//! config `plcd check` accepts never fails at `plcd run` for a reason the config alone shows;
+//! what is left for `plcd run` needs the hardware (the chip, its line count and line names, who
+//! holds a line, the driver's support for a setting).
+//!
+//! A line is an offset or a name ([`LineRef`]). The limits depend on how many lines there are
+//! and with which settings, never on which offsets, so `plcd check` checks them without the
+//! chip. A name becomes an offset only on the chip: `plcd run` reads the names of the chip's
+//! lines and [`Config::wiring`] looks each name up among them ([`names`]) before it builds the
+//! plan, and then checks what the config could not: that every name is there and on one line
+//! only, and that no two entries (a name and an offset, or two names of one line) are the same
+//! line. Every rule about offsets then holds for the resolved ones.
 //!
 //! The rules each key obeys on its own, which every backend shares, are checked where the key
-//! is (the `io`, `switch` and `task` modules): devices are P bits, lines and
+//! is (the `io`, `switch` and `task` modules): devices are P bits, lines (as written) and
 //! devices are unique across inputs, outputs and the switch, a gpiocdev switch has a line, an
 //! io task's contact is an input line. The plan relies on them.
 
+pub mod names;
+
 use std::fmt;
 
-use super::{Bias, Config, Edge, IoConfig, IoLine, Sink, SwitchConfig, TaskConfig, TaskKind};
+use super::{Bias, Config, Edge, IoConfig, LineRef, Sink, SwitchConfig, TaskConfig, TaskKind};
 use crate::device::{Address, Area};
+pub use names::{NameHint, NEAR_NAMES_MAX};
 
 /// The most lines one line request holds: `GPIO_V2_LINES_MAX` of the kernel's GPIO uAPI v2
 /// (`include/uapi/linux/gpio.h`), which gpiocdev checks as `gpiocdev_uapi::NUM_LINES_MAX`.
@@ -98,10 +109,18 @@ impl InputWire {
     }
 }
 
+/// An output line's offset and settings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OutputLine {
+    pub offset: u32,
+    pub active_low: bool,
+}
+
 /// One line of the output request.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct OutputWire {
-    pub line: IoLine,
+    pub device: Address,
+    pub line: OutputLine,
     pub bit: ImageBit,
 }
 
@@ -132,6 +151,38 @@ impl fmt::Display for Wire {
     }
 }
 
+/// An entry of the config that wires a line, as the errors of [`Config::wiring`] name it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Entry {
+    /// An `[[io.input]]`, by its device.
+    Input(Address),
+    /// An `[[io.output]]`, by its device.
+    Output(Address),
+    /// `[switch]`.
+    Switch,
+}
+
+impl Entry {
+    /// What the entry's line is wired to.
+    pub fn wire(self) -> Wire {
+        match self {
+            Entry::Input(device) | Entry::Output(device) => Wire::Device(device),
+            Entry::Switch => Wire::Switch,
+        }
+    }
+}
+
+/// As `plcd check` names entries: `io.input "P0000"`, `io.output "P0040"`, `[switch]`.
+impl fmt::Display for Entry {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Entry::Input(device) => write!(f, "io.input \"{device}\""),
+            Entry::Output(device) => write!(f, "io.output \"{device}\""),
+            Entry::Switch => f.write_str("[switch]"),
+        }
+    }
+}
+
 /// Which of the two requests.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum LineDirection {
@@ -148,10 +199,27 @@ impl fmt::Display for LineDirection {
     }
 }
 
-/// A request the kernel would refuse. `at` is the line that does not fit: the first one past
-/// the limit, counting the inputs in file order and the switch's line last.
+/// Why a plan cannot be made: a request the kernel would refuse (`at` is the line that does not
+/// fit: the first one past the limit, counting the inputs in file order and the switch's line
+/// last), or a line name the chip does not resolve to one line of its own.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum WiringError {
+    #[error("{entry}: no line of the chip is named {name:?}; {hint}")]
+    NoSuchName { entry: Entry, name: String, hint: NameHint },
+
+    #[error(
+        "{entry}: line name {name:?} is shared by lines {} of the chip: give the line's offset \
+         instead",
+        Offsets(.offsets)
+    )]
+    SharedName { entry: Entry, name: String, offsets: Vec<u32> },
+
+    #[error(
+        "{} (line {}) and {} (line {}) are the same line, offset {offset} of the chip",
+        .second.0, .second.1, .first.0, .first.1
+    )]
+    SameLine { offset: u32, first: (Entry, LineRef), second: (Entry, LineRef) },
+
     #[error("{count} {direction} lines configured, but one GPIO line request holds at most {max}")]
     TooManyLines { direction: LineDirection, count: usize, max: usize, at: Wire },
 
@@ -168,16 +236,51 @@ impl WiringError {
     pub fn at(&self) -> Wire {
         match self {
             WiringError::TooManyLines { at, .. } | WiringError::TooManySettings { at, .. } => *at,
+            WiringError::NoSuchName { entry, .. } | WiringError::SharedName { entry, .. } => {
+                entry.wire()
+            }
+            WiringError::SameLine { second, .. } => second.0.wire(),
         }
     }
 }
 
+/// Offsets as a list: `33, 37 and 50`.
+struct Offsets<'a>(&'a [u32]);
+
+impl fmt::Display for Offsets<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, offset) in self.0.iter().enumerate() {
+            match i {
+                0 => {}
+                _ if i + 1 == self.0.len() => f.write_str(" and ")?,
+                _ => f.write_str(", ")?,
+            }
+            write!(f, "{offset}")?;
+        }
+        Ok(())
+    }
+}
+
 impl Config {
-    /// The gpiocdev backend's plan for this config's `[io]` lines, `[switch]` and io tasks.
-    /// For a gpiocdev config that [`super::parse`] returned this is always `Ok`: parsing
-    /// reported its errors already.
-    pub fn wiring(&self) -> Result<Wiring, Vec<WiringError>> {
-        Wiring::new(&self.io, self.switch.as_ref(), &edge_contacts(&self.tasks))
+    /// Whether a `line` of `[[io.input]]`, `[[io.output]]` or `[switch]` is a name: then the
+    /// plan needs the names of the chip's lines.
+    pub fn uses_line_names(&self) -> bool {
+        let io = self.io.inputs.iter().chain(&self.io.outputs).map(|l| &l.line);
+        let switch = self.switch.iter().filter_map(|s| s.line.as_ref());
+        io.chain(switch).any(|line| line.name().is_some())
+    }
+
+    /// The gpiocdev backend's plan for this config's `[io]` lines, `[switch]` and io tasks, on
+    /// a chip whose lines are named `chip_names` (by offset; `""` for a line without a name).
+    /// Every name is looked up there first; the names of the chip are needed only when
+    /// [`Config::uses_line_names`], and `&[]` will do otherwise.
+    ///
+    /// Errors: a name no line of the chip has, or several have, or two entries that are one
+    /// line once their names are resolved (all of these only a chip can show), and the limits
+    /// of the kernel, which for a gpiocdev config that [`super::parse`] returned hold already
+    /// (parsing reported them).
+    pub fn wiring(&self, chip_names: &[String]) -> Result<Wiring, Vec<WiringError>> {
+        Wiring::new(&self.io, self.switch.as_ref(), &edge_contacts(&self.tasks), chip_names)
     }
 }
 
@@ -216,10 +319,8 @@ pub(super) fn check(
     switch: Option<(&SwitchConfig, Place)>,
     tasks: &[TaskConfig],
 ) {
-    let Err(errors) = Wiring::new(io, switch.as_ref().map(|(s, _)| *s), &edge_contacts(tasks))
-    else {
-        return;
-    };
+    let errors =
+        limits(io, switch.as_ref().map(|(s, _)| *s), &contact_edges(&edge_contacts(tasks)));
     let (inputs, outputs) = places;
     for error in errors {
         let place = match error.at() {
@@ -237,8 +338,9 @@ pub(super) fn check(
 }
 
 impl Wiring {
-    /// The plan, or every limit of the kernel it exceeds.
+    /// The plan, or every error that prevents it.
     ///
+    /// `chip_names`: the names of the chip's lines by offset, where each name is looked up.
     /// `switch`'s line (if set) is one more input, with the switch's own settings, mapped to
     /// no P bit and detecting no edge. `edge_contacts`: the contacts io tasks start on and the
     /// edge each needs; several tasks on one contact merge, and edge detection is enabled only
@@ -248,26 +350,79 @@ impl Wiring {
         io: &IoConfig,
         switch: Option<&SwitchConfig>,
         edge_contacts: &[(u8, Edge)],
+        chip_names: &[String],
     ) -> Result<Wiring, Vec<WiringError>> {
         let edges = contact_edges(edge_contacts);
+        let switch = switch.and_then(|s| Some((s, s.line.as_ref()?)));
+
+        // Every line's offset, in file order (the switch last); a name the chip does not
+        // resolve is an error and no offset.
+        let mut errors = Vec::new();
+        let mut resolve = |entry: Entry, line: &LineRef| match line {
+            LineRef::Offset(offset) => Some(*offset),
+            LineRef::Name(name) => match names::lookup(name, chip_names) {
+                Ok(offset) => Some(offset),
+                Err(names::Lookup::Missing(hint)) => {
+                    errors.push(WiringError::NoSuchName { entry, name: name.clone(), hint });
+                    None
+                }
+                Err(names::Lookup::Shared(offsets)) => {
+                    errors.push(WiringError::SharedName { entry, name: name.clone(), offsets });
+                    None
+                }
+            },
+        };
+        let input_offsets: Vec<Option<u32>> =
+            io.inputs.iter().map(|l| resolve(Entry::Input(l.device), &l.line)).collect();
+        let output_offsets: Vec<Option<u32>> =
+            io.outputs.iter().map(|l| resolve(Entry::Output(l.device), &l.line)).collect();
+        let switch_offset = switch.and_then(|(_, line)| resolve(Entry::Switch, line));
+
+        // One line, one entry: what the config checked as written, for the resolved offsets.
+        let resolved = (io.inputs.iter().zip(&input_offsets))
+            .map(|(l, o)| (Entry::Input(l.device), &l.line, *o))
+            .chain(
+                (io.outputs.iter().zip(&output_offsets))
+                    .map(|(l, o)| (Entry::Output(l.device), &l.line, *o)),
+            )
+            .chain(switch.map(|(_, line)| (Entry::Switch, line, switch_offset)));
+        let mut seen: Vec<(u32, Entry, &LineRef)> = Vec::new();
+        for (entry, line, offset) in resolved {
+            let Some(offset) = offset else { continue };
+            match seen.iter().find(|(o, ..)| *o == offset) {
+                Some(&(_, first, first_line)) => errors.push(WiringError::SameLine {
+                    offset,
+                    first: (first, first_line.clone()),
+                    second: (entry, line.clone()),
+                }),
+                None => seen.push((offset, entry, line)),
+            }
+        }
+
+        errors.extend(limits(io, switch.map(|(s, _)| s), &edges));
+        if !errors.is_empty() {
+            return Err(errors);
+        }
+
+        // No error: every line has its offset.
         let mut inputs = Vec::with_capacity(io.inputs.len() + 1);
-        for line in &io.inputs {
-            let contact = contact_of(&line.device);
-            let edge = contact.and_then(|c| edges[c as usize].map(|e| (c, e)));
-            let bit = ImageBit::of(&line.device).unwrap_or(NO_BIT);
+        for (line, offset) in io.inputs.iter().zip(input_offsets) {
             let settings = InputLine {
-                offset: line.line,
+                offset: offset.unwrap_or_default(),
                 active_low: line.active_low,
                 bias: line.bias,
                 debounce_us: line.debounce_us,
             };
             inputs.push(InputWire {
                 line: settings,
-                slot: InputSlot::Bit { device: line.device, bit },
-                edge,
+                slot: InputSlot::Bit {
+                    device: line.device,
+                    bit: ImageBit::of(&line.device).unwrap_or(NO_BIT),
+                },
+                edge: input_edge(&line.device, &edges),
             });
         }
-        if let Some((switch, offset)) = switch.and_then(|s| Some((s, s.line?))) {
+        if let (Some((switch, _)), Some(offset)) = (switch, switch_offset) {
             let settings = InputLine {
                 offset,
                 active_low: switch.active_low,
@@ -276,62 +431,25 @@ impl Wiring {
             };
             inputs.push(InputWire { line: settings, slot: InputSlot::Switch, edge: None });
         }
-        let outputs: Vec<OutputWire> = io
-            .outputs
-            .iter()
-            .map(|line| OutputWire {
-                line: *line,
+        let mut outputs: Vec<OutputWire> = (io.outputs.iter().zip(output_offsets))
+            .map(|(line, offset)| OutputWire {
+                device: line.device,
+                line: OutputLine {
+                    offset: offset.unwrap_or_default(),
+                    active_low: line.active_low,
+                },
                 bit: ImageBit::of(&line.device).unwrap_or(NO_BIT),
             })
             .collect();
-
-        // In file order (the switch last), so that an error names the first line past a limit.
-        let mut errors = Vec::new();
-        let output_settings: Vec<Settings> = outputs.iter().map(Settings::output).collect();
-        let input_settings: Vec<Settings> = inputs.iter().map(Settings::input).collect();
-        let output_wires = outputs.iter().map(|o| Wire::Device(o.line.device));
-        for (direction, wires, settings) in [
-            (
-                LineDirection::Input,
-                inputs.iter().map(InputWire::wire).collect::<Vec<_>>(),
-                &input_settings,
-            ),
-            (LineDirection::Output, output_wires.collect(), &output_settings),
-        ] {
-            if wires.len() > GPIO_V2_LINES_MAX {
-                errors.push(WiringError::TooManyLines {
-                    direction,
-                    count: wires.len(),
-                    max: GPIO_V2_LINES_MAX,
-                    at: wires[GPIO_V2_LINES_MAX],
-                });
-            }
-            let needed = extra_settings(settings);
-            if needed > GPIO_V2_LINE_NUM_ATTRS_MAX {
-                let first_over = (1..=settings.len())
-                    .find(|&n| extra_settings(&settings[..n]) > GPIO_V2_LINE_NUM_ATTRS_MAX)
-                    .unwrap_or(settings.len());
-                errors.push(WiringError::TooManySettings {
-                    direction,
-                    needed,
-                    max: GPIO_V2_LINE_NUM_ATTRS_MAX,
-                    at: wires[first_over - 1],
-                });
-            }
-        }
-        if !errors.is_empty() {
-            return Err(errors);
-        }
         inputs.sort_by_key(|i| i.line.offset);
-        let mut outputs = outputs;
-        outputs.sort_by_key(|o| o.line.line);
+        outputs.sort_by_key(|o| o.line.offset);
         Ok(Wiring { inputs, outputs })
     }
 
     /// Every line of both requests with what it is wired to: inputs, then outputs.
     pub fn lines(&self) -> impl Iterator<Item = (u32, Wire)> + '_ {
         let inputs = self.inputs.iter().map(|i| (i.line.offset, i.wire()));
-        inputs.chain(self.outputs.iter().map(|o| (o.line.line, Wire::Device(o.line.device))))
+        inputs.chain(self.outputs.iter().map(|o| (o.line.offset, Wire::Device(o.device))))
     }
 
     /// How many input lines detect edges.
@@ -343,6 +461,67 @@ impl Wiring {
     pub fn has_switch(&self) -> bool {
         self.inputs.iter().any(|i| i.slot == InputSlot::Switch)
     }
+}
+
+/// Every limit of the kernel the requests of these lines would exceed, reported at the first
+/// line past it (the inputs in file order, the switch's line last). The limits depend on how
+/// many lines there are and on their settings, not on their offsets, so names need no chip
+/// here.
+fn limits(
+    io: &IoConfig,
+    switch: Option<&SwitchConfig>,
+    edges: &[Option<Edge>; CONTACTS],
+) -> Vec<WiringError> {
+    let mut inputs: Vec<(Wire, Settings)> = io
+        .inputs
+        .iter()
+        .map(|l| {
+            let edge = input_edge(&l.device, edges).map(|(_, e)| e);
+            (Wire::Device(l.device), Settings::input(l.active_low, l.bias, edge, l.debounce_us))
+        })
+        .collect();
+    if let Some(switch) = switch.filter(|s| s.line.is_some()) {
+        let settings = Settings::input(switch.active_low, switch.bias, None, switch.debounce_us);
+        inputs.push((Wire::Switch, settings));
+    }
+    let outputs: Vec<(Wire, Settings)> = io
+        .outputs
+        .iter()
+        .map(|l| (Wire::Device(l.device), Settings::output(l.active_low)))
+        .collect();
+
+    let mut errors = Vec::new();
+    for (direction, lines) in [(LineDirection::Input, inputs), (LineDirection::Output, outputs)] {
+        if lines.len() > GPIO_V2_LINES_MAX {
+            errors.push(WiringError::TooManyLines {
+                direction,
+                count: lines.len(),
+                max: GPIO_V2_LINES_MAX,
+                at: lines[GPIO_V2_LINES_MAX].0,
+            });
+        }
+        let settings: Vec<Settings> = lines.iter().map(|(_, s)| *s).collect();
+        let needed = extra_settings(&settings);
+        if needed > GPIO_V2_LINE_NUM_ATTRS_MAX {
+            let first_over = (1..=settings.len())
+                .find(|&n| extra_settings(&settings[..n]) > GPIO_V2_LINE_NUM_ATTRS_MAX)
+                .unwrap_or(settings.len());
+            errors.push(WiringError::TooManySettings {
+                direction,
+                needed,
+                max: GPIO_V2_LINE_NUM_ATTRS_MAX,
+                at: lines[first_over - 1].0,
+            });
+        }
+    }
+    errors
+}
+
+/// The contact and the edge its tasks need, for an input line wired to `device`: `None` unless
+/// the device is a contact some io task starts on.
+fn input_edge(device: &Address, edges: &[Option<Edge>; CONTACTS]) -> Option<(u8, Edge)> {
+    let contact = contact_of(device)?;
+    edges[contact as usize].map(|edge| (contact, edge))
 }
 
 /// The contact (0..=7) a device is, if it is one of P0000..P0007.
@@ -393,18 +572,14 @@ struct Settings {
 }
 
 impl Settings {
-    fn input(input: &InputWire) -> Settings {
-        let line = &input.line;
-        Settings {
-            flags: (true, line.active_low, line.bias, input.edge.map(|(_, e)| e)),
-            debounce_us: line.debounce_us,
-        }
+    fn input(active_low: bool, bias: Bias, edge: Option<Edge>, debounce_us: u32) -> Settings {
+        Settings { flags: (true, active_low, bias, edge), debounce_us }
     }
 
     /// Outputs are requested inactive, with no bias, debounce or edge: only active-low varies.
     /// (All-inactive initial values take no attribute either.)
-    fn output(output: &OutputWire) -> Settings {
-        Settings { flags: (false, output.line.active_low, Bias::Disabled, None), debounce_us: 0 }
+    fn output(active_low: bool) -> Settings {
+        Settings { flags: (false, active_low, Bias::Disabled, None), debounce_us: 0 }
     }
 }
 
@@ -470,7 +645,12 @@ mod tests {
     }
 
     fn plan(text: &str) -> Wiring {
-        config(text).wiring().unwrap()
+        config(text).wiring(&[]).unwrap()
+    }
+
+    fn settings(input: &InputWire) -> Settings {
+        let line = &input.line;
+        Settings::input(line.active_low, line.bias, input.edge.map(|(_, e)| e), line.debounce_us)
     }
 
     fn bit(device: &str) -> InputSlot {
@@ -541,7 +721,7 @@ mod tests {
             inputs,
             [(2, at("P0000", 0, 1)), (5, at("P0023", 2, 1 << 3)), (9, at("P0001", 0, 1 << 1))]
         );
-        let outputs: Vec<_> = plan.outputs.iter().map(|o| (o.line.line, o.bit)).collect();
+        let outputs: Vec<_> = plan.outputs.iter().map(|o| (o.line.offset, o.bit)).collect();
         assert_eq!(
             outputs,
             [(3, ImageBit { word: 4, mask: 1 }), (7, ImageBit { word: 4, mask: 1 << 1 })]
@@ -657,7 +837,7 @@ mod tests {
         }
         let with_ten = format!("{GPIO}{inputs}");
         assert_eq!(
-            extra_settings(&plan(&with_ten).inputs.iter().map(Settings::input).collect::<Vec<_>>()),
+            extra_settings(&plan(&with_ten).inputs.iter().map(settings).collect::<Vec<_>>()),
             10
         );
 
@@ -713,5 +893,172 @@ mod tests {
             errors(&format!("{GPIO}{}[switch]\nline = 4\n", entry("input", "P0000", 4, ""))),
             ["10:8: switch.line 4 is already used by io.input \"P0000\""]
         );
+    }
+
+    /// A chip of `n` lines named `GPIO<offset>`, with some lines renamed.
+    fn chip(n: u32, renamed: &[(u32, &str)]) -> Vec<String> {
+        (0..n)
+            .map(|o| match renamed.iter().find(|(r, _)| *r == o) {
+                Some((_, name)) => name.to_string(),
+                None => format!("GPIO{o}"),
+            })
+            .collect()
+    }
+
+    fn named_entry(kind: &str, device: &str, name: &str) -> String {
+        format!("[[io.{kind}]]\ndevice = \"{device}\"\nline = \"{name}\"\n")
+    }
+
+    fn wiring_errors(text: &str, chip: &[String]) -> Vec<String> {
+        match config(text).wiring(chip) {
+            Ok(plan) => panic!("expected errors, got {plan:#?}"),
+            Err(errors) => errors.iter().map(ToString::to_string).collect(),
+        }
+    }
+
+    #[test]
+    fn names_become_the_offsets_of_the_chips_lines() {
+        // Names and offsets mixed, on a chip whose names are not its offsets.
+        let chip = chip(16, &[(2, "START"), (9, "LAMP"), (12, "KEY")]);
+        let config = config(&format!(
+            "{GPIO}{}{}{}{}[switch]\nline = \"KEY\"\n{}",
+            named_entry("input", "P0000", "GPIO5"),
+            named_entry("input", "P0001", "START"),
+            entry("output", "P0041", 7, ""),
+            named_entry("output", "P0040", "LAMP"),
+            io_task("edge", 8, "P0000", "rising"),
+        ));
+        assert!(config.uses_line_names());
+        let plan = config.wiring(&chip).unwrap();
+        let inputs: Vec<_> = plan.inputs.iter().map(|i| (i.line.offset, i.slot, i.edge)).collect();
+        assert_eq!(
+            inputs,
+            [
+                (2, bit("P0001"), None),
+                (5, bit("P0000"), Some((0, Edge::Rising))),
+                (12, InputSlot::Switch, None)
+            ]
+        );
+        let outputs: Vec<_> = plan.outputs.iter().map(|o| (o.line.offset, o.device)).collect();
+        assert_eq!(outputs, [(7, addr("P0041")), (9, addr("P0040"))]);
+        // Without names, the chip's names are not needed.
+        let plain = super::tests::config(&format!("{GPIO}{}", entry("input", "P0000", 3, "")));
+        assert!(!plain.uses_line_names());
+        assert_eq!(plain.wiring(&[]).unwrap().inputs[0].line.offset, 3);
+    }
+
+    #[test]
+    fn a_name_the_chip_lacks_is_named_with_the_near_ones() {
+        let chip = chip(28, &[(0, "ID_SDA"), (1, "ID_SCL")]);
+        let text = format!(
+            "{GPIO}{}{}[switch]\nline = \"gpio22\"\n",
+            named_entry("input", "P0000", "GPIO71"),
+            named_entry("output", "P0040", "GPIO17"),
+        );
+        assert_eq!(
+            wiring_errors(&text, &chip),
+            [
+                "io.input \"P0000\": no line of the chip is named \"GPIO71\"; near names: \
+                 \"GPIO17\" (line 17), \"GPIO7\" (line 7), \"GPIO11\" (line 11), \"GPIO21\" \
+                 (line 21), \"GPIO2\" (line 2)",
+                "[switch]: no line of the chip is named \"gpio22\"; near names: \"GPIO22\" (line \
+                 22), \"GPIO2\" (line 2), \"GPIO12\" (line 12), \"GPIO20\" (line 20), \"GPIO21\" \
+                 (line 21)",
+            ]
+        );
+        // On a chip without names, every name is missing.
+        assert_eq!(
+            wiring_errors(&text, &vec![String::new(); 8]),
+            [
+                "io.input \"P0000\": no line of the chip is named \"GPIO71\"; none of the chip's \
+                 8 lines has a name: give the line's offset",
+                "io.output \"P0040\": no line of the chip is named \"GPIO17\"; none of the chip's \
+                 8 lines has a name: give the line's offset",
+                "[switch]: no line of the chip is named \"gpio22\"; none of the chip's 8 lines \
+                 has a name: give the line's offset",
+            ]
+        );
+    }
+
+    #[test]
+    fn a_name_of_several_lines_is_refused_with_their_offsets() {
+        let chip = chip(8, &[(3, "-"), (5, "-"), (6, "-")]);
+        assert_eq!(
+            wiring_errors(&format!("{GPIO}{}", named_entry("input", "P0000", "-")), &chip),
+            ["io.input \"P0000\": line name \"-\" is shared by lines 3, 5 and 6 of the chip: give \
+              the line's offset instead"]
+        );
+        let two = super::tests::chip(8, &[(3, "X"), (5, "X")]);
+        let err = wiring_errors(&format!("{GPIO}{}", named_entry("output", "P0040", "X")), &two);
+        assert!(err[0].contains("is shared by lines 3 and 5 of the chip"), "{err:?}");
+        // An offset on the same chip is fine.
+        config(&format!("{GPIO}{}", entry("input", "P0000", 5, ""))).wiring(&chip).unwrap();
+    }
+
+    #[test]
+    fn two_entries_on_one_line_once_resolved_are_named_both() {
+        let chip = chip(16, &[]);
+        // A name and an offset: the config cannot tell, the chip can.
+        let text = format!(
+            "{GPIO}{}{}",
+            entry("input", "P0000", 4, ""),
+            named_entry("output", "P0040", "GPIO4")
+        );
+        assert_eq!(
+            wiring_errors(&text, &chip),
+            ["io.output \"P0040\" (line \"GPIO4\") and io.input \"P0000\" (line 4) are the same \
+              line, offset 4 of the chip"]
+        );
+        // The switch, by name, on an input's offset.
+        let text = format!("{GPIO}{}[switch]\nline = \"GPIO9\"\n", entry("input", "P0000", 9, ""));
+        assert_eq!(
+            wiring_errors(&text, &chip),
+            ["[switch] (line \"GPIO9\") and io.input \"P0000\" (line 9) are the same line, offset 9 \
+              of the chip"]
+        );
+        let err = WiringError::SameLine {
+            offset: 9,
+            first: (Entry::Input(addr("P0000")), LineRef::Offset(9)),
+            second: (Entry::Switch, LineRef::Name("GPIO9".into())),
+        };
+        assert_eq!(err.at(), Wire::Switch);
+    }
+
+    #[test]
+    fn the_limits_need_no_chip_and_come_with_the_names_errors() {
+        // 65 inputs by name: too many for one request, which `plcd check` tells without a chip.
+        let named = |n: u32| named_entry("input", &nth(n), &format!("GPIO{n}"));
+        let inputs: String = (0..65).map(named).collect();
+        assert_eq!(
+            errors(&format!("{GPIO}{inputs}")),
+            ["198:1: io.input \"P0140\": 65 input lines configured, but one GPIO line request \
+              holds at most 64"]
+        );
+        // A config that did not come from parsing whole: a missing name, and the limit.
+        let first_64: String = (0..64).map(named).collect();
+        let mut config = config(&format!("{GPIO}{first_64}"));
+        let mut extra = config.io.inputs[0].clone();
+        extra.device = addr(&nth(64));
+        extra.line = LineRef::Name("GPIO99".into());
+        config.io.inputs.push(extra);
+        let errs: Vec<String> =
+            config.wiring(&chip(64, &[])).unwrap_err().iter().map(ToString::to_string).collect();
+        assert_eq!(errs.len(), 2, "{errs:#?}");
+        assert!(
+            errs[0].starts_with("io.input \"P0140\": no line of the chip is named \"GPIO99\"; "),
+            "{errs:#?}"
+        );
+        assert_eq!(
+            errs[1],
+            "65 input lines configured, but one GPIO line request holds at most 64"
+        );
+    }
+
+    #[test]
+    fn entries_are_named_as_check_names_them() {
+        assert_eq!(Entry::Input(addr("P0000")).to_string(), "io.input \"P0000\"");
+        assert_eq!(Entry::Output(addr("P0040")).to_string(), "io.output \"P0040\"");
+        assert_eq!(Entry::Switch.to_string(), "[switch]");
+        assert_eq!(Entry::Output(addr("P0040")).wire(), Wire::Device(addr("P0040")));
     }
 }

@@ -1,5 +1,5 @@
 //! Finding the chip `io.chip` names (a path, a name under `/dev`, or a chip label), and what
-//! only the chip can tell: whether a line exists and who holds it.
+//! only the chip can tell: the names of its lines, whether a line exists and who holds it.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -8,6 +8,7 @@ use gpiocdev::Chip;
 
 use super::error::errno;
 use super::{ChipSummary, GpioError, IoOp, LineDirection, Wire};
+use crate::config::wiring::WiringError;
 
 /// The chip `io.chip` names, opened.
 pub(super) struct FoundChip {
@@ -15,6 +16,8 @@ pub(super) struct FoundChip {
     pub path: PathBuf,
     /// How errors name the chip: `gpiochip0 (label)`.
     pub name: Arc<str>,
+    /// The chip's label (may be empty).
+    label: String,
     num_lines: u32,
 }
 
@@ -25,13 +28,36 @@ impl FoundChip {
             op: IoOp::ChipInfo,
             source,
         })?;
-        let summary = ChipSummary { name: chip.name(), label: Some(info.label) };
+        let summary = ChipSummary { name: chip.name(), label: Some(info.label.clone()) };
         Ok(FoundChip {
             path: chip.path().to_path_buf(),
             name: summary.to_string().into(),
+            label: info.label,
             num_lines: info.num_lines,
             chip,
         })
+    }
+
+    /// The names of the chip's lines, by offset (`""` for a line without one), as the kernel
+    /// reports them in each line's info.
+    pub fn line_names(&self) -> Result<Vec<String>, GpioError> {
+        (0..self.num_lines)
+            .map(|line| {
+                self.chip.line_info(line).map(|info| info.name).map_err(|source| GpioError::Io {
+                    chip: self.name.clone(),
+                    op: IoOp::LineInfo { line },
+                    source,
+                })
+            })
+            .collect()
+    }
+
+    /// The errors of a plan made with this chip's line names: they are about this chip, named
+    /// by its path and label.
+    pub fn lines_error(&self, errors: Vec<WiringError>) -> GpioError {
+        let summary =
+            ChipSummary { name: self.path.display().to_string(), label: Some(self.label.clone()) };
+        GpioError::Lines { chip: summary.to_string().into(), errors }
     }
 
     /// The line exists and nobody holds it. Checking `used` before requesting names the

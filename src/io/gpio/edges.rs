@@ -181,7 +181,7 @@ mod tests {
                     [[io.input]]\ndevice = \"P0000\"\nline = 10\n\
                     [[io.input]]\ndevice = \"P0002\"\nline = 12\n\
                     [[io.input]]\ndevice = \"P0010\"\nline = 3\n";
-        let plan = crate::config::parse(text, Path::new("plcd.toml")).unwrap().wiring().unwrap();
+        let plan = crate::config::parse(text, Path::new("plcd.toml")).unwrap().wiring(&[]).unwrap();
         assert_eq!(&*EdgeMap::new(&plan.inputs).lines, &[(10, 0), (12, 2)]);
         let mut map = EdgeMap::new(&plan.inputs);
 

@@ -20,6 +20,11 @@ pub enum GpioError {
     #[error("{}", Joined(.0))]
     Wiring(Vec<WiringError>),
 
+    /// A plan made with the chip's line names that cannot be: a name the chip lacks or has on
+    /// several lines, two entries that are one line; `chip` by its path and label.
+    #[error("GPIO chip {chip}: {}", Joined(.errors))]
+    Lines { chip: Arc<str>, errors: Vec<WiringError> },
+
     #[error("GPIO chip `{asked}` not found; {}", ChipList(.available))]
     ChipNotFound {
         /// `io.chip` as written.
@@ -179,6 +184,7 @@ pub(super) fn errno(error: &gpiocdev::Error) -> Option<i32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::wiring::{Entry, NameHint};
     use crate::device::Address;
 
     fn addr(s: &str) -> Address {
@@ -263,6 +269,33 @@ mod tests {
             .to_string()
             .starts_with("GPIO chip gpiochip0 (pinctrl-bcm2711): reading the inputs failed: "));
         assert!(std::error::Error::source(&err).is_some());
+    }
+
+    #[test]
+    fn line_name_errors_name_the_chip_by_path_and_label() {
+        let err = GpioError::Lines {
+            chip: "/dev/gpiochip0 (pinctrl-bcm2711)".into(),
+            errors: vec![
+                WiringError::NoSuchName {
+                    entry: Entry::Input(addr("P0000")),
+                    name: "GPIO71".into(),
+                    hint: NameHint::Near(vec![("GPIO17".into(), 17), ("GPIO7".into(), 7)]),
+                },
+                WiringError::SharedName {
+                    entry: Entry::Switch,
+                    name: "-".into(),
+                    offsets: vec![33, 37],
+                },
+            ],
+        };
+        assert_eq!(
+            err.to_string(),
+            "GPIO chip /dev/gpiochip0 (pinctrl-bcm2711): io.input \"P0000\": no line of the chip \
+             is named \"GPIO71\"; near names: \"GPIO17\" (line 17), \"GPIO7\" (line 7); \
+             [switch]: line name \"-\" is shared by lines 33 and 37 of the chip: give the line's \
+             offset instead"
+        );
+        assert_eq!(err.errno(), None);
     }
 
     #[test]

@@ -5,14 +5,16 @@
 //! in which request, detecting which edges; the kernel's limits) is the config's:
 //! `plcd_core::config::wiring`, checked by `plcd check` with the config's other errors. This
 //! module applies a plan to a chip, and owns what needs the chip: finding it ([`chip`]: a
-//! path, a `/dev` name or a chip label), a line beyond its line count, a line another consumer
-//! holds, the requests and their ioctls. What [`open`] returns is split by thread: [`GpioIo`]
+//! path, a `/dev` name or a chip label), the names of its lines (which the plan's line names
+//! are looked up among, before anything is requested), a line beyond its line count, a line
+//! another consumer holds, the requests and their ioctls. What [`open`] returns is split by thread: [`GpioIo`]
 //! for the scan ([`scan`], the [`Io`](crate::io::Io) trait), [`GpioEdges`] for the event thread
 //! ([`edges`]), [`GpioOutputs`] for the watchdog ([`watchdog`]); [`error`] says what can fail.
 //!
 //! What only `plcd run` can find, because it needs the hardware: the chip not found, its label
-//! matching several chips, the chip not opening (permissions, not a GPIO chip), a line offset
-//! at or beyond the chip's line count, a line already held by another consumer (named when the
+//! matching several chips, the chip not opening (permissions, not a GPIO chip), a line name the
+//! chip does not have (the error names the near ones) or has on several lines, a name and an
+//! offset (or two names) that are one line, a line offset at or beyond the chip's line count, a line already held by another consumer (named when the
 //! kernel says who), a request the kernel or the chip's driver refuses for what the chip is
 //! (a setting its hardware cannot do), and any ioctl that fails while the lines are in use.
 //! Everything else about the wiring is the config's and fails `plcd check` too.
@@ -94,8 +96,9 @@ pub struct Gpio {
 }
 
 /// Opens the chip `config`'s `io.chip` names and requests the lines of its wiring plan
-/// (`Config::wiring`): the `[[io.input]]` lines and the `[switch]` line as one request, with
-/// edge detection on the contacts io tasks start on, the `[[io.output]]` lines as another.
+/// (`Config::wiring`, with the line names looked up among the chip's): the `[[io.input]]` lines
+/// and the `[switch]` line as one request, with edge detection on the contacts io tasks start
+/// on, the `[[io.output]]` lines as another.
 /// `consumer`: the consumer label the kernel shows for the lines ("plcd"); `faults`: where
 /// the scan's side counts failed refreshes.
 ///
@@ -103,14 +106,22 @@ pub struct Gpio {
 /// inactive. The switch is read once before this returns.
 pub fn open(config: &Config, consumer: &str, faults: Arc<FieldFaults>) -> Result<Gpio, GpioError> {
     let asked = config.io.chip.as_deref().ok_or(GpioError::NoChip)?;
-    let plan = config.wiring().map_err(GpioError::Wiring)?;
+    // Without names the plan needs no chip: a plan the kernel would refuse fails first.
+    let by_offsets = match config.uses_line_names() {
+        false => Some(config.wiring(&[]).map_err(GpioError::Wiring)?),
+        true => None,
+    };
     let found = find_chip(asked)?;
+    let plan = match by_offsets {
+        Some(plan) => plan,
+        None => config.wiring(&found.line_names()?).map_err(|errors| found.lines_error(errors))?,
+    };
     for (line, wire) in plan.lines() {
         found.check_line(line, wire)?;
     }
 
     let input_offsets: Vec<u32> = plan.inputs.iter().map(|i| i.line.offset).collect();
-    let output_offsets: Vec<u32> = plan.outputs.iter().map(|o| o.line.line).collect();
+    let output_offsets: Vec<u32> = plan.outputs.iter().map(|o| o.line.offset).collect();
     let inputs = if plan.inputs.is_empty() {
         None
     } else {
@@ -212,7 +223,7 @@ fn request_outputs(
     let mut builder = Request::builder();
     builder.on_chip(found.path.as_path()).with_consumer(consumer);
     for output in outputs {
-        builder.with_line(output.line.line).as_output(Value::Inactive);
+        builder.with_line(output.line.offset).as_output(Value::Inactive);
         if output.line.active_low {
             builder.as_active_low();
         }
@@ -220,7 +231,7 @@ fn request_outputs(
     builder.request().map_err(|source| {
         found.request_error(
             LineDirection::Output,
-            outputs.iter().map(|o| (o.line.line, Wire::Device(o.line.device))),
+            outputs.iter().map(|o| (o.line.offset, Wire::Device(o.device))),
             source,
         )
     })
@@ -258,6 +269,7 @@ mod tests {
     use std::path::Path;
 
     use super::*;
+    use crate::config::LineRef;
 
     /// A gpiocdev config on `chip` with an io task on P0000 and the wiring `io`.
     fn config(chip: &str, io: &str) -> Config {
@@ -308,11 +320,27 @@ mod tests {
     }
 
     #[test]
+    fn a_plan_by_line_names_needs_the_chip_first() {
+        // The names are looked up on the chip: without it, the chip is the error, even for a
+        // plan the kernel would refuse.
+        let mut cfg = config("/dev/gpiochip-does-not-exist", "");
+        let line = cfg.io.inputs[0].clone();
+        cfg.io.inputs = (0..65)
+            .map(|n| crate::config::IoLine { line: LineRef::Name(format!("L{n}")), ..line.clone() })
+            .collect();
+        assert!(cfg.uses_line_names());
+        let err = open(&cfg, "plcd", Arc::default()).unwrap_err();
+        assert!(matches!(err, GpioError::ChipNotFound { .. }), "{err:?}");
+    }
+
+    #[test]
     fn a_plan_the_kernel_would_refuse_fails_before_the_chip() {
         // Only a config that did not come from parsing can have one: parsing reports it.
         let mut cfg = config("/dev/gpiochip-does-not-exist", "");
-        let line = cfg.io.inputs[0];
-        cfg.io.inputs = (0..65).map(|n| crate::config::IoLine { line: n, ..line }).collect();
+        let line = cfg.io.inputs[0].clone();
+        cfg.io.inputs = (0..65)
+            .map(|n| crate::config::IoLine { line: LineRef::Offset(n), ..line.clone() })
+            .collect();
         let err = open(&cfg, "plcd", Arc::default()).unwrap_err();
         assert_eq!(
             err.to_string(),

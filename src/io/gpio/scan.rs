@@ -144,7 +144,7 @@ mod tests {
             }
         }
         text += extra;
-        crate::config::parse(&text, Path::new("plcd.toml")).unwrap().wiring().unwrap()
+        crate::config::parse(&text, Path::new("plcd.toml")).unwrap().wiring(&[]).unwrap()
     }
 
     fn values(offsets: &[u32], active: &[u32]) -> Values {
