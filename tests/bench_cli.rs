@@ -10,7 +10,7 @@ use harness::tempdir::TempDir;
 
 /// `plcd ARGS` with `tmp` as its temp directory, where a bench writes its generated project.
 fn plcd(tmp: &TempDir, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_plcd"))
+    harness::runner::command(env!("CARGO_BIN_EXE_plcd"))
         .args(args)
         .env("TMPDIR", tmp.path())
         .output()

@@ -20,7 +20,7 @@ fn project(name: &str, config: &str) -> TempDir {
 
 /// `plcd check` on the project: its exit code and stderr.
 fn check(dir: &TempDir) -> (Option<i32>, String) {
-    let output = Command::new(env!("CARGO_BIN_EXE_plcd"))
+    let output = harness::runner::command(env!("CARGO_BIN_EXE_plcd"))
         .args(["check", "--config"])
         .arg(dir.join("plcd.toml"))
         .output()

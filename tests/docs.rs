@@ -15,9 +15,10 @@
 //! - Every path of the repository the docs cite (`src/…`, `tests/…`) exists, and so does every
 //!   one the files of `etc/` and `systemd/` cite.
 
+mod harness;
+
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use plcd::drivers::virtual_time::trace::TraceWriter;
 use plcd::engine::event::{ErrorKind, Event, EventSink, Ignored, Mode};
@@ -433,8 +434,11 @@ fn every_plcctl_command_and_option_is_documented() {
 
 /// `plcd ARGS --help`, as the user sees it.
 fn plcd_help(args: &[&str]) -> String {
-    let output =
-        Command::new(env!("CARGO_BIN_EXE_plcd")).args(args).arg("--help").output().unwrap();
+    let output = harness::runner::command(env!("CARGO_BIN_EXE_plcd"))
+        .args(args)
+        .arg("--help")
+        .output()
+        .unwrap();
     assert!(output.status.success(), "plcd {args:?} --help failed");
     String::from_utf8(output.stdout).unwrap()
 }

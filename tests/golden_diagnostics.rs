@@ -34,7 +34,11 @@ const NOT_ALONE: &[(&str, usize)] = &[
 ];
 
 fn plcd(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_plcd")).current_dir(dir).args(args).output().unwrap()
+    harness::runner::command(env!("CARGO_BIN_EXE_plcd"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 fn stdout(output: &Output) -> String {

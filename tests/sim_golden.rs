@@ -16,7 +16,7 @@ fn sim(dir: &Path, args: Option<&[&str]>) -> (Option<i32>, Vec<u8>, String) {
     let from_file = fs::read_to_string(dir.join("args")).unwrap();
     let args: Vec<&str> =
         args.map_or_else(|| from_file.split_whitespace().collect(), <[_]>::to_vec);
-    let output = Command::new(env!("CARGO_BIN_EXE_plcd"))
+    let output = harness::runner::command(env!("CARGO_BIN_EXE_plcd"))
         .current_dir(dir)
         .args(["sim", "--config", "plcd.toml", "--trace", "-"])
         .args(args)
@@ -59,7 +59,7 @@ fn identical_inputs_give_identical_bytes() {
 }
 
 fn plcd(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_plcd")).args(args).output().unwrap()
+    harness::runner::command(env!("CARGO_BIN_EXE_plcd")).args(args).output().unwrap()
 }
 
 /// The README's example: `plcd sim` of `etc/plcd.toml` for 8 s with `etc/stimulus.csv`, and

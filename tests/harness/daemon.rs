@@ -11,6 +11,7 @@ use nix::sys::signal::{kill, Signal};
 use nix::unistd::Pid;
 
 use super::log::{wait_until, Log, PATIENCE};
+use super::runner;
 use super::tempdir::TempDir;
 
 /// The `plcd` binary of this build; in the gpio-sim VM of `tests/qemu/run-gpiosim`, where the
@@ -40,7 +41,7 @@ pub fn plcctl_binary() -> PathBuf {
 
 /// `plcctl --socket SOCKET ARGS`, run to its end.
 pub fn plcctl(socket: &Path, args: &[&str]) -> Output {
-    Command::new(plcctl_binary())
+    runner::command(plcctl_binary())
         .arg("--socket")
         .arg(socket)
         .args(args)
@@ -135,7 +136,7 @@ impl Daemon {
     /// variables the test runner may have (they would make it notify, or write its retain
     /// files to a state directory).
     pub fn start(config: &Path, extra: &[&str], env: &[(&str, &str)], logging: Logging) -> Daemon {
-        let mut command = Command::new(plcd_binary());
+        let mut command = runner::command(plcd_binary());
         command.arg("run").args(extra).arg("--config").arg(config).stdout(Stdio::null());
         for var in
             ["NOTIFY_SOCKET", "WATCHDOG_USEC", "JOURNAL_STREAM", "INVOCATION_ID", "STATE_DIRECTORY"]

@@ -4,6 +4,8 @@
 //! - [`nobody`]: running a program as uid 65534, from a copy that user can reach;
 //! - [`skip`]: visible skips, failures where a `PLCD_REQUIRE_*` variable says so;
 //! - [`log`]: a process's log, and waiting for another process's events;
+//! - [`runner`]: the built programs started through an emulator (`PLCD_TEST_RUNNER`) when the
+//!   tests are cross-built;
 //! - [`daemon`]: a project directory, the real `plcd run` on it, `plcctl` against it;
 //! - [`engine`]: the engine in virtual time on a project from literal texts, with a field;
 //! - [`vm`]: one program scanned by the VM alone, and the assembler's context;
@@ -12,8 +14,8 @@
 //! - [`gpiosim`]: whether the kernel's gpio-sim is here, and `require_gpiosim!` (include the
 //!   harness with `#[macro_use]` to use it).
 //!
-//! `tempdir` and `nobody` need nothing of plcd: the plcctl package's test includes those two
-//! files alone.
+//! `tempdir`, `nobody` and `runner` need nothing of plcd: the plcctl package's test includes
+//! those three files alone.
 
 // Every test crate compiles the whole harness and uses the part it needs: what one crate leaves
 // unused another uses, so dead code is expected here, and only here.
@@ -27,6 +29,7 @@ pub mod gpiosim;
 pub mod log;
 pub mod modbus;
 pub mod nobody;
+pub mod runner;
 pub mod skip;
 pub mod tempdir;
 pub mod vm;

@@ -15,6 +15,7 @@ use std::time::Duration;
 
 use nix::errno::Errno::ETXTBSY;
 
+use super::runner;
 use super::tempdir::TempDir;
 
 /// The uid (and gid) the tests switch to.
@@ -60,9 +61,10 @@ impl Copy {
     }
 
     /// The copy as uid 65534 with primary group `gid` and no supplementary groups (std drops
-    /// them when a root process sets a uid), in `/`. Run it with [`output`].
+    /// them when a root process sets a uid), in `/`, through the emulator where there is one
+    /// ([`runner`]). Run it with [`output`].
     pub fn command(&self, gid: u32) -> Command {
-        let mut command = Command::new(&self.program);
+        let mut command = runner::command(&self.program);
         command.uid(NOBODY).gid(gid).current_dir("/");
         command
     }

@@ -24,6 +24,9 @@ use serde_json::{json, Value};
 #[path = "../harness/nobody.rs"]
 mod nobody;
 #[allow(dead_code)]
+#[path = "../harness/runner.rs"]
+mod runner;
+#[allow(dead_code)]
 #[path = "../harness/skip.rs"]
 mod skip;
 #[allow(dead_code)]
@@ -130,7 +133,7 @@ struct Run {
 }
 
 fn plcctl_in(dir: &Path, args: &[&str], env: &[(&str, &str)]) -> Run {
-    let mut command = Command::new(env!("CARGO_BIN_EXE_plcctl"));
+    let mut command = runner::command(env!("CARGO_BIN_EXE_plcctl"));
     command.args(args).current_dir(dir).env_remove("PLCD_SOCKET").stdin(Stdio::null());
     for (key, value) in env {
         command.env(key, value);
@@ -537,7 +540,7 @@ fn a_socket_without_permission_exits_3() {
         Some(copy) => copy.command(nobody::NOBODY),
         None => {
             std::fs::set_permissions(&fake.path, std::fs::Permissions::from_mode(0o000)).unwrap();
-            Command::new(env!("CARGO_BIN_EXE_plcctl"))
+            runner::command(env!("CARGO_BIN_EXE_plcctl"))
         }
     };
     let output = nobody::output(
@@ -711,7 +714,7 @@ fn watch_without_count_runs_until_interrupted() {
 
     let steps = (1..=10_000).map(|scan| Step::Answer(ok_line(&values_ok(scan)))).collect();
     let fake = Fake::start("watch-forever", steps);
-    let mut child = Command::new(env!("CARGO_BIN_EXE_plcctl"))
+    let mut child = runner::command(env!("CARGO_BIN_EXE_plcctl"))
         .args(["--socket", fake.socket(), "watch", "--interval", "10ms", "P0040"])
         .stdout(Stdio::piped())
         .spawn()
