@@ -173,6 +173,9 @@ fn every_plcctl_command_against_the_daemon() {
     assert_eq!(at["debug"]["paused_at"]["source"], "LOAD P0000");
     assert_eq!(at["debug"]["paused_at"]["devices"][0]["dev"], "P0000");
     let counted = plc.get("D00000");
+    // Still there once a read of other devices took the newest capture: status reads them.
+    let at = plc.status();
+    assert_eq!(at["debug"]["paused_at"]["devices"][0]["dev"], "P0000", "{at}");
     let step: serde_json::Value = serde_json::from_str(&plc.ok(&["--json", "step"])).unwrap();
     assert_eq!(step["paused_at"]["line"], 4, "step goes to the next line: {step}");
     assert_eq!(step["paused_at"]["source"], "OUT P0040");

@@ -99,7 +99,7 @@ impl RequestHandler {
     }
 
     /// The devices named on the line execution is paused before.
-    fn paused_devices(&self, snapshot: &Snapshot) -> Vec<Address> {
+    pub(super) fn paused_devices(&self, snapshot: &Snapshot) -> Vec<Address> {
         let Some((_, at)) = snapshot.paused_at else { return Vec::new() };
         let running = self.running();
         let Some(program) = running.project.programs.get(at.program as usize) else {

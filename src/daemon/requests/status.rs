@@ -2,16 +2,21 @@
 //! forces and (in DEBUG) the debugger's state. It answers from a snapshot younger than
 //! [`STATUS_MAX_AGE`](super::STATUS_MAX_AGE) when no command completed since, so that polling
 //! clients cost the scan at most one capture per that period; otherwise it waits for a capture.
+//! Paused in DEBUG, the snapshot must also hold the devices the paused line names (their values
+//! are part of the debugger's state), as a debugger request's answer does: else it waits once
+//! more for a capture of them.
 
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use super::debugger::debug_state_with;
+use super::devices::word_of;
 use super::forces::forces_of;
 use super::mode::mode_name;
-use super::waiting::Then;
+use super::waiting::{Outcome, Then};
 use super::RequestHandler;
 use crate::config::{TaskKind, TaskRef};
+use crate::device::Address;
 use crate::drivers::real_time::snapshot::Snapshot;
 use crate::engine::event::Mode;
 use crate::io::remote::frame::FaultKind;
@@ -29,10 +34,35 @@ impl RequestHandler {
         if let Some((generation, until)) = self.fresh_until {
             if Instant::now() < until && generation == self.generation() {
                 let snapshot = self.links.snapshot.lock().ok()?;
-                return Some(ResponseLine::ok(Reply::Status(Box::new(self.status(&snapshot)))));
+                if self
+                    .paused_devices(&snapshot)
+                    .iter()
+                    .all(|d| snapshot.word(word_of(d)).is_some())
+                {
+                    return Some(ResponseLine::ok(Reply::Status(Box::new(self.status(&snapshot)))));
+                }
             }
         }
-        self.park_for_snapshot(client, Then::Status)
+        self.park_for_snapshot(client, Then::Status { devices: None })
+    }
+
+    /// What a `status` snapshot wait comes to: paused at a line that names devices the capture
+    /// lacks, wait once more for a capture of them; then the status.
+    pub(super) fn status_outcome(
+        &self,
+        devices: Option<Vec<Address>>,
+        snapshot: &Snapshot,
+    ) -> Outcome {
+        if devices.is_none() {
+            let devices = self.paused_devices(snapshot);
+            if !devices.iter().all(|d| snapshot.word(word_of(d)).is_some()) {
+                return Outcome::Wait {
+                    then: Then::Status { devices: Some(devices) },
+                    again: true,
+                };
+            }
+        }
+        Outcome::Answer(ResponseLine::ok(Reply::Status(Box::new(self.status(snapshot)))))
     }
 
     pub(super) fn status(&self, snapshot: &Snapshot) -> Status {

@@ -20,7 +20,7 @@ use crate::drivers::real_time::snapshot::{
 use crate::drivers::real_time::{pending, Applied, Command, Completion, ControlCommand};
 use crate::engine::Refusal;
 use crate::services::control::ClientId;
-use plcd_ipc::{ErrorKind as Kind, Failure, Reply, ResponseLine};
+use plcd_ipc::{ErrorKind as Kind, Failure, ResponseLine};
 
 /// A parked request.
 pub(super) struct Waiting {
@@ -55,7 +55,11 @@ pub(super) enum Then {
         devices: Option<Vec<Address>>,
         until_paused: bool,
     },
-    Status,
+    /// `devices`: those the line execution is paused before names (in DEBUG), once a capture
+    /// lacked them.
+    Status {
+        devices: Option<Vec<Address>>,
+    },
     Values {
         items: Vec<Item>,
     },
@@ -78,7 +82,8 @@ impl Then {
                     Item::Variable(_) => None,
                 })
                 .collect(),
-            Then::Debug { devices: Some(devices), .. } => devices.iter().map(word_of).collect(),
+            Then::Debug { devices: Some(devices), .. }
+            | Then::Status { devices: Some(devices) } => devices.iter().map(word_of).collect(),
             _ => Vec::new(),
         }
     }
@@ -95,7 +100,8 @@ impl Then {
     fn captured(&self, snapshot: &crate::drivers::real_time::snapshot::Snapshot) -> bool {
         match self {
             Then::Values { items } => devices::captured(items, snapshot),
-            Then::Debug { devices: Some(devices), .. } => {
+            Then::Debug { devices: Some(devices), .. }
+            | Then::Status { devices: Some(devices) } => {
                 devices.iter().all(|d| snapshot.word(word_of(d)).is_some())
             }
             _ => true,
@@ -334,9 +340,7 @@ impl RequestHandler {
             let waiting = self.waiting.swap_remove(index);
             let client = waiting.client;
             let outcome = match waiting.then {
-                Then::Status => Outcome::Answer(ResponseLine::ok(Reply::Status(Box::new(
-                    self.status(&snapshot),
-                )))),
+                Then::Status { devices } => self.status_outcome(devices, &snapshot),
                 Then::Values { items } => Outcome::Answer(devices::values(&items, &snapshot)),
                 Then::Forces { .. } => Outcome::Answer(forces::table(&snapshot)),
                 Then::Debug { unbroken, devices, until_paused } => {
