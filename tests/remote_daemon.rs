@@ -32,12 +32,15 @@ fn device_config(port: u16) -> String {
     )
 }
 
+/// The PLC's config; its request timeout (200 ms natively) scaled to the programs' speed: the
+/// device being slow to answer is not what these tests are about.
 fn plc_config(port: u16, on_loss: &str) -> String {
+    let timeout_ms = 200 * harness::runner::slowdown();
     format!(
         "[plc]\nscan_period_ms = 5\n[rt]\npolicy = \"other\"\nlock_memory = false\n\
          [control]\nsocket = \"plcd.sock\"\n[[program]]\nfile = \"main.il\"\n\
          [[remote]]\nname = \"rack1\"\ntransport = \"tcp\"\naddress = \"127.0.0.1:{port}\"\n\
-         period_ms = 20\ntimeout_ms = 200\non_loss = \"{on_loss}\"\nstatus = \"M0050\"\n\
+         period_ms = 20\ntimeout_ms = {timeout_ms}\non_loss = \"{on_loss}\"\nstatus = \"M0050\"\n\
          reconnect_ms = 50\nreconnect_max_ms = 200\n\
          [[remote.read]]\ntable = \"discrete_inputs\"\naddress = 0\ncount = 16\ndevice = \"P0100\"\n\
          [[remote.read]]\ntable = \"input_registers\"\naddress = 0\ncount = 2\n\

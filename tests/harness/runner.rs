@@ -7,6 +7,11 @@
 //! starts a built program goes through [`command`]; the process it gets is the emulator, which
 //! runs the program in the same process (same pid, same signals, same exit status).
 //!
+//! Emulated, the programs are slower (qemu-user: 5 to 20 times, far more while it translates
+//! code it runs for the first time, as at a start). A test whose real-time figures only stand
+//! for "long enough" (a request's timeout, a random moment within a start) scales them by
+//! [`slowdown`]; the harness's waits have patience enough as they are.
+//!
 //! This file needs nothing of plcd: the plcctl package's test includes it alone.
 
 use std::ffi::OsStr;
@@ -14,6 +19,12 @@ use std::process::Command;
 
 /// The variable naming the runner.
 pub const VAR: &str = "PLCD_TEST_RUNNER";
+
+/// The variable that sets [`slowdown`] under a runner.
+pub const SLOWDOWN_VAR: &str = "PLCD_TEST_SLOWDOWN";
+
+/// The slowdown assumed under a runner unless `PLCD_TEST_SLOWDOWN` says otherwise.
+pub const EMULATED_SLOWDOWN: u32 = 5;
 
 /// The runner's words; empty when the built programs run directly.
 pub fn runner() -> Vec<String> {
@@ -37,5 +48,20 @@ pub fn command(program: impl AsRef<OsStr>) -> Command {
             command.args(args).arg(program);
             command
         }
+    }
+}
+
+/// How many times longer than natively the built programs may take: 1 without a runner; with
+/// one, `PLCD_TEST_SLOWDOWN` (a positive integer) or [`EMULATED_SLOWDOWN`].
+pub fn slowdown() -> u32 {
+    if !emulated() {
+        return 1;
+    }
+    match std::env::var(SLOWDOWN_VAR) {
+        Ok(text) => match text.trim().parse::<u32>() {
+            Ok(factor) if factor >= 1 => factor,
+            _ => panic!("{SLOWDOWN_VAR}={text:?}: expected a positive integer"),
+        },
+        Err(_) => EMULATED_SLOWDOWN,
     }
 }
