@@ -4,7 +4,7 @@
 
 mod harness;
 
-use std::process::{Command, Output};
+use std::process::Output;
 
 use harness::tempdir::TempDir;
 

@@ -6,8 +6,6 @@
 
 mod harness;
 
-use std::process::Command;
-
 use harness::tempdir::TempDir;
 
 /// A fresh project directory with `plcd.toml` = `config` and an empty scan program.

@@ -21,7 +21,7 @@ mod harness;
 use harness::golden::compare_or_bless;
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 /// The directories of one case per diagnostic, by where the messages come from.
 const AREAS: [&str; 5] = ["lang", "config", "project", "stimulus", "st"];

@@ -12,7 +12,6 @@ mod harness;
 
 use std::fs;
 use std::path::Path;
-use std::process::Command;
 
 use harness::tempdir::TempDir;
 
