@@ -108,7 +108,7 @@ fn too_many_lines_by_name_without_the_chip() {
 fn the_raspberry_pi_examples_check() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     for board in ["pi4", "pi5"] {
-        let output = Command::new(env!("CARGO_BIN_EXE_plcd"))
+        let output = harness::runner::command(env!("CARGO_BIN_EXE_plcd"))
             .args(["check", "--config"])
             .arg(root.join(format!("etc/{board}.toml")))
             .output()
