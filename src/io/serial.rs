@@ -23,10 +23,9 @@ pub struct SerialError {
     pub source: serialport::Error,
 }
 
-/// An open serial port with the line's settings.
+/// An open serial port, set up with a line's settings.
 pub struct Port {
     tty: TTYPort,
-    line: SerialLine,
 }
 
 impl Port {
@@ -48,11 +47,7 @@ impl Port {
         let tty = TTYPort::open(&builder).map_err(err)?;
         // Bytes received before the settings applied may be garbled.
         tty.clear(ClearBuffer::All).map_err(err)?;
-        Ok(Port { tty, line: line.clone() })
-    }
-
-    pub fn line(&self) -> &SerialLine {
-        &self.line
+        Ok(Port { tty })
     }
 
     /// Reads what has arrived, waiting at most `timeout` for the first byte: `Ok(0)` if

@@ -149,10 +149,6 @@ impl RemoteIo {
     pub fn safe_state(&self) -> RemoteSafeState {
         RemoteSafeState { safe: Arc::clone(&self.safe), threads: self.threads.clone() }
     }
-
-    pub fn is_empty(&self) -> bool {
-        self.devices.is_empty()
-    }
 }
 
 /// Sets every remote write table to 0, from any thread: the pollers write zeros until the

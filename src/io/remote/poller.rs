@@ -256,11 +256,6 @@ impl Poller {
         self.writes.len()
     }
 
-    /// The inputs image's length in words (the scan side's layout must match).
-    pub fn image_words(&self) -> usize {
-        self.image.len()
-    }
-
     /// The job due at `now`, or the time the next one is due.
     pub fn next_job(&mut self, now: u64) -> Result<Job, u64> {
         self.outputs.update();

@@ -50,16 +50,21 @@ pub fn run(mut group: Group, stop: Arc<AtomicBool>, epoch: Instant) {
             continue;
         };
         next_first = (i + 1) % count;
-        let poller = &mut group.pollers[i];
-        let unit = poller.unit;
-        let timeout = Duration::from_millis(u64::from(poller.timeout_ms));
-        let (ask, values) = poller.prepare(job);
-        let result = group.link.exchange(unit, &ask, values, timeout);
-        let late = group.link.take_late();
-        poller.finish(job, clock(), group.link.round_trip_ns(), result, late);
-        for notice in poller.take_notices() {
-            log_notice(poller, &notice);
-        }
+        carry_out(&mut group.pollers[i], &mut group.link, job, clock);
+    }
+}
+
+/// One job of `poller` on `link`, reported back as ended at `ended()`, and what it noticed
+/// logged.
+fn carry_out(poller: &mut Poller, link: &mut Link, job: Job, ended: impl FnOnce() -> u64) {
+    let unit = poller.unit;
+    let timeout = Duration::from_millis(u64::from(poller.timeout_ms));
+    let (ask, values) = poller.prepare(job);
+    let result = link.exchange(unit, &ask, values, timeout);
+    let late = link.take_late();
+    poller.finish(job, ended(), link.round_trip_ns(), result, late);
+    for notice in poller.take_notices() {
+        log_notice(poller, &notice);
     }
 }
 
@@ -73,14 +78,7 @@ fn finish_writes(group: &mut Group, now: u64) {
             let Ok(job @ Job::Write(_)) = poller.next_job(now) else {
                 break;
             };
-            let unit = poller.unit;
-            let timeout = Duration::from_millis(u64::from(poller.timeout_ms));
-            let (ask, values) = poller.prepare(job);
-            let result = group.link.exchange(unit, &ask, values, timeout);
-            poller.finish(job, now, None, result, 0);
-            for notice in poller.take_notices() {
-                log_notice(poller, &notice);
-            }
+            carry_out(poller, &mut group.link, job, || now);
         }
     }
 }
