@@ -226,6 +226,39 @@ pub struct Counters {
     pub first_other_unit: Option<u8>,
 }
 
+/// Handles one frame with a good CRC (the address, the PDU and the CRC, as [`Framer::next`]
+/// gives it) for server `unit_id`, and counts it: the length of the answer in `scratch.out`
+/// to send once the line is quiet, or `None` when none is due (another unit, a broadcast, a
+/// response, a function a broadcast may not carry).
+pub fn answer_frame(
+    map: &Map,
+    plc: &dyn Plc,
+    unit_id: u8,
+    frame: &[u8],
+    deadline: Instant,
+    scratch: &mut Scratch,
+    counters: &mut Counters,
+) -> Option<usize> {
+    counters.frames += 1;
+    let (unit, pdu) = (frame[0], &frame[1..frame.len() - 2]);
+    let broadcast = unit == 0;
+    if unit != unit_id && !broadcast {
+        counters.ignored += 1;
+        counters.first_other_unit.get_or_insert(unit);
+        return None;
+    }
+    if pdu[0] >= 0x80 || (broadcast && !pdu::writes(pdu[0])) {
+        counters.ignored += 1;
+        return None;
+    }
+    let answer = pdu::answer_rtu(map, plc, unit_id, pdu, deadline, scratch);
+    if broadcast {
+        counters.broadcasts += 1;
+        return None;
+    }
+    answer
+}
+
 /// The log lines about a line's counters: what matters, not every frame.
 #[derive(Debug)]
 pub struct CounterLog {
@@ -404,32 +437,18 @@ impl Line<'_> {
 
     /// One frame with a good CRC: `frame` is the address, the PDU and the CRC.
     fn handle(&mut self, frame: &[u8]) -> io::Result<()> {
-        self.counters.frames += 1;
-        let (unit, pdu) = (frame[0], &frame[1..frame.len() - 2]);
-        let broadcast = unit == 0;
-        if unit != self.config.unit_id && !broadcast {
-            self.counters.ignored += 1;
-            self.counters.first_other_unit.get_or_insert(unit);
-            return Ok(());
-        }
-        if pdu[0] >= 0x80 || (broadcast && !pdu::writes(pdu[0])) {
-            self.counters.ignored += 1;
-            return Ok(());
-        }
         let deadline = Instant::now() + self.answer_timeout;
-        let answer = pdu::answer_rtu(
+        let Some(n) = answer_frame(
             self.map,
             self.plc,
             self.config.unit_id,
-            pdu,
+            frame,
             deadline,
             &mut self.scratch,
-        );
-        if broadcast {
-            self.counters.broadcasts += 1;
+            &mut self.counters,
+        ) else {
             return Ok(());
-        }
-        let Some(n) = answer else { return Ok(()) };
+        };
         if !self.quiet(deadline + self.answer_timeout)? {
             return Ok(());
         }

@@ -323,45 +323,67 @@ impl Inner {
                 Err(ReadEnd::Closed(0)) => return "by the client".into(),
                 Err(end) => return end.why("the MBAP header"),
             }
-            let protocol = u16::from_be_bytes([frame[2], frame[3]]);
-            let length = usize::from(u16::from_be_bytes([frame[4], frame[5]]));
-            if protocol != 0 {
-                return format!("protocol id {protocol:#06x} is not Modbus");
-            }
-            if !(2..=MAX_ADU - 6).contains(&length) {
-                return format!("MBAP length {length} is outside 2..=254");
-            }
-            let size = 6 + length;
+            let header: &[u8; HEADER] = frame[..HEADER].try_into().expect("the header");
+            let size = match frame_size(header) {
+                Ok(size) => size,
+                Err(why) => return why,
+            };
             if let Err(end) = read_exact(stream, &mut frame[HEADER..size], deadline) {
                 return end.why("the PDU");
             }
-            let hdr = Header {
-                transaction_id: u16::from_be_bytes([frame[0], frame[1]]),
-                unit_id: frame[6],
-            };
-            let pdu = &frame[HEADER..size];
-            let n = if size > self.config.max_request_bytes as usize {
-                pdu::exception(hdr, pdu[0], Exception::IllegalDataValue, &mut scratch.out)
-            } else {
-                let deadline = Instant::now() + answer_timeout;
-                match pdu::answer(
-                    &self.map,
-                    &self.scan,
-                    self.config.unit_id,
-                    hdr,
-                    pdu,
-                    deadline,
-                    &mut scratch,
-                ) {
-                    Some(n) => n,
-                    None => return format!("function code {:#04x} is no request", pdu[0]),
-                }
+            let deadline = Instant::now() + answer_timeout;
+            let answer = answer_frame(
+                &self.map,
+                &self.scan,
+                &self.config,
+                &frame[..size],
+                deadline,
+                &mut scratch,
+            );
+            let n = match answer {
+                Ok(n) => n,
+                Err(why) => return why,
             };
             if let Err(e) = stream.write_all(&scratch.out[..n]) {
                 return format!("writing the response: {e}");
             }
         }
     }
+}
+
+/// The size of the frame an MBAP header starts (header and PDU), or why it is no Modbus frame
+/// and the connection ends: a protocol id other than 0, a length outside 2..=254.
+pub fn frame_size(header: &[u8; HEADER]) -> Result<usize, String> {
+    let protocol = u16::from_be_bytes([header[2], header[3]]);
+    let length = usize::from(u16::from_be_bytes([header[4], header[5]]));
+    if protocol != 0 {
+        return Err(format!("protocol id {protocol:#06x} is not Modbus"));
+    }
+    if !(2..=MAX_ADU - 6).contains(&length) {
+        return Err(format!("MBAP length {length} is outside 2..=254"));
+    }
+    Ok(6 + length)
+}
+
+/// Answers one whole frame (the MBAP header of [`frame_size`], then the PDU) into
+/// `scratch.out`: the response's length, or why the connection ends (a function code of 128
+/// or more). A frame longer than `max_request_bytes` is answered with exception 03.
+pub fn answer_frame(
+    map: &Map,
+    plc: &dyn Plc,
+    config: &ModbusConfig,
+    frame: &[u8],
+    deadline: Instant,
+    scratch: &mut Scratch,
+) -> Result<usize, String> {
+    let hdr =
+        Header { transaction_id: u16::from_be_bytes([frame[0], frame[1]]), unit_id: frame[6] };
+    let pdu = &frame[HEADER..];
+    if frame.len() > config.max_request_bytes as usize {
+        return Ok(pdu::exception(hdr, pdu[0], Exception::IllegalDataValue, &mut scratch.out));
+    }
+    pdu::answer(map, plc, config.unit_id, hdr, pdu, deadline, scratch)
+        .ok_or_else(|| format!("function code {:#04x} is no request", pdu[0]))
 }
 
 enum ReadEnd {

@@ -401,6 +401,18 @@ impl<'a> Parser<'a> {
         }
     }
 
+    /// [`Parser::sync_stmt`] in a loop that began at token `before`: at least one token on,
+    /// so that a statement keyword where the loop wanted something else (a `CONTINUE` where a
+    /// CASE label belongs) cannot make it go round for ever.
+    fn sync_stmt_from(&mut self, before: usize) {
+        self.sync_stmt();
+        if self.pos == before {
+            // The statement keyword and the rest of its statement.
+            self.bump();
+            self.sync_stmt();
+        }
+    }
+
     /// After an error in a declaration: on to the next `;` (past it), `END_…` or block keyword.
     fn sync_decl(&mut self) {
         loop {
@@ -984,14 +996,15 @@ impl<'a> Parser<'a> {
             if is_top(tok) || is_closer(tok) || var_kind(tok).is_some() {
                 break;
             }
+            let before = self.pos;
             if !self.at_case_label() {
                 let _ = self.fail(Want::CaseLabel);
-                self.sync_stmt();
+                self.sync_stmt_from(before);
                 continue;
             }
             match self.case_arm() {
                 Ok(arm) => arms.push(arm),
-                Err(_) => self.sync_stmt(),
+                Err(_) => self.sync_stmt_from(before),
             }
         }
         self.open.pop();

@@ -1267,3 +1267,15 @@ fn a_ten_thousand_line_file_parses_without_errors() {
     let Item::Pou(big) = &file.items[2] else { panic!() };
     assert!(big.body.len() > 2000);
 }
+
+/// Found by the fuzzer (tests/fuzz, target `st`): a statement keyword where a CASE label
+/// belongs made the CASE loop go round for ever, one diagnostic a turn.
+#[test]
+fn a_statement_where_a_case_label_belongs_ends() {
+    for stmt in ["CONTINUE;", "EXIT;", "RETURN;", "IF", "CONTINUE", "1, WHILE"] {
+        let errors = body_errors(&format!("CASE {stmt}\nEND_CASE;"));
+        assert!(!errors.is_empty() && errors.len() < 6, "{stmt}: {errors:?}");
+    }
+    let errors = body_errors("CASE x OF\n    CONTINUE;\nEND_CASE;");
+    assert_eq!(errors, ["3:5: expected a case label, found `CONTINUE`"]);
+}
