@@ -31,6 +31,13 @@ fn write(project: &Project, file: &str, text: &str) {
     }
 }
 
+/// The time of day of a log line (`2026-11-24T06:49:25.001Z INFO  …`), in ms.
+fn log_ms(line: &str) -> u64 {
+    let time = &line[11..23];
+    let field = |range: std::ops::Range<usize>| time[range].parse::<u64>().expect(line);
+    ((field(0..2) * 60 + field(3..5)) * 60 + field(6..8)) * 1000 + field(9..12)
+}
+
 const CONVEYOR: &str = r#"
 [plc]
 scan_period_ms = 5
@@ -88,13 +95,18 @@ fn conveyor(name: &str) -> Project {
 fn runs_the_project_in_real_time_and_stops_cleanly_on_sigterm() {
     let project = conveyor("run");
     let daemon = project.start();
-    daemon.wait_for("mode RUN (startup)");
+    let run = daemon.wait_for("mode RUN (startup)");
     // The cycle task blinks, the io task counts three edges of the stimulus, the scan follows
     // P0001.
     let on = daemon.wait_for("P0040 = 1");
     daemon.wait_for_after(on, "P0040 = 0");
     daemon.wait_for("P0042 = 1");
-    daemon.wait_for("P0041 = 1");
+    let p0001 = daemon.wait_for("P0041 = 1");
+    // Time 0 of the inputs file is the first RUN: P0001, at 400 ms, is seen no sooner (the
+    // edges before it, played before RUN, would have been missed by the io task).
+    let lines = daemon.lines();
+    let since_run = (log_ms(&lines[p0001]) + 86_400_000 - log_ms(&lines[run])) % 86_400_000;
+    assert!(since_run >= 400, "P0001 seen {since_run} ms after RUN:\n{}", lines.join("\n"));
     let (code, log) = daemon.stop();
     assert_eq!(code, 0, "log:\n{}", log.join("\n"));
     let text = log.join("\n");

@@ -156,7 +156,6 @@ impl Driver {
                         shared: Arc::clone(&shared),
                         stimuli,
                         looped: config.io.stimulus_loop,
-                        origin_ns: 0,
                         field: Arc::clone(&field),
                         edges: edge_tx,
                         commands: Arc::clone(&commands),
@@ -234,8 +233,7 @@ impl Driver {
             return Err(DriverError::RtRefused(problems));
         }
         driver.problems = problems;
-        if let Some(mut player) = stimulus_thread {
-            player.origin_ns = sys::now_ns();
+        if let Some(player) = stimulus_thread {
             let handle = std::thread::Builder::new()
                 .name("plcd-stimulus".into())
                 .stack_size(PLAIN_THREAD_STACK)

@@ -9,6 +9,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use super::{pending, sys, Command, Shared, Source};
+use crate::engine::event::Mode;
 use crate::io::simulated::SimulatedField;
 use crate::io::InputEdge;
 use crate::stimulus::{Stimulus, Target};
@@ -19,8 +20,6 @@ pub struct StimulusThread {
     pub stimuli: Vec<Stimulus>,
     /// Replay from the start after the last line: a pass lasts until its last change.
     pub looped: bool,
-    /// CLOCK_MONOTONIC ns of time 0 of the file.
-    pub origin_ns: u64,
     pub field: Arc<SimulatedField>,
     pub edges: rtrb::Producer<InputEdge>,
     pub commands: Arc<Mutex<rtrb::Producer<Command>>>,
@@ -31,7 +30,12 @@ impl StimulusThread {
         let Some(last) = self.stimuli.last().map(|s| s.t_ns) else { return };
         // A file whose changes are all at 0 would loop without end in no time.
         let period = last.max(1_000_000);
-        let mut origin = self.origin_ns;
+        // Time 0 of the file is the first RUN, as in `plcd sim`: edges played before it would
+        // meet an engine in STOP, and how long a start takes would decide what the program sees.
+        if !self.wait_for_run() {
+            return;
+        }
+        let mut origin = sys::now_ns();
         loop {
             for index in 0..self.stimuli.len() {
                 let stimulus = self.stimuli[index];
@@ -45,6 +49,18 @@ impl StimulusThread {
             }
             origin += period;
         }
+    }
+
+    /// Until the engine is first in RUN; false on shutdown. The player is no real-time thread:
+    /// it looks every millisecond.
+    fn wait_for_run(&self) -> bool {
+        while self.shared.mode() != Mode::Run {
+            if self.shared.shutdown.load(Ordering::SeqCst) {
+                return false;
+            }
+            std::thread::park_timeout(Duration::from_millis(1));
+        }
+        true
     }
 
     /// False on shutdown.
