@@ -57,6 +57,8 @@ struct Options {
     control_clients: usize,
     modbus_clients: usize,
     reconnect_every: u32,
+    /// What each client waits before each round (0: none, back to back).
+    pause: Duration,
     change_every: Duration,
     sample: Duration,
     edge_step_ns: u64,
@@ -65,7 +67,7 @@ struct Options {
 fn usage(message: &str) -> ! {
     eprintln!(
         "soak: {message}\nusage: cargo bench --bench soak -- [--duration SECS] \
-         [--control-clients N] [--modbus-clients N] [--reconnect-every ROUNDS] \
+         [--control-clients N] [--modbus-clients N] [--reconnect-every ROUNDS] [--pause-ms MS] \
          [--change-every SECS] [--sample SECS] [--edge-step-ns NS]"
     );
     std::process::exit(2);
@@ -77,6 +79,7 @@ fn options() -> Options {
         control_clients: 50,
         modbus_clients: 20,
         reconnect_every: 200,
+        pause: Duration::ZERO,
         change_every: Duration::from_millis(2500),
         sample: Duration::ZERO,
         edge_step_ns: 100,
@@ -105,6 +108,7 @@ fn options() -> Options {
             "--control-clients" => o.control_clients = number(value()) as usize,
             "--modbus-clients" => o.modbus_clients = number(value()) as usize,
             "--reconnect-every" => o.reconnect_every = number(value()) as u32,
+            "--pause-ms" => o.pause = Duration::from_millis(number(value())),
             "--change-every" => o.change_every = secs(value()),
             "--sample" => o.sample = secs(value()),
             "--edge-step-ns" => o.edge_step_ns = number(value()),
@@ -376,15 +380,17 @@ fn main() {
         for k in 0..o.control_clients {
             let (socket, stop, tally) =
                 (socket.clone(), Arc::clone(&stop), Arc::clone(&control_tally));
-            let (every, epoch) = (o.reconnect_every, Arc::clone(&changes.epoch));
+            let (every, pause, epoch) = (o.reconnect_every, o.pause, Arc::clone(&changes.epoch));
             threads.push(scope.spawn(move || {
-                clients::control_client(k, socket, every, stop, tally, epoch)
+                clients::control_client(k, socket, every, pause, stop, tally, epoch)
             }));
         }
         for k in 0..o.modbus_clients {
             let (stop, tally) = (Arc::clone(&stop), Arc::clone(&modbus_tally));
-            let every = o.reconnect_every;
-            threads.push(scope.spawn(move || clients::modbus_client(k, modbus, every, stop, tally)));
+            let (every, pause) = (o.reconnect_every, o.pause);
+            threads.push(
+                scope.spawn(move || clients::modbus_client(k, modbus, every, pause, stop, tally)),
+            );
         }
         let changer_thread = scope.spawn(|| {
             changer(&project, pid, o.change_every, o.modbus_clients, &stop, &changes, &tracker)
@@ -421,8 +427,6 @@ fn main() {
                 lost_edges,
                 edges_seen: t.io_runs + t.io_ignored,
                 cycle_overruns: t.cycle_overruns,
-                reloads: changes.reloads.load(Ordering::Relaxed),
-                online_changes: changes.online.load(Ordering::Relaxed),
                 answers: control_tally.ok.load(Ordering::Relaxed)
                     + modbus_tally.ok.load(Ordering::Relaxed),
             });
@@ -501,17 +505,18 @@ fn main() {
     for (name, tally) in [("control", &control_tally), ("Modbus", &modbus_tally)] {
         let n = tally.failures.load(Ordering::Relaxed);
         if n > 0 {
-            fail(format!("{n} {name} requests failed; the first: {:#?}", tally.quoted.lock().unwrap()));
+            fail(format!(
+                "{n} {name} requests failed; the first: {:#?}",
+                tally.quoted.lock().unwrap()
+            ));
         }
     }
 
     // Resident memory after warm-up: the second half of the run.
     let half: Vec<&Sample> = samples.iter().filter(|s| s.at >= elapsed / 2).collect();
     let rss = |s: &&Sample| s.process.rss_kib;
-    let (rss_min, rss_max) = (
-        half.iter().map(rss).min().unwrap_or(0),
-        half.iter().map(rss).max().unwrap_or(0),
-    );
+    let (rss_min, rss_max) =
+        (half.iter().map(rss).min().unwrap_or(0), half.iter().map(rss).max().unwrap_or(0));
     if rss_max - rss_min > RSS_BAND_KIB {
         fail(format!(
             "resident memory moved by {} in the second half ({} to {})",
@@ -520,7 +525,8 @@ fn main() {
             mib(rss_max)
         ));
     }
-    let first_half_max = samples.iter().filter(|s| s.at < elapsed / 2).map(|s| s.process.rss_kib).max();
+    let first_half_max =
+        samples.iter().filter(|s| s.at < elapsed / 2).map(|s| s.process.rss_kib).max();
 
     // The report.
     let lost_edges = last.as_ref().map_or(0, |s| s.lost_edges);
@@ -535,16 +541,18 @@ fn main() {
     let busy = |t: &Tally| t.busy.load(Ordering::Relaxed);
     let conns = |t: &Tally| t.connections.load(Ordering::Relaxed);
     let max = |f: fn(&Sample) -> u64| samples.iter().map(f).max().unwrap_or(0);
-    let load_avg = samples.iter().map(|s| s.machine.load1).sum::<f64>() / samples.len().max(1) as f64;
+    let load_avg =
+        samples.iter().map(|s| s.machine.load1).sum::<f64>() / samples.len().max(1) as f64;
     println!("\n## Soak: {:.0} s\n", elapsed.as_secs_f64());
     println!(
         "`cargo bench --bench soak -- --duration {}`: {} control clients, {} Modbus clients \
-         (reconnecting every {} rounds), a reload or an online change every {:.1} s, a look \
+         (reconnecting every {} rounds, {} ms between two rounds), a reload or an online change every {:.1} s, a look \
          every {:.1} s; the storm: {} lines a pass, one every {} ns.\n",
         o.duration.as_secs(),
         o.control_clients,
         o.modbus_clients,
         o.reconnect_every,
+        o.pause.as_millis(),
         o.change_every.as_secs_f64(),
         o.sample.as_secs_f64(),
         project.storm_lines,
@@ -592,7 +600,9 @@ fn main() {
         mib(RSS_BAND_KIB)
     );
     println!(
-        "- scans: {} in {} engines (a reload starts a new one); worst scan time of any engine {}",
+        "- scans: {} counted in {} engines (a reload starts a new one, and the scans between \
+         the last look at the old one and the swap are not counted); worst scan time of any \
+         engine {}",
         tracker.scans,
         segments.len(),
         us(worst)
@@ -644,21 +654,21 @@ fn main() {
         lost_edges as f64 * 100.0 / (seen + lost_edges).max(1) as f64,
         lost_edge_warnings
     );
-    let around_changes: u64 = samples
-        .windows(2)
-        .filter(|w| w[1].reloads + w[1].online_changes > w[0].reloads + w[0].online_changes)
-        .map(|w| w[1].lost_edges - w[0].lost_edges)
-        .sum();
+    // Lost edges and lost cycle periods, look by look: do they come together?
+    let stalled: Vec<&[Sample]> =
+        samples.windows(2).filter(|w| w[1].cycle_overruns > w[0].cycle_overruns).collect();
+    let lost_in = |w: &[Sample]| w[1].lost_edges - w[0].lost_edges;
     println!(
-        "- lost edges in look intervals with a reload or an online change: {around_changes} of {lost_edges}; \
-         intervals that lost any: {} of {}",
-        samples.windows(2).filter(|w| w[1].lost_edges > w[0].lost_edges).count(),
+        "- lost edges in the {} look intervals in which the cycle tasks also lost periods: {} \
+         of the {} lost while the clients ran; intervals that lost edges: {} of {}",
+        stalled.len(),
+        stalled.iter().map(|w| lost_in(w)).sum::<u64>(),
+        samples.last().map_or(0, |s| s.lost_edges) - samples.first().map_or(0, |s| s.lost_edges),
+        samples.windows(2).filter(|w| lost_in(w) > 0).count(),
         samples.len().saturating_sub(1)
     );
-    let ticks_per_s = nix::unistd::sysconf(nix::unistd::SysconfVar::CLK_TCK)
-        .ok()
-        .flatten()
-        .unwrap_or(100) as f64;
+    let ticks_per_s =
+        nix::unistd::sysconf(nix::unistd::SysconfVar::CLK_TCK).ok().flatten().unwrap_or(100) as f64;
     let shares: Vec<String> = THREADS
         .iter()
         .zip(threads_start.iter().zip(threads_end))
@@ -676,7 +686,9 @@ fn main() {
         steal as f64 * 100.0 / total as f64,
         load_avg
     );
-    println!("\nseries (s, RSS MiB, fds, threads, lost edges, edges seen, cycle overruns, answers):");
+    println!(
+        "\nseries (s, RSS MiB, fds, threads, lost edges, edges seen, cycle overruns, answers):"
+    );
     for s in &samples {
         println!(
             "  {:6.1} {:6.2} {:4} {:3} {:9} {:11} {:6} {:9}",

@@ -94,7 +94,7 @@ fn ask(client: &mut Client, request: &Request, tally: &Tally, k: usize) -> Optio
     }
 }
 
-/// Control client `k`: `status`; `set` of its K word and a `get` of it with the scan counter
+/// Control client `k`, a round at a time (each after `pause`): `status`; `set` of its K word and a `get` of it with the scan counter
 /// D00000 (the value it wrote; D00000 equal to the capture's scan count: every scan ran its
 /// program to END, once); every fourth round `force` and `unforce` of its P bit (the answer's
 /// force table shows it, then not).
@@ -106,6 +106,7 @@ pub fn control_client(
     k: usize,
     socket: PathBuf,
     reconnect_every: u32,
+    pause: Duration,
     stop: Arc<AtomicBool>,
     tally: Arc<Tally>,
     reloads: Arc<AtomicU64>,
@@ -120,6 +121,7 @@ pub fn control_client(
                 break 'connection;
             }
             round = round.wrapping_add(1);
+            std::thread::sleep(pause);
             match ask(&mut c, &Request::Status, &tally, k) {
                 Some(Reply::Status(_)) => tally.ok(),
                 Some(other) => tally.fail(format!("control client {k}: status: {other:?}")),
@@ -159,7 +161,8 @@ pub fn control_client(
                 let epoch = reloads.load(Ordering::SeqCst);
                 let force = ask(&mut c, &Request::Force { dev: bit.clone(), value: 1 }, &tally, k);
                 let Some(force) = force else { continue 'connection };
-                let unforce = match ask_raw(&mut c, &Request::Unforce { dev: bit.clone() }, &tally) {
+                let unforce = match ask_raw(&mut c, &Request::Unforce { dev: bit.clone() }, &tally)
+                {
                     Ok(reply) => Ok(reply),
                     Err(ClientError::Daemon { failure, .. })
                         if failure.kind == ErrorKind::Invalid =>
@@ -171,8 +174,10 @@ pub fn control_client(
                         continue 'connection;
                     }
                 };
-                let forced_then = matches!(&force, Reply::Forces { forces } if forced(forces) == Some(1));
-                let unforced = matches!(&unforce, Ok(Reply::Forces { forces }) if forced(forces).is_none());
+                let forced_then =
+                    matches!(&force, Reply::Forces { forces } if forced(forces) == Some(1));
+                let unforced =
+                    matches!(&unforce, Ok(Reply::Forces { forces }) if forced(forces).is_none());
                 if forced_then && unforced {
                     tally.ok();
                     tally.ok();
@@ -226,13 +231,14 @@ fn connect_modbus(address: SocketAddr, tally: &Tally) -> Option<TcpStream> {
     None
 }
 
-/// Modbus client `k`, a round at a time: FC 16 of its 4 holding registers and FC 3 of them
+/// Modbus client `k`, a round at a time (each after `pause`): FC 16 of its 4 holding registers and FC 3 of them
 /// back; FC 15 of its 16 coils and FC 1 of them back; FC 6 of one register and FC 3 of it;
 /// FC 3 of D00000–D00031 and FC 4 of the scan time words. Values change every round.
 pub fn modbus_client(
     k: usize,
     address: SocketAddr,
     reconnect_every: u32,
+    pause: Duration,
     stop: Arc<AtomicBool>,
     tally: Arc<Tally>,
 ) {
@@ -247,9 +253,11 @@ pub fn modbus_client(
                 break 'connection;
             }
             round = round.wrapping_add(1);
+            std::thread::sleep(pause);
             let r = round as u16;
             let values = [r, r ^ 0x5a5a, (k as u16) << 8 | (r & 0xff), !r];
-            let bits: Vec<bool> = (0..16).map(|i| (r >> (i % 16)) & 1 == 1 || i == k % 16).collect();
+            let bits: Vec<bool> =
+                (0..16).map(|i| (r >> (i % 16)) & 1 == 1 || i == k % 16).collect();
             let mut write_registers = vec![16];
             write_registers.extend_from_slice(&registers.to_be_bytes());
             write_registers.extend_from_slice(&[0, 4, 8]);

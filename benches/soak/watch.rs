@@ -27,7 +27,8 @@ impl Process {
                 .and_then(|v| v.parse().ok())
                 .unwrap_or(0)
         };
-        let count = |dir: &str| std::fs::read_dir(format!("/proc/{pid}/{dir}")).ok().map(Iterator::count);
+        let count =
+            |dir: &str| std::fs::read_dir(format!("/proc/{pid}/{dir}")).ok().map(Iterator::count);
         Some(Process {
             rss_kib: field("VmRSS:"),
             hwm_kib: field("VmHWM:"),
@@ -142,7 +143,8 @@ impl Tracker {
             *self.segments.last_mut().unwrap() = segment;
         }
         let before = self.last.take();
-        let task = |name: &str| before.as_ref().and_then(|b| b.tasks.iter().find(|t| t.name == name));
+        let task =
+            |name: &str| before.as_ref().and_then(|b| b.tasks.iter().find(|t| t.name == name));
         for t in &s.tasks {
             let (runs, ignored, overruns) =
                 task(&t.name).map_or((0, 0, 0), |b| (b.runs, b.ignored, b.overruns));
@@ -180,7 +182,5 @@ pub struct Sample {
     pub lost_edges: u64,
     pub edges_seen: u64,
     pub cycle_overruns: u64,
-    pub reloads: u64,
-    pub online_changes: u64,
     pub answers: u64,
 }
