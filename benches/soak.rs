@@ -6,7 +6,8 @@
 //!   highest rate it can drive), each edge the start of an io task;
 //! - two 1 ms cycle tasks and a scan program with timers and counters every 1 ms;
 //! - `--control-clients` (50) control clients and `--modbus-clients` (20) Modbus TCP clients
-//!   writing and reading back, reconnecting every `--reconnect-every` rounds;
+//!   writing and reading back, back to back or `--pause-ms` apart, reconnecting every
+//!   `--reconnect-every` rounds;
 //! - every `--change-every` seconds (2.5) a SIGHUP reload to the other of two config variants,
 //!   or an online change of the scan program, in turn;
 //! - every `--sample` seconds the daemon's resident memory, fds and threads from /proc and its
@@ -239,7 +240,8 @@ fn status(c: &mut Client) -> Result<plcd_ipc::Status, String> {
     }
 }
 
-/// Waits until `device` holds `value`; false after [`CHANGE_PATIENCE`].
+/// Waits until `device` holds `value`: how long that took, or an error after
+/// [`CHANGE_PATIENCE`].
 fn wait_for(c: &mut Client, device: &str, value: i64) -> Result<Duration, String> {
     let start = Instant::now();
     loop {
