@@ -317,10 +317,24 @@ pub fn check_answer(ask: &Ask, pdu: &[u8], values: &mut [u16]) -> Result<(), Fau
             )))
         }
     };
+    // A read's byte count must be what the request asked for, not only the frame's length:
+    // a wrong one with the right length would leave values unread (found by the fuzzer).
+    let byte_count = |expected: usize| {
+        if usize::from(pdu[1]) == expected {
+            Ok(())
+        } else {
+            Err(Fault::Garbage(format!(
+                "a byte count of {} for {count} {}, not {expected}",
+                pdu[1],
+                ask.table.key().replace('_', " ")
+            )))
+        }
+    };
     match response {
         Response::ReadCoils(coils) | Response::ReadDiscreteInputs(coils) => {
             let bytes = count.div_ceil(8);
             expect_len(2 + bytes)?;
+            byte_count(bytes)?;
             values[..count.div_ceil(16)].fill(0);
             for k in 0..count {
                 if coils.get(k) == Some(true) {
@@ -331,6 +345,7 @@ pub fn check_answer(ask: &Ask, pdu: &[u8], values: &mut [u16]) -> Result<(), Fau
         }
         Response::ReadHoldingRegisters(data) | Response::ReadInputRegisters(data) => {
             expect_len(2 + 2 * count)?;
+            byte_count(2 * count)?;
             for (k, value) in values[..count].iter_mut().enumerate() {
                 *value = data.get(k).unwrap_or(0);
             }
@@ -401,6 +416,13 @@ mod tests {
         assert_eq!(values, [0x1234, 0xABCD]);
         let extra = check_answer(&registers, &[0x04, 4, 0x12, 0x34, 0xAB, 0xCD, 0], &mut values);
         assert!(matches!(extra, Err(Fault::Garbage(_))));
+        // The right length with a byte count that is not the request's: refused (found by the
+        // fuzzer; the registers past the byte count read as 0 and the bits as OFF before).
+        let short_count = check_answer(&registers, &[0x04, 3, 0x12, 0x34, 0xAB, 0xCD], &mut values);
+        assert!(matches!(short_count, Err(Fault::Garbage(m)) if m.contains("byte count of 3")));
+        let coils = Ask::read(&table(ModbusTable::Coils, 0, 10));
+        let short_bits = check_answer(&coils, &[0x01, 1, 0xFF, 0x03], &mut values);
+        assert!(matches!(short_bits, Err(Fault::Garbage(m)) if m.contains("byte count of 1")));
         let write = Ask::write(&table(ModbusTable::HoldingRegisters, 1, 2));
         check_answer(&write, &[0x10, 0, 1, 0, 2], &mut values).unwrap();
         let wrong_echo = check_answer(&write, &[0x10, 0, 1, 0, 3], &mut values);
