@@ -6,12 +6,13 @@
 //! Checked: every answer is one line of the protocol's JSON; no more answers than requests;
 //! every request is answered within a second except `continue` (which waits for a breakpoint)
 //! and `step`; and after the session a new client is answered `status`, while every thread of
-//! the driver lives. Each session starts from RUN with no forces and no breakpoints.
+//! the driver lives.
 
 use std::io::{BufRead, BufReader, Write};
 use std::net::Shutdown;
 use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Duration;
 
@@ -133,9 +134,29 @@ fn ask(socket: &Path, lines: &[&str]) -> Vec<ResponseLine> {
         .collect()
 }
 
+/// The last session may have changed the PLC's state (a request other than a read).
+static CHANGED: AtomicBool = AtomicBool::new(true);
+
 pub fn run(data: &[u8]) {
     let d = daemon();
     // From RUN, with nothing forced and no breakpoint: each session on its own.
+    if CHANGED.swap(false, Ordering::Relaxed) {
+        reset(d);
+    }
+    let requests: Vec<&[u8]> = data
+        .split_inclusive(|&b| b == b'\n')
+        .filter(|l| l.ends_with(b"\n") && !l.iter().all(u8::is_ascii_whitespace))
+        .collect();
+    let reads_only = requests.iter().all(|l| {
+        let request = plcd_ipc::parse_request(l.strip_suffix(b"\n").unwrap_or(l));
+        matches!(request, Err(_) | Ok(Request::Status | Request::Get { .. } | Request::Forces))
+    });
+    CHANGED.store(!reads_only, Ordering::Relaxed);
+    session(d, data, &requests);
+}
+
+/// RUN, no forces, no breakpoints.
+fn reset(d: &Daemon) {
     for answer in ask(
         &d.socket,
         &[
@@ -147,17 +168,16 @@ pub fn run(data: &[u8]) {
     ) {
         assert!(matches!(answer.outcome, Outcome::Ok(_)), "setting up a session: {answer:?}");
     }
+}
 
+/// Sends `data` as one client, shuts the connection for writing, and checks what comes back.
+fn session(d: &Daemon, data: &[u8], requests: &[&[u8]]) {
     let mut stream = UnixStream::connect(&d.socket).expect("connect");
     stream.set_read_timeout(Some(ANSWER)).unwrap();
     // A write may fail once the server closed the connection (a line too long): what it read
     // is answered all the same.
     let _ = stream.write_all(data);
     let _ = stream.shutdown(Shutdown::Write);
-    let requests: Vec<&[u8]> = data
-        .split_inclusive(|&b| b == b'\n')
-        .filter(|l| l.ends_with(b"\n") && !l.iter().all(u8::is_ascii_whitespace))
-        .collect();
     let mut reader = BufReader::new(stream);
     let mut answers = 0;
     loop {
