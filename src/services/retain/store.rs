@@ -83,9 +83,7 @@ impl Store {
             let _ = fs::remove_file(&temp);
             return Err(RetainError::Write { path: target, seq, step: "rename", source });
         }
-        File::open(&self.dir)
-            .and_then(|dir| dir.sync_all())
-            .map_err(fail("fsync the directory of", &self.dir))
+        sync_dir(&self.dir).map_err(fail("fsync the directory of", &self.dir))
     }
 
     /// Renames slot `slot` to a name the writer never uses (`retain-a.bin.mismatch`, or
@@ -111,4 +109,18 @@ impl Store {
         }
         Ok(to)
     }
+}
+
+/// The fsync of the directory that makes a generation's rename durable: without it a power cut
+/// can bring back the previous generation after this one was acknowledged.
+#[cfg(not(feature = "fault-injection-skip-dir-fsync"))]
+fn sync_dir(dir: &Path) -> std::io::Result<()> {
+    File::open(dir)?.sync_all()
+}
+
+/// TEST ONLY (Cargo.toml, feature `fault-injection-skip-dir-fsync`): no fsync of the directory,
+/// the mutant tests/qemu/run-powercut --without-dir-fsync must catch.
+#[cfg(feature = "fault-injection-skip-dir-fsync")]
+fn sync_dir(_dir: &Path) -> std::io::Result<()> {
+    Ok(())
 }
