@@ -263,8 +263,6 @@ fn wait_for(c: &mut Client, device: &str, value: i64) -> Result<Duration, String
 #[derive(Default)]
 struct Changes {
     reloads: AtomicU64,
-    /// Odd from before a SIGHUP until its marker is in device memory.
-    epoch: Arc<AtomicU64>,
     online: AtomicU64,
     /// The longest time from the request to its marker in device memory, in µs.
     slowest_us: AtomicU64,
@@ -301,12 +299,10 @@ fn changer(
                 Ok(s) => tracker.lock().unwrap().update(s),
                 Err(e) => fail(e),
             }
-            changes.epoch.fetch_add(1, Ordering::SeqCst);
             kill(Pid::from_raw(pid as i32), Signal::SIGHUP).expect("SIGHUP");
             changes.reloads.fetch_add(1, Ordering::Relaxed);
             let seen = wait_for(&mut c, "D00001", marker(reloads))
                 .map_err(|e| format!("reload {reloads}: {e}"));
-            changes.epoch.fetch_add(1, Ordering::SeqCst);
             seen
         } else {
             online += 1;
@@ -382,10 +378,10 @@ fn main() {
         for k in 0..o.control_clients {
             let (socket, stop, tally) =
                 (socket.clone(), Arc::clone(&stop), Arc::clone(&control_tally));
-            let (every, pause, epoch) = (o.reconnect_every, o.pause, Arc::clone(&changes.epoch));
-            threads.push(scope.spawn(move || {
-                clients::control_client(k, socket, every, pause, stop, tally, epoch)
-            }));
+            let (every, pause) = (o.reconnect_every, o.pause);
+            threads.push(
+                scope.spawn(move || clients::control_client(k, socket, every, pause, stop, tally)),
+            );
         }
         for k in 0..o.modbus_clients {
             let (stop, tally) = (Arc::clone(&stop), Arc::clone(&modbus_tally));
@@ -628,10 +624,6 @@ fn main() {
         control_tally.failures.load(Ordering::Relaxed),
         busy(&control_tally),
         conns(&control_tally)
-    );
-    println!(
-        "- forces a reload dropped between a client's `force` and its `unforce`: {}",
-        control_tally.forces_dropped.load(Ordering::Relaxed)
     );
     println!(
         "- Modbus: {} answers checked, {} failed, {} exception 06 (retried), {} connections",

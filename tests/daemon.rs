@@ -126,6 +126,42 @@ fn the_inputs_file_plays_from_the_first_run() {
     assert_eq!(code, 0, "log:\n{}", log.join("\n"));
 }
 
+/// A force is the operator's: a reload (SIGHUP) and a load in STOP keep it, in the force table
+/// and on the output (P0045, written by no program).
+#[test]
+fn forces_survive_a_reload_and_a_load() {
+    let project = conveyor("forces");
+    let daemon = project.start();
+    daemon.wait_for("mode RUN (startup)");
+    let socket = project.socket();
+    let ok = |args: &[&str]| {
+        let out = harness::daemon::plcctl(&socket, args);
+        assert!(out.status.success(), "plcctl {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let forced = |when: &str| {
+        assert!(ok(&["forces"]).contains("P0045"), "the force table {when}");
+        let value = ok(&["get", "P0045"]);
+        assert_eq!(value.split_whitespace().collect::<Vec<_>>(), ["P0045", "1"], "{when}");
+    };
+    ok(&["force", "P0045=1"]);
+    forced("once forced");
+
+    write(&project, "blink.il", "LOAD NOT P0043\nOUT P0043\nEND\n");
+    daemon.signal(Signal::SIGHUP);
+    let reloaded = daemon.wait_for("reloaded: 3 programs, 2 tasks");
+    daemon.wait_for_after(reloaded, "mode RUN (reload)");
+    forced("after the reload");
+
+    ok(&["stop"]);
+    let config = project.path("plcd.toml");
+    ok(&["load", "--config", config.to_str().unwrap()]);
+    ok(&["run"]);
+    forced("after the load");
+    let (code, log) = daemon.stop();
+    assert_eq!(code, 0, "log:\n{}", log.join("\n"));
+}
+
 #[test]
 fn sighup_with_a_broken_program_keeps_the_running_one_then_a_good_one_replaces_it() {
     let project = conveyor("reload");

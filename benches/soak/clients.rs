@@ -33,10 +33,6 @@ pub struct Tally {
     /// `get` answers whose scan counter D00000 was not the capture's scan count: a scan that
     /// did not run its program to END once.
     pub counter_mismatches: AtomicU64,
-    /// Forces a SIGHUP reload dropped between a client's `force` and its `unforce`: a reload
-    /// starts a new engine, which takes over K and the retained ranges but not the force table
-    /// (an online change keeps it).
-    pub forces_dropped: AtomicU64,
     /// The first failures, for the report.
     pub quoted: Mutex<Vec<String>>,
 }
@@ -97,11 +93,7 @@ fn ask(client: &mut Client, request: &Request, tally: &Tally, k: usize) -> Optio
 /// Control client `k`, a round at a time (each after `pause`): `status`; `set` of its K word and a `get` of it with the scan counter
 /// D00000 (the value it wrote; D00000 equal to the capture's scan count: every scan ran its
 /// program to END, once); every fourth round `force` and `unforce` of its P bit (the answer's
-/// force table shows it, then not).
-///
-/// `reloads` is odd while a reload is under way (from before the SIGHUP until its marker is in
-/// device memory): a force whose `force` and `unforce` are not both within one even value may
-/// have been dropped by the reload, which is counted apart.
+/// force table shows it, then not; a reload or an online change between them keeps the force).
 pub fn control_client(
     k: usize,
     socket: PathBuf,
@@ -109,7 +101,6 @@ pub fn control_client(
     pause: Duration,
     stop: Arc<AtomicBool>,
     tally: Arc<Tally>,
-    reloads: Arc<AtomicU64>,
 ) {
     let word = control_word(k);
     let bit = forced_bit(k);
@@ -158,7 +149,6 @@ pub fn control_client(
                 let forced = |forces: &[plcd_ipc::DeviceValue]| {
                     forces.iter().find(|f| f.dev == bit).map(|f| f.value)
                 };
-                let epoch = reloads.load(Ordering::SeqCst);
                 let force = ask(&mut c, &Request::Force { dev: bit.clone(), value: 1 }, &tally, k);
                 let Some(force) = force else { continue 'connection };
                 let unforce = match ask_raw(&mut c, &Request::Unforce { dev: bit.clone() }, &tally)
@@ -181,8 +171,6 @@ pub fn control_client(
                 if forced_then && unforced {
                     tally.ok();
                     tally.ok();
-                } else if epoch % 2 == 1 || reloads.load(Ordering::SeqCst) != epoch {
-                    tally.forces_dropped.fetch_add(1, Ordering::Relaxed);
                 } else {
                     tally.fail(format!(
                         "control client {k}: force {bit} answered {force:?}, unforce {unforce:?}"

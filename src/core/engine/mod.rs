@@ -330,6 +330,20 @@ impl Engine {
         self.forces.set(bit, on, io.is_input(bit));
     }
 
+    /// A replacement engine (a reload, a load, an online change in STOP) keeps the forces of the
+    /// one it replaces, as an online change in RUN does: a force is the operator's, set for a
+    /// reason on the machine, and a new program must not release it unasked. Each force is set
+    /// again as an input or an output of `io`, the field the new engine runs with. No
+    /// allocation (the scan thread calls it).
+    pub fn inherit_forces(&mut self, old: &Engine, io: &impl Io) {
+        self.forces.clear_all();
+        for (address, on) in old.forces.iter() {
+            if let Ok(bit) = force::io_bit(&address) {
+                self.force(bit, on, io);
+            }
+        }
+    }
+
     /// Removes a force; true if the bit was forced.
     pub fn unforce(&mut self, bit: BitRef) -> bool {
         self.forces.clear(bit)

@@ -226,6 +226,7 @@ impl ScanThread {
                     self.engine.set_mode(Mode::Stop, now, &mut self.io, &mut sink);
                     let old = std::mem::replace(&mut self.engine, new);
                     self.engine.inherit_retained(&old);
+                    self.engine.inherit_forces(&old, &self.io);
                     if was == Mode::Run {
                         self.engine.set_mode(Mode::Run, now, &mut self.io, &mut sink);
                     }
@@ -303,6 +304,7 @@ impl ScanThread {
                 engine.set_mode(Mode::Stop, now, &mut self.io, &mut sink);
                 let old = std::mem::replace(engine, new);
                 engine.inherit_retained(&old);
+                engine.inherit_forces(&old, &self.io);
                 sink.push(Report::Retired(old));
                 *replaced = true;
             }
@@ -311,6 +313,7 @@ impl ScanThread {
                     engine.set_mode(Mode::Stop, now, &mut self.io, &mut sink);
                     std::mem::swap(engine, &mut change.engine);
                     engine.inherit_retained(&change.engine);
+                    engine.inherit_forces(&change.engine, &self.io);
                 } else {
                     let taken = change.engine.take_over(engine, &change.edges);
                     if let Err(refusal) = taken {
