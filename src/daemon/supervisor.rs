@@ -341,14 +341,23 @@ impl Daemon {
                 } else {
                     let watch = new.output_bits();
                     let engine = Box::new(Engine::new(&new, &watch));
-                    log::info!(
-                        "reloaded: {} programs, {} tasks; restarting them",
-                        new.programs.len(),
-                        new.config.tasks.len()
-                    );
-                    *running = Running::new(&self.config_path, new);
-                    drop(running);
-                    self.command(Command::Replace(engine));
+                    // Queued first, with the running project held: the project the control
+                    // thread names things by changes only if the engine will change too.
+                    let queued =
+                        self.driver.as_ref().is_some_and(|d| d.command(Command::Replace(engine)));
+                    if queued {
+                        log::info!(
+                            "reloaded: {} programs, {} tasks; restarting them",
+                            new.programs.len(),
+                            new.config.tasks.len()
+                        );
+                        *running = Running::new(&self.config_path, new);
+                    } else {
+                        log::error!(
+                            "reload refused: the scan thread's command queue is full; still \
+                             running the project loaded before"
+                        );
+                    }
                 }
             }
         }
