@@ -3,14 +3,6 @@
 //! its inputs. A rejected program's diagnostics point into it; an accepted one runs without
 //! panicking, and twice the same way.
 
-use std::path::Path;
-
-use plcd::config;
-use plcd::stimulus;
-
-use super::run_twice;
-use crate::assert_located;
-
 pub const CONFIG: &str = r#"
 [plc]
 watchdog_ms = 10
@@ -54,17 +46,5 @@ pub const STIMULUS: &str = "1ms, P0000, 1\n1ms, P0001, 1\n2ms, P0000, 0\n3ms, P0
                             3ms, D00010, 1234\n4ms, P0001, 0\n";
 
 pub fn run(data: &[u8]) {
-    let Ok(text) = std::str::from_utf8(data) else { return };
-    let config = config::parse(CONFIG, Path::new("plcd.toml")).expect("the target's config");
-    let stimuli = stimulus::parse_for(STIMULUS, Path::new("inputs.csv"), &config)
-        .expect("the target's stimulus");
-    let read = |path: &Path| match path.file_name().and_then(|n| n.to_str()) {
-        Some("tick.il") => TICK.to_string(),
-        Some("edge.il") => EDGE.to_string(),
-        _ => text.to_string(),
-    };
-    match plcd::project::from_config(config, |p| Ok(read(p))) {
-        Err(diags) => assert_located(&diags, Path::new("main.il"), text),
-        Ok(project) => run_twice(&project, &stimuli),
-    }
+    super::program(CONFIG, "main.il", &[("tick.il", TICK), ("edge.il", EDGE)], STIMULUS, data);
 }
