@@ -69,6 +69,10 @@ pub enum DecodeError {
     Inconsistent { ranges: usize, words: usize },
     #[error("the variables section is malformed at byte {0} of it")]
     Variables(usize),
+    #[error("a range of {len} words from word {start} goes past the end of device memory")]
+    RangePastEnd { start: u16, len: u16 },
+    #[error("sequence number {0}: the last there is, which no write reaches")]
+    LastSequence(u64),
 }
 
 /// The variables section of a file holding `variables` (name, type text, bytes each), into
@@ -169,14 +173,22 @@ pub fn decode(bytes: &[u8]) -> Result<Generation, DecodeError> {
     if stored != computed {
         return Err(DecodeError::Crc { stored, computed });
     }
-    let ranges: Vec<RetainedWords> = (0..n)
+    // Past the CRC, what a writer of this format cannot have written is refused all the same
+    // (a file made by hand, or a CRC that matched by chance): a range past the end of the
+    // memory, a sequence number with none after it. Found writing the invariants of the fuzz
+    // target `retain` (tests/fuzz).
+    let seq = u64_at(bytes, 16);
+    if seq == u64::MAX {
+        return Err(DecodeError::LastSequence(seq));
+    }
+    let ranges = (0..n)
         .map(|i| {
             let at = HEADER + 6 * i;
-            let start = u16_at(bytes, at);
-            let len = u16_at(bytes, at + 2);
-            RetainedWords { start, end: start.saturating_add(len), mask: u16_at(bytes, at + 4) }
+            let (start, len) = (u16_at(bytes, at), u16_at(bytes, at + 2));
+            let end = start.checked_add(len).ok_or(DecodeError::RangePastEnd { start, len })?;
+            Ok(RetainedWords { start, end, mask: u16_at(bytes, at + 4) })
         })
-        .collect();
+        .collect::<Result<Vec<RetainedWords>, DecodeError>>()?;
     let in_ranges: usize = ranges.iter().map(RetainedWords::len).sum();
     if in_ranges != w {
         return Err(DecodeError::Inconsistent { ranges: in_ranges, words: w });
@@ -190,7 +202,7 @@ pub fn decode(bytes: &[u8]) -> Result<Generation, DecodeError> {
         decode_variables(&bytes[section..section + v])?
     };
     Ok(Generation {
-        seq: u64_at(bytes, 16),
+        seq,
         written_unix_ms: u64_at(bytes, 24),
         device_words: u32_at(bytes, 32),
         ranges,
@@ -339,6 +351,26 @@ mod tests {
 
     fn generation(seq: u64, words: &[u16]) -> Generation {
         decode(&file(seq, words)).unwrap()
+    }
+
+    /// A file with a correct CRC whose range goes past the end of device memory, or whose
+    /// sequence number has none after it, is refused: one was read as a shorter range (and did
+    /// not encode back to its bytes), the other made the next write's number wrap to 0, below
+    /// the stale file's, for ever (an overflow panic in a debug build).
+    #[test]
+    fn what_no_writer_writes_is_refused_even_with_a_good_crc() {
+        let with_crc = |mut body: Vec<u8>| {
+            body.truncate(body.len() - 4);
+            body.extend(CRC.checksum(&body).to_le_bytes());
+            body
+        };
+        let mut past_end = file(5, &[1, 2]);
+        past_end[40..42].copy_from_slice(&0xFFFFu16.to_le_bytes());
+        let past_end = with_crc(past_end);
+        assert_eq!(decode(&past_end), Err(DecodeError::RangePastEnd { start: 0xFFFF, len: 2 }));
+        let last = file(u64::MAX, &[1, 2]);
+        assert_eq!(decode(&last), Err(DecodeError::LastSequence(u64::MAX)));
+        assert_eq!(decode(&file(u64::MAX - 1, &[1, 2])).map(|g| g.seq), Ok(u64::MAX - 1));
     }
 
     #[test]
