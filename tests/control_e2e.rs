@@ -188,6 +188,10 @@ fn every_plcctl_command_against_the_daemon() {
     plc.wait(|p| p.get("D00000") == counted + 1, "the next scan, stopped at main:3 again");
     assert_eq!(plc.ctl(&["unbreak", "main:4"]).status.code(), Some(1), "no breakpoint there");
     plc.ok(&["unbreak"]);
+    // Running to a breakpoint that is gone (for ever): `debug` answers at once, with that state.
+    plc.ok(&["continue"]);
+    let debug = plc.ok(&["debug"]);
+    assert!(debug.starts_with("running to a breakpoint"), "{debug}");
     assert!(plc.ok(&["run"]).contains("RUN"));
     plc.wait(|p| p.get("D00000") > counted + 5, "RUN goes on");
     assert_eq!(plc.ctl(&["step"]).status.code(), Some(1), "step only in DEBUG");

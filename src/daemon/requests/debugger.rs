@@ -77,7 +77,10 @@ impl RequestHandler {
         until_paused: bool,
         snapshot: &Snapshot,
     ) -> Outcome {
-        if until_paused && snapshot.mode == Mode::Debug && snapshot.debug_run != DebugRun::Paused {
+        // Only a scan or a step in progress ends by itself: `continue` runs until a breakpoint,
+        // maybe never, and a `debug` asked meanwhile is answered at once with that state (it
+        // waited for a pause that might not come; found by the fuzzer's `control` target).
+        if until_paused && snapshot.mode == Mode::Debug && snapshot.debug_run == DebugRun::Scan {
             // Still stepping: look again at the next round (see `collect_answers`).
             let then = Then::Debug { unbroken, devices, until_paused: true };
             return Outcome::Wait { then, again: false };
