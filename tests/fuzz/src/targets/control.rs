@@ -5,8 +5,8 @@
 //!
 //! Checked: every answer is one line of the protocol's JSON; no more answers than requests
 //! (and a last `too_long` for a line longer than the limit, after which nothing comes);
-//! every request is answered within a second except `continue` (which waits for a breakpoint)
-//! and `step`; and after the session a new client is answered `status`, while every thread of
+//! every request is answered within 3 s except `continue` (which waits for a breakpoint) and
+//! `step`; and after the session a new client is answered `status`, while every thread of
 //! the driver lives.
 
 use std::io::{BufRead, BufReader, Write};
@@ -26,8 +26,12 @@ use plcd_ipc::{ErrorKind, Outcome, Request, ResponseLine};
 /// dictionary does).
 pub const DIR: &str = "/tmp/plcd-fuzz-control";
 
-/// How long an answer may take (a scan boundary, a load of a small project).
-const ANSWER: Duration = Duration::from_secs(1);
+/// How long an answer may take (a scan boundary, a load of a small project), with room for a
+/// loaded machine; below AFL++'s time limit for the target (`tests/fuzz/run`).
+const ANSWER: Duration = Duration::from_secs(3);
+/// How long the target waits for the answer to a `continue` or a `step`, which may wait for a
+/// breakpoint that never comes.
+const PARKED: Duration = Duration::from_millis(200);
 
 const CONFIG: &str = r#"
 [plc]
@@ -182,6 +186,9 @@ fn session(d: &Daemon, data: &[u8], requests: &[&[u8]]) {
     let mut reader = BufReader::new(stream);
     let (mut answers, mut too_long) = (0, false);
     loop {
+        let parked = requests.get(answers).map(|l| plcd_ipc::parse_request(l));
+        let parked = matches!(parked, Some(Ok(Request::Continue | Request::Step { .. })));
+        reader.get_ref().set_read_timeout(Some(if parked { PARKED } else { ANSWER })).unwrap();
         let mut line = Vec::new();
         match reader.read_until(b'\n', &mut line) {
             Ok(0) => break,
@@ -202,9 +209,8 @@ fn session(d: &Daemon, data: &[u8], requests: &[&[u8]]) {
             Err(e) if e.kind() == std::io::ErrorKind::ConnectionReset => break,
             Err(_) => {
                 // No answer in time: only a request that waits for the program may be so.
-                let waiting = requests.get(answers).map(|l| plcd_ipc::parse_request(l));
                 assert!(
-                    matches!(waiting, Some(Ok(Request::Continue | Request::Step { .. }))),
+                    parked,
                     "request {answers} unanswered after {ANSWER:?}: {:?}",
                     requests.get(answers).map(|l| String::from_utf8_lossy(l))
                 );
