@@ -75,6 +75,13 @@ impl StCase {
         StCase { c, vm, state, clock: ManualClock::new(0) }
     }
 
+    /// The same program with its native code attached (`plcd_native`).
+    fn with_native(mut self) -> StCase {
+        let native = plcd_native::compile(&self.c.programs[0]).unwrap_or_else(|e| panic!("{e}"));
+        self.c.programs[0].native = Some(native);
+        self
+    }
+
     // Not inlined, so that a profiler sees one scan as one call (`StCase::scan`).
     #[inline(never)]
     fn scan(&mut self) {
@@ -646,11 +653,19 @@ fn bench_workload<N>(
         scan(&mut nat);
     }
     compare(&vm, &nat);
+    let (mut jit, mut nat) = (st().with_native(), native());
+    for _ in 0..CHECK_SCANS {
+        jit.checked_scan();
+        scan(&mut nat);
+    }
+    compare(&jit, &nat);
 
     let (mut vm, mut nat) = (st(), native());
+    let mut jit = st().with_native();
     let steps = vm.steps_per_scan();
     let mut group = configure(c, name);
     group.bench_function("vm", |b| b.iter(|| vm.scan()));
+    group.bench_function("jit", |b| b.iter(|| jit.scan()));
     group.bench_function("native", |b| b.iter(|| scan(black_box(&mut nat))));
     group.finish();
     Workload { name, steps }

@@ -48,5 +48,6 @@ pub fn compile(name: &str, path: &Path, checked: CheckedProgram, edge_base: u32)
         edge_slots: checked.edge_slots,
         labels,
         subroutines,
+        native: None,
     }
 }

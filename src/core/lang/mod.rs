@@ -6,6 +6,7 @@
 
 pub mod check;
 pub mod compile;
+pub mod native;
 pub mod ops;
 pub mod parse;
 
@@ -72,6 +73,10 @@ pub struct Program {
     pub labels: Box<[(u32, u32)]>,
     /// `SBRT n` instructions: `(n, pc)`, sorted by pc.
     pub subroutines: Box<[(u32, u32)]>,
+    /// Machine code compiled from `code`, which the VM runs in its place where it can
+    /// ([`native`]); attached by the shell after the project is compiled, `None` to interpret
+    /// only.
+    pub native: Option<std::sync::Arc<dyn native::NativeCode>>,
 }
 
 impl Program {

@@ -23,6 +23,7 @@ pub use clock::{Clock, ManualClock, StepClock};
 use crate::device::{
     counter_done, counter_value, timer_done, timer_value, BitRef, Memory, WordRef,
 };
+use crate::lang::native::{self, StFrame};
 use crate::lang::ops::{ArithOp, Combine, Op, Src, SystemRequest, Wide, WideConv};
 use crate::lang::{Language, Program, Variables, CALL_DEPTH, LOOP_DEPTH, ST_CALL_DEPTH};
 use crate::value::{self, Elem, Pointer};
@@ -66,14 +67,6 @@ struct CallFrame {
     blocks: u32,
     branches: u32,
     loop_depth: u8,
-}
-
-/// A Structured Text call: where to return, and the caller's frame base and FB instance.
-#[derive(Debug, Clone, Copy, Default)]
-struct StFrame {
-    return_pc: u32,
-    base: u32,
-    this: u64,
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -413,6 +406,84 @@ impl Vm {
     /// timers the current time; it is told the step count so a virtual clock can charge each
     /// instruction. How the loop is kept fast is told at `interpret`, below.
     pub fn run<C: Clock>(
+        &mut self,
+        program: &Program,
+        state: &mut ExecState,
+        clock: &C,
+        max_steps: u64,
+    ) -> Exit {
+        match program.native.as_deref() {
+            Some(native) => self.run_native(native, program, state, clock, max_steps),
+            None => self.interpret(program, state, clock, max_steps),
+        }
+    }
+
+    /// [`Vm::run`] of a program with native code: native code runs as far as it can, and the
+    /// interpreter executes what it hands back, a few instructions at a time ([`native`]).
+    fn run_native<C: Clock>(
+        &mut self,
+        native: &dyn native::NativeCode,
+        program: &Program,
+        state: &mut ExecState,
+        clock: &C,
+        max_steps: u64,
+    ) -> Exit {
+        let stop = self.steps.saturating_add(max_steps);
+        loop {
+            let left = stop - self.steps;
+            if left == 0 {
+                return Exit::Budget;
+            }
+            let mut regs = native::NativeRegs {
+                pc: state.pc,
+                st_depth: u32::from(state.st_depth),
+                base: state.base,
+                error: 0,
+                this: state.this,
+                left,
+                sp: state.eval.sp() as u64,
+            };
+            let memory = native::NativeMemory {
+                vars: &mut self.vars,
+                words: self.mem.words_mut(),
+                frame: &mut state.frame,
+                eval: state.eval.slots_mut(),
+                calls: &mut state.st_calls,
+            };
+            let exit = native.run(memory, &mut regs);
+            state.pc = regs.pc;
+            state.st_depth = regs.st_depth.min(ST_CALL_DEPTH as u32) as u8;
+            state.base = regs.base;
+            state.this = regs.this;
+            state.eval.set_sp(regs.sp as usize);
+            self.steps = stop - regs.left.min(left);
+            match exit {
+                native::NativeExit::End => {
+                    state.finished = true;
+                    return Exit::End;
+                }
+                native::NativeExit::OperationError => {
+                    let code = regs.error as u16;
+                    self.mem.raise_operation_error(code);
+                    return Exit::OperationError { code, pc: state.pc.wrapping_sub(1) };
+                }
+                native::NativeExit::Interpret => {
+                    let left = stop - self.steps;
+                    if left == 0 {
+                        return Exit::Budget;
+                    }
+                    let span = u64::from(native.interpret_span(state.pc).max(1));
+                    match self.interpret(program, state, clock, left.min(span)) {
+                        Exit::Budget => {}
+                        exit => return exit,
+                    }
+                }
+            }
+        }
+    }
+
+    /// [`Vm::run`] on the interpreter alone.
+    fn interpret<C: Clock>(
         &mut self,
         program: &Program,
         state: &mut ExecState,

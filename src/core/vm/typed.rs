@@ -29,6 +29,11 @@ impl EvalStack {
         EvalStack { slots: [0; EVAL_DEPTH], sp: 0 }
     }
 
+    /// The slots, for native code (which indexes them modulo [`EVAL_DEPTH`] itself).
+    pub(super) fn slots_mut(&mut self) -> &mut [u64; EVAL_DEPTH] {
+        &mut self.slots
+    }
+
     pub(super) fn clear(&mut self) {
         self.sp = 0;
     }

@@ -485,6 +485,7 @@ fn link(
         edge_slots: 0,
         labels: Box::new([]),
         subroutines: Box::new([]),
+        native: None,
     });
     Ok(())
 }

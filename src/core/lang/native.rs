@@ -1,0 +1,92 @@
+//! The hook for native code of a [`Program`](super::Program): machine code that a code generator outside the core (the
+//! `plcd-native` crate) compiled from a Structured Text program, run by [`Vm::run`] in place
+//! of the interpreter wherever it can.
+//!
+//! The interpreter stays the definition of what a program does. Native code is an
+//! accelerator of it with the same observable behaviour to the step: it charges the step
+//! budget the instructions it executes, stops where the interpreter would (at `END`, after an
+//! operation error, when the budget is spent), and leaves the activation ([`ExecState`]) and
+//! memory exactly as the interpreter would have. Whatever it cannot do exactly — an
+//! instruction it has no code for, a budget that ends inside one of its blocks, a pointer
+//! outside the spaces it reaches directly — it hands back with [`NativeExit::Interpret`], and
+//! [`Vm::run`] lets the interpreter execute the next few instructions (at most
+//! [`NativeCode::interpret_span`]) before native code takes over again. So every program runs
+//! with native code attached or not, and the task engine, the debugger, the trace and the
+//! simulator cannot tell the difference except by the time it takes.
+//!
+//! [`Vm::run`]: crate::vm::Vm::run
+//! [`ExecState`]: crate::vm::ExecState
+
+use super::{EVAL_DEPTH, ST_CALL_DEPTH};
+
+/// A Structured Text call: where to return, and the caller's frame base and FB instance.
+/// `repr(C)`: native code pushes and pops these as the interpreter does.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[repr(C)]
+pub struct StFrame {
+    pub return_pc: u32,
+    pub base: u32,
+    pub this: u64,
+}
+
+/// An activation's registers as native code reads and writes them; [`Vm::run`] loads them
+/// from the [`ExecState`] before the call and stores them back after.
+///
+/// [`Vm::run`]: crate::vm::Vm::run
+/// [`ExecState`]: crate::vm::ExecState
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(C)]
+pub struct NativeRegs {
+    /// The next instruction: where native code starts, and where it stopped.
+    pub pc: u32,
+    /// Structured Text calls under way (entries of [`NativeMemory::calls`]).
+    pub st_depth: u32,
+    /// The current frame's base, a byte offset into [`NativeMemory::frame`].
+    pub base: u32,
+    /// The operation error's code, when native code returns [`NativeExit::OperationError`].
+    pub error: u32,
+    /// The current FB instance (a [`crate::value::Pointer`] slot).
+    pub this: u64,
+    /// Instructions left in the step budget.
+    pub left: u64,
+    /// The evaluation stack's next free slot (an index into [`NativeMemory::eval`]).
+    pub sp: u64,
+}
+
+/// The memory native code works on, borrowed for one call.
+pub struct NativeMemory<'a> {
+    /// Variable memory (program instances and globals).
+    pub vars: &'a mut [u8],
+    /// Device memory's words.
+    pub words: &'a mut [u16],
+    /// The activation's frame area.
+    pub frame: &'a mut [u8],
+    /// The evaluation stack, a ring indexed modulo [`EVAL_DEPTH`].
+    pub eval: &'a mut [u64; EVAL_DEPTH],
+    /// The Structured Text call stack.
+    pub calls: &'a mut [StFrame; ST_CALL_DEPTH],
+}
+
+/// Why native code returned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NativeExit {
+    /// It executed `END`.
+    End,
+    /// The interpreter is to execute the instruction at `pc` (and at most
+    /// [`NativeCode::interpret_span`] of them), or the budget is spent (`left` is 0).
+    Interpret,
+    /// An operation error (its code in [`NativeRegs::error`]); `pc` is after the instruction
+    /// that raised it. Native code does not set `_ERR`: [`Vm::run`](crate::vm::Vm::run) does.
+    OperationError,
+}
+
+/// Native code of one program.
+pub trait NativeCode: Send + Sync + std::fmt::Debug {
+    /// Executes the program from `regs` until `END`, an operation error, an instruction it
+    /// hands to the interpreter or the end of the budget, and updates `regs`.
+    fn run(&self, memory: NativeMemory<'_>, regs: &mut NativeRegs) -> NativeExit;
+
+    /// How many instructions from `pc` on the interpreter may execute before native code can
+    /// take over again (at least 1).
+    fn interpret_span(&self, pc: u32) -> u32;
+}

@@ -1,0 +1,184 @@
+//! What a program's ops need from native code, found before any is generated: the depth of
+//! the evaluation stack at each instruction (relative to the activation: a FUNCTION or
+//! FUNCTION_BLOCK body starts at 0), the instructions where native code can be entered, and
+//! the blocks between them.
+//!
+//! The evaluation stack lives in machine registers inside a block, so its depth at each
+//! instruction must be known when the code is generated: the Structured Text compiler leaves
+//! the same depth on every path to an instruction, and a program where that does not hold is
+//! refused here (it runs on the interpreter).
+
+use plcd_core::lang::ops::{Op, Place, StrOp};
+use plcd_core::lang::{Program, EVAL_DEPTH};
+use plcd_core::value::{BinOp, Elem};
+
+/// The analysis of one program.
+pub(crate) struct Analysis {
+    /// The evaluation stack's depth before each instruction; `None` where no path from an
+    /// entry reaches.
+    pub depth: Vec<Option<u32>>,
+    /// The instructions native code can be entered at, sorted: the program's start, every
+    /// FUNCTION and FUNCTION_BLOCK body, every jump target, every instruction after a jump, a
+    /// call or a return, every instruction native code hands to the interpreter and the one
+    /// after it. A block runs from one to the next.
+    pub leaders: Vec<u32>,
+    /// The deepest evaluation stack.
+    pub max_depth: u32,
+    /// Bytes of variable memory and words of device memory the fixed operands reach: native
+    /// code runs only when the memory is at least that large.
+    pub vars_end: u64,
+    pub words_end: u64,
+}
+
+/// How an instruction moves the evaluation stack: slots popped, slots pushed.
+fn effect(op: &Op) -> Result<(u32, u32), String> {
+    Ok(match op {
+        Op::PushInt(_) | Op::PushConst(_) | Op::Fetch { .. } | Op::AddrOf(_) | Op::Now => (0, 1),
+        Op::Dup => (1, 2),
+        Op::Store { .. } | Op::Drop | Op::GotoIf { .. } | Op::CallFb { .. } => (1, 0),
+        Op::Index { .. } | Op::Bin { .. } | Op::Cmp { .. } => (2, 1),
+        Op::Offset(_) | Op::FetchInd(_) | Op::Un { .. } | Op::Conv { .. } => (1, 1),
+        Op::StoreInd(_) | Op::Copy(_) => (2, 0),
+        Op::Goto(_) | Op::CallFn { .. } | Op::Return | Op::End | Op::Nop | Op::System(_) => (0, 0),
+        Op::Str { op, .. } => match op {
+            StrOp::Move | StrOp::FromValue(_) => (2, 0),
+            StrOp::Len | StrOp::ToValue(_) => (1, 1),
+            StrOp::Left | StrOp::Right | StrOp::Concat => (3, 0),
+            StrOp::Mid => (4, 0),
+            StrOp::Find | StrOp::Compare => (2, 1),
+        },
+        other => return Err(format!("{other:?} is not an op of Structured Text")),
+    })
+}
+
+/// True if native code executes `op` itself; the others (the clock, strings, system requests,
+/// the integer power, which can fail) go to the interpreter.
+pub(crate) fn is_native(op: &Op) -> bool {
+    match op {
+        Op::Now | Op::Str { .. } | Op::System(_) => false,
+        Op::Bin { op: BinOp::Expt, elem } => elem.is_float(),
+        _ => true,
+    }
+}
+
+/// True if control does not go on to the next instruction after `op` (or may not).
+fn ends_block(op: &Op) -> bool {
+    matches!(
+        op,
+        Op::Goto(_)
+            | Op::GotoIf { .. }
+            | Op::CallFn { .. }
+            | Op::CallFb { .. }
+            | Op::Return
+            | Op::End
+    )
+}
+
+/// The bytes of variable memory (`Var`) or words of device memory (`Word`, `Bit`) a fixed
+/// operand reaches, as `(vars_end, words_end)`.
+fn reach(at: Place, elem: Elem) -> (u64, u64) {
+    match at {
+        Place::Var(offset) => (u64::from(offset) + u64::from(elem.size()), 0),
+        Place::Word(w) => (0, u64::from(w.0) + u64::from(elem.words())),
+        Place::Bit(b) => (0, u64::from(b.word) + 1),
+        Place::Frame(_) | Place::This(_) => (0, 0),
+    }
+}
+
+pub(crate) fn analyse(program: &Program) -> Result<Analysis, String> {
+    let code = &program.code;
+    let len = code.len();
+    let mut depth: Vec<Option<u32>> = vec![None; len + 1];
+    let mut leaders = vec![0u32];
+    let mut work = vec![(0usize, 0u32)];
+    let mut max_depth = 0;
+    let mut vars_end = 0;
+    let mut words_end = 0;
+    while let Some((pc, d)) = work.pop() {
+        if pc > len {
+            return Err(format!("a jump to {pc}, past the end of the code"));
+        }
+        match depth[pc] {
+            Some(known) if known == d => continue,
+            Some(known) => {
+                return Err(format!(
+                    "the evaluation stack is {known} and {d} deep at instruction {pc}"
+                ))
+            }
+            None => depth[pc] = Some(d),
+        }
+        let Some(op) = code.get(pc) else {
+            continue; // the end of the code: the interpreter ends the program there
+        };
+        let (pops, pushes) = effect(op)?;
+        let after = d
+            .checked_sub(pops)
+            .ok_or_else(|| format!("instruction {pc} pops more than the stack holds"))?
+            + pushes;
+        max_depth = max_depth.max(after).max(d);
+        if max_depth as usize >= EVAL_DEPTH {
+            return Err(format!("instruction {pc} needs {max_depth} slots of evaluation stack"));
+        }
+        if let Op::Fetch { elem, at } | Op::Store { elem, at } = op {
+            let (v, w) = reach(*at, *elem);
+            vars_end = vars_end.max(v);
+            words_end = words_end.max(w);
+        }
+        let next = pc + 1;
+        if !is_native(op) {
+            leaders.extend([pc as u32, next as u32]);
+        }
+        if ends_block(op) {
+            leaders.push(next as u32);
+        }
+        match *op {
+            Op::Goto(target) => {
+                leaders.push(target);
+                work.push((target as usize, after));
+            }
+            Op::GotoIf { target, .. } => {
+                leaders.push(target);
+                work.extend([(target as usize, after), (next, after)]);
+            }
+            Op::CallFn { target, .. } | Op::CallFb { target, .. } => {
+                leaders.push(target);
+                work.extend([(target as usize, 0), (next, after)]);
+            }
+            Op::Return if d != 0 => {
+                return Err(format!("RETURN at instruction {pc} leaves {d} slots on the stack"))
+            }
+            Op::Return | Op::End => {}
+            _ => work.push((next, after)),
+        }
+    }
+    leaders.retain(|&pc| (pc as usize) < len && depth[pc as usize].is_some());
+    leaders.sort_unstable();
+    leaders.dedup();
+    depth.truncate(len);
+    Ok(Analysis { depth, leaders, max_depth, vars_end, words_end })
+}
+
+impl Analysis {
+    /// The block that starts at `leaders[index]`: its instructions run to the next leader, or
+    /// to the first that ends a block, whichever comes first; an instruction the interpreter
+    /// executes is a block of its own.
+    pub fn block(&self, code: &[Op], index: usize) -> std::ops::Range<usize> {
+        let start = self.leaders[index] as usize;
+        let limit = self.leaders.get(index + 1).map_or(code.len(), |&pc| pc as usize);
+        let mut end = start;
+        while end < limit {
+            let op = &code[end];
+            end += 1;
+            if ends_block(op) || !is_native(op) {
+                break;
+            }
+        }
+        start..end
+    }
+
+    /// Instructions from `pc` to the next leader after it (the interpreter's share).
+    pub fn span(&self, pc: u32) -> u32 {
+        let next = self.leaders.partition_point(|&leader| leader <= pc);
+        self.leaders.get(next).map_or(u32::MAX, |&leader| leader - pc)
+    }
+}

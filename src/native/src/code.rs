@@ -1,0 +1,156 @@
+//! Executable memory and the call into it: the crate's one module with `unsafe`.
+//!
+//! Cranelift's JIT module writes the generated function into memory it maps writable, then
+//! makes it readable and executable (never both writable and executable) and flushes the
+//! instruction cache where the processor needs it. [`Code`] owns that memory for as long as
+//! the program it belongs to lives, and calls the function with a [`Context`] built from the
+//! borrowed memory of one [`NativeCode::run`].
+
+#![allow(unsafe_code)]
+
+use cranelift_codegen::settings::{self, Configurable};
+use cranelift_jit::{JITBuilder, JITModule};
+use cranelift_module::{default_libcall_names, Linkage, Module};
+use plcd_core::lang::native::{NativeCode, NativeExit, NativeMemory, NativeRegs, StFrame};
+use plcd_core::lang::Program;
+
+use crate::analysis::Analysis;
+use crate::{codegen, Error};
+
+/// What the generated function works on: the registers, and the memory of the call as raw
+/// parts. `repr(C)`: the generated code reads and writes its fields at their offsets.
+#[repr(C)]
+pub(crate) struct Context {
+    pub regs: NativeRegs,
+    pub vars: *mut u8,
+    pub vars_len: u64,
+    pub words: *mut u16,
+    pub words_len: u64,
+    pub frame: *mut u8,
+    pub frame_len: u64,
+    pub eval: *mut u64,
+    pub calls: *mut StFrame,
+}
+
+/// What the generated function returns.
+pub(crate) const RETURN_END: u32 = 0;
+pub(crate) const RETURN_INTERPRET: u32 = 1;
+pub(crate) const RETURN_ERROR: u32 = 2;
+
+type Entry = unsafe extern "C" fn(*mut Context) -> u32;
+
+/// Copies `n` bytes from `from` to `to`, the ranges possibly overlapping: the long copies of
+/// arrays and structs, which generated code calls.
+pub(crate) extern "C" fn copy_bytes(to: *mut u8, from: *const u8, n: u64) {
+    // SAFETY: only generated code calls this, after checking that both ranges lie inside
+    // variable memory or the frame of the `Context` of the call under way (codegen.rs,
+    // `Op::Copy`); `ptr::copy` allows them to overlap.
+    unsafe { std::ptr::copy(from, to, n as usize) }
+}
+
+/// A program's native code.
+pub(crate) struct Code {
+    /// The memory the code lives in; `None` only while it is being freed.
+    module: Option<JITModule>,
+    entry: Entry,
+    analysis: Analysis,
+    name: String,
+}
+
+// SAFETY: after `compile` the module is never used again but to free its memory in `drop`,
+// which takes `&mut self`; the code itself is immutable, and each call of it works only on the
+// `Context` it is given, so it may run on any thread and on several at once.
+unsafe impl Send for Code {}
+// SAFETY: as for `Send`: shared references only call the immutable code.
+unsafe impl Sync for Code {}
+
+impl Code {
+    pub fn compile(program: &Program, analysis: Analysis) -> Result<Code, Error> {
+        let name = program.name.clone();
+        let codegen_error = |message: String| Error::Codegen { program: name.clone(), message };
+        let mut flags = settings::builder();
+        for (flag, value) in [("opt_level", "speed"), ("use_colocated_libcalls", "false")] {
+            flags.set(flag, value).map_err(|e| codegen_error(e.to_string()))?;
+        }
+        let isa = cranelift_native::builder()
+            .map_err(|e| Error::Host(e.to_string()))?
+            .finish(settings::Flags::new(flags))
+            .map_err(|e| Error::Host(e.to_string()))?;
+        let mut module = JITModule::new(JITBuilder::with_isa(isa, default_libcall_names()));
+        let mut ctx = module.make_context();
+        codegen::generate(program, &analysis, module.isa(), &mut ctx.func);
+        let id = module
+            .declare_function("plcd_program", Linkage::Local, &ctx.func.signature)
+            .map_err(|e| codegen_error(e.to_string()))?;
+        module.define_function(id, &mut ctx).map_err(|e| codegen_error(format!("{e:?}")))?;
+        module.clear_context(&mut ctx);
+        module
+            .finalize_definitions()
+            .map_err(|e| Error::Memory { program: name.clone(), message: format!("{e:#}") })?;
+        let address = module.get_finalized_function(id);
+        // SAFETY: `address` is the start of the function just finalized, whose signature
+        // `codegen::generate` made `(pointer) -> i32` in the platform's C calling convention;
+        // the memory stays mapped while `module` lives, which `Code` owns.
+        let entry = unsafe { std::mem::transmute::<*const u8, Entry>(address) };
+        Ok(Code { module: Some(module), entry, analysis, name })
+    }
+}
+
+impl NativeCode for Code {
+    fn run(&self, memory: NativeMemory<'_>, regs: &mut NativeRegs) -> NativeExit {
+        // The fixed operands of the code are checked against these sizes once, here.
+        if (memory.vars.len() as u64) < self.analysis.vars_end
+            || (memory.words.len() as u64) < self.analysis.words_end
+        {
+            return NativeExit::Interpret;
+        }
+        let mut context = Context {
+            regs: *regs,
+            vars: memory.vars.as_mut_ptr(),
+            vars_len: memory.vars.len() as u64,
+            words: memory.words.as_mut_ptr(),
+            words_len: memory.words.len() as u64,
+            frame: memory.frame.as_mut_ptr(),
+            frame_len: memory.frame.len() as u64,
+            eval: memory.eval.as_mut_ptr(),
+            calls: memory.calls.as_mut_ptr(),
+        };
+        // SAFETY: every pointer of `context` comes from a slice of `memory`, mutably borrowed
+        // for this call, with its length beside it. The generated code reads and writes only
+        // inside those lengths: the fixed operands were checked against them just above, the
+        // frame and FB-instance operands are checked at each block's entry, pointers are
+        // checked before each access, the evaluation stack is indexed modulo its length and the
+        // call stack below `ST_CALL_DEPTH` (codegen.rs). It keeps no pointer after it returns.
+        let status = unsafe { (self.entry)(&mut context) };
+        *regs = context.regs;
+        match status {
+            RETURN_END => NativeExit::End,
+            RETURN_ERROR => NativeExit::OperationError,
+            _ => NativeExit::Interpret,
+        }
+    }
+
+    fn interpret_span(&self, pc: u32) -> u32 {
+        self.analysis.span(pc).max(1)
+    }
+}
+
+impl std::fmt::Debug for Code {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Code")
+            .field("program", &self.name)
+            .field("blocks", &self.analysis.leaders.len())
+            .finish()
+    }
+}
+
+impl Drop for Code {
+    fn drop(&mut self) {
+        if let Some(module) = self.module.take() {
+            // SAFETY: the only pointer into the module's memory is `entry`, which is called
+            // only through `&self`; `drop` has `&mut self`, so no call is under way, and `self`
+            // is never used after.
+            unsafe { module.free_memory() };
+        }
+    }
+}

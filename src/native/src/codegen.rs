@@ -1,0 +1,1059 @@
+//! A program's ops as one Cranelift function, `fn(*mut Context) -> u32`.
+//!
+//! The shape of the function:
+//! - the entry loads the registers from the [`Context`] and goes to the dispatch;
+//! - the dispatch is a switch on the program counter over the entry points (the leaders of
+//!   [`Analysis`]); each goes through a loader, which reloads the evaluation stack's slots of
+//!   that instruction from memory into SSA variables, to the leader's block; any other program
+//!   counter goes back to the interpreter;
+//! - a block first checks what its instructions need (enough step budget for all of them; the
+//!   frame and the FB instance holding their operands) and hands the whole block to the
+//!   interpreter if anything is missing, then charges the budget and runs the instructions
+//!   with the evaluation stack in SSA variables, and goes on to the next block directly;
+//! - every way out stores the registers and the live stack slots back, exactly as the
+//!   interpreter leaves them: at `END`, after an operation error, before an instruction it
+//!   hands to the interpreter (a pointer outside variable memory and the frame, a full call
+//!   stack).
+//!
+//! Calls push a [`StFrame`] as the interpreter does; the caller's stack slots go to memory
+//! first (a callee's slots are numbered from its own start), and a return goes through the
+//! dispatch to the return address's loader, which reloads them.
+
+use std::mem::offset_of;
+
+use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
+use cranelift_codegen::ir::{
+    types, AbiParam, Block, Function, InstBuilder, MemFlagsData, SigRef, Signature, Type, Value,
+};
+use cranelift_codegen::isa::TargetIsa;
+use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Switch, Variable};
+use plcd_core::lang::native::{NativeRegs, StFrame};
+use plcd_core::lang::ops::{CmpOp, Op, Place};
+use plcd_core::lang::{Program, EVAL_DEPTH, ST_CALL_DEPTH};
+use plcd_core::value::{BinOp, Elem, Pointer, Space, UnOp};
+use plcd_core::vm::{ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE};
+
+use crate::analysis::{is_native, Analysis};
+use crate::code::{self, Context, RETURN_END, RETURN_ERROR, RETURN_INTERPRET};
+use crate::helpers;
+
+const I64: Type = types::I64;
+const MASK: i64 = EVAL_DEPTH as i64 - 1;
+const LOW32: i64 = 0xFFFF_FFFF;
+/// Copies up to this many bytes are inline.
+const SHORT_COPY: u32 = 64;
+
+fn reg(field: usize) -> i32 {
+    (offset_of!(Context, regs) + field) as i32
+}
+
+/// Variable memory, the frame, device memory: none of it is aligned, and none of it traps
+/// (every access is inside a checked length).
+fn data() -> MemFlagsData {
+    MemFlagsData::new().with_notrap()
+}
+
+/// The [`Context`] and the stacks' slots: aligned.
+fn own() -> MemFlagsData {
+    MemFlagsData::trusted()
+}
+
+/// Fills `func` with the code of `program`.
+pub(crate) fn generate(
+    program: &Program,
+    analysis: &Analysis,
+    isa: &dyn TargetIsa,
+    func: &mut Function,
+) {
+    let call_conv = isa.default_call_conv();
+    func.signature = Signature::new(call_conv);
+    func.signature.params.push(AbiParam::new(I64));
+    func.signature.returns.push(AbiParam::new(types::I32));
+    let mut fctx = FunctionBuilderContext::new();
+    let mut b = FunctionBuilder::new(func, &mut fctx);
+    let helper = |n: usize| {
+        let mut sig = Signature::new(call_conv);
+        sig.params.extend(std::iter::repeat_n(AbiParam::new(I64), n));
+        sig.returns.push(AbiParam::new(I64));
+        sig
+    };
+    let binary_sig = b.import_signature(helper(4));
+    let unary_sig = b.import_signature(helper(3));
+    let mut copy = Signature::new(call_conv);
+    copy.params.extend(std::iter::repeat_n(AbiParam::new(I64), 3));
+    let copy_sig = b.import_signature(copy);
+    let entry = b.create_block();
+    b.append_block_params_for_function_params(entry);
+    b.switch_to_block(entry);
+    let ctx = b.block_params(entry)[0];
+    let field =
+        |b: &mut FunctionBuilder, offset: usize| b.ins().load(I64, own(), ctx, offset as i32);
+    let vars = field(&mut b, offset_of!(Context, vars));
+    let vars_len = field(&mut b, offset_of!(Context, vars_len));
+    let words = field(&mut b, offset_of!(Context, words));
+    let frame = field(&mut b, offset_of!(Context, frame));
+    let frame_len = field(&mut b, offset_of!(Context, frame_len));
+    let eval = field(&mut b, offset_of!(Context, eval));
+    let calls = field(&mut b, offset_of!(Context, calls));
+    let mut var = || b.declare_var(I64);
+    let regs = Regs {
+        pc: var(),
+        sp: var(),
+        left: var(),
+        base: var(),
+        this: var(),
+        depth: var(),
+        sb: var(),
+    };
+    let stack: Vec<Variable> = (0..=analysis.max_depth).map(|_| b.declare_var(I64)).collect();
+    let mut g = Gen {
+        b,
+        program,
+        analysis,
+        ctx,
+        vars,
+        vars_len,
+        words,
+        frame,
+        frame_len,
+        eval,
+        calls,
+        regs,
+        stack,
+        binary_sig,
+        unary_sig,
+        copy_sig,
+        blocks: vec![None; program.code.len()],
+        dispatch: None,
+        frame_base: None,
+        this_base: None,
+    };
+    g.entry();
+    g.body();
+    g.b.seal_all_blocks();
+    g.b.finalize(isa.frontend_config());
+}
+
+/// The registers of the activation, as SSA variables. `base` and `pc` hold a `u32`; `sb` is
+/// the absolute index (not yet masked) of the current activation's first stack slot.
+struct Regs {
+    pc: Variable,
+    sp: Variable,
+    left: Variable,
+    base: Variable,
+    this: Variable,
+    depth: Variable,
+    sb: Variable,
+}
+
+struct Gen<'a, 'f> {
+    b: FunctionBuilder<'f>,
+    program: &'a Program,
+    analysis: &'a Analysis,
+    ctx: Value,
+    vars: Value,
+    vars_len: Value,
+    words: Value,
+    frame: Value,
+    frame_len: Value,
+    eval: Value,
+    calls: Value,
+    regs: Regs,
+    /// The evaluation stack's slots of the current activation, by depth.
+    stack: Vec<Variable>,
+    binary_sig: SigRef,
+    unary_sig: SigRef,
+    copy_sig: SigRef,
+    /// The block of each leader.
+    blocks: Vec<Option<Block>>,
+    dispatch: Option<Block>,
+    /// In the block being generated: the address of the frame's base and of the FB instance,
+    /// when its instructions use them.
+    frame_base: Option<Value>,
+    this_base: Option<Value>,
+}
+
+/// Where the block being generated stands: the instruction's index in it and the block's
+/// length, for the budget an exit gives back.
+#[derive(Clone, Copy)]
+struct At {
+    pc: u32,
+    index: u32,
+    len: u32,
+}
+
+impl Gen<'_, '_> {
+    fn entry(&mut self) {
+        let ctx = self.ctx;
+        let load32 = |b: &mut FunctionBuilder, offset: usize| {
+            let v = b.ins().load(types::I32, own(), ctx, reg(offset));
+            b.ins().uextend(I64, v)
+        };
+        let pc = load32(&mut self.b, offset_of!(NativeRegs, pc));
+        let depth = load32(&mut self.b, offset_of!(NativeRegs, st_depth));
+        let base = load32(&mut self.b, offset_of!(NativeRegs, base));
+        let this = self.b.ins().load(I64, own(), ctx, reg(offset_of!(NativeRegs, this)));
+        let left = self.b.ins().load(I64, own(), ctx, reg(offset_of!(NativeRegs, left)));
+        let sp = self.b.ins().load(I64, own(), ctx, reg(offset_of!(NativeRegs, sp)));
+        let zero = self.b.ins().iconst(I64, 0);
+        for (var, value) in [
+            (self.regs.pc, pc),
+            (self.regs.depth, depth),
+            (self.regs.base, base),
+            (self.regs.this, this),
+            (self.regs.left, left),
+            (self.regs.sp, sp),
+            (self.regs.sb, zero),
+        ] {
+            self.b.def_var(var, value);
+        }
+        for &leader in &self.analysis.leaders {
+            self.blocks[leader as usize] = Some(self.b.create_block());
+        }
+        let dispatch = self.b.create_block();
+        self.dispatch = Some(dispatch);
+        self.b.ins().jump(dispatch, &[]);
+    }
+
+    fn body(&mut self) {
+        // The dispatch: a loader for each leader, the interpreter for any other pc.
+        let dispatch = self.dispatch.expect("created by entry");
+        self.b.switch_to_block(dispatch);
+        let mut switch = Switch::new();
+        let mut loaders = Vec::new();
+        for &leader in &self.analysis.leaders {
+            let loader = self.b.create_block();
+            switch.set_entry(u128::from(leader), loader);
+            loaders.push((leader, loader));
+        }
+        let elsewhere = self.b.create_block();
+        let pc = self.b.use_var(self.regs.pc);
+        switch.emit(&mut self.b, pc, elsewhere);
+
+        self.b.switch_to_block(elsewhere);
+        self.b.set_cold_block(elsewhere);
+        let sp = self.b.use_var(self.regs.sp);
+        let pc = self.b.use_var(self.regs.pc);
+        let left = self.b.use_var(self.regs.left);
+        self.store_regs(pc, sp, left);
+        self.ret(RETURN_INTERPRET);
+
+        for (leader, loader) in loaders {
+            self.b.switch_to_block(loader);
+            let depth = self.depth(leader);
+            let sp = self.b.use_var(self.regs.sp);
+            let sb = self.b.ins().iadd_imm_s(sp, -i64::from(depth));
+            self.b.def_var(self.regs.sb, sb);
+            for slot in 0..depth {
+                let address = self.slot_address(sb, slot);
+                let value = self.b.ins().load(I64, own(), address, 0);
+                self.b.def_var(self.stack[slot as usize], value);
+            }
+            let block = self.block_of(leader);
+            self.b.ins().jump(block, &[]);
+        }
+
+        for index in 0..self.analysis.leaders.len() {
+            self.block(index);
+        }
+    }
+
+    fn depth(&self, pc: u32) -> u32 {
+        self.analysis.depth.get(pc as usize).copied().flatten().unwrap_or(0)
+    }
+
+    fn block_of(&self, pc: u32) -> Block {
+        self.blocks[pc as usize].expect("a leader")
+    }
+
+    /// The block `pc` starts, or an exit to the interpreter at `pc` (the end of the code).
+    fn target(&mut self, pc: u32, depth: u32) -> Block {
+        if let Some(Some(block)) = self.blocks.get(pc as usize) {
+            return *block;
+        }
+        let current = self.b.current_block();
+        let exit = self.b.create_block();
+        self.b.set_cold_block(exit);
+        self.b.switch_to_block(exit);
+        let left = self.b.use_var(self.regs.left);
+        self.exit(pc, depth, left, RETURN_INTERPRET);
+        if let Some(current) = current {
+            self.b.switch_to_block(current);
+        }
+        exit
+    }
+
+    fn slot_address(&mut self, sb: Value, slot: u32) -> Value {
+        let index = self.b.ins().iadd_imm_s(sb, i64::from(slot));
+        let index = self.b.ins().band_imm_s(index, MASK);
+        let offset = self.b.ins().ishl_imm_s(index, 3);
+        self.b.ins().iadd(self.eval, offset)
+    }
+
+    fn store_regs(&mut self, pc: Value, sp: Value, left: Value) {
+        let ctx = self.ctx;
+        let sp = self.b.ins().band_imm_s(sp, MASK);
+        let base = self.b.use_var(self.regs.base);
+        let this = self.b.use_var(self.regs.this);
+        let depth = self.b.use_var(self.regs.depth);
+        for (value, offset) in [
+            (pc, offset_of!(NativeRegs, pc)),
+            (base, offset_of!(NativeRegs, base)),
+            (depth, offset_of!(NativeRegs, st_depth)),
+        ] {
+            let value = self.b.ins().ireduce(types::I32, value);
+            self.b.ins().store(own(), value, ctx, reg(offset));
+        }
+        for (value, offset) in [
+            (this, offset_of!(NativeRegs, this)),
+            (left, offset_of!(NativeRegs, left)),
+            (sp, offset_of!(NativeRegs, sp)),
+        ] {
+            self.b.ins().store(own(), value, ctx, reg(offset));
+        }
+    }
+
+    fn ret(&mut self, status: u32) {
+        let status = self.b.ins().iconst(types::I32, i64::from(status));
+        self.b.ins().return_(&[status]);
+    }
+
+    /// Leaves with `status`: the stack's `depth` slots to memory, the registers with `pc` and
+    /// `left` to the context.
+    fn exit(&mut self, pc: u32, depth: u32, left: Value, status: u32) {
+        let sb = self.b.use_var(self.regs.sb);
+        for slot in 0..depth {
+            let value = self.b.use_var(self.stack[slot as usize]);
+            let address = self.slot_address(sb, slot);
+            self.b.ins().store(own(), value, address, 0);
+        }
+        let sp = self.b.ins().iadd_imm_s(sb, i64::from(depth));
+        let pc = self.b.ins().iconst(I64, i64::from(pc));
+        self.store_regs(pc, sp, left);
+        self.ret(status);
+    }
+
+    /// A cold branch out of the block when `fail` holds: back to the interpreter before the
+    /// instruction at `at` (the stack as it was before it, `depth` slots).
+    fn bail_if(&mut self, fail: Value, at: At, depth: u32) {
+        let cold = self.b.create_block();
+        let next = self.b.create_block();
+        self.b.set_cold_block(cold);
+        self.b.ins().brif(fail, cold, &[], next, &[]);
+        self.b.switch_to_block(cold);
+        let left = self.b.use_var(self.regs.left);
+        let left = self.b.ins().iadd_imm_s(left, i64::from(at.len - at.index));
+        self.exit(at.pc, depth, left, RETURN_INTERPRET);
+        self.b.switch_to_block(next);
+    }
+
+    /// A cold branch when `fail` holds: the operation error `code` after the instruction at
+    /// `at`, whose result slot (the top of `depth` slots) is `result`.
+    fn error_if(&mut self, fail: Value, at: At, depth: u32, result: i64, code: u16) {
+        let cold = self.b.create_block();
+        let next = self.b.create_block();
+        self.b.set_cold_block(cold);
+        self.b.ins().brif(fail, cold, &[], next, &[]);
+        self.b.switch_to_block(cold);
+        let result = self.b.ins().iconst(I64, result);
+        self.b.def_var(self.stack[depth as usize - 1], result);
+        let code = self.b.ins().iconst(types::I32, i64::from(code));
+        self.b.ins().store(own(), code, self.ctx, reg(offset_of!(NativeRegs, error)));
+        let left = self.b.use_var(self.regs.left);
+        let left = self.b.ins().iadd_imm_s(left, i64::from(at.len - at.index - 1));
+        self.exit(at.pc + 1, depth, left, RETURN_ERROR);
+        self.b.switch_to_block(next);
+    }
+
+    fn block(&mut self, index: usize) {
+        let code = &self.program.code;
+        let range = self.analysis.block(code, index);
+        let start = range.start as u32;
+        let len = range.len() as u32;
+        self.b.switch_to_block(self.block_of(start));
+        let mut depth = self.depth(start);
+        if !is_native(&code[range.start]) {
+            let left = self.b.use_var(self.regs.left);
+            self.exit(start, depth, left, RETURN_INTERPRET);
+            return;
+        }
+        let at = At { pc: start, index: 0, len };
+        // What the block needs: the budget for all its instructions, and the frame and the FB
+        // instance as far as its operands reach.
+        let left = self.b.use_var(self.regs.left);
+        let short = self.b.ins().icmp_imm_s(IntCC::UnsignedLessThan, left, i64::from(len));
+        self.bail_if(short, At { index: len, ..at }, depth);
+        let (frame_end, this_end) =
+            code[range.clone()].iter().fold((0, 0), |(f, t), op| match op {
+                Op::Fetch { elem, at: Place::Frame(o) }
+                | Op::Store { elem, at: Place::Frame(o) } => {
+                    (f.max(u64::from(*o) + u64::from(elem.size())), t)
+                }
+                Op::Fetch { elem, at: Place::This(o) } | Op::Store { elem, at: Place::This(o) } => {
+                    (f, t.max(u64::from(*o) + u64::from(elem.size())))
+                }
+                _ => (f, t),
+            });
+        self.frame_base = None;
+        self.this_base = None;
+        if frame_end > 0 {
+            let base = self.b.use_var(self.regs.base);
+            let end = self.b.ins().iadd_imm_s(base, frame_end as i64);
+            let out = self.b.ins().icmp(IntCC::UnsignedGreaterThan, end, self.frame_len);
+            self.bail_if(out, At { index: len, ..at }, depth);
+            self.frame_base = Some(self.b.ins().iadd(self.frame, base));
+        }
+        if this_end > 0 {
+            let this = self.b.use_var(self.regs.this);
+            let (address, ok) = self.reach(this, this_end);
+            let out = self.b.ins().bxor_imm_s(ok, 1);
+            self.bail_if(out, At { index: len, ..at }, depth);
+            self.this_base = Some(address);
+        }
+        let left = self.b.ins().iadd_imm_s(left, -i64::from(len));
+        self.b.def_var(self.regs.left, left);
+        let mut falls_through = true;
+        for (index, pc) in range.clone().enumerate() {
+            let at = At { pc: pc as u32, index: index as u32, len };
+            falls_through = self.op(&code[pc], at, &mut depth);
+        }
+        if falls_through {
+            let next = self.target(range.end as u32, depth);
+            self.b.ins().jump(next, &[]);
+        }
+    }
+
+    /// The address of `pointer` (a slot) in variable memory or the frame, and whether `bytes`
+    /// from it are inside that space (an `i8` truth value).
+    fn reach(&mut self, pointer: Value, bytes: u64) -> (Value, Value) {
+        let space = self.b.ins().ushr_imm_s(pointer, 32);
+        let offset = self.b.ins().band_imm_s(pointer, LOW32);
+        let is_var = self.b.ins().icmp_imm_s(IntCC::Equal, space, Space::Var as i64);
+        let is_frame = self.b.ins().icmp_imm_s(IntCC::Equal, space, Space::Frame as i64);
+        let limit = self.b.ins().select(is_var, self.vars_len, self.frame_len);
+        let start = self.b.ins().select(is_var, self.vars, self.frame);
+        let end = self.b.ins().iadd_imm_s(offset, bytes as i64);
+        let inside = self.b.ins().icmp(IntCC::UnsignedLessThanOrEqual, end, limit);
+        let byte_space = self.b.ins().bor(is_var, is_frame);
+        let ok = self.b.ins().band(byte_space, inside);
+        (self.b.ins().iadd(start, offset), ok)
+    }
+
+    fn push(&mut self, depth: &mut u32, value: Value) {
+        self.b.def_var(self.stack[*depth as usize], value);
+        *depth += 1;
+    }
+
+    fn slot(&mut self, depth: u32) -> Value {
+        self.b.use_var(self.stack[depth as usize])
+    }
+
+    /// The instruction `op` at `at`; false if control does not fall through to the next.
+    fn op(&mut self, op: &Op, at: At, depth: &mut u32) -> bool {
+        let d = *depth;
+        match *op {
+            Op::PushInt(v) => {
+                let v = self.b.ins().iconst(I64, i64::from(v));
+                self.push(depth, v);
+            }
+            Op::PushConst(index) => {
+                let v = self.program.consts.get(index as usize).copied().unwrap_or(0);
+                let v = self.b.ins().iconst(I64, v as i64);
+                self.push(depth, v);
+            }
+            Op::Fetch { elem, at: place } => {
+                let v = self.load_place(place, elem);
+                self.push(depth, v);
+            }
+            Op::Store { elem, at: place } => {
+                let v = self.slot(d - 1);
+                self.store_place(place, elem, v);
+                *depth -= 1;
+            }
+            Op::AddrOf(place) => {
+                let v = self.address_of(place);
+                self.push(depth, v);
+            }
+            Op::Index { lo, len, stride } => {
+                let index = self.slot(d - 1);
+                let pointer = self.slot(d - 2);
+                let element = self.b.ins().iadd_imm_s(index, -i64::from(lo));
+                let out = self.b.ins().icmp_imm_s(
+                    IntCC::UnsignedGreaterThanOrEqual,
+                    element,
+                    i64::from(len),
+                );
+                self.error_if(out, at, d - 1, Pointer::DISCARD.to_slot() as i64, ERR_INDEX_RANGE);
+                let step = self.b.ins().imul_imm_s(element, i64::from(stride));
+                let moved = self.moved(pointer, step);
+                *depth -= 1;
+                self.b.def_var(self.stack[d as usize - 2], moved);
+            }
+            Op::Offset(n) => {
+                let pointer = self.slot(d - 1);
+                let n = self.b.ins().iconst(I64, i64::from(n));
+                let moved = self.moved(pointer, n);
+                self.b.def_var(self.stack[d as usize - 1], moved);
+            }
+            Op::FetchInd(elem) => {
+                let pointer = self.slot(d - 1);
+                let (address, ok) = self.reach(pointer, u64::from(elem.size()));
+                let out = self.b.ins().bxor_imm_s(ok, 1);
+                self.bail_if(out, at, d);
+                let v = self.load(elem, address, 0);
+                self.b.def_var(self.stack[d as usize - 1], v);
+            }
+            Op::StoreInd(elem) => {
+                let v = self.slot(d - 1);
+                let pointer = self.slot(d - 2);
+                let (address, ok) = self.reach(pointer, u64::from(elem.size()));
+                let out = self.b.ins().bxor_imm_s(ok, 1);
+                self.bail_if(out, at, d);
+                self.store(elem, address, 0, v);
+                *depth -= 2;
+            }
+            Op::Copy(n) => {
+                let source = self.slot(d - 1);
+                let destination = self.slot(d - 2);
+                let (from, from_ok) = self.reach(source, u64::from(n));
+                let (to, to_ok) = self.reach(destination, u64::from(n));
+                let ok = self.b.ins().band(from_ok, to_ok);
+                let out = self.b.ins().bxor_imm_s(ok, 1);
+                self.bail_if(out, at, d);
+                self.copy(to, from, n);
+                *depth -= 2;
+            }
+            Op::Bin { op, elem } => {
+                let b = self.slot(d - 1);
+                let a = self.slot(d - 2);
+                let r = self.binary(op, elem, a, b, at, d - 1);
+                *depth -= 1;
+                self.b.def_var(self.stack[d as usize - 2], r);
+            }
+            Op::Un { op, elem } => {
+                let a = self.slot(d - 1);
+                let r = self.unary(op, elem, a);
+                self.b.def_var(self.stack[d as usize - 1], r);
+            }
+            Op::Cmp { op, elem } => {
+                let b = self.slot(d - 1);
+                let a = self.slot(d - 2);
+                let holds = self.compare(op, elem, a, b);
+                let r = self.b.ins().uextend(I64, holds);
+                *depth -= 1;
+                self.b.def_var(self.stack[d as usize - 2], r);
+            }
+            Op::Conv { from, to } => {
+                let a = self.slot(d - 1);
+                let r = self.convert(from, to, a);
+                self.b.def_var(self.stack[d as usize - 1], r);
+            }
+            Op::Dup => {
+                let v = self.slot(d - 1);
+                self.push(depth, v);
+            }
+            Op::Drop => *depth -= 1,
+            Op::Nop => {}
+            Op::Goto(target) => {
+                let block = self.target(target, d);
+                self.b.ins().jump(block, &[]);
+                return false;
+            }
+            Op::GotoIf { target, when } => {
+                let c = self.slot(d - 1);
+                *depth -= 1;
+                let taken = self.target(target, d - 1);
+                let next = self.target(at.pc + 1, d - 1);
+                let (on_true, on_false) = if when { (taken, next) } else { (next, taken) };
+                self.b.ins().brif(c, on_true, &[], on_false, &[]);
+                return false;
+            }
+            Op::CallFn { target, frame } => {
+                self.call(at, d, target, frame, false);
+                return false;
+            }
+            Op::CallFb { target, frame } => {
+                self.call(at, d, target, frame, true);
+                return false;
+            }
+            Op::Return => {
+                let calls = self.b.use_var(self.regs.depth);
+                let empty = self.b.ins().icmp_imm_s(IntCC::Equal, calls, 0);
+                self.bail_if(empty, at, d);
+                let calls = self.b.ins().iadd_imm_s(calls, -1);
+                let frame = self.call_frame(calls);
+                let return_pc =
+                    self.b.ins().uload32(own(), frame, offset_of!(StFrame, return_pc) as i32);
+                let base = self.b.ins().uload32(own(), frame, offset_of!(StFrame, base) as i32);
+                let this = self.b.ins().load(I64, own(), frame, offset_of!(StFrame, this) as i32);
+                let sb = self.b.use_var(self.regs.sb);
+                for (var, value) in [
+                    (self.regs.depth, calls),
+                    (self.regs.base, base),
+                    (self.regs.this, this),
+                    (self.regs.pc, return_pc),
+                    (self.regs.sp, sb),
+                ] {
+                    self.b.def_var(var, value);
+                }
+                let dispatch = self.dispatch.expect("created by entry");
+                self.b.ins().jump(dispatch, &[]);
+                return false;
+            }
+            Op::End => {
+                let left = self.b.use_var(self.regs.left);
+                self.exit(at.pc + 1, d, left, RETURN_END);
+                return false;
+            }
+            // `analysis::is_native` keeps the others out of native blocks.
+            _ => unreachable!("{op:?} in a native block"),
+        }
+        true
+    }
+
+    /// The address of call frame `index`.
+    fn call_frame(&mut self, index: Value) -> Value {
+        let offset = self.b.ins().imul_imm_s(index, std::mem::size_of::<StFrame>() as i64);
+        self.b.ins().iadd(self.calls, offset)
+    }
+
+    fn call(&mut self, at: At, d: u32, target: u32, frame: u32, fb: bool) {
+        let calls = self.b.use_var(self.regs.depth);
+        let full =
+            self.b.ins().icmp_imm_s(IntCC::UnsignedGreaterThanOrEqual, calls, ST_CALL_DEPTH as i64);
+        self.bail_if(full, at, d);
+        let (this, after) =
+            if fb { (self.slot(d - 1), d - 1) } else { (self.b.use_var(self.regs.this), d) };
+        let record = self.call_frame(calls);
+        let return_pc = self.b.ins().iconst(types::I32, i64::from(at.pc + 1));
+        let base = self.b.use_var(self.regs.base);
+        let base32 = self.b.ins().ireduce(types::I32, base);
+        let old_this = self.b.use_var(self.regs.this);
+        self.b.ins().store(own(), return_pc, record, offset_of!(StFrame, return_pc) as i32);
+        self.b.ins().store(own(), base32, record, offset_of!(StFrame, base) as i32);
+        self.b.ins().store(own(), old_this, record, offset_of!(StFrame, this) as i32);
+        // The caller's slots to memory: the callee numbers its own from 0.
+        let sb = self.b.use_var(self.regs.sb);
+        for slot in 0..after {
+            let value = self.slot(slot);
+            let address = self.slot_address(sb, slot);
+            self.b.ins().store(own(), value, address, 0);
+        }
+        let calls = self.b.ins().iadd_imm_s(calls, 1);
+        let base = self.b.ins().iadd_imm_s(base, i64::from(frame));
+        let base = self.b.ins().band_imm_s(base, LOW32);
+        let sb = self.b.ins().iadd_imm_s(sb, i64::from(after));
+        for (var, value) in [
+            (self.regs.depth, calls),
+            (self.regs.base, base),
+            (self.regs.this, this),
+            (self.regs.sb, sb),
+        ] {
+            self.b.def_var(var, value);
+        }
+        let callee = self.target(target, 0);
+        self.b.ins().jump(callee, &[]);
+    }
+
+    /// Copies `n` bytes from `from` to `to` as `memmove` does (the ranges may overlap): a short
+    /// copy as loads of every chunk, then their stores; a long one by a call.
+    fn copy(&mut self, to: Value, from: Value, n: u32) {
+        if n > SHORT_COPY {
+            let function = code::copy_bytes as extern "C" fn(*mut u8, *const u8, u64) as usize;
+            let length = self.b.ins().iconst(I64, i64::from(n));
+            self.call_helper(self.copy_sig, function, &[to, from, length]);
+            return;
+        }
+        let mut chunks = Vec::new();
+        let mut offset = 0;
+        for (size, ty) in [(8, I64), (4, types::I32), (2, types::I16), (1, types::I8)] {
+            while n - offset >= size {
+                let v = self.b.ins().load(ty, data(), from, offset as i32);
+                chunks.push((v, offset));
+                offset += size;
+            }
+        }
+        for (v, offset) in chunks {
+            self.b.ins().store(data(), v, to, offset as i32);
+        }
+    }
+
+    /// `pointer` moved by `n` units of its space: the offset wraps in 32 bits, the space stays.
+    fn moved(&mut self, pointer: Value, n: Value) -> Value {
+        let space = self.b.ins().band_imm_s(pointer, !LOW32);
+        let offset = self.b.ins().iadd(pointer, n);
+        let offset = self.b.ins().band_imm_s(offset, LOW32);
+        self.b.ins().bor(space, offset)
+    }
+
+    fn address_of(&mut self, place: Place) -> Value {
+        let slot = |space, offset| Pointer { space, offset }.to_slot() as i64;
+        match place {
+            Place::Var(offset) => self.b.ins().iconst(I64, slot(Space::Var, offset)),
+            Place::Frame(offset) => {
+                let base = self.b.use_var(self.regs.base);
+                let offset = self.b.ins().iadd_imm_s(base, i64::from(offset));
+                let offset = self.b.ins().band_imm_s(offset, LOW32);
+                self.b.ins().bor_imm_s(offset, slot(Space::Frame, 0))
+            }
+            Place::This(offset) => {
+                let this = self.b.use_var(self.regs.this);
+                let n = self.b.ins().iconst(I64, i64::from(offset));
+                self.moved(this, n)
+            }
+            Place::Word(w) => self.b.ins().iconst(I64, slot(Space::Word, u32::from(w.0))),
+            Place::Bit(b) => {
+                let bit = b.mask.trailing_zeros().min(15);
+                self.b.ins().iconst(I64, slot(Space::Bit, u32::from(b.word) * 16 + bit))
+            }
+        }
+    }
+
+    /// The address and offset of a byte-space place.
+    fn byte_place(&mut self, place: Place) -> Option<(Value, i32)> {
+        match place {
+            Place::Var(offset) => Some((self.vars, offset as i32)),
+            Place::Frame(offset) => {
+                Some((self.frame_base.expect("checked at entry"), offset as i32))
+            }
+            Place::This(offset) => Some((self.this_base.expect("checked at entry"), offset as i32)),
+            Place::Word(_) | Place::Bit(_) => None,
+        }
+    }
+
+    fn load_place(&mut self, place: Place, elem: Elem) -> Value {
+        if let Some((address, offset)) = self.byte_place(place) {
+            return self.load(elem, address, offset);
+        }
+        match place {
+            Place::Word(w) => {
+                let offset = i32::from(w.0) * 2;
+                let raw = match elem.words() {
+                    1 => self.b.ins().uload16(I64, data(), self.words, offset),
+                    2 => self.b.ins().uload32(data(), self.words, offset),
+                    _ => self.b.ins().load(I64, data(), self.words, offset),
+                };
+                self.normalize(elem, raw)
+            }
+            Place::Bit(b) => {
+                let bit = b.mask.trailing_zeros().min(15);
+                let word = self.b.ins().uload16(I64, data(), self.words, i32::from(b.word) * 2);
+                let shifted = self.b.ins().ushr_imm_s(word, i64::from(bit));
+                self.b.ins().band_imm_s(shifted, 1)
+            }
+            _ => unreachable!("a byte place"),
+        }
+    }
+
+    fn store_place(&mut self, place: Place, elem: Elem, v: Value) {
+        if let Some((address, offset)) = self.byte_place(place) {
+            return self.store(elem, address, offset, v);
+        }
+        match place {
+            Place::Word(w) => {
+                let offset = i32::from(w.0) * 2;
+                let v = if elem == Elem::Bool { self.truth(v) } else { v };
+                match elem.words() {
+                    1 => self.b.ins().istore16(data(), v, self.words, offset),
+                    2 => self.b.ins().istore32(data(), v, self.words, offset),
+                    _ => self.b.ins().store(data(), v, self.words, offset),
+                };
+            }
+            Place::Bit(b) => {
+                let bit = b.mask.trailing_zeros().min(15);
+                let mask = 1i64 << bit;
+                let offset = i32::from(b.word) * 2;
+                let word = self.b.ins().uload16(I64, data(), self.words, offset);
+                let set = self.b.ins().bor_imm_s(word, mask);
+                let cleared = self.b.ins().band_imm_s(word, !mask);
+                let on = self.b.ins().icmp_imm_s(IntCC::NotEqual, v, 0);
+                let word = self.b.ins().select(on, set, cleared);
+                self.b.ins().istore16(data(), word, self.words, offset);
+            }
+            _ => unreachable!("a byte place"),
+        }
+    }
+
+    /// A slot of `elem` from little-endian bytes (variable memory, the frame).
+    fn load(&mut self, elem: Elem, address: Value, offset: i32) -> Value {
+        let ins = self.b.ins();
+        match elem {
+            Elem::Bool => {
+                let byte = ins.uload8(I64, data(), address, offset);
+                self.truth(byte)
+            }
+            Elem::I8 => ins.sload8(I64, data(), address, offset),
+            Elem::U8 => ins.uload8(I64, data(), address, offset),
+            Elem::I16 => ins.sload16(I64, data(), address, offset),
+            Elem::U16 => ins.uload16(I64, data(), address, offset),
+            Elem::I32 => ins.sload32(data(), address, offset),
+            Elem::U32 | Elem::F32 => ins.uload32(data(), address, offset),
+            Elem::I64 | Elem::U64 | Elem::F64 => ins.load(I64, data(), address, offset),
+        }
+    }
+
+    fn store(&mut self, elem: Elem, address: Value, offset: i32, v: Value) {
+        match elem {
+            Elem::Bool => {
+                let v = self.truth(v);
+                self.b.ins().istore8(data(), v, address, offset);
+            }
+            Elem::I8 | Elem::U8 => {
+                self.b.ins().istore8(data(), v, address, offset);
+            }
+            Elem::I16 | Elem::U16 => {
+                self.b.ins().istore16(data(), v, address, offset);
+            }
+            Elem::I32 | Elem::U32 | Elem::F32 => {
+                self.b.ins().istore32(data(), v, address, offset);
+            }
+            Elem::I64 | Elem::U64 | Elem::F64 => {
+                self.b.ins().store(data(), v, address, offset);
+            }
+        }
+    }
+
+    /// 1 if `v` is not 0, else 0.
+    fn truth(&mut self, v: Value) -> Value {
+        let ne = self.b.ins().icmp_imm_s(IntCC::NotEqual, v, 0);
+        self.b.ins().uextend(I64, ne)
+    }
+
+    /// `raw` cut to the width of `elem` and extended (`Bool` keeps bit 0), as the VM wraps an
+    /// integer result.
+    fn wrap(&mut self, elem: Elem, raw: Value) -> Value {
+        let ins = self.b.ins();
+        match elem {
+            Elem::Bool => ins.band_imm_s(raw, 1),
+            Elem::I8 => {
+                let v = ins.ireduce(types::I8, raw);
+                self.b.ins().sextend(I64, v)
+            }
+            Elem::I16 => {
+                let v = ins.ireduce(types::I16, raw);
+                self.b.ins().sextend(I64, v)
+            }
+            Elem::I32 => {
+                let v = ins.ireduce(types::I32, raw);
+                self.b.ins().sextend(I64, v)
+            }
+            Elem::U8 => ins.band_imm_s(raw, 0xFF),
+            Elem::U16 => ins.band_imm_s(raw, 0xFFFF),
+            Elem::U32 | Elem::F32 => ins.band_imm_s(raw, LOW32),
+            Elem::I64 | Elem::U64 | Elem::F64 => raw,
+        }
+    }
+
+    /// `raw` as a normalized slot of `elem` (`Bool`: 1 for anything but 0).
+    fn normalize(&mut self, elem: Elem, raw: Value) -> Value {
+        match elem {
+            Elem::Bool => self.truth(raw),
+            _ => self.wrap(elem, raw),
+        }
+    }
+
+    fn to_float(&mut self, elem: Elem, v: Value) -> Value {
+        if elem == Elem::F32 {
+            let bits = self.b.ins().ireduce(types::I32, v);
+            self.b.ins().bitcast(types::F32, MemFlagsData::new(), bits)
+        } else {
+            self.b.ins().bitcast(types::F64, MemFlagsData::new(), v)
+        }
+    }
+
+    fn from_float(&mut self, elem: Elem, f: Value) -> Value {
+        if elem == Elem::F32 {
+            let bits = self.b.ins().bitcast(types::I32, MemFlagsData::new(), f);
+            self.b.ins().uextend(I64, bits)
+        } else {
+            self.b.ins().bitcast(I64, MemFlagsData::new(), f)
+        }
+    }
+
+    fn float_zero(&mut self, elem: Elem) -> Value {
+        if elem == Elem::F32 {
+            self.b.ins().f32const(0.0)
+        } else {
+            self.b.ins().f64const(0.0)
+        }
+    }
+
+    fn call_helper(&mut self, sig: SigRef, function: usize, args: &[Value]) -> Value {
+        let callee = self.b.ins().iconst(I64, function as i64);
+        let call = self.b.ins().call_indirect(sig, callee, args);
+        self.b.inst_results(call).first().copied().unwrap_or(callee)
+    }
+
+    fn binary_helper(&mut self, op: BinOp, elem: Elem, a: Value, b: Value) -> Value {
+        let op = self.b.ins().iconst(I64, helpers::binary_index(op));
+        let elem = self.b.ins().iconst(I64, helpers::elem_index(elem));
+        let function = helpers::binary as extern "C" fn(u64, u64, u64, u64) -> u64 as usize;
+        self.call_helper(self.binary_sig, function, &[op, elem, a, b])
+    }
+
+    /// `a op b` (`depth`: the stack's depth after the instruction, for its error exit).
+    fn binary(&mut self, op: BinOp, elem: Elem, a: Value, b: Value, at: At, depth: u32) -> Value {
+        if elem.is_float() {
+            let (x, y) = (self.to_float(elem, a), self.to_float(elem, b));
+            let r = match op {
+                BinOp::Add => self.b.ins().fadd(x, y),
+                BinOp::Sub => self.b.ins().fsub(x, y),
+                BinOp::Mul => self.b.ins().fmul(x, y),
+                BinOp::Div | BinOp::Mod => {
+                    let zero = self.float_zero(elem);
+                    let by_zero = self.b.ins().fcmp(FloatCC::Equal, y, zero);
+                    self.error_if(by_zero, at, depth, 0, ERR_DIVIDE_BY_ZERO);
+                    if op == BinOp::Mod {
+                        return self.binary_helper(op, elem, a, b);
+                    }
+                    self.b.ins().fdiv(x, y)
+                }
+                _ => return self.binary_helper(op, elem, a, b),
+            };
+            return self.from_float(elem, r);
+        }
+        let r = match op {
+            BinOp::Add => self.b.ins().iadd(a, b),
+            BinOp::Sub => self.b.ins().isub(a, b),
+            BinOp::Mul => self.b.ins().imul(a, b),
+            BinOp::And => self.b.ins().band(a, b),
+            BinOp::Or => self.b.ins().bor(a, b),
+            BinOp::Xor => self.b.ins().bxor(a, b),
+            BinOp::Div | BinOp::Mod => {
+                let divisor = self.wrap(elem, b);
+                let by_zero = self.b.ins().icmp_imm_s(IntCC::Equal, divisor, 0);
+                self.error_if(by_zero, at, depth, 0, ERR_DIVIDE_BY_ZERO);
+                if elem.is_signed() {
+                    // i64::MIN / -1 traps in the processor; the VM's `wrapping_div` gives
+                    // -a, `wrapping_rem` 0.
+                    let minus_one = self.b.ins().icmp_imm_s(IntCC::Equal, b, -1);
+                    let one = self.b.ins().iconst(I64, 1);
+                    let safe = self.b.ins().select(minus_one, one, b);
+                    if op == BinOp::Div {
+                        let q = self.b.ins().sdiv(a, safe);
+                        let negated = self.b.ins().ineg(a);
+                        self.b.ins().select(minus_one, negated, q)
+                    } else {
+                        let r = self.b.ins().srem(a, safe);
+                        let zero = self.b.ins().iconst(I64, 0);
+                        self.b.ins().select(minus_one, zero, r)
+                    }
+                } else if op == BinOp::Div {
+                    self.b.ins().udiv(a, b)
+                } else {
+                    self.b.ins().urem(a, b)
+                }
+            }
+            BinOp::Min | BinOp::Max => {
+                let cc =
+                    if elem.is_signed() { IntCC::SignedLessThan } else { IntCC::UnsignedLessThan };
+                let less = self.b.ins().icmp(cc, a, b);
+                if op == BinOp::Min {
+                    self.b.ins().select(less, a, b)
+                } else {
+                    self.b.ins().select(less, b, a)
+                }
+            }
+            // Shifts, rotations (and the integer power, which `is_native` leaves to the
+            // interpreter because it can fail).
+            _ => return self.binary_helper(op, elem, a, b),
+        };
+        self.wrap(elem, r)
+    }
+
+    fn unary(&mut self, op: UnOp, elem: Elem, a: Value) -> Value {
+        if elem.is_float() {
+            let x = self.to_float(elem, a);
+            let r = match op {
+                UnOp::Neg => self.b.ins().fneg(x),
+                UnOp::Abs => self.b.ins().fabs(x),
+                UnOp::Sqrt => self.b.ins().sqrt(x),
+                _ => return self.unary_helper(op, elem, a),
+            };
+            return self.from_float(elem, r);
+        }
+        let r = match op {
+            UnOp::Neg => self.b.ins().ineg(a),
+            UnOp::Not => self.b.ins().bnot(a),
+            _ => return self.unary_helper(op, elem, a),
+        };
+        self.wrap(elem, r)
+    }
+
+    fn unary_helper(&mut self, op: UnOp, elem: Elem, a: Value) -> Value {
+        let op = self.b.ins().iconst(I64, helpers::unary_index(op));
+        let elem = self.b.ins().iconst(I64, helpers::elem_index(elem));
+        let function = helpers::unary as extern "C" fn(u64, u64, u64) -> u64 as usize;
+        self.call_helper(self.unary_sig, function, &[op, elem, a])
+    }
+
+    /// `a op b` as an `i8` truth value; on floats a NaN satisfies only `<>`.
+    fn compare(&mut self, op: CmpOp, elem: Elem, a: Value, b: Value) -> Value {
+        if elem.is_float() {
+            let (x, y) = (self.to_float(elem, a), self.to_float(elem, b));
+            let cc = match op {
+                CmpOp::Eq => FloatCC::Equal,
+                CmpOp::Ne => FloatCC::NotEqual,
+                CmpOp::Lt => FloatCC::LessThan,
+                CmpOp::Le => FloatCC::LessThanOrEqual,
+                CmpOp::Gt => FloatCC::GreaterThan,
+                CmpOp::Ge => FloatCC::GreaterThanOrEqual,
+            };
+            return self.b.ins().fcmp(cc, x, y);
+        }
+        let signed = elem.is_signed();
+        let cc = match (op, signed) {
+            (CmpOp::Eq, _) => IntCC::Equal,
+            (CmpOp::Ne, _) => IntCC::NotEqual,
+            (CmpOp::Lt, true) => IntCC::SignedLessThan,
+            (CmpOp::Le, true) => IntCC::SignedLessThanOrEqual,
+            (CmpOp::Gt, true) => IntCC::SignedGreaterThan,
+            (CmpOp::Ge, true) => IntCC::SignedGreaterThanOrEqual,
+            (CmpOp::Lt, false) => IntCC::UnsignedLessThan,
+            (CmpOp::Le, false) => IntCC::UnsignedLessThanOrEqual,
+            (CmpOp::Gt, false) => IntCC::UnsignedGreaterThan,
+            (CmpOp::Ge, false) => IntCC::UnsignedGreaterThanOrEqual,
+        };
+        self.b.ins().icmp(cc, a, b)
+    }
+
+    fn convert(&mut self, from: Elem, to: Elem, a: Value) -> Value {
+        if to == Elem::Bool {
+            if from.is_float() {
+                let x = self.to_float(from, a);
+                let zero = self.float_zero(from);
+                let ne = self.b.ins().fcmp(FloatCC::NotEqual, x, zero);
+                return self.b.ins().uextend(I64, ne);
+            }
+            return self.truth(a);
+        }
+        match (from.is_float(), to.is_float()) {
+            (false, false) => self.wrap(to, a),
+            (false, true) => {
+                let ty = if to == Elem::F32 { types::F32 } else { types::F64 };
+                let x = if from.is_signed() {
+                    self.b.ins().fcvt_from_sint(ty, a)
+                } else {
+                    self.b.ins().fcvt_from_uint(ty, a)
+                };
+                self.from_float(to, x)
+            }
+            (true, true) if from == to => a,
+            (true, true) => {
+                let x = self.to_float(from, a);
+                let y = if to == Elem::F32 {
+                    self.b.ins().fdemote(types::F32, x)
+                } else {
+                    self.b.ins().fpromote(types::F64, x)
+                };
+                self.from_float(to, y)
+            }
+            (true, false) => {
+                let from = self.b.ins().iconst(I64, helpers::elem_index(from));
+                let to = self.b.ins().iconst(I64, helpers::elem_index(to));
+                let function = helpers::convert as extern "C" fn(u64, u64, u64) -> u64 as usize;
+                self.call_helper(self.unary_sig, function, &[from, to, a])
+            }
+        }
+    }
+}
