@@ -23,11 +23,17 @@ pub fn config(path: &Path) -> Result<Config, Diagnostics> {
     config::parse(&text, path)
 }
 
-/// Loads the config at `path` and every program it names. Every diagnostic of the config and
-/// of all programs is returned at once.
+/// Loads the config at `path` and every program it names, and compiles the Structured Text
+/// programs to native code (`plcd_native`; a program it cannot compile runs on the
+/// interpreter, with a warning in the log). Every diagnostic of the config and of all programs
+/// is returned at once.
 pub fn project(path: &Path) -> Result<Project, Diagnostics> {
     let config = config(path)?;
-    project::from_config(config, |p| std::fs::read_to_string(p))
+    let mut project = project::from_config(config, |p| std::fs::read_to_string(p))?;
+    for error in plcd_native::attach(&mut project) {
+        log::warn!("{error}; it runs on the interpreter");
+    }
+    Ok(project)
 }
 
 /// Reads and parses the inputs file of a project, checked against its config

@@ -956,7 +956,7 @@ fn gen(t: T, depth: u32, vars: &Vars, c: &mut Choices) -> Expr {
             let n = 2 + c.below(2);
             let ts = chain(t, (0..n).map(|_| narrower(c)).collect(), c);
             let xs: Vec<Expr> = ts.into_iter().map(|u| sub(u, c)).collect();
-            Expr::MinMax(c.next() % 2 == 0, xs)
+            Expr::MinMax(c.next().is_multiple_of(2), xs)
         }
         14 => {
             let ts = chain(t, (0..3).map(|_| narrower(c)).collect(), c);
@@ -1036,7 +1036,7 @@ fn operands(t: T, depth: u32, vars: &Vars, c: &mut Choices) -> (Expr, Expr) {
     let u = ts[c.below(ts.len())];
     let a = gen(t, depth - 1, vars, c);
     let b = gen(u, depth - 1, vars, c);
-    if c.next() % 2 == 0 {
+    if c.next().is_multiple_of(2) {
         (a, b)
     } else {
         (b, a)

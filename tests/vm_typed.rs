@@ -734,7 +734,7 @@ fn garbage_op(kind: u8, a: u32, b: u32, c: u8) -> Op {
         14 => Dup,
         15 => Drop,
         16 => Goto(target),
-        17 => GotoIf { target, when: c % 2 == 0 },
+        17 => GotoIf { target, when: c.is_multiple_of(2) },
         18 => CallFn { target, frame: b },
         19 => CallFb { target, frame: b % 100 },
         20 => Return,

@@ -145,7 +145,7 @@ pub fn control_client(
                 Some(other) => tally.fail(format!("control client {k}: get: {other:?}")),
                 None => continue 'connection,
             }
-            if round % 4 == 0 {
+            if round.is_multiple_of(4) {
                 let forced = |forces: &[plcd_ipc::DeviceValue]| {
                     forces.iter().find(|f| f.dev == bit).map(|f| f.value)
                 };

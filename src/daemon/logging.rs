@@ -78,6 +78,11 @@ struct StderrLogger {
 
 impl Log for StderrLogger {
     fn enabled(&self, metadata: &Metadata) -> bool {
+        // Cranelift (the code generator of `plcd-native`) logs each function it compiles, IR
+        // and all, at info: only its warnings and errors are the operator's business.
+        if metadata.target().starts_with("cranelift") {
+            return metadata.level() <= Level::Warn && metadata.level() <= self.level;
+        }
         metadata.level() <= self.level
     }
 

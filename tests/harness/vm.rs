@@ -111,5 +111,6 @@ pub fn typed_program(
         edge_slots: 0,
         labels: Box::new([]),
         subroutines: Box::new([]),
+        native: None,
     }
 }

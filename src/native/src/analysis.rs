@@ -28,6 +28,20 @@ pub(crate) struct Analysis {
     /// code runs only when the memory is at least that large.
     pub vars_end: u64,
     pub words_end: u64,
+    /// The body (program, FUNCTION or FUNCTION_BLOCK: its first instruction) each instruction
+    /// belongs to.
+    pub owner: Vec<Option<u32>>,
+    /// Each body's first instruction, with what it needs and where its calls return.
+    pub bodies: std::collections::BTreeMap<u32, Body>,
+}
+
+/// A body (the program's, a FUNCTION's or a FUNCTION_BLOCK's): how far its operands reach into
+/// its frame and its FB instance, and the instructions its calls return to.
+#[derive(Debug, Default)]
+pub(crate) struct Body {
+    pub frame_end: u64,
+    pub this_end: u64,
+    pub return_sites: Vec<u32>,
 }
 
 /// How an instruction moves the evaluation stack: slots popped, slots pushed.
@@ -155,7 +169,57 @@ pub(crate) fn analyse(program: &Program) -> Result<Analysis, String> {
     leaders.sort_unstable();
     leaders.dedup();
     depth.truncate(len);
-    Ok(Analysis { depth, leaders, max_depth, vars_end, words_end })
+    let (owner, bodies) = bodies(code)?;
+    Ok(Analysis { depth, leaders, max_depth, vars_end, words_end, owner, bodies })
+}
+
+/// The body of each instruction (its first instruction).
+type Owners = Vec<Option<u32>>;
+/// Each body by its first instruction.
+type Bodies = std::collections::BTreeMap<u32, Body>;
+
+/// The body of each instruction, found from each body's start along the jumps (not into
+/// calls), and what each body needs. Every jump stays in its body: code is never shared.
+fn bodies(code: &[Op]) -> Result<(Owners, Bodies), String> {
+    let mut bodies = std::collections::BTreeMap::<u32, Body>::new();
+    bodies.insert(0, Body::default());
+    for (pc, op) in code.iter().enumerate() {
+        if let Op::CallFn { target, .. } | Op::CallFb { target, .. } = *op {
+            bodies.entry(target).or_default().return_sites.push(pc as u32 + 1);
+        }
+    }
+    let mut owner: Vec<Option<u32>> = vec![None; code.len()];
+    for (&start, body) in bodies.iter_mut() {
+        let mut work = vec![start as usize];
+        while let Some(pc) = work.pop() {
+            let Some(op) = code.get(pc) else { continue };
+            match owner[pc] {
+                Some(known) if known == start => continue,
+                Some(known) => {
+                    return Err(format!("instruction {pc} is in the bodies at {known} and {start}"))
+                }
+                None => owner[pc] = Some(start),
+            }
+            let reach = |elem: &Elem, offset: &u32| u64::from(*offset) + u64::from(elem.size());
+            match op {
+                Op::Fetch { elem, at: Place::Frame(o) }
+                | Op::Store { elem, at: Place::Frame(o) } => {
+                    body.frame_end = body.frame_end.max(reach(elem, o));
+                }
+                Op::Fetch { elem, at: Place::This(o) } | Op::Store { elem, at: Place::This(o) } => {
+                    body.this_end = body.this_end.max(reach(elem, o));
+                }
+                _ => {}
+            }
+            match *op {
+                Op::Goto(target) => work.push(target as usize),
+                Op::GotoIf { target, .. } => work.extend([target as usize, pc + 1]),
+                Op::Return | Op::End => {}
+                _ => work.push(pc + 1),
+            }
+        }
+    }
+    Ok((owner, bodies))
 }
 
 impl Analysis {
@@ -174,6 +238,64 @@ impl Analysis {
             }
         }
         start..end
+    }
+
+    /// Where each block checks the step budget, and for how many instructions (by leader
+    /// index): `Some(n)` at a block that checks that `n` instructions are left (the longest
+    /// path of native instructions from it to the next check), `None` at a block that does not
+    /// (every path into it passed a check that covered it). A block checks when a jump goes
+    /// back to it (a loop), when a call enters it, and when the dispatch enters it (its loader
+    /// checks); paths forward from a check are covered by it. So a loop checks once a round
+    /// and straight-line code with IFs once, and the budget still ends exactly where the
+    /// interpreter's would: a check that fails hands the block to the interpreter.
+    pub fn budget_checks(&self, code: &[Op]) -> Vec<(bool, u64)> {
+        let index_of = |pc: u32| self.leaders.binary_search(&pc).ok();
+        let mut checkpoint = vec![false; self.leaders.len()];
+        let mut successors = vec![Vec::new(); self.leaders.len()];
+        // The loop fills `checkpoint` of other blocks than its own: an index, not an iterator.
+        #[allow(clippy::needless_range_loop)]
+        for index in 0..self.leaders.len() {
+            let range = self.block(code, index);
+            let Some(last) = code.get(range.end.wrapping_sub(1)) else { continue };
+            if !is_native(&code[range.start]) {
+                continue;
+            }
+            let targets: Vec<u32> = match *last {
+                Op::Goto(target) => vec![target],
+                Op::GotoIf { target, .. } => vec![target, range.end as u32],
+                Op::CallFn { target, .. } | Op::CallFb { target, .. } => {
+                    if let Some(callee) = index_of(target) {
+                        checkpoint[callee] = true;
+                    }
+                    vec![]
+                }
+                Op::Return | Op::End => vec![],
+                _ => vec![range.end as u32],
+            };
+            for target in targets {
+                let Some(to) = index_of(target) else { continue };
+                if target <= range.start as u32 {
+                    checkpoint[to] = true;
+                } else {
+                    successors[index].push(to);
+                }
+            }
+        }
+        let mut need = vec![0u64; self.leaders.len()];
+        for index in (0..self.leaders.len()).rev() {
+            let range = self.block(code, index);
+            if !is_native(&code[range.start]) {
+                continue;
+            }
+            let after = successors[index]
+                .iter()
+                .filter(|&&to| !checkpoint[to])
+                .map(|&to| need[to])
+                .max()
+                .unwrap_or(0);
+            need[index] = range.len() as u64 + after;
+        }
+        checkpoint.into_iter().zip(need).collect()
     }
 
     /// Instructions from `pc` to the next leader after it (the interpreter's share).

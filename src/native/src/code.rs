@@ -54,6 +54,8 @@ pub(crate) struct Code {
     module: Option<JITModule>,
     entry: Entry,
     analysis: Analysis,
+    /// Bytes of variable memory the code reaches unchecked (`codegen::generate`).
+    vars_need: u64,
     name: String,
 }
 
@@ -78,7 +80,7 @@ impl Code {
             .map_err(|e| Error::Host(e.to_string()))?;
         let mut module = JITModule::new(JITBuilder::with_isa(isa, default_libcall_names()));
         let mut ctx = module.make_context();
-        codegen::generate(program, &analysis, module.isa(), &mut ctx.func);
+        let vars_need = codegen::generate(program, &analysis, module.isa(), &mut ctx.func);
         let id = module
             .declare_function("plcd_program", Linkage::Local, &ctx.func.signature)
             .map_err(|e| codegen_error(e.to_string()))?;
@@ -92,14 +94,15 @@ impl Code {
         // `codegen::generate` made `(pointer) -> i32` in the platform's C calling convention;
         // the memory stays mapped while `module` lives, which `Code` owns.
         let entry = unsafe { std::mem::transmute::<*const u8, Entry>(address) };
-        Ok(Code { module: Some(module), entry, analysis, name })
+        Ok(Code { module: Some(module), entry, analysis, vars_need, name })
     }
 }
 
 impl NativeCode for Code {
     fn run(&self, memory: NativeMemory<'_>, regs: &mut NativeRegs) -> NativeExit {
-        // The fixed operands of the code are checked against these sizes once, here.
-        if (memory.vars.len() as u64) < self.analysis.vars_end
+        // The fixed operands of the code, and the arrays at fixed places, are checked against
+        // these sizes once, here.
+        if (memory.vars.len() as u64) < self.vars_need
             || (memory.words.len() as u64) < self.analysis.words_end
         {
             return NativeExit::Interpret;

@@ -59,12 +59,16 @@ fn own() -> MemFlagsData {
 }
 
 /// Fills `func` with the code of `program`.
+///
+/// Returns the bytes of variable memory the code reaches without checking at each access (the
+/// fixed operands, and the elements of arrays at fixed places): the code may run only on at
+/// least that much.
 pub(crate) fn generate(
     program: &Program,
     analysis: &Analysis,
     isa: &dyn TargetIsa,
     func: &mut Function,
-) {
+) -> u64 {
     let call_conv = isa.default_call_conv();
     func.signature = Signature::new(call_conv);
     func.signature.params.push(AbiParam::new(I64));
@@ -104,6 +108,8 @@ pub(crate) fn generate(
         this: var(),
         depth: var(),
         sb: var(),
+        frame_at: var(),
+        this_at: var(),
     };
     let stack: Vec<Variable> = (0..=analysis.max_depth).map(|_| b.declare_var(I64)).collect();
     let mut g = Gen {
@@ -124,14 +130,19 @@ pub(crate) fn generate(
         unary_sig,
         copy_sig,
         blocks: vec![None; program.code.len()],
+        loaders: vec![None; program.code.len()],
         dispatch: None,
-        frame_base: None,
-        this_base: None,
+        known: vec![None; analysis.max_depth as usize + 1],
+        boolean: vec![false; analysis.max_depth as usize + 1],
+        vars_need: analysis.vars_end,
+        checks: analysis.budget_checks(&program.code),
     };
     g.entry();
     g.body();
+    let vars_need = g.vars_need;
     g.b.seal_all_blocks();
     g.b.finalize(isa.frontend_config());
+    vars_need
 }
 
 /// The registers of the activation, as SSA variables. `base` and `pc` hold a `u32`; `sb` is
@@ -144,6 +155,10 @@ struct Regs {
     this: Variable,
     depth: Variable,
     sb: Variable,
+    /// The addresses of the frame's base and of the FB instance: set, and checked against what
+    /// the body's operands need, wherever `base` and `this` change.
+    frame_at: Variable,
+    this_at: Variable,
 }
 
 struct Gen<'a, 'f> {
@@ -164,13 +179,20 @@ struct Gen<'a, 'f> {
     binary_sig: SigRef,
     unary_sig: SigRef,
     copy_sig: SigRef,
-    /// The block of each leader.
+    /// The block of each leader, and its loader (the way in from the dispatch).
     blocks: Vec<Option<Block>>,
+    loaders: Vec<Option<Block>>,
     dispatch: Option<Block>,
-    /// In the block being generated: the address of the frame's base and of the FB instance,
-    /// when its instructions use them.
-    frame_base: Option<Value>,
-    this_base: Option<Value>,
+    /// In the block being generated, for each stack slot: a pointer into variable memory whose
+    /// offset is at most this (an element of an array at a fixed place), or unknown.
+    known: Vec<Option<u64>>,
+    /// In the block being generated, for each stack slot: true if it is known to hold 0 or 1
+    /// (a BOOL loaded or computed), so that BOOL logic needs no normalizing.
+    boolean: Vec<bool>,
+    /// See [`generate`]'s result.
+    vars_need: u64,
+    /// [`Analysis::budget_checks`].
+    checks: Vec<(bool, u64)>,
 }
 
 /// Where the block being generated stands: the instruction's index in it and the block's
@@ -204,15 +226,29 @@ impl Gen<'_, '_> {
             (self.regs.left, left),
             (self.regs.sp, sp),
             (self.regs.sb, zero),
+            (self.regs.frame_at, zero),
+            (self.regs.this_at, zero),
         ] {
             self.b.def_var(var, value);
         }
         for &leader in &self.analysis.leaders {
             self.blocks[leader as usize] = Some(self.b.create_block());
         }
+        for &leader in &self.analysis.leaders {
+            self.loaders[leader as usize] = Some(self.b.create_block());
+        }
         let dispatch = self.b.create_block();
         self.dispatch = Some(dispatch);
-        self.b.ins().jump(dispatch, &[]);
+        // A scan starts at 0: straight in, without the dispatch's search.
+        match self.loaders.first().copied().flatten() {
+            Some(start) => {
+                let at_start = self.b.ins().icmp_imm_s(IntCC::Equal, pc, 0);
+                self.b.ins().brif(at_start, start, &[], dispatch, &[]);
+            }
+            None => {
+                self.b.ins().jump(dispatch, &[]);
+            }
+        }
     }
 
     fn body(&mut self) {
@@ -222,7 +258,7 @@ impl Gen<'_, '_> {
         let mut switch = Switch::new();
         let mut loaders = Vec::new();
         for &leader in &self.analysis.leaders {
-            let loader = self.b.create_block();
+            let loader = self.loaders[leader as usize].expect("created by entry");
             switch.set_entry(u128::from(leader), loader);
             loaders.push((leader, loader));
         }
@@ -240,6 +276,31 @@ impl Gen<'_, '_> {
 
         for (leader, loader) in loaders {
             self.b.switch_to_block(loader);
+            // The body's frame and FB instance: checked here, once for all its blocks.
+            let base = self.b.use_var(self.regs.base);
+            let this = self.b.use_var(self.regs.this);
+            let body = self.analysis.owner[leader as usize].unwrap_or(0);
+            let (ok, frame_at, this_at) = self.body_pointers(body, base, this);
+            // The budget of a block that does not check it itself.
+            let index = self.analysis.leaders.binary_search(&leader).unwrap_or(0);
+            let (checks, need) = self.checks[index];
+            let left = self.b.use_var(self.regs.left);
+            let enough =
+                self.b.ins().icmp_imm_s(IntCC::UnsignedGreaterThanOrEqual, left, need as i64);
+            let ok = if checks { ok } else { self.b.ins().band(ok, enough) };
+            let load = self.b.create_block();
+            let refuse = self.b.create_block();
+            self.b.set_cold_block(refuse);
+            self.b.ins().brif(ok, load, &[], refuse, &[]);
+            self.b.switch_to_block(refuse);
+            let sp = self.b.use_var(self.regs.sp);
+            let left = self.b.use_var(self.regs.left);
+            let pc = self.b.ins().iconst(I64, i64::from(leader));
+            self.store_regs(pc, sp, left);
+            self.ret(RETURN_INTERPRET);
+            self.b.switch_to_block(load);
+            self.b.def_var(self.regs.frame_at, frame_at);
+            self.b.def_var(self.regs.this_at, this_at);
             let depth = self.depth(leader);
             let sp = self.b.use_var(self.regs.sp);
             let sb = self.b.ins().iadd_imm_s(sp, -i64::from(depth));
@@ -256,6 +317,28 @@ impl Gen<'_, '_> {
         for index in 0..self.analysis.leaders.len() {
             self.block(index);
         }
+    }
+
+    /// Whether the frame at `base` and the FB instance `this` hold every operand of `body`
+    /// (an `i8` truth value), and their addresses.
+    fn body_pointers(&mut self, body: u32, base: Value, this: Value) -> (Value, Value, Value) {
+        let needs = &self.analysis.bodies[&body];
+        let (frame_end, this_end) = (needs.frame_end, needs.this_end);
+        let mut ok = self.b.ins().iconst(types::I8, 1);
+        let frame_at = self.b.ins().iadd(self.frame, base);
+        if frame_end > 0 {
+            let end = self.b.ins().iadd_imm_s(base, frame_end as i64);
+            let inside = self.b.ins().icmp(IntCC::UnsignedLessThanOrEqual, end, self.frame_len);
+            ok = self.b.ins().band(ok, inside);
+        }
+        let this_at = if this_end > 0 {
+            let (address, inside) = self.reach(this, this_end);
+            ok = self.b.ins().band(ok, inside);
+            address
+        } else {
+            self.b.ins().iconst(I64, 0)
+        };
+        (ok, frame_at, this_at)
     }
 
     fn depth(&self, pc: u32) -> u32 {
@@ -378,38 +461,16 @@ impl Gen<'_, '_> {
             return;
         }
         let at = At { pc: start, index: 0, len };
-        // What the block needs: the budget for all its instructions, and the frame and the FB
-        // instance as far as its operands reach.
+        // The budget (`Analysis::budget_checks`; the frame and the FB instance were checked on
+        // the way into the body).
         let left = self.b.use_var(self.regs.left);
-        let short = self.b.ins().icmp_imm_s(IntCC::UnsignedLessThan, left, i64::from(len));
-        self.bail_if(short, At { index: len, ..at }, depth);
-        let (frame_end, this_end) =
-            code[range.clone()].iter().fold((0, 0), |(f, t), op| match op {
-                Op::Fetch { elem, at: Place::Frame(o) }
-                | Op::Store { elem, at: Place::Frame(o) } => {
-                    (f.max(u64::from(*o) + u64::from(elem.size())), t)
-                }
-                Op::Fetch { elem, at: Place::This(o) } | Op::Store { elem, at: Place::This(o) } => {
-                    (f, t.max(u64::from(*o) + u64::from(elem.size())))
-                }
-                _ => (f, t),
-            });
-        self.frame_base = None;
-        self.this_base = None;
-        if frame_end > 0 {
-            let base = self.b.use_var(self.regs.base);
-            let end = self.b.ins().iadd_imm_s(base, frame_end as i64);
-            let out = self.b.ins().icmp(IntCC::UnsignedGreaterThan, end, self.frame_len);
-            self.bail_if(out, At { index: len, ..at }, depth);
-            self.frame_base = Some(self.b.ins().iadd(self.frame, base));
+        let (checks, need) = self.checks[index];
+        if checks {
+            let short = self.b.ins().icmp_imm_s(IntCC::UnsignedLessThan, left, need as i64);
+            self.bail_if(short, At { index: len, ..at }, depth);
         }
-        if this_end > 0 {
-            let this = self.b.use_var(self.regs.this);
-            let (address, ok) = self.reach(this, this_end);
-            let out = self.b.ins().bxor_imm_s(ok, 1);
-            self.bail_if(out, At { index: len, ..at }, depth);
-            self.this_base = Some(address);
-        }
+        self.known.fill(None);
+        self.boolean.fill(false);
         let left = self.b.ins().iadd_imm_s(left, -i64::from(len));
         self.b.def_var(self.regs.left, left);
         let mut falls_through = true;
@@ -441,7 +502,26 @@ impl Gen<'_, '_> {
 
     fn push(&mut self, depth: &mut u32, value: Value) {
         self.b.def_var(self.stack[*depth as usize], value);
+        self.known[*depth as usize] = None;
+        self.boolean[*depth as usize] = false;
         *depth += 1;
+    }
+
+    /// Defines slot `index` (not a known pointer).
+    fn set(&mut self, index: u32, value: Value) {
+        self.b.def_var(self.stack[index as usize], value);
+        self.known[index as usize] = None;
+        self.boolean[index as usize] = false;
+    }
+
+    /// The address of the value of `bytes` bytes at the pointer in slot `index` when it is a
+    /// known pointer into variable memory (no check at run time: the code's need of variable
+    /// memory grows to cover it).
+    fn known_address(&mut self, index: u32, bytes: u32) -> Option<Value> {
+        let most = self.known[index as usize]?;
+        self.vars_need = self.vars_need.max(most + u64::from(bytes));
+        let pointer = self.slot(index);
+        Some(self.b.ins().iadd(self.vars, pointer))
     }
 
     fn slot(&mut self, depth: u32) -> Value {
@@ -453,8 +533,9 @@ impl Gen<'_, '_> {
         let d = *depth;
         match *op {
             Op::PushInt(v) => {
-                let v = self.b.ins().iconst(I64, i64::from(v));
-                self.push(depth, v);
+                let value = self.b.ins().iconst(I64, i64::from(v));
+                self.push(depth, value);
+                self.boolean[d as usize] = v == 0 || v == 1;
             }
             Op::PushConst(index) => {
                 let v = self.program.consts.get(index as usize).copied().unwrap_or(0);
@@ -464,15 +545,28 @@ impl Gen<'_, '_> {
             Op::Fetch { elem, at: place } => {
                 let v = self.load_place(place, elem);
                 self.push(depth, v);
+                self.boolean[d as usize] = elem == Elem::Bool;
             }
             Op::Store { elem, at: place } => {
                 let v = self.slot(d - 1);
-                self.store_place(place, elem, v);
+                match (elem, place) {
+                    // 0 or 1 already: stored as it is.
+                    (Elem::Bool, Place::Var(_) | Place::Frame(_) | Place::This(_))
+                        if self.boolean[d as usize - 1] =>
+                    {
+                        let (address, offset) = self.byte_place(place).expect("a byte place");
+                        self.b.ins().istore8(data(), v, address, offset);
+                    }
+                    _ => self.store_place(place, elem, v),
+                }
                 *depth -= 1;
             }
             Op::AddrOf(place) => {
                 let v = self.address_of(place);
                 self.push(depth, v);
+                if let Place::Var(offset) = place {
+                    self.known[d as usize] = Some(u64::from(offset));
+                }
             }
             Op::Index { lo, len, stride } => {
                 let index = self.slot(d - 1);
@@ -488,52 +582,89 @@ impl Gen<'_, '_> {
                 let moved = self.moved(pointer, step);
                 *depth -= 1;
                 self.b.def_var(self.stack[d as usize - 2], moved);
+                // An element of an array at a fixed place: its offset is at most the last one's.
+                let last = u64::from(len.saturating_sub(1)) * u64::from(stride);
+                let known = &mut self.known[d as usize - 2];
+                *known = known
+                    .map(|most| most + last)
+                    .filter(|&most| len > 0 && most <= u64::from(u32::MAX));
             }
             Op::Offset(n) => {
                 let pointer = self.slot(d - 1);
-                let n = self.b.ins().iconst(I64, i64::from(n));
-                let moved = self.moved(pointer, n);
+                let step = self.b.ins().iconst(I64, i64::from(n));
+                let moved = self.moved(pointer, step);
                 self.b.def_var(self.stack[d as usize - 1], moved);
+                let known = &mut self.known[d as usize - 1];
+                *known = known
+                    .map(|most| most + u64::from(n))
+                    .filter(|&most| most <= u64::from(u32::MAX));
             }
             Op::FetchInd(elem) => {
-                let pointer = self.slot(d - 1);
-                let (address, ok) = self.reach(pointer, u64::from(elem.size()));
-                let out = self.b.ins().bxor_imm_s(ok, 1);
-                self.bail_if(out, at, d);
+                let address = match self.known_address(d - 1, elem.size()) {
+                    Some(address) => address,
+                    None => self.checked_address(d - 1, elem.size(), at, d),
+                };
                 let v = self.load(elem, address, 0);
-                self.b.def_var(self.stack[d as usize - 1], v);
+                self.set(d - 1, v);
+                self.boolean[d as usize - 1] = elem == Elem::Bool;
             }
             Op::StoreInd(elem) => {
                 let v = self.slot(d - 1);
-                let pointer = self.slot(d - 2);
-                let (address, ok) = self.reach(pointer, u64::from(elem.size()));
-                let out = self.b.ins().bxor_imm_s(ok, 1);
-                self.bail_if(out, at, d);
+                let address = match self.known_address(d - 2, elem.size()) {
+                    Some(address) => address,
+                    None => self.checked_address(d - 2, elem.size(), at, d),
+                };
                 self.store(elem, address, 0, v);
                 *depth -= 2;
             }
             Op::Copy(n) => {
-                let source = self.slot(d - 1);
-                let destination = self.slot(d - 2);
-                let (from, from_ok) = self.reach(source, u64::from(n));
-                let (to, to_ok) = self.reach(destination, u64::from(n));
-                let ok = self.b.ins().band(from_ok, to_ok);
-                let out = self.b.ins().bxor_imm_s(ok, 1);
-                self.bail_if(out, at, d);
+                // Both ranges are checked before either is touched: the interpreter copies
+                // nothing when one is outside its space.
+                let from = self.known_address(d - 1, n);
+                let to = self.known_address(d - 2, n);
+                let from = match from {
+                    Some(address) => address,
+                    None => self.checked_address(d - 1, n, at, d),
+                };
+                let to = match to {
+                    Some(address) => address,
+                    None => self.checked_address(d - 2, n, at, d),
+                };
                 self.copy(to, from, n);
                 *depth -= 2;
             }
             Op::Bin { op, elem } => {
                 let b = self.slot(d - 1);
                 let a = self.slot(d - 2);
-                let r = self.binary(op, elem, a, b, at, d - 1);
+                let both = self.boolean[d as usize - 1] && self.boolean[d as usize - 2];
                 *depth -= 1;
-                self.b.def_var(self.stack[d as usize - 2], r);
+                match op {
+                    // BOOL logic on 0s and 1s gives 0 or 1: no normalizing.
+                    BinOp::And | BinOp::Or | BinOp::Xor if elem == Elem::Bool && both => {
+                        let r = match op {
+                            BinOp::And => self.b.ins().band(a, b),
+                            BinOp::Or => self.b.ins().bor(a, b),
+                            _ => self.b.ins().bxor(a, b),
+                        };
+                        self.set(d - 2, r);
+                        self.boolean[d as usize - 2] = true;
+                    }
+                    _ => {
+                        let r = self.binary(op, elem, a, b, at, d - 1);
+                        self.set(d - 2, r);
+                    }
+                }
             }
             Op::Un { op, elem } => {
                 let a = self.slot(d - 1);
-                let r = self.unary(op, elem, a);
-                self.b.def_var(self.stack[d as usize - 1], r);
+                if op == UnOp::Not && elem == Elem::Bool && self.boolean[d as usize - 1] {
+                    let r = self.b.ins().bxor_imm_s(a, 1);
+                    self.set(d - 1, r);
+                    self.boolean[d as usize - 1] = true;
+                } else {
+                    let r = self.unary(op, elem, a);
+                    self.set(d - 1, r);
+                }
             }
             Op::Cmp { op, elem } => {
                 let b = self.slot(d - 1);
@@ -541,16 +672,20 @@ impl Gen<'_, '_> {
                 let holds = self.compare(op, elem, a, b);
                 let r = self.b.ins().uextend(I64, holds);
                 *depth -= 1;
-                self.b.def_var(self.stack[d as usize - 2], r);
+                self.set(d - 2, r);
+                self.boolean[d as usize - 2] = true;
             }
             Op::Conv { from, to } => {
                 let a = self.slot(d - 1);
                 let r = self.convert(from, to, a);
-                self.b.def_var(self.stack[d as usize - 1], r);
+                self.set(d - 1, r);
+                self.boolean[d as usize - 1] = to == Elem::Bool;
             }
             Op::Dup => {
                 let v = self.slot(d - 1);
                 self.push(depth, v);
+                self.known[d as usize] = self.known[d as usize - 1];
+                self.boolean[d as usize] = self.boolean[d as usize - 1];
             }
             Op::Drop => *depth -= 1,
             Op::Nop => {}
@@ -596,8 +731,17 @@ impl Gen<'_, '_> {
                 ] {
                     self.b.def_var(var, value);
                 }
+                // Straight to the loader of a return site of this body, the others through the
+                // dispatch.
                 let dispatch = self.dispatch.expect("created by entry");
-                self.b.ins().jump(dispatch, &[]);
+                let body = self.analysis.owner[at.pc as usize].unwrap_or(0);
+                let mut switch = Switch::new();
+                for &site in &self.analysis.bodies[&body].return_sites {
+                    if let Some(Some(loader)) = self.loaders.get(site as usize) {
+                        switch.set_entry(u128::from(site), *loader);
+                    }
+                }
+                switch.emit(&mut self.b, return_pc, dispatch);
                 return false;
             }
             Op::End => {
@@ -624,6 +768,12 @@ impl Gen<'_, '_> {
         self.bail_if(full, at, d);
         let (this, after) =
             if fb { (self.slot(d - 1), d - 1) } else { (self.b.use_var(self.regs.this), d) };
+        let base = self.b.use_var(self.regs.base);
+        let callee_base = self.b.ins().iadd_imm_s(base, i64::from(frame));
+        let callee_base = self.b.ins().band_imm_s(callee_base, LOW32);
+        let (ok, frame_at, this_at) = self.body_pointers(target, callee_base, this);
+        let refused = self.b.ins().bxor_imm_s(ok, 1);
+        self.bail_if(refused, at, d);
         let record = self.call_frame(calls);
         let return_pc = self.b.ins().iconst(types::I32, i64::from(at.pc + 1));
         let base = self.b.use_var(self.regs.base);
@@ -640,14 +790,14 @@ impl Gen<'_, '_> {
             self.b.ins().store(own(), value, address, 0);
         }
         let calls = self.b.ins().iadd_imm_s(calls, 1);
-        let base = self.b.ins().iadd_imm_s(base, i64::from(frame));
-        let base = self.b.ins().band_imm_s(base, LOW32);
         let sb = self.b.ins().iadd_imm_s(sb, i64::from(after));
         for (var, value) in [
             (self.regs.depth, calls),
-            (self.regs.base, base),
+            (self.regs.base, callee_base),
             (self.regs.this, this),
             (self.regs.sb, sb),
+            (self.regs.frame_at, frame_at),
+            (self.regs.this_at, this_at),
         ] {
             self.b.def_var(var, value);
         }
@@ -709,14 +859,23 @@ impl Gen<'_, '_> {
         }
     }
 
+    /// The address of `bytes` bytes at the pointer in slot `index`, after a cold branch back to
+    /// the interpreter (before the instruction at `at`, the stack `depth` deep) when they are
+    /// not all inside variable memory or the frame.
+    fn checked_address(&mut self, index: u32, bytes: u32, at: At, depth: u32) -> Value {
+        let pointer = self.slot(index);
+        let (address, ok) = self.reach(pointer, u64::from(bytes));
+        let out = self.b.ins().bxor_imm_s(ok, 1);
+        self.bail_if(out, at, depth);
+        address
+    }
+
     /// The address and offset of a byte-space place.
     fn byte_place(&mut self, place: Place) -> Option<(Value, i32)> {
         match place {
             Place::Var(offset) => Some((self.vars, offset as i32)),
-            Place::Frame(offset) => {
-                Some((self.frame_base.expect("checked at entry"), offset as i32))
-            }
-            Place::This(offset) => Some((self.this_base.expect("checked at entry"), offset as i32)),
+            Place::Frame(offset) => Some((self.b.use_var(self.regs.frame_at), offset as i32)),
+            Place::This(offset) => Some((self.b.use_var(self.regs.this_at), offset as i32)),
             Place::Word(_) | Place::Bit(_) => None,
         }
     }
@@ -852,7 +1011,7 @@ impl Gen<'_, '_> {
         }
     }
 
-    fn to_float(&mut self, elem: Elem, v: Value) -> Value {
+    fn as_float(&mut self, elem: Elem, v: Value) -> Value {
         if elem == Elem::F32 {
             let bits = self.b.ins().ireduce(types::I32, v);
             self.b.ins().bitcast(types::F32, MemFlagsData::new(), bits)
@@ -861,7 +1020,7 @@ impl Gen<'_, '_> {
         }
     }
 
-    fn from_float(&mut self, elem: Elem, f: Value) -> Value {
+    fn float_bits(&mut self, elem: Elem, f: Value) -> Value {
         if elem == Elem::F32 {
             let bits = self.b.ins().bitcast(types::I32, MemFlagsData::new(), f);
             self.b.ins().uextend(I64, bits)
@@ -894,7 +1053,7 @@ impl Gen<'_, '_> {
     /// `a op b` (`depth`: the stack's depth after the instruction, for its error exit).
     fn binary(&mut self, op: BinOp, elem: Elem, a: Value, b: Value, at: At, depth: u32) -> Value {
         if elem.is_float() {
-            let (x, y) = (self.to_float(elem, a), self.to_float(elem, b));
+            let (x, y) = (self.as_float(elem, a), self.as_float(elem, b));
             let r = match op {
                 BinOp::Add => self.b.ins().fadd(x, y),
                 BinOp::Sub => self.b.ins().fsub(x, y),
@@ -910,7 +1069,7 @@ impl Gen<'_, '_> {
                 }
                 _ => return self.binary_helper(op, elem, a, b),
             };
-            return self.from_float(elem, r);
+            return self.float_bits(elem, r);
         }
         let r = match op {
             BinOp::Add => self.b.ins().iadd(a, b),
@@ -963,14 +1122,14 @@ impl Gen<'_, '_> {
 
     fn unary(&mut self, op: UnOp, elem: Elem, a: Value) -> Value {
         if elem.is_float() {
-            let x = self.to_float(elem, a);
+            let x = self.as_float(elem, a);
             let r = match op {
                 UnOp::Neg => self.b.ins().fneg(x),
                 UnOp::Abs => self.b.ins().fabs(x),
                 UnOp::Sqrt => self.b.ins().sqrt(x),
                 _ => return self.unary_helper(op, elem, a),
             };
-            return self.from_float(elem, r);
+            return self.float_bits(elem, r);
         }
         let r = match op {
             UnOp::Neg => self.b.ins().ineg(a),
@@ -990,7 +1149,7 @@ impl Gen<'_, '_> {
     /// `a op b` as an `i8` truth value; on floats a NaN satisfies only `<>`.
     fn compare(&mut self, op: CmpOp, elem: Elem, a: Value, b: Value) -> Value {
         if elem.is_float() {
-            let (x, y) = (self.to_float(elem, a), self.to_float(elem, b));
+            let (x, y) = (self.as_float(elem, a), self.as_float(elem, b));
             let cc = match op {
                 CmpOp::Eq => FloatCC::Equal,
                 CmpOp::Ne => FloatCC::NotEqual,
@@ -1020,7 +1179,7 @@ impl Gen<'_, '_> {
     fn convert(&mut self, from: Elem, to: Elem, a: Value) -> Value {
         if to == Elem::Bool {
             if from.is_float() {
-                let x = self.to_float(from, a);
+                let x = self.as_float(from, a);
                 let zero = self.float_zero(from);
                 let ne = self.b.ins().fcmp(FloatCC::NotEqual, x, zero);
                 return self.b.ins().uextend(I64, ne);
@@ -1036,17 +1195,17 @@ impl Gen<'_, '_> {
                 } else {
                     self.b.ins().fcvt_from_uint(ty, a)
                 };
-                self.from_float(to, x)
+                self.float_bits(to, x)
             }
             (true, true) if from == to => a,
             (true, true) => {
-                let x = self.to_float(from, a);
+                let x = self.as_float(from, a);
                 let y = if to == Elem::F32 {
                     self.b.ins().fdemote(types::F32, x)
                 } else {
                     self.b.ins().fpromote(types::F64, x)
                 };
-                self.from_float(to, y)
+                self.float_bits(to, y)
             }
             (true, false) => {
                 let from = self.b.ins().iconst(I64, helpers::elem_index(from));

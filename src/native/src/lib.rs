@@ -73,21 +73,41 @@ pub fn compile(program: &Program) -> Result<Arc<dyn NativeCode>, Error> {
     }
 }
 
+/// Stack of the thread that compiles: Cranelift recurses deeper than the daemon's own threads'
+/// stacks allow (they are sized to their need, and locked in memory).
+const COMPILE_STACK: usize = 8 << 20;
+
 /// Compiles every Structured Text program of `project` to native code and attaches it; the
 /// programs it could not compile keep running on the interpreter, and their errors are
-/// returned for the caller to report.
+/// returned for the caller to report. The compiling is done on a thread of its own, with the
+/// stack Cranelift needs, which ends before this returns.
 pub fn attach(project: &mut Project) -> Vec<Error> {
-    let mut errors = Vec::new();
-    for program in &mut project.programs {
-        if program.language != Language::StructuredText {
-            continue;
-        }
-        match compile(program) {
-            Ok(native) => program.native = Some(native),
-            Err(e) => errors.push(e),
-        }
+    let programs: Vec<&mut Program> =
+        project.programs.iter_mut().filter(|p| p.language == Language::StructuredText).collect();
+    if programs.is_empty() {
+        return Vec::new();
     }
-    errors
+    std::thread::scope(|scope| {
+        let compiler = std::thread::Builder::new()
+            .name("plcd-native".into())
+            .stack_size(COMPILE_STACK)
+            .spawn_scoped(scope, move || {
+                let mut errors = Vec::new();
+                for program in programs {
+                    match compile(program) {
+                        Ok(native) => program.native = Some(native),
+                        Err(e) => errors.push(e),
+                    }
+                }
+                errors
+            });
+        match compiler {
+            Ok(thread) => thread.join().unwrap_or_else(|panic| {
+                vec![Error::Host(format!("the compiler thread panicked: {}", panic_text(&*panic)))]
+            }),
+            Err(e) => vec![Error::Host(format!("no thread to compile on: {e}"))],
+        }
+    })
 }
 
 fn panic_text(panic: &(dyn std::any::Any + Send)) -> String {
