@@ -43,8 +43,9 @@ const LOW32: i64 = 0xFFFF_FFFF;
 /// Copies up to this many bytes are inline.
 const SHORT_COPY: u32 = 64;
 
+/// The offset of a field of [`NativeRegs`].
 fn reg(field: usize) -> i32 {
-    (offset_of!(Context, regs) + field) as i32
+    field as i32
 }
 
 /// Variable memory, the frame, device memory: none of it is aligned, and none of it traps
@@ -99,6 +100,7 @@ pub(crate) fn generate(
     let frame_len = field(&mut b, offset_of!(Context, frame_len));
     let eval = field(&mut b, offset_of!(Context, eval));
     let calls = field(&mut b, offset_of!(Context, calls));
+    let regs_at = field(&mut b, offset_of!(Context, regs));
     let mut var = || b.declare_var(I64);
     let regs = Regs {
         pc: var(),
@@ -116,7 +118,7 @@ pub(crate) fn generate(
         b,
         program,
         analysis,
-        ctx,
+        regs_at,
         vars,
         vars_len,
         words,
@@ -165,7 +167,8 @@ struct Gen<'a, 'f> {
     b: FunctionBuilder<'f>,
     program: &'a Program,
     analysis: &'a Analysis,
-    ctx: Value,
+    /// The [`NativeRegs`] of the call.
+    regs_at: Value,
     vars: Value,
     vars_len: Value,
     words: Value,
@@ -206,7 +209,7 @@ struct At {
 
 impl Gen<'_, '_> {
     fn entry(&mut self) {
-        let ctx = self.ctx;
+        let ctx = self.regs_at;
         let load32 = |b: &mut FunctionBuilder, offset: usize| {
             let v = b.ins().load(types::I32, own(), ctx, reg(offset));
             b.ins().uextend(I64, v)
@@ -280,7 +283,7 @@ impl Gen<'_, '_> {
             let base = self.b.use_var(self.regs.base);
             let this = self.b.use_var(self.regs.this);
             let body = self.analysis.owner[leader as usize].unwrap_or(0);
-            let (ok, frame_at, this_at) = self.body_pointers(body, base, this);
+            let (ok, frame_at, this_at) = self.body_pointers(body, base, this, false);
             // The budget of a block that does not check it itself.
             let index = self.analysis.leaders.binary_search(&leader).unwrap_or(0);
             let (checks, need) = self.checks[index];
@@ -320,8 +323,15 @@ impl Gen<'_, '_> {
     }
 
     /// Whether the frame at `base` and the FB instance `this` hold every operand of `body`
-    /// (an `i8` truth value), and their addresses.
-    fn body_pointers(&mut self, body: u32, base: Value, this: Value) -> (Value, Value, Value) {
+    /// (an `i8` truth value), and their addresses. `this_in_vars`: `this` is known to point
+    /// into variable memory, far enough from its end (the caller makes sure).
+    fn body_pointers(
+        &mut self,
+        body: u32,
+        base: Value,
+        this: Value,
+        this_in_vars: bool,
+    ) -> (Value, Value, Value) {
         let needs = &self.analysis.bodies[&body];
         let (frame_end, this_end) = (needs.frame_end, needs.this_end);
         let mut ok = self.b.ins().iconst(types::I8, 1);
@@ -331,7 +341,9 @@ impl Gen<'_, '_> {
             let inside = self.b.ins().icmp(IntCC::UnsignedLessThanOrEqual, end, self.frame_len);
             ok = self.b.ins().band(ok, inside);
         }
-        let this_at = if this_end > 0 {
+        let this_at = if this_end > 0 && this_in_vars {
+            self.b.ins().iadd(self.vars, this)
+        } else if this_end > 0 {
             let (address, inside) = self.reach(this, this_end);
             ok = self.b.ins().band(ok, inside);
             address
@@ -374,7 +386,7 @@ impl Gen<'_, '_> {
     }
 
     fn store_regs(&mut self, pc: Value, sp: Value, left: Value) {
-        let ctx = self.ctx;
+        let ctx = self.regs_at;
         let sp = self.b.ins().band_imm_s(sp, MASK);
         let base = self.b.use_var(self.regs.base);
         let this = self.b.use_var(self.regs.this);
@@ -441,7 +453,7 @@ impl Gen<'_, '_> {
         let result = self.b.ins().iconst(I64, result);
         self.b.def_var(self.stack[depth as usize - 1], result);
         let code = self.b.ins().iconst(types::I32, i64::from(code));
-        self.b.ins().store(own(), code, self.ctx, reg(offset_of!(NativeRegs, error)));
+        self.b.ins().store(own(), code, self.regs_at, reg(offset_of!(NativeRegs, error)));
         let left = self.b.use_var(self.regs.left);
         let left = self.b.ins().iadd_imm_s(left, i64::from(at.len - at.index - 1));
         self.exit(at.pc + 1, depth, left, RETURN_ERROR);
@@ -771,7 +783,15 @@ impl Gen<'_, '_> {
         let base = self.b.use_var(self.regs.base);
         let callee_base = self.b.ins().iadd_imm_s(base, i64::from(frame));
         let callee_base = self.b.ins().band_imm_s(callee_base, LOW32);
-        let (ok, frame_at, this_at) = self.body_pointers(target, callee_base, this);
+        // An FB instance in an array at a fixed place (or a fixed one) needs no check at run
+        // time: the code's need of variable memory covers it.
+        let known = if fb { self.known[d as usize - 1] } else { None };
+        let this_end = self.analysis.bodies[&target].this_end;
+        let (ok, frame_at, this_at) =
+            self.body_pointers(target, callee_base, this, known.is_some());
+        if let Some(most) = known.filter(|_| this_end > 0) {
+            self.vars_need = self.vars_need.max(most + this_end);
+        }
         let refused = self.b.ins().bxor_imm_s(ok, 1);
         self.bail_if(refused, at, d);
         let record = self.call_frame(calls);
