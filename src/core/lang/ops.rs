@@ -546,6 +546,36 @@ impl Op {
     }
 }
 
+impl Op {
+    /// How a Structured Text op moves its activation's evaluation stack: `(popped, pushed)`
+    /// slots; `None` for the instruction list's ops, which have no such stack. A call's callee
+    /// starts its own slots above the caller's; the ST compiler checks the deepest chain of them
+    /// against `EVAL_DEPTH`, and native code keeps them in registers by this same rule.
+    pub fn stack_effect(&self) -> Option<(u32, u32)> {
+        Some(match self {
+            Op::PushInt(_) | Op::PushConst(_) | Op::Fetch { .. } | Op::AddrOf(_) | Op::Now => {
+                (0, 1)
+            }
+            Op::Dup => (1, 2),
+            Op::Store { .. } | Op::Drop | Op::GotoIf { .. } | Op::CallFb { .. } => (1, 0),
+            Op::Index { .. } | Op::Bin { .. } | Op::Cmp { .. } => (2, 1),
+            Op::Offset(_) | Op::FetchInd(_) | Op::Un { .. } | Op::Conv { .. } => (1, 1),
+            Op::StoreInd(_) | Op::Copy(_) => (2, 0),
+            Op::Goto(_) | Op::CallFn { .. } | Op::Return | Op::End | Op::Nop | Op::System(_) => {
+                (0, 0)
+            }
+            Op::Str { op, .. } => match op {
+                StrOp::Move | StrOp::FromValue(_) => (2, 0),
+                StrOp::Len | StrOp::ToValue(_) => (1, 1),
+                StrOp::Left | StrOp::Right | StrOp::Concat => (3, 0),
+                StrOp::Mid => (4, 0),
+                StrOp::Find | StrOp::Compare => (2, 1),
+            },
+            _ => return None,
+        })
+    }
+}
+
 impl WideConv {
     /// Whether the source is one 16-bit word.
     pub fn from_one_word(self) -> bool {

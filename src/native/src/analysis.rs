@@ -8,7 +8,7 @@
 //! the same depth on every path to an instruction, and a program where that does not hold is
 //! refused here (it runs on the interpreter).
 
-use plcd_core::lang::ops::{Op, Place, StrOp};
+use plcd_core::lang::ops::{Op, Place};
 use plcd_core::lang::{Program, EVAL_DEPTH};
 use plcd_core::value::{BinOp, Elem};
 
@@ -42,27 +42,6 @@ pub(crate) struct Body {
     pub frame_end: u64,
     pub this_end: u64,
     pub return_sites: Vec<u32>,
-}
-
-/// How an instruction moves the evaluation stack: slots popped, slots pushed.
-fn effect(op: &Op) -> Result<(u32, u32), String> {
-    Ok(match op {
-        Op::PushInt(_) | Op::PushConst(_) | Op::Fetch { .. } | Op::AddrOf(_) | Op::Now => (0, 1),
-        Op::Dup => (1, 2),
-        Op::Store { .. } | Op::Drop | Op::GotoIf { .. } | Op::CallFb { .. } => (1, 0),
-        Op::Index { .. } | Op::Bin { .. } | Op::Cmp { .. } => (2, 1),
-        Op::Offset(_) | Op::FetchInd(_) | Op::Un { .. } | Op::Conv { .. } => (1, 1),
-        Op::StoreInd(_) | Op::Copy(_) => (2, 0),
-        Op::Goto(_) | Op::CallFn { .. } | Op::Return | Op::End | Op::Nop | Op::System(_) => (0, 0),
-        Op::Str { op, .. } => match op {
-            StrOp::Move | StrOp::FromValue(_) => (2, 0),
-            StrOp::Len | StrOp::ToValue(_) => (1, 1),
-            StrOp::Left | StrOp::Right | StrOp::Concat => (3, 0),
-            StrOp::Mid => (4, 0),
-            StrOp::Find | StrOp::Compare => (2, 1),
-        },
-        other => return Err(format!("{other:?} is not an op of Structured Text")),
-    })
 }
 
 /// True if native code executes `op` itself; the others (the clock, strings, system requests,
@@ -124,7 +103,9 @@ pub(crate) fn analyse(program: &Program) -> Result<Analysis, String> {
         let Some(op) = code.get(pc) else {
             continue; // the end of the code: the interpreter ends the program there
         };
-        let (pops, pushes) = effect(op)?;
+        let (pops, pushes) = op
+            .stack_effect()
+            .ok_or_else(|| format!("{op:?} is not an op of Structured Text"))?;
         let after = d
             .checked_sub(pops)
             .ok_or_else(|| format!("instruction {pc} pops more than the stack holds"))?

@@ -78,7 +78,15 @@ impl Code {
         let name = program.name.clone();
         let codegen_error = |message: String| Error::Codegen { program: name.clone(), message };
         let mut flags = settings::builder();
-        for (flag, value) in [("opt_level", "speed"), ("use_colocated_libcalls", "false")] {
+        // Cranelift's check of the IR it is given: in test builds, where a mistake of the code
+        // generator must stop the test; in a release build it would add 7 % to the compile time
+        // of a project.
+        let verify = if cfg!(debug_assertions) { "true" } else { "false" };
+        for (flag, value) in [
+            ("opt_level", "speed"),
+            ("use_colocated_libcalls", "false"),
+            ("enable_verifier", verify),
+        ] {
             flags.set(flag, value).map_err(|e| codegen_error(e.to_string()))?;
         }
         let isa = cranelift_native::builder()

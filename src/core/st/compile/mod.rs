@@ -36,7 +36,7 @@ use std::path::{Path, PathBuf};
 
 use super::ast;
 use crate::diag::{Diagnostic, Diagnostics};
-use crate::lang::{Language, Op, Place, Program, Variables, ST_CALL_DEPTH};
+use crate::lang::{Language, Op, Place, Program, Variables, EVAL_DEPTH, ST_CALL_DEPTH};
 use crate::st::ast::{PouKind, VarKind};
 use crate::value::{Pointer, Space, Symbol, ValueType};
 
@@ -471,6 +471,20 @@ fn link(
             ),
         ));
     }
+    let slots = eval_stack_need(&code);
+    if slots > EVAL_DEPTH as u32 {
+        let pou = &cx.pous[p];
+        return Err(Diagnostic::new(
+            cx.path(pou.file),
+            pou.ast.name.span.line,
+            pou.ast.name.span.col,
+            format!(
+                "`{}` needs {slots} evaluation stack slots with its calls (limit {EVAL_DEPTH}): \
+                 a call inside an expression keeps the caller's slots below the callee's",
+                pou.name
+            ),
+        ));
+    }
     out.push(Program {
         name: inst.name.to_string(),
         path: main_path,
@@ -488,6 +502,66 @@ fn link(
         native: None,
     });
     Ok(())
+}
+
+/// The deepest evaluation stack the program's code reaches, a callee's slots counted above
+/// those its caller holds at the call (each statement is checked on its own as it is emitted;
+/// this adds the chains of calls inside expressions).
+fn eval_stack_need(code: &[Op]) -> u32 {
+    // Each body (the program's, each FUNCTION's and FUNCTION_BLOCK's): its own deepest stack,
+    // and its calls with the depth the caller holds at each.
+    let mut starts = vec![0usize];
+    for op in code {
+        if let Op::CallFn { target, .. } | Op::CallFb { target, .. } = *op {
+            starts.push(target as usize);
+        }
+    }
+    starts.sort_unstable();
+    starts.dedup();
+    let mut bodies: HashMap<usize, (u32, Vec<(u32, usize)>)> = HashMap::new();
+    for &start in &starts {
+        let mut seen: HashMap<usize, u32> = HashMap::new();
+        let mut work = vec![(start, 0u32)];
+        let (mut deepest, mut calls) = (0, Vec::new());
+        while let Some((pc, depth)) = work.pop() {
+            if seen.insert(pc, depth).is_some() {
+                continue;
+            }
+            let Some(op) = code.get(pc) else { continue };
+            let (popped, pushed) = op.stack_effect().unwrap_or((0, 0));
+            let after = depth.saturating_sub(popped) + pushed;
+            deepest = deepest.max(depth).max(after);
+            match *op {
+                Op::Goto(target) => work.push((target as usize, after)),
+                Op::GotoIf { target, .. } => work.extend([(target as usize, after), (pc + 1, after)]),
+                Op::CallFn { target, .. } | Op::CallFb { target, .. } => {
+                    calls.push((after, target as usize));
+                    work.push((pc + 1, after));
+                }
+                Op::Return | Op::End => {}
+                _ => work.push((pc + 1, after)),
+            }
+        }
+        bodies.insert(start, (deepest, calls));
+    }
+    // The call graph has no cycles (recursion is refused before code is emitted).
+    fn need(
+        body: usize,
+        bodies: &HashMap<usize, (u32, Vec<(u32, usize)>)>,
+        memo: &mut HashMap<usize, u32>,
+    ) -> u32 {
+        if let Some(&n) = memo.get(&body) {
+            return n;
+        }
+        let (deepest, calls) = &bodies[&body];
+        let mut n = *deepest;
+        for &(held, callee) in calls {
+            n = n.max(held + need(callee, bodies, memo));
+        }
+        memo.insert(body, n);
+        n
+    }
+    need(0, &bodies, &mut HashMap::new())
 }
 
 fn value_type(cx: &Ctx<'_>, ty: &Ty) -> Option<ValueType> {
