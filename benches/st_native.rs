@@ -875,10 +875,7 @@ fn report(workloads: &[Workload], lines: usize, since: SystemTime) {
     };
     f.table(
         &["project (`project` in benches/st_native.rs)", "lines", "median", "target"],
-        &[
-            row("parse + compile", compile),
-            row("parse + compile + native code", with_native),
-        ],
+        &[row("parse + compile", compile), row("parse + compile + native code", with_native)],
     );
     if let Err(e) = write_fragment("st_native", &f) {
         eprintln!("cannot write the fragment: {e}");

@@ -145,6 +145,11 @@ const MESSAGES: &[(&str, &str)] = &[
     ("recursive call: {}", "recursive-call"),
     ("`{}` nests calls {} deep (limit {})", "calls-nested-too-deep"),
     ("`{}` needs {} bytes of frame with its calls (limit 1 MiB)", "call-chain-frame-too-large"),
+    (
+        "`{}` needs {} evaluation stack slots with its calls (limit {}): a call inside an \
+         expression keeps the caller's slots below the callee's",
+        "call-chain-stack-too-deep",
+    ),
     // stdlib.rs: standard functions
     ("`{}` has no output `{}`", "std-no-output"),
     ("the call of `{}` leaves out an argument", "std-argument-left-out"),

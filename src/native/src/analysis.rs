@@ -103,9 +103,8 @@ pub(crate) fn analyse(program: &Program) -> Result<Analysis, String> {
         let Some(op) = code.get(pc) else {
             continue; // the end of the code: the interpreter ends the program there
         };
-        let (pops, pushes) = op
-            .stack_effect()
-            .ok_or_else(|| format!("{op:?} is not an op of Structured Text"))?;
+        let (pops, pushes) =
+            op.stack_effect().ok_or_else(|| format!("{op:?} is not an op of Structured Text"))?;
         let after = d
             .checked_sub(pops)
             .ok_or_else(|| format!("instruction {pc} pops more than the stack holds"))?

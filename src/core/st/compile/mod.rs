@@ -533,7 +533,9 @@ fn eval_stack_need(code: &[Op]) -> u32 {
             deepest = deepest.max(depth).max(after);
             match *op {
                 Op::Goto(target) => work.push((target as usize, after)),
-                Op::GotoIf { target, .. } => work.extend([(target as usize, after), (pc + 1, after)]),
+                Op::GotoIf { target, .. } => {
+                    work.extend([(target as usize, after), (pc + 1, after)])
+                }
                 Op::CallFn { target, .. } | Op::CallFb { target, .. } => {
                     calls.push((after, target as usize));
                     work.push((pc + 1, after));
