@@ -504,6 +504,10 @@ fn link(
     Ok(())
 }
 
+/// Each body by its first instruction: its own deepest evaluation stack, and its calls (the
+/// slots the caller holds at each, the callee's first instruction).
+type Bodies = HashMap<usize, (u32, Vec<(u32, usize)>)>;
+
 /// The deepest evaluation stack the program's code reaches, a callee's slots counted above
 /// those its caller holds at the call (each statement is checked on its own as it is emitted;
 /// this adds the chains of calls inside expressions).
@@ -518,7 +522,7 @@ fn eval_stack_need(code: &[Op]) -> u32 {
     }
     starts.sort_unstable();
     starts.dedup();
-    let mut bodies: HashMap<usize, (u32, Vec<(u32, usize)>)> = HashMap::new();
+    let mut bodies: Bodies = HashMap::new();
     for &start in &starts {
         let mut seen: HashMap<usize, u32> = HashMap::new();
         let mut work = vec![(start, 0u32)];
@@ -547,11 +551,7 @@ fn eval_stack_need(code: &[Op]) -> u32 {
         bodies.insert(start, (deepest, calls));
     }
     // The call graph has no cycles (recursion is refused before code is emitted).
-    fn need(
-        body: usize,
-        bodies: &HashMap<usize, (u32, Vec<(u32, usize)>)>,
-        memo: &mut HashMap<usize, u32>,
-    ) -> u32 {
+    fn need(body: usize, bodies: &Bodies, memo: &mut HashMap<usize, u32>) -> u32 {
         if let Some(&n) = memo.get(&body) {
             return n;
         }
