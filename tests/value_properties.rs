@@ -13,22 +13,7 @@ use plcd::vm::{ExecState, Exit, ManualClock, Vm, ERR_DIVIDE_BY_ZERO};
 use plcd_core::value::{self, BinOp, Elem, OpError, UnOp};
 use proptest::prelude::*;
 
-const UNOPS: [UnOp; 14] = [
-    UnOp::Neg,
-    UnOp::Not,
-    UnOp::Abs,
-    UnOp::Sqrt,
-    UnOp::Ln,
-    UnOp::Log,
-    UnOp::Exp,
-    UnOp::Sin,
-    UnOp::Cos,
-    UnOp::Tan,
-    UnOp::Asin,
-    UnOp::Acos,
-    UnOp::Atan,
-    UnOp::Trunc,
-];
+const UNOPS: [UnOp; 14] = UnOp::ALL;
 const CMPOPS: [CmpOp; 6] = [CmpOp::Eq, CmpOp::Ne, CmpOp::Gt, CmpOp::Ge, CmpOp::Lt, CmpOp::Le];
 
 // ---------------------------------------------------------------------------------------------

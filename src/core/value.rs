@@ -116,6 +116,26 @@ pub enum UnOp {
     Trunc,
 }
 
+impl UnOp {
+    /// Every unary operation, for tests and tools that go through them all.
+    pub const ALL: [UnOp; 14] = [
+        UnOp::Neg,
+        UnOp::Not,
+        UnOp::Abs,
+        UnOp::Sqrt,
+        UnOp::Ln,
+        UnOp::Log,
+        UnOp::Exp,
+        UnOp::Sin,
+        UnOp::Cos,
+        UnOp::Tan,
+        UnOp::Asin,
+        UnOp::Acos,
+        UnOp::Atan,
+        UnOp::Trunc,
+    ];
+}
+
 /// Why a typed operation has no result.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 pub enum OpError {

@@ -1,28 +1,10 @@
 //! The typed operations native code calls out for instead of inlining them (the float
 //! functions, shifts and rotations, the float-to-integer conversions): each is the core's own
 //! operation of `plcd_core::value`, so that native code computes them as the interpreter
-//! does, to the bit. Operations and types cross the call as their indices in the tables
-//! below.
+//! does, to the bit. Operations and types cross the call as their indices in the core's
+//! tables (`BinOp::ALL`, `UnOp::ALL`, `Elem::ALL`).
 
 use plcd_core::value::{self, BinOp, Elem, UnOp};
-
-/// Every unary operation, in the order of its index.
-pub(crate) const UNARY: [UnOp; 14] = [
-    UnOp::Neg,
-    UnOp::Not,
-    UnOp::Abs,
-    UnOp::Sqrt,
-    UnOp::Ln,
-    UnOp::Log,
-    UnOp::Exp,
-    UnOp::Sin,
-    UnOp::Cos,
-    UnOp::Tan,
-    UnOp::Asin,
-    UnOp::Acos,
-    UnOp::Atan,
-    UnOp::Trunc,
-];
 
 pub(crate) fn elem_index(elem: Elem) -> i64 {
     Elem::ALL.iter().position(|&e| e == elem).unwrap_or(0) as i64
@@ -33,7 +15,7 @@ pub(crate) fn binary_index(op: BinOp) -> i64 {
 }
 
 pub(crate) fn unary_index(op: UnOp) -> i64 {
-    UNARY.iter().position(|&o| o == op).unwrap_or(0) as i64
+    UnOp::ALL.iter().position(|&o| o == op).unwrap_or(0) as i64
 }
 
 fn elem(index: u64) -> Elem {
@@ -48,7 +30,7 @@ pub(crate) extern "C" fn binary(op: u64, elem_index: u64, a: u64, b: u64) -> u64
 
 /// `op a`.
 pub(crate) extern "C" fn unary(op: u64, elem_index: u64, a: u64) -> u64 {
-    let op = UNARY.get(op as usize).copied().unwrap_or(UnOp::Neg);
+    let op = UnOp::ALL.get(op as usize).copied().unwrap_or(UnOp::Neg);
     value::unary(op, elem(elem_index), a)
 }
 
@@ -63,7 +45,7 @@ mod tests {
 
     #[test]
     fn the_tables_name_every_operation_once() {
-        for (index, op) in UNARY.iter().enumerate() {
+        for (index, op) in UnOp::ALL.iter().enumerate() {
             assert_eq!(unary_index(*op), index as i64);
         }
         for (index, op) in BinOp::ALL.iter().enumerate() {

@@ -458,32 +458,25 @@ fn link(
         memo.insert(q, n);
         n
     }
+    // What the program's chains of calls need, refused at the program's name.
+    let pou = &cx.pous[p];
+    let at_program = |message: String| {
+        Diagnostic::new(cx.path(pou.file), pou.ast.name.span.line, pou.ast.name.span.col, message)
+    };
     let frame_bytes = need(cx, p, &mut HashMap::new());
     if frame_bytes > decl::MAX_FRAME {
-        let pou = &cx.pous[p];
-        return Err(Diagnostic::new(
-            cx.path(pou.file),
-            pou.ast.name.span.line,
-            pou.ast.name.span.col,
-            format!(
-                "`{}` needs {frame_bytes} bytes of frame with its calls (limit 1 MiB)",
-                pou.name
-            ),
-        ));
+        return Err(at_program(format!(
+            "`{}` needs {frame_bytes} bytes of frame with its calls (limit 1 MiB)",
+            pou.name
+        )));
     }
     let slots = eval_stack_need(&code);
     if slots > EVAL_DEPTH as u32 {
-        let pou = &cx.pous[p];
-        return Err(Diagnostic::new(
-            cx.path(pou.file),
-            pou.ast.name.span.line,
-            pou.ast.name.span.col,
-            format!(
-                "`{}` needs {slots} evaluation stack slots with its calls (limit {EVAL_DEPTH}): \
-                 a call inside an expression keeps the caller's slots below the callee's",
-                pou.name
-            ),
-        ));
+        return Err(at_program(format!(
+            "`{}` needs {slots} evaluation stack slots with its calls (limit {EVAL_DEPTH}): \
+             a call inside an expression keeps the caller's slots below the callee's",
+            pou.name
+        )));
     }
     out.push(Program {
         name: inst.name.to_string(),
