@@ -14,7 +14,7 @@
 //! - variable memory (`Vm::vars`) and device memory (`vm.mem.words()`, `_ERR` included).
 //!
 //! Every budget is tried: the whole scan at once (`u64::MAX`), 1, 2, 3, 5, 7, 13 and 100 steps a
-//! call, and a varying budget (1 to 17, the same sequence on both sides); a budget that ends
+//! call, and a varying budget (0 to 17, the same sequence on both sides); a budget that ends
 //! inside a native block makes native code hand back to the interpreter, which is the path the
 //! small budgets exercise. The run loop calls `run` again after `Budget`, `OperationError` and
 //! `System` until `End`, as the task engine does.
@@ -109,13 +109,21 @@ impl Programs {
 
     /// `source`, compiled with one instance `main` of its PROGRAM.
     fn inline(name: &str, source: &str) -> Programs {
+        Programs::instances(name, source, &[("main", None)])
+    }
+
+    /// `source`, compiled with the instances `(name, PROGRAM)` (`None`: its only PROGRAM), one
+    /// program each, in that order.
+    fn instances(name: &str, source: &str, instances: &[(&str, Option<&str>)]) -> Programs {
         let path = Path::new("inline.st");
         let (file, diags) = parse_file(path, source);
         assert!(diags.is_empty(), "{name}: {diags}");
-        let instance =
-            Instance { name: "main", pou: None, file: path, config: path, line: 1, col: 1 };
+        let instances: Vec<Instance> = instances
+            .iter()
+            .map(|&(name, pou)| Instance { name, pou, file: path, config: path, line: 1, col: 1 })
+            .collect();
         let compiled =
-            compile(&[file], &[instance]).unwrap_or_else(|d| panic!("{name}: {d}\n{source}"));
+            compile(&[file], &instances).unwrap_or_else(|d| panic!("{name}: {d}\n{source}"));
         let frame_bytes = compiled.programs.iter().map(|p| p.frame_bytes).max().unwrap_or(0);
         Programs {
             name: name.to_string(),
@@ -178,7 +186,8 @@ impl NativeCode for Counted {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Budget {
     Fixed(u64),
-    /// 1 to 17, from a fixed pseudo-random sequence.
+    /// 0 to 17 (a call with no budget returns `Budget` at once), from a fixed pseudo-random
+    /// sequence.
     Varying,
 }
 
@@ -211,11 +220,22 @@ struct Scans {
     inner_every: u64,
     /// The frame area's bytes, when not the programs' own (`Programs::frame_bytes`).
     frame_bytes: Option<u32>,
+    /// Run the programs of a scan by turns, one `run` call each, as a task preempted by
+    /// another at every budget's end would, instead of one after the other.
+    interleave: bool,
 }
 
 impl Scans {
     fn new(count: u64) -> Scans {
-        Scans { count, period_ns: MS, step_ns: 0, calls: None, inner_every: 1, frame_bytes: None }
+        Scans {
+            count,
+            period_ns: MS,
+            step_ns: 0,
+            calls: None,
+            inner_every: 1,
+            frame_bytes: None,
+            interleave: false,
+        }
     }
 }
 
@@ -342,64 +362,107 @@ fn compare_with(
     budget: Budget,
     outcome: &mut Outcome,
 ) -> Result<Vm, String> {
-    let mut plain = Side::new(&case.programs, case, scans);
-    let mut fast = Side::new(native, case, scans);
-    // A linear congruential generator for the varying budget.
-    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut run = Run {
+        case,
+        scans,
+        budget,
+        plain: Side::new(&case.programs, case, scans),
+        fast: Side::new(native, case, scans),
+        // A linear congruential generator for the varying budget.
+        seed: 0x2545_f491_4f6c_dd1d,
+        scan_steps: vec![0; case.programs.len()],
+        outcome,
+    };
     for scan in 1..=scans.count {
         let start_ns = (scan - 1) * scans.period_ns;
-        plain.begin_scan(scan, start_ns);
-        fast.begin_scan(scan, start_ns);
-        for program in 0..case.programs.len() {
-            plain.states[program].restart();
-            fast.states[program].restart();
-            let scan_start = plain.vm.steps();
-            let mut call = 0u64;
-            loop {
+        run.plain.begin_scan(scan, start_ns);
+        run.fast.begin_scan(scan, start_ns);
+        let programs = case.programs.len();
+        if scans.interleave {
+            // Preemption: one call of each unfinished program in turn.
+            for program in 0..programs {
+                run.restart(program);
+            }
+            let mut done = vec![false; programs];
+            let mut call = 0;
+            while done.contains(&false) {
                 call += 1;
-                let steps = match budget {
-                    Budget::Fixed(n) => n,
-                    Budget::Varying => {
-                        seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
-                        1 + (seed >> 33) % 17
+                for (program, done) in done.iter_mut().enumerate() {
+                    if !*done {
+                        *done = run.call(scan, program, call)?;
                     }
-                };
-                let before = plain.vm.steps();
-                let a = plain.run(program, steps);
-                let b = fast.run(program, steps);
-                outcome.steps += plain.vm.steps() - before;
-                if let Exit::OperationError { code, .. } = a {
-                    outcome.errors.push(code);
                 }
-                if budget == Budget::Fixed(u64::MAX) {
-                    outcome.exits.push(a);
-                }
-                let at = || {
-                    format!(
-                        "scan {scan}, program {}, call {call} (after step {})",
-                        case.programs[program].name,
-                        plain.vm.steps()
-                    )
-                };
-                let inner = a != Exit::Budget || call % scans.inner_every == 0;
-                if let Some(what) = difference(case, &plain, &fast, program, (a, b), inner) {
-                    return Err(format!("{}: {what}", at()));
-                }
-                if a == Exit::End {
-                    break;
-                }
-                if scans.calls.is_some_and(|calls| call >= calls) {
-                    break;
-                }
-                if plain.vm.steps() - scan_start > STEPS_PER_SCAN {
-                    return Err(format!("{}: the scan does not end", at()));
+            }
+        } else {
+            for program in 0..programs {
+                run.restart(program);
+                let mut call = 0;
+                while !run.call(scan, program, call + 1)? {
+                    call += 1;
                 }
             }
         }
-        plain.vm.end_scan();
-        fast.vm.end_scan();
+        run.plain.vm.end_scan();
+        run.fast.vm.end_scan();
     }
-    Ok(plain.vm)
+    Ok(run.plain.vm)
+}
+
+/// Both sides of one budget.
+struct Run<'c, 'o> {
+    case: &'c Programs,
+    scans: Scans,
+    budget: Budget,
+    plain: Side<'c>,
+    fast: Side<'c>,
+    seed: u64,
+    /// Steps of each program in the scan under way.
+    scan_steps: Vec<u64>,
+    outcome: &'o mut Outcome,
+}
+
+impl Run<'_, '_> {
+    fn restart(&mut self, program: usize) {
+        self.plain.states[program].restart();
+        self.fast.states[program].restart();
+        self.scan_steps[program] = 0;
+    }
+
+    /// Call `call` of `program` in `scan` on both sides, compared: whether the program is done
+    /// with the scan (`End`, or as many calls as the scans allow).
+    fn call(&mut self, scan: u64, program: usize, call: u64) -> Result<bool, String> {
+        let steps = match self.budget {
+            Budget::Fixed(n) => n,
+            Budget::Varying => {
+                self.seed = self.seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+                (self.seed >> 33) % 18
+            }
+        };
+        let before = self.plain.vm.steps();
+        let a = self.plain.run(program, steps);
+        let b = self.fast.run(program, steps);
+        let after = self.plain.vm.steps();
+        self.outcome.steps += after - before;
+        self.scan_steps[program] += after - before;
+        if let Exit::OperationError { code, .. } = a {
+            self.outcome.errors.push(code);
+        }
+        if self.budget == Budget::Fixed(u64::MAX) {
+            self.outcome.exits.push(a);
+        }
+        let at = || {
+            let name = &self.case.programs[program].name;
+            format!("scan {scan}, program {name}, call {call} (after step {after})")
+        };
+        let inner = a != Exit::Budget || call.is_multiple_of(self.scans.inner_every);
+        if let Some(what) = difference(self.case, &self.plain, &self.fast, program, (a, b), inner) {
+            return Err(format!("{}: {what}", at()));
+        }
+        if self.scan_steps[program] > STEPS_PER_SCAN {
+            return Err(format!("{}: the scan does not end", at()));
+        }
+        Ok(a == Exit::End || self.scans.calls.is_some_and(|calls| call >= calls))
+    }
 }
 
 /// What differs between the interpreter (`a`) and native code (`b`) after a `run` call of
@@ -695,7 +758,10 @@ fn the_example_project_runs_the_same_natively() {
     let text = std::fs::read_to_string(&path).expect("etc/plcd.toml");
     let case = Programs::from_config("etc/plcd.toml", &text, &path);
     assert!(case.programs.len() >= 2, "the example project's ST programs: level and tank");
-    check_all(vec![(case, Scans { period_ns: 10 * MS, ..Scans::new(20) })]);
+    let scans = Scans { period_ns: 10 * MS, ..Scans::new(20) };
+    // One after the other, and by turns (the tank's task preempting the level's).
+    let interleaved = Programs::from_config("etc/plcd.toml (by turns)", &text, &path);
+    check_all(vec![(case, scans), (interleaved, Scans { interleave: true, ..scans })]);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1055,11 +1121,11 @@ END_PROGRAM
     assert_eq!(outcome.errors_with_whole_budget(ERR_DIVIDE_BY_ZERO), 3);
 }
 
-/// A chain of FUNCTION calls as deep as the compiler allows, each waiting with values on the
-/// stack.
+/// A chain of FUNCTION calls as deep as the compiler allows (32), each waiting with values on
+/// the stack.
 #[test]
 fn a_deep_call_chain() {
-    const DEPTH: usize = 31;
+    const DEPTH: usize = 32;
     let mut source = String::new();
     for k in 1..=DEPTH {
         let body = if k == DEPTH {
@@ -1528,7 +1594,7 @@ END_PROGRAM
     // 50 µs a step: a timer's ET depends on the step of its call.
     let stepped = Scans { step_ns: 50_000, ..Scans::new(20) };
     let outcome = targeted("timers on a stepping clock", source, stepped, 20);
-    assert!(outcome.slot("main.bank[0].ET") % 50_000 == 0);
+    assert!(outcome.slot("main.bank[0].ET").is_multiple_of(50_000));
 }
 
 /// An endless loop stopped by the budget: each `Budget` exit at the same step and pc, the
@@ -1671,5 +1737,122 @@ END_PROGRAM
         let scans = Scans { frame_bytes: Some(frame), ..Scans::new(3) };
         let outcome = compare(&case, scans, &BUDGETS);
         outcome.assert_equivalent();
+    }
+}
+
+/// A call made with 40 values on the evaluation stack, into a FUNCTION whose expression needs
+/// 26 more: the compiler checks each POU's statements against the stack's 64 slots, not a
+/// chain of calls, so the ring wraps: in the interpreter the callee's pushes overwrite the
+/// caller's first slots. `r` is 66 natively (40 ones and `F(1)` = 26) and 67 on the
+/// interpreter, whose first caller slot the callee overwrote with a 2.
+#[test]
+fn a_call_chain_deeper_than_the_evaluation_stack() {
+    let (n, m) = (40, 25);
+    let source = format!(
+        "
+FUNCTION F : DINT
+VAR_INPUT x : DINT; END_VAR
+    F := {callee}x{close_callee};
+END_FUNCTION
+
+PROGRAM Main
+VAR a : DINT := 1; r : DINT; END_VAR
+    r := {caller}F(a){close_caller};
+END_PROGRAM
+",
+        callee = "x + (".repeat(m),
+        caller = "a + (".repeat(n),
+        close_callee = ")".repeat(m),
+        close_caller = ")".repeat(n),
+    );
+    targeted("evaluation stack ring", &source, Scans::new(2), 90);
+}
+
+/// `VAR_IN_OUT` references into every space: variable memory, a caller's frame, a word device,
+/// a bit device, an array element of each; bits of a referenced word.
+#[test]
+fn in_out_references_into_every_space() {
+    let source = "
+FUNCTION Bump : INT
+VAR_IN_OUT x : INT; flag : BOOL; END_VAR
+VAR_INPUT inc : INT; END_VAR
+    x := x + inc;
+    x.3 := NOT x.3;
+    flag := NOT flag OR x.0;
+    Bump := x * 2;
+END_FUNCTION
+
+FUNCTION Local : INT
+VAR_INPUT start : INT; END_VAR
+VAR loc : INT; f : BOOL; arr : ARRAY [0..3] OF INT; END_VAR
+    loc := start;
+    Local := Bump(loc, f, 5) + Bump(arr[start MOD 4], f, loc);
+    Local := Local + loc + arr[start MOD 4] + BOOL_TO_INT(f);
+END_FUNCTION
+
+PROGRAM Main
+VAR
+    v : INT;
+    b : BOOL;
+    w AT %MW7 : INT;
+    mb AT %MX3.4 : BOOL;
+    pb AT %QX5.1 : BOOL;
+    words AT %D00400 : ARRAY [0..3] OF INT;
+    bits AT %M0400 : ARRAY [0..7] OF BOOL;
+    vars : ARRAY [0..3] OF INT;
+    n, r : INT;
+END_VAR
+    n := n + 1;
+    r := Bump(v, b, n) + Bump(w, mb, n * 2);
+    r := r + Bump(words[n MOD 4], bits[n MOD 8], 3) + Bump(vars[n MOD 4], pb, -1);
+    r := r + Local(n);
+END_PROGRAM
+";
+    let outcome = targeted("in-out references", source, Scans::new(5), 40);
+    assert!(outcome.errors.is_empty());
+}
+
+/// Programs that share globals, run by turns one `run` call each (a task preempted at every
+/// budget's end): native code reads what another program wrote between two of its calls,
+/// and leaves in memory everything the other reads.
+#[test]
+fn programs_preempting_each_other_share_globals() {
+    let source = "
+VAR_GLOBAL
+    shared : ARRAY [0..7] OF DINT;
+    turn : DINT;
+    total : LREAL;
+END_VAR
+
+FUNCTION Mix : DINT
+VAR_INPUT k : DINT; END_VAR
+    shared[k MOD 8] := shared[(k + 1) MOD 8] + k;
+    Mix := shared[k MOD 8] * 2 + turn;
+END_FUNCTION
+
+PROGRAM Producer
+VAR i : DINT; sum : DINT; END_VAR
+    FOR i := 0 TO 15 DO
+        turn := turn + 1;
+        sum := sum + Mix(i) - shared[(i + 3) MOD 8];
+        total := total + DINT_TO_LREAL(sum) * 0.5;
+    END_FOR;
+END_PROGRAM
+
+PROGRAM Consumer
+VAR i : DINT; seen : ARRAY [0..7] OF DINT; last : LREAL; END_VAR
+    FOR i := 7 TO 0 BY -1 DO
+        seen[i] := shared[i] + turn * Mix(i + turn);
+        turn := turn * 3 MOD 1000;
+        last := total - DINT_TO_LREAL(seen[i]);
+    END_FOR;
+END_PROGRAM
+";
+    let instances = [("producer", Some("Producer")), ("consumer", Some("Consumer"))];
+    let case = Programs::instances("preemption", source, &instances);
+    for interleave in [false, true] {
+        let outcome = compare(&case, Scans { interleave, ..Scans::new(4) }, &BUDGETS);
+        outcome.assert_equivalent();
+        outcome.assert_native_share("preemption", 90);
     }
 }
