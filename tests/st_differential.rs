@@ -9,7 +9,10 @@
 //! list shrinks the expressions (an exhausted list picks variables). Constant subexpressions are
 //! folded by the compiler, so the same property checks the folding against the VM's rules.
 //! A second property renders the same trees with the fewest parentheses the precedence table of
-//! docs/ST.md allows (and `&` for `AND`).
+//! docs/ST.md allows (and `&` for `AND`). A third runs the programs with their native code
+//! attached too (plcd-native), which must give the interpreter's results to the bit and its
+//! operation errors, also when a small step budget makes native code hand back to the
+//! interpreter in the middle of an expression.
 //!
 //! Each bug the properties found is a minimized test at the end, kept after its fix: shift
 //! counts (negative, beyond IN's width, beyond DINT), the folding of constants (REAL to a
@@ -20,6 +23,7 @@ use std::cmp::Ordering;
 use std::fmt::Write as _;
 use std::path::Path;
 
+use plcd_core::lang::Program;
 use plcd_core::st::{compile, parse_file, Compiled, Instance};
 use plcd_core::value::{Elem, ValueType};
 use plcd_core::vm::{ExecState, Exit, ManualClock, Vm, ERR_DIVIDE_BY_ZERO};
@@ -1175,22 +1179,44 @@ fn build(src: &str) -> Result<Compiled, String> {
 
 /// One scan of `compiled`: the VM, and the line of each operation error with its code.
 fn scan(compiled: &Compiled) -> (Vm, Vec<(u32, u16)>) {
-    let program = &compiled.programs[0];
+    scan_program(compiled, &compiled.programs[0], u64::MAX)
+}
+
+/// One scan of `program` (`compiled`'s, or the same with native code), `budget` steps a
+/// `run` call.
+fn scan_program(compiled: &Compiled, program: &Program, budget: u64) -> (Vm, Vec<(u32, u16)>) {
     let mut vm = Vm::for_programs(&compiled.programs);
     vm.set_variables(&compiled.variables);
     vm.reset_for_run(&plcd_core::device::RetainSet::default(), false);
     let mut state = ExecState::with_frame(program.frame_bytes);
     let clock = ManualClock::new(0);
     let mut errors = Vec::new();
+    let mut calls = 0u64;
     loop {
-        match vm.run(program, &mut state, &clock, u64::MAX) {
+        match vm.run(program, &mut state, &clock, budget) {
             Exit::End => break,
+            Exit::Budget => {}
             Exit::OperationError { code, pc } => errors.push((program.lines[pc as usize], code)),
             other => panic!("unexpected exit {other:?}"),
         }
-        assert!(errors.len() < 10_000, "no END");
+        calls += 1;
+        assert!(calls < 10_000_000, "no END");
     }
     (vm, errors)
+}
+
+/// `compiled`'s program with its native code attached (plcd-native).
+fn with_native(compiled: &Compiled) -> Program {
+    let mut program = compiled.programs[0].clone();
+    let native = plcd_native::compile(&program).unwrap_or_else(|e| panic!("no native code: {e}"));
+    program.native = Some(native);
+    program
+}
+
+/// The slot of the variable `name` of type `t`, its bits as they are.
+fn slot(compiled: &Compiled, vm: &Vm, name: &str, t: T) -> u64 {
+    let sym = compiled.variables.symbols.iter().find(|s| s.name.eq_ignore_ascii_case(name));
+    vm.read_value(sym.unwrap_or_else(|| panic!("no variable {name}")).at, t.elem())
 }
 
 /// Reads the variable `name` as a value of `t`.
@@ -1214,14 +1240,48 @@ fn read(compiled: &Compiled, vm: &Vm, name: &str, t: T) -> V {
 }
 
 /// Compiles and runs `case` rendered one way, and checks every result and every division by
-/// zero against the reference.
-fn check(case: &Case, full: bool) -> Result<(), TestCaseError> {
+/// zero against the reference; with `native`, the same program with native code attached too,
+/// with the whole budget and with `native` steps a `run` call (which makes native code hand
+/// back to the interpreter inside expressions), against the interpreter to the bit.
+fn check(case: &Case, full: bool, native: Option<u64>) -> Result<(), TestCaseError> {
     let (src, lines) = case.source(full);
     let compiled = match build(&src) {
         Ok(c) => c,
         Err(e) => return Err(TestCaseError::fail(format!("does not compile:\n{e}\n{src}"))),
     };
     let (vm, errors) = scan(&compiled);
+    if let Some(budget) = native {
+        let program = with_native(&compiled);
+        for budget in [u64::MAX, budget] {
+            let (native_vm, native_errors) = scan_program(&compiled, &program, budget);
+            for (k, (_, t)) in case.exprs.iter().enumerate() {
+                let name = format!("main.r{k}");
+                let (a, b) =
+                    (slot(&compiled, &vm, &name, *t), slot(&compiled, &native_vm, &name, *t));
+                let line = lines[k];
+                let source_line = src.lines().nth(line as usize - 1).unwrap_or("");
+                prop_assert!(
+                    a == b,
+                    "native code, budget {budget}: line {line}: `{}`\ninterpreter {:?} ({a:#x}), \
+                     native {:?} ({b:#x})\n{src}",
+                    source_line.trim(),
+                    read(&compiled, &vm, &name, *t),
+                    read(&compiled, &native_vm, &name, *t)
+                );
+            }
+            prop_assert!(
+                native_vm.vars() == vm.vars(),
+                "native code, budget {budget}: variable memory differs\n{src}"
+            );
+            prop_assert_eq!(
+                &native_errors,
+                &errors,
+                "native code, budget {}: operation errors\n{}",
+                budget,
+                src
+            );
+        }
+    }
     for (k, (e, t)) in case.exprs.iter().enumerate() {
         let mut expected_errors = 0;
         let expected = e.eval(&case.vars, &mut expected_errors).widen(*t);
@@ -1265,13 +1325,30 @@ proptest! {
     /// Fully parenthesized expressions.
     #[test]
     fn st_expressions_match_the_reference((vars, exprs) in case_choices(24)) {
-        check(&Case::new(&vars, &exprs, 5), true)?;
+        check(&Case::new(&vars, &exprs, 5), true, None)?;
     }
 
     /// The same with only the parentheses the precedence needs.
     #[test]
     fn st_precedence_matches_the_reference((vars, exprs) in case_choices(24)) {
-        check(&Case::new(&vars, &exprs, 5), false)?;
+        check(&Case::new(&vars, &exprs, 5), false, None)?;
+    }
+}
+
+proptest! {
+    // Fewer cases: Cranelift compiles each program in some 40 ms in a debug build; 4000 cases ran clean once.
+    #![proptest_config(ProptestConfig { cases: 150, ..ProptestConfig::default() })]
+
+    /// The same programs with native code attached (plcd-native): the reference's values, and
+    /// the interpreter's bits and operation errors, with the whole budget and with `budget`
+    /// steps a `run` call.
+    #[test]
+    fn st_native_code_matches_the_interpreter(
+        (vars, exprs) in case_choices(24),
+        full in any::<bool>(),
+        budget in 1..14u64,
+    ) {
+        check(&Case::new(&vars, &exprs, 5), full, Some(budget))?;
     }
 }
 

@@ -1,0 +1,1858 @@
+//! Native code is the interpreter, to the step.
+//!
+//! What this pins: a Structured Text program with its native code attached
+//! (`plcd_native::compile`) behaves exactly as the same program on the interpreter alone. Two
+//! VMs run side by side, one with the plain programs and one with native code, with the same
+//! setup (`Vm::for_programs`, `set_variables`, `reset_for_run`), the same clock and the same
+//! step budgets; after every `Vm::run` call they must agree on
+//! - the `Exit` (`End`, `Budget`, `OperationError { code, pc }`, `System`),
+//! - the step count (`Vm::steps`),
+//! - the activation (`ExecState`): the program counter, the evaluation stack's depth, the call
+//!   depth, whether it is finished, and, read from its `Debug` form because they are private,
+//!   the live slots of the evaluation stack, the live call frames, the frame base, the FB
+//!   instance and the frame area's bytes,
+//! - variable memory (`Vm::vars`) and device memory (`vm.mem.words()`, `_ERR` included).
+//!
+//! Every budget is tried: the whole scan at once (`u64::MAX`), 1, 2, 3, 5, 7, 13 and 100 steps a
+//! call, and a varying budget (0 to 17, the same sequence on both sides); a budget that ends
+//! inside a native block makes native code hand back to the interpreter, which is the path the
+//! small budgets exercise. The run loop calls `run` again after `Budget`, `OperationError` and
+//! `System` until `End`, as the task engine does.
+//!
+//! The programs:
+//! 1. every source of the repository: each case of the conformance suite `tests/st/**` (as that
+//!    suite builds it: the scan program `main` of a project of its own, the clock standing still
+//!    during a scan and moving by the case's period between scans), each workload of
+//!    `benches/st/`, and the example project `etc/plcd.toml` (its Structured Text programs, in
+//!    one VM). Every mismatch of every case is reported at once, with the case's name;
+//! 2. targeted programs, written here, for what native code does its own way: division and
+//!    `MOD` by zero, `LINT` MIN / -1, array bounds, whole copies of arrays and structs between
+//!    variable memory and the frame, FB instances in a FUNCTION's frame, `VAR_IN_OUT`, calls
+//!    inside expressions, deep call chains, located variables of every size, NaN comparisons,
+//!    float-to-integer conversions, the float functions, shifts and rotations, strings and the
+//!    clock (which native code leaves to the interpreter: mixed execution), and an endless loop
+//!    stopped by the budget.
+//!
+//! Native code must also run: each program's native code is wrapped to count the steps it
+//! executes itself, and the targeted programs require a share of them, so a code generator
+//! that handed everything back to the interpreter would not pass for an equivalent one.
+
+use std::cell::Cell;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+
+use plcd_core::device::RetainSet;
+use plcd_core::lang::native::{NativeCode, NativeExit, NativeMemory, NativeRegs};
+use plcd_core::lang::{Language, Program, Variables};
+use plcd_core::st::{compile, parse_file, Instance};
+use plcd_core::value::Space;
+use plcd_core::vm::{Clock, ExecState, Exit, Vm, ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE};
+
+const MS: u64 = 1_000_000;
+
+/// The budgets every program runs with.
+const BUDGETS: [Budget; 9] = [
+    Budget::Fixed(u64::MAX),
+    Budget::Fixed(1),
+    Budget::Fixed(2),
+    Budget::Fixed(3),
+    Budget::Fixed(5),
+    Budget::Fixed(7),
+    Budget::Fixed(13),
+    Budget::Fixed(100),
+    Budget::Varying,
+];
+
+/// A scan that takes more steps than this has an endless loop.
+const STEPS_PER_SCAN: u64 = 2_000_000;
+
+// ---------------------------------------------------------------------------------------------
+// The programs of a case
+
+/// The programs of one case, run in order in each scan, and their variable memory.
+struct Programs {
+    name: String,
+    programs: Vec<Program>,
+    variables: Variables,
+    frame_bytes: u32,
+}
+
+impl Programs {
+    /// The project a `[[program]]` table describes (`config` is the config's text, `path` where
+    /// it would be: program files are relative to it); its Structured Text programs.
+    fn from_config(name: &str, config: &str, path: &Path) -> Programs {
+        let config = plcd_core::config::parse(config, path)
+            .unwrap_or_else(|d| panic!("{name}: config: {d}"));
+        let project = plcd_core::project::from_config(config, |p| std::fs::read_to_string(p))
+            .unwrap_or_else(|d| panic!("{name}: does not compile:\n{d}"));
+        let frame_bytes = project.frame_bytes();
+        let programs = project
+            .programs
+            .into_iter()
+            .filter(|p| p.language == Language::StructuredText)
+            .collect();
+        Programs { name: name.to_string(), programs, variables: project.variables, frame_bytes }
+    }
+
+    /// One `.st` file as the scan program `main` of a project of its own, as the conformance
+    /// suite builds its cases.
+    fn st_file(name: &str, file: &Path, period_ns: u64) -> Programs {
+        let config = format!(
+            "[plc]\nwatchdog_ms = 1000\nscan_period_ms = {}\n[[program]]\nname = \"main\"\nfile = \"{}\"\n",
+            (period_ns / MS).max(1),
+            file.file_name().unwrap().to_str().unwrap()
+        );
+        Programs::from_config(name, &config, &file.with_extension("toml"))
+    }
+
+    /// `source`, compiled with one instance `main` of its PROGRAM.
+    fn inline(name: &str, source: &str) -> Programs {
+        Programs::instances(name, source, &[("main", None)])
+    }
+
+    /// `source`, compiled with the instances `(name, PROGRAM)` (`None`: its only PROGRAM), one
+    /// program each, in that order.
+    fn instances(name: &str, source: &str, instances: &[(&str, Option<&str>)]) -> Programs {
+        let path = Path::new("inline.st");
+        let (file, diags) = parse_file(path, source);
+        assert!(diags.is_empty(), "{name}: {diags}");
+        let instances: Vec<Instance> = instances
+            .iter()
+            .map(|&(name, pou)| Instance { name, pou, file: path, config: path, line: 1, col: 1 })
+            .collect();
+        let compiled =
+            compile(&[file], &instances).unwrap_or_else(|d| panic!("{name}: {d}\n{source}"));
+        let frame_bytes = compiled.programs.iter().map(|p| p.frame_bytes).max().unwrap_or(0);
+        Programs {
+            name: name.to_string(),
+            programs: compiled.programs,
+            variables: compiled.variables,
+            frame_bytes,
+        }
+    }
+
+    /// The programs with native code attached, each counting the steps it executes into
+    /// `native_steps`; an error for each program without native code.
+    fn with_native(&self, native_steps: &Arc<AtomicU64>) -> Result<Vec<Program>, String> {
+        self.programs
+            .iter()
+            .map(|program| {
+                let code = plcd_native::compile(program)
+                    .map_err(|e| format!("{}: no native code: {e}", self.name))?;
+                let mut program = program.clone();
+                program.native = Some(Arc::new(Counted { code, steps: native_steps.clone() }));
+                Ok(program)
+            })
+            .collect()
+    }
+
+    /// The name of the variable at byte `offset` of variable memory.
+    fn variable_at(&self, offset: usize) -> String {
+        self.variables
+            .symbols
+            .iter()
+            .filter(|s| s.at.space == Space::Var && s.at.offset as usize <= offset)
+            .max_by_key(|s| s.at.offset)
+            .map_or_else(|| "?".to_string(), |s| s.name.clone())
+    }
+}
+
+/// Native code that counts the steps it executes itself.
+#[derive(Debug)]
+struct Counted {
+    code: Arc<dyn NativeCode>,
+    steps: Arc<AtomicU64>,
+}
+
+impl NativeCode for Counted {
+    fn run(&self, memory: NativeMemory<'_>, regs: &mut NativeRegs) -> NativeExit {
+        let before = regs.left;
+        let exit = self.code.run(memory, regs);
+        self.steps.fetch_add(before.saturating_sub(regs.left), Ordering::Relaxed);
+        exit
+    }
+
+    fn interpret_span(&self, pc: u32) -> u32 {
+        self.code.interpret_span(pc)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Running two VMs side by side
+
+/// How many steps each `run` call gets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Budget {
+    Fixed(u64),
+    /// 0 to 17 (a call with no budget returns `Budget` at once), from a fixed pseudo-random
+    /// sequence.
+    Varying,
+}
+
+/// The time of a scan: its start, plus `step_ns` for every step since the scan began (0: the
+/// clock stands still during a scan, as in the conformance suite).
+struct ScanClock {
+    start_ns: Cell<u64>,
+    start_steps: Cell<u64>,
+    step_ns: u64,
+}
+
+impl Clock for ScanClock {
+    fn now_ns(&self, steps: u64) -> u64 {
+        self.start_ns.get() + steps.saturating_sub(self.start_steps.get()) * self.step_ns
+    }
+}
+
+/// How a case runs.
+#[derive(Debug, Clone, Copy)]
+struct Scans {
+    count: u64,
+    period_ns: u64,
+    /// The clock's cost of a step (0: it stands still during a scan).
+    step_ns: u64,
+    /// Stop each scan after this many `run` calls (an endless loop), instead of at `END`.
+    calls: Option<u64>,
+    /// Compare the private part of the activation ([`Inner`]) after every this many calls that
+    /// exit with `Budget` (always after the others): 1 for every call; more for the long
+    /// workloads, where reading it from its `Debug` form after each step would take minutes.
+    inner_every: u64,
+    /// The frame area's bytes, when not the programs' own (`Programs::frame_bytes`).
+    frame_bytes: Option<u32>,
+    /// Run the programs of a scan by turns, one `run` call each, as a task preempted by
+    /// another at every budget's end would, instead of one after the other.
+    interleave: bool,
+}
+
+impl Scans {
+    fn new(count: u64) -> Scans {
+        Scans {
+            count,
+            period_ns: MS,
+            step_ns: 0,
+            calls: None,
+            inner_every: 1,
+            frame_bytes: None,
+            interleave: false,
+        }
+    }
+}
+
+/// One VM and its programs' activations.
+struct Side<'a> {
+    programs: &'a [Program],
+    vm: Vm,
+    states: Vec<ExecState>,
+    clock: ScanClock,
+}
+
+impl<'a> Side<'a> {
+    fn new(programs: &'a [Program], case: &Programs, scans: Scans) -> Side<'a> {
+        let mut vm = Vm::for_programs(programs);
+        vm.set_variables(&case.variables);
+        vm.reset_for_run(&RetainSet::default(), false);
+        let frame = scans.frame_bytes.unwrap_or(case.frame_bytes);
+        let states = programs.iter().map(|_| ExecState::with_frame(frame)).collect();
+        let step_ns = scans.step_ns;
+        let clock = ScanClock { start_ns: Cell::new(0), start_steps: Cell::new(0), step_ns };
+        Side { programs, vm, states, clock }
+    }
+
+    fn begin_scan(&mut self, scan: u64, start_ns: u64) {
+        self.clock.start_ns.set(start_ns);
+        self.clock.start_steps.set(self.vm.steps());
+        self.vm.begin_scan(scan == 1, start_ns);
+    }
+
+    fn run(&mut self, program: usize, budget: u64) -> Exit {
+        self.vm.run(&self.programs[program], &mut self.states[program], &self.clock, budget)
+    }
+}
+
+/// What a case did on the interpreter, and the mismatches of native code.
+#[derive(Default)]
+struct Outcome {
+    mismatches: Vec<String>,
+    /// Steps executed on each side (the interpreter's), and of them by native code itself,
+    /// with every budget.
+    steps: u64,
+    native_steps: u64,
+    /// The same with the whole budget (`u64::MAX`) alone: native code's share when no budget
+    /// cuts its blocks.
+    whole_steps: u64,
+    native_whole_steps: u64,
+    /// The operation errors the interpreter raised, in order (all budgets).
+    errors: Vec<u16>,
+    /// Exits of the interpreter with the whole budget (`u64::MAX`), for the tests' own checks.
+    exits: Vec<Exit>,
+    /// The interpreter's VM at the end of the first budget, and the variables' symbols, for
+    /// the tests' own checks of what the programs computed.
+    vm: Option<Vm>,
+    symbols: Vec<plcd_core::value::Symbol>,
+}
+
+impl Outcome {
+    fn assert_equivalent(&self) {
+        assert!(
+            self.mismatches.is_empty(),
+            "{} mismatches:\n{}",
+            self.mismatches.len(),
+            self.mismatches.join("\n")
+        );
+    }
+
+    /// The slot of variable `name` (`main.x`) at the end, on the interpreter.
+    fn slot(&self, name: &str) -> u64 {
+        let symbol = self.symbols.iter().find(|s| s.name.eq_ignore_ascii_case(name));
+        let symbol = symbol.unwrap_or_else(|| panic!("no variable {name}"));
+        self.vm.as_ref().expect("a budget ran").read_value(symbol.at, symbol.ty.elem())
+    }
+
+    /// The number of operation errors `code` the interpreter raised with the whole budget.
+    fn errors_with_whole_budget(&self, code: u16) -> usize {
+        let raised = |e: &&Exit| matches!(e, Exit::OperationError { code: c, .. } if *c == code);
+        self.exits.iter().filter(raised).count()
+    }
+
+    /// With the whole budget, at least `percent` % of the steps ran as native code.
+    fn assert_native_share(&self, name: &str, percent: u64) {
+        assert!(
+            self.native_whole_steps * 100 >= self.whole_steps * percent,
+            "{name}: only {} of {} steps ran as native code",
+            self.native_whole_steps,
+            self.whole_steps
+        );
+    }
+}
+
+/// Runs `case` on both sides with every budget of `budgets`.
+fn compare(case: &Programs, scans: Scans, budgets: &[Budget]) -> Outcome {
+    let native_steps = Arc::new(AtomicU64::new(0));
+    let native_programs = match case.with_native(&native_steps) {
+        Ok(native) => native,
+        Err(e) => return Outcome { mismatches: vec![e], ..Outcome::default() },
+    };
+    let mut outcome = Outcome { symbols: case.variables.symbols.clone(), ..Outcome::default() };
+    for &budget in budgets {
+        let (steps, native) = (outcome.steps, native_steps.load(Ordering::Relaxed));
+        match compare_with(case, &native_programs, scans, budget, &mut outcome) {
+            Ok(vm) => {
+                outcome.vm.get_or_insert(vm);
+            }
+            Err(mismatch) => {
+                outcome.mismatches.push(format!("{} [budget {budget:?}] {mismatch}", case.name))
+            }
+        }
+        if budget == Budget::Fixed(u64::MAX) {
+            outcome.whole_steps += outcome.steps - steps;
+            outcome.native_whole_steps += native_steps.load(Ordering::Relaxed) - native;
+        }
+    }
+    outcome.native_steps = native_steps.load(Ordering::Relaxed);
+    outcome
+}
+
+/// One budget: the interpreter's VM at the end, or the first mismatch (after it the two sides
+/// differ anyway).
+fn compare_with(
+    case: &Programs,
+    native: &[Program],
+    scans: Scans,
+    budget: Budget,
+    outcome: &mut Outcome,
+) -> Result<Vm, String> {
+    let mut run = Run {
+        case,
+        scans,
+        budget,
+        plain: Side::new(&case.programs, case, scans),
+        fast: Side::new(native, case, scans),
+        // A linear congruential generator for the varying budget.
+        seed: 0x2545_f491_4f6c_dd1d,
+        scan_steps: vec![0; case.programs.len()],
+        outcome,
+    };
+    for scan in 1..=scans.count {
+        let start_ns = (scan - 1) * scans.period_ns;
+        run.plain.begin_scan(scan, start_ns);
+        run.fast.begin_scan(scan, start_ns);
+        let programs = case.programs.len();
+        if scans.interleave {
+            // Preemption: one call of each unfinished program in turn.
+            for program in 0..programs {
+                run.restart(program);
+            }
+            let mut done = vec![false; programs];
+            let mut call = 0;
+            while done.contains(&false) {
+                call += 1;
+                for (program, done) in done.iter_mut().enumerate() {
+                    if !*done {
+                        *done = run.call(scan, program, call)?;
+                    }
+                }
+            }
+        } else {
+            for program in 0..programs {
+                run.restart(program);
+                let mut call = 0;
+                while !run.call(scan, program, call + 1)? {
+                    call += 1;
+                }
+            }
+        }
+        run.plain.vm.end_scan();
+        run.fast.vm.end_scan();
+    }
+    Ok(run.plain.vm)
+}
+
+/// Both sides of one budget.
+struct Run<'c, 'o> {
+    case: &'c Programs,
+    scans: Scans,
+    budget: Budget,
+    plain: Side<'c>,
+    fast: Side<'c>,
+    seed: u64,
+    /// Steps of each program in the scan under way.
+    scan_steps: Vec<u64>,
+    outcome: &'o mut Outcome,
+}
+
+impl Run<'_, '_> {
+    fn restart(&mut self, program: usize) {
+        self.plain.states[program].restart();
+        self.fast.states[program].restart();
+        self.scan_steps[program] = 0;
+    }
+
+    /// Call `call` of `program` in `scan` on both sides, compared: whether the program is done
+    /// with the scan (`End`, or as many calls as the scans allow).
+    fn call(&mut self, scan: u64, program: usize, call: u64) -> Result<bool, String> {
+        let steps = match self.budget {
+            Budget::Fixed(n) => n,
+            Budget::Varying => {
+                self.seed = self.seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+                (self.seed >> 33) % 18
+            }
+        };
+        let before = self.plain.vm.steps();
+        let a = self.plain.run(program, steps);
+        let b = self.fast.run(program, steps);
+        let after = self.plain.vm.steps();
+        self.outcome.steps += after - before;
+        self.scan_steps[program] += after - before;
+        if let Exit::OperationError { code, .. } = a {
+            self.outcome.errors.push(code);
+        }
+        if self.budget == Budget::Fixed(u64::MAX) {
+            self.outcome.exits.push(a);
+        }
+        let at = || {
+            let name = &self.case.programs[program].name;
+            format!("scan {scan}, program {name}, call {call} (after step {after})")
+        };
+        let inner = a != Exit::Budget || call.is_multiple_of(self.scans.inner_every);
+        if let Some(what) = difference(self.case, &self.plain, &self.fast, program, (a, b), inner) {
+            return Err(format!("{}: {what}", at()));
+        }
+        if self.scan_steps[program] > STEPS_PER_SCAN {
+            return Err(format!("{}: the scan does not end", at()));
+        }
+        Ok(a == Exit::End || self.scans.calls.is_some_and(|calls| call >= calls))
+    }
+}
+
+/// What differs between the interpreter (`a`) and native code (`b`) after a `run` call of
+/// `program` that exited with `exits`.
+fn difference(
+    case: &Programs,
+    a: &Side,
+    b: &Side,
+    program: usize,
+    exits: (Exit, Exit),
+    inner: bool,
+) -> Option<String> {
+    let (sa, sb) = (&a.states[program], &b.states[program]);
+    let pair = |what: &str, x: &dyn std::fmt::Debug, y: &dyn std::fmt::Debug| {
+        format!("{what}: interpreter {x:?}, native {y:?}")
+    };
+    if exits.0 != exits.1 {
+        return Some(pair("exit", &exits.0, &exits.1));
+    }
+    if a.vm.steps() != b.vm.steps() {
+        return Some(pair("steps", &a.vm.steps(), &b.vm.steps()));
+    }
+    if sa.pc() != sb.pc() {
+        return Some(pair("pc", &sa.pc(), &sb.pc()));
+    }
+    if sa.eval_depth() != sb.eval_depth() {
+        return Some(pair("evaluation stack depth", &sa.eval_depth(), &sb.eval_depth()));
+    }
+    if sa.call_depth() != sb.call_depth() {
+        return Some(pair("call depth", &sa.call_depth(), &sb.call_depth()));
+    }
+    if sa.is_finished() != sb.is_finished() {
+        return Some(pair("finished", &sa.is_finished(), &sb.is_finished()));
+    }
+    if a.vm.vars() != b.vm.vars() {
+        let (x, y) = (a.vm.vars(), b.vm.vars());
+        let at = (0..x.len()).find(|&i| x.get(i) != y.get(i)).unwrap_or(0);
+        let end = (at + 8).min(x.len()).min(y.len());
+        return Some(format!(
+            "variable memory at byte {at} ({}): interpreter {:02x?}, native {:02x?}",
+            case.variable_at(at),
+            &x[at..end],
+            &y[at..end]
+        ));
+    }
+    let (x, y) = (a.vm.mem.words(), b.vm.mem.words());
+    if x != y {
+        let at = (0..x.len()).find(|&i| x[i] != y[i]).unwrap_or(0);
+        return Some(format!(
+            "device memory at word {at}: interpreter {:#06x}, native {:#06x}",
+            x[at], y[at]
+        ));
+    }
+    if !inner {
+        return None;
+    }
+    let (ta, tb) = (format!("{sa:?}"), format!("{sb:?}"));
+    if ta == tb {
+        return None;
+    }
+    let (ia, ib) = (Inner::of(&ta), Inner::of(&tb));
+    if ia != ib {
+        if ia.eval != ib.eval {
+            return Some(pair("evaluation stack", &ia.eval, &ib.eval));
+        }
+        if ia.calls != ib.calls {
+            return Some(pair("call frames", &ia.calls, &ib.calls));
+        }
+        if (&ia.base, &ia.this) != (&ib.base, &ib.this) {
+            return Some(pair(
+                "frame base and FB instance",
+                &(ia.base, ia.this),
+                &(ib.base, ib.this),
+            ));
+        }
+        let at = ia.frame.iter().zip(&ib.frame).position(|(x, y)| x != y).unwrap_or(0);
+        let end = (at + 8).min(ia.frame.len()).min(ib.frame.len());
+        return Some(format!(
+            "frame area at byte {at}: interpreter {:?}, native {:?}",
+            &ia.frame[at..end],
+            &ib.frame[at..end]
+        ));
+    }
+    None
+}
+
+/// The private part of an activation that native code writes, from its `Debug` form: the live
+/// slots of the evaluation stack, the live call frames, the frame base, the FB instance and the
+/// frame area. (Slots above the stack's top and frames above the call depth are dead: native
+/// code need not leave them as the interpreter does.)
+#[derive(Debug, PartialEq, Eq)]
+struct Inner<'t> {
+    eval: Vec<&'t str>,
+    calls: Vec<&'t str>,
+    base: &'t str,
+    this: &'t str,
+    frame: Vec<&'t str>,
+}
+
+impl<'t> Inner<'t> {
+    /// `text` is the activation's `Debug` form.
+    fn of(text: &'t str) -> Inner<'t> {
+        let mut cursor = Cursor { text, at: 0 };
+        cursor.skip_to("eval: ");
+        let mut eval = items(cursor.field("slots"));
+        let sp: usize = cursor.field("sp").parse().expect("sp");
+        let mut calls = items(cursor.field("st_calls"));
+        let depth: usize = cursor.field("st_depth").parse().expect("st_depth");
+        let base = cursor.field("base");
+        let this = cursor.field("this");
+        let frame = items(cursor.field("frame"));
+        eval.truncate(sp);
+        calls.truncate(depth);
+        Inner { eval, calls, base, this, frame }
+    }
+}
+
+/// A reader of a `Debug` text, field by field in their order.
+struct Cursor<'t> {
+    text: &'t str,
+    at: usize,
+}
+
+impl<'t> Cursor<'t> {
+    fn skip_to(&mut self, marker: &str) {
+        let found = self.text[self.at..].find(marker).unwrap_or_else(|| {
+            panic!("no `{marker}` in the Debug form of ExecState: {}", self.text)
+        });
+        self.at += found + marker.len();
+    }
+
+    /// The value of the next field `name`: a number, or a bracketed list.
+    fn field(&mut self, name: &str) -> &'t str {
+        self.skip_to(&format!("{name}: "));
+        let rest = &self.text[self.at..];
+        let mut depth = 0i32;
+        let mut end = rest.len();
+        for (i, c) in rest.char_indices() {
+            match c {
+                '[' | '{' | '(' => depth += 1,
+                ']' | '}' | ')' if depth == 0 => {
+                    end = i;
+                    break;
+                }
+                ']' | '}' | ')' => {
+                    depth -= 1;
+                    if depth == 0 && rest.starts_with('[') {
+                        end = i + 1;
+                        break;
+                    }
+                }
+                ',' if depth == 0 => {
+                    end = i;
+                    break;
+                }
+                _ => {}
+            }
+        }
+        self.at += end;
+        rest[..end].trim()
+    }
+}
+
+/// The items of a bracketed list `[a, b { c, d }, e]`.
+fn items(list: &str) -> Vec<&str> {
+    let inner = list.trim().trim_start_matches('[').trim_end_matches(']');
+    let mut out = Vec::new();
+    let mut depth = 0i32;
+    let mut start = 0;
+    for (i, c) in inner.char_indices() {
+        match c {
+            '[' | '{' | '(' => depth += 1,
+            ']' | '}' | ')' => depth -= 1,
+            ',' if depth == 0 => {
+                out.push(inner[start..i].trim());
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    if !inner[start..].trim().is_empty() {
+        out.push(inner[start..].trim());
+    }
+    out
+}
+
+// ---------------------------------------------------------------------------------------------
+// 1. Every Structured Text source of the repository
+
+fn repository() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// The scan period of a conformance case: the `at <period>` of its `.expect` (1 ms without),
+/// and the last scan it checks.
+fn expect_of(case: &Path) -> (u64, u64) {
+    let text = std::fs::read_to_string(case.with_extension("expect")).unwrap_or_default();
+    let mut period = MS;
+    let mut last = 1;
+    for line in text.lines() {
+        let Some(rest) = line.trim().strip_prefix("after ") else { continue };
+        let when = rest.split(':').next().unwrap_or("");
+        let mut words = when.split_whitespace();
+        if let Some(n) = words.next().and_then(|n| n.parse::<u64>().ok()) {
+            last = last.max(n);
+        }
+        if let (Some("scans"), Some("at"), Some(p)) = (words.next(), words.next(), words.next()) {
+            period = plcd_core::duration::parse_duration(p).unwrap_or(MS);
+        }
+    }
+    (period, last)
+}
+
+fn conformance_cases() -> Vec<PathBuf> {
+    let mut cases = Vec::new();
+    let root = repository().join("tests/st");
+    for area in std::fs::read_dir(&root).expect("tests/st") {
+        let area = area.unwrap().path();
+        if !area.is_dir() {
+            continue;
+        }
+        for entry in std::fs::read_dir(&area).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "st") {
+                cases.push(path);
+            }
+        }
+    }
+    cases.sort();
+    cases
+}
+
+/// Runs every case and fails with every mismatch of all of them.
+fn check_all(cases: Vec<(Programs, Scans)>) {
+    let mut mismatches = Vec::new();
+    let (mut steps, mut native_steps, mut whole, mut native_whole) = (0, 0, 0, 0);
+    for (case, scans) in &cases {
+        let outcome = compare(case, *scans, &BUDGETS);
+        mismatches.extend(outcome.mismatches);
+        steps += outcome.steps;
+        native_steps += outcome.native_steps;
+        whole += outcome.whole_steps;
+        native_whole += outcome.native_whole_steps;
+    }
+    eprintln!(
+        "{} cases: {steps} steps, {native_steps} of them native; with the whole budget {whole}, \
+         {native_whole} native",
+        cases.len()
+    );
+    assert!(mismatches.is_empty(), "{} mismatches:\n{}", mismatches.len(), mismatches.join("\n"));
+}
+
+#[test]
+fn every_conformance_case_runs_the_same_natively() {
+    let files = conformance_cases();
+    assert!(files.len() >= 60, "only {} conformance cases", files.len());
+    let root = repository();
+    let cases = files
+        .iter()
+        .map(|file| {
+            let name = file.strip_prefix(&root).unwrap_or(file).display().to_string();
+            let (period_ns, last) = expect_of(file);
+            let case = Programs::st_file(&name, file, period_ns);
+            (case, Scans { period_ns, ..Scans::new(last.max(20)) })
+        })
+        .collect();
+    check_all(cases);
+}
+
+#[test]
+fn every_bench_workload_runs_the_same_natively() {
+    let dir = repository().join("benches/st");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .expect("benches/st")
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "st"))
+        .collect();
+    files.sort();
+    assert!(files.len() >= 5, "only {} workloads", files.len());
+    let cases = files
+        .iter()
+        .map(|file| {
+            let name = format!("benches/st/{}", file.file_name().unwrap().to_string_lossy());
+            (Programs::st_file(&name, file, MS), Scans { inner_every: 13, ..Scans::new(5) })
+        })
+        .collect();
+    check_all(cases);
+}
+
+#[test]
+fn the_example_project_runs_the_same_natively() {
+    let path = repository().join("etc/plcd.toml");
+    let text = std::fs::read_to_string(&path).expect("etc/plcd.toml");
+    let case = Programs::from_config("etc/plcd.toml", &text, &path);
+    assert!(case.programs.len() >= 2, "the example project's ST programs: level and tank");
+    let scans = Scans { period_ns: 10 * MS, ..Scans::new(20) };
+    // One after the other, and by turns (the tank's task preempting the level's).
+    let interleaved = Programs::from_config("etc/plcd.toml (by turns)", &text, &path);
+    check_all(vec![(case, scans), (interleaved, Scans { interleave: true, ..scans })]);
+}
+
+// ---------------------------------------------------------------------------------------------
+// 2. Targeted programs: what native code does its own way
+
+/// Runs `source` with every budget for `scans` and fails on any mismatch, or when native code
+/// ran less than `share` % of the steps with the whole budget.
+fn targeted(name: &str, source: &str, scans: Scans, share: u64) -> Outcome {
+    let case = Programs::inline(name, source);
+    let outcome = compare(&case, scans, &BUDGETS);
+    eprintln!(
+        "{name}: {} steps with the whole budget, {} native",
+        outcome.whole_steps, outcome.native_whole_steps
+    );
+    outcome.assert_equivalent();
+    outcome.assert_native_share(name, share);
+    outcome
+}
+
+/// The slot of a REAL variable as an `f32`.
+fn real(outcome: &Outcome, name: &str) -> f32 {
+    f32::from_bits(outcome.slot(name) as u32)
+}
+
+#[test]
+fn division_and_mod_by_zero_give_0_and_3400h() {
+    let source = "
+PROGRAM Main
+VAR
+    zi : INT; zd : DINT; zl : LINT; zu : UDINT; zr : REAL; zlr : LREAL;
+    zs : SINT; zus : USINT; zui : UINT; zul : ULINT;
+    a : INT := 100; ad : DINT := -100000; al : LINT := 5000000000; au : UDINT := 4000000000;
+    ar : REAL := 2.5; alr : LREAL := -7.25;
+    qi, mi, ei, ki : INT; qd, md, ed : DINT; ql, ml : LINT; qu, mu : UDINT;
+    qr, er, nr : REAL; qlr, elr : LREAL;
+    qs : SINT; qus : USINT; qui : UINT; qul : ULINT;
+    n : INT;
+END_VAR
+    n := n + 1;
+    zi := 0;
+    qi := a / zi;
+    mi := a MOD zi;
+    ei := 7 + a / zi * 3 - (a MOD zi);
+    qd := ad / zd;
+    md := ad MOD zd;
+    ed := ad - 1 + (ad / zd);
+    ql := al / zl;
+    ml := al MOD zl;
+    qu := au / zu;
+    mu := au MOD zu;
+    qr := ar / zr;
+    er := 1.5 + ar / zr * 2.0;
+    qlr := alr / zlr;
+    elr := alr - alr / zlr;
+    qs := SINT#-5 / zs;
+    qus := USINT#200 / zus;
+    qui := UINT#60000 MOD zui;
+    qul := ULINT#18000000000000000000 / zul;
+    zr := -0.0;
+    nr := ar / zr;
+    zr := 0.0;
+    zi := n;
+    ki := a / zi + a MOD zi;
+END_PROGRAM
+";
+    let scans = Scans::new(3);
+    // After an error native code resumes only at the next block: a small share.
+    let outcome = targeted("division by zero", source, scans, 5);
+    assert_eq!(outcome.errors_with_whole_budget(ERR_DIVIDE_BY_ZERO), 20 * 3);
+    for zero in ["qi", "mi", "qd", "md", "ql", "ml", "qu", "mu", "qlr", "qs", "qus", "qui", "qul"] {
+        assert_eq!(outcome.slot(&format!("main.{zero}")), 0, "{zero}");
+    }
+    assert_eq!(outcome.slot("main.ei") as i16, 7);
+    assert_eq!(outcome.slot("main.ed") as i32, -100001);
+    assert_eq!((real(&outcome, "main.qr"), real(&outcome, "main.er")), (0.0, 1.5));
+    assert_eq!(f64::from_bits(outcome.slot("main.elr")), -7.25);
+    assert_eq!(real(&outcome, "main.nr"), 0.0, "-0.0 is a zero divisor");
+    assert_eq!(outcome.slot("main.ki") as i16, 100 / 3 + 100 % 3);
+}
+
+#[test]
+fn the_minimum_divided_by_minus_1_wraps() {
+    let source = "
+PROGRAM Main
+VAR
+    lmin, lm1, lq, lr, lc, le : LINT;
+    dmin, dm1, dq, dr : DINT;
+    imin, im1, iq, ir : INT;
+    smin, sm1, sq, sr : SINT;
+END_VAR
+    lmin := -9223372036854775807;
+    lmin := lmin - 1;
+    lm1 := -1;
+    lq := lmin / lm1;
+    lr := lmin MOD lm1;
+    lc := lmin / -1 + lmin MOD -1;
+    le := 3 + lmin / lm1 * 2;
+    dmin := -2147483647 - 1;
+    dm1 := -1;
+    dq := dmin / dm1;
+    dr := dmin MOD dm1;
+    imin := -32767 - 1;
+    im1 := -1;
+    iq := imin / im1;
+    ir := imin MOD im1;
+    smin := -127 - 1;
+    sm1 := -1;
+    sq := smin / sm1;
+    sr := smin MOD sm1;
+END_PROGRAM
+";
+    let outcome = targeted("minimum / -1", source, Scans::new(2), 90);
+    assert!(outcome.errors.is_empty());
+    assert_eq!(outcome.slot("main.lq") as i64, i64::MIN);
+    assert_eq!(outcome.slot("main.lr"), 0);
+    assert_eq!(outcome.slot("main.lc") as i64, i64::MIN);
+    assert_eq!(outcome.slot("main.le") as i64, 3);
+    assert_eq!(outcome.slot("main.dq") as i64, i64::from(i32::MIN));
+    assert_eq!(outcome.slot("main.iq") as i64, i64::from(i16::MIN));
+    assert_eq!(outcome.slot("main.sq") as i64, i64::from(i8::MIN));
+    assert_eq!(outcome.slot("main.dr") | outcome.slot("main.ir") | outcome.slot("main.sr"), 0);
+}
+
+#[test]
+fn array_indices_out_of_bounds_give_3402h() {
+    let source = "
+TYPE Pt : STRUCT x, y : INT; END_STRUCT; END_TYPE
+PROGRAM Main
+VAR
+    a : ARRAY [1..5] OF INT := [1, 2, 3, 4, 5];
+    m : ARRAY [1..3, -2..2] OF DINT;
+    mm : ARRAY [0..1] OF ARRAY [0..2] OF INT;
+    s : ARRAY [0..3] OF Pt;
+    big : ARRAY [0..99] OF LREAL;
+    i, j : INT;
+    k : LINT;
+    r1, r2, r3, r4, r5 : INT;
+    rd : DINT;
+    n : INT;
+END_VAR
+    n := n + 1;
+    i := 5 + n;
+    r1 := a[i];
+    a[i] := 77;
+    i := 0 - n;
+    r2 := a[i] + 10;
+    a[i] := a[1] + a[i];
+    j := 3;
+    m[2, j] := 5;
+    m[n, 2 - n] := n;
+    rd := m[n, 0] + m[n + 3, j - 5] * 2;
+    s[n + 1].x := 9;
+    r3 := s[n + 2].y + s[n].x;
+    k := 9223372036854775807;
+    r4 := a[k];
+    big[n * 30] := 1.5;
+    mm[n - 1][n] := n;
+    r5 := mm[1][n + 1] + mm[n][0];
+    FOR i := 1 TO 6 DO
+        a[i] := a[i] + i;
+    END_FOR;
+END_PROGRAM
+";
+    let outcome = targeted("index range", source, Scans::new(4), 30);
+    assert!(outcome.errors_with_whole_budget(ERR_INDEX_RANGE) >= 4 * 8);
+    assert!(outcome.errors.iter().all(|&e| e == ERR_INDEX_RANGE));
+    assert_eq!(outcome.slot("main.r1"), 0);
+    assert_eq!(outcome.slot("main.r2"), 10);
+}
+
+#[test]
+fn arrays_and_structs_are_copied_whole_between_variables_and_frames() {
+    let source = "
+TYPE
+    Small : STRUCT
+        a : INT;
+        b : REAL;
+        c : BOOL;
+        d : ARRAY [0..3] OF DINT;
+    END_STRUCT;
+    Big : STRUCT
+        s : ARRAY [0..9] OF Small;
+        n : LINT;
+    END_STRUCT;
+END_TYPE
+
+FUNCTION Pass : Small
+VAR_INPUT x : Small; END_VAR
+VAR tmp : Small; END_VAR
+    tmp := x;
+    tmp.a := tmp.a + 1;
+    tmp.d[3] := tmp.d[2] * 2;
+    Pass := tmp;
+END_FUNCTION
+
+FUNCTION PassBig : Big
+VAR_INPUT x : Big; END_VAR
+VAR tmp : Big; other : Big; END_VAR
+    tmp := x;
+    tmp.n := tmp.n + 1;
+    tmp.s[3].a := 42;
+    other := tmp;
+    other.s[0] := Pass(other.s[3]);
+    PassBig := other;
+END_FUNCTION
+
+FUNCTION Swap : BOOL
+VAR_IN_OUT p, q : Big; END_VAR
+VAR t : Big; END_VAR
+    t := p;
+    p := q;
+    q := t;
+    Swap := TRUE;
+END_FUNCTION
+
+FUNCTION SwapSmall : BOOL
+VAR_IN_OUT p, q : ARRAY [0..3] OF INT; END_VAR
+VAR t : ARRAY [0..3] OF INT; END_VAR
+    t := p;
+    p := q;
+    q := t;
+    SwapSmall := TRUE;
+END_FUNCTION
+
+PROGRAM Main
+VAR
+    s1, s2 : Small;
+    b1, b2 : Big;
+    arr1, arr2 : ARRAY [0..99] OF INT;
+    short1, short2 : ARRAY [0..3] OF INT;
+    ok : BOOL;
+    n : INT;
+END_VAR
+    n := n + 1;
+    s1.a := n;
+    s1.d[2] := n * 3;
+    s2 := Pass(s1);
+    b1.n := n;
+    b1.s[9] := s2;
+    b2 := PassBig(b1);
+    ok := Swap(b1, b2);
+    arr1[n] := n;
+    arr2 := arr1;
+    short1[n MOD 4] := n;
+    short2 := short1;
+    ok := SwapSmall(short1, short2) AND ok;
+    b1.s[n MOD 10] := b2.s[(n + 1) MOD 10];
+END_PROGRAM
+";
+    let outcome = targeted("whole copies", source, Scans::new(5), 90);
+    assert!(outcome.errors.is_empty());
+    assert_eq!(outcome.slot("main.s2.a"), 6);
+    assert_eq!(outcome.slot("main.s2.d[3]") as i32, 30);
+    assert_eq!(outcome.slot("main.b1.s[3].a"), 42, "b1 holds PassBig's result after the swap");
+    assert_eq!(outcome.slot("main.arr2[5]"), 5);
+}
+
+#[test]
+fn fb_instances_in_a_frame_and_in_out_parameters() {
+    let source = "
+FUNCTION_BLOCK Acc
+VAR_INPUT in : INT; END_VAR
+VAR_OUTPUT total : DINT; END_VAR
+VAR_IN_OUT log : ARRAY [0..3] OF INT; END_VAR
+VAR_TEMP edge : R_TRIG; c : CTU; END_VAR
+    edge(CLK := in > 0);
+    c(CU := edge.Q, PV := 2);
+    c(CU := FALSE);
+    c(CU := TRUE);
+    total := total + in + c.CV;
+    log[in MOD 4] := log[in MOD 4] + 1;
+END_FUNCTION_BLOCK
+
+FUNCTION Bump : INT
+VAR_IN_OUT x : INT; arr : ARRAY [0..3] OF INT; END_VAR
+VAR_INPUT inc : INT; END_VAR
+    x := x + inc;
+    arr[x MOD 4] := arr[x MOD 4] + x;
+    Bump := x * 2;
+END_FUNCTION
+
+FUNCTION Twice : INT
+VAR_IN_OUT y : INT; arr : ARRAY [0..3] OF INT; END_VAR
+    Twice := Bump(y, arr, 1) + Bump(y, arr, 2);
+END_FUNCTION
+
+PROGRAM Main
+VAR
+    accs : ARRAY [1..3] OF Acc;
+    lg : ARRAY [0..3] OF INT;
+    i, n, v, w : INT;
+    t : DINT;
+END_VAR
+VAR_TEMP
+    pt : TP;
+    tr : R_TRIG;
+    inner : Acc;
+END_VAR
+    n := n + 1;
+    FOR i := 1 TO 4 DO
+        accs[i](in := i * n, log := lg);
+        t := t + accs[i].total;
+    END_FOR;
+    inner(in := n, log := lg);
+    t := t + inner.total;
+    tr(CLK := n MOD 2 = 0);
+    pt(IN := tr.Q, PT := T#2ms);
+    w := Twice(v, lg) + Bump(lg[n MOD 4], lg, n);
+END_PROGRAM
+";
+    let outcome = targeted("FB instances in a frame", source, Scans::new(6), 50);
+    assert_eq!(outcome.errors_with_whole_budget(ERR_INDEX_RANGE), 2 * 6, "accs[4], twice");
+    assert_eq!(outcome.slot("main.v"), 18);
+}
+
+/// `G`, `F`, `H` called inside expressions, in arguments of each other and in array indices:
+/// the caller has values on the evaluation stack across each call, and a division by zero in
+/// `H` raises its error while two callers wait.
+#[test]
+fn calls_inside_expressions_keep_the_callers_stack() {
+    let source = "
+FUNCTION G : DINT
+VAR_INPUT x : DINT; END_VAR
+    G := x * 3 - 1;
+END_FUNCTION
+
+FUNCTION F : DINT
+VAR_INPUT x : DINT; y : DINT := 2; END_VAR
+VAR t : DINT; END_VAR
+    t := x + y;
+    F := t * G(t) - G(x + G(y));
+END_FUNCTION
+
+FUNCTION H : LREAL
+VAR_INPUT a, b : LREAL; END_VAR
+    H := a / b + SQRT(ABS(a));
+END_FUNCTION
+
+PROGRAM Main
+VAR
+    a : DINT := 2;
+    b : DINT := -3;
+    c : DINT := 5;
+    r, i : DINT;
+    arr : ARRAY [0..4] OF DINT := [1, 2, 3, 4, 5];
+    l : LREAL;
+    deep : DINT;
+END_VAR
+    r := a + F(b * G(c)) - F(x := G(a), y := F(c)) * G(F(G(b)));
+    i := i + 1;
+    arr[ABS(G(i)) MOD 5] := F(arr[i MOD 5]) + arr[ABS(F(i)) MOD 5];
+    l := H(LREAL#1.5 + H(2.0, DINT_TO_LREAL(r)), H(3.0, 0.0)) + H(4.0, 2.0);
+    deep := a + (b * (c - (a + (b * (c - (a + (b * (c - (a + G(b * (c + F(a))))))))))));
+END_PROGRAM
+";
+    let outcome = targeted("calls in expressions", source, Scans::new(3), 60);
+    assert_eq!(outcome.errors_with_whole_budget(ERR_DIVIDE_BY_ZERO), 3);
+}
+
+/// A chain of FUNCTION calls as deep as the compiler allows (32), each waiting with values on
+/// the stack.
+#[test]
+fn a_deep_call_chain() {
+    const DEPTH: usize = 32;
+    let mut source = String::new();
+    for k in 1..=DEPTH {
+        let body = if k == DEPTH {
+            format!("F{k} := x + {k};")
+        } else {
+            format!("t := x * 2 + {k};\n    F{k} := t + F{}(t MOD 1000) * 3 - {k};", k + 1)
+        };
+        let _ = write!(
+            source,
+            "FUNCTION F{k} : DINT\nVAR_INPUT x : DINT; END_VAR\nVAR t : DINT; END_VAR\n    \
+             {body}\nEND_FUNCTION\n\n"
+        );
+    }
+    source.push_str(
+        "PROGRAM Main\nVAR n, r : DINT; END_VAR\n    n := n + 1;\n    r := 5 + F1(n) * 2 - F1(r MOD 7);\nEND_PROGRAM\n",
+    );
+    let outcome = targeted("deep call chain", &source, Scans::new(3), 90);
+    assert!(outcome.errors.is_empty());
+}
+
+#[test]
+fn located_variables_of_every_size() {
+    let source = "
+PROGRAM Main
+VAR
+    w AT %MW5 : INT := -3;
+    uw AT %M006 : UINT;
+    sb AT %D00010 : SINT;
+    ub AT %D00011 : BYTE;
+    us AT %D00012 : USINT := 200;
+    d AT %D00020 : DINT := 16#12345678;
+    alias AT %D00020 : INT;
+    ud AT %MD30 : UDINT;
+    r AT %D00040 : REAL := 1.5;
+    lr AT %D00050 : LREAL := -2.25;
+    li AT %ML40 : LINT;
+    lw AT %D00060 : LWORD;
+    ew AT %D00065 : WORD;
+    bm AT %MX1.2 : BOOL;
+    bp AT %QX4.6 : BOOL;
+    bd AT %D00070.F : BOOL;
+    bi AT %IX0.1 : BOOL;
+    bk AT %M0123 : BOOL;
+    arr AT %D00100 : ARRAY [0..7] OF INT;
+    darr AT %D00120 : ARRAY [0..3] OF DINT;
+    bits AT %M0200 : ARRAY [0..19] OF BOOL;
+    n, i : INT;
+    x : DINT;
+END_VAR
+    n := n + 1;
+    w := w * 2 + n;
+    uw := uw + 1000;
+    sb := sb - 50;
+    ub := ROL(ub, 1) XOR 16#5A;
+    us := us + 30;
+    d := d + DINT#65536 * INT_TO_DINT(n);
+    alias := alias + 1;
+    ud := ud - 1;
+    r := r * -1.5;
+    lr := lr * lr;
+    li := li - 1000000007;
+    lw := ROL(lw, 3) XOR 16#F0F0;
+    ew.3 := NOT ew.3;
+    ew := ew XOR SHL(ew, 4) XOR 16#100;
+    bm := NOT bm;
+    bp := bm AND n MOD 3 = 0;
+    bd := NOT bd;
+    bi := n MOD 2 = 0;
+    bk := bi OR bd;
+    arr[n MOD 8] := arr[(n + 1) MOD 8] + n;
+    darr[n MOD 4] := darr[(n + 3) MOD 4] - d;
+    bits[n MOD 20] := NOT bits[(n + 19) MOD 20];
+    FOR i := 0 TO 7 DO
+        x := x + arr[i] + SINT_TO_DINT(sb) + BYTE_TO_DINT(ub);
+    END_FOR;
+END_PROGRAM
+";
+    let outcome = targeted("located variables", source, Scans::new(6), 50);
+    assert!(outcome.errors.is_empty());
+}
+
+/// Every comparison of REAL and LREAL with a NaN operand (and infinities): all FALSE but `<>`.
+#[test]
+fn comparisons_with_nan() {
+    let operands = ["nan", "nan2", "one", "inf", "ninf", "zero"];
+    let ops = ["=", "<>", "<", "<=", ">", ">="];
+    let mut body = String::new();
+    let mut count = 0;
+    for prefix in ["", "l"] {
+        for a in operands {
+            for b in operands {
+                for op in ops {
+                    let _ = writeln!(body, "    c[{count}] := {prefix}{a} {op} {prefix}{b};");
+                    count += 1;
+                }
+            }
+        }
+    }
+    let source = format!(
+        "
+PROGRAM Main
+VAR
+    m1 : REAL := -1.0; big : REAL := 3.0E38; one : REAL := 1.0; zero : REAL;
+    nan, nan2, inf, ninf, mn, mx, lim : REAL;
+    lm1 : LREAL := -1.0; lbig : LREAL := 1.0E308; lone : LREAL := 1.0; lzero : LREAL;
+    lnan, lnan2, linf, lninf, lmn : LREAL;
+    c : ARRAY [0..{last}] OF BOOL;
+    b1, b2, b3, b4 : BOOL;
+    i : INT;
+END_VAR
+    nan := SQRT(m1);
+    inf := big * 10.0;
+    ninf := -inf;
+    nan2 := inf + ninf;
+    lnan := LN(lm1);
+    linf := lbig * 10.0;
+    lninf := -linf;
+    lnan2 := linf - linf;
+{body}
+    mn := MIN(nan, one);
+    mx := MAX(one, nan);
+    lim := LIMIT(zero, nan, one);
+    lmn := MIN(lone, lnan);
+    b1 := REAL_TO_BOOL(nan);
+    b2 := NOT (nan >= zero);
+    b3 := nan = nan OR nan <> zero;
+    b4 := LREAL_TO_BOOL(lnan) AND lnan <> lnan;
+    i := 0;
+    IF nan < one THEN
+        i := 1;
+    ELSIF nan > one THEN
+        i := 2;
+    ELSE
+        i := 3;
+    END_IF;
+    WHILE lnan <> lnan AND i < 10 DO
+        i := i + 1;
+    END_WHILE;
+END_PROGRAM
+",
+        last = count - 1
+    );
+    let outcome = targeted("NaN comparisons", &source, Scans::new(2), 90);
+    assert_eq!(outcome.slot("main.i"), 10);
+    // `nan <> nan` holds, `nan = nan` does not.
+    assert_eq!((outcome.slot("main.c[0]"), outcome.slot("main.c[1]")), (0, 1));
+}
+
+/// REAL and LREAL to every integer width: NaN, infinities, out of range, ties, the largest
+/// values below a tie; and the 64-bit integers to REAL and LREAL.
+#[test]
+fn float_to_integer_conversions() {
+    let reals = [
+        "0.5",
+        "1.5",
+        "2.5",
+        "-0.5",
+        "-1.5",
+        "-2.5",
+        "0.49999997",
+        "-0.49999997",
+        "127.5",
+        "-128.5",
+        "255.5",
+        "32767.5",
+        "-32768.5",
+        "65535.5",
+        "2147483647.0",
+        "-2147483648.0",
+        "4294967295.0",
+        "9.3E18",
+        "-9.3E18",
+        "1.8E19",
+        "3.4E38",
+        "-3.4E38",
+        "1.0E-45",
+        "-0.0",
+        "16777217.0",
+        "100.4",
+    ];
+    let lreals = [
+        "0.49999999999999994",
+        "-0.49999999999999994",
+        "2147483647.5",
+        "-2147483648.5",
+        "4294967295.5",
+        "4294967296.0",
+        "9223372036854775807.0",
+        "-9223372036854775808.0",
+        "18446744073709551615.0",
+        "1.0E300",
+        "-1.0E300",
+        "4503599627370496.5",
+        "2.5",
+        "-3.5",
+        "9007199254740993.0",
+        "5.0E-324",
+    ];
+    // The special values are set at run time: NaN and the infinities have no literal.
+    let (nr, nl) = (reals.len() + 3, lreals.len() + 3);
+    let list = |xs: &[&str]| xs.join(", ");
+    let source = format!(
+        "
+PROGRAM Main
+VAR
+    rv : ARRAY [0..{rl}] OF REAL := [{r}];
+    lv : ARRAY [0..{ll}] OF LREAL := [{l}];
+    i8 : ARRAY [0..{ll}] OF SINT; u8 : ARRAY [0..{ll}] OF USINT;
+    i16 : ARRAY [0..{ll}] OF INT; u16 : ARRAY [0..{ll}] OF UINT;
+    i32 : ARRAY [0..{ll}] OF DINT; u32 : ARRAY [0..{ll}] OF UDINT;
+    i64 : ARRAY [0..{ll}] OF LINT; u64 : ARRAY [0..{ll}] OF ULINT;
+    t32 : ARRAY [0..{ll}] OF DINT; w16 : ARRAY [0..{ll}] OF WORD;
+    li : ARRAY [0..{ll}] OF LINT; lu : ARRAY [0..{ll}] OF ULINT;
+    lt : ARRAY [0..{ll}] OF DINT;
+    back, back2 : ARRAY [0..7] OF REAL; lback : ARRAY [0..7] OF LREAL;
+    m1 : REAL := -1.0; big : REAL := 3.0E38;
+    lm1 : LREAL := -1.0; lbig : LREAL := 1.0E308;
+    ints : ARRAY [0..7] OF LINT := [9223372036854775807, -9223372036854775807, 16777217,
+        36028797018963967, -36028797018963969, 0, 1, 9007199254740993];
+    uints : ARRAY [0..7] OF ULINT := [18446744073709551615, 9223372036854775808, 16777217,
+        18446744073709550592, 18446744073709549568, 0, 1, 9007199254740993];
+    demoted : ARRAY [0..{ll}] OF REAL;
+    i : INT;
+END_VAR
+    rv[{r0}] := SQRT(m1);
+    rv[{r0} + 1] := big * 10.0;
+    rv[{r0} + 2] := -(big * 10.0);
+    lv[{l0}] := SQRT(lm1);
+    lv[{l0} + 1] := lbig * 10.0;
+    lv[{l0} + 2] := -(lbig * 10.0);
+    FOR i := 0 TO {rl} DO
+        i8[i] := REAL_TO_SINT(rv[i]);
+        u8[i] := REAL_TO_USINT(rv[i]);
+        i16[i] := REAL_TO_INT(rv[i]);
+        u16[i] := REAL_TO_UINT(rv[i]);
+        i32[i] := REAL_TO_DINT(rv[i]);
+        u32[i] := REAL_TO_UDINT(rv[i]);
+        i64[i] := REAL_TO_LINT(rv[i]);
+        u64[i] := REAL_TO_ULINT(rv[i]);
+        t32[i] := TRUNC(rv[i]);
+        w16[i] := REAL_TO_WORD(rv[i]);
+    END_FOR;
+    FOR i := 0 TO {ll} DO
+        li[i] := LREAL_TO_LINT(lv[i]);
+        lu[i] := LREAL_TO_ULINT(lv[i]);
+        lt[i] := TRUNC(lv[i]) + LREAL_TO_DINT(lv[i]) - UDINT_TO_DINT(LREAL_TO_UDINT(lv[i]));
+        demoted[i] := LREAL_TO_REAL(lv[i]);
+    END_FOR;
+    FOR i := 0 TO 7 DO
+        back[i] := LINT_TO_REAL(ints[i]);
+        back2[i] := ULINT_TO_REAL(uints[i]);
+        lback[i] := LINT_TO_LREAL(ints[i]) + ULINT_TO_LREAL(uints[i]);
+    END_FOR;
+END_PROGRAM
+",
+        rl = nr - 1,
+        ll = nl.max(nr) - 1,
+        r = list(&reals),
+        l = list(&lreals),
+        r0 = reals.len(),
+        l0 = lreals.len(),
+    );
+    let outcome = targeted("float to integer", &source, Scans::new(2), 90);
+    assert!(outcome.errors.is_empty());
+    assert_eq!(outcome.slot("main.i16[2]") as i16, 3, "2.5 rounds away from zero");
+    assert_eq!(outcome.slot(&format!("main.i32[{}]", reals.len())), 0, "NaN gives 0");
+}
+
+#[test]
+fn float_functions_and_selections() {
+    let inputs =
+        ["-1.0", "0.0", "-0.0", "0.5", "2.0", "1.0E30", "-1.0E30", "3.14159", "-2.7", "1.0"];
+    let funcs = ["SQRT", "LN", "LOG", "EXP", "SIN", "COS", "TAN", "ASIN", "ACOS", "ATAN", "ABS"];
+    let n = inputs.len() + 3;
+    let mut body = String::new();
+    for (k, f) in funcs.iter().enumerate() {
+        let _ = writeln!(body, "        r[{k}, i] := {f}(x[i]);\n        l[{k}, i] := {f}(lx[i]);");
+    }
+    let m = funcs.len();
+    let source = format!(
+        "
+PROGRAM Main
+VAR
+    x : ARRAY [0..{last}] OF REAL := [{inputs}];
+    lx : ARRAY [0..{last}] OF LREAL;
+    r : ARRAY [0..{m}, 0..{last}] OF REAL;
+    l : ARRAY [0..{m}, 0..{last}] OF LREAL;
+    p, q : ARRAY [0..{last}, 0..{last}] OF REAL;
+    lp : ARRAY [0..{last}, 0..{last}] OF LREAL;
+    t : ARRAY [0..{last}] OF DINT;
+    big : REAL := 3.0E38;
+    i, j, k : INT;
+    mi, ma, li, se, mu, mu2 : INT;
+    md : DINT; mr, lr2, sr : REAL; ml : LREAL;
+    a : INT := -7; b : INT := 12; c : INT := 3;
+    ia : INT := -32767;
+END_VAR
+    x[{base}] := big * 10.0;
+    x[{base} + 1] := -(big * 10.0);
+    x[{base} + 2] := SQRT(x[0]);
+    FOR i := 0 TO {last} DO
+        lx[i] := REAL_TO_LREAL(x[i]);
+{body}
+        r[{m}, i] := x[i] ** 2.0;
+        l[{m}, i] := EXPT(lx[i], 0.5);
+        t[i] := TRUNC(x[i]) + TRUNC(lx[i] * 3.0);
+        FOR j := 0 TO {last} DO
+            p[i, j] := EXPT(x[i], x[j]);
+            q[i, j] := MIN(x[i], x[j]) + MAX(x[j], x[i]) - LIMIT(x[j], x[i], 2.0);
+            lp[i, j] := lx[i] ** lx[j];
+        END_FOR;
+    END_FOR;
+    k := k + 1;
+    mi := MIN(a, b, c, k);
+    ma := MAX(a * 2, b, c - k);
+    li := LIMIT(a, k * 5, b);
+    se := SEL(k MOD 2 = 0, a, b) + SEL(TRUE, 1, 2);
+    mu := MUX(k MOD 4, a, b, c);
+    mu2 := MUX(k - 1, 10, 20, 30, 40, 50);
+    md := MAX(DINT#-5, INT_TO_DINT(a) * 100000, DINT#7);
+    mr := LIMIT(-1.5, INT_TO_REAL(k) * 0.75, 2.25);
+    lr2 := SEL(k > 2, x[3], x[4]);
+    sr := MUX(k MOD 3, x[0], x[5], x[9]);
+    ml := MIN(lx[3], lx[5], lx[6]);
+    ia := ABS(ia - k);
+END_PROGRAM
+",
+        last = n - 1,
+        inputs = inputs.join(", "),
+        base = inputs.len(),
+    );
+    let outcome = targeted("float functions", &source, Scans::new(6), 90);
+    // MUX(k MOD 4, …) with three inputs: K = 3 at the third scan; MUX(k - 1, …five) at the
+    // sixth.
+    assert_eq!(outcome.errors_with_whole_budget(ERR_INDEX_RANGE), 2);
+    assert!(outcome.errors.iter().all(|&e| e == ERR_INDEX_RANGE));
+}
+
+#[test]
+fn shifts_and_rotations() {
+    let counts = [0, 1, 3, 7, 8, 9, 15, 16, 17, 31, 32, 33, 63, 64, 65, 1000, -1, -8, -65];
+    let n = counts.len();
+    let source = format!(
+        "
+PROGRAM Main
+VAR
+    cs : ARRAY [0..{last}] OF DINT := [{counts}];
+    b : BYTE := 16#A5; w : WORD := 16#8421; d : DWORD := 16#80000001;
+    l : LWORD := 16#8000_0000_0000_0003;
+    rb : ARRAY [0..3, 0..{last}] OF BYTE;
+    rw : ARRAY [0..3, 0..{last}] OF WORD;
+    rd : ARRAY [0..3, 0..{last}] OF DWORD;
+    rl : ARRAY [0..3, 0..{last}] OF LWORD;
+    ru : ARRAY [0..3, 0..{last}] OF LWORD;
+    u : UDINT;
+    i : INT;
+END_VAR
+    FOR i := 0 TO {last} DO
+        rb[0, i] := SHL(b, cs[i]);
+        rb[1, i] := SHR(b, cs[i]);
+        rb[2, i] := ROL(b, cs[i]);
+        rb[3, i] := ROR(b, cs[i]);
+        rw[0, i] := SHL(w, cs[i]);
+        rw[1, i] := SHR(w, cs[i]);
+        rw[2, i] := ROL(w, cs[i]);
+        rw[3, i] := ROR(w, cs[i]);
+        rd[0, i] := SHL(d, cs[i]);
+        rd[1, i] := SHR(d, cs[i]);
+        rd[2, i] := ROL(d, cs[i]);
+        rd[3, i] := ROR(d, cs[i]);
+        rl[0, i] := SHL(l, cs[i]);
+        rl[1, i] := SHR(l, cs[i]);
+        rl[2, i] := ROL(l, cs[i]);
+        rl[3, i] := ROR(l, cs[i]);
+        u := DINT_TO_UDINT(cs[i]);
+        ru[0, i] := SHL(l, u) OR SHR(l, u);
+        ru[1, i] := ROL(l, u) XOR ROR(l, u);
+        ru[2, i] := ROL(WORD_TO_LWORD(w), u) AND NOT ROR(l, u);
+        ru[3, i] := DWORD_TO_LWORD(ROL(d, u)) XOR BYTE_TO_LWORD(ROR(b, u));
+    END_FOR;
+    b := ROL(b, 1);
+    w := ROR(w, 3) XOR SHL(w, 1);
+    d := ROL(d, 5) XOR 1;
+    l := ROR(l, 7) OR SHR(l, 60);
+END_PROGRAM
+",
+        last = n - 1,
+        counts = counts.map(|c| c.to_string()).join(", "),
+    );
+    let outcome = targeted("shifts", &source, Scans::new(3), 90);
+    assert!(outcome.errors.is_empty());
+}
+
+/// Strings run on the interpreter inside native code: mixed execution, with arithmetic
+/// around each string operation.
+#[test]
+fn strings_mixed_with_native_code() {
+    let source = "
+FUNCTION Tag : STRING[20]
+VAR_INPUT s : STRING[10]; n : INT; END_VAR
+VAR t : STRING[20]; END_VAR
+    t := CONCAT(LEFT(s, n), '-', INT_TO_STRING(n * 7));
+    Tag := t;
+END_FUNCTION
+
+PROGRAM Main
+VAR
+    a : STRING := 'hello world';
+    b : STRING[8];
+    c : STRING;
+    n, l, f : INT;
+    eq : BOOL;
+    v : DINT;
+    r : REAL;
+    names : ARRAY [0..2] OF STRING[12] := ['alpha', 'beta', 'gamma'];
+END_VAR
+    n := n + 1;
+    b := MID(a, n, 2);
+    c := CONCAT(b, Tag('abcdef', n MOD 7), RIGHT(a, n));
+    l := LEN(c) * 3 + n;
+    f := FIND(c, 'o') + l;
+    eq := b < c AND l > 5;
+    v := STRING_TO_DINT(INT_TO_STRING(l * 100)) + 1;
+    r := STRING_TO_REAL('2.5') * INT_TO_REAL(n);
+    a := REPLACE(a, INT_TO_STRING(n), 1, n MOD 11 + 1);
+    c := INSERT(c, 'x', n);
+    c := DELETE(c, 2, 1);
+    names[n MOD 3] := CONCAT(names[(n + 1) MOD 3], LEFT(b, 1));
+    IF names[0] = names[1] OR LEN(names[2]) > 10 THEN
+        names[2] := 'reset';
+    END_IF;
+END_PROGRAM
+";
+    let outcome = targeted("strings", source, Scans::new(12), 20);
+    assert!(outcome.errors.is_empty());
+}
+
+/// TON, TOF and TP read the clock (`Now`, executed by the interpreter); with a clock that
+/// charges every step, their times show the exact step at which each call read it.
+#[test]
+fn timers_read_the_clock_at_the_same_step() {
+    let source = "
+PROGRAM Main
+VAR
+    n : INT;
+    on_delay : TON;
+    off_delay : TOF;
+    pulse : TP;
+    bank : ARRAY [0..3] OF TON;
+    i : INT;
+    et : DINT;
+    times : ARRAY [0..3] OF TIME;
+END_VAR
+    n := n + 1;
+    on_delay(IN := n MOD 7 <> 0, PT := T#3ms);
+    off_delay(IN := n MOD 5 = 0, PT := T#2ms500us);
+    pulse(IN := n MOD 4 = 1, PT := T#1ms700us);
+    FOR i := 0 TO 3 DO
+        bank[i](IN := n > i, PT := T#1ms * (i + 1));
+        times[i] := bank[i].ET + on_delay.ET;
+        et := et + TIME_TO_DINT(bank[i].ET) * 2 + n;
+    END_FOR;
+END_PROGRAM
+";
+    targeted("timers", source, Scans::new(20), 20);
+    // 50 µs a step: a timer's ET depends on the step of its call.
+    let stepped = Scans { step_ns: 50_000, ..Scans::new(20) };
+    let outcome = targeted("timers on a stepping clock", source, stepped, 20);
+    assert!(outcome.slot("main.bank[0].ET").is_multiple_of(50_000));
+}
+
+/// An endless loop stopped by the budget: each `Budget` exit at the same step and pc, the
+/// loop's state the same, whether the loop is in the program or in a function it calls.
+#[test]
+fn an_endless_loop_stops_at_the_same_step_for_any_budget() {
+    let source = "
+FUNCTION Spin : DINT
+VAR_INPUT start : DINT; END_VAR
+VAR k, x : DINT; END_VAR
+    x := start;
+    REPEAT
+        FOR k := 1 TO 3 DO
+            x := x * 3 + k;
+        END_FOR;
+        x := x MOD 100003;
+    UNTIL x < 0 END_REPEAT;
+    Spin := x;
+END_FUNCTION
+
+PROGRAM Main
+VAR
+    x, y : DINT;
+    r : REAL := 1.0;
+    arr : ARRAY [0..7] OF DINT;
+END_VAR
+    WHILE TRUE DO
+        x := x + 1;
+        y := y * 3 + x;
+        r := r * 1.5 + DINT_TO_REAL(y MOD 7);
+        arr[x MOD 8] := arr[(x + 1) MOD 8] + y;
+        IF x > 5000 THEN
+            y := Spin(y);
+        END_IF;
+    END_WHILE;
+END_PROGRAM
+";
+    let case = Programs::inline("endless loop", source);
+    let budgets = [Budget::Fixed(1000), Budget::Fixed(997), Budget::Fixed(13), Budget::Varying];
+    let scans = Scans { calls: Some(200), ..Scans::new(1) };
+    let outcome = compare(&case, scans, &budgets);
+    outcome.assert_equivalent();
+    // 200 calls of 1000 steps: the loop entered Spin, which never returns.
+    let vm = outcome.vm.as_ref().expect("ran");
+    assert_eq!(vm.steps(), 200 * 1000);
+    assert!(outcome.native_steps > 100_000, "{} native steps", outcome.native_steps);
+    assert!(outcome.errors.is_empty());
+}
+
+/// Arithmetic on two different NaNs (of both signs, with a payload, a signaling one): which
+/// operand's NaN an operation returns is the processor's choice by operand order, so native
+/// code must keep the interpreter's order; the bits land in variable memory.
+#[test]
+fn arithmetic_on_different_nans_keeps_the_bits() {
+    let ops = ["+", "-", "*", "/"];
+    let pairs = [("nan", "mnan"), ("mnan", "nan"), ("pr", "nan"), ("mnan", "pr"), ("sr", "one")];
+    let mut body = String::new();
+    let mut k = 0;
+    for prefix in ["", "l"] {
+        for (a, b) in pairs {
+            for op in ops {
+                let _ = writeln!(body, "    {prefix}r[{k}] := {prefix}{a} {op} {prefix}{b};");
+                k += 1;
+            }
+            let _ = writeln!(body, "    {prefix}r[{k}] := MIN({prefix}{a}, {prefix}{b});");
+            let _ = writeln!(body, "    {prefix}r[{}] := MAX({prefix}{a}, {prefix}{b});", k + 1);
+            let _ = writeln!(body, "    {prefix}r[{}] := -{prefix}{a} + ABS({prefix}{b});", k + 2);
+            k += 3;
+        }
+    }
+    let source = format!(
+        "
+PROGRAM Main
+VAR
+    m1 : REAL := -1.0; one : REAL := 1.0;
+    nan, mnan : REAL;
+    pn AT %D00300 : DWORD := 16#7FC12345;
+    pr AT %D00300 : REAL;
+    sn AT %D00302 : DWORD := 16#7F800001;
+    sr AT %D00302 : REAL;
+    lm1 : LREAL := -1.0; lone : LREAL := 1.0;
+    lnan, lmnan : LREAL;
+    lpn AT %D00310 : LWORD := 16#7FF8_0000_0001_2345;
+    lpr AT %D00310 : LREAL;
+    lsn AT %D00314 : LWORD := 16#7FF0_0000_0000_0001;
+    lsr AT %D00314 : LREAL;
+    r : ARRAY [0..{k}] OF REAL;
+    lr : ARRAY [0..{k}] OF LREAL;
+    widened : LREAL;
+    narrowed : REAL;
+END_VAR
+    nan := SQRT(m1);
+    mnan := -nan;
+    lnan := SQRT(lm1);
+    lmnan := -lnan;
+{body}
+    widened := REAL_TO_LREAL(pr) + REAL_TO_LREAL(sr);
+    narrowed := LREAL_TO_REAL(lpr) * LREAL_TO_REAL(lsr);
+END_PROGRAM
+"
+    );
+    let outcome = targeted("NaN bits", &source, Scans::new(2), 90);
+    assert!(outcome.errors.is_empty());
+}
+
+/// A frame area smaller than the program needs (the engine never gives one, but `Vm::run`
+/// takes any): native code leaves every access outside it to the interpreter, which reads 0
+/// and writes nothing there. (No loop on a frame variable: it would never end.)
+#[test]
+fn a_frame_smaller_than_the_program_needs() {
+    let source = "
+TYPE Small : STRUCT a : INT; d : ARRAY [0..3] OF DINT; END_STRUCT; END_TYPE
+FUNCTION Inner : DINT
+VAR_INPUT x : DINT; s : Small; END_VAR
+VAR t : ARRAY [0..7] OF DINT; u : Small; END_VAR
+    t[x MOD 8] := x * 2;
+    u := s;
+    u.d[1] := t[x MOD 8] + u.a;
+    Inner := u.d[1] + t[(x + 1) MOD 8];
+END_FUNCTION
+FUNCTION Outer : DINT
+VAR_INPUT x : DINT; END_VAR
+VAR s : Small; k : DINT; END_VAR
+    s.a := 3;
+    k := x MOD 3;
+    Outer := Inner(x + k, s) * (k + 1);
+    Outer := Outer + Inner(x - k, s) * 2;
+END_FUNCTION
+PROGRAM Main
+VAR n, r : DINT; keep : Small; END_VAR
+VAR_TEMP trig : R_TRIG; END_VAR
+    n := n + 1;
+    r := 1 + Outer(n) * 2;
+    trig(CLK := n MOD 2 = 0);
+    keep.d[n MOD 4] := r;
+END_PROGRAM
+";
+    let case = Programs::inline("small frame", source);
+    for frame in [0, 3, case.frame_bytes / 2, case.frame_bytes - 1, case.frame_bytes + 5] {
+        let scans = Scans { frame_bytes: Some(frame), ..Scans::new(3) };
+        let outcome = compare(&case, scans, &BUDGETS);
+        outcome.assert_equivalent();
+    }
+}
+
+/// A call made with 40 values on the evaluation stack, into a FUNCTION whose expression needs
+/// 26 more: the compiler checks each POU's statements against the stack's 64 slots, not a
+/// chain of calls, so the ring wraps: in the interpreter the callee's pushes overwrite the
+/// caller's first slots. `r` is 66 natively (40 ones and `F(1)` = 26) and 67 on the
+/// interpreter, whose first caller slot the callee overwrote with a 2.
+#[test]
+fn a_call_chain_deeper_than_the_evaluation_stack() {
+    let (n, m) = (40, 25);
+    let source = format!(
+        "
+FUNCTION F : DINT
+VAR_INPUT x : DINT; END_VAR
+    F := {callee}x{close_callee};
+END_FUNCTION
+
+PROGRAM Main
+VAR a : DINT := 1; r : DINT; END_VAR
+    r := {caller}F(a){close_caller};
+END_PROGRAM
+",
+        callee = "x + (".repeat(m),
+        caller = "a + (".repeat(n),
+        close_callee = ")".repeat(m),
+        close_caller = ")".repeat(n),
+    );
+    targeted("evaluation stack ring", &source, Scans::new(2), 90);
+}
+
+/// `VAR_IN_OUT` references into every space: variable memory, a caller's frame, a word device,
+/// a bit device, an array element of each; bits of a referenced word.
+#[test]
+fn in_out_references_into_every_space() {
+    let source = "
+FUNCTION Bump : INT
+VAR_IN_OUT x : INT; flag : BOOL; END_VAR
+VAR_INPUT inc : INT; END_VAR
+    x := x + inc;
+    x.3 := NOT x.3;
+    flag := NOT flag OR x.0;
+    Bump := x * 2;
+END_FUNCTION
+
+FUNCTION Local : INT
+VAR_INPUT start : INT; END_VAR
+VAR loc : INT; f : BOOL; arr : ARRAY [0..3] OF INT; END_VAR
+    loc := start;
+    Local := Bump(loc, f, 5) + Bump(arr[start MOD 4], f, loc);
+    Local := Local + loc + arr[start MOD 4] + BOOL_TO_INT(f);
+END_FUNCTION
+
+PROGRAM Main
+VAR
+    v : INT;
+    b : BOOL;
+    w AT %MW7 : INT;
+    mb AT %MX3.4 : BOOL;
+    pb AT %QX5.1 : BOOL;
+    words AT %D00400 : ARRAY [0..3] OF INT;
+    bits AT %M0400 : ARRAY [0..7] OF BOOL;
+    vars : ARRAY [0..3] OF INT;
+    n, r : INT;
+END_VAR
+    n := n + 1;
+    r := Bump(v, b, n) + Bump(w, mb, n * 2);
+    r := r + Bump(words[n MOD 4], bits[n MOD 8], 3) + Bump(vars[n MOD 4], pb, -1);
+    r := r + Local(n);
+END_PROGRAM
+";
+    let outcome = targeted("in-out references", source, Scans::new(5), 40);
+    assert!(outcome.errors.is_empty());
+}
+
+/// Programs that share globals, run by turns one `run` call each (a task preempted at every
+/// budget's end): native code reads what another program wrote between two of its calls,
+/// and leaves in memory everything the other reads.
+#[test]
+fn programs_preempting_each_other_share_globals() {
+    let source = "
+VAR_GLOBAL
+    shared : ARRAY [0..7] OF DINT;
+    turn : DINT;
+    total : LREAL;
+END_VAR
+
+FUNCTION Mix : DINT
+VAR_INPUT k : DINT; END_VAR
+    shared[k MOD 8] := shared[(k + 1) MOD 8] + k;
+    Mix := shared[k MOD 8] * 2 + turn;
+END_FUNCTION
+
+PROGRAM Producer
+VAR i : DINT; sum : DINT; END_VAR
+    FOR i := 0 TO 15 DO
+        turn := turn + 1;
+        sum := sum + Mix(i) - shared[(i + 3) MOD 8];
+        total := total + DINT_TO_LREAL(sum) * 0.5;
+    END_FOR;
+END_PROGRAM
+
+PROGRAM Consumer
+VAR i : DINT; seen : ARRAY [0..7] OF DINT; last : LREAL; END_VAR
+    FOR i := 7 TO 0 BY -1 DO
+        seen[i] := shared[i] + turn * Mix(i + turn);
+        turn := turn * 3 MOD 1000;
+        last := total - DINT_TO_LREAL(seen[i]);
+    END_FOR;
+END_PROGRAM
+";
+    let instances = [("producer", Some("Producer")), ("consumer", Some("Consumer"))];
+    let case = Programs::instances("preemption", source, &instances);
+    for interleave in [false, true] {
+        let outcome = compare(&case, Scans { interleave, ..Scans::new(4) }, &BUDGETS);
+        outcome.assert_equivalent();
+        outcome.assert_native_share("preemption", 90);
+    }
+}
