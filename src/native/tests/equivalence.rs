@@ -1740,15 +1740,13 @@ END_PROGRAM
     }
 }
 
-/// A call made with 40 values on the evaluation stack, into a FUNCTION whose expression needs
-/// 26 more: the compiler checks each POU's statements against the stack's 64 slots, not a
-/// chain of calls, so the ring wraps: in the interpreter the callee's pushes overwrite the
-/// caller's first slots. `r` is 66 natively (40 ones and `F(1)` = 26) and 67 on the
-/// interpreter, whose first caller slot the callee overwrote with a 2.
-#[test]
-fn a_call_chain_deeper_than_the_evaluation_stack() {
-    let (n, m) = (40, 25);
-    let source = format!(
+/// A call made with `held` values on the evaluation stack, into a FUNCTION whose expression
+/// needs `m + 1` more. Up to the stack's 64 slots the two agree; past them the ring would wrap
+/// (the interpreter's callee overwriting its caller's first slots, where native code keeps
+/// them in registers: 67 against 66 when this test found it), so the compiler refuses the
+/// program (tests/golden/st/call-chain-stack-too-deep).
+fn call_chain(held: usize, m: usize) -> String {
+    format!(
         "
 FUNCTION F : DINT
 VAR_INPUT x : DINT; END_VAR
@@ -1761,11 +1759,30 @@ VAR a : DINT := 1; r : DINT; END_VAR
 END_PROGRAM
 ",
         callee = "x + (".repeat(m),
-        caller = "a + (".repeat(n),
+        caller = "a + (".repeat(held),
         close_callee = ")".repeat(m),
-        close_caller = ")".repeat(n),
+        close_caller = ")".repeat(held),
+    )
+}
+
+#[test]
+fn a_call_chain_as_deep_as_the_evaluation_stack() {
+    // 38 held, 26 in the callee: all 64 slots.
+    targeted("evaluation stack full", &call_chain(38, 25), Scans::new(2), 90);
+}
+
+#[test]
+fn a_call_chain_deeper_than_the_evaluation_stack_is_refused() {
+    let source = call_chain(40, 25);
+    let (file, diags) = parse_file(Path::new("inline.st"), &source);
+    assert!(diags.is_empty(), "{diags}");
+    let path = Path::new("inline.st");
+    let main = Instance { name: "main", pou: None, file: path, config: path, line: 1, col: 1 };
+    let Err(refused) = compile(&[file], &[main]) else { panic!("a 66-slot chain is refused") };
+    assert!(
+        refused.to_string().contains("needs 66 evaluation stack slots with its calls (limit 64)"),
+        "{refused}"
     );
-    targeted("evaluation stack ring", &source, Scans::new(2), 90);
 }
 
 /// `VAR_IN_OUT` references into every space: variable memory, a caller's frame, a word device,
