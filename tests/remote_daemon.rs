@@ -76,8 +76,12 @@ fn remote_status(project: &Project) -> serde_json::Value {
     status["remotes"][0].clone()
 }
 
+/// Started, and answering on its control socket: the daemon binds that socket after its
+/// Modbus server, so "modbus: serving" alone does not mean `plcctl` can connect yet.
 fn start(project: &Project) -> Daemon {
-    project.start_with(&["--log-level", "info"], &[])
+    let daemon = project.start_with(&["--log-level", "info"], &[]);
+    daemon.wait_for("control socket");
+    daemon
 }
 
 #[test]
