@@ -30,7 +30,8 @@
 //!    `MOD` by zero, the minimum / -1, array bounds, whole copies of arrays and structs between
 //!    variable memory and frames, FB instances in a frame (`VAR_TEMP`: a FUNCTION cannot hold
 //!    one), `VAR_IN_OUT` references into every space, calls inside expressions, a call chain as
-//!    deep as the compiler allows and one deeper than the evaluation stack, located variables of
+//!    deep as the compiler allows and one as deep as the evaluation stack (deeper is refused by
+//!    the compiler), located variables of
 //!    every size, NaN comparisons and NaN bits, float-to-integer conversions, the float
 //!    functions, shifts and rotations, strings and the clock (which native code leaves to the
 //!    interpreter: mixed execution), programs preempting each other, frames smaller than a
@@ -2194,7 +2195,9 @@ fn check_random(seeds: std::ops::Range<u64>) {
 }
 
 /// Seeds 0 to 9 (each program takes some 0.2 s to compile in a debug build);
-/// `PLCD_RANDOM_PROGRAMS=FIRST..END` runs others (e.g. `0..5000` with `--release`).
+/// `PLCD_RANDOM_PROGRAMS=FIRST..END` runs others (e.g. `0..5000` with `--release`). Seeds 0 to
+/// 9000 ran clean, but for seed 149 in a release build: a `+` or `*` on two NaNs of different
+/// signs, as in `arithmetic_on_different_nans_keeps_the_bits`.
 #[test]
 fn random_programs_run_the_same_natively() {
     let seeds = std::env::var("PLCD_RANDOM_PROGRAMS").ok().and_then(|range| {
