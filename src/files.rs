@@ -24,12 +24,14 @@ pub fn config(path: &Path) -> Result<Config, Diagnostics> {
 }
 
 /// Loads the config at `path` and every program it names, and compiles the Structured Text
-/// programs to native code (`plcd_native`; a program it cannot compile runs on the
-/// interpreter, with a warning in the log). Every diagnostic of the config and of all programs
+/// programs to native code (`plcd_native`, with the default `native` feature; a program it
+/// cannot compile runs on the interpreter, with a warning in the log). Every diagnostic of the config and of all programs
 /// is returned at once.
 pub fn project(path: &Path) -> Result<Project, Diagnostics> {
     let config = config(path)?;
+    #[allow(unused_mut)] // without the `native` feature, nothing is attached
     let mut project = project::from_config(config, |p| std::fs::read_to_string(p))?;
+    #[cfg(feature = "native")]
     for error in plcd_native::attach(&mut project) {
         log::warn!("{error}; it runs on the interpreter");
     }
