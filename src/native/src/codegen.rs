@@ -10,6 +10,10 @@
 //!   frame and the FB instance holding their operands) and hands the whole block to the
 //!   interpreter if anything is missing, then charges the budget and runs the instructions
 //!   with the evaluation stack in SSA variables, and goes on to the next block directly;
+//! - inside a block the code remembers what it knows of each slot ([`SlotInfo`]: a pointer
+//!   into variable memory or the frame that needs no check, a BOOL already 0 or 1, a REAL kept
+//!   in a float register) and of each variable it stored or fetched ([`Held`], forgotten at
+//!   any store that may change it), and checks an index against a range once;
 //! - every way out stores the registers and the live stack slots back, exactly as the
 //!   interpreter leaves them: at `END`, after an operation error, before an instruction it
 //!   hands to the interpreter (a pointer outside variable memory and the frame, a full call
@@ -134,8 +138,9 @@ pub(crate) fn generate(
         blocks: vec![None; program.code.len()],
         loaders: vec![None; program.code.len()],
         dispatch: None,
-        known: vec![None; analysis.max_depth as usize + 1],
-        boolean: vec![false; analysis.max_depth as usize + 1],
+        info: vec![SlotInfo::default(); analysis.max_depth as usize + 1],
+        held: Vec::new(),
+        in_range: Vec::new(),
         vars_need: analysis.vars_end,
         checks: analysis.budget_checks(&program.code),
     };
@@ -186,16 +191,51 @@ struct Gen<'a, 'f> {
     blocks: Vec<Option<Block>>,
     loaders: Vec<Option<Block>>,
     dispatch: Option<Block>,
-    /// In the block being generated, for each stack slot: a pointer into variable memory whose
-    /// offset is at most this (an element of an array at a fixed place), or unknown.
-    known: Vec<Option<u64>>,
-    /// In the block being generated, for each stack slot: true if it is known to hold 0 or 1
-    /// (a BOOL loaded or computed), so that BOOL logic needs no normalizing.
-    boolean: Vec<bool>,
+    /// In the block being generated: what is known of each stack slot.
+    info: Vec<SlotInfo>,
+    /// In the block being generated: the values of fixed places it stored or fetched, still
+    /// there (no store since could have changed them).
+    held: Vec<Held>,
+    /// In the block being generated: the indices (value, `lo`, `len` of [`Op::Index`]) it
+    /// already found inside their range.
+    in_range: Vec<(Value, i32, u32)>,
     /// See [`generate`]'s result.
     vars_need: u64,
     /// [`Analysis::budget_checks`].
     checks: Vec<(bool, u64)>,
+}
+
+/// What the code knows of a stack slot's value in the block being generated.
+#[derive(Clone, Copy, Default)]
+struct SlotInfo {
+    /// A pointer into variable memory whose offset is at most this (an element of an array at
+    /// a fixed place).
+    known: Option<u64>,
+    /// A pointer into the current activation's frame, this many bytes from its base.
+    frame: Option<u32>,
+    /// It holds 0 or 1 (a BOOL loaded or computed), so BOOL logic needs no normalizing.
+    boolean: bool,
+    /// The REAL or LREAL whose bits the slot holds, as a float value: float operations on it
+    /// need no move from an integer register.
+    float: Option<Value>,
+}
+
+/// Where a store through a pointer goes, as far as the code knows.
+#[derive(Clone, Copy)]
+enum Into {
+    Vars,
+    /// The frame, this many bytes from its base.
+    Frame(u32),
+    Unknown,
+}
+
+/// The value of a fixed place, as a slot fetched from it now would be.
+#[derive(Clone, Copy)]
+struct Held {
+    place: Place,
+    elem: Elem,
+    value: Value,
+    info: SlotInfo,
 }
 
 /// Where the block being generated stands: the instruction's index in it and the block's
@@ -481,8 +521,9 @@ impl Gen<'_, '_> {
             let short = self.b.ins().icmp_imm_s(IntCC::UnsignedLessThan, left, need as i64);
             self.bail_if(short, At { index: len, ..at }, depth);
         }
-        self.known.fill(None);
-        self.boolean.fill(false);
+        self.info.fill(SlotInfo::default());
+        self.held.clear();
+        self.in_range.clear();
         let left = self.b.ins().iadd_imm_s(left, -i64::from(len));
         self.b.def_var(self.regs.left, left);
         let mut falls_through = true;
@@ -514,23 +555,21 @@ impl Gen<'_, '_> {
 
     fn push(&mut self, depth: &mut u32, value: Value) {
         self.b.def_var(self.stack[*depth as usize], value);
-        self.known[*depth as usize] = None;
-        self.boolean[*depth as usize] = false;
+        self.info[*depth as usize] = SlotInfo::default();
         *depth += 1;
     }
 
     /// Defines slot `index` (not a known pointer).
     fn set(&mut self, index: u32, value: Value) {
         self.b.def_var(self.stack[index as usize], value);
-        self.known[index as usize] = None;
-        self.boolean[index as usize] = false;
+        self.info[index as usize] = SlotInfo::default();
     }
 
     /// The address of the value of `bytes` bytes at the pointer in slot `index` when it is a
     /// known pointer into variable memory (no check at run time: the code's need of variable
     /// memory grows to cover it).
     fn known_address(&mut self, index: u32, bytes: u32) -> Option<Value> {
-        let most = self.known[index as usize]?;
+        let most = self.info[index as usize].known?;
         self.vars_need = self.vars_need.max(most + u64::from(bytes));
         let pointer = self.slot(index);
         Some(self.b.ins().iadd(self.vars, pointer))
@@ -547,7 +586,7 @@ impl Gen<'_, '_> {
             Op::PushInt(v) => {
                 let value = self.b.ins().iconst(I64, i64::from(v));
                 self.push(depth, value);
-                self.boolean[d as usize] = v == 0 || v == 1;
+                self.info[d as usize].boolean = v == 0 || v == 1;
             }
             Op::PushConst(index) => {
                 let v = self.program.consts.get(index as usize).copied().unwrap_or(0);
@@ -555,100 +594,144 @@ impl Gen<'_, '_> {
                 self.push(depth, v);
             }
             Op::Fetch { elem, at: place } => {
-                let v = self.load_place(place, elem);
-                self.push(depth, v);
-                self.boolean[d as usize] = elem == Elem::Bool;
+                if let Some(held) = self.held.iter().find(|h| h.place == place && h.elem == elem) {
+                    let (value, info) = (held.value, held.info);
+                    self.push(depth, value);
+                    self.info[d as usize] = info;
+                } else if let (true, Some((address, offset))) =
+                    (elem.is_float(), self.byte_place(place))
+                {
+                    let f = self.b.ins().load(float_type(elem), data(), address, offset);
+                    let v = self.float_bits(elem, f);
+                    self.push(depth, v);
+                    self.info[d as usize].float = Some(f);
+                    self.hold(place, elem, d);
+                } else {
+                    let v = self.load_place(place, elem);
+                    self.push(depth, v);
+                    self.info[d as usize].boolean = elem == Elem::Bool;
+                    self.hold(place, elem, d);
+                }
             }
             Op::Store { elem, at: place } => {
                 let v = self.slot(d - 1);
-                match (elem, place) {
+                let info = self.info[d as usize - 1];
+                match (elem, place, self.byte_place(place)) {
                     // 0 or 1 already: stored as it is.
-                    (Elem::Bool, Place::Var(_) | Place::Frame(_) | Place::This(_))
-                        if self.boolean[d as usize - 1] =>
-                    {
-                        let (address, offset) = self.byte_place(place).expect("a byte place");
+                    (Elem::Bool, _, Some((address, offset))) if info.boolean => {
                         self.b.ins().istore8(data(), v, address, offset);
                     }
+                    (Elem::F32 | Elem::F64, _, Some((address, offset))) if info.float.is_some() => {
+                        let f = self.float(elem, d - 1);
+                        self.b.ins().store(data(), f, address, offset);
+                    }
                     _ => self.store_place(place, elem, v),
+                }
+                self.forget(place, elem.size());
+                if self.byte_place(place).is_some() {
+                    // A fetch from it now gives the value cut to `elem` (`Bool`: 0 or 1).
+                    let value = match elem {
+                        _ if info.float.is_some() && elem.is_float() => v,
+                        Elem::Bool if info.boolean => v,
+                        _ => self.normalize(elem, v),
+                    };
+                    let info = SlotInfo {
+                        known: info.known.filter(|_| elem.size() == 8),
+                        frame: info.frame.filter(|_| elem.size() == 8),
+                        boolean: elem == Elem::Bool,
+                        float: info.float.filter(|_| elem.is_float()),
+                    };
+                    self.held.push(Held { place, elem, value, info });
                 }
                 *depth -= 1;
             }
             Op::AddrOf(place) => {
                 let v = self.address_of(place);
                 self.push(depth, v);
-                if let Place::Var(offset) = place {
-                    self.known[d as usize] = Some(u64::from(offset));
+                match place {
+                    Place::Var(offset) => self.info[d as usize].known = Some(u64::from(offset)),
+                    Place::Frame(offset) => self.info[d as usize].frame = Some(offset),
+                    _ => {}
                 }
             }
             Op::Index { lo, len, stride } => {
                 let index = self.slot(d - 1);
                 let pointer = self.slot(d - 2);
                 let element = self.b.ins().iadd_imm_s(index, -i64::from(lo));
-                let out = self.b.ins().icmp_imm_s(
-                    IntCC::UnsignedGreaterThanOrEqual,
-                    element,
-                    i64::from(len),
-                );
-                self.error_if(out, at, d - 1, Pointer::DISCARD.to_slot() as i64, ERR_INDEX_RANGE);
+                // The same index into the same range again in this block: it passed.
+                if !self.in_range.contains(&(index, lo, len)) {
+                    let out = self.b.ins().icmp_imm_s(
+                        IntCC::UnsignedGreaterThanOrEqual,
+                        element,
+                        i64::from(len),
+                    );
+                    let discard = Pointer::DISCARD.to_slot() as i64;
+                    self.error_if(out, at, d - 1, discard, ERR_INDEX_RANGE);
+                    self.in_range.push((index, lo, len));
+                }
                 let step = self.b.ins().imul_imm_s(element, i64::from(stride));
-                let moved = self.moved(pointer, step);
-                *depth -= 1;
-                self.b.def_var(self.stack[d as usize - 2], moved);
                 // An element of an array at a fixed place: its offset is at most the last one's.
                 let last = u64::from(len.saturating_sub(1)) * u64::from(stride);
-                let known = &mut self.known[d as usize - 2];
-                *known = known
+                let known = self.info[d as usize - 2]
+                    .known
                     .map(|most| most + last)
                     .filter(|&most| len > 0 && most <= u64::from(u32::MAX));
+                let moved = self.moved(pointer, step, known.is_some());
+                *depth -= 1;
+                self.set(d - 2, moved);
+                self.info[d as usize - 2].known = known;
             }
             Op::Offset(n) => {
                 let pointer = self.slot(d - 1);
                 let step = self.b.ins().iconst(I64, i64::from(n));
-                let moved = self.moved(pointer, step);
-                self.b.def_var(self.stack[d as usize - 1], moved);
-                let known = &mut self.known[d as usize - 1];
-                *known = known
+                let known = self.info[d as usize - 1]
+                    .known
                     .map(|most| most + u64::from(n))
                     .filter(|&most| most <= u64::from(u32::MAX));
+                let frame = self.info[d as usize - 1].frame.and_then(|o| o.checked_add(n));
+                let moved = self.moved(pointer, step, known.is_some());
+                self.set(d - 1, moved);
+                self.info[d as usize - 1].known = known;
+                self.info[d as usize - 1].frame = frame;
             }
             Op::FetchInd(elem) => {
-                let address = match self.known_address(d - 1, elem.size()) {
-                    Some(address) => address,
-                    None => self.checked_address(d - 1, elem.size(), at, d),
-                };
-                let v = self.load(elem, address, 0);
-                self.set(d - 1, v);
-                self.boolean[d as usize - 1] = elem == Elem::Bool;
+                let (address, _) = self.address(d - 1, elem.size(), at, d);
+                if elem.is_float() {
+                    let f = self.b.ins().load(float_type(elem), data(), address, 0);
+                    let v = self.float_bits(elem, f);
+                    self.set(d - 1, v);
+                    self.info[d as usize - 1].float = Some(f);
+                } else {
+                    let v = self.load(elem, address, 0);
+                    self.set(d - 1, v);
+                    self.info[d as usize - 1].boolean = elem == Elem::Bool;
+                }
             }
             Op::StoreInd(elem) => {
                 let v = self.slot(d - 1);
-                let address = match self.known_address(d - 2, elem.size()) {
-                    Some(address) => address,
-                    None => self.checked_address(d - 2, elem.size(), at, d),
-                };
-                self.store(elem, address, 0, v);
+                let (address, into) = self.address(d - 2, elem.size(), at, d);
+                if elem.is_float() && self.info[d as usize - 1].float.is_some() {
+                    let f = self.float(elem, d - 1);
+                    self.b.ins().store(data(), f, address, 0);
+                } else {
+                    self.store(elem, address, 0, v);
+                }
+                self.forget_indirect(into, elem.size());
                 *depth -= 2;
             }
             Op::Copy(n) => {
                 // Both ranges are checked before either is touched: the interpreter copies
                 // nothing when one is outside its space.
-                let from = self.known_address(d - 1, n);
-                let to = self.known_address(d - 2, n);
-                let from = match from {
-                    Some(address) => address,
-                    None => self.checked_address(d - 1, n, at, d),
-                };
-                let to = match to {
-                    Some(address) => address,
-                    None => self.checked_address(d - 2, n, at, d),
-                };
+                let (from, _) = self.address(d - 1, n, at, d);
+                let (to, into) = self.address(d - 2, n, at, d);
                 self.copy(to, from, n);
+                self.forget_indirect(into, n);
                 *depth -= 2;
             }
             Op::Bin { op, elem } => {
                 let b = self.slot(d - 1);
                 let a = self.slot(d - 2);
-                let both = self.boolean[d as usize - 1] && self.boolean[d as usize - 2];
+                let both = self.info[d as usize - 1].boolean && self.info[d as usize - 2].boolean;
                 *depth -= 1;
                 match op {
                     // BOOL logic on 0s and 1s gives 0 or 1: no normalizing.
@@ -659,7 +742,13 @@ impl Gen<'_, '_> {
                             _ => self.b.ins().bxor(a, b),
                         };
                         self.set(d - 2, r);
-                        self.boolean[d as usize - 2] = true;
+                        self.info[d as usize - 2].boolean = true;
+                    }
+                    _ if elem.is_float() => {
+                        let (x, y) = (self.float(elem, d - 2), self.float(elem, d - 1));
+                        let (r, f) = self.float_binary(op, elem, (a, x), (b, y), at, d - 1);
+                        self.set(d - 2, r);
+                        self.info[d as usize - 2].float = f;
                     }
                     _ => {
                         let r = self.binary(op, elem, a, b, at, d - 1);
@@ -669,35 +758,47 @@ impl Gen<'_, '_> {
             }
             Op::Un { op, elem } => {
                 let a = self.slot(d - 1);
-                if op == UnOp::Not && elem == Elem::Bool && self.boolean[d as usize - 1] {
+                if op == UnOp::Not && elem == Elem::Bool && self.info[d as usize - 1].boolean {
                     let r = self.b.ins().bxor_imm_s(a, 1);
                     self.set(d - 1, r);
-                    self.boolean[d as usize - 1] = true;
+                    self.info[d as usize - 1].boolean = true;
+                } else if elem.is_float() {
+                    let x = self.float(elem, d - 1);
+                    let (r, f) = self.float_unary(op, elem, a, x);
+                    self.set(d - 1, r);
+                    self.info[d as usize - 1].float = f;
                 } else {
                     let r = self.unary(op, elem, a);
                     self.set(d - 1, r);
                 }
             }
             Op::Cmp { op, elem } => {
-                let b = self.slot(d - 1);
-                let a = self.slot(d - 2);
-                let holds = self.compare(op, elem, a, b);
+                let holds = if elem.is_float() {
+                    let (x, y) = (self.float(elem, d - 2), self.float(elem, d - 1));
+                    self.float_compare(op, x, y)
+                } else {
+                    let (a, b) = (self.slot(d - 2), self.slot(d - 1));
+                    self.compare(op, elem, a, b)
+                };
                 let r = self.b.ins().uextend(I64, holds);
                 *depth -= 1;
                 self.set(d - 2, r);
-                self.boolean[d as usize - 2] = true;
+                self.info[d as usize - 2].boolean = true;
             }
             Op::Conv { from, to } => {
                 let a = self.slot(d - 1);
-                let r = self.convert(from, to, a);
-                self.set(d - 1, r);
-                self.boolean[d as usize - 1] = to == Elem::Bool;
+                if from != to || !from.is_float() {
+                    let x = if from.is_float() { Some(self.float(from, d - 1)) } else { None };
+                    let (r, f) = self.convert(from, to, a, x);
+                    self.set(d - 1, r);
+                    self.info[d as usize - 1].boolean = to == Elem::Bool;
+                    self.info[d as usize - 1].float = f;
+                }
             }
             Op::Dup => {
                 let v = self.slot(d - 1);
                 self.push(depth, v);
-                self.known[d as usize] = self.known[d as usize - 1];
-                self.boolean[d as usize] = self.boolean[d as usize - 1];
+                self.info[d as usize] = self.info[d as usize - 1];
             }
             Op::Drop => *depth -= 1,
             Op::Nop => {}
@@ -785,7 +886,7 @@ impl Gen<'_, '_> {
         let callee_base = self.b.ins().band_imm_s(callee_base, LOW32);
         // An FB instance in an array at a fixed place (or a fixed one) needs no check at run
         // time: the code's need of variable memory covers it.
-        let known = if fb { self.known[d as usize - 1] } else { None };
+        let known = if fb { self.info[d as usize - 1].known } else { None };
         let this_end = self.analysis.bodies[&target].this_end;
         let (ok, frame_at, this_at) =
             self.body_pointers(target, callee_base, this, known.is_some());
@@ -849,7 +950,11 @@ impl Gen<'_, '_> {
     }
 
     /// `pointer` moved by `n` units of its space: the offset wraps in 32 bits, the space stays.
-    fn moved(&mut self, pointer: Value, n: Value) -> Value {
+    /// `fits`: the offset is known not to pass `u32::MAX` (a known pointer's), so a plain add.
+    fn moved(&mut self, pointer: Value, n: Value, fits: bool) -> Value {
+        if fits {
+            return self.b.ins().iadd(pointer, n);
+        }
         let space = self.b.ins().band_imm_s(pointer, !LOW32);
         let offset = self.b.ins().iadd(pointer, n);
         let offset = self.b.ins().band_imm_s(offset, LOW32);
@@ -869,7 +974,7 @@ impl Gen<'_, '_> {
             Place::This(offset) => {
                 let this = self.b.use_var(self.regs.this);
                 let n = self.b.ins().iconst(I64, i64::from(offset));
-                self.moved(this, n)
+                self.moved(this, n, false)
             }
             Place::Word(w) => self.b.ins().iconst(I64, slot(Space::Word, u32::from(w.0))),
             Place::Bit(b) => {
@@ -877,6 +982,29 @@ impl Gen<'_, '_> {
                 self.b.ins().iconst(I64, slot(Space::Bit, u32::from(b.word) * 16 + bit))
             }
         }
+    }
+
+    /// The address of `bytes` bytes at the pointer in slot `index`, and where it points: without
+    /// a check at run time for a known pointer into variable memory, or into the frame inside
+    /// what the body's entry checked; else after [`Gen::checked_address`]'s check.
+    fn address(&mut self, index: u32, bytes: u32, at: At, depth: u32) -> (Value, Into) {
+        if let Some(address) = self.known_address(index, bytes) {
+            return (address, Into::Vars);
+        }
+        if let Some(offset) = self.info[index as usize].frame {
+            let end = u64::from(offset) + u64::from(bytes);
+            let body = self.analysis.owner[at.pc as usize].unwrap_or(0);
+            if end > self.analysis.bodies[&body].frame_end {
+                let base = self.b.use_var(self.regs.base);
+                let end = self.b.ins().iadd_imm_s(base, end as i64);
+                let out = self.b.ins().icmp(IntCC::UnsignedGreaterThan, end, self.frame_len);
+                self.bail_if(out, at, depth);
+            }
+            let frame_at = self.b.use_var(self.regs.frame_at);
+            let address = self.b.ins().iadd_imm_s(frame_at, i64::from(offset));
+            return (address, Into::Frame(offset));
+        }
+        (self.checked_address(index, bytes, at, depth), Into::Unknown)
     }
 
     /// The address of `bytes` bytes at the pointer in slot `index`, after a cold branch back to
@@ -1031,6 +1159,56 @@ impl Gen<'_, '_> {
         }
     }
 
+    /// Slot `index` as a float of `elem`: the value it was computed as, or its bits moved.
+    fn float(&mut self, elem: Elem, index: u32) -> Value {
+        let ty = float_type(elem);
+        match self.info[index as usize].float {
+            Some(f) if self.b.func.dfg.value_type(f) == ty => f,
+            _ => {
+                let v = self.slot(index);
+                self.as_float(elem, v)
+            }
+        }
+    }
+
+    /// Records that fixed place `place` holds slot `index` (just fetched from it as `elem`).
+    fn hold(&mut self, place: Place, elem: Elem, index: u32) {
+        if self.byte_place(place).is_some() {
+            let value = self.slot(index);
+            let info = self.info[index as usize];
+            self.held.push(Held { place, elem, value, info });
+        }
+    }
+
+    /// Forgets the held values a store of `bytes` bytes at fixed place `at` may change. An FB
+    /// instance (`This`) may be in variable memory or in a frame, anywhere.
+    fn forget(&mut self, at: Place, bytes: u32) {
+        let range = |offset: u32, n: u32| u64::from(offset)..u64::from(offset) + u64::from(n);
+        self.held.retain(|h| {
+            let overlaps = |a: u32, b: u32| {
+                let (x, y) = (range(a, bytes), range(b, h.elem.size()));
+                x.start < y.end && y.start < x.end
+            };
+            match (at, h.place) {
+                (Place::Var(a), Place::Var(b))
+                | (Place::Frame(a), Place::Frame(b))
+                | (Place::This(a), Place::This(b)) => !overlaps(a, b),
+                (Place::Word(_) | Place::Bit(_), _) => true,
+                (Place::Var(_), Place::Frame(_)) | (Place::Frame(_), Place::Var(_)) => true,
+                _ => false,
+            }
+        });
+    }
+
+    /// Forgets the held values a store of `bytes` bytes through a pointer to `into` may change.
+    fn forget_indirect(&mut self, into: Into, bytes: u32) {
+        match into {
+            Into::Vars => self.held.retain(|h| matches!(h.place, Place::Frame(_))),
+            Into::Frame(offset) => self.forget(Place::Frame(offset), bytes),
+            Into::Unknown => self.held.clear(),
+        }
+    }
+
     fn as_float(&mut self, elem: Elem, v: Value) -> Value {
         if elem == Elem::F32 {
             let bits = self.b.ins().ireduce(types::I32, v);
@@ -1071,26 +1249,37 @@ impl Gen<'_, '_> {
     }
 
     /// `a op b` (`depth`: the stack's depth after the instruction, for its error exit).
-    fn binary(&mut self, op: BinOp, elem: Elem, a: Value, b: Value, at: At, depth: u32) -> Value {
-        if elem.is_float() {
-            let (x, y) = (self.as_float(elem, a), self.as_float(elem, b));
-            let r = match op {
-                BinOp::Add => self.b.ins().fadd(x, y),
-                BinOp::Sub => self.b.ins().fsub(x, y),
-                BinOp::Mul => self.b.ins().fmul(x, y),
-                BinOp::Div | BinOp::Mod => {
-                    let zero = self.float_zero(elem);
-                    let by_zero = self.b.ins().fcmp(FloatCC::Equal, y, zero);
-                    self.error_if(by_zero, at, depth, 0, ERR_DIVIDE_BY_ZERO);
-                    if op == BinOp::Mod {
-                        return self.binary_helper(op, elem, a, b);
-                    }
-                    self.b.ins().fdiv(x, y)
+    /// `a op b` on REALs or LREALs, each given as its slot and its float value; the result's
+    /// slot, and its float value when it was computed inline.
+    fn float_binary(
+        &mut self,
+        op: BinOp,
+        elem: Elem,
+        (a, x): (Value, Value),
+        (b, y): (Value, Value),
+        at: At,
+        depth: u32,
+    ) -> (Value, Option<Value>) {
+        let r = match op {
+            BinOp::Add => self.b.ins().fadd(x, y),
+            BinOp::Sub => self.b.ins().fsub(x, y),
+            BinOp::Mul => self.b.ins().fmul(x, y),
+            BinOp::Div | BinOp::Mod => {
+                let zero = self.float_zero(elem);
+                let by_zero = self.b.ins().fcmp(FloatCC::Equal, y, zero);
+                self.error_if(by_zero, at, depth, 0, ERR_DIVIDE_BY_ZERO);
+                if op == BinOp::Mod {
+                    return (self.binary_helper(op, elem, a, b), None);
                 }
-                _ => return self.binary_helper(op, elem, a, b),
-            };
-            return self.float_bits(elem, r);
-        }
+                self.b.ins().fdiv(x, y)
+            }
+            _ => return (self.binary_helper(op, elem, a, b), None),
+        };
+        (self.float_bits(elem, r), Some(r))
+    }
+
+    /// `a op b` on integers and bit strings.
+    fn binary(&mut self, op: BinOp, elem: Elem, a: Value, b: Value, at: At, depth: u32) -> Value {
         let r = match op {
             BinOp::Add => self.b.ins().iadd(a, b),
             BinOp::Sub => self.b.ins().isub(a, b),
@@ -1140,17 +1329,20 @@ impl Gen<'_, '_> {
         self.wrap(elem, r)
     }
 
+    /// `op a` on a REAL or LREAL given as its slot and its float value, as
+    /// [`Gen::float_binary`].
+    fn float_unary(&mut self, op: UnOp, elem: Elem, a: Value, x: Value) -> (Value, Option<Value>) {
+        let r = match op {
+            UnOp::Neg => self.b.ins().fneg(x),
+            UnOp::Abs => self.b.ins().fabs(x),
+            UnOp::Sqrt => self.b.ins().sqrt(x),
+            _ => return (self.unary_helper(op, elem, a), None),
+        };
+        (self.float_bits(elem, r), Some(r))
+    }
+
+    /// `op a` on an integer or bit string.
     fn unary(&mut self, op: UnOp, elem: Elem, a: Value) -> Value {
-        if elem.is_float() {
-            let x = self.as_float(elem, a);
-            let r = match op {
-                UnOp::Neg => self.b.ins().fneg(x),
-                UnOp::Abs => self.b.ins().fabs(x),
-                UnOp::Sqrt => self.b.ins().sqrt(x),
-                _ => return self.unary_helper(op, elem, a),
-            };
-            return self.float_bits(elem, r);
-        }
         let r = match op {
             UnOp::Neg => self.b.ins().ineg(a),
             UnOp::Not => self.b.ins().bnot(a),
@@ -1166,20 +1358,21 @@ impl Gen<'_, '_> {
         self.call_helper(self.unary_sig, function, &[op, elem, a])
     }
 
-    /// `a op b` as an `i8` truth value; on floats a NaN satisfies only `<>`.
+    /// `x op y` on floats as an `i8` truth value: a NaN satisfies only `<>`.
+    fn float_compare(&mut self, op: CmpOp, x: Value, y: Value) -> Value {
+        let cc = match op {
+            CmpOp::Eq => FloatCC::Equal,
+            CmpOp::Ne => FloatCC::NotEqual,
+            CmpOp::Lt => FloatCC::LessThan,
+            CmpOp::Le => FloatCC::LessThanOrEqual,
+            CmpOp::Gt => FloatCC::GreaterThan,
+            CmpOp::Ge => FloatCC::GreaterThanOrEqual,
+        };
+        self.b.ins().fcmp(cc, x, y)
+    }
+
+    /// `a op b` on integers and bit strings as an `i8` truth value.
     fn compare(&mut self, op: CmpOp, elem: Elem, a: Value, b: Value) -> Value {
-        if elem.is_float() {
-            let (x, y) = (self.as_float(elem, a), self.as_float(elem, b));
-            let cc = match op {
-                CmpOp::Eq => FloatCC::Equal,
-                CmpOp::Ne => FloatCC::NotEqual,
-                CmpOp::Lt => FloatCC::LessThan,
-                CmpOp::Le => FloatCC::LessThanOrEqual,
-                CmpOp::Gt => FloatCC::GreaterThan,
-                CmpOp::Ge => FloatCC::GreaterThanOrEqual,
-            };
-            return self.b.ins().fcmp(cc, x, y);
-        }
         let signed = elem.is_signed();
         let cc = match (op, signed) {
             (CmpOp::Eq, _) => IntCC::Equal,
@@ -1196,43 +1389,61 @@ impl Gen<'_, '_> {
         self.b.ins().icmp(cc, a, b)
     }
 
-    fn convert(&mut self, from: Elem, to: Elem, a: Value) -> Value {
+    /// The slot `a` of `from` converted to `to` (`x`: its float value when `from` is a float),
+    /// and the result's float value when it is one computed inline.
+    fn convert(
+        &mut self,
+        from: Elem,
+        to: Elem,
+        a: Value,
+        x: Option<Value>,
+    ) -> (Value, Option<Value>) {
+        let float = |g: &mut Self| x.unwrap_or_else(|| g.as_float(from, a));
         if to == Elem::Bool {
             if from.is_float() {
-                let x = self.as_float(from, a);
+                let x = float(self);
                 let zero = self.float_zero(from);
                 let ne = self.b.ins().fcmp(FloatCC::NotEqual, x, zero);
-                return self.b.ins().uextend(I64, ne);
+                return (self.b.ins().uextend(I64, ne), None);
             }
-            return self.truth(a);
+            return (self.truth(a), None);
         }
         match (from.is_float(), to.is_float()) {
-            (false, false) => self.wrap(to, a),
+            (false, false) => (self.wrap(to, a), None),
             (false, true) => {
-                let ty = if to == Elem::F32 { types::F32 } else { types::F64 };
-                let x = if from.is_signed() {
+                let ty = float_type(to);
+                let y = if from.is_signed() {
                     self.b.ins().fcvt_from_sint(ty, a)
                 } else {
                     self.b.ins().fcvt_from_uint(ty, a)
                 };
-                self.float_bits(to, x)
+                (self.float_bits(to, y), Some(y))
             }
-            (true, true) if from == to => a,
+            (true, true) if from == to => (a, None),
             (true, true) => {
-                let x = self.as_float(from, a);
+                let x = float(self);
                 let y = if to == Elem::F32 {
                     self.b.ins().fdemote(types::F32, x)
                 } else {
                     self.b.ins().fpromote(types::F64, x)
                 };
-                self.float_bits(to, y)
+                (self.float_bits(to, y), Some(y))
             }
             (true, false) => {
                 let from = self.b.ins().iconst(I64, helpers::elem_index(from));
                 let to = self.b.ins().iconst(I64, helpers::elem_index(to));
                 let function = helpers::convert as extern "C" fn(u64, u64, u64) -> u64 as usize;
-                self.call_helper(self.unary_sig, function, &[from, to, a])
+                (self.call_helper(self.unary_sig, function, &[from, to, a]), None)
             }
         }
+    }
+}
+
+/// The Cranelift type of a REAL (`F32`) or LREAL.
+fn float_type(elem: Elem) -> Type {
+    if elem == Elem::F32 {
+        types::F32
+    } else {
+        types::F64
     }
 }

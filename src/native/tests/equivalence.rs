@@ -1129,6 +1129,64 @@ END_PROGRAM
 
 /// A chain of FUNCTION calls as deep as the compiler allows (32), each waiting with values on
 /// the stack.
+/// Native code keeps the value of a variable it stored or fetched for the fetches after it in
+/// the same straight run, and forgets it at a store that may change it: through an array
+/// element in variable memory or in the frame, by a whole copy, or by a call.
+#[test]
+fn values_kept_in_registers_are_forgotten_when_a_store_may_change_them() {
+    let source = "
+FUNCTION Poke : INT
+VAR_IN_OUT x : INT; END_VAR
+    x := x + 10;
+    Poke := x;
+END_FUNCTION
+
+PROGRAM Main
+VAR
+    a : ARRAY [1..4] OF INT;
+    r : ARRAY [1..4] OF REAL;
+    b1, b2 : ARRAY [1..2] OF INT;
+    n, i, y, z, w, p, q : INT;
+    f, g : REAL;
+    on : BOOL;
+END_VAR
+VAR_TEMP
+    t : ARRAY [0..3] OF INT;
+    k : INT;
+END_VAR
+    n := n + 1;
+    i := 2;
+    a[2] := 5;
+    a[i] := a[2] + 7;
+    y := a[2];
+    f := 1.5;
+    r[2] := 0.25;
+    r[i] := f * 2.0;
+    g := r[2] + f;
+    t[1] := 3;
+    k := t[1];
+    t[i - 1] := k + 1;
+    z := t[1];
+    b1[1] := 9;
+    b2[1] := 1;
+    b2 := b1;
+    w := b2[1];
+    p := n;
+    q := p + Poke(p) + p;
+    on := y > 10;
+    on := NOT on OR on;
+END_PROGRAM
+";
+    let outcome = targeted("values kept in registers", source, Scans::new(3), 90);
+    assert!(outcome.errors.is_empty());
+    assert_eq!(outcome.slot("main.y"), 12, "a[2] after a[i] := 12 with i = 2");
+    assert_eq!(real(&outcome, "main.g"), 4.5, "r[2] after r[i] := 3.0");
+    assert_eq!(outcome.slot("main.z"), 4, "t[1] after t[i - 1] := 4");
+    assert_eq!(outcome.slot("main.w"), 9, "b2[1] after b2 := b1");
+    assert_eq!(outcome.slot("main.q"), 3 + 13 + 13, "p before and after Poke(p)");
+    assert_eq!(outcome.slot("main.on"), 1);
+}
+
 #[test]
 fn a_deep_call_chain() {
     const DEPTH: usize = 32;
