@@ -175,6 +175,35 @@ impl ExecState {
     pub fn is_finished(&self) -> bool {
         self.finished
     }
+
+    /// The Structured Text part of the activation, read-only.
+    pub fn st_activation(&self) -> StActivation<'_> {
+        StActivation {
+            eval: self.eval.live(),
+            calls: &self.st_calls[..usize::from(self.st_depth).min(ST_CALL_DEPTH)],
+            base: self.base,
+            this: self.this,
+            frame: &self.frame,
+        }
+    }
+}
+
+/// The Structured Text part of an activation ([`ExecState::st_activation`]): what native code
+/// and the interpreter both write, and leave the same after the same steps (the equivalence
+/// tests of plcd-native compare it after every `Vm::run`). Slots above the evaluation stack's
+/// top and call frames above the call depth are dead and left out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StActivation<'a> {
+    /// The live slots of the evaluation stack, bottom first.
+    pub eval: &'a [u64],
+    /// The FUNCTION and FUNCTION_BLOCK calls under way, outermost first.
+    pub calls: &'a [StFrame],
+    /// The current frame base: a byte offset into `frame`.
+    pub base: u32,
+    /// The current FB instance, a pointer slot.
+    pub this: u64,
+    /// The frame area.
+    pub frame: &'a [u8],
 }
 
 /// The initial state of an edge memory slot after an online change (see

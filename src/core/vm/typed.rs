@@ -34,6 +34,11 @@ impl EvalStack {
         &mut self.slots
     }
 
+    /// The slots pushed and not popped, bottom first (an activation's stack starts at slot 0).
+    pub(super) fn live(&self) -> &[u64] {
+        &self.slots[..self.sp]
+    }
+
     pub(super) fn clear(&mut self) {
         self.sp = 0;
     }
