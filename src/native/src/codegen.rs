@@ -605,30 +605,30 @@ impl Gen<'_, '_> {
                     let v = self.float_bits(elem, f);
                     self.push(depth, v);
                     self.info[d as usize].float = Some(f);
-                    self.hold(place, elem, d);
+                    self.hold(place, elem, v, self.info[d as usize]);
                 } else {
                     let v = self.load_place(place, elem);
                     self.push(depth, v);
                     self.info[d as usize].boolean = elem == Elem::Bool;
-                    self.hold(place, elem, d);
+                    self.hold(place, elem, v, self.info[d as usize]);
                 }
             }
             Op::Store { elem, at: place } => {
                 let v = self.slot(d - 1);
                 let info = self.info[d as usize - 1];
-                match (elem, place, self.byte_place(place)) {
+                match (elem, self.byte_place(place)) {
                     // 0 or 1 already: stored as it is.
-                    (Elem::Bool, _, Some((address, offset))) if info.boolean => {
+                    (Elem::Bool, Some((address, offset))) if info.boolean => {
                         self.b.ins().istore8(data(), v, address, offset);
                     }
-                    (Elem::F32 | Elem::F64, _, Some((address, offset))) if info.float.is_some() => {
+                    (Elem::F32 | Elem::F64, Some((address, offset))) if info.float.is_some() => {
                         let f = self.float(elem, d - 1);
                         self.b.ins().store(data(), f, address, offset);
                     }
                     _ => self.store_place(place, elem, v),
                 }
                 self.forget(place, elem.size());
-                if self.byte_place(place).is_some() {
+                if in_bytes(place) {
                     // A fetch from it now gives the value cut to `elem` (`Bool`: 0 or 1).
                     let value = match elem {
                         _ if info.float.is_some() && elem.is_float() => v,
@@ -641,7 +641,7 @@ impl Gen<'_, '_> {
                         boolean: elem == Elem::Bool,
                         float: info.float.filter(|_| elem.is_float()),
                     };
-                    self.held.push(Held { place, elem, value, info });
+                    self.hold(place, elem, value, info);
                 }
                 *depth -= 1;
             }
@@ -1171,11 +1171,11 @@ impl Gen<'_, '_> {
         }
     }
 
-    /// Records that fixed place `place` holds slot `index` (just fetched from it as `elem`).
-    fn hold(&mut self, place: Place, elem: Elem, index: u32) {
-        if self.byte_place(place).is_some() {
-            let value = self.slot(index);
-            let info = self.info[index as usize];
+    /// Records that fixed place `place` holds `value` (with `info`) as a fetch of `elem` from
+    /// it would give it now. Device memory is not held: the places overlap in ways a `Word` and
+    /// a `Bit` do not show.
+    fn hold(&mut self, place: Place, elem: Elem, value: Value, info: SlotInfo) {
+        if in_bytes(place) {
             self.held.push(Held { place, elem, value, info });
         }
     }
@@ -1437,6 +1437,11 @@ impl Gen<'_, '_> {
             }
         }
     }
+}
+
+/// True for a place in variable memory, the frame or the FB instance (byte-addressed).
+fn in_bytes(place: Place) -> bool {
+    matches!(place, Place::Var(_) | Place::Frame(_) | Place::This(_))
 }
 
 /// The Cranelift type of a REAL (`F32`) or LREAL.
