@@ -261,7 +261,7 @@ impl Gen<'_, '_> {
         let left = self.b.ins().load(I64, own(), ctx, reg(offset_of!(NativeRegs, left)));
         let sp = self.b.ins().load(I64, own(), ctx, reg(offset_of!(NativeRegs, sp)));
         let zero = self.b.ins().iconst(I64, 0);
-        for (var, value) in [
+        self.define(&[
             (self.regs.pc, pc),
             (self.regs.depth, depth),
             (self.regs.base, base),
@@ -271,9 +271,7 @@ impl Gen<'_, '_> {
             (self.regs.sb, zero),
             (self.regs.frame_at, zero),
             (self.regs.this_at, zero),
-        ] {
-            self.b.def_var(var, value);
-        }
+        ]);
         for &leader in &self.analysis.leaders {
             self.blocks[leader as usize] = Some(self.b.create_block());
         }
@@ -416,6 +414,13 @@ impl Gen<'_, '_> {
             self.b.switch_to_block(current);
         }
         exit
+    }
+
+    /// Defines each register variable with its value.
+    fn define(&mut self, registers: &[(Variable, Value)]) {
+        for &(var, value) in registers {
+            self.b.def_var(var, value);
+        }
     }
 
     fn slot_address(&mut self, sb: Value, slot: u32) -> Value {
@@ -835,15 +840,13 @@ impl Gen<'_, '_> {
                 let base = self.b.ins().uload32(own(), frame, offset_of!(StFrame, base) as i32);
                 let this = self.b.ins().load(I64, own(), frame, offset_of!(StFrame, this) as i32);
                 let sb = self.b.use_var(self.regs.sb);
-                for (var, value) in [
+                self.define(&[
                     (self.regs.depth, calls),
                     (self.regs.base, base),
                     (self.regs.this, this),
                     (self.regs.pc, return_pc),
                     (self.regs.sp, sb),
-                ] {
-                    self.b.def_var(var, value);
-                }
+                ]);
                 // Straight to the loader of a return site of this body, the others through the
                 // dispatch.
                 let dispatch = self.dispatch.expect("created by entry");
@@ -912,16 +915,14 @@ impl Gen<'_, '_> {
         }
         let calls = self.b.ins().iadd_imm_s(calls, 1);
         let sb = self.b.ins().iadd_imm_s(sb, i64::from(after));
-        for (var, value) in [
+        self.define(&[
             (self.regs.depth, calls),
             (self.regs.base, callee_base),
             (self.regs.this, this),
             (self.regs.sb, sb),
             (self.regs.frame_at, frame_at),
             (self.regs.this_at, this_at),
-        ] {
-            self.b.def_var(var, value);
-        }
+        ]);
         let callee = self.target(target, 0);
         self.b.ins().jump(callee, &[]);
     }
