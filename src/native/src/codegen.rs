@@ -325,10 +325,14 @@ impl Gen<'_, '_> {
             // The budget of a block that does not check it itself.
             let index = self.analysis.leaders.binary_search(&leader).unwrap_or(0);
             let (checks, need) = self.checks[index];
-            let left = self.b.use_var(self.regs.left);
-            let enough =
-                self.b.ins().icmp_imm_s(IntCC::UnsignedGreaterThanOrEqual, left, need as i64);
-            let ok = if checks { ok } else { self.b.ins().band(ok, enough) };
+            let ok = if checks {
+                ok
+            } else {
+                let left = self.b.use_var(self.regs.left);
+                let enough =
+                    self.b.ins().icmp_imm_s(IntCC::UnsignedGreaterThanOrEqual, left, need as i64);
+                self.b.ins().band(ok, enough)
+            };
             let load = self.b.create_block();
             let refuse = self.b.create_block();
             self.b.set_cold_block(refuse);
