@@ -15,7 +15,17 @@
 //! This file needs nothing of plcd: the plcctl package's test includes it alone.
 
 use std::ffi::OsStr;
-use std::process::Command;
+use std::os::unix::process::CommandExt;
+use std::process::{Child, Command, ExitStatus};
+use std::time::{Duration, Instant};
+
+use nix::sys::signal::{signal, SigHandler, Signal};
+
+/// The signals the tests send to the programs they start, set back to their default action in
+/// each child: a test process started in the background by a non-interactive shell ignores
+/// SIGINT and SIGQUIT, and a child inherits what is ignored (std resets only SIGPIPE and the
+/// mask), so a `kill -INT` would do nothing and the test would wait for ever.
+const SIGNALS_RESET: [Signal; 4] = [Signal::SIGINT, Signal::SIGQUIT, Signal::SIGTERM, Signal::SIGHUP];
 
 /// The variable naming the runner.
 pub const VAR: &str = "PLCD_TEST_RUNNER";
@@ -38,16 +48,47 @@ pub fn emulated() -> bool {
     !runner().is_empty()
 }
 
-/// A command starting the built `program`: through the runner when there is one.
+/// A command starting the built `program`: through the runner when there is one, with the
+/// signals of [`SIGNALS_RESET`] at their default action whatever the test process ignores.
 pub fn command(program: impl AsRef<OsStr>) -> Command {
     let runner = runner();
-    match runner.split_first() {
+    let mut command = match runner.split_first() {
         None => Command::new(program),
         Some((emulator, args)) => {
             let mut command = Command::new(emulator);
             command.args(args).arg(program);
             command
         }
+    };
+    // SAFETY: the closure runs in the child between fork and exec, where only
+    // async-signal-safe calls are allowed: `signal` is sigaction(2), which is one, and the
+    // closure allocates nothing and takes no lock.
+    unsafe {
+        command.pre_exec(|| {
+            for sig in SIGNALS_RESET {
+                signal(sig, SigHandler::SigDfl)?;
+            }
+            Ok(())
+        });
+    }
+    command
+}
+
+/// Waits for `child` to exit for at most `patience`; past it, kills the child and fails the
+/// test naming `what`. Whatever the child's output is piped to must be read by someone (or be
+/// null): a child blocked on a full pipe never exits.
+pub fn wait_bounded(child: &mut Child, patience: Duration, what: &str) -> ExitStatus {
+    let deadline = Instant::now() + patience;
+    loop {
+        if let Some(status) = child.try_wait().expect("waitpid") {
+            return status;
+        }
+        if Instant::now() >= deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("{what}: still running after {patience:?}; killed");
+        }
+        std::thread::sleep(Duration::from_millis(10));
     }
 }
 

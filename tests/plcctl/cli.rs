@@ -708,9 +708,16 @@ fn watch_stops_at_an_error_answer() {
 
 #[test]
 fn watch_without_count_runs_until_interrupted() {
-    use nix::sys::signal::{kill, Signal};
+    use nix::sys::signal::{kill, signal, SigHandler, Signal};
     use nix::unistd::Pid;
     use std::os::unix::process::ExitStatusExt;
+
+    // As when the tests run as a background job of a non-interactive shell: this process
+    // ignores SIGINT. The child must not inherit that (runner::command resets it), or the
+    // SIGINT below would leave it watching for ever. Nothing else in this test binary relies
+    // on receiving SIGINT itself.
+    // SAFETY: SIG_IGN installs no handler, so no handler code can run at a bad moment.
+    unsafe { signal(Signal::SIGINT, SigHandler::SigIgn) }.expect("ignore SIGINT");
 
     let steps = (1..=10_000).map(|scan| Step::Answer(ok_line(&values_ok(scan)))).collect();
     let fake = Fake::start("watch-forever", steps);
@@ -719,13 +726,21 @@ fn watch_without_count_runs_until_interrupted() {
         .stdout(Stdio::piped())
         .spawn()
         .unwrap();
+    // Its output read to the end, so that it never blocks on a full pipe.
+    let mut stdout = child.stdout.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut out = String::new();
+        std::io::Read::read_to_string(&mut stdout, &mut out).map(|_| out)
+    });
     // Three samples asked for: it keeps going on its own.
     for _ in 0..3 {
         fake.seen.recv_timeout(Duration::from_secs(20)).expect("a get");
     }
     kill(Pid::from_raw(child.id() as i32), Signal::SIGINT).unwrap();
-    let status = child.wait().unwrap();
+    let status = runner::wait_bounded(&mut child, Duration::from_secs(20), "plcctl watch after SIGINT");
     assert_eq!(status.signal(), Some(Signal::SIGINT as i32), "{status:?}");
+    let out = reader.join().unwrap().expect("plcctl's output");
+    assert!(out.lines().count() >= 3, "{out}");
     assert!(fake.requests().len() >= 3);
 }
 
