@@ -12,6 +12,9 @@
 //! for "long enough" (a request's timeout, a random moment within a start) scales them by
 //! [`slowdown`]; the harness's waits have patience enough as they are.
 //!
+//! It also owns the signal dispositions of the tests and their children (the unsafe calls of
+//! the harness) and a bounded wait for a child.
+//!
 //! This file needs nothing of plcd: the plcctl package's test includes it alone.
 
 use std::ffi::OsStr;
@@ -72,6 +75,13 @@ pub fn command(program: impl AsRef<OsStr>) -> Command {
         });
     }
     command
+}
+
+/// Makes this test process ignore `sig`, as a shell's background job ignores SIGINT and
+/// SIGQUIT: for the tests that check that the programs they start do not inherit it.
+pub fn ignore_in_this_process(sig: Signal) {
+    // SAFETY: SIG_IGN installs no handler, so no handler code can run at a bad moment.
+    unsafe { signal(sig, SigHandler::SigIgn) }.unwrap_or_else(|e| panic!("ignore {sig}: {e}"));
 }
 
 /// Waits for `child` to exit for at most `patience`; past it, kills the child and fails the

@@ -708,7 +708,7 @@ fn watch_stops_at_an_error_answer() {
 
 #[test]
 fn watch_without_count_runs_until_interrupted() {
-    use nix::sys::signal::{kill, signal, SigHandler, Signal};
+    use nix::sys::signal::{kill, Signal};
     use nix::unistd::Pid;
     use std::os::unix::process::ExitStatusExt;
 
@@ -716,8 +716,7 @@ fn watch_without_count_runs_until_interrupted() {
     // ignores SIGINT. The child must not inherit that (runner::command resets it), or the
     // SIGINT below would leave it watching for ever. Nothing else in this test binary relies
     // on receiving SIGINT itself.
-    // SAFETY: SIG_IGN installs no handler, so no handler code can run at a bad moment.
-    unsafe { signal(Signal::SIGINT, SigHandler::SigIgn) }.expect("ignore SIGINT");
+    runner::ignore_in_this_process(Signal::SIGINT);
 
     let steps = (1..=10_000).map(|scan| Step::Answer(ok_line(&values_ok(scan)))).collect();
     let fake = Fake::start("watch-forever", steps);
