@@ -28,7 +28,8 @@ use nix::sys::signal::{signal, SigHandler, Signal};
 /// each child: a test process started in the background by a non-interactive shell ignores
 /// SIGINT and SIGQUIT, and a child inherits what is ignored (std resets only SIGPIPE and the
 /// mask), so a `kill -INT` would do nothing and the test would wait for ever.
-const SIGNALS_RESET: [Signal; 4] = [Signal::SIGINT, Signal::SIGQUIT, Signal::SIGTERM, Signal::SIGHUP];
+const SIGNALS_RESET: [Signal; 4] =
+    [Signal::SIGINT, Signal::SIGQUIT, Signal::SIGTERM, Signal::SIGHUP];
 
 /// The variable naming the runner.
 pub const VAR: &str = "PLCD_TEST_RUNNER";
