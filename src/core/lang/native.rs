@@ -1,6 +1,6 @@
-//! The hook for native code of a [`Program`](super::Program): machine code that a code generator outside the core (the
-//! `plcd-native` crate) compiled from a Structured Text program, run by [`Vm::run`] in place
-//! of the interpreter wherever it can.
+//! The hook for native code of a [`Program`](super::Program): machine code that a code
+//! generator outside the core (the `plcd-native` crate) compiled from a Structured Text or an
+//! instruction-list program, run by [`Vm::run`] in place of the interpreter wherever it can.
 //!
 //! The interpreter stays the definition of what a program does. Native code is an
 //! accelerator of it with the same observable behaviour to the step: it charges the step
@@ -51,6 +51,12 @@ pub struct NativeRegs {
     pub left: u64,
     /// The evaluation stack's next free slot (an index into [`NativeMemory::eval`]).
     pub sp: u64,
+    /// The instruction list's rung result: 0 or 1.
+    pub rung: u32,
+    /// The instruction list's block stack (`AND LOAD`/`OR LOAD`), one bit a level, top in bit 0.
+    pub blocks: u32,
+    /// The instruction list's `MPUSH` stack, one bit a level, top in bit 0.
+    pub branches: u32,
 }
 
 /// The memory native code works on, borrowed for one call.

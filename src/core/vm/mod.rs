@@ -176,6 +176,23 @@ impl ExecState {
         self.finished
     }
 
+    /// The instruction list's part of the activation, read-only.
+    pub fn il_activation(&self) -> IlActivation {
+        IlActivation {
+            rung: self.rung,
+            blocks: self.blocks,
+            branches: self.branches,
+            calls: self.calls[..usize::from(self.call_depth).min(CALL_DEPTH)]
+                .iter()
+                .map(|f| (f.return_pc, f.rung, f.blocks, f.branches, f.loop_depth))
+                .collect(),
+            loops: self.loops[..usize::from(self.loop_depth).min(LOOP_DEPTH)]
+                .iter()
+                .map(|f| (f.remaining, f.end))
+                .collect(),
+        }
+    }
+
     /// The Structured Text part of the activation, read-only.
     pub fn st_activation(&self) -> StActivation<'_> {
         StActivation {
@@ -186,6 +203,22 @@ impl ExecState {
             frame: &self.frame,
         }
     }
+}
+
+/// The instruction list's part of an activation ([`ExecState::il_activation`]): what native
+/// code and the interpreter both leave the same after the same steps (the equivalence tests of
+/// plcd-native compare it after every `Vm::run`). For tests and tools, not the scan: it
+/// allocates.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct IlActivation {
+    pub rung: bool,
+    pub blocks: u32,
+    pub branches: u32,
+    /// The `CALL`s under way, outermost first: return pc, the caller's rung, blocks, branches
+    /// and loop depth.
+    pub calls: Vec<(u32, bool, u32, u32, u8)>,
+    /// The `FOR` loops under way, outermost first: rounds left, the instruction after `NEXT`.
+    pub loops: Vec<(u16, u32)>,
 }
 
 /// The Structured Text part of an activation ([`ExecState::st_activation`]): what native code
@@ -471,6 +504,9 @@ impl Vm {
                 this: state.this,
                 left,
                 sp: state.eval.sp() as u64,
+                rung: u32::from(state.rung),
+                blocks: state.blocks,
+                branches: state.branches,
             };
             let memory = native::NativeMemory {
                 vars: &mut self.vars,
@@ -485,6 +521,9 @@ impl Vm {
             state.base = regs.base;
             state.this = regs.this;
             state.eval.set_sp(regs.sp as usize);
+            state.rung = regs.rung != 0;
+            state.blocks = regs.blocks;
+            state.branches = regs.branches;
             self.steps = stop - regs.left.min(left);
             match exit {
                 native::NativeExit::End => {

@@ -14,8 +14,36 @@ use cranelift_module::{default_libcall_names, Linkage, Module};
 use plcd_core::lang::native::{NativeCode, NativeExit, NativeMemory, NativeRegs, StFrame};
 use plcd_core::lang::Program;
 
-use crate::analysis::Analysis;
-use crate::{codegen, Error};
+use crate::{analysis, codegen, il, Error};
+
+/// What the code was compiled from, and what its analysis says the interpreter's share is.
+pub(crate) enum Shape {
+    StructuredText(analysis::Analysis),
+    InstructionList(il::Analysis),
+}
+
+impl Shape {
+    fn words_end(&self) -> u64 {
+        match self {
+            Shape::StructuredText(a) => a.words_end,
+            Shape::InstructionList(a) => a.words_end,
+        }
+    }
+
+    fn span(&self, pc: u32) -> u32 {
+        match self {
+            Shape::StructuredText(a) => a.span(pc),
+            Shape::InstructionList(a) => a.span(pc),
+        }
+    }
+
+    fn blocks(&self) -> usize {
+        match self {
+            Shape::StructuredText(a) => a.leaders.len(),
+            Shape::InstructionList(a) => a.leaders.len(),
+        }
+    }
+}
 
 /// What the generated function works on: the registers, and the memory of the call as raw
 /// parts. `repr(C)`: the generated code reads and writes its fields at their offsets. The
@@ -60,7 +88,7 @@ pub(crate) struct Code {
     /// The memory the code lives in; `None` only while it is being freed.
     module: Option<JITModule>,
     entry: Entry,
-    analysis: Analysis,
+    shape: Shape,
     /// Bytes of variable memory the code reaches unchecked (`codegen::generate`).
     vars_need: u64,
     name: String,
@@ -74,7 +102,7 @@ unsafe impl Send for Code {}
 unsafe impl Sync for Code {}
 
 impl Code {
-    pub fn compile(program: &Program, analysis: Analysis) -> Result<Code, Error> {
+    pub fn compile(program: &Program, shape: Shape) -> Result<Code, Error> {
         let name = program.name.clone();
         let codegen_error = |message: String| Error::Codegen { program: name.clone(), message };
         let mut flags = settings::builder();
@@ -95,7 +123,15 @@ impl Code {
             .map_err(|e| Error::Host(e.to_string()))?;
         let mut module = JITModule::new(JITBuilder::with_isa(isa, default_libcall_names()));
         let mut ctx = module.make_context();
-        let vars_need = codegen::generate(program, &analysis, module.isa(), &mut ctx.func);
+        let vars_need = match &shape {
+            Shape::StructuredText(analysis) => {
+                codegen::generate(program, analysis, module.isa(), &mut ctx.func)
+            }
+            Shape::InstructionList(analysis) => {
+                il::codegen::generate(program, analysis, module.isa(), &mut ctx.func);
+                0
+            }
+        };
         let id = module
             .declare_function("plcd_program", Linkage::Local, &ctx.func.signature)
             .map_err(|e| codegen_error(e.to_string()))?;
@@ -109,7 +145,7 @@ impl Code {
         // `codegen::generate` made `(pointer) -> i32` in the platform's C calling convention;
         // the memory stays mapped while `module` lives, which `Code` owns.
         let entry = unsafe { std::mem::transmute::<*const u8, Entry>(address) };
-        Ok(Code { module: Some(module), entry, analysis, vars_need, name })
+        Ok(Code { module: Some(module), entry, shape, vars_need, name })
     }
 }
 
@@ -118,7 +154,7 @@ impl NativeCode for Code {
         // The fixed operands of the code, and the arrays at fixed places, are checked against
         // these sizes once, here.
         if (memory.vars.len() as u64) < self.vars_need
-            || (memory.words.len() as u64) < self.analysis.words_end
+            || (memory.words.len() as u64) < self.shape.words_end()
         {
             return NativeExit::Interpret;
         }
@@ -138,7 +174,9 @@ impl NativeCode for Code {
         // inside those lengths: the fixed operands were checked against them just above, the
         // frame and FB-instance operands are checked at each block's entry, pointers are
         // checked before each access, the evaluation stack is indexed modulo its length and the
-        // call stack below `ST_CALL_DEPTH` (codegen.rs). It keeps no pointer after it returns.
+        // call stack below `ST_CALL_DEPTH` (codegen.rs); instruction-list code reaches device
+        // words only at the fixed operands checked above (il/codegen.rs). It keeps no pointer
+        // after it returns.
         let status = unsafe { (self.entry)(&mut context) };
         match status {
             RETURN_END => NativeExit::End,
@@ -148,7 +186,7 @@ impl NativeCode for Code {
     }
 
     fn interpret_span(&self, pc: u32) -> u32 {
-        self.analysis.span(pc).max(1)
+        self.shape.span(pc).max(1)
     }
 }
 
@@ -156,7 +194,7 @@ impl std::fmt::Debug for Code {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Code")
             .field("program", &self.name)
-            .field("blocks", &self.analysis.leaders.len())
+            .field("blocks", &self.shape.blocks())
             .finish()
     }
 }

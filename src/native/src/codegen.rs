@@ -1,4 +1,4 @@
-//! A program's ops as one Cranelift function, `fn(*mut Context) -> u32`.
+//! A Structured Text program's ops as one Cranelift function, `fn(*mut Context) -> u32`.
 //!
 //! The shape of the function:
 //! - the entry loads the registers from the [`Context`] and goes to the dispatch;
@@ -54,12 +54,12 @@ fn reg(field: usize) -> i32 {
 
 /// Variable memory, the frame, device memory: none of it is aligned, and none of it traps
 /// (every access is inside a checked length).
-fn data() -> MemFlagsData {
+pub(crate) fn data() -> MemFlagsData {
     MemFlagsData::new().with_notrap()
 }
 
 /// The [`Context`] and the stacks' slots: aligned.
-fn own() -> MemFlagsData {
+pub(crate) fn own() -> MemFlagsData {
     MemFlagsData::trusted()
 }
 

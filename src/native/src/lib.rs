@@ -1,4 +1,4 @@
-//! plcd-native: machine code for Structured Text programs.
+//! plcd-native: machine code for Structured Text and instruction-list programs.
 //!
 //! The VM interprets a program's ops one at a time; this crate compiles the same ops into
 //! machine code for the processor plcd runs on, with Cranelift, and attaches it to the
@@ -9,13 +9,14 @@
 //! behaves the same with it or without it, only faster.
 //!
 //! The layers, bottom up:
-//! - [`analysis`]: what the ops need (the static depth of the evaluation stack at each
-//!   instruction, the entry points, the blocks), and whether the program can be compiled;
-//! - [`codegen`]: the ops as Cranelift IR;
+//! - [`analysis`]: what a Structured Text program's ops need (the static depth of the
+//!   evaluation stack at each instruction, the entry points, the blocks), and whether the
+//!   program can be compiled;
+//! - [`codegen`]: Structured Text's ops as Cranelift IR;
+//! - [`il`]: the instruction list's analysis and code generator (its ops have no evaluation
+//!   stack: rungs of bit logic and data, which it compiles, and the rest, which it leaves to
+//!   the interpreter);
 //! - [`code`]: the one module with `unsafe`: executable memory and the call into it.
-//!
-//! The instruction list is not compiled: its interpreter already runs at 1.1–2.6 ns an
-//! instruction, and its programs are short rungs of bit logic.
 
 #![deny(unsafe_code)]
 
@@ -23,6 +24,7 @@ mod analysis;
 mod code;
 mod codegen;
 mod helpers;
+mod il;
 
 use std::sync::Arc;
 
@@ -49,21 +51,20 @@ pub enum Error {
     Memory { program: String, message: String },
 }
 
-/// Compiles `program` (Structured Text) to native code.
+/// Compiles `program` to native code.
 pub fn compile(program: &Program) -> Result<Arc<dyn NativeCode>, Error> {
-    if program.language != Language::StructuredText {
-        return Err(Error::Unsupported {
-            program: program.name.clone(),
-            reason: "only Structured Text is compiled to native code".into(),
-        });
-    }
-    let analysis = analysis::analyse(program)
-        .map_err(|reason| Error::Unsupported { program: program.name.clone(), reason })?;
+    let shape = match program.language {
+        Language::StructuredText => code::Shape::StructuredText(
+            analysis::analyse(program)
+                .map_err(|reason| Error::Unsupported { program: program.name.clone(), reason })?,
+        ),
+        Language::InstructionList => code::Shape::InstructionList(il::analyse(&program.code)),
+    };
     // Cranelift reports most failures as errors, a few (the instruction-cache flush of the
     // new code on some processors) as panics; either leaves this program to the interpreter.
     // The program is only read, so a panic leaves nothing half changed.
     let compiled = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        code::Code::compile(program, analysis)
+        code::Code::compile(program, shape)
     }));
     match compiled {
         Ok(result) => Ok(Arc::new(result?)),
@@ -77,13 +78,12 @@ pub fn compile(program: &Program) -> Result<Arc<dyn NativeCode>, Error> {
 /// stacks allow (they are sized to their need, and locked in memory).
 const COMPILE_STACK: usize = 8 << 20;
 
-/// Compiles every Structured Text program of `project` to native code and attaches it; the
+/// Compiles every program of `project` to native code and attaches it; the
 /// programs it could not compile keep running on the interpreter, and their errors are
 /// returned for the caller to report. The compiling is done on a thread of its own, with the
 /// stack Cranelift needs, which ends before this returns.
 pub fn attach(project: &mut Project) -> Vec<Error> {
-    let programs: Vec<&mut Program> =
-        project.programs.iter_mut().filter(|p| p.language == Language::StructuredText).collect();
+    let programs: Vec<&mut Program> = project.programs.iter_mut().collect();
     if programs.is_empty() {
         return Vec::new();
     }

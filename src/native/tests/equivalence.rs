@@ -113,6 +113,40 @@ impl Programs {
         Programs::from_config(name, &config, &file.with_extension("toml"))
     }
 
+    /// Instruction-list `sources` (name, text), each a program of its own, assembled as a
+    /// project assembles them (timers T0000-T0999 100 ms, T1000-T1499 10 ms, the rest 1 ms;
+    /// edge memory after the previous program's).
+    fn il(name: &str, sources: &[(&str, &str)]) -> Programs {
+        let base = |n: u32| {
+            Some(match n {
+                0..=999 => 100,
+                1000..=1499 => 10,
+                _ => 1,
+            })
+        };
+        let mut programs: Vec<Program> = Vec::new();
+        for (program, source) in sources {
+            let edge_base = programs.iter().map(|p| p.edge_slots).sum::<u32>();
+            let ctx = plcd_core::lang::Context {
+                is_init: false,
+                task_numbers: &[],
+                timer_base_ms: &base,
+                edge_base,
+            };
+            let path = PathBuf::from(format!("{program}.il"));
+            programs.push(
+                plcd_core::lang::assemble(program, &path, source, &ctx)
+                    .unwrap_or_else(|d| panic!("{name}: {program} does not assemble: {d:?}")),
+            );
+        }
+        Programs {
+            name: name.to_string(),
+            programs,
+            variables: Variables::default(),
+            frame_bytes: 0,
+        }
+    }
+
     /// `source`, compiled with one instance `main` of its PROGRAM.
     fn inline(name: &str, source: &str) -> Programs {
         Programs::instances(name, source, &[("main", None)])
@@ -524,6 +558,10 @@ fn difference(
     }
     if !inner {
         return None;
+    }
+    let (la, lb) = (sa.il_activation(), sb.il_activation());
+    if la != lb {
+        return Some(pair("instruction-list registers", &la, &lb));
     }
     let (ia, ib) = (sa.st_activation(), sb.st_activation());
     if ia.eval != ib.eval {
@@ -2209,4 +2247,223 @@ END_PROGRAM
     assert_eq!(inner.calls[0].base, 0, "called from the program's frame");
     assert!(inner.calls[0].return_pc > 0, "F returns into Main");
     assert_eq!(inner.eval[..2], [5, 5], "a and a, waiting for F(a)");
+}
+
+// ---------------------------------------------------------------------------------------------
+// 4. The instruction list
+//
+// The same comparison for instruction-list programs (plcd_native::il): every instruction of
+// docs/LANGUAGE.md, the repository's instruction-list programs, and random programs. The
+// programs read and change their own inputs (a counter in D00000 whose bits feed the
+// contacts), so each scan takes other paths than the last.
+
+/// Runs instruction-list `sources` for `count` scans, the clock charging `step_ns` a step,
+/// with every budget; requires `share` % of the steps to run as native code.
+fn il_case(name: &str, sources: &[(&str, &str)], count: u64, step_ns: u64, share: u64) -> Outcome {
+    let case = Programs::il(name, sources);
+    let scans = Scans { step_ns, ..Scans::new(count) };
+    let outcome = compare(&case, scans, &BUDGETS);
+    outcome.assert_equivalent();
+    outcome.assert_native_share(name, share);
+    outcome
+}
+
+/// Every instruction of docs/LANGUAGE.md but the system ones that stop a task (`STOP`,
+/// `INIT_DONE`, `IORF`, `DI`, `EI`: `System` exits, tested below), with operands that make
+/// each take both of its paths over the scans.
+const EVERY_INSTRUCTION: &str = "\
+    LOAD _ON\nINC D00000\n\
+    LOAD D00000.0\nAND NOT D00000.1\nOR D00000.2\nOR NOT D00000.3\nOUT M0000\nOUT NOT M0001\n\
+    LOAD NOT D00000.1\nLOAD D00000.2\nAND D00000.3\nOR LOAD\nLOAD D00000.4\nOR NOT D00000.0\nAND LOAD\nOUT M0002\n\
+    LOAD D00000.1\nMPUSH\nAND D00000.2\nOUT M0003\nMLOAD\nAND NOT D00000.3\nOUT M0004\nMPOP\nNOT\nOUT M0005\n\
+    LOAD= D00000 7\nOR< D00000 3\nAND<> D00000 5\nOUT M0006\n\
+    LOAD> D00000 9\nAND>= D00000 12\nOR<= D00001 -4\nOUT M0007\n\
+    LOAD M0000\nLOAD< D00001 D00000\nAND LOAD\nSET M0008\nLOAD M0001\nRST M0008\n\
+    LOAD D00000.0\nMOV D00000 D00002\nADD D00002 30000 D00003\nSUB D00003 -7 D00004\nMUL D00000 -1234 D00005\n\
+    LOAD D00000.1\nINC D00006\nDEC D00007\nMOV -5 D00001\n\
+    LOAD D00000.2\nDIV D00005 D00000 D00008\nLOAD D00000.3\nDIV D00000 0 D00009\n\
+    LOADP D00000.1\nANDP D00000.0\nORP D00000.2\nOUT M0009\nLOADN D00000.1\nANDN D00000.2\nORN D00000.3\nOUT M000A\n\
+    LOAD D00000.1\nOUTP M000B\nOUTN M000C\nFF M000D\n\
+    LOAD D00000.2\nMOVP D00000 D00010\nADDP D00010 1 D00011\nSUBP D00011 2 D00012\nMULP D00012 3 D00013\nDIVP D00013 2 D00014\nINCP D00015\nDECP D00016\n\
+    LOAD D00000.1\nTON T1500 3\nTOFF T1501 2\nTMR T1502 4\nTMON T1503 2\nTRTG T1504 3\n\
+    LOAD T1502\nRST T1502\n\
+    LOAD D00000.0\nCTU C0000 3\nCTD C0001 2\nCTR C0002 4\nLOAD D00000.2\nCTUD C0003 D00000.0 D00000.1 3\n\
+    LOAD C0000\nRST C0000\n\
+    LOAD D00000.1\nDMOV 100000 D00020\nDADD D00020 D00020 D00022\nDSUB D00022 7 D00024\nDMUL D00024 -3 D00026\nDDIV D00026 D00000 D00028\nDINC D00030\nDDEC D00032\n\
+    LOAD D00000.3\nRMOV 1.5 D00040\nRADD D00040 D00040 D00042\nRSUB D00042 0.25 D00044\nRMUL D00044 D00040 D00046\nRDIV D00046 D00048 D00050\n\
+    LOAD D00000.0\nI2D D00001 D00052\nD2I D00020 D00054\nI2R D00000 D00056\nR2I D00040 D00058\nD2R D00022 D00060\nR2D D00042 D00062\n\
+    LOAD D00000.2\nDMOVP D00020 D00064\nDINCP D00066\nI2DP D00000 D00068\n\
+    LOADD>= D00020 100000\nANDD< D00022 D00020\nORD= D00024 7\nOUT M000E\n\
+    LOADR> D00040 1.0\nANDR<> D00042 3.0\nORR<= D00044 D00040\nOUT M000F\n\
+    LOAD D00000.0\nCALL 1\nLOAD D00000.1\nJMP 2\nINC D00070\nLABEL 2\nOUT M0010\n\
+    LOAD D00000.2\nFOR 3\nINC D00071\nLOAD>= D00071 D00000\nBREAK\nNEXT\n\
+    LOAD _ON\nDUTY 2 3 SM420\nLOAD SM420\nOUT M0011\nLOAD D00000.3\nWDT\nNOP\nEND\n\
+    SBRT 1\nINC D00072\nLOAD D00072.0\nCALL 2\nRET\nSBRT 2\nDEC D00073\nRET\n";
+
+#[test]
+fn every_instruction_list_instruction_runs_the_same_natively() {
+    // 40 % of the steps are native code: rungs of contacts, coils and data; the rest (edges,
+    // timers, counters, double words, reals, calls, loops) is the interpreter's.
+    let outcome = il_case("every instruction", &[("main", EVERY_INSTRUCTION)], 24, 1_000_000, 40);
+    let vm = outcome.vm.as_ref().unwrap();
+    let word = |d: &str| vm.mem.read(&plcd_core::device::Address::parse(d).unwrap());
+    // The scans counted, and `DIV D00000 0` failed in every scan with bit 3 of the count set.
+    assert_eq!(word("D00000"), 24);
+    assert!(outcome.errors_with_whole_budget(ERR_DIVIDE_BY_ZERO) >= 9, "{:?}", outcome.errors);
+}
+
+#[test]
+fn system_requests_stop_native_code_where_the_interpreter_stops() {
+    let source = "LOAD _ON\nINC D00000\nLOAD D00000.0\nOUT M0000\nSTOP\nLOAD D00000.1\nIORF\nOUT M0001\nEND\n";
+    il_case("system requests", &[("main", source)], 6, 0, 40);
+}
+
+#[test]
+fn the_repository_instruction_list_programs_run_the_same_natively() {
+    let root = repository();
+    let read = |path: &str| std::fs::read_to_string(root.join(path)).unwrap();
+    for (name, files, share) in [
+        (
+            "etc/programs",
+            &[
+                "etc/programs/main.il",
+                "etc/programs/blink.il",
+                "etc/programs/count.il",
+                "etc/programs/batch.il",
+            ][..],
+            50,
+        ),
+        (
+            "benches/projects/minute",
+            &["benches/projects/minute/scan.il", "benches/projects/minute/tick.il"][..],
+            95,
+        ),
+        ("benches/projects/bits10k", &["benches/projects/bits10k/scan.il"][..], 95),
+    ] {
+        let sources: Vec<(String, String)> = files
+            .iter()
+            .map(|f| (Path::new(f).file_stem().unwrap().to_str().unwrap().to_string(), read(f)))
+            .collect();
+        let sources: Vec<(&str, &str)> =
+            sources.iter().map(|(n, s)| (n.as_str(), s.as_str())).collect();
+        il_case(name, &sources, 5, 1_000, share);
+    }
+}
+
+#[test]
+fn a_jump_back_stops_at_the_same_step_for_any_budget() {
+    // An endless loop of native code (LABEL, JMP back): only the budget stops it.
+    let source = "LOAD _ON\nLABEL 1\nINC D00000\nLOAD _ON\nJMP 1\nEND\n";
+    let case = Programs::il("endless", &[("main", source)]);
+    let scans = Scans { calls: Some(40), ..Scans::new(2) };
+    let outcome = compare(&case, scans, &BUDGETS[1..]);
+    outcome.assert_equivalent();
+    assert!(
+        outcome.native_steps * 2 > outcome.steps,
+        "{} of {}",
+        outcome.native_steps,
+        outcome.steps
+    );
+}
+
+/// A random instruction-list program from `seed`: rungs of contacts (nested blocks, MPUSH
+/// branches, compare contacts), coils and data instructions, now and then an edge, a timer, a
+/// counter, a division, a forward jump, a loop or a subroutine call.
+fn random_il_program(seed: u64) -> String {
+    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut next = move |n: u64| {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state % n
+    };
+    let bit = |next: &mut dyn FnMut(u64) -> u64| match next(4) {
+        0 => format!("D00000.{:X}", next(16)),
+        1 => format!("M00{}{:X}", next(4), next(16)),
+        2 => format!("P00{}{:X}", next(8), next(16)),
+        _ => format!("M01{}{:X}", next(2), next(16)),
+    };
+    let src = |next: &mut dyn FnMut(u64) -> u64| match next(3) {
+        0 => format!("D{:05}", next(8)),
+        1 => format!("{}", next(200) as i64 - 100),
+        _ => "D00000".to_string(),
+    };
+    let mut out = String::from("LOAD _ON\nINC D00000\nADD D00000 D00001 D00001\n");
+    let mut labels = 0;
+    let mut timers = 0;
+    for _ in 0..30 {
+        // The rung's condition.
+        let contact = |n: u64| ["LOAD", "LOAD NOT"][n as usize];
+        out += &format!("{} {}\n", contact(next(2)), bit(&mut next));
+        for _ in 0..next(4) {
+            match next(7) {
+                0 => out += &format!("AND {}\n", bit(&mut next)),
+                1 => out += &format!("AND NOT {}\n", bit(&mut next)),
+                2 => out += &format!("OR {}\n", bit(&mut next)),
+                3 => out += &format!("OR NOT {}\n", bit(&mut next)),
+                4 => {
+                    let op = ["=", "<>", ">", ">=", "<", "<="][next(6) as usize];
+                    let how = ["AND", "OR"][next(2) as usize];
+                    out += &format!("{how}{op} {} {}\n", src(&mut next), src(&mut next));
+                }
+                5 => {
+                    out += &format!("LOAD {}\nOR NOT {}\n", bit(&mut next), bit(&mut next));
+                    out += ["AND LOAD\n", "OR LOAD\n"][next(2) as usize];
+                }
+                _ => out += &format!("ANDP {}\n", bit(&mut next)),
+            }
+        }
+        // What it drives.
+        let d = |next: &mut dyn FnMut(u64) -> u64| format!("D{:05}", 1 + next(7));
+        match next(12) {
+            0 => out += &format!("OUT {}\n", bit(&mut next)),
+            1 => out += &format!("OUT NOT {}\nSET {}\n", bit(&mut next), bit(&mut next)),
+            2 => out += &format!("RST {}\nNOT\nOUT {}\n", bit(&mut next), bit(&mut next)),
+            3 => {
+                out += &format!("MPUSH\nAND {}\nOUT {}\nMLOAD\n", bit(&mut next), bit(&mut next));
+                out += &format!(
+                    "AND NOT {}\nOUT {}\nMPOP\nMOV {} {}\n",
+                    bit(&mut next),
+                    bit(&mut next),
+                    src(&mut next),
+                    d(&mut next)
+                );
+            }
+            4 => {
+                let op = ["ADD", "SUB", "MUL", "DIV", "ADDP"][next(5) as usize];
+                out += &format!("{op} {} {} {}\n", src(&mut next), src(&mut next), d(&mut next));
+            }
+            5 => out += &format!("INC {}\nDEC {}\n", d(&mut next), d(&mut next)),
+            6 if timers < 8 => {
+                out +=
+                    &format!("TON T{:04} {}\nCTU C{:04} 3\n", 1500 + timers, 1 + next(5), timers);
+                timers += 1;
+            }
+            7 => {
+                labels += 1;
+                out +=
+                    &format!("JMP {labels}\nINC D00009\nOUT {}\nLABEL {labels}\n", bit(&mut next));
+            }
+            8 => out += &format!("FOR 3\nINC D00010\nADD D00010 D00000 D00011\nNEXT\n"),
+            9 => out += "CALL 1\n",
+            _ => {
+                out += &format!("OUT {}\nMOV {} {}\n", bit(&mut next), src(&mut next), d(&mut next))
+            }
+        }
+    }
+    out += "END\nSBRT 1\nLOAD D00000.0\nINC D00012\nMUL D00012 3 D00013\nRET\n";
+    out
+}
+
+#[test]
+fn random_instruction_list_programs_run_the_same_natively() {
+    for seed in 0..40 {
+        let source = random_il_program(seed);
+        let case = Programs::il(&format!("random IL {seed}"), &[("main", &source)]);
+        let outcome = compare(&case, Scans { step_ns: 1_000_000, ..Scans::new(6) }, &BUDGETS);
+        assert!(outcome.mismatches.is_empty(), "{}\n{source}", outcome.mismatches.join("\n"));
+        // 79-95 % for these seeds: every rung but its edges, timers, counters, divisions,
+        // loops and calls.
+        outcome.assert_native_share(&case.name, 70);
+    }
 }

@@ -1,0 +1,214 @@
+//! The instruction list as native code: which instructions are compiled, where native code can
+//! be entered and how far the budget is checked ([`Analysis`]); the code itself is
+//! [`codegen`]'s.
+//!
+//! What is compiled: contacts on bits and compare contacts (`LOAD`, `AND NOT`, `LOAD>=`, …),
+//! the block and `MPUSH` stacks, `NOT`, the coils (`OUT`, `OUT NOT`, `SET`, `RST`), `MOV`,
+//! `ADD`/`SUB`/`MUL`, `INC`/`DEC` without their `P` forms, `LABEL`, `JMP`, `NOP` and `END`: what
+//! rungs of logic and data are made of. Everything else — edges and the `P` forms (their edge
+//! memory), timers and counters (their state machines and the clock), `DIV` (which can fail),
+//! the double-word and real instructions, `CALL`/`RET`, `FOR`/`NEXT`/`BREAK`, `DUTY` and the
+//! system requests — the interpreter executes, one instruction at a time, and native code goes
+//! on after it.
+//!
+//! A block runs from one leader to the next: at most [`MAX_BLOCK`] instructions, so that a
+//! budget smaller than the whole program still leaves most of it to native code. A block
+//! checks once that the budget covers it, and hands itself whole to the interpreter if not.
+
+pub(crate) mod codegen;
+
+use plcd_core::lang::ops::{ArithOp, Op, Src};
+
+/// The longest block: a budget check every this many instructions at most.
+pub(crate) const MAX_BLOCK: usize = 256;
+
+/// Programs longer than this are compiled up to here, the rest left to the interpreter: the
+/// code generator's time and memory grow with the function, and a program of 10^6 steps would
+/// take seconds and hundreds of MB to compile whole (BENCHMARKS.md has the figures).
+pub(crate) const MAX_COMPILED: usize = 100_000;
+
+/// The analysis of one instruction-list program.
+pub(crate) struct Analysis {
+    /// The instructions native code can be entered at, sorted: the start, every jump target
+    /// of any instruction, the instruction after a jump or an `END`, every instruction the
+    /// interpreter executes and the one after it, and one every [`MAX_BLOCK`] instructions.
+    pub leaders: Vec<u32>,
+    /// Words of device memory the compiled instructions reach: native code runs only when
+    /// device memory has at least that many.
+    pub words_end: u64,
+    /// Instructions compiled: those from here on are the interpreter's.
+    pub compiled: usize,
+}
+
+/// True if native code executes `op` itself.
+pub(crate) fn is_native(op: &Op) -> bool {
+    match op {
+        Op::Load(_)
+        | Op::LoadNot(_)
+        | Op::LoadPush(_)
+        | Op::LoadNotPush(_)
+        | Op::And(_)
+        | Op::AndNot(_)
+        | Op::Or(_)
+        | Op::OrNot(_)
+        | Op::Compare { .. }
+        | Op::AndLoad
+        | Op::OrLoad
+        | Op::MPush
+        | Op::MLoad
+        | Op::MPop
+        | Op::Not
+        | Op::Out(_)
+        | Op::OutNot(_)
+        | Op::Set(_)
+        | Op::Rst(_)
+        | Op::Mov { pulse: None, .. }
+        | Op::Step { pulse: None, .. }
+        | Op::Jmp { .. }
+        | Op::Label
+        | Op::Nop
+        | Op::End => true,
+        Op::Arith { op, pulse: None, .. } => *op != ArithOp::Div,
+        _ => false,
+    }
+}
+
+/// True if control may not go on to the next instruction after `op`.
+fn ends_block(op: &Op) -> bool {
+    matches!(op, Op::Jmp { .. } | Op::End)
+}
+
+/// The words of device memory `op` reads or writes, as the end of their range.
+fn reach(op: &Op) -> u64 {
+    let src = |s: &Src| match s {
+        Src::Word(w) => u64::from(w.0) + 1,
+        Src::Const(_) => 0,
+    };
+    match op {
+        Op::Load(b)
+        | Op::LoadNot(b)
+        | Op::LoadPush(b)
+        | Op::LoadNotPush(b)
+        | Op::And(b)
+        | Op::AndNot(b)
+        | Op::Or(b)
+        | Op::OrNot(b)
+        | Op::Out(b)
+        | Op::OutNot(b)
+        | Op::Set(b)
+        | Op::Rst(b) => u64::from(b.word) + 1,
+        Op::Compare { a, b, .. } => src(a).max(src(b)),
+        Op::Mov { s, d, .. } => src(s).max(u64::from(d.0) + 1),
+        Op::Arith { a, b, d, .. } => src(a).max(src(b)).max(u64::from(d.0) + 1),
+        Op::Step { d, .. } => u64::from(d.0) + 1,
+        _ => 0,
+    }
+}
+
+/// Where control may go from `op` besides the next instruction.
+fn targets(op: &Op) -> Option<u32> {
+    match *op {
+        Op::Jmp { target } | Op::Call { target } => Some(target),
+        Op::For { end, .. } => Some(end),
+        Op::Next { body } => Some(body),
+        _ => None,
+    }
+}
+
+pub(crate) fn analyse(code: &[Op]) -> Analysis {
+    let compiled = code.len().min(MAX_COMPILED);
+    let mut leaders = vec![0u32];
+    let mut words_end = 0;
+    for (pc, op) in code.iter().enumerate() {
+        if let Some(target) = targets(op) {
+            leaders.push(target);
+        }
+        if pc >= compiled {
+            continue;
+        }
+        if !is_native(op) {
+            leaders.extend([pc as u32, pc as u32 + 1]);
+        } else {
+            words_end = words_end.max(reach(op));
+        }
+        if ends_block(op) {
+            leaders.push(pc as u32 + 1);
+        }
+    }
+    leaders.retain(|&pc| (pc as usize) < compiled);
+    leaders.sort_unstable();
+    leaders.dedup();
+    // No block longer than MAX_BLOCK.
+    let mut all = Vec::with_capacity(leaders.len() + compiled / MAX_BLOCK);
+    for (i, &leader) in leaders.iter().enumerate() {
+        let next = leaders.get(i + 1).map_or(compiled as u32, |&n| n);
+        let mut at = leader;
+        while at < next {
+            all.push(at);
+            at = at.saturating_add(MAX_BLOCK as u32);
+        }
+    }
+    Analysis { leaders: all, words_end, compiled }
+}
+
+impl Analysis {
+    /// The instructions of the block at `leaders[index]`: to the next leader, or to the first
+    /// that ends a block; an instruction the interpreter executes is a block of its own.
+    pub fn block(&self, code: &[Op], index: usize) -> std::ops::Range<usize> {
+        let start = self.leaders[index] as usize;
+        let limit = self.leaders.get(index + 1).map_or(self.compiled, |&pc| pc as usize);
+        let mut end = start;
+        while end < limit {
+            let op = &code[end];
+            end += 1;
+            if ends_block(op) || !is_native(op) {
+                break;
+            }
+        }
+        start..end
+    }
+
+    /// Instructions from `pc` to the next leader after it (the interpreter's share); in the
+    /// last block, to the end of the compiled code (a subroutine's `RET` there returns into
+    /// compiled code); past it, all of them.
+    pub fn span(&self, pc: u32) -> u32 {
+        let next = self.leaders.partition_point(|&leader| leader <= pc);
+        match self.leaders.get(next) {
+            Some(&leader) => leader - pc,
+            None if (pc as usize) < self.compiled => self.compiled as u32 - pc,
+            None => u32::MAX,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use plcd_core::device::BitRef;
+
+    fn bit(word: u16) -> BitRef {
+        BitRef { word, mask: 1 }
+    }
+
+    #[test]
+    fn leaders_cut_long_runs_and_surround_what_the_interpreter_runs() {
+        let mut code = vec![Op::Load(bit(1)); 600];
+        code[300] = Op::Arith {
+            op: ArithOp::Div,
+            a: Src::Const(1),
+            b: Src::Const(1),
+            d: plcd_core::device::WordRef(9),
+            pulse: None,
+        };
+        code.push(Op::End);
+        let a = analyse(&code);
+        assert_eq!(a.leaders, vec![0, 256, 300, 301, 557]);
+        assert_eq!(a.words_end, 2);
+        assert_eq!(a.block(&code, 0), 0..256);
+        assert_eq!(a.block(&code, 2), 300..301);
+        assert_eq!(a.block(&code, 4), 557..601);
+        assert_eq!(a.span(5), 251);
+        assert_eq!(a.span(600), 1);
+        assert_eq!(a.span(601), u32::MAX);
+    }
+}
