@@ -71,6 +71,8 @@ pub(crate) struct Context {
 pub(crate) const RETURN_END: u32 = 0;
 pub(crate) const RETURN_INTERPRET: u32 = 1;
 pub(crate) const RETURN_ERROR: u32 = 2;
+/// An instruction-list piece ended at a leader of another piece, which is to run next.
+pub(crate) const RETURN_CONTINUE: u32 = 3;
 
 type Entry = unsafe extern "C" fn(*mut Context) -> u32;
 
@@ -87,7 +89,9 @@ pub(crate) extern "C" fn copy_bytes(to: *mut u8, from: *const u8, n: u64) {
 pub(crate) struct Code {
     /// The memory the code lives in; `None` only while it is being freed.
     module: Option<JITModule>,
-    entry: Entry,
+    /// The generated functions: one for Structured Text, one per piece of an instruction-list
+    /// program ([`il::Analysis::pieces`]).
+    entries: Vec<Entry>,
     shape: Shape,
     /// Bytes of variable memory the code reaches unchecked (`codegen::generate`).
     vars_need: u64,
@@ -123,29 +127,46 @@ impl Code {
             .map_err(|e| Error::Host(e.to_string()))?;
         let mut module = JITModule::new(JITBuilder::with_isa(isa, default_libcall_names()));
         let mut ctx = module.make_context();
-        let vars_need = match &shape {
-            Shape::StructuredText(analysis) => {
-                codegen::generate(program, analysis, module.isa(), &mut ctx.func)
-            }
-            Shape::InstructionList(analysis) => {
-                il::codegen::generate(program, analysis, module.isa(), &mut ctx.func);
-                0
-            }
+        let pieces = match &shape {
+            Shape::StructuredText(_) => 1,
+            Shape::InstructionList(analysis) => analysis.pieces.len(),
         };
-        let id = module
-            .declare_function("plcd_program", Linkage::Local, &ctx.func.signature)
-            .map_err(|e| codegen_error(e.to_string()))?;
-        module.define_function(id, &mut ctx).map_err(|e| codegen_error(format!("{e:?}")))?;
-        module.clear_context(&mut ctx);
+        let mut vars_need = 0;
+        let mut ids = Vec::with_capacity(pieces);
+        for piece in 0..pieces {
+            match &shape {
+                Shape::StructuredText(analysis) => {
+                    vars_need = codegen::generate(program, analysis, module.isa(), &mut ctx.func);
+                }
+                Shape::InstructionList(analysis) => {
+                    il::codegen::generate(program, analysis, piece, module.isa(), &mut ctx.func);
+                }
+            }
+            let id = module
+                .declare_function(
+                    &format!("plcd_program_{piece}"),
+                    Linkage::Local,
+                    &ctx.func.signature,
+                )
+                .map_err(|e| codegen_error(e.to_string()))?;
+            module.define_function(id, &mut ctx).map_err(|e| codegen_error(format!("{e:?}")))?;
+            module.clear_context(&mut ctx);
+            ids.push(id);
+        }
         module
             .finalize_definitions()
             .map_err(|e| Error::Memory { program: name.clone(), message: format!("{e:#}") })?;
-        let address = module.get_finalized_function(id);
-        // SAFETY: `address` is the start of the function just finalized, whose signature
-        // `codegen::generate` made `(pointer) -> i32` in the platform's C calling convention;
-        // the memory stays mapped while `module` lives, which `Code` owns.
-        let entry = unsafe { std::mem::transmute::<*const u8, Entry>(address) };
-        Ok(Code { module: Some(module), entry, shape, vars_need, name })
+        let entries = ids
+            .into_iter()
+            .map(|id| {
+                let address = module.get_finalized_function(id);
+                // SAFETY: `address` is the start of a function just finalized, whose signature
+                // the code generators made `(pointer) -> i32` in the platform's C calling
+                // convention; the memory stays mapped while `module` lives, which `Code` owns.
+                unsafe { std::mem::transmute::<*const u8, Entry>(address) }
+            })
+            .collect();
+        Ok(Code { module: Some(module), entries, shape, vars_need, name })
     }
 }
 
@@ -158,6 +179,7 @@ impl NativeCode for Code {
         {
             return NativeExit::Interpret;
         }
+        let regs_pc = regs.pc;
         let mut context = Context {
             regs,
             vars: memory.vars.as_mut_ptr(),
@@ -169,15 +191,40 @@ impl NativeCode for Code {
             words_len: memory.words.len() as u64,
             frame_len: memory.frame.len() as u64,
         };
-        // SAFETY: every pointer of `context` comes from `regs` or a slice of `memory`, mutably
-        // borrowed for this call, with its length beside it. The generated code reads and writes only
-        // inside those lengths: the fixed operands were checked against them just above, the
-        // frame and FB-instance operands are checked at each block's entry, pointers are
-        // checked before each access, the evaluation stack is indexed modulo its length and the
-        // call stack below `ST_CALL_DEPTH` (codegen.rs); instruction-list code reaches device
-        // words only at the fixed operands checked above (il/codegen.rs). It keeps no pointer
-        // after it returns.
-        let status = unsafe { (self.entry)(&mut context) };
+        let mut entry = match &self.shape {
+            Shape::InstructionList(analysis) => match analysis.piece_of(regs_pc) {
+                Some(piece) => self.entries[piece],
+                // Not a leader: the interpreter's, as the first piece's dispatch would say.
+                None => return NativeExit::Interpret,
+            },
+            Shape::StructuredText(_) => self.entries[0],
+        };
+        let status = loop {
+            // SAFETY: every pointer of `context` comes from `regs` or a slice of `memory`,
+            // mutably borrowed for this call, with its length beside it. The generated code
+            // reads and writes only inside those lengths: the fixed operands were checked
+            // against them just above, the frame and FB-instance operands are checked at each
+            // block's entry, pointers are checked before each access, the evaluation stack is
+            // indexed modulo its length and the call stack below `ST_CALL_DEPTH` (codegen.rs);
+            // instruction-list code reaches device words only at the fixed operands checked
+            // above (il/codegen.rs). It keeps no pointer after it returns.
+            let status = unsafe { entry(&mut context) };
+            if status != RETURN_CONTINUE {
+                break status;
+            }
+            // An instruction-list piece went on into another: that one's code, with the budget
+            // the first left (it is checked at each block).
+            // SAFETY: the generated code has returned; `context.regs` is `regs`, borrowed for
+            // this call, and nothing else refers to it now.
+            let pc = unsafe { (*context.regs).pc };
+            match &self.shape {
+                Shape::InstructionList(analysis) => match analysis.piece_of(pc) {
+                    Some(piece) => entry = self.entries[piece],
+                    None => break RETURN_INTERPRET,
+                },
+                Shape::StructuredText(_) => break RETURN_INTERPRET,
+            }
+        };
         match status {
             RETURN_END => NativeExit::End,
             RETURN_ERROR => NativeExit::OperationError,

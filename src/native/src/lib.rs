@@ -40,6 +40,15 @@ pub enum Error {
     /// stack): the interpreter runs it as it is.
     #[error("program \"{program}\": {reason}")]
     Unsupported { program: String, reason: String },
+    /// An instruction-list program with so many instructions native code leaves to the
+    /// interpreter (timers, counters, edges, calls, …) that handing them over would cost more
+    /// than native code saves: it runs on the interpreter, as intended ([`attach`] does not
+    /// report it).
+    #[error(
+        "program \"{program}\": {handed_over} of its {compiled} instructions are the \
+         interpreter's: native code would be slower"
+    )]
+    Slower { program: String, handed_over: usize, compiled: usize },
     /// Cranelift has no code generator for this processor.
     #[error("no code generator for this processor: {0}")]
     Host(String),
@@ -53,12 +62,32 @@ pub enum Error {
 
 /// Compiles `program` to native code.
 pub fn compile(program: &Program) -> Result<Arc<dyn NativeCode>, Error> {
+    compile_as(program, false)
+}
+
+/// Compiles `program` to native code even where it would be slower than the interpreter
+/// ([`Error::Slower`]): for the tests and benches that compare the two on any program.
+pub fn compile_even_if_slower(program: &Program) -> Result<Arc<dyn NativeCode>, Error> {
+    compile_as(program, true)
+}
+
+fn compile_as(program: &Program, even_if_slower: bool) -> Result<Arc<dyn NativeCode>, Error> {
     let shape = match program.language {
         Language::StructuredText => code::Shape::StructuredText(
             analysis::analyse(program)
                 .map_err(|reason| Error::Unsupported { program: program.name.clone(), reason })?,
         ),
-        Language::InstructionList => code::Shape::InstructionList(il::analyse(&program.code)),
+        Language::InstructionList => {
+            let analysis = il::analyse(&program.code);
+            if !analysis.worth_compiling() && !even_if_slower {
+                return Err(Error::Slower {
+                    program: program.name.clone(),
+                    handed_over: analysis.handed_over,
+                    compiled: analysis.compiled,
+                });
+            }
+            code::Shape::InstructionList(analysis)
+        }
     };
     // Cranelift reports most failures as errors, a few (the instruction-cache flush of the
     // new code on some processors) as panics; either leaves this program to the interpreter.
@@ -78,7 +107,8 @@ pub fn compile(program: &Program) -> Result<Arc<dyn NativeCode>, Error> {
 /// stacks allow (they are sized to their need, and locked in memory).
 const COMPILE_STACK: usize = 8 << 20;
 
-/// Compiles every program of `project` to native code and attaches it; the
+/// Compiles every program of `project` to native code and attaches it (but the
+/// instruction-list programs it would make slower, [`Error::Slower`]); the
 /// programs it could not compile keep running on the interpreter, and their errors are
 /// returned for the caller to report. The compiling is done on a thread of its own, with the
 /// stack Cranelift needs, which ends before this returns.
@@ -96,6 +126,7 @@ pub fn attach(project: &mut Project) -> Vec<Error> {
                 for program in programs {
                     match compile(program) {
                         Ok(native) => program.native = Some(native),
+                        Err(Error::Slower { .. }) => {}
                         Err(e) => errors.push(e),
                     }
                 }

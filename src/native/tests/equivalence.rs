@@ -179,7 +179,7 @@ impl Programs {
         self.programs
             .iter()
             .map(|program| {
-                let code = plcd_native::compile(program)
+                let code = plcd_native::compile_even_if_slower(program)
                     .map_err(|e| format!("{}: no native code: {e}", self.name))?;
                 let mut program = program.clone();
                 program.native = Some(Arc::new(Counted { code, steps: native_steps.clone() }));
@@ -2195,10 +2195,10 @@ fn random_programs_run_the_same_natively() {
     check_random(seeds.unwrap_or(0..10));
 }
 
-/// `plcd_native::attach` compiles every Structured Text program of a project and leaves the
-/// instruction list's alone.
+/// `plcd_native::attach` compiles every program of a project, in either language, but the
+/// instruction-list programs native code would make slower, which it does not report.
 #[test]
-fn attach_compiles_every_st_program_of_the_example_project() {
+fn attach_compiles_every_program_of_the_example_project() {
     let path = repository().join("etc/plcd.toml");
     let text = std::fs::read_to_string(&path).expect("etc/plcd.toml");
     let config = plcd_core::config::parse(&text, &path).expect("the example config");
@@ -2206,11 +2206,19 @@ fn attach_compiles_every_st_program_of_the_example_project() {
         .expect("the example project");
     let errors = plcd_native::attach(&mut project);
     assert_eq!(errors, []);
+    // Every ST program; the instruction list's but those with timers and counters every few
+    // instructions (main.il: native code would be slower).
+    let native =
+        |name: &str| project.programs.iter().find(|p| p.name == name).unwrap().native.is_some();
     for program in &project.programs {
-        let st = program.language == Language::StructuredText;
-        assert_eq!(program.native.is_some(), st, "{}", program.name);
+        if program.language == Language::StructuredText {
+            assert!(program.native.is_some(), "{}", program.name);
+        }
     }
-    assert!(project.programs.iter().any(|p| p.language == Language::InstructionList));
+    assert!(native("blink") && native("count"), "blink.il and count.il are compiled");
+    assert!(!native("main"), "main.il: 2 of 17 instructions are the interpreter's");
+    let main = project.programs.iter().find(|p| p.name == "main").unwrap();
+    assert!(matches!(plcd_native::compile(main), Err(plcd_native::Error::Slower { .. })));
 }
 
 /// The Structured Text part of an activation the comparison reads holds what is live: the
@@ -2466,4 +2474,43 @@ fn random_instruction_list_programs_run_the_same_natively() {
         // loops and calls.
         outcome.assert_native_share(&case.name, 70);
     }
+}
+
+/// `rungs` rungs of bit logic over the scan counter's bits and M bits, with labels every 300
+/// rungs, a forward jump past two labels in between (from one piece of native code into
+/// another), and at the end a jump back to the first label, taken twice a scan.
+fn long_il_program(rungs: usize) -> String {
+    let mut out = String::from("LOAD _ON\nINC D00000\nMOV 0 D00002\nLABEL 1000\n");
+    for i in 0..rungs {
+        let m = |k: usize| format!("M{:03}{:X}", (i * 7 + k) % 256, (i + k) % 16);
+        out += &format!("LOAD D00000.{:X}\nAND NOT {}\nOR {}\nOUT {}\n", i % 4, m(1), m(2), m(3));
+        if i % 300 == 0 {
+            out += &format!("LABEL {}\n", i / 300);
+        }
+        if i % 300 == 150 && i + 450 < rungs {
+            out += &format!("LOAD D00000.0\nJMP {}\n", i / 300 + 2);
+        }
+    }
+    out += "LOAD< D00002 3\nINC D00002\nLOAD< D00002 3\nJMP 1000\nEND\n";
+    out
+}
+
+#[test]
+fn long_programs_run_the_same_across_pieces() {
+    // 2,000 rungs: about 8,000 steps, two pieces and a half of native code. (A program longer
+    // than is compiled: il::tests; its compile time in debug builds is minutes.)
+    // Budgets of a few steps would make tens of thousands of calls, each comparing the whole
+    // device memory: the short programs above try those.
+    let source = long_il_program(2_000);
+    let case = Programs::il("long", &[("main", &source)]);
+    let budgets = [
+        Budget::Fixed(u64::MAX),
+        Budget::Fixed(13),
+        Budget::Fixed(100),
+        Budget::Fixed(4_099),
+        Budget::Varying,
+    ];
+    let outcome = compare(&case, Scans::new(2), &budgets);
+    outcome.assert_equivalent();
+    outcome.assert_native_share("long", 95);
 }

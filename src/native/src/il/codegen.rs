@@ -10,6 +10,8 @@
 //!   target's block when the rung is ON);
 //! - an instruction the interpreter executes is a block of its own that stores the registers
 //!   and returns to it;
+//! - a program is compiled in pieces ([`Analysis::pieces`]), each such a function; a piece
+//!   goes on into another by returning to [`Code::run`](crate::code::Code), which calls it;
 //! - as in the interpreter, coils and data instructions store whatever the rung (the old value
 //!   when it is OFF) and contacts combine arithmetically: no branch on device data.
 //!
@@ -28,16 +30,17 @@ use plcd_core::lang::ops::{ArithOp, CmpOp, Combine, Op, Src};
 use plcd_core::lang::Program;
 
 use super::{is_native, Analysis};
-use crate::code::{Context, RETURN_END, RETURN_INTERPRET};
+use crate::code::{Context, RETURN_CONTINUE, RETURN_END, RETURN_INTERPRET};
 use crate::codegen::{data, own};
 
 const I32: types::Type = types::I32;
 const I64: types::Type = types::I64;
 
-/// Fills `func` with the code of `program`.
+/// Fills `func` with the code of piece `piece` of `program`.
 pub(crate) fn generate(
     program: &Program,
     analysis: &Analysis,
+    piece: usize,
     isa: &dyn TargetIsa,
     func: &mut Function,
 ) {
@@ -58,7 +61,9 @@ pub(crate) fn generate(
         branches: b.declare_var(I32),
         left: b.declare_var(I64),
     };
-    let mut g = Gen { b, code: &program.code, analysis, regs_at, words, regs, blocks: Vec::new() };
+    let leaders = analysis.pieces[piece].clone();
+    let mut g =
+        Gen { b, code: &program.code, analysis, regs_at, words, regs, leaders, blocks: Vec::new() };
     g.entry();
     g.body();
     g.b.seal_all_blocks();
@@ -81,7 +86,9 @@ struct Gen<'a, 'f> {
     regs_at: Value,
     words: Value,
     regs: Regs,
-    /// The block of each leader, by leader index.
+    /// This piece's leaders: a range of [`Analysis::leaders`].
+    leaders: std::ops::Range<usize>,
+    /// The block of each of this piece's leaders.
     blocks: Vec<Block>,
 }
 
@@ -100,9 +107,10 @@ impl Gen<'_, '_> {
         self.b.def_var(self.regs.blocks, blocks);
         self.b.def_var(self.regs.branches, branches);
         self.b.def_var(self.regs.left, left);
-        self.blocks = self.analysis.leaders.iter().map(|_| self.b.create_block()).collect();
+        let leaders = &self.analysis.leaders[self.leaders.clone()];
+        self.blocks = leaders.iter().map(|_| self.b.create_block()).collect();
         let mut switch = Switch::new();
-        for (&leader, &block) in self.analysis.leaders.iter().zip(&self.blocks) {
+        for (&leader, &block) in leaders.iter().zip(&self.blocks) {
             switch.set_entry(u128::from(leader), block);
         }
         // Any other pc: the interpreter, with the registers as they are.
@@ -137,25 +145,23 @@ impl Gen<'_, '_> {
         self.ret(status);
     }
 
-    /// The block of the leader at `pc`; `None` past the compiled code.
-    fn block_at(&self, pc: usize) -> Option<Block> {
-        self.analysis.leaders.binary_search(&(pc as u32)).ok().map(|i| self.blocks[i])
-    }
-
-    /// Goes on at `pc`: its block, or the interpreter past the compiled code.
+    /// Goes on at `pc`: its block in this piece, the piece that has it (through
+    /// [`Code::run`](crate::code::Code)), or the interpreter past the compiled code.
     fn go_on(&mut self, pc: usize) {
-        match self.block_at(pc) {
-            Some(block) => {
+        match self.analysis.leaders.binary_search(&(pc as u32)) {
+            Ok(index) if self.leaders.contains(&index) => {
+                let block = self.blocks[index - self.leaders.start];
                 self.b.ins().jump(block, &[]);
             }
-            None => self.exit(pc, RETURN_INTERPRET),
+            Ok(_) => self.exit(pc, RETURN_CONTINUE),
+            Err(_) => self.exit(pc, RETURN_INTERPRET),
         }
     }
 
     fn body(&mut self) {
-        for index in 0..self.analysis.leaders.len() {
+        for index in self.leaders.clone() {
             let range = self.analysis.block(self.code, index);
-            self.b.switch_to_block(self.blocks[index]);
+            self.b.switch_to_block(self.blocks[index - self.leaders.start]);
             if !is_native(&self.code[range.start]) {
                 self.exit(range.start, RETURN_INTERPRET);
                 continue;

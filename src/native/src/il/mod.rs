@@ -22,10 +22,23 @@ use plcd_core::lang::ops::{ArithOp, Op, Src};
 /// The longest block: a budget check every this many instructions at most.
 pub(crate) const MAX_BLOCK: usize = 256;
 
-/// Programs longer than this are compiled up to here, the rest left to the interpreter: the
-/// code generator's time and memory grow with the function, and a program of 10^6 steps would
-/// take seconds and hundreds of MB to compile whole (BENCHMARKS.md has the figures).
-pub(crate) const MAX_COMPILED: usize = 100_000;
+/// Instructions of one compiled function, at most: a program is compiled in pieces of this
+/// size, each its own function. Cranelift's time and memory grow faster than the function
+/// (10^5 instructions in one function: 1.5 s and 300 MB), and a piece's are freed before the
+/// next is compiled; a jump between pieces goes through [`Code::run`](crate::code::Code).
+pub(crate) const PIECE: usize = 4096;
+
+/// Instructions compiled, at most: a longer program's rest is left to the interpreter, so
+/// that a load takes bounded time whatever the program's size (BENCHMARKS.md has the
+/// figures).
+pub(crate) const MAX_COMPILED: usize = 65_536;
+
+/// Native code for a program in which more than one instruction in this many is the
+/// interpreter's would be slower than the interpreter alone: each hand-over costs about 200
+/// machine instructions (leaving the native function, entering the interpreter's loop and back),
+/// a compiled instruction saves 15 to 35 (`benches/counts`: `timers_counters`, a third of its
+/// instructions timers and counters, ran 4× the instructions with native code).
+pub(crate) const HANDOVER_EVERY: usize = 16;
 
 /// The analysis of one instruction-list program.
 pub(crate) struct Analysis {
@@ -38,6 +51,10 @@ pub(crate) struct Analysis {
     pub words_end: u64,
     /// Instructions compiled: those from here on are the interpreter's.
     pub compiled: usize,
+    /// The pieces, each compiled as a function of its own: ranges of `leaders`, in order.
+    pub pieces: Vec<std::ops::Range<usize>>,
+    /// Instructions of the compiled part that the interpreter executes.
+    pub handed_over: usize,
 }
 
 /// True if native code executes `op` itself.
@@ -119,6 +136,7 @@ pub(crate) fn analyse(code: &[Op]) -> Analysis {
     let compiled = code.len().min(MAX_COMPILED);
     let mut leaders = vec![0u32];
     let mut words_end = 0;
+    let mut handed_over = 0;
     for (pc, op) in code.iter().enumerate() {
         if let Some(target) = targets(op) {
             leaders.push(target);
@@ -128,6 +146,7 @@ pub(crate) fn analyse(code: &[Op]) -> Analysis {
         }
         if !is_native(op) {
             leaders.extend([pc as u32, pc as u32 + 1]);
+            handed_over += 1;
         } else {
             words_end = words_end.max(reach(op));
         }
@@ -148,7 +167,17 @@ pub(crate) fn analyse(code: &[Op]) -> Analysis {
             at = at.saturating_add(MAX_BLOCK as u32);
         }
     }
-    Analysis { leaders: all, words_end, compiled }
+    // Pieces of whole blocks, each at most PIECE instructions from its first leader.
+    let mut pieces = Vec::new();
+    let mut first = 0;
+    for index in 1..=all.len() {
+        let at = all.get(index).map_or(u32::MAX, |&pc| pc);
+        if index == all.len() || (at - all[first]) as usize > PIECE - MAX_BLOCK {
+            pieces.push(first..index);
+            first = index;
+        }
+    }
+    Analysis { leaders: all, words_end, compiled, pieces, handed_over }
 }
 
 impl Analysis {
@@ -166,6 +195,17 @@ impl Analysis {
             }
         }
         start..end
+    }
+
+    /// Whether native code would be faster than the interpreter (see [`HANDOVER_EVERY`]).
+    pub fn worth_compiling(&self) -> bool {
+        self.handed_over * HANDOVER_EVERY <= self.compiled
+    }
+
+    /// The piece whose code runs from `pc`, a leader.
+    pub fn piece_of(&self, pc: u32) -> Option<usize> {
+        let index = self.leaders.binary_search(&pc).ok()?;
+        Some(self.pieces.partition_point(|piece| piece.end <= index))
     }
 
     /// Instructions from `pc` to the next leader after it (the interpreter's share); in the
@@ -210,5 +250,25 @@ mod tests {
         assert_eq!(a.span(5), 251);
         assert_eq!(a.span(600), 1);
         assert_eq!(a.span(601), u32::MAX);
+        assert_eq!(a.pieces, vec![0..5]);
+        assert_eq!(a.piece_of(557), Some(0));
+        assert_eq!(a.piece_of(558), None);
+    }
+
+    #[test]
+    fn a_long_program_is_compiled_in_pieces_and_up_to_a_limit() {
+        let mut code = vec![Op::Out(bit(3)); 100_000];
+        code.push(Op::End);
+        let a = analyse(&code);
+        assert_eq!(a.compiled, MAX_COMPILED);
+        assert_eq!(a.leaders.len(), MAX_COMPILED / MAX_BLOCK);
+        assert_eq!(a.pieces.len(), MAX_COMPILED / PIECE);
+        for piece in &a.pieces {
+            let (start, last) = (a.leaders[piece.start], a.leaders[piece.end - 1]);
+            assert!((last - start) as usize + MAX_BLOCK <= PIECE, "{piece:?}");
+        }
+        assert_eq!(a.piece_of(4096 - 256), Some(0));
+        assert_eq!(a.piece_of(4096), Some(1));
+        assert_eq!(a.span(MAX_COMPILED as u32), u32::MAX);
     }
 }
