@@ -8,10 +8,11 @@
 //! fragment `target/bench-results/st_native.md` for BENCHMARKS.md; a figure this run did not
 //! produce reads "not run".
 //!
-//! The ST side is the real path: `st::parse_file` and `st::compile` (as a project load does),
-//! a `Vm` with the compiled variable image, and each iteration one scan as the engine executes
-//! it (`ExecState::restart`, then `Vm::run` to `END`), once as compiled and once with the
-//! program's native code attached (`plcd_native::compile`). The Rust side is the same logic over a
+//! The ST side (`benches/common/st_workloads.rs`, shared with the instruction-count guard
+//! `benches/counts.rs`) is the real path: `st::parse_file` and `st::compile` (as a project load
+//! does), a `Vm` with the compiled variable image, and each iteration one scan as the engine
+//! executes it (`ExecState::restart`, then `Vm::run` to `END`), once as compiled and once with
+//! the program's native code attached (`plcd_native::compile`). The Rust side is the same logic over a
 //! struct holding the same variables, each iteration one call of its `scan` through
 //! `black_box(&mut state)`, so the compiler can neither fold the inputs nor drop the outputs.
 //! Before measuring, the bench runs each ST side and the Rust side for `CHECK_SCANS` scans and
@@ -19,15 +20,15 @@
 //! for bit).
 
 use std::hint::black_box;
-use std::path::Path;
 use std::time::{Duration, SystemTime};
 
 use criterion::{BenchmarkGroup, Criterion};
 use plcd::bench::report::criterion_median_ns;
 use plcd::bench::{write_fragment, Fragment};
-use plcd_core::st::{compile, parse_file, Compiled, Instance};
-use plcd_core::value::{Elem, Pointer};
-use plcd_core::vm::{ExecState, Exit, ManualClock, Vm};
+
+#[path = "common/st_workloads.rs"]
+mod st;
+use st::{compile_files, Slot, StCase, BIT_INPUTS, BIT_SENSORS};
 
 const COMMAND: &str = "cargo bench --bench st_native";
 /// Scans both sides run before their variables are compared.
@@ -38,128 +39,7 @@ const TARGET_RATIO: f64 = 5.0;
 const TARGET_COMPILE_S: f64 = 1.0;
 
 // ---------------------------------------------------------------------------------------------
-// The ST side
-
-/// Parses and compiles `files` (path, text) with one instance `main` of the PROGRAM in the
-/// first file, as a project load does.
-fn compile_files(files: &[(&str, &str)]) -> Compiled {
-    let mut parsed = Vec::new();
-    for (path, text) in files {
-        let (file, diags) = parse_file(Path::new(path), text);
-        assert!(diags.is_empty(), "{diags}");
-        parsed.push(file);
-    }
-    let inst = Instance {
-        name: "main",
-        pou: None,
-        file: Path::new(files[0].0),
-        config: Path::new("plcd.toml"),
-        line: 1,
-        col: 1,
-    };
-    compile(&parsed, &[inst]).unwrap_or_else(|d| panic!("{d}"))
-}
-
-/// One compiled ST program on its VM.
-struct StCase {
-    c: Compiled,
-    vm: Vm,
-    state: ExecState,
-    clock: ManualClock,
-}
-
-impl StCase {
-    fn new(path: &str, source: &str) -> StCase {
-        let c = compile_files(&[(path, source)]);
-        let mut vm = Vm::for_programs(&c.programs);
-        vm.set_variables(&c.variables);
-        vm.reset_for_run(&plcd_core::device::RetainSet::default(), false);
-        let state = ExecState::with_frame(c.programs[0].frame_bytes);
-        StCase { c, vm, state, clock: ManualClock::new(0) }
-    }
-
-    /// The same program with its native code attached (`plcd_native`).
-    fn with_native(mut self) -> StCase {
-        let native = plcd_native::compile(&self.c.programs[0]).unwrap_or_else(|e| panic!("{e}"));
-        self.c.programs[0].native = Some(native);
-        self
-    }
-
-    // Not inlined, so that a profiler sees one scan as one call (`StCase::scan`).
-    #[inline(never)]
-    fn scan(&mut self) {
-        self.state.restart();
-        let exit = self.vm.run(&self.c.programs[0], &mut self.state, &self.clock, u64::MAX);
-        debug_assert_eq!(exit, Exit::End);
-        black_box(exit);
-    }
-
-    /// One scan that must end without an operation error.
-    fn checked_scan(&mut self) {
-        self.state.restart();
-        let exit = self.vm.run(&self.c.programs[0], &mut self.state, &self.clock, u64::MAX);
-        assert_eq!(exit, Exit::End, "the ST program did not run to END");
-    }
-
-    /// VM steps of one scan.
-    fn steps_per_scan(&mut self) -> u64 {
-        let before = self.vm.steps();
-        self.scan();
-        self.vm.steps() - before
-    }
-
-    fn at(&self, name: &str) -> (Pointer, Elem) {
-        let name = format!("main.{name}");
-        let s = self
-            .c
-            .variables
-            .symbols
-            .iter()
-            .find(|s| s.name.eq_ignore_ascii_case(&name))
-            .unwrap_or_else(|| panic!("no variable {name}"));
-        (s.at, s.ty.elem())
-    }
-
-    /// A variable's slot (value.rs's encoding: signed sign-extended, REAL the f32 bits).
-    fn slot(&self, name: &str) -> u64 {
-        let (at, elem) = self.at(name);
-        self.vm.read_value(at, elem)
-    }
-
-    fn set(&mut self, name: &str, slot: u64) {
-        let (at, elem) = self.at(name);
-        self.vm.write_value(at, elem, slot);
-    }
-}
-
-/// Slots of native values, in the VM's encoding.
-trait Slot {
-    fn slot(self) -> u64;
-}
-
-impl Slot for bool {
-    fn slot(self) -> u64 {
-        u64::from(self)
-    }
-}
-
-impl Slot for i16 {
-    fn slot(self) -> u64 {
-        self as i64 as u64
-    }
-}
-
-impl Slot for i32 {
-    fn slot(self) -> u64 {
-        self as i64 as u64
-    }
-}
-
-impl Slot for f32 {
-    fn slot(self) -> u64 {
-        u64::from(self.to_bits())
-    }
-}
+// The comparison of both sides (the ST side: benches/common/st_workloads.rs)
 
 /// Collects the mismatches between the VM's variables and the native values.
 #[derive(Default)]
@@ -204,10 +84,6 @@ struct Bits {
     s1_rise: bool,
     flip: bool,
 }
-
-const BIT_NAMES: [&str; 8] = ["start", "stop", "estop", "guard", "ready", "auto", "manual", "jog"];
-const BIT_INPUTS: [bool; 8] = [true, false, false, true, true, true, false, false];
-const BIT_SENSORS: [bool; 8] = [true, true, true, false, true, false, false, true];
 
 impl Bits {
     fn new() -> Bits {
@@ -259,17 +135,6 @@ impl Bits {
         let q8 = (q6 ^ q7) | (m4 & !m5);
         self.q = [q1, q2, q3, q4, q5, q6, q7, q8];
     }
-}
-
-fn bit_st() -> StCase {
-    let mut st = StCase::new("bit.st", include_str!("st/bit.st"));
-    for (name, on) in BIT_NAMES.iter().zip(BIT_INPUTS) {
-        st.set(name, on.slot());
-    }
-    for (k, on) in BIT_SENSORS.iter().enumerate() {
-        st.set(&format!("s{}", k + 1), on.slot());
-    }
-    st
 }
 
 fn bit_compare(st: &StCase, n: &Bits) {
@@ -640,16 +505,16 @@ fn configure<'a>(
     group
 }
 
-/// One workload: both sides run `CHECK_SCANS` scans and `compare` checks them; then fresh
-/// copies of both are measured side by side in one criterion group.
+/// One workload (its ST side: [`st::case`]): both sides run `CHECK_SCANS` scans and `compare`
+/// checks them; then fresh copies of both are measured side by side in one criterion group.
 fn bench_workload<N>(
     c: &mut Criterion,
     name: &'static str,
-    st: impl Fn() -> StCase,
     native: impl Fn() -> N,
     scan: fn(&mut N),
     compare: fn(&StCase, &N),
 ) -> Workload {
+    let st = || st::case(name);
     let (mut vm, mut nat) = (st(), native());
     for _ in 0..CHECK_SCANS {
         vm.checked_scan();
@@ -675,41 +540,12 @@ fn bench_workload<N>(
 }
 
 fn bench_workloads(c: &mut Criterion) -> Vec<Workload> {
-    let st = |path: &'static str, text: &'static str| move || StCase::new(path, text);
     vec![
-        bench_workload(c, "bit", bit_st, Bits::new, Bits::scan, bit_compare),
-        bench_workload(
-            c,
-            "int_loops",
-            st("int_loops.st", include_str!("st/int_loops.st")),
-            IntLoops::new,
-            IntLoops::scan,
-            int_loops_compare,
-        ),
-        bench_workload(
-            c,
-            "pid",
-            st("pid.st", include_str!("st/pid.st")),
-            Pid::new,
-            Pid::scan,
-            pid_compare,
-        ),
-        bench_workload(
-            c,
-            "sort",
-            st("sort.st", include_str!("st/sort.st")),
-            Sort::new,
-            Sort::scan,
-            sort_compare,
-        ),
-        bench_workload(
-            c,
-            "state_machine",
-            st("state_machine.st", include_str!("st/state_machine.st")),
-            Machines::new,
-            Machines::scan,
-            state_machine_compare,
-        ),
+        bench_workload(c, "bit", Bits::new, Bits::scan, bit_compare),
+        bench_workload(c, "int_loops", IntLoops::new, IntLoops::scan, int_loops_compare),
+        bench_workload(c, "pid", Pid::new, Pid::scan, pid_compare),
+        bench_workload(c, "sort", Sort::new, Sort::scan, sort_compare),
+        bench_workload(c, "state_machine", Machines::new, Machines::scan, state_machine_compare),
     ]
 }
 
