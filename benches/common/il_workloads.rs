@@ -147,11 +147,13 @@ impl VmCase {
         VmCase { program, vm, state: ExecState::new(), clock, toggles: workload.toggles }
     }
 
-    /// The same program with its native code attached (`plcd_native`), as a project load
-    /// attaches it.
+    /// The same program with its native code attached (`plcd_native`), even where a project
+    /// load would leave it to the interpreter (`plcd_native::Error::Slower`: `timers_counters`,
+    /// `call`, `realistic_10k`): the figures show what native code costs there.
     #[cfg(feature = "native")]
     pub fn with_native(mut self) -> VmCase {
-        let native = plcd_native::compile(&self.program).unwrap_or_else(|e| panic!("{e}"));
+        let native = plcd_native::compile_even_if_slower(&self.program)
+            .unwrap_or_else(|e| panic!("{e}"));
         self.program.native = Some(native);
         self
     }
