@@ -24,14 +24,15 @@ def main(argv):
         with open(path, encoding="utf-8") as f:
             body = f.read().strip("\n")
         pattern = re.compile(
-            r"(<!-- BEGIN %s -->\n).*?(\n<!-- END %s -->)" % (re.escape(name), re.escape(name)),
+            # An empty block (a new bench's, before its first run) has nothing in between.
+            r"(<!-- BEGIN %s -->\n)(?:.*?\n)?(<!-- END %s -->)" % (re.escape(name), re.escape(name)),
             re.S,
         )
         if not pattern.search(doc):
             print(f"{doc_path}: no <!-- BEGIN {name} --> … <!-- END {name} --> block for {path}",
                   file=sys.stderr)
             return 1
-        doc = pattern.sub(lambda m: m.group(1) + body + m.group(2), doc)
+        doc = pattern.sub(lambda m: m.group(1) + body + "\n" + m.group(2), doc)
         print(f"{doc_path}: {name} updated")
     with open(doc_path, "w", encoding="utf-8") as f:
         f.write(doc)

@@ -28,14 +28,20 @@ pub fn config(path: &Path) -> Result<Config, Diagnostics> {
 /// cannot compile runs on the interpreter, with a warning in the log). Every diagnostic of the config and of all programs
 /// is returned at once.
 pub fn project(path: &Path) -> Result<Project, Diagnostics> {
-    let config = config(path)?;
     #[allow(unused_mut)] // without the `native` feature, nothing is attached
-    let mut project = project::from_config(config, |p| std::fs::read_to_string(p))?;
+    let mut project = interpreted_project(path)?;
     #[cfg(feature = "native")]
     for error in plcd_native::attach(&mut project) {
         log::warn!("{error}; it runs on the interpreter");
     }
     Ok(project)
+}
+
+/// [`project`] without native code: every program on the interpreter (`plcd sim
+/// --interpreter`, to compare the two or to measure the interpreter itself).
+pub fn interpreted_project(path: &Path) -> Result<Project, Diagnostics> {
+    let config = config(path)?;
+    project::from_config(config, |p| std::fs::read_to_string(p))
 }
 
 /// Reads and parses the inputs file of a project, checked against its config

@@ -123,6 +123,25 @@ fn the_example_project_runs_to_its_golden_trace_and_timeline() {
 }
 
 #[test]
+fn native_code_and_the_interpreter_give_the_same_trace() {
+    // The example project with its native code (ST, and the instruction-list programs it
+    // compiles) and on the interpreter alone: every event the same, to the step; and the
+    // minute bench, whose 1,000-step scan (native code) a 10 ms cycle task preempts in mid-scan
+    // at the step the virtual clock reaches its deadline.
+    let watch = "--watch P0040,P0041,P0042,P0043,P0044,P0045,P0046,level.pid.out";
+    let trace = format!("--trace - {watch}");
+    assert!(example(&trace) == example(&format!("{trace} --interpreter")), "the example differs");
+    let args =
+        ["sim", "--config", "benches/projects/minute/plcd.toml", "--for", "1s", "--trace", "-"];
+    let native = plcd(&args);
+    let interpreted = plcd(&[&args[..], &["--interpreter"]].concat());
+    assert_eq!(native.status.code(), Some(0), "{}", String::from_utf8_lossy(&native.stderr));
+    let text = String::from_utf8_lossy(&native.stdout);
+    assert!(text.matches("task_preempt").count() >= 90, "the scan is preempted");
+    assert!(native.stdout == interpreted.stdout, "the minute bench differs");
+}
+
+#[test]
 fn the_readme_run_command_draws_the_example_project() {
     let chart = example("--timeline");
     for task in ["scan", "init", "blink_250ms", "tank_10ms", "count_p0000", "batch_full"] {

@@ -152,8 +152,8 @@ impl VmCase {
     /// `call`, `realistic_10k`): the figures show what native code costs there.
     #[cfg(feature = "native")]
     pub fn with_native(mut self) -> VmCase {
-        let native = plcd_native::compile_even_if_slower(&self.program)
-            .unwrap_or_else(|e| panic!("{e}"));
+        let native =
+            plcd_native::compile_even_if_slower(&self.program).unwrap_or_else(|e| panic!("{e}"));
         self.program.native = Some(native);
         self
     }

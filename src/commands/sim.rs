@@ -41,6 +41,10 @@ pub struct SimArgs {
     /// Columns of the timeline.
     #[arg(long, default_value_t = 100, value_name = "COLUMNS")]
     pub timeline_width: usize,
+    /// Run every program on the interpreter, without native code (the same results, slower):
+    /// to compare the two, or to measure the interpreter itself.
+    #[arg(long)]
+    pub interpreter: bool,
 }
 
 /// Forwards every event to both sinks.
@@ -60,7 +64,8 @@ pub fn run(args: &SimArgs, err: &mut impl Write) -> ExitCode {
         Ok(ns) => ns,
         Err(e) => return usage(err, &format!("--for {}: {e}", args.duration)),
     };
-    let project = match files::project(&args.config) {
+    let load = if args.interpreter { files::interpreted_project } else { files::project };
+    let project = match load(&args.config) {
         Ok(p) => p,
         Err(diags) => {
             let _ = write!(err, "{diags}");
