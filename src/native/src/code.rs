@@ -192,11 +192,7 @@ impl NativeCode for Code {
             frame_len: memory.frame.len() as u64,
         };
         let mut entry = match &self.shape {
-            Shape::InstructionList(analysis) => match analysis.piece_of(regs_pc) {
-                Some(piece) => self.entries[piece],
-                // Not a leader: the interpreter's, as the first piece's dispatch would say.
-                None => return NativeExit::Interpret,
-            },
+            Shape::InstructionList(analysis) => self.entries[analysis.piece_holding(regs_pc)],
             Shape::StructuredText(_) => self.entries[0],
         };
         let status = loop {

@@ -208,6 +208,16 @@ impl Analysis {
         Some(self.pieces.partition_point(|piece| piece.end <= index))
     }
 
+    /// The piece whose range of instructions holds `pc` (the last for any pc past them): its
+    /// dispatch runs `pc` if it is a leader, and hands it to the interpreter if not.
+    pub fn piece_holding(&self, pc: u32) -> usize {
+        if self.pieces.len() <= 1 {
+            return 0;
+        }
+        let after = self.pieces.partition_point(|piece| self.leaders[piece.start] <= pc);
+        after.saturating_sub(1)
+    }
+
     /// Instructions from `pc` to the next leader after it (the interpreter's share); in the
     /// last block, to the end of the compiled code (a subroutine's `RET` there returns into
     /// compiled code); past it, all of them.
@@ -269,6 +279,9 @@ mod tests {
         }
         assert_eq!(a.piece_of(4096 - 256), Some(0));
         assert_eq!(a.piece_of(4096), Some(1));
+        assert_eq!(a.piece_holding(4095), 0);
+        assert_eq!(a.piece_holding(4096), 1);
+        assert_eq!(a.piece_holding(u32::MAX), 15);
         assert_eq!(a.span(MAX_COMPILED as u32), u32::MAX);
     }
 }
