@@ -2452,7 +2452,7 @@ fn random_il_program(seed: u64) -> String {
                 out +=
                     &format!("JMP {labels}\nINC D00009\nOUT {}\nLABEL {labels}\n", bit(&mut next));
             }
-            8 => out += &format!("FOR 3\nINC D00010\nADD D00010 D00000 D00011\nNEXT\n"),
+            8 => out += "FOR 3\nINC D00010\nADD D00010 D00000 D00011\nNEXT\n",
             9 => out += "CALL 1\n",
             _ => {
                 out += &format!("OUT {}\nMOV {} {}\n", bit(&mut next), src(&mut next), d(&mut next))
