@@ -207,17 +207,9 @@ impl Analysis {
     /// to the first that ends a block, whichever comes first; an instruction the interpreter
     /// executes is a block of its own.
     pub fn block(&self, code: &[Op], index: usize) -> std::ops::Range<usize> {
-        let start = self.leaders[index] as usize;
-        let limit = self.leaders.get(index + 1).map_or(code.len(), |&pc| pc as usize);
-        let mut end = start;
-        while end < limit {
-            let op = &code[end];
-            end += 1;
-            if ends_block(op) || !is_native(op) {
-                break;
-            }
-        }
-        start..end
+        crate::blocks::block(&self.leaders, code.len(), code, index, |op| {
+            ends_block(op) || !is_native(op)
+        })
     }
 
     /// Where each block checks the step budget, and for how many instructions (by leader
@@ -280,7 +272,6 @@ impl Analysis {
 
     /// Instructions from `pc` to the next leader after it (the interpreter's share).
     pub fn span(&self, pc: u32) -> u32 {
-        let next = self.leaders.partition_point(|&leader| leader <= pc);
-        self.leaders.get(next).map_or(u32::MAX, |&leader| leader - pc)
+        crate::blocks::span(&self.leaders, self.depth.len(), pc)
     }
 }

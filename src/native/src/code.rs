@@ -37,6 +37,16 @@ impl Shape {
         }
     }
 
+    /// The generated function to enter at `pc`: Structured Text's one, or the instruction-list
+    /// piece whose range holds `pc` (its dispatch hands a pc that is no leader to the
+    /// interpreter).
+    fn entry_index(&self, pc: u32) -> usize {
+        match self {
+            Shape::StructuredText(_) => 0,
+            Shape::InstructionList(a) => a.piece_holding(pc),
+        }
+    }
+
     fn blocks(&self) -> usize {
         match self {
             Shape::StructuredText(a) => a.leaders.len(),
@@ -191,10 +201,7 @@ impl NativeCode for Code {
             words_len: memory.words.len() as u64,
             frame_len: memory.frame.len() as u64,
         };
-        let mut entry = match &self.shape {
-            Shape::InstructionList(analysis) => self.entries[analysis.piece_holding(regs_pc)],
-            Shape::StructuredText(_) => self.entries[0],
-        };
+        let mut entry = self.entries[self.shape.entry_index(regs_pc)];
         let status = loop {
             // SAFETY: every pointer of `context` comes from `regs` or a slice of `memory`,
             // mutably borrowed for this call, with its length beside it. The generated code
@@ -213,13 +220,7 @@ impl NativeCode for Code {
             // SAFETY: the generated code has returned; `context.regs` is `regs`, borrowed for
             // this call, and nothing else refers to it now.
             let pc = unsafe { (*context.regs).pc };
-            match &self.shape {
-                Shape::InstructionList(analysis) => match analysis.piece_of(pc) {
-                    Some(piece) => entry = self.entries[piece],
-                    None => break RETURN_INTERPRET,
-                },
-                Shape::StructuredText(_) => break RETURN_INTERPRET,
-            }
+            entry = self.entries[self.shape.entry_index(pc)];
         };
         match status {
             RETURN_END => NativeExit::End,

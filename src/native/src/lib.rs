@@ -12,6 +12,7 @@
 //! - [`analysis`]: what a Structured Text program's ops need (the static depth of the
 //!   evaluation stack at each instruction, the entry points, the blocks), and whether the
 //!   program can be compiled;
+//! - [`blocks`]: blocks and the interpreter's share from a program's leaders, for both;
 //! - [`codegen`]: Structured Text's ops as Cranelift IR;
 //! - [`il`]: the instruction list's analysis and code generator (its ops have no evaluation
 //!   stack: rungs of bit logic and data, which it compiles, and the rest, which it leaves to
@@ -21,6 +22,7 @@
 #![deny(unsafe_code)]
 
 mod analysis;
+mod blocks;
 mod code;
 mod codegen;
 mod helpers;

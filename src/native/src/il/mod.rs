@@ -184,28 +184,14 @@ impl Analysis {
     /// The instructions of the block at `leaders[index]`: to the next leader, or to the first
     /// that ends a block; an instruction the interpreter executes is a block of its own.
     pub fn block(&self, code: &[Op], index: usize) -> std::ops::Range<usize> {
-        let start = self.leaders[index] as usize;
-        let limit = self.leaders.get(index + 1).map_or(self.compiled, |&pc| pc as usize);
-        let mut end = start;
-        while end < limit {
-            let op = &code[end];
-            end += 1;
-            if ends_block(op) || !is_native(op) {
-                break;
-            }
-        }
-        start..end
+        crate::blocks::block(&self.leaders, self.compiled, code, index, |op| {
+            ends_block(op) || !is_native(op)
+        })
     }
 
     /// Whether native code would be faster than the interpreter (see [`HANDOVER_EVERY`]).
     pub fn worth_compiling(&self) -> bool {
         self.handed_over * HANDOVER_EVERY <= self.compiled
-    }
-
-    /// The piece whose code runs from `pc`, a leader.
-    pub fn piece_of(&self, pc: u32) -> Option<usize> {
-        let index = self.leaders.binary_search(&pc).ok()?;
-        Some(self.pieces.partition_point(|piece| piece.end <= index))
     }
 
     /// The piece whose range of instructions holds `pc` (the last for any pc past them): its
@@ -222,12 +208,7 @@ impl Analysis {
     /// last block, to the end of the compiled code (a subroutine's `RET` there returns into
     /// compiled code); past it, all of them.
     pub fn span(&self, pc: u32) -> u32 {
-        let next = self.leaders.partition_point(|&leader| leader <= pc);
-        match self.leaders.get(next) {
-            Some(&leader) => leader - pc,
-            None if (pc as usize) < self.compiled => self.compiled as u32 - pc,
-            None => u32::MAX,
-        }
+        crate::blocks::span(&self.leaders, self.compiled, pc)
     }
 }
 
@@ -261,8 +242,8 @@ mod tests {
         assert_eq!(a.span(600), 1);
         assert_eq!(a.span(601), u32::MAX);
         assert_eq!(a.pieces, vec![0..5]);
-        assert_eq!(a.piece_of(557), Some(0));
-        assert_eq!(a.piece_of(558), None);
+        assert_eq!(a.piece_holding(557), 0);
+        assert_eq!(a.piece_holding(601), 0);
     }
 
     #[test]
@@ -277,8 +258,6 @@ mod tests {
             let (start, last) = (a.leaders[piece.start], a.leaders[piece.end - 1]);
             assert!((last - start) as usize + MAX_BLOCK <= PIECE, "{piece:?}");
         }
-        assert_eq!(a.piece_of(4096 - 256), Some(0));
-        assert_eq!(a.piece_of(4096), Some(1));
         assert_eq!(a.piece_holding(4095), 0);
         assert_eq!(a.piece_holding(4096), 1);
         assert_eq!(a.piece_holding(u32::MAX), 15);
