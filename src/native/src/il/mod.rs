@@ -4,10 +4,10 @@
 //!
 //! What is compiled: contacts on bits and compare contacts (`LOAD`, `AND NOT`, `LOAD>=`, …),
 //! the block and `MPUSH` stacks, `NOT`, the coils (`OUT`, `OUT NOT`, `SET`, `RST`), `MOV`,
-//! `ADD`/`SUB`/`MUL`, `INC`/`DEC` without their `P` forms, `LABEL`, `JMP`, `NOP` and `END`: what
-//! rungs of logic and data are made of. Everything else — edges and the `P` forms (their edge
-//! memory), timers and counters (their state machines and the clock), `DIV` (which can fail),
-//! the double-word and real instructions, `CALL`/`RET`, `FOR`/`NEXT`/`BREAK`, `DUTY` and the
+//! `ADD`/`SUB`/`MUL`/`DIV` (a division by zero is the interpreter's), `INC`/`DEC` without their
+//! `P` forms, `LABEL`, `JMP`, `NOP` and `END`: what rungs of logic and data are made of.
+//! Everything else — edges and the `P` forms (their edge memory), timers and counters (their
+//! state machines and the clock), the double-word and real instructions, `CALL`/`RET`, `FOR`/`NEXT`/`BREAK`, `DUTY` and the
 //! system requests — the interpreter executes, one instruction at a time, and native code goes
 //! on after it.
 //!
@@ -17,7 +17,7 @@
 
 pub(crate) mod codegen;
 
-use plcd_core::lang::ops::{ArithOp, Op, Src};
+use plcd_core::lang::ops::{Op, Src};
 
 /// The longest block: a budget check every this many instructions at most.
 pub(crate) const MAX_BLOCK: usize = 256;
@@ -59,35 +59,35 @@ pub(crate) struct Analysis {
 
 /// True if native code executes `op` itself.
 pub(crate) fn is_native(op: &Op) -> bool {
-    match op {
+    matches!(
+        op,
         Op::Load(_)
-        | Op::LoadNot(_)
-        | Op::LoadPush(_)
-        | Op::LoadNotPush(_)
-        | Op::And(_)
-        | Op::AndNot(_)
-        | Op::Or(_)
-        | Op::OrNot(_)
-        | Op::Compare { .. }
-        | Op::AndLoad
-        | Op::OrLoad
-        | Op::MPush
-        | Op::MLoad
-        | Op::MPop
-        | Op::Not
-        | Op::Out(_)
-        | Op::OutNot(_)
-        | Op::Set(_)
-        | Op::Rst(_)
-        | Op::Mov { pulse: None, .. }
-        | Op::Step { pulse: None, .. }
-        | Op::Jmp { .. }
-        | Op::Label
-        | Op::Nop
-        | Op::End => true,
-        Op::Arith { op, pulse: None, .. } => *op != ArithOp::Div,
-        _ => false,
-    }
+            | Op::LoadNot(_)
+            | Op::LoadPush(_)
+            | Op::LoadNotPush(_)
+            | Op::And(_)
+            | Op::AndNot(_)
+            | Op::Or(_)
+            | Op::OrNot(_)
+            | Op::Compare { .. }
+            | Op::AndLoad
+            | Op::OrLoad
+            | Op::MPush
+            | Op::MLoad
+            | Op::MPop
+            | Op::Not
+            | Op::Out(_)
+            | Op::OutNot(_)
+            | Op::Set(_)
+            | Op::Rst(_)
+            | Op::Mov { pulse: None, .. }
+            | Op::Arith { pulse: None, .. }
+            | Op::Step { pulse: None, .. }
+            | Op::Jmp { .. }
+            | Op::Label
+            | Op::Nop
+            | Op::End
+    )
 }
 
 /// True if control may not go on to the next instruction after `op`.
@@ -224,13 +224,7 @@ mod tests {
     #[test]
     fn leaders_cut_long_runs_and_surround_what_the_interpreter_runs() {
         let mut code = vec![Op::Load(bit(1)); 600];
-        code[300] = Op::Arith {
-            op: ArithOp::Div,
-            a: Src::Const(1),
-            b: Src::Const(1),
-            d: plcd_core::device::WordRef(9),
-            pulse: None,
-        };
+        code[300] = Op::Ret;
         code.push(Op::End);
         let a = analyse(&code);
         assert_eq!(a.leaders, vec![0, 256, 300, 301, 557]);
