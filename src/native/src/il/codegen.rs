@@ -163,7 +163,7 @@ impl Gen<'_, '_> {
     /// Leaves with `status`: the registers, with `pc`, back to the context.
     fn exit(&mut self, pc: usize, status: u32) {
         let pc = self.b.ins().iconst(I32, pc as i64);
-        let rung = self.b.use_var(self.regs.rung);
+        let rung = self.rung();
         let blocks = self.b.use_var(self.regs.blocks);
         let branches = self.b.use_var(self.regs.branches);
         let left = self.b.use_var(self.regs.left);
@@ -223,7 +223,7 @@ impl Gen<'_, '_> {
                         ended = true;
                     }
                     Op::Jmp { target } => {
-                        let rung = self.b.use_var(self.regs.rung);
+                        let rung = self.rung();
                         let taken = self.b.create_block();
                         let not_taken = self.b.create_block();
                         self.b.ins().brif(rung, taken, &[], not_taken, &[]);
@@ -259,11 +259,12 @@ impl Gen<'_, '_> {
         value
     }
 
+    /// The bit in bit 0 of the result, the other bits undefined (a contact's value, see
+    /// [`Gen::rung`]).
     fn bit(&mut self, b: BitRef) -> Value {
         let word = self.held_value(b.word);
         if b.mask.is_power_of_two() {
-            let shifted = self.b.ins().ushr_imm_s(word, i64::from(b.mask.trailing_zeros()));
-            return self.b.ins().band_imm_s(shifted, 1);
+            return self.b.ins().ushr_imm_s(word, i64::from(b.mask.trailing_zeros()));
         }
         let masked = self.b.ins().band_imm_s(word, i64::from(b.mask));
         let on = self.b.ins().icmp_imm_s(IntCC::NotEqual, masked, 0);
@@ -314,7 +315,7 @@ impl Gen<'_, '_> {
     /// bits are the interpreter's wrapping result, and the division cannot trap.
     fn div(&mut self, a: Src, b: Src, d: WordRef, pc: usize, end: usize) {
         let (a, b) = (self.signed(a), self.signed(b));
-        let rung = self.b.use_var(self.regs.rung);
+        let rung = self.rung();
         let zero = self.b.ins().icmp_imm_s(IntCC::Equal, b, 0);
         let zero = self.b.ins().uextend(I32, zero);
         let fails = self.b.ins().band(rung, zero);
@@ -334,18 +335,26 @@ impl Gen<'_, '_> {
         self.store_if_on(d, quotient);
     }
 
+    /// The rung, 0 or 1. (The variable's other bits are whatever the contacts left there:
+    /// only bit 0 is the rung, so that a contact is a shift and an `and` or `or`.)
+    fn rung(&mut self) -> Value {
+        let raw = self.b.use_var(self.regs.rung);
+        self.b.ins().band_imm_s(raw, 1)
+    }
+
     /// All ones when the rung is ON, else zero.
     fn all(&mut self) -> Value {
-        let rung = self.b.use_var(self.regs.rung);
+        let rung = self.rung();
         self.b.ins().ineg(rung)
     }
 
+    /// Bit 0 inverted (and the others).
     fn not(&mut self, v: Value) -> Value {
-        self.b.ins().bxor_imm_s(v, 1)
+        self.b.ins().bnot(v)
     }
 
     fn push_rung(&mut self, stack: Variable) {
-        let rung = self.b.use_var(self.regs.rung);
+        let rung = self.rung();
         let s = self.b.use_var(stack);
         let s = self.b.ins().ishl_imm_s(s, 1);
         let s = self.b.ins().bor(s, rung);
@@ -396,7 +405,7 @@ impl Gen<'_, '_> {
     /// Stores `value` at `d` when the rung is ON, the old value when it is OFF.
     fn store_if_on(&mut self, d: WordRef, value: Value) {
         let old = self.word(d);
-        let rung = self.b.use_var(self.regs.rung);
+        let rung = self.rung();
         let v = self.b.ins().select(rung, value, old);
         self.set_word(d, v);
     }
@@ -450,15 +459,25 @@ impl Gen<'_, '_> {
                 self.b.def_var(self.regs.rung, rung);
             }
             Op::Out(b) | Op::OutNot(b) => {
-                let rung = self.b.use_var(self.regs.rung);
-                let on = if matches!(op, Op::OutNot(_)) { self.not(rung) } else { rung };
+                let rung = self.rung();
+                let on = if matches!(op, Op::OutNot(_)) {
+                    self.b.ins().bxor_imm_s(rung, 1)
+                } else {
+                    rung
+                };
                 self.write_bit(b, on);
             }
             Op::Set(b) | Op::Rst(b) => {
                 let w = WordRef(b.word);
                 let word = self.word(w);
-                let all = self.all();
-                let bits = self.b.ins().band_imm_s(all, i64::from(b.mask));
+                // The mask where the rung is ON, else 0.
+                let bits = if b.mask.is_power_of_two() {
+                    let rung = self.rung();
+                    self.b.ins().ishl_imm_s(rung, i64::from(b.mask.trailing_zeros()))
+                } else {
+                    let all = self.all();
+                    self.b.ins().band_imm_s(all, i64::from(b.mask))
+                };
                 let word = if matches!(op, Op::Set(_)) {
                     self.b.ins().bor(word, bits)
                 } else {
