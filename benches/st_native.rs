@@ -18,6 +18,13 @@
 //! Before measuring, the bench runs each ST side and the Rust side for `CHECK_SCANS` scans and
 //! checks that every variable the workload computes holds the same value on both (REALs bit
 //! for bit).
+//!
+//! Beside them, a third column: each workload compiled as OpenPLC compiles a project, by
+//! matiec's `iec2c` to C and then by gcc -O2, and run as OpenPLC's runtime runs a program
+//! (`benches/matiec/`: `setup` builds iec2c from its source, `run.rs` builds and runs each
+//! workload). Its variables after each of `CHECK_SCANS` scans must be the VM's, scan for scan
+//! (REALs bit for bit); its time is the median of its own batches of scans, timed by the C
+//! harness. When iec2c cannot be built, the column reads "not run" with the reason.
 
 use std::hint::black_box;
 use std::time::{Duration, SystemTime};
@@ -26,6 +33,8 @@ use criterion::{BenchmarkGroup, Criterion};
 use plcd::bench::report::criterion_median_ns;
 use plcd::bench::{write_fragment, Fragment};
 
+#[path = "matiec/run.rs"]
+mod matiec;
 #[path = "common/st_workloads.rs"]
 mod st;
 use st::{compile_files, Slot, StCase, BIT_INPUTS, BIT_SENSORS};
@@ -485,12 +494,58 @@ fn state_machine_compare(st: &StCase, n: &Machines) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// The matiec column (benches/matiec/)
+
+/// The slot plcd's VM holds where matiec, scanning the same program, holds `matiec`: the same,
+/// but for the FOR loops' control variables, which IEC 61131-3 leaves to the implementation
+/// once a loop is done: matiec's FOR stops at the bound it reached, plcd's one step past it
+/// (docs/ST.md), and these loops step by 1.
+fn vm_slot_for_matiec(workload: &str, var: &str, matiec: u64) -> u64 {
+    match (workload, var) {
+        ("int_loops", "i" | "j") => matiec.wrapping_add(1),
+        _ => matiec,
+    }
+}
+
+/// Compares matiec's variables after each scan with the VM's, scan for scan.
+fn matiec_compare(workload: &str, run: &matiec::Run) {
+    let mut vm = st::case(workload);
+    for (k, scan) in run.scans.iter().enumerate() {
+        vm.checked_scan();
+        let mut mismatches = Vec::new();
+        for (var, slot) in scan {
+            let (vm_slot, expected) = (vm.slot(var), vm_slot_for_matiec(workload, var, *slot));
+            if vm_slot != expected {
+                mismatches.push(format!("{var}: VM {vm_slot:#x}, matiec {slot:#x}"));
+            }
+        }
+        assert!(
+            mismatches.is_empty(),
+            "{workload}: the VM and matiec disagree after scan {}:\n{}",
+            k + 1,
+            mismatches.join("\n")
+        );
+    }
+}
+
+/// Workload `name` with matiec, once iec2c is `ready`: its time per scan, or why it was not
+/// run. Values that differ from the VM's fail the bench.
+fn bench_matiec(name: &str, ready: &Result<(), String>) -> Result<f64, String> {
+    ready.clone()?;
+    let run = matiec::run_workload(name, CHECK_SCANS)?;
+    matiec_compare(name, &run);
+    Ok(run.ns_per_scan)
+}
+
+// ---------------------------------------------------------------------------------------------
 // Measurement
 
-/// A workload: its name, and the VM steps one scan executed.
+/// A workload: its name, the VM steps one scan executed, and matiec's time per scan (or why
+/// there is none).
 struct Workload {
     name: &'static str,
     steps: u64,
+    matiec: Result<f64, String>,
 }
 
 fn configure<'a>(
@@ -506,9 +561,11 @@ fn configure<'a>(
 }
 
 /// One workload (its ST side: [`st::case`]): both sides run `CHECK_SCANS` scans and `compare`
-/// checks them; then fresh copies of both are measured side by side in one criterion group.
+/// checks them; then fresh copies of both are measured side by side in one criterion group;
+/// and matiec's build of it is checked and timed ([`bench_matiec`]).
 fn bench_workload<N>(
     c: &mut Criterion,
+    matiec: &Result<(), String>,
     name: &'static str,
     native: impl Fn() -> N,
     scan: fn(&mut N),
@@ -536,16 +593,17 @@ fn bench_workload<N>(
     group.bench_function("compiled", |b| b.iter(|| jit.scan()));
     group.bench_function("rust", |b| b.iter(|| scan(black_box(&mut nat))));
     group.finish();
-    Workload { name, steps }
+    Workload { name, steps, matiec: bench_matiec(name, matiec) }
 }
 
-fn bench_workloads(c: &mut Criterion) -> Vec<Workload> {
+fn bench_workloads(c: &mut Criterion, matiec: &Result<(), String>) -> Vec<Workload> {
+    let m = matiec;
     vec![
-        bench_workload(c, "bit", Bits::new, Bits::scan, bit_compare),
-        bench_workload(c, "int_loops", IntLoops::new, IntLoops::scan, int_loops_compare),
-        bench_workload(c, "pid", Pid::new, Pid::scan, pid_compare),
-        bench_workload(c, "sort", Sort::new, Sort::scan, sort_compare),
-        bench_workload(c, "state_machine", Machines::new, Machines::scan, state_machine_compare),
+        bench_workload(c, m, "bit", Bits::new, Bits::scan, bit_compare),
+        bench_workload(c, m, "int_loops", IntLoops::new, IntLoops::scan, int_loops_compare),
+        bench_workload(c, m, "pid", Pid::new, Pid::scan, pid_compare),
+        bench_workload(c, m, "sort", Sort::new, Sort::scan, sort_compare),
+        bench_workload(c, m, "state_machine", Machines::new, Machines::scan, state_machine_compare),
     ]
 }
 
@@ -665,14 +723,17 @@ fn report(workloads: &[Workload], lines: usize, since: SystemTime) {
             None => format!("≤ {TARGET_RATIO}×"),
         };
         let times = |r: Option<f64>| r.map_or_else(not_run, |r| format!("{r:.1}×"));
+        let matiec = w.matiec.as_ref().ok().copied();
         rows.push(vec![
             format!("`{}`", w.name),
             w.steps.to_string(),
             interpreter.map_or_else(not_run, time),
             compiled.map_or_else(not_run, time),
             rust.map_or_else(not_run, time),
+            matiec.map_or_else(not_run, time),
             times(ratio(interpreter, rust)),
             times(ratio(compiled, rust)),
+            times(ratio(compiled, matiec)),
             target,
         ]);
     }
@@ -680,7 +741,15 @@ fn report(workloads: &[Workload], lines: usize, since: SystemTime) {
     f.line(
         "Criterion's median time of one scan of each workload: the ST program on the \
          interpreter, the same with its native code (plcd-native), and the Rust, measured side \
-         by side in this run; VM steps: the ops one scan executes (the same on both).\n",
+         by side in this run; VM steps: the ops one scan executes (the same on both). \
+         matiec + gcc -O2: the same program compiled as OpenPLC compiles a project (matiec's \
+         iec2c with OpenPLC's flags, then gcc -O2 with matiec's C library) and run as \
+         OpenPLC's runtime runs it (config_run__ once a cycle), the median of 301 batches of \
+         at least 1 ms each, timed by its C harness (benches/matiec/harness.c) in this run; \
+         its variables equal the VM's after each of the first 300 scans (REALs bit for bit; \
+         int_loops' FOR variables i and j aside, which matiec leaves at the bound and plcd one \
+         past it). pid and state_machine are compiled from benches/matiec/, the same program \
+         without arrays of function block instances, which matiec does not have.\n",
     );
     f.table(
         &[
@@ -689,12 +758,19 @@ fn report(workloads: &[Workload], lines: usize, since: SystemTime) {
             "interpreter",
             "native code",
             "Rust",
+            "matiec + gcc -O2",
             "interpreter/Rust",
             "native code/Rust",
+            "native code/matiec",
             "target",
         ],
         &rows,
     );
+    for w in workloads {
+        if let Err(why) = &w.matiec {
+            f.line(format!("\nmatiec, `{}`: not run ({why})\n", w.name));
+        }
+    }
     let compile = criterion_median_ns("st_compile", "10k_lines", since);
     let with_native = criterion_median_ns("st_compile", "10k_lines_native", since);
     let verdict = |ns: f64| if ns / 1e9 < TARGET_COMPILE_S { "met" } else { "missed" };
@@ -720,19 +796,23 @@ fn report(workloads: &[Workload], lines: usize, since: SystemTime) {
 
 fn main() {
     let since = SystemTime::now();
-    let mut c = Criterion::default().configure_from_args();
-    let workloads = bench_workloads(&mut c);
-    let lines = bench_compile(&mut c);
-    c.final_summary();
-    for w in &workloads {
-        eprintln!("{}: {} VM steps per scan", w.name, w.steps);
-    }
     // `cargo bench` passes --bench; `cargo test --benches` does not, and `--test` (run each
-    // benchmark once) and `--list` measure nothing.
+    // benchmark once) and `--list` measure nothing, nor need iec2c built.
     let args: Vec<String> = std::env::args().collect();
     let measured = |a: &String| a == "--bench";
     let probe = |a: &String| a == "--test" || a == "--list";
-    if args.iter().any(measured) && !args.iter().any(probe) {
+    let measuring = args.iter().any(measured) && !args.iter().any(probe);
+    let matiec = if measuring { matiec::setup() } else { Err("not measuring".to_string()) };
+    let mut c = Criterion::default().configure_from_args();
+    let workloads = bench_workloads(&mut c, &matiec);
+    let lines = bench_compile(&mut c);
+    c.final_summary();
+    for w in &workloads {
+        let matiec =
+            w.matiec.as_ref().map_or_else(|why| format!("not run ({why})"), |&ns| time(ns));
+        eprintln!("{}: {} VM steps per scan; matiec + gcc -O2: {matiec}", w.name, w.steps);
+    }
+    if measuring {
         report(&workloads, lines, since);
     }
 }
