@@ -766,10 +766,19 @@ fn report(workloads: &[Workload], lines: usize, since: SystemTime) {
         ],
         &rows,
     );
+    // Each reason once (a failed set-up is every workload's), with the workloads it stopped.
+    let mut stopped: Vec<(&str, Vec<String>)> = Vec::new();
     for w in workloads {
         if let Err(why) = &w.matiec {
-            f.line(format!("\nmatiec, `{}`: not run ({why})\n", w.name));
+            let name = format!("`{}`", w.name);
+            match stopped.iter_mut().find(|(reason, _)| reason == why) {
+                Some((_, names)) => names.push(name),
+                None => stopped.push((why, vec![name])),
+            }
         }
+    }
+    for (why, names) in stopped {
+        f.line(format!("\nmatiec, {}: not run ({why})\n", names.join(", ")));
     }
     let compile = criterion_median_ns("st_compile", "10k_lines", since);
     let with_native = criterion_median_ns("st_compile", "10k_lines_native", since);

@@ -46,7 +46,8 @@ fn run(seconds: u32, program: &str, args: &[&str]) -> Result<String, String> {
         let stderr = String::from_utf8_lossy(&out.stderr);
         let lines: Vec<&str> = stderr.lines().collect();
         let tail = lines[lines.len().saturating_sub(3)..].join(" / ");
-        return Err(format!("{program} {}: {}: {tail}", args.join(" "), out.status));
+        let command = [&[program], args].concat().join(" ");
+        return Err(format!("{command}: {}: {tail}", out.status));
     }
     Ok(String::from_utf8_lossy(&out.stdout).into_owned())
 }
