@@ -5,6 +5,8 @@
 //!    for the most part, compares, moves, arithmetic, timers, counters, an edge contact),
 //!    devices reused cyclically over fixed ranges so that the data touched stops growing at
 //!    10⁴ steps and only the code grows beyond; ns per step against the caches.
+//!    The same against a program of bit logic alone, on the interpreter and with its native
+//!    code side by side, and the time each load takes (parse and compile, plcd-native).
 //! 2. Task overhead: 8 cycle tasks (1 ms), 8 io tasks (edges on P0000–P0007 every 1 ms) and 8
 //!    device tasks (conditions true at every END) driven like `plcd sim` drives the engine
 //!    (`poll_time`, `input_edge`, `run`, a step clock), against the same scan program without
@@ -326,6 +328,89 @@ impl Generated {
         g
     }
 
+    /// A scan program of exactly `steps` executed instructions, `END` included, of bit logic
+    /// alone (what native code compiles whole): blocks of 32 steps in seven rungs of LOAD,
+    /// AND, OR, AND NOT, OR NOT, OR LOAD and OUT on the M and P bits of
+    /// [`Generated::scan_program`], the same walk over them.
+    fn bit_program(steps: usize) -> Generated {
+        let mut g = Generated {
+            source: String::with_capacity(steps * 14),
+            words: BTreeSet::new(),
+            timers: BTreeSet::new(),
+            counters: BTreeSet::new(),
+        };
+        let body = steps - 1;
+        let (mut m_pick, mut p_pick) = (0u32, 0u32);
+        let blocks = body / 32;
+        for b in 0..blocks as u32 {
+            let mut m = || {
+                let bit = m_pick.wrapping_mul(2_654_435_761) % (GEN_M_WORDS * 16);
+                m_pick += 1;
+                g.words.insert(('M', bit / 16));
+                format!("M{:03}{:X}", bit / 16, bit % 16)
+            };
+            let ms: Vec<String> = (0..24).map(|_| m()).collect();
+            let mut input = || {
+                let bit = p_pick.wrapping_mul(40_503) % (64 * 16);
+                p_pick += 1;
+                g.words.insert(('P', bit / 16));
+                format!("P{:03}{:X}", bit / 16, bit % 16)
+            };
+            let (p1, p2, p3) = (input(), input(), input());
+            let out = b % GEN_OUTPUTS;
+            g.words.insert(('P', 40 + out / 16));
+            let _ = write!(
+                g.source,
+                "LOAD {}\nAND {p1}\nOR {}\nOUT {}\n\
+                 LOAD {}\nAND NOT {}\nOUT P040{out:X}\n\
+                 LOAD {}\nAND {}\nLOAD {}\nAND {}\nOR LOAD\nOUT {}\n\
+                 LOAD NOT {p2}\nOR {}\nAND {}\nOUT {}\n\
+                 LOAD {}\nAND {}\nOUT {}\nAND NOT {}\nOUT {}\n\
+                 LOAD {}\nAND {p3}\nOR NOT {}\nOUT {}\n\
+                 LOAD {}\nAND NOT {}\nOR {}\nAND {}\nOUT {}\nOUT {}\n",
+                ms[0],
+                ms[1],
+                ms[2],
+                ms[3],
+                ms[4],
+                ms[5],
+                ms[6],
+                ms[7],
+                ms[8],
+                ms[9],
+                ms[10],
+                ms[11],
+                ms[12],
+                ms[13],
+                ms[14],
+                ms[15],
+                ms[16],
+                ms[17],
+                ms[18],
+                ms[19],
+                ms[20],
+                ms[21],
+                ms[22],
+                ms[23],
+                ms[0],
+                ms[5],
+                ms[9],
+            );
+        }
+        let rest = (body - blocks * 32) as u32;
+        for i in 0..rest / 2 {
+            let (a, b) = (i % GEN_M_WORDS, (i * 7 + 3) % GEN_M_WORDS);
+            g.words.insert(('M', a));
+            g.words.insert(('M', b));
+            let _ = writeln!(g.source, "LOAD M{a:03}{:X}\nOUT M{b:03}{:X}", i % 16, (i + 5) % 16);
+        }
+        if rest % 2 == 1 {
+            g.source.push_str("NOP\n");
+        }
+        g.source.push_str("END\n");
+        g
+    }
+
     /// Bytes of device memory the program touches: its words, plus the VM's state of each
     /// timer (about 24 bytes: elapsed and last time, flags) and counter (about 8), private
     /// types whose sizes are estimated here.
@@ -391,6 +476,101 @@ fn scan_sizes(sizes: &[usize], rounds: usize) -> Vec<SizeRow> {
             SizeRow { steps, code_bytes, data_bytes, median, p90, cpu_median, cpu_p90, cpu_min }
         })
         .collect()
+}
+
+/// What a project load does with table 1's mixed program (its native code is declined: it
+/// would hand too many instructions to the interpreter), in words for the report.
+fn native_declined() -> String {
+    let config = "[plc]\nwatchdog_ms = 1000\n[[program]]\nfile = \"scan.il\"\n";
+    let generated = Generated::scan_program(1_000);
+    let project = project(config, &[("scan.il".into(), generated.source)]);
+    match plcd_native::compile(&project.programs[0]) {
+        Err(plcd_native::Error::Slower { handed_over, compiled, .. }) => format!(
+            "A project load leaves this mixed program on the interpreter: its native code would \
+             hand {handed_over} of its {compiled} instructions (TON, CTU, LOADP, INC) to the \
+             interpreter one at a time, slower than interpreting it all (plcd-native's \
+             `Error::Slower`), so these figures are the ones it runs at."
+        ),
+        Ok(_) => "A project load attaches native code to this mixed program; these figures are \
+                  the interpreter's."
+            .into(),
+        Err(e) => {
+            format!("Native code for this mixed program: {e}; these figures are the interpreter's.")
+        }
+    }
+}
+
+/// One size of the bit-logic program, on the interpreter and with its native code.
+struct NativeRow {
+    steps: u64,
+    /// Parse and compile (the VM's ops), seconds: a project load without native code.
+    load_s: f64,
+    /// plcd-native's compilation of the same program (`plcd_native::attach`), seconds.
+    native_s: f64,
+    interpreter_cpu: f64,
+    native_cpu: f64,
+    interpreter_min: f64,
+    native_min: f64,
+}
+
+/// Table 1b: [`Generated::bit_program`] at each size, loaded once as the interpreter runs it
+/// and once with its native code attached (as a project load does), both rigs sampled side by
+/// side round by round; and the time each load took.
+fn native_sizes(sizes: &[usize], rounds: usize) -> Vec<NativeRow> {
+    let config = "[plc]\nwatchdog_ms = 1000\n[[program]]\nfile = \"scan.il\"\n";
+    let mut cases = Vec::new();
+    for &size in sizes {
+        let source = Generated::bit_program(size).source;
+        let started = Instant::now();
+        let interpreted = project(config, &[("scan.il".into(), source)]);
+        let load_s = started.elapsed().as_secs_f64();
+        let mut native = interpreted.clone();
+        let started = Instant::now();
+        let errors = plcd_native::attach(&mut native);
+        let native_s = started.elapsed().as_secs_f64();
+        assert!(errors.is_empty(), "native code for {size} steps: {errors:?}");
+        assert!(native.programs[0].native.is_some(), "no native code attached at {size} steps");
+        let watch = interpreted.output_bits();
+        let mut rigs = [Rig::new(&interpreted, &watch, 100), Rig::new(&native, &watch, 100)];
+        let mut steps = [0; 2];
+        for (rig, steps) in rigs.iter_mut().zip(&mut steps) {
+            for w in 0..64 {
+                rig.engine.write(&Address::parse(&format!("P{w:03}")).unwrap(), 0x5A5A);
+            }
+            let before = rig.engine.steps();
+            rig.scan();
+            *steps = rig.engine.steps() - before;
+        }
+        assert_eq!(steps, [size as u64; 2], "every instruction executes once a scan, on both");
+        let batch = (100_000 / size).max(1) as u32;
+        eprintln!(
+            "scaling: {size} steps of bit logic: loaded in {load_s:.2} s, native code in \
+             {native_s:.2} s"
+        );
+        cases.push((rigs, load_s, native_s, batch, [Vec::new(), Vec::new()]));
+    }
+    for _ in 0..rounds {
+        for (rigs, _, _, batch, samples) in &mut cases {
+            for (rig, samples) in rigs.iter_mut().zip(samples.iter_mut()) {
+                rig.scan();
+                samples.push(rig.time_scans_cpu(*batch).1);
+            }
+        }
+    }
+    let mut rows = Vec::new();
+    for ((_, load_s, native_s, _, [interpreter, native]), &size) in cases.into_iter().zip(sizes) {
+        let min = |s: &[f64]| s.iter().copied().fold(f64::MAX, f64::min);
+        rows.push(NativeRow {
+            steps: size as u64,
+            load_s,
+            native_s,
+            interpreter_cpu: summary(&interpreter).0,
+            native_cpu: summary(&native).0,
+            interpreter_min: min(&interpreter),
+            native_min: min(&native),
+        });
+    }
+    rows
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -718,6 +898,11 @@ fn main() {
     }
     let sizes = scan_sizes(&sizes, if full { 400 } else { 3 });
     eprintln!("scaling: program sizes done at {:.1} s", started.elapsed().as_secs_f64());
+    let declined = native_declined();
+    let native_sizes_list: &[usize] =
+        if full { &[1_000, 10_000, 100_000, 1_000_000] } else { &[1_000, 10_000] };
+    let natives = native_sizes(native_sizes_list, if full { 200 } else { 3 });
+    eprintln!("scaling: native code sizes done at {:.1} s", started.elapsed().as_secs_f64());
 
     let tasks = task_overhead(if full { 600 } else { 1 }, if full { 100 } else { 20 });
     eprintln!("scaling: task overhead done at {:.1} s", started.elapsed().as_secs_f64());
@@ -738,7 +923,7 @@ fn main() {
     let ends = end_processing(&cases, if full { 300 } else { 2 }, if full { 2000 } else { 20 });
     eprintln!("scaling: END processing done at {:.1} s", started.elapsed().as_secs_f64());
 
-    let fragment = report(&sizes, &tasks, &ends);
+    let fragment = report(&sizes, &declined, &natives, &tasks, &ends);
     if full {
         write_fragment("scaling", &fragment).expect("writing the fragment");
     } else {
@@ -754,7 +939,13 @@ fn fits_in(caches: &[(u32, usize)], b: usize) -> String {
     caches.iter().find(|(_, size)| b <= *size).map_or("DRAM".into(), |(l, _)| format!("L{l}"))
 }
 
-fn report(sizes: &[SizeRow], tasks: &[TaskRow], ends: &[EndRow]) -> Fragment {
+fn report(
+    sizes: &[SizeRow],
+    declined: &str,
+    natives: &[NativeRow],
+    tasks: &[TaskRow],
+    ends: &[EndRow],
+) -> Fragment {
     let mut f = Fragment::new("cargo bench --bench scaling");
     let caches = caches();
     let cache_text: Vec<String> =
@@ -880,6 +1071,52 @@ fn report(sizes: &[SizeRow], tasks: &[TaskRow], ends: &[EndRow]) -> Fragment {
     text += "The smallest size carries the fixed cost of a scan (input refresh, END \
              processing, output refresh: the first row of the END table) over fewer steps.\n";
     f.line(text);
+    f.line(format!("{declined}\n"));
+
+    // 1b. Bit logic, interpreter and native code.
+    f.line(format!(
+        "**Bit logic on the interpreter and with native code, and the load time**: the same \
+         harness on a program of bit logic alone (blocks of 32 steps in seven rungs of LOAD, \
+         AND, OR, AND NOT, OR NOT, OR LOAD, OUT over the same M and P bits), loaded twice: as \
+         the interpreter runs it, and with its native code attached as a project load \
+         attaches it; the two sampled side by side round by round. Load: parsing and compiling \
+         to the VM's ops; native code: `plcd_native::attach` on the loaded project (Cranelift; \
+         the first {} instructions in pieces, the rest left to the interpreter, \
+         docs/LANGUAGE.md). ns/step from the thread's CPU time.\n",
+        count(plcd_native::IL_MAX_COMPILED as u64)
+    ));
+    let rows: Vec<Vec<String>> = natives
+        .iter()
+        .map(|r| {
+            let exp = (r.steps as f64).log10();
+            let per = |ns: f64| ns / r.steps as f64;
+            vec![
+                if exp.fract() == 0.0 { format!("10^{exp}") } else { count(r.steps) },
+                count(r.steps),
+                format!("{:.3} s", r.load_s),
+                format!("{:.3} s", r.native_s),
+                count(r.steps.min(plcd_native::IL_MAX_COMPILED as u64)),
+                format!("{:.2}", per(r.interpreter_cpu)),
+                format!("**{:.2}**", per(r.native_cpu)),
+                format!("{:.2}×", r.interpreter_cpu / r.native_cpu),
+                format!("{:.2} / {:.2}", per(r.interpreter_min), per(r.native_min)),
+            ]
+        })
+        .collect();
+    f.table(
+        &[
+            "size",
+            "steps",
+            "load",
+            "native code",
+            "steps compiled",
+            "ns/step interpreter",
+            "ns/step native code",
+            "interpreter/native",
+            "ns/step min: interpreter / native",
+        ],
+        &rows,
+    );
 
     // 2. Tasks.
     f.line(format!(

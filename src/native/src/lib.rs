@@ -34,6 +34,10 @@ use plcd_core::lang::native::NativeCode;
 use plcd_core::lang::{Language, Program};
 use plcd_core::project::Project;
 
+/// Instructions of an instruction-list program compiled to native code, at most: the rest
+/// of a longer program runs on the interpreter, so that a load takes bounded time.
+pub const IL_MAX_COMPILED: usize = il::MAX_COMPILED;
+
 /// Why a program has no native code (it runs on the interpreter).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum Error {
