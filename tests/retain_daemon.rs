@@ -95,12 +95,18 @@ fn kill_9_at_random_moments_never_loses_an_acknowledged_write() {
     };
     let (mut acked_seq, mut acked) = (0u64, 0u32);
     let mut progressed = 0;
+    // Rounds that surely restored: they started with a generation on disk and waited for a
+    // write of their own, which comes after the restore. The other rounds restore only if the
+    // kill comes late enough, which a loaded or emulated machine makes rare.
+    let mut sure_restores = 0;
     // The kills fall anywhere in the first 120 ms of a run natively: through the start, the
     // restore and the first writes. Emulated, a start takes longer, and so does the window.
     let window_us = 120_000 * u64::from(harness::runner::slowdown());
     for round in 0..200 {
+        let had_generation = newest_in(&project.retain_dir()).is_some();
         let daemon = project.start();
         if round % 4 == 0 {
+            sure_restores += u32::from(had_generation);
             // Every 4th round waits for a write of this run, so the test always progresses.
             project.wait_for_generation("a write of this run", |g| g.seq > acked_seq);
         }
@@ -126,7 +132,11 @@ fn kill_9_at_random_moments_never_loses_an_acknowledged_write() {
     assert!(acked > 0);
     let log = project.log();
     assert!(!log.contains("corrupt") && !log.contains("not restored"), "{log}");
-    assert!(log.matches("retain: restored generation").count() >= 50);
+    let restores = log.matches("retain: restored generation").count();
+    assert!(
+        restores >= sure_restores as usize && sure_restores >= 45,
+        "{restores} restores logged, {sure_restores} rounds that surely restored"
+    );
 }
 
 /// Counts RUN starts: K000 and D00000 grow by one at each RUN start.
