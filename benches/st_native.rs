@@ -42,10 +42,11 @@ use st::{compile_files, Slot, StCase, BIT_INPUTS, BIT_SENSORS};
 const COMMAND: &str = "cargo bench --bench st_native";
 /// Scans both sides run before their variables are compared.
 const CHECK_SCANS: usize = 300;
-/// The target: Structured Text (with its native code) within this factor of Rust on every workload.
-const TARGET_RATIO: f64 = 5.0;
-/// The target for the 10,000-line project, in seconds.
-const TARGET_COMPILE_S: f64 = 1.0;
+/// The targets of issue 28: Structured Text (with its native code) within this factor of Rust
+/// on every workload, and at least as fast as matiec + gcc -O2 (the matiec column).
+const TARGET_RATIO: f64 = 2.0;
+/// The target for the 10,000-line project, in seconds (with native code).
+const TARGET_COMPILE_S: f64 = 0.5;
 
 // ---------------------------------------------------------------------------------------------
 // The comparison of both sides (the ST side: benches/common/st_workloads.rs)
@@ -717,13 +718,18 @@ fn report(workloads: &[Workload], lines: usize, since: SystemTime) {
         let interpreter = criterion_median_ns(&group, "interpreter", since);
         let compiled = criterion_median_ns(&group, "compiled", since);
         let rust = criterion_median_ns(&group, "rust", since);
-        let target = match ratio(compiled, rust) {
-            Some(r) if r <= TARGET_RATIO => format!("≤ {TARGET_RATIO}×: met"),
-            Some(_) => format!("≤ {TARGET_RATIO}×: missed"),
-            None => format!("≤ {TARGET_RATIO}×"),
-        };
-        let times = |r: Option<f64>| r.map_or_else(not_run, |r| format!("{r:.1}×"));
         let matiec = w.matiec.as_ref().ok().copied();
+        let verdict = |r: Option<f64>, at_most: f64| match r {
+            Some(r) if r <= at_most => ": met",
+            Some(_) => ": missed",
+            None => "",
+        };
+        let target = format!(
+            "≤ {TARGET_RATIO}× of Rust{}; ≤ matiec{}",
+            verdict(ratio(compiled, rust), TARGET_RATIO),
+            verdict(ratio(compiled, matiec), 1.0)
+        );
+        let times = |r: Option<f64>| r.map_or_else(not_run, |r| format!("{r:.1}×"));
         rows.push(vec![
             format!("`{}`", w.name),
             w.steps.to_string(),
