@@ -203,6 +203,17 @@ impl Rig {
         black_box(activity);
     }
 
+    /// Sets the inputs P0000–P003F to 0x5A5A (half of the generated programs' input bits ON),
+    /// runs one scan and returns the steps it executed.
+    fn set_inputs_and_scan(&mut self) -> u64 {
+        for w in 0..64 {
+            self.engine.write(&Address::parse(&format!("P{w:03}")).unwrap(), 0x5A5A);
+        }
+        let before = self.engine.steps();
+        self.scan();
+        self.engine.steps() - before
+    }
+
     /// Wall ns per scan over `n` scans.
     fn time_scans(&mut self, n: u32) -> f64 {
         self.time_scans_cpu(n).0
@@ -242,43 +253,65 @@ const GEN_TIMERS: u32 = 256;
 const GEN_COUNTERS: u32 = 256;
 /// Output bits P0400–P040F: a fixed watch list of 16 bits at every size.
 const GEN_OUTPUTS: u32 = 16;
+/// The project of a generated scan program (table 1 and its bit-logic twin).
+const SCAN_CONFIG: &str = "[plc]\nwatchdog_ms = 1000\n[[program]]\nfile = \"scan.il\"\n";
 
 impl Generated {
+    /// An empty program of `steps` steps to come.
+    fn with_capacity(steps: usize) -> Generated {
+        Generated {
+            source: String::with_capacity(steps * 14),
+            words: BTreeSet::new(),
+            timers: BTreeSet::new(),
+            counters: BTreeSet::new(),
+        }
+    }
+
+    /// The next M bit of a scattered walk over them (an odd multiplier is a permutation).
+    fn next_m(&mut self, walk: &mut u32) -> String {
+        let bit = walk.wrapping_mul(2_654_435_761) % (GEN_M_WORDS * 16);
+        *walk += 1;
+        self.words.insert(('M', bit / 16));
+        format!("M{:03}{:X}", bit / 16, bit % 16)
+    }
+
+    /// The next of the inputs P0000–P03FF, half of them ON (set by the harness).
+    fn next_input(&mut self, walk: &mut u32) -> String {
+        let bit = walk.wrapping_mul(40_503) % (64 * 16);
+        *walk += 1;
+        self.words.insert(('P', bit / 16));
+        format!("P{:03}{:X}", bit / 16, bit % 16)
+    }
+
+    /// The steps after the last whole block of 32, up to `steps` in all: LOAD/OUT pairs, a NOP
+    /// if one step is left over, and `END`.
+    fn finish(mut self, steps: usize) -> Generated {
+        let rest = ((steps - 1) % 32) as u32;
+        for i in 0..rest / 2 {
+            let (a, b) = (i % GEN_M_WORDS, (i * 7 + 3) % GEN_M_WORDS);
+            self.words.insert(('M', a));
+            self.words.insert(('M', b));
+            let _ =
+                writeln!(self.source, "LOAD M{a:03}{:X}\nOUT M{b:03}{:X}", i % 16, (i + 5) % 16);
+        }
+        if rest % 2 == 1 {
+            self.source.push_str("NOP\n");
+        }
+        self.source.push_str("END\n");
+        self
+    }
+
     /// A scan program of exactly `steps` executed instructions, `END` included (`steps` ≥ 1).
     /// Blocks of 32 steps: 22 of bit logic in five rungs (LOAD, AND, OR, AND NOT, OR LOAD, OUT
     /// on M and P), a compare with a MOV, an ADD, a TON, a CTU on the timer's contact, and a
     /// LOADP (every other block; LOAD in the others) with an INC. Every instruction executes
     /// every scan (no jumps).
     fn scan_program(steps: usize) -> Generated {
-        let mut g = Generated {
-            source: String::with_capacity(steps * 14),
-            words: BTreeSet::new(),
-            timers: BTreeSet::new(),
-            counters: BTreeSet::new(),
-        };
-        let body = steps - 1;
-        let mut m_pick = 0u32;
-        let mut p_pick = 0u32;
-        let blocks = body / 32;
-        for b in 0..blocks as u32 {
-            let mut m = || {
-                // A scattered walk over the M bits (an odd multiplier is a permutation).
-                let bit = m_pick.wrapping_mul(2_654_435_761) % (GEN_M_WORDS * 16);
-                m_pick += 1;
-                g.words.insert(('M', bit / 16));
-                format!("M{:03}{:X}", bit / 16, bit % 16)
-            };
-            let (m1, m2, m3, m4, m5, m6, m7, m8) = (m(), m(), m(), m(), m(), m(), m(), m());
-            let (m9, m10, m11, m12, m13, m14, m15, m16) = (m(), m(), m(), m(), m(), m(), m(), m());
-            let (m17, m18, m19, m20, m21) = (m(), m(), m(), m(), m());
-            let mut input = || {
-                // The inputs P0000–P03FF, half of them ON (set by the harness).
-                let bit = p_pick.wrapping_mul(40_503) % (64 * 16);
-                p_pick += 1;
-                g.words.insert(('P', bit / 16));
-                format!("P{:03}{:X}", bit / 16, bit % 16)
-            };
-            let (p1, p2) = (input(), input());
+        let mut g = Generated::with_capacity(steps);
+        let (mut m_walk, mut p_walk) = (0u32, 0u32);
+        for b in 0..((steps - 1) / 32) as u32 {
+            let m: Vec<String> = (0..21).map(|_| g.next_m(&mut m_walk)).collect();
+            let (p1, p2) = (g.next_input(&mut p_walk), g.next_input(&mut p_walk));
             let out = b % GEN_OUTPUTS;
             g.words.insert(('P', 40 + out / 16));
             let d = |k: u32| (b * 4 + k) % GEN_D_WORDS;
@@ -291,74 +324,6 @@ impl Generated {
             g.counters.insert(c);
             g.words.insert(('T', t));
             g.words.insert(('C', c));
-            let s = &mut g.source;
-            let _ = write!(
-                s,
-                "LOAD {m1}\nAND {p1}\nOR {m2}\nOUT {m3}\n\
-                 LOAD {m4}\nAND NOT {m5}\nOUT P040{out:X}\n\
-                 LOAD {m6}\nAND {m7}\nLOAD {m8}\nAND {m9}\nOR LOAD\nOUT {m10}\n\
-                 LOAD NOT {p2}\nOR {m11}\nAND {m12}\nOUT {m13}\n\
-                 LOAD {m14}\nAND {m15}\nOUT {m16}\nAND NOT {m17}\nOUT {m18}\n\
-                 LOAD>= D{:05} 100\nMOV D{:05} D{:05}\n\
-                 LOAD {m19}\nADD D{:05} 1 D{:05}\n\
-                 LOAD {m20}\nTON T{t:04} 10\n\
-                 LOAD T{t:04}\nCTU C{c:04} 100\n\
-                 {} {m21}\nINC D{:05}\n",
-                d(0),
-                d(1),
-                d(2),
-                d(3),
-                d(3),
-                if b % 2 == 0 { "LOADP" } else { "LOAD" },
-                d(0),
-            );
-        }
-        // The rest: LOAD/OUT pairs, and a NOP if one step is left over.
-        let rest = (body - blocks * 32) as u32;
-        for i in 0..rest / 2 {
-            let (a, b) = (i % GEN_M_WORDS, (i * 7 + 3) % GEN_M_WORDS);
-            g.words.insert(('M', a));
-            g.words.insert(('M', b));
-            let _ = writeln!(g.source, "LOAD M{a:03}{:X}\nOUT M{b:03}{:X}", i % 16, (i + 5) % 16);
-        }
-        if rest % 2 == 1 {
-            g.source.push_str("NOP\n");
-        }
-        g.source.push_str("END\n");
-        g
-    }
-
-    /// A scan program of exactly `steps` executed instructions, `END` included, of bit logic
-    /// alone (what native code compiles whole): blocks of 32 steps in seven rungs of LOAD,
-    /// AND, OR, AND NOT, OR NOT, OR LOAD and OUT on the M and P bits of
-    /// [`Generated::scan_program`], the same walk over them.
-    fn bit_program(steps: usize) -> Generated {
-        let mut g = Generated {
-            source: String::with_capacity(steps * 14),
-            words: BTreeSet::new(),
-            timers: BTreeSet::new(),
-            counters: BTreeSet::new(),
-        };
-        let body = steps - 1;
-        let (mut m_pick, mut p_pick) = (0u32, 0u32);
-        let blocks = body / 32;
-        for b in 0..blocks as u32 {
-            let mut m = || {
-                let bit = m_pick.wrapping_mul(2_654_435_761) % (GEN_M_WORDS * 16);
-                m_pick += 1;
-                g.words.insert(('M', bit / 16));
-                format!("M{:03}{:X}", bit / 16, bit % 16)
-            };
-            let ms: Vec<String> = (0..24).map(|_| m()).collect();
-            let mut input = || {
-                let bit = p_pick.wrapping_mul(40_503) % (64 * 16);
-                p_pick += 1;
-                g.words.insert(('P', bit / 16));
-                format!("P{:03}{:X}", bit / 16, bit % 16)
-            };
-            let (p1, p2, p3) = (input(), input(), input());
-            let out = b % GEN_OUTPUTS;
-            g.words.insert(('P', 40 + out / 16));
             let _ = write!(
                 g.source,
                 "LOAD {}\nAND {p1}\nOR {}\nOUT {}\n\
@@ -366,9 +331,67 @@ impl Generated {
                  LOAD {}\nAND {}\nLOAD {}\nAND {}\nOR LOAD\nOUT {}\n\
                  LOAD NOT {p2}\nOR {}\nAND {}\nOUT {}\n\
                  LOAD {}\nAND {}\nOUT {}\nAND NOT {}\nOUT {}\n\
-                 LOAD {}\nAND {p3}\nOR NOT {}\nOUT {}\n\
+                 LOAD>= D{:05} 100\nMOV D{:05} D{:05}\n\
+                 LOAD {}\nADD D{:05} 1 D{:05}\n\
+                 LOAD {}\nTON T{t:04} 10\n\
+                 LOAD T{t:04}\nCTU C{c:04} 100\n\
+                 {} {}\nINC D{:05}\n",
+                m[0],
+                m[1],
+                m[2],
+                m[3],
+                m[4],
+                m[5],
+                m[6],
+                m[7],
+                m[8],
+                m[9],
+                m[10],
+                m[11],
+                m[12],
+                m[13],
+                m[14],
+                m[15],
+                m[16],
+                m[17],
+                d(0),
+                d(1),
+                d(2),
+                m[18],
+                d(3),
+                d(3),
+                m[19],
+                if b % 2 == 0 { "LOADP" } else { "LOAD" },
+                m[20],
+                d(0),
+            );
+        }
+        g.finish(steps)
+    }
+
+    /// A scan program of exactly `steps` executed instructions, `END` included, of bit logic
+    /// alone (what native code compiles whole): blocks of 32 steps in seven rungs of LOAD,
+    /// AND, OR, AND NOT, OR NOT, OR LOAD and OUT on the M and P bits of
+    /// [`Generated::scan_program`], the same walk over them.
+    fn bit_program(steps: usize) -> Generated {
+        let mut g = Generated::with_capacity(steps);
+        let (mut m_walk, mut p_walk) = (0u32, 0u32);
+        for b in 0..((steps - 1) / 32) as u32 {
+            let ms: Vec<String> = (0..24).map(|_| g.next_m(&mut m_walk)).collect();
+            let p: Vec<String> = (0..3).map(|_| g.next_input(&mut p_walk)).collect();
+            let out = b % GEN_OUTPUTS;
+            g.words.insert(('P', 40 + out / 16));
+            let _ = write!(
+                g.source,
+                "LOAD {}\nAND {}\nOR {}\nOUT {}\n\
+                 LOAD {}\nAND NOT {}\nOUT P040{out:X}\n\
+                 LOAD {}\nAND {}\nLOAD {}\nAND {}\nOR LOAD\nOUT {}\n\
+                 LOAD NOT {}\nOR {}\nAND {}\nOUT {}\n\
+                 LOAD {}\nAND {}\nOUT {}\nAND NOT {}\nOUT {}\n\
+                 LOAD {}\nAND {}\nOR NOT {}\nOUT {}\n\
                  LOAD {}\nAND NOT {}\nOR {}\nAND {}\nOUT {}\nOUT {}\n",
                 ms[0],
+                p[0],
                 ms[1],
                 ms[2],
                 ms[3],
@@ -378,6 +401,7 @@ impl Generated {
                 ms[7],
                 ms[8],
                 ms[9],
+                p[1],
                 ms[10],
                 ms[11],
                 ms[12],
@@ -387,6 +411,7 @@ impl Generated {
                 ms[16],
                 ms[17],
                 ms[18],
+                p[2],
                 ms[19],
                 ms[20],
                 ms[21],
@@ -397,18 +422,7 @@ impl Generated {
                 ms[9],
             );
         }
-        let rest = (body - blocks * 32) as u32;
-        for i in 0..rest / 2 {
-            let (a, b) = (i % GEN_M_WORDS, (i * 7 + 3) % GEN_M_WORDS);
-            g.words.insert(('M', a));
-            g.words.insert(('M', b));
-            let _ = writeln!(g.source, "LOAD M{a:03}{:X}\nOUT M{b:03}{:X}", i % 16, (i + 5) % 16);
-        }
-        if rest % 2 == 1 {
-            g.source.push_str("NOP\n");
-        }
-        g.source.push_str("END\n");
-        g
+        g.finish(steps)
     }
 
     /// Bytes of device memory the program touches: its words, plus the VM's state of each
@@ -431,12 +445,11 @@ struct SizeRow {
 }
 
 fn scan_sizes(sizes: &[usize], rounds: usize) -> Vec<SizeRow> {
-    let config = "[plc]\nwatchdog_ms = 1000\n[[program]]\nfile = \"scan.il\"\n";
     let mut cases = Vec::new();
     for &size in sizes {
         let started = Instant::now();
         let generated = Generated::scan_program(size);
-        let project = project(config, &[("scan.il".into(), generated.source.clone())]);
+        let project = project(SCAN_CONFIG, &[("scan.il".into(), generated.source.clone())]);
         let code = &project.programs[0].code;
         let code_bytes = code.len() * std::mem::size_of::<Op>();
         // The daemon's and the simulator's watch list: every output bit the program writes.
@@ -444,12 +457,7 @@ fn scan_sizes(sizes: &[usize], rounds: usize) -> Vec<SizeRow> {
         assert_eq!(watch.len(), GEN_OUTPUTS.min((size / 32) as u32) as usize);
         // 100 ns a step: 10⁶ steps are 100 ms of virtual time, within the watchdog.
         let mut rig = Rig::new(&project, &watch, 100);
-        for w in 0..64 {
-            rig.engine.write(&Address::parse(&format!("P{w:03}")).unwrap(), 0x5A5A);
-        }
-        let before = rig.engine.steps();
-        rig.scan();
-        let steps = rig.engine.steps() - before;
+        let steps = rig.set_inputs_and_scan();
         assert_eq!(steps, size as u64, "every instruction executes once a scan");
         // About 10⁵ steps a sample, at least one scan.
         let batch = (100_000 / size).max(1) as u32;
@@ -481,9 +489,8 @@ fn scan_sizes(sizes: &[usize], rounds: usize) -> Vec<SizeRow> {
 /// What a project load does with table 1's mixed program (its native code is declined: it
 /// would hand too many instructions to the interpreter), in words for the report.
 fn native_declined() -> String {
-    let config = "[plc]\nwatchdog_ms = 1000\n[[program]]\nfile = \"scan.il\"\n";
     let generated = Generated::scan_program(1_000);
-    let project = project(config, &[("scan.il".into(), generated.source)]);
+    let project = project(SCAN_CONFIG, &[("scan.il".into(), generated.source)]);
     match plcd_native::compile(&project.programs[0]) {
         Err(plcd_native::Error::Slower { handed_over, compiled, .. }) => format!(
             "A project load leaves this mixed program on the interpreter: its native code would \
@@ -517,12 +524,11 @@ struct NativeRow {
 /// and once with its native code attached (as a project load does), both rigs sampled side by
 /// side round by round; and the time each load took.
 fn native_sizes(sizes: &[usize], rounds: usize) -> Vec<NativeRow> {
-    let config = "[plc]\nwatchdog_ms = 1000\n[[program]]\nfile = \"scan.il\"\n";
     let mut cases = Vec::new();
     for &size in sizes {
         let source = Generated::bit_program(size).source;
         let started = Instant::now();
-        let interpreted = project(config, &[("scan.il".into(), source)]);
+        let interpreted = project(SCAN_CONFIG, &[("scan.il".into(), source)]);
         let load_s = started.elapsed().as_secs_f64();
         let mut native = interpreted.clone();
         let started = Instant::now();
@@ -532,15 +538,7 @@ fn native_sizes(sizes: &[usize], rounds: usize) -> Vec<NativeRow> {
         assert!(native.programs[0].native.is_some(), "no native code attached at {size} steps");
         let watch = interpreted.output_bits();
         let mut rigs = [Rig::new(&interpreted, &watch, 100), Rig::new(&native, &watch, 100)];
-        let mut steps = [0; 2];
-        for (rig, steps) in rigs.iter_mut().zip(&mut steps) {
-            for w in 0..64 {
-                rig.engine.write(&Address::parse(&format!("P{w:03}")).unwrap(), 0x5A5A);
-            }
-            let before = rig.engine.steps();
-            rig.scan();
-            *steps = rig.engine.steps() - before;
-        }
+        let steps = rigs.each_mut().map(Rig::set_inputs_and_scan);
         assert_eq!(steps, [size as u64; 2], "every instruction executes once a scan, on both");
         let batch = (100_000 / size).max(1) as u32;
         eprintln!(
