@@ -20,7 +20,8 @@
 //! scan (`steps FUNCTION WORKLOAD N`). The check runs it with Callgrind's collection off at the
 //! start and toggled on and off by those two functions, so only the scan is counted. Without
 //! arguments (`cargo bench --bench counts`, `cargo test --benches`) it runs every workload so,
-//! uncounted, and prints their steps.
+//! uncounted, and prints their steps; `counts list` prints each FUNCTION WORKLOAD pair, the
+//! runs the check makes.
 
 #[path = "common/il_workloads.rs"]
 mod il;
@@ -83,19 +84,23 @@ fn workloads(function: &str) -> &'static [&'static str] {
 fn main() {
     // `cargo bench` and `cargo test --benches` add their own flags (`--bench`, `--list`, …).
     let args: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
-    let runs: Vec<(String, String)> = match args.as_slice() {
-        [function, workload] => vec![(function.clone(), workload.clone())],
-        [] => FUNCTIONS
-            .iter()
-            .flat_map(|f| workloads(f).iter().map(|w| (f.to_string(), w.to_string())))
-            .collect(),
+    let every = || FUNCTIONS.iter().flat_map(|f| workloads(f).iter().map(move |w| (*f, *w)));
+    let runs: Vec<(&str, &str)> = match args.as_slice() {
+        [list] if list == "list" => {
+            for (function, workload) in every() {
+                println!("{function} {workload}");
+            }
+            return;
+        }
+        [function, workload] => vec![(function, workload)],
+        [] => every().collect(),
         _ => {
-            eprintln!("usage: counts [FUNCTION WORKLOAD]");
+            eprintln!("usage: counts [list | FUNCTION WORKLOAD]");
             std::process::exit(2);
         }
     };
     for (function, workload) in runs {
-        let steps = measure(&function, &workload);
+        let steps = measure(function, workload);
         println!("steps {function} {workload} {steps}");
     }
 }
