@@ -17,7 +17,8 @@
 //! [`Vm::run`]: crate::vm::Vm::run
 //! [`ExecState`]: crate::vm::ExecState
 
-use super::{EVAL_DEPTH, ST_CALL_DEPTH};
+use super::ops::Op;
+use super::{CALL_DEPTH, EVAL_DEPTH, ST_CALL_DEPTH};
 
 /// A Structured Text call: where to return, and the caller's frame base and FB instance.
 /// `repr(C)`: native code pushes and pops these as the interpreter does.
@@ -27,6 +28,20 @@ pub struct StFrame {
     pub return_pc: u32,
     pub base: u32,
     pub this: u64,
+}
+
+/// An instruction-list `CALL`: where to return, and the caller's rung registers and loop
+/// depth, restored at `RET`. `repr(C)`: native code pushes and pops these as the interpreter
+/// does.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[repr(C)]
+pub struct IlFrame {
+    pub return_pc: u32,
+    /// The rung result, 0 or 1.
+    pub rung: u32,
+    pub blocks: u32,
+    pub branches: u32,
+    pub loop_depth: u32,
 }
 
 /// An activation's registers as native code reads and writes them; [`Vm::run`] loads them
@@ -57,6 +72,10 @@ pub struct NativeRegs {
     pub blocks: u32,
     /// The instruction list's `MPUSH` stack, one bit a level, top in bit 0.
     pub branches: u32,
+    /// Instruction-list calls under way (entries of [`NativeMemory::il_calls`]).
+    pub il_depth: u32,
+    /// Instruction-list `FOR` loops under way (a `CALL` keeps it, `RET` restores it).
+    pub loop_depth: u32,
 }
 
 /// The memory native code works on, borrowed for one call.
@@ -71,6 +90,28 @@ pub struct NativeMemory<'a> {
     pub eval: &'a mut [u64; EVAL_DEPTH],
     /// The Structured Text call stack.
     pub calls: &'a mut [StFrame; ST_CALL_DEPTH],
+    /// The instruction-list call stack.
+    pub il_calls: &'a mut [IlFrame; CALL_DEPTH],
+    /// The instruction list's edge memory (`LOADP`, `OUTP`, `FF`, the `P` forms).
+    pub edges: &'a mut [bool],
+    /// The instruction list's timers and counters, which native code calls.
+    pub devices: &'a mut dyn IlDevices,
+}
+
+/// The instruction list's timers and counters as native code reaches them: it calls the VM's
+/// own code for them (their state machines and the clock), so that they behave as in the
+/// interpreter, to the nanosecond of the clock reading.
+pub trait IlDevices {
+    /// Executes `op` — a timer, a counter, `CTUD`, `RST Tn` or `RST Cn` — with the rung result
+    /// `rung` on device memory's `words`, with `left` instructions of the budget left after
+    /// it (the step count the clock is read at). Native code calls it only when the timer or
+    /// counter number is below [`IlDevices::timers`] or [`IlDevices::counters`] and the
+    /// devices' words are inside `words`.
+    fn execute(&mut self, op: &Op, words: &mut [u16], rung: bool, left: u64);
+    /// Timer numbers the VM has.
+    fn timers(&self) -> usize;
+    /// Counter numbers the VM has.
+    fn counters(&self) -> usize;
 }
 
 /// Why native code returned.

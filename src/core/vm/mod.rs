@@ -23,7 +23,7 @@ pub use clock::{Clock, ManualClock, StepClock};
 use crate::device::{
     counter_done, counter_value, timer_done, timer_value, BitRef, Memory, WordRef,
 };
-use crate::lang::native::{self, StFrame};
+use crate::lang::native::{self, IlDevices, StFrame};
 use crate::lang::ops::{ArithOp, Combine, Op, Src, SystemRequest, Wide, WideConv};
 use crate::lang::{Language, Program, Variables, CALL_DEPTH, LOOP_DEPTH, ST_CALL_DEPTH};
 use crate::value::{self, Elem, Pointer};
@@ -60,14 +60,8 @@ pub fn error_code_text(code: u16) -> String {
     format!("{code:04X}H")
 }
 
-#[derive(Debug, Clone, Copy, Default)]
-struct CallFrame {
-    return_pc: u32,
-    rung: bool,
-    blocks: u32,
-    branches: u32,
-    loop_depth: u8,
-}
+/// An instruction-list call's frame: native code's layout, which it pushes and pops too.
+type CallFrame = native::IlFrame;
 
 #[derive(Debug, Clone, Copy, Default)]
 struct LoopFrame {
@@ -184,7 +178,7 @@ impl ExecState {
             branches: self.branches,
             calls: self.calls[..usize::from(self.call_depth).min(CALL_DEPTH)]
                 .iter()
-                .map(|f| (f.return_pc, f.rung, f.blocks, f.branches, f.loop_depth))
+                .map(|f| (f.return_pc, f.rung != 0, f.blocks, f.branches, f.loop_depth as u8))
                 .collect(),
             loops: self.loops[..usize::from(self.loop_depth).min(LOOP_DEPTH)]
                 .iter()
@@ -507,13 +501,20 @@ impl Vm {
                 rung: u32::from(state.rung),
                 blocks: state.blocks,
                 branches: state.branches,
+                il_depth: u32::from(state.call_depth),
+                loop_depth: u32::from(state.loop_depth),
             };
+            let mut devices =
+                Devices { timers: &mut self.timers, counters: &mut self.counters, clock, stop };
             let memory = native::NativeMemory {
                 vars: &mut self.vars,
                 words: self.mem.words_mut(),
                 frame: &mut state.frame,
                 eval: state.eval.slots_mut(),
                 calls: &mut state.st_calls,
+                il_calls: &mut state.calls,
+                edges: &mut self.edges,
+                devices: &mut devices,
             };
             let exit = native.run(memory, &mut regs);
             state.pc = regs.pc;
@@ -524,6 +525,8 @@ impl Vm {
             state.rung = regs.rung != 0;
             state.blocks = regs.blocks;
             state.branches = regs.branches;
+            state.call_depth = regs.il_depth.min(CALL_DEPTH as u32) as u8;
+            state.loop_depth = regs.loop_depth.min(LOOP_DEPTH as u32) as u8;
             self.steps = stop - regs.left.min(left);
             match exit {
                 native::NativeExit::End => {
@@ -821,53 +824,16 @@ fn interpret<'a, const ST: bool, C: Clock>(
                         mem.set_bit(*bit, !mem.bit(*bit));
                     }
                 }
-                Op::RstTimer(n) if !ST => {
-                    if rung {
-                        timer::reset(&mut timers[*n as usize]);
-                        mem.set_word(timer_value(*n), 0);
-                        write_bit(mem, timer_done(*n), false);
-                    }
-                }
-                Op::RstCounter(n) if !ST => {
-                    if rung {
-                        let value = counter::reset(&counters[*n as usize]);
-                        mem.set_word(counter_value(*n), value);
-                        write_bit(mem, counter_done(*n), false);
-                    }
-                }
-                Op::Timer { kind, timer: n, preset, base_ms } if !ST => {
-                    let (value_ref, done_ref) = (timer_value(*n), timer_done(*n));
-                    let call = timer::TimerInput {
-                        kind: *kind,
-                        input: rung,
-                        preset: read(mem, *preset),
-                        base_ms: *base_ms,
-                        now_ns: 0, // read by `run_timer`, out of the loop
-                        value: mem.word(value_ref),
-                        done: mem.bit(done_ref),
-                    };
+                Op::RstTimer(_)
+                | Op::RstCounter(_)
+                | Op::Timer { .. }
+                | Op::Counter { .. }
+                | Op::CounterUpDown { .. }
+                    if !ST =>
+                {
                     let steps = stop - left + taken!() as u64;
-                    let (value, done) = run_timer(&mut timers[*n as usize], call, clock, steps);
-                    mem.set_word(value_ref, value);
-                    write_bit(mem, done_ref, done);
-                }
-                Op::Counter { kind, counter: n, preset } if !ST => {
-                    let preset = read(mem, *preset);
-                    let value_ref = counter_value(*n);
-                    let c = &mut counters[*n as usize];
-                    let (value, done) =
-                        counter::execute(*kind, c, rung, preset, mem.word(value_ref));
-                    mem.set_word(value_ref, value);
-                    write_bit(mem, counter_done(*n), done);
-                }
-                Op::CounterUpDown { counter: n, up, down, preset } if !ST => {
-                    let preset = read(mem, *preset);
-                    let value_ref = counter_value(*n);
-                    let (up, down, value) = (mem.bit(*up), mem.bit(*down), mem.word(value_ref));
-                    let c = &mut counters[*n as usize];
-                    let (value, done) = counter::execute_up_down(c, rung, up, down, preset, value);
-                    mem.set_word(value_ref, value);
-                    write_bit(mem, counter_done(*n), done);
+                    let words = mem.words_mut();
+                    device_instruction(op, words, timers, counters, rung, clock, steps);
                 }
                 Op::Duty { channel, n1, n2, slot } if !ST => {
                     let rising = pulse(edges, *slot, rung);
@@ -919,10 +885,10 @@ fn interpret<'a, const ST: bool, C: Clock>(
                         }
                         state.calls[depth] = CallFrame {
                             return_pc: pc!() as u32,
-                            rung,
+                            rung: u32::from(rung),
                             blocks,
                             branches,
-                            loop_depth: state.loop_depth,
+                            loop_depth: u32::from(state.loop_depth),
                         };
                         state.call_depth += 1;
                         rung = true;
@@ -939,10 +905,10 @@ fn interpret<'a, const ST: bool, C: Clock>(
                     };
                     state.call_depth = depth;
                     let frame = state.calls[depth as usize];
-                    rung = frame.rung;
+                    rung = frame.rung != 0;
                     blocks = frame.blocks;
                     branches = frame.branches;
-                    state.loop_depth = frame.loop_depth;
+                    state.loop_depth = frame.loop_depth as u8;
                     jump!(frame.return_pc);
                 }
                 Op::Jmp { target } if !ST => {
@@ -1185,15 +1151,94 @@ fn interpret<'a, const ST: bool, C: Clock>(
     }
 }
 
-/// A timer instruction, out of line: its state machine is long next to a contact's.
+/// The timer and counter instructions and their `RST`, out of line (their state machines are
+/// long next to a contact's) and on device memory's words only (so that the interpreter loop
+/// keeps the memory's address in registers): the interpreter's and native code's
+/// ([`Devices`]). `steps` is the step count the clock is read at, the instruction's own.
 #[inline(never)]
-fn run_timer<C: Clock>(
-    state: &mut timer::TimerState,
-    call: timer::TimerInput,
+fn device_instruction<C: Clock + ?Sized>(
+    op: &Op,
+    words: &mut [u16],
+    timers: &mut [timer::TimerState],
+    counters: &mut [counter::CounterState],
+    rung: bool,
     clock: &C,
     steps: u64,
-) -> (u16, bool) {
-    timer::execute(state, timer::TimerInput { now_ns: clock.now_ns(steps), ..call })
+) {
+    let bit = |words: &[u16], b: BitRef| words[b.word as usize] & b.mask != 0;
+    let word = |words: &[u16], src: Src| match src {
+        Src::Word(w) => words[w.0 as usize],
+        Src::Const(c) => c,
+    };
+    let write = |words: &mut [u16], value: WordRef, done: BitRef, (v, on): (u16, bool)| {
+        words[value.0 as usize] = v;
+        let w = &mut words[done.word as usize];
+        *w = (*w & !done.mask) | (done.mask & all(on));
+    };
+    match *op {
+        Op::RstTimer(n) if rung => {
+            timer::reset(&mut timers[n as usize]);
+            write(words, timer_value(n), timer_done(n), (0, false));
+        }
+        Op::RstCounter(n) if rung => {
+            let value = counter::reset(&counters[n as usize]);
+            write(words, counter_value(n), counter_done(n), (value, false));
+        }
+        Op::Timer { kind, timer: n, preset, base_ms } => {
+            let (value_ref, done_ref) = (timer_value(n), timer_done(n));
+            let call = timer::TimerInput {
+                kind,
+                input: rung,
+                preset: word(words, preset),
+                base_ms,
+                now_ns: clock.now_ns(steps),
+                value: words[value_ref.0 as usize],
+                done: bit(words, done_ref),
+            };
+            let result = timer::execute(&mut timers[n as usize], call);
+            write(words, value_ref, done_ref, result);
+        }
+        Op::Counter { kind, counter: n, preset } => {
+            let preset = word(words, preset);
+            let value = words[counter_value(n).0 as usize];
+            let result = counter::execute(kind, &mut counters[n as usize], rung, preset, value);
+            write(words, counter_value(n), counter_done(n), result);
+        }
+        Op::CounterUpDown { counter: n, up, down, preset } => {
+            let preset = word(words, preset);
+            let (up, down) = (bit(words, up), bit(words, down));
+            let value = words[counter_value(n).0 as usize];
+            let c = &mut counters[n as usize];
+            let result = counter::execute_up_down(c, rung, up, down, preset, value);
+            write(words, counter_value(n), counter_done(n), result);
+        }
+        _ => {}
+    }
+}
+
+/// The VM's timers and counters, the clock and the budget's end, for native code
+/// ([`native::IlDevices`]).
+struct Devices<'a, C> {
+    timers: &'a mut [timer::TimerState],
+    counters: &'a mut [counter::CounterState],
+    clock: &'a C,
+    /// The step count at which the budget is spent.
+    stop: u64,
+}
+
+impl<C: Clock> IlDevices for Devices<'_, C> {
+    fn execute(&mut self, op: &Op, words: &mut [u16], rung: bool, left: u64) {
+        let steps = self.stop - left;
+        device_instruction(op, words, self.timers, self.counters, rung, self.clock, steps);
+    }
+
+    fn timers(&self) -> usize {
+        self.timers.len()
+    }
+
+    fn counters(&self) -> usize {
+        self.counters.len()
+    }
 }
 
 #[inline(always)]

@@ -11,7 +11,10 @@
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_jit::{JITBuilder, JITModule};
 use cranelift_module::{default_libcall_names, Linkage, Module};
-use plcd_core::lang::native::{NativeCode, NativeExit, NativeMemory, NativeRegs, StFrame};
+use plcd_core::lang::native::{
+    IlDevices, IlFrame, NativeCode, NativeExit, NativeMemory, NativeRegs, StFrame,
+};
+use plcd_core::lang::ops::Op;
 use plcd_core::lang::Program;
 
 use crate::{analysis, codegen, il, Error};
@@ -47,6 +50,18 @@ impl Shape {
         }
     }
 
+    /// Whether the VM has the edge slots, timers and counters the code reaches.
+    fn fits(&self, memory: &NativeMemory<'_>) -> bool {
+        match self {
+            Shape::StructuredText(_) => true,
+            Shape::InstructionList(a) => {
+                memory.edges.len() as u64 >= a.edges_end
+                    && memory.devices.timers() as u64 >= a.timers_end
+                    && memory.devices.counters() as u64 >= a.counters_end
+            }
+        }
+    }
+
     fn blocks(&self) -> usize {
         match self {
             Shape::StructuredText(a) => a.leaders.len(),
@@ -65,7 +80,7 @@ impl Shape {
 /// a time, and a processor forwards such stores to a load only after a stall (a third of the
 /// cost of a short program's call, measured).
 #[repr(C)]
-pub(crate) struct Context {
+pub(crate) struct Context<'a> {
     pub regs: *mut NativeRegs,
     pub vars: *mut u8,
     pub eval: *mut u64,
@@ -75,6 +90,11 @@ pub(crate) struct Context {
     pub vars_len: u64,
     pub words_len: u64,
     pub frame_len: u64,
+    pub il_calls: *mut IlFrame,
+    /// Edge memory: `bool`s, 0 or 1 in a byte.
+    pub edges: *mut u8,
+    /// Only [`il_device`] uses it, never generated code.
+    pub devices: *mut (dyn IlDevices + 'a),
 }
 
 /// What the generated function returns.
@@ -84,7 +104,7 @@ pub(crate) const RETURN_ERROR: u32 = 2;
 /// An instruction-list piece ended at a leader of another piece, which is to run next.
 pub(crate) const RETURN_CONTINUE: u32 = 3;
 
-type Entry = unsafe extern "C" fn(*mut Context) -> u32;
+type Entry = unsafe extern "C" fn(*mut Context<'_>) -> u32;
 
 /// Copies `n` bytes from `from` to `to`, the ranges possibly overlapping: the long copies of
 /// arrays and structs, which generated code calls.
@@ -93,6 +113,24 @@ pub(crate) extern "C" fn copy_bytes(to: *mut u8, from: *const u8, n: u64) {
     // variable memory or the frame of the `Context` of the call under way (codegen.rs,
     // `Op::Copy`); `ptr::copy` allows them to overlap.
     unsafe { std::ptr::copy(from, to, n as usize) }
+}
+
+/// Executes timer or counter instruction `op` for instruction-list code, through the VM's
+/// [`IlDevices`]: `rung` is the rung result (0 or 1), `left` the budget left after the
+/// instruction.
+pub(crate) extern "C" fn il_device(context: *mut Context<'_>, op: *const Op, rung: u32, left: u64) {
+    // SAFETY: only generated code calls this, with the `Context` of the call under way (whose
+    // pointers come from the slices and the `IlDevices` of one `NativeMemory`, borrowed for
+    // that call, and which nothing else reads or writes while this runs: the generated code
+    // waits for it) and with `op` pointing into `il::Analysis::device_ops` of the `Code`
+    // running, which lives longer than the call. The instruction's timer or counter number and
+    // device words are inside what `Code::run` checked before the call (`Shape::fits`,
+    // `Analysis::words_end`), so the VM's code indexes nothing out of bounds and cannot panic.
+    unsafe {
+        let context = &mut *context;
+        let words = std::slice::from_raw_parts_mut(context.words, context.words_len as usize);
+        (*context.devices).execute(&*op, words, rung != 0, left);
+    }
 }
 
 /// A program's native code.
@@ -186,6 +224,7 @@ impl NativeCode for Code {
         // these sizes once, here.
         if (memory.vars.len() as u64) < self.vars_need
             || (memory.words.len() as u64) < self.shape.words_end()
+            || !self.shape.fits(&memory)
         {
             return NativeExit::Interpret;
         }
@@ -200,6 +239,9 @@ impl NativeCode for Code {
             vars_len: memory.vars.len() as u64,
             words_len: memory.words.len() as u64,
             frame_len: memory.frame.len() as u64,
+            il_calls: memory.il_calls.as_mut_ptr(),
+            edges: memory.edges.as_mut_ptr().cast::<u8>(),
+            devices: memory.devices,
         };
         let mut entry = self.entries[self.shape.entry_index(regs_pc)];
         let status = loop {
@@ -209,8 +251,9 @@ impl NativeCode for Code {
             // against them just above, the frame and FB-instance operands are checked at each
             // block's entry, pointers are checked before each access, the evaluation stack is
             // indexed modulo its length and the call stack below `ST_CALL_DEPTH` (codegen.rs);
-            // instruction-list code reaches device words only at the fixed operands checked
-            // above (il/codegen.rs). It keeps no pointer after it returns.
+            // instruction-list code reaches device words, edge slots, timers and counters only
+            // at the fixed operands checked above, and its call stack below `CALL_DEPTH`
+            // (il/codegen.rs). It keeps no pointer after it returns.
             let status = unsafe { entry(&mut context) };
             if status != RETURN_CONTINUE {
                 break status;

@@ -2196,7 +2196,8 @@ fn random_programs_run_the_same_natively() {
 }
 
 /// `plcd_native::attach` compiles every program of a project, in either language, but the
-/// instruction-list programs native code would make slower, which it does not report.
+/// instruction-list programs native code would make slower, which it does not report: more
+/// than one instruction in 16 the interpreter's (init.il: `INIT_DONE`, one of 4).
 #[test]
 fn attach_compiles_every_program_of_the_example_project() {
     let path = repository().join("etc/plcd.toml");
@@ -2206,19 +2207,16 @@ fn attach_compiles_every_program_of_the_example_project() {
         .expect("the example project");
     let errors = plcd_native::attach(&mut project);
     assert_eq!(errors, []);
-    // Every ST program; the instruction list's but those with timers and counters every few
-    // instructions (main.il: native code would be slower).
-    let native =
-        |name: &str| project.programs.iter().find(|p| p.name == name).unwrap().native.is_some();
     for program in &project.programs {
-        if program.language == Language::StructuredText {
-            assert!(program.native.is_some(), "{}", program.name);
-        }
+        assert_eq!(program.native.is_some(), program.name != "init", "{}", program.name);
     }
-    assert!(native("blink") && native("count"), "blink.il and count.il are compiled");
-    assert!(!native("main"), "main.il: 2 of 17 instructions are the interpreter's");
-    let main = project.programs.iter().find(|p| p.name == "main").unwrap();
-    assert!(matches!(plcd_native::compile(main), Err(plcd_native::Error::Slower { .. })));
+    let init = project.programs.iter().find(|p| p.name == "init").unwrap();
+    let slower = plcd_native::compile(init);
+    assert!(
+        matches!(slower, Err(plcd_native::Error::Slower { handed_over: 1, compiled: 4, .. })),
+        "{slower:?}"
+    );
+    assert!(plcd_native::compile_even_if_slower(init).is_ok());
 }
 
 /// The Structured Text part of an activation the comparison reads holds what is live: the
@@ -2289,7 +2287,7 @@ const EVERY_INSTRUCTION: &str = "\
     LOAD M0000\nLOAD< D00001 D00000\nAND LOAD\nSET M0008\nLOAD M0001\nRST M0008\n\
     LOAD D00000.0\nMOV D00000 D00002\nADD D00002 30000 D00003\nSUB D00003 -7 D00004\nMUL D00000 -1234 D00005\n\
     LOAD D00000.1\nINC D00006\nDEC D00007\nMOV -5 D00001\n\
-    LOAD D00000.2\nDIV D00005 D00000 D00008\nLOAD D00000.3\nDIV D00000 0 D00009\n\
+    LOAD D00000.2\nDIV D00005 D00000 D00008\nLOAD D00000.3\nDIV D00000 0 D00009\nDIVP D00000 0 D00017\n\
     LOADP D00000.1\nANDP D00000.0\nORP D00000.2\nOUT M0009\nLOADN D00000.1\nANDN D00000.2\nORN D00000.3\nOUT M000A\n\
     LOAD D00000.1\nOUTP M000B\nOUTN M000C\nFF M000D\n\
     LOAD D00000.2\nMOVP D00000 D00010\nADDP D00010 1 D00011\nSUBP D00011 2 D00012\nMULP D00012 3 D00013\nDIVP D00013 2 D00014\nINCP D00015\nDECP D00016\n\
@@ -2310,9 +2308,9 @@ const EVERY_INSTRUCTION: &str = "\
 
 #[test]
 fn every_instruction_list_instruction_runs_the_same_natively() {
-    // 40 % of the steps are native code: rungs of contacts, coils and data; the rest (edges,
-    // timers, counters, double words, reals, calls, loops) is the interpreter's.
-    let outcome = il_case("every instruction", &[("main", EVERY_INSTRUCTION)], 24, 1_000_000, 40);
+    // 65 % of the steps are native code: rungs of contacts, edges, coils, data, timers,
+    // counters and calls; the rest (double words, reals, loops, DUTY) is the interpreter's.
+    let outcome = il_case("every instruction", &[("main", EVERY_INSTRUCTION)], 24, 1_000_000, 65);
     let vm = outcome.vm.as_ref().unwrap();
     let word = |d: &str| vm.mem.read(&plcd_core::device::Address::parse(d).unwrap());
     // The scans counted, and `DIV D00000 0` failed in every scan with bit 3 of the count set.
@@ -2423,7 +2421,7 @@ fn random_il_program(seed: u64) -> String {
         }
         // What it drives.
         let d = |next: &mut dyn FnMut(u64) -> u64| format!("D{:05}", 1 + next(7));
-        match next(12) {
+        match next(14) {
             0 => out += &format!("OUT {}\n", bit(&mut next)),
             1 => out += &format!("OUT NOT {}\nSET {}\n", bit(&mut next), bit(&mut next)),
             2 => out += &format!("RST {}\nNOT\nOUT {}\n", bit(&mut next), bit(&mut next)),
@@ -2443,8 +2441,13 @@ fn random_il_program(seed: u64) -> String {
             }
             5 => out += &format!("INC {}\nDEC {}\n", d(&mut next), d(&mut next)),
             6 if timers < 8 => {
-                out +=
-                    &format!("TON T{:04} {}\nCTU C{:04} 3\n", 1500 + timers, 1 + next(5), timers);
+                let timer = ["TON", "TOFF", "TMR", "TMON", "TRTG"][next(5) as usize];
+                let counter = ["CTU", "CTD", "CTR"][next(3) as usize];
+                let (t, preset) = (1500 + timers, 1 + next(5));
+                out += &format!("{timer} T{t:04} {preset}\n{counter} C{timers:04} 3\n");
+                if next(2) == 0 {
+                    out += &format!("LOAD D00000.{:X}\nRST T{t:04}\nRST C{timers:04}\n", next(16));
+                }
                 timers += 1;
             }
             7 => {
@@ -2452,14 +2455,28 @@ fn random_il_program(seed: u64) -> String {
                 out +=
                     &format!("JMP {labels}\nINC D00009\nOUT {}\nLABEL {labels}\n", bit(&mut next));
             }
-            8 => out += "FOR 3\nINC D00010\nADD D00010 D00000 D00011\nNEXT\n",
-            9 => out += "CALL 1\n",
+            8 => out += "FOR 3\nINC D00010\nADD D00010 D00000 D00011\nCALL 2\nNEXT\n",
+            9 => out += ["CALL 1\n", "CALL 2\n", "CALL 3\n"][next(3) as usize],
+            10 => {
+                let (a, b, c) = (bit(&mut next), bit(&mut next), bit(&mut next));
+                out += &format!("OUTP {a}\nOUTN {b}\nFF {c}\n");
+            }
+            11 => {
+                let (a, b) = (d(&mut next), d(&mut next));
+                out += &format!("INCP {a}\nMOVP {} {b}\n", src(&mut next));
+                out += &format!("DIVP {} {} {}\n", src(&mut next), src(&mut next), d(&mut next));
+            }
             _ => {
                 out += &format!("OUT {}\nMOV {} {}\n", bit(&mut next), src(&mut next), d(&mut next))
             }
         }
     }
+    // Subroutine 2 calls 1, and itself while D00010 counts through values with bit 0 set:
+    // calls deeper than CALL_DEPTH (an operation error) on some scans.
     out += "END\nSBRT 1\nLOAD D00000.0\nINC D00012\nMUL D00012 3 D00013\nRET\n";
+    out += "SBRT 2\nLOADP D00000.2\nCALL 1\nINC D00014\nLOAD D00010.0\nAND D00000.3\nCALL 2\nRET\n";
+    // Subroutine 3 has a loop of its own, left by BREAK on some scans.
+    out += "SBRT 3\nFOR 3\nINC D00015\nLOAD D00015.2\nBREAK\nNEXT\nRET\n";
     out
 }
 

@@ -2,8 +2,10 @@
 //!
 //! The shape of the function:
 //! - the entry loads the registers (the rung, the block and `MPUSH` stacks, the budget) from
-//!   the [`Context`]'s [`NativeRegs`] and switches on the program counter over the leaders of
-//!   [`Analysis`]; any other program counter goes back to the interpreter, unchanged;
+//!   the [`Context`]'s [`NativeRegs`] and goes to the dispatch, which switches on the program
+//!   counter over the leaders of [`Analysis`]; any other program counter goes back to
+//!   [`Code::run`](crate::code::Code): to the interpreter if it is in this piece's range, to
+//!   the piece that has it if not (a `RET` dispatches on its return address too);
 //! - a block first checks that the budget covers all its instructions, and hands itself whole
 //!   to the interpreter if not; then charges the budget, runs its instructions with the
 //!   registers in SSA variables and goes on to the next block directly (or, at `JMP`, to its
@@ -17,7 +19,8 @@
 //!   zero, an operation error, leaves for the interpreter on a cold path);
 //! - within a block a word of device memory read or written by one of the last [`RECENT`]
 //!   instructions is not read again: the block keeps it in an SSA value ([`Word`]). Nothing
-//!   else touches device memory while a block runs (it calls nothing), so this is exact; the
+//!   else touches device memory while a block runs but the timers and counters, after whose
+//!   call the block forgets every word it holds, so this is exact; the
 //!   window keeps the values' lives short, so that they stay in registers (holding every word
 //!   a block touches made the `bit` bench 25 % slower: all loads first, spilled).
 //!
@@ -32,12 +35,12 @@ use cranelift_codegen::ir::{types, AbiParam, Block, Function, InstBuilder, Signa
 use cranelift_codegen::isa::TargetIsa;
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Switch, Variable};
 use plcd_core::device::{BitRef, WordRef};
-use plcd_core::lang::native::NativeRegs;
+use plcd_core::lang::native::{IlFrame, NativeRegs};
 use plcd_core::lang::ops::{ArithOp, CmpOp, Combine, Op, Src};
-use plcd_core::lang::Program;
+use plcd_core::lang::{Program, CALL_DEPTH};
 
-use super::{is_native, Analysis};
-use crate::code::{Context, RETURN_CONTINUE, RETURN_END, RETURN_INTERPRET};
+use super::{is_device, is_native, Analysis};
+use crate::code::{self, Context, RETURN_CONTINUE, RETURN_END, RETURN_INTERPRET};
 use crate::codegen::{data, own};
 
 const I32: types::Type = types::I32;
@@ -60,8 +63,15 @@ pub(crate) fn generate(
     b.append_block_params_for_function_params(entry);
     b.switch_to_block(entry);
     let ctx = b.block_params(entry)[0];
-    let regs_at = b.ins().load(I64, own(), ctx, offset_of!(Context, regs) as i32);
-    let words = b.ins().load(I64, own(), ctx, offset_of!(Context, words) as i32);
+    let field =
+        |b: &mut FunctionBuilder, offset: usize| b.ins().load(I64, own(), ctx, offset as i32);
+    let regs_at = field(&mut b, offset_of!(Context<'static>, regs));
+    let words = field(&mut b, offset_of!(Context<'static>, words));
+    let edges = field(&mut b, offset_of!(Context<'static>, edges));
+    let il_calls = field(&mut b, offset_of!(Context<'static>, il_calls));
+    let mut device_sig = Signature::new(isa.default_call_conv());
+    device_sig.params.extend([I64, I64, I32, I64].map(AbiParam::new));
+    let device_sig = b.import_signature(device_sig);
     let regs = Regs {
         rung: b.declare_var(I32),
         blocks: b.declare_var(I32),
@@ -73,13 +83,19 @@ pub(crate) fn generate(
         b,
         code: &program.code,
         analysis,
+        ctx,
         regs_at,
         words,
+        edges,
+        il_calls,
+        device_sig,
+        dispatch: None,
         regs,
         leaders,
         blocks: Vec::new(),
         held: HashMap::new(),
         pc: 0,
+        block_end: 0,
     };
     g.entry();
     g.body();
@@ -112,9 +128,19 @@ struct Gen<'a, 'f> {
     b: FunctionBuilder<'f>,
     code: &'a [Op],
     analysis: &'a Analysis,
+    /// The [`Context`] of the call.
+    ctx: Value,
     /// The [`NativeRegs`] of the call.
     regs_at: Value,
     words: Value,
+    /// Edge memory, a byte a slot.
+    edges: Value,
+    /// The instruction list's call stack.
+    il_calls: Value,
+    /// The signature of [`code::il_device`].
+    device_sig: cranelift_codegen::ir::SigRef,
+    /// The block that switches on its parameter, a program counter.
+    dispatch: Option<Block>,
     regs: Regs,
     /// This piece's leaders: a range of [`Analysis::leaders`].
     leaders: std::ops::Range<usize>,
@@ -124,6 +150,8 @@ struct Gen<'a, 'f> {
     held: HashMap<u16, Word>,
     /// The instruction being compiled.
     pc: usize,
+    /// The end of the block being compiled.
+    block_end: usize,
 }
 
 impl Gen<'_, '_> {
@@ -141,18 +169,36 @@ impl Gen<'_, '_> {
         self.b.def_var(self.regs.blocks, blocks);
         self.b.def_var(self.regs.branches, branches);
         self.b.def_var(self.regs.left, left);
+        let dispatch = self.b.create_block();
+        let pc_param = self.b.append_block_param(dispatch, I32);
+        self.b.ins().jump(dispatch, &[pc.into()]);
+        self.dispatch = Some(dispatch);
+        self.b.switch_to_block(dispatch);
         let leaders = &self.analysis.leaders[self.leaders.clone()];
         self.blocks = leaders.iter().map(|_| self.b.create_block()).collect();
         let mut switch = Switch::new();
         for (&leader, &block) in leaders.iter().zip(&self.blocks) {
             switch.set_entry(u128::from(leader), block);
         }
-        // Any other pc: the interpreter, with the registers as they are.
         let elsewhere = self.b.create_block();
-        switch.emit(&mut self.b, pc, elsewhere);
+        switch.emit(&mut self.b, pc_param, elsewhere);
+        // Any other pc: the interpreter if this piece's range has it (the entry's pc, unchanged,
+        // or a return address that is no leader), else the piece that has it.
         self.b.switch_to_block(elsewhere);
         self.b.set_cold_block(elsewhere);
-        self.ret(RETURN_INTERPRET);
+        let pieces = &self.analysis.pieces;
+        let piece = pieces.iter().position(|p| p.start == self.leaders.start).unwrap_or(0);
+        let low = if piece == 0 { 0 } else { self.analysis.leaders[pieces[piece].start] };
+        let high = pieces.get(piece + 1).map_or(u32::MAX, |p| self.analysis.leaders[p.start]);
+        let below = self.b.ins().icmp_imm_u(IntCC::UnsignedLessThan, pc_param, i64::from(low));
+        let above =
+            self.b.ins().icmp_imm_u(IntCC::UnsignedGreaterThanOrEqual, pc_param, i64::from(high));
+        let outside = self.b.ins().bor(below, above);
+        let interpret = self.b.ins().iconst(I32, i64::from(RETURN_INTERPRET));
+        let other = self.b.ins().iconst(I32, i64::from(RETURN_CONTINUE));
+        let status = self.b.ins().select(outside, other, interpret);
+        self.store_regs(pc_param);
+        self.b.ins().return_(&[status]);
     }
 
     fn ret(&mut self, status: u32) {
@@ -163,6 +209,12 @@ impl Gen<'_, '_> {
     /// Leaves with `status`: the registers, with `pc`, back to the context.
     fn exit(&mut self, pc: usize, status: u32) {
         let pc = self.b.ins().iconst(I32, pc as i64);
+        self.store_regs(pc);
+        self.ret(status);
+    }
+
+    /// The registers, with `pc`, back to the context.
+    fn store_regs(&mut self, pc: Value) {
         let rung = self.rung();
         let blocks = self.b.use_var(self.regs.blocks);
         let branches = self.b.use_var(self.regs.branches);
@@ -176,7 +228,6 @@ impl Gen<'_, '_> {
         ] {
             self.b.ins().store(own(), value, self.regs_at, offset as i32);
         }
-        self.ret(status);
     }
 
     /// Goes on at `pc`: its block in this piece, the piece that has it (through
@@ -215,6 +266,7 @@ impl Gen<'_, '_> {
             let left = self.b.ins().iadd_imm_s(left, -n);
             self.b.def_var(self.regs.left, left);
             let mut ended = false;
+            self.block_end = range.end;
             for pc in range.clone() {
                 self.pc = pc;
                 match self.code[pc] {
@@ -233,9 +285,19 @@ impl Gen<'_, '_> {
                         self.go_on(pc + 1);
                         ended = true;
                     }
-                    Op::Arith { op: ArithOp::Div, a, b, d, .. } => {
-                        self.div(a, b, d, pc, range.end);
+                    Op::Arith { op: ArithOp::Div, a, b, d, pulse } => {
+                        let on = self.enabled(pulse);
+                        self.div(a, b, d, on, pc, range.end);
                     }
+                    Op::Call { target } => {
+                        self.call(target, pc);
+                        ended = true;
+                    }
+                    Op::Ret => {
+                        self.ret_op(pc);
+                        ended = true;
+                    }
+                    op if is_device(&op) => self.device(pc),
                     op => self.op(op),
                 }
             }
@@ -308,31 +370,169 @@ impl Gen<'_, '_> {
         }
     }
 
-    /// `DIV a b d` at `pc` in a block that ends before `end`: when the rung is ON and `b` is 0
-    /// (an operation error), the interpreter takes the instruction, with the budget of the
-    /// block's instructions from `pc` on given back; otherwise `d` gets the quotient when the
-    /// rung is ON and stays when it is OFF. In 32 bits, -32768 / -1 is 32768, whose low 16
+    /// `DIV a b d` at `pc` in a block that ends before `end`, executed when `on` (0 or 1):
+    /// when `on` and `b` is 0 (an operation error), the interpreter takes the instruction, with
+    /// the budget of the block's instructions from `pc` on given back; otherwise `d` gets the
+    /// quotient when `on` and stays when not. In 32 bits, -32768 / -1 is 32768, whose low 16
     /// bits are the interpreter's wrapping result, and the division cannot trap.
-    fn div(&mut self, a: Src, b: Src, d: WordRef, pc: usize, end: usize) {
+    ///
+    /// The `P` form has taken its edge by then, and the interpreter would take it again: its
+    /// edge slot is put back first (the instruction wrote nothing else).
+    fn div(&mut self, a: Src, b: Src, d: WordRef, on: Value, pc: usize, end: usize) {
         let (a, b) = (self.signed(a), self.signed(b));
-        let rung = self.rung();
         let zero = self.b.ins().icmp_imm_s(IntCC::Equal, b, 0);
         let zero = self.b.ins().uextend(I32, zero);
-        let fails = self.b.ins().band(rung, zero);
+        let fails = self.b.ins().band(on, zero);
         let error = self.b.create_block();
         let divide = self.b.create_block();
         self.b.set_cold_block(error);
         self.b.ins().brif(fails, error, &[], divide, &[]);
         self.b.switch_to_block(error);
-        let left = self.b.use_var(self.regs.left);
-        let back = self.b.ins().iadd_imm_s(left, (end - pc) as i64);
-        self.b.def_var(self.regs.left, back);
-        self.exit(pc, RETURN_INTERPRET);
+        if let Op::Arith { pulse: Some(slot), .. } = self.code[pc] {
+            // The slot held OFF (there was a rising edge): OFF again.
+            let off = self.b.ins().iconst(types::I8, 0);
+            self.b.ins().store(data(), off, self.edges, i32::from(slot));
+        }
+        self.give_back_and_exit(pc, end);
         self.b.switch_to_block(divide);
         let one = self.b.ins().iconst(I32, 1);
         let divisor = self.b.ins().select(zero, one, b);
         let quotient = self.b.ins().sdiv(a, divisor);
-        self.store_if_on(d, quotient);
+        self.store_if(on, d, quotient);
+    }
+
+    /// Leaves for the interpreter at `pc`, with the budget of the block's instructions from
+    /// `pc` to `end` given back.
+    fn give_back_and_exit(&mut self, pc: usize, end: usize) {
+        let left = self.b.use_var(self.regs.left);
+        let back = self.b.ins().iadd_imm_s(left, (end - pc) as i64);
+        self.b.def_var(self.regs.left, back);
+        self.exit(pc, RETURN_INTERPRET);
+    }
+
+    /// The edge of the value `now` (bit 0) seen by edge slot `slot`, which then holds it: 1 at
+    /// a rising (`rising`) or falling edge, else 0.
+    fn edge(&mut self, slot: u16, now: Value, rising: bool) -> Value {
+        let now = self.b.ins().band_imm_s(now, 1);
+        let before = self.b.ins().uload8(I32, data(), self.edges, i32::from(slot));
+        let byte = self.b.ins().ireduce(types::I8, now);
+        self.b.ins().store(data(), byte, self.edges, i32::from(slot));
+        if rising {
+            self.b.ins().band_not(now, before)
+        } else {
+            self.b.ins().band_not(before, now)
+        }
+    }
+
+    /// Whether a data instruction executes (0 or 1): the rung, or its rising edge for the `P`
+    /// form.
+    fn enabled(&mut self, pulse: Option<u16>) -> Value {
+        let rung = self.rung();
+        match pulse {
+            None => rung,
+            Some(slot) => self.edge(slot, rung, true),
+        }
+    }
+
+    /// `CALL` at `pc`, the last instruction of its block: when the rung is ON, a frame for the
+    /// return and the subroutine at `target`, with the rung ON and empty stacks; a call deeper
+    /// than `CALL_DEPTH` (an operation error) is the interpreter's.
+    fn call(&mut self, target: u32, pc: usize) {
+        let rung = self.rung();
+        let taken = self.b.create_block();
+        let not_taken = self.b.create_block();
+        self.b.ins().brif(rung, taken, &[], not_taken, &[]);
+        self.b.switch_to_block(not_taken);
+        self.go_on(pc + 1);
+        self.b.switch_to_block(taken);
+        let depth = self.field32(offset_of!(NativeRegs, il_depth));
+        let full =
+            self.b.ins().icmp_imm_u(IntCC::UnsignedGreaterThanOrEqual, depth, CALL_DEPTH as i64);
+        let push = self.b.create_block();
+        let error = self.b.create_block();
+        self.b.set_cold_block(error);
+        self.b.ins().brif(full, error, &[], push, &[]);
+        self.b.switch_to_block(error);
+        self.give_back_and_exit(pc, pc + 1);
+        self.b.switch_to_block(push);
+        let frame = self.frame_at(depth);
+        let return_pc = self.b.ins().iconst(I32, pc as i64 + 1);
+        let blocks = self.b.use_var(self.regs.blocks);
+        let branches = self.b.use_var(self.regs.branches);
+        let loop_depth = self.field32(offset_of!(NativeRegs, loop_depth));
+        for (value, offset) in [
+            (return_pc, offset_of!(IlFrame, return_pc)),
+            (rung, offset_of!(IlFrame, rung)),
+            (blocks, offset_of!(IlFrame, blocks)),
+            (branches, offset_of!(IlFrame, branches)),
+            (loop_depth, offset_of!(IlFrame, loop_depth)),
+        ] {
+            self.b.ins().store(own(), value, frame, offset as i32);
+        }
+        let deeper = self.b.ins().iadd_imm_s(depth, 1);
+        self.store32(deeper, offset_of!(NativeRegs, il_depth));
+        let (on, zero) = (self.b.ins().iconst(I32, 1), self.b.ins().iconst(I32, 0));
+        self.b.def_var(self.regs.rung, on);
+        self.b.def_var(self.regs.blocks, zero);
+        self.b.def_var(self.regs.branches, zero);
+        self.go_on(target as usize);
+    }
+
+    /// `RET` at `pc`, the last instruction of its block: back to the caller's registers and
+    /// return address, through the dispatch. A `RET` without a call (never, in a checked
+    /// program) is the interpreter's.
+    fn ret_op(&mut self, pc: usize) {
+        let depth = self.field32(offset_of!(NativeRegs, il_depth));
+        let pop = self.b.create_block();
+        let none = self.b.create_block();
+        self.b.set_cold_block(none);
+        self.b.ins().brif(depth, pop, &[], none, &[]);
+        self.b.switch_to_block(none);
+        self.give_back_and_exit(pc, pc + 1);
+        self.b.switch_to_block(pop);
+        let depth = self.b.ins().iadd_imm_s(depth, -1);
+        self.store32(depth, offset_of!(NativeRegs, il_depth));
+        let frame = self.frame_at(depth);
+        let load = |g: &mut Self, offset: usize| g.b.ins().load(I32, own(), frame, offset as i32);
+        let return_pc = load(self, offset_of!(IlFrame, return_pc));
+        let rung = load(self, offset_of!(IlFrame, rung));
+        let blocks = load(self, offset_of!(IlFrame, blocks));
+        let branches = load(self, offset_of!(IlFrame, branches));
+        let loop_depth = load(self, offset_of!(IlFrame, loop_depth));
+        self.store32(loop_depth, offset_of!(NativeRegs, loop_depth));
+        self.b.def_var(self.regs.rung, rung);
+        self.b.def_var(self.regs.blocks, blocks);
+        self.b.def_var(self.regs.branches, branches);
+        let dispatch = self.dispatch.expect("the entry made it");
+        self.b.ins().jump(dispatch, &[return_pc.into()]);
+    }
+
+    /// The address of call frame `depth` (below `CALL_DEPTH`).
+    fn frame_at(&mut self, depth: Value) -> Value {
+        let depth = self.b.ins().uextend(I64, depth);
+        let offset = self.b.ins().imul_imm_u(depth, std::mem::size_of::<IlFrame>() as i64);
+        self.b.ins().iadd(self.il_calls, offset)
+    }
+
+    fn store32(&mut self, value: Value, offset: usize) {
+        self.b.ins().store(own(), value, self.regs_at, offset as i32);
+    }
+
+    /// A timer or counter instruction at `pc`: the VM executes it ([`code::il_device`]), with
+    /// the budget left after it. It writes device memory, so the block holds no word after.
+    fn device(&mut self, pc: usize) {
+        let index = self.analysis.device_pcs.binary_search(&(pc as u32)).expect("a device op");
+        let op = &self.analysis.device_ops[index] as *const Op as i64;
+        let op = self.b.ins().iconst(I64, op);
+        let rung = self.rung();
+        let end = self.block_end;
+        let left = self.b.use_var(self.regs.left);
+        let left = self.b.ins().iadd_imm_s(left, (end - pc - 1) as i64);
+        let function =
+            code::il_device as extern "C" fn(*mut Context<'static>, *const Op, u32, u64) as usize;
+        let callee = self.b.ins().iconst(I64, function as i64);
+        self.b.ins().call_indirect(self.device_sig, callee, &[self.ctx, op, rung, left]);
+        self.held.clear();
     }
 
     /// The rung, 0 or 1. (The variable's other bits are whatever the contacts left there:
@@ -402,11 +602,10 @@ impl Gen<'_, '_> {
         self.set_word(w, word);
     }
 
-    /// Stores `value` at `d` when the rung is ON, the old value when it is OFF.
-    fn store_if_on(&mut self, d: WordRef, value: Value) {
+    /// Stores `value` at `d` when `on` (0 or 1), the old value when not.
+    fn store_if(&mut self, on: Value, d: WordRef, value: Value) {
         let old = self.word(d);
-        let rung = self.rung();
-        let v = self.b.ins().select(rung, value, old);
+        let v = self.b.ins().select(on, value, old);
         self.set_word(d, v);
     }
 
@@ -485,11 +684,38 @@ impl Gen<'_, '_> {
                 };
                 self.set_word(w, word);
             }
-            Op::Mov { s, d, .. } => {
-                let value = self.signed(s);
-                self.store_if_on(d, value);
+            Op::EdgeContact { bit, rising, how, slot } => {
+                let now = self.bit(bit);
+                let edge = self.edge(slot, now, rising);
+                self.combine(how, edge);
             }
-            Op::Arith { op, a, b, d, .. } => {
+            Op::OutPulse { bit, rising, slot } => {
+                let rung = self.rung();
+                let edge = self.edge(slot, rung, rising);
+                self.write_bit(bit, edge);
+            }
+            Op::FlipFlop { bit, slot } => {
+                // At the rung's rising edge the bit becomes the opposite of what it reads (all
+                // of its mask, as the interpreter's `set_bit`).
+                let rung = self.rung();
+                let edge = self.edge(slot, rung, true);
+                let was = self.bit(bit);
+                let flipped = self.b.ins().bnot(was);
+                let flipped = self.b.ins().band_imm_s(flipped, 1);
+                let w = WordRef(bit.word);
+                let old = self.word(w);
+                self.write_bit(bit, flipped);
+                let new = self.word(w);
+                let word = self.b.ins().select(edge, new, old);
+                self.set_word(w, word);
+            }
+            Op::Mov { s, d, pulse } => {
+                let on = self.enabled(pulse);
+                let value = self.signed(s);
+                self.store_if(on, d, value);
+            }
+            Op::Arith { op, a, b, d, pulse } => {
+                let on = self.enabled(pulse);
                 let (a, b) = (self.signed(a), self.signed(b));
                 // The low 16 bits of the 32-bit result are the 16-bit wrapping result.
                 let value = match op {
@@ -498,11 +724,12 @@ impl Gen<'_, '_> {
                     ArithOp::Mul => self.b.ins().imul(a, b),
                     ArithOp::Div => unreachable!("DIV is compiled by Gen::div"),
                 };
-                self.store_if_on(d, value);
+                self.store_if(on, d, value);
             }
-            Op::Step { d, up, .. } => {
+            Op::Step { d, up, pulse } => {
+                let on = self.enabled(pulse);
                 let old = self.word(d);
-                let all = self.all();
+                let all = self.b.ins().ineg(on);
                 let step = if up { 1 } else { 0xFFFF };
                 let step = self.b.ins().band_imm_s(all, step);
                 let value = self.b.ins().iadd(old, step);

@@ -2,14 +2,15 @@
 //! be entered and how far the budget is checked ([`Analysis`]); the code itself is
 //! [`codegen`]'s.
 //!
-//! What is compiled: contacts on bits and compare contacts (`LOAD`, `AND NOT`, `LOAD>=`, …),
-//! the block and `MPUSH` stacks, `NOT`, the coils (`OUT`, `OUT NOT`, `SET`, `RST`), `MOV`,
-//! `ADD`/`SUB`/`MUL`/`DIV` (a division by zero is the interpreter's), `INC`/`DEC` without their
-//! `P` forms, `LABEL`, `JMP`, `NOP` and `END`: what rungs of logic and data are made of.
-//! Everything else — edges and the `P` forms (their edge memory), timers and counters (their
-//! state machines and the clock), the double-word and real instructions, `CALL`/`RET`, `FOR`/`NEXT`/`BREAK`, `DUTY` and the
-//! system requests — the interpreter executes, one instruction at a time, and native code goes
-//! on after it.
+//! What is compiled: contacts on bits, edge contacts and compare contacts (`LOAD`, `AND NOT`,
+//! `LOADP`, `LOAD>=`, …), the block and `MPUSH` stacks, `NOT`, the coils (`OUT`, `OUT NOT`,
+//! `OUTP`, `SET`, `RST`, `FF`), `MOV`, `ADD`/`SUB`/`MUL`/`DIV` (a division by zero is the
+//! interpreter's), `INC`/`DEC` and their `P` forms, `CALL`/`RET`, `LABEL`, `JMP`, `NOP` and
+//! `END`; timers, counters and their `RST` are calls of the VM's own code for them
+//! ([`IlDevices`](plcd_core::lang::native::IlDevices)), with their state machines and the
+//! clock. Everything else — the double-word and real instructions, `FOR`/`NEXT`/`BREAK`,
+//! `DUTY` and the system requests — the interpreter executes, one instruction at a time, and
+//! native code goes on after it.
 //!
 //! A block runs from one leader to the next: at most [`MAX_BLOCK`] instructions, so that a
 //! budget smaller than the whole program still leaves most of it to native code. A block
@@ -17,6 +18,7 @@
 
 pub(crate) mod codegen;
 
+use plcd_core::device::{counter_done, counter_value, timer_done, timer_value, BitRef, WordRef};
 use plcd_core::lang::ops::{Op, Src};
 
 /// The longest block: a budget check every this many instructions at most.
@@ -37,7 +39,8 @@ pub(crate) const MAX_COMPILED: usize = 65_536;
 /// interpreter's would be slower than the interpreter alone: each hand-over costs about 200
 /// machine instructions (leaving the native function, entering the interpreter's loop and back),
 /// a compiled instruction saves 15 to 35 (`benches/counts`: `timers_counters`, a third of its
-/// instructions timers and counters, ran 4× the instructions with native code).
+/// instructions timers and counters, ran 4× the instructions with native code when those were
+/// handed over).
 pub(crate) const HANDOVER_EVERY: usize = 16;
 
 /// The analysis of one instruction-list program.
@@ -55,6 +58,17 @@ pub(crate) struct Analysis {
     pub pieces: Vec<std::ops::Range<usize>>,
     /// Instructions of the compiled part that the interpreter executes.
     pub handed_over: usize,
+    /// Slots of edge memory, timer numbers and counter numbers the compiled instructions
+    /// reach, as the ends of their ranges: native code runs only when the VM has that many.
+    pub edges_end: u64,
+    pub timers_end: u64,
+    pub counters_end: u64,
+    /// The compiled timer and counter instructions, which native code hands to the VM
+    /// ([`IlDevices::execute`](plcd_core::lang::native::IlDevices::execute)) by their address
+    /// here: copies that live as long as the code, in the order of `device_pcs`.
+    pub device_ops: Box<[Op]>,
+    /// The instruction of each of `device_ops`, ascending.
+    pub device_pcs: Vec<u32>,
 }
 
 /// True if native code executes `op` itself.
@@ -80,19 +94,36 @@ pub(crate) fn is_native(op: &Op) -> bool {
             | Op::OutNot(_)
             | Op::Set(_)
             | Op::Rst(_)
-            | Op::Mov { pulse: None, .. }
-            | Op::Arith { pulse: None, .. }
-            | Op::Step { pulse: None, .. }
+            | Op::EdgeContact { .. }
+            | Op::OutPulse { .. }
+            | Op::FlipFlop { .. }
+            | Op::Mov { .. }
+            | Op::Arith { .. }
+            | Op::Step { .. }
+            | Op::Call { .. }
+            | Op::Ret
             | Op::Jmp { .. }
             | Op::Label
             | Op::Nop
             | Op::End
+    ) || is_device(op)
+}
+
+/// True if native code calls the VM for `op` (a timer or a counter).
+pub(crate) fn is_device(op: &Op) -> bool {
+    matches!(
+        op,
+        Op::Timer { .. }
+            | Op::Counter { .. }
+            | Op::CounterUpDown { .. }
+            | Op::RstTimer(_)
+            | Op::RstCounter(_)
     )
 }
 
 /// True if control may not go on to the next instruction after `op`.
 fn ends_block(op: &Op) -> bool {
-    matches!(op, Op::Jmp { .. } | Op::End)
+    matches!(op, Op::Jmp { .. } | Op::End | Op::Call { .. } | Op::Ret)
 }
 
 /// The words of device memory `op` reads or writes, as the end of their range.
@@ -101,6 +132,10 @@ fn reach(op: &Op) -> u64 {
         Src::Word(w) => u64::from(w.0) + 1,
         Src::Const(_) => 0,
     };
+    let bit = |b: &BitRef| u64::from(b.word) + 1;
+    let word = |w: WordRef| u64::from(w.0) + 1;
+    let timer = |n: u16| word(timer_value(n)).max(bit(&timer_done(n)));
+    let counter = |n: u16| word(counter_value(n)).max(bit(&counter_done(n)));
     match op {
         Op::Load(b)
         | Op::LoadNot(b)
@@ -113,12 +148,33 @@ fn reach(op: &Op) -> u64 {
         | Op::Out(b)
         | Op::OutNot(b)
         | Op::Set(b)
-        | Op::Rst(b) => u64::from(b.word) + 1,
+        | Op::Rst(b)
+        | Op::EdgeContact { bit: b, .. }
+        | Op::OutPulse { bit: b, .. }
+        | Op::FlipFlop { bit: b, .. } => bit(b),
         Op::Compare { a, b, .. } => src(a).max(src(b)),
-        Op::Mov { s, d, .. } => src(s).max(u64::from(d.0) + 1),
-        Op::Arith { a, b, d, .. } => src(a).max(src(b)).max(u64::from(d.0) + 1),
-        Op::Step { d, .. } => u64::from(d.0) + 1,
+        Op::Mov { s, d, .. } => src(s).max(word(*d)),
+        Op::Arith { a, b, d, .. } => src(a).max(src(b)).max(word(*d)),
+        Op::Step { d, .. } => word(*d),
+        Op::Timer { timer: n, preset, .. } => timer(*n).max(src(preset)),
+        Op::RstTimer(n) => timer(*n),
+        Op::Counter { counter: n, preset, .. } => counter(*n).max(src(preset)),
+        Op::CounterUpDown { counter: n, up, down, preset } => {
+            counter(*n).max(src(preset)).max(bit(up)).max(bit(down))
+        }
+        Op::RstCounter(n) => counter(*n),
         _ => 0,
+    }
+}
+
+/// The edge slot `op` uses, if any.
+fn edge_slot(op: &Op) -> Option<u16> {
+    match *op {
+        Op::EdgeContact { slot, .. } | Op::OutPulse { slot, .. } | Op::FlipFlop { slot, .. } => {
+            Some(slot)
+        }
+        Op::Mov { pulse, .. } | Op::Arith { pulse, .. } | Op::Step { pulse, .. } => pulse,
+        _ => None,
     }
 }
 
@@ -137,6 +193,8 @@ pub(crate) fn analyse(code: &[Op]) -> Analysis {
     let mut leaders = vec![0u32];
     let mut words_end = 0;
     let mut handed_over = 0;
+    let (mut edges_end, mut timers_end, mut counters_end) = (0u64, 0u64, 0u64);
+    let (mut device_ops, mut device_pcs) = (Vec::new(), Vec::new());
     for (pc, op) in code.iter().enumerate() {
         if let Some(target) = targets(op) {
             leaders.push(target);
@@ -149,6 +207,22 @@ pub(crate) fn analyse(code: &[Op]) -> Analysis {
             handed_over += 1;
         } else {
             words_end = words_end.max(reach(op));
+            if let Some(slot) = edge_slot(op) {
+                edges_end = edges_end.max(u64::from(slot) + 1);
+            }
+            match *op {
+                Op::Timer { timer: n, .. } | Op::RstTimer(n) => {
+                    timers_end = timers_end.max(u64::from(n) + 1);
+                }
+                Op::Counter { counter: n, .. }
+                | Op::CounterUpDown { counter: n, .. }
+                | Op::RstCounter(n) => counters_end = counters_end.max(u64::from(n) + 1),
+                _ => {}
+            }
+            if is_device(op) {
+                device_ops.push(*op);
+                device_pcs.push(pc as u32);
+            }
         }
         if ends_block(op) {
             leaders.push(pc as u32 + 1);
@@ -177,7 +251,18 @@ pub(crate) fn analyse(code: &[Op]) -> Analysis {
             first = index;
         }
     }
-    Analysis { leaders: all, words_end, compiled, pieces, handed_over }
+    Analysis {
+        leaders: all,
+        words_end,
+        compiled,
+        pieces,
+        handed_over,
+        edges_end,
+        timers_end,
+        counters_end,
+        device_ops: device_ops.into_boxed_slice(),
+        device_pcs,
+    }
 }
 
 impl Analysis {
@@ -224,7 +309,7 @@ mod tests {
     #[test]
     fn leaders_cut_long_runs_and_surround_what_the_interpreter_runs() {
         let mut code = vec![Op::Load(bit(1)); 600];
-        code[300] = Op::Ret;
+        code[300] = Op::For { count: Src::Const(2), end: 301 };
         code.push(Op::End);
         let a = analyse(&code);
         assert_eq!(a.leaders, vec![0, 256, 300, 301, 557]);
