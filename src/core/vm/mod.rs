@@ -24,7 +24,9 @@ use crate::device::{
     counter_done, counter_value, timer_done, timer_value, BitRef, Memory, WordRef,
 };
 use crate::lang::native::{self, IlDevices, StFrame};
-use crate::lang::ops::{ArithOp, Combine, Op, Src, SystemRequest, Wide, WideConv};
+use crate::lang::ops::{
+    ArithOp, Combine, CounterKind, Op, Src, SystemRequest, TimerKind, Wide, WideConv,
+};
 use crate::lang::{Language, Program, Variables, CALL_DEPTH, LOOP_DEPTH, ST_CALL_DEPTH};
 use crate::value::{self, Elem, Pointer};
 use typed::EvalStack;
@@ -824,16 +826,28 @@ fn interpret<'a, const ST: bool, C: Clock>(
                         mem.set_bit(*bit, !mem.bit(*bit));
                     }
                 }
-                Op::RstTimer(_)
-                | Op::RstCounter(_)
-                | Op::Timer { .. }
-                | Op::Counter { .. }
-                | Op::CounterUpDown { .. }
-                    if !ST =>
-                {
+                Op::RstTimer(n) if !ST => {
+                    if rung {
+                        rst_timer(mem.words_mut(), timers, *n);
+                    }
+                }
+                Op::RstCounter(n) if !ST => {
+                    if rung {
+                        rst_counter(mem.words_mut(), counters, *n);
+                    }
+                }
+                Op::Timer { kind, timer: n, preset, base_ms } if !ST => {
                     let steps = stop - left + taken!() as u64;
-                    let words = mem.words_mut();
-                    device_instruction(op, words, timers, counters, rung, clock, steps);
+                    let timer = &mut timers[*n as usize];
+                    let call = timer_input(mem.words(), *kind, *n, *preset, *base_ms, rung);
+                    let result = run_timer(timer, call, clock, steps);
+                    write_device(mem.words_mut(), timer_value(*n), timer_done(*n), result);
+                }
+                Op::Counter { kind, counter: n, preset } if !ST => {
+                    counter_instruction(mem.words_mut(), counters, *kind, *n, *preset, rung);
+                }
+                Op::CounterUpDown { counter: n, up, down, preset } if !ST => {
+                    up_down_instruction(mem.words_mut(), counters, *n, (*up, *down), *preset, rung);
                 }
                 Op::Duty { channel, n1, n2, slot } if !ST => {
                     let rising = pulse(edges, *slot, rung);
@@ -1151,11 +1165,115 @@ fn interpret<'a, const ST: bool, C: Clock>(
     }
 }
 
-/// The timer and counter instructions and their `RST`, out of line (their state machines are
-/// long next to a contact's) and on device memory's words only (so that the interpreter loop
-/// keeps the memory's address in registers): the interpreter's and native code's
-/// ([`Devices`]). `steps` is the step count the clock is read at, the instruction's own.
+// The timer and counter instructions, on device memory's words only (so that the interpreter
+// loop keeps the memory's address in registers): the interpreter's arms and native code's calls
+// (`device_instruction`) are these.
+
+/// A bit of `words`.
+#[inline(always)]
+fn word_bit(words: &[u16], b: BitRef) -> bool {
+    words[b.word as usize] & b.mask != 0
+}
+
+/// A source operand read from `words`.
+#[inline(always)]
+fn word_src(words: &[u16], src: Src) -> u16 {
+    match src {
+        Src::Word(w) => words[w.0 as usize],
+        Src::Const(c) => c,
+    }
+}
+
+/// Writes a timer's or counter's current value and contact.
+#[inline(always)]
+fn write_device(words: &mut [u16], value: WordRef, done: BitRef, (v, on): (u16, bool)) {
+    words[value.0 as usize] = v;
+    let w = &mut words[done.word as usize];
+    *w = (*w & !done.mask) | (done.mask & all(on));
+}
+
+/// What timer `n` sees when its instruction executes, but the time (`run_timer` reads it).
+#[inline(always)]
+fn timer_input(
+    words: &[u16],
+    kind: TimerKind,
+    n: u16,
+    preset: Src,
+    base_ms: u16,
+    rung: bool,
+) -> timer::TimerInput {
+    timer::TimerInput {
+        kind,
+        input: rung,
+        preset: word_src(words, preset),
+        base_ms,
+        now_ns: 0,
+        value: words[timer_value(n).0 as usize],
+        done: word_bit(words, timer_done(n)),
+    }
+}
+
+/// A timer instruction's state machine with the time at step `steps`, out of line: it is long
+/// next to a contact's.
 #[inline(never)]
+fn run_timer<C: Clock + ?Sized>(
+    state: &mut timer::TimerState,
+    call: timer::TimerInput,
+    clock: &C,
+    steps: u64,
+) -> (u16, bool) {
+    timer::execute(state, timer::TimerInput { now_ns: clock.now_ns(steps), ..call })
+}
+
+/// `RST Tn` with the rung ON.
+#[inline(always)]
+fn rst_timer(words: &mut [u16], timers: &mut [timer::TimerState], n: u16) {
+    timer::reset(&mut timers[n as usize]);
+    write_device(words, timer_value(n), timer_done(n), (0, false));
+}
+
+/// `RST Cn` with the rung ON.
+#[inline(always)]
+fn rst_counter(words: &mut [u16], counters: &[counter::CounterState], n: u16) {
+    let value = counter::reset(&counters[n as usize]);
+    write_device(words, counter_value(n), counter_done(n), (value, false));
+}
+
+#[inline(always)]
+fn counter_instruction(
+    words: &mut [u16],
+    counters: &mut [counter::CounterState],
+    kind: CounterKind,
+    n: u16,
+    preset: Src,
+    rung: bool,
+) {
+    let preset = word_src(words, preset);
+    let value = words[counter_value(n).0 as usize];
+    let result = counter::execute(kind, &mut counters[n as usize], rung, preset, value);
+    write_device(words, counter_value(n), counter_done(n), result);
+}
+
+/// `CTUD Cn up down preset`.
+#[inline(always)]
+fn up_down_instruction(
+    words: &mut [u16],
+    counters: &mut [counter::CounterState],
+    n: u16,
+    (up, down): (BitRef, BitRef),
+    preset: Src,
+    rung: bool,
+) {
+    let preset = word_src(words, preset);
+    let (up, down) = (word_bit(words, up), word_bit(words, down));
+    let value = words[counter_value(n).0 as usize];
+    let c = &mut counters[n as usize];
+    let result = counter::execute_up_down(c, rung, up, down, preset, value);
+    write_device(words, counter_value(n), counter_done(n), result);
+}
+
+/// A timer or counter instruction, or their `RST`, for native code ([`Devices`]): `steps` is
+/// the step count the clock is read at, the instruction's own.
 fn device_instruction<C: Clock + ?Sized>(
     op: &Op,
     words: &mut [u16],
@@ -1165,52 +1283,19 @@ fn device_instruction<C: Clock + ?Sized>(
     clock: &C,
     steps: u64,
 ) {
-    let bit = |words: &[u16], b: BitRef| words[b.word as usize] & b.mask != 0;
-    let word = |words: &[u16], src: Src| match src {
-        Src::Word(w) => words[w.0 as usize],
-        Src::Const(c) => c,
-    };
-    let write = |words: &mut [u16], value: WordRef, done: BitRef, (v, on): (u16, bool)| {
-        words[value.0 as usize] = v;
-        let w = &mut words[done.word as usize];
-        *w = (*w & !done.mask) | (done.mask & all(on));
-    };
     match *op {
-        Op::RstTimer(n) if rung => {
-            timer::reset(&mut timers[n as usize]);
-            write(words, timer_value(n), timer_done(n), (0, false));
-        }
-        Op::RstCounter(n) if rung => {
-            let value = counter::reset(&counters[n as usize]);
-            write(words, counter_value(n), counter_done(n), (value, false));
-        }
+        Op::RstTimer(n) if rung => rst_timer(words, timers, n),
+        Op::RstCounter(n) if rung => rst_counter(words, counters, n),
         Op::Timer { kind, timer: n, preset, base_ms } => {
-            let (value_ref, done_ref) = (timer_value(n), timer_done(n));
-            let call = timer::TimerInput {
-                kind,
-                input: rung,
-                preset: word(words, preset),
-                base_ms,
-                now_ns: clock.now_ns(steps),
-                value: words[value_ref.0 as usize],
-                done: bit(words, done_ref),
-            };
-            let result = timer::execute(&mut timers[n as usize], call);
-            write(words, value_ref, done_ref, result);
+            let call = timer_input(words, kind, n, preset, base_ms, rung);
+            let result = run_timer(&mut timers[n as usize], call, clock, steps);
+            write_device(words, timer_value(n), timer_done(n), result);
         }
         Op::Counter { kind, counter: n, preset } => {
-            let preset = word(words, preset);
-            let value = words[counter_value(n).0 as usize];
-            let result = counter::execute(kind, &mut counters[n as usize], rung, preset, value);
-            write(words, counter_value(n), counter_done(n), result);
+            counter_instruction(words, counters, kind, n, preset, rung);
         }
         Op::CounterUpDown { counter: n, up, down, preset } => {
-            let preset = word(words, preset);
-            let (up, down) = (bit(words, up), bit(words, down));
-            let value = words[counter_value(n).0 as usize];
-            let c = &mut counters[n as usize];
-            let result = counter::execute_up_down(c, rung, up, down, preset, value);
-            write(words, counter_value(n), counter_done(n), result);
+            up_down_instruction(words, counters, n, (up, down), preset, rung);
         }
         _ => {}
     }

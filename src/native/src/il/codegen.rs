@@ -2,8 +2,10 @@
 //!
 //! The shape of the function:
 //! - the entry loads the registers (the rung, the block and `MPUSH` stacks, the budget) from
-//!   the [`Context`]'s [`NativeRegs`] and goes to the dispatch, which switches on the program
-//!   counter over the leaders of [`Analysis`]; any other program counter goes back to
+//!   the [`Context`]'s [`NativeRegs`] and goes to the dispatch, which finds the program
+//!   counter's block in the piece's table ([`Analysis::dispatch`]) and jumps to it through a
+//!   jump table (a `Switch` over thousands of leaders was a binary search of a dozen
+//!   unpredictable branches, at every `RET`); any other program counter goes back to
 //!   [`Code::run`](crate::code::Code): to the interpreter if it is in this piece's range, to
 //!   the piece that has it if not (a `RET` dispatches on its return address too);
 //! - a block first checks that the budget covers all its instructions, and hands itself whole
@@ -31,9 +33,11 @@ use std::collections::HashMap;
 use std::mem::offset_of;
 
 use cranelift_codegen::ir::condcodes::IntCC;
-use cranelift_codegen::ir::{types, AbiParam, Block, Function, InstBuilder, Signature, Value};
+use cranelift_codegen::ir::{
+    types, AbiParam, Block, Function, InstBuilder, JumpTableData, MemFlagsData, Signature, Value,
+};
 use cranelift_codegen::isa::TargetIsa;
-use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Switch, Variable};
+use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
 use plcd_core::device::{BitRef, WordRef};
 use plcd_core::lang::native::{IlFrame, NativeRegs};
 use plcd_core::lang::ops::{ArithOp, CmpOp, Combine, Op, Src};
@@ -101,6 +105,11 @@ pub(crate) fn generate(
     g.body();
     g.b.seal_all_blocks();
     g.b.finalize(isa.frontend_config());
+}
+
+/// A load from a dispatch table: never written while the code lives, always inside it.
+fn readonly() -> MemFlagsData {
+    MemFlagsData::trusted().with_readonly()
 }
 
 /// A word read or written this many instructions ago or less is not read again.
@@ -174,20 +183,35 @@ impl Gen<'_, '_> {
         self.b.ins().jump(dispatch, &[pc.into()]);
         self.dispatch = Some(dispatch);
         self.b.switch_to_block(dispatch);
-        let leaders = &self.analysis.leaders[self.leaders.clone()];
-        self.blocks = leaders.iter().map(|_| self.b.create_block()).collect();
-        let mut switch = Switch::new();
-        for (&leader, &block) in leaders.iter().zip(&self.blocks) {
-            switch.set_entry(u128::from(leader), block);
-        }
+        self.blocks = self.leaders.clone().map(|_| self.b.create_block()).collect();
+        // The block of `pc`: the piece's dispatch table, read where `pc` is in its range, and
+        // the table's entry for "no leader" otherwise.
+        let piece = self.analysis.pieces.iter().position(|p| p.start == self.leaders.start);
+        let table = &self.analysis.dispatch[piece.unwrap_or(0)];
+        let low = self.analysis.leaders[self.leaders.start];
+        let offset = self.b.ins().iadd_imm_s(pc_param, -i64::from(low));
+        let inside = self.b.ins().icmp_imm_u(IntCC::UnsignedLessThan, offset, table.len() as i64);
+        let zero = self.b.ins().iconst(I32, 0);
+        let offset = self.b.ins().select(inside, offset, zero);
+        let offset = self.b.ins().uextend(I64, offset);
+        let offset = self.b.ins().ishl_imm_s(offset, 1);
+        let table_at = self.b.ins().iconst(I64, table.as_ptr() as i64);
+        let entry = self.b.ins().iadd(table_at, offset);
+        let index = self.b.ins().uload16(I32, readonly(), entry, 0);
+        let none = self.b.ins().iconst(I32, self.blocks.len() as i64);
+        let index = self.b.ins().select(inside, index, none);
         let elsewhere = self.b.create_block();
-        switch.emit(&mut self.b, pc_param, elsewhere);
+        let calls: Vec<_> =
+            self.blocks.iter().map(|&block| self.b.func.dfg.block_call(block, &[])).collect();
+        let default = self.b.func.dfg.block_call(elsewhere, &[]);
+        let jump_table = self.b.create_jump_table(JumpTableData::new(default, &calls));
+        self.b.ins().br_table(index, jump_table);
         // Any other pc: the interpreter if this piece's range has it (the entry's pc, unchanged,
         // or a return address that is no leader), else the piece that has it.
         self.b.switch_to_block(elsewhere);
         self.b.set_cold_block(elsewhere);
         let pieces = &self.analysis.pieces;
-        let piece = pieces.iter().position(|p| p.start == self.leaders.start).unwrap_or(0);
+        let piece = piece.unwrap_or(0);
         let low = if piece == 0 { 0 } else { self.analysis.leaders[pieces[piece].start] };
         let high = pieces.get(piece + 1).map_or(u32::MAX, |p| self.analysis.leaders[p.start]);
         let below = self.b.ins().icmp_imm_u(IntCC::UnsignedLessThan, pc_param, i64::from(low));

@@ -69,6 +69,11 @@ pub(crate) struct Analysis {
     pub device_ops: Box<[Op]>,
     /// The instruction of each of `device_ops`, ascending.
     pub device_pcs: Vec<u32>,
+    /// Each piece's dispatch table: for each instruction of the piece's range (from its first
+    /// leader to the next piece's), the index of its block in the piece, or the piece's
+    /// number of blocks if it is no leader. The code reads it where it lives, so that entering
+    /// at a program counter, and `RET`, are one load and one indirect jump.
+    pub dispatch: Vec<Box<[u16]>>,
 }
 
 /// True if native code executes `op` itself.
@@ -251,7 +256,21 @@ pub(crate) fn analyse(code: &[Op]) -> Analysis {
             first = index;
         }
     }
+    let dispatch = pieces
+        .iter()
+        .enumerate()
+        .map(|(index, piece)| {
+            let low = all[piece.start] as usize;
+            let high = pieces.get(index + 1).map_or(compiled, |next| all[next.start] as usize);
+            let mut table = vec![piece.len() as u16; high - low];
+            for (block, &leader) in all[piece.clone()].iter().enumerate() {
+                table[leader as usize - low] = block as u16;
+            }
+            table.into_boxed_slice()
+        })
+        .collect();
     Analysis {
+        dispatch,
         leaders: all,
         words_end,
         compiled,
@@ -321,6 +340,10 @@ mod tests {
         assert_eq!(a.span(600), 1);
         assert_eq!(a.span(601), u32::MAX);
         assert_eq!(a.pieces, vec![0..5]);
+        let table = &a.dispatch[0];
+        assert_eq!(table.len(), 601);
+        assert_eq!((table[0], table[256], table[300], table[301], table[557]), (0, 1, 2, 3, 4));
+        assert_eq!((table[1], table[299], table[600]), (5, 5, 5), "no leader: the block count");
         assert_eq!(a.piece_holding(557), 0);
         assert_eq!(a.piece_holding(601), 0);
     }
@@ -337,6 +360,8 @@ mod tests {
             let (start, last) = (a.leaders[piece.start], a.leaders[piece.end - 1]);
             assert!((last - start) as usize + MAX_BLOCK <= PIECE, "{piece:?}");
         }
+        let covered: usize = a.dispatch.iter().map(|table| table.len()).sum();
+        assert_eq!(covered, MAX_COMPILED, "the tables cover the compiled instructions once");
         assert_eq!(a.piece_holding(4095), 0);
         assert_eq!(a.piece_holding(4096), 1);
         assert_eq!(a.piece_holding(u32::MAX), 15);
