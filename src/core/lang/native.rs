@@ -19,6 +19,7 @@
 
 use super::ops::Op;
 use super::{CALL_DEPTH, EVAL_DEPTH, ST_CALL_DEPTH};
+use crate::vm::counter::CounterState;
 
 /// A Structured Text call: where to return, and the caller's frame base and FB instance.
 /// `repr(C)`: native code pushes and pops these as the interpreter does.
@@ -94,24 +95,23 @@ pub struct NativeMemory<'a> {
     pub il_calls: &'a mut [IlFrame; CALL_DEPTH],
     /// The instruction list's edge memory (`LOADP`, `OUTP`, `FF`, the `P` forms).
     pub edges: &'a mut [bool],
-    /// The instruction list's timers and counters, which native code calls.
+    /// The instruction list's counters, which native code executes itself.
+    pub counters: &'a mut [CounterState],
+    /// The instruction list's timers, which native code calls.
     pub devices: &'a mut dyn IlDevices,
 }
 
-/// The instruction list's timers and counters as native code reaches them: it calls the VM's
-/// own code for them (their state machines and the clock), so that they behave as in the
-/// interpreter, to the nanosecond of the clock reading.
+/// The instruction list's timers as native code reaches them: it calls the VM's own code for
+/// them (their state machines and the clock), so that they behave as in the interpreter, to
+/// the nanosecond of the clock reading.
 pub trait IlDevices {
-    /// Executes `op` — a timer, a counter, `CTUD`, `RST Tn` or `RST Cn` — with the rung result
-    /// `rung` on device memory's `words`, with `left` instructions of the budget left after
-    /// it (the step count the clock is read at). Native code calls it only when the timer or
-    /// counter number is below [`IlDevices::timers`] or [`IlDevices::counters`] and the
-    /// devices' words are inside `words`.
+    /// Executes `op` — a timer or `RST Tn` — with the rung result `rung` on device memory's
+    /// `words`, with `left` instructions of the budget left after it (the step count the clock
+    /// is read at). Native code calls it only when the timer number is below
+    /// [`IlDevices::timers`] and the timer's words are inside `words`.
     fn execute(&mut self, op: &Op, words: &mut [u16], rung: bool, left: u64);
     /// Timer numbers the VM has.
     fn timers(&self) -> usize;
-    /// Counter numbers the VM has.
-    fn counters(&self) -> usize;
 }
 
 /// Why native code returned.

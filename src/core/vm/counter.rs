@@ -6,8 +6,10 @@
 
 use crate::lang::ops::CounterKind;
 
-/// Run-time state of one counter number.
+/// Run-time state of one counter number. `repr(C)`: native code executes the counters itself
+/// on this state, at the offsets of [`layout`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[repr(C)]
 pub struct CounterState {
     prev_input: bool,
     prev_down: bool,
@@ -17,6 +19,19 @@ pub struct CounterState {
     /// RUN starts and at `RST`).
     loaded: bool,
     is_down: bool,
+}
+
+/// Where native code finds a [`CounterState`]'s fields (the `bool`s are a byte each, 0 or 1).
+pub mod layout {
+    use super::CounterState;
+    use std::mem::offset_of;
+
+    pub const SIZE: usize = std::mem::size_of::<CounterState>();
+    pub const PREV_INPUT: usize = offset_of!(CounterState, prev_input);
+    pub const PREV_DOWN: usize = offset_of!(CounterState, prev_down);
+    pub const PRESET: usize = offset_of!(CounterState, preset);
+    pub const LOADED: usize = offset_of!(CounterState, loaded);
+    pub const IS_DOWN: usize = offset_of!(CounterState, is_down);
 }
 
 impl CounterState {

@@ -506,8 +506,7 @@ impl Vm {
                 il_depth: u32::from(state.call_depth),
                 loop_depth: u32::from(state.loop_depth),
             };
-            let mut devices =
-                Devices { timers: &mut self.timers, counters: &mut self.counters, clock, stop };
+            let mut devices = Devices { timers: &mut self.timers, clock, stop };
             let memory = native::NativeMemory {
                 vars: &mut self.vars,
                 words: self.mem.words_mut(),
@@ -516,6 +515,7 @@ impl Vm {
                 calls: &mut state.st_calls,
                 il_calls: &mut state.calls,
                 edges: &mut self.edges,
+                counters: &mut self.counters,
                 devices: &mut devices,
             };
             let exit = native.run(memory, &mut regs);
@@ -1272,40 +1272,30 @@ fn up_down_instruction(
     write_device(words, counter_value(n), counter_done(n), result);
 }
 
-/// A timer or counter instruction, or their `RST`, for native code ([`Devices`]): `steps` is
-/// the step count the clock is read at, the instruction's own.
-fn device_instruction<C: Clock + ?Sized>(
+/// A timer instruction, or `RST Tn`, for native code ([`Devices`]): `steps` is the step count
+/// the clock is read at, the instruction's own.
+fn timer_instruction<C: Clock + ?Sized>(
     op: &Op,
     words: &mut [u16],
     timers: &mut [timer::TimerState],
-    counters: &mut [counter::CounterState],
     rung: bool,
     clock: &C,
     steps: u64,
 ) {
     match *op {
         Op::RstTimer(n) if rung => rst_timer(words, timers, n),
-        Op::RstCounter(n) if rung => rst_counter(words, counters, n),
         Op::Timer { kind, timer: n, preset, base_ms } => {
             let call = timer_input(words, kind, n, preset, base_ms, rung);
             let result = run_timer(&mut timers[n as usize], call, clock, steps);
             write_device(words, timer_value(n), timer_done(n), result);
         }
-        Op::Counter { kind, counter: n, preset } => {
-            counter_instruction(words, counters, kind, n, preset, rung);
-        }
-        Op::CounterUpDown { counter: n, up, down, preset } => {
-            up_down_instruction(words, counters, n, (up, down), preset, rung);
-        }
         _ => {}
     }
 }
 
-/// The VM's timers and counters, the clock and the budget's end, for native code
-/// ([`native::IlDevices`]).
+/// The VM's timers, the clock and the budget's end, for native code ([`native::IlDevices`]).
 struct Devices<'a, C> {
     timers: &'a mut [timer::TimerState],
-    counters: &'a mut [counter::CounterState],
     clock: &'a C,
     /// The step count at which the budget is spent.
     stop: u64,
@@ -1313,16 +1303,11 @@ struct Devices<'a, C> {
 
 impl<C: Clock> IlDevices for Devices<'_, C> {
     fn execute(&mut self, op: &Op, words: &mut [u16], rung: bool, left: u64) {
-        let steps = self.stop - left;
-        device_instruction(op, words, self.timers, self.counters, rung, self.clock, steps);
+        timer_instruction(op, words, self.timers, rung, self.clock, self.stop - left);
     }
 
     fn timers(&self) -> usize {
         self.timers.len()
-    }
-
-    fn counters(&self) -> usize {
-        self.counters.len()
     }
 }
 

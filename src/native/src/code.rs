@@ -57,7 +57,7 @@ impl Shape {
             Shape::InstructionList(a) => {
                 memory.edges.len() as u64 >= a.edges_end
                     && memory.devices.timers() as u64 >= a.timers_end
-                    && memory.devices.counters() as u64 >= a.counters_end
+                    && memory.counters.len() as u64 >= a.counters_end
             }
         }
     }
@@ -93,6 +93,8 @@ pub(crate) struct Context<'a> {
     pub il_calls: *mut IlFrame,
     /// Edge memory: `bool`s, 0 or 1 in a byte.
     pub edges: *mut u8,
+    /// The counters' states (`plcd_core::vm::counter::layout`).
+    pub counters: *mut u8,
     /// Only [`il_device`] uses it, never generated code.
     pub devices: *mut (dyn IlDevices + 'a),
 }
@@ -115,7 +117,7 @@ pub(crate) extern "C" fn copy_bytes(to: *mut u8, from: *const u8, n: u64) {
     unsafe { std::ptr::copy(from, to, n as usize) }
 }
 
-/// Executes timer or counter instruction `op` for instruction-list code, through the VM's
+/// Executes timer instruction `op` (or `RST Tn`) for instruction-list code, through the VM's
 /// [`IlDevices`]: `rung` is the rung result (0 or 1), `left` the budget left after the
 /// instruction.
 pub(crate) extern "C" fn il_device(context: *mut Context<'_>, op: *const Op, rung: u32, left: u64) {
@@ -123,8 +125,8 @@ pub(crate) extern "C" fn il_device(context: *mut Context<'_>, op: *const Op, run
     // pointers come from the slices and the `IlDevices` of one `NativeMemory`, borrowed for
     // that call, and which nothing else reads or writes while this runs: the generated code
     // waits for it) and with `op` pointing into `il::Analysis::device_ops` of the `Code`
-    // running, which lives longer than the call. The instruction's timer or counter number and
-    // device words are inside what `Code::run` checked before the call (`Shape::fits`,
+    // running, which lives longer than the call. The instruction's timer number and device
+    // words are inside what `Code::run` checked before the call (`Shape::fits`,
     // `Analysis::words_end`), so the VM's code indexes nothing out of bounds and cannot panic.
     unsafe {
         let context = &mut *context;
@@ -241,6 +243,7 @@ impl NativeCode for Code {
             frame_len: memory.frame.len() as u64,
             il_calls: memory.il_calls.as_mut_ptr(),
             edges: memory.edges.as_mut_ptr().cast::<u8>(),
+            counters: memory.counters.as_mut_ptr().cast::<u8>(),
             devices: memory.devices,
         };
         let mut entry = self.entries[self.shape.entry_index(regs_pc)];

@@ -21,7 +21,7 @@
 //!   zero, an operation error, leaves for the interpreter on a cold path);
 //! - within a block a word of device memory read or written by one of the last [`RECENT`]
 //!   instructions is not read again: the block keeps it in an SSA value ([`Word`]). Nothing
-//!   else touches device memory while a block runs but the timers and counters, after whose
+//!   else touches device memory while a block runs but the timers, after whose
 //!   call the block forgets every word it holds, so this is exact; the
 //!   window keeps the values' lives short, so that they stay in registers (holding every word
 //!   a block touches made the `bit` bench 25 % slower: all loads first, spilled).
@@ -38,10 +38,11 @@ use cranelift_codegen::ir::{
 };
 use cranelift_codegen::isa::TargetIsa;
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
-use plcd_core::device::{BitRef, WordRef};
+use plcd_core::device::{counter_done, counter_value, BitRef, WordRef};
 use plcd_core::lang::native::{IlFrame, NativeRegs};
-use plcd_core::lang::ops::{ArithOp, CmpOp, Combine, Op, Src};
+use plcd_core::lang::ops::{ArithOp, CmpOp, Combine, CounterKind, Op, Src};
 use plcd_core::lang::{Program, CALL_DEPTH};
+use plcd_core::vm::counter;
 
 use super::{is_device, is_native, Analysis};
 use crate::code::{self, Context, RETURN_CONTINUE, RETURN_END, RETURN_INTERPRET};
@@ -73,6 +74,7 @@ pub(crate) fn generate(
     let words = field(&mut b, offset_of!(Context<'static>, words));
     let edges = field(&mut b, offset_of!(Context<'static>, edges));
     let il_calls = field(&mut b, offset_of!(Context<'static>, il_calls));
+    let counters = field(&mut b, offset_of!(Context<'static>, counters));
     let mut device_sig = Signature::new(isa.default_call_conv());
     device_sig.params.extend([I64, I64, I32, I64].map(AbiParam::new));
     let device_sig = b.import_signature(device_sig);
@@ -92,6 +94,7 @@ pub(crate) fn generate(
         words,
         edges,
         il_calls,
+        counters,
         device_sig,
         dispatch: None,
         regs,
@@ -146,6 +149,8 @@ struct Gen<'a, 'f> {
     edges: Value,
     /// The instruction list's call stack.
     il_calls: Value,
+    /// The counters' states.
+    counters: Value,
     /// The signature of [`code::il_device`].
     device_sig: cranelift_codegen::ir::SigRef,
     /// The block that switches on its parameter, a program counter.
@@ -542,7 +547,7 @@ impl Gen<'_, '_> {
         self.b.ins().store(own(), value, self.regs_at, offset as i32);
     }
 
-    /// A timer or counter instruction at `pc`: the VM executes it ([`code::il_device`]), with
+    /// A timer instruction (or `RST Tn`) at `pc`: the VM executes it ([`code::il_device`]), with
     /// the budget left after it. It writes device memory, so the block holds no word after.
     fn device(&mut self, pc: usize) {
         let index = self.analysis.device_pcs.binary_search(&(pc as u32)).expect("a device op");
@@ -631,6 +636,154 @@ impl Gen<'_, '_> {
         let old = self.word(d);
         let v = self.b.ins().select(on, value, old);
         self.set_word(d, v);
+    }
+
+    /// A source as an unsigned 16-bit value, in 32 bits.
+    fn unsigned(&mut self, s: Src) -> Value {
+        match s {
+            Src::Word(w) => {
+                let word = self.word(w);
+                self.b.ins().band_imm_s(word, 0xFFFF)
+            }
+            Src::Const(c) => self.b.ins().iconst(I32, i64::from(c)),
+        }
+    }
+
+    /// Counter `n`'s state byte or half-word at `offset` (`counter::layout`), in 32 bits.
+    fn counter_field(&mut self, n: u16, offset: usize, wide: bool) -> Value {
+        let at = (usize::from(n) * counter::layout::SIZE + offset) as i32;
+        if wide {
+            self.b.ins().uload16(I32, data(), self.counters, at)
+        } else {
+            self.b.ins().uload8(I32, data(), self.counters, at)
+        }
+    }
+
+    fn set_counter_field(&mut self, n: u16, offset: usize, wide: bool, value: Value) {
+        let at = (usize::from(n) * counter::layout::SIZE + offset) as i32;
+        if wide {
+            self.b.ins().istore16(data(), value, self.counters, at);
+        } else {
+            self.b.ins().istore8(data(), value, self.counters, at);
+        }
+    }
+
+    /// The rising edge of `now` (0 or 1) against the counter field at `offset`, which then
+    /// holds `now`.
+    fn counter_edge(&mut self, n: u16, offset: usize, now: Value) -> Value {
+        let before = self.counter_field(n, offset, false);
+        self.set_counter_field(n, offset, false, now);
+        self.b.ins().band_not(now, before)
+    }
+
+    /// Counter `n`'s current value (unsigned, in 32 bits).
+    fn counter_now(&mut self, n: u16) -> Value {
+        let value = self.word(counter_value(n));
+        self.b.ins().band_imm_s(value, 0xFFFF)
+    }
+
+    /// Writes counter `n`'s current value and contact (0 or 1).
+    fn counter_out(&mut self, n: u16, value: Value, done: Value) {
+        self.set_word(counter_value(n), value);
+        self.write_bit(counter_done(n), done);
+    }
+
+    /// `value + add` (`add` 0 or 1), saturating at 65535.
+    fn saturating_up(&mut self, value: Value, add: Value) -> Value {
+        let top = self.b.ins().icmp_imm_s(IntCC::Equal, value, 0xFFFF);
+        let sum = self.b.ins().iadd(value, add);
+        self.b.ins().select(top, value, sum)
+    }
+
+    /// `value - sub` (`sub` 0 or 1), saturating at 0.
+    fn saturating_down(&mut self, value: Value, sub: Value) -> Value {
+        let zero = self.b.ins().icmp_imm_s(IntCC::Equal, value, 0);
+        let difference = self.b.ins().isub(value, sub);
+        self.b.ins().select(zero, value, difference)
+    }
+
+    fn flag(&mut self, cc: IntCC, a: Value, b: Value) -> Value {
+        let holds = self.b.ins().icmp(cc, a, b);
+        self.b.ins().uextend(I32, holds)
+    }
+
+    /// `CTU`, `CTD` or `CTR` (the VM's `counter::execute`, branch-free).
+    fn counter(&mut self, kind: CounterKind, n: u16, preset: Src) {
+        use counter::layout::{IS_DOWN, LOADED, PRESET, PREV_INPUT};
+        let preset = self.unsigned(preset);
+        let rung = self.rung();
+        let rising = self.counter_edge(n, PREV_INPUT, rung);
+        self.set_counter_field(n, PRESET, true, preset);
+        let is_down = self.b.ins().iconst(I32, i64::from(kind == CounterKind::Ctd));
+        self.set_counter_field(n, IS_DOWN, false, is_down);
+        let value = self.counter_now(n);
+        let (value, done) = match kind {
+            CounterKind::Ctu => {
+                let value = self.saturating_up(value, rising);
+                (value, self.flag(IntCC::UnsignedGreaterThanOrEqual, value, preset))
+            }
+            CounterKind::Ctd => {
+                // The preset, at the first execution since RUN (or RST).
+                let loaded = self.counter_field(n, LOADED, false);
+                let value = self.b.ins().select(loaded, value, preset);
+                let one = self.b.ins().iconst(I32, 1);
+                self.set_counter_field(n, LOADED, false, one);
+                let value = self.saturating_down(value, rising);
+                let done = self.b.ins().icmp_imm_s(IntCC::Equal, value, 0);
+                (value, self.b.ins().uextend(I32, done))
+            }
+            CounterKind::Ctr => {
+                let full = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, value, preset);
+                let next = self.b.ins().iadd_imm_s(value, 1);
+                let zero = self.b.ins().iconst(I32, 0);
+                let next = self.b.ins().select(full, zero, next);
+                let value = self.b.ins().select(rising, next, value);
+                (value, self.flag(IntCC::UnsignedGreaterThanOrEqual, value, preset))
+            }
+        };
+        self.counter_out(n, value, done);
+    }
+
+    /// `CTUD Cn up down preset` (the VM's `counter::execute_up_down`).
+    fn up_down(&mut self, n: u16, up: BitRef, down: BitRef, preset: Src) {
+        use counter::layout::{IS_DOWN, PRESET, PREV_DOWN, PREV_INPUT};
+        let preset = self.unsigned(preset);
+        let up = self.bit(up);
+        let up = self.b.ins().band_imm_s(up, 1);
+        let down = self.bit(down);
+        let down = self.b.ins().band_imm_s(down, 1);
+        let up_edge = self.counter_edge(n, PREV_INPUT, up);
+        let down_edge = self.counter_edge(n, PREV_DOWN, down);
+        self.set_counter_field(n, PRESET, true, preset);
+        let zero = self.b.ins().iconst(I32, 0);
+        self.set_counter_field(n, IS_DOWN, false, zero);
+        let rung = self.rung();
+        let up_edge = self.b.ins().band(up_edge, rung);
+        let down_edge = self.b.ins().band(down_edge, rung);
+        let value = self.counter_now(n);
+        let value = self.saturating_up(value, up_edge);
+        let value = self.saturating_down(value, down_edge);
+        let done = self.flag(IntCC::UnsignedGreaterThanOrEqual, value, preset);
+        self.counter_out(n, value, done);
+    }
+
+    /// `RST Cn`: with the rung ON, the current value 0 (the preset for a down counter that has
+    /// loaded it) and the contact OFF.
+    fn rst_counter(&mut self, n: u16) {
+        use counter::layout::{IS_DOWN, LOADED, PRESET};
+        let is_down = self.counter_field(n, IS_DOWN, false);
+        let loaded = self.counter_field(n, LOADED, false);
+        let preset = self.counter_field(n, PRESET, true);
+        let keeps = self.b.ins().band(is_down, loaded);
+        let zero = self.b.ins().iconst(I32, 0);
+        let reset = self.b.ins().select(keeps, preset, zero);
+        let rung = self.rung();
+        let old = self.word(counter_value(n));
+        let value = self.b.ins().select(rung, reset, old);
+        let done = self.bit(counter_done(n));
+        let done = self.b.ins().band_not(done, rung);
+        let done = self.b.ins().band_imm_s(done, 1);
+        self.counter_out(n, value, done);
     }
 
     fn op(&mut self, op: Op) {
@@ -733,6 +886,11 @@ impl Gen<'_, '_> {
                 let word = self.b.ins().select(edge, new, old);
                 self.set_word(w, word);
             }
+            Op::Counter { kind, counter, preset } => self.counter(kind, counter, preset),
+            Op::CounterUpDown { counter, up, down, preset } => {
+                self.up_down(counter, up, down, preset);
+            }
+            Op::RstCounter(n) => self.rst_counter(n),
             Op::Mov { s, d, pulse } => {
                 let on = self.enabled(pulse);
                 let value = self.signed(s);

@@ -6,9 +6,9 @@
 //! `LOADP`, `LOAD>=`, …), the block and `MPUSH` stacks, `NOT`, the coils (`OUT`, `OUT NOT`,
 //! `OUTP`, `SET`, `RST`, `FF`), `MOV`, `ADD`/`SUB`/`MUL`/`DIV` (a division by zero is the
 //! interpreter's), `INC`/`DEC` and their `P` forms, `CALL`/`RET`, `LABEL`, `JMP`, `NOP` and
-//! `END`; timers, counters and their `RST` are calls of the VM's own code for them
-//! ([`IlDevices`](plcd_core::lang::native::IlDevices)), with their state machines and the
-//! clock. Everything else — the double-word and real instructions, `FOR`/`NEXT`/`BREAK`,
+//! `END`, the counters and their `RST`; timers and `RST Tn` are calls of the VM's own code
+//! for them ([`IlDevices`](plcd_core::lang::native::IlDevices)), with their state machines and
+//! the clock. Everything else — the double-word and real instructions, `FOR`/`NEXT`/`BREAK`,
 //! `DUTY` and the system requests — the interpreter executes, one instruction at a time, and
 //! native code goes on after it.
 //!
@@ -63,7 +63,7 @@ pub(crate) struct Analysis {
     pub edges_end: u64,
     pub timers_end: u64,
     pub counters_end: u64,
-    /// The compiled timer and counter instructions, which native code hands to the VM
+    /// The compiled timer instructions, which native code hands to the VM
     /// ([`IlDevices::execute`](plcd_core::lang::native::IlDevices::execute)) by their address
     /// here: copies that live as long as the code, in the order of `device_pcs`.
     pub device_ops: Box<[Op]>,
@@ -105,6 +105,9 @@ pub(crate) fn is_native(op: &Op) -> bool {
             | Op::Mov { .. }
             | Op::Arith { .. }
             | Op::Step { .. }
+            | Op::Counter { .. }
+            | Op::CounterUpDown { .. }
+            | Op::RstCounter(_)
             | Op::Call { .. }
             | Op::Ret
             | Op::Jmp { .. }
@@ -114,16 +117,9 @@ pub(crate) fn is_native(op: &Op) -> bool {
     ) || is_device(op)
 }
 
-/// True if native code calls the VM for `op` (a timer or a counter).
+/// True if native code calls the VM for `op` (a timer, `RST Tn`).
 pub(crate) fn is_device(op: &Op) -> bool {
-    matches!(
-        op,
-        Op::Timer { .. }
-            | Op::Counter { .. }
-            | Op::CounterUpDown { .. }
-            | Op::RstTimer(_)
-            | Op::RstCounter(_)
-    )
+    matches!(op, Op::Timer { .. } | Op::RstTimer(_))
 }
 
 /// True if control may not go on to the next instruction after `op`.
