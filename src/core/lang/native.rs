@@ -17,9 +17,10 @@
 //! [`Vm::run`]: crate::vm::Vm::run
 //! [`ExecState`]: crate::vm::ExecState
 
-use super::ops::Op;
 use super::{CALL_DEPTH, EVAL_DEPTH, ST_CALL_DEPTH};
 use crate::vm::counter::CounterState;
+use crate::vm::timer::TimerState;
+use crate::vm::Clock;
 
 /// A Structured Text call: where to return, and the caller's frame base and FB instance.
 /// `repr(C)`: native code pushes and pops these as the interpreter does.
@@ -97,21 +98,13 @@ pub struct NativeMemory<'a> {
     pub edges: &'a mut [bool],
     /// The instruction list's counters, which native code executes itself.
     pub counters: &'a mut [CounterState],
-    /// The instruction list's timers, which native code calls.
-    pub devices: &'a mut dyn IlDevices,
-}
-
-/// The instruction list's timers as native code reaches them: it calls the VM's own code for
-/// them (their state machines and the clock), so that they behave as in the interpreter, to
-/// the nanosecond of the clock reading.
-pub trait IlDevices {
-    /// Executes `op` — a timer or `RST Tn` — with the rung result `rung` on device memory's
-    /// `words`, with `left` instructions of the budget left after it (the step count the clock
-    /// is read at). Native code calls it only when the timer number is below
-    /// [`IlDevices::timers`] and the timer's words are inside `words`.
-    fn execute(&mut self, op: &Op, words: &mut [u16], rung: bool, left: u64);
-    /// Timer numbers the VM has.
-    fn timers(&self) -> usize;
+    /// The instruction list's timers, which native code executes itself.
+    pub timers: &'a mut [TimerState],
+    /// The time: a timer reads it at its own step, `stop - left` with `left` the budget left
+    /// after the timer's instruction (as [`Vm::run`](crate::vm::Vm::run) counts steps).
+    pub clock: &'a dyn Clock,
+    /// The step count at which the budget is spent.
+    pub stop: u64,
 }
 
 /// Why native code returned.

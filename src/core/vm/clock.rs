@@ -8,6 +8,12 @@ pub trait Clock {
     /// The time now; `steps` is the VM's executed-step count at this instruction, which a
     /// virtual clock uses to charge each instruction its cost.
     fn now_ns(&self, steps: u64) -> u64;
+
+    /// The clock as a [`StepClock`], if it is one: native code then computes the time itself
+    /// instead of calling [`Clock::now_ns`].
+    fn linear(&self) -> Option<StepClock> {
+        None
+    }
 }
 
 /// Virtual time: `origin_ns` at step `origin_steps`, and `step_ns` for every instruction since.
@@ -30,6 +36,10 @@ impl Clock for StepClock {
     #[inline]
     fn now_ns(&self, steps: u64) -> u64 {
         self.origin_ns + steps.saturating_sub(self.origin_steps) * self.step_ns
+    }
+
+    fn linear(&self) -> Option<StepClock> {
+        Some(*self)
     }
 }
 

@@ -23,7 +23,7 @@ pub use clock::{Clock, ManualClock, StepClock};
 use crate::device::{
     counter_done, counter_value, timer_done, timer_value, BitRef, Memory, WordRef,
 };
-use crate::lang::native::{self, IlDevices, StFrame};
+use crate::lang::native::{self, StFrame};
 use crate::lang::ops::{
     ArithOp, Combine, CounterKind, Op, Src, SystemRequest, TimerKind, Wide, WideConv,
 };
@@ -408,6 +408,12 @@ impl Vm {
         self.steps
     }
 
+    /// The state machines of the instruction list's devices, read-only: timers, counters and
+    /// edge memory (for the tests that compare two VMs).
+    pub fn device_states(&self) -> (&[timer::TimerState], &[counter::CounterState], &[bool]) {
+        (&self.timers, &self.counters, &self.edges)
+    }
+
     /// RUN start: data areas cleared except the retained words (K and the `[retain]` ranges);
     /// timers, edges and DUTY clocks back to their initial state (a retained timer's current
     /// value is in memory: TMR counts on from it, the others start timing over); counters too,
@@ -506,7 +512,6 @@ impl Vm {
                 il_depth: u32::from(state.call_depth),
                 loop_depth: u32::from(state.loop_depth),
             };
-            let mut devices = Devices { timers: &mut self.timers, clock, stop };
             let memory = native::NativeMemory {
                 vars: &mut self.vars,
                 words: self.mem.words_mut(),
@@ -516,7 +521,9 @@ impl Vm {
                 il_calls: &mut state.calls,
                 edges: &mut self.edges,
                 counters: &mut self.counters,
-                devices: &mut devices,
+                timers: &mut self.timers,
+                clock,
+                stop,
             };
             let exit = native.run(memory, &mut regs);
             state.pc = regs.pc;
@@ -1166,8 +1173,7 @@ fn interpret<'a, const ST: bool, C: Clock>(
 }
 
 // The timer and counter instructions, on device memory's words only (so that the interpreter
-// loop keeps the memory's address in registers): the interpreter's arms and native code's calls
-// (`device_instruction`) are these.
+// loop keeps the memory's address in registers).
 
 /// A bit of `words`.
 #[inline(always)]
@@ -1270,45 +1276,6 @@ fn up_down_instruction(
     let c = &mut counters[n as usize];
     let result = counter::execute_up_down(c, rung, up, down, preset, value);
     write_device(words, counter_value(n), counter_done(n), result);
-}
-
-/// A timer instruction, or `RST Tn`, for native code ([`Devices`]): `steps` is the step count
-/// the clock is read at, the instruction's own.
-fn timer_instruction<C: Clock + ?Sized>(
-    op: &Op,
-    words: &mut [u16],
-    timers: &mut [timer::TimerState],
-    rung: bool,
-    clock: &C,
-    steps: u64,
-) {
-    match *op {
-        Op::RstTimer(n) if rung => rst_timer(words, timers, n),
-        Op::Timer { kind, timer: n, preset, base_ms } => {
-            let call = timer_input(words, kind, n, preset, base_ms, rung);
-            let result = run_timer(&mut timers[n as usize], call, clock, steps);
-            write_device(words, timer_value(n), timer_done(n), result);
-        }
-        _ => {}
-    }
-}
-
-/// The VM's timers, the clock and the budget's end, for native code ([`native::IlDevices`]).
-struct Devices<'a, C> {
-    timers: &'a mut [timer::TimerState],
-    clock: &'a C,
-    /// The step count at which the budget is spent.
-    stop: u64,
-}
-
-impl<C: Clock> IlDevices for Devices<'_, C> {
-    fn execute(&mut self, op: &Op, words: &mut [u16], rung: bool, left: u64) {
-        timer_instruction(op, words, self.timers, rung, self.clock, self.stop - left);
-    }
-
-    fn timers(&self) -> usize {
-        self.timers.len()
-    }
 }
 
 #[inline(always)]

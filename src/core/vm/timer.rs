@@ -4,8 +4,10 @@
 
 use crate::lang::ops::TimerKind;
 
-/// Run-time state of one timer number.
+/// Run-time state of one timer number. `repr(C)`: native code executes the timers itself on
+/// this state, at the offsets of [`layout`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[repr(C)]
 pub struct TimerState {
     /// Time counted so far: elapsed for TON/TMR, elapsed since the start of the
     /// countdown for TOFF/TMON/TRTG.
@@ -17,6 +19,19 @@ pub struct TimerState {
     /// The current value this timer last wrote; a different value in memory was written by the
     /// program (`MOV 30 T0001`), and the timer continues from it.
     shown: u16,
+}
+
+/// Where native code finds a [`TimerState`]'s fields (the `bool`s are a byte each, 0 or 1).
+pub mod layout {
+    use super::TimerState;
+    use std::mem::offset_of;
+
+    pub const SIZE: usize = std::mem::size_of::<TimerState>();
+    pub const ELAPSED_NS: usize = offset_of!(TimerState, elapsed_ns);
+    pub const LAST_NS: usize = offset_of!(TimerState, last_ns);
+    pub const RUNNING: usize = offset_of!(TimerState, running);
+    pub const PREV_INPUT: usize = offset_of!(TimerState, prev_input);
+    pub const SHOWN: usize = offset_of!(TimerState, shown);
 }
 
 impl TimerState {

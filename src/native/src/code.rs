@@ -11,11 +11,9 @@
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_jit::{JITBuilder, JITModule};
 use cranelift_module::{default_libcall_names, Linkage, Module};
-use plcd_core::lang::native::{
-    IlDevices, IlFrame, NativeCode, NativeExit, NativeMemory, NativeRegs, StFrame,
-};
-use plcd_core::lang::ops::Op;
+use plcd_core::lang::native::{IlFrame, NativeCode, NativeExit, NativeMemory, NativeRegs, StFrame};
 use plcd_core::lang::Program;
+use plcd_core::vm::Clock;
 
 use crate::{analysis, codegen, il, Error};
 
@@ -56,7 +54,7 @@ impl Shape {
             Shape::StructuredText(_) => true,
             Shape::InstructionList(a) => {
                 memory.edges.len() as u64 >= a.edges_end
-                    && memory.devices.timers() as u64 >= a.timers_end
+                    && memory.timers.len() as u64 >= a.timers_end
                     && memory.counters.len() as u64 >= a.counters_end
             }
         }
@@ -95,8 +93,18 @@ pub(crate) struct Context<'a> {
     pub edges: *mut u8,
     /// The counters' states (`plcd_core::vm::counter::layout`).
     pub counters: *mut u8,
-    /// Only [`il_device`] uses it, never generated code.
-    pub devices: *mut (dyn IlDevices + 'a),
+    /// The timers' states (`plcd_core::vm::timer::layout`).
+    pub timers: *mut u8,
+    /// The step count at which the budget is spent.
+    pub stop: u64,
+    /// 1 if the clock is a `StepClock` (below), which generated code computes itself; 0 if
+    /// it calls [`il_now`].
+    pub linear: u64,
+    pub origin_ns: u64,
+    pub origin_steps: u64,
+    pub step_ns: u64,
+    /// Only [`il_now`] uses it, never generated code.
+    pub clock: *const (dyn Clock + 'a),
 }
 
 /// What the generated function returns.
@@ -117,22 +125,12 @@ pub(crate) extern "C" fn copy_bytes(to: *mut u8, from: *const u8, n: u64) {
     unsafe { std::ptr::copy(from, to, n as usize) }
 }
 
-/// Executes timer instruction `op` (or `RST Tn`) for instruction-list code, through the VM's
-/// [`IlDevices`]: `rung` is the rung result (0 or 1), `left` the budget left after the
-/// instruction.
-pub(crate) extern "C" fn il_device(context: *mut Context<'_>, op: *const Op, rung: u32, left: u64) {
-    // SAFETY: only generated code calls this, with the `Context` of the call under way (whose
-    // pointers come from the slices and the `IlDevices` of one `NativeMemory`, borrowed for
-    // that call, and which nothing else reads or writes while this runs: the generated code
-    // waits for it) and with `op` pointing into `il::Analysis::device_ops` of the `Code`
-    // running, which lives longer than the call. The instruction's timer number and device
-    // words are inside what `Code::run` checked before the call (`Shape::fits`,
-    // `Analysis::words_end`), so the VM's code indexes nothing out of bounds and cannot panic.
-    unsafe {
-        let context = &mut *context;
-        let words = std::slice::from_raw_parts_mut(context.words, context.words_len as usize);
-        (*context.devices).execute(&*op, words, rung != 0, left);
-    }
+/// The time at step `steps`, for an instruction-list timer, when the clock is not a
+/// `StepClock` (the daemon's monotonic clock).
+pub(crate) extern "C" fn il_now(context: *const Context<'_>, steps: u64) -> u64 {
+    // SAFETY: only generated code calls this, with the `Context` of the call under way, whose
+    // `clock` is the `&dyn Clock` of the `NativeMemory` borrowed for that call.
+    unsafe { (*(*context).clock).now_ns(steps) }
 }
 
 /// A program's native code.
@@ -231,6 +229,10 @@ impl NativeCode for Code {
             return NativeExit::Interpret;
         }
         let regs_pc = regs.pc;
+        let linear = match self.shape {
+            Shape::InstructionList(_) => memory.clock.linear(),
+            Shape::StructuredText(_) => None,
+        };
         let mut context = Context {
             regs,
             vars: memory.vars.as_mut_ptr(),
@@ -244,7 +246,13 @@ impl NativeCode for Code {
             il_calls: memory.il_calls.as_mut_ptr(),
             edges: memory.edges.as_mut_ptr().cast::<u8>(),
             counters: memory.counters.as_mut_ptr().cast::<u8>(),
-            devices: memory.devices,
+            timers: memory.timers.as_mut_ptr().cast::<u8>(),
+            stop: memory.stop,
+            linear: u64::from(linear.is_some()),
+            origin_ns: linear.map_or(0, |c| c.origin_ns),
+            origin_steps: linear.map_or(0, |c| c.origin_steps),
+            step_ns: linear.map_or(0, |c| c.step_ns),
+            clock: memory.clock,
         };
         let mut entry = self.entries[self.shape.entry_index(regs_pc)];
         let status = loop {

@@ -21,8 +21,7 @@
 //!   zero, an operation error, leaves for the interpreter on a cold path);
 //! - within a block a word of device memory read or written by one of the last [`RECENT`]
 //!   instructions is not read again: the block keeps it in an SSA value ([`Word`]). Nothing
-//!   else touches device memory while a block runs but the timers, after whose
-//!   call the block forgets every word it holds, so this is exact; the
+//!   else touches device memory while a block runs, so this is exact; the
 //!   window keeps the values' lives short, so that they stay in registers (holding every word
 //!   a block touches made the `bit` bench 25 % slower: all loads first, spilled).
 //!
@@ -38,13 +37,13 @@ use cranelift_codegen::ir::{
 };
 use cranelift_codegen::isa::TargetIsa;
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
-use plcd_core::device::{counter_done, counter_value, BitRef, WordRef};
+use plcd_core::device::{counter_done, counter_value, timer_done, timer_value, BitRef, WordRef};
 use plcd_core::lang::native::{IlFrame, NativeRegs};
-use plcd_core::lang::ops::{ArithOp, CmpOp, Combine, CounterKind, Op, Src};
+use plcd_core::lang::ops::{ArithOp, CmpOp, Combine, CounterKind, Op, Src, TimerKind};
 use plcd_core::lang::{Program, CALL_DEPTH};
-use plcd_core::vm::counter;
+use plcd_core::vm::{counter, timer};
 
-use super::{is_device, is_native, Analysis};
+use super::{is_native, Analysis};
 use crate::code::{self, Context, RETURN_CONTINUE, RETURN_END, RETURN_INTERPRET};
 use crate::codegen::{data, own};
 
@@ -75,9 +74,11 @@ pub(crate) fn generate(
     let edges = field(&mut b, offset_of!(Context<'static>, edges));
     let il_calls = field(&mut b, offset_of!(Context<'static>, il_calls));
     let counters = field(&mut b, offset_of!(Context<'static>, counters));
-    let mut device_sig = Signature::new(isa.default_call_conv());
-    device_sig.params.extend([I64, I64, I32, I64].map(AbiParam::new));
-    let device_sig = b.import_signature(device_sig);
+    let timers = field(&mut b, offset_of!(Context<'static>, timers));
+    let mut now_sig = Signature::new(isa.default_call_conv());
+    now_sig.params.extend([I64, I64].map(AbiParam::new));
+    now_sig.returns.push(AbiParam::new(I64));
+    let now_sig = b.import_signature(now_sig);
     let regs = Regs {
         rung: b.declare_var(I32),
         blocks: b.declare_var(I32),
@@ -95,7 +96,8 @@ pub(crate) fn generate(
         edges,
         il_calls,
         counters,
-        device_sig,
+        timers,
+        now_sig,
         dispatch: None,
         regs,
         leaders,
@@ -151,8 +153,10 @@ struct Gen<'a, 'f> {
     il_calls: Value,
     /// The counters' states.
     counters: Value,
-    /// The signature of [`code::il_device`].
-    device_sig: cranelift_codegen::ir::SigRef,
+    /// The timers' states.
+    timers: Value,
+    /// The signature of [`code::il_now`].
+    now_sig: cranelift_codegen::ir::SigRef,
     /// The block that switches on its parameter, a program counter.
     dispatch: Option<Block>,
     regs: Regs,
@@ -326,7 +330,6 @@ impl Gen<'_, '_> {
                         self.ret_op(pc);
                         ended = true;
                     }
-                    op if is_device(&op) => self.device(pc),
                     op => self.op(op),
                 }
             }
@@ -547,21 +550,195 @@ impl Gen<'_, '_> {
         self.b.ins().store(own(), value, self.regs_at, offset as i32);
     }
 
-    /// A timer instruction (or `RST Tn`) at `pc`: the VM executes it ([`code::il_device`]), with
-    /// the budget left after it. It writes device memory, so the block holds no word after.
-    fn device(&mut self, pc: usize) {
-        let index = self.analysis.device_pcs.binary_search(&(pc as u32)).expect("a device op");
-        let op = &self.analysis.device_ops[index] as *const Op as i64;
-        let op = self.b.ins().iconst(I64, op);
-        let rung = self.rung();
-        let end = self.block_end;
+    /// The time of the instruction being compiled (I64): from the `StepClock`'s figures in
+    /// the context, or asked of the clock ([`code::il_now`]).
+    fn now(&mut self) -> Value {
+        let field = |g: &mut Self, offset: usize| g.b.ins().load(I64, own(), g.ctx, offset as i32);
+        let stop = field(self, offset_of!(Context<'static>, stop));
         let left = self.b.use_var(self.regs.left);
-        let left = self.b.ins().iadd_imm_s(left, (end - pc - 1) as i64);
-        let function =
-            code::il_device as extern "C" fn(*mut Context<'static>, *const Op, u32, u64) as usize;
+        // The budget left after this instruction: the block charged all of it at its start.
+        let left = self.b.ins().iadd_imm_s(left, (self.block_end - self.pc - 1) as i64);
+        let steps = self.b.ins().isub(stop, left);
+        let linear = field(self, offset_of!(Context<'static>, linear));
+        let compute = self.b.create_block();
+        let ask = self.b.create_block();
+        let done = self.b.create_block();
+        let now = self.b.append_block_param(done, I64);
+        self.b.ins().brif(linear, compute, &[], ask, &[]);
+        self.b.switch_to_block(compute);
+        let origin_ns = field(self, offset_of!(Context<'static>, origin_ns));
+        let origin_steps = field(self, offset_of!(Context<'static>, origin_steps));
+        let step_ns = field(self, offset_of!(Context<'static>, step_ns));
+        let since = self.b.ins().isub(steps, origin_steps);
+        let after = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, steps, origin_steps);
+        let zero = self.b.ins().iconst(I64, 0);
+        let since = self.b.ins().select(after, since, zero);
+        let elapsed = self.b.ins().imul(since, step_ns);
+        let computed = self.b.ins().iadd(origin_ns, elapsed);
+        self.b.ins().jump(done, &[computed.into()]);
+        self.b.switch_to_block(ask);
+        self.b.set_cold_block(ask);
+        let function = code::il_now as extern "C" fn(*const Context<'static>, u64) -> u64 as usize;
         let callee = self.b.ins().iconst(I64, function as i64);
-        self.b.ins().call_indirect(self.device_sig, callee, &[self.ctx, op, rung, left]);
-        self.held.clear();
+        let call = self.b.ins().call_indirect(self.now_sig, callee, &[self.ctx, steps]);
+        let asked = self.b.inst_results(call)[0];
+        self.b.ins().jump(done, &[asked.into()]);
+        self.b.switch_to_block(done);
+        now
+    }
+
+    fn timer_field(&mut self, n: u16, offset: usize, ty: types::Type) -> Value {
+        let at = (usize::from(n) * timer::layout::SIZE + offset) as i32;
+        match ty {
+            I64 => self.b.ins().load(I64, data(), self.timers, at),
+            types::I16 => self.b.ins().uload16(I32, data(), self.timers, at),
+            _ => self.b.ins().uload8(I32, data(), self.timers, at),
+        }
+    }
+
+    fn set_timer_field(&mut self, n: u16, offset: usize, ty: types::Type, value: Value) {
+        let at = (usize::from(n) * timer::layout::SIZE + offset) as i32;
+        match ty {
+            I64 => self.b.ins().store(data(), value, self.timers, at),
+            types::I16 => self.b.ins().istore16(data(), value, self.timers, at),
+            _ => self.b.ins().istore8(data(), value, self.timers, at),
+        };
+    }
+
+    /// A timer (the VM's `timer::execute`, branch-free but for asking the clock).
+    fn timer(&mut self, kind: TimerKind, n: u16, preset: Src, base_ms: u16) {
+        use timer::layout::{ELAPSED_NS, LAST_NS, PREV_INPUT, RUNNING, SHOWN};
+        let base_ns = i64::from(base_ms) * 1_000_000;
+        let input = self.rung();
+        let preset = self.unsigned(preset);
+        let preset64 = self.b.ins().uextend(I64, preset);
+        let preset_ns = self.b.ins().imul_imm_s(preset64, base_ns);
+        let was_done = self.bit(timer_done(n));
+        let was_done = self.b.ins().band_imm_s(was_done, 1);
+        let written = self.word(timer_value(n));
+        let written = self.b.ins().band_imm_s(written, 0xFFFF);
+        let shown = self.timer_field(n, SHOWN, types::I16);
+        let elapsed = self.timer_field(n, ELAPSED_NS, I64);
+        let last = self.timer_field(n, LAST_NS, I64);
+        let running = self.timer_field(n, RUNNING, types::I8);
+        let prev = self.timer_field(n, PREV_INPUT, types::I8);
+        let zero32 = self.b.ins().iconst(I32, 0);
+        let zero = self.b.ins().iconst(I64, 0);
+        let one = self.b.ins().iconst(I32, 1);
+        // A value the program wrote (`MOV 30 T0001`): the timer goes on from it.
+        let counts_down = matches!(kind, TimerKind::Toff | TimerKind::Tmon | TimerKind::Trtg);
+        let ticks_written = if counts_down {
+            let below = self.b.ins().icmp(IntCC::UnsignedLessThan, written, preset);
+            let rest = self.b.ins().isub(preset, written);
+            self.b.ins().select(below, rest, zero32)
+        } else {
+            self.b.ins().umin(written, preset)
+        };
+        let ticks_written = self.b.ins().uextend(I64, ticks_written);
+        let from_written = self.b.ins().imul_imm_s(ticks_written, base_ns);
+        let changed = self.b.ins().icmp(IntCC::NotEqual, written, shown);
+        let elapsed = self.b.ins().select(changed, from_written, elapsed);
+        let rising = self.b.ins().band_not(input, prev);
+        self.set_timer_field(n, PREV_INPUT, types::I8, input);
+        let now = self.now();
+        let later = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, now, last);
+        let gone = self.b.ins().isub(now, last);
+        let gone = self.b.ins().select(later, gone, zero);
+        let advanced = self.b.ins().iadd(elapsed, gone);
+        // The ticks of `e`: e / base, at most the preset.
+        let ticks = |g: &mut Self, e: Value| {
+            let t = g.b.ins().udiv_imm_u(e, base_ns.max(1));
+            let t = g.b.ins().umin(t, preset64);
+            g.b.ins().ireduce(I32, t)
+        };
+        // (elapsed, last, running, value, done) after the instruction.
+        let (elapsed, last, running, value, done) = match kind {
+            TimerKind::Ton => {
+                let counted = self.b.ins().select(running, advanced, zero);
+                let counted = self.b.ins().umin(counted, preset_ns);
+                let elapsed = self.b.ins().select(input, counted, zero);
+                let last = self.b.ins().select(input, now, zero);
+                let value = ticks(self, elapsed);
+                let reached = self.flag(IntCC::UnsignedGreaterThanOrEqual, value, preset);
+                let done = self.b.ins().band(input, reached);
+                (elapsed, last, input, value, done)
+            }
+            TimerKind::Tmr => {
+                let counted = self.b.ins().select(running, advanced, elapsed);
+                let counted = self.b.ins().umin(counted, preset_ns);
+                let elapsed = self.b.ins().select(input, counted, elapsed);
+                let last = self.b.ins().select(input, now, last);
+                let value = ticks(self, elapsed);
+                let done = self.flag(IntCC::UnsignedGreaterThanOrEqual, value, preset);
+                (elapsed, last, input, value, done)
+            }
+            TimerKind::Toff => {
+                let old_last = last;
+                // OFF after ON: counting down from the preset.
+                let counted = self.b.ins().select(running, advanced, zero);
+                let t = ticks(self, counted);
+                let left = self.b.ins().isub(preset, t);
+                let on = self.flag(IntCC::NotEqual, left, zero32);
+                // OFF and idle: unchanged, 0 and OFF.
+                let elapsed = self.b.ins().select(was_done, counted, elapsed);
+                let last = self.b.ins().select(was_done, now, last);
+                let running_off = self.b.ins().select(was_done, on, running);
+                let value = self.b.ins().select(was_done, left, zero32);
+                let done = self.b.ins().band(was_done, on);
+                // ON: idle at the preset, contact ON, the last time kept.
+                let last = self.b.ins().select(input, old_last, last);
+                let elapsed = self.b.ins().select(input, zero, elapsed);
+                let running = self.b.ins().select(input, zero32, running_off);
+                let value = self.b.ins().select(input, preset, value);
+                let done = self.b.ins().select(input, one, done);
+                (elapsed, last, running, value, done)
+            }
+            TimerKind::Tmon | TimerKind::Trtg => {
+                let retrigger = if kind == TimerKind::Trtg { rising } else { zero32 };
+                let advance = self.b.ins().band_not(running, retrigger);
+                let start = self.b.ins().band_not(rising, advance);
+                let restarted = self.b.ins().select(start, zero, elapsed);
+                let elapsed = self.b.ins().select(advance, advanced, restarted);
+                let moved = self.b.ins().bor(advance, start);
+                let last = self.b.ins().select(moved, now, last);
+                let running = self.b.ins().bor(running, start);
+                let t = ticks(self, elapsed);
+                let left = self.b.ins().isub(preset, t);
+                let on = self.flag(IntCC::NotEqual, left, zero32);
+                let value = self.b.ins().select(running, left, zero32);
+                let running = self.b.ins().band(running, on);
+                (elapsed, last, running, value, running)
+            }
+        };
+        self.set_timer_field(n, ELAPSED_NS, I64, elapsed);
+        self.set_timer_field(n, LAST_NS, I64, last);
+        self.set_timer_field(n, RUNNING, types::I8, running);
+        self.set_timer_field(n, SHOWN, types::I16, value);
+        self.set_word(timer_value(n), value);
+        self.write_bit(timer_done(n), done);
+    }
+
+    /// `RST Tn`: with the rung ON, the timer idle (its input's edge memory kept), its value 0
+    /// and its contact OFF.
+    fn rst_timer(&mut self, n: u16) {
+        use timer::layout::{ELAPSED_NS, LAST_NS, RUNNING, SHOWN};
+        let rung = self.rung();
+        for (offset, ty) in
+            [(ELAPSED_NS, I64), (LAST_NS, I64), (RUNNING, types::I8), (SHOWN, types::I16)]
+        {
+            let old = self.timer_field(n, offset, ty);
+            let zero = self.b.ins().iconst(if ty == I64 { I64 } else { I32 }, 0);
+            let value = self.b.ins().select(rung, zero, old);
+            self.set_timer_field(n, offset, ty, value);
+        }
+        let old = self.word(timer_value(n));
+        let zero = self.b.ins().iconst(I32, 0);
+        let value = self.b.ins().select(rung, zero, old);
+        self.set_word(timer_value(n), value);
+        let done = self.bit(timer_done(n));
+        let done = self.b.ins().band_not(done, rung);
+        let done = self.b.ins().band_imm_s(done, 1);
+        self.write_bit(timer_done(n), done);
     }
 
     /// The rung, 0 or 1. (The variable's other bits are whatever the contacts left there:
@@ -891,6 +1068,8 @@ impl Gen<'_, '_> {
                 self.up_down(counter, up, down, preset);
             }
             Op::RstCounter(n) => self.rst_counter(n),
+            Op::Timer { kind, timer, preset, base_ms } => self.timer(kind, timer, preset, base_ms),
+            Op::RstTimer(n) => self.rst_timer(n),
             Op::Mov { s, d, pulse } => {
                 let on = self.enabled(pulse);
                 let value = self.signed(s);

@@ -6,9 +6,8 @@
 //! `LOADP`, `LOAD>=`, …), the block and `MPUSH` stacks, `NOT`, the coils (`OUT`, `OUT NOT`,
 //! `OUTP`, `SET`, `RST`, `FF`), `MOV`, `ADD`/`SUB`/`MUL`/`DIV` (a division by zero is the
 //! interpreter's), `INC`/`DEC` and their `P` forms, `CALL`/`RET`, `LABEL`, `JMP`, `NOP` and
-//! `END`, the counters and their `RST`; timers and `RST Tn` are calls of the VM's own code
-//! for them ([`IlDevices`](plcd_core::lang::native::IlDevices)), with their state machines and
-//! the clock. Everything else — the double-word and real instructions, `FOR`/`NEXT`/`BREAK`,
+//! `END`, the timers, the counters and their `RST` (on the VM's own states, the time computed
+//! from the step count for `plcd sim`'s clock and asked of the clock for the others). Everything else — the double-word and real instructions, `FOR`/`NEXT`/`BREAK`,
 //! `DUTY` and the system requests — the interpreter executes, one instruction at a time, and
 //! native code goes on after it.
 //!
@@ -63,12 +62,6 @@ pub(crate) struct Analysis {
     pub edges_end: u64,
     pub timers_end: u64,
     pub counters_end: u64,
-    /// The compiled timer instructions, which native code hands to the VM
-    /// ([`IlDevices::execute`](plcd_core::lang::native::IlDevices::execute)) by their address
-    /// here: copies that live as long as the code, in the order of `device_pcs`.
-    pub device_ops: Box<[Op]>,
-    /// The instruction of each of `device_ops`, ascending.
-    pub device_pcs: Vec<u32>,
     /// Each piece's dispatch table: for each instruction of the piece's range (from its first
     /// leader to the next piece's), the index of its block in the piece, or the piece's
     /// number of blocks if it is no leader. The code reads it where it lives, so that entering
@@ -105,6 +98,8 @@ pub(crate) fn is_native(op: &Op) -> bool {
             | Op::Mov { .. }
             | Op::Arith { .. }
             | Op::Step { .. }
+            | Op::Timer { .. }
+            | Op::RstTimer(_)
             | Op::Counter { .. }
             | Op::CounterUpDown { .. }
             | Op::RstCounter(_)
@@ -114,12 +109,7 @@ pub(crate) fn is_native(op: &Op) -> bool {
             | Op::Label
             | Op::Nop
             | Op::End
-    ) || is_device(op)
-}
-
-/// True if native code calls the VM for `op` (a timer, `RST Tn`).
-pub(crate) fn is_device(op: &Op) -> bool {
-    matches!(op, Op::Timer { .. } | Op::RstTimer(_))
+    )
 }
 
 /// True if control may not go on to the next instruction after `op`.
@@ -195,7 +185,6 @@ pub(crate) fn analyse(code: &[Op]) -> Analysis {
     let mut words_end = 0;
     let mut handed_over = 0;
     let (mut edges_end, mut timers_end, mut counters_end) = (0u64, 0u64, 0u64);
-    let (mut device_ops, mut device_pcs) = (Vec::new(), Vec::new());
     for (pc, op) in code.iter().enumerate() {
         if let Some(target) = targets(op) {
             leaders.push(target);
@@ -219,10 +208,6 @@ pub(crate) fn analyse(code: &[Op]) -> Analysis {
                 | Op::CounterUpDown { counter: n, .. }
                 | Op::RstCounter(n) => counters_end = counters_end.max(u64::from(n) + 1),
                 _ => {}
-            }
-            if is_device(op) {
-                device_ops.push(*op);
-                device_pcs.push(pc as u32);
             }
         }
         if ends_block(op) {
@@ -275,8 +260,6 @@ pub(crate) fn analyse(code: &[Op]) -> Analysis {
         edges_end,
         timers_end,
         counters_end,
-        device_ops: device_ops.into_boxed_slice(),
-        device_pcs,
     }
 }
 
