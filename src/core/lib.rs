@@ -22,6 +22,7 @@
 //! - [`stimulus`]: the simulation inputs file (timed device changes), parsed.
 #![forbid(unsafe_code)]
 
+pub mod clock;
 pub mod config;
 pub mod device;
 pub mod diag;

@@ -18,9 +18,9 @@
 //! [`ExecState`]: crate::vm::ExecState
 
 use super::{CALL_DEPTH, EVAL_DEPTH, ST_CALL_DEPTH};
-use crate::vm::counter::CounterState;
-use crate::vm::timer::TimerState;
-use crate::vm::Clock;
+use std::marker::PhantomData;
+
+use crate::clock::Clock;
 
 /// A Structured Text call: where to return, and the caller's frame base and FB instance.
 /// `repr(C)`: native code pushes and pops these as the interpreter does.
@@ -96,15 +96,47 @@ pub struct NativeMemory<'a> {
     pub il_calls: &'a mut [IlFrame; CALL_DEPTH],
     /// The instruction list's edge memory (`LOADP`, `OUTP`, `FF`, the `P` forms).
     pub edges: &'a mut [bool],
-    /// The instruction list's counters, which native code executes itself.
-    pub counters: &'a mut [CounterState],
-    /// The instruction list's timers, which native code executes itself.
-    pub timers: &'a mut [TimerState],
+    /// The instruction list's counters, which native code executes itself: the VM's
+    /// `vm::counter::CounterState`s, laid out as `vm::counter::layout` says.
+    pub counters: RawSlice<'a>,
+    /// The instruction list's timers, which native code executes itself: the VM's
+    /// `vm::timer::TimerState`s, laid out as `vm::timer::layout` says.
+    pub timers: RawSlice<'a>,
     /// The time: a timer reads it at its own step, `stop - left` with `left` the budget left
     /// after the timer's instruction (as [`Vm::run`](crate::vm::Vm::run) counts steps).
     pub clock: &'a dyn Clock,
     /// The step count at which the budget is spent.
     pub stop: u64,
+}
+
+/// A slice mutably borrowed for one call of native code, as its address and length: for the
+/// VM's state machines, whose types belong to the VM (a higher layer than this hook), and
+/// whose layout native code reads from the VM's `layout` modules.
+#[derive(Debug)]
+pub struct RawSlice<'a> {
+    address: *mut u8,
+    len: usize,
+    borrow: PhantomData<&'a mut [u8]>,
+}
+
+impl<'a> RawSlice<'a> {
+    pub fn new<T>(slice: &'a mut [T]) -> RawSlice<'a> {
+        RawSlice { address: slice.as_mut_ptr().cast(), len: slice.len(), borrow: PhantomData }
+    }
+
+    /// The first element's address.
+    pub fn address(&self) -> *mut u8 {
+        self.address
+    }
+
+    /// Elements, not bytes.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
 }
 
 /// Why native code returned.

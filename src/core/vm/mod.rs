@@ -11,14 +11,13 @@
 //! and after an operation error (which has already set `_ERR`/`_ERR_CODE`). Nothing here
 //! allocates after construction.
 
-pub mod clock;
 pub mod counter;
 pub mod duty;
 pub mod retained;
 pub mod timer;
 mod typed;
 
-pub use clock::{Clock, ManualClock, StepClock};
+pub use crate::clock::{self, Clock, ManualClock, StepClock};
 
 use crate::device::{
     counter_done, counter_value, timer_done, timer_value, BitRef, Memory, WordRef,
@@ -520,8 +519,8 @@ impl Vm {
                 calls: &mut state.st_calls,
                 il_calls: &mut state.calls,
                 edges: &mut self.edges,
-                counters: &mut self.counters,
-                timers: &mut self.timers,
+                counters: native::RawSlice::new(&mut self.counters),
+                timers: native::RawSlice::new(&mut self.timers),
                 clock,
                 stop,
             };
