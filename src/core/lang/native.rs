@@ -92,14 +92,23 @@ pub struct NativeMemory<'a> {
     pub eval: &'a mut [u64; EVAL_DEPTH],
     /// The Structured Text call stack.
     pub calls: &'a mut [StFrame; ST_CALL_DEPTH],
-    /// The instruction-list call stack.
-    pub il_calls: &'a mut [IlFrame; CALL_DEPTH],
-    /// The instruction list's edge memory (`LOADP`, `OUTP`, `FF`, the `P` forms).
+    /// The instruction list's state besides device memory; `None` for a Structured Text
+    /// program (which does not pay for building it).
+    /// (By reference: the memory is passed by value at every call, and a Structured Text
+    /// program's call then copies one word for it instead of ten.)
+    pub il: Option<&'a mut IlMemory<'a>>,
+}
+
+/// The instruction list's state besides device memory, borrowed for one call.
+pub struct IlMemory<'a> {
+    /// The call stack.
+    pub calls: &'a mut [IlFrame; CALL_DEPTH],
+    /// Edge memory (`LOADP`, `OUTP`, `FF`, the `P` forms).
     pub edges: &'a mut [bool],
-    /// The instruction list's counters, which native code executes itself: the VM's
+    /// The counters, which native code executes itself: the VM's
     /// `vm::counter::CounterState`s, laid out as `vm::counter::layout` says.
     pub counters: RawSlice<'a>,
-    /// The instruction list's timers, which native code executes itself: the VM's
+    /// The timers, which native code executes itself: the VM's
     /// `vm::timer::TimerState`s, laid out as `vm::timer::layout` says.
     pub timers: RawSlice<'a>,
     /// The time: a timer reads it at its own step, `stop - left` with `left` the budget left

@@ -511,18 +511,24 @@ impl Vm {
                 il_depth: u32::from(state.call_depth),
                 loop_depth: u32::from(state.loop_depth),
             };
+            let mut il_memory = match program.language {
+                Language::InstructionList => Some(native::IlMemory {
+                    calls: &mut state.calls,
+                    edges: &mut self.edges,
+                    counters: native::RawSlice::new(&mut self.counters),
+                    timers: native::RawSlice::new(&mut self.timers),
+                    clock,
+                    stop,
+                }),
+                Language::StructuredText => None,
+            };
             let memory = native::NativeMemory {
                 vars: &mut self.vars,
                 words: self.mem.words_mut(),
                 frame: &mut state.frame,
                 eval: state.eval.slots_mut(),
                 calls: &mut state.st_calls,
-                il_calls: &mut state.calls,
-                edges: &mut self.edges,
-                counters: native::RawSlice::new(&mut self.counters),
-                timers: native::RawSlice::new(&mut self.timers),
-                clock,
-                stop,
+                il: il_memory.as_mut(),
             };
             let exit = native.run(memory, &mut regs);
             state.pc = regs.pc;

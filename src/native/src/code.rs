@@ -48,15 +48,17 @@ impl Shape {
         }
     }
 
-    /// Whether the VM has the edge slots, timers and counters the code reaches.
+    /// Whether the VM gives the instruction list's state if the code needs it, with the edge
+    /// slots, timers and counters the code reaches.
     fn fits(&self, memory: &NativeMemory<'_>) -> bool {
-        match self {
-            Shape::StructuredText(_) => true,
-            Shape::InstructionList(a) => {
-                memory.edges.len() as u64 >= a.edges_end
-                    && memory.timers.len() as u64 >= a.timers_end
-                    && memory.counters.len() as u64 >= a.counters_end
+        match (self, memory.il.as_deref()) {
+            (Shape::StructuredText(_), _) => true,
+            (Shape::InstructionList(a), Some(il)) => {
+                il.edges.len() as u64 >= a.edges_end
+                    && il.timers.len() as u64 >= a.timers_end
+                    && il.counters.len() as u64 >= a.counters_end
             }
+            (Shape::InstructionList(_), None) => false,
         }
     }
 
@@ -88,7 +90,16 @@ pub(crate) struct Context<'a> {
     pub vars_len: u64,
     pub words_len: u64,
     pub frame_len: u64,
-    pub il_calls: *mut IlFrame,
+    /// The instruction list's state (null for Structured Text).
+    pub il: *const IlContext<'a>,
+}
+
+/// The instruction list's state besides device memory, as raw parts: on the stack of
+/// [`Code::run`] for an instruction-list program only, so that Structured Text does not pay for
+/// building it. `repr(C)`, as [`Context`].
+#[repr(C)]
+pub(crate) struct IlContext<'a> {
+    pub calls: *mut IlFrame,
     /// Edge memory: `bool`s, 0 or 1 in a byte.
     pub edges: *mut u8,
     /// The counters' states (`plcd_core::vm::counter::layout`).
@@ -128,9 +139,10 @@ pub(crate) extern "C" fn copy_bytes(to: *mut u8, from: *const u8, n: u64) {
 /// The time at step `steps`, for an instruction-list timer, when the clock is not a
 /// `StepClock` (the daemon's monotonic clock).
 pub(crate) extern "C" fn il_now(context: *const Context<'_>, steps: u64) -> u64 {
-    // SAFETY: only generated code calls this, with the `Context` of the call under way, whose
-    // `clock` is the `&dyn Clock` of the `NativeMemory` borrowed for that call.
-    unsafe { (*(*context).clock).now_ns(steps) }
+    // SAFETY: only instruction-list code calls this, with the `Context` of the call under way,
+    // whose `il` points to the `IlContext` on `Code::run`'s stack, whose `clock` is the
+    // `&dyn Clock` of the `IlMemory` borrowed for that call.
+    unsafe { (*(*(*context).il).clock).now_ns(steps) }
 }
 
 /// A program's native code.
@@ -229,10 +241,21 @@ impl NativeCode for Code {
             return NativeExit::Interpret;
         }
         let regs_pc = regs.pc;
-        let linear = match self.shape {
-            Shape::InstructionList(_) => memory.clock.linear(),
-            Shape::StructuredText(_) => None,
-        };
+        let il = memory.il.map(|il| {
+            let linear = il.clock.linear();
+            IlContext {
+                calls: il.calls.as_mut_ptr(),
+                edges: il.edges.as_mut_ptr().cast::<u8>(),
+                counters: il.counters.address(),
+                timers: il.timers.address(),
+                stop: il.stop,
+                linear: u64::from(linear.is_some()),
+                origin_ns: linear.map_or(0, |c| c.origin_ns),
+                origin_steps: linear.map_or(0, |c| c.origin_steps),
+                step_ns: linear.map_or(0, |c| c.step_ns),
+                clock: il.clock,
+            }
+        });
         let mut context = Context {
             regs,
             vars: memory.vars.as_mut_ptr(),
@@ -243,16 +266,7 @@ impl NativeCode for Code {
             vars_len: memory.vars.len() as u64,
             words_len: memory.words.len() as u64,
             frame_len: memory.frame.len() as u64,
-            il_calls: memory.il_calls.as_mut_ptr(),
-            edges: memory.edges.as_mut_ptr().cast::<u8>(),
-            counters: memory.counters.address(),
-            timers: memory.timers.address(),
-            stop: memory.stop,
-            linear: u64::from(linear.is_some()),
-            origin_ns: linear.map_or(0, |c| c.origin_ns),
-            origin_steps: linear.map_or(0, |c| c.origin_steps),
-            step_ns: linear.map_or(0, |c| c.step_ns),
-            clock: memory.clock,
+            il: il.as_ref().map_or(std::ptr::null(), |il| il as *const IlContext<'_>),
         };
         let mut entry = self.entries[self.shape.entry_index(regs_pc)];
         let status = loop {

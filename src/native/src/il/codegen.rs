@@ -44,7 +44,7 @@ use plcd_core::lang::{Program, CALL_DEPTH};
 use plcd_core::vm::{counter, timer};
 
 use super::{is_native, Analysis};
-use crate::code::{self, Context, RETURN_CONTINUE, RETURN_END, RETURN_INTERPRET};
+use crate::code::{self, Context, IlContext, RETURN_CONTINUE, RETURN_END, RETURN_INTERPRET};
 use crate::codegen::{data, own};
 
 const I32: types::Type = types::I32;
@@ -71,10 +71,13 @@ pub(crate) fn generate(
         |b: &mut FunctionBuilder, offset: usize| b.ins().load(I64, own(), ctx, offset as i32);
     let regs_at = field(&mut b, offset_of!(Context<'static>, regs));
     let words = field(&mut b, offset_of!(Context<'static>, words));
-    let edges = field(&mut b, offset_of!(Context<'static>, edges));
-    let il_calls = field(&mut b, offset_of!(Context<'static>, il_calls));
-    let counters = field(&mut b, offset_of!(Context<'static>, counters));
-    let timers = field(&mut b, offset_of!(Context<'static>, timers));
+    let il = field(&mut b, offset_of!(Context<'static>, il));
+    let il_field =
+        |b: &mut FunctionBuilder, offset: usize| b.ins().load(I64, own(), il, offset as i32);
+    let edges = il_field(&mut b, offset_of!(IlContext<'static>, edges));
+    let il_calls = il_field(&mut b, offset_of!(IlContext<'static>, calls));
+    let counters = il_field(&mut b, offset_of!(IlContext<'static>, counters));
+    let timers = il_field(&mut b, offset_of!(IlContext<'static>, timers));
     let mut now_sig = Signature::new(isa.default_call_conv());
     now_sig.params.extend([I64, I64].map(AbiParam::new));
     now_sig.returns.push(AbiParam::new(I64));
@@ -91,6 +94,7 @@ pub(crate) fn generate(
         code: &program.code,
         analysis,
         ctx,
+        il,
         regs_at,
         words,
         edges,
@@ -144,6 +148,8 @@ struct Gen<'a, 'f> {
     analysis: &'a Analysis,
     /// The [`Context`] of the call.
     ctx: Value,
+    /// Its [`IlContext`].
+    il: Value,
     /// The [`NativeRegs`] of the call.
     regs_at: Value,
     words: Value,
@@ -553,22 +559,22 @@ impl Gen<'_, '_> {
     /// The time of the instruction being compiled (I64): from the `StepClock`'s figures in
     /// the context, or asked of the clock ([`code::il_now`]).
     fn now(&mut self) -> Value {
-        let field = |g: &mut Self, offset: usize| g.b.ins().load(I64, own(), g.ctx, offset as i32);
-        let stop = field(self, offset_of!(Context<'static>, stop));
+        let field = |g: &mut Self, offset: usize| g.b.ins().load(I64, own(), g.il, offset as i32);
+        let stop = field(self, offset_of!(IlContext<'static>, stop));
         let left = self.b.use_var(self.regs.left);
         // The budget left after this instruction: the block charged all of it at its start.
         let left = self.b.ins().iadd_imm_s(left, (self.block_end - self.pc - 1) as i64);
         let steps = self.b.ins().isub(stop, left);
-        let linear = field(self, offset_of!(Context<'static>, linear));
+        let linear = field(self, offset_of!(IlContext<'static>, linear));
         let compute = self.b.create_block();
         let ask = self.b.create_block();
         let done = self.b.create_block();
         let now = self.b.append_block_param(done, I64);
         self.b.ins().brif(linear, compute, &[], ask, &[]);
         self.b.switch_to_block(compute);
-        let origin_ns = field(self, offset_of!(Context<'static>, origin_ns));
-        let origin_steps = field(self, offset_of!(Context<'static>, origin_steps));
-        let step_ns = field(self, offset_of!(Context<'static>, step_ns));
+        let origin_ns = field(self, offset_of!(IlContext<'static>, origin_ns));
+        let origin_steps = field(self, offset_of!(IlContext<'static>, origin_steps));
+        let step_ns = field(self, offset_of!(IlContext<'static>, step_ns));
         let since = self.b.ins().isub(steps, origin_steps);
         let after = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, steps, origin_steps);
         let zero = self.b.ins().iconst(I64, 0);
