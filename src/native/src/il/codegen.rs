@@ -102,7 +102,7 @@ pub(crate) fn generate(
         counters,
         timers,
         now_sig,
-        dispatch: None,
+        elsewhere: None,
         regs,
         leaders,
         blocks: Vec::new(),
@@ -163,8 +163,8 @@ struct Gen<'a, 'f> {
     timers: Value,
     /// The signature of [`code::il_now`].
     now_sig: cranelift_codegen::ir::SigRef,
-    /// The block that switches on its parameter, a program counter.
-    dispatch: Option<Block>,
+    /// The block for a program counter that is no leader of this piece (its parameter).
+    elsewhere: Option<Block>,
     regs: Regs,
     /// This piece's leaders: a range of [`Analysis::leaders`].
     leaders: std::ops::Range<usize>,
@@ -193,40 +193,17 @@ impl Gen<'_, '_> {
         self.b.def_var(self.regs.blocks, blocks);
         self.b.def_var(self.regs.branches, branches);
         self.b.def_var(self.regs.left, left);
-        let dispatch = self.b.create_block();
-        let pc_param = self.b.append_block_param(dispatch, I32);
-        self.b.ins().jump(dispatch, &[pc.into()]);
-        self.dispatch = Some(dispatch);
-        self.b.switch_to_block(dispatch);
         self.blocks = self.leaders.clone().map(|_| self.b.create_block()).collect();
-        // The block of `pc`: the piece's dispatch table, read where `pc` is in its range, and
-        // the table's entry for "no leader" otherwise.
-        let piece = self.analysis.pieces.iter().position(|p| p.start == self.leaders.start);
-        let table = &self.analysis.dispatch[piece.unwrap_or(0)];
-        let low = self.analysis.leaders[self.leaders.start];
-        let offset = self.b.ins().iadd_imm_s(pc_param, -i64::from(low));
-        let inside = self.b.ins().icmp_imm_u(IntCC::UnsignedLessThan, offset, table.len() as i64);
-        let zero = self.b.ins().iconst(I32, 0);
-        let offset = self.b.ins().select(inside, offset, zero);
-        let offset = self.b.ins().uextend(I64, offset);
-        let offset = self.b.ins().ishl_imm_s(offset, 1);
-        let table_at = self.b.ins().iconst(I64, table.as_ptr() as i64);
-        let entry = self.b.ins().iadd(table_at, offset);
-        let index = self.b.ins().uload16(I32, readonly(), entry, 0);
-        let none = self.b.ins().iconst(I32, self.blocks.len() as i64);
-        let index = self.b.ins().select(inside, index, none);
         let elsewhere = self.b.create_block();
-        let calls: Vec<_> =
-            self.blocks.iter().map(|&block| self.b.func.dfg.block_call(block, &[])).collect();
-        let default = self.b.func.dfg.block_call(elsewhere, &[]);
-        let jump_table = self.b.create_jump_table(JumpTableData::new(default, &calls));
-        self.b.ins().br_table(index, jump_table);
+        let pc_param = self.b.append_block_param(elsewhere, I32);
+        self.elsewhere = Some(elsewhere);
+        self.switch_on(pc);
         // Any other pc: the interpreter if this piece's range has it (the entry's pc, unchanged,
         // or a return address that is no leader), else the piece that has it.
         self.b.switch_to_block(elsewhere);
         self.b.set_cold_block(elsewhere);
         let pieces = &self.analysis.pieces;
-        let piece = piece.unwrap_or(0);
+        let piece = self.piece();
         let low = if piece == 0 { 0 } else { self.analysis.leaders[pieces[piece].start] };
         let high = pieces.get(piece + 1).map_or(u32::MAX, |p| self.analysis.leaders[p.start]);
         let below = self.b.ins().icmp_imm_u(IntCC::UnsignedLessThan, pc_param, i64::from(low));
@@ -238,6 +215,38 @@ impl Gen<'_, '_> {
         let status = self.b.ins().select(outside, other, interpret);
         self.store_regs(pc_param);
         self.b.ins().return_(&[status]);
+    }
+
+    /// The index of this function's piece.
+    fn piece(&self) -> usize {
+        let start = self.leaders.start;
+        self.analysis.pieces.iter().position(|p| p.start == start).unwrap_or(0)
+    }
+
+    /// Goes on at the block of `pc` (I32), found in the piece's dispatch table where `pc` is in
+    /// its range, or at the block for any other pc. Each use is a jump table of its own (the
+    /// entry's, and each `RET`'s), so that the processor predicts each indirect jump from its
+    /// own history: one shared by every `RET` of the program was mispredicted at most returns.
+    fn switch_on(&mut self, pc: Value) {
+        let table = &self.analysis.dispatch[self.piece()];
+        let low = self.analysis.leaders[self.leaders.start];
+        let offset = self.b.ins().iadd_imm_s(pc, -i64::from(low));
+        let inside = self.b.ins().icmp_imm_u(IntCC::UnsignedLessThan, offset, table.len() as i64);
+        let zero = self.b.ins().iconst(I32, 0);
+        let offset = self.b.ins().select(inside, offset, zero);
+        let offset = self.b.ins().uextend(I64, offset);
+        let offset = self.b.ins().ishl_imm_s(offset, 1);
+        let table_at = self.b.ins().iconst(I64, table.as_ptr() as i64);
+        let entry = self.b.ins().iadd(table_at, offset);
+        let index = self.b.ins().uload16(I32, readonly(), entry, 0);
+        let none = self.b.ins().iconst(I32, self.blocks.len() as i64);
+        let index = self.b.ins().select(inside, index, none);
+        let calls: Vec<_> =
+            self.blocks.iter().map(|&block| self.b.func.dfg.block_call(block, &[])).collect();
+        let elsewhere = self.elsewhere.expect("the entry made it");
+        let default = self.b.func.dfg.block_call(elsewhere, &[pc.into()]);
+        let jump_table = self.b.create_jump_table(JumpTableData::new(default, &calls));
+        self.b.ins().br_table(index, jump_table);
     }
 
     fn ret(&mut self, status: u32) {
@@ -541,8 +550,7 @@ impl Gen<'_, '_> {
         self.b.def_var(self.regs.rung, rung);
         self.b.def_var(self.regs.blocks, blocks);
         self.b.def_var(self.regs.branches, branches);
-        let dispatch = self.dispatch.expect("the entry made it");
-        self.b.ins().jump(dispatch, &[return_pc.into()]);
+        self.switch_on(return_pc);
     }
 
     /// The address of call frame `depth` (below `CALL_DEPTH`).
