@@ -793,11 +793,10 @@ const HOW: &[&str] = &[
      old value when the rung is OFF) and compares evaluate through a truth table. What is left \
      per instruction is the dispatch and a bounds check on each device access.",
     "Native code: the program compiled by plcd-native (Cranelift) as a project load does, \
-     attached even where a load leaves it to the interpreter because the instructions native \
-     code hands over would cost more than it saves (timers, counters, calls: \
-     `timers_counters`, `call`, `realistic_10k`; BENCHMARKS.md says which). Before measuring, \
-     the bench checks that four scans leave memory and the step count exactly as on the \
-     interpreter.",
+     timers, counters, edges and calls included (it would be attached even where a load \
+     leaves a program to the interpreter; none of these five is such a program). Before \
+     measuring, the bench checks that four scans leave memory and the step count exactly as \
+     on the interpreter.",
     "Rust: the same rungs as straight Rust over a flat u16 array, operands from a \
      pre-resolved table, no dispatch, no bounds checks on device memory; timers and counters \
      as hand-written state machines. Before measuring, the bench checks that one Rust scan \
