@@ -39,11 +39,11 @@ pub struct StFrame {
 #[repr(C)]
 pub struct IlFrame {
     pub return_pc: u32,
-    /// The rung result, 0 or 1.
-    pub rung: u32,
     pub blocks: u32,
     pub branches: u32,
-    pub loop_depth: u32,
+    /// The rung result (a byte, 0 or 1).
+    pub rung: bool,
+    pub loop_depth: u8,
 }
 
 /// An activation's registers as native code reads and writes them; [`Vm::run`] loads them

@@ -7,14 +7,15 @@
 use crate::lang::ops::CounterKind;
 
 /// Run-time state of one counter number. `repr(C)`: native code executes the counters itself
-/// on this state, at the offsets of [`layout`].
+/// on this state, at the offsets of [`layout`] (the fields in the order the compiler gave them
+/// before, as [`super::timer::TimerState`]'s).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 #[repr(C)]
 pub struct CounterState {
-    prev_input: bool,
-    prev_down: bool,
     /// The preset of the last execution, for `RST` of a down counter.
     preset: u16,
+    prev_input: bool,
+    prev_down: bool,
     /// A down counter that has loaded its preset (it does so at its first execution after
     /// RUN starts and at `RST`).
     loaded: bool,

@@ -23,9 +23,7 @@ use crate::device::{
     counter_done, counter_value, timer_done, timer_value, BitRef, Memory, WordRef,
 };
 use crate::lang::native::{self, StFrame};
-use crate::lang::ops::{
-    ArithOp, Combine, CounterKind, Op, Src, SystemRequest, TimerKind, Wide, WideConv,
-};
+use crate::lang::ops::{ArithOp, Combine, Op, Src, SystemRequest, Wide, WideConv};
 use crate::lang::{Language, Program, Variables, CALL_DEPTH, LOOP_DEPTH, ST_CALL_DEPTH};
 use crate::value::{self, Elem, Pointer};
 use typed::EvalStack;
@@ -179,7 +177,7 @@ impl ExecState {
             branches: self.branches,
             calls: self.calls[..usize::from(self.call_depth).min(CALL_DEPTH)]
                 .iter()
-                .map(|f| (f.return_pc, f.rung != 0, f.blocks, f.branches, f.loop_depth as u8))
+                .map(|f| (f.return_pc, f.rung, f.blocks, f.branches, f.loop_depth))
                 .collect(),
             loops: self.loops[..usize::from(self.loop_depth).min(LOOP_DEPTH)]
                 .iter()
@@ -840,26 +838,51 @@ fn interpret<'a, const ST: bool, C: Clock>(
                 }
                 Op::RstTimer(n) if !ST => {
                     if rung {
-                        rst_timer(mem.words_mut(), timers, *n);
+                        timer::reset(&mut timers[*n as usize]);
+                        mem.set_word(timer_value(*n), 0);
+                        write_bit(mem, timer_done(*n), false);
                     }
                 }
                 Op::RstCounter(n) if !ST => {
                     if rung {
-                        rst_counter(mem.words_mut(), counters, *n);
+                        let value = counter::reset(&counters[*n as usize]);
+                        mem.set_word(counter_value(*n), value);
+                        write_bit(mem, counter_done(*n), false);
                     }
                 }
                 Op::Timer { kind, timer: n, preset, base_ms } if !ST => {
+                    let (value_ref, done_ref) = (timer_value(*n), timer_done(*n));
+                    let call = timer::TimerInput {
+                        kind: *kind,
+                        input: rung,
+                        preset: read(mem, *preset),
+                        base_ms: *base_ms,
+                        now_ns: 0, // read by `run_timer`, out of the loop
+                        value: mem.word(value_ref),
+                        done: mem.bit(done_ref),
+                    };
                     let steps = stop - left + taken!() as u64;
-                    let timer = &mut timers[*n as usize];
-                    let call = timer_input(mem.words(), *kind, *n, *preset, *base_ms, rung);
-                    let result = run_timer(timer, call, clock, steps);
-                    write_device(mem.words_mut(), timer_value(*n), timer_done(*n), result);
+                    let (value, done) = run_timer(&mut timers[*n as usize], call, clock, steps);
+                    mem.set_word(value_ref, value);
+                    write_bit(mem, done_ref, done);
                 }
                 Op::Counter { kind, counter: n, preset } if !ST => {
-                    counter_instruction(mem.words_mut(), counters, *kind, *n, *preset, rung);
+                    let preset = read(mem, *preset);
+                    let value_ref = counter_value(*n);
+                    let c = &mut counters[*n as usize];
+                    let (value, done) =
+                        counter::execute(*kind, c, rung, preset, mem.word(value_ref));
+                    mem.set_word(value_ref, value);
+                    write_bit(mem, counter_done(*n), done);
                 }
                 Op::CounterUpDown { counter: n, up, down, preset } if !ST => {
-                    up_down_instruction(mem.words_mut(), counters, *n, (*up, *down), *preset, rung);
+                    let preset = read(mem, *preset);
+                    let value_ref = counter_value(*n);
+                    let (up, down, value) = (mem.bit(*up), mem.bit(*down), mem.word(value_ref));
+                    let c = &mut counters[*n as usize];
+                    let (value, done) = counter::execute_up_down(c, rung, up, down, preset, value);
+                    mem.set_word(value_ref, value);
+                    write_bit(mem, counter_done(*n), done);
                 }
                 Op::Duty { channel, n1, n2, slot } if !ST => {
                     let rising = pulse(edges, *slot, rung);
@@ -911,10 +934,10 @@ fn interpret<'a, const ST: bool, C: Clock>(
                         }
                         state.calls[depth] = CallFrame {
                             return_pc: pc!() as u32,
-                            rung: u32::from(rung),
+                            rung,
                             blocks,
                             branches,
-                            loop_depth: u32::from(state.loop_depth),
+                            loop_depth: state.loop_depth,
                         };
                         state.call_depth += 1;
                         rung = true;
@@ -931,10 +954,10 @@ fn interpret<'a, const ST: bool, C: Clock>(
                     };
                     state.call_depth = depth;
                     let frame = state.calls[depth as usize];
-                    rung = frame.rung != 0;
+                    rung = frame.rung;
                     blocks = frame.blocks;
                     branches = frame.branches;
-                    state.loop_depth = frame.loop_depth as u8;
+                    state.loop_depth = frame.loop_depth;
                     jump!(frame.return_pc);
                 }
                 Op::Jmp { target } if !ST => {
@@ -1177,110 +1200,15 @@ fn interpret<'a, const ST: bool, C: Clock>(
     }
 }
 
-// The timer and counter instructions, on device memory's words only (so that the interpreter
-// loop keeps the memory's address in registers).
-
-/// A bit of `words`.
-#[inline(always)]
-fn word_bit(words: &[u16], b: BitRef) -> bool {
-    words[b.word as usize] & b.mask != 0
-}
-
-/// A source operand read from `words`.
-#[inline(always)]
-fn word_src(words: &[u16], src: Src) -> u16 {
-    match src {
-        Src::Word(w) => words[w.0 as usize],
-        Src::Const(c) => c,
-    }
-}
-
-/// Writes a timer's or counter's current value and contact.
-#[inline(always)]
-fn write_device(words: &mut [u16], value: WordRef, done: BitRef, (v, on): (u16, bool)) {
-    words[value.0 as usize] = v;
-    let w = &mut words[done.word as usize];
-    *w = (*w & !done.mask) | (done.mask & all(on));
-}
-
-/// What timer `n` sees when its instruction executes, but the time (`run_timer` reads it).
-#[inline(always)]
-fn timer_input(
-    words: &[u16],
-    kind: TimerKind,
-    n: u16,
-    preset: Src,
-    base_ms: u16,
-    rung: bool,
-) -> timer::TimerInput {
-    timer::TimerInput {
-        kind,
-        input: rung,
-        preset: word_src(words, preset),
-        base_ms,
-        now_ns: 0,
-        value: words[timer_value(n).0 as usize],
-        done: word_bit(words, timer_done(n)),
-    }
-}
-
-/// A timer instruction's state machine with the time at step `steps`, out of line: it is long
-/// next to a contact's.
+/// A timer instruction, out of line: its state machine is long next to a contact's.
 #[inline(never)]
-fn run_timer<C: Clock + ?Sized>(
+fn run_timer<C: Clock>(
     state: &mut timer::TimerState,
     call: timer::TimerInput,
     clock: &C,
     steps: u64,
 ) -> (u16, bool) {
     timer::execute(state, timer::TimerInput { now_ns: clock.now_ns(steps), ..call })
-}
-
-/// `RST Tn` with the rung ON.
-#[inline(always)]
-fn rst_timer(words: &mut [u16], timers: &mut [timer::TimerState], n: u16) {
-    timer::reset(&mut timers[n as usize]);
-    write_device(words, timer_value(n), timer_done(n), (0, false));
-}
-
-/// `RST Cn` with the rung ON.
-#[inline(always)]
-fn rst_counter(words: &mut [u16], counters: &[counter::CounterState], n: u16) {
-    let value = counter::reset(&counters[n as usize]);
-    write_device(words, counter_value(n), counter_done(n), (value, false));
-}
-
-#[inline(always)]
-fn counter_instruction(
-    words: &mut [u16],
-    counters: &mut [counter::CounterState],
-    kind: CounterKind,
-    n: u16,
-    preset: Src,
-    rung: bool,
-) {
-    let preset = word_src(words, preset);
-    let value = words[counter_value(n).0 as usize];
-    let result = counter::execute(kind, &mut counters[n as usize], rung, preset, value);
-    write_device(words, counter_value(n), counter_done(n), result);
-}
-
-/// `CTUD Cn up down preset`.
-#[inline(always)]
-fn up_down_instruction(
-    words: &mut [u16],
-    counters: &mut [counter::CounterState],
-    n: u16,
-    (up, down): (BitRef, BitRef),
-    preset: Src,
-    rung: bool,
-) {
-    let preset = word_src(words, preset);
-    let (up, down) = (word_bit(words, up), word_bit(words, down));
-    let value = words[counter_value(n).0 as usize];
-    let c = &mut counters[n as usize];
-    let result = counter::execute_up_down(c, rung, up, down, preset, value);
-    write_device(words, counter_value(n), counter_done(n), result);
 }
 
 #[inline(always)]

@@ -5,7 +5,9 @@
 use crate::lang::ops::TimerKind;
 
 /// Run-time state of one timer number. `repr(C)`: native code executes the timers itself on
-/// this state, at the offsets of [`layout`].
+/// this state, at the offsets of [`layout`]. (The fields are in the order the compiler gave
+/// them before `repr(C)`: the interpreter's machine code stayed the same, and with it the
+/// layout of its loop that `benches/layout` guards.)
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 #[repr(C)]
 pub struct TimerState {
@@ -14,11 +16,11 @@ pub struct TimerState {
     elapsed_ns: u64,
     /// When `elapsed_ns` was last brought up to date.
     last_ns: u64,
-    running: bool,
-    prev_input: bool,
     /// The current value this timer last wrote; a different value in memory was written by the
     /// program (`MOV 30 T0001`), and the timer continues from it.
     shown: u16,
+    running: bool,
+    prev_input: bool,
 }
 
 /// Where native code finds a [`TimerState`]'s fields (the `bool`s are a byte each, 0 or 1).

@@ -509,12 +509,16 @@ impl Gen<'_, '_> {
         let loop_depth = self.field32(offset_of!(NativeRegs, loop_depth));
         for (value, offset) in [
             (return_pc, offset_of!(IlFrame, return_pc)),
-            (rung, offset_of!(IlFrame, rung)),
             (blocks, offset_of!(IlFrame, blocks)),
             (branches, offset_of!(IlFrame, branches)),
-            (loop_depth, offset_of!(IlFrame, loop_depth)),
         ] {
             self.b.ins().store(own(), value, frame, offset as i32);
+        }
+        // The rung and the loop depth are bytes.
+        for (value, offset) in
+            [(rung, offset_of!(IlFrame, rung)), (loop_depth, offset_of!(IlFrame, loop_depth))]
+        {
+            self.b.ins().istore8(own(), value, frame, offset as i32);
         }
         let deeper = self.b.ins().iadd_imm_s(depth, 1);
         self.store32(deeper, offset_of!(NativeRegs, il_depth));
@@ -541,11 +545,12 @@ impl Gen<'_, '_> {
         self.store32(depth, offset_of!(NativeRegs, il_depth));
         let frame = self.frame_at(depth);
         let load = |g: &mut Self, offset: usize| g.b.ins().load(I32, own(), frame, offset as i32);
+        let byte = |g: &mut Self, offset: usize| g.b.ins().uload8(I32, own(), frame, offset as i32);
         let return_pc = load(self, offset_of!(IlFrame, return_pc));
-        let rung = load(self, offset_of!(IlFrame, rung));
+        let rung = byte(self, offset_of!(IlFrame, rung));
         let blocks = load(self, offset_of!(IlFrame, blocks));
         let branches = load(self, offset_of!(IlFrame, branches));
-        let loop_depth = load(self, offset_of!(IlFrame, loop_depth));
+        let loop_depth = byte(self, offset_of!(IlFrame, loop_depth));
         self.store32(loop_depth, offset_of!(NativeRegs, loop_depth));
         self.b.def_var(self.regs.rung, rung);
         self.b.def_var(self.regs.blocks, blocks);
