@@ -74,7 +74,7 @@ pub struct NativeRegs {
     pub blocks: u32,
     /// The instruction list's `MPUSH` stack, one bit a level, top in bit 0.
     pub branches: u32,
-    /// Instruction-list calls under way (entries of [`NativeMemory::il_calls`]).
+    /// Instruction-list calls under way (entries of [`IlMemory::calls`]).
     pub il_depth: u32,
     /// Instruction-list `FOR` loops under way (a `CALL` keeps it, `RET` restores it).
     pub loop_depth: u32,

@@ -104,6 +104,7 @@ pub(crate) fn generate(
         now_sig,
         elsewhere: None,
         regs,
+        piece,
         leaders,
         blocks: Vec::new(),
         held: HashMap::new(),
@@ -166,7 +167,8 @@ struct Gen<'a, 'f> {
     /// The block for a program counter that is no leader of this piece (its parameter).
     elsewhere: Option<Block>,
     regs: Regs,
-    /// This piece's leaders: a range of [`Analysis::leaders`].
+    /// The piece this function is, and its leaders: a range of [`Analysis::leaders`].
+    piece: usize,
     leaders: std::ops::Range<usize>,
     /// The block of each of this piece's leaders.
     blocks: Vec<Block>,
@@ -202,10 +204,12 @@ impl Gen<'_, '_> {
         // or a return address that is no leader), else the piece that has it.
         self.b.switch_to_block(elsewhere);
         self.b.set_cold_block(elsewhere);
-        let pieces = &self.analysis.pieces;
-        let piece = self.piece();
-        let low = if piece == 0 { 0 } else { self.analysis.leaders[pieces[piece].start] };
-        let high = pieces.get(piece + 1).map_or(u32::MAX, |p| self.analysis.leaders[p.start]);
+        let low = self.analysis.leaders[self.leaders.start];
+        let high = self
+            .analysis
+            .pieces
+            .get(self.piece + 1)
+            .map_or(u32::MAX, |next| self.analysis.leaders[next.start]);
         let below = self.b.ins().icmp_imm_u(IntCC::UnsignedLessThan, pc_param, i64::from(low));
         let above =
             self.b.ins().icmp_imm_u(IntCC::UnsignedGreaterThanOrEqual, pc_param, i64::from(high));
@@ -217,18 +221,12 @@ impl Gen<'_, '_> {
         self.b.ins().return_(&[status]);
     }
 
-    /// The index of this function's piece.
-    fn piece(&self) -> usize {
-        let start = self.leaders.start;
-        self.analysis.pieces.iter().position(|p| p.start == start).unwrap_or(0)
-    }
-
     /// Goes on at the block of `pc` (I32), found in the piece's dispatch table where `pc` is in
     /// its range, or at the block for any other pc. Each use is a jump table of its own (the
     /// entry's, and each `RET`'s), so that the processor predicts each indirect jump from its
     /// own history: one shared by every `RET` of the program was mispredicted at most returns.
     fn switch_on(&mut self, pc: Value) {
-        let table = &self.analysis.dispatch[self.piece()];
+        let table = &self.analysis.dispatch[self.piece];
         let low = self.analysis.leaders[self.leaders.start];
         let offset = self.b.ins().iadd_imm_s(pc, -i64::from(low));
         let inside = self.b.ins().icmp_imm_u(IntCC::UnsignedLessThan, offset, table.len() as i64);
@@ -461,9 +459,14 @@ impl Gen<'_, '_> {
     /// a rising (`rising`) or falling edge, else 0.
     fn edge(&mut self, slot: u16, now: Value, rising: bool) -> Value {
         let now = self.b.ins().band_imm_s(now, 1);
-        let before = self.b.ins().uload8(I32, data(), self.edges, i32::from(slot));
-        let byte = self.b.ins().ireduce(types::I8, now);
-        self.b.ins().store(data(), byte, self.edges, i32::from(slot));
+        self.edge_at(self.edges, usize::from(slot), now, rising)
+    }
+
+    /// The edge of `now` (0 or 1) against the byte at `at` from `base` (an edge slot, a timer's
+    /// or a counter's previous input), which then holds `now`.
+    fn edge_at(&mut self, base: Value, at: usize, now: Value, rising: bool) -> Value {
+        let before = self.load_field(base, at, types::I8);
+        self.store_field(base, at, types::I8, now);
         if rising {
             self.b.ins().band_not(now, before)
         } else {
@@ -606,22 +609,35 @@ impl Gen<'_, '_> {
         now
     }
 
-    fn timer_field(&mut self, n: u16, offset: usize, ty: types::Type) -> Value {
-        let at = (usize::from(n) * timer::layout::SIZE + offset) as i32;
+    /// A field of a state machine at `at` bytes from `base` (an 8-, 16- or 64-bit one, by
+    /// `ty`), in 32 bits but for the 64-bit ones.
+    fn load_field(&mut self, base: Value, at: usize, ty: types::Type) -> Value {
+        let at = at as i32;
         match ty {
-            I64 => self.b.ins().load(I64, data(), self.timers, at),
-            types::I16 => self.b.ins().uload16(I32, data(), self.timers, at),
-            _ => self.b.ins().uload8(I32, data(), self.timers, at),
+            I64 => self.b.ins().load(I64, data(), base, at),
+            types::I16 => self.b.ins().uload16(I32, data(), base, at),
+            _ => self.b.ins().uload8(I32, data(), base, at),
         }
     }
 
-    fn set_timer_field(&mut self, n: u16, offset: usize, ty: types::Type, value: Value) {
-        let at = (usize::from(n) * timer::layout::SIZE + offset) as i32;
+    fn store_field(&mut self, base: Value, at: usize, ty: types::Type, value: Value) {
+        let at = at as i32;
         match ty {
-            I64 => self.b.ins().store(data(), value, self.timers, at),
-            types::I16 => self.b.ins().istore16(data(), value, self.timers, at),
-            _ => self.b.ins().istore8(data(), value, self.timers, at),
+            I64 => self.b.ins().store(data(), value, base, at),
+            types::I16 => self.b.ins().istore16(data(), value, base, at),
+            _ => self.b.ins().istore8(data(), value, base, at),
         };
+    }
+
+    /// Timer `n`'s field at `offset` (`timer::layout`).
+    fn timer_field(&mut self, n: u16, offset: usize, ty: types::Type) -> Value {
+        let at = usize::from(n) * timer::layout::SIZE + offset;
+        self.load_field(self.timers, at, ty)
+    }
+
+    fn set_timer_field(&mut self, n: u16, offset: usize, ty: types::Type, value: Value) {
+        let at = usize::from(n) * timer::layout::SIZE + offset;
+        self.store_field(self.timers, at, ty, value);
     }
 
     /// A timer (the VM's `timer::execute`, branch-free but for asking the clock).
@@ -640,7 +656,6 @@ impl Gen<'_, '_> {
         let elapsed = self.timer_field(n, ELAPSED_NS, I64);
         let last = self.timer_field(n, LAST_NS, I64);
         let running = self.timer_field(n, RUNNING, types::I8);
-        let prev = self.timer_field(n, PREV_INPUT, types::I8);
         let zero32 = self.b.ins().iconst(I32, 0);
         let zero = self.b.ins().iconst(I64, 0);
         let one = self.b.ins().iconst(I32, 1);
@@ -657,8 +672,8 @@ impl Gen<'_, '_> {
         let from_written = self.b.ins().imul_imm_s(ticks_written, base_ns);
         let changed = self.b.ins().icmp(IntCC::NotEqual, written, shown);
         let elapsed = self.b.ins().select(changed, from_written, elapsed);
-        let rising = self.b.ins().band_not(input, prev);
-        self.set_timer_field(n, PREV_INPUT, types::I8, input);
+        let prev_input = usize::from(n) * timer::layout::SIZE + PREV_INPUT;
+        let rising = self.edge_at(self.timers, prev_input, input, true);
         let now = self.now();
         let later = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, now, last);
         let gone = self.b.ins().isub(now, last);
@@ -814,8 +829,13 @@ impl Gen<'_, '_> {
 
     /// Writes `bit` as `on` (0 or 1), without a branch.
     fn write_bit(&mut self, b: BitRef, on: Value) {
-        let w = WordRef(b.word);
-        let word = self.word(w);
+        let word = self.with_bit(b, on);
+        self.set_word(WordRef(b.word), word);
+    }
+
+    /// The word of `bit` with the bit made `on` (0 or 1), not stored.
+    fn with_bit(&mut self, b: BitRef, on: Value) -> Value {
+        let word = self.word(WordRef(b.word));
         let cleared = self.b.ins().band_imm_s(word, i64::from(!b.mask));
         let set = if b.mask.is_power_of_two() {
             self.b.ins().ishl_imm_s(on, i64::from(b.mask.trailing_zeros()))
@@ -823,8 +843,7 @@ impl Gen<'_, '_> {
             let ones = self.b.ins().ineg(on);
             self.b.ins().band_imm_s(ones, i64::from(b.mask))
         };
-        let word = self.b.ins().bor(cleared, set);
-        self.set_word(w, word);
+        self.b.ins().bor(cleared, set)
     }
 
     /// Stores `value` at `d` when `on` (0 or 1), the old value when not.
@@ -845,31 +864,22 @@ impl Gen<'_, '_> {
         }
     }
 
-    /// Counter `n`'s state byte or half-word at `offset` (`counter::layout`), in 32 bits.
+    /// Counter `n`'s byte or half-word (`wide`) at `offset` (`counter::layout`), in 32 bits.
     fn counter_field(&mut self, n: u16, offset: usize, wide: bool) -> Value {
-        let at = (usize::from(n) * counter::layout::SIZE + offset) as i32;
-        if wide {
-            self.b.ins().uload16(I32, data(), self.counters, at)
-        } else {
-            self.b.ins().uload8(I32, data(), self.counters, at)
-        }
+        let at = usize::from(n) * counter::layout::SIZE + offset;
+        self.load_field(self.counters, at, if wide { types::I16 } else { types::I8 })
     }
 
     fn set_counter_field(&mut self, n: u16, offset: usize, wide: bool, value: Value) {
-        let at = (usize::from(n) * counter::layout::SIZE + offset) as i32;
-        if wide {
-            self.b.ins().istore16(data(), value, self.counters, at);
-        } else {
-            self.b.ins().istore8(data(), value, self.counters, at);
-        }
+        let at = usize::from(n) * counter::layout::SIZE + offset;
+        self.store_field(self.counters, at, if wide { types::I16 } else { types::I8 }, value);
     }
 
     /// The rising edge of `now` (0 or 1) against the counter field at `offset`, which then
     /// holds `now`.
     fn counter_edge(&mut self, n: u16, offset: usize, now: Value) -> Value {
-        let before = self.counter_field(n, offset, false);
-        self.set_counter_field(n, offset, false, now);
-        self.b.ins().band_not(now, before)
+        let at = usize::from(n) * counter::layout::SIZE + offset;
+        self.edge_at(self.counters, at, now, true)
     }
 
     /// Counter `n`'s current value (unsigned, in 32 bits).
@@ -1077,8 +1087,7 @@ impl Gen<'_, '_> {
                 let flipped = self.b.ins().band_imm_s(flipped, 1);
                 let w = WordRef(bit.word);
                 let old = self.word(w);
-                self.write_bit(bit, flipped);
-                let new = self.word(w);
+                let new = self.with_bit(bit, flipped);
                 let word = self.b.ins().select(edge, new, old);
                 self.set_word(w, word);
             }

@@ -7,9 +7,10 @@
 //! `OUTP`, `SET`, `RST`, `FF`), `MOV`, `ADD`/`SUB`/`MUL`/`DIV` (a division by zero is the
 //! interpreter's), `INC`/`DEC` and their `P` forms, `CALL`/`RET`, `LABEL`, `JMP`, `NOP` and
 //! `END`, the timers, the counters and their `RST` (on the VM's own states, the time computed
-//! from the step count for `plcd sim`'s clock and asked of the clock for the others). Everything else — the double-word and real instructions, `FOR`/`NEXT`/`BREAK`,
-//! `DUTY` and the system requests — the interpreter executes, one instruction at a time, and
-//! native code goes on after it.
+//! from the step count for `plcd sim`'s clock and asked of the clock for the others).
+//! Everything else — the double-word and real instructions, `FOR`/`NEXT`/`BREAK`, `DUTY` and
+//! the system requests — the interpreter executes, one instruction at a time, and native code
+//! goes on after it.
 //!
 //! A block runs from one leader to the next: at most [`MAX_BLOCK`] instructions, so that a
 //! budget smaller than the whole program still leaves most of it to native code. A block
