@@ -31,8 +31,11 @@ pub(crate) struct Analysis {
     /// The body (program, FUNCTION or FUNCTION_BLOCK: its first instruction) each instruction
     /// belongs to.
     pub owner: Vec<Option<u32>>,
-    /// Each body's first instruction, with what it needs and where its calls return.
+    /// Each body's first instruction, with what it needs and where its calls return. Each
+    /// body is a generated function of its own, in this order (`Analysis::function_of`).
     pub bodies: std::collections::BTreeMap<u32, Body>,
+    /// The bodies' first instructions, in the order of their functions.
+    pub functions: Vec<u32>,
 }
 
 /// A body (the program's, a FUNCTION's or a FUNCTION_BLOCK's): how far its operands reach into
@@ -40,6 +43,8 @@ pub(crate) struct Analysis {
 #[derive(Debug, Default)]
 pub(crate) struct Body {
     pub frame_end: u64,
+    /// An operand of the body is in its frame, or an address in it is taken.
+    pub uses_frame: bool,
     pub this_end: u64,
     pub return_sites: Vec<u32>,
 }
@@ -150,7 +155,8 @@ pub(crate) fn analyse(program: &Program) -> Result<Analysis, String> {
     leaders.dedup();
     depth.truncate(len);
     let (owner, bodies) = bodies(code)?;
-    Ok(Analysis { depth, leaders, max_depth, vars_end, words_end, owner, bodies })
+    let functions = bodies.keys().copied().collect();
+    Ok(Analysis { depth, leaders, max_depth, vars_end, words_end, owner, bodies, functions })
 }
 
 /// The body of each instruction (its first instruction).
@@ -185,7 +191,9 @@ fn bodies(code: &[Op]) -> Result<(Owners, Bodies), String> {
                 Op::Fetch { elem, at: Place::Frame(o) }
                 | Op::Store { elem, at: Place::Frame(o) } => {
                     body.frame_end = body.frame_end.max(reach(elem, o));
+                    body.uses_frame = true;
                 }
+                Op::AddrOf(Place::Frame(_)) => body.uses_frame = true,
                 Op::Fetch { elem, at: Place::This(o) } | Op::Store { elem, at: Place::This(o) } => {
                     body.this_end = body.this_end.max(reach(elem, o));
                 }
@@ -216,8 +224,9 @@ impl Analysis {
     /// index): `Some(n)` at a block that checks that `n` instructions are left (the longest
     /// path of native instructions from it to the next check), `None` at a block that does not
     /// (every path into it passed a check that covered it). A block checks when a jump goes
-    /// back to it (a loop), when a call enters it, and when the dispatch enters it (its loader
-    /// checks); paths forward from a check are covered by it. So a loop checks once a round
+    /// back to it (a loop), when a call enters it or returns to it (the callee spent budget),
+    /// and when the dispatch enters it (its loader checks); paths forward from a check are
+    /// covered by it. So a loop checks once a round
     /// and straight-line code with IFs once, and the budget still ends exactly where the
     /// interpreter's would: a check that fails hands the block to the interpreter.
     pub fn budget_checks(&self, code: &[Op]) -> Vec<(bool, u64)> {
@@ -236,8 +245,10 @@ impl Analysis {
                 Op::Goto(target) => vec![target],
                 Op::GotoIf { target, .. } => vec![target, range.end as u32],
                 Op::CallFn { target, .. } | Op::CallFb { target, .. } => {
-                    if let Some(callee) = index_of(target) {
-                        checkpoint[callee] = true;
+                    for entered in [target, range.end as u32] {
+                        if let Some(entered) = index_of(entered) {
+                            checkpoint[entered] = true;
+                        }
                     }
                     vec![]
                 }
@@ -268,6 +279,26 @@ impl Analysis {
             need[index] = range.len() as u64 + after;
         }
         checkpoint.into_iter().zip(need).collect()
+    }
+
+    /// The generated function that holds `pc`: its body's (the first for an instruction of
+    /// no body, whose dispatch hands it to the interpreter).
+    pub fn function_of(&self, pc: u32) -> usize {
+        if self.functions.len() == 1 {
+            return 0;
+        }
+        self.owner
+            .get(pc as usize)
+            .copied()
+            .flatten()
+            .and_then(|start| self.functions.binary_search(&start).ok())
+            .unwrap_or(0)
+    }
+
+    /// The leaders of function `index`'s body, as indices into [`Analysis::leaders`].
+    pub fn leaders_of(&self, index: usize) -> impl Iterator<Item = usize> + '_ {
+        let start = self.functions.get(index).copied();
+        (0..self.leaders.len()).filter(move |&i| self.owner[self.leaders[i] as usize] == start)
     }
 
     /// Instructions from `pc` to the next leader after it (the interpreter's share).

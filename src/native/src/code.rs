@@ -8,9 +8,12 @@
 
 #![allow(unsafe_code)]
 
+use cranelift_codegen::control::ControlPlane;
+use cranelift_codegen::ir::{types, AbiParam, Function, Signature};
+use cranelift_codegen::isa::{CallConv, TargetIsa};
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_jit::{JITBuilder, JITModule};
-use cranelift_module::{default_libcall_names, Linkage, Module};
+use cranelift_module::{default_libcall_names, FuncId, Linkage, Module, ModuleReloc};
 use plcd_core::lang::native::{IlFrame, NativeCode, NativeExit, NativeMemory, NativeRegs, StFrame};
 use plcd_core::lang::Program;
 use plcd_core::vm::Clock;
@@ -38,13 +41,21 @@ impl Shape {
         }
     }
 
-    /// The generated function to enter at `pc`: Structured Text's one, or the instruction-list
-    /// piece whose range holds `pc` (its dispatch hands a pc that is no leader to the
-    /// interpreter).
+    /// The generated function to enter at `pc`: the Structured Text body that holds it, or
+    /// the instruction-list piece whose range holds it (its dispatch hands a pc that is no
+    /// leader to the interpreter).
     fn entry_index(&self, pc: u32) -> usize {
         match self {
-            Shape::StructuredText(_) => 0,
+            Shape::StructuredText(a) => a.function_of(pc),
             Shape::InstructionList(a) => a.piece_holding(pc),
+        }
+    }
+
+    /// The number of generated functions.
+    fn functions(&self) -> usize {
+        match self {
+            Shape::StructuredText(a) => a.functions.len(),
+            Shape::InstructionList(a) => a.pieces.len(),
         }
     }
 
@@ -92,7 +103,20 @@ pub(crate) struct Context<'a> {
     pub frame_len: u64,
     /// The instruction list's state (null for Structured Text).
     pub il: *const IlContext<'a>,
+    /// The lowest machine stack address a Structured Text call may start from (the
+    /// interpreter makes a call deeper than that): [`NATIVE_STACK`] below [`Code::run`]'s
+    /// frame, with room for the deepest function's frame.
+    pub stack_floor: u64,
 }
+
+/// Bytes of machine stack the generated code of one [`Code::run`] may use: its calls nest
+/// up to `ST_CALL_DEPTH` deep, each in a frame of its function's size. The real-time threads
+/// prefault 256 KiB of their stack.
+pub(crate) const NATIVE_STACK: u64 = 64 * 1024;
+
+/// Room below the deepest frame for the helpers generated code calls (`helpers`,
+/// [`copy_bytes`]): Rust functions of a few locals each.
+const HELPER_STACK: u64 = 4 * 1024;
 
 /// The instruction list's state besides device memory, as raw parts: on the stack of
 /// [`Code::run`] for an instruction-list program only, so that Structured Text does not pay for
@@ -122,10 +146,27 @@ pub(crate) struct IlContext<'a> {
 pub(crate) const RETURN_END: u32 = 0;
 pub(crate) const RETURN_INTERPRET: u32 = 1;
 pub(crate) const RETURN_ERROR: u32 = 2;
-/// An instruction-list piece ended at a leader of another piece, which is to run next.
+/// The registers' program counter is in another generated function, which is to run next: an
+/// instruction-list piece ended at a leader of another piece, or a Structured Text `RETURN`
+/// returned to a caller that is not native (`codegen`).
 pub(crate) const RETURN_CONTINUE: u32 = 3;
 
-type Entry = unsafe extern "C" fn(*mut Context<'_>) -> u32;
+/// A generated function: the context, then a Structured Text body's registers when a native
+/// caller calls it (`base`, `this`, call depth, stack pointer, budget left, the FB instance's
+/// address), or [`FROM_VM`] and zeros when the VM enters it (the registers are in the context;
+/// the instruction list's pieces take only the context).
+type Entry = unsafe extern "C" fn(*mut Context<'_>, u64, u64, u64, u64, u64, u64) -> u32;
+
+/// The `base` with which the VM enters a generated function: no frame's base (a `u32`).
+pub(crate) const FROM_VM: u64 = u64::MAX;
+
+/// The signature of every generated function ([`Entry`]).
+pub(crate) fn entry_signature(call_conv: CallConv) -> Signature {
+    let mut signature = Signature::new(call_conv);
+    signature.params.extend([AbiParam::new(types::I64); 7]);
+    signature.returns.push(AbiParam::new(types::I32));
+    signature
+}
 
 /// Copies `n` bytes from `from` to `to`, the ranges possibly overlapping: the long copies of
 /// arrays and structs, which generated code calls.
@@ -155,6 +196,11 @@ pub(crate) struct Code {
     shape: Shape,
     /// Bytes of variable memory the code reaches unchecked (`codegen::generate`).
     vars_need: u64,
+    /// Bytes of machine stack the code may use ([`NATIVE_STACK`]).
+    stack: u64,
+    /// Bytes of that stack kept free under the last call generated code may make: its
+    /// deepest function's frame, and the helpers' ([`Context::stack_floor`]).
+    stack_reserve: u64,
     name: String,
 }
 
@@ -165,8 +211,31 @@ unsafe impl Send for Code {}
 // SAFETY: as for `Send`: shared references only call the immutable code.
 unsafe impl Sync for Code {}
 
+/// One generated function, compiled, ready to be placed in executable memory.
+struct Compiled {
+    bytes: Vec<u8>,
+    alignment: u64,
+    relocs: Vec<ModuleReloc>,
+    /// Bytes of machine stack a call of it takes: its frame, the return address and the saved
+    /// frame pointer.
+    stack: u64,
+    /// Bytes of variable memory it reaches unchecked (`codegen::generate`; 0 for the
+    /// instruction list, whose analysis has it).
+    vars_need: u64,
+}
+
+/// Threads that compile one program's functions at most: Cranelift's work on one function is
+/// its own, so the functions of a large program compile side by side.
+const COMPILE_THREADS: usize = 4;
+
+/// Stack of a thread that compiles: Cranelift recurses deeper than the daemon's own threads'
+/// stacks allow (they are sized to their need, and locked in memory).
+pub(crate) const COMPILE_STACK: usize = 8 << 20;
+
 impl Code {
-    pub fn compile(program: &Program, shape: Shape) -> Result<Code, Error> {
+    /// Compiles `program`, whose analysis is `shape`; its calls may use `stack` bytes of
+    /// machine stack ([`NATIVE_STACK`]).
+    pub fn compile(program: &Program, shape: Shape, stack: u64) -> Result<Code, Error> {
         let name = program.name.clone();
         let codegen_error = |message: String| Error::Codegen { program: name.clone(), message };
         let mut flags = settings::builder();
@@ -185,33 +254,43 @@ impl Code {
             .map_err(|e| Error::Host(e.to_string()))?
             .finish(settings::Flags::new(flags))
             .map_err(|e| Error::Host(e.to_string()))?;
-        let mut module = JITModule::new(JITBuilder::with_isa(isa, default_libcall_names()));
-        let mut ctx = module.make_context();
-        let pieces = match &shape {
-            Shape::StructuredText(_) => 1,
-            Shape::InstructionList(analysis) => analysis.pieces.len(),
+        let mut module = JITModule::new(JITBuilder::with_isa(isa.clone(), default_libcall_names()));
+        let signature = entry_signature(isa.default_call_conv());
+        let count = shape.functions();
+        let ids = (0..count)
+            .map(|function| {
+                module
+                    .declare_function(
+                        &format!("plcd_program_{function}"),
+                        Linkage::Local,
+                        &signature,
+                    )
+                    .map_err(|e| codegen_error(e.to_string()))
+            })
+            .collect::<Result<Vec<FuncId>, Error>>()?;
+        let names: Vec<u32> = ids.iter().map(|id| id.as_u32()).collect();
+        let checks = match &shape {
+            Shape::StructuredText(analysis) => analysis.budget_checks(&program.code),
+            Shape::InstructionList(_) => Vec::new(),
         };
-        let mut vars_need = 0;
-        let mut ids = Vec::with_capacity(pieces);
-        for piece in 0..pieces {
-            match &shape {
-                Shape::StructuredText(analysis) => {
-                    vars_need = codegen::generate(program, analysis, module.isa(), &mut ctx.func);
-                }
-                Shape::InstructionList(analysis) => {
-                    il::codegen::generate(program, analysis, piece, module.isa(), &mut ctx.func);
-                }
+        let generate = |function: usize, func: &mut Function| match &shape {
+            Shape::StructuredText(analysis) => {
+                codegen::generate(program, analysis, &checks, function, &names, &*isa, func)
             }
-            let id = module
-                .declare_function(
-                    &format!("plcd_program_{piece}"),
-                    Linkage::Local,
-                    &ctx.func.signature,
-                )
-                .map_err(|e| codegen_error(e.to_string()))?;
-            module.define_function(id, &mut ctx).map_err(|e| codegen_error(format!("{e:?}")))?;
-            module.clear_context(&mut ctx);
-            ids.push(id);
+            Shape::InstructionList(analysis) => {
+                il::codegen::generate(program, analysis, function, &*isa, func);
+                0
+            }
+        };
+        let compiled = compile_functions(&*isa, &ids, generate).map_err(codegen_error)?;
+        let mut vars_need = 0;
+        let mut deepest = 0;
+        for (id, function) in ids.iter().zip(&compiled) {
+            vars_need = vars_need.max(function.vars_need);
+            deepest = deepest.max(function.stack);
+            module
+                .define_function_bytes(*id, function.alignment, &function.bytes, &function.relocs)
+                .map_err(|e| codegen_error(format!("{e:?}")))?;
         }
         module
             .finalize_definitions()
@@ -221,13 +300,86 @@ impl Code {
             .map(|id| {
                 let address = module.get_finalized_function(id);
                 // SAFETY: `address` is the start of a function just finalized, whose signature
-                // the code generators made `(pointer) -> i32` in the platform's C calling
-                // convention; the memory stays mapped while `module` lives, which `Code` owns.
+                // the code generators made `entry_signature`'s, `Entry` in the platform's C
+                // calling convention; the memory stays mapped while `module` lives, which `Code` owns.
                 unsafe { std::mem::transmute::<*const u8, Entry>(address) }
             })
             .collect();
-        Ok(Code { module: Some(module), entries, shape, vars_need, name })
+        let stack_reserve = deepest + HELPER_STACK;
+        Ok(Code { module: Some(module), entries, shape, vars_need, stack, stack_reserve, name })
     }
+}
+
+/// Generates and compiles the functions `ids` (`generate` fills function `i` and returns
+/// what it reaches unchecked), on up to [`COMPILE_THREADS`] threads; the results in the order
+/// of `ids`.
+fn compile_functions(
+    isa: &dyn TargetIsa,
+    ids: &[FuncId],
+    generate: impl Fn(usize, &mut Function) -> u64 + Sync,
+) -> Result<Vec<Compiled>, String> {
+    let compile_one = |function: usize| -> Result<Compiled, String> {
+        let mut func = Function::new();
+        let vars_need = generate(function, &mut func);
+        let mut context = cranelift_codegen::Context::for_function(func);
+        context.compile(isa, &mut ControlPlane::default()).map_err(|e| format!("{:?}", e.inner))?;
+        let code = context.compiled_code().ok_or("Cranelift compiled no code")?;
+        let relocs = code
+            .buffer
+            .relocs()
+            .iter()
+            .map(|reloc| ModuleReloc::from_mach_reloc(reloc, &context.func, ids[function]))
+            .collect();
+        let frame = code.buffer.frame_layout().map_or(0, |f| u64::from(f.frame_to_fp_offset));
+        Ok(Compiled {
+            bytes: code.code_buffer().to_vec(),
+            alignment: u64::from(code.buffer.alignment),
+            relocs,
+            // The frame below the frame pointer, the saved frame pointer, the return address.
+            stack: frame + 16,
+            vars_need,
+        })
+    };
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(COMPILE_THREADS)
+        .min(ids.len());
+    if threads <= 1 {
+        return (0..ids.len()).map(compile_one).collect();
+    }
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results = std::sync::Mutex::new((0..ids.len()).map(|_| None).collect::<Vec<_>>());
+    std::thread::scope(|scope| {
+        let work = || loop {
+            let function = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            if function >= ids.len() {
+                return;
+            }
+            let result = compile_one(function);
+            results.lock().unwrap_or_else(|e| e.into_inner())[function] = Some(result);
+        };
+        let helpers: Vec<_> = (1..threads)
+            .filter_map(|_| {
+                std::thread::Builder::new()
+                    .name("plcd-native".into())
+                    .stack_size(COMPILE_STACK)
+                    .spawn_scoped(scope, work)
+                    .ok()
+            })
+            .collect();
+        // This thread works too; without helpers (none could start) it does all of it.
+        work();
+        for helper in helpers {
+            // A helper that panicked left its function's result empty: reported below.
+            let _ = helper.join();
+        }
+    });
+    results
+        .into_inner()
+        .unwrap_or_else(|e| e.into_inner())
+        .into_iter()
+        .map(|result| result.unwrap_or_else(|| Err("a compiling thread panicked".into())))
+        .collect()
 }
 
 impl NativeCode for Code {
@@ -267,7 +419,11 @@ impl NativeCode for Code {
             words_len: memory.words.len() as u64,
             frame_len: memory.frame.len() as u64,
             il: il.as_ref().map_or(std::ptr::null(), |il| il as *const IlContext<'_>),
+            stack_floor: 0,
         };
+        // The floor is measured from this frame, which the generated code runs below.
+        let here = std::ptr::addr_of!(context) as u64;
+        context.stack_floor = here.saturating_sub(self.stack) + self.stack_reserve;
         let mut entry = self.entries[self.shape.entry_index(regs_pc)];
         let status = loop {
             // SAFETY: every pointer of `context` comes from `regs` or a slice of `memory`,
@@ -279,7 +435,7 @@ impl NativeCode for Code {
             // instruction-list code reaches device words, edge slots, timers and counters only
             // at the fixed operands checked above, and its call stack below `CALL_DEPTH`
             // (il/codegen.rs). It keeps no pointer after it returns.
-            let status = unsafe { entry(&mut context) };
+            let status = unsafe { entry(&mut context, FROM_VM, 0, 0, 0, 0, 0) };
             if status != RETURN_CONTINUE {
                 break status;
             }

@@ -1,15 +1,19 @@
-//! A Structured Text program's ops as one Cranelift function, `fn(*mut Context) -> u32`.
+//! A Structured Text program's ops as Cranelift functions, one per body (the program's, each
+//! FUNCTION's and FUNCTION_BLOCK's), each `fn(*mut Context) -> u32`.
 //!
-//! The shape of the function:
-//! - the entry loads the registers from the [`Context`] and goes to the dispatch;
-//! - the dispatch is a switch on the program counter over the entry points (the leaders of
-//!   [`Analysis`]); each goes through a loader, which reloads the evaluation stack's slots of
-//!   that instruction from memory into SSA variables, to the leader's block; any other program
-//!   counter goes back to the interpreter;
-//! - a block first checks what its instructions need (enough step budget for all of them; the
-//!   frame and the FB instance holding their operands) and hands the whole block to the
-//!   interpreter if anything is missing, then charges the budget and runs the instructions
-//!   with the evaluation stack in SSA variables, and goes on to the next block directly;
+//! The shape of a function:
+//! - the entry loads the registers from the [`Context`], checks that the frame and the FB
+//!   instance hold every operand of the body (else the interpreter goes on), and goes
+//!   straight to the body's first block when entered at its start (a call, a scan), else to
+//!   the dispatch;
+//! - the dispatch is a switch on the program counter over the body's entry points (its
+//!   leaders in [`Analysis`]); each goes through a loader, which reloads the evaluation
+//!   stack's slots of that instruction from memory into SSA variables, to the leader's block;
+//!   any other program counter goes back to the interpreter;
+//! - a block first checks what its instructions need (enough step budget for all of them)
+//!   and hands the whole block to the interpreter if anything is missing, then charges the
+//!   budget and runs the instructions with the evaluation stack in SSA variables, and goes on
+//!   to the next block directly;
 //! - inside a block the code remembers what it knows of each slot ([`SlotInfo`]: a pointer
 //!   into variable memory or the frame that needs no check, a BOOL already 0 or 1, a REAL kept
 //!   in a float register) and of each variable it stored or fetched ([`Held`], forgotten at
@@ -17,17 +21,27 @@
 //! - every way out stores the registers and the live stack slots back, exactly as the
 //!   interpreter leaves them: at `END`, after an operation error, before an instruction it
 //!   hands to the interpreter (a pointer outside variable memory and the frame, a full call
-//!   stack).
+//!   stack, a machine stack used down to the context's floor).
 //!
-//! Calls push a [`StFrame`] as the interpreter does; the caller's stack slots go to memory
-//! first (a callee's slots are numbered from its own start), and a return goes through the
-//! dispatch to the return address's loader, which reloads them.
+//! A call pushes a [`StFrame`] as the interpreter does, stores the caller's stack slots (a
+//! callee's slots are numbered from its own start) and the callee's registers to memory, and
+//! calls the callee's function: a machine call, which the processor's return prediction
+//! follows. The callee's `RETURN` pops the frame, stores the caller's registers and returns
+//! `RETURN_CONTINUE`; the caller goes on after its call with its own registers and slots,
+//! still in its variables. Any other result (the budget spent, `END` cannot be, an error, an
+//! instruction for the interpreter) is passed up unchanged: the registers in the context are
+//! where the callee stopped, with the frames of every caller pushed, as the interpreter would
+//! have them. Entered by the VM inside a body whose caller is not native (the interpreter
+//! made the call, or a callee stopped), a `RETURN` gives the VM `RETURN_CONTINUE`, which
+//! enters the caller's function at the return address, through its dispatch.
 
 use std::mem::offset_of;
 
+use cranelift_codegen::cursor::{Cursor, FuncCursor};
 use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
 use cranelift_codegen::ir::{
-    types, AbiParam, Block, Function, InstBuilder, MemFlagsData, SigRef, Signature, Type, Value,
+    types, AbiParam, Block, BlockArg, ExtFuncData, ExternalName, FuncRef, Function, InstBuilder,
+    MemFlagsData, SigRef, Signature, Type, UserExternalName, Value,
 };
 use cranelift_codegen::isa::TargetIsa;
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Switch, Variable};
@@ -38,7 +52,7 @@ use plcd_core::value::{BinOp, Elem, Pointer, Space, UnOp};
 use plcd_core::vm::{ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE};
 
 use crate::analysis::{is_native, Analysis};
-use crate::code::{self, Context, RETURN_END, RETURN_ERROR, RETURN_INTERPRET};
+use crate::code::{self, Context, RETURN_CONTINUE, RETURN_END, RETURN_ERROR, RETURN_INTERPRET};
 use crate::helpers;
 
 const I64: Type = types::I64;
@@ -63,7 +77,9 @@ pub(crate) fn own() -> MemFlagsData {
     MemFlagsData::trusted()
 }
 
-/// Fills `func` with the code of `program`.
+/// Fills `func` with the code of function `function` of `program`: the body that starts at
+/// `analysis.functions[function]`. `checks` is [`Analysis::budget_checks`]; `names` gives each
+/// function's name in the module (the index of its `FuncId`), for the calls between them.
 ///
 /// Returns the bytes of variable memory the code reaches without checking at each access (the
 /// fixed operands, and the elements of arrays at fixed places): the code may run only on at
@@ -71,13 +87,15 @@ pub(crate) fn own() -> MemFlagsData {
 pub(crate) fn generate(
     program: &Program,
     analysis: &Analysis,
+    checks: &[(bool, u64)],
+    function: usize,
+    names: &[u32],
     isa: &dyn TargetIsa,
     func: &mut Function,
 ) -> u64 {
     let call_conv = isa.default_call_conv();
-    func.signature = Signature::new(call_conv);
-    func.signature.params.push(AbiParam::new(I64));
-    func.signature.returns.push(AbiParam::new(types::I32));
+    func.signature = code::entry_signature(call_conv);
+    let own_signature = func.signature.clone();
     let mut fctx = FunctionBuilderContext::new();
     let mut b = FunctionBuilder::new(func, &mut fctx);
     let helper = |n: usize| {
@@ -91,60 +109,54 @@ pub(crate) fn generate(
     let mut copy = Signature::new(call_conv);
     copy.params.extend(std::iter::repeat_n(AbiParam::new(I64), 3));
     let copy_sig = b.import_signature(copy);
+    let body_sig = b.import_signature(own_signature);
     let entry = b.create_block();
     b.append_block_params_for_function_params(entry);
     b.switch_to_block(entry);
-    let ctx = b.block_params(entry)[0];
-    let field =
-        |b: &mut FunctionBuilder, offset: usize| b.ins().load(I64, own(), ctx, offset as i32);
-    let vars = field(&mut b, offset_of!(Context, vars));
-    let vars_len = field(&mut b, offset_of!(Context, vars_len));
-    let words = field(&mut b, offset_of!(Context, words));
-    let frame = field(&mut b, offset_of!(Context, frame));
-    let frame_len = field(&mut b, offset_of!(Context, frame_len));
-    let eval = field(&mut b, offset_of!(Context, eval));
-    let calls = field(&mut b, offset_of!(Context, calls));
-    let regs_at = field(&mut b, offset_of!(Context, regs));
-    let mut var = || b.declare_var(I64);
-    let regs = Regs {
-        pc: var(),
-        sp: var(),
-        left: var(),
-        base: var(),
-        this: var(),
-        depth: var(),
-        sb: var(),
-        frame_at: var(),
-        this_at: var(),
-    };
+    let params = b.block_params(entry).to_vec();
+    let ctx = params[0];
+    let regs = Regs { left: b.declare_var(I64), sb: b.declare_var(I64) };
     let stack: Vec<Variable> = (0..=analysis.max_depth).map(|_| b.declare_var(I64)).collect();
+    // The activation's registers, fixed while it runs (set by `Gen::entry`).
+    let unset = b.ins().iconst(I64, 0);
+    let leaders: Vec<usize> = analysis.leaders_of(function).collect();
     let mut g = Gen {
         b,
         program,
         analysis,
-        regs_at,
-        vars,
-        vars_len,
-        words,
-        frame,
-        frame_len,
-        eval,
-        calls,
+        context: ctx,
+        entry,
+        fields: Vec::new(),
         regs,
+        activation: Activation {
+            pc: unset,
+            sp: unset,
+            depth: unset,
+            base: unset,
+            this: unset,
+            frame_at: unset,
+            this_at: unset,
+            called: unset,
+        },
         stack,
         binary_sig,
         unary_sig,
         copy_sig,
-        blocks: vec![None; program.code.len()],
-        loaders: vec![None; program.code.len()],
+        body_sig,
+        body: analysis.functions[function],
+        names,
+        callees: Vec::new(),
+        blocks: Vec::with_capacity(leaders.len()),
+        loaders: Vec::with_capacity(leaders.len()),
+        leaders,
         dispatch: None,
         info: vec![SlotInfo::default(); analysis.max_depth as usize + 1],
         held: Vec::new(),
         in_range: Vec::new(),
         vars_need: analysis.vars_end,
-        checks: analysis.budget_checks(&program.code),
+        checks,
     };
-    g.entry();
+    g.entry(&params);
     g.body();
     let vars_need = g.vars_need;
     g.b.seal_all_blocks();
@@ -152,44 +164,70 @@ pub(crate) fn generate(
     vars_need
 }
 
-/// The registers of the activation, as SSA variables. `base` and `pc` hold a `u32`; `sb` is
-/// the absolute index (not yet masked) of the current activation's first stack slot.
+/// The registers that change inside an activation, as SSA variables: the budget left, and
+/// `sb`, the absolute index (not yet masked) of the activation's first stack slot.
 struct Regs {
-    pc: Variable,
-    sp: Variable,
     left: Variable,
-    base: Variable,
-    this: Variable,
-    depth: Variable,
     sb: Variable,
-    /// The addresses of the frame's base and of the FB instance: set, and checked against what
-    /// the body's operands need, wherever `base` and `this` change.
-    frame_at: Variable,
-    this_at: Variable,
+}
+
+/// The registers as the function was entered with them, which do not change while its
+/// activation runs (a call returns with them as they were): the program counter and stack
+/// pointer it was entered at, the call depth, the frame's `base` (a `u32`), the FB instance
+/// `this`, and the addresses of the frame's base and of the FB instance, checked against what
+/// the body's operands need on the way in; `called`: 1 if a native caller called it (its
+/// `RETURN` goes back to it), 0 if the VM entered it.
+struct Activation {
+    pc: Value,
+    sp: Value,
+    depth: Value,
+    base: Value,
+    this: Value,
+    frame_at: Value,
+    this_at: Value,
+    called: Value,
+}
+
+/// The registers as the context holds them between two activations' code (`NativeRegs`).
+struct Registers {
+    pc: Value,
+    sp: Value,
+    left: Value,
+    base: Value,
+    this: Value,
+    depth: Value,
 }
 
 struct Gen<'a, 'f> {
     b: FunctionBuilder<'f>,
     program: &'a Program,
     analysis: &'a Analysis,
-    /// The [`NativeRegs`] of the call.
-    regs_at: Value,
-    vars: Value,
-    vars_len: Value,
-    words: Value,
-    frame: Value,
-    frame_len: Value,
-    eval: Value,
-    calls: Value,
+    /// The [`Context`], the function's first parameter (passed on to the bodies it calls).
+    context: Value,
+    /// The function's first block, where the context's fields are loaded.
+    entry: Block,
+    /// The context's fields loaded so far, by offset ([`Gen::field`]).
+    fields: Vec<(usize, Value)>,
     regs: Regs,
+    activation: Activation,
     /// The evaluation stack's slots of the current activation, by depth.
     stack: Vec<Variable>,
     binary_sig: SigRef,
     unary_sig: SigRef,
     copy_sig: SigRef,
-    /// The block of each leader, and its loader (the way in from the dispatch).
-    blocks: Vec<Option<Block>>,
-    loaders: Vec<Option<Block>>,
+    /// The signature of every body's function (this one's).
+    body_sig: SigRef,
+    /// The body this function runs (its first instruction).
+    body: u32,
+    /// [`generate`]'s `names`.
+    names: &'a [u32],
+    /// The functions of the bodies this one calls, by their first instruction.
+    callees: Vec<(u32, FuncRef)>,
+    /// The body's leaders (their indices in [`Analysis::leaders`]), and the block and the
+    /// loader (the way in from the dispatch) of each.
+    leaders: Vec<usize>,
+    blocks: Vec<Block>,
+    loaders: Vec<Block>,
     dispatch: Option<Block>,
     /// In the block being generated: what is known of each stack slot.
     info: Vec<SlotInfo>,
@@ -202,7 +240,7 @@ struct Gen<'a, 'f> {
     /// See [`generate`]'s result.
     vars_need: u64,
     /// [`Analysis::budget_checks`].
-    checks: Vec<(bool, u64)>,
+    checks: &'a [(bool, u64)],
 }
 
 /// What the code knows of a stack slot's value in the block being generated.
@@ -248,8 +286,36 @@ struct At {
 }
 
 impl Gen<'_, '_> {
-    fn entry(&mut self) {
-        let ctx = self.regs_at;
+    /// The way in. From the VM (`base` is [`code::FROM_VM`]) the registers are in the
+    /// context, and the frame and the FB instance are checked here, once for all the body's
+    /// blocks (refused, the interpreter goes on with the registers as they are); from a native
+    /// caller, they are the parameters, checked by the caller.
+    fn entry(&mut self, params: &[Value]) {
+        let &[_, base, this, depth, sp, left, this_at] = params else {
+            unreachable!("code::entry_signature has 7 parameters")
+        };
+        // The program's body is never called: it has the VM's way in only.
+        let called_ever = !self.analysis.bodies[&self.body].return_sites.is_empty();
+        let join = self.b.create_block();
+        let from_vm = self.b.create_block();
+        if called_ever {
+            for _ in 0..8 {
+                self.b.append_block_param(join, I64);
+            }
+            let from_caller = self.b.create_block();
+            let vm = self.b.ins().icmp_imm_s(IntCC::Equal, base, code::FROM_VM as i64);
+            self.b.ins().brif(vm, from_vm, &[], from_caller, &[]);
+            self.b.switch_to_block(from_caller);
+            let start = self.b.ins().iconst(I64, i64::from(self.body));
+            let called = self.b.ins().iconst(I64, 1);
+            let args = [start, sp, depth, base, this, left, this_at, called].map(BlockArg::from);
+            self.b.ins().jump(join, &args);
+        } else {
+            self.b.ins().jump(from_vm, &[]);
+        }
+
+        self.b.switch_to_block(from_vm);
+        let ctx = self.field(offset_of!(Context, regs));
         let load32 = |b: &mut FunctionBuilder, offset: usize| {
             let v = b.ins().load(types::I32, own(), ctx, reg(offset));
             b.ins().uextend(I64, v)
@@ -260,30 +326,50 @@ impl Gen<'_, '_> {
         let this = self.b.ins().load(I64, own(), ctx, reg(offset_of!(NativeRegs, this)));
         let left = self.b.ins().load(I64, own(), ctx, reg(offset_of!(NativeRegs, left)));
         let sp = self.b.ins().load(I64, own(), ctx, reg(offset_of!(NativeRegs, sp)));
-        let zero = self.b.ins().iconst(I64, 0);
-        self.define(&[
-            (self.regs.pc, pc),
-            (self.regs.depth, depth),
-            (self.regs.base, base),
-            (self.regs.this, this),
-            (self.regs.left, left),
-            (self.regs.sp, sp),
-            (self.regs.sb, zero),
-            (self.regs.frame_at, zero),
-            (self.regs.this_at, zero),
-        ]);
-        for &leader in &self.analysis.leaders {
-            self.blocks[leader as usize] = Some(self.b.create_block());
+        let (ok, this_at) = self.body_pointers(self.body, base, this, false);
+        let called = self.b.ins().iconst(I64, 0);
+        let refuse = self.b.create_block();
+        self.b.set_cold_block(refuse);
+        let (pc, sp, depth, base, this, left, this_at, called) = if called_ever {
+            let args = [pc, sp, depth, base, this, left, this_at, called].map(BlockArg::from);
+            self.b.ins().brif(ok, join, &args, refuse, &[]);
+            let &[pc, sp, depth, base, this, left, this_at, called] = self.b.block_params(join)
+            else {
+                unreachable!("8 parameters")
+            };
+            (pc, sp, depth, base, this, left, this_at, called)
+        } else {
+            self.b.ins().brif(ok, join, &[], refuse, &[]);
+            (pc, sp, depth, base, this, left, this_at, called)
+        };
+        self.b.switch_to_block(refuse);
+        self.ret(RETURN_INTERPRET);
+
+        self.b.switch_to_block(join);
+        // The frame's address, if the body reaches into its frame.
+        let frame_at = if self.analysis.bodies[&self.body].uses_frame {
+            let frame = self.field(offset_of!(Context, frame));
+            self.b.ins().iadd(frame, base)
+        } else {
+            self.b.ins().iconst(I64, 0)
+        };
+        self.activation = Activation { pc, sp, depth, base, this, frame_at, this_at, called };
+        self.b.def_var(self.regs.left, left);
+        for _ in 0..self.leaders.len() {
+            let block = self.b.create_block();
+            self.blocks.push(block);
         }
-        for &leader in &self.analysis.leaders {
-            self.loaders[leader as usize] = Some(self.b.create_block());
+        for _ in 0..self.leaders.len() {
+            let loader = self.b.create_block();
+            self.loaders.push(loader);
         }
         let dispatch = self.b.create_block();
         self.dispatch = Some(dispatch);
-        // A scan starts at 0: straight in, without the dispatch's search.
-        match self.loaders.first().copied().flatten() {
+        // A call, and a scan, start at the body's first instruction: straight in, without
+        // the dispatch's search.
+        match self.loader_of(self.body) {
             Some(start) => {
-                let at_start = self.b.ins().icmp_imm_s(IntCC::Equal, pc, 0);
+                let at_start = self.b.ins().icmp_imm_s(IntCC::Equal, pc, i64::from(self.body));
                 self.b.ins().brif(at_start, start, &[], dispatch, &[]);
             }
             None => {
@@ -292,74 +378,82 @@ impl Gen<'_, '_> {
         }
     }
 
+    /// The context's field at `offset`, loaded in the function's first block when first
+    /// needed: a function loads only what its code uses.
+    fn field(&mut self, offset: usize) -> Value {
+        if let Some(&(_, value)) = self.fields.iter().find(|(at, _)| *at == offset) {
+            return value;
+        }
+        let last = self.b.func.layout.last_inst(self.entry).expect("the entry's branch");
+        let mut cursor = FuncCursor::new(self.b.func).at_inst(last);
+        // The pointers the body works on are loaded here, before its first block; the others
+        // (the registers, the stacks, the lengths for checks) may move to where they are used,
+        // mostly the cold ways out.
+        let hot =
+            [offset_of!(Context, vars), offset_of!(Context, words), offset_of!(Context, frame)];
+        let flags =
+            if hot.contains(&offset) { own() } else { own().with_readonly().with_can_move() };
+        let value = cursor.ins().load(I64, flags, self.context, offset as i32);
+        self.fields.push((offset, value));
+        value
+    }
+
+    /// The index of leader `pc` among the body's leaders.
+    fn leader_index(&self, pc: u32) -> Option<usize> {
+        self.leaders.binary_search_by_key(&pc, |&index| self.analysis.leaders[index]).ok()
+    }
+
+    fn loader_of(&self, pc: u32) -> Option<Block> {
+        self.leader_index(pc).map(|index| self.loaders[index])
+    }
+
     fn body(&mut self) {
-        // The dispatch: a loader for each leader, the interpreter for any other pc.
+        // The dispatch: a loader for each leader, the interpreter for any other pc (with the
+        // registers as they are).
         let dispatch = self.dispatch.expect("created by entry");
         self.b.switch_to_block(dispatch);
         let mut switch = Switch::new();
-        let mut loaders = Vec::new();
-        for &leader in &self.analysis.leaders {
-            let loader = self.loaders[leader as usize].expect("created by entry");
-            switch.set_entry(u128::from(leader), loader);
-            loaders.push((leader, loader));
+        for (index, &leader) in self.leaders.iter().enumerate() {
+            switch.set_entry(u128::from(self.analysis.leaders[leader]), self.loaders[index]);
         }
         let elsewhere = self.b.create_block();
-        let pc = self.b.use_var(self.regs.pc);
-        switch.emit(&mut self.b, pc, elsewhere);
-
+        switch.emit(&mut self.b, self.activation.pc, elsewhere);
         self.b.switch_to_block(elsewhere);
         self.b.set_cold_block(elsewhere);
-        let sp = self.b.use_var(self.regs.sp);
-        let pc = self.b.use_var(self.regs.pc);
-        let left = self.b.use_var(self.regs.left);
-        self.store_regs(pc, sp, left);
         self.ret(RETURN_INTERPRET);
 
-        for (leader, loader) in loaders {
-            self.b.switch_to_block(loader);
-            // The body's frame and FB instance: checked here, once for all its blocks.
-            let base = self.b.use_var(self.regs.base);
-            let this = self.b.use_var(self.regs.this);
-            let body = self.analysis.owner[leader as usize].unwrap_or(0);
-            let (ok, frame_at, this_at) = self.body_pointers(body, base, this, false);
-            // The budget of a block that does not check it itself.
-            let index = self.analysis.leaders.binary_search(&leader).unwrap_or(0);
-            let (checks, need) = self.checks[index];
-            let ok = if checks {
-                ok
-            } else {
+        for index in 0..self.leaders.len() {
+            let leader_index = self.leaders[index];
+            let leader = self.analysis.leaders[leader_index];
+            self.b.switch_to_block(self.loaders[index]);
+            // The budget of a block that does not check it itself; short, the interpreter
+            // goes on with the registers as they are.
+            let (checks, need) = self.checks[leader_index];
+            if !checks {
                 let left = self.b.use_var(self.regs.left);
                 let enough =
                     self.b.ins().icmp_imm_s(IntCC::UnsignedGreaterThanOrEqual, left, need as i64);
-                self.b.ins().band(ok, enough)
-            };
-            let load = self.b.create_block();
-            let refuse = self.b.create_block();
-            self.b.set_cold_block(refuse);
-            self.b.ins().brif(ok, load, &[], refuse, &[]);
-            self.b.switch_to_block(refuse);
-            let sp = self.b.use_var(self.regs.sp);
-            let left = self.b.use_var(self.regs.left);
-            let pc = self.b.ins().iconst(I64, i64::from(leader));
-            self.store_regs(pc, sp, left);
-            self.ret(RETURN_INTERPRET);
-            self.b.switch_to_block(load);
-            self.b.def_var(self.regs.frame_at, frame_at);
-            self.b.def_var(self.regs.this_at, this_at);
+                let load = self.b.create_block();
+                let refuse = self.b.create_block();
+                self.b.set_cold_block(refuse);
+                self.b.ins().brif(enough, load, &[], refuse, &[]);
+                self.b.switch_to_block(refuse);
+                self.ret(RETURN_INTERPRET);
+                self.b.switch_to_block(load);
+            }
             let depth = self.depth(leader);
-            let sp = self.b.use_var(self.regs.sp);
-            let sb = self.b.ins().iadd_imm_s(sp, -i64::from(depth));
+            let sb = self.b.ins().iadd_imm_s(self.activation.sp, -i64::from(depth));
             self.b.def_var(self.regs.sb, sb);
             for slot in 0..depth {
                 let address = self.slot_address(sb, slot);
                 let value = self.b.ins().load(I64, own(), address, 0);
                 self.b.def_var(self.stack[slot as usize], value);
             }
-            let block = self.block_of(leader);
+            let block = self.blocks[index];
             self.b.ins().jump(block, &[]);
         }
 
-        for index in 0..self.analysis.leaders.len() {
+        for index in 0..self.leaders.len() {
             self.block(index);
         }
     }
@@ -373,18 +467,19 @@ impl Gen<'_, '_> {
         base: Value,
         this: Value,
         this_in_vars: bool,
-    ) -> (Value, Value, Value) {
+    ) -> (Value, Value) {
         let needs = &self.analysis.bodies[&body];
         let (frame_end, this_end) = (needs.frame_end, needs.this_end);
         let mut ok = self.b.ins().iconst(types::I8, 1);
-        let frame_at = self.b.ins().iadd(self.frame, base);
         if frame_end > 0 {
             let end = self.b.ins().iadd_imm_s(base, frame_end as i64);
-            let inside = self.b.ins().icmp(IntCC::UnsignedLessThanOrEqual, end, self.frame_len);
+            let frame_len = self.field(offset_of!(Context, frame_len));
+            let inside = self.b.ins().icmp(IntCC::UnsignedLessThanOrEqual, end, frame_len);
             ok = self.b.ins().band(ok, inside);
         }
         let this_at = if this_end > 0 && this_in_vars {
-            self.b.ins().iadd(self.vars, this)
+            let vars = self.field(offset_of!(Context, vars));
+            self.b.ins().iadd(vars, this)
         } else if this_end > 0 {
             let (address, inside) = self.reach(this, this_end);
             ok = self.b.ins().band(ok, inside);
@@ -392,21 +487,17 @@ impl Gen<'_, '_> {
         } else {
             self.b.ins().iconst(I64, 0)
         };
-        (ok, frame_at, this_at)
+        (ok, this_at)
     }
 
     fn depth(&self, pc: u32) -> u32 {
         self.analysis.depth.get(pc as usize).copied().flatten().unwrap_or(0)
     }
 
-    fn block_of(&self, pc: u32) -> Block {
-        self.blocks[pc as usize].expect("a leader")
-    }
-
     /// The block `pc` starts, or an exit to the interpreter at `pc` (the end of the code).
     fn target(&mut self, pc: u32, depth: u32) -> Block {
-        if let Some(Some(block)) = self.blocks.get(pc as usize) {
-            return *block;
+        if let Some(index) = self.leader_index(pc) {
+            return self.blocks[index];
         }
         let current = self.b.current_block();
         let exit = self.b.create_block();
@@ -420,37 +511,35 @@ impl Gen<'_, '_> {
         exit
     }
 
-    /// Defines each register variable with its value.
-    fn define(&mut self, registers: &[(Variable, Value)]) {
-        for &(var, value) in registers {
-            self.b.def_var(var, value);
-        }
-    }
-
     fn slot_address(&mut self, sb: Value, slot: u32) -> Value {
         let index = self.b.ins().iadd_imm_s(sb, i64::from(slot));
         let index = self.b.ins().band_imm_s(index, MASK);
         let offset = self.b.ins().ishl_imm_s(index, 3);
-        self.b.ins().iadd(self.eval, offset)
+        let eval = self.field(offset_of!(Context, eval));
+        self.b.ins().iadd(eval, offset)
     }
 
+    /// The registers to the context: `pc`, `sp` (masked here), `left`, and the activation's
+    /// own.
     fn store_regs(&mut self, pc: Value, sp: Value, left: Value) {
-        let ctx = self.regs_at;
-        let sp = self.b.ins().band_imm_s(sp, MASK);
-        let base = self.b.use_var(self.regs.base);
-        let this = self.b.use_var(self.regs.this);
-        let depth = self.b.use_var(self.regs.depth);
+        let Activation { base, this, depth, .. } = self.activation;
+        self.store_registers(Registers { pc, sp, left, base, this, depth });
+    }
+
+    fn store_registers(&mut self, r: Registers) {
+        let ctx = self.field(offset_of!(Context, regs));
+        let sp = self.b.ins().band_imm_s(r.sp, MASK);
         for (value, offset) in [
-            (pc, offset_of!(NativeRegs, pc)),
-            (base, offset_of!(NativeRegs, base)),
-            (depth, offset_of!(NativeRegs, st_depth)),
+            (r.pc, offset_of!(NativeRegs, pc)),
+            (r.base, offset_of!(NativeRegs, base)),
+            (r.depth, offset_of!(NativeRegs, st_depth)),
         ] {
             let value = self.b.ins().ireduce(types::I32, value);
             self.b.ins().store(own(), value, ctx, reg(offset));
         }
         for (value, offset) in [
-            (this, offset_of!(NativeRegs, this)),
-            (left, offset_of!(NativeRegs, left)),
+            (r.this, offset_of!(NativeRegs, this)),
+            (r.left, offset_of!(NativeRegs, left)),
             (sp, offset_of!(NativeRegs, sp)),
         ] {
             self.b.ins().store(own(), value, ctx, reg(offset));
@@ -502,19 +591,22 @@ impl Gen<'_, '_> {
         let result = self.b.ins().iconst(I64, result);
         self.b.def_var(self.stack[depth as usize - 1], result);
         let code = self.b.ins().iconst(types::I32, i64::from(code));
-        self.b.ins().store(own(), code, self.regs_at, reg(offset_of!(NativeRegs, error)));
+        let regs = self.field(offset_of!(Context, regs));
+        self.b.ins().store(own(), code, regs, reg(offset_of!(NativeRegs, error)));
         let left = self.b.use_var(self.regs.left);
         let left = self.b.ins().iadd_imm_s(left, i64::from(at.len - at.index - 1));
         self.exit(at.pc + 1, depth, left, RETURN_ERROR);
         self.b.switch_to_block(next);
     }
 
-    fn block(&mut self, index: usize) {
+    /// The block of the body's leader `body_index`.
+    fn block(&mut self, body_index: usize) {
+        let index = self.leaders[body_index];
         let code = &self.program.code;
         let range = self.analysis.block(code, index);
         let start = range.start as u32;
         let len = range.len() as u32;
-        self.b.switch_to_block(self.block_of(start));
+        self.b.switch_to_block(self.blocks[body_index]);
         let mut depth = self.depth(start);
         if !is_native(&code[range.start]) {
             let left = self.b.use_var(self.regs.left);
@@ -553,8 +645,12 @@ impl Gen<'_, '_> {
         let offset = self.b.ins().band_imm_s(pointer, LOW32);
         let is_var = self.b.ins().icmp_imm_s(IntCC::Equal, space, Space::Var as i64);
         let is_frame = self.b.ins().icmp_imm_s(IntCC::Equal, space, Space::Frame as i64);
-        let limit = self.b.ins().select(is_var, self.vars_len, self.frame_len);
-        let start = self.b.ins().select(is_var, self.vars, self.frame);
+        let vars_len = self.field(offset_of!(Context, vars_len));
+        let frame_len = self.field(offset_of!(Context, frame_len));
+        let limit = self.b.ins().select(is_var, vars_len, frame_len);
+        let vars = self.field(offset_of!(Context, vars));
+        let frame = self.field(offset_of!(Context, frame));
+        let start = self.b.ins().select(is_var, vars, frame);
         let end = self.b.ins().iadd_imm_s(offset, bytes as i64);
         let inside = self.b.ins().icmp(IntCC::UnsignedLessThanOrEqual, end, limit);
         let byte_space = self.b.ins().bor(is_var, is_frame);
@@ -581,7 +677,8 @@ impl Gen<'_, '_> {
         let most = self.info[index as usize].known?;
         self.vars_need = self.vars_need.max(most + u64::from(bytes));
         let pointer = self.slot(index);
-        Some(self.b.ins().iadd(self.vars, pointer))
+        let vars = self.field(offset_of!(Context, vars));
+        Some(self.b.ins().iadd(vars, pointer))
     }
 
     fn slot(&mut self, depth: u32) -> Value {
@@ -834,34 +931,31 @@ impl Gen<'_, '_> {
                 return false;
             }
             Op::Return => {
-                let calls = self.b.use_var(self.regs.depth);
+                // To a native caller: it goes on after its call with its own registers; only
+                // the budget changed.
+                let to_vm = self.b.create_block();
+                let to_caller = self.b.create_block();
+                self.b.ins().brif(self.activation.called, to_caller, &[], to_vm, &[]);
+                self.b.switch_to_block(to_caller);
+                let left = self.b.use_var(self.regs.left);
+                let regs = self.field(offset_of!(Context, regs));
+                self.b.ins().store(own(), left, regs, reg(offset_of!(NativeRegs, left)));
+                self.ret(RETURN_CONTINUE);
+                // To the VM: the caller's frame popped, its registers to the context; its
+                // function goes on at the return address, through the dispatch.
+                self.b.switch_to_block(to_vm);
+                let calls = self.activation.depth;
                 let empty = self.b.ins().icmp_imm_s(IntCC::Equal, calls, 0);
                 self.bail_if(empty, at, d);
-                let calls = self.b.ins().iadd_imm_s(calls, -1);
-                let frame = self.call_frame(calls);
-                let return_pc =
-                    self.b.ins().uload32(own(), frame, offset_of!(StFrame, return_pc) as i32);
+                let depth = self.b.ins().iadd_imm_s(calls, -1);
+                let frame = self.call_frame(depth);
+                let pc = self.b.ins().uload32(own(), frame, offset_of!(StFrame, return_pc) as i32);
                 let base = self.b.ins().uload32(own(), frame, offset_of!(StFrame, base) as i32);
                 let this = self.b.ins().load(I64, own(), frame, offset_of!(StFrame, this) as i32);
-                let sb = self.b.use_var(self.regs.sb);
-                self.define(&[
-                    (self.regs.depth, calls),
-                    (self.regs.base, base),
-                    (self.regs.this, this),
-                    (self.regs.pc, return_pc),
-                    (self.regs.sp, sb),
-                ]);
-                // Straight to the loader of a return site of this body, the others through the
-                // dispatch.
-                let dispatch = self.dispatch.expect("created by entry");
-                let body = self.analysis.owner[at.pc as usize].unwrap_or(0);
-                let mut switch = Switch::new();
-                for &site in &self.analysis.bodies[&body].return_sites {
-                    if let Some(Some(loader)) = self.loaders.get(site as usize) {
-                        switch.set_entry(u128::from(site), *loader);
-                    }
-                }
-                switch.emit(&mut self.b, return_pc, dispatch);
+                let sp = self.b.use_var(self.regs.sb);
+                let left = self.b.use_var(self.regs.left);
+                self.store_registers(Registers { pc, sp, left, base, this, depth });
+                self.ret(RETURN_CONTINUE);
                 return false;
             }
             Op::End => {
@@ -878,25 +972,35 @@ impl Gen<'_, '_> {
     /// The address of call frame `index`.
     fn call_frame(&mut self, index: Value) -> Value {
         let offset = self.b.ins().imul_imm_s(index, std::mem::size_of::<StFrame>() as i64);
-        self.b.ins().iadd(self.calls, offset)
+        let calls = self.field(offset_of!(Context, calls));
+        self.b.ins().iadd(calls, offset)
     }
 
+    /// A call of the body at `target`: its frame pushed as the interpreter pushes it and the
+    /// caller's stack slots stored (where the interpreter finds them if the callee stops),
+    /// then a call of the callee's function with its registers as parameters. When the callee
+    /// returned (`RETURN_CONTINUE`), the caller goes on at the return address with its
+    /// activation as it was (only the budget changed, in the context); any other result is
+    /// passed on, with every register in the context where the callee stopped.
     fn call(&mut self, at: At, d: u32, target: u32, frame: u32, fb: bool) {
-        let calls = self.b.use_var(self.regs.depth);
+        let calls = self.activation.depth;
         let full =
             self.b.ins().icmp_imm_s(IntCC::UnsignedGreaterThanOrEqual, calls, ST_CALL_DEPTH as i64);
         self.bail_if(full, at, d);
-        let (this, after) =
-            if fb { (self.slot(d - 1), d - 1) } else { (self.b.use_var(self.regs.this), d) };
-        let base = self.b.use_var(self.regs.base);
+        // The machine stack: below the context's floor, the interpreter makes the call.
+        let stack = self.b.ins().get_stack_pointer(I64);
+        let floor = self.field(offset_of!(Context, stack_floor));
+        let low = self.b.ins().icmp(IntCC::UnsignedLessThan, stack, floor);
+        self.bail_if(low, at, d);
+        let Activation { base, this: old_this, .. } = self.activation;
+        let (this, after) = if fb { (self.slot(d - 1), d - 1) } else { (old_this, d) };
         let callee_base = self.b.ins().iadd_imm_s(base, i64::from(frame));
         let callee_base = self.b.ins().band_imm_s(callee_base, LOW32);
         // An FB instance in an array at a fixed place (or a fixed one) needs no check at run
         // time: the code's need of variable memory covers it.
         let known = if fb { self.info[d as usize - 1].known } else { None };
         let this_end = self.analysis.bodies[&target].this_end;
-        let (ok, frame_at, this_at) =
-            self.body_pointers(target, callee_base, this, known.is_some());
+        let (ok, this_at) = self.body_pointers(target, callee_base, this, known.is_some());
         if let Some(most) = known.filter(|_| this_end > 0) {
             self.vars_need = self.vars_need.max(most + this_end);
         }
@@ -904,31 +1008,58 @@ impl Gen<'_, '_> {
         self.bail_if(refused, at, d);
         let record = self.call_frame(calls);
         let return_pc = self.b.ins().iconst(types::I32, i64::from(at.pc + 1));
-        let base = self.b.use_var(self.regs.base);
         let base32 = self.b.ins().ireduce(types::I32, base);
-        let old_this = self.b.use_var(self.regs.this);
         self.b.ins().store(own(), return_pc, record, offset_of!(StFrame, return_pc) as i32);
         self.b.ins().store(own(), base32, record, offset_of!(StFrame, base) as i32);
         self.b.ins().store(own(), old_this, record, offset_of!(StFrame, this) as i32);
-        // The caller's slots to memory: the callee numbers its own from 0.
+        // The caller's slots to memory: the callee numbers its own from 0. They stay in the
+        // caller's variables too.
         let sb = self.b.use_var(self.regs.sb);
         for slot in 0..after {
             let value = self.slot(slot);
             let address = self.slot_address(sb, slot);
             self.b.ins().store(own(), value, address, 0);
         }
-        let calls = self.b.ins().iadd_imm_s(calls, 1);
-        let sb = self.b.ins().iadd_imm_s(sb, i64::from(after));
-        self.define(&[
-            (self.regs.depth, calls),
-            (self.regs.base, callee_base),
-            (self.regs.this, this),
-            (self.regs.sb, sb),
-            (self.regs.frame_at, frame_at),
-            (self.regs.this_at, this_at),
-        ]);
-        let callee = self.target(target, 0);
-        self.b.ins().jump(callee, &[]);
+        let depth = self.b.ins().iadd_imm_s(calls, 1);
+        let sp = self.b.ins().iadd_imm_s(sb, i64::from(after));
+        let left = self.b.use_var(self.regs.left);
+        let callee = self.callee(target);
+        let args = [self.context, callee_base, this, depth, sp, left, this_at];
+        let call = self.b.ins().call(callee, &args);
+        let status = self.b.inst_results(call)[0];
+        let returned = self.b.ins().icmp_imm_s(IntCC::Equal, status, i64::from(RETURN_CONTINUE));
+        let back = self.b.create_block();
+        let stopped = self.b.create_block();
+        self.b.set_cold_block(stopped);
+        self.b.ins().brif(returned, back, &[], stopped, &[]);
+        self.b.switch_to_block(stopped);
+        self.b.ins().return_(&[status]);
+        self.b.switch_to_block(back);
+        let regs = self.field(offset_of!(Context, regs));
+        let left = self.b.ins().load(I64, own(), regs, reg(offset_of!(NativeRegs, left)));
+        self.b.def_var(self.regs.left, left);
+        let next = self.target(at.pc + 1, after);
+        self.b.ins().jump(next, &[]);
+    }
+
+    /// The function of the body at `target`, imported into this one.
+    fn callee(&mut self, target: u32) -> FuncRef {
+        if let Some(&(_, callee)) = self.callees.iter().find(|(at, _)| *at == target) {
+            return callee;
+        }
+        let function = self.analysis.functions.binary_search(&target).expect("a body's start");
+        let name = self.b.func.declare_imported_user_function(UserExternalName {
+            namespace: 0,
+            index: self.names[function],
+        });
+        let callee = self.b.import_function(ExtFuncData {
+            name: ExternalName::user(name),
+            signature: self.body_sig,
+            colocated: true,
+            patchable: false,
+        });
+        self.callees.push((target, callee));
+        callee
     }
 
     /// Copies `n` bytes from `from` to `to` as `memmove` does (the ranges may overlap): a short
@@ -971,13 +1102,13 @@ impl Gen<'_, '_> {
         match place {
             Place::Var(offset) => self.b.ins().iconst(I64, slot(Space::Var, offset)),
             Place::Frame(offset) => {
-                let base = self.b.use_var(self.regs.base);
+                let base = self.activation.base;
                 let offset = self.b.ins().iadd_imm_s(base, i64::from(offset));
                 let offset = self.b.ins().band_imm_s(offset, LOW32);
                 self.b.ins().bor_imm_s(offset, slot(Space::Frame, 0))
             }
             Place::This(offset) => {
-                let this = self.b.use_var(self.regs.this);
+                let this = self.activation.this;
                 let n = self.b.ins().iconst(I64, i64::from(offset));
                 self.moved(this, n, false)
             }
@@ -998,14 +1129,14 @@ impl Gen<'_, '_> {
         }
         if let Some(offset) = self.info[index as usize].frame {
             let end = u64::from(offset) + u64::from(bytes);
-            let body = self.analysis.owner[at.pc as usize].unwrap_or(0);
-            if end > self.analysis.bodies[&body].frame_end {
-                let base = self.b.use_var(self.regs.base);
+            if end > self.analysis.bodies[&self.body].frame_end {
+                let base = self.activation.base;
                 let end = self.b.ins().iadd_imm_s(base, end as i64);
-                let out = self.b.ins().icmp(IntCC::UnsignedGreaterThan, end, self.frame_len);
+                let frame_len = self.field(offset_of!(Context, frame_len));
+                let out = self.b.ins().icmp(IntCC::UnsignedGreaterThan, end, frame_len);
                 self.bail_if(out, at, depth);
             }
-            let frame_at = self.b.use_var(self.regs.frame_at);
+            let frame_at = self.activation.frame_at;
             let address = self.b.ins().iadd_imm_s(frame_at, i64::from(offset));
             return (address, Into::Frame(offset));
         }
@@ -1026,9 +1157,9 @@ impl Gen<'_, '_> {
     /// The address and offset of a byte-space place.
     fn byte_place(&mut self, place: Place) -> Option<(Value, i32)> {
         match place {
-            Place::Var(offset) => Some((self.vars, offset as i32)),
-            Place::Frame(offset) => Some((self.b.use_var(self.regs.frame_at), offset as i32)),
-            Place::This(offset) => Some((self.b.use_var(self.regs.this_at), offset as i32)),
+            Place::Var(offset) => Some((self.field(offset_of!(Context, vars)), offset as i32)),
+            Place::Frame(offset) => Some((self.activation.frame_at, offset as i32)),
+            Place::This(offset) => Some((self.activation.this_at, offset as i32)),
             Place::Word(_) | Place::Bit(_) => None,
         }
     }
@@ -1040,16 +1171,18 @@ impl Gen<'_, '_> {
         match place {
             Place::Word(w) => {
                 let offset = i32::from(w.0) * 2;
+                let words = self.field(offset_of!(Context, words));
                 let raw = match elem.words() {
-                    1 => self.b.ins().uload16(I64, data(), self.words, offset),
-                    2 => self.b.ins().uload32(data(), self.words, offset),
-                    _ => self.b.ins().load(I64, data(), self.words, offset),
+                    1 => self.b.ins().uload16(I64, data(), words, offset),
+                    2 => self.b.ins().uload32(data(), words, offset),
+                    _ => self.b.ins().load(I64, data(), words, offset),
                 };
                 self.normalize(elem, raw)
             }
             Place::Bit(b) => {
                 let bit = b.mask.trailing_zeros().min(15);
-                let word = self.b.ins().uload16(I64, data(), self.words, i32::from(b.word) * 2);
+                let words = self.field(offset_of!(Context, words));
+                let word = self.b.ins().uload16(I64, data(), words, i32::from(b.word) * 2);
                 let shifted = self.b.ins().ushr_imm_s(word, i64::from(bit));
                 self.b.ins().band_imm_s(shifted, 1)
             }
@@ -1065,22 +1198,24 @@ impl Gen<'_, '_> {
             Place::Word(w) => {
                 let offset = i32::from(w.0) * 2;
                 let v = if elem == Elem::Bool { self.truth(v) } else { v };
+                let words = self.field(offset_of!(Context, words));
                 match elem.words() {
-                    1 => self.b.ins().istore16(data(), v, self.words, offset),
-                    2 => self.b.ins().istore32(data(), v, self.words, offset),
-                    _ => self.b.ins().store(data(), v, self.words, offset),
+                    1 => self.b.ins().istore16(data(), v, words, offset),
+                    2 => self.b.ins().istore32(data(), v, words, offset),
+                    _ => self.b.ins().store(data(), v, words, offset),
                 };
             }
             Place::Bit(b) => {
                 let bit = b.mask.trailing_zeros().min(15);
                 let mask = 1i64 << bit;
                 let offset = i32::from(b.word) * 2;
-                let word = self.b.ins().uload16(I64, data(), self.words, offset);
+                let words = self.field(offset_of!(Context, words));
+                let word = self.b.ins().uload16(I64, data(), words, offset);
                 let set = self.b.ins().bor_imm_s(word, mask);
                 let cleared = self.b.ins().band_imm_s(word, !mask);
                 let on = self.b.ins().icmp_imm_s(IntCC::NotEqual, v, 0);
                 let word = self.b.ins().select(on, set, cleared);
-                self.b.ins().istore16(data(), word, self.words, offset);
+                self.b.ins().istore16(data(), word, words, offset);
             }
             _ => unreachable!("a byte place"),
         }

@@ -77,7 +77,23 @@ pub fn compile_even_if_slower(program: &Program) -> Result<Arc<dyn NativeCode>, 
     compile_as(program, true)
 }
 
+/// [`compile_even_if_slower`] with `bytes` of machine stack for the code's calls instead of
+/// the 64 KiB every program has: for the tests of the calls the interpreter makes when native
+/// code's machine stack is spent.
+#[doc(hidden)]
+pub fn compile_with_stack(program: &Program, bytes: u64) -> Result<Arc<dyn NativeCode>, Error> {
+    compile_with(program, true, bytes)
+}
+
 fn compile_as(program: &Program, even_if_slower: bool) -> Result<Arc<dyn NativeCode>, Error> {
+    compile_with(program, even_if_slower, code::NATIVE_STACK)
+}
+
+fn compile_with(
+    program: &Program,
+    even_if_slower: bool,
+    stack: u64,
+) -> Result<Arc<dyn NativeCode>, Error> {
     let shape = match program.language {
         Language::StructuredText => code::Shape::StructuredText(
             analysis::analyse(program)
@@ -99,7 +115,7 @@ fn compile_as(program: &Program, even_if_slower: bool) -> Result<Arc<dyn NativeC
     // new code on some processors) as panics; either leaves this program to the interpreter.
     // The program is only read, so a panic leaves nothing half changed.
     let compiled = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        code::Code::compile(program, shape)
+        code::Code::compile(program, shape, stack)
     }));
     match compiled {
         Ok(result) => Ok(Arc::new(result?)),
@@ -108,10 +124,6 @@ fn compile_as(program: &Program, even_if_slower: bool) -> Result<Arc<dyn NativeC
         }
     }
 }
-
-/// Stack of the thread that compiles: Cranelift recurses deeper than the daemon's own threads'
-/// stacks allow (they are sized to their need, and locked in memory).
-const COMPILE_STACK: usize = 8 << 20;
 
 /// Compiles every program of `project` to native code and attaches it (but the
 /// instruction-list programs it would make slower, [`Error::Slower`]); the
@@ -126,7 +138,7 @@ pub fn attach(project: &mut Project) -> Vec<Error> {
     std::thread::scope(|scope| {
         let compiler = std::thread::Builder::new()
             .name("plcd-native".into())
-            .stack_size(COMPILE_STACK)
+            .stack_size(code::COMPILE_STACK)
             .spawn_scoped(scope, move || {
                 let mut errors = Vec::new();
                 for program in programs {

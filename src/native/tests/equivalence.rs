@@ -83,6 +83,9 @@ struct Programs {
     programs: Vec<Program>,
     variables: Variables,
     frame_bytes: u32,
+    /// The machine stack native code's calls may use, if not the default
+    /// (`plcd_native::compile_with_stack`).
+    native_stack: Option<u64>,
 }
 
 impl Programs {
@@ -99,7 +102,13 @@ impl Programs {
             .into_iter()
             .filter(|p| p.language == Language::StructuredText)
             .collect();
-        Programs { name: name.to_string(), programs, variables: project.variables, frame_bytes }
+        Programs {
+            name: name.to_string(),
+            programs,
+            variables: project.variables,
+            frame_bytes,
+            native_stack: None,
+        }
     }
 
     /// One `.st` file as the scan program `main` of a project of its own, as the conformance
@@ -144,6 +153,7 @@ impl Programs {
             programs,
             variables: Variables::default(),
             frame_bytes: 0,
+            native_stack: None,
         }
     }
 
@@ -170,6 +180,7 @@ impl Programs {
             programs: compiled.programs,
             variables: compiled.variables,
             frame_bytes,
+            native_stack: None,
         }
     }
 
@@ -179,8 +190,11 @@ impl Programs {
         self.programs
             .iter()
             .map(|program| {
-                let code = plcd_native::compile_even_if_slower(program)
-                    .map_err(|e| format!("{}: no native code: {e}", self.name))?;
+                let code = match self.native_stack {
+                    Some(bytes) => plcd_native::compile_with_stack(program, bytes),
+                    None => plcd_native::compile_even_if_slower(program),
+                }
+                .map_err(|e| format!("{}: no native code: {e}", self.name))?;
                 let mut program = program.clone();
                 program.native = Some(Arc::new(Counted { code, steps: native_steps.clone() }));
                 Ok(program)
@@ -1172,6 +1186,41 @@ fn a_deep_call_chain() {
     );
     let outcome = targeted("deep call chain", &source, Scans::new(3), 90);
     assert!(outcome.errors.is_empty());
+}
+
+/// Native code's calls stop where its machine stack is spent, and the interpreter makes the
+/// call there: the same chain with less and less stack runs the same, with less of it native.
+#[test]
+fn a_deep_call_chain_on_a_short_machine_stack() {
+    const DEPTH: usize = 12;
+    let mut source = String::new();
+    for k in 1..=DEPTH {
+        let body = if k == DEPTH {
+            format!("G{k} := x + {k};")
+        } else {
+            format!("t := x * 3 + {k};\n    G{k} := t - G{}(t MOD 500) + {k};", k + 1)
+        };
+        let _ = write!(
+            source,
+            "FUNCTION G{k} : DINT\nVAR_INPUT x : DINT; END_VAR\nVAR t : DINT; END_VAR\n    \
+             {body}\nEND_FUNCTION\n\n"
+        );
+    }
+    source.push_str(
+        "PROGRAM Main\nVAR n, r : DINT; END_VAR\n    n := n + 1;\n    r := G1(n);\nEND_PROGRAM\n",
+    );
+    let mut case = Programs::inline("short machine stack", &source);
+    let mut native = Vec::new();
+    // 0: no call native; 4 KiB and a little more: the helpers' reserve and a few frames.
+    for bytes in [0, 4_600, 5_000, 6_000, 64 << 10] {
+        case.native_stack = Some(bytes);
+        let outcome = compare(&case, Scans::new(3), &BUDGETS);
+        outcome.assert_equivalent();
+        native.push((bytes, outcome.native_whole_steps));
+    }
+    eprintln!("native steps by machine stack: {native:?}");
+    assert!(native.windows(2).all(|w| w[0].1 <= w[1].1), "{native:?}");
+    assert!(native[0].1 < native[native.len() - 1].1, "{native:?}");
 }
 
 #[test]

@@ -58,9 +58,8 @@ pub(crate) fn generate(
     isa: &dyn TargetIsa,
     func: &mut Function,
 ) {
-    func.signature = Signature::new(isa.default_call_conv());
-    func.signature.params.push(AbiParam::new(I64));
-    func.signature.returns.push(AbiParam::new(I32));
+    // The signature of every generated function; a piece uses only the context.
+    func.signature = crate::code::entry_signature(isa.default_call_conv());
     let mut fctx = FunctionBuilderContext::new();
     let mut b = FunctionBuilder::new(func, &mut fctx);
     let entry = b.create_block();
