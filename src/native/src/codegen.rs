@@ -52,6 +52,7 @@ use plcd_core::value::{BinOp, Elem, Pointer, Space, UnOp};
 use plcd_core::vm::{ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE};
 
 use crate::analysis::{is_native, Analysis};
+use crate::carry::{self, in_bytes, Key};
 use crate::code::{self, Context, RETURN_CONTINUE, RETURN_END, RETURN_ERROR, RETURN_INTERPRET};
 use crate::helpers;
 
@@ -120,6 +121,7 @@ pub(crate) fn generate(
     // The activation's registers, fixed while it runs (set by `Gen::entry`).
     let unset = b.ins().iconst(I64, 0);
     let leaders: Vec<usize> = analysis.leaders_of(function).collect();
+    let carried = carry::carried(program, analysis, &leaders);
     let mut g = Gen {
         b,
         program,
@@ -150,6 +152,8 @@ pub(crate) fn generate(
         loaders: Vec::with_capacity(leaders.len()),
         leaders,
         dispatch: None,
+        carried,
+        carry_vars: Vec::new(),
         info: vec![SlotInfo::default(); analysis.max_depth as usize + 1],
         held: Vec::new(),
         in_range: Vec::new(),
@@ -229,6 +233,10 @@ struct Gen<'a, 'f> {
     blocks: Vec<Block>,
     loaders: Vec<Block>,
     dispatch: Option<Block>,
+    /// The values of fixed places each of the body's blocks receives in registers, by its
+    /// index in `leaders` ([`carry::carried`]), and the variable that passes each on.
+    carried: Vec<Vec<Key>>,
+    carry_vars: Vec<(Key, Variable)>,
     /// In the block being generated: what is known of each stack slot.
     info: Vec<SlotInfo>,
     /// In the block being generated: the values of fixed places it stored or fetched, still
@@ -449,6 +457,9 @@ impl Gen<'_, '_> {
                 let value = self.b.ins().load(I64, own(), address, 0);
                 self.b.def_var(self.stack[slot as usize], value);
             }
+            // The values the block receives, from memory.
+            self.held.clear();
+            self.pass_on(&[leader]);
             let block = self.blocks[index];
             self.b.ins().jump(block, &[]);
         }
@@ -624,6 +635,18 @@ impl Gen<'_, '_> {
         }
         self.info.fill(SlotInfo::default());
         self.held.clear();
+        for (place, elem) in self.carried[body_index].clone() {
+            let var = self.carry_var((place, elem));
+            let mut info = SlotInfo { boolean: elem == Elem::Bool, ..SlotInfo::default() };
+            let value = if elem.is_float() {
+                let f = self.b.use_var(var);
+                info.float = Some(f);
+                self.float_bits(elem, f)
+            } else {
+                self.b.use_var(var)
+            };
+            self.held.push(Held { place, elem, value, info });
+        }
         self.in_range.clear();
         let left = self.b.ins().iadd_imm_s(left, -i64::from(len));
         self.b.def_var(self.regs.left, left);
@@ -634,7 +657,51 @@ impl Gen<'_, '_> {
         }
         if falls_through {
             let next = self.target(range.end as u32, depth);
+            self.pass_on(&[range.end as u32]);
             self.b.ins().jump(next, &[]);
+        }
+    }
+
+    /// The variable that passes the value of `key` from block to block: a REAL's or an
+    /// LREAL's as a float, the others as a slot.
+    fn carry_var(&mut self, key: Key) -> Variable {
+        if let Some(&(_, var)) = self.carry_vars.iter().find(|(k, _)| *k == key) {
+            return var;
+        }
+        let ty = if key.1.is_float() { float_type(key.1) } else { I64 };
+        let var = self.b.declare_var(ty);
+        self.carry_vars.push((key, var));
+        var
+    }
+
+    /// Before a jump to the blocks at `pcs`: the values they receive, as held here, or from
+    /// memory where this block does not hold them (memory always holds the same).
+    fn pass_on(&mut self, pcs: &[u32]) {
+        let mut keys: Vec<Key> = Vec::new();
+        for &pc in pcs {
+            if let Some(index) = self.leader_index(pc) {
+                for &key in &self.carried[index] {
+                    if !keys.contains(&key) {
+                        keys.push(key);
+                    }
+                }
+            }
+        }
+        for (place, elem) in keys {
+            let held = self.held.iter().find(|h| h.place == place && h.elem == elem);
+            let held = held.map(|h| (h.value, h.info.float));
+            let ty = float_type(elem);
+            let value = match (held, self.byte_place(place)) {
+                (Some((_, Some(f))), _) if self.b.func.dfg.value_type(f) == ty => f,
+                (Some((v, _)), _) if elem.is_float() => self.as_float(elem, v),
+                (Some((v, _)), _) => v,
+                (None, Some((address, offset))) if elem.is_float() => {
+                    self.b.ins().load(ty, data(), address, offset)
+                }
+                (None, _) => self.load_place(place, elem),
+            };
+            let var = self.carry_var((place, elem));
+            self.b.def_var(var, value);
         }
     }
 
@@ -910,6 +977,7 @@ impl Gen<'_, '_> {
             Op::Nop => {}
             Op::Goto(target) => {
                 let block = self.target(target, d);
+                self.pass_on(&[target]);
                 self.b.ins().jump(block, &[]);
                 return false;
             }
@@ -919,6 +987,7 @@ impl Gen<'_, '_> {
                 let taken = self.target(target, d - 1);
                 let next = self.target(at.pc + 1, d - 1);
                 let (on_true, on_false) = if when { (taken, next) } else { (next, taken) };
+                self.pass_on(&[target, at.pc + 1]);
                 self.b.ins().brif(c, on_true, &[], on_false, &[]);
                 return false;
             }
@@ -1039,6 +1108,9 @@ impl Gen<'_, '_> {
         let left = self.b.ins().load(I64, own(), regs, reg(offset_of!(NativeRegs, left)));
         self.b.def_var(self.regs.left, left);
         let next = self.target(at.pc + 1, after);
+        // The callee may have changed any place.
+        self.held.clear();
+        self.pass_on(&[at.pc + 1]);
         self.b.ins().jump(next, &[]);
     }
 
@@ -1320,24 +1392,9 @@ impl Gen<'_, '_> {
         }
     }
 
-    /// Forgets the held values a store of `bytes` bytes at fixed place `at` may change. An FB
-    /// instance (`This`) may be in variable memory or in a frame, anywhere.
+    /// Forgets the held values a store of `bytes` bytes at fixed place `at` may change.
     fn forget(&mut self, at: Place, bytes: u32) {
-        let range = |offset: u32, n: u32| u64::from(offset)..u64::from(offset) + u64::from(n);
-        self.held.retain(|h| {
-            let overlaps = |a: u32, b: u32| {
-                let (x, y) = (range(a, bytes), range(b, h.elem.size()));
-                x.start < y.end && y.start < x.end
-            };
-            match (at, h.place) {
-                (Place::Var(a), Place::Var(b))
-                | (Place::Frame(a), Place::Frame(b))
-                | (Place::This(a), Place::This(b)) => !overlaps(a, b),
-                (Place::Word(_) | Place::Bit(_), _) => true,
-                (Place::Var(_), Place::Frame(_)) | (Place::Frame(_), Place::Var(_)) => true,
-                _ => false,
-            }
-        });
+        self.held.retain(|h| !carry::may_change(at, bytes, (h.place, h.elem)));
     }
 
     /// Forgets the held values a store of `bytes` bytes through a pointer to `into` may change.
@@ -1577,11 +1634,6 @@ impl Gen<'_, '_> {
             }
         }
     }
-}
-
-/// True for a place in variable memory, the frame or the FB instance (byte-addressed).
-fn in_bytes(place: Place) -> bool {
-    matches!(place, Place::Var(_) | Place::Frame(_) | Place::This(_))
 }
 
 /// The Cranelift type of a REAL (`F32`) or LREAL.

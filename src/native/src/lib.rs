@@ -13,6 +13,8 @@
 //!   evaluation stack at each instruction, the entry points, the blocks), and whether the
 //!   program can be compiled;
 //! - [`blocks`]: blocks and the interpreter's share from a program's leaders, for both;
+//! - [`carry`]: which values of variables a Structured Text body's blocks receive in
+//!   registers from the blocks before them;
 //! - [`codegen`]: Structured Text's ops as Cranelift IR;
 //! - [`il`]: the instruction list's analysis and code generator (its ops have no evaluation
 //!   stack: rungs of bit logic and data, which it compiles, and the rest, which it leaves to
@@ -23,6 +25,7 @@
 
 mod analysis;
 mod blocks;
+mod carry;
 mod code;
 mod codegen;
 mod helpers;

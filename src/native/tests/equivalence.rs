@@ -1165,6 +1165,94 @@ END_PROGRAM
     assert_eq!(outcome.slot("main.on"), 1);
 }
 
+/// Native code passes the values of variables from block to block in registers (a loop's
+/// counter and sums, a variable stored before an IF and read after it), and fetches them again
+/// after a store that may change them in another block: through an array element, through a
+/// VAR_IN_OUT, by a copy, by a call, by a function block writing its instance; REALs and
+/// BOOLs too. Every budget stops it inside these loops.
+#[test]
+fn values_carried_between_blocks_are_fetched_again_after_a_store_may_change_them() {
+    let source = "
+FUNCTION Bump : INT
+VAR_IN_OUT x : INT; END_VAR
+    x := x + 100;
+    Bump := 1;
+END_FUNCTION
+
+FUNCTION_BLOCK Acc
+VAR_INPUT step : INT; END_VAR
+VAR_OUTPUT total : INT; END_VAR
+    total := total + step;
+    IF total > 50 THEN
+        total := total - 50;
+    END_IF;
+END_FUNCTION_BLOCK
+
+PROGRAM Main
+VAR
+    a : ARRAY [1..4] OF INT;
+    b1, b2 : ARRAY [1..2] OF INT;
+    acc : Acc;
+    n, i, j, s, s2, v, w, c, hits : INT;
+    f, g : REAL;
+    on, seen : BOOL;
+END_VAR
+    n := n + 1;
+    s := 0;
+    f := 0.5;
+    on := FALSE;
+    FOR i := 1 TO 4 DO
+        a[i] := i * n;
+        s := s + a[i];
+        f := f * 1.5 + 0.25;
+        IF s > 6 THEN
+            on := NOT on;
+        END_IF;
+    END_FOR;
+    v := 7;
+    FOR i := 1 TO 3 DO
+        a[1] := v;
+        j := 1;
+        a[j] := a[j] + 1;
+        v := a[1] + v;
+    END_FOR;
+    w := 2;
+    WHILE w < 40 DO
+        c := c + Bump(w);
+        IF w > 20 THEN
+            w := w + 1;
+        END_IF;
+    END_WHILE;
+    b1[1] := n;
+    s2 := 0;
+    FOR i := 1 TO 2 DO
+        b2[1] := i;
+        s2 := s2 + b2[1];
+        b2 := b1;
+        s2 := s2 + b2[1];
+    END_FOR;
+    FOR i := 1 TO 5 DO
+        acc(step := i * 7);
+        hits := hits + acc.total;
+    END_FOR;
+    g := 0.0;
+    seen := FALSE;
+    REPEAT
+        g := g + f;
+        IF g > 20.0 THEN
+            seen := TRUE;
+        END_IF;
+    UNTIL seen END_REPEAT;
+END_PROGRAM
+";
+    let outcome = targeted("values carried between blocks", source, Scans::new(4), 85);
+    assert!(outcome.errors.is_empty());
+    assert_eq!(outcome.slot("main.s"), 4 * 10, "s after the first loop of the fourth scan");
+    assert_eq!(outcome.slot("main.v"), 7 + 8 + 16 + 32, "v through a[1] and a[j]");
+    assert_eq!(outcome.slot("main.w"), 102 + 1, "w through Bump's VAR_IN_OUT");
+    assert_eq!(outcome.slot("main.s2"), 1 + 4 + 2 + 4, "s2 through the copy b2 := b1");
+}
+
 #[test]
 fn a_deep_call_chain() {
     const DEPTH: usize = 32;
