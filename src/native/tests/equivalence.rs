@@ -1253,12 +1253,12 @@ END_PROGRAM
     assert_eq!(outcome.slot("main.s2"), 1 + 4 + 2 + 4, "s2 through the copy b2 := b1");
 }
 
-#[test]
-fn a_deep_call_chain() {
-    const DEPTH: usize = 32;
+/// A chain of `depth` FUNCTIONs, each calling the next inside an expression, and a PROGRAM
+/// calling the first twice.
+fn function_chain(depth: usize) -> String {
     let mut source = String::new();
-    for k in 1..=DEPTH {
-        let body = if k == DEPTH {
+    for k in 1..=depth {
+        let body = if k == depth {
             format!("F{k} := x + {k};")
         } else {
             format!("t := x * 2 + {k};\n    F{k} := t + F{}(t MOD 1000) * 3 - {k};", k + 1)
@@ -1272,7 +1272,12 @@ fn a_deep_call_chain() {
     source.push_str(
         "PROGRAM Main\nVAR n, r : DINT; END_VAR\n    n := n + 1;\n    r := 5 + F1(n) * 2 - F1(r MOD 7);\nEND_PROGRAM\n",
     );
-    let outcome = targeted("deep call chain", &source, Scans::new(3), 90);
+    source
+}
+
+#[test]
+fn a_deep_call_chain() {
+    let outcome = targeted("deep call chain", &function_chain(32), Scans::new(3), 90);
     assert!(outcome.errors.is_empty());
 }
 
@@ -1280,23 +1285,7 @@ fn a_deep_call_chain() {
 /// call there: the same chain with less and less stack runs the same, with less of it native.
 #[test]
 fn a_deep_call_chain_on_a_short_machine_stack() {
-    const DEPTH: usize = 12;
-    let mut source = String::new();
-    for k in 1..=DEPTH {
-        let body = if k == DEPTH {
-            format!("G{k} := x + {k};")
-        } else {
-            format!("t := x * 3 + {k};\n    G{k} := t - G{}(t MOD 500) + {k};", k + 1)
-        };
-        let _ = write!(
-            source,
-            "FUNCTION G{k} : DINT\nVAR_INPUT x : DINT; END_VAR\nVAR t : DINT; END_VAR\n    \
-             {body}\nEND_FUNCTION\n\n"
-        );
-    }
-    source.push_str(
-        "PROGRAM Main\nVAR n, r : DINT; END_VAR\n    n := n + 1;\n    r := G1(n);\nEND_PROGRAM\n",
-    );
+    let source = function_chain(12);
     let mut case = Programs::inline("short machine stack", &source);
     let mut native = Vec::new();
     // 0: no call native; 4 KiB and a little more: the helpers' reserve and a few frames.
