@@ -36,6 +36,8 @@ pub(crate) struct Analysis {
     pub bodies: std::collections::BTreeMap<u32, Body>,
     /// The bodies' first instructions, in the order of their functions.
     pub functions: Vec<u32>,
+    /// The leaders of each function's body, as indices into `leaders`, by function.
+    pub function_leaders: Vec<Vec<usize>>,
 }
 
 /// A body (the program's, a FUNCTION's or a FUNCTION_BLOCK's): how far its operands reach into
@@ -155,8 +157,25 @@ pub(crate) fn analyse(program: &Program) -> Result<Analysis, String> {
     leaders.dedup();
     depth.truncate(len);
     let (owner, bodies) = bodies(code)?;
-    let functions = bodies.keys().copied().collect();
-    Ok(Analysis { depth, leaders, max_depth, vars_end, words_end, owner, bodies, functions })
+    let functions: Vec<u32> = bodies.keys().copied().collect();
+    let mut function_leaders = vec![Vec::new(); functions.len()];
+    for (index, &leader) in leaders.iter().enumerate() {
+        let body = owner[leader as usize].and_then(|start| functions.binary_search(&start).ok());
+        if let Some(function) = body {
+            function_leaders[function].push(index);
+        }
+    }
+    Ok(Analysis {
+        depth,
+        leaders,
+        max_depth,
+        vars_end,
+        words_end,
+        owner,
+        bodies,
+        functions,
+        function_leaders,
+    })
 }
 
 /// The body of each instruction (its first instruction).
@@ -293,12 +312,6 @@ impl Analysis {
             .flatten()
             .and_then(|start| self.functions.binary_search(&start).ok())
             .unwrap_or(0)
-    }
-
-    /// The leaders of function `index`'s body, as indices into [`Analysis::leaders`].
-    pub fn leaders_of(&self, index: usize) -> impl Iterator<Item = usize> + '_ {
-        let start = self.functions.get(index).copied();
-        (0..self.leaders.len()).filter(move |&i| self.owner[self.leaders[i] as usize] == start)
     }
 
     /// Instructions from `pc` to the next leader after it (the interpreter's share).

@@ -301,7 +301,8 @@ impl Code {
                 let address = module.get_finalized_function(id);
                 // SAFETY: `address` is the start of a function just finalized, whose signature
                 // the code generators made `entry_signature`'s, `Entry` in the platform's C
-                // calling convention; the memory stays mapped while `module` lives, which `Code` owns.
+                // calling convention; the memory stays mapped while `module` lives, which
+                // `Code` owns.
                 unsafe { std::mem::transmute::<*const u8, Entry>(address) }
             })
             .collect();

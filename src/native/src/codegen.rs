@@ -120,8 +120,8 @@ pub(crate) fn generate(
     let stack: Vec<Variable> = (0..=analysis.max_depth).map(|_| b.declare_var(I64)).collect();
     // The activation's registers, fixed while it runs (set by `Gen::entry`).
     let unset = b.ins().iconst(I64, 0);
-    let leaders: Vec<usize> = analysis.leaders_of(function).collect();
-    let carried = carry::carried(program, analysis, &leaders);
+    let leaders = &analysis.function_leaders[function][..];
+    let carried = carry::carried(program, analysis, leaders);
     let mut g = Gen {
         b,
         program,
@@ -229,7 +229,7 @@ struct Gen<'a, 'f> {
     callees: Vec<(u32, FuncRef)>,
     /// The body's leaders (their indices in [`Analysis::leaders`]), and the block and the
     /// loader (the way in from the dispatch) of each.
-    leaders: Vec<usize>,
+    leaders: &'a [usize],
     blocks: Vec<Block>,
     loaders: Vec<Block>,
     dispatch: Option<Block>,
@@ -690,13 +690,11 @@ impl Gen<'_, '_> {
         for (place, elem) in keys {
             let held = self.held.iter().find(|h| h.place == place && h.elem == elem);
             let held = held.map(|h| (h.value, h.info.float));
-            let ty = float_type(elem);
             let value = match (held, self.byte_place(place)) {
-                (Some((_, Some(f))), _) if self.b.func.dfg.value_type(f) == ty => f,
-                (Some((v, _)), _) if elem.is_float() => self.as_float(elem, v),
+                (Some((v, float)), _) if elem.is_float() => self.float_of(elem, v, float),
                 (Some((v, _)), _) => v,
                 (None, Some((address, offset))) if elem.is_float() => {
-                    self.b.ins().load(ty, data(), address, offset)
+                    self.b.ins().load(float_type(elem), data(), address, offset)
                 }
                 (None, _) => self.load_place(place, elem),
             };
@@ -1373,13 +1371,16 @@ impl Gen<'_, '_> {
 
     /// Slot `index` as a float of `elem`: the value it was computed as, or its bits moved.
     fn float(&mut self, elem: Elem, index: u32) -> Value {
-        let ty = float_type(elem);
-        match self.info[index as usize].float {
-            Some(f) if self.b.func.dfg.value_type(f) == ty => f,
-            _ => {
-                let v = self.slot(index);
-                self.as_float(elem, v)
-            }
+        let v = self.slot(index);
+        self.float_of(elem, v, self.info[index as usize].float)
+    }
+
+    /// The float of `elem` whose bits are `v`: `float`, the value it was computed as, when it
+    /// is one of that type, else the bits moved.
+    fn float_of(&mut self, elem: Elem, v: Value, float: Option<Value>) -> Value {
+        match float {
+            Some(f) if self.b.func.dfg.value_type(f) == float_type(elem) => f,
+            _ => self.as_float(elem, v),
         }
     }
 
