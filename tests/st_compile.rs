@@ -4,7 +4,8 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use plcd_core::st::{compile, parse_file, Compiled, Instance};
+use plcd_core::st::dialect::Dialect;
+use plcd_core::st::{compile, compile_with, parse_file, Compiled, Instance};
 use plcd_core::value::{Elem, Pointer, ValueType};
 use plcd_core::vm::{ExecState, Exit, ManualClock, Vm};
 
@@ -14,6 +15,10 @@ fn try_build(src: &str) -> Result<Compiled, String> {
 }
 
 fn try_build_pou(src: &str, pou: Option<&str>) -> Result<Compiled, String> {
+    try_build_with(src, pou, Dialect::default())
+}
+
+fn try_build_with(src: &str, pou: Option<&str>, dialect: Dialect) -> Result<Compiled, String> {
     let (file, diags) = parse_file(Path::new("main.st"), src);
     if !diags.is_empty() {
         return Err(diags.to_string());
@@ -26,7 +31,7 @@ fn try_build_pou(src: &str, pou: Option<&str>) -> Result<Compiled, String> {
         line: 2,
         col: 8,
     };
-    compile(&[file], &[inst]).map_err(|d| d.to_string())
+    compile_with(&[file], &[inst], dialect).map_err(|d| d.to_string())
 }
 
 fn build(src: &str) -> Compiled {
@@ -581,7 +586,9 @@ fn golden_diagnostics() {
             .lines()
             .find_map(|l| l.strip_prefix("pou = "))
             .map(|v| v.trim_matches('"').to_string());
-        let actual = try_build_pou(&src, pou.as_deref()).err().unwrap_or_default();
+        let strict = toml.lines().any(|l| l.trim() == "strict = true");
+        let actual =
+            try_build_with(&src, pou.as_deref(), Dialect { strict }).err().unwrap_or_default();
         let count = actual.lines().count();
         if count != 1 {
             failures.push(format!("{}: {count} diagnostics:\n{actual}", dir.display()));

@@ -62,6 +62,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ("the initial value of `{}` must be a constant expression", "init-not-constant"),
     ("`{}` is already declared (line {})", "already-declared"),
     ("a FUNCTION cannot return a function block", "function-returns-fb"),
+    ("`{}` is a standard function: the name is reserved", "standard-function-name"),
     (
         "VAR_GLOBAL belongs outside the POUs: declare globals at the top level of a file",
         "global-in-pou",
@@ -75,7 +76,10 @@ const MESSAGES: &[(&str, &str)] = &[
     ("only a PROGRAM's or a VAR_GLOBAL's variables can be located", "located-in-fb"),
     ("a VAR_IN_OUT or VAR_TEMP cannot be located", "located-temp"),
     ("a VAR_IN_OUT has no initial value", "in-out-initial-value"),
-    ("only VAR, VAR_GLOBAL and VAR_EXTERNAL can be CONSTANT", "constant-input"),
+    (
+        "only VAR, VAR_INPUT, VAR_IN_OUT, VAR_GLOBAL and VAR_EXTERNAL can be CONSTANT",
+        "constant-output",
+    ),
     ("an instance of `{}` takes more than 64 MiB", "instance-too-large"),
     ("the variables of `{}` need {} bytes of frame (limit 1 MiB)", "function-frame-too-large"),
     ("`{}` is `{}`: only elementary types and their arrays can be located", "located-struct"),
@@ -104,7 +108,6 @@ const MESSAGES: &[(&str, &str)] = &[
     ("bit access needs an integer or bit string, not `{}`", "bit-of-non-integer"),
     ("only a variable can be assigned", "only-variable-assigned"),
     ("a VAR_IN_OUT argument must be a variable", "in-out-needs-variable"),
-    ("`{}` is a VAR_INPUT: it cannot be written here", "input-not-writable"),
     ("`{}` is CONSTANT: it cannot be written", "constant-not-writable"),
     ("`{}` is at `{}`, which a program cannot write", "device-not-writable"),
     ("`{}` is the FOR variable: it cannot be written in the loop", "for-variable-written"),
@@ -177,7 +180,35 @@ const MESSAGES: &[(&str, &str)] = &[
     ("unreachable `ELSE`: the labels cover every value of `{}`", "unreachable-else"),
     ("a CASE label must be a constant", "case-label-not-constant"),
     ("a CASE label of type `{}` does not match the selector's type `{}`", "case-label-type"),
-    ("`{}` never assigns its result", "result-never-assigned"),
+];
+
+/// The messages of `[st] strict` (`src/core/st/dialect.rs`), one per CODESYS habit, and their
+/// cases.
+const STRICT_MESSAGES: &[(&str, &str)] = &[
+    (
+        "`;` expected after `{}` (IEC 61131-3 ends every statement with `;`; `[st] strict` is on)",
+        "strict-no-semicolon-after-end",
+    ),
+    (
+        "`;` expected after the type's declaration (IEC 61131-3 ends every type declaration with `;`; `[st] strict` is on)",
+        "strict-no-semicolon-after-type",
+    ),
+    (
+        "`VAR_STAT` is not IEC 61131-3: declare the variable in `VAR` of a PROGRAM, or as a VAR_GLOBAL (`[st] strict` is on)",
+        "strict-var-stat",
+    ),
+    (
+        "`VAR_INST` is not IEC 61131-3: declare the variable in the function block's `VAR` (`[st] strict` is on)",
+        "strict-var-inst",
+    ),
+    (
+        "`VAR_INPUT CONSTANT` is not IEC 61131-3: write `VAR_INPUT` (`[st] strict` is on)",
+        "strict-constant-input",
+    ),
+    (
+        "IEC 61131-3 reads only an instance's inputs and outputs from outside: pass the value out through a VAR_OUTPUT (`[st] strict` is on)",
+        "strict-read-fb-internal",
+    ),
 ];
 
 /// The messages of device addresses (`src/core/device/address.rs`) that the compiler passes on
@@ -379,7 +410,7 @@ fn case_messages(case: &str) -> Vec<String> {
 #[test]
 fn every_row_case_reports_its_message() {
     let mut failures = Vec::new();
-    for (template, case) in MESSAGES.iter().chain(DEVICE_MESSAGES) {
+    for (template, case) in MESSAGES.iter().chain(DEVICE_MESSAGES).chain(STRICT_MESSAGES) {
         let messages = case_messages(case);
         if !messages.iter().any(|m| matches_template(template, m)) {
             failures.push(format!("{case}: no message of `{template}` in {messages:?}"));
@@ -414,6 +445,22 @@ fn every_message_of_the_compiler_is_listed() {
 }
 
 #[test]
+fn every_strict_message_is_in_the_dialect_source_and_back() {
+    let source = fs::read_to_string("src/core/st/dialect.rs").unwrap();
+    let found: Vec<String> = literals(&source)
+        .into_iter()
+        .map(|(_, l)| template(&l))
+        .filter(|t| t.contains(' '))
+        .collect();
+    for (t, _) in STRICT_MESSAGES {
+        assert!(found.iter().any(|f| f == t), "`{t}` is not a message of dialect.rs");
+    }
+    for f in &found {
+        assert!(STRICT_MESSAGES.iter().any(|(t, _)| t == f), "dialect.rs: `{f}` has no case");
+    }
+}
+
+#[test]
 fn every_device_message_is_in_the_address_source() {
     let source = fs::read_to_string("src/core/device/address.rs").unwrap();
     let found: Vec<String> = literals(&source).into_iter().map(|(_, l)| template(&l)).collect();
@@ -431,7 +478,7 @@ fn every_case_is_the_case_of_a_row() {
             continue;
         }
         let case = path.file_name().unwrap().to_string_lossy().into_owned();
-        if !MESSAGES.iter().chain(DEVICE_MESSAGES).any(|(_, c)| *c == case) {
+        if !MESSAGES.iter().chain(DEVICE_MESSAGES).chain(STRICT_MESSAGES).any(|(_, c)| *c == case) {
             orphans.push(case);
         }
     }

@@ -380,7 +380,8 @@ fn compile_structured_text<R: Fn(&Path) -> std::io::Result<String>>(
             col: entry.col,
         })
         .collect();
-    match st::compile(&files, &instances) {
+    let dialect = st::dialect::Dialect { strict: config.st.strict };
+    match st::compile_with(&files, &instances, dialect) {
         Ok(compiled) => Some(compiled),
         Err(errors) => {
             reader.diags.extend(errors);

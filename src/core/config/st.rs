@@ -1,5 +1,6 @@
 //! `[st]`: the Structured Text files that hold only declarations (TYPEs, FUNCTIONs,
-//! FUNCTION_BLOCKs, VAR_GLOBALs) for the `.st` programs of the project (docs/ST.md).
+//! FUNCTION_BLOCKs, VAR_GLOBALs) for the `.st` programs of the project, and how strictly
+//! their sources are read (docs/ST.md).
 
 use std::path::{Path, PathBuf};
 
@@ -16,6 +17,8 @@ pub struct StConfig {
     /// `library`: declaration files, in the order written; default none. Every `.st` file of
     /// the project (programs and libraries) sees the declarations of all the others.
     pub library: Vec<LibraryFile>,
+    /// `strict`: refuse the CODESYS/TwinCAT habits, IEC 61131-3 only; default `false`.
+    pub strict: bool,
 }
 
 /// One `[st] library` entry.
@@ -35,6 +38,7 @@ pub struct LibraryFile {
 #[serde(deny_unknown_fields)]
 pub(super) struct RawSt {
     pub library: Option<Vec<Spanned<String>>>,
+    pub strict: Option<bool>,
 }
 
 pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StConfig> {
@@ -58,5 +62,5 @@ pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StC
         let (line, col) = Diagnostic::line_col(sink.text, at);
         library.push(LibraryFile { file: PathBuf::from(file), resolved, line, col });
     }
-    ok.then_some(StConfig { library })
+    ok.then_some(StConfig { library, strict: raw.strict.unwrap_or(false) })
 }

@@ -30,6 +30,8 @@ impl Ident {
 pub struct File {
     pub path: PathBuf,
     pub items: Vec<Item>,
+    /// The non-standard forms the parser accepted, in the order met (refused by `[st] strict`).
+    pub habits: Vec<crate::st::dialect::Noted>,
 }
 
 /// A top-level declaration.
@@ -80,6 +82,10 @@ pub enum VarKind {
     Global,
     /// `VAR_EXTERNAL`
     External,
+    /// `VAR_STAT` (CODESYS): one copy shared by every instance and call of the POU.
+    Static,
+    /// `VAR_INST` (CODESYS): kept in the function block's instance, like `VAR`.
+    Instance,
 }
 
 /// A `VAR… END_VAR` block.

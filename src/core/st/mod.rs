@@ -3,12 +3,14 @@
 //!
 //! - [`ast`]: the syntax tree;
 //! - [`syntax`]: text → tree, with every syntax error of a file;
+//! - [`dialect`]: the CODESYS/TwinCAT habits accepted beyond the standard, and `strict`;
 //! - [`compile`]: trees of all the project's `.st` files → one program per `[[program]]`
 //!   instance, the variable memory's layout and initial image, and every variable by name.
 
 pub mod ast;
 pub mod compile;
+pub mod dialect;
 pub mod syntax;
 
-pub use compile::{compile, Compiled, Instance};
+pub use compile::{compile, compile_with, Compiled, Instance};
 pub use syntax::parse_file;

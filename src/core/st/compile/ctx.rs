@@ -8,6 +8,7 @@ use crate::device::{Address, BitRef};
 use crate::diag::Diagnostic;
 use crate::lang::Place;
 use crate::st::ast::{self, PouKind, Span, VarKind};
+use crate::st::dialect::{Dialect, Habit};
 use crate::value::Elem;
 
 use super::emit::Body;
@@ -147,7 +148,8 @@ pub struct Ctx<'a> {
     /// whether a FUNCTION's result has been assigned.
     pub for_vars: Vec<String>,
     pub loop_depth: usize,
-    pub result_assigned: bool,
+    /// `[st] strict`: whether a CODESYS habit is an error.
+    pub dialect: Dialect,
 }
 
 impl<'a> Ctx<'a> {
@@ -158,6 +160,14 @@ impl<'a> Ctx<'a> {
     pub fn error(&mut self, file: usize, span: Span, msg: impl Into<String>) {
         let d = Diagnostic::new(self.path(file), span.line, span.col, msg);
         self.diags.push(d);
+    }
+
+    /// A non-standard form at `span`: accepted, or an error naming the standard's way when
+    /// `[st] strict` is on (the prelude's own code is never strict).
+    pub fn habit(&mut self, file: usize, span: Span, habit: Habit) {
+        if self.dialect.strict && file != self.prelude_file {
+            self.error(file, span, habit.strict_message());
+        }
     }
 
     pub fn ty_name(&self, ty: &Ty) -> String {

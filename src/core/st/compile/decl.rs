@@ -59,6 +59,15 @@ impl<'a> Ctx<'a> {
                     self.error(fi, id.span, format!("`{}` is an elementary type", id.name));
                     continue;
                 }
+                // a POU would replace the standard function for every caller
+                if !is_type
+                    && fi != self.prelude_file
+                    && super::stdlib::is_standard_function(&id.name)
+                {
+                    let msg = format!("`{}` is a standard function: the name is reserved", id.name);
+                    self.error(fi, id.span, msg);
+                    continue;
+                }
                 if let Some(&(f0, s0)) = seen.get(&key(&id.name)) {
                     let first = self.first_at(f0, s0, fi);
                     self.error(fi, id.span, format!("`{}` is already declared ({first})", id.name));
@@ -112,10 +121,15 @@ impl<'a> Ctx<'a> {
 
     /// Resolves every declaration: types, globals, POU interfaces.
     pub fn resolve_all(&mut self) {
+        // Global constants first: types use them (`ARRAY [0..LOG_MAX] OF …` in a STRUCT).
+        let (constants, blocks): (Vec<_>, Vec<_>) =
+            self.global_blocks.clone().into_iter().partition(|(_, b)| b.constant);
+        for (file, block) in constants {
+            self.resolve_globals(file, block);
+        }
         for i in 0..self.type_decls.len() {
             self.resolve_type_decl(i);
         }
-        let blocks = self.global_blocks.clone();
         for (file, block) in blocks {
             self.resolve_globals(file, block);
         }
@@ -744,7 +758,11 @@ impl<'a> Ctx<'a> {
             frame = self.default_image(&result, pou.return_type.as_ref());
             self.pous[p].result = result;
         }
-        for block in &pou.vars {
+        // A POU's constants first, wherever they are written: declarations use them
+        // (`ARRAY [0..n] OF …` above a `VAR CONSTANT n`, as OSCAT writes it).
+        let (constants, others): (Vec<_>, Vec<_>) =
+            pou.vars.iter().partition(|b| b.constant && b.kind == VarKind::Local);
+        for block in constants.into_iter().chain(others) {
             if block.kind == VarKind::Global {
                 self.error(file, block.span, "VAR_GLOBAL belongs outside the POUs: declare globals at the top level of a file");
                 continue;
@@ -867,7 +885,14 @@ impl<'a> Ctx<'a> {
                             )
                         };
                         let in_frame = kind == PouKind::Function || block.kind == VarKind::Temp;
-                        if in_frame {
+                        if block.kind == VarKind::Static {
+                            // One copy for the POU, in variable memory beside the globals.
+                            let at = self.alloc_var(&img);
+                            if block.retain {
+                                self.retained.push((at, img.len() as u32));
+                            }
+                            info.storage = Storage::Global(at);
+                        } else if in_frame {
                             info.storage = Storage::Frame(frame.len() as u32);
                             frame.extend_from_slice(&img);
                         } else {
@@ -876,15 +901,16 @@ impl<'a> Ctx<'a> {
                         }
                     }
                     if block.constant {
-                        if block.kind != VarKind::External {
-                            info.value = self.const_value(decl.init.as_ref(), &ty, scope);
-                        }
-                        if matches!(block.kind, VarKind::InOut | VarKind::Output | VarKind::Input) {
-                            self.error(
+                        match block.kind {
+                            // read-only in the body; the caller gives the value
+                            VarKind::Input | VarKind::InOut => {}
+                            VarKind::Output => self.error(
                                 file,
                                 id.span,
-                                "only VAR, VAR_GLOBAL and VAR_EXTERNAL can be CONSTANT",
-                            );
+                                "only VAR, VAR_INPUT, VAR_IN_OUT, VAR_GLOBAL and VAR_EXTERNAL can be CONSTANT",
+                            ),
+                            VarKind::External => {}
+                            _ => info.value = self.const_value(decl.init.as_ref(), &ty, scope),
                         }
                     }
                     let index = self.pous[p].vars.len();

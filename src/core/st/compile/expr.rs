@@ -6,6 +6,7 @@ use crate::lang::ops::CmpOp;
 use crate::st::ast::{
     self, Arg, BinaryOp, Expr, ExprKind, Literal, PouKind, Span, UnaryOp, VarKind,
 };
+use crate::st::dialect::Habit;
 use crate::value::{BinOp, UnOp};
 
 use super::ctx::{suggest, Ctx, Cv, Scope, Storage, VarInfo};
@@ -489,6 +490,13 @@ impl<'a> Ctx<'a> {
                         match (v.kind, access) {
                             (VarKind::Input | VarKind::Output, Access::Read)
                             | (VarKind::Input, _) => {}
+                            // CODESYS reads an instance's own variables from outside
+                            (
+                                VarKind::Local | VarKind::Instance | VarKind::Static,
+                                Access::Read,
+                            ) => {
+                                self.habit(file, id.span, Habit::ReadFbInternal);
+                            }
                             (VarKind::Output, _) => {
                                 self.error(
                                     file,
@@ -672,16 +680,8 @@ impl<'a> Ctx<'a> {
             let pou = &self.pous[p];
             if let Some(i) = pou.lookup(&id.name).filter(|&i| i < scope.visible) {
                 let v = pou.vars[i].clone();
-                let kind = pou.kind;
                 if access != Access::Read {
-                    if v.kind == VarKind::Input && !(kind == PouKind::Program) {
-                        self.error(
-                            file,
-                            span,
-                            format!("`{}` is a VAR_INPUT: it cannot be written here", v.name),
-                        );
-                        return TExpr::error(span);
-                    }
+                    // A POU may write its own inputs (IEC: they are its local copies).
                     if !self.may_write(&v, id, access, file) {
                         return TExpr::error(span);
                     }
@@ -696,9 +696,6 @@ impl<'a> Ctx<'a> {
             }
             if pou.kind == PouKind::Function && id.is(&pou.name) && scope.visible == pou.vars.len()
             {
-                if access != Access::Read {
-                    self.result_assigned = true;
-                }
                 let ty = pou.result.clone();
                 if ty == Ty::Void {
                     self.error(file, span, format!("`{}` has no result type", pou.name));
@@ -804,6 +801,10 @@ impl<'a> Ctx<'a> {
                     }
                     Ty::Prim(p) if p.is_real() => {
                         TExpr::konst(fold_conv(&Cv::Int(v), Prim::LInt, *p), to.clone(), span)
+                    }
+                    // IEC's BOOL literals `0` and `1` (`BOOL#0`, `BOOL#1` without the prefix)
+                    Ty::Prim(Prim::Bool) if v == 0 || v == 1 => {
+                        TExpr::konst(Cv::Int(v), to.clone(), span)
                     }
                     _ => self.mismatch(te, to, file),
                 }

@@ -38,6 +38,7 @@ use super::ast;
 use crate::diag::{Diagnostic, Diagnostics};
 use crate::lang::{Language, Op, Place, Program, Variables, EVAL_DEPTH, ST_CALL_DEPTH};
 use crate::st::ast::{PouKind, VarKind};
+use crate::st::dialect::Dialect;
 use crate::value::{Pointer, Space, Symbol, ValueType};
 
 use ctx::{Ctx, Storage};
@@ -72,8 +73,18 @@ pub struct Compiled {
     pub variables: Variables,
 }
 
-/// Compiles every instance against the declarations of all `files`.
+/// Compiles every instance against the declarations of all `files`, with the CODESYS habits
+/// accepted.
 pub fn compile(files: &[ast::File], instances: &[Instance<'_>]) -> Result<Compiled, Diagnostics> {
+    compile_with(files, instances, Dialect::default())
+}
+
+/// [`compile`], reading the sources as `dialect` says (`[st] strict`).
+pub fn compile_with(
+    files: &[ast::File],
+    instances: &[Instance<'_>],
+    dialect: Dialect,
+) -> Result<Compiled, Diagnostics> {
     let (prelude, prelude_diags) = super::syntax::parse_file(Path::new(PRELUDE_PATH), PRELUDE);
     let mut diags: Vec<Diagnostic> = prelude_diags.0;
     let mut refs: Vec<&ast::File> = files.iter().collect();
@@ -98,8 +109,14 @@ pub fn compile(files: &[ast::File], instances: &[Instance<'_>]) -> Result<Compil
         prelude_file,
         for_vars: Vec::new(),
         loop_depth: 0,
-        result_assigned: false,
+        dialect,
     };
+    // the habits the parser accepted
+    for (f, file) in files.iter().enumerate() {
+        for noted in &file.habits {
+            cx.habit(f, noted.span, noted.habit);
+        }
+    }
     cx.collect();
     cx.resolve_all();
 
@@ -152,6 +169,16 @@ pub fn compile(files: &[ast::File], instances: &[Instance<'_>]) -> Result<Compil
             _ => continue,
         };
         leaves(&cx, &v.name, &v.ty, at, v.retain, v.constant, &mut symbols);
+    }
+    // VAR_STAT: one copy per POU, named after the POU
+    for pou in cx.pous.iter().filter(|p| p.file != cx.prelude_file) {
+        for v in pou.vars.iter().filter(|v| v.kind == VarKind::Static) {
+            if let Storage::Global(o) = v.storage {
+                let at = Pointer { space: Space::Var, offset: o };
+                let name = format!("{}.{}", pou.name, v.name);
+                leaves(&cx, &name, &v.ty, at, v.retain, v.constant, &mut symbols);
+            }
+        }
     }
     for (inst, placed) in instances.iter().zip(&placed) {
         let (p, base) = placed.expect("no errors");

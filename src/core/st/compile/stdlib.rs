@@ -50,6 +50,17 @@ const NAMES: &[&str] = &[
     "INSERT", "DELETE", "REPLACE",
 ];
 
+/// Whether `name` is a standard function's (`SEL`, `INT_TO_REAL`…): reserved, so that no
+/// declaration can replace it for the callers that mean the standard one.
+pub fn is_standard_function(name: &str) -> bool {
+    let upper = name.to_ascii_uppercase();
+    if NAMES.contains(&upper.as_str()) {
+        return true;
+    }
+    let elementary = |t: &str| Prim::from_name(t).is_some() || t == "STRING";
+    upper.split_once("_TO_").is_some_and(|(from, to)| elementary(from) && elementary(to))
+}
+
 /// The formal parameter names of a standard function with `n` arguments.
 fn formals(name: &str, n: usize) -> Vec<String> {
     let fixed: &[&str] = match name {
@@ -418,7 +429,7 @@ impl<'a> Ctx<'a> {
                 }
                 if matches!(ty, Ty::IntLit | Ty::RealLit) {
                     ty = match expected.and_then(|e| e.prim(&self.types)) {
-                        Some(p) if p.is_num() => Ty::Prim(p),
+                        Some(p) if literal_target(p, &ty) => Ty::Prim(p),
                         _ if ty == Ty::RealLit => Ty::Prim(Prim::LReal),
                         _ => Ty::Prim(Prim::DInt),
                     };
@@ -798,7 +809,7 @@ impl<'a> Ctx<'a> {
         let (x, y, ty) = self.unify(x, y, name, span, file)?;
         if matches!(ty, Ty::IntLit | Ty::RealLit) {
             let to = match expected.and_then(|e| e.prim(&self.types)) {
-                Some(p) if p.is_num() => Ty::Prim(p),
+                Some(p) if literal_target(p, &ty) => Ty::Prim(p),
                 _ if ty == Ty::RealLit => Ty::Prim(Prim::LReal),
                 _ => Ty::Prim(Prim::DInt),
             };
@@ -1015,4 +1026,10 @@ fn fold_un(op: UnOp, p: Prim, cv: &Cv) -> Option<Cv> {
         return None;
     }
     Some(Cv::Real(r))
+}
+
+/// Whether untyped literals of type `lit` (`IntLit`, `RealLit`) take the expected type `p`: a
+/// number, or a bit string for integer literals (`b := SEL(g, 0, 255)` with a BYTE `b`).
+fn literal_target(p: Prim, lit: &Ty) -> bool {
+    p.is_num() || (p.is_bits() && *lit == Ty::IntLit)
 }

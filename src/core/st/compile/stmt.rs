@@ -2,7 +2,7 @@
 //! resolved and checked for overlaps and coverage, FOR, WHILE, REPEAT, EXIT, CONTINUE,
 //! RETURN).
 
-use crate::st::ast::{self, CaseLabel, ExprKind, PouKind, Stmt, StmtKind, VarKind};
+use crate::st::ast::{self, CaseLabel, ExprKind, Stmt, StmtKind, VarKind};
 
 use super::ctx::{Ctx, Cv, Scope};
 use super::expr::{expr_text, Access, CallT, TExpr};
@@ -382,7 +382,7 @@ impl<'a> Ctx<'a> {
         t.const_int()
     }
 
-    /// Checks a POU's body; for a FUNCTION, that its result is assigned somewhere.
+    /// Checks a POU's body.
     pub fn check_pou_body(&mut self, p: usize) -> Vec<TStmt> {
         let pou = self.pous[p].ast;
         let file = self.pous[p].file;
@@ -390,13 +390,7 @@ impl<'a> Ctx<'a> {
         self.in_prelude = file == self.prelude_file;
         self.loop_depth = 0;
         self.for_vars.clear();
-        self.result_assigned = false;
-        let body = self.check_body(&pou.body, scope);
-        if pou.kind == PouKind::Function && self.pous[p].result != Ty::Void && !self.result_assigned
-        {
-            let name = self.pous[p].name.clone();
-            self.error(file, pou.name.span, format!("`{name}` never assigns its result"));
-        }
-        body
+        // A FUNCTION's result never assigned on some path keeps its type's initial value.
+        self.check_body(&pou.body, scope)
     }
 }

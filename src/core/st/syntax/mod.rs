@@ -17,14 +17,15 @@ use crate::st::ast;
 /// Parses one file: the tree of everything that parsed, and every syntax error.
 pub fn parse_file(path: &Path, text: &str) -> (ast::File, Diagnostics) {
     let lexed = lex::lex(text);
-    let (items, mut errors) = parse::parse(text, lexed.tokens, lexed.eof_in_comment, lexed.quiet);
+    let (items, habits, mut errors) =
+        parse::parse(text, lexed.tokens, lexed.eof_in_comment, lexed.quiet);
     errors.extend(lexed.errors);
     errors.sort_by_key(|(span, _)| (span.line, span.col));
     let mut diags = Diagnostics::default();
     for (span, msg) in errors {
         diags.push(Diagnostic::new(path, span.line, span.col, msg.to_string()));
     }
-    (ast::File { path: path.to_path_buf(), items }, diags)
+    (ast::File { path: path.to_path_buf(), items, habits }, diags)
 }
 
 /// Every message the lexer and the parser can emit, with `{}` where the message varies.

@@ -9,6 +9,7 @@
 use super::lex::{Kw, Tok, Token, P};
 use super::{Closer, Msg, Want, MAX_DEPTH};
 use crate::st::ast::*;
+use crate::st::dialect::{Habit, Noted};
 
 /// An error was reported; the caller recovers.
 #[derive(Debug)]
@@ -22,11 +23,11 @@ pub(crate) fn parse(
     tokens: Vec<Token>,
     eof_in_comment: bool,
     quiet: Vec<usize>,
-) -> (Vec<Item>, Vec<(Span, Msg)>) {
+) -> (Vec<Item>, Vec<Noted>, Vec<(Span, Msg)>) {
     let mut parser = Parser::new(text, tokens, eof_in_comment);
     parser.quiet = quiet;
     let items = parser.file();
-    (items, parser.errors)
+    (items, parser.habits, parser.errors)
 }
 
 /// Parses one expression that must fill `text` (for the tests).
@@ -67,6 +68,8 @@ pub(crate) struct Parser<'a> {
     /// The constructs open around the current statement, innermost last.
     open: Vec<Closer>,
     depth: usize,
+    /// The non-standard forms accepted so far.
+    habits: Vec<Noted>,
 }
 
 /// The binary operators' levels, lowest first; unary operators sit between `*` and `**`.
@@ -126,6 +129,8 @@ fn var_kind(tok: &Tok) -> Option<VarKind> {
         Tok::Kw(Kw::VarTemp) => VarKind::Temp,
         Tok::Kw(Kw::VarGlobal) => VarKind::Global,
         Tok::Kw(Kw::VarExternal) => VarKind::External,
+        Tok::Kw(Kw::VarStat) => VarKind::Static,
+        Tok::Kw(Kw::VarInst) => VarKind::Instance,
         _ => return None,
     })
 }
@@ -198,6 +203,18 @@ impl Closer {
     }
 }
 
+/// The keyword that ends a compound statement; `None` for a simple one.
+fn compound_end(kind: &StmtKind) -> Option<&'static str> {
+    match kind {
+        StmtKind::If { .. } => Some("END_IF"),
+        StmtKind::Case { .. } => Some("END_CASE"),
+        StmtKind::For { .. } => Some("END_FOR"),
+        StmtKind::While { .. } => Some("END_WHILE"),
+        StmtKind::Repeat { .. } => Some("END_REPEAT"),
+        _ => None,
+    }
+}
+
 fn dummy_expr(span: Span) -> Expr {
     Expr { kind: ExprKind::Literal(Literal::Bool(false)), span }
 }
@@ -215,7 +232,14 @@ impl<'a> Parser<'a> {
             quiet: Vec::new(),
             open: Vec::new(),
             depth: 0,
+            habits: Vec::new(),
         }
+    }
+
+    /// Notes a non-standard form accepted at the current token.
+    fn habit(&mut self, habit: Habit) {
+        let span = self.span();
+        self.habits.push(Noted { span, habit });
     }
 
     // ----- tokens -----
@@ -497,6 +521,11 @@ impl<'a> Parser<'a> {
     fn var_block(&mut self) -> VarBlock {
         let span = self.span();
         let kind = var_kind(self.tok()).unwrap_or(VarKind::Local);
+        match kind {
+            VarKind::Static => self.habit(Habit::VarStat),
+            VarKind::Instance => self.habit(Habit::VarInst),
+            _ => {}
+        }
         let opener = {
             let at = self.bump();
             self.text_of(at)
@@ -504,7 +533,11 @@ impl<'a> Parser<'a> {
         .to_ascii_uppercase();
         let (mut constant, mut retain) = (false, false);
         loop {
-            if self.eat_kw(Kw::Constant) {
+            if self.at_kw(Kw::Constant) {
+                if kind == VarKind::Input {
+                    self.habit(Habit::ConstantInput);
+                }
+                self.bump();
                 constant = true;
             } else if self.eat_kw(Kw::Retain) {
                 retain = true;
@@ -754,8 +787,18 @@ impl<'a> Parser<'a> {
                 }
             }
         };
-        self.end_decl(Want::SemiAfterDecl);
+        if !self.at_p(P::Semi) && self.at_type_decl_end() {
+            self.habit(Habit::NoSemicolonAfterType);
+        } else {
+            self.end_decl(Want::SemiAfterDecl);
+        }
         Ok(TypeDecl { name, def, span })
+    }
+
+    /// Whether a type's declaration ends here without its `;`, as CODESYS writes it: at
+    /// `END_TYPE` or where the next type's `Name :` starts.
+    fn at_type_decl_end(&self) -> bool {
+        self.at_kw(Kw::EndType) || (self.at(&Tok::Ident) && *self.tok_at(1) == Tok::P(P::Colon))
     }
 
     /// An initial value: an expression, `[…]` for an array, `(a := …)` for a struct.
@@ -888,7 +931,13 @@ impl<'a> Parser<'a> {
             _ => return Err(self.fail(Want::Stmt)),
         };
         if !self.eat_p(P::Semi) {
-            let _ = self.fail(Want::SemiAfterStmt);
+            // CODESYS and TwinCAT take a compound statement's `END_…` for its end.
+            match compound_end(&kind) {
+                Some(end) => self.habit(Habit::NoSemicolonAfterEnd(end)),
+                None => {
+                    let _ = self.fail(Want::SemiAfterStmt);
+                }
+            }
         }
         Ok(Stmt { kind, span })
     }

@@ -836,6 +836,58 @@ fn parses_type_blocks() {
     assert!(matches!(&decls[7].def, TypeDef::Enum { init: None, .. }));
 }
 
+// ----- CODESYS and TwinCAT habits -----
+
+/// The habits a file's parse noted, as `line:col: habit`.
+fn habits(text: &str) -> Vec<String> {
+    let (file, diags) = parse_file(Path::new("t.st"), text);
+    assert!(diags.is_empty(), "{text}\n{diags}");
+    file.habits.iter().map(|n| format!("{}:{}: {:?}", n.span.line, n.span.col, n.habit)).collect()
+}
+
+#[test]
+fn a_compound_statement_needs_no_semicolon_after_its_end() {
+    let text = "PROGRAM p\nIF a THEN x := 1; END_IF\nCASE x OF 1: y := 2; END_CASE\n\
+                FOR i := 1 TO 2 DO END_FOR\nWHILE a DO END_WHILE\n\
+                REPEAT x := 1; UNTIL a END_REPEAT\nEND_PROGRAM\n";
+    assert_eq!(
+        habits(text),
+        [
+            "3:1: NoSemicolonAfterEnd(\"END_IF\")",
+            "4:1: NoSemicolonAfterEnd(\"END_CASE\")",
+            "5:1: NoSemicolonAfterEnd(\"END_FOR\")",
+            "6:1: NoSemicolonAfterEnd(\"END_WHILE\")",
+            "7:1: NoSemicolonAfterEnd(\"END_REPEAT\")",
+        ]
+    );
+    assert_eq!(body("IF a THEN x := 1; END_IF\ny := 2;").len(), 2);
+    // a simple statement still needs its `;`
+    assert_eq!(body_errors("x := 1\nEND_IF;").len(), 1);
+}
+
+#[test]
+fn a_type_declaration_needs_no_semicolon_before_end_type_or_the_next_type() {
+    let text = "TYPE\nS : STRUCT a : INT; END_STRUCT\nE : (A, B)\nT : INT\nEND_TYPE\n";
+    assert_eq!(
+        habits(text),
+        ["3:1: NoSemicolonAfterType", "4:1: NoSemicolonAfterType", "5:1: NoSemicolonAfterType"]
+    );
+    let items = parse_ok(text);
+    assert_eq!(items.len(), 3);
+}
+
+#[test]
+fn var_stat_var_inst_and_constant_inputs_are_noted() {
+    let text = "FUNCTION_BLOCK f\nVAR_STAT a : INT; END_VAR\nVAR_INST b : INT; END_VAR\n\
+                VAR_INPUT CONSTANT c : INT; END_VAR\nVAR_IN_OUT CONSTANT d : INT; END_VAR\n\
+                END_FUNCTION_BLOCK\n";
+    assert_eq!(habits(text), ["2:1: VarStat", "3:1: VarInst", "4:11: ConstantInput"]);
+    let Some(Item::Pou(pou)) = parse_ok(text).into_iter().next() else { panic!() };
+    let kinds: Vec<VarKind> = pou.vars.iter().map(|b| b.kind).collect();
+    assert_eq!(kinds, [VarKind::Static, VarKind::Instance, VarKind::Input, VarKind::InOut]);
+    assert!(pou.vars[2].constant && pou.vars[3].constant);
+}
+
 // ----- errors and recovery -----
 
 #[test]
@@ -847,10 +899,6 @@ fn semicolons_are_required() {
     assert_eq!(
         body_errors("x := 1\ny := 2;"),
         ["3:1: expected `;` after the statement, found `y`"]
-    );
-    assert_eq!(
-        body_errors("IF a THEN x := 1; END_IF"),
-        ["3:1: expected `;` after the statement, found `END_PROGRAM`"]
     );
     assert_eq!(
         body_errors("REPEAT x := 1 UNTIL x END_REPEAT;"),
@@ -965,8 +1013,8 @@ fn reports_declaration_errors() {
         ["2:12: expected a member name or `END_STRUCT`, found `5`"]
     );
     assert_eq!(
-        ty("S : STRUCT a : INT; END_STRUCT"),
-        ["3:1: expected `;` after the declaration, found `END_TYPE`"]
+        ty("S : STRUCT a : INT; END_STRUCT 5"),
+        ["2:32: expected `;` after the declaration, found `5`"]
     );
     assert_eq!(
         ty("S : STRUCT a : INT;"),

@@ -1,0 +1,58 @@
+//! The forms plcd accepts beyond IEC 61131-3: habits of CODESYS and TwinCAT that the standard
+//! gives no other meaning, so that code written for them compiles as it is (docs/ST.md,
+//! "CODESYS and TwinCAT habits").
+//!
+//! The parser and the checker note each use of one as a [`Habit`] at its place and go on as
+//! CODESYS would. With `[st] strict = true` every noted habit is an error whose message names
+//! the standard's way; without it they cost nothing.
+
+use crate::st::ast::Span;
+
+/// How the project's Structured Text is read: `[st] strict`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Dialect {
+    /// Refuse every [`Habit`] (IEC 61131-3 only). Default `false`: accept them.
+    pub strict: bool,
+}
+
+/// One non-standard form, as written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Habit {
+    /// No `;` after a statement that ends with `END_IF`, `END_CASE`, `END_FOR`, `END_WHILE` or
+    /// `END_REPEAT` (the keyword).
+    NoSemicolonAfterEnd(&'static str),
+    /// No `;` after a type's declaration (`END_STRUCT`, an enumeration's `)`, an alias) before
+    /// `END_TYPE` or the next type.
+    NoSemicolonAfterType,
+    /// `VAR_STAT`: one copy for every instance and every call of the POU.
+    VarStat,
+    /// `VAR_INST`: a variable kept in the function block's instance.
+    VarInst,
+    /// `VAR_INPUT CONSTANT`: an input the POU's body may not write.
+    ConstantInput,
+    /// An FB instance's input, in-out or internal variable read from outside.
+    ReadFbInternal,
+}
+
+impl Habit {
+    /// The error `[st] strict` reports: what is not standard, and the standard's way.
+    pub fn strict_message(self) -> String {
+        match self {
+            Habit::NoSemicolonAfterEnd(end) => {
+                format!("`;` expected after `{end}` (IEC 61131-3 ends every statement with `;`; `[st] strict` is on)")
+            }
+            Habit::NoSemicolonAfterType => "`;` expected after the type's declaration (IEC 61131-3 ends every type declaration with `;`; `[st] strict` is on)".to_string(),
+            Habit::VarStat => "`VAR_STAT` is not IEC 61131-3: declare the variable in `VAR` of a PROGRAM, or as a VAR_GLOBAL (`[st] strict` is on)".to_string(),
+            Habit::VarInst => "`VAR_INST` is not IEC 61131-3: declare the variable in the function block's `VAR` (`[st] strict` is on)".to_string(),
+            Habit::ConstantInput => "`VAR_INPUT CONSTANT` is not IEC 61131-3: write `VAR_INPUT` (`[st] strict` is on)".to_string(),
+            Habit::ReadFbInternal => "IEC 61131-3 reads only an instance's inputs and outputs from outside: pass the value out through a VAR_OUTPUT (`[st] strict` is on)".to_string(),
+        }
+    }
+}
+
+/// A habit noted at a place of a file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Noted {
+    pub span: Span,
+    pub habit: Habit,
+}
