@@ -1847,3 +1847,10 @@ fn st_library_lists_st_files_once_each() {
     );
     assert_eq!(config(&with_scan("")).st, StConfig::default());
 }
+
+#[test]
+fn st_strict_is_off_unless_set() {
+    assert!(!config(&with_scan("")).st.strict);
+    assert!(config(&with_scan("[st]\nstrict = true\n")).st.strict);
+    assert!(!errors(&with_scan("[st]\nstrict = 1\n")).is_empty());
+}
