@@ -3,7 +3,7 @@
 //! that cannot be read is a diagnostic like any other (line 0: the whole file), so a caller
 //! reports it with the rest and keeps what it was running.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::config::{self, Config};
 use crate::diag::{Diagnostic, Diagnostics};
@@ -41,7 +41,31 @@ pub fn project(path: &Path) -> Result<Project, Diagnostics> {
 /// --interpreter`, to compare the two or to measure the interpreter itself).
 pub fn interpreted_project(path: &Path) -> Result<Project, Diagnostics> {
     let config = config(path)?;
-    project::from_config(config, |p| std::fs::read_to_string(p))
+    project::from_config_with(config, |p| std::fs::read_to_string(p), source_files)
+}
+
+/// Every file in `dir` and its subfolders (an `[st] library` folder; the core keeps the
+/// Structured Text sources among them). Hidden entries (`.git`) are skipped; a symbolic link
+/// to a file is a file, one to a folder is not entered (no loops).
+fn source_files(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    let mut pending = vec![dir.to_path_buf()];
+    while let Some(dir) = pending.pop() {
+        for entry in std::fs::read_dir(&dir)? {
+            let entry = entry?;
+            let path = entry.path();
+            if entry.file_name().to_string_lossy().starts_with('.') {
+                continue;
+            }
+            let kind = entry.file_type()?;
+            if kind.is_dir() {
+                pending.push(path);
+            } else if kind.is_file() || path.is_file() {
+                files.push(path);
+            }
+        }
+    }
+    Ok(files)
 }
 
 /// Reads and parses the inputs file of a project, checked against its config

@@ -5,7 +5,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use plcd_core::st::dialect::Dialect;
-use plcd_core::st::{compile, compile_with, parse_file, Compiled, Instance};
+use plcd_core::st::{compile_with, parse_file, Compiled, Instance};
 use plcd_core::value::{Elem, Pointer, ValueType};
 use plcd_core::vm::{ExecState, Exit, ManualClock, Vm};
 

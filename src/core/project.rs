@@ -243,9 +243,22 @@ pub fn split_names(list: &str) -> Vec<&str> {
 }
 
 /// Assembles the programs of an already parsed config; `read` supplies each program's text.
+/// A project with `[st] library` folders needs [`from_config_with`].
 pub fn from_config(
     config: Config,
     read: impl Fn(&Path) -> std::io::Result<String>,
+) -> Result<Project, Diagnostics> {
+    let no_folders =
+        |dir: &Path| Err(std::io::Error::other(format!("{} is not listed here", dir.display())));
+    from_config_with(config, read, no_folders)
+}
+
+/// [`from_config`], with `list` giving the Structured Text source files of an `[st] library`
+/// folder, in it and in its subfolders (the caller walks the file system).
+pub fn from_config_with(
+    config: Config,
+    read: impl Fn(&Path) -> std::io::Result<String>,
+    list: impl Fn(&Path) -> std::io::Result<Vec<PathBuf>>,
 ) -> Result<Project, Diagnostics> {
     let mut diags = Diagnostics::default();
     let task_numbers: Vec<u8> = config.tasks.iter().map(|t| t.number).collect();
@@ -253,7 +266,7 @@ pub fn from_config(
     let mut programs: Vec<Option<Program>> = Vec::with_capacity(config.programs.len());
     let mut duty_sites = Vec::new();
     let mut edge_base = 0u32;
-    let mut reader = Reader { config: &config, read: &read, diags: &mut diags };
+    let mut reader = Reader { config: &config, read: &read, list: &list, diags: &mut diags };
     for entry in &config.programs {
         if entry.language == Language::StructuredText {
             // Compiled below, all together: the files share their declarations.
@@ -307,13 +320,42 @@ pub fn from_config(
 }
 
 /// Reads program files, a diagnostic at the config entry that names a file it cannot read.
-struct Reader<'a, R> {
+struct Reader<'a, R, L> {
     config: &'a Config,
     read: &'a R,
+    list: &'a L,
     diags: &'a mut Diagnostics,
 }
 
-impl<R: Fn(&Path) -> std::io::Result<String>> Reader<'_, R> {
+impl<R, L> Reader<'_, R, L>
+where
+    R: Fn(&Path) -> std::io::Result<String>,
+    L: Fn(&Path) -> std::io::Result<Vec<PathBuf>>,
+{
+    /// The source files of a library folder, sorted; none (after a diagnostic) when it cannot
+    /// be listed or holds none.
+    fn list(&mut self, dir: &Path, line: u32, col: u32, what: &str) -> Vec<PathBuf> {
+        match (self.list)(dir) {
+            Ok(mut files) => {
+                files.retain(|f| crate::config::is_st_source(f));
+                files.sort();
+                if files.is_empty() {
+                    let msg = format!(
+                        "{what}: folder `{}` holds no `.st`, `.TcPOU`, `.TcDUT` or `.TcGVL` file",
+                        dir.display()
+                    );
+                    self.diags.push(Diagnostic::new(&self.config.path, line, col, msg));
+                }
+                files
+            }
+            Err(e) => {
+                let msg = format!("{what}: cannot list folder `{}`: {e}", dir.display());
+                self.diags.push(Diagnostic::new(&self.config.path, line, col, msg));
+                Vec::new()
+            }
+        }
+    }
+
     fn read(&mut self, path: &Path, line: u32, col: u32, what: &str) -> Option<String> {
         match (self.read)(path) {
             Ok(text) => Some(text),
@@ -334,34 +376,57 @@ impl<R: Fn(&Path) -> std::io::Result<String>> Reader<'_, R> {
 /// and compiles one instance per Structured Text `[[program]]`, in config order. `None` when
 /// there is none, or on errors (in `reader.diags`): the syntax errors of every file, or, when
 /// every file parses, every error the compiler finds.
-fn compile_structured_text<R: Fn(&Path) -> std::io::Result<String>>(
+fn compile_structured_text<R, L>(
     config: &Config,
-    reader: &mut Reader<'_, R>,
-) -> Option<st::Compiled> {
+    reader: &mut Reader<'_, R, L>,
+) -> Option<st::Compiled>
+where
+    R: Fn(&Path) -> std::io::Result<String>,
+    L: Fn(&Path) -> std::io::Result<Vec<PathBuf>>,
+{
     let entries: Vec<_> =
         config.programs.iter().filter(|p| p.language == Language::StructuredText).collect();
     if entries.is_empty() {
         return None;
     }
-    let mut paths: Vec<(&Path, u32, u32, String)> = Vec::new();
+    let mut paths: Vec<(PathBuf, u32, u32, String)> = Vec::new();
     for entry in &entries {
         let what = format!("program \"{}\"", entry.name);
-        paths.push((&entry.resolved, entry.line, entry.col, what));
+        paths.push((entry.resolved.clone(), entry.line, entry.col, what));
     }
+    let mut ok = true;
     for library in &config.st.library {
-        paths.push((&library.resolved, library.line, library.col, "st.library".to_string()));
+        let (line, col) = (library.line, library.col);
+        let what = "st.library".to_string();
+        if library.folder {
+            let files = reader.list(&library.resolved, line, col, &what);
+            ok &= !files.is_empty();
+            paths.extend(files.into_iter().map(|f| (f, line, col, what.clone())));
+        } else {
+            paths.push((library.resolved.clone(), line, col, what));
+        }
     }
     let mut files = Vec::new();
-    let mut ok = true;
     for (path, line, col, what) in paths {
         if files.iter().any(|f: &st::ast::File| f.path == path) {
             continue;
         }
-        let Some(text) = reader.read(path, line, col, &what) else {
+        let Some(mut text) = reader.read(&path, line, col, &what) else {
             ok = false;
             continue;
         };
-        let (file, errors) = st::parse_file(path, &text);
+        if st::twincat::is_twincat(&path) {
+            match st::twincat::st_text(&text) {
+                Ok(st) => text = st,
+                Err(e) => {
+                    let d = Diagnostic::new(&path, e.span.line, e.span.col, e.message);
+                    reader.diags.push(d);
+                    ok = false;
+                    continue;
+                }
+            }
+        }
+        let (file, errors) = st::parse_file(&path, &text);
         ok &= errors.is_empty();
         reader.diags.extend(errors);
         files.push(file);

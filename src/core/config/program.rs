@@ -21,8 +21,8 @@ pub struct ProgramConfig {
     pub resolved: PathBuf,
     /// `task`: `"init"`, `"scan"` (default) or the name of a `[[task]]`.
     pub task: TaskRef,
-    /// The language, by the file's extension: `.st` is Structured Text, anything else the
-    /// instruction list.
+    /// The language, by the file's extension: `.st` (and TwinCAT's `.TcPOU`) is Structured Text,
+    /// anything else the instruction list.
     pub language: Language,
     /// `pou`: the PROGRAM of a `.st` file to instantiate; default the file's only PROGRAM.
     pub pou: Option<String>,
@@ -37,16 +37,17 @@ pub struct ProgramConfig {
 pub enum Language {
     /// The instruction list (docs/LANGUAGE.md).
     InstructionList,
-    /// Structured Text (docs/ST.md): a file whose name ends in `.st`.
+    /// Structured Text (docs/ST.md): a file whose name ends in `.st`, or a TwinCAT `.TcPOU`.
     StructuredText,
 }
 
 impl Language {
     /// The language of `file`, by its extension.
     pub fn of(file: &Path) -> Language {
-        match file.extension() {
-            Some(ext) if ext.eq_ignore_ascii_case("st") => Language::StructuredText,
-            _ => Language::InstructionList,
+        if super::st::is_st_source(file) {
+            Language::StructuredText
+        } else {
+            Language::InstructionList
         }
     }
 }

@@ -14,8 +14,9 @@ use crate::diag::Diagnostic;
 /// `[st]`.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct StConfig {
-    /// `library`: declaration files, in the order written; default none. Every `.st` file of
-    /// the project (programs and libraries) sees the declarations of all the others.
+    /// `library`: declaration files and folders of them, in the order written; default none.
+    /// Every ST file of the project (programs and libraries) sees the declarations of all the
+    /// others.
     pub library: Vec<LibraryFile>,
     /// `strict`: refuse the CODESYS/TwinCAT habits, IEC 61131-3 only; default `false`.
     pub strict: bool,
@@ -28,9 +29,19 @@ pub struct LibraryFile {
     pub file: PathBuf,
     /// Relative to the config file's directory (unchanged if absolute).
     pub resolved: PathBuf,
+    /// Written with a final `/`: a folder, whose source files ([`is_st_source`]), in it and
+    /// in its subfolders, are all library files.
+    pub folder: bool,
     /// Where the entry is in the config, for diagnostics about the file.
     pub line: u32,
     pub col: u32,
+}
+
+/// Whether `file` is a Structured Text source by its extension: `.st`, or TwinCAT's `.TcPOU`,
+/// `.TcDUT`, `.TcGVL` (any case).
+pub fn is_st_source(file: &Path) -> bool {
+    file.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("st"))
+        || crate::st::twincat::is_twincat(file)
 }
 
 /// `[st]` as written.
@@ -48,8 +59,15 @@ pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StC
     for entry in raw.library.unwrap_or_default() {
         let at = entry.span().start;
         let file = entry.into_inner();
-        if !file.ends_with(".st") {
-            sink.error(at, format!("{}: `{file}` is not a `.st` file", ctx.key("library")));
+        let folder = file.ends_with('/');
+        if !folder && !is_st_source(Path::new(&file)) {
+            sink.error(
+                at,
+                format!(
+                    "{}: `{file}` is not a `.st`, `.TcPOU`, `.TcDUT` or `.TcGVL` file (a folder is written with a final `/`)",
+                    ctx.key("library")
+                ),
+            );
             ok = false;
             continue;
         }
@@ -60,7 +78,7 @@ pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StC
             continue;
         }
         let (line, col) = Diagnostic::line_col(sink.text, at);
-        library.push(LibraryFile { file: PathBuf::from(file), resolved, line, col });
+        library.push(LibraryFile { file: PathBuf::from(file), resolved, folder, line, col });
     }
     ok.then_some(StConfig { library, strict: raw.strict.unwrap_or(false) })
 }

@@ -1841,11 +1841,14 @@ fn st_library_lists_st_files_once_each() {
     assert_eq!(
         errors(&with_scan("[st]\nlibrary = [\"a.st\", \"b.il\", \"a.st\"]\n")),
         [
-            "2:20: st.library: `b.il` is not a `.st` file",
+            "2:20: st.library: `b.il` is not a `.st`, `.TcPOU`, `.TcDUT` or `.TcGVL` file (a folder is written with a final `/`)",
             "2:28: st.library: `a.st` is listed twice"
         ]
     );
     assert_eq!(config(&with_scan("")).st, StConfig::default());
+    let c = config(&with_scan("[st]\nlibrary = [\"oscat/\", \"lib/F.TcPOU\", \"T.tcdut\"]\n"));
+    let kinds: Vec<bool> = c.st.library.iter().map(|l| l.folder).collect();
+    assert_eq!(kinds, [true, false, false]);
 }
 
 #[test]

@@ -3,6 +3,7 @@
 //!
 //! - [`ast`]: the syntax tree;
 //! - [`syntax`]: text → tree, with every syntax error of a file;
+//! - [`twincat`]: TwinCAT's `.TcPOU`/`.TcDUT`/`.TcGVL` files → ST text on the same lines;
 //! - [`dialect`]: the CODESYS/TwinCAT habits accepted beyond the standard, and `strict`;
 //! - [`compile`]: trees of all the project's `.st` files → one program per `[[program]]`
 //!   instance, the variable memory's layout and initial image, and every variable by name.
@@ -11,6 +12,7 @@ pub mod ast;
 pub mod compile;
 pub mod dialect;
 pub mod syntax;
+pub mod twincat;
 
 pub use compile::{compile, compile_with, Compiled, Instance};
 pub use syntax::parse_file;

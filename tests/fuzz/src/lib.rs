@@ -6,6 +6,7 @@
 //! - `il`: an instruction-list program, assembled with its project and, if accepted, run for a
 //!   few scans in virtual time (twice: the runs must agree event for event).
 //! - `st`: a Structured Text program, the same way.
+//! - `twincat`: a TwinCAT `.TcPOU` file (XML around Structured Text), the same way.
 //! - `config`: a `plcd.toml`, and, if accepted, its project (with stand-in programs) run.
 //! - `stimulus`: an inputs file, and, if accepted, played into a project.
 //! - `retain`: a retained-memory file: either restored exactly as written or refused.
@@ -38,6 +39,7 @@ pub struct Target {
 pub const TARGETS: &[Target] = &[
     Target { name: "il", run: targets::il::run },
     Target { name: "st", run: targets::st::run },
+    Target { name: "twincat", run: targets::twincat::run },
     Target { name: "config", run: targets::config::run },
     Target { name: "stimulus", run: targets::stimulus::run },
     Target { name: "retain", run: targets::retain::run },

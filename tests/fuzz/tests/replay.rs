@@ -57,6 +57,11 @@ fn il() {
 }
 
 #[test]
+fn twincat() {
+    replay("twincat");
+}
+
+#[test]
 fn st() {
     replay("st");
 }

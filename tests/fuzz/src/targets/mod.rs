@@ -9,6 +9,7 @@ pub mod remote;
 pub mod retain;
 pub mod st;
 pub mod stimulus;
+pub mod twincat;
 
 use std::path::Path;
 

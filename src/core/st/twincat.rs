@@ -1,0 +1,292 @@
+//! TwinCAT 3's source files (`.TcPOU`, `.TcDUT`, `.TcGVL`) read as Structured Text.
+//!
+//! TwinCAT keeps each POU, type or global list in an XML file whose ST sits in CDATA sections:
+//! a POU's `<Declaration>` (its header and VAR blocks, without the `END_…`) and its
+//! `<Implementation><ST>` body, and the same for each of its `<Action>`s; a DUT's or a GVL's
+//! `<Declaration>` holds the whole `TYPE … END_TYPE` or `VAR_GLOBAL … END_VAR`.
+//!
+//! [`st_text`] turns such a file into ST text *with the file's own lines and columns*: every
+//! character outside the CDATA sections becomes a space (line breaks stay), and the `END_…` a
+//! POU needs is written on a line that held only XML after its last section. The parser and
+//! the compiler then report every error at its place in the `.TcPOU` file itself.
+
+use std::ops::Range;
+
+use crate::st::ast::Span;
+
+/// Why a TwinCAT file is not read, at its place in the file.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct XmlError {
+    pub span: Span,
+    pub message: String,
+}
+
+/// Whether `path`'s extension names a TwinCAT source file.
+pub fn is_twincat(path: &std::path::Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| ["tcpou", "tcdut", "tcgvl"].contains(&e.to_ascii_lowercase().as_str()))
+}
+
+/// The Structured Text of a TwinCAT source file, line for line and column for column.
+pub fn st_text(xml: &str) -> Result<String, XmlError> {
+    let doc = roxmltree::Document::parse(xml).map_err(|e| {
+        let pos = e.pos();
+        XmlError {
+            span: Span { line: pos.row, col: pos.col },
+            message: format!("not valid XML: {e}"),
+        }
+    })?;
+    let at = |pos: usize| {
+        let p = doc.text_pos_at(pos);
+        Span { line: p.row, col: p.col }
+    };
+    let root = doc.root_element();
+    if root.tag_name().name() != "TcPlcObject" {
+        return Err(XmlError {
+            span: at(root.range().start),
+            message: format!(
+                "`<{}>` is not a TwinCAT source: `<TcPlcObject>` expected",
+                root.tag_name().name()
+            ),
+        });
+    }
+    // The CDATA sections to keep, and where to write each POU's end.
+    let mut keep: Vec<Range<usize>> = Vec::new();
+    let mut ends: Vec<(usize, &'static str)> = Vec::new();
+    for object in root.children().filter(|n| n.is_element()) {
+        match object.tag_name().name() {
+            "POU" => {
+                let before = keep.len();
+                collect_pou(object, xml, &mut keep, &at)?;
+                let header = keep.get(before).map(|r| &xml[r.clone()]).unwrap_or("");
+                let Some(end) = pou_end(header) else {
+                    return Err(XmlError {
+                        span: at(object.range().start),
+                        message: "the POU's declaration does not start with PROGRAM, FUNCTION or FUNCTION_BLOCK".to_string(),
+                    });
+                };
+                let last = keep.last().map_or(object.range().start, |r| r.end);
+                ends.push((last, end));
+            }
+            "DUT" | "GVL" => {
+                if let Some(decl) = child(object, "Declaration") {
+                    keep.extend(sections(decl, xml));
+                }
+            }
+            other => {
+                return Err(XmlError {
+                    span: at(object.range().start),
+                    message: format!(
+                        "`<{other}>` is not read: a TwinCAT source holds a POU, a DUT or a GVL"
+                    ),
+                })
+            }
+        }
+    }
+    Ok(blank_outside(xml, &keep, &ends))
+}
+
+/// The first child element named `name`.
+fn child<'a, 'i>(node: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::Node<'a, 'i>> {
+    node.children().find(|n| n.is_element() && n.tag_name().name() == name)
+}
+
+/// The contents of the CDATA sections directly inside `node`.
+fn sections(node: roxmltree::Node<'_, '_>, xml: &str) -> Vec<Range<usize>> {
+    let mut out = Vec::new();
+    for text in node.children().filter(|n| n.is_text()) {
+        let range = text.range();
+        let mut from = range.start;
+        while let Some(open) = xml[from..range.end].find("<![CDATA[") {
+            let start = from + open + "<![CDATA[".len();
+            let Some(close) = xml[start..range.end].find("]]>") else { break };
+            out.push(start..start + close);
+            from = start + close + "]]>".len();
+        }
+    }
+    out
+}
+
+/// A POU's declaration and body. Its methods, properties, actions and transitions are refused
+/// at their place.
+fn collect_pou(
+    pou: roxmltree::Node<'_, '_>,
+    xml: &str,
+    keep: &mut Vec<Range<usize>>,
+    at: &dyn Fn(usize) -> Span,
+) -> Result<(), XmlError> {
+    if let Some(decl) = child(pou, "Declaration") {
+        keep.extend(sections(decl, xml));
+    }
+    body(pou, xml, keep, at)?;
+    for member in pou.children().filter(|n| n.is_element()) {
+        match member.tag_name().name() {
+            "Method" | "Property" | "Transition" | "Action" => {
+                let what = member.tag_name().name();
+                return Err(XmlError {
+                    span: at(member.range().start),
+                    message: format!("a POU's `<{what}>` is not read from TwinCAT files"),
+                });
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// The ST body of `<Implementation>`; a graphical body is refused at its place.
+fn body(
+    owner: roxmltree::Node<'_, '_>,
+    xml: &str,
+    keep: &mut Vec<Range<usize>>,
+    at: &dyn Fn(usize) -> Span,
+) -> Result<(), XmlError> {
+    let Some(implementation) = child(owner, "Implementation") else { return Ok(()) };
+    for language in implementation.children().filter(|n| n.is_element()) {
+        match language.tag_name().name() {
+            "ST" => keep.extend(sections(language, xml)),
+            other => {
+                return Err(XmlError {
+                    span: at(language.range().start),
+                    message: format!(
+                        "a `<{other}>` body is graphical: only Structured Text (`<ST>`) bodies are read"
+                    ),
+                })
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The `END_…` of the POU whose declaration is `header`: by its first keyword, after white
+/// space, comments and pragmas.
+fn pou_end(header: &str) -> Option<&'static str> {
+    let mut rest = header;
+    loop {
+        rest = rest.trim_start();
+        if let Some(after) = rest.strip_prefix("(*") {
+            rest = after.split_once("*)").map_or("", |(_, r)| r);
+        } else if let Some(after) = rest.strip_prefix("//") {
+            rest = after.split_once('\n').map_or("", |(_, r)| r);
+        } else if let Some(after) = rest.strip_prefix('{') {
+            rest = after.split_once('}').map_or("", |(_, r)| r);
+        } else {
+            break;
+        }
+    }
+    let word: String =
+        rest.chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect();
+    match word.to_ascii_uppercase().as_str() {
+        "PROGRAM" => Some("END_PROGRAM"),
+        "FUNCTION" => Some("END_FUNCTION"),
+        "FUNCTION_BLOCK" => Some("END_FUNCTION_BLOCK"),
+        _ => None,
+    }
+}
+
+/// `xml` with every character outside `keep` a space (line breaks kept), and each `(at, end)`
+/// keyword written at the start of the first line after `at`, a line that holds only XML.
+fn blank_outside(xml: &str, keep: &[Range<usize>], ends: &[(usize, &str)]) -> String {
+    let mut out = String::with_capacity(xml.len());
+    let mut kept = keep.iter().peekable();
+    let mut pending: Option<&str> = None;
+    let mut ends = ends.iter().peekable();
+    for (i, ch) in xml.char_indices() {
+        while kept.peek().is_some_and(|r| r.end <= i) {
+            kept.next();
+        }
+        if let Some(&&(at, end)) = ends.peek() {
+            if i >= at && pending.is_none() {
+                pending = Some(end);
+                ends.next();
+            }
+        }
+        let inside = kept.peek().is_some_and(|r| r.contains(&i));
+        if ch == '\n' {
+            out.push('\n');
+            if let Some(end) = pending.take() {
+                // the next line held XML only (a POU's last section ended on this one)
+                out.push_str(end);
+                out.push(' ');
+            }
+        } else if ch == '\r' {
+            out.push('\r');
+        } else if inside {
+            out.push(ch);
+        } else {
+            out.push(' ');
+        }
+    }
+    if let Some(end) = pending {
+        out.push('\n');
+        out.push_str(end);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const FB: &str = "\u{feff}<?xml version=\"1.0\" encoding=\"utf-8\"?>
+<TcPlcObject Version=\"1.1.0.1\">
+  <POU Name=\"Count\" Id=\"{1}\" SpecialFunc=\"None\">
+    <Declaration><![CDATA[FUNCTION_BLOCK Count
+VAR_OUTPUT n : INT; END_VAR]]></Declaration>
+    <Implementation>
+      <ST><![CDATA[n := n + 1;
+IF n > 10 THEN n := 0; END_IF]]></ST>
+    </Implementation>
+    <LineIds Name=\"Count\">
+      <LineId Id=\"3\" Count=\"1\" />
+    </LineIds>
+  </POU>
+</TcPlcObject>";
+
+    #[test]
+    fn a_pou_keeps_its_lines_and_columns_and_gets_its_end() {
+        let st = st_text(FB).unwrap();
+        let lines: Vec<&str> = st.lines().collect();
+        assert_eq!(lines.len(), FB.lines().count());
+        assert_eq!(lines[3].trim_end(), format!("{}FUNCTION_BLOCK Count", " ".repeat(26)));
+        assert_eq!(lines[4].trim_end(), "VAR_OUTPUT n : INT; END_VAR");
+        assert_eq!(lines[6].trim_end(), format!("{}n := n + 1;", " ".repeat(19)));
+        assert_eq!(lines[7].trim_end(), "IF n > 10 THEN n := 0; END_IF");
+        assert_eq!(lines[8].trim(), "END_FUNCTION_BLOCK");
+        assert!(lines[9..].iter().all(|l| l.trim().is_empty()), "{lines:?}");
+    }
+
+    #[test]
+    fn types_and_globals_are_their_declaration() {
+        let dut = "<TcPlcObject><DUT Name=\"P\"><Declaration><![CDATA[TYPE P : STRUCT x : INT; END_STRUCT\nEND_TYPE]]></Declaration></DUT></TcPlcObject>";
+        let st = st_text(dut).unwrap();
+        assert_eq!(st.trim(), "TYPE P : STRUCT x : INT; END_STRUCT\nEND_TYPE");
+        let gvl = "<TcPlcObject>\n<GVL Name=\"G\"><Declaration><![CDATA[{attribute 'qualified_only'}\nVAR_GLOBAL g : INT; END_VAR\n]]></Declaration></GVL></TcPlcObject>";
+        let st = st_text(gvl).unwrap();
+        assert_eq!(st.lines().nth(2), Some("VAR_GLOBAL g : INT; END_VAR"));
+    }
+
+    #[test]
+    fn what_is_not_read_is_refused_at_its_place() {
+        let bad = "<TcPlcObject>\n  <POU Name=\"X\">\n";
+        let e = st_text(bad).unwrap_err();
+        assert!(e.message.starts_with("not valid XML"), "{e:?}");
+        let fbd = "<TcPlcObject>\n  <POU Name=\"X\"><Declaration><![CDATA[PROGRAM X]]></Declaration>\n<Implementation><FBD/></Implementation></POU></TcPlcObject>";
+        let e = st_text(fbd).unwrap_err();
+        assert_eq!(e.span, Span { line: 3, col: 17 });
+        assert!(e.message.contains("`<FBD>` body is graphical"), "{e:?}");
+        let other = "<Project/>";
+        assert!(st_text(other).unwrap_err().message.contains("`<TcPlcObject>` expected"));
+        let nameless = "<TcPlcObject><POU><Declaration><![CDATA[TYPE X : INT; END_TYPE]]></Declaration></POU></TcPlcObject>";
+        assert!(st_text(nameless).unwrap_err().message.contains("does not start with PROGRAM"));
+    }
+
+    #[test]
+    fn a_pou_whose_last_section_ends_the_file_gets_its_end_on_a_new_line() {
+        let text = "<TcPlcObject><POU><Declaration><![CDATA[PROGRAM P]]></Declaration><Implementation><ST><![CDATA[x := 1;]]></ST></Implementation></POU></TcPlcObject>";
+        let st = st_text(text).unwrap();
+        assert_eq!(st.lines().nth(1), Some("END_PROGRAM"));
+        assert!(st.lines().next().unwrap().contains("PROGRAM P"));
+    }
+}
