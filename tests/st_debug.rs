@@ -246,3 +246,28 @@ fn plcctl_breaks_at_a_file_line_and_steps_by_statement() {
     let (code, _) = daemon.stop();
     assert_eq!(code, 0);
 }
+
+#[test]
+fn a_breakpoint_in_an_action_pauses_there_and_steps_back_to_the_caller() {
+    let main = "\
+PROGRAM Main
+VAR n AT %D00000 : INT; END_VAR
+n := n + 1;
+Bump();
+n := n + 10;
+ACTION Bump:
+  n := n * 2;
+END_ACTION
+END_PROGRAM
+";
+    let config = "[[program]]\nname = \"main\"\nfile = \"main.st\"\n";
+    let mut plc = Plc::new(&project(config, &[("main.st", main)]));
+    break_at(&mut plc, "main.st:7");
+    plc.request(ModeRequest::Debug).unwrap();
+    assert_eq!(continue_(&mut plc).as_deref(), Some("main.st:7"));
+    assert_eq!(plc.read("D00000"), 1, "paused before the action's statement");
+    // END_ACTION, then the caller's next statement
+    assert_eq!(step(&mut plc).as_deref(), Some("main.st:8"));
+    assert_eq!(step(&mut plc).as_deref(), Some("main.st:5"));
+    assert_eq!(plc.read("D00000"), 2);
+}

@@ -63,6 +63,10 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` is already declared (line {})", "already-declared"),
     ("a FUNCTION cannot return a function block", "function-returns-fb"),
     ("`{}` is a standard function: the name is reserved", "standard-function-name"),
+    ("an ACTION outside a POU needs its POU: `ACTION Pou.Name:`", "action-outside-a-pou"),
+    ("`{}` is not a PROGRAM or FUNCTION_BLOCK of the project", "action-owner-unknown"),
+    ("`{}` is a FUNCTION: only a PROGRAM or a FUNCTION_BLOCK has actions", "action-of-function"),
+    ("`{}` is an action: it takes no arguments", "action-with-arguments"),
     (
         "VAR_GLOBAL belongs outside the POUs: declare globals at the top level of a file",
         "global-in-pou",

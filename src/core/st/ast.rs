@@ -42,6 +42,24 @@ pub enum Item {
     Type(TypeDecl),
     /// A top-level `VAR_GLOBAL … END_VAR` block.
     Globals(VarBlock),
+    /// `ACTION [Owner.]Name: … END_ACTION` outside any POU: an action of `owner`, or, without
+    /// one, of the POU just before it in the file (as CODESYS exports them).
+    Action {
+        owner: Option<Ident>,
+        action: Action,
+    },
+}
+
+/// `ACTION Name: … END_ACTION`: a body of a PROGRAM or FUNCTION_BLOCK on its variables, called
+/// as `Name()` inside it or `inst.Name()` on an instance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Action {
+    pub name: Ident,
+    pub body: Vec<Stmt>,
+    /// Where `ACTION` is.
+    pub span: Span,
+    /// Where its `END_ACTION` is.
+    pub end: Span,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -60,6 +78,8 @@ pub struct Pou {
     pub return_type: Option<TypeRef>,
     pub vars: Vec<VarBlock>,
     pub body: Vec<Stmt>,
+    /// The actions declared inside it (`ACTION … END_ACTION` among its statements).
+    pub actions: Vec<Action>,
     /// Where the POU's keyword is.
     pub span: Span,
     /// Where its `END_…` keyword is (the line a breakpoint on the end stops at).

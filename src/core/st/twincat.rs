@@ -51,14 +51,14 @@ pub fn st_text(xml: &str) -> Result<String, XmlError> {
             ),
         });
     }
-    // The CDATA sections to keep, and where to write each POU's end.
+    // The CDATA sections to keep, and the keywords to write among the blanks.
     let mut keep: Vec<Range<usize>> = Vec::new();
-    let mut ends: Vec<(usize, &'static str)> = Vec::new();
+    let mut words: Vec<(usize, String)> = Vec::new();
     for object in root.children().filter(|n| n.is_element()) {
         match object.tag_name().name() {
             "POU" => {
-                let before = keep.len();
-                collect_pou(object, xml, &mut keep, &at)?;
+                let (before, words_before) = (keep.len(), words.len());
+                collect_pou(object, xml, &mut keep, &mut words, &at)?;
                 let header = keep.get(before).map(|r| &xml[r.clone()]).unwrap_or("");
                 let Some(end) = pou_end(header) else {
                     return Err(XmlError {
@@ -66,8 +66,11 @@ pub fn st_text(xml: &str) -> Result<String, XmlError> {
                         message: "the POU's declaration does not start with PROGRAM, FUNCTION or FUNCTION_BLOCK".to_string(),
                     });
                 };
+                // on the line after its last section or action end, a line of XML only
                 let last = keep.last().map_or(object.range().start, |r| r.end);
-                ends.push((last, end));
+                let last = words[words_before..].iter().map(|(at, _)| *at).fold(last, usize::max);
+                let next_line = xml[last..].find('\n').map_or(xml.len(), |n| last + n + 1);
+                words.push((next_line, end.to_string()));
             }
             "DUT" | "GVL" => {
                 if let Some(decl) = child(object, "Declaration") {
@@ -84,7 +87,8 @@ pub fn st_text(xml: &str) -> Result<String, XmlError> {
             }
         }
     }
-    Ok(blank_outside(xml, &keep, &ends))
+    words.sort_by_key(|(at, _)| *at);
+    Ok(blank_outside(xml, &keep, &words))
 }
 
 /// The first child element named `name`.
@@ -108,12 +112,13 @@ fn sections(node: roxmltree::Node<'_, '_>, xml: &str) -> Vec<Range<usize>> {
     out
 }
 
-/// A POU's declaration and body. Its methods, properties, actions and transitions are refused
-/// at their place.
+/// A POU's declaration, its body and its actions (each written `ACTION Name: … END_ACTION`
+/// over its XML tags). Its methods, properties and transitions are refused at their place.
 fn collect_pou(
     pou: roxmltree::Node<'_, '_>,
     xml: &str,
     keep: &mut Vec<Range<usize>>,
+    words: &mut Vec<(usize, String)>,
     at: &dyn Fn(usize) -> Span,
 ) -> Result<(), XmlError> {
     if let Some(decl) = child(pou, "Declaration") {
@@ -122,7 +127,16 @@ fn collect_pou(
     body(pou, xml, keep, at)?;
     for member in pou.children().filter(|n| n.is_element()) {
         match member.tag_name().name() {
-            "Method" | "Property" | "Transition" | "Action" => {
+            "Action" => {
+                let name = member.attribute("Name").unwrap_or_default();
+                let range = member.range();
+                words.push((range.start, format!("ACTION {name}:")));
+                body(member, xml, keep, at)?;
+                // over `</Action>` (or the end of an empty `<Action/>`)
+                let close = xml[range.clone()].rfind("</").map_or(range.end, |n| range.start + n);
+                words.push((close, "END_ACTION".to_string()));
+            }
+            "Method" | "Property" | "Transition" => {
                 let what = member.tag_name().name();
                 return Err(XmlError {
                     span: at(member.range().start),
@@ -132,6 +146,7 @@ fn collect_pou(
             _ => {}
         }
     }
+    keep.sort_by_key(|r| r.start);
     Ok(())
 }
 
@@ -185,42 +200,41 @@ fn pou_end(header: &str) -> Option<&'static str> {
     }
 }
 
-/// `xml` with every character outside `keep` a space (line breaks kept), and each `(at, end)`
-/// keyword written at the start of the first line after `at`, a line that holds only XML.
-fn blank_outside(xml: &str, keep: &[Range<usize>], ends: &[(usize, &str)]) -> String {
-    let mut out = String::with_capacity(xml.len());
+/// `xml` with every character outside `keep` a space (line breaks kept), and each word of
+/// `words` (sorted by place) written at its place over those spaces; a word longer than the
+/// spaces left on its line pushes the rest of the line, which holds XML only.
+fn blank_outside(xml: &str, keep: &[Range<usize>], words: &[(usize, String)]) -> String {
+    let mut out = String::with_capacity(xml.len() + 64);
     let mut kept = keep.iter().peekable();
-    let mut pending: Option<&str> = None;
-    let mut ends = ends.iter().peekable();
+    let mut words = words.iter().peekable();
+    let mut covered = 0usize; // spaces still covered by the last word written
     for (i, ch) in xml.char_indices() {
         while kept.peek().is_some_and(|r| r.end <= i) {
             kept.next();
         }
-        if let Some(&&(at, end)) = ends.peek() {
-            if i >= at && pending.is_none() {
-                pending = Some(end);
-                ends.next();
-            }
-        }
-        let inside = kept.peek().is_some_and(|r| r.contains(&i));
-        if ch == '\n' {
-            out.push('\n');
-            if let Some(end) = pending.take() {
-                // the next line held XML only (a POU's last section ended on this one)
-                out.push_str(end);
+        while let Some((_, word)) = words.next_if(|(at, _)| *at <= i) {
+            if covered > 0 {
                 out.push(' ');
             }
-        } else if ch == '\r' {
-            out.push('\r');
-        } else if inside {
+            out.push_str(word);
+            covered += word.chars().count() + usize::from(covered > 0);
+        }
+        let inside = kept.peek().is_some_and(|r| r.contains(&i));
+        if inside {
             out.push(ch);
+            covered = 0;
+        } else if ch == '\n' || ch == '\r' {
+            out.push(ch);
+            covered = 0;
+        } else if covered > 0 {
+            covered -= 1;
         } else {
             out.push(' ');
         }
     }
-    if let Some(end) = pending {
+    for (_, word) in words {
         out.push('\n');
-        out.push_str(end);
+        out.push_str(word);
     }
     out
 }
@@ -255,6 +269,34 @@ IF n > 10 THEN n := 0; END_IF]]></ST>
         assert_eq!(lines[7].trim_end(), "IF n > 10 THEN n := 0; END_IF");
         assert_eq!(lines[8].trim(), "END_FUNCTION_BLOCK");
         assert!(lines[9..].iter().all(|l| l.trim().is_empty()), "{lines:?}");
+    }
+
+    #[test]
+    fn an_action_is_written_over_its_tags() {
+        let text = "<TcPlcObject>\n  <POU Name=\"M\">\n    <Declaration><![CDATA[FUNCTION_BLOCK M\nVAR n : INT; END_VAR]]></Declaration>\n    <Implementation>\n      <ST><![CDATA[Reset();]]></ST>\n    </Implementation>\n    <Action Name=\"Reset\" Id=\"{9}\">\n      <Implementation>\n        <ST><![CDATA[n := 0;]]></ST>\n      </Implementation>\n    </Action>\n  </POU>\n</TcPlcObject>";
+        let st = st_text(text).unwrap();
+        let lines: Vec<&str> = st.lines().map(str::trim).collect();
+        assert_eq!(
+            lines,
+            [
+                "",
+                "",
+                "FUNCTION_BLOCK M",
+                "VAR n : INT; END_VAR",
+                "",
+                "Reset();",
+                "",
+                "ACTION Reset:",
+                "",
+                "n := 0;",
+                "",
+                "END_ACTION",
+                "END_FUNCTION_BLOCK",
+                ""
+            ]
+        );
+        // the body keeps its column: `<ST><![CDATA[` ends at column 21
+        assert_eq!(st.lines().nth(9).unwrap().find('n'), Some(21));
     }
 
     #[test]

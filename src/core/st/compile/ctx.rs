@@ -94,12 +94,68 @@ pub struct PouInfo<'a> {
     pub callees: Vec<(usize, Span)>,
     /// Whether the body has been checked (diagnostics given once).
     pub checked: bool,
+    /// An action: its declaration and the POU it belongs to, whose variables it shares (`ast`
+    /// is that POU's).
+    pub action: Option<(&'a ast::Action, usize)>,
 }
 
-impl PouInfo<'_> {
+impl<'a> PouInfo<'a> {
+    /// A PROGRAM, FUNCTION or FUNCTION_BLOCK, not yet resolved.
+    pub fn new(ast: &'a ast::Pou, file: usize) -> PouInfo<'a> {
+        PouInfo {
+            ast,
+            file,
+            name: ast.name.name.clone(),
+            kind: ast.kind,
+            vars: Vec::new(),
+            names: HashMap::new(),
+            result: Ty::Void,
+            inst_size: 0,
+            image: Vec::new(),
+            frame_vars: 0,
+            frame_image: Vec::new(),
+            frame_template: None,
+            state: State::Todo,
+            positional: Vec::new(),
+            body: None,
+            callees: Vec::new(),
+            checked: false,
+            action: None,
+        }
+    }
+
     pub fn lookup(&self, name: &str) -> Option<usize> {
         self.names.get(&name.to_ascii_lowercase()).copied()
     }
+
+    /// The statements of its body (an action's own).
+    pub fn statements(&self) -> &'a [ast::Stmt] {
+        match self.action {
+            Some((action, _)) => &action.body,
+            None => &self.ast.body,
+        }
+    }
+
+    /// Where it starts and where its `END_…` is.
+    pub fn start_end(&self) -> (Span, Span) {
+        match self.action {
+            Some((action, _)) => (action.span, action.end),
+            None => (self.ast.span, self.ast.end),
+        }
+    }
+
+    /// Where its name is written.
+    pub fn name_span(&self) -> Span {
+        match self.action {
+            Some((action, _)) => action.name.span,
+            None => self.ast.name.span,
+        }
+    }
+}
+
+/// The key of an action in [`Ctx::pou_names`]: `owner.action`, which no other name can be.
+pub fn action_key(owner: &str, action: &str) -> String {
+    format!("{}.{}", owner.to_ascii_lowercase(), action.to_ascii_lowercase())
 }
 
 /// A TYPE declaration, resolved on first use.

@@ -9,7 +9,9 @@ use crate::device::{Address, BitRef, Writer};
 use crate::lang::Place;
 use crate::st::ast::{self, ArrayInit, Init, Item, PouKind, Span, TypeDef, TypeRef, VarKind};
 
-use super::ctx::{suggest, Ctx, Cv, PouInfo, Scope, State, Storage, TypeEntry, VarInfo};
+use super::ctx::{
+    action_key, suggest, Ctx, Cv, PouInfo, Scope, State, Storage, TypeEntry, VarInfo,
+};
 use super::types::{fits, ArrayTy, EnumTy, Member, Prim, StructTy, Ty};
 
 /// The largest frame or instance the compiler accepts.
@@ -44,6 +46,9 @@ impl<'a> Ctx<'a> {
     pub fn collect(&mut self) {
         let files = self.files.clone();
         let mut seen: HashMap<String, (usize, Span)> = HashMap::new();
+        // actions written outside their POU, with the POU they name (or follow)
+        let mut outside: Vec<(usize, Option<(String, Span)>, &'a ast::Action)> = Vec::new();
+        let mut last_pou: Option<&'a ast::Pou> = None;
         for (fi, file) in files.iter().enumerate() {
             for item in &file.items {
                 let (id, is_type) = match item {
@@ -51,6 +56,15 @@ impl<'a> Ctx<'a> {
                     Item::Pou(p) => (&p.name, false),
                     Item::Globals(b) => {
                         self.global_blocks.push((fi, b));
+                        continue;
+                    }
+                    Item::Action { owner, action } => {
+                        // the POU named, or the one just before
+                        let owner =
+                            owner.as_ref().map(|o| (o.name.clone(), o.span)).or_else(|| {
+                                last_pou.map(|p: &ast::Pou| (p.name.name.clone(), p.name.span))
+                            });
+                        outside.push((fi, owner, action));
                         continue;
                     }
                 };
@@ -86,30 +100,32 @@ impl<'a> Ctx<'a> {
                         });
                     }
                     Item::Pou(p) => {
-                        self.pou_names.insert(key(&p.name.name), self.pous.len());
-                        self.pous.push(PouInfo {
-                            ast: p,
-                            file: fi,
-                            name: p.name.name.clone(),
-                            kind: p.kind,
-                            vars: Vec::new(),
-                            names: HashMap::new(),
-                            result: Ty::Void,
-                            inst_size: 0,
-                            image: Vec::new(),
-                            frame_vars: 0,
-                            frame_image: Vec::new(),
-                            frame_template: None,
-                            state: State::Todo,
-                            positional: Vec::new(),
-                            body: None,
-                            callees: Vec::new(),
-                            checked: false,
-                        });
+                        let owner = self.pous.len();
+                        self.pou_names.insert(key(&p.name.name), owner);
+                        self.pous.push(PouInfo::new(p, fi));
+                        for action in &p.actions {
+                            self.add_action(fi, owner, action);
+                        }
+                        last_pou = Some(p);
                     }
-                    Item::Globals(_) => {}
+                    Item::Globals(_) | Item::Action { .. } => {}
                 }
                 let _ = is_type;
+            }
+            last_pou = None;
+        }
+        for (fi, owner, action) in outside {
+            let Some((name, span)) = owner else {
+                let msg = "an ACTION outside a POU needs its POU: `ACTION Pou.Name:`";
+                self.error(fi, action.span, msg);
+                continue;
+            };
+            match self.pou_names.get(&key(&name)).copied() {
+                Some(p) => self.add_action(fi, p, action),
+                None => {
+                    let msg = format!("`{name}` is not a PROGRAM or FUNCTION_BLOCK of the project");
+                    self.error(fi, span, msg);
+                }
             }
         }
         self.types.fbs = self
@@ -735,9 +751,70 @@ impl<'a> Ctx<'a> {
         }
     }
 
+    /// Registers `action` of POU `owner`: a POU of its own that shares the owner's variables
+    /// (compiled as a function block's body, called with the owner's instance).
+    fn add_action(&mut self, file: usize, owner: usize, action: &'a ast::Action) {
+        let (owner_ast, owner_name) = (self.pous[owner].ast, self.pous[owner].name.clone());
+        if owner_ast.kind == PouKind::Function {
+            let msg = format!(
+                "`{owner_name}` is a FUNCTION: only a PROGRAM or a FUNCTION_BLOCK has actions"
+            );
+            self.error(file, action.span, msg);
+            return;
+        }
+        let k = action_key(&owner_name, &action.name.name);
+        if let Some(&first) = self.pou_names.get(&k) {
+            let at = self.pous[first].name_span();
+            let first = self.first_at(self.pous[first].file, at, file);
+            self.error(
+                file,
+                action.name.span,
+                format!("`{}` is already declared ({first})", action.name.name),
+            );
+            return;
+        }
+        if owner_ast
+            .vars
+            .iter()
+            .flat_map(|b| &b.decls)
+            .flat_map(|d| &d.names)
+            .any(|n| n.is(&action.name.name))
+        {
+            self.error(
+                file,
+                action.name.span,
+                format!(
+                    "`{}` is already declared (line {})",
+                    action.name.name, owner_ast.span.line
+                ),
+            );
+            return;
+        }
+        self.pou_names.insert(k, self.pous.len());
+        let mut info = PouInfo::new(owner_ast, file);
+        info.name = format!("{owner_name}.{}", action.name.name);
+        info.kind = PouKind::FunctionBlock;
+        info.action = Some((action, owner));
+        self.pous.push(info);
+    }
+
     /// Resolves a POU's interface (its variables, their layout and images).
     pub fn resolve_pou(&mut self, p: usize) {
         if self.pous[p].state != State::Todo {
+            return;
+        }
+        if let Some((_, owner)) = self.pous[p].action {
+            // the owner's variables, at the owner's offsets
+            self.resolve_pou(owner);
+            let o = &self.pous[owner];
+            let (vars, names, size) = (o.vars.clone(), o.names.clone(), o.inst_size);
+            let (image, frame_vars, frame_image) =
+                (o.image.clone(), o.frame_vars, o.frame_image.clone());
+            let a = &mut self.pous[p];
+            (a.vars, a.names, a.inst_size, a.image) = (vars, names, size, image);
+            (a.frame_vars, a.frame_image) = (frame_vars, frame_image);
+            a.state = State::Done;
+            self.types.fbs[p] = Some((a.name.clone(), a.inst_size));
             return;
         }
         self.pous[p].state = State::Busy;

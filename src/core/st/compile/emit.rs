@@ -1210,8 +1210,8 @@ pub fn compile_body(cx: &mut Ctx<'_>, p: usize, body: &[TStmt]) -> Body {
     let kind = cx.pous[p].kind;
     let file = cx.pous[p].file;
     let frame_vars = cx.pous[p].frame_vars;
-    let end_line = cx.pous[p].ast.end.line;
-    let start_line = cx.pous[p].ast.span.line;
+    let (start, end) = cx.pous[p].start_end();
+    let (start_line, end_line) = (start.line, end.line);
     let mut em = Em {
         cx,
         kind,
@@ -1245,7 +1245,7 @@ pub fn compile_body(cx: &mut Ctx<'_>, p: usize, body: &[TStmt]) -> Body {
     // Variables alone past the limit were reported with the declarations.
     if b.frame > MAX_FRAME && cx.pous[p].frame_vars <= MAX_FRAME {
         let name = cx.pous[p].name.clone();
-        let span = cx.pous[p].ast.name.span;
+        let span = cx.pous[p].name_span();
         cx.error(file, span, format!("`{name}` needs {} bytes of frame (limit 1 MiB)", b.frame));
     }
     b

@@ -1269,6 +1269,50 @@ impl<'a> Ctx<'a> {
         }
     }
 
+    /// The action `callee` names, with the instance it runs on: `Name` in its POU (or in
+    /// another action of it) runs on the POU's own instance, `inst.Name` on `inst`. `None` when
+    /// `callee` names no action; `Some(None)` after an error.
+    pub fn action_call(
+        &mut self,
+        callee: &Expr,
+        args: &[Arg],
+        span: Span,
+        scope: Scope,
+    ) -> Option<Option<(TExpr, CallT)>> {
+        let file = scope.file;
+        let (inst, action) = match &callee.kind {
+            ExprKind::Name(id) => {
+                let p = scope.pou?;
+                if self.pous[p].lookup(&id.name).is_some() {
+                    return None;
+                }
+                let owner = self.pous[p].action.map_or(p, |(_, o)| o);
+                let key = super::ctx::action_key(&self.pous[owner].name, &id.name);
+                let action = *self.pou_names.get(&key)?;
+                // the POU's own instance: its variables start at offset 0
+                let k = TK::Var { storage: Storage::Inst(0), by_ref: false };
+                (TExpr { k, ty: Ty::Fb(action), span: callee.span }, action)
+            }
+            ExprKind::Member(base, id) => {
+                let saved = self.diags.len();
+                let probe = self.check_place(base, scope, Access::Read, None);
+                self.diags.truncate(saved);
+                let Ty::Fb(owner) = probe.ty else { return None };
+                let key = super::ctx::action_key(&self.pous[owner].name, &id.name);
+                let action = *self.pou_names.get(&key)?;
+                (self.check_place(base, scope, Access::Ref, None), action)
+            }
+            _ => return None,
+        };
+        if !args.is_empty() {
+            let name = self.pous[action].name.clone();
+            self.error(file, span, format!("`{name}` is an action: it takes no arguments"));
+            return Some(None);
+        }
+        self.record_call(scope, action, span);
+        Some(Some((inst, CallT { pou: action, args: Vec::new(), outs: Vec::new() })))
+    }
+
     /// A function block instance called as a statement.
     pub fn fb_call(
         &mut self,

@@ -376,7 +376,7 @@ fn check_recursion(cx: &mut Ctx<'_>) {
     for (p, &d) in depth.iter().enumerate() {
         if cx.pous[p].kind == PouKind::Program && d > ST_CALL_DEPTH {
             let (file, span, name) =
-                (cx.pous[p].file, cx.pous[p].ast.name.span, cx.pous[p].name.clone());
+                (cx.pous[p].file, cx.pous[p].name_span(), cx.pous[p].name.clone());
             cx.error(file, span, format!("`{name}` nests calls {d} deep (limit {ST_CALL_DEPTH})"));
         }
     }
@@ -488,7 +488,7 @@ fn link(
     // What the program's chains of calls need, refused at the program's name.
     let pou = &cx.pous[p];
     let at_program = |message: String| {
-        Diagnostic::new(cx.path(pou.file), pou.ast.name.span.line, pou.ast.name.span.col, message)
+        Diagnostic::new(cx.path(pou.file), pou.name_span().line, pou.name_span().col, message)
     };
     let frame_bytes = need(cx, p, &mut HashMap::new());
     if frame_bytes > decl::MAX_FRAME {

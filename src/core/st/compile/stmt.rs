@@ -95,7 +95,10 @@ impl<'a> Ctx<'a> {
                     self.error(file, e.span, "this expression does nothing: a statement is needed");
                     return None;
                 };
-                if self.is_instance(callee, scope) {
+                if let Some(call) = self.action_call(callee, args, e.span, scope) {
+                    let (inst, call) = call?;
+                    TS::FbCall(inst, call)
+                } else if self.is_instance(callee, scope) {
                     let (inst, call) = self.fb_call(callee, args, e.span, scope)?;
                     TS::FbCall(inst, call)
                 } else {
@@ -384,13 +387,13 @@ impl<'a> Ctx<'a> {
 
     /// Checks a POU's body.
     pub fn check_pou_body(&mut self, p: usize) -> Vec<TStmt> {
-        let pou = self.pous[p].ast;
+        let statements = self.pous[p].statements();
         let file = self.pous[p].file;
         let scope = Scope { pou: Some(p), visible: self.pous[p].vars.len(), file };
         self.in_prelude = file == self.prelude_file;
         self.loop_depth = 0;
         self.for_vars.clear();
         // A FUNCTION's result never assigned on some path keeps its type's initial value.
-        self.check_body(&pou.body, scope)
+        self.check_body(statements, scope)
     }
 }

@@ -17,6 +17,8 @@ pub(crate) enum Kw {
     EndFunction,
     FunctionBlock,
     EndFunctionBlock,
+    Action,
+    EndAction,
     Type,
     EndType,
     Struct,
@@ -77,6 +79,8 @@ impl Kw {
             b"END_FUNCTION" => Kw::EndFunction,
             b"FUNCTION_BLOCK" => Kw::FunctionBlock,
             b"END_FUNCTION_BLOCK" => Kw::EndFunctionBlock,
+            b"ACTION" => Kw::Action,
+            b"END_ACTION" => Kw::EndAction,
             b"TYPE" => Kw::Type,
             b"END_TYPE" => Kw::EndType,
             b"STRUCT" => Kw::Struct,
@@ -136,6 +140,7 @@ impl Kw {
             Kw::EndProgram
                 | Kw::EndFunction
                 | Kw::EndFunctionBlock
+                | Kw::EndAction
                 | Kw::EndType
                 | Kw::EndStruct
                 | Kw::EndVar

@@ -117,7 +117,9 @@ impl Want {
             Want::Name => "a name",
             Want::Type => "a type",
             Want::DotDot => "`..`",
-            Want::Item => "`PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE` or `VAR_GLOBAL`",
+            Want::Item => {
+                "`PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE`, `VAR_GLOBAL` or `ACTION`"
+            }
             Want::VarDecl => "a variable name or `END_VAR`",
             Want::TypeDecl => "a type name or `END_TYPE`",
             Want::StructMember => "a member name or `END_STRUCT`",
@@ -143,10 +145,11 @@ pub(crate) enum Closer {
     Type,
     Struct,
     Var,
+    Action,
 }
 
 impl Closer {
-    pub(crate) const ALL: [Closer; 11] = [
+    pub(crate) const ALL: [Closer; 12] = [
         Closer::If,
         Closer::Case,
         Closer::For,
@@ -158,6 +161,7 @@ impl Closer {
         Closer::Type,
         Closer::Struct,
         Closer::Var,
+        Closer::Action,
     ];
 
     /// The keyword that closes it.
@@ -174,6 +178,7 @@ impl Closer {
             Closer::Type => "END_TYPE",
             Closer::Struct => "END_STRUCT",
             Closer::Var => "END_VAR",
+            Closer::Action => "END_ACTION",
         }
     }
 
@@ -191,6 +196,7 @@ impl Closer {
             Closer::Type => "TYPE",
             Closer::Struct => "STRUCT",
             Closer::Var => "{}",
+            Closer::Action => "ACTION",
         }
     }
 }

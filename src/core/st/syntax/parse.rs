@@ -137,7 +137,10 @@ fn var_kind(tok: &Tok) -> Option<VarKind> {
 
 /// Keywords that start a top-level item, and the end of the file.
 fn is_top(tok: &Tok) -> bool {
-    matches!(tok, Tok::Eof | Tok::Kw(Kw::Program | Kw::Function | Kw::FunctionBlock | Kw::Type))
+    matches!(
+        tok,
+        Tok::Eof | Tok::Kw(Kw::Program | Kw::Function | Kw::FunctionBlock | Kw::Type | Kw::Action)
+    )
 }
 
 fn is_stmt_keyword(tok: &Tok) -> bool {
@@ -183,6 +186,7 @@ impl Closer {
             Closer::Type => kw == Kw::EndType,
             Closer::Struct => kw == Kw::EndStruct,
             Closer::Var => kw == Kw::EndVar,
+            Closer::Action => kw == Kw::EndAction,
         }
     }
 
@@ -199,6 +203,7 @@ impl Closer {
             Closer::Type => Kw::EndType,
             Closer::Struct => Kw::EndStruct,
             Closer::Var => Kw::EndVar,
+            Closer::Action => Kw::EndAction,
         }
     }
 }
@@ -398,7 +403,9 @@ impl<'a> Parser<'a> {
         // statement, a POU's of a POU.
         if let Tok::Kw(kw) = *self.tok() {
             let misspelt = match closer {
-                Closer::Program | Closer::Function | Closer::FunctionBlock => is_pou_end(kw),
+                Closer::Program | Closer::Function | Closer::FunctionBlock | Closer::Action => {
+                    is_pou_end(kw) || kw == Kw::EndAction
+                }
                 Closer::Type | Closer::Struct | Closer::Var => false,
                 _ => kw.is_end() && !is_pou_end(kw),
             };
@@ -466,6 +473,11 @@ impl<'a> Parser<'a> {
                 }
                 Tok::Kw(Kw::Type) => items.extend(self.type_block().into_iter().map(Item::Type)),
                 Tok::Kw(Kw::VarGlobal) => items.push(Item::Globals(self.var_block())),
+                Tok::Kw(Kw::Action) => {
+                    if let Some((owner, action)) = self.action(true) {
+                        items.push(Item::Action { owner, action });
+                    }
+                }
                 _ => {
                     let _ = self.fail(Want::Item);
                     self.bump();
@@ -509,11 +521,40 @@ impl<'a> Parser<'a> {
             PouKind::FunctionBlock => Closer::FunctionBlock,
         };
         self.open.push(closer);
-        let body = self.stmt_list(false, false);
+        let mut body = self.stmt_list(false, false);
+        let mut actions = Vec::new();
+        // actions among the statements (as the textual SFC places them)
+        while self.at_kw(Kw::Action) {
+            if let Some((_, action)) = self.action(false) {
+                actions.push(action);
+            }
+            body.extend(self.stmt_list(false, false));
+        }
         self.open.pop();
         let here = self.span();
         let end = self.close(closer, &opener, span).unwrap_or(here);
-        Pou { kind, name, return_type, vars, body, span, end }
+        Pou { kind, name, return_type, vars, body, actions, span, end }
+    }
+
+    /// `ACTION [Owner.]Name: … END_ACTION [;]`; the owner only at the top level.
+    fn action(&mut self, top: bool) -> Option<(Option<Ident>, Action)> {
+        let span = self.span();
+        self.bump();
+        let mut owner = None;
+        let mut name = self.ident().ok();
+        if top && self.eat_p(P::Dot) {
+            owner = name;
+            name = self.ident().ok();
+        }
+        self.expect_p_soft(P::Colon, Want::Colon);
+        self.open.push(Closer::Action);
+        let body = self.stmt_list(false, false);
+        self.open.pop();
+        let here = self.span();
+        let end = self.close(Closer::Action, "ACTION", span).unwrap_or(here);
+        self.eat_p(P::Semi);
+        let name = name?;
+        Some((owner, Action { name, body, span, end }))
     }
 
     // ----- declarations -----

@@ -877,6 +877,24 @@ fn a_type_declaration_needs_no_semicolon_before_end_type_or_the_next_type() {
 }
 
 #[test]
+fn actions_are_read_inside_a_pou_and_at_the_top_level() {
+    let text =
+        "FUNCTION_BLOCK f\nVAR n : INT; END_VAR\nn := 1;\nACTION Reset:\n  n := 0;\nEND_ACTION\n\
+                n := 2;\nEND_FUNCTION_BLOCK\nACTION Later: n := 5; END_ACTION\n\
+                ACTION f.Named:\nEND_ACTION;\n";
+    let items = parse_ok(text);
+    let Item::Pou(pou) = &items[0] else { panic!("{items:?}") };
+    assert_eq!(pou.body.len(), 2, "the statements around the action are the body");
+    assert_eq!(pou.actions.len(), 1);
+    assert!(pou.actions[0].name.is("Reset"));
+    assert_eq!((pou.actions[0].span.line, pou.actions[0].end.line), (4, 6));
+    let Item::Action { owner: None, action } = &items[1] else { panic!("{items:?}") };
+    assert!(action.name.is("Later") && action.body.len() == 1);
+    let Item::Action { owner: Some(owner), action } = &items[2] else { panic!("{items:?}") };
+    assert!(owner.is("f") && action.name.is("Named") && action.body.is_empty());
+}
+
+#[test]
 fn var_stat_var_inst_and_constant_inputs_are_noted() {
     let text = "FUNCTION_BLOCK f\nVAR_STAT a : INT; END_VAR\nVAR_INST b : INT; END_VAR\n\
                 VAR_INPUT CONSTANT c : INT; END_VAR\nVAR_IN_OUT CONSTANT d : INT; END_VAR\n\
@@ -1025,7 +1043,7 @@ fn reports_declaration_errors() {
         errors("TYPE A : INT;\nPROGRAM p END_PROGRAM"),
         ["2:1: `END_TYPE` expected to close the TYPE at line 1, found `PROGRAM`"]
     );
-    assert_eq!(errors("x := 1;\nPROGRAM p END_PROGRAM"), ["1:1: expected `PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE` or `VAR_GLOBAL`, found `x`"]);
+    assert_eq!(errors("x := 1;\nPROGRAM p END_PROGRAM"), ["1:1: expected `PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE`, `VAR_GLOBAL` or `ACTION`, found `x`"]);
     assert_eq!(errors("PROGRAM 5 END_PROGRAM"), ["1:9: expected a name, found `5`"]);
 }
 
