@@ -220,10 +220,7 @@ fn blank_outside(xml: &str, keep: &[Range<usize>], words: &[(usize, String)]) ->
             covered += word.chars().count() + usize::from(covered > 0);
         }
         let inside = kept.peek().is_some_and(|r| r.contains(&i));
-        if inside {
-            out.push(ch);
-            covered = 0;
-        } else if ch == '\n' || ch == '\r' {
+        if inside || ch == '\n' || ch == '\r' {
             out.push(ch);
             covered = 0;
         } else if covered > 0 {

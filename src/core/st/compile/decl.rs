@@ -23,6 +23,10 @@ fn key(name: &str) -> String {
     name.to_ascii_lowercase()
 }
 
+/// An action written outside its POU: its file, the POU it names or follows (name and place),
+/// and its declaration.
+type OutsideAction<'a> = (usize, Option<(String, Span)>, &'a ast::Action);
+
 impl<'a> Ctx<'a> {
     fn reserved(&mut self, file: usize, id: &ast::Ident) {
         if file != self.prelude_file && id.name.starts_with("__") {
@@ -47,7 +51,7 @@ impl<'a> Ctx<'a> {
         let files = self.files.clone();
         let mut seen: HashMap<String, (usize, Span)> = HashMap::new();
         // actions written outside their POU, with the POU they name (or follow)
-        let mut outside: Vec<(usize, Option<(String, Span)>, &'a ast::Action)> = Vec::new();
+        let mut outside: Vec<OutsideAction<'a>> = Vec::new();
         let mut last_pou: Option<&'a ast::Pou> = None;
         for (fi, file) in files.iter().enumerate() {
             for item in &file.items {
