@@ -41,7 +41,21 @@ pub fn project(path: &Path) -> Result<Project, Diagnostics> {
 /// --interpreter`, to compare the two or to measure the interpreter itself).
 pub fn interpreted_project(path: &Path) -> Result<Project, Diagnostics> {
     let config = config(path)?;
-    project::from_config_with(config, |p| std::fs::read_to_string(p), source_files)
+    project::from_config_with(config, source_text, source_files)
+}
+
+/// A program or library file's text: UTF-8 (after a UTF-8 byte order mark, if any), or, when
+/// the file is not valid UTF-8, Windows-1252, which every byte is a character of (older CODESYS
+/// exports and OSCAT's sources are written so; docs/ST.md, Source form).
+fn source_text(path: &Path) -> std::io::Result<String> {
+    let mut bytes = std::fs::read(path)?;
+    if bytes.starts_with(b"\xEF\xBB\xBF") {
+        bytes.drain(..3);
+    }
+    Ok(match String::from_utf8(bytes) {
+        Ok(text) => text,
+        Err(e) => crate::value::decode_str(e.as_bytes()),
+    })
 }
 
 /// Every file in `dir` and its subfolders (an `[st] library` folder; the core keeps the
@@ -92,6 +106,18 @@ mod tests {
         let switch = if with_switch { "[switch]\n" } else { "" };
         let text = format!("{switch}[[program]]\nfile = \"main.il\"\n");
         config::parse(&text, Path::new("plcd.toml")).unwrap()
+    }
+
+    #[test]
+    fn a_source_is_utf8_after_its_byte_order_mark_else_windows_1252() {
+        let path = std::env::temp_dir().join(format!("plcd-source-{}.st", std::process::id()));
+        std::fs::write(&path, b"\xEF\xBB\xBF'Gr\xC3\xBC\xC3\x9Fe \xE2\x82\xAC'").unwrap();
+        let utf8 = source_text(&path).unwrap();
+        std::fs::write(&path, b"'Gr\xFC\xDFe \x80'").unwrap();
+        let cp1252 = source_text(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(utf8, "'Grüße €'");
+        assert_eq!(cp1252, "'Grüße €'");
     }
 
     #[test]

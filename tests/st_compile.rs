@@ -128,7 +128,7 @@ impl Run {
 
     fn string(&self, name: &str) -> String {
         let (at, _) = self.sym(name);
-        String::from_utf8_lossy(&self.vm.read_string(at)).into_owned()
+        plcd_core::value::decode_str(&self.vm.read_string(at))
     }
 
     fn errors(&self) -> Vec<u16> {

@@ -112,7 +112,7 @@ fn read(project: &Project, vm: &Vm, name: &str) -> Result<(String, Option<ValueT
     let symbol = project.variable(name).ok_or_else(|| format!("no variable `{name}`"))?;
     let text = match symbol.ty {
         ValueType::String { .. } => {
-            format!("{:?}", String::from_utf8_lossy(&vm.read_string(symbol.at)))
+            format!("{:?}", plcd::value::decode_str(&vm.read_string(symbol.at)))
         }
         ref ty => {
             let text = value::format(ty, vm.read_value(symbol.at, ty.elem()));

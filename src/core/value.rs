@@ -683,6 +683,41 @@ pub fn write_time(out: &mut impl fmt::Write, ns: i64) -> fmt::Result {
     Ok(())
 }
 
+/// Windows-1252's characters for the bytes 0x80–0x9F (0x81, 0x8D, 0x8F, 0x90 and 0x9D, which it
+/// leaves undefined, stand for the control characters of the same number, as in WHATWG's
+/// `windows-1252`); every other byte is the Unicode character of its number (Latin-1).
+const CP1252_80_9F: [char; 32] = [
+    '€', '\u{81}', '‚', 'ƒ', '„', '…', '†', '‡', 'ˆ', '‰', 'Š', '‹', 'Œ', '\u{8D}', 'Ž', '\u{8F}',
+    '\u{90}', '‘', '’', '“', '”', '•', '–', '—', '˜', '™', 'š', '›', 'œ', '\u{9D}', 'ž', 'Ÿ',
+];
+
+/// The character a `STRING` byte stands for: `STRING` holds one byte a character, in the
+/// Windows-1252 character set (as CODESYS and TwinCAT store it).
+pub fn decode_byte(b: u8) -> char {
+    match b {
+        0x80..=0x9F => CP1252_80_9F[usize::from(b - 0x80)],
+        _ => char::from(b),
+    }
+}
+
+/// The `STRING` byte of a character; `None` for a character Windows-1252 does not have.
+pub fn encode_char(c: char) -> Option<u8> {
+    match u32::from(c) {
+        n @ (0..=0x7F | 0xA0..=0xFF) => Some(n as u8),
+        _ => CP1252_80_9F.iter().position(|&x| x == c).map(|i| 0x80 + i as u8),
+    }
+}
+
+/// The `STRING` bytes of a text; the first character Windows-1252 does not have, if any.
+pub fn encode_str(text: &str) -> Result<Vec<u8>, char> {
+    text.chars().map(|c| encode_char(c).ok_or(c)).collect()
+}
+
+/// The text of `STRING` bytes.
+pub fn decode_str(bytes: &[u8]) -> String {
+    bytes.iter().map(|&b| decode_byte(b)).collect()
+}
+
 /// The characters of a `STRING` as an IEC literal: `'abc'`, with `$'`, `$$`, `$N`, `$R`,
 /// `$T` and `$hh` (two hex digits) for the quote, the dollar and the other non-printing bytes.
 pub fn format_string(chars: &[u8]) -> String {
@@ -707,11 +742,13 @@ pub fn format_string(chars: &[u8]) -> String {
 /// literal in single quotes with its `$` escapes, or bare text taken as it is. More than `cap`
 /// characters is an error.
 pub fn parse_string(text: &str, cap: u32) -> Result<Vec<u8>, String> {
+    let unknown = |c: char| format!("`{c}` is not a character of STRING (Windows-1252)");
     let chars = match text.strip_prefix('\'').and_then(|t| t.strip_suffix('\'')) {
-        None => text.as_bytes().to_vec(),
+        None => encode_str(text).map_err(unknown)?,
         Some(inner) => {
+            let inner = encode_str(inner).map_err(unknown)?;
             let mut out = Vec::with_capacity(inner.len());
-            let mut bytes = inner.bytes();
+            let mut bytes = inner.into_iter();
             while let Some(c) = bytes.next() {
                 if c != b'$' {
                     out.push(c);
@@ -989,6 +1026,19 @@ fn time_from_text(text: &str) -> Result<i64, TextError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn string_bytes_are_windows_1252_characters_both_ways() {
+        for b in 0..=255u8 {
+            assert_eq!(encode_char(decode_byte(b)), Some(b), "byte {b:#04X}");
+        }
+        assert_eq!(encode_str("Grüße €5"), Ok(b"Gr\xFC\xDFe \x805".to_vec()));
+        assert_eq!(encode_str("π"), Err('π'));
+        assert_eq!(decode_str(b"\x80\xE4\x9F"), "€äŸ");
+        assert_eq!(parse_string("'€$E4'", 5), Ok(vec![0x80, 0xE4]));
+        assert_eq!(parse_string("größe", 5), Ok(b"gr\xF6\xDFe".to_vec()));
+        assert!(parse_string("'π'", 5).unwrap_err().contains("Windows-1252"));
+    }
     use BinOp::*;
     use Elem::*;
 

@@ -258,7 +258,7 @@ fn variable_value(symbol: &Symbol, snapshot: &Snapshot) -> NamedValue {
     let value = match var_read(symbol) {
         VarRead::Text { at, cap } => {
             let chars = snapshot.text(at, cap).unwrap_or_default();
-            Value::Text(String::from_utf8_lossy(chars).into_owned())
+            Value::Text(value::decode_str(chars))
         }
         VarRead::Value { at, elem } => {
             json_value(&symbol.ty, snapshot.value(at, elem).unwrap_or(0))

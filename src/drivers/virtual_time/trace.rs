@@ -157,7 +157,7 @@ impl<W: Write> EventSink for TraceWriter<W> {
         line.clear();
         let _ = write!(line, "{{\"t_ns\":{t_ns},\"ev\":\"set\"");
         push_str_field(line, "dev", &dev);
-        push_str_field(line, "value", &String::from_utf8_lossy(text));
+        push_str_field(line, "value", &crate::value::decode_str(text));
         line.push_str("}\n");
         self.write_line();
     }

@@ -19,7 +19,8 @@ use super::types::{Ty, Types};
 pub enum Cv {
     Int(i128),
     Real(f64),
-    Str(String),
+    /// A `STRING` constant: its bytes, one a character (Windows-1252, docs/ST.md).
+    Str(Vec<u8>),
 }
 
 /// Where a variable is, relative to what owns it.

@@ -645,7 +645,7 @@ impl<'a> Ctx<'a> {
                 let mut b = vec![0u8; *n as usize + 1];
                 let len = s.len().min(*n as usize);
                 b[0] = len as u8;
-                b[1..=len].copy_from_slice(&s.as_bytes()[..len]);
+                b[1..=len].copy_from_slice(&s[..len]);
                 Some(b)
             }
             (super::expr::TK::Const(cv), _) => {

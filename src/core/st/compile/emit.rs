@@ -337,7 +337,7 @@ impl<'c, 'a> Em<'c, 'a> {
             TK::Const(cv) => match (cv, &e.ty) {
                 (Cv::Str(s), _) => {
                     let mut bytes = vec![s.len() as u8];
-                    bytes.extend_from_slice(s.as_bytes());
+                    bytes.extend_from_slice(s);
                     let at = self.cx.alloc_var(&bytes);
                     self.op(Op::AddrOf(Place::Var(at)));
                 }

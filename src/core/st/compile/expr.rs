@@ -231,7 +231,7 @@ fn fold_cmp(op: CmpOp, a: &Cv, b: &Cv) -> Option<bool> {
     use std::cmp::Ordering;
     let ord = match (a, b) {
         (Cv::Int(x), Cv::Int(y)) => Some(x.cmp(y)),
-        (Cv::Str(x), Cv::Str(y)) => Some(x.as_bytes().cmp(y.as_bytes())),
+        (Cv::Str(x), Cv::Str(y)) => Some(x.cmp(y)),
         (Cv::Real(x), Cv::Real(y)) => x.partial_cmp(y),
         (Cv::Int(x), Cv::Real(y)) => (*x as f64).partial_cmp(y),
         (Cv::Real(x), Cv::Int(y)) => x.partial_cmp(&(*y as f64)),
@@ -365,11 +365,21 @@ impl<'a> Ctx<'a> {
                 TExpr::konst(Cv::Int(*ns), Ty::Prim(p), span)
             }
             Literal::String(s) => {
-                if s.len() > 255 {
+                // one byte a character: Windows-1252, as CODESYS and TwinCAT store STRING
+                let bytes = match crate::value::encode_str(s) {
+                    Ok(bytes) => bytes,
+                    Err(c) => {
+                        let msg = format!("`{c}` is not a character of STRING: a STRING holds the characters of Windows-1252");
+                        self.error(file, span, msg);
+                        return TExpr::error(span);
+                    }
+                };
+                if bytes.len() > 255 {
                     self.error(file, span, "a string constant is at most 255 characters");
                     return TExpr::error(span);
                 }
-                TExpr::konst(Cv::Str(s.clone()), Ty::Str(s.len().max(1) as u32), span)
+                let n = bytes.len().max(1) as u32;
+                TExpr::konst(Cv::Str(bytes), Ty::Str(n), span)
             }
             Literal::Typed { ty, value } => {
                 if let Some(p) = Prim::from_name(&ty.name) {

@@ -983,9 +983,9 @@ impl<'a> Ctx<'a> {
 
 fn concat(a: TExpr, b: TExpr, span: Span) -> TExpr {
     if let (TK::Const(Cv::Str(x)), TK::Const(Cv::Str(y))) = (&a.k, &b.k) {
-        let s = format!("{x}{y}");
-        let n = s.len().clamp(1, 255) as u32;
-        let s: String = s.chars().take(255).collect();
+        let mut s = [x.as_slice(), y.as_slice()].concat();
+        s.truncate(255);
+        let n = s.len().max(1) as u32;
         return TExpr::konst(Cv::Str(s), Ty::Str(n), span);
     }
     let cap = match (&a.ty, &b.ty) {

@@ -575,7 +575,7 @@ impl Lexer<'_> {
                     if let (Some(hi), Some(lo)) = (hex(self.peek()), hex(self.peek_at(1))) {
                         self.bump();
                         self.bump();
-                        value.push(char::from((hi * 16 + lo) as u8));
+                        value.push(crate::value::decode_byte((hi * 16 + lo) as u8));
                         continue;
                     }
                     if self.peek().is_some_and(|b| b != b'\n' && b != b'\r') {

@@ -16,6 +16,8 @@ use crate::st::ast;
 
 /// Parses one file: the tree of everything that parsed, and every syntax error.
 pub fn parse_file(path: &Path, text: &str) -> (ast::File, Diagnostics) {
+    // a byte order mark is no character of the source (editors show none)
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let lexed = lex::lex(text);
     let (items, habits, mut errors) =
         parse::parse(text, lexed.tokens, lexed.eof_in_comment, lexed.quiet);
