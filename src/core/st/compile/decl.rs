@@ -701,7 +701,7 @@ impl<'a> Ctx<'a> {
                     continue;
                 }
                 let mut located = None;
-                let storage = match &decl.location {
+                let storage = match decl.location.as_ref().filter(|l| !is_partial(l)) {
                     Some(loc) => match self.locate(file, loc, &ty, &id.name) {
                         Some((s, a)) => {
                             located = Some(a);
@@ -924,7 +924,7 @@ impl<'a> Ctx<'a> {
                                 info.ty = Ty::Error;
                             }
                         }
-                    } else if let Some(loc) = &decl.location {
+                    } else if let Some(loc) = decl.location.as_ref().filter(|l| !is_partial(l)) {
                         if kind != PouKind::Program {
                             self.error(
                                 file,
@@ -1209,6 +1209,12 @@ fn init_span(init: &Init, or: Span) -> Span {
 /// The first `size` bytes of a slot, little-endian.
 pub fn slot_bytes(slot: u64, size: u32) -> Vec<u8> {
     slot.to_le_bytes()[..size as usize].to_vec()
+}
+
+/// Whether a location is partly specified (`%I*`, `%QX*`): the variable is then kept in
+/// variable memory, as an unlocated one (docs/ST.md, Located variables).
+fn is_partial(loc: &ast::Ident) -> bool {
+    loc.name.ends_with('*')
 }
 
 /// An IEC direct address (`IX0.3`, `QW5`, `MD10`) as a plcd device address and its size in

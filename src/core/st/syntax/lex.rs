@@ -323,6 +323,11 @@ impl Lexer<'_> {
                 b'%' => {
                     self.bump();
                     self.bump_while(b".");
+                    // a partly specified address: `%I*`, `%QX*`, `%MW*`
+                    let area = self.text[start + 1..self.pos].to_ascii_uppercase();
+                    if self.peek() == Some(b'*') && is_partial_area(&area) {
+                        self.bump();
+                    }
                     if self.pos == start + 1 {
                         self.error(span, Msg::NoAddress);
                     }
@@ -730,4 +735,13 @@ pub(crate) fn parse_duration(body: &str) -> Result<i128, DurationError> {
         return Err(DurationError::Range);
     }
     Ok(total)
+}
+
+/// Whether `area` (the letters after `%`) may be followed by `*`: `I`, `Q` or `M`, with a
+/// size letter or without.
+fn is_partial_area(area: &str) -> bool {
+    let mut chars = area.chars();
+    matches!(chars.next(), Some('I' | 'Q' | 'M'))
+        && matches!(chars.next(), None | Some('X' | 'B' | 'W' | 'D' | 'L'))
+        && chars.next().is_none()
 }

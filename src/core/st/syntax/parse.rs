@@ -536,6 +536,16 @@ impl<'a> Parser<'a> {
         Pou { kind, name, return_type, vars, body, actions, span, end }
     }
 
+    /// The bit number of a `%X<n>` token (partial access, `w.%X3`).
+    fn partial_bit(&self) -> Option<u8> {
+        let text = self.text_of(self.pos);
+        let digits = text.strip_prefix("%X").or_else(|| text.strip_prefix("%x"))?;
+        if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+            return None;
+        }
+        digits.parse().ok()
+    }
+
     /// `ACTION [Owner.]Name: … END_ACTION [;]`; the owner only at the top level.
     fn action(&mut self, top: bool) -> Option<(Option<Ident>, Action)> {
         let span = self.span();
@@ -1255,6 +1265,14 @@ impl<'a> Parser<'a> {
                             self.bump();
                             ExprKind::Bit(Box::new(expr), bit)
                         }
+                        // IEC's partial access to a bit: `w.%X3`
+                        Tok::Location => match self.partial_bit() {
+                            Some(bit) => {
+                                self.bump();
+                                ExprKind::Bit(Box::new(expr), bit)
+                            }
+                            None => return Err(self.fail(Want::Field)),
+                        },
                         _ => return Err(self.fail(Want::Field)),
                     }
                 }

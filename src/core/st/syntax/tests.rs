@@ -895,6 +895,17 @@ fn actions_are_read_inside_a_pou_and_at_the_top_level() {
 }
 
 #[test]
+fn partly_specified_addresses_and_partial_bit_access() {
+    assert_eq!(toks("%I*"), [Tok::Location]);
+    assert_eq!(toks("%QX* : BOOL"), [Tok::Location, Tok::P(P::Colon), Tok::Ident]);
+    assert_eq!(toks("%D*").len(), 2, "a plcd device is never partial: `%D`, then `*`");
+    assert_eq!(body("b := w.%X3;").len(), 1);
+    let e = parse_expr("w.%X3").unwrap();
+    assert!(matches!(e.kind, ExprKind::Bit(_, 3)), "{e:?}");
+    assert!(parse_expr("w.%B0").is_err(), "byte partial access is not read");
+}
+
+#[test]
 fn var_stat_var_inst_and_constant_inputs_are_noted() {
     let text = "FUNCTION_BLOCK f\nVAR_STAT a : INT; END_VAR\nVAR_INST b : INT; END_VAR\n\
                 VAR_INPUT CONSTANT c : INT; END_VAR\nVAR_IN_OUT CONSTANT d : INT; END_VAR\n\
