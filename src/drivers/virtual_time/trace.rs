@@ -173,14 +173,14 @@ fn watch_name(names: &[String], watch: u16) -> String {
 
 /// Appends a variable's value as JSON: a number for integers, bit strings and reals (a real
 /// that is not finite as the string `"NaN"`, `"inf"` or `"-inf"`), 0/1 for BOOL, a string for
-/// TIME (an IEC literal) and for an enumeration (its value's name, or a number for a value
+/// TIME, DATE, TOD, DT and their long forms (IEC literals) and for an enumeration (its value's name, or a number for a value
 /// that has none).
 pub fn push_json_value(line: &mut String, ty: &ValueType, slot: u64) {
     let text = crate::value::format(ty, slot);
     let numeric = match ty {
         ValueType::Real(_) => text.parse::<f64>().is_ok_and(f64::is_finite),
         ValueType::Enum { .. } => text.parse::<i64>().is_ok(),
-        ValueType::Time | ValueType::String { .. } => false,
+        ValueType::Time | ValueType::Calendar(_) | ValueType::String { .. } => false,
         _ => true,
     };
     if numeric {
