@@ -363,6 +363,9 @@ impl<'a> Ctx<'a> {
                 }
                 TExpr::konst(Cv::Int(*ns), Ty::Prim(p), span)
             }
+            Literal::Calendar(cal, count) => {
+                TExpr::konst(Cv::Int(i128::from(*count)), Ty::Prim(Prim::Cal(*cal)), span)
+            }
             Literal::String(s) => {
                 if s.len() > 255 {
                     self.error(file, span, "a string constant is at most 255 characters");
