@@ -1050,6 +1050,10 @@ impl<'a> Ctx<'a> {
                 return self.make_bin(bop, t, n, Ty::Prim(tp), span, file);
             }
         }
+        let (pa, pb) = (a.ty.prim(&self.types), b.ty.prim(&self.types));
+        if super::calendar::is_calendar_arith(op, pa, pb) {
+            return self.calendar_arith(op, a, b, span, file);
+        }
         let Some((a, b, ty)) = self.unify(a, b, what, span, file) else {
             return TExpr::error(span);
         };

@@ -67,6 +67,7 @@ fn formals(name: &str, n: usize) -> Vec<String> {
             return v;
         }
         "EXPT" | "SUB" | "DIV" | "MOD" | "FIND" => &["IN1", "IN2"],
+        _ if super::calendar::function(name).is_some() => &["IN1", "IN2"],
         "ADD" | "MUL" | "MIN" | "MAX" | "AND" | "OR" | "XOR" | "CONCAT" => {
             return (1..=n).map(|i| format!("IN{i}")).collect();
         }
@@ -251,6 +252,19 @@ impl<'a> Ctx<'a> {
                 ty: Ty::Prim(Prim::Bool),
                 span,
             };
+        }
+        if let Some((pa, pb)) = super::calendar::function(&upper) {
+            let Some(a) = self.std_args(&upper, args, span, file) else {
+                return TExpr::error(span);
+            };
+            if !self.arity(&upper, a.len(), 2, 2, span, file) {
+                return TExpr::error(span);
+            }
+            let x = self.check_expr(a[0], scope, Some(&Ty::Prim(pa)));
+            let x = self.coerce(x, &Ty::Prim(pa), file);
+            let y = self.check_expr(a[1], scope, Some(&Ty::Prim(pb)));
+            let y = self.coerce(y, &Ty::Prim(pb), file);
+            return self.calendar_function(&upper, x, y, span, file);
         }
         if let Some((from, to)) = upper.split_once("_TO_") {
             let src =
@@ -957,74 +971,6 @@ impl<'a> Ctx<'a> {
                 }
             }
             (false, false) => self.conv(t, dp, dst),
-        }
-    }
-
-    /// A conversion from or to `DATE`, `TOD`, `DT` or a long form (docs/ST.md, "Conversion
-    /// functions"): to and from a number, a bit string or `BOOL`, the stored count, as CODESYS
-    /// (`DT_TO_DWORD` gives seconds since 1970, `TOD_TO_UDINT` milliseconds since midnight);
-    /// between the calendar types, and between a time of day and `TIME`, the same instant in
-    /// the target's unit: a date and time keeps its day (`DT_TO_DATE`) or its time of day
-    /// (`DT_TO_TOD`), a date becomes its midnight (`DATE_TO_DT`), finer parts are cut
-    /// (`LTOD_TO_TOD`). A date and a time of day have nothing to convert (`DATE_TO_TOD`).
-    #[allow(clippy::too_many_arguments)]
-    fn calendar_conversion(
-        &mut self,
-        name: &str,
-        sp: Prim,
-        dp: Prim,
-        dst: Ty,
-        t: TExpr,
-        span: Span,
-        file: usize,
-    ) -> TExpr {
-        use crate::value::{CalendarKind, DAY_NS};
-        let timed = |p: Prim| p.is_time() || p.calendar().is_some();
-        if !(timed(sp) && timed(dp)) {
-            return self.conv(t, dp, dst);
-        }
-        // TIME takes the place of a time of day: both count from a zero, in nanoseconds.
-        let kind = |p: Prim| p.calendar().map_or(CalendarKind::Tod, |c| c.kind());
-        let unit = |p: Prim| p.calendar().map_or(1, |c| c.unit_ns());
-        let allowed = match (kind(sp), kind(dp)) {
-            (a, b) if a == b => true,
-            (CalendarKind::Dt, _) | (CalendarKind::Date, CalendarKind::Dt) => true,
-            _ => false,
-        };
-        if !allowed || sp.is_time() && dp.is_time() {
-            self.error(file, span, format!("`{name}`: no conversion from {} to {}", sp.name(), dp.name()));
-            return TExpr::error(span);
-        }
-        // Computed in 64 bits: signed when a TIME is involved (it may be negative).
-        let work = if sp.is_time() || dp.is_time() { Prim::LInt } else { Prim::ULInt };
-        let k = |v: u64| TExpr::konst(Cv::Int(i128::from(v)), Ty::Prim(work), span);
-        let mut v = if sp.elem() == work.elem() {
-            TExpr { ty: Ty::Prim(work), ..t }
-        } else {
-            self.conv(t, work, Ty::Prim(work))
-        };
-        let day = DAY_NS / unit(sp);
-        let wt = Ty::Prim(work);
-        match (kind(sp), kind(dp)) {
-            (CalendarKind::Dt, CalendarKind::Date) => {
-                let days = self.make_bin(BinOp::Div, v, k(day), wt.clone(), span, file);
-                v = self.make_bin(BinOp::Mul, days, k(day), wt.clone(), span, file);
-            }
-            (CalendarKind::Dt, CalendarKind::Tod) => {
-                v = self.make_bin(BinOp::Mod, v, k(day), wt.clone(), span, file);
-            }
-            _ => {}
-        }
-        let (from, to) = (unit(sp), unit(dp));
-        if from > to {
-            v = self.make_bin(BinOp::Mul, v, k(from / to), wt, span, file);
-        } else if from < to {
-            v = self.make_bin(BinOp::Div, v, k(to / from), wt, span, file);
-        }
-        if dp.elem() == work.elem() {
-            TExpr { ty: dst, ..v }
-        } else {
-            self.conv(v, dp, dst)
         }
     }
 
