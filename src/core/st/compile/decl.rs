@@ -60,6 +60,12 @@ impl<'a> Ctx<'a> {
                     continue;
                 }
                 if let Some(&(f0, s0)) = seen.get(&key(&id.name)) {
+                    // A FUNCTION of the prelude (`DAY_OF_WEEK`) is replaced by the project's
+                    // own of the same name (docs/ST.md, "Standard functions").
+                    let function = matches!(item, Item::Pou(p) if p.kind == PouKind::Function);
+                    if fi == self.prelude_file && function {
+                        continue;
+                    }
                     let first = self.first_at(f0, s0, fi);
                     self.error(fi, id.span, format!("`{}` is already declared ({first})", id.name));
                     continue;

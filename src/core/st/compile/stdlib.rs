@@ -24,6 +24,8 @@ pub enum Std {
     Mux,
     /// `__NOW()`: the clock, a TIME.
     Now,
+    /// `__UTC()`: the calendar time, an LDT (the real-time clock).
+    Utc,
     /// plcd's system functions, the instruction list's system instructions: `INIT_DONE()`
     /// (the init task is finished) and `WDT()` (restart the scan watchdog). TRUE.
     System(crate::lang::ops::SystemRequest),
@@ -200,6 +202,10 @@ impl<'a> Ctx<'a> {
                 self.error(file, span, "`__NOW` takes no arguments");
             }
             return TExpr { k: TK::Std(Std::Now, vec![]), ty: Ty::Prim(Prim::Time), span };
+        }
+        if upper == "__UTC" && self.in_prelude {
+            let ty = Ty::Prim(Prim::Cal(crate::value::Calendar::LDt));
+            return TExpr { k: TK::Std(Std::Utc, vec![]), ty, span };
         }
         use crate::lang::ops::SystemRequest;
         let system = match upper.as_str() {
