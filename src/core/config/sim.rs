@@ -38,20 +38,18 @@ pub(super) fn validate(sink: &mut Sink, raw: RawSim) -> Option<SimConfig> {
         int_or(sink, &ctx, "step_ns", raw.step_ns, 1..=i64::MAX, SimConfig::default().step_ns);
     let start_utc_ns = match raw.start {
         None => Some(SimConfig::default().start_utc_ns),
-        Some(start) => {
-            match crate::value::calendar_from_text(Calendar::LDt, start.get_ref()) {
-                Ok(ns) => Some(ns),
-                Err(why) => {
-                    let message = format!(
-                        "{} {:?} is not a date and time ({why}; e.g. \"2026-01-01-00:00:00\")",
-                        ctx.key("start"),
-                        start.get_ref()
-                    );
-                    sink.error(start.span().start, message);
-                    None
-                }
+        Some(start) => match crate::value::calendar_from_text(Calendar::LDt, start.get_ref()) {
+            Ok(ns) => Some(ns),
+            Err(why) => {
+                let message = format!(
+                    "{} {:?} is not a date and time ({why}; e.g. \"2026-01-01-00:00:00\")",
+                    ctx.key("start"),
+                    start.get_ref()
+                );
+                sink.error(start.span().start, message);
+                None
             }
-        }
+        },
     };
     Some(SimConfig { step_ns: step_ns?, start_utc_ns: start_utc_ns? })
 }

@@ -561,9 +561,7 @@ impl Op {
             | Op::Fetch { .. }
             | Op::AddrOf(_)
             | Op::Now
-            | Op::Utc => {
-                (0, 1)
-            }
+            | Op::Utc => (0, 1),
             Op::Dup => (1, 2),
             Op::Store { .. } | Op::Drop | Op::GotoIf { .. } | Op::CallFb { .. } => (1, 0),
             Op::Index { .. } | Op::Bin { .. } | Op::Cmp { .. } => (2, 1),

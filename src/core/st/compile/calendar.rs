@@ -65,7 +65,14 @@ pub(super) fn is_calendar_arith(op: BinaryOp, a: Option<Prim>, b: Option<Prim>) 
 impl Ctx<'_> {
     /// A calendar function of [`FUNCTIONS`] on its two checked inputs (of the types
     /// [`function`] gave).
-    pub(super) fn calendar_function(&mut self, upper: &str, a: TExpr, b: TExpr, span: Span, file: usize) -> TExpr {
+    pub(super) fn calendar_function(
+        &mut self,
+        upper: &str,
+        a: TExpr,
+        b: TExpr,
+        span: Span,
+        file: usize,
+    ) -> TExpr {
         let arith = FUNCTIONS.iter().find(|f| f.0 == upper).map_or(Arith::Add, |f| f.1);
         if a.ty.is_error() || b.ty.is_error() {
             return TExpr::error(span);
@@ -79,14 +86,20 @@ impl Ctx<'_> {
 
     /// `+` or `-` with a calendar operand: a time of day or a date and time plus or minus a
     /// `TIME` (`+` in either order), or the `TIME` between two values of one calendar type.
-    pub(super) fn calendar_arith(&mut self, op: BinaryOp, a: TExpr, b: TExpr, span: Span, file: usize) -> TExpr {
+    pub(super) fn calendar_arith(
+        &mut self,
+        op: BinaryOp,
+        a: TExpr,
+        b: TExpr,
+        span: Span,
+        file: usize,
+    ) -> TExpr {
         if a.ty.is_error() || b.ty.is_error() {
             return TExpr::error(span);
         }
         let (pa, pb) = (a.ty.prim(&self.types), b.ty.prim(&self.types));
-        let shifts = |p: Option<Prim>| {
-            p.and_then(Prim::calendar).filter(|c| c.kind() != CalendarKind::Date)
-        };
+        let shifts =
+            |p: Option<Prim>| p.and_then(Prim::calendar).filter(|c| c.kind() != CalendarKind::Date);
         let time = |p: Option<Prim>| p.is_some_and(Prim::is_time);
         let enumerated = matches!(a.ty, Ty::Enum(_)) || matches!(b.ty, Ty::Enum(_));
         if !enumerated {
@@ -96,7 +109,9 @@ impl Ctx<'_> {
             if let (true, Some(cal), BinaryOp::Add) = (time(pa), shifts(pb), op) {
                 return self.shift(op, cal, b, a, span, file);
             }
-            if let (Some(x), Some(y), BinaryOp::Sub) = (pa.and_then(Prim::calendar), pb.and_then(Prim::calendar), op) {
+            if let (Some(x), Some(y), BinaryOp::Sub) =
+                (pa.and_then(Prim::calendar), pb.and_then(Prim::calendar), op)
+            {
                 if x == y {
                     return self.difference(x, a, b, span, file);
                 }
@@ -109,7 +124,15 @@ impl Ctx<'_> {
     }
 
     /// `cal ± duration`: the duration in `cal`'s unit, cut toward zero, added in `cal`'s width.
-    fn shift(&mut self, op: BinaryOp, cal: Calendar, value: TExpr, duration: TExpr, span: Span, file: usize) -> TExpr {
+    fn shift(
+        &mut self,
+        op: BinaryOp,
+        cal: Calendar,
+        value: TExpr,
+        duration: TExpr,
+        span: Span,
+        file: usize,
+    ) -> TExpr {
         let ns = TExpr { ty: Ty::Prim(Prim::LInt), ..duration };
         let unit = TExpr::konst(Cv::Int(i128::from(cal.unit_ns())), Ty::Prim(Prim::LInt), span);
         let count = if cal.unit_ns() == 1 {
@@ -149,8 +172,24 @@ impl Ctx<'_> {
             return TExpr::error(span);
         };
         let dt = if d.is_long() || t.is_long() { Calendar::LDt } else { Calendar::Dt };
-        let day = self.calendar_conversion("", Prim::Cal(d), Prim::Cal(dt), Ty::Prim(Prim::Cal(dt)), date, span, file);
-        let time = self.calendar_conversion("", Prim::Cal(t), Prim::Time, Ty::Prim(Prim::Time), tod, span, file);
+        let day = self.calendar_conversion(
+            "",
+            Prim::Cal(d),
+            Prim::Cal(dt),
+            Ty::Prim(Prim::Cal(dt)),
+            date,
+            span,
+            file,
+        );
+        let time = self.calendar_conversion(
+            "",
+            Prim::Cal(t),
+            Prim::Time,
+            Ty::Prim(Prim::Time),
+            tod,
+            span,
+            file,
+        );
         self.shift(BinaryOp::Add, dt, day, time, span, file)
     }
 
@@ -185,7 +224,11 @@ impl Ctx<'_> {
             _ => false,
         };
         if !allowed || sp.is_time() && dp.is_time() {
-            self.error(file, span, format!("`{name}`: no conversion from {} to {}", sp.name(), dp.name()));
+            self.error(
+                file,
+                span,
+                format!("`{name}`: no conversion from {} to {}", sp.name(), dp.name()),
+            );
             return TExpr::error(span);
         }
         // Computed in 64 bits: signed when a TIME is involved (it may be negative).
@@ -220,5 +263,4 @@ impl Ctx<'_> {
             self.conv(v, dp, dst)
         }
     }
-
 }

@@ -509,8 +509,11 @@ impl Lexer<'_> {
         let count = match calendar_body(cal, body) {
             Ok(count) => count,
             Err(why) => {
-                let msg =
-                    Msg::Calendar { text: text.to_string(), ty: cal.name().into(), why: why.to_string() };
+                let msg = Msg::Calendar {
+                    text: text.to_string(),
+                    ty: cal.name().into(),
+                    why: why.to_string(),
+                };
                 self.error(span, msg);
                 0
             }
