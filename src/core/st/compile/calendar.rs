@@ -62,6 +62,22 @@ pub(super) fn is_calendar_arith(op: BinaryOp, a: Option<Prim>, b: Option<Prim>) 
         && (a.and_then(Prim::calendar).is_some() || b.and_then(Prim::calendar).is_some())
 }
 
+/// Whether `<FROM>_TO_<TO>` exists between two elementary types as far as the date and time
+/// types go: a date and a time of day have nothing to convert, nor a date and a `TIME`.
+pub(super) fn convertible(from: Prim, to: Prim) -> bool {
+    let timed = |p: Prim| p.is_time() || p.calendar().is_some();
+    if from.calendar().is_none() && to.calendar().is_none() || !(timed(from) && timed(to)) {
+        return true;
+    }
+    // TIME takes the place of a time of day: both count from a zero.
+    let kind = |p: Prim| p.calendar().map_or(CalendarKind::Tod, |c| c.kind());
+    match (kind(from), kind(to)) {
+        (a, b) if a == b => true,
+        (CalendarKind::Dt, _) | (CalendarKind::Date, CalendarKind::Dt) => true,
+        _ => false,
+    }
+}
+
 impl Ctx<'_> {
     /// A calendar function of [`FUNCTIONS`] on its two checked inputs (of the types
     /// [`function`] gave).
@@ -212,24 +228,17 @@ impl Ctx<'_> {
         file: usize,
     ) -> TExpr {
         let timed = |p: Prim| p.is_time() || p.calendar().is_some();
-        if !(timed(sp) && timed(dp)) {
-            return self.conv(t, dp, dst);
-        }
-        // TIME takes the place of a time of day: both count from a zero, in nanoseconds.
-        let kind = |p: Prim| p.calendar().map_or(CalendarKind::Tod, |c| c.kind());
         let unit = |p: Prim| p.calendar().map_or(1, |c| c.unit_ns());
-        let allowed = match (kind(sp), kind(dp)) {
-            (a, b) if a == b => true,
-            (CalendarKind::Dt, _) | (CalendarKind::Date, CalendarKind::Dt) => true,
-            _ => false,
-        };
-        if !allowed || sp.is_time() && dp.is_time() {
+        if !convertible(sp, dp) {
             self.error(
                 file,
                 span,
                 format!("`{name}`: no conversion from {} to {}", sp.name(), dp.name()),
             );
             return TExpr::error(span);
+        }
+        if sp.calendar().is_none() && dp.calendar().is_none() || !(timed(sp) && timed(dp)) {
+            return self.conv(t, dp, dst);
         }
         // Computed in 64 bits: signed when a TIME is involved (it may be negative).
         let work = if sp.is_time() || dp.is_time() { Prim::LInt } else { Prim::ULInt };
@@ -240,6 +249,7 @@ impl Ctx<'_> {
             self.conv(t, work, Ty::Prim(work))
         };
         let day = DAY_NS / unit(sp);
+        let kind = |p: Prim| p.calendar().map_or(CalendarKind::Tod, |c| c.kind());
         let wt = Ty::Prim(work);
         match (kind(sp), kind(dp)) {
             (CalendarKind::Dt, CalendarKind::Date) => {
@@ -262,5 +272,25 @@ impl Ctx<'_> {
         } else {
             self.conv(v, dp, dst)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_date_and_a_time_of_day_do_not_convert() {
+        let (date, tod, dt) =
+            (Prim::Cal(Calendar::Date), Prim::Cal(Calendar::Tod), Prim::Cal(Calendar::Dt));
+        let ltod = Prim::Cal(Calendar::LTod);
+        assert!(convertible(dt, date) && convertible(dt, tod) && convertible(date, dt));
+        assert!(convertible(tod, Prim::Time) && convertible(Prim::LTime, ltod));
+        assert!(convertible(date, Prim::DWord) && convertible(Prim::LReal, dt));
+        assert!(!convertible(date, tod) && !convertible(tod, dt) && !convertible(date, Prim::Time));
+        assert!(!convertible(Prim::Time, dt) && !convertible(ltod, Prim::Cal(Calendar::LDate)));
+        assert!(convertible(Prim::Int, Prim::Time), "not a calendar question");
+        assert_eq!(function("ADD_TOD_TIME"), Some((tod, Prim::Time)));
+        assert_eq!(function("ADD_DATE_TIME"), None);
     }
 }

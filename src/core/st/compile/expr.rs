@@ -862,7 +862,11 @@ impl<'a> Ctx<'a> {
         let span = te.span;
         let (a, b) = (self.ty_name(&te.ty), self.ty_name(to));
         let hint = match (te.ty.prim(&self.types), to.prim(&self.types)) {
-            (Some(x), Some(y)) if !matches!(te.ty, Ty::Enum(_)) && !matches!(to, Ty::Enum(_)) => {
+            (Some(x), Some(y))
+                if !matches!(te.ty, Ty::Enum(_))
+                    && !matches!(to, Ty::Enum(_))
+                    && super::calendar::convertible(x, y) =>
+            {
                 format!(" (use {}_TO_{})", x.name(), y.name())
             }
             _ => String::new(),
