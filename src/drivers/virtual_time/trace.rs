@@ -356,6 +356,17 @@ mod tests {
     }
 
     #[test]
+    fn dates_and_times_of_day_are_literals_in_strings() {
+        use crate::value::Calendar;
+        let mut line = String::new();
+        // 2024-03-01 12:30:15 is 1709296215 s after 1970-01-01.
+        push_json_value(&mut line, &ValueType::Calendar(Calendar::Dt), 1_709_296_215);
+        line.push(' ');
+        push_json_value(&mut line, &ValueType::Calendar(Calendar::LTod), 1_500_000_000);
+        assert_eq!(line, r#""DT#2024-03-01-12:30:15" "LTOD#00:00:01.5""#);
+    }
+
+    #[test]
     fn lines_follow_each_other() {
         let mut w = writer();
         w.event(0, Event::Mode(Mode::Run));
