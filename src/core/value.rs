@@ -1326,11 +1326,12 @@ fn date_days(cal: Calendar, text: &str) -> Result<i64, CalendarError> {
 }
 
 /// The nanoseconds since midnight of `HH:MM:SS` with an optional fraction of a second (digits
-/// beyond the nanosecond must be zeros).
+/// beyond the nanosecond must be zeros), or of `HH:MM` (CODESYS writes `TOD#00:00`).
 fn tod_ns(cal: Calendar, text: &str) -> Result<u64, CalendarError> {
     let mut fields = text.split(':');
     let mut next = || fields.next().ok_or(CalendarError::Form(cal));
-    let (hour, minute, second) = (next()?, next()?, next()?);
+    let (hour, minute) = (next()?, next()?);
+    let second = fields.next().unwrap_or("0");
     if fields.next().is_some() {
         return Err(CalendarError::Form(cal));
     }
@@ -1699,6 +1700,11 @@ mod tests {
         assert_eq!(why(Calendar::Dt, "2024-01-01-12:00:00.5"), "a DT holds whole seconds");
         assert_eq!(why(Calendar::Date, "1969-12-31"), "out of range: D#1970-01-01 to D#2106-02-07");
         assert_eq!(why(Calendar::Date, "TOD#12:00:00"), "expected YYYY-MM-DD");
+        assert_eq!(why(Calendar::Tod, "12"), "expected HH:MM:SS");
+        assert_eq!(why(Calendar::Tod, "12:00:00:00"), "expected HH:MM:SS");
+        // The seconds may be left out, as CODESYS writes them.
+        assert_eq!(calendar_from_text(Calendar::Tod, "TOD#12:30"), Ok(45_000_000));
+        assert_eq!(calendar_from_text(Calendar::Dt, "DT#1970-01-01-00:01"), Ok(60));
         assert_eq!(
             parse(&ValueType::Calendar(Calendar::Date), "D#2024-13-01"),
             Err("`D#2024-13-01` is not a DATE (month 13 is not 1 to 12; e.g. D#2024-03-01)".into())

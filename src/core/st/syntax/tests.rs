@@ -338,6 +338,8 @@ fn lexes_calendar_literals_as_their_counts() {
         ("LD#1970-01-02", Tok::Calendar(LDate, 86_400_000_000_000)),
         ("TOD#12:30:15.5", Tok::Calendar(Tod, 45_015_500)),
         ("TIME_OF_DAY#00:00:01", Tok::Calendar(Tod, 1000)),
+        ("TOD#12:30", Tok::Calendar(Tod, 45_000_000)),
+        ("DT#2024-03-01-00:01", Tok::Calendar(Dt, DAY + 60)),
         ("LTOD#00:00:00.000000001", Tok::Calendar(LTod, 1)),
         ("LTIME_OF_DAY#00:00:01", Tok::Calendar(LTod, 1_000_000_000)),
         ("DT#2024-03-01-12:30:15", Tok::Calendar(Dt, DAY + 45_015)),
