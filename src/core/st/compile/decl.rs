@@ -60,10 +60,12 @@ impl<'a> Ctx<'a> {
                     continue;
                 }
                 if let Some(&(f0, s0)) = seen.get(&key(&id.name)) {
-                    // A FUNCTION of the prelude (`DAY_OF_WEEK`) is replaced by the project's
-                    // own of the same name (docs/ST.md, "Standard functions").
-                    let function = matches!(item, Item::Pou(p) if p.kind == PouKind::Function);
-                    if fi == self.prelude_file && function {
+                    // A FUNCTION of the prelude (`DAY_OF_WEEK`), and the RTC block newer
+                    // projects may have written for themselves, are replaced by the project's
+                    // own of the same name (docs/ST.md, "Dates and times of day").
+                    let replaceable = matches!(item, Item::Pou(p)
+                        if p.kind == PouKind::Function || p.name.is("RTC"));
+                    if fi == self.prelude_file && replaceable {
                         continue;
                     }
                     let first = self.first_at(f0, s0, fi);
