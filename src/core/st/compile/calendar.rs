@@ -117,20 +117,17 @@ impl Ctx<'_> {
         let shifts =
             |p: Option<Prim>| p.and_then(Prim::calendar).filter(|c| c.kind() != CalendarKind::Date);
         let time = |p: Option<Prim>| p.is_some_and(Prim::is_time);
-        let enumerated = matches!(a.ty, Ty::Enum(_)) || matches!(b.ty, Ty::Enum(_));
-        if !enumerated {
-            if let (Some(cal), true) = (shifts(pa), time(pb)) {
-                return self.shift(op, cal, a, b, span, file);
-            }
-            if let (true, Some(cal), BinaryOp::Add) = (time(pa), shifts(pb), op) {
-                return self.shift(op, cal, b, a, span, file);
-            }
-            if let (Some(x), Some(y), BinaryOp::Sub) =
-                (pa.and_then(Prim::calendar), pb.and_then(Prim::calendar), op)
-            {
-                if x == y {
-                    return self.difference(x, a, b, span, file);
-                }
+        if let (Some(cal), true) = (shifts(pa), time(pb)) {
+            return self.shift(op, cal, a, b, span, file);
+        }
+        if let (true, Some(cal), BinaryOp::Add) = (time(pa), shifts(pb), op) {
+            return self.shift(op, cal, b, a, span, file);
+        }
+        if let (Some(x), Some(y), BinaryOp::Sub) =
+            (pa.and_then(Prim::calendar), pb.and_then(Prim::calendar), op)
+        {
+            if x == y {
+                return self.difference(x, a, b, span, file);
             }
         }
         let (x, y) = (self.ty_name(&a.ty), self.ty_name(&b.ty));
