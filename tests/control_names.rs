@@ -2,7 +2,8 @@
 //! a real daemon on the sim backend: every kind of value read and written back, located
 //! variables as their devices, the refusals (CONSTANT, out of range, bad syntax, a structure, an
 //! unknown name, a variable that is no I/O bit), the writes of one `set` at one END, and names
-//! resolved against a project loaded online.
+//! resolved against a project loaded online; dates as literals, and the real-time clock of
+//! `plcd run` reading the system's.
 //!
 //! Real time is only waited on, never asserted: `set` answers once its writes are applied and
 //! `get` from a capture taken after the request, so a value written is read back at once; only
@@ -407,5 +408,32 @@ fn force_by_name_and_names_of_a_new_project() {
     assert_eq!(plc.get("main.gone_soon"), json!(0));
     let err = plc.refused(&["get", "main.extraa"]);
     assert!(err.contains("did you mean `main.extra`?"), "{err}");
+    plc.stop();
+}
+
+/// The real-time clock of `plcd run` is the system's, in UTC; a date is read and written as
+/// its literal.
+#[test]
+fn dates_are_read_and_written_as_literals_and_the_clock_is_the_systems() {
+    const CLOCK: &str = "PROGRAM Main\nVAR\n    now : DT;\n    day : DATE;\nEND_VAR\n\
+        now := SysRtcGetTime(TRUE);\nEND_PROGRAM\n";
+    let config = "[plc]\nscan_period_ms = 1\nwatchdog_ms = 100\n\
+        [[program]]\nname = \"main\"\nfile = \"main.st\"\n[control]\nsocket = \"plcd.sock\"\n";
+    let project = Project::new("names-clock", &[("plcd.toml", config), ("main.st", CLOCK)]);
+    let daemon = project.start().with_patience(PATIENCE);
+    let plc = Plc { daemon, project };
+    plc.daemon.wait_for("control socket");
+    plc.daemon.wait("RUN", || plc.json(&["status"])["mode"] == "RUN");
+
+    let dt = plcd::value::ValueType::Calendar(plcd::value::Calendar::Dt);
+    let text = plc.get("main.now");
+    let read = plcd::value::parse(&dt, text.as_str().unwrap()).unwrap();
+    let system = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap();
+    assert!(system.as_secs().abs_diff(read) < 60, "{text} is not now ({})", system.as_secs());
+
+    plc.ok(&["set", "main.day", "D#2024-03-01"]);
+    assert_eq!(plc.get("main.day"), json!("D#2024-03-01"));
+    let err = plc.refused(&["set", "main.day", "D#2024-02-30"]);
+    assert!(err.contains("day 30 is not a day of 2024-02"), "{err}");
     plc.stop();
 }

@@ -233,3 +233,54 @@ fn the_files_hold_them_and_a_changed_program_restores_those_of_unchanged_name_an
     let cold = retain::startup(&Store::open(dir.path()).unwrap(), &set, Restart::Cold);
     assert!(cold.words.is_none() && cold.variables.is_empty());
 }
+
+#[test]
+fn calendar_variables_are_retained_by_name_and_type() {
+    let dir = TempDir::new("retain-calendar");
+    let p = st("
+PROGRAM Main
+VAR RETAIN stamp : DT; shift : TOD := TOD#06:00:00; days : ARRAY [1..2] OF DATE; END_VAR
+    stamp := DT#2024-03-01-12:30:15; days[2] := D#2024-03-01;
+END_PROGRAM
+");
+    let mut old = Plc::new(&p);
+    old.set_mode(Mode::Run);
+    run_scans(&mut old, MS);
+    old.set_mode(Mode::Stop);
+    let set = old.engine.retain_set().clone();
+    let start = retain::startup(&Store::open(dir.path()).unwrap(), &set, Restart::Warm);
+    let mut writer =
+        Writer::new(Store::open(dir.path()).unwrap(), &set.words, 0, start.next_seq, None);
+    let mut words = Vec::new();
+    set.capture(old.engine.vm().mem.words(), &mut words);
+    let layout = old.engine.retained_variables();
+    let mut copy = Vec::new();
+    layout.copy(old.engine.vm().vars(), &mut copy);
+    assert!(writer.write_state(&mut words, Some((layout, &copy))).unwrap());
+    let g = retain::newest_in(dir.path()).unwrap();
+    let names: Vec<(&str, &str)> =
+        g.variables.iter().map(|v| (v.name.as_str(), v.ty.as_str())).collect();
+    assert_eq!(
+        names,
+        [
+            ("main.stamp", "DT"),
+            ("main.shift", "TOD"),
+            ("main.days[1]", "DATE"),
+            ("main.days[2]", "DATE")
+        ]
+    );
+
+    // The same program restores all four: DT#2024-03-01-12:30:15 is 1709296215 s.
+    let start = retain::startup(&Store::open(dir.path()).unwrap(), &set, Restart::Warm);
+    let mut same = Plc::new(&p);
+    let plan = same.engine.restore_retained_variables(&start.variables);
+    assert_eq!(plan.restore.len(), 4);
+    assert_eq!(var(&same, &p, "main.stamp"), 1_709_296_215);
+    assert_eq!(var(&same, &p, "main.shift"), 6 * 3_600_000);
+
+    // A DT that became an LDT is another type: dropped.
+    let long = st("PROGRAM Main VAR RETAIN stamp : LDT; END_VAR ; END_PROGRAM");
+    let mut changed = Plc::new(&long);
+    let plan = changed.engine.restore_retained_variables(&start.variables);
+    assert!(plan.dropped.contains(&"main.stamp (DT): now LDT".to_string()), "{:?}", plan.dropped);
+}

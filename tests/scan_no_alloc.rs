@@ -3,7 +3,9 @@
 //! device tasks, timers, counters and DUTY, through mode changes and device writes, until it
 //! stops on shutdown. The commands include the control socket's (device and Structured Text
 //! variable writes, a STRING among them) and a two-part Modbus word write; the snapshot reads
-//! device words and variables, a STRING's characters among them.
+//! device words and variables, a STRING's characters among them. An ST program converts to and
+//! from STRING (numbers, TIME, DT) and reads the real-time clock (`SysRtcGetTime`, `RTC`) with
+//! the date functions on it.
 //! The main program uses the double-word and real instructions too; and a hand-built program of
 //! the typed stack machine (calls, FB instances, strings, an index error, a division by zero)
 //! runs scans and RUN starts without allocating. The retain writer's copies of the retained
@@ -123,9 +125,13 @@ const TICK: &str = "INC D00001\nLOAD NOT P0042\nOUT P0042\nEND\n";
 const EDGE: &str = "INC D00000\nEND\n";
 const FULL: &str = "MOV 0 D00000\nINC D00002\nEND\n";
 const VARS: &str = "PROGRAM Vars\nVAR\n    n : DINT;\n    r : REAL;\n    s : STRING[10] := 'ab';\n\
-                    pos AT %D00300 : DINT;\n    t : STRING;\n    x : REAL;\n    m : DINT;\nEND_VAR\n\
+                    pos AT %D00300 : DINT;\n    t : STRING;\n    x : REAL;\n    m : DINT;\n\
+                    now : DT;\n    day : INT;\n    clock : RTC;\nEND_VAR\n\
                     n := n + 1;\n    t := REAL_TO_STRING(x + 0.5);\n    x := STRING_TO_REAL(t);\n\
                     t := TIME_TO_STRING(DINT_TO_TIME(n));\n    m := STRING_TO_DINT(DINT_TO_STRING(n));\n\
+                    now := SysRtcGetTime(TRUE) + T#1s;\n    clock(IN := n > 3, PDT := now);\n\
+                    t := DT_TO_STRING(now);\n    now := STRING_TO_DT(t);\n\
+                    SPLIT_DATE(IN := DT_TO_DATE(now), DAY => day);\n    day := DAY_OF_WEEK(DT_TO_DATE(now));\n\
                     END_PROGRAM\n";
 
 /// A scan thread serving `engine` on its own thread, counting allocations, and the other ends

@@ -102,6 +102,7 @@ impl Run {
             ValueType::Bool => Elem::Bool,
             ValueType::Signed(e) | ValueType::Unsigned(e) | ValueType::Real(e) => e,
             ValueType::Time => Elem::I64,
+            ValueType::Calendar(cal) => cal.elem(),
             ValueType::Enum { base, .. } => base,
             ValueType::String { .. } => panic!("{name} is a string"),
         };

@@ -130,6 +130,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`-` cannot be applied to `{}`", "neg-operand"),
     ("`NOT` cannot be applied to `{}`", "not-operand"),
     ("`{}` cannot be applied to `{}` and `{}`", "operator-types"),
+    ("`{}` cannot be applied to `{}` and `{}`", "calendar-operator-types"),
     ("`{}` cannot be applied to `{}`", "operator-not-applicable"),
     ("`**` needs a `REAL` or `LREAL` base, not `{}`", "pow-base"),
     ("division by zero", "division-by-zero"),
@@ -148,6 +149,8 @@ const MESSAGES: &[(&str, &str)] = &[
     ("VAR_IN_OUT `{}` of `{}` needs a `{}` variable, not `{}`", "in-out-type"),
     ("the call of `{}` is missing VAR_IN_OUT `{}`", "missing-in-out"),
     ("`{}` has no parameter `{}`{}", "unknown-parameter"),
+    // calendar.rs: DATE, TOD, DT and their long forms
+    ("`{}`: no conversion from {} to {}", "calendar-no-conversion"),
     // mod.rs: instances, call graph, linking
     ("no PROGRAM `{}` in `{}`: it declares no PROGRAM", "program-file-without-program"),
     ("no PROGRAM `{}` in `{}` (it declares {})", "unknown-pou"),

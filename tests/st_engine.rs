@@ -316,3 +316,40 @@ END_PROGRAM";
     plc.run_for(50 * MS);
     assert_eq!(plc.engine.mode(), Mode::Stop, "STOP() stopped the PLC");
 }
+
+#[test]
+fn the_real_time_clock_of_plcd_sim_starts_at_sim_start_and_follows_virtual_time() {
+    let project = project(
+        "[plc]\nscan_period_ms = 500\n[sim]\nstart = \"2026-12-31-23:59:59\"\n\
+         [[program]]\nfile = \"main.st\"\n",
+        &[(
+            "main.st",
+            "PROGRAM Main VAR now : DT; rtc : RTC; END_VAR
+               now := SysRtcGetTime(TRUE);
+               rtc(IN := FALSE);
+             END_PROGRAM",
+        )],
+    );
+    let watch: Vec<Watched> =
+        ["main.now", "main.rtc.CDT"].iter().flat_map(|n| project.watched(n).unwrap()).collect();
+    let (_, events) = sim_watching(&project, &[], &watch, 2_600 * MS);
+    let ty = plcd::value::ValueType::Calendar(plcd::value::Calendar::Dt);
+    let seen = |w: u16| -> Vec<String> {
+        events
+            .0
+            .iter()
+            .filter_map(|(_, e)| match e {
+                Event::SetVariable { watch, slot } if *watch == w => {
+                    Some(plcd::value::format(&ty, *slot))
+                }
+                _ => None,
+            })
+            .collect()
+    };
+    // Scans start every 500 ms of virtual time and read the clock a few µs in: the scans at
+    // 0 and 0.5 s read 23:59:59, those at 1 and 1.5 s the next second (the next day, and
+    // year), those at 2 and 2.5 s one more.
+    let expected = ["DT#2026-12-31-23:59:59", "DT#2027-01-01-00:00:00", "DT#2027-01-01-00:00:01"];
+    assert_eq!(seen(0), expected);
+    assert_eq!(seen(1), expected);
+}

@@ -1,5 +1,7 @@
 //! Time as the VM sees it: injected, so the same VM runs on the monotonic clock in the daemon,
-//! on virtual time in `plcd sim`, and on a hand-set clock in tests.
+//! on virtual time in `plcd sim`, and on a hand-set clock in tests. A clock also tells the
+//! calendar time (the real-time clock ST programs read): the system's UTC clock in the daemon,
+//! a start date plus virtual time in `plcd sim`.
 
 use std::cell::Cell;
 
@@ -8,6 +10,13 @@ pub trait Clock {
     /// The time now; `steps` is the VM's executed-step count at this instruction, which a
     /// virtual clock uses to charge each instruction its cost.
     fn now_ns(&self, steps: u64) -> u64;
+
+    /// The calendar time now, in nanoseconds since 1970-01-01 00:00:00 UTC (an `LDT`): what
+    /// the real-time clock of ST programs reads. A clock that knows no calendar counts from
+    /// that origin: the calendar time is [`Clock::now_ns`] (so 1970-01-01 at RUN start).
+    fn utc_ns(&self, steps: u64) -> u64 {
+        self.now_ns(steps)
+    }
 
     /// The clock as a [`StepClock`], if it is one: native code then computes the time itself
     /// instead of calling [`Clock::now_ns`].
@@ -40,6 +49,30 @@ impl Clock for StepClock {
 
     fn linear(&self) -> Option<StepClock> {
         Some(*self)
+    }
+}
+
+/// Virtual time with a calendar: a [`StepClock`] whose zero is the calendar time `start_utc_ns`
+/// (`plcd sim`'s `[sim] start`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CalendarClock {
+    pub steps: StepClock,
+    /// Nanoseconds since 1970-01-01 00:00:00 UTC at virtual time 0.
+    pub start_utc_ns: u64,
+}
+
+impl Clock for CalendarClock {
+    #[inline]
+    fn now_ns(&self, steps: u64) -> u64 {
+        self.steps.now_ns(steps)
+    }
+
+    fn utc_ns(&self, steps: u64) -> u64 {
+        self.start_utc_ns.saturating_add(self.steps.now_ns(steps))
+    }
+
+    fn linear(&self) -> Option<StepClock> {
+        Some(self.steps)
     }
 }
 
@@ -81,5 +114,15 @@ mod tests {
         assert_eq!(clock.now_ns(14), 2_000);
         clock.rebase(5_000, 14);
         assert_eq!(clock.now_ns(15), 5_250);
+    }
+
+    #[test]
+    fn the_calendar_advances_with_virtual_time() {
+        let steps = StepClock { origin_ns: 0, origin_steps: 0, step_ns: 1_000 };
+        let clock = CalendarClock { steps, start_utc_ns: 1_767_225_600_000_000_000 };
+        assert_eq!(clock.now_ns(3), 3_000);
+        assert_eq!(clock.utc_ns(3), 1_767_225_600_000_003_000);
+        assert_eq!(clock.linear(), Some(steps));
+        assert_eq!(steps.utc_ns(3), 3_000);
     }
 }

@@ -510,6 +510,9 @@ pub enum ValueType {
     Real(Elem),
     /// `TIME`: nanoseconds in an `I64`, shown as an IEC literal (`T#1s500ms`).
     Time,
+    /// `DATE`, `TOD`, `DT` and their long forms, shown as IEC literals (`D#2024-03-01`): see
+    /// [`Calendar`].
+    Calendar(Calendar),
     /// An enumeration: its values' names and numbers, stored as its base type (`I32` for
     /// `DINT`, the default; `TYPE Code : INT (…)` is an `I16`).
     Enum {
@@ -531,6 +534,7 @@ impl ValueType {
             ValueType::Bool => Elem::Bool,
             ValueType::Signed(elem) | ValueType::Unsigned(elem) | ValueType::Real(elem) => *elem,
             ValueType::Time => Elem::I64,
+            ValueType::Calendar(cal) => cal.elem(),
             ValueType::Enum { base, .. } => *base,
             ValueType::String { .. } => Elem::U8,
         }
@@ -580,6 +584,7 @@ pub fn type_name(ty: &ValueType) -> String {
         }
         .into(),
         ValueType::Time => "TIME".into(),
+        ValueType::Calendar(cal) => cal.name().into(),
         ValueType::Enum { type_name, .. } => type_name.clone(),
         ValueType::String { cap } => format!("STRING[{cap}]"),
     }
@@ -620,6 +625,7 @@ pub enum Scalar {
     Unsigned(Elem),
     Real(Elem),
     Time,
+    Calendar(Calendar),
 }
 
 impl ValueType {
@@ -631,6 +637,7 @@ impl ValueType {
             ValueType::Unsigned(e) => Scalar::Unsigned(*e),
             ValueType::Real(e) => Scalar::Real(*e),
             ValueType::Time => Scalar::Time,
+            ValueType::Calendar(cal) => Scalar::Calendar(*cal),
             ValueType::Enum { .. } | ValueType::String { .. } => return None,
         })
     }
@@ -645,6 +652,7 @@ pub fn write_scalar(out: &mut impl fmt::Write, scalar: Scalar, slot: u64) -> fmt
         Scalar::Real(Elem::F32) => write!(out, "{:?}", f32::from_bits(slot as u32)),
         Scalar::Real(_) => write!(out, "{:?}", f64::from_bits(slot)),
         Scalar::Time => write_time(out, slot as i64),
+        Scalar::Calendar(cal) => write_calendar(out, cal, slot),
     }
 }
 
@@ -787,6 +795,9 @@ pub fn parse_string(text: &str, cap: u32) -> Result<Vec<u8>, String> {
 /// - `REAL`/`LREAL`: a decimal number (`1.5`, `-2`, `1e-3`), `inf`, `NaN`;
 /// - `TIME`: `T#1s500ms`, `TIME#-5s`, or the duration alone (`1.5s`, `250ms`), units `d`, `h`,
 ///   `m`, `s`, `ms`, `us`, `ns`;
+/// - `DATE`, `TOD`, `DT` and their long forms: their IEC literals (`D#2024-03-01`,
+///   `TOD#12:30:15.5`, `DT#2024-03-01-12:30:15`, any of the type's prefixes, any case) or the
+///   literal's text without its prefix (`2024-03-01`);
 /// - an enumeration: one of its value names (`Red`, `Color#Red`, any case).
 ///
 /// Strings are not slots: see [`parse_string`].
@@ -830,6 +841,8 @@ pub enum TextError {
     NotReal,
     /// Not a `TIME`, and why.
     NotTime(&'static str),
+    /// Not a value of a calendar type, and why.
+    NotCalendar(Calendar, CalendarError),
     /// A value of the type's form beyond its range.
     OutOfRange,
 }
@@ -843,6 +856,9 @@ impl TextError {
             (TextError::NotReal, _) => format!("`{text}` is not a {}", type_name(ty)),
             (TextError::NotTime(why), _) => {
                 format!("`{text}` is not a TIME ({why}; e.g. T#1s500ms)")
+            }
+            (TextError::NotCalendar(cal, why), _) => {
+                format!("`{text}` is not a {} ({why}; e.g. {})", cal.name(), cal.example())
             }
             (TextError::OutOfRange, ValueType::Real(Elem::F32)) => {
                 format!("`{text}` is out of range for REAL (±3.4028235e38)")
@@ -872,6 +888,9 @@ pub fn scalar_from_text(scalar: Scalar, text: &str) -> Result<u64, TextError> {
         Scalar::Signed(e) | Scalar::Unsigned(e) => integer_from_text(e, text),
         Scalar::Real(e) => real_from_text(e, text),
         Scalar::Time => time_from_text(text).map(|ns| ns as u64),
+        Scalar::Calendar(cal) => {
+            calendar_from_text(cal, text).map_err(|why| TextError::NotCalendar(cal, why))
+        }
     }
 }
 
@@ -1021,6 +1040,404 @@ fn time_from_text(text: &str) -> Result<i64, TextError> {
     }
     let ns = if negative { -total } else { total };
     i64::try_from(ns).map_err(|_| TextError::OutOfRange)
+}
+
+/// The date and time-of-day types of IEC 61131-3 ed3, stored as CODESYS stores them: a count of
+/// a unit since an origin, unsigned, so the conversions to and from integers and bit strings
+/// give CODESYS's numbers (`DT_TO_DWORD`, `DWORD_TO_TOD`).
+///
+/// | type | stored as | counts | origin |
+/// |---|---|---|---|
+/// | `DATE` | `U32` | seconds (a whole day's) | 1970-01-01 |
+/// | `TOD` | `U32` | milliseconds | midnight |
+/// | `DT` | `U32` | seconds | 1970-01-01 00:00:00 |
+/// | `LDATE` | `U64` | nanoseconds (a whole day's) | 1970-01-01 |
+/// | `LTOD` | `U64` | nanoseconds | midnight |
+/// | `LDT` | `U64` | nanoseconds | 1970-01-01 00:00:00 |
+///
+/// Dates are of the proleptic Gregorian calendar, without leap seconds and without a time zone.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Calendar {
+    Date,
+    Tod,
+    Dt,
+    LDate,
+    LTod,
+    LDt,
+}
+
+/// Nanoseconds in a day.
+pub const DAY_NS: u64 = 86_400_000_000_000;
+
+/// What a calendar type holds: a date, a time of day, or both.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CalendarKind {
+    Date,
+    Tod,
+    Dt,
+}
+
+impl Calendar {
+    pub const ALL: [Calendar; 6] = [
+        Calendar::Date,
+        Calendar::Tod,
+        Calendar::Dt,
+        Calendar::LDate,
+        Calendar::LTod,
+        Calendar::LDt,
+    ];
+
+    /// The type's name in messages and in conversion functions (`DT_TO_DWORD`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Calendar::Date => "DATE",
+            Calendar::Tod => "TOD",
+            Calendar::Dt => "DT",
+            Calendar::LDate => "LDATE",
+            Calendar::LTod => "LTOD",
+            Calendar::LDt => "LDT",
+        }
+    }
+
+    /// Every name of the type (IEC 61131-3 ed3, table 10), the short one first.
+    pub const fn names(self) -> &'static [&'static str] {
+        match self {
+            Calendar::Date => &["DATE"],
+            Calendar::Tod => &["TOD", "TIME_OF_DAY"],
+            Calendar::Dt => &["DT", "DATE_AND_TIME"],
+            Calendar::LDate => &["LDATE"],
+            Calendar::LTod => &["LTOD", "LTIME_OF_DAY"],
+            Calendar::LDt => &["LDT", "LDATE_AND_TIME"],
+        }
+    }
+
+    /// The prefixes of its literals (`D#`, `DATE#`), the one values are written with first.
+    pub const fn prefixes(self) -> &'static [&'static str] {
+        match self {
+            Calendar::Date => &["D", "DATE"],
+            Calendar::Tod => &["TOD", "TIME_OF_DAY"],
+            Calendar::Dt => &["DT", "DATE_AND_TIME"],
+            Calendar::LDate => &["LDATE", "LD"],
+            Calendar::LTod => &["LTOD", "LTIME_OF_DAY"],
+            Calendar::LDt => &["LDT", "LDATE_AND_TIME"],
+        }
+    }
+
+    /// The type a literal prefix (without its `#`, any case) names.
+    pub fn from_prefix(prefix: &str) -> Option<Calendar> {
+        Calendar::ALL
+            .into_iter()
+            .find(|c| c.prefixes().iter().any(|p| p.eq_ignore_ascii_case(prefix)))
+    }
+
+    /// The type a type name (any case) names.
+    pub fn from_name(name: &str) -> Option<Calendar> {
+        Calendar::ALL.into_iter().find(|c| c.names().iter().any(|n| n.eq_ignore_ascii_case(name)))
+    }
+
+    pub const fn elem(self) -> Elem {
+        if self.is_long() {
+            Elem::U64
+        } else {
+            Elem::U32
+        }
+    }
+
+    /// `LDATE`, `LTOD`, `LDT`.
+    pub const fn is_long(self) -> bool {
+        matches!(self, Calendar::LDate | Calendar::LTod | Calendar::LDt)
+    }
+
+    pub const fn kind(self) -> CalendarKind {
+        match self {
+            Calendar::Date | Calendar::LDate => CalendarKind::Date,
+            Calendar::Tod | Calendar::LTod => CalendarKind::Tod,
+            Calendar::Dt | Calendar::LDt => CalendarKind::Dt,
+        }
+    }
+
+    /// The nanoseconds one unit of the stored count is.
+    pub const fn unit_ns(self) -> u64 {
+        match self {
+            Calendar::Date | Calendar::Dt => 1_000_000_000,
+            Calendar::Tod => 1_000_000,
+            Calendar::LDate | Calendar::LTod | Calendar::LDt => 1,
+        }
+    }
+
+    /// The largest count the type stores.
+    pub const fn max(self) -> u64 {
+        if self.is_long() {
+            u64::MAX
+        } else {
+            u32::MAX as u64
+        }
+    }
+
+    /// A literal of the type, for messages.
+    pub const fn example(self) -> &'static str {
+        match self {
+            Calendar::Date => "D#2024-03-01",
+            Calendar::Tod => "TOD#12:30:15.5",
+            Calendar::Dt => "DT#2024-03-01-12:30:15",
+            Calendar::LDate => "LDATE#2024-03-01",
+            Calendar::LTod => "LTOD#12:30:15.5",
+            Calendar::LDt => "LDT#2024-03-01-12:30:15",
+        }
+    }
+
+    /// The form of a literal's text after its prefix, for messages.
+    const fn form(self) -> &'static str {
+        match self.kind() {
+            CalendarKind::Date => "YYYY-MM-DD",
+            CalendarKind::Tod => "HH:MM:SS",
+            CalendarKind::Dt => "YYYY-MM-DD-HH:MM:SS",
+        }
+    }
+
+    /// The unit a value of the type is a whole number of, for messages.
+    const fn unit_name(self) -> &'static str {
+        match self.unit_ns() {
+            1 => "nanoseconds",
+            1_000_000 => "milliseconds",
+            _ => "seconds",
+        }
+    }
+}
+
+/// Why a text is not a value of a calendar type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CalendarError {
+    /// Not of the type's form (`YYYY-MM-DD`, `HH:MM:SS`, `YYYY-MM-DD-HH:MM:SS`).
+    Form(Calendar),
+    Month(u64),
+    Day {
+        day: u64,
+        year: u64,
+        month: u64,
+    },
+    Hour(u64),
+    Minute(u64),
+    Second(u64),
+    /// A fraction of a second finer than the type holds (`TOD#12:00:00.0001`).
+    Finer(Calendar),
+    /// Before 1970-01-01 or after the last value the type holds.
+    Range(Calendar),
+}
+
+impl CalendarError {
+    /// Every message of [`CalendarError`]'s `Display`, its varying parts `{}`.
+    pub const TEMPLATES: [&'static str; 8] = [
+        "expected {}",
+        "month {} is not 1 to 12",
+        "day {} is not a day of {}",
+        "hour {} is not 0 to 23",
+        "minute {} is not 0 to 59",
+        "second {} is not 0 to 59",
+        "a {} holds whole {}",
+        "out of range: {} to {}",
+    ];
+}
+
+impl fmt::Display for CalendarError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            CalendarError::Form(cal) => write!(f, "expected {}", cal.form()),
+            CalendarError::Month(m) => write!(f, "month {m} is not 1 to 12"),
+            CalendarError::Day { day, year, month } => {
+                write!(f, "day {day} is not a day of {year}-{month:02}")
+            }
+            CalendarError::Hour(h) => write!(f, "hour {h} is not 0 to 23"),
+            CalendarError::Minute(m) => write!(f, "minute {m} is not 0 to 59"),
+            CalendarError::Second(s) => write!(f, "second {s} is not 0 to 59"),
+            CalendarError::Finer(cal) => {
+                write!(f, "a {} holds whole {}", cal.name(), cal.unit_name())
+            }
+            CalendarError::Range(cal) => {
+                f.write_str("out of range: ")?;
+                write_calendar(f, cal, 0)?;
+                f.write_str(" to ")?;
+                write_calendar(f, cal, cal.max())
+            }
+        }
+    }
+}
+
+/// Days since 1970-01-01 of a date of the proleptic Gregorian calendar (H. Hinnant's
+/// `days_from_civil`).
+pub const fn days_from_civil(year: i64, month: u32, day: u32) -> i64 {
+    let y = if month <= 2 { year - 1 } else { year };
+    let era = y.div_euclid(400);
+    let year_of_era = y - era * 400;
+    let march_month = (month as i64 + 9) % 12;
+    let day_of_year = (153 * march_month + 2) / 5 + day as i64 - 1;
+    let day_of_era = year_of_era * 365 + year_of_era / 4 - year_of_era / 100 + day_of_year;
+    era * 146_097 + day_of_era - 719_468
+}
+
+/// The year, month (1–12) and day (1–31) of a count of days since 1970-01-01.
+pub const fn civil_from_days(days: i64) -> (i64, u32, u32) {
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let day_of_era = z - era * 146_097;
+    let year_of_era =
+        (day_of_era - day_of_era / 1460 + day_of_era / 36_524 - day_of_era / 146_096) / 365;
+    let day_of_year = day_of_era - (365 * year_of_era + year_of_era / 4 - year_of_era / 100);
+    let march_month = (5 * day_of_year + 2) / 153;
+    let day = (day_of_year - (153 * march_month + 2) / 5 + 1) as u32;
+    let month = if march_month < 10 { march_month + 3 } else { march_month - 9 } as u32;
+    let year = year_of_era + era * 400 + if month <= 2 { 1 } else { 0 };
+    (year, month, day)
+}
+
+/// The days of a month of a year.
+pub const fn days_in_month(year: i64, month: u32) -> u32 {
+    match month {
+        2 if year % 4 == 0 && (year % 100 != 0 || year % 400 == 0) => 29,
+        2 => 28,
+        4 | 6 | 9 | 11 => 30,
+        _ => 31,
+    }
+}
+
+/// Writes a calendar value as its IEC literal: `D#2024-03-01`, `TOD#12:30:15.5`,
+/// `DT#2024-03-01-12:30:15`, `LDATE#…`, `LTOD#…`, `LDT#…`; a fraction of a second only when
+/// there is one, without its trailing zeros. A `TOD` beyond a day (`DWORD_TO_TOD` of a large
+/// number) shows its hours beyond 23; a `DATE` that is not a whole day shows its day.
+pub fn write_calendar(out: &mut impl fmt::Write, cal: Calendar, slot: u64) -> fmt::Result {
+    let ns = u128::from(slot & cal.max()) * u128::from(cal.unit_ns());
+    let (days, in_day) = ((ns / u128::from(DAY_NS)) as i64, (ns % u128::from(DAY_NS)) as u64);
+    write!(out, "{}#", cal.prefixes()[0])?;
+    let (date, tod_ns) = match cal.kind() {
+        CalendarKind::Date => (Some(days), None),
+        CalendarKind::Tod => (None, Some(ns)),
+        CalendarKind::Dt => (Some(days), Some(u128::from(in_day))),
+    };
+    if let Some(days) = date {
+        let (y, m, d) = civil_from_days(days);
+        write!(out, "{y:04}-{m:02}-{d:02}")?;
+        if tod_ns.is_some() {
+            out.write_char('-')?;
+        }
+    }
+    if let Some(ns) = tod_ns {
+        let secs = ns / 1_000_000_000;
+        let (h, m, s) = (secs / 3600, secs / 60 % 60, secs % 60);
+        write!(out, "{h:02}:{m:02}:{s:02}")?;
+        let mut fraction = (ns % 1_000_000_000) as u32;
+        if fraction > 0 {
+            let mut digits = 9;
+            while fraction % 10 == 0 {
+                fraction /= 10;
+                digits -= 1;
+            }
+            write!(out, ".{fraction:0digits$}")?;
+        }
+    }
+    Ok(())
+}
+
+/// A number of at most 9 decimal digits, nothing else.
+fn calendar_field(text: &str) -> Option<u64> {
+    if text.is_empty() || text.len() > 9 || !text.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    text.parse().ok()
+}
+
+/// The days since 1970-01-01 of `YYYY-MM-DD`.
+fn date_days(cal: Calendar, text: &str) -> Result<i64, CalendarError> {
+    let mut fields = text.split('-');
+    let mut next = || fields.next().and_then(calendar_field).ok_or(CalendarError::Form(cal));
+    let (year, month, day) = (next()?, next()?, next()?);
+    if fields.next().is_some() {
+        return Err(CalendarError::Form(cal));
+    }
+    if !(1..=12).contains(&month) {
+        return Err(CalendarError::Month(month));
+    }
+    if day < 1 || day > u64::from(days_in_month(year as i64, month as u32)) {
+        return Err(CalendarError::Day { day, year, month });
+    }
+    Ok(days_from_civil(year as i64, month as u32, day as u32))
+}
+
+/// The nanoseconds since midnight of `HH:MM:SS` with an optional fraction of a second (digits
+/// beyond the nanosecond must be zeros), or of `HH:MM` (CODESYS writes `TOD#00:00`).
+fn tod_ns(cal: Calendar, text: &str) -> Result<u64, CalendarError> {
+    let mut fields = text.split(':');
+    let mut next = || fields.next().ok_or(CalendarError::Form(cal));
+    let (hour, minute) = (next()?, next()?);
+    let second = fields.next().unwrap_or("0");
+    if fields.next().is_some() {
+        return Err(CalendarError::Form(cal));
+    }
+    let (second, fraction) = second.split_once('.').unwrap_or((second, ""));
+    let field = |t: &str| calendar_field(t).ok_or(CalendarError::Form(cal));
+    let (hour, minute, second) = (field(hour)?, field(minute)?, field(second)?);
+    if !fraction.bytes().all(|b| b.is_ascii_digit()) || text.ends_with('.') {
+        return Err(CalendarError::Form(cal));
+    }
+    if hour > 23 {
+        return Err(CalendarError::Hour(hour));
+    }
+    if minute > 59 {
+        return Err(CalendarError::Minute(minute));
+    }
+    if second > 59 {
+        return Err(CalendarError::Second(second));
+    }
+    let mut ns = ((hour * 60 + minute) * 60 + second) * 1_000_000_000;
+    let mut scale = 1_000_000_000;
+    for digit in fraction.bytes() {
+        scale /= 10;
+        if scale == 0 && digit != b'0' {
+            return Err(CalendarError::Finer(cal));
+        }
+        ns += u64::from(digit - b'0') * scale;
+    }
+    Ok(ns)
+}
+
+/// The stored count of a literal's text after its prefix (`2024-03-01` for a `DATE`), without
+/// allocating.
+pub fn calendar_body(cal: Calendar, body: &str) -> Result<u64, CalendarError> {
+    let (date, tod) = match cal.kind() {
+        CalendarKind::Date => (Some(body), None),
+        CalendarKind::Tod => (None, Some(body)),
+        CalendarKind::Dt => {
+            let at = body.match_indices('-').nth(2).ok_or(CalendarError::Form(cal))?.0;
+            (Some(&body[..at]), Some(&body[at + 1..]))
+        }
+    };
+    let mut ns: i128 = 0;
+    if let Some(date) = date {
+        ns += i128::from(date_days(cal, date)?) * i128::from(DAY_NS);
+    }
+    if let Some(tod) = tod {
+        ns += i128::from(tod_ns(cal, tod)?);
+    }
+    let unit = i128::from(cal.unit_ns());
+    if ns % unit != 0 {
+        return Err(CalendarError::Finer(cal));
+    }
+    let count = ns / unit;
+    if count < 0 || count > i128::from(cal.max()) {
+        return Err(CalendarError::Range(cal));
+    }
+    Ok(count as u64)
+}
+
+/// A calendar value as a client or `STRING_TO_DATE` writes it: the literal with one of the
+/// type's prefixes (any case), or its text alone; spaces around it ignored.
+pub fn calendar_from_text(cal: Calendar, text: &str) -> Result<u64, CalendarError> {
+    let text = text.trim();
+    let body = match text.split_once('#') {
+        Some((prefix, body)) if Calendar::from_prefix(prefix) == Some(cal) => body,
+        Some(_) => return Err(CalendarError::Form(cal)),
+        None => text,
+    };
+    calendar_body(cal, body)
 }
 
 #[cfg(test)]
@@ -1280,5 +1697,68 @@ mod tests {
         let p = Pointer { space: Space::Bit, offset: 1234 };
         assert_eq!(Pointer::from_slot(p.to_slot()), p);
         assert_eq!(Pointer::from_slot(99 << 32).space, Space::Discard);
+    }
+
+    #[test]
+    fn calendar_values_are_codesys_counts() {
+        // 2024-03-01 is 19783 days after 1970-01-01 (54 years, 13 of them leap: 1972 … 2020).
+        assert_eq!(days_from_civil(2024, 3, 1), 19_783);
+        assert_eq!(civil_from_days(19_783), (2024, 3, 1));
+        assert_eq!(civil_from_days(0), (1970, 1, 1));
+        assert_eq!(civil_from_days(-1), (1969, 12, 31));
+        let date = ValueType::Calendar(Calendar::Date);
+        assert_eq!(parse(&date, "D#2024-03-01"), Ok(19_783 * 86_400));
+        assert_eq!(format(&date, 19_783 * 86_400), "D#2024-03-01");
+        let tod = ValueType::Calendar(Calendar::Tod);
+        assert_eq!(parse(&tod, "TOD#12:30:15.5"), Ok(45_015_500));
+        assert_eq!(parse(&tod, "time_of_day#00:00:00"), Ok(0));
+        assert_eq!(format(&tod, 45_015_500), "TOD#12:30:15.5");
+        assert_eq!(format(&tod, 100_000_000), "TOD#27:46:40");
+        let dt = ValueType::Calendar(Calendar::Dt);
+        assert_eq!(parse(&dt, "DT#2024-03-01-12:30:15"), Ok(19_783 * 86_400 + 45_015));
+        assert_eq!(parse(&dt, "2024-03-01-12:30:15"), Ok(19_783 * 86_400 + 45_015));
+        assert_eq!(format(&dt, u64::from(u32::MAX)), "DT#2106-02-07-06:28:15");
+        let ldt = ValueType::Calendar(Calendar::LDt);
+        assert_eq!(parse(&ldt, "LDT#1970-01-01-00:00:00.000000001"), Ok(1));
+        assert_eq!(format(&ldt, u64::MAX), "LDT#2554-07-21-23:34:33.709551615");
+        let ltod = ValueType::Calendar(Calendar::LTod);
+        assert_eq!(format(&ltod, 1_500), "LTOD#00:00:00.0000015");
+        for cal in Calendar::ALL {
+            for slot in [0, 1, 86_399, 86_400_000, 1_234_567_890, cal.max()] {
+                let text = format(&ValueType::Calendar(cal), slot);
+                let back = parse(&ValueType::Calendar(cal), &text);
+                let whole =
+                    cal.kind() != CalendarKind::Date || slot % (DAY_NS / cal.unit_ns()) == 0;
+                let in_day = cal.kind() != CalendarKind::Tod || slot < DAY_NS / cal.unit_ns();
+                if whole && in_day {
+                    assert_eq!(back, Ok(slot), "{text}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn invalid_calendar_texts_say_why() {
+        let why = |cal, text| calendar_from_text(cal, text).unwrap_err().to_string();
+        assert_eq!(why(Calendar::Date, "2024-13-01"), "month 13 is not 1 to 12");
+        assert_eq!(why(Calendar::Date, "2023-02-29"), "day 29 is not a day of 2023-02");
+        assert_eq!(why(Calendar::Date, "2024-3"), "expected YYYY-MM-DD");
+        assert_eq!(why(Calendar::Tod, "25:00:00"), "hour 25 is not 0 to 23");
+        assert_eq!(why(Calendar::Tod, "12:60:00"), "minute 60 is not 0 to 59");
+        assert_eq!(why(Calendar::Tod, "12:00:60"), "second 60 is not 0 to 59");
+        assert_eq!(why(Calendar::Tod, "12:00:00.0001"), "a TOD holds whole milliseconds");
+        assert_eq!(why(Calendar::Dt, "2024-01-01-12:00:00.5"), "a DT holds whole seconds");
+        assert_eq!(why(Calendar::Date, "1969-12-31"), "out of range: D#1970-01-01 to D#2106-02-07");
+        assert_eq!(why(Calendar::Date, "TOD#12:00:00"), "expected YYYY-MM-DD");
+        assert_eq!(why(Calendar::Tod, "12"), "expected HH:MM:SS");
+        assert_eq!(why(Calendar::Tod, "12:00:00:00"), "expected HH:MM:SS");
+        // The seconds may be left out, as CODESYS writes them.
+        assert_eq!(calendar_from_text(Calendar::Tod, "TOD#12:30"), Ok(45_000_000));
+        assert_eq!(calendar_from_text(Calendar::Dt, "DT#1970-01-01-00:01"), Ok(60));
+        assert_eq!(
+            parse(&ValueType::Calendar(Calendar::Date), "D#2024-13-01"),
+            Err("`D#2024-13-01` is not a DATE (month 13 is not 1 to 12; e.g. D#2024-03-01)".into())
+        );
+        assert_eq!(scalar_from_text(Scalar::Calendar(Calendar::Tod), " 1:2:3 "), Ok(3_723_000));
     }
 }

@@ -71,6 +71,7 @@ fn section_defaults_are_the_documented_ones() {
         }
     );
     assert_eq!(SimConfig::default().step_ns, 1000);
+    assert_eq!(SimConfig::default().start_utc_ns, 0);
     let timers = TimerConfig::default();
     assert_eq!(timers.ms100, Some(0..=999));
     assert_eq!(timers.ms10, Some(1000..=1499));
@@ -232,6 +233,7 @@ continue_on_congestion = true
 
 [sim]
 step_ns = 250
+start = "2026-01-01-00:00:00.5"
 
 [[program]]
 file = "prog/init.il"
@@ -308,6 +310,8 @@ line = 0
         }
     );
     assert_eq!(config.sim.step_ns, 250);
+    // 2026-01-01 is day 20454 after 1970-01-01; and half a second.
+    assert_eq!(config.sim.start_utc_ns, 20_454 * 86_400_000_000_000 + 500_000_000);
     let programs: Vec<_> = config
         .programs
         .iter()

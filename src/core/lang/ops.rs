@@ -409,6 +409,9 @@ pub enum Op {
     Return,
     /// Pushes the clock's time in nanoseconds (an `I64`), for the standard timers.
     Now,
+    /// Pushes the calendar time (`Clock::utc_ns`, nanoseconds since 1970-01-01 UTC, an `LDT`),
+    /// for the real-time clock of ST programs.
+    Utc,
     /// A string operation on pointers; `cap` is the destination's capacity.
     Str {
         op: StrOp,
@@ -553,9 +556,12 @@ impl Op {
     /// against `EVAL_DEPTH`, and native code keeps them in registers by this same rule.
     pub fn stack_effect(&self) -> Option<(u32, u32)> {
         Some(match self {
-            Op::PushInt(_) | Op::PushConst(_) | Op::Fetch { .. } | Op::AddrOf(_) | Op::Now => {
-                (0, 1)
-            }
+            Op::PushInt(_)
+            | Op::PushConst(_)
+            | Op::Fetch { .. }
+            | Op::AddrOf(_)
+            | Op::Now
+            | Op::Utc => (0, 1),
             Op::Dup => (1, 2),
             Op::Store { .. } | Op::Drop | Op::GotoIf { .. } | Op::CallFb { .. } => (1, 0),
             Op::Index { .. } | Op::Bin { .. } | Op::Cmp { .. } => (2, 1),

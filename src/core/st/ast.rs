@@ -343,6 +343,9 @@ pub enum Literal {
     Bool(bool),
     /// `T#1s500ms`, `TIME#…`, `LTIME#…`: nanoseconds.
     Time(i128),
+    /// `D#2024-03-01`, `TOD#12:30:15.5`, `DT#2024-03-01-12:30:15`, `LDATE#…`, `LTOD#…`,
+    /// `LDT#…`: the stored count ([`crate::value::Calendar`]).
+    Calendar(crate::value::Calendar, u64),
     /// `'text'` with `$` escapes resolved.
     String(String),
     /// `INT#5`, `REAL#1`, `BOOL#1`, `Color#Red`: a prefix naming the type, and the literal or

@@ -1187,6 +1187,10 @@ fn interpret<'a, const ST: bool, C: Clock>(
                     let steps = stop - left + taken!() as u64;
                     push!(clock.now_ns(steps));
                 }
+                Op::Utc if ST => {
+                    let steps = stop - left + taken!() as u64;
+                    push!(clock.utc_ns(steps));
+                }
                 Op::Str { op, cap } if ST => {
                     state.eval.set_sp(sp);
                     typed::string_op(&mut state.eval, vars, &mut state.frame, *op, *cap);

@@ -323,6 +323,9 @@ mod tests {
         );
         assert_eq!(json_value(&ValueType::Real(Elem::F64), f64::NAN.to_bits()), Value::from("NaN"));
         assert_eq!(json_value(&ValueType::Time, 1_500_000_000), Value::from("T#1s500ms"));
+        // A DATE counts seconds: 2024-03-01 is day 19783.
+        let date = ValueType::Calendar(value::Calendar::Date);
+        assert_eq!(json_value(&date, 19_783 * 86_400), Value::from("D#2024-03-01"));
         let mode = ValueType::Enum {
             type_name: "Mode".into(),
             values: vec![("Idle".into(), 0), ("Running".into(), 5)],
@@ -348,7 +351,7 @@ mod tests {
     }
 
     const MAIN: &str = "PROGRAM Main\nVAR\n    speed : INT;\n    s : STRING[4];\n\
-        pos AT %D00200 : DINT;\n    flag : BOOL;\nEND_VAR\nVAR CONSTANT\n    k : INT := 3;\n\
+        pos AT %D00200 : DINT;\n    flag : BOOL;\n    day : DATE;\nEND_VAR\nVAR CONSTANT\n    k : INT := 3;\n\
         END_VAR\n    speed := speed + 1;\nEND_PROGRAM\n";
 
     fn bench(name: &str) -> Bench {
@@ -437,6 +440,26 @@ mod tests {
         };
         assert_eq!(items[0], Write::Device(Address::parse("D00010").unwrap(), 7));
         let _ = &b.completions;
+    }
+
+    #[test]
+    fn a_date_is_set_as_its_literal() {
+        use crate::drivers::real_time::Command;
+        let mut b = bench("date");
+        let f = failure_of(b.handler.handle(1, set("main.day", "D#2024-13-01")));
+        assert_eq!(
+            f.message,
+            "main.day (DATE): `D#2024-13-01` is not a DATE (month 13 is not 1 to 12; e.g. \
+             D#2024-03-01)"
+        );
+        assert!(b.handler.handle(1, set("main.day", "D#2024-03-01")).is_none(), "parked");
+        let Ok(Command::Control(_, ControlCommand::Writes { items, len: 1 })) = b.commands.pop()
+        else {
+            panic!("one typed write")
+        };
+        // 2024-03-01 is day 19783 after 1970-01-01, counted in seconds.
+        let Write::Value { elem, slot, .. } = items[0] else { panic!("a value") };
+        assert_eq!((elem, slot), (value::Elem::U32, 19_783 * 86_400));
     }
 
     #[test]

@@ -361,7 +361,8 @@ pub fn mode_code(mode: Mode) -> u8 {
     }
 }
 
-/// Real time as the VM and the engine see it: CLOCK_MONOTONIC.
+/// Real time as the VM and the engine see it: CLOCK_MONOTONIC; the calendar time of ST
+/// programs is CLOCK_REALTIME, UTC.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Monotonic;
 
@@ -369,6 +370,10 @@ impl Clock for Monotonic {
     #[inline]
     fn now_ns(&self, _steps: u64) -> u64 {
         sys::now_ns()
+    }
+
+    fn utc_ns(&self, _steps: u64) -> u64 {
+        sys::utc_ns()
     }
 }
 

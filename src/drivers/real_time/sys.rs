@@ -37,6 +37,15 @@ pub fn now_ns() -> u64 {
     ts.tv_sec() as u64 * 1_000_000_000 + ts.tv_nsec() as u64
 }
 
+/// CLOCK_REALTIME in ns since 1970-01-01 00:00:00 UTC: the calendar time ST programs read
+/// (the system's clock, set by NTP or by hand; 0 before 1970).
+#[inline]
+pub fn utc_ns() -> u64 {
+    // CLOCK_REALTIME cannot fail on Linux with a valid clock id.
+    let ts = clock_gettime(ClockId::CLOCK_REALTIME).unwrap_or(TimeSpec::new(0, 0));
+    u64::try_from(ts.tv_sec()).unwrap_or(0) * 1_000_000_000 + ts.tv_nsec() as u64
+}
+
 fn timespec(ns: u64) -> TimeSpec {
     TimeSpec::new((ns / 1_000_000_000) as i64, (ns % 1_000_000_000) as i64)
 }
@@ -252,6 +261,12 @@ pub fn wait_any(fds: &[BorrowedFd<'_>], timeout_ns: Option<u64>) -> Result<u8, S
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_calendar_clock_is_after_2020() {
+        // 2020-01-01 00:00:00 UTC in ns: any machine running this is later.
+        assert!(utc_ns() > 1_577_836_800_000_000_000);
+    }
 
     #[test]
     fn the_monotonic_clock_advances() {

@@ -21,7 +21,7 @@ use crate::io::simulated::SimulatedIo;
 use crate::io::{Io, SwitchPosition};
 use crate::project::{Project, Watched};
 use crate::stimulus::{Stimulus, Target};
-use crate::vm::{Clock, StepClock};
+use crate::vm::{clock::CalendarClock, Clock, StepClock};
 
 /// How long and how fine.
 #[derive(Debug, Clone, Copy)]
@@ -54,7 +54,8 @@ pub fn simulate(
             .collect(),
     };
     let step_ns = options.step_ns.max(1);
-    let mut clock = StepClock { origin_ns: 0, origin_steps: engine.steps(), step_ns };
+    let steps = StepClock { origin_ns: 0, origin_steps: engine.steps(), step_ns };
+    let mut clock = CalendarClock { steps, start_utc_ns: project.config.sim.start_utc_ns };
     if project.config.switch.is_none() {
         engine.set_mode(Mode::Run, 0, &mut io, sink);
     }
@@ -80,7 +81,7 @@ pub fn simulate(
             // Idle now, perhaps since an instant ago: skip to what the engine awaits from here.
             let after = clock.now_ns(engine.steps());
             let until = next_event(&engine, after);
-            clock.rebase(until, engine.steps());
+            clock.steps.rebase(until, engine.steps());
         }
     }
     engine

@@ -173,14 +173,14 @@ fn watch_name(names: &[String], watch: u16) -> String {
 
 /// Appends a variable's value as JSON: a number for integers, bit strings and reals (a real
 /// that is not finite as the string `"NaN"`, `"inf"` or `"-inf"`), 0/1 for BOOL, a string for
-/// TIME (an IEC literal) and for an enumeration (its value's name, or a number for a value
+/// TIME, DATE, TOD, DT and their long forms (IEC literals) and for an enumeration (its value's name, or a number for a value
 /// that has none).
 pub fn push_json_value(line: &mut String, ty: &ValueType, slot: u64) {
     let text = crate::value::format(ty, slot);
     let numeric = match ty {
         ValueType::Real(_) => text.parse::<f64>().is_ok_and(f64::is_finite),
         ValueType::Enum { .. } => text.parse::<i64>().is_ok(),
-        ValueType::Time | ValueType::String { .. } => false,
+        ValueType::Time | ValueType::Calendar(_) | ValueType::String { .. } => false,
         _ => true,
     };
     if numeric {
@@ -353,6 +353,17 @@ mod tests {
         for (t_ns, event, expected) in cases {
             assert_eq!(line(t_ns, event), format!("{expected}\n"), "{event:?}");
         }
+    }
+
+    #[test]
+    fn dates_and_times_of_day_are_literals_in_strings() {
+        use crate::value::Calendar;
+        let mut line = String::new();
+        // 2024-03-01 12:30:15 is 1709296215 s after 1970-01-01.
+        push_json_value(&mut line, &ValueType::Calendar(Calendar::Dt), 1_709_296_215);
+        line.push(' ');
+        push_json_value(&mut line, &ValueType::Calendar(Calendar::LTod), 1_500_000_000);
+        assert_eq!(line, r#""DT#2024-03-01-12:30:15" "LTOD#00:00:01.5""#);
     }
 
     #[test]

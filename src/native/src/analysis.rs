@@ -55,7 +55,7 @@ pub(crate) struct Body {
 /// the integer power, which can fail) go to the interpreter.
 pub(crate) fn is_native(op: &Op) -> bool {
     match op {
-        Op::Now | Op::Str { .. } | Op::System(_) => false,
+        Op::Now | Op::Utc | Op::Str { .. } | Op::System(_) => false,
         Op::Bin { op: BinOp::Expt, elem } => elem.is_float(),
         _ => true,
     }

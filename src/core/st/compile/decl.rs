@@ -87,6 +87,14 @@ impl<'a> Ctx<'a> {
                     continue;
                 }
                 if let Some(&(f0, s0)) = seen.get(&key(&id.name)) {
+                    // A FUNCTION of the prelude (`DAY_OF_WEEK`), and the RTC block newer
+                    // projects may have written for themselves, are replaced by the project's
+                    // own of the same name (docs/ST.md, "Dates and times of day").
+                    let replaceable = matches!(item, Item::Pou(p)
+                        if p.kind == PouKind::Function || p.name.is("RTC"));
+                    if fi == self.prelude_file && replaceable {
+                        continue;
+                    }
                     let first = self.first_at(f0, s0, fi);
                     self.error(fi, id.span, format!("`{}` is already declared ({first})", id.name));
                     continue;

@@ -132,7 +132,8 @@ fn effect(op: &Op) -> isize {
         | Op::Fetch { .. }
         | Op::AddrOf(_)
         | Op::Dup
-        | Op::Now => 1,
+        | Op::Now
+        | Op::Utc => 1,
         Op::Store { .. }
         | Op::Index { .. }
         | Op::Bin { .. }
@@ -403,6 +404,9 @@ impl<'c, 'a> Em<'c, 'a> {
 
     fn std(&mut self, op: Std, args: &[TExpr], ty: &Ty) {
         match op {
+            Std::Utc => {
+                self.op(Op::Utc);
+            }
             Std::Now => {
                 self.op(Op::Now);
             }

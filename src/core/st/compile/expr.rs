@@ -364,6 +364,9 @@ impl<'a> Ctx<'a> {
                 }
                 TExpr::konst(Cv::Int(*ns), Ty::Prim(p), span)
             }
+            Literal::Calendar(cal, count) => {
+                TExpr::konst(Cv::Int(i128::from(*count)), Ty::Prim(Prim::Cal(*cal)), span)
+            }
             Literal::String(s) => {
                 // one byte a character: Windows-1252, as CODESYS and TwinCAT store STRING
                 let bytes = match crate::value::encode_str(s) {
@@ -870,7 +873,11 @@ impl<'a> Ctx<'a> {
         let span = te.span;
         let (a, b) = (self.ty_name(&te.ty), self.ty_name(to));
         let hint = match (te.ty.prim(&self.types), to.prim(&self.types)) {
-            (Some(x), Some(y)) if !matches!(te.ty, Ty::Enum(_)) && !matches!(to, Ty::Enum(_)) => {
+            (Some(x), Some(y))
+                if !matches!(te.ty, Ty::Enum(_))
+                    && !matches!(to, Ty::Enum(_))
+                    && super::calendar::convertible(x, y) =>
+            {
                 format!(" (use {}_TO_{})", x.name(), y.name())
             }
             _ => String::new(),
@@ -1057,6 +1064,10 @@ impl<'a> Ctx<'a> {
                 let bop = if op == BinaryOp::Mul { BinOp::Mul } else { BinOp::Div };
                 return self.make_bin(bop, t, n, Ty::Prim(tp), span, file);
             }
+        }
+        let (pa, pb) = (a.ty.prim(&self.types), b.ty.prim(&self.types));
+        if super::calendar::is_calendar_arith(op, pa, pb) {
+            return self.calendar_arith(op, a, b, span, file);
         }
         let Some((a, b, ty)) = self.unify(a, b, what, span, file) else {
             return TExpr::error(span);

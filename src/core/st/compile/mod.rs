@@ -23,6 +23,7 @@
 //! - FUNCTION variables are initialized at each call; `VAR_TEMP` of a PROGRAM or FB at each
 //!   execution.
 
+mod calendar;
 mod ctx;
 mod decl;
 mod emit;

@@ -24,6 +24,8 @@ pub enum Std {
     Mux,
     /// `__NOW()`: the clock, a TIME.
     Now,
+    /// `__UTC()`: the calendar time, an LDT (the real-time clock).
+    Utc,
     /// plcd's system functions, the instruction list's system instructions: `INIT_DONE()`
     /// (the init task is finished) and `WDT()` (restart the scan watchdog). TRUE.
     System(crate::lang::ops::SystemRequest),
@@ -78,6 +80,7 @@ fn formals(name: &str, n: usize) -> Vec<String> {
             return v;
         }
         "EXPT" | "SUB" | "DIV" | "MOD" | "FIND" => &["IN1", "IN2"],
+        _ if super::calendar::function(name).is_some() => &["IN1", "IN2"],
         "ADD" | "MUL" | "MIN" | "MAX" | "AND" | "OR" | "XOR" | "CONCAT" => {
             return (1..=n).map(|i| format!("IN{i}")).collect();
         }
@@ -211,6 +214,10 @@ impl<'a> Ctx<'a> {
             }
             return TExpr { k: TK::Std(Std::Now, vec![]), ty: Ty::Prim(Prim::Time), span };
         }
+        if upper == "__UTC" && self.in_prelude {
+            let ty = Ty::Prim(Prim::Cal(crate::value::Calendar::LDt));
+            return TExpr { k: TK::Std(Std::Utc, vec![]), ty, span };
+        }
         use crate::lang::ops::SystemRequest;
         let system = match upper.as_str() {
             "INIT_DONE" => Some(SystemRequest::InitDone),
@@ -262,6 +269,19 @@ impl<'a> Ctx<'a> {
                 ty: Ty::Prim(Prim::Bool),
                 span,
             };
+        }
+        if let Some((pa, pb)) = super::calendar::function(&upper) {
+            let Some(a) = self.std_args(&upper, args, span, file) else {
+                return TExpr::error(span);
+            };
+            if !self.arity(&upper, a.len(), 2, 2, span, file) {
+                return TExpr::error(span);
+            }
+            let x = self.check_expr(a[0], scope, Some(&Ty::Prim(pa)));
+            let x = self.coerce(x, &Ty::Prim(pa), file);
+            let y = self.check_expr(a[1], scope, Some(&Ty::Prim(pb)));
+            let y = self.coerce(y, &Ty::Prim(pb), file);
+            return self.calendar_function(&upper, x, y, span, file);
         }
         if let Some((from, to)) = upper.split_once("_TO_") {
             let src =
@@ -907,6 +927,9 @@ impl<'a> Ctx<'a> {
         };
         if t.ty.is_error() {
             return TExpr::error(span);
+        }
+        if sp.calendar().is_some() || dp.calendar().is_some() {
+            return self.calendar_conversion(name, sp, dp, dst, t, span, file);
         }
         let ns = |v: i128| TExpr::konst(Cv::Int(v), Ty::Prim(Prim::LInt), span);
         let ns_real = |v: f64| TExpr::konst(Cv::Real(v), Ty::Prim(Prim::LReal), span);

@@ -20,7 +20,8 @@
 //! | `REAL`  | `LREAL`                                       |
 //! | `TIME`  | `LTIME`                                       |
 //!
-//! `LINT`, `ULINT`, `LWORD`, `LREAL`, `LTIME`, `BOOL` convert implicitly to nothing else.
+//! `LINT`, `ULINT`, `LWORD`, `LREAL`, `LTIME`, `BOOL` convert implicitly to nothing else, and
+//! neither do `DATE`, `TOD`, `DT` and their long forms (CODESYS widens them to nothing either).
 //! Every other conversion is explicit (`<T1>_TO_<T2>`). The two operands of a binary operator
 //! are brought to the first type of the list `SINT USINT INT UINT DINT UDINT LINT ULINT REAL
 //! LREAL BYTE WORD DWORD LWORD TIME LTIME` both convert to implicitly (`INT + UINT` is a `DINT`).
@@ -28,7 +29,7 @@
 
 use std::rc::Rc;
 
-use crate::value::{Elem, ValueType};
+use crate::value::{Calendar, Elem, ValueType};
 
 /// An elementary type.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -50,6 +51,8 @@ pub enum Prim {
     LReal,
     Time,
     LTime,
+    /// `DATE`, `TOD`, `DT` and their long forms: [`Calendar`] says how they are stored.
+    Cal(Calendar),
 }
 
 /// The order in which a common type of two operands is searched.
@@ -72,7 +75,7 @@ const WIDENING_ORDER: [Prim; 16] = [
     Prim::LTime,
 ];
 
-pub const ALL_PRIMS: [Prim; 17] = [
+pub const ALL_PRIMS: [Prim; 23] = [
     Prim::Bool,
     Prim::SInt,
     Prim::Int,
@@ -90,12 +93,23 @@ pub const ALL_PRIMS: [Prim; 17] = [
     Prim::LReal,
     Prim::Time,
     Prim::LTime,
+    Prim::Cal(Calendar::Date),
+    Prim::Cal(Calendar::Tod),
+    Prim::Cal(Calendar::Dt),
+    Prim::Cal(Calendar::LDate),
+    Prim::Cal(Calendar::LTod),
+    Prim::Cal(Calendar::LDt),
 ];
 
 impl Prim {
+    /// The type a name names: its IEC name, or a long name of a calendar type
+    /// (`TIME_OF_DAY`, `DATE_AND_TIME`, `LTIME_OF_DAY`, `LDATE_AND_TIME`).
     pub fn from_name(name: &str) -> Option<Prim> {
         let upper = name.to_ascii_uppercase();
-        ALL_PRIMS.into_iter().find(|p| p.name() == upper)
+        ALL_PRIMS
+            .into_iter()
+            .find(|p| p.name() == upper)
+            .or_else(|| Calendar::from_name(&upper).map(Prim::Cal))
     }
 
     pub fn name(self) -> &'static str {
@@ -117,6 +131,7 @@ impl Prim {
             Prim::LReal => "LREAL",
             Prim::Time => "TIME",
             Prim::LTime => "LTIME",
+            Prim::Cal(cal) => cal.name(),
         }
     }
 
@@ -133,6 +148,7 @@ impl Prim {
             Prim::ULInt | Prim::LWord => Elem::U64,
             Prim::Real => Elem::F32,
             Prim::LReal => Elem::F64,
+            Prim::Cal(cal) => cal.elem(),
         }
     }
 
@@ -161,6 +177,14 @@ impl Prim {
 
     pub fn is_time(self) -> bool {
         matches!(self, Prim::Time | Prim::LTime)
+    }
+
+    /// `DATE`, `TOD`, `DT` and their long forms.
+    pub fn calendar(self) -> Option<Calendar> {
+        match self {
+            Prim::Cal(cal) => Some(cal),
+            _ => None,
+        }
     }
 
     pub fn is_num(self) -> bool {
@@ -230,6 +254,7 @@ impl Prim {
             Prim::Bool => ValueType::Bool,
             Prim::Real | Prim::LReal => ValueType::Real(e),
             Prim::Time | Prim::LTime => ValueType::Time,
+            Prim::Cal(cal) => ValueType::Calendar(cal),
             _ if e.is_signed() => ValueType::Signed(e),
             _ => ValueType::Unsigned(e),
         }

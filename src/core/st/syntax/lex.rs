@@ -7,6 +7,7 @@
 
 use super::Msg;
 use crate::st::ast::Span;
+use crate::value::{calendar_body, Calendar, CalendarKind};
 
 /// The keywords, recognised whatever their case.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -190,6 +191,8 @@ pub(crate) enum Tok {
     Real(f64),
     /// A duration in nanoseconds.
     Time(i128),
+    /// `D#2024-03-01`, `TOD#12:30:00`, `DT#…` and the long forms: the stored count.
+    Calendar(Calendar, u64),
     /// A string with its escapes resolved.
     Str(String),
     /// `INT#`: the type's name is the token's text without the `#`.
@@ -452,6 +455,10 @@ impl Lexer<'_> {
                 if matches!(upper, b"T" | b"TIME" | b"LT" | b"LTIME") {
                     return self.duration(start, span);
                 }
+                let calendar = std::str::from_utf8(upper).ok().and_then(Calendar::from_prefix);
+                if let Some(cal) = calendar {
+                    return self.calendar(cal, start, span);
+                }
                 return self.push(Tok::TypedPrefix, span, start);
             }
             Kw::from_upper(upper)
@@ -489,6 +496,43 @@ impl Lexer<'_> {
             }
         };
         self.push(Tok::Time(ns), span, start);
+    }
+
+    /// `D#…`, `TOD#…`, `DT#…` and the long forms after their `#`: digits, with the `-`, `:`
+    /// and `.` of the type's form where a digit follows them (so `D#2024-03-01-d` stops before
+    /// the minus).
+    fn calendar(&mut self, cal: Calendar, start: usize, span: Span) {
+        let (dashes, colons) = match cal.kind() {
+            CalendarKind::Date => (2, false),
+            CalendarKind::Tod => (0, true),
+            CalendarKind::Dt => (3, true),
+        };
+        let mut dashes_left = dashes;
+        loop {
+            let digit_next = self.peek_at(1).is_some_and(|b| b.is_ascii_digit());
+            match self.peek() {
+                Some(b'0'..=b'9') => {}
+                Some(b'-') if dashes_left > 0 && digit_next => dashes_left -= 1,
+                Some(b':' | b'.') if colons && digit_next => {}
+                _ => break,
+            }
+            self.bump();
+        }
+        let text = &self.text[start..self.pos];
+        let body = &text[text.find('#').map_or(0, |i| i + 1)..];
+        let count = match calendar_body(cal, body) {
+            Ok(count) => count,
+            Err(why) => {
+                let msg = Msg::Calendar {
+                    text: text.to_string(),
+                    ty: cal.name().into(),
+                    why: why.to_string(),
+                };
+                self.error(span, msg);
+                0
+            }
+        };
+        self.push(Tok::Calendar(cal, count), span, start);
     }
 
     /// An integer (any base) or a real. Right after a `.`, only digits: `x.3` is a bit.

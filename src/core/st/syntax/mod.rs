@@ -245,6 +245,12 @@ pub(crate) enum Msg {
         text: String,
         found: String,
     },
+    /// `` `D#2024-13-01` is not a valid DATE: month 13 is not 1 to 12 ``.
+    Calendar {
+        text: String,
+        ty: String,
+        why: String,
+    },
     BadEscape {
         escape: String,
     },
@@ -289,6 +295,11 @@ impl Msg {
             Msg::BitTooLarge { text: h() },
             Msg::TooDeep,
         ]);
+        all.extend(crate::value::CalendarError::TEMPLATES.iter().map(|why| Msg::Calendar {
+            text: h(),
+            ty: h(),
+            why: why.to_string(),
+        }));
         all
     }
 }
@@ -324,6 +335,7 @@ impl std::fmt::Display for Msg {
             Msg::DurationNoNumber { text, found } => {
                 write!(f, "`{text}` is not a duration: expected a number, found {found}")
             }
+            Msg::Calendar { text, ty, why } => write!(f, "`{text}` is not a valid {ty}: {why}"),
             Msg::BadEscape { escape } => write!(f, "invalid escape `{escape}` in a string"),
             Msg::UnexpectedChar { ch } => write!(f, "unexpected character `{ch}`"),
             Msg::NoAddress => write!(f, "expected an address after `%`"),

@@ -1061,6 +1061,7 @@ impl<'a> Parser<'a> {
             | Tok::Real(_)
             | Tok::Str(_)
             | Tok::Time(_)
+            | Tok::Calendar(..)
             | Tok::TypedPrefix
             | Tok::P(P::Minus | P::Plus)
             | Tok::Kw(Kw::True | Kw::False) => true,
@@ -1338,6 +1339,7 @@ impl<'a> Parser<'a> {
             Tok::Int(n) => Literal::Int(*n),
             Tok::Real(x) => Literal::Real(*x),
             Tok::Time(ns) => Literal::Time(*ns),
+            Tok::Calendar(cal, count) => Literal::Calendar(*cal, *count),
             Tok::Str(s) => Literal::String(s.clone()),
             Tok::Kw(Kw::True) => Literal::Bool(true),
             Tok::Kw(Kw::False) => Literal::Bool(false),
@@ -1391,6 +1393,7 @@ impl<'a> Parser<'a> {
             | Tok::Real(_)
             | Tok::Str(_)
             | Tok::Time(_)
+            | Tok::Calendar(..)
             | Tok::Ident
             | Tok::Kw(Kw::True | Kw::False) => self.primary(),
             _ => Err(self.fail(Want::TypedValue)),

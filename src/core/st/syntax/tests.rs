@@ -104,6 +104,7 @@ fn lit(l: &Literal) -> String {
         Literal::Real(x) => format!("{x:?}"),
         Literal::Bool(b) => if *b { "TRUE" } else { "FALSE" }.to_string(),
         Literal::Time(ns) => format!("T{ns}"),
+        Literal::Calendar(cal, count) => format!("{}{count}", cal.name()),
         Literal::String(s) => format!("{s:?}"),
         Literal::Typed { ty, value } => format!("(# {} {})", ty.name, sx(value)),
     }
@@ -323,6 +324,44 @@ fn lexes_durations_in_nanoseconds() {
         assert_eq!(one_tok(text), Tok::Time(ns), "{text}");
     }
     assert_eq!(toks("T#1s;"), vec![Tok::Time(S), Tok::P(P::Semi)]);
+}
+
+#[test]
+fn lexes_calendar_literals_as_their_counts() {
+    use crate::value::Calendar::*;
+    // 2024-03-01 is day 19783 after 1970-01-01.
+    const DAY: u64 = 19_783 * 86_400;
+    for (text, tok) in [
+        ("D#2024-03-01", Tok::Calendar(Date, DAY)),
+        ("date#2024-03-01", Tok::Calendar(Date, DAY)),
+        ("LDATE#1970-01-02", Tok::Calendar(LDate, 86_400_000_000_000)),
+        ("LD#1970-01-02", Tok::Calendar(LDate, 86_400_000_000_000)),
+        ("TOD#12:30:15.5", Tok::Calendar(Tod, 45_015_500)),
+        ("TIME_OF_DAY#00:00:01", Tok::Calendar(Tod, 1000)),
+        ("TOD#12:30", Tok::Calendar(Tod, 45_000_000)),
+        ("DT#2024-03-01-00:01", Tok::Calendar(Dt, DAY + 60)),
+        ("LTOD#00:00:00.000000001", Tok::Calendar(LTod, 1)),
+        ("LTIME_OF_DAY#00:00:01", Tok::Calendar(LTod, 1_000_000_000)),
+        ("DT#2024-03-01-12:30:15", Tok::Calendar(Dt, DAY + 45_015)),
+        ("DATE_AND_TIME#2024-03-01-00:00:00", Tok::Calendar(Dt, DAY)),
+        ("LDT#1970-01-01-00:00:01", Tok::Calendar(LDt, 1_000_000_000)),
+        ("LDATE_AND_TIME#1970-01-01-00:00:01", Tok::Calendar(LDt, 1_000_000_000)),
+    ] {
+        assert_eq!(one_tok(text), tok, "{text}");
+    }
+    // A minus not followed by a digit, or beyond the form's last field, is the operator.
+    assert_eq!(
+        toks("D#2024-03-01-d"),
+        vec![Tok::Calendar(Date, DAY), Tok::P(P::Minus), Tok::Ident]
+    );
+    assert_eq!(
+        toks("TOD#01:00:00-t"),
+        vec![Tok::Calendar(Tod, 3_600_000), Tok::P(P::Minus), Tok::Ident]
+    );
+    assert_eq!(
+        lex_errors("x := D#2024-13-01;"),
+        ["1:6: `D#2024-13-01` is not a valid DATE: month 13 is not 1 to 12"]
+    );
 }
 
 #[test]
@@ -1124,7 +1163,8 @@ fn templates_are_distinct_and_well_formed() {
     sorted.sort();
     sorted.dedup();
     assert_eq!(sorted.len(), all.len());
-    assert_eq!(all.len(), Want::ALL.len() + Closer::ALL.len() + 14);
+    let calendar = crate::value::CalendarError::TEMPLATES.len();
+    assert_eq!(all.len(), Want::ALL.len() + Closer::ALL.len() + 14 + calendar);
     for t in &all {
         assert!(
             t.starts_with(|c: char| !c.is_ascii_uppercase() || t.starts_with("WSTRING")),
@@ -1229,6 +1269,9 @@ fn print_literal(l: &Literal) -> String {
         Literal::Real(x) => format!("{x:?}"),
         Literal::Bool(b) => if *b { "TRUE" } else { "FALSE" }.to_string(),
         Literal::Time(ns) => format!("T#{ns}ns"),
+        Literal::Calendar(cal, count) => {
+            crate::value::format(&crate::value::ValueType::Calendar(*cal), *count)
+        }
         Literal::String(s) => format!("'{s}'"),
         Literal::Typed { ty, value } => format!("{}#{}", ty.name, print_min(value)),
     }
