@@ -30,6 +30,9 @@ pub fn config(path: &Path) -> Result<Config, Diagnostics> {
 pub fn project(path: &Path) -> Result<Project, Diagnostics> {
     #[allow(unused_mut)] // without the `native` feature, nothing is attached
     let mut project = interpreted_project(path)?;
+    for note in &project.notes {
+        log::info!("{note}");
+    }
     #[cfg(feature = "native")]
     for error in plcd_native::attach(&mut project) {
         log::warn!("{error}; it runs on the interpreter");

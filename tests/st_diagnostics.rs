@@ -68,6 +68,10 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` is a FUNCTION: only a PROGRAM or a FUNCTION_BLOCK has actions", "action-of-function"),
     ("`{}` is an action: it takes no arguments", "action-with-arguments"),
     (
+        "`{}` is not read: bind variables and give access paths in the config file",
+        "config-var-config-not-read",
+    ),
+    (
         "`{}` is not a character of STRING: a STRING holds the characters of Windows-1252",
         "string-character-not-in-charset",
     ),

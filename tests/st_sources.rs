@@ -131,3 +131,68 @@ fn an_error_in_a_twincat_file_is_reported_at_its_line_and_column() {
         "{stderr}"
     );
 }
+
+/// A file as OpenPLC Editor generates it: its programs, then a CONFIGURATION whose resource
+/// runs one program every 20 ms and another every 5 ms.
+const OPENPLC: &str = "PROGRAM prog0
+  VAR
+    count : INT;
+  END_VAR
+  count := count + 1;
+END_PROGRAM
+
+PROGRAM fast
+  VAR
+    n : DINT;
+  END_VAR
+  n := n + 1;
+END_PROGRAM
+
+
+CONFIGURATION Config0
+
+  RESOURCE Res0 ON PLC
+    VAR_GLOBAL
+      limit : INT := 5;
+    END_VAR
+    TASK task0(INTERVAL := T#20ms,PRIORITY := 1);
+    TASK task1(INTERVAL := T#5ms,PRIORITY := 0);
+    PROGRAM instance0 WITH task0 : prog0;
+    PROGRAM instance1 WITH task1 : fast;
+  END_RESOURCE
+END_CONFIGURATION
+";
+
+#[test]
+fn an_openplc_configuration_maps_onto_the_scan_and_a_cycle_task() {
+    let dir = TempDir::new("st-configuration");
+    write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
+    write(dir.path(), "plc.st", OPENPLC);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let summary = stdout.lines().next().unwrap_or_default();
+    assert!(
+        summary.starts_with("plcd.toml: ok: 2 program(s), ") && summary.ends_with(" 1 task(s)")
+    );
+    assert_eq!(
+        stdout.lines().skip(1).collect::<Vec<_>>(),
+        [
+            "  configuration Config0: TASK task0 → the scan, every 20 ms (the lowest-priority task)",
+            "  configuration Config0: TASK task1 → cycle task 0, every 5 ms, priority 2",
+            "  configuration Config0: PROGRAM instance0 : prog0 → program \"instance0\" in the scan",
+            "  configuration Config0: PROGRAM instance1 : fast → program \"instance1\" in task \"task1\"",
+        ]
+    );
+    let watch = "instance0.count,instance1.n,limit";
+    let out = plcd(
+        dir.path(),
+        &["sim", "--config", "plcd.toml", "--for", "99ms", "--watch", watch, "--trace", "-"],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let trace = String::from_utf8_lossy(&out.stdout);
+    // the scan every 20 ms: at 0, 20, 40, 60, 80 ms
+    assert_eq!(last(&trace, "instance0.count").as_deref(), Some("5"), "{trace}");
+    // task1 every 5 ms: 5, 10, … 95 ms
+    assert_eq!(last(&trace, "instance1.n").as_deref(), Some("19"));
+}

@@ -23,6 +23,9 @@ pub fn run(config: &Path, out: &mut impl Write, err: &mut impl Write) -> ExitCod
                 instructions,
                 project.config.tasks.len()
             );
+            for note in &project.notes {
+                let _ = writeln!(out, "  {note}");
+            }
             ExitCode::SUCCESS
         }
         Err(diags) => {

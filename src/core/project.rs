@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::config::{Config, Language, TaskRef};
+use crate::config::{Config, Language, ProgramConfig, TaskRef};
 use crate::device::{layout, Address, AddressError, Area};
 use crate::diag::{Diagnostic, Diagnostics};
 use crate::lang::ops::{Op, SystemRequest, Written};
@@ -17,12 +17,15 @@ pub const MAX_DUTY: usize = 5;
 /// A loaded, fully checked project.
 #[derive(Debug, Clone)]
 pub struct Project {
+    /// The config, with the tasks and programs of a Structured Text `CONFIGURATION` in it.
     pub config: Config,
     /// The programs, in the order of the config's `[[program]]` entries.
     pub programs: Vec<Program>,
     /// The Structured Text programs' variable memory and every variable by name (empty
     /// without Structured Text).
     pub variables: Variables,
+    /// What a `CONFIGURATION` was mapped to, a line each (`plcd check` and the log show them).
+    pub notes: Vec<String>,
 }
 
 impl Project {
@@ -261,6 +264,8 @@ pub fn from_config_with(
     list: impl Fn(&Path) -> std::io::Result<Vec<PathBuf>>,
 ) -> Result<Project, Diagnostics> {
     let mut diags = Diagnostics::default();
+    let mut config = config;
+    let notes = expand_configurations(&mut config, &read, &mut diags);
     let task_numbers: Vec<u8> = config.tasks.iter().map(|t| t.number).collect();
     let timer_base = |n: u32| config.timers.base_ms(n);
     let mut programs: Vec<Option<Program>> = Vec::with_capacity(config.programs.len());
@@ -313,10 +318,68 @@ pub fn from_config_with(
     diags.0.sort();
     if diags.is_empty() {
         let programs = programs.into_iter().flatten().collect();
-        Ok(Project { config, programs, variables })
+        Ok(Project { config, programs, variables, notes })
     } else {
         Err(diags)
     }
+}
+
+/// Replaces each Structured Text `[[program]]` whose file holds a `CONFIGURATION` (and that
+/// names no `pou`) by the configuration's program instances, and adds its tasks to the config
+/// ([`st::configuration`]); what was mapped to what, a line each. A file that cannot be read or
+/// parsed is left to the compile, which reports it; an entry whose configuration has errors
+/// is dropped with them.
+fn expand_configurations(
+    config: &mut Config,
+    read: &impl Fn(&Path) -> std::io::Result<String>,
+    diags: &mut Diagnostics,
+) -> Vec<String> {
+    use st::configuration;
+    let mut notes = Vec::new();
+    let mut i = 0;
+    while i < config.programs.len() {
+        let entry = &config.programs[i];
+        let candidate = entry.language == Language::StructuredText
+            && entry.pou.is_none()
+            && !st::twincat::is_twincat(&entry.resolved);
+        let text = candidate.then(|| read(&entry.resolved).ok()).flatten();
+        let Some(text) = text.filter(|t| configuration::may_hold_one(t)) else {
+            i += 1;
+            continue;
+        };
+        let (file, _) = st::parse_file(&entry.resolved, &text);
+        let conf = match configuration::of_file(&file, &entry.resolved) {
+            Ok(Some(conf)) => conf,
+            Ok(None) => {
+                i += 1;
+                continue;
+            }
+            Err(d) => {
+                diags.push(d);
+                config.programs.remove(i);
+                continue;
+            }
+        };
+        let others: Vec<&ProgramConfig> =
+            config.programs.iter().enumerate().filter(|&(j, _)| j != i).map(|(_, p)| p).collect();
+        match configuration::map(conf, entry, &config.tasks, &others, config.plc.scan_period_ms) {
+            Ok(mapped) => {
+                notes.extend(mapped.notes);
+                config.tasks.extend(mapped.tasks);
+                if let Some(ms) = mapped.scan_period_ms {
+                    config.plc.scan_period_ms = ms;
+                }
+                let n = mapped.programs.len();
+                config.programs.splice(i..=i, mapped.programs);
+                i += n;
+            }
+            Err(errors) => {
+                diags.extend(Diagnostics(errors));
+                config.programs.remove(i);
+            }
+        }
+    }
+    notes
 }
 
 /// Reads program files, a diagnostic at the config entry that names a file it cannot read.

@@ -48,6 +48,50 @@ pub enum Item {
         owner: Option<Ident>,
         action: Action,
     },
+    /// `CONFIGURATION … END_CONFIGURATION`.
+    Configuration(Configuration),
+}
+
+/// `CONFIGURATION Name … END_CONFIGURATION`: the resources, their tasks and program instances
+/// (mapped onto plcd's tasks and `[[program]]`s, docs/ST.md), and global variables.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Configuration {
+    pub name: Ident,
+    /// Its `VAR_GLOBAL` blocks and its resources'.
+    pub globals: Vec<VarBlock>,
+    /// `RESOURCE … END_RESOURCE` blocks; tasks and programs written directly in the
+    /// configuration make one resource without a name.
+    pub resources: Vec<Resource>,
+    /// Where a `VAR_CONFIG` or `VAR_ACCESS` block is (not read).
+    pub unread: Vec<(Span, &'static str)>,
+    pub span: Span,
+}
+
+/// `RESOURCE Name ON Type … END_RESOURCE`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Resource {
+    pub name: Option<Ident>,
+    pub tasks: Vec<TaskDecl>,
+    pub programs: Vec<ProgramDecl>,
+}
+
+/// `TASK Name (INTERVAL := T#20ms, PRIORITY := 1);`: its properties as written.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TaskDecl {
+    pub name: Ident,
+    pub properties: Vec<(Ident, Expr)>,
+    pub span: Span,
+}
+
+/// `PROGRAM name WITH task : Type;`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProgramDecl {
+    pub name: Ident,
+    pub task: Option<Ident>,
+    pub pou: Ident,
+    /// `(…)` after the type: arguments (not read).
+    pub args: Option<Span>,
+    pub span: Span,
 }
 
 /// `ACTION Name: … END_ACTION`: a body of a PROGRAM or FUNCTION_BLOCK on its variables, called

@@ -71,6 +71,16 @@ impl<'a> Ctx<'a> {
                         outside.push((fi, owner, action));
                         continue;
                     }
+                    Item::Configuration(c) => {
+                        // its globals are the project's; its tasks and programs the project's
+                        // config takes (`st::configuration`)
+                        self.global_blocks.extend(c.globals.iter().map(|b| (fi, b)));
+                        for &(span, what) in &c.unread {
+                            let msg = format!("`{what}` is not read: bind variables and give access paths in the config file");
+                            self.error(fi, span, msg);
+                        }
+                        continue;
+                    }
                 };
                 self.reserved(fi, id);
                 if Prim::from_name(&id.name).is_some() || id.is("STRING") {
@@ -120,7 +130,7 @@ impl<'a> Ctx<'a> {
                         }
                         last_pou = Some(p);
                     }
-                    Item::Globals(_) | Item::Action { .. } => {}
+                    Item::Globals(_) | Item::Action { .. } | Item::Configuration(_) => {}
                 }
                 let _ = is_type;
             }

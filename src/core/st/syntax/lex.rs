@@ -20,6 +20,11 @@ pub(crate) enum Kw {
     EndFunctionBlock,
     Action,
     EndAction,
+    Configuration,
+    EndConfiguration,
+    EndResource,
+    VarConfig,
+    VarAccess,
     Type,
     EndType,
     Struct,
@@ -81,6 +86,11 @@ impl Kw {
             b"FUNCTION_BLOCK" => Kw::FunctionBlock,
             b"END_FUNCTION_BLOCK" => Kw::EndFunctionBlock,
             b"ACTION" => Kw::Action,
+            b"CONFIGURATION" => Kw::Configuration,
+            b"END_CONFIGURATION" => Kw::EndConfiguration,
+            b"END_RESOURCE" => Kw::EndResource,
+            b"VAR_CONFIG" => Kw::VarConfig,
+            b"VAR_ACCESS" => Kw::VarAccess,
             b"END_ACTION" => Kw::EndAction,
             b"TYPE" => Kw::Type,
             b"END_TYPE" => Kw::EndType,
@@ -142,6 +152,8 @@ impl Kw {
                 | Kw::EndFunction
                 | Kw::EndFunctionBlock
                 | Kw::EndAction
+                | Kw::EndConfiguration
+                | Kw::EndResource
                 | Kw::EndType
                 | Kw::EndStruct
                 | Kw::EndVar

@@ -65,10 +65,11 @@ pub(crate) enum Want {
     Field,
     TypedValue,
     CaseLabel,
+    ConfigItem,
 }
 
 impl Want {
-    pub(crate) const ALL: [Want; 27] = [
+    pub(crate) const ALL: [Want; 28] = [
         Want::SemiAfterStmt,
         Want::SemiAfterDecl,
         Want::Stmt,
@@ -96,6 +97,7 @@ impl Want {
         Want::Field,
         Want::TypedValue,
         Want::CaseLabel,
+        Want::ConfigItem,
     ];
 
     fn text(self) -> &'static str {
@@ -120,7 +122,7 @@ impl Want {
             Want::Type => "a type",
             Want::DotDot => "`..`",
             Want::Item => {
-                "`PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE`, `VAR_GLOBAL` or `ACTION`"
+                "`PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE`, `VAR_GLOBAL`, `ACTION` or `CONFIGURATION`"
             }
             Want::VarDecl => "a variable name or `END_VAR`",
             Want::TypeDecl => "a type name or `END_TYPE`",
@@ -129,6 +131,7 @@ impl Want {
             Want::Field => "a member name or a bit number after `.`",
             Want::TypedValue => "a literal after the type prefix",
             Want::CaseLabel => "a case label",
+            Want::ConfigItem => "`RESOURCE`, `TASK`, `PROGRAM`, `VAR_GLOBAL` or the end",
         }
     }
 }
@@ -148,10 +151,12 @@ pub(crate) enum Closer {
     Struct,
     Var,
     Action,
+    Configuration,
+    Resource,
 }
 
 impl Closer {
-    pub(crate) const ALL: [Closer; 12] = [
+    pub(crate) const ALL: [Closer; 14] = [
         Closer::If,
         Closer::Case,
         Closer::For,
@@ -164,6 +169,8 @@ impl Closer {
         Closer::Struct,
         Closer::Var,
         Closer::Action,
+        Closer::Configuration,
+        Closer::Resource,
     ];
 
     /// The keyword that closes it.
@@ -181,6 +188,8 @@ impl Closer {
             Closer::Struct => "END_STRUCT",
             Closer::Var => "END_VAR",
             Closer::Action => "END_ACTION",
+            Closer::Configuration => "END_CONFIGURATION",
+            Closer::Resource => "END_RESOURCE",
         }
     }
 
@@ -199,6 +208,8 @@ impl Closer {
             Closer::Struct => "STRUCT",
             Closer::Var => "{}",
             Closer::Action => "ACTION",
+            Closer::Configuration => "CONFIGURATION",
+            Closer::Resource => "RESOURCE",
         }
     }
 }

@@ -139,7 +139,15 @@ fn var_kind(tok: &Tok) -> Option<VarKind> {
 fn is_top(tok: &Tok) -> bool {
     matches!(
         tok,
-        Tok::Eof | Tok::Kw(Kw::Program | Kw::Function | Kw::FunctionBlock | Kw::Type | Kw::Action)
+        Tok::Eof
+            | Tok::Kw(
+                Kw::Program
+                    | Kw::Function
+                    | Kw::FunctionBlock
+                    | Kw::Type
+                    | Kw::Action
+                    | Kw::Configuration
+            )
     )
 }
 
@@ -187,6 +195,8 @@ impl Closer {
             Closer::Struct => kw == Kw::EndStruct,
             Closer::Var => kw == Kw::EndVar,
             Closer::Action => kw == Kw::EndAction,
+            Closer::Configuration => kw == Kw::EndConfiguration,
+            Closer::Resource => kw == Kw::EndResource,
         }
     }
 
@@ -204,6 +214,8 @@ impl Closer {
             Closer::Struct => Kw::EndStruct,
             Closer::Var => Kw::EndVar,
             Closer::Action => Kw::EndAction,
+            Closer::Configuration => Kw::EndConfiguration,
+            Closer::Resource => Kw::EndResource,
         }
     }
 }
@@ -407,6 +419,9 @@ impl<'a> Parser<'a> {
                     is_pou_end(kw) || kw == Kw::EndAction
                 }
                 Closer::Type | Closer::Struct | Closer::Var => false,
+                Closer::Configuration | Closer::Resource => {
+                    matches!(kw, Kw::EndConfiguration | Kw::EndResource)
+                }
                 _ => kw.is_end() && !is_pou_end(kw),
             };
             if misspelt && !self.open.iter().any(|c| c.accepts(kw)) {
@@ -478,6 +493,9 @@ impl<'a> Parser<'a> {
                         items.push(Item::Action { owner, action });
                     }
                 }
+                Tok::Kw(Kw::Configuration) => {
+                    items.push(Item::Configuration(self.configuration()));
+                }
                 _ => {
                     let _ = self.fail(Want::Item);
                     self.bump();
@@ -534,6 +552,143 @@ impl<'a> Parser<'a> {
         let here = self.span();
         let end = self.close(closer, &opener, span).unwrap_or(here);
         Pou { kind, name, return_type, vars, body, actions, span, end }
+    }
+
+    /// Whether the current token is the word `word` (a name outside a configuration: `TASK`,
+    /// `RESOURCE`, `WITH` and `ON` are no keywords, so that variables may be called so).
+    fn at_word(&self, word: &str) -> bool {
+        *self.tok() == Tok::Ident && self.text_of(self.pos).eq_ignore_ascii_case(word)
+    }
+
+    /// `CONFIGURATION Name … END_CONFIGURATION`.
+    fn configuration(&mut self) -> Configuration {
+        let span = self.span();
+        self.bump();
+        let name = self.ident().unwrap_or_else(|_| Ident { name: String::new(), span });
+        let mut conf = Configuration {
+            name,
+            globals: Vec::new(),
+            resources: Vec::new(),
+            unread: Vec::new(),
+            span,
+        };
+        let mut direct = Resource { name: None, tasks: Vec::new(), programs: Vec::new() };
+        self.open.push(Closer::Configuration);
+        loop {
+            if self.at_word("RESOURCE") {
+                let opened = self.span();
+                self.bump();
+                let name = self.ident().ok();
+                if self.at_word("ON") {
+                    self.bump();
+                    let _ = self.ident();
+                }
+                let mut resource = Resource { name, tasks: Vec::new(), programs: Vec::new() };
+                self.open.push(Closer::Resource);
+                while self.configuration_part(&mut conf, &mut resource, Kw::EndResource) {}
+                self.open.pop();
+                self.close(Closer::Resource, "RESOURCE", opened);
+                self.eat_p(P::Semi);
+                conf.resources.push(resource);
+            } else if !self.configuration_part(&mut conf, &mut direct, Kw::EndConfiguration) {
+                break;
+            }
+        }
+        self.open.pop();
+        self.close(Closer::Configuration, "CONFIGURATION", span);
+        self.eat_p(P::Semi);
+        if !direct.tasks.is_empty() || !direct.programs.is_empty() {
+            conf.resources.insert(0, direct);
+        }
+        conf
+    }
+
+    /// One part of a configuration or resource (a global block, a task, a program instance);
+    /// `false` at its end (`end`, or what cannot be in it).
+    fn configuration_part(
+        &mut self,
+        conf: &mut Configuration,
+        into: &mut Resource,
+        end: Kw,
+    ) -> bool {
+        let tok = self.tok().clone();
+        match tok {
+            Tok::Kw(Kw::VarGlobal) => conf.globals.push(self.var_block()),
+            Tok::Kw(kw @ (Kw::VarConfig | Kw::VarAccess)) => {
+                let what = if kw == Kw::VarConfig { "VAR_CONFIG" } else { "VAR_ACCESS" };
+                conf.unread.push((self.span(), what));
+                while !self.at_kw(Kw::EndVar) && !self.at(&Tok::Eof) && !self.at_kw(end) {
+                    self.bump();
+                }
+                self.eat_kw(Kw::EndVar);
+            }
+            Tok::Kw(Kw::Program) => match self.program_decl() {
+                Ok(p) => into.programs.push(p),
+                Err(_) => self.sync_decl(),
+            },
+            Tok::Ident if self.at_word("TASK") => match self.task_decl() {
+                Ok(t) => into.tasks.push(t),
+                Err(_) => self.sync_decl(),
+            },
+            Tok::Kw(kw) if kw == end => return false,
+            Tok::Eof => return false,
+            Tok::Ident if self.at_word("RESOURCE") => return false,
+            Tok::Kw(kw) if is_top(&tok) || kw.is_end() => return false,
+            _ => {
+                let _ = self.fail(Want::ConfigItem);
+                self.bump();
+                self.sync_decl();
+            }
+        }
+        true
+    }
+
+    /// `TASK Name (SINGLE := …, INTERVAL := …, PRIORITY := …);`
+    fn task_decl(&mut self) -> PResult<TaskDecl> {
+        let span = self.span();
+        self.bump();
+        let name = self.ident()?;
+        let mut properties = Vec::new();
+        self.expect_p(P::LParen, Want::CommaOrRParen)?;
+        if !self.at_p(P::RParen) {
+            loop {
+                let key = self.ident()?;
+                self.expect_p(P::Assign, Want::Assign)?;
+                properties.push((key, self.expr()?));
+                if !self.eat_p(P::Comma) {
+                    break;
+                }
+            }
+        }
+        self.expect_p(P::RParen, Want::CommaOrRParen)?;
+        self.end_decl(Want::SemiAfterDecl);
+        Ok(TaskDecl { name, properties, span })
+    }
+
+    /// `PROGRAM [RETAIN | NON_RETAIN] name [WITH task] : Type [(…)];`
+    fn program_decl(&mut self) -> PResult<ProgramDecl> {
+        let span = self.span();
+        self.bump();
+        let _ = self.eat_kw(Kw::Retain) || self.eat_kw(Kw::NonRetain);
+        let name = self.ident()?;
+        let task = if self.at_word("WITH") {
+            self.bump();
+            Some(self.ident()?)
+        } else {
+            None
+        };
+        self.expect_p(P::Colon, Want::Colon)?;
+        let pou = self.ident()?;
+        let args = if self.at_p(P::LParen) {
+            let at = self.span();
+            self.bump();
+            self.args()?;
+            Some(at)
+        } else {
+            None
+        };
+        self.end_decl(Want::SemiAfterDecl);
+        Ok(ProgramDecl { name, task, pou, args, span })
     }
 
     /// The bit number of a `%X<n>` token (partial access, `w.%X3`).

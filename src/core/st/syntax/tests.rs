@@ -934,6 +934,30 @@ fn actions_are_read_inside_a_pou_and_at_the_top_level() {
 }
 
 #[test]
+fn a_configuration_holds_resources_tasks_and_program_instances() {
+    let text = "PROGRAM p END_PROGRAM\nCONFIGURATION Config0\n\
+                VAR_GLOBAL g : INT; END_VAR\n\
+                RESOURCE Res0 ON PLC\n\
+                TASK task0(INTERVAL := T#20ms,PRIORITY := 0);\n\
+                PROGRAM instance0 WITH task0 : p;\n\
+                END_RESOURCE\n\
+                PROGRAM loose : p;\n\
+                END_CONFIGURATION\n";
+    let items = parse_ok(text);
+    let Item::Configuration(c) = &items[1] else { panic!("{items:?}") };
+    assert!(c.name.is("Config0"));
+    assert_eq!(c.globals.len(), 1);
+    assert_eq!(c.resources.len(), 2, "the loose program makes a resource of its own, first");
+    assert!(c.resources[0].name.is_none() && c.resources[0].programs[0].name.is("loose"));
+    let res = &c.resources[1];
+    assert!(res.name.as_ref().unwrap().is("Res0"));
+    assert_eq!(res.tasks[0].properties.len(), 2);
+    assert!(res.programs[0].task.as_ref().unwrap().is("task0") && res.programs[0].pou.is("p"));
+    // `task`, `on` and `with` stay names outside a configuration
+    assert_eq!(body("task := on AND with;").len(), 1);
+}
+
+#[test]
 fn partly_specified_addresses_and_partial_bit_access() {
     assert_eq!(toks("%I*"), [Tok::Location]);
     assert_eq!(toks("%QX* : BOOL"), [Tok::Location, Tok::P(P::Colon), Tok::Ident]);
@@ -1093,7 +1117,7 @@ fn reports_declaration_errors() {
         errors("TYPE A : INT;\nPROGRAM p END_PROGRAM"),
         ["2:1: `END_TYPE` expected to close the TYPE at line 1, found `PROGRAM`"]
     );
-    assert_eq!(errors("x := 1;\nPROGRAM p END_PROGRAM"), ["1:1: expected `PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE`, `VAR_GLOBAL` or `ACTION`, found `x`"]);
+    assert_eq!(errors("x := 1;\nPROGRAM p END_PROGRAM"), ["1:1: expected `PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE`, `VAR_GLOBAL`, `ACTION` or `CONFIGURATION`, found `x`"]);
     assert_eq!(errors("PROGRAM 5 END_PROGRAM"), ["1:9: expected a name, found `5`"]);
 }
 

@@ -1,0 +1,257 @@
+//! A `CONFIGURATION` mapped onto plcd's project, so that a file OpenPLC Editor or Beremiz wrote
+//! loads as it is: its TASKs become `[[task]]`s or the scan, its PROGRAM instances the
+//! project's Structured Text programs (docs/ST.md, Configurations).
+//!
+//! | IEC | plcd |
+//! |---|---|
+//! | `TASK t (INTERVAL := T#20ms, PRIORITY := p)` | a cycle task of 20 ms, priority `2 + p` (at most 7), the next free cycle number |
+//! | `TASK t (PRIORITY := p)` (no interval) | the scan |
+//! | `PROGRAM i WITH t : P;` | the program instance `i` of `P` in `t`'s task |
+//! | `PROGRAM i : P;` (no task) | the instance in the scan |
+//! | nothing in the scan | the interval task of the lowest priority is the scan, its interval the scan period (unless `[plc] scan_period_ms` is set) |
+
+use std::path::Path;
+
+use crate::config::{Language, ProgramConfig, TaskConfig, TaskKind, TaskRef};
+use crate::diag::Diagnostic;
+use crate::st::ast::{self, ExprKind, Literal};
+
+/// What a configuration adds to the project.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mapped {
+    pub tasks: Vec<TaskConfig>,
+    /// The program instances, in the configuration's order, in place of the `[[program]]`
+    /// entry that named the file.
+    pub programs: Vec<ProgramConfig>,
+    /// The scan period the scan takes from an interval task, when `[plc]` leaves it free.
+    pub scan_period_ms: Option<u32>,
+    /// What was mapped to what, a line each, for `plcd check` and the log.
+    pub notes: Vec<String>,
+}
+
+/// One TASK, read.
+struct Task<'a> {
+    decl: &'a ast::TaskDecl,
+    interval_ms: Option<u32>,
+    priority: u8,
+    /// Its name is the project's already (reported): it maps to nothing.
+    clash: bool,
+}
+
+/// Maps `conf`, declared in the file of `entry`, next to the config's own `tasks` and
+/// `programs` (the other entries); `scan_period_ms` is `[plc]`'s. Every error at once, located
+/// in the file.
+pub fn map(
+    conf: &ast::Configuration,
+    entry: &ProgramConfig,
+    tasks: &[TaskConfig],
+    programs: &[&ProgramConfig],
+    scan_period_ms: u32,
+) -> Result<Mapped, Vec<Diagnostic>> {
+    let path = entry.resolved.as_path();
+    let mut errors = Vec::new();
+    let error = |errors: &mut Vec<Diagnostic>, span: ast::Span, msg: String| {
+        errors.push(Diagnostic::new(path, span.line, span.col, msg));
+    };
+    // the tasks, read
+    let mut read: Vec<Task<'_>> = Vec::new();
+    for decl in conf.resources.iter().flat_map(|r| &r.tasks) {
+        let name = &decl.name.name;
+        let clash = tasks.iter().any(|t| t.name.eq_ignore_ascii_case(name))
+            || ["init", "scan"].iter().any(|n| n.eq_ignore_ascii_case(name))
+            || read.iter().any(|t| t.decl.name.is(name));
+        if clash {
+            error(
+                &mut errors,
+                decl.name.span,
+                format!("task `{name}` is already a task of the project"),
+            );
+        }
+        let mut task = Task { decl, interval_ms: None, priority: 0, clash };
+        for (key, value) in &decl.properties {
+            match key.name.to_ascii_uppercase().as_str() {
+                "INTERVAL" => match value.kind {
+                    ExprKind::Literal(Literal::Time(ns))
+                        if ns >= 1_000_000 && ns % 1_000_000 == 0 && ns / 1_000_000 <= i128::from(u32::MAX) =>
+                    {
+                        task.interval_ms = Some((ns / 1_000_000) as u32);
+                    }
+                    _ => error(&mut errors, value.span, "INTERVAL must be a duration of whole milliseconds, at least `T#1ms`".to_string()),
+                },
+                "PRIORITY" => match value.kind {
+                    ExprKind::Literal(Literal::Int(p)) => task.priority = p.min(5) as u8,
+                    _ => error(&mut errors, value.span, "PRIORITY must be a number, 0 the highest".to_string()),
+                },
+                "SINGLE" => error(&mut errors, key.span, "SINGLE is not read: an event task is a `[[task]]` of kind \"io\" or \"device\" in the config file".to_string()),
+                other => error(&mut errors, key.span, format!("`{other}` is not a property of a TASK: INTERVAL, PRIORITY or SINGLE")),
+            }
+        }
+        read.push(task);
+    }
+    // which instances run in the scan: those of no task or of a task without an interval
+    let decls: Vec<&ast::ProgramDecl> = conf.resources.iter().flat_map(|r| &r.programs).collect();
+    let in_scan = |d: &ast::ProgramDecl| match &d.task {
+        None => true,
+        Some(t) => read.iter().any(|r| r.decl.name.is(&t.name) && r.interval_ms.is_none()),
+    };
+    let others_in_scan = programs.iter().any(|p| p.task == TaskRef::Scan);
+    let mut scan_task: Option<&str> = None;
+    if !others_in_scan && !decls.iter().any(|d| in_scan(d)) {
+        // the lowest priority (largest number), the first of equals
+        let lowest = read
+            .iter()
+            .filter(|t| t.interval_ms.is_some())
+            .filter(|t| {
+                decls.iter().any(|d| d.task.as_ref().is_some_and(|n| t.decl.name.is(&n.name)))
+            })
+            .fold(None::<&Task<'_>>, |best, t| match best {
+                Some(b) if b.priority >= t.priority => Some(b),
+                _ => Some(t),
+            });
+        scan_task = lowest.map(|t| t.decl.name.name.as_str());
+    }
+    let mut mapped =
+        Mapped { tasks: Vec::new(), programs: Vec::new(), scan_period_ms: None, notes: Vec::new() };
+    let name = &conf.name.name;
+    let mut numbers = tasks
+        .iter()
+        .filter(|t| matches!(t.kind, TaskKind::Cycle { .. }))
+        .map(|t| t.number)
+        .collect::<Vec<u8>>();
+    for task in read.iter().filter(|t| !t.clash) {
+        let tname = task.decl.name.name.as_str();
+        let iec = format!("configuration {name}: TASK {tname}");
+        match task.interval_ms {
+            Some(ms) if scan_task != Some(tname) => {
+                let Some(number) = (0..=7).find(|n| !numbers.contains(n)) else {
+                    error(
+                        &mut errors,
+                        task.decl.name.span,
+                        "no cycle task number is left (0 to 7)".to_string(),
+                    );
+                    continue;
+                };
+                numbers.push(number);
+                let priority = (2 + task.priority).min(*TaskConfig::PRIORITY.end());
+                mapped.tasks.push(TaskConfig {
+                    name: tname.to_string(),
+                    number,
+                    priority,
+                    kind: TaskKind::Cycle { interval_ms: ms },
+                    max_exec_ms: None,
+                    line: entry.line,
+                    col: entry.col,
+                });
+                mapped.notes.push(format!(
+                    "{iec} → cycle task {number}, every {ms} ms, priority {priority}"
+                ));
+            }
+            Some(ms) => {
+                let period = if scan_period_ms == 0 {
+                    mapped.scan_period_ms = Some(ms);
+                    format!("every {ms} ms")
+                } else {
+                    format!("every {scan_period_ms} ms ([plc] scan_period_ms)")
+                };
+                mapped.notes.push(format!("{iec} → the scan, {period} (the lowest-priority task)"));
+            }
+            None => mapped.notes.push(format!("{iec} → the scan")),
+        }
+    }
+    for decl in decls {
+        let iname = &decl.name.name;
+        if programs.iter().any(|p| p.name.eq_ignore_ascii_case(iname))
+            || mapped.programs.iter().any(|p| p.name.eq_ignore_ascii_case(iname))
+        {
+            error(
+                &mut errors,
+                decl.name.span,
+                format!("program `{iname}` is already a program of the project"),
+            );
+            continue;
+        }
+        if let Some(at) = decl.args {
+            error(
+                &mut errors,
+                at,
+                "a program instance's arguments are not read: connect its variables in the program"
+                    .to_string(),
+            );
+        }
+        let task = match &decl.task {
+            None => TaskRef::Scan,
+            Some(t) => match read.iter().find(|r| r.decl.name.is(&t.name)) {
+                None => {
+                    error(
+                        &mut errors,
+                        t.span,
+                        format!("`{}` is not a TASK of the configuration", t.name),
+                    );
+                    continue;
+                }
+                Some(r)
+                    if r.interval_ms.is_none() || scan_task == Some(r.decl.name.name.as_str()) =>
+                {
+                    TaskRef::Scan
+                }
+                Some(r) => TaskRef::Named(r.decl.name.name.clone()),
+            },
+        };
+        mapped.notes.push(format!(
+            "configuration {name}: PROGRAM {iname} : {} → program \"{iname}\" in {}",
+            decl.pou.name,
+            match &task {
+                TaskRef::Named(t) => format!("task \"{t}\""),
+                _ => "the scan".to_string(),
+            }
+        ));
+        mapped.programs.push(ProgramConfig {
+            name: iname.clone(),
+            file: entry.file.clone(),
+            resolved: entry.resolved.clone(),
+            task,
+            language: Language::StructuredText,
+            pou: Some(decl.pou.name.clone()),
+            line: entry.line,
+            col: entry.col,
+        });
+    }
+    if mapped.programs.is_empty() && errors.is_empty() {
+        error(
+            &mut errors,
+            conf.span,
+            format!("configuration `{name}` declares no PROGRAM instance"),
+        );
+    }
+    if errors.is_empty() {
+        Ok(mapped)
+    } else {
+        Err(errors)
+    }
+}
+
+/// Whether `text` may hold a configuration (a cheap look before parsing a program file twice).
+pub fn may_hold_one(text: &str) -> bool {
+    text.as_bytes().windows(13).any(|w| w.eq_ignore_ascii_case(b"CONFIGURATION"))
+}
+
+/// The configuration of a parsed file, if it has one; a second one is an error.
+pub fn of_file<'a>(
+    file: &'a ast::File,
+    path: &Path,
+) -> Result<Option<&'a ast::Configuration>, Diagnostic> {
+    let mut found = file.items.iter().filter_map(|i| match i {
+        ast::Item::Configuration(c) => Some(c),
+        _ => None,
+    });
+    let first = found.next();
+    match found.next() {
+        Some(second) => Err(Diagnostic::new(
+            path,
+            second.span.line,
+            second.span.col,
+            "a file holds one CONFIGURATION".to_string(),
+        )),
+        None => Ok(first),
+    }
+}
