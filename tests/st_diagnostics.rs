@@ -83,6 +83,8 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` needs {} bits from `{}`: past the end of its area", "bit-array-past-end"),
     ("`{}` needs {} words from `{}`: past the end of its area", "past-area-end"),
     ("`%{}` is not a valid direct address", "bad-iec-address"),
+    ("`{}` is the standard's enable {}: declare it `{} : BOOL` in {}", "enable-declaration"),
+    ("`{}` belongs to a `BOOL` VAR_INPUT of a FUNCTION_BLOCK", "edge-not-fb-input"),
     // emit.rs: code generation
     ("this statement needs {} evaluation stack slots (limit {})", "statement-stack-too-deep"),
     ("`{}` needs {} bytes of frame (limit 1 MiB)", "statement-frame-too-large"),
@@ -241,6 +243,8 @@ const PARTS: &[&str] = &[
     "an integer count",
     "a BOOL or bit string",
     "an integer",
+    "an elementary value",
+    "a variable or a type",
     // the loop of "the condition of {} must be `BOOL`, not `{}`"
     "REPEAT … UNTIL",
     // type names

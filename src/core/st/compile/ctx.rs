@@ -55,6 +55,9 @@ pub struct VarInfo {
     pub located: Option<Address>,
     /// VAR_EXTERNAL: the VAR_GLOBAL it stands for.
     pub global: Option<usize>,
+    /// An `R_EDGE` / `F_EDGE` input: where, in the instance, the value its FB's body sees is
+    /// (computed at each call from the input and its memory: [`PouInfo::edges`]).
+    pub edge_value: Option<u32>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -93,6 +96,32 @@ pub struct PouInfo<'a> {
     pub callees: Vec<(usize, Span)>,
     /// Whether the body has been checked (diagnostics given once).
     pub checked: bool,
+    /// FUNCTION / FUNCTION_BLOCK: its `EN` when declared (a VAR_INPUT, the index in `vars`);
+    /// otherwise EN is implicit, given at a call and never stored.
+    pub en: Option<usize>,
+    /// FUNCTION / FUNCTION_BLOCK: its `ENO` variable (a VAR_OUTPUT, the index in `vars`):
+    /// declared, or implicit (`eno_implicit`), which a POU has when something may read it.
+    pub eno: Option<usize>,
+    pub eno_implicit: bool,
+    /// Whether the body assigns `ENO`, and whether some call gives this POU an implicit EN
+    /// (either can leave ENO FALSE, which the body's entry sets TRUE again).
+    pub eno_assigned: bool,
+    pub called_with_en: bool,
+    /// The `R_EDGE` / `F_EDGE` inputs of a FUNCTION_BLOCK.
+    pub edges: Vec<EdgeInput>,
+}
+
+/// An edge input of a function block: at each execution of the body, the value the body sees
+/// is computed from the input and the input's level at the previous execution.
+#[derive(Debug, Clone, Copy)]
+pub struct EdgeInput {
+    /// The input (its index in `vars`).
+    pub input: usize,
+    /// The memory: the input's level at the previous execution (the index in `vars`).
+    pub memory: usize,
+    /// Where the value the body sees is, in the instance.
+    pub value: u32,
+    pub rising: bool,
 }
 
 impl PouInfo<'_> {
@@ -142,6 +171,9 @@ pub struct Ctx<'a> {
     pub enum_values: HashMap<String, Vec<(usize, i128)>>,
     /// Whether the POU being checked is the prelude's (may call `__` builtins).
     pub in_prelude: bool,
+    /// Whether some code of the project may read an `ENO` from outside a POU (`ENO => v` in a
+    /// call, `inst.ENO`): then every FUNCTION and FUNCTION_BLOCK has an ENO variable.
+    pub eno_read: bool,
     pub prelude_file: usize,
     /// While checking a body: the FOR variables of the enclosing loops, the loop depth, and
     /// whether a FUNCTION's result has been assigned.

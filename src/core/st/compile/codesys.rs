@@ -1,0 +1,112 @@
+//! What plcd accepts of CODESYS's habits beyond IEC 61131-3 (docs/ST.md marks each a
+//! **choice**, "CODESYS habit"). Each is a [`Habit`], and every place that accepts one asks
+//! [`Ctx::habit`] first: the one place a strict mode would refuse them, each with the
+//! standard's way written on its variant.
+
+use super::ctx::Ctx;
+use super::types::Prim;
+use crate::st::ast::Span;
+
+/// A construct CODESYS accepts and IEC 61131-3 does not.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Habit {
+    /// `+ - * / MOD` (and `ADD` … `MOD`) on `BYTE` … `LWORD`, with each other and with
+    /// integers ([`bit_arithmetic_type`]). The standard's way: convert the bit string to an
+    /// integer first (`WORD_TO_UINT(w) + 1`).
+    BitArithmetic,
+    /// A bit string with a `REAL` or `LREAL` in `+ - * /`: computed in the real type. The
+    /// standard's way: `BYTE_TO_REAL(b) * r`.
+    BitWithReal,
+    /// `SHL SHR ROL ROR` on an integer type, on the bit pattern of its width. The standard's
+    /// way: shift the bit string of the same width (`WORD_TO_INT(SHR(INT_TO_WORD(i), n))`).
+    IntegerShift,
+    /// `TIME()`: the PLC's clock as a `TIME`. The standard has no clock function; the standard
+    /// timers (`TON` …) measure durations.
+    TimeClock,
+    /// `SIZEOF(x)`: the bytes a variable or a type takes. Not in the standard.
+    Sizeof,
+    /// The BCD conversions of CODESYS's Util library (`BCD_TO_INT`, `INT_TO_BCD`,
+    /// `BCD_TO_BYTE` …, [`UTIL_BCD`]). The standard's forms: `BYTE_BCD_TO_USINT`,
+    /// `USINT_TO_BCD_BYTE` and the others of table 22.
+    UtilBcd,
+}
+
+/// The functions of CODESYS's Util library the prelude holds (`prelude.st`): calling one is
+/// [`Habit::UtilBcd`].
+pub const UTIL_BCD: &[&str] = &[
+    "BCD_TO_INT",
+    "INT_TO_BCD",
+    "BCD_TO_BYTE",
+    "BCD_TO_WORD",
+    "BCD_TO_DWORD",
+    "BYTE_TO_BCD",
+    "WORD_TO_BCD",
+    "DWORD_TO_BCD",
+];
+
+impl Ctx<'_> {
+    /// Whether the CODESYS habit `h`, written at `span` of `file`, is accepted: always, for now.
+    /// A strict mode would report here, once, that the standard does not have it (and how to
+    /// write it the standard's way, on each [`Habit`]), and return false.
+    pub fn habit(&mut self, h: Habit, file: usize, span: Span) -> bool {
+        let _ = (h, file, span);
+        true
+    }
+}
+
+/// The type CODESYS computes `a op b` in (op one of `+ - * / MOD`) when one operand is a bit
+/// string and the other a bit string, an integer or a real, and they are not the same type:
+///
+/// - two bit strings: the wider one (`BYTE + WORD` is a `WORD`);
+/// - a bit string and an integer: the integer when it is wider (`BYTE + INT` is an `INT`), the
+///   bit string otherwise (`WORD + INT` is a `WORD`, `DWORD * SINT` a `DWORD`);
+/// - a bit string and a `REAL` or `LREAL`: the real ([`Habit::BitWithReal`]).
+///
+/// The operands are converted to that type (an integer to a bit string by its two's
+/// complement bits, as `INT_TO_WORD`), and the operation wraps at its width.
+pub fn bit_arithmetic_type(a: Prim, b: Prim) -> Option<Prim> {
+    let (bits, other) = match (a.is_bits(), b.is_bits()) {
+        (true, true) => return Some(if a.bits() >= b.bits() { a } else { b }),
+        (true, false) => (a, b),
+        (false, true) => (b, a),
+        (false, false) => return None,
+    };
+    if other.is_real() {
+        Some(other)
+    } else if other.is_int() {
+        Some(if other.bits() > bits.bits() { other } else { bits })
+    } else {
+        None
+    }
+}
+
+/// The bit string as wide as an integer type (what a shift of it works on).
+pub fn bits_of(p: Prim) -> Prim {
+    match p.bits() {
+        8 => Prim::Byte,
+        16 => Prim::Word,
+        32 => Prim::DWord,
+        _ => Prim::LWord,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bit_arithmetic_types_as_codesys() {
+        use Prim::*;
+        assert_eq!(bit_arithmetic_type(Byte, Word), Some(Word));
+        assert_eq!(bit_arithmetic_type(DWord, Byte), Some(DWord));
+        assert_eq!(bit_arithmetic_type(Byte, Int), Some(Int));
+        assert_eq!(bit_arithmetic_type(Word, Int), Some(Word));
+        assert_eq!(bit_arithmetic_type(SInt, DWord), Some(DWord));
+        assert_eq!(bit_arithmetic_type(LWord, ULInt), Some(LWord));
+        assert_eq!(bit_arithmetic_type(Byte, Real), Some(Real));
+        assert_eq!(bit_arithmetic_type(LWord, LReal), Some(LReal));
+        assert_eq!(bit_arithmetic_type(Byte, Time), None);
+        assert_eq!(bit_arithmetic_type(Byte, Bool), None);
+        assert_eq!(bit_arithmetic_type(Int, Real), None);
+    }
+}
