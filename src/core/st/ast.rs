@@ -107,7 +107,7 @@ pub struct VarDecl {
     pub span: Span,
 }
 
-/// An edge declaration of a function block's input (IEC 61131-3 ed3 table 40): the body sees
+/// An edge declaration of a function block's input (IEC 61131-3 ed3): the body sees
 /// the input TRUE only at the call where it rose (`R_EDGE`) or fell (`F_EDGE`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Edge {

@@ -27,7 +27,7 @@ pub enum Habit {
     Sizeof,
     /// The BCD conversions of CODESYS's Util library (`BCD_TO_INT`, `INT_TO_BCD`,
     /// `BCD_TO_BYTE` …, [`UTIL_BCD`]). The standard's forms: `BYTE_BCD_TO_USINT`,
-    /// `USINT_TO_BCD_BYTE` and the others of table 22.
+    /// `USINT_TO_BCD_BYTE` and the others of IEC 61131-3 ed3.
     UtilBcd,
 }
 

@@ -951,7 +951,7 @@ impl<'a> Ctx<'a> {
                         }
                     }
                     let index = self.pous[p].vars.len();
-                    // EN is never given by position (IEC 61131-3 ed3 6.6.1.4.2).
+                    // EN is never given by position (IEC 61131-3 ed3).
                     if matches!(block.kind, VarKind::Input | VarKind::InOut) && enable.is_none() {
                         self.pous[p].positional.push(index);
                     }
@@ -976,7 +976,7 @@ impl<'a> Ctx<'a> {
                 }
             }
         }
-        // The implicit ENO (IEC 61131-3 ed3 6.6.1.2.3): a BOOL output, TRUE on entry, that the
+        // The implicit ENO (IEC 61131-3 ed3): a BOOL output, TRUE on entry, that the
         // body may set FALSE; there when something may read it.
         if matches!(kind, PouKind::Function | PouKind::FunctionBlock)
             && self.pous[p].eno.is_none()

@@ -49,7 +49,7 @@ pub enum TK {
     Gate(Box<GateT>),
 }
 
-/// A standard function's call with `EN := en` and `ENO => …` (IEC 61131-3 ed3 6.6.1.2.3): when
+/// A standard function's call with `EN := en` and `ENO => …` (IEC 61131-3 ed3): when
 /// `en` is FALSE, nothing of `value` runs, the node's value is its type's default and every
 /// ENO target gets FALSE; when TRUE (or not given), each ENO target gets TRUE, then `value`
 /// runs.

@@ -193,7 +193,7 @@ impl<'a> Ctx<'a> {
     }
 
     /// A call of a standard function (or an unknown name), with `EN` and `ENO` as the standard
-    /// gives every function (IEC 61131-3 ed3 6.6.1.2.3): `EN := c` runs it only when `c` is
+    /// gives every function (IEC 61131-3 ed3): `EN := c` runs it only when `c` is
     /// TRUE (its value is then its type's default), `ENO => v` gives `v` whether it ran (a
     /// standard function's errors are operation errors, not ENO).
     pub fn std_call(
@@ -710,7 +710,7 @@ impl<'a> Ctx<'a> {
                 }
             }
             "GT" | "GE" | "EQ" | "LE" | "LT" | "NE" => {
-                // extensible but NE (IEC 61131-3 ed3 table 28): `GT(a, b, c)` is
+                // extensible but NE (IEC 61131-3 ed3): `GT(a, b, c)` is
                 // `a > b AND b > c`, each input evaluated once
                 let max = if name == "NE" { 2 } else { usize::MAX };
                 if !self.arity(name, n, 2, max, span, file) {
@@ -1140,7 +1140,7 @@ impl<'a> Ctx<'a> {
         self.convert(name, src, dst, t, span, file)
     }
 
-    /// `TO_<T>(x)` (IEC 61131-3 ed3 table 22, the overloaded conversions): `<X>_TO_<T>(x)` for
+    /// `TO_<T>(x)` (IEC 61131-3 ed3, the overloaded conversions): `<X>_TO_<T>(x)` for
     /// the type X of x; an untyped constant is a `DINT` (a `LINT`, `ULINT` when it needs it) or
     /// an `LREAL`, an enumeration value its base type's number.
     fn overloaded_conversion(
