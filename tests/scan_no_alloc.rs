@@ -124,11 +124,22 @@ const MAIN: &str = "LOAD _ON\nTON T1500 5\nLOAD T1500\nOUT P0040\nLOAD P0000\nCT
 const TICK: &str = "INC D00001\nLOAD NOT P0042\nOUT P0042\nEND\n";
 const EDGE: &str = "INC D00000\nEND\n";
 const FULL: &str = "MOV 0 D00000\nINC D00002\nEND\n";
-const VARS: &str = "PROGRAM Vars\nVAR\n    n : DINT;\n    r : REAL;\n    s : STRING[10] := 'ab';\n\
+// With EN/ENO, an edge input, CODESYS's arithmetic on a bit string and its clock, and the
+// calendar: the real-time clock, DT arithmetic, its strings and the date functions.
+const VARS: &str = "FUNCTION_BLOCK Edge\nVAR_INPUT up : BOOL R_EDGE; END_VAR\n\
+                    VAR_OUTPUT k : DINT; END_VAR\n    IF up THEN k := k + 1; END_IF;\n\
+                    IF k > 5 THEN ENO := FALSE; END_IF;\nEND_FUNCTION_BLOCK\n\
+                    FUNCTION Half : DINT\nVAR_INPUT x : DINT; END_VAR\n    Half := x / 2;\n\
+                    END_FUNCTION\n\
+                    PROGRAM Vars\nVAR\n    n : DINT;\n    r : REAL;\n    s : STRING[10] := 'ab';\n\
                     pos AT %D00300 : DINT;\n    t : STRING;\n    x : REAL;\n    m : DINT;\n\
+                    e : Edge;\n    ok : BOOL;\n    h : DINT;\n    w : WORD;\n    clock_now : TIME;\n\
                     now : DT;\n    day : INT;\n    clock : RTC;\nEND_VAR\n\
                     n := n + 1;\n    t := REAL_TO_STRING(x + 0.5);\n    x := STRING_TO_REAL(t);\n\
                     t := TIME_TO_STRING(DINT_TO_TIME(n));\n    m := STRING_TO_DINT(DINT_TO_STRING(n));\n\
+                    e(EN := n MOD 3 <> 0, up := n MOD 2 = 0, ENO => ok);\n\
+                    h := Half(EN := ok, x := n) + Half(EN := NOT ok, x := n);\n\
+                    w := w + DINT_TO_WORD(n) * 3;\n    clock_now := TIME();\n\
                     now := SysRtcGetTime(TRUE) + T#1s;\n    clock(IN := n > 3, PDT := now);\n\
                     t := DT_TO_STRING(now);\n    now := STRING_TO_DT(t);\n\
                     SPLIT_DATE(IN := DT_TO_DATE(now), DAY => day);\n    day := DAY_OF_WEEK(DT_TO_DATE(now));\n\

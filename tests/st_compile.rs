@@ -746,3 +746,167 @@ fn ten_thousand_lines() {
     eprintln!("{} lines compiled in {:?}", src.lines().count(), start.elapsed());
     assert!(c.programs[0].code.len() > 10_000);
 }
+
+// ---------------------------------------------------------------------------------------------
+// EN and ENO, edge inputs, and what plcd accepts of CODESYS's habits (docs/ST.md)
+
+#[test]
+fn en_and_eno_are_checked_like_parameters() {
+    let fb = "FUNCTION_BLOCK Fb\nVAR_OUTPUT q : BOOL; END_VAR\nq := TRUE;\nEND_FUNCTION_BLOCK\n\
+              FUNCTION F : INT\nVAR_INPUT x : INT; END_VAR\nF := x;\nEND_FUNCTION\n";
+    let prog = |vars: &str, body: &str| {
+        errors(&format!("{fb}PROGRAM main\nVAR\n{vars}\nEND_VAR\n{body}\nEND_PROGRAM\n"))
+    };
+    let e = prog("a : INT;", "a := F(EN := 5, x := 1);");
+    assert!(e.contains("integer constant `5` cannot be assigned to `BOOL`"), "{e}");
+    let e = prog("a : INT;", "a := F(EN := TRUE, EN := FALSE, x := 1);");
+    assert!(e.contains("`EN` is given twice"), "{e}");
+    let e = prog("a : INT;", "a := F(x := 1, ENO => a);");
+    assert!(e.contains("type mismatch: `BOOL` cannot be assigned to `INT`"), "{e}");
+    let e = prog("a : INT;", "a := LIMIT(EN := TRUE, 0, a, 10);");
+    assert!(e.contains("mixes positional and named arguments"), "{e}");
+    let e = prog("a : INT;", "a := ADD(EN := TRUE, IN1 := a, IN2 := 1, ENO => a);");
+    assert!(e.contains("type mismatch: `BOOL` cannot be assigned to `INT`"), "{e}");
+    let e = prog("f : Fb; b : BOOL;", "f(); f.ENO := b;");
+    assert!(e.contains("`ENO` is a VAR_OUTPUT of `Fb`"), "{e}");
+    // the implicit EN is a condition of the call, not a variable of the instance
+    let e = prog("f : Fb; b : BOOL;", "f(EN := TRUE); b := f.EN;");
+    assert!(e.contains("`Fb` has no input or output `EN`"), "{e}");
+}
+
+#[test]
+fn en_false_evaluates_no_other_argument() {
+    let r = Run::new(
+        "VAR_GLOBAL calls : INT; END_VAR
+FUNCTION Next : INT
+    calls := calls + 1;
+    Next := calls;
+END_FUNCTION
+FUNCTION Id : INT
+VAR_INPUT x : INT; END_VAR
+    Id := x;
+END_FUNCTION
+FUNCTION_BLOCK Keep
+VAR_INPUT x : INT; END_VAR
+VAR_OUTPUT y : INT; END_VAR
+    y := x;
+END_FUNCTION_BLOCK
+PROGRAM main
+VAR a : INT := 5; k : Keep; s : STRING := 'kept'; t : STRING; END_VAR
+    a := Id(EN := FALSE, x := Next());
+    k(EN := FALSE, x := Next());
+    s := CONCAT(EN := FALSE, IN1 := 'a', IN2 := INT_TO_STRING(Next()));
+    t := CONCAT(CONCAT(EN := FALSE, IN1 := 'a', IN2 := 'b'), 'c');
+END_PROGRAM",
+    );
+    let mut r = r;
+    r.scan();
+    assert_eq!(r.int("calls"), 0);
+    assert_eq!(r.int("main.a"), 5);
+    assert_eq!(r.int("main.k.x"), 0, "an input is not assigned");
+    assert_eq!(r.string("main.s"), "kept");
+    assert_eq!(r.string("main.t"), "c", "a STRING's default is ''");
+}
+
+#[test]
+fn eno_is_there_only_when_something_may_read_it() {
+    let src = |call: &str| {
+        format!(
+            "FUNCTION_BLOCK Fb\nVAR_OUTPUT q : BOOL; END_VAR\nq := TRUE;\nEND_FUNCTION_BLOCK\n\
+             PROGRAM main\nVAR f : Fb; t : TON; b : BOOL; END_VAR\n{call}\nt(IN := TRUE, PT := T#1s);\nEND_PROGRAM\n"
+        )
+    };
+    let names = |c: &Compiled| -> Vec<String> {
+        c.variables.symbols.iter().map(|s| s.name.clone()).collect()
+    };
+    // no EN/ENO anywhere: the instances are as before, no ENO, no code
+    let plain = build(&src("f();"));
+    assert!(!names(&plain).iter().any(|n| n.ends_with(".ENO")), "{:?}", names(&plain));
+    // EN alone: the call is skipped or not, and still no ENO stored
+    let en = build(&src("f(EN := b);"));
+    assert!(!names(&en).iter().any(|n| n.ends_with(".ENO")));
+    // an ENO read: every FB has one, the tools see it
+    let read = build(&src("f(ENO => b);"));
+    for n in ["main.f.ENO", "main.t.ENO"] {
+        assert!(names(&read).iter().any(|s| s == n), "{n} in {:?}", names(&read));
+    }
+    // the code of the body: ENO is set TRUE on entry only where it may have become FALSE
+    let steps = |src: &str| {
+        let mut r = Run::new(src);
+        r.scan();
+        r.vm.steps()
+    };
+    assert_eq!(steps(&src("f(ENO => b);")), steps(&src("f(); b := f.q;")));
+}
+
+#[test]
+fn edge_declarations_belong_to_bool_inputs_of_function_blocks() {
+    let e = errors(
+        "FUNCTION_BLOCK Fb
+VAR_INPUT a : INT R_EDGE; b : BOOL F_EDGE; END_VAR
+VAR c : BOOL R_EDGE; END_VAR
+VAR_OUTPUT d : BOOL R_EDGE; END_VAR
+    d := b;
+END_FUNCTION_BLOCK
+PROGRAM main
+VAR f : Fb; END_VAR
+    f();
+END_PROGRAM",
+    );
+    assert_eq!(e.matches("belongs to a `BOOL` VAR_INPUT of a FUNCTION_BLOCK").count(), 3, "{e}");
+    assert!(e.contains("main.st:2:19: error: `R_EDGE`"), "{e}");
+}
+
+#[test]
+fn codesys_habits_keep_their_limits() {
+    let e = errors(
+        "PROGRAM main
+VAR b : BYTE; t : TIME; r : REAL; x : BOOL; i : INT; a : ARRAY [0..1] OF INT; END_VAR
+    b := b + t;
+    r := b MOD r;
+    r := b * 1.5;
+    x := b + x;
+    i := SIZEOF(5);
+    t := TIME(1);
+    i := TO_INT(a);
+    i := TRUNC_INT(i);
+END_PROGRAM",
+    );
+    for m in [
+        "3:10: error: `+` cannot be applied to `BYTE` and `TIME`",
+        "4:10: error: `MOD` cannot be applied to `BYTE` and `REAL`",
+        "5:14: error: type mismatch: a real constant cannot be assigned to `BYTE`",
+        "6:10: error: `+` cannot be applied to `BYTE` and `BOOL`",
+        "7:17: error: `SIZEOF` needs a variable or a type, not `ANY_INT`",
+        "8:10: error: `TIME` takes no arguments",
+        "9:17: error: `TO_INT` needs an elementary value, not `ARRAY [0..1] OF INT`",
+        "10:20: error: `TRUNC_INT` needs a `REAL` or `LREAL`, not `INT`",
+    ] {
+        assert!(e.contains(m), "{m} in\n{e}");
+    }
+    assert_eq!(e.lines().count(), 8, "{e}");
+}
+
+#[test]
+fn a_project_function_replaces_the_preludes_of_the_same_name() {
+    let r = once("i : INT;", "i := BCD_TO_INT(16#12);");
+    assert_eq!(r.int("main.i"), 12);
+    let mut r = Run::new(
+        "FUNCTION BCD_TO_INT : INT
+VAR_INPUT b : BYTE; END_VAR
+    BCD_TO_INT := 1234;
+END_FUNCTION
+PROGRAM main
+VAR i : INT; END_VAR
+    i := BCD_TO_INT(16#12);
+END_PROGRAM",
+    );
+    r.scan();
+    assert_eq!(r.int("main.i"), 1234);
+    // a function block of the prelude stays reserved
+    let e = errors(
+        "FUNCTION_BLOCK TON\nVAR_INPUT IN : BOOL; END_VAR\nEND_FUNCTION_BLOCK\n\
+         PROGRAM main\nVAR t : TON; END_VAR\nt();\nEND_PROGRAM",
+    );
+    assert!(e.contains("`TON` is already declared"), "{e}");
+}

@@ -99,6 +99,8 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` needs {} bits from `{}`: past the end of its area", "bit-array-past-end"),
     ("`{}` needs {} words from `{}`: past the end of its area", "past-area-end"),
     ("`%{}` is not a valid direct address", "bad-iec-address"),
+    ("`{}` is the standard's enable {}: declare it `{} : BOOL` in {}", "enable-declaration"),
+    ("`{}` belongs to a `BOOL` VAR_INPUT of a FUNCTION_BLOCK", "edge-not-fb-input"),
     // emit.rs: code generation
     ("this statement needs {} evaluation stack slots (limit {})", "statement-stack-too-deep"),
     ("`{}` needs {} bytes of frame (limit 1 MiB)", "statement-frame-too-large"),
@@ -224,6 +226,27 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "IEC 61131-3 reads only an instance's inputs and outputs from outside: pass the value out through a VAR_OUTPUT (`[st] strict` is on)",
         "strict-read-fb-internal",
     ),
+    (
+        "IEC 61131-3 has no arithmetic on bit strings: convert to an integer first, `WORD_TO_UINT(w) + 1` (`[st] strict` is on)",
+        "strict-bit-arithmetic",
+    ),
+    (
+        "IEC 61131-3 has no arithmetic between a bit string and a real: convert first, `BYTE_TO_REAL(b) * r` (`[st] strict` is on)",
+        "strict-bit-with-real",
+    ),
+    (
+        "IEC 61131-3 shifts bit strings only: `WORD_TO_INT(SHR(INT_TO_WORD(i), n))` (`[st] strict` is on)",
+        "strict-integer-shift",
+    ),
+    (
+        "`TIME()` is CODESYS's clock, not IEC 61131-3: measure durations with the standard timers (`TON`) (`[st] strict` is on)",
+        "strict-time-clock",
+    ),
+    ("`SIZEOF` is not IEC 61131-3 (`[st] strict` is on)", "strict-sizeof"),
+    (
+        "this BCD conversion is CODESYS's Util library: IEC 61131-3 writes `BYTE_BCD_TO_USINT`, `USINT_TO_BCD_BYTE` and the like (`[st] strict` is on)",
+        "strict-util-bcd",
+    ),
 ];
 
 /// The messages of device addresses (`src/core/device/address.rs`) that the compiler passes on
@@ -287,6 +310,8 @@ const PARTS: &[&str] = &[
     "an integer count",
     "a BOOL or bit string",
     "an integer",
+    "an elementary value",
+    "a variable or a type",
     // the loop of "the condition of {} must be `BOOL`, not `{}`"
     "REPEAT … UNTIL",
     // type names

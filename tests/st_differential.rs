@@ -3,7 +3,9 @@
 //! run for one scan on the VM and read back by name, against a plain Rust evaluator of the same
 //! expression tree on native values (`i16`, `u32`, `f32`, … and their `wrapping_*` methods)
 //! following docs/ST.md: wrapping integer arithmetic, division and `MOD` by zero giving 0 with
-//! error 3400H, the implicit widenings, the conversion rules, the shifts, the standard functions.
+//! error 3400H, the implicit widenings, the conversion rules, the shifts, the standard functions,
+//! and what plcd accepts of CODESYS's habits: arithmetic on bit strings (with each other, with
+//! integers and reals, typed as docs/ST.md says) and shifts of integers.
 //!
 //! The expressions are generated from a list of choices, so that proptest's shrinking of the
 //! list shrinks the expressions (an exhausted list picks variables). Constant subexpressions are
@@ -462,6 +464,30 @@ enum Expr {
     Conv(T, Box<Expr>),
     /// `TRUNC` of a REAL or LREAL, a DINT.
     Trunc(Box<Expr>),
+    /// CODESYS's arithmetic between a bit string and an integer or a real ([`codesys_type`]).
+    Mixed(Bin, Box<Expr>, Box<Expr>),
+}
+
+/// The bit string as wide as `t`.
+fn bits_of(t: T) -> T {
+    match t.width() {
+        8 => T::Byte,
+        16 => T::Word,
+        32 => T::DWord,
+        _ => T::LWord,
+    }
+}
+
+/// The type of CODESYS's `a op b` for a bit string and an integer or a real (docs/ST.md,
+/// "Arithmetic on bit strings"): the real; the integer when it is wider; else the bit string.
+fn codesys_type(a: T, b: T) -> T {
+    let (bits, other) = if a.bits() { (a, b) } else { (b, a) };
+    assert!(bits.bits() && !other.bits(), "{a:?} and {b:?}");
+    if other.real() || other.width() > bits.width() {
+        other
+    } else {
+        bits
+    }
 }
 
 /// The variables of one program: name, type, initial value, and how the value is written.
@@ -481,6 +507,7 @@ impl Expr {
             Expr::Shift(_, x, _) => x.ty(vars),
             Expr::Conv(t, _) => *t,
             Expr::Trunc(_) => T::DInt,
+            Expr::Mixed(_, a, b) => codesys_type(a.ty(vars), b.ty(vars)),
         }
     }
 
@@ -491,9 +518,10 @@ impl Expr {
             Expr::Neg(a) | Expr::Not(a) | Expr::Abs(a) | Expr::Conv(_, a) | Expr::Trunc(a) => {
                 a.has_var()
             }
-            Expr::Bin(_, a, b) | Expr::Cmp(_, a, b) | Expr::Shift(_, a, b) => {
-                a.has_var() || b.has_var()
-            }
+            Expr::Bin(_, a, b)
+            | Expr::Cmp(_, a, b)
+            | Expr::Shift(_, a, b)
+            | Expr::Mixed(_, a, b) => a.has_var() || b.has_var(),
             Expr::MinMax(_, xs) => xs.iter().any(Expr::has_var),
             Expr::Limit(xs) | Expr::Sel(xs) => xs.iter().any(Expr::has_var),
         }
@@ -511,9 +539,10 @@ impl Expr {
             Expr::Neg(a) | Expr::Not(a) | Expr::Abs(a) | Expr::Conv(_, a) | Expr::Trunc(a) => {
                 a.constant(vars)
             }
-            Expr::Bin(_, a, b) | Expr::Cmp(_, a, b) | Expr::Shift(_, a, b) => {
-                a.constant(vars) && b.constant(vars)
-            }
+            Expr::Bin(_, a, b)
+            | Expr::Cmp(_, a, b)
+            | Expr::Shift(_, a, b)
+            | Expr::Mixed(_, a, b) => a.constant(vars) && b.constant(vars),
             Expr::MinMax(_, xs) => xs.iter().all(|x| x.constant(vars)),
             Expr::Limit(xs) => xs.iter().all(|x| x.constant(vars)),
         }
@@ -543,10 +572,13 @@ impl Expr {
                 V::LInt(x) => V::LInt(x.wrapping_abs()),
                 v => v,
             },
-            Expr::Bin(op, a, b) => {
+            Expr::Bin(op, a, b) | Expr::Mixed(op, a, b) => {
                 let t = self.ty(vars);
-                let x = a.eval(vars, errors).widen(t);
-                let y = b.eval(vars, errors).widen(t);
+                // CODESYS's mixed operands convert as `<FROM>_TO_<TO>` (two's complement bits)
+                let mixed = matches!(self, Expr::Mixed(..));
+                let conv = |v: V| if mixed { v.to(t) } else { v.widen(t) };
+                let x = conv(a.eval(vars, errors));
+                let y = conv(b.eval(vars, errors));
                 if matches!(op, Bin::Div | Bin::Mod) && y.zero() {
                     *errors += 1;
                     return V::Bool(false).to(t);
@@ -584,18 +616,21 @@ impl Expr {
                 pick.eval(vars, errors).widen(t)
             }
             Expr::Shift(op, x, n) => {
-                let x = x.eval(vars, errors);
+                // CODESYS: an integer is shifted as the bit pattern of its width
+                let t = x.ty(vars);
+                let x = x.eval(vars, errors).to(bits_of(t));
                 // The count is taken as an unsigned 64-bit number.
                 let n = n.eval(vars, errors).int() as u64;
                 let width = u64::from(x.ty().width());
                 let out = n >= width;
                 let r = (n % width) as u32;
-                match op {
+                let shifted = match op {
                     Shift::Shl => map_int!(x, v => if out { 0 } else { v << n }, unreachable!()),
                     Shift::Shr => map_int!(x, v => if out { 0 } else { v >> n }, unreachable!()),
                     Shift::Rol => map_int!(x, v => v.rotate_left(r), unreachable!()),
                     Shift::Ror => map_int!(x, v => v.rotate_right(r), unreachable!()),
-                }
+                };
+                shifted.to(t)
             }
             Expr::Conv(t, a) => a.eval(vars, errors).to(*t),
             // toward zero, saturated, NaN 0: Rust's `as`
@@ -665,8 +700,9 @@ fn precedence(e: &Expr, bare: bool) -> u8 {
     match e {
         Expr::Lit(v, Form::Bare) if bare && v.literal(false, false).starts_with('-') => 4,
         Expr::Neg(_) | Expr::Not(_) => 4,
-        Expr::Bin(Bin::Mul | Bin::Div | Bin::Mod, ..) => 5,
-        Expr::Bin(Bin::Add | Bin::Sub, ..) => 6,
+        Expr::Bin(Bin::Mul | Bin::Div | Bin::Mod, ..)
+        | Expr::Mixed(Bin::Mul | Bin::Div | Bin::Mod, ..) => 5,
+        Expr::Bin(Bin::Add | Bin::Sub, ..) | Expr::Mixed(Bin::Add | Bin::Sub, ..) => 6,
         Expr::Cmp(Cmp::Lt | Cmp::Gt | Cmp::Le | Cmp::Ge, ..) => 7,
         Expr::Cmp(Cmp::Eq | Cmp::Ne, ..) => 8,
         Expr::Bin(Bin::And, ..) => 9,
@@ -715,9 +751,15 @@ impl Render<'_> {
                     out.insert(before, ' ');
                 }
             }
-            Expr::Bin(op, a, b) => {
+            Expr::Bin(op, a, b) | Expr::Mixed(op, a, b) => {
                 let p = precedence(e, false);
-                let (ba, bb) = pair_bare(vars, a, b);
+                // a mixed operation's literals are typed: untyped, one would take the other
+                // operand's type
+                let (ba, bb) = if matches!(e, Expr::Mixed(..)) {
+                    (false, false)
+                } else {
+                    pair_bare(vars, a, b)
+                };
                 self.expr(a, p, ba, out);
                 let sym = match op {
                     Bin::Add => "+",
@@ -943,8 +985,15 @@ fn gen(t: T, depth: u32, vars: &Vars, c: &mut Choices) -> Expr {
             let op = c.pick(ops);
             binary_of(op, t, depth, vars, c)
         }
-        4..=7 if t == T::Bool || t.bits() => {
+        4..=7 if t == T::Bool => {
             let op = c.pick(&[Bin::And, Bin::Or, Bin::Xor]);
+            binary_of(op, t, depth, vars, c)
+        }
+        // bit strings: the bitwise operators, and CODESYS's arithmetic
+        4..=7 if t.bits() => {
+            let ops =
+                [Bin::And, Bin::Or, Bin::Xor, Bin::Add, Bin::Sub, Bin::Mul, Bin::Div, Bin::Mod];
+            let op = c.pick(&ops);
             binary_of(op, t, depth, vars, c)
         }
         8..=10 if t == T::Bool => {
@@ -972,7 +1021,7 @@ fn gen(t: T, depth: u32, vars: &Vars, c: &mut Choices) -> Expr {
             let (a, b) = operands(t, depth, vars, c);
             Expr::Sel(Box::new([g, a, b]))
         }
-        16..=17 if t.bits() => {
+        16..=17 if t.bits() || t.integer() => {
             let op = c.pick(&[Shift::Shl, Shift::Shr, Shift::Rol, Shift::Ror]);
             let n = if c.below(2) == 0 {
                 // mostly counts in and near the width, some negative, some far beyond
@@ -995,6 +1044,18 @@ fn gen(t: T, depth: u32, vars: &Vars, c: &mut Choices) -> Expr {
             Expr::Shift(op, Box::new(sub(t, c)), Box::new(n))
         }
         18 if t == T::DInt => Expr::Trunc(Box::new(sub(c.pick(&[T::Real, T::LReal]), c))),
+        19..=20 if !mixed_partners(t).is_empty() => {
+            let u = c.pick(&mixed_partners(t));
+            let ops: &[Bin] = if t.real() {
+                &[Bin::Add, Bin::Sub, Bin::Mul, Bin::Div]
+            } else {
+                &[Bin::Add, Bin::Sub, Bin::Mul, Bin::Div, Bin::Mod]
+            };
+            let op = c.pick(ops);
+            let (a, b) = (sub(t, c), sub(u, c));
+            let (a, b) = if c.next().is_multiple_of(2) { (a, b) } else { (b, a) };
+            Expr::Mixed(op, Box::new(a), Box::new(b))
+        }
         _ => {
             // a conversion from any other type
             let from = c.pick(&TYPES);
@@ -1004,6 +1065,19 @@ fn gen(t: T, depth: u32, vars: &Vars, c: &mut Choices) -> Expr {
             Expr::Conv(t, Box::new(sub(from, c)))
         }
     }
+}
+
+/// The types that meet a `t` in CODESYS's arithmetic to give a `t`: integers as wide or
+/// narrower for a bit string, narrower bit strings for an integer, any for a real.
+fn mixed_partners(t: T) -> Vec<T> {
+    TYPES
+        .iter()
+        .copied()
+        .filter(|&u| {
+            (t.bits() && u.integer() || u.bits() && (t.integer() || t.real()))
+                && codesys_type(t, u) == t
+        })
+        .collect()
 }
 
 /// Whether the types of `MIN`'s or `LIMIT`'s arguments have a common type, unified from the
@@ -1069,7 +1143,7 @@ fn avoid_constant_zero_divisors(e: &mut Expr, vars: &Vars) {
         Expr::Neg(a) | Expr::Not(a) | Expr::Abs(a) | Expr::Trunc(a) | Expr::Conv(_, a) => {
             avoid_constant_zero_divisors(a, vars)
         }
-        Expr::Bin(op, a, b) => {
+        Expr::Bin(op, a, b) | Expr::Mixed(op, a, b) => {
             avoid_constant_zero_divisors(a, vars);
             avoid_constant_zero_divisors(b, vars);
             if matches!(op, Bin::Div | Bin::Mod) && b.constant(vars) && b.eval(vars, &mut 0).zero()

@@ -172,7 +172,17 @@ pub struct VarDecl {
     pub location: Option<Ident>,
     pub ty: TypeRef,
     pub init: Option<Init>,
+    /// `R_EDGE` or `F_EDGE` after the type (`start : BOOL R_EDGE;`), with its place.
+    pub edge: Option<(Edge, Span)>,
     pub span: Span,
+}
+
+/// An edge declaration of a function block's input (IEC 61131-3 ed3): the body sees
+/// the input TRUE only at the call where it rose (`R_EDGE`) or fell (`F_EDGE`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Edge {
+    Rising,
+    Falling,
 }
 
 /// A type as written where a type is expected.

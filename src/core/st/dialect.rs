@@ -32,6 +32,18 @@ pub enum Habit {
     ConstantInput,
     /// An FB instance's input, in-out or internal variable read from outside.
     ReadFbInternal,
+    /// `+ - * / MOD` on `BYTE` … `LWORD`, with each other and with integers.
+    BitArithmetic,
+    /// A bit string with a `REAL` or `LREAL` in `+ - * /`.
+    BitWithReal,
+    /// `SHL SHR ROL ROR` on an integer type, on the bit pattern of its width.
+    IntegerShift,
+    /// `TIME()`: the PLC's clock as a `TIME`.
+    TimeClock,
+    /// `SIZEOF(x)`: the bytes a variable or a type takes.
+    Sizeof,
+    /// The BCD conversions of CODESYS's Util library (`BCD_TO_INT`, `INT_TO_BCD`…).
+    UtilBcd,
 }
 
 impl Habit {
@@ -46,6 +58,12 @@ impl Habit {
             Habit::VarInst => "`VAR_INST` is not IEC 61131-3: declare the variable in the function block's `VAR` (`[st] strict` is on)".to_string(),
             Habit::ConstantInput => "`VAR_INPUT CONSTANT` is not IEC 61131-3: write `VAR_INPUT` (`[st] strict` is on)".to_string(),
             Habit::ReadFbInternal => "IEC 61131-3 reads only an instance's inputs and outputs from outside: pass the value out through a VAR_OUTPUT (`[st] strict` is on)".to_string(),
+            Habit::BitArithmetic => "IEC 61131-3 has no arithmetic on bit strings: convert to an integer first, `WORD_TO_UINT(w) + 1` (`[st] strict` is on)".to_string(),
+            Habit::BitWithReal => "IEC 61131-3 has no arithmetic between a bit string and a real: convert first, `BYTE_TO_REAL(b) * r` (`[st] strict` is on)".to_string(),
+            Habit::IntegerShift => "IEC 61131-3 shifts bit strings only: `WORD_TO_INT(SHR(INT_TO_WORD(i), n))` (`[st] strict` is on)".to_string(),
+            Habit::TimeClock => "`TIME()` is CODESYS's clock, not IEC 61131-3: measure durations with the standard timers (`TON`) (`[st] strict` is on)".to_string(),
+            Habit::Sizeof => "`SIZEOF` is not IEC 61131-3 (`[st] strict` is on)".to_string(),
+            Habit::UtilBcd => "this BCD conversion is CODESYS's Util library: IEC 61131-3 writes `BYTE_BCD_TO_USINT`, `USINT_TO_BCD_BYTE` and the like (`[st] strict` is on)".to_string(),
         }
     }
 }

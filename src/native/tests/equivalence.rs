@@ -1679,6 +1679,69 @@ END_PROGRAM
     assert!(outcome.errors.is_empty());
 }
 
+/// EN and ENO (calls skipped, ENO stored and bound, a declared EN returning at entry), edge
+/// inputs, and CODESYS's arithmetic on bit strings and shifts of integers: branches around
+/// calls and the entries of bodies, all in native code.
+#[test]
+fn en_eno_edges_and_codesys_arithmetic() {
+    let source = "
+FUNCTION Scale : INT
+VAR_INPUT x : INT; END_VAR
+VAR_OUTPUT rest : INT; END_VAR
+    Scale := x / 3;
+    rest := x MOD 3;
+    IF x < 0 THEN ENO := FALSE; END_IF;
+END_FUNCTION
+
+FUNCTION_BLOCK Count
+VAR_INPUT up : BOOL R_EDGE; down : BOOL F_EDGE; step : WORD := 1; END_VAR
+VAR_OUTPUT n : WORD; falls : INT; END_VAR
+    IF up THEN n := n + step; END_IF;
+    IF down THEN falls := falls + 1; END_IF;
+    IF n > 16#FFF0 THEN ENO := FALSE; END_IF;
+END_FUNCTION_BLOCK
+
+FUNCTION_BLOCK Own
+VAR_INPUT EN : BOOL; k : INT; END_VAR
+VAR_OUTPUT ENO : BOOL; total : DINT; END_VAR
+    total := total + k;
+END_FUNCTION_BLOCK
+
+PROGRAM Main
+VAR
+    scan : INT;
+    i : INT;
+    cs : ARRAY [0..3] OF Count;
+    own : Own;
+    q, r : ARRAY [0..7] OF INT;
+    ok : ARRAY [0..7] OF BOOL;
+    enos : ARRAY [0..3] OF BOOL;
+    acc : DWORD := 16#1234;
+    b : BYTE := 7;
+    sh : ARRAY [0..3] OF INT;
+    lim : INT;
+    fl : REAL;
+END_VAR
+    scan := scan + 1;
+    FOR i := 0 TO 7 DO
+        q[i] := Scale(EN := (i + scan) MOD 3 <> 0, x := (i - 3) * scan, rest => r[i], ENO => ok[i]);
+    END_FOR;
+    FOR i := 0 TO 3 DO
+        cs[i](EN := i <> scan MOD 4, up := (scan + i) MOD 2 = 0, down := (scan + i) MOD 3 = 0,
+              step := INT_TO_WORD(i * 1000), ENO => enos[i]);
+        sh[i] := SHR(INT#-1000 * scan, i) + ROL(i - scan, i * 5);
+    END_FOR;
+    own(EN := scan MOD 2 = 1, k := scan);
+    acc := acc * b + cs[1].n - DINT_TO_SINT(scan) + q[2];
+    b := b + 3;
+    fl := b * INT_TO_REAL(scan) / 4.0;
+    lim := LIMIT(EN := scan > 2, MN := 0, IN := q[7], MX := 10) + ADD(EN := FALSE, IN1 := 1, IN2 := 2);
+END_PROGRAM
+";
+    let outcome = targeted("en/eno", source, Scans::new(6), 90);
+    assert!(outcome.errors.is_empty());
+}
+
 /// Strings run on the interpreter inside native code: mixed execution, with arithmetic
 /// around each string operation.
 #[test]

@@ -57,6 +57,9 @@ pub struct VarInfo {
     pub located: Option<Address>,
     /// VAR_EXTERNAL: the VAR_GLOBAL it stands for.
     pub global: Option<usize>,
+    /// An `R_EDGE` / `F_EDGE` input: where, in the instance, the value its FB's body sees is
+    /// (computed at each call from the input and its memory: [`PouInfo::edges`]).
+    pub edge_value: Option<u32>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -98,6 +101,32 @@ pub struct PouInfo<'a> {
     /// An action: its declaration and the POU it belongs to, whose variables it shares (`ast`
     /// is that POU's).
     pub action: Option<(&'a ast::Action, usize)>,
+    /// FUNCTION / FUNCTION_BLOCK: its `EN` when declared (a VAR_INPUT, the index in `vars`);
+    /// otherwise EN is implicit, given at a call and never stored.
+    pub en: Option<usize>,
+    /// FUNCTION / FUNCTION_BLOCK: its `ENO` variable (a VAR_OUTPUT, the index in `vars`):
+    /// declared, or implicit (`eno_implicit`), which a POU has when something may read it.
+    pub eno: Option<usize>,
+    pub eno_implicit: bool,
+    /// Whether the body assigns `ENO`, and whether some call gives this POU an implicit EN
+    /// (either can leave ENO FALSE, which the body's entry sets TRUE again).
+    pub eno_assigned: bool,
+    pub called_with_en: bool,
+    /// The `R_EDGE` / `F_EDGE` inputs of a FUNCTION_BLOCK.
+    pub edges: Vec<EdgeInput>,
+}
+
+/// An edge input of a function block: at each execution of the body, the value the body sees
+/// is computed from the input and the input's level at the previous execution.
+#[derive(Debug, Clone, Copy)]
+pub struct EdgeInput {
+    /// The input (its index in `vars`).
+    pub input: usize,
+    /// The memory: the input's level at the previous execution (the index in `vars`).
+    pub memory: usize,
+    /// Where the value the body sees is, in the instance.
+    pub value: u32,
+    pub rising: bool,
 }
 
 impl<'a> PouInfo<'a> {
@@ -122,6 +151,12 @@ impl<'a> PouInfo<'a> {
             callees: Vec::new(),
             checked: false,
             action: None,
+            en: None,
+            eno: None,
+            eno_implicit: false,
+            eno_assigned: false,
+            called_with_en: false,
+            edges: Vec::new(),
         }
     }
 
@@ -200,6 +235,9 @@ pub struct Ctx<'a> {
     pub enum_values: HashMap<String, Vec<(usize, i128)>>,
     /// Whether the POU being checked is the prelude's (may call `__` builtins).
     pub in_prelude: bool,
+    /// Whether some code of the project may read an `ENO` from outside a POU (`ENO => v` in a
+    /// call, `inst.ENO`): then every FUNCTION and FUNCTION_BLOCK has an ENO variable.
+    pub eno_read: bool,
     pub prelude_file: usize,
     /// While checking a body: the FOR variables of the enclosing loops, the loop depth, and
     /// whether a FUNCTION's result has been assigned.
@@ -220,11 +258,13 @@ impl<'a> Ctx<'a> {
     }
 
     /// A non-standard form at `span`: accepted, or an error naming the standard's way when
-    /// `[st] strict` is on (the prelude's own code is never strict).
-    pub fn habit(&mut self, file: usize, span: Span, habit: Habit) {
+    /// `[st] strict` is on (the prelude's own code is never strict). Always `true`, so that
+    /// checking goes on as CODESYS reads the form, with one error for it under `strict`.
+    pub fn habit(&mut self, habit: Habit, file: usize, span: Span) -> bool {
         if self.dialect.strict && file != self.prelude_file {
             self.error(file, span, habit.strict_message());
         }
+        true
     }
 
     pub fn ty_name(&self, ty: &Ty) -> String {

@@ -768,6 +768,7 @@ impl<'a> Ctx<'a> {
                     span: id.span,
                     located,
                     global: None,
+                    edge_value: None,
                 });
             }
         }
@@ -893,6 +894,50 @@ impl<'a> Ctx<'a> {
                         );
                         continue;
                     }
+                    // `EN` / `ENO` of a FUNCTION or FUNCTION_BLOCK: the standard's, declared
+                    // (`Some(true)`: EN, `Some(false)`: ENO).
+                    let callable = matches!(kind, PouKind::Function | PouKind::FunctionBlock);
+                    let enable = match () {
+                        _ if !callable => None,
+                        _ if id.is("EN") => Some(true),
+                        _ if id.is("ENO") => Some(false),
+                        _ => None,
+                    };
+                    if let Some(input) = enable {
+                        let want = if input { VarKind::Input } else { VarKind::Output };
+                        if block.kind != want || !ty.is_bool() && !ty.is_error() {
+                            let (what, block_name) = if input {
+                                ("input", "VAR_INPUT")
+                            } else {
+                                ("output", "VAR_OUTPUT")
+                            };
+                            self.error(
+                                file,
+                                id.span,
+                                format!(
+                                    "`{}` is the standard's enable {what}: declare it `{} : BOOL` in {block_name}",
+                                    id.name, id.name
+                                ),
+                            );
+                            continue;
+                        }
+                    }
+                    if let Some((edge, at)) = decl.edge {
+                        let ok = kind == PouKind::FunctionBlock
+                            && block.kind == VarKind::Input
+                            && (ty.is_bool() || ty.is_error());
+                        if !ok {
+                            let e = match edge {
+                                ast::Edge::Rising => "R_EDGE",
+                                ast::Edge::Falling => "F_EDGE",
+                            };
+                            self.error(
+                                file,
+                                at,
+                                format!("`{e}` belongs to a `BOOL` VAR_INPUT of a FUNCTION_BLOCK"),
+                            );
+                        }
+                    }
                     let mut info = VarInfo {
                         name: id.name.clone(),
                         kind: block.kind,
@@ -905,6 +950,7 @@ impl<'a> Ctx<'a> {
                         span: id.span,
                         located: None,
                         global: None,
+                        edge_value: None,
                     };
                     if block.kind == VarKind::External {
                         match self.global_names.get(&key(&id.name)).copied() {
@@ -974,6 +1020,9 @@ impl<'a> Ctx<'a> {
                                 self.error(file, sp, "a VAR_IN_OUT has no initial value");
                             }
                             vec![0u8; 8]
+                        } else if enable == Some(true) && decl.init.is_none() {
+                            // A declared EN is the standard's: TRUE unless given.
+                            vec![1]
                         } else {
                             self.init_image(
                                 &ty,
@@ -1013,14 +1062,62 @@ impl<'a> Ctx<'a> {
                         }
                     }
                     let index = self.pous[p].vars.len();
-                    if matches!(block.kind, VarKind::Input | VarKind::InOut) {
+                    // EN is never given by position (IEC 61131-3 ed3).
+                    if matches!(block.kind, VarKind::Input | VarKind::InOut) && enable.is_none() {
                         self.pous[p].positional.push(index);
                     }
+                    match enable {
+                        Some(true) => self.pous[p].en = Some(index),
+                        Some(false) => self.pous[p].eno = Some(index),
+                        None => {}
+                    }
+                    let edge = decl.edge.filter(|_| {
+                        kind == PouKind::FunctionBlock
+                            && block.kind == VarKind::Input
+                            && ty.is_bool()
+                            && matches!(info.storage, Storage::Inst(_))
+                    });
                     self.pous[p].names.insert(key(&id.name), index);
                     self.pous[p].vars.push(info);
                     scope.visible = index + 1;
+                    if let Some((edge, _)) = edge {
+                        self.edge_input(p, index, edge == ast::Edge::Rising, &mut inst);
+                        scope.visible = self.pous[p].vars.len();
+                    }
                 }
             }
+        }
+        // The implicit ENO (IEC 61131-3 ed3): a BOOL output, TRUE on entry, that the
+        // body may set FALSE; there when something may read it.
+        if matches!(kind, PouKind::Function | PouKind::FunctionBlock)
+            && self.pous[p].eno.is_none()
+            && (self.eno_read || mentions_eno(&pou.body))
+        {
+            let storage = if kind == PouKind::Function {
+                frame.push(1);
+                Storage::Frame(frame.len() as u32 - 1)
+            } else {
+                inst.push(1);
+                Storage::Inst(inst.len() as u32 - 1)
+            };
+            let index = self.pous[p].vars.len();
+            self.pous[p].vars.push(VarInfo {
+                name: "ENO".into(),
+                kind: VarKind::Output,
+                ty: Ty::Prim(Prim::Bool),
+                constant: false,
+                retain: false,
+                storage,
+                by_ref: false,
+                value: None,
+                span: pou.name.span,
+                located: None,
+                global: None,
+                edge_value: None,
+            });
+            self.pous[p].names.insert(key("ENO"), index);
+            self.pous[p].eno = Some(index);
+            self.pous[p].eno_implicit = true;
         }
         if inst.len() as u64 > MAX_MEMORY {
             self.error(
@@ -1049,6 +1146,26 @@ impl<'a> Ctx<'a> {
         if kind == PouKind::FunctionBlock {
             self.types.fbs[p] = Some((pou.name.name.clone(), self.pous[p].inst_size));
         }
+    }
+
+    /// The memory of the edge input `input` of the FB `p` (a variable the tools see, named
+    /// `__<input>_PREV`, so that an online change keeps it) and the byte the body reads.
+    fn edge_input(&mut self, p: usize, input: usize, rising: bool, inst: &mut Vec<u8>) {
+        let v = self.pous[p].vars[input].clone();
+        // F_EDGE starts as if the input had been TRUE, so that a first call with it FALSE is an
+        // edge, as the standard's F_TRIG has it (`Q := NOT CLK AND NOT M`, M FALSE).
+        inst.push(u8::from(!rising));
+        let memory = self.pous[p].vars.len();
+        self.pous[p].vars.push(VarInfo {
+            name: format!("__{}_PREV", v.name),
+            kind: VarKind::Local,
+            storage: Storage::Inst(inst.len() as u32 - 1),
+            ..v.clone()
+        });
+        inst.push(0);
+        let value = inst.len() as u32 - 1;
+        self.pous[p].vars[input].edge_value = Some(value);
+        self.pous[p].edges.push(super::ctx::EdgeInput { input, memory, value, rising });
     }
 
     /// The device of `AT %…` for a variable of `ty`.
@@ -1213,6 +1330,107 @@ impl<'a> Ctx<'a> {
     pub fn writable(&self, addr: &Address, ty: &Ty) -> bool {
         let bit = ty.is_bool() && addr.as_bit().is_ok();
         addr.writable_by(if bit { Writer::ProgramBit } else { Writer::ProgramWord })
+    }
+}
+
+/// Whether a body names `ENO` (reads or writes its own ENO).
+fn mentions_eno(body: &[ast::Stmt]) -> bool {
+    let mut found = false;
+    walk_stmts(body, &mut |e| {
+        found |= matches!(&e.kind, ast::ExprKind::Name(id) if id.is("ENO"));
+    });
+    found
+}
+
+/// Whether a file may read an `ENO` from outside a POU: `ENO => v` in a call, or `x.ENO`.
+pub fn reads_eno(file: &ast::File) -> bool {
+    let mut found = false;
+    for item in &file.items {
+        if let Item::Pou(p) = item {
+            walk_stmts(&p.body, &mut |e| {
+                found |= match &e.kind {
+                    ast::ExprKind::Member(_, id) => id.is("ENO"),
+                    ast::ExprKind::Call { args, .. } => args
+                        .iter()
+                        .any(|a| matches!(a, ast::Arg::Output { name, .. } if name.is("ENO"))),
+                    _ => false,
+                };
+            });
+        }
+    }
+    found
+}
+
+/// Every expression of the statements, nested ones included.
+fn walk_stmts(body: &[ast::Stmt], f: &mut impl FnMut(&ast::Expr)) {
+    use ast::StmtKind as S;
+    for s in body {
+        match &s.kind {
+            S::Assign { target, value } => {
+                walk_expr(target, f);
+                walk_expr(value, f);
+            }
+            S::Call(e) => walk_expr(e, f),
+            S::If { branches, otherwise } => {
+                for (c, b) in branches {
+                    walk_expr(c, f);
+                    walk_stmts(b, f);
+                }
+                if let Some((_, b)) = otherwise {
+                    walk_stmts(b, f);
+                }
+            }
+            S::Case { selector, arms, otherwise } => {
+                walk_expr(selector, f);
+                for arm in arms {
+                    walk_stmts(&arm.body, f);
+                }
+                if let Some((_, b)) = otherwise {
+                    walk_stmts(b, f);
+                }
+            }
+            S::For { from, to, by, body, .. } => {
+                walk_expr(from, f);
+                walk_expr(to, f);
+                if let Some(b) = by {
+                    walk_expr(b, f);
+                }
+                walk_stmts(body, f);
+            }
+            S::While { cond, body } | S::Repeat { body, until: cond } => {
+                walk_expr(cond, f);
+                walk_stmts(body, f);
+            }
+            S::Exit | S::Continue | S::Return | S::Empty => {}
+        }
+    }
+}
+
+fn walk_expr(e: &ast::Expr, f: &mut impl FnMut(&ast::Expr)) {
+    use ast::ExprKind as K;
+    f(e);
+    match &e.kind {
+        K::Literal(_) | K::Name(_) => {}
+        K::Member(b, _) | K::Bit(b, _) | K::Unary(_, b) => walk_expr(b, f),
+        K::Index(b, ix) => {
+            walk_expr(b, f);
+            for i in ix {
+                walk_expr(i, f);
+            }
+        }
+        K::Binary(_, a, b) => {
+            walk_expr(a, f);
+            walk_expr(b, f);
+        }
+        K::Call { callee, args } => {
+            walk_expr(callee, f);
+            for a in args {
+                match a {
+                    ast::Arg::Positional(v) | ast::Arg::Input { value: v, .. } => walk_expr(v, f),
+                    ast::Arg::Output { target, .. } => walk_expr(target, f),
+                }
+            }
+        }
     }
 }
 

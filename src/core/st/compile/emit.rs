@@ -11,7 +11,7 @@ use crate::value::{BinOp, Elem, UnOp};
 
 use super::ctx::{Ctx, Cv, Storage};
 use super::decl::MAX_FRAME;
-use super::expr::{cv_slot, ArgT, CallT, TExpr, TK};
+use super::expr::{cv_slot, ArgT, CallT, GateT, TExpr, TK};
 use super::stdlib::Std;
 use super::stmt::{TStmt, TS};
 use super::types::{ArrayTy, Prim, Ty};
@@ -399,7 +399,59 @@ impl<'c, 'a> Em<'c, 'a> {
             }
             TK::Call(call) => self.call_fn(call, &e.ty, true),
             TK::Std(op, args) => self.std(*op, args, &e.ty),
+            TK::Gate(g) => {
+                let base = self.sp;
+                let off = g.en.as_ref().map(|en| {
+                    self.value(en);
+                    self.op(Op::GotoIf { target: 0, when: false })
+                });
+                self.eno_stores(g.eno.iter().map(|(t, n)| (t, *n)), true);
+                self.value(&g.value);
+                if let Some(off) = off {
+                    let end = self.op(Op::Goto(0));
+                    let here = self.pc();
+                    self.patch(off, here);
+                    self.sp = base;
+                    self.eno_stores(g.eno.iter().map(|(t, n)| (t, *n)), false);
+                    let image = self.cx.default_image(&e.ty, None);
+                    self.push_image(&image, &e.ty);
+                    let here = self.pc();
+                    self.patch(end, here);
+                }
+            }
         }
+    }
+
+    /// `ran` (negated for a negated binding) into each `ENO => target`.
+    fn eno_stores<'t>(&mut self, targets: impl Iterator<Item = (&'t TExpr, bool)>, ran: bool) {
+        for (target, negated) in targets {
+            let v = TExpr::konst(
+                Cv::Int(i128::from(ran != negated)),
+                Ty::Prim(Prim::Bool),
+                target.span,
+            );
+            self.store(target, Src::Expr(&v));
+        }
+    }
+
+    /// Pushes a value of `ty` given as its bytes (a scalar's slot, or the pointer to a copy of
+    /// an aggregate kept in variable memory).
+    fn push_image(&mut self, image: &[u8], ty: &Ty) {
+        if ty.is_aggregate() {
+            let at = self.cx.alloc_var(image);
+            self.op(Op::AddrOf(Place::Var(at)));
+            return;
+        }
+        let elem = self.elem(ty);
+        let size = elem.size() as usize;
+        let mut raw = [0u8; 8];
+        raw[..size].copy_from_slice(&image[..size]);
+        let mut slot = u64::from_le_bytes(raw);
+        if elem.is_signed() && size < 8 {
+            let shift = 64 - size * 8;
+            slot = (((slot << shift) as i64) >> shift) as u64;
+        }
+        self.push_slot(slot);
     }
 
     fn std(&mut self, op: Std, args: &[TExpr], ty: &Ty) {
@@ -464,6 +516,35 @@ impl<'c, 'a> Em<'c, 'a> {
                     self.patch(j, end);
                 }
                 self.sp = base + 1;
+            }
+            Std::Chain(cmp) => {
+                // each input once, into a temporary; then each pair compared, all ANDed
+                let elem = if matches!(args[0].ty, Ty::Str(_)) {
+                    Elem::U64
+                } else {
+                    self.elem(&args[0].ty)
+                };
+                let mut temps = Vec::new();
+                for a in args {
+                    let t = self.alloc_tmp(8);
+                    self.value(a);
+                    self.op(Op::Store { elem, at: Place::Frame(t) });
+                    temps.push(t);
+                }
+                for (k, w) in temps.windows(2).enumerate() {
+                    self.op(Op::Fetch { elem, at: Place::Frame(w[0]) });
+                    self.op(Op::Fetch { elem, at: Place::Frame(w[1]) });
+                    if matches!(args[0].ty, Ty::Str(_)) {
+                        self.op(Op::Str { op: StrOp::Compare, cap: 0 });
+                        self.op(Op::PushInt(0));
+                        self.op(Op::Cmp { op: cmp, elem: Elem::I64 });
+                    } else {
+                        self.op(Op::Cmp { op: cmp, elem });
+                    }
+                    if k > 0 {
+                        self.op(Op::Bin { op: BinOp::And, elem: Elem::Bool });
+                    }
+                }
             }
             Std::Len => {
                 self.value(&args[0]);
@@ -538,8 +619,39 @@ impl<'c, 'a> Em<'c, 'a> {
         };
     }
 
-    /// A FUNCTION call; leaves its result (a scalar, or a pointer to a copy) when `want`.
+    /// A FUNCTION call; leaves its result (a scalar, or a pointer to a copy) when `want`. With
+    /// an implicit EN FALSE: nothing of the call, each `ENO =>` target FALSE, and the result's
+    /// initial value (what the result holds before the body runs).
     fn call_fn(&mut self, call: &CallT, ty: &Ty, want: bool) {
+        let Some(en) = &call.en else {
+            return self.call_fn_enabled(call, ty, want);
+        };
+        let base = self.sp;
+        self.value(en);
+        let off = self.op(Op::GotoIf { target: 0, when: false });
+        self.call_fn_enabled(call, ty, want);
+        let end = self.op(Op::Goto(0));
+        let here = self.pc();
+        self.patch(off, here);
+        self.sp = base;
+        self.eno_off(call);
+        if want && *ty != Ty::Void {
+            let size = self.size(ty) as usize;
+            let image = self.cx.pous[call.pou].frame_image[..size].to_vec();
+            self.push_image(&image, ty);
+        }
+        let here = self.pc();
+        self.patch(end, here);
+    }
+
+    /// FALSE (TRUE for a negated binding) into the `ENO =>` targets of a call that did not run.
+    fn eno_off(&mut self, call: &CallT) {
+        let targets: EnoTargets =
+            call.outs.iter().filter(|o| o.eno).map(|o| (o.target.clone(), o.negated)).collect();
+        self.eno_stores(targets.iter().map(|(t, n)| (t, *n)), false);
+    }
+
+    fn call_fn_enabled(&mut self, call: &CallT, ty: &Ty, want: bool) {
         // arguments that call functions themselves: into temporaries first
         let mut pre: Vec<Option<u32>> = Vec::new();
         for a in &call.args {
@@ -676,6 +788,43 @@ impl<'c, 'a> Em<'c, 'a> {
                 Inst::Ptr(t)
             }
         };
+        // An implicit EN FALSE: nothing of the call, the instance's ENO and the `ENO =>`
+        // targets FALSE.
+        let Some(en) = &call.en else {
+            return self.fb_call_enabled(where_, call);
+        };
+        self.value(en);
+        let off = self.op(Op::GotoIf { target: 0, when: false });
+        self.fb_call_enabled(where_, call);
+        let end = self.op(Op::Goto(0));
+        let here = self.pc();
+        self.patch(off, here);
+        if let Some(v) = self.cx.pous[call.pou].eno {
+            let Storage::Inst(off) = self.cx.pous[call.pou].vars[v].storage else {
+                unreachable!("an FB's ENO is in its instance")
+            };
+            match where_ {
+                Inst::Static(s) => {
+                    let s = s.plus(off);
+                    self.op(Op::PushInt(0));
+                    self.op_static(Op::Store { elem: Elem::Bool, at: s.place }, s);
+                }
+                Inst::Ptr(t) => {
+                    self.op(Op::Fetch { elem: Elem::U64, at: Place::Frame(t) });
+                    if off != 0 {
+                        self.op(Op::Offset(off));
+                    }
+                    self.op(Op::PushInt(0));
+                    self.op(Op::StoreInd(Elem::Bool));
+                }
+            }
+        }
+        self.eno_off(call);
+        let here = self.pc();
+        self.patch(end, here);
+    }
+
+    fn fb_call_enabled(&mut self, where_: Inst, call: &CallT) {
         for a in &call.args {
             self.store_arg(a, None, Some(where_));
         }
@@ -840,7 +989,23 @@ impl<'c, 'a> Em<'c, 'a> {
         self.max_sp = 0;
         self.mark_statement();
         match &s.k {
-            TS::Assign(t, v) => self.store(t, Src::Expr(v)),
+            TS::Assign(t, v) => match ungated(v) {
+                // `v := F(EN := c, …)`: with c FALSE the assignment is not made, as CODESYS
+                // leaves the variable a box with EN/ENO is connected to.
+                Some((en, inner, eno)) => {
+                    self.value(&en);
+                    let off = self.op(Op::GotoIf { target: 0, when: false });
+                    self.store(t, Src::Expr(&inner));
+                    let end = self.op(Op::Goto(0));
+                    let here = self.pc();
+                    self.patch(off, here);
+                    self.sp = 0;
+                    self.eno_stores(eno.iter().map(|(t, n)| (t, *n)), false);
+                    let here = self.pc();
+                    self.patch(end, here);
+                }
+                None => self.store(t, Src::Expr(v)),
+            },
             TS::Eval(e) => {
                 if let TK::Call(call) = &e.k {
                     self.call_fn(call, &e.ty, false);
@@ -1009,6 +1174,62 @@ impl<'c, 'a> Em<'c, 'a> {
         self.check_depth();
         self.tmp = saved_tmp;
         self.line = saved_line;
+    }
+
+    /// A FUNCTION's or FB's entry, before its first statement: a declared EN FALSE returns at
+    /// once with ENO FALSE; ENO is TRUE on entry; each edge input's value is computed.
+    fn entry(&mut self, p: usize) {
+        let pou = &self.cx.pous[p];
+        let place = |v: usize| match pou.vars[v].storage {
+            Storage::Frame(o) => Place::Frame(o),
+            Storage::Inst(o) => Place::This(o),
+            _ => unreachable!("a FUNCTION's or FB's own variable"),
+        };
+        let en = pou.en.map(place);
+        let eno = pou.eno.map(place);
+        // A FUNCTION's implicit ENO starts TRUE from its frame's initial image; an FB's ENO
+        // may have been left FALSE by its body or by a call with EN FALSE.
+        let set_eno = eno.filter(|_| {
+            !pou.eno_implicit
+                || pou.kind == PouKind::FunctionBlock
+                    && (pou.eno_assigned || pou.called_with_en || pou.en.is_some())
+        });
+        let edges: Vec<(Place, Place, Place, bool)> = pou
+            .edges
+            .iter()
+            .map(|e| (place(e.input), place(e.memory), Place::This(e.value), e.rising))
+            .collect();
+        if let Some(en) = en {
+            self.op(Op::Fetch { elem: Elem::Bool, at: en });
+            let run = self.op(Op::GotoIf { target: 0, when: true });
+            if let Some(eno) = eno {
+                self.op(Op::PushInt(0));
+                self.op(Op::Store { elem: Elem::Bool, at: eno });
+            }
+            self.op(Op::Return);
+            let here = self.pc();
+            self.patch(run, here);
+        }
+        if let Some(eno) = set_eno {
+            self.op(Op::PushInt(1));
+            self.op(Op::Store { elem: Elem::Bool, at: eno });
+        }
+        for (input, memory, value, rising) in edges {
+            // R_EDGE: input AND NOT memory; F_EDGE: NOT input AND memory (memory: the input at
+            // the previous execution)
+            self.op(Op::Fetch { elem: Elem::Bool, at: input });
+            if !rising {
+                self.op(Op::Un { op: UnOp::Not, elem: Elem::Bool });
+            }
+            self.op(Op::Fetch { elem: Elem::Bool, at: memory });
+            if rising {
+                self.op(Op::Un { op: UnOp::Not, elem: Elem::Bool });
+            }
+            self.op(Op::Bin { op: BinOp::And, elem: Elem::Bool });
+            self.op(Op::Store { elem: Elem::Bool, at: value });
+            self.op(Op::Fetch { elem: Elem::Bool, at: input });
+            self.op(Op::Store { elem: Elem::Bool, at: memory });
+        }
     }
 
     fn close_loop(&mut self, l: Loop, cont: u32, end: u32) {
@@ -1196,6 +1417,34 @@ impl<'c, 'a> Em<'c, 'a> {
     }
 }
 
+/// `ENO => target` bindings: each target, and whether the binding is negated.
+type EnoTargets = Vec<(TExpr, bool)>;
+
+/// A value that is a call with an implicit EN (a FUNCTION's or a standard function's),
+/// implicitly converted or not: its EN, the value without it, and its `ENO =>` targets.
+fn ungated(v: &TExpr) -> Option<(TExpr, TExpr, EnoTargets)> {
+    match &v.k {
+        TK::Conv(inner) => {
+            let (en, inner, eno) = ungated(inner)?;
+            Some((en, TExpr { k: TK::Conv(Box::new(inner)), ..v.clone() }, eno))
+        }
+        TK::Call(call) => {
+            let en = call.en.as_deref()?.clone();
+            let eno = call.outs.iter().filter(|o| o.eno).map(|o| (o.target.clone(), o.negated));
+            let eno = eno.collect();
+            let call = CallT { en: None, ..(**call).clone() };
+            Some((en, TExpr { k: TK::Call(Box::new(call)), ..v.clone() }, eno))
+        }
+        TK::Gate(g) => {
+            let en = g.en.clone()?;
+            let eno = g.eno.clone();
+            let g = GateT { en: None, ..(**g).clone() };
+            Some((en, TExpr { k: TK::Gate(Box::new(g)), ..v.clone() }, eno))
+        }
+        _ => None,
+    }
+}
+
 #[derive(Debug, Clone, Copy)]
 enum Inst {
     Static(Static),
@@ -1237,6 +1486,7 @@ pub fn compile_body(cx: &mut Ctx<'_>, p: usize, body: &[TStmt]) -> Body {
             em.op(Op::Copy(frame_vars));
         }
     }
+    em.entry(p);
     em.stmts(body);
     em.line = end_line;
     em.mark_statement();

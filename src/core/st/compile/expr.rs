@@ -9,6 +9,7 @@ use crate::st::ast::{
 use crate::st::dialect::Habit;
 use crate::value::{BinOp, UnOp};
 
+use super::codesys;
 use super::ctx::{suggest, Ctx, Cv, Scope, Storage, VarInfo};
 use super::stdlib::Std;
 use super::types::{fits, int_slot, real_slot, wrap, Prim, Ty};
@@ -45,6 +46,20 @@ pub enum TK {
     Call(Box<CallT>),
     /// A standard function needing more than one op.
     Std(Std, Vec<TExpr>),
+    /// A standard function called with `EN` or `ENO`.
+    Gate(Box<GateT>),
+}
+
+/// A standard function's call with `EN := en` and `ENO => …` (IEC 61131-3 ed3): when
+/// `en` is FALSE, nothing of `value` runs, the node's value is its type's default and every
+/// ENO target gets FALSE; when TRUE (or not given), each ENO target gets TRUE, then `value`
+/// runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GateT {
+    pub en: Option<TExpr>,
+    pub value: TExpr,
+    /// `ENO => target` (`NOT ENO => target` when negated).
+    pub eno: Vec<(TExpr, bool)>,
 }
 
 /// A call's bound arguments.
@@ -55,6 +70,9 @@ pub struct CallT {
     /// (the callee's frame for a FUNCTION, the instance for an FB).
     pub args: Vec<ArgT>,
     pub outs: Vec<OutT>,
+    /// The implicit `EN := …` (the callee declares no EN): when FALSE, nothing of the call
+    /// happens (no argument evaluated, no input assigned, no output read), ENO is FALSE.
+    pub en: Option<Box<TExpr>>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -72,6 +90,8 @@ pub struct OutT {
     pub ty: Ty,
     pub target: TExpr,
     pub negated: bool,
+    /// `ENO => target`: given FALSE when an implicit EN is FALSE.
+    pub eno: bool,
 }
 
 impl TExpr {
@@ -103,6 +123,11 @@ impl TExpr {
             TK::Index(a, ix) => a.has_call() || ix.iter().any(TExpr::has_call),
             TK::Bin(_, a, b) | TK::Cmp(_, a, b) => a.has_call() || b.has_call(),
             TK::Std(_, args) => args.iter().any(TExpr::has_call),
+            TK::Gate(g) => {
+                g.en.as_ref().is_some_and(TExpr::has_call)
+                    || g.value.has_call()
+                    || g.eno.iter().any(|(t, _)| t.has_call())
+            }
         }
     }
 
@@ -508,7 +533,7 @@ impl<'a> Ctx<'a> {
                                 VarKind::Local | VarKind::Instance | VarKind::Static,
                                 Access::Read,
                             ) => {
-                                self.habit(file, id.span, Habit::ReadFbInternal);
+                                self.habit(Habit::ReadFbInternal, file, id.span);
                             }
                             (VarKind::Output, _) => {
                                 self.error(
@@ -701,11 +726,15 @@ impl<'a> Ctx<'a> {
                 } else if let (true, Some(cv)) = (v.constant, &v.value) {
                     return TExpr::konst(cv.clone(), v.ty.clone(), span);
                 }
-                return TExpr {
-                    k: TK::Var { storage: v.storage, by_ref: v.by_ref },
-                    ty: v.ty,
-                    span,
+                if access != Access::Read && self.pous[p].eno == Some(i) {
+                    self.pous[p].eno_assigned = true;
+                }
+                // An edge input reads, in its body, the edge computed at the call's entry.
+                let storage = match v.edge_value {
+                    Some(at) => Storage::Inst(at),
+                    None => v.storage,
                 };
+                return TExpr { k: TK::Var { storage, by_ref: v.by_ref }, ty: v.ty, span };
             }
             if pou.kind == PouKind::Function && id.is(&pou.name) && scope.visible == pou.vars.len()
             {
@@ -1069,6 +1098,18 @@ impl<'a> Ctx<'a> {
         if super::calendar::is_calendar_arith(op, pa, pb) {
             return self.calendar_arith(op, a, b, span, file);
         }
+        if let Some(t) = self.bit_arithmetic(op, &a, &b, span, file) {
+            let bop = match op {
+                BinaryOp::Add => BinOp::Add,
+                BinaryOp::Sub => BinOp::Sub,
+                BinaryOp::Mul => BinOp::Mul,
+                BinaryOp::Div => BinOp::Div,
+                _ => BinOp::Mod,
+            };
+            let a = self.conv(a, t, Ty::Prim(t));
+            let b = self.conv(b, t, Ty::Prim(t));
+            return self.make_bin(bop, a, b, Ty::Prim(t), span, file);
+        }
         let Some((a, b, ty)) = self.unify(a, b, what, span, file) else {
             return TExpr::error(span);
         };
@@ -1134,7 +1175,11 @@ impl<'a> Ctx<'a> {
                     BinaryOp::Div => BinOp::Div,
                     _ => BinOp::Mod,
                 };
+                let bits = p.is_some_and(Prim::is_bits)
+                    && !is_enum
+                    && self.habit(Habit::BitArithmetic, file, span);
                 let ok = is_lit && !(op == BinaryOp::Mod && ty == Ty::RealLit)
+                    || bits
                     || match p {
                         Some(p) if !is_enum => {
                             if op == BinaryOp::Mod {
@@ -1176,6 +1221,36 @@ impl<'a> Ctx<'a> {
                 self.make_bin(BinOp::Expt, a, b, ty, span, file)
             }
         }
+    }
+
+    /// The type of `a op b` when CODESYS computes it and IEC 61131-3 has none: arithmetic
+    /// (`+ - * / MOD`) between a bit string and another bit string, an integer or a real, of
+    /// different types ([`codesys::bit_arithmetic_type`]). `None` for the standard's cases.
+    fn bit_arithmetic(
+        &mut self,
+        op: BinaryOp,
+        a: &TExpr,
+        b: &TExpr,
+        span: Span,
+        file: usize,
+    ) -> Option<Prim> {
+        if !matches!(
+            op,
+            BinaryOp::Add | BinaryOp::Sub | BinaryOp::Mul | BinaryOp::Div | BinaryOp::Mod
+        ) {
+            return None;
+        }
+        let scalar = |t: &Ty| match t {
+            Ty::Enum(_) => None,
+            t => t.prim(&self.types),
+        };
+        let (x, y) = (scalar(&a.ty)?, scalar(&b.ty)?);
+        let t = codesys::bit_arithmetic_type(x, y).filter(|_| x != y)?;
+        if op == BinaryOp::Mod && t.is_real() {
+            return None;
+        }
+        let habit = if t.is_real() { Habit::BitWithReal } else { Habit::BitArithmetic };
+        self.habit(habit, file, span).then_some(t)
     }
 
     /// A binary node, folded when both sides are constants.
@@ -1280,12 +1355,15 @@ impl<'a> Ctx<'a> {
             return TExpr::error(span);
         }
         self.record_call(scope, p, span);
+        if self.pous[p].file == self.prelude_file
+            && codesys::UTIL_BCD.iter().any(|n| self.pous[p].name.eq_ignore_ascii_case(n))
+        {
+            self.habit(Habit::UtilBcd, file, span);
+        }
         let bound = self.bind_args(p, args, span, scope);
         let ty = self.pous[p].result.clone();
         match bound {
-            Some((args, outs)) => {
-                TExpr { k: TK::Call(Box::new(CallT { pou: p, args, outs })), ty, span }
-            }
+            Some(call) => TExpr { k: TK::Call(Box::new(call)), ty, span },
             None => TExpr::error(span),
         }
     }
@@ -1331,7 +1409,7 @@ impl<'a> Ctx<'a> {
             return Some(None);
         }
         self.record_call(scope, action, span);
-        Some(Some((inst, CallT { pou: action, args: Vec::new(), outs: Vec::new() })))
+        Some(Some((inst, CallT { pou: action, args: Vec::new(), outs: Vec::new(), en: None })))
     }
 
     /// A function block instance called as a statement.
@@ -1348,8 +1426,8 @@ impl<'a> Ctx<'a> {
             Ty::Error => None,
             Ty::Fb(p) => {
                 self.record_call(scope, p, span);
-                let (args, outs) = self.bind_args(p, args, span, scope)?;
-                Some((inst, CallT { pou: p, args, outs }))
+                let call = self.bind_args(p, args, span, scope)?;
+                Some((inst, call))
             }
             _ => {
                 let n = expr_text(callee);
@@ -1363,14 +1441,8 @@ impl<'a> Ctx<'a> {
         }
     }
 
-    /// Binds a call's arguments to `p`'s parameters.
-    fn bind_args(
-        &mut self,
-        p: usize,
-        args: &[Arg],
-        span: Span,
-        scope: Scope,
-    ) -> Option<(Vec<ArgT>, Vec<OutT>)> {
+    /// Binds a call's arguments to `p`'s parameters (an implicit `EN := …` included).
+    fn bind_args(&mut self, p: usize, args: &[Arg], span: Span, scope: Scope) -> Option<CallT> {
         let file = scope.file;
         let name = self.pous[p].name.clone();
         let positional = args.iter().any(|a| matches!(a, Arg::Positional(_)));
@@ -1387,9 +1459,28 @@ impl<'a> Ctx<'a> {
         let mut given: Vec<usize> = Vec::new();
         let mut out_args = Vec::new();
         let mut outs = Vec::new();
+        let mut en: Option<Box<TExpr>> = None;
         let mut pos = 0usize;
         for arg in args {
             let (vi, value) = match arg {
+                // The standard's EN, implicit: a condition of the call, not stored.
+                Arg::Input { name: pn, value } if pn.is("EN") && self.pous[p].en.is_none() => {
+                    if en.is_some() {
+                        self.error(file, value.span, format!("`{}` is given twice", pn.name));
+                        ok = false;
+                        continue;
+                    }
+                    let bool_ty = Ty::Prim(Prim::Bool);
+                    let t = self.check_expr(value, scope, Some(&bool_ty));
+                    let t = self.coerce(t, &bool_ty, file);
+                    if t.ty.is_error() {
+                        ok = false;
+                        continue;
+                    }
+                    self.pous[p].called_with_en = true;
+                    en = Some(Box::new(t));
+                    continue;
+                }
                 Arg::Positional(e) => {
                     let Some(&vi) = self.pous[p].positional.get(pos) else {
                         let n = self.pous[p].positional.len();
@@ -1443,7 +1534,8 @@ impl<'a> Ctx<'a> {
                         continue;
                     }
                     let (Storage::Inst(off) | Storage::Frame(off)) = v.storage else { continue };
-                    outs.push(OutT { offset: off, ty: v.ty, target: t, negated: *negated });
+                    let eno = self.pous[p].eno == Some(vi);
+                    outs.push(OutT { offset: off, ty: v.ty, target: t, negated: *negated, eno });
                     continue;
                 }
             };
@@ -1505,7 +1597,7 @@ impl<'a> Ctx<'a> {
             self.error(file, span, format!("the call of `{name}` is missing VAR_IN_OUT `{m}`"));
             ok = false;
         }
-        ok.then_some((out_args, outs))
+        ok.then_some(CallT { pou: p, args: out_args, outs, en })
     }
 
     /// The parameter `pn` of `name` given as a formal argument: an input or in-out with `:=`,

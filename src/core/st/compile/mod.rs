@@ -22,8 +22,13 @@
 //!   with `=>`. Positional and named arguments cannot be mixed.
 //! - FUNCTION variables are initialized at each call; `VAR_TEMP` of a PROGRAM or FB at each
 //!   execution.
+//! - EN/ENO: an implicit EN FALSE skips the whole call; `v := F(EN := c, …)` with c FALSE is
+//!   no assignment, and such a call inside an expression is its result's initial value. ENO is
+//!   a variable of a FUNCTION or FB only when something may read it (`PouInfo::eno`).
+//! - What is accepted of CODESYS's habits beyond the standard: `codesys`.
 
 mod calendar;
+mod codesys;
 mod ctx;
 mod decl;
 mod emit;
@@ -107,6 +112,7 @@ pub fn compile_with(
         located_init: Vec::new(),
         enum_values: HashMap::new(),
         in_prelude: false,
+        eno_read: files.iter().any(decl::reads_eno),
         prelude_file,
         for_vars: Vec::new(),
         loop_depth: 0,
@@ -115,7 +121,7 @@ pub fn compile_with(
     // the habits the parser accepted
     for (f, file) in files.iter().enumerate() {
         for noted in &file.habits {
-            cx.habit(f, noted.span, noted.habit);
+            cx.habit(noted.habit, f, noted.span);
         }
     }
     cx.collect();
@@ -134,20 +140,26 @@ pub fn compile_with(
     // check every user POU; the prelude's only when used
     let user: Vec<usize> =
         (0..cx.pous.len()).filter(|&p| cx.pous[p].file != prelude_file).collect();
+    let mut checked: Vec<(usize, Vec<stmt::TStmt>)> = Vec::new();
     for p in user {
-        check_and_compile(&mut cx, p);
+        checked.push((p, check(&mut cx, p)));
     }
     let mut i = 0;
     while i < cx.pous.len() {
         // the prelude's POUs that user code calls, transitively
-        let used =
-            cx.pous.iter().any(|q| q.body.is_some() && q.callees.iter().any(|(c, _)| *c == i));
-        if used && cx.pous[i].body.is_none() && !cx.pous[i].checked {
-            check_and_compile(&mut cx, i);
+        let used = cx.pous.iter().any(|q| q.checked && q.callees.iter().any(|(c, _)| *c == i));
+        if used && !cx.pous[i].checked {
+            checked.push((i, check(&mut cx, i)));
             i = 0;
             continue;
         }
         i += 1;
+    }
+    // Code once every body is checked: a body's entry depends on how the others call it
+    // (`PouInfo::called_with_en`).
+    for (p, body) in checked {
+        let compiled = emit::compile_body(&mut cx, p, &body);
+        cx.pous[p].body = Some(compiled);
     }
     check_recursion(&mut cx);
 
@@ -274,11 +286,9 @@ fn retained_in(cx: &Ctx<'_>, ty: &Ty, at: u32, all: bool, out: &mut Vec<(u32, u3
     }
 }
 
-fn check_and_compile(cx: &mut Ctx<'_>, p: usize) {
+fn check(cx: &mut Ctx<'_>, p: usize) -> Vec<stmt::TStmt> {
     cx.pous[p].checked = true;
-    let body = cx.check_pou_body(p);
-    let compiled = emit::compile_body(cx, p, &body);
-    cx.pous[p].body = Some(compiled);
+    cx.check_pou_body(p)
 }
 
 /// The PROGRAM an instance names.

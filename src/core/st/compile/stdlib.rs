@@ -1,19 +1,24 @@
 //! The standard functions of IEC 61131-3, checked and lowered to the typed ops: numeric
 //! (ABS SQRT LN LOG EXP EXPT SIN COS TAN ASIN ACOS ATAN, ADD SUB MUL DIV MOD, MIN MAX LIMIT,
-//! SEL MUX, MOVE, TRUNC), bit strings (SHL SHR ROL ROR, AND OR XOR NOT), every `<T1>_TO_<T2>`
-//! between elementary types, and strings (LEN LEFT RIGHT MID CONCAT FIND INSERT DELETE REPLACE).
+//! SEL MUX, MOVE, TRUNC), comparisons (GT GE EQ LE LT NE), bit strings (SHL SHR ROL ROR, AND
+//! OR XOR NOT), every `<T1>_TO_<T2>` between elementary types and the overloaded `TO_<T>`,
+//! `TRUNC_<T>`, and strings (LEN LEFT RIGHT MID CONCAT FIND INSERT DELETE REPLACE); each with
+//! `EN` and `ENO`. CODESYS's `SIZEOF` and `TIME()` are here too (`super::codesys`); the BCD
+//! conversions are FUNCTIONs of the prelude.
 //!
 //! Conversions of TIME follow CODESYS: `TIME_TO_DINT(T#1s)` is 1000 (milliseconds, truncated
 //! toward zero), `DINT_TO_TIME(1000)` is `T#1s`; `TIME_TO_REAL` gives milliseconds with their
 //! fraction. Conversions between numbers and STRING are not supported (an error says so).
 //! `MUX` with a selector beyond its inputs gives the last input.
 
-use crate::st::ast::{Arg, BinaryOp, Expr, Ident, Span};
+use crate::lang::ops::CmpOp;
+use crate::st::ast::{Arg, BinaryOp, Expr, ExprKind, Ident, Span, TypeRef};
 use crate::value::{BinOp, UnOp};
 
 use super::ctx::{suggest, Ctx, Cv, Scope};
-use super::expr::{TExpr, TK};
+use super::expr::{Access, GateT, TExpr, TK};
 use super::types::{Prim, Ty};
+use crate::st::dialect::Habit;
 
 /// A standard function that is more than one op.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -39,6 +44,9 @@ pub enum Std {
     Concat,
     /// `FIND(IN1, IN2)`, an INT.
     Find,
+    /// `GT(a, b, c, …)` and the others of three inputs or more: a BOOL, TRUE when the
+    /// comparison holds for each input and the next (each evaluated once).
+    Chain(CmpOp),
     /// `<T>_TO_STRING(v)`: the text of a scalar (the node's type gives the capacity).
     ToString(crate::value::Scalar),
     /// `STRING_TO_<T>(s)`: the value a text gives a scalar, 0 for one it does not.
@@ -49,7 +57,7 @@ const NAMES: &[&str] = &[
     "ABS", "SQRT", "LN", "LOG", "EXP", "EXPT", "SIN", "COS", "TAN", "ASIN", "ACOS", "ATAN", "ADD",
     "SUB", "MUL", "DIV", "MOD", "MIN", "MAX", "LIMIT", "SEL", "MUX", "SHL", "SHR", "ROL", "ROR",
     "AND", "OR", "XOR", "NOT", "MOVE", "TRUNC", "LEN", "LEFT", "RIGHT", "MID", "CONCAT", "FIND",
-    "INSERT", "DELETE", "REPLACE",
+    "INSERT", "DELETE", "REPLACE", "GT", "GE", "EQ", "LE", "LT", "NE", "SIZEOF",
 ];
 
 /// Whether `name` is a standard function's (`SEL`, `INT_TO_REAL`…): reserved, so that no
@@ -79,9 +87,10 @@ fn formals(name: &str, n: usize) -> Vec<String> {
             v.extend((0..n.saturating_sub(1)).map(|i| format!("IN{i}")));
             return v;
         }
-        "EXPT" | "SUB" | "DIV" | "MOD" | "FIND" => &["IN1", "IN2"],
+        "EXPT" | "SUB" | "DIV" | "MOD" | "FIND" | "NE" => &["IN1", "IN2"],
         _ if super::calendar::function(name).is_some() => &["IN1", "IN2"],
-        "ADD" | "MUL" | "MIN" | "MAX" | "AND" | "OR" | "XOR" | "CONCAT" => {
+        "ADD" | "MUL" | "MIN" | "MAX" | "AND" | "OR" | "XOR" | "CONCAT" | "GT" | "GE" | "EQ"
+        | "LE" | "LT" => {
             return (1..=n).map(|i| format!("IN{i}")).collect();
         }
         _ => &["IN"],
@@ -197,8 +206,96 @@ impl<'a> Ctx<'a> {
         ok
     }
 
-    /// A call of a standard function (or an unknown name).
+    /// A call of a standard function (or an unknown name), with `EN` and `ENO` as the standard
+    /// gives every function (IEC 61131-3 ed3): `EN := c` runs it only when `c` is
+    /// TRUE (its value is then its type's default), `ENO => v` gives `v` whether it ran (a
+    /// standard function's errors are operation errors, not ENO).
     pub fn std_call(
+        &mut self,
+        id: &Ident,
+        args: &[Arg],
+        span: Span,
+        scope: Scope,
+        expected: Option<&Ty>,
+    ) -> TExpr {
+        let file = scope.file;
+        let enable = |a: &Arg| match a {
+            Arg::Input { name, .. } => name.is("EN"),
+            Arg::Output { name, .. } => name.is("ENO"),
+            Arg::Positional(_) => false,
+        };
+        if !args.iter().any(enable) {
+            return self.std_call_plain(id, args, span, scope, expected);
+        }
+        if args.iter().any(|a| matches!(a, Arg::Positional(_))) {
+            self.error(
+                file,
+                span,
+                format!("the call of `{}` mixes positional and named arguments", id.name),
+            );
+            return TExpr::error(span);
+        }
+        let bool_ty = Ty::Prim(Prim::Bool);
+        let mut en: Option<TExpr> = None;
+        let mut eno = Vec::new();
+        let mut rest = Vec::new();
+        let mut ok = true;
+        for a in args {
+            match a {
+                Arg::Input { name, value } if name.is("EN") => {
+                    if en.is_some() {
+                        self.error(file, value.span, format!("`{}` is given twice", name.name));
+                        ok = false;
+                        continue;
+                    }
+                    let t = self.check_expr(value, scope, Some(&bool_ty));
+                    let t = self.coerce(t, &bool_ty, file);
+                    ok &= !t.ty.is_error();
+                    en = Some(t);
+                }
+                Arg::Output { name, target, negated } if name.is("ENO") => {
+                    let t = self.check_place(target, scope, Access::Write, None);
+                    if t.ty.is_error() {
+                        ok = false;
+                        continue;
+                    }
+                    if !self.assignable(&bool_ty, &t.ty) {
+                        let (a, b) = (self.ty_name(&bool_ty), self.ty_name(&t.ty));
+                        self.error(
+                            file,
+                            target.span,
+                            format!("type mismatch: `{a}` cannot be assigned to `{b}`"),
+                        );
+                        ok = false;
+                        continue;
+                    }
+                    eno.push((t, *negated));
+                }
+                other => rest.push(other.clone()),
+            }
+        }
+        let value = self.std_call_plain(id, &rest, span, scope, expected);
+        if value.ty.is_error() || !ok {
+            return TExpr::error(span);
+        }
+        // a constant of no type yet: the type its context wants, as an argument would take
+        let value = match value.ty {
+            Ty::IntLit | Ty::RealLit => {
+                let to = match expected.and_then(|e| e.prim(&self.types)) {
+                    Some(p) if p.is_num() && !matches!(expected, Some(Ty::Enum(_))) => p,
+                    _ if value.ty == Ty::RealLit => Prim::LReal,
+                    _ => Prim::DInt,
+                };
+                self.coerce(value, &Ty::Prim(to), file)
+            }
+            _ => value,
+        };
+        let ty = value.ty.clone();
+        TExpr { k: TK::Gate(Box::new(GateT { en, value, eno })), ty, span }
+    }
+
+    /// A standard function's call, without `EN` and `ENO`.
+    fn std_call_plain(
         &mut self,
         id: &Ident,
         args: &[Arg],
@@ -217,6 +314,14 @@ impl<'a> Ctx<'a> {
         if upper == "__UTC" && self.in_prelude {
             let ty = Ty::Prim(Prim::Cal(crate::value::Calendar::LDt));
             return TExpr { k: TK::Std(Std::Utc, vec![]), ty, span };
+        }
+        // CODESYS: `TIME()`, the clock the timers read, as a TIME.
+        if upper == "TIME" && self.habit(Habit::TimeClock, file, span) {
+            if !args.is_empty() {
+                self.error(file, span, format!("`{upper}` takes no arguments"));
+                return TExpr::error(span);
+            }
+            return TExpr { k: TK::Std(Std::Now, vec![]), ty: Ty::Prim(Prim::Time), span };
         }
         use crate::lang::ops::SystemRequest;
         let system = match upper.as_str() {
@@ -282,6 +387,24 @@ impl<'a> Ctx<'a> {
             let y = self.check_expr(a[1], scope, Some(&Ty::Prim(pb)));
             let y = self.coerce(y, &Ty::Prim(pb), file);
             return self.calendar_function(&upper, x, y, span, file);
+        }
+        // `TO_<T>(x)`: the conversion of x's type to T; `TRUNC_<T>(r)`, `<R>_TRUNC_<T>(r)`.
+        if let Some(to) = upper.strip_prefix("TO_") {
+            let dst = Prim::from_name(to).map(Ty::Prim).or((to == "STRING").then_some(Ty::Str(80)));
+            if let Some(dst) = dst {
+                return self.overloaded_conversion(&upper, dst, args, span, scope);
+            }
+        }
+        if let Some((from, to)) = upper.split_once("TRUNC_") {
+            let src = match from {
+                "" => Some(None),
+                "REAL_" => Some(Some(Prim::Real)),
+                "LREAL_" => Some(Some(Prim::LReal)),
+                _ => None,
+            };
+            if let (Some(src), Some(dst)) = (src, Prim::from_name(to).filter(|p| p.is_int())) {
+                return self.trunc_to(&upper, src, dst, args, span, scope);
+            }
         }
         if let Some((from, to)) = upper.split_once("_TO_") {
             let src =
@@ -560,17 +683,27 @@ impl<'a> Ctx<'a> {
                     return TExpr::error(span);
                 }
                 let x = self.scalar_arg(a[0], scope, expected, Prim::DWord);
-                let p = x.ty.prim(&self.types);
+                let p = x.ty.prim(&self.types).filter(|_| !matches!(x.ty, Ty::Enum(_)));
+                // CODESYS: an integer is shifted as the bit pattern of its width.
+                let integer =
+                    p.is_some_and(Prim::is_int) && self.habit(Habit::IntegerShift, file, a[0].span);
                 if !self.want(
                     &x,
-                    p.is_some_and(Prim::is_bits) && !matches!(x.ty, Ty::Enum(_)),
+                    p.is_some_and(Prim::is_bits) || integer,
                     name,
                     "a bit string (BYTE, WORD, DWORD, LWORD)",
                     file,
                 ) {
                     return TExpr::error(span);
                 }
-                let p = p.expect("bits");
+                let int_ty = p.filter(|_| integer);
+                let (x, p) = match int_ty {
+                    Some(i) => {
+                        let b = super::codesys::bits_of(i);
+                        (self.conv(x, b, Ty::Prim(b)), b)
+                    }
+                    None => (x, p.expect("bits")),
+                };
                 let c = self.scalar_arg(a[1], scope, None, Prim::LInt);
                 let cp = c.ty.prim(&self.types);
                 if !self.want(&c, cp.is_some_and(Prim::is_int), name, "an integer count", file) {
@@ -601,7 +734,93 @@ impl<'a> Ctx<'a> {
                     let c = self.make_bin(bring, c, w, ulint, span, file);
                     self.conv(c, p, Ty::Prim(p))
                 };
-                self.make_bin(op, x, c, Ty::Prim(p), span, file)
+                let r = self.make_bin(op, x, c, Ty::Prim(p), span, file);
+                match int_ty {
+                    Some(i) => self.conv(r, i, Ty::Prim(i)),
+                    None => r,
+                }
+            }
+            "GT" | "GE" | "EQ" | "LE" | "LT" | "NE" => {
+                // extensible but NE (IEC 61131-3 ed3): `GT(a, b, c)` is
+                // `a > b AND b > c`, each input evaluated once
+                let max = if name == "NE" { 2 } else { usize::MAX };
+                if !self.arity(name, n, 2, max, span, file) {
+                    return TExpr::error(span);
+                }
+                let op = match name {
+                    "GT" => BinaryOp::Gt,
+                    "GE" => BinaryOp::Ge,
+                    "EQ" => BinaryOp::Eq,
+                    "LE" => BinaryOp::Le,
+                    "LT" => BinaryOp::Lt,
+                    _ => BinaryOp::Ne,
+                };
+                let mut items: Vec<TExpr> = Vec::new();
+                for e in &a {
+                    let hint = items.iter().find(|t| !matches!(t.ty, Ty::IntLit | Ty::RealLit));
+                    let hint = hint.map(|t| t.ty.clone());
+                    items.push(self.check_expr(e, scope, hint.as_ref()));
+                }
+                if n == 2 {
+                    let y = items.pop().expect("2");
+                    let x = items.pop().expect("2");
+                    return self.binary_op(op, x, y, span, file);
+                }
+                // the type of all: each pair checked as the operator checks it
+                let mut ty = items[0].ty.clone();
+                for t in &items[1..] {
+                    let pa = TExpr { k: TK::Const(Cv::Int(0)), ty: ty.clone(), span };
+                    let pb = TExpr { k: TK::Const(Cv::Int(0)), ty: t.ty.clone(), span: t.span };
+                    let Some((_, _, u)) =
+                        self.unify(pa, pb, super::expr::op_text(op), t.span, file)
+                    else {
+                        return TExpr::error(span);
+                    };
+                    ty = u;
+                }
+                if matches!(ty, Ty::IntLit | Ty::RealLit) {
+                    ty = Ty::Prim(if ty == Ty::RealLit { Prim::LReal } else { Prim::LInt });
+                }
+                let mut conv: Vec<TExpr> = Vec::new();
+                for t in items {
+                    let t = if matches!(t.ty, Ty::IntLit | Ty::RealLit) {
+                        self.coerce(t, &ty, file)
+                    } else {
+                        self.value_as(t, &ty, file)
+                    };
+                    if t.ty.is_error() {
+                        return TExpr::error(span);
+                    }
+                    conv.push(t);
+                }
+                // checked as the operator on the first pair (the type allows it or not)
+                let probe = self.binary_op(op, conv[0].clone(), conv[1].clone(), span, file);
+                if probe.ty.is_error() {
+                    return probe;
+                }
+                let cmp = match op {
+                    BinaryOp::Gt => CmpOp::Gt,
+                    BinaryOp::Ge => CmpOp::Ge,
+                    BinaryOp::Eq => CmpOp::Eq,
+                    BinaryOp::Le => CmpOp::Le,
+                    _ => CmpOp::Lt,
+                };
+                if conv.iter().all(TExpr::is_const) {
+                    // folded pair by pair
+                    let mut all = true;
+                    for w in conv.windows(2) {
+                        let r = self.binary_op(op, w[0].clone(), w[1].clone(), span, file);
+                        all &= r.const_int() == Some(1);
+                    }
+                    return TExpr::konst(Cv::Int(i128::from(all)), Ty::Prim(Prim::Bool), span);
+                }
+                TExpr { k: TK::Std(Std::Chain(cmp), conv), ty: Ty::Prim(Prim::Bool), span }
+            }
+            "SIZEOF" => {
+                if !self.arity(name, n, 1, 1, span, file) {
+                    return TExpr::error(span);
+                }
+                self.sizeof(a[0], span, scope)
             }
             "NOT" => {
                 if !self.arity(name, n, 1, 1, span, file) {
@@ -764,6 +983,44 @@ impl<'a> Ctx<'a> {
         }
     }
 
+    /// CODESYS's `SIZEOF(x)`: the bytes of a variable (of any expression's type, which is not
+    /// evaluated) or of a type named, as an untyped integer constant.
+    fn sizeof(&mut self, e: &Expr, span: Span, scope: Scope) -> TExpr {
+        let file = scope.file;
+        if !self.habit(Habit::Sizeof, file, span) {
+            return TExpr::error(span);
+        }
+        if let ExprKind::Name(id) = &e.kind {
+            let is_var = scope
+                .pou
+                .is_some_and(|p| self.pous[p].lookup(&id.name).is_some_and(|i| i < scope.visible))
+                || self.global_names.contains_key(&id.name.to_ascii_lowercase());
+            let is_type = Prim::from_name(&id.name).is_some()
+                || self.type_names.contains_key(&id.name.to_ascii_lowercase())
+                || self
+                    .pou_names
+                    .get(&id.name.to_ascii_lowercase())
+                    .is_some_and(|&p| self.pous[p].kind == crate::st::ast::PouKind::FunctionBlock);
+            if is_type && !is_var {
+                let ty = self.resolve_type_ref(&TypeRef::Named(id.clone()), scope);
+                let size = self.types.size(&ty);
+                return TExpr::konst(Cv::Int(i128::from(size)), Ty::IntLit, span);
+            }
+        }
+        // No code: what it would call is not called (but a call in it is checked).
+        let saved = self.pous.iter().map(|p| p.callees.len()).collect::<Vec<_>>();
+        let t = self.check_expr(e, scope, None);
+        for (p, n) in saved.into_iter().enumerate() {
+            self.pous[p].callees.truncate(n);
+        }
+        let sized = !matches!(t.ty, Ty::IntLit | Ty::RealLit | Ty::Void);
+        if !self.want(&t, sized, "SIZEOF", "a variable or a type", file) {
+            return TExpr::error(span);
+        }
+        let size = self.types.size(&t.ty);
+        TExpr::konst(Cv::Int(i128::from(size)), Ty::IntLit, span)
+    }
+
     fn lint_len(&mut self, s: &TExpr, span: Span) -> TExpr {
         let len = TExpr { k: TK::Std(Std::Len, vec![s.clone()]), ty: Ty::Prim(Prim::Int), span };
         self.conv(len, Prim::LInt, Ty::Prim(Prim::LInt))
@@ -856,25 +1113,23 @@ impl<'a> Ctx<'a> {
         }
     }
 
-    /// `<T>_TO_STRING`, `STRING_TO_<T>` (and `STRING_TO_STRING`, a copy).
+    /// `<T>_TO_STRING`, `STRING_TO_<T>` (and `STRING_TO_STRING`, a copy) of `t`, checked
+    /// already (a value of `src` when it is no STRING).
     fn string_conversion(
         &mut self,
         name: &str,
         src: Ty,
         dst: Ty,
-        arg: &Expr,
+        t: TExpr,
         span: Span,
-        scope: Scope,
+        file: usize,
     ) -> TExpr {
-        let file = scope.file;
         let scalar = |cx: &Self, t: &Ty| t.prim(&cx.types).and_then(|p| p.value_type().scalar());
         match (&src, &dst) {
             (Ty::Str(_), Ty::Str(_)) => {
-                let t = self.check_expr(arg, scope, None);
                 self.want(&t, matches!(t.ty, Ty::Str(_)), name, "a STRING", file).then_some(t)
             }
             (Ty::Str(_), _) => {
-                let t = self.check_expr(arg, scope, None);
                 let to = scalar(self, &dst).expect("a prim");
                 self.want(&t, matches!(t.ty, Ty::Str(_)), name, "a STRING", file).then(|| TExpr {
                     k: TK::Std(Std::FromString(to), vec![t]),
@@ -883,7 +1138,6 @@ impl<'a> Ctx<'a> {
                 })
             }
             _ => {
-                let t = self.check_expr(arg, scope, Some(&src));
                 let t = self.coerce(t, &src, file);
                 let from = scalar(self, &src).expect("a prim");
                 (!t.ty.is_error()).then(|| TExpr {
@@ -912,11 +1166,68 @@ impl<'a> Ctx<'a> {
         if !self.arity(name, a.len(), 1, 1, span, file) {
             return TExpr::error(span);
         }
+        let expected = if matches!(src, Ty::Str(_)) { None } else { Some(&src) };
+        let t = self.check_expr(a[0], scope, expected);
+        self.convert(name, src, dst, t, span, file)
+    }
+
+    /// `TO_<T>(x)` (IEC 61131-3 ed3, the overloaded conversions): `<X>_TO_<T>(x)` for
+    /// the type X of x; an untyped constant is a `DINT` (a `LINT`, `ULINT` when it needs it) or
+    /// an `LREAL`, an enumeration value its base type's number.
+    fn overloaded_conversion(
+        &mut self,
+        name: &str,
+        dst: Ty,
+        args: &[Arg],
+        span: Span,
+        scope: Scope,
+    ) -> TExpr {
+        let file = scope.file;
+        let Some(a) = self.std_args("CONV", args, span, file) else {
+            return TExpr::error(span);
+        };
+        if !self.arity(name, a.len(), 1, 1, span, file) {
+            return TExpr::error(span);
+        }
+        let t = self.check_expr(a[0], scope, None);
+        let src = match &t.ty {
+            Ty::Error => return TExpr::error(span),
+            Ty::IntLit => {
+                let v = t.const_int().unwrap_or(0);
+                let p = [Prim::DInt, Prim::LInt, Prim::ULInt]
+                    .into_iter()
+                    .find(|&p| super::types::fits(p, v))
+                    .unwrap_or(Prim::ULInt);
+                Ty::Prim(p)
+            }
+            Ty::RealLit => Ty::Prim(Prim::LReal),
+            Ty::Str(_) => Ty::Str(80),
+            Ty::Prim(p) | Ty::Sub(p, _, _) => Ty::Prim(*p),
+            Ty::Enum(e) => Ty::Prim(self.types.enums[*e].base),
+            _ => {
+                self.want(&t, false, name, "an elementary value", file);
+                return TExpr::error(span);
+            }
+        };
+        // an enumeration's value is its number, of its base type
+        let t = if matches!(t.ty, Ty::Enum(_)) { TExpr { ty: src.clone(), ..t } } else { t };
+        self.convert(name, src, dst, t, span, file)
+    }
+
+    /// `<SRC>_TO_<DST>` of `t`, checked already.
+    fn convert(
+        &mut self,
+        name: &str,
+        src: Ty,
+        dst: Ty,
+        t: TExpr,
+        span: Span,
+        file: usize,
+    ) -> TExpr {
         if matches!(src, Ty::Str(_)) || matches!(dst, Ty::Str(_)) {
-            return self.string_conversion(name, src, dst, a[0], span, scope);
+            return self.string_conversion(name, src, dst, t, span, file);
         }
         let (sp, dp) = (src.prim(&self.types).expect("prim"), dst.prim(&self.types).expect("prim"));
-        let t = self.check_expr(a[0], scope, Some(&src));
         let t = if t.ty == Ty::IntLit && sp == Prim::Bool {
             match t.const_int() {
                 Some(v @ (0 | 1)) => TExpr::konst(Cv::Int(v), src.clone(), t.span),
@@ -989,6 +1300,39 @@ impl<'a> Ctx<'a> {
             }
             (false, false) => self.conv(t, dp, dst),
         }
+    }
+
+    /// `TRUNC_<T>(r)` and `<R>_TRUNC_<T>(r)` (`src` R, or any real when `None`): `r` toward
+    /// zero, as an integer T (saturated at T's range, NaN 0, as `TRUNC`).
+    fn trunc_to(
+        &mut self,
+        name: &str,
+        src: Option<Prim>,
+        dst: Prim,
+        args: &[Arg],
+        span: Span,
+        scope: Scope,
+    ) -> TExpr {
+        let file = scope.file;
+        let Some(a) = self.std_args("CONV", args, span, file) else {
+            return TExpr::error(span);
+        };
+        if !self.arity(name, a.len(), 1, 1, span, file) {
+            return TExpr::error(span);
+        }
+        let t = match src {
+            Some(r) => {
+                let t = self.check_expr(a[0], scope, Some(&Ty::Prim(r)));
+                self.coerce(t, &Ty::Prim(r), file)
+            }
+            None => self.scalar_arg(a[0], scope, None, Prim::LReal),
+        };
+        let p = t.ty.prim(&self.types);
+        if !self.want(&t, p.is_some_and(Prim::is_real), name, "a `REAL` or `LREAL`", file) {
+            return TExpr::error(span);
+        }
+        let t = self.un(UnOp::Trunc, t, span);
+        self.conv(t, dst, Ty::Prim(dst))
     }
 
     /// Binary operators for the function forms (`ADD(a, b)`).

@@ -808,9 +808,23 @@ impl<'a> Parser<'a> {
         }
         self.expect_p(P::Colon, Want::Colon)?;
         let ty = self.type_ref()?;
+        // `R_EDGE` / `F_EDGE` are names, not keywords, where a declaration can hold them.
+        let mut edge = None;
+        if self.at(&Tok::Ident) {
+            let at = self.span();
+            let kind = match self.text_of(self.pos).to_ascii_uppercase().as_str() {
+                "R_EDGE" => Some(Edge::Rising),
+                "F_EDGE" => Some(Edge::Falling),
+                _ => None,
+            };
+            if let Some(kind) = kind {
+                self.bump();
+                edge = Some((kind, at));
+            }
+        }
         let init = if self.eat_p(P::Assign) { Some(self.init()?) } else { None };
         self.end_decl(semi);
-        Ok(VarDecl { names, location, ty, init, span })
+        Ok(VarDecl { names, location, ty, init, edge, span })
     }
 
     /// The `;` after a declaration; when it is missing, goes on at the next one.

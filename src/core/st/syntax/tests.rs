@@ -764,6 +764,16 @@ fn decl(text: &str) -> VarDecl {
 }
 
 #[test]
+fn parses_edge_declarations() {
+    let d = decl("start, stop : BOOL R_EDGE;");
+    assert_eq!(d.edge, Some((Edge::Rising, sp(3, 20))));
+    assert_eq!(decl("x : bool f_edge;").edge.map(|e| e.0), Some(Edge::Falling));
+    assert_eq!(decl("x : BOOL := TRUE;").edge, None);
+    // only after the type: elsewhere a name
+    assert!(matches!(decl("R_EDGE : BOOL;").ty, TypeRef::Named(ref n) if n.is("BOOL")));
+}
+
+#[test]
 fn parses_variable_declarations() {
     let d = decl("a, b : INT := 5;");
     let names: Vec<&str> = d.names.iter().map(|n| n.name.as_str()).collect();

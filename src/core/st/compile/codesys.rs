@@ -1,0 +1,76 @@
+//! CODESYS's arithmetic and library habits that the checker accepts beyond IEC 61131-3
+//! (docs/ST.md marks each a **choice**): the types of bit-string arithmetic and the Util
+//! library's names. Each use is a [`Habit`](crate::st::dialect::Habit) noted with
+//! [`Ctx::habit`](super::ctx::Ctx::habit), which `[st] strict` refuses.
+
+use super::types::Prim;
+
+/// The functions of CODESYS's Util library the prelude holds (`prelude.st`): calling one is
+/// `Habit::UtilBcd`.
+pub const UTIL_BCD: &[&str] = &[
+    "BCD_TO_INT",
+    "INT_TO_BCD",
+    "BCD_TO_BYTE",
+    "BCD_TO_WORD",
+    "BCD_TO_DWORD",
+    "BYTE_TO_BCD",
+    "WORD_TO_BCD",
+    "DWORD_TO_BCD",
+];
+
+/// The type CODESYS computes `a op b` in (op one of `+ - * / MOD`) when one operand is a bit
+/// string and the other a bit string, an integer or a real, and they are not the same type:
+///
+/// - two bit strings: the wider one (`BYTE + WORD` is a `WORD`);
+/// - a bit string and an integer: the integer when it is wider (`BYTE + INT` is an `INT`), the
+///   bit string otherwise (`WORD + INT` is a `WORD`, `DWORD * SINT` a `DWORD`);
+/// - a bit string and a `REAL` or `LREAL`: the real (`Habit::BitWithReal`).
+///
+/// The operands are converted to that type (an integer to a bit string by its two's
+/// complement bits, as `INT_TO_WORD`), and the operation wraps at its width.
+pub fn bit_arithmetic_type(a: Prim, b: Prim) -> Option<Prim> {
+    let (bits, other) = match (a.is_bits(), b.is_bits()) {
+        (true, true) => return Some(if a.bits() >= b.bits() { a } else { b }),
+        (true, false) => (a, b),
+        (false, true) => (b, a),
+        (false, false) => return None,
+    };
+    if other.is_real() {
+        Some(other)
+    } else if other.is_int() {
+        Some(if other.bits() > bits.bits() { other } else { bits })
+    } else {
+        None
+    }
+}
+
+/// The bit string as wide as an integer type (what a shift of it works on).
+pub fn bits_of(p: Prim) -> Prim {
+    match p.bits() {
+        8 => Prim::Byte,
+        16 => Prim::Word,
+        32 => Prim::DWord,
+        _ => Prim::LWord,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bit_arithmetic_types_as_codesys() {
+        use Prim::*;
+        assert_eq!(bit_arithmetic_type(Byte, Word), Some(Word));
+        assert_eq!(bit_arithmetic_type(DWord, Byte), Some(DWord));
+        assert_eq!(bit_arithmetic_type(Byte, Int), Some(Int));
+        assert_eq!(bit_arithmetic_type(Word, Int), Some(Word));
+        assert_eq!(bit_arithmetic_type(SInt, DWord), Some(DWord));
+        assert_eq!(bit_arithmetic_type(LWord, ULInt), Some(LWord));
+        assert_eq!(bit_arithmetic_type(Byte, Real), Some(Real));
+        assert_eq!(bit_arithmetic_type(LWord, LReal), Some(LReal));
+        assert_eq!(bit_arithmetic_type(Byte, Time), None);
+        assert_eq!(bit_arithmetic_type(Byte, Bool), None);
+        assert_eq!(bit_arithmetic_type(Int, Real), None);
+    }
+}
