@@ -119,6 +119,60 @@ pub(super) fn moved(p: Pointer, n: u32) -> Pointer {
     Pointer { space: p.space, offset: p.offset.wrapping_add(n) }
 }
 
+/// The reference value of `p` (see `Op::Deref`): its slot with the space counted from 1, so
+/// that 0 is `NULL`.
+pub const REF_TAG: u64 = 1 << 32;
+
+/// Whether `size` bytes at `p` (one scalar's words at a word device, one bit at a bit
+/// device) are inside its memory area: variable memory (`vars` bytes), the frame area
+/// (`frame` bytes), device memory (`words` words).
+pub(super) fn reaches(p: Pointer, size: u32, words: usize, vars: usize, frame: usize) -> bool {
+    let offset = u64::from(p.offset);
+    match p.space {
+        Space::Var => offset + u64::from(size) <= vars as u64,
+        Space::Frame => offset + u64::from(size) <= frame as u64,
+        Space::Word => offset + u64::from(size.div_ceil(2).max(1)) <= words as u64,
+        Space::Bit => offset / 16 < words as u64,
+        Space::Discard => false,
+    }
+}
+
+/// The pointer a reference value holds, checked as `Op::Deref { size }` says.
+pub(super) fn deref(
+    reference: u64,
+    size: u32,
+    words: usize,
+    vars: usize,
+    frame: usize,
+) -> Result<Pointer, u16> {
+    if reference >> 32 == 0 {
+        return Err(super::ERR_REF_NULL);
+    }
+    let p = Pointer::from_slot(reference.wrapping_sub(REF_TAG));
+    let device = matches!(p.space, Space::Word | Space::Bit);
+    let ok = if size == 0 {
+        !device && reaches(p, 0, words, vars, frame)
+    } else {
+        reaches(p, size, words, vars, frame)
+    };
+    if ok {
+        Ok(p)
+    } else {
+        Err(super::ERR_REF_RANGE)
+    }
+}
+
+/// The reference value `reference` moved by `n` bytes (`Op::RefAdd`).
+pub(super) fn ref_add(reference: u64, n: u64) -> Result<u64, u16> {
+    let tag = reference >> 32;
+    let space = Pointer::from_slot(reference.wrapping_sub(REF_TAG)).space;
+    if tag != 0 && matches!(space, Space::Word | Space::Bit) {
+        return Err(super::ERR_REF_RANGE);
+    }
+    let offset = (reference as u32).wrapping_add(n as u32);
+    Ok(tag << 32 | u64::from(offset))
+}
+
 /// The `N` bytes at `at` of `buf`, if they are all inside it.
 #[inline(always)]
 fn le<const N: usize>(buf: &[u8], at: usize) -> Option<[u8; N]> {

@@ -278,6 +278,10 @@ impl<'a> Ctx<'a> {
                 }
                 Ty::Sub(p, l, h)
             }
+            TypeRef::Ref { kind, to, .. } => match self.resolve_type_ref(to, scope) {
+                Ty::Error => Ty::Error,
+                to => Ty::Ref(*kind, Rc::new(to)),
+            },
         }
     }
 

@@ -27,6 +27,7 @@ mod ctx;
 mod decl;
 mod emit;
 mod expr;
+mod refs;
 mod stdlib;
 mod stmt;
 pub mod types;
