@@ -117,7 +117,9 @@ fn read(project: &Project, vm: &Vm, name: &str) -> Result<(String, Option<ValueT
         ref ty => {
             let text = value::format(ty, vm.read_value(symbol.at, ty.elem()));
             match ty {
-                ValueType::Time | ValueType::Enum { .. } => format!("{text:?}"),
+                ValueType::Time | ValueType::Enum { .. } | ValueType::Reference { .. } => {
+                    format!("{text:?}")
+                }
                 _ => text,
             }
         }

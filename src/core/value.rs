@@ -521,6 +521,14 @@ pub enum ValueType {
     String {
         cap: u32,
     },
+    /// A reference (`REF_TO T`, `POINTER TO T`, `REFERENCE TO T`, named so in `type_name`):
+    /// 8 bytes, 0 for `NULL`, else a [`Pointer`]'s slot plus `1 << 32`. Shown as what it
+    /// points to ([`format_reference`]); never written by a client, never kept by an online
+    /// change or in the retain files (an offset is only meaningful in the memory layout it
+    /// was taken in).
+    Reference {
+        type_name: String,
+    },
 }
 
 impl ValueType {
@@ -533,6 +541,7 @@ impl ValueType {
             ValueType::Time => Elem::I64,
             ValueType::Enum { base, .. } => *base,
             ValueType::String { .. } => Elem::U8,
+            ValueType::Reference { .. } => Elem::U64,
         }
     }
 
@@ -582,6 +591,7 @@ pub fn type_name(ty: &ValueType) -> String {
         ValueType::Time => "TIME".into(),
         ValueType::Enum { type_name, .. } => type_name.clone(),
         ValueType::String { cap } => format!("STRING[{cap}]"),
+        ValueType::Reference { type_name } => type_name.clone(),
     }
 }
 
@@ -600,6 +610,7 @@ pub fn format(ty: &ValueType, slot: u64) -> String {
             }
         }
         ValueType::String { .. } => String::new(),
+        ValueType::Reference { .. } => format_reference(slot),
         scalar => {
             let mut text = String::new();
             if let Some(scalar) = scalar.scalar() {
@@ -609,6 +620,32 @@ pub fn format(ty: &ValueType, slot: u64) -> String {
             text
         }
     }
+}
+
+/// What a reference value points to, as tools show it: `NULL`; a device by its address
+/// (`D00100`, `P0040`); else the memory area and the byte offset in it: `vars+120` (variable
+/// memory), `frame+16` (the frame area of the task that took it); `invalid` for a reference
+/// that went nowhere (`ADR` of an element out of bounds).
+pub fn format_reference(slot: u64) -> String {
+    use crate::device::layout::Area;
+    if slot >> 32 == 0 {
+        return "NULL".into();
+    }
+    let p = Pointer::from_slot(slot.wrapping_sub(1 << 32));
+    let device = |word: u32, bit: Option<u8>| {
+        let area = [Area::P, Area::M, Area::K, Area::D]
+            .into_iter()
+            .find(|a| (a.base()..a.base() + a.word_count()).contains(&word))?;
+        Some(crate::device::Address { area, number: word - area.base(), bit }.to_string())
+    };
+    let text = match p.space {
+        Space::Var => Some(format!("vars+{}", p.offset)),
+        Space::Frame => Some(format!("frame+{}", p.offset)),
+        Space::Word => device(p.offset, None),
+        Space::Bit => device(p.offset / 16, Some((p.offset % 16) as u8)),
+        Space::Discard => None,
+    };
+    text.unwrap_or_else(|| "invalid".into())
 }
 
 /// A scalar type: what [`write_scalar`] writes and [`scalar_from_text`] reads, without
@@ -631,7 +668,9 @@ impl ValueType {
             ValueType::Unsigned(e) => Scalar::Unsigned(*e),
             ValueType::Real(e) => Scalar::Real(*e),
             ValueType::Time => Scalar::Time,
-            ValueType::Enum { .. } | ValueType::String { .. } => return None,
+            ValueType::Enum { .. } | ValueType::String { .. } | ValueType::Reference { .. } => {
+                return None
+            }
         })
     }
 }
@@ -771,6 +810,9 @@ pub fn parse(ty: &ValueType, text: &str) -> Result<u64, String> {
         }
         ValueType::String { cap } => {
             Err(format!("a STRING[{cap}] is not a single value: write its text"))
+        }
+        ValueType::Reference { type_name } => {
+            Err(format!("a {type_name} cannot be written: the program sets it (REF, ADR)"))
         }
         scalar => {
             let Some(scalar) = scalar.scalar() else { unreachable!("every other type is scalar") };

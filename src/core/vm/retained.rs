@@ -83,7 +83,10 @@ impl RetainedVariables {
     /// The retained leaves of `variables`.
     pub fn new(variables: &Variables) -> RetainedVariables {
         let size = variables.initial.len() as u64;
-        let retained = |s: &&Symbol| s.retain && s.at.space == Space::Var;
+        // A reference is not saved: its offset means nothing to another layout of memory.
+        let retained = |s: &&Symbol| {
+            s.retain && s.at.space == Space::Var && !matches!(s.ty, ValueType::Reference { .. })
+        };
         let mut leaves: Vec<RetainedLeaf> = variables
             .symbols
             .iter()

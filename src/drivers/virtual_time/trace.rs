@@ -180,7 +180,7 @@ pub fn push_json_value(line: &mut String, ty: &ValueType, slot: u64) {
     let numeric = match ty {
         ValueType::Real(_) => text.parse::<f64>().is_ok_and(f64::is_finite),
         ValueType::Enum { .. } => text.parse::<i64>().is_ok(),
-        ValueType::Time | ValueType::String { .. } => false,
+        ValueType::Time | ValueType::String { .. } | ValueType::Reference { .. } => false,
         _ => true,
     };
     if numeric {
