@@ -1034,6 +1034,25 @@ mod tests {
     use BinOp::*;
     use Elem::*;
 
+    #[test]
+    fn references_are_shown_by_what_they_point_to() {
+        let r = |space, offset| Pointer { space, offset }.to_slot() + (1 << 32);
+        assert_eq!(format_reference(0), "NULL");
+        assert_eq!(format_reference(12), "NULL");
+        assert_eq!(format_reference(r(Space::Var, 120)), "vars+120");
+        assert_eq!(format_reference(r(Space::Frame, 16)), "frame+16");
+        let d100 = crate::device::Address::parse("D00100").unwrap().as_word().unwrap();
+        assert_eq!(format_reference(r(Space::Word, u32::from(d100.0))), "D00100");
+        let p44 = crate::device::Address::parse("P0044").unwrap().as_bit().unwrap();
+        let bit = u32::from(p44.word) * 16 + p44.mask.trailing_zeros();
+        assert_eq!(format_reference(r(Space::Bit, bit)), "P0044");
+        assert_eq!(format_reference(r(Space::Discard, 0)), "invalid");
+        let ty = ValueType::Reference { type_name: "POINTER TO INT".into() };
+        assert_eq!(format(&ty, 0), "NULL");
+        assert_eq!(ty.bytes(), 8);
+        assert!(parse(&ty, "5").is_err());
+    }
+
     fn i(elem: Elem, v: i64) -> u64 {
         normalize(elem, v as u64)
     }

@@ -1137,7 +1137,13 @@ fn interpret<'a, const ST: bool, C: Clock>(
                     typed::copy(vars, &mut state.frame, dst, src, *n as usize);
                 }
                 Op::Deref { size } if ST => {
-                    match typed::deref(top!(), *size, mem.words().len(), vars.len(), state.frame.len()) {
+                    match typed::deref(
+                        top!(),
+                        *size,
+                        mem.words().len(),
+                        vars.len(),
+                        state.frame.len(),
+                    ) {
                         Ok(p) => set_top!(p.to_slot()),
                         Err(code) => {
                             set_top!(Pointer::DISCARD.to_slot());

@@ -650,6 +650,65 @@ mod tests {
 
     const UN_OPS: [UnOp; 3] = [UnOp::Neg, UnOp::Not, UnOp::Abs];
 
+    fn reference(space: Space, offset: u32) -> u64 {
+        Pointer { space, offset }.to_slot() + REF_TAG
+    }
+
+    #[test]
+    fn a_dereference_is_checked_against_its_area() {
+        use super::super::{ERR_REF_NULL, ERR_REF_RANGE};
+        let (words, vars, frame) = (100, 64, 32);
+        let deref = |r, size| deref(r, size, words, vars, frame);
+        assert_eq!(deref(0, 2), Err(ERR_REF_NULL));
+        // NULL moved stays NULL
+        assert_eq!(deref(ref_add(0, 8).unwrap(), 2), Err(ERR_REF_NULL));
+        assert_eq!(
+            deref(reference(Space::Var, 62), 2),
+            Ok(Pointer { space: Space::Var, offset: 62 })
+        );
+        // crossing the end of the area for the access's width
+        assert_eq!(deref(reference(Space::Var, 63), 2), Err(ERR_REF_RANGE));
+        assert_eq!(deref(reference(Space::Var, 64), 1), Err(ERR_REF_RANGE));
+        assert_eq!(
+            deref(reference(Space::Frame, 24), 8),
+            Ok(Pointer { space: Space::Frame, offset: 24 })
+        );
+        assert_eq!(deref(reference(Space::Frame, 25), 8), Err(ERR_REF_RANGE));
+        // a path may start at the end of the area; its end is checked by `CheckRef`
+        assert!(deref(reference(Space::Var, 64), 0).is_ok());
+        assert_eq!(deref(reference(Space::Var, 65), 0), Err(ERR_REF_RANGE));
+        // device words: a DINT takes 2 words, an 8-bit value 1
+        assert!(deref(reference(Space::Word, 98), 4).is_ok());
+        assert_eq!(deref(reference(Space::Word, 99), 4), Err(ERR_REF_RANGE));
+        assert!(deref(reference(Space::Word, 99), 1).is_ok());
+        assert!(deref(reference(Space::Bit, 1599), 1).is_ok());
+        assert_eq!(deref(reference(Space::Bit, 1600), 1), Err(ERR_REF_RANGE));
+        // no member or element into device memory
+        assert_eq!(deref(reference(Space::Word, 0), 0), Err(ERR_REF_RANGE));
+        // the discard pointer and garbage spaces go nowhere
+        assert_eq!(deref(reference(Space::Discard, 0), 1), Err(ERR_REF_RANGE));
+        assert_eq!(deref(7 << 32, 1), Err(ERR_REF_RANGE));
+        assert!(reaches(Pointer { space: Space::Var, offset: 60 }, 4, words, vars, frame));
+        assert!(!reaches(Pointer { space: Space::Var, offset: 61 }, 4, words, vars, frame));
+    }
+
+    #[test]
+    fn pointer_arithmetic_stays_in_its_area() {
+        use super::super::ERR_REF_RANGE;
+        let r = reference(Space::Var, 10);
+        assert_eq!(ref_add(r, 6), Ok(reference(Space::Var, 16)));
+        assert_eq!(ref_add(r, (-4i64) as u64), Ok(reference(Space::Var, 6)));
+        // below 0 the offset wraps within 32 bits: the same area, far outside it
+        assert_eq!(ref_add(r, (-11i64) as u64), Ok(reference(Space::Var, u32::MAX)));
+        // however large, n never carries into the area
+        assert_eq!(
+            ref_add(reference(Space::Frame, 0), u64::from(u32::MAX) + 1),
+            Ok(reference(Space::Frame, 0))
+        );
+        assert_eq!(ref_add(reference(Space::Word, 5), 2), Err(ERR_REF_RANGE));
+        assert_eq!(ref_add(reference(Space::Bit, 5), 0), Err(ERR_REF_RANGE));
+    }
+
     /// Slots of every kind: small, extreme, garbage in the high bits, float bit patterns
     /// (NaN, infinities, signed zeros, subnormals).
     fn slots() -> Vec<u64> {

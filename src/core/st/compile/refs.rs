@@ -30,7 +30,9 @@ impl<'a> Ctx<'a> {
                 self.error(
                     file,
                     span,
-                    format!("`{text}` is `{n}`, not a `REF_TO` or `POINTER TO`: `^` cannot be applied"),
+                    format!(
+                        "`{text}` is `{n}`, not a `REF_TO` or `POINTER TO`: `^` cannot be applied"
+                    ),
                 );
                 TExpr::error(span)
             }
@@ -72,7 +74,13 @@ impl<'a> Ctx<'a> {
     }
 
     /// `REF(v)`, `ADR(v)`, `__ISVALIDREF(r)`; `None` when `id` is none of them.
-    pub fn ref_call(&mut self, id: &Ident, args: &[Arg], span: Span, scope: Scope) -> Option<TExpr> {
+    pub fn ref_call(
+        &mut self,
+        id: &Ident,
+        args: &[Arg],
+        span: Span,
+        scope: Scope,
+    ) -> Option<TExpr> {
         let upper = id.name.to_ascii_uppercase();
         let kind = match upper.as_str() {
             "REF" => Some(RefKind::RefTo),
@@ -97,7 +105,11 @@ impl<'a> Ctx<'a> {
                 }
                 other => {
                     let n = self.ty_name(&other);
-                    self.error(file, arg.span, format!("`__ISVALIDREF` needs a reference, not `{n}`"));
+                    self.error(
+                        file,
+                        arg.span,
+                        format!("`__ISVALIDREF` needs a reference, not `{n}`"),
+                    );
                     TExpr::error(span)
                 }
             });
@@ -132,7 +144,11 @@ impl<'a> Ctx<'a> {
         }
         let Some((kind, _)) = t.ty.as_ref() else {
             let n = self.ty_name(&t.ty);
-            self.error(file, target.span, format!("`REF=` needs a reference on its left, not `{n}`"));
+            self.error(
+                file,
+                target.span,
+                format!("`REF=` needs a reference on its left, not `{n}`"),
+            );
             return None;
         };
         if matches!(&value.kind, ExprKind::Name(id) if id.is("NULL")) {
