@@ -296,6 +296,19 @@ mod tests {
     }
 
     #[test]
+    fn references_are_not_saved() {
+        let pointer = ValueType::Reference { type_name: "POINTER TO INT".into() };
+        let v = variables(vec![
+            symbol("main.n", ValueType::Signed(Elem::I16), 0, true),
+            symbol("main.p", pointer, 8, true),
+        ]);
+        let r = RetainedVariables::new(&v);
+        let names: Vec<&str> = r.leaves().iter().map(|l| l.name.as_str()).collect();
+        assert_eq!(names, ["main.n"]);
+        assert_eq!(&*r.ranges, &[(0, 2)]);
+    }
+
+    #[test]
     fn type_texts() {
         assert_eq!(type_text(&ValueType::Unsigned(Elem::U32)), "UDINT");
         assert_eq!(type_text(&ValueType::Real(Elem::F64)), "LREAL");
