@@ -4,7 +4,7 @@
 
 use crate::lang::ops::CmpOp;
 use crate::st::ast::{
-    self, Arg, BinaryOp, Expr, ExprKind, Literal, PouKind, Span, UnaryOp, VarKind,
+    self, Arg, BinaryOp, Expr, ExprKind, Literal, PouKind, RefKind, Span, UnaryOp, VarKind,
 };
 use crate::value::{BinOp, UnOp};
 
@@ -1456,7 +1456,10 @@ impl<'a> Ctx<'a> {
                 }
                 out_args.push(ArgT { offset: off, ty: v.ty, by_ref: true, value: t });
             } else {
-                let t = self.check_expr(value, scope, Some(&v.ty));
+                let t = match v.ty {
+                    Ty::Ref(RefKind::Reference, _) => self.bound_reference(value, scope, &v.ty),
+                    _ => self.check_expr(value, scope, Some(&v.ty)),
+                };
                 let t = self.coerce(t, &v.ty, file);
                 if t.ty.is_error() {
                     ok = false;

@@ -163,6 +163,17 @@ impl<'a> Ctx<'a> {
         Some((t, r))
     }
 
+    /// The value given to a `REFERENCE TO` input (`fb(r := v)`): a reference to the variable
+    /// `v` (bound to it, as CODESYS does), or a reference value as it is.
+    pub fn bound_reference(&mut self, value: &Expr, scope: Scope, ty: &Ty) -> TExpr {
+        let v = self.check_place(value, scope, Access::Read, Some(ty));
+        let v = self.undo_auto_deref(v);
+        if matches!(v.ty, Ty::Ref(..) | Ty::Null | Ty::Error) || !v.is_place() {
+            return v;
+        }
+        self.reference_to(v, RefKind::Reference)
+    }
+
     /// Whether a reference of type `from` may be stored in one of type `to`: `NULL` in any;
     /// between `POINTER TO`s whatever they point to (as CODESYS); otherwise to the same type.
     pub fn ref_assignable(&self, from: &Ty, to: &Ty) -> bool {
