@@ -52,12 +52,10 @@ pub(crate) struct Body {
 }
 
 /// True if native code executes `op` itself; the others (the clock, strings, system requests,
-/// the integer power, which can fail, and the checks of references, which can fail too) go to
-/// the interpreter.
+/// the integer power, which can fail) go to the interpreter.
 pub(crate) fn is_native(op: &Op) -> bool {
     match op {
         Op::Now | Op::Str { .. } | Op::System(_) => false,
-        Op::Deref { .. } | Op::CheckRef(_) | Op::RefAdd => false,
         Op::Bin { op: BinOp::Expt, elem } => elem.is_float(),
         _ => true,
     }
