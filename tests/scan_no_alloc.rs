@@ -312,7 +312,7 @@ fn typed_programs_do_not_allocate() {
     let program = harness::vm::typed_program(
         "typed",
         code,
-        vec![u64::from(1.5f32.to_bits()), plcd::vm::REF_TAG],
+        vec![u64::from(1.5f32.to_bits()), plcd::value::REF_TAG],
         16,
     );
     let mut vm = Vm::for_programs([&program]);

@@ -115,7 +115,11 @@ fn read(project: &Project, vm: &Vm, name: &str) -> Result<(String, Option<ValueT
             format!("{:?}", String::from_utf8_lossy(&vm.read_string(symbol.at)))
         }
         ref ty => {
-            let text = value::format(ty, vm.read_value(symbol.at, ty.elem()));
+            let slot = vm.read_value(symbol.at, ty.elem());
+            let text = match ty {
+                ValueType::Reference { .. } => plcd::device::format_reference(slot),
+                _ => value::format(ty, slot),
+            };
             match ty {
                 ValueType::Time | ValueType::Enum { .. } | ValueType::Reference { .. } => {
                     format!("{text:?}")

@@ -472,6 +472,10 @@ pub enum Space {
     Discard = 4,
 }
 
+/// What a reference value adds to its pointer's slot: its space is counted from 1, so that 0
+/// (zeroed memory, the default) is `NULL`.
+pub const REF_TAG: u64 = 1 << 32;
+
 /// A run-time pointer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Pointer {
@@ -484,6 +488,16 @@ impl Pointer {
 
     pub const fn to_slot(self) -> u64 {
         (self.space as u64) << 32 | self.offset as u64
+    }
+
+    /// The pointer a reference value holds (`REF_TO`, `POINTER TO`, `REFERENCE TO`: the
+    /// pointer's slot plus [`REF_TAG`]); `None` for `NULL` (any value below [`REF_TAG`]).
+    pub const fn from_reference(reference: u64) -> Option<Pointer> {
+        if reference < REF_TAG {
+            None
+        } else {
+            Some(Pointer::from_slot(reference.wrapping_sub(REF_TAG)))
+        }
     }
 
     pub const fn from_slot(slot: u64) -> Pointer {
@@ -622,30 +636,21 @@ pub fn format(ty: &ValueType, slot: u64) -> String {
     }
 }
 
-/// What a reference value points to, as tools show it: `NULL`; a device by its address
-/// (`D00100`, `P0040`); else the memory area and the byte offset in it: `vars+120` (variable
-/// memory), `frame+16` (the frame area of the task that took it); `invalid` for a reference
-/// that went nowhere (`ADR` of an element out of bounds).
+/// What a reference value points to, as tools show it: `NULL`; else the memory area and the
+/// offset in it: `vars+120` (byte 120 of variable memory), `frame+16` (of the frame area of
+/// the task that took it), `word+4992` and `bit+64` (device memory by word and by bit: see
+/// `device::format_reference`, which names the device); `invalid` for a reference that went
+/// nowhere (`ADR` of an element out of bounds).
 pub fn format_reference(slot: u64) -> String {
-    use crate::device::layout::Area;
-    if slot >> 32 == 0 {
-        return "NULL".into();
-    }
-    let p = Pointer::from_slot(slot.wrapping_sub(1 << 32));
-    let device = |word: u32, bit: Option<u8>| {
-        let area = [Area::P, Area::M, Area::K, Area::D]
-            .into_iter()
-            .find(|a| (a.base()..a.base() + a.word_count()).contains(&word))?;
-        Some(crate::device::Address { area, number: word - area.base(), bit }.to_string())
+    let Some(p) = Pointer::from_reference(slot) else { return "NULL".into() };
+    let area = match p.space {
+        Space::Var => "vars",
+        Space::Frame => "frame",
+        Space::Word => "word",
+        Space::Bit => "bit",
+        Space::Discard => return "invalid".into(),
     };
-    let text = match p.space {
-        Space::Var => Some(format!("vars+{}", p.offset)),
-        Space::Frame => Some(format!("frame+{}", p.offset)),
-        Space::Word => device(p.offset, None),
-        Space::Bit => device(p.offset / 16, Some((p.offset % 16) as u8)),
-        Space::Discard => None,
-    };
-    text.unwrap_or_else(|| "invalid".into())
+    format!("{area}+{}", p.offset)
 }
 
 /// A scalar type: what [`write_scalar`] writes and [`scalar_from_text`] reads, without
@@ -1036,17 +1041,18 @@ mod tests {
 
     #[test]
     fn references_are_shown_by_what_they_point_to() {
-        let r = |space, offset| Pointer { space, offset }.to_slot() + (1 << 32);
+        let r = |space, offset| Pointer { space, offset }.to_slot() + REF_TAG;
         assert_eq!(format_reference(0), "NULL");
         assert_eq!(format_reference(12), "NULL");
         assert_eq!(format_reference(r(Space::Var, 120)), "vars+120");
         assert_eq!(format_reference(r(Space::Frame, 16)), "frame+16");
-        let d100 = crate::device::Address::parse("D00100").unwrap().as_word().unwrap();
-        assert_eq!(format_reference(r(Space::Word, u32::from(d100.0))), "D00100");
-        let p44 = crate::device::Address::parse("P0044").unwrap().as_bit().unwrap();
-        let bit = u32::from(p44.word) * 16 + p44.mask.trailing_zeros();
-        assert_eq!(format_reference(r(Space::Bit, bit)), "P0044");
+        assert_eq!(format_reference(r(Space::Word, 4992)), "word+4992");
+        assert_eq!(format_reference(r(Space::Bit, 64)), "bit+64");
         assert_eq!(format_reference(r(Space::Discard, 0)), "invalid");
+        assert_eq!(
+            Pointer::from_reference(r(Space::Frame, 3)),
+            Some(Pointer { space: Space::Frame, offset: 3 })
+        );
         let ty = ValueType::Reference { type_name: "POINTER TO INT".into() };
         assert_eq!(format(&ty, 0), "NULL");
         assert_eq!(ty.bytes(), 8);

@@ -27,7 +27,6 @@ use crate::lang::ops::{ArithOp, Combine, Op, Src, SystemRequest, Wide, WideConv}
 use crate::lang::{Language, Program, Variables, CALL_DEPTH, LOOP_DEPTH, ST_CALL_DEPTH};
 use crate::value::{self, Elem, Pointer, Space};
 use typed::EvalStack;
-pub use typed::REF_TAG;
 
 /// Operation error: division by zero.
 pub const ERR_DIVIDE_BY_ZERO: u16 = 0x3400;

@@ -119,10 +119,6 @@ pub(super) fn moved(p: Pointer, n: u32) -> Pointer {
     Pointer { space: p.space, offset: p.offset.wrapping_add(n) }
 }
 
-/// The reference value of `p` (see `Op::Deref`): its slot with the space counted from 1, so
-/// that 0 is `NULL`.
-pub const REF_TAG: u64 = 1 << 32;
-
 /// Whether `size` bytes at `p` (one scalar's words at a word device, one bit at a bit
 /// device) are inside its memory area: variable memory (`vars` bytes), the frame area
 /// (`frame` bytes), device memory (`words` words).
@@ -145,10 +141,9 @@ pub(super) fn deref(
     vars: usize,
     frame: usize,
 ) -> Result<Pointer, u16> {
-    if reference >> 32 == 0 {
+    let Some(p) = Pointer::from_reference(reference) else {
         return Err(super::ERR_REF_NULL);
-    }
-    let p = Pointer::from_slot(reference.wrapping_sub(REF_TAG));
+    };
     let device = matches!(p.space, Space::Word | Space::Bit);
     let ok = if size == 0 {
         !device && reaches(p, 0, words, vars, frame)
@@ -164,13 +159,12 @@ pub(super) fn deref(
 
 /// The reference value `reference` moved by `n` bytes (`Op::RefAdd`).
 pub(super) fn ref_add(reference: u64, n: u64) -> Result<u64, u16> {
-    let tag = reference >> 32;
-    let space = Pointer::from_slot(reference.wrapping_sub(REF_TAG)).space;
-    if tag != 0 && matches!(space, Space::Word | Space::Bit) {
+    let space = Pointer::from_reference(reference).map(|p| p.space);
+    if matches!(space, Some(Space::Word | Space::Bit)) {
         return Err(super::ERR_REF_RANGE);
     }
     let offset = (reference as u32).wrapping_add(n as u32);
-    Ok(tag << 32 | u64::from(offset))
+    Ok(reference >> 32 << 32 | u64::from(offset))
 }
 
 /// The `N` bytes at `at` of `buf`, if they are all inside it.
@@ -651,7 +645,7 @@ mod tests {
     const UN_OPS: [UnOp; 3] = [UnOp::Neg, UnOp::Not, UnOp::Abs];
 
     fn reference(space: Space, offset: u32) -> u64 {
-        Pointer { space, offset }.to_slot() + REF_TAG
+        Pointer { space, offset }.to_slot() + crate::value::REF_TAG
     }
 
     #[test]

@@ -176,7 +176,10 @@ fn watch_name(names: &[String], watch: u16) -> String {
 /// TIME (an IEC literal) and for an enumeration (its value's name, or a number for a value
 /// that has none).
 pub fn push_json_value(line: &mut String, ty: &ValueType, slot: u64) {
-    let text = crate::value::format(ty, slot);
+    let text = match ty {
+        ValueType::Reference { .. } => crate::device::format_reference(slot),
+        _ => crate::value::format(ty, slot),
+    };
     let numeric = match ty {
         ValueType::Real(_) => text.parse::<f64>().is_ok_and(f64::is_finite),
         ValueType::Enum { .. } => text.parse::<i64>().is_ok(),

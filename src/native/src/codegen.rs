@@ -48,8 +48,8 @@ use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Switch, Variab
 use plcd_core::lang::native::{NativeRegs, StFrame};
 use plcd_core::lang::ops::{CmpOp, Op, Place};
 use plcd_core::lang::{Program, EVAL_DEPTH, ST_CALL_DEPTH};
-use plcd_core::value::{BinOp, Elem, Pointer, Space, UnOp};
-use plcd_core::vm::{ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE, ERR_REF_NULL, REF_TAG};
+use plcd_core::value::{BinOp, Elem, Pointer, Space, UnOp, REF_TAG};
+use plcd_core::vm::{ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE, ERR_REF_NULL};
 
 use crate::analysis::{is_native, Analysis};
 use crate::carry::{self, in_bytes, Key};

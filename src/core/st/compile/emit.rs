@@ -7,8 +7,7 @@ use crate::device::{BitRef, WordRef};
 use crate::lang::ops::{CmpOp, StrOp};
 use crate::lang::{Op, Place, EVAL_DEPTH};
 use crate::st::ast::PouKind;
-use crate::value::{BinOp, Elem, UnOp};
-use crate::vm::REF_TAG;
+use crate::value::{BinOp, Elem, UnOp, REF_TAG};
 
 use super::ctx::{Ctx, Cv, Storage};
 use super::decl::MAX_FRAME;

@@ -5,7 +5,7 @@
 //! - `ctx`: the compiler's state, names and suggestions;
 //! - `decl`: declarations: types, globals, POU interfaces, memory layout, initial images,
 //!   located variables (the IEC direct address table is at `decl::iec_address`);
-//! - `expr`, `stmt`, `stdlib`: checking into a typed tree;
+//! - `expr`, `stmt`, `stdlib`, `refs` (references and pointers): checking into a typed tree;
 //! - `emit`: the typed tree to ops; `link` (here): one program per instance, symbols.
 //!
 //! Choices (docs/ST.md repeats them):
@@ -22,6 +22,9 @@
 //!   with `=>`. Positional and named arguments cannot be mixed.
 //! - FUNCTION variables are initialized at each call; `VAR_TEMP` of a PROGRAM or FB at each
 //!   execution.
+//! - References (`REF_TO`, `POINTER TO`, `REFERENCE TO`) never convert to or from integers;
+//!   `POINTER TO`s convert to each other whatever they point to (as CODESYS); pointer
+//!   arithmetic counts bytes; every access through a reference is checked at run time.
 
 mod ctx;
 mod decl;

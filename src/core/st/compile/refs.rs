@@ -178,7 +178,7 @@ impl<'a> Ctx<'a> {
     /// between `POINTER TO`s whatever they point to (as CODESYS); otherwise to the same type.
     pub fn ref_assignable(&self, from: &Ty, to: &Ty) -> bool {
         match (from, to) {
-            (Ty::Null, Ty::Ref(..)) => true,
+            (Ty::Null, Ty::Ref(..) | Ty::Null) => true,
             (Ty::Ref(RefKind::Pointer, _), Ty::Ref(RefKind::Pointer, _)) => true,
             (Ty::Ref(_, a), Ty::Ref(_, b)) => a == b,
             _ => false,
