@@ -254,6 +254,23 @@ mod tests {
         )
     }
 
+    #[test]
+    fn a_reference_is_written_as_what_it_points_to() {
+        let ty = ValueType::Reference { type_name: "POINTER TO INT".into() };
+        let json = |slot: u64| {
+            let mut line = String::new();
+            push_json_value(&mut line, &ty, slot);
+            line
+        };
+        let reference = |space, offset| {
+            crate::value::Pointer { space, offset }.to_slot() + crate::value::REF_TAG
+        };
+        let d100 = crate::device::Address::parse("D00100").unwrap().as_word().unwrap();
+        assert_eq!(json(0), r#""NULL""#);
+        assert_eq!(json(reference(crate::value::Space::Word, u32::from(d100.0))), r#""D00100""#);
+        assert_eq!(json(reference(crate::value::Space::Var, 24)), r#""vars+24""#);
+    }
+
     fn line(t_ns: u64, event: Event) -> String {
         let mut w = writer();
         w.event(t_ns, event);
