@@ -441,13 +441,23 @@ impl<'a> Ctx<'a> {
         access: Access,
         expected: Option<&Ty>,
     ) -> TExpr {
+        // a `REFERENCE TO` (a variable, a member, an element) stands for what it refers to
+        let te = self.check_place_itself(e, scope, access, expected);
+        self.auto_deref(te)
+    }
+
+    /// [`Ctx::check_place`], a `REFERENCE TO` as itself.
+    fn check_place_itself(
+        &mut self,
+        e: &Expr,
+        scope: Scope,
+        access: Access,
+        expected: Option<&Ty>,
+    ) -> TExpr {
         let span = e.span;
         let file = scope.file;
         match &e.kind {
-            ExprKind::Name(id) => {
-                let te = self.name(id, scope, access, expected);
-                self.auto_deref(te)
-            }
+            ExprKind::Name(id) => self.name(id, scope, access, expected),
             ExprKind::Deref(base) => {
                 let b = self.check_place(base, scope, Access::Read, None);
                 self.deref(b, span, &expr_text(base), file)
@@ -696,7 +706,9 @@ impl<'a> Ctx<'a> {
                 let v = pou.vars[i].clone();
                 let kind = pou.kind;
                 if access != Access::Read {
-                    if v.kind == VarKind::Input && !(kind == PouKind::Program) {
+                    // writing through a `REFERENCE TO` input writes what it is bound to
+                    let through = matches!(v.ty, Ty::Ref(RefKind::Reference, _));
+                    if v.kind == VarKind::Input && !(kind == PouKind::Program) && !through {
                         self.error(
                             file,
                             span,
