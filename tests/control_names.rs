@@ -64,12 +64,14 @@ VAR
     torn : DINT;
     i : INT;
     at_pos : POINTER TO DINT;
+    at_speed : REF_TO INT;
 END_VAR
 VAR CONSTANT
     kmax : INT := 10;
 END_VAR
     scans := scans + 1;
     at_pos := ADR(pos);
+    at_speed := REF(Speed);
     lamp := inp;
     FOR i := 2 TO 20 DO
         IF same[i] <> same[1] THEN
@@ -331,6 +333,7 @@ fn get_and_set_every_kind_of_variable_by_name() {
         (&at_pos[0]["value"], &at_pos[0]["type"]),
         (&json!("D00200"), &json!("POINTER TO DINT"))
     );
+    assert_eq!(plc.get("main.at_speed"), json!("main.Speed"));
     let err = plc.refused(&["set", "main.at_pos", "5"]);
     assert!(
         err.contains("main.at_pos (POINTER TO DINT): a POINTER TO DINT cannot be written"),

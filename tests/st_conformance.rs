@@ -117,7 +117,9 @@ fn read(project: &Project, vm: &Vm, name: &str) -> Result<(String, Option<ValueT
         ref ty => {
             let slot = vm.read_value(symbol.at, ty.elem());
             let text = match ty {
-                ValueType::Reference { .. } => plcd::device::format_reference(slot),
+                ValueType::Reference { .. } => {
+                    plcd::lang::reference_text(&project.variables.symbols, slot)
+                }
                 _ => value::format(ty, slot),
             };
             match ty {
