@@ -800,3 +800,35 @@ END_PROGRAM",
     assert!(lines[7].contains("21:10: error: type mismatch: `REAL` cannot be assigned"), "{e}");
     assert_eq!(lines.len(), 8, "{e}");
 }
+
+/// The constant 0 is NULL for a POINTER TO only, and no other integer is a reference.
+#[test]
+fn only_the_constant_0_is_null_and_only_for_pointers() {
+    let e = errors(
+        "PROGRAM main
+VAR
+    r : REF_TO INT;
+    p : POINTER TO INT;
+    ok : BOOL;
+END_VAR
+    p := 0;
+    ok := p <> 0;
+    r := 0;
+    p := 1;
+    ok := r = 0;
+END_PROGRAM",
+    );
+    let lines: Vec<&str> = e.lines().collect();
+    assert!(
+        lines[0].contains(
+            "9:10: error: type mismatch: integer constant `0` cannot be assigned to `REF_TO INT`"
+        ),
+        "{e}"
+    );
+    assert!(lines[1].contains("10:10: error: type mismatch: integer constant `1` cannot be assigned to `POINTER TO INT`"), "{e}");
+    assert!(
+        lines[2].contains("11:11: error: `=` cannot be applied to `REF_TO INT` and `ANY_INT`"),
+        "{e}"
+    );
+    assert_eq!(lines.len(), 3, "{e}");
+}

@@ -817,6 +817,7 @@ impl<'a> Ctx<'a> {
             return te;
         }
         if matches!(te.ty, Ty::Ref(..) | Ty::Null) || matches!(to, Ty::Ref(..)) {
+            let te = self.zero_as_null(te, to);
             if self.ref_assignable(&te.ty, to) {
                 return TExpr { ty: to.clone(), ..te };
             }

@@ -198,6 +198,13 @@ impl<'a> Ctx<'a> {
     ) -> TExpr {
         let what = op_text(op);
         let pointer = |t: &Ty| matches!(t, Ty::Ref(RefKind::Pointer, _));
+        // `p = 0`, `p <> 0`: the constant 0 is NULL beside a pointer, as in CODESYS
+        let equality = matches!(op, BinaryOp::Eq | BinaryOp::Ne);
+        let (a, b) = match (&a.ty, &b.ty) {
+            (t, Ty::IntLit) if equality && pointer(t) => (a, null_for_zero(b)),
+            (Ty::IntLit, t) if equality && pointer(t) => (null_for_zero(a), b),
+            _ => (a, b),
+        };
         let integer = |s: &Self, t: &Ty| {
             matches!(t, Ty::IntLit)
                 || (t.prim(&s.types).is_some_and(Prim::is_integral) && !matches!(t, Ty::Enum(_)))
@@ -235,6 +242,15 @@ impl<'a> Ctx<'a> {
         TExpr::error(span)
     }
 
+    /// `te` given where a reference of type `to` is expected: the constant 0 is `NULL` for a
+    /// `POINTER TO` (`p := 0`, as CODESYS); anything else as it is.
+    pub fn zero_as_null(&self, te: TExpr, to: &Ty) -> TExpr {
+        match to {
+            Ty::Ref(RefKind::Pointer, _) => null_for_zero(te),
+            _ => te,
+        }
+    }
+
     /// The pointer `p` moved by `n` bytes (back when `back`).
     fn moved(&mut self, p: TExpr, n: TExpr, back: bool, span: Span, file: usize) -> TExpr {
         let lint = Ty::Prim(Prim::LInt);
@@ -252,5 +268,13 @@ impl<'a> Ctx<'a> {
         };
         let ty = p.ty.clone();
         TExpr { k: TK::RefAdd(Box::new(p), Box::new(n)), ty, span }
+    }
+}
+
+/// The constant 0 as `NULL`; anything else as it is (no other integer is a reference).
+fn null_for_zero(te: TExpr) -> TExpr {
+    match (&te.k, &te.ty) {
+        (TK::Const(Cv::Int(0)), Ty::IntLit) => TExpr::konst(Cv::Int(0), Ty::Null, te.span),
+        _ => te,
     }
 }
