@@ -7,7 +7,8 @@
 //! goes through `Op::Deref`, which checks it at run time, so a reference can only ever reach
 //! plcd's own variable, frame or device memory. Integers never convert to references (a
 //! reference cannot be forged): the only ways to make one are `REF`, `ADR`, `REF=`, `NULL`
-//! and arithmetic on a pointer, which keeps it in the memory area it points into.
+//! (and the constant 0 for a `POINTER TO`, as CODESYS writes it) and arithmetic on a pointer,
+//! which keeps it in the memory area it points into.
 
 use crate::lang::ops::CmpOp;
 use crate::st::ast::{Arg, BinaryOp, Expr, ExprKind, Ident, RefKind, Span};
