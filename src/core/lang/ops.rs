@@ -380,6 +380,9 @@ pub enum Op {
     /// its offset wrapping within 32 bits so that it never leaves its memory area. `NULL`
     /// moves and stays invalid; a pointer into device memory cannot move: 2820H, `NULL`.
     RefAdd,
+    /// Pops two reference values b, a; pushes the `DINT` `a - b`, the distance in bytes from
+    /// b's place to a's. Not both into one memory area (`NULL` included): 0 and 2820H.
+    RefDiff,
     /// Pops b, a; pushes `a op b`. A failed operation pushes 0 and raises an operation error.
     Bin {
         op: BinOp,
@@ -583,7 +586,7 @@ impl Op {
             | Op::Conv { .. }
             | Op::Deref { .. }
             | Op::CheckRef(_) => (1, 1),
-            Op::RefAdd => (2, 1),
+            Op::RefAdd | Op::RefDiff => (2, 1),
             Op::StoreInd(_) | Op::Copy(_) => (2, 0),
             Op::Goto(_) | Op::CallFn { .. } | Op::Return | Op::End | Op::Nop | Op::System(_) => {
                 (0, 0)

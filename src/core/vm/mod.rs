@@ -38,7 +38,8 @@ pub const ERR_INDEX_RANGE: u16 = 0x3402;
 /// Operation error: an access through a reference outside its memory area (past the end of
 /// variable memory, the frame area or device memory, or across it for the access's width),
 /// into device memory by a member, an element or pointer arithmetic, or through a reference
-/// that went nowhere (an array element out of bounds).
+/// that went nowhere (an array element out of bounds); the difference of two pointers into
+/// different areas.
 pub const ERR_REF_RANGE: u16 = 0x2820;
 /// Operation error: an access through `NULL`.
 pub const ERR_REF_NULL: u16 = 0x2822;
@@ -1167,6 +1168,16 @@ fn interpret<'a, const ST: bool, C: Clock>(
                         Err(code) => {
                             set_top!(0);
                             fail!(code);
+                        }
+                    }
+                }
+                Op::RefDiff if ST => {
+                    let b = pop!();
+                    match typed::ref_diff(top!(), b) {
+                        Some(d) => set_top!(d),
+                        None => {
+                            set_top!(0);
+                            fail!(ERR_REF_RANGE);
                         }
                     }
                 }

@@ -167,6 +167,17 @@ pub(super) fn ref_add(reference: u64, n: u64) -> Result<u64, u16> {
     Ok(reference >> 32 << 32 | u64::from(offset))
 }
 
+/// `a - b` for two reference values (`Op::RefDiff`): the `DINT` slot of the distance in bytes,
+/// when both point into one memory area.
+pub(super) fn ref_diff(a: u64, b: u64) -> Option<u64> {
+    let (pa, pb) = (Pointer::from_reference(a)?, Pointer::from_reference(b)?);
+    if pa.space != pb.space || pa.space == Space::Discard {
+        return None;
+    }
+    let distance = i64::from(pa.offset) - i64::from(pb.offset);
+    Some(distance as i32 as i64 as u64)
+}
+
 /// The `N` bytes at `at` of `buf`, if they are all inside it.
 #[inline(always)]
 fn le<const N: usize>(buf: &[u8], at: usize) -> Option<[u8; N]> {
@@ -684,6 +695,19 @@ mod tests {
         assert_eq!(deref(7 << 32, 1), Err(ERR_REF_RANGE));
         assert!(reaches(Pointer { space: Space::Var, offset: 60 }, 4, words, vars, frame));
         assert!(!reaches(Pointer { space: Space::Var, offset: 61 }, 4, words, vars, frame));
+    }
+
+    #[test]
+    fn a_pointer_difference_needs_one_area() {
+        let (a, b) = (reference(Space::Var, 10), reference(Space::Var, 16));
+        assert_eq!(ref_diff(b, a), Some(6));
+        assert_eq!(ref_diff(a, b), Some(-6i64 as u64));
+        assert_eq!(ref_diff(a, reference(Space::Frame, 10)), None);
+        assert_eq!(ref_diff(a, 0), None);
+        assert_eq!(ref_diff(0, 0), None);
+        assert_eq!(ref_diff(reference(Space::Word, 3), reference(Space::Word, 1)), Some(2));
+        let discard = reference(Space::Discard, 0);
+        assert_eq!(ref_diff(discard, discard), None);
     }
 
     #[test]

@@ -947,6 +947,7 @@ VAR
     level AT %D00010 : INT;
     dp : POINTER TO INT;
     moved_null : BOOL;
+    distance, no_distance : DINT;
 END_VAR
     n := n + 1;
     total := Sum(text);
@@ -966,17 +967,22 @@ END_VAR
     dp^ := n;
     dp := dp + 2;
     moved_null := dp = NULL;
+    distance := ADR(nodes[2]) - ADR(nodes[0]);
+    no_distance := ADR(nodes[2]) - dp;
 END_PROGRAM
 ";
     let outcome = targeted("references", source, Scans::new(3), 70);
     assert_eq!(outcome.errors_with_whole_budget(ERR_REF_NULL), 3);
-    assert_eq!(outcome.errors_with_whole_budget(ERR_REF_RANGE), 2 * 3);
+    assert_eq!(outcome.errors_with_whole_budget(ERR_REF_RANGE), 3 * 3);
     assert_eq!(outcome.slot("main.total"), 97 + 98 + 99);
     // each scan walks 1-2-3 once more incremented: 123, 234, 345
     assert_eq!(outcome.slot("main.walked"), 345);
     assert_eq!(outcome.slot("main.bad"), 3, "NULL reads 0");
     assert_eq!(outcome.slot("main.far"), 0);
     assert_eq!(outcome.slot("main.moved_null"), 1);
+    // a Node is an INT and a pointer: 10 bytes
+    assert_eq!(outcome.slot("main.distance"), 20);
+    assert_eq!(outcome.slot("main.no_distance"), 0);
 }
 
 #[test]

@@ -139,6 +139,7 @@ fn effect(op: &Op) -> isize {
         | Op::Cmp { .. }
         | Op::Drop
         | Op::RefAdd
+        | Op::RefDiff
         | Op::GotoIf { .. } => -1,
         Op::CallFb { .. } => -1,
         Op::StoreInd(_) | Op::Copy(_) => -2,
@@ -438,6 +439,11 @@ impl<'c, 'a> Em<'c, 'a> {
                 self.value(r);
                 self.value(n);
                 self.op(Op::RefAdd);
+            }
+            TK::RefDiff(a, b) => {
+                self.value(a);
+                self.value(b);
+                self.op(Op::RefDiff);
             }
         }
     }

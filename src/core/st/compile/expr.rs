@@ -51,6 +51,8 @@ pub enum TK {
     Ref(Box<TExpr>),
     /// A pointer moved by a number of bytes (a `LINT`): `p + n`, `p - n`.
     RefAdd(Box<TExpr>, Box<TExpr>),
+    /// The distance in bytes between two pointers (a `DINT`): `p - q`.
+    RefDiff(Box<TExpr>, Box<TExpr>),
 }
 
 /// A call's bound arguments.
@@ -111,7 +113,7 @@ impl TExpr {
             | TK::Conv(a)
             | TK::Deref(a)
             | TK::Ref(a) => a.has_call(),
-            TK::RefAdd(a, b) => a.has_call() || b.has_call(),
+            TK::RefAdd(a, b) | TK::RefDiff(a, b) => a.has_call() || b.has_call(),
             TK::Index(a, ix) => a.has_call() || ix.iter().any(TExpr::has_call),
             TK::Bin(_, a, b) | TK::Cmp(_, a, b) => a.has_call() || b.has_call(),
             TK::Std(_, args) => args.iter().any(TExpr::has_call),

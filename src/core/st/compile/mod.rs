@@ -24,7 +24,8 @@
 //!   execution.
 //! - References (`REF_TO`, `POINTER TO`, `REFERENCE TO`) never convert to or from integers;
 //!   `POINTER TO`s convert to each other whatever they point to (as CODESYS); pointer
-//!   arithmetic counts bytes; every access through a reference is checked at run time.
+//!   arithmetic counts bytes, `p - q` is a `DINT` of bytes; every access through a reference
+//!   is checked at run time.
 
 mod ctx;
 mod decl;

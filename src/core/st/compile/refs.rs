@@ -187,8 +187,8 @@ impl<'a> Ctx<'a> {
     }
 
     /// A binary operator with a reference operand: `p + n`, `p - n` on a `POINTER TO` (moves
-    /// it by n bytes), `=`, `<>` between compatible references, `<`, `>`, `<=`, `>=`
-    /// between pointers.
+    /// it by n bytes), `p - q` (the bytes between two pointers, a `DINT`), `=`, `<>` between
+    /// compatible references, `<`, `>`, `<=`, `>=` between pointers.
     pub fn ref_binary(
         &mut self,
         op: BinaryOp,
@@ -216,6 +216,10 @@ impl<'a> Ctx<'a> {
             }
             BinaryOp::Add if integer(self, &a.ty) && pointer(&b.ty) => {
                 return self.moved(b, a, false, span, file)
+            }
+            BinaryOp::Sub if pointer(&a.ty) && pointer(&b.ty) => {
+                let k = TK::RefDiff(Box::new(a), Box::new(b));
+                return TExpr { k, ty: Ty::Prim(Prim::DInt), span };
             }
             BinaryOp::Eq | BinaryOp::Ne
                 if self.ref_assignable(&a.ty, &b.ty) || self.ref_assignable(&b.ty, &a.ty) =>
