@@ -64,11 +64,15 @@ VAR
     scans : DINT;
     torn : DINT;
     i : INT;
+    at_pos : POINTER TO DINT;
+    at_speed : REF_TO INT;
 END_VAR
 VAR CONSTANT
     kmax : INT := 10;
 END_VAR
     scans := scans + 1;
+    at_pos := ADR(pos);
+    at_speed := REF(Speed);
     lamp := inp;
     FOR i := 2 TO 20 DO
         IF same[i] <> same[1] THEN
@@ -324,6 +328,18 @@ fn get_and_set_every_kind_of_variable_by_name() {
     );
     let err = plc.refused(&["get", "D99999"]);
     assert!(err.contains("out of range"), "{err}");
+    // A reference is shown as what it points to, and never written.
+    let at_pos = plc.values(&["main.at_pos"]);
+    assert_eq!(
+        (&at_pos[0]["value"], &at_pos[0]["type"]),
+        (&json!("D00200"), &json!("POINTER TO DINT"))
+    );
+    assert_eq!(plc.get("main.at_speed"), json!("main.Speed"));
+    let err = plc.refused(&["set", "main.at_pos", "5"]);
+    assert!(
+        err.contains("main.at_pos (POINTER TO DINT): a POINTER TO DINT cannot be written"),
+        "{err}"
+    );
     let out = plc.ctl(&["set", "main.speed"]);
     assert_eq!(out.status.code(), Some(2), "a name without its value is a usage error");
     plc.stop();

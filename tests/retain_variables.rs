@@ -284,3 +284,28 @@ END_PROGRAM
     let plan = changed.engine.restore_retained_variables(&start.variables);
     assert!(plan.dropped.contains(&"main.stamp (DT): now LDT".to_string()), "{:?}", plan.dropped);
 }
+
+/// A RETAIN reference keeps its value over a warm RUN start (the program and so its memory
+/// are the same: it still points where it did), as CODESYS keeps a retained pointer.
+#[test]
+fn a_warm_run_start_keeps_a_retained_reference() {
+    let p = st("PROGRAM Main
+VAR RETAIN p : POINTER TO DINT; END_VAR
+VAR n : DINT; was_null : BOOL; END_VAR
+    was_null := p = NULL;
+    IF p = NULL THEN p := ADR(n); END_IF;
+    p^ := p^ + 1;
+END_PROGRAM
+");
+    let mut plc = Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    plc.set_mode(Mode::Stop);
+    let scans = var(&plc, &p, "main.n");
+    assert!(scans > 1, "it ran: {scans}");
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    plc.set_mode(Mode::Stop);
+    assert_eq!(var(&plc, &p, "main.was_null"), 0, "kept over the warm start");
+    assert!(var(&plc, &p, "main.n") > 0, "n counts again from 0 through p");
+}

@@ -265,11 +265,11 @@ fn typed_programs_do_not_allocate() {
         // 0: a FUNCTION call and an FB call.
         PushInt(20),
         Store { elem: Elem::I16, at: Place::Frame(8 + 2) },
-        CallFn { target: 21, frame: 8 },
+        CallFn { target: 47, frame: 8 },
         Fetch { elem: Elem::I16, at: Place::Frame(8) },
         Store { elem: Elem::I16, at: Place::Var(0) },
         AddrOf(Place::Var(10)),
-        CallFb { target: 26, frame: 8 },
+        CallFb { target: 52, frame: 8 },
         // 7: an index out of range, a division by zero, a REAL into a device, a string.
         AddrOf(Place::Var(16)),
         PushInt(9),
@@ -284,25 +284,59 @@ fn typed_programs_do_not_allocate() {
         AddrOf(Place::Var(32)),
         AddrOf(Place::Var(32)),
         Str { op: StrOp::Concat, cap: 16 },
+        // 20: a reference to buf[0] moved to buf[2] and read through; a read through NULL
+        // (2822H); a member read past the end of variable memory (2820H); the distance
+        // between two NULLs (2820H).
+        AddrOf(Place::Var(16)),
+        PushConst(1),
+        Bin { op: BinOp::Add, elem: Elem::U64 },
+        PushInt(2),
+        RefAdd,
+        Deref { size: 1 },
+        FetchInd(Elem::U8),
+        Drop,
+        PushInt(0),
+        Deref { size: 2 },
+        FetchInd(Elem::I16),
+        Drop,
+        AddrOf(Place::Var(16)),
+        PushConst(1),
+        Bin { op: BinOp::Add, elem: Elem::U64 },
+        PushInt(44),
+        RefAdd,
+        Deref { size: 0 },
+        Offset(3),
+        CheckRef(2),
+        FetchInd(Elem::I16),
+        Drop,
+        PushInt(0),
+        PushInt(0),
+        RefDiff,
+        Drop,
         End,
-        // 21: a FUNCTION: result := x * 2.
+        // 47: a FUNCTION: result := x * 2.
         Fetch { elem: Elem::I16, at: Place::Frame(2) },
         PushInt(2),
         Bin { op: BinOp::Mul, elem: Elem::I16 },
         Store { elem: Elem::I16, at: Place::Frame(0) },
         Return,
-        // 26: an FB: count += 1 while count < 1000.
+        // 52: an FB: count += 1 while count < 1000.
         Fetch { elem: Elem::I16, at: Place::This(0) },
         PushInt(1000),
         Cmp { op: CmpOp::Lt, elem: Elem::I16 },
-        GotoIf { target: 34, when: false },
+        GotoIf { target: 60, when: false },
         Fetch { elem: Elem::I16, at: Place::This(0) },
         PushInt(1),
         Bin { op: BinOp::Add, elem: Elem::I16 },
         Store { elem: Elem::I16, at: Place::This(0) },
         Return,
     ];
-    let program = harness::vm::typed_program("typed", code, vec![u64::from(1.5f32.to_bits())], 16);
+    let program = harness::vm::typed_program(
+        "typed",
+        code,
+        vec![u64::from(1.5f32.to_bits()), plcd::value::REF_TAG],
+        16,
+    );
     let mut vm = Vm::for_programs([&program]);
     let mut initial = vec![0u8; 64];
     initial[32..35].copy_from_slice(&[2, b'a', b'b']);
@@ -335,7 +369,11 @@ fn typed_programs_do_not_allocate() {
     let count = ALLOCATIONS.load(Ordering::Relaxed) - before;
     WATCHED.with(|w| w.set(false));
     assert_eq!(count, 0, "the typed program allocated or freed {count} times");
-    assert_eq!(errors, 4 * 50 * 2, "an index error and a division by zero each scan");
+    assert_eq!(
+        errors,
+        4 * 50 * 5,
+        "an index error, a division by zero and three reference errors each scan"
+    );
     assert_eq!(
         vm.read_value(
             plcd_core::value::Pointer { space: plcd_core::value::Space::Var, offset: 0 },

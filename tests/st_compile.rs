@@ -105,6 +105,7 @@ impl Run {
             ValueType::Calendar(cal) => cal.elem(),
             ValueType::Enum { base, .. } => base,
             ValueType::String { .. } => panic!("{name} is a string"),
+            ValueType::Reference { .. } => Elem::U64,
         };
         (self.vm.read_value(at, elem), elem)
     }
@@ -909,4 +910,97 @@ END_PROGRAM",
          PROGRAM main\nVAR t : TON; END_VAR\nt();\nEND_PROGRAM",
     );
     assert!(e.contains("`TON` is already declared"), "{e}");
+}
+
+/// A reference holds the VM pointer of its target, tagged so that 0 is NULL, and tools show
+/// it as the area and offset of that target.
+#[test]
+fn a_reference_is_its_targets_pointer() {
+    let r = once(
+        "x : INT; buf : ARRAY [0..3] OF BYTE; p : POINTER TO BYTE; q : REF_TO INT; n : REF_TO INT;",
+        "q := REF(x); p := ADR(buf) + 2;",
+    );
+    let (x_at, _) = r.sym("main.x");
+    let (b2_at, _) = r.sym("main.buf[2]");
+    assert_eq!(r.raw("main.q").0, x_at.to_slot() + (1 << 32));
+    assert_eq!(r.raw("main.p").0, b2_at.to_slot() + (1 << 32));
+    assert_eq!(r.raw("main.n").0, 0);
+    let (_, ty) = r.sym("main.p");
+    assert_eq!(ty, ValueType::Reference { type_name: "POINTER TO BYTE".into() });
+    let shown = plcd_core::value::format(&ty, r.raw("main.p").0);
+    assert_eq!(shown, format!("vars+{}", b2_at.offset));
+    assert!(r.errors().is_empty());
+}
+
+/// References that cannot be made: to a constant, a bit, an expression; integers never
+/// convert to references; REF_TO needs the same type, POINTER TO takes any pointer.
+#[test]
+fn references_are_checked() {
+    let e = errors(
+        "PROGRAM main
+VAR
+    x : INT;
+    k : INT := 1;
+    f : REAL;
+    r : REF_TO INT;
+    p : POINTER TO REAL;
+    w : DWORD;
+END_VAR
+VAR CONSTANT
+    c : INT := 4;
+END_VAR
+    r := REF(c);
+    r := REF(x.3);
+    r := REF(f);
+    p := ADR(x);
+    r := w;
+    w := r;
+    r := r + 1;
+    p := p * 2;
+    k := r^ + p^;
+END_PROGRAM",
+    );
+    let lines: Vec<&str> = e.lines().collect();
+    assert!(lines[0].contains("13:14: error: `REF` needs a variable"), "{e}");
+    assert!(lines[1].contains("14:14: error: `REF` needs a variable"), "{e}");
+    assert!(lines[2].contains("`REF_TO REAL` cannot be assigned to `REF_TO INT`"), "{e}");
+    assert!(lines[3].contains("`DWORD` cannot be assigned to `REF_TO INT`"), "{e}");
+    assert!(lines[4].contains("`REF_TO INT` cannot be assigned to `DWORD`"), "{e}");
+    assert!(lines[5].contains("`+` cannot be applied to `REF_TO INT` and `ANY_INT`"), "{e}");
+    assert!(lines[6].contains("`*` cannot be applied to `POINTER TO REAL` and `ANY_INT`"), "{e}");
+    // r^ + p^ is INT + REAL, a REAL (what p points to is a REAL)
+    assert!(lines[7].contains("21:10: error: type mismatch: `REAL` cannot be assigned"), "{e}");
+    assert_eq!(lines.len(), 8, "{e}");
+}
+
+/// The constant 0 is NULL for a POINTER TO only, and no other integer is a reference.
+#[test]
+fn only_the_constant_0_is_null_and_only_for_pointers() {
+    let e = errors(
+        "PROGRAM main
+VAR
+    r : REF_TO INT;
+    p : POINTER TO INT;
+    ok : BOOL;
+END_VAR
+    p := 0;
+    ok := p <> 0;
+    r := 0;
+    p := 1;
+    ok := r = 0;
+END_PROGRAM",
+    );
+    let lines: Vec<&str> = e.lines().collect();
+    assert!(
+        lines[0].contains(
+            "9:10: error: type mismatch: integer constant `0` cannot be assigned to `REF_TO INT`"
+        ),
+        "{e}"
+    );
+    assert!(lines[1].contains("10:10: error: type mismatch: integer constant `1` cannot be assigned to `POINTER TO INT`"), "{e}");
+    assert!(
+        lines[2].contains("11:11: error: `=` cannot be applied to `REF_TO INT` and `ANY_INT`"),
+        "{e}"
+    );
+    assert_eq!(lines.len(), 3, "{e}");
 }

@@ -115,9 +115,18 @@ fn read(project: &Project, vm: &Vm, name: &str) -> Result<(String, Option<ValueT
             format!("{:?}", plcd::value::decode_str(&vm.read_string(symbol.at)))
         }
         ref ty => {
-            let text = value::format(ty, vm.read_value(symbol.at, ty.elem()));
+            let slot = vm.read_value(symbol.at, ty.elem());
+            let text = match ty {
+                ValueType::Reference { .. } => {
+                    plcd::lang::reference_text(&project.variables.symbols, slot)
+                }
+                _ => value::format(ty, slot),
+            };
             match ty {
-                ValueType::Time | ValueType::Calendar(_) | ValueType::Enum { .. } => {
+                ValueType::Time
+                | ValueType::Calendar(_)
+                | ValueType::Enum { .. }
+                | ValueType::Reference { .. } => {
                     format!("{text:?}")
                 }
                 _ => text,

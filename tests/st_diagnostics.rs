@@ -170,6 +170,12 @@ const MESSAGES: &[(&str, &str)] = &[
          expression keeps the caller's slots below the callee's",
         "call-chain-stack-too-deep",
     ),
+    // refs.rs: references and pointers
+    ("`{}` is `{}`, not a `REF_TO` or `POINTER TO`: `^` cannot be applied", "deref-not-reference"),
+    ("`{}` needs a variable", "ref-needs-variable"),
+    ("`{}` takes one argument", "ref-one-argument"),
+    ("`__ISVALIDREF` needs a reference, not `{}`", "isvalidref-not-reference"),
+    ("`REF=` needs a reference on its left, not `{}`", "ref-assign-not-reference"),
     // stdlib.rs: standard functions
     ("`{}` has no output `{}`", "std-no-output"),
     ("the call of `{}` leaves out an argument", "std-argument-left-out"),
@@ -283,6 +289,10 @@ const UNREACHABLE: &[(&str, &str)] = &[
 /// Literals of the compiler sources that are not messages by themselves: words and hints that
 /// messages are built from, and type names.
 const PARTS: &[&str] = &[
+    // the names of reference types in messages (`POINTER TO INT`)
+    "POINTER TO",
+    "REFERENCE TO",
+    "{} {}",
     " (did you mean `{}`?)",
     "line {}",
     "`{}` line {}",

@@ -232,6 +232,22 @@ fn an_online_change_keeps_variables_of_unchanged_name_and_type() {
 }
 
 #[test]
+fn an_online_change_sets_references_to_null() {
+    // A reference is the offset of its target in the old layout of memory: never kept, even
+    // unchanged (docs/ST.md, "References over online change and RETAIN").
+    let src = "PROGRAM Main VAR n : DINT; p : POINTER TO DINT; r : REF_TO DINT; END_VAR
+                 p := ADR(n); r := REF(n);
+               END_PROGRAM";
+    let old = project("[[program]]\nfile = \"main.st\"\n", &[("main.st", src)]);
+    let new = project("[[program]]\nfile = \"main.st\"\n", &[("main.st", src)]);
+    let kept = plcd::engine::online::kept_variables(&old.variables, &new.variables);
+    let n = old.variable("main.n").unwrap().at.offset;
+    assert_eq!(&kept[..], [(n, n, 4)], "n only: p and r start NULL again");
+    let r = new.variable("main.r").unwrap();
+    assert_eq!(plcd::value::type_name(&r.ty), "REF_TO DINT");
+}
+
+#[test]
 fn located_outputs_written_by_st_are_outputs() {
     // The default watch list of traces and logs: every P bit a program writes, IL or ST,
     // whole words of located INT/DINT/LREAL included; an input only read is not one.

@@ -113,7 +113,8 @@ pub fn run(args: &SimArgs, err: &mut impl Write) -> ExitCode {
         project.programs.iter().map(|p| (p.name.clone(), p.lines.to_vec())).collect();
     let mut writer =
         TraceWriter::new(BufWriter::new(out), names.clone(), watch_names, program_lines)
-            .with_types(watch.iter().map(watched_type).collect());
+            .with_types(watch.iter().map(watched_type).collect())
+            .with_symbols(project.variables.symbols.clone());
     let mut recorder = Recorder::default();
     let started = Instant::now();
     let engine = if args.timeline {

@@ -472,6 +472,10 @@ pub enum Space {
     Discard = 4,
 }
 
+/// What a reference value adds to its pointer's slot: its space is counted from 1, so that 0
+/// (zeroed memory, the default) is `NULL`.
+pub const REF_TAG: u64 = 1 << 32;
+
 /// A run-time pointer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Pointer {
@@ -484,6 +488,16 @@ impl Pointer {
 
     pub const fn to_slot(self) -> u64 {
         (self.space as u64) << 32 | self.offset as u64
+    }
+
+    /// The pointer a reference value holds (`REF_TO`, `POINTER TO`, `REFERENCE TO`: the
+    /// pointer's slot plus [`REF_TAG`]); `None` for `NULL` (any value below [`REF_TAG`]).
+    pub const fn from_reference(reference: u64) -> Option<Pointer> {
+        if reference < REF_TAG {
+            None
+        } else {
+            Some(Pointer::from_slot(reference.wrapping_sub(REF_TAG)))
+        }
     }
 
     pub const fn from_slot(slot: u64) -> Pointer {
@@ -524,6 +538,14 @@ pub enum ValueType {
     String {
         cap: u32,
     },
+    /// A reference (`REF_TO T`, `POINTER TO T`, `REFERENCE TO T`, named so in `type_name`):
+    /// 8 bytes, 0 for `NULL`, else a [`Pointer`]'s slot plus `1 << 32`. Shown as what it
+    /// points to ([`format_reference`]); never written by a client, never kept by an online
+    /// change or in the retain files (an offset is only meaningful in the memory layout it
+    /// was taken in).
+    Reference {
+        type_name: String,
+    },
 }
 
 impl ValueType {
@@ -537,6 +559,7 @@ impl ValueType {
             ValueType::Calendar(cal) => cal.elem(),
             ValueType::Enum { base, .. } => *base,
             ValueType::String { .. } => Elem::U8,
+            ValueType::Reference { .. } => Elem::U64,
         }
     }
 
@@ -587,6 +610,7 @@ pub fn type_name(ty: &ValueType) -> String {
         ValueType::Calendar(cal) => cal.name().into(),
         ValueType::Enum { type_name, .. } => type_name.clone(),
         ValueType::String { cap } => format!("STRING[{cap}]"),
+        ValueType::Reference { type_name } => type_name.clone(),
     }
 }
 
@@ -605,6 +629,7 @@ pub fn format(ty: &ValueType, slot: u64) -> String {
             }
         }
         ValueType::String { .. } => String::new(),
+        ValueType::Reference { .. } => format_reference(slot),
         scalar => {
             let mut text = String::new();
             if let Some(scalar) = scalar.scalar() {
@@ -614,6 +639,23 @@ pub fn format(ty: &ValueType, slot: u64) -> String {
             text
         }
     }
+}
+
+/// What a reference value points to, as tools show it: `NULL`; else the memory area and the
+/// offset in it: `vars+120` (byte 120 of variable memory), `frame+16` (of the frame area of
+/// the task that took it), `word+4992` and `bit+64` (device memory by word and by bit: see
+/// `device::format_reference`, which names the device); `invalid` for a reference that went
+/// nowhere (`ADR` of an element out of bounds).
+pub fn format_reference(slot: u64) -> String {
+    let Some(p) = Pointer::from_reference(slot) else { return "NULL".into() };
+    let area = match p.space {
+        Space::Var => "vars",
+        Space::Frame => "frame",
+        Space::Word => "word",
+        Space::Bit => "bit",
+        Space::Discard => return "invalid".into(),
+    };
+    format!("{area}+{}", p.offset)
 }
 
 /// A scalar type: what [`write_scalar`] writes and [`scalar_from_text`] reads, without
@@ -638,7 +680,9 @@ impl ValueType {
             ValueType::Real(e) => Scalar::Real(*e),
             ValueType::Time => Scalar::Time,
             ValueType::Calendar(cal) => Scalar::Calendar(*cal),
-            ValueType::Enum { .. } | ValueType::String { .. } => return None,
+            ValueType::Enum { .. } | ValueType::String { .. } | ValueType::Reference { .. } => {
+                return None
+            }
         })
     }
 }
@@ -819,6 +863,9 @@ pub fn parse(ty: &ValueType, text: &str) -> Result<u64, String> {
         }
         ValueType::String { cap } => {
             Err(format!("a STRING[{cap}] is not a single value: write its text"))
+        }
+        ValueType::Reference { type_name } => {
+            Err(format!("a {type_name} cannot be written: the program sets it (REF, ADR)"))
         }
         scalar => {
             let Some(scalar) = scalar.scalar() else { unreachable!("every other type is scalar") };
@@ -1458,6 +1505,26 @@ mod tests {
     }
     use BinOp::*;
     use Elem::*;
+
+    #[test]
+    fn references_are_shown_by_what_they_point_to() {
+        let r = |space, offset| Pointer { space, offset }.to_slot() + REF_TAG;
+        assert_eq!(format_reference(0), "NULL");
+        assert_eq!(format_reference(12), "NULL");
+        assert_eq!(format_reference(r(Space::Var, 120)), "vars+120");
+        assert_eq!(format_reference(r(Space::Frame, 16)), "frame+16");
+        assert_eq!(format_reference(r(Space::Word, 4992)), "word+4992");
+        assert_eq!(format_reference(r(Space::Bit, 64)), "bit+64");
+        assert_eq!(format_reference(r(Space::Discard, 0)), "invalid");
+        assert_eq!(
+            Pointer::from_reference(r(Space::Frame, 3)),
+            Some(Pointer { space: Space::Frame, offset: 3 })
+        );
+        let ty = ValueType::Reference { type_name: "POINTER TO INT".into() };
+        assert_eq!(format(&ty, 0), "NULL");
+        assert_eq!(ty.bytes(), 8);
+        assert!(parse(&ty, "5").is_err());
+    }
 
     fn i(elem: Elem, v: i64) -> u64 {
         normalize(elem, v as u64)

@@ -12,9 +12,30 @@ pub use address::{Address, AddressError, BitRef, UseError, WordRef, Writer};
 pub use layout::{Area, FlagBit, FlagWord};
 pub use retained::{RetainSet, RetainedWords};
 
+use crate::value::{self, Pointer, Space};
+
 /// The values a device word takes from outside a program (a constant, a stimulus, a client):
 /// its 16 bits read as a signed (down to -32768) or an unsigned (up to 65535) number.
 pub const WORD_VALUES: std::ops::RangeInclusive<i32> = -32768..=65535;
+
+/// [`value::format_reference`], with a reference into device memory shown as the device it
+/// points to (`D00100`, `P0044`, `D00010.3`).
+pub fn format_reference(slot: u64) -> String {
+    let device = |word: u32, bit: Option<u8>| {
+        let area = [Area::P, Area::M, Area::K, Area::D]
+            .into_iter()
+            .find(|a| (a.base()..a.base() + a.word_count()).contains(&word))?;
+        Some(Address { area, number: word - area.base(), bit }.to_string())
+    };
+    let named = match Pointer::from_reference(slot) {
+        Some(Pointer { space: Space::Word, offset }) => device(offset, None),
+        Some(Pointer { space: Space::Bit, offset }) => {
+            device(offset / 16, Some((offset % 16) as u8))
+        }
+        _ => None,
+    };
+    named.unwrap_or_else(|| value::format_reference(slot))
+}
 
 /// The PLC's device memory.
 #[derive(Clone)]
@@ -236,6 +257,26 @@ impl Memory {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn references_into_device_memory_name_the_device() {
+        let reference = |p: Pointer| p.to_slot() + value::REF_TAG;
+        let d100 = Address::parse("D00100").unwrap().as_word().unwrap();
+        let word = Pointer { space: Space::Word, offset: u32::from(d100.0) };
+        assert_eq!(format_reference(reference(word)), "D00100");
+        let p44 = Address::parse("P0044").unwrap().as_bit().unwrap();
+        let offset = u32::from(p44.word) * 16 + p44.mask.trailing_zeros();
+        assert_eq!(format_reference(reference(Pointer { space: Space::Bit, offset })), "P0044");
+        let d_bit = Address::parse("D00010.3").unwrap().as_bit().unwrap();
+        let offset = u32::from(d_bit.word) * 16 + d_bit.mask.trailing_zeros();
+        assert_eq!(format_reference(reference(Pointer { space: Space::Bit, offset })), "D00010.3");
+        // a word of no nameable area (a timer's value), variable memory, NULL: as value's
+        let tv = Pointer { space: Space::Word, offset: layout::TV };
+        assert_eq!(format_reference(reference(tv)), format!("word+{}", layout::TV));
+        let var = Pointer { space: Space::Var, offset: 8 };
+        assert_eq!(format_reference(reference(var)), "vars+8");
+        assert_eq!(format_reference(0), "NULL");
+    }
 
     fn addr(s: &str) -> Address {
         Address::parse(s).unwrap()

@@ -23,7 +23,7 @@ use crate::device::Address;
 use crate::lang::ops::{EdgeMemory, Op};
 use crate::lang::Variables;
 use crate::project::Project;
-use crate::value::{Space, Symbol};
+use crate::value::{Space, Symbol, ValueType};
 use crate::vm::EdgeInit;
 
 use super::mode::ModeState;
@@ -140,7 +140,9 @@ pub fn kept_variables(old: &Variables, new: &Variables) -> Box<[(u32, u32, u32)]
         .filter_map(|symbol| {
             let before = by_name.get(&symbol.name.to_ascii_lowercase())?;
             let in_vars = |s: &Symbol| s.at.space == Space::Var;
-            (before.ty == symbol.ty && in_vars(before) && in_vars(symbol))
+            // A reference is not kept: its offset is one of the old layout of memory.
+            let reference = matches!(symbol.ty, ValueType::Reference { .. });
+            (before.ty == symbol.ty && in_vars(before) && in_vars(symbol) && !reference)
                 .then(|| (before.at.offset, symbol.at.offset, symbol.ty.bytes()))
         })
         .collect()

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 pub use check::{Context, DutySite};
 pub use ops::{Op, Place};
 
-use crate::value::{Elem, Symbol};
+use crate::value::{Elem, Pointer, Space, Symbol};
 
 use crate::diag::Diagnostics;
 
@@ -114,6 +114,27 @@ pub struct Variables {
     pub located_init: Box<[(Place, Elem, u64)]>,
     /// Every variable, one leaf each, in declaration order.
     pub symbols: Vec<Symbol>,
+}
+
+/// What the reference value `slot` points to, as tools show it: the variable of `symbols` at
+/// that place (`main.buf[2]`; `main.s+3` inside one, a STRING's character), else
+/// [`crate::device::format_reference`]'s text (`NULL`, `D00100`, `vars+120` for memory no
+/// named variable holds: a FUNCTION's frame, a constant).
+pub fn reference_text(symbols: &[Symbol], slot: u64) -> String {
+    if let Some(p) = Pointer::from_reference(slot).filter(|p| p.space == Space::Var) {
+        let holds = |s: &&Symbol| {
+            s.at.space == Space::Var
+                && s.at.offset <= p.offset
+                && p.offset - s.at.offset < s.ty.bytes()
+        };
+        if let Some(s) = symbols.iter().find(holds) {
+            return match p.offset - s.at.offset {
+                0 => s.name.clone(),
+                inside => format!("{}+{inside}", s.name),
+            };
+        }
+    }
+    crate::device::format_reference(slot)
 }
 
 /// Assembles one program text: every diagnostic of the file, or the program.

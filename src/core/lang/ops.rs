@@ -362,6 +362,27 @@ pub enum Op {
     StoreInd(Elem),
     /// Pops a source pointer, then a destination pointer; copies `n` bytes (arrays, structs).
     Copy(u32),
+    /// Pops a reference value (of a `REF_TO`, `POINTER TO` or `REFERENCE TO`), pushes the
+    /// pointer it holds. A reference value is 0 for `NULL`, else the pointer's slot plus
+    /// `1 << 32` (its space counted from 1), so that zeroed memory is `NULL`. Checked: `NULL`
+    /// raises operation error 2822H; a pointer outside its memory area, or whose `size` bytes
+    /// cross the area's end, raises 2820H; both push the discard pointer. `size` 0: members or
+    /// elements follow (`r^.x`, `r^[i]`), checked by [`Op::CheckRef`] at the end of the
+    /// path; they cannot follow into device memory (2820H).
+    Deref {
+        size: u32,
+    },
+    /// Pops a pointer reached through a reference by members and elements; pushes it when its
+    /// `size` bytes are inside its memory area, else raises 2820H and pushes the discard
+    /// pointer (which passes unchecked: the failure that made it was already raised).
+    CheckRef(u32),
+    /// Pops `n` (a `LINT`), then a reference value; pushes the reference moved by `n` bytes,
+    /// its offset wrapping within 32 bits so that it never leaves its memory area. `NULL`
+    /// moves and stays invalid; a pointer into device memory cannot move: 2820H, `NULL`.
+    RefAdd,
+    /// Pops two reference values b, a; pushes the `DINT` `a - b`, the distance in bytes from
+    /// b's place to a's. Not both into one memory area (`NULL` included): 0 and 2820H.
+    RefDiff,
     /// Pops b, a; pushes `a op b`. A failed operation pushes 0 and raises an operation error.
     Bin {
         op: BinOp,
@@ -565,7 +586,13 @@ impl Op {
             Op::Dup => (1, 2),
             Op::Store { .. } | Op::Drop | Op::GotoIf { .. } | Op::CallFb { .. } => (1, 0),
             Op::Index { .. } | Op::Bin { .. } | Op::Cmp { .. } => (2, 1),
-            Op::Offset(_) | Op::FetchInd(_) | Op::Un { .. } | Op::Conv { .. } => (1, 1),
+            Op::Offset(_)
+            | Op::FetchInd(_)
+            | Op::Un { .. }
+            | Op::Conv { .. }
+            | Op::Deref { .. }
+            | Op::CheckRef(_) => (1, 1),
+            Op::RefAdd | Op::RefDiff => (2, 1),
             Op::StoreInd(_) | Op::Copy(_) => (2, 0),
             Op::Goto(_) | Op::CallFn { .. } | Op::Return | Op::End | Op::Nop | Op::System(_) => {
                 (0, 0)

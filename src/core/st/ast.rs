@@ -198,6 +198,19 @@ pub enum TypeRef {
     Enum(EnumDef),
     /// A subrange `INT (0..100)`.
     Subrange { base: Ident, lo: Box<Expr>, hi: Box<Expr>, span: Span },
+    /// `REF_TO T`, `POINTER TO T`, `REFERENCE TO T`.
+    Ref { kind: RefKind, to: Box<TypeRef>, span: Span },
+}
+
+/// The three kinds of reference types.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum RefKind {
+    /// `REF_TO T` (IEC 61131-3 ed. 3): set with `REF(v)` or `NULL`, read through `r^`.
+    RefTo,
+    /// `POINTER TO T` (CODESYS): set with `ADR(v)`, read through `p^`, moved by `p + n`.
+    Pointer,
+    /// `REFERENCE TO T` (CODESYS): an alias, bound with `r REF= v`, used without `^`.
+    Reference,
 }
 
 /// `TYPE Name : … END_TYPE`.
@@ -294,6 +307,11 @@ pub enum StmtKind {
     Exit,
     Continue,
     Return,
+    /// `r REF= v`: binds a `REFERENCE TO` (or sets any reference) to `v`.
+    RefAssign {
+        target: Expr,
+        value: Expr,
+    },
     /// A lone `;`.
     Empty,
 }
@@ -330,6 +348,8 @@ pub enum ExprKind {
     Index(Box<Expr>, Vec<Expr>),
     /// `a.3`: a bit of an integer or bit string (IEC partial access).
     Bit(Box<Expr>, u8),
+    /// `r^`: what a reference or pointer points to.
+    Deref(Box<Expr>),
     Unary(UnaryOp, Box<Expr>),
     Binary(BinaryOp, Box<Expr>, Box<Expr>),
     /// `f(…)`, `fb(…)`, `inst.fb(…)`.

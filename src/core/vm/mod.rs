@@ -25,7 +25,7 @@ use crate::device::{
 use crate::lang::native::{self, StFrame};
 use crate::lang::ops::{ArithOp, Combine, Op, Src, SystemRequest, Wide, WideConv};
 use crate::lang::{Language, Program, Variables, CALL_DEPTH, LOOP_DEPTH, ST_CALL_DEPTH};
-use crate::value::{self, Elem, Pointer};
+use crate::value::{self, Elem, Pointer, Space};
 use typed::EvalStack;
 
 /// Operation error: division by zero.
@@ -35,6 +35,14 @@ pub const ERR_VALUE_RANGE: u16 = duty::ERR_DUTY_RANGE;
 /// Operation error: an array index outside the array's bounds (Structured Text); the access
 /// goes to the discard pointer.
 pub const ERR_INDEX_RANGE: u16 = 0x3402;
+/// Operation error: an access through a reference outside its memory area (past the end of
+/// variable memory, the frame area or device memory, or across it for the access's width),
+/// into device memory by a member, an element or pointer arithmetic, or through a reference
+/// that went nowhere (an array element out of bounds); the difference of two pointers into
+/// different areas.
+pub const ERR_REF_RANGE: u16 = 0x2820;
+/// Operation error: an access through `NULL`.
+pub const ERR_REF_NULL: u16 = 0x2822;
 /// Operation error: `CALL` nested deeper than [`CALL_DEPTH`] (and, impossible for a checked
 /// program, a Structured Text call deeper than [`ST_CALL_DEPTH`]).
 pub const ERR_CALL_DEPTH: u16 = 0x4210;
@@ -1127,6 +1135,51 @@ fn interpret<'a, const ST: bool, C: Clock>(
                     let src = Pointer::from_slot(pop!());
                     let dst = Pointer::from_slot(pop!());
                     typed::copy(vars, &mut state.frame, dst, src, *n as usize);
+                }
+                Op::Deref { size } if ST => {
+                    match typed::deref(
+                        top!(),
+                        *size,
+                        mem.words().len(),
+                        vars.len(),
+                        state.frame.len(),
+                    ) {
+                        Ok(p) => set_top!(p.to_slot()),
+                        Err(code) => {
+                            set_top!(Pointer::DISCARD.to_slot());
+                            fail!(code);
+                        }
+                    }
+                }
+                Op::CheckRef(size) if ST => {
+                    let p = Pointer::from_slot(top!());
+                    let words = mem.words().len();
+                    if p.space != Space::Discard
+                        && !typed::reaches(p, *size, words, vars.len(), state.frame.len())
+                    {
+                        set_top!(Pointer::DISCARD.to_slot());
+                        fail!(ERR_REF_RANGE);
+                    }
+                }
+                Op::RefAdd if ST => {
+                    let n = pop!();
+                    match typed::ref_add(top!(), n) {
+                        Ok(r) => set_top!(r),
+                        Err(code) => {
+                            set_top!(0);
+                            fail!(code);
+                        }
+                    }
+                }
+                Op::RefDiff if ST => {
+                    let b = pop!();
+                    match typed::ref_diff(top!(), b) {
+                        Some(d) => set_top!(d),
+                        None => {
+                            set_top!(0);
+                            fail!(ERR_REF_RANGE);
+                        }
+                    }
                 }
                 Op::Bin { op, elem } if ST => {
                     let b = pop!();

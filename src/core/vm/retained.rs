@@ -83,7 +83,10 @@ impl RetainedVariables {
     /// The retained leaves of `variables`.
     pub fn new(variables: &Variables) -> RetainedVariables {
         let size = variables.initial.len() as u64;
-        let retained = |s: &&Symbol| s.retain && s.at.space == Space::Var;
+        // A reference is not saved: its offset means nothing to another layout of memory.
+        let retained = |s: &&Symbol| {
+            s.retain && s.at.space == Space::Var && !matches!(s.ty, ValueType::Reference { .. })
+        };
         let mut leaves: Vec<RetainedLeaf> = variables
             .symbols
             .iter()
@@ -290,6 +293,19 @@ mod tests {
         assert_eq!(copy, [4, 5, 6, 7, 10, 11, 12, 13, 14, 15, 99]);
         assert_eq!(r.leaf_in(&r.leaves()[2], &copy), &[12, 13, 14, 15]);
         assert_eq!(r.leaves()[2].ty, "STRING[3]");
+    }
+
+    #[test]
+    fn references_are_not_saved() {
+        let pointer = ValueType::Reference { type_name: "POINTER TO INT".into() };
+        let v = variables(vec![
+            symbol("main.n", ValueType::Signed(Elem::I16), 0, true),
+            symbol("main.p", pointer, 8, true),
+        ]);
+        let r = RetainedVariables::new(&v);
+        let names: Vec<&str> = r.leaves().iter().map(|l| l.name.as_str()).collect();
+        assert_eq!(names, ["main.n"]);
+        assert_eq!(&*r.ranges, &[(0, 2)]);
     }
 
     #[test]

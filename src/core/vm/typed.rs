@@ -119,6 +119,65 @@ pub(super) fn moved(p: Pointer, n: u32) -> Pointer {
     Pointer { space: p.space, offset: p.offset.wrapping_add(n) }
 }
 
+/// Whether `size` bytes at `p` (one scalar's words at a word device, one bit at a bit
+/// device) are inside its memory area: variable memory (`vars` bytes), the frame area
+/// (`frame` bytes), device memory (`words` words).
+pub(super) fn reaches(p: Pointer, size: u32, words: usize, vars: usize, frame: usize) -> bool {
+    let offset = u64::from(p.offset);
+    match p.space {
+        Space::Var => offset + u64::from(size) <= vars as u64,
+        Space::Frame => offset + u64::from(size) <= frame as u64,
+        Space::Word => offset + u64::from(size.div_ceil(2).max(1)) <= words as u64,
+        Space::Bit => offset / 16 < words as u64,
+        Space::Discard => false,
+    }
+}
+
+/// The pointer a reference value holds, checked as `Op::Deref { size }` says.
+pub(super) fn deref(
+    reference: u64,
+    size: u32,
+    words: usize,
+    vars: usize,
+    frame: usize,
+) -> Result<Pointer, u16> {
+    let Some(p) = Pointer::from_reference(reference) else {
+        return Err(super::ERR_REF_NULL);
+    };
+    let device = matches!(p.space, Space::Word | Space::Bit);
+    let ok = if size == 0 {
+        !device && reaches(p, 0, words, vars, frame)
+    } else {
+        reaches(p, size, words, vars, frame)
+    };
+    if ok {
+        Ok(p)
+    } else {
+        Err(super::ERR_REF_RANGE)
+    }
+}
+
+/// The reference value `reference` moved by `n` bytes (`Op::RefAdd`).
+pub(super) fn ref_add(reference: u64, n: u64) -> Result<u64, u16> {
+    let space = Pointer::from_reference(reference).map(|p| p.space);
+    if matches!(space, Some(Space::Word | Space::Bit)) {
+        return Err(super::ERR_REF_RANGE);
+    }
+    let offset = (reference as u32).wrapping_add(n as u32);
+    Ok(reference >> 32 << 32 | u64::from(offset))
+}
+
+/// `a - b` for two reference values (`Op::RefDiff`): the `DINT` slot of the distance in bytes,
+/// when both point into one memory area.
+pub(super) fn ref_diff(a: u64, b: u64) -> Option<u64> {
+    let (pa, pb) = (Pointer::from_reference(a)?, Pointer::from_reference(b)?);
+    if pa.space != pb.space || pa.space == Space::Discard {
+        return None;
+    }
+    let distance = i64::from(pa.offset) - i64::from(pb.offset);
+    Some(distance as i32 as i64 as u64)
+}
+
 /// The `N` bytes at `at` of `buf`, if they are all inside it.
 #[inline(always)]
 fn le<const N: usize>(buf: &[u8], at: usize) -> Option<[u8; N]> {
@@ -595,6 +654,78 @@ mod tests {
     use super::*;
 
     const UN_OPS: [UnOp; 3] = [UnOp::Neg, UnOp::Not, UnOp::Abs];
+
+    fn reference(space: Space, offset: u32) -> u64 {
+        Pointer { space, offset }.to_slot() + crate::value::REF_TAG
+    }
+
+    #[test]
+    fn a_dereference_is_checked_against_its_area() {
+        use super::super::{ERR_REF_NULL, ERR_REF_RANGE};
+        let (words, vars, frame) = (100, 64, 32);
+        let deref = |r, size| deref(r, size, words, vars, frame);
+        assert_eq!(deref(0, 2), Err(ERR_REF_NULL));
+        // NULL moved stays NULL
+        assert_eq!(deref(ref_add(0, 8).unwrap(), 2), Err(ERR_REF_NULL));
+        assert_eq!(
+            deref(reference(Space::Var, 62), 2),
+            Ok(Pointer { space: Space::Var, offset: 62 })
+        );
+        // crossing the end of the area for the access's width
+        assert_eq!(deref(reference(Space::Var, 63), 2), Err(ERR_REF_RANGE));
+        assert_eq!(deref(reference(Space::Var, 64), 1), Err(ERR_REF_RANGE));
+        assert_eq!(
+            deref(reference(Space::Frame, 24), 8),
+            Ok(Pointer { space: Space::Frame, offset: 24 })
+        );
+        assert_eq!(deref(reference(Space::Frame, 25), 8), Err(ERR_REF_RANGE));
+        // a path may start at the end of the area; its end is checked by `CheckRef`
+        assert!(deref(reference(Space::Var, 64), 0).is_ok());
+        assert_eq!(deref(reference(Space::Var, 65), 0), Err(ERR_REF_RANGE));
+        // device words: a DINT takes 2 words, an 8-bit value 1
+        assert!(deref(reference(Space::Word, 98), 4).is_ok());
+        assert_eq!(deref(reference(Space::Word, 99), 4), Err(ERR_REF_RANGE));
+        assert!(deref(reference(Space::Word, 99), 1).is_ok());
+        assert!(deref(reference(Space::Bit, 1599), 1).is_ok());
+        assert_eq!(deref(reference(Space::Bit, 1600), 1), Err(ERR_REF_RANGE));
+        // no member or element into device memory
+        assert_eq!(deref(reference(Space::Word, 0), 0), Err(ERR_REF_RANGE));
+        // the discard pointer and garbage spaces go nowhere
+        assert_eq!(deref(reference(Space::Discard, 0), 1), Err(ERR_REF_RANGE));
+        assert_eq!(deref(7 << 32, 1), Err(ERR_REF_RANGE));
+        assert!(reaches(Pointer { space: Space::Var, offset: 60 }, 4, words, vars, frame));
+        assert!(!reaches(Pointer { space: Space::Var, offset: 61 }, 4, words, vars, frame));
+    }
+
+    #[test]
+    fn a_pointer_difference_needs_one_area() {
+        let (a, b) = (reference(Space::Var, 10), reference(Space::Var, 16));
+        assert_eq!(ref_diff(b, a), Some(6));
+        assert_eq!(ref_diff(a, b), Some(-6i64 as u64));
+        assert_eq!(ref_diff(a, reference(Space::Frame, 10)), None);
+        assert_eq!(ref_diff(a, 0), None);
+        assert_eq!(ref_diff(0, 0), None);
+        assert_eq!(ref_diff(reference(Space::Word, 3), reference(Space::Word, 1)), Some(2));
+        let discard = reference(Space::Discard, 0);
+        assert_eq!(ref_diff(discard, discard), None);
+    }
+
+    #[test]
+    fn pointer_arithmetic_stays_in_its_area() {
+        use super::super::ERR_REF_RANGE;
+        let r = reference(Space::Var, 10);
+        assert_eq!(ref_add(r, 6), Ok(reference(Space::Var, 16)));
+        assert_eq!(ref_add(r, (-4i64) as u64), Ok(reference(Space::Var, 6)));
+        // below 0 the offset wraps within 32 bits: the same area, far outside it
+        assert_eq!(ref_add(r, (-11i64) as u64), Ok(reference(Space::Var, u32::MAX)));
+        // however large, n never carries into the area
+        assert_eq!(
+            ref_add(reference(Space::Frame, 0), u64::from(u32::MAX) + 1),
+            Ok(reference(Space::Frame, 0))
+        );
+        assert_eq!(ref_add(reference(Space::Word, 5), 2), Err(ERR_REF_RANGE));
+        assert_eq!(ref_add(reference(Space::Bit, 5), 0), Err(ERR_REF_RANGE));
+    }
 
     /// Slots of every kind: small, extreme, garbage in the high bits, float bit patterns
     /// (NaN, infinities, signed zeros, subnormals).

@@ -237,8 +237,9 @@ pub(super) fn captured(items: &[Item], snapshot: &Snapshot) -> bool {
     })
 }
 
-/// The answer to a `get`, from a capture that holds everything it reads.
-pub(super) fn values(items: &[Item], snapshot: &Snapshot) -> ResponseLine {
+/// The answer to a `get`, from a capture that holds everything it reads; `symbols` name what
+/// a reference points to.
+pub(super) fn values(items: &[Item], snapshot: &Snapshot, symbols: &[Symbol]) -> ResponseLine {
     let values = items
         .iter()
         .map(|item| match item {
@@ -246,7 +247,7 @@ pub(super) fn values(items: &[Item], snapshot: &Snapshot) -> ResponseLine {
                 d.to_string(),
                 value_in(d, snapshot.word(word_of(d)).unwrap_or(0)),
             ),
-            Item::Variable(symbol) => variable_value(symbol, snapshot),
+            Item::Variable(symbol) => variable_value(symbol, snapshot, symbols),
         })
         .collect();
     ResponseLine::ok(Reply::Values { scan: snapshot.scan.count, values })
@@ -254,23 +255,23 @@ pub(super) fn values(items: &[Item], snapshot: &Snapshot) -> ResponseLine {
 
 /// A variable's value as the trace writes it (a number, 0/1, `"T#1s500ms"`, an enumeration
 /// value's name, a `STRING`'s characters), with its type.
-fn variable_value(symbol: &Symbol, snapshot: &Snapshot) -> NamedValue {
+fn variable_value(symbol: &Symbol, snapshot: &Snapshot, symbols: &[Symbol]) -> NamedValue {
     let value = match var_read(symbol) {
         VarRead::Text { at, cap } => {
             let chars = snapshot.text(at, cap).unwrap_or_default();
             Value::Text(value::decode_str(chars))
         }
         VarRead::Value { at, elem } => {
-            json_value(&symbol.ty, snapshot.value(at, elem).unwrap_or(0))
+            json_value(&symbol.ty, snapshot.value(at, elem).unwrap_or(0), symbols)
         }
     };
     NamedValue { dev: symbol.name.clone(), value, ty: Some(value::type_name(&symbol.ty)) }
 }
 
 /// A slot of `ty` as the protocol's value: the trace's JSON, read back.
-pub(super) fn json_value(ty: &ValueType, slot: u64) -> Value {
+pub(super) fn json_value(ty: &ValueType, slot: u64, symbols: &[Symbol]) -> Value {
     let mut json = String::new();
-    push_json_value(&mut json, ty, slot);
+    push_json_value(&mut json, ty, slot, symbols);
     serde_json::from_str(&json).unwrap_or(Value::Text(json))
 }
 
@@ -298,6 +299,10 @@ mod tests {
     use super::*;
     use crate::value::Elem;
 
+    fn json_value_of(ty: &ValueType, slot: u64) -> Value {
+        json_value(ty, slot, &[])
+    }
+
     #[test]
     fn bits_and_words_read_from_their_word() {
         let bit = Address::parse("P0043").unwrap();
@@ -311,29 +316,32 @@ mod tests {
     #[test]
     fn variable_values_are_the_traces() {
         let real = |x: f64| Value::Number(serde_json::Number::from_f64(x).unwrap());
-        assert_eq!(json_value(&ValueType::Bool, 1), Value::from(1));
-        assert_eq!(json_value(&ValueType::Signed(Elem::I16), 0xFFFF), Value::from(-1));
-        assert_eq!(json_value(&ValueType::Unsigned(Elem::U64), u64::MAX), Value::from(u64::MAX));
-        assert_eq!(json_value(&ValueType::Signed(Elem::I64), 1 << 63), Value::from(i64::MIN));
-        assert_eq!(json_value(&ValueType::Real(Elem::F32), 0.1f32.to_bits().into()), real(0.1));
-        assert_eq!(json_value(&ValueType::Real(Elem::F64), 1.0f64.to_bits()), real(1.0));
+        assert_eq!(json_value_of(&ValueType::Bool, 1), Value::from(1));
+        assert_eq!(json_value_of(&ValueType::Signed(Elem::I16), 0xFFFF), Value::from(-1));
+        assert_eq!(json_value_of(&ValueType::Unsigned(Elem::U64), u64::MAX), Value::from(u64::MAX));
+        assert_eq!(json_value_of(&ValueType::Signed(Elem::I64), 1 << 63), Value::from(i64::MIN));
+        assert_eq!(json_value_of(&ValueType::Real(Elem::F32), 0.1f32.to_bits().into()), real(0.1));
+        assert_eq!(json_value_of(&ValueType::Real(Elem::F64), 1.0f64.to_bits()), real(1.0));
         assert_eq!(
-            json_value(&ValueType::Real(Elem::F32), f32::NEG_INFINITY.to_bits().into()),
+            json_value_of(&ValueType::Real(Elem::F32), f32::NEG_INFINITY.to_bits().into()),
             Value::from("-inf")
         );
-        assert_eq!(json_value(&ValueType::Real(Elem::F64), f64::NAN.to_bits()), Value::from("NaN"));
-        assert_eq!(json_value(&ValueType::Time, 1_500_000_000), Value::from("T#1s500ms"));
+        assert_eq!(
+            json_value_of(&ValueType::Real(Elem::F64), f64::NAN.to_bits()),
+            Value::from("NaN")
+        );
+        assert_eq!(json_value_of(&ValueType::Time, 1_500_000_000), Value::from("T#1s500ms"));
         // A DATE counts seconds: 2024-03-01 is day 19783.
         let date = ValueType::Calendar(value::Calendar::Date);
-        assert_eq!(json_value(&date, 19_783 * 86_400), Value::from("D#2024-03-01"));
+        assert_eq!(json_value_of(&date, 19_783 * 86_400), Value::from("D#2024-03-01"));
         let mode = ValueType::Enum {
             type_name: "Mode".into(),
             values: vec![("Idle".into(), 0), ("Running".into(), 5)],
             base: crate::value::Elem::I32,
         };
-        assert_eq!(json_value(&mode, 5), Value::from("Running"));
+        assert_eq!(json_value_of(&mode, 5), Value::from("Running"));
         // A number no value is named for: a JSON number (docs/ST.md), as in the trace.
-        assert_eq!(json_value(&mode, 7), Value::from(7));
+        assert_eq!(json_value_of(&mode, 7), Value::from(7));
     }
 
     /// The handler without a scan thread: the test takes its commands and answers them.

@@ -341,7 +341,10 @@ impl RequestHandler {
             let client = waiting.client;
             let outcome = match waiting.then {
                 Then::Status { devices } => self.status_outcome(devices, &snapshot),
-                Then::Values { items } => Outcome::Answer(devices::values(&items, &snapshot)),
+                Then::Values { items } => {
+                    let symbols = &self.running().project.variables.symbols;
+                    Outcome::Answer(devices::values(&items, &snapshot, symbols))
+                }
                 Then::Forces { .. } => Outcome::Answer(forces::table(&snapshot)),
                 Then::Debug { unbroken, devices, until_paused } => {
                     self.debug_outcome(unbroken, devices, until_paused, &snapshot)

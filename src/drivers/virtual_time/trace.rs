@@ -11,7 +11,7 @@ use std::fmt::Write as _;
 use std::io::{self, Write};
 
 use crate::engine::event::{task_name, Event, EventSink};
-use crate::value::ValueType;
+use crate::value::{Symbol, ValueType};
 
 /// Writes events as JSON Lines.
 ///
@@ -26,6 +26,8 @@ pub struct TraceWriter<W: Write> {
     watch_names: Vec<String>,
     /// The type of each watched variable (`None` for a device), to write its values.
     watch_types: Vec<Option<ValueType>>,
+    /// The project's variables, to name what a watched reference points to.
+    symbols: Vec<Symbol>,
     program_lines: Vec<(String, Vec<u32>)>,
     line: String,
     error: Option<io::Error>,
@@ -47,6 +49,7 @@ impl<W: Write> TraceWriter<W> {
             task_names,
             watch_names,
             watch_types: Vec::new(),
+            symbols: Vec::new(),
             program_lines,
             line: String::with_capacity(128),
             error: None,
@@ -57,6 +60,13 @@ impl<W: Write> TraceWriter<W> {
     /// values are written (a number, a `"T#1s500ms"` TIME, an enumeration value's name).
     pub fn with_types(mut self, watch_types: Vec<Option<ValueType>>) -> Self {
         self.watch_types = watch_types;
+        self
+    }
+
+    /// The project's variables: a watched reference is written as the one it points to
+    /// (`"main.buf[2]"`).
+    pub fn with_symbols(mut self, symbols: Vec<Symbol>) -> Self {
+        self.symbols = symbols;
         self
     }
 
@@ -112,7 +122,7 @@ impl<W: Write> TraceWriter<W> {
                 push_str_field(line, "dev", &dev);
                 line.push_str(",\"value\":");
                 match self.watch_types.get(usize::from(watch)) {
-                    Some(Some(ty)) => push_json_value(line, ty, slot),
+                    Some(Some(ty)) => push_json_value(line, ty, slot, &self.symbols),
                     _ => {
                         let _ = write!(line, "{slot}");
                     }
@@ -173,14 +183,21 @@ fn watch_name(names: &[String], watch: u16) -> String {
 
 /// Appends a variable's value as JSON: a number for integers, bit strings and reals (a real
 /// that is not finite as the string `"NaN"`, `"inf"` or `"-inf"`), 0/1 for BOOL, a string for
-/// TIME, DATE, TOD, DT and their long forms (IEC literals) and for an enumeration (its value's name, or a number for a value
-/// that has none).
-pub fn push_json_value(line: &mut String, ty: &ValueType, slot: u64) {
-    let text = crate::value::format(ty, slot);
+/// TIME, DATE, TOD, DT and their long forms (IEC literals) and for an enumeration (its value's
+/// name, or a number for a value that has none); for a reference, what it points to: one of
+/// `symbols` or a device ([`crate::lang::reference_text`]).
+pub fn push_json_value(line: &mut String, ty: &ValueType, slot: u64, symbols: &[Symbol]) {
+    let text = match ty {
+        ValueType::Reference { .. } => crate::lang::reference_text(symbols, slot),
+        _ => crate::value::format(ty, slot),
+    };
     let numeric = match ty {
         ValueType::Real(_) => text.parse::<f64>().is_ok_and(f64::is_finite),
         ValueType::Enum { .. } => text.parse::<i64>().is_ok(),
-        ValueType::Time | ValueType::Calendar(_) | ValueType::String { .. } => false,
+        ValueType::Time
+        | ValueType::Calendar(_)
+        | ValueType::String { .. }
+        | ValueType::Reference { .. } => false,
         _ => true,
     };
     if numeric {
@@ -249,6 +266,33 @@ mod tests {
             ["P0040", "D00010"].map(String::from).to_vec(),
             vec![("main".to_string(), vec![3, 4, 17]), ("aux".to_string(), vec![])],
         )
+    }
+
+    #[test]
+    fn a_reference_is_written_as_what_it_points_to() {
+        let ty = ValueType::Reference { type_name: "POINTER TO INT".into() };
+        let symbols = vec![Symbol {
+            name: "main.s".into(),
+            ty: ValueType::String { cap: 10 },
+            at: crate::value::Pointer { space: crate::value::Space::Var, offset: 100 },
+            retain: false,
+            constant: false,
+        }];
+        let json = |slot: u64| {
+            let mut line = String::new();
+            push_json_value(&mut line, &ty, slot, &symbols);
+            line
+        };
+        let reference = |space, offset| {
+            crate::value::Pointer { space, offset }.to_slot() + crate::value::REF_TAG
+        };
+        let d100 = crate::device::Address::parse("D00100").unwrap().as_word().unwrap();
+        assert_eq!(json(0), r#""NULL""#);
+        assert_eq!(json(reference(crate::value::Space::Word, u32::from(d100.0))), r#""D00100""#);
+        assert_eq!(json(reference(crate::value::Space::Var, 24)), r#""vars+24""#);
+        assert_eq!(json(reference(crate::value::Space::Var, 100)), r#""main.s""#);
+        assert_eq!(json(reference(crate::value::Space::Var, 103)), r#""main.s+3""#);
+        assert_eq!(json(reference(crate::value::Space::Var, 111)), r#""vars+111""#);
     }
 
     fn line(t_ns: u64, event: Event) -> String {
@@ -360,9 +404,9 @@ mod tests {
         use crate::value::Calendar;
         let mut line = String::new();
         // 2024-03-01 12:30:15 is 1709296215 s after 1970-01-01.
-        push_json_value(&mut line, &ValueType::Calendar(Calendar::Dt), 1_709_296_215);
+        push_json_value(&mut line, &ValueType::Calendar(Calendar::Dt), 1_709_296_215, &[]);
         line.push(' ');
-        push_json_value(&mut line, &ValueType::Calendar(Calendar::LTod), 1_500_000_000);
+        push_json_value(&mut line, &ValueType::Calendar(Calendar::LTod), 1_500_000_000, &[]);
         assert_eq!(line, r#""DT#2024-03-01-12:30:15" "LTOD#00:00:01.5""#);
     }
 

@@ -52,10 +52,11 @@ pub(crate) struct Body {
 }
 
 /// True if native code executes `op` itself; the others (the clock, strings, system requests,
-/// the integer power, which can fail) go to the interpreter.
+/// the integer power and the difference of two pointers, which can fail) go to the
+/// interpreter.
 pub(crate) fn is_native(op: &Op) -> bool {
     match op {
-        Op::Now | Op::Utc | Op::Str { .. } | Op::System(_) => false,
+        Op::Now | Op::Utc | Op::Str { .. } | Op::System(_) | Op::RefDiff => false,
         Op::Bin { op: BinOp::Expt, elem } => elem.is_float(),
         _ => true,
     }

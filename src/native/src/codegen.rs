@@ -48,8 +48,8 @@ use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Switch, Variab
 use plcd_core::lang::native::{NativeRegs, StFrame};
 use plcd_core::lang::ops::{CmpOp, Op, Place};
 use plcd_core::lang::{Program, EVAL_DEPTH, ST_CALL_DEPTH};
-use plcd_core::value::{BinOp, Elem, Pointer, Space, UnOp};
-use plcd_core::vm::{ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE};
+use plcd_core::value::{BinOp, Elem, Pointer, Space, UnOp, REF_TAG};
+use plcd_core::vm::{ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE, ERR_REF_NULL};
 
 use crate::analysis::{is_native, Analysis};
 use crate::carry::{self, in_bytes, Key};
@@ -851,6 +851,42 @@ impl Gen<'_, '_> {
                 *depth -= 1;
                 self.set(d - 2, moved);
                 self.info[d as usize - 2].known = known;
+            }
+            Op::Deref { size } => {
+                // NULL raises its error here; a pointer that is not all inside variable memory
+                // or the frame (a device, out of its area) goes to the interpreter, which
+                // checks it the same way and raises the error when there is one.
+                let reference = self.slot(d - 1);
+                let null =
+                    self.b.ins().icmp_imm_s(IntCC::UnsignedLessThan, reference, REF_TAG as i64);
+                self.error_if(null, at, d, Pointer::DISCARD.to_slot() as i64, ERR_REF_NULL);
+                let pointer = self.b.ins().iadd_imm_s(reference, -(REF_TAG as i64));
+                let (_, ok) = self.reach(pointer, u64::from(size));
+                let out = self.b.ins().bxor_imm_s(ok, 1);
+                self.bail_if(out, at, d);
+                self.set(d - 1, pointer);
+            }
+            Op::CheckRef(size) => {
+                // Outside variable memory and the frame (the discard pointer included): the
+                // interpreter's.
+                let pointer = self.slot(d - 1);
+                let (_, ok) = self.reach(pointer, u64::from(size));
+                let out = self.b.ins().bxor_imm_s(ok, 1);
+                self.bail_if(out, at, d);
+            }
+            Op::RefAdd => {
+                // A pointer into device memory (its area numbered 3 or 4, from 1) fails: the
+                // interpreter's. Else the offset moves, wrapping within 32 bits.
+                let n = self.slot(d - 1);
+                let reference = self.slot(d - 2);
+                let area = self.b.ins().ushr_imm_s(reference, 32);
+                let device_from = (Space::Word as i64) + 1;
+                let device = self.b.ins().iadd_imm_s(area, -device_from);
+                let device = self.b.ins().icmp_imm_s(IntCC::UnsignedLessThan, device, 2);
+                self.bail_if(device, at, d);
+                let moved = self.moved(reference, n, false);
+                *depth -= 1;
+                self.set(d - 2, moved);
             }
             Op::Offset(n) => {
                 let pointer = self.slot(d - 1);

@@ -54,7 +54,10 @@ use plcd_core::lang::native::{NativeCode, NativeExit, NativeMemory, NativeRegs};
 use plcd_core::lang::{Language, Program, Variables};
 use plcd_core::st::{compile, parse_file, Instance};
 use plcd_core::value::Space;
-use plcd_core::vm::{Clock, ExecState, Exit, StepClock, Vm, ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE};
+use plcd_core::vm::{
+    Clock, ExecState, Exit, StepClock, Vm, ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE, ERR_REF_NULL,
+    ERR_REF_RANGE,
+};
 
 const MS: u64 = 1_000_000;
 
@@ -914,6 +917,72 @@ END_PROGRAM
     assert!(outcome.errors.iter().all(|&e| e == ERR_INDEX_RANGE));
     assert_eq!(outcome.slot("main.r1"), 0);
     assert_eq!(outcome.slot("main.r2"), 10);
+}
+
+#[test]
+fn references_run_natively_and_fail_as_on_the_interpreter() {
+    // A STRING walked through a pointer as OSCAT does, a REF_TO into a function's frame, a
+    // linked list; then NULL (2822H), a pointer past variable memory and one into device
+    // memory moved (2820H), which native code leaves to the interpreter.
+    let source = "
+TYPE Node : STRUCT v : INT; next : POINTER TO Node; END_STRUCT; END_TYPE
+FUNCTION Sum : DINT
+VAR_INPUT s : STRING; END_VAR
+VAR pt : POINTER TO ARRAY [1..255] OF BYTE; i : INT; local : DINT; r : REF_TO DINT; END_VAR
+    pt := ADR(s);
+    r := REF(local);
+    FOR i := 2 TO LEN(s) + 1 DO
+        r^ := r^ + BYTE_TO_DINT(pt^[i]);
+    END_FOR;
+    Sum := local;
+END_FUNCTION
+PROGRAM Main
+VAR
+    text : STRING[20] := 'abc';
+    total : DINT;
+    nodes : ARRAY [0..2] OF Node := [(v := 1), (v := 2), (v := 3)];
+    it : POINTER TO Node;
+    walked, n, bad, far : INT;
+    none : REF_TO INT;
+    level AT %D00010 : INT;
+    dp : POINTER TO INT;
+    moved_null : BOOL;
+    distance, no_distance : DINT;
+END_VAR
+    n := n + 1;
+    total := Sum(text);
+    nodes[0].next := ADR(nodes[1]);
+    nodes[1].next := ADR(nodes[2]);
+    walked := 0;
+    it := ADR(nodes[0]);
+    WHILE it <> NULL DO
+        walked := walked * 10 + it^.v;
+        it^.v := it^.v + 1;
+        it := it^.next;
+    END_WHILE;
+    bad := none^ + n;
+    dp := ADR(nodes[0].v) + 16#7FFFFFF0;
+    far := dp^;
+    dp := ADR(level);
+    dp^ := n;
+    dp := dp + 2;
+    moved_null := dp = NULL;
+    distance := ADR(nodes[2]) - ADR(nodes[0]);
+    no_distance := ADR(nodes[2]) - dp;
+END_PROGRAM
+";
+    let outcome = targeted("references", source, Scans::new(3), 70);
+    assert_eq!(outcome.errors_with_whole_budget(ERR_REF_NULL), 3);
+    assert_eq!(outcome.errors_with_whole_budget(ERR_REF_RANGE), 3 * 3);
+    assert_eq!(outcome.slot("main.total"), 97 + 98 + 99);
+    // each scan walks 1-2-3 once more incremented: 123, 234, 345
+    assert_eq!(outcome.slot("main.walked"), 345);
+    assert_eq!(outcome.slot("main.bad"), 3, "NULL reads 0");
+    assert_eq!(outcome.slot("main.far"), 0);
+    assert_eq!(outcome.slot("main.moved_null"), 1);
+    // a Node is an INT and a pointer: 10 bytes
+    assert_eq!(outcome.slot("main.distance"), 20);
+    assert_eq!(outcome.slot("main.no_distance"), 0);
 }
 
 #[test]

@@ -330,7 +330,31 @@ impl<'a> Ctx<'a> {
                 }
                 Ty::Sub(p, l, h)
             }
+            TypeRef::Ref { kind, to, .. } => {
+                if let Some(to) = self.referenced_while_busy(to) {
+                    return Ty::Ref(*kind, Rc::new(to));
+                }
+                match self.resolve_type_ref(to, scope) {
+                    Ty::Error => Ty::Error,
+                    to => Ty::Ref(*kind, Rc::new(to)),
+                }
+            }
         }
+    }
+
+    /// The STRUCT or FUNCTION_BLOCK a reference type points to while that type's own
+    /// declaration is being read (`next : POINTER TO Node` inside `Node`): a reference does
+    /// not contain what it points to, so it may point to its own type.
+    fn referenced_while_busy(&self, to: &TypeRef) -> Option<Ty> {
+        let TypeRef::Named(id) = to else { return None };
+        if let Some(&t) = self.type_names.get(&key(&id.name)) {
+            let entry = &self.type_decls[t];
+            return (entry.state == State::Busy && matches!(entry.ty, Ty::Struct(_)))
+                .then(|| entry.ty.clone());
+        }
+        let &p = self.pou_names.get(&key(&id.name))?;
+        let pou = &self.pous[p];
+        (pou.kind == PouKind::FunctionBlock && pou.state == State::Busy).then_some(Ty::Fb(p))
     }
 
     fn make_enum(
@@ -438,6 +462,15 @@ impl<'a> Ctx<'a> {
                 resolved
             }
             TypeDef::Struct { members } => {
+                // its index first, for the references to it among its members
+                let index = self.types.structs.len();
+                self.types.structs.push(StructTy {
+                    name: decl.name.name.clone(),
+                    members: Vec::new(),
+                    size: 0,
+                    image: Vec::new(),
+                });
+                self.type_decls[t].ty = Ty::Struct(index);
                 let mut out: Vec<Member> = Vec::new();
                 let mut img = Vec::new();
                 for m in members {
@@ -464,13 +497,12 @@ impl<'a> Ctx<'a> {
                         img.extend_from_slice(&bytes);
                     }
                 }
-                let index = self.types.structs.len();
-                self.types.structs.push(StructTy {
+                self.types.structs[index] = StructTy {
                     name: decl.name.name.clone(),
                     members: out,
                     size: img.len() as u32,
                     image: img,
-                });
+                };
                 Ty::Struct(index)
             }
             TypeDef::Enum { def, init } => {
@@ -1366,7 +1398,7 @@ fn walk_stmts(body: &[ast::Stmt], f: &mut impl FnMut(&ast::Expr)) {
     use ast::StmtKind as S;
     for s in body {
         match &s.kind {
-            S::Assign { target, value } => {
+            S::Assign { target, value } | S::RefAssign { target, value } => {
                 walk_expr(target, f);
                 walk_expr(value, f);
             }
@@ -1411,7 +1443,7 @@ fn walk_expr(e: &ast::Expr, f: &mut impl FnMut(&ast::Expr)) {
     f(e);
     match &e.kind {
         K::Literal(_) | K::Name(_) => {}
-        K::Member(b, _) | K::Bit(b, _) | K::Unary(_, b) => walk_expr(b, f),
+        K::Member(b, _) | K::Bit(b, _) | K::Unary(_, b) | K::Deref(b) => walk_expr(b, f),
         K::Index(b, ix) => {
             walk_expr(b, f);
             for i in ix {

@@ -7,7 +7,7 @@ use crate::device::{BitRef, WordRef};
 use crate::lang::ops::{CmpOp, StrOp};
 use crate::lang::{Op, Place, EVAL_DEPTH};
 use crate::st::ast::PouKind;
-use crate::value::{BinOp, Elem, UnOp};
+use crate::value::{BinOp, Elem, UnOp, REF_TAG};
 
 use super::ctx::{Ctx, Cv, Storage};
 use super::decl::MAX_FRAME;
@@ -139,6 +139,8 @@ fn effect(op: &Op) -> isize {
         | Op::Bin { .. }
         | Op::Cmp { .. }
         | Op::Drop
+        | Op::RefAdd
+        | Op::RefDiff
         | Op::GotoIf { .. } => -1,
         Op::CallFb { .. } => -1,
         Op::StoreInd(_) | Op::Copy(_) => -2,
@@ -295,6 +297,12 @@ impl<'c, 'a> Em<'c, 'a> {
 
     /// Pushes a pointer to a place expression (or to an aggregate value).
     fn addr(&mut self, e: &TExpr) {
+        self.addr_in(e, true);
+    }
+
+    /// [`Em::addr`]; `whole` when the place is what is accessed, not the start of a member or
+    /// element access (which checks a place reached through a reference at its end).
+    fn addr_in(&mut self, e: &TExpr, whole: bool) {
         if let Some(s) = self.static_place(e) {
             self.op_static(Op::AddrOf(s.place), s);
             return;
@@ -305,15 +313,21 @@ impl<'c, 'a> Em<'c, 'a> {
                 self.op_static(Op::Fetch { elem: Elem::U64, at: s.place }, s);
             }
             TK::Member(b, off, _) => {
-                self.addr(b);
+                self.addr_in(b, false);
                 if *off != 0 {
                     self.op(Op::Offset(*off));
                 }
+                self.check_ref_path(e, whole);
+            }
+            TK::Deref(r) => {
+                self.value(r);
+                let size = if whole { self.size(&e.ty).max(1) } else { 0 };
+                self.op(Op::Deref { size });
             }
             TK::Index(b, ix) => {
                 let Ty::Array(a) = &b.ty else { unreachable!("checked") };
                 let unit = self.memory(b).stride(a, self.elem(&a.of));
-                self.addr(b);
+                self.addr_in(b, false);
                 for (k, (i, (lo, hi))) in ix.iter().zip(&a.dims).enumerate() {
                     let inner: u64 =
                         a.dims[k + 1..].iter().map(|(l, h)| (h - l + 1) as u64).product();
@@ -324,11 +338,28 @@ impl<'c, 'a> Em<'c, 'a> {
                         stride: (inner as u32) * unit,
                     });
                 }
+                self.check_ref_path(e, whole);
             }
             _ => {
                 // an aggregate value (a call's result, a string operation): its pointer
                 self.value(e);
             }
+        }
+    }
+
+    /// After the member or element `e` is reached from a reference (`r^.x`, `r^[i]`), and when
+    /// it is what is accessed: the check of its bytes ([`Op::CheckRef`]).
+    fn check_ref_path(&mut self, e: &TExpr, whole: bool) {
+        fn through_deref(e: &TExpr) -> bool {
+            match &e.k {
+                TK::Deref(_) => true,
+                TK::Member(b, _, _) | TK::Index(b, _) => through_deref(b),
+                _ => false,
+            }
+        }
+        if whole && through_deref(e) {
+            let size = self.size(&e.ty).max(1);
+            self.op(Op::CheckRef(size));
         }
     }
 
@@ -347,7 +378,7 @@ impl<'c, 'a> Em<'c, 'a> {
                     self.push_slot(cv_slot(cv, p));
                 }
             },
-            TK::Var { .. } | TK::Member(..) | TK::Index(..) => {
+            TK::Var { .. } | TK::Member(..) | TK::Index(..) | TK::Deref(..) => {
                 if e.ty.is_aggregate() {
                     self.addr(e);
                     return;
@@ -418,6 +449,22 @@ impl<'c, 'a> Em<'c, 'a> {
                     let here = self.pc();
                     self.patch(end, here);
                 }
+            }
+            TK::Ref(place) => {
+                // the pointer, as a reference value (`Op::Deref` says how)
+                self.addr(place);
+                self.push_slot(REF_TAG);
+                self.op(Op::Bin { op: BinOp::Add, elem: Elem::U64 });
+            }
+            TK::RefAdd(r, n) => {
+                self.value(r);
+                self.value(n);
+                self.op(Op::RefAdd);
+            }
+            TK::RefDiff(a, b) => {
+                self.value(a);
+                self.value(b);
+                self.op(Op::RefDiff);
             }
         }
     }

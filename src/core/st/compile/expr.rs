@@ -4,7 +4,7 @@
 
 use crate::lang::ops::CmpOp;
 use crate::st::ast::{
-    self, Arg, BinaryOp, Expr, ExprKind, Literal, PouKind, Span, UnaryOp, VarKind,
+    self, Arg, BinaryOp, Expr, ExprKind, Literal, PouKind, RefKind, Span, UnaryOp, VarKind,
 };
 use crate::st::dialect::Habit;
 use crate::value::{BinOp, UnOp};
@@ -46,6 +46,15 @@ pub enum TK {
     Call(Box<CallT>),
     /// A standard function needing more than one op.
     Std(Std, Vec<TExpr>),
+    /// What a reference refers to (`r^`, a `REFERENCE TO` used): a place reached through
+    /// the reference value of the operand, checked at run time.
+    Deref(Box<TExpr>),
+    /// A reference to a place (`REF(v)`, `ADR(v)`, `REF=`).
+    Ref(Box<TExpr>),
+    /// A pointer moved by a number of bytes (a `LINT`): `p + n`, `p - n`.
+    RefAdd(Box<TExpr>, Box<TExpr>),
+    /// The distance in bytes between two pointers (a `DINT`): `p - q`.
+    RefDiff(Box<TExpr>, Box<TExpr>),
     /// A standard function called with `EN` or `ENO`.
     Gate(Box<GateT>),
 }
@@ -119,7 +128,13 @@ impl TExpr {
         match &self.k {
             TK::Const(_) | TK::Var { .. } => false,
             TK::Call(_) => true,
-            TK::Member(a, _, _) | TK::Bit(a, _) | TK::Un(_, a) | TK::Conv(a) => a.has_call(),
+            TK::Member(a, _, _)
+            | TK::Bit(a, _)
+            | TK::Un(_, a)
+            | TK::Conv(a)
+            | TK::Deref(a)
+            | TK::Ref(a) => a.has_call(),
+            TK::RefAdd(a, b) | TK::RefDiff(a, b) => a.has_call() || b.has_call(),
             TK::Index(a, ix) => a.has_call() || ix.iter().any(TExpr::has_call),
             TK::Bin(_, a, b) | TK::Cmp(_, a, b) => a.has_call() || b.has_call(),
             TK::Std(_, args) => args.iter().any(TExpr::has_call),
@@ -133,7 +148,7 @@ impl TExpr {
 
     /// Whether it names memory (a variable, a member, an element).
     pub fn is_place(&self) -> bool {
-        matches!(self.k, TK::Var { .. } | TK::Index(..) | TK::Member(..))
+        matches!(self.k, TK::Var { .. } | TK::Index(..) | TK::Member(..) | TK::Deref(..))
     }
 }
 
@@ -308,9 +323,11 @@ impl<'a> Ctx<'a> {
         let file = scope.file;
         match &e.kind {
             ExprKind::Literal(lit) => self.literal(lit, span, scope, expected),
-            ExprKind::Name(_) | ExprKind::Member(..) | ExprKind::Index(..) | ExprKind::Bit(..) => {
-                self.check_place(e, scope, Access::Read, expected)
-            }
+            ExprKind::Name(_)
+            | ExprKind::Member(..)
+            | ExprKind::Index(..)
+            | ExprKind::Bit(..)
+            | ExprKind::Deref(..) => self.check_place(e, scope, Access::Read, expected),
             ExprKind::Unary(op, a) => {
                 let a = self.check_expr(a, scope, expected);
                 self.unary(*op, a, span, file)
@@ -465,10 +482,27 @@ impl<'a> Ctx<'a> {
         access: Access,
         expected: Option<&Ty>,
     ) -> TExpr {
+        // a `REFERENCE TO` (a variable, a member, an element) stands for what it refers to
+        let te = self.check_place_itself(e, scope, access, expected);
+        self.auto_deref(te)
+    }
+
+    /// [`Ctx::check_place`], a `REFERENCE TO` as itself.
+    fn check_place_itself(
+        &mut self,
+        e: &Expr,
+        scope: Scope,
+        access: Access,
+        expected: Option<&Ty>,
+    ) -> TExpr {
         let span = e.span;
         let file = scope.file;
         match &e.kind {
             ExprKind::Name(id) => self.name(id, scope, access, expected),
+            ExprKind::Deref(base) => {
+                let b = self.check_place(base, scope, Access::Read, None);
+                self.deref(b, span, &expr_text(base), file)
+            }
             ExprKind::Member(base, id) => {
                 let b = self.check_place(
                     base,
@@ -761,6 +795,9 @@ impl<'a> Ctx<'a> {
             }
             return TExpr { k: TK::Var { storage: v.storage, by_ref: false }, ty: v.ty, span };
         }
+        if id.is("NULL") && access == Access::Read {
+            return TExpr::konst(Cv::Int(0), Ty::Null, span);
+        }
         if let Some(cands) = self.enum_values.get(&id.name.to_ascii_lowercase()).cloned() {
             if access != Access::Read {
                 self.error(file, span, "only a variable can be assigned");
@@ -817,6 +854,13 @@ impl<'a> Ctx<'a> {
         }
         if &te.ty == to {
             return te;
+        }
+        if matches!(te.ty, Ty::Ref(..) | Ty::Null) || matches!(to, Ty::Ref(..)) {
+            let te = self.zero_as_null(te, to);
+            if self.ref_assignable(&te.ty, to) {
+                return TExpr { ty: to.clone(), ..te };
+            }
+            return self.mismatch(te, to, file);
         }
         match (&te.ty, to) {
             (Ty::IntLit, _) => {
@@ -1072,6 +1116,9 @@ impl<'a> Ctx<'a> {
         if a.ty.is_error() || b.ty.is_error() {
             return TExpr::error(span);
         }
+        if matches!(a.ty, Ty::Ref(..) | Ty::Null) || matches!(b.ty, Ty::Ref(..) | Ty::Null) {
+            return self.ref_binary(op, a, b, span, file);
+        }
         // TIME * integer, TIME / integer
         if matches!(op, BinaryOp::Mul | BinaryOp::Div) {
             let time = |t: &Ty, s: &Self| t.prim(&s.types).is_some_and(Prim::is_time);
@@ -1316,6 +1363,9 @@ impl<'a> Ctx<'a> {
                             TExpr::error(span)
                         }
                     };
+                }
+                if let Some(t) = self.ref_call(id, args, span, scope) {
+                    return t;
                 }
                 return self.std_call(id, args, span, scope, expected);
             }
@@ -1577,7 +1627,10 @@ impl<'a> Ctx<'a> {
                 }
                 out_args.push(ArgT { offset: off, ty: v.ty, by_ref: true, value: t });
             } else {
-                let t = self.check_expr(value, scope, Some(&v.ty));
+                let t = match v.ty {
+                    Ty::Ref(RefKind::Reference, _) => self.bound_reference(value, scope, &v.ty),
+                    _ => self.check_expr(value, scope, Some(&v.ty)),
+                };
                 let t = self.coerce(t, &v.ty, file);
                 if t.ty.is_error() {
                     ok = false;
@@ -1650,6 +1703,7 @@ impl<'a> Ctx<'a> {
         }
         match (from, to) {
             (Ty::Str(_), Ty::Str(_)) => true,
+            (Ty::Ref(..) | Ty::Null, _) | (_, Ty::Ref(..)) => self.ref_assignable(from, to),
             (Ty::Enum(_), _) | (_, Ty::Enum(_)) => false,
             _ => match (from.prim(&self.types), to.prim(&self.types)) {
                 (Some(a), Some(b)) => a.widens_to(b),
@@ -1691,6 +1745,7 @@ pub fn expr_text(e: &Expr) -> String {
         ExprKind::Member(b, id) => format!("{}.{}", expr_text(b), id.name),
         ExprKind::Index(b, _) => format!("{}[…]", expr_text(b)),
         ExprKind::Bit(b, n) => format!("{}.{n}", expr_text(b)),
+        ExprKind::Deref(b) => format!("{}^", expr_text(b)),
         ExprKind::Call { callee, .. } => format!("{}(…)", expr_text(callee)),
         _ => "expression".into(),
     }

@@ -5,7 +5,7 @@
 //! - `ctx`: the compiler's state, names and suggestions;
 //! - `decl`: declarations: types, globals, POU interfaces, memory layout, initial images,
 //!   located variables (the IEC direct address table is at `decl::iec_address`);
-//! - `expr`, `stmt`, `stdlib`: checking into a typed tree;
+//! - `expr`, `stmt`, `stdlib`, `refs` (references and pointers): checking into a typed tree;
 //! - `emit`: the typed tree to ops; `link` (here): one program per instance, symbols.
 //!
 //! Choices (docs/ST.md repeats them):
@@ -26,6 +26,10 @@
 //!   no assignment, and such a call inside an expression is its result's initial value. ENO is
 //!   a variable of a FUNCTION or FB only when something may read it (`PouInfo::eno`).
 //! - What is accepted of CODESYS's habits beyond the standard: `codesys`.
+//! - References (`REF_TO`, `POINTER TO`, `REFERENCE TO`) never convert to or from integers;
+//!   `POINTER TO`s convert to each other whatever they point to (as CODESYS); pointer
+//!   arithmetic counts bytes, `p - q` is a `DINT` of bytes; every access through a reference
+//!   is checked at run time.
 
 mod calendar;
 mod codesys;
@@ -33,6 +37,7 @@ mod ctx;
 mod decl;
 mod emit;
 mod expr;
+mod refs;
 mod stdlib;
 mod stmt;
 pub mod types;
@@ -609,6 +614,7 @@ fn value_type(cx: &Ctx<'_>, ty: &Ty) -> Option<ValueType> {
             }
         }
         Ty::Str(n) => ValueType::String { cap: *n },
+        Ty::Ref(..) => ValueType::Reference { type_name: cx.ty_name(ty) },
         _ => return None,
     })
 }

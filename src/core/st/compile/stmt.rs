@@ -90,6 +90,10 @@ impl<'a> Ctx<'a> {
                 }
                 TS::Assign(t, v)
             }
+            StmtKind::RefAssign { target, value } => {
+                let (t, v) = self.ref_assign(target, value, scope)?;
+                TS::Assign(t, v)
+            }
             StmtKind::Call(e) => {
                 let ExprKind::Call { callee, args } = &e.kind else {
                     self.error(file, e.span, "this expression does nothing: a statement is needed");

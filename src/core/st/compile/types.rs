@@ -29,6 +29,7 @@
 
 use std::rc::Rc;
 
+use crate::st::ast::RefKind;
 use crate::value::{Calendar, Elem, ValueType};
 
 /// An elementary type.
@@ -276,6 +277,11 @@ pub enum Ty {
     Enum(usize),
     /// A FUNCTION_BLOCK type: the index of its POU.
     Fb(usize),
+    /// `REF_TO T`, `POINTER TO T`, `REFERENCE TO T`: a reference value (8 bytes, see
+    /// `crate::lang::ops::Op::Deref` for its encoding) to a `T`.
+    Ref(RefKind, Rc<Ty>),
+    /// `NULL`, and `ADR(v)` before it meets a pointer type: a reference to anything.
+    Null,
     /// An integer literal whose type comes from its context.
     IntLit,
     /// A real literal whose type comes from its context.
@@ -352,6 +358,15 @@ impl Types {
             Ty::Fb(i) => {
                 self.fbs.get(*i).and_then(|f| f.as_ref()).map_or("?".into(), |f| f.0.clone())
             }
+            Ty::Ref(kind, to) => {
+                let word = match kind {
+                    RefKind::RefTo => "REF_TO",
+                    RefKind::Pointer => "POINTER TO",
+                    RefKind::Reference => "REFERENCE TO",
+                };
+                format!("{word} {}", self.name(to))
+            }
+            Ty::Null => "NULL".into(),
             Ty::IntLit => "ANY_INT".into(),
             Ty::RealLit => "ANY_REAL".into(),
             Ty::Void => "no value".into(),
@@ -367,6 +382,7 @@ impl Types {
             Ty::Struct(i) => self.structs[*i].size,
             Ty::Enum(i) => self.enums[*i].base.elem().size(),
             Ty::Fb(i) => self.fbs.get(*i).and_then(|f| f.as_ref()).map_or(0, |f| f.1),
+            Ty::Ref(..) | Ty::Null => 8,
             Ty::IntLit => 8,
             Ty::RealLit => 8,
             Ty::Void | Ty::Error => 0,
@@ -384,9 +400,20 @@ impl Ty {
         }
     }
 
-    /// How a scalar of this type is stored.
+    /// How a scalar of this type is stored (a reference as a 64-bit slot).
     pub fn elem(&self, types: &Types) -> Option<Elem> {
-        self.prim(types).map(Prim::elem)
+        match self {
+            Ty::Ref(..) | Ty::Null => Some(Elem::U64),
+            _ => self.prim(types).map(Prim::elem),
+        }
+    }
+
+    /// A reference type's kind and target.
+    pub fn as_ref(&self) -> Option<(RefKind, &Ty)> {
+        match self {
+            Ty::Ref(kind, to) => Some((*kind, to)),
+            _ => None,
+        }
     }
 
     /// Held by reference (copied with `Copy` or `Str`), not as a slot.

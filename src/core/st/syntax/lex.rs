@@ -192,6 +192,8 @@ pub(crate) enum P {
     Eq,
     Ne,
     Amp,
+    /// `^`: dereference.
+    Caret,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -444,6 +446,7 @@ impl Lexer<'_> {
             (b'>', Some(b'=')) => (P::Ge, 2),
             (b'>', _) => (P::Gt, 1),
             (b'&', _) => (P::Amp, 1),
+            (b'^', _) => (P::Caret, 1),
             _ => return None,
         };
         for _ in 0..len {

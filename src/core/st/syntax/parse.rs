@@ -840,6 +840,21 @@ impl<'a> Parser<'a> {
     fn type_ref(&mut self) -> PResult<TypeRef> {
         let span = self.span();
         match *self.tok() {
+            Tok::Ident if self.at_ref_type() => {
+                let kind = match self.text_of(self.pos).to_ascii_uppercase().as_str() {
+                    "REF_TO" => RefKind::RefTo,
+                    "POINTER" => RefKind::Pointer,
+                    _ => RefKind::Reference,
+                };
+                self.bump();
+                if kind != RefKind::RefTo {
+                    self.bump(); // TO
+                }
+                self.enter()?;
+                let to = self.type_ref();
+                self.depth -= 1;
+                Ok(TypeRef::Ref { kind, to: Box::new(to?), span })
+            }
             Tok::Ident => {
                 let name = self.ident()?;
                 if !self.at_p(P::LParen) {
@@ -911,6 +926,14 @@ impl<'a> Parser<'a> {
             }
             _ => Err(self.fail(Want::Type)),
         }
+    }
+
+    /// Whether a reference type starts here: `REF_TO`, `POINTER TO`, `REFERENCE TO`.
+    fn at_ref_type(&self) -> bool {
+        let word = self.text_of(self.pos);
+        word.eq_ignore_ascii_case("REF_TO")
+            || ((word.eq_ignore_ascii_case("POINTER") || word.eq_ignore_ascii_case("REFERENCE"))
+                && *self.tok_at(1) == Tok::Kw(Kw::To))
     }
 
     /// The values of an enumeration after its first name, to its `)`.
@@ -1142,6 +1165,14 @@ impl<'a> Parser<'a> {
                 if self.eat_p(P::Assign) {
                     let value = self.expr()?;
                     StmtKind::Assign { target, value }
+                } else if *self.tok() == Tok::Ident
+                    && self.text_of(self.pos).eq_ignore_ascii_case("REF")
+                    && *self.tok_at(1) == Tok::P(P::Eq)
+                {
+                    self.bump();
+                    self.bump();
+                    let value = self.expr()?;
+                    StmtKind::RefAssign { target, value }
                 } else if matches!(target.kind, ExprKind::Call { .. }) {
                     StmtKind::Call(target)
                 } else {
@@ -1459,6 +1490,10 @@ impl<'a> Parser<'a> {
                     self.bump();
                     let args = self.args()?;
                     ExprKind::Call { callee: Box::new(expr), args }
+                }
+                Tok::P(P::Caret) => {
+                    self.bump();
+                    ExprKind::Deref(Box::new(expr))
                 }
                 _ => return Ok(expr),
             };

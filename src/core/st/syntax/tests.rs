@@ -78,6 +78,7 @@ fn sx(e: &Expr) -> String {
             format!("([] {} {})", sx(x), i.iter().map(sx).collect::<Vec<_>>().join(" "))
         }
         ExprKind::Bit(x, b) => format!("(bit {} {b})", sx(x)),
+        ExprKind::Deref(x) => format!("(^ {})", sx(x)),
         ExprKind::Unary(op, x) => format!("({} {})", unary_text(*op), sx(x)),
         ExprKind::Binary(op, l, r) => format!("({} {} {})", binary_text(*op), sx(l), sx(r)),
         ExprKind::Call { callee, args } => {
@@ -151,10 +152,10 @@ fn sp(line: u32, col: u32) -> Span {
 #[test]
 fn lexes_every_punctuation() {
     use P::*;
-    let text = ":= => : ; , . .. ( ) [ ] + - * ** / < > <= >= = <> &";
+    let text = ":= => : ; , . .. ( ) [ ] + - * ** / < > <= >= = <> & ^";
     let want = [
         Assign, Arrow, Colon, Semi, Comma, Dot, DotDot, LParen, RParen, LBracket, RBracket, Plus,
-        Minus, Star, Power, Slash, Lt, Gt, Le, Ge, Eq, Ne, Amp,
+        Minus, Star, Power, Slash, Lt, Gt, Le, Ge, Eq, Ne, Amp, Caret,
     ];
     assert_eq!(toks(text), want.iter().map(|&p| Tok::P(p)).collect::<Vec<_>>());
     // Without blanks, the longest operator wins.
@@ -530,6 +531,35 @@ fn parses_postfix_operators() {
     assert_eq!(sxs("f(x)[2]"), "([] (call f x) 2)");
     assert_eq!(sxs("-a.b ** 2"), "(- (** (. a b) 2))");
     assert_eq!(sxs("(a).b"), "(. a b)");
+}
+
+#[test]
+fn parses_references() {
+    assert_eq!(sxs("p^"), "(^ p)");
+    assert_eq!(sxs("p^.x"), "(. (^ p) x)");
+    assert_eq!(sxs("p^[i + 1]"), "([] (^ p) (+ i 1))");
+    assert_eq!(sxs("(p + 2)^"), "(^ (+ p 2))");
+    assert_eq!(sxs("a.next^.v^"), "(^ (. (^ (. a next)) v))");
+    assert_eq!(sxs("-p^ * 2"), "(* (- (^ p)) 2)");
+    assert_eq!(sxs("ADR(buf) + 4"), "(+ (call ADR buf) 4)");
+    let ty = |text: &str| decl(&format!("x : {text};")).ty;
+    let TypeRef::Ref { kind: RefKind::RefTo, to, span } = ty("REF_TO INT") else { panic!() };
+    assert!(matches!(*to, TypeRef::Named(ref n) if n.is("INT")));
+    assert_eq!(span, sp(3, 5));
+    let TypeRef::Ref { kind: RefKind::Pointer, to, .. } = ty("pointer To ARRAY [1..32767] OF BYTE")
+    else {
+        panic!()
+    };
+    assert!(matches!(*to, TypeRef::Array { .. }));
+    let TypeRef::Ref { kind: RefKind::Reference, to, .. } = ty("REFERENCE TO REF_TO Axis") else {
+        panic!()
+    };
+    assert!(matches!(*to, TypeRef::Ref { kind: RefKind::RefTo, .. }));
+    // Without TO, POINTER is a type's name like any other.
+    assert!(matches!(ty("Pointer"), TypeRef::Named(ref n) if n.is("pointer")));
+    let StmtKind::RefAssign { target, value } = stmt("r REF= a[2];") else { panic!() };
+    assert_eq!((sx(&target), sx(&value)), ("r".to_string(), "([] a 2)".to_string()));
+    assert!(matches!(stmt("p^ := p^ + 1;"), StmtKind::Assign { .. }));
 }
 
 #[test]
@@ -1232,6 +1262,7 @@ fn print_full(e: &Expr) -> String {
             i.iter().map(print_full).collect::<Vec<_>>().join(", ")
         ),
         ExprKind::Bit(x, b) => format!("({}).{b}", print_full(x)),
+        ExprKind::Deref(x) => format!("({})^", print_full(x)),
         ExprKind::Unary(op, x) => format!("({} ({}))", unary_text(*op), print_full(x)),
         ExprKind::Binary(op, l, r) => {
             format!("(({}) {} ({}))", print_full(l), binary_text(*op), print_full(r))
@@ -1264,6 +1295,7 @@ fn print_min(e: &Expr) -> String {
             )
         }
         ExprKind::Bit(x, b) => format!("{}.{b}", postfix_base(x)),
+        ExprKind::Deref(x) => format!("{}^", postfix_base(x)),
         ExprKind::Unary(op, x) => format!("{} {}", unary_text(*op), wrap(x, level(x) < 8)),
         ExprKind::Binary(op, l, r) => {
             let lv = op_level(*op);
