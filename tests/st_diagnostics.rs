@@ -250,6 +250,14 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
     ),
     ("`SIZEOF` is not IEC 61131-3 (`[st] strict` is on)", "strict-sizeof"),
     (
+        "IEC 61131-3 converts between bit strings and integers only explicitly: `BYTE_TO_INT(b)` (`[st] strict` is on)",
+        "strict-implicit-conversion",
+    ),
+    (
+        "the constant does not fit the other operand's type: IEC 61131-3 widens only explicitly, `INT_TO_DINT(i) * 60000` (`[st] strict` is on)",
+        "strict-widened-literal",
+    ),
+    (
         "this BCD conversion is CODESYS's Util library: IEC 61131-3 writes `BYTE_BCD_TO_USINT`, `USINT_TO_BCD_BYTE` and the like (`[st] strict` is on)",
         "strict-util-bcd",
     ),

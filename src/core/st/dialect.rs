@@ -44,6 +44,12 @@ pub enum Habit {
     Sizeof,
     /// The BCD conversions of CODESYS's Util library (`BCD_TO_INT`, `INT_TO_BCD`…).
     UtilBcd,
+    /// A bit string given where an integer is wanted, or an integer where a bit string is,
+    /// converted implicitly where no value is lost (`i := b` with a BYTE b and an INT i).
+    ImplicitConversion,
+    /// An integer literal too large for the other operand's type, which widens the operation
+    /// (`i * 60000` with an INT `i` is computed in DINT).
+    WidenedLiteral,
 }
 
 impl Habit {
@@ -63,6 +69,8 @@ impl Habit {
             Habit::IntegerShift => "IEC 61131-3 shifts bit strings only: `WORD_TO_INT(SHR(INT_TO_WORD(i), n))` (`[st] strict` is on)".to_string(),
             Habit::TimeClock => "`TIME()` is CODESYS's clock, not IEC 61131-3: measure durations with the standard timers (`TON`) (`[st] strict` is on)".to_string(),
             Habit::Sizeof => "`SIZEOF` is not IEC 61131-3 (`[st] strict` is on)".to_string(),
+            Habit::ImplicitConversion => "IEC 61131-3 converts between bit strings and integers only explicitly: `BYTE_TO_INT(b)` (`[st] strict` is on)".to_string(),
+            Habit::WidenedLiteral => "the constant does not fit the other operand's type: IEC 61131-3 widens only explicitly, `INT_TO_DINT(i) * 60000` (`[st] strict` is on)".to_string(),
             Habit::UtilBcd => "this BCD conversion is CODESYS's Util library: IEC 61131-3 writes `BYTE_BCD_TO_USINT`, `USINT_TO_BCD_BYTE` and the like (`[st] strict` is on)".to_string(),
         }
     }

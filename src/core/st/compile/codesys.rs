@@ -44,6 +44,29 @@ pub fn bit_arithmetic_type(a: Prim, b: Prim) -> Option<Prim> {
     }
 }
 
+/// Whether CODESYS's implicit conversion of a `from` value to `to` applies, between a bit
+/// string and an integer, where every value of `from` is one of `to`: a bit string to a wider
+/// integer or to an unsigned one as wide (`BYTE` to `INT`, `USINT`); an integer to a bit string
+/// as wide or wider (`INT` to `WORD`, its two's complement bits).
+pub fn implicit_bits(from: Prim, to: Prim) -> bool {
+    if from.is_bits() && to.is_int() {
+        let unsigned = to.range().is_some_and(|(lo, _)| lo == 0);
+        to.bits() > from.bits() || (unsigned && to.bits() == from.bits())
+    } else {
+        from.is_int() && to.is_bits() && to.bits() >= from.bits()
+    }
+}
+
+/// The signed integer a bit string is negated in: one wide enough for all its values (`BYTE`:
+/// `INT`, `WORD`: `DINT`, `DWORD` and `LWORD`: `LINT`).
+pub fn signed_of(bits: Prim) -> Prim {
+    match bits.bits() {
+        8 => Prim::Int,
+        16 => Prim::DInt,
+        _ => Prim::LInt,
+    }
+}
+
 /// The bit string as wide as an integer type (what a shift of it works on).
 pub fn bits_of(p: Prim) -> Prim {
     match p.bits() {

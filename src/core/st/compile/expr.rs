@@ -917,6 +917,12 @@ impl<'a> Ctx<'a> {
                 if a.widens_to(b) {
                     return self.conv(te, b, to.clone());
                 }
+                // CODESYS converts a bit string to an integer, and back, where no value is
+                // lost: `i := b` with a BYTE b and an INT i
+                if codesys::implicit_bits(*a, b) {
+                    self.habit(Habit::ImplicitConversion, file, span);
+                    return self.conv(te, b, to.clone());
+                }
                 self.mismatch(te, to, file)
             }
             _ => self.mismatch(te, to, file),
@@ -998,6 +1004,13 @@ impl<'a> Ctx<'a> {
                         }
                         TExpr { k: TK::Un(UnOp::Neg, Box::new(a)), ty: Ty::Prim(p), span }
                     }
+                    // CODESYS negates a bit string as a signed integer wide enough for it
+                    Some(p) if p.is_bits() && !matches!(a.ty, Ty::Enum(_)) => {
+                        self.habit(Habit::BitArithmetic, file, span);
+                        let signed = codesys::signed_of(p);
+                        let a = self.conv(a, signed, Ty::Prim(signed));
+                        TExpr { k: TK::Un(UnOp::Neg, Box::new(a)), ty: Ty::Prim(signed), span }
+                    }
                     _ => {
                         let n = self.ty_name(&a.ty);
                         self.error(file, span, format!("`-` cannot be applied to `{n}`"));
@@ -1022,6 +1035,21 @@ impl<'a> Ctx<'a> {
         }
     }
 
+    /// The integer type CODESYS computes in when an integer literal does not fit the other
+    /// operand's integer type (`i * 60000` with an INT `i`: DINT, as CODESYS computes in 32
+    /// bits at least): the narrowest of DINT and LINT that holds both. `None` when the literal
+    /// fits, or the other operand is no plain integer.
+    fn widened_for(&self, literal: &TExpr, other: &Ty) -> Option<Prim> {
+        let (TK::Const(Cv::Int(v)), Ty::IntLit, Ty::Prim(p)) = (&literal.k, &literal.ty, other)
+        else {
+            return None;
+        };
+        if !p.is_int() || fits(*p, *v) {
+            return None;
+        }
+        [Prim::DInt, Prim::LInt].into_iter().find(|w| fits(*w, *v) && p.widens_to(*w))
+    }
+
     /// Brings two operands to one type: `None` (after an error) when they have none.
     pub fn unify(
         &mut self,
@@ -1043,6 +1071,12 @@ impl<'a> Ctx<'a> {
                 Some((a, b, Ty::RealLit))
             }
             (x, y) if lit(x) && !lit(y) => {
+                if let Some(w) = self.widened_for(&a, y) {
+                    self.habit(Habit::WidenedLiteral, file, a.span);
+                    let b = self.conv(b, w, Ty::Prim(w));
+                    let a = self.coerce(a, &Ty::Prim(w), file);
+                    return Some((a, b, Ty::Prim(w)));
+                }
                 let ty = base_ty(y, &self.types);
                 let a = self.coerce(a, &ty, file);
                 if a.ty.is_error() {
@@ -1052,6 +1086,12 @@ impl<'a> Ctx<'a> {
                 Some((a, b, ty))
             }
             (x, y) if !lit(x) && lit(y) => {
+                if let Some(w) = self.widened_for(&b, x) {
+                    self.habit(Habit::WidenedLiteral, file, b.span);
+                    let a = self.conv(a, w, Ty::Prim(w));
+                    let b = self.coerce(b, &Ty::Prim(w), file);
+                    return Some((a, b, Ty::Prim(w)));
+                }
                 let ty = base_ty(x, &self.types);
                 let b = self.coerce(b, &ty, file);
                 if b.ty.is_error() {

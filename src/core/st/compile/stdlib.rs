@@ -496,7 +496,19 @@ impl<'a> Ctx<'a> {
                     return TExpr::error(span);
                 }
                 let x = self.scalar_arg(a[0], scope, expected, Prim::LReal);
-                let p = x.ty.prim(&self.types);
+                let mut p = x.ty.prim(&self.types);
+                // CODESYS raises an integer too: in the real type wanted, LREAL without one
+                let x = match p {
+                    Some(ip) if ip.is_integral() && !matches!(x.ty, Ty::Enum(_)) => {
+                        let r = match expected.and_then(|e| e.prim(&self.types)) {
+                            Some(Prim::Real) => Prim::Real,
+                            _ => Prim::LReal,
+                        };
+                        p = Some(r);
+                        self.conv(x, r, Ty::Prim(r))
+                    }
+                    _ => x,
+                };
                 if !self.want(
                     &x,
                     p.is_some_and(Prim::is_real),
@@ -706,7 +718,9 @@ impl<'a> Ctx<'a> {
                 };
                 let c = self.scalar_arg(a[1], scope, None, Prim::LInt);
                 let cp = c.ty.prim(&self.types);
-                if !self.want(&c, cp.is_some_and(Prim::is_int), name, "an integer count", file) {
+                // a bit string count as CODESYS takes it (`SHR(w, n)` with a BYTE n)
+                if !self.want(&c, cp.is_some_and(Prim::is_integral), name, "an integer count", file)
+                {
                     return TExpr::error(span);
                 }
                 let op = match name {

@@ -2,7 +2,7 @@
 //! resolved and checked for overlaps and coverage, FOR, WHILE, REPEAT, EXIT, CONTINUE,
 //! RETURN).
 
-use crate::st::ast::{self, CaseLabel, ExprKind, Stmt, StmtKind, VarKind};
+use crate::st::ast::{self, CaseLabel, ExprKind, PouKind, Stmt, StmtKind, VarKind};
 
 use super::ctx::{Ctx, Cv, Scope};
 use super::expr::{expr_text, Access, CallT, TExpr};
@@ -208,7 +208,11 @@ impl<'a> Ctx<'a> {
             let local = scope
                 .pou
                 .and_then(|pi| self.pous[pi].lookup(&var.name).map(|i| self.pous[pi].vars[i].kind));
-            if matches!(local, Some(VarKind::InOut)) || local.is_none() {
+            // a FUNCTION's result is one of its variables too (OSCAT's FSTRING_TO_MONTH)
+            let result = scope.pou.is_some_and(|pi| {
+                self.pous[pi].kind == PouKind::Function && var.is(&self.pous[pi].name)
+            });
+            if !result && (matches!(local, Some(VarKind::InOut)) || local.is_none()) {
                 self.error(
                     file,
                     var.span,
