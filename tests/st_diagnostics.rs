@@ -250,6 +250,14 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
     ),
     ("`SIZEOF` is not IEC 61131-3 (`[st] strict` is on)", "strict-sizeof"),
     (
+        "IEC 61131-3 has no conversion between references and numbers: move a `POINTER TO` by `p + n` and compare pointers with each other (`[st] strict` is on)",
+        "strict-pointer-integer",
+    ),
+    (
+        "IEC 61131-3 has `AND`, `OR` and `XOR` on BOOL and bit strings only: `INT_TO_WORD(i) AND 16#FF` (`[st] strict` is on)",
+        "strict-bitwise-integer",
+    ),
+    (
         "IEC 61131-3 converts between bit strings and integers only explicitly: `BYTE_TO_INT(b)` (`[st] strict` is on)",
         "strict-implicit-conversion",
     ),

@@ -50,6 +50,11 @@ pub enum Habit {
     /// An integer literal too large for the other operand's type, which widens the operation
     /// (`i * 60000` with an INT `i` is computed in DINT).
     WidenedLiteral,
+    /// A `POINTER TO` used as a 64-bit number (`ULINT`, `LWORD`), or such a number as a
+    /// pointer.
+    PointerInteger,
+    /// `AND`, `OR`, `XOR` on integers: on their two's complement bits.
+    BitwiseInteger,
 }
 
 impl Habit {
@@ -71,6 +76,8 @@ impl Habit {
             Habit::Sizeof => "`SIZEOF` is not IEC 61131-3 (`[st] strict` is on)".to_string(),
             Habit::ImplicitConversion => "IEC 61131-3 converts between bit strings and integers only explicitly: `BYTE_TO_INT(b)` (`[st] strict` is on)".to_string(),
             Habit::WidenedLiteral => "the constant does not fit the other operand's type: IEC 61131-3 widens only explicitly, `INT_TO_DINT(i) * 60000` (`[st] strict` is on)".to_string(),
+            Habit::PointerInteger => "IEC 61131-3 has no conversion between references and numbers: move a `POINTER TO` by `p + n` and compare pointers with each other (`[st] strict` is on)".to_string(),
+            Habit::BitwiseInteger => "IEC 61131-3 has `AND`, `OR` and `XOR` on BOOL and bit strings only: `INT_TO_WORD(i) AND 16#FF` (`[st] strict` is on)".to_string(),
             Habit::UtilBcd => "this BCD conversion is CODESYS's Util library: IEC 61131-3 writes `BYTE_BCD_TO_USINT`, `USINT_TO_BCD_BYTE` and the like (`[st] strict` is on)".to_string(),
         }
     }

@@ -860,6 +860,12 @@ impl<'a> Ctx<'a> {
             if self.ref_assignable(&te.ty, to) {
                 return TExpr { ty: to.clone(), ..te };
             }
+            // CODESYS: a POINTER TO as a 64-bit number and back (its value is plcd's area
+            // and offset; every access through it stays checked)
+            if self.pointer_integer(&te.ty, to) {
+                self.habit(Habit::PointerInteger, file, span);
+                return TExpr { ty: to.clone(), ..te };
+            }
             return self.mismatch(te, to, file);
         }
         match (&te.ty, to) {
@@ -1249,6 +1255,11 @@ impl<'a> Ctx<'a> {
                 match p {
                     _ if ty == Ty::IntLit => self.make_bin(bop, a, b, ty, span, file),
                     Some(p) if (p == Prim::Bool || p.is_bits()) && !is_enum => {
+                        self.make_bin(bop, a, b, ty, span, file)
+                    }
+                    // CODESYS: bitwise on an integer's two's complement bits
+                    Some(p) if p.is_int() && !is_enum => {
+                        self.habit(Habit::BitwiseInteger, file, span);
                         self.make_bin(bop, a, b, ty, span, file)
                     }
                     _ => bad(self),

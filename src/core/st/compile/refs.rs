@@ -12,6 +12,7 @@
 
 use crate::lang::ops::CmpOp;
 use crate::st::ast::{Arg, BinaryOp, Expr, ExprKind, Ident, RefKind, Span};
+use crate::st::dialect::Habit;
 use crate::value::UnOp;
 
 use super::ctx::{Ctx, Cv, Scope};
@@ -177,6 +178,17 @@ impl<'a> Ctx<'a> {
 
     /// Whether a reference of type `from` may be stored in one of type `to`: `NULL` in any;
     /// between `POINTER TO`s whatever they point to (as CODESYS); otherwise to the same type.
+    /// Whether `from` converts to `to` as CODESYS converts a pointer and a number: a
+    /// `POINTER TO` and a 64-bit unsigned integer or bit string (`ULINT`, `LWORD`), either way.
+    pub fn pointer_integer(&self, from: &Ty, to: &Ty) -> bool {
+        let wide = |t: &Ty| {
+            !matches!(t, Ty::Enum(_))
+                && matches!(t.prim(&self.types), Some(Prim::ULInt | Prim::LWord))
+        };
+        let pointer = |t: &Ty| matches!(t, Ty::Ref(RefKind::Pointer, _));
+        (pointer(from) && wide(to)) || (wide(from) && pointer(to))
+    }
+
     pub fn ref_assignable(&self, from: &Ty, to: &Ty) -> bool {
         match (from, to) {
             (Ty::Null, Ty::Ref(..) | Ty::Null) => true,
@@ -241,6 +253,20 @@ impl<'a> Ctx<'a> {
                 return TExpr { k, ty: Ty::Prim(Prim::Bool), span };
             }
             _ => {}
+        }
+        // a POINTER TO beside a 64-bit number is that number (`pt < end`, `adr AND 3`)
+        let number = |s: &Self, t: &Ty| {
+            s.pointer_integer(&Ty::Ref(RefKind::Pointer, std::rc::Rc::new(Ty::Error)), t)
+        };
+        if pointer(&a.ty) && number(self, &b.ty) {
+            self.habit(Habit::PointerInteger, file, a.span);
+            let a = TExpr { ty: b.ty.clone(), ..a };
+            return self.binary_op(op, a, b, span, file);
+        }
+        if number(self, &a.ty) && pointer(&b.ty) {
+            self.habit(Habit::PointerInteger, file, b.span);
+            let b = TExpr { ty: a.ty.clone(), ..b };
+            return self.binary_op(op, a, b, span, file);
         }
         let (na, nb) = (self.ty_name(&a.ty), self.ty_name(&b.ty));
         self.error(file, span, format!("`{what}` cannot be applied to `{na}` and `{nb}`"));
