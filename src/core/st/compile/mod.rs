@@ -26,7 +26,8 @@
 //!   no assignment, and such a call inside an expression is its result's initial value. ENO is
 //!   a variable of a FUNCTION or FB only when something may read it (`PouInfo::eno`).
 //! - What is accepted of CODESYS's habits beyond the standard: `codesys`.
-//! - References (`REF_TO`, `POINTER TO`, `REFERENCE TO`) never convert to or from integers;
+//! - References (`REF_TO`, `POINTER TO`, `REFERENCE TO`) never convert to or from integers (a
+//!   `POINTER TO` and a 64-bit number do, a CODESYS habit: `refs::pointer_integer`);
 //!   `POINTER TO`s convert to each other whatever they point to (as CODESYS); pointer
 //!   arithmetic counts bytes, `p - q` is a `DINT` of bytes; every access through a reference
 //!   is checked at run time.
