@@ -189,7 +189,7 @@ fn the_files_hold_them_and_a_changed_program_restores_those_of_unchanged_name_an
         "unchanged: not written again"
     );
     let g = retain::newest_in(dir.path()).unwrap();
-    assert_eq!(g.version, 2);
+    assert_eq!(g.version, 3);
     let names: Vec<(&str, &str)> =
         g.variables.iter().map(|v| (v.name.as_str(), v.ty.as_str())).collect();
     assert_eq!(

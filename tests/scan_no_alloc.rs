@@ -602,7 +602,11 @@ fn retained_variables_are_copied_and_taken_over_without_allocating() {
 
     command(Command::Mode(Mode::Run, Source::Startup));
     let first = wait_for("the small layout counting", &|g| has(g, "main.label") && count(g) > 5);
-    assert_eq!(first.variables[1].bytes[..4], [3, b'a', b'b', b'c'], "the STRING's bytes");
+    assert_eq!(
+        first.variables[1].bytes[..4],
+        [b'a', b'b', b'c', 0],
+        "the STRING's characters and their NUL"
+    );
     command(Command::Replace(Box::new(Engine::new::<Address>(&large, &[]))));
     let reloaded = wait_for("the large layout", &|g| has(g, "main.extra[40]") && count(g) > 0);
     assert!(count(&reloaded) > count(&first), "count kept over the reload and counting on");

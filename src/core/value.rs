@@ -534,7 +534,7 @@ pub enum ValueType {
         values: Vec<(String, i64)>,
         base: Elem,
     },
-    /// `STRING[cap]`: a length byte, then `cap` bytes.
+    /// `STRING[cap]`: `cap` bytes of characters, then room for the NUL that ends them.
     String {
         cap: u32,
     },
@@ -550,7 +550,7 @@ pub enum ValueType {
 
 impl ValueType {
     /// How a value of this type is stored and computed; a `STRING` has no slot (its bytes are
-    /// read through a pointer) and answers `U8`, its length byte.
+    /// read through a pointer) and answers `U8`, its first character.
     pub fn elem(&self) -> Elem {
         match self {
             ValueType::Bool => Elem::Bool,

@@ -457,7 +457,7 @@ pub enum Place {
 }
 
 /// A string operation. Strings are passed as pointers ([`crate::value::Pointer`] slots) to
-/// `STRING[n]` storage: a length byte, then `n` bytes. `cap` of [`Op::Str`] is the capacity of
+/// `STRING[n]` storage: n bytes of characters ended by a NUL, and a byte for the last NUL. `cap` of [`Op::Str`] is the capacity of
 /// the destination; a longer result is cut to it. Stack effects (top last):
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u8)]

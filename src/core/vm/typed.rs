@@ -448,8 +448,9 @@ fn across(to: &mut [u8], d: usize, from: &[u8], s: usize, n: usize) {
     }
 }
 
-/// The characters of the string at `p` (its length byte, cut to the bytes there are); empty
-/// outside variable memory and the frame.
+/// The characters of the string at `p`: up to its first NUL, as CODESYS and TwinCAT store a
+/// STRING (so that code walking it through a pointer finds its characters where they expect),
+/// at most 255 and cut to the bytes there are; empty outside variable memory and the frame.
 fn chars<'a>(vars: &'a [u8], frame: &'a [u8], p: Pointer) -> &'a [u8] {
     let buf = match p.space {
         Space::Var => vars,
@@ -457,10 +458,14 @@ fn chars<'a>(vars: &'a [u8], frame: &'a [u8], p: Pointer) -> &'a [u8] {
         _ => return &[],
     };
     let start = p.offset as usize;
-    let Some(&len) = buf.get(start) else { return &[] };
-    let end = (start + 1 + len as usize).min(buf.len());
-    &buf[start + 1..end]
+    let Some(rest) = buf.get(start..) else { return &[] };
+    let rest = &rest[..rest.len().min(MAX_CHARS)];
+    let len = rest.iter().position(|&b| b == 0).unwrap_or(rest.len());
+    &rest[..len]
 }
+
+/// The most characters a STRING holds.
+const MAX_CHARS: usize = 255;
 
 fn set_len(vars: &mut [u8], frame: &mut [u8], p: Pointer, len: usize) {
     let buf = match p.space {
@@ -468,8 +473,9 @@ fn set_len(vars: &mut [u8], frame: &mut [u8], p: Pointer, len: usize) {
         Space::Frame => frame,
         _ => return,
     };
-    if let Some(b) = buf.get_mut(p.offset as usize) {
-        *b = len as u8;
+    // the NUL after the characters (a STRING[n] has room for it after n of them)
+    if let Some(b) = buf.get_mut(p.offset as usize + len) {
+        *b = 0;
     }
 }
 
@@ -487,10 +493,10 @@ fn put(
     if n == 0 {
         return;
     }
-    let d = Pointer { space: dst.space, offset: (dst.offset as usize + 1 + at) as u32 };
-    let s = Pointer { space: src.space, offset: (src.offset as usize + 1 + from) as u32 };
-    if (dst.offset as usize + 1 + at) as u64 <= u64::from(u32::MAX)
-        && (src.offset as usize + 1 + from) as u64 <= u64::from(u32::MAX)
+    let d = Pointer { space: dst.space, offset: (dst.offset as usize + at) as u32 };
+    let s = Pointer { space: src.space, offset: (src.offset as usize + from) as u32 };
+    if (dst.offset as usize + at) as u64 <= u64::from(u32::MAX)
+        && (src.offset as usize + from) as u64 <= u64::from(u32::MAX)
     {
         copy(vars, frame, d, s, n);
     }
@@ -620,9 +626,9 @@ fn write_chars(vars: &mut [u8], frame: &mut [u8], p: Pointer, text: &[u8]) {
         _ => return,
     };
     let start = p.offset as usize;
-    if let Some(room) = buf.get_mut(start + 1..start + 1 + text.len()) {
-        room.copy_from_slice(text);
-        buf[start] = text.len() as u8;
+    if let Some(room) = buf.get_mut(start..start + text.len() + 1) {
+        room[..text.len()].copy_from_slice(text);
+        room[text.len()] = 0;
     }
 }
 
@@ -643,9 +649,9 @@ pub(super) fn write_string_bytes(vars: &mut [u8], p: Pointer, cap: u32, text: &[
     }
     let n = text.len().min(cap as usize).min(255);
     let start = p.offset as usize;
-    if let Some(b) = vars.get_mut(start..start + 1 + n) {
-        b[0] = n as u8;
-        b[1..].copy_from_slice(&text[..n]);
+    if let Some(b) = vars.get_mut(start..start + n + 1) {
+        b[..n].copy_from_slice(&text[..n]);
+        b[n] = 0;
     }
 }
 

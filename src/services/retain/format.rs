@@ -6,7 +6,7 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 8 | magic `PLCDRTN\0` |
-//! | 8 | 2 | format version, 2 (version 1 files are read too) |
+//! | 8 | 2 | format version, 3 (versions 1 and 2 are read too) |
 //! | 10 | 2 | n: the number of word ranges |
 //! | 12 | 4 | w: the number of payload words |
 //! | 16 | 8 | sequence number, one more for every write, across restarts |
@@ -21,6 +21,9 @@
 //! The variables section: a u32 count, then for each variable its name, its type text and its
 //! bytes, each a u32 length followed by that many bytes (the name and the type in UTF-8).
 //!
+//! Version 3 stores a `STRING`'s bytes as the VM does since: its characters, then NULs. A
+//! version 2 file stored a length byte, then the characters; they are read and converted.
+//!
 //! The ranges are the layout: a file is restored only if they and the device layout equal the
 //! configured ones exactly. Variables are restored by name and type
 //! ([`crate::vm::retained::RetainedVariables::plan_restore`]).
@@ -31,9 +34,11 @@ use crate::vm::retained::{RetainedVariables, SavedVariable};
 
 pub const MAGIC: [u8; 8] = *b"PLCDRTN\0";
 /// The version this build writes.
-pub const VERSION: u16 = 2;
+pub const VERSION: u16 = 3;
 /// The first version, without variables, still read.
 pub const VERSION_1: u16 = 1;
+/// The version whose `STRING`s had a length byte first, still read (and converted).
+pub const VERSION_2: u16 = 2;
 pub const HEADER: usize = 40;
 const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI);
 
@@ -59,7 +64,7 @@ pub enum DecodeError {
     TooShort(usize),
     #[error("not a retain file (bad magic)")]
     Magic,
-    #[error("format version {0}, this build reads versions {VERSION_1} and {VERSION}")]
+    #[error("format version {0}, this build reads versions {VERSION_1} to {VERSION}")]
     Version(u16),
     #[error("{len} bytes where the header announces {expected} (truncated or extended)")]
     Length { len: usize, expected: usize },
@@ -157,7 +162,7 @@ pub fn decode(bytes: &[u8]) -> Result<Generation, DecodeError> {
         return Err(DecodeError::Magic);
     }
     let version = u16_at(bytes, 8);
-    if version != VERSION && version != VERSION_1 {
+    if ![VERSION, VERSION_1, VERSION_2].contains(&version) {
         return Err(DecodeError::Version(version));
     }
     let n = usize::from(u16_at(bytes, 10));
@@ -196,11 +201,16 @@ pub fn decode(bytes: &[u8]) -> Result<Generation, DecodeError> {
     let payload = HEADER + 6 * n;
     let words = (0..w).map(|i| u16_at(bytes, payload + 2 * i)).collect();
     let section = payload + 2 * w;
-    let variables = if version == VERSION_1 {
+    let mut variables = if version == VERSION_1 {
         Vec::new()
     } else {
         decode_variables(&bytes[section..section + v])?
     };
+    if version == VERSION_2 {
+        for var in variables.iter_mut().filter(|v| v.ty.starts_with("STRING")) {
+            var.bytes = string_from_version_2(&var.bytes);
+        }
+    }
     Ok(Generation {
         seq,
         written_unix_ms: u64_at(bytes, 24),
@@ -210,6 +220,17 @@ pub fn decode(bytes: &[u8]) -> Result<Generation, DecodeError> {
         version,
         variables,
     })
+}
+
+/// A `STRING` as version 2 stored it (a length byte, then the characters) as version 3 stores
+/// it (the characters, then NULs), in as many bytes.
+fn string_from_version_2(bytes: &[u8]) -> Vec<u8> {
+    let mut out = vec![0u8; bytes.len()];
+    if let Some((&len, chars)) = bytes.split_first() {
+        let n = usize::from(len).min(chars.len());
+        out[..n].copy_from_slice(&chars[..n]);
+    }
+    out
 }
 
 /// The variables of a variables section, checked: every length within the section, names and
@@ -379,7 +400,7 @@ mod tests {
         let total = layout::TOTAL_WORDS.to_le_bytes();
         let mut expected: Vec<u8> = Vec::new();
         expected.extend(b"PLCDRTN\0");
-        expected.extend([2, 0, 1, 0, 2, 0, 0, 0]);
+        expected.extend([3, 0, 1, 0, 2, 0, 0, 0]);
         expected.extend([5, 0, 0, 0, 0, 0, 0, 0]);
         expected.extend(1_700_000_000_000u64.to_le_bytes());
         expected.extend(total);
@@ -397,7 +418,7 @@ mod tests {
         let decoded = decode(&bytes).unwrap();
         assert_eq!((decoded.seq, &decoded.words[..]), (5, &[0x1234, 0xBEEF][..]));
         assert_eq!(decoded.ranges, [K]);
-        assert_eq!(decoded.version, 2);
+        assert_eq!(decoded.version, 3);
         assert_eq!(decoded.variables, [saved("main.n", "INT", &[7, 0])]);
         assert_eq!(layout_difference(&decoded, &[K]), None);
     }
@@ -406,7 +427,7 @@ mod tests {
     fn variables_round_trip() {
         let variables = [
             saved("main.count", "DINT", &[1, 2, 3, 4]),
-            saved("main.s", "STRING[3]", &[2, b'a', b'b', 0]),
+            saved("main.s", "STRING[3]", &[b'a', b'b', 0, 0]),
             saved("Größe", "Color(Red:=0,Green:=1)", &[1, 0, 0, 0]),
             saved("main.empty", "STRING[0]", &[0]),
         ];
@@ -414,6 +435,24 @@ mod tests {
         assert_eq!(decoded.variables, variables);
         assert_eq!(decoded.words, [9]);
         assert!(decode(&file(3, &[9])).unwrap().variables.is_empty());
+    }
+
+    #[test]
+    fn a_version_2_files_strings_are_converted_to_characters_then_nuls() {
+        let variables = [
+            saved("main.s", "STRING[3]", &[2, b'a', b'b', 0]),
+            saved("main.full", "STRING[2]", &[2, b'x', b'y']),
+            saved("main.n", "INT", &[2, 0]),
+        ];
+        let mut bytes = file_with(5, &[9], &variables);
+        bytes[8] = 2;
+        let body = bytes.len() - 4;
+        let crc = CRC.checksum(&bytes[..body]);
+        bytes[body..].copy_from_slice(&crc.to_le_bytes());
+        let decoded = decode(&bytes).unwrap();
+        assert_eq!(decoded.version, 2);
+        let got: Vec<&[u8]> = decoded.variables.iter().map(|v| &v.bytes[..]).collect();
+        assert_eq!(got, [&b"ab\0\0"[..], &b"xy\0"[..], &[2, 0][..]]);
     }
 
     #[test]
@@ -502,8 +541,8 @@ mod tests {
         bytes[0] = b'X';
         assert_eq!(decode(&bytes), Err(DecodeError::Magic));
         let mut bytes = file(1, &[1]);
-        bytes[8] = 3;
-        assert_eq!(decode(&bytes), Err(DecodeError::Version(3)));
+        bytes[8] = 4;
+        assert_eq!(decode(&bytes), Err(DecodeError::Version(4)));
         let mut bytes = file(1, &[1]);
         bytes[8] = 0;
         assert_eq!(decode(&bytes), Err(DecodeError::Version(0)));

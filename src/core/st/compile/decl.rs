@@ -692,10 +692,10 @@ impl<'a> Ctx<'a> {
         }
         match (&te.k, ty) {
             (super::expr::TK::Const(Cv::Str(s)), Ty::Str(n)) => {
+                // the characters, then NULs (a STRING is stored as CODESYS stores it)
                 let mut b = vec![0u8; *n as usize + 1];
                 let len = s.len().min(*n as usize);
-                b[0] = len as u8;
-                b[1..=len].copy_from_slice(&s[..len]);
+                b[..len].copy_from_slice(&s[..len]);
                 Some(b)
             }
             (super::expr::TK::Const(cv), _) => {

@@ -368,8 +368,9 @@ impl<'c, 'a> Em<'c, 'a> {
         match &e.k {
             TK::Const(cv) => match (cv, &e.ty) {
                 (Cv::Str(s), _) => {
-                    let mut bytes = vec![s.len() as u8];
-                    bytes.extend_from_slice(s);
+                    // the characters and their NUL, as a STRING is stored
+                    let mut bytes = s.clone();
+                    bytes.push(0);
                     let at = self.cx.alloc_var(&bytes);
                     self.op(Op::AddrOf(Place::Var(at)));
                 }

@@ -268,7 +268,7 @@ pub enum Ty {
     Prim(Prim),
     /// A subrange of an integer type: behaves as its base, constants are checked against it.
     Sub(Prim, i128, i128),
-    /// `STRING[n]`: a length byte and `n` bytes.
+    /// `STRING[n]`: `n` characters and the NUL after them.
     Str(u32),
     Array(Rc<ArrayTy>),
     /// Index into [`Types::structs`].
