@@ -661,7 +661,8 @@ fn trace(budget: u64) -> Trace {
     let mut vm = Vm::for_programs([&program]);
     let mut initial = vec![0u8; 64];
     initial[24..28].copy_from_slice(&[1, 2, 3, 4]);
-    initial[48..51].copy_from_slice(&[2, b'a', b'b']);
+    // a STRING[8] "ab": its characters, then NUL (docs/ST.md)
+    initial[48..51].copy_from_slice(&[b'a', b'b', 0]);
     vm.set_variables(&Variables { initial: initial.into(), ..Variables::default() });
     let clock = StepClock { origin_ns: 0, origin_steps: 0, step_ns: 1_000 };
     let mut state = ExecState::with_frame(32);
@@ -696,7 +697,7 @@ fn any_budget_gives_the_same_exits_steps_and_memory() {
     assert_eq!(count(ERR_DIVIDE_BY_ZERO), 3);
     // Three scans of the sum over the array (the bad index reads 0).
     assert_eq!(whole.1[2], 3 * (1 + 2 + 3 + 4));
-    assert_eq!(&whole.1[48..57], &[8, b'a', b'b', b'a', b'b', b'a', b'b', b'a', b'b']);
+    assert_eq!(&whole.1[48..57], b"abababab\0");
     for budget in [1, 2, 3, 5, 8] {
         assert!(trace(budget) == whole, "budget {budget} differs");
     }

@@ -41,7 +41,15 @@ pub struct LibraryFile {
 /// `.TcDUT`, `.TcGVL` (any case).
 pub fn is_st_source(file: &Path) -> bool {
     file.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("st"))
-        || crate::st::twincat::is_twincat(file)
+        || is_twincat_source(file)
+}
+
+/// Whether `file` is one of TwinCAT's source files by its extension: `.TcPOU`, `.TcDUT`,
+/// `.TcGVL` (any case), read by `st::twincat`.
+pub fn is_twincat_source(file: &Path) -> bool {
+    file.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| ["tcpou", "tcdut", "tcgvl"].contains(&e.to_ascii_lowercase().as_str()))
 }
 
 /// `[st]` as written.

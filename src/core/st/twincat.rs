@@ -21,11 +21,10 @@ pub struct XmlError {
     pub message: String,
 }
 
-/// Whether `path`'s extension names a TwinCAT source file.
+/// Whether `path`'s extension names a TwinCAT source file (the config's rule, which decides
+/// what a `[[program]]` or `[st] library` file is).
 pub fn is_twincat(path: &std::path::Path) -> bool {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| ["tcpou", "tcdut", "tcgvl"].contains(&e.to_ascii_lowercase().as_str()))
+    crate::config::is_twincat_source(path)
 }
 
 /// The Structured Text of a TwinCAT source file, line for line and column for column.

@@ -931,7 +931,7 @@ VAR_INPUT s : STRING; END_VAR
 VAR pt : POINTER TO ARRAY [1..255] OF BYTE; i : INT; local : DINT; r : REF_TO DINT; END_VAR
     pt := ADR(s);
     r := REF(local);
-    FOR i := 2 TO LEN(s) + 1 DO
+    FOR i := 1 TO LEN(s) DO
         r^ := r^ + BYTE_TO_DINT(pt^[i]);
     END_FOR;
     Sum := local;

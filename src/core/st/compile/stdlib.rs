@@ -99,6 +99,18 @@ fn formals(name: &str, n: usize) -> Vec<String> {
 }
 
 impl<'a> Ctx<'a> {
+    /// The one argument of a conversion (`IN`, positional or named); `None` after an error.
+    fn conversion_arg<'e>(
+        &mut self,
+        name: &str,
+        args: &'e [Arg],
+        span: Span,
+        file: usize,
+    ) -> Option<&'e Expr> {
+        let a = self.std_args("CONV", args, span, file)?;
+        self.arity(name, a.len(), 1, 1, span, file).then(|| a[0])
+    }
+
     fn std_args<'e>(
         &mut self,
         name: &str,
@@ -1174,14 +1186,11 @@ impl<'a> Ctx<'a> {
         scope: Scope,
     ) -> TExpr {
         let file = scope.file;
-        let Some(a) = self.std_args("CONV", args, span, file) else {
+        let Some(arg) = self.conversion_arg(name, args, span, file) else {
             return TExpr::error(span);
         };
-        if !self.arity(name, a.len(), 1, 1, span, file) {
-            return TExpr::error(span);
-        }
         let expected = if matches!(src, Ty::Str(_)) { None } else { Some(&src) };
-        let t = self.check_expr(a[0], scope, expected);
+        let t = self.check_expr(arg, scope, expected);
         self.convert(name, src, dst, t, span, file)
     }
 
@@ -1197,13 +1206,10 @@ impl<'a> Ctx<'a> {
         scope: Scope,
     ) -> TExpr {
         let file = scope.file;
-        let Some(a) = self.std_args("CONV", args, span, file) else {
+        let Some(arg) = self.conversion_arg(name, args, span, file) else {
             return TExpr::error(span);
         };
-        if !self.arity(name, a.len(), 1, 1, span, file) {
-            return TExpr::error(span);
-        }
-        let t = self.check_expr(a[0], scope, None);
+        let t = self.check_expr(arg, scope, None);
         let src = match &t.ty {
             Ty::Error => return TExpr::error(span),
             Ty::IntLit => {
@@ -1328,18 +1334,15 @@ impl<'a> Ctx<'a> {
         scope: Scope,
     ) -> TExpr {
         let file = scope.file;
-        let Some(a) = self.std_args("CONV", args, span, file) else {
+        let Some(arg) = self.conversion_arg(name, args, span, file) else {
             return TExpr::error(span);
         };
-        if !self.arity(name, a.len(), 1, 1, span, file) {
-            return TExpr::error(span);
-        }
         let t = match src {
             Some(r) => {
-                let t = self.check_expr(a[0], scope, Some(&Ty::Prim(r)));
+                let t = self.check_expr(arg, scope, Some(&Ty::Prim(r)));
                 self.coerce(t, &Ty::Prim(r), file)
             }
-            None => self.scalar_arg(a[0], scope, None, Prim::LReal),
+            None => self.scalar_arg(arg, scope, None, Prim::LReal),
         };
         let p = t.ty.prim(&self.types);
         if !self.want(&t, p.is_some_and(Prim::is_real), name, "a `REAL` or `LREAL`", file) {
