@@ -33,13 +33,7 @@ const NOT_ALONE: &[(&str, usize)] = &[
     ("lang/sbrt-before-end", 2),
 ];
 
-fn plcd(dir: &Path, args: &[&str]) -> Output {
-    harness::runner::command(env!("CARGO_BIN_EXE_plcd"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
+use harness::daemon::plcd_in as plcd;
 
 fn stdout(output: &Output) -> String {
     String::from_utf8_lossy(&output.stdout).into_owned()

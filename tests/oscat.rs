@@ -29,13 +29,7 @@ fn project() -> TempDir {
     dir
 }
 
-fn plcd(dir: &Path, args: &[&str]) -> std::process::Output {
-    harness::runner::command(env!("CARGO_BIN_EXE_plcd"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
+use harness::daemon::plcd_in as plcd;
 
 #[test]
 fn the_whole_library_compiles_with_native_code_and_without() {

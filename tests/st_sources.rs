@@ -8,13 +8,7 @@ use std::path::Path;
 
 use harness::tempdir::TempDir;
 
-fn plcd(dir: &Path, args: &[&str]) -> std::process::Output {
-    harness::runner::command(env!("CARGO_BIN_EXE_plcd"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
+use harness::daemon::plcd_in as plcd;
 
 fn write(dir: &Path, name: &str, text: &str) {
     let path = dir.join(name);

@@ -341,7 +341,7 @@ fn expand_configurations(
         let entry = &config.programs[i];
         let candidate = entry.language == Language::StructuredText
             && entry.pou.is_none()
-            && !st::twincat::is_twincat(&entry.resolved);
+            && !crate::config::is_twincat_source(&entry.resolved);
         let text = candidate.then(|| read(&entry.resolved).ok()).flatten();
         let Some(text) = text.filter(|t| configuration::may_hold_one(t)) else {
             i += 1;
@@ -478,7 +478,7 @@ where
             ok = false;
             continue;
         };
-        if st::twincat::is_twincat(&path) {
+        if crate::config::is_twincat_source(&path) {
             match st::twincat::st_text(&text) {
                 Ok(st) => text = st,
                 Err(e) => {

@@ -39,6 +39,11 @@ pub fn plcctl_binary() -> PathBuf {
     path
 }
 
+/// `plcd ARGS` in `dir` (`plcd check`, `plcd sim` on a project there), run to its end.
+pub fn plcd_in(dir: &Path, args: &[&str]) -> Output {
+    runner::command(plcd_binary()).current_dir(dir).args(args).output().expect("plcd runs")
+}
+
 /// `plcctl --socket SOCKET ARGS`, run to its end.
 pub fn plcctl(socket: &Path, args: &[&str]) -> Output {
     runner::command(plcctl_binary())

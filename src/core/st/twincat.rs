@@ -21,12 +21,6 @@ pub struct XmlError {
     pub message: String,
 }
 
-/// Whether `path`'s extension names a TwinCAT source file (the config's rule, which decides
-/// what a `[[program]]` or `[st] library` file is).
-pub fn is_twincat(path: &std::path::Path) -> bool {
-    crate::config::is_twincat_source(path)
-}
-
 /// The Structured Text of a TwinCAT source file, line for line and column for column.
 pub fn st_text(xml: &str) -> Result<String, XmlError> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| {

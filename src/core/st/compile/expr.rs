@@ -1192,13 +1192,7 @@ impl<'a> Ctx<'a> {
             return self.calendar_arith(op, a, b, span, file);
         }
         if let Some(t) = self.bit_arithmetic(op, &a, &b, span, file) {
-            let bop = match op {
-                BinaryOp::Add => BinOp::Add,
-                BinaryOp::Sub => BinOp::Sub,
-                BinaryOp::Mul => BinOp::Mul,
-                BinaryOp::Div => BinOp::Div,
-                _ => BinOp::Mod,
-            };
+            let bop = arith_op(op);
             let a = self.conv(a, t, Ty::Prim(t));
             let b = self.conv(b, t, Ty::Prim(t));
             return self.make_bin(bop, a, b, Ty::Prim(t), span, file);
@@ -1266,13 +1260,7 @@ impl<'a> Ctx<'a> {
                 }
             }
             BinaryOp::Add | BinaryOp::Sub | BinaryOp::Mul | BinaryOp::Div | BinaryOp::Mod => {
-                let bop = match op {
-                    BinaryOp::Add => BinOp::Add,
-                    BinaryOp::Sub => BinOp::Sub,
-                    BinaryOp::Mul => BinOp::Mul,
-                    BinaryOp::Div => BinOp::Div,
-                    _ => BinOp::Mod,
-                };
+                let bop = arith_op(op);
                 let bits = p.is_some_and(Prim::is_bits)
                     && !is_enum
                     && self.habit(Habit::BitArithmetic, file, span);
@@ -1624,13 +1612,7 @@ impl<'a> Ctx<'a> {
                         ok = false;
                         continue;
                     }
-                    if !self.assignable(&v.ty, &t.ty) {
-                        let (a, b) = (self.ty_name(&v.ty), self.ty_name(&t.ty));
-                        self.error(
-                            file,
-                            target.span,
-                            format!("type mismatch: `{a}` cannot be assigned to `{b}`"),
-                        );
+                    if !self.output_assignable(&v.ty, &t.ty, target.span, file) {
                         ok = false;
                         continue;
                     }
@@ -1748,6 +1730,17 @@ impl<'a> Ctx<'a> {
     }
 
     /// Whether a value of `from` may be stored in a `to` without a conversion.
+    /// Whether an output of type `from` may go to a `=>` target of type `to`; reports why not
+    /// at the target.
+    pub fn output_assignable(&mut self, from: &Ty, to: &Ty, at: Span, file: usize) -> bool {
+        if self.assignable(from, to) {
+            return true;
+        }
+        let (a, b) = (self.ty_name(from), self.ty_name(to));
+        self.error(file, at, format!("type mismatch: `{a}` cannot be assigned to `{b}`"));
+        false
+    }
+
     pub fn assignable(&self, from: &Ty, to: &Ty) -> bool {
         if from == to {
             return true;
@@ -1799,5 +1792,16 @@ pub fn expr_text(e: &Expr) -> String {
         ExprKind::Deref(b) => format!("{}^", expr_text(b)),
         ExprKind::Call { callee, .. } => format!("{}(…)", expr_text(callee)),
         _ => "expression".into(),
+    }
+}
+
+/// The VM's operation for an arithmetic operator (`+ - * / MOD`).
+fn arith_op(op: BinaryOp) -> BinOp {
+    match op {
+        BinaryOp::Add => BinOp::Add,
+        BinaryOp::Sub => BinOp::Sub,
+        BinaryOp::Mul => BinOp::Mul,
+        BinaryOp::Div => BinOp::Div,
+        _ => BinOp::Mod,
     }
 }

@@ -192,8 +192,7 @@ impl<'a> Ctx<'a> {
             Ty::IntLit | Ty::RealLit => {
                 let to = match expected.and_then(|x| x.prim(&self.types)) {
                     Some(p)
-                        if !matches!(expected, Some(Ty::Enum(_)))
-                            && (p.is_num() || t.ty == Ty::IntLit && p.is_bits()) =>
+                        if !matches!(expected, Some(Ty::Enum(_))) && literal_target(p, &t.ty) =>
                     {
                         p
                     }
@@ -271,13 +270,7 @@ impl<'a> Ctx<'a> {
                         ok = false;
                         continue;
                     }
-                    if !self.assignable(&bool_ty, &t.ty) {
-                        let (a, b) = (self.ty_name(&bool_ty), self.ty_name(&t.ty));
-                        self.error(
-                            file,
-                            target.span,
-                            format!("type mismatch: `{a}` cannot be assigned to `{b}`"),
-                        );
+                    if !self.output_assignable(&bool_ty, &t.ty, target.span, file) {
                         ok = false;
                         continue;
                     }
