@@ -45,6 +45,7 @@
 
 use std::cell::Cell;
 use std::fmt::Write as _;
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
@@ -76,6 +77,34 @@ const BUDGETS: [Budget; 9] = [
 
 /// A scan that takes more steps than this has an endless loop.
 const STEPS_PER_SCAN: u64 = 2_000_000;
+
+/// A case (every budget of it) that runs longer than this hangs: native code that never
+/// returns (a budget check lost), or a scan that creeps to [`STEPS_PER_SCAN`] one step a call.
+/// The slowest case takes a few seconds here and under 30 s on aarch64 under qemu-user.
+const CASE_LIMIT: std::time::Duration = std::time::Duration::from_secs(300);
+
+/// Ends the whole test process with a message naming `case` if it is still alive after
+/// [`CASE_LIMIT`]: a call into native code cannot be interrupted, so only the process can end
+/// it. Dropping the guard disarms it.
+struct Deadline(#[allow(dead_code)] std::sync::mpsc::Sender<()>);
+
+fn deadline(case: &str) -> Deadline {
+    let (disarm, armed) = std::sync::mpsc::channel::<()>();
+    let case = case.to_string();
+    std::thread::spawn(move || {
+        if let Err(std::sync::mpsc::RecvTimeoutError::Timeout) = armed.recv_timeout(CASE_LIMIT) {
+            // Straight to the process's stderr: the harness captures `eprintln!` of a test's
+            // threads, and exiting would lose it.
+            let _ = writeln!(
+                std::io::stderr(),
+                "equivalence: case {case:?} did not end within {CASE_LIMIT:?}: native code or the \
+                 interpreter hangs; the test process stops here"
+            );
+            std::process::exit(101);
+        }
+    });
+    Deadline(disarm)
+}
 
 // ---------------------------------------------------------------------------------------------
 // The programs of a case
@@ -402,6 +431,7 @@ impl Outcome {
 
 /// Runs `case` on both sides with every budget of `budgets`.
 fn compare(case: &Programs, scans: Scans, budgets: &[Budget]) -> Outcome {
+    let _deadline = deadline(&case.name);
     let native_steps = Arc::new(AtomicU64::new(0));
     let native_programs = match case.with_native(&native_steps) {
         Ok(native) => native,
