@@ -707,13 +707,15 @@ fn interpret<'a, const ST: bool, C: Clock>(
         }};
     }
 
-    // The chunk: its length, and the instructions of it still ahead.
-    let mut run;
+    // The chunk: the instructions of it still ahead.
     let mut ops: std::slice::Iter<'a, Op>;
-    // Instructions executed in this chunk, the one being executed included.
+    // Instructions executed in this chunk, the one being executed included: the distance of
+    // the iterator from the chunk's start (`rest`), computed from the two addresses at an exit.
+    // Not `run - ops.len()`: that made LLVM keep the length in a register of its own, one more
+    // instruction at every step to count it down.
     macro_rules! taken {
         () => {
-            run - ops.len()
+            (ops.as_slice().as_ptr() as usize - rest.as_ptr() as usize) / size_of::<Op>()
         };
     }
     // The program counter: the instruction after the one being executed.
@@ -749,7 +751,7 @@ fn interpret<'a, const ST: bool, C: Clock>(
     }
 
     'chunk: loop {
-        run = rest.len().min(usize::try_from(left).unwrap_or(usize::MAX));
+        let run = rest.len().min(usize::try_from(left).unwrap_or(usize::MAX));
         ops = rest[..run].iter();
         // A jump ends the chunk (a macro here, where it can see the loop's label).
         macro_rules! jump {
