@@ -55,7 +55,7 @@ impl Shape {
     fn functions(&self) -> usize {
         match self {
             Shape::StructuredText(a) => a.functions.len(),
-            Shape::InstructionList(a) => a.pieces.len(),
+            Shape::InstructionList(a) => a.pieces.len() + a.subroutines.len(),
         }
     }
 
@@ -150,11 +150,16 @@ pub(crate) const RETURN_ERROR: u32 = 2;
 /// instruction-list piece ended at a leader of another piece, or a Structured Text `RETURN`
 /// returned to a caller that is not native (`codegen`).
 pub(crate) const RETURN_CONTINUE: u32 = 3;
+/// An instruction-list subroutine's function executed its `RET`: its caller, a machine call
+/// of native code, goes on after the `CALL` with the budget in the registers. Never returned
+/// to the VM, which enters only pieces.
+pub(crate) const RETURN_RETURNED: u32 = 4;
 
 /// A generated function: the context, then a Structured Text body's registers when a native
 /// caller calls it (`base`, `this`, call depth, stack pointer, budget left, the FB instance's
 /// address), or [`FROM_VM`] and zeros when the VM enters it (the registers are in the context;
-/// the instruction list's pieces take only the context).
+/// the instruction list's pieces take only the context, its subroutines' functions the
+/// context and the budget left).
 type Entry = unsafe extern "C" fn(*mut Context<'_>, u64, u64, u64, u64, u64, u64) -> u32;
 
 /// The `base` with which the VM enters a generated function: no frame's base (a `u32`).
@@ -190,8 +195,9 @@ pub(crate) extern "C" fn il_now(context: *const Context<'_>, steps: u64) -> u64 
 pub(crate) struct Code {
     /// The memory the code lives in; `None` only while it is being freed.
     module: Option<JITModule>,
-    /// The generated functions: one for Structured Text, one per piece of an instruction-list
-    /// program ([`il::Analysis::pieces`]).
+    /// The generated functions: one per Structured Text body; one per piece of an
+    /// instruction-list program ([`il::Analysis::pieces`]), then one per subroutine
+    /// ([`il::Analysis::subroutines`]), which only generated code calls.
     entries: Vec<Entry>,
     shape: Shape,
     /// Bytes of variable memory the code reaches unchecked (`codegen::generate`).
@@ -278,7 +284,7 @@ impl Code {
                 codegen::generate(program, analysis, &checks, function, &names, &*isa, func)
             }
             Shape::InstructionList(analysis) => {
-                il::codegen::generate(program, analysis, function, &*isa, func);
+                il::codegen::generate(program, analysis, function, &names, &*isa, func);
                 0
             }
         };

@@ -56,8 +56,8 @@ use plcd_core::lang::{Language, Program, Variables};
 use plcd_core::st::{compile, parse_file, Instance};
 use plcd_core::value::Space;
 use plcd_core::vm::{
-    Clock, ExecState, Exit, StepClock, Vm, ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE, ERR_REF_NULL,
-    ERR_REF_RANGE,
+    Clock, ExecState, Exit, StepClock, Vm, ERR_CALL_DEPTH, ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE,
+    ERR_REF_NULL, ERR_REF_RANGE,
 };
 
 const MS: u64 = 1_000_000;
@@ -2693,6 +2693,33 @@ fn a_jump_back_stops_at_the_same_step_for_any_budget() {
         outcome.native_steps,
         outcome.steps
     );
+}
+
+/// Instruction-list subroutines are machine calls of functions of their own, nested as deep
+/// as `CALL` allows (one call deeper is an operation error, raised inside them); where the
+/// machine stack is spent, a call goes through the dispatch instead: from a piece by a jump,
+/// from a subroutine's function by leaving for the VM. Every stack size runs the same.
+#[test]
+fn instruction_list_calls_on_a_short_machine_stack() {
+    // Scan n calls subroutine 1, which calls itself until D00002 reaches n: deeper each scan,
+    // until the 17th call is one too many. Subroutine 2, called from 1 and from main, jumps
+    // inside itself and calls 3 from two places.
+    let source = "\
+        LOAD _ON\nINC D00000\nMOV 0 D00002\nCALL 1\nLOAD D00000.0\nCALL 2\nOUT M0000\nEND\n\
+        SBRT 1\nINC D00002\nLOAD D00000.1\nCALL 2\nLOAD< D00002 D00000\nCALL 1\nINC D00004\nRET\n\
+        SBRT 2\nINC D00005\nLOAD D00005.0\nJMP 7\nCALL 3\nLABEL 7\nLOAD _ON\nCALL 3\nRET\n\
+        SBRT 3\nDEC D00006\nLOAD D00006.1\nJMP 8\nINC D00007\nLABEL 8\nDEC D00007\nRET\n";
+    let mut case = Programs::il("short machine stack, instruction list", &[("main", source)]);
+    for bytes in [None, Some(0), Some(4_400), Some(4_800), Some(6_000)] {
+        case.native_stack = bytes;
+        let outcome = compare(&case, Scans::new(20), &BUDGETS);
+        outcome.assert_equivalent();
+        outcome.assert_native_share("instruction-list calls", 80);
+        let vm = outcome.vm.as_ref().unwrap();
+        let word = |d: &str| vm.mem.read(&plcd_core::device::Address::parse(d).unwrap());
+        assert_eq!(word("D00000"), 20, "{bytes:?}");
+        assert!(outcome.errors_with_whole_budget(ERR_CALL_DEPTH) >= 3, "{:?}", outcome.errors);
+    }
 }
 
 /// A random instruction-list program from `seed`: rungs of contacts (nested blocks, MPUSH

@@ -16,6 +16,16 @@
 //!   and returns to it;
 //! - a program is compiled in pieces ([`Analysis::pieces`]), each such a function; a piece
 //!   goes on into another by returning to [`Code::run`](crate::code::Code), which calls it;
+//! - each subroutine (up to a piece's size) is also a function of its own
+//!   ([`Analysis::subroutines`]), entered only by a machine call from a `CALL` of native code
+//!   after it pushed the call's frame, with the budget as a parameter; its `RET` pops the frame
+//!   and returns [`RETURN_RETURNED`], and the caller goes on after the `CALL` with its own
+//!   registers. Any other exit of the subroutine is passed up through its callers to the VM,
+//!   registers and frames in memory, and the VM goes on in the piece that holds the place
+//!   (whose `RET` returns through the dispatch). A `CALL` that finds the machine stack spent
+//!   goes through the dispatch: a piece jumps to the subroutine's block, a subroutine's
+//!   function leaves for the VM (so that its `RET` always ends the machine call that entered
+//!   it);
 //! - as in the interpreter, coils and data instructions store whatever the rung (the old value
 //!   when it is OFF) and contacts combine arithmetically: no branch on device data (`DIV` by
 //!   zero, an operation error, leaves for the interpreter on a cold path);
@@ -33,7 +43,8 @@ use std::mem::offset_of;
 
 use cranelift_codegen::ir::condcodes::IntCC;
 use cranelift_codegen::ir::{
-    types, AbiParam, Block, Function, InstBuilder, JumpTableData, MemFlagsData, Signature, Value,
+    types, AbiParam, Block, ExtFuncData, ExternalName, FuncRef, Function, InstBuilder,
+    JumpTableData, MemFlagsData, SigRef, Signature, UserExternalName, Value,
 };
 use cranelift_codegen::isa::TargetIsa;
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
@@ -44,22 +55,29 @@ use plcd_core::lang::{Program, CALL_DEPTH};
 use plcd_core::vm::{counter, timer};
 
 use super::{is_native, Analysis};
-use crate::code::{self, Context, IlContext, RETURN_CONTINUE, RETURN_END, RETURN_INTERPRET};
+use crate::code::{
+    self, Context, IlContext, RETURN_CONTINUE, RETURN_END, RETURN_INTERPRET, RETURN_RETURNED,
+};
 use crate::codegen::{data, own};
 
 const I32: types::Type = types::I32;
 const I64: types::Type = types::I64;
 
-/// Fills `func` with the code of piece `piece` of `program`.
+/// Fills `func` with the code of function `function` of `program`: a piece (the first
+/// `analysis.pieces.len()`), else a subroutine's function. `names` gives each function's name
+/// in the module (for the machine calls of subroutines).
 pub(crate) fn generate(
     program: &Program,
     analysis: &Analysis,
-    piece: usize,
+    function: usize,
+    names: &[u32],
     isa: &dyn TargetIsa,
     func: &mut Function,
 ) {
-    // The signature of every generated function; a piece uses only the context.
-    func.signature = crate::code::entry_signature(isa.default_call_conv());
+    // The signature of every generated function; a piece uses only the context, a
+    // subroutine's function the context and the budget left.
+    let signature = crate::code::entry_signature(isa.default_call_conv());
+    func.signature = signature.clone();
     let mut fctx = FunctionBuilderContext::new();
     let mut b = FunctionBuilder::new(func, &mut fctx);
     let entry = b.create_block();
@@ -87,7 +105,12 @@ pub(crate) fn generate(
         branches: b.declare_var(I32),
         left: b.declare_var(I64),
     };
-    let leaders = analysis.pieces[piece].clone();
+    let sub_sig = b.import_signature(signature);
+    let pieces = analysis.pieces.len();
+    let (piece, members) = match analysis.pieces.get(function) {
+        Some(range) => (Some(function), range.clone().collect()),
+        None => (None, analysis.subroutines[function - pieces].blocks.clone()),
+    };
     let mut g = Gen {
         b,
         code: &program.code,
@@ -104,13 +127,19 @@ pub(crate) fn generate(
         elsewhere: None,
         regs,
         piece,
-        leaders,
+        members,
         blocks: Vec::new(),
+        names,
+        sub_sig,
+        callees: Vec::new(),
         held: HashMap::new(),
         pc: 0,
         block_end: 0,
     };
-    g.entry();
+    match piece {
+        Some(_) => g.entry(),
+        None => g.subroutine_entry(analysis.subroutines[function - pieces].target),
+    }
     g.body();
     g.b.seal_all_blocks();
     g.b.finalize(isa.frontend_config());
@@ -166,11 +195,19 @@ struct Gen<'a, 'f> {
     /// The block for a program counter that is no leader of this piece (its parameter).
     elsewhere: Option<Block>,
     regs: Regs,
-    /// The piece this function is, and its leaders: a range of [`Analysis::leaders`].
-    piece: usize,
-    leaders: std::ops::Range<usize>,
-    /// The block of each of this piece's leaders.
+    /// The piece this function is; `None` for a subroutine's function.
+    piece: Option<usize>,
+    /// The blocks this function has, as indices into [`Analysis::leaders`], sorted: a piece's
+    /// range, or a subroutine's blocks.
+    members: Vec<usize>,
+    /// The Cranelift block of each of `members`.
     blocks: Vec<Block>,
+    /// Each function's name in the module.
+    names: &'a [u32],
+    /// The signature of a subroutine's function (every generated function's).
+    sub_sig: SigRef,
+    /// The subroutine functions this one calls, by their index in `analysis.subroutines`.
+    callees: Vec<(usize, FuncRef)>,
     /// The words the current block holds, by index.
     held: HashMap<u16, Word>,
     /// The instruction being compiled.
@@ -194,7 +231,7 @@ impl Gen<'_, '_> {
         self.b.def_var(self.regs.blocks, blocks);
         self.b.def_var(self.regs.branches, branches);
         self.b.def_var(self.regs.left, left);
-        self.blocks = self.leaders.clone().map(|_| self.b.create_block()).collect();
+        self.blocks = self.members.iter().map(|_| self.b.create_block()).collect();
         let elsewhere = self.b.create_block();
         let pc_param = self.b.append_block_param(elsewhere, I32);
         self.elsewhere = Some(elsewhere);
@@ -203,11 +240,12 @@ impl Gen<'_, '_> {
         // or a return address that is no leader), else the piece that has it.
         self.b.switch_to_block(elsewhere);
         self.b.set_cold_block(elsewhere);
-        let low = self.analysis.leaders[self.leaders.start];
+        let piece = self.piece.expect("a piece");
+        let low = self.analysis.leaders[self.members[0]];
         let high = self
             .analysis
             .pieces
-            .get(self.piece + 1)
+            .get(piece + 1)
             .map_or(u32::MAX, |next| self.analysis.leaders[next.start]);
         let below = self.b.ins().icmp_imm_u(IntCC::UnsignedLessThan, pc_param, i64::from(low));
         let above =
@@ -220,13 +258,35 @@ impl Gen<'_, '_> {
         self.b.ins().return_(&[status]);
     }
 
+    /// The entry of a subroutine's function, which only native code calls (a `CALL` that has
+    /// pushed the call's frame): the registers of a subroutine's start (the rung ON, both
+    /// stacks empty), the budget left from the parameter, straight to the target's block.
+    fn subroutine_entry(&mut self, target: u32) {
+        let entry = self.b.current_block().expect("the entry block");
+        let left = self.b.block_params(entry)[1];
+        let (on, zero) = (self.b.ins().iconst(I32, 1), self.b.ins().iconst(I32, 0));
+        self.b.def_var(self.regs.rung, on);
+        self.b.def_var(self.regs.blocks, zero);
+        self.b.def_var(self.regs.branches, zero);
+        self.b.def_var(self.regs.left, left);
+        self.blocks = self.members.iter().map(|_| self.b.create_block()).collect();
+        let index = self.analysis.leaders.binary_search(&target).expect("a call target leads");
+        let block = self.block_of(index).expect("a subroutine has its first block");
+        self.b.ins().jump(block, &[]);
+    }
+
+    /// The block of leader `index` in this function, if it has it.
+    fn block_of(&self, index: usize) -> Option<Block> {
+        self.members.binary_search(&index).ok().map(|member| self.blocks[member])
+    }
+
     /// Goes on at the block of `pc` (I32), found in the piece's dispatch table where `pc` is in
     /// its range, or at the block for any other pc. Each use is a jump table of its own (the
     /// entry's, and each `RET`'s), so that the processor predicts each indirect jump from its
     /// own history: one shared by every `RET` of the program was mispredicted at most returns.
     fn switch_on(&mut self, pc: Value) {
-        let table = &self.analysis.dispatch[self.piece];
-        let low = self.analysis.leaders[self.leaders.start];
+        let table = &self.analysis.dispatch[self.piece.expect("a piece")];
+        let low = self.analysis.leaders[self.members[0]];
         let offset = self.b.ins().iadd_imm_s(pc, -i64::from(low));
         let inside = self.b.ins().icmp_imm_u(IntCC::UnsignedLessThan, offset, table.len() as i64);
         let zero = self.b.ins().iconst(I32, 0);
@@ -279,8 +339,8 @@ impl Gen<'_, '_> {
     /// [`Code::run`](crate::code::Code)), or the interpreter past the compiled code.
     fn go_on(&mut self, pc: usize) {
         match self.analysis.leaders.binary_search(&(pc as u32)) {
-            Ok(index) if self.leaders.contains(&index) => {
-                let block = self.blocks[index - self.leaders.start];
+            Ok(index) if self.block_of(index).is_some() => {
+                let block = self.block_of(index).expect("just found");
                 self.b.ins().jump(block, &[]);
             }
             Ok(_) => self.exit(pc, RETURN_CONTINUE),
@@ -289,9 +349,9 @@ impl Gen<'_, '_> {
     }
 
     fn body(&mut self) {
-        for index in self.leaders.clone() {
+        for (member, index) in self.members.clone().into_iter().enumerate() {
             let range = self.analysis.block(self.code, index);
-            self.b.switch_to_block(self.blocks[index - self.leaders.start]);
+            self.b.switch_to_block(self.blocks[member]);
             self.held.clear();
             if !is_native(&self.code[range.start]) {
                 self.exit(range.start, RETURN_INTERPRET);
@@ -528,7 +588,90 @@ impl Gen<'_, '_> {
         self.b.def_var(self.regs.rung, on);
         self.b.def_var(self.regs.blocks, zero);
         self.b.def_var(self.regs.branches, zero);
-        self.go_on(target as usize);
+        let caller = (rung, blocks, branches);
+        match self.analysis.subroutine_at(target) {
+            Some(sub) => self.machine_call(sub, target, pc, caller),
+            None => self.enter_by_dispatch(target),
+        }
+    }
+
+    /// Goes on at `target`, the frame of its call pushed, other than by a machine call: a
+    /// piece jumps to it (its `RET` goes back through the dispatch); a subroutine's function
+    /// leaves for the VM, which enters the piece that holds it, so that a `RET` of this
+    /// function always returns from the machine call that entered it.
+    fn enter_by_dispatch(&mut self, target: u32) {
+        if self.piece.is_some() {
+            self.go_on(target as usize);
+        } else {
+            self.exit(target as usize, RETURN_CONTINUE);
+        }
+    }
+
+    /// The `CALL` at `pc` of subroutine `sub` (at `target`), its frame pushed and the callee's
+    /// registers set: a machine call of the subroutine's function. When it returned
+    /// ([`RETURN_RETURNED`]), the caller goes on after the `CALL` with its registers as they
+    /// were (`caller`: the rung and both stacks, which the `RET` restores from the frame) and
+    /// the budget the callee left; any other result is passed on, every register in the
+    /// context where the callee stopped, as the VM finds them.
+    fn machine_call(&mut self, sub: usize, target: u32, pc: usize, caller: (Value, Value, Value)) {
+        // The machine stack: below the context's floor, the call goes through the dispatch.
+        let stack = self.b.ins().get_stack_pointer(I64);
+        let floor = self.b.ins().load(
+            I64,
+            own(),
+            self.ctx,
+            offset_of!(Context<'static>, stack_floor) as i32,
+        );
+        let low = self.b.ins().icmp(IntCC::UnsignedLessThan, stack, floor);
+        let call = self.b.create_block();
+        let deep = self.b.create_block();
+        self.b.set_cold_block(deep);
+        self.b.ins().brif(low, deep, &[], call, &[]);
+        self.b.switch_to_block(deep);
+        self.enter_by_dispatch(target);
+        self.b.switch_to_block(call);
+        let left = self.b.use_var(self.regs.left);
+        let callee = self.callee(sub);
+        let zero = self.b.ins().iconst(I64, 0);
+        let call = self.b.ins().call(callee, &[self.ctx, left, zero, zero, zero, zero, zero]);
+        let status = self.b.inst_results(call)[0];
+        let returned = self.b.ins().icmp_imm_s(IntCC::Equal, status, i64::from(RETURN_RETURNED));
+        let back = self.b.create_block();
+        let stopped = self.b.create_block();
+        self.b.set_cold_block(stopped);
+        self.b.ins().brif(returned, back, &[], stopped, &[]);
+        self.b.switch_to_block(stopped);
+        self.b.ins().return_(&[status]);
+        self.b.switch_to_block(back);
+        let left = self.b.ins().load(I64, own(), self.regs_at, offset_of!(NativeRegs, left) as i32);
+        self.b.def_var(self.regs.left, left);
+        let (rung, blocks, branches) = caller;
+        self.b.def_var(self.regs.rung, rung);
+        self.b.def_var(self.regs.blocks, blocks);
+        self.b.def_var(self.regs.branches, branches);
+        // The callee may have written any word.
+        self.held.clear();
+        self.go_on(pc + 1);
+    }
+
+    /// Subroutine `sub`'s function, imported into this one.
+    fn callee(&mut self, sub: usize) -> FuncRef {
+        if let Some(&(_, callee)) = self.callees.iter().find(|(at, _)| *at == sub) {
+            return callee;
+        }
+        let function = self.analysis.pieces.len() + sub;
+        let name = self.b.func.declare_imported_user_function(UserExternalName {
+            namespace: 0,
+            index: self.names[function],
+        });
+        let callee = self.b.import_function(ExtFuncData {
+            name: ExternalName::user(name),
+            signature: self.sub_sig,
+            colocated: true,
+            patchable: false,
+        });
+        self.callees.push((sub, callee));
+        callee
     }
 
     /// `RET` at `pc`, the last instruction of its block: back to the caller's registers and
@@ -554,6 +697,15 @@ impl Gen<'_, '_> {
         let branches = load(self, offset_of!(IlFrame, branches));
         let loop_depth = byte(self, offset_of!(IlFrame, loop_depth));
         self.store32(loop_depth, offset_of!(NativeRegs, loop_depth));
+        if self.piece.is_none() {
+            // A subroutine's function returns to the machine call that entered it, which has
+            // the caller's registers; only the budget goes back.
+            let left = self.b.use_var(self.regs.left);
+            let at = offset_of!(NativeRegs, left) as i32;
+            self.b.ins().store(own(), left, self.regs_at, at);
+            self.ret(RETURN_RETURNED);
+            return;
+        }
         self.b.def_var(self.regs.rung, rung);
         self.b.def_var(self.regs.blocks, blocks);
         self.b.def_var(self.regs.branches, branches);

@@ -68,7 +68,27 @@ pub(crate) struct Analysis {
     /// number of blocks if it is no leader. The code reads it where it lives, so that entering
     /// at a program counter, and `RET`, are one load and one indirect jump.
     pub dispatch: Vec<Box<[u16]>>,
+    /// The subroutines compiled as functions of their own, after the pieces: a `CALL` of one
+    /// is a machine call, and its `RET` a machine return, which the processor predicts (a
+    /// return through the dispatch is an indirect jump to one of every caller's return
+    /// addresses). Sorted by `CALL` target.
+    pub subroutines: Vec<Subroutine>,
 }
+
+/// A subroutine's own function: the blocks reachable from its first instruction without
+/// passing a `RET` (a `CALL` in it goes on after the call). Control that leaves them (into code
+/// past the compiled part, or a jump out of the subroutine) leaves the function for the VM,
+/// which goes on in the piece that holds the place, as it does after any stop inside one.
+pub(crate) struct Subroutine {
+    /// The `CALL` target: the instruction after `SBRT n`.
+    pub target: u32,
+    /// The blocks, as indices into [`Analysis::leaders`], sorted.
+    pub blocks: Vec<usize>,
+}
+
+/// Instructions of one subroutine's function, at most (as a piece's, for the same reason): a
+/// longer subroutine is called through the dispatch.
+const SUBROUTINE_MAX: usize = PIECE;
 
 /// True if native code executes `op` itself.
 pub(crate) fn is_native(op: &Op) -> bool {
@@ -251,7 +271,9 @@ pub(crate) fn analyse(code: &[Op]) -> Analysis {
             table.into_boxed_slice()
         })
         .collect();
+    let subroutines = subroutines(code, &all, compiled);
     Analysis {
+        subroutines,
         dispatch,
         leaders: all,
         words_end,
@@ -264,7 +286,66 @@ pub(crate) fn analyse(code: &[Op]) -> Analysis {
     }
 }
 
+/// The subroutines that get functions of their own: every compiled `CALL` target whose blocks
+/// (see [`Subroutine`]) are at most [`SUBROUTINE_MAX`] instructions.
+fn subroutines(code: &[Op], leaders: &[u32], compiled: usize) -> Vec<Subroutine> {
+    let mut targets: Vec<u32> = code[..compiled]
+        .iter()
+        .filter_map(|op| match *op {
+            Op::Call { target } if (target as usize) < compiled => Some(target),
+            _ => None,
+        })
+        .collect();
+    targets.sort_unstable();
+    targets.dedup();
+    let index_of = |pc: usize| leaders.binary_search(&(pc as u32)).ok();
+    let block_of = |index: usize| {
+        crate::blocks::block(leaders, compiled, code, index, |op| ends_block(op) || !is_native(op))
+    };
+    targets
+        .into_iter()
+        .filter_map(|target| {
+            let first = index_of(target as usize)?;
+            let mut blocks = vec![first];
+            let mut seen = std::collections::HashSet::from([first]);
+            let mut size = 0;
+            let mut next = 0;
+            while let Some(&index) = blocks.get(next) {
+                next += 1;
+                let range = block_of(index);
+                size += range.len();
+                if size > SUBROUTINE_MAX {
+                    return None;
+                }
+                let last = &code[range.end - 1];
+                let successors: &[usize] = match *last {
+                    // The interpreter's instruction: the VM goes on after it.
+                    _ if !is_native(&code[range.start]) => &[],
+                    Op::Ret | Op::End => &[],
+                    Op::Jmp { target } => &[target as usize, range.end],
+                    _ => &[range.end],
+                };
+                for &pc in successors {
+                    if let Some(successor) = index_of(pc).filter(|_| pc < compiled) {
+                        if seen.insert(successor) {
+                            blocks.push(successor);
+                        }
+                    }
+                }
+            }
+            blocks.sort_unstable();
+            Some(Subroutine { target, blocks })
+        })
+        .collect()
+}
+
 impl Analysis {
+    /// The subroutine function of the `CALL` target `target`, as its index in
+    /// [`Analysis::subroutines`].
+    pub fn subroutine_at(&self, target: u32) -> Option<usize> {
+        self.subroutines.binary_search_by_key(&target, |s| s.target).ok()
+    }
+
     /// The instructions of the block at `leaders[index]`: to the next leader, or to the first
     /// that ends a block; an instruction the interpreter executes is a block of its own.
     pub fn block(&self, code: &[Op], index: usize) -> std::ops::Range<usize> {
@@ -326,6 +407,43 @@ mod tests {
         assert_eq!((table[1], table[299], table[600]), (5, 5, 5), "no leader: the block count");
         assert_eq!(a.piece_holding(557), 0);
         assert_eq!(a.piece_holding(601), 0);
+    }
+
+    #[test]
+    fn a_subroutine_function_has_the_blocks_reachable_before_its_ret() {
+        let code = vec![
+            Op::Load(bit(1)),
+            Op::Call { target: 4 },
+            Op::Out(bit(2)),
+            Op::End,
+            // subroutine 1: a jump over one instruction, a call of subroutine 2
+            Op::Load(bit(1)),
+            Op::Jmp { target: 7 },
+            Op::Out(bit(3)),
+            Op::Call { target: 10 },
+            Op::Ret,
+            Op::Nop,
+            // subroutine 2: one block
+            Op::Out(bit(4)),
+            Op::Ret,
+        ];
+        let a = analyse(&code);
+        assert_eq!(a.leaders, vec![0, 2, 4, 6, 7, 8, 9, 10]);
+        let subs: Vec<_> = a.subroutines.iter().map(|s| (s.target, s.blocks.clone())).collect();
+        // 9, after the RET, is not reached; the CALL at 7 goes on at 8.
+        assert_eq!(subs, vec![(4, vec![2, 3, 4, 5]), (10, vec![7])]);
+        assert_eq!(a.subroutine_at(10), Some(1));
+        assert_eq!(a.subroutine_at(2), None);
+    }
+
+    #[test]
+    fn a_subroutine_longer_than_a_piece_is_called_through_the_dispatch() {
+        let mut code = vec![Op::Load(bit(1)), Op::Call { target: 3 }, Op::End];
+        code.extend(std::iter::repeat_n(Op::Out(bit(3)), SUBROUTINE_MAX));
+        code.push(Op::Ret);
+        assert!(analyse(&code).subroutines.is_empty());
+        code.remove(3);
+        assert_eq!(analyse(&code).subroutines.len(), 1, "exactly SUBROUTINE_MAX instructions");
     }
 
     #[test]
