@@ -2703,12 +2703,15 @@ fn a_jump_back_stops_at_the_same_step_for_any_budget() {
 fn instruction_list_calls_on_a_short_machine_stack() {
     // Scan n calls subroutine 1, which calls itself until D00002 reaches n: deeper each scan,
     // until the 17th call is one too many. Subroutine 2, called from 1 and from main, jumps
-    // inside itself and calls 3 from two places.
+    // inside itself and calls 3 from two places. Subroutines 3 and 4 are compiled inline; 4 ends
+    // on a rung of its own, and its caller goes on with the rung of the call.
     let source = "\
-        LOAD _ON\nINC D00000\nMOV 0 D00002\nCALL 1\nLOAD D00000.0\nCALL 2\nOUT M0000\nEND\n\
+        LOAD _ON\nINC D00000\nMOV 0 D00002\nCALL 1\nLOAD D00000.0\nCALL 2\nOUT M0000\n\
+        LOAD D00000.0\nCALL 4\nAND D00000.1\nOUT M0001\nEND\n\
         SBRT 1\nINC D00002\nLOAD D00000.1\nCALL 2\nLOAD< D00002 D00000\nCALL 1\nINC D00004\nRET\n\
         SBRT 2\nINC D00005\nLOAD D00005.0\nJMP 7\nCALL 3\nLABEL 7\nLOAD _ON\nCALL 3\nRET\n\
-        SBRT 3\nDEC D00006\nLOAD D00006.1\nJMP 8\nINC D00007\nLABEL 8\nDEC D00007\nRET\n";
+        SBRT 3\nDEC D00006\nLOAD D00006.1\nJMP 8\nINC D00007\nLABEL 8\nDEC D00007\nRET\n\
+        SBRT 4\nLOAD D00000.2\nINC D00008\nRET\n";
     let mut case = Programs::il("short machine stack, instruction list", &[("main", source)]);
     for bytes in [None, Some(0), Some(4_400), Some(4_800), Some(6_000)] {
         case.native_stack = bytes;

@@ -26,6 +26,10 @@
 //!   goes through the dispatch: a piece jumps to the subroutine's block, a subroutine's
 //!   function leaves for the VM (so that its `RET` always ends the machine call that entered
 //!   it);
+//! - a small subroutine without calls is compiled inline at each `CALL` instead
+//!   ([`Subroutine::inline`](super::Subroutine), up to [`INLINE_BUDGET`] instructions per
+//!   function): its blocks again, for that call alone, the frame pushed and popped as above,
+//!   its `RET` a jump back after the `CALL`;
 //! - as in the interpreter, coils and data instructions store whatever the rung (the old value
 //!   when it is OFF) and contacts combine arithmetically: no branch on device data (`DIV` by
 //!   zero, an operation error, leaves for the interpreter on a cold path);
@@ -83,16 +87,31 @@ pub(crate) fn generate(
     let entry = b.create_block();
     b.append_block_params_for_function_params(entry);
     b.switch_to_block(entry);
-    let ctx = b.block_params(entry)[0];
+    let params = b.block_params(entry).to_vec();
+    let ctx = params[0];
+    let pieces = analysis.pieces.len();
+    // The context and the instruction list's part of it do not change while the code runs:
+    // read-only loads, which Cranelift removes where a function does not use them.
     let field =
-        |b: &mut FunctionBuilder, offset: usize| b.ins().load(I64, own(), ctx, offset as i32);
-    let regs_at = field(&mut b, offset_of!(Context<'static>, regs));
-    let words = field(&mut b, offset_of!(Context<'static>, words));
-    let il = field(&mut b, offset_of!(Context<'static>, il));
+        |b: &mut FunctionBuilder, offset: usize| b.ins().load(I64, readonly(), ctx, offset as i32);
+    // A subroutine's function gets from its caller, besides the budget, the pointers every
+    // function loads from the context (unused loads are removed; these are used): a call
+    // costs fewer instructions.
+    let (regs_at, words, il, il_calls, edges) = if function < pieces {
+        let regs_at = field(&mut b, offset_of!(Context<'static>, regs));
+        let words = field(&mut b, offset_of!(Context<'static>, words));
+        let il = field(&mut b, offset_of!(Context<'static>, il));
+        let il_field = |b: &mut FunctionBuilder, offset: usize| {
+            b.ins().load(I64, readonly(), il, offset as i32)
+        };
+        let edges = il_field(&mut b, offset_of!(IlContext<'static>, edges));
+        let il_calls = il_field(&mut b, offset_of!(IlContext<'static>, calls));
+        (regs_at, words, il, il_calls, edges)
+    } else {
+        (params[2], params[3], params[4], params[5], params[6])
+    };
     let il_field =
-        |b: &mut FunctionBuilder, offset: usize| b.ins().load(I64, own(), il, offset as i32);
-    let edges = il_field(&mut b, offset_of!(IlContext<'static>, edges));
-    let il_calls = il_field(&mut b, offset_of!(IlContext<'static>, calls));
+        |b: &mut FunctionBuilder, offset: usize| b.ins().load(I64, readonly(), il, offset as i32);
     let counters = il_field(&mut b, offset_of!(IlContext<'static>, counters));
     let timers = il_field(&mut b, offset_of!(IlContext<'static>, timers));
     let mut now_sig = Signature::new(isa.default_call_conv());
@@ -106,7 +125,6 @@ pub(crate) fn generate(
         left: b.declare_var(I64),
     };
     let sub_sig = b.import_signature(signature);
-    let pieces = analysis.pieces.len();
     let (piece, members) = match analysis.pieces.get(function) {
         Some(range) => (Some(function), range.clone().collect()),
         None => (None, analysis.subroutines[function - pieces].blocks.clone()),
@@ -132,6 +150,8 @@ pub(crate) fn generate(
         names,
         sub_sig,
         callees: Vec::new(),
+        inline: None,
+        inlined: 0,
         held: HashMap::new(),
         pc: 0,
         block_end: 0,
@@ -145,7 +165,8 @@ pub(crate) fn generate(
     g.b.finalize(isa.frontend_config());
 }
 
-/// A load from a dispatch table: never written while the code lives, always inside it.
+/// A load from a dispatch table (never written while the code lives, always inside it), or of
+/// a field of the [`Context`] or its [`IlContext`] (never written while the code runs).
 fn readonly() -> MemFlagsData {
     MemFlagsData::trusted().with_readonly()
 }
@@ -161,6 +182,22 @@ struct Word {
     signed: Option<Value>,
     /// The instruction that last read or wrote it.
     at: usize,
+}
+
+/// Instructions of subroutines inlined into one function, at most: each inlined call compiles
+/// the subroutine's blocks again, so this bounds a function's growth.
+const INLINE_BUDGET: usize = 2 * super::PIECE;
+
+/// A subroutine compiled inline at one `CALL`.
+struct Inline {
+    /// Its blocks, as indices into [`Analysis::leaders`], sorted, and the Cranelift block of
+    /// each for this call.
+    members: Vec<usize>,
+    blocks: Vec<Block>,
+    /// Where its `RET` goes: after the `CALL`.
+    back: Block,
+    /// The caller's rung and stacks, which the `RET` restores.
+    caller: (Value, Value, Value),
 }
 
 /// The registers of the activation, as SSA variables: the rung is 0 or 1.
@@ -208,6 +245,10 @@ struct Gen<'a, 'f> {
     sub_sig: SigRef,
     /// The subroutine functions this one calls, by their index in `analysis.subroutines`.
     callees: Vec<(usize, FuncRef)>,
+    /// The inlined subroutine being compiled, if any.
+    inline: Option<Inline>,
+    /// Instructions of subroutines inlined into this function so far.
+    inlined: usize,
     /// The words the current block holds, by index.
     held: HashMap<u16, Word>,
     /// The instruction being compiled.
@@ -338,6 +379,20 @@ impl Gen<'_, '_> {
     /// Goes on at `pc`: its block in this piece, the piece that has it (through
     /// [`Code::run`](crate::code::Code)), or the interpreter past the compiled code.
     fn go_on(&mut self, pc: usize) {
+        if let Some(inline) = &self.inline {
+            // An inlined subroutine's blocks, or out of it by the VM (never into the blocks
+            // around it: a subroutine's function returns at its own `RET`).
+            let index = self.analysis.leaders.binary_search(&(pc as u32));
+            match index.map(|index| inline.members.binary_search(&index)) {
+                Ok(Ok(member)) => {
+                    let block = inline.blocks[member];
+                    self.b.ins().jump(block, &[]);
+                }
+                Ok(Err(_)) => self.exit(pc, RETURN_CONTINUE),
+                Err(_) => self.exit(pc, RETURN_INTERPRET),
+            }
+            return;
+        }
         match self.analysis.leaders.binary_search(&(pc as u32)) {
             Ok(index) if self.block_of(index).is_some() => {
                 let block = self.block_of(index).expect("just found");
@@ -350,12 +405,19 @@ impl Gen<'_, '_> {
 
     fn body(&mut self) {
         for (member, index) in self.members.clone().into_iter().enumerate() {
-            let range = self.analysis.block(self.code, index);
             self.b.switch_to_block(self.blocks[member]);
+            self.block(index);
+        }
+    }
+
+    /// The code of the block at `analysis.leaders[index]`, in the current Cranelift block.
+    fn block(&mut self, index: usize) {
+        {
+            let range = self.analysis.block(self.code, index);
             self.held.clear();
             if !is_native(&self.code[range.start]) {
                 self.exit(range.start, RETURN_INTERPRET);
-                continue;
+                return;
             }
             // The budget covers the whole block, or the interpreter takes it.
             let n = range.len() as i64;
@@ -590,9 +652,45 @@ impl Gen<'_, '_> {
         self.b.def_var(self.regs.branches, zero);
         let caller = (rung, blocks, branches);
         match self.analysis.subroutine_at(target) {
+            Some(sub) if self.inlines(sub) => self.inline_call(sub, target, pc, caller),
             Some(sub) => self.machine_call(sub, target, pc, caller),
             None => self.enter_by_dispatch(target),
         }
+    }
+
+    /// Whether a `CALL` of subroutine `sub` here is compiled inline: a small subroutine without
+    /// calls, while this function's inlined instructions stay within [`INLINE_BUDGET`].
+    fn inlines(&mut self, sub: usize) -> bool {
+        let Some(size) = self.analysis.subroutines[sub].inline else { return false };
+        if self.inline.is_some() || self.inlined + size > INLINE_BUDGET {
+            return false;
+        }
+        self.inlined += size;
+        true
+    }
+
+    /// The `CALL` at `pc` of subroutine `sub` (at `target`), its frame pushed and the callee's
+    /// registers set, with the subroutine's blocks compiled here, for this call alone: its
+    /// `RET` pops the frame and goes on after the `CALL` with the caller's registers
+    /// (`caller`), the budget where the subroutine left it. A stop inside leaves for the VM as
+    /// anywhere else, the frame in memory, and the VM goes on in the piece that holds the place.
+    fn inline_call(&mut self, sub: usize, target: u32, pc: usize, caller: (Value, Value, Value)) {
+        let members = self.analysis.subroutines[sub].blocks.clone();
+        let blocks: Vec<Block> = members.iter().map(|_| self.b.create_block()).collect();
+        let back = self.b.create_block();
+        let first = self.analysis.leaders.binary_search(&target).expect("a call target leads");
+        let entry = blocks[members.binary_search(&first).expect("a subroutine's first block")];
+        self.b.ins().jump(entry, &[]);
+        self.inline =
+            Some(Inline { members: members.clone(), blocks: blocks.clone(), back, caller });
+        for (member, index) in members.into_iter().enumerate() {
+            self.b.switch_to_block(blocks[member]);
+            self.block(index);
+        }
+        self.inline = None;
+        self.b.switch_to_block(back);
+        self.held.clear();
+        self.go_on(pc + 1);
     }
 
     /// Goes on at `target`, the frame of its call pushed, other than by a machine call: a
@@ -618,7 +716,7 @@ impl Gen<'_, '_> {
         let stack = self.b.ins().get_stack_pointer(I64);
         let floor = self.b.ins().load(
             I64,
-            own(),
+            readonly(),
             self.ctx,
             offset_of!(Context<'static>, stack_floor) as i32,
         );
@@ -632,8 +730,8 @@ impl Gen<'_, '_> {
         self.b.switch_to_block(call);
         let left = self.b.use_var(self.regs.left);
         let callee = self.callee(sub);
-        let zero = self.b.ins().iconst(I64, 0);
-        let call = self.b.ins().call(callee, &[self.ctx, left, zero, zero, zero, zero, zero]);
+        let args = [self.ctx, left, self.regs_at, self.words, self.il, self.il_calls, self.edges];
+        let call = self.b.ins().call(callee, &args);
         let status = self.b.inst_results(call)[0];
         let returned = self.b.ins().icmp_imm_s(IntCC::Equal, status, i64::from(RETURN_RETURNED));
         let back = self.b.create_block();
@@ -691,12 +789,17 @@ impl Gen<'_, '_> {
         let frame = self.frame_at(depth);
         let load = |g: &mut Self, offset: usize| g.b.ins().load(I32, own(), frame, offset as i32);
         let byte = |g: &mut Self, offset: usize| g.b.ins().uload8(I32, own(), frame, offset as i32);
-        let return_pc = load(self, offset_of!(IlFrame, return_pc));
-        let rung = byte(self, offset_of!(IlFrame, rung));
-        let blocks = load(self, offset_of!(IlFrame, blocks));
-        let branches = load(self, offset_of!(IlFrame, branches));
         let loop_depth = byte(self, offset_of!(IlFrame, loop_depth));
         self.store32(loop_depth, offset_of!(NativeRegs, loop_depth));
+        if let Some(inline) = &self.inline {
+            let (rung, blocks, branches) = inline.caller;
+            let back = inline.back;
+            self.b.def_var(self.regs.rung, rung);
+            self.b.def_var(self.regs.blocks, blocks);
+            self.b.def_var(self.regs.branches, branches);
+            self.b.ins().jump(back, &[]);
+            return;
+        }
         if self.piece.is_none() {
             // A subroutine's function returns to the machine call that entered it, which has
             // the caller's registers; only the budget goes back.
@@ -706,6 +809,10 @@ impl Gen<'_, '_> {
             self.ret(RETURN_RETURNED);
             return;
         }
+        let return_pc = load(self, offset_of!(IlFrame, return_pc));
+        let rung = byte(self, offset_of!(IlFrame, rung));
+        let blocks = load(self, offset_of!(IlFrame, blocks));
+        let branches = load(self, offset_of!(IlFrame, branches));
         self.b.def_var(self.regs.rung, rung);
         self.b.def_var(self.regs.blocks, blocks);
         self.b.def_var(self.regs.branches, branches);

@@ -84,7 +84,15 @@ pub(crate) struct Subroutine {
     pub target: u32,
     /// The blocks, as indices into [`Analysis::leaders`], sorted.
     pub blocks: Vec<usize>,
+    /// Its instructions, if a `CALL` of it is compiled inline: at most [`INLINE_MAX`] and no
+    /// `CALL` among them.
+    pub inline: Option<usize>,
 }
+
+/// Instructions of a subroutine compiled inline at its calls, at most: a call costs about 40
+/// machine instructions more than the subroutine's own work (the machine call, its function's
+/// entry and exit, the registers spilled around it), inline about 15 (the frame).
+const INLINE_MAX: usize = 32;
 
 /// Instructions of one subroutine's function, at most (as a piece's, for the same reason): a
 /// longer subroutine is called through the dispatch.
@@ -334,7 +342,11 @@ fn subroutines(code: &[Op], leaders: &[u32], compiled: usize) -> Vec<Subroutine>
                 }
             }
             blocks.sort_unstable();
-            Some(Subroutine { target, blocks })
+            let calls = blocks
+                .iter()
+                .any(|&index| block_of(index).any(|pc| matches!(code[pc], Op::Call { .. })));
+            let inline = (size <= INLINE_MAX && !calls).then_some(size);
+            Some(Subroutine { target, blocks, inline })
         })
         .collect()
 }
@@ -429,9 +441,11 @@ mod tests {
         ];
         let a = analyse(&code);
         assert_eq!(a.leaders, vec![0, 2, 4, 6, 7, 8, 9, 10]);
-        let subs: Vec<_> = a.subroutines.iter().map(|s| (s.target, s.blocks.clone())).collect();
-        // 9, after the RET, is not reached; the CALL at 7 goes on at 8.
-        assert_eq!(subs, vec![(4, vec![2, 3, 4, 5]), (10, vec![7])]);
+        let subs: Vec<_> =
+            a.subroutines.iter().map(|s| (s.target, s.blocks.clone(), s.inline)).collect();
+        // 9, after the RET, is not reached; the CALL at 7 goes on at 8. Subroutine 1 calls,
+        // so it is not inlined.
+        assert_eq!(subs, vec![(4, vec![2, 3, 4, 5], None), (10, vec![7], Some(2))]);
         assert_eq!(a.subroutine_at(10), Some(1));
         assert_eq!(a.subroutine_at(2), None);
     }
