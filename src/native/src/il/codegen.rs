@@ -571,22 +571,38 @@ impl Gen<'_, '_> {
         self.b.ins().store(own(), value, self.regs_at, offset as i32);
     }
 
-    /// The time of the instruction being compiled (I64): from the `StepClock`'s figures in
-    /// the context, or asked of the clock ([`code::il_now`]).
+    /// The time of the instruction being compiled (I64). The common case, a `StepClock` at or
+    /// after its origin, is `stop_ns - left * step_ns` with `left` the budget left after the
+    /// instruction (`IlContext::fast_below` says when it holds); otherwise the time is computed
+    /// as the clock does, or asked of the clock ([`code::il_now`]), on a cold path.
     fn now(&mut self) -> Value {
         let field = |g: &mut Self, offset: usize| g.b.ins().load(I64, own(), g.il, offset as i32);
-        let stop = field(self, offset_of!(IlContext<'static>, stop));
         let left = self.b.use_var(self.regs.left);
         // The budget left after this instruction: the block charged all of it at its start.
         let left = self.b.ins().iadd_imm_s(left, (self.block_end - self.pc - 1) as i64);
-        let steps = self.b.ins().isub(stop, left);
-        let linear = field(self, offset_of!(IlContext<'static>, linear));
+        let fast_below = field(self, offset_of!(IlContext<'static>, fast_below));
+        let fast = self.b.ins().icmp(IntCC::UnsignedLessThan, left, fast_below);
+        let fast_block = self.b.create_block();
+        let slow = self.b.create_block();
         let compute = self.b.create_block();
         let ask = self.b.create_block();
         let done = self.b.create_block();
         let now = self.b.append_block_param(done, I64);
+        self.b.ins().brif(fast, fast_block, &[], slow, &[]);
+        self.b.switch_to_block(fast_block);
+        let step_ns = field(self, offset_of!(IlContext<'static>, step_ns));
+        let stop_ns = field(self, offset_of!(IlContext<'static>, stop_ns));
+        let since = self.b.ins().imul(left, step_ns);
+        let fast_now = self.b.ins().isub(stop_ns, since);
+        self.b.ins().jump(done, &[fast_now.into()]);
+        self.b.switch_to_block(slow);
+        self.b.set_cold_block(slow);
+        let stop = field(self, offset_of!(IlContext<'static>, stop));
+        let steps = self.b.ins().isub(stop, left);
+        let linear = field(self, offset_of!(IlContext<'static>, linear));
         self.b.ins().brif(linear, compute, &[], ask, &[]);
         self.b.switch_to_block(compute);
+        self.b.set_cold_block(compute);
         let origin_ns = field(self, offset_of!(IlContext<'static>, origin_ns));
         let origin_steps = field(self, offset_of!(IlContext<'static>, origin_steps));
         let step_ns = field(self, offset_of!(IlContext<'static>, step_ns));
