@@ -655,116 +655,219 @@ impl Gen<'_, '_> {
         self.store_field(self.timers, at, ty, value);
     }
 
-    /// A timer (the VM's `timer::execute`, branch-free but for asking the clock).
+    /// A timer (the VM's `timer::execute`): a branch on what the timer does now (count, stay
+    /// idle, stop), each path computing only its own fields, and a cold path for a current
+    /// value the program wrote. The paths meet to write the value and the contact.
     fn timer(&mut self, kind: TimerKind, n: u16, preset: Src, base_ms: u16) {
-        use timer::layout::{ELAPSED_NS, LAST_NS, PREV_INPUT, RUNNING, SHOWN};
+        use timer::layout::{ELAPSED_NS, PREV_INPUT, RUNNING, SHOWN};
         let base_ns = i64::from(base_ms) * 1_000_000;
         let input = self.rung();
         let preset = self.unsigned(preset);
-        let preset64 = self.b.ins().uextend(I64, preset);
-        let preset_ns = self.b.ins().imul_imm_s(preset64, base_ns);
-        let was_done = self.bit(timer_done(n));
-        let was_done = self.b.ins().band_imm_s(was_done, 1);
         let written = self.word(timer_value(n));
         let written = self.b.ins().band_imm_s(written, 0xFFFF);
-        let shown = self.timer_field(n, SHOWN, types::I16);
-        let elapsed = self.timer_field(n, ELAPSED_NS, I64);
-        let last = self.timer_field(n, LAST_NS, I64);
-        let running = self.timer_field(n, RUNNING, types::I8);
-        let zero32 = self.b.ins().iconst(I32, 0);
-        let zero = self.b.ins().iconst(I64, 0);
-        let one = self.b.ins().iconst(I32, 1);
+        // The contact's word, read here so that the paths' meeting point has it held.
+        let was_done = self.bit(timer_done(n));
+        let was_done = self.b.ins().band_imm_s(was_done, 1);
         // A value the program wrote (`MOV 30 T0001`): the timer goes on from it.
         let counts_down = matches!(kind, TimerKind::Toff | TimerKind::Tmon | TimerKind::Trtg);
+        let shown = self.timer_field(n, SHOWN, types::I16);
+        let changed = self.b.ins().icmp(IntCC::NotEqual, written, shown);
+        let from_written = self.b.create_block();
+        let go_on = self.b.create_block();
+        self.b.set_cold_block(from_written);
+        self.b.ins().brif(changed, from_written, &[], go_on, &[]);
+        self.b.switch_to_block(from_written);
         let ticks_written = if counts_down {
             let below = self.b.ins().icmp(IntCC::UnsignedLessThan, written, preset);
             let rest = self.b.ins().isub(preset, written);
-            self.b.ins().select(below, rest, zero32)
+            let zero = self.b.ins().iconst(I32, 0);
+            self.b.ins().select(below, rest, zero)
         } else {
             self.b.ins().umin(written, preset)
         };
         let ticks_written = self.b.ins().uextend(I64, ticks_written);
-        let from_written = self.b.ins().imul_imm_s(ticks_written, base_ns);
-        let changed = self.b.ins().icmp(IntCC::NotEqual, written, shown);
-        let elapsed = self.b.ins().select(changed, from_written, elapsed);
-        let prev_input = usize::from(n) * timer::layout::SIZE + PREV_INPUT;
-        let rising = self.edge_at(self.timers, prev_input, input, true);
-        let now = self.now();
-        let later = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, now, last);
-        let gone = self.b.ins().isub(now, last);
-        let gone = self.b.ins().select(later, gone, zero);
-        let advanced = self.b.ins().iadd(elapsed, gone);
-        // The ticks of `e`: e / base, at most the preset.
-        let ticks = |g: &mut Self, e: Value| {
-            let t = g.b.ins().udiv_imm_u(e, base_ns.max(1));
-            let t = g.b.ins().umin(t, preset64);
-            g.b.ins().ireduce(I32, t)
+        let elapsed = self.b.ins().imul_imm_s(ticks_written, base_ns);
+        self.set_timer_field(n, ELAPSED_NS, I64, elapsed);
+        self.b.ins().jump(go_on, &[]);
+        self.b.switch_to_block(go_on);
+        // The input's edge (the timers that start at it), or the input kept.
+        let rising = if matches!(kind, TimerKind::Tmon | TimerKind::Trtg) {
+            let prev_input = usize::from(n) * timer::layout::SIZE + PREV_INPUT;
+            Some(self.edge_at(self.timers, prev_input, input, true))
+        } else {
+            self.set_timer_field(n, PREV_INPUT, types::I8, input);
+            None
         };
-        // (elapsed, last, running, value, done) after the instruction.
-        let (elapsed, last, running, value, done) = match kind {
+        // Where the paths meet, with the current value and the contact (0 or 1).
+        let meet = self.b.create_block();
+        let value = self.b.append_block_param(meet, I32);
+        let done = self.b.append_block_param(meet, I32);
+        match kind {
             TimerKind::Ton => {
-                let counted = self.b.ins().select(running, advanced, zero);
-                let counted = self.b.ins().umin(counted, preset_ns);
-                let elapsed = self.b.ins().select(input, counted, zero);
-                let last = self.b.ins().select(input, now, zero);
-                let value = ticks(self, elapsed);
-                let reached = self.flag(IntCC::UnsignedGreaterThanOrEqual, value, preset);
-                let done = self.b.ins().band(input, reached);
-                (elapsed, last, input, value, done)
+                // ON: counting (from 0 if it was not running); OFF: idle at 0.
+                let on = self.b.create_block();
+                let off = self.b.create_block();
+                self.b.ins().brif(input, on, &[], off, &[]);
+                self.b.switch_to_block(off);
+                self.timer_reset(n, meet);
+                self.b.switch_to_block(on);
+                let running = self.timer_field(n, RUNNING, types::I8);
+                let elapsed = self.timer_field(n, ELAPSED_NS, I64);
+                let advanced = self.timer_advanced(n, elapsed);
+                let zero = self.b.ins().iconst(I64, 0);
+                let elapsed = self.b.ins().select(running, advanced, zero);
+                self.timer_counts_up(n, elapsed, preset, base_ns, meet);
             }
             TimerKind::Tmr => {
-                let counted = self.b.ins().select(running, advanced, elapsed);
-                let counted = self.b.ins().umin(counted, preset_ns);
-                let elapsed = self.b.ins().select(input, counted, elapsed);
-                let last = self.b.ins().select(input, now, last);
-                let value = ticks(self, elapsed);
+                // ON: counting on; OFF: stopped, its value kept.
+                let on = self.b.create_block();
+                let off = self.b.create_block();
+                self.b.ins().brif(input, on, &[], off, &[]);
+                self.b.switch_to_block(off);
+                let zero = self.b.ins().iconst(I32, 0);
+                self.set_timer_field(n, RUNNING, types::I8, zero);
+                let elapsed = self.timer_field(n, ELAPSED_NS, I64);
+                let value = self.timer_ticks(elapsed, preset, base_ns);
                 let done = self.flag(IntCC::UnsignedGreaterThanOrEqual, value, preset);
-                (elapsed, last, input, value, done)
+                self.b.ins().jump(meet, &[value.into(), done.into()]);
+                self.b.switch_to_block(on);
+                let running = self.timer_field(n, RUNNING, types::I8);
+                let elapsed = self.timer_field(n, ELAPSED_NS, I64);
+                let advanced = self.timer_advanced(n, elapsed);
+                let elapsed = self.b.ins().select(running, advanced, elapsed);
+                self.timer_counts_up(n, elapsed, preset, base_ns, meet);
             }
             TimerKind::Toff => {
-                let old_last = last;
-                // OFF after ON: counting down from the preset.
-                let counted = self.b.ins().select(running, advanced, zero);
-                let t = ticks(self, counted);
-                let left = self.b.ins().isub(preset, t);
-                let on = self.flag(IntCC::NotEqual, left, zero32);
-                // OFF and idle: unchanged, 0 and OFF.
-                let elapsed = self.b.ins().select(was_done, counted, elapsed);
-                let last = self.b.ins().select(was_done, now, last);
-                let running_off = self.b.ins().select(was_done, on, running);
-                let value = self.b.ins().select(was_done, left, zero32);
-                let done = self.b.ins().band(was_done, on);
-                // ON: idle at the preset, contact ON, the last time kept.
-                let last = self.b.ins().select(input, old_last, last);
-                let elapsed = self.b.ins().select(input, zero, elapsed);
-                let running = self.b.ins().select(input, zero32, running_off);
-                let value = self.b.ins().select(input, preset, value);
-                let done = self.b.ins().select(input, one, done);
-                (elapsed, last, running, value, done)
+                // ON: idle at the preset, contact ON; OFF after ON (the contact still ON):
+                // counting down; OFF and idle: 0 and OFF.
+                let on = self.b.create_block();
+                let off = self.b.create_block();
+                let down = self.b.create_block();
+                let idle = self.b.create_block();
+                self.b.ins().brif(input, on, &[], off, &[]);
+                self.b.switch_to_block(on);
+                let (zero, zero64) = (self.b.ins().iconst(I32, 0), self.b.ins().iconst(I64, 0));
+                self.set_timer_field(n, RUNNING, types::I8, zero);
+                self.set_timer_field(n, ELAPSED_NS, I64, zero64);
+                let one = self.b.ins().iconst(I32, 1);
+                self.b.ins().jump(meet, &[preset.into(), one.into()]);
+                self.b.switch_to_block(off);
+                self.b.ins().brif(was_done, down, &[], idle, &[]);
+                self.b.switch_to_block(idle);
+                let zero = self.b.ins().iconst(I32, 0);
+                self.b.ins().jump(meet, &[zero.into(), zero.into()]);
+                self.b.switch_to_block(down);
+                let running = self.timer_field(n, RUNNING, types::I8);
+                let elapsed = self.timer_field(n, ELAPSED_NS, I64);
+                let advanced = self.timer_advanced(n, elapsed);
+                let zero = self.b.ins().iconst(I64, 0);
+                let elapsed = self.b.ins().select(running, advanced, zero);
+                self.timer_counts_down(n, elapsed, preset, base_ns, meet);
             }
             TimerKind::Tmon | TimerKind::Trtg => {
-                let retrigger = if kind == TimerKind::Trtg { rising } else { zero32 };
-                let advance = self.b.ins().band_not(running, retrigger);
-                let start = self.b.ins().band_not(rising, advance);
-                let restarted = self.b.ins().select(start, zero, elapsed);
-                let elapsed = self.b.ins().select(advance, advanced, restarted);
-                let moved = self.b.ins().bor(advance, start);
-                let last = self.b.ins().select(moved, now, last);
-                let running = self.b.ins().bor(running, start);
-                let t = ticks(self, elapsed);
-                let left = self.b.ins().isub(preset, t);
-                let on = self.flag(IntCC::NotEqual, left, zero32);
-                let value = self.b.ins().select(running, left, zero32);
-                let running = self.b.ins().band(running, on);
-                (elapsed, last, running, value, running)
+                // Running or started by the edge: counting down (from the preset when it
+                // starts: TMON when it was not running, TRTG at every edge); else idle.
+                let rising = rising.expect("taken above");
+                let running = self.timer_field(n, RUNNING, types::I8);
+                let active = self.b.ins().bor(running, rising);
+                let count = self.b.create_block();
+                let idle = self.b.create_block();
+                self.b.ins().brif(active, count, &[], idle, &[]);
+                self.b.switch_to_block(idle);
+                let zero = self.b.ins().iconst(I32, 0);
+                self.b.ins().jump(meet, &[zero.into(), zero.into()]);
+                self.b.switch_to_block(count);
+                let start = if kind == TimerKind::Trtg {
+                    rising
+                } else {
+                    self.b.ins().bxor_imm_s(running, 1)
+                };
+                let elapsed = self.timer_field(n, ELAPSED_NS, I64);
+                let advanced = self.timer_advanced(n, elapsed);
+                let zero = self.b.ins().iconst(I64, 0);
+                let elapsed = self.b.ins().select(start, zero, advanced);
+                self.timer_counts_down(n, elapsed, preset, base_ns, meet);
             }
-        };
-        self.set_timer_field(n, ELAPSED_NS, I64, elapsed);
-        self.set_timer_field(n, LAST_NS, I64, last);
-        self.set_timer_field(n, RUNNING, types::I8, running);
+        }
+        self.b.switch_to_block(meet);
         self.set_timer_field(n, SHOWN, types::I16, value);
         self.set_word(timer_value(n), value);
         self.write_bit(timer_done(n), done);
+    }
+
+    /// Timer `n`'s `elapsed` time brought up to now (plus the time since it was last brought up
+    /// to date, if any: the clock may be behind), now its last time.
+    fn timer_advanced(&mut self, n: u16, elapsed: Value) -> Value {
+        use timer::layout::LAST_NS;
+        let last = self.timer_field(n, LAST_NS, I64);
+        let now = self.now();
+        self.set_timer_field(n, LAST_NS, I64, now);
+        let later = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, now, last);
+        let gone = self.b.ins().isub(now, last);
+        let zero = self.b.ins().iconst(I64, 0);
+        let gone = self.b.ins().select(later, gone, zero);
+        self.b.ins().iadd(elapsed, gone)
+    }
+
+    /// The ticks of `elapsed` (I64): elapsed / base, at most the preset (I32).
+    fn timer_ticks(&mut self, elapsed: Value, preset: Value, base_ns: i64) -> Value {
+        let preset = self.b.ins().uextend(I64, preset);
+        let t = self.b.ins().udiv_imm_u(elapsed, base_ns.max(1));
+        let t = self.b.ins().umin(t, preset);
+        self.b.ins().ireduce(I32, t)
+    }
+
+    /// TON and TMR counting with the input ON: `elapsed` (up to now) at most the preset, the
+    /// timer running; on to `meet` with the value and the contact.
+    fn timer_counts_up(
+        &mut self,
+        n: u16,
+        elapsed: Value,
+        preset: Value,
+        base_ns: i64,
+        meet: Block,
+    ) {
+        use timer::layout::{ELAPSED_NS, RUNNING};
+        let preset64 = self.b.ins().uextend(I64, preset);
+        let preset_ns = self.b.ins().imul_imm_s(preset64, base_ns);
+        let elapsed = self.b.ins().umin(elapsed, preset_ns);
+        self.set_timer_field(n, ELAPSED_NS, I64, elapsed);
+        let one = self.b.ins().iconst(I32, 1);
+        self.set_timer_field(n, RUNNING, types::I8, one);
+        let value = self.timer_ticks(elapsed, preset, base_ns);
+        let done = self.flag(IntCC::UnsignedGreaterThanOrEqual, value, preset);
+        self.b.ins().jump(meet, &[value.into(), done.into()]);
+    }
+
+    /// TOFF, TMON and TRTG counting down: `elapsed` (up to now) kept, the value the preset less
+    /// its ticks, the timer running and the contact ON while that is not 0; on to `meet`.
+    fn timer_counts_down(
+        &mut self,
+        n: u16,
+        elapsed: Value,
+        preset: Value,
+        base_ns: i64,
+        meet: Block,
+    ) {
+        use timer::layout::{ELAPSED_NS, RUNNING};
+        self.set_timer_field(n, ELAPSED_NS, I64, elapsed);
+        let ticks = self.timer_ticks(elapsed, preset, base_ns);
+        let value = self.b.ins().isub(preset, ticks);
+        let zero = self.b.ins().iconst(I32, 0);
+        let on = self.flag(IntCC::NotEqual, value, zero);
+        self.set_timer_field(n, RUNNING, types::I8, on);
+        self.b.ins().jump(meet, &[value.into(), on.into()]);
+    }
+
+    /// TON with the input OFF: the timer idle at 0 (its state all zeros, the input OFF as
+    /// stored already); on to `meet` with value 0, contact OFF.
+    fn timer_reset(&mut self, n: u16, meet: Block) {
+        use timer::layout::{ELAPSED_NS, LAST_NS, RUNNING};
+        let (zero, zero64) = (self.b.ins().iconst(I32, 0), self.b.ins().iconst(I64, 0));
+        self.set_timer_field(n, ELAPSED_NS, I64, zero64);
+        self.set_timer_field(n, LAST_NS, I64, zero64);
+        self.set_timer_field(n, RUNNING, types::I8, zero);
+        self.b.ins().jump(meet, &[zero.into(), zero.into()]);
     }
 
     /// `RST Tn`: with the rung ON, the timer idle (its input's edge memory kept), its value 0
