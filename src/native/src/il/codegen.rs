@@ -33,7 +33,8 @@ use std::mem::offset_of;
 
 use cranelift_codegen::ir::condcodes::IntCC;
 use cranelift_codegen::ir::{
-    types, AbiParam, Block, Function, InstBuilder, JumpTableData, MemFlagsData, Signature, Value,
+    types, AbiParam, Block, Function, InstBuilder, InstructionData, JumpTableData, MemFlagsData,
+    Opcode, Signature, Value,
 };
 use cranelift_codegen::isa::TargetIsa;
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
@@ -635,13 +636,34 @@ impl Gen<'_, '_> {
         }
     }
 
+    /// Stores `value` (I64, or I32 for the narrower fields) in the field at `at` bytes from
+    /// `base`. A constant is stored as an immediate: x86's `mov` to memory takes one, but
+    /// Cranelift gives it only to a `store` of a constant of the field's own type (an
+    /// `istore8` or `istore16` of an I32 constant took a register for it, held across the
+    /// block, and spilled).
     fn store_field(&mut self, base: Value, at: usize, ty: types::Type, value: Value) {
         let at = at as i32;
+        if let Some(c) = self.constant(value) {
+            let c = if ty == I64 { c } else { c & ((1 << ty.bits()) - 1) };
+            let narrow = self.b.ins().iconst(ty, c);
+            self.b.ins().store(data(), narrow, base, at);
+            return;
+        }
         match ty {
             I64 => self.b.ins().store(data(), value, base, at),
             types::I16 => self.b.ins().istore16(data(), value, base, at),
             _ => self.b.ins().istore8(data(), value, base, at),
         };
+    }
+
+    /// The value of `v` if an `iconst` defines it.
+    fn constant(&self, v: Value) -> Option<i64> {
+        let dfg = &self.b.func.dfg;
+        let inst = dfg.value_def(v).inst()?;
+        match dfg.insts[inst] {
+            InstructionData::UnaryImm { opcode: Opcode::Iconst, imm } => Some(imm.bits()),
+            _ => None,
+        }
     }
 
     /// Timer `n`'s field at `offset` (`timer::layout`).
