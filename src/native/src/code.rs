@@ -138,6 +138,12 @@ pub(crate) struct IlContext<'a> {
     pub origin_ns: u64,
     pub origin_steps: u64,
     pub step_ns: u64,
+    /// A timer whose budget left after its instruction is below this may take its time as
+    /// `stop_ns - left * step_ns`: the clock is a `StepClock` and the timer's step is at or
+    /// after its origin (0: never, the time is asked of the clock or computed the long way).
+    pub fast_below: u64,
+    /// The `StepClock`'s time at step `stop` (wrapping, as the timers' arithmetic).
+    pub stop_ns: u64,
     /// Only [`il_now`] uses it, never generated code.
     pub clock: *const (dyn Clock + 'a),
 }
@@ -412,6 +418,13 @@ impl NativeCode for Code {
                 origin_ns: linear.map_or(0, |c| c.origin_ns),
                 origin_steps: linear.map_or(0, |c| c.origin_steps),
                 step_ns: linear.map_or(0, |c| c.step_ns),
+                fast_below: linear
+                    .filter(|c| il.stop >= c.origin_steps)
+                    .map_or(0, |c| (il.stop - c.origin_steps).saturating_add(1)),
+                stop_ns: linear.map_or(0, |c| {
+                    c.origin_ns
+                        .wrapping_add(il.stop.wrapping_sub(c.origin_steps).wrapping_mul(c.step_ns))
+                }),
                 clock: il.clock,
             }
         });

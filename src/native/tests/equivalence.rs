@@ -278,13 +278,17 @@ enum Budget {
 }
 
 /// The time of a scan: its start, plus `step_ns` for every step since the scan began (0: the
-/// clock stands still during a scan, as in the conformance suite). On odd scans it says it is
-/// a `StepClock` (native code computes the time itself, as for `plcd sim`), on even ones it
-/// does not (native code asks it, as for the daemon's clock): both ways give the same times.
+/// clock stands still during a scan, as in the conformance suite), or since its origin when
+/// that lies a few steps into the scan (`Scans::origin_after`: the time stands still before).
+/// On odd scans it says it is a `StepClock` (native code computes the time itself, as for
+/// `plcd sim`), on even ones it does not (native code asks it, as for the daemon's clock):
+/// both ways give the same times.
 struct ScanClock {
     start_ns: Cell<u64>,
+    /// The origin's step.
     start_steps: Cell<u64>,
     step_ns: u64,
+    origin_after: u64,
     linear: Cell<bool>,
 }
 
@@ -309,6 +313,8 @@ struct Scans {
     period_ns: u64,
     /// The clock's cost of a step (0: it stands still during a scan).
     step_ns: u64,
+    /// The clock's origin lies this many steps after the scan's start.
+    origin_after: u64,
     /// Stop each scan after this many `run` calls (an endless loop), instead of at `END`.
     calls: Option<u64>,
     /// Compare the Structured Text part of the activation (`ExecState::st_activation`) after
@@ -328,6 +334,7 @@ impl Scans {
             count,
             period_ns: MS,
             step_ns: 0,
+            origin_after: 0,
             calls: None,
             inner_every: 1,
             frame_bytes: None,
@@ -356,6 +363,7 @@ impl<'a> Side<'a> {
             start_ns: Cell::new(0),
             start_steps: Cell::new(0),
             step_ns,
+            origin_after: scans.origin_after,
             linear: Cell::new(false),
         };
         Side { programs, vm, states, clock }
@@ -364,7 +372,7 @@ impl<'a> Side<'a> {
     fn begin_scan(&mut self, scan: u64, start_ns: u64) {
         self.clock.start_ns.set(start_ns);
         self.clock.linear.set(scan % 2 == 1);
-        self.clock.start_steps.set(self.vm.steps());
+        self.clock.start_steps.set(self.vm.steps() + self.clock.origin_after);
         self.vm.begin_scan(scan == 1, start_ns);
     }
 
@@ -2639,6 +2647,47 @@ fn every_instruction_list_instruction_runs_the_same_natively() {
     // The scans counted, and `DIV D00000 0` failed in every scan with bit 3 of the count set.
     assert_eq!(word("D00000"), 24);
     assert!(outcome.errors_with_whole_budget(ERR_DIVIDE_BY_ZERO) >= 9, "{:?}", outcome.errors);
+}
+
+/// The five timers, each on inputs of several periods (every scan, every other, every fourth,
+/// and twice in a scan with different inputs, which makes edges within a scan), with constant
+/// presets, presets from a word that changes, presets of 0 and the three time bases; their
+/// current values written by the program now and then, their `RST`, and their contacts
+/// read: each starts, counts, finishes, stays idle, restarts and is reset, and goes on from a
+/// written value, with every budget.
+const TIMERS: &str = "\
+    LOAD _ON\nINC D00000\n\
+    LOAD D00000.3\nMOV 4 D00001\nLOAD NOT D00000.3\nMOV 2 D00001\n\
+    LOAD D00000.0\nTON T1500 3\nTOFF T1501 3\nTMR T1502 5\nTMON T1503 3\nTRTG T1504 3\n\
+    LOAD D00000.2\nTON T1505 D00001\nTOFF T1506 D00001\nTMR T1507 D00001\nTMON T1508 D00001\nTRTG T1509 D00001\n\
+    LOAD D00000.1\nAND NOT D00000.3\nTON T1000 2\nTOFF T1001 1\nTMR T1002 2\nTMON T1003 1\nTRTG T1004 2\n\
+    LOAD D00000.1\nTON T0000 1\nTOFF T0001 1\nTMR T0002 1\nTMON T0003 1\nTRTG T0004 1\n\
+    LOAD D00000.1\nTON T1510 0\nTOFF T1511 0\nTMR T1512 0\nTMON T1513 0\nTRTG T1514 0\n\
+    LOAD T1500\nOR T1501\nAND NOT T1503\nOUT M0000\nLOAD T1504\nAND T1002\nOUT M0001\n\
+    LOAD D00000.2\nAND D00000.0\nMOV 1 T1500\nMOV 2 T1501\nMOV 4 T1502\nMOV 1 T1503\nMOV 2 T1504\n\
+    LOAD D00000.1\nAND NOT D00000.2\nMOV 9 T1505\nMOV 9 T1506\nMOV 9 T1507\nMOV 9 T1508\nMOV 9 T1509\n\
+    LOAD D00000.3\nAND D00000.1\nRST T1500\nRST T1501\nRST T1502\nRST T1503\nRST T1504\n\
+    LOAD NOT D00000.0\nAND D00000.1\nTON T1500 3\nTOFF T1501 3\nTMR T1502 5\nTMON T1503 3\nTRTG T1504 3\n\
+    LOAD T1505\nOR T1506\nOR T1507\nOR T1508\nOR T1509\nOUT M0002\n\
+    END\n";
+
+#[test]
+fn every_timer_starts_counts_finishes_and_is_reset_the_same_natively() {
+    // The clock: standing still in a scan; a millisecond a step (a tick of the 1 ms timers a
+    // step, and a scan longer than the period: the time goes back at the next scan's start);
+    // 100 µs and 30 µs a step, with the clock's origin a few steps into the scan (the timers
+    // before it read the scan's start).
+    for (step_ns, origin_after) in [(0, 0), (MS, 0), (100_000, 7), (30_000, 40), (MS, 13)] {
+        let case = Programs::il("timers", &[("main", TIMERS)]);
+        let scans = Scans { step_ns, origin_after, ..Scans::new(40) };
+        let outcome = compare(&case, scans, &BUDGETS);
+        assert!(
+            outcome.mismatches.is_empty(),
+            "{step_ns} ns a step, origin after {origin_after}:\n{}",
+            outcome.mismatches.join("\n")
+        );
+        outcome.assert_native_share(&case.name, 95);
+    }
 }
 
 #[test]

@@ -48,7 +48,8 @@ use std::mem::offset_of;
 use cranelift_codegen::ir::condcodes::IntCC;
 use cranelift_codegen::ir::{
     types, AbiParam, Block, ExtFuncData, ExternalName, FuncRef, Function, InstBuilder,
-    JumpTableData, MemFlagsData, SigRef, Signature, UserExternalName, Value,
+    InstructionData, JumpTableData, MemFlagsData, Opcode, SigRef, Signature, UserExternalName,
+    Value,
 };
 use cranelift_codegen::isa::TargetIsa;
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
@@ -830,22 +831,38 @@ impl Gen<'_, '_> {
         self.b.ins().store(own(), value, self.regs_at, offset as i32);
     }
 
-    /// The time of the instruction being compiled (I64): from the `StepClock`'s figures in
-    /// the context, or asked of the clock ([`code::il_now`]).
+    /// The time of the instruction being compiled (I64). The common case, a `StepClock` at or
+    /// after its origin, is `stop_ns - left * step_ns` with `left` the budget left after the
+    /// instruction (`IlContext::fast_below` says when it holds); otherwise the time is computed
+    /// as the clock does, or asked of the clock ([`code::il_now`]), on a cold path.
     fn now(&mut self) -> Value {
         let field = |g: &mut Self, offset: usize| g.b.ins().load(I64, own(), g.il, offset as i32);
-        let stop = field(self, offset_of!(IlContext<'static>, stop));
         let left = self.b.use_var(self.regs.left);
         // The budget left after this instruction: the block charged all of it at its start.
         let left = self.b.ins().iadd_imm_s(left, (self.block_end - self.pc - 1) as i64);
-        let steps = self.b.ins().isub(stop, left);
-        let linear = field(self, offset_of!(IlContext<'static>, linear));
+        let fast_below = field(self, offset_of!(IlContext<'static>, fast_below));
+        let fast = self.b.ins().icmp(IntCC::UnsignedLessThan, left, fast_below);
+        let fast_block = self.b.create_block();
+        let slow = self.b.create_block();
         let compute = self.b.create_block();
         let ask = self.b.create_block();
         let done = self.b.create_block();
         let now = self.b.append_block_param(done, I64);
+        self.b.ins().brif(fast, fast_block, &[], slow, &[]);
+        self.b.switch_to_block(fast_block);
+        let step_ns = field(self, offset_of!(IlContext<'static>, step_ns));
+        let stop_ns = field(self, offset_of!(IlContext<'static>, stop_ns));
+        let since = self.b.ins().imul(left, step_ns);
+        let fast_now = self.b.ins().isub(stop_ns, since);
+        self.b.ins().jump(done, &[fast_now.into()]);
+        self.b.switch_to_block(slow);
+        self.b.set_cold_block(slow);
+        let stop = field(self, offset_of!(IlContext<'static>, stop));
+        let steps = self.b.ins().isub(stop, left);
+        let linear = field(self, offset_of!(IlContext<'static>, linear));
         self.b.ins().brif(linear, compute, &[], ask, &[]);
         self.b.switch_to_block(compute);
+        self.b.set_cold_block(compute);
         let origin_ns = field(self, offset_of!(IlContext<'static>, origin_ns));
         let origin_steps = field(self, offset_of!(IlContext<'static>, origin_steps));
         let step_ns = field(self, offset_of!(IlContext<'static>, step_ns));
@@ -878,13 +895,34 @@ impl Gen<'_, '_> {
         }
     }
 
+    /// Stores `value` (I64, or I32 for the narrower fields) in the field at `at` bytes from
+    /// `base`. A constant is stored as an immediate: x86's `mov` to memory takes one, but
+    /// Cranelift gives it only to a `store` of a constant of the field's own type (an
+    /// `istore8` or `istore16` of an I32 constant took a register for it, held across the
+    /// block, and spilled).
     fn store_field(&mut self, base: Value, at: usize, ty: types::Type, value: Value) {
         let at = at as i32;
+        if let Some(c) = self.constant(value) {
+            let c = if ty == I64 { c } else { c & ((1 << ty.bits()) - 1) };
+            let narrow = self.b.ins().iconst(ty, c);
+            self.b.ins().store(data(), narrow, base, at);
+            return;
+        }
         match ty {
             I64 => self.b.ins().store(data(), value, base, at),
             types::I16 => self.b.ins().istore16(data(), value, base, at),
             _ => self.b.ins().istore8(data(), value, base, at),
         };
+    }
+
+    /// The value of `v` if an `iconst` defines it.
+    fn constant(&self, v: Value) -> Option<i64> {
+        let dfg = &self.b.func.dfg;
+        let inst = dfg.value_def(v).inst()?;
+        match dfg.insts[inst] {
+            InstructionData::UnaryImm { opcode: Opcode::Iconst, imm } => Some(imm.bits()),
+            _ => None,
+        }
     }
 
     /// Timer `n`'s field at `offset` (`timer::layout`).
@@ -898,116 +936,219 @@ impl Gen<'_, '_> {
         self.store_field(self.timers, at, ty, value);
     }
 
-    /// A timer (the VM's `timer::execute`, branch-free but for asking the clock).
+    /// A timer (the VM's `timer::execute`): a branch on what the timer does now (count, stay
+    /// idle, stop), each path computing only its own fields, and a cold path for a current
+    /// value the program wrote. The paths meet to write the value and the contact.
     fn timer(&mut self, kind: TimerKind, n: u16, preset: Src, base_ms: u16) {
-        use timer::layout::{ELAPSED_NS, LAST_NS, PREV_INPUT, RUNNING, SHOWN};
+        use timer::layout::{ELAPSED_NS, PREV_INPUT, RUNNING, SHOWN};
         let base_ns = i64::from(base_ms) * 1_000_000;
         let input = self.rung();
         let preset = self.unsigned(preset);
-        let preset64 = self.b.ins().uextend(I64, preset);
-        let preset_ns = self.b.ins().imul_imm_s(preset64, base_ns);
-        let was_done = self.bit(timer_done(n));
-        let was_done = self.b.ins().band_imm_s(was_done, 1);
         let written = self.word(timer_value(n));
         let written = self.b.ins().band_imm_s(written, 0xFFFF);
-        let shown = self.timer_field(n, SHOWN, types::I16);
-        let elapsed = self.timer_field(n, ELAPSED_NS, I64);
-        let last = self.timer_field(n, LAST_NS, I64);
-        let running = self.timer_field(n, RUNNING, types::I8);
-        let zero32 = self.b.ins().iconst(I32, 0);
-        let zero = self.b.ins().iconst(I64, 0);
-        let one = self.b.ins().iconst(I32, 1);
+        // The contact's word, read here so that the paths' meeting point has it held.
+        let was_done = self.bit(timer_done(n));
+        let was_done = self.b.ins().band_imm_s(was_done, 1);
         // A value the program wrote (`MOV 30 T0001`): the timer goes on from it.
         let counts_down = matches!(kind, TimerKind::Toff | TimerKind::Tmon | TimerKind::Trtg);
+        let shown = self.timer_field(n, SHOWN, types::I16);
+        let changed = self.b.ins().icmp(IntCC::NotEqual, written, shown);
+        let from_written = self.b.create_block();
+        let go_on = self.b.create_block();
+        self.b.set_cold_block(from_written);
+        self.b.ins().brif(changed, from_written, &[], go_on, &[]);
+        self.b.switch_to_block(from_written);
         let ticks_written = if counts_down {
             let below = self.b.ins().icmp(IntCC::UnsignedLessThan, written, preset);
             let rest = self.b.ins().isub(preset, written);
-            self.b.ins().select(below, rest, zero32)
+            let zero = self.b.ins().iconst(I32, 0);
+            self.b.ins().select(below, rest, zero)
         } else {
             self.b.ins().umin(written, preset)
         };
         let ticks_written = self.b.ins().uextend(I64, ticks_written);
-        let from_written = self.b.ins().imul_imm_s(ticks_written, base_ns);
-        let changed = self.b.ins().icmp(IntCC::NotEqual, written, shown);
-        let elapsed = self.b.ins().select(changed, from_written, elapsed);
-        let prev_input = usize::from(n) * timer::layout::SIZE + PREV_INPUT;
-        let rising = self.edge_at(self.timers, prev_input, input, true);
-        let now = self.now();
-        let later = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, now, last);
-        let gone = self.b.ins().isub(now, last);
-        let gone = self.b.ins().select(later, gone, zero);
-        let advanced = self.b.ins().iadd(elapsed, gone);
-        // The ticks of `e`: e / base, at most the preset.
-        let ticks = |g: &mut Self, e: Value| {
-            let t = g.b.ins().udiv_imm_u(e, base_ns.max(1));
-            let t = g.b.ins().umin(t, preset64);
-            g.b.ins().ireduce(I32, t)
+        let elapsed = self.b.ins().imul_imm_s(ticks_written, base_ns);
+        self.set_timer_field(n, ELAPSED_NS, I64, elapsed);
+        self.b.ins().jump(go_on, &[]);
+        self.b.switch_to_block(go_on);
+        // The input's edge (the timers that start at it), or the input kept.
+        let rising = if matches!(kind, TimerKind::Tmon | TimerKind::Trtg) {
+            let prev_input = usize::from(n) * timer::layout::SIZE + PREV_INPUT;
+            Some(self.edge_at(self.timers, prev_input, input, true))
+        } else {
+            self.set_timer_field(n, PREV_INPUT, types::I8, input);
+            None
         };
-        // (elapsed, last, running, value, done) after the instruction.
-        let (elapsed, last, running, value, done) = match kind {
+        // Where the paths meet, with the current value and the contact (0 or 1).
+        let meet = self.b.create_block();
+        let value = self.b.append_block_param(meet, I32);
+        let done = self.b.append_block_param(meet, I32);
+        match kind {
             TimerKind::Ton => {
-                let counted = self.b.ins().select(running, advanced, zero);
-                let counted = self.b.ins().umin(counted, preset_ns);
-                let elapsed = self.b.ins().select(input, counted, zero);
-                let last = self.b.ins().select(input, now, zero);
-                let value = ticks(self, elapsed);
-                let reached = self.flag(IntCC::UnsignedGreaterThanOrEqual, value, preset);
-                let done = self.b.ins().band(input, reached);
-                (elapsed, last, input, value, done)
+                // ON: counting (from 0 if it was not running); OFF: idle at 0.
+                let on = self.b.create_block();
+                let off = self.b.create_block();
+                self.b.ins().brif(input, on, &[], off, &[]);
+                self.b.switch_to_block(off);
+                self.timer_reset(n, meet);
+                self.b.switch_to_block(on);
+                let running = self.timer_field(n, RUNNING, types::I8);
+                let elapsed = self.timer_field(n, ELAPSED_NS, I64);
+                let advanced = self.timer_advanced(n, elapsed);
+                let zero = self.b.ins().iconst(I64, 0);
+                let elapsed = self.b.ins().select(running, advanced, zero);
+                self.timer_counts_up(n, elapsed, preset, base_ns, meet);
             }
             TimerKind::Tmr => {
-                let counted = self.b.ins().select(running, advanced, elapsed);
-                let counted = self.b.ins().umin(counted, preset_ns);
-                let elapsed = self.b.ins().select(input, counted, elapsed);
-                let last = self.b.ins().select(input, now, last);
-                let value = ticks(self, elapsed);
+                // ON: counting on; OFF: stopped, its value kept.
+                let on = self.b.create_block();
+                let off = self.b.create_block();
+                self.b.ins().brif(input, on, &[], off, &[]);
+                self.b.switch_to_block(off);
+                let zero = self.b.ins().iconst(I32, 0);
+                self.set_timer_field(n, RUNNING, types::I8, zero);
+                let elapsed = self.timer_field(n, ELAPSED_NS, I64);
+                let value = self.timer_ticks(elapsed, preset, base_ns);
                 let done = self.flag(IntCC::UnsignedGreaterThanOrEqual, value, preset);
-                (elapsed, last, input, value, done)
+                self.b.ins().jump(meet, &[value.into(), done.into()]);
+                self.b.switch_to_block(on);
+                let running = self.timer_field(n, RUNNING, types::I8);
+                let elapsed = self.timer_field(n, ELAPSED_NS, I64);
+                let advanced = self.timer_advanced(n, elapsed);
+                let elapsed = self.b.ins().select(running, advanced, elapsed);
+                self.timer_counts_up(n, elapsed, preset, base_ns, meet);
             }
             TimerKind::Toff => {
-                let old_last = last;
-                // OFF after ON: counting down from the preset.
-                let counted = self.b.ins().select(running, advanced, zero);
-                let t = ticks(self, counted);
-                let left = self.b.ins().isub(preset, t);
-                let on = self.flag(IntCC::NotEqual, left, zero32);
-                // OFF and idle: unchanged, 0 and OFF.
-                let elapsed = self.b.ins().select(was_done, counted, elapsed);
-                let last = self.b.ins().select(was_done, now, last);
-                let running_off = self.b.ins().select(was_done, on, running);
-                let value = self.b.ins().select(was_done, left, zero32);
-                let done = self.b.ins().band(was_done, on);
-                // ON: idle at the preset, contact ON, the last time kept.
-                let last = self.b.ins().select(input, old_last, last);
-                let elapsed = self.b.ins().select(input, zero, elapsed);
-                let running = self.b.ins().select(input, zero32, running_off);
-                let value = self.b.ins().select(input, preset, value);
-                let done = self.b.ins().select(input, one, done);
-                (elapsed, last, running, value, done)
+                // ON: idle at the preset, contact ON; OFF after ON (the contact still ON):
+                // counting down; OFF and idle: 0 and OFF.
+                let on = self.b.create_block();
+                let off = self.b.create_block();
+                let down = self.b.create_block();
+                let idle = self.b.create_block();
+                self.b.ins().brif(input, on, &[], off, &[]);
+                self.b.switch_to_block(on);
+                let (zero, zero64) = (self.b.ins().iconst(I32, 0), self.b.ins().iconst(I64, 0));
+                self.set_timer_field(n, RUNNING, types::I8, zero);
+                self.set_timer_field(n, ELAPSED_NS, I64, zero64);
+                let one = self.b.ins().iconst(I32, 1);
+                self.b.ins().jump(meet, &[preset.into(), one.into()]);
+                self.b.switch_to_block(off);
+                self.b.ins().brif(was_done, down, &[], idle, &[]);
+                self.b.switch_to_block(idle);
+                let zero = self.b.ins().iconst(I32, 0);
+                self.b.ins().jump(meet, &[zero.into(), zero.into()]);
+                self.b.switch_to_block(down);
+                let running = self.timer_field(n, RUNNING, types::I8);
+                let elapsed = self.timer_field(n, ELAPSED_NS, I64);
+                let advanced = self.timer_advanced(n, elapsed);
+                let zero = self.b.ins().iconst(I64, 0);
+                let elapsed = self.b.ins().select(running, advanced, zero);
+                self.timer_counts_down(n, elapsed, preset, base_ns, meet);
             }
             TimerKind::Tmon | TimerKind::Trtg => {
-                let retrigger = if kind == TimerKind::Trtg { rising } else { zero32 };
-                let advance = self.b.ins().band_not(running, retrigger);
-                let start = self.b.ins().band_not(rising, advance);
-                let restarted = self.b.ins().select(start, zero, elapsed);
-                let elapsed = self.b.ins().select(advance, advanced, restarted);
-                let moved = self.b.ins().bor(advance, start);
-                let last = self.b.ins().select(moved, now, last);
-                let running = self.b.ins().bor(running, start);
-                let t = ticks(self, elapsed);
-                let left = self.b.ins().isub(preset, t);
-                let on = self.flag(IntCC::NotEqual, left, zero32);
-                let value = self.b.ins().select(running, left, zero32);
-                let running = self.b.ins().band(running, on);
-                (elapsed, last, running, value, running)
+                // Running or started by the edge: counting down (from the preset when it
+                // starts: TMON when it was not running, TRTG at every edge); else idle.
+                let rising = rising.expect("taken above");
+                let running = self.timer_field(n, RUNNING, types::I8);
+                let active = self.b.ins().bor(running, rising);
+                let count = self.b.create_block();
+                let idle = self.b.create_block();
+                self.b.ins().brif(active, count, &[], idle, &[]);
+                self.b.switch_to_block(idle);
+                let zero = self.b.ins().iconst(I32, 0);
+                self.b.ins().jump(meet, &[zero.into(), zero.into()]);
+                self.b.switch_to_block(count);
+                let start = if kind == TimerKind::Trtg {
+                    rising
+                } else {
+                    self.b.ins().bxor_imm_s(running, 1)
+                };
+                let elapsed = self.timer_field(n, ELAPSED_NS, I64);
+                let advanced = self.timer_advanced(n, elapsed);
+                let zero = self.b.ins().iconst(I64, 0);
+                let elapsed = self.b.ins().select(start, zero, advanced);
+                self.timer_counts_down(n, elapsed, preset, base_ns, meet);
             }
-        };
-        self.set_timer_field(n, ELAPSED_NS, I64, elapsed);
-        self.set_timer_field(n, LAST_NS, I64, last);
-        self.set_timer_field(n, RUNNING, types::I8, running);
+        }
+        self.b.switch_to_block(meet);
         self.set_timer_field(n, SHOWN, types::I16, value);
         self.set_word(timer_value(n), value);
         self.write_bit(timer_done(n), done);
+    }
+
+    /// Timer `n`'s `elapsed` time brought up to now (plus the time since it was last brought up
+    /// to date, if any: the clock may be behind), now its last time.
+    fn timer_advanced(&mut self, n: u16, elapsed: Value) -> Value {
+        use timer::layout::LAST_NS;
+        let last = self.timer_field(n, LAST_NS, I64);
+        let now = self.now();
+        self.set_timer_field(n, LAST_NS, I64, now);
+        let later = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, now, last);
+        let gone = self.b.ins().isub(now, last);
+        let zero = self.b.ins().iconst(I64, 0);
+        let gone = self.b.ins().select(later, gone, zero);
+        self.b.ins().iadd(elapsed, gone)
+    }
+
+    /// The ticks of `elapsed` (I64): elapsed / base, at most the preset (I32).
+    fn timer_ticks(&mut self, elapsed: Value, preset: Value, base_ns: i64) -> Value {
+        let preset = self.b.ins().uextend(I64, preset);
+        let t = self.b.ins().udiv_imm_u(elapsed, base_ns.max(1));
+        let t = self.b.ins().umin(t, preset);
+        self.b.ins().ireduce(I32, t)
+    }
+
+    /// TON and TMR counting with the input ON: `elapsed` (up to now) at most the preset, the
+    /// timer running; on to `meet` with the value and the contact.
+    fn timer_counts_up(
+        &mut self,
+        n: u16,
+        elapsed: Value,
+        preset: Value,
+        base_ns: i64,
+        meet: Block,
+    ) {
+        use timer::layout::{ELAPSED_NS, RUNNING};
+        let preset64 = self.b.ins().uextend(I64, preset);
+        let preset_ns = self.b.ins().imul_imm_s(preset64, base_ns);
+        let elapsed = self.b.ins().umin(elapsed, preset_ns);
+        self.set_timer_field(n, ELAPSED_NS, I64, elapsed);
+        let one = self.b.ins().iconst(I32, 1);
+        self.set_timer_field(n, RUNNING, types::I8, one);
+        let value = self.timer_ticks(elapsed, preset, base_ns);
+        let done = self.flag(IntCC::UnsignedGreaterThanOrEqual, value, preset);
+        self.b.ins().jump(meet, &[value.into(), done.into()]);
+    }
+
+    /// TOFF, TMON and TRTG counting down: `elapsed` (up to now) kept, the value the preset less
+    /// its ticks, the timer running and the contact ON while that is not 0; on to `meet`.
+    fn timer_counts_down(
+        &mut self,
+        n: u16,
+        elapsed: Value,
+        preset: Value,
+        base_ns: i64,
+        meet: Block,
+    ) {
+        use timer::layout::{ELAPSED_NS, RUNNING};
+        self.set_timer_field(n, ELAPSED_NS, I64, elapsed);
+        let ticks = self.timer_ticks(elapsed, preset, base_ns);
+        let value = self.b.ins().isub(preset, ticks);
+        let zero = self.b.ins().iconst(I32, 0);
+        let on = self.flag(IntCC::NotEqual, value, zero);
+        self.set_timer_field(n, RUNNING, types::I8, on);
+        self.b.ins().jump(meet, &[value.into(), on.into()]);
+    }
+
+    /// TON with the input OFF: the timer idle at 0 (its state all zeros, the input OFF as
+    /// stored already); on to `meet` with value 0, contact OFF.
+    fn timer_reset(&mut self, n: u16, meet: Block) {
+        use timer::layout::{ELAPSED_NS, LAST_NS, RUNNING};
+        let (zero, zero64) = (self.b.ins().iconst(I32, 0), self.b.ins().iconst(I64, 0));
+        self.set_timer_field(n, ELAPSED_NS, I64, zero64);
+        self.set_timer_field(n, LAST_NS, I64, zero64);
+        self.set_timer_field(n, RUNNING, types::I8, zero);
+        self.b.ins().jump(meet, &[zero.into(), zero.into()]);
     }
 
     /// `RST Tn`: with the rung ON, the timer idle (its input's edge memory kept), its value 0
