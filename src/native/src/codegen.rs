@@ -73,6 +73,35 @@ pub(crate) fn data() -> MemFlagsData {
     MemFlagsData::new().with_notrap()
 }
 
+/// A machine call of `callee` with `args` in the function `b` builds: when it returns `back`,
+/// the code goes on after it (in the block `b` is left in); any other status is returned at
+/// once, on a cold path (the callee left every register in the context).
+pub(crate) fn call_or_pass_on(b: &mut FunctionBuilder, callee: FuncRef, args: &[Value], back: u32) {
+    let call = b.ins().call(callee, args);
+    let status = b.inst_results(call)[0];
+    let returned = b.ins().icmp_imm_s(IntCC::Equal, status, i64::from(back));
+    let goes_on = b.create_block();
+    let stopped = b.create_block();
+    b.set_cold_block(stopped);
+    b.ins().brif(returned, goes_on, &[], stopped, &[]);
+    b.switch_to_block(stopped);
+    b.ins().return_(&[status]);
+    b.switch_to_block(goes_on);
+}
+
+/// Generated function `name` (its index in the module), with signature `signature`, imported
+/// into the function `b` builds, for a machine call.
+pub(crate) fn import_function(b: &mut FunctionBuilder, name: u32, signature: SigRef) -> FuncRef {
+    let name =
+        b.func.declare_imported_user_function(UserExternalName { namespace: 0, index: name });
+    b.import_function(ExtFuncData {
+        name: ExternalName::user(name),
+        signature,
+        colocated: true,
+        patchable: false,
+    })
+}
+
 /// The [`Context`] and the stacks' slots: aligned.
 pub(crate) fn own() -> MemFlagsData {
     MemFlagsData::trusted()
@@ -1128,16 +1157,7 @@ impl Gen<'_, '_> {
         let left = self.b.use_var(self.regs.left);
         let callee = self.callee(target);
         let args = [self.context, callee_base, this, depth, sp, left, this_at];
-        let call = self.b.ins().call(callee, &args);
-        let status = self.b.inst_results(call)[0];
-        let returned = self.b.ins().icmp_imm_s(IntCC::Equal, status, i64::from(RETURN_CONTINUE));
-        let back = self.b.create_block();
-        let stopped = self.b.create_block();
-        self.b.set_cold_block(stopped);
-        self.b.ins().brif(returned, back, &[], stopped, &[]);
-        self.b.switch_to_block(stopped);
-        self.b.ins().return_(&[status]);
-        self.b.switch_to_block(back);
+        call_or_pass_on(&mut self.b, callee, &args, RETURN_CONTINUE);
         let regs = self.field(offset_of!(Context, regs));
         let left = self.b.ins().load(I64, own(), regs, reg(offset_of!(NativeRegs, left)));
         self.b.def_var(self.regs.left, left);
@@ -1154,16 +1174,7 @@ impl Gen<'_, '_> {
             return callee;
         }
         let function = self.analysis.functions.binary_search(&target).expect("a body's start");
-        let name = self.b.func.declare_imported_user_function(UserExternalName {
-            namespace: 0,
-            index: self.names[function],
-        });
-        let callee = self.b.import_function(ExtFuncData {
-            name: ExternalName::user(name),
-            signature: self.body_sig,
-            colocated: true,
-            patchable: false,
-        });
+        let callee = import_function(&mut self.b, self.names[function], self.body_sig);
         self.callees.push((target, callee));
         callee
     }

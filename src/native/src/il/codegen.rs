@@ -47,9 +47,8 @@ use std::mem::offset_of;
 
 use cranelift_codegen::ir::condcodes::IntCC;
 use cranelift_codegen::ir::{
-    types, AbiParam, Block, ExtFuncData, ExternalName, FuncRef, Function, InstBuilder,
-    InstructionData, JumpTableData, MemFlagsData, Opcode, SigRef, Signature, UserExternalName,
-    Value,
+    types, AbiParam, Block, FuncRef, Function, InstBuilder, InstructionData, JumpTableData,
+    MemFlagsData, Opcode, SigRef, Signature, Value,
 };
 use cranelift_codegen::isa::TargetIsa;
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
@@ -317,6 +316,17 @@ impl Gen<'_, '_> {
         self.b.ins().jump(block, &[]);
     }
 
+    /// Goes on in a new block when `ok`, else in a cold one where `cold` ends the code.
+    fn unless(&mut self, ok: Value, cold: impl FnOnce(&mut Self)) {
+        let run = self.b.create_block();
+        let refuse = self.b.create_block();
+        self.b.set_cold_block(refuse);
+        self.b.ins().brif(ok, run, &[], refuse, &[]);
+        self.b.switch_to_block(refuse);
+        cold(self);
+        self.b.switch_to_block(run);
+    }
+
     /// The block of leader `index` in this function, if it has it.
     fn block_of(&self, index: usize) -> Option<Block> {
         self.members.binary_search(&index).ok().map(|member| self.blocks[member])
@@ -424,13 +434,7 @@ impl Gen<'_, '_> {
             let n = range.len() as i64;
             let left = self.b.use_var(self.regs.left);
             let enough = self.b.ins().icmp_imm_s(IntCC::UnsignedGreaterThanOrEqual, left, n);
-            let run = self.b.create_block();
-            let refuse = self.b.create_block();
-            self.b.set_cold_block(refuse);
-            self.b.ins().brif(enough, run, &[], refuse, &[]);
-            self.b.switch_to_block(refuse);
-            self.exit(range.start, RETURN_INTERPRET);
-            self.b.switch_to_block(run);
+            self.unless(enough, |g| g.exit(range.start, RETURN_INTERPRET));
             let left = self.b.ins().iadd_imm_s(left, -n);
             self.b.def_var(self.regs.left, left);
             let mut ended = false;
@@ -721,27 +725,12 @@ impl Gen<'_, '_> {
             self.ctx,
             offset_of!(Context<'static>, stack_floor) as i32,
         );
-        let low = self.b.ins().icmp(IntCC::UnsignedLessThan, stack, floor);
-        let call = self.b.create_block();
-        let deep = self.b.create_block();
-        self.b.set_cold_block(deep);
-        self.b.ins().brif(low, deep, &[], call, &[]);
-        self.b.switch_to_block(deep);
-        self.enter_by_dispatch(target);
-        self.b.switch_to_block(call);
+        let room = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, stack, floor);
+        self.unless(room, |g| g.enter_by_dispatch(target));
         let left = self.b.use_var(self.regs.left);
         let callee = self.callee(sub);
         let args = [self.ctx, left, self.regs_at, self.words, self.il, self.il_calls, self.edges];
-        let call = self.b.ins().call(callee, &args);
-        let status = self.b.inst_results(call)[0];
-        let returned = self.b.ins().icmp_imm_s(IntCC::Equal, status, i64::from(RETURN_RETURNED));
-        let back = self.b.create_block();
-        let stopped = self.b.create_block();
-        self.b.set_cold_block(stopped);
-        self.b.ins().brif(returned, back, &[], stopped, &[]);
-        self.b.switch_to_block(stopped);
-        self.b.ins().return_(&[status]);
-        self.b.switch_to_block(back);
+        crate::codegen::call_or_pass_on(&mut self.b, callee, &args, RETURN_RETURNED);
         let left = self.b.ins().load(I64, own(), self.regs_at, offset_of!(NativeRegs, left) as i32);
         self.b.def_var(self.regs.left, left);
         let (rung, blocks, branches) = caller;
@@ -759,16 +748,8 @@ impl Gen<'_, '_> {
             return callee;
         }
         let function = self.analysis.pieces.len() + sub;
-        let name = self.b.func.declare_imported_user_function(UserExternalName {
-            namespace: 0,
-            index: self.names[function],
-        });
-        let callee = self.b.import_function(ExtFuncData {
-            name: ExternalName::user(name),
-            signature: self.sub_sig,
-            colocated: true,
-            patchable: false,
-        });
+        let callee =
+            crate::codegen::import_function(&mut self.b, self.names[function], self.sub_sig);
         self.callees.push((sub, callee));
         callee
     }
@@ -992,11 +973,7 @@ impl Gen<'_, '_> {
                 self.b.switch_to_block(off);
                 self.timer_reset(n, meet);
                 self.b.switch_to_block(on);
-                let running = self.timer_field(n, RUNNING, types::I8);
-                let elapsed = self.timer_field(n, ELAPSED_NS, I64);
-                let advanced = self.timer_advanced(n, elapsed);
-                let zero = self.b.ins().iconst(I64, 0);
-                let elapsed = self.b.ins().select(running, advanced, zero);
+                let elapsed = self.timer_elapsed(n, false);
                 self.timer_counts_up(n, elapsed, preset, base_ns, meet);
             }
             TimerKind::Tmr => {
@@ -1012,10 +989,7 @@ impl Gen<'_, '_> {
                 let done = self.flag(IntCC::UnsignedGreaterThanOrEqual, value, preset);
                 self.b.ins().jump(meet, &[value.into(), done.into()]);
                 self.b.switch_to_block(on);
-                let running = self.timer_field(n, RUNNING, types::I8);
-                let elapsed = self.timer_field(n, ELAPSED_NS, I64);
-                let advanced = self.timer_advanced(n, elapsed);
-                let elapsed = self.b.ins().select(running, advanced, elapsed);
+                let elapsed = self.timer_elapsed(n, true);
                 self.timer_counts_up(n, elapsed, preset, base_ns, meet);
             }
             TimerKind::Toff => {
@@ -1038,11 +1012,7 @@ impl Gen<'_, '_> {
                 let zero = self.b.ins().iconst(I32, 0);
                 self.b.ins().jump(meet, &[zero.into(), zero.into()]);
                 self.b.switch_to_block(down);
-                let running = self.timer_field(n, RUNNING, types::I8);
-                let elapsed = self.timer_field(n, ELAPSED_NS, I64);
-                let advanced = self.timer_advanced(n, elapsed);
-                let zero = self.b.ins().iconst(I64, 0);
-                let elapsed = self.b.ins().select(running, advanced, zero);
+                let elapsed = self.timer_elapsed(n, false);
                 self.timer_counts_down(n, elapsed, preset, base_ns, meet);
             }
             TimerKind::Tmon | TimerKind::Trtg => {
@@ -1074,6 +1044,17 @@ impl Gen<'_, '_> {
         self.set_timer_field(n, SHOWN, types::I16, value);
         self.set_word(timer_value(n), value);
         self.write_bit(timer_done(n), done);
+    }
+
+    /// Timer `n`'s elapsed time: brought up to now if it is running, else its stored time
+    /// (`kept`) or 0.
+    fn timer_elapsed(&mut self, n: u16, kept: bool) -> Value {
+        use timer::layout::{ELAPSED_NS, RUNNING};
+        let running = self.timer_field(n, RUNNING, types::I8);
+        let elapsed = self.timer_field(n, ELAPSED_NS, I64);
+        let advanced = self.timer_advanced(n, elapsed);
+        let stopped = if kept { elapsed } else { self.b.ins().iconst(I64, 0) };
+        self.b.ins().select(running, advanced, stopped)
     }
 
     /// Timer `n`'s `elapsed` time brought up to now (plus the time since it was last brought up
