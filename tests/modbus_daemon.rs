@@ -345,7 +345,9 @@ fn malformed_frames_close_the_connection_and_leave_the_daemon_unharmed() {
         let mut c = plc.connect();
         c.write_all(bytes).unwrap();
         // A cut frame is closed by the client; the server must not wait forever for the rest.
-        c.shutdown(std::net::Shutdown::Write).unwrap();
+        // A frame it refuses at once it may have closed already, and then the shutdown finds
+        // the connection gone (ENOTCONN): either way it must end closed.
+        let _ = c.shutdown(std::net::Shutdown::Write);
         assert!(closed(&mut c), "{what}: closed");
         plc.assert_unharmed();
     }
