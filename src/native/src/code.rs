@@ -165,7 +165,8 @@ pub(crate) const RETURN_RETURNED: u32 = 4;
 /// caller calls it (`base`, `this`, call depth, stack pointer, budget left, the FB instance's
 /// address), or [`FROM_VM`] and zeros when the VM enters it (the registers are in the context;
 /// the instruction list's pieces take only the context, its subroutines' functions the
-/// context and the budget left).
+/// context, the budget left, and the pointers to the registers, device memory, the
+/// instruction list's state, its call stack and edge memory).
 type Entry = unsafe extern "C" fn(*mut Context<'_>, u64, u64, u64, u64, u64, u64) -> u32;
 
 /// The `base` with which the VM enters a generated function: no frame's base (a `u32`).

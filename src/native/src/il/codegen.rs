@@ -91,27 +91,28 @@ pub(crate) fn generate(
     let ctx = params[0];
     let pieces = analysis.pieces.len();
     // The context and the instruction list's part of it do not change while the code runs:
-    // read-only loads, which Cranelift removes where a function does not use them.
+    // read-only loads. (Cranelift still keeps such a load where nothing uses it: the counters'
+    // and timers' pointers in a function without any.)
     let field =
         |b: &mut FunctionBuilder, offset: usize| b.ins().load(I64, readonly(), ctx, offset as i32);
     // A subroutine's function gets from its caller, besides the budget, the pointers every
-    // function loads from the context (unused loads are removed; these are used): a call
-    // costs fewer instructions.
-    let (regs_at, words, il, il_calls, edges) = if function < pieces {
+    // function uses: a call costs fewer instructions than loading them again.
+    let piece = function < pieces;
+    let (regs_at, words, il) = if piece {
         let regs_at = field(&mut b, offset_of!(Context<'static>, regs));
         let words = field(&mut b, offset_of!(Context<'static>, words));
-        let il = field(&mut b, offset_of!(Context<'static>, il));
-        let il_field = |b: &mut FunctionBuilder, offset: usize| {
-            b.ins().load(I64, readonly(), il, offset as i32)
-        };
-        let edges = il_field(&mut b, offset_of!(IlContext<'static>, edges));
-        let il_calls = il_field(&mut b, offset_of!(IlContext<'static>, calls));
-        (regs_at, words, il, il_calls, edges)
+        (regs_at, words, field(&mut b, offset_of!(Context<'static>, il)))
     } else {
-        (params[2], params[3], params[4], params[5], params[6])
+        (params[2], params[3], params[4])
     };
     let il_field =
         |b: &mut FunctionBuilder, offset: usize| b.ins().load(I64, readonly(), il, offset as i32);
+    let (il_calls, edges) = if piece {
+        let il_calls = il_field(&mut b, offset_of!(IlContext<'static>, calls));
+        (il_calls, il_field(&mut b, offset_of!(IlContext<'static>, edges)))
+    } else {
+        (params[5], params[6])
+    };
     let counters = il_field(&mut b, offset_of!(IlContext<'static>, counters));
     let timers = il_field(&mut b, offset_of!(IlContext<'static>, timers));
     let mut now_sig = Signature::new(isa.default_call_conv());
@@ -194,10 +195,8 @@ struct Inline {
     /// each for this call.
     members: Vec<usize>,
     blocks: Vec<Block>,
-    /// Where its `RET` goes: after the `CALL`.
+    /// Where its `RET` goes: after the `CALL`, where the caller's registers are restored.
     back: Block,
-    /// The caller's rung and stacks, which the `RET` restores.
-    caller: (Value, Value, Value),
 }
 
 /// The registers of the activation, as SSA variables: the rung is 0 or 1.
@@ -423,58 +422,56 @@ impl Gen<'_, '_> {
 
     /// The code of the block at `analysis.leaders[index]`, in the current Cranelift block.
     fn block(&mut self, index: usize) {
-        {
-            let range = self.analysis.block(self.code, index);
-            self.held.clear();
-            if !is_native(&self.code[range.start]) {
-                self.exit(range.start, RETURN_INTERPRET);
-                return;
-            }
-            // The budget covers the whole block, or the interpreter takes it.
-            let n = range.len() as i64;
-            let left = self.b.use_var(self.regs.left);
-            let enough = self.b.ins().icmp_imm_s(IntCC::UnsignedGreaterThanOrEqual, left, n);
-            self.unless(enough, |g| g.exit(range.start, RETURN_INTERPRET));
-            let left = self.b.ins().iadd_imm_s(left, -n);
-            self.b.def_var(self.regs.left, left);
-            let mut ended = false;
-            self.block_end = range.end;
-            for pc in range.clone() {
-                self.pc = pc;
-                match self.code[pc] {
-                    Op::End => {
-                        self.exit(pc + 1, RETURN_END);
-                        ended = true;
-                    }
-                    Op::Jmp { target } => {
-                        let rung = self.rung();
-                        let taken = self.b.create_block();
-                        let not_taken = self.b.create_block();
-                        self.b.ins().brif(rung, taken, &[], not_taken, &[]);
-                        self.b.switch_to_block(taken);
-                        self.go_on(target as usize);
-                        self.b.switch_to_block(not_taken);
-                        self.go_on(pc + 1);
-                        ended = true;
-                    }
-                    Op::Arith { op: ArithOp::Div, a, b, d, pulse } => {
-                        let on = self.enabled(pulse);
-                        self.div(a, b, d, on, pc, range.end);
-                    }
-                    Op::Call { target } => {
-                        self.call(target, pc);
-                        ended = true;
-                    }
-                    Op::Ret => {
-                        self.ret_op(pc);
-                        ended = true;
-                    }
-                    op => self.op(op),
+        let range = self.analysis.block(self.code, index);
+        self.held.clear();
+        if !is_native(&self.code[range.start]) {
+            self.exit(range.start, RETURN_INTERPRET);
+            return;
+        }
+        // The budget covers the whole block, or the interpreter takes it.
+        let n = range.len() as i64;
+        let left = self.b.use_var(self.regs.left);
+        let enough = self.b.ins().icmp_imm_s(IntCC::UnsignedGreaterThanOrEqual, left, n);
+        self.unless(enough, |g| g.exit(range.start, RETURN_INTERPRET));
+        let left = self.b.ins().iadd_imm_s(left, -n);
+        self.b.def_var(self.regs.left, left);
+        let mut ended = false;
+        self.block_end = range.end;
+        for pc in range.clone() {
+            self.pc = pc;
+            match self.code[pc] {
+                Op::End => {
+                    self.exit(pc + 1, RETURN_END);
+                    ended = true;
                 }
+                Op::Jmp { target } => {
+                    let rung = self.rung();
+                    let taken = self.b.create_block();
+                    let not_taken = self.b.create_block();
+                    self.b.ins().brif(rung, taken, &[], not_taken, &[]);
+                    self.b.switch_to_block(taken);
+                    self.go_on(target as usize);
+                    self.b.switch_to_block(not_taken);
+                    self.go_on(pc + 1);
+                    ended = true;
+                }
+                Op::Arith { op: ArithOp::Div, a, b, d, pulse } => {
+                    let on = self.enabled(pulse);
+                    self.div(a, b, d, on, pc, range.end);
+                }
+                Op::Call { target } => {
+                    self.call(target, pc);
+                    ended = true;
+                }
+                Op::Ret => {
+                    self.ret_op(pc);
+                    ended = true;
+                }
+                op => self.op(op),
             }
-            if !ended {
-                self.go_on(range.end);
-            }
+        }
+        if !ended {
+            self.go_on(range.end);
         }
     }
 
@@ -686,14 +683,24 @@ impl Gen<'_, '_> {
         let first = self.analysis.leaders.binary_search(&target).expect("a call target leads");
         let entry = blocks[members.binary_search(&first).expect("a subroutine's first block")];
         self.b.ins().jump(entry, &[]);
-        self.inline =
-            Some(Inline { members: members.clone(), blocks: blocks.clone(), back, caller });
+        self.inline = Some(Inline { members: members.clone(), blocks: blocks.clone(), back });
         for (member, index) in members.into_iter().enumerate() {
             self.b.switch_to_block(blocks[member]);
             self.block(index);
         }
         self.inline = None;
         self.b.switch_to_block(back);
+        self.returned(caller, pc);
+    }
+
+    /// After the subroutine called at `pc` returned: the caller's rung and stacks as they were
+    /// at the call (`caller`, what its `RET` restores from the frame), the words held before
+    /// forgotten (the subroutine may have written any), on after the `CALL`.
+    fn returned(&mut self, caller: (Value, Value, Value), pc: usize) {
+        let (rung, blocks, branches) = caller;
+        self.b.def_var(self.regs.rung, rung);
+        self.b.def_var(self.regs.blocks, blocks);
+        self.b.def_var(self.regs.branches, branches);
         self.held.clear();
         self.go_on(pc + 1);
     }
@@ -733,13 +740,7 @@ impl Gen<'_, '_> {
         crate::codegen::call_or_pass_on(&mut self.b, callee, &args, RETURN_RETURNED);
         let left = self.b.ins().load(I64, own(), self.regs_at, offset_of!(NativeRegs, left) as i32);
         self.b.def_var(self.regs.left, left);
-        let (rung, blocks, branches) = caller;
-        self.b.def_var(self.regs.rung, rung);
-        self.b.def_var(self.regs.blocks, blocks);
-        self.b.def_var(self.regs.branches, branches);
-        // The callee may have written any word.
-        self.held.clear();
-        self.go_on(pc + 1);
+        self.returned(caller, pc);
     }
 
     /// Subroutine `sub`'s function, imported into this one.
@@ -774,11 +775,7 @@ impl Gen<'_, '_> {
         let loop_depth = byte(self, offset_of!(IlFrame, loop_depth));
         self.store32(loop_depth, offset_of!(NativeRegs, loop_depth));
         if let Some(inline) = &self.inline {
-            let (rung, blocks, branches) = inline.caller;
             let back = inline.back;
-            self.b.def_var(self.regs.rung, rung);
-            self.b.def_var(self.regs.blocks, blocks);
-            self.b.def_var(self.regs.branches, branches);
             self.b.ins().jump(back, &[]);
             return;
         }

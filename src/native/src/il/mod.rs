@@ -279,9 +279,8 @@ pub(crate) fn analyse(code: &[Op]) -> Analysis {
             table.into_boxed_slice()
         })
         .collect();
-    let subroutines = subroutines(code, &all, compiled);
-    Analysis {
-        subroutines,
+    let mut analysis = Analysis {
+        subroutines: Vec::new(),
         dispatch,
         leaders: all,
         words_end,
@@ -291,12 +290,15 @@ pub(crate) fn analyse(code: &[Op]) -> Analysis {
         edges_end,
         timers_end,
         counters_end,
-    }
+    };
+    analysis.subroutines = subroutines(code, &analysis);
+    analysis
 }
 
 /// The subroutines that get functions of their own: every compiled `CALL` target whose blocks
 /// (see [`Subroutine`]) are at most [`SUBROUTINE_MAX`] instructions.
-fn subroutines(code: &[Op], leaders: &[u32], compiled: usize) -> Vec<Subroutine> {
+fn subroutines(code: &[Op], analysis: &Analysis) -> Vec<Subroutine> {
+    let compiled = analysis.compiled;
     let mut targets: Vec<u32> = code[..compiled]
         .iter()
         .filter_map(|op| match *op {
@@ -306,22 +308,20 @@ fn subroutines(code: &[Op], leaders: &[u32], compiled: usize) -> Vec<Subroutine>
         .collect();
     targets.sort_unstable();
     targets.dedup();
-    let index_of = |pc: usize| leaders.binary_search(&(pc as u32)).ok();
-    let block_of = |index: usize| {
-        crate::blocks::block(leaders, compiled, code, index, |op| ends_block(op) || !is_native(op))
-    };
+    let index_of = |pc: usize| analysis.leaders.binary_search(&(pc as u32)).ok();
     targets
         .into_iter()
         .filter_map(|target| {
             let first = index_of(target as usize)?;
             let mut blocks = vec![first];
             let mut seen = std::collections::HashSet::from([first]);
-            let mut size = 0;
+            let (mut size, mut calls) = (0, false);
             let mut next = 0;
             while let Some(&index) = blocks.get(next) {
                 next += 1;
-                let range = block_of(index);
+                let range = analysis.block(code, index);
                 size += range.len();
+                calls |= code[range.clone()].iter().any(|op| matches!(op, Op::Call { .. }));
                 if size > SUBROUTINE_MAX {
                     return None;
                 }
@@ -342,9 +342,6 @@ fn subroutines(code: &[Op], leaders: &[u32], compiled: usize) -> Vec<Subroutine>
                 }
             }
             blocks.sort_unstable();
-            let calls = blocks
-                .iter()
-                .any(|&index| block_of(index).any(|pc| matches!(code[pc], Op::Call { .. })));
             let inline = (size <= INLINE_MAX && !calls).then_some(size);
             Some(Subroutine { target, blocks, inline })
         })
