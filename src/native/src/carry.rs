@@ -49,31 +49,163 @@ pub(crate) fn may_change(at: Place, bytes: u32, held: Key) -> bool {
     }
 }
 
-/// What the values held at the end of a block of `code` are, given those held at its start
-/// (`held`, changed in place). Conservative beside `codegen`, which may keep more: a store
-/// through a pointer or a copy forgets every value here.
-fn through(code: &[Op], held: &mut Vec<Key>) {
-    for op in code {
-        match *op {
-            Op::Fetch { elem, at } if in_bytes(at) && !held.contains(&(at, elem)) => {
-                held.push((at, elem));
-            }
+/// Where a pointer into variable memory points, as far as a block's ops show: an offset from
+/// `least` to `most` (an element of an array at a fixed place, a member of one).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Reach {
+    pub least: u64,
+    pub most: u64,
+}
+
+impl Reach {
+    /// The pointer to the variable at `offset`.
+    pub fn at(offset: u32) -> Reach {
+        Reach { least: u64::from(offset), most: u64::from(offset) }
+    }
+
+    /// An element of the array of `len` elements `stride` bytes apart that starts here
+    /// ([`Op::Index`], which leaves native code for an index outside it); `None` for an empty
+    /// array or past `u32::MAX`.
+    pub fn element(self, len: u32, stride: u32) -> Option<Reach> {
+        let last = u64::from(len.checked_sub(1)?) * u64::from(stride);
+        Some(Reach { least: self.least, most: self.most + last }).filter(Reach::fits)
+    }
+
+    /// `n` bytes further ([`Op::Offset`]: a member).
+    pub fn member(self, n: u32) -> Option<Reach> {
+        Some(Reach { least: self.least + u64::from(n), most: self.most + u64::from(n) })
+            .filter(Reach::fits)
+    }
+
+    /// A store of `bytes` bytes here, as the store at a fixed place that covers every byte it
+    /// may change.
+    pub fn store(self, bytes: u32) -> (Place, u32) {
+        let span = self.most - self.least + u64::from(bytes);
+        (Place::Var(self.least as u32), span.min(u64::from(u32::MAX)) as u32)
+    }
+
+    fn fits(&self) -> bool {
+        self.most <= u64::from(u32::MAX)
+    }
+}
+
+/// What one op does to the values of fixed places.
+enum Effect {
+    Fetch(Key),
+    /// A store at a fixed place: its value is held after it.
+    Store(Place, Elem),
+    /// A store through a pointer the ops show the reach of: what it may change, as a fixed
+    /// place and a number of bytes.
+    Changes(Place, u32),
+    /// A store through any pointer, a copy to one, a call: every value may change.
+    Forgets,
+    Nothing,
+}
+
+/// Where a pointer on the evaluation stack points, as `codegen` knows it: into variable
+/// memory ([`Reach`]), or at a fixed offset into the frame.
+#[derive(Clone, Copy)]
+enum Target {
+    Vars(Reach),
+    Frame(u32),
+}
+
+/// The effects of a block's ops in order. The pointers a store goes through are followed on
+/// the evaluation stack from where the block makes them ([`Op::AddrOf`], [`Op::Index`],
+/// [`Op::Offset`], [`Op::Dup`]), as `codegen` follows them: a store through any other pointer
+/// forgets every value.
+fn effects(code: &[Op]) -> impl Iterator<Item = Effect> + '_ {
+    // The slots the block pushed; a slot below them (pushed before the block) is unknown.
+    let mut stack: Vec<Option<Target>> = Vec::new();
+    code.iter().map(move |op| {
+        let mut pop = || stack.pop().flatten();
+        let (effect, pushed) = match *op {
+            Op::Fetch { elem, at } if in_bytes(at) => (Effect::Fetch((at, elem)), None),
             Op::Store { elem, at } => {
+                pop();
+                return Effect::Store(at, elem);
+            }
+            Op::AddrOf(Place::Var(offset)) => {
+                (Effect::Nothing, Some(Target::Vars(Reach::at(offset))))
+            }
+            Op::AddrOf(Place::Frame(offset)) => (Effect::Nothing, Some(Target::Frame(offset))),
+            Op::Index { len, stride, .. } => {
+                pop();
+                let element = match pop() {
+                    Some(Target::Vars(reach)) => reach.element(len, stride).map(Target::Vars),
+                    _ => None,
+                };
+                stack.push(element);
+                return Effect::Nothing;
+            }
+            Op::Offset(n) => {
+                let member = match pop() {
+                    Some(Target::Vars(reach)) => reach.member(n).map(Target::Vars),
+                    Some(Target::Frame(offset)) => offset.checked_add(n).map(Target::Frame),
+                    None => None,
+                };
+                stack.push(member);
+                return Effect::Nothing;
+            }
+            Op::Dup => {
+                let top = pop();
+                stack.extend([top, top]);
+                return Effect::Nothing;
+            }
+            Op::StoreInd(_) | Op::Copy(_) => {
+                let bytes = match *op {
+                    Op::StoreInd(elem) => elem.size(),
+                    Op::Copy(n) => n,
+                    _ => unreachable!(),
+                };
+                pop();
+                return match pop() {
+                    Some(Target::Vars(reach)) => {
+                        let (place, bytes) = reach.store(bytes);
+                        Effect::Changes(place, bytes)
+                    }
+                    Some(Target::Frame(offset)) => Effect::Changes(Place::Frame(offset), bytes),
+                    None => Effect::Forgets,
+                };
+            }
+            Op::CallFn { .. } | Op::CallFb { .. } => (Effect::Forgets, None),
+            _ => (Effect::Nothing, None),
+        };
+        let (popped, pushes) = op.stack_effect().unwrap_or((0, 0));
+        for _ in 0..popped {
+            pop();
+        }
+        for _ in 0..pushes {
+            stack.push(pushed);
+        }
+        effect
+    })
+}
+
+/// What the values held at the end of a block of `code` are, given those held at its start
+/// (`held`, changed in place). Conservative beside `codegen`, which may keep more (the value
+/// of a pointer variable it fetched again).
+fn through(code: &[Op], held: &mut Vec<Key>) {
+    for effect in effects(code) {
+        match effect {
+            Effect::Fetch(key) if !held.contains(&key) => held.push(key),
+            Effect::Store(at, elem) => {
                 held.retain(|&key| !may_change(at, elem.size(), key));
                 if in_bytes(at) {
                     held.push((at, elem));
                 }
             }
-            Op::StoreInd(_) | Op::Copy(_) | Op::CallFn { .. } | Op::CallFb { .. } => held.clear(),
-            _ => {}
+            Effect::Changes(at, bytes) => held.retain(|&key| !may_change(at, bytes, key)),
+            Effect::Forgets => held.clear(),
+            Effect::Fetch(_) | Effect::Nothing => {}
         }
     }
 }
 
 /// What a block of `code` wants of the values it receives: the keys it fetches before
 /// anything in it may change them, and the stores after which a key is not wanted from its
-/// start by the blocks after it (`None`: a store through a pointer, a copy or a call, after
-/// which every value is fetched again).
+/// start by the blocks after it (`None`: a store through a pointer it cannot follow, a copy
+/// to one, or a call, after which every value is fetched again).
 struct Wants {
     fetched: Vec<Key>,
     stores: Option<Vec<(Place, u32)>>,
@@ -82,20 +214,18 @@ struct Wants {
 fn wants(code: &[Op]) -> Wants {
     let mut fetched = Vec::new();
     let mut stores = Vec::new();
-    for op in code {
-        match *op {
-            Op::Fetch { elem, at } if in_bytes(at) => {
-                let key = (at, elem);
+    for effect in effects(code) {
+        match effect {
+            Effect::Fetch(key) => {
                 let unchanged = !stores.iter().any(|&(place, bytes)| may_change(place, bytes, key));
                 if unchanged && !fetched.contains(&key) {
                     fetched.push(key);
                 }
             }
-            Op::Store { elem, at } => stores.push((at, elem.size())),
-            Op::StoreInd(_) | Op::Copy(_) | Op::CallFn { .. } | Op::CallFb { .. } => {
-                return Wants { fetched, stores: None };
-            }
-            _ => {}
+            Effect::Store(at, elem) => stores.push((at, elem.size())),
+            Effect::Changes(at, bytes) => stores.push((at, bytes)),
+            Effect::Forgets => return Wants { fetched, stores: None },
+            Effect::Nothing => {}
         }
     }
     Wants { fetched, stores: Some(stores) }

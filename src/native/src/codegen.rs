@@ -52,7 +52,7 @@ use plcd_core::value::{BinOp, Elem, Pointer, Space, UnOp, REF_TAG};
 use plcd_core::vm::{ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE, ERR_REF_NULL};
 
 use crate::analysis::{is_native, Analysis};
-use crate::carry::{self, in_bytes, Key};
+use crate::carry::{self, in_bytes, Key, Reach};
 use crate::code::{self, Context, RETURN_CONTINUE, RETURN_END, RETURN_ERROR, RETURN_INTERPRET};
 use crate::helpers;
 
@@ -283,9 +283,9 @@ struct Gen<'a, 'f> {
 /// What the code knows of a stack slot's value in the block being generated.
 #[derive(Clone, Copy, Default)]
 struct SlotInfo {
-    /// A pointer into variable memory whose offset is at most this (an element of an array at
-    /// a fixed place).
-    known: Option<u64>,
+    /// A pointer into variable memory, and where it may point (an element of an array at a
+    /// fixed place).
+    known: Option<Reach>,
     /// A pointer into the current activation's frame, this many bytes from its base.
     frame: Option<u32>,
     /// It holds 0 or 1 (a BOOL loaded or computed), so BOOL logic needs no normalizing.
@@ -298,7 +298,8 @@ struct SlotInfo {
 /// Where a store through a pointer goes, as far as the code knows.
 #[derive(Clone, Copy)]
 enum Into {
-    Vars,
+    /// Variable memory, there.
+    Vars(Reach),
     /// The frame, this many bytes from its base.
     Frame(u32),
     Unknown,
@@ -767,12 +768,12 @@ impl Gen<'_, '_> {
     /// The address of the value of `bytes` bytes at the pointer in slot `index` when it is a
     /// known pointer into variable memory (no check at run time: the code's need of variable
     /// memory grows to cover it).
-    fn known_address(&mut self, index: u32, bytes: u32) -> Option<Value> {
-        let most = self.info[index as usize].known?;
-        self.vars_need = self.vars_need.max(most + u64::from(bytes));
+    fn known_address(&mut self, index: u32, bytes: u32) -> Option<(Value, Reach)> {
+        let reach = self.info[index as usize].known?;
+        self.vars_need = self.vars_need.max(reach.most + u64::from(bytes));
         let pointer = self.slot(index);
         let vars = self.field(offset_of!(Context, vars));
-        Some(self.b.ins().iadd(vars, pointer))
+        Some((self.b.ins().iadd(vars, pointer), reach))
     }
 
     fn slot(&mut self, depth: u32) -> Value {
@@ -849,7 +850,7 @@ impl Gen<'_, '_> {
                 let v = self.address_of(place);
                 self.push(depth, v);
                 match place {
-                    Place::Var(offset) => self.info[d as usize].known = Some(u64::from(offset)),
+                    Place::Var(offset) => self.info[d as usize].known = Some(Reach::at(offset)),
                     Place::Frame(offset) => self.info[d as usize].frame = Some(offset),
                     _ => {}
                 }
@@ -870,12 +871,9 @@ impl Gen<'_, '_> {
                     self.in_range.push((index, lo, len));
                 }
                 let step = self.b.ins().imul_imm_s(element, i64::from(stride));
-                // An element of an array at a fixed place: its offset is at most the last one's.
-                let last = u64::from(len.saturating_sub(1)) * u64::from(stride);
-                let known = self.info[d as usize - 2]
-                    .known
-                    .map(|most| most + last)
-                    .filter(|&most| len > 0 && most <= u64::from(u32::MAX));
+                // An element of an array at a fixed place: between its first and last.
+                let known =
+                    self.info[d as usize - 2].known.and_then(|reach| reach.element(len, stride));
                 let moved = self.moved(pointer, step, known.is_some());
                 *depth -= 1;
                 self.set(d - 2, moved);
@@ -920,10 +918,7 @@ impl Gen<'_, '_> {
             Op::Offset(n) => {
                 let pointer = self.slot(d - 1);
                 let step = self.b.ins().iconst(I64, i64::from(n));
-                let known = self.info[d as usize - 1]
-                    .known
-                    .map(|most| most + u64::from(n))
-                    .filter(|&most| most <= u64::from(u32::MAX));
+                let known = self.info[d as usize - 1].known.and_then(|reach| reach.member(n));
                 let frame = self.info[d as usize - 1].frame.and_then(|o| o.checked_add(n));
                 let moved = self.moved(pointer, step, known.is_some());
                 self.set(d - 1, moved);
@@ -1133,8 +1128,8 @@ impl Gen<'_, '_> {
         let known = if fb { self.info[d as usize - 1].known } else { None };
         let this_end = self.analysis.bodies[&target].this_end;
         let (ok, this_at) = self.body_pointers(target, callee_base, this, known.is_some());
-        if let Some(most) = known.filter(|_| this_end > 0) {
-            self.vars_need = self.vars_need.max(most + this_end);
+        if let Some(reach) = known.filter(|_| this_end > 0) {
+            self.vars_need = self.vars_need.max(reach.most + this_end);
         }
         let refused = self.b.ins().bxor_imm_s(ok, 1);
         self.bail_if(refused, at, d);
@@ -1241,8 +1236,8 @@ impl Gen<'_, '_> {
     /// a check at run time for a known pointer into variable memory, or into the frame inside
     /// what the body's entry checked; else after [`Gen::checked_address`]'s check.
     fn address(&mut self, index: u32, bytes: u32, at: At, depth: u32) -> (Value, Into) {
-        if let Some(address) = self.known_address(index, bytes) {
-            return (address, Into::Vars);
+        if let Some((address, reach)) = self.known_address(index, bytes) {
+            return (address, Into::Vars(reach));
         }
         if let Some(offset) = self.info[index as usize].frame {
             let end = u64::from(offset) + u64::from(bytes);
@@ -1448,7 +1443,10 @@ impl Gen<'_, '_> {
     /// Forgets the held values a store of `bytes` bytes through a pointer to `into` may change.
     fn forget_indirect(&mut self, into: Into, bytes: u32) {
         match into {
-            Into::Vars => self.held.retain(|h| matches!(h.place, Place::Frame(_))),
+            Into::Vars(reach) => {
+                let (at, bytes) = reach.store(bytes);
+                self.forget(at, bytes);
+            }
             Into::Frame(offset) => self.forget(Place::Frame(offset), bytes),
             Into::Unknown => self.held.clear(),
         }

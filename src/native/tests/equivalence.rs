@@ -1360,6 +1360,68 @@ END_PROGRAM
     assert_eq!(outcome.slot("main.s2"), 1 + 4 + 2 + 4, "s2 through the copy b2 := b1");
 }
 
+/// A store through an element of an array at a fixed place forgets only the values of the
+/// array's bytes (the values of other variables stay in registers): every element it may reach
+/// is fetched again after it, its first and its last, a member of a struct element, a
+/// struct element copied whole, in the same block and in the blocks after it.
+#[test]
+fn a_store_into_an_array_forgets_the_values_of_its_elements_only() {
+    let source = "
+TYPE Cell : STRUCT a : INT; b : DINT; END_STRUCT; END_TYPE
+
+PROGRAM Main
+VAR
+    before : INT;
+    c : ARRAY [0..3] OF Cell;
+    after : INT;
+    one : Cell;
+    d : ARRAY [1..3] OF SINT;
+    i, n, first, last, member, whole, kept, k, looped : DINT;
+END_VAR
+    n := n + 1;
+    before := 11;
+    after := 22;
+    c[0].a := 1;
+    c[3].b := 2;
+    d[1] := 3;
+    d[3] := 4;
+    first := INT_TO_DINT(c[0].a);
+    last := c[3].b;
+    i := 0;
+    c[i].a := 100 + DINT_TO_INT(n);
+    first := INT_TO_DINT(c[0].a + before);
+    i := 3;
+    c[i].b := 200 + n;
+    last := c[3].b + INT_TO_DINT(after);
+    one.a := 5;
+    one.b := 300 + n;
+    member := c[3].b;
+    c[i] := one;
+    whole := c[3].b + INT_TO_DINT(c[3].a + after);
+    member := SINT_TO_DINT(d[3]);
+    i := 3;
+    d[i] := 44;
+    kept := INT_TO_DINT(before + after) + SINT_TO_DINT(d[1]);
+    member := member + SINT_TO_DINT(d[3]);
+    looped := 0;
+    FOR k := 0 TO 3 DO
+        c[3].a := 7;
+        looped := looped + INT_TO_DINT(c[3].a);
+        c[k].a := 1000;
+        looped := looped + INT_TO_DINT(c[3].a + before);
+    END_FOR;
+END_PROGRAM
+";
+    let outcome = targeted("a store into an array", source, Scans::new(3), 90);
+    assert!(outcome.errors.is_empty());
+    assert_eq!(outcome.slot("main.first"), 103 + 11, "c[0].a after c[i].a := 103 with i = 0");
+    assert_eq!(outcome.slot("main.last"), 203 + 22, "c[3].b after c[i].b := 203 with i = 3");
+    assert_eq!(outcome.slot("main.whole"), 303 + 5 + 22, "c[3] after c[i] := one with i = 3");
+    assert_eq!(outcome.slot("main.kept"), 11 + 22 + 3);
+    assert_eq!(outcome.slot("main.member"), 4 + 44, "d[3] before and after d[i] := 44");
+    assert_eq!(outcome.slot("main.looped"), 3 * (7 + 7 + 11) + 7 + 1000 + 11);
+}
+
 /// A chain of `depth` FUNCTIONs, each calling the next inside an expression, and a PROGRAM
 /// calling the first twice.
 fn function_chain(depth: usize) -> String {
