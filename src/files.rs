@@ -40,7 +40,7 @@ pub fn project(path: &Path) -> Result<Project, Diagnostics> {
     Ok(project)
 }
 
-/// [`project`] without native code: every program on the interpreter (`plcd sim
+/// [`project`](fn@project) without native code: every program on the interpreter (`plcd sim
 /// --interpreter`, to compare the two or to measure the interpreter itself).
 pub fn interpreted_project(path: &Path) -> Result<Project, Diagnostics> {
     let config = config(path)?;

@@ -687,7 +687,7 @@ impl ValueType {
     }
 }
 
-/// Writes a scalar's text as [`format`] describes it (`BOOL` as `0`/`1`).
+/// Writes a scalar's text as [`format`](fn@format) describes it (`BOOL` as `0`/`1`).
 pub fn write_scalar(out: &mut impl fmt::Write, scalar: Scalar, slot: u64) -> fmt::Result {
     match scalar {
         Scalar::Bool => out.write_str(if slot != 0 { "1" } else { "0" }),

@@ -6,7 +6,7 @@
 //! - [`twincat`]: TwinCAT's `.TcPOU`/`.TcDUT`/`.TcGVL` files → ST text on the same lines;
 //! - [`dialect`]: the CODESYS/TwinCAT habits accepted beyond the standard, and `strict`;
 //! - [`configuration`]: a `CONFIGURATION`'s tasks and program instances → the project's;
-//! - [`compile`]: trees of all the project's `.st` files → one program per `[[program]]`
+//! - [`compile`](mod@compile): trees of all the project's `.st` files → one program per `[[program]]`
 //!   instance, the variable memory's layout and initial image, and every variable by name.
 
 pub mod ast;

@@ -9,17 +9,17 @@
 //! behaves the same with it or without it, only faster.
 //!
 //! The layers, bottom up:
-//! - [`analysis`]: what a Structured Text program's ops need (the static depth of the
+//! - `analysis`: what a Structured Text program's ops need (the static depth of the
 //!   evaluation stack at each instruction, the entry points, the blocks), and whether the
 //!   program can be compiled;
-//! - [`blocks`]: blocks and the interpreter's share from a program's leaders, for both;
-//! - [`carry`]: which values of variables a Structured Text body's blocks receive in
+//! - `blocks`: blocks and the interpreter's share from a program's leaders, for both;
+//! - `carry`: which values of variables a Structured Text body's blocks receive in
 //!   registers from the blocks before them;
-//! - [`codegen`]: Structured Text's ops as Cranelift IR;
-//! - [`il`]: the instruction list's analysis and code generator (its ops have no evaluation
+//! - `codegen`: Structured Text's ops as Cranelift IR;
+//! - `il`: the instruction list's analysis and code generator (its ops have no evaluation
 //!   stack: rungs of bit logic and data, which it compiles, and the rest, which it leaves to
 //!   the interpreter);
-//! - [`code`]: the one module with `unsafe`: executable memory and the call into it.
+//! - `code`: the one module with `unsafe`: executable memory and the call into it.
 
 #![deny(unsafe_code)]
 

@@ -1,7 +1,7 @@
-//! Structured Text syntax: the lexer ([`lex`]) and the recursive-descent parser ([`parse`]).
+//! Structured Text syntax: the lexer (`lex`) and the recursive-descent parser (`parse`).
 //!
 //! [`parse_file`] reports every syntax error of a file at once. Every message the lexer and the
-//! parser can emit is a [`Msg`]; [`message_templates`] lists them all with `{}` for the parts
+//! parser can emit is a `Msg`; [`message_templates`] lists them all with `{}` for the parts
 //! that vary, and the golden cases under `tests/golden/st-syntax` cover each template.
 
 mod lex;
