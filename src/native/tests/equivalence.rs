@@ -2836,6 +2836,33 @@ fn instruction_list_calls_on_a_short_machine_stack() {
     }
 }
 
+/// An inlined subroutine's call pushes its frame only where the code leaves from inside it: a
+/// stop there (the budget spent at any of its instructions, a division by zero, an instruction
+/// the interpreter runs) leaves the frame and the call depth as the interpreter has them, and
+/// the VM's `RET` returns with them. Subroutine 1 is compiled inline at each of its calls: from
+/// the program with an `MPUSH` pending, inside a loop (the frame keeps the loop depth), and
+/// from subroutine 2's function (one call deeper).
+#[test]
+fn a_stop_inside_an_inlined_subroutine_leaves_its_frame_pushed() {
+    // D00001 is 0 when D00000.2 is set: then subroutine 1's DIV fails if D00000.1 is set too.
+    // Its DMOV (the interpreter's) runs when D00010 is even.
+    let source = "\
+        LOAD _ON\nINC D00000\nMOV D00000 D00001\nLOAD D00000.2\nMOV 0 D00001\n\
+        LOAD D00000.0\nMPUSH\nAND NOT D00000.3\nCALL 1\nMPOP\nOUT M0000\n\
+        LOAD _ON\nFOR 2\nLOAD D00000.3\nOR _ON\nCALL 1\nNEXT\n\
+        LOAD _ON\nCALL 2\nEND\n\
+        SBRT 1\nINC D00010\nLOAD D00000.1\nDIV D00010 D00001 D00011\nLOAD D00010.0\nJMP 5\n\
+        DMOV D00010 D00020\nLABEL 5\nINC D00012\nRET\n\
+        SBRT 2\nINC D00013\nLOAD D00000.0\nMPUSH\nCALL 1\nMPOP\nOUT M0001\nRET\n";
+    let outcome = il_case("stops inside inlined calls", &[("main", source)], 16, 0, 50);
+    let vm = outcome.vm.as_ref().unwrap();
+    let word = |d: &str| vm.mem.read(&plcd_core::device::Address::parse(d).unwrap());
+    // Subroutine 1 runs twice a scan in the loop, and in the odd scans from subroutine 2 and,
+    // but for scans 9 to 15, from the program.
+    assert_eq!(word("D00010"), 2 * 16 + 8 + 4);
+    assert!(outcome.errors_with_whole_budget(ERR_DIVIDE_BY_ZERO) >= 8, "{:?}", outcome.errors);
+}
+
 /// A random instruction-list program from `seed`: rungs of contacts (nested blocks, MPUSH
 /// branches, compare contacts), coils and data instructions, now and then an edge, a timer, a
 /// counter, a division, a forward jump, a loop or a subroutine call.

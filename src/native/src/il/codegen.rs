@@ -28,8 +28,10 @@
 //!   it);
 //! - a small subroutine without calls is compiled inline at each `CALL` instead
 //!   ([`Subroutine::inline`](super::Subroutine), up to [`INLINE_BUDGET`] instructions per
-//!   function): its blocks again, for that call alone, the frame pushed and popped as above,
-//!   its `RET` a jump back after the `CALL`;
+//!   function): its blocks again, for that call alone, its `RET` a jump back after the `CALL`.
+//!   Its frame is pushed only by the paths that leave native code from inside it (a stop, or
+//!   control leaving its blocks), as the interpreter would have it there: until then nothing
+//!   reads the frame, and the `RET` would pop it again;
 //! - as in the interpreter, coils and data instructions store whatever the rung (the old value
 //!   when it is OFF) and contacts combine arithmetically: no branch on device data (`DIV` by
 //!   zero, an operation error, leaves for the interpreter on a cold path);
@@ -197,6 +199,18 @@ struct Inline {
     blocks: Vec<Block>,
     /// Where its `RET` goes: after the `CALL`, where the caller's registers are restored.
     back: Block,
+    /// The call's frame, pushed only when the code leaves from inside ([`Gen::exit`]).
+    frame: Frame,
+}
+
+/// The frame of a `CALL` as the interpreter pushes it: where to return, and the caller's
+/// registers (the loop depth is the context's, which native code never changes).
+#[derive(Clone, Copy)]
+struct Frame {
+    return_pc: usize,
+    rung: Value,
+    blocks: Value,
+    branches: Value,
 }
 
 /// The registers of the activation, as SSA variables: the rung is 0 or 1.
@@ -362,8 +376,15 @@ impl Gen<'_, '_> {
         self.b.ins().return_(&[status]);
     }
 
-    /// Leaves with `status`: the registers, with `pc`, back to the context.
+    /// Leaves with `status`: the registers, with `pc`, back to the context, and the frame of
+    /// the inlined call the code is in, if any, pushed as the interpreter would have it.
     fn exit(&mut self, pc: usize, status: u32) {
+        if let Some(frame) = self.inline.as_ref().map(|inline| inline.frame) {
+            // The depth in the context is still the caller's: read again here rather than
+            // held in a register through the subroutine for the cold paths alone.
+            let depth = self.field32(offset_of!(NativeRegs, il_depth));
+            self.push(frame, depth);
+        }
         let pc = self.b.ins().iconst(I32, pc as i64);
         self.store_regs(pc);
         self.ret(status);
@@ -608,8 +629,9 @@ impl Gen<'_, '_> {
     }
 
     /// `CALL` at `pc`, the last instruction of its block: when the rung is ON, a frame for the
-    /// return and the subroutine at `target`, with the rung ON and empty stacks; a call deeper
-    /// than `CALL_DEPTH` (an operation error) is the interpreter's.
+    /// return (pushed now, or only where the code leaves an inlined call: [`Gen::inline_call`])
+    /// and the subroutine at `target`, with the rung ON and empty stacks; a call deeper than
+    /// `CALL_DEPTH` (an operation error) is the interpreter's.
     fn call(&mut self, target: u32, pc: usize) {
         let rung = self.rung();
         let taken = self.b.create_block();
@@ -628,36 +650,48 @@ impl Gen<'_, '_> {
         self.b.switch_to_block(error);
         self.give_back_and_exit(pc, pc + 1);
         self.b.switch_to_block(push);
-        let frame = self.frame_at(depth);
-        let return_pc = self.b.ins().iconst(I32, pc as i64 + 1);
         let blocks = self.b.use_var(self.regs.blocks);
         let branches = self.b.use_var(self.regs.branches);
-        let loop_depth = self.field32(offset_of!(NativeRegs, loop_depth));
-        for (value, offset) in [
-            (return_pc, offset_of!(IlFrame, return_pc)),
-            (blocks, offset_of!(IlFrame, blocks)),
-            (branches, offset_of!(IlFrame, branches)),
-        ] {
-            self.b.ins().store(own(), value, frame, offset as i32);
-        }
-        // The rung and the loop depth are bytes.
-        for (value, offset) in
-            [(rung, offset_of!(IlFrame, rung)), (loop_depth, offset_of!(IlFrame, loop_depth))]
-        {
-            self.b.ins().istore8(own(), value, frame, offset as i32);
-        }
-        let deeper = self.b.ins().iadd_imm_s(depth, 1);
-        self.store32(deeper, offset_of!(NativeRegs, il_depth));
+        let frame = Frame { return_pc: pc + 1, rung, blocks, branches };
         let (on, zero) = (self.b.ins().iconst(I32, 1), self.b.ins().iconst(I32, 0));
         self.b.def_var(self.regs.rung, on);
         self.b.def_var(self.regs.blocks, zero);
         self.b.def_var(self.regs.branches, zero);
-        let caller = (rung, blocks, branches);
         match self.analysis.subroutine_at(target) {
-            Some(sub) if self.inlines(sub) => self.inline_call(sub, target, pc, caller),
-            Some(sub) => self.machine_call(sub, target, pc, caller),
-            None => self.enter_by_dispatch(target),
+            Some(sub) if self.inlines(sub) => self.inline_call(sub, target, frame),
+            Some(sub) => {
+                self.push(frame, depth);
+                self.machine_call(sub, target, frame);
+            }
+            None => {
+                self.push(frame, depth);
+                self.enter_by_dispatch(target);
+            }
         }
+    }
+
+    /// Pushes `frame` where the interpreter has it, on the caller's call depth `depth`: the
+    /// frame there, the depth one more. The loop depth it keeps is the context's: `FOR` and
+    /// `NEXT` are the interpreter's.
+    fn push(&mut self, frame: Frame, depth: Value) {
+        let at = self.frame_at(depth);
+        let return_pc = self.b.ins().iconst(I32, frame.return_pc as i64);
+        let loop_depth = self.field32(offset_of!(NativeRegs, loop_depth));
+        for (value, offset) in [
+            (return_pc, offset_of!(IlFrame, return_pc)),
+            (frame.blocks, offset_of!(IlFrame, blocks)),
+            (frame.branches, offset_of!(IlFrame, branches)),
+        ] {
+            self.b.ins().store(own(), value, at, offset as i32);
+        }
+        // The rung and the loop depth are bytes.
+        for (value, offset) in
+            [(frame.rung, offset_of!(IlFrame, rung)), (loop_depth, offset_of!(IlFrame, loop_depth))]
+        {
+            self.b.ins().istore8(own(), value, at, offset as i32);
+        }
+        let deeper = self.b.ins().iadd_imm_s(depth, 1);
+        self.store32(deeper, offset_of!(NativeRegs, il_depth));
     }
 
     /// Whether a `CALL` of subroutine `sub` here is compiled inline: a small subroutine without
@@ -671,38 +705,41 @@ impl Gen<'_, '_> {
         true
     }
 
-    /// The `CALL` at `pc` of subroutine `sub` (at `target`), its frame pushed and the callee's
-    /// registers set, with the subroutine's blocks compiled here, for this call alone: its
-    /// `RET` pops the frame and goes on after the `CALL` with the caller's registers
-    /// (`caller`), the budget where the subroutine left it. A stop inside leaves for the VM as
-    /// anywhere else, the frame in memory, and the VM goes on in the piece that holds the place.
-    fn inline_call(&mut self, sub: usize, target: u32, pc: usize, caller: (Value, Value, Value)) {
+    /// The `CALL` (of `frame`) of subroutine `sub` (at `target`), the callee's registers set,
+    /// with the subroutine's blocks compiled here, for this call alone: its `RET` goes on after
+    /// the `CALL` with the caller's registers (`frame`'s), the budget where the subroutine left
+    /// it. The frame is not pushed: nothing reads it while the code runs inside, and the `RET`
+    /// would pop it again (the call depth back to the caller's, the loop depth to what it was,
+    /// which nothing inside changes). Only leaving native code from inside pushes it
+    /// ([`Gen::exit`]: a stop, or control leaving the blocks), for the VM, which goes on in the
+    /// piece that holds the place.
+    fn inline_call(&mut self, sub: usize, target: u32, frame: Frame) {
         let members = self.analysis.subroutines[sub].blocks.clone();
         let blocks: Vec<Block> = members.iter().map(|_| self.b.create_block()).collect();
         let back = self.b.create_block();
         let first = self.analysis.leaders.binary_search(&target).expect("a call target leads");
         let entry = blocks[members.binary_search(&first).expect("a subroutine's first block")];
         self.b.ins().jump(entry, &[]);
-        self.inline = Some(Inline { members: members.clone(), blocks: blocks.clone(), back });
+        self.inline =
+            Some(Inline { members: members.clone(), blocks: blocks.clone(), back, frame });
         for (member, index) in members.into_iter().enumerate() {
             self.b.switch_to_block(blocks[member]);
             self.block(index);
         }
         self.inline = None;
         self.b.switch_to_block(back);
-        self.returned(caller, pc);
+        self.returned(frame);
     }
 
-    /// After the subroutine called at `pc` returned: the caller's rung and stacks as they were
-    /// at the call (`caller`, what its `RET` restores from the frame), the words held before
-    /// forgotten (the subroutine may have written any), on after the `CALL`.
-    fn returned(&mut self, caller: (Value, Value, Value), pc: usize) {
-        let (rung, blocks, branches) = caller;
-        self.b.def_var(self.regs.rung, rung);
-        self.b.def_var(self.regs.blocks, blocks);
-        self.b.def_var(self.regs.branches, branches);
+    /// After the subroutine called with `frame` returned: the caller's rung and stacks as they
+    /// were at the call (what its `RET` restores from the frame), the words held before
+    /// forgotten (the subroutine may have written any), on at the return address.
+    fn returned(&mut self, frame: Frame) {
+        self.b.def_var(self.regs.rung, frame.rung);
+        self.b.def_var(self.regs.blocks, frame.blocks);
+        self.b.def_var(self.regs.branches, frame.branches);
         self.held.clear();
-        self.go_on(pc + 1);
+        self.go_on(frame.return_pc);
     }
 
     /// Goes on at `target`, the frame of its call pushed, other than by a machine call: a
@@ -717,13 +754,13 @@ impl Gen<'_, '_> {
         }
     }
 
-    /// The `CALL` at `pc` of subroutine `sub` (at `target`), its frame pushed and the callee's
-    /// registers set: a machine call of the subroutine's function. When it returned
+    /// The `CALL` (of `frame`) of subroutine `sub` (at `target`), its frame pushed and the
+    /// callee's registers set: a machine call of the subroutine's function. When it returned
     /// ([`RETURN_RETURNED`]), the caller goes on after the `CALL` with its registers as they
-    /// were (`caller`: the rung and both stacks, which the `RET` restores from the frame) and
+    /// were (`frame`'s: the rung and both stacks, which the `RET` restores from the frame) and
     /// the budget the callee left; any other result is passed on, every register in the
     /// context where the callee stopped, as the VM finds them.
-    fn machine_call(&mut self, sub: usize, target: u32, pc: usize, caller: (Value, Value, Value)) {
+    fn machine_call(&mut self, sub: usize, target: u32, frame: Frame) {
         // The machine stack: below the context's floor, the call goes through the dispatch.
         let stack = self.b.ins().get_stack_pointer(I64);
         let floor = self.b.ins().load(
@@ -740,7 +777,7 @@ impl Gen<'_, '_> {
         crate::codegen::call_or_pass_on(&mut self.b, callee, &args, RETURN_RETURNED);
         let left = self.b.ins().load(I64, own(), self.regs_at, offset_of!(NativeRegs, left) as i32);
         self.b.def_var(self.regs.left, left);
-        self.returned(caller, pc);
+        self.returned(frame);
     }
 
     /// Subroutine `sub`'s function, imported into this one.
@@ -756,9 +793,15 @@ impl Gen<'_, '_> {
     }
 
     /// `RET` at `pc`, the last instruction of its block: back to the caller's registers and
-    /// return address, through the dispatch. A `RET` without a call (never, in a checked
-    /// program) is the interpreter's.
+    /// return address, through the dispatch; an inlined call's, which pushed no frame, a jump
+    /// back after its `CALL`. A `RET` without a call (never, in a checked program) is the
+    /// interpreter's.
     fn ret_op(&mut self, pc: usize) {
+        if let Some(inline) = &self.inline {
+            let back = inline.back;
+            self.b.ins().jump(back, &[]);
+            return;
+        }
         let depth = self.field32(offset_of!(NativeRegs, il_depth));
         let pop = self.b.create_block();
         let none = self.b.create_block();
@@ -774,11 +817,6 @@ impl Gen<'_, '_> {
         let byte = |g: &mut Self, offset: usize| g.b.ins().uload8(I32, own(), frame, offset as i32);
         let loop_depth = byte(self, offset_of!(IlFrame, loop_depth));
         self.store32(loop_depth, offset_of!(NativeRegs, loop_depth));
-        if let Some(inline) = &self.inline {
-            let back = inline.back;
-            self.b.ins().jump(back, &[]);
-            return;
-        }
         if self.piece.is_none() {
             // A subroutine's function returns to the machine call that entered it, which has
             // the caller's registers; only the budget goes back.

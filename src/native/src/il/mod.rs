@@ -91,7 +91,8 @@ pub(crate) struct Subroutine {
 
 /// Instructions of a subroutine compiled inline at its calls, at most: a call costs about 40
 /// machine instructions more than the subroutine's own work (the machine call, its function's
-/// entry and exit, the registers spilled around it), inline about 15 (the frame).
+/// entry and exit, the registers spilled around it), inline a few (the call depth's check: the
+/// frame is pushed only on the paths that leave native code from inside the subroutine).
 const INLINE_MAX: usize = 32;
 
 /// Instructions of one subroutine's function, at most (as a piece's, for the same reason): a
