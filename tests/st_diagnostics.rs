@@ -245,6 +245,14 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "strict-integer-shift",
     ),
     (
+        "IEC 61131-3 counts a shift with an integer: `SHR(w, BYTE_TO_USINT(n))` (`[st] strict` is on)",
+        "strict-bit-shift-count",
+    ),
+    (
+        "IEC 61131-3 raises a `REAL` or `LREAL` base only: `EXPT(INT_TO_REAL(i), n)` (`[st] strict` is on)",
+        "strict-integer-expt",
+    ),
+    (
         "`TIME()` is CODESYS's clock, not IEC 61131-3: measure durations with the standard timers (`TON`) (`[st] strict` is on)",
         "strict-time-clock",
     ),

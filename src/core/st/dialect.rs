@@ -38,6 +38,10 @@ pub enum Habit {
     BitWithReal,
     /// `SHL SHR ROL ROR` on an integer type, on the bit pattern of its width.
     IntegerShift,
+    /// A bit string as the count of `SHL SHR ROL ROR` (`SHR(w, n)` with a `BYTE` n).
+    BitShiftCount,
+    /// `EXPT` of an integer base, raised in the real type wanted (`LREAL` without one).
+    IntegerExpt,
     /// `TIME()`: the PLC's clock as a `TIME`.
     TimeClock,
     /// `SIZEOF(x)`: the bytes a variable or a type takes.
@@ -72,6 +76,8 @@ impl Habit {
             Habit::BitArithmetic => "IEC 61131-3 has no arithmetic on bit strings: convert to an integer first, `WORD_TO_UINT(w) + 1` (`[st] strict` is on)".to_string(),
             Habit::BitWithReal => "IEC 61131-3 has no arithmetic between a bit string and a real: convert first, `BYTE_TO_REAL(b) * r` (`[st] strict` is on)".to_string(),
             Habit::IntegerShift => "IEC 61131-3 shifts bit strings only: `WORD_TO_INT(SHR(INT_TO_WORD(i), n))` (`[st] strict` is on)".to_string(),
+            Habit::BitShiftCount => "IEC 61131-3 counts a shift with an integer: `SHR(w, BYTE_TO_USINT(n))` (`[st] strict` is on)".to_string(),
+            Habit::IntegerExpt => "IEC 61131-3 raises a `REAL` or `LREAL` base only: `EXPT(INT_TO_REAL(i), n)` (`[st] strict` is on)".to_string(),
             Habit::TimeClock => "`TIME()` is CODESYS's clock, not IEC 61131-3: measure durations with the standard timers (`TON`) (`[st] strict` is on)".to_string(),
             Habit::Sizeof => "`SIZEOF` is not IEC 61131-3 (`[st] strict` is on)".to_string(),
             Habit::ImplicitConversion => "IEC 61131-3 converts between bit strings and integers only explicitly: `BYTE_TO_INT(b)` (`[st] strict` is on)".to_string(),

@@ -503,8 +503,9 @@ impl<'a> Ctx<'a> {
                 let x = self.scalar_arg(a[0], scope, expected, Prim::LReal);
                 let mut p = x.ty.prim(&self.types);
                 // CODESYS raises an integer too: in the real type wanted, LREAL without one
+                let integer = p.is_some_and(Prim::is_integral) && !matches!(x.ty, Ty::Enum(_));
                 let x = match p {
-                    Some(ip) if ip.is_integral() && !matches!(x.ty, Ty::Enum(_)) => {
+                    Some(_) if integer && self.habit(Habit::IntegerExpt, file, a[0].span) => {
                         let r = match expected.and_then(|e| e.prim(&self.types)) {
                             Some(Prim::Real) => Prim::Real,
                             _ => Prim::LReal,
@@ -723,10 +724,13 @@ impl<'a> Ctx<'a> {
                 };
                 let c = self.scalar_arg(a[1], scope, None, Prim::LInt);
                 let cp = c.ty.prim(&self.types);
-                // a bit string count as CODESYS takes it (`SHR(w, n)` with a BYTE n)
                 if !self.want(&c, cp.is_some_and(Prim::is_integral), name, "an integer count", file)
                 {
                     return TExpr::error(span);
+                }
+                // a bit string count as CODESYS takes it (`SHR(w, n)` with a BYTE n)
+                if cp.is_some_and(Prim::is_bits) {
+                    self.habit(Habit::BitShiftCount, file, a[1].span);
                 }
                 let op = match name {
                     "SHL" => BinOp::Shl,
