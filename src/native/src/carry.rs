@@ -1,5 +1,7 @@
 //! Which values of fixed places a Structured Text body's blocks receive in registers from the
-//! blocks before them: found before the body's code is generated, used by `codegen`.
+//! blocks before them: found before the body's code is generated, used by `codegen`; and
+//! where a pointer into variable memory may point ([`Reach`]), which both follow to know what
+//! a store through it may change.
 //!
 //! Native code writes every store through to memory, and remembers in a register the value of
 //! each fixed place (a variable, a frame or FB-instance member: [`Place`]) it stored or fetched,
@@ -91,6 +93,7 @@ impl Reach {
 
 /// What one op does to the values of fixed places.
 enum Effect {
+    /// A fetch from a fixed place.
     Fetch(Key),
     /// A store at a fixed place: its value is held after it.
     Store(Place, Elem),
@@ -152,22 +155,8 @@ fn effects(code: &[Op]) -> impl Iterator<Item = Effect> + '_ {
                 stack.extend([top, top]);
                 return Effect::Nothing;
             }
-            Op::StoreInd(_) | Op::Copy(_) => {
-                let bytes = match *op {
-                    Op::StoreInd(elem) => elem.size(),
-                    Op::Copy(n) => n,
-                    _ => unreachable!(),
-                };
-                pop();
-                return match pop() {
-                    Some(Target::Vars(reach)) => {
-                        let (place, bytes) = reach.store(bytes);
-                        Effect::Changes(place, bytes)
-                    }
-                    Some(Target::Frame(offset)) => Effect::Changes(Place::Frame(offset), bytes),
-                    None => Effect::Forgets,
-                };
-            }
+            Op::StoreInd(elem) => return through_pointer(&mut stack, elem.size()),
+            Op::Copy(n) => return through_pointer(&mut stack, n),
             Op::CallFn { .. } | Op::CallFb { .. } => (Effect::Forgets, None),
             _ => (Effect::Nothing, None),
         };
@@ -180,6 +169,20 @@ fn effects(code: &[Op]) -> impl Iterator<Item = Effect> + '_ {
         }
         effect
     })
+}
+
+/// A store of `bytes` bytes through the pointer under the value on top of `stack` (both
+/// popped): what it may change.
+fn through_pointer(stack: &mut Vec<Option<Target>>, bytes: u32) -> Effect {
+    stack.pop();
+    match stack.pop().flatten() {
+        Some(Target::Vars(reach)) => {
+            let (place, bytes) = reach.store(bytes);
+            Effect::Changes(place, bytes)
+        }
+        Some(Target::Frame(offset)) => Effect::Changes(Place::Frame(offset), bytes),
+        None => Effect::Forgets,
+    }
 }
 
 /// What the values held at the end of a block of `code` are, given those held at its start
