@@ -503,17 +503,16 @@ impl<'a> Ctx<'a> {
                 let x = self.scalar_arg(a[0], scope, expected, Prim::LReal);
                 let mut p = x.ty.prim(&self.types);
                 // CODESYS raises an integer too: in the real type wanted, LREAL without one
-                let integer = p.is_some_and(Prim::is_integral) && !matches!(x.ty, Ty::Enum(_));
-                let x = match p {
-                    Some(_) if integer && self.habit(Habit::IntegerExpt, file, a[0].span) => {
-                        let r = match expected.and_then(|e| e.prim(&self.types)) {
-                            Some(Prim::Real) => Prim::Real,
-                            _ => Prim::LReal,
-                        };
-                        p = Some(r);
-                        self.conv(x, r, Ty::Prim(r))
-                    }
-                    _ => x,
+                let x = if p.is_some_and(Prim::is_integral) && !matches!(x.ty, Ty::Enum(_)) {
+                    self.habit(Habit::IntegerExpt, file, a[0].span);
+                    let r = match expected.and_then(|e| e.prim(&self.types)) {
+                        Some(Prim::Real) => Prim::Real,
+                        _ => Prim::LReal,
+                    };
+                    p = Some(r);
+                    self.conv(x, r, Ty::Prim(r))
+                } else {
+                    x
                 };
                 if !self.want(
                     &x,
