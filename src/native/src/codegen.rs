@@ -41,7 +41,8 @@ use cranelift_codegen::cursor::{Cursor, FuncCursor};
 use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
 use cranelift_codegen::ir::{
     types, AbiParam, Block, BlockArg, ExtFuncData, ExternalName, FuncRef, Function, InstBuilder,
-    MemFlagsData, SigRef, Signature, Type, UserExternalName, Value,
+    InstructionData, MemFlagsData, Opcode, SigRef, Signature, Type, UserExternalName, Value,
+    ValueDef,
 };
 use cranelift_codegen::isa::TargetIsa;
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Switch, Variable};
@@ -168,6 +169,7 @@ pub(crate) fn generate(
             frame_at: unset,
             this_at: unset,
             called: unset,
+            vm_only: false,
         },
         stack,
         binary_sig,
@@ -209,7 +211,9 @@ struct Regs {
 /// pointer it was entered at, the call depth, the frame's `base` (a `u32`), the FB instance
 /// `this`, and the addresses of the frame's base and of the FB instance, checked against what
 /// the body's operands need on the way in; `called`: 1 if a native caller called it (its
-/// `RETURN` goes back to it), 0 if the VM entered it.
+/// `RETURN` goes back to it), 0 if the VM entered it; `vm_only`: no caller ever calls it (a
+/// program's body), so the context's registers hold its `depth`, `base` and `this` as long
+/// as it runs (a callee returns having written only the budget).
 struct Activation {
     pc: Value,
     sp: Value,
@@ -219,6 +223,7 @@ struct Activation {
     frame_at: Value,
     this_at: Value,
     called: Value,
+    vm_only: bool,
 }
 
 /// The registers as the context holds them between two activations' code (`NativeRegs`).
@@ -391,7 +396,9 @@ impl Gen<'_, '_> {
         } else {
             self.b.ins().iconst(I64, 0)
         };
-        self.activation = Activation { pc, sp, depth, base, this, frame_at, this_at, called };
+        let vm_only = !called_ever;
+        self.activation =
+            Activation { pc, sp, depth, base, this, frame_at, this_at, called, vm_only };
         self.b.def_var(self.regs.left, left);
         for _ in 0..self.leaders.len() {
             let block = self.b.create_block();
@@ -562,9 +569,22 @@ impl Gen<'_, '_> {
 
     /// The registers to the context: `pc`, `sp` (masked here), `left`, and the activation's
     /// own.
-    fn store_regs(&mut self, pc: Value, sp: Value, left: Value) {
-        let Activation { base, this, depth, .. } = self.activation;
-        self.store_registers(Registers { pc, sp, left, base, this, depth });
+    /// The registers of a way out of this activation with `depth` slots on its stack, those
+    /// that may differ from the context's.
+    fn store_regs(&mut self, pc: Value, depth: u32, left: Value) {
+        let Activation { base, this, depth: calls, vm_only, .. } = self.activation;
+        let sb = self.b.use_var(self.regs.sb);
+        let sp = self.b.ins().iadd_imm_s(sb, i64::from(depth));
+        if !vm_only {
+            return self.store_registers(Registers { pc, sp, left, base, this, depth: calls });
+        }
+        let ctx = self.field(offset_of!(Context, regs));
+        let pc = self.b.ins().ireduce(types::I32, pc);
+        self.b.ins().store(own(), pc, ctx, reg(offset_of!(NativeRegs, pc)));
+        self.b.ins().store(own(), left, ctx, reg(offset_of!(NativeRegs, left)));
+        // (Not the same as on the way in when it came in inside an expression.)
+        let sp = self.b.ins().band_imm_s(sp, MASK);
+        self.b.ins().store(own(), sp, ctx, reg(offset_of!(NativeRegs, sp)));
     }
 
     fn store_registers(&mut self, r: Registers) {
@@ -601,9 +621,8 @@ impl Gen<'_, '_> {
             let address = self.slot_address(sb, slot);
             self.b.ins().store(own(), value, address, 0);
         }
-        let sp = self.b.ins().iadd_imm_s(sb, i64::from(depth));
         let pc = self.b.ins().iconst(I64, i64::from(pc));
-        self.store_regs(pc, sp, left);
+        self.store_regs(pc, depth, left);
         self.ret(status);
     }
 
@@ -672,6 +691,9 @@ impl Gen<'_, '_> {
                 let f = self.b.use_var(var);
                 info.float = Some(f);
                 self.float_bits(elem, f)
+            } else if elem == Elem::Bool {
+                let x = self.b.use_var(var);
+                self.b.ins().uextend(I64, x)
             } else {
                 self.b.use_var(var)
             };
@@ -693,12 +715,16 @@ impl Gen<'_, '_> {
     }
 
     /// The variable that passes the value of `key` from block to block: a REAL's or an
-    /// LREAL's as a float, the others as a slot.
+    /// LREAL's as a float, a BOOL's as its 8-bit 0 or 1 ([`Gen::narrow`]), the others as a slot.
     fn carry_var(&mut self, key: Key) -> Variable {
         if let Some(&(_, var)) = self.carry_vars.iter().find(|(k, _)| *k == key) {
             return var;
         }
-        let ty = if key.1.is_float() { float_type(key.1) } else { I64 };
+        let ty = match key.1 {
+            elem if elem.is_float() => float_type(elem),
+            Elem::Bool => types::I8,
+            _ => I64,
+        };
         let var = self.b.declare_var(ty);
         self.carry_vars.push((key, var));
         var
@@ -727,6 +753,14 @@ impl Gen<'_, '_> {
                     self.b.ins().load(float_type(elem), data(), address, offset)
                 }
                 (None, _) => self.load_place(place, elem),
+            };
+            // A held BOOL is 0 or 1 (a fetch gives it so).
+            let value = match elem {
+                Elem::Bool => match self.narrow(value) {
+                    Some(x) => x,
+                    None => self.b.ins().ireduce(types::I8, value),
+                },
+                _ => value,
             };
             let var = self.carry_var((place, elem));
             self.b.def_var(var, value);
@@ -820,6 +854,7 @@ impl Gen<'_, '_> {
                 match (elem, self.byte_place(place)) {
                     // 0 or 1 already: stored as it is.
                     (Elem::Bool, Some((address, offset))) if info.boolean => {
+                        let v = self.narrow(v).unwrap_or(v);
                         self.b.ins().istore8(data(), v, address, offset);
                     }
                     (Elem::F32 | Elem::F64, Some((address, offset))) if info.float.is_some() => {
@@ -967,10 +1002,12 @@ impl Gen<'_, '_> {
                 match op {
                     // BOOL logic on 0s and 1s gives 0 or 1: no normalizing.
                     BinOp::And | BinOp::Or | BinOp::Xor if elem == Elem::Bool && both => {
-                        let r = match op {
-                            BinOp::And => self.b.ins().band(a, b),
-                            BinOp::Or => self.b.ins().bor(a, b),
-                            _ => self.b.ins().bxor(a, b),
+                        let r = match (self.narrow(a), self.narrow(b)) {
+                            (Some(x), Some(y)) => {
+                                let r = self.logic(op, x, y);
+                                self.b.ins().uextend(I64, r)
+                            }
+                            _ => self.logic(op, a, b),
                         };
                         self.set(d - 2, r);
                         self.info[d as usize - 2].boolean = true;
@@ -990,7 +1027,13 @@ impl Gen<'_, '_> {
             Op::Un { op, elem } => {
                 let a = self.slot(d - 1);
                 if op == UnOp::Not && elem == Elem::Bool && self.info[d as usize - 1].boolean {
-                    let r = self.b.ins().bxor_imm_s(a, 1);
+                    let r = match self.narrow(a) {
+                        Some(x) => {
+                            let r = self.b.ins().bxor_imm_s(x, 1);
+                            self.b.ins().uextend(I64, r)
+                        }
+                        None => self.b.ins().bxor_imm_s(a, 1),
+                    };
                     self.set(d - 1, r);
                     self.info[d as usize - 1].boolean = true;
                 } else if elem.is_float() {
@@ -1045,6 +1088,7 @@ impl Gen<'_, '_> {
                 let taken = self.target(target, d - 1);
                 let next = self.target(at.pc + 1, d - 1);
                 let (on_true, on_false) = if when { (taken, next) } else { (next, taken) };
+                let c = self.narrow(c).unwrap_or(c);
                 self.pass_on(&[target, at.pc + 1]);
                 self.b.ins().brif(c, on_true, &[], on_false, &[]);
                 return false;
@@ -1369,6 +1413,30 @@ impl Gen<'_, '_> {
             Elem::I64 | Elem::U64 | Elem::F64 => {
                 self.b.ins().store(data(), v, address, offset);
             }
+        }
+    }
+
+    /// BOOL `And`, `Or` or `Xor` of `a` and `b`, of one type.
+    fn logic(&mut self, op: BinOp, a: Value, b: Value) -> Value {
+        match op {
+            BinOp::And => self.b.ins().band(a, b),
+            BinOp::Or => self.b.ins().bor(a, b),
+            _ => self.b.ins().bxor(a, b),
+        }
+    }
+
+    /// The 8-bit 0 or 1 that `v` extends, when it is one (a BOOL load, a comparison, logic on
+    /// them): BOOL logic done on it and extended once is narrower code than on the extensions
+    /// (Cranelift does not narrow through `bxor`).
+    fn narrow(&self, v: Value) -> Option<Value> {
+        let ValueDef::Result(inst, _) = self.b.func.dfg.value_def(v) else { return None };
+        match self.b.func.dfg.insts[inst] {
+            InstructionData::Unary { opcode: Opcode::Uextend, arg }
+                if self.b.func.dfg.value_type(arg) == types::I8 =>
+            {
+                Some(arg)
+            }
+            _ => None,
         }
     }
 
