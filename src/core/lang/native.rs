@@ -46,8 +46,8 @@ pub struct IlFrame {
     pub loop_depth: u8,
 }
 
-/// An activation's registers as native code reads and writes them; [`Vm::run`] loads them
-/// from the [`ExecState`] before the call and stores them back after.
+/// An activation's registers as native code reads and writes them: the [`ExecState`] keeps
+/// them so, and [`Vm::run`] passes them to native code in place.
 ///
 /// [`Vm::run`]: crate::vm::Vm::run
 /// [`ExecState`]: crate::vm::ExecState

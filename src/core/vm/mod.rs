@@ -79,27 +79,38 @@ struct LoopFrame {
 /// Where one activation of a program stands.
 #[derive(Debug, Clone)]
 pub struct ExecState {
-    pc: u32,
-    /// The rung result.
-    rung: bool,
-    /// The block stack of `LOAD … AND LOAD/OR LOAD`, one bit a level, top in bit 0.
-    blocks: u32,
-    /// The `MPUSH` stack, one bit a level, top in bit 0.
-    branches: u32,
+    /// The registers, in the layout native code reads and writes them in place (no copy in
+    /// and out at each [`Vm::run`]): the next instruction; the instruction list's rung result
+    /// (0 or 1), block stack of `LOAD … AND LOAD/OR LOAD` and `MPUSH` stack (one bit a level,
+    /// top in bit 0), and its call and loop depths; Structured Text's call depth, current frame
+    /// base (a byte offset into `frame`) and FB instance (a pointer slot). `left`, `sp` and
+    /// `error` are a run's own: the budget, the stack pointer and the operation error it leaves
+    /// there (the evaluation stack keeps its own pointer between runs).
+    regs: native::NativeRegs,
     calls: [CallFrame; CALL_DEPTH],
-    call_depth: u8,
     loops: [LoopFrame; LOOP_DEPTH],
-    loop_depth: u8,
     finished: bool,
-    /// Structured Text: the evaluation stack, the calls, the current frame base (a byte offset
-    /// into `frame`) and FB instance (a pointer slot), and the frame area.
+    /// Structured Text: the evaluation stack, the calls and the frame area.
     eval: EvalStack,
     st_calls: [StFrame; ST_CALL_DEPTH],
-    st_depth: u8,
-    base: u32,
-    this: u64,
     frame: Box<[u8]>,
 }
+
+/// The registers at a program's first instruction.
+const START: native::NativeRegs = native::NativeRegs {
+    pc: 0,
+    st_depth: 0,
+    base: 0,
+    error: 0,
+    this: Pointer::DISCARD.to_slot(),
+    left: 0,
+    sp: 0,
+    rung: 1,
+    blocks: 0,
+    branches: 0,
+    il_depth: 0,
+    loop_depth: 0,
+};
 
 impl Default for ExecState {
     fn default() -> Self {
@@ -118,20 +129,12 @@ impl ExecState {
     /// [`Program::frame_bytes`] of the programs the task runs.
     pub fn with_frame(bytes: u32) -> ExecState {
         ExecState {
-            pc: 0,
-            rung: true,
-            blocks: 0,
-            branches: 0,
+            regs: START,
             calls: [CallFrame::default(); CALL_DEPTH],
-            call_depth: 0,
             loops: [LoopFrame::default(); LOOP_DEPTH],
-            loop_depth: 0,
             finished: false,
             eval: EvalStack::new(),
             st_calls: [StFrame::default(); ST_CALL_DEPTH],
-            st_depth: 0,
-            base: 0,
-            this: Pointer::DISCARD.to_slot(),
             frame: vec![0; bytes as usize].into_boxed_slice(),
         }
     }
@@ -148,28 +151,20 @@ impl ExecState {
 
     /// Back to the first instruction, for the next execution of the program.
     pub fn restart(&mut self) {
-        self.pc = 0;
-        self.rung = true;
-        self.blocks = 0;
-        self.branches = 0;
-        self.call_depth = 0;
-        self.loop_depth = 0;
+        self.regs = START;
         self.finished = false;
         self.eval.clear();
-        self.st_depth = 0;
-        self.base = 0;
-        self.this = Pointer::DISCARD.to_slot();
     }
 
     /// The next instruction to execute.
     pub fn pc(&self) -> u32 {
-        self.pc
+        self.regs.pc
     }
 
     /// Calls under way: `CALL`s of the instruction list and Structured Text FUNCTION and
     /// FUNCTION_BLOCK calls (a line step steps over deeper ones).
     pub fn call_depth(&self) -> u32 {
-        u32::from(self.call_depth) + u32::from(self.st_depth)
+        self.regs.il_depth + self.regs.st_depth
     }
 
     /// True once the program has executed `END`.
@@ -180,14 +175,14 @@ impl ExecState {
     /// The instruction list's part of the activation, read-only.
     pub fn il_activation(&self) -> IlActivation {
         IlActivation {
-            rung: self.rung,
-            blocks: self.blocks,
-            branches: self.branches,
-            calls: self.calls[..usize::from(self.call_depth).min(CALL_DEPTH)]
+            rung: self.regs.rung != 0,
+            blocks: self.regs.blocks,
+            branches: self.regs.branches,
+            calls: self.calls[..(self.regs.il_depth as usize).min(CALL_DEPTH)]
                 .iter()
                 .map(|f| (f.return_pc, f.rung, f.blocks, f.branches, f.loop_depth))
                 .collect(),
-            loops: self.loops[..usize::from(self.loop_depth).min(LOOP_DEPTH)]
+            loops: self.loops[..(self.regs.loop_depth as usize).min(LOOP_DEPTH)]
                 .iter()
                 .map(|f| (f.remaining, f.end))
                 .collect(),
@@ -198,9 +193,9 @@ impl ExecState {
     pub fn st_activation(&self) -> StActivation<'_> {
         StActivation {
             eval: self.eval.live(),
-            calls: &self.st_calls[..usize::from(self.st_depth).min(ST_CALL_DEPTH)],
-            base: self.base,
-            this: self.this,
+            calls: &self.st_calls[..(self.regs.st_depth as usize).min(ST_CALL_DEPTH)],
+            base: self.regs.base,
+            this: self.regs.this,
             frame: &self.frame,
         }
     }
@@ -503,20 +498,9 @@ impl Vm {
             if left == 0 {
                 return Exit::Budget;
             }
-            let mut regs = native::NativeRegs {
-                pc: state.pc,
-                st_depth: u32::from(state.st_depth),
-                base: state.base,
-                error: 0,
-                this: state.this,
-                left,
-                sp: state.eval.sp() as u64,
-                rung: u32::from(state.rung),
-                blocks: state.blocks,
-                branches: state.branches,
-                il_depth: u32::from(state.call_depth),
-                loop_depth: u32::from(state.loop_depth),
-            };
+            state.regs.left = left;
+            state.regs.sp = state.eval.sp() as u64;
+            state.regs.error = 0;
             let mut il_memory = match program.language {
                 Language::InstructionList => Some(native::IlMemory {
                     calls: &mut state.calls,
@@ -536,34 +520,25 @@ impl Vm {
                 calls: &mut state.st_calls,
                 il: il_memory.as_mut(),
             };
-            let exit = native.run(memory, &mut regs);
-            state.pc = regs.pc;
-            state.st_depth = regs.st_depth.min(ST_CALL_DEPTH as u32) as u8;
-            state.base = regs.base;
-            state.this = regs.this;
-            state.eval.set_sp(regs.sp as usize);
-            state.rung = regs.rung != 0;
-            state.blocks = regs.blocks;
-            state.branches = regs.branches;
-            state.call_depth = regs.il_depth.min(CALL_DEPTH as u32) as u8;
-            state.loop_depth = regs.loop_depth.min(LOOP_DEPTH as u32) as u8;
-            self.steps = stop - regs.left.min(left);
+            let exit = native.run(memory, &mut state.regs);
+            state.eval.set_sp(state.regs.sp as usize);
+            self.steps = stop - state.regs.left.min(left);
             match exit {
                 native::NativeExit::End => {
                     state.finished = true;
                     return Exit::End;
                 }
                 native::NativeExit::OperationError => {
-                    let code = regs.error as u16;
+                    let code = state.regs.error as u16;
                     self.mem.raise_operation_error(code);
-                    return Exit::OperationError { code, pc: state.pc.wrapping_sub(1) };
+                    return Exit::OperationError { code, pc: state.regs.pc.wrapping_sub(1) };
                 }
                 native::NativeExit::Interpret => {
                     let left = stop - self.steps;
                     if left == 0 {
                         return Exit::Budget;
                     }
-                    let span = u64::from(native.interpret_span(state.pc).max(1));
+                    let span = u64::from(native.interpret_span(state.regs.pc).max(1));
                     match self.interpret(program, state, clock, left.min(span)) {
                         Exit::Budget => {}
                         exit => return exit,
@@ -585,10 +560,10 @@ impl Vm {
         // The budget counts down; the step count is `stop - left`.
         let stop = self.steps.saturating_add(max_steps);
         let mut regs = Regs {
-            rest: code.get(state.pc as usize..).unwrap_or_default(),
-            rung: state.rung,
-            blocks: state.blocks,
-            branches: state.branches,
+            rest: code.get(state.regs.pc as usize..).unwrap_or_default(),
+            rung: state.regs.rung != 0,
+            blocks: state.regs.blocks,
+            branches: state.regs.branches,
             left: stop - self.steps,
         };
         let machine = Machine {
@@ -609,10 +584,10 @@ impl Vm {
                 interpret::<true, C>(&mut self.mem, machine, state, code, &mut regs)
             }
         };
-        state.pc = (code.len() - regs.rest.len()) as u32;
-        state.rung = regs.rung;
-        state.blocks = regs.blocks;
-        state.branches = regs.branches;
+        state.regs.pc = (code.len() - regs.rest.len()) as u32;
+        state.regs.rung = u32::from(regs.rung);
+        state.regs.blocks = regs.blocks;
+        state.regs.branches = regs.branches;
         self.steps = stop - regs.left;
         exit
     }
@@ -764,15 +739,18 @@ fn interpret<'a, const ST: bool, C: Clock>(
         // A Structured Text call: a frame for the return, the callee's base and `this`.
         macro_rules! st_call {
             ($target:expr, $frame:expr, $this:expr) => {{
-                let depth = state.st_depth as usize;
+                let depth = state.regs.st_depth as usize;
                 if depth >= ST_CALL_DEPTH {
                     fail!(ERR_CALL_DEPTH);
                 }
-                state.st_calls[depth] =
-                    StFrame { return_pc: pc!() as u32, base: state.base, this: state.this };
-                state.st_depth += 1;
-                state.base = state.base.wrapping_add($frame);
-                state.this = $this;
+                state.st_calls[depth] = StFrame {
+                    return_pc: pc!() as u32,
+                    base: state.regs.base,
+                    this: state.regs.this,
+                };
+                state.regs.st_depth += 1;
+                state.regs.base = state.regs.base.wrapping_add($frame);
+                state.regs.this = $this;
                 jump!($target);
             }};
         }
@@ -938,7 +916,7 @@ fn interpret<'a, const ST: bool, C: Clock>(
                 }
                 Op::Call { target } if !ST => {
                     if rung {
-                        let depth = state.call_depth as usize;
+                        let depth = state.regs.il_depth as usize;
                         if depth >= CALL_DEPTH {
                             fail!(ERR_CALL_DEPTH);
                         }
@@ -947,9 +925,9 @@ fn interpret<'a, const ST: bool, C: Clock>(
                             rung,
                             blocks,
                             branches,
-                            loop_depth: state.loop_depth,
+                            loop_depth: state.regs.loop_depth as u8,
                         };
-                        state.call_depth += 1;
+                        state.regs.il_depth += 1;
                         rung = true;
                         blocks = 0;
                         branches = 0;
@@ -957,17 +935,17 @@ fn interpret<'a, const ST: bool, C: Clock>(
                     }
                 }
                 Op::Ret if !ST => {
-                    let Some(depth) = state.call_depth.checked_sub(1) else {
+                    let Some(depth) = state.regs.il_depth.checked_sub(1) else {
                         // Unreachable for checked programs: RET ends a SBRT, reached by CALL.
                         state.finished = true;
                         halt!(Exit::End);
                     };
-                    state.call_depth = depth;
+                    state.regs.il_depth = depth;
                     let frame = state.calls[depth as usize];
                     rung = frame.rung;
                     blocks = frame.blocks;
                     branches = frame.branches;
-                    state.loop_depth = frame.loop_depth;
+                    state.regs.loop_depth = u32::from(frame.loop_depth);
                     jump!(frame.return_pc);
                 }
                 Op::Jmp { target } if !ST => {
@@ -978,7 +956,7 @@ fn interpret<'a, const ST: bool, C: Clock>(
                 Op::Label if !ST => rung = true,
                 Op::For { count, end } if !ST => {
                     let count = read(mem, *count) as i16;
-                    let depth = state.loop_depth as usize;
+                    let depth = state.regs.loop_depth as usize;
                     if rung && count > 0 && depth >= LOOP_DEPTH {
                         // 4211H; the loop is skipped, the rung result left as it is.
                         let pc = (pc!() - 1) as u32;
@@ -993,26 +971,26 @@ fn interpret<'a, const ST: bool, C: Clock>(
                     rung = true;
                     if enter {
                         state.loops[depth] = LoopFrame { remaining: count as u16, end: *end };
-                        state.loop_depth += 1;
+                        state.regs.loop_depth += 1;
                     } else {
                         jump!(*end);
                     }
                 }
                 Op::Next { body } if !ST => {
                     rung = true;
-                    if let Some(depth) = (state.loop_depth as usize).checked_sub(1) {
+                    if let Some(depth) = (state.regs.loop_depth as usize).checked_sub(1) {
                         let frame = &mut state.loops[depth];
                         frame.remaining -= 1;
                         if frame.remaining > 0 {
                             jump!(*body);
                         }
-                        state.loop_depth -= 1;
+                        state.regs.loop_depth -= 1;
                     }
                 }
                 Op::Break if !ST => {
                     if rung {
-                        if let Some(depth) = (state.loop_depth as usize).checked_sub(1) {
-                            state.loop_depth -= 1;
+                        if let Some(depth) = (state.regs.loop_depth as usize).checked_sub(1) {
+                            state.regs.loop_depth -= 1;
                             jump!(state.loops[depth].end);
                         }
                     }
@@ -1093,19 +1071,19 @@ fn interpret<'a, const ST: bool, C: Clock>(
                         vars,
                         &state.frame,
                         *at,
-                        state.base,
-                        state.this,
+                        state.regs.base,
+                        state.regs.this,
                         *elem,
                     );
                     push!(v);
                 }
                 Op::Store { elem, at } if ST => {
                     let v = pop!();
-                    let (base, this) = (state.base, state.this);
+                    let (base, this) = (state.regs.base, state.regs.this);
                     typed::store_place(mem, vars, &mut state.frame, *at, base, this, *elem, v);
                 }
                 Op::AddrOf(at) if ST => {
-                    push!(typed::pointer(*at, state.base, state.this).to_slot());
+                    push!(typed::pointer(*at, state.regs.base, state.regs.this).to_slot());
                 }
                 Op::Index { lo, len, stride } if ST => {
                     let index = pop!() as i64;
@@ -1219,7 +1197,7 @@ fn interpret<'a, const ST: bool, C: Clock>(
                     }
                 }
                 Op::CallFn { target, frame } if ST => {
-                    let this = state.this;
+                    let this = state.regs.this;
                     st_call!(*target, *frame, this);
                 }
                 Op::CallFb { target, frame } if ST => {
@@ -1227,15 +1205,15 @@ fn interpret<'a, const ST: bool, C: Clock>(
                     st_call!(*target, *frame, this);
                 }
                 Op::Return if ST => {
-                    let Some(depth) = state.st_depth.checked_sub(1) else {
+                    let Some(depth) = state.regs.st_depth.checked_sub(1) else {
                         // Unreachable for checked programs: a PROGRAM body ends with END.
                         state.finished = true;
                         halt!(Exit::End);
                     };
-                    state.st_depth = depth;
+                    state.regs.st_depth = depth;
                     let frame = state.st_calls[depth as usize];
-                    state.base = frame.base;
-                    state.this = frame.this;
+                    state.regs.base = frame.base;
+                    state.regs.this = frame.this;
                     jump!(frame.return_pc);
                 }
                 Op::Now if ST => {
