@@ -567,10 +567,9 @@ impl Gen<'_, '_> {
         self.b.ins().iadd(eval, offset)
     }
 
-    /// The registers to the context: `pc`, `sp` (masked here), `left`, and the activation's
-    /// own.
-    /// The registers of a way out of this activation with `depth` slots on its stack, those
-    /// that may differ from the context's.
+    /// The registers to the context on a way out of this activation with `depth` slots on its
+    /// stack: `pc`, `sp` (masked here), `left`, and the activation's own unless the context
+    /// holds them already (`vm_only`).
     fn store_regs(&mut self, pc: Value, depth: u32, left: Value) {
         let Activation { base, this, depth: calls, vm_only, .. } = self.activation;
         let sb = self.b.use_var(self.regs.sb);
@@ -854,8 +853,11 @@ impl Gen<'_, '_> {
                 match (elem, self.byte_place(place)) {
                     // 0 or 1 already: stored as it is.
                     (Elem::Bool, Some((address, offset))) if info.boolean => {
-                        let v = self.narrow(v).unwrap_or(v);
-                        self.b.ins().istore8(data(), v, address, offset);
+                        match self.narrow(v) {
+                            // (An `i8` is stored by `store`: `istore8` takes wider values.)
+                            Some(x) => self.b.ins().store(data(), x, address, offset),
+                            None => self.b.ins().istore8(data(), v, address, offset),
+                        };
                     }
                     (Elem::F32 | Elem::F64, Some((address, offset))) if info.float.is_some() => {
                         let f = self.float(elem, d - 1);
@@ -1425,9 +1427,10 @@ impl Gen<'_, '_> {
         }
     }
 
-    /// The 8-bit 0 or 1 that `v` extends, when it is one (a BOOL load, a comparison, logic on
-    /// them): BOOL logic done on it and extended once is narrower code than on the extensions
-    /// (Cranelift does not narrow through `bxor`).
+    /// The 8-bit value `v` is the zero extension of, if it is one (a BOOL fetched, a
+    /// comparison, logic on them): where `v` is a BOOL's 0 or 1, so is it, and BOOL logic done
+    /// on it and extended once is shorter code than on the extensions (Cranelift does not
+    /// narrow through `bxor` itself).
     fn narrow(&self, v: Value) -> Option<Value> {
         let ValueDef::Result(inst, _) = self.b.func.dfg.value_def(v) else { return None };
         match self.b.func.dfg.insts[inst] {
