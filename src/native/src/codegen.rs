@@ -226,11 +226,17 @@ struct Activation {
     vm_only: bool,
 }
 
-/// The registers as the context holds them between two activations' code (`NativeRegs`).
+/// The registers as the context holds them between two activations' code (`NativeRegs`);
+/// `frame`: the activation's own (`None` where the context holds them already).
 struct Registers {
     pc: Value,
     sp: Value,
     left: Value,
+    frame: Option<FrameRegisters>,
+}
+
+/// An activation's call depth, frame `base` and FB instance `this`, as `NativeRegs` holds them.
+struct FrameRegisters {
     base: Value,
     this: Value,
     depth: Value,
@@ -568,42 +574,33 @@ impl Gen<'_, '_> {
     }
 
     /// The registers to the context on a way out of this activation with `depth` slots on its
-    /// stack: `pc`, `sp` (masked here), `left`, and the activation's own unless the context
-    /// holds them already (`vm_only`).
+    /// stack: `pc`, `sp` (masked on the store), `left`, and the activation's own unless the
+    /// context holds them already (`vm_only`).
     fn store_regs(&mut self, pc: Value, depth: u32, left: Value) {
         let Activation { base, this, depth: calls, vm_only, .. } = self.activation;
         let sb = self.b.use_var(self.regs.sb);
+        // (Not the same `sp` as on the way in when it came in inside an expression.)
         let sp = self.b.ins().iadd_imm_s(sb, i64::from(depth));
-        if !vm_only {
-            return self.store_registers(Registers { pc, sp, left, base, this, depth: calls });
-        }
-        let ctx = self.field(offset_of!(Context, regs));
-        let pc = self.b.ins().ireduce(types::I32, pc);
-        self.b.ins().store(own(), pc, ctx, reg(offset_of!(NativeRegs, pc)));
-        self.b.ins().store(own(), left, ctx, reg(offset_of!(NativeRegs, left)));
-        // (Not the same as on the way in when it came in inside an expression.)
-        let sp = self.b.ins().band_imm_s(sp, MASK);
-        self.b.ins().store(own(), sp, ctx, reg(offset_of!(NativeRegs, sp)));
+        let frame = (!vm_only).then_some(FrameRegisters { base, this, depth: calls });
+        self.store_registers(Registers { pc, sp, left, frame });
     }
 
     fn store_registers(&mut self, r: Registers) {
         let ctx = self.field(offset_of!(Context, regs));
+        let pc = self.b.ins().ireduce(types::I32, r.pc);
+        self.b.ins().store(own(), pc, ctx, reg(offset_of!(NativeRegs, pc)));
+        self.b.ins().store(own(), r.left, ctx, reg(offset_of!(NativeRegs, left)));
         let sp = self.b.ins().band_imm_s(r.sp, MASK);
+        self.b.ins().store(own(), sp, ctx, reg(offset_of!(NativeRegs, sp)));
+        let Some(frame) = r.frame else { return };
         for (value, offset) in [
-            (r.pc, offset_of!(NativeRegs, pc)),
-            (r.base, offset_of!(NativeRegs, base)),
-            (r.depth, offset_of!(NativeRegs, st_depth)),
+            (frame.base, offset_of!(NativeRegs, base)),
+            (frame.depth, offset_of!(NativeRegs, st_depth)),
         ] {
             let value = self.b.ins().ireduce(types::I32, value);
             self.b.ins().store(own(), value, ctx, reg(offset));
         }
-        for (value, offset) in [
-            (r.this, offset_of!(NativeRegs, this)),
-            (r.left, offset_of!(NativeRegs, left)),
-            (sp, offset_of!(NativeRegs, sp)),
-        ] {
-            self.b.ins().store(own(), value, ctx, reg(offset));
-        }
+        self.b.ins().store(own(), frame.this, ctx, reg(offset_of!(NativeRegs, this)));
     }
 
     fn ret(&mut self, status: u32) {
@@ -1004,13 +1001,7 @@ impl Gen<'_, '_> {
                 match op {
                     // BOOL logic on 0s and 1s gives 0 or 1: no normalizing.
                     BinOp::And | BinOp::Or | BinOp::Xor if elem == Elem::Bool && both => {
-                        let r = match (self.narrow(a), self.narrow(b)) {
-                            (Some(x), Some(y)) => {
-                                let r = self.logic(op, x, y);
-                                self.b.ins().uextend(I64, r)
-                            }
-                            _ => self.logic(op, a, b),
-                        };
+                        let r = self.bool_logic(op, a, Some(b));
                         self.set(d - 2, r);
                         self.info[d as usize - 2].boolean = true;
                     }
@@ -1029,13 +1020,7 @@ impl Gen<'_, '_> {
             Op::Un { op, elem } => {
                 let a = self.slot(d - 1);
                 if op == UnOp::Not && elem == Elem::Bool && self.info[d as usize - 1].boolean {
-                    let r = match self.narrow(a) {
-                        Some(x) => {
-                            let r = self.b.ins().bxor_imm_s(x, 1);
-                            self.b.ins().uextend(I64, r)
-                        }
-                        None => self.b.ins().bxor_imm_s(a, 1),
-                    };
+                    let r = self.bool_logic(BinOp::Xor, a, None);
                     self.set(d - 1, r);
                     self.info[d as usize - 1].boolean = true;
                 } else if elem.is_float() {
@@ -1127,7 +1112,8 @@ impl Gen<'_, '_> {
                 let this = self.b.ins().load(I64, own(), frame, offset_of!(StFrame, this) as i32);
                 let sp = self.b.use_var(self.regs.sb);
                 let left = self.b.use_var(self.regs.left);
-                self.store_registers(Registers { pc, sp, left, base, this, depth });
+                let frame = Some(FrameRegisters { base, this, depth });
+                self.store_registers(Registers { pc, sp, left, frame });
                 self.ret(RETURN_CONTINUE);
                 return false;
             }
@@ -1418,12 +1404,23 @@ impl Gen<'_, '_> {
         }
     }
 
-    /// BOOL `And`, `Or` or `Xor` of `a` and `b`, of one type.
-    fn logic(&mut self, op: BinOp, a: Value, b: Value) -> Value {
-        match op {
-            BinOp::And => self.b.ins().band(a, b),
-            BinOp::Or => self.b.ins().bor(a, b),
-            _ => self.b.ins().bxor(a, b),
+    /// BOOL `And`, `Or` or `Xor` of the 0s and 1s `a` and `b` (`None`: 1, so that `Xor` is a
+    /// NOT): on the 8-bit values behind both when they have them (`narrow`), extended once.
+    fn bool_logic(&mut self, op: BinOp, a: Value, b: Option<Value>) -> Value {
+        let narrowed = match b {
+            Some(b) => self.narrow(a).zip(self.narrow(b)).map(|(x, y)| (x, Some(y))),
+            None => self.narrow(a).map(|x| (x, None)),
+        };
+        let (x, y) = narrowed.unwrap_or((a, b));
+        let r = match (op, y) {
+            (_, None) => self.b.ins().bxor_imm_s(x, 1),
+            (BinOp::And, Some(y)) => self.b.ins().band(x, y),
+            (BinOp::Or, Some(y)) => self.b.ins().bor(x, y),
+            (_, Some(y)) => self.b.ins().bxor(x, y),
+        };
+        match narrowed {
+            Some(_) => self.b.ins().uextend(I64, r),
+            None => r,
         }
     }
 
