@@ -34,6 +34,15 @@ fn try_build_with(src: &str, pou: Option<&str>, dialect: Dialect) -> Result<Comp
     compile_with(&[file], &[inst], dialect).map_err(|d| d.to_string())
 }
 
+/// The project of `dir`'s `plcd.toml` (its text `toml`), its paths relative to `dir`.
+fn configured_project(dir: &Path, toml: &str) -> Result<(), String> {
+    let config =
+        plcd_core::config::parse(toml, Path::new("plcd.toml")).map_err(|d| d.to_string())?;
+    plcd_core::project::from_config(config, |path| fs::read_to_string(dir.join(path)))
+        .map(|_| ())
+        .map_err(|d| d.to_string())
+}
+
 fn build(src: &str) -> Compiled {
     try_build(src).unwrap_or_else(|e| panic!("{e}"))
 }
@@ -589,8 +598,12 @@ fn golden_diagnostics() {
             .find_map(|l| l.strip_prefix("pou = "))
             .map(|v| v.trim_matches('"').to_string());
         let strict = toml.lines().any(|l| l.trim() == "strict = true");
-        let actual =
-            try_build_with(&src, pou.as_deref(), Dialect { strict }).err().unwrap_or_default();
+        let actual = if src.to_ascii_uppercase().contains("CONFIGURATION") {
+            // A configuration's instances are the project's: loaded as `plcd check` does.
+            configured_project(dir, &toml).err().unwrap_or_default()
+        } else {
+            try_build_with(&src, pou.as_deref(), Dialect { strict }).err().unwrap_or_default()
+        };
         let count = actual.lines().count();
         if count != 1 {
             failures.push(format!("{}: {count} diagnostics:\n{actual}", dir.display()));

@@ -271,3 +271,30 @@ END_PROGRAM
     assert_eq!(step(&mut plc).as_deref(), Some("main.st:5"));
     assert_eq!(plc.read("D00000"), 2);
 }
+
+#[test]
+fn a_program_instance_arguments_are_statements_on_their_lines() {
+    // A configuration's instance: its input is given before the body, its output copied
+    // after it, each a statement on its argument's line.
+    let configured = "\
+PROGRAM Counter
+VAR_INPUT step : INT; END_VAR
+VAR_OUTPUT total : INT; END_VAR
+total := total + step;
+END_PROGRAM
+
+CONFIGURATION c
+  VAR_GLOBAL out AT %D00020 : INT; END_VAR
+  PROGRAM main : Counter (step := 3,
+                          total => out);
+END_CONFIGURATION
+";
+    let p = project("[[program]]\nfile = \"plc.st\"\n", &[("plc.st", configured)]);
+    let mut plc = Plc::new(&p);
+    break_at(&mut plc, "plc.st:9");
+    plc.request(ModeRequest::Debug).unwrap();
+    assert_eq!(continue_(&mut plc).as_deref(), Some("plc.st:9"));
+    assert_eq!(plc.read("D00020"), 0);
+    assert_eq!(step_through(&mut plc), ["plc.st:4", "plc.st:10", "plc.st:5"]);
+    assert_eq!(plc.read("D00020"), 3, "the output copied out after the body");
+}

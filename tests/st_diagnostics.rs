@@ -71,6 +71,24 @@ const MESSAGES: &[(&str, &str)] = &[
         "`{}` is not read: bind variables and give access paths in the config file",
         "config-var-config-not-read",
     ),
+    // instance_args.rs: a configuration's program instance arguments
+    ("`{}` has no VAR_INPUT or VAR_OUTPUT `{}`{}", "config-argument-unknown"),
+    (
+        "`{}` is not a VAR_INPUT of `{}`: `:=` gives an input its value before each run",
+        "config-argument-not-an-input",
+    ),
+    (
+        "`{}` is not a VAR_OUTPUT of `{}`: `=>` copies an output out after each run",
+        "config-argument-not-an-output",
+    ),
+    (
+        "`=>` copies to a variable: a global variable or a direct address (`%QX0.1`)",
+        "config-argument-output-not-a-variable",
+    ),
+    (
+        "a program instance's argument calls no FUNCTION: it is a constant, a global variable or a direct address",
+        "config-argument-calls-a-function",
+    ),
     (
         "`{}` is not a character of STRING: a STRING holds the characters of Windows-1252",
         "string-character-not-in-charset",

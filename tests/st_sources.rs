@@ -190,3 +190,134 @@ fn an_openplc_configuration_maps_onto_the_scan_and_a_cycle_task() {
     // task1 every 5 ms: 5, 10, … 95 ms
     assert_eq!(last(&trace, "instance1.n").as_deref(), Some("19"));
 }
+
+/// A configuration in the form Beremiz and OpenPLC Editor write, with an event task
+/// (`SINGLE`) and program instances given arguments: inputs from a constant and a global,
+/// outputs to a global located at a P bit and to a direct address.
+const EVENTS_AND_ARGUMENTS: &str = "PROGRAM prog0
+  VAR_INPUT
+    speed : INT;
+  END_VAR
+  VAR_OUTPUT
+    done : BOOL;
+  END_VAR
+  VAR
+    total : INT;
+  END_VAR
+  total := total + speed;
+  done := total >= 30;
+  IF done THEN
+    RETURN;
+  END_IF;
+END_PROGRAM
+
+PROGRAM counter
+  VAR_INPUT
+    step : INT;
+  END_VAR
+  VAR_OUTPUT
+    n : INT;
+    many : BOOL;
+  END_VAR
+  n := n + step;
+  many := n > 7;
+END_PROGRAM
+
+CONFIGURATION Config0
+  RESOURCE Res0 ON PLC
+    VAR_GLOBAL
+      start_btn AT %IX0.1 : BOOL;
+      lamp AT %QX0.2 : BOOL;
+      limit : INT := 5;
+    END_VAR
+    TASK task0(INTERVAL := T#20ms,PRIORITY := 0);
+    TASK trig(SINGLE := start_btn, PRIORITY := 1);
+    PROGRAM instance0 WITH task0 : prog0 (speed := 10, done => lamp);
+    PROGRAM presses WITH trig : counter (step := limit, many => %QX0.5);
+  END_RESOURCE
+END_CONFIGURATION
+";
+
+#[test]
+fn a_single_task_runs_on_each_rising_edge_and_instances_copy_their_arguments() {
+    let dir = TempDir::new("st-configuration-events");
+    write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
+    write(dir.path(), "plc.st", EVENTS_AND_ARGUMENTS);
+    // start_btn (P0001) rises at 30 ms and again at 70 ms, falling between
+    write(dir.path(), "inputs.csv", "30ms, P0001, 1\n50ms, P0001, 0\n70ms, P0001, 1\n");
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        stdout.lines().skip(1).collect::<Vec<_>>(),
+        [
+            "  configuration Config0: TASK task0 → the scan, every 20 ms (the lowest-priority task)",
+            "  configuration Config0: TASK trig → device task 16, on each rising edge of P0001 (`start_btn`), priority 3",
+            "  configuration Config0: PROGRAM instance0 : prog0 → program \"instance0\" in the scan",
+            "  configuration Config0: PROGRAM presses : counter → program \"presses\" in task \"trig\"",
+        ]
+    );
+    let watch = "instance0.total,instance0.speed,presses.n,P0002,P0005";
+    let out = plcd(
+        dir.path(),
+        &[
+            "sim",
+            "--config",
+            "plcd.toml",
+            "--for",
+            "99ms",
+            "--inputs",
+            "inputs.csv",
+            "--watch",
+            watch,
+            "--trace",
+            "-",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let trace = String::from_utf8_lossy(&out.stdout);
+    // the scan at 0, 20, 40, 60 and 80 ms, speed 10 from the configuration each time
+    assert_eq!(last(&trace, "instance0.speed").as_deref(), Some("10"), "{trace}");
+    assert_eq!(last(&trace, "instance0.total").as_deref(), Some("50"));
+    // done from the third scan on, when the body RETURNs: copied to lamp all the same
+    assert_eq!(last(&trace, "P0002").as_deref(), Some("1"));
+    // the edges are read at the scans of 40 and 80 ms: two runs of 5 (limit)
+    assert_eq!(last(&trace, "presses.n").as_deref(), Some("10"));
+    assert_eq!(last(&trace, "P0005").as_deref(), Some("1"));
+}
+
+#[test]
+fn every_wrong_argument_of_a_program_instance_is_reported_at_once() {
+    let dir = TempDir::new("st-configuration-arguments");
+    write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
+    let text = "PROGRAM prog0
+  VAR_INPUT speed : INT; END_VAR
+  VAR_OUTPUT done : BOOL; END_VAR
+  VAR count : INT; END_VAR
+  count := count + speed;
+  done := count > 100;
+END_PROGRAM
+
+CONFIGURATION Config0
+  VAR_GLOBAL small : SINT; END_VAR
+  VAR_GLOBAL CONSTANT c : BOOL := TRUE; END_VAR
+  PROGRAM a : prog0 (speed := TRUE, done => small, count := 1);
+  PROGRAM b : prog0 (speed := %MW2, done => c, speed => small, sped := 1);
+END_CONFIGURATION
+";
+    write(dir.path(), "plc.st", text);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        "plc.st:12:31: error: type mismatch: `BOOL` cannot be assigned to `INT` (use BOOL_TO_INT)
+plc.st:12:45: error: type mismatch: `BOOL` cannot be assigned to `SINT`
+plc.st:12:52: error: `count` is not a VAR_INPUT of `prog0`: `:=` gives an input its value before each run
+plc.st:13:31: error: type mismatch: `WORD` cannot be assigned to `INT` (use WORD_TO_INT)
+plc.st:13:45: error: `c` is CONSTANT: it cannot be written
+plc.st:13:48: error: `speed` is not a VAR_OUTPUT of `prog0`: `=>` copies an output out after each run
+plc.st:13:64: error: `prog0` has no VAR_INPUT or VAR_OUTPUT `sped` (did you mean `speed`?)
+plcd.toml: 7 error(s)
+"
+    );
+}

@@ -362,7 +362,14 @@ fn expand_configurations(
         };
         let others: Vec<&ProgramConfig> =
             config.programs.iter().enumerate().filter(|&(j, _)| j != i).map(|(_, p)| p).collect();
-        match configuration::map(conf, entry, &config.tasks, &others, config.plc.scan_period_ms) {
+        match configuration::map(
+            conf,
+            &file,
+            entry,
+            &config.tasks,
+            &others,
+            config.plc.scan_period_ms,
+        ) {
             Ok(mapped) => {
                 notes.extend(mapped.notes);
                 config.tasks.extend(mapped.tasks);
@@ -508,14 +515,30 @@ where
             col: entry.col,
         })
         .collect();
+    let args: Vec<&[st::ast::ProgramArg]> =
+        entries.iter().map(|entry| configured_args(entry, &files)).collect();
     let dialect = st::dialect::Dialect { strict: config.st.strict };
-    match st::compile_with(&files, &instances, dialect) {
+    match st::compile_configured(&files, &instances, &args, dialect) {
         Ok(compiled) => Some(compiled),
         Err(errors) => {
             reader.diags.extend(errors);
             None
         }
     }
+}
+
+/// The arguments of a configuration's program instance (`PROGRAM i : P (a := x)`) that `entry`
+/// stands for; none for another `[[program]]`.
+fn configured_args<'f>(
+    entry: &ProgramConfig,
+    files: &'f [st::ast::File],
+) -> &'f [st::ast::ProgramArg] {
+    let file = files.iter().find(|f| entry.configured && f.path == entry.resolved);
+    let decl =
+        file.and_then(|f| st::configuration::of_file(f, &f.path).ok().flatten()).and_then(|c| {
+            c.resources.iter().flat_map(|r| &r.programs).find(|d| d.name.is(&entry.name))
+        });
+    decl.map_or(&[], |d| &d.args)
 }
 
 /// `DI(n)` and `EI(n)` of Structured Text name a configured task, as the instruction list's

@@ -26,6 +26,9 @@ pub struct ProgramConfig {
     pub language: Language,
     /// `pou`: the PROGRAM of a `.st` file to instantiate; default the file's only PROGRAM.
     pub pou: Option<String>,
+    /// Whether it is a program instance of a `CONFIGURATION` in `file` (`PROGRAM name …`),
+    /// whose arguments the compile reads there.
+    pub configured: bool,
     /// Line of the `file` value in the config, for diagnostics about the program file.
     pub line: u32,
     /// Column of the `file` value.
@@ -177,6 +180,7 @@ pub(super) fn validate(
             task,
             language,
             pou,
+            configured: false,
             line,
             col,
         });

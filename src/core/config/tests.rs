@@ -139,6 +139,7 @@ fn a_minimal_config_takes_every_default() {
             task: TaskRef::Scan,
             language: Language::InstructionList,
             pou: None,
+            configured: false,
             line: 2,
             col: 8,
         }]
@@ -198,6 +199,7 @@ fn the_contract_example_parses_to_its_defaults() {
             task: TaskRef::Scan,
             language: Language::InstructionList,
             pou: None,
+            configured: false,
             line: 17,
             col: 8,
         }],

@@ -79,19 +79,47 @@ pub struct Resource {
 #[derive(Debug, Clone, PartialEq)]
 pub struct TaskDecl {
     pub name: Ident,
-    pub properties: Vec<(Ident, Expr)>,
+    pub properties: Vec<(Ident, ConfigValue)>,
     pub span: Span,
 }
 
-/// `PROGRAM name WITH task : Type;`.
+/// A value written in a configuration, where IEC 61131-3 accepts a direct address as well as
+/// an expression (`SINGLE := %IX0.1`).
+#[derive(Debug, Clone, PartialEq)]
+pub enum ConfigValue {
+    Expr(Expr),
+    /// `%IX0.1`: the text after the `%`, with the place of the `%`.
+    Location(Ident),
+}
+
+impl ConfigValue {
+    pub fn span(&self) -> Span {
+        match self {
+            ConfigValue::Expr(e) => e.span,
+            ConfigValue::Location(l) => l.span,
+        }
+    }
+}
+
+/// `PROGRAM name WITH task : Type (a := x, b => y);`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProgramDecl {
     pub name: Ident,
     pub task: Option<Ident>,
     pub pou: Ident,
-    /// `(…)` after the type: arguments (not read).
-    pub args: Option<Span>,
+    /// `(…)` after the type: what is copied into its inputs before each run and out of its
+    /// outputs after it.
+    pub args: Vec<ProgramArg>,
     pub span: Span,
+}
+
+/// One argument of a program instance: `a := x` (`output` false) gives the VAR_INPUT `a` the
+/// value `x`, `b => y` (`output` true) copies the VAR_OUTPUT `b` to `y`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProgramArg {
+    pub name: Ident,
+    pub output: bool,
+    pub value: ConfigValue,
 }
 
 /// `ACTION Name: … END_ACTION`: a body of a PROGRAM or FUNCTION_BLOCK on its variables, called

@@ -5,16 +5,19 @@
 //! | IEC | plcd |
 //! |---|---|
 //! | `TASK t (INTERVAL := T#20ms, PRIORITY := p)` | a cycle task of 20 ms, priority `2 + p` (at most 7), the next free cycle number |
+//! | `TASK t (SINGLE := v, PRIORITY := p)` | a device task on the rising edge of `v`'s bit, priority `2 + p`, the next free device number |
 //! | `TASK t (PRIORITY := p)` (no interval) | the scan |
 //! | `PROGRAM i WITH t : P;` | the program instance `i` of `P` in `t`'s task |
 //! | `PROGRAM i : P;` (no task) | the instance in the scan |
+//! | `PROGRAM i : P (a := x, b => y);` | the same; the compile copies the arguments ([`crate::st::compile`]) |
 //! | nothing in the scan | the interval task of the lowest priority is the scan, its interval the scan period (unless `[plc] scan_period_ms` is set) |
 
 use std::path::Path;
 
-use crate::config::{Language, ProgramConfig, TaskConfig, TaskKind, TaskRef};
+use crate::config::{DeviceCondition, Language, ProgramConfig, TaskConfig, TaskKind, TaskRef};
+use crate::device::Address;
 use crate::diag::Diagnostic;
-use crate::st::ast::{self, ExprKind, Literal};
+use crate::st::ast::{self, ConfigValue, ExprKind, Literal};
 
 /// What a configuration adds to the project.
 #[derive(Debug, Clone, PartialEq)]
@@ -33,9 +36,65 @@ pub struct Mapped {
 struct Task<'a> {
     decl: &'a ast::TaskDecl,
     interval_ms: Option<u32>,
+    /// SINGLE: the device bit whose rising edge starts it, and how it was named.
+    single: Option<(Address, String)>,
     priority: u8,
     /// Its name is the project's already (reported): it maps to nothing.
     clash: bool,
+}
+
+/// What SINGLE accepts, the end of each of its errors.
+const SINGLE_FORMS: &str = "SINGLE names a BOOL global located at a device bit \
+                            (`start AT %IX0.1 : BOOL;`) or a device bit (`SINGLE := %IX0.1`)";
+
+/// The device bit `%text` names (an IEC direct address or a plcd device).
+fn device_bit(text: &str) -> Option<Address> {
+    let text = match crate::st::compile::iec_address(text) {
+        Ok(Some((device, Some(1)))) => device,
+        Ok(None) => text.to_string(),
+        _ => return None,
+    };
+    Address::parse(&text).ok().filter(|a| a.as_bit().is_ok())
+}
+
+/// The device bit SINGLE names: a direct address, or a BOOL global of `file` (the
+/// configuration's or the file's own) located at one; with the name the notes give it.
+fn single_bit(
+    value: &ConfigValue,
+    conf: &ast::Configuration,
+    file: &ast::File,
+) -> Result<(Address, String), String> {
+    let name = match value {
+        ConfigValue::Location(loc) => {
+            return match device_bit(&loc.name) {
+                Some(bit) => Ok((bit, format!("%{}", loc.name))),
+                None => Err(format!("`%{}` is not a device bit: {SINGLE_FORMS}", loc.name)),
+            };
+        }
+        ConfigValue::Expr(ast::Expr { kind: ExprKind::Name(name), .. }) => name,
+        ConfigValue::Expr(_) => return Err(SINGLE_FORMS.to_string()),
+    };
+    let top = file.items.iter().filter_map(|i| match i {
+        ast::Item::Globals(block) => Some(block),
+        _ => None,
+    });
+    let decl = conf
+        .globals
+        .iter()
+        .chain(top)
+        .flat_map(|block| &block.decls)
+        .find(|d| d.names.iter().any(|n| n.is(&name.name)));
+    let Some(decl) = decl else {
+        return Err(format!("`{}` is not a VAR_GLOBAL of this file: {SINGLE_FORMS}", name.name));
+    };
+    match &decl.ty {
+        ast::TypeRef::Named(ty) if ty.is("BOOL") => {}
+        _ => return Err(format!("`{}` is not a BOOL: {SINGLE_FORMS}", name.name)),
+    }
+    match decl.location.as_ref().and_then(|loc| device_bit(&loc.name)) {
+        Some(bit) => Ok((bit, name.name.clone())),
+        None => Err(format!("`{}` is not located at a device bit: {SINGLE_FORMS}", name.name)),
+    }
 }
 
 /// Maps `conf`, declared in the file of `entry`, next to the config's own `tasks` and
@@ -43,6 +102,7 @@ struct Task<'a> {
 /// in the file.
 pub fn map(
     conf: &ast::Configuration,
+    file: &ast::File,
     entry: &ProgramConfig,
     tasks: &[TaskConfig],
     programs: &[&ProgramConfig],
@@ -67,32 +127,69 @@ pub fn map(
                 format!("task `{name}` is already a task of the project"),
             );
         }
-        let mut task = Task { decl, interval_ms: None, priority: 0, clash };
+        let mut task = Task { decl, interval_ms: None, single: None, priority: 0, clash };
+        let mut interval_at = None;
         for (key, value) in &decl.properties {
+            let expr = match value {
+                ConfigValue::Expr(e) => Some(&e.kind),
+                ConfigValue::Location(_) => None,
+            };
             match key.name.to_ascii_uppercase().as_str() {
-                "INTERVAL" => match value.kind {
-                    ExprKind::Literal(Literal::Time(ns))
-                        if ns >= 1_000_000 && ns % 1_000_000 == 0 && ns / 1_000_000 <= i128::from(u32::MAX) =>
+                "INTERVAL" => match expr {
+                    Some(&ExprKind::Literal(Literal::Time(ns)))
+                        if ns >= 1_000_000
+                            && ns % 1_000_000 == 0
+                            && ns / 1_000_000 <= i128::from(u32::MAX) =>
                     {
                         task.interval_ms = Some((ns / 1_000_000) as u32);
+                        interval_at = Some(key.span);
                     }
-                    _ => error(&mut errors, value.span, "INTERVAL must be a duration of whole milliseconds, at least `T#1ms`".to_string()),
+                    _ => error(
+                        &mut errors,
+                        value.span(),
+                        "INTERVAL must be a duration of whole milliseconds, at least `T#1ms`"
+                            .to_string(),
+                    ),
                 },
-                "PRIORITY" => match value.kind {
-                    ExprKind::Literal(Literal::Int(p)) => task.priority = p.min(5) as u8,
-                    _ => error(&mut errors, value.span, "PRIORITY must be a number, 0 the highest".to_string()),
+                "PRIORITY" => match expr {
+                    Some(&ExprKind::Literal(Literal::Int(p))) => task.priority = p.min(5) as u8,
+                    _ => error(
+                        &mut errors,
+                        value.span(),
+                        "PRIORITY must be a number, 0 the highest".to_string(),
+                    ),
                 },
-                "SINGLE" => error(&mut errors, key.span, "SINGLE is not read: an event task is a `[[task]]` of kind \"io\" or \"device\" in the config file".to_string()),
-                other => error(&mut errors, key.span, format!("`{other}` is not a property of a TASK: INTERVAL, PRIORITY or SINGLE")),
+                "SINGLE" => match single_bit(value, conf, file) {
+                    Ok(single) => task.single = Some(single),
+                    Err(msg) => error(&mut errors, value.span(), msg),
+                },
+                other => error(
+                    &mut errors,
+                    key.span,
+                    format!("`{other}` is not a property of a TASK: INTERVAL, PRIORITY or SINGLE"),
+                ),
             }
+        }
+        if let (Some(at), Some(_)) = (interval_at, &task.single) {
+            // IEC runs such a task periodically while SINGLE is FALSE; a plcd task starts on one
+            // event or on a period.
+            error(
+                &mut errors,
+                at,
+                "a TASK with SINGLE takes no INTERVAL: it runs on SINGLE's rising edges alone"
+                    .to_string(),
+            );
+            task.interval_ms = None;
         }
         read.push(task);
     }
-    // which instances run in the scan: those of no task or of a task without an interval
+    // which instances run in the scan: those of no task or of a task without an interval or
+    // an event
     let decls: Vec<&ast::ProgramDecl> = conf.resources.iter().flat_map(|r| &r.programs).collect();
+    let continuous = |r: &Task<'_>| r.interval_ms.is_none() && r.single.is_none();
     let in_scan = |d: &ast::ProgramDecl| match &d.task {
         None => true,
-        Some(t) => read.iter().any(|r| r.decl.name.is(&t.name) && r.interval_ms.is_none()),
+        Some(t) => read.iter().any(|r| r.decl.name.is(&t.name) && continuous(r)),
     };
     let others_in_scan = programs.iter().any(|p| p.task == TaskRef::Scan);
     let mut scan_task: Option<&str> = None;
@@ -113,14 +210,42 @@ pub fn map(
     let mut mapped =
         Mapped { tasks: Vec::new(), programs: Vec::new(), scan_period_ms: None, notes: Vec::new() };
     let name = &conf.name.name;
-    let mut numbers = tasks
-        .iter()
-        .filter(|t| matches!(t.kind, TaskKind::Cycle { .. }))
-        .map(|t| t.number)
-        .collect::<Vec<u8>>();
+    let mut numbers = tasks.iter().map(|t| t.number).collect::<Vec<u8>>();
     for task in read.iter().filter(|t| !t.clash) {
         let tname = task.decl.name.name.as_str();
         let iec = format!("configuration {name}: TASK {tname}");
+        if let Some((device, named)) = &task.single {
+            // A device task: plcd samples the bit after each scan, as an IEC scheduler samples
+            // SINGLE (an io task would need a hardware contact, P0000 to P0007).
+            let Some(number) = (16..=23).find(|n| !numbers.contains(n)) else {
+                error(
+                    &mut errors,
+                    task.decl.name.span,
+                    "no device task number is left (16 to 23)".to_string(),
+                );
+                continue;
+            };
+            numbers.push(number);
+            let priority = (2 + task.priority).min(*TaskConfig::PRIORITY.end());
+            mapped.tasks.push(TaskConfig {
+                name: tname.to_string(),
+                number,
+                priority,
+                kind: TaskKind::Device { device: *device, condition: DeviceCondition::Rising },
+                max_exec_ms: None,
+                line: entry.line,
+                col: entry.col,
+            });
+            let bit = if named.starts_with('%') {
+                format!("{device} ({named})")
+            } else {
+                format!("{device} (`{named}`)")
+            };
+            mapped.notes.push(format!(
+                "{iec} → device task {number}, on each rising edge of {bit}, priority {priority}"
+            ));
+            continue;
+        }
         match task.interval_ms {
             Some(ms) if scan_task != Some(tname) => {
                 let Some(number) = (0..=7).find(|n| !numbers.contains(n)) else {
@@ -170,14 +295,6 @@ pub fn map(
             );
             continue;
         }
-        if let Some(at) = decl.args {
-            error(
-                &mut errors,
-                at,
-                "a program instance's arguments are not read: connect its variables in the program"
-                    .to_string(),
-            );
-        }
         let task = match &decl.task {
             None => TaskRef::Scan,
             Some(t) => match read.iter().find(|r| r.decl.name.is(&t.name)) {
@@ -189,9 +306,7 @@ pub fn map(
                     );
                     continue;
                 }
-                Some(r)
-                    if r.interval_ms.is_none() || scan_task == Some(r.decl.name.name.as_str()) =>
-                {
+                Some(r) if continuous(r) || scan_task == Some(r.decl.name.name.as_str()) => {
                     TaskRef::Scan
                 }
                 Some(r) => TaskRef::Named(r.decl.name.name.clone()),
@@ -212,6 +327,7 @@ pub fn map(
             task,
             language: Language::StructuredText,
             pou: Some(decl.pou.name.clone()),
+            configured: true,
             line: entry.line,
             col: entry.col,
         });

@@ -16,5 +16,5 @@ pub mod dialect;
 pub mod syntax;
 pub mod twincat;
 
-pub use compile::{compile, compile_with, Compiled, Instance};
+pub use compile::{compile, compile_configured, compile_with, Compiled, Instance};
 pub use syntax::parse_file;

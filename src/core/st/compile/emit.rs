@@ -1552,3 +1552,59 @@ pub fn compile_body(cx: &mut Ctx<'_>, p: usize, body: &[TStmt]) -> Body {
     }
     b
 }
+
+/// The copies of a program instance's arguments (`instance_args`), written in `file`: code of
+/// the instance, its variables relative to it as its body's are, without an end of its own.
+pub fn compile_copies(cx: &mut Ctx<'_>, file: usize, copies: &[TStmt]) -> Body {
+    let mut em = Em {
+        cx,
+        kind: PouKind::Program,
+        file,
+        b: Body::default(),
+        line: copies.first().map_or(0, |s| s.line),
+        sp: 0,
+        max_sp: 0,
+        tmp: 0,
+        loops: Vec::new(),
+        returns: Vec::new(),
+        depth_reported: false,
+    };
+    em.stmts(copies);
+    em.b
+}
+
+/// A PROGRAM's body with one instance's argument copies: `inputs` first, then the body, then
+/// `outputs` where the body's final `End` was (so a RETURN, a jump to it, copies the outputs
+/// too), then the `End`, still the statement of `END_PROGRAM`. The copies' temporaries share
+/// the frame with the body's `VAR_TEMP`, which is set up after them and dead before them.
+pub fn with_copies(body: &Body, inputs: &Body, outputs: &Body) -> Body {
+    let mut out =
+        Body { frame: body.frame.max(inputs.frame).max(outputs.frame), ..Body::default() };
+    let end = body.code.len() - 1;
+    debug_assert!(matches!(body.code[end], Op::End));
+    for (part, len) in [(inputs, inputs.code.len()), (body, end), (outputs, outputs.code.len())] {
+        let start = out.code.len();
+        let first_const = out.consts.len() as u32;
+        out.consts.extend_from_slice(&part.consts);
+        let shift = start as u32;
+        out.code.extend(part.code[..len].iter().map(|op| match *op {
+            Op::Goto(t) => Op::Goto(t + shift),
+            Op::GotoIf { target, when } => Op::GotoIf { target: target + shift, when },
+            Op::PushConst(i) => Op::PushConst(i + first_const),
+            other => other,
+        }));
+        out.lines.extend_from_slice(&part.lines[..len]);
+        let inside = |at: &usize| *at < len;
+        out.statements
+            .extend(part.statements.iter().filter(|&&pc| (pc as usize) < len).map(|pc| pc + shift));
+        out.var_relocs.extend(part.var_relocs.iter().filter(|r| inside(r)).map(|r| r + start));
+        out.callee_relocs
+            .extend(part.callee_relocs.iter().filter(|r| inside(r)).map(|r| r + start));
+        out.calls
+            .extend(part.calls.iter().filter(|(at, _)| inside(at)).map(|&(at, c)| (at + start, c)));
+    }
+    out.statements.push(out.code.len() as u32);
+    out.code.push(Op::End);
+    out.lines.push(body.lines[end]);
+    out
+}

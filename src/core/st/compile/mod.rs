@@ -6,7 +6,8 @@
 //! - `decl`: declarations: types, globals, POU interfaces, memory layout, initial images,
 //!   located variables (the IEC direct address table is at `decl::iec_address`);
 //! - `expr`, `stmt`, `stdlib`, `refs` (references and pointers): checking into a typed tree;
-//! - `emit`: the typed tree to ops; `link` (here): one program per instance, symbols.
+//! - `emit`: the typed tree to ops; `link` (here): one program per instance, symbols;
+//! - `instance_args`: a configuration's program instance arguments, as copies in its code.
 //!
 //! Choices (docs/ST.md repeats them):
 //! - Globals are visible in every POU without VAR_EXTERNAL (as in CODESYS); a VAR_EXTERNAL
@@ -38,6 +39,7 @@ mod ctx;
 mod decl;
 mod emit;
 mod expr;
+mod instance_args;
 mod refs;
 mod stdlib;
 mod stmt;
@@ -95,6 +97,19 @@ pub fn compile(files: &[ast::File], instances: &[Instance<'_>]) -> Result<Compil
 pub fn compile_with(
     files: &[ast::File],
     instances: &[Instance<'_>],
+    dialect: Dialect,
+) -> Result<Compiled, Diagnostics> {
+    compile_configured(files, instances, &[], dialect)
+}
+
+/// [`compile_with`], with the arguments of each instance a `CONFIGURATION` declares
+/// (`PROGRAM i : P (a := x, b => y)`), in the order of `instances` (none past the end of
+/// `args`): each instance's code assigns its inputs before its body and copies its outputs
+/// after it.
+pub fn compile_configured(
+    files: &[ast::File],
+    instances: &[Instance<'_>],
+    args: &[&[ast::ProgramArg]],
     dialect: Dialect,
 ) -> Result<Compiled, Diagnostics> {
     let (prelude, prelude_diags) = super::syntax::parse_file(Path::new(PRELUDE_PATH), PRELUDE);
@@ -161,12 +176,33 @@ pub fn compile_with(
         }
         i += 1;
     }
+    // the configured instances' arguments, in the configuration's file
+    let mut copies: Vec<Option<(usize, instance_args::Copies)>> = Vec::new();
+    for (k, (inst, placed)) in instances.iter().zip(&placed).enumerate() {
+        let given = args.get(k).copied().unwrap_or_default();
+        let file = cx.files.iter().position(|f| f.path == inst.file);
+        copies.push(match (placed, file) {
+            (Some((p, _)), Some(file)) if !given.is_empty() => {
+                Some((file, cx.check_instance_args(*p, file, given)))
+            }
+            _ => None,
+        });
+    }
     // Code once every body is checked: a body's entry depends on how the others call it
     // (`PouInfo::called_with_en`).
     for (p, body) in checked {
         let compiled = emit::compile_body(&mut cx, p, &body);
         cx.pous[p].body = Some(compiled);
     }
+    let copies: Vec<Option<(emit::Body, emit::Body)>> = copies
+        .into_iter()
+        .map(|c| {
+            c.map(|(file, c)| {
+                let inputs = emit::compile_copies(&mut cx, file, &c.inputs);
+                (inputs, emit::compile_copies(&mut cx, file, &c.outputs))
+            })
+        })
+        .collect();
     check_recursion(&mut cx);
 
     if !cx.diags.is_empty() || !diags.is_empty() {
@@ -199,9 +235,12 @@ pub fn compile_with(
             }
         }
     }
-    for (inst, placed) in instances.iter().zip(&placed) {
+    for ((inst, placed), copies) in instances.iter().zip(&placed).zip(&copies) {
         let (p, base) = placed.expect("no errors");
-        if let Err(d) = link(&cx, inst, p, base, &mut programs) {
+        let body = copies.as_ref().map(|(inputs, outputs)| {
+            emit::with_copies(cx.pous[p].body.as_ref().expect("compiled"), inputs, outputs)
+        });
+        if let Err(d) = link(&cx, inst, p, body.as_ref(), base, &mut programs) {
             diags.push(d);
             continue;
         }
@@ -399,14 +438,20 @@ fn check_recursion(cx: &mut Ctx<'_>) {
     }
 }
 
-/// One instance's program: its body, then the bodies it calls.
+/// One instance's program: its body (`own`, when its arguments' copies make it its own), then
+/// the bodies it calls.
 fn link(
     cx: &Ctx<'_>,
     inst: &Instance<'_>,
     p: usize,
+    own: Option<&emit::Body>,
     base: u32,
     out: &mut Vec<Program>,
 ) -> Result<(), Diagnostic> {
+    let body_of = |q: usize| match own {
+        Some(body) if q == p => body,
+        _ => cx.pous[q].body.as_ref().expect("compiled"),
+    };
     // the POUs reachable from the program, in first-call order
     let mut order = vec![p];
     let mut i = 0;
@@ -427,7 +472,7 @@ fn link(
     let main_path = cx.path(cx.pous[p].file).to_path_buf();
     let mut current = main_path.clone();
     for &q in &order {
-        let body = cx.pous[q].body.as_ref().expect("compiled");
+        let body = body_of(q);
         let start = code.len() as u32;
         starts.insert(q, start);
         let path = cx.path(cx.pous[q].file).to_path_buf();
@@ -480,7 +525,7 @@ fn link(
     }
     // call targets
     for &q in &order {
-        let body = cx.pous[q].body.as_ref().expect("compiled");
+        let body = body_of(q);
         let s = starts[&q] as usize;
         for &(at, callee) in &body.calls {
             let t = starts[&callee];
@@ -492,13 +537,18 @@ fn link(
         }
     }
     // the deepest chain of frames
-    fn need(cx: &Ctx<'_>, q: usize, memo: &mut HashMap<usize, u32>) -> u32 {
+    fn need<'b>(
+        cx: &Ctx<'_>,
+        q: usize,
+        body_of: &dyn Fn(usize) -> &'b emit::Body,
+        memo: &mut HashMap<usize, u32>,
+    ) -> u32 {
         if let Some(&n) = memo.get(&q) {
             return n;
         }
-        let body = cx.pous[q].body.as_ref().expect("compiled");
-        let deepest = cx.pous[q].callees.iter().map(|(c, _)| need(cx, *c, memo)).max().unwrap_or(0);
-        let n = body.frame + deepest;
+        let deepest =
+            cx.pous[q].callees.iter().map(|(c, _)| need(cx, *c, body_of, memo)).max().unwrap_or(0);
+        let n = body_of(q).frame + deepest;
         memo.insert(q, n);
         n
     }
@@ -507,7 +557,7 @@ fn link(
     let at_program = |message: String| {
         Diagnostic::new(cx.path(pou.file), pou.name_span().line, pou.name_span().col, message)
     };
-    let frame_bytes = need(cx, p, &mut HashMap::new());
+    let frame_bytes = need(cx, p, &body_of, &mut HashMap::new());
     if frame_bytes > decl::MAX_FRAME {
         return Err(at_program(format!(
             "`{}` needs {frame_bytes} bytes of frame with its calls (limit 1 MiB)",

@@ -654,7 +654,7 @@ impl<'a> Parser<'a> {
             loop {
                 let key = self.ident()?;
                 self.expect_p(P::Assign, Want::Assign)?;
-                properties.push((key, self.expr()?));
+                properties.push((key, self.config_value()?));
                 if !self.eat_p(P::Comma) {
                     break;
                 }
@@ -663,6 +663,16 @@ impl<'a> Parser<'a> {
         self.expect_p(P::RParen, Want::CommaOrRParen)?;
         self.end_decl(Want::SemiAfterDecl);
         Ok(TaskDecl { name, properties, span })
+    }
+
+    /// A value in a configuration: a direct address (`%IX0.1`) or an expression.
+    fn config_value(&mut self) -> PResult<ConfigValue> {
+        if !self.at(&Tok::Location) {
+            return Ok(ConfigValue::Expr(self.expr()?));
+        }
+        let span = self.span();
+        let at = self.bump();
+        Ok(ConfigValue::Location(Ident { name: self.text_of(at)[1..].to_string(), span }))
     }
 
     /// `PROGRAM [RETAIN | NON_RETAIN] name [WITH task] : Type [(…)];`
@@ -679,14 +689,21 @@ impl<'a> Parser<'a> {
         };
         self.expect_p(P::Colon, Want::Colon)?;
         let pou = self.ident()?;
-        let args = if self.at_p(P::LParen) {
-            let at = self.span();
-            self.bump();
-            self.args()?;
-            Some(at)
-        } else {
-            None
-        };
+        let mut args = Vec::new();
+        if self.eat_p(P::LParen) && !self.eat_p(P::RParen) {
+            loop {
+                let name = self.ident()?;
+                let output = self.eat_p(P::Arrow);
+                if !output {
+                    self.expect_p(P::Assign, Want::Assign)?;
+                }
+                args.push(ProgramArg { name, output, value: self.config_value()? });
+                if !self.eat_p(P::Comma) {
+                    break;
+                }
+            }
+            self.expect_p(P::RParen, Want::CommaOrRParen)?;
+        }
         self.end_decl(Want::SemiAfterDecl);
         Ok(ProgramDecl { name, task, pou, args, span })
     }

@@ -998,6 +998,31 @@ fn a_configuration_holds_resources_tasks_and_program_instances() {
 }
 
 #[test]
+fn a_configuration_takes_direct_addresses_and_program_arguments() {
+    let text = "PROGRAM p END_PROGRAM\nCONFIGURATION c\n\
+                TASK trig(SINGLE := %IX0.1, PRIORITY := 1);\n\
+                PROGRAM i WITH trig : p (speed := limit + 1, run := %IX0.2, done => %QX0.3, n => g);\n\
+                PROGRAM j : p();\n\
+                END_CONFIGURATION\n";
+    let items = parse_ok(text);
+    let Item::Configuration(c) = &items[1] else { panic!("{items:?}") };
+    let res = &c.resources[0];
+    let (key, value) = &res.tasks[0].properties[0];
+    assert!(key.is("SINGLE"));
+    let ConfigValue::Location(at) = value else { panic!("{value:?}") };
+    assert_eq!((at.name.as_str(), at.span.col), ("IX0.1", 21));
+    let args = &res.programs[0].args;
+    let written: Vec<(&str, bool)> =
+        args.iter().map(|a| (a.name.name.as_str(), a.output)).collect();
+    assert_eq!(written, [("speed", false), ("run", false), ("done", true), ("n", true)]);
+    assert!(
+        matches!(&args[0].value, ConfigValue::Expr(e) if matches!(e.kind, ExprKind::Binary(..)))
+    );
+    assert!(matches!(&args[2].value, ConfigValue::Location(l) if l.name == "QX0.3"));
+    assert!(res.programs[1].args.is_empty());
+}
+
+#[test]
 fn partly_specified_addresses_and_partial_bit_access() {
     assert_eq!(toks("%I*"), [Tok::Location]);
     assert_eq!(toks("%QX* : BOOL"), [Tok::Location, Tok::P(P::Colon), Tok::Ident]);
