@@ -68,9 +68,28 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` is a FUNCTION: only a PROGRAM or a FUNCTION_BLOCK has actions", "action-of-function"),
     ("`{}` is an action: it takes no arguments", "action-with-arguments"),
     (
-        "`{}` is not read: bind variables and give access paths in the config file",
-        "config-var-config-not-read",
+        "`{}` is not read: clients name a program instance's variables as they are (`plcctl get i.x`)",
+        "config-var-access-not-read",
     ),
+    // var_config.rs: VAR_CONFIG
+    ("`{}` is not a PROGRAM instance of the configuration{}", "config-var-config-not-an-instance"),
+    ("VAR_CONFIG names a variable of a program instance: `{}.variable`", "config-var-config-no-variable"),
+    ("`{}` has no variable `{}`{}", "config-var-config-unknown-variable"),
+    (
+        "VAR_CONFIG binds a variable of a program instance (`{}.{}`), not one inside it: the code of a FUNCTION_BLOCK is shared by all its instances",
+        "config-var-config-inside-an-instance",
+    ),
+    (
+        "`{}` has {} instances in the project: VAR_CONFIG binds a variable of a PROGRAM with one instance (its code is shared by all)",
+        "config-var-config-program-with-two-instances",
+    ),
+    (
+        "`{}.{}` is not declared at a partly specified address (`AT %I*`, `%Q*`, `%M*`): VAR_CONFIG binds only such a variable",
+        "config-var-config-not-partly-specified",
+    ),
+    ("`%{}` does not fit `{}`, declared at `%{}`", "config-var-config-address-does-not-fit"),
+    ("`{}.{}` is `{}`, not `{}`", "config-var-config-type"),
+    ("`{}` is already bound by VAR_CONFIG (line {})", "config-var-config-bound-twice"),
     // instance_args.rs: a configuration's program instance arguments
     ("`{}` has no VAR_INPUT or VAR_OUTPUT `{}`{}", "config-argument-unknown"),
     (

@@ -321,3 +321,73 @@ plcd.toml: 7 error(s)
 "
     );
 }
+
+/// Variables declared at partly specified addresses, bound to devices by the configuration's
+/// `VAR_CONFIG`: the program reads and writes the devices, and an entry's initial value is the
+/// device's at RUN start.
+const VAR_CONFIG: &str = "PROGRAM blink
+  VAR
+    lamp AT %Q* : BOOL;
+    level AT %MW* : INT := 7;
+    seen AT %IX* : BOOL;
+    n : INT;
+    copies : INT;
+  END_VAR
+  n := n + 1;
+  lamp := n MOD 2 = 1;
+  level := level + 1;
+  IF seen THEN
+    copies := copies + 1;
+  END_IF;
+END_PROGRAM
+
+CONFIGURATION Config0
+  RESOURCE Res0 ON PLC
+    TASK main_task(INTERVAL := T#10ms, PRIORITY := 0);
+    PROGRAM inst WITH main_task : blink;
+  END_RESOURCE
+  VAR_CONFIG
+    inst.lamp AT %QX0.3 : BOOL;
+    inst.level AT %MW5 : INT := 100;
+    inst.seen AT %IX0.1 : BOOL;
+  END_VAR
+END_CONFIGURATION
+";
+
+#[test]
+fn var_config_binds_partly_specified_variables_to_devices() {
+    let dir = TempDir::new("st-configuration-var-config");
+    write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
+    write(dir.path(), "plc.st", VAR_CONFIG);
+    // the input of `seen` on from 15 ms: read by the scans of 20 ms on
+    write(dir.path(), "inputs.csv", "15ms, P0001, 1\n");
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let watch = "inst.n,inst.copies,inst.level,P0003,M005";
+    let out = plcd(
+        dir.path(),
+        &[
+            "sim",
+            "--config",
+            "plcd.toml",
+            "--for",
+            "25ms",
+            "--inputs",
+            "inputs.csv",
+            "--watch",
+            watch,
+            "--trace",
+            "-",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let trace = String::from_utf8_lossy(&out.stdout);
+    // three scans, at 0, 10 and 20 ms: n = 3, the lamp on (3 is odd) at P0003
+    assert_eq!(last(&trace, "inst.n").as_deref(), Some("3"), "{trace}");
+    assert_eq!(last(&trace, "P0003").as_deref(), Some("1"));
+    // level at M005 from VAR_CONFIG's 100 (not the declaration's 7), one more a scan
+    assert_eq!(last(&trace, "M005").as_deref(), Some("103"));
+    assert_eq!(last(&trace, "inst.level").as_deref(), Some("103"));
+    // seen (P0001) read at the scan of 20 ms only
+    assert_eq!(last(&trace, "inst.copies").as_deref(), Some("1"));
+}

@@ -515,10 +515,10 @@ where
             col: entry.col,
         })
         .collect();
-    let args: Vec<&[st::ast::ProgramArg]> =
-        entries.iter().map(|entry| configured_args(entry, &files)).collect();
+    let configured: Vec<Option<&st::ast::ProgramDecl>> =
+        entries.iter().map(|entry| configured_declaration(entry, &files)).collect();
     let dialect = st::dialect::Dialect { strict: config.st.strict };
-    match st::compile_configured(&files, &instances, &args, dialect) {
+    match st::compile_configured(&files, &instances, &configured, dialect) {
         Ok(compiled) => Some(compiled),
         Err(errors) => {
             reader.diags.extend(errors);
@@ -527,18 +527,15 @@ where
     }
 }
 
-/// The arguments of a configuration's program instance (`PROGRAM i : P (a := x)`) that `entry`
-/// stands for; none for another `[[program]]`.
-fn configured_args<'f>(
+/// The declaration of the configuration's program instance (`PROGRAM i : P (a := x);`) that
+/// `entry` stands for; none for another `[[program]]`.
+fn configured_declaration<'f>(
     entry: &ProgramConfig,
     files: &'f [st::ast::File],
-) -> &'f [st::ast::ProgramArg] {
-    let file = files.iter().find(|f| entry.configured && f.path == entry.resolved);
-    let decl =
-        file.and_then(|f| st::configuration::of_file(f, &f.path).ok().flatten()).and_then(|c| {
-            c.resources.iter().flat_map(|r| &r.programs).find(|d| d.name.is(&entry.name))
-        });
-    decl.map_or(&[], |d| &d.args)
+) -> Option<&'f st::ast::ProgramDecl> {
+    let file = files.iter().find(|f| entry.configured && f.path == entry.resolved)?;
+    let conf = st::configuration::of_file(file, &file.path).ok().flatten()?;
+    conf.resources.iter().flat_map(|r| &r.programs).find(|d| d.name.is(&entry.name))
 }
 
 /// `DI(n)` and `EI(n)` of Structured Text name a configured task, as the instruction list's

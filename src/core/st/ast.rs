@@ -62,8 +62,23 @@ pub struct Configuration {
     /// `RESOURCE … END_RESOURCE` blocks; tasks and programs written directly in the
     /// configuration make one resource without a name.
     pub resources: Vec<Resource>,
-    /// Where a `VAR_CONFIG` or `VAR_ACCESS` block is (not read).
+    /// The entries of its `VAR_CONFIG` blocks.
+    pub var_config: Vec<ConfigVar>,
+    /// Where a `VAR_ACCESS` block is (not read).
     pub unread: Vec<(Span, &'static str)>,
+    pub span: Span,
+}
+
+/// One entry of `VAR_CONFIG`: `instance.variable AT %QX0.1 : BOOL [:= init];`, the device of a
+/// variable declared at a partly specified address (`AT %Q*`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConfigVar {
+    /// The instance path as written (`instance`, `variable`, …).
+    pub path: Vec<Ident>,
+    /// The text after `AT %`, with the place of the `%`.
+    pub location: Ident,
+    pub ty: TypeRef,
+    pub init: Option<Init>,
     pub span: Span,
 }
 

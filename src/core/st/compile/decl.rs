@@ -76,7 +76,7 @@ impl<'a> Ctx<'a> {
                         // config takes (`st::configuration`)
                         self.global_blocks.extend(c.globals.iter().map(|b| (fi, b)));
                         for &(span, what) in &c.unread {
-                            let msg = format!("`{what}` is not read: bind variables and give access paths in the config file");
+                            let msg = format!("`{what}` is not read: clients name a program instance's variables as they are (`plcctl get i.x`)");
                             self.error(fi, span, msg);
                         }
                         continue;
@@ -1201,7 +1201,7 @@ impl<'a> Ctx<'a> {
     }
 
     /// The device of `AT %…` for a variable of `ty`.
-    fn locate(
+    pub(super) fn locate(
         &mut self,
         file: usize,
         loc: &ast::Ident,
@@ -1318,7 +1318,7 @@ impl<'a> Ctx<'a> {
         Some((Storage::Word(word.0), addr))
     }
 
-    fn located_init_for(
+    pub(super) fn located_init_for(
         &mut self,
         s: Storage,
         ty: &Ty,

@@ -112,8 +112,9 @@ impl Ctx<'_> {
         copies
     }
 
-    /// A direct address as a variable (`%IX0.1` a BOOL; `%IW3`, `%QB2`, `%MD10`, `%ML4` a WORD,
-    /// BYTE, DWORD, LWORD; a plcd bit device a BOOL, a word device a WORD).
+    /// A direct address as a variable (`%IX0.1` a BOOL; `%IW3`, `%MD10`, `%ML4` a WORD, DWORD,
+    /// LWORD, and `%QB2` a BYTE as a located variable takes it; a plcd bit device a BOOL, a
+    /// word device a WORD).
     fn direct_variable(&mut self, location: &ast::Ident, file: usize) -> TExpr {
         let span = location.span;
         let (text, bits) = match iec_address(&location.name) {

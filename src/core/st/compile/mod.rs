@@ -7,7 +7,9 @@
 //!   located variables (the IEC direct address table is at `decl::iec_address`);
 //! - `expr`, `stmt`, `stdlib`, `refs` (references and pointers): checking into a typed tree;
 //! - `emit`: the typed tree to ops; `link` (here): one program per instance, symbols;
-//! - `instance_args`: a configuration's program instance arguments, as copies in its code.
+//! - `instance_args`: a configuration's program instance arguments, as copies in its code;
+//! - `var_config`: a configuration's `VAR_CONFIG`, variables at partly specified addresses
+//!   bound to devices.
 //!
 //! Choices (docs/ST.md repeats them):
 //! - Globals are visible in every POU without VAR_EXTERNAL (as in CODESYS); a VAR_EXTERNAL
@@ -44,6 +46,7 @@ mod refs;
 mod stdlib;
 mod stmt;
 pub mod types;
+mod var_config;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -102,16 +105,17 @@ pub fn compile_with(
     compile_configured(files, instances, &[], dialect)
 }
 
-/// [`compile_with`], with the arguments of each instance a `CONFIGURATION` declares
-/// (`PROGRAM i : P (a := x, b => y)`), in the order of `instances` (none past the end of
-/// `args`): each instance's code assigns its inputs before its body and copies its outputs
-/// after it.
+/// [`compile_with`], with the declaration in its file's `CONFIGURATION` of each instance that
+/// one declares (`PROGRAM i : P (a := x, b => y);`), in the order of `instances` (none past
+/// the end of `configured`): each such instance's code assigns its inputs before its body and
+/// copies its outputs after it, and the configuration's `VAR_CONFIG` binds its variables.
 pub fn compile_configured(
     files: &[ast::File],
     instances: &[Instance<'_>],
-    args: &[&[ast::ProgramArg]],
+    configured: &[Option<&ast::ProgramDecl>],
     dialect: Dialect,
 ) -> Result<Compiled, Diagnostics> {
+    let declaration = |k: usize| configured.get(k).copied().flatten();
     let (prelude, prelude_diags) = super::syntax::parse_file(Path::new(PRELUDE_PATH), PRELUDE);
     let mut diags: Vec<Diagnostic> = prelude_diags.0;
     let mut refs: Vec<&ast::File> = files.iter().collect();
@@ -158,6 +162,32 @@ pub fn compile_configured(
         }));
     }
 
+    // VAR_CONFIG, before any body names the variables it binds
+    let programs: Vec<Option<usize>> = placed.iter().map(|x| x.map(|(p, _)| p)).collect();
+    let mut configuration_files: Vec<usize> = Vec::new();
+    for (k, inst) in instances.iter().enumerate() {
+        let file = cx.files.iter().position(|f| f.path == inst.file);
+        if let Some(f) =
+            file.filter(|f| declaration(k).is_some() && !configuration_files.contains(f))
+        {
+            configuration_files.push(f);
+        }
+    }
+    for f in configuration_files {
+        let file: &ast::File = cx.files[f];
+        let Some(conf) = file.items.iter().find_map(|i| match i {
+            ast::Item::Configuration(c) => Some(c),
+            _ => None,
+        }) else {
+            continue;
+        };
+        let declared: Vec<(&str, Option<usize>)> = (0..instances.len())
+            .filter(|&k| declaration(k).is_some() && instances[k].file == file.path)
+            .map(|k| (instances[k].name, programs[k]))
+            .collect();
+        cx.bind_var_config(f, conf, &declared, &programs);
+    }
+
     // check every user POU; the prelude's only when used
     let user: Vec<usize> =
         (0..cx.pous.len()).filter(|&p| cx.pous[p].file != prelude_file).collect();
@@ -179,7 +209,7 @@ pub fn compile_configured(
     // the configured instances' arguments, in the configuration's file
     let mut copies: Vec<Option<(usize, instance_args::Copies)>> = Vec::new();
     for (k, (inst, placed)) in instances.iter().zip(&placed).enumerate() {
-        let given = args.get(k).copied().unwrap_or_default();
+        let given = declaration(k).map_or(&[][..], |d| &d.args[..]);
         let file = cx.files.iter().position(|f| f.path == inst.file);
         copies.push(match (placed, file) {
             (Some((p, _)), Some(file)) if !given.is_empty() => {

@@ -569,6 +569,7 @@ impl<'a> Parser<'a> {
             name,
             globals: Vec::new(),
             resources: Vec::new(),
+            var_config: Vec::new(),
             unread: Vec::new(),
             span,
         };
@@ -614,9 +615,19 @@ impl<'a> Parser<'a> {
         let tok = self.tok().clone();
         match tok {
             Tok::Kw(Kw::VarGlobal) => conf.globals.push(self.var_block()),
-            Tok::Kw(kw @ (Kw::VarConfig | Kw::VarAccess)) => {
-                let what = if kw == Kw::VarConfig { "VAR_CONFIG" } else { "VAR_ACCESS" };
-                conf.unread.push((self.span(), what));
+            Tok::Kw(Kw::VarConfig) => {
+                let opened = self.span();
+                self.bump();
+                while self.at(&Tok::Ident) {
+                    match self.config_var() {
+                        Ok(v) => conf.var_config.push(v),
+                        Err(_) => self.sync_decl(),
+                    }
+                }
+                self.close(Closer::Var, "VAR_CONFIG", opened);
+            }
+            Tok::Kw(Kw::VarAccess) => {
+                conf.unread.push((self.span(), "VAR_ACCESS"));
                 while !self.at_kw(Kw::EndVar) && !self.at(&Tok::Eof) && !self.at_kw(end) {
                     self.bump();
                 }
@@ -663,6 +674,30 @@ impl<'a> Parser<'a> {
         self.expect_p(P::RParen, Want::CommaOrRParen)?;
         self.end_decl(Want::SemiAfterDecl);
         Ok(TaskDecl { name, properties, span })
+    }
+
+    /// `instance.variable AT %QX0.1 : BOOL [:= init];` in `VAR_CONFIG`.
+    fn config_var(&mut self) -> PResult<ConfigVar> {
+        let span = self.span();
+        let mut path = vec![self.ident()?];
+        while self.eat_p(P::Dot) {
+            path.push(self.ident()?);
+        }
+        if !self.eat_kw(Kw::At) || !self.at(&Tok::Location) {
+            return Err(self.fail(Want::Location));
+        }
+        let at = self.span();
+        let name = {
+            let token = self.bump();
+            self.text_of(token)
+        }[1..]
+            .to_string();
+        let location = Ident { name, span: at };
+        self.expect_p(P::Colon, Want::Colon)?;
+        let ty = self.type_ref()?;
+        let init = if self.eat_p(P::Assign) { Some(self.init()?) } else { None };
+        self.end_decl(Want::SemiAfterDecl);
+        Ok(ConfigVar { path, location, ty, init, span })
     }
 
     /// A value in a configuration: a direct address (`%IX0.1`) or an expression.

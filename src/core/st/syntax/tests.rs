@@ -1023,6 +1023,26 @@ fn a_configuration_takes_direct_addresses_and_program_arguments() {
 }
 
 #[test]
+fn var_config_entries_name_an_instance_path_an_address_and_a_type() {
+    let text = "PROGRAM p END_PROGRAM\nCONFIGURATION c\n\
+                PROGRAM i : p;\n\
+                VAR_CONFIG\n\
+                  i.lamp AT %QX0.1 : BOOL;\n\
+                  i.fb.level AT %MW3 : INT := 7;\n\
+                END_VAR\n\
+                END_CONFIGURATION\n";
+    let items = parse_ok(text);
+    let Item::Configuration(c) = &items[1] else { panic!("{items:?}") };
+    assert_eq!(c.var_config.len(), 2);
+    let path = |k: usize| c.var_config[k].path.iter().map(|i| i.name.clone()).collect::<Vec<_>>();
+    assert_eq!(path(0), ["i", "lamp"]);
+    assert_eq!(path(1), ["i", "fb", "level"]);
+    assert_eq!(c.var_config[0].location.name, "QX0.1");
+    assert!(c.var_config[0].init.is_none() && c.var_config[1].init.is_some());
+    assert!(c.unread.is_empty());
+}
+
+#[test]
 fn partly_specified_addresses_and_partial_bit_access() {
     assert_eq!(toks("%I*"), [Tok::Location]);
     assert_eq!(toks("%QX* : BOOL"), [Tok::Location, Tok::P(P::Colon), Tok::Ident]);
