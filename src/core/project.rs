@@ -265,7 +265,7 @@ pub fn from_config_with(
 ) -> Result<Project, Diagnostics> {
     let mut diags = Diagnostics::default();
     let mut config = config;
-    let notes = expand_configurations(&mut config, &read, &mut diags);
+    let (notes, parsed) = expand_configurations(&mut config, &read, &mut diags);
     let task_numbers: Vec<u8> = config.tasks.iter().map(|t| t.number).collect();
     let timer_base = |n: u32| config.timers.base_ms(n);
     let mut programs: Vec<Option<Program>> = Vec::with_capacity(config.programs.len());
@@ -299,7 +299,7 @@ pub fn from_config_with(
             Err(d) => reader.diags.extend(d),
         }
     }
-    let variables = match compile_structured_text(&config, &mut reader) {
+    let variables = match compile_structured_text(&config, &mut reader, parsed) {
         Some(compiled) => {
             check_task_numbers(&compiled.programs, &task_numbers, reader.diags);
             let mut st_programs = compiled.programs.into_iter();
@@ -324,18 +324,23 @@ pub fn from_config_with(
     }
 }
 
+/// A Structured Text file parsed before the compile, with its syntax errors (the compile
+/// reports them).
+type Parsed = (st::ast::File, Diagnostics);
+
 /// Replaces each Structured Text `[[program]]` whose file holds a `CONFIGURATION` (and that
 /// names no `pou`) by the configuration's program instances, and adds its tasks to the config
-/// ([`st::configuration`]); what was mapped to what, a line each. A file that cannot be read or
-/// parsed is left to the compile, which reports it; an entry whose configuration has errors
-/// is dropped with them.
+/// ([`st::configuration`]); what was mapped to what, a line each, and the files parsed to find
+/// out, which the compile takes as they are. A file that cannot be read is left to the
+/// compile, which reports it; an entry whose configuration has errors is dropped with them.
 fn expand_configurations(
     config: &mut Config,
     read: &impl Fn(&Path) -> std::io::Result<String>,
     diags: &mut Diagnostics,
-) -> Vec<String> {
+) -> (Vec<String>, Vec<Parsed>) {
     use st::configuration;
     let mut notes = Vec::new();
+    let mut parsed: Vec<Parsed> = Vec::new();
     let mut i = 0;
     while i < config.programs.len() {
         let entry = &config.programs[i];
@@ -347,8 +352,11 @@ fn expand_configurations(
             i += 1;
             continue;
         };
-        let (file, _) = st::parse_file(&entry.resolved, &text);
-        let conf = match configuration::of_file(&file, &entry.resolved) {
+        if !parsed.iter().any(|(f, _)| f.path == entry.resolved) {
+            parsed.push(st::parse_file(&entry.resolved, &text));
+        }
+        let (file, _) = parsed.iter().find(|(f, _)| f.path == entry.resolved).expect("parsed");
+        let conf = match configuration::of_file(file, &entry.resolved) {
             Ok(Some(conf)) => conf,
             Ok(None) => {
                 i += 1;
@@ -364,7 +372,7 @@ fn expand_configurations(
             config.programs.iter().enumerate().filter(|&(j, _)| j != i).map(|(_, p)| p).collect();
         match configuration::map(
             conf,
-            &file,
+            file,
             entry,
             &config.tasks,
             &others,
@@ -386,7 +394,7 @@ fn expand_configurations(
             }
         }
     }
-    notes
+    (notes, parsed)
 }
 
 /// Reads program files, a diagnostic at the config entry that names a file it cannot read.
@@ -442,13 +450,14 @@ where
     }
 }
 
-/// Parses every `.st` file of the project (its Structured Text programs and `[st] library`)
-/// and compiles one instance per Structured Text `[[program]]`, in config order. `None` when
-/// there is none, or on errors (in `reader.diags`): the syntax errors of every file, or, when
-/// every file parses, every error the compiler finds.
+/// Parses every `.st` file of the project (its Structured Text programs and `[st] library`),
+/// but those `parsed` already, and compiles one instance per Structured Text `[[program]]`, in
+/// config order. `None` when there is none, or on errors (in `reader.diags`): the syntax
+/// errors of every file, or, when every file parses, every error the compiler finds.
 fn compile_structured_text<R, L>(
     config: &Config,
     reader: &mut Reader<'_, R, L>,
+    mut parsed: Vec<Parsed>,
 ) -> Option<st::Compiled>
 where
     R: Fn(&Path) -> std::io::Result<String>,
@@ -479,6 +488,13 @@ where
     let mut files = Vec::new();
     for (path, line, col, what) in paths {
         if files.iter().any(|f: &st::ast::File| f.path == path) {
+            continue;
+        }
+        if let Some(k) = parsed.iter().position(|(f, _)| f.path == path) {
+            let (file, errors) = parsed.swap_remove(k);
+            ok &= errors.is_empty();
+            reader.diags.extend(errors);
+            files.push(file);
             continue;
         }
         let Some(mut text) = reader.read(&path, line, col, &what) else {
@@ -604,6 +620,24 @@ mod tests {
         )
         .unwrap();
         from_config(config, |_| Ok(st.to_string())).unwrap()
+    }
+
+    #[test]
+    fn a_configuration_file_is_read_and_parsed_once() {
+        let config =
+            crate::config::parse("[[program]]\nfile = \"plc.st\"\n", Path::new("/p/plcd.toml"))
+                .unwrap();
+        let text = "PROGRAM p\nVAR n : INT; END_VAR\nn := n + 1;\nEND_PROGRAM\n\
+                    CONFIGURATION c\n  PROGRAM a : p;\n  PROGRAM b : p;\nEND_CONFIGURATION\n";
+        let reads = std::cell::Cell::new(0);
+        let project = from_config(config, |_| {
+            reads.set(reads.get() + 1);
+            Ok(text.to_string())
+        })
+        .unwrap();
+        assert_eq!(reads.get(), 1);
+        let names: Vec<&str> = project.programs.iter().map(|p| p.name.as_str()).collect();
+        assert_eq!(names, ["a", "b"]);
     }
 
     #[test]
