@@ -391,3 +391,34 @@ fn var_config_binds_partly_specified_variables_to_devices() {
     // seen (P0001) read at the scan of 20 ms only
     assert_eq!(last(&trace, "inst.copies").as_deref(), Some("1"));
 }
+
+#[test]
+fn single_takes_a_direct_address_iec_or_plcd() {
+    let dir = TempDir::new("st-configuration-single-direct");
+    write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
+    let text = "PROGRAM p
+  VAR n : INT; END_VAR
+  n := n + 1;
+END_PROGRAM
+
+CONFIGURATION c
+  TASK iec(SINGLE := %MX1.2, PRIORITY := 0);
+  TASK plcd(SINGLE := %D00010.3, PRIORITY := 9);
+  PROGRAM a WITH iec : p;
+  PROGRAM b WITH plcd : p;
+  PROGRAM s : p;
+END_CONFIGURATION
+";
+    write(dir.path(), "plc.st", text);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        stdout.lines().skip(1).take(2).collect::<Vec<_>>(),
+        [
+            "  configuration c: TASK iec → device task 16, on each rising edge of M0012 (%MX1.2), priority 2",
+            // PRIORITY past 5 is plcd's lowest, 7
+            "  configuration c: TASK plcd → device task 17, on each rising edge of D00010.3 (%D00010.3), priority 7",
+        ]
+    );
+}
