@@ -323,7 +323,8 @@ plcd.toml: 7 error(s)
 }
 
 /// Variables declared at partly specified addresses, bound to devices by the configuration's
-/// `VAR_CONFIG`: the program reads and writes the devices, and an entry's initial value is the
+/// `VAR_CONFIG` (its paths as IEC writes them, from the resource, and as CODESYS does, from the
+/// instance): the program reads and writes the devices, and an entry's initial value is the
 /// device's at RUN start.
 const VAR_CONFIG: &str = "PROGRAM blink
   VAR
@@ -347,7 +348,7 @@ CONFIGURATION Config0
     PROGRAM inst WITH main_task : blink;
   END_RESOURCE
   VAR_CONFIG
-    inst.lamp AT %QX0.3 : BOOL;
+    Res0.inst.lamp AT %QX0.3 : BOOL;
     inst.level AT %MW5 : INT := 100;
     inst.seen AT %IX0.1 : BOOL;
   END_VAR

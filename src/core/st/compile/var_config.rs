@@ -35,7 +35,7 @@ impl Ctx<'_> {
     ) {
         let mut bound: Vec<(usize, usize, u32)> = Vec::new();
         for entry in &conf.var_config {
-            if let Some((p, v)) = self.bound_variable(file, entry, declared, programs) {
+            if let Some((p, v)) = self.bound_variable(file, conf, entry, declared, programs) {
                 if let Some(&(_, _, line)) = bound.iter().find(|b| (b.0, b.1) == (p, v)) {
                     let name = path_text(entry);
                     let msg = format!("`{name}` is already bound by VAR_CONFIG (line {line})");
@@ -52,11 +52,23 @@ impl Ctx<'_> {
     fn bound_variable(
         &mut self,
         file: usize,
+        conf: &ast::Configuration,
         entry: &ConfigVar,
         declared: &[(&str, Option<usize>)],
         programs: &[Option<usize>],
     ) -> Option<(usize, usize)> {
-        let instance = &entry.path[0];
+        // IEC writes the path from the resource (`Res0.instance0.x`), CODESYS from the instance
+        let path = match entry.path.split_first() {
+            Some((first, rest))
+                if rest.len() >= 2
+                    && resource_named(conf, first)
+                    && !declared.iter().any(|(name, _)| first.is(name)) =>
+            {
+                rest
+            }
+            _ => &entry.path[..],
+        };
+        let instance = &path[0];
         let Some(&(_, p)) = declared.iter().find(|(name, _)| instance.is(name)) else {
             let hint = suggest(&instance.name, declared.iter().map(|(name, _)| *name));
             let msg =
@@ -66,7 +78,7 @@ impl Ctx<'_> {
         };
         // an instance of no PROGRAM has been reported
         let p = p?;
-        let Some(variable) = entry.path.get(1) else {
+        let Some(variable) = path.get(1) else {
             let msg = format!(
                 "VAR_CONFIG names a variable of a program instance: `{}.variable`",
                 instance.name
@@ -81,7 +93,7 @@ impl Ctx<'_> {
             self.error(file, variable.span, msg);
             return None;
         };
-        if let Some(inner) = entry.path.get(2) {
+        if let Some(inner) = path.get(2) {
             let msg = format!(
                 "VAR_CONFIG binds a variable of a program instance (`{}.{}`), not one inside it: \
                  the code of a FUNCTION_BLOCK is shared by all its instances",
@@ -178,6 +190,11 @@ impl Ctx<'_> {
             }
         }
     }
+}
+
+/// Whether `name` is a RESOURCE of `conf`.
+fn resource_named(conf: &ast::Configuration, name: &ast::Ident) -> bool {
+    conf.resources.iter().filter_map(|r| r.name.as_ref()).any(|r| r.is(&name.name))
 }
 
 /// `i.x` as written.
