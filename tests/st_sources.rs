@@ -284,6 +284,25 @@ fn a_single_task_runs_on_each_rising_edge_and_instances_copy_their_arguments() {
     // the edges are read at the scans of 40 and 80 ms: two runs of 5 (limit)
     assert_eq!(last(&trace, "presses.n").as_deref(), Some("10"));
     assert_eq!(last(&trace, "P0005").as_deref(), Some("1"));
+    // the copies are ordinary code: the interpreter gives the native code's trace
+    let out = plcd(
+        dir.path(),
+        &[
+            "sim",
+            "--config",
+            "plcd.toml",
+            "--for",
+            "99ms",
+            "--inputs",
+            "inputs.csv",
+            "--watch",
+            watch,
+            "--trace",
+            "-",
+            "--interpreter",
+        ],
+    );
+    assert_eq!(String::from_utf8_lossy(&out.stdout), trace);
 }
 
 #[test]
