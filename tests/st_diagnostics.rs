@@ -88,7 +88,16 @@ const MESSAGES: &[(&str, &str)] = &[
         "config-var-config-not-partly-specified",
     ),
     ("`%{}` does not fit `{}`, declared at `%{}`", "config-var-config-address-does-not-fit"),
-    ("`{}.{}` is `{}`, not `{}`", "config-var-config-type"),
+    ("`{}` is `{}`, not `{}`", "config-var-config-type"),
+    (
+        "VAR_CONFIG entry `{}` gives neither an address (`AT %QX0.1`) nor an initial value",
+        "config-var-config-nothing-given",
+    ),
+    ("`{}` is `{}`: it has no variables or members", "config-var-config-no-members"),
+    (
+        "`{}` has no value of the instance's own: a VAR_TEMP, VAR_IN_OUT, VAR_EXTERNAL or VAR_STAT cannot be given one in VAR_CONFIG",
+        "config-var-config-not-the-instances-own",
+    ),
     ("`{}` is already bound by VAR_CONFIG (line {})", "config-var-config-bound-twice"),
     // instance_args.rs: a configuration's program instance arguments
     ("`{}` has no VAR_INPUT or VAR_OUTPUT `{}`{}", "config-argument-unknown"),

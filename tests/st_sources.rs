@@ -344,14 +344,28 @@ plcd.toml: 7 error(s)
 /// Variables declared at partly specified addresses, bound to devices by the configuration's
 /// `VAR_CONFIG` (its paths as IEC writes them, from the resource, and as CODESYS does, from the
 /// instance): the program reads and writes the devices, and an entry's initial value is the
-/// device's at RUN start.
-const VAR_CONFIG: &str = "PROGRAM blink
+/// device's at RUN start. Entries without an address give the instance's variables, its
+/// function block's and its struct's members, their initial values.
+const VAR_CONFIG: &str = "TYPE Limits : STRUCT lo : INT; hi : INT := 9; END_STRUCT END_TYPE
+
+FUNCTION_BLOCK Step
+  VAR_INPUT stride : INT := 1; END_VAR
+  VAR_OUTPUT total : INT; END_VAR
+  total := total + stride;
+END_FUNCTION_BLOCK
+
+PROGRAM blink
   VAR
     lamp AT %Q* : BOOL;
     level AT %MW* : INT := 7;
     seen AT %IX* : BOOL;
     n : INT;
     copies : INT;
+    counter : Step;
+    lim : Limits;
+    gain : INT := 1;
+    acc : INT;
+    span : INT;
   END_VAR
   n := n + 1;
   lamp := n MOD 2 = 1;
@@ -359,6 +373,9 @@ const VAR_CONFIG: &str = "PROGRAM blink
   IF seen THEN
     copies := copies + 1;
   END_IF;
+  counter();
+  acc := acc + gain;
+  span := lim.hi - lim.lo;
 END_PROGRAM
 
 CONFIGURATION Config0
@@ -370,6 +387,10 @@ CONFIGURATION Config0
     Res0.inst.lamp AT %QX0.3 : BOOL;
     inst.level AT %MW5 : INT := 100;
     inst.seen AT %IX0.1 : BOOL;
+    inst.gain : INT := 3;
+    Res0.inst.counter.stride : INT := 5;
+    inst.lim : Limits := (lo := -1);
+    inst.lim.hi : INT := 50;
   END_VAR
 END_CONFIGURATION
 ";
@@ -383,7 +404,7 @@ fn var_config_binds_partly_specified_variables_to_devices() {
     write(dir.path(), "inputs.csv", "15ms, P0001, 1\n");
     let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let watch = "inst.n,inst.copies,inst.level,P0003,M005";
+    let watch = "inst.n,inst.copies,inst.level,P0003,M005,inst.acc,inst.counter.total,inst.span";
     let out = plcd(
         dir.path(),
         &[
@@ -410,6 +431,11 @@ fn var_config_binds_partly_specified_variables_to_devices() {
     assert_eq!(last(&trace, "inst.level").as_deref(), Some("103"));
     // seen (P0001) read at the scan of 20 ms only
     assert_eq!(last(&trace, "inst.copies").as_deref(), Some("1"));
+    // initial values for the instance: 3 a scan, 5 a call of its counter
+    assert_eq!(last(&trace, "inst.acc").as_deref(), Some("9"));
+    assert_eq!(last(&trace, "inst.counter.total").as_deref(), Some("15"));
+    // lim from VAR_CONFIG's (lo := -1) and its hi := 50, not the type's 0 and 9
+    assert_eq!(last(&trace, "inst.span").as_deref(), Some("51"));
 }
 
 #[test]

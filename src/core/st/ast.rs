@@ -70,13 +70,14 @@ pub struct Configuration {
 }
 
 /// One entry of `VAR_CONFIG`: `instance.variable AT %QX0.1 : BOOL [:= init];`, the device of a
-/// variable declared at a partly specified address (`AT %Q*`).
+/// variable declared at a partly specified address (`AT %Q*`), or `instance.path : T := init;`,
+/// the initial value of a variable of that instance.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ConfigVar {
     /// The instance path as written (`instance`, `variable`, …).
     pub path: Vec<Ident>,
     /// The text after `AT %`, with the place of the `%`.
-    pub location: Ident,
+    pub location: Option<Ident>,
     pub ty: TypeRef,
     pub init: Option<Init>,
     pub span: Span,

@@ -181,11 +181,11 @@ pub fn compile_configured(
         }) else {
             continue;
         };
-        let declared: Vec<(&str, Option<usize>)> = (0..instances.len())
+        let declared: Vec<var_config::Declared<'_>> = (0..instances.len())
             .filter(|&k| declaration(k).is_some() && instances[k].file == file.path)
-            .map(|k| (instances[k].name, programs[k]))
+            .map(|k| (instances[k].name, placed[k]))
             .collect();
-        cx.bind_var_config(f, conf, &declared, &programs);
+        cx.apply_var_config(f, conf, &declared, &programs);
     }
 
     // check every user POU; the prelude's only when used

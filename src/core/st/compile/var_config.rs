@@ -1,19 +1,26 @@
-//! `VAR_CONFIG` of a configuration (docs/ST.md, Configurations): the device of a program
-//! instance's variable declared at a partly specified address (`x AT %Q* : BOOL;` in the
-//! PROGRAM, `i.x AT %QX0.1 : BOOL;` in the configuration). The variable becomes a located one, as
-//! if it had been declared at that address: every piece of code that names it reads and writes
-//! the device, and its initial value (the entry's, or else the declaration's) is written to the
-//! device at RUN start.
+//! `VAR_CONFIG` of a configuration (docs/ST.md, Configurations), its two kinds of entries:
 //!
-//! A PROGRAM's code is compiled once for all its instances, so a variable is bound for a PROGRAM
-//! with one instance in the project, and only a variable of the instance itself (`i.x`), not
-//! one inside its FUNCTION_BLOCK instances (whose code every instance of the block shares):
-//! the other cases are refused, each with its own message.
+//! - `i.x AT %QX0.1 : BOOL [:= v];` binds the variable `x` of the program instance `i`,
+//!   declared at a partly specified address (`x AT %Q* : BOOL;`), to a device. The variable
+//!   becomes a located one, as if it had been declared at that address: every piece of code
+//!   that names it reads and writes the device, and its initial value (the entry's, or else the
+//!   declaration's) is written to the device at RUN start. A PROGRAM's code is compiled once
+//!   for all its instances, so a variable is bound for a PROGRAM with one instance in the
+//!   project, and only a variable of the instance itself (`i.x`), not one inside its
+//!   FUNCTION_BLOCK instances (whose code every instance of the block shares): the other cases
+//!   are refused, each with its own message.
+//! - `i.fb.x : INT := v;` gives a variable of the instance, or of a FUNCTION_BLOCK instance or a
+//!   struct inside it, its initial value for that instance: written into the instance's own
+//!   initial image (each instance has its own memory), or for a located variable to its
+//!   device at RUN start.
+//!
+//! A path may start with the resource's name, as IEC writes it (`Res0.i.x`).
 
-use crate::st::ast::{self, ConfigVar, VarKind};
+use crate::st::ast::{self, ConfigVar, Ident, VarKind};
 
-use super::ctx::{suggest, Ctx, Scope};
+use super::ctx::{suggest, Ctx, Scope, Storage};
 use super::decl::iec_address;
+use super::types::Ty;
 
 /// Whether `full` is an IEC direct address (`QX0.1`) with the area letter and the size letter
 /// the partly specified address `partial` fixes (`Q*`: `Q` and any size; `QX*`: `Q` and `X`).
@@ -22,41 +29,57 @@ fn fits(partial: &str, full: &str) -> bool {
     full.to_ascii_uppercase().starts_with(&partial) && matches!(iec_address(full), Ok(Some(_)))
 }
 
+/// Whether a variable of this kind is the instance's own (not a VAR_TEMP, VAR_IN_OUT,
+/// VAR_EXTERNAL or VAR_STAT).
+fn own(kind: VarKind) -> bool {
+    matches!(kind, VarKind::Local | VarKind::Input | VarKind::Output | VarKind::Instance)
+}
+
+/// A configuration's program instance: its name, and its PROGRAM and the base of its variables
+/// when the PROGRAM was found.
+pub type Declared<'n> = (&'n str, Option<(usize, u32)>);
+
 impl Ctx<'_> {
-    /// Binds the `VAR_CONFIG` entries of `conf`, written in `file`: `declared` are the
-    /// configuration's program instances (name, PROGRAM when found), `programs` the PROGRAM of
-    /// each instance of the project (to count a PROGRAM's instances).
-    pub fn bind_var_config(
+    /// Applies the `VAR_CONFIG` entries of `conf`, written in `file`: `declared` are the
+    /// configuration's program instances, `programs` the PROGRAM of each instance of the
+    /// project (to count a PROGRAM's instances). The bindings first, so that an initial value
+    /// given a bound variable goes to its device.
+    pub fn apply_var_config(
         &mut self,
         file: usize,
         conf: &ast::Configuration,
-        declared: &[(&str, Option<usize>)],
+        declared: &[Declared<'_>],
         programs: &[Option<usize>],
     ) {
         let mut bound: Vec<(usize, usize, u32)> = Vec::new();
-        for entry in &conf.var_config {
-            if let Some((p, v)) = self.bound_variable(file, conf, entry, declared, programs) {
-                if let Some(&(_, _, line)) = bound.iter().find(|b| (b.0, b.1) == (p, v)) {
-                    let name = path_text(entry);
-                    let msg = format!("`{name}` is already bound by VAR_CONFIG (line {line})");
-                    self.error(file, entry.path[0].span, msg);
-                    continue;
-                }
-                bound.push((p, v, entry.span.line));
-                self.bind(file, entry, p, v);
+        for entry in conf.var_config.iter() {
+            let Some(location) = &entry.location else { continue };
+            let Some((p, v)) = self.bound_variable(file, conf, entry, location, declared, programs)
+            else {
+                continue;
+            };
+            if let Some(&(_, _, line)) = bound.iter().find(|b| (b.0, b.1) == (p, v)) {
+                let name = path_text(&entry.path);
+                let msg = format!("`{name}` is already bound by VAR_CONFIG (line {line})");
+                self.error(file, entry.path[0].span, msg);
+                continue;
             }
+            bound.push((p, v, entry.span.line));
+            self.bind(file, entry, location, p, v);
+        }
+        for entry in conf.var_config.iter().filter(|e| e.location.is_none()) {
+            self.initialize(file, conf, entry, declared);
         }
     }
 
-    /// The PROGRAM and the index of the variable `entry` names, when it may be bound.
-    fn bound_variable(
+    /// The instance an entry's path starts with (the path from it on, its PROGRAM and base).
+    fn instance_of<'e>(
         &mut self,
         file: usize,
         conf: &ast::Configuration,
-        entry: &ConfigVar,
-        declared: &[(&str, Option<usize>)],
-        programs: &[Option<usize>],
-    ) -> Option<(usize, usize)> {
+        entry: &'e ConfigVar,
+        declared: &[Declared<'_>],
+    ) -> Option<(&'e [Ident], usize, u32)> {
         // IEC writes the path from the resource (`Res0.instance0.x`), CODESYS from the instance
         let path = match entry.path.split_first() {
             Some((first, rest))
@@ -69,7 +92,7 @@ impl Ctx<'_> {
             _ => &entry.path[..],
         };
         let instance = &path[0];
-        let Some(&(_, p)) = declared.iter().find(|(name, _)| instance.is(name)) else {
+        let Some(&(_, found)) = declared.iter().find(|(name, _)| instance.is(name)) else {
             let hint = suggest(&instance.name, declared.iter().map(|(name, _)| *name));
             let msg =
                 format!("`{}` is not a PROGRAM instance of the configuration{hint}", instance.name);
@@ -77,22 +100,43 @@ impl Ctx<'_> {
             return None;
         };
         // an instance of no PROGRAM has been reported
-        let p = p?;
-        let Some(variable) = path.get(1) else {
+        let (p, base) = found?;
+        if path.len() < 2 {
             let msg = format!(
                 "VAR_CONFIG names a variable of a program instance: `{}.variable`",
                 instance.name
             );
             self.error(file, instance.span, msg);
             return None;
-        };
+        }
+        Some((path, p, base))
+    }
+
+    /// The variable `p.vars[v]` that `path[1]` names, reported when there is none.
+    fn program_variable(&mut self, file: usize, p: usize, name: &Ident) -> Option<usize> {
         let pou = &self.pous[p];
-        let Some(v) = pou.lookup(&variable.name) else {
-            let hint = suggest(&variable.name, pou.vars.iter().map(|v| v.name.as_str()));
-            let msg = format!("`{}` has no variable `{}`{hint}", pou.name, variable.name);
-            self.error(file, variable.span, msg);
-            return None;
-        };
+        let found = pou.lookup(&name.name);
+        if found.is_none() {
+            let hint = suggest(&name.name, pou.vars.iter().map(|v| v.name.as_str()));
+            let msg = format!("`{}` has no variable `{}`{hint}", pou.name, name.name);
+            self.error(file, name.span, msg);
+        }
+        found
+    }
+
+    /// The PROGRAM and the index of the variable a binding names, when it may be bound.
+    fn bound_variable(
+        &mut self,
+        file: usize,
+        conf: &ast::Configuration,
+        entry: &ConfigVar,
+        location: &Ident,
+        declared: &[Declared<'_>],
+        programs: &[Option<usize>],
+    ) -> Option<(usize, usize)> {
+        let (path, p, _) = self.instance_of(file, conf, entry, declared)?;
+        let (instance, variable) = (&path[0], &path[1]);
+        let v = self.program_variable(file, p, variable)?;
         if let Some(inner) = path.get(2) {
             let msg = format!(
                 "VAR_CONFIG binds a variable of a program instance (`{}.{}`), not one inside it: \
@@ -102,6 +146,7 @@ impl Ctx<'_> {
             self.error(file, inner.span, msg);
             return None;
         }
+        let pou = &self.pous[p];
         let count = programs.iter().filter(|&&q| q == Some(p)).count();
         if count > 1 {
             let msg = format!(
@@ -120,9 +165,7 @@ impl Ctx<'_> {
             .find(|d| d.names.iter().any(|n| n.is(&variable.name)))
             .and_then(|d| d.location.as_ref())
             .filter(|l| l.name.ends_with('*'));
-        // a variable of the instance (not a VAR_TEMP, VAR_IN_OUT, VAR_EXTERNAL or VAR_STAT)
-        let own = matches!(pou.vars[v].kind, VarKind::Local | VarKind::Input | VarKind::Output);
-        let Some(partial) = partial.filter(|_| own) else {
+        let Some(partial) = partial.filter(|_| own(pou.vars[v].kind)) else {
             let msg = format!(
                 "`{}.{}` is not declared at a partly specified address (`AT %I*`, `%Q*`, \
                  `%M*`): VAR_CONFIG binds only such a variable",
@@ -131,33 +174,40 @@ impl Ctx<'_> {
             self.error(file, variable.span, msg);
             return None;
         };
-        if !fits(&partial.name, &entry.location.name) {
+        if !fits(&partial.name, &location.name) {
             let msg = format!(
                 "`%{}` does not fit `{}`, declared at `%{}`",
-                entry.location.name, variable.name, partial.name
+                location.name, variable.name, partial.name
             );
-            self.error(file, entry.location.span, msg);
+            self.error(file, location.span, msg);
             return None;
         }
-        let scope = Scope { pou: None, visible: 0, file };
-        let ty = self.resolve_type_ref(&entry.ty, scope);
         let declared_ty = self.pous[p].vars[v].ty.clone();
-        if ty != declared_ty && !ty.is_error() && !declared_ty.is_error() {
-            let (given, declared) = (self.ty_name(&ty), self.ty_name(&declared_ty));
-            let msg =
-                format!("`{}.{}` is `{declared}`, not `{given}`", instance.name, variable.name);
-            self.error(file, variable.span, msg);
-            return None;
+        self.same_type(file, entry, path, &declared_ty).then_some((p, v))
+    }
+
+    /// Whether the type `entry` gives is `ty`, the type of the variable at `path`; reported
+    /// when not.
+    fn same_type(&mut self, file: usize, entry: &ConfigVar, path: &[Ident], ty: &Ty) -> bool {
+        let scope = Scope { pou: None, visible: 0, file };
+        let given = self.resolve_type_ref(&entry.ty, scope);
+        if given.is_error() || ty.is_error() {
+            return false;
         }
-        Some((p, v))
+        if &given == ty {
+            return true;
+        }
+        let (given, declared) = (self.ty_name(&given), self.ty_name(ty));
+        let msg = format!("`{}` is `{declared}`, not `{given}`", path_text(path));
+        self.error(file, path[path.len() - 1].span, msg);
+        false
     }
 
     /// Makes the variable `v` of the PROGRAM `p` (and of its actions, which share it) the
-    /// located variable `entry` says.
-    fn bind(&mut self, file: usize, entry: &ConfigVar, p: usize, v: usize) {
+    /// located variable at `location`.
+    fn bind(&mut self, file: usize, entry: &ConfigVar, location: &Ident, p: usize, v: usize) {
         let var = self.pous[p].vars[v].clone();
-        let Some((storage, address)) = self.locate(file, &entry.location, &var.ty, &var.name)
-        else {
+        let Some((storage, address)) = self.locate(file, location, &var.ty, &var.name) else {
             return;
         };
         for q in 0..self.pous.len() {
@@ -190,14 +240,132 @@ impl Ctx<'_> {
             }
         }
     }
+
+    /// Gives the variable an entry without an address names its initial value, in the
+    /// instance's own image (or at its device).
+    fn initialize(
+        &mut self,
+        file: usize,
+        conf: &ast::Configuration,
+        entry: &ConfigVar,
+        declared: &[Declared<'_>],
+    ) {
+        let Some((path, p, base)) = self.instance_of(file, conf, entry, declared) else { return };
+        let Some(init) = &entry.init else {
+            let msg = format!(
+                "VAR_CONFIG entry `{}` gives neither an address (`AT %QX0.1`) nor an initial value",
+                path_text(&entry.path)
+            );
+            self.error(file, entry.path[0].span, msg);
+            return;
+        };
+        let Some(v) = self.program_variable(file, p, &path[1]) else { return };
+        let var = self.pous[p].vars[v].clone();
+        let (mut ty, mut storage) = (var.ty.clone(), var.storage);
+        let mut checked = (&path[1], var.kind, var.constant);
+        for id in &path[2..] {
+            if !self.instance_value(file, path, checked) {
+                return;
+            }
+            let (member_ty, member_offset, kind, constant) = match &ty {
+                Ty::Fb(q) => {
+                    let fb = &self.pous[*q];
+                    let Some(m) = fb.lookup(&id.name).map(|i| fb.vars[i].clone()) else {
+                        let hint = suggest(&id.name, fb.vars.iter().map(|v| v.name.as_str()));
+                        let msg = format!("`{}` has no variable `{}`{hint}", fb.name, id.name);
+                        self.error(file, id.span, msg);
+                        return;
+                    };
+                    let Storage::Inst(o) = m.storage else {
+                        self.instance_value(file, path, (id, VarKind::Temp, false));
+                        return;
+                    };
+                    let kind = if m.by_ref { VarKind::InOut } else { m.kind };
+                    (m.ty, o, kind, m.constant)
+                }
+                Ty::Struct(s) => {
+                    let st = &self.types.structs[*s];
+                    let Some(m) = st.members.iter().find(|m| id.is(&m.name)).cloned() else {
+                        let hint = suggest(&id.name, st.members.iter().map(|m| m.name.as_str()));
+                        let n = st.name.clone();
+                        self.error(
+                            file,
+                            id.span,
+                            format!("`{n}` has no member `{}`{hint}", id.name),
+                        );
+                        return;
+                    };
+                    (m.ty, m.offset, VarKind::Local, false)
+                }
+                other => {
+                    let n = self.ty_name(other);
+                    let msg =
+                        format!("`{}` is `{n}`: it has no variables or members", checked.0.name);
+                    self.error(file, id.span, msg);
+                    return;
+                }
+            };
+            // a FUNCTION_BLOCK instance or a struct is never located
+            let Storage::Inst(offset) = storage else { return };
+            ty = member_ty;
+            storage = Storage::Inst(offset + member_offset);
+            checked = (id, kind, constant);
+        }
+        if !self.instance_value(file, path, checked) || !self.same_type(file, entry, path, &ty) {
+            return;
+        }
+        let scope = Scope { pou: None, visible: 0, file };
+        let name = path_text(path);
+        match storage {
+            Storage::Inst(offset) => {
+                let image = self.init_image(&ty, Some(&entry.ty), Some(init), scope, &name);
+                let at = (base + offset) as usize;
+                if let Some(slot) = self.image.get_mut(at..at + image.len()) {
+                    slot.copy_from_slice(&image);
+                }
+            }
+            Storage::Bit(_) | Storage::Word(_) => {
+                self.located_init_for(storage, &ty, &entry.ty, Some(init), scope, &name);
+            }
+            Storage::Frame(_) | Storage::Global(_) => {}
+        }
+    }
+
+    /// Whether the variable `name` (of `kind`, CONSTANT or not) has a value of the instance's
+    /// own that VAR_CONFIG may set; reported when not.
+    fn instance_value(
+        &mut self,
+        file: usize,
+        path: &[Ident],
+        (name, kind, constant): (&Ident, VarKind, bool),
+    ) -> bool {
+        if !own(kind) {
+            let msg = format!(
+                "`{}` has no value of the instance's own: a VAR_TEMP, VAR_IN_OUT, VAR_EXTERNAL \
+                 or VAR_STAT cannot be given one in VAR_CONFIG",
+                path_text(path)
+            );
+            self.error(file, name.span, msg);
+            return false;
+        }
+        if constant {
+            self.error(
+                file,
+                name.span,
+                format!("`{}` is CONSTANT: it cannot be written", name.name),
+            );
+            return false;
+        }
+        true
+    }
 }
 
 /// Whether `name` is a RESOURCE of `conf`.
-fn resource_named(conf: &ast::Configuration, name: &ast::Ident) -> bool {
+fn resource_named(conf: &ast::Configuration, name: &Ident) -> bool {
     conf.resources.iter().filter_map(|r| r.name.as_ref()).any(|r| r.is(&name.name))
 }
 
-/// `i.x` as written.
-fn path_text(entry: &ConfigVar) -> String {
-    entry.path.iter().map(|id| id.name.as_str()).collect::<Vec<_>>().join(".")
+/// A path as written (`i.fb.x`).
+fn path_text(path: &[Ident]) -> String {
+    path.iter().map(|id| id.name.as_str()).collect::<Vec<_>>().join(".")
 }

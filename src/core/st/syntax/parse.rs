@@ -676,23 +676,26 @@ impl<'a> Parser<'a> {
         Ok(TaskDecl { name, properties, span })
     }
 
-    /// `instance.variable AT %QX0.1 : BOOL [:= init];` in `VAR_CONFIG`.
+    /// `instance.variable [AT %QX0.1] : BOOL [:= init];` in `VAR_CONFIG`.
     fn config_var(&mut self) -> PResult<ConfigVar> {
         let span = self.span();
         let mut path = vec![self.ident()?];
         while self.eat_p(P::Dot) {
             path.push(self.ident()?);
         }
-        if !self.eat_kw(Kw::At) || !self.at(&Tok::Location) {
-            return Err(self.fail(Want::Location));
+        let mut location = None;
+        if self.eat_kw(Kw::At) {
+            if !self.at(&Tok::Location) {
+                return Err(self.fail(Want::Location));
+            }
+            let at = self.span();
+            let name = {
+                let token = self.bump();
+                self.text_of(token)
+            }[1..]
+                .to_string();
+            location = Some(Ident { name, span: at });
         }
-        let at = self.span();
-        let name = {
-            let token = self.bump();
-            self.text_of(token)
-        }[1..]
-            .to_string();
-        let location = Ident { name, span: at };
         self.expect_p(P::Colon, Want::Colon)?;
         let ty = self.type_ref()?;
         let init = if self.eat_p(P::Assign) { Some(self.init()?) } else { None };

@@ -1028,7 +1028,7 @@ fn var_config_entries_name_an_instance_path_an_address_and_a_type() {
                 PROGRAM i : p;\n\
                 VAR_CONFIG\n\
                   i.lamp AT %QX0.1 : BOOL;\n\
-                  i.fb.level AT %MW3 : INT := 7;\n\
+                  i.fb.level : INT := 7;\n\
                 END_VAR\n\
                 END_CONFIGURATION\n";
     let items = parse_ok(text);
@@ -1037,7 +1037,8 @@ fn var_config_entries_name_an_instance_path_an_address_and_a_type() {
     let path = |k: usize| c.var_config[k].path.iter().map(|i| i.name.clone()).collect::<Vec<_>>();
     assert_eq!(path(0), ["i", "lamp"]);
     assert_eq!(path(1), ["i", "fb", "level"]);
-    assert_eq!(c.var_config[0].location.name, "QX0.1");
+    assert_eq!(c.var_config[0].location.as_ref().unwrap().name, "QX0.1");
+    assert!(c.var_config[1].location.is_none());
     assert!(c.var_config[0].init.is_none() && c.var_config[1].init.is_some());
     assert!(c.unread.is_empty());
 }
