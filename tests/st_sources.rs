@@ -404,6 +404,15 @@ fn var_config_binds_partly_specified_variables_to_devices() {
     write(dir.path(), "inputs.csv", "15ms, P0001, 1\n");
     let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        stdout.lines().skip(3).collect::<Vec<_>>(),
+        [
+            "  configuration Config0: VAR_CONFIG Res0.inst.lamp AT %QX0.3 → P0003",
+            "  configuration Config0: VAR_CONFIG inst.level AT %MW5 → M005",
+            "  configuration Config0: VAR_CONFIG inst.seen AT %IX0.1 → P0001",
+        ]
+    );
     let watch = "inst.n,inst.copies,inst.level,P0003,M005,inst.acc,inst.counter.total,inst.span";
     let out = plcd(
         dir.path(),

@@ -11,6 +11,7 @@
 //! | `PROGRAM i : P;` (no task) | the instance in the scan |
 //! | `PROGRAM i : P (a := x, b => y);` | the same; the compile copies the arguments ([`crate::st::compile`]) |
 //! | nothing in the scan | the interval task of the lowest priority is the scan, its interval the scan period (unless `[plc] scan_period_ms` is set) |
+//! | `VAR_CONFIG i.x AT %QX0.1 : BOOL;` | a note of the device; the compile binds the variable |
 
 use std::path::Path;
 
@@ -331,6 +332,22 @@ pub fn map(
             line: entry.line,
             col: entry.col,
         });
+    }
+    // VAR_CONFIG's devices (the compile checks the entries and binds the variables)
+    for var in &conf.var_config {
+        let Some(location) = &var.location else { continue };
+        let device = match crate::st::compile::iec_address(&location.name) {
+            Ok(Some((device, _))) => Address::parse(&device).ok(),
+            _ => None,
+        };
+        if let Some(device) = device {
+            let path: Vec<&str> = var.path.iter().map(|id| id.name.as_str()).collect();
+            mapped.notes.push(format!(
+                "configuration {name}: VAR_CONFIG {} AT %{} → {device}",
+                path.join("."),
+                location.name
+            ));
+        }
     }
     if mapped.programs.is_empty() && errors.is_empty() {
         error(
