@@ -80,8 +80,8 @@ const MESSAGES: &[(&str, &str)] = &[
         "config-var-config-inside-an-instance",
     ),
     (
-        "`{}` has {} instances in the project: VAR_CONFIG binds a variable of a PROGRAM with one instance (its code is shared by all)",
-        "config-var-config-program-with-two-instances",
+        "`{}` has {} instances in the project and actions: VAR_CONFIG binds a variable of a PROGRAM with actions for its only instance (the actions' code is shared by all)",
+        "config-var-config-shared-program-with-actions",
     ),
     (
         "`{}.{}` is not declared at a partly specified address (`AT %I*`, `%Q*`, `%M*`): VAR_CONFIG binds only such a variable",

@@ -477,3 +477,58 @@ END_CONFIGURATION
         ]
     );
 }
+
+#[test]
+fn var_config_binds_each_instance_of_a_program_to_its_own_device() {
+    // Two instances of one PROGRAM, each lamp bound to its own output, a third left in
+    // variable memory; the instances count at different steps.
+    let dir = TempDir::new("st-configuration-var-config-instances");
+    write(
+        dir.path(),
+        "plcd.toml",
+        "[plc]\nscan_period_ms = 10\n\n[[program]]\nfile = \"plc.st\"\n",
+    );
+    let text = "PROGRAM blink
+  VAR_INPUT step : INT; END_VAR
+  VAR
+    lamp AT %QX* : BOOL;
+    n : INT;
+  END_VAR
+  VAR_STAT runs : INT; END_VAR
+  n := n + step;
+  lamp := n >= 4;
+  runs := runs + 1;
+END_PROGRAM
+
+CONFIGURATION c
+  PROGRAM a : blink (step := 1);
+  PROGRAM b : blink (step := 2);
+  PROGRAM free : blink (step := 3);
+  VAR_CONFIG
+    a.lamp AT %QX0.1 : BOOL;
+    b.lamp AT %QX0.2 : BOOL := TRUE;
+  END_VAR
+END_CONFIGURATION
+";
+    write(dir.path(), "plc.st", text);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let watch = "a.n,b.n,free.n,P0001,P0002,free.lamp,blink.runs";
+    let out = plcd(
+        dir.path(),
+        &["sim", "--config", "plcd.toml", "--for", "25ms", "--watch", watch, "--trace", "-"],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let trace = String::from_utf8_lossy(&out.stdout);
+    // three scans: a.n = 3 (lamp off), b.n = 6 (on), free.n = 9 (on, in variable memory)
+    assert_eq!(last(&trace, "a.n").as_deref(), Some("3"), "{trace}");
+    assert_eq!(last(&trace, "b.n").as_deref(), Some("6"));
+    assert_eq!(last(&trace, "free.n").as_deref(), Some("9"));
+    assert_eq!(last(&trace, "P0001"), None, "a's lamp never on: P0001 never set");
+    // b's lamp TRUE at RUN start (VAR_CONFIG's), FALSE at the first scan (n = 2), then TRUE
+    assert_eq!(last(&trace, "P0002").as_deref(), Some("1"));
+    assert!(trace.contains("\"dev\":\"P0002\",\"value\":0"), "{trace}");
+    assert_eq!(last(&trace, "free.lamp").as_deref(), Some("1"));
+    // VAR_STAT is the PROGRAM's one copy, whatever copy of its code an instance runs
+    assert_eq!(last(&trace, "blink.runs").as_deref(), Some("9"));
+}

@@ -70,7 +70,7 @@ pub enum State {
 }
 
 /// A PROGRAM, FUNCTION or FUNCTION_BLOCK.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct PouInfo<'a> {
     pub ast: &'a ast::Pou,
     pub file: usize,
@@ -114,6 +114,9 @@ pub struct PouInfo<'a> {
     pub called_with_en: bool,
     /// The `R_EDGE` / `F_EDGE` inputs of a FUNCTION_BLOCK.
     pub edges: Vec<EdgeInput>,
+    /// A PROGRAM's copy for one of its instances, whose `VAR_CONFIG` binds variables the
+    /// PROGRAM's other instances keep in variable memory (`var_config`): the PROGRAM copied.
+    pub copy_of: Option<usize>,
 }
 
 /// An edge input of a function block: at each execution of the body, the value the body sees
@@ -157,6 +160,7 @@ impl<'a> PouInfo<'a> {
             eno_assigned: false,
             called_with_en: false,
             edges: Vec::new(),
+            copy_of: None,
         }
     }
 

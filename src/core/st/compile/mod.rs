@@ -163,7 +163,6 @@ pub fn compile_configured(
     }
 
     // VAR_CONFIG, before any body names the variables it binds
-    let programs: Vec<Option<usize>> = placed.iter().map(|x| x.map(|(p, _)| p)).collect();
     let mut configuration_files: Vec<usize> = Vec::new();
     for (k, inst) in instances.iter().enumerate() {
         let file = cx.files.iter().position(|f| f.path == inst.file);
@@ -183,9 +182,9 @@ pub fn compile_configured(
         };
         let declared: Vec<var_config::Declared<'_>> = (0..instances.len())
             .filter(|&k| declaration(k).is_some() && instances[k].file == file.path)
-            .map(|k| (instances[k].name, placed[k]))
+            .map(|k| (instances[k].name, k))
             .collect();
-        cx.apply_var_config(f, conf, &declared, &programs);
+        cx.apply_var_config(f, conf, &declared, &mut placed);
     }
 
     // check every user POU; the prelude's only when used
@@ -256,7 +255,7 @@ pub fn compile_configured(
         leaves(&cx, &v.name, &v.ty, at, v.retain, v.constant, &mut symbols);
     }
     // VAR_STAT: one copy per POU, named after the POU
-    for pou in cx.pous.iter().filter(|p| p.file != cx.prelude_file) {
+    for pou in cx.pous.iter().filter(|p| p.file != cx.prelude_file && p.copy_of.is_none()) {
         for v in pou.vars.iter().filter(|v| v.kind == VarKind::Static) {
             if let Storage::Global(o) = v.storage {
                 let at = Pointer { space: Space::Var, offset: o };

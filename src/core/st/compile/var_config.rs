@@ -5,9 +5,11 @@
 //!   becomes a located one, as if it had been declared at that address: every piece of code
 //!   that names it reads and writes the device, and its initial value (the entry's, or else the
 //!   declaration's) is written to the device at RUN start. A PROGRAM's code is compiled once
-//!   for all its instances, so a variable is bound for a PROGRAM with one instance in the
-//!   project, and only a variable of the instance itself (`i.x`), not one inside its
-//!   FUNCTION_BLOCK instances (whose code every instance of the block shares): the other cases
+//!   for all its instances: when the PROGRAM has other instances, the instance gets a copy of
+//!   the PROGRAM of its own ([`PouInfo::copy_of`](super::ctx::PouInfo)), compiled with the
+//!   variable at the device; a PROGRAM with actions (which would need copies too) cannot be so
+//!   copied. Only a variable of the instance itself (`i.x`) is bound, not one inside its
+//!   FUNCTION_BLOCK instances (whose code every instance of the block shares). The other cases
 //!   are refused, each with its own message.
 //! - `i.fb.x : INT := v;` gives a variable of the instance, or of a FUNCTION_BLOCK instance or a
 //!   struct inside it, its initial value for that instance: written into the instance's own
@@ -35,51 +37,69 @@ fn own(kind: VarKind) -> bool {
     matches!(kind, VarKind::Local | VarKind::Input | VarKind::Output | VarKind::Instance)
 }
 
-/// A configuration's program instance: its name, and its PROGRAM and the base of its variables
-/// when the PROGRAM was found.
-pub type Declared<'n> = (&'n str, Option<(usize, u32)>);
+/// A configuration's program instance: its name and its index among the compile's instances.
+pub type Declared<'n> = (&'n str, usize);
+
+/// Each instance's PROGRAM and the base of its variables (`None` when its PROGRAM was not
+/// found), which a copy of the PROGRAM replaces.
+pub type Placed = [Option<(usize, u32)>];
 
 impl Ctx<'_> {
     /// Applies the `VAR_CONFIG` entries of `conf`, written in `file`: `declared` are the
-    /// configuration's program instances, `programs` the PROGRAM of each instance of the
-    /// project (to count a PROGRAM's instances). The bindings first, so that an initial value
-    /// given a bound variable goes to its device.
+    /// configuration's program instances, `placed` every instance's PROGRAM (a copy of it
+    /// replaces it for an instance that binds a variable its PROGRAM's other instances keep).
+    /// The bindings first, so that an initial value given a bound variable goes to its device.
     pub fn apply_var_config(
         &mut self,
         file: usize,
         conf: &ast::Configuration,
         declared: &[Declared<'_>],
-        programs: &[Option<usize>],
+        placed: &mut Placed,
     ) {
         let mut bound: Vec<(usize, usize, u32)> = Vec::new();
         for entry in conf.var_config.iter() {
             let Some(location) = &entry.location else { continue };
-            let Some((p, v)) = self.bound_variable(file, conf, entry, location, declared, programs)
+            let Some((k, p, v)) =
+                self.bound_variable(file, conf, entry, location, declared, placed)
             else {
                 continue;
             };
-            if let Some(&(_, _, line)) = bound.iter().find(|b| (b.0, b.1) == (p, v)) {
+            if let Some(&(_, _, line)) = bound.iter().find(|b| (b.0, b.1) == (k, v)) {
                 let name = path_text(&entry.path);
                 let msg = format!("`{name}` is already bound by VAR_CONFIG (line {line})");
                 self.error(file, entry.path[0].span, msg);
                 continue;
             }
-            bound.push((p, v, entry.span.line));
-            self.bind(file, entry, location, p, v);
+            bound.push((k, v, entry.span.line));
+            let shared = self.instances_of(p, placed) > 1;
+            let target = match placed[k] {
+                Some((q, base)) if shared && self.pous[q].copy_of.is_none() => {
+                    let mut copy = self.pous[q].clone();
+                    copy.copy_of = Some(q);
+                    self.pous.push(copy);
+                    placed[k] = Some((self.pous.len() - 1, base));
+                    self.pous.len() - 1
+                }
+                Some((q, _)) => q,
+                None => continue,
+            };
+            self.bind(file, entry, location, target, v);
         }
         for entry in conf.var_config.iter().filter(|e| e.location.is_none()) {
-            self.initialize(file, conf, entry, declared);
+            self.initialize(file, conf, entry, declared, placed);
         }
     }
 
-    /// The instance an entry's path starts with (the path from it on, its PROGRAM and base).
+    /// The instance an entry's path starts with: the path from it on, the instance's index,
+    /// its PROGRAM and base.
     fn instance_of<'e>(
         &mut self,
         file: usize,
         conf: &ast::Configuration,
         entry: &'e ConfigVar,
         declared: &[Declared<'_>],
-    ) -> Option<(&'e [Ident], usize, u32)> {
+        placed: &Placed,
+    ) -> Option<(&'e [Ident], usize, usize, u32)> {
         // IEC writes the path from the resource (`Res0.instance0.x`), CODESYS from the instance
         let path = match entry.path.split_first() {
             Some((first, rest))
@@ -92,7 +112,7 @@ impl Ctx<'_> {
             _ => &entry.path[..],
         };
         let instance = &path[0];
-        let Some(&(_, found)) = declared.iter().find(|(name, _)| instance.is(name)) else {
+        let Some(&(_, k)) = declared.iter().find(|(name, _)| instance.is(name)) else {
             let hint = suggest(&instance.name, declared.iter().map(|(name, _)| *name));
             let msg =
                 format!("`{}` is not a PROGRAM instance of the configuration{hint}", instance.name);
@@ -100,7 +120,7 @@ impl Ctx<'_> {
             return None;
         };
         // an instance of no PROGRAM has been reported
-        let (p, base) = found?;
+        let (p, base) = placed[k]?;
         if path.len() < 2 {
             let msg = format!(
                 "VAR_CONFIG names a variable of a program instance: `{}.variable`",
@@ -109,7 +129,13 @@ impl Ctx<'_> {
             self.error(file, instance.span, msg);
             return None;
         }
-        Some((path, p, base))
+        Some((path, k, p, base))
+    }
+
+    /// How many instances of the project are of the PROGRAM `p` (or run a copy of it).
+    fn instances_of(&self, p: usize, placed: &Placed) -> usize {
+        let of_p = |q: usize| q == p || self.pous[q].copy_of == Some(p);
+        placed.iter().filter(|x| x.is_some_and(|(q, _)| of_p(q))).count()
     }
 
     /// The variable `p.vars[v]` that `path[1]` names, reported when there is none.
@@ -124,7 +150,8 @@ impl Ctx<'_> {
         found
     }
 
-    /// The PROGRAM and the index of the variable a binding names, when it may be bound.
+    /// The instance, its PROGRAM and the index of the variable a binding names, when it may be
+    /// bound.
     fn bound_variable(
         &mut self,
         file: usize,
@@ -132,9 +159,11 @@ impl Ctx<'_> {
         entry: &ConfigVar,
         location: &Ident,
         declared: &[Declared<'_>],
-        programs: &[Option<usize>],
-    ) -> Option<(usize, usize)> {
-        let (path, p, _) = self.instance_of(file, conf, entry, declared)?;
+        placed: &Placed,
+    ) -> Option<(usize, usize, usize)> {
+        let (path, k, p, _) = self.instance_of(file, conf, entry, declared, placed)?;
+        // the PROGRAM itself, when this instance has a copy of it already
+        let p = self.pous[p].copy_of.unwrap_or(p);
         let (instance, variable) = (&path[0], &path[1]);
         let v = self.program_variable(file, p, variable)?;
         if let Some(inner) = path.get(2) {
@@ -147,11 +176,13 @@ impl Ctx<'_> {
             return None;
         }
         let pou = &self.pous[p];
-        let count = programs.iter().filter(|&&q| q == Some(p)).count();
-        if count > 1 {
+        let count = self.instances_of(p, placed);
+        let actions = self.pous.iter().any(|a| a.action.is_some_and(|(_, owner)| owner == p));
+        if count > 1 && actions {
             let msg = format!(
-                "`{}` has {count} instances in the project: VAR_CONFIG binds a variable of a \
-                 PROGRAM with one instance (its code is shared by all)",
+                "`{}` has {count} instances in the project and actions: VAR_CONFIG binds a \
+                 variable of a PROGRAM with actions for its only instance (the actions' code is \
+                 shared by all)",
                 pou.name
             );
             self.error(file, instance.span, msg);
@@ -183,7 +214,7 @@ impl Ctx<'_> {
             return None;
         }
         let declared_ty = self.pous[p].vars[v].ty.clone();
-        self.same_type(file, entry, path, &declared_ty).then_some((p, v))
+        self.same_type(file, entry, path, &declared_ty).then_some((k, p, v))
     }
 
     /// Whether the type `entry` gives is `ty`, the type of the variable at `path`; reported
@@ -249,8 +280,11 @@ impl Ctx<'_> {
         conf: &ast::Configuration,
         entry: &ConfigVar,
         declared: &[Declared<'_>],
+        placed: &Placed,
     ) {
-        let Some((path, p, base)) = self.instance_of(file, conf, entry, declared) else { return };
+        let Some((path, _, p, base)) = self.instance_of(file, conf, entry, declared, placed) else {
+            return;
+        };
         let Some(init) = &entry.init else {
             let msg = format!(
                 "VAR_CONFIG entry `{}` gives neither an address (`AT %QX0.1`) nor an initial value",
