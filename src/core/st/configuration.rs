@@ -9,7 +9,7 @@
 //! | `TASK t (PRIORITY := p)` (no interval) | the scan |
 //! | `PROGRAM i WITH t : P;` | the program instance `i` of `P` in `t`'s task |
 //! | `PROGRAM i : P;` (no task) | the instance in the scan |
-//! | `PROGRAM i : P (a := x, b => y);` | the same; the compile copies the arguments ([`crate::st::compile`]) |
+//! | `PROGRAM i : P (a := x, b => y);` | the same; the compile copies the arguments ([`mod@crate::st::compile`]) |
 //! | nothing in the scan | the interval task of the lowest priority is the scan, its interval the scan period (unless `[plc] scan_period_ms` is set) |
 //! | `VAR_CONFIG i.x AT %QX0.1 : BOOL;` | a note of the device; the compile binds the variable |
 
