@@ -392,6 +392,9 @@ pub enum ExprKind {
     Index(Box<Expr>, Vec<Expr>),
     /// `a.3`: a bit of an integer or bit string (IEC partial access).
     Bit(Box<Expr>, u8),
+    /// `dw.%B2`, `lw.%W3`, `lw.%D1`: a byte, word or double word of a bit string (IEC partial
+    /// access); the number counts parts of that size from the least significant one.
+    Part(Box<Expr>, PartSize, u8),
     /// `r^`: what a reference or pointer points to.
     Deref(Box<Expr>),
     Unary(UnaryOp, Box<Expr>),
@@ -401,6 +404,34 @@ pub enum ExprKind {
         callee: Box<Expr>,
         args: Vec<Arg>,
     },
+}
+
+/// The size of a part in a partial access: `%B`, `%W`, `%D`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PartSize {
+    Byte,
+    Word,
+    DWord,
+}
+
+impl PartSize {
+    /// Its letter after the `%`.
+    pub fn letter(self) -> char {
+        match self {
+            PartSize::Byte => 'B',
+            PartSize::Word => 'W',
+            PartSize::DWord => 'D',
+        }
+    }
+
+    /// How many bits it has.
+    pub fn bits(self) -> u32 {
+        match self {
+            PartSize::Byte => 8,
+            PartSize::Word => 16,
+            PartSize::DWord => 32,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -1443,7 +1443,9 @@ fn walk_expr(e: &ast::Expr, f: &mut impl FnMut(&ast::Expr)) {
     f(e);
     match &e.kind {
         K::Literal(_) | K::Name(_) => {}
-        K::Member(b, _) | K::Bit(b, _) | K::Unary(_, b) | K::Deref(b) => walk_expr(b, f),
+        K::Member(b, _) | K::Bit(b, _) | K::Part(b, ..) | K::Unary(_, b) | K::Deref(b) => {
+            walk_expr(b, f)
+        }
         K::Index(b, ix) => {
             walk_expr(b, f);
             for i in ix {

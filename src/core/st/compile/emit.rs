@@ -399,6 +399,16 @@ impl<'c, 'a> Em<'c, 'a> {
                 self.op(Op::Bin { op: BinOp::And, elem: be });
                 self.op(Op::Conv { from: be, to: Elem::Bool });
             }
+            TK::Part(b, start) => {
+                // shifted down to bit 0 and cut to the part's size
+                let (whole, part) = (self.elem(&b.ty), self.elem(&e.ty));
+                self.value(b);
+                if *start != 0 {
+                    self.push_int(whole, i128::from(*start));
+                    self.op(Op::Bin { op: BinOp::Shr, elem: whole });
+                }
+                self.op(Op::Conv { from: whole, to: part });
+            }
             TK::Un(op, a) => {
                 self.value(a);
                 let elem = self.elem(&e.ty);
@@ -941,40 +951,53 @@ impl<'c, 'a> Em<'c, 'a> {
         }
     }
 
+    /// `whole.<start>` or `whole.%B<n>` `:= src` (a bit, a part of `elem`): a read-modify-write
+    /// of `whole` that changes its bits `start..start + elem's bits` only.
+    fn store_bits(&mut self, whole: &TExpr, start: u8, elem: Elem, src: Src<'_>) {
+        let we = self.elem(&whole.ty);
+        let ones = |e: Elem| -> i128 {
+            match e {
+                Elem::Bool => 1,
+                _ if e.size() == 8 => -1,
+                _ => (1i128 << (e.size() * 8)) - 1,
+            }
+        };
+        let mask = (ones(elem) << start) & ones(we);
+        let stat = self.static_place(whole);
+        match stat {
+            Some(s) => {
+                self.op_static(Op::Fetch { elem: we, at: s.place }, s);
+            }
+            None => {
+                self.addr(whole);
+                self.op(Op::Dup);
+                self.op(Op::FetchInd(we));
+            }
+        }
+        self.push_int(we, ones(we) & !mask);
+        self.op(Op::Bin { op: BinOp::And, elem: we });
+        self.push_src(&src);
+        self.op(Op::Conv { from: elem, to: we });
+        self.push_int(we, i128::from(start));
+        self.op(Op::Bin { op: BinOp::Shl, elem: we });
+        self.op(Op::Bin { op: BinOp::Or, elem: we });
+        match stat {
+            Some(s) => {
+                self.op_static(Op::Store { elem: we, at: s.place }, s);
+            }
+            None => {
+                self.op(Op::StoreInd(we));
+            }
+        }
+    }
+
     /// `target := src`.
     fn store(&mut self, target: &TExpr, src: Src<'_>) {
         let ty = &target.ty;
-        if let TK::Bit(b, n) = &target.k {
-            let be = self.elem(&b.ty);
-            let mask = 1i128 << n;
-            let full: i128 = if be.size() == 8 { -1 } else { (1i128 << (be.size() * 8)) - 1 };
-            let stat = self.static_place(b);
-            match stat {
-                Some(s) => {
-                    self.op_static(Op::Fetch { elem: be, at: s.place }, s);
-                }
-                None => {
-                    self.addr(b);
-                    self.op(Op::Dup);
-                    self.op(Op::FetchInd(be));
-                }
-            }
-            self.push_int(be, full & !mask);
-            self.op(Op::Bin { op: BinOp::And, elem: be });
-            self.push_src(&src);
-            self.op(Op::Conv { from: Elem::Bool, to: be });
-            self.push_int(be, i128::from(*n));
-            self.op(Op::Bin { op: BinOp::Shl, elem: be });
-            self.op(Op::Bin { op: BinOp::Or, elem: be });
-            match stat {
-                Some(s) => {
-                    self.op_static(Op::Store { elem: be, at: s.place }, s);
-                }
-                None => {
-                    self.op(Op::StoreInd(be));
-                }
-            }
-            return;
+        match &target.k {
+            TK::Bit(b, n) => return self.store_bits(b, *n, Elem::Bool, src),
+            TK::Part(b, start) => return self.store_bits(b, *start, self.elem(ty), src),
+            _ => {}
         }
         if ty.is_aggregate() {
             let at_device = |e: &TExpr| self.memory(e) != Memory::Bytes;

@@ -4,7 +4,8 @@
 
 use crate::lang::ops::CmpOp;
 use crate::st::ast::{
-    self, Arg, BinaryOp, Expr, ExprKind, Literal, PouKind, RefKind, Span, UnaryOp, VarKind,
+    self, Arg, BinaryOp, Expr, ExprKind, Literal, PartSize, PouKind, RefKind, Span, UnaryOp,
+    VarKind,
 };
 use crate::st::dialect::Habit;
 use crate::value::{BinOp, UnOp};
@@ -35,6 +36,9 @@ pub enum TK {
     Member(Box<TExpr>, u32, bool),
     Index(Box<TExpr>, Vec<TExpr>),
     Bit(Box<TExpr>, u8),
+    /// A part of a bit string (`dw.%B2`): the bits of the node's type starting at this bit of
+    /// the operand (nested parts are one: `lw.%D1.%B0` starts at bit 32 of `lw`).
+    Part(Box<TExpr>, u8),
     Un(UnOp, Box<TExpr>),
     /// Both operands of the node's type (comparisons excepted: [`TK::Cmp`]).
     Bin(BinOp, Box<TExpr>, Box<TExpr>),
@@ -130,6 +134,7 @@ impl TExpr {
             TK::Call(_) => true,
             TK::Member(a, _, _)
             | TK::Bit(a, _)
+            | TK::Part(a, _)
             | TK::Un(_, a)
             | TK::Conv(a)
             | TK::Deref(a)
@@ -327,6 +332,7 @@ impl<'a> Ctx<'a> {
             | ExprKind::Member(..)
             | ExprKind::Index(..)
             | ExprKind::Bit(..)
+            | ExprKind::Part(..)
             | ExprKind::Deref(..) => self.check_place(e, scope, Access::Read, expected),
             ExprKind::Unary(op, a) => {
                 let a = self.check_expr(a, scope, expected);
@@ -688,7 +694,12 @@ impl<'a> Ctx<'a> {
                             let bit = (v as u128 >> n) & 1;
                             return TExpr::konst(Cv::Int(bit as i128), Ty::Prim(Prim::Bool), span);
                         }
-                        TExpr { k: TK::Bit(Box::new(b), *n), ty: Ty::Prim(Prim::Bool), span }
+                        // a bit of a part is a bit of the whole (`dw.%B1.3` is `dw.11`)
+                        let (b, n) = match b.k {
+                            TK::Part(whole, start) => (*whole, start + n),
+                            _ => (b, *n),
+                        };
+                        TExpr { k: TK::Bit(Box::new(b), n), ty: Ty::Prim(Prim::Bool), span }
                     }
                     _ => {
                         let t = self.ty_name(&b.ty);
@@ -701,6 +712,7 @@ impl<'a> Ctx<'a> {
                     }
                 }
             }
+            ExprKind::Part(base, size, n) => self.check_part(base, *size, *n, span, scope, access),
             _ => match access {
                 Access::Read => self.check_expr(e, scope, expected),
                 Access::Write => {
@@ -713,6 +725,98 @@ impl<'a> Ctx<'a> {
                 }
             },
         }
+    }
+
+    /// A part of a bit string, `base.%B<n>` (`%W`, `%D`): BYTE, WORD or DWORD by its size, of
+    /// a variable (element, member, what a reference points to) of a wider bit string type.
+    fn check_part(
+        &mut self,
+        base: &Expr,
+        size: PartSize,
+        n: u8,
+        span: Span,
+        scope: Scope,
+        access: Access,
+    ) -> TExpr {
+        let file = scope.file;
+        let access_text = format!(".%{}", size.letter());
+        if access == Access::Ref {
+            self.error(file, span, "a part of a variable cannot be passed to a VAR_IN_OUT");
+            return TExpr::error(span);
+        }
+        if !matches!(
+            base.kind,
+            ExprKind::Name(_)
+                | ExprKind::Member(..)
+                | ExprKind::Index(..)
+                | ExprKind::Deref(..)
+                | ExprKind::Part(..)
+        ) {
+            self.error(file, span, format!("partial access `{access_text}` needs a variable"));
+            return TExpr::error(span);
+        }
+        let b = self.check_place(base, scope, access, None);
+        if b.ty.is_error() {
+            return b;
+        }
+        let whole = match b.ty.prim(&self.types) {
+            Some(p) if p.is_bits() && !matches!(b.ty, Ty::Enum(_)) => p,
+            _ => {
+                let t = self.ty_name(&b.ty);
+                self.error(
+                    file,
+                    span,
+                    format!(
+                        "partial access `{access_text}` needs a BYTE, WORD, DWORD or LWORD, \
+                         not `{t}`"
+                    ),
+                );
+                return TExpr::error(span);
+            }
+        };
+        let (part, unit) = match size {
+            PartSize::Byte => (Prim::Byte, "byte"),
+            PartSize::Word => (Prim::Word, "word"),
+            PartSize::DWord => (Prim::DWord, "double word"),
+        };
+        if size.bits() >= whole.bits() {
+            self.error(
+                file,
+                span,
+                format!(
+                    "`{}` has no {unit} part: it is not wider than a `{}`",
+                    whole.name(),
+                    part.name()
+                ),
+            );
+            return TExpr::error(span);
+        }
+        let count = whole.bits() / size.bits();
+        if u32::from(n) >= count {
+            self.error(
+                file,
+                span,
+                format!(
+                    "`{}` has no {unit} {n}: its {unit}s are `{access_text}0` to `{access_text}{}`",
+                    whole.name(),
+                    count - 1
+                ),
+            );
+            return TExpr::error(span);
+        }
+        // below 64: n < count keeps the part inside the whole
+        let start = n * size.bits() as u8;
+        let ty = Ty::Prim(part);
+        if let TK::Const(Cv::Int(v)) = b.k {
+            let bits = (v as u128 >> start) & ((1u128 << size.bits()) - 1);
+            return TExpr::konst(Cv::Int(bits as i128), ty, span);
+        }
+        // a part of a part is a part of the whole (`lw.%D1.%B0` starts at bit 32 of `lw`)
+        let (b, start) = match b.k {
+            TK::Part(whole, outer) => (*whole, outer + start),
+            _ => (b, start),
+        };
+        TExpr { k: TK::Part(Box::new(b), start), ty, span }
     }
 
     /// Whether the variable `v` (a local or a global) that `id` names may be written (or
@@ -1789,6 +1893,7 @@ pub fn expr_text(e: &Expr) -> String {
         ExprKind::Member(b, id) => format!("{}.{}", expr_text(b), id.name),
         ExprKind::Index(b, _) => format!("{}[…]", expr_text(b)),
         ExprKind::Bit(b, n) => format!("{}.{n}", expr_text(b)),
+        ExprKind::Part(b, size, n) => format!("{}.%{}{n}", expr_text(b), size.letter()),
         ExprKind::Deref(b) => format!("{}^", expr_text(b)),
         ExprKind::Call { callee, .. } => format!("{}(…)", expr_text(callee)),
         _ => "expression".into(),

@@ -83,7 +83,8 @@ impl Ctx<'_> {
                     ExprKind::Name(_)
                     | ExprKind::Member(..)
                     | ExprKind::Index(..)
-                    | ExprKind::Bit(..) => self.check_place(e, globals, Access::Write, None),
+                    | ExprKind::Bit(..)
+                    | ExprKind::Part(..) => self.check_place(e, globals, Access::Write, None),
                     _ => {
                         let msg = "`=>` copies to a variable: a global variable or a direct \
                                    address (`%QX0.1`)";
@@ -160,6 +161,7 @@ fn calls(e: &ast::Expr) -> bool {
         ExprKind::Literal(_) | ExprKind::Name(_) => false,
         ExprKind::Member(a, _)
         | ExprKind::Bit(a, _)
+        | ExprKind::Part(a, ..)
         | ExprKind::Deref(a)
         | ExprKind::Unary(_, a) => calls(a),
         ExprKind::Index(a, ix) => calls(a) || ix.iter().any(calls),

@@ -76,6 +76,25 @@ pub(crate) struct Parser<'a> {
 const LEVEL_OR: u8 = 1;
 const LEVEL_MUL: u8 = 7;
 
+/// One step of a partial access: the size of the part (none for a bit) and its number.
+type PartialStep = (Option<PartSize>, u8);
+
+/// The expression of one partial access step on `base`.
+fn partial_kind(base: Expr, (size, n): PartialStep) -> ExprKind {
+    match size {
+        None => ExprKind::Bit(Box::new(base), n),
+        Some(size) => ExprKind::Part(Box::new(base), size, n),
+    }
+}
+
+/// The number of a partial access step: decimal digits that fit a `u8`.
+fn partial_number(digits: &str) -> Option<u8> {
+    if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    digits.parse().ok()
+}
+
 fn binary_op(tok: &Tok, level: u8) -> Option<BinaryOp> {
     let op = match tok {
         Tok::Kw(Kw::Or) => BinaryOp::Or,
@@ -746,16 +765,31 @@ impl<'a> Parser<'a> {
         Ok(ProgramDecl { name, task, pou, args, span })
     }
 
-    /// The bit number of a `%X<n>` token (partial access, `w.%X3`).
-    fn partial_bit(&self) -> Option<u8> {
+    /// The steps of a partial access token: its size (none for a bit) and number, `%X3` or
+    /// `%B2`, then the bit numbers the lexer read into it (`%W1.3`); and whether it ends with a
+    /// dot (`%D1.` of `lw.%D1.%B0`).
+    fn partial(&self) -> Option<(Vec<PartialStep>, bool)> {
         let text = self.text_of(self.pos);
-        let digits = text.strip_prefix("%X").or_else(|| text.strip_prefix("%x"))?;
-        if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
-            return None;
+        let (text, dot) = match text.strip_suffix('.') {
+            Some(before) => (before, true),
+            None => (text, false),
+        };
+        let mut segments = text.split('.');
+        let first = segments.next()?.strip_prefix('%')?;
+        let mut chars = first.chars();
+        let size = match chars.next()?.to_ascii_uppercase() {
+            'X' => None,
+            'B' => Some(PartSize::Byte),
+            'W' => Some(PartSize::Word),
+            'D' => Some(PartSize::DWord),
+            _ => return None,
+        };
+        let mut steps = vec![(size, partial_number(chars.as_str())?)];
+        for bit in segments {
+            steps.push((None, partial_number(bit)?));
         }
-        digits.parse().ok()
+        Some((steps, dot))
     }
-
     /// `ACTION [Owner.]Name: … END_ACTION [;]`; the owner only at the top level.
     fn action(&mut self, top: bool) -> Option<(Option<Ident>, Action)> {
         let span = self.span();
@@ -1506,10 +1540,17 @@ impl<'a> Parser<'a> {
     fn postfix(&mut self) -> PResult<Expr> {
         let span = self.span();
         let mut expr = self.primary()?;
+        // A partial access token that ends with a dot (`%D1.` of `lw.%D1.%B0`: the lexer
+        // reads the dot into the address) leaves the next token after a dot.
+        let mut after_dot = false;
         loop {
+            let dotted = after_dot || matches!(self.tok(), Tok::P(P::Dot));
             let kind = match *self.tok() {
-                Tok::P(P::Dot) => {
-                    self.bump();
+                _ if dotted => {
+                    if !after_dot {
+                        self.bump();
+                    }
+                    after_dot = false;
                     match *self.tok() {
                         Tok::Ident => ExprKind::Member(Box::new(expr), self.ident()?),
                         Tok::Int(n) => {
@@ -1521,14 +1562,19 @@ impl<'a> Parser<'a> {
                             self.bump();
                             ExprKind::Bit(Box::new(expr), bit)
                         }
-                        // IEC's partial access to a bit: `w.%X3`
-                        Tok::Location => match self.partial_bit() {
-                            Some(bit) => {
-                                self.bump();
-                                ExprKind::Bit(Box::new(expr), bit)
+                        // IEC's partial access: a bit `w.%X3`, a part `dw.%B2`, nested
+                        Tok::Location => {
+                            let Some((steps, dot)) = self.partial() else {
+                                return Err(self.fail(Want::Field));
+                            };
+                            self.bump();
+                            after_dot = dot;
+                            let (last, outer) = steps.split_last().expect("one step at least");
+                            for step in outer {
+                                expr = Expr { kind: partial_kind(expr, *step), span };
                             }
-                            None => return Err(self.fail(Want::Field)),
-                        },
+                            partial_kind(expr, *last)
+                        }
                         _ => return Err(self.fail(Want::Field)),
                     }
                 }

@@ -78,6 +78,7 @@ fn sx(e: &Expr) -> String {
             format!("([] {} {})", sx(x), i.iter().map(sx).collect::<Vec<_>>().join(" "))
         }
         ExprKind::Bit(x, b) => format!("(bit {} {b})", sx(x)),
+        ExprKind::Part(x, size, n) => format!("(part {} {}{n})", sx(x), size.letter()),
         ExprKind::Deref(x) => format!("(^ {})", sx(x)),
         ExprKind::Unary(op, x) => format!("({} {})", unary_text(*op), sx(x)),
         ExprKind::Binary(op, l, r) => format!("({} {} {})", binary_text(*op), sx(l), sx(r)),
@@ -1051,7 +1052,22 @@ fn partly_specified_addresses_and_partial_bit_access() {
     assert_eq!(body("b := w.%X3;").len(), 1);
     let e = parse_expr("w.%X3").unwrap();
     assert!(matches!(e.kind, ExprKind::Bit(_, 3)), "{e:?}");
-    assert!(parse_expr("w.%B0").is_err(), "byte partial access is not read");
+}
+
+#[test]
+fn partial_access_to_bytes_words_and_double_words() {
+    let sx_of = |text: &str| sx(&parse_expr(text).unwrap());
+    assert_eq!(sx_of("dw.%B2"), "(part dw B2)");
+    assert_eq!(sx_of("lw.%w3"), "(part lw W3)");
+    assert_eq!(sx_of("a[1].m.%D1"), "(part (. ([] a 1) m) D1)");
+    // the lexer reads `%D1.` and `%W1.3` as one address each: the parser splits them
+    assert_eq!(sx_of("lw.%D1.%B0"), "(part (part lw D1) B0)");
+    assert_eq!(sx_of("lw.%W1.3"), "(bit (part lw W1) 3)");
+    assert_eq!(sx_of("lw.%D1.%B0.%X7"), "(bit (part (part lw D1) B0) 7)");
+    assert_eq!(sx_of("s.%B1.m"), "(. (part s B1) m)");
+    assert!(parse_expr("w.%B").is_err(), "a part needs its number");
+    assert!(parse_expr("w.%L0").is_err(), "no LWORD part: no type is wider");
+    assert!(parse_expr("w.%D1.").is_err(), "a dot needs what follows it");
 }
 
 #[test]
@@ -1308,6 +1324,7 @@ fn print_full(e: &Expr) -> String {
             i.iter().map(print_full).collect::<Vec<_>>().join(", ")
         ),
         ExprKind::Bit(x, b) => format!("({}).{b}", print_full(x)),
+        ExprKind::Part(x, size, n) => format!("({}).%{}{n}", print_full(x), size.letter()),
         ExprKind::Deref(x) => format!("({})^", print_full(x)),
         ExprKind::Unary(op, x) => format!("({} ({}))", unary_text(*op), print_full(x)),
         ExprKind::Binary(op, l, r) => {
@@ -1341,6 +1358,7 @@ fn print_min(e: &Expr) -> String {
             )
         }
         ExprKind::Bit(x, b) => format!("{}.{b}", postfix_base(x)),
+        ExprKind::Part(x, size, n) => format!("{}.%{}{n}", postfix_base(x), size.letter()),
         ExprKind::Deref(x) => format!("{}^", postfix_base(x)),
         ExprKind::Unary(op, x) => format!("{} {}", unary_text(*op), wrap(x, level(x) < 8)),
         ExprKind::Binary(op, l, r) => {
@@ -1441,6 +1459,8 @@ fn expr_tree() -> impl Strategy<Value = Expr> {
                 .prop_map(|(op, x)| node(ExprKind::Unary(op, Box::new(x)))),
             1 => inner.clone().prop_map(|x| node(ExprKind::Member(Box::new(x), name("m")))),
             1 => (inner.clone(), 0u8..64).prop_map(|(x, b)| node(ExprKind::Bit(Box::new(x), b))),
+            1 => (inner.clone(), prop::sample::select(vec![PartSize::Byte, PartSize::Word, PartSize::DWord]), 0u8..8)
+                .prop_map(|(x, size, n)| node(ExprKind::Part(Box::new(x), size, n))),
             1 => (inner.clone(), prop::collection::vec(inner.clone(), 1..3))
                 .prop_map(|(x, i)| node(ExprKind::Index(Box::new(x), i))),
             1 => (inner.clone(), prop::collection::vec(inner.clone(), 0..3), inner.clone(), inner)
