@@ -166,6 +166,14 @@ const MESSAGES: &[(&str, &str)] = &[
     ("a bit of a variable cannot be passed to a VAR_IN_OUT", "bit-to-in-out"),
     ("`{}` has no bit {}", "bit-out-of-range"),
     ("bit access needs an integer or bit string, not `{}`", "bit-of-non-integer"),
+    ("a part of a variable cannot be passed to a VAR_IN_OUT", "partial-to-in-out"),
+    ("partial access `{}` needs a variable", "partial-of-expression"),
+    (
+        "partial access `{}` needs a BYTE, WORD, DWORD or LWORD, not `{}`",
+        "partial-of-non-bit-string",
+    ),
+    ("`{}` has no {} part: it is not wider than a `{}`", "partial-not-narrower"),
+    ("`{}` has no {} {}: its {}s are `{}0` to `{}{}`", "partial-out-of-range"),
     ("only a variable can be assigned", "only-variable-assigned"),
     ("a VAR_IN_OUT argument must be a variable", "in-out-needs-variable"),
     ("`{}` is CONSTANT: it cannot be written", "constant-not-writable"),
@@ -362,6 +370,8 @@ const PARTS: &[&str] = &[
     // the names of reference types in messages (`POINTER TO INT`)
     "POINTER TO",
     "REFERENCE TO",
+    // the name of a DWORD part in the partial access messages (`has no double word 2`)
+    "double word",
     "{} {}",
     " (did you mean `{}`?)",
     "line {}",
