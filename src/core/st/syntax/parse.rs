@@ -76,14 +76,20 @@ pub(crate) struct Parser<'a> {
 const LEVEL_OR: u8 = 1;
 const LEVEL_MUL: u8 = 7;
 
-/// One step of a partial access: the size of the part (none for a bit) and its number.
-type PartialStep = (Option<PartSize>, u8);
+/// One step of a partial access token: a part (its size, none for a bit, and its number), or a
+/// member after it (`s.%B1.m` is one token).
+#[derive(Clone)]
+enum PartialStep {
+    Part(Option<PartSize>, u8),
+    Member(Ident),
+}
 
 /// The expression of one partial access step on `base`.
-fn partial_kind(base: Expr, (size, n): PartialStep) -> ExprKind {
-    match size {
-        None => ExprKind::Bit(Box::new(base), n),
-        Some(size) => ExprKind::Part(Box::new(base), size, n),
+fn partial_kind(base: Expr, step: PartialStep) -> ExprKind {
+    match step {
+        PartialStep::Part(None, n) => ExprKind::Bit(Box::new(base), n),
+        PartialStep::Part(Some(size), n) => ExprKind::Part(Box::new(base), size, n),
+        PartialStep::Member(name) => ExprKind::Member(Box::new(base), name),
     }
 }
 
@@ -766,10 +772,11 @@ impl<'a> Parser<'a> {
     }
 
     /// The steps of a partial access token: its size (none for a bit) and number, `%X3` or
-    /// `%B2`, then the bit numbers the lexer read into it (`%W1.3`); and whether it ends with a
-    /// dot (`%D1.` of `lw.%D1.%B0`).
+    /// `%B2`, then the bit numbers and member names the lexer read into it (`%W1.3`, `%B1.m`);
+    /// and whether it ends with a dot (`%D1.` of `lw.%D1.%B0`).
     fn partial(&self) -> Option<(Vec<PartialStep>, bool)> {
         let text = self.text_of(self.pos);
+        let span = self.span();
         let (text, dot) = match text.strip_suffix('.') {
             Some(before) => (before, true),
             None => (text, false),
@@ -784,9 +791,19 @@ impl<'a> Parser<'a> {
             'D' => Some(PartSize::DWord),
             _ => return None,
         };
-        let mut steps = vec![(size, partial_number(chars.as_str())?)];
-        for bit in segments {
-            steps.push((None, partial_number(bit)?));
+        let mut steps = vec![PartialStep::Part(size, partial_number(chars.as_str())?)];
+        let mut col = span.col + first.len() as u32 + 2;
+        for segment in segments {
+            let step = match partial_number(segment) {
+                Some(bit) => PartialStep::Part(None, bit),
+                None if segment.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_') => {
+                    let span = Span { line: span.line, col };
+                    PartialStep::Member(Ident { name: segment.to_string(), span })
+                }
+                None => return None,
+            };
+            steps.push(step);
+            col += segment.len() as u32 + 1;
         }
         Some((steps, dot))
     }
@@ -1569,11 +1586,13 @@ impl<'a> Parser<'a> {
                             };
                             self.bump();
                             after_dot = dot;
-                            let (last, outer) = steps.split_last().expect("one step at least");
-                            for step in outer {
-                                expr = Expr { kind: partial_kind(expr, *step), span };
+                            let mut steps = steps.into_iter();
+                            let first = steps.next().expect("a partial access has a step at least");
+                            let mut kind = partial_kind(expr, first);
+                            for step in steps {
+                                kind = partial_kind(Expr { kind, span }, step);
                             }
-                            partial_kind(expr, *last)
+                            kind
                         }
                         _ => return Err(self.fail(Want::Field)),
                     }
