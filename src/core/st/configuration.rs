@@ -215,16 +215,17 @@ pub fn map(
     for task in read.iter().filter(|t| !t.clash) {
         let tname = task.decl.name.name.as_str();
         let iec = format!("configuration {name}: TASK {tname}");
-        if let Some((device, named)) = &task.single {
-            // A device task: plcd samples the bit after each scan, as an IEC scheduler samples
-            // SINGLE (an io task would need a hardware contact, P0000 to P0007).
-            let Some(number) = (16..=23).find(|n| !numbers.contains(n)) else {
-                error(
-                    &mut errors,
-                    task.decl.name.span,
-                    "no device task number is left (16 to 23)".to_string(),
-                );
-                continue;
+        // A task of plcd's own: the lowest number of `kind`'s range the config leaves free.
+        let mut add = |kind: TaskKind, errors: &mut Vec<Diagnostic>| {
+            let (range, what) = match kind {
+                TaskKind::Device { .. } => (16..=23, "device"),
+                _ => (0..=7, "cycle"),
+            };
+            let (first, last) = (*range.start(), *range.end());
+            let Some(number) = range.clone().find(|n| !numbers.contains(n)) else {
+                let msg = format!("no {what} task number is left ({first} to {last})");
+                error(errors, task.decl.name.span, msg);
+                return None;
             };
             numbers.push(number);
             let priority = (2 + task.priority).min(*TaskConfig::PRIORITY.end());
@@ -232,11 +233,18 @@ pub fn map(
                 name: tname.to_string(),
                 number,
                 priority,
-                kind: TaskKind::Device { device: *device, condition: DeviceCondition::Rising },
+                kind,
                 max_exec_ms: None,
                 line: entry.line,
                 col: entry.col,
             });
+            Some((number, priority))
+        };
+        if let Some((device, named)) = &task.single {
+            // A device task: plcd samples the bit after each scan, as an IEC scheduler samples
+            // SINGLE (an io task would need a hardware contact, P0000 to P0007).
+            let kind = TaskKind::Device { device: *device, condition: DeviceCondition::Rising };
+            let Some((number, priority)) = add(kind, &mut errors) else { continue };
             let bit = if named.starts_with('%') {
                 format!("{device} ({named})")
             } else {
@@ -249,25 +257,8 @@ pub fn map(
         }
         match task.interval_ms {
             Some(ms) if scan_task != Some(tname) => {
-                let Some(number) = (0..=7).find(|n| !numbers.contains(n)) else {
-                    error(
-                        &mut errors,
-                        task.decl.name.span,
-                        "no cycle task number is left (0 to 7)".to_string(),
-                    );
-                    continue;
-                };
-                numbers.push(number);
-                let priority = (2 + task.priority).min(*TaskConfig::PRIORITY.end());
-                mapped.tasks.push(TaskConfig {
-                    name: tname.to_string(),
-                    number,
-                    priority,
-                    kind: TaskKind::Cycle { interval_ms: ms },
-                    max_exec_ms: None,
-                    line: entry.line,
-                    col: entry.col,
-                });
+                let kind = TaskKind::Cycle { interval_ms: ms };
+                let Some((number, priority)) = add(kind, &mut errors) else { continue };
                 mapped.notes.push(format!(
                     "{iec} → cycle task {number}, every {ms} ms, priority {priority}"
                 ));
