@@ -701,6 +701,20 @@ impl<'a> Parser<'a> {
         Ok(TaskDecl { name, properties, span })
     }
 
+    /// `AT %…` after a declaration's names, if there: the text after the `%`, with its place.
+    fn at_location(&mut self) -> PResult<Option<Ident>> {
+        if !self.eat_kw(Kw::At) {
+            return Ok(None);
+        }
+        if !self.at(&Tok::Location) {
+            return Err(self.fail(Want::Location));
+        }
+        let span = self.span();
+        let token = self.bump();
+        let name = self.text_of(token)[1..].to_string();
+        Ok(Some(Ident { name, span }))
+    }
+
     /// `instance.variable [AT %QX0.1] : BOOL [:= init];` in `VAR_CONFIG`.
     fn config_var(&mut self) -> PResult<ConfigVar> {
         let span = self.span();
@@ -708,19 +722,7 @@ impl<'a> Parser<'a> {
         while self.eat_p(P::Dot) {
             path.push(self.ident()?);
         }
-        let mut location = None;
-        if self.eat_kw(Kw::At) {
-            if !self.at(&Tok::Location) {
-                return Err(self.fail(Want::Location));
-            }
-            let at = self.span();
-            let name = {
-                let token = self.bump();
-                self.text_of(token)
-            }[1..]
-                .to_string();
-            location = Some(Ident { name, span: at });
-        }
+        let location = self.at_location()?;
         self.expect_p(P::Colon, Want::Colon)?;
         let ty = self.type_ref()?;
         let init = if self.eat_p(P::Assign) { Some(self.init()?) } else { None };
@@ -899,19 +901,7 @@ impl<'a> Parser<'a> {
         while self.eat_p(P::Comma) {
             names.push(self.ident()?);
         }
-        let mut location = None;
-        if self.eat_kw(Kw::At) {
-            if !self.at(&Tok::Location) {
-                return Err(self.fail(Want::Location));
-            }
-            let span = self.span();
-            let name = {
-                let at = self.bump();
-                self.text_of(at)
-            }[1..]
-                .to_string();
-            location = Some(Ident { name, span });
-        }
+        let location = self.at_location()?;
         self.expect_p(P::Colon, Want::Colon)?;
         let ty = self.type_ref()?;
         // `R_EDGE` / `F_EDGE` are names, not keywords, where a declaration can hold them.
