@@ -168,6 +168,8 @@ pub struct Pou {
     pub body: Vec<Stmt>,
     /// The actions declared inside it (`ACTION … END_ACTION` among its statements).
     pub actions: Vec<Action>,
+    /// Its Sequential Function Chart, when its body is one (`STEP`, `TRANSITION`, …).
+    pub sfc: Option<crate::st::sfc::Sfc>,
     /// Where the POU's keyword is.
     pub span: Span,
     /// Where its `END_…` keyword is (the line a breakpoint on the end stops at).

@@ -6,6 +6,8 @@
 //! nothing open is taken for a misspelt end of the innermost construct. At most one error is
 //! reported at any one token, so one mistake makes one diagnostic.
 
+mod sfc;
+
 use super::lex::{Kw, Tok, Token, P};
 use super::{Closer, Msg, Want, MAX_DEPTH};
 use crate::st::ast::*;
@@ -566,17 +568,24 @@ impl<'a> Parser<'a> {
         self.open.push(closer);
         let mut body = self.stmt_list(false, false);
         let mut actions = Vec::new();
-        // actions among the statements (as the textual SFC places them)
-        while self.at_kw(Kw::Action) {
-            if let Some((_, action)) = self.action(false) {
-                actions.push(action);
+        let mut sfc: Option<crate::st::sfc::Sfc> = None;
+        // actions and SFC elements among the statements (as the textual SFC places them)
+        loop {
+            if self.at_kw(Kw::Action) {
+                if let Some((_, action)) = self.action(false) {
+                    actions.push(action);
+                }
+            } else if self.at_sfc_element() {
+                self.sfc_element(sfc.get_or_insert_with(Default::default));
+            } else {
+                break;
             }
             body.extend(self.stmt_list(false, false));
         }
         self.open.pop();
         let here = self.span();
         let end = self.close(closer, &opener, span).unwrap_or(here);
-        Pou { kind, name, return_type, vars, body, actions, span, end }
+        Pou { kind, name, return_type, vars, body, actions, sfc, span, end }
     }
 
     /// Whether the current token is the word `word` (a name outside a configuration: `TASK`,
@@ -1223,6 +1232,9 @@ impl<'a> Parser<'a> {
                 }
             }
             if in_case && self.at_case_label() {
+                return stmts;
+            }
+            if !nested && !in_case && self.at_sfc_element() {
                 return stmts;
             }
             match self.stmt() {
