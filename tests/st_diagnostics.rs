@@ -257,6 +257,32 @@ const MESSAGES: &[(&str, &str)] = &[
     ("unreachable `ELSE`: the labels cover every value of `{}`", "unreachable-else"),
     ("a CASE label must be a constant", "case-label-not-constant"),
     ("a CASE label of type `{}` does not match the selector's type `{}`", "case-label-type"),
+    // sfc.rs: Sequential Function Charts
+    (
+        "FUNCTION `{}` cannot hold a sequential function chart: a FUNCTION keeps nothing between calls (use a FUNCTION_BLOCK or a PROGRAM)",
+        "sfc-in-function",
+    ),
+    (
+        "a statement in the body of `{}`, which is a sequential function chart: a body is statements or a chart, not both (put the statements in an ACTION)",
+        "sfc-statement-beside-chart",
+    ),
+    ("step `{}` is already declared at line {}", "sfc-step-already-declared"),
+    ("transition `{}` is already declared at line {}", "sfc-transition-already-declared"),
+    ("step `{}` is named twice in this transition", "sfc-step-named-twice-in-transition"),
+    ("`{}`: no step of that name in this chart", "sfc-unknown-step"),
+    ("PRIORITY takes an integer literal (0 is the highest priority)", "sfc-priority-not-integer"),
+    (
+        "a second INITIAL_STEP in one network: `{}` is linked to `{}` (line {}), and a network has exactly one",
+        "sfc-second-initial-step",
+    ),
+    (
+        "no INITIAL_STEP in the network of step `{}`: one of its steps must be the INITIAL_STEP",
+        "sfc-no-initial-step",
+    ),
+    ("`{}` is no action qualifier: {}", "sfc-unknown-qualifier"),
+    ("qualifier `{}` needs a duration: `{}({}, T#5s)`", "sfc-qualifier-needs-duration"),
+    ("qualifier `{}` takes {}", "sfc-qualifier-takes-no-duration"),
+    ("qualifier `{}` takes {}", "sfc-qualifier-takes-one-duration"),
 ];
 
 /// The messages of `[st] strict` (`src/core/st/dialect.rs`), one per CODESYS habit, and their
@@ -367,6 +393,9 @@ const UNREACHABLE: &[(&str, &str)] = &[
 /// Literals of the compiler sources that are not messages by themselves: words and hints that
 /// messages are built from, and type names.
 const PARTS: &[&str] = &[
+    // what a qualifier takes after it (sfc.rs)
+    "one duration, then indicator variable names",
+    "no duration, only indicator variable names",
     // the names of reference types in messages (`POINTER TO INT`)
     "POINTER TO",
     "REFERENCE TO",

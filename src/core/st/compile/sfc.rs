@@ -135,24 +135,28 @@ impl Lowering<'_> {
             );
         }
 
-        // steps by name
+        // steps by name; a step declared again is reported and left out
         let mut step_of: HashMap<String, usize> = HashMap::new();
-        for (k, step) in sfc.steps.iter().enumerate() {
+        let mut chart = Sfc { steps: Vec::new(), transitions: sfc.transitions.clone() };
+        for step in &sfc.steps {
             let key = step.name.name.to_ascii_lowercase();
             if let Some(&before) = step_of.get(&key) {
-                let line = sfc.steps[before].span.line;
+                let line = chart.steps[before].span.line;
                 self.error(
                     step.name.span,
                     format!("step `{}` is already declared at line {line}", step.name.name),
                 );
             } else {
-                step_of.insert(key, k);
+                step_of.insert(key, chart.steps.len());
+                chart.steps.push(step.clone());
             }
         }
+        let sfc = &chart;
 
         // transitions: their steps and priority
         let mut names: HashMap<String, Span> = HashMap::new();
-        let mut resolved: Vec<Option<Link>> = Vec::new();
+        // every transition with the steps that are known (for the networks), and whether all are
+        let mut links: Vec<(Link, bool)> = Vec::new();
         for t in &sfc.transitions {
             if let Some(name) = &t.name {
                 let key = name.name.to_ascii_lowercase();
@@ -208,10 +212,12 @@ impl Lowering<'_> {
                 }
             }
             let [from, to] = ends;
-            resolved.push(ok.then_some(Link { from, to, priority }));
+            links.push((Link { from, to, priority }, ok));
         }
 
-        self.initial_steps(sfc, &resolved);
+        self.initial_steps(sfc, &links);
+        let resolved: Vec<Option<Link>> =
+            links.into_iter().map(|(link, ok)| ok.then_some(link)).collect();
 
         // associations, by action in the order first associated
         let mut actions: Vec<(Ident, Vec<Checked<'_>>)> = Vec::new();
@@ -276,7 +282,7 @@ impl Lowering<'_> {
     }
 
     /// Each network (steps linked by transitions) needs exactly one INITIAL_STEP.
-    fn initial_steps(&mut self, sfc: &Sfc, resolved: &[Option<Link>]) {
+    fn initial_steps(&mut self, sfc: &Sfc, links: &[(Link, bool)]) {
         let n = sfc.steps.len();
         let mut root: Vec<usize> = (0..n).collect();
         fn find(root: &mut [usize], mut k: usize) -> usize {
@@ -286,7 +292,7 @@ impl Lowering<'_> {
             }
             k
         }
-        for link in resolved.iter().flatten() {
+        for (link, _) in links {
             let mut all = link.from.iter().chain(&link.to);
             if let Some(&first) = all.next() {
                 for &other in all {
@@ -321,11 +327,6 @@ impl Lowering<'_> {
                     step.name.name
                 );
                 self.error(step.span, msg);
-            }
-        }
-        if sfc.steps.is_empty() {
-            if let Some(t) = sfc.transitions.first() {
-                self.error(t.span, "a sequential function chart without an INITIAL_STEP");
             }
         }
     }
