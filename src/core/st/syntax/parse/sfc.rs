@@ -178,3 +178,115 @@ impl Parser<'_> {
         Ok(names)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use crate::st::ast::{ExprKind, Item, Literal, Pou, Span, StmtKind};
+    use crate::st::syntax::parse_file;
+
+    fn pou(text: &str) -> Pou {
+        let (file, diags) = parse_file(Path::new("t.st"), text);
+        assert!(diags.0.is_empty(), "{:?}", diags.0);
+        match file.items.into_iter().next() {
+            Some(Item::Pou(pou)) => pou,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    fn errors(text: &str) -> Vec<String> {
+        let (_, diags) = parse_file(Path::new("t.st"), text);
+        diags.0.iter().map(|d| format!("{}:{}: {}", d.line, d.col, d.message)).collect()
+    }
+
+    #[test]
+    fn steps_associations_and_transitions() {
+        let p = pou("PROGRAM p
+INITIAL_STEP s0: A(N); B(L, T#5s, ind); C(); D; END_STEP
+STEP s1: END_STEP
+TRANSITION t (PRIORITY := 2) FROM s0 TO (s1, s2) := x AND y; END_TRANSITION
+TRANSITION FROM (s1, s2) TO s0 := TRUE; END_TRANSITION
+ACTION A: x := 1; END_ACTION
+END_PROGRAM");
+        assert!(p.body.is_empty());
+        assert_eq!(p.actions.len(), 1);
+        let sfc = p.sfc.expect("a chart");
+        assert_eq!(sfc.steps.len(), 2);
+        let s0 = &sfc.steps[0];
+        assert!(s0.initial && !sfc.steps[1].initial);
+        assert_eq!(s0.span, Span { line: 2, col: 1 });
+        let assoc: Vec<(&str, Option<&str>, bool, usize)> = s0
+            .associations
+            .iter()
+            .map(|a| {
+                let q = a.qualifier.as_ref().map(|q| q.name.as_str());
+                (a.action.name.as_str(), q, a.duration.is_some(), a.indicators.len())
+            })
+            .collect();
+        assert_eq!(
+            assoc,
+            [
+                ("A", Some("N"), false, 0),
+                ("B", Some("L"), true, 1),
+                ("C", None, false, 0),
+                ("D", None, false, 0)
+            ]
+        );
+        let t = &sfc.transitions[0];
+        assert_eq!(t.name.as_ref().map(|n| n.name.as_str()), Some("t"));
+        assert!(matches!(
+            t.priority.as_ref().map(|p| &p.kind),
+            Some(ExprKind::Literal(Literal::Int(2)))
+        ));
+        let names = |l: &[crate::st::ast::Ident]| -> Vec<String> {
+            l.iter().map(|i| i.name.clone()).collect()
+        };
+        assert_eq!(names(&t.from), ["s0"]);
+        assert_eq!(names(&t.to), ["s1", "s2"]);
+        assert_eq!(names(&sfc.transitions[1].from), ["s1", "s2"]);
+    }
+
+    #[test]
+    fn the_words_stay_names_elsewhere() {
+        let p = pou("PROGRAM p
+VAR step, from, transition : INT; END_VAR
+step := from + 1;
+transition := step;
+END_PROGRAM");
+        assert!(p.sfc.is_none());
+        assert_eq!(p.body.len(), 2);
+        assert!(matches!(p.body[0].kind, StmtKind::Assign { .. }));
+    }
+
+    #[test]
+    fn statements_before_a_chart_are_kept_for_the_checker() {
+        let p = pou("PROGRAM p
+x := 1;
+INITIAL_STEP s0: END_STEP
+END_PROGRAM");
+        assert_eq!(p.body.len(), 1);
+        assert_eq!(p.sfc.map(|s| s.steps.len()), Some(1));
+    }
+
+    #[test]
+    fn each_broken_element_makes_one_error_and_the_rest_parses() {
+        let errs = errors(
+            "PROGRAM p
+INITIAL_STEP s0: A(N) END_STEP
+STEP s1: END_STEP
+TRANSITION FROM s0 s1 := TRUE; END_TRANSITION
+TRANSITION FROM s1 TO s0 := TRUE;
+STEP s2: END_STEP
+END_PROGRAM",
+        );
+        assert_eq!(
+            errs,
+            [
+                "2:23: expected `;` after the declaration, found `END_STEP`",
+                "4:20: expected `TO`, found `s1`",
+                "6:1: expected `END_TRANSITION`, found `STEP`",
+            ]
+        );
+    }
+}
