@@ -36,7 +36,7 @@ pub struct Step {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Association {
     pub action: Ident,
-    /// As written; `None` (`Action()` or `Action;`) is `N`.
+    /// As written; `None` (`Action()`) is `N`.
     pub qualifier: Option<Ident>,
     /// The duration of a timed qualifier (`L`, `D`, `SD`, `DS`, `SL`): a TIME expression.
     pub duration: Option<Expr>,

@@ -69,10 +69,11 @@ pub(crate) enum Want {
     EndStep,
     EndTransition,
     From,
+    LParen,
 }
 
 impl Want {
-    pub(crate) const ALL: [Want; 31] = [
+    pub(crate) const ALL: [Want; 32] = [
         Want::SemiAfterStmt,
         Want::SemiAfterDecl,
         Want::Stmt,
@@ -104,6 +105,7 @@ impl Want {
         Want::EndStep,
         Want::EndTransition,
         Want::From,
+        Want::LParen,
     ];
 
     fn text(self) -> &'static str {
@@ -141,6 +143,7 @@ impl Want {
             Want::EndStep => "an action association or `END_STEP`",
             Want::EndTransition => "`END_TRANSITION`",
             Want::From => "`FROM`",
+            Want::LParen => "`(`",
         }
     }
 }

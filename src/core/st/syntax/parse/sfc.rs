@@ -99,14 +99,15 @@ impl Parser<'_> {
         Ok(Step { name, initial, associations, span })
     }
 
-    /// `Action[(Qualifier[, duration][, indicator…])];`.
+    /// `Action([Qualifier[, duration][, indicator…]]);`.
     fn association(&mut self) -> PResult<Association> {
         let span = self.span();
         let action = self.ident()?;
         let mut qualifier: Option<Ident> = None;
         let mut duration = None;
         let mut indicators = Vec::new();
-        if self.eat_p(P::LParen) && !self.eat_p(P::RParen) {
+        self.expect_p(P::LParen, Want::LParen)?;
+        if !self.eat_p(P::RParen) {
             qualifier = Some(self.ident()?);
             let timed = qualifier
                 .as_ref()
@@ -203,7 +204,7 @@ mod tests {
     #[test]
     fn steps_associations_and_transitions() {
         let p = pou("PROGRAM p
-INITIAL_STEP s0: A(N); B(L, T#5s, ind); C(); D; END_STEP
+INITIAL_STEP s0: A(N); B(L, T#5s, ind); C(); D(P0); END_STEP
 STEP s1: END_STEP
 TRANSITION t (PRIORITY := 2) FROM s0 TO (s1, s2) := x AND y; END_TRANSITION
 TRANSITION FROM (s1, s2) TO s0 := TRUE; END_TRANSITION
@@ -230,7 +231,7 @@ END_PROGRAM");
                 ("A", Some("N"), false, 0),
                 ("B", Some("L"), true, 1),
                 ("C", None, false, 0),
-                ("D", None, false, 0)
+                ("D", Some("P0"), false, 0)
             ]
         );
         let t = &sfc.transitions[0];
@@ -274,6 +275,7 @@ END_PROGRAM");
         let errs = errors(
             "PROGRAM p
 INITIAL_STEP s0: A(N) END_STEP
+STEP s3: B; END_STEP
 STEP s1: END_STEP
 TRANSITION FROM s0 s1 := TRUE; END_TRANSITION
 TRANSITION FROM s1 TO s0 := TRUE;
@@ -284,8 +286,9 @@ END_PROGRAM",
             errs,
             [
                 "2:23: expected `;` after the declaration, found `END_STEP`",
-                "4:20: expected `TO`, found `s1`",
-                "6:1: expected `END_TRANSITION`, found `STEP`",
+                "3:11: expected `(`, found `;`",
+                "5:20: expected `TO`, found `s1`",
+                "7:1: expected `END_TRANSITION`, found `STEP`",
             ]
         );
     }
