@@ -283,6 +283,10 @@ const MESSAGES: &[(&str, &str)] = &[
     ("qualifier `{}` needs a duration: `{}({}, T#5s)`", "sfc-qualifier-needs-duration"),
     ("qualifier `{}` takes {}", "sfc-qualifier-takes-no-duration"),
     ("qualifier `{}` takes {}", "sfc-qualifier-takes-one-duration"),
+    (
+        "`{}` is a variable of type `{}`: an action association names an ACTION of `{}` or a BOOL variable",
+        "sfc-action-variable-not-bool",
+    ),
 ];
 
 /// The messages of `[st] strict` (`src/core/st/dialect.rs`), one per CODESYS habit, and their

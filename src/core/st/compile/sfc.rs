@@ -17,6 +17,7 @@
 use std::borrow::Cow;
 use std::collections::{HashMap, HashSet};
 
+use super::types::Prim;
 use crate::diag::Diagnostic;
 use crate::st::ast::{
     self, Arg, BinaryOp, Expr, ExprKind, Ident, Init, Item, Literal, PouKind, Span, Stmt, StmtKind,
@@ -275,6 +276,20 @@ impl Lowering<'_> {
             pou.actions.iter().any(|a| a.name.is(name))
                 || outside.contains(&(pou_key.clone(), name.to_ascii_lowercase()))
         };
+        // an association naming a variable sets it: it must be a BOOL
+        actions.retain(|(name, _)| {
+            if is_action(&name.name) {
+                return true;
+            }
+            let declared = pou.vars.iter().flat_map(|b| &b.decls).find(|d| d.names.iter().any(|n| n.is(&name.name)));
+            let Some(ty) = declared.and_then(|d| not_bool(&d.ty)) else { return true };
+            let msg = format!(
+                "`{}` is a variable of type `{ty}`: an action association names an ACTION of `{}` or a BOOL variable",
+                name.name, pou.name.name
+            );
+            self.diags.push(Diagnostic::new(self.path, name.span.line, name.span.col, msg));
+            false
+        });
         let bodies: Vec<bool> = actions.iter().map(|(name, _)| is_action(&name.name)).collect();
         let generated = generate(sfc, &resolved, &actions, &bodies);
         pou.vars.extend(generated.vars);
@@ -329,6 +344,19 @@ impl Lowering<'_> {
                 self.error(step.span, msg);
             }
         }
+    }
+}
+
+/// The type of a variable declared as `ty`, when it is surely no BOOL: an elementary type or a
+/// STRING or ARRAY (a named type may be an alias of BOOL: the checker decides).
+fn not_bool(ty: &TypeRef) -> Option<&'static str> {
+    match ty {
+        TypeRef::Named(name) => {
+            Prim::from_name(&name.name).filter(|p| *p != Prim::Bool).map(Prim::name)
+        }
+        TypeRef::String { .. } => Some("STRING"),
+        TypeRef::Array { .. } => Some("ARRAY"),
+        _ => None,
     }
 }
 
