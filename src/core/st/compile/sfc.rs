@@ -46,12 +46,31 @@ pub(super) fn lower<'f>(
             }
             let mut file = file.clone();
             let path = file.path.clone();
+            // the actions with a control, by POU, both in lower case
+            let mut controlled: HashMap<String, HashSet<String>> = HashMap::new();
             for item in &mut file.items {
                 if let Item::Pou(pou) = item {
                     if let Some(sfc) = pou.sfc.take() {
                         let mut lowering = Lowering { path: &path, diags: &mut *diags };
-                        lowering.pou(pou, &sfc, &outside);
+                        let actions = lowering.pou(pou, &sfc, &outside);
+                        controlled.insert(pou.name.name.to_ascii_lowercase(), actions);
                     }
+                }
+            }
+            // `Action.Q` in the actions written after their POU in this file
+            let mut last_pou: Option<String> = None;
+            for item in &mut file.items {
+                match item {
+                    Item::Pou(p) => last_pou = Some(p.name.name.to_ascii_lowercase()),
+                    Item::Action { owner, action } => {
+                        let owner = owner.as_ref().map(|o| o.name.to_ascii_lowercase());
+                        if let Some(actions) =
+                            owner.or(last_pou.clone()).and_then(|o| controlled.get(&o))
+                        {
+                            flags_in_stmts(&mut action.body, actions);
+                        }
+                    }
+                    _ => {}
                 }
             }
             Cow::Owned(file)
@@ -108,7 +127,14 @@ impl Lowering<'_> {
         self.diags.push(Diagnostic::new(self.path, span.line, span.col, msg));
     }
 
-    fn pou(&mut self, pou: &mut ast::Pou, sfc: &Sfc, outside: &HashSet<(String, String)>) {
+    /// Checks and lowers the chart of `pou`; the actions (not BOOL variables) it controls, in
+    /// lower case.
+    fn pou(
+        &mut self,
+        pou: &mut ast::Pou,
+        sfc: &Sfc,
+        outside: &HashSet<(String, String)>,
+    ) -> HashSet<String> {
         let first = sfc
             .steps
             .iter()
@@ -124,7 +150,7 @@ impl Lowering<'_> {
                     pou.name.name
                 ),
             );
-            return;
+            return HashSet::new();
         }
         if let Some(stmt) = pou.body.iter().find(|s| s.kind != StmtKind::Empty) {
             self.error(
@@ -294,6 +320,17 @@ impl Lowering<'_> {
         let generated = generate(sfc, &resolved, &actions, &bodies);
         pou.vars.extend(generated.vars);
         pou.body.extend(generated.body);
+        let controlled: HashSet<String> = actions
+            .iter()
+            .zip(&bodies)
+            .filter(|(_, &body)| body)
+            .map(|((name, _), _)| name.name.to_ascii_lowercase())
+            .collect();
+        flags_in_stmts(&mut pou.body, &controlled);
+        for action in &mut pou.actions {
+            flags_in_stmts(&mut action.body, &controlled);
+        }
+        controlled
     }
 
     /// Each network (steps linked by transitions) needs exactly one INITIAL_STEP.
@@ -344,6 +381,94 @@ impl Lowering<'_> {
                 self.error(step.span, msg);
             }
         }
+    }
+}
+
+/// `Action.Q` and `Action.A` (IEC 61131-3 ed3) in `stmts`, for each action of `controlled`
+/// (lower case): the outputs of its control instance. Anything else is left to the checker.
+fn flags_in_stmts(stmts: &mut [Stmt], controlled: &HashSet<String>) {
+    for stmt in stmts {
+        let mut exprs: Vec<&mut Expr> = Vec::new();
+        let mut bodies: Vec<&mut Vec<Stmt>> = Vec::new();
+        match &mut stmt.kind {
+            StmtKind::Assign { target, value } | StmtKind::RefAssign { target, value } => {
+                exprs.extend([target, value]);
+            }
+            StmtKind::Call(call) => exprs.push(call),
+            StmtKind::If { branches, otherwise } => {
+                for (cond, body) in branches {
+                    exprs.push(cond);
+                    bodies.push(body);
+                }
+                bodies.extend(otherwise.as_mut().map(|(_, body)| body));
+            }
+            StmtKind::Case { selector, arms, otherwise } => {
+                exprs.push(selector);
+                bodies.extend(arms.iter_mut().map(|arm| &mut arm.body));
+                bodies.extend(otherwise.as_mut().map(|(_, body)| body));
+            }
+            StmtKind::For { from, to, by, body, .. } => {
+                exprs.extend([from, to]);
+                exprs.extend(by.as_mut());
+                bodies.push(body);
+            }
+            StmtKind::While { cond, body } => {
+                exprs.push(cond);
+                bodies.push(body);
+            }
+            StmtKind::Repeat { body, until } => {
+                exprs.push(until);
+                bodies.push(body);
+            }
+            _ => {}
+        }
+        for e in exprs {
+            flags_in_expr(e, controlled);
+        }
+        for body in bodies {
+            flags_in_stmts(body, controlled);
+        }
+    }
+}
+
+fn flags_in_expr(e: &mut Expr, controlled: &HashSet<String>) {
+    match &mut e.kind {
+        ExprKind::Member(base, field) => {
+            if let ExprKind::Name(action) = &mut base.kind {
+                let flag = field.is("Q") || field.is("A");
+                if flag && controlled.contains(&action.name.to_ascii_lowercase()) {
+                    action.name = action_var(&action.name);
+                }
+            } else {
+                flags_in_expr(base, controlled);
+            }
+        }
+        ExprKind::Index(base, indices) => {
+            flags_in_expr(base, controlled);
+            for i in indices {
+                flags_in_expr(i, controlled);
+            }
+        }
+        ExprKind::Bit(base, _)
+        | ExprKind::Part(base, _, _)
+        | ExprKind::Deref(base)
+        | ExprKind::Unary(_, base) => flags_in_expr(base, controlled),
+        ExprKind::Binary(_, a, b) => {
+            flags_in_expr(a, controlled);
+            flags_in_expr(b, controlled);
+        }
+        ExprKind::Call { callee, args } => {
+            flags_in_expr(callee, controlled);
+            for arg in args {
+                match arg {
+                    Arg::Positional(value) | Arg::Input { value, .. } => {
+                        flags_in_expr(value, controlled)
+                    }
+                    Arg::Output { target, .. } => flags_in_expr(target, controlled),
+                }
+            }
+        }
+        _ => {}
     }
 }
 
