@@ -12,7 +12,13 @@
 //! - the body: (1) every step brought up to the clock; (2) every transition's clearing, on the
 //!   steps' state at the start of the scan, then the lower priorities of a divergence given up
 //!   to the higher ones; (3) every step left and entered; (4) every action's control, then its
-//!   body while its `A` (or the BOOL variable set to its `Q`).
+//!   body while its `A` (or the BOOL variable set to its `Q`);
+//! - `Action.Q`, `Action.A` in the POU's text: `sfc$Action.Q`, `sfc$Action.A`.
+//!
+//! Checks (each mistake one located error, the rest still lowered): a chart in a FUNCTION,
+//! statements beside a chart, names declared twice, unknown steps, one INITIAL_STEP per
+//! network (steps linked by transitions), qualifiers and their durations, a variable
+//! associated that is surely no BOOL. Types of conditions and durations are the checker's.
 
 use std::borrow::Cow;
 use std::collections::{HashMap, HashSet};
