@@ -11,8 +11,10 @@
 //! place when every block that jumps to it holds it at its end: an intersection over the
 //! predecessors, iterated to a fixed point over the body's blocks (the loops' back edges), as
 //! for available expressions. A block entered only from the dispatch (the body's start, the
-//! return sites) receives nothing; the loader of a block that receives values loads them from
-//! memory, so the dispatch may enter any block.
+//! return sites of machine calls) receives nothing; after a call compiled inline (`inline`),
+//! the return site receives what the caller held but the callee may have changed
+//! ([`callee_writes`]). The loader of a block that receives values loads them from memory, so
+//! the dispatch may enter any block.
 //!
 //! The result is a hint: `codegen` loads from memory any value a jump must pass on that the
 //! jumping block does not hold, so a block always receives what memory holds.
@@ -102,6 +104,8 @@ enum Effect {
     Changes(Place, u32),
     /// A store through any pointer, a copy to one, a call: every value may change.
     Forgets,
+    /// An inlined call: what its callee may change (`inline::Writes`), as fixed places.
+    ChangesAll(Vec<(Place, u32)>),
     Nothing,
 }
 
@@ -116,59 +120,174 @@ enum Target {
 /// The effects of a block's ops in order. The pointers a store goes through are followed on
 /// the evaluation stack from where the block makes them ([`Op::AddrOf`], [`Op::Index`],
 /// [`Op::Offset`], [`Op::Dup`]), as `codegen` follows them: a store through any other pointer
-/// forgets every value.
-fn effects(code: &[Op]) -> impl Iterator<Item = Effect> + '_ {
+/// forgets every value, and so does a call, unless it is inlined (`inlined`; `start`: the first
+/// op's pc).
+fn effects<'c>(
+    code: &'c [Op],
+    start: usize,
+    inlined: &'c [(u32, &'c Writes)],
+) -> impl Iterator<Item = Effect> + 'c {
     // The slots the block pushed; a slot below them (pushed before the block) is unknown.
     let mut stack: Vec<Option<Target>> = Vec::new();
-    code.iter().map(move |op| {
-        let mut pop = || stack.pop().flatten();
-        let (effect, pushed) = match *op {
-            Op::Fetch { elem, at } if in_bytes(at) => (Effect::Fetch((at, elem)), None),
-            Op::Store { elem, at } => {
-                pop();
-                return Effect::Store(at, elem);
-            }
-            Op::AddrOf(Place::Var(offset)) => {
-                (Effect::Nothing, Some(Target::Vars(Reach::at(offset))))
-            }
-            Op::AddrOf(Place::Frame(offset)) => (Effect::Nothing, Some(Target::Frame(offset))),
-            Op::Index { len, stride, .. } => {
-                pop();
-                let element = match pop() {
-                    Some(Target::Vars(reach)) => reach.element(len, stride).map(Target::Vars),
-                    _ => None,
-                };
-                stack.push(element);
-                return Effect::Nothing;
-            }
-            Op::Offset(n) => {
-                let member = match pop() {
-                    Some(Target::Vars(reach)) => reach.member(n).map(Target::Vars),
-                    Some(Target::Frame(offset)) => offset.checked_add(n).map(Target::Frame),
-                    None => None,
-                };
-                stack.push(member);
-                return Effect::Nothing;
-            }
-            Op::Dup => {
-                let top = pop();
-                stack.extend([top, top]);
-                return Effect::Nothing;
-            }
-            Op::StoreInd(elem) => return through_pointer(&mut stack, elem.size()),
-            Op::Copy(n) => return through_pointer(&mut stack, n),
-            Op::CallFn { .. } | Op::CallFb { .. } => (Effect::Forgets, None),
-            _ => (Effect::Nothing, None),
+    // The places the block stored a pointer it follows at (a temporary holding an FB instance's
+    // address for its call), still unchanged: fetched again, it is followed on.
+    let mut saved: Vec<(Place, Target)> = Vec::new();
+    code.iter().enumerate().map(move |(k, op)| {
+        let pc = (start + k) as u32;
+        let effect = effect(op, pc, inlined, &mut stack, &saved);
+        let unchanged = |saved: &mut Vec<(Place, Target)>, at: Place, bytes: u32| {
+            saved.retain(|&(place, _)| !may_change(at, bytes, (place, Elem::U64)));
         };
-        let (popped, pushes) = op.stack_effect().unwrap_or((0, 0));
-        for _ in 0..popped {
-            pop();
-        }
-        for _ in 0..pushes {
-            stack.push(pushed);
+        match &effect {
+            Effect::Store(at, elem) => {
+                unchanged(&mut saved, *at, elem.size());
+                if let (Some(Some(target)), 8) = (stack.pop(), elem.size()) {
+                    saved.push((*at, target));
+                }
+            }
+            Effect::Changes(at, bytes) => unchanged(&mut saved, *at, *bytes),
+            Effect::ChangesAll(changes) => {
+                for &(at, bytes) in changes {
+                    unchanged(&mut saved, at, bytes);
+                }
+            }
+            Effect::Forgets => saved.clear(),
+            Effect::Fetch(_) | Effect::Nothing => {}
         }
         effect
     })
+}
+
+/// The effect of `op` at `pc` on the values held, the pointers on `stack` followed through it
+/// (a `Store` leaves its value on the stack, for `effects` to pop).
+fn effect(
+    op: &Op,
+    pc: u32,
+    inlined: &[(u32, &Writes)],
+    stack: &mut Vec<Option<Target>>,
+    saved: &[(Place, Target)],
+) -> Effect {
+    if let Some(&(_, writes)) = inlined.iter().find(|&&(at, _)| at == pc) {
+        let instance = match op {
+            Op::CallFb { .. } => stack.pop().flatten(),
+            _ => None,
+        };
+        return inlined_effect(writes, instance);
+    }
+    let mut pop = || stack.pop().flatten();
+    let (effect, pushed) = match *op {
+        Op::Fetch { elem, at } if in_bytes(at) => {
+            let pointer = saved.iter().find(|&&(place, _)| place == at).map(|&(_, t)| t);
+            (Effect::Fetch((at, elem)), pointer.filter(|_| elem.size() == 8))
+        }
+        Op::Store { elem, at } => return Effect::Store(at, elem),
+        Op::AddrOf(Place::Var(offset)) => (Effect::Nothing, Some(Target::Vars(Reach::at(offset)))),
+        Op::AddrOf(Place::Frame(offset)) => (Effect::Nothing, Some(Target::Frame(offset))),
+        Op::Index { len, stride, .. } => {
+            pop();
+            let element = match pop() {
+                Some(Target::Vars(reach)) => reach.element(len, stride).map(Target::Vars),
+                _ => None,
+            };
+            stack.push(element);
+            return Effect::Nothing;
+        }
+        Op::Offset(n) => {
+            let member = match pop() {
+                Some(Target::Vars(reach)) => reach.member(n).map(Target::Vars),
+                Some(Target::Frame(offset)) => offset.checked_add(n).map(Target::Frame),
+                None => None,
+            };
+            stack.push(member);
+            return Effect::Nothing;
+        }
+        Op::Dup => {
+            let top = pop();
+            stack.extend([top, top]);
+            return Effect::Nothing;
+        }
+        Op::StoreInd(elem) => return through_pointer(stack, elem.size()),
+        Op::Copy(n) => return through_pointer(stack, n),
+        Op::CallFn { .. } | Op::CallFb { .. } => (Effect::Forgets, None),
+        _ => (Effect::Nothing, None),
+    };
+    let (popped, pushes) = op.stack_effect().unwrap_or((0, 0));
+    for _ in 0..popped {
+        pop();
+    }
+    for _ in 0..pushes {
+        stack.push(pushed);
+    }
+    effect
+}
+
+/// What an inlined callee may store to, seen from its caller ([`callee_writes`]).
+#[derive(Default)]
+pub(crate) struct Writes {
+    /// It stores into its FB instance, within this many bytes from its start (0: it does not,
+    /// or it is a FUNCTION).
+    pub instance: u64,
+    /// Fixed places it stores at, in the caller's terms (its frame's at the caller's offsets),
+    /// with their sizes.
+    pub fixed: Vec<(Place, u32)>,
+    /// It stores through a pointer it does not follow: anything may change.
+    pub anywhere: bool,
+}
+
+/// What the body of `function`, called with its frame `frame` bytes after the caller's
+/// (`fb`: as a FUNCTION_BLOCK, with an instance of its own), may store to: its stores, and its
+/// stores through pointers followed as [`effects`] follows them, block by block.
+pub(crate) fn callee_writes(
+    program: &Program,
+    analysis: &Analysis,
+    function: usize,
+    frame: u32,
+    fb: bool,
+) -> Writes {
+    let code = &program.code;
+    let mut writes = Writes::default();
+    let change = |writes: &mut Writes, at: Place, bytes: u32| match at {
+        Place::This(offset) if fb => {
+            let end = u64::from(offset) + u64::from(bytes);
+            writes.instance = writes.instance.max(end);
+        }
+        Place::Frame(offset) => match offset.checked_add(frame) {
+            Some(offset) => writes.fixed.push((Place::Frame(offset), bytes)),
+            None => writes.anywhere = true,
+        },
+        place => writes.fixed.push((place, bytes)),
+    };
+    for &leader in &analysis.function_leaders[function] {
+        let range = analysis.block(code, leader);
+        for effect in effects(&code[range.clone()], range.start, &[]) {
+            match effect {
+                Effect::Store(at, elem) => change(&mut writes, at, elem.size()),
+                Effect::Changes(at, bytes) => change(&mut writes, at, bytes),
+                Effect::Forgets | Effect::ChangesAll(_) => writes.anywhere = true,
+                Effect::Fetch(_) | Effect::Nothing => {}
+            }
+        }
+    }
+    writes
+}
+
+/// What an inlined call with the FB instance `instance` (where the block knows it) may change.
+fn inlined_effect(writes: &Writes, instance: Option<Target>) -> Effect {
+    if writes.anywhere {
+        return Effect::Forgets;
+    }
+    let mut changes = writes.fixed.clone();
+    if writes.instance > 0 {
+        match instance {
+            Some(Target::Vars(reach)) => {
+                changes.push(reach.store(writes.instance.min(u64::from(u32::MAX)) as u32))
+            }
+            Some(Target::Frame(offset)) => changes
+                .push((Place::Frame(offset), writes.instance.min(u64::from(u32::MAX)) as u32)),
+            None => return Effect::Forgets,
+        }
+    }
+    Effect::ChangesAll(changes)
 }
 
 /// A store of `bytes` bytes through the pointer under the value on top of `stack` (both
@@ -188,8 +307,8 @@ fn through_pointer(stack: &mut Vec<Option<Target>>, bytes: u32) -> Effect {
 /// What the values held at the end of a block of `code` are, given those held at its start
 /// (`held`, changed in place). Conservative beside `codegen`, which may keep more (the value
 /// of a pointer variable it fetched again).
-fn through(code: &[Op], held: &mut Vec<Key>) {
-    for effect in effects(code) {
+fn through(code: &[Op], start: usize, inlined: &[(u32, &Writes)], held: &mut Vec<Key>) {
+    for effect in effects(code, start, inlined) {
         match effect {
             Effect::Fetch(key) if !held.contains(&key) => held.push(key),
             Effect::Store(at, elem) => {
@@ -199,6 +318,11 @@ fn through(code: &[Op], held: &mut Vec<Key>) {
                 }
             }
             Effect::Changes(at, bytes) => held.retain(|&key| !may_change(at, bytes, key)),
+            Effect::ChangesAll(changes) => {
+                for (at, bytes) in changes {
+                    held.retain(|&key| !may_change(at, bytes, key));
+                }
+            }
             Effect::Forgets => held.clear(),
             Effect::Fetch(_) | Effect::Nothing => {}
         }
@@ -214,10 +338,10 @@ struct Wants {
     stores: Option<Vec<(Place, u32)>>,
 }
 
-fn wants(code: &[Op]) -> Wants {
+fn wants(code: &[Op], start: usize, inlined: &[(u32, &Writes)]) -> Wants {
     let mut fetched = Vec::new();
     let mut stores = Vec::new();
-    for effect in effects(code) {
+    for effect in effects(code, start, inlined) {
         match effect {
             Effect::Fetch(key) => {
                 let unchanged = !stores.iter().any(|&(place, bytes)| may_change(place, bytes, key));
@@ -227,6 +351,7 @@ fn wants(code: &[Op]) -> Wants {
             }
             Effect::Store(at, elem) => stores.push((at, elem.size())),
             Effect::Changes(at, bytes) => stores.push((at, bytes)),
+            Effect::ChangesAll(changes) => stores.extend(changes),
             Effect::Forgets => return Wants { fetched, stores: None },
             Effect::Nothing => {}
         }
@@ -247,8 +372,14 @@ fn rank((place, elem): Key) -> (u8, u32, u8) {
 }
 
 /// The values each of a body's blocks receives, by the block's index in `leaders` (the
-/// body's leaders, as indices into [`Analysis::leaders`]).
-pub(crate) fn carried(program: &Program, analysis: &Analysis, leaders: &[usize]) -> Vec<Vec<Key>> {
+/// body's leaders, as indices into [`Analysis::leaders`]); `inlined`: its calls compiled
+/// inline (their pcs), whose blocks go on after them knowing what their callees may change.
+pub(crate) fn carried(
+    program: &Program,
+    analysis: &Analysis,
+    leaders: &[usize],
+    inlined: &[(u32, &Writes)],
+) -> Vec<Vec<Key>> {
     let code = &program.code;
     let index_of =
         |pc: u32| leaders.binary_search_by_key(&pc, |&leader| analysis.leaders[leader]).ok();
@@ -278,7 +409,7 @@ pub(crate) fn carried(program: &Program, analysis: &Analysis, leaders: &[usize])
         .iter()
         .map(|range| {
             if is_native(&code[range.start]) {
-                wants(&code[range.clone()])
+                wants(&code[range.clone()], range.start, inlined)
             } else {
                 Wants { fetched: Vec::new(), stores: None }
             }
@@ -332,7 +463,7 @@ pub(crate) fn carried(program: &Program, analysis: &Analysis, leaders: &[usize])
             let mut held = into[index].clone();
             let range = &blocks[index];
             if is_native(&code[range.start]) {
-                through(&code[range.clone()], &mut held);
+                through(&code[range.clone()], range.start, inlined, &mut held);
             } else {
                 held.clear();
             }
@@ -346,5 +477,6 @@ pub(crate) fn carried(program: &Program, analysis: &Analysis, leaders: &[usize])
     for (held, wanted) in into.iter_mut().zip(&wanted) {
         held.retain(|key| wanted.contains(key));
     }
+
     into
 }

@@ -35,8 +35,7 @@
 //! made the call, or a callee stopped), a `RETURN` gives the VM `RETURN_CONTINUE`, which
 //! enters the caller's function at the return address, through its dispatch.
 //!
-//! A call of a small body that calls nothing ([`INLINE_CALLEE`] instructions, up to
-//! [`INLINE_BUDGET`] a function) is compiled inline instead: the callee's blocks are generated
+//! A call of a small body that calls nothing ([`inline::plan`]) is compiled inline instead: the callee's blocks are generated
 //! once more inside the caller, with the callee's registers (its frame base, its FB instance,
 //! the call depth + 1) and its own stack slots, and its `RETURN` jumps to the caller's next
 //! block. Nothing is pushed on the way in: the frame record and the caller's slots are
@@ -61,9 +60,11 @@ use plcd_core::value::{BinOp, Elem, Pointer, Space, UnOp, REF_TAG};
 use plcd_core::vm::{ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE, ERR_REF_NULL};
 
 use crate::analysis::{is_native, Analysis};
+use crate::carry::Writes;
 use crate::carry::{self, in_bytes, Key, Reach};
 use crate::code::{self, Context, RETURN_CONTINUE, RETURN_END, RETURN_ERROR, RETURN_INTERPRET};
 use crate::helpers;
+use crate::inline::{self, Inlined};
 
 const I64: Type = types::I64;
 const MASK: i64 = EVAL_DEPTH as i64 - 1;
@@ -159,7 +160,10 @@ pub(crate) fn generate(
     // The activation's registers, fixed while it runs (set by `Gen::entry`).
     let unset = b.ins().iconst(I64, 0);
     let leaders = &analysis.function_leaders[function][..];
-    let carried = carry::carried(program, analysis, leaders);
+    let body = analysis.functions[function];
+    let plan = inline::plan(program, analysis, body, leaders);
+    let calls: Vec<(u32, &Writes)> = plan.iter().map(|call| (call.pc, &call.writes)).collect();
+    let carried = carry::carried(program, analysis, leaders, &calls);
     let mut g = Gen {
         b,
         program,
@@ -184,7 +188,7 @@ pub(crate) fn generate(
         unary_sig,
         copy_sig,
         body_sig,
-        body: analysis.functions[function],
+        body,
         names,
         callees: Vec::new(),
         blocks: Vec::with_capacity(leaders.len()),
@@ -199,7 +203,7 @@ pub(crate) fn generate(
         vars_need: analysis.vars_end,
         checks,
         inline: None,
-        inlined: 0,
+        plan,
     };
     g.entry(&params);
     g.body();
@@ -302,15 +306,9 @@ struct Gen<'a, 'f> {
     checks: &'a [(bool, u64)],
     /// The call whose callee's blocks are being generated inline, if any ([`Gen::inline_call`]).
     inline: Option<Inline>,
-    /// Instructions of callees compiled inline into this function so far.
-    inlined: usize,
+    /// The body's calls compiled inline ([`inline::plan`]).
+    plan: Vec<Inlined>,
 }
-
-/// Instructions of one callee's body compiled inline at a call, at most.
-const INLINE_CALLEE: usize = 128;
-/// Instructions of callees compiled inline into one function, at most: each inlined call
-/// compiles its callee's body once more.
-const INLINE_BUDGET: usize = 1024;
 
 /// A call compiled inline: its callee's `RETURN`s go on at `back`, in the caller; `record` is
 /// what the call would have pushed, written only where the code leaves the inlined callee.
@@ -340,6 +338,7 @@ struct Caller<'a> {
     carry_vars: Vec<(Key, Variable)>,
     stack: Vec<Variable>,
     info: Vec<SlotInfo>,
+    held: Vec<Held>,
 }
 
 /// What the code knows of a stack slot's value in the block being generated.
@@ -1219,7 +1218,7 @@ impl Gen<'_, '_> {
         let full =
             self.b.ins().icmp_imm_s(IntCC::UnsignedGreaterThanOrEqual, calls, ST_CALL_DEPTH as i64);
         self.bail_if(full, at, d);
-        let inline = self.inlines(target);
+        let inline = self.plan.iter().position(|call| call.pc == at.pc);
         if inline.is_none() {
             // The machine stack: below the context's floor, the interpreter makes the call.
             let stack = self.b.ins().get_stack_pointer(I64);
@@ -1249,7 +1248,8 @@ impl Gen<'_, '_> {
         let record = CallRecord { calls, return_pc: at.pc + 1, base, this: old_this, sb, slots };
         let depth = self.b.ins().iadd_imm_s(calls, 1);
         let sp = self.b.ins().iadd_imm_s(sb, i64::from(after));
-        if let Some(function) = inline {
+        if let Some(planned) = inline {
+            let function = self.plan[planned].function;
             let frame_at = if self.analysis.bodies[&target].uses_frame {
                 let frame = self.field(offset_of!(Context, frame));
                 self.b.ins().iadd(frame, callee_base)
@@ -1270,6 +1270,11 @@ impl Gen<'_, '_> {
                 vm_only: false,
             };
             self.inline_call(function, target, callee, record);
+            // The caller goes on knowing what it knew, but what the callee may have changed.
+            let writes = std::mem::take(&mut self.plan[planned].writes);
+            let instance = if fb { self.info[d as usize - 1].known } else { None };
+            self.forget_writes(&writes, instance);
+            self.plan[planned].writes = writes;
         } else {
             self.store_record(&record);
             let left = self.b.use_var(self.regs.left);
@@ -1281,10 +1286,28 @@ impl Gen<'_, '_> {
             self.b.def_var(self.regs.left, left);
         }
         let next = self.target(at.pc + 1, after);
-        // The callee may have changed any place.
-        self.held.clear();
+        if inline.is_none() {
+            // The callee may have changed any place.
+            self.held.clear();
+        }
         self.pass_on(&[at.pc + 1]);
         self.b.ins().jump(next, &[]);
+    }
+
+    /// Forgets the held values an inlined callee that may store `writes` may have changed,
+    /// its FB instance where `instance` says (unknown: anywhere).
+    fn forget_writes(&mut self, writes: &Writes, instance: Option<Reach>) {
+        if writes.anywhere || (writes.instance > 0 && instance.is_none()) {
+            self.held.clear();
+            return;
+        }
+        for &(at, bytes) in &writes.fixed {
+            self.forget(at, bytes);
+        }
+        if let Some(reach) = instance.filter(|_| writes.instance > 0) {
+            let (at, bytes) = reach.store(writes.instance.min(u64::from(u32::MAX)) as u32);
+            self.forget(at, bytes);
+        }
     }
 
     /// Pushes the frame record of a call as the interpreter pushes it, and stores the caller's
@@ -1300,34 +1323,6 @@ impl Gen<'_, '_> {
             let address = self.slot_address(record.sb, slot as u32);
             self.b.ins().store(own(), value, address, 0);
         }
-    }
-
-    /// The function of the body at `target` if a call of it here is compiled inline: a body
-    /// of at most [`INLINE_CALLEE`] instructions, all native, that calls nothing, while this
-    /// function's inlined instructions stay within [`INLINE_BUDGET`]. (Its own function is
-    /// still generated: the VM enters it where an inlined call stopped.)
-    fn inlines(&mut self, target: u32) -> Option<usize> {
-        if self.inline.is_some() || target == self.body {
-            return None;
-        }
-        let function = self.analysis.functions.binary_search(&target).ok()?;
-        let code = &self.program.code;
-        let mut size = 0;
-        for &leader in &self.analysis.function_leaders[function] {
-            let range = self.analysis.block(code, leader);
-            size += range.len();
-            let calls = code[range.clone()]
-                .iter()
-                .any(|op| matches!(op, Op::CallFn { .. } | Op::CallFb { .. } | Op::End));
-            if calls || !is_native(&code[range.start]) || size > INLINE_CALLEE {
-                return None;
-            }
-        }
-        if self.inlined + size > INLINE_BUDGET {
-            return None;
-        }
-        self.inlined += size;
-        Some(function)
     }
 
     /// The body of `function` (at `target`) generated here, for a call whose callee has the
@@ -1346,7 +1341,7 @@ impl Gen<'_, '_> {
         let leaders = &self.analysis.function_leaders[function][..];
         let blocks = leaders.iter().map(|_| self.b.create_block()).collect();
         let stack = (0..self.stack.len()).map(|_| self.b.declare_var(I64)).collect();
-        let carried = carry::carried(self.program, self.analysis, leaders);
+        let carried = carry::carried(self.program, self.analysis, leaders, &[]);
         let slots = self.info.len();
         let caller = Caller {
             body: std::mem::replace(&mut self.body, target),
@@ -1357,10 +1352,10 @@ impl Gen<'_, '_> {
             carry_vars: std::mem::take(&mut self.carry_vars),
             stack: std::mem::replace(&mut self.stack, stack),
             info: std::mem::replace(&mut self.info, vec![SlotInfo::default(); slots]),
+            held: std::mem::take(&mut self.held),
         };
         self.inline = Some(Inline { back, record });
         self.b.def_var(self.regs.sb, callee.sp);
-        self.held.clear();
         self.pass_on(&[target]);
         let first = self.leader_index(target).expect("a body starts a block");
         self.b.ins().jump(self.blocks[first], &[]);
@@ -1376,6 +1371,7 @@ impl Gen<'_, '_> {
         self.carry_vars = caller.carry_vars;
         self.stack = caller.stack;
         self.info = caller.info;
+        self.held = caller.held;
         self.b.switch_to_block(back);
         self.b.def_var(self.regs.sb, caller_sb);
     }

@@ -30,6 +30,7 @@ mod code;
 mod codegen;
 mod helpers;
 mod il;
+mod inline;
 
 use std::sync::Arc;
 
