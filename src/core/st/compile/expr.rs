@@ -86,6 +86,12 @@ pub struct CallT {
     /// The implicit `EN := …` (the callee declares no EN): when FALSE, nothing of the call
     /// happens (no argument evaluated, no input assigned, no output read), ENO is FALSE.
     pub en: Option<Box<TExpr>>,
+    /// A method call: the instance it runs on (`this`).
+    pub this: Option<Box<TExpr>>,
+    /// A method called through a place whose function block may be a derived one (or an
+    /// interface): the bodies to choose from by the instance's type tag, in order; a `None`
+    /// tag is the default (`oop`). Empty: `pou` is called.
+    pub dispatch: Vec<(Option<u32>, usize)>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -506,6 +512,9 @@ impl<'a> Ctx<'a> {
         match &e.kind {
             ExprKind::Name(id) => self.name(id, scope, access, expected),
             ExprKind::Deref(base) => {
+                if let Some(t) = self.this_place(base, span, scope) {
+                    return t;
+                }
                 let b = self.check_place(base, scope, Access::Read, None);
                 self.deref(b, span, &expr_text(base), file)
             }
@@ -539,6 +548,11 @@ impl<'a> Ctx<'a> {
                         }
                     }
                     Ty::Fb(p) => {
+                        if self.pous[p].lookup(&id.name).is_none() {
+                            if let Some(t) = self.property_read(&b, p, id, access, scope) {
+                                return t;
+                            }
+                        }
                         let pou = &self.pous[p];
                         let Some(v) = pou.lookup(&id.name).map(|i| pou.vars[i].clone()) else {
                             let names: Vec<&str> = pou
@@ -874,7 +888,9 @@ impl<'a> Ctx<'a> {
                 };
                 return TExpr { k: TK::Var { storage, by_ref: v.by_ref }, ty: v.ty, span };
             }
-            if pou.kind == PouKind::Function && id.is(&pou.name) && scope.visible == pou.vars.len()
+            if pou.kind == PouKind::Function
+                && id.is(&pou.ast.name.name)
+                && scope.visible == pou.vars.len()
             {
                 let ty = pou.result.clone();
                 if ty == Ty::Void {
@@ -898,6 +914,9 @@ impl<'a> Ctx<'a> {
                 return TExpr::konst(cv.clone(), v.ty.clone(), span);
             }
             return TExpr { k: TK::Var { storage: v.storage, by_ref: false }, ty: v.ty, span };
+        }
+        if let Some(t) = self.own_member(id, access, scope) {
+            return t;
         }
         if id.is("NULL") && access == Access::Read {
             return TExpr::konst(Cv::Int(0), Ty::Null, span);
@@ -1480,6 +1499,9 @@ impl<'a> Ctx<'a> {
         expected: Option<&Ty>,
     ) -> TExpr {
         let file = scope.file;
+        if let Some(t) = self.method_call(callee, args, span, scope) {
+            return t;
+        }
         if let ExprKind::Name(id) = &callee.kind {
             let is_var = scope
                 .pou
@@ -1532,7 +1554,7 @@ impl<'a> Ctx<'a> {
         }
     }
 
-    fn record_call(&mut self, scope: Scope, callee: usize, span: Span) {
+    pub(super) fn record_call(&mut self, scope: Scope, callee: usize, span: Span) {
         if let Some(p) = scope.pou {
             let calls = &mut self.pous[p].callees;
             if !calls.iter().any(|(c, _)| *c == callee) {
@@ -1602,7 +1624,17 @@ impl<'a> Ctx<'a> {
             return Some(None);
         }
         self.record_call(scope, action, span);
-        Some(Some((inst, CallT { pou: action, args: Vec::new(), outs: Vec::new(), en: None })))
+        Some(Some((
+            inst,
+            CallT {
+                pou: action,
+                args: Vec::new(),
+                outs: Vec::new(),
+                en: None,
+                this: None,
+                dispatch: Vec::new(),
+            },
+        )))
     }
 
     /// A function block instance called as a statement.
@@ -1635,7 +1667,13 @@ impl<'a> Ctx<'a> {
     }
 
     /// Binds a call's arguments to `p`'s parameters (an implicit `EN := …` included).
-    fn bind_args(&mut self, p: usize, args: &[Arg], span: Span, scope: Scope) -> Option<CallT> {
+    pub(super) fn bind_args(
+        &mut self,
+        p: usize,
+        args: &[Arg],
+        span: Span,
+        scope: Scope,
+    ) -> Option<CallT> {
         let file = scope.file;
         let name = self.pous[p].name.clone();
         let positional = args.iter().any(|a| matches!(a, Arg::Positional(_)));
@@ -1787,7 +1825,7 @@ impl<'a> Ctx<'a> {
             self.error(file, span, format!("the call of `{name}` is missing VAR_IN_OUT `{m}`"));
             ok = false;
         }
-        ok.then_some(CallT { pou: p, args: out_args, outs, en })
+        ok.then_some(CallT { pou: p, args: out_args, outs, en, this: None, dispatch: Vec::new() })
     }
 
     /// The parameter `pn` of `name` given as a formal argument: an input or in-out with `:=`,

@@ -42,6 +42,7 @@ mod decl;
 mod emit;
 mod expr;
 mod instance_args;
+mod oop;
 mod refs;
 mod stdlib;
 mod stmt;
@@ -142,6 +143,7 @@ pub fn compile_configured(
         for_vars: Vec::new(),
         loop_depth: 0,
         dialect,
+        oop: oop::Tables::default(),
     };
     // the habits the parser accepted
     for (f, file) in files.iter().enumerate() {
@@ -150,7 +152,9 @@ pub fn compile_configured(
         }
     }
     cx.collect();
+    cx.link_hierarchy();
     cx.resolve_all();
+    cx.check_oop();
 
     // the instances, in variable memory after the globals
     let mut placed: Vec<Option<(usize, u32)>> = Vec::new();

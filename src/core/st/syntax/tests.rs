@@ -1290,7 +1290,7 @@ fn templates_are_distinct_and_well_formed() {
     sorted.dedup();
     assert_eq!(sorted.len(), all.len());
     let calendar = crate::value::CalendarError::TEMPLATES.len();
-    assert_eq!(all.len(), Want::ALL.len() + Closer::ALL.len() + 14 + calendar);
+    assert_eq!(all.len(), Want::ALL.len() + Closer::ALL.len() + 15 + calendar);
     for t in &all {
         assert!(
             t.starts_with(|c: char| !c.is_ascii_uppercase() || t.starts_with("WSTRING")),
