@@ -928,7 +928,10 @@ impl<'a> Ctx<'a> {
                 if block.kind != VarKind::InOut {
                     self.check_instantiable(&ty, file, decl.span);
                 }
-                if kind == PouKind::Function && matches!(ty, Ty::Fb(_)) {
+                if kind == PouKind::Function
+                    && matches!(ty, Ty::Fb(_))
+                    && block.kind != VarKind::InOut
+                {
                     self.error(file, decl.span, "a FUNCTION cannot hold a function block instance");
                 }
                 for id in &decl.names {

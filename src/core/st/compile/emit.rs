@@ -760,13 +760,7 @@ impl<'c, 'a> Em<'c, 'a> {
                 // one branch per candidate, on the instance's type tag (`oop`)
                 let mut ends = Vec::new();
                 for &(tag, pou) in &call.dispatch {
-                    let next = tag.map(|tag| {
-                        self.push_inst(this);
-                        self.op(Op::FetchInd(Elem::U32));
-                        self.push_int(Elem::U32, i128::from(tag));
-                        self.op(Op::Cmp { op: CmpOp::Eq, elem: Elem::U32 });
-                        self.op(Op::GotoIf { target: 0, when: false })
-                    });
+                    let next = tag.map(|tag| self.unless_tag(this, tag));
                     self.enter_callee(call, pou, &pre);
                     self.call_method(this, pou);
                     ends.push(self.op(Op::Goto(0)));
@@ -813,6 +807,16 @@ impl<'c, 'a> Em<'c, 'a> {
         for (a, t) in call.args.iter().zip(pre) {
             self.store_arg(a, *t, None);
         }
+    }
+
+    /// A jump, to be patched, taken when the instance's type tag (its first UDINT) is not
+    /// `tag`.
+    fn unless_tag(&mut self, inst: Inst, tag: u32) -> usize {
+        self.push_inst(inst);
+        self.op(Op::FetchInd(Elem::U32));
+        self.push_int(Elem::U32, i128::from(tag));
+        self.op(Op::Cmp { op: CmpOp::Eq, elem: Elem::U32 });
+        self.op(Op::GotoIf { target: 0, when: false })
     }
 
     /// Pushes the pointer to an instance.
@@ -955,16 +959,25 @@ impl<'c, 'a> Em<'c, 'a> {
         for a in &call.args {
             self.store_arg(a, None, Some(where_));
         }
-        match where_ {
-            Inst::Static(s) => {
-                self.op_static(Op::AddrOf(s.place), s);
+        if call.dispatch.is_empty() {
+            self.call_method(where_, call.pou);
+        } else {
+            // the body of the instance's own function block, by its type tag (`oop`)
+            let mut ends = Vec::new();
+            for &(tag, pou) in &call.dispatch {
+                let next = tag.map(|tag| self.unless_tag(where_, tag));
+                self.call_method(where_, pou);
+                ends.push(self.op(Op::Goto(0)));
+                if let Some(next) = next {
+                    let here = self.pc();
+                    self.patch(next, here);
+                }
             }
-            Inst::Ptr(t) => {
-                self.op(Op::Fetch { elem: Elem::U64, at: Place::Frame(t) });
+            let here = self.pc();
+            for j in ends {
+                self.patch(j, here);
             }
         }
-        let at = self.op_callee(Op::CallFb { target: 0, frame: 0 });
-        self.b.calls.push((at, call.pou));
         for o in &call.outs {
             let elem = self.elem(&o.ty);
             let mut ops = match where_ {

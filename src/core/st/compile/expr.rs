@@ -1651,7 +1651,11 @@ impl<'a> Ctx<'a> {
             Ty::Error => None,
             Ty::Fb(p) => {
                 self.record_call(scope, p, span);
-                let call = self.bind_args(p, args, span, scope)?;
+                let mut call = self.bind_args(p, args, span, scope)?;
+                call.dispatch = self.body_candidates(&inst, p);
+                for &(_, c) in &call.dispatch {
+                    self.record_call(scope, c, span);
+                }
                 Some((inst, call))
             }
             _ => {
@@ -1787,7 +1791,9 @@ impl<'a> Ctx<'a> {
                     ok = false;
                     continue;
                 }
-                if t.ty != v.ty && !matches!((&t.ty, &v.ty), (Ty::Str(_), Ty::Str(_))) {
+                let derived =
+                    matches!((&t.ty, &v.ty), (Ty::Fb(d), Ty::Fb(b)) if self.derives_from(*d, *b));
+                if t.ty != v.ty && !derived && !matches!((&t.ty, &v.ty), (Ty::Str(_), Ty::Str(_))) {
                     let (a, b) = (self.ty_name(&v.ty), self.ty_name(&t.ty));
                     self.error(
                         file,

@@ -536,6 +536,24 @@ impl<'a> Ctx<'a> {
         out
     }
 
+    /// The bodies a call of an instance of function block `fb` reached through `inst` may run:
+    /// the derived function blocks' by their tags, then `fb`'s; none when `inst` is exactly
+    /// an `fb` (a variable, a member, an element).
+    pub(super) fn body_candidates(&self, inst: &TExpr, fb: usize) -> Vec<(Option<u32>, usize)> {
+        if !Self::is_dynamic(inst, false) {
+            return Vec::new();
+        }
+        let mut out: Vec<(Option<u32>, usize)> = (0..self.pous.len())
+            .filter(|&d| d != fb && self.oop.tagged.contains(&d) && self.derives_from(d, fb))
+            .filter(|&d| !self.pous[d].ast.oop.is_abstract)
+            .map(|d| (self.oop.tags.get(&d).copied(), d))
+            .collect();
+        if !out.is_empty() {
+            out.push((None, fb));
+        }
+        out
+    }
+
     /// Whether the code of `scope` may use member `m` (its access specifier); reports why not.
     fn may_use(&mut self, m: usize, span: Span, scope: Scope) -> bool {
         let member = self.oop.members[&m].clone();
@@ -703,7 +721,10 @@ impl<'a> Ctx<'a> {
         let (receiver, fb, own, id) = match &target.kind {
             ExprKind::Name(id) => {
                 let p = scope.pou?;
-                if self.pous[p].lookup(&id.name).is_some() {
+                // a variable, or the result of the method or GET being written
+                let result =
+                    self.pous[p].kind == PouKind::Function && id.is(&self.pous[p].ast.name.name);
+                if self.pous[p].lookup(&id.name).is_some() || result {
                     return None;
                 }
                 let fb = self.own_instance(p)?;

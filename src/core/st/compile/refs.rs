@@ -193,7 +193,11 @@ impl<'a> Ctx<'a> {
         match (from, to) {
             (Ty::Null, Ty::Ref(..) | Ty::Null) => true,
             (Ty::Ref(RefKind::Pointer, _), Ty::Ref(RefKind::Pointer, _)) => true,
-            (Ty::Ref(_, a), Ty::Ref(_, b)) => a == b,
+            (Ty::Ref(_, a), Ty::Ref(_, b)) => match (&**a, &**b) {
+                // a derived function block is one of its base (`oop`)
+                (Ty::Fb(d), Ty::Fb(base)) => self.derives_from(*d, *base),
+                _ => a == b,
+            },
             _ => false,
         }
     }
