@@ -239,6 +239,9 @@ impl<'a> Ctx<'a> {
                     self.resolve_pou(p);
                     return Ty::Fb(p);
                 }
+                if let Some(&i) = self.oop.interface_names.get(&key(&id.name)) {
+                    return Ty::Iface(i);
+                }
                 let mut names: Vec<String> =
                     self.type_decls.iter().map(|t| t.decl.name.name.clone()).collect();
                 names.extend(

@@ -527,6 +527,7 @@ impl<'a> Ctx<'a> {
                 );
                 match b.ty.clone() {
                     Ty::Error => TExpr::error(span),
+                    Ty::Iface(i) => self.interface_property(b, i, id, access, scope),
                     Ty::Struct(s) => {
                         let st = &self.types.structs[s];
                         match st.members.iter().find(|m| id.is(&m.name)) {
@@ -978,6 +979,9 @@ impl<'a> Ctx<'a> {
         if &te.ty == to {
             return te;
         }
+        if matches!(to, Ty::Iface(_)) || matches!(te.ty, Ty::Iface(_)) {
+            return self.as_interface(te, to, file);
+        }
         if matches!(te.ty, Ty::Ref(..) | Ty::Null) || matches!(to, Ty::Ref(..)) {
             let te = self.zero_as_null(te, to);
             if self.ref_assignable(&te.ty, to) {
@@ -1077,7 +1081,7 @@ impl<'a> Ctx<'a> {
         TExpr { k: TK::Conv(Box::new(te)), ty: to, span }
     }
 
-    fn mismatch(&mut self, te: TExpr, to: &Ty, file: usize) -> TExpr {
+    pub(super) fn mismatch(&mut self, te: TExpr, to: &Ty, file: usize) -> TExpr {
         let span = te.span;
         let (a, b) = (self.ty_name(&te.ty), self.ty_name(to));
         let hint = match (te.ty.prim(&self.types), to.prim(&self.types)) {
@@ -1284,6 +1288,9 @@ impl<'a> Ctx<'a> {
         let what = op_text(op);
         if a.ty.is_error() || b.ty.is_error() {
             return TExpr::error(span);
+        }
+        if matches!(a.ty, Ty::Iface(_)) || matches!(b.ty, Ty::Iface(_)) {
+            return self.interface_compare(op, a, b, span, file);
         }
         if matches!(a.ty, Ty::Ref(..) | Ty::Null) || matches!(b.ty, Ty::Ref(..) | Ty::Null) {
             return self.ref_binary(op, a, b, span, file);

@@ -130,6 +130,7 @@ impl<'a> Ctx<'a> {
     pub(super) fn add_interface(&mut self, file: usize, itf: &'a ast::Interface) {
         let index = self.oop.interfaces.len();
         self.oop.interface_names.insert(itf.name.name.to_ascii_lowercase(), index);
+        self.types.interfaces.push(itf.name.name.clone());
         self.oop.interfaces.push(Interface {
             ast: itf,
             file,
@@ -619,6 +620,9 @@ impl<'a> Ctx<'a> {
                 (Self::own_place(fb, callee.span), fb, true, id)
             }
             ExprKind::Member(base, id) => {
+                if let Some(t) = self.interface_method(base, id, args, span, scope) {
+                    return Some(t);
+                }
                 let (receiver, fb, own) = self.receiver(base, scope)?;
                 if receiver.ty.is_error() {
                     return Some(receiver);
@@ -733,6 +737,9 @@ impl<'a> Ctx<'a> {
                 (Self::own_place(fb, target.span), fb, true, id)
             }
             ExprKind::Member(base, id) => {
+                if let Some(set) = self.interface_setter(base, id, value, scope) {
+                    return Some(set);
+                }
                 let (receiver, fb, own) = self.receiver(base, scope)?;
                 if receiver.ty.is_error() || self.pous[fb].lookup(&id.name).is_some() {
                     return None;
@@ -904,5 +911,255 @@ impl<'a> Ctx<'a> {
                 self.error(file, span, msg);
             }
         }
+    }
+
+    /// Whether interface `i` is `target` or extends it, directly or not.
+    pub(super) fn interface_extends(&self, i: usize, target: usize) -> bool {
+        let mut work = vec![i];
+        let mut seen = HashSet::new();
+        while let Some(at) = work.pop() {
+            if at == target {
+                return true;
+            }
+            if seen.insert(at) {
+                work.extend(self.oop.interfaces[at].extends.iter().copied());
+            }
+        }
+        false
+    }
+
+    /// Whether function block `fb` implements interface `itf`: it or one of its bases
+    /// declares `itf`, or an interface extending it.
+    pub(super) fn implements(&self, fb: usize, itf: usize) -> bool {
+        let mut at = Some(fb);
+        for _ in 0..=self.pous.len() {
+            let Some(p) = at else { return false };
+            let declared = self.oop.implements.get(&p).map_or(&[][..], Vec::as_slice);
+            if declared.iter().any(|&(i, _)| self.interface_extends(i, itf)) {
+                return true;
+            }
+            at = self.oop.base.get(&p).copied();
+        }
+        false
+    }
+
+    /// `te` given to a value of interface type `to` (or an interface value given to `to`):
+    /// an instance of a function block implementing it (its reference), an interface value of
+    /// an interface extending it, `NULL` or `0`.
+    pub(super) fn as_interface(&mut self, te: TExpr, to: &Ty, file: usize) -> TExpr {
+        let span = te.span;
+        match (&te.ty, to) {
+            (Ty::Fb(p), Ty::Iface(i)) if self.implements(*p, *i) && te.is_place() => {
+                TExpr { k: TK::Ref(Box::new(te)), ty: to.clone(), span }
+            }
+            (Ty::Iface(a), Ty::Iface(b)) if self.interface_extends(*a, *b) => {
+                TExpr { ty: to.clone(), ..te }
+            }
+            (Ty::Null, Ty::Iface(_)) => TExpr { ty: to.clone(), ..te },
+            (Ty::IntLit, Ty::Iface(_)) if te.const_int() == Some(0) => {
+                TExpr::konst(super::ctx::Cv::Int(0), to.clone(), span)
+            }
+            _ => self.mismatch(te, to, file),
+        }
+    }
+
+    /// `x = y`, `x <> y` with an interface value: another of a related interface, `NULL` or
+    /// `0` (unassigned), as CODESYS compares them.
+    pub(super) fn interface_compare(
+        &mut self,
+        op: ast::BinaryOp,
+        a: TExpr,
+        b: TExpr,
+        span: Span,
+        file: usize,
+    ) -> TExpr {
+        use crate::lang::ops::CmpOp;
+        let cmp = match op {
+            ast::BinaryOp::Eq => CmpOp::Eq,
+            ast::BinaryOp::Ne => CmpOp::Ne,
+            _ => {
+                let msg = format!(
+                    "`{}` compares interfaces: only `=` and `<>` do",
+                    super::expr::op_text(op)
+                );
+                self.error(file, span, msg);
+                return TExpr::error(span);
+            }
+        };
+        let (a, b) = match (&a.ty, &b.ty) {
+            (Ty::Iface(_), Ty::Iface(_)) => {
+                let t = a.ty.clone();
+                let b = if self.related(&b.ty, &t) { TExpr { ty: t.clone(), ..b } } else { b };
+                (a, b)
+            }
+            (Ty::Iface(_), _) => {
+                let t = a.ty.clone();
+                let b = self.as_interface(b, &t, file);
+                (a, b)
+            }
+            _ => {
+                let t = b.ty.clone();
+                let a = self.as_interface(a, &t, file);
+                (a, b)
+            }
+        };
+        if a.ty.is_error() || b.ty.is_error() {
+            return TExpr::error(span);
+        }
+        if a.ty != b.ty {
+            let (x, y) = (self.ty_name(&a.ty), self.ty_name(&b.ty));
+            self.error(file, span, format!("`{x}` and `{y}` cannot be compared"));
+            return TExpr::error(span);
+        }
+        let k = TK::Cmp(cmp, Box::new(a), Box::new(b));
+        TExpr { k, ty: Ty::Prim(super::types::Prim::Bool), span }
+    }
+
+    fn related(&self, a: &Ty, b: &Ty) -> bool {
+        match (a, b) {
+            (Ty::Iface(x), Ty::Iface(y)) => {
+                self.interface_extends(*x, *y) || self.interface_extends(*y, *x)
+            }
+            _ => false,
+        }
+    }
+
+    /// The instance behind an interface value, as the receiver of a call: reached through the
+    /// reference (`NULL`: operation error 2822H, as for a reference), its type tag checked.
+    fn interface_receiver(itf_value: TExpr) -> TExpr {
+        let span = itf_value.span;
+        let tag = Ty::Prim(super::types::Prim::UDInt);
+        TExpr { k: TK::Deref(Box::new(itf_value)), ty: tag, span }
+    }
+
+    /// The bodies a call of interface member `m` (`name`, `role`) may run: each function block
+    /// implementing `itf` by its tag, then `m`'s own empty body (reached only when the value is
+    /// `NULL`, after its operation error).
+    fn interface_candidates(&self, itf: usize, m: usize) -> Vec<(Option<u32>, usize)> {
+        let member = &self.oop.members[&m];
+        let mut out: Vec<(Option<u32>, usize)> = (0..self.pous.len())
+            .filter(|&d| {
+                self.oop.tagged.contains(&d) && self.pous[d].kind == PouKind::FunctionBlock
+            })
+            .filter(|&d| !self.pous[d].ast.oop.is_abstract && self.implements(d, itf))
+            .filter_map(|d| {
+                let found = self.find_member(d, &member.name, member.role)?;
+                (!self.oop.members[&found].is_abstract)
+                    .then(|| (self.oop.tags.get(&d).copied(), found))
+            })
+            .collect();
+        out.push((None, m));
+        out
+    }
+
+    /// The member `name` (`role`) of interface `itf` or of those it extends.
+    fn interface_member(&self, itf: usize, name: &str, role: Role) -> Option<usize> {
+        self.interface_members(itf).into_iter().find(|m| {
+            let member = &self.oop.members[m];
+            member.role == role && member.name.eq_ignore_ascii_case(name)
+        })
+    }
+
+    /// A call of member `m` of interface `itf` through the interface value `value`.
+    fn interface_call(
+        &mut self,
+        value: TExpr,
+        itf: usize,
+        m: usize,
+        args: &[Arg],
+        span: Span,
+        scope: Scope,
+    ) -> TExpr {
+        let dispatch = self.interface_candidates(itf, m);
+        for &(_, c) in &dispatch {
+            self.record_call(scope, c, span);
+        }
+        let Some(mut call) = self.bind_args(m, args, span, scope) else {
+            return TExpr::error(span);
+        };
+        call.this = Some(Box::new(Self::interface_receiver(value)));
+        call.dispatch = dispatch;
+        let ty = self.pous[m].result.clone();
+        TExpr { k: TK::Call(Box::new(call)), ty, span }
+    }
+
+    /// `x.P` read where `x` is an interface value.
+    pub(super) fn interface_property(
+        &mut self,
+        value: TExpr,
+        itf: usize,
+        id: &ast::Ident,
+        access: Access,
+        scope: Scope,
+    ) -> TExpr {
+        let Some(get) = self.interface_member(itf, &id.name, Role::Get) else {
+            let name = self.types.interfaces[itf].clone();
+            let msg = if self.interface_member(itf, &id.name, Role::Set).is_some() {
+                format!("property `{}` has no GET: it cannot be read", id.name)
+            } else {
+                format!("`{name}` has no property `{}`", id.name)
+            };
+            self.error(scope.file, id.span, msg);
+            return TExpr::error(id.span);
+        };
+        if access != Access::Read {
+            let msg = format!("property `{}` cannot be passed to a VAR_IN_OUT", id.name);
+            self.error(scope.file, id.span, msg);
+            return TExpr::error(id.span);
+        }
+        self.interface_call(value, itf, get, &[], id.span, scope)
+    }
+
+    /// `x.M(…)` where `x` is an interface value: `None` when `base` is none.
+    fn interface_method(
+        &mut self,
+        base: &Expr,
+        id: &ast::Ident,
+        args: &[Arg],
+        span: Span,
+        scope: Scope,
+    ) -> Option<TExpr> {
+        let saved = self.diags.len();
+        let probe = self.check_place(base, scope, Access::Read, None);
+        self.diags.truncate(saved);
+        let Ty::Iface(itf) = probe.ty else { return None };
+        let value = self.check_place(base, scope, Access::Read, None);
+        let Some(m) = self.interface_member(itf, &id.name, Role::Method) else {
+            let name = self.types.interfaces[itf].clone();
+            self.error(scope.file, id.span, format!("`{name}` has no method `{}`", id.name));
+            return Some(TExpr::error(span));
+        };
+        Some(self.interface_call(value, itf, m, args, span, scope))
+    }
+
+    /// `x.P := v` where `x` is an interface value: `None` when `base` is none.
+    fn interface_setter(
+        &mut self,
+        base: &Expr,
+        id: &ast::Ident,
+        value: &Expr,
+        scope: Scope,
+    ) -> Option<Option<TS>> {
+        let saved = self.diags.len();
+        let probe = self.check_place(base, scope, Access::Read, None);
+        self.diags.truncate(saved);
+        let Ty::Iface(itf) = probe.ty else { return None };
+        let this = self.check_place(base, scope, Access::Read, None);
+        let Some(set) = self.interface_member(itf, &id.name, Role::Set) else {
+            let msg = if self.interface_member(itf, &id.name, Role::Get).is_some() {
+                format!("property `{}` has no SET: it cannot be written", id.name)
+            } else {
+                let name = self.types.interfaces[itf].clone();
+                format!("`{name}` has no property `{}`", id.name)
+            };
+            self.error(scope.file, id.span, msg);
+            return Some(None);
+        };
+        let arg = Arg::Input { name: id.clone(), value: value.clone() };
+        let call = self.interface_call(this, itf, set, &[arg], id.span, scope);
+        if call.ty.is_error() {
+            return Some(None);
+        }
+        Some(Some(TS::Eval(call)))
     }
 }
