@@ -319,6 +319,11 @@ impl<'a> Ctx<'a> {
             let (ast, file) = (self.oop.interfaces[i].ast, self.oop.interfaces[i].file);
             let mut extends = Vec::new();
             for e in &ast.extends {
+                // TwinCAT's interfaces extend the system's `__System.IQueryInterface`, whose
+                // `__QUERYINTERFACE` plcd does not offer: nothing to inherit
+                if e.name.to_ascii_lowercase().starts_with("__system.") {
+                    continue;
+                }
                 match self.oop.interface_names.get(&e.name.to_ascii_lowercase()).copied() {
                     Some(j) if j != i => extends.push(j),
                     _ => self.error(file, e.span, format!("`{}` is not an INTERFACE", e.name)),

@@ -653,10 +653,15 @@ impl<'a> Parser<'a> {
         self.at_kw(Kw::Method) || self.at_kw(Kw::Property)
     }
 
-    /// `A, B, …`: names after EXTENDS or IMPLEMENTS.
+    /// `A, B, …`: names after EXTENDS or IMPLEMENTS (a library's qualified, `NS.I`).
     fn names(&mut self) -> Vec<Ident> {
         let mut out = Vec::new();
-        while let Ok(id) = self.ident() {
+        while let Ok(mut id) = self.ident() {
+            while self.at_p(P::Dot) && *self.tok_at(1) == Tok::Ident {
+                self.bump();
+                let Ok(more) = self.ident() else { break };
+                id.name = format!("{}.{}", id.name, more.name);
+            }
             out.push(id);
             if !self.eat_p(P::Comma) {
                 break;
