@@ -71,12 +71,14 @@ pub fn st_text(xml: &str) -> Result<String, XmlError> {
                     keep.extend(sections(decl, xml));
                 }
             }
-            other => return Err(XmlError {
-                span: at(object.range().start),
-                message: format!(
+            other => {
+                return Err(XmlError {
+                    span: at(object.range().start),
+                    message: format!(
                     "`<{other}>` is not read: a TwinCAT source holds a POU, an Itf, a DUT or a GVL"
                 ),
-            }),
+                })
+            }
         }
     }
     words.sort_by_key(|(at, _)| *at);
