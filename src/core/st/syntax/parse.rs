@@ -745,6 +745,7 @@ impl<'a> Parser<'a> {
         let ty = self.type_ref().ok();
         self.eat_p(P::Semi);
         let (mut get, mut set) = (None, None);
+        self.open.push(Closer::Property);
         loop {
             let getter = self.at_word("GET");
             if !getter && !self.at_word("SET") {
@@ -799,6 +800,7 @@ impl<'a> Parser<'a> {
                 set = Some(accessor);
             }
         }
+        self.open.pop();
         let here = self.span();
         self.close(Closer::Property, "PROPERTY", span).unwrap_or(here);
         self.eat_p(P::Semi);
@@ -816,9 +818,11 @@ impl<'a> Parser<'a> {
             extends = self.names();
         }
         let mut oop = Oop::default();
+        self.open.push(Closer::Interface);
         while self.at_member() {
             self.oop_member(&mut oop);
         }
+        self.open.pop();
         let here = self.span();
         let end = self.close(Closer::Interface, "INTERFACE", span).unwrap_or(here);
         self.eat_p(P::Semi);
