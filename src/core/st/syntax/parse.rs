@@ -610,6 +610,13 @@ impl<'a> Parser<'a> {
                 }
             }
         }
+        let closer = match kind {
+            PouKind::Program => Closer::Program,
+            PouKind::Function => Closer::Function,
+            PouKind::FunctionBlock => Closer::FunctionBlock,
+        };
+        // open from here: a method's missing END_METHOD does not take the POU's end for it
+        self.open.push(closer);
         let mut vars = Vec::new();
         loop {
             if var_kind(self.tok()).is_some() {
@@ -620,12 +627,6 @@ impl<'a> Parser<'a> {
                 break;
             }
         }
-        let closer = match kind {
-            PouKind::Program => Closer::Program,
-            PouKind::Function => Closer::Function,
-            PouKind::FunctionBlock => Closer::FunctionBlock,
-        };
-        self.open.push(closer);
         let mut body = self.stmt_list(false, false);
         let mut actions = Vec::new();
         // actions among the statements (as the textual SFC places them), methods and
