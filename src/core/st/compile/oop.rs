@@ -529,14 +529,12 @@ impl<'a> Ctx<'a> {
             }
         }
         if !out.is_empty() || self.oop.members[&m].is_abstract {
-            // the static type's own: the default (an abstract one is never run: the last
-            // candidate is then the default)
-            if self.oop.members[&m].is_abstract {
-                if let Some(last) = out.last_mut() {
-                    last.0 = None;
-                }
-            } else {
-                out.push((None, m));
+            // the static type's own: the default. An abstract one runs only when no block of
+            // the project implements it (its empty body: a library's abstract block whose
+            // project extends it nowhere still compiles); else the last candidate is it.
+            match out.last_mut() {
+                Some(last) if self.oop.members[&m].is_abstract => last.0 = None,
+                _ => out.push((None, m)),
             }
         }
         out
