@@ -170,7 +170,8 @@ impl<'a> Ctx<'a> {
     ) -> Option<usize> {
         let key = member_key(owner_name, &pou.name.name, role);
         if self.pou_names.contains_key(&key) {
-            self.error(file, pou.name.span, format!("`{}` is already declared", pou.name.name));
+            let msg = format!("`{}` is already declared in `{owner_name}`", pou.name.name);
+            self.error(file, pou.name.span, msg);
             return None;
         }
         let p = self.pous.len();
@@ -285,6 +286,9 @@ impl<'a> Ctx<'a> {
                 }
             }
             for itf in &ast.oop.implements {
+                if itf.name.to_ascii_lowercase().starts_with("__system.") {
+                    continue;
+                }
                 match self.oop.interface_names.get(&itf.name.to_ascii_lowercase()).copied() {
                     Some(i) => self.oop.implements.entry(p).or_default().push((i, itf.span)),
                     None => {
@@ -563,21 +567,20 @@ impl<'a> Ctx<'a> {
         let member = self.oop.members[&m].clone();
         let Some(owner) = member.owner else { return true };
         let here = scope.pou.and_then(|p| self.own_instance(p));
-        let (ok, rule) = match member.access {
-            Visibility::Public | Visibility::Internal => (true, ""),
-            Visibility::Private => (here == Some(owner), "PRIVATE: only the code of"),
-            Visibility::Protected => {
-                (here.is_some_and(|h| self.derives_from(h, owner)), "PROTECTED: only the code of")
-            }
+        let ok = match member.access {
+            Visibility::Public | Visibility::Internal => true,
+            Visibility::Private => here == Some(owner),
+            Visibility::Protected => here.is_some_and(|h| self.derives_from(h, owner)),
         };
         if !ok {
-            let owner_name = self.pous[owner].name.clone();
-            let extra = if member.access == Visibility::Protected {
-                " and of the function blocks extending it"
+            let (name, owner_name) = (&member.name, self.pous[owner].name.clone());
+            let msg = if member.access == Visibility::Private {
+                format!("`{name}` is PRIVATE: only the code of `{owner_name}` may use it")
             } else {
-                ""
+                format!(
+                    "`{name}` is PROTECTED: only the code of `{owner_name}` and of the function blocks extending it may use it"
+                )
             };
-            let msg = format!("`{}` is {rule} `{owner_name}`{extra} may use it", member.name);
             self.error(scope.file, span, msg);
         }
         ok
