@@ -100,7 +100,8 @@ impl<'a> Ctx<'a> {
             let r = self.undo_auto_deref(r);
             return Some(match r.ty {
                 Ty::Error => TExpr::error(span),
-                Ty::Ref(..) | Ty::Null => {
+                // an interface is a reference to an instance (`oop`)
+                Ty::Ref(..) | Ty::Null | Ty::Iface(_) => {
                     let null = TExpr::konst(Cv::Int(0), Ty::Null, span);
                     let cmp = TK::Cmp(CmpOp::Ne, Box::new(r), Box::new(null));
                     TExpr { k: cmp, ty: Ty::Prim(Prim::Bool), span }
