@@ -39,6 +39,18 @@ fn last(trace: &str, name: &str) -> Option<String> {
         .map(|(_, v)| v.trim_end_matches('}').to_string())
 }
 
+/// `plcd check` of the project in `dir` passes, then `plcd sim --for <duration> --watch
+/// <watch> --trace -`: its trace.
+fn checked_trace(dir: &Path, duration: &str, watch: &str) -> String {
+    let out = plcd(dir, &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let args =
+        ["sim", "--config", "plcd.toml", "--for", duration, "--watch", watch, "--trace", "-"];
+    let out = plcd(dir, &args);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
 fn project() -> TempDir {
     let dir = TempDir::new("st-sources");
     let d = dir.path();
@@ -82,24 +94,7 @@ fn project() -> TempDir {
 #[test]
 fn a_twincat_program_runs_on_a_library_folder_of_twincat_files() {
     let dir = project();
-    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let out = plcd(
-        dir.path(),
-        &[
-            "sim",
-            "--config",
-            "plcd.toml",
-            "--for",
-            "3500us",
-            "--watch",
-            "main.c.total,main.p.x,main.n",
-            "--trace",
-            "-",
-        ],
-    );
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let trace = String::from_utf8_lossy(&out.stdout);
+    let trace = checked_trace(dir.path(), "3500us", "main.c.total,main.p.x,main.n");
     // a scan every 1 ms: 4 scans in 3.5 ms (t = 0, 1, 2, 3 ms), 2 each
     assert_eq!(last(&trace, "main.c.total").as_deref(), Some("8"), "{trace}");
     assert_eq!(last(&trace, "main.p.x").as_deref(), Some("8"));
@@ -155,24 +150,7 @@ fn twincat_oop_project() -> TempDir {
 #[test]
 fn a_twincat_function_block_with_methods_properties_and_an_interface_runs() {
     let dir = twincat_oop_project();
-    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let out = plcd(
-        dir.path(),
-        &[
-            "sim",
-            "--config",
-            "plcd.toml",
-            "--for",
-            "2500us",
-            "--watch",
-            "main.nPos,main.bDone",
-            "--trace",
-            "-",
-        ],
-    );
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let trace = String::from_utf8_lossy(&out.stdout);
+    let trace = checked_trace(dir.path(), "2500us", "main.nPos,main.bDone");
     // 3 scans (t = 0, 1, 2 ms): each moves by the speed, then the property adds 1 to it:
     // speeds 1, 2, 3, positions 1, 3, 6, capped by nothing but the target 5 (>= 5 at 6)
     assert_eq!(last(&trace, "main.nPos").as_deref(), Some("6"), "{trace}");

@@ -756,24 +756,10 @@ impl<'c, 'a> Em<'c, 'a> {
                 self.enter_callee(call, call.pou, &pre);
                 self.call_method(this, call.pou);
             }
-            Some(this) => {
-                // one branch per candidate, on the instance's type tag (`oop`)
-                let mut ends = Vec::new();
-                for &(tag, pou) in &call.dispatch {
-                    let next = tag.map(|tag| self.unless_tag(this, tag));
-                    self.enter_callee(call, pou, &pre);
-                    self.call_method(this, pou);
-                    ends.push(self.op(Op::Goto(0)));
-                    if let Some(next) = next {
-                        let here = self.pc();
-                        self.patch(next, here);
-                    }
-                }
-                let here = self.pc();
-                for j in ends {
-                    self.patch(j, here);
-                }
-            }
+            Some(this) => self.dispatch(this, &call.dispatch, |em, pou| {
+                em.enter_callee(call, pou, &pre);
+                em.call_method(this, pou);
+            }),
         }
         if want && *ty != Ty::Void {
             if ty.is_aggregate() {
@@ -806,6 +792,31 @@ impl<'c, 'a> Em<'c, 'a> {
         }
         for (a, t) in call.args.iter().zip(pre) {
             self.store_arg(a, *t, None);
+        }
+    }
+
+    /// One branch per candidate body, chosen by the instance's type tag (`oop`): `call` emits
+    /// the call of each; a candidate without a tag is the default, taken when no tag before
+    /// it matched.
+    fn dispatch(
+        &mut self,
+        inst: Inst,
+        candidates: &[(Option<u32>, usize)],
+        mut call: impl FnMut(&mut Self, usize),
+    ) {
+        let mut ends = Vec::new();
+        for &(tag, pou) in candidates {
+            let next = tag.map(|tag| self.unless_tag(inst, tag));
+            call(self, pou);
+            ends.push(self.op(Op::Goto(0)));
+            if let Some(next) = next {
+                let here = self.pc();
+                self.patch(next, here);
+            }
+        }
+        let here = self.pc();
+        for j in ends {
+            self.patch(j, here);
         }
     }
 
@@ -962,21 +973,8 @@ impl<'c, 'a> Em<'c, 'a> {
         if call.dispatch.is_empty() {
             self.call_method(where_, call.pou);
         } else {
-            // the body of the instance's own function block, by its type tag (`oop`)
-            let mut ends = Vec::new();
-            for &(tag, pou) in &call.dispatch {
-                let next = tag.map(|tag| self.unless_tag(where_, tag));
-                self.call_method(where_, pou);
-                ends.push(self.op(Op::Goto(0)));
-                if let Some(next) = next {
-                    let here = self.pc();
-                    self.patch(next, here);
-                }
-            }
-            let here = self.pc();
-            for j in ends {
-                self.patch(j, here);
-            }
+            // the body of the instance's own function block
+            self.dispatch(where_, &call.dispatch, |em, pou| em.call_method(where_, pou));
         }
         for o in &call.outs {
             let elem = self.elem(&o.ty);

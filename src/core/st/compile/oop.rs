@@ -168,6 +168,19 @@ impl<'a> Ctx<'a> {
         flags: (Visibility, bool, bool),
         role: Role,
     ) -> Option<usize> {
+        self.register_member(file, None, owner_name, pou, flags, role)
+    }
+
+    /// A member's POU, under its key: `None` (reported) when its owner has one of that name.
+    fn register_member(
+        &mut self,
+        file: usize,
+        owner: Option<usize>,
+        owner_name: &str,
+        pou: &'a ast::Pou,
+        flags: (Visibility, bool, bool),
+        role: Role,
+    ) -> Option<usize> {
         let key = member_key(owner_name, &pou.name.name, role);
         if self.pou_names.contains_key(&key) {
             let msg = format!("`{}` is already declared in `{owner_name}`", pou.name.name);
@@ -177,18 +190,13 @@ impl<'a> Ctx<'a> {
         let p = self.pous.len();
         let mut info = PouInfo::new(pou, file);
         info.name = format!("{owner_name}.{}", pou.name.name);
+        info.method = owner;
         self.pous.push(info);
         self.pou_names.insert(key, p);
         let (access, is_abstract, is_final) = flags;
-        let member = Member {
-            owner: None,
-            name: pou.name.name.clone(),
-            access,
-            is_abstract,
-            is_final,
-            role,
-            span: pou.name.span,
-        };
+        let name = pou.name.name.clone();
+        let span = pou.name.span;
+        let member = Member { owner, name, access, is_abstract, is_final, role, span };
         self.oop.members.insert(p, member);
         Some(p)
     }
@@ -207,24 +215,19 @@ impl<'a> Ctx<'a> {
         if owner_ast.kind == PouKind::Function {
             return;
         }
-        let key = member_key(&owner_name, &pou.name.name, role);
-        let clash = self.pou_names.contains_key(&key)
-            || role == Role::Method
-                && owner_ast
-                    .vars
-                    .iter()
-                    .flat_map(|b| &b.decls)
-                    .flat_map(|d| &d.names)
-                    .any(|n| n.is(&pou.name.name));
+        let clash = role == Role::Method
+            && owner_ast
+                .vars
+                .iter()
+                .flat_map(|b| &b.decls)
+                .flat_map(|d| &d.names)
+                .any(|n| n.is(&pou.name.name));
         if clash {
-            self.error(
-                file,
-                pou.name.span,
-                format!("`{}` is already declared in `{owner_name}`", pou.name.name),
-            );
+            let msg = format!("`{}` is already declared in `{owner_name}`", pou.name.name);
+            self.error(file, pou.name.span, msg);
             return;
         }
-        let (access, is_abstract, is_final) = flags;
+        let (_, is_abstract, _) = flags;
         if is_abstract && !owner_ast.oop.is_abstract {
             let msg = format!(
                 "`{}` is ABSTRACT: only an ABSTRACT FUNCTION_BLOCK has ABSTRACT {}s (`{owner_name}` is not)",
@@ -233,22 +236,7 @@ impl<'a> Ctx<'a> {
             );
             self.error(file, pou.name.span, msg);
         }
-        let p = self.pous.len();
-        let mut info = PouInfo::new(pou, file);
-        info.name = format!("{owner_name}.{}", pou.name.name);
-        info.method = Some(o);
-        self.pous.push(info);
-        self.pou_names.insert(key, p);
-        let member = Member {
-            owner,
-            name: pou.name.name.clone(),
-            access,
-            is_abstract,
-            is_final,
-            role,
-            span: pou.name.span,
-        };
-        self.oop.members.insert(p, member);
+        self.register_member(file, owner, &owner_name, pou, flags, role);
     }
 
     /// Resolves `EXTENDS` and `IMPLEMENTS` (names, cycles, FINAL bases) and gives the
