@@ -709,6 +709,12 @@ impl<'a> Parser<'a> {
         let mut return_type = None;
         if self.eat_p(P::Colon) {
             return_type = self.type_ref().ok();
+            if return_type.is_none() {
+                // on to the declarations, as after a FUNCTION's result type
+                while !is_top(self.tok()) && var_kind(self.tok()).is_none() && !self.at_p(P::Semi) {
+                    self.bump();
+                }
+            }
         }
         self.eat_p(P::Semi);
         let mut vars = Vec::new();
