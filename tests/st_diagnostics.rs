@@ -284,6 +284,36 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` compares interfaces: only `=` and `<>` do", "interface-ordered"),
     ("`{}` and `{}` cannot be compared", "interfaces-not-comparable"),
     ("`{}` has no property `{}`", "interface-property-not-found"),
+    // sfc.rs: Sequential Function Charts
+    (
+        "FUNCTION `{}` cannot hold a sequential function chart: a FUNCTION keeps nothing between calls (use a FUNCTION_BLOCK or a PROGRAM)",
+        "sfc-in-function",
+    ),
+    (
+        "a statement in the body of `{}`, which is a sequential function chart: a body is statements or a chart, not both (put the statements in an ACTION)",
+        "sfc-statement-beside-chart",
+    ),
+    ("step `{}` is already declared at line {}", "sfc-step-already-declared"),
+    ("transition `{}` is already declared at line {}", "sfc-transition-already-declared"),
+    ("step `{}` is named twice in this transition", "sfc-step-named-twice-in-transition"),
+    ("`{}`: no step of that name in this chart", "sfc-unknown-step"),
+    ("PRIORITY takes an integer literal (0 is the highest priority)", "sfc-priority-not-integer"),
+    (
+        "a second INITIAL_STEP in one network: `{}` is linked to `{}` (line {}), and a network has exactly one",
+        "sfc-second-initial-step",
+    ),
+    (
+        "no INITIAL_STEP in the network of step `{}`: one of its steps must be the INITIAL_STEP",
+        "sfc-no-initial-step",
+    ),
+    ("`{}` is no action qualifier: {}", "sfc-unknown-qualifier"),
+    ("qualifier `{}` needs a duration: `{}({}, T#5s)`", "sfc-qualifier-needs-duration"),
+    ("qualifier `{}` takes {}", "sfc-qualifier-takes-no-duration"),
+    ("qualifier `{}` takes {}", "sfc-qualifier-takes-one-duration"),
+    (
+        "`{}` is a variable of type `{}`: an action association names an ACTION of `{}` or a BOOL variable",
+        "sfc-action-variable-not-bool",
+    ),
 ];
 
 /// The messages of `[st] strict` (`src/core/st/dialect.rs`), one per CODESYS habit, and their
@@ -401,6 +431,9 @@ const PARTS: &[&str] = &[
     "its result is `{}`, not `{}`",
     "{} parameter(s), not {}",
     "parameter `{}` differs in name, kind or type",
+    // what a qualifier takes after it (sfc.rs)
+    "one duration, then indicator variable names",
+    "no duration, only indicator variable names",
     // the names of reference types in messages (`POINTER TO INT`)
     "POINTER TO",
     "REFERENCE TO",

@@ -231,6 +231,37 @@ fn an_online_change_keeps_variables_of_unchanged_name_and_type() {
     assert_eq!(&kept[..], [(n_old, n_new, 4)], "only n: same name (any case) and type");
 }
 
+/// A chart's state is variables of its instance (docs/ST.md, "Sequential Function Chart"): an
+/// online change keeps each step's activity and time, and each action's control, by name; a
+/// step the change adds starts afresh.
+#[test]
+fn an_online_change_keeps_a_charts_steps_by_name() {
+    let chart = |extra: &str| {
+        format!(
+            "PROGRAM Main VAR go : BOOL; lamp : BOOL; END_VAR
+               INITIAL_STEP Idle: END_STEP
+               STEP Fill: lamp(N); END_STEP
+               TRANSITION FROM Idle TO Fill := go; END_TRANSITION
+               {extra}
+             END_PROGRAM"
+        )
+    };
+    let old = project("[[program]]\nfile = \"main.st\"\n", &[("main.st", &chart(""))]);
+    let added = "STEP Done: END_STEP TRANSITION FROM Fill TO Done := NOT go; END_TRANSITION";
+    let new = project("[[program]]\nfile = \"main.st\"\n", &[("main.st", &chart(added))]);
+    let kept = plcd::engine::online::kept_variables(&old.variables, &new.variables);
+    let at = |p: &plcd::project::Project, name: &str| p.variable(name).unwrap().at.offset;
+    for name in ["main.Idle.X", "main.Fill.X", "main.Fill.T", "main.Fill.since", "main.sfc$lamp.Q"]
+    {
+        assert!(
+            kept.iter().any(|k| (k.0, k.1) == (at(&old, name), at(&new, name))),
+            "{name} is kept"
+        );
+    }
+    let done = at(&new, "main.Done.X");
+    assert!(kept.iter().all(|k| k.1 != done), "the new step starts afresh");
+}
+
 #[test]
 fn an_online_change_sets_references_to_null() {
     // A reference is the offset of its target in the old layout of memory: never kept, even

@@ -221,6 +221,8 @@ pub struct Pou {
     /// A FUNCTION_BLOCK's (or PROGRAM's) object orientation: `EXTENDS Base`, `IMPLEMENTS I,
     /// …`, `ABSTRACT`, `FINAL`, its methods and properties.
     pub oop: Oop,
+    /// Its Sequential Function Chart, when its body is one (`STEP`, `TRANSITION`, …).
+    pub sfc: Option<crate::st::sfc::Sfc>,
     /// Where the POU's keyword is.
     pub span: Span,
     /// Where its `END_…` keyword is (the line a breakpoint on the end stops at).

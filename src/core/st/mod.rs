@@ -3,6 +3,7 @@
 //!
 //! - [`ast`]: the syntax tree;
 //! - [`syntax`]: text → tree, with every syntax error of a file;
+//! - [`sfc`]: a POU's Sequential Function Chart, as parsed;
 //! - [`twincat`]: TwinCAT's `.TcPOU`/`.TcDUT`/`.TcGVL`/`.TcIO` files → ST text on the same lines;
 //! - [`dialect`]: the CODESYS/TwinCAT habits accepted beyond the standard, and `strict`;
 //! - [`configuration`]: a `CONFIGURATION`'s tasks and program instances → the project's;
@@ -13,6 +14,7 @@ pub mod ast;
 pub mod compile;
 pub mod configuration;
 pub mod dialect;
+pub mod sfc;
 pub mod syntax;
 pub mod twincat;
 

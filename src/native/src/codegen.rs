@@ -34,6 +34,14 @@
 //! have them. Entered by the VM inside a body whose caller is not native (the interpreter
 //! made the call, or a callee stopped), a `RETURN` gives the VM `RETURN_CONTINUE`, which
 //! enters the caller's function at the return address, through its dispatch.
+//!
+//! A call of a small body that calls nothing ([`INLINE_CALLEE`] instructions, up to
+//! [`INLINE_BUDGET`] a function) is compiled inline instead: the callee's blocks are generated
+//! once more inside the caller, with the callee's registers (its frame base, its FB instance,
+//! the call depth + 1) and its own stack slots, and its `RETURN` jumps to the caller's next
+//! block. Nothing is pushed on the way in: the frame record and the caller's slots are
+//! written only on the inlined blocks' ways out, so that the VM finds the callee stopped as
+//! if called (and goes on in the callee's own function, which is still generated).
 
 use std::mem::offset_of;
 
@@ -190,6 +198,8 @@ pub(crate) fn generate(
         in_range: Vec::new(),
         vars_need: analysis.vars_end,
         checks,
+        inline: None,
+        inlined: 0,
     };
     g.entry(&params);
     g.body();
@@ -214,6 +224,7 @@ struct Regs {
 /// `RETURN` goes back to it), 0 if the VM entered it; `vm_only`: no caller ever calls it (a
 /// program's body), so the context's registers hold its `depth`, `base` and `this` as long
 /// as it runs (a callee returns having written only the budget).
+#[derive(Clone, Copy)]
 struct Activation {
     pc: Value,
     sp: Value,
@@ -289,6 +300,46 @@ struct Gen<'a, 'f> {
     vars_need: u64,
     /// [`Analysis::budget_checks`].
     checks: &'a [(bool, u64)],
+    /// The call whose callee's blocks are being generated inline, if any ([`Gen::inline_call`]).
+    inline: Option<Inline>,
+    /// Instructions of callees compiled inline into this function so far.
+    inlined: usize,
+}
+
+/// Instructions of one callee's body compiled inline at a call, at most.
+const INLINE_CALLEE: usize = 128;
+/// Instructions of callees compiled inline into one function, at most: each inlined call
+/// compiles its callee's body once more.
+const INLINE_BUDGET: usize = 1024;
+
+/// A call compiled inline: its callee's `RETURN`s go on at `back`, in the caller; `record` is
+/// what the call would have pushed, written only where the code leaves the inlined callee.
+struct Inline {
+    back: Block,
+    record: CallRecord,
+}
+
+/// A call's frame record and the caller's stack slots below the callee's, as [`Gen::call`]
+/// stores them before a machine call: `calls` is the caller's call depth, `sb` its first slot.
+struct CallRecord {
+    calls: Value,
+    return_pc: u32,
+    base: Value,
+    this: Value,
+    sb: Value,
+    slots: Vec<Value>,
+}
+
+/// What [`Gen::inline_call`] sets aside of the caller while it generates the callee.
+struct Caller<'a> {
+    body: u32,
+    activation: Activation,
+    leaders: &'a [usize],
+    blocks: Vec<Block>,
+    carried: Vec<Vec<Key>>,
+    carry_vars: Vec<(Key, Variable)>,
+    stack: Vec<Variable>,
+    info: Vec<SlotInfo>,
 }
 
 /// What the code knows of a stack slot's value in the block being generated.
@@ -370,12 +421,21 @@ impl Gen<'_, '_> {
             b.ins().uextend(I64, v)
         };
         let pc = load32(&mut self.b, offset_of!(NativeRegs, pc));
-        let depth = load32(&mut self.b, offset_of!(NativeRegs, st_depth));
+        // A program's body is the bottom activation: no call frame below it.
+        let depth = if called_ever {
+            load32(&mut self.b, offset_of!(NativeRegs, st_depth))
+        } else {
+            self.b.ins().iconst(I64, 0)
+        };
         let base = load32(&mut self.b, offset_of!(NativeRegs, base));
         let this = self.b.ins().load(I64, own(), ctx, reg(offset_of!(NativeRegs, this)));
         let left = self.b.ins().load(I64, own(), ctx, reg(offset_of!(NativeRegs, left)));
         let sp = self.b.ins().load(I64, own(), ctx, reg(offset_of!(NativeRegs, sp)));
-        let (ok, this_at) = self.body_pointers(self.body, base, this, false);
+        let (refused, this_at) = self.body_pointers(self.body, base, this, false);
+        let ok = match refused {
+            Some(refused) => self.b.ins().bxor_imm_s(refused, 1),
+            None => self.b.ins().iconst(types::I8, 1),
+        };
         let called = self.b.ins().iconst(I64, 0);
         let refuse = self.b.create_block();
         self.b.set_cold_block(refuse);
@@ -512,36 +572,40 @@ impl Gen<'_, '_> {
         }
     }
 
-    /// Whether the frame at `base` and the FB instance `this` hold every operand of `body`
-    /// (an `i8` truth value), and their addresses. `this_in_vars`: `this` is known to point
-    /// into variable memory, far enough from its end (the caller makes sure).
+    /// Whether the frame at `base` or the FB instance `this` lacks room for an operand of
+    /// `body` (an `i8` truth value, `None` where nothing needs checking), and the instance's
+    /// address. `this_in_vars`: `this` is known to point into variable memory, far enough from
+    /// its end (the caller makes sure).
     fn body_pointers(
         &mut self,
         body: u32,
         base: Value,
         this: Value,
         this_in_vars: bool,
-    ) -> (Value, Value) {
+    ) -> (Option<Value>, Value) {
         let needs = &self.analysis.bodies[&body];
         let (frame_end, this_end) = (needs.frame_end, needs.this_end);
-        let mut ok = self.b.ins().iconst(types::I8, 1);
+        let mut refused = None;
         if frame_end > 0 {
             let end = self.b.ins().iadd_imm_s(base, frame_end as i64);
             let frame_len = self.field(offset_of!(Context, frame_len));
-            let inside = self.b.ins().icmp(IntCC::UnsignedLessThanOrEqual, end, frame_len);
-            ok = self.b.ins().band(ok, inside);
+            refused = Some(self.b.ins().icmp(IntCC::UnsignedGreaterThan, end, frame_len));
         }
         let this_at = if this_end > 0 && this_in_vars {
             let vars = self.field(offset_of!(Context, vars));
             self.b.ins().iadd(vars, this)
         } else if this_end > 0 {
             let (address, inside) = self.reach(this, this_end);
-            ok = self.b.ins().band(ok, inside);
+            let outside = self.b.ins().bxor_imm_s(inside, 1);
+            refused = Some(match refused {
+                Some(frame) => self.b.ins().bor(frame, outside),
+                None => outside,
+            });
             address
         } else {
             self.b.ins().iconst(I64, 0)
         };
-        (ok, this_at)
+        (refused, this_at)
     }
 
     fn depth(&self, pc: u32) -> u32 {
@@ -611,6 +675,10 @@ impl Gen<'_, '_> {
     /// Leaves with `status`: the stack's `depth` slots to memory, the registers with `pc` and
     /// `left` to the context.
     fn exit(&mut self, pc: u32, depth: u32, left: Value, status: u32) {
+        if let Some(inline) = self.inline.take() {
+            self.store_record(&inline.record);
+            self.inline = Some(inline);
+        }
         let sb = self.b.use_var(self.regs.sb);
         for slot in 0..depth {
             let value = self.b.use_var(self.stack[slot as usize]);
@@ -1089,6 +1157,11 @@ impl Gen<'_, '_> {
                 return false;
             }
             Op::Return => {
+                // Inline: on in the caller, right here.
+                if let Some(inline) = &self.inline {
+                    self.b.ins().jump(inline.back, &[]);
+                    return false;
+                }
                 // To a native caller: it goes on after its call with its own registers; only
                 // the budget changed.
                 let to_vm = self.b.create_block();
@@ -1146,11 +1219,14 @@ impl Gen<'_, '_> {
         let full =
             self.b.ins().icmp_imm_s(IntCC::UnsignedGreaterThanOrEqual, calls, ST_CALL_DEPTH as i64);
         self.bail_if(full, at, d);
-        // The machine stack: below the context's floor, the interpreter makes the call.
-        let stack = self.b.ins().get_stack_pointer(I64);
-        let floor = self.field(offset_of!(Context, stack_floor));
-        let low = self.b.ins().icmp(IntCC::UnsignedLessThan, stack, floor);
-        self.bail_if(low, at, d);
+        let inline = self.inlines(target);
+        if inline.is_none() {
+            // The machine stack: below the context's floor, the interpreter makes the call.
+            let stack = self.b.ins().get_stack_pointer(I64);
+            let floor = self.field(offset_of!(Context, stack_floor));
+            let low = self.b.ins().icmp(IntCC::UnsignedLessThan, stack, floor);
+            self.bail_if(low, at, d);
+        }
         let Activation { base, this: old_this, .. } = self.activation;
         let (this, after) = if fb { (self.slot(d - 1), d - 1) } else { (old_this, d) };
         let callee_base = self.b.ins().iadd_imm_s(base, i64::from(frame));
@@ -1159,40 +1235,149 @@ impl Gen<'_, '_> {
         // time: the code's need of variable memory covers it.
         let known = if fb { self.info[d as usize - 1].known } else { None };
         let this_end = self.analysis.bodies[&target].this_end;
-        let (ok, this_at) = self.body_pointers(target, callee_base, this, known.is_some());
+        let (refused, this_at) = self.body_pointers(target, callee_base, this, known.is_some());
         if let Some(reach) = known.filter(|_| this_end > 0) {
             self.vars_need = self.vars_need.max(reach.most + this_end);
         }
-        let refused = self.b.ins().bxor_imm_s(ok, 1);
-        self.bail_if(refused, at, d);
-        let record = self.call_frame(calls);
-        let return_pc = self.b.ins().iconst(types::I32, i64::from(at.pc + 1));
-        let base32 = self.b.ins().ireduce(types::I32, base);
-        self.b.ins().store(own(), return_pc, record, offset_of!(StFrame, return_pc) as i32);
-        self.b.ins().store(own(), base32, record, offset_of!(StFrame, base) as i32);
-        self.b.ins().store(own(), old_this, record, offset_of!(StFrame, this) as i32);
-        // The caller's slots to memory: the callee numbers its own from 0. They stay in the
-        // caller's variables too.
-        let sb = self.b.use_var(self.regs.sb);
-        for slot in 0..after {
-            let value = self.slot(slot);
-            let address = self.slot_address(sb, slot);
-            self.b.ins().store(own(), value, address, 0);
+        if let Some(refused) = refused {
+            self.bail_if(refused, at, d);
         }
+        // The caller's slots below the callee's: the callee numbers its own from 0. They stay
+        // in the caller's variables too.
+        let sb = self.b.use_var(self.regs.sb);
+        let slots = (0..after).map(|slot| self.slot(slot)).collect();
+        let record = CallRecord { calls, return_pc: at.pc + 1, base, this: old_this, sb, slots };
         let depth = self.b.ins().iadd_imm_s(calls, 1);
         let sp = self.b.ins().iadd_imm_s(sb, i64::from(after));
-        let left = self.b.use_var(self.regs.left);
-        let callee = self.callee(target);
-        let args = [self.context, callee_base, this, depth, sp, left, this_at];
-        call_or_pass_on(&mut self.b, callee, &args, RETURN_CONTINUE);
-        let regs = self.field(offset_of!(Context, regs));
-        let left = self.b.ins().load(I64, own(), regs, reg(offset_of!(NativeRegs, left)));
-        self.b.def_var(self.regs.left, left);
+        if let Some(function) = inline {
+            let frame_at = if self.analysis.bodies[&target].uses_frame {
+                let frame = self.field(offset_of!(Context, frame));
+                self.b.ins().iadd(frame, callee_base)
+            } else {
+                self.b.ins().iconst(I64, 0)
+            };
+            let pc = self.b.ins().iconst(I64, i64::from(target));
+            let called = self.b.ins().iconst(I64, 1);
+            let callee = Activation {
+                pc,
+                sp,
+                depth,
+                base: callee_base,
+                this,
+                frame_at,
+                this_at,
+                called,
+                vm_only: false,
+            };
+            self.inline_call(function, target, callee, record);
+        } else {
+            self.store_record(&record);
+            let left = self.b.use_var(self.regs.left);
+            let callee = self.callee(target);
+            let args = [self.context, callee_base, this, depth, sp, left, this_at];
+            call_or_pass_on(&mut self.b, callee, &args, RETURN_CONTINUE);
+            let regs = self.field(offset_of!(Context, regs));
+            let left = self.b.ins().load(I64, own(), regs, reg(offset_of!(NativeRegs, left)));
+            self.b.def_var(self.regs.left, left);
+        }
         let next = self.target(at.pc + 1, after);
         // The callee may have changed any place.
         self.held.clear();
         self.pass_on(&[at.pc + 1]);
         self.b.ins().jump(next, &[]);
+    }
+
+    /// Pushes the frame record of a call as the interpreter pushes it, and stores the caller's
+    /// slots where the interpreter finds them if the callee stops.
+    fn store_record(&mut self, record: &CallRecord) {
+        let at = self.call_frame(record.calls);
+        let return_pc = self.b.ins().iconst(types::I32, i64::from(record.return_pc));
+        let base32 = self.b.ins().ireduce(types::I32, record.base);
+        self.b.ins().store(own(), return_pc, at, offset_of!(StFrame, return_pc) as i32);
+        self.b.ins().store(own(), base32, at, offset_of!(StFrame, base) as i32);
+        self.b.ins().store(own(), record.this, at, offset_of!(StFrame, this) as i32);
+        for (slot, &value) in record.slots.iter().enumerate() {
+            let address = self.slot_address(record.sb, slot as u32);
+            self.b.ins().store(own(), value, address, 0);
+        }
+    }
+
+    /// The function of the body at `target` if a call of it here is compiled inline: a body
+    /// of at most [`INLINE_CALLEE`] instructions, all native, that calls nothing, while this
+    /// function's inlined instructions stay within [`INLINE_BUDGET`]. (Its own function is
+    /// still generated: the VM enters it where an inlined call stopped.)
+    fn inlines(&mut self, target: u32) -> Option<usize> {
+        if self.inline.is_some() || target == self.body {
+            return None;
+        }
+        let function = self.analysis.functions.binary_search(&target).ok()?;
+        let code = &self.program.code;
+        let mut size = 0;
+        for &leader in &self.analysis.function_leaders[function] {
+            let range = self.analysis.block(code, leader);
+            size += range.len();
+            let calls = code[range.clone()]
+                .iter()
+                .any(|op| matches!(op, Op::CallFn { .. } | Op::CallFb { .. } | Op::End));
+            if calls || !is_native(&code[range.start]) || size > INLINE_CALLEE {
+                return None;
+            }
+        }
+        if self.inlined + size > INLINE_BUDGET {
+            return None;
+        }
+        self.inlined += size;
+        Some(function)
+    }
+
+    /// The body of `function` (at `target`) generated here, for a call whose callee has the
+    /// registers `callee` and would push `record`: its blocks run in this function with the
+    /// callee's activation, leave it as the callee's own function would (the record written
+    /// first), and return by a jump to the caller's next block.
+    fn inline_call(
+        &mut self,
+        function: usize,
+        target: u32,
+        callee: Activation,
+        record: CallRecord,
+    ) {
+        let back = self.b.create_block();
+        let caller_sb = record.sb;
+        let leaders = &self.analysis.function_leaders[function][..];
+        let blocks = leaders.iter().map(|_| self.b.create_block()).collect();
+        let stack = (0..self.stack.len()).map(|_| self.b.declare_var(I64)).collect();
+        let carried = carry::carried(self.program, self.analysis, leaders);
+        let slots = self.info.len();
+        let caller = Caller {
+            body: std::mem::replace(&mut self.body, target),
+            activation: std::mem::replace(&mut self.activation, callee),
+            leaders: std::mem::replace(&mut self.leaders, leaders),
+            blocks: std::mem::replace(&mut self.blocks, blocks),
+            carried: std::mem::replace(&mut self.carried, carried),
+            carry_vars: std::mem::take(&mut self.carry_vars),
+            stack: std::mem::replace(&mut self.stack, stack),
+            info: std::mem::replace(&mut self.info, vec![SlotInfo::default(); slots]),
+        };
+        self.inline = Some(Inline { back, record });
+        self.b.def_var(self.regs.sb, callee.sp);
+        self.held.clear();
+        self.pass_on(&[target]);
+        let first = self.leader_index(target).expect("a body starts a block");
+        self.b.ins().jump(self.blocks[first], &[]);
+        for index in 0..self.leaders.len() {
+            self.block(index);
+        }
+        self.inline = None;
+        self.body = caller.body;
+        self.activation = caller.activation;
+        self.leaders = caller.leaders;
+        self.blocks = caller.blocks;
+        self.carried = caller.carried;
+        self.carry_vars = caller.carry_vars;
+        self.stack = caller.stack;
+        self.info = caller.info;
+        self.b.switch_to_block(back);
+        self.b.def_var(self.regs.sb, caller_sb);
     }
 
     /// The function of the body at `target`, imported into this one.

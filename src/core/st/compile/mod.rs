@@ -7,6 +7,7 @@
 //!   located variables (the IEC direct address table is at `decl::iec_address`);
 //! - `expr`, `stmt`, `stdlib`, `refs` (references and pointers): checking into a typed tree;
 //! - `emit`: the typed tree to ops; `link` (here): one program per instance, symbols;
+//! - `sfc`: each POU's Sequential Function Chart → variables and statements, before the rest;
 //! - `instance_args`: a configuration's program instance arguments, as copies in its code;
 //! - `var_config`: a configuration's `VAR_CONFIG`, variables at partly specified addresses
 //!   bound to devices.
@@ -44,6 +45,7 @@ mod expr;
 mod instance_args;
 mod oop;
 mod refs;
+mod sfc;
 mod stdlib;
 mod stmt;
 pub mod types;
@@ -119,7 +121,8 @@ pub fn compile_configured(
     let declaration = |k: usize| configured.get(k).copied().flatten();
     let (prelude, prelude_diags) = super::syntax::parse_file(Path::new(PRELUDE_PATH), PRELUDE);
     let mut diags: Vec<Diagnostic> = prelude_diags.0;
-    let mut refs: Vec<&ast::File> = files.iter().collect();
+    let lowered = sfc::lower(files, &mut diags);
+    let mut refs: Vec<&ast::File> = lowered.iter().map(|f| &**f).collect();
     refs.push(&prelude);
     let prelude_file = refs.len() - 1;
     let mut cx = Ctx {

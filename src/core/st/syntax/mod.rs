@@ -66,10 +66,14 @@ pub(crate) enum Want {
     TypedValue,
     CaseLabel,
     ConfigItem,
+    EndStep,
+    EndTransition,
+    From,
+    LParen,
 }
 
 impl Want {
-    pub(crate) const ALL: [Want; 28] = [
+    pub(crate) const ALL: [Want; 32] = [
         Want::SemiAfterStmt,
         Want::SemiAfterDecl,
         Want::Stmt,
@@ -98,6 +102,10 @@ impl Want {
         Want::TypedValue,
         Want::CaseLabel,
         Want::ConfigItem,
+        Want::EndStep,
+        Want::EndTransition,
+        Want::From,
+        Want::LParen,
     ];
 
     fn text(self) -> &'static str {
@@ -132,6 +140,10 @@ impl Want {
             Want::TypedValue => "a literal after the type prefix",
             Want::CaseLabel => "a case label",
             Want::ConfigItem => "`RESOURCE`, `TASK`, `PROGRAM`, `VAR_GLOBAL` or the end",
+            Want::EndStep => "an action association or `END_STEP`",
+            Want::EndTransition => "`END_TRANSITION`",
+            Want::From => "`FROM`",
+            Want::LParen => "`(`",
         }
     }
 }

@@ -6,6 +6,8 @@
 //! nothing open is taken for a misspelt end of the innermost construct. At most one error is
 //! reported at any one token, so one mistake makes one diagnostic.
 
+mod sfc;
+
 use super::lex::{Kw, Tok, Token, P};
 use super::{Closer, Msg, Want, MAX_DEPTH};
 use crate::st::ast::*;
@@ -629,8 +631,9 @@ impl<'a> Parser<'a> {
         }
         let mut body = self.stmt_list(false, false);
         let mut actions = Vec::new();
-        // actions among the statements (as the textual SFC places them), methods and
-        // properties after the body (as TwinCAT's files hold them)
+        let mut sfc: Option<crate::st::sfc::Sfc> = None;
+        // actions and SFC elements among the statements (as the textual SFC places them),
+        // methods and properties after the body (as TwinCAT's files hold them)
         loop {
             if self.at_kw(Kw::Action) {
                 if let Some((_, action)) = self.action(false) {
@@ -638,6 +641,8 @@ impl<'a> Parser<'a> {
                 }
             } else if kind != PouKind::Function && self.at_member() {
                 self.oop_member(&mut oop);
+            } else if self.at_sfc_element() {
+                self.sfc_element(sfc.get_or_insert_with(Default::default));
             } else {
                 break;
             }
@@ -646,7 +651,7 @@ impl<'a> Parser<'a> {
         self.open.pop();
         let here = self.span();
         let end = self.close(closer, &opener, span).unwrap_or(here);
-        Pou { kind, name, return_type, vars, body, actions, oop, span, end }
+        Pou { kind, name, return_type, vars, body, actions, oop, sfc, span, end }
     }
 
     /// Whether a METHOD or PROPERTY starts here.
@@ -736,6 +741,7 @@ impl<'a> Parser<'a> {
             body,
             actions: Vec::new(),
             oop: Oop::default(),
+            sfc: None,
             span,
             end,
         };
@@ -780,6 +786,7 @@ impl<'a> Parser<'a> {
                 body,
                 actions: Vec::new(),
                 oop: Oop::default(),
+                sfc: None,
                 span: at,
                 end,
             };
@@ -1480,6 +1487,9 @@ impl<'a> Parser<'a> {
                 }
             }
             if in_case && self.at_case_label() {
+                return stmts;
+            }
+            if !nested && !in_case && self.at_sfc_element() {
                 return stmts;
             }
             match self.stmt() {
