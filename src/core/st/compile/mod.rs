@@ -8,6 +8,8 @@
 //! - `expr`, `stmt`, `stdlib`, `refs` (references and pointers): checking into a typed tree;
 //! - `emit`: the typed tree to ops; `link` (here): one program per instance, symbols;
 //! - `sfc`: each POU's Sequential Function Chart → variables and statements, before the rest;
+//! - `oop`: methods, properties, EXTENDS, interfaces, and the dispatch of their calls on a
+//!   hidden type tag of the instance;
 //! - `instance_args`: a configuration's program instance arguments, as copies in its code;
 //! - `var_config`: a configuration's `VAR_CONFIG`, variables at partly specified addresses
 //!   bound to devices.

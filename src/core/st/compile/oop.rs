@@ -1,6 +1,7 @@
 //! Object orientation (IEC 61131-3 ed. 3, as CODESYS and TwinCAT write it): the METHODs and
 //! PROPERTYs of function blocks (and programs), `EXTENDS`, `THIS` and `SUPER`, `ABSTRACT` and
-//! `FINAL`, and the checks of `IMPLEMENTS` against an `INTERFACE`.
+//! `FINAL`, `INTERFACE`s (`IMPLEMENTS` checked, variables of an interface type, calls through
+//! them).
 //!
 //! - A method is a POU of its own ([`PouInfo::method`](super::ctx::PouInfo::method) names its
 //!   function block). Its own variables are in its frame, as a FUNCTION's, fresh at each call;
