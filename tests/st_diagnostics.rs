@@ -284,6 +284,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` compares interfaces: only `=` and `<>` do", "interface-ordered"),
     ("`{}` and `{}` cannot be compared", "interfaces-not-comparable"),
     ("`{}` has no property `{}`", "interface-property-not-found"),
+    ("VAR_INST in a method is not supported: declare the variable in its function block", "var-inst-in-method"),
     // sfc.rs: Sequential Function Charts
     (
         "FUNCTION `{}` cannot hold a sequential function chart: a FUNCTION keeps nothing between calls (use a FUNCTION_BLOCK or a PROGRAM)",

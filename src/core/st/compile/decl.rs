@@ -926,6 +926,11 @@ impl<'a> Ctx<'a> {
             if kind == PouKind::Function && block.retain {
                 self.error(file, block.span, "a FUNCTION's variables cannot be RETAIN");
             }
+            if member.is_some() && block.kind == VarKind::Instance {
+                let msg = "VAR_INST in a method is not supported: declare the variable in its function block";
+                // read on as locals, so that its uses make no errors of their own
+                self.error(file, block.span, msg);
+            }
             for decl in &block.decls {
                 let ty = self.resolve_type_ref(&decl.ty, scope);
                 if block.kind != VarKind::InOut {
