@@ -1607,9 +1607,9 @@ impl<'a> Ctx<'a> {
                 if self.pous[p].lookup(&id.name).is_some() {
                     return None;
                 }
-                let owner = self.pous[p].action.map_or(p, |(_, o)| o);
-                let key = super::ctx::action_key(&self.pous[owner].name, &id.name);
-                let action = *self.pou_names.get(&key)?;
+                // the POU's, an action's or a method's function block
+                let owner = self.own_instance(p).unwrap_or(p);
+                let action = self.find_action(owner, &id.name)?;
                 // the POU's own instance: its variables start at offset 0
                 let k = TK::Var { storage: Storage::Inst(0), by_ref: false };
                 (TExpr { k, ty: Ty::Fb(action), span: callee.span }, action)
@@ -1619,8 +1619,7 @@ impl<'a> Ctx<'a> {
                 let probe = self.check_place(base, scope, Access::Read, None);
                 self.diags.truncate(saved);
                 let Ty::Fb(owner) = probe.ty else { return None };
-                let key = super::ctx::action_key(&self.pous[owner].name, &id.name);
-                let action = *self.pou_names.get(&key)?;
+                let action = self.find_action(owner, &id.name)?;
                 (self.check_place(base, scope, Access::Ref, None), action)
             }
             _ => return None,

@@ -418,6 +418,21 @@ impl<'a> Ctx<'a> {
         None
     }
 
+    /// The action `name` of POU `owner` or, for a function block, of its bases (CODESYS
+    /// inherits actions; a derived block's action of the same name replaces the base's).
+    pub(super) fn find_action(&self, owner: usize, name: &str) -> Option<usize> {
+        let mut at = owner;
+        for _ in 0..=self.pous.len() {
+            let key = action_key(&self.pous[at].name, name);
+            let found = self.pou_names.get(&key).filter(|&&a| self.pous[a].action.is_some());
+            if let Some(&a) = found {
+                return Some(a);
+            }
+            at = *self.oop.base.get(&at)?;
+        }
+        None
+    }
+
     /// The function block whose instance the code of POU `p` runs on (its own, a method's or
     /// an action's owner's): `None` in a FUNCTION.
     pub(super) fn own_instance(&self, p: usize) -> Option<usize> {
@@ -624,7 +639,7 @@ impl<'a> Ctx<'a> {
                 }
                 if self.find_member(fb, &id.name, Role::Method).is_none() {
                     // an action, or an error the ordinary checks report
-                    if self.pou_names.contains_key(&action_key(&self.pous[fb].name, &id.name)) {
+                    if self.find_action(fb, &id.name).is_some() {
                         return None;
                     }
                     let fb_name = self.pous[fb].name.clone();
