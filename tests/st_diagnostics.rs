@@ -257,6 +257,34 @@ const MESSAGES: &[(&str, &str)] = &[
     ("unreachable `ELSE`: the labels cover every value of `{}`", "unreachable-else"),
     ("a CASE label must be a constant", "case-label-not-constant"),
     ("a CASE label of type `{}` does not match the selector's type `{}`", "case-label-type"),
+    // oop.rs: methods, properties, EXTENDS, interfaces
+    ("`{}` is already declared in `{}`", "member-already-declared"),
+    ("`{}` is ABSTRACT: only an ABSTRACT FUNCTION_BLOCK has ABSTRACT {}s (`{}` is not)", "abstract-member-of-concrete-block"),
+    ("only a FUNCTION_BLOCK can EXTEND another", "extends-in-a-program"),
+    ("`{}` is FINAL: it cannot be extended", "extends-a-final-block"),
+    ("`{}` is not a FUNCTION_BLOCK: EXTENDS names the function block to extend", "extends-no-function-block"),
+    ("`{}` is not an INTERFACE", "implements-no-interface"),
+    ("`{}` extends itself through its bases", "extends-itself"),
+    ("`{}` is used only inside a FUNCTION_BLOCK, its methods and actions", "this-outside-a-function-block"),
+    ("`SUPER` needs a base: `{}` EXTENDS no function block", "super-without-extends"),
+    ("`{}` is PRIVATE: only the code of `{}` may use it", "private-method-called"),
+    ("`{}` is PROTECTED: only the code of `{}` and of the function blocks extending it may use it", "protected-method-called"),
+    ("`{}` is a variable of `{}`, not a method", "variable-called-as-method"),
+    ("`{}` has no method `{}`", "method-not-found"),
+    ("`{}` has no method `{}`", "interface-method-not-found"),
+    ("`{}` is ABSTRACT: it has no body to call", "abstract-method-called"),
+    ("property `{}` has no GET: it cannot be read", "property-without-get"),
+    ("property `{}` cannot be passed to a VAR_IN_OUT", "property-to-var-in-out"),
+    ("property `{}` has no SET: it cannot be written", "property-without-set"),
+    ("`{}` is FINAL: `{}` cannot override it", "final-method-overridden"),
+    ("`{}` overrides `{}` with another signature: {}", "override-signature-differs"),
+    ("`{}` does not implement {} of `{}`", "interface-member-missing"),
+    ("`{}` implements `{}` with another signature: {}", "interface-signature-differs"),
+    ("`{}` is ABSTRACT: it cannot be instantiated (extend it)", "abstract-block-instantiated"),
+    ("`{}` compares interfaces: only `=` and `<>` do", "interface-ordered"),
+    ("`{}` and `{}` cannot be compared", "interfaces-not-comparable"),
+    ("`{}` has no property `{}`", "interface-property-not-found"),
+    ("VAR_INST in a method is not supported: declare the variable in its function block", "var-inst-in-method"),
     // sfc.rs: Sequential Function Charts
     (
         "FUNCTION `{}` cannot hold a sequential function chart: a FUNCTION keeps nothing between calls (use a FUNCTION_BLOCK or a PROGRAM)",
@@ -397,6 +425,13 @@ const UNREACHABLE: &[(&str, &str)] = &[
 /// Literals of the compiler sources that are not messages by themselves: words and hints that
 /// messages are built from, and type names.
 const PARTS: &[&str] = &[
+    // what an interface's implementation lacks, and how a signature differs (oop.rs)
+    "method `{}`",
+    "the GET of property `{}`",
+    "the SET of property `{}`",
+    "its result is `{}`, not `{}`",
+    "{} parameter(s), not {}",
+    "parameter `{}` differs in name, kind or type",
     // what a qualifier takes after it (sfc.rs)
     "one duration, then indicator variable names",
     "no duration, only indicator variable names",

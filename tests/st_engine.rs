@@ -279,6 +279,43 @@ fn an_online_change_sets_references_to_null() {
 }
 
 #[test]
+fn an_online_change_keeps_the_variables_of_an_instance_whose_block_now_extends_another() {
+    // Motor gains a base (its variables first, after the hidden type tag) and an interface:
+    // its own variables move, and keep their values by name; the tag is no variable, so it
+    // takes the new image's value; an interface variable is a reference, never kept.
+    let old = project(
+        "[[program]]\nfile = \"main.st\"\n",
+        &[(
+            "main.st",
+            "FUNCTION_BLOCK Motor VAR speed : INT; count : DINT; END_VAR count := count + 1; END_FUNCTION_BLOCK
+             PROGRAM Main VAR m : Motor; END_VAR m(); END_PROGRAM",
+        )],
+    );
+    let new = project(
+        "[[program]]\nfile = \"main.st\"\n",
+        &[(
+            "main.st",
+            "INTERFACE IRun METHOD Run END_METHOD END_INTERFACE
+             FUNCTION_BLOCK Device VAR hours : DINT; END_VAR END_FUNCTION_BLOCK
+             FUNCTION_BLOCK Motor EXTENDS Device IMPLEMENTS IRun VAR speed : INT; count : DINT; END_VAR
+             METHOD Run count := count + 1; END_METHOD
+               Run();
+             END_FUNCTION_BLOCK
+             PROGRAM Main VAR m : Motor; i : IRun; END_VAR i := m; i.Run(); END_PROGRAM",
+        )],
+    );
+    let kept = plcd::engine::online::kept_variables(&old.variables, &new.variables);
+    let at = |p: &plcd::project::Project, name: &str| p.variable(name).unwrap().at.offset;
+    let speed = (at(&old, "main.m.speed"), at(&new, "main.m.speed"), 2);
+    let count = (at(&old, "main.m.count"), at(&new, "main.m.count"), 4);
+    // the new layout: tag (4 bytes), Device's hours (4), then Motor's own
+    assert_eq!(at(&new, "main.m.speed"), at(&new, "main.m.hours") + 4);
+    assert_eq!(at(&new, "main.m.hours"), at(&old, "main.m.speed") + 4);
+    assert_eq!(&kept[..], [speed, count], "Motor's own variables, moved: kept by name");
+    assert!(new.variable("main.i").is_some(), "the interface variable is a symbol");
+}
+
+#[test]
 fn located_outputs_written_by_st_are_outputs() {
     // The default watch list of traces and logs: every P bit a program writes, IL or ST,
     // whole words of located INT/DINT/LREAL included; an input only read is not one.

@@ -1,4 +1,4 @@
-//! Where Structured Text comes from: TwinCAT's `.TcPOU`, `.TcDUT` and `.TcGVL` files as
+//! Where Structured Text comes from: TwinCAT's `.TcPOU`, `.TcDUT`, `.TcGVL` and `.TcIO` files as
 //! programs and library files, and `[st] library` folders, through the real `plcd` binary.
 
 mod harness;
@@ -37,6 +37,18 @@ fn last(trace: &str, name: &str) -> Option<String> {
         .rev()
         .find_map(|l| l.split_once(&key))
         .map(|(_, v)| v.trim_end_matches('}').to_string())
+}
+
+/// `plcd check` of the project in `dir` passes, then `plcd sim --for <duration> --watch
+/// <watch> --trace -`: its trace.
+fn checked_trace(dir: &Path, duration: &str, watch: &str) -> String {
+    let out = plcd(dir, &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let args =
+        ["sim", "--config", "plcd.toml", "--for", duration, "--watch", watch, "--trace", "-"];
+    let out = plcd(dir, &args);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
 fn project() -> TempDir {
@@ -82,24 +94,7 @@ fn project() -> TempDir {
 #[test]
 fn a_twincat_program_runs_on_a_library_folder_of_twincat_files() {
     let dir = project();
-    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let out = plcd(
-        dir.path(),
-        &[
-            "sim",
-            "--config",
-            "plcd.toml",
-            "--for",
-            "3500us",
-            "--watch",
-            "main.c.total,main.p.x,main.n",
-            "--trace",
-            "-",
-        ],
-    );
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let trace = String::from_utf8_lossy(&out.stdout);
+    let trace = checked_trace(dir.path(), "3500us", "main.c.total,main.p.x,main.n");
     // a scan every 1 ms: 4 scans in 3.5 ms (t = 0, 1, 2, 3 ms), 2 each
     assert_eq!(last(&trace, "main.c.total").as_deref(), Some("8"), "{trace}");
     assert_eq!(last(&trace, "main.p.x").as_deref(), Some("8"));
@@ -124,6 +119,42 @@ fn an_error_in_a_twincat_file_is_reported_at_its_line_and_column() {
         stderr.starts_with("lib/blocks/Counter.TcPOU:12:37: error: `stepp` is not declared"),
         "{stderr}"
     );
+}
+
+/// A TwinCAT 3 `.TcPOU` of a function block with a `<Method>` and a `<Property>` (with `<Get>`
+/// and `<Set>`), as TwinCAT writes them after the body, and a `.TcIO` interface.
+fn twincat_oop_project() -> TempDir {
+    let dir = TempDir::new("st-sources-oop");
+    let d = dir.path();
+    write(
+        d,
+        "plcd.toml",
+        "[plc]\nscan_period_ms = 1\n\n[[program]]\nname = \"main\"\nfile = \"MAIN.TcPOU\"\n\n[st]\nlibrary = [\"lib/\"]\n",
+    );
+    write(
+        d,
+        "MAIN.TcPOU",
+        &pou(
+            "MAIN",
+            "PROGRAM MAIN\r\nVAR\r\n\tfbAxis : FB_Axis;\r\n\tiAxis : I_Axis;\r\n\tnPos : INT;\r\n\tbDone : BOOL;\r\nEND_VAR",
+            "iAxis := fbAxis;\r\nbDone := iAxis.M_Move(nTarget := 5);\r\nfbAxis.P_Speed := fbAxis.P_Speed + 1;\r\nnPos := fbAxis.nPosition;",
+        ),
+    );
+    let axis = "  <POU Name=\"FB_Axis\" Id=\"{1}\" SpecialFunc=\"None\">\r\n    <Declaration><![CDATA[FUNCTION_BLOCK FB_Axis IMPLEMENTS I_Axis\r\nVAR\r\n\tnPosition : INT;\r\n\tnSpeed : INT := 1;\r\nEND_VAR]]></Declaration>\r\n    <Implementation>\r\n      <ST><![CDATA[]]></ST>\r\n    </Implementation>\r\n    <Method Name=\"M_Move\" Id=\"{2}\">\r\n      <Declaration><![CDATA[METHOD PUBLIC M_Move : BOOL\r\nVAR_INPUT\r\n\tnTarget : INT;\r\nEND_VAR]]></Declaration>\r\n      <Implementation>\r\n        <ST><![CDATA[IF nPosition < nTarget THEN\r\n\tnPosition := nPosition + nSpeed;\r\nEND_IF\r\nM_Move := nPosition >= nTarget;]]></ST>\r\n      </Implementation>\r\n    </Method>\r\n    <Property Name=\"P_Speed\" Id=\"{3}\">\r\n      <Declaration><![CDATA[PROPERTY PUBLIC P_Speed : INT]]></Declaration>\r\n      <Get Name=\"Get\" Id=\"{4}\">\r\n        <Declaration><![CDATA[VAR\r\nEND_VAR]]></Declaration>\r\n        <Implementation>\r\n          <ST><![CDATA[P_Speed := nSpeed;]]></ST>\r\n        </Implementation>\r\n      </Get>\r\n      <Set Name=\"Set\" Id=\"{5}\">\r\n        <Declaration><![CDATA[VAR\r\nEND_VAR]]></Declaration>\r\n        <Implementation>\r\n          <ST><![CDATA[nSpeed := P_Speed;]]></ST>\r\n        </Implementation>\r\n      </Set>\r\n    </Property>\r\n  </POU>";
+    write(d, "lib/FB_Axis.TcPOU", &tc(axis));
+    let itf = "  <Itf Name=\"I_Axis\" Id=\"{6}\">\r\n    <Declaration><![CDATA[INTERFACE I_Axis EXTENDS __System.IQueryInterface]]></Declaration>\r\n    <Method Name=\"M_Move\" Id=\"{7}\">\r\n      <Declaration><![CDATA[METHOD M_Move : BOOL\r\nVAR_INPUT\r\n\tnTarget : INT;\r\nEND_VAR]]></Declaration>\r\n    </Method>\r\n  </Itf>";
+    write(d, "lib/I_Axis.TcIO", &tc(itf));
+    dir
+}
+
+#[test]
+fn a_twincat_function_block_with_methods_properties_and_an_interface_runs() {
+    let dir = twincat_oop_project();
+    let trace = checked_trace(dir.path(), "2500us", "main.nPos,main.bDone");
+    // 3 scans (t = 0, 1, 2 ms): each moves by the speed, then the property adds 1 to it:
+    // speeds 1, 2, 3, positions 1, 3, 6, capped by nothing but the target 5 (>= 5 at 6)
+    assert_eq!(last(&trace, "main.nPos").as_deref(), Some("6"), "{trace}");
+    assert_eq!(last(&trace, "main.bDone").as_deref(), Some("1"), "{trace}");
 }
 
 /// A file as OpenPLC Editor generates it: its programs, then a CONFIGURATION whose resource

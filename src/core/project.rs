@@ -419,7 +419,7 @@ where
                 files.sort();
                 if files.is_empty() {
                     let msg = format!(
-                        "{what}: folder `{}` holds no `.st`, `.TcPOU`, `.TcDUT` or `.TcGVL` file",
+                        "{what}: folder `{}` holds no `.st`, `.TcPOU`, `.TcDUT`, `.TcGVL` or `.TcIO` file",
                         dir.display()
                     );
                     self.diags.push(Diagnostic::new(&self.config.path, line, col, msg));

@@ -38,18 +38,18 @@ pub struct LibraryFile {
 }
 
 /// Whether `file` is a Structured Text source by its extension: `.st`, or TwinCAT's `.TcPOU`,
-/// `.TcDUT`, `.TcGVL` (any case).
+/// `.TcDUT`, `.TcGVL`, `.TcIO` (any case).
 pub fn is_st_source(file: &Path) -> bool {
     file.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("st"))
         || is_twincat_source(file)
 }
 
 /// Whether `file` is one of TwinCAT's source files by its extension: `.TcPOU`, `.TcDUT`,
-/// `.TcGVL` (any case), read by `st::twincat`.
+/// `.TcGVL`, `.TcIO` (an interface) (any case), read by `st::twincat`.
 pub fn is_twincat_source(file: &Path) -> bool {
-    file.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| ["tcpou", "tcdut", "tcgvl"].contains(&e.to_ascii_lowercase().as_str()))
+    file.extension().and_then(|e| e.to_str()).is_some_and(|e| {
+        ["tcpou", "tcdut", "tcgvl", "tcio"].contains(&e.to_ascii_lowercase().as_str())
+    })
 }
 
 /// `[st]` as written.
@@ -72,7 +72,7 @@ pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StC
             sink.error(
                 at,
                 format!(
-                    "{}: `{file}` is not a `.st`, `.TcPOU`, `.TcDUT` or `.TcGVL` file (a folder is written with a final `/`)",
+                    "{}: `{file}` is not a `.st`, `.TcPOU`, `.TcDUT`, `.TcGVL` or `.TcIO` file (a folder is written with a final `/`)",
                     ctx.key("library")
                 ),
             );

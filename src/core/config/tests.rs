@@ -1847,7 +1847,7 @@ fn st_library_lists_st_files_once_each() {
     assert_eq!(
         errors(&with_scan("[st]\nlibrary = [\"a.st\", \"b.il\", \"a.st\"]\n")),
         [
-            "2:20: st.library: `b.il` is not a `.st`, `.TcPOU`, `.TcDUT` or `.TcGVL` file (a folder is written with a final `/`)",
+            "2:20: st.library: `b.il` is not a `.st`, `.TcPOU`, `.TcDUT`, `.TcGVL` or `.TcIO` file (a folder is written with a final `/`)",
             "2:28: st.library: `a.st` is listed twice"
         ]
     );

@@ -50,6 +50,56 @@ pub enum Item {
     },
     /// `CONFIGURATION … END_CONFIGURATION`.
     Configuration(Configuration),
+    /// `INTERFACE Name [EXTENDS I, …] … END_INTERFACE`.
+    Interface(Interface),
+}
+
+/// Who may call a method or use a property (IEC 61131-3 ed. 3 access specifiers).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Access {
+    #[default]
+    Public,
+    /// Only the function block's own code.
+    Private,
+    /// The function block's own code and that of the function blocks extending it.
+    Protected,
+    /// The same namespace: a plcd project is one, so as PUBLIC.
+    Internal,
+}
+
+/// `METHOD [access] [ABSTRACT|FINAL] Name [: T] … END_METHOD`: a FUNCTION-like body on its
+/// function block's instance. `pou` holds it as a FUNCTION (name, result, variables, body).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Method {
+    pub access: Access,
+    pub is_abstract: bool,
+    pub is_final: bool,
+    pub pou: Pou,
+}
+
+/// `PROPERTY [access] Name : T GET … END_GET SET … END_SET END_PROPERTY`: each accessor a
+/// method: GET returns the value in the property's name, SET has it as its VAR_INPUT.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Property {
+    pub name: Ident,
+    pub ty: TypeRef,
+    pub access: Access,
+    pub is_abstract: bool,
+    pub is_final: bool,
+    pub get: Option<Pou>,
+    pub set: Option<Pou>,
+    pub span: Span,
+}
+
+/// `INTERFACE Name [EXTENDS I, …]`: methods and properties without bodies.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Interface {
+    pub name: Ident,
+    pub extends: Vec<Ident>,
+    pub methods: Vec<Method>,
+    pub properties: Vec<Property>,
+    pub span: Span,
+    pub end: Span,
 }
 
 /// `CONFIGURATION Name … END_CONFIGURATION`: the resources, their tasks and program instances
@@ -168,12 +218,26 @@ pub struct Pou {
     pub body: Vec<Stmt>,
     /// The actions declared inside it (`ACTION … END_ACTION` among its statements).
     pub actions: Vec<Action>,
+    /// A FUNCTION_BLOCK's (or PROGRAM's) object orientation: `EXTENDS Base`, `IMPLEMENTS I,
+    /// …`, `ABSTRACT`, `FINAL`, its methods and properties.
+    pub oop: Oop,
     /// Its Sequential Function Chart, when its body is one (`STEP`, `TRANSITION`, …).
     pub sfc: Option<crate::st::sfc::Sfc>,
     /// Where the POU's keyword is.
     pub span: Span,
     /// Where its `END_…` keyword is (the line a breakpoint on the end stops at).
     pub end: Span,
+}
+
+/// What a POU declares of IEC 61131-3 ed. 3's object orientation.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Oop {
+    pub extends: Option<Ident>,
+    pub implements: Vec<Ident>,
+    pub is_abstract: bool,
+    pub is_final: bool,
+    pub methods: Vec<Method>,
+    pub properties: Vec<Property>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -4,7 +4,7 @@
 //! - [`ast`]: the syntax tree;
 //! - [`syntax`]: text → tree, with every syntax error of a file;
 //! - [`sfc`]: a POU's Sequential Function Chart, as parsed;
-//! - [`twincat`]: TwinCAT's `.TcPOU`/`.TcDUT`/`.TcGVL` files → ST text on the same lines;
+//! - [`twincat`]: TwinCAT's `.TcPOU`/`.TcDUT`/`.TcGVL`/`.TcIO` files → ST text on the same lines;
 //! - [`dialect`]: the CODESYS/TwinCAT habits accepted beyond the standard, and `strict`;
 //! - [`configuration`]: a `CONFIGURATION`'s tasks and program instances → the project's;
 //! - [`compile`](mod@compile): trees of all the project's `.st` files → one program per `[[program]]`

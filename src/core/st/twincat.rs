@@ -49,14 +49,15 @@ pub fn st_text(xml: &str) -> Result<String, XmlError> {
     let mut words: Vec<(usize, String)> = Vec::new();
     for object in root.children().filter(|n| n.is_element()) {
         match object.tag_name().name() {
-            "POU" => {
+            // a POU, or an interface (`.TcIO`), whose methods and properties are alike
+            "POU" | "Itf" => {
                 let (before, words_before) = (keep.len(), words.len());
                 collect_pou(object, xml, &mut keep, &mut words, &at)?;
                 let header = keep.get(before).map(|r| &xml[r.clone()]).unwrap_or("");
                 let Some(end) = pou_end(header) else {
                     return Err(XmlError {
                         span: at(object.range().start),
-                        message: "the POU's declaration does not start with PROGRAM, FUNCTION or FUNCTION_BLOCK".to_string(),
+                        message: "the POU's declaration does not start with PROGRAM, FUNCTION, FUNCTION_BLOCK or INTERFACE".to_string(),
                     });
                 };
                 // on the line after its last section or action end, a line of XML only
@@ -74,8 +75,8 @@ pub fn st_text(xml: &str) -> Result<String, XmlError> {
                 return Err(XmlError {
                     span: at(object.range().start),
                     message: format!(
-                        "`<{other}>` is not read: a TwinCAT source holds a POU, a DUT or a GVL"
-                    ),
+                    "`<{other}>` is not read: a TwinCAT source holds a POU, an Itf, a DUT or a GVL"
+                ),
                 })
             }
         }
@@ -105,8 +106,11 @@ fn sections(node: roxmltree::Node<'_, '_>, xml: &str) -> Vec<Range<usize>> {
     out
 }
 
-/// A POU's declaration, its body and its actions (each written `ACTION Name: … END_ACTION`
-/// over its XML tags). Its methods, properties and transitions are refused at their place.
+/// A POU's declaration, its body, its actions (each written `ACTION Name: … END_ACTION` over its
+/// XML tags), its methods (`<Method>`: a declaration `METHOD …` and a body; `END_METHOD` written
+/// over its closing tag) and properties (`<Property>`: a declaration `PROPERTY …`, then `<Get>`
+/// and `<Set>`, each a declaration and a body, written `GET … END_GET`, `SET … END_SET`; then
+/// `END_PROPERTY`). Its transitions are refused at their place.
 fn collect_pou(
     pou: roxmltree::Node<'_, '_>,
     xml: &str,
@@ -129,7 +133,33 @@ fn collect_pou(
                 let close = xml[range.clone()].rfind("</").map_or(range.end, |n| range.start + n);
                 words.push((close, "END_ACTION".to_string()));
             }
-            "Method" | "Property" | "Transition" => {
+            "Method" => {
+                if let Some(decl) = child(member, "Declaration") {
+                    keep.extend(sections(decl, xml));
+                }
+                body(member, xml, keep, at)?;
+                words.push((closing_tag(member, xml), "END_METHOD".to_string()));
+            }
+            "Property" => {
+                if let Some(decl) = child(member, "Declaration") {
+                    keep.extend(sections(decl, xml));
+                }
+                for accessor in member.children().filter(|n| n.is_element()) {
+                    let word = match accessor.tag_name().name() {
+                        "Get" => "GET",
+                        "Set" => "SET",
+                        _ => continue,
+                    };
+                    words.push((accessor.range().start, word.to_string()));
+                    if let Some(decl) = child(accessor, "Declaration") {
+                        keep.extend(sections(decl, xml));
+                    }
+                    body(accessor, xml, keep, at)?;
+                    words.push((closing_tag(accessor, xml), format!("END_{word}")));
+                }
+                words.push((closing_tag(member, xml), "END_PROPERTY".to_string()));
+            }
+            "Transition" => {
                 let what = member.tag_name().name();
                 return Err(XmlError {
                     span: at(member.range().start),
@@ -141,6 +171,12 @@ fn collect_pou(
     }
     keep.sort_by_key(|r| r.start);
     Ok(())
+}
+
+/// Where an element's closing tag starts (the end of an empty `<X/>`).
+fn closing_tag(node: roxmltree::Node<'_, '_>, xml: &str) -> usize {
+    let range = node.range();
+    xml[range.clone()].rfind("</").map_or(range.end, |n| range.start + n)
 }
 
 /// The ST body of `<Implementation>`; a graphical body is refused at its place.
@@ -189,6 +225,7 @@ fn pou_end(header: &str) -> Option<&'static str> {
         "PROGRAM" => Some("END_PROGRAM"),
         "FUNCTION" => Some("END_FUNCTION"),
         "FUNCTION_BLOCK" => Some("END_FUNCTION_BLOCK"),
+        "INTERFACE" => Some("END_INTERFACE"),
         _ => None,
     }
 }
@@ -320,5 +357,45 @@ IF n > 10 THEN n := 0; END_IF]]></ST>
         let st = st_text(text).unwrap();
         assert_eq!(st.lines().nth(1), Some("END_PROGRAM"));
         assert!(st.lines().next().unwrap().contains("PROGRAM P"));
+    }
+
+    #[test]
+    fn methods_properties_and_interfaces_are_written_over_their_tags() {
+        let text = "<TcPlcObject>\n  <POU Name=\"M\">\n    <Declaration><![CDATA[FUNCTION_BLOCK M IMPLEMENTS I\nVAR n : INT; END_VAR]]></Declaration>\n    <Implementation>\n      <ST><![CDATA[n := Up(1);]]></ST>\n    </Implementation>\n    <Method Name=\"Up\" Id=\"{9}\">\n      <Declaration><![CDATA[METHOD Up : INT\nVAR_INPUT k : INT; END_VAR]]></Declaration>\n      <Implementation>\n        <ST><![CDATA[Up := n + k;]]></ST>\n      </Implementation>\n    </Method>\n    <Property Name=\"P\" Id=\"{8}\">\n      <Declaration><![CDATA[PROPERTY P : INT]]></Declaration>\n      <Get Name=\"Get\" Id=\"{7}\">\n        <Declaration><![CDATA[VAR\nEND_VAR]]></Declaration>\n        <Implementation>\n          <ST><![CDATA[P := n;]]></ST>\n        </Implementation>\n      </Get>\n    </Property>\n  </POU>\n</TcPlcObject>";
+        let st = st_text(text).unwrap();
+        let lines: Vec<&str> = st.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+        assert_eq!(
+            lines,
+            [
+                "FUNCTION_BLOCK M IMPLEMENTS I",
+                "VAR n : INT; END_VAR",
+                "n := Up(1);",
+                "METHOD Up : INT",
+                "VAR_INPUT k : INT; END_VAR",
+                "Up := n + k;",
+                "END_METHOD",
+                "PROPERTY P : INT",
+                "GET",
+                "VAR",
+                "END_VAR",
+                "P := n;",
+                "END_GET",
+                "END_PROPERTY",
+                "END_FUNCTION_BLOCK",
+            ]
+        );
+        let itf = "<TcPlcObject>\n  <Itf Name=\"I\">\n    <Declaration><![CDATA[INTERFACE I EXTENDS __System.IQueryInterface]]></Declaration>\n    <Method Name=\"Up\">\n      <Declaration><![CDATA[METHOD Up : INT\nVAR_INPUT k : INT; END_VAR]]></Declaration>\n    </Method>\n  </Itf>\n</TcPlcObject>";
+        let st = st_text(itf).unwrap();
+        let lines: Vec<&str> = st.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+        assert_eq!(
+            lines,
+            [
+                "INTERFACE I EXTENDS __System.IQueryInterface",
+                "METHOD Up : INT",
+                "VAR_INPUT k : INT; END_VAR",
+                "END_METHOD",
+                "END_INTERFACE"
+            ]
+        );
     }
 }

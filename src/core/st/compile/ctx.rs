@@ -117,6 +117,9 @@ pub struct PouInfo<'a> {
     /// A PROGRAM's copy for one of its instances, whose `VAR_CONFIG` binds variables the
     /// PROGRAM's other instances keep in variable memory (`var_config`): the PROGRAM copied.
     pub copy_of: Option<usize>,
+    /// A method or property accessor: the FUNCTION_BLOCK (or PROGRAM) it belongs to, whose
+    /// variables its body reads and writes through `this` (`oop`).
+    pub method: Option<usize>,
 }
 
 /// An edge input of a function block: at each execution of the body, the value the body sees
@@ -161,6 +164,7 @@ impl<'a> PouInfo<'a> {
             called_with_en: false,
             edges: Vec::new(),
             copy_of: None,
+            method: None,
         }
     }
 
@@ -249,6 +253,8 @@ pub struct Ctx<'a> {
     pub loop_depth: usize,
     /// `[st] strict`: whether a CODESYS habit is an error.
     pub dialect: Dialect,
+    /// Methods, properties, EXTENDS and interfaces (`oop`).
+    pub oop: super::oop::Tables<'a>,
 }
 
 impl<'a> Ctx<'a> {

@@ -71,6 +71,7 @@ impl<'a> Ctx<'a> {
                         outside.push((fi, owner, action));
                         continue;
                     }
+                    Item::Interface(i) => (&i.name, true),
                     Item::Configuration(c) => {
                         // its globals are the project's; its tasks and programs the project's
                         // config takes (`st::configuration`)
@@ -128,8 +129,10 @@ impl<'a> Ctx<'a> {
                         for action in &p.actions {
                             self.add_action(fi, owner, action);
                         }
+                        self.add_members(fi, owner, p);
                         last_pou = Some(p);
                     }
+                    Item::Interface(i) => self.add_interface(fi, i),
                     Item::Globals(_) | Item::Action { .. } | Item::Configuration(_) => {}
                 }
                 let _ = is_type;
@@ -235,6 +238,9 @@ impl<'a> Ctx<'a> {
                     }
                     self.resolve_pou(p);
                     return Ty::Fb(p);
+                }
+                if let Some(&i) = self.oop.interface_names.get(&key(&id.name)) {
+                    return Ty::Iface(i);
                 }
                 let mut names: Vec<String> =
                     self.type_decls.iter().map(|t| t.decl.name.name.clone()).collect();
@@ -739,6 +745,7 @@ impl<'a> Ctx<'a> {
         let scope = self.global_scope(file);
         for decl in &block.decls {
             let ty = self.resolve_type_ref(&decl.ty, scope);
+            self.check_instantiable(&ty, file, decl.span);
             for id in &decl.names {
                 self.reserved(file, id);
                 if let Some(&g) = self.global_names.get(&key(&id.name)) {
@@ -872,6 +879,9 @@ impl<'a> Ctx<'a> {
             self.types.fbs[p] = Some((a.name.clone(), a.inst_size));
             return;
         }
+        if let Some(owner) = self.pous[p].method {
+            self.resolve_pou(owner);
+        }
         self.pous[p].state = State::Busy;
         let pou: &'a ast::Pou = self.pous[p].ast;
         let file = self.pous[p].file;
@@ -879,6 +889,12 @@ impl<'a> Ctx<'a> {
         let mut scope = Scope { pou: Some(p), visible: 0, file };
         let mut inst: Vec<u8> = Vec::new();
         let mut frame: Vec<u8> = Vec::new();
+        // EXTENDS: the base's variables first (`oop`); a type tag first in a hierarchy
+        if kind == PouKind::FunctionBlock {
+            self.inherit(p, &mut inst);
+            scope.visible = self.pous[p].vars.len();
+        }
+        let member = self.oop.members.get(&p).map(|m| m.role);
         if kind == PouKind::Function {
             let result = match &pou.return_type {
                 Some(tr) => self.resolve_type_ref(tr, scope),
@@ -894,7 +910,15 @@ impl<'a> Ctx<'a> {
         // (`ARRAY [0..n] OF …` above a `VAR CONSTANT n`, as OSCAT writes it).
         let (constants, others): (Vec<_>, Vec<_>) =
             pou.vars.iter().partition(|b| b.constant && b.kind == VarKind::Local);
-        for block in constants.into_iter().chain(others) {
+        let mut blocks: Vec<&ast::VarBlock> = constants.into_iter().chain(others).collect();
+        if member.is_some() {
+            // A method's parameters first in its frame: its overrides' are then at the same
+            // offsets, whatever their locals, for a call that dispatches on the instance.
+            blocks.sort_by_key(|b| {
+                !matches!(b.kind, VarKind::Input | VarKind::InOut | VarKind::Output)
+            });
+        }
+        for block in blocks {
             if block.kind == VarKind::Global {
                 self.error(file, block.span, "VAR_GLOBAL belongs outside the POUs: declare globals at the top level of a file");
                 continue;
@@ -902,9 +926,20 @@ impl<'a> Ctx<'a> {
             if kind == PouKind::Function && block.retain {
                 self.error(file, block.span, "a FUNCTION's variables cannot be RETAIN");
             }
+            if member.is_some() && block.kind == VarKind::Instance {
+                let msg = "VAR_INST in a method is not supported: declare the variable in its function block";
+                // read on as locals, so that its uses make no errors of their own
+                self.error(file, block.span, msg);
+            }
             for decl in &block.decls {
                 let ty = self.resolve_type_ref(&decl.ty, scope);
-                if kind == PouKind::Function && matches!(ty, Ty::Fb(_)) {
+                if block.kind != VarKind::InOut {
+                    self.check_instantiable(&ty, file, decl.span);
+                }
+                if kind == PouKind::Function
+                    && matches!(ty, Ty::Fb(_))
+                    && block.kind != VarKind::InOut
+                {
                     self.error(file, decl.span, "a FUNCTION cannot hold a function block instance");
                 }
                 for id in &decl.names {
@@ -918,7 +953,10 @@ impl<'a> Ctx<'a> {
                         );
                         continue;
                     }
-                    if kind == PouKind::Function && id.is(&pou.name.name) {
+                    if kind == PouKind::Function
+                        && id.is(&pou.name.name)
+                        && member != Some(super::oop::Role::Set)
+                    {
                         self.error(
                             file,
                             id.span,
@@ -1122,6 +1160,7 @@ impl<'a> Ctx<'a> {
         // The implicit ENO (IEC 61131-3 ed3): a BOOL output, TRUE on entry, that the
         // body may set FALSE; there when something may read it.
         if matches!(kind, PouKind::Function | PouKind::FunctionBlock)
+            && member.is_none()
             && self.pous[p].eno.is_none()
             && (self.eno_read || mentions_eno(&pou.body))
         {
@@ -1151,6 +1190,7 @@ impl<'a> Ctx<'a> {
             self.pous[p].eno = Some(index);
             self.pous[p].eno_implicit = true;
         }
+        self.share_instance(p);
         if inst.len() as u64 > MAX_MEMORY {
             self.error(
                 file,

@@ -710,10 +710,23 @@ impl<'c, 'a> Em<'c, 'a> {
     }
 
     fn call_fn_enabled(&mut self, call: &CallT, ty: &Ty, want: bool) {
-        // arguments that call functions themselves: into temporaries first
+        // a method's instance: its place, or its pointer in a temporary (before the arguments,
+        // which may call functions in the callee area)
+        let this = call.this.as_ref().map(|this| match self.static_place(this) {
+            Some(s) => Inst::Static(s),
+            None => {
+                let t = self.alloc_tmp(8);
+                self.addr(this);
+                self.op(Op::Store { elem: Elem::U64, at: Place::Frame(t) });
+                Inst::Ptr(t)
+            }
+        });
+        // arguments that call functions themselves: into temporaries first (every argument
+        // when the call dispatches: each candidate stores them after its own frame image)
+        let dispatching = !call.dispatch.is_empty();
         let mut pre: Vec<Option<u32>> = Vec::new();
         for a in &call.args {
-            if a.value.has_call() {
+            if a.value.has_call() || dispatching {
                 let size = if a.by_ref { 8 } else { self.size(&a.ty).max(self.size(&a.value.ty)) };
                 let t = self.alloc_tmp(size);
                 if a.by_ref {
@@ -733,17 +746,21 @@ impl<'c, 'a> Em<'c, 'a> {
                 pre.push(None);
             }
         }
-        if let Some(t) = self.template(call.pou) {
-            let n = self.cx.pous[call.pou].frame_vars;
-            self.op_callee(Op::AddrOf(Place::Frame(0)));
-            self.op(Op::AddrOf(Place::Var(t)));
-            self.op(Op::Copy(n));
+        match this {
+            None => {
+                self.enter_callee(call, call.pou, &pre);
+                let at = self.op_callee(Op::CallFn { target: 0, frame: 0 });
+                self.b.calls.push((at, call.pou));
+            }
+            Some(this) if !dispatching => {
+                self.enter_callee(call, call.pou, &pre);
+                self.call_method(this, call.pou);
+            }
+            Some(this) => self.dispatch(this, &call.dispatch, |em, pou| {
+                em.enter_callee(call, pou, &pre);
+                em.call_method(this, pou);
+            }),
         }
-        for (a, t) in call.args.iter().zip(pre) {
-            self.store_arg(a, t, None);
-        }
-        let at = self.op_callee(Op::CallFn { target: 0, frame: 0 });
-        self.b.calls.push((at, call.pou));
         if want && *ty != Ty::Void {
             if ty.is_aggregate() {
                 let size = self.size(ty);
@@ -763,6 +780,73 @@ impl<'c, 'a> Em<'c, 'a> {
             self.out_tail(&mut ops, o.negated, &o.ty, &o.target.ty);
             self.store(&o.target, Src::Ops(ops));
         }
+    }
+
+    /// The callee area made ready for `pou`: its frame's initial image, then the arguments.
+    fn enter_callee(&mut self, call: &CallT, pou: usize, pre: &[Option<u32>]) {
+        if let Some(t) = self.template(pou) {
+            let n = self.cx.pous[pou].frame_vars;
+            self.op_callee(Op::AddrOf(Place::Frame(0)));
+            self.op(Op::AddrOf(Place::Var(t)));
+            self.op(Op::Copy(n));
+        }
+        for (a, t) in call.args.iter().zip(pre) {
+            self.store_arg(a, *t, None);
+        }
+    }
+
+    /// One branch per candidate body, chosen by the instance's type tag (`oop`): `call` emits
+    /// the call of each; a candidate without a tag is the default, taken when no tag before
+    /// it matched.
+    fn dispatch(
+        &mut self,
+        inst: Inst,
+        candidates: &[(Option<u32>, usize)],
+        mut call: impl FnMut(&mut Self, usize),
+    ) {
+        let mut ends = Vec::new();
+        for &(tag, pou) in candidates {
+            let next = tag.map(|tag| self.unless_tag(inst, tag));
+            call(self, pou);
+            ends.push(self.op(Op::Goto(0)));
+            if let Some(next) = next {
+                let here = self.pc();
+                self.patch(next, here);
+            }
+        }
+        let here = self.pc();
+        for j in ends {
+            self.patch(j, here);
+        }
+    }
+
+    /// A jump, to be patched, taken when the instance's type tag (its first UDINT) is not
+    /// `tag`.
+    fn unless_tag(&mut self, inst: Inst, tag: u32) -> usize {
+        self.push_inst(inst);
+        self.op(Op::FetchInd(Elem::U32));
+        self.push_int(Elem::U32, i128::from(tag));
+        self.op(Op::Cmp { op: CmpOp::Eq, elem: Elem::U32 });
+        self.op(Op::GotoIf { target: 0, when: false })
+    }
+
+    /// Pushes the pointer to an instance.
+    fn push_inst(&mut self, inst: Inst) {
+        match inst {
+            Inst::Static(s) => {
+                self.op_static(Op::AddrOf(s.place), s);
+            }
+            Inst::Ptr(t) => {
+                self.op(Op::Fetch { elem: Elem::U64, at: Place::Frame(t) });
+            }
+        }
+    }
+
+    /// A method's body called on the instance, its frame in the callee area.
+    fn call_method(&mut self, this: Inst, pou: usize) {
+        self.push_inst(this);
+        let at = self.op_callee(Op::CallFb { target: 0, frame: 0 });
+        self.b.calls.push((at, pou));
     }
 
     fn out_tail(&self, ops: &mut Vec<(Op, bool)>, negated: bool, from: &Ty, to: &Ty) {
@@ -886,16 +970,12 @@ impl<'c, 'a> Em<'c, 'a> {
         for a in &call.args {
             self.store_arg(a, None, Some(where_));
         }
-        match where_ {
-            Inst::Static(s) => {
-                self.op_static(Op::AddrOf(s.place), s);
-            }
-            Inst::Ptr(t) => {
-                self.op(Op::Fetch { elem: Elem::U64, at: Place::Frame(t) });
-            }
+        if call.dispatch.is_empty() {
+            self.call_method(where_, call.pou);
+        } else {
+            // the body of the instance's own function block
+            self.dispatch(where_, &call.dispatch, |em, pou| em.call_method(where_, pou));
         }
-        let at = self.op_callee(Op::CallFb { target: 0, frame: 0 });
-        self.b.calls.push((at, call.pou));
         for o in &call.outs {
             let elem = self.elem(&o.ty);
             let mut ops = match where_ {

@@ -86,6 +86,12 @@ pub struct CallT {
     /// The implicit `EN := …` (the callee declares no EN): when FALSE, nothing of the call
     /// happens (no argument evaluated, no input assigned, no output read), ENO is FALSE.
     pub en: Option<Box<TExpr>>,
+    /// A method call: the instance it runs on (`this`).
+    pub this: Option<Box<TExpr>>,
+    /// A method called through a place whose function block may be a derived one (or an
+    /// interface): the bodies to choose from by the instance's type tag, in order; a `None`
+    /// tag is the default (`oop`). Empty: `pou` is called.
+    pub dispatch: Vec<(Option<u32>, usize)>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -506,6 +512,9 @@ impl<'a> Ctx<'a> {
         match &e.kind {
             ExprKind::Name(id) => self.name(id, scope, access, expected),
             ExprKind::Deref(base) => {
+                if let Some(t) = self.this_place(base, span, scope) {
+                    return t;
+                }
                 let b = self.check_place(base, scope, Access::Read, None);
                 self.deref(b, span, &expr_text(base), file)
             }
@@ -518,6 +527,7 @@ impl<'a> Ctx<'a> {
                 );
                 match b.ty.clone() {
                     Ty::Error => TExpr::error(span),
+                    Ty::Iface(i) => self.interface_property(b, i, id, access, scope),
                     Ty::Struct(s) => {
                         let st = &self.types.structs[s];
                         match st.members.iter().find(|m| id.is(&m.name)) {
@@ -539,6 +549,11 @@ impl<'a> Ctx<'a> {
                         }
                     }
                     Ty::Fb(p) => {
+                        if self.pous[p].lookup(&id.name).is_none() {
+                            if let Some(t) = self.property_read(&b, p, id, access, scope) {
+                                return t;
+                            }
+                        }
                         let pou = &self.pous[p];
                         let Some(v) = pou.lookup(&id.name).map(|i| pou.vars[i].clone()) else {
                             let names: Vec<&str> = pou
@@ -874,7 +889,9 @@ impl<'a> Ctx<'a> {
                 };
                 return TExpr { k: TK::Var { storage, by_ref: v.by_ref }, ty: v.ty, span };
             }
-            if pou.kind == PouKind::Function && id.is(&pou.name) && scope.visible == pou.vars.len()
+            if pou.kind == PouKind::Function
+                && id.is(&pou.ast.name.name)
+                && scope.visible == pou.vars.len()
             {
                 let ty = pou.result.clone();
                 if ty == Ty::Void {
@@ -898,6 +915,9 @@ impl<'a> Ctx<'a> {
                 return TExpr::konst(cv.clone(), v.ty.clone(), span);
             }
             return TExpr { k: TK::Var { storage: v.storage, by_ref: false }, ty: v.ty, span };
+        }
+        if let Some(t) = self.own_member(id, access, scope) {
+            return t;
         }
         if id.is("NULL") && access == Access::Read {
             return TExpr::konst(Cv::Int(0), Ty::Null, span);
@@ -958,6 +978,9 @@ impl<'a> Ctx<'a> {
         }
         if &te.ty == to {
             return te;
+        }
+        if matches!(to, Ty::Iface(_)) || matches!(te.ty, Ty::Iface(_)) {
+            return self.as_interface(te, to, file);
         }
         if matches!(te.ty, Ty::Ref(..) | Ty::Null) || matches!(to, Ty::Ref(..)) {
             let te = self.zero_as_null(te, to);
@@ -1058,7 +1081,7 @@ impl<'a> Ctx<'a> {
         TExpr { k: TK::Conv(Box::new(te)), ty: to, span }
     }
 
-    fn mismatch(&mut self, te: TExpr, to: &Ty, file: usize) -> TExpr {
+    pub(super) fn mismatch(&mut self, te: TExpr, to: &Ty, file: usize) -> TExpr {
         let span = te.span;
         let (a, b) = (self.ty_name(&te.ty), self.ty_name(to));
         let hint = match (te.ty.prim(&self.types), to.prim(&self.types)) {
@@ -1265,6 +1288,9 @@ impl<'a> Ctx<'a> {
         let what = op_text(op);
         if a.ty.is_error() || b.ty.is_error() {
             return TExpr::error(span);
+        }
+        if matches!(a.ty, Ty::Iface(_)) || matches!(b.ty, Ty::Iface(_)) {
+            return self.interface_compare(op, a, b, span, file);
         }
         if matches!(a.ty, Ty::Ref(..) | Ty::Null) || matches!(b.ty, Ty::Ref(..) | Ty::Null) {
             return self.ref_binary(op, a, b, span, file);
@@ -1480,6 +1506,9 @@ impl<'a> Ctx<'a> {
         expected: Option<&Ty>,
     ) -> TExpr {
         let file = scope.file;
+        if let Some(t) = self.method_call(callee, args, span, scope) {
+            return t;
+        }
         if let ExprKind::Name(id) = &callee.kind {
             let is_var = scope
                 .pou
@@ -1532,7 +1561,7 @@ impl<'a> Ctx<'a> {
         }
     }
 
-    fn record_call(&mut self, scope: Scope, callee: usize, span: Span) {
+    pub(super) fn record_call(&mut self, scope: Scope, callee: usize, span: Span) {
         if let Some(p) = scope.pou {
             let calls = &mut self.pous[p].callees;
             if !calls.iter().any(|(c, _)| *c == callee) {
@@ -1578,9 +1607,9 @@ impl<'a> Ctx<'a> {
                 if self.pous[p].lookup(&id.name).is_some() {
                     return None;
                 }
-                let owner = self.pous[p].action.map_or(p, |(_, o)| o);
-                let key = super::ctx::action_key(&self.pous[owner].name, &id.name);
-                let action = *self.pou_names.get(&key)?;
+                // the POU's, an action's or a method's function block
+                let owner = self.own_instance(p).unwrap_or(p);
+                let action = self.find_action(owner, &id.name)?;
                 // the POU's own instance: its variables start at offset 0
                 let k = TK::Var { storage: Storage::Inst(0), by_ref: false };
                 (TExpr { k, ty: Ty::Fb(action), span: callee.span }, action)
@@ -1590,8 +1619,7 @@ impl<'a> Ctx<'a> {
                 let probe = self.check_place(base, scope, Access::Read, None);
                 self.diags.truncate(saved);
                 let Ty::Fb(owner) = probe.ty else { return None };
-                let key = super::ctx::action_key(&self.pous[owner].name, &id.name);
-                let action = *self.pou_names.get(&key)?;
+                let action = self.find_action(owner, &id.name)?;
                 (self.check_place(base, scope, Access::Ref, None), action)
             }
             _ => return None,
@@ -1602,7 +1630,17 @@ impl<'a> Ctx<'a> {
             return Some(None);
         }
         self.record_call(scope, action, span);
-        Some(Some((inst, CallT { pou: action, args: Vec::new(), outs: Vec::new(), en: None })))
+        Some(Some((
+            inst,
+            CallT {
+                pou: action,
+                args: Vec::new(),
+                outs: Vec::new(),
+                en: None,
+                this: None,
+                dispatch: Vec::new(),
+            },
+        )))
     }
 
     /// A function block instance called as a statement.
@@ -1619,7 +1657,11 @@ impl<'a> Ctx<'a> {
             Ty::Error => None,
             Ty::Fb(p) => {
                 self.record_call(scope, p, span);
-                let call = self.bind_args(p, args, span, scope)?;
+                let mut call = self.bind_args(p, args, span, scope)?;
+                call.dispatch = self.body_candidates(&inst, p);
+                for &(_, c) in &call.dispatch {
+                    self.record_call(scope, c, span);
+                }
                 Some((inst, call))
             }
             _ => {
@@ -1635,7 +1677,13 @@ impl<'a> Ctx<'a> {
     }
 
     /// Binds a call's arguments to `p`'s parameters (an implicit `EN := …` included).
-    fn bind_args(&mut self, p: usize, args: &[Arg], span: Span, scope: Scope) -> Option<CallT> {
+    pub(super) fn bind_args(
+        &mut self,
+        p: usize,
+        args: &[Arg],
+        span: Span,
+        scope: Scope,
+    ) -> Option<CallT> {
         let file = scope.file;
         let name = self.pous[p].name.clone();
         let positional = args.iter().any(|a| matches!(a, Arg::Positional(_)));
@@ -1749,7 +1797,9 @@ impl<'a> Ctx<'a> {
                     ok = false;
                     continue;
                 }
-                if t.ty != v.ty && !matches!((&t.ty, &v.ty), (Ty::Str(_), Ty::Str(_))) {
+                let derived =
+                    matches!((&t.ty, &v.ty), (Ty::Fb(d), Ty::Fb(b)) if self.derives_from(*d, *b));
+                if t.ty != v.ty && !derived && !matches!((&t.ty, &v.ty), (Ty::Str(_), Ty::Str(_))) {
                     let (a, b) = (self.ty_name(&v.ty), self.ty_name(&t.ty));
                     self.error(
                         file,
@@ -1787,7 +1837,7 @@ impl<'a> Ctx<'a> {
             self.error(file, span, format!("the call of `{name}` is missing VAR_IN_OUT `{m}`"));
             ok = false;
         }
-        ok.then_some(CallT { pou: p, args: out_args, outs, en })
+        ok.then_some(CallT { pou: p, args: out_args, outs, en, this: None, dispatch: Vec::new() })
     }
 
     /// The parameter `pn` of `name` given as a formal argument: an input or in-out with `:=`,

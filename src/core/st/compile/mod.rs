@@ -8,6 +8,8 @@
 //! - `expr`, `stmt`, `stdlib`, `refs` (references and pointers): checking into a typed tree;
 //! - `emit`: the typed tree to ops; `link` (here): one program per instance, symbols;
 //! - `sfc`: each POU's Sequential Function Chart → variables and statements, before the rest;
+//! - `oop`: methods, properties, EXTENDS, interfaces, and the dispatch of their calls on a
+//!   hidden type tag of the instance;
 //! - `instance_args`: a configuration's program instance arguments, as copies in its code;
 //! - `var_config`: a configuration's `VAR_CONFIG`, variables at partly specified addresses
 //!   bound to devices.
@@ -43,6 +45,7 @@ mod decl;
 mod emit;
 mod expr;
 mod instance_args;
+mod oop;
 mod refs;
 mod sfc;
 mod stdlib;
@@ -145,6 +148,7 @@ pub fn compile_configured(
         for_vars: Vec::new(),
         loop_depth: 0,
         dialect,
+        oop: oop::Tables::default(),
     };
     // the habits the parser accepted
     for (f, file) in files.iter().enumerate() {
@@ -153,7 +157,9 @@ pub fn compile_configured(
         }
     }
     cx.collect();
+    cx.link_hierarchy();
     cx.resolve_all();
+    cx.check_oop();
 
     // the instances, in variable memory after the globals
     let mut placed: Vec<Option<(usize, u32)>> = Vec::new();
@@ -697,7 +703,7 @@ fn value_type(cx: &Ctx<'_>, ty: &Ty) -> Option<ValueType> {
             }
         }
         Ty::Str(n) => ValueType::String { cap: *n },
-        Ty::Ref(..) => ValueType::Reference { type_name: cx.ty_name(ty) },
+        Ty::Ref(..) | Ty::Iface(_) => ValueType::Reference { type_name: cx.ty_name(ty) },
         _ => return None,
     })
 }

@@ -100,7 +100,8 @@ impl<'a> Ctx<'a> {
             let r = self.undo_auto_deref(r);
             return Some(match r.ty {
                 Ty::Error => TExpr::error(span),
-                Ty::Ref(..) | Ty::Null => {
+                // an interface is a reference to an instance (`oop`)
+                Ty::Ref(..) | Ty::Null | Ty::Iface(_) => {
                     let null = TExpr::konst(Cv::Int(0), Ty::Null, span);
                     let cmp = TK::Cmp(CmpOp::Ne, Box::new(r), Box::new(null));
                     TExpr { k: cmp, ty: Ty::Prim(Prim::Bool), span }
@@ -193,7 +194,11 @@ impl<'a> Ctx<'a> {
         match (from, to) {
             (Ty::Null, Ty::Ref(..) | Ty::Null) => true,
             (Ty::Ref(RefKind::Pointer, _), Ty::Ref(RefKind::Pointer, _)) => true,
-            (Ty::Ref(_, a), Ty::Ref(_, b)) => a == b,
+            (Ty::Ref(_, a), Ty::Ref(_, b)) => match (&**a, &**b) {
+                // a derived function block is one of its base (`oop`)
+                (Ty::Fb(d), Ty::Fb(base)) => self.derives_from(*d, *base),
+                _ => a == b,
+            },
             _ => false,
         }
     }

@@ -71,6 +71,9 @@ impl<'a> Ctx<'a> {
         let k = match &s.kind {
             StmtKind::Empty => return None,
             StmtKind::Assign { target, value } => {
+                if let Some(setter) = self.property_write(target, value, scope) {
+                    return setter.map(|k| TStmt { k, line });
+                }
                 let t = self.check_place(target, scope, Access::Write, None);
                 let v = self.check_given(value, scope, &t.ty);
                 if t.ty.is_error() || v.ty.is_error() {
@@ -99,7 +102,9 @@ impl<'a> Ctx<'a> {
                     self.error(file, e.span, "this expression does nothing: a statement is needed");
                     return None;
                 };
-                if let Some(call) = self.action_call(callee, args, e.span, scope) {
+                if let Some(k) = self.oop_statement(callee, args, e.span, scope) {
+                    k?
+                } else if let Some(call) = self.action_call(callee, args, e.span, scope) {
                     let (inst, call) = call?;
                     TS::FbCall(inst, call)
                 } else if self.is_instance(callee, scope) {

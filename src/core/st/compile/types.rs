@@ -280,6 +280,9 @@ pub enum Ty {
     /// `REF_TO T`, `POINTER TO T`, `REFERENCE TO T`: a reference value (8 bytes, see
     /// `crate::lang::ops::Op::Deref` for its encoding) to a `T`.
     Ref(RefKind, Rc<Ty>),
+    /// An `INTERFACE` (index into [`Types::interfaces`]): a reference value to an instance of
+    /// a function block implementing it, `NULL` (0) until one is assigned.
+    Iface(usize),
     /// `NULL`, and `ADR(v)` before it meets a pointer type: a reference to anything.
     Null,
     /// An integer literal whose type comes from its context.
@@ -341,6 +344,8 @@ pub struct Types {
     pub enums: Vec<EnumTy>,
     /// Per POU (indexed like the POU list): instance size of a FUNCTION_BLOCK and its name.
     pub fbs: Vec<Option<(String, u32)>>,
+    /// The INTERFACEs' names.
+    pub interfaces: Vec<String>,
 }
 
 impl Types {
@@ -366,6 +371,7 @@ impl Types {
                 };
                 format!("{word} {}", self.name(to))
             }
+            Ty::Iface(i) => self.interfaces[*i].clone(),
             Ty::Null => "NULL".into(),
             Ty::IntLit => "ANY_INT".into(),
             Ty::RealLit => "ANY_REAL".into(),
@@ -382,7 +388,7 @@ impl Types {
             Ty::Struct(i) => self.structs[*i].size,
             Ty::Enum(i) => self.enums[*i].base.elem().size(),
             Ty::Fb(i) => self.fbs.get(*i).and_then(|f| f.as_ref()).map_or(0, |f| f.1),
-            Ty::Ref(..) | Ty::Null => 8,
+            Ty::Ref(..) | Ty::Null | Ty::Iface(_) => 8,
             Ty::IntLit => 8,
             Ty::RealLit => 8,
             Ty::Void | Ty::Error => 0,
@@ -403,7 +409,7 @@ impl Ty {
     /// How a scalar of this type is stored (a reference as a 64-bit slot).
     pub fn elem(&self, types: &Types) -> Option<Elem> {
         match self {
-            Ty::Ref(..) | Ty::Null => Some(Elem::U64),
+            Ty::Ref(..) | Ty::Null | Ty::Iface(_) => Some(Elem::U64),
             _ => self.prim(types).map(Prim::elem),
         }
     }

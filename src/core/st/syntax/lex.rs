@@ -20,6 +20,14 @@ pub(crate) enum Kw {
     EndFunctionBlock,
     Action,
     EndAction,
+    Method,
+    EndMethod,
+    Property,
+    EndProperty,
+    EndGet,
+    EndSet,
+    Interface,
+    EndInterface,
     Configuration,
     EndConfiguration,
     EndResource,
@@ -86,6 +94,14 @@ impl Kw {
             b"FUNCTION_BLOCK" => Kw::FunctionBlock,
             b"END_FUNCTION_BLOCK" => Kw::EndFunctionBlock,
             b"ACTION" => Kw::Action,
+            b"METHOD" => Kw::Method,
+            b"END_METHOD" => Kw::EndMethod,
+            b"PROPERTY" => Kw::Property,
+            b"END_PROPERTY" => Kw::EndProperty,
+            b"END_GET" => Kw::EndGet,
+            b"END_SET" => Kw::EndSet,
+            b"INTERFACE" => Kw::Interface,
+            b"END_INTERFACE" => Kw::EndInterface,
             b"CONFIGURATION" => Kw::Configuration,
             b"END_CONFIGURATION" => Kw::EndConfiguration,
             b"END_RESOURCE" => Kw::EndResource,
@@ -152,6 +168,11 @@ impl Kw {
                 | Kw::EndFunction
                 | Kw::EndFunctionBlock
                 | Kw::EndAction
+                | Kw::EndMethod
+                | Kw::EndProperty
+                | Kw::EndGet
+                | Kw::EndSet
+                | Kw::EndInterface
                 | Kw::EndConfiguration
                 | Kw::EndResource
                 | Kw::EndType

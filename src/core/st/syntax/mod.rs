@@ -130,7 +130,7 @@ impl Want {
             Want::Type => "a type",
             Want::DotDot => "`..`",
             Want::Item => {
-                "`PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE`, `VAR_GLOBAL`, `ACTION` or `CONFIGURATION`"
+                "`PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE`, `VAR_GLOBAL`, `ACTION`, `INTERFACE` or `CONFIGURATION`"
             }
             Want::VarDecl => "a variable name or `END_VAR`",
             Want::TypeDecl => "a type name or `END_TYPE`",
@@ -165,10 +165,15 @@ pub(crate) enum Closer {
     Action,
     Configuration,
     Resource,
+    Method,
+    Property,
+    Get,
+    Set,
+    Interface,
 }
 
 impl Closer {
-    pub(crate) const ALL: [Closer; 14] = [
+    pub(crate) const ALL: [Closer; 19] = [
         Closer::If,
         Closer::Case,
         Closer::For,
@@ -183,6 +188,11 @@ impl Closer {
         Closer::Action,
         Closer::Configuration,
         Closer::Resource,
+        Closer::Method,
+        Closer::Property,
+        Closer::Get,
+        Closer::Set,
+        Closer::Interface,
     ];
 
     /// The keyword that closes it.
@@ -202,6 +212,11 @@ impl Closer {
             Closer::Action => "END_ACTION",
             Closer::Configuration => "END_CONFIGURATION",
             Closer::Resource => "END_RESOURCE",
+            Closer::Method => "END_METHOD",
+            Closer::Property => "END_PROPERTY",
+            Closer::Get => "END_GET",
+            Closer::Set => "END_SET",
+            Closer::Interface => "END_INTERFACE",
         }
     }
 
@@ -222,6 +237,11 @@ impl Closer {
             Closer::Action => "ACTION",
             Closer::Configuration => "CONFIGURATION",
             Closer::Resource => "RESOURCE",
+            Closer::Method => "METHOD",
+            Closer::Property => "PROPERTY",
+            Closer::Get => "GET",
+            Closer::Set => "SET",
+            Closer::Interface => "INTERFACE",
         }
     }
 }
@@ -285,6 +305,8 @@ pub(crate) enum Msg {
         text: String,
     },
     TooDeep,
+    /// A METHOD or PROPERTY at the top level after no FUNCTION_BLOCK or PROGRAM.
+    MemberOutside,
 }
 
 /// How deeply expressions, statements and initial values may nest.
@@ -317,6 +339,7 @@ impl Msg {
             Msg::NoAddress,
             Msg::BitTooLarge { text: h() },
             Msg::TooDeep,
+            Msg::MemberOutside,
         ]);
         all.extend(crate::value::CalendarError::TEMPLATES.iter().map(|why| Msg::Calendar {
             text: h(),
@@ -364,6 +387,10 @@ impl std::fmt::Display for Msg {
             Msg::NoAddress => write!(f, "expected an address after `%`"),
             Msg::BitTooLarge { text } => write!(f, "bit number `{text}` is too large"),
             Msg::TooDeep => write!(f, "nested more than {MAX_DEPTH} levels deep"),
+            Msg::MemberOutside => write!(
+                f,
+                "a METHOD or PROPERTY belongs to a FUNCTION_BLOCK: write it inside one, or right after its END_FUNCTION_BLOCK"
+            ),
         }
     }
 }

@@ -173,6 +173,9 @@ fn is_top(tok: &Tok) -> bool {
                     | Kw::FunctionBlock
                     | Kw::Type
                     | Kw::Action
+                    | Kw::Method
+                    | Kw::Property
+                    | Kw::Interface
                     | Kw::Configuration
             )
     )
@@ -224,6 +227,11 @@ impl Closer {
             Closer::Action => kw == Kw::EndAction,
             Closer::Configuration => kw == Kw::EndConfiguration,
             Closer::Resource => kw == Kw::EndResource,
+            Closer::Method => kw == Kw::EndMethod,
+            Closer::Property => kw == Kw::EndProperty,
+            Closer::Get => kw == Kw::EndGet,
+            Closer::Set => kw == Kw::EndSet,
+            Closer::Interface => kw == Kw::EndInterface,
         }
     }
 
@@ -243,6 +251,11 @@ impl Closer {
             Closer::Action => Kw::EndAction,
             Closer::Configuration => Kw::EndConfiguration,
             Closer::Resource => Kw::EndResource,
+            Closer::Method => Kw::EndMethod,
+            Closer::Property => Kw::EndProperty,
+            Closer::Get => Kw::EndGet,
+            Closer::Set => Kw::EndSet,
+            Closer::Interface => Kw::EndInterface,
         }
     }
 }
@@ -374,6 +387,11 @@ impl<'a> Parser<'a> {
         self.errors.push((span, msg));
     }
 
+    /// Reports `msg` at `span` (a construct already read).
+    fn report_at(&mut self, span: Span, msg: Msg) {
+        self.errors.push((span, msg));
+    }
+
     fn fail(&mut self, want: Want) -> Failed {
         let found = self.found();
         self.report(Msg::Expected { want, found });
@@ -442,8 +460,18 @@ impl<'a> Parser<'a> {
         // statement, a POU's of a POU.
         if let Tok::Kw(kw) = *self.tok() {
             let misspelt = match closer {
-                Closer::Program | Closer::Function | Closer::FunctionBlock | Closer::Action => {
-                    is_pou_end(kw) || kw == Kw::EndAction
+                Closer::Program
+                | Closer::Function
+                | Closer::FunctionBlock
+                | Closer::Action
+                | Closer::Method
+                | Closer::Property
+                | Closer::Interface => {
+                    is_pou_end(kw)
+                        || matches!(
+                            kw,
+                            Kw::EndAction | Kw::EndMethod | Kw::EndProperty | Kw::EndInterface
+                        )
                 }
                 Closer::Type | Closer::Struct | Closer::Var => false,
                 Closer::Configuration | Closer::Resource => {
@@ -523,6 +551,21 @@ impl<'a> Parser<'a> {
                 Tok::Kw(Kw::Configuration) => {
                     items.push(Item::Configuration(self.configuration()));
                 }
+                Tok::Kw(Kw::Interface) => items.push(Item::Interface(self.interface())),
+                // A method or property written after its function block's END_FUNCTION_BLOCK
+                // (as CODESYS's text exports place them): the function block's.
+                Tok::Kw(Kw::Method | Kw::Property) => {
+                    let at = self.span();
+                    let mut oop = Oop::default();
+                    self.oop_member(&mut oop);
+                    match items.last_mut() {
+                        Some(Item::Pou(p)) if p.kind != PouKind::Function => {
+                            p.oop.methods.append(&mut oop.methods);
+                            p.oop.properties.append(&mut oop.properties);
+                        }
+                        _ => self.report_at(at, Msg::MemberOutside),
+                    }
+                }
                 _ => {
                     let _ = self.fail(Want::Item);
                     self.bump();
@@ -541,7 +584,20 @@ impl<'a> Parser<'a> {
             self.text_of(at)
         }
         .to_ascii_uppercase();
+        let mut oop = Oop::default();
+        let (_, is_abstract, is_final) = self.modifiers();
+        (oop.is_abstract, oop.is_final) = (is_abstract, is_final);
         let name = self.ident().unwrap_or_else(|_| Ident { name: String::new(), span });
+        if kind != PouKind::Function {
+            if self.at_word("EXTENDS") {
+                self.bump();
+                oop.extends = self.ident().ok();
+            }
+            if self.at_word("IMPLEMENTS") {
+                self.bump();
+                oop.implements = self.names();
+            }
+        }
         let mut return_type = None;
         if kind == PouKind::Function && self.eat_p(P::Colon) {
             match self.type_ref() {
@@ -556,25 +612,35 @@ impl<'a> Parser<'a> {
                 }
             }
         }
-        let mut vars = Vec::new();
-        while var_kind(self.tok()).is_some() {
-            vars.push(self.var_block());
-        }
         let closer = match kind {
             PouKind::Program => Closer::Program,
             PouKind::Function => Closer::Function,
             PouKind::FunctionBlock => Closer::FunctionBlock,
         };
+        // open from here: a method's missing END_METHOD does not take the POU's end for it
         self.open.push(closer);
+        let mut vars = Vec::new();
+        loop {
+            if var_kind(self.tok()).is_some() {
+                vars.push(self.var_block());
+            } else if kind != PouKind::Function && self.at_member() {
+                self.oop_member(&mut oop);
+            } else {
+                break;
+            }
+        }
         let mut body = self.stmt_list(false, false);
         let mut actions = Vec::new();
         let mut sfc: Option<crate::st::sfc::Sfc> = None;
-        // actions and SFC elements among the statements (as the textual SFC places them)
+        // actions and SFC elements among the statements (as the textual SFC places them),
+        // methods and properties after the body (as TwinCAT's files hold them)
         loop {
             if self.at_kw(Kw::Action) {
                 if let Some((_, action)) = self.action(false) {
                     actions.push(action);
                 }
+            } else if kind != PouKind::Function && self.at_member() {
+                self.oop_member(&mut oop);
             } else if self.at_sfc_element() {
                 self.sfc_element(sfc.get_or_insert_with(Default::default));
             } else {
@@ -585,7 +651,196 @@ impl<'a> Parser<'a> {
         self.open.pop();
         let here = self.span();
         let end = self.close(closer, &opener, span).unwrap_or(here);
-        Pou { kind, name, return_type, vars, body, actions, sfc, span, end }
+        Pou { kind, name, return_type, vars, body, actions, oop, sfc, span, end }
+    }
+
+    /// Whether a METHOD or PROPERTY starts here.
+    fn at_member(&self) -> bool {
+        self.at_kw(Kw::Method) || self.at_kw(Kw::Property)
+    }
+
+    /// `A, B, …`: names after EXTENDS or IMPLEMENTS (a library's qualified, `NS.I`).
+    fn names(&mut self) -> Vec<Ident> {
+        let mut out = Vec::new();
+        while let Ok(mut id) = self.ident() {
+            while self.at_p(P::Dot) && *self.tok_at(1) == Tok::Ident {
+                self.bump();
+                let Ok(more) = self.ident() else { break };
+                id.name = format!("{}.{}", id.name, more.name);
+            }
+            out.push(id);
+            if !self.eat_p(P::Comma) {
+                break;
+            }
+        }
+        out
+    }
+
+    /// The access specifier, `ABSTRACT` and `FINAL` before a name: words followed by a name.
+    fn modifiers(&mut self) -> (Access, bool, bool) {
+        let (mut access, mut is_abstract, mut is_final) = (Access::Public, false, false);
+        while *self.tok() == Tok::Ident && *self.tok_at(1) == Tok::Ident {
+            match self.text_of(self.pos).to_ascii_uppercase().as_str() {
+                "PUBLIC" => access = Access::Public,
+                "PRIVATE" => access = Access::Private,
+                "PROTECTED" => access = Access::Protected,
+                "INTERNAL" => access = Access::Internal,
+                "ABSTRACT" => is_abstract = true,
+                "FINAL" => is_final = true,
+                _ => break,
+            }
+            self.bump();
+        }
+        (access, is_abstract, is_final)
+    }
+
+    /// A METHOD or a PROPERTY, into `oop`.
+    fn oop_member(&mut self, oop: &mut Oop) {
+        if self.at_kw(Kw::Method) {
+            if let Some(m) = self.method() {
+                oop.methods.push(m);
+            }
+        } else if let Some(p) = self.property() {
+            oop.properties.push(p);
+        }
+    }
+
+    /// `METHOD [access] [ABSTRACT|FINAL] Name [: T] VAR… body END_METHOD [;]`.
+    fn method(&mut self) -> Option<Method> {
+        let span = self.span();
+        self.bump();
+        let (access, is_abstract, is_final) = self.modifiers();
+        let name = self.ident().ok();
+        let mut return_type = None;
+        if self.eat_p(P::Colon) {
+            return_type = self.type_ref().ok();
+            if return_type.is_none() {
+                // on to the declarations, as after a FUNCTION's result type
+                while !is_top(self.tok()) && var_kind(self.tok()).is_none() && !self.at_p(P::Semi) {
+                    self.bump();
+                }
+            }
+        }
+        self.eat_p(P::Semi);
+        let mut vars = Vec::new();
+        while var_kind(self.tok()).is_some() {
+            vars.push(self.var_block());
+        }
+        self.open.push(Closer::Method);
+        let body = self.stmt_list(false, false);
+        self.open.pop();
+        let here = self.span();
+        let end = self.close(Closer::Method, "METHOD", span).unwrap_or(here);
+        self.eat_p(P::Semi);
+        let name = name?;
+        let pou = Pou {
+            kind: PouKind::Function,
+            name,
+            return_type,
+            vars,
+            body,
+            actions: Vec::new(),
+            oop: Oop::default(),
+            sfc: None,
+            span,
+            end,
+        };
+        Some(Method { access, is_abstract, is_final, pou })
+    }
+
+    /// `PROPERTY [access] Name : T [GET … END_GET] [SET … END_SET] END_PROPERTY [;]`.
+    fn property(&mut self) -> Option<Property> {
+        let span = self.span();
+        self.bump();
+        let (access, is_abstract, is_final) = self.modifiers();
+        let name = self.ident().ok();
+        self.expect_p_soft(P::Colon, Want::Colon);
+        let ty = self.type_ref().ok();
+        self.eat_p(P::Semi);
+        let (mut get, mut set) = (None, None);
+        self.open.push(Closer::Property);
+        loop {
+            let getter = self.at_word("GET");
+            if !getter && !self.at_word("SET") {
+                break;
+            }
+            let at = self.span();
+            self.bump();
+            let mut vars = Vec::new();
+            while var_kind(self.tok()).is_some() {
+                vars.push(self.var_block());
+            }
+            let closer = if getter { Closer::Get } else { Closer::Set };
+            self.open.push(closer);
+            let body = self.stmt_list(false, false);
+            self.open.pop();
+            let here = self.span();
+            let end = self.close(closer, if getter { "GET" } else { "SET" }, at).unwrap_or(here);
+            self.eat_p(P::Semi);
+            let (Some(name), Some(ty)) = (&name, &ty) else { continue };
+            let mut accessor = Pou {
+                kind: PouKind::Function,
+                name: name.clone(),
+                return_type: None,
+                vars,
+                body,
+                actions: Vec::new(),
+                oop: Oop::default(),
+                sfc: None,
+                span: at,
+                end,
+            };
+            if getter {
+                accessor.return_type = Some(ty.clone());
+                get = Some(accessor);
+            } else {
+                // the value assigned comes in the property's name
+                let input = VarDecl {
+                    names: vec![name.clone()],
+                    location: None,
+                    ty: ty.clone(),
+                    init: None,
+                    edge: None,
+                    span: name.span,
+                };
+                let block = VarBlock {
+                    kind: VarKind::Input,
+                    constant: false,
+                    retain: false,
+                    span: name.span,
+                    decls: vec![input],
+                };
+                accessor.vars.insert(0, block);
+                set = Some(accessor);
+            }
+        }
+        self.open.pop();
+        let here = self.span();
+        self.close(Closer::Property, "PROPERTY", span).unwrap_or(here);
+        self.eat_p(P::Semi);
+        Some(Property { name: name?, ty: ty?, access, is_abstract, is_final, get, set, span })
+    }
+
+    /// `INTERFACE Name [EXTENDS I, …] METHOD … PROPERTY … END_INTERFACE`.
+    fn interface(&mut self) -> Interface {
+        let span = self.span();
+        self.bump();
+        let name = self.ident().unwrap_or_else(|_| Ident { name: String::new(), span });
+        let mut extends = Vec::new();
+        if self.at_word("EXTENDS") {
+            self.bump();
+            extends = self.names();
+        }
+        let mut oop = Oop::default();
+        self.open.push(Closer::Interface);
+        while self.at_member() {
+            self.oop_member(&mut oop);
+        }
+        self.open.pop();
+        let here = self.span();
+        let end = self.close(Closer::Interface, "INTERFACE", span).unwrap_or(here);
+        self.eat_p(P::Semi);
+        Interface { name, extends, methods: oop.methods, properties: oop.properties, span, end }
     }
 
     /// Whether the current token is the word `word` (a name outside a configuration: `TASK`,

@@ -740,6 +740,28 @@ fn pou(text: &str) -> Pou {
 }
 
 #[test]
+fn parses_methods_properties_and_interfaces() {
+    let fb = pou("FUNCTION_BLOCK PUBLIC ABSTRACT D EXTENDS B IMPLEMENTS I, Lib.J\nVAR x : INT; END_VAR\nMETHOD PRIVATE FINAL M : INT\nVAR_INPUT a : INT; END_VAR\nM := a;\nEND_METHOD\nx := M(1);\nPROPERTY P : INT\nGET P := x; END_GET\nSET x := P; END_SET\nEND_PROPERTY\nEND_FUNCTION_BLOCK\nMETHOD After\nEND_METHOD");
+    let oop = &fb.oop;
+    assert!(oop.is_abstract && !oop.is_final);
+    assert!(matches!(&oop.extends, Some(b) if b.is("B")));
+    let names: Vec<&str> = oop.implements.iter().map(|i| i.name.as_str()).collect();
+    assert_eq!(names, ["I", "Lib.J"]);
+    assert_eq!(fb.body.len(), 1, "the body between the method and the property");
+    let methods: Vec<(&str, Access, bool)> =
+        oop.methods.iter().map(|m| (m.pou.name.name.as_str(), m.access, m.is_final)).collect();
+    assert_eq!(methods, [("M", Access::Private, true), ("After", Access::Public, false)]);
+    let p = &oop.properties[0];
+    let set = p.set.as_ref().unwrap();
+    assert_eq!(set.vars[0].kind, VarKind::Input, "SET receives the value in the property's name");
+    assert!(set.vars[0].decls[0].names[0].is("P"));
+    assert!(p.get.as_ref().unwrap().return_type.is_some());
+    let items = parse_ok("INTERFACE I EXTENDS J, K\nMETHOD M : BOOL\nVAR_INPUT a : INT; END_VAR\nEND_METHOD\nPROPERTY P : INT\nGET\nEND_GET\nEND_PROPERTY\nEND_INTERFACE");
+    let Some(Item::Interface(itf)) = items.first() else { panic!("{items:?}") };
+    assert_eq!((itf.extends.len(), itf.methods.len(), itf.properties.len()), (2, 1, 1));
+}
+
+#[test]
 fn parses_pous() {
     let p = pou("PROGRAM Main\nVAR x : INT; END_VAR\nx := 1;\nEND_PROGRAM");
     assert_eq!(
@@ -1219,7 +1241,7 @@ fn reports_declaration_errors() {
         errors("TYPE A : INT;\nPROGRAM p END_PROGRAM"),
         ["2:1: `END_TYPE` expected to close the TYPE at line 1, found `PROGRAM`"]
     );
-    assert_eq!(errors("x := 1;\nPROGRAM p END_PROGRAM"), ["1:1: expected `PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE`, `VAR_GLOBAL`, `ACTION` or `CONFIGURATION`, found `x`"]);
+    assert_eq!(errors("x := 1;\nPROGRAM p END_PROGRAM"), ["1:1: expected `PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE`, `VAR_GLOBAL`, `ACTION`, `INTERFACE` or `CONFIGURATION`, found `x`"]);
     assert_eq!(errors("PROGRAM 5 END_PROGRAM"), ["1:9: expected a name, found `5`"]);
 }
 
@@ -1290,7 +1312,7 @@ fn templates_are_distinct_and_well_formed() {
     sorted.dedup();
     assert_eq!(sorted.len(), all.len());
     let calendar = crate::value::CalendarError::TEMPLATES.len();
-    assert_eq!(all.len(), Want::ALL.len() + Closer::ALL.len() + 14 + calendar);
+    assert_eq!(all.len(), Want::ALL.len() + Closer::ALL.len() + 15 + calendar);
     for t in &all {
         assert!(
             t.starts_with(|c: char| !c.is_ascii_uppercase() || t.starts_with("WSTRING")),
