@@ -283,7 +283,7 @@ fn typed_programs_do_not_allocate() {
         AddrOf(Place::Var(32)),
         AddrOf(Place::Var(32)),
         AddrOf(Place::Var(32)),
-        Str { op: StrOp::Concat, cap: 16 },
+        Str { op: StrOp::Concat, cap: 16, wide: false },
         // 20: a reference to buf[0] moved to buf[2] and read through; a read through NULL
         // (2822H); a member read past the end of variable memory (2820H); the distance
         // between two NULLs (2820H).

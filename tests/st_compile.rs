@@ -113,7 +113,7 @@ impl Run {
             ValueType::Time => Elem::I64,
             ValueType::Calendar(cal) => cal.elem(),
             ValueType::Enum { base, .. } => base,
-            ValueType::String { .. } => panic!("{name} is a string"),
+            ValueType::String { .. } | ValueType::WString { .. } => panic!("{name} is a string"),
             ValueType::Reference { .. } => Elem::U64,
         };
         (self.vm.read_value(at, elem), elem)

@@ -114,6 +114,9 @@ fn read(project: &Project, vm: &Vm, name: &str) -> Result<(String, Option<ValueT
         ValueType::String { .. } => {
             format!("{:?}", plcd::value::decode_str(&vm.read_string(symbol.at)))
         }
+        ValueType::WString { .. } => {
+            format!("{:?}", String::from_utf16_lossy(&vm.read_wstring(symbol.at)))
+        }
         ref ty => {
             let slot = vm.read_value(symbol.at, ty.elem());
             let text = match ty {

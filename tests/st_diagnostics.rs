@@ -43,6 +43,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` contains an instance of itself", "fb-contains-itself"),
     ("unknown type `{}`{}", "unknown-type"),
     ("a STRING's length must be 1..255, not {}", "string-length"),
+    ("a WSTRING's length must be 1..255, not {}", "wstring-length"),
     ("empty or too large array range `{}..{}`", "empty-array-range"),
     ("the array is too large", "array-too-large"),
     ("a subrange needs an integer type, not `{}`", "subrange-base"),
@@ -240,6 +241,10 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` takes one task number or nothing", "task-number-arguments"),
     ("`{}` needs elementary values, not `{}`", "std-elementary-values"),
     ("`{}` needs a STRING, not `{}`", "std-string-argument"),
+    (
+        "`{}` cannot mix {} and {}: convert one with STRING_TO_WSTRING or WSTRING_TO_STRING",
+        "string-kinds-mixed",
+    ),
     ("`{}` needs {}, not `{}`", "string-conversion"),
     // stmt.rs: statements
     ("the condition of {} must be `BOOL`, not `{}`", "condition-not-bool"),
@@ -435,6 +440,8 @@ const PARTS: &[&str] = &[
     // what a qualifier takes after it (sfc.rs)
     "one duration, then indicator variable names",
     "no duration, only indicator variable names",
+    // the kind of a string in messages (`needs a WSTRING`, `cannot mix a WSTRING and a STRING`)
+    "a WSTRING",
     // the names of reference types in messages (`POINTER TO INT`)
     "POINTER TO",
     "REFERENCE TO",

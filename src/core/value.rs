@@ -538,6 +538,10 @@ pub enum ValueType {
     String {
         cap: u32,
     },
+    /// `WSTRING[cap]`: `cap` UTF-16 code units of 2 bytes, then room for the 2-byte NUL.
+    WString {
+        cap: u32,
+    },
     /// A reference (`REF_TO T`, `POINTER TO T`, `REFERENCE TO T`, named so in `type_name`):
     /// 8 bytes, 0 for `NULL`, else a [`Pointer`]'s slot plus `1 << 32`. Shown as what it
     /// points to ([`format_reference`]); never written by a client, never kept by an online
@@ -559,6 +563,7 @@ impl ValueType {
             ValueType::Calendar(cal) => cal.elem(),
             ValueType::Enum { base, .. } => *base,
             ValueType::String { .. } => Elem::U8,
+            ValueType::WString { .. } => Elem::U16,
             ValueType::Reference { .. } => Elem::U64,
         }
     }
@@ -568,6 +573,7 @@ impl ValueType {
     pub fn bytes(&self) -> u32 {
         match self {
             ValueType::String { cap } => cap + 1,
+            ValueType::WString { cap } => 2 * (cap + 1),
             ty => ty.elem().size(),
         }
     }
@@ -610,6 +616,7 @@ pub fn type_name(ty: &ValueType) -> String {
         ValueType::Calendar(cal) => cal.name().into(),
         ValueType::Enum { type_name, .. } => type_name.clone(),
         ValueType::String { cap } => format!("STRING[{cap}]"),
+        ValueType::WString { cap } => format!("WSTRING[{cap}]"),
         ValueType::Reference { type_name } => type_name.clone(),
     }
 }
@@ -628,7 +635,7 @@ pub fn format(ty: &ValueType, slot: u64) -> String {
                 None => n.to_string(),
             }
         }
-        ValueType::String { .. } => String::new(),
+        ValueType::String { .. } | ValueType::WString { .. } => String::new(),
         ValueType::Reference { .. } => format_reference(slot),
         scalar => {
             let mut text = String::new();
@@ -680,9 +687,10 @@ impl ValueType {
             ValueType::Real(e) => Scalar::Real(*e),
             ValueType::Time => Scalar::Time,
             ValueType::Calendar(cal) => Scalar::Calendar(*cal),
-            ValueType::Enum { .. } | ValueType::String { .. } | ValueType::Reference { .. } => {
-                return None
-            }
+            ValueType::Enum { .. }
+            | ValueType::String { .. }
+            | ValueType::WString { .. }
+            | ValueType::Reference { .. } => return None,
         })
     }
 }
@@ -790,6 +798,71 @@ pub fn format_string(chars: &[u8]) -> String {
     text
 }
 
+/// The code units of a `WSTRING` as an IEC literal: `"abc"`, with `$"`, `$$`, `$N`, `$R`,
+/// `$T` and `$hhhh` (four hex digits) for the quote, the dollar and the units that are no
+/// printable character (controls, halves of a surrogate pair); other characters as they are.
+pub fn format_wstring(units: &[u16]) -> String {
+    let mut text = String::with_capacity(units.len() + 2);
+    text.push('"');
+    for unit in char::decode_utf16(units.iter().copied()) {
+        match unit {
+            Ok('"') => text.push_str("$\""),
+            Ok('$') => text.push_str("$$"),
+            Ok('\n') => text.push_str("$N"),
+            Ok('\r') => text.push_str("$R"),
+            Ok('\t') => text.push_str("$T"),
+            Ok(c) if !c.is_control() => text.push(c),
+            Ok(c) => text.push_str(&format!("${:04X}", c as u32)),
+            Err(e) => text.push_str(&format!("${:04X}", e.unpaired_surrogate())),
+        }
+    }
+    text.push('"');
+    text
+}
+
+/// The code units of a `WSTRING` value as a client writes it (`plcctl set main.w '"äb"'`): an
+/// IEC literal in double quotes with its `$` escapes (`$hhhh` a code unit), or bare text taken
+/// as it is. More than `cap` units is an error.
+pub fn parse_wstring(text: &str, cap: u32) -> Result<Vec<u16>, String> {
+    let units: Vec<u16> = match text.strip_prefix('"').and_then(|t| t.strip_suffix('"')) {
+        None => text.encode_utf16().collect(),
+        Some(inner) => {
+            let mut out = Vec::with_capacity(inner.len());
+            let mut chars = inner.chars();
+            while let Some(c) = chars.next() {
+                if c != '$' {
+                    let mut buf = [0; 2];
+                    out.extend_from_slice(c.encode_utf16(&mut buf));
+                    continue;
+                }
+                let escape = chars.next().ok_or("`$` at the end of the string")?;
+                out.push(match escape.to_ascii_uppercase() {
+                    '$' => u16::from(b'$'),
+                    '"' => u16::from(b'"'),
+                    'N' | 'L' => u16::from(b'\n'),
+                    'R' => u16::from(b'\r'),
+                    'T' => u16::from(b'\t'),
+                    'P' => 0x0C,
+                    hi if hi.is_ascii_hexdigit() => {
+                        let rest: String = chars.by_ref().take(3).collect();
+                        let digits = format!("{hi}{rest}");
+                        if digits.len() != 4 || !digits.chars().all(|d| d.is_ascii_hexdigit()) {
+                            return Err("`$` must be followed by four hex digits".into());
+                        }
+                        u16::from_str_radix(&digits, 16).map_err(|e| e.to_string())?
+                    }
+                    _ => return Err(format!("unknown escape `${escape}`")),
+                });
+            }
+            out
+        }
+    };
+    if units.len() > cap as usize {
+        return Err(format!("{} characters do not fit in a WSTRING[{cap}]", units.len()));
+    }
+    Ok(units)
+}
+
 /// The characters of a string value as a client writes it (`plcctl set main.s 'abc'`): an IEC
 /// literal in single quotes with its `$` escapes, or bare text taken as it is. More than `cap`
 /// characters is an error.
@@ -863,6 +936,9 @@ pub fn parse(ty: &ValueType, text: &str) -> Result<u64, String> {
         }
         ValueType::String { cap } => {
             Err(format!("a STRING[{cap}] is not a single value: write its text"))
+        }
+        ValueType::WString { cap } => {
+            Err(format!("a WSTRING[{cap}] is not a single value: write its text"))
         }
         ValueType::Reference { type_name } => {
             Err(format!("a {type_name} cannot be written: the program sets it (REF, ADR)"))

@@ -433,10 +433,13 @@ pub enum Op {
     /// Pushes the calendar time (`Clock::utc_ns`, nanoseconds since 1970-01-01 UTC, an `LDT`),
     /// for the real-time clock of ST programs.
     Utc,
-    /// A string operation on pointers; `cap` is the destination's capacity.
+    /// A string operation on pointers; `cap` is the destination's capacity, in characters.
+    /// `wide`: the strings are `WSTRING`s (2-byte UTF-16 code units and a 2-byte NUL);
+    /// [`StrOp::Widen`] and [`StrOp::Narrow`] convert between the two kinds.
     Str {
         op: StrOp,
         cap: u16,
+        wide: bool,
     },
 }
 
@@ -484,6 +487,12 @@ pub enum StrOp {
     /// `s` → `v`: the value the text `s` gives a scalar type (`STRING_TO_*`), as
     /// `value::scalar_from_text` reads it; 0 for a text that is none.
     ToValue(crate::value::Scalar),
+    /// `dst src` → ``: the STRING `src` into the WSTRING `dst` (`STRING_TO_WSTRING`): each
+    /// Windows-1252 byte as its UTF-16 code unit.
+    Widen,
+    /// `dst src` → ``: the WSTRING `src` into the STRING `dst` (`WSTRING_TO_STRING`): each
+    /// code unit as its Windows-1252 byte, `?` for one Windows-1252 has not.
+    Narrow,
 }
 
 /// The device an instruction writes as its result.
@@ -598,7 +607,7 @@ impl Op {
                 (0, 0)
             }
             Op::Str { op, .. } => match op {
-                StrOp::Move | StrOp::FromValue(_) => (2, 0),
+                StrOp::Move | StrOp::FromValue(_) | StrOp::Widen | StrOp::Narrow => (2, 0),
                 StrOp::Len | StrOp::ToValue(_) => (1, 1),
                 StrOp::Left | StrOp::Right | StrOp::Concat => (3, 0),
                 StrOp::Mid => (4, 0),

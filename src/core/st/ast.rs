@@ -302,6 +302,8 @@ pub enum TypeRef {
     Named(Ident),
     /// `STRING` (length 80) or `STRING[n]` / `STRING(n)`.
     String { len: Option<Box<Expr>>, span: Span },
+    /// `WSTRING` (length 80) or `WSTRING[n]` / `WSTRING(n)`.
+    WString { len: Option<Box<Expr>>, span: Span },
     /// `ARRAY [lo..hi, lo..hi] OF T`.
     Array { dims: Vec<(Expr, Expr)>, of: Box<TypeRef>, span: Span },
     /// An inline enumeration `(A, B := 5, C)`, in a variable declaration.
@@ -563,6 +565,8 @@ pub enum Literal {
     Calendar(crate::value::Calendar, u64),
     /// `'text'` with `$` escapes resolved.
     String(String),
+    /// `"text"` with `$` escapes resolved (a `WSTRING`).
+    WString(String),
     /// `INT#5`, `REAL#1`, `BOOL#1`, `Color#Red`: a prefix naming the type, and the literal or
     /// name after `#`.
     Typed { ty: Ident, value: Box<Expr> },

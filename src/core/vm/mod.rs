@@ -16,6 +16,7 @@ pub mod duty;
 pub mod retained;
 pub mod timer;
 mod typed;
+mod wide;
 
 pub use crate::clock::{self, Clock, ManualClock, StepClock};
 
@@ -336,6 +337,17 @@ impl Vm {
     /// the scan path).
     pub fn string_bytes(&self, p: Pointer) -> &[u8] {
         typed::string_chars(&self.vars, p)
+    }
+
+    /// The code units of the `WSTRING` at `p` in variable memory, for tools (see
+    /// [`value::format_wstring`]).
+    pub fn read_wstring(&self, p: Pointer) -> Vec<u16> {
+        wide::wstring_units(&self.vars, p)
+    }
+
+    /// Writes the `WSTRING[cap]` at `p` in variable memory, cut to `cap` code units.
+    pub fn write_wstring(&mut self, p: Pointer, cap: u32, text: &[u16]) {
+        wide::write_wstring_units(&mut self.vars, p, cap, text);
     }
 
     /// Writes the `STRING[cap]` at `p` in variable memory, cut to `cap` characters.
@@ -1224,9 +1236,13 @@ fn interpret<'a, const ST: bool, C: Clock>(
                     let steps = stop - left + taken!() as u64;
                     push!(clock.utc_ns(steps));
                 }
-                Op::Str { op, cap } if ST => {
+                Op::Str { op, cap, wide } if ST => {
                     state.eval.set_sp(sp);
-                    typed::string_op(&mut state.eval, vars, &mut state.frame, *op, *cap);
+                    if *wide {
+                        wide::string_op(&mut state.eval, vars, &mut state.frame, *op, *cap);
+                    } else {
+                        typed::string_op(&mut state.eval, vars, &mut state.frame, *op, *cap);
+                    }
                     sp = state.eval.sp();
                 }
                 // An op of the other language: never in a program of this one (the assembler

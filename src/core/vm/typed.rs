@@ -593,6 +593,8 @@ pub(super) fn string_op(
             let text = std::str::from_utf8(chars(vars, frame, s)).unwrap_or("");
             stack.push(crate::value::scalar_from_text(scalar, text).unwrap_or(0));
         }
+        // conversions to and from WSTRING: the wide operations' module owns them
+        StrOp::Widen | StrOp::Narrow => super::wide::string_op(stack, vars, frame, op, cap as u16),
     }
 }
 
@@ -635,6 +637,11 @@ fn write_chars(vars: &mut [u8], frame: &mut [u8], p: Pointer, text: &[u8]) {
 /// The text of the string at `p` (variable memory only, for tools).
 pub(super) fn string_text(vars: &[u8], p: Pointer) -> Vec<u8> {
     chars(vars, &[], p).to_vec()
+}
+
+/// The characters of the STRING at `p`, borrowed (for the conversion to WSTRING).
+pub(super) fn string_bytes<'a>(vars: &'a [u8], frame: &'a [u8], p: Pointer) -> &'a [u8] {
+    chars(vars, frame, p)
 }
 
 /// The characters of the string at `p` in variable memory, borrowed.

@@ -21,6 +21,8 @@ pub enum Cv {
     Real(f64),
     /// A `STRING` constant: its bytes, one a character (Windows-1252, docs/ST.md).
     Str(Vec<u8>),
+    /// A `WSTRING` constant: its UTF-16 code units.
+    WStr(Vec<u16>),
 }
 
 /// Where a variable is, relative to what owns it.

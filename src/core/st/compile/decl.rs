@@ -220,6 +220,9 @@ impl<'a> Ctx<'a> {
                 if id.is("STRING") {
                     return Ty::Str(80);
                 }
+                if id.is("WSTRING") {
+                    return Ty::WStr(80);
+                }
                 if let Some(&t) = self.type_names.get(&key(&id.name)) {
                     return self.resolve_type_decl(t);
                 }
@@ -251,10 +254,25 @@ impl<'a> Ctx<'a> {
                         .map(|p| p.name.clone()),
                 );
                 names.extend(super::types::ALL_PRIMS.iter().map(|p| p.name().to_string()));
-                names.push("STRING".into());
+                names.extend(["STRING".into(), "WSTRING".into()]);
                 let hint = suggest(&id.name, names.iter().map(String::as_str));
                 self.error(file, id.span, format!("unknown type `{}`{hint}", id.name));
                 Ty::Error
+            }
+            TypeRef::WString { len, span } => {
+                let Some(len) = len else { return Ty::WStr(80) };
+                match self.const_int(len, scope) {
+                    Some(n) if (1..=255).contains(&n) => Ty::WStr(n as u32),
+                    Some(n) => {
+                        self.error(
+                            file,
+                            *span,
+                            format!("a WSTRING's length must be 1..255, not {n}"),
+                        );
+                        Ty::Error
+                    }
+                    None => Ty::Error,
+                }
             }
             TypeRef::String { len, span } => {
                 let Some(len) = len else { return Ty::Str(80) };
@@ -697,6 +715,14 @@ impl<'a> Ctx<'a> {
             return None;
         }
         match (&te.k, ty) {
+            (super::expr::TK::Const(Cv::WStr(s)), Ty::WStr(n)) => {
+                // the code units, then NULs (2 bytes each, little-endian as CODESYS stores them)
+                let mut b = vec![0u8; 2 * (*n as usize + 1)];
+                for (at, unit) in b.chunks_exact_mut(2).zip(s.iter().take(*n as usize)) {
+                    at.copy_from_slice(&unit.to_le_bytes());
+                }
+                Some(b)
+            }
             (super::expr::TK::Const(Cv::Str(s)), Ty::Str(n)) => {
                 // the characters, then NULs (a STRING is stored as CODESYS stores it)
                 let mut b = vec![0u8; *n as usize + 1];

@@ -145,7 +145,7 @@ fn effect(op: &Op) -> isize {
         Op::CallFb { .. } => -1,
         Op::StoreInd(_) | Op::Copy(_) => -2,
         Op::Str { op, .. } => match op {
-            StrOp::Move | StrOp::FromValue(_) => -2,
+            StrOp::Move | StrOp::FromValue(_) | StrOp::Widen | StrOp::Narrow => -2,
             StrOp::Len | StrOp::ToValue(_) => 0,
             StrOp::Left | StrOp::Right | StrOp::Concat => -3,
             StrOp::Mid => -4,
@@ -374,6 +374,13 @@ impl<'c, 'a> Em<'c, 'a> {
                     let at = self.cx.alloc_var(&bytes);
                     self.op(Op::AddrOf(Place::Var(at)));
                 }
+                (Cv::WStr(s), _) => {
+                    // the code units and their 2-byte NUL, as a WSTRING is stored
+                    let bytes: Vec<u8> =
+                        s.iter().chain([&0]).flat_map(|unit| unit.to_le_bytes()).collect();
+                    let at = self.cx.alloc_var(&bytes);
+                    self.op(Op::AddrOf(Place::Var(at)));
+                }
                 (cv, ty) => {
                     let p = ty.prim(&self.cx.types).unwrap_or(Prim::LInt);
                     self.push_slot(cv_slot(cv, p));
@@ -423,8 +430,8 @@ impl<'c, 'a> Em<'c, 'a> {
             TK::Cmp(op, a, b) => {
                 self.value(a);
                 self.value(b);
-                if matches!(a.ty, Ty::Str(_)) {
-                    self.op(Op::Str { op: StrOp::Compare, cap: 0 });
+                if a.ty.string_cap().is_some() {
+                    self.op(Op::Str { op: StrOp::Compare, cap: 0, wide: a.ty.is_wide() });
                     self.op(Op::PushInt(0));
                     self.op(Op::Cmp { op: *op, elem: Elem::I64 });
                 } else {
@@ -557,7 +564,7 @@ impl<'c, 'a> Em<'c, 'a> {
                 self.op(Op::AddrOf(Place::Frame(k)));
                 self.op(Op::Fetch { elem: ke, at: Place::Frame(k) });
                 self.op(Op::Index { lo: 0, len: 0, stride: 0 });
-                if !matches!(ty, Ty::Str(_)) {
+                if ty.string_cap().is_none() {
                     let elem = self.elem(ty);
                     self.op(Op::FetchInd(elem));
                 }
@@ -577,7 +584,7 @@ impl<'c, 'a> Em<'c, 'a> {
             }
             Std::Chain(cmp) => {
                 // each input once, into a temporary; then each pair compared, all ANDed
-                let elem = if matches!(args[0].ty, Ty::Str(_)) {
+                let elem = if args[0].ty.string_cap().is_some() {
                     Elem::U64
                 } else {
                     self.elem(&args[0].ty)
@@ -592,8 +599,9 @@ impl<'c, 'a> Em<'c, 'a> {
                 for (k, w) in temps.windows(2).enumerate() {
                     self.op(Op::Fetch { elem, at: Place::Frame(w[0]) });
                     self.op(Op::Fetch { elem, at: Place::Frame(w[1]) });
-                    if matches!(args[0].ty, Ty::Str(_)) {
-                        self.op(Op::Str { op: StrOp::Compare, cap: 0 });
+                    if args[0].ty.string_cap().is_some() {
+                        let wide = args[0].ty.is_wide();
+                        self.op(Op::Str { op: StrOp::Compare, cap: 0, wide });
                         self.op(Op::PushInt(0));
                         self.op(Op::Cmp { op: cmp, elem: Elem::I64 });
                     } else {
@@ -606,36 +614,41 @@ impl<'c, 'a> Em<'c, 'a> {
             }
             Std::Len => {
                 self.value(&args[0]);
-                self.op(Op::Str { op: StrOp::Len, cap: 0 });
+                self.op(Op::Str { op: StrOp::Len, cap: 0, wide: args[0].ty.is_wide() });
                 self.op(Op::Conv { from: Elem::I64, to: Elem::I16 });
             }
             Std::Find => {
                 self.value(&args[0]);
                 self.value(&args[1]);
-                self.op(Op::Str { op: StrOp::Find, cap: 0 });
+                self.op(Op::Str { op: StrOp::Find, cap: 0, wide: args[0].ty.is_wide() });
                 self.op(Op::Conv { from: Elem::I64, to: Elem::I16 });
             }
             Std::ToString(scalar) => {
-                let cap = match ty {
-                    Ty::Str(n) => *n,
-                    _ => 255,
-                };
-                let tmp = self.alloc_tmp(cap + 1);
+                let (cap, wide) = (ty.string_cap().unwrap_or(255), ty.is_wide());
+                let tmp = self.alloc_tmp(self.size(ty).max(256));
                 self.op(Op::AddrOf(Place::Frame(tmp)));
                 self.value(&args[0]);
-                self.op(Op::Str { op: StrOp::FromValue(scalar), cap: cap as u16 });
+                self.op(Op::Str { op: StrOp::FromValue(scalar), cap: cap as u16, wide });
                 self.op(Op::AddrOf(Place::Frame(tmp)));
             }
             Std::FromString(scalar) => {
                 self.value(&args[0]);
-                self.op(Op::Str { op: StrOp::ToValue(scalar), cap: 0 });
+                let wide = args[0].ty.is_wide();
+                self.op(Op::Str { op: StrOp::ToValue(scalar), cap: 0, wide });
+            }
+            Std::Widen | Std::Narrow => {
+                // into a temporary of the result's kind, as the other string functions
+                let cap = ty.string_cap().unwrap_or(255);
+                let tmp = self.alloc_tmp(self.size(ty).max(1));
+                self.op(Op::AddrOf(Place::Frame(tmp)));
+                self.value(&args[0]);
+                let sop = if op == Std::Widen { StrOp::Widen } else { StrOp::Narrow };
+                self.op(Op::Str { op: sop, cap: cap as u16, wide: false });
+                self.op(Op::AddrOf(Place::Frame(tmp)));
             }
             Std::Left | Std::Right | Std::Mid | Std::Concat => {
-                let cap = match ty {
-                    Ty::Str(n) => *n,
-                    _ => 255,
-                };
-                let tmp = self.alloc_tmp(cap + 1);
+                let (cap, wide) = (ty.string_cap().unwrap_or(255), ty.is_wide());
+                let tmp = self.alloc_tmp(self.size(ty).max(256));
                 self.op(Op::AddrOf(Place::Frame(tmp)));
                 for a in args {
                     self.value(a);
@@ -646,7 +659,7 @@ impl<'c, 'a> Em<'c, 'a> {
                     Std::Mid => StrOp::Mid,
                     _ => StrOp::Concat,
                 };
-                self.op(Op::Str { op: sop, cap: cap as u16 });
+                self.op(Op::Str { op: sop, cap: cap as u16, wide });
                 self.op(Op::AddrOf(Place::Frame(tmp)));
             }
         }
@@ -669,7 +682,8 @@ impl<'c, 'a> Em<'c, 'a> {
     /// Copies `size` bytes (or a string) from the pointer on top into the pointer below.
     fn copy(&mut self, ty: &Ty) {
         match ty {
-            Ty::Str(n) => self.op(Op::Str { op: StrOp::Move, cap: *n as u16 }),
+            Ty::Str(n) => self.op(Op::Str { op: StrOp::Move, cap: *n as u16, wide: false }),
+            Ty::WStr(n) => self.op(Op::Str { op: StrOp::Move, cap: *n as u16, wide: true }),
             _ => {
                 let n = self.size(ty);
                 self.op(Op::Copy(n))

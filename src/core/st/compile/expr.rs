@@ -170,7 +170,7 @@ pub fn cv_slot(cv: &Cv, p: Prim) -> u64 {
         Cv::Int(v) => int_slot(p, *v),
         Cv::Real(f) if p.is_real() => real_slot(p, *f),
         Cv::Real(f) => int_slot(p, *f as i128),
-        Cv::Str(_) => 0,
+        Cv::Str(_) | Cv::WStr(_) => 0,
     }
 }
 
@@ -179,7 +179,7 @@ pub fn fold_conv(cv: &Cv, from: Prim, to: Prim) -> Cv {
     let as_f64 = |cv: &Cv| match cv {
         Cv::Int(v) => *v as f64,
         Cv::Real(f) => *f,
-        Cv::Str(_) => 0.0,
+        Cv::Str(_) | Cv::WStr(_) => 0.0,
     };
     if to == Prim::Bool {
         return Cv::Int(i128::from(as_f64(cv) != 0.0 || matches!(cv, Cv::Int(v) if *v != 0)));
@@ -205,7 +205,7 @@ pub fn fold_conv(cv: &Cv, from: Prim, to: Prim) -> Cv {
             let (lo, hi) = to.range().expect("integer");
             Cv::Int((f.round() as i128).clamp(lo, hi))
         }
-        Cv::Str(_) => Cv::Int(0),
+        Cv::Str(_) | Cv::WStr(_) => Cv::Int(0),
     }
 }
 
@@ -259,7 +259,7 @@ pub fn fold_bin(op: BinOp, p: Option<Prim>, a: &Cv, b: &Cv) -> Option<Cv> {
             let f = |c: &Cv| match c {
                 Cv::Int(v) => *v as f64,
                 Cv::Real(f) => *f,
-                Cv::Str(_) => 0.0,
+                Cv::Str(_) | Cv::WStr(_) => 0.0,
             };
             let (x, y) = (f(a), f(b));
             let r = match op {
@@ -283,6 +283,7 @@ fn fold_cmp(op: CmpOp, a: &Cv, b: &Cv) -> Option<bool> {
     let ord = match (a, b) {
         (Cv::Int(x), Cv::Int(y)) => Some(x.cmp(y)),
         (Cv::Str(x), Cv::Str(y)) => Some(x.cmp(y)),
+        (Cv::WStr(x), Cv::WStr(y)) => Some(x.cmp(y)),
         (Cv::Real(x), Cv::Real(y)) => x.partial_cmp(y),
         (Cv::Int(x), Cv::Real(y)) => (*x as f64).partial_cmp(y),
         (Cv::Real(x), Cv::Int(y)) => x.partial_cmp(&(*y as f64)),
@@ -438,6 +439,16 @@ impl<'a> Ctx<'a> {
                 let n = bytes.len().max(1) as u32;
                 TExpr::konst(Cv::Str(bytes), Ty::Str(n), span)
             }
+            Literal::WString(s) => {
+                // UTF-16 code units, as CODESYS and TwinCAT store WSTRING
+                let units: Vec<u16> = s.encode_utf16().collect();
+                if units.len() > 255 {
+                    self.error(file, span, "a string constant is at most 255 characters");
+                    return TExpr::error(span);
+                }
+                let n = units.len().max(1) as u32;
+                TExpr::konst(Cv::WStr(units), Ty::WStr(n), span)
+            }
             Literal::Typed { ty, value } => {
                 if let Some(p) = Prim::from_name(&ty.name) {
                     let inner = self.check_given(value, scope, &Ty::Prim(p));
@@ -453,6 +464,21 @@ impl<'a> Ctx<'a> {
                 if ty.is("STRING") {
                     let inner = self.check_expr(value, scope, None);
                     return inner;
+                }
+                if ty.is("WSTRING") {
+                    // `WSTRING#'…'`: the characters of a single-quoted literal as a WSTRING's
+                    let inner = self.check_expr(value, scope, None);
+                    return match &inner.k {
+                        TK::Const(Cv::Str(bytes)) => {
+                            let units: Vec<u16> = bytes
+                                .iter()
+                                .map(|&b| crate::value::decode_byte(b) as u32 as u16)
+                                .collect();
+                            let n = units.len().max(1) as u32;
+                            TExpr::konst(Cv::WStr(units), Ty::WStr(n), span)
+                        }
+                        _ => inner,
+                    };
                 }
                 // `Color#Red`
                 let Some(&t) = self.type_names.get(&ty.name.to_ascii_lowercase()) else {
@@ -1032,7 +1058,7 @@ impl<'a> Ctx<'a> {
                 let TK::Const(cv) = &te.k else { unreachable!() };
                 TExpr::konst(fold_conv(cv, Prim::LReal, *p), to.clone(), span)
             }
-            (Ty::Str(_), Ty::Str(_)) => TExpr { ty: to.clone(), ..te },
+            (Ty::Str(_), Ty::Str(_)) | (Ty::WStr(_), Ty::WStr(_)) => TExpr { ty: to.clone(), ..te },
             (Ty::Sub(a, _, _), _) | (Ty::Prim(a), _)
                 if to.prim(&self.types).is_some() && !matches!(to, Ty::Enum(_)) =>
             {
@@ -1237,7 +1263,7 @@ impl<'a> Ctx<'a> {
                 let t = a.ty.clone();
                 Some((a, b, t))
             }
-            (Ty::Str(_), Ty::Str(_)) => {
+            (Ty::Str(_), Ty::Str(_)) | (Ty::WStr(_), Ty::WStr(_)) => {
                 let t = a.ty.clone();
                 Some((a, b, t))
             }
@@ -1799,7 +1825,13 @@ impl<'a> Ctx<'a> {
                 }
                 let derived =
                     matches!((&t.ty, &v.ty), (Ty::Fb(d), Ty::Fb(b)) if self.derives_from(*d, *b));
-                if t.ty != v.ty && !derived && !matches!((&t.ty, &v.ty), (Ty::Str(_), Ty::Str(_))) {
+                if t.ty != v.ty
+                    && !derived
+                    && !matches!(
+                        (&t.ty, &v.ty),
+                        (Ty::Str(_), Ty::Str(_)) | (Ty::WStr(_), Ty::WStr(_))
+                    )
+                {
                     let (a, b) = (self.ty_name(&v.ty), self.ty_name(&t.ty));
                     self.error(
                         file,
@@ -1900,7 +1932,7 @@ impl<'a> Ctx<'a> {
             return true;
         }
         match (from, to) {
-            (Ty::Str(_), Ty::Str(_)) => true,
+            (Ty::Str(_), Ty::Str(_)) | (Ty::WStr(_), Ty::WStr(_)) => true,
             (Ty::Ref(..) | Ty::Null, _) | (_, Ty::Ref(..)) => self.ref_assignable(from, to),
             (Ty::Enum(_), _) | (_, Ty::Enum(_)) => false,
             _ => match (from.prim(&self.types), to.prim(&self.types)) {

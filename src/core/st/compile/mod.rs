@@ -703,6 +703,7 @@ fn value_type(cx: &Ctx<'_>, ty: &Ty) -> Option<ValueType> {
             }
         }
         Ty::Str(n) => ValueType::String { cap: *n },
+        Ty::WStr(n) => ValueType::WString { cap: *n },
         Ty::Ref(..) | Ty::Iface(_) => ValueType::Reference { type_name: cx.ty_name(ty) },
         _ => return None,
     })

@@ -486,6 +486,7 @@ fn not_bool(ty: &TypeRef) -> Option<&'static str> {
             Prim::from_name(&name.name).filter(|p| *p != Prim::Bool).map(Prim::name)
         }
         TypeRef::String { .. } => Some("STRING"),
+        TypeRef::WString { .. } => Some("WSTRING"),
         TypeRef::Array { .. } => Some("ARRAY"),
         _ => None,
     }

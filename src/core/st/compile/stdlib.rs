@@ -51,6 +51,28 @@ pub enum Std {
     ToString(crate::value::Scalar),
     /// `STRING_TO_<T>(s)`: the value a text gives a scalar, 0 for one it does not.
     FromString(crate::value::Scalar),
+    /// `STRING_TO_WSTRING(s)`: each Windows-1252 character as its UTF-16 code unit.
+    Widen,
+    /// `WSTRING_TO_STRING(w)`: each code unit as its Windows-1252 byte, `?` for one it has not.
+    Narrow,
+}
+
+/// The string type a conversion's name gives (`STRING`, `WSTRING`), of the default length.
+fn string_type(name: &str) -> Option<Ty> {
+    match name {
+        "STRING" => Some(Ty::Str(80)),
+        "WSTRING" => Some(Ty::WStr(80)),
+        _ => None,
+    }
+}
+
+/// The name of a string type's kind, for messages.
+fn kind_name(ty: &Ty) -> &'static str {
+    if ty.is_wide() {
+        "a WSTRING"
+    } else {
+        "a STRING"
+    }
 }
 
 const NAMES: &[&str] = &[
@@ -67,7 +89,7 @@ pub fn is_standard_function(name: &str) -> bool {
     if NAMES.contains(&upper.as_str()) {
         return true;
     }
-    let elementary = |t: &str| Prim::from_name(t).is_some() || t == "STRING";
+    let elementary = |t: &str| Prim::from_name(t).is_some() || string_type(t).is_some();
     upper.split_once("_TO_").is_some_and(|(from, to)| elementary(from) && elementary(to))
 }
 
@@ -395,7 +417,7 @@ impl<'a> Ctx<'a> {
         }
         // `TO_<T>(x)`: the conversion of x's type to T; `TRUNC_<T>(r)`, `<R>_TRUNC_<T>(r)`.
         if let Some(to) = upper.strip_prefix("TO_") {
-            let dst = Prim::from_name(to).map(Ty::Prim).or((to == "STRING").then_some(Ty::Str(80)));
+            let dst = Prim::from_name(to).map(Ty::Prim).or(string_type(to));
             if let Some(dst) = dst {
                 return self.overloaded_conversion(&upper, dst, args, span, scope);
             }
@@ -412,9 +434,8 @@ impl<'a> Ctx<'a> {
             }
         }
         if let Some((from, to)) = upper.split_once("_TO_") {
-            let src =
-                Prim::from_name(from).map(Ty::Prim).or((from == "STRING").then_some(Ty::Str(80)));
-            let dst = Prim::from_name(to).map(Ty::Prim).or((to == "STRING").then_some(Ty::Str(80)));
+            let src = Prim::from_name(from).map(Ty::Prim).or(string_type(from));
+            let dst = Prim::from_name(to).map(Ty::Prim).or(string_type(to));
             if let (Some(src), Some(dst)) = (src, dst) {
                 return self.convert_call(&upper, src, dst, args, span, scope);
             }
@@ -880,6 +901,9 @@ impl<'a> Ctx<'a> {
                 if let TK::Const(Cv::Str(v)) = &s.k {
                     return TExpr::konst(Cv::Int(v.len() as i128), Ty::Prim(Prim::Int), span);
                 }
+                if let TK::Const(Cv::WStr(v)) = &s.k {
+                    return TExpr::konst(Cv::Int(v.len() as i128), Ty::Prim(Prim::Int), span);
+                }
                 TExpr { k: TK::Std(Std::Len, vec![s]), ty: Ty::Prim(Prim::Int), span }
             }
             "FIND" => {
@@ -891,6 +915,9 @@ impl<'a> Ctx<'a> {
                 else {
                     return TExpr::error(span);
                 };
+                if !self.same_kind(&x, &y, name, file) {
+                    return TExpr::error(span);
+                }
                 TExpr { k: TK::Std(Std::Find, vec![x, y]), ty: Ty::Prim(Prim::Int), span }
             }
             "LEFT" | "RIGHT" | "MID" => {
@@ -922,6 +949,9 @@ impl<'a> Ctx<'a> {
                     let Some(b) = self.string_arg(e, scope, name) else {
                         return TExpr::error(span);
                     };
+                    if !self.same_kind(&acc, &b, name, file) {
+                        return TExpr::error(span);
+                    }
                     acc = concat(acc, b, span);
                 }
                 acc
@@ -942,6 +972,9 @@ impl<'a> Ctx<'a> {
                         let Some(m) = self.string_arg(a[1], scope, name) else {
                             return TExpr::error(span);
                         };
+                        if !self.same_kind(&s, &m, name, file) {
+                            return TExpr::error(span);
+                        }
                         let Some(p) = self.count_arg(a[2], scope, name) else {
                             return TExpr::error(span);
                         };
@@ -974,6 +1007,9 @@ impl<'a> Ctx<'a> {
                         let Some(m) = self.string_arg(a[1], scope, name) else {
                             return TExpr::error(span);
                         };
+                        if !self.same_kind(&s, &m, name, file) {
+                            return TExpr::error(span);
+                        }
                         let Some(l) = self.count_arg(a[2], scope, name) else {
                             return TExpr::error(span);
                         };
@@ -1052,13 +1088,27 @@ impl<'a> Ctx<'a> {
         let t = self.check_expr(e, scope, None);
         match t.ty {
             Ty::Error => None,
-            Ty::Str(_) => Some(t),
+            Ty::Str(_) | Ty::WStr(_) => Some(t),
             _ => {
                 let n = self.ty_name(&t.ty);
                 self.error(scope.file, t.span, format!("`{fname}` needs a STRING, not `{n}`"));
                 None
             }
         }
+    }
+
+    /// Whether two string inputs of `fname` are of one kind (both STRING or both WSTRING):
+    /// the standard overloads its string functions on each, never on a mix.
+    fn same_kind(&mut self, a: &TExpr, b: &TExpr, fname: &str, file: usize) -> bool {
+        if a.ty.is_wide() == b.ty.is_wide() {
+            return true;
+        }
+        let (x, y) = (kind_name(&a.ty), kind_name(&b.ty));
+        let msg = format!(
+            "`{fname}` cannot mix {x} and {y}: convert one with STRING_TO_WSTRING or WSTRING_TO_STRING"
+        );
+        self.error(file, b.span, msg);
+        false
     }
 
     fn count_arg(&mut self, e: &Expr, scope: Scope, fname: &str) -> Option<TExpr> {
@@ -1094,6 +1144,10 @@ impl<'a> Ctx<'a> {
             let ty = Ty::Str(*a.max(b));
             return Some((x, y, ty));
         }
+        if let (Ty::WStr(a), Ty::WStr(b)) = (&x.ty, &y.ty) {
+            let ty = Ty::WStr(*a.max(b));
+            return Some((x, y, ty));
+        }
         if matches!(x.ty, Ty::Array(_) | Ty::Struct(_))
             || matches!(y.ty, Ty::Array(_) | Ty::Struct(_))
         {
@@ -1120,7 +1174,7 @@ impl<'a> Ctx<'a> {
     }
 
     fn value_as(&mut self, v: TExpr, ty: &Ty, file: usize) -> TExpr {
-        if matches!(ty, Ty::Str(_)) && matches!(v.ty, Ty::Str(_)) {
+        if matches!((ty, &v.ty), (Ty::Str(_), Ty::Str(_)) | (Ty::WStr(_), Ty::WStr(_))) {
             return v;
         }
         if &v.ty == ty {
@@ -1147,13 +1201,23 @@ impl<'a> Ctx<'a> {
         file: usize,
     ) -> TExpr {
         let scalar = |cx: &Self, t: &Ty| t.prim(&cx.types).and_then(|p| p.value_type().scalar());
+        // the input must be of the source's kind: a STRING for `STRING_TO_*`
+        let of_src = |t: &TExpr| t.ty.string_cap().is_some() && t.ty.is_wide() == src.is_wide();
         match (&src, &dst) {
-            (Ty::Str(_), Ty::Str(_)) => {
-                self.want(&t, matches!(t.ty, Ty::Str(_)), name, "a STRING", file).then_some(t)
+            (Ty::Str(_), Ty::Str(_)) | (Ty::WStr(_), Ty::WStr(_)) => {
+                self.want(&t, of_src(&t), name, kind_name(&src), file).then_some(t)
             }
-            (Ty::Str(_), _) => {
+            (Ty::Str(_), Ty::WStr(_)) | (Ty::WStr(_), Ty::Str(_)) => {
+                let op = if dst.is_wide() { Std::Widen } else { Std::Narrow };
+                self.want(&t, of_src(&t), name, kind_name(&src), file).then(|| TExpr {
+                    k: TK::Std(op, vec![t]),
+                    ty: dst,
+                    span,
+                })
+            }
+            (Ty::Str(_) | Ty::WStr(_), _) => {
                 let to = scalar(self, &dst).expect("a prim");
-                self.want(&t, matches!(t.ty, Ty::Str(_)), name, "a STRING", file).then(|| TExpr {
+                self.want(&t, of_src(&t), name, kind_name(&src), file).then(|| TExpr {
                     k: TK::Std(Std::FromString(to), vec![t]),
                     ty: dst,
                     span,
@@ -1185,7 +1249,7 @@ impl<'a> Ctx<'a> {
         let Some(arg) = self.conversion_arg(name, args, span, file) else {
             return TExpr::error(span);
         };
-        let expected = if matches!(src, Ty::Str(_)) { None } else { Some(&src) };
+        let expected = if src.string_cap().is_some() { None } else { Some(&src) };
         let t = self.check_expr(arg, scope, expected);
         self.convert(name, src, dst, t, span, file)
     }
@@ -1218,6 +1282,7 @@ impl<'a> Ctx<'a> {
             }
             Ty::RealLit => Ty::Prim(Prim::LReal),
             Ty::Str(_) => Ty::Str(80),
+            Ty::WStr(_) => Ty::WStr(80),
             Ty::Prim(p) | Ty::Sub(p, _, _) => Ty::Prim(*p),
             Ty::Enum(e) => Ty::Prim(self.types.enums[*e].base),
             _ => {
@@ -1240,7 +1305,7 @@ impl<'a> Ctx<'a> {
         span: Span,
         file: usize,
     ) -> TExpr {
-        if matches!(src, Ty::Str(_)) || matches!(dst, Ty::Str(_)) {
+        if src.string_cap().is_some() || dst.string_cap().is_some() {
             return self.string_conversion(name, src, dst, t, span, file);
         }
         let (sp, dp) = (src.prim(&self.types).expect("prim"), dst.prim(&self.types).expect("prim"));
@@ -1368,11 +1433,18 @@ fn concat(a: TExpr, b: TExpr, span: Span) -> TExpr {
         let n = s.len().max(1) as u32;
         return TExpr::konst(Cv::Str(s), Ty::Str(n), span);
     }
-    let cap = match (&a.ty, &b.ty) {
-        (Ty::Str(x), Ty::Str(y)) => (x + y).min(255),
+    if let (TK::Const(Cv::WStr(x)), TK::Const(Cv::WStr(y))) = (&a.k, &b.k) {
+        let mut s = [x.as_slice(), y.as_slice()].concat();
+        s.truncate(255);
+        let n = s.len().max(1) as u32;
+        return TExpr::konst(Cv::WStr(s), Ty::WStr(n), span);
+    }
+    let cap = match (a.ty.string_cap(), b.ty.string_cap()) {
+        (Some(x), Some(y)) => (x + y).min(255),
         _ => 255,
     };
-    TExpr { k: TK::Std(Std::Concat, vec![a, b]), ty: Ty::Str(cap), span }
+    let ty = if a.ty.is_wide() { Ty::WStr(cap) } else { Ty::Str(cap) };
+    TExpr { k: TK::Std(Std::Concat, vec![a, b]), ty, span }
 }
 
 fn fold_un(op: UnOp, p: Prim, cv: &Cv) -> Option<Cv> {
@@ -1384,7 +1456,7 @@ fn fold_un(op: UnOp, p: Prim, cv: &Cv) -> Option<Cv> {
             }
         }
         Cv::Real(f) => *f,
-        Cv::Str(_) => return None,
+        Cv::Str(_) | Cv::WStr(_) => return None,
     };
     let r = match op {
         UnOp::Abs => f.abs(),

@@ -270,6 +270,8 @@ pub enum Ty {
     Sub(Prim, i128, i128),
     /// `STRING[n]`: `n` characters and the NUL after them.
     Str(u32),
+    /// `WSTRING[n]`: `n` UTF-16 code units of 2 bytes and the 2-byte NUL after them.
+    WStr(u32),
     Array(Rc<ArrayTy>),
     /// Index into [`Types::structs`].
     Struct(usize),
@@ -354,6 +356,7 @@ impl Types {
             Ty::Prim(p) => p.name().to_string(),
             Ty::Sub(p, lo, hi) => format!("{} ({lo}..{hi})", p.name()),
             Ty::Str(n) => format!("STRING[{n}]"),
+            Ty::WStr(n) => format!("WSTRING[{n}]"),
             Ty::Array(a) => {
                 let dims: Vec<String> = a.dims.iter().map(|(l, h)| format!("{l}..{h}")).collect();
                 format!("ARRAY [{}] OF {}", dims.join(", "), self.name(&a.of))
@@ -384,6 +387,7 @@ impl Types {
         match ty {
             Ty::Prim(p) | Ty::Sub(p, _, _) => p.elem().size(),
             Ty::Str(n) => n + 1,
+            Ty::WStr(n) => 2 * (n + 1),
             Ty::Array(a) => (a.count() as u32).saturating_mul(a.elem_size),
             Ty::Struct(i) => self.structs[*i].size,
             Ty::Enum(i) => self.enums[*i].base.elem().size(),
@@ -424,7 +428,20 @@ impl Ty {
 
     /// Held by reference (copied with `Copy` or `Str`), not as a slot.
     pub fn is_aggregate(&self) -> bool {
-        matches!(self, Ty::Str(_) | Ty::Array(_) | Ty::Struct(_) | Ty::Fb(_))
+        matches!(self, Ty::Str(_) | Ty::WStr(_) | Ty::Array(_) | Ty::Struct(_) | Ty::Fb(_))
+    }
+
+    /// A `WSTRING[n]`: its string operations are [`crate::lang::ops::Op::Str`] with `wide`.
+    pub fn is_wide(&self) -> bool {
+        matches!(self, Ty::WStr(_))
+    }
+
+    /// The capacity of a STRING or WSTRING, in characters.
+    pub fn string_cap(&self) -> Option<u32> {
+        match self {
+            Ty::Str(n) | Ty::WStr(n) => Some(*n),
+            _ => None,
+        }
     }
 
     pub fn is_error(&self) -> bool {

@@ -230,6 +230,8 @@ pub(crate) enum Tok {
     Calendar(Calendar, u64),
     /// A string with its escapes resolved.
     Str(String),
+    /// A double-quoted (`WSTRING`) string with its escapes resolved.
+    WStr(String),
     /// `INT#`: the type's name is the token's text without the `#`.
     TypedPrefix,
     /// `%D00100`: the address is the token's text without the `%`.
@@ -629,13 +631,25 @@ impl Lexer<'_> {
 
     /// `'…'` with `$` escapes; a string ends at its line's end at the latest.
     fn string(&mut self, start: usize, span: Span) {
+        self.quoted(start, span, false);
+    }
+
+    /// `"…"` (a `WSTRING`) with `$` escapes, `$hhhh` a UTF-16 code unit.
+    fn wstring(&mut self, start: usize, span: Span) {
+        self.quoted(start, span, true);
+    }
+
+    /// A string in single quotes, or in double quotes when `wide`.
+    fn quoted(&mut self, start: usize, span: Span, wide: bool) {
+        let (quote, token): (u8, fn(String) -> Tok) =
+            if wide { (b'"', Tok::WStr) } else { (b'\'', Tok::Str) };
         self.bump();
         let mut value = String::new();
         while let Some(b) = self.peek() {
             match b {
-                b'\'' => {
+                b if b == quote => {
                     self.bump();
-                    return self.push(Tok::Str(value), span, start);
+                    return self.push(token(value), span, start);
                 }
                 b'\n' | b'\r' => break,
                 b'$' => {
@@ -644,7 +658,7 @@ impl Lexer<'_> {
                     self.bump();
                     let escaped = match self.peek() {
                         Some(b'$') => Some('$'),
-                        Some(b'\'') => Some('\''),
+                        Some(q) if q == quote => Some(char::from(q)),
                         Some(b'L' | b'l' | b'N' | b'n') => Some('\n'),
                         Some(b'P' | b'p') => Some('\x0c'),
                         Some(b'R' | b'r') => Some('\r'),
@@ -657,7 +671,22 @@ impl Lexer<'_> {
                         continue;
                     }
                     let hex = |b: Option<u8>| b.and_then(|b| (b as char).to_digit(16));
-                    if let (Some(hi), Some(lo)) = (hex(self.peek()), hex(self.peek_at(1))) {
+                    let unit = (0..4).try_fold(0, |u, i| Some(u * 16 + hex(self.peek_at(i))?));
+                    if let Some(unit) = unit.filter(|_| wide) {
+                        (0..4).for_each(|_| self.bump());
+                        // a surrogate half is no character on its own: a bad escape
+                        match char::from_u32(unit) {
+                            Some(ch) => value.push(ch),
+                            None => {
+                                let escape = self.text[from..self.pos].to_string();
+                                self.error(at, Msg::BadEscape { escape });
+                            }
+                        }
+                        continue;
+                    }
+                    if let (false, Some(hi), Some(lo)) =
+                        (wide, hex(self.peek()), hex(self.peek_at(1)))
+                    {
                         self.bump();
                         self.bump();
                         value.push(crate::value::decode_byte((hi * 16 + lo) as u8));
@@ -677,24 +706,8 @@ impl Lexer<'_> {
             }
         }
         self.error(span, Msg::UnterminatedString);
-        self.push(Tok::Str(value), span, start);
+        self.push(token(value), span, start);
         self.quiet.push(self.tokens.len());
-    }
-
-    /// `"…"`: reported, and read as an empty string.
-    fn wstring(&mut self, start: usize, span: Span) {
-        self.bump();
-        while let Some(b) = self.peek() {
-            if b == b'\n' {
-                break;
-            }
-            self.bump();
-            if b == b'"' {
-                break;
-            }
-        }
-        self.error(span, Msg::WString);
-        self.push(Tok::Str(String::new()), span, start);
     }
 }
 

@@ -269,7 +269,6 @@ pub(crate) enum Msg {
         line: String,
     },
     UnterminatedString,
-    WString,
     NotANumber {
         text: String,
     },
@@ -328,7 +327,6 @@ impl Msg {
             Msg::UnterminatedComment { line: h() },
             Msg::UnterminatedPragma { line: h() },
             Msg::UnterminatedString,
-            Msg::WString,
             Msg::NotANumber { text: h() },
             Msg::OutOfRange { text: h() },
             Msg::DurationUnit { text: h(), unit: h() },
@@ -369,7 +367,6 @@ impl std::fmt::Display for Msg {
                 write!(f, "unterminated pragma (opened at line {line})")
             }
             Msg::UnterminatedString => write!(f, "unterminated string"),
-            Msg::WString => write!(f, "WSTRING is not supported"),
             Msg::NotANumber { text } => write!(f, "`{text}` is not a number"),
             Msg::OutOfRange { text } => write!(f, "`{text}` is out of range"),
             Msg::DurationUnit { text, unit } => {

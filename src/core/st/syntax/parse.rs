@@ -1197,6 +1197,20 @@ impl<'a> Parser<'a> {
         }
     }
 
+    /// The `[n]` or `(n)` after `WSTRING`, if any.
+    fn string_len(&mut self) -> PResult<Option<Box<Expr>>> {
+        let close = if self.eat_p(P::LBracket) {
+            (P::RBracket, Want::RBracket)
+        } else if self.eat_p(P::LParen) {
+            (P::RParen, Want::RParen)
+        } else {
+            return Ok(None);
+        };
+        let len = self.expr()?;
+        self.expect_p(close.0, close.1)?;
+        Ok(Some(Box::new(len)))
+    }
+
     fn type_ref(&mut self) -> PResult<TypeRef> {
         let span = self.span();
         match *self.tok() {
@@ -1214,6 +1228,11 @@ impl<'a> Parser<'a> {
                 let to = self.type_ref();
                 self.depth -= 1;
                 Ok(TypeRef::Ref { kind, to: Box::new(to?), span })
+            }
+            Tok::Ident if self.text_of(self.pos).eq_ignore_ascii_case("WSTRING") => {
+                self.bump();
+                let len = self.string_len()?;
+                Ok(TypeRef::WString { len, span })
             }
             Tok::Ident => {
                 let name = self.ident()?;
@@ -1623,6 +1642,7 @@ impl<'a> Parser<'a> {
             Tok::Int(_)
             | Tok::Real(_)
             | Tok::Str(_)
+            | Tok::WStr(_)
             | Tok::Time(_)
             | Tok::Calendar(..)
             | Tok::TypedPrefix
@@ -1922,6 +1942,7 @@ impl<'a> Parser<'a> {
             Tok::Time(ns) => Literal::Time(*ns),
             Tok::Calendar(cal, count) => Literal::Calendar(*cal, *count),
             Tok::Str(s) => Literal::String(s.clone()),
+            Tok::WStr(s) => Literal::WString(s.clone()),
             Tok::Kw(Kw::True) => Literal::Bool(true),
             Tok::Kw(Kw::False) => Literal::Bool(false),
             Tok::Ident => return Ok(Expr { kind: ExprKind::Name(self.ident()?), span }),
@@ -1973,6 +1994,7 @@ impl<'a> Parser<'a> {
             Tok::Int(_)
             | Tok::Real(_)
             | Tok::Str(_)
+            | Tok::WStr(_)
             | Tok::Time(_)
             | Tok::Calendar(..)
             | Tok::Ident
