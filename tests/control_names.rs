@@ -52,6 +52,7 @@ VAR
     flag : BOOL := TRUE;
     t : TIME := T#1s500ms;
     s : STRING[20] := 'hi';
+    w : WSTRING[10] := \"Grüße €\";
     mode : Mode := Running;
     buf : ARRAY [1..4] OF INT := [10, 20, 30, 40];
     m : ARRAY [1..2, 1..2] OF DINT;
@@ -279,6 +280,21 @@ fn get_and_set_every_kind_of_variable_by_name() {
     );
     assert_eq!(lines[1].split_whitespace().collect::<Vec<_>>(), ["main.t", "T#2s", "TIME"]);
     assert_eq!(lines[2].split_whitespace().next(), Some("D00000"));
+
+    // A WSTRING: its characters, as a literal in double quotes for a human; set as one.
+    assert_eq!(plc.values(&["main.w"])[0]["value"], json!("Grüße €"));
+    assert_eq!(plc.values(&["main.w"])[0]["type"], json!("WSTRING[10]"));
+    plc.ok(&["set", "main.w", "\"Ω $\"1$\" $20AC\""]);
+    assert_eq!(plc.get("main.w"), json!("Ω \"1\" €"));
+    let human = plc.ok(&["get", "main.w"]);
+    assert_eq!(
+        human.split_whitespace().collect::<Vec<_>>(),
+        ["main.w", "\"Ω", "$\"1$\"", "€\"", "WSTRING[10]"]
+    );
+    let err = plc.refused(&["set", "main.w", "12345678901"]);
+    assert!(err.contains("11 characters do not fit in a WSTRING[10]"), "{err}");
+    let watched = plc.ok(&["watch", "--count", "1", "--interval", "10ms", "main.w"]);
+    assert!(watched.contains("main.w=\"Ω $\"1$\" €\""), "{watched}");
 
     // JSON numbers and strings from a client other than plcctl; a non-finite real.
     let answer = plc.raw(&json!({"v": 1, "cmd": "set", "writes": [

@@ -457,7 +457,13 @@ fn the_scan_thread_does_not_allocate() {
             211 => {
                 let mut chars = [0; MAX_TEXT_WRITE];
                 chars[..3].copy_from_slice(b"xyz");
-                Some(ControlCommand::WriteText(TextWrite { at: s_at, cap: 10, len: 3, chars }))
+                Some(ControlCommand::WriteText(TextWrite {
+                    at: s_at,
+                    cap: 10,
+                    len: 3,
+                    chars,
+                    wide: false,
+                }))
             }
             _ => None,
         };

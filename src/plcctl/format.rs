@@ -143,6 +143,10 @@ pub fn value_text(v: &NamedValue) -> String {
         (Value::Text(text), Some(ty)) if ty.starts_with("STRING") => {
             plcd_core::value::format_string(text.as_bytes())
         }
+        (Value::Text(text), Some(ty)) if ty.starts_with("WSTRING") => {
+            let units: Vec<u16> = text.encode_utf16().collect();
+            plcd_core::value::format_wstring(&units)
+        }
         (value, _) => value.to_string(),
     }
 }

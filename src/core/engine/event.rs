@@ -175,6 +175,13 @@ pub trait EventSink {
     fn text(&mut self, t_ns: u64, watch: u16, text: &[u8]) {
         let _ = (t_ns, watch, text);
     }
+
+    /// Watched `WSTRING` variable number `watch` changed to the code units `units` (2 bytes
+    /// each, little-endian, borrowed as for [`EventSink::text`]). Ignored unless a sink wants
+    /// it.
+    fn wide_text(&mut self, t_ns: u64, watch: u16, units: &[u8]) {
+        let _ = (t_ns, watch, units);
+    }
 }
 
 /// A sink that keeps every event, for tests.

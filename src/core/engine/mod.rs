@@ -416,6 +416,12 @@ impl Engine {
         self.vm.write_string(at, cap, chars);
     }
 
+    /// Writes the `WSTRING[cap]` variable at `at` from outside the program: the code units
+    /// `bytes` (2 a unit, little-endian), cut to `cap` of them. Allocates nothing.
+    pub fn write_wstring(&mut self, at: crate::value::Pointer, cap: u32, bytes: &[u8]) {
+        self.vm.write_wstring(at, cap, bytes);
+    }
+
     /// Executes at most `max_steps` instructions: starts and preempts tasks, runs scans, END
     /// processing and I/O refresh.
     pub fn run<C: Clock>(

@@ -58,6 +58,8 @@ pub(super) enum WatchAt {
     Value { at: Pointer, elem: Elem },
     /// A `STRING` variable.
     Text { at: Pointer },
+    /// A `WSTRING` variable: `text` holds its code units' bytes after a count of units.
+    WideText { at: Pointer },
 }
 
 /// A watched device or variable and the value last reported (for a `STRING`, its bytes).
@@ -83,6 +85,10 @@ impl Watch {
                 ValueType::String { cap } => {
                     (WatchAt::Text { at: symbol.at }, vec![0; cap as usize + 1].into_boxed_slice())
                 }
+                ValueType::WString { cap } => {
+                    let room = 2 * cap.min(255) as usize + 1;
+                    (WatchAt::WideText { at: symbol.at }, vec![0; room].into_boxed_slice())
+                }
                 ref ty => (WatchAt::Value { at: symbol.at, elem: ty.elem() }, Box::default()),
             },
         };
@@ -102,6 +108,12 @@ impl Watch {
                 let now = vm.string_bytes(at);
                 let len = now.len().min(self.text.len() - 1);
                 self.text[0] = len as u8;
+                self.text[1..=len].copy_from_slice(&now[..len]);
+            }
+            WatchAt::WideText { at } => {
+                let now = vm.wstring_bytes(at);
+                let len = now.len().min(self.text.len() - 1) & !1;
+                self.text[0] = (len / 2) as u8;
                 self.text[1..=len].copy_from_slice(&now[..len]);
             }
         }
@@ -234,6 +246,15 @@ impl Engine {
                         watch.text[0] = len as u8;
                         watch.text[1..=len].copy_from_slice(&now_text[..len]);
                         sink.text(now, index, &now_text[..len]);
+                    }
+                }
+                WatchAt::WideText { at } => {
+                    let now_text = vm.wstring_bytes(at);
+                    let len = now_text.len().min(watch.text.len() - 1) & !1;
+                    if watch.text[1..=2 * usize::from(watch.text[0])] != now_text[..len] {
+                        watch.text[0] = (len / 2) as u8;
+                        watch.text[1..=len].copy_from_slice(&now_text[..len]);
+                        sink.wide_text(now, index, &now_text[..len]);
                     }
                 }
             }

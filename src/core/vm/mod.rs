@@ -345,9 +345,15 @@ impl Vm {
         wide::wstring_units(&self.vars, p)
     }
 
-    /// Writes the `WSTRING[cap]` at `p` in variable memory, cut to `cap` code units.
-    pub fn write_wstring(&mut self, p: Pointer, cap: u32, text: &[u16]) {
-        wide::write_wstring_units(&mut self.vars, p, cap, text);
+    /// [`Vm::read_wstring`] without a copy: the code units' bytes (little-endian), borrowed.
+    pub fn wstring_bytes(&self, p: Pointer) -> &[u8] {
+        wide::wstring_bytes(&self.vars, p)
+    }
+
+    /// Writes the `WSTRING[cap]` at `p` in variable memory: the code units `bytes` (2 a unit,
+    /// little-endian), cut to `cap` of them.
+    pub fn write_wstring(&mut self, p: Pointer, cap: u32, bytes: &[u8]) {
+        wide::write_wstring_bytes(&mut self.vars, p, cap, bytes);
     }
 
     /// Writes the `STRING[cap]` at `p` in variable memory, cut to `cap` characters.

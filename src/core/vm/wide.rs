@@ -244,16 +244,23 @@ pub(super) fn string_op(
     }
 }
 
+/// The bytes of the code units of the WSTRING at `p` in variable memory, borrowed (for the
+/// snapshot clients read, taken on the scan thread without allocating).
+pub(super) fn wstring_bytes(vars: &[u8], p: Pointer) -> &[u8] {
+    units(vars, &[], p)
+}
+
 /// The code units of the WSTRING at `p` in variable memory, for tools.
 pub(super) fn wstring_units(vars: &[u8], p: Pointer) -> Vec<u16> {
     code_units(units(vars, &[], p)).collect()
 }
 
-/// Writes `text` (cut to `cap` units) as the WSTRING at `p` in variable memory, for tools.
-pub(super) fn write_wstring_units(vars: &mut [u8], p: Pointer, cap: u32, text: &[u16]) {
+/// Writes the code units `bytes` (2 a unit, little-endian; cut to `cap` units) as the WSTRING
+/// at `p` in variable memory, for tools. Allocates nothing.
+pub(super) fn write_wstring_bytes(vars: &mut [u8], p: Pointer, cap: u32, bytes: &[u8]) {
     if p.space != Space::Var {
         return;
     }
-    let n = text.len().min(cap as usize).min(MAX_UNITS);
-    write_units(vars, &mut [], p, n, |i| text[i]);
+    let n = (bytes.len() / 2).min(cap as usize).min(MAX_UNITS);
+    write_units(vars, &mut [], p, n, |i| u16::from_le_bytes([bytes[2 * i], bytes[2 * i + 1]]));
 }

@@ -39,6 +39,7 @@ fn var_read(symbol: &Symbol) -> VarRead {
         ValueType::String { cap } => {
             VarRead::Text { at: symbol.at, cap: cap.min(MAX_TEXT_WRITE as u32) as u8 }
         }
+        ValueType::WString { cap } => VarRead::WideText { at: symbol.at, cap: cap.min(255) as u8 },
         ref ty => VarRead::Value { at: symbol.at, elem: ty.elem() },
     }
 }
@@ -181,8 +182,25 @@ fn checked_write(project: &Project, write: &NamedValue) -> Result<Pending, Failu
                 cap: cap.min(MAX_TEXT_WRITE as u32) as u8,
                 len: chars.len() as u8,
                 chars: [0; MAX_TEXT_WRITE],
+                wide: false,
             };
             write.chars[..chars.len()].copy_from_slice(&chars);
+            Ok(Pending::Text(Box::new(write)))
+        }
+        ValueType::WString { cap } => {
+            // 2 bytes a code unit in the command's buffer: at most half as many as a STRING's
+            let cap = cap.min(MAX_TEXT_WRITE as u32 / 2);
+            let units = value::parse_wstring(&text, cap).map_err(bad)?;
+            let mut write = TextWrite {
+                at: symbol.at,
+                cap: cap as u8,
+                len: units.len() as u8,
+                chars: [0; MAX_TEXT_WRITE],
+                wide: true,
+            };
+            for (at, unit) in write.chars.chunks_exact_mut(2).zip(&units) {
+                at.copy_from_slice(&unit.to_le_bytes());
+            }
             Ok(Pending::Text(Box::new(write)))
         }
         ref other => {
@@ -260,6 +278,11 @@ fn variable_value(symbol: &Symbol, snapshot: &Snapshot, symbols: &[Symbol]) -> N
         VarRead::Text { at, cap } => {
             let chars = snapshot.text(at, cap).unwrap_or_default();
             Value::Text(value::decode_str(chars))
+        }
+        VarRead::WideText { at, cap } => {
+            let bytes = snapshot.wide_text(at, cap).unwrap_or_default();
+            let units = bytes.chunks_exact(2).map(|u| u16::from_le_bytes([u[0], u[1]]));
+            Value::Text(char::decode_utf16(units).map(|c| c.unwrap_or('\u{FFFD}')).collect())
         }
         VarRead::Value { at, elem } => {
             json_value(&symbol.ty, snapshot.value(at, elem).unwrap_or(0), symbols)

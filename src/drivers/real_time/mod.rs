@@ -152,13 +152,15 @@ impl Default for Write {
 }
 
 /// The characters a `STRING[cap]` variable is set to (the first `len` of `chars`, at most
-/// `cap`).
+/// `cap`); with `wide`, the code units a `WSTRING[cap]` is set to (`len` of them, 2 bytes of
+/// `chars` each, little-endian).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TextWrite {
     pub at: Pointer,
     pub cap: u8,
     pub len: u8,
     pub chars: [u8; MAX_TEXT_WRITE],
+    pub wide: bool,
 }
 
 /// What the control socket asks of the scan thread.

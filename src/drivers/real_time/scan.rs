@@ -281,6 +281,10 @@ impl ScanThread {
                     }
                 }
             }
+            ControlCommand::WriteText(text) if text.wide => {
+                let len = usize::from(text.len.min(text.cap));
+                engine.write_wstring(text.at, u32::from(text.cap), &text.chars[..2 * len]);
+            }
             ControlCommand::WriteText(text) => {
                 let len = usize::from(text.len.min(text.cap));
                 engine.write_string(text.at, u32::from(text.cap), &text.chars[..len]);

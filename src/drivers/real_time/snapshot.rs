@@ -32,6 +32,8 @@ pub enum VarRead {
     Value { at: Pointer, elem: Elem },
     /// A `STRING[cap]`: its characters.
     Text { at: Pointer, cap: u8 },
+    /// A `WSTRING[cap]`: the bytes of its code units (2 a unit, little-endian).
+    WideText { at: Pointer, cap: u8 },
 }
 
 impl VarRead {
@@ -40,6 +42,7 @@ impl VarRead {
         match self {
             VarRead::Value { .. } => 0,
             VarRead::Text { cap, .. } => usize::from(*cap),
+            VarRead::WideText { cap, .. } => 2 * usize::from(*cap),
         }
     }
 }
@@ -171,9 +174,12 @@ impl Snapshot {
             let read = self.want_vars[i];
             let slot = match read {
                 VarRead::Value { at, elem } => vm.read_value(at, elem),
-                VarRead::Text { at, cap } => {
-                    let chars = vm.string_bytes(at);
-                    let len = chars.len().min(usize::from(cap));
+                VarRead::Text { .. } | VarRead::WideText { .. } => {
+                    let chars = match read {
+                        VarRead::WideText { at, .. } => vm.wstring_bytes(at),
+                        VarRead::Text { at, .. } | VarRead::Value { at, .. } => vm.string_bytes(at),
+                    };
+                    let len = chars.len().min(read.text_bytes());
                     let Some(room) = self.chars.get_mut(text_at..text_at + len) else {
                         // Past the buffer (the control thread keeps within it): not read.
                         continue;
@@ -201,7 +207,15 @@ impl Snapshot {
 
     /// The characters of a `STRING` variable at the last capture, if it was read.
     pub fn text(&self, at: Pointer, cap: u8) -> Option<&[u8]> {
-        let wanted = VarRead::Text { at, cap };
+        self.text_of(VarRead::Text { at, cap })
+    }
+
+    /// The bytes of the code units of a `WSTRING` variable at the last capture, if it was read.
+    pub fn wide_text(&self, at: Pointer, cap: u8) -> Option<&[u8]> {
+        self.text_of(VarRead::WideText { at, cap })
+    }
+
+    fn text_of(&self, wanted: VarRead) -> Option<&[u8]> {
         let i = self.read_vars[..self.read_vars_len].iter().position(|r| *r == wanted)?;
         let slot = self.read_slots[i];
         let (start, len) = ((slot >> 32) as usize, (slot & 0xFFFF_FFFF) as usize);

@@ -171,6 +171,22 @@ impl<W: Write> EventSink for TraceWriter<W> {
         line.push_str("}\n");
         self.write_line();
     }
+
+    fn wide_text(&mut self, t_ns: u64, watch: u16, units: &[u8]) {
+        if self.error.is_some() {
+            return;
+        }
+        let dev = watch_name(&self.watch_names, watch);
+        let units = units.chunks_exact(2).map(|u| u16::from_le_bytes([u[0], u[1]]));
+        let text: String = char::decode_utf16(units).map(|c| c.unwrap_or('\u{FFFD}')).collect();
+        let line = &mut self.line;
+        line.clear();
+        let _ = write!(line, "{{\"t_ns\":{t_ns},\"ev\":\"set\"");
+        push_str_field(line, "dev", &dev);
+        push_str_field(line, "value", &text);
+        line.push_str("}\n");
+        self.write_line();
+    }
 }
 
 /// A watch's name, or `#` and its number for one outside the table (only a bug gives that).
