@@ -113,6 +113,8 @@ impl Run {
             ValueType::Time => Elem::I64,
             ValueType::Calendar(cal) => cal.elem(),
             ValueType::Enum { base, .. } => base,
+            ValueType::Char => Elem::U8,
+            ValueType::WChar => Elem::U16,
             ValueType::String { .. } | ValueType::WString { .. } => panic!("{name} is a string"),
             ValueType::Reference { .. } => Elem::U64,
         };

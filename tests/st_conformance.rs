@@ -129,6 +129,8 @@ fn read(project: &Project, vm: &Vm, name: &str) -> Result<(String, Option<ValueT
                 ValueType::Time
                 | ValueType::Calendar(_)
                 | ValueType::Enum { .. }
+                | ValueType::Char
+                | ValueType::WChar
                 | ValueType::Reference { .. } => {
                     format!("{text:?}")
                 }

@@ -44,6 +44,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ("unknown type `{}`{}", "unknown-type"),
     ("a STRING's length must be 1..255, not {}", "string-length"),
     ("a WSTRING's length must be 1..255, not {}", "wstring-length"),
+    ("a `{}` literal is one character", "char-literal-length"),
     ("empty or too large array range `{}..{}`", "empty-array-range"),
     ("the array is too large", "array-too-large"),
     ("a subrange needs an integer type, not `{}`", "subrange-base"),
@@ -442,6 +443,9 @@ const PARTS: &[&str] = &[
     "no duration, only indicator variable names",
     // the kind of a string in messages (`needs a WSTRING`, `cannot mix a WSTRING and a STRING`)
     "a WSTRING",
+    // the character type a conversion needs (`CHAR_TO_WSTRING` needs a WCHAR)
+    "a WCHAR",
+    "a CHAR",
     // the names of reference types in messages (`POINTER TO INT`)
     "POINTER TO",
     "REFERENCE TO",

@@ -538,6 +538,10 @@ pub enum ValueType {
     String {
         cap: u32,
     },
+    /// `CHAR`: one byte, a Windows-1252 character; shown as the character.
+    Char,
+    /// `WCHAR`: one UTF-16 code unit; shown as the character.
+    WChar,
     /// `WSTRING[cap]`: `cap` UTF-16 code units of 2 bytes, then room for the 2-byte NUL.
     WString {
         cap: u32,
@@ -561,6 +565,8 @@ impl ValueType {
             ValueType::Signed(elem) | ValueType::Unsigned(elem) | ValueType::Real(elem) => *elem,
             ValueType::Time => Elem::I64,
             ValueType::Calendar(cal) => cal.elem(),
+            ValueType::Char => Elem::U8,
+            ValueType::WChar => Elem::U16,
             ValueType::Enum { base, .. } => *base,
             ValueType::String { .. } => Elem::U8,
             ValueType::WString { .. } => Elem::U16,
@@ -614,6 +620,8 @@ pub fn type_name(ty: &ValueType) -> String {
         .into(),
         ValueType::Time => "TIME".into(),
         ValueType::Calendar(cal) => cal.name().into(),
+        ValueType::Char => "CHAR".into(),
+        ValueType::WChar => "WCHAR".into(),
         ValueType::Enum { type_name, .. } => type_name.clone(),
         ValueType::String { cap } => format!("STRING[{cap}]"),
         ValueType::WString { cap } => format!("WSTRING[{cap}]"),
@@ -637,6 +645,8 @@ pub fn format(ty: &ValueType, slot: u64) -> String {
         }
         ValueType::String { .. } | ValueType::WString { .. } => String::new(),
         ValueType::Reference { .. } => format_reference(slot),
+        ValueType::Char => format_string(&[slot as u8]),
+        ValueType::WChar => format_wstring(&[slot as u16]),
         scalar => {
             let mut text = String::new();
             if let Some(scalar) = scalar.scalar() {
@@ -687,6 +697,9 @@ impl ValueType {
             ValueType::Real(e) => Scalar::Real(*e),
             ValueType::Time => Scalar::Time,
             ValueType::Calendar(cal) => Scalar::Calendar(*cal),
+            // stored as their code; shown and read as characters by `format` and `parse`
+            ValueType::Char => Scalar::Unsigned(Elem::U8),
+            ValueType::WChar => Scalar::Unsigned(Elem::U16),
             ValueType::Enum { .. }
             | ValueType::String { .. }
             | ValueType::WString { .. }
@@ -940,6 +953,15 @@ pub fn parse(ty: &ValueType, text: &str) -> Result<u64, String> {
         ValueType::WString { cap } => {
             Err(format!("a WSTRING[{cap}] is not a single value: write its text"))
         }
+        // one character: a literal (`'a'`, `"ä"`) or the character alone
+        ValueType::Char => match parse_string(text, 1)?.as_slice() {
+            [c] => Ok(u64::from(*c)),
+            _ => Err("a CHAR is one character".into()),
+        },
+        ValueType::WChar => match parse_wstring(text, 1)?.as_slice() {
+            [c] => Ok(u64::from(*c)),
+            _ => Err("a WCHAR is one character".into()),
+        },
         ValueType::Reference { type_name } => {
             Err(format!("a {type_name} cannot be written: the program sets it (REF, ADR)"))
         }

@@ -213,6 +213,8 @@ pub fn push_json_value(line: &mut String, ty: &ValueType, slot: u64, symbols: &[
         ValueType::Time
         | ValueType::Calendar(_)
         | ValueType::String { .. }
+        | ValueType::Char
+        | ValueType::WChar
         | ValueType::Reference { .. } => false,
         _ => true,
     };

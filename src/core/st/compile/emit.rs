@@ -646,6 +646,24 @@ impl<'c, 'a> Em<'c, 'a> {
                 self.op(Op::Str { op: sop, cap: cap as u16, wide: false });
                 self.op(Op::AddrOf(Place::Frame(tmp)));
             }
+            Std::CharToString => {
+                // the character, then the NUL (a WSTRING's 2 bytes wide)
+                let elem = if ty.is_wide() { Elem::U16 } else { Elem::U8 };
+                let tmp = self.alloc_tmp(self.size(ty));
+                self.op(Op::AddrOf(Place::Frame(tmp)));
+                self.value(&args[0]);
+                self.op(Op::StoreInd(elem));
+                self.op(Op::AddrOf(Place::Frame(tmp + elem.size())));
+                self.op(Op::PushInt(0));
+                self.op(Op::StoreInd(elem));
+                self.op(Op::AddrOf(Place::Frame(tmp)));
+            }
+            Std::StringToChar => {
+                // the first character: the NUL of an empty string is 0
+                self.value(&args[0]);
+                let elem = if args[0].ty.is_wide() { Elem::U16 } else { Elem::U8 };
+                self.op(Op::FetchInd(elem));
+            }
             Std::Left | Std::Right | Std::Mid | Std::Concat => {
                 let (cap, wide) = (ty.string_cap().unwrap_or(255), ty.is_wide());
                 let tmp = self.alloc_tmp(self.size(ty).max(256));

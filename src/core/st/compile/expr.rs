@@ -1022,6 +1022,23 @@ impl<'a> Ctx<'a> {
             return self.mismatch(te, to, file);
         }
         match (&te.ty, to) {
+            // `'a'` where a CHAR is expected, `"ä"` where a WCHAR is: the character's code
+            (Ty::Str(_), Ty::Prim(Prim::Char)) | (Ty::WStr(_), Ty::Prim(Prim::WChar)) => {
+                let code = match &te.k {
+                    TK::Const(Cv::Str(s)) if s.len() == 1 => Some(i128::from(s[0])),
+                    TK::Const(Cv::WStr(s)) if s.len() == 1 => Some(i128::from(s[0])),
+                    _ => None,
+                };
+                match code {
+                    Some(code) => TExpr::konst(Cv::Int(code), to.clone(), span),
+                    None if matches!(te.k, TK::Const(_)) => {
+                        let n = self.ty_name(to);
+                        self.error(file, span, format!("a `{n}` literal is one character"));
+                        TExpr::error(span)
+                    }
+                    None => self.mismatch(te, to, file),
+                }
+            }
             (Ty::IntLit, _) => {
                 let v = te.const_int().unwrap_or(0);
                 match to {
@@ -1222,6 +1239,19 @@ impl<'a> Ctx<'a> {
             return None;
         }
         let lit = |t: &Ty| matches!(t, Ty::IntLit | Ty::RealLit);
+        // a character and a one-character literal (`c = 'a'`): the literal is the character
+        let char_ty = |t: &Ty| matches!(t, Ty::Prim(Prim::Char | Prim::WChar));
+        let text = |t: &TExpr| matches!(t.k, TK::Const(Cv::Str(_) | Cv::WStr(_)));
+        if char_ty(&a.ty) && text(&b) {
+            let ty = a.ty.clone();
+            let b = self.coerce(b, &ty, file);
+            return (!b.ty.is_error()).then_some((a, b, ty));
+        }
+        if char_ty(&b.ty) && text(&a) {
+            let ty = b.ty.clone();
+            let a = self.coerce(a, &ty, file);
+            return (!a.ty.is_error()).then_some((a, b, ty));
+        }
         match (&a.ty, &b.ty) {
             (Ty::IntLit, Ty::IntLit) => Some((a, b, Ty::IntLit)),
             (Ty::RealLit | Ty::IntLit, Ty::RealLit | Ty::IntLit) => {

@@ -55,6 +55,11 @@ pub enum Std {
     Widen,
     /// `WSTRING_TO_STRING(w)`: each code unit as its Windows-1252 byte, `?` for one it has not.
     Narrow,
+    /// `CHAR_TO_STRING(c)`, `WCHAR_TO_WSTRING(c)`: the string of the one character (the node's
+    /// type says which).
+    CharToString,
+    /// `STRING_TO_CHAR(s)`, `WSTRING_TO_WCHAR(s)`: the first character, 0 for an empty string.
+    StringToChar,
 }
 
 /// The string type a conversion's name gives (`STRING`, `WSTRING`), of the default length.
@@ -63,6 +68,15 @@ fn string_type(name: &str) -> Option<Ty> {
         "STRING" => Some(Ty::Str(80)),
         "WSTRING" => Some(Ty::WStr(80)),
         _ => None,
+    }
+}
+
+/// The string type of a character type's characters: a WSTRING for a WCHAR.
+fn dst_string(ch: &Ty) -> Ty {
+    if matches!(ch, Ty::Prim(Prim::WChar)) {
+        Ty::WStr(80)
+    } else {
+        Ty::Str(80)
     }
 }
 
@@ -1305,6 +1319,35 @@ impl<'a> Ctx<'a> {
         span: Span,
         file: usize,
     ) -> TExpr {
+        let char_of = |t: &Ty| match t {
+            Ty::Prim(Prim::Char) => Some(false),
+            Ty::Prim(Prim::WChar) => Some(true),
+            _ => None,
+        };
+        let string_of = |t: &Ty| t.string_cap().map(|_| t.is_wide());
+        match (char_of(&src), string_of(&dst), string_of(&src), char_of(&dst)) {
+            (Some(wide), Some(to_wide), ..) => {
+                let t = self.coerce(t, &src, file);
+                if t.ty.is_error() {
+                    return TExpr::error(span);
+                }
+                if wide != to_wide {
+                    let to = if to_wide { "a WCHAR" } else { "a CHAR" };
+                    self.want(&t, false, name, to, file);
+                    return TExpr::error(span);
+                }
+                let ty = if wide { Ty::WStr(1) } else { Ty::Str(1) };
+                return TExpr { k: TK::Std(Std::CharToString, vec![t]), ty, span };
+            }
+            (_, _, Some(wide), Some(to_wide)) => {
+                let ok = t.ty.string_cap().is_some() && t.ty.is_wide() == wide;
+                if !self.want(&t, ok && wide == to_wide, name, kind_name(&dst_string(&dst)), file) {
+                    return TExpr::error(span);
+                }
+                return TExpr { k: TK::Std(Std::StringToChar, vec![t]), ty: dst, span };
+            }
+            _ => {}
+        }
         if src.string_cap().is_some() || dst.string_cap().is_some() {
             return self.string_conversion(name, src, dst, t, span, file);
         }

@@ -54,6 +54,10 @@ pub enum Prim {
     LTime,
     /// `DATE`, `TOD`, `DT` and their long forms: [`Calendar`] says how they are stored.
     Cal(Calendar),
+    /// `CHAR`: one byte, a character of Windows-1252 (as a STRING's characters).
+    Char,
+    /// `WCHAR`: one UTF-16 code unit, 2 bytes (as a WSTRING's characters).
+    WChar,
 }
 
 /// The order in which a common type of two operands is searched.
@@ -76,7 +80,7 @@ const WIDENING_ORDER: [Prim; 16] = [
     Prim::LTime,
 ];
 
-pub const ALL_PRIMS: [Prim; 23] = [
+pub const ALL_PRIMS: [Prim; 25] = [
     Prim::Bool,
     Prim::SInt,
     Prim::Int,
@@ -100,6 +104,8 @@ pub const ALL_PRIMS: [Prim; 23] = [
     Prim::Cal(Calendar::LDate),
     Prim::Cal(Calendar::LTod),
     Prim::Cal(Calendar::LDt),
+    Prim::Char,
+    Prim::WChar,
 ];
 
 impl Prim {
@@ -133,6 +139,8 @@ impl Prim {
             Prim::Time => "TIME",
             Prim::LTime => "LTIME",
             Prim::Cal(cal) => cal.name(),
+            Prim::Char => "CHAR",
+            Prim::WChar => "WCHAR",
         }
     }
 
@@ -143,8 +151,8 @@ impl Prim {
             Prim::Int => Elem::I16,
             Prim::DInt => Elem::I32,
             Prim::LInt | Prim::Time | Prim::LTime => Elem::I64,
-            Prim::USInt | Prim::Byte => Elem::U8,
-            Prim::UInt | Prim::Word => Elem::U16,
+            Prim::USInt | Prim::Byte | Prim::Char => Elem::U8,
+            Prim::UInt | Prim::Word | Prim::WChar => Elem::U16,
             Prim::UDInt | Prim::DWord => Elem::U32,
             Prim::ULInt | Prim::LWord => Elem::U64,
             Prim::Real => Elem::F32,
@@ -256,6 +264,8 @@ impl Prim {
             Prim::Real | Prim::LReal => ValueType::Real(e),
             Prim::Time | Prim::LTime => ValueType::Time,
             Prim::Cal(cal) => ValueType::Calendar(cal),
+            Prim::Char => ValueType::Char,
+            Prim::WChar => ValueType::WChar,
             _ if e.is_signed() => ValueType::Signed(e),
             _ => ValueType::Unsigned(e),
         }
