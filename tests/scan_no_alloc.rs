@@ -2,10 +2,10 @@
 //! real-time driver while it runs a project with a 1 ms cycle task, an I/O task fed with edges,
 //! device tasks, timers, counters and DUTY, through mode changes and device writes, until it
 //! stops on shutdown. The commands include the control socket's (device and Structured Text
-//! variable writes, a STRING among them) and a two-part Modbus word write; the snapshot reads
-//! device words and variables, a STRING's characters among them. An ST program converts to and
-//! from STRING (numbers, TIME, DT) and reads the real-time clock (`SysRtcGetTime`, `RTC`) with
-//! the date functions on it.
+//! variable writes, a STRING and a WSTRING among them) and a two-part Modbus word write; the
+//! snapshot reads device words and variables, a STRING's and a WSTRING's characters among them.
+//! An ST program converts to and from STRING and WSTRING (numbers, TIME, DT, CHAR) and reads the
+//! real-time clock (`SysRtcGetTime`, `RTC`) with the date functions on it.
 //! The main program uses the double-word and real instructions too; and a hand-built program of
 //! the typed stack machine (calls, FB instances, strings, an index error, a division by zero)
 //! runs scans and RUN starts without allocating. The retain writer's copies of the retained
@@ -134,7 +134,8 @@ const VARS: &str = "FUNCTION_BLOCK Edge\nVAR_INPUT up : BOOL R_EDGE; END_VAR\n\
                     PROGRAM Vars\nVAR\n    n : DINT;\n    r : REAL;\n    s : STRING[10] := 'ab';\n\
                     pos AT %D00300 : DINT;\n    t : STRING;\n    x : REAL;\n    m : DINT;\n\
                     e : Edge;\n    ok : BOOL;\n    h : DINT;\n    w : WORD;\n    clock_now : TIME;\n\
-                    now : DT;\n    day : INT;\n    clock : RTC;\nEND_VAR\n\
+                    now : DT;\n    day : INT;\n    clock : RTC;\n    ws : WSTRING[10] := \"äb\";\n\
+                    wt : WSTRING;\n    c : CHAR;\nEND_VAR\n\
                     n := n + 1;\n    t := REAL_TO_STRING(x + 0.5);\n    x := STRING_TO_REAL(t);\n\
                     t := TIME_TO_STRING(DINT_TO_TIME(n));\n    m := STRING_TO_DINT(DINT_TO_STRING(n));\n\
                     e(EN := n MOD 3 <> 0, up := n MOD 2 = 0, ENO => ok);\n\
@@ -142,6 +143,10 @@ const VARS: &str = "FUNCTION_BLOCK Edge\nVAR_INPUT up : BOOL R_EDGE; END_VAR\n\
                     w := w + DINT_TO_WORD(n) * 3;\n    clock_now := TIME();\n\
                     now := SysRtcGetTime(TRUE) + T#1s;\n    clock(IN := n > 3, PDT := now);\n\
                     t := DT_TO_STRING(now);\n    now := STRING_TO_DT(t);\n\
+                    wt := CONCAT(ws, DINT_TO_WSTRING(n MOD 100));\n    t := WSTRING_TO_STRING(wt);\n\
+                    wt := MID(STRING_TO_WSTRING(t), 3, 1);\n    m := m + LEN(wt) + WSTRING_TO_DINT(RIGHT(wt, 1));\n\
+                    IF wt < ws AND FIND(wt, \"b\") > 0 THEN m := m + 1; END_IF;\n\
+                    c := STRING_TO_CHAR(t);\n    wt := WCHAR_TO_WSTRING(WORD_TO_WCHAR(CHAR_TO_WORD(c)));\n\
                     SPLIT_DATE(IN := DT_TO_DATE(now), DAY => day);\n    day := DAY_OF_WEEK(DT_TO_DATE(now));\n\
                     END_PROGRAM\n";
 
@@ -399,6 +404,7 @@ fn the_scan_thread_does_not_allocate() {
     );
     let at = |name: &str| project.variable(name).unwrap().at;
     let (n, r, s_at, pos) = (at("vars.n"), at("vars.r"), at("vars.s"), at("vars.pos"));
+    let ws_at = at("vars.ws");
     let io = SimulatedIo::new(&[Address::parse("P0000").unwrap()], &[0], None);
     let watch = project.output_bits();
     let d0 = Address::parse("D00000").unwrap().as_word().unwrap().0;
@@ -465,6 +471,18 @@ fn the_scan_thread_does_not_allocate() {
                     wide: false,
                 }))
             }
+            212 => {
+                // a WSTRING: "Ωx", code units little-endian
+                let mut chars = [0; MAX_TEXT_WRITE];
+                chars[..4].copy_from_slice(&[0xA9, 0x03, b'x', 0]);
+                Some(ControlCommand::WriteText(TextWrite {
+                    at: ws_at,
+                    cap: 10,
+                    len: 2,
+                    chars,
+                    wide: true,
+                }))
+            }
             _ => None,
         };
         if let Some(c) = control {
@@ -491,7 +509,8 @@ fn the_scan_thread_does_not_allocate() {
             s.want_len = 1;
             s.want_vars[0] = VarRead::Value { at: n, elem: Elem::I32 };
             s.want_vars[1] = VarRead::Text { at: s_at, cap: 10 };
-            s.want_vars_len = 2;
+            s.want_vars[2] = VarRead::WideText { at: ws_at, cap: 10 };
+            s.want_vars_len = 3;
             drop(s);
             shared.snapshot_wanted.store(true, Ordering::Release);
             shared.signal(pending::COMMAND);
@@ -526,7 +545,11 @@ fn the_scan_thread_does_not_allocate() {
     assert_eq!(engine.vm().mem.read(&Address::parse("D00240").unwrap()), 0, "only `len` items");
     assert_eq!(shared.words_applied.load(Ordering::Relaxed), 5, "the last part was applied");
     let tickets: Vec<u64> = answered.iter().map(|c| c.ticket).collect();
-    assert_eq!(tickets, [160, 170, 180, 181, 182, 190, 200, 210, 211], "every command answered");
+    assert_eq!(
+        tickets,
+        [160, 170, 180, 181, 182, 190, 200, 210, 211, 212],
+        "every command answered"
+    );
     assert!(answered.iter().all(|c| c.result.is_ok()), "{answered:?}");
     assert_eq!(f32::from_bits(engine.vm().read_value(r, Elem::F32) as u32), 2.5);
     assert_eq!(engine.vm().mem.read(&Address::parse("D00300").unwrap()), 0x5678);
@@ -535,6 +558,11 @@ fn the_scan_thread_does_not_allocate() {
     assert!(captured.generation > 10, "snapshots were captured");
     assert!(captured.value(n, Elem::I32).is_some_and(|n| n > 0), "the ST program counts");
     assert_eq!(captured.text(s_at, 10), Some(&b"xyz"[..]), "the STRING written, read back");
+    assert_eq!(
+        captured.wide_text(ws_at, 10),
+        Some(&[0xA9, 0x03, b'x', 0][..]),
+        "the WSTRING written, read back"
+    );
     drop(captured);
     let image = mirror.lock();
     assert!(image.generation > 10, "mirrors were copied: {}", image.generation);

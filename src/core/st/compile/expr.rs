@@ -1135,6 +1135,14 @@ impl<'a> Ctx<'a> {
             {
                 format!(" (use {}_TO_{})", x.name(), y.name())
             }
+            // a STRING where a WSTRING is expected, or the other way
+            _ if te.ty.string_cap().is_some()
+                && to.string_cap().is_some()
+                && te.ty.is_wide() != to.is_wide() =>
+            {
+                let kind = |t: &Ty| if t.is_wide() { "WSTRING" } else { "STRING" };
+                format!(" (use {}_TO_{})", kind(&te.ty), kind(to))
+            }
             _ => String::new(),
         };
         let a = match te.ty {
