@@ -296,6 +296,15 @@ mod tests {
     }
 
     #[test]
+    fn a_wstring_is_kept_whole_and_its_length_is_its_type() {
+        let v = variables(vec![symbol("main.w", ValueType::WString { cap: 3 }, 20, true)]);
+        let r = RetainedVariables::new(&v);
+        // 3 code units and the 2-byte NUL: 8 bytes; another length is another type
+        assert_eq!(&*r.ranges, &[(20, 8)]);
+        assert_eq!(r.leaves()[0].ty, "WSTRING[3]");
+    }
+
+    #[test]
     fn references_are_not_saved() {
         let pointer = ValueType::Reference { type_name: "POINTER TO INT".into() };
         let v = variables(vec![

@@ -2,8 +2,9 @@
 //! (ABS SQRT LN LOG EXP EXPT SIN COS TAN ASIN ACOS ATAN, ADD SUB MUL DIV MOD, MIN MAX LIMIT,
 //! SEL MUX, MOVE, TRUNC), comparisons (GT GE EQ LE LT NE), bit strings (SHL SHR ROL ROR, AND
 //! OR XOR NOT), every `<T1>_TO_<T2>` between elementary types and the overloaded `TO_<T>`,
-//! `TRUNC_<T>`, and strings (LEN LEFT RIGHT MID CONCAT FIND INSERT DELETE REPLACE); each with
-//! `EN` and `ENO`. CODESYS's `SIZEOF` and `TIME()` are here too (`super::codesys`); the BCD
+//! `TRUNC_<T>`, and strings (LEN LEFT RIGHT MID CONCAT FIND INSERT DELETE REPLACE, on STRING
+//! and on WSTRING, and the conversions between the two and their characters CHAR and WCHAR);
+//! each with `EN` and `ENO`. CODESYS's `SIZEOF` and `TIME()` are here too (`super::codesys`); the BCD
 //! conversions are FUNCTIONs of the prelude.
 //!
 //! Conversions of TIME follow CODESYS: `TIME_TO_DINT(T#1s)` is 1000 (milliseconds, truncated
