@@ -271,6 +271,8 @@ impl<'a> Ctx<'a> {
         let sel_ok = match sel.ty.prim(&self.types) {
             _ if sel.ty.is_error() => false,
             Some(p) if p.is_integral() || matches!(sel.ty, Ty::Enum(_)) => true,
+            // a character, its labels one-character literals (`'a':`, `'0'..'9':`)
+            Some(Prim::Char | Prim::WChar) => true,
             _ if sel.ty == Ty::IntLit => true,
             _ => {
                 let n = self.ty_name(&sel.ty);
@@ -378,7 +380,8 @@ impl<'a> Ctx<'a> {
             return None;
         }
         let ok = match (&t.ty, sel) {
-            (Ty::IntLit, _) => true,
+            (Ty::IntLit, _) => !matches!(sel, Ty::Prim(Prim::Char | Prim::WChar)),
+            (Ty::Str(_), Ty::Prim(Prim::Char)) | (Ty::WStr(_), Ty::Prim(Prim::WChar)) => true,
             (a, b) if a == b => true,
             (Ty::Enum(_), _) | (_, Ty::Enum(_)) => false,
             (a, b) => {
