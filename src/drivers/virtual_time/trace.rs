@@ -444,6 +444,26 @@ mod tests {
     }
 
     #[test]
+    fn strings_and_characters_are_their_text() {
+        let mut w = writer();
+        // "Grüße" in Windows-1252
+        w.text(1, 1, b"Gr\xfc\xdfe");
+        // "Ω€" in UTF-16, little-endian
+        w.wide_text(2, 1, &[0xA9, 0x03, 0xAC, 0x20]);
+        let text = String::from_utf8(w.finish().unwrap()).unwrap();
+        assert_eq!(
+            text,
+            "{\"t_ns\":1,\"ev\":\"set\",\"dev\":\"D00010\",\"value\":\"Grüße\"}\n\
+             {\"t_ns\":2,\"ev\":\"set\",\"dev\":\"D00010\",\"value\":\"Ω€\"}\n"
+        );
+        let mut line = String::new();
+        push_json_value(&mut line, &ValueType::Char, 0x80, &[]);
+        line.push(' ');
+        push_json_value(&mut line, &ValueType::WChar, 0x3A9, &[]);
+        assert_eq!(line, r#""'$80'" "\"Ω\"""#);
+    }
+
+    #[test]
     fn names_are_escaped() {
         let mut w = TraceWriter::new(
             Vec::new(),
