@@ -452,35 +452,44 @@ fn across(to: &mut [u8], d: usize, from: &[u8], s: usize, n: usize) {
 /// STRING (so that code walking it through a pointer finds its characters where they expect),
 /// at most 255 and cut to the bytes there are; empty outside variable memory and the frame.
 fn chars<'a>(vars: &'a [u8], frame: &'a [u8], p: Pointer) -> &'a [u8] {
+    units(vars, frame, p, 1)
+}
+
+/// The most characters a STRING holds, and code units a WSTRING holds.
+pub(super) const MAX_CHARS: usize = 255;
+
+/// The bytes of the characters of a string of `width`-byte units (1: a STRING, 2: a
+/// WSTRING's UTF-16 code units) at `p`, up to its first NUL unit: at most [`MAX_CHARS`] units,
+/// cut to the whole units there are; empty outside variable memory and the frame.
+pub(super) fn units<'a>(vars: &'a [u8], frame: &'a [u8], p: Pointer, width: usize) -> &'a [u8] {
     let buf = match p.space {
         Space::Var => vars,
         Space::Frame => frame,
         _ => return &[],
     };
-    let start = p.offset as usize;
-    let Some(rest) = buf.get(start..) else { return &[] };
-    let rest = &rest[..rest.len().min(MAX_CHARS)];
-    let len = rest.iter().position(|&b| b == 0).unwrap_or(rest.len());
-    &rest[..len]
+    let Some(rest) = buf.get(p.offset as usize..) else { return &[] };
+    let whole = rest.len().min(width * MAX_CHARS) / width;
+    let len = rest.chunks_exact(width).take(whole).position(|u| u.iter().all(|&b| b == 0));
+    &rest[..width * len.unwrap_or(whole)]
 }
 
-/// The most characters a STRING holds.
-const MAX_CHARS: usize = 255;
-
-fn set_len(vars: &mut [u8], frame: &mut [u8], p: Pointer, len: usize) {
+/// Writes the NUL unit after the first `len` units of the string of `width`-byte units at `p`
+/// (a `STRING[n]` or `WSTRING[n]` has room for it after n of them).
+fn set_len(vars: &mut [u8], frame: &mut [u8], p: Pointer, len: usize, width: usize) {
     let buf = match p.space {
         Space::Var => vars,
         Space::Frame => frame,
         _ => return,
     };
-    // the NUL after the characters (a STRING[n] has room for it after n of them)
-    if let Some(b) = buf.get_mut(p.offset as usize + len) {
-        *b = 0;
+    let at = p.offset as usize + width * len;
+    if let Some(nul) = buf.get_mut(at..at + width) {
+        nul.fill(0);
     }
 }
 
-/// Writes characters `from .. from + n` of the string at `src` into the string at `dst` from
-/// its character `at`, by `memmove` (the two may be the same string).
+/// Writes units `from .. from + n` of the string at `src` into the string at `dst` from its
+/// unit `at`, units of `width` bytes, by `memmove` (the two may be the same string).
+#[allow(clippy::too_many_arguments)]
 fn put(
     vars: &mut [u8],
     frame: &mut [u8],
@@ -489,22 +498,31 @@ fn put(
     src: Pointer,
     from: usize,
     n: usize,
+    width: usize,
 ) {
-    if n == 0 {
+    let d = dst.offset as u64 + (width * at) as u64;
+    let s = src.offset as u64 + (width * from) as u64;
+    if n == 0 || d > u64::from(u32::MAX) || s > u64::from(u32::MAX) {
         return;
     }
-    let d = Pointer { space: dst.space, offset: (dst.offset as usize + at) as u32 };
-    let s = Pointer { space: src.space, offset: (src.offset as usize + from) as u32 };
-    if (dst.offset as usize + at) as u64 <= u64::from(u32::MAX)
-        && (src.offset as usize + from) as u64 <= u64::from(u32::MAX)
-    {
-        copy(vars, frame, d, s, n);
-    }
+    let d = Pointer { space: dst.space, offset: d as u32 };
+    let s = Pointer { space: src.space, offset: s as u32 };
+    copy(vars, frame, d, s, width * n);
 }
 
 /// A count or position operand of a string operation, as a non-negative length.
 fn count(slot: u64) -> usize {
-    (slot as i64).clamp(0, 255) as usize
+    (slot as i64).clamp(0, MAX_CHARS as i64) as usize
+}
+
+/// The values of the units of `bytes` (as [`units`] gives them), in order: a STRING's bytes, a
+/// WSTRING's code units (little-endian).
+fn unit_values(bytes: &[u8], width: usize) -> impl Iterator<Item = u16> + '_ {
+    bytes.chunks_exact(width).map(|u| match *u {
+        [b] => u16::from(b),
+        [lo, hi, ..] => u16::from_le_bytes([lo, hi]),
+        [] => 0,
+    })
 }
 
 /// Executes a string operation on the stack; `cap` is the destination's capacity.
@@ -516,43 +534,77 @@ pub(super) fn string_op(
     op: StrOp,
     cap: u16,
 ) {
-    let cap = usize::from(cap).min(255);
+    let cap = usize::from(cap).min(MAX_CHARS);
     let ptr = |slot: u64| Pointer::from_slot(slot);
+    match op {
+        StrOp::FromValue(scalar) => {
+            let (v, dst) = (stack.pop(), ptr(stack.pop()));
+            let text = scalar_text(scalar, v);
+            write_chars(vars, frame, dst, &text[..text.len().min(cap)]);
+        }
+        StrOp::ToValue(scalar) => {
+            let s = ptr(stack.pop());
+            let text = std::str::from_utf8(chars(vars, frame, s)).unwrap_or("");
+            stack.push(crate::value::scalar_from_text(scalar, text).unwrap_or(0));
+        }
+        // conversions to and from WSTRING: the wide operations' module owns them
+        StrOp::Widen | StrOp::Narrow => super::wide::string_op(stack, vars, frame, op, cap as u16),
+        _ => unit_op(stack, vars, frame, op, cap, 1),
+    }
+}
+
+/// The operations the same on a STRING and a WSTRING, on units of `width` bytes: positions,
+/// counts and lengths in units; `cap` the destination's capacity in units. The conversions
+/// to and from values and between the two kinds do nothing here.
+pub(super) fn unit_op(
+    stack: &mut EvalStack,
+    vars: &mut [u8],
+    frame: &mut [u8],
+    op: StrOp,
+    cap: usize,
+    width: usize,
+) {
+    let ptr = |slot: u64| Pointer::from_slot(slot);
+    let len = |vars: &[u8], frame: &[u8], p| units(vars, frame, p, width).len() / width;
+    let put = |vars: &mut [u8], frame: &mut [u8], dst, at, src, from, n| {
+        put(vars, frame, dst, at, src, from, n, width)
+    };
+    let set_len = |vars: &mut [u8], frame: &mut [u8], p, n| set_len(vars, frame, p, n, width);
     match op {
         StrOp::Move => {
             let (src, dst) = (ptr(stack.pop()), ptr(stack.pop()));
-            let n = chars(vars, frame, src).len().min(cap);
+            let n = len(vars, frame, src).min(cap);
             put(vars, frame, dst, 0, src, 0, n);
             set_len(vars, frame, dst, n);
         }
         StrOp::Len => {
             let s = ptr(stack.pop());
-            stack.push(chars(vars, frame, s).len() as u64);
+            stack.push(len(vars, frame, s) as u64);
         }
         StrOp::Left | StrOp::Right => {
             let n = count(stack.pop());
             let (s, dst) = (ptr(stack.pop()), ptr(stack.pop()));
-            let len = chars(vars, frame, s).len();
-            let k = n.min(len);
-            let from = if op == StrOp::Left { 0 } else { len - k };
+            let l = len(vars, frame, s);
+            let k = n.min(l);
+            let from = if op == StrOp::Left { 0 } else { l - k };
             let k = k.min(cap);
             put(vars, frame, dst, 0, s, from, k);
             set_len(vars, frame, dst, k);
         }
         StrOp::Mid => {
-            let p = (stack.pop() as i64).clamp(1, 256) as usize;
+            let p = (stack.pop() as i64).clamp(1, MAX_CHARS as i64 + 1) as usize;
             let n = count(stack.pop());
             let (s, dst) = (ptr(stack.pop()), ptr(stack.pop()));
-            let len = chars(vars, frame, s).len();
-            let from = (p - 1).min(len);
-            let k = n.min(len - from).min(cap);
+            let l = len(vars, frame, s);
+            let from = (p - 1).min(l);
+            let k = n.min(l - from).min(cap);
             put(vars, frame, dst, 0, s, from, k);
             set_len(vars, frame, dst, k);
         }
         StrOp::Concat => {
             let (b, a, dst) = (ptr(stack.pop()), ptr(stack.pop()), ptr(stack.pop()));
-            let la = chars(vars, frame, a).len().min(cap);
-            let lb = chars(vars, frame, b).len().min(cap - la);
+            let la = len(vars, frame, a).min(cap);
+            let lb = len(vars, frame, b).min(cap - la);
             // `b` first when it is the destination itself: writing `a` first would overwrite it.
             if b == dst {
                 put(vars, frame, dst, la, b, 0, lb);
@@ -565,36 +617,22 @@ pub(super) fn string_op(
         }
         StrOp::Find => {
             let (b, a) = (ptr(stack.pop()), ptr(stack.pop()));
-            let (a, b) = (chars(vars, frame, a), chars(vars, frame, b));
+            let (a, b) = (units(vars, frame, a, width), units(vars, frame, b, width));
+            // whole units only: a WSTRING's match at an odd byte would straddle two characters
             let at = match b.len() {
                 0 => 0,
-                n => a.windows(n).position(|w| w == b).map_or(0, |i| i + 1),
+                n => a.windows(n).step_by(width).position(|w| w == b).map_or(0, |i| i + 1),
             };
             stack.push(at as u64);
         }
         StrOp::Compare => {
             let (b, a) = (ptr(stack.pop()), ptr(stack.pop()));
-            let order = chars(vars, frame, a).cmp(chars(vars, frame, b));
+            // by unit value: a WSTRING's bytes are little-endian, comparing them would misorder
+            let (a, b) = (units(vars, frame, a, width), units(vars, frame, b, width));
+            let order = unit_values(a, width).cmp(unit_values(b, width));
             stack.push(order as i8 as i64 as u64);
         }
-        StrOp::FromValue(scalar) => {
-            let (v, dst) = (stack.pop(), ptr(stack.pop()));
-            let mut text = TextBuf::default();
-            // The longest text of a scalar (a TIME, an LREAL) is far below the buffer's size:
-            // writing cannot fail.
-            let _ = match scalar {
-                Scalar::Bool => text.write_str(if v != 0 { "TRUE" } else { "FALSE" }),
-                _ => crate::value::write_scalar(&mut text, scalar, v),
-            };
-            write_chars(vars, frame, dst, &text.bytes[..text.len.min(cap)]);
-        }
-        StrOp::ToValue(scalar) => {
-            let s = ptr(stack.pop());
-            let text = std::str::from_utf8(chars(vars, frame, s)).unwrap_or("");
-            stack.push(crate::value::scalar_from_text(scalar, text).unwrap_or(0));
-        }
-        // conversions to and from WSTRING: the wide operations' module owns them
-        StrOp::Widen | StrOp::Narrow => super::wide::string_op(stack, vars, frame, op, cap as u16),
+        StrOp::FromValue(_) | StrOp::ToValue(_) | StrOp::Widen | StrOp::Narrow => {}
     }
 }
 
@@ -602,6 +640,25 @@ pub(super) fn string_op(
 struct TextBuf {
     bytes: [u8; 96],
     len: usize,
+}
+
+/// The text of `v`, a value of type `scalar`, as `<T>_TO_STRING` writes it (ASCII), on the stack.
+pub(super) fn scalar_text(scalar: Scalar, v: u64) -> impl std::ops::Deref<Target = [u8]> {
+    let mut text = TextBuf::default();
+    // The longest text of a scalar (a TIME, an LREAL) is far below the buffer's size: writing
+    // cannot fail.
+    let _ = match scalar {
+        Scalar::Bool => text.write_str(if v != 0 { "TRUE" } else { "FALSE" }),
+        _ => crate::value::write_scalar(&mut text, scalar, v),
+    };
+    text
+}
+
+impl std::ops::Deref for TextBuf {
+    type Target = [u8];
+    fn deref(&self) -> &[u8] {
+        &self.bytes[..self.len]
+    }
 }
 
 impl Default for TextBuf {

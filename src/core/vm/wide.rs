@@ -2,67 +2,26 @@
 //!
 //! A `WSTRING[n]` is stored as CODESYS and TwinCAT store it: n UTF-16 code units of 2 bytes
 //! (little-endian, as every value in variable memory) and a 2-byte NUL after the last one,
-//! 2(n+1) bytes. The operations mirror `typed::string_op` unit for unit; positions and counts
-//! are in code units. Like the STRING operations, nothing here allocates and no access panics:
+//! 2(n+1) bytes. The operations a STRING has too are `typed::unit_op`'s, on units of 2 bytes;
+//! this module owns the conversions (to and from values, between STRING and WSTRING) and the
+//! clients' reads and writes. Positions and counts are in code units. Like the STRING operations, nothing here allocates and no access panics:
 //! a pointer outside its space reads an empty string and writes nothing.
 
-use super::typed::{copy, EvalStack};
+use super::typed::{self, EvalStack, MAX_CHARS};
 use crate::lang::ops::StrOp;
-use crate::value::{Pointer, Scalar, Space};
-use std::fmt::Write as _;
+use crate::value::{Pointer, Space};
 
 /// The most code units a WSTRING holds (as a STRING, at most 255 characters).
-const MAX_UNITS: usize = 255;
+const MAX_UNITS: usize = MAX_CHARS;
 
 /// The bytes of the code units of the WSTRING at `p` (2 a unit, without the NUL), borrowed.
 fn units<'a>(vars: &'a [u8], frame: &'a [u8], p: Pointer) -> &'a [u8] {
-    let buf = match p.space {
-        Space::Var => vars,
-        Space::Frame => frame,
-        _ => return &[],
-    };
-    let Some(rest) = buf.get(p.offset as usize..) else { return &[] };
-    let rest = &rest[..rest.len().min(2 * MAX_UNITS) & !1];
-    let len = rest.chunks_exact(2).position(|u| u == [0, 0]).unwrap_or(rest.len() / 2);
-    &rest[..2 * len]
+    typed::units(vars, frame, p, 2)
 }
 
 /// The code units of `bytes` (as [`units`] gives them), in order.
 fn code_units(bytes: &[u8]) -> impl Iterator<Item = u16> + '_ {
     bytes.chunks_exact(2).map(|u| u16::from_le_bytes([u[0], u[1]]))
-}
-
-/// Writes the 2-byte NUL after the first `len` units of the WSTRING at `p`.
-fn set_len(vars: &mut [u8], frame: &mut [u8], p: Pointer, len: usize) {
-    let buf = match p.space {
-        Space::Var => vars,
-        Space::Frame => frame,
-        _ => return,
-    };
-    let at = p.offset as usize + 2 * len;
-    if let Some(nul) = buf.get_mut(at..at + 2) {
-        nul.fill(0);
-    }
-}
-
-/// Writes units `from .. from + n` of the WSTRING at `src` into the one at `dst` from its unit
-/// `at`, by `memmove` (the two may be the same string).
-fn put(
-    vars: &mut [u8],
-    frame: &mut [u8],
-    dst: Pointer,
-    at: usize,
-    src: Pointer,
-    from: usize,
-    n: usize,
-) {
-    let (d, s) = (dst.offset as u64 + 2 * at as u64, src.offset as u64 + 2 * from as u64);
-    if n == 0 || d > u64::from(u32::MAX) || s > u64::from(u32::MAX) {
-        return;
-    }
-    let d = Pointer { space: dst.space, offset: d as u32 };
-    let s = Pointer { space: src.space, offset: s as u32 };
-    copy(vars, frame, d, s, 2 * n);
 }
 
 /// Writes `n` code units, made by `unit(i)`, as the whole WSTRING at `p`.
@@ -87,31 +46,10 @@ fn write_units(
     }
 }
 
-/// A count or position operand, as a non-negative length.
-fn count(slot: u64) -> usize {
-    (slot as i64).clamp(0, MAX_UNITS as i64) as usize
-}
-
 /// The Windows-1252 byte of a code unit; `?` for a unit Windows-1252 has no character for (a
 /// character outside it, half of a surrogate pair), as CODESYS converts.
 fn narrow_unit(unit: u16) -> u8 {
     char::from_u32(u32::from(unit)).and_then(crate::value::encode_char).unwrap_or(b'?')
-}
-
-/// The text of a scalar, on the stack (as `typed`'s, for `*_TO_WSTRING`).
-struct TextBuf {
-    bytes: [u8; 96],
-    len: usize,
-}
-
-impl std::fmt::Write for TextBuf {
-    fn write_str(&mut self, s: &str) -> std::fmt::Result {
-        let end = self.len + s.len();
-        let room = self.bytes.get_mut(self.len..end).ok_or(std::fmt::Error)?;
-        room.copy_from_slice(s.as_bytes());
-        self.len = end;
-        Ok(())
-    }
 }
 
 /// Executes a string operation on WSTRINGs, or a conversion between STRING and WSTRING;
@@ -126,79 +64,13 @@ pub(super) fn string_op(
 ) {
     let cap = usize::from(cap).min(MAX_UNITS);
     let ptr = |slot: u64| Pointer::from_slot(slot);
-    let len = |vars: &[u8], frame: &[u8], p| units(vars, frame, p).len() / 2;
     match op {
-        StrOp::Move => {
-            let (src, dst) = (ptr(stack.pop()), ptr(stack.pop()));
-            let n = len(vars, frame, src).min(cap);
-            put(vars, frame, dst, 0, src, 0, n);
-            set_len(vars, frame, dst, n);
-        }
-        StrOp::Len => {
-            let s = ptr(stack.pop());
-            stack.push(len(vars, frame, s) as u64);
-        }
-        StrOp::Left | StrOp::Right => {
-            let n = count(stack.pop());
-            let (s, dst) = (ptr(stack.pop()), ptr(stack.pop()));
-            let l = len(vars, frame, s);
-            let k = n.min(l);
-            let from = if op == StrOp::Left { 0 } else { l - k };
-            let k = k.min(cap);
-            put(vars, frame, dst, 0, s, from, k);
-            set_len(vars, frame, dst, k);
-        }
-        StrOp::Mid => {
-            let p = (stack.pop() as i64).clamp(1, MAX_UNITS as i64 + 1) as usize;
-            let n = count(stack.pop());
-            let (s, dst) = (ptr(stack.pop()), ptr(stack.pop()));
-            let l = len(vars, frame, s);
-            let from = (p - 1).min(l);
-            let k = n.min(l - from).min(cap);
-            put(vars, frame, dst, 0, s, from, k);
-            set_len(vars, frame, dst, k);
-        }
-        StrOp::Concat => {
-            let (b, a, dst) = (ptr(stack.pop()), ptr(stack.pop()), ptr(stack.pop()));
-            let la = len(vars, frame, a).min(cap);
-            let lb = len(vars, frame, b).min(cap - la);
-            // `b` first when it is the destination itself: writing `a` first would overwrite it.
-            if b == dst {
-                put(vars, frame, dst, la, b, 0, lb);
-                put(vars, frame, dst, 0, a, 0, la);
-            } else {
-                put(vars, frame, dst, 0, a, 0, la);
-                put(vars, frame, dst, la, b, 0, lb);
-            }
-            set_len(vars, frame, dst, la + lb);
-        }
-        StrOp::Find => {
-            let (b, a) = (ptr(stack.pop()), ptr(stack.pop()));
-            let (a, b) = (units(vars, frame, a), units(vars, frame, b));
-            // whole units only: a match at an odd byte offset would straddle two characters
-            let at = match b.len() {
-                0 => 0,
-                n => a.windows(n).step_by(2).position(|w| w == b).map_or(0, |i| i + 1),
-            };
-            stack.push(at as u64);
-        }
-        StrOp::Compare => {
-            let (b, a) = (ptr(stack.pop()), ptr(stack.pop()));
-            // by code unit value: bytes are little-endian, so comparing them would misorder
-            let order = code_units(units(vars, frame, a)).cmp(code_units(units(vars, frame, b)));
-            stack.push(order as i8 as i64 as u64);
-        }
         StrOp::FromValue(scalar) => {
             let (v, dst) = (stack.pop(), ptr(stack.pop()));
-            let mut text = TextBuf { bytes: [0; 96], len: 0 };
-            // The longest text of a scalar is far below the buffer's size: writing cannot fail.
-            let _ = match scalar {
-                Scalar::Bool => text.write_str(if v != 0 { "TRUE" } else { "FALSE" }),
-                _ => crate::value::write_scalar(&mut text, scalar, v),
-            };
+            let text = typed::scalar_text(scalar, v);
             // the text of a number is ASCII: each byte is its code unit
-            let n = text.len.min(cap);
-            write_units(vars, frame, dst, n, |i| u16::from(text.bytes[i]));
+            let n = text.len().min(cap);
+            write_units(vars, frame, dst, n, |i| u16::from(text[i]));
         }
         StrOp::ToValue(scalar) => {
             let s = ptr(stack.pop());
@@ -215,7 +87,7 @@ pub(super) fn string_op(
         StrOp::Widen => {
             let (src, dst) = (ptr(stack.pop()), ptr(stack.pop()));
             let mut bytes = [0u8; MAX_UNITS];
-            let chars = super::typed::string_bytes(vars, frame, src);
+            let chars = typed::string_bytes(vars, frame, src);
             let n = chars.len().min(cap).min(MAX_UNITS);
             // copied first: the source may overlap the destination
             bytes[..n].copy_from_slice(&chars[..n]);
@@ -241,6 +113,7 @@ pub(super) fn string_op(
                 room[n] = 0;
             }
         }
+        _ => typed::unit_op(stack, vars, frame, op, cap, 2),
     }
 }
 
