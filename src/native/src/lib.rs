@@ -14,7 +14,9 @@
 //!   program can be compiled;
 //! - `blocks`: blocks and the interpreter's share from a program's leaders, for both;
 //! - `carry`: which values of variables a Structured Text body's blocks receive in
-//!   registers from the blocks before them;
+//!   registers from the blocks before them, and what a call may change;
+//! - `inline`: which calls of a Structured Text body are compiled inline (small bodies that
+//!   call nothing), decided before its code is generated;
 //! - `codegen`: Structured Text's ops as Cranelift IR;
 //! - `il`: the instruction list's analysis and code generator (its ops have no evaluation
 //!   stack: rungs of bit logic and data, which it compiles, and the rest, which it leaves to
