@@ -234,6 +234,25 @@ pub(crate) struct Writes {
     pub anywhere: bool,
 }
 
+impl Writes {
+    /// The fixed places (with their sizes) the callee may change, its instance's bytes where
+    /// `instance` places that many bytes from its start; `None`: anything may change (a store
+    /// through a pointer it does not follow, or into an instance nobody knows the place of).
+    pub fn changes(
+        &self,
+        instance: impl FnOnce(u32) -> Option<(Place, u32)>,
+    ) -> Option<Vec<(Place, u32)>> {
+        if self.anywhere {
+            return None;
+        }
+        let mut changes = self.fixed.clone();
+        if self.instance > 0 {
+            changes.push(instance(self.instance.min(u64::from(u32::MAX)) as u32)?);
+        }
+        Some(changes)
+    }
+}
+
 /// What the body of `function`, called with its frame `frame` bytes after the caller's
 /// (`fb`: as a FUNCTION_BLOCK, with an instance of its own), may store to: its stores, and its
 /// stores through pointers followed as [`effects`] follows them, block by block.
@@ -273,21 +292,11 @@ pub(crate) fn callee_writes(
 
 /// What an inlined call with the FB instance `instance` (where the block knows it) may change.
 fn inlined_effect(writes: &Writes, instance: Option<Target>) -> Effect {
-    if writes.anywhere {
-        return Effect::Forgets;
-    }
-    let mut changes = writes.fixed.clone();
-    if writes.instance > 0 {
-        match instance {
-            Some(Target::Vars(reach)) => {
-                changes.push(reach.store(writes.instance.min(u64::from(u32::MAX)) as u32))
-            }
-            Some(Target::Frame(offset)) => changes
-                .push((Place::Frame(offset), writes.instance.min(u64::from(u32::MAX)) as u32)),
-            None => return Effect::Forgets,
-        }
-    }
-    Effect::ChangesAll(changes)
+    let changes = writes.changes(|bytes| match instance? {
+        Target::Vars(reach) => Some(reach.store(bytes)),
+        Target::Frame(offset) => Some((Place::Frame(offset), bytes)),
+    });
+    changes.map_or(Effect::Forgets, Effect::ChangesAll)
 }
 
 /// A store of `bytes` bytes through the pointer under the value on top of `stack` (both

@@ -60,8 +60,7 @@ use plcd_core::value::{BinOp, Elem, Pointer, Space, UnOp, REF_TAG};
 use plcd_core::vm::{ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE, ERR_REF_NULL};
 
 use crate::analysis::{is_native, Analysis};
-use crate::carry::Writes;
-use crate::carry::{self, in_bytes, Key, Reach};
+use crate::carry::{self, in_bytes, Key, Reach, Writes};
 use crate::code::{self, Context, RETURN_CONTINUE, RETURN_END, RETURN_ERROR, RETURN_INTERPRET};
 use crate::helpers;
 use crate::inline::{self, Inlined};
@@ -328,8 +327,9 @@ struct CallRecord {
     slots: Vec<Value>,
 }
 
-/// What [`Gen::inline_call`] sets aside of the caller while it generates the callee.
-struct Caller<'a> {
+/// What the code of one activation works with ([`Gen::swap_scope`]): the caller's, set aside
+/// while [`Gen::inline_call`] generates its callee's.
+struct Scope<'a> {
     body: u32,
     activation: Activation,
     leaders: &'a [usize],
@@ -384,7 +384,7 @@ struct At {
     len: u32,
 }
 
-impl Gen<'_, '_> {
+impl<'a> Gen<'a, '_> {
     /// The way in. From the VM (`base` is [`code::FROM_VM`]) the registers are in the
     /// context, and the frame and the FB instance are checked here, once for all the body's
     /// blocks (refused, the interpreter goes on with the registers as they are); from a native
@@ -1271,10 +1271,16 @@ impl Gen<'_, '_> {
             };
             self.inline_call(function, target, callee, record);
             // The caller goes on knowing what it knew, but what the callee may have changed.
-            let writes = std::mem::take(&mut self.plan[planned].writes);
             let instance = if fb { self.info[d as usize - 1].known } else { None };
-            self.forget_writes(&writes, instance);
-            self.plan[planned].writes = writes;
+            let writes = &self.plan[planned].writes;
+            match writes.changes(|bytes| instance.map(|reach| reach.store(bytes))) {
+                Some(changes) => {
+                    for (at, bytes) in changes {
+                        self.forget(at, bytes);
+                    }
+                }
+                None => self.held.clear(),
+            }
         } else {
             self.store_record(&record);
             let left = self.b.use_var(self.regs.left);
@@ -1292,22 +1298,6 @@ impl Gen<'_, '_> {
         }
         self.pass_on(&[at.pc + 1]);
         self.b.ins().jump(next, &[]);
-    }
-
-    /// Forgets the held values an inlined callee that may store `writes` may have changed,
-    /// its FB instance where `instance` says (unknown: anywhere).
-    fn forget_writes(&mut self, writes: &Writes, instance: Option<Reach>) {
-        if writes.anywhere || (writes.instance > 0 && instance.is_none()) {
-            self.held.clear();
-            return;
-        }
-        for &(at, bytes) in &writes.fixed {
-            self.forget(at, bytes);
-        }
-        if let Some(reach) = instance.filter(|_| writes.instance > 0) {
-            let (at, bytes) = reach.store(writes.instance.min(u64::from(u32::MAX)) as u32);
-            self.forget(at, bytes);
-        }
     }
 
     /// Pushes the frame record of a call as the interpreter pushes it, and stores the caller's
@@ -1342,18 +1332,18 @@ impl Gen<'_, '_> {
         let blocks = leaders.iter().map(|_| self.b.create_block()).collect();
         let stack = (0..self.stack.len()).map(|_| self.b.declare_var(I64)).collect();
         let carried = carry::carried(self.program, self.analysis, leaders, &[]);
-        let slots = self.info.len();
-        let caller = Caller {
-            body: std::mem::replace(&mut self.body, target),
-            activation: std::mem::replace(&mut self.activation, callee),
-            leaders: std::mem::replace(&mut self.leaders, leaders),
-            blocks: std::mem::replace(&mut self.blocks, blocks),
-            carried: std::mem::replace(&mut self.carried, carried),
-            carry_vars: std::mem::take(&mut self.carry_vars),
-            stack: std::mem::replace(&mut self.stack, stack),
-            info: std::mem::replace(&mut self.info, vec![SlotInfo::default(); slots]),
-            held: std::mem::take(&mut self.held),
+        let mut scope = Scope {
+            body: target,
+            activation: callee,
+            leaders,
+            blocks,
+            carried,
+            carry_vars: Vec::new(),
+            stack,
+            info: vec![SlotInfo::default(); self.info.len()],
+            held: Vec::new(),
         };
+        self.swap_scope(&mut scope);
         self.inline = Some(Inline { back, record });
         self.b.def_var(self.regs.sb, callee.sp);
         self.pass_on(&[target]);
@@ -1363,17 +1353,22 @@ impl Gen<'_, '_> {
             self.block(index);
         }
         self.inline = None;
-        self.body = caller.body;
-        self.activation = caller.activation;
-        self.leaders = caller.leaders;
-        self.blocks = caller.blocks;
-        self.carried = caller.carried;
-        self.carry_vars = caller.carry_vars;
-        self.stack = caller.stack;
-        self.info = caller.info;
-        self.held = caller.held;
+        self.swap_scope(&mut scope);
         self.b.switch_to_block(back);
         self.b.def_var(self.regs.sb, caller_sb);
+    }
+
+    /// Exchanges the activation's scope the code is generated in with `scope`.
+    fn swap_scope(&mut self, scope: &mut Scope<'a>) {
+        std::mem::swap(&mut self.body, &mut scope.body);
+        std::mem::swap(&mut self.activation, &mut scope.activation);
+        std::mem::swap(&mut self.leaders, &mut scope.leaders);
+        std::mem::swap(&mut self.blocks, &mut scope.blocks);
+        std::mem::swap(&mut self.carried, &mut scope.carried);
+        std::mem::swap(&mut self.carry_vars, &mut scope.carry_vars);
+        std::mem::swap(&mut self.stack, &mut scope.stack);
+        std::mem::swap(&mut self.info, &mut scope.info);
+        std::mem::swap(&mut self.held, &mut scope.held);
     }
 
     /// The function of the body at `target`, imported into this one.
