@@ -1271,9 +1271,8 @@ impl<'a> Gen<'a, '_> {
             };
             self.inline_call(function, target, callee, record);
             // The caller goes on knowing what it knew, but what the callee may have changed.
-            let instance = if fb { self.info[d as usize - 1].known } else { None };
             let writes = &self.plan[planned].writes;
-            match writes.changes(|bytes| instance.map(|reach| reach.store(bytes))) {
+            match writes.changes(|bytes| known.map(|reach| reach.store(bytes))) {
                 Some(changes) => {
                     for (at, bytes) in changes {
                         self.forget(at, bytes);

@@ -38,12 +38,11 @@ pub(crate) fn plan(
     let mut plan = Vec::new();
     for &leader in leaders {
         let range = analysis.block(code, leader);
-        let Some(&(Op::CallFn { target, frame } | Op::CallFb { target, frame })) =
-            range.end.checked_sub(1).and_then(|last| code.get(last))
-        else {
-            continue;
+        let (target, frame, fb) = match range.end.checked_sub(1).and_then(|last| code.get(last)) {
+            Some(&Op::CallFn { target, frame }) => (target, frame, false),
+            Some(&Op::CallFb { target, frame }) => (target, frame, true),
+            _ => continue,
         };
-        let fb = matches!(code[range.end - 1], Op::CallFb { .. });
         if target == body {
             continue;
         }
