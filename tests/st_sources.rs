@@ -51,14 +51,22 @@ fn checked_trace(dir: &Path, duration: &str, watch: &str) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
-fn project() -> TempDir {
-    let dir = TempDir::new("st-sources");
+/// A project directory named `name` whose program `main` is `MAIN.TcPOU`, with the library
+/// folder `lib/`, a scan every millisecond.
+fn twincat_project(name: &str) -> TempDir {
+    let dir = TempDir::new(name);
     let d = dir.path();
     write(
         d,
         "plcd.toml",
         "[plc]\nscan_period_ms = 1\n\n[[program]]\nname = \"main\"\nfile = \"MAIN.TcPOU\"\n\n[st]\nlibrary = [\"lib/\"]\n",
     );
+    dir
+}
+
+fn project() -> TempDir {
+    let dir = twincat_project("st-sources");
+    let d = dir.path();
     write(
         d,
         "MAIN.TcPOU",
@@ -124,13 +132,8 @@ fn an_error_in_a_twincat_file_is_reported_at_its_line_and_column() {
 /// A TwinCAT 3 `.TcPOU` of a function block with a `<Method>` and a `<Property>` (with `<Get>`
 /// and `<Set>`), as TwinCAT writes them after the body, and a `.TcIO` interface.
 fn twincat_oop_project() -> TempDir {
-    let dir = TempDir::new("st-sources-oop");
+    let dir = twincat_project("st-sources-oop");
     let d = dir.path();
-    write(
-        d,
-        "plcd.toml",
-        "[plc]\nscan_period_ms = 1\n\n[[program]]\nname = \"main\"\nfile = \"MAIN.TcPOU\"\n\n[st]\nlibrary = [\"lib/\"]\n",
-    );
     write(
         d,
         "MAIN.TcPOU",
