@@ -104,7 +104,7 @@ enum Effect {
     Changes(Place, u32),
     /// A store through any pointer, a copy to one, a call: every value may change.
     Forgets,
-    /// An inlined call: what its callee may change (`inline::Writes`), as fixed places.
+    /// An inlined call: what its callee may change ([`Writes::changes`]), as fixed places.
     ChangesAll(Vec<(Place, u32)>),
     Nothing,
 }
