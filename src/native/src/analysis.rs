@@ -230,7 +230,23 @@ fn bodies(code: &[Op]) -> Result<(Owners, Bodies), String> {
     Ok((owner, bodies))
 }
 
+/// What each block is for the step budget and the dispatch, by leader index.
+#[derive(Default)]
+pub(crate) struct BlockRoles {
+    /// [`Analysis::budget_checks`].
+    pub checks: Vec<(bool, u64)>,
+    /// [`Analysis::dispatched`].
+    pub dispatched: Vec<bool>,
+}
+
 impl Analysis {
+    /// Both roles of every block.
+    pub fn block_roles(&self, code: &[Op]) -> BlockRoles {
+        let checks = self.budget_checks(code);
+        let dispatched = self.dispatched(code, &checks);
+        BlockRoles { checks, dispatched }
+    }
+
     /// The block that starts at `leaders[index]`: its instructions run to the next leader, or
     /// to the first that ends a block, whichever comes first; an instruction the interpreter
     /// executes is a block of its own.
@@ -299,6 +315,58 @@ impl Analysis {
             need[index] = range.len() as u64 + after;
         }
         checkpoint.into_iter().zip(need).collect()
+    }
+
+    /// Which blocks the dispatch enters (by leader index), given [`Analysis::budget_checks`]:
+    /// those the VM may ask native code to go on at — a body's start, a block that checks the
+    /// budget (native code stops there when the budget is short, and the interpreter hands
+    /// back there), a call's return site, the block after one the interpreter runs — and
+    /// every block that more than one jump, or none, reaches. `codegen` adds the blocks after
+    /// one whose code may hand an instruction to the interpreter (a pointer outside variable
+    /// memory). The VM stopped at any other block (at the end of a budget, a breakpoint)
+    /// interprets on to one of those.
+    ///
+    /// A block reached by one jump only and not from the dispatch has one predecessor: the
+    /// values it uses are those of the block before it, not merges with what a loader reads
+    /// from memory, so Cranelift finds what both compute (`j - 1`, its range check, the
+    /// element it indexes) and computes it once.
+    pub fn dispatched(&self, code: &[Op], checks: &[(bool, u64)]) -> Vec<bool> {
+        let index_of = |pc: u32| self.leaders.binary_search(&pc).ok();
+        let mut jumps_in = vec![0u32; self.leaders.len()];
+        let mut entered = vec![false; self.leaders.len()];
+        for &body in self.bodies.keys() {
+            if let Some(index) = index_of(body) {
+                entered[index] = true;
+            }
+        }
+        for index in 0..self.leaders.len() {
+            let range = self.block(code, index);
+            let Some(last) = code.get(range.end.wrapping_sub(1)) else { continue };
+            let end = range.end as u32;
+            if !is_native(&code[range.start]) {
+                // The interpreter runs this block and hands back after it.
+                if let Some(after) = index_of(end) {
+                    entered[after] = true;
+                }
+                continue;
+            }
+            let targets = match *last {
+                Op::Goto(target) => vec![target],
+                Op::GotoIf { target, .. } => vec![target, end],
+                Op::CallFn { .. } | Op::CallFb { .. } => {
+                    if let Some(after) = index_of(end) {
+                        entered[after] = true;
+                    }
+                    vec![]
+                }
+                Op::Return | Op::End => vec![],
+                _ => vec![end],
+            };
+            for to in targets.into_iter().filter_map(index_of) {
+                jumps_in[to] += 1;
+            }
+        }
+        (0..self.leaders.len()).map(|i| entered[i] || checks[i].0 || jumps_in[i] != 1).collect()
     }
 
     /// The generated function that holds `pc`: its body's (the first for an instruction of

@@ -282,13 +282,13 @@ impl Code {
             })
             .collect::<Result<Vec<FuncId>, Error>>()?;
         let names: Vec<u32> = ids.iter().map(|id| id.as_u32()).collect();
-        let checks = match &shape {
-            Shape::StructuredText(analysis) => analysis.budget_checks(&program.code),
-            Shape::InstructionList(_) => Vec::new(),
+        let roles = match &shape {
+            Shape::StructuredText(analysis) => analysis.block_roles(&program.code),
+            Shape::InstructionList(_) => analysis::BlockRoles::default(),
         };
         let generate = |function: usize, func: &mut Function| match &shape {
             Shape::StructuredText(analysis) => {
-                codegen::generate(program, analysis, &checks, function, &names, &*isa, func)
+                codegen::generate(program, analysis, &roles, function, &names, &*isa, func)
             }
             Shape::InstructionList(analysis) => {
                 il::codegen::generate(program, analysis, function, &names, &*isa, func);

@@ -6,10 +6,10 @@
 //!   instance hold every operand of the body (else the interpreter goes on), and goes
 //!   straight to the body's first block when entered at its start (a call, a scan), else to
 //!   the dispatch;
-//! - the dispatch is a switch on the program counter over the body's entry points (its
-//!   leaders in [`Analysis`]); each goes through a loader, which reloads the evaluation
-//!   stack's slots of that instruction from memory into SSA variables, to the leader's block;
-//!   any other program counter goes back to the interpreter;
+//! - the dispatch is a switch on the program counter over the body's entry points (the
+//!   leaders the VM may go on at, [`Analysis::dispatched`]); each goes through a loader, which
+//!   reloads the evaluation stack's slots of that instruction from memory into SSA variables,
+//!   to the leader's block; any other program counter goes back to the interpreter;
 //! - a block first checks what its instructions need (enough step budget for all of them)
 //!   and hands the whole block to the interpreter if anything is missing, then charges the
 //!   budget and runs the instructions with the evaluation stack in SSA variables, and goes on
@@ -59,7 +59,7 @@ use plcd_core::lang::{Program, EVAL_DEPTH, ST_CALL_DEPTH};
 use plcd_core::value::{BinOp, Elem, Pointer, Space, UnOp, REF_TAG};
 use plcd_core::vm::{ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE, ERR_REF_NULL};
 
-use crate::analysis::{is_native, Analysis};
+use crate::analysis::{is_native, Analysis, BlockRoles};
 use crate::carry::{self, in_bytes, Key, Reach, Writes};
 use crate::code::{self, Context, RETURN_CONTINUE, RETURN_END, RETURN_ERROR, RETURN_INTERPRET};
 use crate::helpers;
@@ -117,7 +117,7 @@ pub(crate) fn own() -> MemFlagsData {
 }
 
 /// Fills `func` with the code of function `function` of `program`: the body that starts at
-/// `analysis.functions[function]`. `checks` is [`Analysis::budget_checks`]; `names` gives each
+/// `analysis.functions[function]`. `roles` is [`Analysis::block_roles`]; `names` gives each
 /// function's name in the module (the index of its `FuncId`), for the calls between them.
 ///
 /// Returns the bytes of variable memory the code reaches without checking at each access (the
@@ -126,7 +126,7 @@ pub(crate) fn own() -> MemFlagsData {
 pub(crate) fn generate(
     program: &Program,
     analysis: &Analysis,
-    checks: &[(bool, u64)],
+    roles: &BlockRoles,
     function: usize,
     names: &[u32],
     isa: &dyn TargetIsa,
@@ -159,6 +159,7 @@ pub(crate) fn generate(
     // The activation's registers, fixed while it runs (set by `Gen::entry`).
     let unset = b.ins().iconst(I64, 0);
     let leaders = &analysis.function_leaders[function][..];
+    let leaders_len = leaders.len();
     let body = analysis.functions[function];
     let plan = inline::plan(program, analysis, body, leaders);
     let calls: Vec<(u32, &Writes)> = plan.iter().map(|call| (call.pc, &call.writes)).collect();
@@ -200,7 +201,10 @@ pub(crate) fn generate(
         held: Vec::new(),
         in_range: Vec::new(),
         vars_need: analysis.vars_end,
-        checks,
+        checks: &roles.checks,
+        dispatched: &roles.dispatched,
+        handed_over: vec![false; leaders_len],
+        bails: 0,
         inline: None,
         plan,
     };
@@ -285,7 +289,7 @@ struct Gen<'a, 'f> {
     /// loader (the way in from the dispatch) of each.
     leaders: &'a [usize],
     blocks: Vec<Block>,
-    loaders: Vec<Block>,
+    loaders: Vec<Option<Block>>,
     dispatch: Option<Block>,
     /// The values of fixed places each of the body's blocks receives in registers, by its
     /// index in `leaders` ([`carry::carried`]), and the variable that passes each on.
@@ -303,6 +307,12 @@ struct Gen<'a, 'f> {
     vars_need: u64,
     /// [`Analysis::budget_checks`].
     checks: &'a [(bool, u64)],
+    /// [`Analysis::dispatched`].
+    dispatched: &'a [bool],
+    /// The body's blocks that may hand an instruction to the interpreter ([`Gen::block`]).
+    handed_over: Vec<bool>,
+    /// The [`Gen::bail_if`]s generated so far.
+    bails: u32,
     /// The call whose callee's blocks are being generated inline, if any ([`Gen::inline_call`]).
     inline: Option<Inline>,
     /// The body's calls compiled inline ([`inline::plan`]).
@@ -469,8 +479,9 @@ impl<'a> Gen<'a, '_> {
             let block = self.b.create_block();
             self.blocks.push(block);
         }
-        for _ in 0..self.leaders.len() {
-            let loader = self.b.create_block();
+        for index in 0..self.leaders.len() {
+            let dispatched = self.dispatched[self.leaders[index]];
+            let loader = dispatched.then(|| self.b.create_block());
             self.loaders.push(loader);
         }
         let dispatch = self.b.create_block();
@@ -514,17 +525,43 @@ impl<'a> Gen<'a, '_> {
     }
 
     fn loader_of(&self, pc: u32) -> Option<Block> {
-        self.leader_index(pc).map(|index| self.loaders[index])
+        self.leader_index(pc).and_then(|index| self.loaders[index])
     }
 
     fn body(&mut self) {
-        // The dispatch: a loader for each leader, the interpreter for any other pc (with the
-        // registers as they are).
+        for index in 0..self.leaders.len() {
+            self.block(index);
+        }
+        // Where the interpreter hands back after an instruction a block handed to it: the
+        // next block, or the one its last instruction jumps to (the interpreter runs to the
+        // next leader).
+        let code = &self.program.code;
+        for index in 0..self.leaders.len() {
+            if !self.handed_over[index] {
+                continue;
+            }
+            let range = self.analysis.block(code, self.leaders[index]);
+            let jump = match code[range.end - 1] {
+                Op::Goto(target) | Op::GotoIf { target, .. } => Some(target),
+                _ => None,
+            };
+            for pc in std::iter::once(range.end as u32).chain(jump) {
+                if let Some(to) = self.leader_index(pc) {
+                    if self.loaders[to].is_none() {
+                        self.loaders[to] = Some(self.b.create_block());
+                    }
+                }
+            }
+        }
+        // The dispatch: a loader for each leader it enters, the interpreter for any other pc
+        // (with the registers as they are).
         let dispatch = self.dispatch.expect("created by entry");
         self.b.switch_to_block(dispatch);
         let mut switch = Switch::new();
         for (index, &leader) in self.leaders.iter().enumerate() {
-            switch.set_entry(u128::from(self.analysis.leaders[leader]), self.loaders[index]);
+            if let Some(loader) = self.loaders[index] {
+                switch.set_entry(u128::from(self.analysis.leaders[leader]), loader);
+            }
         }
         let elsewhere = self.b.create_block();
         switch.emit(&mut self.b, self.activation.pc, elsewhere);
@@ -535,7 +572,8 @@ impl<'a> Gen<'a, '_> {
         for index in 0..self.leaders.len() {
             let leader_index = self.leaders[index];
             let leader = self.analysis.leaders[leader_index];
-            self.b.switch_to_block(self.loaders[index]);
+            let Some(loader) = self.loaders[index] else { continue };
+            self.b.switch_to_block(loader);
             // The budget of a block that does not check it itself; short, the interpreter
             // goes on with the registers as they are.
             let (checks, need) = self.checks[leader_index];
@@ -564,10 +602,6 @@ impl<'a> Gen<'a, '_> {
             self.pass_on(&[leader]);
             let block = self.blocks[index];
             self.b.ins().jump(block, &[]);
-        }
-
-        for index in 0..self.leaders.len() {
-            self.block(index);
         }
     }
 
@@ -692,6 +726,7 @@ impl<'a> Gen<'a, '_> {
     /// A cold branch out of the block when `fail` holds: back to the interpreter before the
     /// instruction at `at` (the stack as it was before it, `depth` slots).
     fn bail_if(&mut self, fail: Value, at: At, depth: u32) {
+        self.bails += 1;
         let cold = self.b.create_block();
         let next = self.b.create_block();
         self.b.set_cold_block(cold);
@@ -722,8 +757,19 @@ impl<'a> Gen<'a, '_> {
         self.b.switch_to_block(next);
     }
 
-    /// The block of the body's leader `body_index`.
+    /// The block of the body's leader `body_index`; notes whether it may hand an instruction to
+    /// the interpreter (other than for the budget), whose dispatch must then enter the blocks
+    /// after it.
     fn block(&mut self, body_index: usize) {
+        let bails = self.bails;
+        let checked = self.block_code(body_index);
+        if self.inline.is_none() {
+            self.handed_over[body_index] = self.bails > bails + u32::from(checked);
+        }
+    }
+
+    /// [`Gen::block`]'s code; true if it checks the budget (one [`Gen::bail_if`]).
+    fn block_code(&mut self, body_index: usize) -> bool {
         let index = self.leaders[body_index];
         let code = &self.program.code;
         let range = self.analysis.block(code, index);
@@ -734,7 +780,7 @@ impl<'a> Gen<'a, '_> {
         if !is_native(&code[range.start]) {
             let left = self.b.use_var(self.regs.left);
             self.exit(start, depth, left, RETURN_INTERPRET);
-            return;
+            return false;
         }
         let at = At { pc: start, index: 0, len };
         // The budget (`Analysis::budget_checks`; the frame and the FB instance were checked on
@@ -775,6 +821,7 @@ impl<'a> Gen<'a, '_> {
             self.pass_on(&[range.end as u32]);
             self.b.ins().jump(next, &[]);
         }
+        checks
     }
 
     /// The variable that passes the value of `key` from block to block: a REAL's or an
