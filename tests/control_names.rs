@@ -58,7 +58,7 @@ VAR
     m : ARRAY [1..2, 1..2] OF DINT;
     axis : Axis;
     t1 : TON;
-    lamp AT %QX4.0 : BOOL;
+    lamp AT %QX4.0 : BOOL; (* byte 4 of the %QX image, from P064: P0660 *)
     inp AT %IX0.1 : BOOL;
     pos AT %D00200 : DINT;
     same : ARRAY [1..20] OF INT;
@@ -393,7 +393,7 @@ fn force_by_name_and_names_of_a_new_project() {
     let forced = plc.json(&["force", "main.inp", "1"]);
     assert_eq!(forced["forces"], json!([{"dev": "P0001", "value": 1}]));
     plc.daemon.wait("the forced input copied to the lamp", || plc.get("main.lamp") == json!(1));
-    assert_eq!(plc.get("P0040"), json!(1));
+    assert_eq!(plc.get("P0660"), json!(1));
     assert_eq!(plc.get("main.inp"), json!(1));
     plc.ok(&["unforce", "MAIN.INP"]);
     let err = plc.refused(&["unforce", "main.inp"]);
@@ -403,7 +403,7 @@ fn force_by_name_and_names_of_a_new_project() {
     plc.ok(&["force", "main.inp=1"]);
     assert_eq!(
         plc.json(&["forces"])["forces"],
-        json!([{"dev": "P0001", "value": 1}, {"dev": "P0040", "value": 0}])
+        json!([{"dev": "P0001", "value": 1}, {"dev": "P0660", "value": 0}])
     );
     plc.ok(&["unforce", "--all"]);
 

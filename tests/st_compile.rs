@@ -553,7 +553,8 @@ END_PROGRAM";
     assert_eq!(r.c.variables.located_init.len(), 1);
     let (at, _) = r.sym("out");
     assert_eq!(at.space, plcd_core::value::Space::Bit);
-    assert_eq!(at.offset, 16 + 2);
+    // %QX1.2: byte 1 of the %QX image (from P064) is the high half of P064, bit 8 + 2
+    assert_eq!(at.offset, 64 * 16 + 8 + 2);
     assert!(r.c.variables.symbols.iter().any(|s| s.name == "main.b[7]"));
 }
 
@@ -604,7 +605,9 @@ fn golden_diagnostics() {
             // A configuration's instances are the project's: loaded as `plcd check` does.
             configured_project(dir, &toml).err().unwrap_or_default()
         } else {
-            try_build_with(&src, pou.as_deref(), Dialect { strict }).err().unwrap_or_default()
+            try_build_with(&src, pou.as_deref(), Dialect { strict, ..Dialect::default() })
+                .err()
+                .unwrap_or_default()
         };
         let count = actual.lines().count();
         if count != 1 {

@@ -94,8 +94,10 @@ fn strip_comment(line: &str) -> &str {
 }
 
 fn project_for(case: &Path, period_ns: u64) -> Result<Project, String> {
+    // a case's own sections (`[iec] preset = "codesys"`), from `<case>.toml` beside it
+    let sections = fs::read_to_string(case.with_extension("toml")).unwrap_or_default();
     let config = format!(
-        "[plc]\nwatchdog_ms = 1000\nscan_period_ms = {}\n[[program]]\nname = \"main\"\nfile = \"{}\"\n",
+        "[plc]\nwatchdog_ms = 1000\nscan_period_ms = {}\n[[program]]\nname = \"main\"\nfile = \"{}\"\n{sections}",
         period_ns / MS,
         case.file_name().unwrap().to_str().unwrap()
     );

@@ -146,7 +146,6 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`%{}` is a {}-bit location, `{}` is `{}`", "iec-size-mismatch"),
     ("`{}` needs {} bits from `{}`: past the end of its area", "bit-array-past-end"),
     ("`{}` needs {} words from `{}`: past the end of its area", "past-area-end"),
-    ("`%{}` is not a valid direct address", "bad-iec-address"),
     ("`{}` is the standard's enable {}: declare it `{} : BOOL` in {}", "enable-declaration"),
     ("`{}` belongs to a `BOOL` VAR_INPUT of a FUNCTION_BLOCK", "edge-not-fb-input"),
     // emit.rs: code generation
@@ -395,6 +394,31 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "this BCD conversion is CODESYS's Util library: IEC 61131-3 writes `BYTE_BCD_TO_USINT`, `USINT_TO_BCD_BYTE` and the like (`[st] strict` is on)",
         "strict-util-bcd",
     ),
+];
+
+/// The messages of the IEC direct addresses' layouts (`src/core/st/iec_image.rs`, `[iec]`), and
+/// their cases under `tests/golden`: `st/…` for a program's address, `config/…` for the layout
+/// the config gives. Every message of that file is here or in [`IEC_PARTS`], and back.
+const IEC_MESSAGES: &[(&str, &str)] = &[
+    ("`%{}` is not a valid direct address", "st/bad-iec-address"),
+    ("`%{}`: the openplc layout has no `%{}{}` (OpenPLC's inputs are %IX bits and %IW words, its outputs %QX and %QW; `[iec] preset = \"codesys\"` has every size)", "st/iec-no-such-size"),
+    ("`%{}` is past the end of the {} image: the {} layout's {} (`{}` to `{}`; `[iec] {}` moves it)", "st/iec-past-the-image"),
+    ("`%{}`: bit {} of a byte: the {} layout numbers %{}X by byte and bit, the bit 0 to 7 (`%{}X{}.0` is the bit after `%{}X{}.7`; `[iec] preset = \"plcd\"` numbers P words and their bits 0 to 15)", "st/iec-bit-of-a-byte"),
+    ("`%{}`: plcd cannot locate a single byte under the {} layout: its device words are 16 bits and a BYTE there is written as the whole word, the byte beside it too; locate an ARRAY [0..7] OF BOOL at the byte's first bit, `%{}X{}.0`, or a WORD at the plcd word that holds the byte (`plcd check` shows the image's words)", "st/iec-byte-address"),
+    ("`{}` is not a word of P, M, K or D (an image starts at a word: `P064`, `D10000`)", "config/iec-start-not-a-word"),
+    ("the {} image needs {} words from `{}`: past the end of {} ({})", "config/iec-image-past-the-area"),
+    ("the {} image (`{}`, {} words) overlaps the {} image (`{}` to `{}`, `iec.{}`)", "config/iec-images-overlap"),
+];
+
+/// The texts of `src/core/st/iec_image.rs` that are parts of messages or `plcd check`'s lines.
+const IEC_PARTS: &[&str] = &[
+    "%IXa.b, %QXa.b → bit b (0..15) of P word a; %IWa, %QWa → P word a",
+    "%MXa.b → bit b of M word a; %MWa, %MDa, %MLa → M word a",
+    "{}X0.0..{}X{}.7, {}B0..{}B{}, {}W, {}D, {}L",
+    "{} → {}..{} (iec.{})",
+    "%{}X bytes are 0 to {}",
+    "%{}{} are 0 to {}",
+    "{} are 0 to {}",
 ];
 
 /// The messages of device addresses (`src/core/device/address.rs`) that the compiler passes on
@@ -679,6 +703,40 @@ fn every_device_message_is_in_the_address_source() {
 }
 
 #[test]
+fn every_message_of_the_iec_layouts_is_listed_and_shown() {
+    let source = fs::read_to_string("src/core/st/iec_image.rs").unwrap();
+    let found: Vec<String> = literals(&source)
+        .into_iter()
+        .map(|(_, l)| template(&l))
+        .filter(|t| t.contains(' '))
+        .collect();
+    let listed = |t: &str| IEC_MESSAGES.iter().any(|(m, _)| *m == t) || IEC_PARTS.contains(&t);
+    let unlisted: Vec<&String> = found.iter().filter(|t| !listed(t)).collect();
+    assert!(unlisted.is_empty(), "messages of iec_image.rs with no row: {unlisted:#?}");
+    let stale: Vec<&str> = IEC_MESSAGES
+        .iter()
+        .map(|(m, _)| *m)
+        .chain(IEC_PARTS.iter().copied())
+        .filter(|t| !found.iter().any(|f| f == t))
+        .collect();
+    assert!(stale.is_empty(), "listed but not in iec_image.rs: {stale:#?}");
+    let mut failures = Vec::new();
+    for (template, case) in IEC_MESSAGES {
+        let path = Path::new("tests/golden").join(case).join("expected.stderr");
+        let text = fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        // a config's message starts with the key it is about: `iec.input: …`
+        let shown = text.lines().filter_map(message).any(|m| {
+            matches_template(template, m)
+                || m.split_once(": ").is_some_and(|(_, rest)| matches_template(template, rest))
+        });
+        if !shown {
+            failures.push(format!("{case}: no message of `{template}`"));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
 fn every_case_is_the_case_of_a_row() {
     let mut orphans = Vec::new();
     for entry in fs::read_dir(CASES).unwrap() {
@@ -687,7 +745,14 @@ fn every_case_is_the_case_of_a_row() {
             continue;
         }
         let case = path.file_name().unwrap().to_string_lossy().into_owned();
-        if !MESSAGES.iter().chain(DEVICE_MESSAGES).chain(STRICT_MESSAGES).any(|(_, c)| *c == case) {
+        let iec = IEC_MESSAGES.iter().any(|(_, c)| c.strip_prefix("st/") == Some(case.as_str()));
+        if !iec
+            && !MESSAGES
+                .iter()
+                .chain(DEVICE_MESSAGES)
+                .chain(STRICT_MESSAGES)
+                .any(|(_, c)| *c == case)
+        {
             orphans.push(case);
         }
     }

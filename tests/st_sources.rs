@@ -291,7 +291,8 @@ fn a_single_task_runs_on_each_rising_edge_and_instances_copy_their_arguments() {
             "  configuration Config0: PROGRAM presses : counter → program \"presses\" in task \"trig\"",
         ]
     );
-    let watch = "instance0.total,instance0.speed,presses.n,P0002,P0005";
+    // lamp (%QX0.2) and many (%QX0.5): bits 2 and 5 of the %QX image's first byte, P064
+    let watch = "instance0.total,instance0.speed,presses.n,P0642,P0645";
     let out = plcd(
         dir.path(),
         &[
@@ -314,10 +315,10 @@ fn a_single_task_runs_on_each_rising_edge_and_instances_copy_their_arguments() {
     assert_eq!(last(&trace, "instance0.speed").as_deref(), Some("10"), "{trace}");
     assert_eq!(last(&trace, "instance0.total").as_deref(), Some("50"));
     // done from the third scan on, when the body RETURNs: copied to lamp all the same
-    assert_eq!(last(&trace, "P0002").as_deref(), Some("1"));
+    assert_eq!(last(&trace, "P0642").as_deref(), Some("1"));
     // the edges are read at the scans of 40 and 80 ms: two runs of 5 (limit)
     assert_eq!(last(&trace, "presses.n").as_deref(), Some("10"));
-    assert_eq!(last(&trace, "P0005").as_deref(), Some("1"));
+    assert_eq!(last(&trace, "P0645").as_deref(), Some("1"));
     // the copies are ordinary code: the interpreter gives the native code's trace
     let out = plcd(
         dir.path(),
@@ -442,12 +443,12 @@ fn var_config_binds_partly_specified_variables_to_devices() {
     assert_eq!(
         stdout.lines().skip(3).collect::<Vec<_>>(),
         [
-            "  configuration Config0: VAR_CONFIG Res0.inst.lamp AT %QX0.3 → P0003",
-            "  configuration Config0: VAR_CONFIG inst.level AT %MW5 → M005",
+            "  configuration Config0: VAR_CONFIG Res0.inst.lamp AT %QX0.3 → P0643",
+            "  configuration Config0: VAR_CONFIG inst.level AT %MW5 → D14005",
             "  configuration Config0: VAR_CONFIG inst.seen AT %IX0.1 → P0001",
         ]
     );
-    let watch = "inst.n,inst.copies,inst.level,P0003,M005,inst.acc,inst.counter.total,inst.span";
+    let watch = "inst.n,inst.copies,inst.level,P0643,D14005,inst.acc,inst.counter.total,inst.span";
     let out = plcd(
         dir.path(),
         &[
@@ -466,11 +467,12 @@ fn var_config_binds_partly_specified_variables_to_devices() {
     );
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
     let trace = String::from_utf8_lossy(&out.stdout);
-    // three scans, at 0, 10 and 20 ms: n = 3, the lamp on (3 is odd) at P0003
+    // three scans, at 0, 10 and 20 ms: n = 3, the lamp on (3 is odd) at P0643 (%QX0.3)
     assert_eq!(last(&trace, "inst.n").as_deref(), Some("3"), "{trace}");
-    assert_eq!(last(&trace, "P0003").as_deref(), Some("1"));
-    // level at M005 from VAR_CONFIG's 100 (not the declaration's 7), one more a scan
-    assert_eq!(last(&trace, "M005").as_deref(), Some("103"));
+    assert_eq!(last(&trace, "P0643").as_deref(), Some("1"));
+    // level at D14005 (%MW5, OpenPLC's %MW area from D14000) from VAR_CONFIG's 100 (not the
+    // declaration's 7), one more a scan
+    assert_eq!(last(&trace, "D14005").as_deref(), Some("103"));
     assert_eq!(last(&trace, "inst.level").as_deref(), Some("103"));
     // seen (P0001) read at the scan of 20 ms only
     assert_eq!(last(&trace, "inst.copies").as_deref(), Some("1"));
@@ -505,7 +507,7 @@ END_CONFIGURATION
     assert_eq!(
         stdout.lines().skip(1).take(2).collect::<Vec<_>>(),
         [
-            "  configuration c: TASK iec → device task 16, on each rising edge of M0012 (%MX1.2), priority 2",
+            "  configuration c: TASK iec → device task 16, on each rising edge of M000A (%MX1.2), priority 2",
             // PRIORITY past 5 is plcd's lowest, 7
             "  configuration c: TASK plcd → device task 17, on each rising edge of D00010.3 (%D00010.3), priority 7",
         ]
@@ -547,7 +549,8 @@ END_CONFIGURATION
     write(dir.path(), "plc.st", text);
     let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let watch = "a.n,b.n,free.n,P0001,P0002,free.lamp,blink.runs";
+    // a.lamp at %QX0.1 (P0641), b.lamp at %QX0.2 (P0642)
+    let watch = "a.n,b.n,free.n,P0641,P0642,free.lamp,blink.runs";
     let out = plcd(
         dir.path(),
         &["sim", "--config", "plcd.toml", "--for", "25ms", "--watch", watch, "--trace", "-"],
@@ -558,10 +561,10 @@ END_CONFIGURATION
     assert_eq!(last(&trace, "a.n").as_deref(), Some("3"), "{trace}");
     assert_eq!(last(&trace, "b.n").as_deref(), Some("6"));
     assert_eq!(last(&trace, "free.n").as_deref(), Some("9"));
-    assert_eq!(last(&trace, "P0001"), None, "a's lamp never on: P0001 never set");
+    assert_eq!(last(&trace, "P0641"), None, "a's lamp never on: P0641 never set");
     // b's lamp TRUE at RUN start (VAR_CONFIG's), FALSE at the first scan (n = 2), then TRUE
-    assert_eq!(last(&trace, "P0002").as_deref(), Some("1"));
-    assert!(trace.contains("\"dev\":\"P0002\",\"value\":0"), "{trace}");
+    assert_eq!(last(&trace, "P0642").as_deref(), Some("1"));
+    assert!(trace.contains("\"dev\":\"P0642\",\"value\":0"), "{trace}");
     assert_eq!(last(&trace, "free.lamp").as_deref(), Some("1"));
     // VAR_STAT is the PROGRAM's one copy, whatever copy of its code an instance runs
     assert_eq!(last(&trace, "blink.runs").as_deref(), Some("9"));

@@ -377,6 +377,7 @@ fn expand_configurations(
             &config.tasks,
             &others,
             config.plc.scan_period_ms,
+            &config.iec.layout,
         ) {
             Ok(mapped) => {
                 notes.extend(mapped.notes);
@@ -533,7 +534,7 @@ where
         .collect();
     let configured: Vec<Option<&st::ast::ProgramDecl>> =
         entries.iter().map(|entry| configured_declaration(entry, &files)).collect();
-    let dialect = st::dialect::Dialect { strict: config.st.strict };
+    let dialect = st::dialect::Dialect { strict: config.st.strict, iec: config.iec.layout };
     match st::compile_configured(&files, &instances, &configured, dialect) {
         Ok(compiled) => Some(compiled),
         Err(errors) => {

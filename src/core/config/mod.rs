@@ -6,7 +6,7 @@
 //! program is, and loading it is the project loader's job.
 //!
 //! The config is split by section, one file each (`plc`, `sim`, `timers`, `program`, `task`,
-//! `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `remote`): its typed struct with the
+//! `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `remote`, `st`, `iec`): its typed struct with the
 //! key's defaults and ranges, its raw form as serde reads it, and its checks. How the wiring
 //! maps onto GPIO line requests, the kernel's limits included, is [`wiring`]. What every
 //! section shares is `common`, and `serial` the keys of a serial line that `[modbus.rtu]` and
@@ -31,6 +31,7 @@
 mod change;
 mod common;
 mod control;
+mod iec;
 mod io;
 mod modbus;
 mod plc;
@@ -73,6 +74,7 @@ use crate::device::Address;
 
 pub use change::ProjectChange;
 pub use control::ControlConfig;
+pub use iec::IecConfig;
 pub use io::{Backend, Bias, IoConfig, IoLine, LineRef, LINE_NAME_MAX};
 pub use modbus::{ModbusConfig, ModbusRange, ModbusRtuConfig, ModbusTable};
 pub use plc::{OnFault, PlcConfig};
@@ -122,6 +124,8 @@ pub struct Config {
     pub modbus: ModbusConfig,
     /// `[st]`: the Structured Text declaration files.
     pub st: StConfig,
+    /// `[iec]`: what the direct addresses of Structured Text (`%IX0.0`) name.
+    pub iec: IecConfig,
     /// `[[remote]]`: Modbus devices polled as remote I/O, in file order. Names are unique.
     pub remotes: Vec<RemoteDevice>,
 }
@@ -207,6 +211,7 @@ struct RawDoc {
     /// `[[remote]]` and the tables of each.
     pub remotes: remote::RawRemotes,
     pub st: Option<st::RawSt>,
+    pub iec: Option<iec::RawIec>,
     pub failed: Failed,
 }
 
@@ -224,7 +229,7 @@ struct Failed {
 }
 
 const TOP_LEVEL: &str = "`plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`, `control`, \
-                         `switch`, `retain`, `modbus`, `st`, `remote`";
+                         `switch`, `retain`, `modbus`, `st`, `iec`, `remote`";
 
 /// Pass 1. `None` if the TOML itself is malformed (the syntax errors are in `sink`).
 fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
@@ -260,6 +265,7 @@ fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
             "retain" => &mut sections.retain,
             "modbus" => &mut sections.modbus,
             "st" => &mut sections.st,
+            "iec" => &mut sections.iec,
             "remote" => &mut sections.remote,
             other => {
                 let message = format!("unknown key `{other}`, expected one of {TOP_LEVEL}");
@@ -300,6 +306,7 @@ fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
     doc.retain = section(sink, sections.retain, "retain", &mut doc.failed.keys);
     doc.modbus = modbus::read(sink, sections.modbus);
     doc.st = section(sink, sections.st, "st", &mut doc.failed.keys);
+    doc.iec = section(sink, sections.iec, "iec", &mut doc.failed.keys);
     doc.remotes = remote::read(sink, sections.remote);
     Some(doc)
 }
@@ -319,6 +326,7 @@ struct Sections<'i> {
     retain: Option<Spanned<DeValue<'i>>>,
     modbus: Option<Spanned<DeValue<'i>>>,
     st: Option<Spanned<DeValue<'i>>>,
+    iec: Option<Spanned<DeValue<'i>>>,
     remote: Option<Spanned<DeValue<'i>>>,
 }
 
@@ -368,6 +376,7 @@ fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
     let programs = program::validate(sink, doc.programs, &task_names, &doc.failed, &path);
     let modbus = modbus::validate(sink, doc.modbus);
     let st = st::validate(sink, doc.st.unwrap_or_default(), &path);
+    let iec = doc.iec.and_then(|raw| iec::validate(sink, raw));
     if let Some((io, inputs, outputs)) =
         io.as_ref().filter(|(io, ..)| io.backend == Backend::Gpiocdev)
     {
@@ -390,6 +399,7 @@ fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
         retain: retain?,
         modbus: modbus?,
         st: st?,
+        iec: iec?,
         remotes: remotes?,
     })
 }

@@ -219,6 +219,7 @@ fn the_contract_example_parses_to_its_defaults() {
         retain: RetainConfig::default(),
         modbus: crate::config::ModbusConfig::default(),
         st: StConfig::default(),
+        iec: IecConfig::default(),
         remotes: Vec::new(),
     };
     assert_eq!(config, expected);

@@ -19,6 +19,7 @@ use crate::config::{DeviceCondition, Language, ProgramConfig, TaskConfig, TaskKi
 use crate::device::Address;
 use crate::diag::Diagnostic;
 use crate::st::ast::{self, ConfigValue, ExprKind, Literal};
+use crate::st::iec_image::IecLayout;
 
 /// What a configuration adds to the project.
 #[derive(Debug, Clone, PartialEq)]
@@ -49,8 +50,8 @@ const SINGLE_FORMS: &str = "SINGLE names a BOOL global located at a device bit \
                             (`start AT %IX0.1 : BOOL;`) or a device bit (`SINGLE := %IX0.1`)";
 
 /// The device bit `%text` names (an IEC direct address or a plcd device).
-fn device_bit(text: &str) -> Option<Address> {
-    let text = match crate::st::compile::iec_address(text) {
+fn device_bit(text: &str, iec: &IecLayout) -> Option<Address> {
+    let text = match crate::st::compile::iec_address(text, iec) {
         Ok(Some((device, Some(1)))) => device,
         Ok(None) => text.to_string(),
         _ => return None,
@@ -64,10 +65,11 @@ fn single_bit(
     value: &ConfigValue,
     conf: &ast::Configuration,
     file: &ast::File,
+    iec: &IecLayout,
 ) -> Result<(Address, String), String> {
     let name = match value {
         ConfigValue::Location(loc) => {
-            return match device_bit(&loc.name) {
+            return match device_bit(&loc.name, iec) {
                 Some(bit) => Ok((bit, format!("%{}", loc.name))),
                 None => Err(format!("`%{}` is not a device bit: {SINGLE_FORMS}", loc.name)),
             };
@@ -92,14 +94,15 @@ fn single_bit(
         ast::TypeRef::Named(ty) if ty.is("BOOL") => {}
         _ => return Err(format!("`{}` is not a BOOL: {SINGLE_FORMS}", name.name)),
     }
-    match decl.location.as_ref().and_then(|loc| device_bit(&loc.name)) {
+    match decl.location.as_ref().and_then(|loc| device_bit(&loc.name, iec)) {
         Some(bit) => Ok((bit, name.name.clone())),
         None => Err(format!("`{}` is not located at a device bit: {SINGLE_FORMS}", name.name)),
     }
 }
 
 /// Maps `conf`, declared in the file of `entry`, next to the config's own `tasks` and
-/// `programs` (the other entries); `scan_period_ms` is `[plc]`'s. Every error at once, located
+/// `programs` (the other entries); `scan_period_ms` is `[plc]`'s, `iec` the layout of the
+/// direct addresses (`[iec]`). Every error at once, located
 /// in the file.
 pub fn map(
     conf: &ast::Configuration,
@@ -108,6 +111,7 @@ pub fn map(
     tasks: &[TaskConfig],
     programs: &[&ProgramConfig],
     scan_period_ms: u32,
+    iec: &IecLayout,
 ) -> Result<Mapped, Vec<Diagnostic>> {
     let path = entry.resolved.as_path();
     let mut errors = Vec::new();
@@ -160,7 +164,7 @@ pub fn map(
                         "PRIORITY must be a number, 0 the highest".to_string(),
                     ),
                 },
-                "SINGLE" => match single_bit(value, conf, file) {
+                "SINGLE" => match single_bit(value, conf, file, iec) {
                     Ok(single) => task.single = Some(single),
                     Err(msg) => error(&mut errors, value.span(), msg),
                 },
@@ -327,7 +331,7 @@ pub fn map(
     // VAR_CONFIG's devices (the compile checks the entries and binds the variables)
     for var in &conf.var_config {
         let Some(location) = &var.location else { continue };
-        let device = match crate::st::compile::iec_address(&location.name) {
+        let device = match crate::st::compile::iec_address(&location.name, iec) {
             Ok(Some((device, _))) => Address::parse(&device).ok(),
             _ => None,
         };

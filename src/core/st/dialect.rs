@@ -8,11 +8,14 @@
 
 use crate::st::ast::Span;
 
-/// How the project's Structured Text is read: `[st] strict`.
+/// How the project's Structured Text is read: `[st] strict`, and `[iec]`'s layout of the
+/// direct addresses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Dialect {
     /// Refuse every [`Habit`] (IEC 61131-3 only). Default `false`: accept them.
     pub strict: bool,
+    /// What `%IX0.0`, `%QW3`, `%MD10` name (`[iec]`); default OpenPLC's numbering.
+    pub iec: crate::st::iec_image::IecLayout,
 }
 
 /// One non-standard form, as written.

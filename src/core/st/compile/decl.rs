@@ -8,6 +8,7 @@ use std::rc::Rc;
 use crate::device::{Address, BitRef, Writer};
 use crate::lang::Place;
 use crate::st::ast::{self, ArrayInit, Init, Item, PouKind, Span, TypeDef, TypeRef, VarKind};
+use crate::st::iec_image::IecLayout;
 
 use super::ctx::{
     action_key, suggest, Ctx, Cv, PouInfo, Scope, State, Storage, TypeEntry, VarInfo,
@@ -1275,7 +1276,7 @@ impl<'a> Ctx<'a> {
         name: &str,
     ) -> Option<(Storage, Address)> {
         let text = loc.name.as_str();
-        let (addr_text, size_bits) = match iec_address(text) {
+        let (addr_text, size_bits) = match iec_address(text, &self.dialect.iec) {
             Ok(Some(x)) => x,
             Ok(None) => (text.to_string(), None),
             Err(msg) => {
@@ -1553,67 +1554,34 @@ fn is_partial(loc: &ast::Ident) -> bool {
     loc.name.ends_with('*')
 }
 
-/// An IEC direct address (`IX0.3`, `QW5`, `MD10`) as a plcd device address and its size in
-/// bits; `Ok(None)` for a plcd device address.
-///
-/// | IEC            | plcd                                   |
-/// |----------------|----------------------------------------|
-/// | `%IXa.b` `%QXa.b` | bit `b` (0..15) of P word `a`: `Paaab` |
-/// | `%IWa` `%QWa` (`%IDa`, `%ILa`, …) | P word `a` (and the words after it) |
-/// | `%MXa.b`       | bit `b` of M word `a`: `Maaab`         |
-/// | `%MWa` `%MDa` `%MLa` `%MBa` | M word `a` (a `D` takes `a, a+1`, an `L` four words) |
-pub fn iec_address(text: &str) -> Result<Option<(String, Option<u32>)>, String> {
-    let upper = text.to_ascii_uppercase();
-    let mut chars = upper.chars();
-    let area = match chars.next() {
-        Some('I' | 'Q') => 'P',
-        Some('M') => 'M',
-        _ => return Ok(None),
-    };
-    let rest = chars.as_str();
-    let Some(size) = rest.chars().next() else { return Ok(None) };
-    let bits = match size {
-        'X' => 1,
-        'B' => 8,
-        'W' => 16,
-        'D' => 32,
-        'L' => 64,
-        _ => return Ok(None),
-    };
-    let digits = &rest[1..];
-    if digits.is_empty() || !digits.starts_with(|c: char| c.is_ascii_digit()) {
-        return Ok(None);
-    }
-    let bad = || format!("`%{text}` is not a valid direct address");
-    if bits == 1 {
-        let (w, b) = digits.split_once('.').ok_or_else(bad)?;
-        let w: u32 = w.parse().map_err(|_| bad())?;
-        let b: u32 = b.parse().map_err(|_| bad())?;
-        if b > 15 || w > 999 {
-            return Err(bad());
-        }
-        Ok(Some((format!("{area}{w:03}{b:X}"), Some(1))))
-    } else {
-        let w: u32 = digits.parse().map_err(|_| bad())?;
-        if w > 999 {
-            return Err(bad());
-        }
-        Ok(Some((format!("{area}{w:03}"), Some(bits))))
-    }
+/// An IEC direct address (`IX0.3`, `QW5`, `MD10`) as the plcd device address `layout` maps
+/// it onto (`[iec]`, [`IecLayout::resolve`]) and its size in bits; `Ok(None)` for a plcd
+/// device address (`P0040`, `D00100`), which means itself whatever the layout.
+pub fn iec_address(
+    text: &str,
+    layout: &IecLayout,
+) -> Result<Option<(String, Option<u32>)>, String> {
+    Ok(layout.resolve(text)?.map(|d| (d.address.to_string(), Some(d.bits))))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::st::iec_image::Preset;
 
     #[test]
-    fn iec_addresses_map_to_p_and_m() {
-        assert_eq!(iec_address("IX0.3").unwrap(), Some(("P0003".into(), Some(1))));
-        assert_eq!(iec_address("QX12.15").unwrap(), Some(("P012F".into(), Some(1))));
-        assert_eq!(iec_address("IW5").unwrap(), Some(("P005".into(), Some(16))));
-        assert_eq!(iec_address("MD10").unwrap(), Some(("M010".into(), Some(32))));
-        assert_eq!(iec_address("D00100").unwrap(), None);
-        assert_eq!(iec_address("M0010").unwrap(), None);
-        assert!(iec_address("IX0.16").is_err());
+    fn iec_addresses_follow_the_layout() {
+        let plcd = IecLayout::of(Preset::Plcd);
+        assert_eq!(iec_address("IX0.3", &plcd).unwrap(), Some(("P0003".into(), Some(1))));
+        assert_eq!(iec_address("QX12.15", &plcd).unwrap(), Some(("P012F".into(), Some(1))));
+        assert_eq!(iec_address("IW5", &plcd).unwrap(), Some(("P005".into(), Some(16))));
+        assert_eq!(iec_address("MD10", &plcd).unwrap(), Some(("M010".into(), Some(32))));
+        assert!(iec_address("IX0.16", &plcd).is_err());
+        let openplc = IecLayout::of(Preset::OpenPlc);
+        assert_eq!(iec_address("QX0.0", &openplc).unwrap(), Some(("P0640".into(), Some(1))));
+        for layout in [plcd, openplc] {
+            assert_eq!(iec_address("D00100", &layout).unwrap(), None);
+            assert_eq!(iec_address("M0010", &layout).unwrap(), None);
+        }
     }
 }

@@ -118,7 +118,7 @@ impl Ctx<'_> {
     /// word device a WORD).
     fn direct_variable(&mut self, location: &ast::Ident, file: usize) -> TExpr {
         let span = location.span;
-        let (text, bits) = match iec_address(&location.name) {
+        let (text, bits) = match iec_address(&location.name, &self.dialect.iec) {
             Ok(Some(found)) => found,
             Ok(None) => (location.name.clone(), None),
             Err(msg) => {

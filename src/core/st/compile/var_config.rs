@@ -19,6 +19,7 @@
 //! A path may start with the resource's name, as IEC writes it (`Res0.i.x`).
 
 use crate::st::ast::{self, ConfigVar, Ident, VarKind};
+use crate::st::iec_image::IecLayout;
 
 use super::ctx::{suggest, Ctx, Scope, Storage};
 use super::decl::iec_address;
@@ -26,9 +27,10 @@ use super::types::Ty;
 
 /// Whether `full` is an IEC direct address (`QX0.1`) with the area letter and the size letter
 /// the partly specified address `partial` fixes (`Q*`: `Q` and any size; `QX*`: `Q` and `X`).
-fn fits(partial: &str, full: &str) -> bool {
+fn fits(partial: &str, full: &str, layout: &IecLayout) -> bool {
     let partial = partial.trim_end_matches('*').to_ascii_uppercase();
-    full.to_ascii_uppercase().starts_with(&partial) && matches!(iec_address(full), Ok(Some(_)))
+    full.to_ascii_uppercase().starts_with(&partial)
+        && matches!(iec_address(full, layout), Ok(Some(_)))
 }
 
 /// Whether a variable of this kind is the instance's own (not a VAR_TEMP, VAR_IN_OUT,
@@ -205,7 +207,7 @@ impl Ctx<'_> {
             self.error(file, variable.span, msg);
             return None;
         };
-        if !fits(&partial.name, &location.name) {
+        if !fits(&partial.name, &location.name, &self.dialect.iec) {
             let msg = format!(
                 "`%{}` does not fit `{}`, declared at `%{}`",
                 location.name, variable.name, partial.name

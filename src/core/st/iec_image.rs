@@ -1,0 +1,559 @@
+//! IEC 61131-3 direct addresses (`%IX0.0`, `%QW3`, `%MD10`) and the plcd devices they name:
+//! the layout `[iec]` chooses (docs/ST.md, "Direct addresses"; docs/CONFIG.md, `[iec]`).
+//!
+//! IEC 61131-3 leaves the meaning of `%I`, `%Q` and `%M` to the implementation, and the
+//! editors a program comes from disagree:
+//!
+//! - [`Preset::OpenPlc`] (the default, OpenPLC Editor and Beremiz programs): `%IX`, `%QX` and
+//!   `%MX` are bits numbered by byte and bit (`%IX1.0` is the bit after `%IX0.7`); `%IW`,
+//!   `%QW`, `%MW`, `%MD` and `%ML` are five more areas of their own, overlapping nothing;
+//! - [`Preset::Codesys`]: one byte image for each of `%I`, `%Q` and `%M`, every size a view of
+//!   the same bytes (`%IW0` is bytes 0 and 1, `%IX1.0` bit 0 of byte 1, so bit 8 of `%IW0`);
+//! - [`Preset::Plcd`]: plcd's own numbering before images existed, `%IXa.b` and `%QXa.b` both
+//!   bit `b` (0..15) of P word `a`, `%MWa` M word `a`.
+//!
+//! Each image starts at a device word the config may move. A byte image is laid out two bytes
+//! to a plcd word, the even byte in the low half (CODESYS's `%IW0` has `%IB0` in its low byte on
+//! x86 and ARM): byte `b` of an image that starts at word `s` is word `s + b/2`, bits
+//! `8 * (b mod 2)` to `8 * (b mod 2) + 7`.
+//!
+//! This module owns the layouts, their defaults and their checks, and the resolution of an
+//! address text. Who reads which image is the compiler's (`compile::decl::iec_address`); the
+//! config's keys are `config::iec`.
+
+use crate::device::{Address, Area};
+
+/// The editor whose numbering `%I`, `%Q` and `%M` follow: `[iec] preset`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Preset {
+    /// OpenPLC v3's numbering (OpenPLC Editor, Beremiz).
+    #[default]
+    OpenPlc,
+    /// CODESYS's (and TwinCAT's) byte images.
+    Codesys,
+    /// plcd's own: P and M words and bits 0..15.
+    Plcd,
+}
+
+impl Preset {
+    /// Every preset, in the order the docs list them.
+    pub const ALL: [Preset; 3] = [Preset::OpenPlc, Preset::Codesys, Preset::Plcd];
+
+    /// The name `[iec] preset` gives it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::OpenPlc => "openplc",
+            Preset::Codesys => "codesys",
+            Preset::Plcd => "plcd",
+        }
+    }
+
+    /// The preset of that name (any case).
+    pub fn from_name(name: &str) -> Option<Preset> {
+        Preset::ALL.into_iter().find(|p| p.name().eq_ignore_ascii_case(name))
+    }
+
+    /// The images the preset lays out, in the order `plcd check` shows them.
+    pub fn images(self) -> &'static [Image] {
+        match self {
+            Preset::OpenPlc => &Image::ALL,
+            Preset::Codesys => &[Image::Input, Image::Output, Image::Memory],
+            Preset::Plcd => &[],
+        }
+    }
+}
+
+/// One image of IEC addresses, at consecutive device words.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Image {
+    /// `%I`: under codesys every size; under openplc the `%IX` bits.
+    Input,
+    /// `%Q`, as [`Image::Input`].
+    Output,
+    /// `%M`, as [`Image::Input`] (`%MX` under openplc).
+    Memory,
+    /// openplc's `%IW` (analog inputs).
+    InputWords,
+    /// openplc's `%QW` (analog outputs).
+    OutputWords,
+    /// openplc's `%MW`.
+    MemoryWords,
+    /// openplc's `%MD`.
+    MemoryDwords,
+    /// openplc's `%ML`.
+    MemoryLwords,
+}
+
+impl Image {
+    pub const ALL: [Image; 8] = [
+        Image::Input,
+        Image::Output,
+        Image::Memory,
+        Image::InputWords,
+        Image::OutputWords,
+        Image::MemoryWords,
+        Image::MemoryDwords,
+        Image::MemoryLwords,
+    ];
+
+    /// Its key in `[iec]`: where it starts.
+    pub fn key(self) -> &'static str {
+        match self {
+            Image::Input => "input",
+            Image::Output => "output",
+            Image::Memory => "memory",
+            Image::InputWords => "input_words",
+            Image::OutputWords => "output_words",
+            Image::MemoryWords => "memory_words",
+            Image::MemoryDwords => "memory_dwords",
+            Image::MemoryLwords => "memory_lwords",
+        }
+    }
+
+    fn index(self) -> usize {
+        Image::ALL.iter().position(|&i| i == self).unwrap_or(0)
+    }
+
+    /// The addresses it holds, as the editors write them.
+    fn prefix(self, preset: Preset) -> &'static str {
+        match (self, preset) {
+            (Image::Input, Preset::Codesys) => "%I",
+            (Image::Output, Preset::Codesys) => "%Q",
+            (Image::Memory, Preset::Codesys) => "%M",
+            (Image::Input, _) => "%IX",
+            (Image::Output, _) => "%QX",
+            (Image::Memory, _) => "%MX",
+            (Image::InputWords, _) => "%IW",
+            (Image::OutputWords, _) => "%QW",
+            (Image::MemoryWords, _) => "%MW",
+            (Image::MemoryDwords, _) => "%MD",
+            (Image::MemoryLwords, _) => "%ML",
+        }
+    }
+
+    /// Its size: bytes for a byte image, elements (words, double words, long words) for the
+    /// word images of openplc.
+    fn units(self) -> u32 {
+        match self {
+            Image::Input | Image::Output => 128,
+            Image::Memory => 512,
+            _ => 1024,
+        }
+    }
+
+    /// The device words of one unit ([`Image::units`]): a byte is half a word.
+    fn unit_words(self) -> u32 {
+        match self {
+            Image::MemoryDwords => 2,
+            Image::MemoryLwords => 4,
+            _ => 1,
+        }
+    }
+
+    /// The device words the whole image takes.
+    pub fn words(self) -> u32 {
+        match self {
+            Image::Input | Image::Output | Image::Memory => self.units() / 2,
+            _ => self.units() * self.unit_words(),
+        }
+    }
+
+    fn byte_image(self) -> bool {
+        matches!(self, Image::Input | Image::Output | Image::Memory)
+    }
+}
+
+/// The first device word of an image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Start {
+    pub area: Area,
+    pub word: u32,
+}
+
+impl Start {
+    /// The device word `n` words after the start.
+    fn at(self, n: u32) -> Address {
+        Address { area: self.area, number: self.word + n, bit: None }
+    }
+
+    /// The start a device word names (`P064`, `D10000`): a word address of P, M, K or D.
+    pub fn parse(text: &str) -> Result<Start, String> {
+        let address = Address::parse(text).map_err(|e| e.to_string())?;
+        if !matches!(address.area, Area::P | Area::M | Area::K | Area::D) || address.bit.is_some() {
+            return Err(format!(
+                "`{text}` is not a word of P, M, K or D (an image starts at a word: `P064`, `D10000`)"
+            ));
+        }
+        Ok(Start { area: address.area, word: address.number })
+    }
+}
+
+/// What an IEC direct address names: a device, and how many bits the address says it has
+/// (1 for `X`, 8, 16, 32, 64 for `B`, `W`, `D`, `L`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Direct {
+    pub address: Address,
+    pub bits: u32,
+}
+
+/// The layout in effect: `[iec]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct IecLayout {
+    pub preset: Preset,
+    /// Where each image starts, by [`Image::ALL`]'s order (the preset's defaults unless the
+    /// config moves one; those of images the preset has no use for are ignored).
+    starts: [Start; 8],
+}
+
+impl Default for IecLayout {
+    fn default() -> Self {
+        IecLayout::of(Preset::default())
+    }
+}
+
+impl IecLayout {
+    /// The preset with its images at their default words (docs/CONFIG.md, `[iec]`).
+    pub fn of(preset: Preset) -> IecLayout {
+        let p = |word| Start { area: Area::P, word };
+        let m = |word| Start { area: Area::M, word };
+        let d = |word| Start { area: Area::D, word };
+        IecLayout {
+            preset,
+            starts: [p(0), p(64), m(0), d(10000), d(12000), d(14000), d(16000), d(20000)],
+        }
+    }
+
+    /// Where `image` starts.
+    pub fn start(&self, image: Image) -> Start {
+        self.starts[image.index()]
+    }
+
+    /// The layout with `image` moved to `start`.
+    pub fn with_start(mut self, image: Image, start: Start) -> IecLayout {
+        self.starts[image.index()] = start;
+        self
+    }
+
+    /// The first and the last device word of `image`.
+    pub fn span(&self, image: Image) -> (Address, Address) {
+        let start = self.start(image);
+        (start.at(0), start.at(image.words() - 1))
+    }
+
+    /// What is wrong with the layout, by image: one that runs past the end of its device area,
+    /// two that overlap. The images the preset has no use for are not checked.
+    pub fn problems(&self) -> Vec<(Image, String)> {
+        let mut out = Vec::new();
+        let images = self.preset.images();
+        for (k, &image) in images.iter().enumerate() {
+            let start = self.start(image);
+            let (first, _) = self.span(image);
+            if start.word + image.words() > start.area.word_count() {
+                out.push((
+                    image,
+                    format!(
+                        "the {} image needs {} words from `{first}`: past the end of {:?} ({})",
+                        image.prefix(self.preset),
+                        image.words(),
+                        start.area,
+                        start.area.range_text()
+                    ),
+                ));
+                continue;
+            }
+            for &other in &images[..k] {
+                let o = self.start(other);
+                let overlap = o.area == start.area
+                    && start.word < o.word + other.words()
+                    && o.word < start.word + image.words();
+                if overlap {
+                    let (a, b) = self.span(other);
+                    out.push((
+                        image,
+                        format!(
+                            "the {} image (`{first}`, {} words) overlaps the {} image (`{a}` to `{b}`, `iec.{}`)",
+                            image.prefix(self.preset),
+                            image.words(),
+                            other.prefix(self.preset),
+                            other.key()
+                        ),
+                    ));
+                }
+            }
+        }
+        out
+    }
+
+    /// The layout in words, one line per image, for `plcd check`: `%IX0.0..%IX127.7 →
+    /// P0000..P063F`.
+    pub fn describe(&self) -> Vec<String> {
+        let preset = self.preset;
+        if preset == Preset::Plcd {
+            return vec![
+                "%IXa.b, %QXa.b → bit b (0..15) of P word a; %IWa, %QWa → P word a".to_string(),
+                "%MXa.b → bit b of M word a; %MWa, %MDa, %MLa → M word a".to_string(),
+            ];
+        }
+        preset
+            .images()
+            .iter()
+            .map(|&image| {
+                let (first, last) = self.span(image);
+                let p = image.prefix(preset);
+                let n = image.units() - 1;
+                let what = match (image.byte_image(), preset) {
+                    (true, Preset::Codesys) => {
+                        format!("{p}X0.0..{p}X{n}.7, {p}B0..{p}B{n}, {p}W, {p}D, {p}L")
+                    }
+                    (true, _) => format!("{p}0.0..{p}{n}.7"),
+                    (false, _) => format!("{p}0..{p}{n}"),
+                };
+                format!("{what} → {first}..{last} (iec.{})", image.key())
+            })
+            .collect()
+    }
+
+    /// The device an IEC direct address names (`text` is what follows the `%`: `IX0.3`,
+    /// `QW5`), `Ok(None)` for a text that is no IEC address (a plcd device, `P0040`), or why
+    /// the address is none of this layout's.
+    pub fn resolve(&self, text: &str) -> Result<Option<Direct>, String> {
+        let upper = text.to_ascii_uppercase();
+        let mut chars = upper.chars();
+        let Some(letter @ ('I' | 'Q' | 'M')) = chars.next() else { return Ok(None) };
+        let Some(size @ ('X' | 'B' | 'W' | 'D' | 'L')) = chars.next() else { return Ok(None) };
+        let digits = chars.as_str();
+        if !digits.starts_with(|c: char| c.is_ascii_digit()) {
+            return Ok(None);
+        }
+        let bits = match size {
+            'X' => 1,
+            'B' => 8,
+            'W' => 16,
+            'D' => 32,
+            _ => 64,
+        };
+        let bad = || format!("`%{text}` is not a valid direct address");
+        let number = |s: &str| s.parse::<u32>().map_err(|_| bad());
+        let (index, bit) = if bits == 1 {
+            let (i, b) = digits.split_once('.').ok_or_else(bad)?;
+            (number(i)?, Some(number(b)?))
+        } else {
+            (number(digits)?, None)
+        };
+        if self.preset == Preset::Plcd {
+            return plcd_address(text, letter, bits, index, bit).map(Some);
+        }
+        let preset = self.preset.name();
+        let image = match (self.preset, letter, size) {
+            (Preset::Codesys, 'I', _) | (Preset::OpenPlc, 'I', 'X') => Image::Input,
+            (Preset::Codesys, 'Q', _) | (Preset::OpenPlc, 'Q', 'X') => Image::Output,
+            (Preset::Codesys, 'M', _) | (Preset::OpenPlc, 'M', 'X') => Image::Memory,
+            (_, 'I', 'W') => Image::InputWords,
+            (_, 'Q', 'W') => Image::OutputWords,
+            (_, 'M', 'W') => Image::MemoryWords,
+            (_, 'M', 'D') => Image::MemoryDwords,
+            (_, 'M', 'L') => Image::MemoryLwords,
+            (_, _, 'B') => return Err(byte_refused(text, preset, letter, index)),
+            _ => {
+                return Err(format!(
+                    "`%{text}`: the openplc layout has no `%{letter}{size}` (OpenPLC's inputs are %IX bits and %IW words, its outputs %QX and %QW; `[iec] preset = \"codesys\"` has every size)"
+                ))
+            }
+        };
+        let start = self.start(image);
+        let p = image.prefix(self.preset);
+        let past_end = |what: String| {
+            let (first, last) = self.span(image);
+            format!(
+                "`%{text}` is past the end of the {p} image: the {preset} layout's {what} (`{first}` to `{last}`; `[iec] {}` moves it)",
+                image.key()
+            )
+        };
+        if image.byte_image() {
+            let bytes = image.units();
+            let last = bytes - 1;
+            match size {
+                'X' => {
+                    let bit = bit.unwrap_or(0);
+                    if bit > 7 {
+                        return Err(format!(
+                            "`%{text}`: bit {bit} of a byte: the {preset} layout numbers %{letter}X by byte and bit, the bit 0 to 7 (`%{letter}X{}.0` is the bit after `%{letter}X{index}.7`; `[iec] preset = \"plcd\"` numbers P words and their bits 0 to 15)",
+                            index + 1
+                        ));
+                    }
+                    if index >= bytes {
+                        return Err(past_end(format!("%{letter}X bytes are 0 to {last}")));
+                    }
+                    let address =
+                        Address { bit: Some((index % 2 * 8 + bit) as u8), ..start.at(index / 2) };
+                    Ok(Some(Direct { address, bits }))
+                }
+                'B' => Err(byte_refused(text, preset, letter, index)),
+                _ => {
+                    let words = bits / 16;
+                    if u64::from(index) * u64::from(words) + u64::from(words) > u64::from(bytes / 2)
+                    {
+                        let n = bytes / 2 / words - 1;
+                        return Err(past_end(format!("%{letter}{size} are 0 to {n}")));
+                    }
+                    Ok(Some(Direct { address: start.at(index * words), bits }))
+                }
+            }
+        } else {
+            if index >= image.units() {
+                return Err(past_end(format!("{p} are 0 to {}", image.units() - 1)));
+            }
+            Ok(Some(Direct { address: start.at(index * image.unit_words()), bits }))
+        }
+    }
+}
+
+/// Why `%IB`, `%QB`, `%MB` are refused in a byte image: a BYTE at a word device is read and
+/// written as the whole word (docs/ST.md, Located variables), which would overwrite the other
+/// byte of the word.
+fn byte_refused(text: &str, preset: &str, letter: char, index: u32) -> String {
+    format!(
+        "`%{text}`: plcd cannot locate a single byte under the {preset} layout: its device words are 16 bits and a BYTE there is written as the whole word, the byte beside it too; locate an ARRAY [0..7] OF BOOL at the byte's first bit, `%{letter}X{index}.0`, or a WORD at the plcd word that holds the byte (`plcd check` shows the image's words)"
+    )
+}
+
+/// plcd's own numbering (`[iec] preset = "plcd"`): `%IXa.b` and `%QXa.b` bit `b` (0..15) of P
+/// word `a`, `%IWa` and `%QWa` (and the other sizes) P word `a`, `%M…` the same in M.
+fn plcd_address(
+    text: &str,
+    letter: char,
+    bits: u32,
+    index: u32,
+    bit: Option<u32>,
+) -> Result<Direct, String> {
+    let bad = || format!("`%{text}` is not a valid direct address");
+    let area = if letter == 'M' { Area::M } else { Area::P };
+    if index > 999 || bit.is_some_and(|b| b > 15) {
+        return Err(bad());
+    }
+    // the range of the word (P000..P127) is Address::parse's to check, as for `%P` addresses
+    let device = match bit {
+        Some(b) => format!("{area:?}{index:03}{b:X}"),
+        None => format!("{area:?}{index:03}"),
+    };
+    let address = Address::parse(&device).map_err(|e| e.to_string())?;
+    Ok(Direct { address, bits })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn device(layout: &IecLayout, text: &str) -> String {
+        match layout.resolve(text) {
+            Ok(Some(d)) => format!("{} {}", d.address, d.bits),
+            Ok(None) => "none".to_string(),
+            Err(e) => format!("error: {e}"),
+        }
+    }
+
+    #[test]
+    fn openplc_bits_are_bytes_and_bits_with_inputs_and_outputs_apart() {
+        let l = IecLayout::of(Preset::OpenPlc);
+        assert_eq!(device(&l, "IX0.0"), "P0000 1");
+        assert_eq!(device(&l, "QX0.0"), "P0640 1");
+        assert_eq!(device(&l, "IX0.7"), "P0007 1");
+        assert_eq!(device(&l, "IX1.0"), "P0008 1");
+        assert_eq!(device(&l, "IX2.3"), "P0013 1");
+        assert_eq!(device(&l, "ix127.7"), "P063F 1");
+        assert_eq!(device(&l, "MX3.1"), "M0019 1");
+    }
+
+    #[test]
+    fn openplc_words_are_areas_of_their_own() {
+        let l = IecLayout::of(Preset::OpenPlc);
+        assert_eq!(device(&l, "IW0"), "D10000 16");
+        assert_eq!(device(&l, "QW5"), "D12005 16");
+        assert_eq!(device(&l, "MW1023"), "D15023 16");
+        assert_eq!(device(&l, "MD5"), "D16010 32");
+        assert_eq!(device(&l, "ML5"), "D20020 64");
+        assert!(device(&l, "MW1024").contains("past the end of the %MW image"));
+        assert!(device(&l, "ID0").contains("openplc layout has no `%ID`"));
+        assert!(device(&l, "IB0").contains("cannot locate a single byte"));
+    }
+
+    #[test]
+    fn codesys_sizes_are_views_of_one_byte_image() {
+        let l = IecLayout::of(Preset::Codesys);
+        assert_eq!(device(&l, "IX0.0"), "P0000 1");
+        assert_eq!(device(&l, "IX1.0"), "P0008 1");
+        assert_eq!(device(&l, "IW0"), "P000 16");
+        assert_eq!(device(&l, "IW1"), "P001 16");
+        assert_eq!(device(&l, "ID1"), "P002 32");
+        assert_eq!(device(&l, "IL1"), "P004 64");
+        assert_eq!(device(&l, "QW0"), "P064 16");
+        assert_eq!(device(&l, "MD10"), "M020 32");
+        assert_eq!(device(&l, "IW63"), "P063 16");
+        assert!(device(&l, "IW64").contains("%IW are 0 to 63"));
+        assert!(device(&l, "IL16").contains("%IL are 0 to 15"));
+        assert!(device(&l, "IX128.0").contains("%IX bytes are 0 to 127"));
+    }
+
+    #[test]
+    fn byte_images_refuse_bit_eight() {
+        for preset in [Preset::OpenPlc, Preset::Codesys] {
+            let e = device(&IecLayout::of(preset), "QX0.8");
+            assert!(e.contains("bit 8 of a byte"), "{e}");
+            assert!(e.contains("`%QX1.0` is the bit after `%QX0.7`"), "{e}");
+        }
+    }
+
+    #[test]
+    fn plcd_keeps_words_and_bits_0_to_15() {
+        let l = IecLayout::of(Preset::Plcd);
+        assert_eq!(device(&l, "IX0.3"), "P0003 1");
+        assert_eq!(device(&l, "QX12.15"), "P012F 1");
+        assert_eq!(device(&l, "IW5"), "P005 16");
+        assert_eq!(device(&l, "MD10"), "M010 32");
+        assert!(device(&l, "IX0.16").starts_with("error"));
+    }
+
+    #[test]
+    fn plcd_devices_are_no_iec_address() {
+        for preset in Preset::ALL {
+            let l = IecLayout::of(preset);
+            for text in ["D00100", "M0010", "P0040", "MX", "IXA.0", "_ON"] {
+                assert_eq!(device(&l, text), "none", "{preset:?} {text}");
+            }
+        }
+    }
+
+    #[test]
+    fn moved_images_follow_their_start() {
+        let l = IecLayout::of(Preset::OpenPlc)
+            .with_start(Image::Output, Start::parse("P100").unwrap())
+            .with_start(Image::InputWords, Start::parse("D00000").unwrap());
+        // byte 3 is the high byte of the second word: P101, bit 8 + 2
+        assert_eq!(device(&l, "QX3.2"), "P101A 1");
+        assert_eq!(device(&l, "IW7"), "D00007 16");
+        // the %QX image now runs past P127
+        let problems = l.problems();
+        assert_eq!(problems.len(), 1, "{problems:?}");
+        assert_eq!(problems[0].0, Image::Output);
+        assert!(problems[0].1.contains("past the end of P"), "{}", problems[0].1);
+    }
+
+    #[test]
+    fn overlapping_images_are_a_problem() {
+        let l =
+            IecLayout::of(Preset::Codesys).with_start(Image::Output, Start::parse("P032").unwrap());
+        let problems = l.problems();
+        assert_eq!(problems.len(), 1, "{problems:?}");
+        assert!(problems[0].1.contains("overlaps the %I image"), "{}", problems[0].1);
+        assert!(IecLayout::of(Preset::OpenPlc).problems().is_empty());
+        assert!(IecLayout::of(Preset::Codesys).problems().is_empty());
+    }
+
+    #[test]
+    fn starts_are_words_of_p_m_k_or_d() {
+        assert_eq!(Start::parse("D10000"), Ok(Start { area: Area::D, word: 10000 }));
+        assert!(Start::parse("P0040").is_err());
+        assert!(Start::parse("T0005").is_err());
+        assert!(Start::parse("P200").is_err());
+    }
+}
