@@ -414,7 +414,10 @@ const IEC_MESSAGES: &[(&str, &str)] = &[
 const IEC_PARTS: &[&str] = &[
     "%IXa.b, %QXa.b → bit b (0..15) of P word a; %IWa, %QWa → P word a",
     "%MXa.b → bit b of M word a; %MWa, %MDa, %MLa → M word a",
-    "{}X0.0..{}X{}.7, {}B0..{}B{}, {}W, {}D, {}L",
+    "{}X0.0..{}X{}.7, {}W0..{}W{}, {}D0..{}D{}, {}L0..{}L{}",
+    "iec: the {} layout ([iec] preset), docs/ST.md \"Direct addresses\":",
+    "iec: {}:{}: {} AT %{} → {}",
+    "iec:   {}",
     "{} → {}..{} (iec.{})",
     "%{}X bytes are 0 to {}",
     "%{}{} are 0 to {}",

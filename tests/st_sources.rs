@@ -283,7 +283,7 @@ fn a_single_task_runs_on_each_rising_edge_and_instances_copy_their_arguments() {
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert_eq!(
-        stdout.lines().skip(1).collect::<Vec<_>>(),
+        stdout.lines().skip(1).filter(|l| !l.starts_with("  iec:")).collect::<Vec<_>>(),
         [
             "  configuration Config0: TASK task0 → the scan, every 20 ms (the lowest-priority task)",
             "  configuration Config0: TASK trig → device task 16, on each rising edge of P0001 (`start_btn`), priority 3",
@@ -430,6 +430,56 @@ CONFIGURATION Config0
 END_CONFIGURATION
 ";
 
+/// `plcd check` shows the `[iec]` layout in effect and the device each variable located at an
+/// IEC direct address lands on, in every declaration the project's ST files hold.
+#[test]
+fn check_shows_the_iec_layout_and_where_each_located_variable_lands() {
+    let dir = TempDir::new("st-iec-layout-check");
+    let text = "VAR_GLOBAL estop AT %IX0.2 : BOOL; END_VAR
+PROGRAM Main
+VAR
+  button AT %IX0.0 : BOOL;
+  lamp AT %QX0.0 : BOOL;
+  level AT %IW3 : INT;
+  raw AT %D00100 : INT;
+END_VAR
+  lamp := button AND NOT estop;
+END_PROGRAM
+";
+    write(dir.path(), "plc.st", text);
+    write(
+        dir.path(),
+        "plcd.toml",
+        "[[program]]\nfile = \"plc.st\"\n\n[iec]\npreset = \"codesys\"\n",
+    );
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    // CODESYS's byte images: %I from P000, %Q from P064, %M from M000; %IW3 is bytes 6 and 7,
+    // word P003; a plcd device (`raw`) is no IEC address and is not listed
+    assert_eq!(
+        stdout.lines().skip(1).collect::<Vec<_>>(),
+        [
+            "  iec: the codesys layout ([iec] preset), docs/ST.md \"Direct addresses\":",
+            "  iec:   %IX0.0..%IX127.7, %IW0..%IW63, %ID0..%ID31, %IL0..%IL15 → P000..P063 (iec.input)",
+            "  iec:   %QX0.0..%QX127.7, %QW0..%QW63, %QD0..%QD31, %QL0..%QL15 → P064..P127 (iec.output)",
+            "  iec:   %MX0.0..%MX511.7, %MW0..%MW255, %MD0..%MD127, %ML0..%ML63 → M000..M255 (iec.memory)",
+            "  iec: plc.st:1: estop AT %IX0.2 → P0002",
+            "  iec: plc.st:4: Main.button AT %IX0.0 → P0000",
+            "  iec: plc.st:5: Main.lamp AT %QX0.0 → P0640",
+            "  iec: plc.st:6: Main.level AT %IW3 → P003",
+        ]
+    );
+    // without an IEC address, nothing of the layout
+    write(
+        dir.path(),
+        "plc.st",
+        "PROGRAM Main VAR raw AT %D00100 : INT; END_VAR raw := 1; END_PROGRAM\n",
+    );
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 1);
+}
+
 #[test]
 fn var_config_binds_partly_specified_variables_to_devices() {
     let dir = TempDir::new("st-configuration-var-config");
@@ -441,7 +491,7 @@ fn var_config_binds_partly_specified_variables_to_devices() {
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert_eq!(
-        stdout.lines().skip(3).collect::<Vec<_>>(),
+        stdout.lines().skip(3).filter(|l| !l.starts_with("  iec:")).collect::<Vec<_>>(),
         [
             "  configuration Config0: VAR_CONFIG Res0.inst.lamp AT %QX0.3 → P0643",
             "  configuration Config0: VAR_CONFIG inst.level AT %MW5 → D14005",

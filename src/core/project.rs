@@ -265,7 +265,7 @@ pub fn from_config_with(
 ) -> Result<Project, Diagnostics> {
     let mut diags = Diagnostics::default();
     let mut config = config;
-    let (notes, parsed) = expand_configurations(&mut config, &read, &mut diags);
+    let (mut notes, parsed) = expand_configurations(&mut config, &read, &mut diags);
     let task_numbers: Vec<u8> = config.tasks.iter().map(|t| t.number).collect();
     let timer_base = |n: u32| config.timers.base_ms(n);
     let mut programs: Vec<Option<Program>> = Vec::with_capacity(config.programs.len());
@@ -300,7 +300,8 @@ pub fn from_config_with(
         }
     }
     let variables = match compile_structured_text(&config, &mut reader, parsed) {
-        Some(compiled) => {
+        Some((compiled, iec_notes)) => {
+            notes.extend(iec_notes);
             check_task_numbers(&compiled.programs, &task_numbers, reader.diags);
             let mut st_programs = compiled.programs.into_iter();
             for slot in programs.iter_mut().filter(|p| p.is_none()) {
@@ -453,13 +454,14 @@ where
 
 /// Parses every `.st` file of the project (its Structured Text programs and `[st] library`),
 /// but those `parsed` already, and compiles one instance per Structured Text `[[program]]`, in
-/// config order. `None` when there is none, or on errors (in `reader.diags`): the syntax
-/// errors of every file, or, when every file parses, every error the compiler finds.
+/// config order, with what `plcd check` shows of the `[iec]` layout the files use. `None` when
+/// there is none, or on errors (in `reader.diags`): the syntax errors of every file, or, when
+/// every file parses, every error the compiler finds.
 fn compile_structured_text<R, L>(
     config: &Config,
     reader: &mut Reader<'_, R, L>,
     mut parsed: Vec<Parsed>,
-) -> Option<st::Compiled>
+) -> Option<(st::Compiled, Vec<String>)>
 where
     R: Fn(&Path) -> std::io::Result<String>,
     L: Fn(&Path) -> std::io::Result<Vec<PathBuf>>,
@@ -535,8 +537,11 @@ where
     let configured: Vec<Option<&st::ast::ProgramDecl>> =
         entries.iter().map(|entry| configured_declaration(entry, &files)).collect();
     let dialect = st::dialect::Dialect { strict: config.st.strict, iec: config.iec.layout };
+    let base = config.path.parent().unwrap_or(Path::new(""));
+    let shown = |path: &Path| path.strip_prefix(base).unwrap_or(path).display().to_string();
+    let iec_notes = st::iec_image::check_notes(&files, &config.iec.layout, shown);
     match st::compile_configured(&files, &instances, &configured, dialect) {
-        Ok(compiled) => Some(compiled),
+        Ok(compiled) => Some((compiled, iec_notes)),
         Err(errors) => {
             reader.diags.extend(errors);
             None

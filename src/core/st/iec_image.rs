@@ -22,6 +22,7 @@
 //! config's keys are `config::iec`.
 
 use crate::device::{Address, Area};
+use crate::st::ast;
 
 /// The editor whose numbering `%I`, `%Q` and `%M` follow: `[iec] preset`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -303,7 +304,13 @@ impl IecLayout {
                 let n = image.units() - 1;
                 let what = match (image.byte_image(), preset) {
                     (true, Preset::Codesys) => {
-                        format!("{p}X0.0..{p}X{n}.7, {p}B0..{p}B{n}, {p}W, {p}D, {p}L")
+                        let bytes = image.units();
+                        format!(
+                            "{p}X0.0..{p}X{n}.7, {p}W0..{p}W{}, {p}D0..{p}D{}, {p}L0..{p}L{}",
+                            bytes / 2 - 1,
+                            bytes / 4 - 1,
+                            bytes / 8 - 1
+                        )
                     }
                     (true, _) => format!("{p}0.0..{p}{n}.7"),
                     (false, _) => format!("{p}0..{p}{n}"),
@@ -404,6 +411,77 @@ impl IecLayout {
                 return Err(past_end(format!("{p} are 0 to {}", image.units() - 1)));
             }
             Ok(Some(Direct { address: start.at(index * image.unit_words()), bits }))
+        }
+    }
+}
+
+/// What `plcd check` shows of the layout for a project's Structured Text `files`: nothing when
+/// no declaration locates a variable at an IEC direct address; else the layout (a line per
+/// image) and, for each such variable, the device it lands on (`main.st:5: Main.lamp AT %QX0.0
+/// → P0640`; a located array at its first device). `shown` gives a file's name as printed.
+pub fn check_notes(
+    files: &[ast::File],
+    layout: &IecLayout,
+    shown: impl Fn(&std::path::Path) -> String,
+) -> Vec<String> {
+    let mut located = Vec::new();
+    for file in files {
+        // (the variable's name as tools show it, where it is located)
+        let mut sites: Vec<(String, &ast::Ident)> = Vec::new();
+        let mut configs = Vec::new();
+        for item in &file.items {
+            match item {
+                ast::Item::Pou(pou) => located_in(Some(&pou.name.name), &pou.vars, &mut sites),
+                ast::Item::Globals(block) => {
+                    located_in(None, std::slice::from_ref(block), &mut sites)
+                }
+                ast::Item::Configuration(conf) => {
+                    located_in(None, &conf.globals, &mut sites);
+                    configs.push(conf);
+                }
+                _ => {}
+            }
+        }
+        for var in configs.iter().flat_map(|c| &c.var_config) {
+            if let Some(loc) = &var.location {
+                let path: Vec<&str> = var.path.iter().map(|i| i.name.as_str()).collect();
+                sites.push((path.join("."), loc));
+            }
+        }
+        for (name, loc) in sites {
+            let Ok(Some(direct)) = layout.resolve(&loc.name) else { continue };
+            located.push(format!(
+                "iec: {}:{}: {name} AT %{} → {}",
+                shown(&file.path),
+                loc.span.line,
+                loc.name,
+                direct.address
+            ));
+        }
+    }
+    if located.is_empty() {
+        return located;
+    }
+    let mut out = vec![format!(
+        "iec: the {} layout ([iec] preset), docs/ST.md \"Direct addresses\":",
+        layout.preset.name()
+    )];
+    out.extend(layout.describe().into_iter().map(|line| format!("iec:   {line}")));
+    out.extend(located);
+    out
+}
+
+/// The located variables of `blocks` (of the POU `owner`), by the names tools show them under.
+fn located_in<'a>(
+    owner: Option<&str>,
+    blocks: &'a [ast::VarBlock],
+    sites: &mut Vec<(String, &'a ast::Ident)>,
+) {
+    for decl in blocks.iter().flat_map(|b| &b.decls) {
+        let Some(loc) = &decl.location else { continue };
+        for name in &decl.names {
+            let name = owner.map_or(name.name.clone(), |o| format!("{o}.{}", name.name));
+            sites.push((name, loc));
         }
     }
 }
