@@ -6,7 +6,7 @@
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::common::Ctx;
+use super::common::{int, Ctx};
 use super::Sink;
 use crate::st::iec_image::{IecLayout, Image, Preset, Start};
 
@@ -31,6 +31,9 @@ pub(super) struct RawIec {
     pub memory_words: Option<Spanned<String>>,
     pub memory_dwords: Option<Spanned<String>>,
     pub memory_lwords: Option<Spanned<String>>,
+    pub input_bytes: Option<Spanned<i64>>,
+    pub output_bytes: Option<Spanned<i64>>,
+    pub memory_bytes: Option<Spanned<i64>>,
 }
 
 impl RawIec {
@@ -45,6 +48,16 @@ impl RawIec {
             Image::MemoryWords => self.memory_words.as_ref(),
             Image::MemoryDwords => self.memory_dwords.as_ref(),
             Image::MemoryLwords => self.memory_lwords.as_ref(),
+        }
+    }
+
+    /// The size written for the byte image `image`, if any.
+    fn bytes(&self, image: Image) -> Option<&Spanned<i64>> {
+        match image {
+            Image::Input => self.input_bytes.as_ref(),
+            Image::Output => self.output_bytes.as_ref(),
+            Image::Memory => self.memory_bytes.as_ref(),
+            _ => None,
         }
     }
 }
@@ -103,6 +116,26 @@ pub(super) fn validate(sink: &mut Sink, raw: RawIec) -> Option<IecConfig> {
                 sink.error(at, format!("{}: {why}", ctx.key(image.key())));
                 ok = false;
             }
+        }
+    }
+    // the sizes of the byte images: at least a byte, at most a whole device area (two bytes a
+    // word); whether they fit where they start is the layout's problems' to say
+    for image in [Image::Input, Image::Output, Image::Memory] {
+        let (Some(key), Some(value)) = (image.bytes_key(), raw.bytes(image)) else { continue };
+        if preset == Preset::Plcd {
+            sink.error(
+                value.span().start,
+                format!("{}: the plcd layout has no byte images to size", ctx.key(key)),
+            );
+            ok = false;
+            continue;
+        }
+        match int::<u32>(sink, &ctx, key, value, 1..=2 * 32768) {
+            Some(bytes) => {
+                layout = layout.with_bytes(image, bytes);
+                written.push((image, value.span().start));
+            }
+            None => ok = false,
         }
     }
     if ok {

@@ -1864,3 +1864,66 @@ fn st_strict_is_off_unless_set() {
     assert!(config(&with_scan("[st]\nstrict = true\n")).st.strict);
     assert!(!errors(&with_scan("[st]\nstrict = 1\n")).is_empty());
 }
+
+#[test]
+fn iec_layout_is_openplc_unless_set_and_images_move() {
+    use crate::device::Area;
+    use crate::st::iec_image::{IecLayout, Image, Preset, Start};
+    assert_eq!(config(&with_scan("")).iec.layout, IecLayout::of(Preset::OpenPlc));
+    let c = config(&with_scan(
+        "[iec]\npreset = \"CODESYS\"\noutput = \"P100\"\noutput_bytes = 56\nmemory = \"K000\"\n",
+    ));
+    assert_eq!(c.iec.layout.preset, Preset::Codesys);
+    assert_eq!(c.iec.layout.start(Image::Output), Start { area: Area::P, word: 100 });
+    assert_eq!(c.iec.layout.start(Image::Memory), Start { area: Area::K, word: 0 });
+    assert_eq!(c.iec.layout.start(Image::Input), Start { area: Area::P, word: 0 });
+    let c = config(&with_scan("[iec]\nmemory_lwords = \"D00000\"\n"));
+    assert_eq!(c.iec.layout.start(Image::MemoryLwords), Start { area: Area::D, word: 0 });
+    assert_eq!(config(&with_scan("[iec]\npreset = \"plcd\"\n")).iec.layout.preset, Preset::Plcd);
+    // plcd's habit, inputs from P0000 and outputs from P0040: eight bytes of %IX, %QX from P004
+    let c = config(&with_scan("[iec]\ninput_bytes = 8\noutput = \"P004\"\n"));
+    let lamp = c.iec.layout.resolve("QX0.0").unwrap().unwrap().address;
+    assert_eq!(lamp.to_string(), "P0040");
+}
+
+#[test]
+fn iec_layout_errors_name_their_key() {
+    assert_eq!(
+        errors(&with_scan("[iec]\npreset = \"s7\"\n")),
+        ["2:10: iec.preset: \"s7\" is not a layout, one of \"openplc\", \"codesys\", \"plcd\""]
+    );
+    assert_eq!(
+        errors(&with_scan("[iec]\ninput = \"P0040\"\noutput = \"T0001\"\nmemory = \"M300\"\n")),
+        [
+            "2:9: iec.input: `P0040` is not a word of P, M, K or D (an image starts at a word: `P064`, `D10000`)",
+            "3:10: iec.output: `T0001` is not a word of P, M, K or D (an image starts at a word: `P064`, `D10000`)",
+            "4:10: iec.memory: `M300` is out of range (M0000-M255F, M000-M255)",
+        ]
+    );
+    // a %QW image of 1024 words from D32000 runs past D32767; the %MW image moved onto %IW's
+    assert_eq!(
+        errors(&with_scan("[iec]\noutput_words = \"D32000\"\nmemory_words = \"D10500\"\n")),
+        [
+            "2:16: iec.output_words: the %QW image needs 1024 words from `D32000`: past the end of D (D00000-D32767)",
+            "3:16: iec.memory_words: the %MW image (`D10500`, 1024 words) overlaps the %IW image (`D10000` to `D11023`, `iec.input_words`)",
+        ]
+    );
+    assert_eq!(
+        errors(&with_scan("[iec]\npreset = \"plcd\"\ninput = \"P000\"\n")),
+        ["3:9: iec.input: the plcd layout has no such image (its addresses are P and M words: `%IX4.0` is P0040)"]
+    );
+    assert!(!errors(&with_scan("[iec]\nbytes = 4\n")).is_empty());
+    assert_eq!(
+        errors(&with_scan("[iec]\ninput_bytes = 0\noutput = \"P004\"\n")),
+        ["2:15: iec.input_bytes 0 out of range 1..=65536"]
+    );
+    // 128 bytes of %IX from P000 take P000..P063: P004 is among them
+    assert_eq!(
+        errors(&with_scan("[iec]\noutput = \"P004\"\n")),
+        ["2:10: iec.output: the %QX image (`P004`, 64 words) overlaps the %IX image (`P000` to `P063`, `iec.input`)"]
+    );
+    assert_eq!(
+        errors(&with_scan("[iec]\npreset = \"plcd\"\nmemory_bytes = 2\n")),
+        ["3:16: iec.memory_bytes: the plcd layout has no byte images to size"]
+    );
+}

@@ -132,13 +132,23 @@ impl Image {
         }
     }
 
-    /// Its size: bytes for a byte image, elements (words, double words, long words) for the
-    /// word images of openplc.
-    fn units(self) -> u32 {
+    /// Its default size: bytes for a byte image (the config may change them), elements
+    /// (words, double words, long words) for the word images of openplc (OpenPLC's 1024).
+    fn default_units(self) -> u32 {
         match self {
             Image::Input | Image::Output => 128,
             Image::Memory => 512,
             _ => 1024,
+        }
+    }
+
+    /// Its key in `[iec]` for its size in bytes: a byte image's.
+    pub fn bytes_key(self) -> Option<&'static str> {
+        match self {
+            Image::Input => Some("input_bytes"),
+            Image::Output => Some("output_bytes"),
+            Image::Memory => Some("memory_bytes"),
+            _ => None,
         }
     }
 
@@ -148,14 +158,6 @@ impl Image {
             Image::MemoryDwords => 2,
             Image::MemoryLwords => 4,
             _ => 1,
-        }
-    }
-
-    /// The device words the whole image takes.
-    pub fn words(self) -> u32 {
-        match self {
-            Image::Input | Image::Output | Image::Memory => self.units() / 2,
-            _ => self.units() * self.unit_words(),
         }
     }
 
@@ -204,6 +206,8 @@ pub struct IecLayout {
     /// Where each image starts, by [`Image::ALL`]'s order (the preset's defaults unless the
     /// config moves one; those of images the preset has no use for are ignored).
     starts: [Start; 8],
+    /// The sizes in bytes of the byte images `%I`, `%Q`, `%M` (`%IX`, `%QX`, `%MX`).
+    bytes: [u32; 3],
 }
 
 impl Default for IecLayout {
@@ -221,6 +225,7 @@ impl IecLayout {
         IecLayout {
             preset,
             starts: [p(0), p(64), m(0), d(10000), d(12000), d(14000), d(16000), d(20000)],
+            bytes: [128, 128, 512],
         }
     }
 
@@ -235,10 +240,32 @@ impl IecLayout {
         self
     }
 
+    /// The layout with the byte image `image` (`Input`, `Output`, `Memory`) `bytes` long.
+    pub fn with_bytes(mut self, image: Image, bytes: u32) -> IecLayout {
+        if let Some(n) = self.bytes.get_mut(image.index()) {
+            *n = bytes;
+        }
+        self
+    }
+
+    /// The size of `image`: bytes for a byte image, elements for a word image.
+    fn units(&self, image: Image) -> u32 {
+        self.bytes.get(image.index()).copied().unwrap_or(image.default_units())
+    }
+
+    /// The device words `image` takes (the last one half used by an odd count of bytes).
+    pub fn words(&self, image: Image) -> u32 {
+        if image.byte_image() {
+            self.units(image).div_ceil(2)
+        } else {
+            self.units(image) * image.unit_words()
+        }
+    }
+
     /// The first and the last device word of `image`.
     pub fn span(&self, image: Image) -> (Address, Address) {
         let start = self.start(image);
-        (start.at(0), start.at(image.words() - 1))
+        (start.at(0), start.at(self.words(image) - 1))
     }
 
     /// What is wrong with the layout, by image: one that runs past the end of its device area,
@@ -249,13 +276,13 @@ impl IecLayout {
         for (k, &image) in images.iter().enumerate() {
             let start = self.start(image);
             let (first, _) = self.span(image);
-            if start.word + image.words() > start.area.word_count() {
+            if start.word + self.words(image) > start.area.word_count() {
                 out.push((
                     image,
                     format!(
                         "the {} image needs {} words from `{first}`: past the end of {:?} ({})",
                         image.prefix(self.preset),
-                        image.words(),
+                        self.words(image),
                         start.area,
                         start.area.range_text()
                     ),
@@ -265,8 +292,8 @@ impl IecLayout {
             for &other in &images[..k] {
                 let o = self.start(other);
                 let overlap = o.area == start.area
-                    && start.word < o.word + other.words()
-                    && o.word < start.word + image.words();
+                    && start.word < o.word + self.words(other)
+                    && o.word < start.word + self.words(image);
                 if overlap {
                     let (a, b) = self.span(other);
                     out.push((
@@ -274,7 +301,7 @@ impl IecLayout {
                         format!(
                             "the {} image (`{first}`, {} words) overlaps the {} image (`{a}` to `{b}`, `iec.{}`)",
                             image.prefix(self.preset),
-                            image.words(),
+                            self.words(image),
                             other.prefix(self.preset),
                             other.key()
                         ),
@@ -301,10 +328,10 @@ impl IecLayout {
             .map(|&image| {
                 let (first, last) = self.span(image);
                 let p = image.prefix(preset);
-                let n = image.units() - 1;
+                let n = self.units(image) - 1;
                 let what = match (image.byte_image(), preset) {
                     (true, Preset::Codesys) => {
-                        let bytes = image.units();
+                        let bytes = self.units(image);
                         format!(
                             "{p}X0.0..{p}X{n}.7, {p}W0..{p}W{}, {p}D0..{p}D{}, {p}L0..{p}L{}",
                             bytes / 2 - 1,
@@ -377,7 +404,7 @@ impl IecLayout {
             )
         };
         if image.byte_image() {
-            let bytes = image.units();
+            let bytes = self.units(image);
             let last = bytes - 1;
             match size {
                 'X' => {
@@ -407,8 +434,8 @@ impl IecLayout {
                 }
             }
         } else {
-            if index >= image.units() {
-                return Err(past_end(format!("{p} are 0 to {}", image.units() - 1)));
+            if index >= self.units(image) {
+                return Err(past_end(format!("{p} are 0 to {}", self.units(image) - 1)));
             }
             Ok(Some(Direct { address: start.at(index * image.unit_words()), bits }))
         }
@@ -614,6 +641,23 @@ mod tests {
         assert_eq!(problems.len(), 1, "{problems:?}");
         assert_eq!(problems[0].0, Image::Output);
         assert!(problems[0].1.contains("past the end of P"), "{}", problems[0].1);
+    }
+
+    #[test]
+    fn byte_images_take_the_bytes_given() {
+        // eight bytes of %IX (P000..P003), %QX from P004: plcd's habit of outputs at P0040
+        let l = IecLayout::of(Preset::OpenPlc)
+            .with_bytes(Image::Input, 8)
+            .with_start(Image::Output, Start::parse("P004").unwrap());
+        assert!(l.problems().is_empty(), "{:?}", l.problems());
+        assert_eq!(device(&l, "IX7.7"), "P003F 1");
+        assert!(device(&l, "IX8.0").contains("%IX bytes are 0 to 7"));
+        assert_eq!(device(&l, "QX0.0"), "P0040 1");
+        // an odd count of bytes: the last word half used, a word there refused
+        let l = IecLayout::of(Preset::Codesys).with_bytes(Image::Input, 5);
+        assert_eq!(l.span(Image::Input).1.to_string(), "P002");
+        assert_eq!(device(&l, "IX4.7"), "P0027 1");
+        assert!(device(&l, "IW2").contains("%IW are 0 to 1"));
     }
 
     #[test]
