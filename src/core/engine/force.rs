@@ -69,7 +69,7 @@ pub fn io_bit(address: &Address) -> Result<BitRef, ForceError> {
 }
 
 /// The P bit a Structured Text variable is, if it is one: a `BOOL` located at a P bit
-/// (`lamp AT %QX4.4 : BOOL` is P0044). Any other variable cannot be forced.
+/// (`lamp AT %P0044 : BOOL` is P0044). Any other variable cannot be forced.
 pub fn variable_io_bit(symbol: &Symbol) -> Option<(Address, BitRef)> {
     if symbol.ty != ValueType::Bool || symbol.at.space != Space::Bit {
         return None;
