@@ -396,7 +396,7 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
     ),
 ];
 
-/// The messages of the IEC direct addresses' layouts (`src/core/st/iec_image.rs`, `[iec]`), and
+/// The messages of the IEC direct addresses' layouts (`src/core/device/iec.rs`, `[iec]`), and
 /// their cases under `tests/golden`: `st/…` for a program's address, `config/…` for the layout
 /// the config gives. Every message of that file is here or in [`IEC_PARTS`], and back.
 const IEC_MESSAGES: &[(&str, &str)] = &[
@@ -410,7 +410,8 @@ const IEC_MESSAGES: &[(&str, &str)] = &[
     ("the {} image (`{}`, {} words) overlaps the {} image (`{}` to `{}`, `iec.{}`)", "config/iec-images-overlap"),
 ];
 
-/// The texts of `src/core/st/iec_image.rs` that are parts of messages or `plcd check`'s lines.
+/// The texts of the layouts (`src/core/device/iec.rs`) and of what `plcd check` shows of them
+/// (`src/core/st/iec_check.rs`) that are parts of messages or `plcd check`'s lines.
 const IEC_PARTS: &[&str] = &[
     "%IXa.b, %QXa.b → bit b (0..15) of P word a; %IWa, %QWa → P word a",
     "%MXa.b → bit b of M word a; %MWa, %MDa, %MLa → M word a",
@@ -707,22 +708,23 @@ fn every_device_message_is_in_the_address_source() {
 
 #[test]
 fn every_message_of_the_iec_layouts_is_listed_and_shown() {
-    let source = fs::read_to_string("src/core/st/iec_image.rs").unwrap();
-    let found: Vec<String> = literals(&source)
-        .into_iter()
+    // each file on its own: `literals` stops at a file's `#[cfg(test)]`
+    let found: Vec<String> = ["src/core/device/iec.rs", "src/core/st/iec_check.rs"]
+        .iter()
+        .flat_map(|p| literals(&fs::read_to_string(p).unwrap()))
         .map(|(_, l)| template(&l))
         .filter(|t| t.contains(' '))
         .collect();
     let listed = |t: &str| IEC_MESSAGES.iter().any(|(m, _)| *m == t) || IEC_PARTS.contains(&t);
     let unlisted: Vec<&String> = found.iter().filter(|t| !listed(t)).collect();
-    assert!(unlisted.is_empty(), "messages of iec_image.rs with no row: {unlisted:#?}");
+    assert!(unlisted.is_empty(), "messages of the iec layouts with no row: {unlisted:#?}");
     let stale: Vec<&str> = IEC_MESSAGES
         .iter()
         .map(|(m, _)| *m)
         .chain(IEC_PARTS.iter().copied())
         .filter(|t| !found.iter().any(|f| f == t))
         .collect();
-    assert!(stale.is_empty(), "listed but not in iec_image.rs: {stale:#?}");
+    assert!(stale.is_empty(), "listed but not in the iec layouts' sources: {stale:#?}");
     let mut failures = Vec::new();
     for (template, case) in IEC_MESSAGES {
         let path = Path::new("tests/golden").join(case).join("expected.stderr");

@@ -539,7 +539,7 @@ where
     let dialect = st::dialect::Dialect { strict: config.st.strict, iec: config.iec.layout };
     let base = config.path.parent().unwrap_or(Path::new(""));
     let shown = |path: &Path| path.strip_prefix(base).unwrap_or(path).display().to_string();
-    let iec_notes = st::iec_image::check_notes(&files, &config.iec.layout, shown);
+    let iec_notes = st::iec_check::check_notes(&files, &config.iec.layout, shown);
     match st::compile_configured(&files, &instances, &configured, dialect) {
         Ok(compiled) => Some((compiled, iec_notes)),
         Err(errors) => {

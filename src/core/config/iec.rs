@@ -1,14 +1,14 @@
 //! `[iec]`: what the IEC 61131-3 direct addresses of Structured Text (`%IX0.0`, `%QW3`,
 //! `%MD10`) name in device memory: a preset layout (OpenPLC's, CODESYS's, plcd's own) and the
 //! device words its images start at (docs/CONFIG.md, `[iec]`). The layouts themselves are
-//! `st::iec_image`'s.
+//! `device::iec`'s.
 
 use serde::Deserialize;
 use toml::Spanned;
 
 use super::common::{int, Ctx};
 use super::Sink;
-use crate::st::iec_image::{IecLayout, Image, Preset, Start};
+use crate::device::iec::{IecLayout, Image, Preset, Start};
 
 /// `[iec]`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -457,7 +457,7 @@ fn unknown_keys_are_errors_at_the_key() {
     assert_eq!(
         errors(&with_scan("[plcc]\n")),
         ["1:2: unknown key `plcc`, expected one of `plc`, `sim`, `timers`, `program`, `task`, \
-          `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `st`, `remote`"]
+          `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `st`, `iec`, `remote`"]
     );
     assert_eq!(
         errors(&with_scan("[plc]\nwatchdog = 5\n")),
@@ -1867,8 +1867,8 @@ fn st_strict_is_off_unless_set() {
 
 #[test]
 fn iec_layout_is_openplc_unless_set_and_images_move() {
+    use crate::device::iec::{IecLayout, Image, Preset, Start};
     use crate::device::Area;
-    use crate::st::iec_image::{IecLayout, Image, Preset, Start};
     assert_eq!(config(&with_scan("")).iec.layout, IecLayout::of(Preset::OpenPlc));
     let c = config(&with_scan(
         "[iec]\npreset = \"CODESYS\"\noutput = \"P100\"\noutput_bytes = 56\nmemory = \"K000\"\n",

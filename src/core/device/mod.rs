@@ -1,10 +1,12 @@
 //! Device memory: every area of docs/LANGUAGE.md in one preallocated, fixed-size array of words.
 //!
-//! This module owns the layout ([`layout`]), the address syntax ([`address`]) and the
+//! This module owns the layout ([`layout`]), the address syntax ([`address`]), what the IEC
+//! direct addresses of Structured Text name in it ([`iec`], by `[iec]`'s layout) and the
 //! system-maintained devices (SM400–SM403, the F flags, the scan-time words). Nothing here
 //! allocates after [`Memory::new`].
 
 pub mod address;
+pub mod iec;
 pub mod layout;
 pub mod retained;
 

@@ -16,10 +16,10 @@
 use std::path::Path;
 
 use crate::config::{DeviceCondition, Language, ProgramConfig, TaskConfig, TaskKind, TaskRef};
+use crate::device::iec::IecLayout;
 use crate::device::Address;
 use crate::diag::Diagnostic;
 use crate::st::ast::{self, ConfigValue, ExprKind, Literal};
-use crate::st::iec_image::IecLayout;
 
 /// What a configuration adds to the project.
 #[derive(Debug, Clone, PartialEq)]

@@ -15,7 +15,7 @@ pub struct Dialect {
     /// Refuse every [`Habit`] (IEC 61131-3 only). Default `false`: accept them.
     pub strict: bool,
     /// What `%IX0.0`, `%QW3`, `%MD10` name (`[iec]`); default OpenPLC's numbering.
-    pub iec: crate::st::iec_image::IecLayout,
+    pub iec: crate::device::iec::IecLayout,
 }
 
 /// One non-standard form, as written.

@@ -6,7 +6,8 @@
 //! - [`sfc`]: a POU's Sequential Function Chart, as parsed;
 //! - [`twincat`]: TwinCAT's `.TcPOU`/`.TcDUT`/`.TcGVL`/`.TcIO` files → ST text on the same lines;
 //! - [`dialect`]: the CODESYS/TwinCAT habits accepted beyond the standard, and `strict`;
-//! - [`iec_image`]: what `%IX0.0`, `%QW3`, `%MD10` name in device memory, by `[iec]`'s layout;
+//! - [`iec_check`]: what `plcd check` shows of the `[iec]` layout (the layouts are
+//!   [`crate::device::iec`]'s);
 //! - [`configuration`]: a `CONFIGURATION`'s tasks and program instances → the project's;
 //! - [`compile`](mod@compile): trees of all the project's `.st` files → one program per `[[program]]`
 //!   instance, the variable memory's layout and initial image, and every variable by name.
@@ -15,7 +16,7 @@ pub mod ast;
 pub mod compile;
 pub mod configuration;
 pub mod dialect;
-pub mod iec_image;
+pub mod iec_check;
 pub mod sfc;
 pub mod syntax;
 pub mod twincat;

@@ -146,8 +146,10 @@ impl Programs {
     /// One `.st` file as the scan program `main` of a project of its own, as the conformance
     /// suite builds its cases.
     fn st_file(name: &str, file: &Path, period_ns: u64) -> Programs {
+        // a conformance case's own config sections (`[iec] preset`), as tests/st/README.md says
+        let sections = std::fs::read_to_string(file.with_extension("toml")).unwrap_or_default();
         let config = format!(
-            "[plc]\nwatchdog_ms = 1000\nscan_period_ms = {}\n[[program]]\nname = \"main\"\nfile = \"{}\"\n",
+            "[plc]\nwatchdog_ms = 1000\nscan_period_ms = {}\n[[program]]\nname = \"main\"\nfile = \"{}\"\n{sections}",
             (period_ns / MS).max(1),
             file.file_name().unwrap().to_str().unwrap()
         );

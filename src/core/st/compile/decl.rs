@@ -5,10 +5,10 @@
 use std::collections::HashMap;
 use std::rc::Rc;
 
+use crate::device::iec::IecLayout;
 use crate::device::{Address, BitRef, Writer};
 use crate::lang::Place;
 use crate::st::ast::{self, ArrayInit, Init, Item, PouKind, Span, TypeDef, TypeRef, VarKind};
-use crate::st::iec_image::IecLayout;
 
 use super::ctx::{
     action_key, suggest, Ctx, Cv, PouInfo, Scope, State, Storage, TypeEntry, VarInfo,
@@ -1567,7 +1567,7 @@ pub fn iec_address(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::st::iec_image::Preset;
+    use crate::device::iec::Preset;
 
     #[test]
     fn iec_addresses_follow_the_layout() {

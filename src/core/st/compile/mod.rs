@@ -4,7 +4,7 @@
 //! - [`types`]: the type model and IEC's implicit conversions;
 //! - `ctx`: the compiler's state, names and suggestions;
 //! - `decl`: declarations: types, globals, POU interfaces, memory layout, initial images,
-//!   located variables (what an IEC direct address names is `st::iec_image`'s, by `[iec]`);
+//!   located variables (what an IEC direct address names is `device::iec`'s, by `[iec]`);
 //! - `expr`, `stmt`, `stdlib`, `refs` (references and pointers): checking into a typed tree;
 //! - `emit`: the typed tree to ops; `link` (here): one program per instance, symbols;
 //! - `sfc`: each POU's Sequential Function Chart → variables and statements, before the rest;

@@ -18,8 +18,8 @@
 //!
 //! A path may start with the resource's name, as IEC writes it (`Res0.i.x`).
 
+use crate::device::iec::IecLayout;
 use crate::st::ast::{self, ConfigVar, Ident, VarKind};
-use crate::st::iec_image::IecLayout;
 
 use super::ctx::{suggest, Ctx, Scope, Storage};
 use super::decl::iec_address;

@@ -18,11 +18,11 @@
 //! `8 * (b mod 2)` to `8 * (b mod 2) + 7`.
 //!
 //! This module owns the layouts, their defaults and their checks, and the resolution of an
-//! address text. Who reads which image is the compiler's (`compile::decl::iec_address`); the
-//! config's keys are `config::iec`.
+//! address text. The Structured Text compiler resolves its programs' addresses with it
+//! (`st::compile::decl::iec_address`), `config::iec` reads `[iec]` into one, and
+//! `st::iec_check` says what `plcd check` shows of it.
 
-use crate::device::{Address, Area};
-use crate::st::ast;
+use super::{Address, Area};
 
 /// The editor whose numbering `%I`, `%Q` and `%M` follow: `[iec] preset`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -438,77 +438,6 @@ impl IecLayout {
                 return Err(past_end(format!("{p} are 0 to {}", self.units(image) - 1)));
             }
             Ok(Some(Direct { address: start.at(index * image.unit_words()), bits }))
-        }
-    }
-}
-
-/// What `plcd check` shows of the layout for a project's Structured Text `files`: nothing when
-/// no declaration locates a variable at an IEC direct address; else the layout (a line per
-/// image) and, for each such variable, the device it lands on (`main.st:5: Main.lamp AT %QX0.0
-/// → P0640`; a located array at its first device). `shown` gives a file's name as printed.
-pub fn check_notes(
-    files: &[ast::File],
-    layout: &IecLayout,
-    shown: impl Fn(&std::path::Path) -> String,
-) -> Vec<String> {
-    let mut located = Vec::new();
-    for file in files {
-        // (the variable's name as tools show it, where it is located)
-        let mut sites: Vec<(String, &ast::Ident)> = Vec::new();
-        let mut configs = Vec::new();
-        for item in &file.items {
-            match item {
-                ast::Item::Pou(pou) => located_in(Some(&pou.name.name), &pou.vars, &mut sites),
-                ast::Item::Globals(block) => {
-                    located_in(None, std::slice::from_ref(block), &mut sites)
-                }
-                ast::Item::Configuration(conf) => {
-                    located_in(None, &conf.globals, &mut sites);
-                    configs.push(conf);
-                }
-                _ => {}
-            }
-        }
-        for var in configs.iter().flat_map(|c| &c.var_config) {
-            if let Some(loc) = &var.location {
-                let path: Vec<&str> = var.path.iter().map(|i| i.name.as_str()).collect();
-                sites.push((path.join("."), loc));
-            }
-        }
-        for (name, loc) in sites {
-            let Ok(Some(direct)) = layout.resolve(&loc.name) else { continue };
-            located.push(format!(
-                "iec: {}:{}: {name} AT %{} → {}",
-                shown(&file.path),
-                loc.span.line,
-                loc.name,
-                direct.address
-            ));
-        }
-    }
-    if located.is_empty() {
-        return located;
-    }
-    let mut out = vec![format!(
-        "iec: the {} layout ([iec] preset), docs/ST.md \"Direct addresses\":",
-        layout.preset.name()
-    )];
-    out.extend(layout.describe().into_iter().map(|line| format!("iec:   {line}")));
-    out.extend(located);
-    out
-}
-
-/// The located variables of `blocks` (of the POU `owner`), by the names tools show them under.
-fn located_in<'a>(
-    owner: Option<&str>,
-    blocks: &'a [ast::VarBlock],
-    sites: &mut Vec<(String, &'a ast::Ident)>,
-) {
-    for decl in blocks.iter().flat_map(|b| &b.decls) {
-        let Some(loc) = &decl.location else { continue };
-        for name in &decl.names {
-            let name = owner.map_or(name.name.clone(), |o| format!("{o}.{}", name.name));
-            sites.push((name, loc));
         }
     }
 }

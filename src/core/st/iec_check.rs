@@ -1,0 +1,77 @@
+//! What `plcd check` shows of the `[iec]` layout (`device::iec`): the layout in effect and,
+//! for each variable the project's Structured Text declarations locate at an IEC direct
+//! address, the device it lands on (docs/ST.md, "Direct addresses").
+
+use crate::device::iec::IecLayout;
+use crate::st::ast;
+
+/// What `plcd check` shows of the layout for a project's Structured Text `files`: nothing when
+/// no declaration locates a variable at an IEC direct address; else the layout (a line per
+/// image) and, for each such variable, the device it lands on (`main.st:5: Main.lamp AT %QX0.0
+/// → P0640`; a located array at its first device). `shown` gives a file's name as printed.
+pub fn check_notes(
+    files: &[ast::File],
+    layout: &IecLayout,
+    shown: impl Fn(&std::path::Path) -> String,
+) -> Vec<String> {
+    let mut located = Vec::new();
+    for file in files {
+        // (the variable's name as tools show it, where it is located)
+        let mut sites: Vec<(String, &ast::Ident)> = Vec::new();
+        let mut configs = Vec::new();
+        for item in &file.items {
+            match item {
+                ast::Item::Pou(pou) => located_in(Some(&pou.name.name), &pou.vars, &mut sites),
+                ast::Item::Globals(block) => {
+                    located_in(None, std::slice::from_ref(block), &mut sites)
+                }
+                ast::Item::Configuration(conf) => {
+                    located_in(None, &conf.globals, &mut sites);
+                    configs.push(conf);
+                }
+                _ => {}
+            }
+        }
+        for var in configs.iter().flat_map(|c| &c.var_config) {
+            if let Some(loc) = &var.location {
+                let path: Vec<&str> = var.path.iter().map(|i| i.name.as_str()).collect();
+                sites.push((path.join("."), loc));
+            }
+        }
+        for (name, loc) in sites {
+            let Ok(Some(direct)) = layout.resolve(&loc.name) else { continue };
+            located.push(format!(
+                "iec: {}:{}: {name} AT %{} → {}",
+                shown(&file.path),
+                loc.span.line,
+                loc.name,
+                direct.address
+            ));
+        }
+    }
+    if located.is_empty() {
+        return located;
+    }
+    let mut out = vec![format!(
+        "iec: the {} layout ([iec] preset), docs/ST.md \"Direct addresses\":",
+        layout.preset.name()
+    )];
+    out.extend(layout.describe().into_iter().map(|line| format!("iec:   {line}")));
+    out.extend(located);
+    out
+}
+
+/// The located variables of `blocks` (of the POU `owner`), by the names tools show them under.
+fn located_in<'a>(
+    owner: Option<&str>,
+    blocks: &'a [ast::VarBlock],
+    sites: &mut Vec<(String, &'a ast::Ident)>,
+) {
+    for decl in blocks.iter().flat_map(|b| &b.decls) {
+        let Some(loc) = &decl.location else { continue };
+        for name in &decl.names {
+            let name = owner.map_or(name.name.clone(), |o| format!("{o}.{}", name.name));
+            sites.push((name, loc));
+        }
+    }
+}
