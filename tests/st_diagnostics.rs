@@ -417,7 +417,12 @@ const IEC_PARTS: &[&str] = &[
     "%MXa.b → bit b of M word a; %MWa, %MDa, %MLa → M word a",
     "{}X0.0..{}X{}.7, {}W0..{}W{}, {}D0..{}D{}, {}L0..{}L{}",
     "iec: the {} layout ([iec] preset), docs/ST.md \"Direct addresses\":",
-    "iec: {}:{}: {} AT %{} → {}",
+    "iec: {}:{}: {}{} %{} → {}",
+    // how a declaration or a configuration names the address, and a TASK's property
+    " AT",
+    " =>",
+    " :=",
+    "TASK {} {}",
     "iec:   {}",
     "{} → {}..{} (iec.{})",
     "%{}X bytes are 0 to {}",

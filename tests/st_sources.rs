@@ -292,6 +292,10 @@ fn a_single_task_runs_on_each_rising_edge_and_instances_copy_their_arguments() {
         ]
     );
     // lamp (%QX0.2) and many (%QX0.5): bits 2 and 5 of the %QX image's first byte, P064
+    // plcd check shows where the configuration's direct addresses land, arguments included
+    let iec: Vec<&str> = stdout.lines().filter(|l| l.starts_with("  iec: plc.st:")).collect();
+    assert!(iec.iter().any(|l| l.ends_with(": start_btn AT %IX0.1 → P0001")), "{iec:?}");
+    assert!(iec.iter().any(|l| l.ends_with(": presses.many => %QX0.5 → P0645")), "{iec:?}");
     let watch = "instance0.total,instance0.speed,presses.n,P0642,P0645";
     let out = plcd(
         dir.path(),
