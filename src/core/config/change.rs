@@ -55,7 +55,7 @@ const fn section(
 /// online change take a new value of it. The online column is what the running engine can take
 /// over; what a load refuses never reaches it.
 #[rustfmt::skip]
-const SECTIONS: [Section; 12] = [
+const SECTIONS: [Section; 13] = [
     //       section      differs                              reload  load   online
     section("[plc]",     |a, b| a.plc != b.plc,              [true,  true,  false]),
     // Read by `plcd sim` alone.
@@ -73,6 +73,9 @@ const SECTIONS: [Section; 12] = [
     section("[[remote]]", |a, b| a.remotes != b.remotes,     [false, false, true ]),
     // Program code, like `[[program]]`: an online change keeps the variables it can.
     section("[st]",      |a, b| a.st != b.st,                [true,  true,  true ]),
+    // Where the IEC direct addresses are: an online change would carry the located variables'
+    // values over to other devices and leave the old ones (outputs among them) as they were.
+    section("[iec]",     |a, b| a.iec != b.iec,              [true,  true,  false]),
     // Not a section but what the field was opened for: the edge detection of the contacts io
     // tasks start on (an online change refuses any task change on its own, task by task).
     section("the contacts and edges io tasks start on",
@@ -148,6 +151,7 @@ mod tests {
         new.control.max_clients += 1;
         new.retain.interval_ms += 1;
         new.modbus.unit_id += 1;
+        new.iec.layout = crate::device::iec::IecLayout::of(crate::device::iec::Preset::Codesys);
         new.remotes = parse(
             &format!(
                 "{PROGRAM}[[remote]]\nname = \"a\"\ntransport = \"tcp\"\n\
@@ -168,7 +172,7 @@ mod tests {
         );
         assert_eq!(
             old.refused_sections(&new, ProjectChange::Online),
-            ["[plc]", "[timers]", "[io]", "[rt]", "[switch]", "[retain]"]
+            ["[plc]", "[timers]", "[io]", "[rt]", "[switch]", "[retain]", "[iec]"]
         );
     }
 }
