@@ -232,6 +232,8 @@ pub struct Pou {
 /// What a POU declares of IEC 61131-3 ed. 3's object orientation.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Oop {
+    /// Declared `CLASS … END_CLASS`: a function block without a body, inputs or outputs.
+    pub is_class: bool,
     pub extends: Option<Ident>,
     pub implements: Vec<Ident>,
     pub is_abstract: bool,

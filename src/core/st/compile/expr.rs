@@ -607,6 +607,8 @@ impl<'a> Ctx<'a> {
                             return TExpr::error(span);
                         };
                         match (v.kind, access) {
+                            // `THIS^.x`, `SUPER^.x`: the block's own variable, as `x`
+                            _ if super::oop::is_own_instance(base) => {}
                             (VarKind::Input | VarKind::Output, Access::Read)
                             | (VarKind::Input, _) => {}
                             // CODESYS reads an instance's own variables from outside
@@ -1720,6 +1722,9 @@ impl<'a> Ctx<'a> {
         match inst.ty {
             Ty::Error => None,
             Ty::Fb(p) => {
+                if self.class_called(p, file, span) {
+                    return None;
+                }
                 self.record_call(scope, p, span);
                 let mut call = self.bind_args(p, args, span, scope)?;
                 call.dispatch = self.body_candidates(&inst, p);

@@ -39,6 +39,7 @@
 //!   is checked at run time.
 
 mod calendar;
+mod class;
 mod codesys;
 mod ctx;
 mod decl;
@@ -158,6 +159,7 @@ pub fn compile_configured(
     }
     cx.collect();
     cx.link_hierarchy();
+    cx.check_classes();
     cx.resolve_all();
     cx.check_oop();
 

@@ -109,6 +109,12 @@ fn name_tag(name: &str) -> u32 {
     h
 }
 
+/// Whether `e` is `THIS^` or `SUPER^`: the own instance, whose every variable its code reaches.
+pub(super) fn is_own_instance(e: &Expr) -> bool {
+    matches!(&e.kind, ExprKind::Deref(inner)
+        if matches!(&inner.kind, ExprKind::Name(id) if id.is("THIS") || id.is("SUPER")))
+}
+
 impl<'a> Ctx<'a> {
     /// Registers the methods and properties of POU `owner`.
     pub(super) fn add_members(&mut self, file: usize, owner: usize, pou: &'a ast::Pou) {
@@ -788,6 +794,9 @@ impl<'a> Ctx<'a> {
             if matches!(&inner.kind, ExprKind::Name(id) if id.is("SUPER")) {
                 let inst = self.this_place(inner, callee.span, scope)?;
                 let Ty::Fb(base) = inst.ty else { return Some(None) };
+                if self.class_called(base, scope.file, span) {
+                    return Some(None);
+                }
                 self.record_call(scope, base, span);
                 let call = self.bind_args(base, args, span, scope);
                 return Some(call.map(|c| TS::FbCall(inst, c)));

@@ -28,6 +28,8 @@ pub(crate) enum Kw {
     EndSet,
     Interface,
     EndInterface,
+    Class,
+    EndClass,
     Configuration,
     EndConfiguration,
     EndResource,
@@ -102,6 +104,8 @@ impl Kw {
             b"END_SET" => Kw::EndSet,
             b"INTERFACE" => Kw::Interface,
             b"END_INTERFACE" => Kw::EndInterface,
+            b"CLASS" => Kw::Class,
+            b"END_CLASS" => Kw::EndClass,
             b"CONFIGURATION" => Kw::Configuration,
             b"END_CONFIGURATION" => Kw::EndConfiguration,
             b"END_RESOURCE" => Kw::EndResource,
@@ -173,6 +177,7 @@ impl Kw {
                 | Kw::EndGet
                 | Kw::EndSet
                 | Kw::EndInterface
+                | Kw::EndClass
                 | Kw::EndConfiguration
                 | Kw::EndResource
                 | Kw::EndType

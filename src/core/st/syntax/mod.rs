@@ -170,10 +170,11 @@ pub(crate) enum Closer {
     Get,
     Set,
     Interface,
+    Class,
 }
 
 impl Closer {
-    pub(crate) const ALL: [Closer; 19] = [
+    pub(crate) const ALL: [Closer; 20] = [
         Closer::If,
         Closer::Case,
         Closer::For,
@@ -193,6 +194,7 @@ impl Closer {
         Closer::Get,
         Closer::Set,
         Closer::Interface,
+        Closer::Class,
     ];
 
     /// The keyword that closes it.
@@ -217,6 +219,7 @@ impl Closer {
             Closer::Get => "END_GET",
             Closer::Set => "END_SET",
             Closer::Interface => "END_INTERFACE",
+            Closer::Class => "END_CLASS",
         }
     }
 
@@ -242,6 +245,7 @@ impl Closer {
             Closer::Get => "GET",
             Closer::Set => "SET",
             Closer::Interface => "INTERFACE",
+            Closer::Class => "CLASS",
         }
     }
 }

@@ -176,6 +176,7 @@ fn is_top(tok: &Tok) -> bool {
                     | Kw::Method
                     | Kw::Property
                     | Kw::Interface
+                    | Kw::Class
                     | Kw::Configuration
             )
     )
@@ -198,7 +199,7 @@ fn is_stmt_keyword(tok: &Tok) -> bool {
 }
 
 fn is_pou_end(kw: Kw) -> bool {
-    matches!(kw, Kw::EndProgram | Kw::EndFunction | Kw::EndFunctionBlock)
+    matches!(kw, Kw::EndProgram | Kw::EndFunction | Kw::EndFunctionBlock | Kw::EndClass)
 }
 
 /// `END_…`, `ELSE`, `ELSIF`, `UNTIL`: what ends a list of statements.
@@ -232,6 +233,7 @@ impl Closer {
             Closer::Get => kw == Kw::EndGet,
             Closer::Set => kw == Kw::EndSet,
             Closer::Interface => kw == Kw::EndInterface,
+            Closer::Class => kw == Kw::EndClass,
         }
     }
 
@@ -256,6 +258,7 @@ impl Closer {
             Closer::Get => Kw::EndGet,
             Closer::Set => Kw::EndSet,
             Closer::Interface => Kw::EndInterface,
+            Closer::Class => Kw::EndClass,
         }
     }
 }
@@ -466,7 +469,8 @@ impl<'a> Parser<'a> {
                 | Closer::Action
                 | Closer::Method
                 | Closer::Property
-                | Closer::Interface => {
+                | Closer::Interface
+                | Closer::Class => {
                     is_pou_end(kw)
                         || matches!(
                             kw,
@@ -541,6 +545,8 @@ impl<'a> Parser<'a> {
                 Tok::Kw(Kw::FunctionBlock) => {
                     items.push(Item::Pou(self.pou(PouKind::FunctionBlock)))
                 }
+                // a CLASS is a function block without a body (compile/class.rs checks the rest)
+                Tok::Kw(Kw::Class) => items.push(Item::Pou(self.pou(PouKind::FunctionBlock))),
                 Tok::Kw(Kw::Type) => items.extend(self.type_block().into_iter().map(Item::Type)),
                 Tok::Kw(Kw::VarGlobal) => items.push(Item::Globals(self.var_block())),
                 Tok::Kw(Kw::Action) => {
@@ -584,7 +590,7 @@ impl<'a> Parser<'a> {
             self.text_of(at)
         }
         .to_ascii_uppercase();
-        let mut oop = Oop::default();
+        let mut oop = Oop { is_class: opener == "CLASS", ..Oop::default() };
         let (_, is_abstract, is_final) = self.modifiers();
         (oop.is_abstract, oop.is_final) = (is_abstract, is_final);
         let name = self.ident().unwrap_or_else(|_| Ident { name: String::new(), span });
@@ -615,6 +621,7 @@ impl<'a> Parser<'a> {
         let closer = match kind {
             PouKind::Program => Closer::Program,
             PouKind::Function => Closer::Function,
+            PouKind::FunctionBlock if oop.is_class => Closer::Class,
             PouKind::FunctionBlock => Closer::FunctionBlock,
         };
         // open from here: a method's missing END_METHOD does not take the POU's end for it
