@@ -13,6 +13,7 @@ use crate::st::ast::{self, ArrayInit, Init, Item, PouKind, Span, TypeDef, TypeRe
 use super::ctx::{
     action_key, suggest, Ctx, Cv, PouInfo, Scope, State, Storage, TypeEntry, VarInfo,
 };
+use super::fb_init;
 use super::types::{fits, ArrayTy, EnumTy, Member, Prim, StructTy, Ty};
 
 /// The largest frame or instance the compiler accepts.
@@ -30,7 +31,7 @@ type OutsideAction<'a> = (usize, Option<(String, Span)>, &'a ast::Action);
 
 impl<'a> Ctx<'a> {
     fn reserved(&mut self, file: usize, id: &ast::Ident) {
-        if file != self.prelude_file && id.name.starts_with("__") {
+        if file != self.prelude_file && id.name.starts_with("__") && !fb_init::is_hidden(&id.name) {
             self.error(
                 file,
                 id.span,

@@ -45,6 +45,7 @@ mod ctx;
 mod decl;
 mod emit;
 mod expr;
+mod fb_init;
 mod instance_args;
 mod oop;
 mod refs;
@@ -125,6 +126,7 @@ pub fn compile_configured(
     let (prelude, prelude_diags) = super::syntax::parse_file(Path::new(PRELUDE_PATH), PRELUDE);
     let mut diags: Vec<Diagnostic> = prelude_diags.0;
     let lowered = sfc::lower(files, &mut diags);
+    let lowered = fb_init::lower(lowered, &mut diags);
     let mut refs: Vec<&ast::File> = lowered.iter().map(|f| &**f).collect();
     refs.push(&prelude);
     let prelude_file = refs.len() - 1;

@@ -1,0 +1,398 @@
+//! `FB_init` (CODESYS, TwinCAT): the method a function block (or class) declares to initialise
+//! each of its instances once, before the first scan of the program that holds it.
+//!
+//! A lowering of the syntax trees before compilation, so that every call it adds is checked
+//! and compiled as the user's own code (and so has native code): nothing changes for a project
+//! without an `FB_init`.
+//!
+//! - Each function block with something to initialise (its own `FB_init`, or a variable holding
+//!   an instance of a block that has) gets a hidden method [`INIT_ALL`]: its base's first
+//!   (`SUPER^.__FB_INIT_ALL`), then each of its instances in declaration order (an array's
+//!   elements in index order), then its own `FB_init`, which CODESYS documents: a base's
+//!   `FB_init` before a derived block's, an embedded instance initialised before the block
+//!   that holds it.
+//! - Each PROGRAM holding such instances gets a hidden `__FB_INIT_DONE : BOOL`, FALSE at every
+//!   RUN start, and its body starts with `IF NOT __FB_INIT_DONE THEN … END_IF`: its instances'
+//!   `__FB_INIT_ALL`. `bInitRetains` is TRUE when the RETAIN variables started from their
+//!   initial values (a hidden `VAR RETAIN __FB_INIT_RETAINED`, set at the first run, says they
+//!   did not: a warm start keeps it); `bInCopyCode` is FALSE (an online change keeps the
+//!   instances and the flag: `FB_init` is not called again).
+//! - A method named `FB_init` is called without dispatch (a derived block's does not replace
+//!   its base's, both run) and may add VAR_INPUTs to its base's (compile/oop.rs skips it).
+//!
+//! Checked here: an `FB_init` declares `bInitRetains` and `bInCopyCode` (BOOL) as its first two
+//! VAR_INPUTs; an instance in `VAR_GLOBAL` whose block has an `FB_init` is refused (no PROGRAM
+//! owns it to run it).
+
+use std::borrow::Cow;
+use std::collections::HashMap;
+
+use crate::diag::Diagnostic;
+use crate::st::ast::{
+    self, Arg, Expr, ExprKind, Ident, Item, Literal, Pou, PouKind, Span, Stmt, StmtKind, TypeRef,
+    UnaryOp, VarBlock, VarDecl, VarKind,
+};
+
+/// The hidden method that initialises an instance (its base, its instances, its `FB_init`).
+pub const INIT_ALL: &str = "__FB_INIT_ALL";
+/// The name CODESYS gives the initialising method.
+pub const FB_INIT: &str = "FB_init";
+const DONE: &str = "__FB_INIT_DONE";
+const RETAINED: &str = "__FB_INIT_RETAINED";
+const INIT_RETAINS: &str = "bInitRetains";
+const IN_COPY_CODE: &str = "bInCopyCode";
+
+/// Whether `name` is `FB_init` (case-insensitive, as every IEC name).
+pub fn is_fb_init(name: &str) -> bool {
+    name.eq_ignore_ascii_case(FB_INIT)
+}
+
+/// Whether `name` is one of the variables this lowering declares (exempt from the rule that
+/// reserves names starting with `__` to plcd).
+pub fn is_hidden(name: &str) -> bool {
+    name.get(..10).is_some_and(|p| p.eq_ignore_ascii_case("__FB_INIT_"))
+}
+
+/// The function blocks of the project by name (lower case): (file, item).
+type Blocks = HashMap<String, (usize, usize)>;
+
+pub(super) fn lower<'f>(
+    mut files: Vec<Cow<'f, ast::File>>,
+    diags: &mut Vec<Diagnostic>,
+) -> Vec<Cow<'f, ast::File>> {
+    let mut blocks: Blocks = HashMap::new();
+    for (f, file) in files.iter().enumerate() {
+        for (i, item) in file.items.iter().enumerate() {
+            if let Item::Pou(p) = item {
+                if p.kind == PouKind::FunctionBlock {
+                    blocks.entry(p.name.name.to_ascii_lowercase()).or_insert((f, i));
+                }
+            }
+        }
+    }
+    let mut needs: HashMap<String, bool> = HashMap::new();
+    let names: Vec<String> = blocks.keys().cloned().collect();
+    for name in &names {
+        needs_init(&files, &blocks, name, &mut needs, &mut Vec::new());
+    }
+    // the checks, on the files as written
+    for file in &files {
+        for item in &file.items {
+            match item {
+                Item::Pou(p) => {
+                    for m in p.oop.methods.iter().filter(|m| is_fb_init(&m.pou.name.name)) {
+                        if !signature_ok(&m.pou) {
+                            diags.push(Diagnostic::new(
+                                &file.path,
+                                m.pou.name.span.line,
+                                m.pou.name.span.col,
+                                "an FB_init method declares `bInitRetains : BOOL` and `bInCopyCode : BOOL` as its first two VAR_INPUTs",
+                            ));
+                        }
+                    }
+                }
+                Item::Globals(block) => {
+                    for d in &block.decls {
+                        if instance_needs(&d.ty, &needs).is_some() {
+                            let n = &d.names[0];
+                            let msg = format!(
+                                "`{}`'s function block has an FB_init, which plcd runs only for the instances of a PROGRAM: declare it in a PROGRAM's VAR",
+                                n.name
+                            );
+                            diags.push(Diagnostic::new(&file.path, n.span.line, n.span.col, msg));
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+    if !needs.values().any(|&n| n) {
+        return files;
+    }
+    for file in &mut files {
+        let wants = file.items.iter().any(|item| match item {
+            Item::Pou(p) => {
+                p.kind == PouKind::Program && !instances(p, &needs).is_empty()
+                    || p.kind == PouKind::FunctionBlock && own_work(p, &needs)
+            }
+            _ => false,
+        });
+        if !wants {
+            continue;
+        }
+        for item in &mut file.to_mut().items {
+            let Item::Pou(p) = item else { continue };
+            match p.kind {
+                PouKind::FunctionBlock if own_work(p, &needs) => add_init_all(p, &needs),
+                PouKind::Program if !instances(p, &needs).is_empty() => add_prologue(p, &needs),
+                _ => {}
+            }
+        }
+    }
+    files
+}
+
+/// Whether block `name` has something to initialise: its `FB_init`, its base's, or one of its
+/// instances'. `path` guards against a block that holds itself (reported elsewhere).
+fn needs_init(
+    files: &[Cow<'_, ast::File>],
+    blocks: &Blocks,
+    name: &str,
+    memo: &mut HashMap<String, bool>,
+    path: &mut Vec<String>,
+) -> bool {
+    if let Some(&n) = memo.get(name) {
+        return n;
+    }
+    let Some(&(f, i)) = blocks.get(name) else { return false };
+    if path.iter().any(|p| p == name) {
+        return false;
+    }
+    let Item::Pou(p) = &files[f].items[i] else { return false };
+    path.push(name.to_string());
+    let mut needs = own_fb_init(p);
+    if let Some(base) = &p.oop.extends {
+        needs |= needs_init(files, blocks, &base.name.to_ascii_lowercase(), memo, path);
+    }
+    for d in p.vars.iter().filter(|b| holds_instances(b.kind)).flat_map(|b| &b.decls) {
+        if let Some(of) = instance_type(&d.ty) {
+            needs |= needs_init(files, blocks, &of.to_ascii_lowercase(), memo, path);
+        }
+    }
+    path.pop();
+    memo.insert(name.to_string(), needs);
+    needs
+}
+
+/// The sections whose instances belong to the POU's instance (not a caller's, nor a global).
+fn holds_instances(kind: VarKind) -> bool {
+    matches!(
+        kind,
+        VarKind::Local | VarKind::Input | VarKind::Output | VarKind::Static | VarKind::Instance
+    )
+}
+
+/// The block name of an instance or of an array of instances.
+fn instance_type(ty: &TypeRef) -> Option<&str> {
+    match ty {
+        TypeRef::Named(id) => Some(&id.name),
+        TypeRef::Array { of, .. } => instance_type(of),
+        _ => None,
+    }
+}
+
+/// The block of `ty` when it has something to initialise.
+fn instance_needs<'t>(ty: &'t TypeRef, needs: &HashMap<String, bool>) -> Option<&'t str> {
+    instance_type(ty).filter(|n| needs.get(&n.to_ascii_lowercase()).copied().unwrap_or(false))
+}
+
+/// The variables of `p` to initialise, with their types, in declaration order.
+fn instances<'p>(p: &'p Pou, needs: &HashMap<String, bool>) -> Vec<(&'p Ident, &'p TypeRef)> {
+    let mut out = Vec::new();
+    for d in p.vars.iter().filter(|b| holds_instances(b.kind)).flat_map(|b| &b.decls) {
+        if instance_needs(&d.ty, needs).is_some() {
+            out.extend(d.names.iter().map(|n| (n, &d.ty)));
+        }
+    }
+    out
+}
+
+/// Whether block `p` initialises something itself (its `FB_init` or its instances), beyond
+/// what it inherits.
+fn own_work(p: &Pou, needs: &HashMap<String, bool>) -> bool {
+    own_fb_init(p) || !instances(p, needs).is_empty()
+}
+
+/// Whether block `p` declares an `FB_init` to call (one with the wrong signature is reported,
+/// and not called).
+fn own_fb_init(p: &Pou) -> bool {
+    p.oop.methods.iter().any(|m| is_fb_init(&m.pou.name.name) && signature_ok(&m.pou))
+}
+
+/// `bInitRetains : BOOL; bInCopyCode : BOOL` first among the VAR_INPUTs.
+fn signature_ok(m: &Pou) -> bool {
+    let inputs: Vec<(&Ident, &TypeRef)> = m
+        .vars
+        .iter()
+        .filter(|b| b.kind == VarKind::Input)
+        .flat_map(|b| &b.decls)
+        .flat_map(|d| d.names.iter().map(move |n| (n, &d.ty)))
+        .take(2)
+        .collect();
+    let is_bool = |ty: &TypeRef| matches!(ty, TypeRef::Named(t) if t.is("BOOL"));
+    matches!(&inputs[..], [(a, ta), (b, tb)]
+        if a.is(INIT_RETAINS) && b.is(IN_COPY_CODE) && is_bool(ta) && is_bool(tb))
+}
+
+fn ident(name: &str, span: Span) -> Ident {
+    Ident { name: name.to_string(), span }
+}
+
+fn name(n: &str, span: Span) -> Expr {
+    Expr { kind: ExprKind::Name(ident(n, span)), span }
+}
+
+fn stmt(kind: StmtKind, span: Span) -> Stmt {
+    Stmt { kind, span }
+}
+
+fn bool_decl(n: &str, span: Span) -> VarDecl {
+    VarDecl {
+        names: vec![ident(n, span)],
+        location: None,
+        ty: TypeRef::Named(ident("BOOL", span)),
+        init: None,
+        edge: None,
+        span,
+    }
+}
+
+fn block(kind: VarKind, retain: bool, decls: Vec<VarDecl>, span: Span) -> VarBlock {
+    VarBlock { kind, constant: false, retain, span, decls }
+}
+
+/// `target.__FB_INIT_ALL(bInitRetains := retains, bInCopyCode := copy)`.
+fn init_call(target: Expr, retains: Expr, copy: Expr, span: Span) -> Stmt {
+    let callee = Expr { kind: ExprKind::Member(Box::new(target), ident(INIT_ALL, span)), span };
+    let args = vec![
+        Arg::Input { name: ident(INIT_RETAINS, span), value: retains },
+        Arg::Input { name: ident(IN_COPY_CODE, span), value: copy },
+    ];
+    let call = Expr { kind: ExprKind::Call { callee: Box::new(callee), args }, span };
+    stmt(StmtKind::Call(call), span)
+}
+
+/// The calls that initialise variable `v` of type `ty` (each element of an array, in nested
+/// FOR loops over hidden DINT counters `__FB_INIT_I1`, …), and the counters they use.
+fn init_variable(
+    v: &Ident,
+    ty: &TypeRef,
+    args: &dyn Fn() -> (Expr, Expr),
+    counters: &mut usize,
+) -> Stmt {
+    let span = v.span;
+    let mut dims: Vec<&(Expr, Expr)> = Vec::new();
+    let mut at = ty;
+    while let TypeRef::Array { dims: d, of, .. } = at {
+        dims.extend(d.iter());
+        at = of;
+    }
+    let counter = |k: usize| format!("__FB_INIT_I{k}");
+    let target = if dims.is_empty() {
+        name(&v.name, span)
+    } else {
+        let index = (1..=dims.len()).map(|k| name(&counter(k), span)).collect();
+        Expr { kind: ExprKind::Index(Box::new(name(&v.name, span)), index), span }
+    };
+    let (retains, copy) = args();
+    let mut body = init_call(target, retains, copy, span);
+    *counters = (*counters).max(dims.len());
+    for (k, (lo, hi)) in dims.iter().enumerate().rev() {
+        body = stmt(
+            StmtKind::For {
+                var: ident(&counter(k + 1), span),
+                from: lo.clone(),
+                to: hi.clone(),
+                by: None,
+                body: vec![body],
+            },
+            span,
+        );
+    }
+    body
+}
+
+fn counter_block(counters: usize, span: Span) -> Option<VarBlock> {
+    (counters > 0).then(|| {
+        let decls = (1..=counters)
+            .map(|k| VarDecl {
+                ty: TypeRef::Named(ident("DINT", span)),
+                ..bool_decl(&format!("__FB_INIT_I{k}"), span)
+            })
+            .collect();
+        block(VarKind::Local, false, decls, span)
+    })
+}
+
+/// Adds `METHOD __FB_INIT_ALL` to block `p`.
+fn add_init_all(p: &mut Pou, needs: &HashMap<String, bool>) {
+    let span = p.name.span;
+    let args = || (name(INIT_RETAINS, span), name(IN_COPY_CODE, span));
+    let mut body = Vec::new();
+    let base_needs = p
+        .oop
+        .extends
+        .as_ref()
+        .is_some_and(|b| needs.get(&b.name.to_ascii_lowercase()).copied().unwrap_or(false));
+    if base_needs {
+        let sup = Expr { kind: ExprKind::Deref(Box::new(name("SUPER", span))), span };
+        let (r, c) = args();
+        body.push(init_call(sup, r, c, span));
+    }
+    let mut counters = 0;
+    for (v, ty) in instances(p, needs) {
+        body.push(init_variable(v, ty, &args, &mut counters));
+    }
+    if own_fb_init(p) {
+        let (r, c) = args();
+        let args = vec![
+            Arg::Input { name: ident(INIT_RETAINS, span), value: r },
+            Arg::Input { name: ident(IN_COPY_CODE, span), value: c },
+        ];
+        let call =
+            Expr { kind: ExprKind::Call { callee: Box::new(name(FB_INIT, span)), args }, span };
+        body.push(stmt(StmtKind::Call(call), span));
+    }
+    let inputs = block(
+        VarKind::Input,
+        false,
+        vec![bool_decl(INIT_RETAINS, span), bool_decl(IN_COPY_CODE, span)],
+        span,
+    );
+    let mut vars = vec![inputs];
+    vars.extend(counter_block(counters, span));
+    let pou = Pou {
+        kind: PouKind::Function,
+        name: ident(INIT_ALL, span),
+        return_type: None,
+        vars,
+        body,
+        actions: Vec::new(),
+        oop: ast::Oop::default(),
+        sfc: None,
+        span,
+        end: p.end,
+    };
+    p.oop.methods.push(ast::Method {
+        access: ast::Access::Public,
+        is_abstract: false,
+        is_final: false,
+        pou,
+    });
+}
+
+/// Starts program `p`'s body with the initialisation of its instances, once a RUN.
+fn add_prologue(p: &mut Pou, needs: &HashMap<String, bool>) {
+    let span = p.name.span;
+    let not = |e: Expr| Expr { kind: ExprKind::Unary(UnaryOp::Not, Box::new(e)), span };
+    let truth = |b: bool| Expr { kind: ExprKind::Literal(Literal::Bool(b)), span };
+    let assign = |target: &str, value: Expr| {
+        stmt(StmtKind::Assign { target: name(target, span), value }, span)
+    };
+    let args = || (not(name(RETAINED, span)), truth(false));
+    let mut inits = vec![assign(DONE, truth(true))];
+    let mut counters = 0;
+    for (v, ty) in instances(p, needs) {
+        inits.push(init_variable(v, ty, &args, &mut counters));
+    }
+    inits.push(assign(RETAINED, truth(true)));
+    let prologue = stmt(
+        StmtKind::If { branches: vec![(not(name(DONE, span)), inits)], otherwise: None },
+        span,
+    );
+    p.body.insert(0, prologue);
+    p.vars.push(block(VarKind::Local, false, vec![bool_decl(DONE, span)], span));
+    p.vars.push(block(VarKind::Local, true, vec![bool_decl(RETAINED, span)], span));
+    p.vars.extend(counter_block(counters, span));
+}
