@@ -289,7 +289,28 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` compares interfaces: only `=` and `<>` do", "interface-ordered"),
     ("`{}` and `{}` cannot be compared", "interfaces-not-comparable"),
     ("`{}` has no property `{}`", "interface-property-not-found"),
-    ("VAR_INST in a method is not supported: declare the variable in its function block", "var-inst-in-method"),
+    ("VAR_INST in a property is not supported: declare the variable in its function block", "var-inst-in-property"),
+    // class.rs: CLASS
+    ("`{}` is a CLASS: a class has no actions (write `{}` as a METHOD)", "class-has-action"),
+    (
+        "`{}` is a CLASS: a class declares no {} (it is never called: its methods take and give the values)",
+        "class-declares-input",
+    ),
+    ("`{}` is a CLASS: a class has no body (its code is in its METHODs)", "class-has-body"),
+    ("`{}` is a FUNCTION_BLOCK: a CLASS extends only a CLASS", "class-extends-function-block"),
+    (
+        "`{}` is a CLASS: an instance of a class is not called, its methods are (`inst.Method()`)",
+        "class-called",
+    ),
+    // fb_init.rs: FB_init
+    (
+        "an FB_init method declares `bInitRetains : BOOL` and `bInCopyCode : BOOL` as its first two VAR_INPUTs",
+        "fb-init-signature",
+    ),
+    (
+        "`{}`'s function block has an FB_init, which plcd runs only for the instances of a PROGRAM: declare it in a PROGRAM's VAR",
+        "fb-init-global-instance",
+    ),
     // sfc.rs: Sequential Function Charts
     (
         "FUNCTION `{}` cannot hold a sequential function chart: a FUNCTION keeps nothing between calls (use a FUNCTION_BLOCK or a PROGRAM)",

@@ -954,8 +954,10 @@ impl<'a> Ctx<'a> {
             if kind == PouKind::Function && block.retain {
                 self.error(file, block.span, "a FUNCTION's variables cannot be RETAIN");
             }
-            if member.is_some() && block.kind == VarKind::Instance {
-                let msg = "VAR_INST in a method is not supported: declare the variable in its function block";
+            if member.is_some_and(|m| m != super::oop::Role::Method)
+                && block.kind == VarKind::Instance
+            {
+                let msg = "VAR_INST in a property is not supported: declare the variable in its function block";
                 // read on as locals, so that its uses make no errors of their own
                 self.error(file, block.span, msg);
             }
@@ -964,7 +966,9 @@ impl<'a> Ctx<'a> {
                 if block.kind != VarKind::InOut {
                     self.check_instantiable(&ty, file, decl.span);
                 }
+                // a method's may (CODESYS): a fresh instance at each call, as its other VARs
                 if kind == PouKind::Function
+                    && member.is_none()
                     && matches!(ty, Ty::Fb(_))
                     && block.kind != VarKind::InOut
                 {
@@ -1050,7 +1054,9 @@ impl<'a> Ctx<'a> {
                         global: None,
                         edge_value: None,
                     };
-                    if block.kind == VarKind::External {
+                    if let Some(at) = self.method_var_inst(p, member, block.kind, &id.name) {
+                        info.storage = at;
+                    } else if block.kind == VarKind::External {
                         match self.global_names.get(&key(&id.name)).copied() {
                             Some(g) => {
                                 let gv = &self.globals[g];

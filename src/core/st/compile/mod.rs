@@ -47,6 +47,7 @@ mod emit;
 mod expr;
 mod fb_init;
 mod instance_args;
+mod method_vars;
 mod oop;
 mod refs;
 mod sfc;
@@ -126,6 +127,7 @@ pub fn compile_configured(
     let (prelude, prelude_diags) = super::syntax::parse_file(Path::new(PRELUDE_PATH), PRELUDE);
     let mut diags: Vec<Diagnostic> = prelude_diags.0;
     let lowered = sfc::lower(files, &mut diags);
+    let lowered = method_vars::lower(lowered);
     let lowered = fb_init::lower(lowered, &mut diags);
     let mut refs: Vec<&ast::File> = lowered.iter().map(|f| &**f).collect();
     refs.push(&prelude);
