@@ -302,6 +302,11 @@ const MESSAGES: &[(&str, &str)] = &[
         "`{}` is a CLASS: an instance of a class is not called, its methods are (`inst.Method()`)",
         "class-called",
     ),
+    // query.rs: __QUERYINTERFACE, __QUERYPOINTER
+    ("`{}` takes two arguments, by position", "query-arguments"),
+    ("`{}` asks an interface value, not `{}`", "query-source-not-interface"),
+    ("`{}` writes its answer to an interface variable, not `{}`", "query-destination-not-interface"),
+    ("`{}` writes its answer to a POINTER TO or REF_TO variable, not `{}`", "query-destination-type"),
     // fb_init.rs: FB_init
     (
         "an FB_init method declares `bInitRetains : BOOL` and `bInCopyCode : BOOL` as its first two VAR_INPUTs",

@@ -519,6 +519,54 @@ impl<'c, 'a> Em<'c, 'a> {
         self.push_slot(slot);
     }
 
+    /// `__QUERYINTERFACE` (`tags`: the blocks implementing the asked interface) or
+    /// `__QUERYPOINTER` (no tags: any instance): the instance behind `source` into `dest`
+    /// and TRUE when it is not NULL and (for an interface) its tag is one of `tags`; NULL and
+    /// FALSE otherwise.
+    fn query(&mut self, source: &TExpr, dest: &TExpr, tags: &[u32]) {
+        let base = self.sp;
+        let t = self.alloc_tmp(8);
+        self.value(source);
+        self.op(Op::Store { elem: Elem::U64, at: Place::Frame(t) });
+        self.op(Op::Fetch { elem: Elem::U64, at: Place::Frame(t) });
+        self.op(Op::PushInt(0));
+        self.op(Op::Cmp { op: CmpOp::Ne, elem: Elem::U64 });
+        let null = self.op(Op::GotoIf { target: 0, when: false });
+        let mut found = Vec::new();
+        if tags.is_empty() {
+            found.push(self.op(Op::Goto(0)));
+        }
+        for &tag in tags {
+            // the reference made an address (checked), then the tag at the instance's start
+            self.op(Op::Fetch { elem: Elem::U64, at: Place::Frame(t) });
+            self.op(Op::Deref { size: 4 });
+            self.op(Op::FetchInd(Elem::U32));
+            self.push_int(Elem::U32, i128::from(tag));
+            self.op(Op::Cmp { op: CmpOp::Eq, elem: Elem::U32 });
+            found.push(self.op(Op::GotoIf { target: 0, when: true }));
+        }
+        // not found (or NULL): dest NULL, FALSE
+        let here = self.pc();
+        self.patch(null, here);
+        self.sp = base;
+        self.store(dest, Src::Ops(vec![(Op::PushInt(0), false)]));
+        self.op(Op::PushInt(0));
+        let end = self.op(Op::Goto(0));
+        let here = self.pc();
+        for j in found {
+            self.patch(j, here);
+        }
+        self.sp = base;
+        self.store(
+            dest,
+            Src::Ops(vec![(Op::Fetch { elem: Elem::U64, at: Place::Frame(t) }, false)]),
+        );
+        self.op(Op::PushInt(1));
+        let here = self.pc();
+        self.patch(end, here);
+        self.sp = base + 1;
+    }
+
     fn std(&mut self, op: Std, args: &[TExpr], ty: &Ty) {
         match op {
             Std::Utc => {
@@ -531,6 +579,11 @@ impl<'c, 'a> Em<'c, 'a> {
                 self.op(Op::System(request));
                 self.op(Op::PushInt(1));
             }
+            Std::QueryInterface(itf) => {
+                let tags = self.cx.implementing_tags(itf);
+                self.query(&args[0], &args[1], &tags);
+            }
+            Std::QueryPointer => self.query(&args[0], &args[1], &[]),
             Std::Sel => {
                 let base = self.sp;
                 self.value(&args[0]);

@@ -1605,6 +1605,9 @@ impl<'a> Ctx<'a> {
                 if let Some(t) = self.ref_call(id, args, span, scope) {
                     return t;
                 }
+                if let Some(t) = self.query_call(id, args, span, scope) {
+                    return t;
+                }
                 return self.std_call(id, args, span, scope, expected);
             }
         }

@@ -49,6 +49,7 @@ mod fb_init;
 mod instance_args;
 mod method_vars;
 mod oop;
+mod query;
 mod refs;
 mod sfc;
 mod stdlib;

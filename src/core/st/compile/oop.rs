@@ -318,8 +318,8 @@ impl<'a> Ctx<'a> {
             let (ast, file) = (self.oop.interfaces[i].ast, self.oop.interfaces[i].file);
             let mut extends = Vec::new();
             for e in &ast.extends {
-                // TwinCAT's interfaces extend the system's `__System.IQueryInterface`, whose
-                // `__QUERYINTERFACE` plcd does not offer: nothing to inherit
+                // TwinCAT's interfaces extend the system's `__System.IQueryInterface`: nothing
+                // to inherit (`__QUERYINTERFACE` works on any interface: compile/query.rs)
                 if e.name.to_ascii_lowercase().starts_with("__system.") {
                     continue;
                 }

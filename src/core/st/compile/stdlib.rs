@@ -61,6 +61,10 @@ pub enum Std {
     CharToString,
     /// `STRING_TO_CHAR(s)`, `WSTRING_TO_WCHAR(s)`: the first character, 0 for an empty string.
     StringToChar,
+    /// `__QUERYINTERFACE(src, dest)`: args `[src, dest]`, dest of interface `.0` (compile/query.rs).
+    QueryInterface(usize),
+    /// `__QUERYPOINTER(src, dest)`: args `[src, dest]`, dest a pointer (compile/query.rs).
+    QueryPointer,
 }
 
 /// The string type a conversion's name gives (`STRING`, `WSTRING`), of the default length.
