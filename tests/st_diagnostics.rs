@@ -316,6 +316,12 @@ const MESSAGES: &[(&str, &str)] = &[
         "`{}`'s function block has an FB_init, which plcd runs only for the instances of a PROGRAM: declare it in a PROGRAM's VAR",
         "fb-init-global-instance",
     ),
+    (
+        "`{}`: declaration arguments go to FB_init, which plcd runs for the instances of a PROGRAM and of a function block only",
+        "fb-init-argument-not-run",
+    ),
+    ("`{}`: the declaration argument `{}` has no value (`{} := …`)", "fb-init-argument-no-value"),
+    ("`{}` has no FB_init input `{}` for the declaration of `{}`", "fb-init-argument-unknown"),
     // sfc.rs: Sequential Function Charts
     (
         "FUNCTION `{}` cannot hold a sequential function chart: a FUNCTION keeps nothing between calls (use a FUNCTION_BLOCK or a PROGRAM)",

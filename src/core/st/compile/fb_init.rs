@@ -20,9 +20,16 @@
 //! - A method named `FB_init` is called without dispatch (a derived block's does not replace
 //!   its base's, both run) and may add VAR_INPUTs to its base's (compile/oop.rs skips it).
 //!
+//! - Declaration arguments, `v : T(x := 1)` (which the parser reads as an enumeration of base
+//!   `T`): `v`'s type becomes `T`, and the arguments go to its `__FB_INIT_ALL`, whose inputs
+//!   are the two BOOLs and every other input of the `FB_init`s of `T` and its bases
+//!   ([`chain_extras`]); each `__FB_INIT_ALL` passes on to its base's and to its own
+//!   `FB_init` the inputs they declare.
+//!
 //! Checked here: an `FB_init` declares `bInitRetains` and `bInCopyCode` (BOOL) as its first two
 //! VAR_INPUTs; an instance in `VAR_GLOBAL` whose block has an `FB_init` is refused (no PROGRAM
-//! owns it to run it).
+//! owns it to run it); declaration arguments are named, have values, name inputs of the
+//! chain's `FB_init`s, and are given where `FB_init` runs.
 
 use std::borrow::Cow;
 use std::collections::HashMap;
@@ -47,6 +54,12 @@ pub fn is_fb_init(name: &str) -> bool {
     name.eq_ignore_ascii_case(FB_INIT)
 }
 
+/// Whether `name` is `FB_init` or the hidden [`INIT_ALL`]: methods each block declares for
+/// itself, called without dispatch, whose inputs a derived block may extend.
+pub fn is_initialiser(name: &str) -> bool {
+    is_fb_init(name) || name.eq_ignore_ascii_case(INIT_ALL)
+}
+
 /// Whether `name` is one of the variables this lowering declares (exempt from the rule that
 /// reserves names starting with `__` to plcd).
 pub fn is_hidden(name: &str) -> bool {
@@ -55,6 +68,25 @@ pub fn is_hidden(name: &str) -> bool {
 
 /// The function blocks of the project by name (lower case): (file, item).
 type Blocks = HashMap<String, (usize, usize)>;
+
+/// What the lowering knows of each block (by name in lower case).
+struct Plan {
+    /// Whether it has something to initialise.
+    needs: HashMap<String, bool>,
+    /// The inputs its `FB_init`s (its own and its bases') declare after the two BOOLs: the
+    /// inputs of its `__FB_INIT_ALL` beside them, which the declaration arguments give.
+    extras: HashMap<String, Vec<VarDecl>>,
+}
+
+impl Plan {
+    fn needs(&self, block: &str) -> bool {
+        self.needs.get(&block.to_ascii_lowercase()).copied().unwrap_or(false)
+    }
+
+    fn extras(&self, block: &str) -> &[VarDecl] {
+        self.extras.get(&block.to_ascii_lowercase()).map_or(&[], Vec::as_slice)
+    }
+}
 
 pub(super) fn lower<'f>(
     mut files: Vec<Cow<'f, ast::File>>,
@@ -107,14 +139,26 @@ pub(super) fn lower<'f>(
             }
         }
     }
-    if !needs.values().any(|&n| n) {
-        return files;
+    let mut extras = HashMap::new();
+    for name in &names {
+        extras.insert(name.clone(), chain_extras(&files, &blocks, name));
     }
-    for file in &mut files {
+    let plan = Plan { needs, extras };
+    if plan.needs.values().any(|&n| n) {
+        generate(&mut files, &plan);
+    }
+    declaration_arguments(&mut files, &blocks, &plan, diags);
+    files
+}
+
+/// Adds the hidden methods and prologues.
+fn generate(files: &mut [Cow<'_, ast::File>], plan: &Plan) {
+    let needs = &plan.needs;
+    for file in files.iter_mut() {
         let wants = file.items.iter().any(|item| match item {
             Item::Pou(p) => {
-                p.kind == PouKind::Program && !instances(p, &needs).is_empty()
-                    || p.kind == PouKind::FunctionBlock && own_work(p, &needs)
+                p.kind == PouKind::Program && !instances(p, needs).is_empty()
+                    || p.kind == PouKind::FunctionBlock && own_work(p, needs)
             }
             _ => false,
         });
@@ -124,13 +168,149 @@ pub(super) fn lower<'f>(
         for item in &mut file.to_mut().items {
             let Item::Pou(p) = item else { continue };
             match p.kind {
-                PouKind::FunctionBlock if own_work(p, &needs) => add_init_all(p, &needs),
-                PouKind::Program if !instances(p, &needs).is_empty() => add_prologue(p, &needs),
+                PouKind::FunctionBlock if own_work(p, needs) => add_init_all(p, plan),
+                PouKind::Program if !instances(p, needs).is_empty() => add_prologue(p, plan),
                 _ => {}
             }
         }
     }
-    files
+}
+
+/// The extra inputs of the `FB_init`s of block `name` and its bases, the block's first (one
+/// declaration each, by name).
+fn chain_extras(files: &[Cow<'_, ast::File>], blocks: &Blocks, name: &str) -> Vec<VarDecl> {
+    let mut out: Vec<VarDecl> = Vec::new();
+    let mut at = Some(name.to_ascii_lowercase());
+    for _ in 0..=blocks.len() {
+        let Some(&(f, i)) = at.as_ref().and_then(|n| blocks.get(n)) else { break };
+        let Item::Pou(p) = &files[f].items[i] else { break };
+        for m in p.oop.methods.iter().filter(|m| is_fb_init(&m.pou.name.name)) {
+            if signature_ok(&m.pou) {
+                for d in fb_init_extras(&m.pou) {
+                    if !out.iter().any(|o| o.names[0].is(&d.names[0].name)) {
+                        out.push(d);
+                    }
+                }
+            }
+        }
+        at = p.oop.extends.as_ref().map(|b| b.name.to_ascii_lowercase());
+    }
+    out
+}
+
+/// The VAR_INPUTs of an `FB_init` after `bInitRetains` and `bInCopyCode`, one name each.
+fn fb_init_extras(m: &Pou) -> Vec<VarDecl> {
+    let singles =
+        m.vars.iter().filter(|b| b.kind == VarKind::Input).flat_map(|b| &b.decls).flat_map(|d| {
+            d.names.iter().map(move |n| VarDecl { names: vec![n.clone()], ..d.clone() })
+        });
+    singles.skip(2).collect()
+}
+
+/// The arguments of a declaration `v : T(x := 1, …)`, as a call's.
+/// Those without a value or of no input of `known` are left out (reported by
+/// [`declaration_arguments`]).
+fn declared_arguments(ty: &TypeRef, known: &[VarDecl]) -> Vec<Arg> {
+    let TypeRef::Enum(def) = ty else { return Vec::new() };
+    def.values
+        .iter()
+        .filter(|(n, _)| known.iter().any(|k| k.names[0].is(&n.name)))
+        .filter_map(|(n, v)| Some(Arg::Input { name: n.clone(), value: v.clone()? }))
+        .collect()
+}
+
+/// `v : T(x := 1, …)` where `T` is a function block: the arguments checked (the instance's
+/// `FB_init` runs, and declares inputs of those names), the type made `T`.
+fn declaration_arguments(
+    files: &mut [Cow<'_, ast::File>],
+    blocks: &Blocks,
+    plan: &Plan,
+    diags: &mut Vec<Diagnostic>,
+) {
+    let is_block_with_arguments = |ty: &TypeRef| {
+        matches!(ty, TypeRef::Enum(def)
+            if def.base.as_ref().is_some_and(|b| blocks.contains_key(&b.name.to_ascii_lowercase())))
+    };
+    for file in files.iter_mut() {
+        let any = file.items.iter().any(|item| {
+            let blocks: Vec<&VarBlock> = match item {
+                Item::Pou(p) => {
+                    p.vars.iter().chain(p.oop.methods.iter().flat_map(|m| &m.pou.vars)).collect()
+                }
+                Item::Globals(b) => vec![b],
+                _ => Vec::new(),
+            };
+            blocks.iter().flat_map(|b| &b.decls).any(|d| is_block_with_arguments(&d.ty))
+        });
+        if !any {
+            continue;
+        }
+        let path = file.path.clone();
+        let mut report = |span: Span, msg: String| {
+            diags.push(Diagnostic::new(&path, span.line, span.col, msg));
+        };
+        for item in &mut file.to_mut().items {
+            // (the block, whether its instances are initialised there)
+            let mut sections: Vec<(&mut VarBlock, bool)> = Vec::new();
+            match item {
+                Item::Pou(p) => {
+                    let owns = p.kind != PouKind::Function;
+                    for b in &mut p.vars {
+                        let run = owns && holds_instances(b.kind);
+                        sections.push((b, run));
+                    }
+                    // a method's VAR_INST: checked where compile/method_vars.rs declared it
+                    // again, in its block; its type made plain here too
+                    for m in &mut p.oop.methods {
+                        sections.extend(m.pou.vars.iter_mut().map(|b| (b, false)));
+                    }
+                }
+                Item::Globals(b) => sections.push((b, false)),
+                _ => {}
+            }
+            for (section, runs) in sections {
+                let kind = section.kind;
+                for d in &mut section.decls {
+                    if !is_block_with_arguments(&d.ty) {
+                        continue;
+                    }
+                    let TypeRef::Enum(def) = &d.ty else { continue };
+                    let Some(base) = def.base.clone() else { continue };
+                    let v = &d.names[0];
+                    let checked_elsewhere = !runs && kind == VarKind::Instance;
+                    if checked_elsewhere {
+                        d.ty = TypeRef::Named(base);
+                        continue;
+                    }
+                    if !runs {
+                        let msg = format!(
+                            "`{}`: declaration arguments go to FB_init, which plcd runs for the instances of a PROGRAM and of a function block only",
+                            v.name
+                        );
+                        report(v.span, msg);
+                    }
+                    for (arg, value) in &def.values {
+                        if value.is_none() {
+                            let msg = format!(
+                                "`{}`: the declaration argument `{}` has no value (`{} := …`)",
+                                v.name, arg.name, arg.name
+                            );
+                            report(arg.span, msg);
+                        } else if runs
+                            && !plan.extras(&base.name).iter().any(|e| e.names[0].is(&arg.name))
+                        {
+                            let msg = format!(
+                                "`{}` has no FB_init input `{}` for the declaration of `{}`",
+                                base.name, arg.name, v.name
+                            );
+                            report(arg.span, msg);
+                        }
+                    }
+                    d.ty = TypeRef::Named(base);
+                }
+            }
+        }
+    }
 }
 
 /// Whether block `name` has something to initialise: its `FB_init`, its base's, or one of its
@@ -178,6 +358,8 @@ fn instance_type(ty: &TypeRef) -> Option<&str> {
     match ty {
         TypeRef::Named(id) => Some(&id.name),
         TypeRef::Array { of, .. } => instance_type(of),
+        // `fb : T(x := 1)` parses as an enumeration of base `T` (compile/fb_init.rs reads it)
+        TypeRef::Enum(def) => def.base.as_ref().map(|b| b.name.as_str()),
         _ => None,
     }
 }
@@ -253,12 +435,13 @@ fn block(kind: VarKind, retain: bool, decls: Vec<VarDecl>, span: Span) -> VarBlo
 }
 
 /// `target.__FB_INIT_ALL(bInitRetains := retains, bInCopyCode := copy)`.
-fn init_call(target: Expr, retains: Expr, copy: Expr, span: Span) -> Stmt {
+fn init_call(target: Expr, retains: Expr, copy: Expr, more: Vec<Arg>, span: Span) -> Stmt {
     let callee = Expr { kind: ExprKind::Member(Box::new(target), ident(INIT_ALL, span)), span };
-    let args = vec![
+    let mut args = vec![
         Arg::Input { name: ident(INIT_RETAINS, span), value: retains },
         Arg::Input { name: ident(IN_COPY_CODE, span), value: copy },
     ];
+    args.extend(more);
     let call = Expr { kind: ExprKind::Call { callee: Box::new(callee), args }, span };
     stmt(StmtKind::Call(call), span)
 }
@@ -268,6 +451,7 @@ fn init_call(target: Expr, retains: Expr, copy: Expr, span: Span) -> Stmt {
 fn init_variable(
     v: &Ident,
     ty: &TypeRef,
+    plan: &Plan,
     args: &dyn Fn() -> (Expr, Expr),
     counters: &mut usize,
 ) -> Stmt {
@@ -286,7 +470,8 @@ fn init_variable(
         Expr { kind: ExprKind::Index(Box::new(name(&v.name, span)), index), span }
     };
     let (retains, copy) = args();
-    let mut body = init_call(target, retains, copy, span);
+    let known = plan.extras(instance_type(ty).unwrap_or(""));
+    let mut body = init_call(target, retains, copy, declared_arguments(ty, known), span);
     *counters = (*counters).max(dims.len());
     for (k, (lo, hi)) in dims.iter().enumerate().rev() {
         body = stmt(
@@ -315,41 +500,47 @@ fn counter_block(counters: usize, span: Span) -> Option<VarBlock> {
     })
 }
 
+/// `x := x` for each of `inputs`: a `__FB_INIT_ALL`'s inputs passed on.
+fn forwarded(inputs: &[VarDecl], span: Span) -> Vec<Arg> {
+    let pass = |d: &VarDecl| Arg::Input {
+        name: ident(&d.names[0].name, span),
+        value: name(&d.names[0].name, span),
+    };
+    inputs.iter().map(pass).collect()
+}
+
 /// Adds `METHOD __FB_INIT_ALL` to block `p`.
-fn add_init_all(p: &mut Pou, needs: &HashMap<String, bool>) {
+fn add_init_all(p: &mut Pou, plan: &Plan) {
+    let needs = &plan.needs;
     let span = p.name.span;
     let args = || (name(INIT_RETAINS, span), name(IN_COPY_CODE, span));
     let mut body = Vec::new();
-    let base_needs = p
-        .oop
-        .extends
-        .as_ref()
-        .is_some_and(|b| needs.get(&b.name.to_ascii_lowercase()).copied().unwrap_or(false));
+    let base_needs = p.oop.extends.as_ref().is_some_and(|b| plan.needs(&b.name));
     if base_needs {
         let sup = Expr { kind: ExprKind::Deref(Box::new(name("SUPER", span))), span };
         let (r, c) = args();
-        body.push(init_call(sup, r, c, span));
+        let base = p.oop.extends.as_ref().map_or("", |b| b.name.as_str());
+        body.push(init_call(sup, r, c, forwarded(plan.extras(base), span), span));
     }
     let mut counters = 0;
     for (v, ty) in instances(p, needs) {
-        body.push(init_variable(v, ty, &args, &mut counters));
+        body.push(init_variable(v, ty, plan, &args, &mut counters));
     }
     if own_fb_init(p) {
         let (r, c) = args();
-        let args = vec![
+        let mut args = vec![
             Arg::Input { name: ident(INIT_RETAINS, span), value: r },
             Arg::Input { name: ident(IN_COPY_CODE, span), value: c },
         ];
+        let own = p.oop.methods.iter().find(|m| is_fb_init(&m.pou.name.name));
+        args.extend(forwarded(&own.map(|m| fb_init_extras(&m.pou)).unwrap_or_default(), span));
         let call =
             Expr { kind: ExprKind::Call { callee: Box::new(name(FB_INIT, span)), args }, span };
         body.push(stmt(StmtKind::Call(call), span));
     }
-    let inputs = block(
-        VarKind::Input,
-        false,
-        vec![bool_decl(INIT_RETAINS, span), bool_decl(IN_COPY_CODE, span)],
-        span,
-    );
+    let mut inputs = vec![bool_decl(INIT_RETAINS, span), bool_decl(IN_COPY_CODE, span)];
+    inputs.extend(plan.extras(&p.name.name).iter().cloned());
+    let inputs = block(VarKind::Input, false, inputs, span);
     let mut vars = vec![inputs];
     vars.extend(counter_block(counters, span));
     let pou = Pou {
@@ -373,7 +564,8 @@ fn add_init_all(p: &mut Pou, needs: &HashMap<String, bool>) {
 }
 
 /// Starts program `p`'s body with the initialisation of its instances, once a RUN.
-fn add_prologue(p: &mut Pou, needs: &HashMap<String, bool>) {
+fn add_prologue(p: &mut Pou, plan: &Plan) {
+    let needs = &plan.needs;
     let span = p.name.span;
     let not = |e: Expr| Expr { kind: ExprKind::Unary(UnaryOp::Not, Box::new(e)), span };
     let truth = |b: bool| Expr { kind: ExprKind::Literal(Literal::Bool(b)), span };
@@ -384,7 +576,7 @@ fn add_prologue(p: &mut Pou, needs: &HashMap<String, bool>) {
     let mut inits = vec![assign(DONE, truth(true))];
     let mut counters = 0;
     for (v, ty) in instances(p, needs) {
-        inits.push(init_variable(v, ty, &args, &mut counters));
+        inits.push(init_variable(v, ty, plan, &args, &mut counters));
     }
     inits.push(assign(RETAINED, truth(true)));
     let prologue = stmt(

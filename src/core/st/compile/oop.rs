@@ -528,7 +528,7 @@ impl<'a> Ctx<'a> {
     /// non-abstract function block derived from `fb` whose member differs, then `m`'s own.
     fn candidates(&self, fb: usize, m: usize, role: Role) -> Vec<(Option<u32>, usize)> {
         let name = self.oop.members[&m].name.clone();
-        if super::fb_init::is_fb_init(&name) {
+        if super::fb_init::is_initialiser(&name) {
             // each block's FB_init runs on its own, bases first (compile/fb_init.rs)
             return Vec::new();
         }
@@ -822,7 +822,7 @@ impl<'a> Ctx<'a> {
             let Some(owner) = member.owner else { continue };
             let Some(&base) = self.oop.base.get(&owner) else { continue };
             let Some(over) = self.find_member(base, &member.name, member.role) else { continue };
-            if super::fb_init::is_fb_init(&member.name) {
+            if super::fb_init::is_initialiser(&member.name) {
                 // a derived block's FB_init runs after its base's, and may take more inputs
                 continue;
             }
