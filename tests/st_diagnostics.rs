@@ -313,7 +313,7 @@ const MESSAGES: &[(&str, &str)] = &[
         "fb-init-signature",
     ),
     (
-        "`{}`'s function block has an FB_init, which plcd runs only for the instances of a PROGRAM: declare it in a PROGRAM's VAR",
+        "`{}`'s function block has an FB_init, which plcd runs for the instances a PROGRAM holds, not for a VAR_GLOBAL's or a VAR_STAT's",
         "fb-init-global-instance",
     ),
     (

@@ -20,7 +20,8 @@ impl Ctx<'_> {
         pou.action.is_none() && pou.method.is_none() && pou.ast.oop.is_class
     }
 
-    /// After `EXTENDS` is resolved: the declarations of every class.
+    /// After `EXTENDS` is resolved: the declarations of every class (its actions, inside it or
+    /// not, are POUs of their own, each reported once).
     pub(super) fn check_classes(&mut self) {
         for p in 0..self.pous.len() {
             if let Some((action, owner)) = self.pous[p].action {
@@ -51,13 +52,6 @@ impl Ctx<'_> {
                     "`{name}` is a CLASS: a class has no body (its code is in its METHODs)"
                 );
                 self.error(file, first.span, msg);
-            }
-            for action in &ast.actions {
-                let msg = format!(
-                    "`{name}` is a CLASS: a class has no actions (write `{}` as a METHOD)",
-                    action.name.name
-                );
-                self.error(file, action.name.span, msg);
             }
             if let (Some(&base), Some(written)) = (self.oop.base.get(&p), &ast.oop.extends) {
                 if !self.is_class(base) {

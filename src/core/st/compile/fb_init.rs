@@ -27,8 +27,8 @@
 //!   `FB_init` the inputs they declare.
 //!
 //! Checked here: an `FB_init` declares `bInitRetains` and `bInCopyCode` (BOOL) as its first two
-//! VAR_INPUTs; an instance in `VAR_GLOBAL` whose block has an `FB_init` is refused (no PROGRAM
-//! owns it to run it); declaration arguments are named, have values, name inputs of the
+//! VAR_INPUTs; an instance in `VAR_GLOBAL` or `VAR_STAT` whose block has an `FB_init` is refused
+//! (no PROGRAM's instance owns it to run it); declaration arguments are named, have values, name inputs of the
 //! chain's `FB_init`s, and are given where `FB_init` runs.
 
 use std::borrow::Cow;
@@ -112,6 +112,10 @@ pub(super) fn lower<'f>(
         for item in &file.items {
             match item {
                 Item::Pou(p) => {
+                    // one copy for every instance of the POU: which instance would run it?
+                    for b in p.vars.iter().filter(|b| b.kind == VarKind::Static) {
+                        not_run(&file.path, b, &needs, diags);
+                    }
                     for m in p.oop.methods.iter().filter(|m| is_fb_init(&m.pou.name.name)) {
                         if !signature_ok(&m.pou) {
                             diags.push(Diagnostic::new(
@@ -123,18 +127,7 @@ pub(super) fn lower<'f>(
                         }
                     }
                 }
-                Item::Globals(block) => {
-                    for d in &block.decls {
-                        if instance_needs(&d.ty, &needs).is_some() {
-                            let n = &d.names[0];
-                            let msg = format!(
-                                "`{}`'s function block has an FB_init, which plcd runs only for the instances of a PROGRAM: declare it in a PROGRAM's VAR",
-                                n.name
-                            );
-                            diags.push(Diagnostic::new(&file.path, n.span.line, n.span.col, msg));
-                        }
-                    }
-                }
+                Item::Globals(block) => not_run(&file.path, block, &needs, diags),
                 _ => {}
             }
         }
@@ -345,12 +338,29 @@ fn needs_init(
     needs
 }
 
+/// Reports each instance of `block` (a VAR_GLOBAL, a VAR_STAT) whose block has something to
+/// initialise: no PROGRAM's instance owns it to run its `FB_init`.
+fn not_run(
+    path: &std::path::Path,
+    block: &VarBlock,
+    needs: &HashMap<String, bool>,
+    diags: &mut Vec<Diagnostic>,
+) {
+    for d in &block.decls {
+        if instance_needs(&d.ty, needs).is_some() {
+            let n = &d.names[0];
+            let msg = format!(
+                "`{}`'s function block has an FB_init, which plcd runs for the instances a PROGRAM holds, not for a VAR_GLOBAL's or a VAR_STAT's",
+                n.name
+            );
+            diags.push(Diagnostic::new(path, n.span.line, n.span.col, msg));
+        }
+    }
+}
+
 /// The sections whose instances belong to the POU's instance (not a caller's, nor a global).
 fn holds_instances(kind: VarKind) -> bool {
-    matches!(
-        kind,
-        VarKind::Local | VarKind::Input | VarKind::Output | VarKind::Static | VarKind::Instance
-    )
+    matches!(kind, VarKind::Local | VarKind::Input | VarKind::Output | VarKind::Instance)
 }
 
 /// The block name of an instance or of an array of instances.
