@@ -192,6 +192,8 @@ fn lexes_keywords_in_any_case() {
         ("END_FUNCTION", Kw::EndFunction),
         ("function_block", Kw::FunctionBlock),
         ("END_FUNCTION_BLOCK", Kw::EndFunctionBlock),
+        ("Class", Kw::Class),
+        ("END_CLASS", Kw::EndClass),
         ("type", Kw::Type),
         ("END_TYPE", Kw::EndType),
         ("Struct", Kw::Struct),
@@ -763,6 +765,17 @@ fn parses_methods_properties_and_interfaces() {
     let items = parse_ok("INTERFACE I EXTENDS J, K\nMETHOD M : BOOL\nVAR_INPUT a : INT; END_VAR\nEND_METHOD\nPROPERTY P : INT\nGET\nEND_GET\nEND_PROPERTY\nEND_INTERFACE");
     let Some(Item::Interface(itf)) = items.first() else { panic!("{items:?}") };
     assert_eq!((itf.extends.len(), itf.methods.len(), itf.properties.len()), (2, 1, 1));
+}
+
+#[test]
+fn a_class_is_a_function_block_marked_class() {
+    let c = pou("CLASS FINAL Valve EXTENDS Part IMPLEMENTS IOpen\nVAR open : BOOL; END_VAR\nMETHOD Open\nopen := TRUE;\nEND_METHOD\nEND_CLASS");
+    assert_eq!((c.kind, c.name.name.as_str(), c.end), (PouKind::FunctionBlock, "Valve", sp(6, 1)));
+    assert!(c.oop.is_class && c.oop.is_final);
+    assert!(c.oop.extends.as_ref().is_some_and(|b| b.is("Part")));
+    assert_eq!((c.oop.implements.len(), c.oop.methods.len(), c.body.len()), (1, 1, 0));
+    let fb = pou("FUNCTION_BLOCK Fb END_FUNCTION_BLOCK");
+    assert!(!fb.oop.is_class);
 }
 
 #[test]
