@@ -130,7 +130,7 @@ impl Want {
             Want::Type => "a type",
             Want::DotDot => "`..`",
             Want::Item => {
-                "`PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE`, `VAR_GLOBAL`, `ACTION`, `INTERFACE` or `CONFIGURATION`"
+                "`PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE`, `VAR_GLOBAL`, `ACTION`, `INTERFACE`, `CLASS` or `CONFIGURATION`"
             }
             Want::VarDecl => "a variable name or `END_VAR`",
             Want::TypeDecl => "a type name or `END_TYPE`",

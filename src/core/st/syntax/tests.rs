@@ -1258,7 +1258,7 @@ fn reports_declaration_errors() {
         errors("TYPE A : INT;\nPROGRAM p END_PROGRAM"),
         ["2:1: `END_TYPE` expected to close the TYPE at line 1, found `PROGRAM`"]
     );
-    assert_eq!(errors("x := 1;\nPROGRAM p END_PROGRAM"), ["1:1: expected `PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE`, `VAR_GLOBAL`, `ACTION`, `INTERFACE` or `CONFIGURATION`, found `x`"]);
+    assert_eq!(errors("x := 1;\nPROGRAM p END_PROGRAM"), ["1:1: expected `PROGRAM`, `FUNCTION`, `FUNCTION_BLOCK`, `TYPE`, `VAR_GLOBAL`, `ACTION`, `INTERFACE`, `CLASS` or `CONFIGURATION`, found `x`"]);
     assert_eq!(errors("PROGRAM 5 END_PROGRAM"), ["1:9: expected a name, found `5`"]);
 }
 
