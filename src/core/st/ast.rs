@@ -515,8 +515,12 @@ pub enum UnaryOp {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BinaryOp {
     Or,
+    /// `OR_ELSE` (CODESYS): `OR` whose right operand is evaluated only when the left is FALSE.
+    OrElse,
     Xor,
     And,
+    /// `AND_THEN` (CODESYS): `AND` whose right operand is evaluated only when the left is TRUE.
+    AndThen,
     Eq,
     Ne,
     Lt,

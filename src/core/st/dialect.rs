@@ -62,6 +62,9 @@ pub enum Habit {
     PointerInteger,
     /// `AND`, `OR`, `XOR` on integers: on their two's complement bits.
     BitwiseInteger,
+    /// `AND_THEN`, `OR_ELSE` (the operator as written): the right operand evaluated only when
+    /// the left does not decide.
+    ShortCircuit(&'static str),
 }
 
 impl Habit {
@@ -87,6 +90,7 @@ impl Habit {
             Habit::WidenedLiteral => "the constant does not fit the other operand's type: IEC 61131-3 widens only explicitly, `INT_TO_DINT(i) * 60000` (`[st] strict` is on)".to_string(),
             Habit::PointerInteger => "IEC 61131-3 has no conversion between references and numbers: move a `POINTER TO` by `p + n` and compare pointers with each other (`[st] strict` is on)".to_string(),
             Habit::BitwiseInteger => "IEC 61131-3 has `AND`, `OR` and `XOR` on BOOL and bit strings only: `INT_TO_WORD(i) AND 16#FF` (`[st] strict` is on)".to_string(),
+            Habit::ShortCircuit(op) => format!("`{op}` is CODESYS, not IEC 61131-3, whose `AND` and `OR` evaluate both operands: nest the test, `IF p <> 0 THEN IF p^ > 0 THEN …` (`[st] strict` is on)"),
             Habit::UtilBcd => "this BCD conversion is CODESYS's Util library: IEC 61131-3 writes `BYTE_BCD_TO_USINT`, `USINT_TO_BCD_BYTE` and the like (`[st] strict` is on)".to_string(),
         }
     }

@@ -484,6 +484,21 @@ impl<'c, 'a> Em<'c, 'a> {
                 self.value(b);
                 self.op(Op::RefDiff);
             }
+            TK::ShortCircuit(decides_on, a, b) => {
+                // a; if a = decides_on goto decided; b; goto end; decided: push decides_on
+                let base = self.sp;
+                self.value(a);
+                let decided = self.op(Op::GotoIf { target: 0, when: *decides_on });
+                self.value(b);
+                let end = self.op(Op::Goto(0));
+                let here = self.pc();
+                self.patch(decided, here);
+                self.sp = base;
+                let result = Cv::Int(i128::from(*decides_on));
+                self.value(&TExpr::konst(result, Ty::Prim(Prim::Bool), e.span));
+                let here = self.pc();
+                self.patch(end, here);
+            }
         }
     }
 

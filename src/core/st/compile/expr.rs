@@ -61,6 +61,9 @@ pub enum TK {
     RefDiff(Box<TExpr>, Box<TExpr>),
     /// A standard function called with `EN` or `ENO`.
     Gate(Box<GateT>),
+    /// `AND_THEN` (`false`) or `OR_ELSE` (`true`) of two BOOLs: when the left operand has this
+    /// value it is the result and the right one is not evaluated.
+    ShortCircuit(bool, Box<TExpr>, Box<TExpr>),
 }
 
 /// A standard function's call with `EN := en` and `ENO => …` (IEC 61131-3 ed3): when
@@ -147,7 +150,9 @@ impl TExpr {
             | TK::Ref(a) => a.has_call(),
             TK::RefAdd(a, b) | TK::RefDiff(a, b) => a.has_call() || b.has_call(),
             TK::Index(a, ix) => a.has_call() || ix.iter().any(TExpr::has_call),
-            TK::Bin(_, a, b) | TK::Cmp(_, a, b) => a.has_call() || b.has_call(),
+            TK::Bin(_, a, b) | TK::Cmp(_, a, b) | TK::ShortCircuit(_, a, b) => {
+                a.has_call() || b.has_call()
+            }
             TK::Std(_, args) => args.iter().any(TExpr::has_call),
             TK::Gate(g) => {
                 g.en.as_ref().is_some_and(TExpr::has_call)
@@ -300,6 +305,8 @@ fn fold_cmp(op: CmpOp, a: &Cv, b: &Cv) -> Option<bool> {
 pub fn op_text(op: BinaryOp) -> &'static str {
     match op {
         BinaryOp::Or => "OR",
+        BinaryOp::OrElse => "OR_ELSE",
+        BinaryOp::AndThen => "AND_THEN",
         BinaryOp::Xor => "XOR",
         BinaryOp::And => "AND",
         BinaryOp::Eq => "=",
@@ -1352,6 +1359,9 @@ impl<'a> Ctx<'a> {
         file: usize,
     ) -> TExpr {
         let what = op_text(op);
+        if matches!(op, BinaryOp::AndThen | BinaryOp::OrElse) {
+            return self.short_circuit(op, a, b, span, file);
+        }
         if a.ty.is_error() || b.ty.is_error() {
             return TExpr::error(span);
         }
@@ -1436,6 +1446,8 @@ impl<'a> Ctx<'a> {
                 };
                 TExpr { k: TK::Cmp(cmp, Box::new(a), Box::new(b)), ty: Ty::Prim(Prim::Bool), span }
             }
+            // checked by `short_circuit` before
+            BinaryOp::AndThen | BinaryOp::OrElse => bad(self),
             BinaryOp::And | BinaryOp::Or | BinaryOp::Xor => {
                 let bop = match op {
                     BinaryOp::And => BinOp::And,

@@ -7,6 +7,8 @@
 //!   located variables (what an IEC direct address names is `device::iec`'s, by `[iec]`);
 //! - `expr`, `stmt`, `stdlib`, `refs` (references and pointers): checking into a typed tree;
 //! - `emit`: the typed tree to ops; `link` (here): one program per instance, symbols;
+//! - `short_circuit`: `AND_THEN` and `OR_ELSE`, the right operand skipped when the left
+//!   decides;
 //! - `sfc`: each POU's Sequential Function Chart → variables and statements, before the rest;
 //! - `oop`: methods, properties, EXTENDS, interfaces, and the dispatch of their calls on a
 //!   hidden type tag of the instance;
@@ -52,6 +54,7 @@ mod oop;
 mod query;
 mod refs;
 mod sfc;
+mod short_circuit;
 mod stdlib;
 mod stmt;
 pub mod types;

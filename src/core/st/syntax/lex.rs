@@ -78,7 +78,11 @@ pub(crate) enum Kw {
     Return,
     Not,
     And,
+    /// `AND_THEN` (CODESYS): `AND` that skips its right operand when the left is FALSE.
+    AndThen,
     Or,
+    /// `OR_ELSE` (CODESYS): `OR` that skips its right operand when the left is TRUE.
+    OrElse,
     Xor,
     Mod,
     True,
@@ -155,6 +159,8 @@ impl Kw {
             b"RETURN" => Kw::Return,
             b"NOT" => Kw::Not,
             b"AND" => Kw::And,
+            b"AND_THEN" => Kw::AndThen,
+            b"OR_ELSE" => Kw::OrElse,
             b"OR" => Kw::Or,
             b"XOR" => Kw::Xor,
             b"MOD" => Kw::Mod,

@@ -106,6 +106,8 @@ fn partial_number(digits: &str) -> Option<u8> {
 fn binary_op(tok: &Tok, level: u8) -> Option<BinaryOp> {
     let op = match tok {
         Tok::Kw(Kw::Or) => BinaryOp::Or,
+        Tok::Kw(Kw::OrElse) => BinaryOp::OrElse,
+        Tok::Kw(Kw::AndThen) => BinaryOp::AndThen,
         Tok::Kw(Kw::Xor) => BinaryOp::Xor,
         Tok::Kw(Kw::And) | Tok::P(P::Amp) => BinaryOp::And,
         Tok::P(P::Eq) => BinaryOp::Eq,
@@ -127,9 +129,10 @@ fn binary_op(tok: &Tok, level: u8) -> Option<BinaryOp> {
 /// The level of a binary operator: 1 (`OR`) to 7 (`*`), and 9 for `**`.
 pub(crate) fn op_level(op: BinaryOp) -> u8 {
     match op {
-        BinaryOp::Or => 1,
+        // CODESYS ranks AND_THEN with AND and OR_ELSE with OR
+        BinaryOp::Or | BinaryOp::OrElse => 1,
         BinaryOp::Xor => 2,
-        BinaryOp::And => 3,
+        BinaryOp::And | BinaryOp::AndThen => 3,
         BinaryOp::Eq | BinaryOp::Ne => 4,
         BinaryOp::Lt | BinaryOp::Le | BinaryOp::Gt | BinaryOp::Ge => 5,
         BinaryOp::Add | BinaryOp::Sub => 6,

@@ -124,8 +124,10 @@ fn unary_text(op: UnaryOp) -> &'static str {
 fn binary_text(op: BinaryOp) -> &'static str {
     match op {
         BinaryOp::Or => "OR",
+        BinaryOp::OrElse => "OR_ELSE",
         BinaryOp::Xor => "XOR",
         BinaryOp::And => "AND",
+        BinaryOp::AndThen => "AND_THEN",
         BinaryOp::Eq => "=",
         BinaryOp::Ne => "<>",
         BinaryOp::Lt => "<",
@@ -235,7 +237,9 @@ fn lexes_keywords_in_any_case() {
         ("RETURN", Kw::Return),
         ("not", Kw::Not),
         ("AND", Kw::And),
+        ("and_then", Kw::AndThen),
         ("or", Kw::Or),
+        ("OR_ELSE", Kw::OrElse),
         ("XOR", Kw::Xor),
         ("mod", Kw::Mod),
         ("TRUE", Kw::True),
@@ -472,9 +476,9 @@ fn precedence_follows_the_table() {
     );
     // Every pair of adjacent levels, both ways round.
     let levels: [&[&str]; 7] = [
-        &["OR"],
+        &["OR", "OR_ELSE"],
         &["XOR"],
-        &["AND", "&"],
+        &["AND", "&", "AND_THEN"],
         &["=", "<>"],
         &["<", ">", "<=", ">="],
         &["+", "-"],
@@ -497,11 +501,16 @@ fn precedence_follows_the_table() {
 
 #[test]
 fn binary_operators_are_left_associative() {
-    for op in ["OR", "XOR", "AND", "=", "<>", "<", ">", "<=", ">=", "+", "-", "*", "/", "MOD", "**"]
-    {
+    for op in [
+        "OR", "OR_ELSE", "XOR", "AND", "AND_THEN", "=", "<>", "<", ">", "<=", ">=", "+", "-", "*",
+        "/", "MOD", "**",
+    ] {
         assert_eq!(sxs(&format!("a {op} b {op} c")), format!("({op} ({op} a b) c)"));
     }
     assert_eq!(sxs("a & b"), "(AND a b)");
+    // CODESYS ranks AND_THEN with AND and OR_ELSE with OR: left to right among them
+    assert_eq!(sxs("a AND b AND_THEN c AND d"), "(AND (AND_THEN (AND a b) c) d)");
+    assert_eq!(sxs("a OR_ELSE b OR c"), "(OR (OR_ELSE a b) c)");
     assert_eq!(sxs("a - b + c - d"), "(- (+ (- a b) c) d)");
     assert_eq!(sxs("2 ** 3 ** 2"), "(** (** 2 3) 2)");
 }
