@@ -56,6 +56,21 @@ const MESSAGES: &[(&str, &str)] = &[
     ("type `{}` is defined in terms of itself", "self-referential-type"),
     ("a STRUCT member cannot be located", "located-struct-member"),
     ("`{}` is already declared in this STRUCT", "duplicate-struct-member"),
+    // union.rs: CODESYS's UNION
+    ("a UNION member cannot be located", "located-union-member"),
+    ("a UNION member cannot be {}: other members' bytes would forge it", "union-member-instance"),
+    ("`{}` is already declared in this UNION", "duplicate-union-member"),
+    (
+        "only one member of a UNION can have an initial value, and `{}` has one",
+        "union-two-initial-values",
+    ),
+    ("a UNION's initial value gives one member only", "union-initial-two-members"),
+    (
+        "`{}` holds a string whose terminating zero `{}` overlaps: a string in a UNION must end past every other member",
+        "union-string-end",
+    ),
+    // short_circuit.rs: AND_THEN, OR_ELSE
+    ("`{}` needs `BOOL` operands, not `{}`", "short-circuit-not-bool"),
     ("too many initial values for `{}` ({} elements)", "too-many-initial-values"),
     ("`{}` has no member `{}`{}", "no-member"),
     ("`{}` has no variable `{}` to initialize", "fb-init-no-variable"),
@@ -426,6 +441,14 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "this BCD conversion is CODESYS's Util library: IEC 61131-3 writes `BYTE_BCD_TO_USINT`, `USINT_TO_BCD_BYTE` and the like (`[st] strict` is on)",
         "strict-util-bcd",
     ),
+    (
+        "`{}` is CODESYS, not IEC 61131-3, whose `AND` and `OR` evaluate both operands: nest the test, `IF p <> 0 THEN IF p^ > 0 THEN …` (`[st] strict` is on)",
+        "strict-short-circuit",
+    ),
+    (
+        "`UNION` is CODESYS, not IEC 61131-3, which has no type whose members share their bytes: declare a STRUCT (`[st] strict` is on)",
+        "strict-union",
+    ),
 ];
 
 /// The messages of the IEC direct addresses' layouts (`src/core/device/iec.rs`, `[iec]`), and
@@ -496,6 +519,10 @@ const UNREACHABLE: &[(&str, &str)] = &[
 /// Literals of the compiler sources that are not messages by themselves: words and hints that
 /// messages are built from, and type names.
 const PARTS: &[&str] = &[
+    // what a UNION member cannot be (union.rs)
+    "a function block instance",
+    "an interface",
+    "a `REFERENCE TO`",
     // what an interface's implementation lacks, and how a signature differs (oop.rs)
     "method `{}`",
     "the GET of property `{}`",

@@ -341,6 +341,8 @@ pub enum TypeDef {
     Alias { ty: TypeRef, init: Option<Init> },
     /// `STRUCT … END_STRUCT`.
     Struct { members: Vec<VarDecl> },
+    /// `UNION … END_UNION` (CODESYS): members sharing the same bytes, from offset 0.
+    Union { members: Vec<VarDecl> },
     /// `(Idle, Run := 5, Fault) := Idle` or with a base type `INT (…)`.
     Enum { def: EnumDef, init: Option<Ident> },
 }

@@ -65,6 +65,8 @@ pub enum Habit {
     /// `AND_THEN`, `OR_ELSE` (the operator as written): the right operand evaluated only when
     /// the left does not decide.
     ShortCircuit(&'static str),
+    /// `UNION … END_UNION`: members sharing their bytes.
+    Union,
 }
 
 impl Habit {
@@ -91,6 +93,7 @@ impl Habit {
             Habit::PointerInteger => "IEC 61131-3 has no conversion between references and numbers: move a `POINTER TO` by `p + n` and compare pointers with each other (`[st] strict` is on)".to_string(),
             Habit::BitwiseInteger => "IEC 61131-3 has `AND`, `OR` and `XOR` on BOOL and bit strings only: `INT_TO_WORD(i) AND 16#FF` (`[st] strict` is on)".to_string(),
             Habit::ShortCircuit(op) => format!("`{op}` is CODESYS, not IEC 61131-3, whose `AND` and `OR` evaluate both operands: nest the test, `IF p <> 0 THEN IF p^ > 0 THEN …` (`[st] strict` is on)"),
+            Habit::Union => "`UNION` is CODESYS, not IEC 61131-3, which has no type whose members share their bytes: declare a STRUCT (`[st] strict` is on)".to_string(),
             Habit::UtilBcd => "this BCD conversion is CODESYS's Util library: IEC 61131-3 writes `BYTE_BCD_TO_USINT`, `USINT_TO_BCD_BYTE` and the like (`[st] strict` is on)".to_string(),
         }
     }

@@ -495,6 +495,7 @@ impl<'a> Ctx<'a> {
                     members: Vec::new(),
                     size: 0,
                     image: Vec::new(),
+                    union: false,
                 });
                 self.type_decls[t].ty = Ty::Struct(index);
                 let mut out: Vec<Member> = Vec::new();
@@ -528,9 +529,11 @@ impl<'a> Ctx<'a> {
                     members: out,
                     size: img.len() as u32,
                     image: img,
+                    union: false,
                 };
                 Ty::Struct(index)
             }
+            TypeDef::Union { members } => self.union_type(t, decl, members, scope),
             TypeDef::Enum { def, init } => {
                 self.make_enum(decl.name.name.clone(), def, init.as_ref(), scope)
             }
@@ -645,6 +648,10 @@ impl<'a> Ctx<'a> {
                 }
             }
             (Init::Struct { members, .. }, Ty::Struct(s)) => {
+                if self.types.structs[*s].union && members.len() > 1 {
+                    let span = members[1].0.span;
+                    self.error(file, span, "a UNION's initial value gives one member only");
+                }
                 for (id, v) in members {
                     let found =
                         self.types.structs[*s].members.iter().find(|m| id.is(&m.name)).cloned();

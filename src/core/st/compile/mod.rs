@@ -9,6 +9,7 @@
 //! - `emit`: the typed tree to ops; `link` (here): one program per instance, symbols;
 //! - `short_circuit`: `AND_THEN` and `OR_ELSE`, the right operand skipped when the left
 //!   decides;
+//! - `union`: CODESYS's `UNION`, a struct whose members share their bytes;
 //! - `sfc`: each POU's Sequential Function Chart → variables and statements, before the rest;
 //! - `oop`: methods, properties, EXTENDS, interfaces, and the dispatch of their calls on a
 //!   hidden type tag of the instance;
@@ -58,6 +59,7 @@ mod short_circuit;
 mod stdlib;
 mod stmt;
 pub mod types;
+mod union;
 mod var_config;
 
 use std::collections::HashMap;

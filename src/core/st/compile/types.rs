@@ -336,6 +336,8 @@ pub struct StructTy {
     pub size: u32,
     /// The default value of an instance.
     pub image: Vec<u8>,
+    /// A CODESYS `UNION`: every member at offset 0 (`compile::union`).
+    pub union: bool,
 }
 
 #[derive(Debug, Clone, PartialEq)]

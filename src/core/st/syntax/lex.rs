@@ -39,6 +39,9 @@ pub(crate) enum Kw {
     EndType,
     Struct,
     EndStruct,
+    /// `UNION` (CODESYS): a type whose members share their bytes.
+    Union,
+    EndUnion,
     Var,
     VarInput,
     VarOutput,
@@ -120,6 +123,8 @@ impl Kw {
             b"END_TYPE" => Kw::EndType,
             b"STRUCT" => Kw::Struct,
             b"END_STRUCT" => Kw::EndStruct,
+            b"UNION" => Kw::Union,
+            b"END_UNION" => Kw::EndUnion,
             b"VAR" => Kw::Var,
             b"VAR_INPUT" => Kw::VarInput,
             b"VAR_OUTPUT" => Kw::VarOutput,
@@ -188,6 +193,7 @@ impl Kw {
                 | Kw::EndResource
                 | Kw::EndType
                 | Kw::EndStruct
+                | Kw::EndUnion
                 | Kw::EndVar
                 | Kw::EndIf
                 | Kw::EndCase

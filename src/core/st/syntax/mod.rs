@@ -61,6 +61,7 @@ pub(crate) enum Want {
     VarDecl,
     TypeDecl,
     StructMember,
+    UnionMember,
     Location,
     Field,
     TypedValue,
@@ -73,7 +74,7 @@ pub(crate) enum Want {
 }
 
 impl Want {
-    pub(crate) const ALL: [Want; 32] = [
+    pub(crate) const ALL: [Want; 33] = [
         Want::SemiAfterStmt,
         Want::SemiAfterDecl,
         Want::Stmt,
@@ -97,6 +98,7 @@ impl Want {
         Want::VarDecl,
         Want::TypeDecl,
         Want::StructMember,
+        Want::UnionMember,
         Want::Location,
         Want::Field,
         Want::TypedValue,
@@ -135,6 +137,7 @@ impl Want {
             Want::VarDecl => "a variable name or `END_VAR`",
             Want::TypeDecl => "a type name or `END_TYPE`",
             Want::StructMember => "a member name or `END_STRUCT`",
+            Want::UnionMember => "a member name or `END_UNION`",
             Want::Location => "an address `%…` after `AT`",
             Want::Field => "a member name or a bit number after `.`",
             Want::TypedValue => "a literal after the type prefix",
@@ -161,6 +164,8 @@ pub(crate) enum Closer {
     FunctionBlock,
     Type,
     Struct,
+    /// CODESYS's `UNION … END_UNION`.
+    Union,
     Var,
     Action,
     Configuration,
@@ -185,6 +190,7 @@ impl Closer {
         Closer::FunctionBlock,
         Closer::Type,
         Closer::Struct,
+        Closer::Union,
         Closer::Var,
         Closer::Action,
         Closer::Configuration,
@@ -210,6 +216,7 @@ impl Closer {
             Closer::FunctionBlock => "END_FUNCTION_BLOCK",
             Closer::Type => "END_TYPE",
             Closer::Struct => "END_STRUCT",
+            Closer::Union => "END_UNION",
             Closer::Var => "END_VAR",
             Closer::Action => "END_ACTION",
             Closer::Configuration => "END_CONFIGURATION",
@@ -236,6 +243,7 @@ impl Closer {
             Closer::FunctionBlock => "FUNCTION_BLOCK",
             Closer::Type => "TYPE",
             Closer::Struct => "STRUCT",
+            Closer::Union => "UNION",
             Closer::Var => "{}",
             Closer::Action => "ACTION",
             Closer::Configuration => "CONFIGURATION",

@@ -227,6 +227,7 @@ impl Closer {
             Closer::FunctionBlock => kw == Kw::EndFunctionBlock,
             Closer::Type => kw == Kw::EndType,
             Closer::Struct => kw == Kw::EndStruct,
+            Closer::Union => kw == Kw::EndUnion,
             Closer::Var => kw == Kw::EndVar,
             Closer::Action => kw == Kw::EndAction,
             Closer::Configuration => kw == Kw::EndConfiguration,
@@ -252,6 +253,7 @@ impl Closer {
             Closer::FunctionBlock => Kw::EndFunctionBlock,
             Closer::Type => Kw::EndType,
             Closer::Struct => Kw::EndStruct,
+            Closer::Union => Kw::EndUnion,
             Closer::Var => Kw::EndVar,
             Closer::Action => Kw::EndAction,
             Closer::Configuration => Kw::EndConfiguration,
@@ -480,7 +482,7 @@ impl<'a> Parser<'a> {
                             Kw::EndAction | Kw::EndMethod | Kw::EndProperty | Kw::EndInterface
                         )
                 }
-                Closer::Type | Closer::Struct | Closer::Var => false,
+                Closer::Type | Closer::Struct | Closer::Union | Closer::Var => false,
                 Closer::Configuration | Closer::Resource => {
                     matches!(kw, Kw::EndConfiguration | Kw::EndResource)
                 }
@@ -1375,7 +1377,21 @@ impl<'a> Parser<'a> {
         let span = self.span();
         let name = self.ident()?;
         self.expect_p(P::Colon, Want::Colon)?;
-        let def = if self.at_kw(Kw::Struct) {
+        let def = if self.at_kw(Kw::Struct) || self.at_kw(Kw::Union) {
+            // a STRUCT, or CODESYS's UNION: the same list of members
+            let union = self.at_kw(Kw::Union);
+            let (closer, opener, want) = if union {
+                (Closer::Union, "UNION", Want::UnionMember)
+            } else {
+                (Closer::Struct, "STRUCT", Want::StructMember)
+            };
+            let made = |members| {
+                if union {
+                    TypeDef::Union { members }
+                } else {
+                    TypeDef::Struct { members }
+                }
+            };
             let opened = self.span();
             self.bump();
             let mut members = Vec::new();
@@ -1386,7 +1402,7 @@ impl<'a> Parser<'a> {
                         Ok(decl) => members.push(decl),
                         Err(_) => self.sync_decl(),
                     }
-                } else if *tok == Tok::Kw(Kw::EndStruct) {
+                } else if *tok == Tok::Kw(closer.end_kw()) {
                     self.bump();
                     break;
                 } else if *tok == Tok::Ident
@@ -1395,18 +1411,18 @@ impl<'a> Parser<'a> {
                     || is_closer(tok)
                     || var_kind(tok).is_some()
                 {
-                    self.close(Closer::Struct, "STRUCT", opened);
+                    self.close(closer, opener, opened);
                     if !self.at_p(P::Semi) {
-                        return Ok(TypeDecl { name, def: TypeDef::Struct { members }, span });
+                        return Ok(TypeDecl { name, def: made(members), span });
                     }
                     break;
                 } else {
-                    let _ = self.fail(Want::StructMember);
+                    let _ = self.fail(want);
                     self.bump();
                     self.sync_decl();
                 }
             }
-            TypeDef::Struct { members }
+            made(members)
         } else {
             match self.type_ref()? {
                 TypeRef::Enum(def) => {

@@ -931,6 +931,20 @@ fn parses_initial_values() {
 }
 
 #[test]
+fn parses_unions_as_codesys_writes_them() {
+    // no `;` after END_UNION (a CODESYS habit), then a STRUCT holding the union
+    let items = parse_ok(
+        "TYPE\n  Bits : UNION\n    dw : DWORD;\n    b : ARRAY [0..3] OF BYTE;\n  END_UNION\n  Tagged : STRUCT tag : BYTE; v : Bits; END_STRUCT;\nEND_TYPE",
+    );
+    let Item::Type(bits) = &items[0] else { panic!("{items:?}") };
+    let TypeDef::Union { members } = &bits.def else { panic!("{bits:?}") };
+    let names: Vec<&str> = members.iter().map(|m| m.names[0].name.as_str()).collect();
+    assert_eq!(names, ["dw", "b"]);
+    assert!(matches!(&items[1], Item::Type(TypeDecl { def: TypeDef::Struct { .. }, .. })));
+    assert_eq!(one_tok("end_union"), Tok::Kw(Kw::EndUnion));
+}
+
+#[test]
 fn parses_type_blocks() {
     let items = parse_ok(
         "TYPE\n  Point : STRUCT\n    x, y : REAL := 0.0;\n    tag : STRING[8];\n  END_STRUCT;\n  Color : (Red, Green := 5, Blue) := Green;\n  Small : INT (A, B);\n  Speed : INT := 10;\n  Buf : ARRAY [0..9] OF INT := [10(0)];\n  Pct : INT (0..100) := 50;\n  Name : STRING(20);\nEND_TYPE\nTYPE Plain : (One, Two); END_TYPE",

@@ -1,0 +1,160 @@
+//! CODESYS's `UNION … END_UNION` (docs/ST.md, "Unions"): a type whose members all start at
+//! byte 0 of the same memory, its size that of its largest member. Writing one member and
+//! reading another reads the same bytes as the other type, little-endian, as CODESYS does on
+//! x86 and ARM.
+//!
+//! A union is laid out as a [`StructTy`] whose members are all at offset 0
+//! ([`StructTy::union`]), so member access, copies, parameters and arrays of unions are the
+//! struct's. This is sound with the existing ops because every variable lives in byte-addressed
+//! memory, loaded and stored little-endian by type (`vm::typed`), and native code forgets a
+//! value it holds in a register when a store overlaps its bytes, whatever the types
+//! (`plcd-native`'s `carry::may_change`).
+//!
+//! What cannot be reinterpreted safely is refused: a function block instance or an interface
+//! (their hidden type tag would be forged by another member's bytes) and a `REFERENCE TO`
+//! (bound once, then used without a check of its own), alone or inside an array or struct
+//! member. Pointers (`POINTER TO`, `REF_TO`) are accepted: every access through one is checked
+//! at run time, whatever bytes made it.
+
+use crate::st::ast::{RefKind, TypeDecl, VarDecl};
+use crate::st::dialect::Habit;
+
+use super::ctx::{Ctx, Scope};
+use super::types::{Member, StructTy, Ty};
+
+impl<'a> Ctx<'a> {
+    /// Lays out the UNION `decl` (type declaration `t`): its members at offset 0, its size the
+    /// largest's, its initial image that of the member given an initial value, or else of the
+    /// first member, zero-padded.
+    pub(super) fn union_type(
+        &mut self,
+        t: usize,
+        decl: &'a TypeDecl,
+        members: &'a [VarDecl],
+        scope: Scope,
+    ) -> Ty {
+        let file = scope.file;
+        self.habit(Habit::Union, file, decl.span);
+        // its index first, for the references to it among its members
+        let index = self.types.structs.len();
+        let name = decl.name.name.clone();
+        let empty = StructTy {
+            name: name.clone(),
+            members: Vec::new(),
+            size: 0,
+            image: Vec::new(),
+            union: true,
+        };
+        self.types.structs.push(empty);
+        self.type_decls[t].ty = Ty::Struct(index);
+        let mut out: Vec<Member> = Vec::new();
+        let mut image: Vec<u8> = Vec::new();
+        let mut initialized: Option<&str> = None;
+        for m in members {
+            let ty = self.resolve_type_ref(&m.ty, scope);
+            if let Some(loc) = &m.location {
+                self.error(file, loc.span, "a UNION member cannot be located");
+            }
+            if let Some(what) = self.not_reinterpretable(&ty) {
+                self.error(
+                    file,
+                    m.span,
+                    format!("a UNION member cannot be {what}: other members' bytes would forge it"),
+                );
+            }
+            for id in &m.names {
+                if out.iter().any(|x| id.is(&x.name)) {
+                    self.error(
+                        file,
+                        id.span,
+                        format!("`{}` is already declared in this UNION", id.name),
+                    );
+                    continue;
+                }
+                if m.init.is_some() {
+                    if let Some(first) = initialized {
+                        self.error(
+                            file,
+                            id.span,
+                            format!("only one member of a UNION can have an initial value, and `{first}` has one"),
+                        );
+                        continue;
+                    }
+                }
+                let bytes = self.init_image(&ty, Some(&m.ty), m.init.as_ref(), scope, &id.name);
+                // the first member's image, unless a later one is given an initial value
+                if out.is_empty() || (m.init.is_some() && initialized.is_none()) {
+                    image = bytes.clone();
+                }
+                if m.init.is_some() {
+                    initialized = Some(&id.name);
+                }
+                let size = bytes.len();
+                out.push(Member { name: id.name.clone(), ty: ty.clone(), offset: 0 });
+                if image.len() < size {
+                    image.resize(size, 0);
+                }
+            }
+        }
+        self.check_string_ends(&out, members, file);
+        let size = out.iter().map(|m| self.types.size(&m.ty)).max().unwrap_or(0);
+        image.resize(size as usize, 0);
+        self.types.structs[index] = StructTy { name, members: out, size, image, union: true };
+        Ty::Struct(index)
+    }
+
+    /// Refuses a member holding a `STRING` or `WSTRING` whose room for its terminating zero
+    /// another member's bytes cover: the VM reads a string up to its first zero unit (as
+    /// CODESYS stores one), so a string whose last unit another member made nonzero would read
+    /// on past its end, into the variables after the union.
+    fn check_string_ends(&mut self, out: &[Member], members: &[VarDecl], file: usize) {
+        for (i, m) in out.iter().enumerate() {
+            let Some(end) = self.first_string_end(&m.ty, 0) else { continue };
+            let over =
+                out.iter().enumerate().find(|(j, o)| *j != i && self.types.size(&o.ty) > end);
+            if let Some((_, other)) = over {
+                let span = members
+                    .iter()
+                    .flat_map(|d| &d.names)
+                    .find(|id| id.is(&m.name))
+                    .map_or_else(Default::default, |id| id.span);
+                let msg = format!(
+                    "`{}` holds a string whose terminating zero `{}` overlaps: a string in a UNION must end past every other member",
+                    m.name, other.name
+                );
+                self.error(file, span, msg);
+            }
+        }
+    }
+
+    /// The byte offset, from `base`, of the room for the terminating zero of the first string
+    /// `ty` holds (the string ending first), if it holds any.
+    fn first_string_end(&self, ty: &Ty, base: u32) -> Option<u32> {
+        match ty {
+            Ty::Str(n) => Some(base + n),
+            Ty::WStr(n) => Some(base + 2 * n),
+            Ty::Array(a) => self.first_string_end(&a.of, base),
+            Ty::Struct(s) => self.types.structs[*s]
+                .members
+                .iter()
+                .filter_map(|m| self.first_string_end(&m.ty, base + m.offset))
+                .min(),
+            _ => None,
+        }
+    }
+
+    /// What `ty` holds that a union cannot: a function block instance, an interface or a
+    /// `REFERENCE TO`, as the message names it.
+    fn not_reinterpretable(&self, ty: &Ty) -> Option<&'static str> {
+        match ty {
+            Ty::Fb(_) => Some("a function block instance"),
+            Ty::Iface(_) => Some("an interface"),
+            Ty::Ref(RefKind::Reference, _) => Some("a `REFERENCE TO`"),
+            Ty::Array(a) => self.not_reinterpretable(&a.of),
+            Ty::Struct(s) => {
+                self.types.structs[*s].members.iter().find_map(|m| self.not_reinterpretable(&m.ty))
+            }
+            _ => None,
+        }
+    }
+}
