@@ -69,6 +69,13 @@ const MESSAGES: &[(&str, &str)] = &[
         "`{}` holds a string whose terminating zero `{}` overlaps: a string in a UNION must end past every other member",
         "union-string-end",
     ),
+    // jumps.rs: JMP and labels
+    ("label `{}` is already declared at line {}", "jump-duplicate-label"),
+    ("no label `{}` in this body{}", "jump-unknown-label"),
+    (
+        "`JMP {}` goes into the {} at line {}: a jump goes to a label of its own statement list or of one around it",
+        "jump-into-block",
+    ),
     // short_circuit.rs: AND_THEN, OR_ELSE
     ("`{}` needs `BOOL` operands, not `{}`", "short-circuit-not-bool"),
     ("too many initial values for `{}` ({} elements)", "too-many-initial-values"),
@@ -448,6 +455,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
     (
         "`UNION` is CODESYS, not IEC 61131-3, which has no type whose members share their bytes: declare a STRUCT (`[st] strict` is on)",
         "strict-union",
+    ),
+    (
+        "`JMP` and labels are CODESYS in ST: IEC 61131-3 has them in IL only; write IF, WHILE, REPEAT or EXIT (`[st] strict` is on)",
+        "strict-jump",
     ),
 ];
 

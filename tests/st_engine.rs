@@ -170,6 +170,27 @@ fn an_endless_while_trips_the_scan_watchdog() {
 }
 
 #[test]
+fn an_endless_jmp_loop_trips_the_scan_watchdog() {
+    // a backward JMP is a loop like WHILE: charged to the step budget, ended at the watchdog
+    let project = project(
+        "[plc]\nwatchdog_ms = 20\n[[program]]\nfile = \"main.st\"\n",
+        &[(
+            "main.st",
+            "PROGRAM Main VAR n : DINT; END_VAR again: n := n + 1; JMP again; END_PROGRAM",
+        )],
+    );
+    let (engine, events) = sim(&project, &[], &[], 100 * MS);
+    let wdt = events
+        .0
+        .iter()
+        .find(|(_, e)| matches!(e, Event::Error(ErrorKind::Watchdog { .. })))
+        .map(|(t, _)| *t)
+        .expect("a WDT error");
+    assert!((20 * MS..=21 * MS).contains(&wdt), "WDT at {wdt}");
+    assert_eq!(engine.mode(), Mode::Error);
+}
+
+#[test]
 fn watched_variables_report_changes_by_type_never_their_initial_value() {
     let project = project(
         "[plc]\nscan_period_ms = 1\n[[program]]\nfile = \"main.st\"\n",

@@ -430,6 +430,10 @@ pub enum StmtKind {
     },
     /// A lone `;`.
     Empty,
+    /// `name:` before a statement (CODESYS): where a `JMP name;` of the same body goes.
+    Label(Ident),
+    /// `JMP name;` (CODESYS): goes on at the label `name`.
+    Jump(Ident),
 }
 
 /// `1, 3..5, Red: …`

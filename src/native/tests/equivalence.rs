@@ -2038,6 +2038,49 @@ END_PROGRAM
     assert!(outcome.errors.is_empty());
 }
 
+/// An endless loop made of CODESYS jumps (`JMP` back to a label, in the program and in a
+/// function it calls) stops at the same step for any budget, as WHILE's does: a backward jump
+/// is charged to the step budget natively too.
+#[test]
+fn an_endless_jmp_loop_stops_at_the_same_step_for_any_budget() {
+    let source = "
+FUNCTION Spin : DINT
+VAR_INPUT start : DINT; END_VAR
+VAR x : DINT; END_VAR
+    x := start;
+again:
+    x := (x * 3 + 1) MOD 100003;
+    IF x >= 0 THEN
+        JMP again;
+    END_IF;
+    Spin := x;
+END_FUNCTION
+
+PROGRAM Main
+VAR
+    x, y : DINT;
+END_VAR
+top:
+    x := x + 1;
+    y := y * 3 + x;
+    IF x > 5000 THEN
+        y := Spin(y);
+    END_IF;
+    JMP top;
+END_PROGRAM
+";
+    let case = Programs::inline("endless jmp loop", source);
+    let budgets = [Budget::Fixed(1000), Budget::Fixed(997), Budget::Fixed(13), Budget::Varying];
+    let scans = Scans { calls: Some(200), ..Scans::new(1) };
+    let outcome = compare(&case, scans, &budgets);
+    outcome.assert_equivalent();
+    // 200 calls of 1000 steps: the loop entered Spin, which never returns.
+    let vm = outcome.vm.as_ref().expect("ran");
+    assert_eq!(vm.steps(), 200 * 1000);
+    assert!(outcome.native_steps > 100_000, "{} native steps", outcome.native_steps);
+    assert!(outcome.errors.is_empty());
+}
+
 /// Arithmetic on two different NaNs (of both signs, with a payload, a signaling one): which
 /// operand's NaN an operation returns is the processor's choice by operand order (x86-64: the
 /// first), so native code must keep the interpreter's order; the bits land in variable memory.

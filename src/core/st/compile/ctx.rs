@@ -253,6 +253,8 @@ pub struct Ctx<'a> {
     /// whether a FUNCTION's result has been assigned.
     pub for_vars: Vec<String>,
     pub loop_depth: usize,
+    /// The labels and `JMP`s of the bodies checked (`jumps`).
+    pub jumps: super::jumps::JumpTable,
     /// `[st] strict`: whether a CODESYS habit is an error.
     pub dialect: Dialect,
     /// Methods, properties, EXTENDS and interfaces (`oop`).

@@ -1514,7 +1514,7 @@ fn walk_stmts(body: &[ast::Stmt], f: &mut impl FnMut(&ast::Expr)) {
                 walk_expr(cond, f);
                 walk_stmts(body, f);
             }
-            S::Exit | S::Continue | S::Return | S::Empty => {}
+            S::Exit | S::Continue | S::Return | S::Empty | S::Label(_) | S::Jump(_) => {}
         }
     }
 }

@@ -113,6 +113,8 @@ pub struct Em<'c, 'a> {
     loops: Vec<Loop>,
     returns: Vec<usize>,
     depth_reported: bool,
+    /// Where the body's labels are (`jumps`).
+    labels: super::jumps::Labels,
 }
 
 fn unsigned(e: Elem) -> Elem {
@@ -1413,6 +1415,22 @@ impl<'c, 'a> Em<'c, 'a> {
                     l.continues.push(j);
                 }
             }
+            TS::Label(label) => {
+                let here = self.pc();
+                for op in self.labels.place(*label, here) {
+                    self.patch(op, here);
+                }
+            }
+            // a backward jump is a loop: charged to the step budget as WHILE's `Goto` is
+            TS::Jump(label, backward) => match self.labels.before(*label).filter(|_| *backward) {
+                Some(target) => {
+                    self.op(Op::Goto(target));
+                }
+                None => {
+                    let op = self.op(Op::Goto(0));
+                    self.labels.wait(op, *label);
+                }
+            },
             TS::Return => {
                 if self.kind == PouKind::Program {
                     let j = self.op(Op::Goto(0));
@@ -1728,6 +1746,7 @@ pub fn compile_body(cx: &mut Ctx<'_>, p: usize, body: &[TStmt]) -> Body {
         loops: Vec::new(),
         returns: Vec::new(),
         depth_reported: false,
+        labels: Default::default(),
     };
     // VAR_TEMP of a PROGRAM or FB starts from its initial values at each call
     if kind != PouKind::Function {
@@ -1771,6 +1790,7 @@ pub fn compile_copies(cx: &mut Ctx<'_>, file: usize, copies: &[TStmt]) -> Body {
         loops: Vec::new(),
         returns: Vec::new(),
         depth_reported: false,
+        labels: Default::default(),
     };
     em.stmts(copies);
     em.b

@@ -10,6 +10,7 @@
 //! - `short_circuit`: `AND_THEN` and `OR_ELSE`, the right operand skipped when the left
 //!   decides;
 //! - `union`: CODESYS's `UNION`, a struct whose members share their bytes;
+//! - `jumps`: CODESYS's `JMP` and labels in ST, bound and checked before a body is;
 //! - `sfc`: each POU's Sequential Function Chart → variables and statements, before the rest;
 //! - `oop`: methods, properties, EXTENDS, interfaces, and the dispatch of their calls on a
 //!   hidden type tag of the instance;
@@ -50,6 +51,7 @@ mod emit;
 mod expr;
 mod fb_init;
 mod instance_args;
+mod jumps;
 mod method_vars;
 mod oop;
 mod query;
@@ -158,6 +160,7 @@ pub fn compile_configured(
         prelude_file,
         for_vars: Vec::new(),
         loop_depth: 0,
+        jumps: Default::default(),
         dialect,
         oop: oop::Tables::default(),
     };

@@ -1,6 +1,6 @@
 //! Statements: checked into a typed tree (assignments, calls, IF, CASE with its labels
 //! resolved and checked for overlaps and coverage, FOR, WHILE, REPEAT, EXIT, CONTINUE,
-//! RETURN).
+//! RETURN, labels and JMP (bound by `jumps`)).
 
 use crate::st::ast::{self, CaseLabel, ExprKind, PouKind, Stmt, StmtKind, VarKind};
 
@@ -44,6 +44,10 @@ pub enum TS {
     Exit,
     Continue,
     Return,
+    /// A label (its number, `jumps`): where jumps to it go on.
+    Label(u32),
+    /// `JMP`: the label's number, and whether the label is before it (a loop).
+    Jump(u32, bool),
 }
 
 impl<'a> Ctx<'a> {
@@ -156,6 +160,11 @@ impl<'a> Ctx<'a> {
                 }
             }
             StmtKind::Return => TS::Return,
+            StmtKind::Label(_) => TS::Label(self.jumps.label(file, s.span)?),
+            StmtKind::Jump(_) => {
+                let (label, backward) = self.jumps.jump(file, s.span)?;
+                TS::Jump(label, backward)
+            }
             StmtKind::For { var, from, to, by, body } => {
                 return self.check_for(s, var, from, to, by.as_ref(), body, scope)
             }
@@ -409,6 +418,7 @@ impl<'a> Ctx<'a> {
         self.in_prelude = file == self.prelude_file;
         self.loop_depth = 0;
         self.for_vars.clear();
+        self.resolve_jumps(statements, file);
         // A FUNCTION's result never assigned on some path keeps its type's initial value.
         self.check_body(statements, scope)
     }

@@ -1568,6 +1568,23 @@ impl<'a> Parser<'a> {
                 self.bump();
                 StmtKind::Return
             }
+            // `label:` before a statement (CODESYS): a statement of its own, no `;`
+            Tok::Ident if *self.tok_at(1) == Tok::P(P::Colon) => {
+                self.habit(Habit::Jump);
+                let label = self.ident()?;
+                self.bump();
+                return Ok(Stmt { kind: StmtKind::Label(label), span });
+            }
+            // `JMP label;` (CODESYS): JMP is no keyword, since no other statement starts
+            // with two names
+            Tok::Ident
+                if self.text_of(self.pos).eq_ignore_ascii_case("JMP")
+                    && *self.tok_at(1) == Tok::Ident =>
+            {
+                self.habit(Habit::Jump);
+                self.bump();
+                StmtKind::Jump(self.ident()?)
+            }
             Tok::Ident => {
                 let target = self.postfix()?;
                 if self.eat_p(P::Assign) {

@@ -931,6 +931,22 @@ fn parses_initial_values() {
 }
 
 #[test]
+fn parses_labels_and_jumps() {
+    // a label is a statement of its own (no `;`), also right before an END_…; JMP is no
+    // keyword: a variable may be called jmp
+    let items = parse_ok(
+        "PROGRAM P VAR jmp : INT; END_VAR\nagain: jmp := jmp + 1;\nIF jmp < 3 THEN JMP again; last: END_IF\nEND_PROGRAM",
+    );
+    let Item::Pou(p) = &items[0] else { panic!("{items:?}") };
+    assert!(matches!(&p.body[0].kind, StmtKind::Label(l) if l.is("again")));
+    assert_eq!(p.body[0].span, sp(2, 1));
+    assert!(matches!(&p.body[1].kind, StmtKind::Assign { .. }));
+    let StmtKind::If { branches, .. } = &p.body[2].kind else { panic!("{:?}", p.body[2]) };
+    assert!(matches!(&branches[0].1[0].kind, StmtKind::Jump(l) if l.is("again")));
+    assert!(matches!(&branches[0].1[1].kind, StmtKind::Label(l) if l.is("last")));
+}
+
+#[test]
 fn parses_unions_as_codesys_writes_them() {
     // no `;` after END_UNION (a CODESYS habit), then a STRUCT holding the union
     let items = parse_ok(
