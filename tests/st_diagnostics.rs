@@ -196,6 +196,7 @@ const MESSAGES: &[(&str, &str)] = &[
         "partial-of-non-bit-string",
     ),
     ("`{}` has no {} part: it is not wider than a `{}`", "partial-not-narrower"),
+    ("`{}` has no {} part: it is not wider than a `{}`", "part-long-word"),
     ("`{}` has no {} {}: its {}s are `{}0` to `{}{}`", "partial-out-of-range"),
     ("only a variable can be assigned", "only-variable-assigned"),
     ("a VAR_IN_OUT argument must be a variable", "in-out-needs-variable"),
@@ -546,14 +547,13 @@ const PARTS: &[&str] = &[
     "no duration, only indicator variable names",
     // the kind of a string in messages (`needs a WSTRING`, `cannot mix a WSTRING and a STRING`)
     "a WSTRING",
-    // the character type a conversion needs (`CHAR_TO_WSTRING` needs a WCHAR)
-    "a WCHAR",
-    "a CHAR",
     // the names of reference types in messages (`POINTER TO INT`)
     "POINTER TO",
     "REFERENCE TO",
-    // the name of a DWORD part in the partial access messages (`has no double word 2`)
+    // the names of a DWORD and an LWORD part in the partial access messages (`has no double
+    // word 2`)
     "double word",
+    "long word",
     "{} {}",
     " (did you mean `{}`?)",
     "line {}",

@@ -482,12 +482,15 @@ pub enum ExprKind {
     },
 }
 
-/// The size of a part in a partial access: `%B`, `%W`, `%D`.
+/// The size of a part in a partial access: `%B`, `%W`, `%D`, `%L`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PartSize {
     Byte,
     Word,
     DWord,
+    /// `%L`: read so that `lw.%L0` is reported as a part as wide as its variable (no type is
+    /// wider than an `LWORD`).
+    LWord,
 }
 
 impl PartSize {
@@ -497,6 +500,7 @@ impl PartSize {
             PartSize::Byte => 'B',
             PartSize::Word => 'W',
             PartSize::DWord => 'D',
+            PartSize::LWord => 'L',
         }
     }
 
@@ -506,6 +510,7 @@ impl PartSize {
             PartSize::Byte => 8,
             PartSize::Word => 16,
             PartSize::DWord => 32,
+            PartSize::LWord => 64,
         }
     }
 }

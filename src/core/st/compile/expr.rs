@@ -828,6 +828,7 @@ impl<'a> Ctx<'a> {
             PartSize::Byte => (Prim::Byte, "byte"),
             PartSize::Word => (Prim::Word, "word"),
             PartSize::DWord => (Prim::DWord, "double word"),
+            PartSize::LWord => (Prim::LWord, "long word"),
         };
         if size.bits() >= whole.bits() {
             self.error(

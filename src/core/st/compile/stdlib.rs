@@ -76,13 +76,12 @@ fn string_type(name: &str) -> Option<Ty> {
     }
 }
 
-/// The string type of a character type's characters: a WSTRING for a WCHAR.
-fn dst_string(ch: &Ty) -> Ty {
-    if matches!(ch, Ty::Prim(Prim::WChar)) {
-        Ty::WStr(80)
-    } else {
-        Ty::Str(80)
-    }
+/// `s` (a STRING or WSTRING of one character or more) converted to a one-character string of
+/// the other kind, as `STRING_TO_WSTRING` (`to_wide`) or `WSTRING_TO_STRING` convert: the
+/// character conversions across the kinds are these after or before the one-character ones.
+fn widened(s: TExpr, to_wide: bool, span: Span) -> TExpr {
+    let (op, ty) = if to_wide { (Std::Widen, Ty::WStr(1)) } else { (Std::Narrow, Ty::Str(1)) };
+    TExpr { k: TK::Std(op, vec![s]), ty, span }
 }
 
 /// The name of a string type's kind, for messages.
@@ -1336,19 +1335,19 @@ impl<'a> Ctx<'a> {
                 if t.ty.is_error() {
                     return TExpr::error(span);
                 }
-                if wide != to_wide {
-                    let to = if to_wide { "a WCHAR" } else { "a CHAR" };
-                    self.want(&t, false, name, to, file);
-                    return TExpr::error(span);
-                }
                 let ty = if wide { Ty::WStr(1) } else { Ty::Str(1) };
-                return TExpr { k: TK::Std(Std::CharToString, vec![t]), ty, span };
+                let one = TExpr { k: TK::Std(Std::CharToString, vec![t]), ty, span };
+                // CHAR_TO_WSTRING, WCHAR_TO_STRING (CODESYS): the character's string, then
+                // converted as STRING_TO_WSTRING or WSTRING_TO_STRING convert it
+                return if wide == to_wide { one } else { widened(one, to_wide, span) };
             }
             (_, _, Some(wide), Some(to_wide)) => {
                 let ok = t.ty.string_cap().is_some() && t.ty.is_wide() == wide;
-                if !self.want(&t, ok && wide == to_wide, name, kind_name(&dst_string(&dst)), file) {
+                if !self.want(&t, ok, name, kind_name(&src), file) {
                     return TExpr::error(span);
                 }
+                // STRING_TO_WCHAR, WSTRING_TO_CHAR (CODESYS): the first character converted
+                let t = if wide == to_wide { t } else { widened(t, to_wide, span) };
                 return TExpr { k: TK::Std(Std::StringToChar, vec![t]), ty: dst, span };
             }
             _ => {}

@@ -1067,6 +1067,7 @@ impl<'a> Parser<'a> {
             'B' => Some(PartSize::Byte),
             'W' => Some(PartSize::Word),
             'D' => Some(PartSize::DWord),
+            'L' => Some(PartSize::LWord),
             _ => return None,
         };
         let mut steps = vec![PartialStep::Part(size, partial_number(chars.as_str())?)];
