@@ -623,3 +623,87 @@ END_CONFIGURATION
     // VAR_STAT is the PROGRAM's one copy, whatever copy of its code an instance runs
     assert_eq!(last(&trace, "blink.runs").as_deref(), Some("9"));
 }
+
+/// The CODESYS forms TwinCAT code and TcUnit use (docs/ST.md, "CODESYS and TwinCAT habits"), in
+/// TwinCAT files. Test data modelled on TcUnit (github.com/tcunit/TcUnit, MIT licence,
+/// Copyright (c) 2018 Jakob Sagatowski and contributors): `U_ExpectedOrActual.TcDUT`'s UNION of
+/// every elementary type (without its `BIT` member, a type plcd has not, and its `T_MaxString`
+/// member, whose end its `WSTRING(255)` overlaps: plcd refuses such a string) and the
+/// `AND_THEN` of `FB_TestResults.TcPOU` that guards a pointer read
+/// (`… = NumberOfInitializedTestSuites AND_THEN TestSuiteAddresses[…]^.AreAllTestsFinished() AND …`),
+/// with a JMP loop.
+fn twincat_codesys_forms_project() -> TempDir {
+    let dir = twincat_project("st-sources-codesys-forms");
+    let d = dir.path();
+    write(
+        d,
+        "MAIN.TcPOU",
+        &pou(
+            "MAIN",
+            "PROGRAM MAIN\r\nVAR\r\n\tuValue : U_ExpectedOrActual;\r\n\tnBits : LWORD;\r\n\tnLow : DWORD;\r\n\tfbResults : FB_Results;\r\nEND_VAR",
+            "uValue.lrealExpectedOrActual := 1.0;\r\nnBits := uValue.lwordExpectedOrActual;\r\nuValue.wordExpectedOrActual := 16#1234;\r\nnLow := uValue.dwordExpectedOrActual;\r\nfbResults();",
+        ),
+    );
+    let members = [
+        "boolExpectedOrActual : BOOL",
+        "byteExpectedOrActual : BYTE",
+        "dwordExpectedOrActual : DWORD",
+        "lwordExpectedOrActual : LWORD",
+        "udintExpectedOrActual : UDINT",
+        "uintExpectedOrActual : UINT",
+        "usintExpectedOrActual : USINT",
+        "sintExpectedOrActual : SINT",
+        "intExpectedOrActual : INT",
+        "wordExpectedOrActual : WORD",
+        "dintExpectedOrActual : DINT",
+        "lintExpectedOrActual : LINT",
+        "ulintExpectedOrActual : ULINT",
+        "realExpectedOrActual : REAL",
+        "lrealExpectedOrActual : LREAL",
+        "wstringExpectedOrActual : WSTRING(255)",
+        "timeExpectedOrActual : TIME",
+        "ltimeExpectedOrActual : LTIME",
+        "dateExpectedOrActual : DATE",
+        "dateandtimeExpectedOrActual : DATE_AND_TIME",
+        "timeofdayExpectedOrActual : TIME_OF_DAY",
+    ];
+    let union = format!(
+        "TYPE U_ExpectedOrActual :\r\nUNION\r\n{}END_UNION\r\nEND_TYPE",
+        members.iter().map(|m| format!("    {m};\r\n")).collect::<String>()
+    );
+    let dut = format!(
+        "  <DUT Name=\"U_ExpectedOrActual\" Id=\"{{1}}\">\r\n    <Declaration><![CDATA[{union}]]></Declaration>\r\n  </DUT>"
+    );
+    write(d, "lib/DUTs/U_ExpectedOrActual.TcDUT", &tc(&dut));
+    let suite = "  <DUT Name=\"ST_Suite\" Id=\"{2}\">\r\n    <Declaration><![CDATA[TYPE ST_Suite :\r\nSTRUCT\r\n    bFinished : BOOL;\r\nEND_STRUCT\r\nEND_TYPE]]></Declaration>\r\n  </DUT>";
+    write(d, "lib/DUTs/ST_Suite.TcDUT", &tc(suite));
+    write(
+        d,
+        "lib/POUs/FB_Results.TcPOU",
+        &pou(
+            "FB_Results",
+            "FUNCTION_BLOCK FB_Results\r\nVAR\r\n\taSuites : ARRAY [1..3] OF POINTER TO ST_Suite;\r\n\tstLast : ST_Suite;\r\n\tnScan : INT;\r\n\tnSuites : INT := 3;\r\n\tbGeneral : BOOL;\r\n\tnAt : INT;\r\n\tnWalk : INT;\r\n\tnSum : INT;\r\nEND_VAR",
+            "nScan := nScan + 1;\r\n// the last suite's pointer is NULL until scan 3\r\nIF nScan = 3 THEN\r\n\taSuites[nSuites] := ADR(stLast);\r\n\tstLast.bFinished := TRUE;\r\nEND_IF\r\nIF nSuites = 0 AND (NOT bGeneral) THEN\r\n\tbGeneral := TRUE;\r\nELSIF nScan >= nSuites AND_THEN\r\n\taSuites[nSuites]^.bFinished AND (NOT bGeneral) THEN\r\n\tbGeneral := TRUE;\r\n\tnAt := nScan;\r\nEND_IF\r\nnWalk := 0;\r\nnSum := 0;\r\nlblNext:\r\nnWalk := nWalk + 1;\r\nIF nWalk > 3 THEN\r\n\tJMP lblDone;\r\nEND_IF\r\nnSum := nSum + nWalk;\r\nJMP lblNext;\r\nlblDone:\r\n",
+        ),
+    );
+    dir
+}
+
+#[test]
+fn twincat_files_with_union_and_then_and_jumps_run() {
+    let dir = twincat_codesys_forms_project();
+    let watch =
+        "main.nBits,main.nLow,main.fbResults.bGeneral,main.fbResults.nAt,main.fbResults.nSum";
+    let trace = checked_trace(dir.path(), "3500us", watch);
+    // LREAL 1.0 is 16#3FF0000000000000; its low double word is 0, then the WORD member
+    // writes 16#1234 over its low two bytes
+    assert_eq!(last(&trace, "main.nBits").as_deref(), Some("4607182418800017408"), "{trace}");
+    assert_eq!(last(&trace, "main.nLow").as_deref(), Some("4660"), "{trace}");
+    // 4 scans (t = 0 … 3 ms): nScan >= 3 from the third, when the pointer is set; before it
+    // AND_THEN never read through the NULL pointer (no 2822H)
+    assert_eq!(last(&trace, "main.fbResults.bGeneral").as_deref(), Some("1"), "{trace}");
+    assert_eq!(last(&trace, "main.fbResults.nAt").as_deref(), Some("3"), "{trace}");
+    assert!(!trace.contains("2822"), "{trace}");
+    // the JMP loop adds 1 + 2 + 3
+    assert_eq!(last(&trace, "main.fbResults.nSum").as_deref(), Some("6"), "{trace}");
+}
