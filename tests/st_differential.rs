@@ -5,7 +5,8 @@
 //! following docs/ST.md: wrapping integer arithmetic, division and `MOD` by zero giving 0 with
 //! error 3400H, the implicit widenings, the conversion rules, the shifts, the standard functions,
 //! and what plcd accepts of CODESYS's habits: arithmetic on bit strings (with each other, with
-//! integers and reals, typed as docs/ST.md says) and shifts of integers.
+//! integers and reals, typed as docs/ST.md says), shifts of integers, and the short-circuit
+//! `AND_THEN` and `OR_ELSE` (a skipped right operand raises none of its errors).
 //!
 //! The expressions are generated from a list of choices, so that proptest's shrinking of the
 //! list shrinks the expressions (an exhausted list picks variables). Constant subexpressions are
@@ -416,6 +417,10 @@ enum Bin {
     And,
     Or,
     Xor,
+    /// CODESYS's short-circuit `AND_THEN`, `OR_ELSE` (BOOL only): the right operand, and
+    /// so its operation errors, only when the left does not decide.
+    AndThen,
+    OrElse,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -535,6 +540,11 @@ impl Expr {
                 let g = xs[0].eval(vars, &mut 0);
                 xs[if g.zero() { 1 } else { 2 }].constant(vars)
             }
+            // the compiler folds a short-circuit operation whose constant left operand decides
+            Expr::Bin(op @ (Bin::AndThen | Bin::OrElse), a, b) if a.constant(vars) => {
+                let decides = *op == Bin::OrElse;
+                a.eval(vars, &mut 0).zero() != decides || b.constant(vars)
+            }
             Expr::Var(_) | Expr::Lit(..) | Expr::Sel(_) => !self.has_var(),
             Expr::Neg(a) | Expr::Not(a) | Expr::Abs(a) | Expr::Conv(_, a) | Expr::Trunc(a) => {
                 a.constant(vars)
@@ -578,6 +588,17 @@ impl Expr {
                 let mixed = matches!(self, Expr::Mixed(..));
                 let conv = |v: V| if mixed { v.to(t) } else { v.widen(t) };
                 let x = conv(a.eval(vars, errors));
+                // the value of the left operand that decides a short-circuit operation alone
+                let decides = match op {
+                    Bin::AndThen => Some(false),
+                    Bin::OrElse => Some(true),
+                    _ => None,
+                };
+                if let (Some(d), V::Bool(left)) = (decides, x) {
+                    if left == d {
+                        return V::Bool(d);
+                    }
+                }
                 let y = conv(b.eval(vars, errors));
                 if matches!(op, Bin::Div | Bin::Mod) && y.zero() {
                     *errors += 1;
@@ -661,8 +682,8 @@ fn binary(op: Bin, x: V, y: V) -> V {
             _ => unreachable!("{op:?} on LREAL"),
         }),
         (V::Bool(a), V::Bool(b)) => V::Bool(match op {
-            Bin::And => a & b,
-            Bin::Or => a | b,
+            Bin::And | Bin::AndThen => a & b,
+            Bin::Or | Bin::OrElse => a | b,
             Bin::Xor => a ^ b,
             _ => unreachable!("{op:?} on BOOL"),
         }),
@@ -675,6 +696,7 @@ fn binary(op: Bin, x: V, y: V) -> V {
             Bin::And => zip_int!(x, y, a, b => a & b, unreachable!()),
             Bin::Or => zip_int!(x, y, a, b => a | b, unreachable!()),
             Bin::Xor => zip_int!(x, y, a, b => a ^ b, unreachable!()),
+            Bin::AndThen | Bin::OrElse => unreachable!("{op:?} on an integer"),
         },
     }
 }
@@ -705,9 +727,9 @@ fn precedence(e: &Expr, bare: bool) -> u8 {
         Expr::Bin(Bin::Add | Bin::Sub, ..) | Expr::Mixed(Bin::Add | Bin::Sub, ..) => 6,
         Expr::Cmp(Cmp::Lt | Cmp::Gt | Cmp::Le | Cmp::Ge, ..) => 7,
         Expr::Cmp(Cmp::Eq | Cmp::Ne, ..) => 8,
-        Expr::Bin(Bin::And, ..) => 9,
+        Expr::Bin(Bin::And | Bin::AndThen, ..) => 9,
         Expr::Bin(Bin::Xor, ..) => 10,
-        Expr::Bin(Bin::Or, ..) => 11,
+        Expr::Bin(Bin::Or | Bin::OrElse, ..) => 11,
         _ => 0,
     }
 }
@@ -771,6 +793,8 @@ impl Render<'_> {
                     Bin::And => "&",
                     Bin::Or => "OR",
                     Bin::Xor => "XOR",
+                    Bin::AndThen => "AND_THEN",
+                    Bin::OrElse => "OR_ELSE",
                 };
                 let _ = write!(out, " {sym} ");
                 self.expr(b, p - 1, bb, out);
@@ -986,7 +1010,7 @@ fn gen(t: T, depth: u32, vars: &Vars, c: &mut Choices) -> Expr {
             binary_of(op, t, depth, vars, c)
         }
         4..=7 if t == T::Bool => {
-            let op = c.pick(&[Bin::And, Bin::Or, Bin::Xor]);
+            let op = c.pick(&[Bin::And, Bin::Or, Bin::Xor, Bin::AndThen, Bin::OrElse]);
             binary_of(op, t, depth, vars, c)
         }
         // bit strings: the bitwise operators, and CODESYS's arithmetic
