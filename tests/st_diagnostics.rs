@@ -461,6 +461,14 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "`JMP` and labels are CODESYS in ST: IEC 61131-3 has them in IL only; write IF, WHILE, REPEAT or EXIT (`[st] strict` is on)",
         "strict-jump",
     ),
+    (
+        "IEC 61131-3 writes an enumeration's base type before its values: `BYTE (A, B)` (`[st] strict` is on)",
+        "strict-enum-base-after-values",
+    ),
+    (
+        "IEC 61131-3 names an enumeration's value with `#`: `E#Value` (`[st] strict` is on)",
+        "strict-enum-dot-value",
+    ),
 ];
 
 /// The messages of the IEC direct addresses' layouts (`src/core/device/iec.rs`, `[iec]`), and

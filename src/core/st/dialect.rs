@@ -69,6 +69,10 @@ pub enum Habit {
     Union,
     /// `JMP label;` or `label:` in ST (IEC 61131-3 has them in IL only).
     Jump,
+    /// An enumeration's base type after its values, `(A, B) BYTE`.
+    EnumBaseAfterValues,
+    /// `E.Value`: a value of the enumeration `E` named with a dot.
+    EnumDotValue,
 }
 
 impl Habit {
@@ -97,6 +101,8 @@ impl Habit {
             Habit::ShortCircuit(op) => format!("`{op}` is CODESYS, not IEC 61131-3, whose `AND` and `OR` evaluate both operands: nest the test, `IF p <> 0 THEN IF p^ > 0 THEN …` (`[st] strict` is on)"),
             Habit::Union => "`UNION` is CODESYS, not IEC 61131-3, which has no type whose members share their bytes: declare a STRUCT (`[st] strict` is on)".to_string(),
             Habit::Jump => "`JMP` and labels are CODESYS in ST: IEC 61131-3 has them in IL only; write IF, WHILE, REPEAT or EXIT (`[st] strict` is on)".to_string(),
+            Habit::EnumBaseAfterValues => "IEC 61131-3 writes an enumeration's base type before its values: `BYTE (A, B)` (`[st] strict` is on)".to_string(),
+            Habit::EnumDotValue => "IEC 61131-3 names an enumeration's value with `#`: `E#Value` (`[st] strict` is on)".to_string(),
             Habit::UtilBcd => "this BCD conversion is CODESYS's Util library: IEC 61131-3 writes `BYTE_BCD_TO_USINT`, `USINT_TO_BCD_BYTE` and the like (`[st] strict` is on)".to_string(),
         }
     }

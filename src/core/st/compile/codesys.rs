@@ -1,7 +1,8 @@
 //! CODESYS's arithmetic and library habits that the checker accepts beyond IEC 61131-3
-//! (docs/ST.md marks each a **choice**): the types of bit-string arithmetic and the Util
-//! library's names. Each use is a [`Habit`](crate::st::dialect::Habit) noted with
-//! [`Ctx::habit`](super::ctx::Ctx::habit), which `[st] strict` refuses.
+//! (docs/ST.md marks each a **choice**): the types of bit-string arithmetic, the Util
+//! library's names, and enumeration values named `E.Value`. Each use is a
+//! [`Habit`](crate::st::dialect::Habit) noted with [`Ctx::habit`](super::ctx::Ctx::habit),
+//! which `[st] strict` refuses.
 
 use super::types::Prim;
 
@@ -74,6 +75,34 @@ pub fn bits_of(p: Prim) -> Prim {
         16 => Prim::Word,
         32 => Prim::DWord,
         _ => Prim::LWord,
+    }
+}
+
+impl<'a> super::ctx::Ctx<'a> {
+    /// `E.Value`, CODESYS's and TwinCAT's way to name a value of the enumeration `E` (required
+    /// by `{attribute 'qualified_only'}`, accepted always): IEC 61131-3's `E#Value`, when `base`
+    /// names an enumeration type and no variable of the scope. `Habit::EnumDotValue`.
+    pub(super) fn dotted_enum_value(
+        &mut self,
+        base: &crate::st::ast::Expr,
+        value: &crate::st::ast::Ident,
+        span: crate::st::ast::Span,
+        scope: super::ctx::Scope,
+        expected: Option<&super::types::Ty>,
+    ) -> Option<super::expr::TExpr> {
+        use crate::st::ast::{Expr, ExprKind, Literal};
+        let ExprKind::Name(ty) = &base.kind else { return None };
+        let name = ty.name.to_ascii_lowercase();
+        let variable = scope.pou.is_some_and(|p| self.pous[p].lookup(&ty.name).is_some())
+            || self.global_names.contains_key(&name);
+        let &t = self.type_names.get(&name).filter(|_| !variable)?;
+        if !matches!(self.resolve_type_decl(t), super::types::Ty::Enum(_)) {
+            return None;
+        }
+        self.habit(crate::st::dialect::Habit::EnumDotValue, scope.file, span);
+        let value = Expr { kind: ExprKind::Name(value.clone()), span: value.span };
+        let typed = Literal::Typed { ty: ty.clone(), value: Box::new(value) };
+        Some(self.literal(&typed, span, scope, expected))
     }
 }
 

@@ -405,7 +405,13 @@ impl<'a> Ctx<'a> {
         self.check_expr(e, scope, Some(ty))
     }
 
-    fn literal(&mut self, lit: &Literal, span: Span, scope: Scope, expected: Option<&Ty>) -> TExpr {
+    pub(super) fn literal(
+        &mut self,
+        lit: &Literal,
+        span: Span,
+        scope: Scope,
+        expected: Option<&Ty>,
+    ) -> TExpr {
         let file = scope.file;
         match lit {
             Literal::Int(v) => {
@@ -552,6 +558,11 @@ impl<'a> Ctx<'a> {
                 self.deref(b, span, &expr_text(base), file)
             }
             ExprKind::Member(base, id) => {
+                if access == Access::Read {
+                    if let Some(v) = self.dotted_enum_value(base, id, span, scope, expected) {
+                        return v;
+                    }
+                }
                 let b = self.check_place(
                     base,
                     scope,

@@ -1426,7 +1426,16 @@ impl<'a> Parser<'a> {
             made(members)
         } else {
             match self.type_ref()? {
-                TypeRef::Enum(def) => {
+                TypeRef::Enum(mut def) => {
+                    // CODESYS and TwinCAT write the base type after the values, `(A, B) BYTE`:
+                    // a name there not followed by `:` (which starts the next type)
+                    if def.base.is_none()
+                        && self.at(&Tok::Ident)
+                        && *self.tok_at(1) != Tok::P(P::Colon)
+                    {
+                        self.habit(Habit::EnumBaseAfterValues);
+                        def.base = Some(self.ident()?);
+                    }
                     let init = if self.eat_p(P::Assign) { Some(self.ident()?) } else { None };
                     TypeDef::Enum { def, init }
                 }

@@ -931,6 +931,25 @@ fn parses_initial_values() {
 }
 
 #[test]
+fn parses_an_enumerations_base_type_after_its_values() {
+    // CODESYS's `(…) BYTE`, a default after it; a name followed by `:` is the next type
+    let items = parse_ok("TYPE\n  E : (A, B) BYTE := B\n  F : (C, D)\n  G : INT;\nEND_TYPE");
+    let defs: Vec<&TypeDef> = items
+        .iter()
+        .map(|i| match i {
+            Item::Type(t) => &t.def,
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    let TypeDef::Enum { def, init } = defs[0] else { panic!("{defs:?}") };
+    assert!(def.base.as_ref().is_some_and(|b| b.is("BYTE")));
+    assert!(init.as_ref().is_some_and(|i| i.is("B")));
+    let TypeDef::Enum { def, .. } = defs[1] else { panic!("{defs:?}") };
+    assert!(def.base.is_none());
+    assert!(matches!(defs[2], TypeDef::Alias { .. }));
+}
+
+#[test]
 fn parses_labels_and_jumps() {
     // a label is a statement of its own (no `;`), also right before an END_…; JMP is no
     // keyword: a variable may be called jmp
