@@ -82,18 +82,15 @@ impl<'a> Ctx<'a> {
                     }
                 }
                 let bytes = self.init_image(&ty, Some(&m.ty), m.init.as_ref(), scope, &id.name);
-                // the first member's image, unless a later one is given an initial value
-                if out.is_empty() || (m.init.is_some() && initialized.is_none()) {
-                    image = bytes.clone();
+                // the first member's image, unless one is given an initial value (a second
+                // one was refused above); zero-padded to the union's size below
+                if out.is_empty() || m.init.is_some() {
+                    image = bytes;
                 }
                 if m.init.is_some() {
                     initialized = Some(&id.name);
                 }
-                let size = bytes.len();
                 out.push(Member { name: id.name.clone(), ty: ty.clone(), offset: 0 });
-                if image.len() < size {
-                    image.resize(size, 0);
-                }
             }
         }
         self.check_string_ends(&out, members, file);
