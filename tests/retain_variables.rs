@@ -309,3 +309,40 @@ END_PROGRAM
     assert_eq!(var(&plc, &p, "main.was_null"), 0, "kept over the warm start");
     assert!(var(&plc, &p, "main.n") > 0, "n counts again from 0 through p");
 }
+
+/// A retained CODESYS UNION (docs/ST.md, "Unions") is retained as a whole, its bytes: a warm
+/// RUN start and a replacement engine keep them, whichever member wrote them last.
+#[test]
+fn a_retained_union_keeps_its_bytes() {
+    let source = "
+TYPE U : UNION dw : DWORD; r : REAL; b : ARRAY [0..3] OF BYTE; END_UNION END_TYPE
+PROGRAM Main
+VAR RETAIN u : U; END_VAR
+VAR scans : DINT; END_VAR
+    scans := scans + 1;
+    u.b[3] := 16#3F;
+    u.dw := u.dw + 1;
+END_PROGRAM
+";
+    let p = st(source);
+    let mut plc = Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    plc.set_mode(Mode::Stop);
+    let scans = var(&plc, &p, "main.scans");
+    assert!(scans > 5, "it ran: {scans}");
+    // byte 3 is 16#3F each scan, the low bytes count the scans
+    assert_eq!(var(&plc, &p, "main.u.dw"), 0x3F00_0000 + scans);
+
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    plc.set_mode(Mode::Stop);
+    let again = var(&plc, &p, "main.scans");
+    assert!(again > 0 && again < scans + 10, "not retained: started over");
+    assert_eq!(var(&plc, &p, "main.u.dw"), 0x3F00_0000 + scans + again, "retained: counted on");
+
+    let mut new = Plc::new(&p);
+    new.engine.inherit_retained(&plc.engine);
+    assert_eq!(var(&new, &p, "main.u.dw"), 0x3F00_0000 + scans + again, "the same bytes");
+    assert_eq!(var(&new, &p, "main.u.b[3]"), 0x3F, "read through another member");
+}
