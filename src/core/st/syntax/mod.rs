@@ -179,7 +179,7 @@ pub(crate) enum Closer {
 }
 
 impl Closer {
-    pub(crate) const ALL: [Closer; 20] = [
+    pub(crate) const ALL: [Closer; 21] = [
         Closer::If,
         Closer::Case,
         Closer::For,
