@@ -200,6 +200,7 @@ pub(crate) fn generate(
         info: vec![SlotInfo::default(); analysis.max_depth as usize + 1],
         held: Vec::new(),
         in_range: Vec::new(),
+        known_ranges: vec![None; leaders_len],
         vars_need: analysis.vars_end,
         checks: &roles.checks,
         dispatched: &roles.dispatched,
@@ -300,9 +301,11 @@ struct Gen<'a, 'f> {
     /// In the block being generated: the values of fixed places it stored or fetched, still
     /// there (no store since could have changed them).
     held: Vec<Held>,
-    /// In the block being generated: the indices (value, `lo`, `len` of [`Op::Index`]) it
-    /// already found inside their range.
-    in_range: Vec<(Value, i32, u32)>,
+    /// In the block being generated: the indices it already found inside their range.
+    in_range: Vec<InRange>,
+    /// For each block of the body that one jump reaches and the dispatch does not enter: the
+    /// indices the block before it found inside their range, which its code dominates.
+    known_ranges: Vec<Option<Vec<InRange>>>,
     /// See [`generate`]'s result.
     vars_need: u64,
     /// [`Analysis::budget_checks`].
@@ -349,7 +352,25 @@ struct Scope<'a> {
     stack: Vec<Variable>,
     info: Vec<SlotInfo>,
     held: Vec<Held>,
+    known_ranges: Vec<Option<Vec<InRange>>>,
 }
+
+/// How deep [`Gen::same_value`] looks: an index computed from a variable and a constant, cut
+/// to its type (`ireduce`, `isub`, `sextend`, the constant).
+const SAME_VALUE_DEPTH: u32 = 4;
+
+/// True if `opcode` computes its result from its operands alone: no memory, no trap, no other
+/// effect.
+fn pure(opcode: Opcode) -> bool {
+    !(opcode.can_load()
+        || opcode.can_store()
+        || opcode.can_trap()
+        || opcode.is_call()
+        || opcode.other_side_effects())
+}
+
+/// An index value found inside the range `lo`, `len` of an [`Op::Index`].
+type InRange = (Value, i32, u32);
 
 /// What the code knows of a stack slot's value in the block being generated.
 #[derive(Clone, Copy, Default)]
@@ -535,17 +556,11 @@ impl<'a> Gen<'a, '_> {
         // Where the interpreter hands back after an instruction a block handed to it: the
         // next block, or the one its last instruction jumps to (the interpreter runs to the
         // next leader).
-        let code = &self.program.code;
         for index in 0..self.leaders.len() {
             if !self.handed_over[index] {
                 continue;
             }
-            let range = self.analysis.block(code, self.leaders[index]);
-            let jump = match code[range.end - 1] {
-                Op::Goto(target) | Op::GotoIf { target, .. } => Some(target),
-                _ => None,
-            };
-            for pc in std::iter::once(range.end as u32).chain(jump) {
+            for pc in self.successors(index) {
                 if let Some(to) = self.leader_index(pc) {
                     if self.loaders[to].is_none() {
                         self.loaders[to] = Some(self.b.create_block());
@@ -763,8 +778,39 @@ impl<'a> Gen<'a, '_> {
     fn block(&mut self, body_index: usize) {
         let bails = self.bails;
         let checked = self.block_code(body_index);
+        let handed_over = self.bails > bails + u32::from(checked);
         if self.inline.is_none() {
-            self.handed_over[body_index] = self.bails > bails + u32::from(checked);
+            self.handed_over[body_index] = handed_over;
+        }
+        if !handed_over {
+            self.pass_on_ranges(body_index);
+        }
+    }
+
+    /// Where control goes after the last instruction of the block of leader `body_index` (a
+    /// call's return site included).
+    fn successors(&self, body_index: usize) -> Vec<u32> {
+        let code = &self.program.code;
+        let range = self.analysis.block(code, self.leaders[body_index]);
+        let end = range.end as u32;
+        match code[range.end - 1] {
+            Op::Goto(target) => vec![target],
+            Op::GotoIf { target, .. } => vec![end, target],
+            Op::Return | Op::End => vec![],
+            _ => vec![end],
+        }
+    }
+
+    /// After the block of leader `body_index`: the indices it found inside their range, to
+    /// each block after it that only it jumps to and that no loader enters (a block that hands
+    /// an instruction to the interpreter gets loaders for the blocks after it: it passes
+    /// nothing).
+    fn pass_on_ranges(&mut self, body_index: usize) {
+        for pc in self.successors(body_index) {
+            let Some(to) = self.leader_index(pc) else { continue };
+            if to > body_index && !self.dispatched[self.leaders[to]] {
+                self.known_ranges[to] = Some(self.in_range.clone());
+            }
         }
     }
 
@@ -776,6 +822,12 @@ impl<'a> Gen<'a, '_> {
         let start = range.start as u32;
         let len = range.len() as u32;
         self.b.switch_to_block(self.blocks[body_index]);
+        let known_ranges = self.known_ranges[body_index].take();
+        if known_ranges.is_some() {
+            // Its one predecessor has jumped to it and nothing else will: sealed now, the
+            // values it uses are the very values of the block before it.
+            self.b.seal_block(self.blocks[body_index]);
+        }
         let mut depth = self.depth(start);
         if !is_native(&code[range.start]) {
             let left = self.b.use_var(self.regs.left);
@@ -808,7 +860,7 @@ impl<'a> Gen<'a, '_> {
             };
             self.held.push(Held { place, elem, value, info });
         }
-        self.in_range.clear();
+        self.in_range = known_ranges.unwrap_or_default();
         let left = self.b.ins().iadd_imm_s(left, -i64::from(len));
         self.b.def_var(self.regs.left, left);
         let mut falls_through = true;
@@ -1007,8 +1059,12 @@ impl<'a> Gen<'a, '_> {
                 let index = self.slot(d - 1);
                 let pointer = self.slot(d - 2);
                 let element = self.b.ins().iadd_imm_s(index, -i64::from(lo));
-                // The same index into the same range again in this block: it passed.
-                if !self.in_range.contains(&(index, lo, len)) {
+                // The same index into the same range again in this block, or in the one before
+                // it that alone leads here: it passed.
+                let passed = self.in_range.iter().any(|&(known, l, n)| {
+                    (l, n) == (lo, len) && self.same_value(known, index, SAME_VALUE_DEPTH)
+                });
+                if !passed {
                     let out = self.b.ins().icmp_imm_s(
                         IntCC::UnsignedGreaterThanOrEqual,
                         element,
@@ -1388,6 +1444,7 @@ impl<'a> Gen<'a, '_> {
             stack,
             info: vec![SlotInfo::default(); self.info.len()],
             held: Vec::new(),
+            known_ranges: vec![None; leaders.len()],
         };
         self.swap_scope(&mut scope);
         self.inline = Some(Inline { back, record });
@@ -1415,6 +1472,7 @@ impl<'a> Gen<'a, '_> {
         std::mem::swap(&mut self.stack, &mut scope.stack);
         std::mem::swap(&mut self.info, &mut scope.info);
         std::mem::swap(&mut self.held, &mut scope.held);
+        std::mem::swap(&mut self.known_ranges, &mut scope.known_ranges);
     }
 
     /// The function of the body at `target`, imported into this one.
@@ -1659,6 +1717,43 @@ impl<'a> Gen<'a, '_> {
                 Some(arg)
             }
             _ => None,
+        }
+    }
+
+    /// True if `a` and `b` are the same value: one value, or the results of the same pure
+    /// instruction on the same values (constants included), looked into `depth` deep. The
+    /// code of a block recomputes what the block before computed (`j - 1` in both), which
+    /// Cranelift merges later; a range check needs to know it now.
+    fn same_value(&self, a: Value, b: Value, depth: u32) -> bool {
+        let dfg = &self.b.func.dfg;
+        let (a, b) = (dfg.resolve_aliases(a), dfg.resolve_aliases(b));
+        if a == b {
+            return true;
+        }
+        if depth == 0 || dfg.value_type(a) != dfg.value_type(b) {
+            return false;
+        }
+        let (ValueDef::Result(x, 0), ValueDef::Result(y, 0)) = (dfg.value_def(a), dfg.value_def(b))
+        else {
+            return false;
+        };
+        let same_args = |p: &[Value], q: &[Value]| {
+            p.len() == q.len() && p.iter().zip(q).all(|(&p, &q)| self.same_value(p, q, depth - 1))
+        };
+        match (dfg.insts[x], dfg.insts[y]) {
+            (
+                InstructionData::UnaryImm { opcode: o, imm: i },
+                InstructionData::UnaryImm { opcode: p, imm: j },
+            ) => o == p && i == j,
+            (
+                InstructionData::Unary { opcode: o, arg: a },
+                InstructionData::Unary { opcode: p, arg: b },
+            ) => o == p && pure(o) && same_args(&[a], &[b]),
+            (
+                InstructionData::Binary { opcode: o, args: a },
+                InstructionData::Binary { opcode: p, args: b },
+            ) => o == p && pure(o) && same_args(&a, &b),
+            _ => false,
         }
     }
 

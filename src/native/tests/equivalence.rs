@@ -912,6 +912,46 @@ END_PROGRAM
     assert_eq!(outcome.slot("main.dr") | outcome.slot("main.ir") | outcome.slot("main.sr"), 0);
 }
 
+/// An index found inside its range in one block is not checked again in the block only it
+/// leads to (`a[j - 1]` after `IF a[j - 1] ...`), but every other index there is: one a
+/// little different (`j`, `j - 2`, `j - 1` into a shorter array), and the same one after the
+/// IF's two ways meet. (When the IF's own index is outside, its error is raised and the
+/// condition reads 0, so the block after it runs and must raise it again.)
+#[test]
+fn ranges_found_in_one_block_serve_the_next_only_for_the_same_index() {
+    let source = "
+PROGRAM Main
+VAR
+    a : ARRAY [0..9] OF DINT := [0, 1, 2, 3, 4, 5, 6, 7, 8, 9];
+    short : ARRAY [0..4] OF DINT;
+    j, n : INT;
+    r1, r2, r3, r4, r5 : DINT;
+END_VAR
+    n := n + 1;
+    (* j runs 10, 11, 0, 1, ...: a[j] is outside for j = 10, a[j - 2] for j = 0 and 1,
+       short[j - 1] for j > 5 *)
+    j := (n + 9) MOD 12;
+    IF a[j - 1] >= 0 THEN
+        r1 := a[j - 1];
+        r2 := a[j];
+        r3 := a[j - 2];
+        r4 := short[j - 1];
+    END_IF;
+    r5 := a[j - 1];
+END_PROGRAM
+";
+    let outcome = targeted("ranges across blocks", source, Scans::new(12), 80);
+    // j: 10, 11, 0, 1, 2, ..., 9 over the 12 scans; an element outside reads 0 and the scan
+    // goes on, so the IF's condition holds even when its own index is outside.
+    // j = 10: a[j], short[j - 1]                                         2
+    // j = 11: a[j - 1] in the IF and twice after it, a[j], short[j - 1]  5
+    // j = 0: a[j - 1] in the IF and twice after it, a[j - 2], short      5
+    // j = 1: a[j - 2]                                                    1
+    // j = 6..9: short[j - 1]                                             4
+    assert_eq!(outcome.errors_with_whole_budget(ERR_INDEX_RANGE), 17);
+    assert!(outcome.errors.iter().all(|&e| e == ERR_INDEX_RANGE));
+}
+
 #[test]
 fn array_indices_out_of_bounds_give_3402h() {
     let source = "
