@@ -298,3 +298,120 @@ END_CONFIGURATION
     assert_eq!(step_through(&mut plc), ["plc.st:4", "plc.st:10", "plc.st:5"]);
     assert_eq!(plc.read("D00020"), 3, "the output copied out after the body");
 }
+
+/// A one-program project of `main.st`, in DEBUG, with a breakpoint at each of `lines`.
+fn debugging(main: &str, lines: &[&str]) -> Plc {
+    let config = "[[program]]\nname = \"main\"\nfile = \"main.st\"\n";
+    let mut plc = Plc::new(&project(config, &[("main.st", main)]));
+    for line in lines {
+        break_at(&mut plc, line);
+    }
+    plc.request(ModeRequest::Debug).unwrap();
+    plc
+}
+
+/// A METHOD's line is a breakpoint, whether the method is called on the instance or through an
+/// interface; `step` goes on inside it, then back to the caller's next statement. A `step` on
+/// the calling line steps over the call.
+const METHODS: &str = "\
+INTERFACE ICount
+METHOD Add : INT
+VAR_INPUT delta : INT; END_VAR
+END_METHOD
+END_INTERFACE
+FUNCTION_BLOCK Counter IMPLEMENTS ICount
+VAR n : INT; END_VAR
+METHOD Add : INT
+VAR_INPUT delta : INT; END_VAR
+VAR_INST calls : INT; END_VAR
+  calls := calls + 1;
+  n := n + delta;
+  Add := n;
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM Main
+VAR c : Counter; i : ICount; total AT %D00000 : INT; END_VAR
+  i := c;
+  total := c.Add(1);
+  total := i.Add(10);
+  total := total + 100;
+END_PROGRAM
+";
+
+#[test]
+fn a_breakpoint_in_a_method_pauses_there_called_directly_and_through_an_interface() {
+    let mut plc = debugging(METHODS, &["main.st:12"]);
+    assert_eq!(continue_(&mut plc).as_deref(), Some("main.st:12"));
+    assert_eq!(plc.read("D00000"), 0, "c.Add(1): paused before n := n + by");
+    assert_eq!(step(&mut plc).as_deref(), Some("main.st:13"));
+    assert_eq!(step(&mut plc).as_deref(), Some("main.st:14"), "END_METHOD, the return");
+    assert_eq!(step(&mut plc).as_deref(), Some("main.st:20"), "the caller's next statement");
+    assert_eq!(plc.read("D00000"), 1);
+    // The call through the interface stops at the same line of the same method.
+    assert_eq!(continue_(&mut plc).as_deref(), Some("main.st:12"));
+    assert_eq!(plc.read("D00000"), 1);
+    assert_eq!(step(&mut plc).as_deref(), Some("main.st:13"));
+    assert_eq!(step(&mut plc).as_deref(), Some("main.st:14"));
+    assert_eq!(step(&mut plc).as_deref(), Some("main.st:21"));
+    assert_eq!(plc.read("D00000"), 11);
+}
+
+#[test]
+fn step_over_a_method_call_runs_the_method_whole() {
+    let mut plc = debugging(METHODS, &["main.st:19"]);
+    assert_eq!(continue_(&mut plc).as_deref(), Some("main.st:19"));
+    assert_eq!(step_through(&mut plc), ["main.st:20", "main.st:21", "main.st:22"]);
+    assert_eq!(plc.read("D00000"), 111);
+}
+
+/// A chart's elements are code of the POU: an action associated with a step stops at its
+/// line when the step makes it run, a transition's condition at its TRANSITION line when it
+/// is evaluated (only while its step is active).
+const CHART: &str = "\
+PROGRAM Main
+VAR go AT %M0000 : BOOL; n AT %D00000 : INT; END_VAR
+  INITIAL_STEP Idle:
+  END_STEP
+  STEP Fill:
+    Bump(N);
+  END_STEP
+  TRANSITION FROM Idle TO Fill := go;
+  END_TRANSITION
+  TRANSITION FROM Fill TO Idle := n >= 3;
+  END_TRANSITION
+  ACTION Bump:
+    n := n + 1;
+  END_ACTION
+END_PROGRAM
+";
+
+#[test]
+fn a_breakpoint_in_an_sfc_action_pauses_only_while_its_step_is_active() {
+    let mut plc = debugging(CHART, &["main.st:13"]);
+    plc.engine.debug_step_scan(plc.now()).unwrap();
+    plc.run_for(MS);
+    assert_eq!(paused(&plc), None, "Idle: Bump does not run");
+    plc.write("M0000", 1);
+    assert_eq!(continue_(&mut plc).as_deref(), Some("main.st:13"), "Fill entered: Bump runs");
+    assert_eq!(plc.read("D00000"), 0);
+    assert_eq!(step(&mut plc).as_deref(), Some("main.st:14"), "END_ACTION");
+    plc.engine.debug_step_scan(plc.now()).unwrap();
+    plc.run_for(MS);
+    assert_eq!(plc.read("D00000"), 1);
+}
+
+#[test]
+fn a_breakpoint_at_a_transition_pauses_at_every_evolution_and_steps_through_the_chart() {
+    // The TRANSITION line's code tests its preceding steps, then its condition: a breakpoint
+    // there stops at every evolution, the step active or not. From there `step` goes through
+    // the evolution: the steps left and entered, the associations (Bump, stepped over), the
+    // return.
+    let mut plc = debugging(CHART, &["main.st:10"]);
+    plc.write("M0000", 1);
+    assert_eq!(continue_(&mut plc).as_deref(), Some("main.st:10"));
+    assert_eq!(plc.engine.scan_count(), 1, "the first evolution, Fill not active yet");
+    assert_eq!(step_through(&mut plc), ["main.st:3", "main.st:5", "main.st:6", "main.st:15"]);
+    assert_eq!(plc.read("D00000"), 1, "Fill entered, Bump ran once");
+    assert_eq!(continue_(&mut plc).as_deref(), Some("main.st:10"));
+    assert_eq!(plc.engine.scan_count(), 2, "the second evolution");
+}
