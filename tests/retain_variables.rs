@@ -346,3 +346,80 @@ END_PROGRAM
     assert_eq!(var(&new, &p, "main.u.dw"), 0x3F00_0000 + scans + again, "the same bytes");
     assert_eq!(var(&new, &p, "main.u.b[3]"), 0x3F, "read through another member");
 }
+
+/// The new types in a RETAIN block (issue 29): an FB instance with a method, its `VAR_INST`
+/// included, a WSTRING, and an FB instance whose body is a chart (its active step and the
+/// step's time: docs/ST.md, "Sequential Function Chart", RETAIN) are kept over a warm RUN
+/// start and into a replacement engine; the chart of an instance not retained starts again.
+#[test]
+fn retained_instances_with_methods_and_charts_and_wstrings_are_kept() {
+    let source = "
+FUNCTION_BLOCK Counter
+VAR n : DINT; END_VAR
+METHOD Add
+VAR_INST calls : DINT; END_VAR
+    calls := calls + 1; n := n + 10;
+END_METHOD
+END_FUNCTION_BLOCK
+FUNCTION_BLOCK Stepper
+VAR_INPUT go : BOOL; END_VAR
+    INITIAL_STEP Idle: END_STEP
+    STEP Busy: END_STEP
+    TRANSITION FROM Idle TO Busy := go; END_TRANSITION
+END_FUNCTION_BLOCK
+PROGRAM Main
+VAR RETAIN c : Counter; chart : Stepper; w : WSTRING[8] := \"ä\"; END_VAR
+VAR scans : DINT; free : Stepper; END_VAR
+    scans := scans + 1;
+    c.Add();
+    chart(go := scans = 2);
+    free(go := scans = 2);
+    IF scans = 2 THEN w := CONCAT(w, \"Ω\"); END_IF;
+END_PROGRAM
+";
+    let p = st(source);
+    let mut plc = Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    plc.set_mode(Mode::Stop);
+    let scans = var(&plc, &p, "main.scans");
+    assert!(scans > 3, "it ran: {scans}");
+    assert_eq!(var(&plc, &p, "main.c.Add.calls"), scans);
+    assert_eq!(var(&plc, &p, "main.c.n"), 10 * scans);
+    assert_eq!(var(&plc, &p, "main.chart.Busy.X"), 1);
+    assert_eq!(var(&plc, &p, "main.free.Busy.X"), 1);
+    // A WSTRING's characters: UTF-16 code units up to the first 0.
+    let wide = |plc: &Plc| {
+        let at = p.variable("main.w").unwrap().at.offset as usize;
+        let bytes = &plc.engine.vm().vars()[at..];
+        let units: Vec<u16> = bytes
+            .chunks(2)
+            .map(|c| u16::from_le_bytes([c[0], c[1]]))
+            .take_while(|&u| u != 0)
+            .collect();
+        String::from_utf16(&units).unwrap()
+    };
+    assert_eq!(wide(&plc), "äΩ");
+
+    // A warm RUN start: the chart of the instance that is not retained is reset to its
+    // initial values (no step active until its first call), the retained one stays in Busy.
+    plc.set_mode(Mode::Run);
+    assert_eq!(var(&plc, &p, "main.free.Busy.X"), 0, "a chart not retained");
+    assert_eq!(var(&plc, &p, "main.chart.Busy.X"), 1);
+    run_scans(&mut plc, MS);
+    plc.set_mode(Mode::Stop);
+    let again = var(&plc, &p, "main.scans");
+    assert!(again > 0 && again < scans + 10, "not retained: started over");
+    assert_eq!(var(&plc, &p, "main.c.Add.calls"), scans + again, "the VAR_INST counted on");
+    assert_eq!(var(&plc, &p, "main.c.n"), 10 * (scans + again));
+    assert_eq!(var(&plc, &p, "main.chart.Busy.X"), 1, "the retained chart stayed in Busy");
+    assert_eq!(var(&plc, &p, "main.chart.Idle.X"), 0);
+    assert_eq!(wide(&plc), "äΩΩ", "kept, and scan 2 of this RUN added one more");
+
+    let mut new = Plc::new(&p);
+    new.engine.inherit_retained(&plc.engine);
+    assert_eq!(var(&new, &p, "main.c.Add.calls"), scans + again);
+    assert_eq!(var(&new, &p, "main.chart.Busy.X"), 1);
+    assert_eq!(wide(&new), "äΩΩ");
+    assert_eq!(var(&new, &p, "main.free.Busy.X"), 0, "a chart not retained");
+}
