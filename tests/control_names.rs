@@ -469,3 +469,143 @@ fn dates_are_read_and_written_as_literals_and_the_clock_is_the_systems() {
     assert!(err.contains("day 30 is not a day of 2024-02"), "{err}");
     plc.stop();
 }
+
+/// The new constructs by name (issue 29): a variable of an FB instance that has methods and a
+/// method's `VAR_INST` (`main.c.Add.calls`), a UNION's members (the same bytes), a TOD and a DT
+/// read and written as literals, a CHAR, a reference shown as the variable it points to, and a
+/// chart's step flags `X` and `T` (read, never written); then an online change that keeps the
+/// chart's active step, the method's `VAR_INST` and the union.
+#[test]
+fn methods_unions_dates_references_and_chart_steps_by_name() {
+    const NEW: &str = "\
+TYPE U : UNION dw : DWORD; b : ARRAY [0..3] OF BYTE; END_UNION END_TYPE
+INTERFACE ICount
+METHOD Add : INT
+VAR_INPUT delta : INT; END_VAR
+END_METHOD
+END_INTERFACE
+FUNCTION_BLOCK Counter IMPLEMENTS ICount
+VAR n : INT; END_VAR
+METHOD Add : INT
+VAR_INPUT delta : INT; END_VAR
+VAR_INST calls : DINT; END_VAR
+    calls := calls + 1;
+    n := n + delta;
+    Add := n;
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM Main
+VAR
+    c : Counter;
+    i : ICount;
+    u : U;
+    shift : TOD := TOD#06:00:00;
+    stamp : DT;
+    ch : CHAR := 'a';
+    r : REF_TO DINT;
+    hits : DINT;
+    go : BOOL;
+    lamp : BOOL;
+END_VAR
+INITIAL_STEP Idle:
+    Work(N);
+END_STEP
+STEP Fill:
+    lamp(N);
+    Work(N);
+END_STEP
+TRANSITION FROM Idle TO Fill := go; END_TRANSITION
+TRANSITION FROM Fill TO Idle := NOT go; END_TRANSITION
+ACTION Work:
+    i := c;
+    i.Add(1);
+    hits := hits + 1;
+    r := REF(hits);
+END_ACTION
+END_PROGRAM
+";
+    let config = "[plc]\nscan_period_ms = 1\nwatchdog_ms = 100\n\
+        [[program]]\nname = \"main\"\nfile = \"main.st\"\n[control]\nsocket = \"plcd.sock\"\n";
+    let project = Project::new("names-new", &[("plcd.toml", config), ("main.st", NEW)]);
+    let daemon = project.start().with_patience(PATIENCE);
+    let plc = Plc { daemon, project };
+    plc.daemon.wait_for("control socket");
+    plc.daemon.wait("RUN", || plc.json(&["status"])["mode"] == "RUN");
+
+    // The instance's own variable and its method's VAR_INST, counted by the call through the
+    // interface; the instance as a prefix shows both.
+    plc.daemon.wait("the method called", || plc.get("main.c.n").as_i64() > Some(2));
+    let calls = plc.values(&["main.c.Add.calls"]);
+    assert_eq!(calls[0]["type"], json!("DINT"));
+    assert!(calls[0]["value"].as_i64() > Some(2), "{calls:?}");
+    let names: Vec<String> =
+        plc.values(&["main.c"]).iter().map(|v| v["dev"].as_str().unwrap().to_string()).collect();
+    assert!(names.contains(&"main.c.n".to_string()), "{names:?}");
+    assert!(names.contains(&"main.c.Add.calls".to_string()), "{names:?}");
+    // Written by name, counted on from there.
+    plc.ok(&["set", "main.c.n", "-1000"]);
+    plc.daemon.wait("n counts on from -1000", || plc.get("main.c.n").as_i64() < Some(0));
+
+    // A reference: what it points to.
+    assert_eq!(plc.values(&["main.r"])[0]["value"], json!("main.hits"));
+    assert_eq!(plc.values(&["main.r"])[0]["type"], json!("REF_TO DINT"));
+
+    // A union: one member written, the other reads the same bytes.
+    plc.ok(&["set", "main.u.dw", "16#11223344"]);
+    assert_eq!(plc.get("main.u.b[0]"), json!(0x44));
+    assert_eq!(plc.get("main.u.b[3]"), json!(0x11));
+    plc.ok(&["set", "main.u.b[3]", "16#7F"]);
+    assert_eq!(plc.get("main.u.dw"), json!(0x7F22_3344));
+
+    // TOD, DT and CHAR: shown and written as literals.
+    assert_eq!(plc.get("main.shift"), json!("TOD#06:00:00"));
+    plc.ok(&["set", "main.shift", "TOD#12:30:15.5", "main.stamp", "DT#2024-03-01-12:30:15"]);
+    assert_eq!(plc.get("main.shift"), json!("TOD#12:30:15.5"));
+    assert_eq!(plc.get("main.stamp"), json!("DT#2024-03-01-12:30:15"));
+    plc.ok(&["set", "main.stamp", "2024-12-31-23:59:59"]);
+    assert_eq!(plc.get("main.stamp"), json!("DT#2024-12-31-23:59:59"));
+    let err = plc.refused(&["set", "main.shift", "TOD#25:00:00"]);
+    assert!(err.contains("main.shift (TOD)"), "{err}");
+    assert_eq!(plc.get("main.ch"), json!("'a'"));
+    plc.ok(&["set", "main.ch", "'z'"]);
+    assert_eq!(plc.get("main.ch"), json!("'z'"));
+
+    // The chart: Idle active, then Fill once go is set, its T counting, lamp its action.
+    assert_eq!(plc.values(&["main.Idle.X"])[0]["type"], json!("BOOL"));
+    assert_eq!(plc.get("main.Idle.X"), json!(1));
+    assert_eq!(plc.get("main.Fill.X"), json!(0));
+    plc.ok(&["set", "main.go", "TRUE"]);
+    plc.daemon.wait("Fill active", || plc.get("main.Fill.X") == json!(1));
+    assert_eq!(plc.get("main.Idle.X"), json!(0));
+    plc.daemon.wait("lamp on", || plc.get("main.lamp") == json!(1));
+    plc.daemon.wait("Fill's time counts", || plc.get("main.Fill.T") != json!("T#0s"));
+    assert_eq!(plc.values(&["main.Fill.T"])[0]["type"], json!("TIME"));
+    let watched = plc.ok(&["watch", "--count", "1", "--interval", "10ms", "main.Fill.X"]);
+    assert!(watched.contains("main.Fill.X=1"), "{watched}");
+
+    // An online change: the chart stays in Fill, the VAR_INST and the union keep their values.
+    let before = plc.get("main.c.Add.calls").as_i64().unwrap();
+    let dir = plc.project.dir.path().to_path_buf();
+    let changed = NEW.replace("    go : BOOL;\n", "    go : BOOL;\n    added : INT := 3;\n");
+    std::fs::write(dir.join("main2.st"), changed).unwrap();
+    std::fs::write(dir.join("new.toml"), config.replace("main.st", "main2.st")).unwrap();
+    let new = dir.join("new.toml");
+    plc.ok(&["load", "--config", new.to_str().unwrap(), "--online"]);
+    assert_eq!(plc.get("main.added"), json!(3));
+    assert_eq!(plc.get("main.Fill.X"), json!(1), "the active step kept");
+    assert_eq!(plc.get("main.Idle.X"), json!(0));
+    assert!(plc.get("main.c.Add.calls").as_i64() >= Some(before), "the VAR_INST kept");
+    assert_eq!(plc.get("main.u.dw"), json!(0x7F22_3344), "the union kept");
+    assert_eq!(plc.get("main.stamp"), json!("DT#2024-12-31-23:59:59"));
+    plc.daemon.wait("the reference taken again", || plc.get("main.r") != json!("NULL"));
+
+    // A step's X is the chart's state, as any variable a client may write it (docs/ST.md,
+    // "Debugging"): the chart goes on from the steps so set, no transition cleared.
+    plc.ok(&["set", "main.Fill.X", "FALSE", "main.Idle.X", "TRUE", "main.go", "FALSE"]);
+    assert_eq!(plc.get("main.Idle.X"), json!(1), "moved back to Idle by hand");
+    assert_eq!(plc.get("main.Fill.X"), json!(0));
+    plc.daemon.wait("lamp off", || plc.get("main.lamp") == json!(0));
+    plc.ok(&["set", "main.go", "TRUE"]);
+    plc.daemon.wait("Fill entered again by its transition", || plc.get("main.Fill.X") == json!(1));
+    plc.stop();
+}
