@@ -92,6 +92,8 @@ file = "full.il"
 task = "full"
 [[program]]
 file = "vars.st"
+[[program]]
+file = "newer.st"
 [[task]]
 name = "tick"
 kind = "cycle"
@@ -149,6 +151,65 @@ const VARS: &str = "FUNCTION_BLOCK Edge\nVAR_INPUT up : BOOL R_EDGE; END_VAR\n\
                     c := STRING_TO_CHAR(t);\n    wt := WCHAR_TO_WSTRING(WORD_TO_WCHAR(CHAR_TO_WORD(c)));\n\
                     SPLIT_DATE(IN := DT_TO_DATE(now), DAY => day);\n    day := DAY_OF_WEEK(DT_TO_DATE(now));\n\
                     END_PROGRAM\n";
+
+// The constructs of issue 29: a method called through an interface and on the instance (its
+// VAR_INST, a property), EXTENDS with SUPER, an action, a chart with timed qualifiers,
+// references and pointers (moved, compared, an alias), a union, a jump, AND_THEN / OR_ELSE,
+// and TOD/DATE arithmetic.
+const NEWER: &str = "TYPE U : UNION dw : DWORD; b : ARRAY [0..3] OF BYTE; END_UNION END_TYPE
+INTERFACE ICount
+METHOD Add : DINT
+VAR_INPUT delta : DINT; END_VAR
+END_METHOD
+END_INTERFACE
+FUNCTION_BLOCK Base IMPLEMENTS ICount
+VAR n : DINT; END_VAR
+METHOD Add : DINT
+VAR_INPUT delta : DINT; END_VAR
+VAR_INST calls : DINT; END_VAR
+    calls := calls + 1; n := n + delta; Add := n;
+END_METHOD
+PROPERTY Count : DINT
+GET Count := n; END_GET
+END_PROPERTY
+END_FUNCTION_BLOCK
+FUNCTION_BLOCK Twice EXTENDS Base
+METHOD Add : DINT
+VAR_INPUT delta : DINT; END_VAR
+    Add := SUPER^.Add(2 * delta);
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM Newer
+VAR
+    b : Base; t : Twice; i : ICount; k : DINT; total : DINT;
+    buf : ARRAY [0..7] OF DINT; p : POINTER TO DINT; r : REF_TO DINT; alias : REFERENCE TO DINT;
+    u : U; go : BOOL; lamp : BOOL; bumps : DINT; hit : BOOL;
+    tod1 : TOD := TOD#23:59:59; day : DATE; stamp : DT := DT#2024-02-28-12:00:00; span : TIME;
+END_VAR
+    INITIAL_STEP Idle: Work(N); END_STEP
+    STEP Fill: lamp(N); Work(N); Bump(L, T#2ms); END_STEP
+    TRANSITION FROM Idle TO Fill := go; END_TRANSITION
+    TRANSITION FROM Fill TO Idle := NOT go AND Fill.T >= T#1ms; END_TRANSITION
+ACTION Work:
+    k := k + 1;
+    IF k MOD 2 = 0 THEN i := b; ELSE i := t; END_IF;
+    total := i.Add(k) + t.Add(1) + b.Count;
+    p := ADR(buf[0]); p := p + 4 * (k MOD 8); p^ := k; r := REF(buf[1]);
+    IF r <> NULL AND_THEN r^ >= 0 THEN r^ := r^ + 1; END_IF;
+    alias REF= buf[2]; alias := alias + p^;
+    u.dw := DINT_TO_DWORD(k); hit := u.b[0] = 0 OR_ELSE u.b[1] > 0;
+    go := k MOD 4 < 2;
+    IF k > 1000 THEN JMP done; END_IF;
+    tod1 := tod1 + T#1s; stamp := stamp + T#1d; day := DT_TO_DATE(stamp);
+    span := stamp - DT#2024-02-28-00:00:00;
+done:
+    Bump();
+END_ACTION
+ACTION Bump:
+    bumps := bumps + 1;
+END_ACTION
+END_PROGRAM
+";
 
 /// A scan thread serving `engine` on its own thread, counting allocations, and the other ends
 /// of its queues.
@@ -400,11 +461,14 @@ fn the_scan_thread_does_not_allocate() {
             ("edge.il", EDGE),
             ("full.il", FULL),
             ("vars.st", VARS),
+            ("newer.st", NEWER),
         ],
     );
     let at = |name: &str| project.variable(name).unwrap().at;
     let (n, r, s_at, pos) = (at("vars.n"), at("vars.r"), at("vars.s"), at("vars.pos"));
     let ws_at = at("vars.ws");
+    let (newer_k, newer_calls, newer_bumps) =
+        (at("newer.k"), at("newer.b.Add.calls"), at("newer.bumps"));
     let io = SimulatedIo::new(&[Address::parse("P0000").unwrap()], &[0], None);
     let watch = project.output_bits();
     let d0 = Address::parse("D00000").unwrap().as_word().unwrap().0;
@@ -557,6 +621,10 @@ fn the_scan_thread_does_not_allocate() {
     let captured = snapshot.lock().unwrap();
     assert!(captured.generation > 10, "snapshots were captured");
     assert!(captured.value(n, Elem::I32).is_some_and(|n| n > 0), "the ST program counts");
+    let read = |at| engine.vm().read_value(at, Elem::I32) as i32;
+    assert!(read(newer_k) > 10, "the program of issue 29's constructs ran");
+    assert!(read(newer_calls) > 2, "the method was called through the interface");
+    assert!(read(newer_bumps) > read(newer_k), "the action ran, by call and from the chart");
     assert_eq!(captured.text(s_at, 10), Some(&b"xyz"[..]), "the STRING written, read back");
     assert_eq!(
         captured.wide_text(ws_at, 10),
