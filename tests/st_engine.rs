@@ -459,3 +459,49 @@ fn the_real_time_clock_of_plcd_sim_starts_at_sim_start_and_follows_virtual_time(
     assert_eq!(seen(0), expected);
     assert_eq!(seen(1), expected);
 }
+
+/// An online change keeps, by name and type, the variables of issue 29's constructs: a
+/// method's `VAR_INST`, a union (as a whole: its members are one place), a WSTRING, dates,
+/// and what an action writes.
+#[test]
+fn an_online_change_keeps_var_inst_unions_wstrings_and_dates_by_name() {
+    let source = |union: &str, extra: &str| {
+        format!(
+            "TYPE U : UNION {union} END_UNION END_TYPE
+             FUNCTION_BLOCK Counter
+             METHOD Add VAR_INST calls : DINT; END_VAR calls := calls + 1; END_METHOD
+             END_FUNCTION_BLOCK
+             PROGRAM Main VAR {extra} c : Counter; u : U; w : WSTRING[8]; day : DATE;
+               stamp : DT; shift : TOD; n : DINT; END_VAR
+               c.Add(); Bump();
+             ACTION Bump: n := n + 1; END_ACTION
+             END_PROGRAM"
+        )
+    };
+    let config = "[[program]]\nfile = \"main.st\"\n";
+    let old = project(config, &[("main.st", &source("dw : DWORD; b : BYTE;", ""))]);
+    let same = project(config, &[("main.st", &source("dw : DWORD; b : BYTE;", "x : INT;"))]);
+    let kept = plcd::engine::online::kept_variables(&old.variables, &same.variables);
+    let at = |p: &plcd::project::Project, name: &str| p.variable(name).unwrap().at.offset;
+    for name in [
+        "main.c.Add.calls",
+        "main.u.dw",
+        "main.w",
+        "main.day",
+        "main.stamp",
+        "main.shift",
+        "main.n",
+    ] {
+        assert!(
+            kept.iter().any(|k| (k.0, k.1) == (at(&old, name), at(&same, name))),
+            "{name} is kept"
+        );
+    }
+    // A member added beside an unchanged one: the union's bytes are kept through the member
+    // of unchanged name and type (leaf by leaf, as everywhere), so the new member reads them.
+    let changed = project(config, &[("main.st", &source("dw : DWORD; r : REAL;", ""))]);
+    let kept = plcd::engine::online::kept_variables(&old.variables, &changed.variables);
+    assert!(kept.contains(&(at(&old, "main.u.dw"), at(&changed, "main.u.dw"), 4)), "{kept:?}");
+    assert_eq!(at(&changed, "main.u.r"), at(&changed, "main.u.dw"), "one place");
+    assert!(kept.iter().any(|k| k.1 == at(&changed, "main.c.Add.calls")));
+}
