@@ -348,7 +348,7 @@ END_PROGRAM
 }
 
 /// The new types in a RETAIN block (issue 29): an FB instance with a method, its `VAR_INST`
-/// included, a WSTRING, and an FB instance whose body is a chart (its active step and the
+/// included, a WSTRING, a CHAR and a WCHAR, and an FB instance whose body is a chart (its active step and the
 /// step's time: docs/ST.md, "Sequential Function Chart", RETAIN) are kept over a warm RUN
 /// start and into a replacement engine; the chart of an instance not retained starts again.
 #[test]
@@ -368,13 +368,17 @@ VAR_INPUT go : BOOL; END_VAR
     TRANSITION FROM Idle TO Busy := go; END_TRANSITION
 END_FUNCTION_BLOCK
 PROGRAM Main
-VAR RETAIN c : Counter; chart : Stepper; w : WSTRING[8] := \"ä\"; END_VAR
+VAR RETAIN c : Counter; chart : Stepper; w : WSTRING[8] := \"ä\"; ch : CHAR; wc : WCHAR; END_VAR
 VAR scans : DINT; free : Stepper; END_VAR
     scans := scans + 1;
     c.Add();
     chart(go := scans = 2);
     free(go := scans = 2);
-    IF scans = 2 THEN w := CONCAT(w, \"Ω\"); END_IF;
+    IF scans = 2 THEN
+        w := CONCAT(w, \"Ω\");
+        ch := WORD_TO_CHAR(CHAR_TO_WORD(ch) + 1);
+        wc := WORD_TO_WCHAR(WCHAR_TO_WORD(wc) + 1);
+    END_IF;
 END_PROGRAM
 ";
     let p = st(source);
@@ -400,6 +404,7 @@ END_PROGRAM
         String::from_utf16(&units).unwrap()
     };
     assert_eq!(wide(&plc), "äΩ");
+    assert_eq!((var(&plc, &p, "main.ch"), var(&plc, &p, "main.wc")), (1, 1));
 
     // A warm RUN start: the chart of the instance that is not retained is reset to its
     // initial values (no step active until its first call), the retained one stays in Busy.
@@ -415,11 +420,13 @@ END_PROGRAM
     assert_eq!(var(&plc, &p, "main.chart.Busy.X"), 1, "the retained chart stayed in Busy");
     assert_eq!(var(&plc, &p, "main.chart.Idle.X"), 0);
     assert_eq!(wide(&plc), "äΩΩ", "kept, and scan 2 of this RUN added one more");
+    assert_eq!((var(&plc, &p, "main.ch"), var(&plc, &p, "main.wc")), (2, 2), "CHAR, WCHAR");
 
     let mut new = Plc::new(&p);
     new.engine.inherit_retained(&plc.engine);
     assert_eq!(var(&new, &p, "main.c.Add.calls"), scans + again);
     assert_eq!(var(&new, &p, "main.chart.Busy.X"), 1);
     assert_eq!(wide(&new), "äΩΩ");
+    assert_eq!((var(&new, &p, "main.ch"), var(&new, &p, "main.wc")), (2, 2));
     assert_eq!(var(&new, &p, "main.free.Busy.X"), 0, "a chart not retained");
 }
