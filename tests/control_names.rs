@@ -578,6 +578,8 @@ END_PROGRAM
     plc.daemon.wait("Fill active", || plc.get("main.Fill.X") == json!(1));
     assert_eq!(plc.get("main.Idle.X"), json!(0));
     plc.daemon.wait("lamp on", || plc.get("main.lamp") == json!(1));
+    assert_eq!(plc.get("main.sfc$lamp.Q"), json!(1), "the action's control, by its tool name");
+    assert_eq!(plc.get("main.sfc$Work.A"), json!(1), "Work's body runs in every step");
     plc.daemon.wait("Fill's time counts", || plc.get("main.Fill.T") != json!("T#0s"));
     assert_eq!(plc.values(&["main.Fill.T"])[0]["type"], json!("TIME"));
     let watched = plc.ok(&["watch", "--count", "1", "--interval", "10ms", "main.Fill.X"]);
