@@ -168,6 +168,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`%{}` is a {}-bit location, `{}` is `{}`", "iec-size-mismatch"),
     ("`{}` needs {} bits from `{}`: past the end of its area", "bit-array-past-end"),
     ("`{}` needs {} words from `{}`: past the end of its area", "past-area-end"),
+    ("`{}` needs {} bytes from `%{}`: past the end of its area", "bytes-past-area-end"),
     ("`{}` is the standard's enable {}: declare it `{} : BOOL` in {}", "enable-declaration"),
     ("`{}` belongs to a `BOOL` VAR_INPUT of a FUNCTION_BLOCK", "edge-not-fb-input"),
     // emit.rs: code generation
@@ -476,10 +477,9 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
 /// the config gives. Every message of that file is here or in [`IEC_PARTS`], and back.
 const IEC_MESSAGES: &[(&str, &str)] = &[
     ("`%{}` is not a valid direct address", "st/bad-iec-address"),
-    ("`%{}`: the openplc layout has no `%{}{}` (OpenPLC's inputs are %IX bits and %IW words, its outputs %QX and %QW; `[iec] preset = \"codesys\"` has every size)", "st/iec-no-such-size"),
+    ("`%{}`: the openplc layout has no `%{}{}` (OpenPLC's inputs are %IX bits and %IW words, its outputs %QX and %QW, and %IB, %QB, %MB name bytes of the bits; `[iec] preset = \"codesys\"` has every size)", "st/iec-no-such-size"),
     ("`%{}` is past the end of the {} image: the {} layout's {} (`{}` to `{}`; `[iec] {}` moves it)", "st/iec-past-the-image"),
     ("`%{}`: bit {} of a byte: the {} layout numbers %{}X by byte and bit, the bit 0 to 7 (`%{}X{}.0` is the bit after `%{}X{}.7`; `[iec] preset = \"plcd\"` numbers P words and their bits 0 to 15)", "st/iec-bit-of-a-byte"),
-    ("`%{}`: plcd cannot locate a single byte under the {} layout: its device words are 16 bits and a BYTE there is written as the whole word, the byte beside it too; locate an ARRAY [0..7] OF BOOL at the byte's first bit, `%{}X{}.0`, or a WORD at the plcd word that holds the byte (`plcd check` shows the image's words)", "st/iec-byte-address"),
     ("`{}` is not a word of P, M, K or D (an image starts at a word: `P064`, `D10000`)", "config/iec-start-not-a-word"),
     ("the {} image needs {} words from `{}`: past the end of {} ({})", "config/iec-image-past-the-area"),
     ("the {} image (`{}`, {} words) overlaps the {} image (`{}` to `{}`, `iec.{}`)", "config/iec-images-overlap"),
@@ -490,9 +490,12 @@ const IEC_MESSAGES: &[(&str, &str)] = &[
 const IEC_PARTS: &[&str] = &[
     "%IXa.b, %QXa.b → bit b (0..15) of P word a; %IWa, %QWa → P word a",
     "%MXa.b → bit b of M word a; %MWa, %MDa, %MLa → M word a",
-    "{}X0.0..{}X{}.7, {}W0..{}W{}, {}D0..{}D{}, {}L0..{}L{}",
+    "{}X0.0..{}X{}.7, {}B0..{}B{}, {}W0..{}W{}, {}D0..{}D{}, {}L0..{}L{}",
+    "{}0.0..{}{}.7, {}0..{}{}",
     "iec: the {} layout ([iec] preset), docs/ST.md \"Direct addresses\":",
     "iec: {}:{}: {}{} %{} → {}",
+    // a byte address's device: its word and which half
+    "{} ({})",
     // how a declaration or a configuration names the address, and a TASK's property
     " AT",
     " =>",
@@ -501,6 +504,7 @@ const IEC_PARTS: &[&str] = &[
     "iec:   {}",
     "{} → {}..{} (iec.{})",
     "%{}X bytes are 0 to {}",
+    "%{}B are 0 to {}",
     "%{}{} are 0 to {}",
     "{} are 0 to {}",
 ];

@@ -445,6 +445,7 @@ VAR
   button AT %IX0.0 : BOOL;
   lamp AT %QX0.0 : BOOL;
   level AT %IW3 : INT;
+  code AT %QB1 : BYTE;
   raw AT %D00100 : INT;
 END_VAR
   lamp := button AND NOT estop;
@@ -460,18 +461,20 @@ END_PROGRAM
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
     let stdout = String::from_utf8_lossy(&out.stdout);
     // CODESYS's byte images: %I from P000, %Q from P064, %M from M000; %IW3 is bytes 6 and 7,
-    // word P003; a plcd device (`raw`) is no IEC address and is not listed
+    // word P003; %QB1 the high half of P064; a plcd device (`raw`) is no IEC address and is
+    // not listed
     assert_eq!(
         stdout.lines().skip(1).collect::<Vec<_>>(),
         [
             "  iec: the codesys layout ([iec] preset), docs/ST.md \"Direct addresses\":",
-            "  iec:   %IX0.0..%IX127.7, %IW0..%IW63, %ID0..%ID31, %IL0..%IL15 → P000..P063 (iec.input)",
-            "  iec:   %QX0.0..%QX127.7, %QW0..%QW63, %QD0..%QD31, %QL0..%QL15 → P064..P127 (iec.output)",
-            "  iec:   %MX0.0..%MX511.7, %MW0..%MW255, %MD0..%MD127, %ML0..%ML63 → M000..M255 (iec.memory)",
+            "  iec:   %IX0.0..%IX127.7, %IB0..%IB127, %IW0..%IW63, %ID0..%ID31, %IL0..%IL15 → P000..P063 (iec.input)",
+            "  iec:   %QX0.0..%QX127.7, %QB0..%QB127, %QW0..%QW63, %QD0..%QD31, %QL0..%QL15 → P064..P127 (iec.output)",
+            "  iec:   %MX0.0..%MX511.7, %MB0..%MB511, %MW0..%MW255, %MD0..%MD127, %ML0..%ML63 → M000..M255 (iec.memory)",
             "  iec: plc.st:1: estop AT %IX0.2 → P0002",
             "  iec: plc.st:4: Main.button AT %IX0.0 → P0000",
             "  iec: plc.st:5: Main.lamp AT %QX0.0 → P0640",
             "  iec: plc.st:6: Main.level AT %IW3 → P003",
+            "  iec: plc.st:7: Main.code AT %QB1 → P064 (high byte)",
         ]
     );
     // without an IEC address, nothing of the layout

@@ -592,6 +592,25 @@ fn tools_read_and_write_every_space() {
     }
     vm.write_string(Pointer { space: Space::Var, offset: 0 }, 3, b"abcdef");
     assert_eq!(vm.read_string(Pointer { space: Space::Var, offset: 0 }), b"abc");
+    // a device byte (`%QB1`, `plcctl set main.code 200`): that half of its word, never the
+    // other; a located initial value is written the same way
+    let p64 = Address::parse("P064").unwrap().as_word().unwrap();
+    let word = Pointer { space: Space::Word, offset: u32::from(p64.0) };
+    let high = Pointer { space: Space::Byte, offset: u32::from(p64.0) * 2 + 1 };
+    vm.write_value(word, Elem::U16, 0x1234);
+    vm.write_value(high, Elem::U8, 200);
+    assert_eq!(vm.read_value(word, Elem::U16), 0xC834);
+    assert_eq!(vm.read_value(high, Elem::I8) as i64, 200 - 256, "a SINT view: sign-extended");
+    vm.write_value(high, Elem::I8, (-1i64) as u64);
+    assert_eq!(vm.read_value(word, Elem::U16), 0xFF34);
+    vm.set_variables(&Variables {
+        initial: vec![0; 8].into(),
+        located_init: vec![(Place::Byte(u32::from(p64.0) * 2), Elem::U8, 0x56)].into(),
+        ..Variables::default()
+    });
+    vm.write_value(word, Elem::U16, 0xAB00);
+    vm.reset_for_run(&RetainSet::default(), false);
+    assert_eq!(vm.read_value(word, Elem::U16) & 0xFF, 0x56);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -470,6 +470,9 @@ pub enum Space {
     Bit = 3,
     /// Nowhere: loads give 0, stores do nothing. What a failed array index points to.
     Discard = 4,
+    /// Device memory, by byte index (`word * 2`, plus 1 for the high byte), for 8-bit values at
+    /// an IEC byte address (`%QB1`): a store writes that byte of its word and never the other.
+    Byte = 5,
 }
 
 /// What a reference value adds to its pointer's slot: its space is counted from 1, so that 0
@@ -506,6 +509,7 @@ impl Pointer {
             1 => Space::Frame,
             2 => Space::Word,
             3 => Space::Bit,
+            5 => Space::Byte,
             _ => Space::Discard,
         };
         Pointer { space, offset: slot as u32 }
@@ -660,9 +664,9 @@ pub fn format(ty: &ValueType, slot: u64) -> String {
 
 /// What a reference value points to, as tools show it: `NULL`; else the memory area and the
 /// offset in it: `vars+120` (byte 120 of variable memory), `frame+16` (of the frame area of
-/// the task that took it), `word+4992` and `bit+64` (device memory by word and by bit: see
-/// `device::format_reference`, which names the device); `invalid` for a reference that went
-/// nowhere (`ADR` of an element out of bounds).
+/// the task that took it), `word+4992`, `bit+64` and `byte+129` (device memory by word, by bit
+/// and by byte: see `device::format_reference`, which names the device); `invalid` for a
+/// reference that went nowhere (`ADR` of an element out of bounds).
 pub fn format_reference(slot: u64) -> String {
     let Some(p) = Pointer::from_reference(slot) else { return "NULL".into() };
     let area = match p.space {
@@ -670,6 +674,7 @@ pub fn format_reference(slot: u64) -> String {
         Space::Frame => "frame",
         Space::Word => "word",
         Space::Bit => "bit",
+        Space::Byte => "byte",
         Space::Discard => return "invalid".into(),
     };
     format!("{area}+{}", p.offset)
@@ -1613,6 +1618,7 @@ mod tests {
         assert_eq!(format_reference(r(Space::Frame, 16)), "frame+16");
         assert_eq!(format_reference(r(Space::Word, 4992)), "word+4992");
         assert_eq!(format_reference(r(Space::Bit, 64)), "bit+64");
+        assert_eq!(format_reference(r(Space::Byte, 129)), "byte+129");
         assert_eq!(format_reference(r(Space::Discard, 0)), "invalid");
         assert_eq!(
             Pointer::from_reference(r(Space::Frame, 3)),
@@ -1862,6 +1868,8 @@ mod tests {
         let p = Pointer { space: Space::Bit, offset: 1234 };
         assert_eq!(Pointer::from_slot(p.to_slot()), p);
         assert_eq!(Pointer::from_slot(99 << 32).space, Space::Discard);
+        let p = Pointer { space: Space::Byte, offset: 129 };
+        assert_eq!(Pointer::from_slot(p.to_slot()), p);
     }
 
     #[test]

@@ -5,8 +5,9 @@
 //! editors a program comes from disagree:
 //!
 //! - [`Preset::OpenPlc`] (the default, OpenPLC Editor and Beremiz programs): `%IX`, `%QX` and
-//!   `%MX` are bits numbered by byte and bit (`%IX1.0` is the bit after `%IX0.7`); `%IW`,
-//!   `%QW`, `%MW`, `%MD` and `%ML` are five more areas of their own, overlapping nothing;
+//!   `%MX` are bits numbered by byte and bit (`%IX1.0` is the bit after `%IX0.7`), `%IB`,
+//!   `%QB`, `%MB` those bytes; `%IW`, `%QW`, `%MW`, `%MD` and `%ML` are five more areas of
+//!   their own, overlapping nothing;
 //! - [`Preset::Codesys`]: one byte image for each of `%I`, `%Q` and `%M`, every size a view of
 //!   the same bytes (`%IW0` is bytes 0 and 1, `%IX1.0` bit 0 of byte 1, so bit 8 of `%IW0`);
 //! - [`Preset::Plcd`]: plcd's own numbering before images existed, `%IXa.b` and `%QXa.b` both
@@ -15,7 +16,9 @@
 //! Each image starts at a device word the config may move. A byte image is laid out two bytes
 //! to a plcd word, the even byte in the low half (CODESYS's `%IW0` has `%IB0` in its low byte on
 //! x86 and ARM): byte `b` of an image that starts at word `s` is word `s + b/2`, bits
-//! `8 * (b mod 2)` to `8 * (b mod 2) + 7`.
+//! `8 * (b mod 2)` to `8 * (b mod 2) + 7`. A byte address names that half of the word alone
+//! ([`Direct::is_byte`]): the compiler places it as a device byte, which a store writes
+//! without the other half.
 //!
 //! This module owns the layouts, their defaults and their checks, and the resolution of an
 //! address text. The Structured Text compiler resolves its programs' addresses with it
@@ -192,11 +195,33 @@ impl Start {
 }
 
 /// What an IEC direct address names: a device, and how many bits the address says it has
-/// (1 for `X`, 8, 16, 32, 64 for `B`, `W`, `D`, `L`).
+/// (1 for `X`, 8, 16, 32, 64 for `B`, `W`, `D`, `L`). A byte of a byte image (`%QB1`) is a bit
+/// address, its first bit (0 or 8 of its word), with 8 bits: one half of the word, never the
+/// whole (under the plcd layout a `B` address is a whole word, as every size is).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Direct {
     pub address: Address,
     pub bits: u32,
+}
+
+impl Direct {
+    /// Whether it names one half of a device word (`%QB1` in a byte image).
+    pub fn is_byte(&self) -> bool {
+        self.bits == 8 && self.address.bit.is_some()
+    }
+}
+
+impl std::fmt::Display for Direct {
+    /// The device as `plcd check` shows it: `P0640`, `D10000`, `P064 (high byte)`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.is_byte() {
+            let word = Address { bit: None, ..self.address };
+            let high = self.address.bit == Some(8);
+            write!(f, "{word} ({})", super::half_name(high))
+        } else {
+            write!(f, "{}", self.address)
+        }
+    }
 }
 
 /// The layout in effect: `[iec]`.
@@ -333,13 +358,17 @@ impl IecLayout {
                     (true, Preset::Codesys) => {
                         let bytes = self.units(image);
                         format!(
-                            "{p}X0.0..{p}X{n}.7, {p}W0..{p}W{}, {p}D0..{p}D{}, {p}L0..{p}L{}",
+                            "{p}X0.0..{p}X{n}.7, {p}B0..{p}B{n}, {p}W0..{p}W{}, {p}D0..{p}D{}, {p}L0..{p}L{}",
                             bytes / 2 - 1,
                             bytes / 4 - 1,
                             bytes / 8 - 1
                         )
                     }
-                    (true, _) => format!("{p}0.0..{p}{n}.7"),
+                    (true, _) => {
+                        // %IX's bytes are %IB: the image's letter and B
+                        let b = format!("{}B", &p[..p.len() - 1]);
+                        format!("{p}0.0..{p}{n}.7, {b}0..{b}{n}")
+                    }
                     (false, _) => format!("{p}0..{p}{n}"),
                 };
                 format!("{what} → {first}..{last} (iec.{})", image.key())
@@ -387,10 +416,12 @@ impl IecLayout {
             (_, 'M', 'W') => Image::MemoryWords,
             (_, 'M', 'D') => Image::MemoryDwords,
             (_, 'M', 'L') => Image::MemoryLwords,
-            (_, _, 'B') => return Err(byte_refused(text, preset, letter, index)),
+            (Preset::OpenPlc, 'I', 'B') => Image::Input,
+            (Preset::OpenPlc, 'Q', 'B') => Image::Output,
+            (Preset::OpenPlc, 'M', 'B') => Image::Memory,
             _ => {
                 return Err(format!(
-                    "`%{text}`: the openplc layout has no `%{letter}{size}` (OpenPLC's inputs are %IX bits and %IW words, its outputs %QX and %QW; `[iec] preset = \"codesys\"` has every size)"
+                    "`%{text}`: the openplc layout has no `%{letter}{size}` (OpenPLC's inputs are %IX bits and %IW words, its outputs %QX and %QW, and %IB, %QB, %MB name bytes of the bits; `[iec] preset = \"codesys\"` has every size)"
                 ))
             }
         };
@@ -422,7 +453,15 @@ impl IecLayout {
                         Address { bit: Some((index % 2 * 8 + bit) as u8), ..start.at(index / 2) };
                     Ok(Some(Direct { address, bits }))
                 }
-                'B' => Err(byte_refused(text, preset, letter, index)),
+                'B' => {
+                    if index >= bytes {
+                        return Err(past_end(format!("%{letter}B are 0 to {last}")));
+                    }
+                    // the byte's first bit: the low or the high half of its word
+                    let address =
+                        Address { bit: Some((index % 2 * 8) as u8), ..start.at(index / 2) };
+                    Ok(Some(Direct { address, bits }))
+                }
                 _ => {
                     let words = bits / 16;
                     if u64::from(index) * u64::from(words) + u64::from(words) > u64::from(bytes / 2)
@@ -440,15 +479,6 @@ impl IecLayout {
             Ok(Some(Direct { address: start.at(index * image.unit_words()), bits }))
         }
     }
-}
-
-/// Why `%IB`, `%QB`, `%MB` are refused in a byte image: a BYTE at a word device is read and
-/// written as the whole word (docs/ST.md, Located variables), which would overwrite the other
-/// byte of the word.
-fn byte_refused(text: &str, preset: &str, letter: char, index: u32) -> String {
-    format!(
-        "`%{text}`: plcd cannot locate a single byte under the {preset} layout: its device words are 16 bits and a BYTE there is written as the whole word, the byte beside it too; locate an ARRAY [0..7] OF BOOL at the byte's first bit, `%{letter}X{index}.0`, or a WORD at the plcd word that holds the byte (`plcd check` shows the image's words)"
-    )
 }
 
 /// plcd's own numbering (`[iec] preset = "plcd"`): `%IXa.b` and `%QXa.b` bit `b` (0..15) of P
@@ -508,7 +538,30 @@ mod tests {
         assert_eq!(device(&l, "ML5"), "D20020 64");
         assert!(device(&l, "MW1024").contains("past the end of the %MW image"));
         assert!(device(&l, "ID0").contains("openplc layout has no `%ID`"));
-        assert!(device(&l, "IB0").contains("cannot locate a single byte"));
+    }
+
+    #[test]
+    fn bytes_are_halves_of_the_bit_images_words() {
+        // %IBb is byte b of the %IX image: its first bit, 8 bits; shown as the word's half
+        let l = IecLayout::of(Preset::OpenPlc);
+        assert_eq!(device(&l, "IB0"), "P0000 8");
+        assert_eq!(device(&l, "QB1"), "P0648 8");
+        assert_eq!(device(&l, "QB2"), "P0650 8");
+        assert_eq!(device(&l, "MB3"), "M0018 8");
+        let direct = |text| l.resolve(text).unwrap().unwrap();
+        assert_eq!(direct("QB1").to_string(), "P064 (high byte)");
+        assert_eq!(direct("QB2").to_string(), "P065 (low byte)");
+        assert!(direct("QB1").is_byte());
+        assert!(!direct("QX1.0").is_byte());
+        assert_eq!(direct("QX1.0").to_string(), "P0648");
+        assert!(device(&l, "QB128").contains("%QB are 0 to 127"));
+        // codesys: the same bytes %IX and %IW view
+        let l = IecLayout::of(Preset::Codesys);
+        assert_eq!(device(&l, "IB1"), "P0008 8");
+        assert_eq!(device(&l, "MB511"), "M2558 8");
+        assert!(device(&l, "MB512").contains("%MB are 0 to 511"));
+        // plcd: a B address is a word, as every size
+        assert_eq!(device(&IecLayout::of(Preset::Plcd), "QB3"), "P003 8");
     }
 
     #[test]

@@ -21,7 +21,7 @@ use crate::value::{self, Pointer, Space};
 pub const WORD_VALUES: std::ops::RangeInclusive<i32> = -32768..=65535;
 
 /// [`value::format_reference`], with a reference into device memory shown as the device it
-/// points to (`D00100`, `P0044`, `D00010.3`).
+/// points to (`D00100`, `P0044`, `D00010.3`, `P064 (high byte)`).
 pub fn format_reference(slot: u64) -> String {
     let device = |word: u32, bit: Option<u8>| {
         let area = [Area::P, Area::M, Area::K, Area::D]
@@ -34,9 +34,22 @@ pub fn format_reference(slot: u64) -> String {
         Some(Pointer { space: Space::Bit, offset }) => {
             device(offset / 16, Some((offset % 16) as u8))
         }
+        Some(Pointer { space: Space::Byte, offset }) => {
+            device(offset / 2, None).map(|word| format!("{word} ({})", half_name(offset % 2 == 1)))
+        }
         _ => None,
     };
     named.unwrap_or_else(|| value::format_reference(slot))
+}
+
+/// Which byte of its device word an IEC byte address (`%QB1`) names: plcd's words hold the even
+/// byte of an image in their low half (docs/ST.md, "Direct addresses").
+pub fn half_name(high: bool) -> &'static str {
+    if high {
+        "high byte"
+    } else {
+        "low byte"
+    }
 }
 
 /// The PLC's device memory.
@@ -272,6 +285,11 @@ mod tests {
         let d_bit = Address::parse("D00010.3").unwrap().as_bit().unwrap();
         let offset = u32::from(d_bit.word) * 16 + d_bit.mask.trailing_zeros();
         assert_eq!(format_reference(reference(Pointer { space: Space::Bit, offset })), "D00010.3");
+        let p64 = Address::parse("P064").unwrap().as_word().unwrap();
+        let high = Pointer { space: Space::Byte, offset: u32::from(p64.0) * 2 + 1 };
+        assert_eq!(format_reference(reference(high)), "P064 (high byte)");
+        let low = Pointer { space: Space::Byte, offset: u32::from(p64.0) * 2 };
+        assert_eq!(format_reference(reference(low)), "P064 (low byte)");
         // a word of no nameable area (a timer's value), variable memory, NULL: as value's
         let tv = Pointer { space: Space::Word, offset: layout::TV };
         assert_eq!(format_reference(reference(tv)), format!("word+{}", layout::TV));

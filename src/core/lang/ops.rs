@@ -457,6 +457,9 @@ pub enum Place {
     Word(WordRef),
     /// A device bit (a BOOL located at a bit device).
     Bit(BitRef),
+    /// A device byte (an 8-bit value at an IEC byte address, `%QB1`): byte `n` is the low
+    /// (even `n`) or high (odd `n`) half of device word `n / 2`. A store writes that half only.
+    Byte(u32),
 }
 
 /// A string operation. Strings are passed as pointers ([`crate::value::Pointer`] slots) to
@@ -498,6 +501,7 @@ pub enum StrOp {
 /// The device an instruction writes as its result.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Written {
+    /// A bit, or the bits of a mask (the eight of a byte stored at `Place::Byte`).
     Bit(BitRef),
     Word(WordRef),
     /// A double word: the word and the one after it.
@@ -546,6 +550,10 @@ impl Op {
             // Structured Text: a store to a located variable. Stores through a pointer (an
             // element of a located array at a variable index) are not known before they run.
             Op::Store { at: Place::Bit(b), .. } => Some(Written::Bit(b)),
+            // a byte: the eight bits of its half of the word, as a mask
+            Op::Store { at: Place::Byte(n), .. } => {
+                Some(Written::Bit(BitRef { word: (n / 2) as u16, mask: 0xFF << (8 * (n % 2)) }))
+            }
             Op::Store { elem, at: Place::Word(w) } => Some(match elem.words() {
                 1 => Written::Word(w),
                 2 => Written::DoubleWord(w),

@@ -331,8 +331,8 @@ pub fn map(
     // VAR_CONFIG's devices (the compile checks the entries and binds the variables)
     for var in &conf.var_config {
         let Some(location) = &var.location else { continue };
-        let device = match crate::st::compile::iec_address(&location.name, iec) {
-            Ok(Some((device, _))) => Address::parse(&device).ok(),
+        let device = match iec.resolve(&location.name) {
+            Ok(Some(direct)) => Some(direct.to_string()),
             _ => None,
         };
         if let Some(device) = device {

@@ -10,7 +10,8 @@ use crate::st::ast;
 /// no declaration locates a variable at an IEC direct address and no configuration names one;
 /// else the layout (a line per image) and, for each such variable or configuration value, the
 /// device it lands on (`main.st:5: Main.lamp AT %QX0.0 → P0640`, `main.st:9: presses.many =>
-/// %QX0.5 → P0645`; a located array at its first device). `shown` gives a file's name as
+/// %QX0.5 → P0645`, `Main.code AT %QB1 → P064 (high byte)`; a located array at its first
+/// device). `shown` gives a file's name as
 /// printed.
 pub fn check_notes(
     files: &[ast::File],
@@ -64,7 +65,7 @@ pub fn check_notes(
                 shown(&file.path),
                 loc.span.line,
                 loc.name,
-                direct.address
+                direct
             ));
         }
     }

@@ -103,6 +103,7 @@ pub(super) fn pointer(at: Place, base: u32, this: u64) -> Pointer {
         Place::This(offset) => moved(Pointer::from_slot(this), offset),
         Place::Word(w) => Pointer { space: Space::Word, offset: u32::from(w.0) },
         Place::Bit(b) => bit_pointer(b),
+        Place::Byte(n) => Pointer { space: Space::Byte, offset: n },
     }
 }
 
@@ -120,8 +121,8 @@ pub(super) fn moved(p: Pointer, n: u32) -> Pointer {
 }
 
 /// Whether `size` bytes at `p` (one scalar's words at a word device, one bit at a bit
-/// device) are inside its memory area: variable memory (`vars` bytes), the frame area
-/// (`frame` bytes), device memory (`words` words).
+/// device, one byte at a device byte) are inside its memory area: variable memory (`vars`
+/// bytes), the frame area (`frame` bytes), device memory (`words` words).
 pub(super) fn reaches(p: Pointer, size: u32, words: usize, vars: usize, frame: usize) -> bool {
     let offset = u64::from(p.offset);
     match p.space {
@@ -129,6 +130,7 @@ pub(super) fn reaches(p: Pointer, size: u32, words: usize, vars: usize, frame: u
         Space::Frame => offset + u64::from(size) <= frame as u64,
         Space::Word => offset + u64::from(size.div_ceil(2).max(1)) <= words as u64,
         Space::Bit => offset / 16 < words as u64,
+        Space::Byte => offset / 2 < words as u64,
         Space::Discard => false,
     }
 }
@@ -144,7 +146,7 @@ pub(super) fn deref(
     let Some(p) = Pointer::from_reference(reference) else {
         return Err(super::ERR_REF_NULL);
     };
-    let device = matches!(p.space, Space::Word | Space::Bit);
+    let device = matches!(p.space, Space::Word | Space::Bit | Space::Byte);
     let ok = if size == 0 {
         !device && reaches(p, 0, words, vars, frame)
     } else {
@@ -160,7 +162,7 @@ pub(super) fn deref(
 /// The reference value `reference` moved by `n` bytes (`Op::RefAdd`).
 pub(super) fn ref_add(reference: u64, n: u64) -> Result<u64, u16> {
     let space = Pointer::from_reference(reference).map(|p| p.space);
-    if matches!(space, Some(Space::Word | Space::Bit)) {
+    if matches!(space, Some(Space::Word | Space::Bit | Space::Byte)) {
         return Err(super::ERR_REF_RANGE);
     }
     let offset = (reference as u32).wrapping_add(n as u32);
@@ -289,7 +291,7 @@ pub(super) fn store_at(
 
 /// Loads the value of `elem` at `p`: little-endian bytes in variable memory and the frame,
 /// words low word first in device memory (`words`; an 8-bit value in the low byte of its
-/// word), a bit.
+/// word), a bit, a device byte (a half of its word).
 ///
 /// Device memory comes as its words, never as `&mut Memory`: the interpreter keeps the words'
 /// address and length in registers only while nothing it calls out of line could move them.
@@ -310,12 +312,17 @@ pub(super) fn load(words: &[u16], vars: &[u8], frame: &[u8], p: Pointer, elem: E
             let word = words.get((p.offset / 16) as usize).copied().unwrap_or(0);
             normalize(elem, u64::from(word >> (p.offset % 16) & 1))
         }
+        Space::Byte => {
+            let word = words.get((p.offset / 2) as usize).copied().unwrap_or(0);
+            normalize(elem, u64::from(word >> (8 * (p.offset % 2)) & 0xFF))
+        }
         Space::Discard => 0,
     }
 }
 
 /// Stores `value` (a slot of `elem`) at `p`; see [`load`]. An 8-bit value at a word device
-/// writes the whole word, the value sign- or zero-extended to 16 bits.
+/// writes the whole word, the value sign- or zero-extended to 16 bits; at a device byte, its
+/// low 8 bits into that half of the word, the other half kept.
 #[inline(never)]
 pub(super) fn store(
     words: &mut [u16],
@@ -343,6 +350,13 @@ pub(super) fn store(
             if let Some(word) = words.get_mut((p.offset / 16) as usize) {
                 let mask = 1u16 << (p.offset % 16);
                 *word = if value != 0 { *word | mask } else { *word & !mask };
+            }
+        }
+        Space::Byte => {
+            if let Some(word) = words.get_mut((p.offset / 2) as usize) {
+                let shift = 8 * (p.offset % 2);
+                let byte = (value as u16 & 0xFF) << shift;
+                *word = *word & !(0xFF << shift) | byte;
             }
         }
         Space::Discard => {}
@@ -758,6 +772,9 @@ mod tests {
         assert!(deref(reference(Space::Word, 99), 1).is_ok());
         assert!(deref(reference(Space::Bit, 1599), 1).is_ok());
         assert_eq!(deref(reference(Space::Bit, 1600), 1), Err(ERR_REF_RANGE));
+        assert!(deref(reference(Space::Byte, 199), 1).is_ok());
+        assert_eq!(deref(reference(Space::Byte, 200), 1), Err(ERR_REF_RANGE));
+        assert_eq!(deref(reference(Space::Byte, 0), 0), Err(ERR_REF_RANGE));
         // no member or element into device memory
         assert_eq!(deref(reference(Space::Word, 0), 0), Err(ERR_REF_RANGE));
         // the discard pointer and garbage spaces go nowhere
@@ -794,6 +811,7 @@ mod tests {
             Ok(reference(Space::Frame, 0))
         );
         assert_eq!(ref_add(reference(Space::Word, 5), 2), Err(ERR_REF_RANGE));
+        assert_eq!(ref_add(reference(Space::Byte, 5), 1), Err(ERR_REF_RANGE));
         assert_eq!(ref_add(reference(Space::Bit, 5), 0), Err(ERR_REF_RANGE));
     }
 
@@ -857,6 +875,32 @@ mod tests {
             }
             None => 0,
         }
+    }
+
+    #[test]
+    fn a_device_byte_is_one_half_of_its_word() {
+        let at = |offset| Pointer { space: Space::Byte, offset };
+        let mut words = [0x1234u16, 0xABCD];
+        let (mut vars, mut frame) = ([0u8; 0], [0u8; 0]);
+        // byte 2n is the low half of word n, byte 2n + 1 the high half
+        assert_eq!(load(&words, &vars, &frame, at(0), Elem::U8), 0x34);
+        assert_eq!(load(&words, &vars, &frame, at(1), Elem::U8), 0x12);
+        assert_eq!(load(&words, &vars, &frame, at(3), Elem::U8), 0xAB);
+        // a SINT is sign-extended from its byte
+        assert_eq!(load(&words, &vars, &frame, at(3), Elem::I8), 0xAB_u8 as i8 as u64);
+        // a store writes its half alone, the value cut to 8 bits
+        store(&mut words, &mut vars, &mut frame, at(1), Elem::U8, 0x7F);
+        assert_eq!(words, [0x7F34, 0xABCD]);
+        store(&mut words, &mut vars, &mut frame, at(2), Elem::I8, -1i64 as u64);
+        assert_eq!(words, [0x7F34, 0xABFF]);
+        store(&mut words, &mut vars, &mut frame, at(0), Elem::U8, 0x1_00);
+        assert_eq!(words, [0x7F00, 0xABFF]);
+        // outside device memory: 0, and nothing written
+        assert_eq!(load(&words, &vars, &frame, at(4), Elem::U8), 0);
+        store(&mut words, &mut vars, &mut frame, at(4), Elem::U8, 0xFF);
+        store(&mut words, &mut vars, &mut frame, at(u32::MAX), Elem::U8, 0xFF);
+        assert_eq!(words, [0x7F00, 0xABFF]);
+        assert_eq!(pointer(Place::Byte(7), 0, 0), at(7));
     }
 
     #[test]

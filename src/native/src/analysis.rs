@@ -75,13 +75,14 @@ fn ends_block(op: &Op) -> bool {
     )
 }
 
-/// The bytes of variable memory (`Var`) or words of device memory (`Word`, `Bit`) a fixed
-/// operand reaches, as `(vars_end, words_end)`.
+/// The bytes of variable memory (`Var`) or words of device memory (`Word`, `Bit`, `Byte`) a
+/// fixed operand reaches, as `(vars_end, words_end)`.
 fn reach(at: Place, elem: Elem) -> (u64, u64) {
     match at {
         Place::Var(offset) => (u64::from(offset) + u64::from(elem.size()), 0),
         Place::Word(w) => (0, u64::from(w.0) + u64::from(elem.words())),
         Place::Bit(b) => (0, u64::from(b.word) + 1),
+        Place::Byte(n) => (0, u64::from(n / 2) + 1),
         Place::Frame(_) | Place::This(_) => (0, 0),
     }
 }

@@ -29,8 +29,8 @@ use crate::analysis::{is_native, Analysis};
 pub(crate) type Key = (Place, Elem);
 
 /// True for the places whose values native code holds: those in variable memory, the frame
-/// and the FB instance. Device memory is not held: a `Word` and a `Bit` overlap in ways their
-/// places do not show.
+/// and the FB instance. Device memory is not held: a `Word`, a `Bit` and a `Byte` overlap in
+/// ways their places do not show.
 pub(crate) fn in_bytes(place: Place) -> bool {
     matches!(place, Place::Var(_) | Place::Frame(_) | Place::This(_))
 }
@@ -47,7 +47,7 @@ pub(crate) fn may_change(at: Place, bytes: u32, held: Key) -> bool {
         (Place::Var(a), Place::Var(b))
         | (Place::Frame(a), Place::Frame(b))
         | (Place::This(a), Place::This(b)) => overlaps(a, b),
-        (Place::Word(_) | Place::Bit(_), _) => false,
+        (Place::Word(_) | Place::Bit(_) | Place::Byte(_), _) => false,
         (Place::Var(_), Place::Frame(_)) | (Place::Frame(_), Place::Var(_)) => false,
         _ => true,
     }
@@ -376,6 +376,7 @@ fn rank((place, elem): Key) -> (u8, u32, u8) {
         Place::This(offset) => (2, offset),
         Place::Word(word) => (3, u32::from(word.0)),
         Place::Bit(bit) => (4, u32::from(bit.word) << 16 | u32::from(bit.mask)),
+        Place::Byte(n) => (5, n),
     };
     (space, offset, elem as u8)
 }

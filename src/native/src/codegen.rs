@@ -1106,14 +1106,16 @@ impl<'a> Gen<'a, '_> {
                 self.bail_if(out, at, d);
             }
             Op::RefAdd => {
-                // A pointer into device memory (its area numbered 3 or 4, from 1) fails: the
-                // interpreter's. Else the offset moves, wrapping within 32 bits.
+                // A pointer into device memory (its area numbered 3, 4 or 6, from 1) fails:
+                // the interpreter's. Else the offset moves, wrapping within 32 bits.
                 let n = self.slot(d - 1);
                 let reference = self.slot(d - 2);
                 let area = self.b.ins().ushr_imm_s(reference, 32);
                 let device_from = (Space::Word as i64) + 1;
                 let device = self.b.ins().iadd_imm_s(area, -device_from);
                 let device = self.b.ins().icmp_imm_s(IntCC::UnsignedLessThan, device, 2);
+                let byte = self.b.ins().icmp_imm_s(IntCC::Equal, area, Space::Byte as i64 + 1);
+                let device = self.b.ins().bor(device, byte);
                 self.bail_if(device, at, d);
                 let moved = self.moved(reference, n, false);
                 *depth -= 1;
@@ -1541,6 +1543,7 @@ impl<'a> Gen<'a, '_> {
                 let bit = b.mask.trailing_zeros().min(15);
                 self.b.ins().iconst(I64, slot(Space::Bit, u32::from(b.word) * 16 + bit))
             }
+            Place::Byte(n) => self.b.ins().iconst(I64, slot(Space::Byte, n)),
         }
     }
 
@@ -1584,7 +1587,7 @@ impl<'a> Gen<'a, '_> {
             Place::Var(offset) => Some((self.field(offset_of!(Context, vars)), offset as i32)),
             Place::Frame(offset) => Some((self.activation.frame_at, offset as i32)),
             Place::This(offset) => Some((self.activation.this_at, offset as i32)),
-            Place::Word(_) | Place::Bit(_) => None,
+            Place::Word(_) | Place::Bit(_) | Place::Byte(_) => None,
         }
     }
 
@@ -1609,6 +1612,14 @@ impl<'a> Gen<'a, '_> {
                 let word = self.b.ins().uload16(I64, data(), words, i32::from(b.word) * 2);
                 let shifted = self.b.ins().ushr_imm_s(word, i64::from(bit));
                 self.b.ins().band_imm_s(shifted, 1)
+            }
+            Place::Byte(n) => {
+                // the word's half, as the interpreter reads it (whatever the host's byte order)
+                let words = self.field(offset_of!(Context, words));
+                let word = self.b.ins().uload16(I64, data(), words, (n / 2) as i32 * 2);
+                let shifted = self.b.ins().ushr_imm_s(word, i64::from(8 * (n % 2)));
+                let byte = self.b.ins().band_imm_s(shifted, 0xFF);
+                self.normalize(elem, byte)
             }
             _ => unreachable!("a byte place"),
         }
@@ -1639,6 +1650,18 @@ impl<'a> Gen<'a, '_> {
                 let cleared = self.b.ins().band_imm_s(word, !mask);
                 let on = self.b.ins().icmp_imm_s(IntCC::NotEqual, v, 0);
                 let word = self.b.ins().select(on, set, cleared);
+                self.b.ins().istore16(data(), word, words, offset);
+            }
+            Place::Byte(n) => {
+                // the low 8 bits of the value into the word's half, the other half kept
+                let shift = i64::from(8 * (n % 2));
+                let offset = (n / 2) as i32 * 2;
+                let words = self.field(offset_of!(Context, words));
+                let word = self.b.ins().uload16(I64, data(), words, offset);
+                let kept = self.b.ins().band_imm_s(word, !(0xFF << shift));
+                let byte = self.b.ins().band_imm_s(v, 0xFF);
+                let byte = self.b.ins().ishl_imm_s(byte, shift);
+                let word = self.b.ins().bor(kept, byte);
                 self.b.ins().istore16(data(), word, words, offset);
             }
             _ => unreachable!("a byte place"),

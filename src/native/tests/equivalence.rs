@@ -1572,6 +1572,59 @@ END_PROGRAM
     assert!(outcome.errors.is_empty());
 }
 
+/// IEC byte addresses (`%QB1`): each a half of a device word, which native code reads and
+/// writes without the other half, at a fixed place, at an index and through a reference.
+#[test]
+fn device_bytes_keep_their_neighbour() {
+    let source = "
+FUNCTION Twice : BOOL
+VAR_IN_OUT
+    x : SINT;
+END_VAR
+    x := x * 2;
+    Twice := TRUE;
+END_FUNCTION
+
+PROGRAM Main
+VAR
+    lo AT %QB0 : BYTE;
+    hi AT %QB1 : BYTE;
+    s AT %QB3 : SINT;
+    bits AT %QX2.0 : ARRAY [0..7] OF BOOL;
+    word AT %P064 : WORD;
+    next AT %P065 : WORD;
+    m AT %MB5 : USINT := 250;
+    arr AT %MB8 : ARRAY [0..4] OF BYTE;
+    r : REF_TO BYTE;
+    n, i : INT;
+    sum : UDINT;
+    ok : BOOL;
+END_VAR
+    n := n + 1;
+    lo := lo + 16#11;
+    hi := ROL(hi, 1) XOR 16#A5;
+    bits[n MOD 8] := NOT bits[n MOD 8];
+    s := s - 7;
+    ok := Twice(x := s);
+    m := m + 3;
+    arr[n MOD 5] := arr[(n + 4) MOD 5] + INT_TO_BYTE(n);
+    r := REF(arr[n MOD 5]);
+    r^ := r^ XOR hi;
+    hi.%X0 := n MOD 2 = 0;
+    FOR i := 0 TO 4 DO
+        sum := sum + BYTE_TO_UDINT(arr[i]) + WORD_TO_UDINT(word) + WORD_TO_UDINT(next);
+    END_FOR;
+END_PROGRAM
+";
+    // an element at an index and a reference into device memory are the interpreter's (as
+    // for device words): the fixed places are native code's
+    let outcome = targeted("device bytes", source, Scans::new(6), 30);
+    assert!(outcome.errors.is_empty());
+    // %QB0 and %QB1 are the halves of P064: 6 scans of +16#11 in the low one
+    assert_eq!(outcome.slot("main.word") & 0xFF, 6 * 0x11);
+    assert_eq!(outcome.slot("main.word") >> 8, outcome.slot("main.hi"));
+}
+
 /// Every comparison of REAL and LREAL with a NaN operand (and infinities): all FALSE but `<>`.
 #[test]
 fn comparisons_with_nan() {

@@ -39,6 +39,9 @@ pub enum Storage {
     Word(u16),
     /// A device bit.
     Bit(BitRef),
+    /// A device byte (an IEC byte address, `%QB1`), and the bytes after it: byte `n` is a half
+    /// of device word `n / 2` (`lang::Place::Byte`).
+    Byte(u32),
 }
 
 /// A declared variable.

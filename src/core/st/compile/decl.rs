@@ -1332,6 +1332,9 @@ impl<'a> Ctx<'a> {
                 return None;
             }
         }
+        if size_bits == Some(8) && addr.bit.is_some() {
+            return self.locate_byte(file, loc, addr, count, name);
+        }
         if prim == Prim::Bool && count == 1 {
             return match addr.as_bit() {
                 Ok(b) => Some((Storage::Bit(b), addr)),
@@ -1399,6 +1402,44 @@ impl<'a> Ctx<'a> {
         Some((Storage::Word(word.0), addr))
     }
 
+    /// The device bytes of an 8-bit variable (or an array of them) at an IEC byte address of
+    /// a byte image: `first` is the byte's first bit ([`crate::device::iec::Direct`]), and the
+    /// located [`Address`] is the word that holds it (whose area says whether it is writable).
+    fn locate_byte(
+        &mut self,
+        file: usize,
+        loc: &ast::Ident,
+        first: Address,
+        count: u64,
+        name: &str,
+    ) -> Option<(Storage, Address)> {
+        let bit = match first.as_bit() {
+            Ok(b) => b,
+            Err(e) => {
+                self.error(file, loc.span, e.to_string());
+                return None;
+            }
+        };
+        let word = Address { bit: None, ..first };
+        let byte = u32::from(bit.word) * 2 + bit.mask.trailing_zeros() / 8;
+        let last_word = (u64::from(byte) + count - 1) / 2;
+        let last =
+            Address { number: word.number + (last_word - u64::from(bit.word)) as u32, ..word };
+        let ok = Address::parse(&last.to_string()).ok().and_then(|a| a.as_word().ok());
+        if ok.is_none_or(|l| u64::from(l.0) != last_word) {
+            self.error(
+                file,
+                loc.span,
+                format!(
+                    "`{name}` needs {count} bytes from `%{}`: past the end of its area",
+                    loc.name
+                ),
+            );
+            return None;
+        }
+        Some((Storage::Byte(byte), word))
+    }
+
     pub(super) fn located_init_for(
         &mut self,
         s: Storage,
@@ -1433,6 +1474,7 @@ impl<'a> Ctx<'a> {
                 Storage::Word(w) => {
                     Place::Word(crate::device::WordRef(w + (i as u32 * e.words()) as u16))
                 }
+                Storage::Byte(n) => Place::Byte(n + i as u32),
                 _ => return,
             };
             self.located_init.push((place, e, slot));

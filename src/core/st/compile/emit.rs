@@ -66,6 +66,7 @@ impl Static {
                 let bit = u32::from(b.word) * 16 + b.mask.trailing_zeros() + n;
                 Place::Bit(BitRef { word: (bit / 16) as u16, mask: 1 << (bit % 16) })
             }
+            Place::Byte(b) => Place::Byte(b + n),
         };
         Static { place, reloc: self.reloc }
     }
@@ -75,6 +76,7 @@ impl Static {
         match self.place {
             Place::Word(_) => Memory::Words,
             Place::Bit(_) => Memory::Bits,
+            Place::Byte(_) => Memory::DeviceBytes,
             _ => Memory::Bytes,
         }
     }
@@ -82,12 +84,14 @@ impl Static {
 
 /// Where a variable's storage is, which sets the unit of offsets into it: bytes of variable or
 /// frame memory, device words (a located array of words), device bits (a located ARRAY OF
-/// BOOL at a bit device).
+/// BOOL at a bit device), device bytes (a located array of 8-bit values at an IEC byte
+/// address).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Memory {
     Bytes,
     Words,
     Bits,
+    DeviceBytes,
 }
 
 impl Memory {
@@ -96,7 +100,7 @@ impl Memory {
         match self {
             Memory::Bytes => a.elem_size,
             Memory::Words => elem.words(),
-            Memory::Bits => 1,
+            Memory::Bits | Memory::DeviceBytes => 1,
         }
     }
 }
@@ -258,6 +262,7 @@ impl<'c, 'a> Em<'c, 'a> {
             Storage::Global(o) => Static { place: Place::Var(o), reloc: false },
             Storage::Word(w) => Static { place: Place::Word(WordRef(w)), reloc: false },
             Storage::Bit(b) => Static { place: Place::Bit(b), reloc: false },
+            Storage::Byte(n) => Static { place: Place::Byte(n), reloc: false },
         }
     }
 
@@ -292,6 +297,7 @@ impl<'c, 'a> Em<'c, 'a> {
         match &e.k {
             TK::Var { storage: Storage::Word(_), .. } => Memory::Words,
             TK::Var { storage: Storage::Bit(_), .. } => Memory::Bits,
+            TK::Var { storage: Storage::Byte(_), .. } => Memory::DeviceBytes,
             TK::Member(b, _, _) | TK::Index(b, _) => self.memory(b),
             _ => Memory::Bytes,
         }

@@ -134,6 +134,11 @@ impl Ctx<'_> {
             }
         };
         let (storage, prim) = match (address.as_bit(), address.as_word()) {
+            // a byte of a byte image (`%QB1`): its first bit, 8 bits (`device::iec::Direct`)
+            (Ok(bit), _) if bits == Some(8) => {
+                let byte = u32::from(bit.word) * 2 + bit.mask.trailing_zeros() / 8;
+                (Storage::Byte(byte), Prim::Byte)
+            }
             (Ok(bit), _) => (Storage::Bit(bit), Prim::Bool),
             (_, Ok(word)) => {
                 let prim = match bits {

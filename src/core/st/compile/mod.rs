@@ -274,6 +274,7 @@ pub fn compile_configured(
                 space: Space::Bit,
                 offset: u32::from(b.word) * 16 + b.mask.trailing_zeros(),
             },
+            Storage::Byte(n) => Pointer { space: Space::Byte, offset: n },
             _ => continue,
         };
         leaves(&cx, &v.name, &v.ty, at, v.retain, v.constant, &mut symbols);
@@ -309,6 +310,7 @@ pub fn compile_configured(
                     space: Space::Bit,
                     offset: u32::from(b.word) * 16 + b.mask.trailing_zeros(),
                 },
+                Storage::Byte(n) => Pointer { space: Space::Byte, offset: n },
                 _ => continue,
             };
             let name = format!("{}.{}", inst.name, v.name);
@@ -742,7 +744,7 @@ fn leaves(
         Ty::Array(a) => {
             let unit = match at.space {
                 Space::Word => a.of.elem(&cx.types).map_or(1, |e| e.words()),
-                Space::Bit => 1,
+                Space::Bit | Space::Byte => 1,
                 _ => a.elem_size,
             };
             let count = a.count();

@@ -360,7 +360,7 @@ impl Ctx<'_> {
                     slot.copy_from_slice(&image);
                 }
             }
-            Storage::Bit(_) | Storage::Word(_) => {
+            Storage::Bit(_) | Storage::Word(_) | Storage::Byte(_) => {
                 self.located_init_for(storage, &ty, &entry.ty, Some(init), scope, &name);
             }
             Storage::Frame(_) | Storage::Global(_) => {}
