@@ -398,6 +398,7 @@ PROGRAM blink
     lamp AT %Q* : BOOL;
     level AT %MW* : INT := 7;
     seen AT %IX* : BOOL;
+    code AT %QB* : BYTE;
     n : INT;
     copies : INT;
     counter : Step;
@@ -408,6 +409,7 @@ PROGRAM blink
   END_VAR
   n := n + 1;
   lamp := n MOD 2 = 1;
+  code := code + 1;
   level := level + 1;
   IF seen THEN
     copies := copies + 1;
@@ -426,6 +428,7 @@ CONFIGURATION Config0
     Res0.inst.lamp AT %QX0.3 : BOOL;
     inst.level AT %MW5 : INT := 100;
     inst.seen AT %IX0.1 : BOOL;
+    inst.code AT %QB1 : BYTE := 16#F0;
     inst.gain : INT := 3;
     Res0.inst.counter.stride : INT := 5;
     inst.lim : Limits := (lo := -1);
@@ -503,9 +506,11 @@ fn var_config_binds_partly_specified_variables_to_devices() {
             "  configuration Config0: VAR_CONFIG Res0.inst.lamp AT %QX0.3 → P0643",
             "  configuration Config0: VAR_CONFIG inst.level AT %MW5 → D14005",
             "  configuration Config0: VAR_CONFIG inst.seen AT %IX0.1 → P0001",
+            "  configuration Config0: VAR_CONFIG inst.code AT %QB1 → P064 (high byte)",
         ]
     );
-    let watch = "inst.n,inst.copies,inst.level,P0643,D14005,inst.acc,inst.counter.total,inst.span";
+    let watch = "inst.n,inst.copies,inst.level,P0643,D14005,inst.acc,inst.counter.total,inst.span,\
+                 inst.code,P064";
     let out = plcd(
         dir.path(),
         &[
@@ -527,6 +532,10 @@ fn var_config_binds_partly_specified_variables_to_devices() {
     // three scans, at 0, 10 and 20 ms: n = 3, the lamp on (3 is odd) at P0643 (%QX0.3)
     assert_eq!(last(&trace, "inst.n").as_deref(), Some("3"), "{trace}");
     assert_eq!(last(&trace, "P0643").as_deref(), Some("1"));
+    // code at %QB1, the high byte of P064, from VAR_CONFIG's 16#F0, one more a scan: 16#F3;
+    // the lamp's bit 3 in the low byte kept: P064 = 16#F308, -3320 as the trace shows a word
+    assert_eq!(last(&trace, "inst.code").as_deref(), Some("243"));
+    assert_eq!(last(&trace, "P064").as_deref(), Some("-3320"));
     // level at D14005 (%MW5, OpenPLC's %MW area from D14000) from VAR_CONFIG's 100 (not the
     // declaration's 7), one more a scan
     assert_eq!(last(&trace, "D14005").as_deref(), Some("103"));

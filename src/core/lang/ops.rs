@@ -646,6 +646,15 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_store_to_a_device_byte_writes_its_eight_bits() {
+        let low = Op::Store { elem: Elem::U8, at: Place::Byte(2 * 64) };
+        let high = Op::Store { elem: Elem::I8, at: Place::Byte(2 * 64 + 1) };
+        assert_eq!(low.writes(), Some(Written::Bit(BitRef { word: 64, mask: 0x00FF })));
+        assert_eq!(high.writes(), Some(Written::Bit(BitRef { word: 64, mask: 0xFF00 })));
+        assert_eq!(Op::Fetch { elem: Elem::U8, at: Place::Byte(3) }.writes(), None);
+    }
+
+    #[test]
     fn compares_follow_their_truth_tables() {
         use CmpOp::*;
         for (a, b) in [(-3i16, 2i16), (2, 2), (7, -7), (i16::MIN, i16::MAX), (0, -1)] {
