@@ -477,7 +477,7 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
 /// the config gives. Every message of that file is here or in [`IEC_PARTS`], and back.
 const IEC_MESSAGES: &[(&str, &str)] = &[
     ("`%{}` is not a valid direct address", "st/bad-iec-address"),
-    ("`%{}`: the openplc layout has no `%{}{}` (OpenPLC's inputs are %IX bits and %IW words, its outputs %QX and %QW, and %IB, %QB, %MB name bytes of the bits; `[iec] preset = \"codesys\"` has every size)", "st/iec-no-such-size"),
+    ("`%{}`: the openplc layout has no `%{}{}` (OpenPLC's inputs are %IX bits, %IB bytes and %IW words, its outputs %QX, %QB and %QW; `[iec] preset = \"codesys\"` has every size)", "st/iec-no-such-size"),
     ("`%{}` is past the end of the {} image: the {} layout's {} (`{}` to `{}`; `[iec] {}` moves it)", "st/iec-past-the-image"),
     ("`%{}`: bit {} of a byte: the {} layout numbers %{}X by byte and bit, the bit 0 to 7 (`%{}X{}.0` is the bit after `%{}X{}.7`; `[iec] preset = \"plcd\"` numbers P words and their bits 0 to 15)", "st/iec-bit-of-a-byte"),
     ("`{}` is not a word of P, M, K or D (an image starts at a word: `P064`, `D10000`)", "config/iec-start-not-a-word"),
@@ -491,7 +491,6 @@ const IEC_PARTS: &[&str] = &[
     "%IXa.b, %QXa.b → bit b (0..15) of P word a; %IWa, %QWa → P word a",
     "%MXa.b → bit b of M word a; %MWa, %MDa, %MLa → M word a",
     "{}X0.0..{}X{}.7, {}B0..{}B{}, {}W0..{}W{}, {}D0..{}D{}, {}L0..{}L{}",
-    "{}0.0..{}{}.7, {}0..{}{}",
     "iec: the {} layout ([iec] preset), docs/ST.md \"Direct addresses\":",
     "iec: {}:{}: {}{} %{} → {}",
     // a byte address's device: its word and which half

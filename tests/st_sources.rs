@@ -506,11 +506,11 @@ fn var_config_binds_partly_specified_variables_to_devices() {
             "  configuration Config0: VAR_CONFIG Res0.inst.lamp AT %QX0.3 → P0643",
             "  configuration Config0: VAR_CONFIG inst.level AT %MW5 → D14005",
             "  configuration Config0: VAR_CONFIG inst.seen AT %IX0.1 → P0001",
-            "  configuration Config0: VAR_CONFIG inst.code AT %QB1 → P064 (high byte)",
+            "  configuration Config0: VAR_CONFIG inst.code AT %QB1 → D13024 (high byte)",
         ]
     );
     let watch = "inst.n,inst.copies,inst.level,P0643,D14005,inst.acc,inst.counter.total,inst.span,\
-                 inst.code,P064";
+                 inst.code,D13024,P064";
     let out = plcd(
         dir.path(),
         &[
@@ -532,10 +532,12 @@ fn var_config_binds_partly_specified_variables_to_devices() {
     // three scans, at 0, 10 and 20 ms: n = 3, the lamp on (3 is odd) at P0643 (%QX0.3)
     assert_eq!(last(&trace, "inst.n").as_deref(), Some("3"), "{trace}");
     assert_eq!(last(&trace, "P0643").as_deref(), Some("1"));
-    // code at %QB1, the high byte of P064, from VAR_CONFIG's 16#F0, one more a scan: 16#F3;
-    // the lamp's bit 3 in the low byte kept: P064 = 16#F308, -3320 as the trace shows a word
+    // code at %QB1, the high byte of D13024 (openplc's %QB area), from VAR_CONFIG's 16#F0, one
+    // more a scan: 16#F3, D13024 = 16#F300, -3328 as the trace shows a word; the lamp's word
+    // P064 holds its bit 3 alone
     assert_eq!(last(&trace, "inst.code").as_deref(), Some("243"));
-    assert_eq!(last(&trace, "P064").as_deref(), Some("-3320"));
+    assert_eq!(last(&trace, "D13024").as_deref(), Some("-3328"));
+    assert_eq!(last(&trace, "P064").as_deref(), Some("8"));
     // level at D14005 (%MW5, OpenPLC's %MW area from D14000) from VAR_CONFIG's 100 (not the
     // declaration's 7), one more a scan
     assert_eq!(last(&trace, "D14005").as_deref(), Some("103"));

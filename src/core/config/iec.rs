@@ -31,6 +31,8 @@ pub(super) struct RawIec {
     pub memory_words: Option<Spanned<String>>,
     pub memory_dwords: Option<Spanned<String>>,
     pub memory_lwords: Option<Spanned<String>>,
+    pub byte_input: Option<Spanned<String>>,
+    pub byte_output: Option<Spanned<String>>,
     pub input_bytes: Option<Spanned<i64>>,
     pub output_bytes: Option<Spanned<i64>>,
     pub memory_bytes: Option<Spanned<i64>>,
@@ -48,6 +50,8 @@ impl RawIec {
             Image::MemoryWords => self.memory_words.as_ref(),
             Image::MemoryDwords => self.memory_dwords.as_ref(),
             Image::MemoryLwords => self.memory_lwords.as_ref(),
+            Image::InputBytes => self.byte_input.as_ref(),
+            Image::OutputBytes => self.byte_output.as_ref(),
         }
     }
 
@@ -100,7 +104,7 @@ pub(super) fn validate(sink: &mut Sink, raw: RawIec) -> Option<IecConfig> {
                     preset.name(),
                     match preset {
                         Preset::Plcd => "its addresses are P and M words: `%IX4.0` is P0040",
-                        _ => "only `preset = \"openplc\"` has images of words apart",
+                        _ => "only `preset = \"openplc\"` has images of words and bytes apart",
                     }
                 ),
             );

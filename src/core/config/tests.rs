@@ -1884,6 +1884,10 @@ fn iec_layout_is_openplc_unless_set_and_images_move() {
     let c = config(&with_scan("[iec]\ninput_bytes = 8\noutput = \"P004\"\n"));
     let lamp = c.iec.layout.resolve("QX0.0").unwrap().unwrap().address;
     assert_eq!(lamp.to_string(), "P0040");
+    // openplc's %IB and %QB areas move as its word areas do
+    let c = config(&with_scan("[iec]\nbyte_input = \"D00000\"\nbyte_output = \"D00512\"\n"));
+    assert_eq!(c.iec.layout.start(Image::InputBytes), Start { area: Area::D, word: 0 });
+    assert_eq!(c.iec.layout.resolve("QB3").unwrap().unwrap().to_string(), "D00513 (high byte)");
 }
 
 #[test]
@@ -1901,11 +1905,12 @@ fn iec_layout_errors_name_their_key() {
         ]
     );
     // a %QW image of 1024 words from D32000 runs past D32767; the %MW image moved onto %IW's
+    // (and not as far as %IB's, from D11024)
     assert_eq!(
-        errors(&with_scan("[iec]\noutput_words = \"D32000\"\nmemory_words = \"D10500\"\n")),
+        errors(&with_scan("[iec]\noutput_words = \"D32000\"\nmemory_words = \"D09500\"\n")),
         [
             "2:16: iec.output_words: the %QW image needs 1024 words from `D32000`: past the end of D (D00000-D32767)",
-            "3:16: iec.memory_words: the %MW image (`D10500`, 1024 words) overlaps the %IW image (`D10000` to `D11023`, `iec.input_words`)",
+            "3:16: iec.memory_words: the %MW image (`D09500`, 1024 words) overlaps the %IW image (`D10000` to `D11023`, `iec.input_words`)",
         ]
     );
     assert_eq!(
@@ -1913,6 +1918,15 @@ fn iec_layout_errors_name_their_key() {
         ["3:9: iec.input: the plcd layout has no such image (its addresses are P and M words: `%IX4.0` is P0040)"]
     );
     assert!(!errors(&with_scan("[iec]\nbytes = 4\n")).is_empty());
+    // %QB moved onto %QW's words; a byte area under codesys
+    assert_eq!(
+        errors(&with_scan("[iec]\nbyte_output = \"D12500\"\n")),
+        ["2:15: iec.byte_output: the %QB image (`D12500`, 512 words) overlaps the %QW image (`D12000` to `D13023`, `iec.output_words`)"]
+    );
+    assert_eq!(
+        errors(&with_scan("[iec]\npreset = \"codesys\"\nbyte_input = \"D00000\"\n")),
+        ["3:14: iec.byte_input: the codesys layout has no such image (only `preset = \"openplc\"` has images of words and bytes apart)"]
+    );
     assert_eq!(
         errors(&with_scan("[iec]\ninput_bytes = 0\noutput = \"P004\"\n")),
         ["2:15: iec.input_bytes 0 out of range 1..=65536"]

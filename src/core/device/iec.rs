@@ -5,9 +5,9 @@
 //! editors a program comes from disagree:
 //!
 //! - [`Preset::OpenPlc`] (the default, OpenPLC Editor and Beremiz programs): `%IX`, `%QX` and
-//!   `%MX` are bits numbered by byte and bit (`%IX1.0` is the bit after `%IX0.7`), `%IB`,
-//!   `%QB`, `%MB` those bytes; `%IW`, `%QW`, `%MW`, `%MD` and `%ML` are five more areas of
-//!   their own, overlapping nothing;
+//!   `%MX` are bits numbered by byte and bit (`%IX1.0` is the bit after `%IX0.7`); `%IW`,
+//!   `%QW`, `%MW`, `%MD`, `%ML`, and the bytes `%IB` and `%QB` (OpenPLC's `byte_input` and
+//!   `byte_output`) are seven more areas of their own, overlapping nothing;
 //! - [`Preset::Codesys`]: one byte image for each of `%I`, `%Q` and `%M`, every size a view of
 //!   the same bytes (`%IW0` is bytes 0 and 1, `%IX1.0` bit 0 of byte 1, so bit 8 of `%IW0`);
 //! - [`Preset::Plcd`]: plcd's own numbering before images existed, `%IXa.b` and `%QXa.b` both
@@ -86,10 +86,14 @@ pub enum Image {
     MemoryDwords,
     /// openplc's `%ML`.
     MemoryLwords,
+    /// openplc's `%IB` (OpenPLC's `byte_input`): bytes apart from the `%IX` bits.
+    InputBytes,
+    /// openplc's `%QB` (OpenPLC's `byte_output`).
+    OutputBytes,
 }
 
 impl Image {
-    pub const ALL: [Image; 8] = [
+    pub const ALL: [Image; 10] = [
         Image::Input,
         Image::Output,
         Image::Memory,
@@ -98,6 +102,8 @@ impl Image {
         Image::MemoryWords,
         Image::MemoryDwords,
         Image::MemoryLwords,
+        Image::InputBytes,
+        Image::OutputBytes,
     ];
 
     /// Its key in `[iec]`: where it starts.
@@ -111,6 +117,8 @@ impl Image {
             Image::MemoryWords => "memory_words",
             Image::MemoryDwords => "memory_dwords",
             Image::MemoryLwords => "memory_lwords",
+            Image::InputBytes => "byte_input",
+            Image::OutputBytes => "byte_output",
         }
     }
 
@@ -132,11 +140,14 @@ impl Image {
             (Image::MemoryWords, _) => "%MW",
             (Image::MemoryDwords, _) => "%MD",
             (Image::MemoryLwords, _) => "%ML",
+            (Image::InputBytes, _) => "%IB",
+            (Image::OutputBytes, _) => "%QB",
         }
     }
 
-    /// Its default size: bytes for a byte image (the config may change them), elements
-    /// (words, double words, long words) for the word images of openplc (OpenPLC's 1024).
+    /// Its default size: bytes for a byte image (the config may change those of `%I`, `%Q`,
+    /// `%M`), elements (words, double words, long words) for the word images of openplc
+    /// (OpenPLC's 1024, as its bytes `%IB` and `%QB`).
     fn default_units(self) -> u32 {
         match self {
             Image::Input | Image::Output => 128,
@@ -164,7 +175,13 @@ impl Image {
         }
     }
 
+    /// Whether it holds bytes, two to a device word.
     fn byte_image(self) -> bool {
+        self.bit_image() || matches!(self, Image::InputBytes | Image::OutputBytes)
+    }
+
+    /// Whether its bytes are numbered by byte and bit too (`%IX`, `%QX`, `%MX`).
+    fn bit_image(self) -> bool {
         matches!(self, Image::Input | Image::Output | Image::Memory)
     }
 }
@@ -230,7 +247,7 @@ pub struct IecLayout {
     pub preset: Preset,
     /// Where each image starts, by [`Image::ALL`]'s order (the preset's defaults unless the
     /// config moves one; those of images the preset has no use for are ignored).
-    starts: [Start; 8],
+    starts: [Start; 10],
     /// The sizes in bytes of the byte images `%I`, `%Q`, `%M` (`%IX`, `%QX`, `%MX`).
     bytes: [u32; 3],
 }
@@ -249,7 +266,19 @@ impl IecLayout {
         let d = |word| Start { area: Area::D, word };
         IecLayout {
             preset,
-            starts: [p(0), p(64), m(0), d(10000), d(12000), d(14000), d(16000), d(20000)],
+            starts: [
+                p(0),
+                p(64),
+                m(0),
+                d(10000),
+                d(12000),
+                d(14000),
+                d(16000),
+                d(20000),
+                // openplc's %IB and %QB, after %IW's and %QW's 1024 words
+                d(11024),
+                d(13024),
+            ],
             bytes: [128, 128, 512],
         }
     }
@@ -364,12 +393,8 @@ impl IecLayout {
                             bytes / 8 - 1
                         )
                     }
-                    (true, _) => {
-                        // %IX's bytes are %IB: the image's letter and B
-                        let b = format!("{}B", &p[..p.len() - 1]);
-                        format!("{p}0.0..{p}{n}.7, {b}0..{b}{n}")
-                    }
-                    (false, _) => format!("{p}0..{p}{n}"),
+                    (true, _) if image.bit_image() => format!("{p}0.0..{p}{n}.7"),
+                    _ => format!("{p}0..{p}{n}"),
                 };
                 format!("{what} → {first}..{last} (iec.{})", image.key())
             })
@@ -416,12 +441,11 @@ impl IecLayout {
             (_, 'M', 'W') => Image::MemoryWords,
             (_, 'M', 'D') => Image::MemoryDwords,
             (_, 'M', 'L') => Image::MemoryLwords,
-            (Preset::OpenPlc, 'I', 'B') => Image::Input,
-            (Preset::OpenPlc, 'Q', 'B') => Image::Output,
-            (Preset::OpenPlc, 'M', 'B') => Image::Memory,
+            (_, 'I', 'B') => Image::InputBytes,
+            (_, 'Q', 'B') => Image::OutputBytes,
             _ => {
                 return Err(format!(
-                    "`%{text}`: the openplc layout has no `%{letter}{size}` (OpenPLC's inputs are %IX bits and %IW words, its outputs %QX and %QW, and %IB, %QB, %MB name bytes of the bits; `[iec] preset = \"codesys\"` has every size)"
+                    "`%{text}`: the openplc layout has no `%{letter}{size}` (OpenPLC's inputs are %IX bits, %IB bytes and %IW words, its outputs %QX, %QB and %QW; `[iec] preset = \"codesys\"` has every size)"
                 ))
             }
         };
@@ -541,23 +565,29 @@ mod tests {
     }
 
     #[test]
-    fn bytes_are_halves_of_the_bit_images_words() {
-        // %IBb is byte b of the %IX image: its first bit, 8 bits; shown as the word's half
+    fn bytes_are_halves_of_words() {
+        // openplc: %IB and %QB are areas of their own (OpenPLC's byte_input, byte_output),
+        // from D11024 and D13024, two bytes a word; a byte is its first bit, 8 bits, shown as
+        // the word's half
         let l = IecLayout::of(Preset::OpenPlc);
-        assert_eq!(device(&l, "IB0"), "P0000 8");
-        assert_eq!(device(&l, "QB1"), "P0648 8");
-        assert_eq!(device(&l, "QB2"), "P0650 8");
-        assert_eq!(device(&l, "MB3"), "M0018 8");
+        assert_eq!(device(&l, "IB0"), "D11024.0 8");
+        assert_eq!(device(&l, "IB1"), "D11024.8 8");
+        assert_eq!(device(&l, "QB3"), "D13025.8 8");
+        assert_eq!(device(&l, "QB1023"), "D13535.8 8");
+        assert!(device(&l, "QB1024").contains("%QB are 0 to 1023"));
+        assert!(device(&l, "MB0").contains("openplc layout has no `%MB`"));
         let direct = |text| l.resolve(text).unwrap().unwrap();
-        assert_eq!(direct("QB1").to_string(), "P064 (high byte)");
-        assert_eq!(direct("QB2").to_string(), "P065 (low byte)");
-        assert!(direct("QB1").is_byte());
+        assert_eq!(direct("QB3").to_string(), "D13025 (high byte)");
+        assert_eq!(direct("IB0").to_string(), "D11024 (low byte)");
+        assert!(direct("QB3").is_byte());
         assert!(!direct("QX1.0").is_byte());
         assert_eq!(direct("QX1.0").to_string(), "P0648");
-        assert!(device(&l, "QB128").contains("%QB are 0 to 127"));
+        assert!(l.problems().is_empty(), "{:?}", l.problems());
         // codesys: the same bytes %IX and %IW view
         let l = IecLayout::of(Preset::Codesys);
         assert_eq!(device(&l, "IB1"), "P0008 8");
+        assert_eq!(device(&l, "QB1"), "P0648 8");
+        assert_eq!(l.resolve("QB2").unwrap().unwrap().to_string(), "P065 (low byte)");
         assert_eq!(device(&l, "MB511"), "M2558 8");
         assert!(device(&l, "MB512").contains("%MB are 0 to 511"));
         // plcd: a B address is a word, as every size

@@ -1591,10 +1591,10 @@ VAR
     hi AT %QB1 : BYTE;
     s AT %QB3 : SINT;
     bits AT %QX2.0 : ARRAY [0..7] OF BOOL;
-    word AT %P064 : WORD;
-    next AT %P065 : WORD;
-    m AT %MB5 : USINT := 250;
-    arr AT %MB8 : ARRAY [0..4] OF BYTE;
+    word AT %D13024 : WORD;
+    next AT %D13025 : WORD;
+    m AT %QB5 : USINT := 250;
+    arr AT %IB8 : ARRAY [0..4] OF BYTE;
     r : REF_TO BYTE;
     n, i : INT;
     sum : UDINT;
@@ -1620,7 +1620,8 @@ END_PROGRAM
     // for device words): the fixed places are native code's
     let outcome = targeted("device bytes", source, Scans::new(6), 30);
     assert!(outcome.errors.is_empty());
-    // %QB0 and %QB1 are the halves of P064: 6 scans of +16#11 in the low one
+    // %QB0 and %QB1 are the halves of D13024 (openplc's %QB area): 6 scans of +16#11 in the
+    // low one
     assert_eq!(outcome.slot("main.word") & 0xFF, 6 * 0x11);
     assert_eq!(outcome.slot("main.word") >> 8, outcome.slot("main.hi"));
 }
