@@ -480,6 +480,7 @@ const IEC_MESSAGES: &[(&str, &str)] = &[
     ("`%{}`: the openplc layout has no `%{}{}` (OpenPLC's inputs are %IX bits, %IB bytes and %IW words, its outputs %QX, %QB and %QW; `[iec] preset = \"codesys\"` has every size)", "st/iec-no-such-size"),
     ("`%{}` is past the end of the {} image: the {} layout's {} (`{}` to `{}`; `[iec] {}` moves it)", "st/iec-past-the-image"),
     ("`%{}`: bit {} of a byte: the {} layout numbers %{}X by byte and bit, the bit 0 to 7 (`%{}X{}.0` is the bit after `%{}X{}.7`; `[iec] preset = \"plcd\"` numbers P words and their bits 0 to 15)", "st/iec-bit-of-a-byte"),
+    ("`%{}` is a multi-level address ({} levels): Beremiz numbers an extension's I/O so (its channel, then the extension's own items), and what it names is that extension's; plcd has no such extension: wire the device in plcd's config (docs/CONFIG.md) and locate the variable at a device or at an address of the [iec] layout, or declare it `AT %{}{}*` and bind it with a CONFIGURATION's VAR_CONFIG", "st/iec-multi-level"),
     ("`{}` is not a word of P, M, K or D (an image starts at a word: `P064`, `D10000`)", "config/iec-start-not-a-word"),
     ("the {} image needs {} words from `{}`: past the end of {} ({})", "config/iec-image-past-the-area"),
     ("the {} image (`{}`, {} words) overlaps the {} image (`{}` to `{}`, `iec.{}`)", "config/iec-images-overlap"),

@@ -421,6 +421,12 @@ impl IecLayout {
             _ => 64,
         };
         let bad = || format!("`%{text}` is not a valid direct address");
+        // a bit has two levels, byte and bit; any other size one
+        let levels = digits.split('.').count();
+        let most = if bits == 1 { 2 } else { 1 };
+        if levels > most && digits.split('.').all(|n| n.parse::<u32>().is_ok()) {
+            return Err(multi_level(text, letter, size, levels));
+        }
         let number = |s: &str| s.parse::<u32>().map_err(|_| bad());
         let (index, bit) = if bits == 1 {
             let (i, b) = digits.split_once('.').ok_or_else(bad)?;
@@ -503,6 +509,16 @@ impl IecLayout {
             Ok(Some(Direct { address: start.at(index * image.unit_words()), bits }))
         }
     }
+}
+
+/// Why a multi-level address (`%IX1.2.3`, `%QW2.1`) is refused: Beremiz numbers the I/O of its
+/// extensions so, the extension's channel path (`IEC_Channel` of each node of its tree) then the
+/// extension's own items, and what it names is that extension's runtime code, which plcd does
+/// not have; no layout gives such an address a device (docs/ST.md, "Direct addresses").
+fn multi_level(text: &str, letter: char, size: char, levels: usize) -> String {
+    format!(
+        "`%{text}` is a multi-level address ({levels} levels): Beremiz numbers an extension's I/O so (its channel, then the extension's own items), and what it names is that extension's; plcd has no such extension: wire the device in plcd's config (docs/CONFIG.md) and locate the variable at a device or at an address of the [iec] layout, or declare it `AT %{letter}{size}*` and bind it with a CONFIGURATION's VAR_CONFIG"
+    )
 }
 
 /// plcd's own numbering (`[iec] preset = "plcd"`): `%IXa.b` and `%QXa.b` bit `b` (0..15) of P
@@ -618,6 +634,23 @@ mod tests {
             assert!(e.contains("bit 8 of a byte"), "{e}");
             assert!(e.contains("`%QX1.0` is the bit after `%QX0.7`"), "{e}");
         }
+    }
+
+    #[test]
+    fn multi_level_addresses_are_refused_in_every_layout() {
+        for preset in Preset::ALL {
+            let l = IecLayout::of(preset);
+            for (text, levels) in [("IX1.2.3", 3), ("QW2.1", 2), ("IW0.0.4096.0", 4), ("MB1.0", 2)]
+            {
+                let e = device(&l, text);
+                assert!(e.contains(&format!("is a multi-level address ({levels} levels)")), "{e}");
+            }
+            assert!(device(&l, "QX1.0").starts_with('P'), "{preset:?}");
+            // not numbers at each level: no address at all
+            assert!(device(&l, "IX1.a.3").contains("not a valid direct address"));
+        }
+        let e = device(&IecLayout::default(), "QW2.1");
+        assert!(e.contains("`AT %QW*`"), "{e}");
     }
 
     #[test]
