@@ -252,9 +252,11 @@ PROGRAM counter
   VAR_OUTPUT
     n : INT;
     many : BOOL;
+    low : BYTE;
   END_VAR
   n := n + step;
   many := n > 7;
+  low := INT_TO_BYTE(n);
 END_PROGRAM
 
 CONFIGURATION Config0
@@ -267,7 +269,7 @@ CONFIGURATION Config0
     TASK task0(INTERVAL := T#20ms,PRIORITY := 0);
     TASK trig(SINGLE := start_btn, PRIORITY := 1);
     PROGRAM instance0 WITH task0 : prog0 (speed := 10, done => lamp);
-    PROGRAM presses WITH trig : counter (step := limit, many => %QX0.5);
+    PROGRAM presses WITH trig : counter (step := limit, many => %QX0.5, low => %QB1);
   END_RESOURCE
 END_CONFIGURATION
 ";
@@ -296,7 +298,8 @@ fn a_single_task_runs_on_each_rising_edge_and_instances_copy_their_arguments() {
     let iec: Vec<&str> = stdout.lines().filter(|l| l.starts_with("  iec: plc.st:")).collect();
     assert!(iec.iter().any(|l| l.ends_with(": start_btn AT %IX0.1 → P0001")), "{iec:?}");
     assert!(iec.iter().any(|l| l.ends_with(": presses.many => %QX0.5 → P0645")), "{iec:?}");
-    let watch = "instance0.total,instance0.speed,presses.n,P0642,P0645";
+    assert!(iec.iter().any(|l| l.ends_with(": presses.low => %QB1 → D13024 (high byte)")));
+    let watch = "instance0.total,instance0.speed,presses.n,P0642,P0645,D13024";
     let out = plcd(
         dir.path(),
         &[
@@ -323,6 +326,8 @@ fn a_single_task_runs_on_each_rising_edge_and_instances_copy_their_arguments() {
     // the edges are read at the scans of 40 and 80 ms: two runs of 5 (limit)
     assert_eq!(last(&trace, "presses.n").as_deref(), Some("10"));
     assert_eq!(last(&trace, "P0645").as_deref(), Some("1"));
+    // low (10) copied to %QB1, the high byte of D13024 (openplc's %QB area): 10 * 256
+    assert_eq!(last(&trace, "D13024").as_deref(), Some("2560"));
     // the copies are ordinary code: the interpreter gives the native code's trace
     let out = plcd(
         dir.path(),
