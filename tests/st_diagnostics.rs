@@ -56,6 +56,18 @@ const MESSAGES: &[(&str, &str)] = &[
     ("type `{}` is defined in terms of itself", "self-referential-type"),
     ("a STRUCT member cannot be located", "located-struct-member"),
     ("`{}` is already declared in this STRUCT", "duplicate-struct-member"),
+    // varlen.rs: ARRAY [*] and LOWER_BOUND / UPPER_BOUND
+    (
+        "`ARRAY [*]` is only the type of a VAR_IN_OUT of a FUNCTION, FUNCTION_BLOCK or METHOD",
+        "open-array-misplaced",
+    ),
+    (
+        "an `ARRAY [*]` is used element by element or passed on to a VAR_IN_OUT, not copied whole",
+        "open-array-whole",
+    ),
+    ("`{}` needs an array, not `{}`", "bound-needs-array"),
+    ("the dimension of `{}` must be a constant from 1 to {}", "bound-dimension"),
+    ("VAR_IN_OUT `{}` of `{}` needs a `{}` variable, not `{}`", "open-array-argument"),
     // union.rs: CODESYS's UNION
     ("a UNION member cannot be located", "located-union-member"),
     ("a UNION member cannot be {}: other members' bytes would forge it", "union-member-instance"),
@@ -533,6 +545,11 @@ const UNREACHABLE: &[(&str, &str)] = &[
         "VAR_IN_OUT `{}` of `{}` needs a variable",
         "a place checked for a VAR_IN_OUT is a variable, an element or a member, or an error \
          reported already",
+    ),
+    (
+        "`{}` is an `ARRAY [*]`: only its own POU indexes it",
+        "a VAR_IN_OUT is named only in its own POU (from outside: `is not an input or output`), \
+         so an open array indexed is always that POU's own variable",
     ),
     (
         "this expression does nothing: a statement is needed",

@@ -308,6 +308,9 @@ pub enum TypeRef {
     WString { len: Option<Box<Expr>>, span: Span },
     /// `ARRAY [lo..hi, lo..hi] OF T`.
     Array { dims: Vec<(Expr, Expr)>, of: Box<TypeRef>, span: Span },
+    /// `ARRAY [*, *] OF T` (IEC 61131-3 ed. 3, CODESYS): an array of `rank` dimensions whose
+    /// bounds are the passed array's; only the type of a VAR_IN_OUT (`compile::varlen`).
+    OpenArray { rank: usize, of: Box<TypeRef>, span: Span },
     /// An inline enumeration `(A, B := 5, C)`, in a variable declaration.
     Enum(EnumDef),
     /// A subrange `INT (0..100)`.

@@ -326,6 +326,7 @@ impl<'a> Ctx<'a> {
                 }
                 Ty::Array(Rc::new(arr))
             }
+            TypeRef::OpenArray { span, .. } => self.misplaced_open_array(file, *span),
             TypeRef::Enum(def) => {
                 let name = format!(
                     "({})",
@@ -969,7 +970,7 @@ impl<'a> Ctx<'a> {
                 self.error(file, block.span, msg);
             }
             for decl in &block.decls {
-                let ty = self.resolve_type_ref(&decl.ty, scope);
+                let ty = self.var_type(&decl.ty, kind, block.kind, scope);
                 if block.kind != VarKind::InOut {
                     self.check_instantiable(&ty, file, decl.span);
                 }
@@ -1130,7 +1131,12 @@ impl<'a> Ctx<'a> {
                                 let sp = init_span(init, decl.span);
                                 self.error(file, sp, "a VAR_IN_OUT has no initial value");
                             }
-                            vec![0u8; 8]
+                            // the pointer (and an open array's bounds: `varlen`)
+                            let size = match &ty {
+                                Ty::OpenArray(a) => a.descriptor_size(),
+                                _ => 8,
+                            };
+                            vec![0u8; size as usize]
                         } else if enable == Some(true) && decl.init.is_none() {
                             // A declared EN is the standard's: TRUE unless given.
                             vec![1]

@@ -111,7 +111,7 @@ pub struct Em<'c, 'a> {
     file: usize,
     b: Body,
     line: u32,
-    sp: usize,
+    pub(super) sp: usize,
     max_sp: usize,
     tmp: u32,
     loops: Vec<Loop>,
@@ -162,7 +162,7 @@ fn effect(op: &Op) -> isize {
 }
 
 impl<'c, 'a> Em<'c, 'a> {
-    fn op(&mut self, op: Op) -> usize {
+    pub(super) fn op(&mut self, op: Op) -> usize {
         let at = self.b.code.len();
         self.sp = (self.sp as isize + effect(&op)).max(0) as usize;
         self.max_sp = self.max_sp.max(self.sp);
@@ -193,11 +193,11 @@ impl<'c, 'a> Em<'c, 'a> {
         at
     }
 
-    fn pc(&self) -> u32 {
+    pub(super) fn pc(&self) -> u32 {
         self.b.code.len() as u32
     }
 
-    fn patch(&mut self, at: usize, target: u32) {
+    pub(super) fn patch(&mut self, at: usize, target: u32) {
         match &mut self.b.code[at] {
             Op::Goto(t) => *t = target,
             Op::GotoIf { target: t, .. } => *t = target,
@@ -244,7 +244,7 @@ impl<'c, 'a> Em<'c, 'a> {
         self.push_slot(cv_slot(&Cv::Int(v), p));
     }
 
-    fn elem(&self, ty: &Ty) -> Elem {
+    pub(super) fn elem(&self, ty: &Ty) -> Elem {
         ty.elem(&self.cx.types).unwrap_or(Elem::I64)
     }
 
@@ -333,6 +333,10 @@ impl<'c, 'a> Em<'c, 'a> {
                 self.op(Op::Deref { size });
             }
             TK::Index(b, ix) => {
+                if let Ty::OpenArray(open) = &b.ty {
+                    self.open_array_addr(b, ix, open);
+                    return;
+                }
                 let Ty::Array(a) = &b.ty else { unreachable!("checked") };
                 let unit = self.memory(b).stride(a, self.elem(&a.of));
                 self.addr_in(b, false);
@@ -372,7 +376,7 @@ impl<'c, 'a> Em<'c, 'a> {
     }
 
     /// Pushes a scalar's value, or an aggregate's pointer.
-    fn value(&mut self, e: &TExpr) {
+    pub(super) fn value(&mut self, e: &TExpr) {
         match &e.k {
             TK::Const(cv) => match (cv, &e.ty) {
                 (Cv::Str(s), _) => {

@@ -728,6 +728,9 @@ impl<'a> Ctx<'a> {
                         }
                         TExpr { k: TK::Index(Box::new(b), ix), ty: a.of.clone(), span }
                     }
+                    Ty::OpenArray(a) => {
+                        self.open_array_element(b, ix, &a, &expr_text(base), span, file)
+                    }
                     other => {
                         let n = self.ty_name(&other);
                         let name = expr_text(base);
@@ -1022,6 +1025,9 @@ impl<'a> Ctx<'a> {
         let span = te.span;
         if te.ty.is_error() || to.is_error() {
             return TExpr { ty: to.clone(), ..te };
+        }
+        if matches!(to, Ty::OpenArray(_)) || matches!(te.ty, Ty::OpenArray(_)) {
+            return self.open_array_whole(span, file);
         }
         if &te.ty == to {
             return te;
@@ -1891,6 +1897,13 @@ impl<'a> Ctx<'a> {
                         format!("VAR_IN_OUT `{}` of `{name}` needs a variable", v.name),
                     );
                     ok = false;
+                    continue;
+                }
+                if let Ty::OpenArray(_) = v.ty {
+                    match self.open_array_args(&v, off, t, &name, file) {
+                        Some(args) => out_args.extend(args),
+                        None => ok = false,
+                    }
                     continue;
                 }
                 let derived =

@@ -63,6 +63,7 @@ mod stmt;
 pub mod types;
 mod union;
 mod var_config;
+mod varlen;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

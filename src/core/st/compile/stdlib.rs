@@ -94,10 +94,56 @@ fn kind_name(ty: &Ty) -> &'static str {
 }
 
 const NAMES: &[&str] = &[
-    "ABS", "SQRT", "LN", "LOG", "EXP", "EXPT", "SIN", "COS", "TAN", "ASIN", "ACOS", "ATAN", "ADD",
-    "SUB", "MUL", "DIV", "MOD", "MIN", "MAX", "LIMIT", "SEL", "MUX", "SHL", "SHR", "ROL", "ROR",
-    "AND", "OR", "XOR", "NOT", "MOVE", "TRUNC", "LEN", "LEFT", "RIGHT", "MID", "CONCAT", "FIND",
-    "INSERT", "DELETE", "REPLACE", "GT", "GE", "EQ", "LE", "LT", "NE", "SIZEOF",
+    "ABS",
+    "SQRT",
+    "LN",
+    "LOG",
+    "EXP",
+    "EXPT",
+    "SIN",
+    "COS",
+    "TAN",
+    "ASIN",
+    "ACOS",
+    "ATAN",
+    "ADD",
+    "SUB",
+    "MUL",
+    "DIV",
+    "MOD",
+    "MIN",
+    "MAX",
+    "LIMIT",
+    "SEL",
+    "MUX",
+    "SHL",
+    "SHR",
+    "ROL",
+    "ROR",
+    "AND",
+    "OR",
+    "XOR",
+    "NOT",
+    "MOVE",
+    "TRUNC",
+    "LEN",
+    "LEFT",
+    "RIGHT",
+    "MID",
+    "CONCAT",
+    "FIND",
+    "INSERT",
+    "DELETE",
+    "REPLACE",
+    "GT",
+    "GE",
+    "EQ",
+    "LE",
+    "LT",
+    "NE",
+    "SIZEOF",
+    "LOWER_BOUND",
+    "UPPER_BOUND",
 ];
 
 /// Whether `name` is a standard function's (`SEL`, `INT_TO_REAL`…): reserved, so that no
@@ -877,6 +923,12 @@ impl<'a> Ctx<'a> {
                 }
                 TExpr { k: TK::Std(Std::Chain(cmp), conv), ty: Ty::Prim(Prim::Bool), span }
             }
+            "LOWER_BOUND" | "UPPER_BOUND" => {
+                if !self.arity(name, n, 2, 2, span, file) {
+                    return TExpr::error(span);
+                }
+                self.array_bound(&a, name == "UPPER_BOUND", span, scope)
+            }
             "SIZEOF" => {
                 if !self.arity(name, n, 1, 1, span, file) {
                     return TExpr::error(span);
@@ -1089,7 +1141,7 @@ impl<'a> Ctx<'a> {
         for (p, n) in saved.into_iter().enumerate() {
             self.pous[p].callees.truncate(n);
         }
-        let sized = !matches!(t.ty, Ty::IntLit | Ty::RealLit | Ty::Void);
+        let sized = !matches!(t.ty, Ty::IntLit | Ty::RealLit | Ty::Void | Ty::OpenArray(_));
         if !self.want(&t, sized, "SIZEOF", "a variable or a type", file) {
             return TExpr::error(span);
         }

@@ -283,6 +283,9 @@ pub enum Ty {
     /// `WSTRING[n]`: `n` UTF-16 code units of 2 bytes and the 2-byte NUL after them.
     WStr(u32),
     Array(Rc<ArrayTy>),
+    /// `ARRAY [*, …] OF T`, the type of a VAR_IN_OUT only: its storage is the passed array's
+    /// pointer and its bounds ([`OpenArrayTy`]).
+    OpenArray(Rc<OpenArrayTy>),
     /// Index into [`Types::structs`].
     Struct(usize),
     /// Index into [`Types::enums`].
@@ -319,6 +322,32 @@ pub struct ArrayTy {
 impl ArrayTy {
     pub fn count(&self) -> u64 {
         self.dims.iter().map(|(lo, hi)| (hi - lo + 1) as u64).product()
+    }
+}
+
+/// `ARRAY [*, …] OF of`: `rank` open dimensions of `elem_size`-byte elements (`compile::varlen`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct OpenArrayTy {
+    pub rank: usize,
+    pub of: Ty,
+    pub elem_size: u32,
+}
+
+impl OpenArrayTy {
+    /// The bytes of a VAR_IN_OUT of this type: the pointer, then a lower bound and a length
+    /// (each a `LINT`) per dimension.
+    pub fn descriptor_size(&self) -> u32 {
+        8 + 16 * self.rank as u32
+    }
+
+    /// Where dimension `d`'s (0-based) lower bound is, from the start of the storage.
+    pub fn lower_at(d: usize) -> u32 {
+        8 + 16 * d as u32
+    }
+
+    /// Where dimension `d`'s length is.
+    pub fn len_at(d: usize) -> u32 {
+        16 + 16 * d as u32
     }
 }
 
@@ -388,6 +417,10 @@ impl Types {
             }
             Ty::Iface(i) => self.interfaces[*i].clone(),
             Ty::Null => "NULL".into(),
+            Ty::OpenArray(a) => {
+                let stars = vec!["*"; a.rank].join(", ");
+                format!("ARRAY [{stars}] OF {}", self.name(&a.of))
+            }
             Ty::IntLit => "ANY_INT".into(),
             Ty::RealLit => "ANY_REAL".into(),
             Ty::Void => "no value".into(),
@@ -405,6 +438,7 @@ impl Types {
             Ty::Enum(i) => self.enums[*i].base.elem().size(),
             Ty::Fb(i) => self.fbs.get(*i).and_then(|f| f.as_ref()).map_or(0, |f| f.1),
             Ty::Ref(..) | Ty::Null | Ty::Iface(_) => 8,
+            Ty::OpenArray(a) => a.descriptor_size(),
             Ty::IntLit => 8,
             Ty::RealLit => 8,
             Ty::Void | Ty::Error => 0,
@@ -440,7 +474,10 @@ impl Ty {
 
     /// Held by reference (copied with `Copy` or `Str`), not as a slot.
     pub fn is_aggregate(&self) -> bool {
-        matches!(self, Ty::Str(_) | Ty::WStr(_) | Ty::Array(_) | Ty::Struct(_) | Ty::Fb(_))
+        matches!(
+            self,
+            Ty::Str(_) | Ty::WStr(_) | Ty::Array(_) | Ty::OpenArray(_) | Ty::Struct(_) | Ty::Fb(_)
+        )
     }
 
     /// A `WSTRING[n]`: its string operations are [`crate::lang::ops::Op::Str`] with `wide`.

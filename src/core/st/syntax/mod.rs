@@ -47,6 +47,8 @@ pub(crate) enum Want {
     LBracket,
     CommaOrRParen,
     CommaOrRBracket,
+    /// `*`: the next dimension of an `ARRAY [*, …]`.
+    Star,
     Assign,
     Then,
     Do,
@@ -74,7 +76,7 @@ pub(crate) enum Want {
 }
 
 impl Want {
-    pub(crate) const ALL: [Want; 33] = [
+    pub(crate) const ALL: [Want; 34] = [
         Want::SemiAfterStmt,
         Want::SemiAfterDecl,
         Want::Stmt,
@@ -84,6 +86,7 @@ impl Want {
         Want::LBracket,
         Want::CommaOrRParen,
         Want::CommaOrRBracket,
+        Want::Star,
         Want::Assign,
         Want::Then,
         Want::Do,
@@ -121,6 +124,7 @@ impl Want {
             Want::LBracket => "`[`",
             Want::CommaOrRParen => "`,` or `)`",
             Want::CommaOrRBracket => "`,` or `]`",
+            Want::Star => "`*` (every dimension of an `ARRAY [*, …]` is open)",
             Want::Assign => "`:=`",
             Want::Then => "`THEN`",
             Want::Do => "`DO`",

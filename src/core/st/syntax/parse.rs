@@ -1291,6 +1291,22 @@ impl<'a> Parser<'a> {
             Tok::Kw(Kw::Array) => {
                 self.bump();
                 self.expect_p(P::LBracket, Want::LBracket)?;
+                if self.eat_p(P::Star) {
+                    // `ARRAY [*, *] OF T`: every dimension open
+                    let mut rank = 1;
+                    while self.eat_p(P::Comma) {
+                        self.expect_p(P::Star, Want::Star)?;
+                        rank += 1;
+                    }
+                    self.expect_p(P::RBracket, Want::CommaOrRBracket)?;
+                    if !self.eat_kw(Kw::Of) {
+                        return Err(self.fail(Want::Of));
+                    }
+                    self.enter()?;
+                    let of = self.type_ref();
+                    self.depth -= 1;
+                    return Ok(TypeRef::OpenArray { rank, of: Box::new(of?), span });
+                }
                 let mut dims = Vec::new();
                 loop {
                     let lo = self.expr()?;

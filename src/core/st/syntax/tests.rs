@@ -889,6 +889,11 @@ fn parses_types() {
     assert_eq!((dims, span), (vec!["1..10".to_string(), "(- 5)..(- N 1)".to_string()], sp(3, 5)));
     let TypeRef::Array { of, .. } = *of else { panic!() };
     assert!(matches!(*of, TypeRef::Named(ref n) if n.is("point")));
+    // `ARRAY [*, *] OF T` (IEC 61131-3 ed. 3): open dimensions, counted
+    let TypeRef::OpenArray { rank, of, span } = ty("ARRAY [*, *] OF INT") else { panic!() };
+    assert_eq!((rank, span), (2, sp(3, 5)));
+    assert!(matches!(*of, TypeRef::Named(ref n) if n.is("INT")));
+    assert!(matches!(ty("ARRAY[*] OF Point"), TypeRef::OpenArray { rank: 1, .. }));
     let TypeRef::Subrange { base, lo, hi, .. } = ty("INT (0..100)") else { panic!() };
     assert_eq!((base.name.as_str(), sx(&lo), sx(&hi)), ("INT", "0".into(), "100".into()));
     let TypeRef::Subrange { lo, .. } = ty("INT (-Lo..Hi)") else { panic!() };
@@ -1284,6 +1289,12 @@ fn reports_declaration_errors() {
     assert_eq!(var("x : ARRAY [1] OF INT;"), ["2:13: expected `..`, found `]`"]);
     assert_eq!(var("x : ARRAY [1..2 OF INT;"), ["2:17: expected `,` or `]`, found `OF`"]);
     assert_eq!(var("x : ARRAY [1..2] INT;"), ["2:18: expected `OF`, found `INT`"]);
+    // every dimension of an open array is `*`
+    assert_eq!(
+        var("x : ARRAY [*, 1..2] OF INT;"),
+        ["2:15: expected `*` (every dimension of an `ARRAY [*, …]` is open), found `1`"]
+    );
+    assert_eq!(var("x : ARRAY [*] INT;"), ["2:15: expected `OF`, found `INT`"]);
     assert_eq!(var("x : STRING[10;"), ["2:14: expected `]`, found `;`"]);
     assert_eq!(var("x : (A, B;"), ["2:10: expected `,` or `)`, found `;`"]);
     assert_eq!(var("x : INT (1, 2);"), ["2:10: expected a name, found `1`"]);
