@@ -68,6 +68,20 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` needs an array, not `{}`", "bound-needs-array"),
     ("the dimension of `{}` must be a constant from 1 to {}", "bound-dimension"),
     ("VAR_IN_OUT `{}` of `{}` needs a `{}` variable, not `{}`", "open-array-argument"),
+    // generic.rs: CODESYS's generic inputs (`x : ANY_INT`)
+    (
+        "`{}` is only the type of a VAR_INPUT of a FUNCTION, FUNCTION_BLOCK or METHOD",
+        "generic-misplaced",
+    ),
+    (
+        "`{}` of `{}` is `{}`: it needs a variable of that category, not {}",
+        "generic-argument",
+    ),
+    (
+        "`{}` of `{}` is `{}`: it needs a variable of that category, not {}",
+        "generic-argument-value",
+    ),
+    ("`__SYSTEM.TYPE_CLASS` has no value `{}`", "type-class-value"),
     // union.rs: CODESYS's UNION
     ("a UNION member cannot be located", "located-union-member"),
     ("a UNION member cannot be {}: other members' bytes would forge it", "union-member-instance"),
@@ -443,6 +457,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
     ),
     ("`SIZEOF` is not IEC 61131-3 (`[st] strict` is on)", "strict-sizeof"),
     (
+        "a VAR_INPUT of a generic type (`ANY…`) is CODESYS: IEC 61131-3 keeps generic types to its standard functions; write one POU per type (`[st] strict` is on)",
+        "strict-generic-input",
+    ),
+    (
         "IEC 61131-3 has no conversion between references and numbers: move a `POINTER TO` by `p + n` and compare pointers with each other (`[st] strict` is on)",
         "strict-pointer-integer",
     ),
@@ -560,6 +578,8 @@ const UNREACHABLE: &[(&str, &str)] = &[
 /// Literals of the compiler sources that are not messages by themselves: words and hints that
 /// messages are built from, and type names.
 const PARTS: &[&str] = &[
+    // what a generic input was given instead of a variable (generic.rs)
+    "a value",
     // what a UNION member cannot be (union.rs)
     "a function block instance",
     "an interface",

@@ -49,6 +49,8 @@ pub enum Habit {
     TimeClock,
     /// `SIZEOF(x)`: the bytes a variable or a type takes.
     Sizeof,
+    /// A VAR_INPUT of a generic type (`x : ANY_INT`) in a user POU (`compile::generic`).
+    GenericInput,
     /// The BCD conversions of CODESYS's Util library (`BCD_TO_INT`, `INT_TO_BCD`…).
     UtilBcd,
     /// A bit string given where an integer is wanted, or an integer where a bit string is,
@@ -94,6 +96,7 @@ impl Habit {
             Habit::IntegerExpt => "IEC 61131-3 raises a `REAL` or `LREAL` base only: `EXPT(INT_TO_REAL(i), n)` (`[st] strict` is on)".to_string(),
             Habit::TimeClock => "`TIME()` is CODESYS's clock, not IEC 61131-3: measure durations with the standard timers (`TON`) (`[st] strict` is on)".to_string(),
             Habit::Sizeof => "`SIZEOF` is not IEC 61131-3 (`[st] strict` is on)".to_string(),
+            Habit::GenericInput => "a VAR_INPUT of a generic type (`ANY…`) is CODESYS: IEC 61131-3 keeps generic types to its standard functions; write one POU per type (`[st] strict` is on)".to_string(),
             Habit::ImplicitConversion => "IEC 61131-3 converts between bit strings and integers only explicitly: `BYTE_TO_INT(b)` (`[st] strict` is on)".to_string(),
             Habit::WidenedLiteral => "the constant does not fit the other operand's type: IEC 61131-3 widens only explicitly, `INT_TO_DINT(i) * 60000` (`[st] strict` is on)".to_string(),
             Habit::PointerInteger => "IEC 61131-3 has no conversion between references and numbers: move a `POINTER TO` by `p + n` and compare pointers with each other (`[st] strict` is on)".to_string(),

@@ -247,6 +247,9 @@ impl<'a> Ctx<'a> {
                 if let Some(&i) = self.oop.interface_names.get(&key(&id.name)) {
                     return Ty::Iface(i);
                 }
+                if let Some(ty) = self.misplaced_generic(file, id) {
+                    return ty;
+                }
                 let mut names: Vec<String> =
                     self.type_decls.iter().map(|t| t.decl.name.name.clone()).collect();
                 names.extend(

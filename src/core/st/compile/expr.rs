@@ -559,6 +559,9 @@ impl<'a> Ctx<'a> {
             }
             ExprKind::Member(base, id) => {
                 if access == Access::Read {
+                    if let Some(v) = self.system_type_class(e, span, file) {
+                        return v;
+                    }
                     if let Some(v) = self.dotted_enum_value(base, id, span, scope, expected) {
                         return v;
                     }
@@ -1929,6 +1932,13 @@ impl<'a> Ctx<'a> {
                 }
                 out_args.push(ArgT { offset: off, ty: v.ty, by_ref: true, value: t });
             } else {
+                if self.generic_category(&v.ty).is_some() {
+                    match self.generic_args(&v, off, value, &name, scope) {
+                        Some(args) => out_args.extend(args),
+                        None => ok = false,
+                    }
+                    continue;
+                }
                 let t = match v.ty {
                     Ty::Ref(RefKind::Reference, _) => self.bound_reference(value, scope, &v.ty),
                     _ => self.check_expr(value, scope, Some(&v.ty)),

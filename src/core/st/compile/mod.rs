@@ -50,6 +50,7 @@ mod decl;
 mod emit;
 mod expr;
 mod fb_init;
+mod generic;
 mod instance_args;
 mod jumps;
 mod method_vars;

@@ -62,7 +62,10 @@ impl<'a> Ctx<'a> {
                 let elem_size = self.types.size(&of);
                 Ty::OpenArray(Rc::new(OpenArrayTy { rank: *rank, of, elem_size }))
             }
-            _ => self.resolve_type_ref(ty, scope),
+            _ => match self.generic_input_type(ty, kind, block, scope) {
+                Some(generic) => generic,
+                None => self.resolve_type_ref(ty, scope),
+            },
         }
     }
 
