@@ -82,6 +82,11 @@ const MESSAGES: &[(&str, &str)] = &[
         "generic-argument-value",
     ),
     ("`__SYSTEM.TYPE_CLASS` has no value `{}`", "type-class-value"),
+    // bit.rs: TwinCAT's and CODESYS's BIT
+    (
+        "`BIT` is only the type of a STRUCT member or of a FUNCTION_BLOCK's VAR, VAR_INPUT or VAR_OUTPUT",
+        "bit-misplaced",
+    ),
     // union.rs: CODESYS's UNION
     ("a UNION member cannot be located", "located-union-member"),
     ("a UNION member cannot be {}: other members' bytes would forge it", "union-member-instance"),
@@ -460,6 +465,7 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "a VAR_INPUT of a generic type (`ANY…`) is CODESYS: IEC 61131-3 keeps generic types to its standard functions; write one POU per type (`[st] strict` is on)",
         "strict-generic-input",
     ),
+    ("`BIT` is CODESYS and TwinCAT, not IEC 61131-3: declare a `BOOL` (`[st] strict` is on)", "strict-bit"),
     (
         "IEC 61131-3 has no conversion between references and numbers: move a `POINTER TO` by `p + n` and compare pointers with each other (`[st] strict` is on)",
         "strict-pointer-integer",

@@ -51,6 +51,8 @@ pub enum Habit {
     Sizeof,
     /// A VAR_INPUT of a generic type (`x : ANY_INT`) in a user POU (`compile::generic`).
     GenericInput,
+    /// `BIT`: a STRUCT member or FUNCTION_BLOCK variable, a `BOOL` in plcd (`compile::bit`).
+    Bit,
     /// The BCD conversions of CODESYS's Util library (`BCD_TO_INT`, `INT_TO_BCD`…).
     UtilBcd,
     /// A bit string given where an integer is wanted, or an integer where a bit string is,
@@ -96,6 +98,7 @@ impl Habit {
             Habit::IntegerExpt => "IEC 61131-3 raises a `REAL` or `LREAL` base only: `EXPT(INT_TO_REAL(i), n)` (`[st] strict` is on)".to_string(),
             Habit::TimeClock => "`TIME()` is CODESYS's clock, not IEC 61131-3: measure durations with the standard timers (`TON`) (`[st] strict` is on)".to_string(),
             Habit::Sizeof => "`SIZEOF` is not IEC 61131-3 (`[st] strict` is on)".to_string(),
+            Habit::Bit => "`BIT` is CODESYS and TwinCAT, not IEC 61131-3: declare a `BOOL` (`[st] strict` is on)".to_string(),
             Habit::GenericInput => "a VAR_INPUT of a generic type (`ANY…`) is CODESYS: IEC 61131-3 keeps generic types to its standard functions; write one POU per type (`[st] strict` is on)".to_string(),
             Habit::ImplicitConversion => "IEC 61131-3 converts between bit strings and integers only explicitly: `BYTE_TO_INT(b)` (`[st] strict` is on)".to_string(),
             Habit::WidenedLiteral => "the constant does not fit the other operand's type: IEC 61131-3 widens only explicitly, `INT_TO_DINT(i) * 60000` (`[st] strict` is on)".to_string(),

@@ -250,6 +250,9 @@ impl<'a> Ctx<'a> {
                 if let Some(ty) = self.misplaced_generic(file, id) {
                     return ty;
                 }
+                if let Some(ty) = self.misplaced_bit(file, id) {
+                    return ty;
+                }
                 let mut names: Vec<String> =
                     self.type_decls.iter().map(|t| t.decl.name.name.clone()).collect();
                 names.extend(
@@ -505,7 +508,7 @@ impl<'a> Ctx<'a> {
                 let mut out: Vec<Member> = Vec::new();
                 let mut img = Vec::new();
                 for m in members {
-                    let mty = self.resolve_type_ref(&m.ty, scope);
+                    let mty = self.member_type(&m.ty, scope);
                     if let Some(loc) = &m.location {
                         self.error(file, loc.span, "a STRUCT member cannot be located");
                     }

@@ -40,9 +40,10 @@ fn descriptor_field(s: Storage, n: u32, span: Span) -> TExpr {
 }
 
 impl<'a> Ctx<'a> {
-    /// The type of a declared variable of a `kind` POU's `block`: an `ARRAY [*]` where one is
-    /// allowed (a VAR_IN_OUT of a FUNCTION, FUNCTION_BLOCK or METHOD; a METHOD is compiled as
-    /// a FUNCTION), any other type as [`Ctx::resolve_type_ref`] resolves it.
+    /// The type of a declared variable of a `kind` POU's `block`, with the forms only some
+    /// declarations allow: an `ARRAY [*]` (a VAR_IN_OUT of a FUNCTION, FUNCTION_BLOCK or
+    /// METHOD; a METHOD is compiled as a FUNCTION), a generic input (`compile::generic`), a
+    /// `BIT` (`compile::bit`); any other type as [`Ctx::resolve_type_ref`] resolves it.
     pub(super) fn var_type(
         &mut self,
         ty: &TypeRef,
@@ -64,7 +65,10 @@ impl<'a> Ctx<'a> {
             }
             _ => match self.generic_input_type(ty, kind, block, scope) {
                 Some(generic) => generic,
-                None => self.resolve_type_ref(ty, scope),
+                None => match self.block_bit_type(ty, kind, block, scope.file) {
+                    Some(bit) => bit,
+                    None => self.resolve_type_ref(ty, scope),
+                },
             },
         }
     }
