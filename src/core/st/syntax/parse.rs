@@ -1799,7 +1799,12 @@ impl<'a> Parser<'a> {
                 Ident { name: String::new(), span: opened }
             }
         };
-        self.expect_p_soft(P::Assign, Want::Assign);
+        // `FOR a[i] := …`, `FOR s.n := …`: the standard's control variable is a name alone
+        let want = match self.tok_at(0) {
+            Tok::P(P::LBracket | P::Dot) => Want::ForCounter,
+            _ => Want::Assign,
+        };
+        self.expect_p_soft(P::Assign, want);
         let from = self.expr_until(&[Kw::To]);
         self.expect_kw_soft(Kw::To, Want::To);
         let to = self.expr_until(&[Kw::By, Kw::Do]);

@@ -1276,6 +1276,16 @@ fn recovers_inside_conditions() {
         ["2:24: expected `END_REPEAT`, found `END_WHILE`"]
     );
     assert_eq!(body_errors("FOR 1 := 1 TO 2 DO END_FOR;"), ["2:5: expected a name, found `1`"]);
+    // a control variable is a name alone: an element or a member says so
+    let counter = "expected `:=` after the control variable (IEC 61131-3 counts in a variable named alone, not in an element or a member: count in a local variable and copy it)";
+    assert_eq!(
+        body_errors("FOR a[1] := 1 TO 2 DO END_FOR;"),
+        [format!("2:6: {counter}, found `[`")]
+    );
+    assert_eq!(
+        body_errors("FOR s.n := 1 TO 2 DO END_FOR;"),
+        [format!("2:6: {counter}, found `.`")]
+    );
     assert_eq!(body_errors("IF (a THEN x := 1; END_IF;"), ["2:7: expected `)`, found `THEN`"]);
     assert_eq!(body_errors("IF a + ; x := 1; END_IF;"), ["2:8: expected an expression, found `;`"]);
 }
