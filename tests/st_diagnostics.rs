@@ -68,6 +68,10 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` needs an array, not `{}`", "bound-needs-array"),
     ("the dimension of `{}` must be a constant from 1 to {}", "bound-dimension"),
     ("VAR_IN_OUT `{}` of `{}` needs a `{}` variable, not `{}`", "open-array-argument"),
+    (
+        "an array located at a device cannot be passed to an `ARRAY [*]`: copy it into a variable first",
+        "open-array-at-device",
+    ),
     // generic.rs: CODESYS's generic inputs (`x : ANY_INT`)
     (
         "`{}` is only the type of a VAR_INPUT of a FUNCTION, FUNCTION_BLOCK or METHOD",

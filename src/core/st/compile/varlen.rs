@@ -34,6 +34,15 @@ fn field(s: Storage, n: u32) -> Storage {
     }
 }
 
+/// Whether a place is in device memory (a located variable, or an element or member of one).
+fn at_device(t: &TExpr) -> bool {
+    match &t.k {
+        TK::Var { storage, .. } => matches!(storage, Storage::Word(_) | Storage::Bit(_)),
+        TK::Index(b, _) | TK::Member(b, _, _) => at_device(b),
+        _ => false,
+    }
+}
+
 /// A `LINT` field of an open array's descriptor, read as a variable.
 fn descriptor_field(s: Storage, n: u32, span: Span) -> TExpr {
     TExpr { k: TK::Var { storage: field(s, n), by_ref: false }, ty: Ty::Prim(Prim::LInt), span }
@@ -145,6 +154,15 @@ impl<'a> Ctx<'a> {
                 return None;
             }
         };
+        if at_device(&t) {
+            // the callee steps through the array in bytes; a device's words are counted in words
+            self.error(
+                file,
+                span,
+                "an array located at a device cannot be passed to an `ARRAY [*]`: copy it into a variable first",
+            );
+            return None;
+        }
         let mut args = vec![ArgT { offset, ty: v.ty.clone(), by_ref: true, value: t }];
         for (d, (lower, len)) in bounds.into_iter().enumerate() {
             let lint = Ty::Prim(Prim::LInt);
