@@ -210,6 +210,10 @@ const MESSAGES: &[(&str, &str)] = &[
     ("this statement needs {} evaluation stack slots (limit {})", "statement-stack-too-deep"),
     ("`{}` needs {} bytes of frame (limit 1 MiB)", "statement-frame-too-large"),
     // expr.rs: expressions, places, calls
+    (
+        "VAR_IN_OUT `{}` of `{}`: an array or structure located at a device word cannot be passed by reference: copy it into a variable first",
+        "in-out-at-device-words",
+    ),
     ("a string constant is at most 255 characters", "string-constant-too-long"),
     ("unknown type `{}`", "typed-literal-unknown-type"),
     ("`{}#` needs a value name", "typed-literal-needs-name"),

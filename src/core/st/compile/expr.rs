@@ -1902,6 +1902,20 @@ impl<'a> Ctx<'a> {
                     ok = false;
                     continue;
                 }
+                if matches!(v.ty, Ty::Array(_) | Ty::Struct(_)) && at_device_words(&t) {
+                    // The callee steps through its VAR_IN_OUT in bytes; a device's words are
+                    // counted in words, so it would read every other one.
+                    self.error(
+                        file,
+                        value.span,
+                        format!(
+                            "VAR_IN_OUT `{}` of `{name}`: an array or structure located at a device word cannot be passed by reference: copy it into a variable first",
+                            v.name
+                        ),
+                    );
+                    ok = false;
+                    continue;
+                }
                 if let Ty::OpenArray(_) = v.ty {
                     match self.open_array_args(&v, off, t, &name, file) {
                         Some(args) => out_args.extend(args),
@@ -2083,5 +2097,15 @@ fn arith_op(op: BinaryOp) -> BinOp {
         BinaryOp::Mul => BinOp::Mul,
         BinaryOp::Div => BinOp::Div,
         _ => BinOp::Mod,
+    }
+}
+
+/// Whether a place is in device words (a variable located at a word device, or an element or
+/// member of one).
+fn at_device_words(t: &TExpr) -> bool {
+    match &t.k {
+        TK::Var { storage, .. } => matches!(storage, Storage::Word(_)),
+        TK::Index(b, _) | TK::Member(b, _, _) => at_device_words(b),
+        _ => false,
     }
 }
