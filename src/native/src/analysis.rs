@@ -257,6 +257,20 @@ impl Analysis {
         })
     }
 
+    /// Where control goes after the last instruction of the native block at `leaders[index]`:
+    /// a jump's target, the next instruction when it may go on (a call's return site
+    /// included), nothing after a `RETURN` or `END`.
+    pub fn successors(&self, code: &[Op], index: usize) -> Vec<u32> {
+        let range = self.block(code, index);
+        let end = range.end as u32;
+        match code[range.end - 1] {
+            Op::Goto(target) => vec![target],
+            Op::GotoIf { target, .. } => vec![target, end],
+            Op::Return | Op::End => vec![],
+            _ => vec![end],
+        }
+    }
+
     /// Where each block checks the step budget, and for how many instructions (by leader
     /// index): `Some(n)` at a block that checks that `n` instructions are left (the longest
     /// path of native instructions from it to the next check), `None` at a block that does not
@@ -278,21 +292,15 @@ impl Analysis {
             if !is_native(&code[range.start]) {
                 continue;
             }
-            let targets: Vec<u32> = match *last {
-                Op::Goto(target) => vec![target],
-                Op::GotoIf { target, .. } => vec![target, range.end as u32],
-                Op::CallFn { target, .. } | Op::CallFb { target, .. } => {
-                    for entered in [target, range.end as u32] {
-                        if let Some(entered) = index_of(entered) {
-                            checkpoint[entered] = true;
-                        }
+            if let Op::CallFn { target, .. } | Op::CallFb { target, .. } = *last {
+                for entered in [target, range.end as u32] {
+                    if let Some(entered) = index_of(entered) {
+                        checkpoint[entered] = true;
                     }
-                    vec![]
                 }
-                Op::Return | Op::End => vec![],
-                _ => vec![range.end as u32],
-            };
-            for target in targets {
+                continue;
+            }
+            for target in self.successors(code, index) {
                 let Some(to) = index_of(target) else { continue };
                 if target <= range.start as u32 {
                     checkpoint[to] = true;
@@ -351,19 +359,13 @@ impl Analysis {
                 }
                 continue;
             }
-            let targets = match *last {
-                Op::Goto(target) => vec![target],
-                Op::GotoIf { target, .. } => vec![target, end],
-                Op::CallFn { .. } | Op::CallFb { .. } => {
-                    if let Some(after) = index_of(end) {
-                        entered[after] = true;
-                    }
-                    vec![]
+            if let Op::CallFn { .. } | Op::CallFb { .. } = *last {
+                if let Some(after) = index_of(end) {
+                    entered[after] = true;
                 }
-                Op::Return | Op::End => vec![],
-                _ => vec![end],
-            };
-            for to in targets.into_iter().filter_map(index_of) {
+                continue;
+            }
+            for to in self.successors(code, index).into_iter().filter_map(index_of) {
                 jumps_in[to] += 1;
             }
         }

@@ -401,14 +401,7 @@ pub(crate) fn carried(
         if !is_native(&code[range.start]) {
             continue;
         }
-        let end = range.end as u32;
-        let targets = match code[range.end - 1] {
-            Op::Goto(target) => vec![target],
-            Op::GotoIf { target, .. } => vec![target, end],
-            Op::Return | Op::End => vec![],
-            _ => vec![end],
-        };
-        for to in targets.into_iter().filter_map(index_of) {
+        for to in analysis.successors(code, leaders[from]).into_iter().filter_map(index_of) {
             predecessors[to].push(from);
             successors[from].push(to);
         }

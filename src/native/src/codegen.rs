@@ -790,15 +790,7 @@ impl<'a> Gen<'a, '_> {
     /// Where control goes after the last instruction of the block of leader `body_index` (a
     /// call's return site included).
     fn successors(&self, body_index: usize) -> Vec<u32> {
-        let code = &self.program.code;
-        let range = self.analysis.block(code, self.leaders[body_index]);
-        let end = range.end as u32;
-        match code[range.end - 1] {
-            Op::Goto(target) => vec![target],
-            Op::GotoIf { target, .. } => vec![end, target],
-            Op::Return | Op::End => vec![],
-            _ => vec![end],
-        }
+        self.analysis.successors(&self.program.code, self.leaders[body_index])
     }
 
     /// After the block of leader `body_index`: the indices it found inside their range, to
