@@ -3,9 +3,11 @@
 //! where a pointer into variable memory may point ([`Reach`]), which both follow to know what
 //! a store through it may change.
 //!
-//! Native code writes every store through to memory, and remembers in a register the value of
-//! each fixed place (a variable, a frame or FB-instance member: [`Place`]) it stored or fetched,
-//! until a store may change it ([`may_change`]). Inside a block that spares the loads of
+//! Native code remembers in a register the value of each fixed place (a variable, a frame or
+//! FB-instance member: [`Place`]) it stored or fetched, until a store may change it
+//! ([`may_change`]). It writes a store through to memory at once, except in a loop
+//! ([`in_loops`]) for a value that goes on in a register to the next blocks: that one is
+//! written back where something else may read the place or the code leaves ([`unwritten`]). Inside a block that spares the loads of
 //! variables used again; across blocks it spares the loads of a loop's variables at each round,
 //! and the wait of each load for the store just before it. A block receives the value of a
 //! place when every block that jumps to it holds it at its end: an intersection over the
@@ -482,4 +484,98 @@ pub(crate) fn carried(
     }
 
     into
+}
+
+/// For each of a body's blocks (`leaders`, as for [`carried`]), the values it receives
+/// (`carried`, [`carried`]'s result) that a block before it may have stored and not written
+/// to memory yet: `codegen` keeps a store in a loop (`in_loop`, [`in_loops`]) in a register
+/// while the value goes on in one to the next blocks, and writes it back where something else
+/// may read the place. Forwards, as
+/// reaching definitions: a block passes on what it received unwritten and what it stores,
+/// except after a call (the code writes every value back before one); over-approximated
+/// (a write-back inside a block is not followed), which only costs a store of a value memory
+/// holds already.
+pub(crate) fn unwritten(
+    program: &Program,
+    analysis: &Analysis,
+    leaders: &[usize],
+    carried: &[Vec<Key>],
+    in_loop: &[bool],
+) -> Vec<Vec<Key>> {
+    let code = &program.code;
+    let index_of =
+        |pc: u32| leaders.binary_search_by_key(&pc, |&leader| analysis.leaders[leader]).ok();
+    let blocks: Vec<_> = leaders.iter().map(|&leader| analysis.block(code, leader)).collect();
+    let mut successors = vec![Vec::new(); blocks.len()];
+    let mut stores: Vec<Option<Vec<Key>>> = vec![None; blocks.len()];
+    for (from, range) in blocks.iter().enumerate() {
+        if !is_native(&code[range.start]) {
+            continue;
+        }
+        successors[from] =
+            analysis.successors(code, leaders[from]).into_iter().filter_map(index_of).collect();
+        let ends_in_call = matches!(code[range.end - 1], Op::CallFn { .. } | Op::CallFb { .. });
+        if !ends_in_call {
+            let mut keys = Vec::new();
+            // (Outside a loop, stores are written at once.)
+            let deferred = if in_loop[from] { &code[range.clone()] } else { &[] };
+            for op in deferred {
+                if let Op::Store { elem, at } = *op {
+                    if in_bytes(at) && !keys.contains(&(at, elem)) {
+                        keys.push((at, elem));
+                    }
+                }
+            }
+            stores[from] = Some(keys);
+        }
+    }
+    let mut into: Vec<Vec<Key>> = vec![Vec::new(); blocks.len()];
+    let mut changed = true;
+    while changed {
+        changed = false;
+        for from in 0..blocks.len() {
+            let Some(stored) = &stores[from] else { continue };
+            let out: Vec<Key> = into[from].iter().chain(stored).copied().collect();
+            for &to in &successors[from] {
+                for &key in &out {
+                    if carried[to].contains(&key) && !into[to].contains(&key) {
+                        into[to].push(key);
+                        changed = true;
+                    }
+                }
+            }
+        }
+    }
+    into
+}
+
+/// For each of a body's blocks (`leaders`, as for [`carried`]): whether it lies inside a loop,
+/// between a jump back and the block it jumps to (Structured Text's loops are compiled so).
+/// `codegen` keeps a store in a register only there, where the loop's next round may store
+/// the place again: elsewhere a value held until it is written back only keeps a register
+/// busy.
+pub(crate) fn in_loops(program: &Program, analysis: &Analysis, leaders: &[usize]) -> Vec<bool> {
+    let code = &program.code;
+    let index_of =
+        |pc: u32| leaders.binary_search_by_key(&pc, |&leader| analysis.leaders[leader]).ok();
+    // +1 where a loop starts, -1 after where it ends.
+    let mut delta = vec![0i64; leaders.len() + 1];
+    for (from, &leader) in leaders.iter().enumerate() {
+        if !is_native(&code[analysis.block(code, leader).start]) {
+            continue;
+        }
+        for to in analysis.successors(code, leader).into_iter().filter_map(index_of) {
+            if to <= from {
+                delta[to] += 1;
+                delta[from + 1] -= 1;
+            }
+        }
+    }
+    let mut depth = 0;
+    (0..leaders.len())
+        .map(|index| {
+            depth += delta[index];
+            depth > 0
+        })
+        .collect()
 }

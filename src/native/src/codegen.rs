@@ -18,6 +18,12 @@
 //!   into variable memory or the frame that needs no check, a BOOL already 0 or 1, a REAL kept
 //!   in a float register) and of each variable it stored or fetched ([`Held`], forgotten at
 //!   any store that may change it), and checks an index against a range once;
+//! - in a loop, a store of a variable whose value goes on in a register to the next blocks is
+//!   not written to memory at once: the value is written back before anything else may read
+//!   the place (a load of bytes it overlaps, through a pointer too, a store through a pointer
+//!   that may change it, a call, a `RETURN`), on a way to a block that does not receive it,
+//!   and on every way out (the budget, an error, the interpreter), so that memory is exactly
+//!   the interpreter's wherever the VM or another body can look ([`carry::unwritten`]);
 //! - every way out stores the registers and the live stack slots back, exactly as the
 //!   interpreter leaves them: at `END`, after an operation error, before an instruction it
 //!   hands to the interpreter (a pointer outside variable memory and the frame, a full call
@@ -164,6 +170,8 @@ pub(crate) fn generate(
     let plan = inline::plan(program, analysis, body, leaders);
     let calls: Vec<(u32, &Writes)> = plan.iter().map(|call| (call.pc, &call.writes)).collect();
     let carried = carry::carried(program, analysis, leaders, &calls);
+    let in_loop = carry::in_loops(program, analysis, leaders);
+    let unwritten = carry::unwritten(program, analysis, leaders, &carried, &in_loop);
     let mut g = Gen {
         b,
         program,
@@ -197,6 +205,9 @@ pub(crate) fn generate(
         dispatch: None,
         carried,
         carry_vars: Vec::new(),
+        unwritten,
+        in_loop,
+        passed_on: Vec::new(),
         info: vec![SlotInfo::default(); analysis.max_depth as usize + 1],
         held: Vec::new(),
         in_range: Vec::new(),
@@ -296,6 +307,14 @@ struct Gen<'a, 'f> {
     /// index in `leaders` ([`carry::carried`]), and the variable that passes each on.
     carried: Vec<Vec<Key>>,
     carry_vars: Vec<(Key, Variable)>,
+    /// The values each of the body's blocks receives not yet written to memory
+    /// ([`carry::unwritten`]), by its index in `leaders`.
+    unwritten: Vec<Vec<Key>>,
+    /// Whether each of the body's blocks is in a loop ([`carry::in_loops`]).
+    in_loop: Vec<bool>,
+    /// In the block being generated: the values the blocks after it receive, if it is in a
+    /// loop (else none: its stores are written at once).
+    passed_on: Vec<Key>,
     /// In the block being generated: what is known of each stack slot.
     info: Vec<SlotInfo>,
     /// In the block being generated: the values of fixed places it stored or fetched, still
@@ -349,6 +368,8 @@ struct Scope<'a> {
     blocks: Vec<Block>,
     carried: Vec<Vec<Key>>,
     carry_vars: Vec<(Key, Variable)>,
+    unwritten: Vec<Vec<Key>>,
+    in_loop: Vec<bool>,
     stack: Vec<Variable>,
     info: Vec<SlotInfo>,
     held: Vec<Held>,
@@ -397,6 +418,10 @@ enum Into {
     Unknown,
 }
 
+/// A way a branch takes ([`Gen::edge`]): the block it goes to, and for a block that writes
+/// values back on the way, the block after it and the values.
+type Edge = (Block, Option<(Block, Vec<Held>)>);
+
 /// The value of a fixed place, as a slot fetched from it now would be.
 #[derive(Clone, Copy)]
 struct Held {
@@ -404,6 +429,8 @@ struct Held {
     elem: Elem,
     value: Value,
     info: SlotInfo,
+    /// Stored by the code and not written to memory yet ([`Gen::write_back`]).
+    dirty: bool,
 }
 
 /// Where the block being generated stands: the instruction's index in it and the block's
@@ -723,6 +750,7 @@ impl<'a> Gen<'a, '_> {
     /// Leaves with `status`: the stack's `depth` slots to memory, the registers with `pc` and
     /// `left` to the context.
     fn exit(&mut self, pc: u32, depth: u32, left: Value, status: u32) {
+        self.write_back_leaving();
         if let Some(inline) = self.inline.take() {
             self.store_record(&inline.record);
             self.inline = Some(inline);
@@ -821,20 +849,7 @@ impl<'a> Gen<'a, '_> {
             self.b.seal_block(self.blocks[body_index]);
         }
         let mut depth = self.depth(start);
-        if !is_native(&code[range.start]) {
-            let left = self.b.use_var(self.regs.left);
-            self.exit(start, depth, left, RETURN_INTERPRET);
-            return false;
-        }
-        let at = At { pc: start, index: 0, len };
-        // The budget (`Analysis::budget_checks`; the frame and the FB instance were checked on
-        // the way into the body).
-        let left = self.b.use_var(self.regs.left);
-        let (checks, need) = self.checks[index];
-        if checks {
-            let short = self.b.ins().icmp_imm_s(IntCC::UnsignedLessThan, left, need as i64);
-            self.bail_if(short, At { index: len, ..at }, depth);
-        }
+        // What it receives, before any way out (which writes back what it received unwritten).
         self.info.fill(SlotInfo::default());
         self.held.clear();
         for (place, elem) in self.carried[body_index].clone() {
@@ -850,9 +865,36 @@ impl<'a> Gen<'a, '_> {
             } else {
                 self.b.use_var(var)
             };
-            self.held.push(Held { place, elem, value, info });
+            let dirty = self.unwritten[body_index].contains(&(place, elem));
+            self.held.push(Held { place, elem, value, info, dirty });
+        }
+        if !is_native(&code[range.start]) {
+            let left = self.b.use_var(self.regs.left);
+            self.exit(start, depth, left, RETURN_INTERPRET);
+            return false;
+        }
+        let at = At { pc: start, index: 0, len };
+        // The budget (`Analysis::budget_checks`; the frame and the FB instance were checked on
+        // the way into the body).
+        let left = self.b.use_var(self.regs.left);
+        let (checks, need) = self.checks[index];
+        if checks {
+            let short = self.b.ins().icmp_imm_s(IntCC::UnsignedLessThan, left, need as i64);
+            self.bail_if(short, At { index: len, ..at }, depth);
         }
         self.in_range = known_ranges.unwrap_or_default();
+        self.passed_on.clear();
+        let successors =
+            if self.in_loop[body_index] { self.successors(body_index) } else { vec![] };
+        for pc in successors {
+            if let Some(to) = self.leader_index(pc) {
+                for &key in &self.carried[to] {
+                    if !self.passed_on.contains(&key) {
+                        self.passed_on.push(key);
+                    }
+                }
+            }
+        }
         let left = self.b.ins().iadd_imm_s(left, -i64::from(len));
         self.b.def_var(self.regs.left, left);
         let mut falls_through = true;
@@ -887,6 +929,53 @@ impl<'a> Gen<'a, '_> {
     /// Before a jump to the blocks at `pcs`: the values they receive, as held here, or from
     /// memory where this block does not hold them (memory always holds the same).
     fn pass_on(&mut self, pcs: &[u32]) {
+        // A value not written yet goes on unwritten only to a block that receives it (it
+        // counts what it receives of `stored` places as unwritten); a way out to the
+        // interpreter wrote it back already ([`Gen::target`]).
+        if let [pc] = *pcs {
+            if let Some(index) = self.leader_index(pc) {
+                let carried = &self.carried[index];
+                let unwanted: Vec<Key> = (self.held.iter())
+                    .filter(|h| h.dirty && !carried.contains(&(h.place, h.elem)))
+                    .map(|h| (h.place, h.elem))
+                    .collect();
+                self.write_back_where(|key| unwanted.contains(&key));
+            }
+        }
+        self.define_carried(pcs);
+    }
+
+    /// The way to `block`, the block at `pc`, from a branch of several ways: directly, or
+    /// through a new block that writes back the values not written yet that it does not
+    /// receive (returned with them, for [`Gen::fill_edges`] once the branch is generated).
+    fn edge(&mut self, pc: u32, block: Block) -> Edge {
+        let Some(index) = self.leader_index(pc) else { return (block, None) };
+        let unwanted: Vec<Held> = (self.held.iter())
+            .filter(|h| h.dirty && !self.carried[index].contains(&(h.place, h.elem)))
+            .copied()
+            .collect();
+        if unwanted.is_empty() {
+            return (block, None);
+        }
+        let edge = self.b.create_block();
+        (edge, Some((block, unwanted)))
+    }
+
+    /// The blocks [`Gen::edge`] made, after the branch that ends the current block.
+    fn fill_edges(&mut self, edges: [Edge; 2]) {
+        for (edge, way) in edges {
+            let Some((block, unwanted)) = way else { continue };
+            self.b.switch_to_block(edge);
+            for h in unwanted {
+                self.write_back(h);
+            }
+            self.b.ins().jump(block, &[]);
+        }
+    }
+
+    /// The carried variables of the blocks at `pcs` defined for a jump to them: the values
+    /// held here, else loaded.
+    fn define_carried(&mut self, pcs: &[u32]) {
         let mut keys: Vec<Key> = Vec::new();
         for &pc in pcs {
             if let Some(index) = self.leader_index(pc) {
@@ -900,6 +989,9 @@ impl<'a> Gen<'a, '_> {
         for (place, elem) in keys {
             let held = self.held.iter().find(|h| h.place == place && h.elem == elem);
             let held = held.map(|h| (h.value, h.info.float));
+            if held.is_none() && in_bytes(place) {
+                self.write_back_overlapping(place, elem.size());
+            }
             let value = match (held, self.byte_place(place)) {
                 (Some((v, float)), _) if elem.is_float() => self.float_of(elem, v, float),
                 (Some((v, _)), _) => v,
@@ -990,12 +1082,16 @@ impl<'a> Gen<'a, '_> {
                 } else if let (true, Some((address, offset))) =
                     (elem.is_float(), self.byte_place(place))
                 {
+                    self.write_back_overlapping(place, elem.size());
                     let f = self.b.ins().load(float_type(elem), data(), address, offset);
                     let v = self.float_bits(elem, f);
                     self.push(depth, v);
                     self.info[d as usize].float = Some(f);
                     self.hold(place, elem, v, self.info[d as usize]);
                 } else {
+                    if in_bytes(place) {
+                        self.write_back_overlapping(place, elem.size());
+                    }
                     let v = self.load_place(place, elem);
                     self.push(depth, v);
                     self.info[d as usize].boolean = elem == Elem::Bool;
@@ -1005,20 +1101,12 @@ impl<'a> Gen<'a, '_> {
             Op::Store { elem, at: place } => {
                 let v = self.slot(d - 1);
                 let info = self.info[d as usize - 1];
-                match (elem, self.byte_place(place)) {
-                    // 0 or 1 already: stored as it is.
-                    (Elem::Bool, Some((address, offset))) if info.boolean => {
-                        match self.narrow(v) {
-                            // (An `i8` is stored by `store`: `istore8` takes wider values.)
-                            Some(x) => self.b.ins().store(data(), x, address, offset),
-                            None => self.b.ins().istore8(data(), v, address, offset),
-                        };
-                    }
-                    (Elem::F32 | Elem::F64, Some((address, offset))) if info.float.is_some() => {
-                        let f = self.float(elem, d - 1);
-                        self.b.ins().store(data(), f, address, offset);
-                    }
-                    _ => self.store_place(place, elem, v),
+                if in_bytes(place) {
+                    // Held, written to memory where something else may read it
+                    // ([`Gen::write_back`]); a value of the place not written yet is replaced.
+                    self.held.retain(|h| (h.place, h.elem) != (place, elem));
+                } else {
+                    self.store_place(place, elem, v);
                 }
                 self.forget(place, elem.size());
                 if in_bytes(place) {
@@ -1034,7 +1122,12 @@ impl<'a> Gen<'a, '_> {
                         boolean: elem == Elem::Bool,
                         float: info.float.filter(|_| elem.is_float()),
                     };
-                    self.hold(place, elem, value, info);
+                    self.held.push(Held { place, elem, value, info, dirty: true });
+                    // Kept in a register only when it goes on in one to a block after this one
+                    // (a loop's variable): else written at once, which keeps no register busy.
+                    if !self.passed_on.contains(&(place, elem)) {
+                        self.write_back_where(|key| key == (place, elem));
+                    }
                 }
                 *depth -= 1;
             }
@@ -1124,7 +1217,8 @@ impl<'a> Gen<'a, '_> {
                 self.info[d as usize - 1].frame = frame;
             }
             Op::FetchInd(elem) => {
-                let (address, _) = self.address(d - 1, elem.size(), at, d);
+                let (address, from) = self.address(d - 1, elem.size(), at, d);
+                self.write_back_into(from, elem.size());
                 if elem.is_float() {
                     let f = self.b.ins().load(float_type(elem), data(), address, 0);
                     let v = self.float_bits(elem, f);
@@ -1139,22 +1233,23 @@ impl<'a> Gen<'a, '_> {
             Op::StoreInd(elem) => {
                 let v = self.slot(d - 1);
                 let (address, into) = self.address(d - 2, elem.size(), at, d);
+                self.forget_indirect(into, elem.size());
                 if elem.is_float() && self.info[d as usize - 1].float.is_some() {
                     let f = self.float(elem, d - 1);
                     self.b.ins().store(data(), f, address, 0);
                 } else {
                     self.store(elem, address, 0, v);
                 }
-                self.forget_indirect(into, elem.size());
                 *depth -= 2;
             }
             Op::Copy(n) => {
                 // Both ranges are checked before either is touched: the interpreter copies
                 // nothing when one is outside its space.
-                let (from, _) = self.address(d - 1, n, at, d);
+                let (from, source) = self.address(d - 1, n, at, d);
                 let (to, into) = self.address(d - 2, n, at, d);
-                self.copy(to, from, n);
+                self.write_back_into(source, n);
                 self.forget_indirect(into, n);
+                self.copy(to, from, n);
                 *depth -= 2;
             }
             Op::Bin { op, elem } => {
@@ -1240,8 +1335,23 @@ impl<'a> Gen<'a, '_> {
                 let next = self.target(at.pc + 1, d - 1);
                 let (on_true, on_false) = if when { (taken, next) } else { (next, taken) };
                 let c = self.narrow(c).unwrap_or(c);
-                self.pass_on(&[target, at.pc + 1]);
-                self.b.ins().brif(c, on_true, &[], on_false, &[]);
+                // What neither way receives is written back before the branch, what one way
+                // does not on its way.
+                let (a, b) = (self.leader_index(target), self.leader_index(at.pc + 1));
+                if let (Some(a), Some(b)) = (a, b) {
+                    let carried = &self.carried;
+                    let neither =
+                        |key: &Key| !carried[a].contains(key) && !carried[b].contains(key);
+                    let unwanted: Vec<Key> =
+                        (self.held.iter()).map(|h| (h.place, h.elem)).filter(neither).collect();
+                    self.write_back_where(|key| unwanted.contains(&key));
+                }
+                self.define_carried(&[target, at.pc + 1]);
+                let (true_pc, false_pc) =
+                    if when { (target, at.pc + 1) } else { (at.pc + 1, target) };
+                let edges = [self.edge(true_pc, on_true), self.edge(false_pc, on_false)];
+                self.b.ins().brif(c, edges[0].0, &[], edges[1].0, &[]);
+                self.fill_edges(edges);
                 return false;
             }
             Op::CallFn { target, frame } => {
@@ -1253,6 +1363,8 @@ impl<'a> Gen<'a, '_> {
                 return false;
             }
             Op::Return => {
+                // The caller may read any place.
+                self.write_back_all();
                 // Inline: on in the caller, right here.
                 if let Some(inline) = &self.inline {
                     self.b.ins().jump(inline.back, &[]);
@@ -1311,6 +1423,8 @@ impl<'a> Gen<'a, '_> {
     /// activation as it was (only the budget changed, in the context); any other result is
     /// passed on, with every register in the context where the callee stopped.
     fn call(&mut self, at: At, d: u32, target: u32, frame: u32, fb: bool) {
+        // The callee may read any place.
+        self.write_back_all();
         let calls = self.activation.depth;
         let full =
             self.b.ins().icmp_imm_s(IntCC::UnsignedGreaterThanOrEqual, calls, ST_CALL_DEPTH as i64);
@@ -1428,6 +1542,8 @@ impl<'a> Gen<'a, '_> {
         let blocks = leaders.iter().map(|_| self.b.create_block()).collect();
         let stack = (0..self.stack.len()).map(|_| self.b.declare_var(I64)).collect();
         let carried = carry::carried(self.program, self.analysis, leaders, &[]);
+        let in_loop = carry::in_loops(self.program, self.analysis, leaders);
+        let unwritten = carry::unwritten(self.program, self.analysis, leaders, &carried, &in_loop);
         let mut scope = Scope {
             body: target,
             activation: callee,
@@ -1435,6 +1551,8 @@ impl<'a> Gen<'a, '_> {
             blocks,
             carried,
             carry_vars: Vec::new(),
+            unwritten,
+            in_loop,
             stack,
             info: vec![SlotInfo::default(); self.info.len()],
             held: Vec::new(),
@@ -1463,6 +1581,8 @@ impl<'a> Gen<'a, '_> {
         std::mem::swap(&mut self.blocks, &mut scope.blocks);
         std::mem::swap(&mut self.carried, &mut scope.carried);
         std::mem::swap(&mut self.carry_vars, &mut scope.carry_vars);
+        std::mem::swap(&mut self.unwritten, &mut scope.unwritten);
+        std::mem::swap(&mut self.in_loop, &mut scope.in_loop);
         std::mem::swap(&mut self.stack, &mut scope.stack);
         std::mem::swap(&mut self.info, &mut scope.info);
         std::mem::swap(&mut self.held, &mut scope.held);
@@ -1831,16 +1951,19 @@ impl<'a> Gen<'a, '_> {
     /// a `Bit` do not show.
     fn hold(&mut self, place: Place, elem: Elem, value: Value, info: SlotInfo) {
         if in_bytes(place) {
-            self.held.push(Held { place, elem, value, info });
+            self.held.push(Held { place, elem, value, info, dirty: false });
         }
     }
 
-    /// Forgets the held values a store of `bytes` bytes at fixed place `at` may change.
+    /// Forgets the held values a store of `bytes` bytes at fixed place `at` may change, after
+    /// writing back those not written yet (so that the store, emitted after, has the last word).
     fn forget(&mut self, at: Place, bytes: u32) {
+        self.write_back_overlapping(at, bytes);
         self.held.retain(|h| !carry::may_change(at, bytes, (h.place, h.elem)));
     }
 
-    /// Forgets the held values a store of `bytes` bytes through a pointer to `into` may change.
+    /// Forgets the held values a store of `bytes` bytes through a pointer to `into` may change,
+    /// as [`Gen::forget`]: called before the store.
     fn forget_indirect(&mut self, into: Into, bytes: u32) {
         match into {
             Into::Vars(reach) => {
@@ -1848,7 +1971,75 @@ impl<'a> Gen<'a, '_> {
                 self.forget(at, bytes);
             }
             Into::Frame(offset) => self.forget(Place::Frame(offset), bytes),
-            Into::Unknown => self.held.clear(),
+            Into::Unknown => {
+                self.write_back_all();
+                self.held.clear();
+            }
+        }
+    }
+
+    /// Writes the held value `h` to its place (a store of the code that was kept in a register
+    /// until something else could read the place).
+    fn write_back(&mut self, h: Held) {
+        let (address, offset) = self.byte_place(h.place).expect("held places are in bytes");
+        match h.elem {
+            // 0 or 1 (held so).
+            Elem::Bool => {
+                match self.narrow(h.value) {
+                    Some(x) => self.b.ins().store(data(), x, address, offset),
+                    None => self.b.ins().istore8(data(), h.value, address, offset),
+                };
+            }
+            elem if elem.is_float() && h.info.float.is_some() => {
+                let f = self.float_of(elem, h.value, h.info.float);
+                self.b.ins().store(data(), f, address, offset);
+            }
+            elem => self.store(elem, address, offset, h.value),
+        }
+    }
+
+    /// Writes back every held value not written yet, and counts them written: before what may
+    /// read any place (a call), on the way that goes on.
+    fn write_back_all(&mut self) {
+        self.write_back_where(|_| true);
+    }
+
+    /// As [`Gen::write_back_all`] for the held values a load or a store of `bytes` bytes at
+    /// `at` may overlap.
+    fn write_back_overlapping(&mut self, at: Place, bytes: u32) {
+        self.write_back_where(|key| carry::may_change(at, bytes, key));
+    }
+
+    /// As [`Gen::write_back_overlapping`] for `bytes` bytes through a pointer to `into`.
+    fn write_back_into(&mut self, into: Into, bytes: u32) {
+        match into {
+            Into::Vars(reach) => {
+                let (at, bytes) = reach.store(bytes);
+                self.write_back_overlapping(at, bytes);
+            }
+            Into::Frame(offset) => self.write_back_overlapping(Place::Frame(offset), bytes),
+            Into::Unknown => self.write_back_all(),
+        }
+    }
+
+    fn write_back_where(&mut self, select: impl Fn(Key) -> bool) {
+        for i in 0..self.held.len() {
+            let h = self.held[i];
+            if h.dirty && select((h.place, h.elem)) {
+                self.write_back(h);
+                self.held[i].dirty = false;
+            }
+        }
+    }
+
+    /// On a way out of native code (a cold branch): writes back every held value not written
+    /// yet, and leaves them counted unwritten for the way that goes on.
+    fn write_back_leaving(&mut self) {
+        for i in 0..self.held.len() {
+            let h = self.held[i];
+            if h.dirty {
+                self.write_back(h);
+            }
         }
     }
 

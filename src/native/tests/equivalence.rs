@@ -1464,6 +1464,64 @@ END_PROGRAM
     assert_eq!(outcome.slot("main.looped"), 3 * (7 + 7 + 11) + 7 + 1000 + 11);
 }
 
+#[test]
+fn stores_kept_in_registers_in_a_loop_are_written_before_anything_reads_them() {
+    // In a loop native code keeps a stored variable in a register and writes it back only
+    // where something else may read the place: a read through a pointer, a store through one,
+    // a member of another width over the same bytes, a call, the way out of the loop, and
+    // every stop of the budget (compared at each).
+    let source = "
+TYPE U4 : UNION dw : DWORD; b : ARRAY [0..3] OF BYTE; END_UNION; END_TYPE
+
+VAR_GLOBAL g : DINT; END_VAR
+
+FUNCTION ReadGlobal : DINT
+    ReadGlobal := g;
+END_FUNCTION
+
+PROGRAM Main
+VAR
+    acc, k, through, called, by_byte, exited : DINT;
+    u : U4;
+    p : POINTER TO DINT;
+    arr : ARRAY [0..3] OF DINT;
+END_VAR
+    acc := 0;
+    through := 0;
+    called := 0;
+    by_byte := 0;
+    p := ADR(acc);
+    FOR k := 1 TO 5 DO
+        acc := acc + k;
+        through := through + p^;
+        p^ := p^ + 100;
+        acc := acc - 100;
+        g := g + k;
+        called := called + ReadGlobal();
+        u.dw := DINT_TO_DWORD(k * 16#01010101);
+        by_byte := by_byte + BYTE_TO_DINT(u.b[1]);
+        arr[k MOD 4] := acc;
+        IF k = 4 THEN
+            EXIT;
+        END_IF;
+    END_FOR;
+    exited := acc;
+END_PROGRAM
+";
+    let outcome = targeted("stores kept in registers", source, Scans::new(3), 80);
+    assert!(outcome.errors.is_empty());
+    // k = 1 to 4 (EXIT at 4): acc 1, 3, 6, 10.
+    assert_eq!(outcome.slot("main.exited"), 10);
+    assert_eq!(outcome.slot("main.through"), 1 + 3 + 6 + 10, "p^ reads acc as just stored");
+    // g grows by 1 + 2 + 3 + 4 a scan: in the third scan 21, 23, 26, 30.
+    assert_eq!(outcome.slot("g"), 30);
+    assert_eq!(outcome.slot("main.called"), 21 + 23 + 26 + 30, "the call reads g as stored");
+    // Byte 1 of k * 16#01010101 is k.
+    assert_eq!(outcome.slot("main.by_byte"), 1 + 2 + 3 + 4);
+    assert_eq!(outcome.slot("main.arr[0]"), 10);
+    assert_eq!(outcome.slot("main.arr[3]"), 6);
+}
+
 /// A chain of `depth` FUNCTIONs, each calling the next inside an expression, and a PROGRAM
 /// calling the first twice.
 fn function_chain(depth: usize) -> String {
