@@ -960,7 +960,13 @@ impl<'a> Ctx<'a> {
                 !matches!(b.kind, VarKind::Input | VarKind::InOut | VarKind::Output)
             });
         }
+        // a method's implicit ENO, right after its parameters (compile/method_eno.rs)
+        let mut method_eno = self.wants_method_eno(member, pou);
         for block in blocks {
+            if method_eno && !super::method_eno::is_parameter_block(block.kind) {
+                self.declare_method_eno(p, &mut frame, pou.name.span);
+                method_eno = false;
+            }
             if block.kind == VarKind::Global {
                 self.error(file, block.span, "VAR_GLOBAL belongs outside the POUs: declare globals at the top level of a file");
                 continue;
@@ -1209,6 +1215,9 @@ impl<'a> Ctx<'a> {
                     }
                 }
             }
+        }
+        if method_eno {
+            self.declare_method_eno(p, &mut frame, pou.name.span);
         }
         // The implicit ENO (IEC 61131-3 ed3): a BOOL output, TRUE on entry, that the
         // body may set FALSE; there when something may read it.
@@ -1501,7 +1510,7 @@ impl<'a> Ctx<'a> {
 }
 
 /// Whether a body names `ENO` (reads or writes its own ENO).
-fn mentions_eno(body: &[ast::Stmt]) -> bool {
+pub(super) fn mentions_eno(body: &[ast::Stmt]) -> bool {
     let mut found = false;
     walk_stmts(body, &mut |e| {
         found |= matches!(&e.kind, ast::ExprKind::Name(id) if id.is("ENO"));

@@ -54,6 +54,7 @@ mod fb_init;
 mod generic;
 mod instance_args;
 mod jumps;
+mod method_eno;
 mod method_vars;
 mod oop;
 mod query;
