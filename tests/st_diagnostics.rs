@@ -342,7 +342,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` has no method `{}`", "interface-method-not-found"),
     ("`{}` is ABSTRACT: it has no body to call", "abstract-method-called"),
     ("property `{}` has no GET: it cannot be read", "property-without-get"),
-    ("property `{}` cannot be passed to a VAR_IN_OUT", "property-to-var-in-out"),
+    ("property `{}` is no variable: it cannot be passed to a VAR_IN_OUT (as in CODESYS, C0041: a VAR_IN_OUT needs a variable with write access); copy it into a variable first", "property-to-var-in-out"),
     ("property `{}` has no SET: it cannot be written", "property-without-set"),
     ("`{}` is FINAL: `{}` cannot override it", "final-method-overridden"),
     ("`{}` overrides `{}` with another signature: {}", "override-signature-differs"),
@@ -352,7 +352,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` compares interfaces: only `=` and `<>` do", "interface-ordered"),
     ("`{}` and `{}` cannot be compared", "interfaces-not-comparable"),
     ("`{}` has no property `{}`", "interface-property-not-found"),
-    ("VAR_INST in a property is not supported: declare the variable in its function block", "var-inst-in-property"),
+    ("VAR_INST belongs to a METHOD (as in CODESYS, which allows it only in methods), not to a property's GET or SET: declare the variable in its function block", "var-inst-in-property"),
     // class.rs: CLASS
     ("`{}` is a CLASS: a class has no actions (write `{}` as a METHOD)", "class-has-action"),
     (

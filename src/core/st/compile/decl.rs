@@ -977,7 +977,7 @@ impl<'a> Ctx<'a> {
             if member.is_some_and(|m| m != super::oop::Role::Method)
                 && block.kind == VarKind::Instance
             {
-                let msg = "VAR_INST in a property is not supported: declare the variable in its function block";
+                let msg = "VAR_INST belongs to a METHOD (as in CODESYS, which allows it only in methods), not to a property's GET or SET: declare the variable in its function block";
                 // read on as locals, so that its uses make no errors of their own
                 self.error(file, block.span, msg);
             }

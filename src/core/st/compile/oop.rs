@@ -109,6 +109,15 @@ fn name_tag(name: &str) -> u32 {
     h
 }
 
+/// Why property `name` cannot be a VAR_IN_OUT argument: it has no memory, only its
+/// accessors. CODESYS refuses it as well: a VAR_IN_OUT
+/// needs a variable with write access (its error C0041).
+fn property_not_a_place(name: &str) -> String {
+    format!(
+        "property `{name}` is no variable: it cannot be passed to a VAR_IN_OUT (as in CODESYS, C0041: a VAR_IN_OUT needs a variable with write access); copy it into a variable first"
+    )
+}
+
 /// Whether `e` is `THIS^` or `SUPER^`: the own instance, whose every variable its code reaches.
 pub(super) fn is_own_instance(e: &Expr) -> bool {
     matches!(&e.kind, ExprKind::Deref(inner)
@@ -517,7 +526,7 @@ impl<'a> Ctx<'a> {
 
     /// Whether a method called on `receiver` may run a derived function block's override: the
     /// receiver is reached through a reference or a VAR_IN_OUT, or is the own instance.
-    fn is_dynamic(receiver: &TExpr, own: bool) -> bool {
+    pub(super) fn is_dynamic(receiver: &TExpr, own: bool) -> bool {
         own || matches!(
             &receiver.k,
             TK::Deref(_) | TK::Var { by_ref: true, .. } | TK::Member(_, _, true)
@@ -724,7 +733,7 @@ impl<'a> Ctx<'a> {
             return None;
         };
         if access != Access::Read {
-            let msg = format!("property `{}` cannot be passed to a VAR_IN_OUT", id.name);
+            let msg = property_not_a_place(&id.name);
             self.error(scope.file, id.span, msg);
             return Some(TExpr::error(id.span));
         }
@@ -1130,7 +1139,7 @@ impl<'a> Ctx<'a> {
             return TExpr::error(id.span);
         };
         if access != Access::Read {
-            let msg = format!("property `{}` cannot be passed to a VAR_IN_OUT", id.name);
+            let msg = property_not_a_place(&id.name);
             self.error(scope.file, id.span, msg);
             return TExpr::error(id.span);
         }
