@@ -1703,7 +1703,7 @@ impl<'a> Ctx<'a> {
         scope: Scope,
     ) -> Option<Option<(TExpr, CallT)>> {
         let file = scope.file;
-        let (inst, action) = match &callee.kind {
+        let (inst, action, fb, own) = match &callee.kind {
             ExprKind::Name(id) => {
                 let p = scope.pou?;
                 if self.pous[p].lookup(&id.name).is_some() {
@@ -1714,7 +1714,7 @@ impl<'a> Ctx<'a> {
                 let action = self.find_action(owner, &id.name)?;
                 // the POU's own instance: its variables start at offset 0
                 let k = TK::Var { storage: Storage::Inst(0), by_ref: false };
-                (TExpr { k, ty: Ty::Fb(action), span: callee.span }, action)
+                (TExpr { k, ty: Ty::Fb(action), span: callee.span }, action, owner, true)
             }
             ExprKind::Member(base, id) => {
                 let saved = self.diags.len();
@@ -1722,7 +1722,10 @@ impl<'a> Ctx<'a> {
                 self.diags.truncate(saved);
                 let Ty::Fb(owner) = probe.ty else { return None };
                 let action = self.find_action(owner, &id.name)?;
-                (self.check_place(base, scope, Access::Ref, None), action)
+                // `THIS^.Act()` may run a derived block's action, `SUPER^.Act()` runs the base's
+                let this = matches!(&base.kind, ExprKind::Deref(b)
+                    if matches!(&b.kind, ExprKind::Name(t) if t.is("THIS")));
+                (self.check_place(base, scope, Access::Ref, None), action, owner, this)
             }
             _ => return None,
         };
@@ -1732,6 +1735,11 @@ impl<'a> Ctx<'a> {
             return Some(None);
         }
         self.record_call(scope, action, span);
+        // a derived block's action of the same name replaces it (compile/action_dispatch.rs)
+        let dispatch = self.action_candidates(&inst, own, fb, action);
+        for &(_, a) in &dispatch {
+            self.record_call(scope, a, span);
+        }
         Some(Some((
             inst,
             CallT {
@@ -1740,7 +1748,7 @@ impl<'a> Ctx<'a> {
                 outs: Vec::new(),
                 en: None,
                 this: None,
-                dispatch: Vec::new(),
+                dispatch,
             },
         )))
     }

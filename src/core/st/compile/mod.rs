@@ -42,6 +42,7 @@
 //!   arithmetic counts bytes, `p - q` is a `DINT` of bytes; every access through a reference
 //!   is checked at run time.
 
+mod action_dispatch;
 mod bit;
 mod calendar;
 mod class;
