@@ -1493,6 +1493,9 @@ impl<'c, 'a> Em<'c, 'a> {
             self.op(Op::PushInt(1));
             self.op(Op::Store { elem: Elem::Bool, at: eno });
         }
+        // A base's body runs on a derived instance only through SUPER^(), after the derived
+        // body's entry computed the edges of the call: computed again, they would be FALSE.
+        let derived_skip = if edges.is_empty() { None } else { self.unless_exactly(p) };
         for (input, memory, value, rising) in edges {
             // R_EDGE: input AND NOT memory; F_EDGE: NOT input AND memory (memory: the input at
             // the previous execution)
@@ -1509,6 +1512,25 @@ impl<'c, 'a> Em<'c, 'a> {
             self.op(Op::Fetch { elem: Elem::Bool, at: input });
             self.op(Op::Store { elem: Elem::Bool, at: memory });
         }
+        if let Some(skip) = derived_skip {
+            let here = self.pc();
+            self.patch(skip, here);
+        }
+    }
+
+    /// In the body of function block `p` that some block extends: a jump, to be patched, taken
+    /// when the own instance is not exactly a `p` (its type tag is another's); `None` when
+    /// no block extends `p`.
+    fn unless_exactly(&mut self, p: usize) -> Option<usize> {
+        let tag = *self.cx.oop.tags.get(&p)?;
+        let extended = (0..self.cx.pous.len()).any(|d| d != p && self.cx.derives_from(d, p));
+        if !extended {
+            return None;
+        }
+        self.op(Op::Fetch { elem: Elem::U32, at: Place::This(0) });
+        self.push_int(Elem::U32, i128::from(tag));
+        self.op(Op::Cmp { op: CmpOp::Eq, elem: Elem::U32 });
+        Some(self.op(Op::GotoIf { target: 0, when: false }))
     }
 
     fn close_loop(&mut self, l: Loop, cont: u32, end: u32) {
