@@ -38,9 +38,12 @@ impl Ctx<'_> {
     }
 
     /// Declares the implicit ENO of method `p` at the end of `frame`: a BOOL output whose
-    /// image is TRUE, so that each call starts with ENO TRUE.
+    /// image is TRUE, so that each call starts with ENO TRUE. An interface's method is the
+    /// body a call through a `NULL` interface runs (operation error 2822H, no method ran): its
+    /// ENO is FALSE.
     pub(super) fn declare_method_eno(&mut self, p: usize, frame: &mut Vec<u8>, span: ast::Span) {
-        frame.push(1);
+        let of_interface = self.oop.members.get(&p).is_some_and(|m| m.owner.is_none());
+        frame.push(u8::from(!of_interface));
         let index = self.pous[p].vars.len();
         self.pous[p].vars.push(VarInfo {
             name: "ENO".into(),
