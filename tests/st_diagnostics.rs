@@ -50,6 +50,10 @@ const MESSAGES: &[(&str, &str)] = &[
     ("a subrange needs an integer type, not `{}`", "subrange-base"),
     ("`{}..{}` is not a subrange of `{}`", "subrange-bounds"),
     ("an enumeration's base must be an integer type, not `{}`", "enum-base-not-integer"),
+    (
+        "an enumeration's values are names (`INT (A, B := 5)`); arguments that are not names go to a function block's FB_init only (`fb : T(5, 'A')`)",
+        "enum-arguments",
+    ),
     ("`{}` is already a value of this enumeration", "duplicate-enum-value"),
     ("constant `{}` does not fit `{}`", "constant-does-not-fit"),
     ("`{}` has no value `{}`", "enum-init-no-value"),
@@ -376,14 +380,25 @@ const MESSAGES: &[(&str, &str)] = &[
         "fb-init-signature",
     ),
     (
-        "`{}`'s function block has an FB_init, which plcd runs for the instances a PROGRAM holds, not for a VAR_GLOBAL's or a VAR_STAT's",
-        "fb-init-global-instance",
+        "`{}`'s function block has an FB_init, which plcd does not run for a VAR_STAT's instance (one copy for every instance of its POU) nor a CONFIGURATION's VAR_GLOBAL's",
+        "fb-init-static-instance",
     ),
     (
-        "`{}`: declaration arguments go to FB_init, which plcd runs for the instances of a PROGRAM and of a function block only",
+        "`{}`: declaration arguments go to FB_init, which plcd does not run for a VAR_STAT's instance, a CONFIGURATION's VAR_GLOBAL's, nor a VAR_IN_OUT or VAR_EXTERNAL",
         "fb-init-argument-not-run",
     ),
-    ("`{}`: the declaration argument `{}` has no value (`{} := …`)", "fb-init-argument-no-value"),
+    (
+        "`{}`: the declaration arguments are all named (`x := 5`) or all positional (`{}(5, 'A')`), not both",
+        "fb-init-arguments-mixed",
+    ),
+    (
+        "`{}`: a declaration argument gives an FB_init input (`{} := …`), not an output",
+        "fb-init-argument-output",
+    ),
+    (
+        "`{}`: `{}`'s FB_init takes {} argument(s) after bInitRetains and bInCopyCode",
+        "fb-init-too-many-arguments",
+    ),
     ("`{}` has no FB_init input `{}` for the declaration of `{}`", "fb-init-argument-unknown"),
     // sfc.rs: Sequential Function Charts
     (

@@ -355,6 +355,9 @@ pub struct EnumDef {
     /// `INT (A, B)`: the base type, `INT` when absent.
     pub base: Option<Ident>,
     pub values: Vec<(Ident, Option<Expr>)>,
+    /// `T(5, 'A')`: a function block's declaration arguments when one is no name (or an
+    /// output); `values` is then empty. Any other use of the form is an error.
+    pub args: Vec<Arg>,
     pub span: Span,
 }
 

@@ -398,6 +398,12 @@ impl<'a> Ctx<'a> {
         scope: Scope,
     ) -> Ty {
         let file = scope.file;
+        if !def.args.is_empty() {
+            // `INT (5, 6)`: only a function block's declaration takes such arguments
+            let msg = "an enumeration's values are names (`INT (A, B := 5)`); arguments that are not names go to a function block's FB_init only (`fb : T(5, 'A')`)";
+            self.error(file, def.span, msg);
+            return Ty::Error;
+        }
         let (base, declared) = match &def.base {
             Some(b) => match Prim::from_name(&b.name).filter(|p| p.is_integral()) {
                 Some(p) => (p, true),

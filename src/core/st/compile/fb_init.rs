@@ -1,5 +1,6 @@
 //! `FB_init` (CODESYS, TwinCAT): the method a function block (or class) declares to initialise
-//! each of its instances once, before the first scan of the program that holds it.
+//! each of its instances, before the first scan for the instances a PROGRAM or a `VAR_GLOBAL`
+//! holds, at each call for those a FUNCTION's or a method's `VAR` (or any `VAR_TEMP`) holds.
 //!
 //! A lowering of the syntax trees before compilation, so that every call it adds is checked
 //! and compiled as the user's own code (and so has native code): nothing changes for a project
@@ -17,19 +18,27 @@
 //!   initial values (a hidden `VAR RETAIN __FB_INIT_RETAINED`, set at the first run, says they
 //!   did not: a warm start keeps it); `bInCopyCode` is FALSE (an online change keeps the
 //!   instances and the flag: `FB_init` is not called again).
+//! - The top-level `VAR_GLOBAL` instances: a hidden FUNCTION `__FB_INIT_GLOBALS` initialises
+//!   them, and every PROGRAM starts with a call of it guarded by hidden global flags (the same
+//!   pair, `__FB_INIT_GLOBALS_DONE` and `__FB_INIT_GLOBALS_RETAINED`): whichever PROGRAM runs
+//!   first in a RUN start runs it, before its own instances.
+//! - The instances fresh at each call (a FUNCTION's or a method's `VAR`, any `VAR_TEMP`): the
+//!   body starts with their `__FB_INIT_ALL`, `bInitRetains` TRUE, `bInCopyCode` FALSE.
 //! - A method named `FB_init` is called without dispatch (a derived block's does not replace
 //!   its base's, both run) and may add VAR_INPUTs to its base's (compile/oop.rs skips it).
 //!
-//! - Declaration arguments, `v : T(x := 1)` (which the parser reads as an enumeration of base
-//!   `T`): `v`'s type becomes `T`, and the arguments go to its `__FB_INIT_ALL`, whose inputs
-//!   are the two BOOLs and every other input of the `FB_init`s of `T` and its bases
-//!   ([`chain_extras`]); each `__FB_INIT_ALL` passes on to its base's and to its own
-//!   `FB_init` the inputs they declare.
+//! - Declaration arguments, `v : T(x := 1)` or `v : T(1)` (which the parser reads as an
+//!   enumeration of base `T`, the second form in [`ast::EnumDef::args`]): `v`'s type becomes
+//!   `T`, and the arguments go to its `__FB_INIT_ALL`, whose inputs are the two BOOLs and every
+//!   other input of the `FB_init`s of `T` and its bases ([`chain_extras`]: the block's own
+//!   first, in their order, which is the order of the positional form); each `__FB_INIT_ALL`
+//!   passes on to its base's and to its own `FB_init` the inputs they declare.
 //!
 //! Checked here: an `FB_init` declares `bInitRetains` and `bInCopyCode` (BOOL) as its first two
-//! VAR_INPUTs; an instance in `VAR_GLOBAL` or `VAR_STAT` whose block has an `FB_init` is refused
-//! (no PROGRAM's instance owns it to run it); declaration arguments are named, have values, name inputs of the
-//! chain's `FB_init`s, and are given where `FB_init` runs.
+//! VAR_INPUTs; an instance in a `VAR_STAT` or a CONFIGURATION's `VAR_GLOBAL` whose block has an
+//! `FB_init` is refused (nothing runs it); declaration arguments are all named or all
+//! positional, name inputs of the chain's `FB_init`s or are no more than those, and are given
+//! where `FB_init` runs.
 
 use std::borrow::Cow;
 use std::collections::HashMap;
@@ -46,6 +55,11 @@ pub const INIT_ALL: &str = "__FB_INIT_ALL";
 pub const FB_INIT: &str = "FB_init";
 const DONE: &str = "__FB_INIT_DONE";
 const RETAINED: &str = "__FB_INIT_RETAINED";
+/// The hidden FUNCTION that initialises the top-level `VAR_GLOBAL` instances, and its flags
+/// (global: whichever PROGRAM runs first runs it).
+const GLOBALS_INIT: &str = "__FB_INIT_GLOBALS";
+const GLOBALS_DONE: &str = "__FB_INIT_GLOBALS_DONE";
+const GLOBALS_RETAINED: &str = "__FB_INIT_GLOBALS_RETAINED";
 const INIT_RETAINS: &str = "bInitRetains";
 const IN_COPY_CODE: &str = "bInCopyCode";
 
@@ -127,7 +141,11 @@ pub(super) fn lower<'f>(
                         }
                     }
                 }
-                Item::Globals(block) => not_run(&file.path, block, &needs, diags),
+                Item::Configuration(c) => {
+                    for b in &c.globals {
+                        not_run(&file.path, b, &needs, diags);
+                    }
+                }
                 _ => {}
             }
         }
@@ -147,24 +165,62 @@ pub(super) fn lower<'f>(
 /// Adds the hidden methods and prologues.
 fn generate(files: &mut [Cow<'_, ast::File>], plan: &Plan) {
     let needs = &plan.needs;
+    let globals = global_instances(files, needs);
+    let mut globals_placed = false;
     for file in files.iter_mut() {
-        let wants = file.items.iter().any(|item| match item {
-            Item::Pou(p) => {
-                p.kind == PouKind::Program && !instances(p, needs).is_empty()
-                    || p.kind == PouKind::FunctionBlock && own_work(p, needs)
-            }
-            _ => false,
-        });
+        let holds_globals = !globals_placed
+            && file.items.iter().any(|item| {
+                matches!(item, Item::Globals(b) if b.decls.iter().any(|d| instance_needs(&d.ty, needs).is_some()))
+            });
+        let wants = holds_globals
+            || file.items.iter().any(|item| match item {
+                Item::Pou(p) => {
+                    p.kind == PouKind::Program && !globals.is_empty()
+                        || !instances(p, needs).is_empty()
+                        || own_work(p, needs)
+                        || !call_instances(p, needs).is_empty()
+                        || p.oop.methods.iter().any(|m| !call_instances(&m.pou, needs).is_empty())
+                }
+                _ => false,
+            });
         if !wants {
             continue;
         }
-        for item in &mut file.to_mut().items {
+        let items = &mut file.to_mut().items;
+        for item in items.iter_mut() {
             let Item::Pou(p) = item else { continue };
+            let mut counters = add_call_prologue(p, plan);
+            for m in &mut p.oop.methods {
+                let used = add_call_prologue(&mut m.pou, plan);
+                m.pou.vars.extend(counter_block(used, m.pou.span));
+            }
             match p.kind {
                 PouKind::FunctionBlock if own_work(p, needs) => add_init_all(p, plan),
-                PouKind::Program if !instances(p, needs).is_empty() => add_prologue(p, plan),
+                PouKind::Program => {
+                    if !instances(p, needs).is_empty() {
+                        counters = counters.max(add_prologue(p, plan));
+                    }
+                    if !globals.is_empty() {
+                        add_globals_prologue(p);
+                    }
+                }
                 _ => {}
             }
+            p.vars.extend(counter_block(counters, p.name.span));
+        }
+        if holds_globals {
+            globals_placed = true;
+            let at = items.iter().position(|i| matches!(i, Item::Globals(_))).unwrap_or(0);
+            let span = match &items[at] {
+                Item::Globals(b) => b.span,
+                _ => Span::default(),
+            };
+            items.insert(at, Item::Pou(globals_initialiser(&globals, plan, span)));
+            items.insert(
+                at,
+                Item::Globals(bool_block(VarKind::Global, true, GLOBALS_RETAINED, span)),
+            );
+            items.insert(at, Item::Globals(bool_block(VarKind::Global, false, GLOBALS_DONE, span)));
         }
     }
 }
@@ -200,20 +256,69 @@ fn fb_init_extras(m: &Pou) -> Vec<VarDecl> {
     singles.skip(2).collect()
 }
 
-/// The arguments of a declaration `v : T(x := 1, …)`, as a call's.
-/// Those without a value or of no input of `known` are left out (reported by
-/// [`declaration_arguments`]).
-fn declared_arguments(ty: &TypeRef, known: &[VarDecl]) -> Vec<Arg> {
-    let TypeRef::Enum(def) = ty else { return Vec::new() };
-    def.values
-        .iter()
-        .filter(|(n, _)| known.iter().any(|k| k.names[0].is(&n.name)))
-        .filter_map(|(n, v)| Some(Arg::Input { name: n.clone(), value: v.clone()? }))
-        .collect()
+/// The arguments of a declaration `v : T(…)` as written: each named one (`x := 1`) an input,
+/// each other one (`5`, or a name alone) positional.
+fn written_arguments(def: &ast::EnumDef) -> Vec<Arg> {
+    let named = |(n, v): &(Ident, Option<Expr>)| match v {
+        Some(value) => Arg::Input { name: n.clone(), value: value.clone() },
+        None => Arg::Positional(Expr { kind: ExprKind::Name(n.clone()), span: n.span }),
+    };
+    def.values.iter().map(named).chain(def.args.iter().cloned()).collect()
 }
 
-/// `v : T(x := 1, …)` where `T` is a function block: the arguments checked (the instance's
-/// `FB_init` runs, and declares inputs of those names), the type made `T`.
+/// Where an argument is written.
+fn arg_span(arg: &Arg) -> Span {
+    match arg {
+        Arg::Positional(e) => e.span,
+        Arg::Input { name, .. } | Arg::Output { name, .. } => name.span,
+    }
+}
+
+/// Whether the arguments mix the named form and the positional one (reported by
+/// [`declaration_arguments`]).
+fn mixed(args: &[Arg]) -> Option<&Arg> {
+    let positional = |a: &Arg| matches!(a, Arg::Positional(_));
+    let first = args.first().map(positional)?;
+    args.iter().find(|a| positional(a) != first)
+}
+
+/// The arguments of a declaration `v : T(x := 1, …)` or `v : T(1, …)`, as the named inputs of
+/// its `__FB_INIT_ALL` (a positional one is the input of its rank among `known`, the inputs
+/// after `bInitRetains` and `bInCopyCode`). Those [`declaration_arguments`] reports are left
+/// out.
+fn declared_arguments(ty: &TypeRef, known: &[VarDecl]) -> Vec<Arg> {
+    let TypeRef::Enum(def) = ty else { return Vec::new() };
+    let written = written_arguments(def);
+    if mixed(&written).is_some() {
+        return Vec::new();
+    }
+    let given = |(rank, arg): (usize, Arg)| match arg {
+        Arg::Input { name, value } => {
+            known.iter().any(|k| k.names[0].is(&name.name)).then_some(Arg::Input { name, value })
+        }
+        Arg::Positional(value) => {
+            known.get(rank).map(|k| Arg::Input { name: ident(&k.names[0].name, value.span), value })
+        }
+        Arg::Output { .. } => None,
+    };
+    written.into_iter().enumerate().filter_map(given).collect()
+}
+
+/// Whether the instances declared in a section of kind `var` of a POU of kind `pou` have
+/// their `FB_init` run (and so may have declaration arguments): a PROGRAM's and a function
+/// block's own variables, a FUNCTION's or a method's `VAR`, any `VAR_TEMP`, a top-level
+/// `VAR_GLOBAL` (`pou` `None`).
+fn runs_fb_init(pou: Option<PouKind>, var: VarKind) -> bool {
+    match pou {
+        None => var == VarKind::Global,
+        Some(PouKind::Function) => matches!(var, VarKind::Local | VarKind::Temp),
+        Some(_) => holds_instances(var) || var == VarKind::Temp,
+    }
+}
+
+/// `v : T(x := 1)` or `v : T(1)` where `T` is a function block: the arguments checked (the
+/// instance's `FB_init` runs, they name inputs of the chain's `FB_init`s or are no more than
+/// those, one form or the other), the type made `T`.
 fn declaration_arguments(
     files: &mut [Cow<'_, ast::File>],
     blocks: &Blocks,
@@ -231,6 +336,7 @@ fn declaration_arguments(
                     p.vars.iter().chain(p.oop.methods.iter().flat_map(|m| &m.pou.vars)).collect()
                 }
                 Item::Globals(b) => vec![b],
+                Item::Configuration(c) => c.globals.iter().collect(),
                 _ => Vec::new(),
             };
             blocks.iter().flat_map(|b| &b.decls).any(|d| is_block_with_arguments(&d.ty))
@@ -247,18 +353,22 @@ fn declaration_arguments(
             let mut sections: Vec<(&mut VarBlock, bool)> = Vec::new();
             match item {
                 Item::Pou(p) => {
-                    let owns = p.kind != PouKind::Function;
                     for b in &mut p.vars {
-                        let run = owns && holds_instances(b.kind);
+                        let run = runs_fb_init(Some(p.kind), b.kind);
                         sections.push((b, run));
                     }
                     // a method's VAR_INST: checked where compile/method_vars.rs declared it
                     // again, in its block; its type made plain here too
                     for m in &mut p.oop.methods {
-                        sections.extend(m.pou.vars.iter_mut().map(|b| (b, false)));
+                        let kind = m.pou.kind;
+                        sections.extend(m.pou.vars.iter_mut().map(|b| {
+                            let run = runs_fb_init(Some(kind), b.kind);
+                            (b, run)
+                        }));
                     }
                 }
-                Item::Globals(b) => sections.push((b, false)),
+                Item::Globals(b) => sections.push((b, true)),
+                Item::Configuration(c) => sections.extend(c.globals.iter_mut().map(|b| (b, false))),
                 _ => {}
             }
             for (section, runs) in sections {
@@ -277,26 +387,54 @@ fn declaration_arguments(
                     }
                     if !runs {
                         let msg = format!(
-                            "`{}`: declaration arguments go to FB_init, which plcd runs for the instances of a PROGRAM and of a function block only",
+                            "`{}`: declaration arguments go to FB_init, which plcd does not run for a VAR_STAT's instance, a CONFIGURATION's VAR_GLOBAL's, nor a VAR_IN_OUT or VAR_EXTERNAL",
                             v.name
                         );
                         report(v.span, msg);
+                        d.ty = TypeRef::Named(base);
+                        continue;
                     }
-                    for (arg, value) in &def.values {
-                        if value.is_none() {
-                            let msg = format!(
-                                "`{}`: the declaration argument `{}` has no value (`{} := …`)",
-                                v.name, arg.name, arg.name
-                            );
-                            report(arg.span, msg);
-                        } else if runs
-                            && !plan.extras(&base.name).iter().any(|e| e.names[0].is(&arg.name))
-                        {
-                            let msg = format!(
-                                "`{}` has no FB_init input `{}` for the declaration of `{}`",
-                                base.name, arg.name, v.name
-                            );
-                            report(arg.span, msg);
+                    let written = written_arguments(def);
+                    let known = plan.extras(&base.name);
+                    if let Some(odd) = mixed(&written) {
+                        let msg = format!(
+                            "`{}`: the declaration arguments are all named (`x := 5`) or all positional (`{}(5, 'A')`), not both",
+                            v.name, base.name
+                        );
+                        report(arg_span(odd), msg);
+                    }
+                    let mut positional = 0;
+                    for arg in &written {
+                        match arg {
+                            Arg::Output { name, .. } => {
+                                let msg = format!(
+                                    "`{}`: a declaration argument gives an FB_init input (`{} := …`), not an output",
+                                    v.name, name.name
+                                );
+                                report(name.span, msg);
+                            }
+                            Arg::Input { name, .. }
+                                if !known.iter().any(|e| e.names[0].is(&name.name)) =>
+                            {
+                                let msg = format!(
+                                    "`{}` has no FB_init input `{}` for the declaration of `{}`",
+                                    base.name, name.name, v.name
+                                );
+                                report(name.span, msg);
+                            }
+                            Arg::Input { .. } => {}
+                            Arg::Positional(value) => {
+                                positional += 1;
+                                if positional == known.len() + 1 {
+                                    let msg = format!(
+                                        "`{}`: `{}`'s FB_init takes {} argument(s) after bInitRetains and bInCopyCode",
+                                        v.name,
+                                        base.name,
+                                        known.len()
+                                    );
+                                    report(value.span, msg);
+                                }
+                            }
                         }
                     }
                     d.ty = TypeRef::Named(base);
@@ -338,8 +476,8 @@ fn needs_init(
     needs
 }
 
-/// Reports each instance of `block` (a VAR_GLOBAL, a VAR_STAT) whose block has something to
-/// initialise: no PROGRAM's instance owns it to run its `FB_init`.
+/// Reports each instance of `block` (a VAR_STAT, a CONFIGURATION's VAR_GLOBAL) whose block
+/// has something to initialise: nothing runs its `FB_init`.
 fn not_run(
     path: &std::path::Path,
     block: &VarBlock,
@@ -350,7 +488,7 @@ fn not_run(
         if instance_needs(&d.ty, needs).is_some() {
             let n = &d.names[0];
             let msg = format!(
-                "`{}`'s function block has an FB_init, which plcd runs for the instances a PROGRAM holds, not for a VAR_GLOBAL's or a VAR_STAT's",
+                "`{}`'s function block has an FB_init, which plcd does not run for a VAR_STAT's instance (one copy for every instance of its POU) nor a CONFIGURATION's VAR_GLOBAL's",
                 n.name
             );
             diags.push(Diagnostic::new(path, n.span.line, n.span.col, msg));
@@ -573,8 +711,9 @@ fn add_init_all(p: &mut Pou, plan: &Plan) {
     });
 }
 
-/// Starts program `p`'s body with the initialisation of its instances, once a RUN.
-fn add_prologue(p: &mut Pou, plan: &Plan) {
+/// Starts program `p`'s body with the initialisation of its instances, once a RUN. Returns
+/// the array counters it uses.
+fn add_prologue(p: &mut Pou, plan: &Plan) -> usize {
     let needs = &plan.needs;
     let span = p.name.span;
     let not = |e: Expr| Expr { kind: ExprKind::Unary(UnaryOp::Not, Box::new(e)), span };
@@ -594,7 +733,113 @@ fn add_prologue(p: &mut Pou, plan: &Plan) {
         span,
     );
     p.body.insert(0, prologue);
-    p.vars.push(block(VarKind::Local, false, vec![bool_decl(DONE, span)], span));
-    p.vars.push(block(VarKind::Local, true, vec![bool_decl(RETAINED, span)], span));
-    p.vars.extend(counter_block(counters, span));
+    p.vars.push(bool_block(VarKind::Local, false, DONE, span));
+    p.vars.push(bool_block(VarKind::Local, true, RETAINED, span));
+    counters
+}
+
+/// A block declaring one hidden BOOL.
+fn bool_block(kind: VarKind, retain: bool, n: &str, span: Span) -> VarBlock {
+    block(kind, retain, vec![bool_decl(n, span)], span)
+}
+
+/// The variables of `p` fresh at each call of its body whose block has something to
+/// initialise: a FUNCTION's or a method's `VAR` and any POU's `VAR_TEMP`.
+fn call_instances<'p>(p: &'p Pou, needs: &HashMap<String, bool>) -> Vec<(&'p Ident, &'p TypeRef)> {
+    let fresh = |kind: VarKind| {
+        kind == VarKind::Temp || p.kind == PouKind::Function && kind == VarKind::Local
+    };
+    let mut out = Vec::new();
+    for d in p.vars.iter().filter(|b| fresh(b.kind)).flat_map(|b| &b.decls) {
+        if instance_needs(&d.ty, needs).is_some() {
+            out.extend(d.names.iter().map(|n| (n, &d.ty)));
+        }
+    }
+    out
+}
+
+/// Starts the body of `p` (a FUNCTION, a method, or any POU with a `VAR_TEMP`) with the
+/// initialisation of its instances fresh at each call (CODESYS calls their `FB_init` at each
+/// call): `bInitRetains` TRUE (every variable of the instance starts from its initial value),
+/// `bInCopyCode` FALSE. Returns the array counters it uses.
+fn add_call_prologue(p: &mut Pou, plan: &Plan) -> usize {
+    let found: Vec<(Ident, TypeRef)> =
+        call_instances(p, &plan.needs).into_iter().map(|(v, t)| (v.clone(), t.clone())).collect();
+    let span = p.name.span;
+    let truth = |b: bool| Expr { kind: ExprKind::Literal(Literal::Bool(b)), span };
+    let args = || (truth(true), truth(false));
+    let mut counters = 0;
+    let inits: Vec<Stmt> =
+        found.iter().map(|(v, ty)| init_variable(v, ty, plan, &args, &mut counters)).collect();
+    p.body.splice(0..0, inits);
+    counters
+}
+
+/// The top-level `VAR_GLOBAL` instances whose block has something to initialise, in the
+/// order of the files and of their declarations.
+fn global_instances(
+    files: &[Cow<'_, ast::File>],
+    needs: &HashMap<String, bool>,
+) -> Vec<(Ident, TypeRef)> {
+    let mut out = Vec::new();
+    for file in files {
+        for item in &file.items {
+            let Item::Globals(b) = item else { continue };
+            for d in b.decls.iter().filter(|d| instance_needs(&d.ty, needs).is_some()) {
+                out.extend(d.names.iter().map(|n| (n.clone(), d.ty.clone())));
+            }
+        }
+    }
+    out
+}
+
+/// `FUNCTION __FB_INIT_GLOBALS`: initialises each of `globals`, with `bInitRetains` as given
+/// and `bInCopyCode` FALSE.
+fn globals_initialiser(globals: &[(Ident, TypeRef)], plan: &Plan, span: Span) -> Pou {
+    let truth = |b: bool| Expr { kind: ExprKind::Literal(Literal::Bool(b)), span };
+    let args = || (name(INIT_RETAINS, span), truth(false));
+    let mut counters = 0;
+    let body =
+        globals.iter().map(|(v, ty)| init_variable(v, ty, plan, &args, &mut counters)).collect();
+    let mut vars = vec![block(VarKind::Input, false, vec![bool_decl(INIT_RETAINS, span)], span)];
+    vars.extend(counter_block(counters, span));
+    Pou {
+        kind: PouKind::Function,
+        name: ident(GLOBALS_INIT, span),
+        return_type: None,
+        vars,
+        body,
+        actions: Vec::new(),
+        oop: ast::Oop::default(),
+        sfc: None,
+        span,
+        end: span,
+    }
+}
+
+/// Starts program `p`'s body with the initialisation of the global instances, once a RUN
+/// whichever program runs first (the flags are global).
+fn add_globals_prologue(p: &mut Pou) {
+    let span = p.name.span;
+    let not = |e: Expr| Expr { kind: ExprKind::Unary(UnaryOp::Not, Box::new(e)), span };
+    let truth = |b: bool| Expr { kind: ExprKind::Literal(Literal::Bool(b)), span };
+    let assign = |target: &str, value: Expr| {
+        stmt(StmtKind::Assign { target: name(target, span), value }, span)
+    };
+    let args = vec![Arg::Input {
+        name: ident(INIT_RETAINS, span),
+        value: not(name(GLOBALS_RETAINED, span)),
+    }];
+    let call =
+        Expr { kind: ExprKind::Call { callee: Box::new(name(GLOBALS_INIT, span)), args }, span };
+    let inits = vec![
+        assign(GLOBALS_DONE, truth(true)),
+        stmt(StmtKind::Call(call), span),
+        assign(GLOBALS_RETAINED, truth(true)),
+    ];
+    let prologue = stmt(
+        StmtKind::If { branches: vec![(not(name(GLOBALS_DONE, span)), inits)], otherwise: None },
+        span,
+    );
+    p.body.insert(0, prologue);
 }

@@ -1253,8 +1253,9 @@ impl<'a> Parser<'a> {
                     return Ok(TypeRef::Named(name));
                 }
                 self.bump();
-                // `INT (0..100)` or `INT (A, B := 5)`.
-                let first_span = self.span();
+                // `INT (0..100)`, `INT (A, B := 5)`, or a function block's declaration
+                // arguments `T(5, 'A')` (compile/fb_init.rs), read as a call's
+                let open = self.pos;
                 let first = self.expr()?;
                 if self.eat_p(P::DotDot) {
                     let hi = self.expr()?;
@@ -1266,12 +1267,9 @@ impl<'a> Parser<'a> {
                         span,
                     });
                 }
-                let ExprKind::Name(value) = first.kind else {
-                    self.pos = self.tokens.iter().position(|t| t.span == first_span).unwrap_or(0);
-                    return Err(self.fail(Want::Name));
-                };
-                let def = self.enum_values(Some(name), value, span)?;
-                Ok(TypeRef::Enum(def))
+                self.pos = open;
+                let args = self.args()?;
+                Ok(TypeRef::Enum(enum_or_arguments(name, args, span)))
             }
             Tok::Kw(Kw::String) => {
                 self.bump();
@@ -1356,7 +1354,7 @@ impl<'a> Parser<'a> {
                 continue;
             }
             self.expect_p(P::RParen, Want::CommaOrRParen)?;
-            return Ok(EnumDef { base, values, span });
+            return Ok(EnumDef { base, values, args: Vec::new(), span });
         }
     }
 
@@ -2075,5 +2073,21 @@ impl<'a> Parser<'a> {
             | Tok::Kw(Kw::True | Kw::False) => self.primary(),
             _ => Err(self.fail(Want::TypedValue)),
         }
+    }
+}
+
+/// `Base (…)` read as a call's arguments: an enumeration's values when each is a name, with a
+/// value or without (`INT (A, B := 5)`; also a function block's named declaration arguments,
+/// `T(x := 5)`); otherwise a function block's declaration arguments as written (`T(5, 'A')`),
+/// which compile/fb_init.rs reads and refuses anywhere else.
+fn enum_or_arguments(base: Ident, args: Vec<Arg>, span: Span) -> EnumDef {
+    let value = |arg: &Arg| match arg {
+        Arg::Positional(Expr { kind: ExprKind::Name(n), .. }) => Some((n.clone(), None)),
+        Arg::Input { name, value } => Some((name.clone(), Some(value.clone()))),
+        _ => None,
+    };
+    match args.iter().map(value).collect::<Option<Vec<_>>>() {
+        Some(values) => EnumDef { base: Some(base), values, args: Vec::new(), span },
+        None => EnumDef { base: Some(base), values: Vec::new(), args, span },
     }
 }
