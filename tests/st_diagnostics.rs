@@ -400,6 +400,11 @@ const MESSAGES: &[(&str, &str)] = &[
         "fb-init-too-many-arguments",
     ),
     ("`{}` has no FB_init input `{}` for the declaration of `{}`", "fb-init-argument-unknown"),
+    // fb_exit.rs: FB_exit
+    (
+        "an FB_exit method declares `bInCopyCode : BOOL` as its first VAR_INPUT",
+        "fb-exit-signature",
+    ),
     // sfc.rs: Sequential Function Charts
     (
         "FUNCTION `{}` cannot hold a sequential function chart: a FUNCTION keeps nothing between calls (use a FUNCTION_BLOCK or a PROGRAM)",

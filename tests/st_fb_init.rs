@@ -1,7 +1,9 @@
-//! `FB_init` over the starts of a program (docs/ST.md, FB_init and FB_exit), in virtual
-//! time: a cold start runs it with `bInitRetains` TRUE, a warm RUN start again with FALSE (the
-//! RETAIN variables were kept), an online change does not run it, a cold reset runs it with
-//! TRUE again. `bInCopyCode` is always FALSE.
+//! `FB_init` and `FB_exit` over the starts and ends of a program (docs/ST.md, FB_init and
+//! FB_exit), in virtual time: a cold start runs `FB_init` with `bInitRetains` TRUE, a warm RUN
+//! start again with FALSE (the RETAIN variables were kept), an online change does not run it, a
+//! cold reset runs it with TRUE again. `FB_exit` runs when a RUN ends (a STOP, a reset from
+//! RUN), derived block before base, variables from the last, the global instances last, and
+//! for the instances of a program an online change removes. `bInCopyCode` is always FALSE.
 
 mod harness;
 
@@ -85,4 +87,89 @@ fn fb_init_runs_at_each_run_start_and_says_whether_the_retained_variables_were_k
     run_scans(&mut plc, MS);
     assert_eq!(var(&plc, &changed, "calls"), 1, "run at the RUN start after it");
     assert_eq!(var(&plc, &changed, "main.a.retains"), 1, "cold: retained variables reset");
+}
+
+/// FB_exit logs each call as a digit of `log` (the instance's `id`), so the order is read in
+/// the number.
+const EXITS: &str = "
+VAR_GLOBAL
+    log, exits : DINT;
+    copyCode : BOOL;
+    g : Leaf := (id := 9);
+END_VAR
+FUNCTION_BLOCK Leaf
+VAR_INPUT id : DINT; END_VAR
+METHOD FB_exit : BOOL
+VAR_INPUT bInCopyCode : BOOL; END_VAR
+    log := log * 10 + id; exits := exits + 1; copyCode := copyCode OR bInCopyCode;
+END_METHOD
+END_FUNCTION_BLOCK
+FUNCTION_BLOCK Base
+VAR inner : Leaf := (id := 1); END_VAR
+METHOD FB_exit : BOOL
+VAR_INPUT bInCopyCode : BOOL; END_VAR
+    log := log * 10 + 2;
+END_METHOD
+END_FUNCTION_BLOCK
+FUNCTION_BLOCK Derived EXTENDS Base
+METHOD FB_exit : BOOL
+VAR_INPUT bInCopyCode : BOOL; END_VAR
+    log := log * 10 + 3;
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM Main
+VAR
+    a : Leaf := (id := 4);
+    d : Derived;
+    row : ARRAY [1..2] OF Leaf;
+    scans : DINT;
+END_VAR
+    scans := scans + 1;
+    row[1].id := 5;
+    row[2].id := 6;
+END_PROGRAM
+";
+
+#[test]
+fn fb_exit_runs_when_a_run_ends_derived_before_base_in_reverse_order_then_the_globals() {
+    let p = st(EXITS);
+    let mut plc = Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    assert!(var(&plc, &p, "main.scans") > 1, "it ran");
+    assert_eq!(var(&plc, &p, "exits"), 0, "no FB_exit while running");
+    plc.set_mode(Mode::Stop);
+    // Main's variables from the last: row[2] (6), row[1] (5); d: Derived's FB_exit (3) before
+    // Base's (2), then Base's instance inner (1); a (4); then the global g (9).
+    assert_eq!(var(&plc, &p, "log"), 6_532_149);
+    assert_eq!(var(&plc, &p, "exits"), 5, "each Leaf once");
+    assert_eq!(var(&plc, &p, "copyCode"), 0, "bInCopyCode FALSE");
+
+    // the next RUN starts from the initial values; its end runs them again, once
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    assert_eq!(var(&plc, &p, "log"), 0, "not at the RUN start");
+    plc.request(ModeRequest::Reset { cold: false }).unwrap();
+    assert_eq!(var(&plc, &p, "log"), 6_532_149, "a reset from RUN stops first");
+    plc.set_mode(Mode::Stop);
+    assert_eq!(var(&plc, &p, "exits"), 5, "not again: the RUN had ended");
+}
+
+#[test]
+fn fb_exit_runs_for_the_instances_of_a_program_an_online_change_removes() {
+    let two = "[[program]]\nname = \"main\"\nfile = \"main.st\"\n\
+               [[program]]\nname = \"other\"\nfile = \"other.st\"\n";
+    let other = "PROGRAM Other\nVAR o : Leaf := (id := 7); END_VAR\nEND_PROGRAM\n";
+    let p = project(two, &[("main.st", EXITS), ("other.st", other)]);
+    let mut plc = Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    let changed = st(EXITS);
+    let mut change = plcd::engine::online::prepare(&p, &changed, &[]).unwrap();
+    change.engine.take_over(&mut plc.engine, &change.edges).unwrap();
+    std::mem::swap(&mut plc.engine, &mut change.engine);
+    assert_eq!(var(&plc, &changed, "log"), 7, "only the removed program's instance");
+    run_scans(&mut plc, MS);
+    plc.set_mode(Mode::Stop);
+    assert_eq!(var(&plc, &changed, "log"), 76_532_149, "the rest at the STOP");
 }

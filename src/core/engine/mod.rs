@@ -35,6 +35,7 @@ pub mod event;
 pub mod force;
 pub mod online;
 
+mod finish;
 mod mode;
 mod scan;
 mod schedule;
@@ -159,6 +160,8 @@ pub struct Engine {
     /// The retained Structured Text variables, leaf by leaf; shared with the retain writer's
     /// copies.
     retained_variables: std::sync::Arc<crate::vm::retained::RetainedVariables>,
+    /// The exit passes of the programs (`FB_exit`).
+    finish: finish::Finish,
 }
 
 impl Engine {
@@ -214,6 +217,7 @@ impl Engine {
             retained_variables: std::sync::Arc::new(crate::vm::retained::RetainedVariables::new(
                 &project.variables,
             )),
+            finish: finish::Finish::of(project),
         }
     }
 

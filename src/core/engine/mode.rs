@@ -307,8 +307,14 @@ impl Engine {
     }
 
     /// STOP from RUN, DEBUG or ERROR: execution stops, every output OFF, an error cleared.
+    /// A RUN that ends gives up its instances (the next RUN start initialises them again):
+    /// their `FB_exit` runs (not after a stopping error, which left them as they were).
     pub(super) fn enter_stop(&mut self, now: u64, io: &mut impl Io, sink: &mut impl EventSink) {
+        let finishing = self.running();
         self.halt();
+        if finishing {
+            self.finish_instances(now);
+        }
         self.clear_outputs(io);
         self.mode = ModeState::Stop;
         sink.event(now, Event::Mode(Mode::Stop));

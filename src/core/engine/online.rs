@@ -126,6 +126,10 @@ pub fn prepare(
     }
     let mut engine = Box::new(Engine::new(new, watch));
     engine.kept_variables = kept_variables(&old.variables, &new.variables);
+    // the running programs the new project no longer has: their instances' FB_exit runs
+    engine.finish.removed = (0..old.programs.len() as u16)
+        .filter(|&i| !new.programs.iter().any(|p| p.name == old.programs[usize::from(i)].name))
+        .collect();
     Ok(OnlineChange { engine, edges: edges.into_boxed_slice() })
 }
 
@@ -166,6 +170,11 @@ impl Engine {
     pub fn take_over(&mut self, old: &mut Engine, edges: &[EdgeInit]) -> Result<(), Refusal> {
         if old.phase() != Phase::Idle || !old.stack.is_empty() {
             return Err(Refusal::MidScan);
+        }
+        if old.running() {
+            let removed = std::mem::take(&mut self.finish.removed);
+            old.finish_removed(&removed, old.scan_start_ns);
+            self.finish.removed = removed;
         }
         self.vm.take_over(&mut old.vm, edges);
         self.vm.keep_variables(&old.vm, &self.kept_variables);

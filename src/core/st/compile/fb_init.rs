@@ -68,16 +68,18 @@ pub fn is_fb_init(name: &str) -> bool {
     name.eq_ignore_ascii_case(FB_INIT)
 }
 
-/// Whether `name` is `FB_init` or the hidden [`INIT_ALL`]: methods each block declares for
-/// itself, called without dispatch, whose inputs a derived block may extend.
+/// Whether `name` is `FB_init`, `FB_exit` or their hidden [`INIT_ALL`] and
+/// [`super::fb_exit::EXIT_ALL`]: methods each block declares for itself, called without
+/// dispatch, whose inputs a derived block may extend.
 pub fn is_initialiser(name: &str) -> bool {
-    is_fb_init(name) || name.eq_ignore_ascii_case(INIT_ALL)
+    is_fb_init(name) || name.eq_ignore_ascii_case(INIT_ALL) || super::fb_exit::is_finaliser(name)
 }
 
 /// Whether `name` is one of the variables this lowering declares (exempt from the rule that
 /// reserves names starting with `__` to plcd).
 pub fn is_hidden(name: &str) -> bool {
     name.get(..10).is_some_and(|p| p.eq_ignore_ascii_case("__FB_INIT_"))
+        || name.get(..10).is_some_and(|p| p.eq_ignore_ascii_case("__FB_EXIT_"))
 }
 
 /// The function blocks of the project by name (lower case): (file, item).
@@ -497,12 +499,12 @@ fn not_run(
 }
 
 /// The sections whose instances belong to the POU's instance (not a caller's, nor a global).
-fn holds_instances(kind: VarKind) -> bool {
+pub(super) fn holds_instances(kind: VarKind) -> bool {
     matches!(kind, VarKind::Local | VarKind::Input | VarKind::Output | VarKind::Instance)
 }
 
 /// The block name of an instance or of an array of instances.
-fn instance_type(ty: &TypeRef) -> Option<&str> {
+pub(super) fn instance_type(ty: &TypeRef) -> Option<&str> {
     match ty {
         TypeRef::Named(id) => Some(&id.name),
         TypeRef::Array { of, .. } => instance_type(of),

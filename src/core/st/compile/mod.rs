@@ -51,6 +51,7 @@ mod ctx;
 mod decl;
 mod emit;
 mod expr;
+mod fb_exit;
 mod fb_init;
 mod generic;
 mod instance_args;
@@ -142,6 +143,7 @@ pub fn compile_configured(
     let lowered = sfc::lower(files, &mut diags);
     let lowered = method_vars::lower(lowered);
     let lowered = fb_init::lower(lowered, &mut diags);
+    let lowered = fb_exit::lower(lowered, &mut diags);
     let mut refs: Vec<&ast::File> = lowered.iter().map(|f| &**f).collect();
     refs.push(&prelude);
     let prelude_file = refs.len() - 1;

@@ -1307,7 +1307,9 @@ fn reports_declaration_errors() {
     assert_eq!(var("x : ARRAY [*] INT;"), ["2:15: expected `OF`, found `INT`"]);
     assert_eq!(var("x : STRING[10;"), ["2:14: expected `]`, found `;`"]);
     assert_eq!(var("x : (A, B;"), ["2:10: expected `,` or `)`, found `;`"]);
-    assert_eq!(var("x : INT (1, 2);"), ["2:10: expected a name, found `1`"]);
+    // a function block's positional declaration arguments parse (`fb : T(1, 2)`); for an
+    // enumeration the checker refuses them (golden enum-arguments)
+    assert!(var("x : INT (1, 2);").is_empty());
     assert_eq!(var("x AT D0 : INT;"), ["2:6: expected an address `%…` after `AT`, found `D0`"]);
     assert_eq!(var("x, : INT;"), ["2:4: expected a name, found `:`"]);
     assert_eq!(
