@@ -173,3 +173,41 @@ fn fb_exit_runs_for_the_instances_of_a_program_an_online_change_removes() {
     plc.set_mode(Mode::Stop);
     assert_eq!(var(&plc, &changed, "log"), 76_532_149, "the rest at the STOP");
 }
+
+#[test]
+fn fb_exit_runs_for_a_class_instance_and_one_in_a_method_s_var_inst() {
+    // A class's FB_exit with an input beyond bInCopyCode, which keeps its initial value 5;
+    // the method's VAR_INST k is a variable of User, finished with it after r (declared
+    // first, so finished last): 6 (k) then 5 (r).
+    let source = "
+VAR_GLOBAL log : DINT; END_VAR
+CLASS Res
+VAR id : DINT := 5; END_VAR
+METHOD FB_exit : BOOL
+VAR_INPUT bInCopyCode : BOOL; extra : DINT := 5; END_VAR
+    log := log * 10 + id + extra - 5;
+END_METHOD
+METHOD Set : DINT
+VAR_INPUT v : DINT; END_VAR
+    id := v;
+END_METHOD
+END_CLASS
+FUNCTION_BLOCK User
+VAR r : Res; END_VAR
+METHOD M : DINT
+VAR_INST k : Res; END_VAR
+    M := k.Set(6);
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM Main
+VAR u : User; x : DINT; END_VAR
+    x := u.M();
+END_PROGRAM
+";
+    let p = st(source);
+    let mut plc = Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    plc.set_mode(Mode::Stop);
+    assert_eq!(var(&plc, &p, "log"), 65);
+}
