@@ -3,7 +3,8 @@
 //! start again with FALSE (the RETAIN variables were kept), an online change does not run it, a
 //! cold reset runs it with TRUE again. `FB_exit` runs when a RUN ends (a STOP, a reset from
 //! RUN), derived block before base, variables from the last, the global instances last, and
-//! for the instances of a program an online change removes. `bInCopyCode` is always FALSE.
+//! for the instances of a program an online change removes. An online change of an instance's
+//! declaration runs `FB_exit` and `FB_init` with `bInCopyCode` TRUE, then `FB_reinit`.
 
 mod harness;
 
@@ -210,4 +211,66 @@ END_PROGRAM
     run_scans(&mut plc, MS);
     plc.set_mode(Mode::Stop);
     assert_eq!(var(&plc, &p, "log"), 65);
+}
+
+#[test]
+fn an_online_change_of_a_declaration_runs_fb_exit_fb_init_in_copy_code_then_fb_reinit() {
+    let before = "
+VAR_GLOBAL log, flags : DINT; END_VAR
+FUNCTION_BLOCK Dev
+VAR_INPUT kept : DINT; END_VAR
+METHOD FB_exit : BOOL
+VAR_INPUT bInCopyCode : BOOL; END_VAR
+    log := log * 10 + 1;
+    IF bInCopyCode THEN flags := flags + 1; END_IF
+END_METHOD
+END_FUNCTION_BLOCK
+FUNCTION_BLOCK Fix
+METHOD FB_exit : BOOL
+VAR_INPUT bInCopyCode : BOOL; END_VAR
+    log := log * 10 + 9;
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM Main
+VAR d : Dev; f : Fix; scans : DINT; END_VAR
+    scans := scans + 1;
+    d.kept := 7;
+END_PROGRAM
+";
+    // Dev gains variables (its declaration changes), an FB_init and an FB_reinit; Fix is
+    // the same
+    let after = before
+        .replace(
+            "VAR_INPUT kept : DINT; END_VAR",
+            "VAR_INPUT kept : DINT; END_VAR
+VAR_OUTPUT added, seen : DINT; END_VAR
+METHOD FB_init : BOOL
+VAR_INPUT bInitRetains : BOOL; bInCopyCode : BOOL; END_VAR
+    IF bInCopyCode AND NOT bInitRetains THEN added := 5; END_IF
+END_METHOD
+METHOD FB_reinit : BOOL
+    seen := kept * 10 + added;
+END_METHOD",
+        )
+        .replace("d.kept := 7;", "d.kept := 8;");
+    let p = st(before);
+    let mut plc = Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    let changed = st(&after);
+    let mut change = plcd::engine::online::prepare(&p, &changed, &[]).unwrap();
+    change.engine.take_over(&mut plc.engine, &change.edges).unwrap();
+    std::mem::swap(&mut plc.engine, &mut change.engine);
+    // the old d's FB_exit with bInCopyCode TRUE (its write to log is carried over); Fix's
+    // instance is kept as it was: no FB_exit (no 9)
+    assert_eq!(var(&plc, &changed, "log"), 1);
+    assert_eq!(var(&plc, &changed, "flags"), 1);
+    // the new d's FB_init (bInitRetains FALSE, bInCopyCode TRUE) set the new variable added;
+    // kept was carried over (7); FB_reinit saw both, before any scan of the new code
+    assert_eq!(var(&plc, &changed, "main.d.added"), 5);
+    assert_eq!(var(&plc, &changed, "main.d.kept"), 7);
+    assert_eq!(var(&plc, &changed, "main.d.seen"), 75);
+    run_scans(&mut plc, MS);
+    assert_eq!(var(&plc, &changed, "main.d.kept"), 8, "the new code runs");
+    assert_eq!(var(&plc, &changed, "main.d.seen"), 75, "FB_reinit once");
 }

@@ -1,7 +1,9 @@
 //! The end of the function block instances' life (`FB_exit`, docs/ST.md "FB_init and
 //! FB_exit"): when a RUN ends (STOP from RUN or DEBUG, and so before a load, a reset, a
 //! replacement and the daemon's shutdown, which all stop the PLC first) and when an online
-//! change removes a program.
+//! change removes a program; and an online change's instances whose declaration changed
+//! (`FB_exit` and `FB_init` with `bInCopyCode` TRUE, then `FB_reinit`: [`copied_instances`],
+//! `Engine::take_over`).
 //!
 //! Code runs only in a program's body, so the compiler gives each Structured Text PROGRAM an
 //! *exit pass* (`compile/fb_exit.rs`): its body starts by testing hidden request flags. Here the
@@ -28,8 +30,68 @@ pub(super) struct Finish {
     requests: Box<[Option<(Pointer, Elem)>]>,
     /// `__FB_EXIT_GLOBALS_REQUEST`, if global instances have something to finish.
     globals: Option<(Pointer, Elem)>,
+    /// By program index: the program's `__FB_EXIT_PHASE` (the phases of an online change).
+    phases: Box<[Option<(Pointer, Elem)>]>,
     /// The programs of the running engine an online change removes (prepared with it).
     pub(super) removed: Box<[u16]>,
+    /// The instances whose declaration an online change changes (prepared with it).
+    pub(super) copies: Box<[CopiedInstance]>,
+}
+
+/// A PROGRAM's variable an online change carries over into a changed declaration: its flag
+/// (`__FB_EXIT_COPY_<name>`) in each engine, to select it for the phases.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct CopiedInstance {
+    old_program: u16,
+    old_flag: (Pointer, Elem),
+    new_program: u16,
+    new_flag: (Pointer, Elem),
+}
+
+/// The PROGRAM variables with a life cycle (a copy flag in both projects) whose declaration
+/// differs between `old` and `new`: not the same leaves, by name and type, under the variable.
+pub(super) fn copied_instances(old: &Project, new: &Project) -> Box<[CopiedInstance]> {
+    const FLAG: &str = ".__fb_exit_copy_";
+    let leaves = |project: &Project, var: &str| {
+        let mut found: Vec<(String, crate::value::ValueType)> = project
+            .variables
+            .symbols
+            .iter()
+            .filter_map(|s| {
+                let name = s.name.to_ascii_lowercase();
+                let rest = name.strip_prefix(var)?;
+                (rest.starts_with('.') || rest.starts_with('['))
+                    .then(|| (rest.to_string(), s.ty.clone()))
+            })
+            .collect();
+        found.sort_by(|a, b| a.0.cmp(&b.0));
+        found
+    };
+    let program_of = |project: &Project, name: &str| {
+        project.programs.iter().position(|p| p.name.eq_ignore_ascii_case(name)).map(|i| i as u16)
+    };
+    let mut out = Vec::new();
+    for symbol in &new.variables.symbols {
+        let lower = symbol.name.to_ascii_lowercase();
+        let Some(at) = lower.find(FLAG) else { continue };
+        let (program, var) = (&lower[..at], &lower[at + FLAG.len()..]);
+        let Some(before) = old.variable(&symbol.name) else { continue };
+        let (Some(old_program), Some(new_program)) =
+            (program_of(old, program), program_of(new, program))
+        else {
+            continue;
+        };
+        let path = format!("{program}.{var}");
+        if leaves(old, &path) != leaves(new, &path) {
+            out.push(CopiedInstance {
+                old_program,
+                old_flag: (before.at, before.ty.elem()),
+                new_program,
+                new_flag: (symbol.at, symbol.ty.elem()),
+            });
+        }
+    }
+    out.into_boxed_slice()
 }
 
 impl Finish {
@@ -40,7 +102,15 @@ impl Finish {
             .iter()
             .map(|p| flag(&format!("{}.__FB_EXIT_REQUEST", p.name)))
             .collect();
-        Finish { requests, globals: flag("__FB_EXIT_GLOBALS_REQUEST"), removed: Box::default() }
+        let phases =
+            project.programs.iter().map(|p| flag(&format!("{}.__FB_EXIT_PHASE", p.name))).collect();
+        Finish {
+            requests,
+            globals: flag("__FB_EXIT_GLOBALS_REQUEST"),
+            phases,
+            removed: Box::default(),
+            copies: Box::default(),
+        }
     }
 }
 
@@ -66,14 +136,49 @@ impl Engine {
         }
     }
 
+    /// Phase `phase` of an online change (see [`Finish::copies`]) over `copies`, in this engine
+    /// (`old`: the running one, whose flags are the old ones). Allocates nothing.
+    pub(super) fn copy_phase(
+        &mut self,
+        copies: &[CopiedInstance],
+        old: bool,
+        phase: u64,
+        now: u64,
+    ) {
+        for copy in copies {
+            let (p, (at, elem)) = if old {
+                (copy.old_program, copy.old_flag)
+            } else {
+                (copy.new_program, copy.new_flag)
+            };
+            let Some(Some((phase_at, phase_elem))) = self.finish.phases.get(usize::from(p)) else {
+                continue;
+            };
+            let (phase_at, phase_elem) = (*phase_at, *phase_elem);
+            self.vm.write_value(at, elem, 1);
+            self.vm.write_value(phase_at, phase_elem, phase);
+            self.run_pass(usize::from(p), now);
+            self.vm.write_value(phase_at, phase_elem, 0);
+            self.vm.write_value(at, elem, 0);
+        }
+    }
+
     /// Program `p`'s exit pass: its own instances, or (`globals`) the global instances.
     fn finish_program(&mut self, p: usize, globals: bool, now: u64) {
         let flag = if globals { self.finish.globals } else { self.finish.requests[p] };
         let Some((at, elem)) = flag else { return };
+        self.vm.write_value(at, elem, 1);
+        self.run_pass(p, now);
+        // a pass cut short leaves its flag: it must not run at the next scan
+        self.vm.write_value(at, elem, 0);
+    }
+
+    /// Runs program `p`'s body to its END (the flags it tests set), with the execution state
+    /// of a task that runs it, on a clock standing still at `now`.
+    fn run_pass(&mut self, p: usize, now: u64) {
         let Some(task) = self.tasks.iter_mut().find(|t| t.programs.contains(&(p as u16))) else {
             return;
         };
-        self.vm.write_value(at, elem, 1);
         let clock = StepClock { origin_ns: now, origin_steps: 0, step_ns: 0 };
         let program = &self.programs[p];
         task.exec.restart();
@@ -89,7 +194,5 @@ impl Engine {
             }
         }
         task.exec.restart();
-        // a pass cut short leaves its flag: it must not run at the next scan
-        self.vm.write_value(at, elem, 0);
     }
 }

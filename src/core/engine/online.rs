@@ -130,6 +130,7 @@ pub fn prepare(
     engine.finish.removed = (0..old.programs.len() as u16)
         .filter(|&i| !new.programs.iter().any(|p| p.name == old.programs[usize::from(i)].name))
         .collect();
+    engine.finish.copies = super::finish::copied_instances(old, new);
     Ok(OnlineChange { engine, edges: edges.into_boxed_slice() })
 }
 
@@ -171,13 +172,24 @@ impl Engine {
         if old.phase() != Phase::Idle || !old.stack.is_empty() {
             return Err(Refusal::MidScan);
         }
+        let copies = std::mem::take(&mut self.finish.copies);
+        let now = old.scan_start_ns;
         if old.running() {
             let removed = std::mem::take(&mut self.finish.removed);
-            old.finish_removed(&removed, old.scan_start_ns);
+            old.finish_removed(&removed, now);
             self.finish.removed = removed;
+            // the instances whose declaration changed, as CODESYS: FB_exit(bInCopyCode :=
+            // TRUE) on the old copy, FB_init(bInCopyCode := TRUE) on the new, the values
+            // carried over, then FB_reinit
+            old.copy_phase(&copies, true, 1, now);
+            self.copy_phase(&copies, false, 2, now);
         }
         self.vm.take_over(&mut old.vm, edges);
         self.vm.keep_variables(&old.vm, &self.kept_variables);
+        if old.running() {
+            self.copy_phase(&copies, false, 3, now);
+        }
+        self.finish.copies = copies;
         for (new, old) in self.tasks.iter_mut().zip(old.tasks.iter_mut()) {
             new.kind = old.kind.clone();
             new.state = match old.state {

@@ -22,6 +22,11 @@
 //!   instances never initialised). The engine (`Engine::finish_instances`) sets the request
 //!   flags and runs the programs' bodies to their END, the programs in reverse order, then the
 //!   globals. `bInCopyCode` is FALSE.
+//! - An online change's instances whose declaration changed: the exit pass also tests
+//!   [`PHASE`] and a flag per PROGRAM variable with a life cycle ([`copy_flag`]), to run on
+//!   the selected variables `__FB_EXIT_ALL(bInCopyCode := TRUE)` (phase 1, the old engine) or
+//!   `FB_reinit()` (phase 3, the new engine after the carry-over); phase 2, `__FB_INIT_ALL`
+//!   with `bInCopyCode` TRUE, is compile/fb_init.rs's, which knows the declaration arguments.
 //!
 //! Checked here: an `FB_exit` declares `bInCopyCode : BOOL` as its first VAR_INPUT (CODESYS's
 //! C0565).
@@ -35,7 +40,7 @@ use crate::st::ast::{
     UnaryOp, VarBlock, VarDecl, VarKind,
 };
 
-use super::fb_init::{holds_instances, instance_type};
+use super::fb_init::{holds_instances, instance_type, INIT_ALL};
 
 /// The hidden method that finishes an instance (its `FB_exit`, its instances, its base).
 pub const EXIT_ALL: &str = "__FB_EXIT_ALL";
@@ -45,7 +50,14 @@ pub const FB_EXIT: &str = "FB_exit";
 pub const REQUEST: &str = "__FB_EXIT_REQUEST";
 /// The global request flag: the exit pass finishes the global instances.
 pub const GLOBALS_REQUEST: &str = "__FB_EXIT_GLOBALS_REQUEST";
+/// A PROGRAM's phase of an online change, which the engine sets to run a pass over the
+/// instances whose declaration changed ([`copy_flag`]): 1 their `FB_exit(bInCopyCode :=
+/// TRUE)` on the old copy, 2 their `FB_init(bInitRetains := FALSE, bInCopyCode := TRUE)` on
+/// the new (compile/fb_init.rs writes that one), 3 their `FB_reinit()` on the new, after the
+/// values were carried over.
+pub const PHASE: &str = "__FB_EXIT_PHASE";
 const LIVE: &str = "__FB_EXIT_LIVE";
+const FB_REINIT: &str = "FB_reinit";
 const GLOBALS_LIVE: &str = "__FB_EXIT_GLOBALS_LIVE";
 const GLOBALS_EXIT: &str = "__FB_EXIT_GLOBALS";
 const IN_COPY_CODE: &str = "bInCopyCode";
@@ -56,8 +68,36 @@ pub fn is_finaliser(name: &str) -> bool {
     name.eq_ignore_ascii_case(FB_EXIT) || name.eq_ignore_ascii_case(EXIT_ALL)
 }
 
+/// The flag by which the engine selects a PROGRAM's variable `v` for a phase of an online
+/// change ([`PHASE`]).
+pub fn copy_flag(v: &str) -> String {
+    format!("__FB_EXIT_COPY_{v}")
+}
+
 /// The function blocks of the project by name (lower case): (file, item).
 type Blocks = HashMap<String, (usize, usize)>;
+
+/// What a block's instances go through, besides `FB_exit` (by block name in lower case).
+struct Life {
+    /// `__FB_INIT_ALL` in its chain (compile/fb_init.rs added it).
+    init: HashMap<String, bool>,
+    /// `FB_reinit` in its chain.
+    reinit: HashMap<String, bool>,
+}
+
+/// Whether block `name` or one of its bases declares a method `method`.
+fn in_chain(files: &[Cow<'_, ast::File>], blocks: &Blocks, name: &str, method: &str) -> bool {
+    let mut at = Some(name.to_ascii_lowercase());
+    for _ in 0..=blocks.len() {
+        let Some(&(f, i)) = at.as_ref().and_then(|n| blocks.get(n)) else { return false };
+        let Item::Pou(p) = &files[f].items[i] else { return false };
+        if p.oop.methods.iter().any(|m| m.pou.name.is(method)) {
+            return true;
+        }
+        at = p.oop.extends.as_ref().map(|b| b.name.to_ascii_lowercase());
+    }
+    false
+}
 
 pub(super) fn lower<'f>(
     mut files: Vec<Cow<'f, ast::File>>,
@@ -94,7 +134,15 @@ pub(super) fn lower<'f>(
     for name in &names {
         needs_exit(&files, &blocks, name, &mut needs, &mut Vec::new());
     }
-    if !needs.values().any(|&n| n) {
+    let life = Life {
+        init: names.iter().map(|n| (n.clone(), in_chain(&files, &blocks, n, INIT_ALL))).collect(),
+        reinit: names
+            .iter()
+            .map(|n| (n.clone(), in_chain(&files, &blocks, n, FB_REINIT)))
+            .collect(),
+    };
+    let any = |m: &HashMap<String, bool>| m.values().any(|&n| n);
+    if !any(&needs) && !any(&life.init) && !any(&life.reinit) {
         return files;
     }
     let globals = global_instances(&files, &needs);
@@ -114,7 +162,7 @@ pub(super) fn lower<'f>(
             let Item::Pou(p) = item else { continue };
             match p.kind {
                 PouKind::FunctionBlock if own_work(p, &needs) => add_exit_all(p, &needs),
-                PouKind::Program => add_exit_pass(p, &needs, !globals.is_empty()),
+                PouKind::Program => add_exit_pass(p, &needs, &life, !globals.is_empty()),
                 _ => {}
             }
         }
@@ -268,9 +316,16 @@ fn call_method(target: Expr, method: &str, copy: Expr, span: Span) -> Stmt {
     stmt(StmtKind::Call(call), span)
 }
 
-/// The calls that finish variable `v` of type `ty` (each element of an array from the last, in
-/// nested FOR loops over hidden DINT counters `__FB_EXIT_I1`, …), and the counters they use.
-fn exit_variable(v: &Ident, ty: &TypeRef, copy: &dyn Fn() -> Expr, counters: &mut usize) -> Stmt {
+/// `make(element)` for variable `v` of type `ty`, or for each of its elements if an array (in
+/// nested FOR loops over hidden DINT counters `__FB_EXIT_I1`, …, from the last element unless
+/// `forward`), and the counters it uses.
+fn each_element(
+    v: &Ident,
+    ty: &TypeRef,
+    forward: bool,
+    counters: &mut usize,
+    make: &dyn Fn(Expr) -> Stmt,
+) -> Stmt {
     let span = v.span;
     let mut dims: Vec<&(Expr, Expr)> = Vec::new();
     let mut at = ty;
@@ -285,7 +340,7 @@ fn exit_variable(v: &Ident, ty: &TypeRef, copy: &dyn Fn() -> Expr, counters: &mu
         let index = (1..=dims.len()).map(|k| name(&counter(k), span)).collect();
         Expr { kind: ExprKind::Index(Box::new(name(&v.name, span)), index), span }
     };
-    let mut body = call_method(target, EXIT_ALL, copy(), span);
+    let mut body = make(target);
     *counters = (*counters).max(dims.len());
     let minus_one = Expr {
         kind: ExprKind::Unary(
@@ -295,18 +350,23 @@ fn exit_variable(v: &Ident, ty: &TypeRef, copy: &dyn Fn() -> Expr, counters: &mu
         span,
     };
     for (k, (lo, hi)) in dims.iter().enumerate().rev() {
+        let (from, to, by) = if forward {
+            ((*lo).clone(), (*hi).clone(), None)
+        } else {
+            ((*hi).clone(), (*lo).clone(), Some(minus_one.clone()))
+        };
         body = stmt(
-            StmtKind::For {
-                var: ident(&counter(k + 1), span),
-                from: hi.clone(),
-                to: lo.clone(),
-                by: Some(minus_one.clone()),
-                body: vec![body],
-            },
+            StmtKind::For { var: ident(&counter(k + 1), span), from, to, by, body: vec![body] },
             span,
         );
     }
     body
+}
+
+/// The calls that finish variable `v` of type `ty`, from its last element.
+fn exit_variable(v: &Ident, ty: &TypeRef, copy: &dyn Fn() -> Expr, counters: &mut usize) -> Stmt {
+    let span = v.span;
+    each_element(v, ty, false, counters, &|target| call_method(target, EXIT_ALL, copy(), span))
 }
 
 fn counter_block(counters: usize, span: Span) -> Option<VarBlock> {
@@ -382,7 +442,7 @@ fn globals_finisher(globals: &[(Ident, TypeRef)], span: Span) -> Pou {
 }
 
 /// Starts program `p`'s body with its exit pass (see the module's documentation).
-fn add_exit_pass(p: &mut Pou, map: &HashMap<String, bool>, globals: bool) {
+fn add_exit_pass(p: &mut Pou, map: &HashMap<String, bool>, life: &Life, globals: bool) {
     let span = p.name.span;
     let copy = || truth(false, span);
     let mut counters = 0;
@@ -420,12 +480,66 @@ fn add_exit_pass(p: &mut Pou, map: &HashMap<String, bool>, globals: bool) {
             span,
         };
     }
+    // the phases of an online change over the variables whose declaration changed
+    let has = |m: &HashMap<String, bool>, ty: &TypeRef| {
+        instance_type(ty).is_some_and(|n| m.get(&n.to_ascii_lowercase()).copied().unwrap_or(false))
+    };
+    let lives: Vec<(Ident, TypeRef)> = p
+        .vars
+        .iter()
+        .filter(|b| holds_instances(b.kind))
+        .flat_map(|b| &b.decls)
+        .filter(|d| needs(&d.ty, map) || has(&life.init, &d.ty) || has(&life.reinit, &d.ty))
+        .flat_map(|d| d.names.iter().map(|n| (n.clone(), d.ty.clone())))
+        .collect();
+    let in_phase = |k: u128| Expr {
+        kind: ExprKind::Binary(
+            ast::BinaryOp::Eq,
+            Box::new(name(PHASE, span)),
+            Box::new(Expr { kind: ExprKind::Literal(Literal::Int(k)), span }),
+        ),
+        span,
+    };
+    let selected = |v: &Ident, work: Stmt| {
+        let flag = copy_flag(&v.name);
+        when(name(&flag, span), vec![assign(&flag, truth(false, span), span), work], span)
+    };
+    let copy_true = || truth(true, span);
+    let exits: Vec<Stmt> = lives
+        .iter()
+        .rev()
+        .filter(|(_, ty)| needs(ty, map))
+        .map(|(v, ty)| selected(v, exit_variable(v, ty, &copy_true, &mut counters)))
+        .collect();
+    let reinit = |target: Expr| {
+        let callee =
+            Expr { kind: ExprKind::Member(Box::new(target), ident(FB_REINIT, span)), span };
+        let call =
+            Expr { kind: ExprKind::Call { callee: Box::new(callee), args: Vec::new() }, span };
+        stmt(StmtKind::Call(call), span)
+    };
+    let reinits: Vec<Stmt> = lives
+        .iter()
+        .filter(|(_, ty)| has(&life.reinit, ty))
+        .map(|(v, ty)| selected(v, each_element(v, ty, true, &mut counters, &reinit)))
+        .collect();
+    pass.push(when(in_phase(1), exits, span));
+    pass.push(when(in_phase(3), reinits, span));
+    for k in [1, 3] {
+        asked = Expr {
+            kind: ExprKind::Binary(ast::BinaryOp::Or, Box::new(asked), Box::new(in_phase(k))),
+            span,
+        };
+    }
     pass.push(stmt(StmtKind::Return, span));
     let mut prologue = vec![when(asked, pass, span), assign(LIVE, truth(true, span), span)];
     if globals {
         prologue.push(assign(GLOBALS_LIVE, truth(true, span), span));
     }
     p.body.splice(0..0, prologue);
-    p.vars.push(block(VarKind::Local, vec![bool_decl(REQUEST, span), bool_decl(LIVE, span)], span));
+    let mut flags = vec![bool_decl(REQUEST, span), bool_decl(LIVE, span)];
+    flags.extend(lives.iter().map(|(v, _)| bool_decl(&copy_flag(&v.name), span)));
+    flags.push(VarDecl { ty: TypeRef::Named(ident("DINT", span)), ..bool_decl(PHASE, span) });
+    p.vars.push(block(VarKind::Local, flags, span));
     p.vars.extend(counter_block(counters, span));
 }

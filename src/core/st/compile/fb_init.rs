@@ -17,7 +17,10 @@
 //!   `__FB_INIT_ALL`. `bInitRetains` is TRUE when the RETAIN variables started from their
 //!   initial values (a hidden `VAR RETAIN __FB_INIT_RETAINED`, set at the first run, says they
 //!   did not: a warm start keeps it); `bInCopyCode` is FALSE (an online change keeps the
-//!   instances and the flag: `FB_init` is not called again).
+//!   instances and the flag: `FB_init` is not called again). Before all that, when the engine
+//!   asks for phase 2 of an online change (compile/fb_exit.rs), the PROGRAM's selected
+//!   variables (the new copies of instances whose declaration changed) run `__FB_INIT_ALL`
+//!   with `bInitRetains` FALSE and `bInCopyCode` TRUE, and nothing else runs.
 //! - The top-level `VAR_GLOBAL` instances: a hidden FUNCTION `__FB_INIT_GLOBALS` initialises
 //!   them, and every PROGRAM starts with a call of it guarded by hidden global flags (the same
 //!   pair, `__FB_INIT_GLOBALS_DONE` and `__FB_INIT_GLOBALS_RETAINED`): whichever PROGRAM runs
@@ -199,12 +202,17 @@ fn generate(files: &mut [Cow<'_, ast::File>], plan: &Plan) {
             match p.kind {
                 PouKind::FunctionBlock if own_work(p, needs) => add_init_all(p, plan),
                 PouKind::Program => {
+                    let mut copies = None;
                     if !instances(p, needs).is_empty() {
-                        counters = counters.max(add_prologue(p, plan));
+                        let (used, copy) = add_prologue(p, plan);
+                        counters = counters.max(used);
+                        copies = Some(copy);
                     }
                     if !globals.is_empty() {
                         add_globals_prologue(p);
                     }
+                    // before any initialisation: the new engine's memory is fresh
+                    p.body.splice(0..0, copies);
                 }
                 _ => {}
             }
@@ -714,8 +722,9 @@ fn add_init_all(p: &mut Pou, plan: &Plan) {
 }
 
 /// Starts program `p`'s body with the initialisation of its instances, once a RUN. Returns
-/// the array counters it uses.
-fn add_prologue(p: &mut Pou, plan: &Plan) -> usize {
+/// the array counters it uses and the statement that initialises the new copies of an online
+/// change, to put first.
+fn add_prologue(p: &mut Pou, plan: &Plan) -> (usize, Stmt) {
     let needs = &plan.needs;
     let span = p.name.span;
     let not = |e: Expr| Expr { kind: ExprKind::Unary(UnaryOp::Not, Box::new(e)), span };
@@ -735,9 +744,33 @@ fn add_prologue(p: &mut Pou, plan: &Plan) -> usize {
         span,
     );
     p.body.insert(0, prologue);
+    // An online change's new copy of an instance whose declaration changed: its FB_init with
+    // bInCopyCode TRUE and bInitRetains FALSE, when the engine asks (phase 2 of
+    // compile/fb_exit.rs, whose lowering declares the flags)
+    let copy_args = || (truth(false), truth(true));
+    let mut copies = Vec::new();
+    for (v, ty) in instances(p, needs) {
+        let flag = super::fb_exit::copy_flag(&v.name);
+        let init = init_variable(v, ty, plan, &copy_args, &mut counters);
+        let branch = vec![assign(&flag, truth(false)), init];
+        copies.push(stmt(
+            StmtKind::If { branches: vec![(name(&flag, span), branch)], otherwise: None },
+            span,
+        ));
+    }
+    copies.push(stmt(StmtKind::Return, span));
+    let phase = Expr {
+        kind: ExprKind::Binary(
+            ast::BinaryOp::Eq,
+            Box::new(name(super::fb_exit::PHASE, span)),
+            Box::new(Expr { kind: ExprKind::Literal(Literal::Int(2)), span }),
+        ),
+        span,
+    };
+    let copy = stmt(StmtKind::If { branches: vec![(phase, copies)], otherwise: None }, span);
     p.vars.push(bool_block(VarKind::Local, false, DONE, span));
     p.vars.push(bool_block(VarKind::Local, true, RETAINED, span));
-    counters
+    (counters, copy)
 }
 
 /// A block declaring one hidden BOOL.
