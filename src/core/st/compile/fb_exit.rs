@@ -5,8 +5,8 @@
 //! stop the PLC first.
 //!
 //! A lowering of the syntax trees, after [`mod@super::fb_init`]'s, so that the calls it adds are
-//! the user's own code (and have native code); a project without `FB_exit` is compiled as
-//! before.
+//! the user's own code (and have native code); a project without `FB_init`, `FB_exit` and
+//! `FB_reinit` is compiled as before.
 //!
 //! - Each function block with something to finish (its own `FB_exit`, its base's, or one of
 //!   its instances') gets a hidden method [`EXIT_ALL`]: the reverse of `__FB_INIT_ALL`'s order,
