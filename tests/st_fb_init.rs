@@ -274,3 +274,41 @@ END_METHOD",
     assert_eq!(var(&plc, &changed, "main.d.kept"), 8, "the new code runs");
     assert_eq!(var(&plc, &changed, "main.d.seen"), 75, "FB_reinit once");
 }
+
+#[test]
+fn the_phases_of_an_online_change_run_no_statement_of_a_program_without_fb_init() {
+    // Ext has only an FB_exit, and gains a variable: its instance's phases 1 to 3 run in
+    // Main, whose statements (runs := runs + 1) must not run outside a scan
+    let before = "
+VAR_GLOBAL log, runs : DINT; END_VAR
+FUNCTION_BLOCK Ext
+VAR_INPUT a : DINT; END_VAR
+METHOD FB_exit : BOOL
+VAR_INPUT bInCopyCode : BOOL; END_VAR
+    IF bInCopyCode THEN log := log + 1; END_IF
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM Main
+VAR e : Ext; END_VAR
+    runs := runs + 1;
+END_PROGRAM
+";
+    // (the new Main's new variable is not carried over: what its statements would do to it
+    // outside a scan would stay)
+    let after = before
+        .replace("VAR_INPUT a : DINT; END_VAR", "VAR_INPUT a, b : DINT; END_VAR")
+        .replace("VAR e : Ext; END_VAR", "VAR e : Ext; fresh : DINT; END_VAR")
+        .replace("runs := runs + 1;", "runs := runs + 1; fresh := fresh + 1;");
+    let p = st(before);
+    let mut plc = Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    let runs = var(&plc, &p, "runs");
+    let changed = st(&after);
+    let mut change = plcd::engine::online::prepare(&p, &changed, &[]).unwrap();
+    change.engine.take_over(&mut plc.engine, &change.edges).unwrap();
+    std::mem::swap(&mut plc.engine, &mut change.engine);
+    assert_eq!(var(&plc, &changed, "log"), 1, "FB_exit(bInCopyCode := TRUE) on the old copy");
+    assert_eq!(var(&plc, &changed, "runs"), runs, "no statement of Main ran");
+    assert_eq!(var(&plc, &changed, "main.fresh"), 0, "nor of the new Main");
+}

@@ -525,7 +525,11 @@ fn add_exit_pass(p: &mut Pou, map: &HashMap<String, bool>, life: &Life, globals:
         .collect();
     pass.push(when(in_phase(1), exits, span));
     pass.push(when(in_phase(3), reinits, span));
-    for k in [1, 3] {
+    // phase 2 is compile/fb_init.rs's, in a PROGRAM with instances to initialise; in any
+    // other it must not run the body
+    let phases: &[u128] =
+        if lives.iter().any(|(_, ty)| has(&life.init, ty)) { &[1, 3] } else { &[1, 2, 3] };
+    for &k in phases {
         asked = Expr {
             kind: ExprKind::Binary(ast::BinaryOp::Or, Box::new(asked), Box::new(in_phase(k))),
             span,
