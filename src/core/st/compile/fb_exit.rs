@@ -22,6 +22,8 @@
 //!   instances never initialised). The engine (`Engine::finish_instances`) sets the request
 //!   flags and runs the programs' bodies to their END, the programs in reverse order, then the
 //!   globals. `bInCopyCode` is FALSE.
+//! - The instances fresh at each call (a method's `VAR`, a function block's `VAR_TEMP`): their
+//!   `__FB_EXIT_ALL` at the end of the body and before each `RETURN`.
 //! - An online change's instances whose declaration changed: the exit pass also tests
 //!   [`PHASE`] and a flag per PROGRAM variable with a life cycle ([`copy_flag`]), to run on
 //!   the selected variables `__FB_EXIT_ALL(bInCopyCode := TRUE)` (phase 1, the old engine) or
@@ -152,7 +154,10 @@ pub(super) fn lower<'f>(
             !globals_placed && file.items.iter().any(|i| matches!(i, Item::Globals(_)));
         let wants = holds_globals
             || file.items.iter().any(|item| {
-                matches!(item, Item::Pou(p) if p.kind == PouKind::Program || own_work(p, &needs))
+                matches!(item, Item::Pou(p) if p.kind == PouKind::Program
+                    || own_work(p, &needs)
+                    || !fresh_instances(p, &needs).is_empty()
+                    || p.oop.methods.iter().any(|m| !fresh_instances(&m.pou, &needs).is_empty()))
             });
         if !wants {
             continue;
@@ -160,6 +165,14 @@ pub(super) fn lower<'f>(
         let items = &mut file.to_mut().items;
         for item in items.iter_mut() {
             let Item::Pou(p) = item else { continue };
+            for m in &mut p.oop.methods {
+                let counters = finish_fresh(&mut m.pou, &needs);
+                m.pou.vars.extend(counter_block(counters, m.pou.span));
+            }
+            if p.kind == PouKind::FunctionBlock {
+                let counters = finish_fresh(p, &needs);
+                p.vars.extend(counter_block(counters, p.name.span));
+            }
             match p.kind {
                 PouKind::FunctionBlock if own_work(p, &needs) => add_exit_all(p, &needs),
                 PouKind::Program => add_exit_pass(p, &needs, &life, !globals.is_empty()),
@@ -439,6 +452,77 @@ fn globals_finisher(globals: &[(Ident, TypeRef)], span: Span) -> Pou {
         globals.iter().rev().map(|(v, ty)| exit_variable(v, ty, &copy, &mut counters)).collect();
     let vars = counter_block(counters, span).into_iter().collect();
     hidden_method(GLOBALS_EXIT, vars, body, span, span)
+}
+
+/// The variables of `p` fresh at each call whose block has something to finish: a method's
+/// `VAR`, a function block's `VAR_TEMP` (a PROGRAM's `VAR_TEMP` is not finished: its body's
+/// generated `RETURN`s are no end of a scan).
+fn fresh_instances(p: &Pou, map: &HashMap<String, bool>) -> Vec<(Ident, TypeRef)> {
+    let fresh = |kind: VarKind| match p.kind {
+        PouKind::Function => matches!(kind, VarKind::Local | VarKind::Temp),
+        PouKind::FunctionBlock => kind == VarKind::Temp,
+        PouKind::Program => false,
+    };
+    let mut out = Vec::new();
+    for d in p.vars.iter().filter(|b| fresh(b.kind)).flat_map(|b| &b.decls) {
+        if needs(&d.ty, map) {
+            out.extend(d.names.iter().map(|n| (n.clone(), d.ty.clone())));
+        }
+    }
+    out
+}
+
+/// Finishes the instances fresh at each call of `p`'s body when the call returns (at its end
+/// and before each `RETURN`), from the last, with `bInCopyCode` FALSE. Returns the array
+/// counters it uses.
+fn finish_fresh(p: &mut Pou, map: &HashMap<String, bool>) -> usize {
+    let found = fresh_instances(p, map);
+    if found.is_empty() {
+        return 0;
+    }
+    let span = p.name.span;
+    let copy = || truth(false, span);
+    let mut counters = 0;
+    let exits: Vec<Stmt> =
+        found.iter().rev().map(|(v, ty)| exit_variable(v, ty, &copy, &mut counters)).collect();
+    before_returns(&mut p.body, &exits);
+    p.body.extend(exits);
+    counters
+}
+
+/// Puts `exits` before each `RETURN` of `body`, at any depth (`IF TRUE THEN exits; RETURN;
+/// END_IF` in its place).
+fn before_returns(body: &mut [Stmt], exits: &[Stmt]) {
+    for s in body.iter_mut() {
+        match &mut s.kind {
+            StmtKind::Return => {
+                let span = s.span;
+                let mut then = exits.to_vec();
+                then.push(stmt(StmtKind::Return, span));
+                *s = when(truth(true, span), then, span);
+            }
+            StmtKind::If { branches, otherwise } => {
+                for (_, b) in branches {
+                    before_returns(b, exits);
+                }
+                if let Some((_, b)) = otherwise {
+                    before_returns(b, exits);
+                }
+            }
+            StmtKind::Case { arms, otherwise, .. } => {
+                for arm in arms {
+                    before_returns(&mut arm.body, exits);
+                }
+                if let Some((_, b)) = otherwise {
+                    before_returns(b, exits);
+                }
+            }
+            StmtKind::For { body, .. }
+            | StmtKind::While { body, .. }
+            | StmtKind::Repeat { body, .. } => before_returns(body, exits),
+            _ => {}
+        }
+    }
 }
 
 /// Starts program `p`'s body with its exit pass (see the module's documentation).
