@@ -312,3 +312,68 @@ END_PROGRAM
     assert_eq!(var(&plc, &changed, "runs"), runs, "no statement of Main ran");
     assert_eq!(var(&plc, &changed, "main.fresh"), 0, "nor of the new Main");
 }
+
+#[test]
+fn an_instance_an_online_change_adds_to_a_kept_program_runs_its_fb_init() {
+    // Main gains `b`: its FB_init runs at the change (bInitRetains TRUE, bInCopyCode FALSE,
+    // as at a first start), a's does not run again
+    let before = "
+VAR_GLOBAL calls : DINT; END_VAR
+FUNCTION_BLOCK Axis
+VAR_OUTPUT retains, copy : BOOL; END_VAR
+METHOD FB_init : BOOL
+VAR_INPUT bInitRetains : BOOL; bInCopyCode : BOOL; END_VAR
+    retains := bInitRetains; copy := bInCopyCode; calls := calls + 1;
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM Main
+VAR a : Axis; scans : DINT; END_VAR
+    scans := scans + 1;
+END_PROGRAM
+";
+    let after = before.replace("VAR a : Axis;", "VAR a : Axis; b : Axis;");
+    let p = st(before);
+    let mut plc = Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    assert_eq!(var(&plc, &p, "calls"), 1);
+    let changed = st(&after);
+    let mut change = plcd::engine::online::prepare(&p, &changed, &[]).unwrap();
+    change.engine.take_over(&mut plc.engine, &change.edges).unwrap();
+    std::mem::swap(&mut plc.engine, &mut change.engine);
+    assert_eq!(var(&plc, &changed, "calls"), 2, "b's FB_init only");
+    assert_eq!(var(&plc, &changed, "main.b.retains"), 1);
+    assert_eq!(var(&plc, &changed, "main.b.copy"), 0);
+    run_scans(&mut plc, MS);
+    assert_eq!(var(&plc, &changed, "calls"), 2, "not again at the next scans");
+}
+
+#[test]
+fn an_instance_added_to_a_program_without_fb_init_before_is_initialised_once() {
+    // Main had no instance with an FB_init: its first scan after the change initialises
+    // every instance it has (its hidden flag is new), so the change itself does not
+    let before = "
+VAR_GLOBAL calls : DINT; END_VAR
+FUNCTION_BLOCK Axis
+METHOD FB_init : BOOL
+VAR_INPUT bInitRetains : BOOL; bInCopyCode : BOOL; END_VAR
+    calls := calls + 1;
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM Main
+VAR scans : DINT; END_VAR
+    scans := scans + 1;
+END_PROGRAM
+";
+    let after = before.replace("VAR scans : DINT;", "VAR b : Axis; scans : DINT;");
+    let p = st(before);
+    let mut plc = Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    let changed = st(&after);
+    let mut change = plcd::engine::online::prepare(&p, &changed, &[]).unwrap();
+    change.engine.take_over(&mut plc.engine, &change.edges).unwrap();
+    std::mem::swap(&mut plc.engine, &mut change.engine);
+    run_scans(&mut plc, MS);
+    assert_eq!(var(&plc, &changed, "calls"), 1, "once");
+}

@@ -36,6 +36,9 @@ pub(super) struct Finish {
     pub(super) removed: Box<[u16]>,
     /// The instances whose declaration an online change changes (prepared with it).
     pub(super) copies: Box<[CopiedInstance]>,
+    /// The instances an online change adds to a kept PROGRAM (prepared with it): program and
+    /// flag in the new engine.
+    pub(super) added: Box<[(u16, (Pointer, Elem))]>,
 }
 
 /// A PROGRAM's variable an online change carries over into a changed declaration: its flag
@@ -46,6 +49,37 @@ pub(super) struct CopiedInstance {
     old_flag: (Pointer, Elem),
     new_program: u16,
     new_flag: (Pointer, Elem),
+}
+
+/// The PROGRAM variables with a life cycle (a copy flag) that `new` adds to a PROGRAM `old`
+/// has, in a PROGRAM variable of a name `old` did not have: (new program, flag).
+pub(super) fn added_instances(old: &Project, new: &Project) -> Box<[(u16, (Pointer, Elem))]> {
+    let mut out = Vec::new();
+    for symbol in &new.variables.symbols {
+        let lower = symbol.name.to_ascii_lowercase();
+        let Some(at) = lower.find(".__fb_exit_copy_") else { continue };
+        let program = &lower[..at];
+        let Some(new_program) =
+            new.programs.iter().position(|p| p.name.eq_ignore_ascii_case(program))
+        else {
+            continue;
+        };
+        let kept = old.programs.iter().any(|p| p.name.eq_ignore_ascii_case(program));
+        let var = format!("{program}.{}", &lower[at + ".__fb_exit_copy_".len()..]);
+        // the variable itself, or a leaf under it
+        let existed = old.variables.symbols.iter().any(|s| {
+            let name = s.name.to_ascii_lowercase();
+            name.strip_prefix(var.as_str())
+                .is_some_and(|rest| rest.is_empty() || rest.starts_with(['.', '[']))
+        });
+        // a PROGRAM without FB_init before the change initialises all its instances at its
+        // next scan (its hidden flag is new): not twice
+        let initialised = old.variable(&format!("{program}.__fb_init_done")).is_some();
+        if kept && initialised && !existed {
+            out.push((new_program as u16, (symbol.at, symbol.ty.elem())));
+        }
+    }
+    out.into_boxed_slice()
 }
 
 /// The PROGRAM variables with a life cycle (a copy flag in both projects) whose declaration
@@ -75,12 +109,12 @@ pub(super) fn copied_instances(old: &Project, new: &Project) -> Box<[CopiedInsta
         let lower = symbol.name.to_ascii_lowercase();
         let Some(at) = lower.find(FLAG) else { continue };
         let (program, var) = (&lower[..at], &lower[at + FLAG.len()..]);
-        let Some(before) = old.variable(&symbol.name) else { continue };
         let (Some(old_program), Some(new_program)) =
             (program_of(old, program), program_of(new, program))
         else {
             continue;
         };
+        let Some(before) = old.variable(&symbol.name) else { continue };
         let path = format!("{program}.{var}");
         if leaves(old, &path) != leaves(new, &path) {
             out.push(CopiedInstance {
@@ -110,6 +144,7 @@ impl Finish {
             phases,
             removed: Box::default(),
             copies: Box::default(),
+            added: Box::default(),
         }
     }
 }
@@ -157,6 +192,22 @@ impl Engine {
             let (phase_at, phase_elem) = (*phase_at, *phase_elem);
             self.vm.write_value(at, elem, 1);
             self.vm.write_value(phase_at, phase_elem, phase);
+            self.run_pass(usize::from(p), now);
+            self.vm.write_value(phase_at, phase_elem, 0);
+            self.vm.write_value(at, elem, 0);
+        }
+    }
+
+    /// The `FB_init` of the instances an online change added to kept PROGRAMs (phase 4), in
+    /// this, the new engine. Allocates nothing.
+    pub(super) fn init_added(&mut self, added: &[(u16, (Pointer, Elem))], now: u64) {
+        for &(p, (at, elem)) in added {
+            let Some(Some((phase_at, phase_elem))) = self.finish.phases.get(usize::from(p)) else {
+                continue;
+            };
+            let (phase_at, phase_elem) = (*phase_at, *phase_elem);
+            self.vm.write_value(at, elem, 1);
+            self.vm.write_value(phase_at, phase_elem, 4);
             self.run_pass(usize::from(p), now);
             self.vm.write_value(phase_at, phase_elem, 0);
             self.vm.write_value(at, elem, 0);

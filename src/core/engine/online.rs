@@ -131,6 +131,7 @@ pub fn prepare(
         .filter(|&i| !new.programs.iter().any(|p| p.name == old.programs[usize::from(i)].name))
         .collect();
     engine.finish.copies = super::finish::copied_instances(old, new);
+    engine.finish.added = super::finish::added_instances(old, new);
     Ok(OnlineChange { engine, edges: edges.into_boxed_slice() })
 }
 
@@ -187,6 +188,9 @@ impl Engine {
         self.vm.take_over(&mut old.vm, edges);
         self.vm.keep_variables(&old.vm, &self.kept_variables);
         if old.running() {
+            let added = std::mem::take(&mut self.finish.added);
+            self.init_added(&added, now);
+            self.finish.added = added;
             self.copy_phase(&copies, false, 3, now);
         }
         self.finish.copies = copies;

@@ -56,7 +56,8 @@ pub const GLOBALS_REQUEST: &str = "__FB_EXIT_GLOBALS_REQUEST";
 /// instances whose declaration changed ([`copy_flag`]): 1 their `FB_exit(bInCopyCode :=
 /// TRUE)` on the old copy, 2 their `FB_init(bInitRetains := FALSE, bInCopyCode := TRUE)` on
 /// the new (compile/fb_init.rs writes that one), 3 their `FB_reinit()` on the new, after the
-/// values were carried over.
+/// values were carried over; and 4 the `FB_init(bInitRetains := TRUE, bInCopyCode := FALSE)`
+/// of an instance the change adds to a kept PROGRAM (compile/fb_init.rs's too).
 pub const PHASE: &str = "__FB_EXIT_PHASE";
 const LIVE: &str = "__FB_EXIT_LIVE";
 const FB_REINIT: &str = "FB_reinit";
@@ -609,10 +610,10 @@ fn add_exit_pass(p: &mut Pou, map: &HashMap<String, bool>, life: &Life, globals:
         .collect();
     pass.push(when(in_phase(1), exits, span));
     pass.push(when(in_phase(3), reinits, span));
-    // phase 2 is compile/fb_init.rs's, in a PROGRAM with instances to initialise; in any
-    // other it must not run the body
+    // phases 2 and 4 are compile/fb_init.rs's, in a PROGRAM with instances to initialise; in
+    // any other they must not run the body
     let phases: &[u128] =
-        if lives.iter().any(|(_, ty)| has(&life.init, ty)) { &[1, 3] } else { &[1, 2, 3] };
+        if lives.iter().any(|(_, ty)| has(&life.init, ty)) { &[1, 3] } else { &[1, 2, 3, 4] };
     for &k in phases {
         asked = Expr {
             kind: ExprKind::Binary(ast::BinaryOp::Or, Box::new(asked), Box::new(in_phase(k))),

@@ -744,30 +744,35 @@ fn add_prologue(p: &mut Pou, plan: &Plan) -> (usize, Stmt) {
         span,
     );
     p.body.insert(0, prologue);
-    // An online change's new copy of an instance whose declaration changed: its FB_init with
-    // bInCopyCode TRUE and bInitRetains FALSE, when the engine asks (phase 2 of
-    // compile/fb_exit.rs, whose lowering declares the flags)
-    let copy_args = || (truth(false), truth(true));
-    let mut copies = Vec::new();
-    for (v, ty) in instances(p, needs) {
-        let flag = super::fb_exit::copy_flag(&v.name);
-        let init = init_variable(v, ty, plan, &copy_args, &mut counters);
-        let branch = vec![assign(&flag, truth(false)), init];
-        copies.push(stmt(
-            StmtKind::If { branches: vec![(name(&flag, span), branch)], otherwise: None },
+    // Asked by the engine in an online change (compile/fb_exit.rs declares the flags): phase
+    // 2, the new copy of an instance whose declaration changed, its FB_init with bInitRetains
+    // FALSE and bInCopyCode TRUE; phase 4, an instance the change added to a kept PROGRAM,
+    // its FB_init as at a first start (TRUE, FALSE).
+    let mut phases = Vec::new();
+    for (phase, retains, copy) in [(2, false, true), (4, true, false)] {
+        let args = || (truth(retains), truth(copy));
+        let mut selected = Vec::new();
+        for (v, ty) in instances(p, needs) {
+            let flag = super::fb_exit::copy_flag(&v.name);
+            let init = init_variable(v, ty, plan, &args, &mut counters);
+            let branch = vec![assign(&flag, truth(false)), init];
+            selected.push(stmt(
+                StmtKind::If { branches: vec![(name(&flag, span), branch)], otherwise: None },
+                span,
+            ));
+        }
+        selected.push(stmt(StmtKind::Return, span));
+        let asked = Expr {
+            kind: ExprKind::Binary(
+                ast::BinaryOp::Eq,
+                Box::new(name(super::fb_exit::PHASE, span)),
+                Box::new(Expr { kind: ExprKind::Literal(Literal::Int(phase)), span }),
+            ),
             span,
-        ));
+        };
+        phases.push((asked, selected));
     }
-    copies.push(stmt(StmtKind::Return, span));
-    let phase = Expr {
-        kind: ExprKind::Binary(
-            ast::BinaryOp::Eq,
-            Box::new(name(super::fb_exit::PHASE, span)),
-            Box::new(Expr { kind: ExprKind::Literal(Literal::Int(2)), span }),
-        ),
-        span,
-    };
-    let copy = stmt(StmtKind::If { branches: vec![(phase, copies)], otherwise: None }, span);
+    let copy = stmt(StmtKind::If { branches: phases, otherwise: None }, span);
     p.vars.push(bool_block(VarKind::Local, false, DONE, span));
     p.vars.push(bool_block(VarKind::Local, true, RETAINED, span));
     (counters, copy)
