@@ -3,7 +3,7 @@
 //! replacement and the daemon's shutdown, which all stop the PLC first) and when an online
 //! change removes a program; and an online change's instances whose declaration changed
 //! (`FB_exit` and `FB_init` with `bInCopyCode` TRUE, then `FB_reinit`: [`copied_instances`],
-//! `Engine::take_over`).
+//! `Engine::take_over`) or which it adds to a kept PROGRAM (`FB_init`: [`added_instances`]).
 //!
 //! Code runs only in a program's body, so the compiler gives each Structured Text PROGRAM an
 //! *exit pass* (`compile/fb_exit.rs`): its body starts by testing hidden request flags. Here the
@@ -22,6 +22,10 @@ use super::Engine;
 
 /// The instructions an exit pass may execute.
 pub const FINISH_STEPS: u64 = 10_000_000;
+
+/// The name of a PROGRAM variable's copy flag after the PROGRAM's, in lower case
+/// (`compile/fb_exit.rs`'s `copy_flag`).
+const COPY_FLAG: &str = ".__fb_exit_copy_";
 
 /// Where the exit passes' request flags are, found by name in the compiled project.
 #[derive(Debug, Default)]
@@ -57,7 +61,7 @@ pub(super) fn added_instances(old: &Project, new: &Project) -> Box<[(u16, (Point
     let mut out = Vec::new();
     for symbol in &new.variables.symbols {
         let lower = symbol.name.to_ascii_lowercase();
-        let Some(at) = lower.find(".__fb_exit_copy_") else { continue };
+        let Some(at) = lower.find(COPY_FLAG) else { continue };
         let program = &lower[..at];
         let Some(new_program) =
             new.programs.iter().position(|p| p.name.eq_ignore_ascii_case(program))
@@ -65,7 +69,7 @@ pub(super) fn added_instances(old: &Project, new: &Project) -> Box<[(u16, (Point
             continue;
         };
         let kept = old.programs.iter().any(|p| p.name.eq_ignore_ascii_case(program));
-        let var = format!("{program}.{}", &lower[at + ".__fb_exit_copy_".len()..]);
+        let var = format!("{program}.{}", &lower[at + COPY_FLAG.len()..]);
         // the variable itself, or a leaf under it
         let existed = old.variables.symbols.iter().any(|s| {
             let name = s.name.to_ascii_lowercase();
@@ -85,7 +89,6 @@ pub(super) fn added_instances(old: &Project, new: &Project) -> Box<[(u16, (Point
 /// The PROGRAM variables with a life cycle (a copy flag in both projects) whose declaration
 /// differs between `old` and `new`: not the same leaves, by name and type, under the variable.
 pub(super) fn copied_instances(old: &Project, new: &Project) -> Box<[CopiedInstance]> {
-    const FLAG: &str = ".__fb_exit_copy_";
     let leaves = |project: &Project, var: &str| {
         let mut found: Vec<(String, crate::value::ValueType)> = project
             .variables
@@ -107,8 +110,8 @@ pub(super) fn copied_instances(old: &Project, new: &Project) -> Box<[CopiedInsta
     let mut out = Vec::new();
     for symbol in &new.variables.symbols {
         let lower = symbol.name.to_ascii_lowercase();
-        let Some(at) = lower.find(FLAG) else { continue };
-        let (program, var) = (&lower[..at], &lower[at + FLAG.len()..]);
+        let Some(at) = lower.find(COPY_FLAG) else { continue };
+        let (program, var) = (&lower[..at], &lower[at + COPY_FLAG.len()..]);
         let (Some(old_program), Some(new_program)) =
             (program_of(old, program), program_of(new, program))
         else {
