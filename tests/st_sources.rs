@@ -726,3 +726,44 @@ fn twincat_files_with_union_and_then_and_jumps_run() {
     // the JMP loop adds 1 + 2 + 3
     assert_eq!(last(&trace, "main.fbResults.nSum").as_deref(), Some("6"), "{trace}");
 }
+
+/// A `]]>` in the ST of a `.TcPOU`: TwinCAT writes it over two CDATA sections (`']]]]><![CDATA[>'`,
+/// as OSCAT NETWORK's XML_READER has it), which are one text: the string is the 3 characters
+/// `]]>`, and an error after it on its line is reported 12 columns further left (the join's
+/// length), every other line at its place.
+#[test]
+fn a_cdata_end_split_by_twincat_is_one_string() {
+    let dir = TempDir::new("st-sources-cdata");
+    let d = dir.path();
+    let config =
+        "[plc]\nscan_period_ms = 1\n\n[[program]]\nname = \"main\"\nfile = \"MAIN.TcPOU\"\n";
+    write(d, "plcd.toml", config);
+    write(
+        d,
+        "MAIN.TcPOU",
+        &pou(
+            "MAIN",
+            "PROGRAM MAIN\r\nVAR\r\n\ts : STRING;\r\n\tn : INT;\r\nEND_VAR",
+            "s := ']]]]><![CDATA[>'; n := LEN(s);\r\nIF s = CONCAT(']]', '>') THEN n := n + 10; END_IF",
+        ),
+    );
+    let trace = checked_trace(d, "1500us", "main.s,main.n");
+    assert_eq!(last(&trace, "main.s").as_deref(), Some("\"]]>\""), "{trace}");
+    // LEN is 3, and the string equals `]]` and `>`
+    assert_eq!(last(&trace, "main.n").as_deref(), Some("13"), "{trace}");
+    write(
+        d,
+        "MAIN.TcPOU",
+        &pou(
+            "MAIN",
+            "PROGRAM MAIN\r\nVAR\r\n\ts : STRING;\r\nEND_VAR",
+            "s := ']]]]><![CDATA[>'; x := 1;\r\ny := 2;",
+        ),
+    );
+    let out = plcd(d, &["check", "--config", "plcd.toml"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    // `      <ST><![CDATA[` is 19 columns: `x` at 32 of the text (44 of the file, before the
+    // 12 characters of the join left out)
+    assert!(stderr.contains("MAIN.TcPOU:9:32: error: `x` is not declared"), "{stderr}");
+    assert!(stderr.contains("MAIN.TcPOU:10:1: error: `y` is not declared"), "{stderr}");
+}

@@ -9,6 +9,12 @@
 //! character outside the CDATA sections becomes a space (line breaks stay), and the `END_…` a
 //! POU needs is written on a line that held only XML after its last section. The parser and
 //! the compiler then report every error at its place in the `.TcPOU` file itself.
+//!
+//! A `]]>` in the ST (a string `']]>'`) cannot stand inside a CDATA section: TwinCAT ends the
+//! section after `]]` and opens the next one before `>` (`']]]]><![CDATA[>'`). Such adjacent
+//! sections are one text: the `]]><![CDATA[` between them is dropped, not blanked (a blank
+//! would land inside the string), and as many spaces are written at the end of that line, so
+//! only the columns after the join on that one line move, by 12.
 
 use std::ops::Range;
 
@@ -82,25 +88,44 @@ pub fn st_text(xml: &str) -> Result<String, XmlError> {
         }
     }
     words.sort_by_key(|(at, _)| *at);
-    Ok(blank_outside(xml, &keep, &words))
+    keep.sort_by_key(|r| r.start);
+    let joins: Vec<Range<usize>> = keep
+        .windows(2)
+        .filter(|pair| &xml[pair[0].end..pair[1].start] == CDATA_JOIN)
+        .map(|pair| pair[0].end..pair[1].start)
+        .collect();
+    Ok(blank_outside(xml, &keep, &joins, &words))
 }
+
+const CDATA_OPEN: &str = "<![CDATA[";
+const CDATA_CLOSE: &str = "]]>";
+/// What separates two CDATA sections TwinCAT wrote for one text holding `]]>`.
+const CDATA_JOIN: &str = "]]><![CDATA[";
 
 /// The first child element named `name`.
 fn child<'a, 'i>(node: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::Node<'a, 'i>> {
     node.children().find(|n| n.is_element() && n.tag_name().name() == name)
 }
 
-/// The contents of the CDATA sections directly inside `node`.
+/// The contents of the CDATA sections directly inside `node`: read from the XML between its
+/// tags, children elements left out (an XML reader merges adjacent sections into one text
+/// node, and roxmltree's gives the place of the first only).
 fn sections(node: roxmltree::Node<'_, '_>, xml: &str) -> Vec<Range<usize>> {
+    let range = node.range();
+    let Some(inner) = xml[range.clone()].find('>').map(|n| range.start + n + 1) else {
+        return Vec::new();
+    };
+    let children: Vec<Range<usize>> =
+        node.children().filter(|n| n.is_element()).map(|n| n.range()).collect();
+    let end = closing_tag(node, xml).max(inner);
     let mut out = Vec::new();
-    for text in node.children().filter(|n| n.is_text()) {
-        let range = text.range();
-        let mut from = range.start;
-        while let Some(open) = xml[from..range.end].find("<![CDATA[") {
-            let start = from + open + "<![CDATA[".len();
-            let Some(close) = xml[start..range.end].find("]]>") else { break };
+    let mut from = inner;
+    while let Some(open) = xml[from..end].find(CDATA_OPEN) {
+        let start = from + open + CDATA_OPEN.len();
+        let Some(close) = xml[start..end].find(CDATA_CLOSE) else { break };
+        from = start + close + CDATA_CLOSE.len();
+        if !children.iter().any(|c| c.contains(&start)) {
             out.push(start..start + close);
-            from = start + close + "]]>".len();
         }
     }
     out
@@ -232,15 +257,34 @@ fn pou_end(header: &str) -> Option<&'static str> {
 
 /// `xml` with every character outside `keep` a space (line breaks kept), and each word of
 /// `words` (sorted by place) written at its place over those spaces; a word longer than the
-/// spaces left on its line pushes the rest of the line, which holds XML only.
-fn blank_outside(xml: &str, keep: &[Range<usize>], words: &[(usize, String)]) -> String {
+/// spaces left on its line pushes the rest of the line, which holds XML only. The characters
+/// of `joins` (sorted) are left out, and as many spaces written before the next line break.
+fn blank_outside(
+    xml: &str,
+    keep: &[Range<usize>],
+    joins: &[Range<usize>],
+    words: &[(usize, String)],
+) -> String {
     let mut out = String::with_capacity(xml.len() + 64);
     let mut kept = keep.iter().peekable();
+    let mut joins = joins.iter().peekable();
     let mut words = words.iter().peekable();
     let mut covered = 0usize; // spaces still covered by the last word written
+    let mut owed = 0usize; // spaces left out by joins, written at the end of the line
     for (i, ch) in xml.char_indices() {
         while kept.peek().is_some_and(|r| r.end <= i) {
             kept.next();
+        }
+        while joins.peek().is_some_and(|r| r.end <= i) {
+            joins.next();
+        }
+        if joins.peek().is_some_and(|r| r.contains(&i)) {
+            owed += 1;
+            continue;
+        }
+        if ch == '\n' || ch == '\r' {
+            out.extend(std::iter::repeat_n(' ', owed));
+            owed = 0;
         }
         while let Some((_, word)) = words.next_if(|(at, _)| *at <= i) {
             if covered > 0 {
@@ -284,6 +328,30 @@ IF n > 10 THEN n := 0; END_IF]]></ST>
     </LineIds>
   </POU>
 </TcPlcObject>";
+
+    #[test]
+    fn a_cdata_end_split_over_two_sections_is_read_as_one_text() {
+        // TwinCAT's form of the ST `s := ']]>'; n := 1;` (OSCAT NETWORK's XML_READER)
+        let text = "<TcPlcObject>\n  <POU Name=\"P\"><Declaration><![CDATA[PROGRAM P\nVAR s : STRING; n : INT; END_VAR]]></Declaration>\n    <Implementation>\n      <ST><![CDATA[s := ']]]]><![CDATA[>'; n := 1;\nn := 2;]]></ST>\n    </Implementation>\n  </POU>\n</TcPlcObject>";
+        let st = st_text(text).unwrap();
+        let lines: Vec<&str> = st.lines().collect();
+        assert_eq!(lines.len(), text.lines().count(), "{st}");
+        // the join is left out, and written as spaces at the end of its line
+        let body = format!("{}s := ']]>'; n := 1;{}", " ".repeat(19), " ".repeat(12));
+        assert_eq!(lines[4], body);
+        assert_eq!(lines[4].len(), text.lines().nth(4).unwrap().len());
+        // the next line keeps its columns
+        assert_eq!(lines[5].trim_end(), "n := 2;");
+    }
+
+    #[test]
+    fn sections_apart_are_not_joined() {
+        let text = "<TcPlcObject><POU Name=\"P\"><Declaration><![CDATA[PROGRAM P]]></Declaration><Implementation><ST><![CDATA[a := ']]'; ]]><![CDATA[b := 1;]]> <![CDATA[c := 2;]]></ST></Implementation></POU></TcPlcObject>";
+        let st = st_text(text).unwrap();
+        // adjacent sections join (`']]'; ` then `b := 1;`), a blank between two stays a blank
+        let joined = format!("a := ']]'; b := 1;{}c := 2;", " ".repeat("]]> <![CDATA[".len()));
+        assert!(st.contains(&joined), "{st}");
+    }
 
     #[test]
     fn a_pou_keeps_its_lines_and_columns_and_gets_its_end() {
