@@ -38,8 +38,10 @@ pub(crate) fn in_bytes(place: Place) -> bool {
 }
 
 /// True if a store of `bytes` bytes at fixed place `at` may change the value of `held`. An FB
-/// instance (`This`) may be in variable memory or in a frame, anywhere.
-pub(crate) fn may_change(at: Place, bytes: u32, held: Key) -> bool {
+/// instance (`This`) may be in variable memory or in a frame, anywhere, unless
+/// `this_in_vars` (the code of a call compiled inline, whose caller knows its instance is in
+/// variable memory): then it is not in the frame.
+pub(crate) fn may_change(at: Place, bytes: u32, held: Key, this_in_vars: bool) -> bool {
     let range = |offset: u32, n: u32| u64::from(offset)..u64::from(offset) + u64::from(n);
     let overlaps = |a: u32, b: u32| {
         let (x, y) = (range(a, bytes), range(b, held.1.size()));
@@ -51,6 +53,7 @@ pub(crate) fn may_change(at: Place, bytes: u32, held: Key) -> bool {
         | (Place::This(a), Place::This(b)) => overlaps(a, b),
         (Place::Word(_) | Place::Bit(_) | Place::Byte(_), _) => false,
         (Place::Var(_), Place::Frame(_)) | (Place::Frame(_), Place::Var(_)) => false,
+        (Place::This(_), Place::Frame(_)) | (Place::Frame(_), Place::This(_)) => !this_in_vars,
         _ => true,
     }
 }
@@ -128,6 +131,7 @@ fn effects<'c>(
     code: &'c [Op],
     start: usize,
     inlined: &'c [(u32, &'c Writes)],
+    this_in_vars: bool,
 ) -> impl Iterator<Item = Effect> + 'c {
     // The slots the block pushed; a slot below them (pushed before the block) is unknown.
     let mut stack: Vec<Option<Target>> = Vec::new();
@@ -138,7 +142,7 @@ fn effects<'c>(
         let pc = (start + k) as u32;
         let effect = effect(op, pc, inlined, &mut stack, &saved);
         let unchanged = |saved: &mut Vec<(Place, Target)>, at: Place, bytes: u32| {
-            saved.retain(|&(place, _)| !may_change(at, bytes, (place, Elem::U64)));
+            saved.retain(|&(place, _)| !may_change(at, bytes, (place, Elem::U64), this_in_vars));
         };
         match &effect {
             Effect::Store(at, elem) => {
@@ -280,7 +284,7 @@ pub(crate) fn callee_writes(
     };
     for &leader in &analysis.function_leaders[function] {
         let range = analysis.block(code, leader);
-        for effect in effects(&code[range.clone()], range.start, &[]) {
+        for effect in effects(&code[range.clone()], range.start, &[], false) {
             match effect {
                 Effect::Store(at, elem) => change(&mut writes, at, elem.size()),
                 Effect::Changes(at, bytes) => change(&mut writes, at, bytes),
@@ -318,8 +322,15 @@ fn through_pointer(stack: &mut Vec<Option<Target>>, bytes: u32) -> Effect {
 /// What the values held at the end of a block of `code` are, given those held at its start
 /// (`held`, changed in place). Conservative beside `codegen`, which may keep more (the value
 /// of a pointer variable it fetched again).
-fn through(code: &[Op], start: usize, inlined: &[(u32, &Writes)], held: &mut Vec<Key>) {
-    for effect in effects(code, start, inlined) {
+fn through(
+    code: &[Op],
+    start: usize,
+    inlined: &[(u32, &Writes)],
+    this_in_vars: bool,
+    held: &mut Vec<Key>,
+) {
+    let may_change = |at, bytes, key| may_change(at, bytes, key, this_in_vars);
+    for effect in effects(code, start, inlined, this_in_vars) {
         match effect {
             Effect::Fetch(key) if !held.contains(&key) => held.push(key),
             Effect::Store(at, elem) => {
@@ -349,10 +360,11 @@ struct Wants {
     stores: Option<Vec<(Place, u32)>>,
 }
 
-fn wants(code: &[Op], start: usize, inlined: &[(u32, &Writes)]) -> Wants {
+fn wants(code: &[Op], start: usize, inlined: &[(u32, &Writes)], this_in_vars: bool) -> Wants {
+    let may_change = |at, bytes, key| may_change(at, bytes, key, this_in_vars);
     let mut fetched = Vec::new();
     let mut stores = Vec::new();
-    for effect in effects(code, start, inlined) {
+    for effect in effects(code, start, inlined, this_in_vars) {
         match effect {
             Effect::Fetch(key) => {
                 let unchanged = !stores.iter().any(|&(place, bytes)| may_change(place, bytes, key));
@@ -385,12 +397,14 @@ fn rank((place, elem): Key) -> (u8, u32, u8) {
 
 /// The values each of a body's blocks receives, by the block's index in `leaders` (the
 /// body's leaders, as indices into [`Analysis::leaders`]); `inlined`: its calls compiled
-/// inline (their pcs), whose blocks go on after them knowing what their callees may change.
+/// inline (their pcs), whose blocks go on after them knowing what their callees may change;
+/// `this_in_vars` as for [`may_change`].
 pub(crate) fn carried(
     program: &Program,
     analysis: &Analysis,
     leaders: &[usize],
     inlined: &[(u32, &Writes)],
+    this_in_vars: bool,
 ) -> Vec<Vec<Key>> {
     let code = &program.code;
     let index_of =
@@ -414,7 +428,7 @@ pub(crate) fn carried(
         .iter()
         .map(|range| {
             if is_native(&code[range.start]) {
-                wants(&code[range.clone()], range.start, inlined)
+                wants(&code[range.clone()], range.start, inlined, this_in_vars)
             } else {
                 Wants { fetched: Vec::new(), stores: None }
             }
@@ -429,7 +443,9 @@ pub(crate) fn carried(
             for &to in &successors[index] {
                 for k in 0..wanted[to].len() {
                     let key = wanted[to][k];
-                    let kept = !stores.iter().any(|&(place, bytes)| may_change(place, bytes, key));
+                    let kept = !stores
+                        .iter()
+                        .any(|&(place, bytes)| may_change(place, bytes, key, this_in_vars));
                     if kept && !wanted[index].contains(&key) {
                         wanted[index].push(key);
                         changed = true;
@@ -468,7 +484,7 @@ pub(crate) fn carried(
             let mut held = into[index].clone();
             let range = &blocks[index];
             if is_native(&code[range.start]) {
-                through(&code[range.clone()], range.start, inlined, &mut held);
+                through(&code[range.clone()], range.start, inlined, this_in_vars, &mut held);
             } else {
                 held.clear();
             }

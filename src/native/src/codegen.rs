@@ -169,7 +169,7 @@ pub(crate) fn generate(
     let body = analysis.functions[function];
     let plan = inline::plan(program, analysis, body, leaders);
     let calls: Vec<(u32, &Writes)> = plan.iter().map(|call| (call.pc, &call.writes)).collect();
-    let carried = carry::carried(program, analysis, leaders, &calls);
+    let carried = carry::carried(program, analysis, leaders, &calls, false);
     let in_loop = carry::in_loops(program, analysis, leaders);
     let unwritten = carry::unwritten(program, analysis, leaders, &carried, &in_loop);
     let mut g = Gen {
@@ -207,6 +207,7 @@ pub(crate) fn generate(
         carry_vars: Vec::new(),
         unwritten,
         in_loop,
+        this_in_vars: false,
         passed_on: Vec::new(),
         info: vec![SlotInfo::default(); analysis.max_depth as usize + 1],
         held: Vec::new(),
@@ -312,6 +313,9 @@ struct Gen<'a, 'f> {
     unwritten: Vec<Vec<Key>>,
     /// Whether each of the body's blocks is in a loop ([`carry::in_loops`]).
     in_loop: Vec<bool>,
+    /// The activation's FB instance is known to be in variable memory ([`carry::may_change`]):
+    /// in a call compiled inline whose caller knows where the instance is.
+    this_in_vars: bool,
     /// In the block being generated: the values the blocks after it receive, if it is in a
     /// loop (else none: its stores are written at once).
     passed_on: Vec<Key>,
@@ -370,6 +374,7 @@ struct Scope<'a> {
     carry_vars: Vec<(Key, Variable)>,
     unwritten: Vec<Vec<Key>>,
     in_loop: Vec<bool>,
+    this_in_vars: bool,
     stack: Vec<Variable>,
     info: Vec<SlotInfo>,
     held: Vec<Held>,
@@ -1480,7 +1485,8 @@ impl<'a> Gen<'a, '_> {
                 called,
                 vm_only: false,
             };
-            self.inline_call(function, target, callee, record);
+            let this_in_vars = if fb { known.is_some() } else { self.this_in_vars };
+            self.inline_call(function, target, callee, record, this_in_vars);
             // The caller goes on knowing what it knew, but what the callee may have changed.
             let writes = &self.plan[planned].writes;
             match writes.changes(|bytes| known.map(|reach| reach.store(bytes))) {
@@ -1535,13 +1541,14 @@ impl<'a> Gen<'a, '_> {
         target: u32,
         callee: Activation,
         record: CallRecord,
+        this_in_vars: bool,
     ) {
         let back = self.b.create_block();
         let caller_sb = record.sb;
         let leaders = &self.analysis.function_leaders[function][..];
         let blocks = leaders.iter().map(|_| self.b.create_block()).collect();
         let stack = (0..self.stack.len()).map(|_| self.b.declare_var(I64)).collect();
-        let carried = carry::carried(self.program, self.analysis, leaders, &[]);
+        let carried = carry::carried(self.program, self.analysis, leaders, &[], this_in_vars);
         let in_loop = carry::in_loops(self.program, self.analysis, leaders);
         let unwritten = carry::unwritten(self.program, self.analysis, leaders, &carried, &in_loop);
         let mut scope = Scope {
@@ -1553,6 +1560,7 @@ impl<'a> Gen<'a, '_> {
             carry_vars: Vec::new(),
             unwritten,
             in_loop,
+            this_in_vars,
             stack,
             info: vec![SlotInfo::default(); self.info.len()],
             held: Vec::new(),
@@ -1583,6 +1591,7 @@ impl<'a> Gen<'a, '_> {
         std::mem::swap(&mut self.carry_vars, &mut scope.carry_vars);
         std::mem::swap(&mut self.unwritten, &mut scope.unwritten);
         std::mem::swap(&mut self.in_loop, &mut scope.in_loop);
+        std::mem::swap(&mut self.this_in_vars, &mut scope.this_in_vars);
         std::mem::swap(&mut self.stack, &mut scope.stack);
         std::mem::swap(&mut self.info, &mut scope.info);
         std::mem::swap(&mut self.held, &mut scope.held);
@@ -1959,7 +1968,8 @@ impl<'a> Gen<'a, '_> {
     /// writing back those not written yet (so that the store, emitted after, has the last word).
     fn forget(&mut self, at: Place, bytes: u32) {
         self.write_back_overlapping(at, bytes);
-        self.held.retain(|h| !carry::may_change(at, bytes, (h.place, h.elem)));
+        let this_in_vars = self.this_in_vars;
+        self.held.retain(|h| !carry::may_change(at, bytes, (h.place, h.elem), this_in_vars));
     }
 
     /// Forgets the held values a store of `bytes` bytes through a pointer to `into` may change,
@@ -2007,7 +2017,8 @@ impl<'a> Gen<'a, '_> {
     /// As [`Gen::write_back_all`] for the held values a load or a store of `bytes` bytes at
     /// `at` may overlap.
     fn write_back_overlapping(&mut self, at: Place, bytes: u32) {
-        self.write_back_where(|key| carry::may_change(at, bytes, key));
+        let this_in_vars = self.this_in_vars;
+        self.write_back_where(|key| carry::may_change(at, bytes, key, this_in_vars));
     }
 
     /// As [`Gen::write_back_overlapping`] for `bytes` bytes through a pointer to `into`.
