@@ -376,8 +376,13 @@ impl<'a> Ctx<'a> {
     }
 
     /// The STRUCT or FUNCTION_BLOCK a reference type points to while that type's own
-    /// declaration is being read (`next : POINTER TO Node` inside `Node`): a reference does
-    /// not contain what it points to, so it may point to its own type.
+    /// declaration is being read (`next : POINTER TO Node` inside `Node`), or the
+    /// FUNCTION_BLOCK it points to before that block's declaration is read (`owner : POINTER
+    /// TO Component` in a block that `Component` holds, Tc3_Component's pattern): a reference
+    /// does not contain what it points to, so it may point to its own type or to a block that
+    /// contains it. Reading the block's declaration here would find the block being read
+    /// inside it and refuse it as containing itself; a reference needs only the block's
+    /// identity, and its variables are known before any body is checked.
     fn referenced_while_busy(&self, to: &TypeRef) -> Option<Ty> {
         let TypeRef::Named(id) = to else { return None };
         if let Some(&t) = self.type_names.get(&key(&id.name)) {
@@ -387,7 +392,7 @@ impl<'a> Ctx<'a> {
         }
         let &p = self.pou_names.get(&key(&id.name))?;
         let pou = &self.pous[p];
-        (pou.kind == PouKind::FunctionBlock && pou.state == State::Busy).then_some(Ty::Fb(p))
+        (pou.kind == PouKind::FunctionBlock && pou.state != State::Done).then_some(Ty::Fb(p))
     }
 
     fn make_enum(
