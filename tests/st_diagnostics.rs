@@ -294,6 +294,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ),
     // refs.rs: references and pointers
     ("`{}` is `{}`, not a `REF_TO` or `POINTER TO`: `^` cannot be applied", "deref-not-reference"),
+    ("`{}` is a `POINTER TO`: it takes one index, not {}", "pointer-index-count"),
     ("`{}` needs a variable", "ref-needs-variable"),
     ("`{}` takes one argument", "ref-one-argument"),
     ("`__ISVALIDREF` needs a reference, not `{}`", "isvalidref-not-reference"),
@@ -497,6 +498,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
     (
         "IEC 61131-3 has no conversion between references and numbers: move a `POINTER TO` by `p + n` and compare pointers with each other (`[st] strict` is on)",
         "strict-pointer-integer",
+    ),
+    (
+        "indexing a `POINTER TO` is CODESYS, not IEC 61131-3: move the pointer by bytes and dereference it, `(p + i * 2)^` for an INT (`[st] strict` is on)",
+        "strict-pointer-index",
     ),
     (
         "IEC 61131-3 has `AND`, `OR` and `XOR` on BOOL and bit strings only: `INT_TO_WORD(i) AND 16#FF` (`[st] strict` is on)",

@@ -64,6 +64,8 @@ pub enum Habit {
     /// A `POINTER TO` used as a 64-bit number (`ULINT`, `LWORD`), or such a number as a
     /// pointer.
     PointerInteger,
+    /// `p[i]` on a `POINTER TO T`: the `T` `i` elements after the one `p` points to.
+    PointerIndex,
     /// `AND`, `OR`, `XOR` on integers: on their two's complement bits.
     BitwiseInteger,
     /// `AND_THEN`, `OR_ELSE` (the operator as written): the right operand evaluated only when
@@ -103,6 +105,7 @@ impl Habit {
             Habit::ImplicitConversion => "IEC 61131-3 converts between bit strings and integers only explicitly: `BYTE_TO_INT(b)` (`[st] strict` is on)".to_string(),
             Habit::WidenedLiteral => "the constant does not fit the other operand's type: IEC 61131-3 widens only explicitly, `INT_TO_DINT(i) * 60000` (`[st] strict` is on)".to_string(),
             Habit::PointerInteger => "IEC 61131-3 has no conversion between references and numbers: move a `POINTER TO` by `p + n` and compare pointers with each other (`[st] strict` is on)".to_string(),
+            Habit::PointerIndex => "indexing a `POINTER TO` is CODESYS, not IEC 61131-3: move the pointer by bytes and dereference it, `(p + i * 2)^` for an INT (`[st] strict` is on)".to_string(),
             Habit::BitwiseInteger => "IEC 61131-3 has `AND`, `OR` and `XOR` on BOOL and bit strings only: `INT_TO_WORD(i) AND 16#FF` (`[st] strict` is on)".to_string(),
             Habit::ShortCircuit(op) => format!("`{op}` is CODESYS, not IEC 61131-3, whose `AND` and `OR` evaluate both operands: nest the test, `IF p <> 0 THEN IF p^ > 0 THEN …` (`[st] strict` is on)"),
             Habit::Union => "`UNION` is CODESYS, not IEC 61131-3, which has no type whose members share their bytes: declare a STRUCT (`[st] strict` is on)".to_string(),

@@ -734,6 +734,9 @@ impl<'a> Ctx<'a> {
                     Ty::OpenArray(a) => {
                         self.open_array_element(b, ix, &a, &expr_text(base), span, file)
                     }
+                    Ty::Ref(RefKind::Pointer, _) => {
+                        self.pointer_element(b, ix, span, &expr_text(base), file)
+                    }
                     other => {
                         let n = self.ty_name(&other);
                         let name = expr_text(base);

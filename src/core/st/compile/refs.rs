@@ -13,7 +13,7 @@
 use crate::lang::ops::CmpOp;
 use crate::st::ast::{Arg, BinaryOp, Expr, ExprKind, Ident, RefKind, Span};
 use crate::st::dialect::Habit;
-use crate::value::UnOp;
+use crate::value::{BinOp, UnOp};
 
 use super::ctx::{Ctx, Cv, Scope};
 use super::expr::{op_text, Access, TExpr, TK};
@@ -285,6 +285,46 @@ impl<'a> Ctx<'a> {
             Ty::Ref(RefKind::Pointer, _) => null_for_zero(te),
             _ => te,
         }
+    }
+
+    /// `p[i]` on a `POINTER TO T` (CODESYS): the `T` `i` elements after the one `p` points
+    /// to, `(p + i * SIZEOF(T))^`, a place reached through the moved pointer and so checked
+    /// at every access as any `p^`. `index` is the checked index (an integer).
+    pub fn pointer_element(
+        &mut self,
+        p: TExpr,
+        index: Vec<TExpr>,
+        span: Span,
+        text: &str,
+        file: usize,
+    ) -> TExpr {
+        let [index] = <[TExpr; 1]>::try_from(index).unwrap_or_else(|ix| {
+            let n = ix.len();
+            let msg = format!("`{text}` is a `POINTER TO`: it takes one index, not {n}");
+            self.error(file, span, msg);
+            [TExpr::error(span)]
+        });
+        if index.ty.is_error() {
+            return TExpr::error(span);
+        }
+        self.habit(Habit::PointerIndex, file, span);
+        let Ty::Ref(_, to) = &p.ty else { return TExpr::error(span) };
+        let size = i128::from(self.types.size(to));
+        let lint = Ty::Prim(Prim::LInt);
+        let index = match index.ty {
+            Ty::IntLit => self.coerce(index, &lint, file),
+            _ => self.conv(index, Prim::LInt, lint.clone()),
+        };
+        let bytes = match index.k {
+            TK::Const(Cv::Int(i)) => TExpr::konst(Cv::Int(i * size), lint, index.span),
+            _ => {
+                let size = TExpr::konst(Cv::Int(size), lint.clone(), index.span);
+                let k = TK::Bin(BinOp::Mul, Box::new(index), Box::new(size));
+                TExpr { k, ty: lint, span }
+            }
+        };
+        let moved = self.moved(p, bytes, false, span, file);
+        self.deref(moved, span, text, file)
     }
 
     /// The pointer `p` moved by `n` bytes (back when `back`).
