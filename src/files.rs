@@ -33,6 +33,9 @@ pub fn project(path: &Path) -> Result<Project, Diagnostics> {
     for note in &project.notes {
         log::info!("{note}");
     }
+    for warning in &project.warnings {
+        log::warn!("{warning}");
+    }
     #[cfg(feature = "native")]
     for error in plcd_native::attach(&mut project) {
         log::warn!("{error}; it runs on the interpreter");

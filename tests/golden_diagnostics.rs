@@ -12,6 +12,9 @@
 //!   directory, or `plcd sim --config plcd.toml --for 1ms --inputs inputs.csv` when it has an
 //!   `inputs.csv`; either must exit 1 with nothing on stdout.
 //!
+//! A case of `st` whose name starts with `warning-` shows one warning instead: `plcd check`
+//! accepts its project (exit 0) and prints that warning, and nothing else, on stderr.
+//!
 //! `PLCD_BLESS=1 cargo test --test golden_diagnostics` writes what the binary prints to every
 //! expected file that differs (and says which) instead of failing; `git diff` then shows what
 //! changed. A case that reports other than one diagnostic fails either way.
@@ -108,8 +111,30 @@ fn cases(area: &str) -> Vec<PathBuf> {
     dirs
 }
 
+/// The prefix of a case that shows a warning (the load succeeds).
+const WARNING_CASE: &str = "warning-";
+
+/// Runs a warning case: `plcd check` accepts the project and prints exactly one warning on
+/// stderr; what is wrong with it, if anything.
+fn run_warning_case(dir: &Path) -> Option<String> {
+    let output = plcd(dir, &["check", "--config", "plcd.toml"]);
+    let err = stderr(&output);
+    let warnings = err.lines().filter(|l| l.contains(": warning: ")).count();
+    if output.status.code() != Some(0) || warnings != 1 || err.lines().count() != 1 {
+        return Some(format!(
+            "{}: exit {:?} with {warnings} warning(s), expected 0 with one warning alone\n--- stderr\n{err}",
+            dir.display(),
+            output.status.code()
+        ));
+    }
+    compare_or_bless(&dir.join("expected.stderr"), &err)
+}
+
 /// Runs one case; what is wrong with it, if anything.
 fn run_case(dir: &Path) -> Option<String> {
+    if dir.file_name().is_some_and(|n| n.to_string_lossy().starts_with(WARNING_CASE)) {
+        return run_warning_case(dir);
+    }
     // A symlink counts, dangling or not: the case of an inputs file that cannot be read.
     let sim = fs::symlink_metadata(dir.join("inputs.csv")).is_ok();
     let output = if sim {

@@ -580,7 +580,8 @@ fn strings() {
 }
 
 /// Each `tests/golden/st/<case>/main.st` reports exactly the diagnostic lines of its
-/// `expected.stderr` (the final `plcd.toml: N error(s)` line is the binary's, left out here);
+/// `expected.stderr` (the final `plcd.toml: N error(s)` line is the binary's, left out here;
+/// a `warning-` case compiles and warns);
 /// `PLCD_BLESS=1` rewrites the expected files that differ.
 #[test]
 fn golden_diagnostics() {
@@ -601,7 +602,14 @@ fn golden_diagnostics() {
             .find_map(|l| l.strip_prefix("pou = "))
             .map(|v| v.trim_matches('"').to_string());
         let strict = toml.lines().any(|l| l.trim() == "strict = true");
-        let actual = if src.to_ascii_uppercase().contains("CONFIGURATION") {
+        // a `warning-` case compiles, with its one warning
+        let warning = dir.file_name().is_some_and(|n| n.to_string_lossy().starts_with("warning-"));
+        let actual = if warning {
+            match try_build_with(&src, pou.as_deref(), Dialect { strict, ..Dialect::default() }) {
+                Ok(compiled) => compiled.warnings.iter().map(|w| format!("{w}\n")).collect(),
+                Err(errors) => errors,
+            }
+        } else if src.to_ascii_uppercase().contains("CONFIGURATION") {
             // A configuration's instances are the project's: loaded as `plcd check` does.
             configured_project(dir, &toml).err().unwrap_or_default()
         } else {
@@ -623,7 +631,8 @@ fn golden_diagnostics() {
             .collect();
         if expected_lines != actual {
             if bless {
-                fs::write(&expected_path, format!("{actual}plcd.toml: 1 error(s)\n")).unwrap();
+                let count = if warning { "" } else { "plcd.toml: 1 error(s)\n" };
+                fs::write(&expected_path, format!("{actual}{count}")).unwrap();
                 eprintln!("PLCD_BLESS: rewrote {}", expected_path.display());
             } else {
                 failures.push(format!(

@@ -60,6 +60,11 @@ const MESSAGES: &[(&str, &str)] = &[
     ("type `{}` is defined in terms of itself", "self-referential-type"),
     ("a STRUCT member cannot be located", "located-struct-member"),
     ("`{}` is already declared in this STRUCT", "duplicate-struct-member"),
+    // implicit.rs: CODESYS's implicit conversions that may change a value (a warning)
+    (
+        "`{}` converted implicitly to `{}`: the value wraps to {} bits ({} becomes {}); write `{}_TO_{}(…)` to say so",
+        "warning-lossy-conversion",
+    ),
     // varlen.rs: ARRAY [*] and LOWER_BOUND / UPPER_BOUND
     (
         "`ARRAY [*]` is only the type of a VAR_IN_OUT of a FUNCTION, FUNCTION_BLOCK or METHOD",
@@ -246,7 +251,11 @@ const MESSAGES: &[(&str, &str)] = &[
     ("a VAR_IN_OUT argument must be a variable", "in-out-needs-variable"),
     ("`{}` is CONSTANT: it cannot be written", "constant-not-writable"),
     ("`{}` is at `{}`, which a program cannot write", "device-not-writable"),
-    ("`{}` is the FOR variable: it cannot be written in the loop", "for-variable-written"),
+    // for_written.rs: CODESYS's FOR variable written in the loop (a warning)
+    (
+        "`{}` is the FOR variable, written in the loop: the loop goes on from the value written, plus the step",
+        "warning-for-variable-written",
+    ),
     ("`{}` has no result type", "no-result-type"),
     ("`{}` is ambiguous: a value of {} (write `{}#{}`)", "ambiguous-enum-value"),
     ("`{}` is {}", "function-as-variable"),
@@ -539,6 +548,18 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "IEC 61131-3 names an enumeration's value with `#`: `E#Value` (`[st] strict` is on)",
         "strict-enum-dot-value",
     ),
+    (
+        "IEC 61131-3 converts `{}` to `{}` only explicitly, as the value may change: `{}_TO_{}(…)` (`[st] strict` is on)",
+        "strict-lossy-conversion",
+    ),
+    (
+        "IEC 61131-3 gives an enumeration's value no number to convert to: test the value, `CASE e OF E#A: i := 0; …` (`[st] strict` is on)",
+        "strict-enum-to-integer",
+    ),
+    (
+        "IEC 61131-3 forbids writing the FOR variable in the loop: count with a WHILE loop and a variable of its own (`[st] strict` is on)",
+        "strict-for-variable-written",
+    ),
 ];
 
 /// The messages of the IEC direct addresses' layouts (`src/core/device/iec.rs`, `[iec]`), and
@@ -680,9 +701,9 @@ const PARTS: &[&str] = &[
     "no value",
 ];
 
-/// The message of a diagnostic line `file:line:col: error: message`.
+/// The message of a diagnostic line `file:line:col: error: message` (or `warning:`).
 fn message(line: &str) -> Option<&str> {
-    line.split_once(": error: ").map(|(_, m)| m)
+    line.split_once(": error: ").or_else(|| line.split_once(": warning: ")).map(|(_, m)| m)
 }
 
 /// A format string with each `{…}` written `{}` (and `{{` `}}` as the braces they stand for).

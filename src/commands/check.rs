@@ -6,7 +6,8 @@ use std::process::ExitCode;
 
 use crate::files;
 
-/// Prints every diagnostic to `err` (exit 1), or a one-line summary to `out` (exit 0).
+/// Prints every diagnostic to `err` (exit 1), or a one-line summary to `out` and the
+/// warnings, if any, to `err` (exit 0).
 pub fn run(config: &Path, out: &mut impl Write, err: &mut impl Write) -> ExitCode {
     match files::project(config) {
         Ok(project) => {
@@ -25,6 +26,10 @@ pub fn run(config: &Path, out: &mut impl Write, err: &mut impl Write) -> ExitCod
             );
             for note in &project.notes {
                 let _ = writeln!(out, "  {note}");
+            }
+            // warnings go where a compiler's go; they fail nothing
+            for warning in &project.warnings {
+                let _ = writeln!(err, "{warning}");
             }
             ExitCode::SUCCESS
         }

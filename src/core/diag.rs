@@ -1,5 +1,6 @@
 //! Diagnostics shared by the config loader and the assembler: one located error, printed as
-//! `path:line:col: error: message`, and the rule that all of them are reported at once.
+//! `path:line:col: error: message`, and the rule that all of them are reported at once; and a
+//! located [`Warning`], printed as `path:line:col: warning: message`, which fails nothing.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -33,6 +34,18 @@ impl Diagnostic {
 impl fmt::Display for Diagnostic {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}:{}:{}: error: {}", self.path.display(), self.line, self.col, self.message)
+    }
+}
+
+/// Something accepted that may not mean what its writer meant (a CODESYS habit that can
+/// change a value): `plcd check` prints it and the daemon logs it, and the load goes on.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
+pub struct Warning(pub Diagnostic);
+
+impl fmt::Display for Warning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let d = &self.0;
+        write!(f, "{}:{}:{}: warning: {}", d.path.display(), d.line, d.col, d.message)
     }
 }
 
@@ -87,5 +100,11 @@ mod tests {
     fn prints_like_a_compiler() {
         let d = Diagnostic::new(Path::new("etc/main.il"), 3, 7, "unknown mnemonic `LAOD`");
         assert_eq!(d.to_string(), "etc/main.il:3:7: error: unknown mnemonic `LAOD`");
+    }
+
+    #[test]
+    fn warnings_print_like_a_compiler() {
+        let d = Diagnostic::new(Path::new("main.st"), 4, 11, "implicit conversion");
+        assert_eq!(Warning(d).to_string(), "main.st:4:11: warning: implicit conversion");
     }
 }

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use crate::config::{Config, Language, ProgramConfig, TaskRef};
 use crate::device::{layout, Address, AddressError, Area};
-use crate::diag::{Diagnostic, Diagnostics};
+use crate::diag::{Diagnostic, Diagnostics, Warning};
 use crate::lang::ops::{Op, SystemRequest, Written};
 use crate::lang::{self, Context, DutySite, Program, Variables};
 use crate::st;
@@ -26,6 +26,9 @@ pub struct Project {
     pub variables: Variables,
     /// What a `CONFIGURATION` was mapped to, a line each (`plcd check` and the log show them).
     pub notes: Vec<String>,
+    /// What the Structured Text compiler accepted with a warning, in file and line order
+    /// (`plcd check` prints them, the daemon logs them).
+    pub warnings: Vec<Warning>,
 }
 
 impl Project {
@@ -299,9 +302,11 @@ pub fn from_config_with(
             Err(d) => reader.diags.extend(d),
         }
     }
+    let mut warnings = Vec::new();
     let variables = match compile_structured_text(&config, &mut reader, parsed) {
         Some((compiled, iec_notes)) => {
             notes.extend(iec_notes);
+            warnings = compiled.warnings;
             check_task_numbers(&compiled.programs, &task_numbers, reader.diags);
             let mut st_programs = compiled.programs.into_iter();
             for slot in programs.iter_mut().filter(|p| p.is_none()) {
@@ -319,7 +324,7 @@ pub fn from_config_with(
     diags.0.sort();
     if diags.is_empty() {
         let programs = programs.into_iter().flatten().collect();
-        Ok(Project { config, programs, variables, notes })
+        Ok(Project { config, programs, variables, notes, warnings })
     } else {
         Err(diags)
     }

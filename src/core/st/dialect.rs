@@ -58,6 +58,16 @@ pub enum Habit {
     /// A bit string given where an integer is wanted, or an integer where a bit string is,
     /// converted implicitly where no value is lost (`i := b` with a BYTE b and an INT i).
     ImplicitConversion,
+    /// An integer or bit string given where another one is wanted that does not hold every
+    /// value of it (`u := i` with an INT i and a UINT u, `i := d` with a DINT d): converted as
+    /// the explicit conversion does, wrapping, with a warning (`compile::implicit`). The two
+    /// types' names.
+    LossyConversion { from: &'static str, to: &'static str },
+    /// An enumeration's value where an integer is wanted (`i := eState`): its number.
+    EnumToInteger,
+    /// The FOR variable written in the loop's body: the loop goes on from the value written
+    /// (`compile::for_written`).
+    ForVariableWritten,
     /// An integer literal too large for the other operand's type, which widens the operation
     /// (`i * 60000` with an INT `i` is computed in DINT).
     WidenedLiteral,
@@ -103,6 +113,9 @@ impl Habit {
             Habit::Bit => "`BIT` is CODESYS and TwinCAT, not IEC 61131-3: declare a `BOOL` (`[st] strict` is on)".to_string(),
             Habit::GenericInput => "a VAR_INPUT of a generic type (`ANY…`) is CODESYS: IEC 61131-3 keeps generic types to its standard functions; write one POU per type (`[st] strict` is on)".to_string(),
             Habit::ImplicitConversion => "IEC 61131-3 converts between bit strings and integers only explicitly: `BYTE_TO_INT(b)` (`[st] strict` is on)".to_string(),
+            Habit::LossyConversion { from, to } => format!("IEC 61131-3 converts `{from}` to `{to}` only explicitly, as the value may change: `{from}_TO_{to}(…)` (`[st] strict` is on)"),
+            Habit::EnumToInteger => "IEC 61131-3 gives an enumeration's value no number to convert to: test the value, `CASE e OF E#A: i := 0; …` (`[st] strict` is on)".to_string(),
+            Habit::ForVariableWritten => "IEC 61131-3 forbids writing the FOR variable in the loop: count with a WHILE loop and a variable of its own (`[st] strict` is on)".to_string(),
             Habit::WidenedLiteral => "the constant does not fit the other operand's type: IEC 61131-3 widens only explicitly, `INT_TO_DINT(i) * 60000` (`[st] strict` is on)".to_string(),
             Habit::PointerInteger => "IEC 61131-3 has no conversion between references and numbers: move a `POINTER TO` by `p + n` and compare pointers with each other (`[st] strict` is on)".to_string(),
             Habit::PointerIndex => "indexing a `POINTER TO` is CODESYS, not IEC 61131-3: move the pointer by bytes and dereference it, `(p + i * 2)^` for an INT (`[st] strict` is on)".to_string(),

@@ -231,6 +231,8 @@ pub struct Ctx<'a> {
     pub files: Vec<&'a ast::File>,
     pub types: Types,
     pub diags: Vec<Diagnostic>,
+    /// What is accepted with a warning (`implicit`): reported when the compile succeeds.
+    pub warnings: Vec<Diagnostic>,
     pub type_decls: Vec<TypeEntry<'a>>,
     pub type_names: HashMap<String, usize>,
     pub pous: Vec<PouInfo<'a>>,
@@ -255,6 +257,8 @@ pub struct Ctx<'a> {
     /// While checking a body: the FOR variables of the enclosing loops, the loop depth, and
     /// whether a FUNCTION's result has been assigned.
     pub for_vars: Vec<String>,
+    /// For each of `for_vars`, whether its loop's body writes it (`for_written`).
+    pub for_written: Vec<bool>,
     pub loop_depth: usize,
     /// The labels and `JMP`s of the bodies checked (`jumps`).
     pub jumps: super::jumps::JumpTable,
@@ -272,6 +276,15 @@ impl<'a> Ctx<'a> {
     pub fn error(&mut self, file: usize, span: Span, msg: impl Into<String>) {
         let d = Diagnostic::new(self.path(file), span.line, span.col, msg);
         self.diags.push(d);
+    }
+
+    /// A warning at `span` (none in the prelude's own code). A body checked twice, or an
+    /// expression probed before it is checked, warns once: the compile keeps one of each.
+    pub fn warn(&mut self, file: usize, span: Span, msg: impl Into<String>) {
+        if file != self.prelude_file {
+            let d = Diagnostic::new(self.path(file), span.line, span.col, msg);
+            self.warnings.push(d);
+        }
     }
 
     /// A non-standard form at `span`: accepted, or an error naming the standard's way when

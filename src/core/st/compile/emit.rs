@@ -1412,7 +1412,9 @@ impl<'c, 'a> Em<'c, 'a> {
                 let l = self.loops.pop().expect("pushed");
                 self.close_loop(l, cont, end);
             }
-            TS::For { var, from, to, by, body } => self.for_loop(s.line, var, from, to, by, body),
+            TS::For { var, from, to, by, body, written } => {
+                self.for_loop(s.line, var, [from, to, by], body, *written)
+            }
             TS::Exit => {
                 let j = self.op(Op::Goto(0));
                 if let Some(l) = self.loops.last_mut() {
@@ -1557,10 +1559,9 @@ impl<'c, 'a> Em<'c, 'a> {
         &mut self,
         line: u32,
         var: &TExpr,
-        from: &TExpr,
-        to: &TExpr,
-        by: &TExpr,
+        [from, to, by]: [&TExpr; 3],
         body: &[TStmt],
+        written: bool,
     ) {
         let elem = self.elem(&var.ty);
         let ue = unsigned(elem);
@@ -1638,6 +1639,29 @@ impl<'c, 'a> Em<'c, 'a> {
         self.mark_statement();
         let cont = self.pc();
         self.sp = 0;
+        let mut rest_exits = Vec::new();
+        if written {
+            // The body wrote the variable (CODESYS's habit): one past the bound already ends
+            // the loop, as the test after CODESYS's increment would; the distance below
+            // assumes a variable between the start and the bound.
+            match by_const {
+                Some(b) if b > 0 => pos_test(self, &mut rest_exits),
+                Some(_) => neg_test(self, &mut rest_exits),
+                None => {
+                    push_by(self);
+                    self.push_int(elem, 0);
+                    self.op(Op::Cmp { op: CmpOp::Lt, elem });
+                    let to_neg = self.op(Op::GotoIf { target: 0, when: true });
+                    pos_test(self, &mut rest_exits);
+                    let to_rest = self.op(Op::Goto(0));
+                    let here = self.pc();
+                    self.patch(to_neg, here);
+                    neg_test(self, &mut rest_exits);
+                    let rest = self.pc();
+                    self.patch(to_rest, rest);
+                }
+            }
+        }
         // the remaining distance to the bound, unsigned, against the step: no wrap-around
         let pos_rest = |em: &mut Self, exits: &mut Vec<usize>| {
             push_to(em);
@@ -1668,7 +1692,6 @@ impl<'c, 'a> Em<'c, 'a> {
             em.op(Op::Cmp { op: CmpOp::Lt, elem: ue });
             exits.push(em.op(Op::GotoIf { target: 0, when: true }));
         };
-        let mut rest_exits = Vec::new();
         match by_const {
             // A step of 1 or -1: the distance is less than the step exactly when it is 0, when
             // the variable is at the bound (4 ops where the general test takes 8).

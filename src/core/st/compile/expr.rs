@@ -906,10 +906,11 @@ impl<'a> Ctx<'a> {
                 return false;
             }
         }
-        if access == Access::Write && self.for_vars.iter().any(|f| id.is(f)) {
-            let msg = format!("`{}` is the FOR variable: it cannot be written in the loop", v.name);
-            self.error(file, span, msg);
-            return false;
+        if access == Access::Write {
+            // CODESYS goes on from the value written (`for_written`)
+            if let Some(k) = self.for_vars.iter().rposition(|f| id.is(f)) {
+                self.for_variable_written(k, &v.name, file, span);
+            }
         }
         true
     }
@@ -1132,8 +1133,16 @@ impl<'a> Ctx<'a> {
                     self.habit(Habit::ImplicitConversion, file, span);
                     return self.conv(te, b, to.clone());
                 }
+                // CODESYS converts the other integer pairs too, with a warning (`implicit`)
+                if self.lossy_conversion(*a, b, file, span) {
+                    return self.conv(te, b, to.clone());
+                }
                 self.mismatch(te, to, file)
             }
+            (Ty::Enum(_), _) => match self.enum_as_integer(te.clone(), to, file) {
+                Some(te) => te,
+                None => self.mismatch(te, to, file),
+            },
             _ => self.mismatch(te, to, file),
         }
     }
@@ -1398,14 +1407,20 @@ impl<'a> Ctx<'a> {
         // TIME * integer, TIME / integer
         if matches!(op, BinaryOp::Mul | BinaryOp::Div) {
             let time = |t: &Ty, s: &Self| t.prim(&s.types).is_some_and(Prim::is_time);
+            // a bit string counts too, as CODESYS computes it (`CYCLE_TIME * b`, OSCAT
+            // BUILDING's ACTUATOR_2P)
             let int = |t: &Ty, s: &Self| {
                 matches!(t, Ty::IntLit)
-                    || (t.prim(&s.types).is_some_and(Prim::is_int) && !matches!(t, Ty::Enum(_)))
+                    || (t.prim(&s.types).is_some_and(Prim::is_integral)
+                        && !matches!(t, Ty::Enum(_)))
             };
             if time(&a.ty, self) && int(&b.ty, self)
                 || (op == BinaryOp::Mul && int(&a.ty, self) && time(&b.ty, self))
             {
                 let (t, n) = if time(&a.ty, self) { (a, b) } else { (b, a) };
+                if n.ty.prim(&self.types).is_some_and(Prim::is_bits) {
+                    self.habit(Habit::BitArithmetic, file, n.span);
+                }
                 let tp = t.ty.prim(&self.types).expect("time");
                 let n = if n.ty == Ty::IntLit {
                     self.coerce(n, &Ty::Prim(Prim::LInt), file)
@@ -2039,6 +2054,16 @@ impl<'a> Ctx<'a> {
     pub fn output_assignable(&mut self, from: &Ty, to: &Ty, at: Span, file: usize) -> bool {
         if self.assignable(from, to) {
             return true;
+        }
+        // CODESYS's implicit conversions of integers, as an assignment makes them (`implicit`)
+        if let (Some(a), Some(b)) = (from.prim(&self.types), to.prim(&self.types)) {
+            let enums = matches!(from, Ty::Enum(_)) || matches!(to, Ty::Enum(_));
+            if !enums && codesys::implicit_bits(a, b) {
+                return self.habit(Habit::ImplicitConversion, file, at);
+            }
+            if !enums && self.lossy_conversion(a, b, file, at) {
+                return true;
+            }
         }
         let (a, b) = (self.ty_name(from), self.ty_name(to));
         self.error(file, at, format!("type mismatch: `{a}` cannot be assigned to `{b}`"));

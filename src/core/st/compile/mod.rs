@@ -14,6 +14,9 @@
 //! - `sfc`: each POU's Sequential Function Chart → variables and statements, before the rest;
 //! - `oop`: methods, properties, EXTENDS, interfaces, and the dispatch of their calls on a
 //!   hidden type tag of the instance;
+//! - `implicit`: CODESYS's implicit conversions that may change a value (another sign, a
+//!   narrower integer, an enumeration's number), accepted with a warning;
+//! - `for_written`: CODESYS's FOR variable written in the loop's body, with a warning;
 //! - `instance_args`: a configuration's program instance arguments, as copies in its code;
 //! - `var_config`: a configuration's `VAR_CONFIG`, variables at partly specified addresses
 //!   bound to devices.
@@ -53,7 +56,9 @@ mod emit;
 mod expr;
 mod fb_exit;
 mod fb_init;
+mod for_written;
 mod generic;
+mod implicit;
 mod instance_args;
 mod jumps;
 mod method_eno;
@@ -74,7 +79,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use super::ast;
-use crate::diag::{Diagnostic, Diagnostics};
+use crate::diag::{Diagnostic, Diagnostics, Warning};
 use crate::lang::{Language, Op, Place, Program, Variables, EVAL_DEPTH, ST_CALL_DEPTH};
 use crate::st::ast::{PouKind, VarKind};
 use crate::st::dialect::Dialect;
@@ -110,6 +115,8 @@ pub struct Compiled {
     /// One program per instance, in the order given.
     pub programs: Vec<Program>,
     pub variables: Variables,
+    /// What was accepted with a warning (`implicit`), in file and line order, once each.
+    pub warnings: Vec<Warning>,
 }
 
 /// Compiles every instance against the declarations of all `files`, with the CODESYS habits
@@ -151,6 +158,7 @@ pub fn compile_configured(
         files: refs,
         types: types::Types::default(),
         diags: Vec::new(),
+        warnings: Vec::new(),
         type_decls: Vec::new(),
         type_names: HashMap::new(),
         pous: Vec::new(),
@@ -166,6 +174,7 @@ pub fn compile_configured(
         eno_read: files.iter().any(decl::reads_eno),
         prelude_file,
         for_vars: Vec::new(),
+        for_written: Vec::new(),
         loop_depth: 0,
         jumps: Default::default(),
         dialect,
@@ -347,7 +356,8 @@ pub fn compile_configured(
         located_init: cx.located_init.clone().into_boxed_slice(),
         symbols,
     };
-    Ok(Compiled { programs, variables })
+    let warnings = sorted(std::mem::take(&mut cx.warnings)).0.into_iter().map(Warning).collect();
+    Ok(Compiled { programs, variables, warnings })
 }
 
 fn sorted(mut d: Vec<Diagnostic>) -> Diagnostics {

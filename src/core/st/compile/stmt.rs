@@ -38,6 +38,8 @@ pub enum TS {
         to: TExpr,
         by: TExpr,
         body: Vec<TStmt>,
+        /// Whether the body writes the variable (CODESYS's habit, `for_written`).
+        written: bool,
     },
     While(TExpr, Vec<TStmt>),
     Repeat(Vec<TStmt>, TExpr),
@@ -256,15 +258,20 @@ impl<'a> Ctx<'a> {
             None => TExpr::konst(Cv::Int(1), ty.clone(), var.span),
         };
         self.for_vars.push(var.name.clone());
+        self.for_written.push(false);
         self.loop_depth += 1;
         let body = self.check_body(body, scope);
         self.loop_depth -= 1;
         self.for_vars.pop();
+        let written = self.for_written.pop().unwrap_or(false);
         if !ok || f.ty.is_error() || t.ty.is_error() || b.ty.is_error() {
             return None;
         }
         let v = TExpr { ty, ..v };
-        Some(TStmt { k: TS::For { var: v, from: f, to: t, by: b, body }, line: s.span.line })
+        Some(TStmt {
+            k: TS::For { var: v, from: f, to: t, by: b, body, written },
+            line: s.span.line,
+        })
     }
 
     fn check_case(
@@ -418,6 +425,7 @@ impl<'a> Ctx<'a> {
         self.in_prelude = file == self.prelude_file;
         self.loop_depth = 0;
         self.for_vars.clear();
+        self.for_written.clear();
         self.resolve_jumps(statements, file);
         // A FUNCTION's result never assigned on some path keeps its type's initial value.
         self.check_body(statements, scope)

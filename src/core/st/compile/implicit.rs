@@ -1,0 +1,130 @@
+//! CODESYS's implicit conversions that may change a value, which IEC 61131-3 refuses and
+//! CODESYS and TwinCAT compile with a warning (C0195 "implicit conversion from signed type to
+//! unsigned type", C0196 the other way, and the narrowing ones): an integer or bit string
+//! given where another integer or bit string is wanted that does not hold all its values
+//! (`size := LEN(s)` with a UDINT `size`, `stop := i - 1` with a UINT `stop`, a WORD
+//! expression assigned to an INT), and an enumeration's value where an integer is wanted.
+//!
+//! They apply wherever the checker converts implicitly ([`Ctx::coerce`]: an assignment, an
+//! argument, an initial value, a function's result, a FOR's bounds; and an output bound with
+//! `=>`). The value is converted as the explicit `<FROM>_TO_<TO>` converts it: to its two's
+//! complement bits, wrapped to the target's width. Each use is noted as a
+//! [`Habit`](crate::st::dialect::Habit), so `[st] strict` refuses it, and otherwise warns with
+//! the conversion to write (docs/ST.md, "Implicit conversions").
+//!
+//! A `REAL` or `LREAL` never converts implicitly to an integer: that stays an error.
+
+use super::codesys;
+use super::ctx::Ctx;
+use super::expr::TExpr;
+use super::types::{Prim, Ty};
+use crate::st::ast::Span;
+use crate::st::dialect::Habit;
+
+/// Whether CODESYS converts a `from` value implicitly to `to` where plcd's lossless rules do
+/// not: both integers or bit strings (`BOOL` is neither), the target of another sign or
+/// narrower.
+pub fn lossy(from: Prim, to: Prim) -> bool {
+    from != to
+        && from.is_integral()
+        && to.is_integral()
+        && !from.widens_to(to)
+        && !codesys::implicit_bits(from, to)
+}
+
+/// The warning for a lossy conversion from `from` to `to`, with a value it changes: −1 when
+/// `from` has negative values and `to` none, else the first value above `to`'s range.
+pub fn warning(from: Prim, to: Prim) -> String {
+    let (from_lo, _) = from.range().expect("an integer type");
+    let (to_lo, to_hi) = to.range().expect("an integer type");
+    let changed = if from_lo < 0 && to_lo == 0 { -1 } else { to_hi + 1 };
+    let (f, t) = (from.name(), to.name());
+    format!(
+        "`{f}` converted implicitly to `{t}`: the value wraps to {} bits ({changed} becomes {}); write `{f}_TO_{t}(…)` to say so",
+        to.bits(),
+        super::types::wrap(to, changed)
+    )
+}
+
+impl Ctx<'_> {
+    /// Notes the lossy conversion of a `from` value to `to` at `span` when [`lossy`] says it
+    /// is one: the habit (an error under `[st] strict`), else a warning. Whether it is one.
+    pub(super) fn lossy_conversion(
+        &mut self,
+        from: Prim,
+        to: Prim,
+        file: usize,
+        span: Span,
+    ) -> bool {
+        if !lossy(from, to) {
+            return false;
+        }
+        self.habit(Habit::LossyConversion { from: from.name(), to: to.name() }, file, span);
+        if !self.dialect.strict {
+            self.warn(file, span, warning(from, to));
+        }
+        true
+    }
+
+    /// An enumeration's value where an integer or a bit string is wanted (`i := eState`, as
+    /// CODESYS): its number, of the enumeration's base type. Converted without a warning when
+    /// `to` holds every value of the enumeration (an enumeration without a declared base is a
+    /// DINT in plcd, an INT in CODESYS: `i := eState` into an INT is no loss either way), else
+    /// as its base type would be. `None` when `te` is no enumeration's value or `to` no
+    /// integer.
+    pub(super) fn enum_as_integer(&mut self, te: TExpr, to: &Ty, file: usize) -> Option<TExpr> {
+        let Ty::Enum(e) = te.ty else { return None };
+        let target = to.prim(&self.types).filter(|p| p.is_integral());
+        let target = target.filter(|_| !matches!(to, Ty::Enum(_)))?;
+        self.habit(Habit::EnumToInteger, file, te.span);
+        let (lo, hi) = target.range().expect("an integer type");
+        let enumeration = &self.types.enums[e];
+        let base = enumeration.base;
+        let fits = enumeration.values.iter().all(|(_, v)| (lo..=hi).contains(v));
+        let te = TExpr { ty: Ty::Prim(base), ..te };
+        Some(if fits { self.conv(te, target, to.clone()) } else { self.coerce(te, to, file) })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lossy_pairs_are_those_of_another_sign_or_narrower() {
+        use Prim::*;
+        // signed to unsigned, unsigned to signed as wide, narrower
+        assert!(lossy(Int, UInt));
+        assert!(lossy(Int, UDInt));
+        assert!(lossy(UInt, Int));
+        assert!(lossy(DInt, Int));
+        assert!(lossy(Word, Int));
+        assert!(lossy(DWord, Word));
+        assert!(lossy(Int, Byte));
+        // lossless: plcd converts them without a word
+        assert!(!lossy(Int, DInt));
+        assert!(!lossy(UInt, DInt));
+        assert!(!lossy(Byte, Int));
+        assert!(!lossy(Int, Word));
+        assert!(!lossy(Int, Int));
+        // not integers
+        assert!(!lossy(Real, Int));
+        assert!(!lossy(Int, Real));
+        assert!(!lossy(Bool, Int));
+        assert!(!lossy(Time, DInt));
+    }
+
+    #[test]
+    fn the_warning_shows_a_value_that_changes() {
+        use Prim::*;
+        assert_eq!(
+            warning(Int, UInt),
+            "`INT` converted implicitly to `UINT`: the value wraps to 16 bits (-1 becomes 65535); write `INT_TO_UINT(…)` to say so"
+        );
+        assert!(warning(UInt, Int).contains("(32768 becomes -32768)"));
+        assert!(warning(DInt, Int).contains("(32768 becomes -32768)"));
+        assert!(warning(UDInt, UInt).contains("(65536 becomes 0)"));
+        assert!(warning(Int, UDInt).contains("(-1 becomes 4294967295)"));
+        assert!(warning(Word, SInt).contains("8 bits (128 becomes -128)"));
+    }
+}
