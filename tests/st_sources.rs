@@ -365,7 +365,7 @@ CONFIGURATION Config0
   VAR_GLOBAL small : SINT; END_VAR
   VAR_GLOBAL CONSTANT c : BOOL := TRUE; END_VAR
   PROGRAM a : prog0 (speed := TRUE, done => small, count := 1);
-  PROGRAM b : prog0 (speed := %MW2, done => c, speed => small, sped := 1);
+  PROGRAM b : prog0 (speed := T#1s, done => c, speed => small, sped := 1);
 END_CONFIGURATION
 ";
     write(dir.path(), "plc.st", text);
@@ -376,7 +376,7 @@ END_CONFIGURATION
         "plc.st:12:31: error: type mismatch: `BOOL` cannot be assigned to `INT` (use BOOL_TO_INT)
 plc.st:12:45: error: type mismatch: `BOOL` cannot be assigned to `SINT`
 plc.st:12:52: error: `count` is not a VAR_INPUT of `prog0`: `:=` gives an input its value before each run
-plc.st:13:31: error: type mismatch: `WORD` cannot be assigned to `INT` (use WORD_TO_INT)
+plc.st:13:31: error: type mismatch: `TIME` cannot be assigned to `INT` (use TIME_TO_INT)
 plc.st:13:45: error: `c` is CONSTANT: it cannot be written
 plc.st:13:48: error: `speed` is not a VAR_OUTPUT of `prog0`: `=>` copies an output out after each run
 plc.st:13:64: error: `prog0` has no VAR_INPUT or VAR_OUTPUT `sped` (did you mean `speed`?)
