@@ -350,6 +350,10 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` is used only inside a FUNCTION_BLOCK, its methods and actions", "this-outside-a-function-block"),
     ("`SUPER` needs a base: `{}` EXTENDS no function block", "super-without-extends"),
     ("`{}` is PRIVATE: only the code of `{}` may use it", "private-method-called"),
+    ("`{}` is PRIVATE: only the code of `{}` may use it", "private-setter-written"),
+    // qualified.rs: a global variable list's name and a library's namespace before a name
+    ("the global variable list `{}` declares no `{}`", "gvl-declares-no-variable"),
+    ("`{}.{}` names a global that the POU's own `{}` hides: rename the POU's variable", "gvl-variable-hidden"),
     ("`{}` is PROTECTED: only the code of `{}` and of the function blocks extending it may use it", "protected-method-called"),
     ("`{}` is a variable of `{}`, not a method", "variable-called-as-method"),
     ("`{}` has no method `{}`", "method-not-found"),

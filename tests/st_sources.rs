@@ -130,7 +130,8 @@ fn an_error_in_a_twincat_file_is_reported_at_its_line_and_column() {
 }
 
 /// A TwinCAT 3 `.TcPOU` of a function block with a `<Method>` and a `<Property>` (with `<Get>`
-/// and `<Set>`), as TwinCAT writes them after the body, and a `.TcIO` interface.
+/// and `<Set>`, the `<Set>` declared `PUBLIC` as TwinCAT writes an accessor's access
+/// specifier), as TwinCAT writes them after the body, and a `.TcIO` interface.
 fn twincat_oop_project() -> TempDir {
     let dir = twincat_project("st-sources-oop");
     let d = dir.path();
@@ -143,7 +144,7 @@ fn twincat_oop_project() -> TempDir {
             "iAxis := fbAxis;\r\nbDone := iAxis.M_Move(nTarget := 5);\r\nfbAxis.P_Speed := fbAxis.P_Speed + 1;\r\nnPos := fbAxis.nPosition;",
         ),
     );
-    let axis = "  <POU Name=\"FB_Axis\" Id=\"{1}\" SpecialFunc=\"None\">\r\n    <Declaration><![CDATA[FUNCTION_BLOCK FB_Axis IMPLEMENTS I_Axis\r\nVAR\r\n\tnPosition : INT;\r\n\tnSpeed : INT := 1;\r\nEND_VAR]]></Declaration>\r\n    <Implementation>\r\n      <ST><![CDATA[]]></ST>\r\n    </Implementation>\r\n    <Method Name=\"M_Move\" Id=\"{2}\">\r\n      <Declaration><![CDATA[METHOD PUBLIC M_Move : BOOL\r\nVAR_INPUT\r\n\tnTarget : INT;\r\nEND_VAR]]></Declaration>\r\n      <Implementation>\r\n        <ST><![CDATA[IF nPosition < nTarget THEN\r\n\tnPosition := nPosition + nSpeed;\r\nEND_IF\r\nM_Move := nPosition >= nTarget;]]></ST>\r\n      </Implementation>\r\n    </Method>\r\n    <Property Name=\"P_Speed\" Id=\"{3}\">\r\n      <Declaration><![CDATA[PROPERTY PUBLIC P_Speed : INT]]></Declaration>\r\n      <Get Name=\"Get\" Id=\"{4}\">\r\n        <Declaration><![CDATA[VAR\r\nEND_VAR]]></Declaration>\r\n        <Implementation>\r\n          <ST><![CDATA[P_Speed := nSpeed;]]></ST>\r\n        </Implementation>\r\n      </Get>\r\n      <Set Name=\"Set\" Id=\"{5}\">\r\n        <Declaration><![CDATA[VAR\r\nEND_VAR]]></Declaration>\r\n        <Implementation>\r\n          <ST><![CDATA[nSpeed := P_Speed;]]></ST>\r\n        </Implementation>\r\n      </Set>\r\n    </Property>\r\n  </POU>";
+    let axis = "  <POU Name=\"FB_Axis\" Id=\"{1}\" SpecialFunc=\"None\">\r\n    <Declaration><![CDATA[FUNCTION_BLOCK FB_Axis IMPLEMENTS I_Axis\r\nVAR\r\n\tnPosition : INT;\r\n\tnSpeed : INT := 1;\r\nEND_VAR]]></Declaration>\r\n    <Implementation>\r\n      <ST><![CDATA[]]></ST>\r\n    </Implementation>\r\n    <Method Name=\"M_Move\" Id=\"{2}\">\r\n      <Declaration><![CDATA[METHOD PUBLIC M_Move : BOOL\r\nVAR_INPUT\r\n\tnTarget : INT;\r\nEND_VAR]]></Declaration>\r\n      <Implementation>\r\n        <ST><![CDATA[IF nPosition < nTarget THEN\r\n\tnPosition := nPosition + nSpeed;\r\nEND_IF\r\nM_Move := nPosition >= nTarget;]]></ST>\r\n      </Implementation>\r\n    </Method>\r\n    <Property Name=\"P_Speed\" Id=\"{3}\">\r\n      <Declaration><![CDATA[PROPERTY PUBLIC P_Speed : INT]]></Declaration>\r\n      <Get Name=\"Get\" Id=\"{4}\">\r\n        <Declaration><![CDATA[VAR\r\nEND_VAR]]></Declaration>\r\n        <Implementation>\r\n          <ST><![CDATA[P_Speed := nSpeed;]]></ST>\r\n        </Implementation>\r\n      </Get>\r\n      <Set Name=\"Set\" Id=\"{5}\">\r\n        <Declaration><![CDATA[PUBLIC\r\nVAR\r\nEND_VAR]]></Declaration>\r\n        <Implementation>\r\n          <ST><![CDATA[nSpeed := P_Speed;]]></ST>\r\n        </Implementation>\r\n      </Set>\r\n    </Property>\r\n  </POU>";
     write(d, "lib/FB_Axis.TcPOU", &tc(axis));
     let itf = "  <Itf Name=\"I_Axis\" Id=\"{6}\">\r\n    <Declaration><![CDATA[INTERFACE I_Axis EXTENDS __System.IQueryInterface]]></Declaration>\r\n    <Method Name=\"M_Move\" Id=\"{7}\">\r\n      <Declaration><![CDATA[METHOD M_Move : BOOL\r\nVAR_INPUT\r\n\tnTarget : INT;\r\nEND_VAR]]></Declaration>\r\n    </Method>\r\n  </Itf>";
     write(d, "lib/I_Axis.TcIO", &tc(itf));
@@ -766,4 +767,48 @@ fn a_cdata_end_split_by_twincat_is_one_string() {
     // 12 characters of the join left out)
     assert!(stderr.contains("MAIN.TcPOU:9:32: error: `x` is not declared"), "{stderr}");
     assert!(stderr.contains("MAIN.TcPOU:10:1: error: `y` is not declared"), "{stderr}");
+}
+
+/// A `.TcGVL`'s `<GVL Name>` qualifies its variables (`{attribute 'qualified_only'}` lists, as
+/// TcUnit's `GVL_Param_TcUnit`), whatever its file is called, in an array bound, an initial
+/// value and statements; `[st] namespaces` names the library the sources are (`TcUnit.…`).
+#[test]
+fn a_twincat_gvl_name_and_a_library_namespace_qualify_names() {
+    let dir = TempDir::new("st-sources-qualified");
+    let d = dir.path();
+    write(
+        d,
+        "plcd.toml",
+        "[plc]\nscan_period_ms = 1\n\n[[program]]\nname = \"main\"\nfile = \"MAIN.TcPOU\"\n\n[st]\nlibrary = [\"lib/\"]\nnamespaces = [\"TcUnit\"]\n",
+    );
+    let gvl = "  <GVL Name=\"GVL_Param\" Id=\"{8}\" ParameterList=\"True\">\r\n    <Declaration><![CDATA[{attribute 'qualified_only'}\r\nVAR_GLOBAL CONSTANT\r\n\tBufferSize : UDINT := 4;\r\nEND_VAR\r\nVAR_GLOBAL\r\n\tnCalls : INT;\r\nEND_VAR]]></Declaration>\r\n  </GVL>";
+    write(d, "lib/lib000_params.TcGVL", &tc(gvl));
+    write(
+        d,
+        "lib/FB_Suite.TcPOU",
+        &pou(
+            "FB_Suite",
+            "FUNCTION_BLOCK FB_Suite\r\nVAR\r\n\taBuffer : ARRAY[0..GVL_Param.BufferSize - 1] OF INT;\r\n\tnNext : UDINT := GVL_Param.BufferSize - 1;\r\nEND_VAR",
+            "aBuffer[nNext] := aBuffer[nNext] + 1;\r\nTcUnit.GVL_Param.nCalls := GVL_Param.nCalls + 1;",
+        ),
+    );
+    write(
+        d,
+        "MAIN.TcPOU",
+        &pou(
+            "MAIN",
+            "PROGRAM MAIN\r\nVAR\r\n\tfbSuite : FB_Test;\r\n\tnLast : INT;\r\n\tnSeen : INT;\r\nEND_VAR",
+            "fbSuite();\r\nnLast := fbSuite.aBuffer[3];\r\nnSeen := GVL_Param.nCalls;",
+        ),
+    );
+    let test = pou(
+        "FB_Test",
+        "FUNCTION_BLOCK FB_Test EXTENDS TcUnit.FB_Suite\r\nVAR\r\nEND_VAR",
+        "SUPER^();",
+    );
+    write(d, "lib/FB_Test.TcPOU", &test);
+    let trace = checked_trace(d, "2500us", "main.nLast,main.nSeen");
+    // 3 scans: each adds 1 to aBuffer[BufferSize - 1] = aBuffer[3] and counts the call
+    assert_eq!(last(&trace, "main.nLast").as_deref(), Some("3"), "{trace}");
+    assert_eq!(last(&trace, "main.nSeen").as_deref(), Some("3"), "{trace}");
 }

@@ -509,7 +509,9 @@ where
             ok = false;
             continue;
         };
+        let mut list_name = None;
         if crate::config::is_twincat_source(&path) {
+            list_name = st::twincat::gvl_name(&text);
             match st::twincat::st_text(&text) {
                 Ok(st) => text = st,
                 Err(e) => {
@@ -520,7 +522,8 @@ where
                 }
             }
         }
-        let (file, errors) = st::parse_file(&path, &text);
+        let (mut file, errors) = st::parse_file(&path, &text);
+        file.list_name = list_name;
         ok &= errors.is_empty();
         reader.diags.extend(errors);
         files.push(file);
@@ -545,7 +548,8 @@ where
     let base = config.path.parent().unwrap_or(Path::new(""));
     let shown = |path: &Path| path.strip_prefix(base).unwrap_or(path).display().to_string();
     let iec_notes = st::iec_check::check_notes(&files, &config.iec.layout, shown);
-    match st::compile_configured(&files, &instances, &configured, dialect) {
+    let namespaces = &config.st.namespaces;
+    match st::compile_in_namespaces(&files, &instances, &configured, dialect, namespaces) {
         Ok(compiled) => Some((compiled, iec_notes)),
         Err(errors) => {
             reader.diags.extend(errors);

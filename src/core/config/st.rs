@@ -20,6 +20,10 @@ pub struct StConfig {
     pub library: Vec<LibraryFile>,
     /// `strict`: refuse the CODESYS/TwinCAT habits, IEC 61131-3 only; default `false`.
     pub strict: bool,
+    /// `namespaces`: the namespaces of the libraries the project's sources are (TwinCAT's
+    /// `<DefaultNamespace>` of a library project, `TcUnit`): `TcUnit.FB_TestSuite` names the
+    /// project's `FB_TestSuite`, a plcd project being one namespace; default none.
+    pub namespaces: Vec<String>,
 }
 
 /// One `[st] library` entry.
@@ -58,6 +62,7 @@ pub fn is_twincat_source(file: &Path) -> bool {
 pub(super) struct RawSt {
     pub library: Option<Vec<Spanned<String>>>,
     pub strict: Option<bool>,
+    pub namespaces: Option<Vec<Spanned<String>>>,
 }
 
 pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StConfig> {
@@ -88,5 +93,25 @@ pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StC
         let (line, col) = Diagnostic::line_col(sink.text, at);
         library.push(LibraryFile { file: PathBuf::from(file), resolved, folder, line, col });
     }
-    ok.then_some(StConfig { library, strict: raw.strict.unwrap_or(false) })
+    let mut namespaces: Vec<String> = Vec::new();
+    for entry in raw.namespaces.unwrap_or_default() {
+        let at = entry.span().start;
+        let name = entry.into_inner();
+        let mut chars = name.chars();
+        let first = chars.next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_');
+        if !first || !chars.all(|c| c.is_ascii_alphanumeric() || c == '_') {
+            let msg = format!(
+                "{}: `{name}` is not a name (letters, digits and `_`)",
+                ctx.key("namespaces")
+            );
+            sink.error(at, msg);
+            ok = false;
+        } else if namespaces.iter().any(|n| n.eq_ignore_ascii_case(&name)) {
+            sink.error(at, format!("{}: `{name}` is listed twice", ctx.key("namespaces")));
+            ok = false;
+        } else {
+            namespaces.push(name);
+        }
+    }
+    ok.then_some(StConfig { library, strict: raw.strict.unwrap_or(false), namespaces })
 }

@@ -32,6 +32,9 @@ pub struct File {
     pub items: Vec<Item>,
     /// The non-standard forms the parser accepted, in the order met (refused by `[st] strict`).
     pub habits: Vec<crate::st::dialect::Noted>,
+    /// The name of the global variable list its `VAR_GLOBAL` blocks form, which qualifies
+    /// their variables (`GVL_Param.N`): a `.TcGVL`'s `<GVL Name>`; `None`, the file's stem.
+    pub list_name: Option<String>,
 }
 
 /// A top-level declaration.
@@ -88,6 +91,11 @@ pub struct Property {
     pub is_final: bool,
     pub get: Option<Pou>,
     pub set: Option<Pou>,
+    /// The access specifier written after `GET` (CODESYS, TwinCAT: `<Get>`'s declaration):
+    /// that accessor's own, in place of the property's.
+    pub get_access: Option<Access>,
+    /// The access specifier written after `SET`, as [`Property::get_access`].
+    pub set_access: Option<Access>,
     pub span: Span,
 }
 

@@ -21,5 +21,7 @@ pub mod sfc;
 pub mod syntax;
 pub mod twincat;
 
-pub use compile::{compile, compile_configured, compile_with, Compiled, Instance};
+pub use compile::{
+    compile, compile_configured, compile_in_namespaces, compile_with, Compiled, Instance,
+};
 pub use syntax::parse_file;

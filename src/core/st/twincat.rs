@@ -97,6 +97,15 @@ pub fn st_text(xml: &str) -> Result<String, XmlError> {
     Ok(blank_outside(xml, &keep, &joins, &words))
 }
 
+/// The name of the global variable list a `.TcGVL` file holds (`<GVL Name="GVL_Param">`),
+/// which qualifies its variables; `None` for another file, or XML that does not parse.
+pub fn gvl_name(xml: &str) -> Option<String> {
+    let doc = roxmltree::Document::parse(xml).ok()?;
+    let gvl =
+        doc.root_element().children().find(|n| n.is_element() && n.tag_name().name() == "GVL")?;
+    gvl.attribute("Name").filter(|n| !n.is_empty()).map(str::to_string)
+}
+
 const CDATA_OPEN: &str = "<![CDATA[";
 const CDATA_CLOSE: &str = "]]>";
 /// What separates two CDATA sections TwinCAT wrote for one text holding `]]>`.
@@ -402,6 +411,14 @@ IF n > 10 THEN n := 0; END_IF]]></ST>
         let gvl = "<TcPlcObject>\n<GVL Name=\"G\"><Declaration><![CDATA[{attribute 'qualified_only'}\nVAR_GLOBAL g : INT; END_VAR\n]]></Declaration></GVL></TcPlcObject>";
         let st = st_text(gvl).unwrap();
         assert_eq!(st.lines().nth(2), Some("VAR_GLOBAL g : INT; END_VAR"));
+    }
+
+    #[test]
+    fn a_gvl_is_named_by_its_name_attribute() {
+        let gvl = "<TcPlcObject>\n<GVL Name=\"GVL_Param\"><Declaration><![CDATA[VAR_GLOBAL g : INT; END_VAR]]></Declaration></GVL></TcPlcObject>";
+        assert_eq!(gvl_name(gvl).as_deref(), Some("GVL_Param"));
+        let dut = "<TcPlcObject><DUT Name=\"P\"><Declaration><![CDATA[TYPE P : INT; END_TYPE]]></Declaration></DUT></TcPlcObject>";
+        assert_eq!(gvl_name(dut), None);
     }
 
     #[test]

@@ -64,6 +64,7 @@ mod jumps;
 mod method_eno;
 mod method_vars;
 mod oop;
+mod qualified;
 mod query;
 mod refs;
 mod sfc;
@@ -144,10 +145,23 @@ pub fn compile_configured(
     configured: &[Option<&ast::ProgramDecl>],
     dialect: Dialect,
 ) -> Result<Compiled, Diagnostics> {
+    compile_in_namespaces(files, instances, configured, dialect, &[])
+}
+
+/// [`compile_configured`], the project's sources being the libraries of `namespaces` (`[st]
+/// namespaces`): `NS.Name` names the project's `Name` (`compile::qualified`).
+pub fn compile_in_namespaces(
+    files: &[ast::File],
+    instances: &[Instance<'_>],
+    configured: &[Option<&ast::ProgramDecl>],
+    dialect: Dialect,
+    namespaces: &[String],
+) -> Result<Compiled, Diagnostics> {
     let declaration = |k: usize| configured.get(k).copied().flatten();
     let (prelude, prelude_diags) = super::syntax::parse_file(Path::new(PRELUDE_PATH), PRELUDE);
     let mut diags: Vec<Diagnostic> = prelude_diags.0;
     let lowered = sfc::lower(files, &mut diags);
+    let lowered = qualified::lower(lowered, namespaces, &mut diags);
     let lowered = method_vars::lower(lowered);
     let lowered = fb_init::lower(lowered, &mut diags);
     let lowered = fb_exit::lower(lowered, &mut diags);

@@ -132,11 +132,13 @@ impl<'a> Ctx<'a> {
             self.add_member(file, Some(owner), &m.pou, flags, Role::Method);
         }
         for p in &pou.oop.properties {
-            let flags = (p.access, p.is_abstract, p.is_final);
+            // an accessor's own access specifier replaces the property's (CODESYS)
             if let Some(get) = &p.get {
+                let flags = (p.get_access.unwrap_or(p.access), p.is_abstract, p.is_final);
                 self.add_member(file, Some(owner), get, flags, Role::Get);
             }
             if let Some(set) = &p.set {
+                let flags = (p.set_access.unwrap_or(p.access), p.is_abstract, p.is_final);
                 self.add_member(file, Some(owner), set, flags, Role::Set);
             }
         }

@@ -27,7 +27,7 @@ pub fn parse_file(path: &Path, text: &str) -> (ast::File, Diagnostics) {
     for (span, msg) in errors {
         diags.push(Diagnostic::new(path, span.line, span.col, msg.to_string()));
     }
-    (ast::File { path: path.to_path_buf(), items, habits }, diags)
+    (ast::File { path: path.to_path_buf(), items, habits, list_name: None }, diags)
 }
 
 /// Every message the lexer and the parser can emit, with `{}` where the message varies.

@@ -602,7 +602,7 @@ impl<'a> Parser<'a> {
         if kind != PouKind::Function {
             if self.at_word("EXTENDS") {
                 self.bump();
-                oop.extends = self.ident().ok();
+                oop.extends = self.dotted_name().ok();
             }
             if self.at_word("IMPLEMENTS") {
                 self.bump();
@@ -674,18 +674,25 @@ impl<'a> Parser<'a> {
     /// `A, B, …`: names after EXTENDS or IMPLEMENTS (a library's qualified, `NS.I`).
     fn names(&mut self) -> Vec<Ident> {
         let mut out = Vec::new();
-        while let Ok(mut id) = self.ident() {
-            while self.at_p(P::Dot) && *self.tok_at(1) == Tok::Ident {
-                self.bump();
-                let Ok(more) = self.ident() else { break };
-                id.name = format!("{}.{}", id.name, more.name);
-            }
+        while let Ok(id) = self.dotted_name() {
             out.push(id);
             if !self.eat_p(P::Comma) {
                 break;
             }
         }
         out
+    }
+
+    /// A name, or a library's qualified one `NS.Name` as one name with its dots (resolved by
+    /// `compile::qualified`).
+    fn dotted_name(&mut self) -> PResult<Ident> {
+        let mut id = self.ident()?;
+        while self.at_p(P::Dot) && *self.tok_at(1) == Tok::Ident {
+            self.bump();
+            let Ok(more) = self.ident() else { break };
+            id.name = format!("{}.{}", id.name, more.name);
+        }
+        Ok(id)
     }
 
     /// The access specifier, `ABSTRACT` and `FINAL` before a name: words followed by a name.
@@ -770,6 +777,7 @@ impl<'a> Parser<'a> {
         let ty = self.type_ref().ok();
         self.eat_p(P::Semi);
         let (mut get, mut set) = (None, None);
+        let (mut get_access, mut set_access) = (None, None);
         self.open.push(Closer::Property);
         loop {
             let getter = self.at_word("GET");
@@ -778,6 +786,7 @@ impl<'a> Parser<'a> {
             }
             let at = self.span();
             self.bump();
+            let own_access = self.accessor_access();
             let mut vars = Vec::new();
             while var_kind(self.tok()).is_some() {
                 vars.push(self.var_block());
@@ -805,7 +814,9 @@ impl<'a> Parser<'a> {
             if getter {
                 accessor.return_type = Some(ty.clone());
                 get = Some(accessor);
+                get_access = own_access;
             } else {
+                set_access = own_access;
                 // the value assigned comes in the property's name
                 let input = VarDecl {
                     names: vec![name.clone()],
@@ -830,7 +841,37 @@ impl<'a> Parser<'a> {
         let here = self.span();
         self.close(Closer::Property, "PROPERTY", span).unwrap_or(here);
         self.eat_p(P::Semi);
-        Some(Property { name: name?, ty: ty?, access, is_abstract, is_final, get, set, span })
+        let (name, ty) = (name?, ty?);
+        Some(Property {
+            name,
+            ty,
+            access,
+            is_abstract,
+            is_final,
+            get,
+            set,
+            get_access,
+            set_access,
+            span,
+        })
+    }
+
+    /// The access specifier of a property's accessor, after `GET` or `SET` (CODESYS: `<Set>`'s
+    /// declaration reading `PUBLIC VAR … END_VAR`): the word, unless it starts the body's first
+    /// statement (a variable named so, followed by `:=`, `.`, `(` …).
+    fn accessor_access(&mut self) -> Option<Access> {
+        if *self.tok() != Tok::Ident || matches!(self.tok_at(1), Tok::P(_)) {
+            return None;
+        }
+        let access = match self.text_of(self.pos).to_ascii_uppercase().as_str() {
+            "PUBLIC" => Access::Public,
+            "PRIVATE" => Access::Private,
+            "PROTECTED" => Access::Protected,
+            "INTERNAL" => Access::Internal,
+            _ => return None,
+        };
+        self.bump();
+        Some(access)
     }
 
     /// `INTERFACE Name [EXTENDS I, …] METHOD … PROPERTY … END_INTERFACE`.
@@ -1248,7 +1289,7 @@ impl<'a> Parser<'a> {
                 Ok(TypeRef::WString { len, span })
             }
             Tok::Ident => {
-                let name = self.ident()?;
+                let name = self.dotted_name()?;
                 if !self.at_p(P::LParen) {
                     return Ok(TypeRef::Named(name));
                 }

@@ -1,0 +1,415 @@
+//! Qualified names of CODESYS and TwinCAT: a global variable list's name before one of its
+//! variables (`GVL_Param.BufferSize`, which `{attribute 'qualified_only'}` makes the only way),
+//! and a library's namespace before one of its declarations (`TcUnit.FB_TestSuite`,
+//! `TcUnit.GVL_Param_TcUnit.MaxNumberOfTestSuites`).
+//!
+//! A lowering of the syntax trees before the checker, which knows one namespace of globals and
+//! one of POUs and types: [`lower`] writes `Gvl.x` as `x` and `NS.Name` as `Name` wherever an
+//! expression may stand (statements, initial values, array bounds, string lengths, arguments)
+//! and in the names of types (`b : NS.FB_Base`, `EXTENDS NS.FB_Base`, `IMPLEMENTS NS.I`).
+//!
+//! A list's name is its `.TcGVL`'s `<GVL Name>`, or the stem of the `.st` file holding the
+//! `VAR_GLOBAL` blocks (CODESYS's plain ST has no list names); a namespace is one of
+//! `[st] namespaces`. A name qualifies only when it is none of the scope's variables, no
+//! global, no POU and no type: `a.b` keeps its meaning wherever `a` is declared (an
+//! enumeration's `E.Value` included). `Gvl.x` where the POU declares its own `x` is an error,
+//! as the global would be hidden from the checker.
+
+use std::borrow::Cow;
+use std::collections::{HashMap, HashSet};
+use std::path::Path;
+
+use crate::diag::Diagnostic;
+use crate::st::ast::{
+    Arg, ArrayInit, Expr, ExprKind, File, Ident, Init, Item, Pou, Stmt, StmtKind, TypeDef, TypeRef,
+    VarBlock,
+};
+
+/// Lowers the qualified names of every file; `namespaces` are `[st] namespaces`.
+pub(super) fn lower<'f>(
+    mut files: Vec<Cow<'f, File>>,
+    namespaces: &[String],
+    diags: &mut Vec<Diagnostic>,
+) -> Vec<Cow<'f, File>> {
+    let mut names = Names {
+        lists: HashMap::new(),
+        globals: HashSet::new(),
+        declared: HashSet::new(),
+        namespaces: namespaces.iter().map(|n| key(n)).collect(),
+    };
+    for file in files.iter() {
+        names.gather(file);
+    }
+    if names.lists.is_empty() && names.namespaces.is_empty() {
+        return files;
+    }
+    for file in &mut files {
+        let path = file.path.clone();
+        let mut lowering = Lowering { names: &names, path: &path, diags: &mut *diags };
+        for item in &mut file.to_mut().items {
+            lowering.item(item);
+        }
+    }
+    files
+}
+
+fn key(name: &str) -> String {
+    name.to_ascii_lowercase()
+}
+
+/// What the project declares, by lowercase name.
+struct Names {
+    /// Each global variable list: its variables.
+    lists: HashMap<String, HashSet<String>>,
+    /// Every global variable.
+    globals: HashSet<String>,
+    /// POUs, types and interfaces.
+    declared: HashSet<String>,
+    namespaces: HashSet<String>,
+}
+
+impl Names {
+    fn gather(&mut self, file: &File) {
+        let list = file
+            .list_name
+            .clone()
+            .or_else(|| file.path.file_stem().and_then(|s| s.to_str()).map(str::to_string));
+        for item in &file.items {
+            match item {
+                Item::Pou(p) => {
+                    self.declared.insert(key(&p.name.name));
+                }
+                Item::Type(t) => {
+                    self.declared.insert(key(&t.name.name));
+                }
+                Item::Interface(i) => {
+                    self.declared.insert(key(&i.name.name));
+                }
+                Item::Globals(block) => {
+                    let vars: Vec<String> = block_names(block).collect();
+                    self.globals.extend(vars.iter().cloned());
+                    if let Some(list) = &list {
+                        self.lists.entry(key(list)).or_default().extend(vars);
+                    }
+                }
+                Item::Configuration(c) => {
+                    self.globals.extend(c.globals.iter().flat_map(block_names));
+                }
+                Item::Action { .. } => {}
+            }
+        }
+    }
+
+    /// Whether `name` stands for something the checker knows by itself.
+    fn is_declared(&self, name: &str, scope: &HashSet<String>) -> bool {
+        let name = key(name);
+        scope.contains(&name) || self.globals.contains(&name) || self.declared.contains(&name)
+    }
+}
+
+fn block_names(block: &VarBlock) -> impl Iterator<Item = String> + '_ {
+    block.decls.iter().flat_map(|d| d.names.iter().map(|n| key(&n.name)))
+}
+
+struct Lowering<'n, 'd> {
+    names: &'n Names,
+    path: &'n Path,
+    diags: &'d mut Vec<Diagnostic>,
+}
+
+impl Lowering<'_, '_> {
+    fn error(&mut self, at: &Ident, msg: String) {
+        self.diags.push(Diagnostic::new(self.path, at.span.line, at.span.col, msg));
+    }
+
+    fn item(&mut self, item: &mut Item) {
+        let none = HashSet::new();
+        match item {
+            Item::Pou(p) => self.pou(p, &none),
+            Item::Type(t) => match &mut t.def {
+                TypeDef::Alias { ty, init } => {
+                    self.type_ref(ty, &none);
+                    if let Some(init) = init {
+                        self.init(init, &none);
+                    }
+                }
+                TypeDef::Struct { members } | TypeDef::Union { members } => {
+                    for decl in members {
+                        self.type_ref(&mut decl.ty, &none);
+                        if let Some(init) = &mut decl.init {
+                            self.init(init, &none);
+                        }
+                    }
+                }
+                TypeDef::Enum { def, .. } => {
+                    for (_, value) in &mut def.values {
+                        if let Some(value) = value {
+                            self.expr(value, &none);
+                        }
+                    }
+                }
+            },
+            Item::Globals(block) => self.block(block, &none),
+            Item::Action { action, .. } => self.stmts(&mut action.body, &none),
+            Item::Configuration(c) => {
+                for block in &mut c.globals {
+                    self.block(block, &none);
+                }
+            }
+            Item::Interface(i) => {
+                for base in &mut i.extends {
+                    self.type_name(base);
+                }
+                for m in &mut i.methods {
+                    self.pou(&mut m.pou, &none);
+                }
+                for p in &mut i.properties {
+                    self.type_ref(&mut p.ty, &none);
+                    for accessor in [&mut p.get, &mut p.set].into_iter().flatten() {
+                        self.pou(accessor, &none);
+                    }
+                }
+            }
+        }
+    }
+
+    /// A POU, with the variables of `outer` (its function block's, for a method) in scope.
+    fn pou(&mut self, pou: &mut Pou, outer: &HashSet<String>) {
+        let mut scope = outer.clone();
+        scope.extend(pou.vars.iter().flat_map(block_names));
+        if pou.return_type.is_some() {
+            scope.insert(key(&pou.name.name));
+        }
+        for block in &mut pou.vars {
+            self.block(block, &scope);
+        }
+        if let Some(ty) = &mut pou.return_type {
+            self.type_ref(ty, &scope);
+        }
+        self.stmts(&mut pou.body, &scope);
+        for action in &mut pou.actions {
+            self.stmts(&mut action.body, &scope);
+        }
+        if let Some(base) = &mut pou.oop.extends {
+            self.type_name(base);
+        }
+        for itf in &mut pou.oop.implements {
+            self.type_name(itf);
+        }
+        for m in &mut pou.oop.methods {
+            self.pou(&mut m.pou, &scope);
+        }
+        for p in &mut pou.oop.properties {
+            self.type_ref(&mut p.ty, &scope);
+            for accessor in [&mut p.get, &mut p.set].into_iter().flatten() {
+                self.pou(accessor, &scope);
+            }
+        }
+    }
+
+    fn block(&mut self, block: &mut VarBlock, scope: &HashSet<String>) {
+        for decl in &mut block.decls {
+            self.type_ref(&mut decl.ty, scope);
+            if let Some(init) = &mut decl.init {
+                self.init(init, scope);
+            }
+        }
+    }
+
+    /// `NS.Name` of a type, a base or an interface: `Name` when `NS` is a namespace.
+    fn type_name(&mut self, id: &mut Ident) {
+        while let Some((first, rest)) = id.name.split_once('.') {
+            if !self.names.namespaces.contains(&key(first)) {
+                break;
+            }
+            id.name = rest.to_string();
+        }
+    }
+
+    fn type_ref(&mut self, ty: &mut TypeRef, scope: &HashSet<String>) {
+        match ty {
+            TypeRef::Named(id) => self.type_name(id),
+            TypeRef::String { len, .. } | TypeRef::WString { len, .. } => {
+                if let Some(len) = len {
+                    self.expr(len, scope);
+                }
+            }
+            TypeRef::Array { dims, of, .. } => {
+                for (lo, hi) in dims {
+                    self.expr(lo, scope);
+                    self.expr(hi, scope);
+                }
+                self.type_ref(of, scope);
+            }
+            TypeRef::OpenArray { of, .. } => self.type_ref(of, scope),
+            TypeRef::Enum(def) => {
+                for (_, value) in &mut def.values {
+                    if let Some(value) = value {
+                        self.expr(value, scope);
+                    }
+                }
+                self.args(&mut def.args, scope);
+            }
+            TypeRef::Subrange { lo, hi, .. } => {
+                self.expr(lo, scope);
+                self.expr(hi, scope);
+            }
+            TypeRef::Ref { to, .. } => self.type_ref(to, scope),
+        }
+    }
+
+    fn init(&mut self, init: &mut Init, scope: &HashSet<String>) {
+        match init {
+            Init::Expr(e) => self.expr(e, scope),
+            Init::Array { elems, .. } => {
+                for elem in elems {
+                    match elem {
+                        ArrayInit::One(init) => self.init(init, scope),
+                        ArrayInit::Repeat { count, value } => {
+                            self.expr(count, scope);
+                            if let Some(value) = value {
+                                self.init(value, scope);
+                            }
+                        }
+                    }
+                }
+            }
+            Init::Struct { members, .. } => {
+                for (_, init) in members {
+                    self.init(init, scope);
+                }
+            }
+        }
+    }
+
+    fn args(&mut self, args: &mut [Arg], scope: &HashSet<String>) {
+        for arg in args {
+            match arg {
+                Arg::Positional(e) | Arg::Input { value: e, .. } => self.expr(e, scope),
+                Arg::Output { target, .. } => self.expr(target, scope),
+            }
+        }
+    }
+
+    fn stmts(&mut self, body: &mut [Stmt], scope: &HashSet<String>) {
+        for stmt in body {
+            match &mut stmt.kind {
+                StmtKind::Assign { target, value } | StmtKind::RefAssign { target, value } => {
+                    self.expr(target, scope);
+                    self.expr(value, scope);
+                }
+                StmtKind::Call(e) => self.expr(e, scope),
+                StmtKind::If { branches, otherwise } => {
+                    for (cond, body) in branches {
+                        self.expr(cond, scope);
+                        self.stmts(body, scope);
+                    }
+                    if let Some((_, body)) = otherwise {
+                        self.stmts(body, scope);
+                    }
+                }
+                StmtKind::Case { selector, arms, otherwise } => {
+                    self.expr(selector, scope);
+                    for arm in arms {
+                        for label in &mut arm.labels {
+                            match label {
+                                crate::st::ast::CaseLabel::Value(e) => self.expr(e, scope),
+                                crate::st::ast::CaseLabel::Range(lo, hi) => {
+                                    self.expr(lo, scope);
+                                    self.expr(hi, scope);
+                                }
+                            }
+                        }
+                        self.stmts(&mut arm.body, scope);
+                    }
+                    if let Some((_, body)) = otherwise {
+                        self.stmts(body, scope);
+                    }
+                }
+                StmtKind::For { from, to, by, body, .. } => {
+                    self.expr(from, scope);
+                    self.expr(to, scope);
+                    if let Some(by) = by {
+                        self.expr(by, scope);
+                    }
+                    self.stmts(body, scope);
+                }
+                StmtKind::While { cond, body } => {
+                    self.expr(cond, scope);
+                    self.stmts(body, scope);
+                }
+                StmtKind::Repeat { body, until } => {
+                    self.stmts(body, scope);
+                    self.expr(until, scope);
+                }
+                StmtKind::Exit
+                | StmtKind::Continue
+                | StmtKind::Return
+                | StmtKind::Empty
+                | StmtKind::Label(_)
+                | StmtKind::Jump(_) => {}
+            }
+        }
+    }
+
+    /// An expression, inside out: `NS.Gvl.x` is `Gvl.x` once its inner `NS.Gvl` is `Gvl`.
+    fn expr(&mut self, e: &mut Expr, scope: &HashSet<String>) {
+        match &mut e.kind {
+            ExprKind::Literal(_) | ExprKind::Name(_) => {}
+            ExprKind::Member(base, _)
+            | ExprKind::Bit(base, _)
+            | ExprKind::Part(base, _, _)
+            | ExprKind::Deref(base)
+            | ExprKind::Unary(_, base) => self.expr(base, scope),
+            ExprKind::Index(base, index) => {
+                self.expr(base, scope);
+                for i in index {
+                    self.expr(i, scope);
+                }
+            }
+            ExprKind::Binary(_, a, b) => {
+                self.expr(a, scope);
+                self.expr(b, scope);
+            }
+            ExprKind::Call { callee, args } => {
+                self.expr(callee, scope);
+                self.args(args, scope);
+            }
+        }
+        if let Some(name) = self.unqualified(e, scope) {
+            e.kind = ExprKind::Name(name);
+        }
+    }
+
+    /// The name `Q.x` stands for when `Q` is a namespace or a global variable list; an error
+    /// when `x` is another list's global, or the scope's own `x` hides the list's.
+    fn unqualified(&mut self, e: &Expr, scope: &HashSet<String>) -> Option<Ident> {
+        let ExprKind::Member(base, name) = &e.kind else { return None };
+        let ExprKind::Name(qualifier) = &base.kind else { return None };
+        if self.names.is_declared(&qualifier.name, scope) {
+            return None;
+        }
+        let q = key(&qualifier.name);
+        if self.names.namespaces.contains(&q) {
+            return Some(name.clone());
+        }
+        let list = self.names.lists.get(&q)?;
+        let x = key(&name.name);
+        // each error leaves the plain name, which the checker then finds (the other list's
+        // global, the POU's variable) or reports as not declared: one message for one mistake
+        if !list.contains(&x) && self.names.globals.contains(&x) {
+            let msg = format!(
+                "the global variable list `{}` declares no `{}`",
+                qualifier.name, name.name
+            );
+            self.error(name, msg);
+        } else if list.contains(&x) && scope.contains(&x) {
+            let msg = format!(
+                "`{}.{}` names a global that the POU's own `{}` hides: rename the POU's variable",
+                qualifier.name, name.name, name.name
+            );
+            self.error(name, msg);
+        }
+        Some(name.clone())
+    }
+}
