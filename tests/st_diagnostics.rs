@@ -336,7 +336,6 @@ const MESSAGES: &[(&str, &str)] = &[
     ("the CASE range `{}..{}` is empty", "empty-case-range"),
     ("duplicate CASE label `{}` (also at line {})", "duplicate-case-label"),
     ("CASE labels `{}` and `{}` overlap (line {})", "overlapping-case-labels"),
-    ("unreachable `ELSE`: the labels cover every value of `{}`", "unreachable-else"),
     ("a CASE label must be a constant", "case-label-not-constant"),
     ("a CASE label of type `{}` does not match the selector's type `{}`", "case-label-type"),
     // oop.rs: methods, properties, EXTENDS, interfaces
@@ -563,6 +562,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
     (
         "IEC 61131-3 forbids writing the FOR variable in the loop: count with a WHILE loop and a variable of its own (`[st] strict` is on)",
         "strict-for-variable-written",
+    ),
+    (
+        "unreachable `ELSE`: the labels cover every value of the selector's type; remove the `ELSE` (`[st] strict` is on)",
+        "strict-covered-case-else",
     ),
 ];
 

@@ -89,6 +89,8 @@ pub enum Habit {
     EnumBaseAfterValues,
     /// `E.Value`: a value of the enumeration `E` named with a dot.
     EnumDotValue,
+    /// A CASE's `ELSE` after labels covering every value of its enumeration selector.
+    CoveredCaseElse,
 }
 
 impl Habit {
@@ -125,6 +127,7 @@ impl Habit {
             Habit::Jump => "`JMP` and labels are CODESYS in ST: IEC 61131-3 has them in IL only; write IF, WHILE, REPEAT or EXIT (`[st] strict` is on)".to_string(),
             Habit::EnumBaseAfterValues => "IEC 61131-3 writes an enumeration's base type before its values: `BYTE (A, B)` (`[st] strict` is on)".to_string(),
             Habit::EnumDotValue => "IEC 61131-3 names an enumeration's value with `#`: `E#Value` (`[st] strict` is on)".to_string(),
+            Habit::CoveredCaseElse => "unreachable `ELSE`: the labels cover every value of the selector's type; remove the `ELSE` (`[st] strict` is on)".to_string(),
             Habit::UtilBcd => "this BCD conversion is CODESYS's Util library: IEC 61131-3 writes `BYTE_BCD_TO_USINT`, `USINT_TO_BCD_BYTE` and the like (`[st] strict` is on)".to_string(),
         }
     }

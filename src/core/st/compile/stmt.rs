@@ -368,13 +368,9 @@ impl<'a> Ctx<'a> {
                     _ => None,
                 };
                 if let Some(all) = all {
+                    // CODESYS accepts it: an enumeration variable may hold a number no value has
                     if all.iter().all(|v| seen.iter().any(|(a, b, _)| a <= v && v <= b)) {
-                        let n = self.ty_name(&sel_ty);
-                        self.error(
-                            file,
-                            *sp,
-                            format!("unreachable `ELSE`: the labels cover every value of `{n}`"),
-                        );
+                        self.habit(crate::st::dialect::Habit::CoveredCaseElse, file, *sp);
                     }
                 }
             }
