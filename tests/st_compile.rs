@@ -597,6 +597,10 @@ fn golden_diagnostics() {
     for dir in &cases {
         let src = fs::read_to_string(dir.join("main.st")).unwrap();
         let toml = fs::read_to_string(dir.join("plcd.toml")).unwrap_or_default();
+        if toml.lines().any(|l| l.starts_with("library = ")) {
+            // a project of several files: golden_diagnostics checks it through `plcd check`
+            continue;
+        }
         let pou = toml
             .lines()
             .find_map(|l| l.strip_prefix("pou = "))

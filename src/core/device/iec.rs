@@ -429,8 +429,16 @@ impl IecLayout {
         }
         let number = |s: &str| s.parse::<u32>().map_err(|_| bad());
         let (index, bit) = if bits == 1 {
-            let (i, b) = digits.split_once('.').ok_or_else(bad)?;
-            (number(i)?, Some(number(b)?))
+            match digits.split_once('.') {
+                Some((i, b)) => (number(i)?, Some(number(b)?)),
+                // one level (IEC 61131-3 allows it, `%IX1`): the bits counted on from bit 0 of
+                // the first byte (of the first P word in plcd's numbering), `%IX9` = `%IX1.1`
+                None => {
+                    let per = if self.preset == Preset::Plcd { 16 } else { 8 };
+                    let n = number(digits)?;
+                    (n / per, Some(n % per))
+                }
+            }
         } else {
             (number(digits)?, None)
         };
@@ -566,6 +574,16 @@ mod tests {
         assert_eq!(device(&l, "IX2.3"), "P0013 1");
         assert_eq!(device(&l, "ix127.7"), "P063F 1");
         assert_eq!(device(&l, "MX3.1"), "M0019 1");
+    }
+
+    #[test]
+    fn a_bit_of_one_level_counts_bits_from_the_first() {
+        let l = IecLayout::of(Preset::OpenPlc);
+        assert_eq!(device(&l, "IX1"), device(&l, "IX0.1"));
+        assert_eq!(device(&l, "QX9"), device(&l, "QX1.1"));
+        assert_eq!(device(&l, "MX0"), device(&l, "MX0.0"));
+        let p = IecLayout::of(Preset::Plcd);
+        assert_eq!(device(&p, "IX17"), device(&p, "IX1.1"));
     }
 
     #[test]

@@ -1180,7 +1180,7 @@ impl<'a> Parser<'a> {
         let mut decls = Vec::new();
         loop {
             let tok = self.tok();
-            if self.at_decl() {
+            if self.at_decl() || self.at_anonymous_location() {
                 match self.var_decl(Want::SemiAfterDecl) {
                     Ok(decl) => decls.push(decl),
                     Err(_) => self.sync_decl(),
@@ -1207,6 +1207,11 @@ impl<'a> Parser<'a> {
 
     /// Whether a declaration starts here: a name not followed by `:=`, `(`, `[` or `.` (which
     /// make it a statement after a missing `END_VAR`).
+    /// `AT %IX1.1 : BOOL;`: a located variable without a name (IEC 61131-3 allows it).
+    fn at_anonymous_location(&self) -> bool {
+        self.at_kw(Kw::At) && *self.tok_at(1) == Tok::Location
+    }
+
     fn at_decl(&self) -> bool {
         *self.tok() == Tok::Ident
             && !matches!(self.tok_at(1), Tok::P(P::Assign | P::LParen | P::LBracket | P::Dot))
@@ -1215,11 +1220,16 @@ impl<'a> Parser<'a> {
     /// `a, b AT %D0 : INT := 5;`
     fn var_decl(&mut self, semi: Want) -> PResult<VarDecl> {
         let span = self.span();
-        let mut names = vec![self.ident()?];
-        while self.eat_p(P::Comma) {
+        let anonymous = self.at_anonymous_location();
+        let mut names = if anonymous { Vec::new() } else { vec![self.ident()?] };
+        while !anonymous && self.eat_p(P::Comma) {
             names.push(self.ident()?);
         }
         let location = self.at_location()?;
+        if let (true, Some(at)) = (anonymous, &location) {
+            // named by its address, a name no code can write
+            names.push(Ident { name: format!("%{}", at.name), span: at.span });
+        }
         self.expect_p(P::Colon, Want::Colon)?;
         let ty = self.type_ref()?;
         // `R_EDGE` / `F_EDGE` are names, not keywords, where a declaration can hold them.
