@@ -285,6 +285,20 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` is given twice", "parameter-given-twice"),
     ("VAR_IN_OUT `{}` of `{}` needs a `{}` variable, not `{}`", "in-out-type"),
     ("the call of `{}` is missing VAR_IN_OUT `{}`", "missing-in-out"),
+    // inout.rs: an FB instance's VAR_IN_OUT named outside its body
+    (
+        "`{}` is an `ARRAY [*]` VAR_IN_OUT of `{}`: it cannot be named outside the block's body",
+        "open-array-in-out-outside",
+    ),
+    ("`{}` is an `ARRAY [*]` VAR_IN_OUT of `{}`: only a call binds it", "open-array-in-out-bound-outside"),
+    (
+        "`{}` is a VAR_IN_OUT of `{}`: from outside it is not written, only bound to a variable `v` by `{}.{} := v`, as by `{}({} := v)`",
+        "in-out-written-outside",
+    ),
+    (
+        "`{}.{} := v` binds VAR_IN_OUT `{}` of `{}` to the variable `v`, as `{}({} := v)` does: `v` cannot be a value",
+        "in-out-bound-to-value",
+    ),
     ("`{}` has no parameter `{}`{}", "unknown-parameter"),
     // calendar.rs: DATE, TOD, DT and their long forms
     ("`{}`: no conversion from {} to {}", "calendar-no-conversion"),
@@ -478,6 +492,14 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "strict-read-fb-internal",
     ),
     (
+        "IEC 61131-3 names a VAR_IN_OUT only inside its function block's body: use the variable the call binds to it (`[st] strict` is on)",
+        "strict-in-out-through-instance",
+    ),
+    (
+        "IEC 61131-3 binds every VAR_IN_OUT at each call of a function block: give it again (`[st] strict` is on)",
+        "strict-in-out-omitted",
+    ),
+    (
         "IEC 61131-3 has no arithmetic on bit strings: convert to an integer first, `WORD_TO_UINT(w) + 1` (`[st] strict` is on)",
         "strict-bit-arithmetic",
     ),
@@ -633,8 +655,8 @@ const UNREACHABLE: &[(&str, &str)] = &[
     ),
     (
         "`{}` is an `ARRAY [*]`: only its own POU indexes it",
-        "a VAR_IN_OUT is named only in its own POU (from outside: `is not an input or output`), \
-         so an open array indexed is always that POU's own variable",
+        "an `ARRAY [*]` VAR_IN_OUT is named only in its own POU (from outside: `cannot be named \
+         outside the block's body`), so an open array indexed is always that POU's own variable",
     ),
     (
         "this expression does nothing: a statement is needed",

@@ -33,8 +33,14 @@ pub enum Habit {
     VarInst,
     /// `VAR_INPUT CONSTANT`: an input the POU's body may not write.
     ConstantInput,
-    /// An FB instance's input, in-out or internal variable read from outside.
+    /// An FB instance's internal variable read from outside.
     ReadFbInternal,
+    /// An FB instance's VAR_IN_OUT named from outside its body (`inst.io`, matiec): the
+    /// variable it is bound to; `inst.io := v` binds it (`compile::inout`).
+    InOutThroughInstance,
+    /// An FB call that leaves out a VAR_IN_OUT (matiec): the binding of an earlier call or of
+    /// `inst.io := v` holds.
+    InOutOmitted,
     /// `+ - * / MOD` on `BYTE` … `LWORD`, with each other and with integers.
     BitArithmetic,
     /// A bit string with a `REAL` or `LREAL` in `+ - * /`.
@@ -105,6 +111,8 @@ impl Habit {
             Habit::VarInst => "`VAR_INST` is not IEC 61131-3: declare the variable in the function block's `VAR` (`[st] strict` is on)".to_string(),
             Habit::ConstantInput => "`VAR_INPUT CONSTANT` is not IEC 61131-3: write `VAR_INPUT` (`[st] strict` is on)".to_string(),
             Habit::ReadFbInternal => "IEC 61131-3 reads only an instance's inputs and outputs from outside: pass the value out through a VAR_OUTPUT (`[st] strict` is on)".to_string(),
+            Habit::InOutThroughInstance => "IEC 61131-3 names a VAR_IN_OUT only inside its function block's body: use the variable the call binds to it (`[st] strict` is on)".to_string(),
+            Habit::InOutOmitted => "IEC 61131-3 binds every VAR_IN_OUT at each call of a function block: give it again (`[st] strict` is on)".to_string(),
             Habit::BitArithmetic => "IEC 61131-3 has no arithmetic on bit strings: convert to an integer first, `WORD_TO_UINT(w) + 1` (`[st] strict` is on)".to_string(),
             Habit::BitWithReal => "IEC 61131-3 has no arithmetic between a bit string and a real: convert first, `BYTE_TO_REAL(b) * r` (`[st] strict` is on)".to_string(),
             Habit::IntegerShift => "IEC 61131-3 shifts bit strings only: `WORD_TO_INT(SHR(INT_TO_WORD(i), n))` (`[st] strict` is on)".to_string(),

@@ -1154,12 +1154,12 @@ impl<'a> Ctx<'a> {
                                 let sp = init_span(init, decl.span);
                                 self.error(file, sp, "a VAR_IN_OUT has no initial value");
                             }
-                            // the pointer (and an open array's bounds: `varlen`)
-                            let size = match &ty {
-                                Ty::OpenArray(a) => a.descriptor_size(),
-                                _ => 8,
-                            };
-                            vec![0u8; size as usize]
+                            // the pointer (and an open array's bounds: `varlen`), bound to
+                            // nothing until a call binds it (`inout`)
+                            match &ty {
+                                Ty::OpenArray(a) => vec![0u8; a.descriptor_size() as usize],
+                                _ => super::inout::UNBOUND.to_le_bytes().to_vec(),
+                            }
                         } else if enable == Some(true) && decl.init.is_none() {
                             // A declared EN is the standard's: TRUE unless given.
                             vec![1]

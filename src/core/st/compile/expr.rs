@@ -619,6 +619,12 @@ impl<'a> Ctx<'a> {
                             return TExpr::error(span);
                         };
                         let n = pou.name.clone();
+                        if let (VarKind::InOut, Storage::Inst(off)) = (v.kind, v.storage) {
+                            let own = super::oop::is_own_instance(base);
+                            return self.instance_in_out(
+                                b, base, &v, off, id, access, own, &n, file, span,
+                            );
+                        }
                         let Storage::Inst(off) = v.storage else {
                             self.error(
                                 file,
@@ -1789,6 +1795,7 @@ impl<'a> Ctx<'a> {
                 }
                 self.record_call(scope, p, span);
                 let mut call = self.bind_args(p, args, span, scope)?;
+                self.rebind_omitted(&inst, p, &mut call);
                 call.dispatch = self.body_candidates(&inst, p);
                 for &(_, c) in &call.dispatch {
                     self.record_call(scope, c, span);
@@ -1919,26 +1926,7 @@ impl<'a> Ctx<'a> {
                     ok = false;
                     continue;
                 }
-                if !t.is_place() {
-                    self.error(
-                        file,
-                        value.span,
-                        format!("VAR_IN_OUT `{}` of `{name}` needs a variable", v.name),
-                    );
-                    ok = false;
-                    continue;
-                }
-                if matches!(v.ty, Ty::Array(_) | Ty::Struct(_)) && at_device_words(&t) {
-                    // The callee steps through its VAR_IN_OUT in bytes; a device's words are
-                    // counted in words, so it would read every other one.
-                    self.error(
-                        file,
-                        value.span,
-                        format!(
-                            "VAR_IN_OUT `{}` of `{name}`: an array or structure located at a device word cannot be passed by reference: copy it into a variable first",
-                            v.name
-                        ),
-                    );
+                if !self.in_out_argument(&v, &t, &name, value.span, file) {
                     ok = false;
                     continue;
                 }
@@ -1947,27 +1935,6 @@ impl<'a> Ctx<'a> {
                         Some(args) => out_args.extend(args),
                         None => ok = false,
                     }
-                    continue;
-                }
-                let derived =
-                    matches!((&t.ty, &v.ty), (Ty::Fb(d), Ty::Fb(b)) if self.derives_from(*d, *b));
-                if t.ty != v.ty
-                    && !derived
-                    && !matches!(
-                        (&t.ty, &v.ty),
-                        (Ty::Str(_), Ty::Str(_)) | (Ty::WStr(_), Ty::WStr(_))
-                    )
-                {
-                    let (a, b) = (self.ty_name(&v.ty), self.ty_name(&t.ty));
-                    self.error(
-                        file,
-                        value.span,
-                        format!(
-                            "VAR_IN_OUT `{}` of `{name}` needs a `{a}` variable, not `{b}`",
-                            v.name
-                        ),
-                    );
-                    ok = false;
                     continue;
                 }
                 out_args.push(ArgT { offset: off, ty: v.ty, by_ref: true, value: t });
@@ -1999,6 +1966,11 @@ impl<'a> Ctx<'a> {
             .map(|(_, v)| v.name.clone())
             .collect();
         for m in missing {
+            // a function block's keeps its binding (matiec; `Ctx::rebind_omitted`)
+            if self.pous[p].kind == PouKind::FunctionBlock {
+                self.habit(Habit::InOutOmitted, file, span);
+                continue;
+            }
             self.error(file, span, format!("the call of `{name}` is missing VAR_IN_OUT `{m}`"));
             ok = false;
         }
@@ -2138,7 +2110,7 @@ fn arith_op(op: BinaryOp) -> BinOp {
 
 /// Whether a place is in device words (a variable located at a word device, or an element or
 /// member of one).
-fn at_device_words(t: &TExpr) -> bool {
+pub(super) fn at_device_words(t: &TExpr) -> bool {
     match &t.k {
         TK::Var { storage, .. } => matches!(storage, Storage::Word(_)),
         TK::Index(b, _) | TK::Member(b, _, _) => at_device_words(b),

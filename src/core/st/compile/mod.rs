@@ -17,6 +17,8 @@
 //! - `implicit`: CODESYS's implicit conversions that may change a value (another sign, a
 //!   narrower integer, an enumeration's number), accepted with a warning;
 //! - `for_written`: CODESYS's FOR variable written in the loop's body, with a warning;
+//! - `inout`: an FB instance's VAR_IN_OUT named outside its body, bound by `inst.io := v`, or
+//!   left out of a call (matiec);
 //! - `instance_args`: a configuration's program instance arguments, as copies in its code;
 //! - `var_config`: a configuration's `VAR_CONFIG`, variables at partly specified addresses
 //!   bound to devices.
@@ -59,6 +61,7 @@ mod fb_init;
 mod for_written;
 mod generic;
 mod implicit;
+mod inout;
 mod instance_args;
 mod jumps;
 mod method_eno;

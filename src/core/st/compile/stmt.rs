@@ -80,6 +80,9 @@ impl<'a> Ctx<'a> {
                 if let Some(setter) = self.property_write(target, value, scope) {
                     return setter.map(|k| TStmt { k, line });
                 }
+                if let Some(binding) = self.in_out_binding(target, value, scope) {
+                    return binding.map(|k| TStmt { k, line });
+                }
                 let t = self.check_place(target, scope, Access::Write, None);
                 let v = self.check_given(value, scope, &t.ty);
                 if t.ty.is_error() || v.ty.is_error() {
