@@ -500,6 +500,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "strict-in-out-omitted",
     ),
     (
+        "`{}` is CODESYS's name of this input: IEC 61131-3 names it `{}` (`[st] strict` is on)",
+        "strict-codesys-parameter",
+    ),
+    (
         "IEC 61131-3 has no arithmetic on bit strings: convert to an integer first, `WORD_TO_UINT(w) + 1` (`[st] strict` is on)",
         "strict-bit-arithmetic",
     ),

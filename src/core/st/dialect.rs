@@ -59,6 +59,9 @@ pub enum Habit {
     GenericInput,
     /// `BIT`: a STRUCT member or FUNCTION_BLOCK variable, a `BOOL` in plcd (`compile::bit`).
     Bit,
+    /// A standard string function's input named as CODESYS names it (`LEN(STR := s)`): the
+    /// CODESYS name, and the standard's.
+    CodesysParameter(&'static str, &'static str),
     /// The BCD conversions of CODESYS's Util library (`BCD_TO_INT`, `INT_TO_BCD`…).
     UtilBcd,
     /// A bit string given where an integer is wanted, or an integer where a bit string is,
@@ -136,6 +139,7 @@ impl Habit {
             Habit::EnumBaseAfterValues => "IEC 61131-3 writes an enumeration's base type before its values: `BYTE (A, B)` (`[st] strict` is on)".to_string(),
             Habit::EnumDotValue => "IEC 61131-3 names an enumeration's value with `#`: `E#Value` (`[st] strict` is on)".to_string(),
             Habit::CoveredCaseElse => "unreachable `ELSE`: the labels cover every value of the selector's type; remove the `ELSE` (`[st] strict` is on)".to_string(),
+            Habit::CodesysParameter(codesys, iec) => format!("`{codesys}` is CODESYS's name of this input: IEC 61131-3 names it `{iec}` (`[st] strict` is on)"),
             Habit::UtilBcd => "this BCD conversion is CODESYS's Util library: IEC 61131-3 writes `BYTE_BCD_TO_USINT`, `USINT_TO_BCD_BYTE` and the like (`[st] strict` is on)".to_string(),
         }
     }

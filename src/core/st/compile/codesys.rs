@@ -1,6 +1,7 @@
 //! CODESYS's arithmetic and library habits that the checker accepts beyond IEC 61131-3
 //! (docs/ST.md marks each a **choice**): the types of bit-string arithmetic, the Util
-//! library's names, and enumeration values named `E.Value`. Each use is a
+//! library's names, the names CODESYS gives the standard string functions' inputs, and
+//! enumeration values named `E.Value`. Each use is a
 //! [`Habit`](crate::st::dialect::Habit) noted with [`Ctx::habit`](super::ctx::Ctx::habit),
 //! which `[st] strict` refuses.
 
@@ -103,6 +104,20 @@ impl<'a> super::ctx::Ctx<'a> {
         let value = Expr { kind: ExprKind::Name(value.clone()), span: value.span };
         let typed = Literal::Typed { ty: ty.clone(), value: Box::new(value) };
         Some(self.literal(&typed, span, scope, expected))
+    }
+}
+
+/// The names CODESYS (and TwinCAT's Tc2_Standard) gives the inputs of the standard string
+/// functions, each with the IEC 61131-3 name of the same input (`LEN(STR := s)` is
+/// `LEN(IN := s)`): a formal argument so named is `Habit::CodesysParameter`.
+pub fn string_parameters(function: &str) -> &'static [(&'static str, &'static str)] {
+    match function {
+        "LEN" => &[("STR", "IN")],
+        "LEFT" | "RIGHT" => &[("STR", "IN"), ("SIZE", "L")],
+        "MID" | "DELETE" => &[("STR", "IN"), ("LEN", "L"), ("POS", "P")],
+        "CONCAT" | "FIND" | "REPLACE" => &[("STR1", "IN1"), ("STR2", "IN2")],
+        "INSERT" => &[("STR1", "IN1"), ("STR2", "IN2"), ("POS", "P")],
+        _ => &[],
     }
 }
 

@@ -212,7 +212,15 @@ impl<'a> Ctx<'a> {
                 Arg::Positional(e) => out[i] = Some(e),
                 Arg::Input { name: pn, value } => {
                     named = true;
-                    match names.iter().position(|n| pn.is(n)) {
+                    // CODESYS's name of the input (`LEN(STR := s)`)
+                    let codesys = super::codesys::string_parameters(name)
+                        .iter()
+                        .find(|(c, _)| pn.is(c) && !names.iter().any(|n| pn.is(n)));
+                    if let Some(&(c, iec)) = codesys {
+                        self.habit(Habit::CodesysParameter(c, iec), file, pn.span);
+                    }
+                    let formal = codesys.map_or(pn.name.as_str(), |(_, iec)| iec);
+                    match names.iter().position(|n| n.eq_ignore_ascii_case(formal)) {
                         Some(k) => out[k] = Some(value),
                         None => {
                             let hint = suggest(&pn.name, names.iter().map(String::as_str));
