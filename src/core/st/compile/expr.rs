@@ -1042,6 +1042,8 @@ impl<'a> Ctx<'a> {
         if matches!(to, Ty::OpenArray(_)) || matches!(te.ty, Ty::OpenArray(_)) {
             return self.open_array_whole(span, file);
         }
+        // a TRUNC typed by its use (`trunc`)
+        let te = self.trunc_by_use(te, to);
         if &te.ty == to {
             return te;
         }

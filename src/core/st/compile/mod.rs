@@ -7,6 +7,7 @@
 //!   located variables (what an IEC direct address names is `device::iec`'s, by `[iec]`);
 //! - `expr`, `stmt`, `stdlib`, `refs` (references and pointers): checking into a typed tree;
 //! - `emit`: the typed tree to ops; `link` (here): one program per instance, symbols;
+//! - `trunc`: `TRUNC` typed by its use where a `DINT` would not do (matiec);
 //! - `short_circuit`: `AND_THEN` and `OR_ELSE`, the right operand skipped when the left
 //!   decides;
 //! - `union`: CODESYS's `UNION`, a struct whose members share their bytes;
@@ -74,6 +75,7 @@ mod sfc;
 mod short_circuit;
 mod stdlib;
 mod stmt;
+mod trunc;
 pub mod types;
 mod union;
 mod var_config;

@@ -581,7 +581,9 @@ impl<'a> Ctx<'a> {
                     return TExpr::error(span);
                 }
                 let t = self.un(UnOp::Trunc, t, span);
-                self.conv(t, Prim::DInt, Ty::Prim(Prim::DInt))
+                let t = self.conv(t, Prim::DInt, Ty::Prim(Prim::DInt));
+                // a DINT, or the integer type its use asks (compile/trunc.rs)
+                self.any_int_trunc(t)
             }
             "MOVE" => {
                 if !self.arity(name, n, 1, 1, span, file) {
