@@ -276,6 +276,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ("a function block call is a statement, not a value", "fb-call-as-value"),
     ("`{}` is not a function or a function block instance", "not-callable"),
     ("the call of `{}` mixes positional and named arguments", "mixed-arguments"),
+    ("the call of `{}` gives a positional argument after a named one", "positional-after-named"),
     ("too many arguments for `{}` (it takes {})", "too-many-arguments"),
     ("`{}` is an output of `{}`: use `=>`", "output-with-assign"),
     ("`{}` is not a parameter of `{}`", "not-a-parameter"),
@@ -498,6 +499,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
     (
         "IEC 61131-3 binds every VAR_IN_OUT at each call of a function block: give it again (`[st] strict` is on)",
         "strict-in-out-omitted",
+    ),
+    (
+        "IEC 61131-3 gives a call's arguments all by position or all by name: name each one (`[st] strict` is on)",
+        "strict-positional-then-named",
     ),
     (
         "`{}` is CODESYS's name of this input: IEC 61131-3 names it `{}` (`[st] strict` is on)",

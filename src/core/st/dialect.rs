@@ -59,6 +59,8 @@ pub enum Habit {
     GenericInput,
     /// `BIT`: a STRUCT member or FUNCTION_BLOCK variable, a `BOOL` in plcd (`compile::bit`).
     Bit,
+    /// A call's positional arguments followed by named ones (`F(x, 2, DEC := ',')`, TwinCAT).
+    PositionalThenNamed,
     /// A standard string function's input named as CODESYS names it (`LEN(STR := s)`): the
     /// CODESYS name, and the standard's.
     CodesysParameter(&'static str, &'static str),
@@ -139,6 +141,7 @@ impl Habit {
             Habit::EnumBaseAfterValues => "IEC 61131-3 writes an enumeration's base type before its values: `BYTE (A, B)` (`[st] strict` is on)".to_string(),
             Habit::EnumDotValue => "IEC 61131-3 names an enumeration's value with `#`: `E#Value` (`[st] strict` is on)".to_string(),
             Habit::CoveredCaseElse => "unreachable `ELSE`: the labels cover every value of the selector's type; remove the `ELSE` (`[st] strict` is on)".to_string(),
+            Habit::PositionalThenNamed => "IEC 61131-3 gives a call's arguments all by position or all by name: name each one (`[st] strict` is on)".to_string(),
             Habit::CodesysParameter(codesys, iec) => format!("`{codesys}` is CODESYS's name of this input: IEC 61131-3 names it `{iec}` (`[st] strict` is on)"),
             Habit::UtilBcd => "this BCD conversion is CODESYS's Util library: IEC 61131-3 writes `BYTE_BCD_TO_USINT`, `USINT_TO_BCD_BYTE` and the like (`[st] strict` is on)".to_string(),
         }

@@ -1826,15 +1826,8 @@ impl<'a> Ctx<'a> {
     ) -> Option<CallT> {
         let file = scope.file;
         let name = self.pous[p].name.clone();
-        let positional = args.iter().any(|a| matches!(a, Arg::Positional(_)));
-        let named = args.iter().any(|a| !matches!(a, Arg::Positional(_)));
         let mut ok = true;
-        if positional && named {
-            self.error(
-                file,
-                span,
-                format!("the call of `{name}` mixes positional and named arguments"),
-            );
+        if !self.argument_order(&name, args, span, file) {
             return None;
         }
         let mut given: Vec<usize> = Vec::new();

@@ -35,7 +35,8 @@
 //!   the last value the body ran with (its initial value when the body never ran). A constant
 //!   step of 0 is refused; a variable step of 0 loops for ever (the step budget ends the scan).
 //! - Positional arguments go to VAR_INPUT and VAR_IN_OUT in declaration order; outputs only
-//!   with `=>`. Positional and named arguments cannot be mixed.
+//!   with `=>`. Named arguments may follow positional ones (TwinCAT; `mixed_args`), not
+//!   precede them.
 //! - FUNCTION variables are initialized at each call; `VAR_TEMP` of a PROGRAM or FB at each
 //!   execution.
 //! - EN/ENO: an implicit EN FALSE skips the whole call; `v := F(EN := c, …)` with c FALSE is
@@ -67,6 +68,7 @@ mod instance_args;
 mod jumps;
 mod method_eno;
 mod method_vars;
+mod mixed_args;
 mod oop;
 mod qualified;
 mod query;

@@ -204,14 +204,15 @@ impl<'a> Ctx<'a> {
         span: Span,
         file: usize,
     ) -> Option<Vec<&'e Expr>> {
+        if !self.argument_order(name, args, span, file) {
+            return None;
+        }
         let names = formals(name, args.len());
         let mut out: Vec<Option<&Expr>> = vec![None; names.len().max(args.len())];
-        let mut named = false;
         for (i, a) in args.iter().enumerate() {
             match a {
                 Arg::Positional(e) => out[i] = Some(e),
                 Arg::Input { name: pn, value } => {
-                    named = true;
                     // CODESYS's name of the input (`LEN(STR := s)`)
                     let codesys = super::codesys::string_parameters(name)
                         .iter()
@@ -221,6 +222,10 @@ impl<'a> Ctx<'a> {
                     }
                     let formal = codesys.map_or(pn.name.as_str(), |(_, iec)| iec);
                     match names.iter().position(|n| n.eq_ignore_ascii_case(formal)) {
+                        Some(k) if out[k].is_some() => {
+                            self.error(file, pn.span, format!("`{}` is given twice", pn.name));
+                            return None;
+                        }
                         Some(k) => out[k] = Some(value),
                         None => {
                             let hint = suggest(&pn.name, names.iter().map(String::as_str));
@@ -239,14 +244,7 @@ impl<'a> Ctx<'a> {
                 }
             }
         }
-        if named && args.iter().any(|a| matches!(a, Arg::Positional(_))) {
-            self.error(
-                file,
-                span,
-                format!("the call of `{name}` mixes positional and named arguments"),
-            );
-            return None;
-        }
+
         let given: Vec<&Expr> =
             out.iter().take_while(|e| e.is_some()).map(|e| e.expect("some")).collect();
         if given.len() != out.iter().filter(|e| e.is_some()).count() {
