@@ -148,3 +148,19 @@ fn a_late_poll_counts_from_the_deadline_not_from_the_poll() {
     assert_eq!((latency.count, latency.max), (1, 50_000), "{latency:?}");
     assert_eq!(engine.cycle_deadlines().collect::<Vec<_>>(), [(0, 2_000_000, 1_000_000)]);
 }
+
+#[test]
+fn a_task_no_program_runs_in_runs_empty() {
+    // A cycle task of 1 ms that no [[program]] names (a CONFIGURATION could name it): it runs
+    // nothing, ends where it starts, executes 0 µs, and delays nothing (it once panicked the
+    // engine, which looked for its first program). The scan (MOV, END: 2 µs) runs every 1 ms.
+    let tasks = "[plc]\nscan_period_ms = 1\n[[program]]\nfile = \"scan.il\"\n\
+                 [[task]]\nname = \"idle\"\nkind = \"cycle\"\nnumber = 0\npriority = 2\n\
+                 interval_ms = 1\n";
+    let engine = run(tasks, &[("scan.il", &scan_of(2))], &[], 10);
+    let stats = engine.task_stats("idle").unwrap();
+    assert_eq!(stats.runs, 9, "a run each 1 ms deadline of the 10 ms run but its start");
+    let exec = stats.exec_time.summary();
+    assert_eq!((exec.min, exec.max), (0, 0));
+    assert_eq!((stats.overruns, stats.ignored), (0, 0));
+}

@@ -226,6 +226,35 @@ fn an_openplc_configuration_maps_onto_the_scan_and_a_cycle_task() {
     assert_eq!(last(&trace, "instance1.n").as_deref(), Some("19"));
 }
 
+#[test]
+fn a_task_no_program_runs_in_is_not_scheduled() {
+    // matiec's test programs declare such a task; `plcd sim` once panicked on it (an engine
+    // task with no program to run).
+    let dir = TempDir::new("st-configuration-empty-task");
+    write(
+        dir.path(),
+        "plcd.toml",
+        "[plc]\nscan_period_ms = 10\n\n[[program]]\nfile = \"plc.st\"\n",
+    );
+    let source = "PROGRAM p\n  VAR n : INT; END_VAR\n  n := n + 1;\nEND_PROGRAM\n\
+        CONFIGURATION c\n  RESOURCE r ON PLC\n    TASK t(INTERVAL := t#100ms, PRIORITY := 0);\n\
+        PROGRAM i : p;\n  END_RESOURCE\nEND_CONFIGURATION\n";
+    write(dir.path(), "plc.st", source);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("  configuration c: TASK t → no PROGRAM runs in it: not scheduled"));
+    assert!(stdout.lines().next().unwrap_or_default().ends_with(" 0 task(s)"), "{stdout}");
+    let out = plcd(
+        dir.path(),
+        &["sim", "--config", "plcd.toml", "--for", "95ms", "--watch", "i.n", "--trace", "-"],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    // the scan every 10 ms: at 0, 10, … 90 ms
+    let trace = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(last(&trace, "i.n").as_deref(), Some("10"), "{trace}");
+}
+
 /// A configuration in the form Beremiz and OpenPLC Editor write, with an event task
 /// (`SINGLE`) and program instances given arguments: inputs from a constant and a global,
 /// outputs to a global located at a P bit and to a direct address.

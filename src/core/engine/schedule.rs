@@ -261,6 +261,11 @@ impl Engine {
         if id != SCAN {
             sink.event(now, Event::TaskStart { task: id });
         }
+        if self.tasks[id as usize].programs.is_empty() {
+            // A task no program runs in (a `[[task]]` only a CONFIGURATION could name) runs
+            // nothing: it ends where it starts.
+            self.program_end(id, now, sink);
+        }
     }
 
     /// Registers a request whose start condition occurred at `occurred_ns`; why it was ignored,

@@ -219,6 +219,14 @@ pub fn map(
     for task in read.iter().filter(|t| !t.clash) {
         let tname = task.decl.name.name.as_str();
         let iec = format!("configuration {name}: TASK {tname}");
+        // A task no PROGRAM runs in has nothing to run: not scheduled (CODESYS keeps such a
+        // task and runs nothing in it; an engine task has at least one program).
+        let used =
+            decls.iter().any(|d| d.task.as_ref().is_some_and(|n| task.decl.name.is(&n.name)));
+        if !used {
+            mapped.notes.push(format!("{iec} → no PROGRAM runs in it: not scheduled"));
+            continue;
+        }
         // A task of plcd's own: the lowest number of `kind`'s range the config leaves free.
         let mut add = |kind: TaskKind, errors: &mut Vec<Diagnostic>| {
             let (range, what) = match kind {
