@@ -42,7 +42,11 @@ use crate::st::ast::{
     UnaryOp, VarBlock, VarDecl, VarKind,
 };
 
-use super::fb_init::{holds_instances, instance_type, INIT_ALL};
+use super::fb_init::INIT_ALL;
+use super::lifecycle::{
+    bool_decl, global_instances, has_work, holds_instances, ident, instance_type,
+    instance_with_work, name, stmt, Blocks,
+};
 
 /// The hidden method that finishes an instance (its `FB_exit`, its instances, its base).
 pub const EXIT_ALL: &str = "__FB_EXIT_ALL";
@@ -76,9 +80,6 @@ pub fn is_finaliser(name: &str) -> bool {
 pub fn copy_flag(v: &str) -> String {
     format!("__FB_EXIT_COPY_{v}")
 }
-
-/// The function blocks of the project by name (lower case): (file, item).
-type Blocks = HashMap<String, (usize, usize)>;
 
 /// What a block's instances go through, besides `FB_exit` (by block name in lower case).
 struct Life {
@@ -135,7 +136,7 @@ pub(super) fn lower<'f>(
     let mut needs: HashMap<String, bool> = HashMap::new();
     let names: Vec<String> = blocks.keys().cloned().collect();
     for name in &names {
-        needs_exit(&files, &blocks, name, &mut needs, &mut Vec::new());
+        has_work(&files, &blocks, name, &own_fb_exit, &mut needs, &mut Vec::new());
     }
     let life = Life {
         init: names.iter().map(|n| (n.clone(), in_chain(&files, &blocks, n, INIT_ALL))).collect(),
@@ -195,66 +196,12 @@ pub(super) fn lower<'f>(
     files
 }
 
-/// Whether block `name` has something to finish: its `FB_exit`, its base's, or one of its
-/// instances'. `path` guards against a block that holds itself (reported elsewhere).
-fn needs_exit(
-    files: &[Cow<'_, ast::File>],
-    blocks: &Blocks,
-    name: &str,
-    memo: &mut HashMap<String, bool>,
-    path: &mut Vec<String>,
-) -> bool {
-    if let Some(&n) = memo.get(name) {
-        return n;
-    }
-    let Some(&(f, i)) = blocks.get(name) else { return false };
-    if path.iter().any(|p| p == name) {
-        return false;
-    }
-    let Item::Pou(p) = &files[f].items[i] else { return false };
-    path.push(name.to_string());
-    let mut needs = own_fb_exit(p);
-    if let Some(base) = &p.oop.extends {
-        needs |= needs_exit(files, blocks, &base.name.to_ascii_lowercase(), memo, path);
-    }
-    for d in p.vars.iter().filter(|b| holds_instances(b.kind)).flat_map(|b| &b.decls) {
-        if let Some(of) = instance_type(&d.ty) {
-            needs |= needs_exit(files, blocks, &of.to_ascii_lowercase(), memo, path);
-        }
-    }
-    path.pop();
-    memo.insert(name.to_string(), needs);
-    needs
-}
-
-fn needs(ty: &TypeRef, needs: &HashMap<String, bool>) -> bool {
-    instance_type(ty).is_some_and(|n| needs.get(&n.to_ascii_lowercase()).copied().unwrap_or(false))
-}
-
 /// The variables of `p` to finish, with their types, in declaration order.
 fn instances(p: &Pou, map: &HashMap<String, bool>) -> Vec<(Ident, TypeRef)> {
     let mut out = Vec::new();
     for d in p.vars.iter().filter(|b| holds_instances(b.kind)).flat_map(|b| &b.decls) {
-        if needs(&d.ty, map) {
+        if instance_with_work(&d.ty, map).is_some() {
             out.extend(d.names.iter().map(|n| (n.clone(), d.ty.clone())));
-        }
-    }
-    out
-}
-
-/// The top-level `VAR_GLOBAL` instances to finish, in the order of the files and of their
-/// declarations.
-fn global_instances(
-    files: &[Cow<'_, ast::File>],
-    map: &HashMap<String, bool>,
-) -> Vec<(Ident, TypeRef)> {
-    let mut out = Vec::new();
-    for file in files {
-        for item in &file.items {
-            let Item::Globals(b) = item else { continue };
-            for d in b.decls.iter().filter(|d| needs(&d.ty, map)) {
-                out.extend(d.names.iter().map(|n| (n.clone(), d.ty.clone())));
-            }
         }
     }
     out
@@ -283,20 +230,8 @@ fn signature_ok(m: &Pou) -> bool {
     matches!(first, Some((n, TypeRef::Named(t))) if n.is(IN_COPY_CODE) && t.is("BOOL"))
 }
 
-fn ident(name: &str, span: Span) -> Ident {
-    Ident { name: name.to_string(), span }
-}
-
-fn name(n: &str, span: Span) -> Expr {
-    Expr { kind: ExprKind::Name(ident(n, span)), span }
-}
-
 fn truth(b: bool, span: Span) -> Expr {
     Expr { kind: ExprKind::Literal(Literal::Bool(b)), span }
-}
-
-fn stmt(kind: StmtKind, span: Span) -> Stmt {
-    Stmt { kind, span }
 }
 
 fn assign(target: &str, value: Expr, span: Span) -> Stmt {
@@ -305,17 +240,6 @@ fn assign(target: &str, value: Expr, span: Span) -> Stmt {
 
 fn when(cond: Expr, then: Vec<Stmt>, span: Span) -> Stmt {
     stmt(StmtKind::If { branches: vec![(cond, then)], otherwise: None }, span)
-}
-
-fn bool_decl(n: &str, span: Span) -> VarDecl {
-    VarDecl {
-        names: vec![ident(n, span)],
-        location: None,
-        ty: TypeRef::Named(ident("BOOL", span)),
-        init: None,
-        edge: None,
-        span,
-    }
 }
 
 fn block(kind: VarKind, decls: Vec<VarDecl>, span: Span) -> VarBlock {
@@ -466,7 +390,7 @@ fn fresh_instances(p: &Pou, map: &HashMap<String, bool>) -> Vec<(Ident, TypeRef)
     };
     let mut out = Vec::new();
     for d in p.vars.iter().filter(|b| fresh(b.kind)).flat_map(|b| &b.decls) {
-        if needs(&d.ty, map) {
+        if instance_with_work(&d.ty, map).is_some() {
             out.extend(d.names.iter().map(|n| (n.clone(), d.ty.clone())));
         }
     }
@@ -574,7 +498,11 @@ fn add_exit_pass(p: &mut Pou, map: &HashMap<String, bool>, life: &Life, globals:
         .iter()
         .filter(|b| holds_instances(b.kind))
         .flat_map(|b| &b.decls)
-        .filter(|d| needs(&d.ty, map) || has(&life.init, &d.ty) || has(&life.reinit, &d.ty))
+        .filter(|d| {
+            instance_with_work(&d.ty, map).is_some()
+                || has(&life.init, &d.ty)
+                || has(&life.reinit, &d.ty)
+        })
         .flat_map(|d| d.names.iter().map(|n| (n.clone(), d.ty.clone())))
         .collect();
     let in_phase = |k: u128| Expr {
@@ -593,7 +521,7 @@ fn add_exit_pass(p: &mut Pou, map: &HashMap<String, bool>, life: &Life, globals:
     let exits: Vec<Stmt> = lives
         .iter()
         .rev()
-        .filter(|(_, ty)| needs(ty, map))
+        .filter(|(_, ty)| instance_with_work(ty, map).is_some())
         .map(|(v, ty)| selected(v, exit_variable(v, ty, &copy_true, &mut counters)))
         .collect();
     let reinit = |target: Expr| {

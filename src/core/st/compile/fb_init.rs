@@ -52,6 +52,11 @@ use crate::st::ast::{
     UnaryOp, VarBlock, VarDecl, VarKind,
 };
 
+use super::lifecycle::{
+    bool_decl, global_instances, has_work, holds_instances, ident, instance_type,
+    instance_with_work, name, stmt, Blocks,
+};
+
 /// The hidden method that initialises an instance (its base, its instances, its `FB_init`).
 pub const INIT_ALL: &str = "__FB_INIT_ALL";
 /// The name CODESYS gives the initialising method.
@@ -84,9 +89,6 @@ pub fn is_hidden(name: &str) -> bool {
     name.get(..10).is_some_and(|p| p.eq_ignore_ascii_case("__FB_INIT_"))
         || name.get(..10).is_some_and(|p| p.eq_ignore_ascii_case("__FB_EXIT_"))
 }
-
-/// The function blocks of the project by name (lower case): (file, item).
-type Blocks = HashMap<String, (usize, usize)>;
 
 /// What the lowering knows of each block (by name in lower case).
 struct Plan {
@@ -124,7 +126,7 @@ pub(super) fn lower<'f>(
     let mut needs: HashMap<String, bool> = HashMap::new();
     let names: Vec<String> = blocks.keys().cloned().collect();
     for name in &names {
-        needs_init(&files, &blocks, name, &mut needs, &mut Vec::new());
+        has_work(&files, &blocks, name, &own_fb_init, &mut needs, &mut Vec::new());
     }
     // the checks, on the files as written
     for file in &files {
@@ -175,7 +177,7 @@ fn generate(files: &mut [Cow<'_, ast::File>], plan: &Plan) {
     for file in files.iter_mut() {
         let holds_globals = !globals_placed
             && file.items.iter().any(|item| {
-                matches!(item, Item::Globals(b) if b.decls.iter().any(|d| instance_needs(&d.ty, needs).is_some()))
+                matches!(item, Item::Globals(b) if b.decls.iter().any(|d| instance_with_work(&d.ty, needs).is_some()))
             });
         let wants = holds_globals
             || file.items.iter().any(|item| match item {
@@ -454,38 +456,6 @@ fn declaration_arguments(
     }
 }
 
-/// Whether block `name` has something to initialise: its `FB_init`, its base's, or one of its
-/// instances'. `path` guards against a block that holds itself (reported elsewhere).
-fn needs_init(
-    files: &[Cow<'_, ast::File>],
-    blocks: &Blocks,
-    name: &str,
-    memo: &mut HashMap<String, bool>,
-    path: &mut Vec<String>,
-) -> bool {
-    if let Some(&n) = memo.get(name) {
-        return n;
-    }
-    let Some(&(f, i)) = blocks.get(name) else { return false };
-    if path.iter().any(|p| p == name) {
-        return false;
-    }
-    let Item::Pou(p) = &files[f].items[i] else { return false };
-    path.push(name.to_string());
-    let mut needs = own_fb_init(p);
-    if let Some(base) = &p.oop.extends {
-        needs |= needs_init(files, blocks, &base.name.to_ascii_lowercase(), memo, path);
-    }
-    for d in p.vars.iter().filter(|b| holds_instances(b.kind)).flat_map(|b| &b.decls) {
-        if let Some(of) = instance_type(&d.ty) {
-            needs |= needs_init(files, blocks, &of.to_ascii_lowercase(), memo, path);
-        }
-    }
-    path.pop();
-    memo.insert(name.to_string(), needs);
-    needs
-}
-
 /// Reports each instance of `block` (a VAR_STAT, a CONFIGURATION's VAR_GLOBAL) whose block
 /// has something to initialise: nothing runs its `FB_init`.
 fn not_run(
@@ -495,7 +465,7 @@ fn not_run(
     diags: &mut Vec<Diagnostic>,
 ) {
     for d in &block.decls {
-        if instance_needs(&d.ty, needs).is_some() {
+        if instance_with_work(&d.ty, needs).is_some() {
             let n = &d.names[0];
             let msg = format!(
                 "`{}`'s function block has an FB_init, which plcd does not run for a VAR_STAT's instance (one copy for every instance of its POU) nor a CONFIGURATION's VAR_GLOBAL's",
@@ -506,32 +476,11 @@ fn not_run(
     }
 }
 
-/// The sections whose instances belong to the POU's instance (not a caller's, nor a global).
-pub(super) fn holds_instances(kind: VarKind) -> bool {
-    matches!(kind, VarKind::Local | VarKind::Input | VarKind::Output | VarKind::Instance)
-}
-
-/// The block name of an instance or of an array of instances.
-pub(super) fn instance_type(ty: &TypeRef) -> Option<&str> {
-    match ty {
-        TypeRef::Named(id) => Some(&id.name),
-        TypeRef::Array { of, .. } => instance_type(of),
-        // `fb : T(x := 1)` parses as an enumeration of base `T` (compile/fb_init.rs reads it)
-        TypeRef::Enum(def) => def.base.as_ref().map(|b| b.name.as_str()),
-        _ => None,
-    }
-}
-
-/// The block of `ty` when it has something to initialise.
-fn instance_needs<'t>(ty: &'t TypeRef, needs: &HashMap<String, bool>) -> Option<&'t str> {
-    instance_type(ty).filter(|n| needs.get(&n.to_ascii_lowercase()).copied().unwrap_or(false))
-}
-
 /// The variables of `p` to initialise, with their types, in declaration order.
 fn instances<'p>(p: &'p Pou, needs: &HashMap<String, bool>) -> Vec<(&'p Ident, &'p TypeRef)> {
     let mut out = Vec::new();
     for d in p.vars.iter().filter(|b| holds_instances(b.kind)).flat_map(|b| &b.decls) {
-        if instance_needs(&d.ty, needs).is_some() {
+        if instance_with_work(&d.ty, needs).is_some() {
             out.extend(d.names.iter().map(|n| (n, &d.ty)));
         }
     }
@@ -563,29 +512,6 @@ fn signature_ok(m: &Pou) -> bool {
     let is_bool = |ty: &TypeRef| matches!(ty, TypeRef::Named(t) if t.is("BOOL"));
     matches!(&inputs[..], [(a, ta), (b, tb)]
         if a.is(INIT_RETAINS) && b.is(IN_COPY_CODE) && is_bool(ta) && is_bool(tb))
-}
-
-fn ident(name: &str, span: Span) -> Ident {
-    Ident { name: name.to_string(), span }
-}
-
-fn name(n: &str, span: Span) -> Expr {
-    Expr { kind: ExprKind::Name(ident(n, span)), span }
-}
-
-fn stmt(kind: StmtKind, span: Span) -> Stmt {
-    Stmt { kind, span }
-}
-
-fn bool_decl(n: &str, span: Span) -> VarDecl {
-    VarDecl {
-        names: vec![ident(n, span)],
-        location: None,
-        ty: TypeRef::Named(ident("BOOL", span)),
-        init: None,
-        edge: None,
-        span,
-    }
 }
 
 fn block(kind: VarKind, retain: bool, decls: Vec<VarDecl>, span: Span) -> VarBlock {
@@ -791,7 +717,7 @@ fn call_instances<'p>(p: &'p Pou, needs: &HashMap<String, bool>) -> Vec<(&'p Ide
     };
     let mut out = Vec::new();
     for d in p.vars.iter().filter(|b| fresh(b.kind)).flat_map(|b| &b.decls) {
-        if instance_needs(&d.ty, needs).is_some() {
+        if instance_with_work(&d.ty, needs).is_some() {
             out.extend(d.names.iter().map(|n| (n, &d.ty)));
         }
     }
@@ -813,24 +739,6 @@ fn add_call_prologue(p: &mut Pou, plan: &Plan) -> usize {
         found.iter().map(|(v, ty)| init_variable(v, ty, plan, &args, &mut counters)).collect();
     p.body.splice(0..0, inits);
     counters
-}
-
-/// The top-level `VAR_GLOBAL` instances whose block has something to initialise, in the
-/// order of the files and of their declarations.
-fn global_instances(
-    files: &[Cow<'_, ast::File>],
-    needs: &HashMap<String, bool>,
-) -> Vec<(Ident, TypeRef)> {
-    let mut out = Vec::new();
-    for file in files {
-        for item in &file.items {
-            let Item::Globals(b) = item else { continue };
-            for d in b.decls.iter().filter(|d| instance_needs(&d.ty, needs).is_some()) {
-                out.extend(d.names.iter().map(|n| (n.clone(), d.ty.clone())));
-            }
-        }
-    }
-    out
 }
 
 /// `FUNCTION __FB_INIT_GLOBALS`: initialises each of `globals`, with `bInitRetains` as given

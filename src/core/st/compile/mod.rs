@@ -66,6 +66,7 @@ mod implicit;
 mod inout;
 mod instance_args;
 mod jumps;
+mod lifecycle;
 mod method_eno;
 mod method_vars;
 mod mixed_args;
