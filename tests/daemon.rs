@@ -357,3 +357,25 @@ fn sighup_refuses_a_new_control_socket_or_key_switch_and_keeps_running() {
     assert_eq!(code, 0, "log:\n{}", log.join("\n"));
     assert!(!log.iter().any(|l| l.contains("reloaded:")), "{}", log.join("\n"));
 }
+
+#[test]
+fn a_programs_warnings_reach_the_log_and_it_runs() {
+    // CODESYS's implicit conversion that may change a value: accepted with a warning (docs/ST.md
+    // "Implicit conversions"), which `plcd run` logs at load, with its place, and runs.
+    let project = project(
+        "daemon-st-warning",
+        &[
+            ("plcd.toml", "[plc]\nscan_period_ms = 5\n\n[[program]]\nfile = \"main.st\"\n"),
+            (
+                "main.st",
+                "PROGRAM main\nVAR i : INT := -1; u : UINT; END_VAR\n    u := i;\nEND_PROGRAM\n",
+            ),
+        ],
+    );
+    let daemon = project.start();
+    let line = daemon.wait_for_line("converted implicitly");
+    assert!(line.contains("main.st:3:") && line.contains("INT_TO_UINT"), "{line}");
+    daemon.wait_for("mode RUN (startup)");
+    let (code, _) = daemon.stop();
+    assert_eq!(code, 0);
+}
