@@ -44,8 +44,8 @@ use crate::st::ast::{
 
 use super::fb_init::INIT_ALL;
 use super::lifecycle::{
-    bool_decl, global_instances, has_work, holds_instances, ident, instance_type,
-    instance_with_work, name, stmt, Blocks,
+    block, bool_decl, counter_block, global_instances, has_work, holds_instances, ident,
+    instance_with_work, instances, name, stmt, Blocks,
 };
 
 /// The hidden method that finishes an instance (its `FB_exit`, its instances, its base).
@@ -64,6 +64,8 @@ pub const GLOBALS_REQUEST: &str = "__FB_EXIT_GLOBALS_REQUEST";
 /// of an instance the change adds to a kept PROGRAM (compile/fb_init.rs's too).
 pub const PHASE: &str = "__FB_EXIT_PHASE";
 const LIVE: &str = "__FB_EXIT_LIVE";
+/// The hidden DINT counters of the loops over arrays of instances: `__FB_EXIT_I1`, ….
+const COUNTER: &str = "__FB_EXIT_I";
 const FB_REINIT: &str = "FB_reinit";
 const GLOBALS_LIVE: &str = "__FB_EXIT_GLOBALS_LIVE";
 const GLOBALS_EXIT: &str = "__FB_EXIT_GLOBALS";
@@ -169,11 +171,11 @@ pub(super) fn lower<'f>(
             let Item::Pou(p) = item else { continue };
             for m in &mut p.oop.methods {
                 let counters = finish_fresh(&mut m.pou, &needs);
-                m.pou.vars.extend(counter_block(counters, m.pou.span));
+                m.pou.vars.extend(counter_block(COUNTER, counters, m.pou.span));
             }
             if p.kind == PouKind::FunctionBlock {
                 let counters = finish_fresh(p, &needs);
-                p.vars.extend(counter_block(counters, p.name.span));
+                p.vars.extend(counter_block(COUNTER, counters, p.name.span));
             }
             match p.kind {
                 PouKind::FunctionBlock if own_work(p, &needs) => add_exit_all(p, &needs),
@@ -190,21 +192,10 @@ pub(super) fn lower<'f>(
             };
             items.insert(at, Item::Pou(globals_finisher(&globals, span)));
             let flags = vec![bool_decl(GLOBALS_REQUEST, span), bool_decl(GLOBALS_LIVE, span)];
-            items.insert(at, Item::Globals(block(VarKind::Global, flags, span)));
+            items.insert(at, Item::Globals(block(VarKind::Global, false, flags, span)));
         }
     }
     files
-}
-
-/// The variables of `p` to finish, with their types, in declaration order.
-fn instances(p: &Pou, map: &HashMap<String, bool>) -> Vec<(Ident, TypeRef)> {
-    let mut out = Vec::new();
-    for d in p.vars.iter().filter(|b| holds_instances(b.kind)).flat_map(|b| &b.decls) {
-        if instance_with_work(&d.ty, map).is_some() {
-            out.extend(d.names.iter().map(|n| (n.clone(), d.ty.clone())));
-        }
-    }
-    out
 }
 
 /// Whether block `p` finishes something itself (its `FB_exit` or its instances).
@@ -242,10 +233,6 @@ fn when(cond: Expr, then: Vec<Stmt>, span: Span) -> Stmt {
     stmt(StmtKind::If { branches: vec![(cond, then)], otherwise: None }, span)
 }
 
-fn block(kind: VarKind, decls: Vec<VarDecl>, span: Span) -> VarBlock {
-    VarBlock { kind, constant: false, retain: false, span, decls }
-}
-
 /// `target.<method>(bInCopyCode := copy)`.
 fn call_method(target: Expr, method: &str, copy: Expr, span: Span) -> Stmt {
     let callee = Expr { kind: ExprKind::Member(Box::new(target), ident(method, span)), span };
@@ -271,7 +258,7 @@ fn each_element(
         dims.extend(d.iter());
         at = of;
     }
-    let counter = |k: usize| format!("__FB_EXIT_I{k}");
+    let counter = |k: usize| format!("{COUNTER}{k}");
     let target = if dims.is_empty() {
         name(&v.name, span)
     } else {
@@ -307,18 +294,6 @@ fn exit_variable(v: &Ident, ty: &TypeRef, copy: &dyn Fn() -> Expr, counters: &mu
     each_element(v, ty, false, counters, &|target| call_method(target, EXIT_ALL, copy(), span))
 }
 
-fn counter_block(counters: usize, span: Span) -> Option<VarBlock> {
-    (counters > 0).then(|| {
-        let decls = (1..=counters)
-            .map(|k| VarDecl {
-                ty: TypeRef::Named(ident("DINT", span)),
-                ..bool_decl(&format!("__FB_EXIT_I{k}"), span)
-            })
-            .collect();
-        block(VarKind::Local, decls, span)
-    })
-}
-
 fn hidden_method(name: &str, vars: Vec<VarBlock>, body: Vec<Stmt>, span: Span, end: Span) -> Pou {
     Pou {
         kind: PouKind::Function,
@@ -350,7 +325,7 @@ fn add_exit_all(p: &mut Pou, map: &HashMap<String, bool>) {
         body.push(stmt(StmtKind::Call(call), span));
     }
     let mut counters = 0;
-    for (v, ty) in instances(p, map).iter().rev() {
+    for &(v, ty) in instances(p, map).iter().rev() {
         body.push(exit_variable(v, ty, &copy, &mut counters));
     }
     if p.oop.extends.as_ref().is_some_and(|b| map.get(&b.name.to_ascii_lowercase()) == Some(&true))
@@ -358,8 +333,8 @@ fn add_exit_all(p: &mut Pou, map: &HashMap<String, bool>) {
         let sup = Expr { kind: ExprKind::Deref(Box::new(name("SUPER", span))), span };
         body.push(call_method(sup, EXIT_ALL, copy(), span));
     }
-    let mut vars = vec![block(VarKind::Input, vec![bool_decl(IN_COPY_CODE, span)], span)];
-    vars.extend(counter_block(counters, span));
+    let mut vars = vec![block(VarKind::Input, false, vec![bool_decl(IN_COPY_CODE, span)], span)];
+    vars.extend(counter_block(COUNTER, counters, span));
     let pou = hidden_method(EXIT_ALL, vars, body, span, p.end);
     p.oop.methods.push(ast::Method {
         access: ast::Access::Public,
@@ -375,7 +350,7 @@ fn globals_finisher(globals: &[(Ident, TypeRef)], span: Span) -> Pou {
     let mut counters = 0;
     let body =
         globals.iter().rev().map(|(v, ty)| exit_variable(v, ty, &copy, &mut counters)).collect();
-    let vars = counter_block(counters, span).into_iter().collect();
+    let vars = counter_block(COUNTER, counters, span).into_iter().collect();
     hidden_method(GLOBALS_EXIT, vars, body, span, span)
 }
 
@@ -456,7 +431,7 @@ fn add_exit_pass(p: &mut Pou, map: &HashMap<String, bool>, life: &Life, globals:
     let copy = || truth(false, span);
     let mut counters = 0;
     let mut own = vec![assign(LIVE, truth(false, span), span)];
-    for (v, ty) in instances(p, map).iter().rev() {
+    for &(v, ty) in instances(p, map).iter().rev() {
         own.push(exit_variable(v, ty, &copy, &mut counters));
     }
     let mut pass = vec![when(
@@ -490,9 +465,7 @@ fn add_exit_pass(p: &mut Pou, map: &HashMap<String, bool>, life: &Life, globals:
         };
     }
     // the phases of an online change over the variables whose declaration changed
-    let has = |m: &HashMap<String, bool>, ty: &TypeRef| {
-        instance_type(ty).is_some_and(|n| m.get(&n.to_ascii_lowercase()).copied().unwrap_or(false))
-    };
+    let has = |m: &HashMap<String, bool>, ty: &TypeRef| instance_with_work(ty, m).is_some();
     let lives: Vec<(Ident, TypeRef)> = p
         .vars
         .iter()
@@ -557,6 +530,6 @@ fn add_exit_pass(p: &mut Pou, map: &HashMap<String, bool>, life: &Life, globals:
     let mut flags = vec![bool_decl(REQUEST, span), bool_decl(LIVE, span)];
     flags.extend(lives.iter().map(|(v, _)| bool_decl(&copy_flag(&v.name), span)));
     flags.push(VarDecl { ty: TypeRef::Named(ident("DINT", span)), ..bool_decl(PHASE, span) });
-    p.vars.push(block(VarKind::Local, flags, span));
-    p.vars.extend(counter_block(counters, span));
+    p.vars.push(block(VarKind::Local, false, flags, span));
+    p.vars.extend(counter_block(COUNTER, counters, span));
 }

@@ -53,8 +53,8 @@ use crate::st::ast::{
 };
 
 use super::lifecycle::{
-    bool_decl, global_instances, has_work, holds_instances, ident, instance_type,
-    instance_with_work, name, stmt, Blocks,
+    block, bool_decl, counter_block, global_instances, has_work, holds_instances, ident,
+    instance_type, instance_with_work, instances, name, stmt, Blocks,
 };
 
 /// The hidden method that initialises an instance (its base, its instances, its `FB_init`).
@@ -62,6 +62,8 @@ pub const INIT_ALL: &str = "__FB_INIT_ALL";
 /// The name CODESYS gives the initialising method.
 pub const FB_INIT: &str = "FB_init";
 const DONE: &str = "__FB_INIT_DONE";
+/// The hidden DINT counters of the loops over arrays of instances: `__FB_INIT_I1`, ….
+const COUNTER: &str = "__FB_INIT_I";
 const RETAINED: &str = "__FB_INIT_RETAINED";
 /// The hidden FUNCTION that initialises the top-level `VAR_GLOBAL` instances, and its flags
 /// (global: whichever PROGRAM runs first runs it).
@@ -199,7 +201,7 @@ fn generate(files: &mut [Cow<'_, ast::File>], plan: &Plan) {
             let mut counters = add_call_prologue(p, plan);
             for m in &mut p.oop.methods {
                 let used = add_call_prologue(&mut m.pou, plan);
-                m.pou.vars.extend(counter_block(used, m.pou.span));
+                m.pou.vars.extend(counter_block(COUNTER, used, m.pou.span));
             }
             match p.kind {
                 PouKind::FunctionBlock if own_work(p, needs) => add_init_all(p, plan),
@@ -218,7 +220,7 @@ fn generate(files: &mut [Cow<'_, ast::File>], plan: &Plan) {
                 }
                 _ => {}
             }
-            p.vars.extend(counter_block(counters, p.name.span));
+            p.vars.extend(counter_block(COUNTER, counters, p.name.span));
         }
         if holds_globals {
             globals_placed = true;
@@ -476,17 +478,6 @@ fn not_run(
     }
 }
 
-/// The variables of `p` to initialise, with their types, in declaration order.
-fn instances<'p>(p: &'p Pou, needs: &HashMap<String, bool>) -> Vec<(&'p Ident, &'p TypeRef)> {
-    let mut out = Vec::new();
-    for d in p.vars.iter().filter(|b| holds_instances(b.kind)).flat_map(|b| &b.decls) {
-        if instance_with_work(&d.ty, needs).is_some() {
-            out.extend(d.names.iter().map(|n| (n, &d.ty)));
-        }
-    }
-    out
-}
-
 /// Whether block `p` initialises something itself (its `FB_init` or its instances), beyond
 /// what it inherits.
 fn own_work(p: &Pou, needs: &HashMap<String, bool>) -> bool {
@@ -512,10 +503,6 @@ fn signature_ok(m: &Pou) -> bool {
     let is_bool = |ty: &TypeRef| matches!(ty, TypeRef::Named(t) if t.is("BOOL"));
     matches!(&inputs[..], [(a, ta), (b, tb)]
         if a.is(INIT_RETAINS) && b.is(IN_COPY_CODE) && is_bool(ta) && is_bool(tb))
-}
-
-fn block(kind: VarKind, retain: bool, decls: Vec<VarDecl>, span: Span) -> VarBlock {
-    VarBlock { kind, constant: false, retain, span, decls }
 }
 
 /// `target.__FB_INIT_ALL(bInitRetains := retains, bInCopyCode := copy)`.
@@ -546,7 +533,7 @@ fn init_variable(
         dims.extend(d.iter());
         at = of;
     }
-    let counter = |k: usize| format!("__FB_INIT_I{k}");
+    let counter = |k: usize| format!("{COUNTER}{k}");
     let target = if dims.is_empty() {
         name(&v.name, span)
     } else {
@@ -570,18 +557,6 @@ fn init_variable(
         );
     }
     body
-}
-
-fn counter_block(counters: usize, span: Span) -> Option<VarBlock> {
-    (counters > 0).then(|| {
-        let decls = (1..=counters)
-            .map(|k| VarDecl {
-                ty: TypeRef::Named(ident("DINT", span)),
-                ..bool_decl(&format!("__FB_INIT_I{k}"), span)
-            })
-            .collect();
-        block(VarKind::Local, false, decls, span)
-    })
 }
 
 /// `x := x` for each of `inputs`: a `__FB_INIT_ALL`'s inputs passed on.
@@ -626,7 +601,7 @@ fn add_init_all(p: &mut Pou, plan: &Plan) {
     inputs.extend(plan.extras(&p.name.name).iter().cloned());
     let inputs = block(VarKind::Input, false, inputs, span);
     let mut vars = vec![inputs];
-    vars.extend(counter_block(counters, span));
+    vars.extend(counter_block(COUNTER, counters, span));
     let pou = Pou {
         kind: PouKind::Function,
         name: ident(INIT_ALL, span),
@@ -750,7 +725,7 @@ fn globals_initialiser(globals: &[(Ident, TypeRef)], plan: &Plan, span: Span) ->
     let body =
         globals.iter().map(|(v, ty)| init_variable(v, ty, plan, &args, &mut counters)).collect();
     let mut vars = vec![block(VarKind::Input, false, vec![bool_decl(INIT_RETAINS, span)], span)];
-    vars.extend(counter_block(counters, span));
+    vars.extend(counter_block(COUNTER, counters, span));
     Pou {
         kind: PouKind::Function,
         name: ident(GLOBALS_INIT, span),

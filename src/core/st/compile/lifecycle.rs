@@ -6,7 +6,8 @@ use std::borrow::Cow;
 use std::collections::HashMap;
 
 use crate::st::ast::{
-    self, Expr, ExprKind, Ident, Item, Pou, Span, Stmt, StmtKind, TypeRef, VarDecl, VarKind,
+    self, Expr, ExprKind, Ident, Item, Pou, Span, Stmt, StmtKind, TypeRef, VarBlock, VarDecl,
+    VarKind,
 };
 
 /// Each function block's place: its file and item, by its name in lower case.
@@ -69,6 +70,21 @@ pub(super) fn instance_with_work<'t>(
     instance_type(ty).filter(|n| work.get(&n.to_ascii_lowercase()).copied().unwrap_or(false))
 }
 
+/// The variables of `p`'s own instance whose block has something to run, with their types, in
+/// declaration order.
+pub(super) fn instances<'p>(
+    p: &'p Pou,
+    work: &HashMap<String, bool>,
+) -> Vec<(&'p Ident, &'p TypeRef)> {
+    let mut out = Vec::new();
+    for d in p.vars.iter().filter(|b| holds_instances(b.kind)).flat_map(|b| &b.decls) {
+        if instance_with_work(&d.ty, work).is_some() {
+            out.extend(d.names.iter().map(|n| (n, &d.ty)));
+        }
+    }
+    out
+}
+
 /// The project's global instances (every file's `VAR_GLOBAL`) whose block has something to
 /// run, with their types, in declaration order.
 pub(super) fn global_instances(
@@ -109,4 +125,21 @@ pub(super) fn bool_decl(n: &str, span: Span) -> VarDecl {
         edge: None,
         span,
     }
+}
+
+pub(super) fn block(kind: VarKind, retain: bool, decls: Vec<VarDecl>, span: Span) -> VarBlock {
+    VarBlock { kind, constant: false, retain, span, decls }
+}
+
+/// The hidden DINT loop counters `{prefix}1` … `{prefix}{counters}`, if any.
+pub(super) fn counter_block(prefix: &str, counters: usize, span: Span) -> Option<VarBlock> {
+    (counters > 0).then(|| {
+        let decls = (1..=counters)
+            .map(|k| VarDecl {
+                ty: TypeRef::Named(ident("DINT", span)),
+                ..bool_decl(&format!("{prefix}{k}"), span)
+            })
+            .collect();
+        block(VarKind::Local, false, decls, span)
+    })
 }
