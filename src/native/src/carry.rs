@@ -21,6 +21,8 @@
 //! The result is a hint: `codegen` loads from memory any value a jump must pass on that the
 //! jumping block does not hold, so a block always receives what memory holds.
 
+use std::ops::Range;
+
 use plcd_core::lang::ops::{Op, Place};
 use plcd_core::lang::Program;
 use plcd_core::value::Elem;
@@ -395,33 +397,48 @@ fn rank((place, elem): Key) -> (u8, u32, u8) {
     (space, offset, elem as u8)
 }
 
-/// The values each of a body's blocks receives, by the block's index in `leaders` (the
-/// body's leaders, as indices into [`Analysis::leaders`]); `inlined`: its calls compiled
+/// A body's blocks (`leaders`, as indices into [`Analysis::leaders`]) and the jumps between
+/// them, by their indices in `leaders`: found once for [`carried`], [`unwritten`] and
+/// [`in_loops`]. A block the interpreter runs ends native code: it jumps nowhere.
+pub(crate) struct Jumps {
+    pub blocks: Vec<Range<usize>>,
+    pub successors: Vec<Vec<usize>>,
+    pub predecessors: Vec<Vec<usize>>,
+}
+
+impl Jumps {
+    pub fn of(program: &Program, analysis: &Analysis, leaders: &[usize]) -> Jumps {
+        let code = &program.code;
+        let index_of =
+            |pc: u32| leaders.binary_search_by_key(&pc, |&leader| analysis.leaders[leader]).ok();
+        let blocks: Vec<_> = leaders.iter().map(|&leader| analysis.block(code, leader)).collect();
+        let mut predecessors = vec![Vec::new(); blocks.len()];
+        let mut successors = vec![Vec::new(); blocks.len()];
+        for (from, range) in blocks.iter().enumerate() {
+            if !is_native(&code[range.start]) {
+                continue;
+            }
+            for to in analysis.successors(code, leaders[from]).into_iter().filter_map(index_of) {
+                predecessors[to].push(from);
+                successors[from].push(to);
+            }
+        }
+        Jumps { blocks, successors, predecessors }
+    }
+}
+
+/// The values each of a body's blocks receives, by the block's index in its [`Jumps`];
+/// `inlined`: its calls compiled
 /// inline (their pcs), whose blocks go on after them knowing what their callees may change;
 /// `this_in_vars` as for [`may_change`].
 pub(crate) fn carried(
     program: &Program,
-    analysis: &Analysis,
-    leaders: &[usize],
+    jumps: &Jumps,
     inlined: &[(u32, &Writes)],
     this_in_vars: bool,
 ) -> Vec<Vec<Key>> {
     let code = &program.code;
-    let index_of =
-        |pc: u32| leaders.binary_search_by_key(&pc, |&leader| analysis.leaders[leader]).ok();
-    let blocks: Vec<_> = leaders.iter().map(|&leader| analysis.block(code, leader)).collect();
-    // The jumps between the body's blocks; a block the interpreter runs ends native code.
-    let mut predecessors = vec![Vec::new(); blocks.len()];
-    let mut successors = vec![Vec::new(); blocks.len()];
-    for (from, range) in blocks.iter().enumerate() {
-        if !is_native(&code[range.start]) {
-            continue;
-        }
-        for to in analysis.successors(code, leaders[from]).into_iter().filter_map(index_of) {
-            predecessors[to].push(from);
-            successors[from].push(to);
-        }
-    }
+    let Jumps { blocks, successors, predecessors } = jumps;
     // Backwards, as liveness: the keys some path from each block's start fetches before they
     // may change. A value nobody wants is not passed on (it would only take a register).
     let wants: Vec<Wants> = blocks
@@ -502,7 +519,7 @@ pub(crate) fn carried(
     into
 }
 
-/// For each of a body's blocks (`leaders`, as for [`carried`]), the values it receives
+/// For each of a body's blocks (its [`Jumps`]), the values it receives
 /// (`carried`, [`carried`]'s result) that a block before it may have stored and not written
 /// to memory yet: `codegen` keeps a store in a loop (`in_loop`, [`in_loops`]) in a register
 /// while the value goes on in one to the next blocks, and writes it back where something else
@@ -513,23 +530,17 @@ pub(crate) fn carried(
 /// holds already.
 pub(crate) fn unwritten(
     program: &Program,
-    analysis: &Analysis,
-    leaders: &[usize],
+    jumps: &Jumps,
     carried: &[Vec<Key>],
     in_loop: &[bool],
 ) -> Vec<Vec<Key>> {
     let code = &program.code;
-    let index_of =
-        |pc: u32| leaders.binary_search_by_key(&pc, |&leader| analysis.leaders[leader]).ok();
-    let blocks: Vec<_> = leaders.iter().map(|&leader| analysis.block(code, leader)).collect();
-    let mut successors = vec![Vec::new(); blocks.len()];
+    let Jumps { blocks, successors, .. } = jumps;
     let mut stores: Vec<Option<Vec<Key>>> = vec![None; blocks.len()];
     for (from, range) in blocks.iter().enumerate() {
         if !is_native(&code[range.start]) {
             continue;
         }
-        successors[from] =
-            analysis.successors(code, leaders[from]).into_iter().filter_map(index_of).collect();
         let ends_in_call = matches!(code[range.end - 1], Op::CallFn { .. } | Op::CallFb { .. });
         if !ends_in_call {
             let mut keys = Vec::new();
@@ -565,30 +576,23 @@ pub(crate) fn unwritten(
     into
 }
 
-/// For each of a body's blocks (`leaders`, as for [`carried`]): whether it lies inside a loop,
+/// For each of a body's blocks (its [`Jumps`]): whether it lies inside a loop,
 /// between a jump back and the block it jumps to (Structured Text's loops are compiled so).
 /// `codegen` keeps a store in a register only there, where the loop's next round may store
 /// the place again: elsewhere a value held until it is written back only keeps a register
 /// busy.
-pub(crate) fn in_loops(program: &Program, analysis: &Analysis, leaders: &[usize]) -> Vec<bool> {
-    let code = &program.code;
-    let index_of =
-        |pc: u32| leaders.binary_search_by_key(&pc, |&leader| analysis.leaders[leader]).ok();
+pub(crate) fn in_loops(jumps: &Jumps) -> Vec<bool> {
+    let n = jumps.blocks.len();
     // +1 where a loop starts, -1 after where it ends.
-    let mut delta = vec![0i64; leaders.len() + 1];
-    for (from, &leader) in leaders.iter().enumerate() {
-        if !is_native(&code[analysis.block(code, leader).start]) {
-            continue;
-        }
-        for to in analysis.successors(code, leader).into_iter().filter_map(index_of) {
-            if to <= from {
-                delta[to] += 1;
-                delta[from + 1] -= 1;
-            }
+    let mut delta = vec![0i64; n + 1];
+    for (from, successors) in jumps.successors.iter().enumerate() {
+        for &to in successors.iter().filter(|&&to| to <= from) {
+            delta[to] += 1;
+            delta[from + 1] -= 1;
         }
     }
     let mut depth = 0;
-    (0..leaders.len())
+    (0..n)
         .map(|index| {
             depth += delta[index];
             depth > 0

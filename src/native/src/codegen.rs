@@ -169,9 +169,10 @@ pub(crate) fn generate(
     let body = analysis.functions[function];
     let plan = inline::plan(program, analysis, body, leaders);
     let calls: Vec<(u32, &Writes)> = plan.iter().map(|call| (call.pc, &call.writes)).collect();
-    let carried = carry::carried(program, analysis, leaders, &calls, false);
-    let in_loop = carry::in_loops(program, analysis, leaders);
-    let unwritten = carry::unwritten(program, analysis, leaders, &carried, &in_loop);
+    let jumps = carry::Jumps::of(program, analysis, leaders);
+    let carried = carry::carried(program, &jumps, &calls, false);
+    let in_loop = carry::in_loops(&jumps);
+    let unwritten = carry::unwritten(program, &jumps, &carried, &in_loop);
     let mut g = Gen {
         b,
         program,
@@ -1548,9 +1549,10 @@ impl<'a> Gen<'a, '_> {
         let leaders = &self.analysis.function_leaders[function][..];
         let blocks = leaders.iter().map(|_| self.b.create_block()).collect();
         let stack = (0..self.stack.len()).map(|_| self.b.declare_var(I64)).collect();
-        let carried = carry::carried(self.program, self.analysis, leaders, &[], this_in_vars);
-        let in_loop = carry::in_loops(self.program, self.analysis, leaders);
-        let unwritten = carry::unwritten(self.program, self.analysis, leaders, &carried, &in_loop);
+        let jumps = carry::Jumps::of(self.program, self.analysis, leaders);
+        let carried = carry::carried(self.program, &jumps, &[], this_in_vars);
+        let in_loop = carry::in_loops(&jumps);
+        let unwritten = carry::unwritten(self.program, &jumps, &carried, &in_loop);
         let mut scope = Scope {
             body: target,
             activation: callee,
