@@ -39,13 +39,13 @@ use std::collections::HashMap;
 use crate::diag::Diagnostic;
 use crate::st::ast::{
     self, Arg, Expr, ExprKind, Ident, Item, Literal, Pou, PouKind, Span, Stmt, StmtKind, TypeRef,
-    UnaryOp, VarBlock, VarDecl, VarKind,
+    UnaryOp, VarDecl, VarKind,
 };
 
 use super::fb_init::INIT_ALL;
 use super::lifecycle::{
-    block, bool_decl, counter_block, global_instances, has_work, holds_instances, ident,
-    instance_with_work, instances, name, stmt, Blocks,
+    block, bool_decl, counter_block, global_instances, has_work, hidden_pou, holds_instances,
+    ident, instance_with_work, instances, name, stmt, Blocks,
 };
 
 /// The hidden method that finishes an instance (its `FB_exit`, its instances, its base).
@@ -294,21 +294,6 @@ fn exit_variable(v: &Ident, ty: &TypeRef, copy: &dyn Fn() -> Expr, counters: &mu
     each_element(v, ty, false, counters, &|target| call_method(target, EXIT_ALL, copy(), span))
 }
 
-fn hidden_method(name: &str, vars: Vec<VarBlock>, body: Vec<Stmt>, span: Span, end: Span) -> Pou {
-    Pou {
-        kind: PouKind::Function,
-        name: ident(name, span),
-        return_type: None,
-        vars,
-        body,
-        actions: Vec::new(),
-        oop: ast::Oop::default(),
-        sfc: None,
-        span,
-        end,
-    }
-}
-
 /// Adds `METHOD __FB_EXIT_ALL` to block `p`.
 fn add_exit_all(p: &mut Pou, map: &HashMap<String, bool>) {
     let span = p.name.span;
@@ -335,7 +320,7 @@ fn add_exit_all(p: &mut Pou, map: &HashMap<String, bool>) {
     }
     let mut vars = vec![block(VarKind::Input, false, vec![bool_decl(IN_COPY_CODE, span)], span)];
     vars.extend(counter_block(COUNTER, counters, span));
-    let pou = hidden_method(EXIT_ALL, vars, body, span, p.end);
+    let pou = hidden_pou(EXIT_ALL, vars, body, span, p.end);
     p.oop.methods.push(ast::Method {
         access: ast::Access::Public,
         is_abstract: false,
@@ -351,7 +336,7 @@ fn globals_finisher(globals: &[(Ident, TypeRef)], span: Span) -> Pou {
     let body =
         globals.iter().rev().map(|(v, ty)| exit_variable(v, ty, &copy, &mut counters)).collect();
     let vars = counter_block(COUNTER, counters, span).into_iter().collect();
-    hidden_method(GLOBALS_EXIT, vars, body, span, span)
+    hidden_pou(GLOBALS_EXIT, vars, body, span, span)
 }
 
 /// The variables of `p` fresh at each call whose block has something to finish: a method's

@@ -53,8 +53,8 @@ use crate::st::ast::{
 };
 
 use super::lifecycle::{
-    block, bool_decl, counter_block, global_instances, has_work, holds_instances, ident,
-    instance_type, instance_with_work, instances, name, stmt, Blocks,
+    block, bool_decl, counter_block, global_instances, has_work, hidden_pou, holds_instances,
+    ident, instance_type, instance_with_work, instances, name, stmt, Blocks,
 };
 
 /// The hidden method that initialises an instance (its base, its instances, its `FB_init`).
@@ -602,18 +602,7 @@ fn add_init_all(p: &mut Pou, plan: &Plan) {
     let inputs = block(VarKind::Input, false, inputs, span);
     let mut vars = vec![inputs];
     vars.extend(counter_block(COUNTER, counters, span));
-    let pou = Pou {
-        kind: PouKind::Function,
-        name: ident(INIT_ALL, span),
-        return_type: None,
-        vars,
-        body,
-        actions: Vec::new(),
-        oop: ast::Oop::default(),
-        sfc: None,
-        span,
-        end: p.end,
-    };
+    let pou = hidden_pou(INIT_ALL, vars, body, span, p.end);
     p.oop.methods.push(ast::Method {
         access: ast::Access::Public,
         is_abstract: false,
@@ -726,18 +715,7 @@ fn globals_initialiser(globals: &[(Ident, TypeRef)], plan: &Plan, span: Span) ->
         globals.iter().map(|(v, ty)| init_variable(v, ty, plan, &args, &mut counters)).collect();
     let mut vars = vec![block(VarKind::Input, false, vec![bool_decl(INIT_RETAINS, span)], span)];
     vars.extend(counter_block(COUNTER, counters, span));
-    Pou {
-        kind: PouKind::Function,
-        name: ident(GLOBALS_INIT, span),
-        return_type: None,
-        vars,
-        body,
-        actions: Vec::new(),
-        oop: ast::Oop::default(),
-        sfc: None,
-        span,
-        end: span,
-    }
+    hidden_pou(GLOBALS_INIT, vars, body, span, span)
 }
 
 /// Starts program `p`'s body with the initialisation of the global instances, once a RUN

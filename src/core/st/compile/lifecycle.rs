@@ -6,8 +6,8 @@ use std::borrow::Cow;
 use std::collections::HashMap;
 
 use crate::st::ast::{
-    self, Expr, ExprKind, Ident, Item, Pou, Span, Stmt, StmtKind, TypeRef, VarBlock, VarDecl,
-    VarKind,
+    self, Expr, ExprKind, Ident, Item, Pou, PouKind, Span, Stmt, StmtKind, TypeRef, VarBlock,
+    VarDecl, VarKind,
 };
 
 /// Each function block's place: its file and item, by its name in lower case.
@@ -142,4 +142,27 @@ pub(super) fn counter_block(prefix: &str, counters: usize, span: Span) -> Option
             .collect();
         block(VarKind::Local, false, decls, span)
     })
+}
+
+/// A hidden FUNCTION or method `name` (what a FUNCTION_BLOCK's methods are made of): no
+/// result, its variables and statements.
+pub(super) fn hidden_pou(
+    name: &str,
+    vars: Vec<VarBlock>,
+    body: Vec<Stmt>,
+    span: Span,
+    end: Span,
+) -> Pou {
+    Pou {
+        kind: PouKind::Function,
+        name: ident(name, span),
+        return_type: None,
+        vars,
+        body,
+        actions: Vec::new(),
+        oop: ast::Oop::default(),
+        sfc: None,
+        span,
+        end,
+    }
 }
