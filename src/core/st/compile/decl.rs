@@ -1244,24 +1244,7 @@ impl<'a> Ctx<'a> {
                 inst.push(1);
                 Storage::Inst(inst.len() as u32 - 1)
             };
-            let index = self.pous[p].vars.len();
-            self.pous[p].vars.push(VarInfo {
-                name: "ENO".into(),
-                kind: VarKind::Output,
-                ty: Ty::Prim(Prim::Bool),
-                constant: false,
-                retain: false,
-                storage,
-                by_ref: false,
-                value: None,
-                span: pou.name.span,
-                located: None,
-                global: None,
-                edge_value: None,
-            });
-            self.pous[p].names.insert(key("ENO"), index);
-            self.pous[p].eno = Some(index);
-            self.pous[p].eno_implicit = true;
+            self.declare_implicit_eno(p, storage, pou.name.span);
         }
         self.share_instance(p);
         if inst.len() as u64 > MAX_MEMORY {

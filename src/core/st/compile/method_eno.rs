@@ -44,6 +44,12 @@ impl Ctx<'_> {
     pub(super) fn declare_method_eno(&mut self, p: usize, frame: &mut Vec<u8>, span: ast::Span) {
         let of_interface = self.oop.members.get(&p).is_some_and(|m| m.owner.is_none());
         frame.push(u8::from(!of_interface));
+        self.declare_implicit_eno(p, Storage::Frame(frame.len() as u32 - 1), span);
+    }
+
+    /// Declares POU `p`'s implicit ENO, a BOOL output at `storage` (its image set by the
+    /// caller): a FUNCTION's or a FUNCTION_BLOCK's (decl.rs) or a method's.
+    pub(super) fn declare_implicit_eno(&mut self, p: usize, storage: Storage, span: ast::Span) {
         let index = self.pous[p].vars.len();
         self.pous[p].vars.push(VarInfo {
             name: "ENO".into(),
@@ -51,7 +57,7 @@ impl Ctx<'_> {
             ty: Ty::Prim(Prim::Bool),
             constant: false,
             retain: false,
-            storage: Storage::Frame(frame.len() as u32 - 1),
+            storage,
             by_ref: false,
             value: None,
             span,
