@@ -439,6 +439,12 @@ struct Held {
     dirty: bool,
 }
 
+impl Held {
+    fn key(&self) -> Key {
+        (self.place, self.elem)
+    }
+}
+
 /// Where the block being generated stands: the instruction's index in it and the block's
 /// length, for the budget an exit gives back.
 #[derive(Clone, Copy)]
@@ -647,7 +653,7 @@ impl<'a> Gen<'a, '_> {
             }
             // The values the block receives, from memory.
             self.held.clear();
-            self.pass_on(&[leader]);
+            self.pass_on(leader);
             let block = self.blocks[index];
             self.b.ins().jump(block, &[]);
         }
@@ -910,7 +916,7 @@ impl<'a> Gen<'a, '_> {
         }
         if falls_through {
             let next = self.target(range.end as u32, depth);
-            self.pass_on(&[range.end as u32]);
+            self.pass_on(range.end as u32);
             self.b.ins().jump(next, &[]);
         }
         checks
@@ -932,23 +938,26 @@ impl<'a> Gen<'a, '_> {
         var
     }
 
-    /// Before a jump to the blocks at `pcs`: the values they receive, as held here, or from
-    /// memory where this block does not hold them (memory always holds the same).
-    fn pass_on(&mut self, pcs: &[u32]) {
+    /// Before a jump to the block at `pc`: the values it receives, as held here, or from memory
+    /// where this block does not hold them (memory always holds the same).
+    fn pass_on(&mut self, pc: u32) {
         // A value not written yet goes on unwritten only to a block that receives it (it
-        // counts what it receives of `stored` places as unwritten); a way out to the
-        // interpreter wrote it back already ([`Gen::target`]).
-        if let [pc] = *pcs {
-            if let Some(index) = self.leader_index(pc) {
-                let carried = &self.carried[index];
-                let unwanted: Vec<Key> = (self.held.iter())
-                    .filter(|h| h.dirty && !carried.contains(&(h.place, h.elem)))
-                    .map(|h| (h.place, h.elem))
-                    .collect();
-                self.write_back_where(|key| unwanted.contains(&key));
-            }
+        // counts what it receives as unwritten where a block before it may have stored it:
+        // [`carry::unwritten`]); a way out to the interpreter wrote it back already
+        // ([`Gen::target`]).
+        if let Some(index) = self.leader_index(pc) {
+            let unwanted: Vec<Key> = self.unreceived(index).iter().map(Held::key).collect();
+            self.write_back_where(|key| unwanted.contains(&key));
         }
-        self.define_carried(pcs);
+        self.define_carried(&[pc]);
+    }
+
+    /// The held values not written yet that the block of `leaders[index]` does not receive.
+    fn unreceived(&self, index: usize) -> Vec<Held> {
+        (self.held.iter())
+            .filter(|h| h.dirty && !self.carried[index].contains(&h.key()))
+            .copied()
+            .collect()
     }
 
     /// The way to `block`, the block at `pc`, from a branch of several ways: directly, or
@@ -956,10 +965,7 @@ impl<'a> Gen<'a, '_> {
     /// receive (returned with them, for [`Gen::fill_edges`] once the branch is generated).
     fn edge(&mut self, pc: u32, block: Block) -> Edge {
         let Some(index) = self.leader_index(pc) else { return (block, None) };
-        let unwanted: Vec<Held> = (self.held.iter())
-            .filter(|h| h.dirty && !self.carried[index].contains(&(h.place, h.elem)))
-            .copied()
-            .collect();
+        let unwanted = self.unreceived(index);
         if unwanted.is_empty() {
             return (block, None);
         }
@@ -1330,7 +1336,7 @@ impl<'a> Gen<'a, '_> {
             Op::Nop => {}
             Op::Goto(target) => {
                 let block = self.target(target, d);
-                self.pass_on(&[target]);
+                self.pass_on(target);
                 self.b.ins().jump(block, &[]);
                 return false;
             }
@@ -1345,12 +1351,11 @@ impl<'a> Gen<'a, '_> {
                 // does not on its way.
                 let (a, b) = (self.leader_index(target), self.leader_index(at.pc + 1));
                 if let (Some(a), Some(b)) = (a, b) {
-                    let carried = &self.carried;
-                    let neither =
-                        |key: &Key| !carried[a].contains(key) && !carried[b].contains(key);
-                    let unwanted: Vec<Key> =
-                        (self.held.iter()).map(|h| (h.place, h.elem)).filter(neither).collect();
-                    self.write_back_where(|key| unwanted.contains(&key));
+                    let not_a: Vec<Key> = self.unreceived(a).iter().map(Held::key).collect();
+                    let neither: Vec<Key> = (self.unreceived(b).iter().map(Held::key))
+                        .filter(|key| not_a.contains(key))
+                        .collect();
+                    self.write_back_where(|key| neither.contains(&key));
                 }
                 self.define_carried(&[target, at.pc + 1]);
                 let (true_pc, false_pc) =
@@ -1513,7 +1518,7 @@ impl<'a> Gen<'a, '_> {
             // The callee may have changed any place.
             self.held.clear();
         }
-        self.pass_on(&[at.pc + 1]);
+        self.pass_on(at.pc + 1);
         self.b.ins().jump(next, &[]);
     }
 
@@ -1571,7 +1576,7 @@ impl<'a> Gen<'a, '_> {
         self.swap_scope(&mut scope);
         self.inline = Some(Inline { back, record });
         self.b.def_var(self.regs.sb, callee.sp);
-        self.pass_on(&[target]);
+        self.pass_on(target);
         let first = self.leader_index(target).expect("a body starts a block");
         self.b.ins().jump(self.blocks[first], &[]);
         for index in 0..self.leaders.len() {
