@@ -346,6 +346,19 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` outside a loop", "continue-outside-loop"),
     ("the FOR variable `{}` must be an integer, not `{}`", "for-variable-not-integer"),
     ("the FOR variable `{}` must be a local variable of the POU", "for-variable-not-local"),
+    (
+        "the FOR variable `{}` must be a variable, or its member or element at constant indices",
+        "for-element-not-fixed",
+    ),
+    // assign_expr.rs: an assignment inside an expression
+    (
+        "an assignment inside an expression takes an elementary value, not `{}`: assign it in a statement of its own",
+        "assign-expr-aggregate",
+    ),
+    (
+        "property `{}` is written by an assignment statement only (which calls its SET), not here",
+        "property-written-in-expression",
+    ),
     ("a FOR step of 0 never ends the loop", "for-step-zero"),
     ("a CASE selector must be an integer or an enumeration, not `{}`", "case-selector-type"),
     ("the CASE range `{}..{}` is empty", "empty-case-range"),
@@ -593,6 +606,14 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
     (
         "IEC 61131-3 forbids writing the FOR variable in the loop: count with a WHILE loop and a variable of its own (`[st] strict` is on)",
         "strict-for-variable-written",
+    ),
+    (
+        "IEC 61131-3 counts in a variable named alone, not in an element or a member: count in a local variable and copy it (`[st] strict` is on)",
+        "strict-for-element",
+    ),
+    (
+        "IEC 61131-3 assigns in a statement only, not inside an expression: assign first, then use the variable, `b := FALSE; a := b;` (`[st] strict` is on)",
+        "strict-assign-expr",
     ),
     (
         "unreachable `ELSE`: the labels cover every value of the selector's type; remove the `ELSE` (`[st] strict` is on)",

@@ -5,8 +5,9 @@
 //! following docs/ST.md: wrapping integer arithmetic, division and `MOD` by zero giving 0 with
 //! error 3400H, the implicit widenings, the conversion rules, the shifts, the standard functions,
 //! and what plcd accepts of CODESYS's habits: arithmetic on bit strings (with each other, with
-//! integers and reals, typed as docs/ST.md says), shifts of integers, and the short-circuit
-//! `AND_THEN` and `OR_ELSE` (a skipped right operand raises none of its errors).
+//! integers and reals, typed as docs/ST.md says), shifts of integers, the short-circuit
+//! `AND_THEN` and `OR_ELSE` (a skipped right operand raises none of its errors), and
+//! assignments inside expressions (`(w_int := x)`, whose value is `x`'s).
 //!
 //! The expressions are generated from a list of choices, so that proptest's shrinking of the
 //! list shrinks the expressions (an exhausted list picks variables). Constant subexpressions are
@@ -471,6 +472,10 @@ enum Expr {
     Trunc(Box<Expr>),
     /// CODESYS's arithmetic between a bit string and an integer or a real ([`codesys_type`]).
     Mixed(Bin, Box<Expr>, Box<Expr>),
+    /// CODESYS's assignment inside an expression, `(w_<type> := x)`: its value is `x`'s,
+    /// stored on the way in a variable of `x`'s type that no expression reads (so the
+    /// reference evaluator needs no state; the native property compares its memory).
+    Assign(Box<Expr>),
 }
 
 /// The bit string as wide as `t`.
@@ -513,12 +518,14 @@ impl Expr {
             Expr::Conv(t, _) => *t,
             Expr::Trunc(_) => T::DInt,
             Expr::Mixed(_, a, b) => codesys_type(a.ty(vars), b.ty(vars)),
+            Expr::Assign(a) => a.ty(vars),
         }
     }
 
     fn has_var(&self) -> bool {
         match self {
-            Expr::Var(_) => true,
+            // its type is the variable's, and the compiler folds no assignment
+            Expr::Var(_) | Expr::Assign(_) => true,
             Expr::Lit(..) => false,
             Expr::Neg(a) | Expr::Not(a) | Expr::Abs(a) | Expr::Conv(_, a) | Expr::Trunc(a) => {
                 a.has_var()
@@ -545,7 +552,7 @@ impl Expr {
                 let decides = *op == Bin::OrElse;
                 a.eval(vars, &mut 0).zero() != decides || b.constant(vars)
             }
-            Expr::Var(_) | Expr::Lit(..) | Expr::Sel(_) => !self.has_var(),
+            Expr::Var(_) | Expr::Lit(..) | Expr::Sel(_) | Expr::Assign(_) => !self.has_var(),
             Expr::Neg(a) | Expr::Not(a) | Expr::Abs(a) | Expr::Conv(_, a) | Expr::Trunc(a) => {
                 a.constant(vars)
             }
@@ -564,6 +571,7 @@ impl Expr {
         match self {
             Expr::Var(i) => vars.0[*i].1,
             Expr::Lit(v, _) => *v,
+            Expr::Assign(a) => a.eval(vars, errors),
             Expr::Neg(a) => match a.eval(vars, errors) {
                 V::Real(x) => V::Real(-x),
                 V::LReal(x) => V::LReal(-x),
@@ -842,6 +850,11 @@ impl Render<'_> {
                 let name = format!("{}_TO_{}", a.ty(vars).name(), to.name());
                 self.call(&name, &[(a, true)], out);
             }
+            Expr::Assign(a) => {
+                let _ = write!(out, "({} := ", assigned_name(a.ty(vars)));
+                self.expr(a, 11, false, out);
+                out.push(')');
+            }
         }
     }
 
@@ -1068,6 +1081,7 @@ fn gen(t: T, depth: u32, vars: &Vars, c: &mut Choices) -> Expr {
             Expr::Shift(op, Box::new(sub(t, c)), Box::new(n))
         }
         18 if t == T::DInt => Expr::Trunc(Box::new(sub(c.pick(&[T::Real, T::LReal]), c))),
+        21 => Expr::Assign(Box::new(sub(t, c))),
         19..=20 if !mixed_partners(t).is_empty() => {
             let u = c.pick(&mixed_partners(t));
             let ops: &[Bin] = if t.real() {
@@ -1164,9 +1178,12 @@ fn fix_up(e: &mut Expr, vars: &Vars) {
 fn avoid_constant_zero_divisors(e: &mut Expr, vars: &Vars) {
     match e {
         Expr::Var(_) | Expr::Lit(..) => {}
-        Expr::Neg(a) | Expr::Not(a) | Expr::Abs(a) | Expr::Trunc(a) | Expr::Conv(_, a) => {
-            avoid_constant_zero_divisors(a, vars)
-        }
+        Expr::Neg(a)
+        | Expr::Not(a)
+        | Expr::Abs(a)
+        | Expr::Trunc(a)
+        | Expr::Conv(_, a)
+        | Expr::Assign(a) => avoid_constant_zero_divisors(a, vars),
         Expr::Bin(op, a, b) | Expr::Mixed(op, a, b) => {
             avoid_constant_zero_divisors(a, vars);
             avoid_constant_zero_divisors(b, vars);
@@ -1184,6 +1201,11 @@ fn avoid_constant_zero_divisors(e: &mut Expr, vars: &Vars) {
             xs.iter_mut().for_each(|x| avoid_constant_zero_divisors(x, vars))
         }
     }
+}
+
+/// The variable an [`Expr::Assign`] of type `t` writes, `w_<type>` in lower case.
+fn assigned_name(t: T) -> String {
+    format!("w_{}", t.name().to_lowercase())
 }
 
 /// Two variables of each type, `<type>_<n>` in lower case, with random initial values.
@@ -1244,6 +1266,9 @@ impl Case {
         }
         for (k, e) in self.exprs.iter().enumerate() {
             let _ = writeln!(src, "    r{k} : {};", e.1.name());
+        }
+        for t in TYPES {
+            let _ = writeln!(src, "    {} : {};", assigned_name(t), t.name());
         }
         src.push_str("END_VAR\n");
         let mut lines = Vec::new();
@@ -1566,4 +1591,46 @@ fn based_literal_in_a_narrower_operation_keeps_its_value() {
         &[("q", T::DInt)],
     );
     assert_values(&r, &[V::DInt(178)]);
+}
+
+/// The habits of statements: a FOR loop counting in an array element and in a struct member
+/// (TwinCAT), assignments inside expressions (CODESYS: chained, in a condition, in a loop's
+/// test, as an index); native code gives the interpreter's memory, also when a budget of a
+/// few steps hands back to the interpreter in the middle of a loop or an expression.
+#[test]
+fn statement_habits_native_code_matches_the_interpreter() {
+    let src = "TYPE Pair : STRUCT n : INT; k : DINT; END_STRUCT; END_TYPE
+PROGRAM main
+VAR
+    offset : ARRAY [1..2] OF DINT; s : DINT; p : Pair; g : ARRAY [1..3] OF Pair;
+    a, b : BOOL := TRUE; i, k, m, n, cnt : INT; x, y : DINT; r : REAL;
+    arr : ARRAY [0..3] OF INT;
+END_VAR
+    FOR offset[1] := 0 TO 3 DO s := s + offset[1]; END_FOR;
+    FOR p.n := 10 TO 0 BY -5 DO n := n + p.n; END_FOR;
+    FOR g[2].k := 1 TO 3 DO IF g[2].k = 2 THEN g[2].k := 3; END_IF; x := x + g[2].k; END_FOR;
+    a := b := NOT a;
+    IF (i := i + 1) >= 3 THEN i := 0; END_IF;
+    r := k := i * 7;
+    y := (m := 4) * 2 + m;
+    arr[(k := 2)] := 9;
+    cnt := 0;
+    WHILE (cnt := cnt + 1) < 5 DO x := x + cnt; END_WHILE;
+END_PROGRAM
+";
+    let compiled = build(src).unwrap_or_else(|e| panic!("{e}"));
+    let (vm, errors) = scan(&compiled);
+    assert_eq!(errors, []);
+    let program = with_native(&compiled);
+    for budget in [u64::MAX, 1, 2, 3, 5, 8] {
+        let (native_vm, native_errors) = scan_program(&compiled, &program, budget);
+        assert_eq!(native_errors, []);
+        assert!(native_vm.vars() == vm.vars(), "budget {budget}: variable memory differs");
+    }
+    // and the values docs/ST.md gives: 0 + 1 + 2 + 3; 10 + 5 + 0; g[2].k 1, 3 (written): 1 + 3
+    // then 1 + 2 + 3 + 4 from the WHILE; 4 * 2 + 4
+    let names = [("s", T::DInt), ("n", T::Int), ("x", T::DInt), ("y", T::DInt), ("cnt", T::Int)];
+    let values: Vec<V> =
+        names.iter().map(|(n, t)| read(&compiled, &vm, &format!("main.{n}"), *t)).collect();
+    assert_values(&values, &[V::DInt(6), V::Int(15), V::DInt(14), V::DInt(12), V::Int(5)]);
 }

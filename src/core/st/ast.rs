@@ -420,7 +420,9 @@ pub enum StmtKind {
         otherwise: Option<(Span, Vec<Stmt>)>,
     },
     For {
-        var: Ident,
+        /// The control variable: a name, or (TwinCAT) an element or member of a local
+        /// (`FOR a[1] := …`, `FOR s.n := …`).
+        var: Expr,
         from: Expr,
         to: Expr,
         by: Option<Expr>,
@@ -494,6 +496,9 @@ pub enum ExprKind {
         callee: Box<Expr>,
         args: Vec<Arg>,
     },
+    /// `target := value` inside an expression (CODESYS): `b := FALSE` of `a := b := FALSE`,
+    /// `(i := i + 1)` of `IF (i := i + 1) >= 3`. Its value is the value assigned.
+    Assign(Box<Expr>, Box<Expr>),
 }
 
 /// The size of a part in a partial access: `%B`, `%W`, `%D`, `%L`.

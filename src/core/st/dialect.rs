@@ -79,6 +79,12 @@ pub enum Habit {
     /// The FOR variable written in the loop's body: the loop goes on from the value written
     /// (`compile::for_written`).
     ForVariableWritten,
+    /// A FOR loop counting in an array element or a struct member (`FOR a[1] := …`,
+    /// `FOR s.n := …`, TwinCAT): its indices constant, so the place is fixed for the loop.
+    ForElement,
+    /// An assignment inside an expression (`a := b := FALSE`, `IF (i := i + 1) >= 3`,
+    /// CODESYS): its value is the value assigned (`compile::assign_expr`).
+    AssignExpr,
     /// An integer literal too large for the other operand's type, which widens the operation
     /// (`i * 60000` with an INT `i` is computed in DINT).
     WidenedLiteral,
@@ -131,6 +137,8 @@ impl Habit {
             Habit::LossyConversion { from, to } => format!("IEC 61131-3 converts `{from}` to `{to}` only explicitly, as the value may change: `{from}_TO_{to}(…)` (`[st] strict` is on)"),
             Habit::EnumToInteger => "IEC 61131-3 gives an enumeration's value no number to convert to: test the value, `CASE e OF E#A: i := 0; …` (`[st] strict` is on)".to_string(),
             Habit::ForVariableWritten => "IEC 61131-3 forbids writing the FOR variable in the loop: count with a WHILE loop and a variable of its own (`[st] strict` is on)".to_string(),
+            Habit::ForElement => "IEC 61131-3 counts in a variable named alone, not in an element or a member: count in a local variable and copy it (`[st] strict` is on)".to_string(),
+            Habit::AssignExpr => "IEC 61131-3 assigns in a statement only, not inside an expression: assign first, then use the variable, `b := FALSE; a := b;` (`[st] strict` is on)".to_string(),
             Habit::WidenedLiteral => "the constant does not fit the other operand's type: IEC 61131-3 widens only explicitly, `INT_TO_DINT(i) * 60000` (`[st] strict` is on)".to_string(),
             Habit::PointerInteger => "IEC 61131-3 has no conversion between references and numbers: move a `POINTER TO` by `p + n` and compare pointers with each other (`[st] strict` is on)".to_string(),
             Habit::PointerIndex => "indexing a `POINTER TO` is CODESYS, not IEC 61131-3: move the pointer by bytes and dereference it, `(p + i * 2)^` for an INT (`[st] strict` is on)".to_string(),

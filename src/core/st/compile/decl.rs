@@ -1559,7 +1559,8 @@ fn walk_stmts(body: &[ast::Stmt], f: &mut impl FnMut(&ast::Expr)) {
                     walk_stmts(b, f);
                 }
             }
-            S::For { from, to, by, body, .. } => {
+            S::For { var, from, to, by, body } => {
+                walk_expr(var, f);
                 walk_expr(from, f);
                 walk_expr(to, f);
                 if let Some(b) = by {
@@ -1590,7 +1591,7 @@ fn walk_expr(e: &ast::Expr, f: &mut impl FnMut(&ast::Expr)) {
                 walk_expr(i, f);
             }
         }
-        K::Binary(_, a, b) => {
+        K::Binary(_, a, b) | K::Assign(a, b) => {
             walk_expr(a, f);
             walk_expr(b, f);
         }

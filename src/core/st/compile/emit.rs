@@ -496,6 +496,15 @@ impl<'c, 'a> Em<'c, 'a> {
                 self.value(b);
                 self.op(Op::RefDiff);
             }
+            TK::Assign(target, value) => {
+                // the value kept in a temporary: stored, then the expression's value
+                let elem = self.elem(&e.ty);
+                let kept = Place::Frame(self.alloc_tmp(8));
+                self.value(value);
+                self.op(Op::Store { elem, at: kept });
+                self.store(target, Src::Ops(vec![(Op::Fetch { elem, at: kept }, false)]));
+                self.op(Op::Fetch { elem, at: kept });
+            }
             TK::ShortCircuit(decides_on, a, b) => {
                 // a; if a = decides_on goto decided; b; goto end; decided: push decides_on
                 let base = self.sp;

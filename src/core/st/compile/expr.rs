@@ -61,6 +61,9 @@ pub enum TK {
     RefDiff(Box<TExpr>, Box<TExpr>),
     /// A standard function called with `EN` or `ENO`.
     Gate(Box<GateT>),
+    /// An assignment inside an expression (CODESYS, `assign_expr`): the place written, and
+    /// the value, of the place's type, which is the node's value too.
+    Assign(Box<TExpr>, Box<TExpr>),
     /// `AND_THEN` (`false`) or `OR_ELSE` (`true`) of two BOOLs: when the left operand has this
     /// value it is the result and the right one is not evaluated.
     ShortCircuit(bool, Box<TExpr>, Box<TExpr>),
@@ -148,7 +151,7 @@ impl TExpr {
             | TK::Conv(a)
             | TK::Deref(a)
             | TK::Ref(a) => a.has_call(),
-            TK::RefAdd(a, b) | TK::RefDiff(a, b) => a.has_call() || b.has_call(),
+            TK::RefAdd(a, b) | TK::RefDiff(a, b) | TK::Assign(a, b) => a.has_call() || b.has_call(),
             TK::Index(a, ix) => a.has_call() || ix.iter().any(TExpr::has_call),
             TK::Bin(_, a, b) | TK::Cmp(_, a, b) | TK::ShortCircuit(_, a, b) => {
                 a.has_call() || b.has_call()
@@ -383,6 +386,7 @@ impl<'a> Ctx<'a> {
             ExprKind::Call { callee, args } => {
                 self.check_call_expr(callee, args, span, scope, expected)
             }
+            ExprKind::Assign(target, value) => self.check_assign_expr(target, value, span, scope),
         }
     }
 

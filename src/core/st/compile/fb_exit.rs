@@ -281,7 +281,7 @@ fn each_element(
             ((*hi).clone(), (*lo).clone(), Some(minus_one.clone()))
         };
         body = stmt(
-            StmtKind::For { var: ident(&counter(k + 1), span), from, to, by, body: vec![body] },
+            StmtKind::For { var: name(&counter(k + 1), span), from, to, by, body: vec![body] },
             span,
         );
     }

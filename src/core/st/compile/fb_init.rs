@@ -547,7 +547,7 @@ fn init_variable(
     for (k, (lo, hi)) in dims.iter().enumerate().rev() {
         body = stmt(
             StmtKind::For {
-                var: ident(&counter(k + 1), span),
+                var: name(&counter(k + 1), span),
                 from: lo.clone(),
                 to: hi.clone(),
                 by: None,

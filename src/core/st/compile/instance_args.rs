@@ -170,6 +170,6 @@ fn calls(e: &ast::Expr) -> bool {
         | ExprKind::Deref(a)
         | ExprKind::Unary(_, a) => calls(a),
         ExprKind::Index(a, ix) => calls(a) || ix.iter().any(calls),
-        ExprKind::Binary(_, a, b) => calls(a) || calls(b),
+        ExprKind::Binary(_, a, b) | ExprKind::Assign(a, b) => calls(a) || calls(b),
     }
 }

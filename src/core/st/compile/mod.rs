@@ -50,6 +50,7 @@
 //!   is checked at run time.
 
 mod action_dispatch;
+mod assign_expr;
 mod bit;
 mod calendar;
 mod class;
@@ -60,6 +61,7 @@ mod emit;
 mod expr;
 mod fb_exit;
 mod fb_init;
+mod for_element;
 mod for_written;
 mod generic;
 mod implicit;

@@ -111,8 +111,13 @@ fn name_tag(name: &str) -> u32 {
 
 /// Why property `name` cannot be a VAR_IN_OUT argument: it has no memory, only its
 /// accessors. CODESYS refuses it as well: a VAR_IN_OUT
-/// needs a variable with write access (its error C0041).
-fn property_not_a_place(name: &str) -> String {
+/// needs a variable with write access (its error C0041). Written (`access` [`Access::Write`]:
+/// an assignment inside an expression, a FOR variable), only an assignment statement calls
+/// its SET.
+fn property_not_a_place(name: &str, access: Access) -> String {
+    if access == Access::Write {
+        return format!("property `{name}` is written by an assignment statement only (which calls its SET), not here");
+    }
     format!(
         "property `{name}` is no variable: it cannot be passed to a VAR_IN_OUT (as in CODESYS, C0041: a VAR_IN_OUT needs a variable with write access); copy it into a variable first"
     )
@@ -735,7 +740,7 @@ impl<'a> Ctx<'a> {
             return None;
         };
         if access != Access::Read {
-            let msg = property_not_a_place(&id.name);
+            let msg = property_not_a_place(&id.name, access);
             self.error(scope.file, id.span, msg);
             return Some(TExpr::error(id.span));
         }
@@ -1141,7 +1146,7 @@ impl<'a> Ctx<'a> {
             return TExpr::error(id.span);
         };
         if access != Access::Read {
-            let msg = property_not_a_place(&id.name);
+            let msg = property_not_a_place(&id.name, access);
             self.error(scope.file, id.span, msg);
             return TExpr::error(id.span);
         }

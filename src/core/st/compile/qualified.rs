@@ -326,7 +326,8 @@ impl Lowering<'_, '_> {
                         self.stmts(body, scope);
                     }
                 }
-                StmtKind::For { from, to, by, body, .. } => {
+                StmtKind::For { var, from, to, by, body } => {
+                    self.expr(var, scope);
                     self.expr(from, scope);
                     self.expr(to, scope);
                     if let Some(by) = by {
@@ -367,7 +368,7 @@ impl Lowering<'_, '_> {
                     self.expr(i, scope);
                 }
             }
-            ExprKind::Binary(_, a, b) => {
+            ExprKind::Binary(_, a, b) | ExprKind::Assign(a, b) => {
                 self.expr(a, scope);
                 self.expr(b, scope);
             }

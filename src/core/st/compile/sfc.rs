@@ -413,8 +413,8 @@ fn flags_in_stmts(stmts: &mut [Stmt], controlled: &HashSet<String>) {
                 bodies.extend(arms.iter_mut().map(|arm| &mut arm.body));
                 bodies.extend(otherwise.as_mut().map(|(_, body)| body));
             }
-            StmtKind::For { from, to, by, body, .. } => {
-                exprs.extend([from, to]);
+            StmtKind::For { var, from, to, by, body } => {
+                exprs.extend([var, from, to]);
                 exprs.extend(by.as_mut());
                 bodies.push(body);
             }
@@ -459,7 +459,7 @@ fn flags_in_expr(e: &mut Expr, controlled: &HashSet<String>) {
         | ExprKind::Part(base, _, _)
         | ExprKind::Deref(base)
         | ExprKind::Unary(_, base) => flags_in_expr(base, controlled),
-        ExprKind::Binary(_, a, b) => {
+        ExprKind::Binary(_, a, b) | ExprKind::Assign(a, b) => {
             flags_in_expr(a, controlled);
             flags_in_expr(b, controlled);
         }

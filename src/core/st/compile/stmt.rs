@@ -202,7 +202,7 @@ impl<'a> Ctx<'a> {
     fn check_for(
         &mut self,
         s: &Stmt,
-        var: &ast::Ident,
+        var: &ast::Expr,
         from: &ast::Expr,
         to: &ast::Expr,
         by: Option<&ast::Expr>,
@@ -210,8 +210,8 @@ impl<'a> Ctx<'a> {
         scope: Scope,
     ) -> Option<TStmt> {
         let file = scope.file;
-        let ve = ast::Expr { kind: ExprKind::Name(var.clone()), span: var.span };
-        let v = self.check_place(&ve, scope, Access::Write, None);
+        let named = matches!(var.kind, ExprKind::Name(_));
+        let v = self.check_place(var, scope, Access::Write, None);
         let mut ok = !v.ty.is_error();
         let p = v.ty.prim(&self.types);
         if ok && (!p.is_some_and(Prim::is_int) || matches!(v.ty, Ty::Enum(_))) {
@@ -219,26 +219,37 @@ impl<'a> Ctx<'a> {
             self.error(
                 file,
                 var.span,
-                format!("the FOR variable `{}` must be an integer, not `{n}`", var.name),
+                format!("the FOR variable `{}` must be an integer, not `{n}`", expr_text(var)),
             );
             ok = false;
         }
         if ok {
-            let local = scope
-                .pou
-                .and_then(|pi| self.pous[pi].lookup(&var.name).map(|i| self.pous[pi].vars[i].kind));
+            let root = super::for_element::control_root(var);
+            let local = root.and_then(|id| {
+                scope.pou.and_then(|pi| {
+                    self.pous[pi].lookup(&id.name).map(|i| self.pous[pi].vars[i].kind)
+                })
+            });
             // a FUNCTION's result is one of its variables too (OSCAT's FSTRING_TO_MONTH)
-            let result = scope.pou.is_some_and(|pi| {
-                self.pous[pi].kind == PouKind::Function && var.is(&self.pous[pi].name)
+            let result = root.is_some_and(|id| {
+                scope.pou.is_some_and(|pi| {
+                    self.pous[pi].kind == PouKind::Function && id.is(&self.pous[pi].name)
+                })
             });
             if !result && (matches!(local, Some(VarKind::InOut)) || local.is_none()) {
                 self.error(
                     file,
                     var.span,
-                    format!("the FOR variable `{}` must be a local variable of the POU", var.name),
+                    format!(
+                        "the FOR variable `{}` must be a local variable of the POU",
+                        expr_text(var)
+                    ),
                 );
                 ok = false;
             }
+        }
+        if ok && !named {
+            ok = self.for_element_fixed(var, &v, file);
         }
         let ty = match &v.ty {
             Ty::Sub(p, _, _) => Ty::Prim(*p),
@@ -260,8 +271,15 @@ impl<'a> Ctx<'a> {
             }
             None => TExpr::konst(Cv::Int(1), ty.clone(), var.span),
         };
-        self.for_vars.push(var.name.clone());
-        self.for_written.push(false);
+        // An element or member may be written through another name of it (`a[k]`, a
+        // reference): its loop always tests the bound after the body, which costs nothing
+        // when the body leaves it alone (`for_element`).
+        let name = match &var.kind {
+            ExprKind::Name(id) => id.name.clone(),
+            _ => String::new(),
+        };
+        self.for_vars.push(name);
+        self.for_written.push(!named);
         self.loop_depth += 1;
         let body = self.check_body(body, scope);
         self.loop_depth -= 1;

@@ -49,8 +49,6 @@ pub(crate) enum Want {
     CommaOrRBracket,
     /// `*`: the next dimension of an `ARRAY [*, …]`.
     Star,
-    /// `:=` after a FOR loop's control variable, where an element or a member was written.
-    ForCounter,
     Assign,
     Then,
     Do,
@@ -78,7 +76,7 @@ pub(crate) enum Want {
 }
 
 impl Want {
-    pub(crate) const ALL: [Want; 35] = [
+    pub(crate) const ALL: [Want; 34] = [
         Want::SemiAfterStmt,
         Want::SemiAfterDecl,
         Want::Stmt,
@@ -89,7 +87,6 @@ impl Want {
         Want::CommaOrRParen,
         Want::CommaOrRBracket,
         Want::Star,
-        Want::ForCounter,
         Want::Assign,
         Want::Then,
         Want::Do,
@@ -128,7 +125,6 @@ impl Want {
             Want::CommaOrRParen => "`,` or `)`",
             Want::CommaOrRBracket => "`,` or `]`",
             Want::Star => "`*` (every dimension of an `ARRAY [*, …]` is open)",
-            Want::ForCounter => "`:=` after the control variable (IEC 61131-3 counts in a variable named alone, not in an element or a member: count in a local variable and copy it)",
             Want::Assign => "`:=`",
             Want::Then => "`THEN`",
             Want::Do => "`DO`",

@@ -6,6 +6,7 @@
 //! nothing open is taken for a misspelt end of the innermost construct. At most one error is
 //! reported at any one token, so one mistake makes one diagnostic.
 
+mod assign_expr;
 mod sfc;
 
 use super::lex::{Kw, Tok, Token, P};
@@ -1663,7 +1664,7 @@ impl<'a> Parser<'a> {
             Tok::Ident => {
                 let target = self.postfix()?;
                 if self.eat_p(P::Assign) {
-                    let value = self.expr()?;
+                    let value = self.assigned_value()?;
                     StmtKind::Assign { target, value }
                 } else if *self.tok() == Tok::Ident
                     && self.text_of(self.pos).eq_ignore_ascii_case("REF")
@@ -1838,22 +1839,27 @@ impl<'a> Parser<'a> {
     fn for_stmt(&mut self) -> PResult<StmtKind> {
         let opened = self.span();
         self.bump();
+        let start = self.pos;
         let var = match self.ident() {
-            Ok(var) => var,
+            // `FOR a[i] := …`, `FOR s.n := …` (TwinCAT): IEC 61131-3 counts in a name alone
+            Ok(_) if matches!(self.tok(), Tok::P(P::LBracket | P::Dot)) => {
+                self.habit(Habit::ForElement);
+                self.pos = start;
+                self.postfix()?
+            }
+            Ok(var) => Expr { span: var.span, kind: ExprKind::Name(var) },
             Err(_) => {
                 // `FOR 1 := …`: on after the bad token.
                 if *self.tok_at(1) == Tok::P(P::Assign) {
                     self.bump();
                 }
-                Ident { name: String::new(), span: opened }
+                Expr {
+                    kind: ExprKind::Name(Ident { name: String::new(), span: opened }),
+                    span: opened,
+                }
             }
         };
-        // `FOR a[i] := …`, `FOR s.n := …`: the standard's control variable is a name alone
-        let want = match self.tok_at(0) {
-            Tok::P(P::LBracket | P::Dot) => Want::ForCounter,
-            _ => Want::Assign,
-        };
-        self.expect_p_soft(P::Assign, want);
+        self.expect_p_soft(P::Assign, Want::Assign);
         let from = self.expr_until(&[Kw::To]);
         self.expect_kw_soft(Kw::To, Want::To);
         let to = self.expr_until(&[Kw::By, Kw::Do]);
@@ -2096,6 +2102,7 @@ impl<'a> Parser<'a> {
             Tok::P(P::LParen) => {
                 self.bump();
                 let inner = self.expr()?;
+                let inner = self.assignment_after(inner)?;
                 self.expect_p(P::RParen, Want::RParen)?;
                 return Ok(inner);
             }
