@@ -303,6 +303,39 @@ fn for_loops_count_up_down_and_stop_at_the_type_end() {
     assert_eq!(r.int("main.j"), 5);
 }
 
+/// CODESYS's assignment inside an expression is checked as a statement's: the value of
+/// `r := i` is a REAL, which an INT takes only converted (CODESYS's documentation calls
+/// `int_var := real_var1 := int_var` an incorrect assignment), a CONSTANT is not written, an
+/// instance's output is not written from outside. TwinCAT's FOR in an element counts in a
+/// fixed place of the POU's own variable only.
+#[test]
+fn habits_of_statements_keep_the_statements_rules() {
+    let program = |vars: &str, body: &str| {
+        errors(&format!(
+            "FUNCTION_BLOCK Fb VAR_OUTPUT q : INT; END_VAR END_FUNCTION_BLOCK
+PROGRAM main
+VAR {vars} END_VAR
+VAR CONSTANT K : INT := 3; END_VAR
+{body}
+END_PROGRAM"
+        ))
+    };
+    let e = program("i : INT; r : REAL;", "i := r := i;");
+    assert!(e.contains("`REAL` cannot be assigned to `INT`"), "{e}");
+    let e = program("i : INT;", "i := K := 4;");
+    assert!(e.contains("`K` is CONSTANT"), "{e}");
+    let e = program("i : INT; f : Fb;", "i := (f.q := 1) + 1;");
+    assert!(e.contains("`q` is a VAR_OUTPUT of `Fb`"), "{e}");
+    let e = program("a : ARRAY [1..2] OF INT; n : INT := 1;", "FOR a[n] := 0 TO 1 DO END_FOR;");
+    assert!(e.contains("element at constant indices"), "{e}");
+    // a constant index out of the bounds is that error only
+    let e = program("a : ARRAY [1..2] OF INT;", "FOR a[K] := 0 TO 1 DO END_FOR;");
+    assert!(e.contains("index 3 is out of the bounds `1..2`") && e.lines().count() == 1, "{e}");
+    let e = program("a : ARRAY [1..2] OF REAL;", "FOR a[1] := 0 TO 1 DO END_FOR;");
+    assert!(e.contains("must be an integer, not `REAL`"), "{e}");
+    assert_eq!(program("a : ARRAY [1..2] OF INT; b : BOOL;", "FOR a[2] := 0 TO 1 DO END_FOR;"), "");
+}
+
 #[test]
 fn while_repeat_exit_continue() {
     let r = once(

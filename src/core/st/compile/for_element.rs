@@ -11,6 +11,7 @@
 
 use super::ctx::{Ctx, Storage};
 use super::expr::{expr_text, TExpr, TK};
+use super::types::Ty;
 use crate::st::ast::{self, ExprKind, Ident};
 
 /// The variable a FOR loop's control variable is, or is an element or member of; `None` when
@@ -23,16 +24,42 @@ pub(super) fn control_root(var: &ast::Expr) -> Option<&Ident> {
     }
 }
 
-/// Whether a checked place is at an address known before the loop runs: a variable of the
-/// POU's own memory, its members, and its elements at constant indices.
-fn fixed(e: &TExpr) -> bool {
+/// Where a checked place is: at an address known before the loop runs (a variable of the
+/// POU's own memory, its members, and its elements at constant indices), or not.
+#[derive(PartialEq)]
+enum Place {
+    Fixed,
+    /// At an index the body could change, or reached through a reference.
+    Moving,
+    /// At a constant index out of its array's bounds (an error the checker reported).
+    OutOfBounds,
+}
+
+fn place(e: &TExpr) -> Place {
     match &e.k {
-        TK::Var { storage, by_ref: false } => {
-            matches!(storage, Storage::Inst(_) | Storage::Frame(_) | Storage::Global(_))
+        TK::Var { storage: Storage::Inst(_) | Storage::Frame(_) | Storage::Global(_), by_ref } => {
+            if *by_ref {
+                Place::Moving
+            } else {
+                Place::Fixed
+            }
         }
-        TK::Member(base, _, false) => fixed(base),
-        TK::Index(base, index) => fixed(base) && index.iter().all(|i| i.const_int().is_some()),
-        _ => false,
+        TK::Member(base, _, false) => place(base),
+        TK::Index(base, index) => {
+            let Ty::Array(array) = &base.ty else { return Place::Moving };
+            let mut at = place(base);
+            for (i, &(lo, hi)) in index.iter().zip(&array.dims) {
+                match i.const_int() {
+                    None => return Place::Moving,
+                    Some(v) if v < i128::from(lo) || v > i128::from(hi) => {
+                        at = Place::OutOfBounds;
+                    }
+                    Some(_) => {}
+                }
+            }
+            at
+        }
+        _ => Place::Moving,
     }
 }
 
@@ -42,20 +69,23 @@ impl Ctx<'_> {
     pub(super) fn for_element_fixed(
         &mut self,
         var: &ast::Expr,
-        place: &TExpr,
+        checked: &TExpr,
         file: usize,
     ) -> bool {
-        if fixed(place) {
-            return true;
+        match place(checked) {
+            Place::Fixed => true,
+            Place::OutOfBounds => false,
+            Place::Moving => {
+                self.error(
+                    file,
+                    var.span,
+                    format!(
+                        "the FOR variable `{}` must be a variable, or its member or element at constant indices",
+                        expr_text(var)
+                    ),
+                );
+                false
+            }
         }
-        self.error(
-            file,
-            var.span,
-            format!(
-                "the FOR variable `{}` must be a variable, or its member or element at constant indices",
-                expr_text(var)
-            ),
-        );
-        false
     }
 }

@@ -1739,7 +1739,7 @@ impl<'a> Parser<'a> {
         let mut branches = Vec::new();
         let mut otherwise = None;
         loop {
-            let cond = self.expr_until(&[Kw::Then]);
+            let cond = self.condition_until(&[Kw::Then]);
             self.expect_kw_soft(Kw::Then, Want::Then);
             branches.push((cond, self.block(Closer::If, false)?));
             if self.eat_kw(Kw::Elsif) {
@@ -1873,7 +1873,7 @@ impl<'a> Parser<'a> {
     fn while_stmt(&mut self) -> PResult<StmtKind> {
         let opened = self.span();
         self.bump();
-        let cond = self.expr_until(&[Kw::Do]);
+        let cond = self.condition_until(&[Kw::Do]);
         self.expect_kw_soft(Kw::Do, Want::Do);
         let body = self.block(Closer::While, false)?;
         self.close(Closer::While, "WHILE", opened);
@@ -1888,7 +1888,7 @@ impl<'a> Parser<'a> {
         if self.close(Closer::Repeat, "REPEAT", opened).is_none() {
             return Ok(StmtKind::Repeat { body, until: dummy_expr(span) });
         }
-        let until = self.expr_until(&[Kw::EndRepeat]);
+        let until = self.condition_until(&[Kw::EndRepeat]);
         self.expect_kw_soft(Kw::EndRepeat, Want::EndRepeat);
         Ok(StmtKind::Repeat { body, until })
     }

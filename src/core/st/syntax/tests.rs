@@ -725,8 +725,17 @@ fn parses_assignment_expressions() {
     // a call's `name :=` stays a named argument; doubled parentheses give an assignment
     let StmtKind::Call(call) = stmt("f(x := 1, (y := 2));") else { panic!() };
     assert_eq!(sx(&call), "(call f x:=1 (:= y 2))");
-    // unparenthesised inside a condition: an error (a mistyped `=` far more often)
-    assert_eq!(body_errors("IF x := 1 THEN END_IF;"), ["2:6: expected `THEN`, found `:=`"]);
+    // a whole condition may be one (CODESYS's example); inside an operation it needs
+    // parentheses
+    let StmtKind::If { branches, .. } = stmt("IF b := (i = 1) THEN i := i + 1; END_IF;") else {
+        panic!()
+    };
+    assert_eq!(sx(&branches[0].0), "(:= b (= i 1))");
+    let StmtKind::While { cond, .. } = stmt("WHILE go := n < 5 DO n := n + 1; END_WHILE;") else {
+        panic!()
+    };
+    assert_eq!(sx(&cond), "(:= go (< n 5))");
+    assert_eq!(body_errors("f(1, x + y := 2);"), ["2:12: expected `,` or `)`, found `:=`"]);
 }
 
 #[test]
