@@ -611,3 +611,77 @@ END_PROGRAM
     plc.daemon.wait("Fill entered again by its transition", || plc.get("main.Fill.X") == json!(1));
     plc.stop();
 }
+
+/// `main.r^` names what `main.r` points to (docs/ST.md "### plcctl"): read and written where
+/// the reference points when the request is served, a struct's every member for `main.p^`,
+/// an element of an array of references; a NULL reference, a name that is no reference and
+/// a member the target has not are refused naming them. Nothing the program does moves the
+/// references after its first scan, so every value read is the one written.
+#[test]
+fn names_through_a_reference_read_and_write_what_it_points_to() {
+    const THROUGH: &str = "\
+TYPE Axis : STRUCT pos : REAL; homed : BOOL; END_STRUCT END_TYPE
+PROGRAM Main
+VAR
+    hits : DINT := 7;
+    count : INT := 3;
+    axis : Axis;
+    text : STRING[10] := 'abc';
+    r : REF_TO DINT;
+    p : POINTER TO Axis;
+    refs : ARRAY [1..2] OF REF_TO INT;
+    rs : REF_TO STRING[10];
+    nothing : REF_TO INT;
+END_VAR
+    r := REF(hits);
+    p := ADR(axis);
+    refs[2] := REF(count);
+    rs := REF(text);
+END_PROGRAM
+";
+    let config = "[plc]\nscan_period_ms = 1\nwatchdog_ms = 100\n\
+        [[program]]\nname = \"main\"\nfile = \"main.st\"\n[control]\nsocket = \"plcd.sock\"\n";
+    let project = Project::new("names-through", &[("plcd.toml", config), ("main.st", THROUGH)]);
+    let daemon = project.start().with_patience(PATIENCE);
+    let plc = Plc { daemon, project };
+    plc.daemon.wait_for("control socket");
+    plc.daemon.wait("RUN", || plc.json(&["status"])["mode"] == "RUN");
+    plc.daemon.wait("the references taken", || plc.get("main.rs") == json!("main.text"));
+
+    let hits = plc.values(&["main.r^"]);
+    assert_eq!(
+        (&hits[0]["dev"], &hits[0]["value"], &hits[0]["type"]),
+        (&json!("main.r^"), &json!(7), &json!("DINT"))
+    );
+    plc.ok(&["set", "main.r^", "100"]);
+    assert_eq!(plc.get("main.hits"), json!(100), "written where r points");
+
+    let axis = plc.values(&["main.p^"]);
+    let names: Vec<&str> = axis.iter().map(|v| v["dev"].as_str().unwrap()).collect();
+    assert_eq!(names, ["main.p^.pos", "main.p^.homed"]);
+    plc.ok(&["set", "main.p^.pos", "2.5", "main.P^.HOMED", "TRUE"]);
+    assert_eq!(plc.values(&["main.axis.pos", "main.axis.homed"])[1]["value"], json!(1));
+    assert_eq!(plc.get("main.p^.pos"), json!(2.5));
+
+    assert_eq!(plc.get("main.refs[2]^"), json!(3));
+    assert_eq!(plc.get("main.rs^"), json!("abc"));
+    plc.ok(&["set", "main.rs^", "'xyz'"]);
+    assert_eq!(plc.get("main.text"), json!("xyz"));
+    let watched = plc.ok(&["watch", "--count", "1", "--interval", "10ms", "main.r^"]);
+    assert!(watched.contains("main.r^=100"), "{watched}");
+
+    let err = plc.refused(&["get", "main.nothing^"]);
+    assert!(err.contains("`main.nothing^`: `main.nothing` is NULL"), "{err}");
+    let err = plc.refused(&["set", "main.refs[1]^", "1"]);
+    assert!(err.contains("`main.refs[1]^`: `main.refs[1]` is NULL"), "{err}");
+    let err = plc.refused(&["get", "main.hits^"]);
+    assert!(err.contains("`main.hits` is not a reference (DINT)"), "{err}");
+    let err = plc.refused(&["get", "main.p^.speed"]);
+    assert!(
+        err.contains("no variable `main.p^.speed`: a POINTER TO Axis points to no `.speed`"),
+        "{err}"
+    );
+    let err = plc.refused(&["set", "main.p^", "1"]);
+    assert!(err.contains("`main.p^` holds 2 variables"), "{err}");
+    plc.stop();
+}

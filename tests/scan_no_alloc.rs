@@ -411,6 +411,7 @@ fn typed_programs_do_not_allocate() {
         retained: vec![(10, 2)].into(),
         located_init: vec![(d("D00102"), Elem::I32, 7)].into(),
         symbols: vec![],
+        referents: vec![],
     });
     let mut state = ExecState::with_frame(program.frame_bytes);
     let retain = RetainSet::default();

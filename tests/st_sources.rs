@@ -841,3 +841,29 @@ fn a_twincat_gvl_name_and_a_library_namespace_qualify_names() {
     assert_eq!(last(&trace, "main.nLast").as_deref(), Some("3"), "{trace}");
     assert_eq!(last(&trace, "main.nSeen").as_deref(), Some("3"), "{trace}");
 }
+
+/// `--watch main.r^` follows the reference at every look (docs/ST.md, "Tools"): it shows
+/// what `a` holds while `r` points to `a`, then `b` once the program moves it there; a `NULL`
+/// reference shows 0.
+#[test]
+fn a_watch_through_a_reference_follows_it() {
+    let dir = TempDir::new("st-watch-through");
+    write(
+        dir.path(),
+        "plcd.toml",
+        "[plc]\nscan_period_ms = 10\n\n[[program]]\nname = \"main\"\nfile = \"main.st\"\n",
+    );
+    let source = "PROGRAM main\nVAR\n    n : INT;\n    a : INT;\n    b : INT := 200;\n\
+        r : REF_TO INT;\n    nothing : REF_TO INT;\nEND_VAR\n    n := n + 1;\n    a := n;\n\
+        IF n < 5 THEN\n        r := REF(a);\n    ELSE\n        r := REF(b);\n    END_IF;\nEND_PROGRAM\n";
+    write(dir.path(), "main.st", source);
+    let trace = checked_trace(dir.path(), "95ms", "main.r^,main.nothing^");
+    // scans at 0, 10, … 90 ms: r^ is a (1, 2, 3, 4), then b from the fifth scan on
+    let seen: Vec<&str> = trace
+        .lines()
+        .filter_map(|l| l.split_once("\"dev\":\"main.r^\",\"value\":"))
+        .map(|(_, v)| v.trim_end_matches('}'))
+        .collect();
+    assert_eq!(seen, ["1", "2", "3", "4", "200"], "{trace}");
+    assert!(last(&trace, "main.nothing^").is_none_or(|v| v == "0"), "{trace}");
+}

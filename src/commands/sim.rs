@@ -170,6 +170,7 @@ fn watched_type(watched: &Watched) -> Option<ValueType> {
     match watched {
         Watched::Device(_) => None,
         Watched::Variable(symbol) => Some(symbol.ty.clone()),
+        Watched::Through(through) => Some(through.target.ty.clone()),
     }
 }
 

@@ -9,7 +9,7 @@ use crate::diag::{Diagnostic, Diagnostics, Warning};
 use crate::lang::ops::{Op, SystemRequest, Written};
 use crate::lang::{self, Context, DutySite, Program, Variables};
 use crate::st;
-use crate::value::Symbol;
+use crate::value::{Pointer, Space, Symbol, ValueType};
 
 /// FX5: "The DUTY instruction can be used up to 5 times (points)".
 pub const MAX_DUTY: usize = 5;
@@ -80,6 +80,79 @@ impl Project {
 pub enum Watched {
     Device(Address),
     Variable(Symbol),
+    /// What a reference points to, found each time it is read (`main.r^`).
+    Through(Through),
+}
+
+/// A name through a reference (`main.r^`, `main.p^.pos`, `main.refs[2]^`): the leaf `target`
+/// of what `reference` points to, found where the reference points each time it is read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Through {
+    /// The name with the declarations' spelling: `main.p^.pos`.
+    pub name: String,
+    /// The reference variable (`main.p`).
+    pub reference: Symbol,
+    /// The leaf read, placed from the start of what the reference points to (`.pos` at 4).
+    pub target: Symbol,
+}
+
+/// Why a reference leads to no variable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Nowhere {
+    Null,
+    /// It went nowhere (`ADR` of an element out of bounds).
+    Invalid,
+    /// Into the frame area of the task that took it (a FUNCTION's variable, `VAR_TEMP`): the
+    /// place is gone between scans.
+    Frame,
+    /// Past the end of variable memory (pointer arithmetic).
+    Outside,
+    /// To a device, where only a whole elementary value is named through it.
+    Device,
+}
+
+impl Through {
+    /// Where the target is while the reference holds `slot`, in variable memory of
+    /// `var_bytes` bytes. Allocates nothing (the trace's watches call it at every scan).
+    pub fn place(&self, slot: u64, var_bytes: usize) -> Result<Pointer, Nowhere> {
+        let start = Pointer::from_reference(slot).ok_or(Nowhere::Null)?;
+        let offset = self.target.at.offset;
+        match start.space {
+            Space::Var => {
+                let at = start.offset as usize + offset as usize;
+                if at + self.target.ty.bytes() as usize > var_bytes {
+                    return Err(Nowhere::Outside);
+                }
+                Ok(Pointer { space: Space::Var, offset: start.offset + offset })
+            }
+            Space::Frame => Err(Nowhere::Frame),
+            Space::Discard => Err(Nowhere::Invalid),
+            Space::Word | Space::Bit | Space::Byte if offset == 0 => Ok(start),
+            Space::Word | Space::Bit | Space::Byte => Err(Nowhere::Device),
+        }
+    }
+
+    /// Why a client's read or write of it found no variable, naming it and the reference.
+    pub fn nowhere(&self, why: Nowhere, slot: u64) -> String {
+        let (name, reference) = (&self.name, &self.reference.name);
+        let shown = crate::value::format_reference(slot);
+        match why {
+            Nowhere::Null => format!("`{name}`: `{reference}` is NULL"),
+            Nowhere::Invalid => format!("`{name}`: `{reference}` points nowhere (invalid)"),
+            Nowhere::Frame => format!(
+                "`{name}`: `{reference}` points into a task's frame ({shown}: a FUNCTION's \
+                 variable or a VAR_TEMP), which is gone between scans"
+            ),
+            Nowhere::Outside => {
+                format!("`{name}`: `{reference}` points outside variable memory ({shown})")
+            }
+            Nowhere::Device => format!(
+                "`{name}`: `{reference}` points to a device ({}): only its whole value is \
+                 named through it (`{reference}^`)",
+                crate::device::format_reference(slot)
+            ),
+        }
+    }
 }
 
 impl Watched {
@@ -89,6 +162,7 @@ impl Watched {
         match self {
             Watched::Device(address) => address.to_string(),
             Watched::Variable(symbol) => symbol.name.clone(),
+            Watched::Through(through) => through.name.clone(),
         }
     }
 }
@@ -125,6 +199,9 @@ impl Project {
         if let Ok(address) = Address::parse(name) {
             return Ok(vec![Watched::Device(address)]);
         }
+        if name.contains('^') {
+            return Ok(self.through(name)?.into_iter().map(Watched::Through).collect());
+        }
         if let Some(symbol) = self.variable(name) {
             return Ok(vec![Watched::Variable(symbol.clone())]);
         }
@@ -147,6 +224,57 @@ impl Project {
 }
 
 impl Project {
+    /// What `name` names through a reference (`main.r^`, `main.p^.pos`, `main.refs[2]^`, a
+    /// struct's or an FB's every leaf for `main.p^`): the part before the `^` is a reference
+    /// variable, the part after names a leaf (or every leaf under it) of what its type points
+    /// to. One `^` per name.
+    pub fn through(&self, name: &str) -> Result<Vec<Through>, String> {
+        let name = name.trim();
+        let Some((base, rest)) = name.split_once('^') else {
+            return Err(format!("`{name}` names no `^`"));
+        };
+        let base = base.trim();
+        if rest.contains('^') {
+            return Err(format!(
+                "`{name}`: a name goes through one reference (one `^`); name the second \
+                 reference's target by what the first points to"
+            ));
+        }
+        let Some(reference) = self.variable(base) else {
+            return Err(match self.closest_variable(base) {
+                Some(close) => format!("no variable `{base}` (did you mean `{close}`?)"),
+                None => format!("no variable `{base}`"),
+            });
+        };
+        let ValueType::Reference { type_name } = &reference.ty else {
+            return Err(format!(
+                "`{base}` is not a reference ({}): `^` follows a REF_TO, POINTER TO or \
+                 REFERENCE TO variable",
+                crate::value::type_name(&reference.ty)
+            ));
+        };
+        let Some((_, target)) = self.variables.referents.iter().find(|(n, _)| n == type_name)
+        else {
+            return Err(format!("`{base}` is a {type_name}: what it points to has no names"));
+        };
+        let mut found: Vec<&Symbol> =
+            target.iter().filter(|s| names_match(&s.name, rest)).collect();
+        if found.is_empty() {
+            found = target.iter().filter(|s| is_under(&s.name, rest)).collect();
+        }
+        if found.is_empty() {
+            return Err(format!("no variable `{name}`: a {type_name} points to no `{rest}`"));
+        }
+        Ok(found
+            .into_iter()
+            .map(|leaf| Through {
+                name: format!("{}^{}", reference.name, leaf.name),
+                reference: reference.clone(),
+                target: leaf.clone(),
+            })
+            .collect())
+    }
+
     /// What a client of the running PLC names (`plcctl get`, `set`, `force`): as
     /// [`Project::watched`], with an error for a name that is neither a device nor a variable
     /// that says so and suggests the closest variable name (`no device or variable
@@ -154,6 +282,10 @@ impl Project {
     /// unknown flag, what is wrong with the address.
     pub fn resolve(&self, name: &str) -> Result<Vec<Watched>, String> {
         let name = name.trim();
+        if name.contains('^') {
+            // `through`'s errors already name what is wrong
+            return self.watched(name);
+        }
         self.watched(name).map_err(|_| match Address::parse(name) {
             Err(e @ (AddressError::OutOfRange { .. } | AddressError::UnknownFlag(_))) => {
                 e.to_string()

@@ -428,6 +428,30 @@ fn get_reads_variables_with_their_types() {
     );
 }
 
+/// A name through a reference (`main.r^`, `main.p^.pos`) goes to the daemon as written, in a
+/// `get` as in a `set` (`NAME=VALUE`: the `^` is no part of the value).
+#[test]
+fn names_through_references_are_sent_as_written() {
+    let ok = json!({"kind": "values", "scan": 3, "values": [
+        {"dev": "main.r^", "value": 7, "type": "DINT"},
+        {"dev": "main.p^.pos", "value": 2.5, "type": "REAL"}]});
+    let out = exchange(
+        "get-through",
+        &["get", "main.r^", "main.p^.pos"],
+        r#"{"v":1,"cmd":"get","devices":["main.r^","main.p^.pos"]}"#,
+        ok,
+    );
+    assert_eq!(out, "main.r^        7  DINT\nmain.p^.pos  2.5  REAL\n");
+    let ok = json!({"kind": "written", "scan": 4, "count": 2});
+    let out = exchange(
+        "set-through",
+        &["set", "main.r^=100", "main.p^.pos", "1.5"],
+        r#"{"v":1,"cmd":"set","writes":[{"dev":"main.r^","value":"100"},{"dev":"main.p^.pos","value":"1.5"}]}"#,
+        ok,
+    );
+    assert_eq!(out, "2 writes applied at the END of scan 4\n");
+}
+
 #[test]
 fn load_sends_an_absolute_path() {
     let ok = json!({"kind": "loaded", "online": true, "programs": 2, "tasks": 3, "mode": "RUN"});

@@ -11,7 +11,7 @@ use super::mode::{KeySwitch, ModeState};
 use super::schedule::Init;
 use super::task::{read_sample, Sample};
 use super::Engine;
-use crate::project::Watched;
+use crate::project::{Through, Watched};
 use crate::value::{Elem, Pointer, ValueType};
 use crate::vm::Vm;
 
@@ -68,6 +68,9 @@ pub(super) struct Watch {
     pub(super) at: WatchAt,
     pub(super) last: u64,
     pub(super) text: Box<[u8]>,
+    /// A name through a reference (`main.r^`): `at` is then found where the reference points
+    /// at each look, and reads 0 (an empty `STRING`) while it points nowhere.
+    pub(super) through: Option<Box<Through>>,
 }
 
 impl Watch {
@@ -81,18 +84,36 @@ impl Watch {
                 }),
                 Box::default(),
             ),
-            Watched::Variable(symbol) => match symbol.ty {
-                ValueType::String { cap } => {
-                    (WatchAt::Text { at: symbol.at }, vec![0; cap as usize + 1].into_boxed_slice())
+            Watched::Variable(symbol) | Watched::Through(Through { target: symbol, .. }) => {
+                match symbol.ty {
+                    ValueType::String { cap } => (
+                        WatchAt::Text { at: symbol.at },
+                        vec![0; cap as usize + 1].into_boxed_slice(),
+                    ),
+                    ValueType::WString { cap } => {
+                        let room = 2 * cap.min(255) as usize + 1;
+                        (WatchAt::WideText { at: symbol.at }, vec![0; room].into_boxed_slice())
+                    }
+                    ref ty => (WatchAt::Value { at: symbol.at, elem: ty.elem() }, Box::default()),
                 }
-                ValueType::WString { cap } => {
-                    let room = 2 * cap.min(255) as usize + 1;
-                    (WatchAt::WideText { at: symbol.at }, vec![0; room].into_boxed_slice())
-                }
-                ref ty => (WatchAt::Value { at: symbol.at, elem: ty.elem() }, Box::default()),
-            },
+            }
         };
-        Watch { at, last: 0, text }
+        let through = match watched {
+            Watched::Through(through) => Some(Box::new(through.clone())),
+            _ => None,
+        };
+        Watch { at, last: 0, text, through }
+    }
+
+    /// Where a variable's watch reads now: its place, or where its reference points.
+    fn place(&self, vm: &Vm, at: Pointer) -> Pointer {
+        match &self.through {
+            None => at,
+            Some(through) => {
+                let slot = vm.read_value(through.reference.at, Elem::U64);
+                through.place(slot, vm.vars().len()).unwrap_or(Pointer::DISCARD)
+            }
+        }
     }
 
     pub(super) fn watches_device(&self) -> bool {
@@ -103,15 +124,15 @@ impl Watch {
     pub(super) fn sample_quietly(&mut self, vm: &Vm) {
         match self.at {
             WatchAt::Device(sample) => self.last = read_sample(&vm.mem, sample) as u64,
-            WatchAt::Value { at, elem } => self.last = vm.read_value(at, elem),
+            WatchAt::Value { at, elem } => self.last = vm.read_value(self.place(vm, at), elem),
             WatchAt::Text { at } => {
-                let now = vm.string_bytes(at);
+                let now = vm.string_bytes(self.place(vm, at));
                 let len = now.len().min(self.text.len() - 1);
                 self.text[0] = len as u8;
                 self.text[1..=len].copy_from_slice(&now[..len]);
             }
             WatchAt::WideText { at } => {
-                let now = vm.wstring_bytes(at);
+                let now = vm.wstring_bytes(self.place(vm, at));
                 let len = now.len().min(self.text.len() - 1) & !1;
                 self.text[0] = (len / 2) as u8;
                 self.text[1..=len].copy_from_slice(&now[..len]);
@@ -233,14 +254,14 @@ impl Engine {
                     }
                 }
                 WatchAt::Value { at, elem } => {
-                    let slot = vm.read_value(at, elem);
+                    let slot = vm.read_value(watch.place(vm, at), elem);
                     if slot != watch.last {
                         watch.last = slot;
                         sink.event(now, Event::SetVariable { watch: index, slot });
                     }
                 }
                 WatchAt::Text { at } => {
-                    let now_text = vm.string_bytes(at);
+                    let now_text = vm.string_bytes(watch.place(vm, at));
                     let len = now_text.len().min(watch.text.len() - 1);
                     if watch.text[1..=usize::from(watch.text[0])] != now_text[..len] {
                         watch.text[0] = len as u8;
@@ -249,7 +270,7 @@ impl Engine {
                     }
                 }
                 WatchAt::WideText { at } => {
-                    let now_text = vm.wstring_bytes(at);
+                    let now_text = vm.wstring_bytes(watch.place(vm, at));
                     let len = now_text.len().min(watch.text.len() - 1) & !1;
                     if watch.text[1..=2 * usize::from(watch.text[0])] != now_text[..len] {
                         watch.text[0] = (len / 2) as u8;

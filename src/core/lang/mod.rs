@@ -114,6 +114,13 @@ pub struct Variables {
     pub located_init: Box<[(Place, Elem, u64)]>,
     /// Every variable, one leaf each, in declaration order.
     pub symbols: Vec<Symbol>,
+    /// Each reference type of the variables (`REF_TO Axis`, as [`ValueType::Reference`]
+    /// names it) with the leaves of what it points to, placed from the start of the target
+    /// (`""` for an `INT`, `.pos` for a struct's member): what `main.r^` and `main.p^.pos`
+    /// name ([`crate::project::Through`]).
+    ///
+    /// [`ValueType::Reference`]: crate::value::ValueType::Reference
+    pub referents: Vec<(String, Vec<Symbol>)>,
 }
 
 /// What the reference value `slot` points to, as tools show it: the variable of `symbols` at

@@ -13,15 +13,18 @@ use crate::drivers::real_time::{
     Applied, ControlCommand, TextWrite, Write, MAX_TEXT_WRITE, WRITES_PER_COMMAND,
 };
 use crate::drivers::virtual_time::trace::push_json_value;
-use crate::project::{Project, Watched};
+use crate::project::{Project, Through, Watched};
 use crate::services::control::ClientId;
-use crate::value::{self, Symbol, ValueType};
+use crate::value::{self, Elem, Symbol, ValueType};
 use plcd_ipc::{ErrorKind as Kind, Failure, NamedValue, Reply, ResponseLine, Value};
 
-/// What a `get` reads: a device, or one variable of an elementary type or a `STRING`.
+/// What a `get` reads: a device, or one variable of an elementary type or a `STRING`, or
+/// what a reference points to (`main.r^`): its reference is read by a first capture, the
+/// variable there by the next ([`through_resolved`]).
 pub(super) enum Item {
     Device(Address),
     Variable(Symbol),
+    Through(Through),
 }
 
 impl Item {
@@ -30,8 +33,49 @@ impl Item {
         match self {
             Item::Device(_) => None,
             Item::Variable(symbol) => Some(var_read(symbol)),
+            Item::Through(through) => Some(reference_read(through)),
         }
     }
+}
+
+/// The read of the reference a name through it goes through.
+pub(super) fn reference_read(through: &Through) -> VarRead {
+    VarRead::Value { at: through.reference.at, elem: Elem::U64 }
+}
+
+/// The variable `through` names as of `snapshot`, which read its reference: named as the
+/// client named it, at the place the reference points to; an error naming it where the
+/// reference is `NULL` or points where no variable is.
+fn through_symbol(
+    through: &Through,
+    snapshot: &Snapshot,
+    project: &Project,
+) -> Result<Symbol, Failure> {
+    let VarRead::Value { at, elem } = reference_read(through) else { unreachable!() };
+    let slot = snapshot.value(at, elem).unwrap_or(0);
+    let place = through
+        .place(slot, project.variables.initial.len())
+        .map_err(|why| Failure::new(Kind::Invalid, through.nowhere(why, slot)))?;
+    Ok(Symbol { name: through.name.clone(), at: place, retain: false, ..through.target.clone() })
+}
+
+/// `items` with each name through a reference replaced by the variable it points to as of
+/// `snapshot` (which read the references), for a second capture to read; the first name
+/// whose reference points nowhere, as an error.
+pub(super) fn through_resolved(
+    items: Vec<Item>,
+    snapshot: &Snapshot,
+    project: &Project,
+) -> Result<Vec<Item>, Failure> {
+    items
+        .into_iter()
+        .map(|item| match item {
+            Item::Through(through) => {
+                through_symbol(&through, snapshot, project).map(Item::Variable)
+            }
+            item => Ok(item),
+        })
+        .collect()
 }
 
 fn var_read(symbol: &Symbol) -> VarRead {
@@ -59,7 +103,7 @@ impl RequestHandler {
             Ok(items) => items,
             Err(f) => return Some(ResponseLine::failure(f)),
         };
-        if items.iter().any(|i| matches!(i, Item::Variable(_))) && self.loading() {
+        if items.iter().any(|i| !matches!(i, Item::Device(_))) && self.loading() {
             return Some(ResponseLine::failure(loading()));
         }
         self.park_for_snapshot(client, Then::Values { items })
@@ -72,6 +116,24 @@ impl RequestHandler {
         let mut pending = Vec::with_capacity(writes.len());
         {
             let running = self.running();
+            if writes.iter().any(|w| w.dev.contains('^')) {
+                // What a reference points to is known once a capture has read it.
+                let mut references = Vec::new();
+                for write in writes {
+                    if write.dev.contains('^') {
+                        match one_through(&running.project, write.dev.trim()) {
+                            Ok(through) => references.push(through),
+                            Err(f) => return Some(ResponseLine::failure(f)),
+                        }
+                    }
+                }
+                drop(running);
+                if self.loading() {
+                    return Some(ResponseLine::failure(loading()));
+                }
+                let then = Then::SetThrough { writes: writes.to_vec(), references };
+                return self.park_for_snapshot(client, then);
+            }
             for write in writes {
                 match checked_write(&running.project, write) {
                     Ok(p) => pending.push(p),
@@ -94,6 +156,41 @@ impl RequestHandler {
     }
 }
 
+/// The writes of a `set` that names variables through references (`main.r^`), once a capture
+/// read the references: each such name written where its reference points as of `snapshot`;
+/// the commands to queue, or the first write refused.
+pub(super) fn set_through(
+    project: &Project,
+    writes: &[NamedValue],
+    snapshot: &Snapshot,
+) -> Result<Vec<ControlCommand>, Failure> {
+    let mut pending = Vec::with_capacity(writes.len());
+    for write in writes {
+        let name = write.dev.trim();
+        if name.contains('^') {
+            let symbol = through_symbol(&one_through(project, name)?, snapshot, project)?;
+            pending.push(typed_write(&symbol, write)?);
+        } else {
+            pending.push(checked_write(project, write)?);
+        }
+    }
+    Ok(commands(pending))
+}
+
+/// The one variable a `set` names through a reference.
+pub(super) fn one_through(project: &Project, name: &str) -> Result<Through, Failure> {
+    let invalid = |message: String| Failure::new(Kind::Invalid, message);
+    let mut leaves = project.through(name).map_err(invalid)?;
+    if leaves.len() != 1 {
+        return Err(invalid(format!(
+            "`{name}` holds {} variables: write them one by one (`{}`, …)",
+            leaves.len(),
+            leaves[0].name
+        )));
+    }
+    Ok(leaves.remove(0))
+}
+
 /// The answer to a request that names variables while a `load` is under way.
 pub(super) fn loading() -> Failure {
     Failure::new(Kind::Busy, "a load is under way; name variables again once it is answered")
@@ -111,6 +208,7 @@ pub(super) fn resolve_reads(project: &Project, names: &[String]) -> Result<Vec<I
             let item = match watched {
                 Watched::Device(address) => Item::Device(address),
                 Watched::Variable(symbol) => Item::Variable(symbol),
+                Watched::Through(through) => Item::Through(through),
             };
             text += item.var_read().map_or(0, |r| r.text_bytes());
             items.push(item);
@@ -168,6 +266,12 @@ fn checked_write(project: &Project, write: &NamedValue) -> Result<Pending, Failu
             }))
         }
     };
+    typed_write(symbol, write)
+}
+
+/// `write`'s value read against `symbol`'s type, as one write of a `set`.
+fn typed_write(symbol: &Symbol, write: &NamedValue) -> Result<Pending, Failure> {
+    let invalid = |message: String| Failure::new(Kind::Invalid, message);
     let ty = value::type_name(&symbol.ty);
     if symbol.constant {
         return Err(invalid(format!("{} is CONSTANT ({ty}): it cannot be written", symbol.name)));
@@ -252,6 +356,7 @@ pub(super) fn captured(items: &[Item], snapshot: &Snapshot) -> bool {
     items.iter().all(|item| match item {
         Item::Device(d) => snapshot.word(word_of(d)).is_some(),
         Item::Variable(symbol) => snapshot.has(&var_read(symbol)),
+        Item::Through(through) => snapshot.has(&reference_read(through)),
     })
 }
 
@@ -266,6 +371,8 @@ pub(super) fn values(items: &[Item], snapshot: &Snapshot, symbols: &[Symbol]) ->
                 value_in(d, snapshot.word(word_of(d)).unwrap_or(0)),
             ),
             Item::Variable(symbol) => variable_value(symbol, snapshot, symbols),
+            // resolved before the capture that answers (`through_resolved`)
+            Item::Through(through) => NamedValue::device(through.name.clone(), 0),
         })
         .collect();
     ResponseLine::ok(Reply::Values { scan: snapshot.scan.count, values })

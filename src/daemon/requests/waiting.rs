@@ -19,8 +19,9 @@ use crate::drivers::real_time::snapshot::{
 };
 use crate::drivers::real_time::{pending, Applied, Command, Completion, ControlCommand};
 use crate::engine::Refusal;
+use crate::project::Through;
 use crate::services::control::ClientId;
-use plcd_ipc::{ErrorKind as Kind, Failure, ResponseLine};
+use plcd_ipc::{ErrorKind as Kind, Failure, NamedValue, ResponseLine};
 
 /// A parked request.
 pub(super) struct Waiting {
@@ -63,6 +64,12 @@ pub(super) enum Then {
     Values {
         items: Vec<Item>,
     },
+    /// A `set` that names variables through references (`main.r^`): once a capture read the
+    /// references, its writes are queued where they point.
+    SetThrough {
+        writes: Vec<NamedValue>,
+        references: Vec<Through>,
+    },
     Loaded {
         online: bool,
         programs: usize,
@@ -79,7 +86,7 @@ impl Then {
                 .iter()
                 .filter_map(|i| match i {
                     Item::Device(d) => Some(word_of(d)),
-                    Item::Variable(_) => None,
+                    Item::Variable(_) | Item::Through(_) => None,
                 })
                 .collect(),
             Then::Debug { devices: Some(devices), .. }
@@ -92,6 +99,9 @@ impl Then {
     fn var_reads(&self) -> Vec<VarRead> {
         match self {
             Then::Values { items } => items.iter().filter_map(Item::var_read).collect(),
+            Then::SetThrough { references, .. } => {
+                references.iter().map(devices::reference_read).collect()
+            }
             _ => Vec::new(),
         }
     }
@@ -100,6 +110,9 @@ impl Then {
     fn captured(&self, snapshot: &crate::drivers::real_time::snapshot::Snapshot) -> bool {
         match self {
             Then::Values { items } => devices::captured(items, snapshot),
+            Then::SetThrough { references, .. } => {
+                references.iter().all(|r| snapshot.has(&devices::reference_read(r)))
+            }
             Then::Debug { devices: Some(devices), .. }
             | Then::Status { devices: Some(devices) } => {
                 devices.iter().all(|d| snapshot.word(word_of(d)).is_some())
@@ -116,6 +129,11 @@ pub(super) enum Outcome {
     Wait {
         then: Then,
         again: bool,
+    },
+    /// Queue `commands`, then wait for their completions.
+    Send {
+        commands: Vec<ControlCommand>,
+        then: Then,
     },
 }
 
@@ -320,6 +338,7 @@ impl RequestHandler {
         let Ok(snapshot) = self.links.snapshot.lock() else { return };
         let generation = snapshot.generation;
         let mut again = false;
+        let mut sends = Vec::new();
         let mut index = 0;
         while index < self.waiting.len() {
             let Stage::Snapshot { after } = self.waiting[index].stage else {
@@ -341,9 +360,27 @@ impl RequestHandler {
             let client = waiting.client;
             let outcome = match waiting.then {
                 Then::Status { devices } => self.status_outcome(devices, &snapshot),
+                Then::Values { items } if items.iter().any(|i| matches!(i, Item::Through(_))) => {
+                    // The references are read: the variables they point to, at the next capture.
+                    let project = &self.running().project;
+                    match devices::through_resolved(items, &snapshot, project) {
+                        Ok(items) => Outcome::Wait { then: Then::Values { items }, again: true },
+                        Err(f) => Outcome::Answer(ResponseLine::failure(f)),
+                    }
+                }
                 Then::Values { items } => {
                     let symbols = &self.running().project.variables.symbols;
                     Outcome::Answer(devices::values(&items, &snapshot, symbols))
+                }
+                Then::SetThrough { writes, .. } => {
+                    let project = &self.running().project;
+                    match devices::set_through(project, &writes, &snapshot) {
+                        Ok(commands) => {
+                            let then = Then::Written { count: writes.len() };
+                            Outcome::Send { commands, then }
+                        }
+                        Err(f) => Outcome::Answer(ResponseLine::failure(f)),
+                    }
                 }
                 Then::Forces { .. } => Outcome::Answer(forces::table(&snapshot)),
                 Then::Debug { unbroken, devices, until_paused } => {
@@ -363,10 +400,22 @@ impl RequestHandler {
                     });
                     again |= ask;
                 }
+                Outcome::Send { commands, then } => {
+                    sends.push((client, waiting.since, commands, then))
+                }
             }
         }
         self.fresh_until = Some((generation, Instant::now() + super::STATUS_MAX_AGE));
         drop(snapshot);
+        for (client, since, commands, then) in sends {
+            match self.send(commands) {
+                Ok(tickets) => {
+                    let stage = Stage::Commands { tickets, applied: None, refused: None };
+                    self.waiting.push(Waiting { client, since, stage, then });
+                }
+                Err(f) => ready.push((client, ResponseLine::failure(f))),
+            }
+        }
         if again {
             self.want_snapshot();
         }

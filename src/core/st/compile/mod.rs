@@ -7,6 +7,7 @@
 //!   located variables (what an IEC direct address names is `device::iec`'s, by `[iec]`);
 //! - `expr`, `stmt`, `stdlib`, `refs` (references and pointers): checking into a typed tree;
 //! - `emit`: the typed tree to ops; `link` (here): one program per instance, symbols;
+//! - `referents`: what each reference type points to, as tools name it (`main.r^`);
 //! - `trunc`: `TRUNC` typed by its use where a `DINT` would not do (matiec);
 //! - `short_circuit`: `AND_THEN` and `OR_ELSE`, the right operand skipped when the left
 //!   decides;
@@ -75,6 +76,7 @@ mod mixed_args;
 mod oop;
 mod qualified;
 mod query;
+mod referents;
 mod refs;
 mod sfc;
 mod short_circuit;
@@ -379,6 +381,7 @@ pub fn compile_in_namespaces(
         retained: merge_ranges(retained).into_boxed_slice(),
         located_init: cx.located_init.clone().into_boxed_slice(),
         symbols,
+        referents: referents::referents(&cx),
     };
     let warnings = sorted(std::mem::take(&mut cx.warnings)).0.into_iter().map(Warning).collect();
     Ok(Compiled { programs, variables, warnings })
