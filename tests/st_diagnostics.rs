@@ -381,6 +381,8 @@ const MESSAGES: &[(&str, &str)] = &[
     // qualified.rs: a global variable list's name and a library's namespace before a name
     ("the global variable list `{}` declares no `{}`", "gvl-declares-no-variable"),
     ("`{}.{}` names a global that the POU's own `{}` hides: rename the POU's variable", "gvl-variable-hidden"),
+    ("`{}` is a global of the list `{}`, which is {}: name it `{}`", "gvl-qualified-only"),
+    ("`{}` is a value of the enumeration `{}`, which is {}: name it `{}` (or `{}#{}`)", "enum-qualified-only"),
     ("`{}` is PROTECTED: only the code of `{}` and of the function blocks extending it may use it", "protected-method-called"),
     ("`{}` is a variable of `{}`, not a method", "variable-called-as-method"),
     ("`{}` has no method `{}`", "method-not-found"),
@@ -697,6 +699,8 @@ const UNREACHABLE: &[(&str, &str)] = &[
 /// Literals of the compiler sources that are not messages by themselves: words and hints that
 /// messages are built from, and type names.
 const PARTS: &[&str] = &[
+    // the pragma whose plain names are errors (qualified.rs)
+    "attribute 'qualified_only'",
     // what a generic input was given instead of a variable (generic.rs)
     "a value",
     // what a UNION member cannot be (union.rs)

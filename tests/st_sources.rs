@@ -73,7 +73,7 @@ fn project() -> TempDir {
         &pou(
             "MAIN",
             "PROGRAM MAIN\r\nVAR\r\n\tc : Counter;\r\n\tp : Point;\r\n\tn : INT;\r\nEND_VAR",
-            "c(step := STEP);\r\np.x := c.total;\r\nIF p.x > 4 THEN\r\n\tn := n + 1;\r\nEND_IF",
+            "c(step := Constants.STEP);\r\np.x := c.total;\r\nIF p.x > 4 THEN\r\n\tn := n + 1;\r\nEND_IF",
         ),
     );
     write(
@@ -866,4 +866,29 @@ fn a_watch_through_a_reference_follows_it() {
         .collect();
     assert_eq!(seen, ["1", "2", "3", "4", "200"], "{trace}");
     assert!(last(&trace, "main.nothing^").is_none_or(|v| v == "0"), "{trace}");
+}
+
+/// `{attribute 'qualified_only'}` before a `.TcGVL`'s `VAR_GLOBAL` makes `Gvl.x` the only name
+/// of its variables outside the list, as TwinCAT enforces it: the plain name is an error at its
+/// place naming the qualified form (docs/ST.md, "Qualified names").
+#[test]
+fn a_qualified_only_gvl_refuses_the_plain_name() {
+    let dir = project();
+    let main = pou(
+        "MAIN",
+        "PROGRAM MAIN\r\nVAR\r\n\tc : Counter;\r\n\tp : Point;\r\n\tn : INT;\r\nEND_VAR",
+        "c(step := STEP);",
+    );
+    write(dir.path(), "MAIN.TcPOU", &main);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    // line 11 of the file: `      <ST><![CDATA[c(step := STEP);`, `STEP` at column 30
+    assert!(
+        stderr.contains(
+            "MAIN.TcPOU:11:30: error: `STEP` is a global of the list `Constants`, which is \
+             {attribute 'qualified_only'}: name it `Constants.STEP`"
+        ),
+        "{stderr}"
+    );
 }

@@ -35,6 +35,19 @@ pub struct File {
     /// The name of the global variable list its `VAR_GLOBAL` blocks form, which qualifies
     /// their variables (`GVL_Param.N`): a `.TcGVL`'s `<GVL Name>`; `None`, the file's stem.
     pub list_name: Option<String>,
+    /// What a `{attribute 'qualified_only'}` stands before.
+    pub qualified_only: QualifiedOnly,
+}
+
+/// The declarations of a file `{attribute 'qualified_only'}` stands before: its global
+/// variable list's variables are then named `Gvl.x` only, an enumeration's values `E.Value`
+/// (or `E#Value`) only.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct QualifiedOnly {
+    /// Before a `VAR_GLOBAL` block: the file's list.
+    pub globals: bool,
+    /// Before `TYPE Name`: the types so named, as written.
+    pub types: Vec<String>,
 }
 
 /// A top-level declaration.

@@ -14,6 +14,12 @@
 //! global, no POU and no type: `a.b` keeps its meaning wherever `a` is declared (an
 //! enumeration's `E.Value` included). `Gvl.x` where the POU declares its own `x` is an error,
 //! as the global would be hidden from the checker.
+//!
+//! `{attribute 'qualified_only'}` (the one pragma that has an effect) before a list's
+//! `VAR_GLOBAL` makes `Gvl.x` the only way to name its variables outside the list, and before
+//! `TYPE E` makes `E.Value` (or `E#Value`) the only way to name the enumeration's values, as
+//! CODESYS and TwinCAT enforce it: the plain name, where nothing of the scope declares it, is
+//! an error naming the qualified form.
 
 use std::borrow::Cow;
 use std::collections::{HashMap, HashSet};
@@ -36,22 +42,28 @@ pub(super) fn lower<'f>(
         globals: HashSet::new(),
         declared: HashSet::new(),
         namespaces: namespaces.iter().map(|n| key(n)).collect(),
+        qualified_only: HashMap::new(),
     };
     for file in files.iter() {
         names.gather(file);
     }
-    if names.lists.is_empty() && names.namespaces.is_empty() {
+    if names.lists.is_empty() && names.namespaces.is_empty() && names.qualified_only.is_empty() {
         return files;
     }
     for file in &mut files {
         let path = file.path.clone();
-        let mut lowering = Lowering { names: &names, path: &path, diags: &mut *diags };
+        let mut lowering =
+            Lowering { names: &names, path: &path, diags: &mut *diags, plain_ok: false };
         for item in &mut file.to_mut().items {
             lowering.item(item);
         }
     }
     files
 }
+
+/// The pragma that makes a qualified name the only one (its braces apart, which the
+/// diagnostics' templates read as a placeholder).
+const QUALIFIED_ONLY: &str = concat!("{", "attribute 'qualified_only'", "}");
 
 fn key(name: &str) -> String {
     name.to_ascii_lowercase()
@@ -66,6 +78,9 @@ struct Names {
     /// POUs, types and interfaces.
     declared: HashSet<String>,
     namespaces: HashSet<String>,
+    /// The names `{attribute 'qualified_only'}` allows only qualified, each with its
+    /// qualified form: a list's global (`GVL_Param.N`), an enumeration's value (`E.Value`).
+    qualified_only: HashMap<String, String>,
 }
 
 impl Names {
@@ -81,12 +96,29 @@ impl Names {
                 }
                 Item::Type(t) => {
                     self.declared.insert(key(&t.name.name));
+                    let only = &file.qualified_only.types;
+                    if let TypeDef::Enum { def, .. } = &t.def {
+                        if only.iter().any(|n| n.eq_ignore_ascii_case(&t.name.name)) {
+                            for (value, _) in &def.values {
+                                let qualified = format!("{}.{}", t.name.name, value.name);
+                                self.qualified_only.insert(key(&value.name), qualified);
+                            }
+                        }
+                    }
                 }
                 Item::Interface(i) => {
                     self.declared.insert(key(&i.name.name));
                 }
                 Item::Globals(block) => {
                     let vars: Vec<String> = block_names(block).collect();
+                    if let (true, Some(list)) = (file.qualified_only.globals, &list) {
+                        for decl in &block.decls {
+                            for n in &decl.names {
+                                self.qualified_only
+                                    .insert(key(&n.name), format!("{list}.{}", n.name));
+                            }
+                        }
+                    }
                     self.globals.extend(vars.iter().cloned());
                     if let Some(list) = &list {
                         self.lists.entry(key(list)).or_default().extend(vars);
@@ -115,6 +147,9 @@ struct Lowering<'n, 'd> {
     names: &'n Names,
     path: &'n Path,
     diags: &'d mut Vec<Diagnostic>,
+    /// In a global variable list or a type declaration, where a `qualified_only` list's
+    /// variables and an enumeration's values are named plainly.
+    plain_ok: bool,
 }
 
 impl Lowering<'_, '_> {
@@ -126,30 +161,16 @@ impl Lowering<'_, '_> {
         let none = HashSet::new();
         match item {
             Item::Pou(p) => self.pou(p, &none),
-            Item::Type(t) => match &mut t.def {
-                TypeDef::Alias { ty, init } => {
-                    self.type_ref(ty, &none);
-                    if let Some(init) = init {
-                        self.init(init, &none);
-                    }
-                }
-                TypeDef::Struct { members } | TypeDef::Union { members } => {
-                    for decl in members {
-                        self.type_ref(&mut decl.ty, &none);
-                        if let Some(init) = &mut decl.init {
-                            self.init(init, &none);
-                        }
-                    }
-                }
-                TypeDef::Enum { def, .. } => {
-                    for (_, value) in &mut def.values {
-                        if let Some(value) = value {
-                            self.expr(value, &none);
-                        }
-                    }
-                }
-            },
-            Item::Globals(block) => self.block(block, &none),
+            Item::Type(t) => {
+                self.plain_ok = true;
+                self.type_decl(t, &none);
+                self.plain_ok = false;
+            }
+            Item::Globals(block) => {
+                self.plain_ok = true;
+                self.block(block, &none);
+                self.plain_ok = false;
+            }
             Item::Action { action, .. } => self.stmts(&mut action.body, &none),
             Item::Configuration(c) => {
                 for block in &mut c.globals {
@@ -167,6 +188,32 @@ impl Lowering<'_, '_> {
                     self.type_ref(&mut p.ty, &none);
                     for accessor in [&mut p.get, &mut p.set].into_iter().flatten() {
                         self.pou(accessor, &none);
+                    }
+                }
+            }
+        }
+    }
+
+    fn type_decl(&mut self, t: &mut crate::st::ast::TypeDecl, none: &HashSet<String>) {
+        match &mut t.def {
+            TypeDef::Alias { ty, init } => {
+                self.type_ref(ty, none);
+                if let Some(init) = init {
+                    self.init(init, none);
+                }
+            }
+            TypeDef::Struct { members } | TypeDef::Union { members } => {
+                for decl in members {
+                    self.type_ref(&mut decl.ty, none);
+                    if let Some(init) = &mut decl.init {
+                        self.init(init, none);
+                    }
+                }
+            }
+            TypeDef::Enum { def, .. } => {
+                for (_, value) in &mut def.values {
+                    if let Some(value) = value {
+                        self.expr(value, none);
                     }
                 }
             }
@@ -356,7 +403,8 @@ impl Lowering<'_, '_> {
     /// An expression, inside out: `NS.Gvl.x` is `Gvl.x` once its inner `NS.Gvl` is `Gvl`.
     fn expr(&mut self, e: &mut Expr, scope: &HashSet<String>) {
         match &mut e.kind {
-            ExprKind::Literal(_) | ExprKind::Name(_) => {}
+            ExprKind::Literal(_) => {}
+            ExprKind::Name(name) => self.plain(name, scope),
             ExprKind::Member(base, _)
             | ExprKind::Bit(base, _)
             | ExprKind::Part(base, _, _)
@@ -380,6 +428,38 @@ impl Lowering<'_, '_> {
         if let Some(name) = self.unqualified(e, scope) {
             e.kind = ExprKind::Name(name);
         }
+    }
+
+    /// A plain name that `{attribute 'qualified_only'}` allows only qualified, where nothing
+    /// of the scope, no other global, no POU and no type declares it: an error naming the
+    /// qualified form (the name is left, for the checker to go on with).
+    fn plain(&mut self, name: &Ident, scope: &HashSet<String>) {
+        if self.plain_ok {
+            return;
+        }
+        let Some(qualified) = self.names.qualified_only.get(&key(&name.name)) else { return };
+        let k = key(&name.name);
+        if scope.contains(&k) || self.names.declared.contains(&k) {
+            return;
+        }
+        let (owner, _) = qualified.split_once('.').unwrap_or((qualified, ""));
+        let msg = if self.names.lists.contains_key(&key(owner)) && self.names.globals.contains(&k) {
+            format!(
+                "`{}` is a global of the list `{owner}`, which is {QUALIFIED_ONLY}: name it \
+                 `{qualified}`",
+                name.name
+            )
+        } else if self.names.globals.contains(&k) {
+            // a global of that name: the plain name is the global
+            return;
+        } else {
+            format!(
+                "`{}` is a value of the enumeration `{owner}`, which is {QUALIFIED_ONLY}: name it \
+                 `{qualified}` (or `{owner}#{}`)",
+                name.name, name.name
+            )
+        };
+        self.error(name, msg);
     }
 
     /// The name `Q.x` stands for when `Q` is a namespace or a global variable list; an error

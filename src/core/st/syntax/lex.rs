@@ -275,6 +275,9 @@ pub(crate) struct Lexed {
     /// The tokens that follow an unterminated string, in order: what the parser finds wrong
     /// there is the string's fault, already reported.
     pub quiet: Vec<usize>,
+    /// The tokens a `{attribute 'qualified_only'}` pragma stands before, in order: the one
+    /// pragma that has an effect (see `compile::qualified`).
+    pub qualified_only: Vec<usize>,
 }
 
 /// Splits `text` into tokens; the last is [`Tok::Eof`].
@@ -289,6 +292,7 @@ pub(crate) fn lex(text: &str) -> Lexed {
         errors: Vec::new(),
         eof_in_comment: false,
         quiet: Vec::new(),
+        qualified_only: Vec::new(),
     };
     lexer.run();
     Lexed {
@@ -296,6 +300,7 @@ pub(crate) fn lex(text: &str) -> Lexed {
         errors: lexer.errors,
         eof_in_comment: lexer.eof_in_comment,
         quiet: lexer.quiet,
+        qualified_only: lexer.qualified_only,
     }
 }
 
@@ -309,6 +314,16 @@ struct Lexer<'a> {
     errors: Vec<(Span, Msg)>,
     eof_in_comment: bool,
     quiet: Vec<usize>,
+    qualified_only: Vec<usize>,
+}
+
+/// Whether a pragma's text (between `{` and `}`) is `attribute 'qualified_only'`, spaced and
+/// cased in any way.
+fn is_qualified_only(pragma: &str) -> bool {
+    let mut words = pragma.split_whitespace();
+    words.next().is_some_and(|w| w.eq_ignore_ascii_case("attribute"))
+        && words.next().is_some_and(|w| w.eq_ignore_ascii_case("'qualified_only'"))
+        && words.next().is_none()
 }
 
 fn is_word(b: u8) -> bool {
@@ -415,7 +430,7 @@ impl Lexer<'_> {
                     }
                 }
                 (b'{', _) => {
-                    let line = self.line;
+                    let (line, start) = (self.line, self.pos + 1);
                     while self.peek().is_some_and(|b| b != b'}') {
                         self.bump();
                     }
@@ -423,6 +438,8 @@ impl Lexer<'_> {
                         let span = self.span();
                         self.error(span, Msg::UnterminatedPragma { line: line.to_string() });
                         self.eof_in_comment = true;
+                    } else if is_qualified_only(&self.text[start..self.pos]) {
+                        self.qualified_only.push(self.tokens.len());
                     }
                     self.bump();
                 }

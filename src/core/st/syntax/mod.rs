@@ -19,6 +19,7 @@ pub fn parse_file(path: &Path, text: &str) -> (ast::File, Diagnostics) {
     // a byte order mark is no character of the source (editors show none)
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let lexed = lex::lex(text);
+    let qualified_only = qualified_only(text, &lexed);
     let (items, habits, mut errors) =
         parse::parse(text, lexed.tokens, lexed.eof_in_comment, lexed.quiet);
     errors.extend(lexed.errors);
@@ -27,7 +28,29 @@ pub fn parse_file(path: &Path, text: &str) -> (ast::File, Diagnostics) {
     for (span, msg) in errors {
         diags.push(Diagnostic::new(path, span.line, span.col, msg.to_string()));
     }
-    (ast::File { path: path.to_path_buf(), items, habits, list_name: None }, diags)
+    let file =
+        ast::File { path: path.to_path_buf(), items, habits, list_name: None, qualified_only };
+    (file, diags)
+}
+
+/// What each `{attribute 'qualified_only'}` of a file stands before: `VAR_GLOBAL`, or
+/// `TYPE Name` (other pragmas may come between).
+fn qualified_only(text: &str, lexed: &lex::Lexed) -> ast::QualifiedOnly {
+    use lex::{Kw, Tok};
+    let mut found = ast::QualifiedOnly::default();
+    for &at in &lexed.qualified_only {
+        let Some(token) = lexed.tokens.get(at) else { continue };
+        match token.kind {
+            Tok::Kw(Kw::VarGlobal) => found.globals = true,
+            Tok::Kw(Kw::Type) => {
+                if let Some(name) = lexed.tokens.get(at + 1).filter(|t| t.kind == Tok::Ident) {
+                    found.types.push(text[name.start as usize..name.end as usize].to_string());
+                }
+            }
+            _ => {}
+        }
+    }
+    found
 }
 
 /// Every message the lexer and the parser can emit, with `{}` where the message varies.
