@@ -382,6 +382,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ("the global variable list `{}` declares no `{}`", "gvl-declares-no-variable"),
     ("`{}.{}` names a global that the POU's own `{}` hides: rename the POU's variable", "gvl-variable-hidden"),
     ("`{}` is a global of the list `{}`, which is {}: name it `{}`", "gvl-qualified-only"),
+    ("`.{}` names a global, and no global is called `{}`", "global-scope-no-global"),
     ("`{}` is a value of the enumeration `{}`, which is {}: name it `{}` (or `{}#{}`)", "enum-qualified-only"),
     ("`{}` is PROTECTED: only the code of `{}` and of the function blocks extending it may use it", "protected-method-called"),
     ("`{}` is a variable of `{}`, not a method", "variable-called-as-method"),
@@ -620,6 +621,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
     (
         "unreachable `ELSE`: the labels cover every value of the selector's type; remove the `ELSE` (`[st] strict` is on)",
         "strict-covered-case-else",
+    ),
+    (
+        "`.x`, the global scope operator, is CODESYS, not IEC 61131-3: name the global plainly, and rename the variable that hides it (`[st] strict` is on)",
+        "strict-global-scope",
     ),
 ];
 

@@ -108,6 +108,9 @@ pub enum Habit {
     EnumDotValue,
     /// A CASE's `ELSE` after labels covering every value of its enumeration selector.
     CoveredCaseElse,
+    /// `.x`, CODESYS's global scope operator: the global `x`, even where a variable of the
+    /// scope is also called `x`.
+    GlobalScope,
 }
 
 impl Habit {
@@ -148,6 +151,7 @@ impl Habit {
             Habit::Jump => "`JMP` and labels are CODESYS in ST: IEC 61131-3 has them in IL only; write IF, WHILE, REPEAT or EXIT (`[st] strict` is on)".to_string(),
             Habit::EnumBaseAfterValues => "IEC 61131-3 writes an enumeration's base type before its values: `BYTE (A, B)` (`[st] strict` is on)".to_string(),
             Habit::EnumDotValue => "IEC 61131-3 names an enumeration's value with `#`: `E#Value` (`[st] strict` is on)".to_string(),
+            Habit::GlobalScope => "`.x`, the global scope operator, is CODESYS, not IEC 61131-3: name the global plainly, and rename the variable that hides it (`[st] strict` is on)".to_string(),
             Habit::CoveredCaseElse => "unreachable `ELSE`: the labels cover every value of the selector's type; remove the `ELSE` (`[st] strict` is on)".to_string(),
             Habit::PositionalThenNamed => "IEC 61131-3 gives a call's arguments all by position or all by name: name each one (`[st] strict` is on)".to_string(),
             Habit::CodesysParameter(codesys, iec) => format!("`{codesys}` is CODESYS's name of this input: IEC 61131-3 names it `{iec}` (`[st] strict` is on)"),

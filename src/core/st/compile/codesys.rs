@@ -107,6 +107,27 @@ impl<'a> super::ctx::Ctx<'a> {
     }
 }
 
+impl super::ctx::Ctx<'_> {
+    /// `.x`, CODESYS's global scope operator (`Habit::GlobalScope`, noted by the parser, which
+    /// keeps the dot in the name): the global `x`, past any variable of the scope called `x`;
+    /// an error when there is no such global.
+    pub(super) fn global_scope_operator(
+        &mut self,
+        id: &crate::st::ast::Ident,
+        scope: super::ctx::Scope,
+        access: super::expr::Access,
+    ) -> super::expr::TExpr {
+        let name = &id.name[1..];
+        let Some(&g) = self.global_names.get(&name.to_ascii_lowercase()) else {
+            let msg = format!("`.{name}` names a global, and no global is called `{name}`");
+            self.error(scope.file, id.span, msg);
+            return super::expr::TExpr::error(id.span);
+        };
+        let plain = crate::st::ast::Ident { name: name.to_string(), span: id.span };
+        self.global_var(g, &plain, access, scope.file)
+    }
+}
+
 /// The names CODESYS (and TwinCAT's Tc2_Standard) gives the inputs of the standard string
 /// functions, each with the IEC 61131-3 name of the same input (`LEN(STR := s)` is
 /// `LEN(IN := s)`): a formal argument so named is `Habit::CodesysParameter`.

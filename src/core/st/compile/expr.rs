@@ -925,6 +925,26 @@ impl<'a> Ctx<'a> {
         true
     }
 
+    /// The global `g`, named `id`: its value when it is a constant read, else the variable.
+    pub(super) fn global_var(
+        &mut self,
+        g: usize,
+        id: &ast::Ident,
+        access: Access,
+        file: usize,
+    ) -> TExpr {
+        let span = id.span;
+        let v = self.globals[g].clone();
+        if access != Access::Read {
+            if !self.may_write(&v, id, access, file) {
+                return TExpr::error(span);
+            }
+        } else if let (true, Some(cv)) = (v.constant, &v.value) {
+            return TExpr::konst(cv.clone(), v.ty.clone(), span);
+        }
+        TExpr { k: TK::Var { storage: v.storage, by_ref: false }, ty: v.ty, span }
+    }
+
     fn name(
         &mut self,
         id: &ast::Ident,
@@ -934,6 +954,9 @@ impl<'a> Ctx<'a> {
     ) -> TExpr {
         let span = id.span;
         let file = scope.file;
+        if id.name.starts_with('.') {
+            return self.global_scope_operator(id, scope, access);
+        }
         if let Some(p) = scope.pou {
             let pou = &self.pous[p];
             if let Some(i) = pou.lookup(&id.name).filter(|&i| i < scope.visible) {
@@ -973,15 +996,7 @@ impl<'a> Ctx<'a> {
             }
         }
         if let Some(&g) = self.global_names.get(&id.name.to_ascii_lowercase()) {
-            let v = self.globals[g].clone();
-            if access != Access::Read {
-                if !self.may_write(&v, id, access, file) {
-                    return TExpr::error(span);
-                }
-            } else if let (true, Some(cv)) = (v.constant, &v.value) {
-                return TExpr::konst(cv.clone(), v.ty.clone(), span);
-            }
-            return TExpr { k: TK::Var { storage: v.storage, by_ref: false }, ty: v.ty, span };
+            return self.global_var(g, id, access, file);
         }
         if let Some(t) = self.own_member(id, access, scope) {
             return t;

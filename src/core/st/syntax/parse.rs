@@ -1661,7 +1661,7 @@ impl<'a> Parser<'a> {
                 self.bump();
                 StmtKind::Jump(self.ident()?)
             }
-            Tok::Ident => {
+            Tok::Ident | Tok::P(P::Dot) => {
                 let target = self.postfix()?;
                 if self.eat_p(P::Assign) {
                     let value = self.assigned_value()?;
@@ -2075,6 +2075,15 @@ impl<'a> Parser<'a> {
             Tok::Kw(Kw::True) => Literal::Bool(true),
             Tok::Kw(Kw::False) => Literal::Bool(false),
             Tok::Ident => return Ok(Expr { kind: ExprKind::Name(self.ident()?), span }),
+            // `.x`, CODESYS's global scope operator: the name keeps its dot for the checker,
+            // which looks it up among the globals only
+            Tok::P(P::Dot) if *self.tok_at(1) == Tok::Ident => {
+                self.habit(Habit::GlobalScope);
+                self.bump();
+                let id = self.ident()?;
+                let name = Ident { name: format!(".{}", id.name), span };
+                return Ok(Expr { kind: ExprKind::Name(name), span });
+            }
             // The operators that are also standard functions, in their call form: `AND(a, b)`,
             // `MOD(a, b)` (IEC 61131-3 lists them among the functions).
             Tok::Kw(kw @ (Kw::And | Kw::Or | Kw::Xor | Kw::Mod))
