@@ -94,10 +94,10 @@ const MESSAGES: &[(&str, &str)] = &[
         "`{}` of `{}` is `{}`: it needs a variable of that category, not {}",
         "generic-argument-value",
     ),
-    ("`__SYSTEM.TYPE_CLASS` has no value `{}`", "type-class-value"),
+    ("`{}` has no value `{}`", "type-class-value"),
     // bit.rs: TwinCAT's and CODESYS's BIT
     (
-        "`BIT` is only the type of a STRUCT member or of a FUNCTION_BLOCK's VAR, VAR_INPUT or VAR_OUTPUT",
+        "`BIT` is only the type of a STRUCT or UNION member or of a FUNCTION_BLOCK's VAR, VAR_INPUT or VAR_OUTPUT",
         "bit-misplaced",
     ),
     // union.rs: CODESYS's UNION

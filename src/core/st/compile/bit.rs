@@ -1,5 +1,6 @@
 //! TwinCAT's and CODESYS's `BIT` (docs/ST.md, "Elementary types"): a member of a STRUCT or a
-//! variable of a FUNCTION_BLOCK that CODESYS packs with its neighbours into bits of a byte.
+//! UNION, or a variable of a FUNCTION_BLOCK, that CODESYS packs with its neighbours into bits
+//! of a byte (a UNION's shares the first byte with the other members).
 //! plcd stores it as a `BOOL`, a byte of its own: it reads, writes and converts as a `BOOL`,
 //! and only `SIZEOF` of the structure or block (and the offsets of the members after it) differ
 //! from CODESYS's. Anywhere else, CODESYS refuses it, and so does plcd.
@@ -16,7 +17,7 @@ fn is_bit(ty: &TypeRef) -> bool {
 }
 
 impl<'a> Ctx<'a> {
-    /// The type of a STRUCT member: a `BIT` is a `BOOL`.
+    /// The type of a STRUCT or UNION member: a `BIT` is a `BOOL`.
     pub(super) fn member_type(&mut self, ty: &TypeRef, scope: Scope) -> Ty {
         if is_bit(ty) {
             return self.bit(scope.file, ty);
@@ -54,7 +55,7 @@ impl<'a> Ctx<'a> {
         self.error(
             file,
             id.span,
-            "`BIT` is only the type of a STRUCT member or of a FUNCTION_BLOCK's VAR, VAR_INPUT or VAR_OUTPUT",
+            "`BIT` is only the type of a STRUCT or UNION member or of a FUNCTION_BLOCK's VAR, VAR_INPUT or VAR_OUTPUT",
         );
         Some(Ty::Error)
     }

@@ -225,7 +225,8 @@ impl<'a> Ctx<'a> {
                 if id.is("WSTRING") {
                     return Ty::WStr(80);
                 }
-                if let Some(&t) = self.type_names.get(&key(&id.name)) {
+                let name = super::generic::system_type_name(&id.name).unwrap_or(&id.name);
+                if let Some(&t) = self.type_names.get(&key(name)) {
                     return self.resolve_type_decl(t);
                 }
                 if let Some(&p) = self.pou_names.get(&key(&id.name)) {

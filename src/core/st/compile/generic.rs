@@ -38,6 +38,22 @@ fn category(name: &str) -> Option<&'static str> {
     CATEGORIES.into_iter().find(|c| *c == upper)
 }
 
+/// The prelude's name of CODESYS's type classes' enumeration.
+const TYPE_CLASS: &str = "__SYSTEM_TYPE_CLASS";
+
+/// The prelude's type a dotted name of CODESYS's stands for, as a declaration's type or before
+/// a value: `__SYSTEM.TYPE_CLASS` and its alias of the CODESYS Base Interfaces library,
+/// `IBaseLibrary.TypeClass` (TcUnit's), are the type classes' enumeration; `__SYSTEM.AnyType`
+/// is `__ANY`.
+pub(super) fn system_type_name(name: &str) -> Option<&'static str> {
+    let compact: String = name.chars().filter(|c| !c.is_whitespace()).collect();
+    match compact.to_ascii_lowercase().as_str() {
+        "__system.type_class" | "ibaselibrary.typeclass" => Some(TYPE_CLASS),
+        "__system.anytype" => Some("__ANY"),
+        _ => None,
+    }
+}
+
 /// CODESYS's `__SYSTEM.TYPE_CLASS` of an elementary type; `None` for `CHAR` and `WCHAR`,
 /// which CODESYS has not.
 fn prim_class(p: Prim) -> Option<i128> {
@@ -198,17 +214,19 @@ impl<'a> Ctx<'a> {
         ])
     }
 
-    /// `__SYSTEM.TYPE_CLASS.TYPE_INT`, CODESYS's name of a type class: the value of the
-    /// prelude's enumeration; `None` for any other expression.
+    /// `__SYSTEM.TYPE_CLASS.TYPE_INT` (or `IBaseLibrary.TypeClass.TYPE_INT`), CODESYS's
+    /// name of a type class: the value of the prelude's enumeration; `None` for any other
+    /// expression.
     pub(super) fn system_type_class(&mut self, e: &Expr, span: Span, file: usize) -> Option<TExpr> {
         let ExprKind::Member(base, value) = &e.kind else { return None };
         let ExprKind::Member(system, class) = &base.kind else { return None };
         let ExprKind::Name(system) = &system.kind else { return None };
-        if !system.is("__SYSTEM") || !class.is("TYPE_CLASS") {
+        let written = format!("{}.{}", system.name, class.name);
+        if system_type_name(&written) != Some(TYPE_CLASS) {
             return None;
         }
         let Ty::Enum(ei) = self.resolve_type_ref(
-            &TypeRef::Named(Ident { name: "__SYSTEM_TYPE_CLASS".into(), span }),
+            &TypeRef::Named(Ident { name: TYPE_CLASS.into(), span }),
             Scope { pou: None, visible: 0, file: self.prelude_file },
         ) else {
             return Some(TExpr::error(span));
@@ -217,11 +235,7 @@ impl<'a> Ctx<'a> {
         Some(match found {
             Some(v) => TExpr::konst(Cv::Int(v), Ty::Enum(ei), span),
             None => {
-                self.error(
-                    file,
-                    value.span,
-                    format!("`__SYSTEM.TYPE_CLASS` has no value `{}`", value.name),
-                );
+                self.error(file, value.span, format!("`{written}` has no value `{}`", value.name));
                 TExpr::error(span)
             }
         })

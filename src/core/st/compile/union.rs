@@ -51,7 +51,8 @@ impl<'a> Ctx<'a> {
         let mut image: Vec<u8> = Vec::new();
         let mut initialized: Option<&str> = None;
         for m in members {
-            let ty = self.resolve_type_ref(&m.ty, scope);
+            // a `BIT` member is a `BOOL` as in a STRUCT (TwinCAT's, TcUnit's unions have one)
+            let ty = self.member_type(&m.ty, scope);
             if let Some(loc) = &m.location {
                 self.error(file, loc.span, "a UNION member cannot be located");
             }
