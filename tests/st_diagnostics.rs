@@ -383,6 +383,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}.{}` names a global that the POU's own `{}` hides: rename the POU's variable", "gvl-variable-hidden"),
     ("`{}` is a global of the list `{}`, which is {}: name it `{}`", "gvl-qualified-only"),
     ("`.{}` names a global, and no global is called `{}`", "global-scope-no-global"),
+    ("`{}` is ambiguous: {} global variable lists declare it; name one, {}", "gvl-name-ambiguous"),
     ("`{}` is a value of the enumeration `{}`, which is {}: name it `{}` (or `{}#{}`)", "enum-qualified-only"),
     ("`{}` is PROTECTED: only the code of `{}` and of the function blocks extending it may use it", "protected-method-called"),
     ("`{}` is a variable of `{}`, not a method", "variable-called-as-method"),

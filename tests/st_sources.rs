@@ -892,3 +892,53 @@ fn a_qualified_only_gvl_refuses_the_plain_name() {
         "{stderr}"
     );
 }
+
+/// Two global variable lists may declare the same name, as TwinCAT allows: each is its list's
+/// own global, named `GVL_A.x` in the code, in `--watch` and in the trace (docs/ST.md,
+/// "Qualified names"); a list's own declarations name its own plainly; a global no other list
+/// declares keeps its plain name. The plain `x` elsewhere is an error naming both forms.
+#[test]
+fn two_global_variable_lists_may_declare_the_same_name() {
+    let dir = TempDir::new("st-sources-two-lists");
+    let d = dir.path();
+    write(
+        d,
+        "plcd.toml",
+        "[plc]\nscan_period_ms = 10\n\n[[program]]\nname = \"main\"\nfile = \"main.st\"\n\n\
+         [st]\nlibrary = [\"GVL_A.st\", \"GVL_B.st\"]\n",
+    );
+    write(
+        d,
+        "GVL_A.st",
+        "VAR_GLOBAL CONSTANT\n    k : INT := 2;\nEND_VAR\n\
+         VAR_GLOBAL\n    x : INT := 1;\n    twice : INT := k * 2;\nEND_VAR\n",
+    );
+    write(
+        d,
+        "GVL_B.st",
+        "VAR_GLOBAL CONSTANT\n    k : INT := 5;\nEND_VAR\n\
+         VAR_GLOBAL\n    x : INT := 10;\n    total : INT;\nEND_VAR\n",
+    );
+    let main = "PROGRAM main\nVAR\n    sum : INT;\nEND_VAR\n    GVL_A.x := GVL_A.x + 1;\n\
+        GVL_B.x := GVL_B.x + 10;\n    sum := GVL_A.x + GVL_B.x + GVL_A.twice;\n\
+        total := sum;\nEND_PROGRAM\n";
+    write(d, "main.st", main);
+    let trace = checked_trace(d, "25ms", "GVL_A.x,gvl_b.x,total,GVL_A");
+    // scans at 0, 10, 20 ms: A.x 1 → 4, B.x 10 → 40; twice = 4 (GVL_A's own k, 2, times 2)
+    assert_eq!(last(&trace, "GVL_A.x").as_deref(), Some("4"), "{trace}");
+    assert_eq!(last(&trace, "GVL_B.x").as_deref(), Some("40"), "{trace}");
+    assert_eq!(last(&trace, "total").as_deref(), Some("48"), "{trace}");
+
+    write(d, "main.st", &main.replace("total := sum;", "total := x;"));
+    let out = plcd(d, &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains(
+            "main.st:8:10: error: `x` is ambiguous: 2 global variable lists declare it; name \
+             one, `GVL_A.x` or `GVL_B.x`"
+        ),
+        "{stderr}"
+    );
+    assert!(stderr.contains("plcd.toml: 1 error(s)"), "one message for one mistake: {stderr}");
+}

@@ -15,6 +15,11 @@
 //! enumeration's `E.Value` included). `Gvl.x` where the POU declares its own `x` is an error,
 //! as the global would be hidden from the checker.
 //!
+//! A name two lists declare is each list's own global: its declarations are renamed
+//! `Gvl.x` (the checker's one namespace of globals then holds both, and tools name them so),
+//! `Gvl.x` is lowered to that name, a list's own declarations name its own plainly, and the
+//! plain `x` elsewhere is an error naming both forms.
+//!
 //! `{attribute 'qualified_only'}` (the one pragma that has an effect) before a list's
 //! `VAR_GLOBAL` makes `Gvl.x` the only way to name its variables outside the list, and before
 //! `TYPE E` makes `E.Value` (or `E#Value`) the only way to name the enumeration's values, as
@@ -43,6 +48,7 @@ pub(super) fn lower<'f>(
         declared: HashSet::new(),
         namespaces: namespaces.iter().map(|n| key(n)).collect(),
         qualified_only: HashMap::new(),
+        owners: HashMap::new(),
     };
     for file in files.iter() {
         names.gather(file);
@@ -52,8 +58,14 @@ pub(super) fn lower<'f>(
     }
     for file in &mut files {
         let path = file.path.clone();
-        let mut lowering =
-            Lowering { names: &names, path: &path, diags: &mut *diags, plain_ok: false };
+        let list = list_of(file);
+        let mut lowering = Lowering {
+            names: &names,
+            path: &path,
+            diags: &mut *diags,
+            plain_ok: false,
+            list: list.as_deref(),
+        };
         for item in &mut file.to_mut().items {
             lowering.item(item);
         }
@@ -81,14 +93,22 @@ struct Names {
     /// The names `{attribute 'qualified_only'}` allows only qualified, each with its
     /// qualified form: a list's global (`GVL_Param.N`), an enumeration's value (`E.Value`).
     qualified_only: HashMap<String, String>,
+    /// Each global of a list: the lists declaring it, as written. A name two lists declare
+    /// is each list's own global, named `Gvl.x` (the name its declaration is given here),
+    /// and the plain `x` is ambiguous.
+    owners: HashMap<String, Vec<String>>,
+}
+
+/// The name of the global variable list a file's `VAR_GLOBAL` blocks form.
+fn list_of(file: &File) -> Option<String> {
+    file.list_name
+        .clone()
+        .or_else(|| file.path.file_stem().and_then(|s| s.to_str()).map(str::to_string))
 }
 
 impl Names {
     fn gather(&mut self, file: &File) {
-        let list = file
-            .list_name
-            .clone()
-            .or_else(|| file.path.file_stem().and_then(|s| s.to_str()).map(str::to_string));
+        let list = list_of(file);
         for item in &file.items {
             match item {
                 Item::Pou(p) => {
@@ -121,6 +141,12 @@ impl Names {
                     }
                     self.globals.extend(vars.iter().cloned());
                     if let Some(list) = &list {
+                        for var in &vars {
+                            let owners = self.owners.entry(var.clone()).or_default();
+                            if !owners.iter().any(|o| o.eq_ignore_ascii_case(list)) {
+                                owners.push(list.clone());
+                            }
+                        }
                         self.lists.entry(key(list)).or_default().extend(vars);
                     }
                 }
@@ -130,6 +156,11 @@ impl Names {
                 Item::Action { .. } => {}
             }
         }
+    }
+
+    /// The lists declaring `name` when two or more do.
+    fn shared(&self, name: &str) -> Option<&[String]> {
+        self.owners.get(&key(name)).filter(|o| o.len() > 1).map(Vec::as_slice)
     }
 
     /// Whether `name` stands for something the checker knows by itself.
@@ -150,6 +181,8 @@ struct Lowering<'n, 'd> {
     /// In a global variable list or a type declaration, where a `qualified_only` list's
     /// variables and an enumeration's values are named plainly.
     plain_ok: bool,
+    /// The list the file's `VAR_GLOBAL` blocks form.
+    list: Option<&'n str>,
 }
 
 impl Lowering<'_, '_> {
@@ -167,6 +200,16 @@ impl Lowering<'_, '_> {
                 self.plain_ok = false;
             }
             Item::Globals(block) => {
+                // a global another list declares too is this list's `Gvl.x`
+                if let Some(list) = self.list {
+                    for decl in &mut block.decls {
+                        for n in &mut decl.names {
+                            if self.names.shared(&n.name).is_some() {
+                                n.name = format!("{list}.{}", n.name);
+                            }
+                        }
+                    }
+                }
                 self.plain_ok = true;
                 self.block(block, &none);
                 self.plain_ok = false;
@@ -433,7 +476,29 @@ impl Lowering<'_, '_> {
     /// A plain name that `{attribute 'qualified_only'}` allows only qualified, where nothing
     /// of the scope, no other global, no POU and no type declares it: an error naming the
     /// qualified form (the name is left, for the checker to go on with).
-    fn plain(&mut self, name: &Ident, scope: &HashSet<String>) {
+    fn plain(&mut self, name: &mut Ident, scope: &HashSet<String>) {
+        let k = key(&name.name);
+        if let (Some(owners), false) = (self.names.shared(&name.name), scope.contains(&k)) {
+            let own = self.list.filter(|l| owners.iter().any(|o| o.eq_ignore_ascii_case(l)));
+            match own {
+                // a list's own declarations name its own global
+                Some(list) if self.plain_ok => name.name = format!("{list}.{}", name.name),
+                _ => {
+                    let forms: Vec<String> =
+                        owners.iter().map(|o| format!("`{o}.{}`", name.name)).collect();
+                    let msg = format!(
+                        "`{}` is ambiguous: {} global variable lists declare it; name one, {}",
+                        name.name,
+                        owners.len(),
+                        forms.join(" or ")
+                    );
+                    self.error(name, msg);
+                    // the checker goes on with the first list's: one message for one mistake
+                    name.name = format!("{}.{}", owners[0], name.name);
+                }
+            }
+            return;
+        }
         if self.plain_ok {
             return;
         }
@@ -476,6 +541,13 @@ impl Lowering<'_, '_> {
         }
         let list = self.names.lists.get(&q)?;
         let x = key(&name.name);
+        if list.contains(&x) && self.names.shared(&name.name).is_some() {
+            // the list's own global of a name another list declares too (no local hides it)
+            return Some(Ident {
+                name: format!("{}.{}", qualifier.name, name.name),
+                ..name.clone()
+            });
+        }
         // each error leaves the plain name, which the checker then finds (the other list's
         // global, the POU's variable) or reports as not declared: one message for one mistake
         if !list.contains(&x) && self.names.globals.contains(&x) {
