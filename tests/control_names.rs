@@ -685,3 +685,37 @@ END_PROGRAM
     assert!(err.contains("`main.p^` holds 2 variables"), "{err}");
     plc.stop();
 }
+
+/// A global two lists declare is named `GVL_A.x` by clients too (docs/ST.md, "Qualified
+/// names"): read, written, and the list as a prefix; a global one list declares keeps its plain
+/// name.
+#[test]
+fn globals_two_lists_declare_are_named_by_their_list() {
+    let config = "[plc]\nscan_period_ms = 1\nwatchdog_ms = 100\n\
+        [[program]]\nname = \"main\"\nfile = \"main.st\"\n\
+        [st]\nlibrary = [\"GVL_A.st\", \"GVL_B.st\"]\n[control]\nsocket = \"plcd.sock\"\n";
+    let files = [
+        ("plcd.toml", config),
+        ("GVL_A.st", "VAR_GLOBAL\n    x : INT := 1;\nEND_VAR\n"),
+        ("GVL_B.st", "VAR_GLOBAL\n    x : INT := 2;\n    only_b : INT := 3;\nEND_VAR\n"),
+        ("main.st", "PROGRAM main\nVAR\n    sum : INT;\nEND_VAR\n    sum := GVL_A.x + GVL_B.x;\nEND_PROGRAM\n"),
+    ];
+    let project = Project::new("names-lists", &files);
+    let daemon = project.start().with_patience(PATIENCE);
+    let plc = Plc { daemon, project };
+    plc.daemon.wait_for("control socket");
+    plc.daemon.wait("RUN", || plc.json(&["status"])["mode"] == "RUN");
+
+    let values = plc.values(&["GVL_A.x", "gvl_b.X", "only_b"]);
+    let shown: Vec<(&str, &Value)> =
+        values.iter().map(|v| (v["dev"].as_str().unwrap(), &v["value"])).collect();
+    assert_eq!(shown, [("GVL_A.x", &json!(1)), ("GVL_B.x", &json!(2)), ("only_b", &json!(3))]);
+    plc.ok(&["set", "GVL_B.x", "40"]);
+    plc.daemon.wait("the sum of both", || plc.get("main.sum") == json!(41));
+    let names: Vec<String> =
+        plc.values(&["GVL_B"]).iter().map(|v| v["dev"].as_str().unwrap().to_string()).collect();
+    assert_eq!(names, ["GVL_B.x"], "the list's shared global; only_b is named plainly");
+    let err = plc.refused(&["get", "x"]);
+    assert!(err.contains("no device or variable `x`"), "{err}");
+    plc.stop();
+}
