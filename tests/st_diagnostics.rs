@@ -707,6 +707,8 @@ const UNREACHABLE: &[(&str, &str)] = &[
 const PARTS: &[&str] = &[
     // the pragma whose plain names are errors (qualified.rs)
     "attribute 'qualified_only'",
+    // between the qualified forms of a name two lists declare (qualified.rs)
+    " or ",
     // what a generic input was given instead of a variable (generic.rs)
     "a value",
     // what a UNION member cannot be (union.rs)
