@@ -320,6 +320,33 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` is `{}`, not a `REF_TO` or `POINTER TO`: `^` cannot be applied", "deref-not-reference"),
     ("`{}` is a `POINTER TO`: it takes one index, not {}", "pointer-index-count"),
     ("`{}` needs a variable", "ref-needs-variable"),
+    ("`{}` needs a variable", "ref-init-not-a-variable"),
+    // ref_init.rs: REF() and ADR() in initial values
+    (
+        "an input's initial value cannot be a reference (`REF`, `ADR`): the caller gives it; declare the variable in VAR and set it there",
+        "ref-init-of-input",
+    ),
+    // generic_constants.rs: TwinCAT's generic constants
+    ("`VAR_GENERIC` declares constants: write `VAR_GENERIC CONSTANT`", "generic-without-constant"),
+    ("a generic constant has an integer type (`n : UINT := 10;`)", "generic-constant-not-integer"),
+    (
+        "a generic constant's initial value must be a constant integer expression",
+        "generic-default-not-constant",
+    ),
+    (
+        "`{}` is not a function block with generic constants (`VAR_GENERIC CONSTANT`): it takes no `<…>`",
+        "generic-not-a-generic-block",
+    ),
+    ("`{}` has {} generic constant{} ({}), given {} argument{}", "generic-argument-count"),
+    (
+        "the value of `{}`'s generic constant `{}` must be a constant integer expression (literals, global constants, the block's own generic constants)",
+        "generic-argument-not-constant",
+    ),
+    ("{} does not fit `{} : {}` of `{}`", "generic-argument-does-not-fit"),
+    (
+        "`{}` asks for copies of itself without end (its generic constants give an instance of it new values each time); more than {} were made",
+        "generic-copies-without-end",
+    ),
     ("`{}` takes one argument", "ref-one-argument"),
     ("`__ISVALIDREF` needs a reference, not `{}`", "isvalidref-not-reference"),
     ("`REF=` needs a reference on its left, not `{}`", "ref-assign-not-reference"),
@@ -485,6 +512,10 @@ const MESSAGES: &[(&str, &str)] = &[
 /// The messages of `[st] strict` (`src/core/st/dialect.rs`), one per CODESYS habit, and their
 /// cases.
 const STRICT_MESSAGES: &[(&str, &str)] = &[
+    (
+        "generic constants (`VAR_GENERIC CONSTANT`, `FB_Log<20>`) are TwinCAT 3.1.4026, not IEC 61131-3: declare one function block per size, or a constant the block's variables are sized by (`[st] strict` is on)",
+        "strict-generic-constants",
+    ),
     (
         "`;` expected after `{}` (IEC 61131-3 ends every statement with `;`; `[st] strict` is on)",
         "strict-no-semicolon-after-end",

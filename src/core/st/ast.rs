@@ -283,6 +283,10 @@ pub enum VarKind {
     Static,
     /// `VAR_INST` (CODESYS): kept in the function block's instance, like `VAR`.
     Instance,
+    /// `VAR_GENERIC CONSTANT` (TwinCAT 3.1.4026): integer constants an instance's type gives
+    /// (`fb : FB_Log<20>`); `compile::generic_constants` makes each a `VAR CONSTANT` of a copy
+    /// of the block.
+    Generic,
 }
 
 /// A `VAR… END_VAR` block.
@@ -338,6 +342,10 @@ pub enum TypeRef {
     Subrange { base: Ident, lo: Box<Expr>, hi: Box<Expr>, span: Span },
     /// `REF_TO T`, `POINTER TO T`, `REFERENCE TO T`.
     Ref { kind: RefKind, to: Box<TypeRef>, span: Span },
+    /// `FB_Log<20>`, `FB<(N * 2), 5>`: a function block with generic constants (TwinCAT
+    /// 3.1.4026), its arguments in order; `compile::generic_constants` replaces it by the
+    /// block's copy for them, before any other stage.
+    Generic { name: Ident, args: Vec<Expr>, span: Span },
 }
 
 /// The three kinds of reference types.

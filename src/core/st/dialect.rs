@@ -111,6 +111,9 @@ pub enum Habit {
     /// `.x`, CODESYS's global scope operator: the global `x`, even where a variable of the
     /// scope is also called `x`.
     GlobalScope,
+    /// `VAR_GENERIC CONSTANT` and an instance's type with arguments, `FB_Log<20>` (TwinCAT
+    /// 3.1.4026 generic constants, `compile::generic_constants`).
+    GenericConstants,
 }
 
 impl Habit {
@@ -152,6 +155,7 @@ impl Habit {
             Habit::EnumBaseAfterValues => "IEC 61131-3 writes an enumeration's base type before its values: `BYTE (A, B)` (`[st] strict` is on)".to_string(),
             Habit::EnumDotValue => "IEC 61131-3 names an enumeration's value with `#`: `E#Value` (`[st] strict` is on)".to_string(),
             Habit::GlobalScope => "`.x`, the global scope operator, is CODESYS, not IEC 61131-3: name the global plainly, and rename the variable that hides it (`[st] strict` is on)".to_string(),
+            Habit::GenericConstants => "generic constants (`VAR_GENERIC CONSTANT`, `FB_Log<20>`) are TwinCAT 3.1.4026, not IEC 61131-3: declare one function block per size, or a constant the block's variables are sized by (`[st] strict` is on)".to_string(),
             Habit::CoveredCaseElse => "unreachable `ELSE`: the labels cover every value of the selector's type; remove the `ELSE` (`[st] strict` is on)".to_string(),
             Habit::PositionalThenNamed => "IEC 61131-3 gives a call's arguments all by position or all by name: name each one (`[st] strict` is on)".to_string(),
             Habit::CodesysParameter(codesys, iec) => format!("`{codesys}` is CODESYS's name of this input: IEC 61131-3 names it `{iec}` (`[st] strict` is on)"),

@@ -31,7 +31,11 @@ type OutsideAction<'a> = (usize, Option<(String, Span)>, &'a ast::Action);
 
 impl<'a> Ctx<'a> {
     fn reserved(&mut self, file: usize, id: &ast::Ident) {
-        if file != self.prelude_file && id.name.starts_with("__") && !fb_init::is_hidden(&id.name) {
+        if file != self.prelude_file
+            && id.name.starts_with("__")
+            && !fb_init::is_hidden(&id.name)
+            && !super::ref_init::is_hidden(&id.name)
+        {
             self.error(
                 file,
                 id.span,
@@ -334,6 +338,8 @@ impl<'a> Ctx<'a> {
                 Ty::Array(Rc::new(arr))
             }
             TypeRef::OpenArray { span, .. } => self.misplaced_open_array(file, *span),
+            // compile::generic_constants replaced each by its copy's name, or reported it
+            TypeRef::Generic { .. } => Ty::Error,
             TypeRef::Enum(def) => {
                 let name = format!(
                     "({})",

@@ -332,6 +332,8 @@ impl Lowering<'_, '_> {
                 self.type_ref(of, scope);
             }
             TypeRef::OpenArray { of, .. } => self.type_ref(of, scope),
+            // compile::generic_constants, before this lowering, replaced each
+            TypeRef::Generic { .. } => {}
             TypeRef::Enum(def) => {
                 for (_, value) in &mut def.values {
                     if let Some(value) = value {

@@ -96,10 +96,12 @@ pub(crate) enum Want {
     EndTransition,
     From,
     LParen,
+    /// `,` or `>` after a generic constant's argument (`FB_Log<20>`).
+    CommaOrAngle,
 }
 
 impl Want {
-    pub(crate) const ALL: [Want; 34] = [
+    pub(crate) const ALL: [Want; 35] = [
         Want::SemiAfterStmt,
         Want::SemiAfterDecl,
         Want::Stmt,
@@ -134,6 +136,7 @@ impl Want {
         Want::EndTransition,
         Want::From,
         Want::LParen,
+        Want::CommaOrAngle,
     ];
 
     fn text(self) -> &'static str {
@@ -147,6 +150,7 @@ impl Want {
             Want::LBracket => "`[`",
             Want::CommaOrRParen => "`,` or `)`",
             Want::CommaOrRBracket => "`,` or `]`",
+            Want::CommaOrAngle => "`,` or `>`",
             Want::Star => "`*` (every dimension of an `ARRAY [*, …]` is open)",
             Want::Assign => "`:=`",
             Want::Then => "`THEN`",

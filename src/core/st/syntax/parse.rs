@@ -75,8 +75,13 @@ pub(crate) struct Parser<'a> {
     habits: Vec<Noted>,
 }
 
+/// The word that opens a block of generic constants (TwinCAT 3.1.4026; not a keyword, as
+/// TwinCAT's other words are not).
+const VAR_GENERIC: &str = "VAR_GENERIC";
+
 /// The binary operators' levels, lowest first; unary operators sit between `*` and `**`.
 const LEVEL_OR: u8 = 1;
+const LEVEL_ADD: u8 = 6;
 const LEVEL_MUL: u8 = 7;
 
 /// One step of a partial access token: a part (its size, none for a bit, and its number), or a
@@ -600,6 +605,11 @@ impl<'a> Parser<'a> {
         let (_, is_abstract, is_final) = self.modifiers();
         (oop.is_abstract, oop.is_final) = (is_abstract, is_final);
         let name = self.ident().unwrap_or_else(|_| Ident { name: String::new(), span });
+        let mut vars = Vec::new();
+        // TwinCAT writes a block's generic constants before its EXTENDS and IMPLEMENTS
+        while kind == PouKind::FunctionBlock && self.at_word(VAR_GENERIC) {
+            vars.push(self.var_block());
+        }
         if kind != PouKind::Function {
             if self.at_word("EXTENDS") {
                 self.bump();
@@ -632,9 +642,10 @@ impl<'a> Parser<'a> {
         };
         // open from here: a method's missing END_METHOD does not take the POU's end for it
         self.open.push(closer);
-        let mut vars = Vec::new();
         loop {
-            if var_kind(self.tok()).is_some() {
+            if var_kind(self.tok()).is_some()
+                || (kind == PouKind::FunctionBlock && self.at_word(VAR_GENERIC))
+            {
                 vars.push(self.var_block());
             } else if kind != PouKind::Function && self.at_member() {
                 self.oop_member(&mut oop);
@@ -1153,10 +1164,15 @@ impl<'a> Parser<'a> {
 
     fn var_block(&mut self) -> VarBlock {
         let span = self.span();
-        let kind = var_kind(self.tok()).unwrap_or(VarKind::Local);
+        let kind = match var_kind(self.tok()) {
+            Some(kind) => kind,
+            None if self.at_word(VAR_GENERIC) => VarKind::Generic,
+            None => VarKind::Local,
+        };
         match kind {
             VarKind::Static => self.habit(Habit::VarStat),
             VarKind::Instance => self.habit(Habit::VarInst),
+            VarKind::Generic => self.habit(Habit::GenericConstants),
             _ => {}
         }
         let opener = {
@@ -1301,6 +1317,9 @@ impl<'a> Parser<'a> {
             }
             Tok::Ident => {
                 let name = self.dotted_name()?;
+                if self.at_p(P::Lt) {
+                    return self.generic_arguments(name, span);
+                }
                 if !self.at_p(P::LParen) {
                     return Ok(TypeRef::Named(name));
                 }
@@ -1383,6 +1402,23 @@ impl<'a> Parser<'a> {
                 Ok(TypeRef::Enum(self.enum_values(None, first, span)?))
             }
             _ => Err(self.fail(Want::Type)),
+        }
+    }
+
+    /// `<20>`, `<(N * 2), 5>` after a function block's name (TwinCAT 3.1.4026's generic
+    /// constants): each argument a sum of terms (a literal, a name) or an expression in
+    /// parentheses, as `>` ends them.
+    fn generic_arguments(&mut self, name: Ident, span: Span) -> PResult<TypeRef> {
+        self.habit(Habit::GenericConstants);
+        self.bump();
+        let mut args = Vec::new();
+        loop {
+            args.push(self.binary(LEVEL_ADD)?);
+            if self.eat_p(P::Comma) {
+                continue;
+            }
+            self.expect_p(P::Gt, Want::CommaOrAngle)?;
+            return Ok(TypeRef::Generic { name, args, span });
         }
     }
 

@@ -1,0 +1,342 @@
+//! `REF(v)` and `ADR(v)` in initial values (IEC 61131-3 3rd ed. table 12: `r : REF_TO INT :=
+//! REF(counter);`, CODESYS: `p : POINTER TO INT := ADR(x);`), also as a member of a structure
+//! or instance initialiser (`s : Link := (to := REF(x))`).
+//!
+//! A reference is the place of a variable in plcd's memory, which is known only where the
+//! instance holding it is (an FB instance's place depends on its holder, a FUNCTION's frame on
+//! the call), so such an initial value cannot be part of an initial image: this lowering of the
+//! syntax trees turns it into an assignment that runs before the POU's own statements, checked
+//! and compiled as the user's code (and so with native code). Nothing changes for a project
+//! without one.
+//!
+//! - A FUNCTION's or a method's variables, and any `VAR_TEMP`, are fresh at each call: the
+//!   assignments start the body, as every initial value of them is set at each call.
+//! - A PROGRAM's or FUNCTION_BLOCK's `VAR`, `VAR_OUTPUT`, `VAR_INST`: set once, by the first call
+//!   after the references were reset. A hidden reference [`DONE`] (with [`TARGET`], the BOOL it
+//!   designates once set) guards them: it is `NULL` at every RUN start, after a cold restart, an
+//!   online change or a reload, exactly when every other non-retained reference is `NULL`, so
+//!   the references are set again whenever they lost their value, and only then (a program
+//!   that sets `r := NULL` keeps it). A `RETAIN` block has its own guard [`DONE_RETAIN`], itself
+//!   `RETAIN`: a warm RUN start keeps both the references and the guard, as docs/ST.md says of
+//!   a retained reference.
+//! - A `VAR_GLOBAL`'s: the hidden global guards [`GLOBALS_DONE`] (and [`GLOBALS_DONE_RETAIN`]
+//!   for a `VAR_GLOBAL RETAIN`), and every PROGRAM's body starts with their assignments, which
+//!   whichever program runs first makes.
+//!
+//! Refused here: such an initial value for a `VAR_INPUT` or `VAR_IN_OUT` (the caller gives
+//! them; an assignment in the body would overwrite the argument), and in a `VAR_STAT`, a
+//! CONSTANT block or a CONFIGURATION's globals, which keep the usual message (a constant
+//! expression is needed).
+
+use std::borrow::Cow;
+
+use crate::diag::Diagnostic;
+use crate::st::ast::{
+    self, BinaryOp, Expr, ExprKind, Init, Item, Pou, PouKind, Span, Stmt, StmtKind, TypeRef,
+    VarBlock, VarDecl, VarKind,
+};
+
+use super::lifecycle::{block, bool_decl, ident, name, stmt};
+
+/// The guard of a POU's non-retained references: `NULL` until they are set.
+const DONE: &str = "__REF_INIT_DONE";
+/// The guard of a POU's `RETAIN` references.
+const DONE_RETAIN: &str = "__REF_INIT_DONE_RETAIN";
+/// The BOOL the guards designate once their references are set.
+const TARGET: &str = "__REF_INIT_TARGET";
+/// The guards of the globals' references, and the BOOL they designate.
+const GLOBALS_DONE: &str = "__REF_INIT_GLOBALS_DONE";
+const GLOBALS_DONE_RETAIN: &str = "__REF_INIT_GLOBALS_DONE_RETAIN";
+const GLOBALS_TARGET: &str = "__REF_INIT_GLOBALS_TARGET";
+
+/// Whether `name` is one of the variables this lowering declares (exempt from the rule that
+/// reserves names starting with `__` to plcd).
+pub fn is_hidden(name: &str) -> bool {
+    name.get(..11).is_some_and(|p| p.eq_ignore_ascii_case("__REF_INIT_"))
+}
+
+/// The assignments a POU's (or the globals') reference initial values became, by guard.
+#[derive(Default)]
+struct Found {
+    /// Set at each call (a FUNCTION's, a method's variables, a `VAR_TEMP`).
+    each_call: Vec<Stmt>,
+    /// Set once, guarded by [`DONE`].
+    once: Vec<Stmt>,
+    /// Set once, guarded by [`DONE_RETAIN`].
+    once_retained: Vec<Stmt>,
+}
+
+pub(super) fn lower<'f>(
+    mut files: Vec<Cow<'f, ast::File>>,
+    diags: &mut Vec<Diagnostic>,
+) -> Vec<Cow<'f, ast::File>> {
+    if !files.iter().any(|f| f.items.iter().any(has_reference_init)) {
+        return files;
+    }
+    let mut globals = Found::default();
+    let mut globals_file = None;
+    for (f, file) in files.iter_mut().enumerate() {
+        if !file.items.iter().any(has_reference_init) {
+            continue;
+        }
+        let path = file.path.clone();
+        for item in file.to_mut().items.iter_mut() {
+            match item {
+                Item::Pou(p) => {
+                    lower_pou(p, &path, diags);
+                }
+                Item::Globals(b) if !b.constant => {
+                    let retain = b.retain;
+                    let mut out = Vec::new();
+                    take_from_block(b, &mut out, &path, diags);
+                    if !out.is_empty() {
+                        globals_file.get_or_insert(f);
+                    }
+                    if retain {
+                        globals.once_retained.extend(out);
+                    } else {
+                        globals.once.extend(out);
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+    if let Some(f) = globals_file {
+        let span = first_span(&globals);
+        let items = &mut files[f].to_mut().items;
+        for (k, b) in global_guards(&globals, span).into_iter().enumerate() {
+            items.insert(k, Item::Globals(b));
+        }
+        for file in files.iter_mut() {
+            for item in file.to_mut().items.iter_mut() {
+                if let Item::Pou(p) = item {
+                    if p.kind == PouKind::Program {
+                        let prologue = guarded(&globals, GLOBALS_DONE, GLOBALS_DONE_RETAIN, span);
+                        p.body.splice(0..0, prologue);
+                    }
+                }
+            }
+        }
+    }
+    files
+}
+
+/// Whether an item declares a variable whose initial value takes a reference.
+fn has_reference_init(item: &Item) -> bool {
+    let block_has = |b: &VarBlock| b.decls.iter().any(|d| d.init.as_ref().is_some_and(takes_ref));
+    match item {
+        Item::Pou(p) => {
+            p.vars.iter().any(block_has)
+                || p.oop.methods.iter().any(|m| m.pou.vars.iter().any(block_has))
+        }
+        Item::Globals(b) => block_has(b),
+        _ => false,
+    }
+}
+
+/// Whether an initial value calls `REF` or `ADR` somewhere.
+fn takes_ref(init: &Init) -> bool {
+    match init {
+        Init::Expr(e) => calls_ref(e),
+        Init::Struct { members, .. } => members.iter().any(|(_, i)| takes_ref(i)),
+        // an array's elements are laid out in its image; none may be a reference (yet)
+        Init::Array { .. } => false,
+    }
+}
+
+fn calls_ref(e: &Expr) -> bool {
+    match &e.kind {
+        ExprKind::Call { callee, args } => {
+            matches!(&callee.kind, ExprKind::Name(id) if id.is("REF") || id.is("ADR"))
+                || args.iter().any(|a| match a {
+                    ast::Arg::Positional(v) | ast::Arg::Input { value: v, .. } => calls_ref(v),
+                    _ => false,
+                })
+        }
+        ExprKind::Unary(_, a) => calls_ref(a),
+        ExprKind::Binary(_, a, b) => calls_ref(a) || calls_ref(b),
+        _ => false,
+    }
+}
+
+/// Lowers `p`'s reference initial values (and its methods').
+fn lower_pou(p: &mut Pou, path: &std::path::Path, diags: &mut Vec<Diagnostic>) {
+    for m in &mut p.oop.methods {
+        let mut each_call = Vec::new();
+        for b in &mut m.pou.vars {
+            take_from_block(b, &mut each_call, path, diags);
+        }
+        m.pou.body.splice(0..0, each_call);
+    }
+    if p.oop.is_class && p.body.is_empty() && p.kind == PouKind::FunctionBlock {
+        // a CLASS has no body to run them: the usual message stays (none is taken)
+        return;
+    }
+    let fresh_each_call = p.kind == PouKind::Function;
+    let mut found = Found::default();
+    for b in &mut p.vars {
+        let mut out = Vec::new();
+        take_from_block(b, &mut out, path, diags);
+        if fresh_each_call || b.kind == VarKind::Temp {
+            found.each_call.extend(out);
+        } else if b.retain {
+            found.once_retained.extend(out);
+        } else {
+            found.once.extend(out);
+        }
+    }
+    let span = p.name.span;
+    let mut prologue = std::mem::take(&mut found.each_call);
+    if !found.once.is_empty() || !found.once_retained.is_empty() {
+        p.vars.extend(local_guards(&found, span));
+        prologue.extend(guarded(&found, DONE, DONE_RETAIN, span));
+    }
+    p.body.splice(0..0, prologue);
+}
+
+/// Takes the reference initial values out of block `b` as assignments (pushed on `out`); the
+/// variables then start `NULL` (or with the rest of their initialiser) until they run.
+fn take_from_block(
+    b: &mut VarBlock,
+    out: &mut Vec<Stmt>,
+    path: &std::path::Path,
+    diags: &mut Vec<Diagnostic>,
+) {
+    let kind = b.kind;
+    if b.constant || kind == VarKind::Static || kind == VarKind::External {
+        return;
+    }
+    for d in &mut b.decls {
+        let Some(init) = d.init.as_ref().filter(|i| takes_ref(i)) else { continue };
+        if matches!(kind, VarKind::Input | VarKind::InOut) {
+            let at = init_span(init).unwrap_or(d.span);
+            diags.push(Diagnostic::new(
+                path,
+                at.line,
+                at.col,
+                "an input's initial value cannot be a reference (`REF`, `ADR`): the caller gives it; declare the variable in VAR and set it there",
+            ));
+            d.init = None;
+            continue;
+        }
+        let mut left = None;
+        for id in &d.names {
+            left = d.init.clone();
+            take_from_init(&mut left, name(&id.name, id.span), out);
+        }
+        // every name of the declaration keeps what is left of it (the same for each)
+        d.init = left;
+    }
+}
+
+/// Moves the parts of `init` that take a reference into assignments to `target` (or to its
+/// members), leaving the constant parts.
+fn take_from_init(init: &mut Option<Init>, target: Expr, out: &mut Vec<Stmt>) {
+    match init {
+        Some(Init::Expr(e)) if calls_ref(e) => {
+            let span = e.span;
+            out.push(stmt(StmtKind::Assign { target, value: e.clone() }, span));
+            *init = None;
+        }
+        Some(Init::Struct { members, .. }) => {
+            let mut kept = Vec::new();
+            for (id, member_init) in std::mem::take(members) {
+                let member = Expr {
+                    kind: ExprKind::Member(Box::new(target.clone()), id.clone()),
+                    span: id.span,
+                };
+                let mut member_init = Some(member_init);
+                take_from_init(&mut member_init, member, out);
+                if let Some(left) = member_init {
+                    kept.push((id, left));
+                }
+            }
+            *members = kept;
+        }
+        _ => {}
+    }
+}
+
+fn init_span(init: &Init) -> Option<Span> {
+    match init {
+        Init::Expr(e) => Some(e.span),
+        Init::Struct { span, .. } | Init::Array { span, .. } => Some(*span),
+    }
+}
+
+fn first_span(found: &Found) -> Span {
+    found.once.iter().chain(&found.once_retained).map(|s| s.span).next().unwrap_or_default()
+}
+
+/// `guard : REF_TO BOOL` (without an initial value: `NULL`).
+fn guard_decl(guard: &str, span: Span) -> VarDecl {
+    let to = Box::new(TypeRef::Named(ident("BOOL", span)));
+    VarDecl { ty: TypeRef::Ref { kind: ast::RefKind::RefTo, to, span }, ..bool_decl(guard, span) }
+}
+
+/// A POU's hidden guards: a `VAR` block with [`DONE`] and [`TARGET`], and a `VAR RETAIN` one
+/// with [`DONE_RETAIN`] when a retained reference is set.
+fn local_guards(found: &Found, span: Span) -> Vec<VarBlock> {
+    let mut blocks = Vec::new();
+    blocks.push(block(
+        VarKind::Local,
+        false,
+        vec![guard_decl(DONE, span), bool_decl(TARGET, span)],
+        span,
+    ));
+    if !found.once_retained.is_empty() {
+        blocks.push(block(VarKind::Local, true, vec![guard_decl(DONE_RETAIN, span)], span));
+    }
+    blocks
+}
+
+/// The globals' hidden guards: a `VAR_GLOBAL` block with [`GLOBALS_DONE`] and
+/// [`GLOBALS_TARGET`], and a `VAR_GLOBAL RETAIN` one with [`GLOBALS_DONE_RETAIN`] (kept over a
+/// warm start as the retained references it guards; a reference is never written to the
+/// retain files, so it is `NULL` after a restart of the daemon, as they are).
+fn global_guards(found: &Found, span: Span) -> Vec<VarBlock> {
+    let mut blocks = vec![block(
+        VarKind::Global,
+        false,
+        vec![guard_decl(GLOBALS_DONE, span), bool_decl(GLOBALS_TARGET, span)],
+        span,
+    )];
+    if !found.once_retained.is_empty() {
+        blocks.push(block(
+            VarKind::Global,
+            true,
+            vec![guard_decl(GLOBALS_DONE_RETAIN, span)],
+            span,
+        ));
+    }
+    blocks
+}
+
+/// `IF done = NULL THEN done := REF(target); … END_IF` for each guard with something to set.
+fn guarded(found: &Found, done: &str, done_retain: &str, span: Span) -> Vec<Stmt> {
+    let target = if done == DONE { TARGET } else { GLOBALS_TARGET };
+    let mut out = Vec::new();
+    for (guard, sets) in [(done, &found.once), (done_retain, &found.once_retained)] {
+        if sets.is_empty() {
+            continue;
+        }
+        let null = Expr { kind: ExprKind::Name(ident("NULL", span)), span };
+        let cond = Expr {
+            kind: ExprKind::Binary(BinaryOp::Eq, Box::new(name(guard, span)), Box::new(null)),
+            span,
+        };
+        let reference = Expr {
+            kind: ExprKind::Call {
+                callee: Box::new(name("REF", span)),
+                args: vec![ast::Arg::Positional(name(target, span))],
+            },
+            span,
+        };
+        let mut body =
+            vec![stmt(StmtKind::Assign { target: name(guard, span), value: reference }, span)];
+        body.extend(sets.iter().cloned());
+        out.push(stmt(StmtKind::If { branches: vec![(cond, body)], otherwise: None }, span));
+    }
+    out
+}
