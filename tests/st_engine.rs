@@ -299,6 +299,24 @@ fn an_online_change_sets_references_to_null() {
     assert_eq!(plcd::value::type_name(&r.ty), "REF_TO DINT");
 }
 
+/// A reference whose initial value takes one (`r : REF_TO DINT := REF(n)`) is set again after
+/// an online change: the guard that says it was set is itself a reference, which the change
+/// never keeps (docs/ST.md, "References and pointers").
+#[test]
+fn an_online_change_resets_the_guard_of_reference_initial_values() {
+    let src = "PROGRAM Main VAR n : DINT; r : REF_TO DINT := REF(n); END_VAR
+                 r^ := r^ + 1;
+               END_PROGRAM";
+    let old = project("[[program]]\nfile = \"main.st\"\n", &[("main.st", src)]);
+    let new = project("[[program]]\nfile = \"main.st\"\n", &[("main.st", src)]);
+    let kept = plcd::engine::online::kept_variables(&old.variables, &new.variables);
+    let guard = new.variable("main.__REF_INIT_DONE").unwrap();
+    assert_eq!(plcd::value::type_name(&guard.ty), "REF_TO BOOL");
+    assert!(kept.iter().all(|k| k.1 != guard.at.offset), "the guard starts NULL again");
+    let n = old.variable("main.n").unwrap().at.offset;
+    assert!(kept.iter().any(|k| k.0 == n), "n is kept");
+}
+
 #[test]
 fn an_online_change_keeps_the_variables_of_an_instance_whose_block_now_extends_another() {
     // Motor gains a base (its variables first, after the hidden type tag) and an interface:
