@@ -676,7 +676,11 @@ where
         .collect();
     let configured: Vec<Option<&st::ast::ProgramDecl>> =
         entries.iter().map(|entry| configured_declaration(entry, &files)).collect();
-    let dialect = st::dialect::Dialect { strict: config.st.strict, iec: config.iec.layout };
+    let dialect = st::dialect::Dialect {
+        strict: config.st.strict,
+        iec: config.iec.layout,
+        heap_bytes: config.st.heap_bytes,
+    };
     let base = config.path.parent().unwrap_or(Path::new(""));
     let shown = |path: &Path| path.strip_prefix(base).unwrap_or(path).display().to_string();
     let iec_notes = st::iec_check::check_notes(&files, &config.iec.layout, shown);

@@ -7,12 +7,12 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::common::{resolve, Ctx};
+use super::common::{int_or, resolve, Ctx};
 use super::Sink;
 use crate::diag::Diagnostic;
 
 /// `[st]`.
-#[derive(Debug, Clone, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct StConfig {
     /// `library`: declaration files and folders of them, in the order written; default none.
     /// Every ST file of the project (programs and libraries) sees the declarations of all the
@@ -24,6 +24,23 @@ pub struct StConfig {
     /// `<DefaultNamespace>` of a library project, `TcUnit`): `TcUnit.FB_TestSuite` names the
     /// project's `FB_TestSuite`, a plcd project being one namespace; default none.
     pub namespaces: Vec<String>,
+    /// `heap_bytes`: the bytes of the heap `__NEW` takes memory from, part of variable memory
+    /// (docs/ST.md, "Dynamic memory"); default 64 KiB, 0 none.
+    pub heap_bytes: u32,
+}
+
+/// The largest `heap_bytes`: 16 MiB.
+pub const MAX_HEAP_BYTES: u32 = 16 * 1024 * 1024;
+
+impl Default for StConfig {
+    fn default() -> StConfig {
+        StConfig {
+            library: Vec::new(),
+            strict: false,
+            namespaces: Vec::new(),
+            heap_bytes: crate::st::dialect::DEFAULT_HEAP_BYTES,
+        }
+    }
 }
 
 /// One `[st] library` entry.
@@ -63,6 +80,7 @@ pub(super) struct RawSt {
     pub library: Option<Vec<Spanned<String>>>,
     pub strict: Option<bool>,
     pub namespaces: Option<Vec<Spanned<String>>>,
+    pub heap_bytes: Option<Spanned<i64>>,
 }
 
 pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StConfig> {
@@ -113,5 +131,11 @@ pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StC
             namespaces.push(name);
         }
     }
-    ok.then_some(StConfig { library, strict: raw.strict.unwrap_or(false), namespaces })
+    let range = 0..=i64::from(MAX_HEAP_BYTES);
+    let default = crate::st::dialect::DEFAULT_HEAP_BYTES;
+    let heap_bytes = int_or(sink, &ctx, "heap_bytes", raw.heap_bytes, range, default);
+    ok &= heap_bytes.is_some();
+    let heap_bytes = heap_bytes.unwrap_or(default);
+    let strict = raw.strict.unwrap_or(false);
+    ok.then_some(StConfig { library, strict, namespaces, heap_bytes })
 }

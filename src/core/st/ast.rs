@@ -603,6 +603,11 @@ pub enum Arg {
     },
 }
 
+/// The prefix of the hidden type aliases the parser declares for the types of `__NEW(T, n)` and
+/// `SIZEOF(T)` that are no name (`POINTER TO I`, `STRING(255)`), a number after it: the
+/// argument is then the alias's name; compile/heap.rs renames them apart in the project.
+pub const TYPE_ARGUMENT_PREFIX: &str = "__TYPE_ARGUMENT_";
+
 /// A literal as written; its type is decided by the checker from the prefix or the context.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Literal {

@@ -8,14 +8,26 @@
 
 use crate::st::ast::Span;
 
-/// How the project's Structured Text is read: `[st] strict`, and `[iec]`'s layout of the
-/// direct addresses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// How the project's Structured Text is read: `[st] strict`, `[iec]`'s layout of the direct
+/// addresses, and `[st] heap_bytes`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Dialect {
     /// Refuse every [`Habit`] (IEC 61131-3 only). Default `false`: accept them.
     pub strict: bool,
     /// What `%IX0.0`, `%QW3`, `%MD10` name (`[iec]`); default OpenPLC's numbering.
     pub iec: crate::device::iec::IecLayout,
+    /// The bytes of the heap `__NEW` takes its memory from (`[st] heap_bytes`,
+    /// compile/heap.rs); 0: no heap, `__NEW` is an error.
+    pub heap_bytes: u32,
+}
+
+/// `[st] heap_bytes` when the config does not say: 64 KiB.
+pub const DEFAULT_HEAP_BYTES: u32 = 64 * 1024;
+
+impl Default for Dialect {
+    fn default() -> Dialect {
+        Dialect { strict: false, iec: Default::default(), heap_bytes: DEFAULT_HEAP_BYTES }
+    }
 }
 
 /// One non-standard form, as written.
@@ -55,6 +67,9 @@ pub enum Habit {
     TimeClock,
     /// `SIZEOF(x)`: the bytes a variable or a type takes.
     Sizeof,
+    /// `__NEW(T, n)` or `__DELETE(p)` (TwinCAT, CODESYS): dynamic memory (compile/heap.rs);
+    /// the operator's name.
+    DynamicMemory(&'static str),
     /// A VAR_INPUT of a generic type (`x : ANY_INT`) in a user POU (`compile::generic`).
     GenericInput,
     /// `BIT`: a STRUCT member or FUNCTION_BLOCK variable, a `BOOL` in plcd (`compile::bit`).
@@ -137,6 +152,7 @@ impl Habit {
             Habit::IntegerExpt => "IEC 61131-3 raises a `REAL` or `LREAL` base only: `EXPT(INT_TO_REAL(i), n)` (`[st] strict` is on)".to_string(),
             Habit::TimeClock => "`TIME()` is CODESYS's clock, not IEC 61131-3: measure durations with the standard timers (`TON`) (`[st] strict` is on)".to_string(),
             Habit::Sizeof => "`SIZEOF` is not IEC 61131-3 (`[st] strict` is on)".to_string(),
+            Habit::DynamicMemory(op) => format!("`{op}` is TwinCAT's and CODESYS's dynamic memory; IEC 61131-3 has none: declare the instances, an array of them for a list (`[st] strict` is on)"),
             Habit::Bit => "`BIT` is CODESYS and TwinCAT, not IEC 61131-3: declare a `BOOL` (`[st] strict` is on)".to_string(),
             Habit::GenericInput => "a VAR_INPUT of a generic type (`ANY…`) is CODESYS: IEC 61131-3 keeps generic types to its standard functions; write one POU per type (`[st] strict` is on)".to_string(),
             Habit::ImplicitConversion => "IEC 61131-3 converts between bit strings and integers only explicitly: `BYTE_TO_INT(b)` (`[st] strict` is on)".to_string(),

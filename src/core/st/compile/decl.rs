@@ -31,11 +31,10 @@ type OutsideAction<'a> = (usize, Option<(String, Span)>, &'a ast::Action);
 
 impl<'a> Ctx<'a> {
     fn reserved(&mut self, file: usize, id: &ast::Ident) {
-        if file != self.prelude_file
-            && id.name.starts_with("__")
-            && !fb_init::is_hidden(&id.name)
-            && !super::ref_init::is_hidden(&id.name)
-        {
+        let hidden = fb_init::is_hidden(&id.name)
+            || super::ref_init::is_hidden(&id.name)
+            || super::heap::is_hidden(&id.name);
+        if file != self.prelude_file && id.name.starts_with("__") && !hidden {
             self.error(
                 file,
                 id.span,

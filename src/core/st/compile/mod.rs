@@ -66,6 +66,7 @@ mod for_element;
 mod for_written;
 mod generic;
 mod generic_constants;
+mod heap;
 mod implicit;
 mod inout;
 mod instance_args;
@@ -181,6 +182,7 @@ pub fn compile_in_namespaces(
     let lowered = ref_init::lower(lowered, &mut diags);
     let lowered = fb_init::lower(lowered, &mut diags);
     let lowered = fb_exit::lower(lowered, &mut diags);
+    let lowered = heap::lower(lowered, dialect.heap_bytes, &mut diags);
     let mut refs: Vec<&ast::File> = lowered.iter().map(|f| &**f).collect();
     refs.push(&prelude);
     let prelude_file = refs.len() - 1;

@@ -29,7 +29,8 @@ pub(crate) fn parse(
 ) -> (Vec<Item>, Vec<Noted>, Vec<(Span, Msg)>) {
     let mut parser = Parser::new(text, tokens, eof_in_comment);
     parser.quiet = quiet;
-    let items = parser.file();
+    let mut items = parser.file();
+    items.extend(parser.hidden_types.drain(..).map(Item::Type));
     (items, parser.habits, parser.errors)
 }
 
@@ -73,6 +74,9 @@ pub(crate) struct Parser<'a> {
     depth: usize,
     /// The non-standard forms accepted so far.
     habits: Vec<Noted>,
+    /// The types of `__NEW(T, n)` and `SIZEOF(T)` that are no name, each a hidden alias
+    /// ([`TYPE_ARGUMENT_PREFIX`]).
+    hidden_types: Vec<TypeDecl>,
 }
 
 /// The word that opens a block of generic constants (TwinCAT 3.1.4026; not a keyword, as
@@ -304,6 +308,7 @@ impl<'a> Parser<'a> {
             open: Vec::new(),
             depth: 0,
             habits: Vec::new(),
+            hidden_types: Vec::new(),
         }
     }
 
@@ -2050,7 +2055,19 @@ impl<'a> Parser<'a> {
                 }
                 Tok::P(P::LParen) => {
                     self.bump();
-                    let args = self.args()?;
+                    let args = match dynamic_memory(&expr) {
+                        Some(operator) => {
+                            self.habits.push(Noted { span, habit: Habit::DynamicMemory(operator) });
+                            if operator == "__NEW" {
+                                self.type_args(true)?
+                            } else {
+                                self.args()?
+                            }
+                        }
+                        // `SIZEOF(POINTER TO BYTE)`, `SIZEOF(STRING(255))` (TwinCAT)
+                        None if is_sizeof(&expr) && self.at_type_only() => self.type_args(false)?,
+                        None => self.args()?,
+                    };
                     ExprKind::Call { callee: Box::new(expr), args }
                 }
                 Tok::P(P::Caret) => {
@@ -2061,6 +2078,41 @@ impl<'a> Parser<'a> {
             };
             expr = Expr { kind, span };
         }
+    }
+
+    /// Whether the current token starts a type that no expression can start (`POINTER TO`,
+    /// `STRING`, `ARRAY`).
+    fn at_type_only(&self) -> bool {
+        self.at_ref_type()
+            || self.at_kw(Kw::String)
+            || self.at_kw(Kw::Array)
+            || (*self.tok() == Tok::Ident && self.text_of(self.pos).eq_ignore_ascii_case("WSTRING"))
+    }
+
+    /// The arguments after the `(` of `__NEW(T[, n])` (`count`) or `SIZEOF(T)`, through the `)`
+    /// (TwinCAT): a type first, which no expression can be. A named type stays a name; any other
+    /// (`POINTER TO I`, `STRING(255)`) becomes a hidden alias of the file named
+    /// [`TYPE_ARGUMENT_PREFIX`] and a number, which compile/heap.rs renames for the project.
+    fn type_args(&mut self, count: bool) -> PResult<Vec<Arg>> {
+        let span = self.span();
+        let ty = match self.type_ref()? {
+            TypeRef::Named(id) => id,
+            ty => {
+                let name = Ident {
+                    name: format!("{TYPE_ARGUMENT_PREFIX}{}", self.hidden_types.len()),
+                    span,
+                };
+                let def = TypeDef::Alias { ty, init: None };
+                self.hidden_types.push(TypeDecl { name: name.clone(), def, span });
+                name
+            }
+        };
+        let mut args = vec![Arg::Positional(Expr { kind: ExprKind::Name(ty), span })];
+        if count && self.eat_p(P::Comma) {
+            args.push(Arg::Positional(self.expr()?));
+        }
+        self.expect_p(P::RParen, Want::CommaOrRParen)?;
+        Ok(args)
     }
 
     /// A call's arguments after its `(`, through its `)`.
@@ -2193,4 +2245,15 @@ fn enum_or_arguments(base: Ident, args: Vec<Arg>, span: Span) -> EnumDef {
         Some(values) => EnumDef { base: Some(base), values, args: Vec::new(), span },
         None => EnumDef { base: Some(base), values: Vec::new(), args, span },
     }
+}
+
+/// `__NEW` or `__DELETE` (TwinCAT's dynamic memory, compile/heap.rs) when `callee` names one.
+fn dynamic_memory(callee: &Expr) -> Option<&'static str> {
+    let ExprKind::Name(id) = &callee.kind else { return None };
+    ["__NEW", "__DELETE"].into_iter().find(|op| id.name.eq_ignore_ascii_case(op))
+}
+
+/// Whether `callee` names `SIZEOF`.
+fn is_sizeof(callee: &Expr) -> bool {
+    matches!(&callee.kind, ExprKind::Name(id) if id.name.eq_ignore_ascii_case("SIZEOF"))
 }
