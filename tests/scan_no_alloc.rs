@@ -5,7 +5,8 @@
 //! variable writes, a STRING and a WSTRING among them) and a two-part Modbus word write; the
 //! snapshot reads device words and variables, a STRING's and a WSTRING's characters among them.
 //! An ST program converts to and from STRING and WSTRING (numbers, TIME, DT, CHAR) and reads the
-//! real-time clock (`SysRtcGetTime`, `RTC`) with the date functions on it.
+//! real-time clock (`SysRtcGetTime`, `RTC`) with the date functions on it, and takes and frees
+//! dynamic memory (`__NEW`, `__DELETE`: plcd's heap is variable memory).
 //! The main program uses the double-word and real instructions too; and a hand-built program of
 //! the typed stack machine (calls, FB instances, strings, an index error, a division by zero)
 //! runs scans and RUN starts without allocating. The retain writer's copies of the retained
@@ -185,6 +186,7 @@ VAR
     buf : ARRAY [0..7] OF DINT; p : POINTER TO DINT; r : REF_TO DINT; alias : REFERENCE TO DINT;
     u : U; go : BOOL; lamp : BOOL; bumps : DINT; hit : BOOL;
     tod1 : TOD := TOD#23:59:59; day : DATE; stamp : DT := DT#2024-02-28-12:00:00; span : TIME;
+    heap : POINTER TO DINT; names : POINTER TO STRING(20); counters : POINTER TO Base;
 END_VAR
     INITIAL_STEP Idle: Work(N); END_STEP
     STEP Fill: lamp(N); Work(N); Bump(L, T#2ms); END_STEP
@@ -202,6 +204,11 @@ ACTION Work:
     IF k > 1000 THEN JMP done; END_IF;
     tod1 := tod1 + T#1s; stamp := stamp + T#1d; day := DT_TO_DATE(stamp);
     span := stamp - DT#2024-02-28-00:00:00;
+    heap := __NEW(DINT, 3); names := __NEW(STRING(20), 2); counters := __NEW(Base, 2);
+    IF heap <> 0 THEN heap[2] := k; END_IF;
+    IF names <> 0 THEN names[1] := 'n'; END_IF;
+    IF counters <> 0 THEN total := total + counters[1].Add(1); END_IF;
+    __DELETE(heap); __DELETE(names); __DELETE(counters); __DELETE(heap);
 done:
     Bump();
 END_ACTION

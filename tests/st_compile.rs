@@ -639,10 +639,15 @@ fn golden_diagnostics() {
             .find_map(|l| l.strip_prefix("pou = "))
             .map(|v| v.trim_matches('"').to_string());
         let strict = toml.lines().any(|l| l.trim() == "strict = true");
+        let heap_bytes = toml
+            .lines()
+            .find_map(|l| l.trim().strip_prefix("heap_bytes = ")?.parse().ok())
+            .unwrap_or(Dialect::default().heap_bytes);
+        let dialect = Dialect { strict, heap_bytes, ..Dialect::default() };
         // a `warning-` case compiles, with its one warning
         let warning = dir.file_name().is_some_and(|n| n.to_string_lossy().starts_with("warning-"));
         let actual = if warning {
-            match try_build_with(&src, pou.as_deref(), Dialect { strict, ..Dialect::default() }) {
+            match try_build_with(&src, pou.as_deref(), dialect) {
                 Ok(compiled) => compiled.warnings.iter().map(|w| format!("{w}\n")).collect(),
                 Err(errors) => errors,
             }
@@ -650,9 +655,7 @@ fn golden_diagnostics() {
             // A configuration's instances are the project's: loaded as `plcd check` does.
             configured_project(dir, &toml).err().unwrap_or_default()
         } else {
-            try_build_with(&src, pou.as_deref(), Dialect { strict, ..Dialect::default() })
-                .err()
-                .unwrap_or_default()
+            try_build_with(&src, pou.as_deref(), dialect).err().unwrap_or_default()
         };
         let count = actual.lines().count();
         if count != 1 {

@@ -33,6 +33,11 @@ const SOURCES: &str = "src/core/st/compile";
 /// Each message template of the compiler and a golden case that reports it. A template may
 /// have several rows (one per case that shows it).
 const MESSAGES: &[(&str, &str)] = &[
+    // heap.rs: __NEW and __DELETE
+    (
+        "`{}` takes memory from the heap, and `[st] heap_bytes` is {}: give it the bytes the program allocates at most (docs/ST.md, Dynamic memory)",
+        "heap-none",
+    ),
     // decl.rs: declarations, types, initial values, locations
     ("`{}`: names starting with `__` are reserved", "reserved-name"),
     ("`{}` is an elementary type", "elementary-type-name"),
@@ -581,6 +586,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "strict-time-clock",
     ),
     ("`SIZEOF` is not IEC 61131-3 (`[st] strict` is on)", "strict-sizeof"),
+    (
+        "`{}` is TwinCAT's and CODESYS's dynamic memory; IEC 61131-3 has none: declare the instances, an array of them for a list (`[st] strict` is on)",
+        "strict-dynamic-memory",
+    ),
     (
         "a VAR_INPUT of a generic type (`ANY…`) is CODESYS: IEC 61131-3 keeps generic types to its standard functions; write one POU per type (`[st] strict` is on)",
         "strict-generic-input",

@@ -291,7 +291,9 @@ impl<'a> Ctx<'a> {
     /// `[st] strict` is on (the prelude's own code is never strict). Always `true`, so that
     /// checking goes on as CODESYS reads the form, with one error for it under `strict`.
     pub fn habit(&mut self, habit: Habit, file: usize, span: Span) -> bool {
-        if self.dialect.strict && file != self.prelude_file {
+        // plcd's own sources (the prelude, the heap's allocator) are not the project's
+        let own = file == self.prelude_file || super::heap::is_heap_file(&self.files[file].path);
+        if self.dialect.strict && !own {
             self.error(file, span, habit.strict_message());
         }
         true

@@ -13,12 +13,15 @@
 //!   writes the type's initial value into each, and for a function block with something to
 //!   initialise runs each element's `__FB_INIT_ALL` (`bInitRetains` TRUE, `bInCopyCode` FALSE,
 //!   the other inputs of its `FB_init` their initial values); NULL when the heap has no room.
-//! - `__DELETE(p);` becomes `__HEAP_DELETE(p); p := 0;`. `__HEAP_DELETE` finds the live block
-//!   `p` starts (a pointer that starts none raises 2820H and frees nothing), runs each element's
-//!   `__FB_EXIT_ALL` when the `__NEW` recorded in its header made function blocks with something
-//!   to finish, and frees the block.
-//! - The type of `__NEW` is a name, or a hidden alias the parser declared ([`TYPE_ARGUMENT_PREFIX`]),
-//!   which is removed here: the hidden FUNCTION is declared with the type itself.
+//! - `__DELETE(p);` becomes `IF NOT __HEAP_DELETE(p) THEN __HEAP_NOWHERE^ := 0; END_IF p := 0;`.
+//!   `__HEAP_DELETE` finds the live block `p` starts, runs each element's `__FB_EXIT_ALL` when
+//!   the `__NEW` recorded in its header made function blocks with something to finish, and frees
+//!   the block; for a pointer that starts none it frees nothing and answers FALSE, and the write
+//!   through a pointer to no memory area raises 2820H at the `__DELETE`'s line.
+//! - The type argument of `__NEW` and of `SIZEOF` is a name, or a hidden alias the parser
+//!   declared in its file ([`TYPE_ARGUMENT_PREFIX`]), numbered in that file: renamed here
+//!   `__HEAP_TYPE_<file>_<n>`, apart in the project. The hidden FUNCTION of a `__NEW` is
+//!   declared with the type itself.
 //!
 //! Checked here: a `__NEW` or `__DELETE` where `[st] heap_bytes` is 0.
 
@@ -64,6 +67,12 @@ const NOWHERE: &str = "__HEAP_NOWHERE";
 /// starting with `__` to plcd).
 pub fn is_hidden(name: &str) -> bool {
     name.get(..7).is_some_and(|p| p.eq_ignore_ascii_case("__HEAP_"))
+}
+
+/// Whether `path` is the hidden file of the heap (whose forms `[st] strict` does not refuse:
+/// they are plcd's, and the `__NEW` that brought them is refused).
+pub(super) fn is_heap_file(path: &Path) -> bool {
+    path == Path::new(HEAP_PATH)
 }
 
 /// One `__NEW` of the project: its type and place.
@@ -127,9 +136,9 @@ pub(super) fn lower<'f>(
                 format!("`{op}` takes memory from the heap, and `[st] heap_bytes` is {heap_bytes}: give it the bytes the program allocates at most (docs/ST.md, Dynamic memory)"),
             ));
         }
-        return files;
     }
-    let heap = heap_file(&files, &sites, bytes, diags);
+    // reported when too small; a heap of one block keeps the calls declared (no more errors)
+    let heap = heap_file(&files, &sites, bytes.max(32), diags);
     files.push(Cow::Owned(heap));
     files
 }
