@@ -87,7 +87,7 @@ pub use retain::{Restart, RetainArea, RetainConfig, RetainRange};
 pub use rt::{RtConfig, RtPolicy};
 pub use serial::{Parity, SerialLine};
 pub use sim::SimConfig;
-pub use st::{is_st_source, is_twincat_source, LibraryFile, StConfig};
+pub use st::{is_st_source, is_twincat_source, LibraryFile, StConfig, DEFAULT_HEAP_BYTES};
 pub use switch::SwitchConfig;
 pub use task::{DeviceCondition, Edge, TaskConfig, TaskKind, TASK_NUMBERS};
 pub use timers::TimerConfig;

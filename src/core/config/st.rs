@@ -29,6 +29,9 @@ pub struct StConfig {
     pub heap_bytes: u32,
 }
 
+/// `heap_bytes` when the config does not say: 64 KiB.
+pub const DEFAULT_HEAP_BYTES: u32 = 64 * 1024;
+
 /// The largest `heap_bytes`: 16 MiB.
 pub const MAX_HEAP_BYTES: u32 = 16 * 1024 * 1024;
 
@@ -38,7 +41,7 @@ impl Default for StConfig {
             library: Vec::new(),
             strict: false,
             namespaces: Vec::new(),
-            heap_bytes: crate::st::dialect::DEFAULT_HEAP_BYTES,
+            heap_bytes: DEFAULT_HEAP_BYTES,
         }
     }
 }
@@ -132,7 +135,7 @@ pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StC
         }
     }
     let range = 0..=i64::from(MAX_HEAP_BYTES);
-    let default = crate::st::dialect::DEFAULT_HEAP_BYTES;
+    let default = DEFAULT_HEAP_BYTES;
     let heap_bytes = int_or(sink, &ctx, "heap_bytes", raw.heap_bytes, range, default);
     ok &= heap_bytes.is_some();
     let heap_bytes = heap_bytes.unwrap_or(default);

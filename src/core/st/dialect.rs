@@ -22,7 +22,7 @@ pub struct Dialect {
 }
 
 /// `[st] heap_bytes` when the config does not say: 64 KiB.
-pub const DEFAULT_HEAP_BYTES: u32 = 64 * 1024;
+pub const DEFAULT_HEAP_BYTES: u32 = crate::config::DEFAULT_HEAP_BYTES;
 
 impl Default for Dialect {
     fn default() -> Dialect {
