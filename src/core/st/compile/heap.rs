@@ -379,7 +379,7 @@ impl Lowering<'_> {
                 self.expr(inner);
                 index.iter_mut().for_each(|i| self.expr(i));
             }
-            ExprKind::Binary(_, a, b) => {
+            ExprKind::Binary(_, a, b) | ExprKind::Assign(a, b) => {
                 self.expr(a);
                 self.expr(b);
             }
