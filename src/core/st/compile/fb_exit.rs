@@ -22,8 +22,9 @@
 //!   instances never initialised). The engine (`Engine::finish_instances`) sets the request
 //!   flags and runs the programs' bodies to their END, the programs in reverse order, then the
 //!   globals. `bInCopyCode` is FALSE.
-//! - The instances fresh at each call (a method's `VAR`, a function block's `VAR_TEMP`): their
-//!   `__FB_EXIT_ALL` at the end of the body and before each `RETURN`.
+//! - The instances fresh at each call (a method's `VAR`, a function block's or a PROGRAM's
+//!   `VAR_TEMP`): their `__FB_EXIT_ALL` at the end of the body and before each `RETURN`; a
+//!   PROGRAM's by [`finish_program_temps`], before the other lowerings add `RETURN`s.
 //! - An online change's instances whose declaration changed: the exit pass also tests
 //!   [`PHASE`] and a flag per PROGRAM variable with a life cycle ([`copy_flag`]), to run on
 //!   the selected variables `__FB_EXIT_ALL(bInCopyCode := TRUE)` (phase 1, the old engine) or
@@ -105,10 +106,9 @@ fn in_chain(files: &[Cow<'_, ast::File>], blocks: &Blocks, name: &str, method: &
     false
 }
 
-pub(super) fn lower<'f>(
-    mut files: Vec<Cow<'f, ast::File>>,
-    diags: &mut Vec<Diagnostic>,
-) -> Vec<Cow<'f, ast::File>> {
+/// Each function block's place, and whether it has something to finish ([`has_work`] with
+/// its own `FB_exit`), by its name in lower case.
+fn exit_work(files: &[Cow<'_, ast::File>]) -> (Blocks, HashMap<String, bool>) {
     let mut blocks: Blocks = HashMap::new();
     for (f, file) in files.iter().enumerate() {
         for (i, item) in file.items.iter().enumerate() {
@@ -119,6 +119,55 @@ pub(super) fn lower<'f>(
             }
         }
     }
+    let mut needs: HashMap<String, bool> = HashMap::new();
+    let names: Vec<String> = blocks.keys().cloned().collect();
+    for name in &names {
+        has_work(files, &blocks, name, &own_fb_exit, &mut needs, &mut Vec::new());
+    }
+    (blocks, needs)
+}
+
+/// Finishes the instances in a PROGRAM's `VAR_TEMP` (fresh at each scan, as CODESYS has
+/// them) when the body's call ends: at its END and before each `RETURN` written in it, from
+/// the last declared, with `bInCopyCode` FALSE. A lowering that runs before
+/// compile/fb_init.rs's: the `RETURN`s that lowering and [`lower`] put at the start of the
+/// body (the phases of an online change, the exit pass) end passes that never reach the
+/// user's statements nor the temporaries' `FB_init`, so they must finish nothing. The loop
+/// counters over arrays are the body's own temporaries (the same names as the exit pass's,
+/// declared once).
+pub(super) fn finish_program_temps(files: Vec<Cow<'_, ast::File>>) -> Vec<Cow<'_, ast::File>> {
+    let (_, needs) = exit_work(&files);
+    if !needs.values().any(|&n| n) {
+        return files;
+    }
+    let mut files = files;
+    for file in files.iter_mut() {
+        let wants = file.items.iter().any(|item| {
+            matches!(item, Item::Pou(p) if p.kind == PouKind::Program
+                && !fresh_instances(p, &needs).is_empty())
+        });
+        if !wants {
+            continue;
+        }
+        for item in file.to_mut().items.iter_mut() {
+            let Item::Pou(p) = item else { continue };
+            if p.kind == PouKind::Program {
+                let counters = finish_fresh(p, &needs);
+                p.vars.extend(counter_block(COUNTER, counters, p.name.span).map(|mut b| {
+                    b.kind = VarKind::Temp;
+                    b
+                }));
+            }
+        }
+    }
+    files
+}
+
+pub(super) fn lower<'f>(
+    mut files: Vec<Cow<'f, ast::File>>,
+    diags: &mut Vec<Diagnostic>,
+) -> Vec<Cow<'f, ast::File>> {
+    let (blocks, needs) = exit_work(&files);
     for file in &files {
         for item in &file.items {
             let Item::Pou(p) = item else { continue };
@@ -135,11 +184,7 @@ pub(super) fn lower<'f>(
             }
         }
     }
-    let mut needs: HashMap<String, bool> = HashMap::new();
     let names: Vec<String> = blocks.keys().cloned().collect();
-    for name in &names {
-        has_work(&files, &blocks, name, &own_fb_exit, &mut needs, &mut Vec::new());
-    }
     let life = Life {
         init: names.iter().map(|n| (n.clone(), in_chain(&files, &blocks, n, INIT_ALL))).collect(),
         reinit: names
@@ -340,13 +385,12 @@ fn globals_finisher(globals: &[(Ident, TypeRef)], span: Span) -> Pou {
 }
 
 /// The variables of `p` fresh at each call whose block has something to finish: a method's
-/// `VAR`, a function block's `VAR_TEMP` (a PROGRAM's `VAR_TEMP` is not finished: its body's
-/// generated `RETURN`s are no end of a scan).
+/// `VAR` and `VAR_TEMP`, a function block's or a PROGRAM's `VAR_TEMP` (the PROGRAM's are
+/// finished by [`finish_program_temps`], before the body gets its generated `RETURN`s).
 fn fresh_instances(p: &Pou, map: &HashMap<String, bool>) -> Vec<(Ident, TypeRef)> {
     let fresh = |kind: VarKind| match p.kind {
         PouKind::Function => matches!(kind, VarKind::Local | VarKind::Temp),
-        PouKind::FunctionBlock => kind == VarKind::Temp,
-        PouKind::Program => false,
+        PouKind::FunctionBlock | PouKind::Program => kind == VarKind::Temp,
     };
     let mut out = Vec::new();
     for d in p.vars.iter().filter(|b| fresh(b.kind)).flat_map(|b| &b.decls) {
@@ -516,5 +560,11 @@ fn add_exit_pass(p: &mut Pou, map: &HashMap<String, bool>, life: &Life, globals:
     flags.extend(lives.iter().map(|(v, _)| bool_decl(&copy_flag(&v.name), span)));
     flags.push(VarDecl { ty: TypeRef::Named(ident("DINT", span)), ..bool_decl(PHASE, span) });
     p.vars.push(block(VarKind::Local, false, flags, span));
-    p.vars.extend(counter_block(COUNTER, counters, span));
+    // the counters [`finish_program_temps`] declared already serve the exit pass too
+    let declared = |n: &Ident| p.vars.iter().flat_map(|b| &b.decls).any(|d| d.names[0].is(&n.name));
+    let counters = counter_block(COUNTER, counters, span).map(|mut b| {
+        b.decls.retain(|d| !declared(&d.names[0]));
+        b
+    });
+    p.vars.extend(counters.filter(|b| !b.decls.is_empty()));
 }

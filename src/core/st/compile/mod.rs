@@ -180,6 +180,7 @@ pub fn compile_in_namespaces(
     let lowered = qualified::lower(lowered, namespaces, &mut diags);
     let lowered = method_vars::lower(lowered);
     let lowered = ref_init::lower(lowered, &mut diags);
+    let lowered = fb_exit::finish_program_temps(lowered);
     let lowered = fb_init::lower(lowered, &mut diags);
     let lowered = fb_exit::lower(lowered, &mut diags);
     let lowered = heap::lower(lowered, dialect.heap_bytes, &mut diags);
