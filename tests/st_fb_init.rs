@@ -276,6 +276,90 @@ END_METHOD",
 }
 
 #[test]
+fn an_online_change_of_a_global_instance_s_declaration_runs_the_same_calls_as_a_program_s() {
+    let before = "
+VAR_GLOBAL log, flags, inits : DINT; END_VAR
+VAR_GLOBAL d : Dev; f : Fix; row : ARRAY [1..2] OF Dev; END_VAR
+FUNCTION_BLOCK Dev
+VAR_INPUT kept : DINT; END_VAR
+METHOD FB_exit : BOOL
+VAR_INPUT bInCopyCode : BOOL; END_VAR
+    log := log * 10 + 1;
+    IF bInCopyCode THEN flags := flags + 1; END_IF
+END_METHOD
+END_FUNCTION_BLOCK
+FUNCTION_BLOCK Fix
+METHOD FB_init : BOOL
+VAR_INPUT bInitRetains : BOOL; bInCopyCode : BOOL; END_VAR
+    inits := inits + 1;
+END_METHOD
+METHOD FB_exit : BOOL
+VAR_INPUT bInCopyCode : BOOL; END_VAR
+    log := log * 10 + 9;
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM Main
+VAR scans : DINT; END_VAR
+    scans := scans + 1;
+    d.kept := 7;
+    row[2].kept := 3;
+END_PROGRAM
+";
+    // Dev gains variables (its declaration changes), an FB_init and an FB_reinit; Fix is
+    // the same
+    let after = before
+        .replace(
+            "VAR_INPUT kept : DINT; END_VAR",
+            "VAR_INPUT kept : DINT; END_VAR
+VAR_OUTPUT added, seen : DINT; END_VAR
+METHOD FB_init : BOOL
+VAR_INPUT bInitRetains : BOOL; bInCopyCode : BOOL; END_VAR
+    IF bInCopyCode AND NOT bInitRetains THEN added := 5; END_IF
+END_METHOD
+METHOD FB_reinit : BOOL
+    seen := kept * 10 + added;
+END_METHOD",
+        )
+        .replace("d.kept := 7;", "d.kept := 8;");
+    let p = st(before);
+    let mut plc = Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    // f's FB_init at the first scan; nothing finished yet
+    assert_eq!(var(&plc, &p, "inits"), 1);
+    assert_eq!(var(&plc, &p, "log"), 0);
+    let scans = var(&plc, &p, "main.scans");
+    let changed = st(&after);
+    let mut change = plcd::engine::online::prepare(&p, &changed, &[]).unwrap();
+    change.engine.take_over(&mut plc.engine, &change.edges).unwrap();
+    std::mem::swap(&mut plc.engine, &mut change.engine);
+    // the old copies' FB_exit with bInCopyCode TRUE, from the last declared: row[2], row[1],
+    // then d (three 1s; their writes to log are carried over); f is kept as it was: no
+    // FB_exit (no 9) and no FB_init again
+    assert_eq!(var(&plc, &changed, "log"), 111);
+    assert_eq!(var(&plc, &changed, "flags"), 3);
+    assert_eq!(var(&plc, &changed, "inits"), 1);
+    // the new copies' FB_init (bInitRetains FALSE, bInCopyCode TRUE) set the new variable
+    // added; kept was carried over; FB_reinit saw both, before any scan of the new code, and
+    // no statement of Main ran in the phases
+    assert_eq!(var(&plc, &changed, "d.added"), 5);
+    assert_eq!(var(&plc, &changed, "d.kept"), 7);
+    assert_eq!(var(&plc, &changed, "d.seen"), 75);
+    assert_eq!(var(&plc, &changed, "row[1].seen"), 5);
+    assert_eq!(var(&plc, &changed, "row[2].seen"), 35);
+    assert_eq!(var(&plc, &changed, "main.scans"), scans);
+    run_scans(&mut plc, MS);
+    assert_eq!(var(&plc, &changed, "d.kept"), 8, "the new code runs");
+    assert_eq!(var(&plc, &changed, "d.seen"), 75, "FB_reinit once");
+    assert_eq!(var(&plc, &changed, "inits"), 1, "no FB_init at the next scan");
+    // a STOP finishes the global instances as usual (bInCopyCode FALSE), from the last
+    // declared: row[2], row[1], f (9), d
+    plc.set_mode(Mode::Stop);
+    assert_eq!(var(&plc, &changed, "log"), 1111191);
+    assert_eq!(var(&plc, &changed, "flags"), 3);
+}
+
+#[test]
 fn the_phases_of_an_online_change_run_no_statement_of_a_program_without_fb_init() {
     // Ext has only an FB_exit, and gains a variable: its instance's phases 1 to 3 run in
     // Main, whose statements (runs := runs + 1) must not run outside a scan

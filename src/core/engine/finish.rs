@@ -3,7 +3,7 @@
 //! replacement and the daemon's shutdown, which all stop the PLC first) and when an online
 //! change removes a program; and an online change's instances whose declaration changed
 //! (`FB_exit` and `FB_init` with `bInCopyCode` TRUE, then `FB_reinit`: [`copied_instances`],
-//! `Engine::take_over`) or which it adds to a kept PROGRAM (`FB_init`: [`added_instances`]).
+//! [`copied_globals`] for the global instances, `Engine::take_over`) or which it adds to a kept PROGRAM (`FB_init`: [`added_instances`]).
 //!
 //! Code runs only in a program's body, so the compiler gives each Structured Text PROGRAM an
 //! *exit pass* (`compile/fb_exit.rs`): its body starts by testing hidden request flags. Here the
@@ -27,6 +27,10 @@ pub const FINISH_STEPS: u64 = 10_000_000;
 /// (`compile/fb_exit.rs`'s `copy_flag`).
 const COPY_FLAG: &str = ".__fb_exit_copy_";
 
+/// The name of a global instance's copy flag, in lower case (`compile/fb_exit.rs`'s
+/// `global_copy_flag`): the global's name follows.
+const GLOBAL_COPY_FLAG: &str = "__fb_exit_gcopy_";
+
 /// Where the exit passes' request flags are, found by name in the compiled project.
 #[derive(Debug, Default)]
 pub(super) struct Finish {
@@ -36,6 +40,10 @@ pub(super) struct Finish {
     globals: Option<(Pointer, Elem)>,
     /// By program index: the program's `__FB_EXIT_PHASE` (the phases of an online change).
     phases: Box<[Option<(Pointer, Elem)>]>,
+    /// `__FB_EXIT_GLOBALS_PHASE`: the phases of an online change over global instances.
+    globals_phase: Option<(Pointer, Elem)>,
+    /// The global instances whose declaration an online change changes (prepared with it).
+    pub(super) global_copies: Box<[CopiedGlobal]>,
     /// The programs of the running engine an online change removes (prepared with it).
     pub(super) removed: Box<[u16]>,
     /// The instances whose declaration an online change changes (prepared with it).
@@ -53,6 +61,50 @@ pub(super) struct CopiedInstance {
     old_flag: (Pointer, Elem),
     new_program: u16,
     new_flag: (Pointer, Elem),
+}
+
+/// A global instance an online change carries over into a changed declaration: its flag
+/// (`__FB_EXIT_GCOPY_<name>`) in the old engine and in the new.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct CopiedGlobal {
+    old_flag: (Pointer, Elem),
+    new_flag: (Pointer, Elem),
+}
+
+/// The leaves under variable `var` (in lower case) of `project`: their names after `var`, in
+/// lower case, and their types, sorted.
+fn leaves(project: &Project, var: &str) -> Vec<(String, crate::value::ValueType)> {
+    let mut found: Vec<(String, crate::value::ValueType)> = project
+        .variables
+        .symbols
+        .iter()
+        .filter_map(|s| {
+            let name = s.name.to_ascii_lowercase();
+            let rest = name.strip_prefix(var)?;
+            (rest.starts_with('.') || rest.starts_with('['))
+                .then(|| (rest.to_string(), s.ty.clone()))
+        })
+        .collect();
+    found.sort_by(|a, b| a.0.cmp(&b.0));
+    found
+}
+
+/// The global instances with a life cycle (a copy flag in both projects) whose declaration
+/// differs between `old` and `new` (not the same leaves, by name and type, under the global).
+pub(super) fn copied_globals(old: &Project, new: &Project) -> Box<[CopiedGlobal]> {
+    let mut out = Vec::new();
+    for symbol in &new.variables.symbols {
+        let lower = symbol.name.to_ascii_lowercase();
+        let Some(var) = lower.strip_prefix(GLOBAL_COPY_FLAG) else { continue };
+        let Some(before) = old.variable(&symbol.name) else { continue };
+        if leaves(old, var) != leaves(new, var) {
+            out.push(CopiedGlobal {
+                old_flag: (before.at, before.ty.elem()),
+                new_flag: (symbol.at, symbol.ty.elem()),
+            });
+        }
+    }
+    out.into_boxed_slice()
 }
 
 /// The PROGRAM variables with a life cycle (a copy flag) that `new` adds to a PROGRAM `old`
@@ -89,21 +141,6 @@ pub(super) fn added_instances(old: &Project, new: &Project) -> Box<[(u16, (Point
 /// The PROGRAM variables with a life cycle (a copy flag in both projects) whose declaration
 /// differs between `old` and `new`: not the same leaves, by name and type, under the variable.
 pub(super) fn copied_instances(old: &Project, new: &Project) -> Box<[CopiedInstance]> {
-    let leaves = |project: &Project, var: &str| {
-        let mut found: Vec<(String, crate::value::ValueType)> = project
-            .variables
-            .symbols
-            .iter()
-            .filter_map(|s| {
-                let name = s.name.to_ascii_lowercase();
-                let rest = name.strip_prefix(var)?;
-                (rest.starts_with('.') || rest.starts_with('['))
-                    .then(|| (rest.to_string(), s.ty.clone()))
-            })
-            .collect();
-        found.sort_by(|a, b| a.0.cmp(&b.0));
-        found
-    };
     let program_of = |project: &Project, name: &str| {
         project.programs.iter().position(|p| p.name.eq_ignore_ascii_case(name)).map(|i| i as u16)
     };
@@ -145,6 +182,8 @@ impl Finish {
             requests,
             globals: flag("__FB_EXIT_GLOBALS_REQUEST"),
             phases,
+            globals_phase: flag("__FB_EXIT_GLOBALS_PHASE"),
+            global_copies: Box::default(),
             removed: Box::default(),
             copies: Box::default(),
             added: Box::default(),
@@ -197,6 +236,33 @@ impl Engine {
             self.vm.write_value(phase_at, phase_elem, phase);
             self.run_pass(usize::from(p), now);
             self.vm.write_value(phase_at, phase_elem, 0);
+            self.vm.write_value(at, elem, 0);
+        }
+    }
+
+    /// Phase `phase` of an online change over the global instances `copies` (see
+    /// [`Finish::global_copies`]), in this engine (`old`: the running one): all selected at
+    /// once, in the exit pass of the first program that has one. Allocates nothing.
+    pub(super) fn copy_globals_phase(
+        &mut self,
+        copies: &[CopiedGlobal],
+        old: bool,
+        phase: u64,
+        now: u64,
+    ) {
+        let Some((phase_at, phase_elem)) = self.finish.globals_phase else { return };
+        let Some(p) = self.finish.requests.iter().position(Option::is_some) else { return };
+        if copies.is_empty() {
+            return;
+        }
+        let flag = |copy: &CopiedGlobal| if old { copy.old_flag } else { copy.new_flag };
+        for (at, elem) in copies.iter().map(flag) {
+            self.vm.write_value(at, elem, 1);
+        }
+        self.vm.write_value(phase_at, phase_elem, phase);
+        self.run_pass(p, now);
+        self.vm.write_value(phase_at, phase_elem, 0);
+        for (at, elem) in copies.iter().map(flag) {
             self.vm.write_value(at, elem, 0);
         }
     }

@@ -131,6 +131,7 @@ pub fn prepare(
         .filter(|&i| !new.programs.iter().any(|p| p.name == old.programs[usize::from(i)].name))
         .collect();
     engine.finish.copies = super::finish::copied_instances(old, new);
+    engine.finish.global_copies = super::finish::copied_globals(old, new);
     engine.finish.added = super::finish::added_instances(old, new);
     Ok(OnlineChange { engine, edges: edges.into_boxed_slice() })
 }
@@ -174,6 +175,7 @@ impl Engine {
             return Err(Refusal::MidScan);
         }
         let copies = std::mem::take(&mut self.finish.copies);
+        let global_copies = std::mem::take(&mut self.finish.global_copies);
         let now = old.scan_start_ns;
         if old.running() {
             let removed = std::mem::take(&mut self.finish.removed);
@@ -182,8 +184,11 @@ impl Engine {
             // the instances whose declaration changed, as CODESYS: FB_exit(bInCopyCode :=
             // TRUE) on the old copy, FB_init(bInCopyCode := TRUE) on the new, the values
             // carried over, then FB_reinit
+            // the global instances likewise, after the PROGRAMs' at each phase
             old.copy_phase(&copies, true, 1, now);
+            old.copy_globals_phase(&global_copies, true, 1, now);
             self.copy_phase(&copies, false, 2, now);
+            self.copy_globals_phase(&global_copies, false, 2, now);
         }
         self.vm.take_over(&mut old.vm, edges);
         self.vm.keep_variables(&old.vm, &self.kept_variables);
@@ -192,8 +197,10 @@ impl Engine {
             self.init_added(&added, now);
             self.finish.added = added;
             self.copy_phase(&copies, false, 3, now);
+            self.copy_globals_phase(&global_copies, false, 3, now);
         }
         self.finish.copies = copies;
+        self.finish.global_copies = global_copies;
         for (new, old) in self.tasks.iter_mut().zip(old.tasks.iter_mut()) {
             new.kind = old.kind.clone();
             new.state = match old.state {

@@ -84,6 +84,18 @@ pub fn copy_flag(v: &str) -> String {
     format!("__FB_EXIT_COPY_{v}")
 }
 
+/// The phase of an online change over the global instances whose declaration changed (the
+/// numbers of [`PHASE`]: 1, 2, 3), which the engine sets, with their flags
+/// ([`global_copy_flag`]), to run the hidden FUNCTION `__FB_EXIT_GLOBALS_COPY` in a PROGRAM's exit
+/// pass.
+pub const GLOBALS_PHASE: &str = "__FB_EXIT_GLOBALS_PHASE";
+const GLOBALS_COPY: &str = "__FB_EXIT_GLOBALS_COPY";
+
+/// The flag by which the engine selects global `v` for a phase of an online change.
+pub fn global_copy_flag(v: &str) -> String {
+    format!("__FB_EXIT_GCOPY_{v}")
+}
+
 /// What a block's instances go through, besides `FB_exit` (by block name in lower case).
 struct Life {
     /// `__FB_INIT_ALL` in its chain (compile/fb_init.rs added it).
@@ -197,7 +209,21 @@ pub(super) fn lower<'f>(
         return files;
     }
     let globals = global_instances(&files, &needs);
-    let mut globals_placed = globals.is_empty();
+    // the global instances with a life cycle, which an online change of their declaration
+    // takes through the phases (as a PROGRAM's variables)
+    let lifelong: HashMap<String, bool> = names
+        .iter()
+        .map(|n| {
+            let has = |m: &HashMap<String, bool>| m.get(n).copied().unwrap_or(false);
+            (n.clone(), has(&needs) || has(&life.init) || has(&life.reinit))
+        })
+        .collect();
+    let global_lives = global_instances(&files, &lifelong);
+    let init_copies = files
+        .iter()
+        .flat_map(|f| &f.items)
+        .any(|i| matches!(i, Item::Pou(p) if p.name.name == super::fb_init::GLOBALS_COPY_INIT));
+    let mut globals_placed = globals.is_empty() && global_lives.is_empty();
     for file in files.iter_mut() {
         let holds_globals =
             !globals_placed && file.items.iter().any(|i| matches!(i, Item::Globals(_)));
@@ -224,7 +250,9 @@ pub(super) fn lower<'f>(
             }
             match p.kind {
                 PouKind::FunctionBlock if own_work(p, &needs) => add_exit_all(p, &needs),
-                PouKind::Program => add_exit_pass(p, &needs, &life, !globals.is_empty()),
+                PouKind::Program => {
+                    add_exit_pass(p, &needs, &life, !globals.is_empty(), !global_lives.is_empty())
+                }
                 _ => {}
             }
         }
@@ -235,9 +263,24 @@ pub(super) fn lower<'f>(
                 Item::Globals(b) => b.span,
                 _ => Span::default(),
             };
-            items.insert(at, Item::Pou(globals_finisher(&globals, span)));
-            let flags = vec![bool_decl(GLOBALS_REQUEST, span), bool_decl(GLOBALS_LIVE, span)];
-            items.insert(at, Item::Globals(block(VarKind::Global, false, flags, span)));
+            if !global_lives.is_empty() {
+                let copier = globals_copier(&global_lives, &needs, &life, init_copies, span);
+                items.insert(at, Item::Pou(copier));
+                let mut flags: Vec<VarDecl> = global_lives
+                    .iter()
+                    .map(|(v, _)| bool_decl(&global_copy_flag(&v.name), span))
+                    .collect();
+                flags.push(VarDecl {
+                    ty: TypeRef::Named(ident("DINT", span)),
+                    ..bool_decl(GLOBALS_PHASE, span)
+                });
+                items.insert(at, Item::Globals(block(VarKind::Global, false, flags, span)));
+            }
+            if !globals.is_empty() {
+                items.insert(at, Item::Pou(globals_finisher(&globals, span)));
+                let flags = vec![bool_decl(GLOBALS_REQUEST, span), bool_decl(GLOBALS_LIVE, span)];
+                items.insert(at, Item::Globals(block(VarKind::Global, false, flags, span)));
+            }
         }
     }
     files
@@ -454,8 +497,74 @@ fn before_returns(body: &mut [Stmt], exits: &[Stmt]) {
     }
 }
 
-/// Starts program `p`'s body with its exit pass (see the module's documentation).
-fn add_exit_pass(p: &mut Pou, map: &HashMap<String, bool>, life: &Life, globals: bool) {
+/// `FUNCTION __FB_EXIT_GLOBALS_COPY`: phase `phase` of an online change over the global instances
+/// `lives` selected by their flags: 1, `FB_exit(bInCopyCode := TRUE)` on the old copies, from
+/// the last declared; 2, compile/fb_init.rs's `__FB_INIT_GLOBALS_COPY` (when there is one:
+/// `init_copies`) on the new copies; 3, `FB_reinit()` on the new copies, in declaration order
+/// (the same order as a PROGRAM's variables).
+fn globals_copier(
+    lives: &[(Ident, TypeRef)],
+    map: &HashMap<String, bool>,
+    life: &Life,
+    init_copies: bool,
+    span: Span,
+) -> Pou {
+    const PHASE_INPUT: &str = "phase";
+    let in_phase = |k: u128| Expr {
+        kind: ExprKind::Binary(
+            ast::BinaryOp::Eq,
+            Box::new(name(PHASE_INPUT, span)),
+            Box::new(Expr { kind: ExprKind::Literal(Literal::Int(k)), span }),
+        ),
+        span,
+    };
+    let selected =
+        |v: &Ident, work: Stmt| when(name(&global_copy_flag(&v.name), span), vec![work], span);
+    let copy_true = || truth(true, span);
+    let mut counters = 0;
+    let exits: Vec<Stmt> = lives
+        .iter()
+        .rev()
+        .filter(|(_, ty)| instance_with_work(ty, map).is_some())
+        .map(|(v, ty)| selected(v, exit_variable(v, ty, &copy_true, &mut counters)))
+        .collect();
+    let reinits: Vec<Stmt> = lives
+        .iter()
+        .filter(|(_, ty)| instance_with_work(ty, &life.reinit).is_some())
+        .map(|(v, ty)| {
+            selected(v, each_element(v, ty, true, &mut counters, &|t| reinit_call(t, span)))
+        })
+        .collect();
+    let mut body = vec![when(in_phase(1), exits, span)];
+    if init_copies {
+        let callee = Box::new(name(super::fb_init::GLOBALS_COPY_INIT, span));
+        let call = Expr { kind: ExprKind::Call { callee, args: Vec::new() }, span };
+        body.push(when(in_phase(2), vec![stmt(StmtKind::Call(call), span)], span));
+    }
+    body.push(when(in_phase(3), reinits, span));
+    let phase = VarDecl { ty: TypeRef::Named(ident("DINT", span)), ..bool_decl(PHASE_INPUT, span) };
+    let mut vars = vec![block(VarKind::Input, false, vec![phase], span)];
+    vars.extend(counter_block(COUNTER, counters, span));
+    hidden_pou(GLOBALS_COPY, vars, body, span, span)
+}
+
+/// `target.FB_reinit()`.
+fn reinit_call(target: Expr, span: Span) -> Stmt {
+    let callee = Expr { kind: ExprKind::Member(Box::new(target), ident(FB_REINIT, span)), span };
+    let call = Expr { kind: ExprKind::Call { callee: Box::new(callee), args: Vec::new() }, span };
+    stmt(StmtKind::Call(call), span)
+}
+
+/// Starts program `p`'s body with its exit pass (see the module's documentation); with
+/// `global_copies`, the pass also runs `__FB_EXIT_GLOBALS_COPY` when the engine asks for a phase of
+/// an online change over the global instances ([`GLOBALS_PHASE`]).
+fn add_exit_pass(
+    p: &mut Pou,
+    map: &HashMap<String, bool>,
+    life: &Life,
+    globals: bool,
+    global_copies: bool,
+) {
     let span = p.name.span;
     let copy = || truth(false, span);
     let mut counters = 0;
@@ -526,13 +635,7 @@ fn add_exit_pass(p: &mut Pou, map: &HashMap<String, bool>, life: &Life, globals:
         .filter(|(_, ty)| instance_with_work(ty, map).is_some())
         .map(|(v, ty)| selected(v, exit_variable(v, ty, &copy_true, &mut counters)))
         .collect();
-    let reinit = |target: Expr| {
-        let callee =
-            Expr { kind: ExprKind::Member(Box::new(target), ident(FB_REINIT, span)), span };
-        let call =
-            Expr { kind: ExprKind::Call { callee: Box::new(callee), args: Vec::new() }, span };
-        stmt(StmtKind::Call(call), span)
-    };
+    let reinit = |target: Expr| reinit_call(target, span);
     let reinits: Vec<Stmt> = lives
         .iter()
         .filter(|(_, ty)| has(&life.reinit, ty))
@@ -540,6 +643,24 @@ fn add_exit_pass(p: &mut Pou, map: &HashMap<String, bool>, life: &Life, globals:
         .collect();
     pass.push(when(in_phase(1), exits, span));
     pass.push(when(in_phase(3), reinits, span));
+    if global_copies {
+        let phase = || name(GLOBALS_PHASE, span);
+        let zero = Expr { kind: ExprKind::Literal(Literal::Int(0)), span };
+        let asked_globals = Expr {
+            kind: ExprKind::Binary(ast::BinaryOp::Ne, Box::new(phase()), Box::new(zero)),
+            span,
+        };
+        let args = vec![Arg::Input { name: ident("phase", span), value: phase() }];
+        let call = Expr {
+            kind: ExprKind::Call { callee: Box::new(name(GLOBALS_COPY, span)), args },
+            span,
+        };
+        pass.push(when(asked_globals.clone(), vec![stmt(StmtKind::Call(call), span)], span));
+        asked = Expr {
+            kind: ExprKind::Binary(ast::BinaryOp::Or, Box::new(asked), Box::new(asked_globals)),
+            span,
+        };
+    }
     // phases 2 and 4 are compile/fb_init.rs's, in a PROGRAM with instances to initialise; in
     // any other they must not run the body
     let phases: &[u128] =

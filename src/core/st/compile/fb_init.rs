@@ -72,6 +72,10 @@ const GLOBALS_DONE: &str = "__FB_INIT_GLOBALS_DONE";
 const GLOBALS_RETAINED: &str = "__FB_INIT_GLOBALS_RETAINED";
 const INIT_RETAINS: &str = "bInitRetains";
 const IN_COPY_CODE: &str = "bInCopyCode";
+/// The hidden FUNCTION that runs phase 2 of an online change over the global instances whose
+/// declaration changed (their flags are compile/fb_exit.rs's `global_copy_flag`s):
+/// `FB_init(bInitRetains := FALSE, bInCopyCode := TRUE)` on each new copy selected.
+pub const GLOBALS_COPY_INIT: &str = "__FB_INIT_GLOBALS_COPY";
 
 /// Whether `name` is `FB_init` (case-insensitive, as every IEC name).
 pub fn is_fb_init(name: &str) -> bool {
@@ -230,6 +234,7 @@ fn generate(files: &mut [Cow<'_, ast::File>], plan: &Plan) {
                 _ => Span::default(),
             };
             items.insert(at, Item::Pou(globals_initialiser(&globals, plan, span)));
+            items.insert(at, Item::Pou(globals_copy_initialiser(&globals, plan, span)));
             items.insert(
                 at,
                 Item::Globals(bool_block(VarKind::Global, true, GLOBALS_RETAINED, span)),
@@ -716,6 +721,25 @@ fn globals_initialiser(globals: &[(Ident, TypeRef)], plan: &Plan, span: Span) ->
     let mut vars = vec![block(VarKind::Input, false, vec![bool_decl(INIT_RETAINS, span)], span)];
     vars.extend(counter_block(COUNTER, counters, span));
     hidden_pou(GLOBALS_INIT, vars, body, span, span)
+}
+
+/// `FUNCTION __FB_INIT_GLOBALS_COPY`: phase 2 of an online change over the global instances
+/// (compile/fb_exit.rs sets nothing of it: the engine selects each new copy by its flag),
+/// `FB_init` with `bInitRetains` FALSE and `bInCopyCode` TRUE, in declaration order.
+fn globals_copy_initialiser(globals: &[(Ident, TypeRef)], plan: &Plan, span: Span) -> Pou {
+    let truth = |b: bool| Expr { kind: ExprKind::Literal(Literal::Bool(b)), span };
+    let args = || (truth(false), truth(true));
+    let mut counters = 0;
+    let body = globals
+        .iter()
+        .map(|(v, ty)| {
+            let init = init_variable(v, ty, plan, &args, &mut counters);
+            let flag = name(&super::fb_exit::global_copy_flag(&v.name), span);
+            stmt(StmtKind::If { branches: vec![(flag, vec![init])], otherwise: None }, span)
+        })
+        .collect();
+    let vars = counter_block(COUNTER, counters, span).into_iter().collect();
+    hidden_pou(GLOBALS_COPY_INIT, vars, body, span, span)
 }
 
 /// Starts program `p`'s body with the initialisation of the global instances, once a RUN
