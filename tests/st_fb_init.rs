@@ -360,6 +360,54 @@ END_METHOD",
 }
 
 #[test]
+fn the_instances_of_a_name_two_global_lists_declare_go_through_an_online_change_each() {
+    let config = "[[program]]\nname = \"main\"\nfile = \"main.st\"\n\
+                  [st]\nlibrary = [\"GVL_A.st\", \"GVL_B.st\"]\n";
+    let blocks = "
+VAR_GLOBAL log, flags : DINT; END_VAR
+FUNCTION_BLOCK Dev
+VAR_INPUT id : DINT; END_VAR
+METHOD FB_exit : BOOL
+VAR_INPUT bInCopyCode : BOOL; END_VAR
+    log := log * 10 + id;
+    IF bInCopyCode THEN flags := flags + 1; END_IF
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM Main
+VAR scans : DINT; END_VAR
+    scans := scans + 1;
+    GVL_A.x.id := 1;
+    GVL_B.x.id := 2;
+END_PROGRAM
+";
+    let lists = |extra: &str| {
+        [
+            ("main.st", blocks.replace("END_VAR\nMETHOD", &format!("END_VAR\n{extra}METHOD"))),
+            ("GVL_A.st", "VAR_GLOBAL x : Dev; END_VAR\n".to_string()),
+            ("GVL_B.st", "VAR_GLOBAL x : Dev; END_VAR\n".to_string()),
+        ]
+    };
+    let files = |extra: &str| -> Project {
+        let owned = lists(extra);
+        let borrowed: Vec<(&str, &str)> = owned.iter().map(|(n, t)| (*n, t.as_str())).collect();
+        project(config, &borrowed)
+    };
+    let p = files("");
+    let mut plc = Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    // Dev gains a variable: both x change their declaration
+    let changed = files("VAR_OUTPUT more : DINT; END_VAR\n");
+    let mut change = plcd::engine::online::prepare(&p, &changed, &[]).unwrap();
+    change.engine.take_over(&mut plc.engine, &change.edges).unwrap();
+    std::mem::swap(&mut plc.engine, &mut change.engine);
+    // each old copy's FB_exit with bInCopyCode TRUE, GVL_B's x (declared last) first
+    assert_eq!(var(&plc, &changed, "flags"), 2);
+    assert_eq!(var(&plc, &changed, "log"), 21);
+    assert_eq!(var(&plc, &changed, "GVL_A.x.id"), 1, "carried over");
+}
+
+#[test]
 fn the_phases_of_an_online_change_run_no_statement_of_a_program_without_fb_init() {
     // Ext has only an FB_exit, and gains a variable: its instance's phases 1 to 3 run in
     // Main, whose statements (runs := runs + 1) must not run outside a scan

@@ -30,6 +30,10 @@
 //!   the selected variables `__FB_EXIT_ALL(bInCopyCode := TRUE)` (phase 1, the old engine) or
 //!   `FB_reinit()` (phase 3, the new engine after the carry-over); phase 2, `__FB_INIT_ALL`
 //!   with `bInCopyCode` TRUE, is compile/fb_init.rs's, which knows the declaration arguments.
+//!   The global instances likewise: hidden globals [`GLOBALS_PHASE`] and a flag per global
+//!   instance with a life cycle ([`global_copy_flag`]), which the exit pass tests to run the
+//!   hidden FUNCTION `__FB_EXIT_GLOBALS_COPY` (phases 1 and 3; phase 2 calls fb_init.rs's
+//!   `__FB_INIT_GLOBALS_COPY`).
 //!
 //! Checked here: an `FB_exit` declares `bInCopyCode : BOOL` as its first VAR_INPUT (CODESYS's
 //! C0565).

@@ -24,7 +24,9 @@
 //! - The top-level `VAR_GLOBAL` instances: a hidden FUNCTION `__FB_INIT_GLOBALS` initialises
 //!   them, and every PROGRAM starts with a call of it guarded by hidden global flags (the same
 //!   pair, `__FB_INIT_GLOBALS_DONE` and `__FB_INIT_GLOBALS_RETAINED`): whichever PROGRAM runs
-//!   first in a RUN start runs it, before its own instances.
+//!   first in a RUN start runs it, before its own instances. A hidden FUNCTION
+//!   [`GLOBALS_COPY_INIT`] runs phase 2 of an online change over them (the new copies of
+//!   those whose declaration changed, selected by compile/fb_exit.rs's flags).
 //! - The instances fresh at each call (a FUNCTION's or a method's `VAR`, any `VAR_TEMP`): the
 //!   body starts with their `__FB_INIT_ALL`, `bInitRetains` TRUE, `bInCopyCode` FALSE.
 //! - A method named `FB_init` is called without dispatch (a derived block's does not replace
