@@ -275,8 +275,28 @@ END_METHOD",
     assert_eq!(var(&plc, &changed, "main.d.seen"), 75, "FB_reinit once");
 }
 
+/// `project` with native code attached to its programs (plcd-native), or as it is (also
+/// when plcd is built without its `native` feature).
+fn with_native(project: Project, native: bool) -> Project {
+    #[cfg(feature = "native")]
+    if native {
+        let mut project = project;
+        let errors = plcd_native::attach(&mut project);
+        assert!(errors.is_empty(), "native code: {errors:?}");
+        return project;
+    }
+    let _ = native;
+    project
+}
+
 #[test]
 fn an_online_change_of_a_global_instance_s_declaration_runs_the_same_calls_as_a_program_s() {
+    for native in [false, true] {
+        global_instance_through_an_online_change(native);
+    }
+}
+
+fn global_instance_through_an_online_change(native: bool) {
     let before = "
 VAR_GLOBAL log, flags, inits : DINT; END_VAR
 VAR_GLOBAL d : Dev; f : Fix; row : ARRAY [1..2] OF Dev; END_VAR
@@ -321,7 +341,7 @@ METHOD FB_reinit : BOOL
 END_METHOD",
         )
         .replace("d.kept := 7;", "d.kept := 8;");
-    let p = st(before);
+    let p = with_native(st(before), native);
     let mut plc = Plc::new(&p);
     plc.set_mode(Mode::Run);
     run_scans(&mut plc, MS);
@@ -329,7 +349,7 @@ END_METHOD",
     assert_eq!(var(&plc, &p, "inits"), 1);
     assert_eq!(var(&plc, &p, "log"), 0);
     let scans = var(&plc, &p, "main.scans");
-    let changed = st(&after);
+    let changed = with_native(st(&after), native);
     let mut change = plcd::engine::online::prepare(&p, &changed, &[]).unwrap();
     change.engine.take_over(&mut plc.engine, &change.edges).unwrap();
     std::mem::swap(&mut plc.engine, &mut change.engine);
@@ -361,6 +381,12 @@ END_METHOD",
 
 #[test]
 fn the_instances_of_a_name_two_global_lists_declare_go_through_an_online_change_each() {
+    for native in [false, true] {
+        two_lists_through_an_online_change(native);
+    }
+}
+
+fn two_lists_through_an_online_change(native: bool) {
     let config = "[[program]]\nname = \"main\"\nfile = \"main.st\"\n\
                   [st]\nlibrary = [\"GVL_A.st\", \"GVL_B.st\"]\n";
     let blocks = "
@@ -390,7 +416,7 @@ END_PROGRAM
     let files = |extra: &str| -> Project {
         let owned = lists(extra);
         let borrowed: Vec<(&str, &str)> = owned.iter().map(|(n, t)| (*n, t.as_str())).collect();
-        project(config, &borrowed)
+        with_native(project(config, &borrowed), native)
     };
     let p = files("");
     let mut plc = Plc::new(&p);
