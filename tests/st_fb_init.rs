@@ -434,6 +434,77 @@ END_PROGRAM
 }
 
 #[test]
+fn a_program_s_var_temp_instances_live_for_one_scan_and_no_pass_of_the_engine_touches_them() {
+    for native in [false, true] {
+        program_temps_through_passes(native);
+    }
+}
+
+fn program_temps_through_passes(native: bool) {
+    let before = "
+VAR_GLOBAL tInits, tExits, tCopies, dExits, dCopies : DINT; END_VAR
+FUNCTION_BLOCK Tmp
+METHOD FB_init : BOOL
+VAR_INPUT bInitRetains : BOOL; bInCopyCode : BOOL; END_VAR
+    tInits := tInits + 1;
+END_METHOD
+METHOD FB_exit : BOOL
+VAR_INPUT bInCopyCode : BOOL; END_VAR
+    tExits := tExits + 1;
+    IF bInCopyCode THEN tCopies := tCopies + 1; END_IF
+END_METHOD
+END_FUNCTION_BLOCK
+FUNCTION_BLOCK Dev
+VAR_INPUT kept : DINT; END_VAR
+METHOD FB_exit : BOOL
+VAR_INPUT bInCopyCode : BOOL; END_VAR
+    dExits := dExits + 1;
+    IF bInCopyCode THEN dCopies := dCopies + 1; END_IF
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM Main
+VAR_TEMP t : Tmp; END_VAR
+VAR d : Dev; scans : DINT; END_VAR
+    scans := scans + 1;
+    IF scans MOD 2 = 0 THEN RETURN; END_IF
+END_PROGRAM
+";
+    // Dev gains a variable: d goes through the phases of the change
+    let after = before.replace(
+        "VAR_INPUT kept : DINT; END_VAR",
+        "VAR_INPUT kept : DINT; END_VAR\nVAR_OUTPUT more : DINT; END_VAR",
+    );
+    let p = with_native(st(before), native);
+    let mut plc = Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    // one FB_init and one FB_exit of t a scan, half of them at the RETURN
+    let scans = var(&plc, &p, "main.scans");
+    assert!(scans > 1);
+    assert_eq!(var(&plc, &p, "tInits"), scans);
+    assert_eq!(var(&plc, &p, "tExits"), scans);
+    let changed = with_native(st(&after), native);
+    let mut change = plcd::engine::online::prepare(&p, &changed, &[]).unwrap();
+    change.engine.take_over(&mut plc.engine, &change.edges).unwrap();
+    std::mem::swap(&mut plc.engine, &mut change.engine);
+    // d's FB_exit in copy code; the phases ran no statement of Main: t untouched
+    assert_eq!(var(&plc, &changed, "dCopies"), 1);
+    assert_eq!(var(&plc, &changed, "tInits"), scans);
+    assert_eq!(var(&plc, &changed, "tExits"), scans);
+    assert_eq!(var(&plc, &changed, "tCopies"), 0);
+    run_scans(&mut plc, MS);
+    let scans = var(&plc, &changed, "main.scans");
+    assert_eq!(var(&plc, &changed, "tInits"), scans);
+    assert_eq!(var(&plc, &changed, "tExits"), scans);
+    // a STOP finishes d (bInCopyCode FALSE), not t: no scan holds it
+    plc.set_mode(Mode::Stop);
+    assert_eq!(var(&plc, &changed, "dExits"), 2);
+    assert_eq!(var(&plc, &changed, "dCopies"), 1);
+    assert_eq!(var(&plc, &changed, "tExits"), scans);
+    assert_eq!(var(&plc, &changed, "tCopies"), 0);
+}
+
+#[test]
 fn the_phases_of_an_online_change_run_no_statement_of_a_program_without_fb_init() {
     // Ext has only an FB_exit, and gains a variable: its instance's phases 1 to 3 run in
     // Main, whose statements (runs := runs + 1) must not run outside a scan
