@@ -419,6 +419,7 @@ fn typed_programs_do_not_allocate() {
         located_init: vec![(d("D00102"), Elem::I32, 7)].into(),
         symbols: vec![],
         referents: vec![],
+        access: vec![],
     });
     let mut state = ExecState::with_frame(program.frame_bytes);
     let retain = RetainSet::default();

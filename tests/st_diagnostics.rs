@@ -140,9 +140,31 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` is not a PROGRAM or FUNCTION_BLOCK of the project", "action-owner-unknown"),
     ("`{}` is a FUNCTION: only a PROGRAM or a FUNCTION_BLOCK has actions", "action-of-function"),
     ("`{}` is an action: it takes no arguments", "action-with-arguments"),
+    // access_paths.rs: VAR_ACCESS
+    ("`{}` is a program instance: an access path names one of its variables (`{}.x`)", "access-path-whole-instance"),
+    ("`{}` is neither a program instance of the configuration nor a global variable{}", "access-path-unknown-start"),
     (
-        "`{}` is not read: clients name a program instance's variables as they are (`plcctl get i.x`)",
-        "config-var-access-not-read",
+        "`{}` is a {}: only a PROGRAM or a CONFIGURATION declares access paths (a {}'s variables have no one place clients could name)",
+        "access-path-in-function-block",
+    ),
+    (
+        "`{}` is a {}: only a PROGRAM or a CONFIGURATION declares access paths (a {}'s variables have no one place clients could name)",
+        "access-path-in-function",
+    ),
+    (
+        "the PROGRAM `{}` has {} instances: its access path `{}` would name a variable of each; declare the access paths in the CONFIGURATION (`{} : {}.{} : …`)",
+        "access-path-program-instances",
+    ),
+    ("`{}` is already declared (line {})", "access-path-declared-twice"),
+    ("the access path `{}` has the name of {}: a client's name must mean one thing", "access-path-name-clash"),
+    ("`{}` is {} ({}): its access path's type is {}, not `{}`", "access-path-device-type"),
+    ("`{}` has no variable `{}`{}", "access-path-unknown-variable"),
+    ("`{}` has no member `{}`{}", "access-path-no-member"),
+    ("`{}` is `{}`: it has no variables or members", "access-path-into-elementary"),
+    ("`{}` is `{}`, not `{}`", "access-path-type-mismatch"),
+    (
+        "`{}` is {} of `{}`: an access path names a variable the instance holds from one scan to the next (VAR, VAR_INPUT, VAR_OUTPUT; a global by its own name)",
+        "access-path-temp",
     ),
     // var_config.rs: VAR_CONFIG
     ("`{}` is not a PROGRAM instance of the configuration{}", "config-var-config-not-an-instance"),
@@ -745,6 +767,16 @@ const UNREACHABLE: &[(&str, &str)] = &[
 /// Literals of the compiler sources that are not messages by themselves: words and hints that
 /// messages are built from, and type names.
 const PARTS: &[&str] = &[
+    // what an access path's name is also, and what its path names (access_paths.rs)
+    "a global variable",
+    "the device `{}`",
+    "the program instance `{}`",
+    "a bit",
+    "a word",
+    "INT, UINT or WORD",
+    "a VAR_TEMP",
+    "a VAR_IN_OUT",
+    "a VAR_EXTERNAL",
     // the pragma whose plain names are errors (qualified.rs)
     "attribute 'qualified_only'",
     // between the qualified forms of a name two lists declare (qualified.rs)

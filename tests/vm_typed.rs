@@ -538,6 +538,7 @@ fn run_start_initializes_variables_keeping_the_retained_ones_when_warm() {
         located_init: vec![(Place::Word(d10), Elem::I32, 70_000)].into(),
         symbols: vec![],
         referents: vec![],
+        access: vec![],
     });
     assert_eq!(vm.vars(), (1..=16).collect::<Vec<u8>>());
     for offset in 0..16 {

@@ -11,6 +11,8 @@ use crate::lang::{self, Context, DutySite, Program, Variables};
 use crate::st;
 use crate::value::{Pointer, Space, Symbol, ValueType};
 
+mod access;
+
 /// FX5: "The DUTY instruction can be used up to 5 times (points)".
 pub const MAX_DUTY: usize = 5;
 
@@ -204,6 +206,9 @@ impl Project {
         }
         if let Some(symbol) = self.variable(name) {
             return Ok(vec![Watched::Variable(symbol.clone())]);
+        }
+        if let Some(path) = self.access_path(name) {
+            return self.access_watched(path);
         }
         let under: Vec<Watched> = self
             .variables

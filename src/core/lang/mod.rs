@@ -121,6 +121,21 @@ pub struct Variables {
     ///
     /// [`ValueType::Reference`]: crate::value::ValueType::Reference
     pub referents: Vec<(String, Vec<Symbol>)>,
+    /// The access paths of `VAR_ACCESS`: names clients give a variable or a device.
+    pub access: Vec<AccessPath>,
+}
+
+/// A `VAR_ACCESS` entry (IEC 61131-3 access path, docs/ST.md): the name under which clients
+/// reach a variable or a device, and whether they may write it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AccessPath {
+    /// As declared (`count`).
+    pub name: String,
+    /// What it names, as clients would name it otherwise: a variable (`main.n`, `main.fb.q`,
+    /// `g`) or a device (`P0001`).
+    pub target: String,
+    /// `READ_WRITE`: clients may write it; `READ_ONLY` (the default) is read only.
+    pub read_write: bool,
 }
 
 /// What the reference value `slot` points to, as tools show it: the variable of `symbols` at

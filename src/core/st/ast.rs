@@ -135,8 +135,8 @@ pub struct Configuration {
     pub resources: Vec<Resource>,
     /// The entries of its `VAR_CONFIG` blocks.
     pub var_config: Vec<ConfigVar>,
-    /// Where a `VAR_ACCESS` block is (not read).
-    pub unread: Vec<(Span, &'static str)>,
+    /// The entries of its `VAR_ACCESS` blocks.
+    pub access: Vec<AccessDecl>,
     pub span: Span,
 }
 
@@ -151,6 +151,21 @@ pub struct ConfigVar {
     pub location: Option<Ident>,
     pub ty: TypeRef,
     pub init: Option<Init>,
+    pub span: Span,
+}
+
+/// One entry of `VAR_ACCESS` (IEC 61131-3 §6.8.2): `name : path : TYPE [READ_ONLY |
+/// READ_WRITE];`, the name under which clients reach the variable `path` (docs/ST.md,
+/// Access paths).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AccessDecl {
+    pub name: Ident,
+    /// The path as written (`Res0.inst.fb.x`, `n`); a direct address is one part, its text
+    /// from the `%` on (`%IX1.1`).
+    pub path: Vec<Ident>,
+    pub ty: TypeRef,
+    /// `READ_WRITE`; `READ_ONLY` (the default) is `false`.
+    pub read_write: bool,
     pub span: Span,
 }
 
@@ -244,6 +259,8 @@ pub struct Pou {
     pub oop: Oop,
     /// Its Sequential Function Chart, when its body is one (`STEP`, `TRANSITION`, …).
     pub sfc: Option<crate::st::sfc::Sfc>,
+    /// The entries of its `VAR_ACCESS` blocks (a PROGRAM's, IEC 61131-3).
+    pub access: Vec<AccessDecl>,
     /// Where the POU's keyword is.
     pub span: Span,
     /// Where its `END_…` keyword is (the line a breakpoint on the end stops at).

@@ -81,10 +81,6 @@ impl<'a> Ctx<'a> {
                         // its globals are the project's; its tasks and programs the project's
                         // config takes (`st::configuration`)
                         self.global_blocks.extend(c.globals.iter().map(|b| (fi, b)));
-                        for &(span, what) in &c.unread {
-                            let msg = format!("`{what}` is not read: clients name a program instance's variables as they are (`plcctl get i.x`)");
-                            self.error(fi, span, msg);
-                        }
                         continue;
                     }
                 };

@@ -162,6 +162,7 @@ pub(super) fn hidden_pou(
         actions: Vec::new(),
         oop: ast::Oop::default(),
         sfc: None,
+        access: Vec::new(),
         span,
         end,
     }

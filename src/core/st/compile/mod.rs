@@ -50,6 +50,7 @@
 //!   arithmetic counts bytes, `p - q` is a `DINT` of bytes; every access through a reference
 //!   is checked at run time.
 
+mod access_paths;
 mod action_dispatch;
 mod assign_expr;
 mod bit;
@@ -245,6 +246,7 @@ pub fn compile_in_namespaces(
             configuration_files.push(f);
         }
     }
+    let mut access = Vec::new();
     for f in configuration_files {
         let file: &ast::File = cx.files[f];
         let Some(conf) = file.items.iter().find_map(|i| match i {
@@ -258,7 +260,10 @@ pub fn compile_in_namespaces(
             .map(|k| (instances[k].name, k))
             .collect();
         cx.apply_var_config(f, conf, &declared, &mut placed);
+        access.extend(cx.configuration_access_paths(f, conf, &declared, &placed));
     }
+    access.extend(cx.program_access_paths(instances, &placed));
+    let access = cx.named_access_paths(access, instances);
 
     // check every user POU; the prelude's only when used
     let user: Vec<usize> =
@@ -389,6 +394,7 @@ pub fn compile_in_namespaces(
         located_init: cx.located_init.clone().into_boxed_slice(),
         symbols,
         referents: referents::referents(&cx),
+        access,
     };
     let warnings = sorted(std::mem::take(&mut cx.warnings)).0.into_iter().map(Warning).collect();
     Ok(Compiled { programs, variables, warnings })

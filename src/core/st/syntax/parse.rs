@@ -6,6 +6,7 @@
 //! nothing open is taken for a misspelt end of the innermost construct. At most one error is
 //! reported at any one token, so one mistake makes one diagnostic.
 
+mod access;
 mod assign_expr;
 mod sfc;
 
@@ -647,11 +648,14 @@ impl<'a> Parser<'a> {
         };
         // open from here: a method's missing END_METHOD does not take the POU's end for it
         self.open.push(closer);
+        let mut access = Vec::new();
         loop {
             if var_kind(self.tok()).is_some()
                 || (kind == PouKind::FunctionBlock && self.at_word(VAR_GENERIC))
             {
                 vars.push(self.var_block());
+            } else if self.at_kw(Kw::VarAccess) {
+                access.extend(self.access_block());
             } else if kind != PouKind::Function && self.at_member() {
                 self.oop_member(&mut oop);
             } else {
@@ -680,7 +684,7 @@ impl<'a> Parser<'a> {
         self.open.pop();
         let here = self.span();
         let end = self.close(closer, &opener, span).unwrap_or(here);
-        Pou { kind, name, return_type, vars, body, actions, oop, sfc, span, end }
+        Pou { kind, name, return_type, vars, body, actions, oop, sfc, access, span, end }
     }
 
     /// Whether a METHOD or PROPERTY starts here.
@@ -778,6 +782,7 @@ impl<'a> Parser<'a> {
             actions: Vec::new(),
             oop: Oop::default(),
             sfc: None,
+            access: Vec::new(),
             span,
             end,
         };
@@ -825,6 +830,7 @@ impl<'a> Parser<'a> {
                 actions: Vec::new(),
                 oop: Oop::default(),
                 sfc: None,
+                access: Vec::new(),
                 span: at,
                 end,
             };
@@ -929,7 +935,7 @@ impl<'a> Parser<'a> {
             globals: Vec::new(),
             resources: Vec::new(),
             var_config: Vec::new(),
-            unread: Vec::new(),
+            access: Vec::new(),
             span,
         };
         let mut direct = Resource { name: None, tasks: Vec::new(), programs: Vec::new() };
@@ -985,13 +991,7 @@ impl<'a> Parser<'a> {
                 }
                 self.close(Closer::Var, "VAR_CONFIG", opened);
             }
-            Tok::Kw(Kw::VarAccess) => {
-                conf.unread.push((self.span(), "VAR_ACCESS"));
-                while !self.at_kw(Kw::EndVar) && !self.at(&Tok::Eof) && !self.at_kw(end) {
-                    self.bump();
-                }
-                self.eat_kw(Kw::EndVar);
-            }
+            Tok::Kw(Kw::VarAccess) => conf.access.extend(self.access_block()),
             Tok::Kw(Kw::Program) => match self.program_decl() {
                 Ok(p) => into.programs.push(p),
                 Err(_) => self.sync_decl(),

@@ -1174,7 +1174,7 @@ fn var_config_entries_name_an_instance_path_an_address_and_a_type() {
     assert_eq!(c.var_config[0].location.as_ref().unwrap().name, "QX0.1");
     assert!(c.var_config[1].location.is_none());
     assert!(c.var_config[0].init.is_none() && c.var_config[1].init.is_some());
-    assert!(c.unread.is_empty());
+    assert!(c.access.is_empty());
 }
 
 #[test]
@@ -1677,4 +1677,39 @@ fn a_statement_where_a_case_label_belongs_ends() {
     }
     let errors = body_errors("CASE x OF\n    CONTINUE;\nEND_CASE;");
     assert_eq!(errors, ["3:5: expected a case label, found `CONTINUE`"]);
+}
+
+#[test]
+fn var_access_in_a_configuration_and_a_program() {
+    let text = "PROGRAM main\n\
+                VAR n : INT; END_VAR\n\
+                VAR_ACCESS\n\
+                  count : main.n : INT READ_ONLY;\n\
+                  raw : n : INT;\n\
+                END_VAR\n\
+                n := n + 1;\n\
+                END_PROGRAM\n\
+                CONFIGURATION c\n\
+                RESOURCE STATION_1 ON PLC\n\
+                  PROGRAM P1 : main;\n\
+                END_RESOURCE\n\
+                VAR_ACCESS\n\
+                  ABLE : STATION_1.%IX1.1 : BOOL READ_ONLY;\n\
+                  BAKER : STATION_1.P1.x : UINT READ_WRITE;\n\
+                END_VAR\n\
+                END_CONFIGURATION\n";
+    let items = parse_ok(text);
+    let Item::Pou(main) = &items[0] else { panic!("{items:?}") };
+    let path =
+        |a: &crate::st::ast::AccessDecl| a.path.iter().map(|i| i.name.clone()).collect::<Vec<_>>();
+    assert_eq!(main.access.len(), 2);
+    assert_eq!(main.access[0].name.name, "count");
+    assert_eq!(path(&main.access[0]), ["main", "n"]);
+    assert!(!main.access[0].read_write && !main.access[1].read_write, "READ_ONLY by default");
+    assert_eq!(main.body.len(), 1);
+    let Item::Configuration(c) = &items[1] else { panic!("{items:?}") };
+    assert_eq!(c.access.len(), 2);
+    assert_eq!(path(&c.access[0]), ["STATION_1", "%IX1.1"]);
+    assert_eq!(path(&c.access[1]), ["STATION_1", "P1", "x"]);
+    assert!(c.access[1].read_write);
 }
