@@ -719,3 +719,59 @@ fn globals_two_lists_declare_are_named_by_their_list() {
     assert!(err.contains("no device or variable `x`"), "{err}");
     plc.stop();
 }
+
+/// Access paths (`VAR_ACCESS`, docs/ST.md "Access paths"): read by their bare name, shown under
+/// it (an FB instance's leaves as `timer.PT`, …), written through a `READ_WRITE` one, and a
+/// write or a force through a `READ_ONLY` one refused naming the path.
+#[test]
+fn access_paths_are_read_by_their_name_and_written_only_when_read_write() {
+    let config = "[plc]\nscan_period_ms = 1\nwatchdog_ms = 100\n\
+        [[program]]\nname = \"main\"\nfile = \"main.st\"\n[control]\nsocket = \"plcd.sock\"\n";
+    let main = "\
+PROGRAM main
+VAR
+    n : DINT;
+    limit : INT := 7;
+    t : TON;
+    lamp AT %QX0.1 : BOOL;
+END_VAR
+VAR_ACCESS
+    count : main.n : DINT READ_ONLY;
+    setpoint : limit : INT READ_WRITE;
+    timer : t : TON READ_WRITE;
+    output : lamp : BOOL;
+END_VAR
+    n := n + 1;
+    t(IN := TRUE);
+END_PROGRAM
+";
+    let project = Project::new("names-access", &[("plcd.toml", config), ("main.st", main)]);
+    let daemon = project.start().with_patience(PATIENCE);
+    let plc = Plc { daemon, project };
+    plc.daemon.wait_for("control socket");
+    plc.daemon.wait("RUN", || plc.json(&["status"])["mode"] == "RUN");
+
+    let values = plc.values(&["count", "SETPOINT"]);
+    assert_eq!(values[0]["dev"], "count", "shown under the path's name: {values:?}");
+    assert_eq!(values[1]["dev"], "setpoint");
+    assert_eq!(values[1]["value"], json!(7));
+    plc.daemon.wait("the scans counted", || plc.get("count").as_i64().unwrap_or(0) > 1);
+
+    plc.ok(&["set", "setpoint", "42"]);
+    assert_eq!(plc.get("main.limit"), json!(42), "a READ_WRITE path writes its variable");
+    plc.ok(&["set", "timer.PT", "T#2h"]);
+    assert_eq!(plc.get("main.t.PT"), json!("T#2h"));
+    let timer: Vec<String> =
+        plc.values(&["timer"]).iter().map(|v| v["dev"].as_str().unwrap().to_string()).collect();
+    assert!(timer.contains(&"timer.PT".to_string()), "{timer:?}");
+
+    let err = plc.refused(&["set", "count", "0"]);
+    assert!(
+        err.contains("`count` is a READ_ONLY access path (to `main.n`)"),
+        "a READ_ONLY path refuses writes: {err}"
+    );
+    let err = plc.refused(&["force", "output=1"]);
+    assert!(err.contains("`output` is a READ_ONLY access path"), "{err}");
+    plc.ok(&["set", "main.n", "0"]);
+    plc.stop();
+}

@@ -942,3 +942,46 @@ fn two_global_variable_lists_may_declare_the_same_name() {
     );
     assert!(stderr.contains("plcd.toml: 1 error(s)"), "one message for one mistake: {stderr}");
 }
+
+/// A configuration as Beremiz and OpenPLC Editor write one, with the access paths of IEC
+/// 61131-3's example (§6.8.2): to a direct address through the resource, to a program
+/// instance's variable and to a global; the sim's `--watch` names them by their own names.
+const ACCESS_PATHS: &str = "PROGRAM P1
+  VAR
+    x : UINT;
+    start AT %IX1.1 : BOOL;
+  END_VAR
+  VAR_ACCESS
+    runs : x : UINT;   (* a PROGRAM's own access path, IEC 61131-3 2nd ed. *)
+  END_VAR
+  x := x + 1;
+END_PROGRAM
+
+CONFIGURATION Config0
+  VAR_GLOBAL
+    limit : INT := 5;
+  END_VAR
+  RESOURCE STATION_1 ON PLC
+    TASK task0(INTERVAL := T#10ms, PRIORITY := 1);
+    PROGRAM instance0 WITH task0 : P1;
+  END_RESOURCE
+  VAR_ACCESS
+    ABLE : STATION_1.%IX1.1 : BOOL READ_ONLY;
+    BAKER : STATION_1.instance0.x : UINT READ_WRITE;
+    CHARLIE : limit : INT;
+  END_VAR
+END_CONFIGURATION
+";
+
+#[test]
+fn a_configurations_access_paths_name_its_variables() {
+    let dir = TempDir::new("st-access-paths");
+    write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
+    write(dir.path(), "plc.st", ACCESS_PATHS);
+    let trace = checked_trace(dir.path(), "49ms", "BAKER,runs,CHARLIE,ABLE");
+    // the scan every 10 ms: at 0, 10, 20, 30, 40 ms
+    assert_eq!(last(&trace, "BAKER").as_deref(), Some("5"), "{trace}");
+    assert_eq!(last(&trace, "runs").as_deref(), Some("5"), "{trace}");
+    // a value that never changes is not traced: `CHARLIE` and `ABLE` are only resolved
+    assert_eq!(last(&trace, "CHARLIE"), None, "{trace}");
+}

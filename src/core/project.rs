@@ -207,8 +207,8 @@ impl Project {
         if let Some(symbol) = self.variable(name) {
             return Ok(vec![Watched::Variable(symbol.clone())]);
         }
-        if let Some(path) = self.access_path(name) {
-            return self.access_watched(path);
+        if let Some(found) = self.access_watched(name) {
+            return found;
         }
         let under: Vec<Watched> = self
             .variables

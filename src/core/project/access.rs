@@ -3,6 +3,8 @@
 //! writes it only when declared `READ_WRITE`. The compiler made the name unique among the
 //! globals, the program instances and the other access paths, so a name means one thing.
 
+use std::borrow::Cow;
+
 use super::{names_match, Project, Watched};
 use crate::lang::AccessPath;
 
@@ -13,11 +15,30 @@ impl Project {
         self.variables.access.iter().find(|a| names_match(&a.name, name))
     }
 
-    /// What the access path `path` names, each leaf under the path's name (`count`, or
-    /// `count.q` for the member `q` of the FB instance it names); a device as its address.
-    pub(super) fn access_watched(&self, path: &AccessPath) -> Result<Vec<Watched>, String> {
-        let found = self.watched(&path.target)?;
-        Ok(found
+    /// The access path `name` is or names a part of (`timer`, `timer.PT`, `table[2]`), and
+    /// the name it stands for (`main.t`, `main.t.PT`, `main.tab[2]`).
+    pub fn access_of(&self, name: &str) -> Option<(&AccessPath, String)> {
+        let name = name.trim();
+        self.variables.access.iter().find_map(|path| {
+            let head = name.get(..path.name.len())?;
+            let rest = &name[path.name.len()..];
+            let part = rest.is_empty() || rest.starts_with('.') || rest.starts_with('[');
+            (part && head.eq_ignore_ascii_case(&path.name))
+                .then(|| (path, format!("{}{rest}", path.target)))
+        })
+    }
+
+    /// What `name`, an access path or a part of one, names: each leaf under the path's name
+    /// (`count`, `timer.PT`); a device as its address.
+    pub(super) fn access_watched(&self, name: &str) -> Option<Result<Vec<Watched>, String>> {
+        let (path, target) = self.access_of(name)?;
+        let found = match self.watched(&target) {
+            Ok(found) => found,
+            Err(_) => {
+                return Some(Err(format!("`{path}` names no `{}`", name.trim(), path = path.name)))
+            }
+        };
+        Some(Ok(found
             .into_iter()
             .map(|watched| match watched {
                 Watched::Variable(mut symbol) => {
@@ -27,16 +48,16 @@ impl Project {
                 }
                 other => other,
             })
-            .collect())
+            .collect()))
     }
 
     /// The name a client's write of `name` goes to: `name` itself, or what a `READ_WRITE`
-    /// access path names; an error naming the path for a `READ_ONLY` one.
-    pub fn written_name<'a>(&'a self, name: &'a str) -> Result<&'a str, String> {
-        match self.access_path(name) {
-            None => Ok(name),
-            Some(path) if path.read_write => Ok(&path.target),
-            Some(path) => Err(format!(
+    /// access path (or a part of one) names; an error naming the path for a `READ_ONLY` one.
+    pub fn written_name<'a>(&self, name: &'a str) -> Result<Cow<'a, str>, String> {
+        match self.access_of(name) {
+            None => Ok(Cow::Borrowed(name)),
+            Some((path, target)) if path.read_write => Ok(Cow::Owned(target)),
+            Some((path, _)) => Err(format!(
                 "`{}` is a READ_ONLY access path (to `{}`): clients may read it, not write it \
                  (VAR_ACCESS … READ_WRITE allows writes)",
                 path.name, path.target

@@ -237,7 +237,8 @@ pub(super) fn resolve_reads(project: &Project, names: &[String]) -> Result<Vec<I
 /// must not be `CONSTANT`.
 fn checked_write(project: &Project, write: &NamedValue) -> Result<Pending, Failure> {
     let invalid = |message: String| Failure::new(Kind::Invalid, message);
-    let name = project.written_name(write.dev.trim()).map_err(invalid)?;
+    let written = project.written_name(write.dev.trim()).map_err(invalid)?;
+    let name = &*written;
     if let Ok(address) = Address::parse(name) {
         if !address.writable_by(Writer::Client) {
             return Err(invalid(format!("{address} is a system device; the PLC maintains it")));

@@ -72,7 +72,8 @@ impl RequestHandler {
 /// (`P0040`, `main.lamp (P0040)`) and the bit.
 fn parse_io_bit(project: &Project, text: &str) -> Result<(String, BitRef), Failure> {
     let invalid = |message: String| Failure::new(Kind::Invalid, message);
-    let text = project.written_name(text.trim()).map_err(invalid)?;
+    let written = project.written_name(text.trim()).map_err(invalid)?;
+    let text = &*written;
     if Address::parse(text.trim()).is_ok() {
         let address = parse_device(text)?;
         let bit = force::io_bit(&address).map_err(|e| invalid(e.to_string()))?;
