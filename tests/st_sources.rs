@@ -978,6 +978,19 @@ fn a_configurations_access_paths_name_its_variables() {
     let dir = TempDir::new("st-access-paths");
     write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
     write(dir.path(), "plc.st", ACCESS_PATHS);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let listed: Vec<&str> = stdout.lines().filter(|l| l.contains("access path")).collect();
+    assert_eq!(
+        listed,
+        [
+            "  access path ABLE → P0009, read only",
+            "  access path BAKER → instance0.x, read and write",
+            "  access path CHARLIE → limit, read only",
+            "  access path runs → instance0.x, read only",
+        ],
+        "{stdout}"
+    );
     let trace = checked_trace(dir.path(), "49ms", "BAKER,runs,CHARLIE,ABLE");
     // the scan every 10 ms: at 0, 10, 20, 30, 40 ms
     assert_eq!(last(&trace, "BAKER").as_deref(), Some("5"), "{trace}");

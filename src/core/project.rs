@@ -443,6 +443,7 @@ pub fn from_config_with(
     let variables = match compile_structured_text(&config, &mut reader, parsed) {
         Some((compiled, iec_notes)) => {
             notes.extend(iec_notes);
+            notes.extend(compiled.variables.access.iter().map(access::note));
             warnings = compiled.warnings;
             check_task_numbers(&compiled.programs, &task_numbers, reader.diags);
             let mut st_programs = compiled.programs.into_iter();

@@ -65,3 +65,10 @@ impl Project {
         }
     }
 }
+
+/// The line `plcd check` and the daemon's log show for an access path: `access path count →
+/// main.n, read only`.
+pub(super) fn note(path: &AccessPath) -> String {
+    let direction = if path.read_write { "read and write" } else { "read only" };
+    format!("access path {} → {}, {direction}", path.name, path.target)
+}
