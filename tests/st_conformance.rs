@@ -9,7 +9,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use plcd::device::Address;
-use plcd::project::Project;
+use plcd::project::{Project, Watched};
 use plcd::value::{self, Elem, ValueType};
 use plcd::vm::{ExecState, Exit, ManualClock, Vm};
 
@@ -111,7 +111,12 @@ fn read(project: &Project, vm: &Vm, name: &str) -> Result<(String, Option<ValueT
     if let Ok(address) = Address::parse(name) {
         return Ok((vm.mem.read(&address).to_string(), None));
     }
-    let symbol = project.variable(name).ok_or_else(|| format!("no variable `{name}`"))?;
+    // a variable, or an access path to one (`count`, `timer.Q`), as clients name them
+    let found = project.watched(name).unwrap_or_default();
+    let symbol = match found.as_slice() {
+        [Watched::Variable(symbol)] => symbol,
+        _ => return Err(format!("no variable `{name}`")),
+    };
     let text = match symbol.ty {
         ValueType::String { .. } => {
             format!("{:?}", plcd::value::decode_str(&vm.read_string(symbol.at)))
