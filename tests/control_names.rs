@@ -772,6 +772,8 @@ END_PROGRAM
     );
     let err = plc.refused(&["force", "output=1"]);
     assert!(err.contains("`output` is a READ_ONLY access path"), "{err}");
+    let err = plc.refused(&["get", "timer.nothing"]);
+    assert!(err.contains("the access path `timer` names `main.t`"), "{err}");
     plc.ok(&["set", "main.n", "0"]);
     plc.stop();
 }

@@ -287,8 +287,8 @@ impl Project {
     /// unknown flag, what is wrong with the address.
     pub fn resolve(&self, name: &str) -> Result<Vec<Watched>, String> {
         let name = name.trim();
-        if name.contains('^') {
-            // `through`'s errors already name what is wrong
+        if name.contains('^') || self.access_of(name).is_some() {
+            // `through`'s and an access path's errors already name what is wrong
             return self.watched(name);
         }
         self.watched(name).map_err(|_| match Address::parse(name) {

@@ -35,7 +35,12 @@ impl Project {
         let found = match self.watched(&target) {
             Ok(found) => found,
             Err(_) => {
-                return Some(Err(format!("`{path}` names no `{}`", name.trim(), path = path.name)))
+                return Some(Err(format!(
+                    "no variable `{}`: the access path `{}` names `{}`, which has no `{target}`",
+                    name.trim(),
+                    path.name,
+                    path.target
+                )))
             }
         };
         Some(Ok(found
