@@ -412,6 +412,11 @@ impl<'a> Ctx<'a> {
             self.error(scope.file, e.span, "a CASE label must be a constant");
             return None;
         }
+        // An enumeration's value as the label of an integer selector (CODESYS: TcUnit's
+        // `CASE UDINT_TO_INT(AnyTypeClass) OF TypeClass.TYPE_BOOL: …`): its number.
+        if let Some(number) = self.enum_as_integer(t.clone(), sel, scope.file) {
+            return number.const_int();
+        }
         let ok = match (&t.ty, sel) {
             (Ty::IntLit, _) => !matches!(sel, Ty::Prim(Prim::Char | Prim::WChar)),
             (Ty::Str(_), Ty::Prim(Prim::Char)) | (Ty::WStr(_), Ty::Prim(Prim::WChar)) => true,
