@@ -27,6 +27,14 @@ pub struct Checked {
     path: AccessPath,
 }
 
+impl Checked {
+    /// The path `decl` of `file`, found to name `target`.
+    fn new(decl: &AccessDecl, file: usize, target: String) -> Checked {
+        let path = AccessPath { name: decl.name.name.clone(), target, read_write: decl.read_write };
+        Checked { name: decl.name.clone(), file, path }
+    }
+}
+
 /// Where a path's variable is looked up: the variables of a PROGRAM (for an instance named
 /// so), or the globals.
 enum Start<'n> {
@@ -90,15 +98,7 @@ impl Ctx<'_> {
                 continue;
             };
             if let Some(target) = target {
-                checked.push(Checked {
-                    name: decl.name.clone(),
-                    file,
-                    path: AccessPath {
-                        name: decl.name.name.clone(),
-                        target,
-                        read_write: decl.read_write,
-                    },
-                });
+                checked.push(Checked::new(decl, file, target));
             }
         }
         checked
@@ -169,15 +169,7 @@ impl Ctx<'_> {
                     self.variable_target(file, decl, Start::Program { p, instance }, path)
                 };
                 if let Some(target) = target {
-                    checked.push(Checked {
-                        name: decl.name.clone(),
-                        file,
-                        path: AccessPath {
-                            name: decl.name.name.clone(),
-                            target,
-                            read_write: decl.read_write,
-                        },
-                    });
+                    checked.push(Checked::new(decl, file, target));
                 }
             }
         }
