@@ -514,14 +514,7 @@ fn globals_copier(
     span: Span,
 ) -> Pou {
     const PHASE_INPUT: &str = "phase";
-    let in_phase = |k: u128| Expr {
-        kind: ExprKind::Binary(
-            ast::BinaryOp::Eq,
-            Box::new(name(PHASE_INPUT, span)),
-            Box::new(Expr { kind: ExprKind::Literal(Literal::Int(k)), span }),
-        ),
-        span,
-    };
+    let in_phase = |k: u128| phase_is(PHASE_INPUT, k, span);
     let selected =
         |v: &Ident, work: Stmt| when(name(&global_copy_flag(&v.name), span), vec![work], span);
     let copy_true = || truth(true, span);
@@ -620,14 +613,7 @@ fn add_exit_pass(
         })
         .flat_map(|d| d.names.iter().map(|n| (n.clone(), d.ty.clone())))
         .collect();
-    let in_phase = |k: u128| Expr {
-        kind: ExprKind::Binary(
-            ast::BinaryOp::Eq,
-            Box::new(name(PHASE, span)),
-            Box::new(Expr { kind: ExprKind::Literal(Literal::Int(k)), span }),
-        ),
-        span,
-    };
+    let in_phase = |k: u128| phase_is(PHASE, k, span);
     let selected = |v: &Ident, work: Stmt| {
         let flag = copy_flag(&v.name);
         when(name(&flag, span), vec![assign(&flag, truth(false, span), span), work], span)
@@ -692,4 +678,11 @@ fn add_exit_pass(
         b
     });
     p.vars.extend(counters.filter(|b| !b.decls.is_empty()));
+}
+
+/// `phase = k`: the test of the phase variable `phase` that selects one step of a pass.
+fn phase_is(phase: &str, k: u128, span: Span) -> Expr {
+    let k = Expr { kind: ExprKind::Literal(Literal::Int(k)), span };
+    let test = ExprKind::Binary(ast::BinaryOp::Eq, Box::new(name(phase, span)), Box::new(k));
+    Expr { kind: test, span }
 }
