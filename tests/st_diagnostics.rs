@@ -171,8 +171,8 @@ const MESSAGES: &[(&str, &str)] = &[
     ("VAR_CONFIG names a variable of a program instance: `{}.variable`", "config-var-config-no-variable"),
     ("`{}` has no variable `{}`{}", "config-var-config-unknown-variable"),
     (
-        "VAR_CONFIG binds a variable of a program instance (`{}.{}`), not one inside it: the code of a FUNCTION_BLOCK is shared by all its instances",
-        "config-var-config-inside-an-instance",
+        "`{}` is `{}`: VAR_CONFIG binds a variable of a program instance or of a FUNCTION_BLOCK instance inside it, not a member of a struct",
+        "config-var-config-struct-member",
     ),
     (
         "`{}` has {} instances in the project and actions: VAR_CONFIG binds a variable of a PROGRAM with actions for its only instance (the actions' code is shared by all)",

@@ -673,6 +673,91 @@ END_CONFIGURATION
     assert_eq!(last(&trace, "blink.runs").as_deref(), Some("9"));
 }
 
+/// IEC 61131-3's configuration example: `VAR_CONFIG` binds variables inside a FUNCTION_BLOCK
+/// instance of a program instance (`STATION_2.P4.FB1.C2 AT %QB25`), declared at partly
+/// specified addresses in the block. The instance gets a copy of the block of its own; the
+/// block's other instances (`P4.FB2`, and `P5.FB1` in the PROGRAM's other instance) keep
+/// variable memory.
+const VAR_CONFIG_INSIDE_A_BLOCK: &str = "FUNCTION_BLOCK G
+  VAR_INPUT step : INT; END_VAR
+  VAR C2 AT %Q* : BYTE; END_VAR
+  VAR_OUTPUT C3 AT %Q* : INT; END_VAR
+  C2 := C2 + 1;
+  C3 := C3 + step;
+END_FUNCTION_BLOCK
+
+PROGRAM F
+  VAR COUNT : INT; END_VAR
+  COUNT := COUNT + 1;
+END_PROGRAM
+
+PROGRAM H
+  VAR FB1 : G; FB2 : G; seen : INT; END_VAR
+  FB1(step := 10);
+  FB2(step := 1);
+  seen := FB1.C3;
+END_PROGRAM
+
+CONFIGURATION CELL_1
+  RESOURCE STATION_1 ON PROCESSOR_TYPE_1
+    TASK PER_1(INTERVAL := T#10ms, PRIORITY := 1);
+    PROGRAM P1 WITH PER_1 : F;
+  END_RESOURCE
+  RESOURCE STATION_2 ON PROCESSOR_TYPE_2
+    TASK PER_2(INTERVAL := T#10ms, PRIORITY := 2);
+    PROGRAM P4 WITH PER_2 : H;
+    PROGRAM P5 WITH PER_2 : H;
+  END_RESOURCE
+  VAR_CONFIG
+    STATION_1.P1.COUNT : INT := 1;
+    STATION_2.P4.FB1.C2 AT %QB25 : BYTE := 16#10;
+    STATION_2.P4.FB1.C3 AT %QW3 : INT;
+  END_VAR
+END_CONFIGURATION
+";
+
+#[test]
+fn var_config_binds_variables_inside_a_function_block_instance() {
+    let dir = TempDir::new("st-configuration-var-config-inside-a-block");
+    write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
+    write(dir.path(), "plc.st", VAR_CONFIG_INSIDE_A_BLOCK);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let bindings: Vec<&str> = stdout.lines().filter(|l| l.contains(": VAR_CONFIG ")).collect();
+    assert_eq!(
+        bindings,
+        [
+            "  configuration CELL_1: VAR_CONFIG STATION_2.P4.FB1.C2 AT %QB25 → D13036 (high byte)",
+            "  configuration CELL_1: VAR_CONFIG STATION_2.P4.FB1.C3 AT %QW3 → D12003",
+        ]
+    );
+    let watch = "P4.seen,P5.seen,D12003,D13036,P4.FB2.C2,P4.FB2.C3,P5.FB1.C2,P5.FB1.C3";
+    let run = |engine: &[&str]| {
+        let mut args = vec!["sim", "--config", "plcd.toml", "--for", "25ms", "--watch", watch];
+        args.extend(["--trace", "-"]);
+        args.extend(engine);
+        let out = plcd(dir.path(), &args);
+        assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let trace = run(&[]);
+    // three scans: P4.FB1's C3 at %QW3 (D12003), 10 a call, read back by the program; C2 at
+    // %QB25, the high byte of D13036, from VAR_CONFIG's 16#10, one more a call: 16#13
+    assert_eq!(last(&trace, "D12003").as_deref(), Some("30"), "{trace}");
+    assert_eq!(last(&trace, "P4.seen").as_deref(), Some("30"));
+    assert_eq!(last(&trace, "D13036").as_deref(), Some("4864"));
+    // the block's other instances keep their variables in memory: P4.FB2 counts by 1, and
+    // P5.FB1 (the PROGRAM's other instance) by 10, apart from the devices
+    assert_eq!(last(&trace, "P4.FB2.C2").as_deref(), Some("3"));
+    assert_eq!(last(&trace, "P4.FB2.C3").as_deref(), Some("3"));
+    assert_eq!(last(&trace, "P5.FB1.C2").as_deref(), Some("3"));
+    assert_eq!(last(&trace, "P5.FB1.C3").as_deref(), Some("30"));
+    assert_eq!(last(&trace, "P5.seen").as_deref(), Some("30"));
+    // the copies are ordinary code: the interpreter gives the native code's trace
+    assert_eq!(run(&["--interpreter"]), trace);
+}
+
 /// The CODESYS forms TwinCAT code and TcUnit use (docs/ST.md, "CODESYS and TwinCAT habits"), in
 /// TwinCAT files. Test data modelled on TcUnit (github.com/tcunit/TcUnit, MIT licence,
 /// Copyright (c) 2018 Jakob Sagatowski and contributors): `U_ExpectedOrActual.TcDUT`'s UNION of

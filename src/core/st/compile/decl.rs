@@ -1126,7 +1126,11 @@ impl<'a> Ctx<'a> {
                             }
                         }
                     } else if let Some(loc) = decl.location.as_ref().filter(|l| !is_partial(l)) {
-                        if kind != PouKind::Program {
+                        // a block's copy for one instance, which VAR_CONFIG binds
+                        // (`fb_config.rs`, whose copies' names alone hold a `$`)
+                        let bound_copy =
+                            kind == PouKind::FunctionBlock && pou.name.name.contains('$');
+                        if kind != PouKind::Program && !bound_copy {
                             self.error(
                                 file,
                                 loc.span,

@@ -629,13 +629,23 @@ impl<'a> Ctx<'a> {
                                 b, base, &v, off, id, access, own, &n, file, span,
                             );
                         }
-                        let Storage::Inst(off) = v.storage else {
-                            self.error(
-                                file,
-                                id.span,
-                                format!("`{}` is not an input or output of `{n}`", id.name),
-                            );
-                            return TExpr::error(span);
+                        // a variable of a block's copy that VAR_CONFIG binds to a device
+                        // (`fb_config.rs`): the device, whatever the instance
+                        let located = matches!(
+                            v.storage,
+                            Storage::Bit(_) | Storage::Word(_) | Storage::Byte(_)
+                        );
+                        let off = match v.storage {
+                            Storage::Inst(off) => off,
+                            _ if located => 0,
+                            _ => {
+                                self.error(
+                                    file,
+                                    id.span,
+                                    format!("`{}` is not an input or output of `{n}`", id.name),
+                                );
+                                return TExpr::error(span);
+                            }
                         };
                         match (v.kind, access) {
                             // `THIS^.x`, `SUPER^.x`: the block's own variable, as `x`
@@ -668,6 +678,10 @@ impl<'a> Ctx<'a> {
                                 );
                                 return TExpr::error(span);
                             }
+                        }
+                        if located {
+                            let k = TK::Var { storage: v.storage, by_ref: false };
+                            return TExpr { k, ty: v.ty, span };
                         }
                         TExpr { k: TK::Member(Box::new(b), off, false), ty: v.ty, span }
                     }

@@ -242,7 +242,7 @@ fn set_constants(p: &mut Pou, params: &[Param], values: &[i128]) {
 
 /// The actions a block has outside its body (`ACTION FB.Act:` items, and those without an
 /// owner that follow it in its file), as actions of its copy `copy`.
-fn actions_of(items: &[Item], at: usize, original: &str, copy: &str) -> Vec<Item> {
+pub(super) fn actions_of(items: &[Item], at: usize, original: &str, copy: &str) -> Vec<Item> {
     let mut out = Vec::new();
     let mut after_it = false;
     for (i, item) in items.iter().enumerate() {

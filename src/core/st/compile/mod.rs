@@ -61,6 +61,7 @@ mod ctx;
 mod decl;
 mod emit;
 mod expr;
+mod fb_config;
 mod fb_exit;
 mod fb_init;
 mod for_element;
@@ -178,6 +179,7 @@ pub fn compile_in_namespaces(
     let mut diags: Vec<Diagnostic> = prelude_diags.0;
     let lowered = sfc::lower(files, &mut diags);
     let lowered = generic_constants::lower(lowered, &mut diags);
+    let (lowered, program_copies) = fb_config::lower(lowered, instances, declaration, &dialect.iec);
     let lowered = qualified::lower(lowered, namespaces, &mut diags);
     let lowered = method_vars::lower(lowered);
     let lowered = ref_init::lower(lowered, &mut diags);
@@ -221,6 +223,19 @@ pub fn compile_in_namespaces(
         }
     }
     cx.collect();
+    // the PROGRAMs copied for a binding inside a FUNCTION_BLOCK instance (fb_config.rs)
+    for (inst, copy) in instances.iter().zip(&program_copies) {
+        let Some(copy) = copy else { continue };
+        let named =
+            |name: &str| (0..cx.pous.len()).find(|&p| cx.pous[p].name.eq_ignore_ascii_case(name));
+        let original = inst
+            .pou
+            .and_then(named)
+            .or_else(|| copy.rsplit_once('$').and_then(|(name, _)| named(name)));
+        if let (Some(c), Some(o)) = (named(copy), original) {
+            cx.pous[c].copy_of = Some(o);
+        }
+    }
     cx.link_hierarchy();
     cx.check_classes();
     cx.resolve_all();
@@ -228,8 +243,11 @@ pub fn compile_in_namespaces(
 
     // the instances, in variable memory after the globals
     let mut placed: Vec<Option<(usize, u32)>> = Vec::new();
-    for inst in instances {
-        let pou = pick_program(&mut cx, inst);
+    for (inst, copy) in instances.iter().zip(&program_copies) {
+        let pou = match copy {
+            Some(copy) => (0..cx.pous.len()).find(|&p| cx.pous[p].name == *copy),
+            None => pick_program(&mut cx, inst),
+        };
         placed.push(pou.map(|p| {
             let img = cx.pous[p].image.clone();
             (p, cx.alloc_var(&img))
@@ -452,7 +470,10 @@ fn check(cx: &mut Ctx<'_>, p: usize) -> Vec<stmt::TStmt> {
 fn pick_program(cx: &mut Ctx<'_>, inst: &Instance<'_>) -> Option<usize> {
     let file = cx.files.iter().position(|f| f.path == inst.file);
     let programs: Vec<usize> = (0..cx.pous.len())
-        .filter(|&p| cx.pous[p].kind == PouKind::Program && Some(cx.pous[p].file) == file)
+        .filter(|&p| {
+            let pou = &cx.pous[p];
+            pou.kind == PouKind::Program && Some(pou.file) == file && pou.copy_of.is_none()
+        })
         .collect();
     let here = |msg: String| Diagnostic::new(inst.config, inst.line, inst.col, msg);
     let names = |cx: &Ctx<'_>| -> String {

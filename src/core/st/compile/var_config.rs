@@ -27,7 +27,7 @@ use super::types::Ty;
 
 /// Whether `full` is an IEC direct address (`QX0.1`) with the area letter and the size letter
 /// the partly specified address `partial` fixes (`Q*`: `Q` and any size; `QX*`: `Q` and `X`).
-fn fits(partial: &str, full: &str, layout: &IecLayout) -> bool {
+pub(super) fn fits(partial: &str, full: &str, layout: &IecLayout) -> bool {
     let partial = partial.trim_end_matches('*').to_ascii_uppercase();
     full.to_ascii_uppercase().starts_with(&partial)
         && matches!(iec_address(full, layout), Ok(Some(_)))
@@ -59,11 +59,17 @@ impl Ctx<'_> {
         placed: &mut Placed,
     ) {
         let mut bound: Vec<(usize, usize, u32)> = Vec::new();
+        let mut bound_inside: Vec<(usize, String, u32)> = Vec::new();
         for entry in conf.var_config.iter() {
             let Some(location) = &entry.location else { continue };
-            let Some((k, p, v)) =
-                self.bound_variable(file, conf, entry, location, declared, placed)
-            else {
+            let Some((k, p, v)) = self.bound_variable(
+                file,
+                conf,
+                (entry, location),
+                declared,
+                placed,
+                &mut bound_inside,
+            ) else {
                 continue;
             };
             if let Some(&(_, _, line)) = bound.iter().find(|b| (b.0, b.1) == (k, v)) {
@@ -153,30 +159,34 @@ impl Ctx<'_> {
     }
 
     /// The instance, its PROGRAM and the index of the variable a binding names, when it may be
-    /// bound.
+    /// bound; `None` too for a variable inside a FUNCTION_BLOCK instance, which the lowering
+    /// bound (`fb_config.rs`) and which is checked here, `inside` holding those bound so far.
     fn bound_variable(
         &mut self,
         file: usize,
         conf: &ast::Configuration,
-        entry: &ConfigVar,
-        location: &Ident,
+        (entry, location): (&ConfigVar, &Ident),
         declared: &[Declared<'_>],
         placed: &Placed,
+        inside: &mut Vec<(usize, String, u32)>,
     ) -> Option<(usize, usize, usize)> {
         let (path, k, p, _) = self.instance_of(file, conf, entry, declared, placed)?;
+        if path.len() > 2 {
+            let text = path_text(path).to_ascii_lowercase();
+            if let Some(&(_, _, line)) = inside.iter().find(|b| (b.0, &b.1) == (k, &text)) {
+                let name = path_text(&entry.path);
+                let msg = format!("`{name}` is already bound by VAR_CONFIG (line {line})");
+                self.error(file, entry.path[0].span, msg);
+            } else {
+                inside.push((k, text, entry.span.line));
+                self.check_bound_inside(file, (entry, location), path, p);
+            }
+            return None;
+        }
         // the PROGRAM itself, when this instance has a copy of it already
         let p = self.pous[p].copy_of.unwrap_or(p);
         let (instance, variable) = (&path[0], &path[1]);
         let v = self.program_variable(file, p, variable)?;
-        if let Some(inner) = path.get(2) {
-            let msg = format!(
-                "VAR_CONFIG binds a variable of a program instance (`{}.{}`), not one inside it: \
-                 the code of a FUNCTION_BLOCK is shared by all its instances",
-                instance.name, variable.name
-            );
-            self.error(file, inner.span, msg);
-            return None;
-        }
         let pou = &self.pous[p];
         let count = self.instances_of(p, placed);
         let actions = self.pous.iter().any(|a| a.action.is_some_and(|(_, owner)| owner == p));
@@ -217,6 +227,80 @@ impl Ctx<'_> {
         }
         let declared_ty = self.pous[p].vars[v].ty.clone();
         self.same_type(file, entry, path, &declared_ty).then_some((k, p, v))
+    }
+
+    /// Checks a binding of a variable inside a FUNCTION_BLOCK instance of the instance whose
+    /// PROGRAM (or copy of it) is `p`, which the lowering made when it fits (`fb_config.rs`):
+    /// the variable is then declared at the entry's address in a copy of its block.
+    fn check_bound_inside(
+        &mut self,
+        file: usize,
+        (entry, location): (&ConfigVar, &Ident),
+        path: &[Ident],
+        p: usize,
+    ) {
+        let Some(v) = self.program_variable(file, p, &path[1]) else { return };
+        let mut ty = self.pous[p].vars[v].ty.clone();
+        for (at, id) in path.iter().enumerate().skip(2) {
+            let q = match ty {
+                Ty::Fb(q) => q,
+                Ty::Error => return,
+                other => {
+                    let n = self.ty_name(&other);
+                    let msg = format!(
+                        "`{}` is `{n}`: VAR_CONFIG binds a variable of a program instance or of a \
+                         FUNCTION_BLOCK instance inside it, not a member of a struct",
+                        path_text(&path[..at])
+                    );
+                    self.error(file, id.span, msg);
+                    return;
+                }
+            };
+            let fb = &self.pous[q];
+            let Some(m) = fb.lookup(&id.name) else {
+                let hint = suggest(&id.name, fb.vars.iter().map(|v| v.name.as_str()));
+                let msg = format!("`{}` has no variable `{}`{hint}", fb.name, id.name);
+                self.error(file, id.span, msg);
+                return;
+            };
+            if at + 1 < path.len() {
+                ty = fb.vars[m].ty.clone();
+                continue;
+            }
+            let kind = fb.vars[m].kind;
+            let written = fb
+                .ast
+                .vars
+                .iter()
+                .flat_map(|b| &b.decls)
+                .find(|d| d.names.iter().any(|n| n.is(&id.name)))
+                .and_then(|d| d.location.clone());
+            let bound =
+                written.as_ref().is_some_and(|l| l.name.eq_ignore_ascii_case(&location.name));
+            if bound && fb.name.contains('$') {
+                let declared_ty = fb.vars[m].ty.clone();
+                self.same_type(file, entry, path, &declared_ty);
+                return;
+            }
+            match written.filter(|l| l.name.ends_with('*') && own(kind)) {
+                Some(partial) => {
+                    let msg = format!(
+                        "`%{}` does not fit `{}`, declared at `%{}`",
+                        location.name, id.name, partial.name
+                    );
+                    self.error(file, location.span, msg);
+                }
+                None => {
+                    let msg = format!(
+                        "`{}.{}` is not declared at a partly specified address (`AT %I*`, `%Q*`, \
+                         `%M*`): VAR_CONFIG binds only such a variable",
+                        path_text(&path[..at]),
+                        id.name
+                    );
+                    self.error(file, id.span, msg);
+                }
+            }
+        }
     }
 
     /// Whether the type `entry` gives is `ty`, the type of the variable at `path`; reported

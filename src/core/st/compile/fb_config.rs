@@ -1,0 +1,237 @@
+//! `VAR_CONFIG`'s `AT` for a variable inside a FUNCTION_BLOCK instance of a program instance
+//! (`P4.FB1.C2 AT %QB25 : BYTE;`, IEC 61131-3's configuration example): a lowering of the
+//! syntax trees, since a block's code is shared by all its instances.
+//!
+//! The FUNCTION_BLOCK instance gets a copy of its block of its own, named after the instance
+//! (`FB$P4.FB1`), in which the variable is declared at the bound address (and with the entry's
+//! initial value), its methods and actions copied with it ([`actions_of`]); the instance's
+//! declaration names the copy. A path through nested instances copies each block on the way
+//! (`Inner$P4.FB1.inner`). The PROGRAM is rewritten in place when the project has one instance
+//! of it; else the configuration's instance gets a copy of the PROGRAM of its own
+//! (`Prog$P4`), which the compile places instead ([`super::ctx::PouInfo::copy_of`] names the
+//! PROGRAM it copies). Only an entry that fits is lowered: a variable of an instance's own
+//! (`VAR`, `VAR_INPUT`, `VAR_OUTPUT`) declared at a partly specified address the bound
+//! address fits; the compile checks every entry and reports the others
+//! (`var_config.rs`).
+
+use std::borrow::Cow;
+
+use crate::device::iec::IecLayout;
+use crate::st::ast::{self, Ident, Init, Item, PouKind, TypeRef, VarBlock, VarKind};
+
+use super::generic_constants::actions_of;
+use super::Instance;
+
+/// One entry to lower: the path from the PROGRAM's variable on (`FB1.C2`), the address, the
+/// initial value.
+type Entry = (Vec<Ident>, Ident, Option<Init>);
+
+/// Lowers the entries of the configurations that declare `instances` (`declared(k)` is the
+/// declaration of the instance `k`, when a configuration declares it): the lowered sources,
+/// and for each instance the name of the copy of its PROGRAM it runs, when it runs one.
+pub(super) fn lower<'f, 'd>(
+    mut files: Vec<Cow<'f, ast::File>>,
+    instances: &[Instance<'_>],
+    declared: impl Fn(usize) -> Option<&'d ast::ProgramDecl>,
+    iec: &IecLayout,
+) -> (Vec<Cow<'f, ast::File>>, Vec<Option<String>>) {
+    let mut renamed = vec![None; instances.len()];
+    for (k, inst) in instances.iter().enumerate() {
+        if declared(k).is_none() {
+            continue;
+        }
+        let Some(f) = files.iter().position(|f| f.path == inst.file) else { continue };
+        let entries = entries_of(&files[f], inst.name);
+        if entries.is_empty() {
+            continue;
+        }
+        let programs: Vec<usize> = (0..files[f].items.len())
+            .filter(|&i| matches!(&files[f].items[i], Item::Pou(p) if p.kind == PouKind::Program))
+            .collect();
+        let at = match inst.pou {
+            Some(name) => programs
+                .iter()
+                .copied()
+                .find(|&i| matches!(&files[f].items[i], Item::Pou(p) if p.name.is(name))),
+            None if programs.len() == 1 => Some(programs[0]),
+            None => None,
+        };
+        let Some(at) = at else { continue };
+        let Item::Pou(original) = &files[f].items[at] else { continue };
+        let mut program = original.clone();
+        let mut changed = false;
+        for (path, location, init) in &entries {
+            let prefix = inst.name.to_string();
+            changed |=
+                locate_inside(&mut files, &mut program.vars, path, location, init, prefix, iec);
+        }
+        if !changed {
+            continue;
+        }
+        let name = program.name.name.clone();
+        let sharing = instances
+            .iter()
+            .filter(|i| {
+                i.file == inst.file
+                    && i.pou.map_or(programs.len() == 1, |n| n.eq_ignore_ascii_case(&name))
+            })
+            .count();
+        let items = &mut files[f].to_mut().items;
+        if sharing <= 1 {
+            items[at] = Item::Pou(program);
+        } else {
+            let copy = format!("{name}${}", inst.name);
+            program.name.name = copy.clone();
+            let actions = actions_of(items, at, &name, &copy);
+            items.push(Item::Pou(program));
+            items.extend(actions);
+            renamed[k] = Some(copy);
+        }
+    }
+    (files, renamed)
+}
+
+/// The entries of `file`'s configuration that bind a variable inside a FUNCTION_BLOCK
+/// instance of the program instance `instance`, each path once (a path bound twice is
+/// reported by the compile).
+fn entries_of(file: &ast::File, instance: &str) -> Vec<Entry> {
+    let Some(conf) = file.items.iter().find_map(|i| match i {
+        Item::Configuration(c) => Some(c),
+        _ => None,
+    }) else {
+        return Vec::new();
+    };
+    let mut entries: Vec<Entry> = Vec::new();
+    for entry in &conf.var_config {
+        let Some(location) = &entry.location else { continue };
+        // `Res0.P4.FB1.C2`, as IEC writes it, or `P4.FB1.C2`
+        let path = match entry.path.split_first() {
+            Some((first, rest))
+                if rest.len() >= 2
+                    && !first.is(instance)
+                    && conf
+                        .resources
+                        .iter()
+                        .filter_map(|r| r.name.as_ref())
+                        .any(|r| r.is(&first.name)) =>
+            {
+                rest
+            }
+            _ => &entry.path[..],
+        };
+        if path.len() < 3 || !path[0].is(instance) {
+            continue;
+        }
+        let path = path[1..].to_vec();
+        let same = |(p, _, _): &Entry| {
+            p.len() == path.len() && p.iter().zip(&path).all(|(a, b)| a.is(&b.name))
+        };
+        if !entries.iter().any(same) {
+            entries.push((path, location.clone(), entry.init.clone()));
+        }
+    }
+    entries
+}
+
+/// Whether a variable of this block may be bound: one of the instance's own.
+fn own(block: &VarBlock) -> bool {
+    matches!(block.kind, VarKind::Local | VarKind::Input | VarKind::Output) && !block.constant
+}
+
+/// Declares the variable `path` names in `vars` (through FUNCTION_BLOCK instances, each
+/// given a copy of its block named `Block$prefix.instance`) at `location`; whether it did.
+fn locate_inside(
+    files: &mut [Cow<'_, ast::File>],
+    vars: &mut [VarBlock],
+    path: &[Ident],
+    location: &Ident,
+    init: &Option<Init>,
+    prefix: String,
+    iec: &IecLayout,
+) -> bool {
+    let name = &path[0];
+    let Some((b, d)) = vars.iter().enumerate().find_map(|(b, block)| {
+        block.decls.iter().position(|d| d.names.iter().any(|n| n.is(&name.name))).map(|d| (b, d))
+    }) else {
+        return false;
+    };
+    if !own(&vars[b]) {
+        return false;
+    }
+    let decl = &vars[b].decls[d];
+    if path.len() == 1 {
+        let fits = decl.location.as_ref().is_some_and(|partial| {
+            partial.name.ends_with('*')
+                && super::var_config::fits(&partial.name, &location.name, iec)
+        });
+        if !fits {
+            return false;
+        }
+        let span = decl.location.as_ref().map_or(location.span, |l| l.span);
+        let located = ast::VarDecl {
+            names: vec![name.clone()],
+            location: Some(Ident { name: location.name.clone(), span }),
+            init: init.clone().or_else(|| decl.init.clone()),
+            ..decl.clone()
+        };
+        split_off(&mut vars[b], d, name, located);
+        return true;
+    }
+    let TypeRef::Named(block) = &decl.ty else { return false };
+    // the declaration names the copy already when another entry bound a variable of it
+    let copy_name = match block.name.contains('$') {
+        true => block.name.clone(),
+        false => format!("{}${prefix}.{}", block.name, name.name),
+    };
+    // the copy made for another variable of this instance, else the block
+    let Some((f, i)) = find_block(files, &copy_name).or_else(|| find_block(files, &block.name))
+    else {
+        return false;
+    };
+    let Item::Pou(found) = &files[f].items[i] else { return false };
+    let mut copy = found.clone();
+    let fresh = !copy.name.is(&copy_name);
+    let original = copy.name.name.clone();
+    copy.name.name = copy_name.clone();
+    let inner_prefix = format!("{prefix}.{}", name.name);
+    if !locate_inside(files, &mut copy.vars, &path[1..], location, init, inner_prefix, iec) {
+        return false;
+    }
+    let items = &mut files[f].to_mut().items;
+    if fresh {
+        let actions = actions_of(items, i, &original, &copy_name);
+        items.push(Item::Pou(copy));
+        items.extend(actions);
+    } else {
+        items[i] = Item::Pou(copy);
+    }
+    let retyped = ast::VarDecl {
+        names: vec![name.clone()],
+        ty: TypeRef::Named(Ident { name: copy_name, span: block.span }),
+        ..decl.clone()
+    };
+    split_off(&mut vars[b], d, name, retyped);
+    true
+}
+
+/// Replaces `name` in the declaration `d` of `block` (`a, b : T;`) by a declaration of its
+/// own.
+fn split_off(block: &mut VarBlock, d: usize, name: &Ident, own: ast::VarDecl) {
+    let decl = &mut block.decls[d];
+    if decl.names.len() == 1 {
+        *decl = own;
+    } else {
+        decl.names.retain(|n| !n.is(&name.name));
+        block.decls.insert(d + 1, own);
+    }
+}
+
+/// Where the FUNCTION_BLOCK `name` is: its file and item.
+fn find_block(files: &[Cow<'_, ast::File>], name: &str) -> Option<(usize, usize)> {
+    files.iter().enumerate().find_map(|(f, file)| {
+        file.items
+            .iter()
+            .position(|i| matches!(i, Item::Pou(p) if p.kind == PouKind::FunctionBlock && p.name.is(name)))
+            .map(|i| (f, i))
+    })
+}
