@@ -732,7 +732,7 @@ fn var_config_binds_variables_inside_a_function_block_instance() {
             "  configuration CELL_1: VAR_CONFIG STATION_2.P4.FB1.C3 AT %QW3 → D12003",
         ]
     );
-    let watch = "P4.seen,P5.seen,D12003,D13036,P4.FB2.C2,P4.FB2.C3,P5.FB1.C2,P5.FB1.C3";
+    let watch = "P4.seen,P5.seen,D12003,D13036,P4.FB1.C3,P4.FB2.C2,P4.FB2.C3,P5.FB1.C2,P5.FB1.C3";
     let run = |engine: &[&str]| {
         let mut args = vec!["sim", "--config", "plcd.toml", "--for", "25ms", "--watch", watch];
         args.extend(["--trace", "-"]);
@@ -747,6 +747,8 @@ fn var_config_binds_variables_inside_a_function_block_instance() {
     assert_eq!(last(&trace, "D12003").as_deref(), Some("30"), "{trace}");
     assert_eq!(last(&trace, "P4.seen").as_deref(), Some("30"));
     assert_eq!(last(&trace, "D13036").as_deref(), Some("4864"));
+    // the trace names the bound variable by its path, as any other
+    assert_eq!(last(&trace, "P4.FB1.C3").as_deref(), Some("30"));
     // the block's other instances keep their variables in memory: P4.FB2 counts by 1, and
     // P5.FB1 (the PROGRAM's other instance) by 10, apart from the devices
     assert_eq!(last(&trace, "P4.FB2.C2").as_deref(), Some("3"));
@@ -756,6 +758,74 @@ fn var_config_binds_variables_inside_a_function_block_instance() {
     assert_eq!(last(&trace, "P5.seen").as_deref(), Some("30"));
     // the copies are ordinary code: the interpreter gives the native code's trace
     assert_eq!(run(&["--interpreter"]), trace);
+}
+
+#[test]
+fn var_config_binds_a_variable_of_a_nested_instance_and_checks_each_entry() {
+    // the PROGRAM's one instance: its code rewritten, `o.inner` given a copy of `Inner` inside
+    // a copy of `Outer`; `o2` keeps the blocks
+    let dir = TempDir::new("st-configuration-var-config-nested");
+    let toml = "[plc]\nscan_period_ms = 10\n\n[[program]]\nfile = \"plc.st\"\n";
+    write(dir.path(), "plcd.toml", toml);
+    let text = "FUNCTION_BLOCK Inner
+  VAR x AT %MW* : INT; plain : INT; END_VAR
+  x := x + 1;
+END_FUNCTION_BLOCK
+
+FUNCTION_BLOCK Outer
+  VAR inner : Inner; END_VAR
+  inner();
+END_FUNCTION_BLOCK
+
+PROGRAM p
+  VAR o : Outer; o2 : Outer; END_VAR
+  o();
+  o2();
+END_PROGRAM
+
+CONFIGURATION c
+  PROGRAM i : p;
+  VAR_CONFIG
+    i.o.inner.x AT %MW7 : INT := 4;
+  END_VAR
+END_CONFIGURATION
+";
+    write(dir.path(), "plc.st", text);
+    let watch = "D14007,i.o.inner.x,i.o2.inner.x";
+    let out = plcd(
+        dir.path(),
+        &["sim", "--config", "plcd.toml", "--for", "25ms", "--watch", watch, "--trace", "-"],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let trace = String::from_utf8_lossy(&out.stdout);
+    // %MW7 is D14007: 4 at RUN start, one more at each of the three scans
+    assert_eq!(last(&trace, "D14007").as_deref(), Some("7"), "{trace}");
+    assert_eq!(last(&trace, "i.o.inner.x").as_deref(), Some("7"));
+    assert_eq!(last(&trace, "i.o2.inner.x").as_deref(), Some("3"));
+    // each wrong entry reported at its place
+    let wrong = text.replace(
+        "    i.o.inner.x AT %MW7 : INT := 4;\n",
+        "    i.o.inner.x AT %MW7 : INT := 4;
+    i.o.inner.x AT %MW8 : INT;
+    i.o.inner.plain AT %MW9 : INT;
+    i.o2.inner.x AT %IX0.1 : INT;
+    i.o2.inner.x AT %MW10 : BOOL;
+",
+    );
+    write(dir.path(), "plc.st", &wrong);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        stderr.lines().collect::<Vec<_>>(),
+        [
+            "plc.st:21:5: error: `i.o.inner.x` is already bound by VAR_CONFIG (line 20)",
+            "plc.st:22:15: error: `i.o.inner.plain` is not declared at a partly specified address (`AT %I*`, `%Q*`, `%M*`): VAR_CONFIG binds only such a variable",
+            "plc.st:23:21: error: `%IX0.1` does not fit `x`, declared at `%MW*`",
+            "plc.st:24:16: error: `i.o2.inner.x` is `INT`, not `BOOL`",
+            "plcd.toml: 4 error(s)",
+        ]
+    );
 }
 
 /// The CODESYS forms TwinCAT code and TcUnit use (docs/ST.md, "CODESYS and TwinCAT habits"), in

@@ -92,8 +92,7 @@ pub(super) fn lower<'f, 'd>(
 }
 
 /// The entries of `file`'s configuration that bind a variable inside a FUNCTION_BLOCK
-/// instance of the program instance `instance`, each path once (a path bound twice is
-/// reported by the compile).
+/// instance of the program instance `instance`.
 fn entries_of(file: &ast::File, instance: &str) -> Vec<Entry> {
     let Some(conf) = file.items.iter().find_map(|i| match i {
         Item::Configuration(c) => Some(c),
@@ -122,13 +121,9 @@ fn entries_of(file: &ast::File, instance: &str) -> Vec<Entry> {
         if path.len() < 3 || !path[0].is(instance) {
             continue;
         }
-        let path = path[1..].to_vec();
-        let same = |(p, _, _): &Entry| {
-            p.len() == path.len() && p.iter().zip(&path).all(|(a, b)| a.is(&b.name))
-        };
-        if !entries.iter().any(same) {
-            entries.push((path, location.clone(), entry.init.clone()));
-        }
+        // a path bound twice: the first entry that fits binds it, the compile reports the
+        // others
+        entries.push((path[1..].to_vec(), location.clone(), entry.init.clone()));
     }
     entries
 }

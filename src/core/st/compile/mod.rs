@@ -377,13 +377,10 @@ pub fn compile_in_namespaces(
             }
             let at = match v.storage {
                 Storage::Inst(o) => Pointer { space: Space::Var, offset: base + o },
-                Storage::Word(w) => Pointer { space: Space::Word, offset: u32::from(w) },
-                Storage::Bit(b) => Pointer {
-                    space: Space::Bit,
-                    offset: u32::from(b.word) * 16 + b.mask.trailing_zeros(),
+                other => match device_pointer(other) {
+                    Some(at) => at,
+                    None => continue,
                 },
-                Storage::Byte(n) => Pointer { space: Space::Byte, offset: n },
-                _ => continue,
             };
             let name = format!("{}.{}", inst.name, v.name);
             leaves(&cx, &name, &v.ty, at, v.retain, v.constant, &mut symbols);
@@ -804,6 +801,18 @@ fn value_type(cx: &Ctx<'_>, ty: &Ty) -> Option<ValueType> {
     })
 }
 
+/// Where a located variable is: its device.
+fn device_pointer(storage: Storage) -> Option<Pointer> {
+    Some(match storage {
+        Storage::Word(w) => Pointer { space: Space::Word, offset: u32::from(w) },
+        Storage::Bit(b) => {
+            Pointer { space: Space::Bit, offset: u32::from(b.word) * 16 + b.mask.trailing_zeros() }
+        }
+        Storage::Byte(n) => Pointer { space: Space::Byte, offset: n },
+        _ => return None,
+    })
+}
+
 /// One symbol per scalar leaf of a variable.
 fn leaves(
     cx: &Ctx<'_>,
@@ -852,8 +861,13 @@ fn leaves(
                 if matches!(v.kind, VarKind::Temp | VarKind::External | VarKind::InOut) {
                     continue;
                 }
-                if let Storage::Inst(o) = v.storage {
-                    let ptr = Pointer { space: at.space, offset: at.offset + o };
+                // a variable of a block's copy that VAR_CONFIG binds is at its device
+                // (`fb_config.rs`)
+                let ptr = match v.storage {
+                    Storage::Inst(o) => Some(Pointer { space: at.space, offset: at.offset + o }),
+                    other => device_pointer(other),
+                };
+                if let Some(ptr) = ptr {
                     leaves(
                         cx,
                         &format!("{name}.{}", v.name),

@@ -8,9 +8,9 @@
 //!   for all its instances: when the PROGRAM has other instances, the instance gets a copy of
 //!   the PROGRAM of its own ([`PouInfo::copy_of`](super::ctx::PouInfo)), compiled with the
 //!   variable at the device; a PROGRAM with actions (which would need copies too) cannot be so
-//!   copied. Only a variable of the instance itself (`i.x`) is bound, not one inside its
-//!   FUNCTION_BLOCK instances (whose code every instance of the block shares). The other cases
-//!   are refused, each with its own message.
+//!   copied. A variable inside one of its FUNCTION_BLOCK instances (`i.fb.x`) is bound by a
+//!   lowering, which gives that instance a copy of its block (`fb_config.rs`); it is checked
+//!   here. The other cases are refused, each with its own message.
 //! - `i.fb.x : INT := v;` gives a variable of the instance, or of a FUNCTION_BLOCK instance or a
 //!   struct inside it, its initial value for that instance: written into the instance's own
 //!   initial image (each instance has its own memory), or for a located variable to its
@@ -19,7 +19,7 @@
 //! A path may start with the resource's name, as IEC writes it (`Res0.i.x`).
 
 use crate::device::iec::IecLayout;
-use crate::st::ast::{self, ConfigVar, Ident, VarKind};
+use crate::st::ast::{self, ConfigVar, Ident, PouKind, VarKind};
 
 use super::ctx::{suggest, Ctx, Scope, Storage};
 use super::decl::iec_address;
@@ -177,9 +177,8 @@ impl Ctx<'_> {
                 let name = path_text(&entry.path);
                 let msg = format!("`{name}` is already bound by VAR_CONFIG (line {line})");
                 self.error(file, entry.path[0].span, msg);
-            } else {
+            } else if self.check_bound_inside(file, (entry, location), path, p) {
                 inside.push((k, text, entry.span.line));
-                self.check_bound_inside(file, (entry, location), path, p);
             }
             return None;
         }
@@ -231,20 +230,21 @@ impl Ctx<'_> {
 
     /// Checks a binding of a variable inside a FUNCTION_BLOCK instance of the instance whose
     /// PROGRAM (or copy of it) is `p`, which the lowering made when it fits (`fb_config.rs`):
-    /// the variable is then declared at the entry's address in a copy of its block.
+    /// the variable is then declared at the entry's address in a copy of its block. Whether
+    /// the entry binds it.
     fn check_bound_inside(
         &mut self,
         file: usize,
         (entry, location): (&ConfigVar, &Ident),
         path: &[Ident],
         p: usize,
-    ) {
-        let Some(v) = self.program_variable(file, p, &path[1]) else { return };
+    ) -> bool {
+        let Some(v) = self.program_variable(file, p, &path[1]) else { return false };
         let mut ty = self.pous[p].vars[v].ty.clone();
         for (at, id) in path.iter().enumerate().skip(2) {
             let q = match ty {
                 Ty::Fb(q) => q,
-                Ty::Error => return,
+                Ty::Error => return false,
                 other => {
                     let n = self.ty_name(&other);
                     let msg = format!(
@@ -253,7 +253,7 @@ impl Ctx<'_> {
                         path_text(&path[..at])
                     );
                     self.error(file, id.span, msg);
-                    return;
+                    return false;
                 }
             };
             let fb = &self.pous[q];
@@ -261,28 +261,34 @@ impl Ctx<'_> {
                 let hint = suggest(&id.name, fb.vars.iter().map(|v| v.name.as_str()));
                 let msg = format!("`{}` has no variable `{}`{hint}", fb.name, id.name);
                 self.error(file, id.span, msg);
-                return;
+                return false;
             };
             if at + 1 < path.len() {
                 ty = fb.vars[m].ty.clone();
                 continue;
             }
             let kind = fb.vars[m].kind;
-            let written = fb
-                .ast
-                .vars
-                .iter()
-                .flat_map(|b| &b.decls)
-                .find(|d| d.names.iter().any(|n| n.is(&id.name)))
-                .and_then(|d| d.location.clone());
-            let bound =
-                written.as_ref().is_some_and(|l| l.name.eq_ignore_ascii_case(&location.name));
-            if bound && fb.name.contains('$') {
+            let written = |pou: &ast::Pou| {
+                pou.vars
+                    .iter()
+                    .flat_map(|b| &b.decls)
+                    .find(|d| d.names.iter().any(|n| n.is(&id.name)))
+                    .and_then(|d| d.location.clone())
+            };
+            let at_address = written(fb.ast);
+            let bound = at_address.is_some_and(|l| l.name.eq_ignore_ascii_case(&location.name));
+            // a copy's name is its block's and the instance's (`fb_config.rs`)
+            let copy_of = fb.name.split_once('$').map(|(block, _)| block);
+            if bound && copy_of.is_some() {
                 let declared_ty = fb.vars[m].ty.clone();
-                self.same_type(file, entry, path, &declared_ty);
-                return;
+                return self.same_type(file, entry, path, &declared_ty);
             }
-            match written.filter(|l| l.name.ends_with('*') && own(kind)) {
+            let block = copy_of.and_then(|name| {
+                let named = |b: &&super::ctx::PouInfo| b.name.eq_ignore_ascii_case(name);
+                self.pous.iter().filter(|b| b.kind == PouKind::FunctionBlock).find(named)
+            });
+            let partial = written(block.map_or(fb.ast, |b| b.ast));
+            match partial.filter(|l| l.name.ends_with('*') && own(kind)) {
                 Some(partial) => {
                     let msg = format!(
                         "`%{}` does not fit `{}`, declared at `%{}`",
@@ -301,6 +307,7 @@ impl Ctx<'_> {
                 }
             }
         }
+        false
     }
 
     /// Whether the type `entry` gives is `ty`, the type of the variable at `path`; reported
