@@ -828,6 +828,62 @@ END_CONFIGURATION
     );
 }
 
+#[test]
+fn var_config_copies_a_bound_blocks_methods_and_actions_with_it() {
+    // the block's method and action write the device in the bound instance's copy; the
+    // PROGRAM's two instances and its action: P4 runs a copy of it with its action
+    let dir = TempDir::new("st-configuration-var-config-methods");
+    let toml = "[plc]\nscan_period_ms = 10\n\n[[program]]\nfile = \"plc.st\"\n";
+    write(dir.path(), "plcd.toml", toml);
+    let text = "FUNCTION_BLOCK G
+  VAR_OUTPUT C3 AT %Q* : INT; END_VAR
+  METHOD Bump : INT
+    C3 := C3 + 100;
+    Bump := C3;
+  END_METHOD
+END_FUNCTION_BLOCK
+
+ACTION G.Step:
+  C3 := C3 + 1;
+END_ACTION
+
+PROGRAM H
+  VAR FB1 : G; got : INT; END_VAR
+  FB1.Step();
+  got := FB1.Bump();
+END_PROGRAM
+
+ACTION H.Twice:
+  FB1.Step();
+END_ACTION
+
+CONFIGURATION c
+  PROGRAM P4 : H;
+  PROGRAM P5 : H;
+  VAR_CONFIG
+    P4.FB1.C3 AT %QW3 : INT;
+  END_VAR
+END_CONFIGURATION
+";
+    write(dir.path(), "plc.st", text);
+    let watch = "D12003,P4.got,P5.got,P5.FB1.C3";
+    let run = |engine: &[&str]| {
+        let mut args = vec!["sim", "--config", "plcd.toml", "--for", "25ms", "--watch", watch];
+        args.extend(["--trace", "-"]);
+        args.extend(engine);
+        let out = plcd(dir.path(), &args);
+        assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let trace = run(&[]);
+    // three scans of 101: on the device for P4, in memory for P5
+    assert_eq!(last(&trace, "D12003").as_deref(), Some("303"), "{trace}");
+    assert_eq!(last(&trace, "P4.got").as_deref(), Some("303"));
+    assert_eq!(last(&trace, "P5.got").as_deref(), Some("303"));
+    assert_eq!(last(&trace, "P5.FB1.C3").as_deref(), Some("303"));
+    assert_eq!(run(&["--interpreter"]), trace);
+}
+
 /// The CODESYS forms TwinCAT code and TcUnit use (docs/ST.md, "CODESYS and TwinCAT habits"), in
 /// TwinCAT files. Test data modelled on TcUnit (github.com/tcunit/TcUnit, MIT licence,
 /// Copyright (c) 2018 Jakob Sagatowski and contributors): `U_ExpectedOrActual.TcDUT`'s UNION of
