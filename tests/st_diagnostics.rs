@@ -171,7 +171,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ("VAR_CONFIG names a variable of a program instance: `{}.variable`", "config-var-config-no-variable"),
     ("`{}` has no variable `{}`{}", "config-var-config-unknown-variable"),
     (
-        "`{}` is `{}`: VAR_CONFIG binds a variable of a program instance or of a FUNCTION_BLOCK instance inside it, not a member of a struct",
+        "`{}` is `{}`: VAR_CONFIG binds a variable of a program instance or of a FUNCTION_BLOCK instance inside it, not a member of a struct or an element of an array",
         "config-var-config-struct-member",
     ),
     (

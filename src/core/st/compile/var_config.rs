@@ -249,7 +249,8 @@ impl Ctx<'_> {
                     let n = self.ty_name(&other);
                     let msg = format!(
                         "`{}` is `{n}`: VAR_CONFIG binds a variable of a program instance or of a \
-                         FUNCTION_BLOCK instance inside it, not a member of a struct",
+                         FUNCTION_BLOCK instance inside it, not a member of a struct or an \
+                         element of an array",
                         path_text(&path[..at])
                     );
                     self.error(file, id.span, msg);
