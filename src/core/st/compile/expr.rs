@@ -639,11 +639,7 @@ impl<'a> Ctx<'a> {
                             Storage::Inst(off) => off,
                             _ if located => 0,
                             _ => {
-                                self.error(
-                                    file,
-                                    id.span,
-                                    format!("`{}` is not an input or output of `{n}`", id.name),
-                                );
+                                self.not_an_input_or_output(file, id, &n);
                                 return TExpr::error(span);
                             }
                         };
@@ -671,11 +667,7 @@ impl<'a> Ctx<'a> {
                                 return TExpr::error(span);
                             }
                             _ => {
-                                self.error(
-                                    file,
-                                    id.span,
-                                    format!("`{}` is not an input or output of `{n}`", id.name),
-                                );
+                                self.not_an_input_or_output(file, id, &n);
                                 return TExpr::error(span);
                             }
                         }
@@ -2143,5 +2135,19 @@ pub(super) fn at_device_words(t: &TExpr) -> bool {
         TK::Var { storage, .. } => matches!(storage, Storage::Word(_)),
         TK::Index(b, _) | TK::Member(b, _, _) => at_device_words(b),
         _ => false,
+    }
+}
+
+impl Ctx<'_> {
+    /// `id`, a variable of the block `block`, named from outside where only its inputs and
+    /// outputs (or, under its habits, its internal variables read) may be.
+    fn not_an_input_or_output(
+        &mut self,
+        file: usize,
+        id: &ast::Ident,
+        block: &dyn std::fmt::Display,
+    ) {
+        let message = format!("`{}` is not an input or output of `{block}`", id.name);
+        self.error(file, id.span, message);
     }
 }
