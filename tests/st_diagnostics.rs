@@ -38,6 +38,14 @@ const MESSAGES: &[(&str, &str)] = &[
         "`{}` takes memory from the heap, and `[st] heap_bytes` is {}: give it the bytes the program allocates at most (docs/ST.md, Dynamic memory)",
         "heap-none",
     ),
+    (
+        "`__NEW` stands in a POU's statements, not in an initial value: assign it at the first scan, `IF p = 0 THEN p := __NEW(T); END_IF`",
+        "heap-new-initial-value",
+    ),
+    (
+        "`__DELETE(p)` frees a block and gives no value: write it as a statement of its own, `__DELETE(p);` (TwinCAT, CODESYS)",
+        "heap-delete-in-expression",
+    ),
     // decl.rs: declarations, types, initial values, locations
     ("`{}`: names starting with `__` are reserved", "reserved-name"),
     ("`{}` is an elementary type", "elementary-type-name"),
@@ -487,18 +495,19 @@ const MESSAGES: &[(&str, &str)] = &[
         "fb-init-argument-not-run",
     ),
     (
-        "`{}`: the declaration arguments are all named (`x := 5`) or all positional (`{}(5, 'A')`), not both",
+        "{}: the declaration arguments are all named (`x := 5`) or all positional (`{}(5, 'A')`), not both",
         "fb-init-arguments-mixed",
     ),
     (
-        "`{}`: a declaration argument gives an FB_init input (`{} := …`), not an output",
+        "{}: a declaration argument gives an FB_init input (`{} := …`), not an output",
         "fb-init-argument-output",
     ),
     (
-        "`{}`: `{}`'s FB_init takes {} argument(s) after bInitRetains and bInCopyCode",
+        "{}: `{}`'s FB_init takes {} argument(s) after bInitRetains and bInCopyCode",
         "fb-init-too-many-arguments",
     ),
-    ("`{}` has no FB_init input `{}` for the declaration of `{}`", "fb-init-argument-unknown"),
+    ("`{}` has no FB_init input `{}` for {}", "fb-init-argument-unknown"),
+    ("`{}` has no FB_init input `{}` for {}", "heap-new-argument-unknown"),
     // fb_exit.rs: FB_exit
     (
         "an FB_exit method declares `bInCopyCode : BOOL` as its first VAR_INPUT",
@@ -767,6 +776,12 @@ const UNREACHABLE: &[(&str, &str)] = &[
 /// Literals of the compiler sources that are not messages by themselves: words and hints that
 /// messages are built from, and type names.
 const PARTS: &[&str] = &[
+    // where declaration arguments are given (fb_init.rs's check_arguments; heap.rs's __NEW)
+    "the declaration of `{}`",
+    "this `__NEW`",
+    // the call of __FB_INIT_ALL in heap_new.st, which heap.rs extends with inputs
+    "bInCopyCode := FALSE)",
+    ", {} := {}",
     // what an access path's name is also, and what its path names (access_paths.rs)
     "a global variable",
     "the device `{}`",

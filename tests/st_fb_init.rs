@@ -606,3 +606,77 @@ END_PROGRAM
     run_scans(&mut plc, MS);
     assert_eq!(var(&plc, &changed, "calls"), 1, "once");
 }
+
+/// Function blocks made by `__NEW` (docs/ST.md, Dynamic memory): `a` deleted at scan 2 (2);
+/// `b`, two elements (3, 4), never deleted; `o.p` (1), deleted by its owner's FB_exit (9
+/// first). FB_exit logs each call's `id` as a digit of `log`.
+const HEAP: &str = "
+VAR_GLOBAL log : DINT; END_VAR
+FUNCTION_BLOCK Node
+VAR_INPUT id : DINT; END_VAR
+METHOD FB_init : BOOL
+VAR_INPUT bInitRetains : BOOL; bInCopyCode : BOOL; nId : DINT; END_VAR
+    id := nId;
+END_METHOD
+METHOD FB_exit : BOOL
+VAR_INPUT bInCopyCode : BOOL; END_VAR
+    log := log * 10 + id;
+END_METHOD
+END_FUNCTION_BLOCK
+FUNCTION_BLOCK Owner
+VAR_INPUT p : POINTER TO Node; END_VAR
+METHOD FB_exit : BOOL
+VAR_INPUT bInCopyCode : BOOL; END_VAR
+    log := log * 10 + 9;
+    __DELETE(p);
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM Main
+VAR o : Owner; a, b : POINTER TO Node; scans : DINT; END_VAR
+    scans := scans + 1;
+    IF scans = 1 THEN
+        a := __NEW(Node(nId := 2));
+        b := __NEW(Node(3), 2);
+        b[1].id := 4;
+        o.p := __NEW(Node(nId := 1));
+    ELSIF scans = 2 THEN
+        __DELETE(a);
+    END_IF
+END_PROGRAM
+";
+
+#[test]
+fn the_function_blocks_still_in_the_heap_when_a_run_ends_run_their_fb_exit_last() {
+    for native in [false, true] {
+        heap_through_a_stop(native);
+    }
+}
+
+fn heap_through_a_stop(native: bool) {
+    let p = with_native(st(HEAP), native);
+    let mut plc = Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    while var(&plc, &p, "main.scans") < 2 {
+        run_scans(&mut plc, MS);
+    }
+    assert_eq!(var(&plc, &p, "log"), 2, "a's FB_exit at its __DELETE");
+    plc.set_mode(Mode::Stop);
+    // Main's o: its FB_exit (9) deletes o.p (1); then the heap's live blocks from the first: b's
+    // elements 3 and 4
+    assert_eq!(var(&plc, &p, "log"), 29_134, "native: {native}");
+
+    // an online change keeps the heap's blocks but sets the pointers to NULL: o's FB_exit
+    // deletes nothing, and the heap's blocks run their FB_exit in their order: 3, 4, then 1
+    plc.set_mode(Mode::Run);
+    while var(&plc, &p, "main.scans") < 2 {
+        run_scans(&mut plc, MS);
+    }
+    assert_eq!(var(&plc, &p, "log"), 2, "the heap emptied at the RUN start");
+    let changed = with_native(st(HEAP), native);
+    let mut change = plcd::engine::online::prepare(&p, &changed, &[]).unwrap();
+    change.engine.take_over(&mut plc.engine, &change.edges).unwrap();
+    std::mem::swap(&mut plc.engine, &mut change.engine);
+    run_scans(&mut plc, MS);
+    plc.set_mode(Mode::Stop);
+    assert_eq!(var(&plc, &changed, "log"), 29_341, "native: {native}");
+}

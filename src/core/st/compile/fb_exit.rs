@@ -52,6 +52,7 @@ use super::lifecycle::{
     block, bool_decl, counter_block, global_instances, has_work, hidden_pou, holds_instances,
     ident, instance_with_work, instances, name, stmt, Blocks,
 };
+use crate::st::dialect::Habit;
 
 /// The hidden method that finishes an instance (its `FB_exit`, its instances, its base).
 pub const EXIT_ALL: &str = "__FB_EXIT_ALL";
@@ -75,6 +76,8 @@ const FB_REINIT: &str = "FB_reinit";
 const GLOBALS_LIVE: &str = "__FB_EXIT_GLOBALS_LIVE";
 const GLOBALS_EXIT: &str = "__FB_EXIT_GLOBALS";
 const IN_COPY_CODE: &str = "bInCopyCode";
+/// The habit the parser notes for each `__NEW`.
+const NEW: Habit = Habit::DynamicMemory("__NEW");
 
 /// Whether `name` is `FB_exit` or the hidden [`EXIT_ALL`]: methods each block declares for
 /// itself, called without dispatch (a derived block's `FB_exit` does not replace its base's).
@@ -213,6 +216,10 @@ pub(super) fn lower<'f>(
         return files;
     }
     let globals = global_instances(&files, &needs);
+    // the function blocks `__NEW` made and no `__DELETE` finished: compile/heap.rs's
+    // `__HEAP_EXIT_ALL`, called last by the exit pass over the global instances
+    let heap = any(&needs) && files.iter().any(|f| f.habits.iter().any(|n| n.habit == NEW));
+    let finishes_globals = !globals.is_empty() || heap;
     // the global instances with a life cycle, which an online change of their declaration
     // takes through the phases (as a PROGRAM's variables)
     let lifelong: HashMap<String, bool> = names
@@ -227,10 +234,13 @@ pub(super) fn lower<'f>(
         .iter()
         .flat_map(|f| &f.items)
         .any(|i| matches!(i, Item::Pou(p) if p.name.name == super::fb_init::GLOBALS_COPY_INIT));
-    let mut globals_placed = globals.is_empty() && global_lives.is_empty();
+    let mut globals_placed = !finishes_globals && global_lives.is_empty();
     for file in files.iter_mut() {
-        let holds_globals =
-            !globals_placed && file.items.iter().any(|i| matches!(i, Item::Globals(_)));
+        let holds_globals = !globals_placed
+            && file.items.iter().any(|i| {
+                matches!(i, Item::Globals(_))
+                    || (heap && matches!(i, Item::Pou(p) if p.kind == PouKind::Program))
+            });
         let wants = holds_globals
             || file.items.iter().any(|item| {
                 matches!(item, Item::Pou(p) if p.kind == PouKind::Program
@@ -255,7 +265,7 @@ pub(super) fn lower<'f>(
             match p.kind {
                 PouKind::FunctionBlock if own_work(p, &needs) => add_exit_all(p, &needs),
                 PouKind::Program => {
-                    add_exit_pass(p, &needs, &life, !globals.is_empty(), !global_lives.is_empty())
+                    add_exit_pass(p, &needs, &life, finishes_globals, !global_lives.is_empty())
                 }
                 _ => {}
             }
@@ -265,6 +275,7 @@ pub(super) fn lower<'f>(
             let at = items.iter().position(|i| matches!(i, Item::Globals(_))).unwrap_or(0);
             let span = match &items[at] {
                 Item::Globals(b) => b.span,
+                Item::Pou(p) => p.name.span,
                 _ => Span::default(),
             };
             if !global_lives.is_empty() {
@@ -280,8 +291,8 @@ pub(super) fn lower<'f>(
                 });
                 items.insert(at, Item::Globals(block(VarKind::Global, false, flags, span)));
             }
-            if !globals.is_empty() {
-                items.insert(at, Item::Pou(globals_finisher(&globals, span)));
+            if finishes_globals {
+                items.insert(at, Item::Pou(globals_finisher(&globals, heap, span)));
                 let flags = vec![bool_decl(GLOBALS_REQUEST, span), bool_decl(GLOBALS_LIVE, span)];
                 items.insert(at, Item::Globals(block(VarKind::Global, false, flags, span)));
             }
@@ -421,12 +432,18 @@ fn add_exit_all(p: &mut Pou, map: &HashMap<String, bool>) {
     });
 }
 
-/// `FUNCTION __FB_EXIT_GLOBALS`: finishes each of `globals`, from the last.
-fn globals_finisher(globals: &[(Ident, TypeRef)], span: Span) -> Pou {
+/// `FUNCTION __FB_EXIT_GLOBALS`: finishes each of `globals`, from the last, then (`heap`) the
+/// function blocks still live in the heap, which their owners' `FB_exit` did not `__DELETE`.
+fn globals_finisher(globals: &[(Ident, TypeRef)], heap: bool, span: Span) -> Pou {
     let copy = || truth(false, span);
     let mut counters = 0;
-    let body =
+    let mut body: Vec<Stmt> =
         globals.iter().rev().map(|(v, ty)| exit_variable(v, ty, &copy, &mut counters)).collect();
+    if heap {
+        let callee = Box::new(name(super::heap::EXIT_ALL, span));
+        let call = Expr { kind: ExprKind::Call { callee, args: Vec::new() }, span };
+        body.push(stmt(StmtKind::Call(call), span));
+    }
     let vars = counter_block(COUNTER, counters, span).into_iter().collect();
     hidden_pou(GLOBALS_EXIT, vars, body, span, span)
 }

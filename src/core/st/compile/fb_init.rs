@@ -279,7 +279,7 @@ fn fb_init_extras(m: &Pou) -> Vec<VarDecl> {
 
 /// The arguments of a declaration `v : T(…)` as written: each named one (`x := 1`) an input,
 /// each other one (`5`, or a name alone) positional.
-fn written_arguments(def: &ast::EnumDef) -> Vec<Arg> {
+pub(super) fn written_arguments(def: &ast::EnumDef) -> Vec<Arg> {
     let named = |(n, v): &(Ident, Option<Expr>)| match v {
         Some(value) => Arg::Input { name: n.clone(), value: value.clone() },
         None => Arg::Positional(Expr { kind: ExprKind::Name(n.clone()), span: n.span }),
@@ -307,7 +307,7 @@ fn mixed(args: &[Arg]) -> Option<&Arg> {
 /// its `__FB_INIT_ALL` (a positional one is the input of its rank among `known`, the inputs
 /// after `bInitRetains` and `bInCopyCode`). Those [`declaration_arguments`] reports are left
 /// out.
-fn declared_arguments(ty: &TypeRef, known: &[VarDecl]) -> Vec<Arg> {
+pub(super) fn declared_arguments(ty: &TypeRef, known: &[VarDecl]) -> Vec<Arg> {
     let TypeRef::Enum(def) = ty else { return Vec::new() };
     let written = written_arguments(def);
     if mixed(&written).is_some() {
@@ -417,48 +417,57 @@ fn declaration_arguments(
                     }
                     let written = written_arguments(def);
                     let known = plan.extras(&base.name);
-                    if let Some(odd) = mixed(&written) {
-                        let msg = format!(
-                            "`{}`: the declaration arguments are all named (`x := 5`) or all positional (`{}(5, 'A')`), not both",
-                            v.name, base.name
-                        );
-                        report(arg_span(odd), msg);
-                    }
-                    let mut positional = 0;
-                    for arg in &written {
-                        match arg {
-                            Arg::Output { name, .. } => {
-                                let msg = format!(
-                                    "`{}`: a declaration argument gives an FB_init input (`{} := …`), not an output",
-                                    v.name, name.name
-                                );
-                                report(name.span, msg);
-                            }
-                            Arg::Input { name, .. }
-                                if !known.iter().any(|e| e.names[0].is(&name.name)) =>
-                            {
-                                let msg = format!(
-                                    "`{}` has no FB_init input `{}` for the declaration of `{}`",
-                                    base.name, name.name, v.name
-                                );
-                                report(name.span, msg);
-                            }
-                            Arg::Input { .. } => {}
-                            Arg::Positional(value) => {
-                                positional += 1;
-                                if positional == known.len() + 1 {
-                                    let msg = format!(
-                                        "`{}`: `{}`'s FB_init takes {} argument(s) after bInitRetains and bInCopyCode",
-                                        v.name,
-                                        base.name,
-                                        known.len()
-                                    );
-                                    report(value.span, msg);
-                                }
-                            }
-                        }
-                    }
+                    let subject = format!("`{}`", v.name);
+                    let place = format!("the declaration of `{}`", v.name);
+                    check_arguments(&base.name, &written, known, (&subject, &place), &mut report);
                     d.ty = TypeRef::Named(base);
+                }
+            }
+        }
+    }
+}
+
+/// Checks the arguments `written` for the `FB_init`s of block `base`, whose inputs after the
+/// two BOOLs are `known`: one form or the other, inputs only, each named one an input of the
+/// chain's, no more positional ones than those. `subject` names what is given them in the
+/// messages (`` `fb` ``), and `place` where (`the declaration of `fb``); compile/heap.rs's
+/// `__NEW(T(…))` is checked here too.
+pub(super) fn check_arguments(
+    base: &str,
+    written: &[Arg],
+    known: &[VarDecl],
+    (subject, place): (&str, &str),
+    report: &mut dyn FnMut(Span, String),
+) {
+    if let Some(odd) = mixed(written) {
+        let msg = format!(
+            "{subject}: the declaration arguments are all named (`x := 5`) or all positional (`{base}(5, 'A')`), not both"
+        );
+        report(arg_span(odd), msg);
+    }
+    let mut positional = 0;
+    for arg in written {
+        match arg {
+            Arg::Output { name, .. } => {
+                let msg = format!(
+                    "{subject}: a declaration argument gives an FB_init input (`{} := …`), not an output",
+                    name.name
+                );
+                report(name.span, msg);
+            }
+            Arg::Input { name, .. } if !known.iter().any(|e| e.names[0].is(&name.name)) => {
+                let msg = format!("`{base}` has no FB_init input `{}` for {place}", name.name);
+                report(name.span, msg);
+            }
+            Arg::Input { .. } => {}
+            Arg::Positional(value) => {
+                positional += 1;
+                if positional == known.len() + 1 {
+                    let msg = format!(
+                        "{subject}: `{base}`'s FB_init takes {} argument(s) after bInitRetains and bInCopyCode",
+                        known.len()
+                    );
+                    report(value.span, msg);
                 }
             }
         }

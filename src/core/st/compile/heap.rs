@@ -9,7 +9,7 @@
 //!
 //! - Each `__NEW(T, n)` (`n` 1 when left out) becomes a call of a hidden FUNCTION
 //!   `__HEAP_NEW_k(n) : POINTER TO T`, `k` the number of the `__NEW` in the project: it takes a
-//!   zeroed block of `n` elements (`__HEAP_ALLOC`, which records `k` in the block's header),
+//!   zeroed block of `n` elements (`__HEAP_ALLOC`, which records its type's tag in the block's header),
 //!   writes the type's initial value into each, and for a function block with something to
 //!   initialise runs each element's `__FB_INIT_ALL` (`bInitRetains` TRUE, `bInCopyCode` FALSE,
 //!   the other inputs of its `FB_init` their initial values); NULL when the heap has no room.
@@ -23,7 +23,16 @@
 //!   `__HEAP_TYPE_<file>_<n>`, apart in the project. The hidden FUNCTION of a `__NEW` is
 //!   declared with the type itself.
 //!
-//! Checked here: a `__NEW` or `__DELETE` where `[st] heap_bytes` is 0.
+//! - `__NEW(T(x := 5))`, `__NEW(T(5))`: `FB_init`'s arguments, checked as a declaration's
+//!   (compile/fb_init.rs's `check_arguments`); the hidden FUNCTION of such a `__NEW` declares
+//!   the inputs of `T`'s `__FB_INIT_ALL` and passes them on.
+//! - The header of a live block holds a tag of its type ([`header_tag`]), the same from one
+//!   compile to the next: `__HEAP_EXIT_ALL`, which compile/fb_exit.rs's exit pass calls last
+//!   when a RUN ends, runs the `FB_exit` of the function blocks still live, blocks an online
+//!   change kept included.
+//!
+//! Checked here: a `__NEW` or `__DELETE` where `[st] heap_bytes` is 0; a `__NEW` in an initial
+//! value; a `__DELETE` inside an expression; `__NEW(T(…))`'s arguments.
 
 use std::borrow::Cow;
 use std::collections::HashMap;
@@ -31,8 +40,8 @@ use std::path::Path;
 
 use crate::diag::Diagnostic;
 use crate::st::ast::{
-    self, Arg, Expr, ExprKind, Ident, Item, Literal, Pou, PouKind, Span, Stmt, StmtKind, TypeDef,
-    TypeRef, UnaryOp, TYPE_ARGUMENT_PREFIX,
+    self, Arg, ArrayInit, Expr, ExprKind, Ident, Init, Item, Literal, Pou, PouKind, Span, Stmt,
+    StmtKind, TypeDef, TypeRef, UnaryOp, VarDecl, VarKind, TYPE_ARGUMENT_PREFIX,
 };
 use crate::st::dialect::Habit;
 
@@ -59,9 +68,17 @@ const PLACEHOLDER: &str = "__HEAP_T";
 const NEW: &str = "__NEW";
 const DELETE: &str = "__DELETE";
 const DELETE_FN: &str = "__HEAP_DELETE";
+/// The hidden FUNCTION that runs the `FB_exit` of the function blocks still live in the heap
+/// when a RUN ends (`heap_delete.st`), which compile/fb_exit.rs's exit pass calls.
+pub const EXIT_ALL: &str = "__HEAP_EXIT_ALL";
 /// A global `POINTER TO BYTE` to no memory area, which `__HEAP_DELETE` sets before it answers
 /// FALSE.
 const NOWHERE: &str = "__HEAP_NOWHERE";
+/// The input of a `__NEW`'s FUNCTION that counts its elements.
+const COUNT: &str = "__HEAP_COUNT";
+/// The call of `__FB_INIT_ALL` in `heap_new.st`, to which the inputs of `__NEW(T(x := 5))` are
+/// added.
+const INIT_CALL: &str = "bInCopyCode := FALSE)";
 
 /// Whether `name` is one the lowering declares (exempt from the rule that reserves names
 /// starting with `__` to plcd).
@@ -80,6 +97,9 @@ struct Site {
     ty: TypeRef,
     file: usize,
     span: Span,
+    /// `__NEW(T(x := 5))`: the inputs of `T`'s `__FB_INIT_ALL` after the two BOOLs, which its
+    /// hidden FUNCTION declares and passes on (the call gives those written); empty otherwise.
+    inputs: Vec<VarDecl>,
 }
 
 /// Lowers every `__NEW` and `__DELETE` of `files`; `heap_bytes` is `[st] heap_bytes`.
@@ -95,11 +115,13 @@ pub(super) fn lower<'f>(
     }
     let mut sites: Vec<Site> = Vec::new();
     let mut deletes: Vec<(usize, Span)> = Vec::new();
+    let inits = init_inputs(&files);
     for (f, file) in files.iter_mut().enumerate() {
         if !uses(file) && !typed(file) {
             continue;
         }
         let file = file.to_mut();
+        refuse_in_initial_values(file, diags);
         // the type arguments' aliases, numbered in their file: numbered apart in the project
         let mut aliases: HashMap<String, TypeRef> = HashMap::new();
         for item in &mut file.items {
@@ -107,17 +129,37 @@ pub(super) fn lower<'f>(
                 if let Some(ty) = type_argument(&Item::Type(t.clone())) {
                     t.name.name = renamed(f, &t.name.name);
                     aliases.insert(t.name.name.clone(), ty.clone());
+                    // `__NEW(T(x := 5))`: the alias is `T`, the arguments the call's
+                    if let TypeRef::Enum(def) = ty {
+                        if let Some(base) = def
+                            .base
+                            .as_ref()
+                            .filter(|b| inits.contains_key(&b.name.to_ascii_lowercase()))
+                        {
+                            let ty = TypeRef::Named(base.clone());
+                            t.def = TypeDef::Alias { ty, init: None };
+                        }
+                    }
                 }
             }
         }
-        let mut lowering =
-            Lowering { file: f, aliases: &aliases, sites: &mut sites, deletes: Vec::new() };
+        let mut lowering = Lowering {
+            file: f,
+            aliases: &aliases,
+            inits: &inits,
+            sites: &mut sites,
+            deletes: Vec::new(),
+            reports: Vec::new(),
+        };
         for item in &mut file.items {
             if let Item::Pou(p) = item {
                 lowering.pou(p);
             }
         }
         deletes.extend(lowering.deletes.into_iter().map(|span| (f, span)));
+        for (at, msg) in lowering.reports {
+            diags.push(Diagnostic::new(&file.path, at.line, at.col, msg));
+        }
     }
     if sites.is_empty() && deletes.is_empty() {
         return files;
@@ -164,18 +206,33 @@ fn heap_file(
     let (exit_vars, exit_stmts) = EXIT.split_once(FINISH).unwrap_or_default();
     let mut exits = String::new();
     let mut finish = String::new();
+    let mut finished: Vec<u32> = Vec::new();
     for (k, site) in sites.iter().enumerate() {
         let tag = (k + 1).to_string();
+        let hash = header_tag(&site.ty).to_string();
         let init = lifecycle(files, &site.ty, super::fb_init::INIT_ALL).is_some();
+        // `__NEW(T(x := 5))`: the inputs passed on to `__FB_INIT_ALL`
+        let forwarded: String =
+            site.inputs.iter().map(|d| format!(", {0} := {0}", d.names[0].name)).collect();
+        let init_call = INIT_CALL.replace(')', &format!("{forwarded})"));
         let new: String = NEW_TEMPLATE
             .lines()
             .filter(|line| init || !line.ends_with(INIT))
             .flat_map(|line| [line, "\n"])
             .collect();
-        text.push_str(&new.replace("TAG", &tag));
+        text.push_str(
+            &new.replace(INIT_CALL, &init_call).replace("TAG", &tag).replace("HASH", &hash),
+        );
         if let Some(block) = lifecycle(files, &site.ty, super::fb_exit::EXIT_ALL) {
-            exits.push_str(&exit_vars.replace("TAG", &tag).replace("BLOCK", block));
-            finish.push_str(&exit_stmts.replace("TAG", &tag));
+            // one part per type: the sites of one type share its tag
+            if !finished.contains(&header_tag(&site.ty)) {
+                finished.push(header_tag(&site.ty));
+                let num = finished.len().to_string();
+                exits.push_str(&exit_vars.replace("NUM", &num).replace("BLOCK", block));
+                finish.push_str(
+                    &exit_stmts.replace("NUM", &num).replace("HASH", &hash).replace("BLOCK", block),
+                );
+            }
         }
     }
     text.push_str(&DELETE_TEMPLATE.replace(EXITS, &exits).replace(FINISH, &finish));
@@ -194,6 +251,9 @@ fn heap_file(
                 if let Some(ty) = &mut p.return_type {
                     replace_placeholder(ty, &site.ty);
                 }
+                if let Some(inputs) = p.vars.iter_mut().find(|b| b.kind == VarKind::Input) {
+                    inputs.decls.extend(site.inputs.iter().cloned());
+                }
                 for d in p.vars.iter_mut().flat_map(|b| &mut b.decls) {
                     replace_placeholder(&mut d.ty, &site.ty);
                 }
@@ -210,6 +270,22 @@ fn heap_file(
         }
     }
     file
+}
+
+/// The tag a block of `__NEW(ty)` has in its header: FNV-1a of the type's name in lower case
+/// (never 0, a free block's), the same from one compile to the next, so that an online change,
+/// which keeps the heap, finds the type of each block it kept (a site's number would change).
+fn header_tag(ty: &TypeRef) -> u32 {
+    let name = match ty {
+        TypeRef::Named(id) => id.name.as_str(),
+        _ => "",
+    };
+    let mut h: u32 = 0x811c_9dc5;
+    for b in name.to_ascii_lowercase().bytes() {
+        h ^= u32::from(b);
+        h = h.wrapping_mul(0x0100_0193);
+    }
+    h.max(1)
 }
 
 /// The type of a type argument's alias the parser declared ([`TYPE_ARGUMENT_PREFIX`]).
@@ -261,14 +337,58 @@ fn has_method(files: &[Cow<'_, ast::File>], block: &str, method: &str) -> bool {
     false
 }
 
+/// For each function block of `files` with an `__FB_INIT_ALL` (its own or a base's,
+/// compile/fb_init.rs's), by name in lower case: that method's inputs after `bInitRetains` and
+/// `bInCopyCode`, the inputs of its chain's `FB_init`s that `__NEW(T(x := 5))` gives; an empty
+/// list for every other function block (whose `__NEW` may then give no argument).
+fn init_inputs(files: &[Cow<'_, ast::File>]) -> HashMap<String, Vec<VarDecl>> {
+    let blocks: HashMap<String, &Pou> = files
+        .iter()
+        .flat_map(|f| &f.items)
+        .filter_map(|item| match item {
+            Item::Pou(p) if p.kind == PouKind::FunctionBlock => {
+                Some((p.name.name.to_ascii_lowercase(), p))
+            }
+            _ => None,
+        })
+        .collect();
+    let inputs_of = |block: &str| {
+        let mut at = blocks.get(block).copied();
+        // a chain of bases longer than the project's blocks loops (reported elsewhere)
+        for _ in 0..=blocks.len() {
+            let p = at?;
+            if let Some(m) = p.oop.methods.iter().find(|m| m.pou.name.is(super::fb_init::INIT_ALL))
+            {
+                let inputs = m.pou.vars.iter().filter(|b| b.kind == VarKind::Input);
+                let singles = inputs.flat_map(|b| &b.decls).flat_map(|d| {
+                    d.names.iter().map(move |n| VarDecl { names: vec![n.clone()], ..d.clone() })
+                });
+                return Some(singles.skip(2).collect());
+            }
+            at = p
+                .oop
+                .extends
+                .as_ref()
+                .and_then(|b| blocks.get(&b.name.to_ascii_lowercase()).copied());
+        }
+        None
+    };
+    blocks.keys().map(|k| (k.clone(), inputs_of(k).unwrap_or_default())).collect()
+}
+
 /// The walk over one file's bodies.
 struct Lowering<'a> {
     file: usize,
     /// The file's hidden aliases of `__NEW`'s types, by name.
     aliases: &'a HashMap<String, TypeRef>,
+    /// The inputs of each function block's `__FB_INIT_ALL` after the two BOOLs, by name in lower
+    /// case ([`init_inputs`]).
+    inits: &'a HashMap<String, Vec<VarDecl>>,
     sites: &'a mut Vec<Site>,
     /// The places of the file's `__DELETE`s.
     deletes: Vec<Span>,
+    /// The errors of `__NEW(T(…))`'s arguments.
+    reports: Vec<(Span, String)>,
 }
 
 impl Lowering<'_> {
@@ -393,6 +513,13 @@ impl Lowering<'_> {
                 }
                 if let Some(kind) = self.new_call(callee, args, e.span) {
                     e.kind = kind;
+                } else if matches!(&callee.kind, ExprKind::Name(id) if id.is(DELETE)) {
+                    // a statement of its own ([`Lowering::stmts`]), so here inside an
+                    // expression; called as `__HEAP_DELETE`, whose BOOL adds no other error
+                    let msg = "`__DELETE(p)` frees a block and gives no value: write it as a statement of its own, `__DELETE(p);` (TwinCAT, CODESYS)";
+                    self.reports.push((e.span, msg.to_string()));
+                    self.deletes.push(e.span);
+                    **callee = name(DELETE_FN, e.span);
                 }
             }
         }
@@ -407,7 +534,35 @@ impl Lowering<'_> {
         let Some(Arg::Positional(Expr { kind: ExprKind::Name(ty), .. })) = args.first() else {
             return None;
         };
+        let mut given = Vec::new();
+        let mut inputs = Vec::new();
         let ty = match self.aliases.get(&ty.name) {
+            // `__NEW(T(x := 5))`, `__NEW(T(5))`: `FB_init`'s arguments, as a declaration's
+            Some(TypeRef::Enum(def))
+                if def
+                    .base
+                    .as_ref()
+                    .is_some_and(|b| self.inits.contains_key(&b.name.to_ascii_lowercase())) =>
+            {
+                let base = def.base.clone().unwrap_or_else(|| ty.clone());
+                let known = &self.inits[&base.name.to_ascii_lowercase()];
+                let written = super::fb_init::written_arguments(def);
+                let mut report = |at: Span, msg: String| self.reports.push((at, msg));
+                let subject = format!("`__NEW({}(…))`", base.name);
+                let place = "this `__NEW`";
+                super::fb_init::check_arguments(
+                    &base.name,
+                    &written,
+                    known,
+                    (&subject, place),
+                    &mut report,
+                );
+                given = super::fb_init::declared_arguments(&TypeRef::Enum(def.clone()), known);
+                if !given.is_empty() {
+                    inputs = known.clone();
+                }
+                TypeRef::Named(base)
+            }
             Some(alias) => alias.clone(),
             None => TypeRef::Named(ty.clone()),
         };
@@ -415,10 +570,89 @@ impl Lowering<'_> {
             Some(Arg::Positional(n)) => n.clone(),
             _ => int(1, span),
         };
-        self.sites.push(Site { ty, file: self.file, span });
+        self.sites.push(Site { ty, file: self.file, span, inputs });
         let hidden: Ident = ident(&format!("__HEAP_NEW_{}", self.sites.len()), span);
         let callee = Box::new(Expr { kind: ExprKind::Name(hidden), span });
-        Some(ExprKind::Call { callee, args: vec![Arg::Positional(count)] })
+        let mut args = vec![Arg::Input { name: ident(COUNT, span), value: count }];
+        args.extend(given);
+        Some(ExprKind::Call { callee, args })
+    }
+}
+
+/// Reports each `__NEW` in an initial value of `file` (the vendors' documentation shows it in
+/// statements only, and plcd takes it there), and leaves that initial value out so that no
+/// other error follows.
+fn refuse_in_initial_values(file: &mut ast::File, diags: &mut Vec<Diagnostic>) {
+    fn news(e: &Expr, out: &mut Vec<Span>) {
+        match &e.kind {
+            ExprKind::Literal(_) | ExprKind::Name(_) => {}
+            ExprKind::Member(inner, _)
+            | ExprKind::Bit(inner, _)
+            | ExprKind::Part(inner, _, _)
+            | ExprKind::Deref(inner)
+            | ExprKind::Unary(_, inner) => news(inner, out),
+            ExprKind::Index(inner, index) => {
+                news(inner, out);
+                index.iter().for_each(|i| news(i, out));
+            }
+            ExprKind::Binary(_, a, b) | ExprKind::Assign(a, b) => {
+                news(a, out);
+                news(b, out);
+            }
+            ExprKind::Call { callee, args } => {
+                if matches!(&callee.kind, ExprKind::Name(id) if id.is(NEW)) {
+                    out.push(e.span);
+                }
+                for arg in args {
+                    match arg {
+                        Arg::Positional(v) | Arg::Input { value: v, .. } => news(v, out),
+                        Arg::Output { target, .. } => news(target, out),
+                    }
+                }
+            }
+        }
+    }
+    fn in_init(init: &Init, out: &mut Vec<Span>) {
+        match init {
+            Init::Expr(e) => news(e, out),
+            Init::Array { elems, .. } => {
+                for elem in elems {
+                    match elem {
+                        ArrayInit::One(v) | ArrayInit::Repeat { value: Some(v), .. } => {
+                            in_init(v, out)
+                        }
+                        ArrayInit::Repeat { value: None, .. } => {}
+                    }
+                }
+            }
+            Init::Struct { members, .. } => members.iter().for_each(|(_, v)| in_init(v, out)),
+        }
+    }
+    let path = file.path.clone();
+    let mut check = |d: &mut VarDecl| {
+        let mut found = Vec::new();
+        if let Some(init) = &d.init {
+            in_init(init, &mut found);
+        }
+        if !found.is_empty() {
+            d.init = None;
+        }
+        for at in found {
+            let msg = "`__NEW` stands in a POU's statements, not in an initial value: assign it at the first scan, `IF p = 0 THEN p := __NEW(T); END_IF`";
+            diags.push(Diagnostic::new(&path, at.line, at.col, msg));
+        }
+    };
+    for item in &mut file.items {
+        match item {
+            Item::Pou(p) => {
+                let methods = p.oop.methods.iter_mut().flat_map(|m| &mut m.pou.vars);
+                for d in p.vars.iter_mut().chain(methods).flat_map(|b| &mut b.decls) {
+                    check(d);
+                }
+            }
+            Item::Globals(b) => b.decls.iter_mut().for_each(&mut check),
+            _ => {}
+        }
     }
 }
 
