@@ -374,7 +374,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ),
     ("`{}` has {} generic constant{} ({}), given {} argument{}", "generic-argument-count"),
     (
-        "the value of `{}`'s generic constant `{}` must be a constant integer expression (literals, global constants, the block's own generic constants)",
+        "the value of `{}`'s generic constant `{}` must be a constant integer expression (literals, global constants, the POU's own constants and generic constants)",
         "generic-argument-not-constant",
     ),
     ("{} does not fit `{} : {}` of `{}`", "generic-argument-does-not-fit"),

@@ -273,6 +273,10 @@ pub struct Oop {
     /// Declared `CLASS … END_CLASS`: a function block without a body, inputs or outputs.
     pub is_class: bool,
     pub extends: Option<Ident>,
+    /// `EXTENDS FB_Base<20>` (TwinCAT 3.1.4026): the base's generic constants, in order;
+    /// `compile::generic_constants` names the base's copy for them in `extends` instead (boxed:
+    /// most blocks have none, and a `Pou` is the largest item).
+    pub extends_args: Option<Box<Vec<Expr>>>,
     pub implements: Vec<Ident>,
     pub is_abstract: bool,
     pub is_final: bool,

@@ -5,15 +5,17 @@
 //! A lowering of the syntax trees before every other stage, by monomorphisation: each distinct
 //! list of values makes a copy of the block named as it is written, `FB_Log<20>` (or
 //! `FB<20, 5>`), whose generic constants are a `VAR CONSTANT` block holding those values, and
-//! every type that names the block with arguments names its copy instead. The copy keeps the
+//! every type that names the block with arguments names its copy instead, and so does a
+//! derived block's `EXTENDS FB_Log<20>`. The copy keeps the
 //! spans of the block's source, so a diagnostic in it points there, and its methods,
 //! properties and actions are copied with it. The block named alone is the block with the
 //! values its declarations give (0 where none is given), as TwinCAT uses the initial values
 //! to check the block itself.
 //!
 //! The arguments are constant integer expressions of literals and of the project's
-//! `VAR_GLOBAL CONSTANT`s given by such an expression, and, in a block with generic
-//! constants, of its own generic constants (`inner : FB_Buf<n>`): they are evaluated here,
+//! `VAR_GLOBAL CONSTANT`s given by such an expression, of the POU's own `VAR CONSTANT`s (a
+//! method's, its block's), and, in a block with generic constants, of its own generic
+//! constants (`inner : FB_Buf<n>`): they are evaluated here,
 //! since the copies are made before types are known. Checked here: the number of arguments,
 //! that each is such a constant, that it fits its generic constant's integer type, that a
 //! generic constant has an integer type, and that only a function block with generic
@@ -369,6 +371,26 @@ impl Lowering<'_> {
     }
 
     fn pou_types(&mut self, p: &mut Pou, own: &HashMap<String, i128>, path: &Path) {
+        // the POU's own constants (`VAR CONSTANT`, as Beckhoff's example gives
+        // `FB_MyString<cSmallLen>`), seen by its methods too
+        let mut own = own.clone();
+        for d in
+            p.vars.iter().filter(|b| b.constant && b.kind == VarKind::Local).flat_map(|b| &b.decls)
+        {
+            let Some(Init::Expr(e)) = &d.init else { continue };
+            if let Some(v) = evaluate(e, &self.globals, &own) {
+                for id in &d.names {
+                    own.insert(id.name.to_ascii_lowercase(), v);
+                }
+            }
+        }
+        let own = &own;
+        // `EXTENDS FB_Base<20>`: the base's copy for those values
+        if let (Some(base), Some(args)) = (p.oop.extends.clone(), p.oop.extends_args.take()) {
+            let span = args.first().map_or(base.span, |a| a.span);
+            let copy = self.copy_for(&base, &args, span, own, path);
+            p.oop.extends = Some(Ident { name: copy, span: base.span });
+        }
         for b in &mut p.vars {
             self.block_types(b, own, path);
         }
@@ -448,7 +470,7 @@ impl Lowering<'_> {
         for (arg, (param, ty)) in args.iter().zip(checks) {
             match evaluate(arg, &self.globals, own) {
                 None => {
-                    self.error(path, arg.span, format!("the value of `{block}`'s generic constant `{param}` must be a constant integer expression (literals, global constants, the block's own generic constants)"));
+                    self.error(path, arg.span, format!("the value of `{block}`'s generic constant `{param}` must be a constant integer expression (literals, global constants, the POU's own constants and generic constants)"));
                     failed = true;
                 }
                 Some(v) => {

@@ -620,6 +620,12 @@ impl<'a> Parser<'a> {
             if self.at_word("EXTENDS") {
                 self.bump();
                 oop.extends = self.dotted_name().ok();
+                // `EXTENDS FB_Base<20>`: a base with generic constants, given their values
+                if let (Some(base), true) = (oop.extends.clone(), self.at_p(P::Lt)) {
+                    if let Ok(TypeRef::Generic { args, .. }) = self.generic_arguments(base, span) {
+                        oop.extends_args = Some(Box::new(args));
+                    }
+                }
             }
             if self.at_word("IMPLEMENTS") {
                 self.bump();
