@@ -361,6 +361,10 @@ const MESSAGES: &[(&str, &str)] = &[
         "an input's initial value cannot be a reference (`REF`, `ADR`): the caller gives it; declare the variable in VAR and set it there",
         "ref-init-of-input",
     ),
+    (
+        "a CONSTANT's initial value cannot be a reference (`REF`, `ADR`): a constant is a constant expression, and a place is known only when the program runs; declare the reference in VAR",
+        "ref-init-constant",
+    ),
     // generic_constants.rs: TwinCAT's generic constants
     ("`VAR_GENERIC` declares constants: write `VAR_GENERIC CONSTANT`", "generic-without-constant"),
     ("a generic constant has an integer type (`n : UINT := 10;`)", "generic-constant-not-integer"),

@@ -22,18 +22,25 @@
 //! - A `VAR_GLOBAL`'s: the hidden global guards [`GLOBALS_DONE`] (and [`GLOBALS_DONE_RETAIN`]
 //!   for a `VAR_GLOBAL RETAIN`), and every PROGRAM's body starts with their assignments, which
 //!   whichever program runs first makes.
+//! - A `VAR_STAT`'s: once for every instance of the POU, guarded by the hidden `VAR_STAT`s
+//!   [`DONE_STATIC`] and [`TARGET_STATIC`].
+//! - An array's initialiser: each element that takes a reference becomes an assignment to
+//!   that element, placed by the bounds of the declaration's `ARRAY […] OF` (its own constant
+//!   expressions, folded when compiled), and keeps its place in the initialiser as the
+//!   element's default (`1()`).
 //!
 //! Refused here: such an initial value for a `VAR_INPUT` or `VAR_IN_OUT` (the caller gives
-//! them; an assignment in the body would overwrite the argument), and in a `VAR_STAT`, a
-//! CONSTANT block or a CONFIGURATION's globals, which keep the usual message (a constant
-//! expression is needed).
+//! them; an assignment in the body would overwrite the argument) and in a CONSTANT block (a
+//! constant is a constant expression). A method's `VAR_STAT`, an array initialiser inside a
+//! structure's (whose type is not written there) and a CONFIGURATION's globals keep the usual
+//! message (a constant expression is needed).
 
 use std::borrow::Cow;
 
 use crate::diag::Diagnostic;
 use crate::st::ast::{
-    self, BinaryOp, Expr, ExprKind, Init, Item, Pou, PouKind, Span, Stmt, StmtKind, TypeRef,
-    VarBlock, VarDecl, VarKind,
+    self, ArrayInit, BinaryOp, Expr, ExprKind, Init, Item, Literal, Pou, PouKind, Span, Stmt,
+    StmtKind, TypeRef, VarBlock, VarDecl, VarKind,
 };
 
 use super::lifecycle::{block, bool_decl, ident, name, stmt};
@@ -44,6 +51,10 @@ const DONE: &str = "__REF_INIT_DONE";
 const DONE_RETAIN: &str = "__REF_INIT_DONE_RETAIN";
 /// The BOOL the guards designate once their references are set.
 const TARGET: &str = "__REF_INIT_TARGET";
+/// The guard of a POU's `VAR_STAT` references, and the BOOL it designates: `VAR_STAT`s
+/// themselves, one for every instance, so the first call of any instance sets them.
+const DONE_STATIC: &str = "__REF_INIT_DONE_STAT";
+const TARGET_STATIC: &str = "__REF_INIT_TARGET_STAT";
 /// The guards of the globals' references, and the BOOL they designate.
 const GLOBALS_DONE: &str = "__REF_INIT_GLOBALS_DONE";
 const GLOBALS_DONE_RETAIN: &str = "__REF_INIT_GLOBALS_DONE_RETAIN";
@@ -64,6 +75,8 @@ struct Found {
     once: Vec<Stmt>,
     /// Set once, guarded by [`DONE_RETAIN`].
     once_retained: Vec<Stmt>,
+    /// Set once for every instance, guarded by [`DONE_STATIC`].
+    once_static: Vec<Stmt>,
 }
 
 pub(super) fn lower<'f>(
@@ -85,7 +98,7 @@ pub(super) fn lower<'f>(
                 Item::Pou(p) => {
                     lower_pou(p, &path, diags);
                 }
-                Item::Globals(b) if !b.constant => {
+                Item::Globals(b) => {
                     let retain = b.retain;
                     let mut out = Vec::new();
                     take_from_block(b, &mut out, &path, diags);
@@ -140,8 +153,10 @@ fn takes_ref(init: &Init) -> bool {
     match init {
         Init::Expr(e) => calls_ref(e),
         Init::Struct { members, .. } => members.iter().any(|(_, i)| takes_ref(i)),
-        // an array's elements are laid out in its image; none may be a reference (yet)
-        Init::Array { .. } => false,
+        Init::Array { elems, .. } => elems.iter().any(|e| match e {
+            ArrayInit::One(v) | ArrayInit::Repeat { value: Some(v), .. } => takes_ref(v),
+            ArrayInit::Repeat { value: None, .. } => false,
+        }),
     }
 }
 
@@ -164,7 +179,8 @@ fn calls_ref(e: &Expr) -> bool {
 fn lower_pou(p: &mut Pou, path: &std::path::Path, diags: &mut Vec<Diagnostic>) {
     for m in &mut p.oop.methods {
         let mut each_call = Vec::new();
-        for b in &mut m.pou.vars {
+        // a method's VAR_STAT keeps the usual message (a constant expression is needed)
+        for b in m.pou.vars.iter_mut().filter(|b| b.kind != VarKind::Static) {
             take_from_block(b, &mut each_call, path, diags);
         }
         m.pou.body.splice(0..0, each_call);
@@ -178,7 +194,9 @@ fn lower_pou(p: &mut Pou, path: &std::path::Path, diags: &mut Vec<Diagnostic>) {
     for b in &mut p.vars {
         let mut out = Vec::new();
         take_from_block(b, &mut out, path, diags);
-        if fresh_each_call || b.kind == VarKind::Temp {
+        if b.kind == VarKind::Static {
+            found.once_static.extend(out);
+        } else if fresh_each_call || b.kind == VarKind::Temp {
             found.each_call.extend(out);
         } else if b.retain {
             found.once_retained.extend(out);
@@ -192,6 +210,12 @@ fn lower_pou(p: &mut Pou, path: &std::path::Path, diags: &mut Vec<Diagnostic>) {
         p.vars.extend(local_guards(&found, span));
         prologue.extend(guarded(&found, DONE, DONE_RETAIN, span));
     }
+    if !found.once_static.is_empty() {
+        let guards = vec![guard_decl(DONE_STATIC, span), bool_decl(TARGET_STATIC, span)];
+        p.vars.push(block(VarKind::Static, false, guards, span));
+        let sets = Found { once: std::mem::take(&mut found.once_static), ..Found::default() };
+        prologue.extend(guarded(&sets, DONE_STATIC, DONE_STATIC, span));
+    }
     p.body.splice(0..0, prologue);
 }
 
@@ -204,11 +228,22 @@ fn take_from_block(
     diags: &mut Vec<Diagnostic>,
 ) {
     let kind = b.kind;
-    if b.constant || kind == VarKind::Static || kind == VarKind::External {
+    if kind == VarKind::External {
         return;
     }
     for d in &mut b.decls {
         let Some(init) = d.init.as_ref().filter(|i| takes_ref(i)) else { continue };
+        if b.constant {
+            let at = init_span(init).unwrap_or(d.span);
+            diags.push(Diagnostic::new(
+                path,
+                at.line,
+                at.col,
+                "a CONSTANT's initial value cannot be a reference (`REF`, `ADR`): a constant is a constant expression, and a place is known only when the program runs; declare the reference in VAR",
+            ));
+            d.init = None;
+            continue;
+        }
         if matches!(kind, VarKind::Input | VarKind::InOut) {
             let at = init_span(init).unwrap_or(d.span);
             diags.push(Diagnostic::new(
@@ -223,7 +258,7 @@ fn take_from_block(
         let mut left = None;
         for id in &d.names {
             left = d.init.clone();
-            take_from_init(&mut left, name(&id.name, id.span), out);
+            take_from_init(&mut left, name(&id.name, id.span), Some(&d.ty), out);
         }
         // every name of the declaration keeps what is left of it (the same for each)
         d.init = left;
@@ -231,8 +266,15 @@ fn take_from_block(
 }
 
 /// Moves the parts of `init` that take a reference into assignments to `target` (or to its
-/// members), leaving the constant parts.
-fn take_from_init(init: &mut Option<Init>, target: Expr, out: &mut Vec<Stmt>) {
+/// members, its elements), leaving the constant parts; `ty` is `target`'s type where it is
+/// written (an array's elements are taken only from an `ARRAY […] OF` written so, whose bounds
+/// place them).
+fn take_from_init(
+    init: &mut Option<Init>,
+    target: Expr,
+    ty: Option<&TypeRef>,
+    out: &mut Vec<Stmt>,
+) {
     match init {
         Some(Init::Expr(e)) if calls_ref(e) => {
             let span = e.span;
@@ -247,15 +289,91 @@ fn take_from_init(init: &mut Option<Init>, target: Expr, out: &mut Vec<Stmt>) {
                     span: id.span,
                 };
                 let mut member_init = Some(member_init);
-                take_from_init(&mut member_init, member, out);
+                take_from_init(&mut member_init, member, None, out);
                 if let Some(left) = member_init {
                     kept.push((id, left));
                 }
             }
             *members = kept;
         }
+        Some(Init::Array { elems, .. }) => {
+            let Some(TypeRef::Array { dims, of, .. }) = ty else { return };
+            // the flat position of each element: every count before a reference a literal
+            let counts: Option<Vec<u128>> = elems
+                .iter()
+                .map(|e| match e {
+                    ArrayInit::One(_) => Some(1),
+                    ArrayInit::Repeat { count, .. } => match count.kind {
+                        ExprKind::Literal(Literal::Int(n)) => Some(n),
+                        _ => None,
+                    },
+                })
+                .collect();
+            let Some(counts) = counts else { return };
+            let mut at = 0;
+            let mut kept = Vec::new();
+            for (elem, n) in std::mem::take(elems).into_iter().zip(counts) {
+                match elem {
+                    ArrayInit::One(v) | ArrayInit::Repeat { value: Some(v), .. }
+                        if takes_ref(&v) =>
+                    {
+                        // each element of a repeat its own assignment, its place kept by the
+                        // element's default (`1()`), or what is left of it
+                        for k in at..at + n {
+                            let mut part = Some(v.clone());
+                            let element = element_of(&target, dims, k);
+                            take_from_init(&mut part, element, Some(of), out);
+                            kept.push(match part {
+                                Some(left) => ArrayInit::One(left),
+                                None => ArrayInit::Repeat {
+                                    count: int_literal(1, target.span),
+                                    value: None,
+                                },
+                            });
+                        }
+                    }
+                    other => kept.push(other),
+                }
+                at += n;
+            }
+            *elems = kept;
+        }
         _ => {}
     }
+}
+
+/// The element at flat position `k` (storage order: the last index fastest) of `target`, an
+/// array of the bounds `dims`: each index its lower bound plus its part of `k`, written with
+/// the bounds' own constant expressions (folded when compiled).
+fn element_of(target: &Expr, dims: &[(Expr, Expr)], k: u128) -> Expr {
+    let span = target.span;
+    let binary = |op: BinaryOp, a: Expr, b: Expr| Expr {
+        kind: ExprKind::Binary(op, Box::new(a), Box::new(b)),
+        span,
+    };
+    // the length of dimension `d`: `(hi - lo + 1)`
+    let length = |d: usize| {
+        let (lo, hi) = &dims[d];
+        binary(BinaryOp::Add, binary(BinaryOp::Sub, hi.clone(), lo.clone()), int_literal(1, span))
+    };
+    let index = (0..dims.len())
+        .map(|d| {
+            // k / (the lengths of the later dimensions) MOD (this one's length)
+            let mut part = int_literal(k, span);
+            for later in d + 1..dims.len() {
+                part = binary(BinaryOp::Div, part, length(later));
+            }
+            if d > 0 {
+                part = binary(BinaryOp::Mod, part, length(d));
+            }
+            binary(BinaryOp::Add, dims[d].0.clone(), part)
+        })
+        .collect();
+    Expr { kind: ExprKind::Index(Box::new(target.clone()), index), span }
+}
+
+fn int_literal(n: u128, span: Span) -> Expr {
+    Expr { kind: ExprKind::Literal(Literal::Int(n)), span }
 }
 
 fn init_span(init: &Init) -> Option<Span> {
@@ -313,9 +431,14 @@ fn global_guards(found: &Found, span: Span) -> Vec<VarBlock> {
     blocks
 }
 
-/// `IF done = NULL THEN done := REF(target); … END_IF` for each guard with something to set.
+/// `IF done = NULL THEN done := REF(target); … END_IF` for each guard with something to set
+/// (`found.once` under `done`, `found.once_retained` under `done_retain`).
 fn guarded(found: &Found, done: &str, done_retain: &str, span: Span) -> Vec<Stmt> {
-    let target = if done == DONE { TARGET } else { GLOBALS_TARGET };
+    let target = match done {
+        DONE => TARGET,
+        DONE_STATIC => TARGET_STATIC,
+        _ => GLOBALS_TARGET,
+    };
     let mut out = Vec::new();
     for (guard, sets) in [(done, &found.once), (done_retain, &found.once_retained)] {
         if sets.is_empty() {
