@@ -365,6 +365,10 @@ const MESSAGES: &[(&str, &str)] = &[
         "a CONSTANT's initial value cannot be a reference (`REF`, `ADR`): a constant is a constant expression, and a place is known only when the program runs; declare the reference in VAR",
         "ref-init-constant",
     ),
+    (
+        "`{}`: the initial values of `{}` take references, which plcd sets in an array of it only when the array's bounds are integer literals and it has no initialiser of its own; set them in the body",
+        "ref-init-type-array",
+    ),
     // generic_constants.rs: TwinCAT's generic constants
     ("`VAR_GENERIC` declares constants: write `VAR_GENERIC CONSTANT`", "generic-without-constant"),
     ("a generic constant has an integer type (`n : UINT := 10;`)", "generic-constant-not-integer"),

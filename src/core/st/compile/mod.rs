@@ -81,6 +81,7 @@ mod oop;
 mod qualified;
 mod query;
 mod ref_init;
+mod ref_init_types;
 mod referents;
 mod refs;
 mod sfc;

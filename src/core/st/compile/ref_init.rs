@@ -83,6 +83,8 @@ pub(super) fn lower<'f>(
     mut files: Vec<Cow<'f, ast::File>>,
     diags: &mut Vec<Diagnostic>,
 ) -> Vec<Cow<'f, ast::File>> {
+    // a STRUCT type's references, moved into its variables' declarations first
+    super::ref_init_types::lower(&mut files, diags);
     if !files.iter().any(|f| f.items.iter().any(has_reference_init)) {
         return files;
     }
@@ -149,7 +151,7 @@ fn has_reference_init(item: &Item) -> bool {
 }
 
 /// Whether an initial value calls `REF` or `ADR` somewhere.
-fn takes_ref(init: &Init) -> bool {
+pub(super) fn takes_ref(init: &Init) -> bool {
     match init {
         Init::Expr(e) => calls_ref(e),
         Init::Struct { members, .. } => members.iter().any(|(_, i)| takes_ref(i)),
