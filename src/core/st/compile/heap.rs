@@ -57,14 +57,16 @@ const INIT: &str = "(*INIT*)";
 const DELETE_TEMPLATE: &str = include_str!("heap_delete.st");
 const EXITS: &str = "(*EXITS*)";
 const FINISH: &str = "(*FINISH*)";
-/// What `__HEAP_DELETE` declares and does for the `__NEW` numbered `TAG` of the function
-/// block `BLOCK`, which has something to finish: a variable, then after [`FINISH`] the
-/// statements.
+/// What `__HEAP_DELETE` and `__HEAP_EXIT_ALL` declare and do for the function blocks of the
+/// tag `HASH`, which have something to finish (their type `__HEAP_BLOCK_NUM`, the `NUM`th such
+/// type): a variable, then after [`FINISH`] the statements.
 const EXIT: &str = include_str!("heap_exit.st");
 /// The path diagnostics and the trace name for the hidden file the lowering adds.
 const HEAP_PATH: &str = "<heap>";
 /// The type `heap.st`'s templates name for the type of a `__NEW`.
 const PLACEHOLDER: &str = "__HEAP_T";
+/// The type [`EXIT`] names for the function block it finishes, a number after it.
+const BLOCK_PLACEHOLDER: &str = "__HEAP_BLOCK_";
 const NEW: &str = "__NEW";
 const DELETE: &str = "__DELETE";
 const DELETE_FN: &str = "__HEAP_DELETE";
@@ -206,7 +208,9 @@ fn heap_file(
     let (exit_vars, exit_stmts) = EXIT.split_once(FINISH).unwrap_or_default();
     let mut exits = String::new();
     let mut finish = String::new();
-    let mut finished: Vec<u32> = Vec::new();
+    // the types of the function blocks to finish, by the number their part of `EXIT` names
+    // (written into the parsed file: a name such as `FB_Log<20>` is no name in the text)
+    let mut finished: Vec<(u32, TypeRef)> = Vec::new();
     for (k, site) in sites.iter().enumerate() {
         let tag = (k + 1).to_string();
         let hash = header_tag(&site.ty).to_string();
@@ -223,15 +227,14 @@ fn heap_file(
         text.push_str(
             &new.replace(INIT_CALL, &init_call).replace("TAG", &tag).replace("HASH", &hash),
         );
-        if let Some(block) = lifecycle(files, &site.ty, super::fb_exit::EXIT_ALL) {
+        if lifecycle(files, &site.ty, super::fb_exit::EXIT_ALL).is_some() {
             // one part per type: the sites of one type share its tag
-            if !finished.contains(&header_tag(&site.ty)) {
-                finished.push(header_tag(&site.ty));
+            let tag = header_tag(&site.ty);
+            if !finished.iter().any(|(t, _)| *t == tag) {
+                finished.push((tag, site.ty.clone()));
                 let num = finished.len().to_string();
-                exits.push_str(&exit_vars.replace("NUM", &num).replace("BLOCK", block));
-                finish.push_str(
-                    &exit_stmts.replace("NUM", &num).replace("HASH", &hash).replace("BLOCK", block),
-                );
+                exits.push_str(&exit_vars.replace("NUM", &num));
+                finish.push_str(&exit_stmts.replace("NUM", &num).replace("HASH", &hash));
             }
         }
     }
@@ -246,6 +249,17 @@ fn heap_file(
     };
     for item in &mut file.items {
         match item {
+            Item::Pou(p) if p.name.is(DELETE_FN) || p.name.is(EXIT_ALL) => {
+                for d in p.vars.iter_mut().flat_map(|b| &mut b.decls) {
+                    let TypeRef::Ref { to, .. } = &mut d.ty else { continue };
+                    let TypeRef::Named(id) = to.as_ref() else { continue };
+                    let Some(num) = id.name.strip_prefix(BLOCK_PLACEHOLDER) else { continue };
+                    let at = num.parse::<usize>().ok().and_then(|n| n.checked_sub(1));
+                    if let Some((_, ty)) = at.and_then(|n| finished.get(n)) {
+                        **to = ty.clone();
+                    }
+                }
+            }
             Item::Pou(p) => {
                 let Some(site) = site(&p.name.name, "__HEAP_NEW_") else { continue };
                 if let Some(ty) = &mut p.return_type {
