@@ -371,8 +371,8 @@ impl Lowering<'_> {
     }
 
     fn pou_types(&mut self, p: &mut Pou, own: &HashMap<String, i128>, path: &Path) {
-        // the POU's own constants (`VAR CONSTANT`, as Beckhoff's example gives
-        // `FB_MyString<cSmallLen>`), seen by its methods too
+        // the POU's own constants (`VAR CONSTANT cLen : UDINT := 5;`, `FB_Str<cLen>`), as
+        // constant as a global's; a method sees its block's too
         let mut own = own.clone();
         for d in
             p.vars.iter().filter(|b| b.constant && b.kind == VarKind::Local).flat_map(|b| &b.decls)
