@@ -213,6 +213,9 @@ pub(crate) fn generate(
         info: vec![SlotInfo::default(); analysis.max_depth as usize + 1],
         held: Vec::new(),
         in_range: Vec::new(),
+        charged: None,
+        back_jumps: back_jumps(program),
+        branch_facts: [(0, None); 2],
         known_ranges: vec![None; leaders_len],
         vars_need: analysis.vars_end,
         checks: &roles.checks,
@@ -327,6 +330,16 @@ struct Gen<'a, 'f> {
     held: Vec<Held>,
     /// In the block being generated: the indices it already found inside their range.
     in_range: Vec<InRange>,
+    /// In the block being generated: the budget as it came in and what the block charged it
+    /// at its start, with the value that left ([`Gen::charge_on_edges`]).
+    charged: Option<(Value, u32, Value)>,
+    /// The program's jumps back, `(pc, target)` with `target <= pc`, by `pc`
+    /// ([`Gen::loop_exit`]).
+    back_jumps: Vec<(u32, u32)>,
+    /// After a branch on a comparison with a constant that ends the block being generated: for
+    /// each way, the range the compared value lies in on it ([`Gen::branch_fact`]), passed on
+    /// with the indices.
+    branch_facts: [(u32, Option<InRange>); 2],
     /// For each block of the body that one jump reaches and the dispatch does not enter: the
     /// indices the block before it found inside their range, which its code dominates.
     known_ranges: Vec<Option<Vec<InRange>>>,
@@ -380,6 +393,32 @@ struct Scope<'a> {
     info: Vec<SlotInfo>,
     held: Vec<Held>,
     known_ranges: Vec<Option<Vec<InRange>>>,
+}
+
+/// The smallest and largest value of an integer `elem` up to 32 bits, which a slot holds
+/// extended from its width: the ranges [`Gen::branch_fact`] and [`Gen::fits`] reason
+/// on (an `InRange` holds an `i32` start and a `u32` length).
+fn small_int_bounds(elem: Elem) -> Option<(i64, i64)> {
+    match elem {
+        Elem::I8 => Some((i64::from(i8::MIN), i64::from(i8::MAX))),
+        Elem::I16 => Some((i64::from(i16::MIN), i64::from(i16::MAX))),
+        Elem::I32 => Some((i64::from(i32::MIN), i64::from(i32::MAX))),
+        Elem::U8 => Some((0, i64::from(u8::MAX))),
+        Elem::U16 => Some((0, i64::from(u16::MAX))),
+        _ => None,
+    }
+}
+
+/// The jumps back of `program`'s code, `(pc, target)`, by `pc`.
+fn back_jumps(program: &Program) -> Vec<(u32, u32)> {
+    (program.code.iter().enumerate())
+        .filter_map(|(pc, op)| match *op {
+            Op::Goto(target) | Op::GotoIf { target, .. } if target as usize <= pc => {
+                Some((pc as u32, target))
+            }
+            _ => None,
+        })
+        .collect()
 }
 
 /// How deep [`Gen::same_value`] looks: an index computed from a variable and a constant, cut
@@ -838,10 +877,13 @@ impl<'a> Gen<'a, '_> {
     /// an instruction to the interpreter gets loaders for the blocks after it: it passes
     /// nothing).
     fn pass_on_ranges(&mut self, body_index: usize) {
+        let facts = std::mem::take(&mut self.branch_facts);
         for pc in self.successors(body_index) {
             let Some(to) = self.leader_index(pc) else { continue };
             if to > body_index && !self.dispatched[self.leaders[to]] {
-                self.known_ranges[to] = Some(self.in_range.clone());
+                let mut known = self.in_range.clone();
+                known.extend(facts.iter().filter(|(at, _)| *at == pc).filter_map(|(_, f)| *f));
+                self.known_ranges[to] = Some(known);
             }
         }
     }
@@ -855,6 +897,7 @@ impl<'a> Gen<'a, '_> {
         let len = range.len() as u32;
         self.b.switch_to_block(self.blocks[body_index]);
         let known_ranges = self.known_ranges[body_index].take();
+        self.branch_facts = Default::default();
         if known_ranges.is_some() {
             // Its one predecessor has jumped to it and nothing else will: sealed now, the
             // values it uses are the very values of the block before it.
@@ -907,8 +950,9 @@ impl<'a> Gen<'a, '_> {
                 }
             }
         }
-        let left = self.b.ins().iadd_imm_s(left, -i64::from(len));
-        self.b.def_var(self.regs.left, left);
+        let charged = self.b.ins().iadd_imm_s(left, -i64::from(len));
+        self.b.def_var(self.regs.left, charged);
+        self.charged = Some((left, len, charged));
         let mut falls_through = true;
         for (index, pc) in range.clone().enumerate() {
             let at = At { pc: pc as u32, index: index as u32, len };
@@ -973,11 +1017,50 @@ impl<'a> Gen<'a, '_> {
         (edge, Some((block, unwanted)))
     }
 
-    /// The blocks [`Gen::edge`] made, after the branch that ends the current block.
-    fn fill_edges(&mut self, edges: [Edge; 2]) {
+    /// At a branch of two ways that ends a block whose budget nothing changed since its start,
+    /// where one way leaves a loop the other goes on in ([`Gen::loop_exit`]): the way out gets
+    /// its own block (in `edges`), which charges the block's length to the budget it came in
+    /// with. The way on uses the charge made at the block's start, which Cranelift adds to the
+    /// next block's into one; so the budget of the way out is computed on that way only, not on
+    /// each round (a `lea` a round in `sort`'s insertion loop). Returns the budget that came in
+    /// and the length, for [`Gen::fill_edges`].
+    fn charge_on_edges(&mut self, edges: &mut [Edge; 2], out: usize) -> Option<(Value, u32)> {
+        let (left, len, charged) = self.charged?;
+        if self.b.use_var(self.regs.left) != charged {
+            return None;
+        }
+        let edge = &mut edges[out];
+        if edge.1.is_none() {
+            let block = edge.0;
+            edge.0 = self.b.create_block();
+            edge.1 = Some((block, Vec::new()));
+        }
+        Some((left, len))
+    }
+
+    /// Of a branch at `pc` that jumps to `target`: true if the jump leaves a loop that going on
+    /// to `pc + 1` stays in (a forward jump past a jump back to `pc` or before it: a `WHILE`'s
+    /// or `FOR`'s test), false if going on leaves one the jump stays in (a jump back: `REPEAT`),
+    /// `None` if neither.
+    fn loop_exit(&self, pc: u32, target: u32) -> Option<bool> {
+        if target <= pc {
+            return Some(false);
+        }
+        let from = self.back_jumps.partition_point(|&(at, _)| at <= pc);
+        let to = self.back_jumps.partition_point(|&(at, _)| at < target);
+        self.back_jumps[from..to].iter().any(|&(_, back_to)| back_to <= pc).then_some(true)
+    }
+
+    /// The blocks [`Gen::edge`] made, after the branch that ends the current block; with
+    /// `recharge`, each charges the budget ([`Gen::charge_on_edges`]).
+    fn fill_edges(&mut self, edges: [Edge; 2], recharge: Option<(Value, u32)>) {
         for (edge, way) in edges {
             let Some((block, unwanted)) = way else { continue };
             self.b.switch_to_block(edge);
+            if let Some((left, len)) = recharge {
+                let charged = self.b.ins().iadd_imm_s(left, -i64::from(len));
+                self.b.def_var(self.regs.left, charged);
+            }
             for h in unwanted {
                 self.write_back(h);
             }
@@ -1360,9 +1443,18 @@ impl<'a> Gen<'a, '_> {
                 self.define_carried(&[target, at.pc + 1]);
                 let (true_pc, false_pc) =
                     if when { (target, at.pc + 1) } else { (at.pc + 1, target) };
-                let edges = [self.edge(true_pc, on_true), self.edge(false_pc, on_false)];
+                if true_pc != false_pc && at.index > 0 {
+                    self.branch_facts = [true_pc, false_pc]
+                        .map(|pc| (pc, self.branch_fact(at.pc, c, pc == true_pc)));
+                }
+                let mut edges = [self.edge(true_pc, on_true), self.edge(false_pc, on_false)];
+                // Which of `edges` leaves a loop: the taken way is the true one if `when`.
+                let recharge = self.loop_exit(at.pc, target).and_then(|taken_leaves| {
+                    let out = usize::from(taken_leaves != when);
+                    self.charge_on_edges(&mut edges, out)
+                });
                 self.b.ins().brif(c, edges[0].0, &[], edges[1].0, &[]);
-                self.fill_edges(edges);
+                self.fill_edges(edges, recharge);
                 return false;
             }
             Op::CallFn { target, frame } => {
@@ -1917,6 +2009,9 @@ impl<'a> Gen<'a, '_> {
     /// `raw` cut to the width of `elem` and extended (`Bool` keeps bit 0), as the VM wraps an
     /// integer result.
     fn wrap(&mut self, elem: Elem, raw: Value) -> Value {
+        if self.fits(elem, raw) {
+            return raw;
+        }
         let ins = self.b.ins();
         match elem {
             Elem::Bool => ins.band_imm_s(raw, 1),
@@ -2179,6 +2274,84 @@ impl<'a> Gen<'a, '_> {
             _ => return self.binary_helper(op, elem, a, b),
         };
         self.wrap(elem, r)
+    }
+
+    /// True if the slot `v` already holds a value of `elem`'s range, as cutting it to `elem`
+    /// would give it: it lies in a range this block knows, or it is such a value plus or minus
+    /// a constant that keeps it inside (`j - 1` after `WHILE j > 0`: [`Gen::branch_fact`]).
+    fn fits(&self, elem: Elem, v: Value) -> bool {
+        let Some((min, max)) = small_int_bounds(elem) else { return false };
+        let inside = |v: Value, c: i64| {
+            self.in_range.iter().any(|&(known, lo, len)| {
+                let (lo, hi) = (i64::from(lo), i64::from(lo) + i64::from(len) - 1);
+                len > 0 && lo + c >= min && hi + c <= max && self.same_value(known, v, 1)
+            })
+        };
+        if inside(v, 0) {
+            return true;
+        }
+        let dfg = &self.b.func.dfg;
+        let ValueDef::Result(inst, 0) = dfg.value_def(dfg.resolve_aliases(v)) else { return false };
+        let InstructionData::Binary { opcode, args: [a, b] } = dfg.insts[inst] else {
+            return false;
+        };
+        let c = match (opcode, self.constant(b)) {
+            (Opcode::Iadd, Some(c)) if c.abs() <= i64::from(u32::MAX) => c,
+            (Opcode::Isub, Some(c)) if c.abs() <= i64::from(u32::MAX) => -c,
+            _ => return false,
+        };
+        inside(a, c)
+    }
+
+    /// The value of `v` if it is an integer constant.
+    fn constant(&self, v: Value) -> Option<i64> {
+        let dfg = &self.b.func.dfg;
+        let ValueDef::Result(inst, 0) = dfg.value_def(dfg.resolve_aliases(v)) else { return None };
+        match dfg.insts[inst] {
+            InstructionData::UnaryImm { opcode: Opcode::Iconst, imm } => Some(imm.bits()),
+            _ => None,
+        }
+    }
+
+    /// Of a branch on the comparison `x op k` of an integer `x` with a constant `k` just before
+    /// it (at `pc - 1`): the range `x` lies in on the way where the comparison holds (`holds`)
+    /// or the other, as an [`InRange`], when `x`'s type is one [`small_int_bounds`] knows.
+    fn branch_fact(&self, pc: u32, c: Value, holds: bool) -> Option<InRange> {
+        let Op::Cmp { op, elem } = *self.program.code.get(pc.checked_sub(1)? as usize)? else {
+            return None;
+        };
+        let (min, max) = small_int_bounds(elem)?;
+        let dfg = &self.b.func.dfg;
+        // `c` as the branch takes it: the comparison's 8-bit result ([`Gen::narrow`]).
+        let cmp = self.narrow(c).unwrap_or(c);
+        let ValueDef::Result(inst, 0) = dfg.value_def(cmp) else { return None };
+        let InstructionData::IntCompare { args: [x, k], .. } = dfg.insts[inst] else {
+            return None;
+        };
+        let k = self.constant(k)?;
+        // The comparison as it holds on this way.
+        let op = if holds {
+            op
+        } else {
+            match op {
+                CmpOp::Lt => CmpOp::Ge,
+                CmpOp::Le => CmpOp::Gt,
+                CmpOp::Gt => CmpOp::Le,
+                CmpOp::Ge => CmpOp::Lt,
+                CmpOp::Eq | CmpOp::Ne => return None,
+            }
+        };
+        let (lo, hi) = match op {
+            CmpOp::Gt => (k.checked_add(1)?, max),
+            CmpOp::Ge => (k, max),
+            CmpOp::Lt => (min, k.checked_sub(1)?),
+            CmpOp::Le => (min, k),
+            CmpOp::Eq | CmpOp::Ne => return None,
+        };
+        let (lo, hi) = (lo.max(min), hi.min(max));
+        let lo32 = i32::try_from(lo).ok()?;
+        let len = u32::try_from(hi.checked_sub(lo)?.checked_add(1)?).ok()?;
+        Some((x, lo32, len))
     }
 
     /// `op a` on a REAL or LREAL given as its slot and its float value, as
