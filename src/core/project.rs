@@ -686,6 +686,7 @@ where
         strict: config.st.strict,
         iec: config.iec.layout,
         heap_bytes: config.st.heap_bytes,
+        libraries: config.st.system_libraries,
     };
     let base = config.path.parent().unwrap_or(Path::new(""));
     let shown = |path: &Path| path.strip_prefix(base).unwrap_or(path).display().to_string();

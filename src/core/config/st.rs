@@ -10,6 +10,7 @@ use toml::Spanned;
 use super::common::{int_or, resolve, Ctx};
 use super::Sink;
 use crate::diag::Diagnostic;
+use crate::st::libraries::{SystemLibraries, SystemLibrary};
 
 /// `[st]`.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -27,6 +28,9 @@ pub struct StConfig {
     /// `heap_bytes`: the bytes of the heap `__NEW` takes memory from, part of variable memory
     /// (docs/ST.md, "Dynamic memory"); default 64 KiB, 0 none.
     pub heap_bytes: u32,
+    /// `system_libraries`: the libraries plcd ships that the project uses (`["Tc2_System"]`,
+    /// [`crate::st::libraries`]); default none.
+    pub system_libraries: SystemLibraries,
 }
 
 /// `heap_bytes` when the config does not say: 64 KiB.
@@ -42,6 +46,7 @@ impl Default for StConfig {
             strict: false,
             namespaces: Vec::new(),
             heap_bytes: DEFAULT_HEAP_BYTES,
+            system_libraries: SystemLibraries::NONE,
         }
     }
 }
@@ -84,6 +89,7 @@ pub(super) struct RawSt {
     pub strict: Option<bool>,
     pub namespaces: Option<Vec<Spanned<String>>>,
     pub heap_bytes: Option<Spanned<i64>>,
+    pub system_libraries: Option<Vec<Spanned<String>>>,
 }
 
 pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StConfig> {
@@ -134,11 +140,33 @@ pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StC
             namespaces.push(name);
         }
     }
+    let mut system_libraries = SystemLibraries::NONE;
+    for entry in raw.system_libraries.unwrap_or_default() {
+        let at = entry.span().start;
+        let name = entry.into_inner();
+        match SystemLibrary::from_name(&name) {
+            None => {
+                let msg = format!(
+                    "{}: `{name}` is no library plcd ships; the known ones are {}",
+                    ctx.key("system_libraries"),
+                    SystemLibraries::known_names()
+                );
+                sink.error(at, msg);
+                ok = false;
+            }
+            Some(library) if system_libraries.contains(library) => {
+                let key = ctx.key("system_libraries");
+                sink.error(at, format!("{key}: `{name}` is listed twice"));
+                ok = false;
+            }
+            Some(library) => system_libraries = system_libraries.with(library),
+        }
+    }
     let range = 0..=i64::from(MAX_HEAP_BYTES);
     let default = DEFAULT_HEAP_BYTES;
     let heap_bytes = int_or(sink, &ctx, "heap_bytes", raw.heap_bytes, range, default);
     ok &= heap_bytes.is_some();
     let heap_bytes = heap_bytes.unwrap_or(default);
     let strict = raw.strict.unwrap_or(false);
-    ok.then_some(StConfig { library, strict, namespaces, heap_bytes })
+    ok.then_some(StConfig { library, strict, namespaces, heap_bytes, system_libraries })
 }

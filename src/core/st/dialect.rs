@@ -19,6 +19,8 @@ pub struct Dialect {
     /// The bytes of the heap `__NEW` takes its memory from (`[st] heap_bytes`,
     /// compile/heap.rs); 0: no heap, `__NEW` is an error.
     pub heap_bytes: u32,
+    /// The system libraries compiled with the project (`[st] system_libraries`).
+    pub libraries: crate::st::libraries::SystemLibraries,
 }
 
 /// `[st] heap_bytes` when the config does not say: 64 KiB.
@@ -26,7 +28,12 @@ pub const DEFAULT_HEAP_BYTES: u32 = crate::config::DEFAULT_HEAP_BYTES;
 
 impl Default for Dialect {
     fn default() -> Dialect {
-        Dialect { strict: false, iec: Default::default(), heap_bytes: DEFAULT_HEAP_BYTES }
+        Dialect {
+            strict: false,
+            iec: Default::default(),
+            heap_bytes: DEFAULT_HEAP_BYTES,
+            libraries: Default::default(),
+        }
     }
 }
 

@@ -8,6 +8,7 @@
 //! - [`dialect`]: the CODESYS/TwinCAT habits accepted beyond the standard, and `strict`;
 //! - [`iec_check`]: what `plcd check` shows of the `[iec]` layout (the layouts are
 //!   [`crate::device::iec`]'s);
+//! - [`libraries`]: the system libraries plcd ships (`Tc2_System`, …), as ST sources;
 //! - [`configuration`]: a `CONFIGURATION`'s tasks and program instances → the project's;
 //! - [`compile`](mod@compile): trees of all the project's `.st` files → one program per `[[program]]`
 //!   instance, the variable memory's layout and initial image, and every variable by name.
@@ -17,6 +18,7 @@ pub mod compile;
 pub mod configuration;
 pub mod dialect;
 pub mod iec_check;
+pub mod libraries;
 pub mod sfc;
 pub mod syntax;
 pub mod twincat;

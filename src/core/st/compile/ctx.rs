@@ -254,6 +254,8 @@ pub struct Ctx<'a> {
     /// call, `inst.ENO`): then every FUNCTION and FUNCTION_BLOCK has an ENO variable.
     pub eno_read: bool,
     pub prelude_file: usize,
+    /// The files of the system libraries (`compile::libraries`), after the project's.
+    pub library_files: std::ops::Range<usize>,
     /// While checking a body: the FOR variables of the enclosing loops, the loop depth, and
     /// whether a FUNCTION's result has been assigned.
     pub for_vars: Vec<String>,
@@ -269,6 +271,11 @@ pub struct Ctx<'a> {
 }
 
 impl<'a> Ctx<'a> {
+    /// Whether `file` is plcd's own (the prelude, a system library), not the project's.
+    pub fn is_shipped(&self, file: usize) -> bool {
+        file == self.prelude_file || self.library_files.contains(&file)
+    }
+
     pub fn path(&self, file: usize) -> &'a Path {
         &self.files[file].path
     }
@@ -281,7 +288,7 @@ impl<'a> Ctx<'a> {
     /// A warning at `span` (none in the prelude's own code). A body checked twice, or an
     /// expression probed before it is checked, warns once: the compile keeps one of each.
     pub fn warn(&mut self, file: usize, span: Span, msg: impl Into<String>) {
-        if file != self.prelude_file {
+        if !self.is_shipped(file) {
             let d = Diagnostic::new(self.path(file), span.line, span.col, msg);
             self.warnings.push(d);
         }
@@ -292,7 +299,7 @@ impl<'a> Ctx<'a> {
     /// checking goes on as CODESYS reads the form, with one error for it under `strict`.
     pub fn habit(&mut self, habit: Habit, file: usize, span: Span) -> bool {
         // plcd's own sources (the prelude, the heap's allocator) are not the project's
-        let own = file == self.prelude_file || super::heap::is_heap_file(&self.files[file].path);
+        let own = self.is_shipped(file) || super::heap::is_heap_file(&self.files[file].path);
         if self.dialect.strict && !own {
             self.error(file, span, habit.strict_message());
         }

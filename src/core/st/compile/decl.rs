@@ -34,7 +34,7 @@ impl<'a> Ctx<'a> {
         let hidden = fb_init::is_hidden(&id.name)
             || super::ref_init::is_hidden(&id.name)
             || super::heap::is_hidden(&id.name);
-        if file != self.prelude_file && id.name.starts_with("__") && !hidden {
+        if !self.is_shipped(file) && id.name.starts_with("__") && !hidden {
             self.error(
                 file,
                 id.span,
@@ -90,9 +90,7 @@ impl<'a> Ctx<'a> {
                     continue;
                 }
                 // a POU would replace the standard function for every caller
-                if !is_type
-                    && fi != self.prelude_file
-                    && super::stdlib::is_standard_function(&id.name)
+                if !is_type && !self.is_shipped(fi) && super::stdlib::is_standard_function(&id.name)
                 {
                     let msg = format!("`{}` is a standard function: the name is reserved", id.name);
                     self.error(fi, id.span, msg);

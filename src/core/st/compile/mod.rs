@@ -73,6 +73,7 @@ mod implicit;
 mod inout;
 mod instance_args;
 mod jumps;
+mod libraries;
 mod lifecycle;
 mod method_eno;
 mod method_vars;
@@ -178,10 +179,21 @@ pub fn compile_in_namespaces(
     let declaration = |k: usize| configured.get(k).copied().flatten();
     let (prelude, prelude_diags) = super::syntax::parse_file(Path::new(PRELUDE_PATH), PRELUDE);
     let mut diags: Vec<Diagnostic> = prelude_diags.0;
+    // the system libraries after the project's files: the project's declarations come first
+    // and win (`libraries.rs`); lowered with them, so that their names qualify as the
+    // project's do
+    let shipped = dialect.libraries.with_dependencies();
+    let with_libraries = libraries::with_libraries(files, shipped, &mut diags);
+    let (files, renamed): (&[ast::File], _) = match &with_libraries {
+        Some((all, renamed)) => (all, Some(renamed)),
+        None => (files, None),
+    };
+    let namespaces = libraries::namespaces(namespaces, shipped);
+    let namespaces = &namespaces[..];
     let lowered = sfc::lower(files, &mut diags);
     let lowered = generic_constants::lower(lowered, &mut diags);
     let (lowered, program_copies) = fb_config::lower(lowered, instances, declaration, &dialect.iec);
-    let lowered = qualified::lower(lowered, namespaces, &mut diags);
+    let lowered = qualified::lower(lowered, namespaces, renamed, &mut diags);
     let lowered = method_vars::lower(lowered);
     let lowered = ref_init::lower(lowered, &mut diags);
     let lowered = fb_exit::finish_program_temps(lowered);
@@ -189,6 +201,7 @@ pub fn compile_in_namespaces(
     let lowered = fb_exit::lower(lowered, &mut diags);
     let lowered = heap::lower(lowered, dialect.heap_bytes, &mut diags);
     let mut refs: Vec<&ast::File> = lowered.iter().map(|f| &**f).collect();
+    let library_files = files.len() - libraries::file_count(shipped)..files.len();
     refs.push(&prelude);
     let prelude_file = refs.len() - 1;
     let mut cx = Ctx {
@@ -210,6 +223,7 @@ pub fn compile_in_namespaces(
         in_prelude: false,
         eno_read: files.iter().any(decl::reads_eno),
         prelude_file,
+        library_files,
         for_vars: Vec::new(),
         for_written: Vec::new(),
         loop_depth: 0,
@@ -284,16 +298,16 @@ pub fn compile_in_namespaces(
     access.extend(cx.program_access_paths(instances, &placed));
     let access = cx.named_access_paths(access, instances);
 
-    // check every user POU; the prelude's only when used
+    // check every user POU; the prelude's and the system libraries' only when used
     let user: Vec<usize> =
-        (0..cx.pous.len()).filter(|&p| cx.pous[p].file != prelude_file).collect();
+        (0..cx.pous.len()).filter(|&p| !cx.is_shipped(cx.pous[p].file)).collect();
     let mut checked: Vec<(usize, Vec<stmt::TStmt>)> = Vec::new();
     for p in user {
         checked.push((p, check(&mut cx, p)));
     }
     let mut i = 0;
     while i < cx.pous.len() {
-        // the prelude's POUs that user code calls, transitively
+        // the prelude's and the libraries' POUs that user code calls, transitively
         let used = cx.pous.iter().any(|q| q.checked && q.callees.iter().any(|(c, _)| *c == i));
         if used && !cx.pous[i].checked {
             checked.push((i, check(&mut cx, i)));
@@ -353,7 +367,7 @@ pub fn compile_in_namespaces(
         leaves(&cx, &v.name, &v.ty, at, v.retain, v.constant, &mut symbols);
     }
     // VAR_STAT: one copy per POU, named after the POU
-    for pou in cx.pous.iter().filter(|p| p.file != cx.prelude_file && p.copy_of.is_none()) {
+    for pou in cx.pous.iter().filter(|p| !cx.is_shipped(p.file) && p.copy_of.is_none()) {
         for v in pou.vars.iter().filter(|v| v.kind == VarKind::Static) {
             if let Storage::Global(o) = v.storage {
                 let at = Pointer { space: Space::Var, offset: o };

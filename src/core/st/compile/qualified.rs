@@ -36,13 +36,17 @@ use crate::st::ast::{
     VarBlock,
 };
 
-/// Lowers the qualified names of every file; `namespaces` are `[st] namespaces`.
+/// Lowers the qualified names of every file; `namespaces` are `[st] namespaces` and the system
+/// libraries'; `renamed`, the libraries' declarations that keep their qualified name
+/// (`tc2_system.memset`, as `compile::libraries` renamed them).
 pub(super) fn lower<'f>(
     mut files: Vec<Cow<'f, File>>,
     namespaces: &[String],
+    renamed: Option<&HashSet<String>>,
     diags: &mut Vec<Diagnostic>,
 ) -> Vec<Cow<'f, File>> {
     let mut names = Names {
+        renamed: renamed.cloned().unwrap_or_default(),
         lists: HashMap::new(),
         globals: HashSet::new(),
         declared: HashSet::new(),
@@ -97,6 +101,9 @@ struct Names {
     /// is each list's own global, named `Gvl.x` (the name its declaration is given here),
     /// and the plain `x` is ambiguous.
     owners: HashMap<String, Vec<String>>,
+    /// The system libraries' declarations the project's own names hide, as renamed
+    /// (`tc2_system.memset`): their qualified name is kept whole.
+    renamed: HashSet<String>,
 }
 
 /// The name of the global variable list a file's `VAR_GLOBAL` blocks form.
@@ -309,7 +316,9 @@ impl Lowering<'_, '_> {
     /// `NS.Name` of a type, a base or an interface: `Name` when `NS` is a namespace.
     fn type_name(&mut self, id: &mut Ident) {
         while let Some((first, rest)) = id.name.split_once('.') {
-            if !self.names.namespaces.contains(&key(first)) {
+            if !self.names.namespaces.contains(&key(first))
+                || self.names.renamed.contains(&key(&id.name))
+            {
                 break;
             }
             id.name = rest.to_string();
@@ -539,6 +548,10 @@ impl Lowering<'_, '_> {
         }
         let q = key(&qualifier.name);
         if self.names.namespaces.contains(&q) {
+            let whole = format!("{}.{}", qualifier.name, name.name);
+            if self.names.renamed.contains(&key(&whole)) {
+                return Some(Ident { name: whole, ..name.clone() });
+            }
             return Some(name.clone());
         }
         let list = self.names.lists.get(&q)?;

@@ -444,7 +444,7 @@ impl<'a> Ctx<'a> {
         let statements = self.pous[p].statements();
         let file = self.pous[p].file;
         let scope = Scope { pou: Some(p), visible: self.pous[p].vars.len(), file };
-        self.in_prelude = file == self.prelude_file;
+        self.in_prelude = self.is_shipped(file);
         self.loop_depth = 0;
         self.for_vars.clear();
         self.for_written.clear();
