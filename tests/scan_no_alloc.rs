@@ -6,7 +6,9 @@
 //! snapshot reads device words and variables, a STRING's and a WSTRING's characters among them.
 //! An ST program converts to and from STRING and WSTRING (numbers, TIME, DT, CHAR) and reads the
 //! real-time clock (`SysRtcGetTime`, `RTC`) with the date functions on it, and takes and frees
-//! dynamic memory (`__NEW`, `__DELETE`: plcd's heap is variable memory).
+//! dynamic memory (`__NEW`, `__DELETE`: plcd's heap is variable memory), and uses Tc2_System
+//! (the task information the engine writes, `MEMCPY`, ADS log messages on their way to the
+//! daemon's log).
 //! The main program uses the double-word and real instructions too; and a hand-built program of
 //! the typed stack machine (calls, FB instances, strings, an index error, a division by zero)
 //! runs scans and RUN starts without allocating. The retain writer's copies of the retained
@@ -30,8 +32,8 @@ use plcd::drivers::real_time::snapshot::Snapshot;
 use plcd::drivers::real_time::snapshot::VarRead;
 use plcd::drivers::real_time::sys::{self, Timer};
 use plcd::drivers::real_time::{
-    pending, Command, Completion, ControlCommand, Report, Shared, Source, TextWrite, WordWrite,
-    WordWrites, Write, MAX_TEXT_WRITE, WORDS_PER_COMMAND, WRITES_PER_COMMAND,
+    pending, Command, Completion, ControlCommand, LogMessage, Report, Shared, Source, TextWrite,
+    WordWrite, WordWrites, Write, MAX_TEXT_WRITE, WORDS_PER_COMMAND, WRITES_PER_COMMAND,
 };
 use plcd::engine::debug::Breakpoint;
 use plcd::engine::event::Mode;
@@ -80,6 +82,8 @@ static GLOBAL: Counting = Counting;
 const CONFIG: &str = r#"
 [plc]
 scan_period_ms = 1
+[st]
+system_libraries = ["Tc2_System"]
 [[program]]
 file = "main.il"
 [[program]]
@@ -138,7 +142,8 @@ const VARS: &str = "FUNCTION_BLOCK Edge\nVAR_INPUT up : BOOL R_EDGE; END_VAR\n\
                     pos AT %D00300 : DINT;\n    t : STRING;\n    x : REAL;\n    m : DINT;\n\
                     e : Edge;\n    ok : BOOL;\n    h : DINT;\n    w : WORD;\n    clock_now : TIME;\n\
                     now : DT;\n    day : INT;\n    clock : RTC;\n    ws : WSTRING[10] := \"äb\";\n\
-                    wt : WSTRING;\n    c : CHAR;\nEND_VAR\n\
+                    wt : WSTRING;\n    c : CHAR;\n    cpu : GETCPUCOUNTER;\n    task : BYTE;\n\
+                    buf : ARRAY [0..15] OF BYTE;\nEND_VAR\n\
                     n := n + 1;\n    t := REAL_TO_STRING(x + 0.5);\n    x := STRING_TO_REAL(t);\n\
                     t := TIME_TO_STRING(DINT_TO_TIME(n));\n    m := STRING_TO_DINT(DINT_TO_STRING(n));\n\
                     e(EN := n MOD 3 <> 0, up := n MOD 2 = 0, ENO => ok);\n\
@@ -151,6 +156,8 @@ const VARS: &str = "FUNCTION_BLOCK Edge\nVAR_INPUT up : BOOL R_EDGE; END_VAR\n\
                     IF wt < ws AND FIND(wt, \"b\") > 0 THEN m := m + 1; END_IF;\n\
                     c := STRING_TO_CHAR(t);\n    wt := WCHAR_TO_WSTRING(WORD_TO_WCHAR(CHAR_TO_WORD(c)));\n\
                     SPLIT_DATE(IN := DT_TO_DATE(now), DAY => day);\n    day := DAY_OF_WEEK(DT_TO_DATE(now));\n\
+                    cpu();\n    task := GETCURTASKINDEXEX();\n    MEMCPY(ADR(buf), ADR(n), SIZEOF(n));\n\
+                    IF n MOD 20 = 0 THEN ADSLOGDINT(ADSLOG_MSGTYPE_HINT, 'n %d', n); END_IF;\n\
                     END_PROGRAM\n";
 
 // The constructs of issue 29: a method called through an interface and on the instance (its
@@ -226,6 +233,7 @@ struct Rig {
     edges: rtrb::Producer<InputEdge>,
     commands: rtrb::Producer<Command>,
     reports: rtrb::Consumer<Report>,
+    messages: rtrb::Consumer<LogMessage>,
     completions: rtrb::Consumer<Completion>,
     snapshot: Arc<Mutex<Box<Snapshot>>>,
     handle: std::thread::JoinHandle<Box<Engine>>,
@@ -279,6 +287,7 @@ impl Rig {
         let (edges, edge_rx) = rtrb::RingBuffer::<InputEdge>::new(256);
         let (commands, command_rx) = rtrb::RingBuffer::<Command>::new(64);
         let (report_tx, reports) = rtrb::RingBuffer::<Report>::new(4096);
+        let (message_tx, messages) = rtrb::RingBuffer::<LogMessage>::new(64);
         let (completion_tx, completions) = rtrb::RingBuffer::<Completion>::new(64);
         let snapshot = Arc::new(Mutex::new(Snapshot::new()));
         let (remote, remote_service) = plcd::io::remote::start(&[remote_device()]).unwrap();
@@ -299,6 +308,7 @@ impl Rig {
             edges: edge_rx,
             commands: command_rx,
             reports: report_tx,
+            messages: message_tx,
             completions: completion_tx,
             snapshot: Arc::clone(&snapshot),
             timer: Timer::new().unwrap(),
@@ -317,6 +327,7 @@ impl Rig {
             edges,
             commands,
             reports,
+            messages,
             completions,
             snapshot,
             handle,
@@ -488,6 +499,7 @@ fn the_scan_thread_does_not_allocate() {
         mut edges,
         mut commands,
         mut reports,
+        mut messages,
         mut completions,
         snapshot,
         handle,
@@ -500,6 +512,7 @@ fn the_scan_thread_does_not_allocate() {
     command(&mut commands, Command::Mode(Mode::Run, Source::Startup));
     let p0000 = Address::parse("P0000").unwrap();
     let mut answered = Vec::new();
+    let mut logged = 0;
     for i in 0..300u32 {
         for edge in field.set_input(&p0000, (i % 2) as i32) {
             let edge =
@@ -595,6 +608,9 @@ fn the_scan_thread_does_not_allocate() {
         }
         std::thread::sleep(Duration::from_millis(1));
         while reports.pop().is_ok() {}
+        while let Ok(m) = messages.pop() {
+            logged += usize::from(m.bytes().starts_with(b"n "));
+        }
         while let Ok(c) = completions.pop() {
             answered.push(c);
         }
@@ -603,6 +619,7 @@ fn the_scan_thread_does_not_allocate() {
     let engine = handle.join().unwrap();
     let count = ALLOCATIONS.load(Ordering::Relaxed);
     assert_eq!(count, 0, "the scan thread allocated or freed {count} times");
+    assert!(logged > 0, "the program's ADSLOGDINT messages reached the message queue");
     // Shutdown stopped it, and it did run: scans since its last RUN (STOP keeps the count), the
     // cycle task, the io task (one run per edge at most), the device task.
     assert_eq!(engine.mode(), Mode::Stop, "shutdown leaves the PLC in STOP");

@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use crate::drivers::virtual_time::{self, timeline, trace::TraceWriter, SimOptions};
-use crate::engine::event::{Event, EventSink, Recorder};
+use crate::engine::event::{message_kind, task_name, Event, EventSink, Recorder, TaskId};
 use crate::project::{split_names, Project, Watched};
 use crate::value::ValueType;
 use crate::{duration, files};
@@ -54,6 +54,58 @@ impl<A: EventSink, B: EventSink> EventSink for Tee<'_, A, B> {
     fn event(&mut self, t_ns: u64, event: Event) {
         self.0.event(t_ns, event);
         self.1.event(t_ns, event);
+    }
+
+    fn text(&mut self, t_ns: u64, watch: u16, text: &[u8]) {
+        self.0.text(t_ns, watch, text);
+        self.1.text(t_ns, watch, text);
+    }
+
+    fn wide_text(&mut self, t_ns: u64, watch: u16, units: &[u8]) {
+        self.0.wide_text(t_ns, watch, units);
+        self.1.wide_text(t_ns, watch, units);
+    }
+
+    fn message(&mut self, t_ns: u64, task: TaskId, mask: u32, text: &[u8]) {
+        self.0.message(t_ns, task, mask, text);
+        self.1.message(t_ns, task, mask, text);
+    }
+
+    fn messages_dropped(&mut self, t_ns: u64, task: TaskId, count: u32) {
+        self.0.messages_dropped(t_ns, task, count);
+        self.1.messages_dropped(t_ns, task, count);
+    }
+}
+
+/// Writes the programs' ADS log messages (docs/ST.md, "ADS log messages") to the command's
+/// error output as they come, a line each (`message 1.2s scan hint: text`), whether or not a
+/// trace is written: what a TwinCAT user reads in the error list.
+struct Messages<'a, W> {
+    out: &'a mut W,
+    task_names: &'a [String],
+}
+
+impl<W: Write> EventSink for Messages<'_, W> {
+    fn event(&mut self, _: u64, _: Event) {}
+
+    fn message(&mut self, t_ns: u64, task: TaskId, mask: u32, text: &[u8]) {
+        let _ = writeln!(
+            self.out,
+            "message {} {} {}: {}",
+            duration::format_ns(t_ns),
+            task_name(self.task_names, task),
+            message_kind(mask),
+            crate::value::decode_str(text)
+        );
+    }
+
+    fn messages_dropped(&mut self, t_ns: u64, task: TaskId, count: u32) {
+        let _ = writeln!(
+            self.out,
+            "message {} {}: {count} more message(s) of the run dropped",
+            duration::format_ns(t_ns),
+            task_name(self.task_names, task),
+        );
     }
 }
 
@@ -117,16 +169,24 @@ pub fn run(args: &SimArgs, err: &mut impl Write) -> ExitCode {
             .with_symbols(project.variables.symbols.clone());
     let mut recorder = Recorder::default();
     let started = Instant::now();
+    let mut messages = Messages { out: err, task_names: &names };
     let engine = if args.timeline {
+        let mut with_messages = Tee(&mut writer, &mut messages);
         virtual_time::simulate(
             &project,
             &stimuli,
             &watch,
             options,
-            &mut Tee(&mut writer, &mut recorder),
+            &mut Tee(&mut with_messages, &mut recorder),
         )
     } else {
-        virtual_time::simulate(&project, &stimuli, &watch, options, &mut writer)
+        virtual_time::simulate(
+            &project,
+            &stimuli,
+            &watch,
+            options,
+            &mut Tee(&mut writer, &mut messages),
+        )
     };
     let elapsed = started.elapsed();
     if let Err(e) = writer.finish() {

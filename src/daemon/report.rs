@@ -37,6 +37,11 @@ impl Names {
         self.watch.get(usize::from(index)).map_or("?", String::as_str)
     }
 
+    /// The name of task `task` (`scan`, `init`, a `[[task]]`'s).
+    pub fn task(&self, task: crate::engine::event::TaskId) -> String {
+        crate::engine::event::task_name(&self.tasks, task)
+    }
+
     pub fn describe_error(&self, kind: ErrorKind) -> (String, String) {
         kind.describe(&self.tasks, &self.program_lines)
     }

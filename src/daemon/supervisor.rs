@@ -87,6 +87,7 @@ struct Daemon {
     /// Counters already reported, to log only increases.
     seen_lost_edges: u64,
     seen_dropped: u64,
+    seen_dropped_messages: u64,
     seen_trips: u64,
     /// What was last logged about each I/O path of the field.
     field_faults: report::FieldFaultLog,
@@ -163,6 +164,7 @@ impl Daemon {
             signals,
             seen_lost_edges: 0,
             seen_dropped: 0,
+            seen_dropped_messages: 0,
             seen_trips: 0,
             field_faults: report::FieldFaultLog::default(),
             retain,
@@ -265,6 +267,34 @@ impl Daemon {
                 }
                 Report::Event(_, event) => self.log_event(event),
             }
+        }
+        self.log_messages();
+    }
+
+    /// The programs' ADS log messages (docs/ST.md, "ADS log messages"), a line each at the
+    /// level their kind says.
+    fn log_messages(&mut self) {
+        let Some(driver) = &mut self.driver else { return };
+        let mut messages = Vec::new();
+        while let Ok(message) = driver.messages.pop() {
+            messages.push(message);
+        }
+        for message in messages {
+            let kind = crate::engine::event::message_kind(message.mask);
+            let level = match kind {
+                "error" => log::Level::Error,
+                "warning" => log::Level::Warn,
+                _ => log::Level::Info,
+            };
+            let task = self.running().names.task(message.task);
+            let text = crate::value::decode_str(message.bytes());
+            log::log!(level, "message {task} {kind}: {text}");
+        }
+        let dropped = self.shared.dropped_messages.load(Ordering::Relaxed);
+        if dropped > self.seen_dropped_messages {
+            let more = dropped - self.seen_dropped_messages;
+            log::warn!("{more} messages not logged: more than a task run may log");
+            self.seen_dropped_messages = dropped;
         }
     }
 

@@ -43,6 +43,7 @@ mod serial;
 mod sim;
 mod st;
 mod switch;
+mod system_libraries;
 mod task;
 mod timers;
 pub mod wiring;
@@ -89,6 +90,7 @@ pub use serial::{Parity, SerialLine};
 pub use sim::SimConfig;
 pub use st::{is_st_source, is_twincat_source, LibraryFile, StConfig, DEFAULT_HEAP_BYTES};
 pub use switch::SwitchConfig;
+pub use system_libraries::{SystemLibraries, SystemLibrary};
 pub use task::{DeviceCondition, Edge, TaskConfig, TaskKind, TASK_NUMBERS};
 pub use timers::TimerConfig;
 

@@ -8,9 +8,9 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::common::{int_or, resolve, Ctx};
+use super::system_libraries::{SystemLibraries, SystemLibrary};
 use super::Sink;
 use crate::diag::Diagnostic;
-use crate::st::libraries::{SystemLibraries, SystemLibrary};
 
 /// `[st]`.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -182,6 +182,34 @@ pub trait EventSink {
     fn wide_text(&mut self, t_ns: u64, watch: u16, units: &[u8]) {
         let _ = (t_ns, watch, units);
     }
+
+    /// A message task `task` logged (Tc2_System's `ADSLOGSTR`, `ADSLOGDINT`, `ADSLOGLREAL`,
+    /// docs/ST.md "ADS log messages"), reported as the task's run ends: `mask` is its
+    /// `msgCtrlMask` (`ADSLOG_MSGTYPE_…` bits), `text` its characters, borrowed from variable
+    /// memory. Ignored unless a sink wants it.
+    fn message(&mut self, t_ns: u64, task: TaskId, mask: u32, text: &[u8]) {
+        let _ = (t_ns, task, mask, text);
+    }
+
+    /// Task `task`'s run logged `count` messages beyond the cap of a run, which were dropped.
+    fn messages_dropped(&mut self, t_ns: u64, task: TaskId, count: u32) {
+        let _ = (t_ns, task, count);
+    }
+}
+
+/// The kind of an ADS log message by its `msgCtrlMask`, as the trace and the log name it:
+/// `error`, `warning`, `hint` (`ADSLOG_MSGTYPE_ERROR`, `_WARN`, `_HINT`; the most severe bit
+/// set wins), else `log`.
+pub fn message_kind(mask: u32) -> &'static str {
+    if mask & 0x04 != 0 {
+        "error"
+    } else if mask & 0x02 != 0 {
+        "warning"
+    } else if mask & 0x01 != 0 {
+        "hint"
+    } else {
+        "log"
+    }
 }
 
 /// A sink that keeps every event, for tests.

@@ -39,6 +39,7 @@ mod finish;
 mod mode;
 mod scan;
 mod schedule;
+mod system_info;
 mod task;
 
 pub use mode::ModeRequest;
@@ -162,6 +163,8 @@ pub struct Engine {
     retained_variables: std::sync::Arc<crate::vm::retained::RetainedVariables>,
     /// The exit passes of the programs (`FB_exit`).
     finish: finish::Finish,
+    /// Where TwinCAT's task information goes, when the project has it (`system_info`).
+    system_info: Option<Box<system_info::SystemInfo>>,
 }
 
 impl Engine {
@@ -218,6 +221,7 @@ impl Engine {
                 &project.variables,
             )),
             finish: finish::Finish::of(project),
+            system_info: system_info::SystemInfo::of(project, capacity),
         }
     }
 
@@ -485,6 +489,9 @@ impl Engine {
                     }
                     budget = 1;
                 }
+            }
+            if let Some(info) = &self.system_info {
+                info.running(&mut self.vm, usize::from(top));
             }
             let exit = self.vm.run(program, &mut task.exec, clock, budget);
             let after = clock.now_ns(self.vm.steps());

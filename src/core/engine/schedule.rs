@@ -247,6 +247,14 @@ impl Engine {
 
     pub(super) fn begin(&mut self, id: TaskId, now: u64, sink: &mut impl EventSink) {
         let task = &mut self.tasks[id as usize];
+        if let Some(info) = &self.system_info {
+            let period_ns = match task.kind {
+                Kind::Scan => self.settings.scan_period_ns,
+                Kind::Cycle { interval_ns, .. } => interval_ns,
+                _ => 0,
+            };
+            info.task_started(&mut self.vm, usize::from(id), &task.name, period_ns, task.used_ns);
+        }
         task.state = State::Active { preempted: false };
         task.current = 0;
         task.exec.restart();
@@ -321,6 +329,9 @@ impl Engine {
         }
         task.state = State::Idle;
         self.stack.pop();
+        if let Some(info) = &self.system_info {
+            info.task_ended(&mut self.vm, now, id, sink);
+        }
         if let ModeState::Debug(_, session) = &mut self.mode {
             session.task_finished(id);
         }

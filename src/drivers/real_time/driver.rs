@@ -19,8 +19,9 @@ use super::stimulus::StimulusThread;
 use super::sys::{self, SysError, Timer};
 use super::watchdog::WatchdogThread;
 use super::{
-    pending, setup_thread, Command, Completion, Report, Role, RtSetupError, Shared, COMMAND_QUEUE,
-    COMPLETION_QUEUE, EDGE_QUEUE, PLAIN_THREAD_STACK, REPORT_QUEUE, THREAD_STACK,
+    pending, setup_thread, Command, Completion, LogMessage, Report, Role, RtSetupError, Shared,
+    COMMAND_QUEUE, COMPLETION_QUEUE, EDGE_QUEUE, MESSAGE_QUEUE, PLAIN_THREAD_STACK, REPORT_QUEUE,
+    THREAD_STACK,
 };
 use crate::config::{Backend, OnFault, RtConfig, RtPolicy};
 use crate::diag::Diagnostics;
@@ -78,6 +79,8 @@ pub struct Driver {
     pub commands: Arc<Mutex<rtrb::Producer<Command>>>,
     /// What the scan thread reports, in order.
     pub reports: rtrb::Consumer<Report>,
+    /// The programs' ADS log messages, in order.
+    pub messages: rtrb::Consumer<LogMessage>,
     completions: Option<rtrb::Consumer<Completion>>,
     /// Captured by the scan thread at a scan boundary when `shared.snapshot_wanted`.
     pub snapshot: Arc<Mutex<Box<Snapshot>>>,
@@ -135,6 +138,7 @@ impl Driver {
         let (edge_tx, edge_rx) = rtrb::RingBuffer::<InputEdge>::new(EDGE_QUEUE);
         let (command_tx, command_rx) = rtrb::RingBuffer::<Command>::new(COMMAND_QUEUE);
         let (report_tx, report_rx) = rtrb::RingBuffer::<Report>::new(REPORT_QUEUE);
+        let (message_tx, message_rx) = rtrb::RingBuffer::<LogMessage>::new(MESSAGE_QUEUE);
         let (completion_tx, completion_rx) = rtrb::RingBuffer::<Completion>::new(COMPLETION_QUEUE);
         let commands = Arc::new(Mutex::new(command_tx));
         let snapshot = Arc::new(Mutex::new(Snapshot::new()));
@@ -204,6 +208,7 @@ impl Driver {
             edges: edge_rx,
             commands: command_rx,
             reports: report_tx,
+            messages: message_tx,
             completions: completion_tx,
             snapshot: Arc::clone(&snapshot),
             timer: Timer::new()?,
@@ -220,6 +225,7 @@ impl Driver {
             shared,
             commands,
             reports: report_rx,
+            messages: message_rx,
             completions: Some(completion_rx),
             snapshot,
             problems: Vec::new(),

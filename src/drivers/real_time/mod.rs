@@ -66,6 +66,37 @@ pub const EDGE_QUEUE: usize = 256;
 pub const COMMAND_QUEUE: usize = 64;
 /// Capacity of the report queue (scan thread → supervisor).
 pub const REPORT_QUEUE: usize = 4096;
+/// Capacity of the message queue (scan thread → supervisor): the programs' ADS log messages
+/// (docs/ST.md, "ADS log messages"), each its text inline; a full queue drops the message and
+/// counts it in [`Shared::dropped_reports`].
+pub const MESSAGE_QUEUE: usize = 64;
+
+/// An ADS log message of a program (`ADSLOGSTR`), on its way to the daemon's log: its text
+/// inline, so that sending it allocates nothing.
+#[derive(Clone)]
+pub struct LogMessage {
+    pub t_ns: u64,
+    pub task: crate::engine::event::TaskId,
+    /// Its `msgCtrlMask`.
+    pub mask: u32,
+    /// The text's bytes: `text[..len]`.
+    pub len: u8,
+    pub text: [u8; 255],
+}
+
+impl LogMessage {
+    /// The message, its text cut to 255 bytes (a `T_MaxString` holds no more).
+    pub fn new(t_ns: u64, task: crate::engine::event::TaskId, mask: u32, bytes: &[u8]) -> Self {
+        let len = bytes.len().min(255);
+        let mut text = [0; 255];
+        text[..len].copy_from_slice(&bytes[..len]);
+        LogMessage { t_ns, task, mask, len: len as u8, text }
+    }
+
+    pub fn bytes(&self) -> &[u8] {
+        &self.text[..usize::from(self.len)]
+    }
+}
 /// Capacity of the completion queue (scan thread → control thread): at least the command
 /// queue, so that a completion always finds room.
 pub const COMPLETION_QUEUE: usize = COMMAND_QUEUE;
@@ -291,6 +322,9 @@ pub struct Shared {
     pub field_faults: Arc<FieldFaults>,
     /// Reports dropped to a full report queue.
     pub dropped_reports: AtomicU64,
+    /// ADS log messages the programs' task runs logged beyond the engine's cap of a run
+    /// (docs/ST.md, "ADS log messages").
+    pub dropped_messages: AtomicU64,
     /// The control thread wants a [`snapshot::Snapshot`] at the next scan boundary.
     pub snapshot_wanted: AtomicBool,
     /// Wakes the control thread: a completion or a snapshot is ready.
@@ -321,6 +355,7 @@ impl Shared {
             lost_edges: AtomicU64::new(0),
             field_faults: Arc::default(),
             dropped_reports: AtomicU64::new(0),
+            dropped_messages: AtomicU64::new(0),
             snapshot_wanted: AtomicBool::new(false),
             control_wake: Wake::new()?,
             words_applied: AtomicU64::new(0),

@@ -9,10 +9,10 @@ use super::mirror::Mirror;
 use super::snapshot::Snapshot;
 use super::sys::{self, Timer};
 use super::{
-    mode_code, pending, Applied, Command, Completion, ControlCommand, Monotonic, Report, Shared,
-    Source, Write, SLICE_STEPS,
+    mode_code, pending, Applied, Command, Completion, ControlCommand, LogMessage, Monotonic,
+    Report, Shared, Source, Write, SLICE_STEPS,
 };
-use crate::engine::event::{Event, EventSink, Mode};
+use crate::engine::event::{Event, EventSink, Mode, TaskId};
 use crate::engine::{Activity, Engine, Refusal};
 use crate::io::InputEdge;
 
@@ -20,6 +20,7 @@ use crate::io::InputEdge;
 /// statistics. Never blocks: a full queue drops the report and counts it.
 struct ReportSink<'a> {
     reports: &'a mut rtrb::Producer<Report>,
+    messages: &'a mut rtrb::Producer<LogMessage>,
     shared: &'a Shared,
     /// Who asked for the mode change being applied, if one is.
     source: Option<Source>,
@@ -48,6 +49,16 @@ impl EventSink for ReportSink<'_> {
             _ => {}
         }
     }
+
+    fn message(&mut self, t_ns: u64, task: TaskId, mask: u32, text: &[u8]) {
+        if self.messages.push(LogMessage::new(t_ns, task, mask, text)).is_err() {
+            self.shared.dropped_reports.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    fn messages_dropped(&mut self, _: u64, _: TaskId, count: u32) {
+        self.shared.dropped_messages.fetch_add(u64::from(count), Ordering::Relaxed);
+    }
 }
 
 /// Everything the scan thread owns.
@@ -58,6 +69,8 @@ pub struct ScanThread {
     pub edges: rtrb::Consumer<InputEdge>,
     pub commands: rtrb::Consumer<Command>,
     pub reports: rtrb::Producer<Report>,
+    /// The programs' ADS log messages.
+    pub messages: rtrb::Producer<LogMessage>,
     /// Answers to control commands.
     pub completions: rtrb::Producer<Completion>,
     /// Published at scan boundaries when the control thread asks.
@@ -100,8 +113,12 @@ impl ScanThread {
             }
             commands_waiting |= flags & pending::COMMAND != 0;
             if flags & pending::WATCHDOG != 0 {
-                let mut sink =
-                    ReportSink { reports: &mut self.reports, shared: &self.shared, source: None };
+                let mut sink = ReportSink {
+                    reports: &mut self.reports,
+                    messages: &mut self.messages,
+                    shared: &self.shared,
+                    source: None,
+                };
                 self.engine.watchdog_expired(now, &mut self.io, &mut sink);
             }
             if self.engine.mode() == Mode::Error && self.io.gate.is_tripped() {
@@ -130,8 +147,12 @@ impl ScanThread {
                 }
                 self.capture_mirrors(now);
             }
-            let mut sink =
-                ReportSink { reports: &mut self.reports, shared: &self.shared, source: None };
+            let mut sink = ReportSink {
+                reports: &mut self.reports,
+                messages: &mut self.messages,
+                shared: &self.shared,
+                source: None,
+            };
             if flags & pending::EDGE != 0 {
                 while let Ok(edge) = self.edges.pop() {
                     self.engine.input_edge(
@@ -193,6 +214,7 @@ impl ScanThread {
         }
         let mut sink = ReportSink {
             reports: &mut self.reports,
+            messages: &mut self.messages,
             shared: &self.shared,
             source: Some(Source::Signal),
         };
@@ -210,6 +232,7 @@ impl ScanThread {
                 Command::Mode(to, source) => {
                     let mut sink = ReportSink {
                         reports: &mut self.reports,
+                        messages: &mut self.messages,
                         shared: &self.shared,
                         source: Some(source),
                     };
@@ -220,6 +243,7 @@ impl ScanThread {
                     let was = self.engine.mode();
                     let mut sink = ReportSink {
                         reports: &mut self.reports,
+                        messages: &mut self.messages,
                         shared: &self.shared,
                         source: Some(Source::Reload),
                     };
@@ -265,6 +289,7 @@ impl ScanThread {
         let mut changed = true;
         let mut sink = ReportSink {
             reports: &mut self.reports,
+            messages: &mut self.messages,
             shared: &self.shared,
             source: Some(Source::Remote),
         };

@@ -10,7 +10,7 @@
 use std::fmt::Write as _;
 use std::io::{self, Write};
 
-use crate::engine::event::{task_name, Event, EventSink};
+use crate::engine::event::{message_kind, task_name, Event, EventSink, TaskId};
 use crate::value::{Symbol, ValueType};
 
 /// Writes events as JSON Lines.
@@ -34,7 +34,7 @@ pub struct TraceWriter<W: Write> {
 }
 
 impl<W: Write> TraceWriter<W> {
-    /// `task_names` is indexed by [`TaskId`](crate::engine::event::TaskId) (`scan`, `init`, then the configured tasks),
+    /// `task_names` is indexed by [`TaskId`] (`scan`, `init`, then the configured tasks),
     /// `watch_names` by the `watch` of [`Event::Set`] (`"P0040"`), and `program_lines` by the
     /// `program` of an operation error: the program's name and the source line of each
     /// instruction (index = pc).
@@ -185,6 +185,32 @@ impl<W: Write> EventSink for TraceWriter<W> {
         push_str_field(line, "dev", &dev);
         push_str_field(line, "value", &text);
         line.push_str("}\n");
+        self.write_line();
+    }
+
+    fn message(&mut self, t_ns: u64, task: TaskId, mask: u32, text: &[u8]) {
+        if self.error.is_some() {
+            return;
+        }
+        let line = &mut self.line;
+        line.clear();
+        let _ = write!(line, "{{\"t_ns\":{t_ns},\"ev\":\"message\"");
+        push_str_field(line, "task", &task_name(&self.task_names, task));
+        push_str_field(line, "kind", message_kind(mask));
+        push_str_field(line, "text", &crate::value::decode_str(text));
+        line.push_str("}\n");
+        self.write_line();
+    }
+
+    fn messages_dropped(&mut self, t_ns: u64, task: TaskId, count: u32) {
+        if self.error.is_some() {
+            return;
+        }
+        let line = &mut self.line;
+        line.clear();
+        let _ = write!(line, "{{\"t_ns\":{t_ns},\"ev\":\"messages_dropped\"");
+        push_str_field(line, "task", &task_name(&self.task_names, task));
+        let _ = writeln!(line, ",\"count\":{count}}}");
         self.write_line();
     }
 }

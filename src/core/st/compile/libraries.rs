@@ -13,7 +13,7 @@ use std::path::Path;
 
 use crate::diag::Diagnostic;
 use crate::st::ast;
-use crate::st::libraries::SystemLibraries;
+use crate::st::libraries::{self, SystemLibraries};
 
 /// The project's files followed by the libraries' sources, and the names (`tc2_system.memset`,
 /// lower case) of the library declarations renamed because the project declares the plain
@@ -30,11 +30,11 @@ pub(super) fn with_libraries(
     let mut renamed = HashSet::new();
     let mut all = files.to_vec();
     for library in libraries.iter() {
-        for (path, text) in library.sources() {
+        for (path, text) in libraries::sources(library) {
             let (mut file, errors) = crate::st::syntax::parse_file(Path::new(path), text);
             diags.extend(errors.0);
-            for id in declarations(&mut file) {
-                if project.contains(&id.name.to_ascii_lowercase()) {
+            for (key, id) in declarations(&mut file) {
+                if project.contains(&key) {
                     id.name = format!("{}.{}", library.name(), id.name);
                     renamed.insert(id.name.to_ascii_lowercase());
                 }
@@ -45,17 +45,19 @@ pub(super) fn with_libraries(
     Some((all, renamed))
 }
 
-/// The names of a file's TYPEs, POUs, interfaces and globals, lower case.
+/// The names of a file's TYPEs, POUs and interfaces (`"t:name"`) and globals (`"g:name"`),
+/// lower case: a global may have a block's name (`GetCpuCounter : GETCPUCOUNTER`), as in
+/// TwinCAT, where variables and types are named apart.
 fn declared(file: &ast::File) -> Vec<String> {
     let mut names = Vec::new();
     for item in &file.items {
         match item {
-            ast::Item::Pou(p) => names.push(p.name.name.to_ascii_lowercase()),
-            ast::Item::Type(t) => names.push(t.name.name.to_ascii_lowercase()),
-            ast::Item::Interface(i) => names.push(i.name.name.to_ascii_lowercase()),
-            ast::Item::Globals(b) => global_names(b, &mut names),
+            ast::Item::Pou(p) => names.push(type_key(&p.name)),
+            ast::Item::Type(t) => names.push(type_key(&t.name)),
+            ast::Item::Interface(i) => names.push(type_key(&i.name)),
+            ast::Item::Globals(b) => global_keys(b, &mut names),
             ast::Item::Configuration(c) => {
-                c.globals.iter().for_each(|b| global_names(b, &mut names))
+                c.globals.iter().for_each(|b| global_keys(b, &mut names))
             }
             ast::Item::Action { .. } => {}
         }
@@ -63,20 +65,31 @@ fn declared(file: &ast::File) -> Vec<String> {
     names
 }
 
-fn global_names(block: &ast::VarBlock, names: &mut Vec<String>) {
-    let all = block.decls.iter().flat_map(|d| &d.names);
-    names.extend(all.map(|id| id.name.to_ascii_lowercase()));
+fn type_key(id: &ast::Ident) -> String {
+    format!("t:{}", id.name.to_ascii_lowercase())
 }
 
-/// The declaring names of a library file's TYPEs, POUs, interfaces and globals.
-fn declarations(file: &mut ast::File) -> Vec<&mut ast::Ident> {
+fn global_key(id: &ast::Ident) -> String {
+    format!("g:{}", id.name.to_ascii_lowercase())
+}
+
+fn global_keys(block: &ast::VarBlock, names: &mut Vec<String>) {
+    names.extend(block.decls.iter().flat_map(|d| &d.names).map(global_key));
+}
+
+/// The declaring names of a library file's TYPEs, POUs, interfaces and globals, each with its
+/// key (`declared`).
+fn declarations(file: &mut ast::File) -> Vec<(String, &mut ast::Ident)> {
     let mut ids = Vec::new();
     for item in &mut file.items {
         match item {
-            ast::Item::Pou(p) => ids.push(&mut p.name),
-            ast::Item::Type(t) => ids.push(&mut t.name),
-            ast::Item::Interface(i) => ids.push(&mut i.name),
-            ast::Item::Globals(b) => ids.extend(b.decls.iter_mut().flat_map(|d| &mut d.names)),
+            ast::Item::Pou(p) => ids.push((type_key(&p.name), &mut p.name)),
+            ast::Item::Type(t) => ids.push((type_key(&t.name), &mut t.name)),
+            ast::Item::Interface(i) => ids.push((type_key(&i.name), &mut i.name)),
+            ast::Item::Globals(b) => {
+                let names = b.decls.iter_mut().flat_map(|d| &mut d.names);
+                ids.extend(names.map(|id| (global_key(id), id)));
+            }
             ast::Item::Configuration(_) | ast::Item::Action { .. } => {}
         }
     }
@@ -85,13 +98,13 @@ fn declarations(file: &mut ast::File) -> Vec<&mut ast::Ident> {
 
 /// How many files [`with_libraries`] appends.
 pub(super) fn file_count(libraries: SystemLibraries) -> usize {
-    libraries.iter().map(|l| l.sources().len()).sum()
+    libraries.iter().map(|l| libraries::sources(l).len()).sum()
 }
 
 /// `[st] namespaces` and the names of the libraries and their inner namespaces.
 pub(super) fn namespaces(project: &[String], libraries: SystemLibraries) -> Vec<String> {
     let mut all = project.to_vec();
-    for name in libraries.iter().flat_map(|l| l.namespaces()) {
+    for name in libraries.iter().flat_map(libraries::namespaces) {
         if !all.iter().any(|n| n.eq_ignore_ascii_case(name)) {
             all.push((*name).to_string());
         }

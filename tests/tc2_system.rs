@@ -1,0 +1,159 @@
+//! Tc2_System's task information and ADS log messages on the engine, in virtual time
+//! (docs/ST.md, "System libraries"): what the engine writes into `TwinCAT_SystemInfoVarList`
+//! for each task, the index `GETCURTASKINDEX` answers in a task that preempts another, and
+//! the messages of `ADSLOGSTR` reaching the trace, at most a cap of them per scan.
+
+mod harness;
+
+use harness::engine::{project, sim, MS};
+use plcd::drivers::virtual_time::{simulate, SimOptions};
+use plcd::engine::event::{message_kind, Event, EventSink, TaskId};
+use plcd::engine::Engine;
+use plcd::project::Project;
+use plcd::value::Elem;
+
+/// The value of the variable `name` (an integer or BOOL of `elem`) as the engine ends.
+fn value(project: &Project, engine: &Engine, name: &str, elem: Elem) -> u64 {
+    let symbol = project.variables.symbols.iter().find(|s| s.name.eq_ignore_ascii_case(name));
+    let symbol = symbol.unwrap_or_else(|| panic!("no variable {name}"));
+    engine.vm().read_value(symbol.at, elem)
+}
+
+const TASKS: &str = r#"
+[plc]
+scan_period_ms = 10
+[st]
+system_libraries = ["Tc2_System"]
+[[program]]
+name = "main"
+file = "main.st"
+[[program]]
+name = "fast"
+file = "fast.st"
+task = "fast"
+[[task]]
+name = "fast"
+kind = "cycle"
+number = 0
+priority = 3
+interval_ms = 5
+"#;
+
+/// The scan program spins long enough for the 5 ms task to preempt it mid-scan: it reads its
+/// own index before and after, and the fast task its own.
+const MAIN: &str = "PROGRAM Main
+VAR
+    before : BYTE; after : BYTE; k : DINT; count : UDINT; first : BOOL; period : UDINT;
+    fast_period : UDINT; fast_name : STRING;
+END_VAR
+    before := GETCURTASKINDEXEX();
+    FOR k := 1 TO 1000 DO
+        count := count;
+    END_FOR
+    after := GETCURTASKINDEXEX();
+    count := TwinCAT_SystemInfoVarList._TaskInfo[after].CycleCount;
+    first := _TaskInfo[after].FirstCycle;
+    period := _TaskInfo[after].CycleTime;
+    fast_period := _TaskInfo[3].CycleTime;
+    fast_name := _TaskInfo[3].TaskName;
+END_PROGRAM";
+
+const FAST: &str = "PROGRAM Fast
+VAR index : GETCURTASKINDEX; mine : BYTE; runs : UDINT; END_VAR
+    index();
+    mine := index.index;
+    runs := _TaskInfo[mine].CycleCount;
+END_PROGRAM";
+
+#[test]
+fn each_task_reads_its_own_index_and_counts_even_when_preempted() {
+    let project = project(TASKS, &[("main.st", MAIN), ("fast.st", FAST)]);
+    let (engine, events) = sim(&project, &[], &[], 100 * MS);
+    let preempted = events.0.iter().any(|(_, e)| matches!(e, Event::TaskPreempt { task: 0, .. }));
+    assert!(preempted, "the fast task never preempted the scan");
+    let scans = engine.scan_count();
+    assert!(scans >= 3, "{scans} scans");
+    // the table's order: 1 the scan task, 2 init, 3 the first [[task]]
+    assert_eq!(value(&project, &engine, "main.before", Elem::U8), 1);
+    assert_eq!(value(&project, &engine, "main.after", Elem::U8), 1, "after a preemption");
+    assert_eq!(value(&project, &engine, "fast.mine", Elem::U8), 3);
+    assert_eq!(value(&project, &engine, "main.count", Elem::U32), scans);
+    assert_eq!(value(&project, &engine, "main.first", Elem::Bool), 0);
+    // CycleTime in 100 ns units: the scan period, the cycle task's interval
+    assert_eq!(value(&project, &engine, "main.period", Elem::U32), 100_000);
+    assert_eq!(value(&project, &engine, "main.fast_period", Elem::U32), 50_000);
+    let fast_runs = engine.task_stats("fast").unwrap().runs;
+    assert!(fast_runs >= 2);
+    assert_eq!(value(&project, &engine, "fast.runs", Elem::U32), fast_runs);
+}
+
+/// What a run logged: each message as `task kind: text`, and the drop counts.
+#[derive(Default)]
+struct Messages {
+    lines: Vec<(u64, String)>,
+    dropped: Vec<(u64, u32)>,
+}
+
+impl EventSink for Messages {
+    fn event(&mut self, _: u64, _: Event) {}
+
+    fn message(&mut self, t_ns: u64, task: TaskId, mask: u32, text: &[u8]) {
+        let text = String::from_utf8_lossy(text);
+        self.lines.push((t_ns, format!("{task} {}: {text}", message_kind(mask))));
+    }
+
+    fn messages_dropped(&mut self, t_ns: u64, _: TaskId, count: u32) {
+        self.dropped.push((t_ns, count));
+    }
+}
+
+const LOGGING: &str = "PROGRAM Main
+VAR n : INT; k : INT; END_VAR
+    n := n + 1;
+    IF n = 1 THEN
+        ADSLOGSTR(ADSLOG_MSGTYPE_HINT, '| Test suite %s |', 'P_Test.fbSuite');
+        ADSLOGDINT(ADSLOG_MSGTYPE_ERROR OR ADSLOG_MSGTYPE_STRING, 'Failed tests: %d', -3);
+        ADSLOGLREAL(ADSLOG_MSGTYPE_WARN, 'took %f s', 0.25);
+        ADSLOGSTR(ADSLOG_MSGTYPE_LOG, 'no placeholder', 'unused');
+    ELSIF n = 2 THEN
+        FOR k := 1 TO 40 DO
+            ADSLOGDINT(ADSLOG_MSGTYPE_HINT, 'line %d', k);
+        END_FOR
+    ELSIF n = 3 THEN
+        ADSLOGSTR(ADSLOG_MSGTYPE_HINT, 'after %s', 'the flood');
+    END_IF
+END_PROGRAM";
+
+#[test]
+fn messages_reach_the_sink_at_the_end_of_the_run_at_most_32_a_run() {
+    let config = "[plc]\nscan_period_ms = 10\n[st]\nsystem_libraries = [\"Tc2_System\"]\n\
+                  [[program]]\nname = \"main\"\nfile = \"main.st\"\n";
+    let project = project(config, &[("main.st", LOGGING)]);
+    let mut messages = Messages::default();
+    let options = SimOptions { duration_ns: 35 * MS, step_ns: 1000 };
+    simulate(&project, &[], &[], options, &mut messages);
+    let texts: Vec<&str> = messages.lines.iter().map(|(_, l)| l.as_str()).collect();
+    // the first scan: each placeholder replaced as Infosys documents (%s, %d, %f), the kind
+    // from the mask's most severe bit; the task is the scan task, 0
+    assert_eq!(
+        texts[..4],
+        [
+            "0 hint: | Test suite P_Test.fbSuite |",
+            "0 error: Failed tests: -3",
+            "0 warning: took 0.25 s",
+            "0 log: no placeholder",
+        ]
+    );
+    // the second scan logs 40: the cap of a run, 32, reach the sink, 8 are counted as dropped
+    let second: Vec<&str> = texts[4..].iter().copied().filter(|t| t.contains("line")).collect();
+    assert_eq!(second.len(), 32);
+    assert_eq!(second[0], "0 hint: line 1");
+    assert_eq!(second[31], "0 hint: line 32");
+    assert_eq!(messages.dropped.len(), 1);
+    assert_eq!(messages.dropped[0].1, 8);
+    // the queue is empty again for the third scan: its one message comes through
+    assert_eq!(texts.last().copied(), Some("0 hint: after the flood"));
+    assert_eq!(texts.len(), 4 + 32 + 1);
+    // each run's messages come at its end, after the scan's start
+    assert!(messages.lines[4].0 >= 10 * MS && messages.lines[4].0 < 20 * MS);
+}
