@@ -157,3 +157,101 @@ fn messages_reach_the_sink_at_the_end_of_the_run_at_most_32_a_run() {
     // each run's messages come at its end, after the scan's start
     assert!(messages.lines[4].0 >= 10 * MS && messages.lines[4].0 < 20 * MS);
 }
+
+/// `project` with native code attached to its programs (plcd-native), or as it is.
+fn with_native(project: Project, native: bool) -> Project {
+    #[cfg(feature = "native")]
+    if native {
+        let mut project = project;
+        let errors = plcd_native::attach(&mut project);
+        assert!(errors.is_empty(), "native code: {errors:?}");
+        return project;
+    }
+    let _ = native;
+    project
+}
+
+/// Every function and block of the libraries, with values that change from scan to scan.
+const EVERYTHING: &str = "TYPE Rec : STRUCT a : DINT; b : LREAL; END_STRUCT END_TYPE
+PROGRAM Main
+VAR
+    n : DINT; src : ARRAY [0..40] OF BYTE; dst : ARRAY [0..40] OF BYTE; k : INT;
+    copied : UDINT; cmp : DINT; moved : UDINT; filled : UDINT;
+    hex : STRING; trimmed : STRING; lower : STRING;
+    ring : FB_MemRingBuffer; buffer : ARRAY [0..63] OF BYTE; r : Rec; got : Rec; sum : LREAL;
+    cpu : GETCPUCOUNTER; ticks : UDINT; idx : BYTE; count : UDINT;
+    handle : RTS_IEC_HANDLE; result : RTS_IEC_RESULT;
+END_VAR
+    n := n + 1;
+    FOR k := 0 TO 40 DO
+        src[k] := DINT_TO_BYTE(n * 7 + k);
+    END_FOR
+    copied := MEMCPY(ADR(dst), ADR(src), DINT_TO_UDINT(n MOD 41));
+    cmp := MEMCMP(ADR(dst), ADR(src), 41);
+    moved := MEMMOVE(ADR(src) + 3, ADR(src), 20);
+    filled := MEMSET(ADR(dst) + 30, DINT_TO_USINT(n), 11);
+    hex := LWORD_TO_HEXSTR(DINT_TO_LWORD(n * 1000003), 12, n MOD 2 = 0);
+    trimmed := F_RTrim(F_LTrim(CONCAT('  x', INT_TO_STRING(DINT_TO_INT(n)))));
+    lower := F_ToLCase(CONCAT('ABC', hex));
+    r.a := n; r.b := DINT_TO_LREAL(n) / 4.0;
+    ring.A_AddTail(pWrite := ADR(r), cbWrite := SIZEOF(r), pBuffer := ADR(buffer), cbBuffer := SIZEOF(buffer));
+    IF n MOD 3 = 0 THEN
+        ring.A_RemoveHead(pRead := ADR(got), cbRead := SIZEOF(got), pBuffer := ADR(buffer), cbBuffer := SIZEOF(buffer));
+        sum := sum + got.b + DINT_TO_LREAL(got.a);
+    END_IF
+    cpu();
+    ticks := cpu.cpuCntLoDW;
+    idx := GETCURTASKINDEXEX();
+    count := _TaskInfo[idx].CycleCount;
+    handle := SysFileOpen('f', AM_READ, ADR(result));
+    IF n MOD 4 = 0 THEN
+        ADSLOGSTR(ADSLOG_MSGTYPE_HINT, 'hex %s', hex);
+        ADSLOGLREAL(ADSLOG_MSGTYPE_WARN, 'sum %f', sum);
+    END_IF
+END_PROGRAM";
+
+#[test]
+fn native_code_runs_the_libraries_as_the_interpreter_does() {
+    let config = "[plc]\nscan_period_ms = 10\n\
+                  [st]\nsystem_libraries = [\"Tc2_Utilities\", \"SysFile\"]\n\
+                  [[program]]\nname = \"main\"\nfile = \"main.st\"\n";
+    let names = [
+        "main.copied",
+        "main.cmp",
+        "main.moved",
+        "main.filled",
+        "main.hex",
+        "main.trimmed",
+        "main.lower",
+        "main.sum",
+        "main.ticks",
+        "main.idx",
+        "main.count",
+        "main.result",
+        "main.dst[35]",
+        "main.src[10]",
+        "main.ring.nCount",
+        "main.ring.cbSize",
+    ];
+    let run = |native: bool| {
+        let project = with_native(project(config, &[("main.st", EVERYTHING)]), native);
+        let watch: Vec<_> = names.iter().flat_map(|n| project.watched(n).unwrap()).collect();
+        let mut messages = Messages::default();
+        let options = SimOptions { duration_ns: 200 * MS, step_ns: 1000 };
+        let engine = simulate(&project, &[], &watch, options, &mut messages);
+        let values: Vec<String> = project
+            .variables
+            .symbols
+            .iter()
+            .filter(|s| s.name.starts_with("main."))
+            .map(|s| format!("{} = {}", s.name, engine.vm().read_value(s.at, s.ty.elem())))
+            .collect();
+        assert!(engine.last_operation_error().is_none(), "{:?}", engine.last_operation_error());
+        (values, messages.lines)
+    };
+    let (interpreted, interpreted_messages) = run(false);
+    let (native, native_messages) = run(true);
+    assert_eq!(interpreted, native);
+    assert_eq!(interpreted_messages, native_messages);
+    assert_eq!(interpreted_messages.len(), 2 * 5, "20 scans, two messages every fourth");
+}

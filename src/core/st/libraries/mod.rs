@@ -48,6 +48,7 @@ pub fn sources(library: SystemLibrary) -> &'static [Source] {
         SystemLibrary::Tc2Utilities => &[
             ("<Tc2_Utilities>/strings.st", include_str!("tc2_utilities/strings.st")),
             ("<Tc2_Utilities>/ringbuffer.st", include_str!("tc2_utilities/ringbuffer.st")),
+            ("<Tc2_Utilities>/hexstr.st", include_str!("tc2_utilities/hexstr.st")),
         ],
         SystemLibrary::SysFile => &[
             ("<SysFile>/Errors.st", include_str!("sysfile/Errors.st")),
