@@ -181,6 +181,7 @@ VAR
     ring : FB_MemRingBuffer; buffer : ARRAY [0..63] OF BYTE; r : Rec; got : Rec; sum : LREAL;
     cpu : GETCPUCOUNTER; ticks : UDINT; idx : BYTE; count : UDINT;
     handle : RTS_IEC_HANDLE; result : RTS_IEC_RESULT;
+    fmt : FB_FormatString; formatted : STRING; real : LREAL; wide : WSTRING; wlength : INT;
 END_VAR
     n := n + 1;
     FOR k := 0 TO 40 DO
@@ -204,6 +205,12 @@ END_VAR
     idx := GETCURTASKINDEXEX();
     count := _TaskInfo[idx].CycleCount;
     handle := SysFileOpen('f', AM_READ, ADR(result));
+    real := DINT_TO_LREAL(n) / 3.0;
+    fmt(sFormat := '%+08.3f %-5d|%X %s', arg1 := F_LREAL(real), arg2 := F_DINT(n),
+        arg3 := F_UDINT(ticks), arg4 := F_STRING(hex));
+    formatted := fmt.sOut;
+    wide := STRING_TO_WSTRING(formatted);
+    wlength := WLEN(wide);
     IF n MOD 4 = 0 THEN
         ADSLOGSTR(ADSLOG_MSGTYPE_HINT, 'hex %s', hex);
         ADSLOGLREAL(ADSLOG_MSGTYPE_WARN, 'sum %f', sum);
@@ -213,7 +220,7 @@ END_PROGRAM";
 #[test]
 fn native_code_runs_the_libraries_as_the_interpreter_does() {
     let config = "[plc]\nscan_period_ms = 10\n\
-                  [st]\nsystem_libraries = [\"Tc2_Utilities\", \"SysFile\"]\n\
+                  [st]\nsystem_libraries = [\"Tc2_Utilities\", \"Tc2_Standard\", \"SysFile\"]\n\
                   [[program]]\nname = \"main\"\nfile = \"main.st\"\n";
     let names = [
         "main.copied",

@@ -10,6 +10,9 @@ pub enum SystemLibrary {
     Tc2System,
     /// TwinCAT's `Tc2_Utilities`: the string functions and the ring buffer public code uses.
     Tc2Utilities,
+    /// TwinCAT's `Tc2_Standard`: the WSTRING function `WLEN` (its standard blocks are the
+    /// prelude's).
+    Tc2Standard,
     /// CODESYS's `SysFile` (with its `SysTypes` and `SysDir`'s `CmpErrors`): declared so that
     /// code using files compiles; plcd gives programs no file system, every call fails.
     SysFile,
@@ -17,14 +20,19 @@ pub enum SystemLibrary {
 
 impl SystemLibrary {
     /// Every library, in the order their names are listed in messages.
-    pub const ALL: [SystemLibrary; 3] =
-        [SystemLibrary::Tc2System, SystemLibrary::Tc2Utilities, SystemLibrary::SysFile];
+    pub const ALL: [SystemLibrary; 4] = [
+        SystemLibrary::Tc2System,
+        SystemLibrary::Tc2Utilities,
+        SystemLibrary::Tc2Standard,
+        SystemLibrary::SysFile,
+    ];
 
     /// The name the config and the project's code write, as the vendor spells it.
     pub fn name(self) -> &'static str {
         match self {
             SystemLibrary::Tc2System => "Tc2_System",
             SystemLibrary::Tc2Utilities => "Tc2_Utilities",
+            SystemLibrary::Tc2Standard => "Tc2_Standard",
             SystemLibrary::SysFile => "SysFile",
         }
     }

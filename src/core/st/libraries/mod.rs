@@ -1,11 +1,11 @@
 //! The system libraries plcd ships (`[st] system_libraries`, docs/ST.md "System libraries"):
-//! the declarations of TwinCAT's `Tc2_System` and `Tc2_Utilities` and of CODESYS's `SysFile`
-//! that public TwinCAT code calls, written in Structured Text and embedded in the binary as the
+//! the declarations of TwinCAT's `Tc2_System`, `Tc2_Utilities` and `Tc2_Standard` and of
+//! CODESYS's `SysFile` that public TwinCAT code calls, written in Structured Text and embedded in the binary as the
 //! prelude is.
 //!
 //! This folder owns those sources, one folder per library (`tc2_system/*.st`, …). Every line is
 //! plcd's own, written from the interface each vendor documents (Beckhoff Infosys, "TwinCAT 3
-//! PLC Lib: Tc2_System" and "Tc2_Utilities"; the CODESYS online help of `SysFile` and
+//! PLC Lib: Tc2_System", "Tc2_Utilities" and "Tc2_Standard"; the CODESYS online help of `SysFile` and
 //! `CmpErrors`); each file says which pages it follows.
 //!
 //! A library named in the config is compiled after the project's own files and before the
@@ -27,6 +27,7 @@ pub fn namespaces(library: SystemLibrary) -> &'static [&'static str] {
     match library {
         SystemLibrary::Tc2System => &["Tc2_System"],
         SystemLibrary::Tc2Utilities => &["Tc2_Utilities"],
+        SystemLibrary::Tc2Standard => &["Tc2_Standard"],
         SystemLibrary::SysFile => &["SysFile", "SysTypes", "SysDir", "CmpErrors"],
     }
 }
@@ -49,7 +50,11 @@ pub fn sources(library: SystemLibrary) -> &'static [Source] {
             ("<Tc2_Utilities>/strings.st", include_str!("tc2_utilities/strings.st")),
             ("<Tc2_Utilities>/ringbuffer.st", include_str!("tc2_utilities/ringbuffer.st")),
             ("<Tc2_Utilities>/hexstr.st", include_str!("tc2_utilities/hexstr.st")),
+            ("<Tc2_Utilities>/format.st", include_str!("tc2_utilities/format.st")),
         ],
+        SystemLibrary::Tc2Standard => {
+            &[("<Tc2_Standard>/wstring.st", include_str!("tc2_standard/wstring.st"))]
+        }
         SystemLibrary::SysFile => &[
             ("<SysFile>/Errors.st", include_str!("sysfile/Errors.st")),
             ("<SysFile>/sysfile.st", include_str!("sysfile/sysfile.st")),
