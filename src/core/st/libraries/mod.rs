@@ -45,12 +45,14 @@ pub fn sources(library: SystemLibrary) -> &'static [Source] {
             ),
             ("<Tc2_System>/task.st", include_str!("tc2_system/task.st")),
             ("<Tc2_System>/adslog.st", include_str!("tc2_system/adslog.st")),
+            ("<Tc2_System>/file.st", include_str!("tc2_system/file.st")),
         ],
         SystemLibrary::Tc2Utilities => &[
             ("<Tc2_Utilities>/strings.st", include_str!("tc2_utilities/strings.st")),
             ("<Tc2_Utilities>/ringbuffer.st", include_str!("tc2_utilities/ringbuffer.st")),
             ("<Tc2_Utilities>/hexstr.st", include_str!("tc2_utilities/hexstr.st")),
             ("<Tc2_Utilities>/format.st", include_str!("tc2_utilities/format.st")),
+            ("<Tc2_Utilities>/fmtstr.st", include_str!("tc2_utilities/fmtstr.st")),
         ],
         SystemLibrary::Tc2Standard => {
             &[("<Tc2_Standard>/wstring.st", include_str!("tc2_standard/wstring.st"))]
