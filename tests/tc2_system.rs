@@ -262,3 +262,25 @@ fn native_code_runs_the_libraries_as_the_interpreter_does() {
     assert_eq!(interpreted_messages, native_messages);
     assert_eq!(interpreted_messages.len(), 2 * 5, "20 scans, two messages every fourth");
 }
+
+#[test]
+fn nt_get_time_answers_at_once_from_the_real_time_clock() {
+    let config = "[plc]\nscan_period_ms = 500\n[sim]\nstart = \"2026-11-30-08:15:42\"\n\
+                  [st]\nsystem_libraries = [\"Tc2_Utilities\"]\n\
+                  [[program]]\nname = \"main\"\nfile = \"main.st\"\n";
+    let main = "PROGRAM Main
+VAR clock : NT_GetTime; n : INT; seen : DT; busy : BOOL; END_VAR
+    n := n + 1;
+    clock(NETID := '', START := n = 3);
+    busy := busy OR clock.BUSY;
+    seen := SYSTEMTIME_TO_DT(clock.TIMESTR);
+END_PROGRAM";
+    let project = project(config, &[("main.st", main)]);
+    let (engine, _) = sim(&project, &[], &[], 2_000 * MS);
+    // the third scan starts 1 s after the start: the clock reads 08:15:43 then, and holds it
+    let seen = value(&project, &engine, "main.seen", Elem::U32);
+    let ty = plcd::value::ValueType::Calendar(plcd::value::Calendar::Dt);
+    assert_eq!(plcd::value::format(&ty, seen), "DT#2026-11-30-08:15:43");
+    assert_eq!(value(&project, &engine, "main.busy", Elem::Bool), 0);
+    assert_eq!(value(&project, &engine, "main.clock.TIMESTR.wDayOfWeek", Elem::U16), 1, "Monday");
+}

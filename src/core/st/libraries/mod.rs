@@ -53,6 +53,7 @@ pub fn sources(library: SystemLibrary) -> &'static [Source] {
             ("<Tc2_Utilities>/hexstr.st", include_str!("tc2_utilities/hexstr.st")),
             ("<Tc2_Utilities>/format.st", include_str!("tc2_utilities/format.st")),
             ("<Tc2_Utilities>/fmtstr.st", include_str!("tc2_utilities/fmtstr.st")),
+            ("<Tc2_Utilities>/time.st", include_str!("tc2_utilities/time.st")),
         ],
         SystemLibrary::Tc2Standard => {
             &[("<Tc2_Standard>/wstring.st", include_str!("tc2_standard/wstring.st"))]
