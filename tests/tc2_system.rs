@@ -284,3 +284,116 @@ END_PROGRAM";
     assert_eq!(value(&project, &engine, "main.busy", Elem::Bool), 0);
     assert_eq!(value(&project, &engine, "main.clock.TIMESTR.wDayOfWeek", Elem::U16), 1, "Monday");
 }
+
+/// A test runner written the way TcUnit writes its own (github.com/tcunit/TcUnit, MIT; this is
+/// plcd's own code, not TcUnit's): assertions queue messages in an FB_MemRingBuffer, one
+/// message a cycle goes out through ADSLOGSTR, the duration comes from GETCPUCOUNTER, and the
+/// first cycle is found through GETCURTASKINDEX and `_TaskInfo`.
+const TCUNIT_STYLE: &str = "TYPE ST_Message : STRUCT mask : DWORD; format : T_MaxString; arg : T_MaxString; END_STRUCT END_TYPE
+
+FUNCTION_BLOCK FB_MessageQueue
+VAR
+    ring : FB_MemRingBuffer;
+    buffer : ARRAY [0..4095] OF BYTE;
+    message : ST_Message;
+END_VAR
+METHOD Add
+VAR_INPUT mask : DWORD; format : T_MaxString; arg : T_MaxString; END_VAR
+    message.mask := mask; message.format := format; message.arg := arg;
+    ring.A_AddTail(pWrite := ADR(message), cbWrite := SIZEOF(message), pBuffer := ADR(buffer),
+                   cbBuffer := SIZEOF(buffer));
+END_METHOD
+METHOD SendOne
+VAR out : ST_Message; END_VAR
+    IF ring.nCount > 0 THEN
+        ring.A_RemoveHead(pRead := ADR(out), cbRead := SIZEOF(out), pBuffer := ADR(buffer),
+                          cbBuffer := SIZEOF(buffer));
+        IF ring.bOk THEN
+            ADSLOGSTR(msgCtrlMask := out.mask, msgFmtStr := out.format, strArg := out.arg);
+        END_IF
+    END_IF
+END_METHOD
+END_FUNCTION_BLOCK
+
+FUNCTION_BLOCK FB_Suite
+VAR_INPUT name : T_MaxString; END_VAR
+VAR
+    queue : REFERENCE TO FB_MessageQueue;
+    tests : INT; failed : INT; finished : BOOL;
+    cpu : GETCPUCOUNTER; started : ULINT; duration : LREAL;
+END_VAR
+METHOD Bind
+VAR_IN_OUT q : FB_MessageQueue; END_VAR
+    queue REF= q;
+END_METHOD
+METHOD AssertEquals_DINT
+VAR_INPUT expected : DINT; actual : DINT; message : T_MaxString; END_VAR
+    tests := tests + 1;
+    IF expected <> actual THEN
+        failed := failed + 1;
+        queue.Add(ADSLOG_MSGTYPE_ERROR, CONCAT('FAILED TEST, EXP: ', CONCAT(DINT_TO_STRING(expected),
+            CONCAT(', ACT: ', CONCAT(DINT_TO_STRING(actual), ', MSG: %s')))), message);
+    END_IF
+END_METHOD
+METHOD Finish
+VAR summary : T_MaxString; END_VAR
+    IF finished THEN RETURN; END_IF
+    finished := TRUE;
+    cpu();
+    duration := ULINT_TO_LREAL(SHL(UDINT_TO_ULINT(cpu.cpuCntHiDW), 32) + UDINT_TO_ULINT(cpu.cpuCntLoDW) - started) / 1.0E7;
+    summary := CONCAT('| Test suite %s | Tests: ', CONCAT(INT_TO_STRING(tests),
+        CONCAT(' | Failed tests: ', CONCAT(INT_TO_STRING(failed), CONCAT(' | Duration: ',
+        LREAL_TO_FMTSTR(duration, 3, TRUE))))));
+    queue.Add(ADSLOG_MSGTYPE_HINT, summary, name);
+END_METHOD
+    IF started = 0 THEN
+        cpu();
+        started := SHL(UDINT_TO_ULINT(cpu.cpuCntHiDW), 32) + UDINT_TO_ULINT(cpu.cpuCntLoDW);
+    END_IF
+END_FUNCTION_BLOCK
+
+PROGRAM Main
+VAR
+    queue : FB_MessageQueue;
+    suite : FB_Suite := (name := 'Main.suite');
+    task : GETCURTASKINDEX;
+    cycle : UDINT;
+END_VAR
+    task();
+    cycle := TwinCAT_SystemInfoVarList._TaskInfo[task.index].CycleCount;
+    IF _TaskInfo[task.index].FirstCycle THEN
+        suite.Bind(queue);
+    END_IF
+    suite();
+    IF cycle = 1 THEN
+        suite.AssertEquals_DINT(expected := 4, actual := 2 + 2, message := 'adds');
+        suite.AssertEquals_DINT(expected := 5, actual := 2 + 2, message := 'adds wrongly');
+    ELSIF cycle = 3 THEN
+        suite.Finish();
+    END_IF
+    queue.SendOne();
+END_PROGRAM";
+
+#[test]
+fn a_tcunit_style_runner_reports_its_results_through_adslogstr() {
+    let config = "[plc]\nscan_period_ms = 10\n[st]\nsystem_libraries = [\"Tc2_Utilities\"]\n\
+                  [[program]]\nname = \"main\"\nfile = \"main.st\"\n";
+    for native in [false, true] {
+        let project = with_native(project(config, &[("main.st", TCUNIT_STYLE)]), native);
+        let mut messages = Messages::default();
+        let options = SimOptions { duration_ns: 100 * MS, step_ns: 1000 };
+        simulate(&project, &[], &[], options, &mut messages);
+        let texts: Vec<&str> = messages.lines.iter().map(|(_, l)| l.as_str()).collect();
+        // one message a cycle, in the order queued: the failed assertion in the first cycle,
+        // the summary queued in the third goes out in the third; the duration: 2 scans of
+        // 10 ms between the first cycle's reading and the third's
+        assert_eq!(
+            texts,
+            [
+                "0 error: FAILED TEST, EXP: 5, ACT: 4, MSG: adds wrongly",
+                "0 hint: | Test suite Main.suite | Tests: 2 | Failed tests: 1 | Duration: 0.020",
+            ],
+            "native: {native}"
+        );
+    }
+}
