@@ -2296,8 +2296,8 @@ impl<'a> Gen<'a, '_> {
             return false;
         };
         let c = match (opcode, self.constant(b)) {
-            (Opcode::Iadd, Some(c)) if c.abs() <= i64::from(u32::MAX) => c,
-            (Opcode::Isub, Some(c)) if c.abs() <= i64::from(u32::MAX) => -c,
+            (Opcode::Iadd, Some(c)) if c.unsigned_abs() <= u64::from(u32::MAX) => c,
+            (Opcode::Isub, Some(c)) if c.unsigned_abs() <= u64::from(u32::MAX) => -c,
             _ => return false,
         };
         inside(a, c)
