@@ -123,8 +123,12 @@ const MESSAGES: &[(&str, &str)] = &[
     ),
     ("a UNION's initial value gives one member only", "union-initial-two-members"),
     (
-        "`{}` holds a string whose terminating zero `{}` overlaps: a string in a UNION must end past every other member",
+        "`{}` holds a string whose terminating zero `{}` overlaps: a string inside an array or STRUCT member of a UNION must end past every other member",
         "union-string-end",
+    ),
+    (
+        "a string member of a UNION that another member overlaps cannot be passed to a VAR_IN_OUT: other members' bytes may leave it without its terminating zero; pass a copy",
+        "union-string-in-out",
     ),
     // jumps.rs: JMP and labels
     ("label `{}` is already declared at line {}", "jump-duplicate-label"),

@@ -399,6 +399,9 @@ impl<'c, 'a> Em<'c, 'a> {
                 }
             },
             TK::Var { .. } | TK::Member(..) | TK::Index(..) | TK::Deref(..) => {
+                if let Some((cap, wide)) = self.cx.open_union_string(e) {
+                    return self.bounded_string(e, cap, wide);
+                }
                 if e.ty.is_aggregate() {
                     self.addr(e);
                     return;
@@ -521,6 +524,22 @@ impl<'c, 'a> Em<'c, 'a> {
                 self.patch(end, here);
             }
         }
+    }
+
+    /// Pushes a pointer to a copy of the `cap` units of the string `e` (a UNION's member that
+    /// another member overlaps: `union::open_union_string`) ended by a zero unit of its own:
+    /// its value is its characters up to the first zero among them, or all `cap`, and nothing
+    /// past its bytes is ever read as its characters.
+    fn bounded_string(&mut self, e: &TExpr, cap: u32, wide: bool) {
+        let width = if wide { 2 } else { 1 };
+        let copy = self.alloc_tmp((cap + 1) * width);
+        self.op(Op::AddrOf(Place::Frame(copy)));
+        self.addr(e);
+        self.op(Op::Copy(cap * width));
+        self.op(Op::PushInt(0));
+        let unit = if wide { Elem::U16 } else { Elem::U8 };
+        self.op(Op::Store { elem: unit, at: Place::Frame(copy + cap * width) });
+        self.op(Op::AddrOf(Place::Frame(copy)));
     }
 
     /// `ran` (negated for a negated binding) into each `ENO => target`.

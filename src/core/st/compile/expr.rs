@@ -539,7 +539,11 @@ impl<'a> Ctx<'a> {
     ) -> TExpr {
         // a `REFERENCE TO` (a variable, a member, an element) stands for what it refers to
         let te = self.check_place_itself(e, scope, access, expected);
-        self.auto_deref(te)
+        let te = self.auto_deref(te);
+        if access == Access::Ref {
+            self.refuse_open_string_in_out(&te, scope.file);
+        }
+        te
     }
 
     /// [`Ctx::check_place`], a `REFERENCE TO` as itself.
@@ -1141,6 +1145,12 @@ impl<'a> Ctx<'a> {
             (Ty::RealLit, Ty::Prim(p)) if p.is_real() => {
                 let TK::Const(cv) = &te.k else { unreachable!() };
                 TExpr::konst(fold_conv(cv, Prim::LReal, *p), to.clone(), span)
+            }
+            // a UNION's overlapped string keeps its own capacity, which bounds its read (union.rs)
+            (Ty::Str(_), Ty::Str(_)) | (Ty::WStr(_), Ty::WStr(_))
+                if self.open_union_string(&te).is_some() =>
+            {
+                TExpr { k: TK::Conv(Box::new(te)), ty: to.clone(), span }
             }
             (Ty::Str(_), Ty::Str(_)) | (Ty::WStr(_), Ty::WStr(_)) => TExpr { ty: to.clone(), ..te },
             (Ty::Sub(a, _, _), _) | (Ty::Prim(a), _)

@@ -15,11 +15,17 @@
 //! (bound once, then used without a check of its own), alone or inside an array or struct
 //! member. Pointers (`POINTER TO`, `REF_TO`) are accepted: every access through one is checked
 //! at run time, whatever bytes made it.
+//!
+//! A `STRING` or `WSTRING` member may share the room for its terminating zero with another
+//! member (TcUnit's `U_ExpectedOrActual` holds a `STRING(255)` and a `WSTRING(255)`): what is
+//! read of it is bounded by its capacity ([`Ctx::open_union_string`], the emitter's bounded
+//! copy), and it is not passed to a VAR_IN_OUT, where it would be read as any string is.
 
 use crate::st::ast::{RefKind, TypeDecl, VarDecl};
 use crate::st::dialect::Habit;
 
 use super::ctx::{Ctx, Scope};
+use super::expr::{TExpr, TK};
 use super::types::{Member, StructTy, Ty};
 
 impl<'a> Ctx<'a> {
@@ -101,12 +107,16 @@ impl<'a> Ctx<'a> {
         Ty::Struct(index)
     }
 
-    /// Refuses a member holding a `STRING` or `WSTRING` whose room for its terminating zero
-    /// another member's bytes cover: the VM reads a string up to its first zero unit (as
-    /// CODESYS stores one), so a string whose last unit another member made nonzero would read
-    /// on past its end, into the variables after the union.
+    /// Refuses an array or STRUCT member holding a `STRING` or `WSTRING` whose room for its
+    /// terminating zero another member's bytes cover. A string member itself may be
+    /// overlapped: every read of it is bounded by its capacity ([`Ctx::open_union_string`]).
+    /// A string inside a member is not, as that member's value is copied whole, by its bytes,
+    /// into variables of its own type, whose strings are read up to their first zero unit.
     fn check_string_ends(&mut self, out: &[Member], members: &[VarDecl], file: usize) {
         for (i, m) in out.iter().enumerate() {
+            if m.ty.string_cap().is_some() {
+                continue;
+            }
             let Some(end) = self.first_string_end(&m.ty, 0) else { continue };
             let over =
                 out.iter().enumerate().find(|(j, o)| *j != i && self.types.size(&o.ty) > end);
@@ -117,11 +127,42 @@ impl<'a> Ctx<'a> {
                     .find(|id| id.is(&m.name))
                     .map_or_else(Default::default, |id| id.span);
                 let msg = format!(
-                    "`{}` holds a string whose terminating zero `{}` overlaps: a string in a UNION must end past every other member",
+                    "`{}` holds a string whose terminating zero `{}` overlaps: a string inside an array or STRUCT member of a UNION must end past every other member",
                     m.name, other.name
                 );
                 self.error(file, span, msg);
             }
+        }
+    }
+
+    /// When `e` is a `STRING[n]` or `WSTRING[n]` member of a UNION whose room for its
+    /// terminating zero the bytes of another member of a different type cover (so that no
+    /// zero may end its characters): `n` and whether it is a WSTRING. Such a string's value is
+    /// its characters up to the first zero among its `n`, or all `n`: the emitter reads it
+    /// through a bounded copy, never past its own bytes.
+    pub(super) fn open_union_string(&self, e: &TExpr) -> Option<(u32, bool)> {
+        let TK::Member(base, 0, _) = &e.k else { return None };
+        let Ty::Struct(s) = base.ty else { return None };
+        let union = &self.types.structs[s];
+        if !union.union {
+            return None;
+        }
+        let cap = e.ty.string_cap()?;
+        let end = if e.ty.is_wide() { 2 * cap } else { cap };
+        let overlapped = union.members.iter().any(|m| m.ty != e.ty && self.types.size(&m.ty) > end);
+        overlapped.then_some((cap, e.ty.is_wide()))
+    }
+
+    /// Refuses to pass an overlapped string member of a UNION ([`Ctx::open_union_string`])
+    /// to a VAR_IN_OUT: the callee would read it as any string, up to its first zero unit,
+    /// which may lie past the member.
+    pub(super) fn refuse_open_string_in_out(&mut self, e: &TExpr, file: usize) {
+        if self.open_union_string(e).is_some() {
+            self.error(
+                file,
+                e.span,
+                "a string member of a UNION that another member overlaps cannot be passed to a VAR_IN_OUT: other members' bytes may leave it without its terminating zero; pass a copy",
+            );
         }
     }
 
