@@ -172,6 +172,10 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` is {} ({}): its access path's type is {}, not `{}`", "access-path-device-type"),
     ("`{}` has no variable `{}`{}", "access-path-unknown-variable"),
     ("`{}` has no member `{}`{}", "access-path-no-member"),
+    (
+        "`{}` takes no subscript: in an access path, only an array variable does",
+        "access-path-subscript-not-variable",
+    ),
     ("`{}` is `{}`: it has no variables or members", "access-path-into-elementary"),
     ("`{}` is `{}`, not `{}`", "access-path-type-mismatch"),
     (

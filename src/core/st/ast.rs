@@ -163,6 +163,9 @@ pub struct AccessDecl {
     /// The path as written (`Res0.inst.fb.x`, `n`); a direct address is one part, its text
     /// from the `%` on (`%IX1.1`).
     pub path: Vec<Ident>,
+    /// The subscripts written after each part of `path`, one entry a part: its brackets'
+    /// expressions (`arr[3]`: `[[3]]`; `m[1, 2]`: `[[1, 2]]`; `a[1][2]`: `[[1], [2]]`).
+    pub subscripts: Vec<Vec<Vec<Expr>>>,
     pub ty: TypeRef,
     /// `READ_WRITE`; `READ_ONLY` (the default) is `false`.
     pub read_write: bool,

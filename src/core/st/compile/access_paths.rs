@@ -69,8 +69,14 @@ impl Ctx<'_> {
             };
             let first = &path[0];
             let target = if first.name.starts_with('%') {
+                if !self.unsubscripted(file, decl, decl.path.len()) {
+                    continue;
+                }
                 self.device_target(file, decl, first)
             } else if let Some(&(name, k)) = declared.iter().find(|(name, _)| first.is(name)) {
+                if !self.unsubscripted(file, decl, decl.path.len() - path.len() + 1) {
+                    continue;
+                }
                 // an instance of no PROGRAM has been reported
                 let Some((p, _)) = placed[k] else { continue };
                 if path.len() < 2 {
@@ -84,6 +90,9 @@ impl Ctx<'_> {
                 }
                 self.variable_target(file, decl, Start::Program { p, instance: name }, &path[1..])
             } else if self.global_names.contains_key(&first.name.to_ascii_lowercase()) {
+                if !self.unsubscripted(file, decl, decl.path.len() - path.len()) {
+                    continue;
+                }
                 self.variable_target(file, decl, Start::Global, path)
             } else {
                 let known = declared.iter().map(|(name, _)| *name);
@@ -145,7 +154,7 @@ impl Ctx<'_> {
                         first.name.name,
                         first.name.name,
                         instances[mine[0]].name,
-                        path_text(&first.path)
+                        path_text(first)
                     );
                     self.error(file, first.name.span, msg);
                 }
@@ -163,6 +172,14 @@ impl Ctx<'_> {
                     }
                     _ => &decl.path[..],
                 };
+                let prefix = if path[0].name.starts_with('%') {
+                    decl.path.len()
+                } else {
+                    decl.path.len() - path.len()
+                };
+                if !self.unsubscripted(file, decl, prefix) {
+                    continue;
+                }
                 let target = if path[0].name.starts_with('%') {
                     self.device_target(file, decl, &path[0])
                 } else {
@@ -276,6 +293,13 @@ impl Ctx<'_> {
         path: &[Ident],
     ) -> Option<String> {
         let first = &path[0];
+        // subscripts are constants: of the PROGRAM, or global ones
+        let scope = match start {
+            Start::Program { p, .. } => {
+                Scope { pou: Some(p), visible: self.pous[p].vars.len(), file }
+            }
+            Start::Global => Scope { pou: None, visible: 0, file },
+        };
         let (var, prefix) = match start {
             Start::Program { p, instance } => {
                 let pou = &self.pous[p];
@@ -302,9 +326,15 @@ impl Ctx<'_> {
                 (self.globals[g].clone(), String::new())
             }
         };
-        let mut ty = var.ty.clone();
-        let mut name = format!("{prefix}{}", var.name);
-        for id in &path[1..] {
+        // the subscripts of `path`'s parts, `decl.path` ending with it
+        let subscripts = &decl.subscripts[decl.path.len() - path.len()..];
+        let (mut ty, mut name) = self.subscripted(
+            scope,
+            &subscripts[0],
+            var.ty.clone(),
+            format!("{prefix}{}", var.name),
+        )?;
+        for (id, groups) in path[1..].iter().zip(&subscripts[1..]) {
             let (member_ty, member_name) = match &ty {
                 Ty::Fb(q) => {
                     let fb = &self.pous[*q];
@@ -336,8 +366,8 @@ impl Ctx<'_> {
                     return None;
                 }
             };
-            ty = member_ty;
-            name = format!("{name}.{member_name}");
+            (ty, name) =
+                self.subscripted(scope, groups, member_ty, format!("{name}.{member_name}"))?;
         }
         let given = self.resolve_type_ref(&decl.ty, Scope { pou: None, visible: 0, file });
         if given.is_error() || ty.is_error() {
@@ -345,11 +375,76 @@ impl Ctx<'_> {
         }
         if given != ty {
             let (given, declared) = (self.ty_name(&given), self.ty_name(&ty));
-            let msg = format!("`{}` is `{declared}`, not `{given}`", path_text(&decl.path));
+            let msg = format!("`{}` is `{declared}`, not `{given}`", path_text(decl));
             self.error(file, path[path.len() - 1].span, msg);
             return None;
         }
         Some(name)
+    }
+
+    /// The element of the variable `name` of type `ty` that the subscripts written after its
+    /// part of the path name (`arr[3]`, `m[1, 2]`, `a[1][2]`), and its name as clients give it
+    /// (`main.m[1,2]`): each subscript a constant within its dimension's bounds.
+    fn subscripted(
+        &mut self,
+        scope: Scope,
+        groups: &[Vec<ast::Expr>],
+        ty: Ty,
+        name: String,
+    ) -> Option<(Ty, String)> {
+        let file = scope.file;
+        let (mut ty, mut name) = (ty, name);
+        for group in groups {
+            let span = group[0].span;
+            let Ty::Array(a) = &ty else {
+                let n = self.ty_name(&ty);
+                self.error(file, span, format!("`{name}` is `{n}`, not an array"));
+                return None;
+            };
+            if a.dims.len() != group.len() {
+                let msg = format!(
+                    "`{name}` has {} dimension(s), {} index(es) given",
+                    a.dims.len(),
+                    group.len()
+                );
+                self.error(file, span, msg);
+                return None;
+            }
+            let mut indexes = Vec::new();
+            for (e, &(lo, hi)) in group.iter().zip(&a.dims) {
+                let v = self.const_int(e, scope)?;
+                if v < i128::from(lo) || v > i128::from(hi) {
+                    self.error(
+                        file,
+                        e.span,
+                        format!("index {v} is out of the bounds `{lo}..{hi}`"),
+                    );
+                    return None;
+                }
+                indexes.push(v.to_string());
+            }
+            name = format!("{name}[{}]", indexes.join(","));
+            ty = a.of.clone();
+        }
+        Some((ty, name))
+    }
+
+    /// Reports subscripts written after one of the first `parts` parts of the path of `decl`
+    /// (a resource, a program instance, the PROGRAM's own name, a direct address): only a
+    /// variable is an array. Whether there were none.
+    fn unsubscripted(&mut self, file: usize, decl: &AccessDecl, parts: usize) -> bool {
+        let mut none = true;
+        for (id, groups) in decl.path.iter().zip(&decl.subscripts).take(parts) {
+            if let Some(group) = groups.first() {
+                let msg = format!(
+                    "`{}` takes no subscript: in an access path, only an array variable does",
+                    id.name
+                );
+                self.error(file, group[0].span, msg);
+                none = false;
+            }
+        }
+        none
     }
 
     /// Whether a variable of this kind lives in its instance's memory (not a VAR_TEMP, a
@@ -372,7 +467,10 @@ impl Ctx<'_> {
     }
 }
 
-/// A path as written (`i.fb.x`).
-fn path_text(path: &[Ident]) -> String {
-    path.iter().map(|id| id.name.as_str()).collect::<Vec<_>>().join(".")
+/// A path as written (`i.fb.x`; `i.arr[…]`, as messages write an element).
+fn path_text(decl: &AccessDecl) -> String {
+    let part = |(id, groups): (&Ident, &Vec<Vec<ast::Expr>>)| {
+        format!("{}{}", id.name, "[…]".repeat(groups.len()))
+    };
+    decl.path.iter().zip(&decl.subscripts).map(part).collect::<Vec<_>>().join(".")
 }

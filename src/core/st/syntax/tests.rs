@@ -1696,6 +1696,7 @@ fn var_access_in_a_configuration_and_a_program() {
                 VAR_ACCESS\n\
                   ABLE : STATION_1.%IX1.1 : BOOL READ_ONLY;\n\
                   BAKER : STATION_1.P1.x : UINT READ_WRITE;\n\
+                  CORNER : P1.m[2, -1].pos[0][1] : INT;\n\
                 END_VAR\n\
                 END_CONFIGURATION\n";
     let items = parse_ok(text);
@@ -1708,8 +1709,13 @@ fn var_access_in_a_configuration_and_a_program() {
     assert!(!main.access[0].read_write && !main.access[1].read_write, "READ_ONLY by default");
     assert_eq!(main.body.len(), 1);
     let Item::Configuration(c) = &items[1] else { panic!("{items:?}") };
-    assert_eq!(c.access.len(), 2);
+    assert_eq!(c.access.len(), 3);
     assert_eq!(path(&c.access[0]), ["STATION_1", "%IX1.1"]);
     assert_eq!(path(&c.access[1]), ["STATION_1", "P1", "x"]);
     assert!(c.access[1].read_write);
+    // subscripts: per part, each bracket's expressions
+    assert_eq!(path(&c.access[2]), ["P1", "m", "pos"]);
+    let counts: Vec<Vec<usize>> =
+        c.access[2].subscripts.iter().map(|g| g.iter().map(Vec::len).collect()).collect();
+    assert_eq!(counts, [vec![], vec![2], vec![1, 1]]);
 }

@@ -5,7 +5,7 @@
 use super::super::lex::{Tok, P};
 use super::super::{Closer, Want};
 use super::{PResult, Parser};
-use crate::st::ast::{AccessDecl, Ident};
+use crate::st::ast::{AccessDecl, Expr, Ident};
 
 impl Parser<'_> {
     /// A `VAR_ACCESS` block, at its keyword: its entries.
@@ -29,8 +29,10 @@ impl Parser<'_> {
         let name = self.ident()?;
         self.expect_p(P::Colon, Want::Colon)?;
         let mut path = vec![self.access_path_part()?];
+        let mut subscripts = vec![self.access_subscripts()?];
         while self.eat_p(P::Dot) {
             path.push(self.access_path_part()?);
+            subscripts.push(self.access_subscripts()?);
         }
         self.expect_p(P::Colon, Want::Colon)?;
         let ty = self.type_ref()?;
@@ -42,7 +44,22 @@ impl Parser<'_> {
             self.bump();
         }
         self.end_decl(Want::SemiAfterDecl);
-        Ok(AccessDecl { name, path, ty, read_write, span })
+        Ok(AccessDecl { name, path, subscripts, ty, read_write, span })
+    }
+
+    /// The subscripts after a part of an access path (`arr[3]`, `m[1, 2]`, `a[1][2]`): each
+    /// bracket's expressions, constants the compiler evaluates.
+    fn access_subscripts(&mut self) -> PResult<Vec<Vec<Expr>>> {
+        let mut groups = Vec::new();
+        while self.eat_p(P::LBracket) {
+            let mut index = vec![self.expr()?];
+            while self.eat_p(P::Comma) {
+                index.push(self.expr()?);
+            }
+            self.expect_p(P::RBracket, Want::CommaOrRBracket)?;
+            groups.push(index);
+        }
+        Ok(groups)
     }
 
     /// A part of an access path: a name, or a direct address (`%IX1.1`, kept with its `%`).
