@@ -1071,3 +1071,31 @@ END_PROGRAM",
     );
     assert_eq!(lines.len(), 3, "{e}");
 }
+
+/// An enumeration's constant as the label of a CASE on a narrower integer (TcUnit's
+/// F_AnyTypeClassToString: `CASE UDINT_TO_INT(AnyTypeClass) OF IBaseLibrary.TypeClass.TYPE_BOOL:
+/// …`) converts without a word when its own value fits: only `TYPE_INTERFACE` (16#F000, more than
+/// an INT holds) warns, though it makes the enumeration as a whole wider than an INT.
+#[test]
+fn an_enumeration_label_warns_only_when_its_own_value_does_not_fit() {
+    let src = "FUNCTION Named : STRING
+VAR_INPUT tc : __SYSTEM.TYPE_CLASS; END_VAR
+CASE UDINT_TO_INT(tc) OF
+    IBaseLibrary.TypeClass.TYPE_BOOL : Named := 'BOOL';
+    IBaseLibrary.TypeClass.TYPE_LTIMEOFDAY : Named := 'LTOD';
+    IBaseLibrary.TypeClass.TYPE_INTERFACE : Named := 'INTERFACE';
+END_CASE
+END_FUNCTION
+PROGRAM main
+VAR s : STRING; END_VAR
+s := Named(__SYSTEM.TYPE_CLASS.TYPE_BOOL);
+END_PROGRAM
+";
+    let compiled = try_build_with(src, None, Dialect::default()).expect("compiles");
+    let warnings: Vec<String> = compiled.warnings.iter().map(|w| w.to_string()).collect();
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(
+        warnings[0].starts_with("main.st:6:5: warning: `DINT` converted implicitly"),
+        "{warnings:?}"
+    );
+}

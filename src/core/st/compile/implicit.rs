@@ -69,8 +69,8 @@ impl Ctx<'_> {
     /// An enumeration's value where an integer or a bit string is wanted (`i := eState`, as
     /// CODESYS): its number, of the enumeration's base type. Converted without a warning when
     /// `to` holds every value of the enumeration (an enumeration without a declared base is a
-    /// DINT in plcd, an INT in CODESYS: `i := eState` into an INT is no loss either way), else
-    /// as its base type would be. `None` when `te` is no enumeration's value or `to` no
+    /// DINT in plcd, an INT in CODESYS: `i := eState` into an INT is no loss either way), or,
+    /// for a constant value, when `to` holds that value; else as its base type would be. `None` when `te` is no enumeration's value or `to` no
     /// integer.
     pub(super) fn enum_as_integer(&mut self, te: TExpr, to: &Ty, file: usize) -> Option<TExpr> {
         let Ty::Enum(e) = te.ty else { return None };
@@ -80,7 +80,12 @@ impl Ctx<'_> {
         let (lo, hi) = target.range().expect("an integer type");
         let enumeration = &self.types.enums[e];
         let base = enumeration.base;
-        let fits = enumeration.values.iter().all(|(_, v)| (lo..=hi).contains(v));
+        // a constant (a CASE label, `i := E.x`) by its own value: TYPE_INTERFACE's 16#F000
+        // makes no other value of `__SYSTEM.TYPE_CLASS` lossy as an INT label
+        let fits = match te.const_int() {
+            Some(v) => (lo..=hi).contains(&v),
+            None => enumeration.values.iter().all(|(_, v)| (lo..=hi).contains(v)),
+        };
         let te = TExpr { ty: Ty::Prim(base), ..te };
         Some(if fits { self.conv(te, target, to.clone()) } else { self.coerce(te, to, file) })
     }
