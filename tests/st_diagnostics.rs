@@ -451,6 +451,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` is FINAL: it cannot be extended", "extends-a-final-block"),
     ("`{}` is not a FUNCTION_BLOCK: EXTENDS names the function block to extend", "extends-no-function-block"),
     ("`{}` is not an INTERFACE", "implements-no-interface"),
+    ("no INTERFACE `{}` is declared{}", "implements-undeclared-interface"),
     ("`{}` extends itself through its bases", "extends-itself"),
     ("`{}` is used only inside a FUNCTION_BLOCK, its methods and actions", "this-outside-a-function-block"),
     ("`SUPER` needs a base: `{}` EXTENDS no function block", "super-without-extends"),

@@ -302,10 +302,7 @@ impl<'a> Ctx<'a> {
                 }
                 match self.oop.interface_names.get(&itf.name.to_ascii_lowercase()).copied() {
                     Some(i) => self.oop.implements.entry(p).or_default().push((i, itf.span)),
-                    None => {
-                        let msg = format!("`{}` is not an INTERFACE", itf.name);
-                        self.error(file, itf.span, msg);
-                    }
+                    None => self.not_an_interface(file, itf),
                 }
             }
         }
@@ -341,7 +338,10 @@ impl<'a> Ctx<'a> {
                 }
                 match self.oop.interface_names.get(&e.name.to_ascii_lowercase()).copied() {
                     Some(j) if j != i => extends.push(j),
-                    _ => self.error(file, e.span, format!("`{}` is not an INTERFACE", e.name)),
+                    Some(_) => {
+                        self.error(file, e.span, format!("`{}` is not an INTERFACE", e.name))
+                    }
+                    None => self.not_an_interface(file, e),
                 }
             }
             self.oop.interfaces[i].extends = extends;
@@ -1204,5 +1204,24 @@ impl<'a> Ctx<'a> {
             return Some(None);
         }
         Some(Some(TS::Eval(call)))
+    }
+}
+
+impl Ctx<'_> {
+    /// Reports that `id`, named by IMPLEMENTS or an interface's EXTENDS, is no interface: a
+    /// POU or a type declared under that name, or nothing declared at all (a library file
+    /// left out of `[st] library`, as often), with the closest interface's name.
+    fn not_an_interface(&mut self, file: usize, id: &ast::Ident) {
+        let key = id.name.to_ascii_lowercase();
+        if self.pou_names.contains_key(&key) || self.type_names.contains_key(&key) {
+            self.error(file, id.span, format!("`{}` is not an INTERFACE", id.name));
+            return;
+        }
+        let hint = super::ctx::suggest(
+            &id.name,
+            self.oop.interfaces.iter().map(|i| i.ast.name.name.as_str()),
+        );
+        let msg = format!("no INTERFACE `{}` is declared{hint}", id.name);
+        self.error(file, id.span, msg);
     }
 }
