@@ -1386,6 +1386,18 @@ impl<'a> Ctx<'a> {
                 let t = a.ty.clone();
                 Some((a, b, t))
             }
+            // an enumeration's value beside an integer (`UDINT_TO_INT(tc) = E.x`): its number,
+            // CODESYS's habit (`implicit::enum_as_integer`)
+            (Ty::Enum(_), y) if self.plain_integer(y) => {
+                let ty = base_ty(y, &self.types);
+                let a = self.enum_as_integer(a, &ty, file)?;
+                Some((a, TExpr { ty: ty.clone(), ..b }, ty))
+            }
+            (x, Ty::Enum(_)) if self.plain_integer(x) => {
+                let ty = base_ty(x, &self.types);
+                let b = self.enum_as_integer(b, &ty, file)?;
+                Some((TExpr { ty: ty.clone(), ..a }, b, ty))
+            }
             (Ty::Str(_), Ty::Str(_)) | (Ty::WStr(_), Ty::WStr(_)) => {
                 let t = a.ty.clone();
                 Some((a, b, t))

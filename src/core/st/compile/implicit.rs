@@ -91,6 +91,14 @@ impl Ctx<'_> {
     }
 }
 
+impl Ctx<'_> {
+    /// Whether `ty` is an integer or bit string type that is no enumeration (what an
+    /// enumeration's value converts to beside it).
+    pub(super) fn plain_integer(&self, ty: &Ty) -> bool {
+        !matches!(ty, Ty::Enum(_)) && ty.prim(&self.types).is_some_and(|p| p.is_integral())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
