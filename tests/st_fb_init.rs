@@ -13,7 +13,7 @@ use plcd::engine::ModeRequest;
 use plcd::project::Project;
 use plcd::value::{Elem, ValueType};
 
-use harness::engine::{project, Plc, MS};
+use harness::engine::{project, with_native, Plc, MS};
 
 const CONFIG: &str = "[[program]]\nname = \"main\"\nfile = \"main.st\"\n";
 
@@ -273,20 +273,6 @@ END_METHOD",
     run_scans(&mut plc, MS);
     assert_eq!(var(&plc, &changed, "main.d.kept"), 8, "the new code runs");
     assert_eq!(var(&plc, &changed, "main.d.seen"), 75, "FB_reinit once");
-}
-
-/// `project` with native code attached to its programs (plcd-native), or as it is (also
-/// when plcd is built without its `native` feature).
-fn with_native(project: Project, native: bool) -> Project {
-    #[cfg(feature = "native")]
-    if native {
-        let mut project = project;
-        let errors = plcd_native::attach(&mut project);
-        assert!(errors.is_empty(), "native code: {errors:?}");
-        return project;
-    }
-    let _ = native;
-    project
 }
 
 #[test]

@@ -5,7 +5,7 @@
 
 mod harness;
 
-use harness::engine::{project, sim, MS};
+use harness::engine::{project, sim, with_native, MS};
 use plcd::drivers::virtual_time::{simulate, SimOptions};
 use plcd::engine::event::{message_kind, Event, EventSink, TaskId};
 use plcd::engine::Engine;
@@ -156,19 +156,6 @@ fn messages_reach_the_sink_at_the_end_of_the_run_at_most_32_a_run() {
     assert_eq!(texts.len(), 4 + 32 + 1);
     // each run's messages come at its end, after the scan's start
     assert!(messages.lines[4].0 >= 10 * MS && messages.lines[4].0 < 20 * MS);
-}
-
-/// `project` with native code attached to its programs (plcd-native), or as it is.
-fn with_native(project: Project, native: bool) -> Project {
-    #[cfg(feature = "native")]
-    if native {
-        let mut project = project;
-        let errors = plcd_native::attach(&mut project);
-        assert!(errors.is_empty(), "native code: {errors:?}");
-        return project;
-    }
-    let _ = native;
-    project
 }
 
 /// Every function and block of the libraries, with values that change from scan to scan.

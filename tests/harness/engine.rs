@@ -38,6 +38,20 @@ pub fn project_of(config: Config, programs: &[(&str, &str)]) -> Project {
     })
 }
 
+/// `project` with native code attached to its programs (plcd-native), or as it is (also
+/// when plcd is built without its `native` feature).
+pub fn with_native(project: Project, native: bool) -> Project {
+    #[cfg(feature = "native")]
+    if native {
+        let mut project = project;
+        let errors = plcd_native::attach(&mut project);
+        assert!(errors.is_empty(), "native code: {errors:?}");
+        return project;
+    }
+    let _ = native;
+    project
+}
+
 /// A project from a config text and its programs' texts by file name.
 pub fn project(config_text: &str, programs: &[(&str, &str)]) -> Project {
     project_of(config(config_text), programs)

@@ -235,25 +235,16 @@ fn take_from_block(
     }
     for d in &mut b.decls {
         let Some(init) = d.init.as_ref().filter(|i| takes_ref(i)) else { continue };
-        if b.constant {
+        let refused = if b.constant {
+            Some("a CONSTANT's initial value cannot be a reference (`REF`, `ADR`): a constant is a constant expression, and a place is known only when the program runs; declare the reference in VAR")
+        } else if matches!(kind, VarKind::Input | VarKind::InOut) {
+            Some("an input's initial value cannot be a reference (`REF`, `ADR`): the caller gives it; declare the variable in VAR and set it there")
+        } else {
+            None
+        };
+        if let Some(message) = refused {
             let at = init_span(init).unwrap_or(d.span);
-            diags.push(Diagnostic::new(
-                path,
-                at.line,
-                at.col,
-                "a CONSTANT's initial value cannot be a reference (`REF`, `ADR`): a constant is a constant expression, and a place is known only when the program runs; declare the reference in VAR",
-            ));
-            d.init = None;
-            continue;
-        }
-        if matches!(kind, VarKind::Input | VarKind::InOut) {
-            let at = init_span(init).unwrap_or(d.span);
-            diags.push(Diagnostic::new(
-                path,
-                at.line,
-                at.col,
-                "an input's initial value cannot be a reference (`REF`, `ADR`): the caller gives it; declare the variable in VAR and set it there",
-            ));
+            diags.push(Diagnostic::new(path, at.line, at.col, message));
             d.init = None;
             continue;
         }
