@@ -100,6 +100,25 @@ fn nothing_points_outside_the_repository() {
     );
 }
 
+/// A merge's conflict left in a file (`<<<<<<< HEAD` … `>>>>>>> commit`) reads as text in a
+/// page and compiles nowhere else: none may be committed (one stood in docs/ST.md for a day).
+#[test]
+fn no_merge_conflict_is_left_in_a_file() {
+    // Built from pieces, so that this file does not hold them itself.
+    let markers = [concat!("<<<<<<", "< "), concat!(">>>>>>", "> ")];
+    let mut found = Vec::new();
+    for file in repository_files() {
+        let Ok(bytes) = std::fs::read(root().join(&file)) else { continue };
+        let text = String::from_utf8_lossy(&bytes);
+        for (index, line) in text.lines().enumerate() {
+            if markers.iter().any(|m| line.starts_with(m)) {
+                found.push(format!("{}:{}: {line}", file.display(), index + 1));
+            }
+        }
+    }
+    assert!(found.is_empty(), "merge conflicts left in:\n{}", found.join("\n"));
+}
+
 /// The fenced blocks of `lang` in `text`: (line of the opening fence, content).
 fn fenced_blocks(text: &str, lang: &str) -> Vec<(usize, String)> {
     let mut blocks = Vec::new();
