@@ -319,7 +319,6 @@ const MESSAGES: &[(&str, &str)] = &[
     ("a function block call is a statement, not a value", "fb-call-as-value"),
     ("`{}` is not a function or a function block instance", "not-callable"),
     ("the call of `{}` mixes positional and named arguments", "mixed-arguments"),
-    ("the call of `{}` gives a positional argument after a named one", "positional-after-named"),
     ("too many arguments for `{}` (it takes {})", "too-many-arguments"),
     ("`{}` is an output of `{}`: use `=>`", "output-with-assign"),
     ("`{}` is not a parameter of `{}`", "not-a-parameter"),

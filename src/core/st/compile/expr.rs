@@ -1881,8 +1881,8 @@ impl<'a> Ctx<'a> {
         let mut out_args = Vec::new();
         let mut outs = Vec::new();
         let mut en: Option<Box<TExpr>> = None;
-        let mut pos = 0usize;
-        for arg in args {
+        // A positional argument binds by its place in the list (mixed_args.rs).
+        for (pos, arg) in args.iter().enumerate() {
             let (vi, value) = match arg {
                 // The standard's EN, implicit: a condition of the call, not stored.
                 Arg::Input { name: pn, value } if pn.is("EN") && self.pous[p].en.is_none() => {
@@ -1912,7 +1912,6 @@ impl<'a> Ctx<'a> {
                         );
                         return None;
                     };
-                    pos += 1;
                     (vi, e)
                 }
                 Arg::Input { name: pn, value } => {
