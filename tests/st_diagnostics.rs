@@ -605,6 +605,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "strict-positional-then-named",
     ),
     (
+        "IEC 61131-3 converts no integer to an enumeration: give one of `__SYSTEM.TYPE_CLASS`'s values (`[st] strict` is on)",
+        "strict-integer-to-type-class",
+    ),
+    (
         "`{}` is CODESYS's name of this input: IEC 61131-3 names it `{}` (`[st] strict` is on)",
         "strict-codesys-parameter",
     ),

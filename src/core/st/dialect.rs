@@ -98,6 +98,9 @@ pub enum Habit {
     LossyConversion { from: &'static str, to: &'static str },
     /// An enumeration's value where an integer is wanted (`i := eState`): its number.
     EnumToInteger,
+    /// An integer where CODESYS's type class is wanted (`ExpectedTypeClass :=
+    /// UDINT_TO_INT(Expected.TypeClass)`, TcUnit): its number (`compile::type_class_int`).
+    IntegerToTypeClass,
     /// The FOR variable written in the loop's body: the loop goes on from the value written
     /// (`compile::for_written`).
     ForVariableWritten,
@@ -165,6 +168,7 @@ impl Habit {
             Habit::ImplicitConversion => "IEC 61131-3 converts between bit strings and integers only explicitly: `BYTE_TO_INT(b)` (`[st] strict` is on)".to_string(),
             Habit::LossyConversion { from, to } => format!("IEC 61131-3 converts `{from}` to `{to}` only explicitly, as the value may change: `{from}_TO_{to}(…)` (`[st] strict` is on)"),
             Habit::EnumToInteger => "IEC 61131-3 gives an enumeration's value no number to convert to: test the value, `CASE e OF E#A: i := 0; …` (`[st] strict` is on)".to_string(),
+            Habit::IntegerToTypeClass => "IEC 61131-3 converts no integer to an enumeration: give one of `__SYSTEM.TYPE_CLASS`'s values (`[st] strict` is on)".to_string(),
             Habit::ForVariableWritten => "IEC 61131-3 forbids writing the FOR variable in the loop: count with a WHILE loop and a variable of its own (`[st] strict` is on)".to_string(),
             Habit::ForElement => "IEC 61131-3 counts in a variable named alone, not in an element or a member: count in a local variable and copy it (`[st] strict` is on)".to_string(),
             Habit::AssignExpr => "IEC 61131-3 assigns in a statement only, not inside an expression: assign first, then use the variable, `b := FALSE; a := b;` (`[st] strict` is on)".to_string(),

@@ -1076,6 +1076,9 @@ impl<'a> Ctx<'a> {
         if &te.ty == to {
             return te;
         }
+        if let Some(number) = self.integer_as_type_class(&te, to, file) {
+            return number;
+        }
         if matches!(to, Ty::Iface(_)) || matches!(te.ty, Ty::Iface(_)) {
             return self.as_interface(te, to, file);
         }
@@ -1497,6 +1500,7 @@ impl<'a> Ctx<'a> {
             let b = self.conv(b, t, Ty::Prim(t));
             return self.make_bin(bop, a, b, Ty::Prim(t), span, file);
         }
+        let (a, b) = self.enum_compared_with_integer(op, a, b, file);
         let Some((a, b, ty)) = self.unify(a, b, what, span, file) else {
             return TExpr::error(span);
         };

@@ -39,7 +39,7 @@ fn category(name: &str) -> Option<&'static str> {
 }
 
 /// The prelude's name of CODESYS's type classes' enumeration.
-const TYPE_CLASS: &str = "__SYSTEM_TYPE_CLASS";
+pub(super) const TYPE_CLASS: &str = "__SYSTEM_TYPE_CLASS";
 
 /// The prelude's type a dotted name of CODESYS's stands for, as a declaration's type or before
 /// a value: `__SYSTEM.TYPE_CLASS` and its alias of the CODESYS Base Interfaces library,

@@ -90,6 +90,7 @@ mod short_circuit;
 mod stdlib;
 mod stmt;
 mod trunc;
+mod type_class_int;
 pub mod types;
 mod union;
 mod var_config;
