@@ -605,6 +605,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "strict-positional-then-named",
     ),
     (
+        "IEC 61131-3 calls no CONSTANT function block instance, as a call writes it: pass it as a plain VAR_IN_OUT (`[st] strict` is on)",
+        "strict-constant-instance-called",
+    ),
+    (
         "IEC 61131-3 converts no integer to an enumeration: give one of `__SYSTEM.TYPE_CLASS`'s values (`[st] strict` is on)",
         "strict-integer-to-type-class",
     ),

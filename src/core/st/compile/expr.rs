@@ -1839,7 +1839,8 @@ impl<'a> Ctx<'a> {
         scope: Scope,
     ) -> Option<(TExpr, CallT)> {
         let file = scope.file;
-        let inst = self.check_place(callee, scope, Access::Ref, None);
+        let access = self.called_instance_access(callee, scope);
+        let inst = self.check_place(callee, scope, access, None);
         match inst.ty {
             Ty::Error => None,
             Ty::Fb(p) => {

@@ -57,6 +57,7 @@ mod bit;
 mod calendar;
 mod class;
 mod codesys;
+mod constant_instance;
 mod ctx;
 mod decl;
 mod emit;
