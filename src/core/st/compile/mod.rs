@@ -73,6 +73,7 @@ mod heap;
 mod implicit;
 mod inout;
 mod instance_args;
+mod instance_init;
 mod jumps;
 mod libraries;
 mod lifecycle;
@@ -199,6 +200,7 @@ pub fn compile_in_namespaces(
     let lowered = method_vars::lower(lowered);
     let lowered = ref_init::lower(lowered, &mut diags);
     let lowered = fb_exit::finish_program_temps(lowered);
+    let lowered = instance_init::lower(lowered);
     let lowered = fb_init::lower(lowered, &mut diags);
     let lowered = fb_exit::lower(lowered, &mut diags);
     let lowered = heap::lower(lowered, dialect.heap_bytes, &mut diags);
