@@ -1500,7 +1500,6 @@ impl<'a> Ctx<'a> {
             let b = self.conv(b, t, Ty::Prim(t));
             return self.make_bin(bop, a, b, Ty::Prim(t), span, file);
         }
-        let (a, b) = self.enum_compared_with_integer(op, a, b, file);
         let Some((a, b, ty)) = self.unify(a, b, what, span, file) else {
             return TExpr::error(span);
         };
