@@ -609,6 +609,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "strict-constant-instance-called",
     ),
     (
+        "an initial value is a constant expression in IEC 61131-3, and an instance's place is none: assign the instance in the block's code or in FB_init (`[st] strict` is on)",
+        "strict-instance-initial-value",
+    ),
+    (
         "IEC 61131-3 converts no integer to an enumeration: give one of `__SYSTEM.TYPE_CLASS`'s values (`[st] strict` is on)",
         "strict-integer-to-type-class",
     ),

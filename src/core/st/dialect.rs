@@ -104,6 +104,10 @@ pub enum Habit {
     /// A function block instance passed as `VAR_IN_OUT CONSTANT` called (`CpuCounter();`,
     /// TcUnit): the call writes the caller's instance (`compile::constant_instance`).
     ConstantInstanceCalled,
+    /// A FUNCTION_BLOCK's variable of a declared type (an interface) initialised with an
+    /// instance the block declares before (`Logger : I_Logger := fbLogger;`, TcUnit): set at
+    /// the start of the block's `FB_init` (`compile::instance_init`).
+    InstanceInitialValue,
     /// The FOR variable written in the loop's body: the loop goes on from the value written
     /// (`compile::for_written`).
     ForVariableWritten,
@@ -172,6 +176,7 @@ impl Habit {
             Habit::LossyConversion { from, to } => format!("IEC 61131-3 converts `{from}` to `{to}` only explicitly, as the value may change: `{from}_TO_{to}(…)` (`[st] strict` is on)"),
             Habit::EnumToInteger => "IEC 61131-3 gives an enumeration's value no number to convert to: test the value, `CASE e OF E#A: i := 0; …` (`[st] strict` is on)".to_string(),
             Habit::IntegerToTypeClass => "IEC 61131-3 converts no integer to an enumeration: give one of `__SYSTEM.TYPE_CLASS`'s values (`[st] strict` is on)".to_string(),
+            Habit::InstanceInitialValue => "an initial value is a constant expression in IEC 61131-3, and an instance's place is none: assign the instance in the block's code or in FB_init (`[st] strict` is on)".to_string(),
             Habit::ConstantInstanceCalled => "IEC 61131-3 calls no CONSTANT function block instance, as a call writes it: pass it as a plain VAR_IN_OUT (`[st] strict` is on)".to_string(),
             Habit::ForVariableWritten => "IEC 61131-3 forbids writing the FOR variable in the loop: count with a WHILE loop and a variable of its own (`[st] strict` is on)".to_string(),
             Habit::ForElement => "IEC 61131-3 counts in a variable named alone, not in an element or a member: count in a local variable and copy it (`[st] strict` is on)".to_string(),

@@ -21,19 +21,24 @@ use super::fb_init::is_fb_init;
 use super::lifecycle::{block, bool_decl, hidden_pou, name, stmt};
 use super::types::Prim;
 
-pub(super) fn lower(mut files: Vec<Cow<'_, ast::File>>) -> Vec<Cow<'_, ast::File>> {
-    for file in files.iter_mut() {
+/// The lowered files, and where each value taken was (file index, span): a habit
+/// (CODESYS's), which `[st] strict` refuses.
+pub(super) fn lower(
+    mut files: Vec<Cow<'_, ast::File>>,
+) -> (Vec<Cow<'_, ast::File>>, Vec<(usize, ast::Span)>) {
+    let mut taken = Vec::new();
+    for (index, file) in files.iter_mut().enumerate() {
         let wanted = file.items.iter().any(|i| matches!(i, Item::Pou(p) if !takes(p).is_empty()));
         if !wanted {
             continue;
         }
         for item in file.to_mut().items.iter_mut() {
             if let Item::Pou(p) = item {
-                lower_block(p);
+                taken.extend(lower_block(p).into_iter().map(|span| (index, span)));
             }
         }
     }
-    files
+    (files, taken)
 }
 
 /// The (block, declaration) indices of `p`'s initial values this lowering takes.
@@ -64,16 +69,19 @@ fn takes(p: &Pou) -> Vec<(usize, usize)> {
     out
 }
 
-/// Moves `p`'s taken initial values into assignments that start its `FB_init`.
-fn lower_block(p: &mut Pou) {
+/// Moves `p`'s taken initial values into assignments that start its `FB_init`; returns where
+/// the values were.
+fn lower_block(p: &mut Pou) -> Vec<ast::Span> {
     let taken = takes(p);
     if taken.is_empty() {
-        return;
+        return Vec::new();
     }
     let mut assigns = Vec::new();
+    let mut values = Vec::new();
     for (bi, di) in taken {
         let d = &mut p.vars[bi].decls[di];
         let Some(Init::Expr(value)) = d.init.take() else { continue };
+        values.push(value.span);
         for id in &d.names {
             let target = name(&id.name, id.span);
             assigns.push(stmt(StmtKind::Assign { target, value: value.clone() }, value.span));
@@ -82,7 +90,7 @@ fn lower_block(p: &mut Pou) {
     let span = p.name.span;
     if let Some(m) = p.oop.methods.iter_mut().find(|m| is_fb_init(&m.pou.name.name)) {
         m.pou.body.splice(0..0, assigns);
-        return;
+        return values;
     }
     let inputs = vec![bool_decl("bInitRetains", span), bool_decl("bInCopyCode", span)];
     let mut init = hidden_pou(
@@ -99,4 +107,5 @@ fn lower_block(p: &mut Pou) {
         is_final: false,
         pou: init,
     });
+    values
 }

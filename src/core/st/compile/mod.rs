@@ -105,7 +105,7 @@ use super::ast;
 use crate::diag::{Diagnostic, Diagnostics, Warning};
 use crate::lang::{Language, Op, Place, Program, Variables, EVAL_DEPTH, ST_CALL_DEPTH};
 use crate::st::ast::{PouKind, VarKind};
-use crate::st::dialect::Dialect;
+use crate::st::dialect::{Dialect, Habit};
 use crate::value::{Pointer, Space, Symbol, ValueType};
 
 use ctx::{Ctx, Storage};
@@ -200,7 +200,7 @@ pub fn compile_in_namespaces(
     let lowered = method_vars::lower(lowered);
     let lowered = ref_init::lower(lowered, &mut diags);
     let lowered = fb_exit::finish_program_temps(lowered);
-    let lowered = instance_init::lower(lowered);
+    let (lowered, instance_values) = instance_init::lower(lowered);
     let lowered = fb_init::lower(lowered, &mut diags);
     let lowered = fb_exit::lower(lowered, &mut diags);
     let lowered = heap::lower(lowered, dialect.heap_bytes, &mut diags);
@@ -235,11 +235,14 @@ pub fn compile_in_namespaces(
         dialect,
         oop: oop::Tables::default(),
     };
-    // the habits the parser accepted
+    // the habits the parser accepted, and the lowering of instances as initial values
     for (f, file) in files.iter().enumerate() {
         for noted in &file.habits {
             cx.habit(noted.habit, f, noted.span);
         }
+    }
+    for (f, span) in instance_values {
+        cx.habit(Habit::InstanceInitialValue, f, span);
     }
     cx.collect();
     // the PROGRAMs copied for a binding inside a FUNCTION_BLOCK instance (fb_config.rs)
