@@ -112,5 +112,6 @@ pub fn typed_program(
         labels: Box::new([]),
         subroutines: Box::new([]),
         native: None,
+        var_bools_canonical: false,
     }
 }

@@ -165,6 +165,9 @@ pub struct Engine {
     finish: finish::Finish,
     /// Where TwinCAT's task information goes, when the project has it (`system_info`).
     system_info: Option<Box<system_info::SystemInfo>>,
+    /// The `BOOL`s of variable memory the programs' native code reads as they are
+    /// ([`crate::lang::bool_variables`]): rewritten to 0 or 1 after bytes are copied in.
+    bool_variables: Box<[u32]>,
 }
 
 impl Engine {
@@ -222,6 +225,13 @@ impl Engine {
             )),
             finish: finish::Finish::of(project),
             system_info: system_info::SystemInfo::of(project, capacity),
+            bool_variables: {
+                let mut all: Vec<u32> =
+                    project.programs.iter().flat_map(crate::lang::bool_variables).collect();
+                all.sort_unstable();
+                all.dedup();
+                all.into_boxed_slice()
+            },
         }
     }
 
@@ -253,6 +263,8 @@ impl Engine {
         self.retained_variables.for_each_same(&old.retained_variables, |new, was| {
             vm.copy_variable_from(&old.vm, was.at, new.at, new.len)
         });
+        // `old`'s programs may have written other bytes there (a UNION's)
+        self.vm.canonicalize_bools(&self.bool_variables);
         self.retained = old.retained;
     }
 
@@ -272,6 +284,7 @@ impl Engine {
         for &(leaf, s) in &plan.restore {
             self.vm.restore_variable(self.retained_variables.leaves()[leaf].at, &saved[s].bytes);
         }
+        self.vm.canonicalize_bools(&self.bool_variables);
         self.retained = Retained::Warm;
         plan
     }

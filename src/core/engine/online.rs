@@ -192,6 +192,7 @@ impl Engine {
         }
         self.vm.take_over(&mut old.vm, edges);
         self.vm.keep_variables(&old.vm, &self.kept_variables);
+        self.vm.canonicalize_bools(&self.bool_variables);
         if old.running() {
             let added = std::mem::take(&mut self.finish.added);
             self.init_added(&added, now);

@@ -49,5 +49,6 @@ pub fn compile(name: &str, path: &Path, checked: CheckedProgram, edge_base: u32)
         labels,
         subroutines,
         native: None,
+        var_bools_canonical: false,
     }
 }

@@ -77,6 +77,13 @@ pub struct Program {
     /// ([`native`]); attached by the shell after the project is compiled, `None` to interpret
     /// only.
     pub native: Option<std::sync::Arc<dyn native::NativeCode>>,
+    /// Every `BOOL` in variable memory holds 0 or 1, so that native code may read one as it is
+    /// instead of testing it for nonzero: the compiler proved that no code of the project writes
+    /// another type's bytes over a `BOOL` there (`st::compile::bool_bytes`), and the engine
+    /// rewrites the `BOOL`s this program reads ([`bool_variables`]) after it copies bytes in
+    /// from elsewhere (retained values, online change). Always `false` for the instruction list,
+    /// which reads no variable memory.
+    pub var_bools_canonical: bool,
 }
 
 impl Program {
@@ -136,6 +143,28 @@ pub struct AccessPath {
     pub target: String,
     /// `READ_WRITE`: clients may write it; `READ_ONLY` (the default) is read only.
     pub read_write: bool,
+}
+
+/// The variable-memory offsets of the `BOOL`s `program`'s code reads or writes by their fixed
+/// place, which its native code reads as they are when [`Program::var_bools_canonical`] (none
+/// otherwise): the bytes the engine rewrites to 0 or 1 after copying variable memory in from
+/// elsewhere. Sorted, each once.
+pub fn bool_variables(program: &Program) -> Vec<u32> {
+    if !program.var_bools_canonical {
+        return Vec::new();
+    }
+    let mut offsets: Vec<u32> = program
+        .code
+        .iter()
+        .filter_map(|op| match *op {
+            ops::Op::Fetch { elem: Elem::Bool, at: ops::Place::Var(offset) }
+            | ops::Op::Store { elem: Elem::Bool, at: ops::Place::Var(offset) } => Some(offset),
+            _ => None,
+        })
+        .collect();
+    offsets.sort_unstable();
+    offsets.dedup();
+    offsets
 }
 
 /// What the reference value `slot` points to, as tools show it: the variable of `symbols` at

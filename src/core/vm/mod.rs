@@ -415,6 +415,17 @@ impl Vm {
         }
     }
 
+    /// Rewrites the `BOOL` at each of `offsets` of variable memory to 0 or 1 (1 for any nonzero
+    /// byte, as every read takes it), after bytes were copied in that code of another project
+    /// may have written ([`crate::lang::Program::var_bools_canonical`]). No allocation.
+    pub fn canonicalize_bools(&mut self, offsets: &[u32]) {
+        for &offset in offsets {
+            if let Some(byte) = self.vars.get_mut(offset as usize) {
+                *byte = u8::from(*byte != 0);
+            }
+        }
+    }
+
     /// A cold reset: every variable back to its initial value, the retained ones too.
     pub fn reset_variables(&mut self) {
         let n = self.vars.len().min(self.initial.len());

@@ -1812,6 +1812,14 @@ impl<'a> Gen<'a, '_> {
     }
 
     fn load_place(&mut self, place: Place, elem: Elem) -> Value {
+        if let (Place::Var(offset), Elem::Bool, true) =
+            (place, elem, self.program.var_bools_canonical)
+        {
+            // 0 or 1 already: the compiler proved that no code writes another type over it,
+            // and the engine rewrites it after copying bytes in (`Program::var_bools_canonical`)
+            let vars = self.field(offset_of!(Context, vars));
+            return self.b.ins().uload8(I64, data(), vars, offset as i32);
+        }
         if let Some((address, offset)) = self.byte_place(place) {
             return self.load(elem, address, offset);
         }

@@ -54,6 +54,7 @@ mod access_paths;
 mod action_dispatch;
 mod assign_expr;
 mod bit;
+mod bool_bytes;
 mod calendar;
 mod class;
 mod codesys;
@@ -411,6 +412,10 @@ pub fn compile_in_namespaces(
     if !diags.is_empty() {
         return Err(sorted(diags));
     }
+    let canonical = bool_bytes::canonical(&cx.types, &programs);
+    for program in &mut programs {
+        program.var_bools_canonical = canonical;
+    }
     let mut retained = cx.retained.clone();
     for (inst, placed) in instances.iter().zip(&placed) {
         let _ = inst;
@@ -739,6 +744,7 @@ fn link(
         labels: Box::new([]),
         subroutines: Box::new([]),
         native: None,
+        var_bools_canonical: false,
     });
     Ok(())
 }
