@@ -46,6 +46,7 @@ pub fn sources(library: SystemLibrary) -> &'static [Source] {
             ("<Tc2_System>/task.st", include_str!("tc2_system/task.st")),
             ("<Tc2_System>/adslog.st", include_str!("tc2_system/adslog.st")),
             ("<Tc2_System>/file.st", include_str!("tc2_system/file.st")),
+            ("<Tc2_System>/ads.st", include_str!("tc2_system/ads.st")),
         ],
         SystemLibrary::Tc2Utilities => &[
             ("<Tc2_Utilities>/strings.st", include_str!("tc2_utilities/strings.st")),
