@@ -609,6 +609,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "strict-constant-instance-called",
     ),
     (
+        "IEC 61131-3 gives a FUNCTION's name to its result, and a variable of the same name makes the POU's name ambiguous: rename the variable (`[st] strict` is on)",
+        "strict-variable-named-as-function",
+    ),
+    (
         "an initial value is a constant expression in IEC 61131-3, and an instance's place is none: assign the instance in the block's code or in FB_init (`[st] strict` is on)",
         "strict-instance-initial-value",
     ),

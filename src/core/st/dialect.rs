@@ -146,6 +146,9 @@ pub enum Habit {
     /// `VAR_GENERIC CONSTANT` and an instance's type with arguments, `FB_Log<20>` (TwinCAT
     /// 3.1.4026 generic constants, `compile::generic_constants`).
     GenericConstants,
+    /// A variable named as its FUNCTION or METHOD, which has no result type (`Test : REFERENCE
+    /// TO FB_Test;` in TcUnit's `FUNCTION TEST`): the name is the variable in the body.
+    VariableNamedAsFunction,
 }
 
 impl Habit {
@@ -195,6 +198,7 @@ impl Habit {
             Habit::CoveredCaseElse => "unreachable `ELSE`: the labels cover every value of the selector's type; remove the `ELSE` (`[st] strict` is on)".to_string(),
             Habit::PositionalThenNamed => "IEC 61131-3 gives a call's arguments all by position or all by name: name each one (`[st] strict` is on)".to_string(),
             Habit::CodesysParameter(codesys, iec) => format!("`{codesys}` is CODESYS's name of this input: IEC 61131-3 names it `{iec}` (`[st] strict` is on)"),
+            Habit::VariableNamedAsFunction => "IEC 61131-3 gives a FUNCTION's name to its result, and a variable of the same name makes the POU's name ambiguous: rename the variable (`[st] strict` is on)".to_string(),
             Habit::UtilBcd => "this BCD conversion is CODESYS's Util library: IEC 61131-3 writes `BYTE_BCD_TO_USINT`, `USINT_TO_BCD_BYTE` and the like (`[st] strict` is on)".to_string(),
         }
     }

@@ -1019,6 +1019,19 @@ impl<'a> Ctx<'a> {
                     if kind == PouKind::Function
                         && id.is(&pou.name.name)
                         && member != Some(super::oop::Role::Set)
+                        && pou.return_type.is_none()
+                    {
+                        // No result type, so no result variable the name would be (TcUnit's
+                        // `FUNCTION TEST` declares `Test : REFERENCE TO FB_Test`): in the
+                        // body the name is the variable, as in CODESYS.
+                        self.habit(
+                            crate::st::dialect::Habit::VariableNamedAsFunction,
+                            file,
+                            id.span,
+                        );
+                    } else if kind == PouKind::Function
+                        && id.is(&pou.name.name)
+                        && member != Some(super::oop::Role::Set)
                     {
                         self.error(
                             file,
