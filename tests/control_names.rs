@@ -686,6 +686,57 @@ END_PROGRAM
     plc.stop();
 }
 
+/// A name through two references, `main.p^.next^.value` (docs/ST.md "### plcctl"): each
+/// reference followed where it points when the request is served, one capture each; read,
+/// written and watched; a NULL reference inside the chain is refused naming it. Nothing the
+/// program does moves the references after its first scan.
+#[test]
+fn names_through_two_references_read_and_write_what_the_last_points_to() {
+    const CHAIN: &str = "\
+TYPE Node : STRUCT value : INT; next : REF_TO Node; END_STRUCT END_TYPE
+PROGRAM Main
+VAR
+    a : Node := (value := 1);
+    b : Node := (value := 2);
+    p : REF_TO Node;
+END_VAR
+    a.next := REF(b);
+    p := REF(a);
+END_PROGRAM
+";
+    let config = "[plc]\nscan_period_ms = 1\nwatchdog_ms = 100\n\
+        [[program]]\nname = \"main\"\nfile = \"main.st\"\n[control]\nsocket = \"plcd.sock\"\n";
+    let project = Project::new("names-chain", &[("plcd.toml", config), ("main.st", CHAIN)]);
+    let daemon = project.start().with_patience(PATIENCE);
+    let plc = Plc { daemon, project };
+    plc.daemon.wait_for("control socket");
+    plc.daemon.wait("RUN", || plc.json(&["status"])["mode"] == "RUN");
+    plc.daemon.wait("the references taken", || plc.get("main.p") != json!("NULL"));
+
+    let value = plc.values(&["main.p^.next^.value"]);
+    assert_eq!(
+        (&value[0]["dev"], &value[0]["value"], &value[0]["type"]),
+        (&json!("main.p^.next^.value"), &json!(2), &json!("INT"))
+    );
+    assert_eq!(plc.get("main.a.next^.value"), json!(2), "a reference inside a struct");
+    let node = plc.values(&["main.P^.Next^"]);
+    let names: Vec<&str> = node.iter().map(|v| v["dev"].as_str().unwrap()).collect();
+    assert_eq!(names, ["main.p^.next^.value", "main.p^.next^.next"]);
+    plc.ok(&["set", "main.p^.next^.value", "20", "main.a.value", "10"]);
+    assert_eq!(plc.get("main.b.value"), json!(20), "written where a.next points");
+    assert_eq!(plc.get("main.p^.value"), json!(10));
+    let watched = plc.ok(&["watch", "--count", "1", "--interval", "10ms", "main.p^.next^.value"]);
+    assert!(watched.contains("main.p^.next^.value=20"), "{watched}");
+
+    let err = plc.refused(&["get", "main.p^.next^.next^.value"]);
+    assert!(err.contains("`main.p^.next^.next^.value`: `main.p^.next^.next` is NULL"), "{err}");
+    let err = plc.refused(&["set", "main.p^.next^.next^.value", "1"]);
+    assert!(err.contains("`main.p^.next^.next` is NULL"), "{err}");
+    let err = plc.refused(&["get", "main.p^.value^"]);
+    assert!(err.contains("`main.p^.value` is not a reference (INT)"), "{err}");
+    plc.stop();
+}
+
 /// A global two lists declare is named `GVL_A.x` by clients too (docs/ST.md, "Qualified
 /// names"): read, written, and the list as a prefix; a global one list declares keeps its plain
 /// name.

@@ -1079,6 +1079,33 @@ fn a_watch_through_a_reference_follows_it() {
     assert!(last(&trace, "main.nothing^").is_none_or(|v| v == "0"), "{trace}");
 }
 
+/// `--watch main.p^.next^.value` follows both references at every look (docs/ST.md,
+/// "Tools"): `b.value` while `a.next` points to `b`, then `c.value` once the program moves it;
+/// a chain with a NULL reference shows 0.
+#[test]
+fn a_watch_through_two_references_follows_both() {
+    let dir = TempDir::new("st-watch-chain");
+    write(
+        dir.path(),
+        "plcd.toml",
+        "[plc]\nscan_period_ms = 10\n\n[[program]]\nname = \"main\"\nfile = \"main.st\"\n",
+    );
+    let source = "TYPE Node : STRUCT value : INT; next : REF_TO Node; END_STRUCT END_TYPE\n\
+        PROGRAM main\nVAR\n    n : INT;\n    a : Node;\n    b : Node;\n    c : Node := (value := 300);\n\
+        p : REF_TO Node;\nEND_VAR\n    n := n + 1;\n    b.value := n;\n    p := REF(a);\n\
+        IF n < 5 THEN\n        a.next := REF(b);\n    ELSE\n        a.next := REF(c);\n    END_IF;\nEND_PROGRAM\n";
+    write(dir.path(), "main.st", source);
+    let trace = checked_trace(dir.path(), "95ms", "main.p^.next^.value,main.p^.next^.next^.value");
+    // scans at 0, 10, … 90 ms: p^.next^ is b (1, 2, 3, 4), then c from the fifth scan on
+    let seen: Vec<&str> = trace
+        .lines()
+        .filter_map(|l| l.split_once("\"dev\":\"main.p^.next^.value\",\"value\":"))
+        .map(|(_, v)| v.trim_end_matches('}'))
+        .collect();
+    assert_eq!(seen, ["1", "2", "3", "4", "300"], "{trace}");
+    assert!(last(&trace, "main.p^.next^.next^.value").is_none_or(|v| v == "0"), "{trace}");
+}
+
 /// `{attribute 'qualified_only'}` before a `.TcGVL`'s `VAR_GLOBAL` makes `Gvl.x` the only name
 /// of its variables outside the list, as TwinCAT enforces it: the plain name is an error at its
 /// place naming the qualified form (docs/ST.md, "Qualified names").

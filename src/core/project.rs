@@ -86,16 +86,38 @@ pub enum Watched {
     Through(Through),
 }
 
-/// A name through a reference (`main.r^`, `main.p^.pos`, `main.refs[2]^`): the leaf `target`
-/// of what `reference` points to, found where the reference points each time it is read.
+/// A name through a reference (`main.r^`, `main.p^.pos`, `main.refs[2]^`), or through a chain
+/// of them (`main.p^.next^.value`): the leaf `target` of what the last reference points to,
+/// found where each reference points each time it is read.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Through {
     /// The name with the declarations' spelling: `main.p^.pos`.
     pub name: String,
     /// The reference variable (`main.p`).
     pub reference: Symbol,
-    /// The leaf read, placed from the start of what the reference points to (`.pos` at 4).
+    /// The references followed after `reference`, each placed from the start of what the one
+    /// before points to (`.next` of `main.p^.next^.value`); empty for one `^`.
+    pub hops: Vec<Hop>,
+    /// The leaf read, placed from the start of what the last reference points to (`.pos`
+    /// at 4).
     pub target: Symbol,
+}
+
+/// A reference inside what another points to (`.next` of `main.p^.next^.value`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Hop {
+    /// The name up to it, with the declarations' spelling: `main.p^.next`.
+    pub name: String,
+    /// The reference, placed from the start of what the reference before points to.
+    pub leaf: Symbol,
+}
+
+/// One reference of a [`Through`] followed: the target's place, or the chain's rest from the
+/// next reference, now at a known place.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Step {
+    Target(Pointer),
+    Next(Box<Through>),
 }
 
 /// Why a reference leads to no variable.
@@ -113,30 +135,93 @@ pub enum Nowhere {
     Device,
 }
 
+/// Where `leaf` (placed from the start of a reference's target) is while the reference
+/// holds `slot`, in variable memory of `var_bytes` bytes.
+fn leaf_place(leaf: &Symbol, slot: u64, var_bytes: usize) -> Result<Pointer, Nowhere> {
+    let start = Pointer::from_reference(slot).ok_or(Nowhere::Null)?;
+    let offset = leaf.at.offset;
+    match start.space {
+        Space::Var => {
+            let at = start.offset as usize + offset as usize;
+            if at + leaf.ty.bytes() as usize > var_bytes {
+                return Err(Nowhere::Outside);
+            }
+            Ok(Pointer { space: Space::Var, offset: start.offset + offset })
+        }
+        Space::Frame => Err(Nowhere::Frame),
+        Space::Discard => Err(Nowhere::Invalid),
+        // a reference is never a device's value: a chain goes on in variable memory only
+        Space::Word | Space::Bit | Space::Byte
+            if offset == 0 && !matches!(leaf.ty, ValueType::Reference { .. }) =>
+        {
+            Ok(start)
+        }
+        Space::Word | Space::Bit | Space::Byte => Err(Nowhere::Device),
+    }
+}
+
 impl Through {
     /// Where the target is while the reference holds `slot`, in variable memory of
-    /// `var_bytes` bytes. Allocates nothing (the trace's watches call it at every scan).
-    pub fn place(&self, slot: u64, var_bytes: usize) -> Result<Pointer, Nowhere> {
-        let start = Pointer::from_reference(slot).ok_or(Nowhere::Null)?;
-        let offset = self.target.at.offset;
-        match start.space {
-            Space::Var => {
-                let at = start.offset as usize + offset as usize;
-                if at + self.target.ty.bytes() as usize > var_bytes {
-                    return Err(Nowhere::Outside);
-                }
-                Ok(Pointer { space: Space::Var, offset: start.offset + offset })
-            }
-            Space::Frame => Err(Nowhere::Frame),
-            Space::Discard => Err(Nowhere::Invalid),
-            Space::Word | Space::Bit | Space::Byte if offset == 0 => Ok(start),
-            Space::Word | Space::Bit | Space::Byte => Err(Nowhere::Device),
+    /// `var_bytes` bytes, each further reference of the chain read with `read` (a
+    /// reference's 64-bit slot at a place). Allocates nothing (the trace's watches call it at
+    /// every scan). The reference that leads nowhere comes with the error: its index in
+    /// [`Through::hops`] plus one, 0 for [`Through::reference`].
+    pub fn follow(
+        &self,
+        slot: u64,
+        var_bytes: usize,
+        mut read: impl FnMut(Pointer) -> u64,
+    ) -> Result<Pointer, (usize, Nowhere, u64)> {
+        let mut slot = slot;
+        for (i, hop) in self.hops.iter().enumerate() {
+            let at = leaf_place(&hop.leaf, slot, var_bytes).map_err(|why| (i, why, slot))?;
+            slot = read(at);
         }
+        leaf_place(&self.target, slot, var_bytes).map_err(|why| (self.hops.len(), why, slot))
+    }
+
+    /// Where the target is while the reference holds `slot`, for a name through one
+    /// reference; for a chain, where its second reference is (see [`Through::step`]).
+    pub fn place(&self, slot: u64, var_bytes: usize) -> Result<Pointer, Nowhere> {
+        match self.hops.first() {
+            None => leaf_place(&self.target, slot, var_bytes),
+            Some(hop) => leaf_place(&hop.leaf, slot, var_bytes),
+        }
+    }
+
+    /// The first reference followed while it holds `slot`: the target's place, or the rest
+    /// of the chain from the next reference (which a client then reads in turn).
+    pub fn step(&self, slot: u64, var_bytes: usize) -> Result<Step, Nowhere> {
+        let at = self.place(slot, var_bytes)?;
+        let Some((hop, rest)) = self.hops.split_first() else {
+            return Ok(Step::Target(at));
+        };
+        let reference = Symbol { name: hop.name.clone(), at, retain: false, ..hop.leaf.clone() };
+        Ok(Step::Next(Box::new(Through {
+            name: self.name.clone(),
+            reference,
+            hops: rest.to_vec(),
+            target: self.target.clone(),
+        })))
+    }
+
+    /// Why a read or write of it found no variable, the chain's reference `index` (0 the
+    /// first, as [`Through::follow`] counts) holding `slot`.
+    pub fn nowhere_at(&self, index: usize, why: Nowhere, slot: u64) -> String {
+        let reference = match index {
+            0 => &self.reference.name,
+            i => &self.hops[i - 1].name,
+        };
+        self.nowhere_named(reference, why, slot)
     }
 
     /// Why a client's read or write of it found no variable, naming it and the reference.
     pub fn nowhere(&self, why: Nowhere, slot: u64) -> String {
-        let (name, reference) = (&self.name, &self.reference.name);
+        self.nowhere_named(&self.reference.name, why, slot)
+    }
+
+    fn nowhere_named(&self, reference: &str, why: Nowhere, slot: u64) -> String {
+        let name = &self.name;
         let shown = crate::value::format_reference(slot);
         match why {
             Nowhere::Null => format!("`{name}`: `{reference}` is NULL"),
@@ -230,38 +315,39 @@ impl Project {
 
 impl Project {
     /// What `name` names through a reference (`main.r^`, `main.p^.pos`, `main.refs[2]^`, a
-    /// struct's or an FB's every leaf for `main.p^`): the part before the `^` is a reference
-    /// variable, the part after names a leaf (or every leaf under it) of what its type points
-    /// to. One `^` per name.
+    /// struct's or an FB's every leaf for `main.p^`), or through a chain of them
+    /// (`main.p^.next^.value`): the part before the first `^` is a reference variable, each
+    /// part between two `^` names a reference inside what the one before points to, and the
+    /// part after the last names a leaf (or every leaf under it) of what the last points to.
     pub fn through(&self, name: &str) -> Result<Vec<Through>, String> {
         let name = name.trim();
-        let Some((base, rest)) = name.split_once('^') else {
+        let mut parts = name.split('^');
+        let base = parts.next().unwrap_or_default().trim();
+        let mut parts: Vec<&str> = parts.collect();
+        let Some(rest) = parts.pop() else {
             return Err(format!("`{name}` names no `^`"));
         };
-        let base = base.trim();
-        if rest.contains('^') {
-            return Err(format!(
-                "`{name}`: a name goes through one reference (one `^`); name the second \
-                 reference's target by what the first points to"
-            ));
-        }
         let Some(reference) = self.variable(base) else {
             return Err(match self.closest_variable(base) {
                 Some(close) => format!("no variable `{base}` (did you mean `{close}`?)"),
                 None => format!("no variable `{base}`"),
             });
         };
-        let ValueType::Reference { type_name } = &reference.ty else {
-            return Err(format!(
-                "`{base}` is not a reference ({}): `^` follows a REF_TO, POINTER TO or \
-                 REFERENCE TO variable",
-                crate::value::type_name(&reference.ty)
-            ));
-        };
-        let Some((_, target)) = self.variables.referents.iter().find(|(n, _)| n == type_name)
-        else {
-            return Err(format!("`{base}` is a {type_name}: what it points to has no names"));
-        };
+        let mut type_name = self.reference_type(base, &reference.ty)?;
+        let mut spelled = reference.name.clone();
+        let mut hops = Vec::new();
+        for part in parts {
+            let target = self.referent(&spelled, type_name)?;
+            let Some(leaf) = target.iter().find(|s| names_match(&s.name, part)) else {
+                return Err(format!(
+                    "no variable `{name}`: a {type_name} points to no reference `{part}`"
+                ));
+            };
+            spelled = format!("{spelled}^{}", leaf.name);
+            type_name = self.reference_type(&spelled, &leaf.ty)?;
+            hops.push(Hop { name: spelled.clone(), leaf: leaf.clone() });
+        }
+        let target = self.referent(&spelled, type_name)?;
         let mut found: Vec<&Symbol> =
             target.iter().filter(|s| names_match(&s.name, rest)).collect();
         if found.is_empty() {
@@ -273,11 +359,32 @@ impl Project {
         Ok(found
             .into_iter()
             .map(|leaf| Through {
-                name: format!("{}^{}", reference.name, leaf.name),
+                name: format!("{spelled}^{}", leaf.name),
                 reference: reference.clone(),
+                hops: hops.clone(),
                 target: leaf.clone(),
             })
             .collect())
+    }
+
+    /// The reference type of `ty`, the type of `named`; an error when it is none.
+    fn reference_type<'a>(&self, named: &str, ty: &'a ValueType) -> Result<&'a str, String> {
+        match ty {
+            ValueType::Reference { type_name } => Ok(type_name),
+            _ => Err(format!(
+                "`{named}` is not a reference ({}): `^` follows a REF_TO, POINTER TO or \
+                 REFERENCE TO variable",
+                crate::value::type_name(ty)
+            )),
+        }
+    }
+
+    /// The leaves of what a reference of type `type_name` (the type of `named`) points to.
+    fn referent(&self, named: &str, type_name: &str) -> Result<&[Symbol], String> {
+        match self.variables.referents.iter().find(|(n, _)| n == type_name) {
+            Some((_, target)) => Ok(target),
+            None => Err(format!("`{named}` is a {type_name}: what it points to has no names")),
+        }
     }
 
     /// What a client of the running PLC names (`plcctl get`, `set`, `force`): as

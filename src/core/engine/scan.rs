@@ -289,12 +289,15 @@ impl Engine {
     }
 }
 
-/// Where the reference of a watch through it (`main.r^`) points now. Out of the watches' loop
-/// and cold: the loop checks every watch once a scan, and a free-running scan of a long
-/// program (`benches/layout`) measured the loop's own code growing with it inline.
+/// Where the reference of a watch through it (`main.r^`, `main.p^.next^.value`) points now.
+/// Out of the watches' loop and cold: the loop checks every watch once a scan, and a
+/// free-running scan of a long program (`benches/layout`) measured the loop's own code growing
+/// with it inline.
 #[cold]
 #[inline(never)]
 fn through_place(through: &Through, vm: &Vm) -> Pointer {
     let slot = vm.read_value(through.reference.at, Elem::U64);
-    through.place(slot, vm.vars().len()).unwrap_or(Pointer::DISCARD)
+    through
+        .follow(slot, vm.vars().len(), |at| vm.read_value(at, Elem::U64))
+        .unwrap_or(Pointer::DISCARD)
 }

@@ -13,7 +13,7 @@ use crate::drivers::real_time::{
     Applied, ControlCommand, TextWrite, Write, MAX_TEXT_WRITE, WRITES_PER_COMMAND,
 };
 use crate::drivers::virtual_time::trace::push_json_value;
-use crate::project::{Project, Through, Watched};
+use crate::project::{Project, Step, Through, Watched};
 use crate::services::control::ClientId;
 use crate::value::{self, Elem, Symbol, ValueType};
 use plcd_ipc::{ErrorKind as Kind, Failure, NamedValue, Reply, ResponseLine, Value};
@@ -43,25 +43,35 @@ pub(super) fn reference_read(through: &Through) -> VarRead {
     VarRead::Value { at: through.reference.at, elem: Elem::U64 }
 }
 
-/// The variable `through` names as of `snapshot`, which read its reference: named as the
-/// client named it, at the place the reference points to; an error naming it where the
-/// reference is `NULL` or points where no variable is.
-fn through_symbol(
+/// The reference `through` goes through followed as of `snapshot`, which read it: the
+/// variable it names, named as the client named it, at the place the chain ends; or, for a
+/// chain (`main.p^.next^.value`), the rest from the next reference, for the next capture to
+/// read; an error naming it where the reference is `NULL` or points where no variable is.
+fn through_step(
     through: &Through,
     snapshot: &Snapshot,
     project: &Project,
-) -> Result<Symbol, Failure> {
+) -> Result<Item, Failure> {
     let VarRead::Value { at, elem } = reference_read(through) else { unreachable!() };
     let slot = snapshot.value(at, elem).unwrap_or(0);
-    let place = through
-        .place(slot, project.variables.initial.len())
+    let step = through
+        .step(slot, project.variables.initial.len())
         .map_err(|why| Failure::new(Kind::Invalid, through.nowhere(why, slot)))?;
-    Ok(Symbol { name: through.name.clone(), at: place, retain: false, ..through.target.clone() })
+    Ok(match step {
+        Step::Target(place) => Item::Variable(Symbol {
+            name: through.name.clone(),
+            at: place,
+            retain: false,
+            ..through.target.clone()
+        }),
+        Step::Next(rest) => Item::Through(*rest),
+    })
 }
 
-/// `items` with each name through a reference replaced by the variable it points to as of
-/// `snapshot` (which read the references), for a second capture to read; the first name
-/// whose reference points nowhere, as an error.
+/// `items` with each name through a reference followed one reference further as of
+/// `snapshot` (which read the references): the variable it points to, or the rest of its
+/// chain, for a next capture to read; the first name whose reference points nowhere, as an
+/// error.
 pub(super) fn through_resolved(
     items: Vec<Item>,
     snapshot: &Snapshot,
@@ -70,9 +80,7 @@ pub(super) fn through_resolved(
     items
         .into_iter()
         .map(|item| match item {
-            Item::Through(through) => {
-                through_symbol(&through, snapshot, project).map(Item::Variable)
-            }
+            Item::Through(through) => through_step(&through, snapshot, project),
             item => Ok(item),
         })
         .collect()
@@ -156,25 +164,54 @@ impl RequestHandler {
     }
 }
 
-/// The writes of a `set` that names variables through references (`main.r^`), once a capture
-/// read the references: each such name written where its reference points as of `snapshot`;
-/// the commands to queue, or the first write refused.
+/// What a `set` through references comes to once a capture read them.
+pub(super) enum SetThrough {
+    /// The commands to queue: every reference led to its variable.
+    Commands(Vec<ControlCommand>),
+    /// A chain goes on (`main.p^.next^.value`): the references for the next capture, in
+    /// the order of the writes that name one.
+    Again(Vec<Through>),
+}
+
+/// The writes of a `set` that names variables through `references` (`main.r^`, one for each
+/// such write, in order), once a capture read the references: each such name written where
+/// its reference points as of `snapshot`, or the chains followed one reference further for
+/// the next capture; the first write refused.
 pub(super) fn set_through(
     project: &Project,
     writes: &[NamedValue],
+    references: &[Through],
     snapshot: &Snapshot,
-) -> Result<Vec<ControlCommand>, Failure> {
+) -> Result<SetThrough, Failure> {
+    let stepped = references
+        .iter()
+        .map(|through| through_step(through, snapshot, project))
+        .collect::<Result<Vec<Item>, Failure>>()?;
+    if stepped.iter().any(|item| matches!(item, Item::Through(_))) {
+        // a name through one reference reads it again at the next capture, with the rest
+        let again = stepped
+            .into_iter()
+            .zip(references)
+            .map(|(item, through)| match item {
+                Item::Through(rest) => rest,
+                _ => through.clone(),
+            })
+            .collect();
+        return Ok(SetThrough::Again(again));
+    }
+    let mut targets = stepped.into_iter();
     let mut pending = Vec::with_capacity(writes.len());
     for write in writes {
-        let name = write.dev.trim();
-        if name.contains('^') {
-            let symbol = through_symbol(&one_through(project, name)?, snapshot, project)?;
+        if write.dev.contains('^') {
+            let Some(Item::Variable(symbol)) = targets.next() else {
+                unreachable!("one reference for each write through one, each led to its variable")
+            };
             pending.push(typed_write(&symbol, write)?);
         } else {
             pending.push(checked_write(project, write)?);
         }
     }
-    Ok(commands(pending))
+    Ok(SetThrough::Commands(commands(pending)))
 }
 
 /// The one variable a `set` names through a reference.

@@ -361,7 +361,8 @@ impl RequestHandler {
             let outcome = match waiting.then {
                 Then::Status { devices } => self.status_outcome(devices, &snapshot),
                 Then::Values { items } if items.iter().any(|i| matches!(i, Item::Through(_))) => {
-                    // The references are read: the variables they point to, at the next capture.
+                    // The references are read: the variables they point to (or a chain's next
+                    // reference), at the next capture.
                     let project = &self.running().project;
                     match devices::through_resolved(items, &snapshot, project) {
                         Ok(items) => Outcome::Wait { then: Then::Values { items }, again: true },
@@ -372,13 +373,18 @@ impl RequestHandler {
                     let symbols = &self.running().project.variables.symbols;
                     Outcome::Answer(devices::values(&items, &snapshot, symbols))
                 }
-                Then::SetThrough { writes, .. } => {
+                Then::SetThrough { writes, references } => {
                     let project = &self.running().project;
-                    match devices::set_through(project, &writes, &snapshot) {
-                        Ok(commands) => {
+                    match devices::set_through(project, &writes, &references, &snapshot) {
+                        Ok(devices::SetThrough::Commands(commands)) => {
                             let then = Then::Written { count: writes.len() };
                             Outcome::Send { commands, then }
                         }
+                        // a chain's next reference, read at the next capture
+                        Ok(devices::SetThrough::Again(references)) => Outcome::Wait {
+                            then: Then::SetThrough { writes, references },
+                            again: true,
+                        },
                         Err(f) => Outcome::Answer(ResponseLine::failure(f)),
                     }
                 }
