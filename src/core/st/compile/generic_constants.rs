@@ -62,11 +62,15 @@ struct Lowering<'d> {
     pending: Vec<(String, Vec<i128>, String)>,
     /// Whether the copies went beyond [`MAX_COPIES`] (reported once).
     endless: bool,
+    /// `[st] namespaces` and the system libraries' (`compile::libraries::namespaces`): a
+    /// block named with one before it (`Lib.FB_Log<20>`) is the block.
+    namespaces: &'d [String],
     diags: &'d mut Vec<Diagnostic>,
 }
 
 pub(super) fn lower<'f>(
     mut files: Vec<Cow<'f, ast::File>>,
+    namespaces: &[String],
     diags: &mut Vec<Diagnostic>,
 ) -> Vec<Cow<'f, ast::File>> {
     if !files
@@ -81,6 +85,7 @@ pub(super) fn lower<'f>(
         copies: HashMap::new(),
         pending: Vec::new(),
         endless: false,
+        namespaces,
         diags,
     };
     // the blocks and their constants
@@ -429,6 +434,19 @@ impl Lowering<'_> {
         }
     }
 
+    /// `name` without the namespaces written before it (`Lib.FB_Log`: `FB_Log`), as
+    /// `compile::qualified` reads a type's name after this lowering.
+    fn unqualified<'n>(&self, name: &'n str) -> &'n str {
+        let mut name = name;
+        while let Some((first, rest)) = name.split_once('.') {
+            if !self.namespaces.iter().any(|n| n.eq_ignore_ascii_case(first.trim())) {
+                break;
+            }
+            name = rest.trim();
+        }
+        name
+    }
+
     /// The name of the copy of block `name` for `args` (asked for when new); `name` itself
     /// after an error.
     fn copy_for(
@@ -439,7 +457,7 @@ impl Lowering<'_> {
         own: &HashMap<String, i128>,
         path: &Path,
     ) -> String {
-        let key = name.name.to_ascii_lowercase();
+        let key = self.unqualified(&name.name).to_ascii_lowercase();
         let Some(g) = self.generics.get(&key) else {
             self.error(
                 path,

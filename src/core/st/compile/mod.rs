@@ -195,7 +195,7 @@ pub fn compile_in_namespaces(
     let namespaces = libraries::namespaces(namespaces, shipped);
     let namespaces = &namespaces[..];
     let lowered = sfc::lower(files, &mut diags);
-    let lowered = generic_constants::lower(lowered, &mut diags);
+    let lowered = generic_constants::lower(lowered, namespaces, &mut diags);
     let (lowered, program_copies) = fb_config::lower(lowered, instances, declaration, &dialect.iec);
     let lowered = qualified::lower(lowered, namespaces, renamed, &mut diags);
     let lowered = method_vars::lower(lowered);
