@@ -23,7 +23,8 @@
 //!   for a `VAR_GLOBAL RETAIN`), and every PROGRAM's body starts with their assignments, which
 //!   whichever program runs first makes.
 //! - A `VAR_STAT`'s: once for every instance of the POU, guarded by the hidden `VAR_STAT`s
-//!   [`DONE_STATIC`] and [`TARGET_STATIC`].
+//!   [`DONE_STATIC`] and [`TARGET_STATIC`]; a method's `VAR_STAT`'s alike, by hidden
+//!   `VAR_STAT`s of the method.
 //! - An array's initialiser: each element that takes a reference becomes an assignment to
 //!   that element, placed by the bounds of the declaration's `ARRAY […] OF` (its own constant
 //!   expressions, folded when compiled), and keeps its place in the initialiser as the
@@ -31,9 +32,9 @@
 //!
 //! Refused here: such an initial value for a `VAR_INPUT` or `VAR_IN_OUT` (the caller gives
 //! them; an assignment in the body would overwrite the argument) and in a CONSTANT block (a
-//! constant is a constant expression). A method's `VAR_STAT`, an array initialiser inside a
-//! structure's (whose type is not written there) and a CONFIGURATION's globals keep the usual
-//! message (a constant expression is needed).
+//! constant is a constant expression). An array initialiser inside a structure's (whose type is
+//! not written there) and a CONFIGURATION's globals keep the usual message (a constant
+//! expression is needed).
 
 use std::borrow::Cow;
 
@@ -181,9 +182,22 @@ fn calls_ref(e: &Expr) -> bool {
 fn lower_pou(p: &mut Pou, path: &std::path::Path, diags: &mut Vec<Diagnostic>) {
     for m in &mut p.oop.methods {
         let mut each_call = Vec::new();
-        // a method's VAR_STAT keeps the usual message (a constant expression is needed)
-        for b in m.pou.vars.iter_mut().filter(|b| b.kind != VarKind::Static) {
-            take_from_block(b, &mut each_call, path, diags);
+        let mut once_static = Vec::new();
+        for b in &mut m.pou.vars {
+            if b.kind == VarKind::Static {
+                take_from_block(b, &mut once_static, path, diags);
+            } else {
+                take_from_block(b, &mut each_call, path, diags);
+            }
+        }
+        // a method's VAR_STAT: once for every call of every instance, guarded by hidden
+        // VAR_STATs of the method as a POU's are
+        if !once_static.is_empty() {
+            let span = m.pou.name.span;
+            let guards = vec![guard_decl(DONE_STATIC, span), bool_decl(TARGET_STATIC, span)];
+            m.pou.vars.push(block(VarKind::Static, false, guards, span));
+            let sets = Found { once: once_static, ..Found::default() };
+            each_call.extend(guarded(&sets, DONE_STATIC, DONE_STATIC, span));
         }
         m.pou.body.splice(0..0, each_call);
     }
