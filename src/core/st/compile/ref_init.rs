@@ -32,11 +32,12 @@
 //!
 //! Refused here: such an initial value for a `VAR_INPUT` or `VAR_IN_OUT` (the caller gives
 //! them; an assignment in the body would overwrite the argument) and in a CONSTANT block (a
-//! constant is a constant expression). An array initialiser inside a structure's (whose type is
-//! not written there) and a CONFIGURATION's globals keep the usual message (a constant
-//! expression is needed).
+//! constant is a constant expression). An array initialiser inside a structure's is placed by
+//! the member's type in the STRUCT type's declaration; one of an array type declared by name
+//! and a CONFIGURATION's globals keep the usual message (a constant expression is needed).
 
 use std::borrow::Cow;
+use std::collections::HashMap;
 
 use crate::diag::Diagnostic;
 use crate::st::ast::{
@@ -89,6 +90,7 @@ pub(super) fn lower<'f>(
     if !files.iter().any(|f| f.items.iter().any(has_reference_init)) {
         return files;
     }
+    let structs = struct_members(&files);
     let mut globals = Found::default();
     let mut globals_file = None;
     for (f, file) in files.iter_mut().enumerate() {
@@ -99,12 +101,12 @@ pub(super) fn lower<'f>(
         for item in file.to_mut().items.iter_mut() {
             match item {
                 Item::Pou(p) => {
-                    lower_pou(p, &path, diags);
+                    lower_pou(p, &structs, &path, diags);
                 }
                 Item::Globals(b) => {
                     let retain = b.retain;
                     let mut out = Vec::new();
-                    take_from_block(b, &mut out, &path, diags);
+                    take_from_block(b, &structs, &mut out, &path, diags);
                     if !out.is_empty() {
                         globals_file.get_or_insert(f);
                     }
@@ -178,16 +180,47 @@ fn calls_ref(e: &Expr) -> bool {
     }
 }
 
+/// Each STRUCT type's members and their types as declared, by the lower-case names of the
+/// type and the member: what places an array initialiser inside a structure's
+/// (`(arr := [REF(a), REF(b)])`).
+type Structs = HashMap<String, HashMap<String, TypeRef>>;
+
+fn struct_members(files: &[Cow<'_, ast::File>]) -> Structs {
+    let mut structs = Structs::new();
+    for file in files {
+        for item in &file.items {
+            let Item::Type(t) = item else { continue };
+            let ast::TypeDef::Struct { members } = &t.def else { continue };
+            let types = members
+                .iter()
+                .flat_map(|d| d.names.iter().map(|id| (id.name.to_ascii_lowercase(), d.ty.clone())))
+                .collect();
+            structs.insert(t.name.name.to_ascii_lowercase(), types);
+        }
+    }
+    structs
+}
+
+/// The declared type of member `member` of `ty`, a STRUCT type named by its name.
+fn member_type<'s>(
+    structs: &'s Structs,
+    ty: Option<&TypeRef>,
+    member: &str,
+) -> Option<&'s TypeRef> {
+    let Some(TypeRef::Named(id)) = ty else { return None };
+    structs.get(&id.name.to_ascii_lowercase())?.get(&member.to_ascii_lowercase())
+}
+
 /// Lowers `p`'s reference initial values (and its methods').
-fn lower_pou(p: &mut Pou, path: &std::path::Path, diags: &mut Vec<Diagnostic>) {
+fn lower_pou(p: &mut Pou, structs: &Structs, path: &std::path::Path, diags: &mut Vec<Diagnostic>) {
     for m in &mut p.oop.methods {
         let mut each_call = Vec::new();
         let mut once_static = Vec::new();
         for b in &mut m.pou.vars {
             if b.kind == VarKind::Static {
-                take_from_block(b, &mut once_static, path, diags);
+                take_from_block(b, structs, &mut once_static, path, diags);
             } else {
-                take_from_block(b, &mut each_call, path, diags);
+                take_from_block(b, structs, &mut each_call, path, diags);
             }
         }
         // a method's VAR_STAT: once for every call of every instance, guarded by hidden
@@ -209,7 +242,7 @@ fn lower_pou(p: &mut Pou, path: &std::path::Path, diags: &mut Vec<Diagnostic>) {
     let mut found = Found::default();
     for b in &mut p.vars {
         let mut out = Vec::new();
-        take_from_block(b, &mut out, path, diags);
+        take_from_block(b, structs, &mut out, path, diags);
         if b.kind == VarKind::Static {
             found.once_static.extend(out);
         } else if fresh_each_call || b.kind == VarKind::Temp {
@@ -239,6 +272,7 @@ fn lower_pou(p: &mut Pou, path: &std::path::Path, diags: &mut Vec<Diagnostic>) {
 /// variables then start `NULL` (or with the rest of their initialiser) until they run.
 fn take_from_block(
     b: &mut VarBlock,
+    structs: &Structs,
     out: &mut Vec<Stmt>,
     path: &std::path::Path,
     diags: &mut Vec<Diagnostic>,
@@ -265,7 +299,7 @@ fn take_from_block(
         let mut left = None;
         for id in &d.names {
             left = d.init.clone();
-            take_from_init(&mut left, name(&id.name, id.span), Some(&d.ty), out);
+            take_from_init(&mut left, name(&id.name, id.span), Some(&d.ty), structs, out);
         }
         // every name of the declaration keeps what is left of it (the same for each)
         d.init = left;
@@ -275,11 +309,12 @@ fn take_from_block(
 /// Moves the parts of `init` that take a reference into assignments to `target` (or to its
 /// members, its elements), leaving the constant parts; `ty` is `target`'s type where it is
 /// written (an array's elements are taken only from an `ARRAY […] OF` written so, whose bounds
-/// place them).
+/// place them), a member's found in its STRUCT type's declaration in `structs`.
 fn take_from_init(
     init: &mut Option<Init>,
     target: Expr,
     ty: Option<&TypeRef>,
+    structs: &Structs,
     out: &mut Vec<Stmt>,
 ) {
     match init {
@@ -296,7 +331,8 @@ fn take_from_init(
                     span: id.span,
                 };
                 let mut member_init = Some(member_init);
-                take_from_init(&mut member_init, member, None, out);
+                let member_ty = member_type(structs, ty, &id.name);
+                take_from_init(&mut member_init, member, member_ty, structs, out);
                 if let Some(left) = member_init {
                     kept.push((id, left));
                 }
@@ -329,7 +365,7 @@ fn take_from_init(
                         for k in at..at + n {
                             let mut part = Some(v.clone());
                             let element = element_of(&target, dims, k);
-                            take_from_init(&mut part, element, Some(of), out);
+                            take_from_init(&mut part, element, Some(of), structs, out);
                             kept.push(match part {
                                 Some(left) => ArrayInit::One(left),
                                 None => ArrayInit::Repeat {

@@ -16,7 +16,8 @@
 //! docs/ST.md says): a `VAR_INPUT`, `VAR_IN_OUT` or `VAR_EXTERNAL` of the type (the caller's or
 //! the global's), a CONSTANT (refused by compile/ref_init.rs if given), a FUNCTION's result,
 //! an element `__NEW` makes, a CONFIGURATION's globals. Reported here: an array of such a
-//! type with an initialiser of its own or bounds that are not integer literals.
+//! type with an initialiser of its own or bounds that are not integer literals. A member's
+//! array initialiser taking a reference moves whole, its constant elements with it.
 
 use std::borrow::Cow;
 use std::collections::HashMap;
@@ -193,7 +194,10 @@ fn split(init: Init) -> (Option<Init>, Option<Init>) {
             }
             (Some(Init::Struct { members: refs, span }), Some(Init::Struct { members: left, span }))
         }
-        // an array's elements stay (compile/ref_init.rs reports a reference among them)
+        // an array's initialiser taking a reference moves whole, its constant elements with
+        // it (an array of references has no other constant than NULL): compile/ref_init.rs
+        // places its elements by the member's declared bounds
+        Init::Array { .. } if takes_ref(&init) => (Some(init), None),
         other => (None, Some(other)),
     }
 }
