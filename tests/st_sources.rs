@@ -192,6 +192,26 @@ CONFIGURATION Config0
 END_CONFIGURATION
 ";
 
+/// `REF()` and `ADR()` as the initial value of a CONFIGURATION's `VAR_GLOBAL` (docs/ST.md,
+/// "References and pointers"): set as any global's, at the start of the first program that
+/// runs; the program reads through them from its first scan.
+#[test]
+fn a_configuration_global_may_be_initialised_with_a_reference() {
+    let dir = TempDir::new("st-configuration-ref");
+    write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
+    let source = "PROGRAM prog0\n  VAR\n    seen : INT;\n    second : INT;\n  END_VAR\n\
+        seen := r^;\n  second := pair[2]^;\nEND_PROGRAM\n\
+        CONFIGURATION Config0\n  VAR_GLOBAL\n    target : INT := 42;\n    other : INT := 7;\n\
+        r : REF_TO INT := REF(target);\n    pair : ARRAY [1..2] OF POINTER TO INT := [ADR(target), ADR(other)];\n\
+        END_VAR\n  RESOURCE Res0 ON PLC\n    TASK task0(INTERVAL := T#10ms, PRIORITY := 1);\n\
+        PROGRAM instance0 WITH task0 : prog0;\n  END_RESOURCE\nEND_CONFIGURATION\n";
+    write(dir.path(), "plc.st", source);
+    let trace = checked_trace(dir.path(), "25ms", "instance0.seen,instance0.second");
+    // the first scan already reads 42 through r and 7 through pair[2]
+    assert_eq!(last(&trace, "instance0.seen").as_deref(), Some("42"), "{trace}");
+    assert_eq!(last(&trace, "instance0.second").as_deref(), Some("7"), "{trace}");
+}
+
 #[test]
 fn an_openplc_configuration_maps_onto_the_scan_and_a_cycle_task() {
     let dir = TempDir::new("st-configuration");

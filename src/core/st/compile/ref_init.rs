@@ -34,7 +34,8 @@
 //! them; an assignment in the body would overwrite the argument) and in a CONSTANT block (a
 //! constant is a constant expression). An array initialiser inside a structure's is placed by
 //! the member's type in the STRUCT type's declaration; one of an array type declared by name
-//! and a CONFIGURATION's globals keep the usual message (a constant expression is needed).
+//! keeps the usual message (a constant expression is needed). A CONFIGURATION's `VAR_GLOBAL`s
+//! are globals as the others.
 
 use std::borrow::Cow;
 use std::collections::HashMap;
@@ -99,24 +100,24 @@ pub(super) fn lower<'f>(
         }
         let path = file.path.clone();
         for item in file.to_mut().items.iter_mut() {
-            match item {
+            let took_globals = match item {
                 Item::Pou(p) => {
                     lower_pou(p, &structs, &path, diags);
+                    false
                 }
-                Item::Globals(b) => {
-                    let retain = b.retain;
-                    let mut out = Vec::new();
-                    take_from_block(b, &structs, &mut out, &path, diags);
-                    if !out.is_empty() {
-                        globals_file.get_or_insert(f);
+                Item::Globals(b) => take_globals(b, &structs, &mut globals, &path, diags),
+                // a CONFIGURATION's globals are the project's, set as the others
+                Item::Configuration(c) => {
+                    let mut took = false;
+                    for b in &mut c.globals {
+                        took |= take_globals(b, &structs, &mut globals, &path, diags);
                     }
-                    if retain {
-                        globals.once_retained.extend(out);
-                    } else {
-                        globals.once.extend(out);
-                    }
+                    took
                 }
-                _ => {}
+                _ => false,
+            };
+            if took_globals {
+                globals_file.get_or_insert(f);
             }
         }
     }
@@ -149,8 +150,29 @@ fn has_reference_init(item: &Item) -> bool {
                 || p.oop.methods.iter().any(|m| m.pou.vars.iter().any(block_has))
         }
         Item::Globals(b) => block_has(b),
+        Item::Configuration(c) => c.globals.iter().any(block_has),
         _ => false,
     }
+}
+
+/// Takes the reference initial values out of the global block `b` into `globals`; whether
+/// there was one.
+fn take_globals(
+    b: &mut VarBlock,
+    structs: &Structs,
+    globals: &mut Found,
+    path: &std::path::Path,
+    diags: &mut Vec<Diagnostic>,
+) -> bool {
+    let mut out = Vec::new();
+    take_from_block(b, structs, &mut out, path, diags);
+    let any = !out.is_empty();
+    if b.retain {
+        globals.once_retained.extend(out);
+    } else {
+        globals.once.extend(out);
+    }
+    any
 }
 
 /// Whether an initial value calls `REF` or `ADR` somewhere.
