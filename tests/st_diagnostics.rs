@@ -146,7 +146,6 @@ const MESSAGES: &[(&str, &str)] = &[
     ("this initial value does not fit `{}`", "init-does-not-fit"),
     ("the initial value of `{}` must be a constant expression", "init-not-constant"),
     ("`{}` is already declared (line {})", "already-declared"),
-    ("a FUNCTION cannot return a function block", "function-returns-fb"),
     ("`{}` is a standard function: the name is reserved", "standard-function-name"),
     ("an ACTION outside a POU needs its POU: `ACTION Pou.Name:`", "action-outside-a-pou"),
     ("`{}` is not a PROGRAM or FUNCTION_BLOCK of the project", "action-owner-unknown"),
@@ -210,7 +209,17 @@ const MESSAGES: &[(&str, &str)] = &[
         "config-var-config-not-the-instances-own",
     ),
     ("`{}` is already bound by VAR_CONFIG (line {})", "config-var-config-bound-twice"),
+    // fb_value.rs: function block instances as values
+    (
+        "type mismatch: `{}` cannot be assigned to the instance of `{}`: an instance is assigned an instance of the same function block only",
+        "instance-assigned-value",
+    ),
+    (
+        "an instance of `{}` cannot be assigned to an instance of `{}`: the copy is between instances of the same function block only (pass a derived instance as a VAR_IN_OUT or an interface instead)",
+        "instance-assigned-other-block",
+    ),
     // instance_args.rs: a configuration's program instance arguments
+    ("a function block instance cannot be assigned", "config-argument-instance"),
     ("`{}` has no VAR_INPUT or VAR_OUTPUT `{}`{}", "config-argument-unknown"),
     (
         "`{}` is not a VAR_INPUT of `{}`: `:=` gives an input its value before each run",
@@ -417,7 +426,6 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` needs {}, not `{}`", "string-conversion"),
     // stmt.rs: statements
     ("the condition of {} must be `BOOL`, not `{}`", "condition-not-bool"),
-    ("a function block instance cannot be assigned", "fb-assigned"),
     ("`{}` has no result", "void-function-value"),
     ("`{}` outside a loop", "exit-outside-loop"),
     ("`{}` outside a loop", "continue-outside-loop"),
@@ -611,6 +619,14 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
     (
         "IEC 61131-3 gives a FUNCTION's name to its result, and a variable of the same name makes the POU's name ambiguous: rename the variable (`[st] strict` is on)",
         "strict-variable-named-as-function",
+    ),
+    (
+        "IEC 61131-3 assigns no function block instance: copy the variables wanted one by one, or pass the instance as a VAR_IN_OUT (`[st] strict` is on)",
+        "strict-instance-assignment",
+    ),
+    (
+        "a FUNCTION's result is a value of a data type in IEC 61131-3, not a function block instance: return a STRUCT, or pass the instance as a VAR_IN_OUT (`[st] strict` is on)",
+        "strict-instance-result",
     ),
     (
         "an initial value is a constant expression in IEC 61131-3, and an instance's place is none: assign the instance in the block's code or in FB_init (`[st] strict` is on)",

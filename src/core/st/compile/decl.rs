@@ -954,7 +954,7 @@ impl<'a> Ctx<'a> {
                 None => Ty::Void,
             };
             if matches!(result, Ty::Fb(_)) {
-                self.error(file, pou.name.span, "a FUNCTION cannot return a function block");
+                self.instance_result(file, pou.name.span);
             }
             frame = self.default_image(&result, pou.return_type.as_ref());
             self.pous[p].result = result;

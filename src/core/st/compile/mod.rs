@@ -66,6 +66,7 @@ mod expr;
 mod fb_config;
 mod fb_exit;
 mod fb_init;
+mod fb_value;
 mod for_element;
 mod for_written;
 mod generic;

@@ -89,8 +89,10 @@ impl<'a> Ctx<'a> {
                     return None;
                 }
                 if matches!(t.ty, Ty::Fb(_)) {
-                    self.error(file, target.span, "a function block instance cannot be assigned");
-                    return None;
+                    // a copy of the whole instance (compile/fb_value.rs)
+                    return self
+                        .instance_assignment(&t, &v, file, s.span)
+                        .then_some(TStmt { k: TS::Assign(t, v), line });
                 }
                 if v.ty == Ty::Void {
                     self.error(file, value.span, format!("`{}` has no result", expr_text(value)));

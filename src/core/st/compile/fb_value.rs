@@ -1,0 +1,63 @@
+//! Function block instances as values, as CODESYS and TwinCAT have them (TcUnit needs both):
+//!
+//! - `fbA := fbB;`, both instances of the same FUNCTION_BLOCK: the whole instance is copied
+//!   byte for byte (inputs, outputs, internals, nested instances, the type tag of a block in a
+//!   hierarchy); pointers, references and interface values inside are copied as they are, so
+//!   they go on pointing where they pointed (CODESYS's static analysis rule SA0014, "Assignment
+//!   of instances", documents the copy). An instance of another block, a derived one included,
+//!   is refused: CODESYS documents the copy between instances of one block only.
+//! - A FUNCTION or METHOD whose result is an instance (`METHOD GetTestByPosition : FB_Test`,
+//!   `GetTestByPosition := Tests[Position];`): the result slot, at the start of the callee's
+//!   frame like any aggregate result, starts each call from the block's declared initial
+//!   values (its `FB_init` is not run: the slot is meant to receive a copy, and CODESYS runs no
+//!   `FB_init` for a copy either), and the caller copies it out (`emit::call_fn_enabled`), to
+//!   assign it to an instance or to read an output of it.
+//!
+//! Both are compiled to the block copy a STRUCT assignment uses, so they have native code as
+//! well, and allocate nothing in a scan. Both are [`Habit`]s: IEC 61131-3 assigns no instance
+//! and its functions return values of data types, so `[st] strict` refuses them.
+
+use super::ctx::Ctx;
+use super::expr::TExpr;
+use super::types::Ty;
+use crate::st::ast::Span;
+use crate::st::dialect::Habit;
+
+impl Ctx<'_> {
+    /// `target := value` where the target is a function block instance (the statement
+    /// checker's types `t` and `v`): `true` when the copy is allowed (and the habit noted),
+    /// `false` after reporting why not.
+    pub(super) fn instance_assignment(
+        &mut self,
+        t: &TExpr,
+        v: &TExpr,
+        file: usize,
+        span: Span,
+    ) -> bool {
+        let (Ty::Fb(to), Ty::Fb(from)) = (&t.ty, &v.ty) else {
+            let (to, from) = (self.ty_name(&t.ty), self.ty_name(&v.ty));
+            self.error(
+                file,
+                span,
+                format!("type mismatch: `{from}` cannot be assigned to the instance of `{to}`: an instance is assigned an instance of the same function block only"),
+            );
+            return false;
+        };
+        if to != from {
+            let (to, from) = (self.ty_name(&t.ty), self.ty_name(&v.ty));
+            self.error(
+                file,
+                span,
+                format!("an instance of `{from}` cannot be assigned to an instance of `{to}`: the copy is between instances of the same function block only (pass a derived instance as a VAR_IN_OUT or an interface instead)"),
+            );
+            return false;
+        }
+        self.habit(Habit::InstanceAssignment, file, span);
+        true
+    }
+
+    /// A FUNCTION or METHOD declared with a function block as its result's type, at `span`.
+    pub(super) fn instance_result(&mut self, file: usize, span: Span) {
+        self.habit(Habit::InstanceResult, file, span);
+    }
+}
