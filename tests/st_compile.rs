@@ -643,7 +643,11 @@ fn golden_diagnostics() {
             .lines()
             .find_map(|l| l.trim().strip_prefix("heap_bytes = ")?.parse().ok())
             .unwrap_or(Dialect::default().heap_bytes);
-        let dialect = Dialect { strict, heap_bytes, ..Dialect::default() };
+        let variable_memory_bytes = toml
+            .lines()
+            .find_map(|l| l.trim().strip_prefix("variable_memory_bytes = ")?.parse().ok())
+            .unwrap_or(Dialect::default().variable_memory_bytes);
+        let dialect = Dialect { strict, heap_bytes, variable_memory_bytes, ..Dialect::default() };
         // a `warning-` case compiles, with its one warning
         let warning = dir.file_name().is_some_and(|n| n.to_string_lossy().starts_with("warning-"));
         let actual = if warning {
@@ -1098,4 +1102,38 @@ END_PROGRAM
         warnings[0].starts_with("main.st:6:5: warning: `DINT` converted implicitly"),
         "{warnings:?}"
     );
+}
+
+/// `[st] variable_memory_bytes` (compile/memory_limit.rs): an array of 67,123,200 bytes, just
+/// above the 64 MiB default, is refused by default with the setting named, compiles under a
+/// limit of 128 MiB and runs, its last element written and read. STRING[255] elements keep
+/// the symbols few (one per 256 bytes): the test stays at a few hundred MB and seconds.
+#[test]
+fn an_array_above_the_default_limit_runs_under_a_raised_one() {
+    let src = "VAR_GLOBAL big : ARRAY [1..262200] OF STRING[255]; END_VAR
+PROGRAM main
+VAR n : INT; last : STRING; END_VAR
+big[262200] := 'end';
+last := big[262200];
+n := n + 1;
+END_PROGRAM
+";
+    let Err(refused) = try_build(src) else { panic!("above the default limit, yet compiled") };
+    assert!(
+        refused.contains("the array takes 67123200 bytes of variable memory")
+            && refused.contains("`[st] variable_memory_bytes` allows (67108864)"),
+        "{refused}"
+    );
+    let dialect = Dialect { variable_memory_bytes: 128 << 20, ..Dialect::default() };
+    let c = try_build_with(src, None, dialect).unwrap_or_else(|e| panic!("{e}"));
+    assert!(c.variables.initial.len() > 67_123_200);
+    let mut vm = Vm::for_programs(&c.programs);
+    vm.set_variables(&c.variables);
+    vm.reset_for_run(&plcd_core::device::RetainSet::default(), false);
+    let mut state = ExecState::with_frame(c.programs[0].frame_bytes);
+    let clock = ManualClock::new(0);
+    assert!(matches!(vm.run(&c.programs[0], &mut state, &clock, 1_000_000), Exit::End));
+    let last = c.variables.symbols.iter().find(|s| s.name.eq_ignore_ascii_case("main.last"));
+    let last = plcd_core::value::decode_str(&vm.read_string(last.expect("main.last").at));
+    assert_eq!(last, "end");
 }

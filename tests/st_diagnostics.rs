@@ -59,7 +59,6 @@ const MESSAGES: &[(&str, &str)] = &[
     ("a WSTRING's length must be 1..255, not {}", "wstring-length"),
     ("a `{}` literal is one character", "char-literal-length"),
     ("empty or too large array range `{}..{}`", "empty-array-range"),
-    ("the array is too large", "array-too-large"),
     ("a subrange needs an integer type, not `{}`", "subrange-base"),
     ("`{}..{}` is not a subrange of `{}`", "subrange-bounds"),
     ("an enumeration's base must be an integer type, not `{}`", "enum-base-not-integer"),
@@ -218,6 +217,19 @@ const MESSAGES: &[(&str, &str)] = &[
         "an instance of `{}` cannot be assigned to an instance of `{}`: the copy is between instances of the same function block only (pass a derived instance as a VAR_IN_OUT or an interface instead)",
         "instance-assigned-other-block",
     ),
+    // memory_limit.rs: `[st] variable_memory_bytes`
+    (
+        "{} takes {} bytes of variable memory, more than `[st] variable_memory_bytes` allows ({}): raise it in the config (at most {}) or declare less",
+        "array-too-large",
+    ),
+    (
+        "{} takes {} bytes of variable memory, more than `[st] variable_memory_bytes` allows ({}): raise it in the config (at most {}) or declare less",
+        "array-too-large-configured",
+    ),
+    (
+        "{} takes {} bytes of variable memory, more than `[st] variable_memory_bytes` allows ({}): raise it in the config (at most {}) or declare less",
+        "instance-too-large",
+    ),
     // instance_args.rs: a configuration's program instance arguments
     ("a function block instance cannot be assigned", "config-argument-instance"),
     ("`{}` has no VAR_INPUT or VAR_OUTPUT `{}`{}", "config-argument-unknown"),
@@ -258,7 +270,6 @@ const MESSAGES: &[(&str, &str)] = &[
         "only VAR, VAR_INPUT, VAR_IN_OUT, VAR_GLOBAL and VAR_EXTERNAL can be CONSTANT",
         "constant-output",
     ),
-    ("an instance of `{}` takes more than 64 MiB", "instance-too-large"),
     ("the variables of `{}` need {} bytes of frame (limit 1 MiB)", "function-frame-too-large"),
     ("`{}` is `{}`: only elementary types and their arrays can be located", "located-struct"),
     ("`%{}` is a {}-bit location, `{}` is `{}`", "iec-size-mismatch"),
@@ -824,6 +835,9 @@ const UNREACHABLE: &[(&str, &str)] = &[
 /// Literals of the compiler sources that are not messages by themselves: words and hints that
 /// messages are built from, and type names.
 const PARTS: &[&str] = &[
+    // what takes too much variable memory (decl.rs, given to memory_limit.rs)
+    "the array",
+    "an instance of `{}`",
     // where declaration arguments are given (fb_init.rs's check_arguments; heap.rs's __NEW)
     "the declaration of `{}`",
     "this `__NEW`",

@@ -794,6 +794,7 @@ where
         iec: config.iec.layout,
         heap_bytes: config.st.heap_bytes,
         libraries: config.st.system_libraries,
+        variable_memory_bytes: config.st.variable_memory_bytes,
     };
     let base = config.path.parent().unwrap_or(Path::new(""));
     let shown = |path: &Path| path.strip_prefix(base).unwrap_or(path).display().to_string();

@@ -88,7 +88,10 @@ pub use retain::{Restart, RetainArea, RetainConfig, RetainRange};
 pub use rt::{RtConfig, RtPolicy};
 pub use serial::{Parity, SerialLine};
 pub use sim::SimConfig;
-pub use st::{is_st_source, is_twincat_source, LibraryFile, StConfig, DEFAULT_HEAP_BYTES};
+pub use st::{
+    is_st_source, is_twincat_source, LibraryFile, StConfig, DEFAULT_HEAP_BYTES,
+    DEFAULT_VARIABLE_MEMORY_BYTES, VARIABLE_MEMORY_BYTES_RANGE,
+};
 pub use switch::SwitchConfig;
 pub use system_libraries::{SystemLibraries, SystemLibrary};
 pub use task::{DeviceCondition, Edge, TaskConfig, TaskKind, TASK_NUMBERS};

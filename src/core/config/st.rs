@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::common::{int_or, resolve, Ctx};
+use super::common::{int_or, resolve, widen, Ctx};
 use super::system_libraries::{SystemLibraries, SystemLibrary};
 use super::Sink;
 use crate::diag::Diagnostic;
@@ -31,6 +31,9 @@ pub struct StConfig {
     /// `system_libraries`: the libraries plcd ships that the project uses (`["Tc2_System"]`,
     /// [`crate::st::libraries`]); default none.
     pub system_libraries: SystemLibraries,
+    /// `variable_memory_bytes`: the most variable memory one array or one instance may take
+    /// (docs/ST.md, "Limits and what is not supported"); default 64 MiB, 1 MiB to 1 GiB.
+    pub variable_memory_bytes: u32,
 }
 
 /// `heap_bytes` when the config does not say: 64 KiB.
@@ -38,6 +41,16 @@ pub const DEFAULT_HEAP_BYTES: u32 = 64 * 1024;
 
 /// The largest `heap_bytes`: 16 MiB.
 pub const MAX_HEAP_BYTES: u32 = 16 * 1024 * 1024;
+
+/// `variable_memory_bytes` when the config does not say: 64 MiB. Every byte is touched at
+/// load, several times over, and every scalar element has a symbol: TcUnit's default
+/// parameters (one results array of about 79 MB) cost `plcd sim` about 3 GB of memory, a
+/// price a project asks for by name rather than by default (docs/ST.md).
+pub const DEFAULT_VARIABLE_MEMORY_BYTES: u32 = 64 << 20;
+
+/// The smallest and largest `variable_memory_bytes`: 1 MiB and 1 GiB (variable memory is
+/// addressed with 32-bit offsets; a project near the top would cost gigabytes, docs/ST.md).
+pub const VARIABLE_MEMORY_BYTES_RANGE: std::ops::RangeInclusive<u32> = (1 << 20)..=(1 << 30);
 
 impl Default for StConfig {
     fn default() -> StConfig {
@@ -47,6 +60,7 @@ impl Default for StConfig {
             namespaces: Vec::new(),
             heap_bytes: DEFAULT_HEAP_BYTES,
             system_libraries: SystemLibraries::NONE,
+            variable_memory_bytes: DEFAULT_VARIABLE_MEMORY_BYTES,
         }
     }
 }
@@ -90,6 +104,7 @@ pub(super) struct RawSt {
     pub namespaces: Option<Vec<Spanned<String>>>,
     pub heap_bytes: Option<Spanned<i64>>,
     pub system_libraries: Option<Vec<Spanned<String>>>,
+    pub variable_memory_bytes: Option<Spanned<i64>>,
 }
 
 pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StConfig> {
@@ -167,6 +182,19 @@ pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StC
     let heap_bytes = int_or(sink, &ctx, "heap_bytes", raw.heap_bytes, range, default);
     ok &= heap_bytes.is_some();
     let heap_bytes = heap_bytes.unwrap_or(default);
+    let range = widen(VARIABLE_MEMORY_BYTES_RANGE);
+    let default = DEFAULT_VARIABLE_MEMORY_BYTES;
+    let key = "variable_memory_bytes";
+    let variable_memory_bytes = int_or(sink, &ctx, key, raw.variable_memory_bytes, range, default);
+    ok &= variable_memory_bytes.is_some();
+    let variable_memory_bytes = variable_memory_bytes.unwrap_or(default);
     let strict = raw.strict.unwrap_or(false);
-    ok.then_some(StConfig { library, strict, namespaces, heap_bytes, system_libraries })
+    ok.then_some(StConfig {
+        library,
+        strict,
+        namespaces,
+        heap_bytes,
+        system_libraries,
+        variable_memory_bytes,
+    })
 }

@@ -9,7 +9,7 @@
 use crate::st::ast::Span;
 
 /// How the project's Structured Text is read: `[st] strict`, `[iec]`'s layout of the direct
-/// addresses, and `[st] heap_bytes`.
+/// addresses, `[st] heap_bytes` and `[st] variable_memory_bytes`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Dialect {
     /// Refuse every [`Habit`] (IEC 61131-3 only). Default `false`: accept them.
@@ -21,6 +21,9 @@ pub struct Dialect {
     pub heap_bytes: u32,
     /// The system libraries compiled with the project (`[st] system_libraries`).
     pub libraries: crate::st::libraries::SystemLibraries,
+    /// The most variable memory one array or one instance may take
+    /// (`[st] variable_memory_bytes`).
+    pub variable_memory_bytes: u32,
 }
 
 /// `[st] heap_bytes` when the config does not say: 64 KiB.
@@ -33,6 +36,7 @@ impl Default for Dialect {
             iec: Default::default(),
             heap_bytes: DEFAULT_HEAP_BYTES,
             libraries: Default::default(),
+            variable_memory_bytes: crate::config::DEFAULT_VARIABLE_MEMORY_BYTES,
         }
     }
 }

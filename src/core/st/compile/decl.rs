@@ -18,8 +18,6 @@ use super::types::{fits, ArrayTy, EnumTy, Member, Prim, StructTy, Ty};
 
 /// The largest frame or instance the compiler accepts.
 pub const MAX_FRAME: u32 = 1 << 20;
-/// The largest variable memory (globals, instances, templates).
-pub const MAX_MEMORY: u64 = 64 << 20;
 
 fn key(name: &str) -> String {
     name.to_ascii_lowercase()
@@ -324,8 +322,9 @@ impl<'a> Ctx<'a> {
                 }
                 let elem_size = self.types.size(&of);
                 let arr = ArrayTy { dims: out, of, elem_size };
-                if arr.count().saturating_mul(u64::from(elem_size)) > MAX_MEMORY {
-                    self.error(file, *span, "the array is too large");
+                let bytes = arr.count().saturating_mul(u64::from(elem_size));
+                if bytes > u64::from(self.dialect.variable_memory_bytes) {
+                    self.memory_too_large("the array", bytes, file, *span);
                     return Ty::Error;
                 }
                 Ty::Array(Rc::new(arr))
@@ -1264,12 +1263,9 @@ impl<'a> Ctx<'a> {
             self.declare_implicit_eno(p, storage, pou.name.span);
         }
         self.share_instance(p);
-        if inst.len() as u64 > MAX_MEMORY {
-            self.error(
-                file,
-                pou.name.span,
-                format!("an instance of `{}` takes more than 64 MiB", pou.name.name),
-            );
+        if inst.len() as u64 > u64::from(self.dialect.variable_memory_bytes) {
+            let what = format!("an instance of `{}`", pou.name.name);
+            self.memory_too_large(&what, inst.len() as u64, file, pou.name.span);
         }
         if frame.len() as u32 > MAX_FRAME {
             self.error(

@@ -79,6 +79,7 @@ mod instance_init;
 mod jumps;
 mod libraries;
 mod lifecycle;
+mod memory_limit;
 mod method_eno;
 mod method_vars;
 mod mixed_args;
