@@ -258,7 +258,6 @@ const MESSAGES: &[(&str, &str)] = &[
         "global-in-pou",
     ),
     ("a FUNCTION's variables cannot be RETAIN", "function-retain"),
-    ("a FUNCTION cannot hold a function block instance", "function-holds-fb"),
     ("`{}` is the FUNCTION's own name", "function-own-name"),
     ("VAR_EXTERNAL `{}` is `{}` but the VAR_GLOBAL is `{}`", "external-type-differs"),
     ("VAR_EXTERNAL `{}` must be CONSTANT like its VAR_GLOBAL", "external-not-constant"),
@@ -638,6 +637,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
     (
         "a FUNCTION's result is a value of a data type in IEC 61131-3, not a function block instance: return a STRUCT, or pass the instance as a VAR_IN_OUT (`[st] strict` is on)",
         "strict-instance-result",
+    ),
+    (
+        "IEC 61131-3 declares no function block instance in a FUNCTION, which keeps no state: declare a FUNCTION_BLOCK, or pass the instance as a VAR_IN_OUT (`[st] strict` is on)",
+        "strict-instance-in-function",
     ),
     (
         "an initial value is a constant expression in IEC 61131-3, and an instance's place is none: assign the instance in the block's code or in FB_init (`[st] strict` is on)",

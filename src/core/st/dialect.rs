@@ -159,6 +159,9 @@ pub enum Habit {
     /// A FUNCTION or METHOD whose result is a function block instance, a copy the caller
     /// assigns or uses (`METHOD GetTestByPosition : FB_Test`, TcUnit; `compile::fb_value`).
     InstanceResult,
+    /// A FUNCTION's `VAR` holding a function block instance: a fresh one at each call
+    /// (`compile::fb_value`).
+    InstanceInFunction,
 }
 
 impl Habit {
@@ -207,6 +210,7 @@ impl Habit {
             Habit::GenericConstants => "generic constants (`VAR_GENERIC CONSTANT`, `FB_Log<20>`) are TwinCAT 3.1.4026, not IEC 61131-3: declare one function block per size, or a constant the block's variables are sized by (`[st] strict` is on)".to_string(),
             Habit::InstanceAssignment => "IEC 61131-3 assigns no function block instance: copy the variables wanted one by one, or pass the instance as a VAR_IN_OUT (`[st] strict` is on)".to_string(),
             Habit::InstanceResult => "a FUNCTION's result is a value of a data type in IEC 61131-3, not a function block instance: return a STRUCT, or pass the instance as a VAR_IN_OUT (`[st] strict` is on)".to_string(),
+            Habit::InstanceInFunction => "IEC 61131-3 declares no function block instance in a FUNCTION, which keeps no state: declare a FUNCTION_BLOCK, or pass the instance as a VAR_IN_OUT (`[st] strict` is on)".to_string(),
             Habit::CoveredCaseElse => "unreachable `ELSE`: the labels cover every value of the selector's type; remove the `ELSE` (`[st] strict` is on)".to_string(),
             Habit::PositionalThenNamed => "IEC 61131-3 gives a call's arguments all by position or all by name: name each one (`[st] strict` is on)".to_string(),
             Habit::CodesysParameter(codesys, iec) => format!("`{codesys}` is CODESYS's name of this input: IEC 61131-3 names it `{iec}` (`[st] strict` is on)"),

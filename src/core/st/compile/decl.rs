@@ -1002,7 +1002,7 @@ impl<'a> Ctx<'a> {
                     && matches!(ty, Ty::Fb(_))
                     && block.kind != VarKind::InOut
                 {
-                    self.error(file, decl.span, "a FUNCTION cannot hold a function block instance");
+                    self.instance_in_function(file, decl.span);
                 }
                 for id in &decl.names {
                     self.reserved(file, id);

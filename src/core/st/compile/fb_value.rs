@@ -13,6 +13,10 @@
 //!   `FB_init` for a copy either), and the caller copies it out (`emit::call_fn_enabled`), to
 //!   assign it to an instance or to read an output of it.
 //!
+//! - A FUNCTION's `VAR` holding an instance (`CurrentTest : FB_Test;`, TcUnit's
+//!   IS_TEST_FINISHED): a fresh instance at each call, as a method's already is (compile/
+//!   fb_init.rs runs its `FB_init` at the call).
+//!
 //! Both are compiled to the block copy a STRUCT assignment uses, so they have native code as
 //! well, and allocate nothing in a scan. Both are [`Habit`]s: IEC 61131-3 assigns no instance
 //! and its functions return values of data types, so `[st] strict` refuses them.
@@ -54,6 +58,11 @@ impl Ctx<'_> {
         }
         self.habit(Habit::InstanceAssignment, file, span);
         true
+    }
+
+    /// A FUNCTION's `VAR` declaring a function block instance, at `span`.
+    pub(super) fn instance_in_function(&mut self, file: usize, span: Span) {
+        self.habit(Habit::InstanceInFunction, file, span);
     }
 
     /// A FUNCTION or METHOD declared with a function block as its result's type, at `span`.
