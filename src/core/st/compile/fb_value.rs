@@ -1,8 +1,8 @@
 //! Function block instances as values, as CODESYS and TwinCAT have them (TcUnit needs both):
 //!
 //! - `fbA := fbB;`, both instances of the same FUNCTION_BLOCK: the whole instance is copied
-//!   byte for byte (inputs, outputs, internals, nested instances, the type tag of a block in a
-//!   hierarchy); pointers, references and interface values inside are copied as they are, so
+//!   byte for byte (inputs, outputs, internals, nested instances; not the type tag of a block
+//!   in a hierarchy, which stays the target's own); pointers, references and interface values inside are copied as they are, so
 //!   they go on pointing where they pointed (CODESYS's static analysis rule SA0014, "Assignment
 //!   of instances", documents the copy). An instance of another block, a derived one included,
 //!   is refused: CODESYS documents the copy between instances of one block only.
@@ -21,23 +21,31 @@
 //! well, and allocate nothing in a scan. Both are [`Habit`]s: IEC 61131-3 assigns no instance
 //! and its functions return values of data types, so `[st] strict` refuses them.
 
+use std::rc::Rc;
+
 use super::ctx::Ctx;
-use super::expr::TExpr;
-use super::types::Ty;
+use super::expr::{TExpr, TK};
+use super::types::{ArrayTy, Prim, Ty};
 use crate::st::ast::Span;
 use crate::st::dialect::Habit;
 
+/// The bytes of a type tag (compile/oop.rs: a UDINT at offset 0 of a block in a hierarchy).
+const TAG_BYTES: u32 = 4;
+
 impl Ctx<'_> {
     /// `target := value` where the target is a function block instance (the statement
-    /// checker's types `t` and `v`): `true` when the copy is allowed (and the habit noted),
-    /// `false` after reporting why not.
+    /// checker's `t` and `v`): the two places to copy between, or `None` after reporting why
+    /// not. The copy leaves out the type tag of a block in a hierarchy (its first 4 bytes,
+    /// compile/oop.rs): an instance of `Base` reached through a `POINTER TO Base` may be a
+    /// derived one, and a tag copied from it would make the target, `Base`-sized, dispatch to
+    /// the derived block's methods; each instance keeps the tag of what it is.
     pub(super) fn instance_assignment(
         &mut self,
-        t: &TExpr,
-        v: &TExpr,
+        t: TExpr,
+        v: TExpr,
         file: usize,
         span: Span,
-    ) -> bool {
+    ) -> Option<(TExpr, TExpr)> {
         let (Ty::Fb(to), Ty::Fb(from)) = (&t.ty, &v.ty) else {
             let (to, from) = (self.ty_name(&t.ty), self.ty_name(&v.ty));
             self.error(
@@ -45,7 +53,7 @@ impl Ctx<'_> {
                 span,
                 format!("type mismatch: `{from}` cannot be assigned to the instance of `{to}`: an instance is assigned an instance of the same function block only"),
             );
-            return false;
+            return None;
         };
         if to != from {
             let (to, from) = (self.ty_name(&t.ty), self.ty_name(&v.ty));
@@ -54,10 +62,28 @@ impl Ctx<'_> {
                 span,
                 format!("an instance of `{from}` cannot be assigned to an instance of `{to}`: the copy is between instances of the same function block only (pass a derived instance as a VAR_IN_OUT or an interface instead)"),
             );
-            return false;
+            return None;
         }
         self.habit(Habit::InstanceAssignment, file, span);
-        true
+        let fb = *to;
+        if self.tag_image(fb).is_none() {
+            return Some((t, v));
+        }
+        let size = self.types.size(&t.ty);
+        if size <= TAG_BYTES {
+            return None; // the tag alone: nothing to copy
+        }
+        let data = Ty::Array(Rc::new(ArrayTy {
+            dims: vec![(0, i64::from(size - TAG_BYTES) - 1)],
+            of: Ty::Prim(Prim::Byte),
+            elem_size: 1,
+        }));
+        let after_tag = |e: TExpr| TExpr {
+            span: e.span,
+            k: TK::Member(Box::new(e), TAG_BYTES, false),
+            ty: data.clone(),
+        };
+        Some((after_tag(t), after_tag(v)))
     }
 
     /// A FUNCTION's `VAR` declaring a function block instance, at `span`.

@@ -91,8 +91,8 @@ impl<'a> Ctx<'a> {
                 if matches!(t.ty, Ty::Fb(_)) {
                     // a copy of the whole instance (compile/fb_value.rs)
                     return self
-                        .instance_assignment(&t, &v, file, s.span)
-                        .then_some(TStmt { k: TS::Assign(t, v), line });
+                        .instance_assignment(t, v, file, s.span)
+                        .map(|(t, v)| TStmt { k: TS::Assign(t, v), line });
                 }
                 if v.ty == Ty::Void {
                     self.error(file, value.span, format!("`{}` has no result", expr_text(value)));
