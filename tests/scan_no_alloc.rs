@@ -163,7 +163,7 @@ const VARS: &str = "FUNCTION_BLOCK Edge\nVAR_INPUT up : BOOL R_EDGE; END_VAR\n\
 // The constructs of issue 29: a method called through an interface and on the instance (its
 // VAR_INST, a property), EXTENDS with SUPER, an action, a chart with timed qualifiers,
 // references and pointers (moved, compared, an alias), a union, a jump, AND_THEN / OR_ELSE,
-// and TOD/DATE arithmetic.
+// TOD/DATE arithmetic, and instances as values (a method's instance result, an assignment).
 const NEWER: &str = "TYPE U : UNION dw : DWORD; b : ARRAY [0..3] OF BYTE; END_UNION END_TYPE
 INTERFACE ICount
 METHOD Add : DINT
@@ -180,6 +180,9 @@ END_METHOD
 PROPERTY Count : DINT
 GET Count := n; END_GET
 END_PROPERTY
+METHOD Snapshot : Base
+    Snapshot := THIS^;
+END_METHOD
 END_FUNCTION_BLOCK
 FUNCTION_BLOCK Twice EXTENDS Base
 METHOD Add : DINT
@@ -194,6 +197,7 @@ VAR
     u : U; go : BOOL; lamp : BOOL; bumps : DINT; hit : BOOL;
     tod1 : TOD := TOD#23:59:59; day : DATE; stamp : DT := DT#2024-02-28-12:00:00; span : TIME;
     heap : POINTER TO DINT; names : POINTER TO STRING(20); counters : POINTER TO Base;
+    snap, copy : Base;
 END_VAR
     INITIAL_STEP Idle: Work(N); END_STEP
     STEP Fill: lamp(N); Work(N); Bump(L, T#2ms); END_STEP
@@ -203,6 +207,7 @@ ACTION Work:
     k := k + 1;
     IF k MOD 2 = 0 THEN i := b; ELSE i := t; END_IF;
     total := i.Add(k) + t.Add(1) + b.Count;
+    snap := t.Snapshot(); copy := b; total := total + snap.Count - copy.Count;
     p := ADR(buf[0]); p := p + 4 * (k MOD 8); p^ := k; r := REF(buf[1]);
     IF r <> NULL AND_THEN r^ >= 0 THEN r^ := r^ + 1; END_IF;
     alias REF= buf[2]; alias := alias + p^;
