@@ -214,6 +214,10 @@ const MESSAGES: &[(&str, &str)] = &[
         "instance-assigned-value",
     ),
     (
+        "a method cannot be called on the instance a call returns: assign the result to an instance, then call the method on that",
+        "method-on-call-result",
+    ),
+    (
         "an instance of `{}` cannot be assigned to an instance of `{}`: the copy is between instances of the same function block only (pass a derived instance as a VAR_IN_OUT or an interface instead)",
         "instance-assigned-other-block",
     ),

@@ -633,6 +633,15 @@ impl<'a> Ctx<'a> {
         let probe = self.check_place(base, scope, Access::Read, None);
         self.diags.truncate(saved);
         let Ty::Fb(fb) = probe.ty else { return None };
+        if matches!(base.kind, ExprKind::Call { .. }) {
+            // the copy a FUNCTION or METHOD returns is no variable a method could run on
+            self.error(
+                scope.file,
+                base.span,
+                "a method cannot be called on the instance a call returns: assign the result to an instance, then call the method on that",
+            );
+            return Some((TExpr::error(base.span), fb, false));
+        }
         Some((self.check_place(base, scope, Access::Ref, None), fb, false))
     }
 
