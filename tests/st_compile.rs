@@ -1137,3 +1137,27 @@ END_PROGRAM
     let last = plcd_core::value::decode_str(&vm.read_string(last.expect("main.last").at));
     assert_eq!(last, "end");
 }
+
+/// `[st] variable_memory_bytes` bounds variable memory in all (compile/memory_limit.rs):
+/// three arrays of 400,000 bytes, each under a limit of 1 MiB, are refused together at the
+/// third (globals: a program's own variables are bounded as one instance), the total named;
+/// two of them compile. Small sizes keep the test quick.
+#[test]
+fn arrays_each_under_the_limit_are_refused_when_their_sum_crosses_it() {
+    let declare = |n: usize| {
+        let arrays: String =
+            (1..=n).map(|i| format!("a{i} : ARRAY [1..100000] OF DINT;\n")).collect();
+        format!("VAR_GLOBAL\n{arrays}END_VAR\nPROGRAM main\na1[1] := 1;\nEND_PROGRAM\n")
+    };
+    let dialect = Dialect { variable_memory_bytes: 1 << 20, ..Dialect::default() };
+    let Err(refused) = try_build_with(&declare(3), None, dialect) else {
+        panic!("1,200,000 bytes under a limit of 1 MiB, yet compiled")
+    };
+    assert!(
+        refused.contains("main.st:4:1: error: with this declaration, variable memory takes"),
+        "{refused}"
+    );
+    assert!(refused.contains("`[st] variable_memory_bytes` allows (1048576)"), "{refused}");
+    assert_eq!(refused.matches("variable memory takes").count(), 1, "{refused}");
+    try_build_with(&declare(2), None, dialect).unwrap_or_else(|e| panic!("{e}"));
+}

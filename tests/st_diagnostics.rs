@@ -234,6 +234,10 @@ const MESSAGES: &[(&str, &str)] = &[
         "{} takes {} bytes of variable memory, more than `[st] variable_memory_bytes` allows ({}): raise it in the config (at most {}) or declare less",
         "instance-too-large",
     ),
+    (
+        "with this declaration, variable memory takes {} bytes in all, more than `[st] variable_memory_bytes` allows ({}): raise it in the config (at most {}) or declare less",
+        "variable-memory-total-too-large",
+    ),
     // instance_args.rs: a configuration's program instance arguments
     ("a function block instance cannot be assigned", "config-argument-instance"),
     ("`{}` has no VAR_INPUT or VAR_OUTPUT `{}`{}", "config-argument-unknown"),

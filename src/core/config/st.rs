@@ -31,8 +31,9 @@ pub struct StConfig {
     /// `system_libraries`: the libraries plcd ships that the project uses (`["Tc2_System"]`,
     /// [`crate::st::libraries`]); default none.
     pub system_libraries: SystemLibraries,
-    /// `variable_memory_bytes`: the most variable memory one array or one instance may take
-    /// (docs/ST.md, "Limits and what is not supported"); default 64 MiB, 1 MiB to 1 GiB.
+    /// `variable_memory_bytes`: the most variable memory the project may take in all (and so
+    /// one array or one instance; docs/ST.md, "Limits and what is not supported"); default
+    /// 64 MiB, 1 MiB to 1 GiB.
     pub variable_memory_bytes: u32,
 }
 

@@ -21,7 +21,7 @@ pub struct Dialect {
     pub heap_bytes: u32,
     /// The system libraries compiled with the project (`[st] system_libraries`).
     pub libraries: crate::st::libraries::SystemLibraries,
-    /// The most variable memory one array or one instance may take
+    /// The most variable memory the project may take in all, and so one array or one instance
     /// (`[st] variable_memory_bytes`).
     pub variable_memory_bytes: u32,
 }

@@ -246,6 +246,8 @@ pub struct Ctx<'a> {
     /// `(offset, len)` of RETAIN bytes.
     pub retained: Vec<(u32, u32)>,
     pub located_init: Vec<(Place, Elem, u64)>,
+    /// The total of variable memory crossed `[st] variable_memory_bytes` (reported once).
+    pub memory_exceeded: bool,
     /// Plain enumeration value names → `(enum, value)` of each enumeration declaring it.
     pub enum_values: HashMap<String, Vec<(usize, i128)>>,
     /// Whether the POU being checked is the prelude's (may call `__` builtins).
@@ -310,8 +312,13 @@ impl<'a> Ctx<'a> {
         self.types.name(ty)
     }
 
-    /// Reserves `len` bytes of variable memory with their initial image.
-    pub fn alloc_var(&mut self, bytes: &[u8]) -> u32 {
+    /// Reserves `bytes.len()` bytes of variable memory with their initial image, for the
+    /// declaration (or constant) at `span`; past `[st] variable_memory_bytes` in all, an
+    /// error there (memory_limit.rs) and nothing reserved, so that offsets never wrap.
+    pub fn alloc_var(&mut self, bytes: &[u8], file: usize, span: Span) -> u32 {
+        if !self.total_within_limit(bytes.len() as u64, file, span) {
+            return 0;
+        }
         let at = self.image.len() as u32;
         self.image.extend_from_slice(bytes);
         at

@@ -834,7 +834,7 @@ impl<'a> Ctx<'a> {
                             scope,
                             &id.name,
                         );
-                        let at = self.alloc_var(&img);
+                        let at = self.alloc_var(&img, file, id.span);
                         if block.retain {
                             self.retained.push((at, img.len() as u32));
                         }
@@ -1191,7 +1191,7 @@ impl<'a> Ctx<'a> {
                         let in_frame = kind == PouKind::Function || block.kind == VarKind::Temp;
                         if block.kind == VarKind::Static {
                             // One copy for the POU, in variable memory beside the globals.
-                            let at = self.alloc_var(&img);
+                            let at = self.alloc_var(&img, file, id.span);
                             if block.retain {
                                 self.retained.push((at, img.len() as u32));
                             }

@@ -383,14 +383,14 @@ impl<'c, 'a> Em<'c, 'a> {
                     // the characters and their NUL, as a STRING is stored
                     let mut bytes = s.clone();
                     bytes.push(0);
-                    let at = self.cx.alloc_var(&bytes);
+                    let at = self.cx.alloc_var(&bytes, self.file, e.span);
                     self.op(Op::AddrOf(Place::Var(at)));
                 }
                 (Cv::WStr(s), _) => {
                     // the code units and their 2-byte NUL, as a WSTRING is stored
                     let bytes: Vec<u8> =
                         s.iter().chain([&0]).flat_map(|unit| unit.to_le_bytes()).collect();
-                    let at = self.cx.alloc_var(&bytes);
+                    let at = self.cx.alloc_var(&bytes, self.file, e.span);
                     self.op(Op::AddrOf(Place::Var(at)));
                 }
                 (cv, ty) => {
@@ -558,7 +558,8 @@ impl<'c, 'a> Em<'c, 'a> {
     /// an aggregate kept in variable memory).
     fn push_image(&mut self, image: &[u8], ty: &Ty) {
         if ty.is_aggregate() {
-            let at = self.cx.alloc_var(image);
+            let span = crate::st::ast::Span { line: self.line, col: 1 };
+            let at = self.cx.alloc_var(image, self.file, span);
             self.op(Op::AddrOf(Place::Var(at)));
             return;
         }
@@ -800,7 +801,8 @@ impl<'c, 'a> Em<'c, 'a> {
             return Some(t);
         }
         let img = pou.frame_image.clone();
-        let at = self.cx.alloc_var(&img);
+        let (file, span) = (pou.file, pou.name_span());
+        let at = self.cx.alloc_var(&img, file, span);
         self.cx.pous[p].frame_template = Some(at);
         Some(at)
     }

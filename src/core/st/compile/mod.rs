@@ -226,6 +226,7 @@ pub fn compile_in_namespaces(
         image: Vec::new(),
         retained: Vec::new(),
         located_init: Vec::new(),
+        memory_exceeded: false,
         enum_values: HashMap::new(),
         in_prelude: false,
         eno_read: files.iter().any(decl::reads_eno),
@@ -275,7 +276,8 @@ pub fn compile_in_namespaces(
         };
         placed.push(pou.map(|p| {
             let img = cx.pous[p].image.clone();
-            (p, cx.alloc_var(&img))
+            let (file, span) = (cx.pous[p].file, cx.pous[p].name_span());
+            (p, cx.alloc_var(&img, file, span))
         }));
     }
 
