@@ -163,10 +163,17 @@ pub fn run(args: &SimArgs, err: &mut impl Write) -> ExitCode {
     let watch_names = watch.iter().map(Watched::name).collect();
     let program_lines =
         project.programs.iter().map(|p| (p.name.clone(), p.lines.to_vec())).collect();
+    let watch_types: Vec<Option<ValueType>> = watch.iter().map(watched_type).collect();
+    // The trace reads the symbols only to name a watched reference's target: one symbol per
+    // scalar element is most of what a large array costs (BENCHMARKS.md, "Large variables"),
+    // so they are copied only when a reference is watched.
+    let watches_reference =
+        watch_types.iter().flatten().any(|ty| matches!(ty, ValueType::Reference { .. }));
+    let symbols = if watches_reference { project.variables.symbols.clone() } else { Vec::new() };
     let mut writer =
         TraceWriter::new(BufWriter::new(out), names.clone(), watch_names, program_lines)
-            .with_types(watch.iter().map(watched_type).collect())
-            .with_symbols(project.variables.symbols.clone());
+            .with_types(watch_types)
+            .with_symbols(symbols);
     let mut recorder = Recorder::default();
     let started = Instant::now();
     let mut messages = Messages { out: err, task_names: &names };
