@@ -45,7 +45,7 @@ pub const MAX_HEAP_BYTES: u32 = 16 * 1024 * 1024;
 
 /// `variable_memory_bytes` when the config does not say: 64 MiB. Every byte is touched at
 /// load, several times over, and every scalar element has a symbol: TcUnit's default
-/// parameters (one results array of about 79 MB) cost `plcd sim` about 3 GB of memory, a
+/// parameters (one results array of about 79 MB) cost `plcd sim` about 1.5 GB of memory, a
 /// price a project asks for by name rather than by default (docs/ST.md).
 pub const DEFAULT_VARIABLE_MEMORY_BYTES: u32 = 64 << 20;
 

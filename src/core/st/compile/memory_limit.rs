@@ -6,7 +6,7 @@
 //! gigabytes at load: every byte of variable memory is held several times over (the
 //! compiler's image, the initial image the engine restarts from, the live memory), and each
 //! scalar element has a symbol for the tools (TcUnit's default parameters, a results array of
-//! about 79 MB, cost `plcd sim` about 3 GB). The message names the setting, the way out for a
+//! about 79 MB, cost `plcd sim` about 1.5 GB; BENCHMARKS.md, "Large variables"). The message names the setting, the way out for a
 //! project that needs more and accepts the cost.
 
 use super::ctx::Ctx;
