@@ -1329,6 +1329,21 @@ fn scan_program(compiled: &Compiled, program: &Program, budget: u64) -> (Vm, Vec
 }
 
 /// `compiled`'s program with its native code attached (plcd-native).
+/// One scan of `compiled` on the interpreter, without an operation error, and its native code
+/// leaving the same variable memory whole and at budgets of a few steps (handed back in the
+/// middle of anything); the interpreter's VM.
+fn native_agrees_at_small_budgets(compiled: &Compiled) -> Vm {
+    let (vm, errors) = scan(compiled);
+    assert_eq!(errors, []);
+    let program = with_native(compiled);
+    for budget in [u64::MAX, 1, 2, 3, 5, 8] {
+        let (native_vm, native_errors) = scan_program(compiled, &program, budget);
+        assert_eq!(native_errors, []);
+        assert!(native_vm.vars() == vm.vars(), "budget {budget}: variable memory differs");
+    }
+    vm
+}
+
 fn with_native(compiled: &Compiled) -> Program {
     let mut program = compiled.programs[0].clone();
     let native = plcd_native::compile(&program).unwrap_or_else(|e| panic!("no native code: {e}"));
@@ -1619,14 +1634,7 @@ END_VAR
 END_PROGRAM
 ";
     let compiled = build(src).unwrap_or_else(|e| panic!("{e}"));
-    let (vm, errors) = scan(&compiled);
-    assert_eq!(errors, []);
-    let program = with_native(&compiled);
-    for budget in [u64::MAX, 1, 2, 3, 5, 8] {
-        let (native_vm, native_errors) = scan_program(&compiled, &program, budget);
-        assert_eq!(native_errors, []);
-        assert!(native_vm.vars() == vm.vars(), "budget {budget}: variable memory differs");
-    }
+    let vm = native_agrees_at_small_budgets(&compiled);
     // and the values docs/ST.md gives: 0 + 1 + 2 + 3; 10 + 5 + 0; g[2].k 1, 3 (written): 1 + 3
     // then 1 + 2 + 3 + 4 from the WHILE; 4 * 2 + 4
     let names = [("s", T::DInt), ("n", T::Int), ("x", T::DInt), ("y", T::DInt), ("cnt", T::Int)];
@@ -1672,14 +1680,7 @@ END_VAR
 END_PROGRAM
 ";
     let compiled = build(src).unwrap_or_else(|e| panic!("{e}"));
-    let (vm, errors) = scan(&compiled);
-    assert_eq!(errors, []);
-    let program = with_native(&compiled);
-    for budget in [u64::MAX, 1, 2, 3, 5, 8] {
-        let (native_vm, native_errors) = scan_program(&compiled, &program, budget);
-        assert_eq!(native_errors, []);
-        assert!(native_vm.vars() == vm.vars(), "budget {budget}: variable memory differs");
-    }
+    let vm = native_agrees_at_small_budgets(&compiled);
     // a: 3; b := a, b() with step 3: 6; bank.cs[2]: 7; c := its copy, c() with step 7: 14;
     // Pick(2).count: 7; m: 14 + 6
     let names = [("b.count", T::Int), ("c.count", T::Int), ("n", T::Int), ("m", T::Int)];
