@@ -953,7 +953,7 @@ impl<'a> Ctx<'a> {
                 None => Ty::Void,
             };
             if matches!(result, Ty::Fb(_)) {
-                self.instance_result(file, pou.name.span);
+                self.habit(crate::st::dialect::Habit::InstanceResult, file, pou.name.span);
             }
             frame = self.default_image(&result, pou.return_type.as_ref());
             self.pous[p].result = result;
@@ -1002,7 +1002,7 @@ impl<'a> Ctx<'a> {
                     && matches!(ty, Ty::Fb(_))
                     && block.kind != VarKind::InOut
                 {
-                    self.instance_in_function(file, decl.span);
+                    self.habit(crate::st::dialect::Habit::InstanceInFunction, file, decl.span);
                 }
                 for id in &decl.names {
                     self.reserved(file, id);
@@ -1018,8 +1018,15 @@ impl<'a> Ctx<'a> {
                     if kind == PouKind::Function
                         && id.is(&pou.name.name)
                         && member != Some(super::oop::Role::Set)
-                        && pou.return_type.is_none()
                     {
+                        if pou.return_type.is_some() {
+                            self.error(
+                                file,
+                                id.span,
+                                format!("`{}` is the FUNCTION's own name", id.name),
+                            );
+                            continue;
+                        }
                         // No result type, so no result variable the name would be (TcUnit's
                         // `FUNCTION TEST` declares `Test : REFERENCE TO FB_Test`): in the
                         // body the name is the variable, as in CODESYS.
@@ -1028,16 +1035,6 @@ impl<'a> Ctx<'a> {
                             file,
                             id.span,
                         );
-                    } else if kind == PouKind::Function
-                        && id.is(&pou.name.name)
-                        && member != Some(super::oop::Role::Set)
-                    {
-                        self.error(
-                            file,
-                            id.span,
-                            format!("`{}` is the FUNCTION's own name", id.name),
-                        );
-                        continue;
                     }
                     // `EN` / `ENO` of a FUNCTION or FUNCTION_BLOCK: the standard's, declared
                     // (`Some(true)`: EN, `Some(false)`: ENO).

@@ -17,9 +17,11 @@
 //!   IS_TEST_FINISHED): a fresh instance at each call, as a method's already is (compile/
 //!   fb_init.rs runs its `FB_init` at the call).
 //!
-//! Both are compiled to the block copy a STRUCT assignment uses, so they have native code as
-//! well, and allocate nothing in a scan. Both are [`Habit`]s: IEC 61131-3 assigns no instance
-//! and its functions return values of data types, so `[st] strict` refuses them.
+//! The copies are compiled to the block copy a STRUCT assignment uses, so they have native code
+//! as well, and allocate nothing in a scan. All three are [`Habit`]s (`Habit::InstanceResult`
+//! and `Habit::InstanceInFunction` noted where decl.rs declares them): IEC 61131-3 assigns no
+//! instance, its functions return values of data types and keep no state, so `[st] strict`
+//! refuses them.
 
 use std::rc::Rc;
 
@@ -34,8 +36,8 @@ const TAG_BYTES: u32 = 4;
 
 impl Ctx<'_> {
     /// `target := value` where the target is a function block instance (the statement
-    /// checker's `t` and `v`): the two places to copy between, or `None` after reporting why
-    /// not. The copy leaves out the type tag of a block in a hierarchy (its first 4 bytes,
+    /// checker's `t` and `v`): the two places to copy between, or `None` when there is nothing
+    /// to copy (after reporting why, unless the instance is its type tag alone). The copy leaves out the type tag of a block in a hierarchy (its first 4 bytes,
     /// compile/oop.rs): an instance of `Base` reached through a `POINTER TO Base` may be a
     /// derived one, and a tag copied from it would make the target, `Base`-sized, dispatch to
     /// the derived block's methods; each instance keeps the tag of what it is.
@@ -84,15 +86,5 @@ impl Ctx<'_> {
             ty: data.clone(),
         };
         Some((after_tag(t), after_tag(v)))
-    }
-
-    /// A FUNCTION's `VAR` declaring a function block instance, at `span`.
-    pub(super) fn instance_in_function(&mut self, file: usize, span: Span) {
-        self.habit(Habit::InstanceInFunction, file, span);
-    }
-
-    /// A FUNCTION or METHOD declared with a function block as its result's type, at `span`.
-    pub(super) fn instance_result(&mut self, file: usize, span: Span) {
-        self.habit(Habit::InstanceResult, file, span);
     }
 }
