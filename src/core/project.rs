@@ -164,20 +164,18 @@ impl Through {
     /// Where the target is while the reference holds `slot`, in variable memory of
     /// `var_bytes` bytes, each further reference of the chain read with `read` (a
     /// reference's 64-bit slot at a place). Allocates nothing (the trace's watches call it at
-    /// every scan). The reference that leads nowhere comes with the error: its index in
-    /// [`Through::hops`] plus one, 0 for [`Through::reference`].
+    /// every scan).
     pub fn follow(
         &self,
         slot: u64,
         var_bytes: usize,
         mut read: impl FnMut(Pointer) -> u64,
-    ) -> Result<Pointer, (usize, Nowhere, u64)> {
+    ) -> Result<Pointer, Nowhere> {
         let mut slot = slot;
-        for (i, hop) in self.hops.iter().enumerate() {
-            let at = leaf_place(&hop.leaf, slot, var_bytes).map_err(|why| (i, why, slot))?;
-            slot = read(at);
+        for hop in &self.hops {
+            slot = read(leaf_place(&hop.leaf, slot, var_bytes)?);
         }
-        leaf_place(&self.target, slot, var_bytes).map_err(|why| (self.hops.len(), why, slot))
+        leaf_place(&self.target, slot, var_bytes)
     }
 
     /// Where the target is while the reference holds `slot`, for a name through one
@@ -205,22 +203,9 @@ impl Through {
         })))
     }
 
-    /// Why a read or write of it found no variable, the chain's reference `index` (0 the
-    /// first, as [`Through::follow`] counts) holding `slot`.
-    pub fn nowhere_at(&self, index: usize, why: Nowhere, slot: u64) -> String {
-        let reference = match index {
-            0 => &self.reference.name,
-            i => &self.hops[i - 1].name,
-        };
-        self.nowhere_named(reference, why, slot)
-    }
-
     /// Why a client's read or write of it found no variable, naming it and the reference.
     pub fn nowhere(&self, why: Nowhere, slot: u64) -> String {
-        self.nowhere_named(&self.reference.name, why, slot)
-    }
-
-    fn nowhere_named(&self, reference: &str, why: Nowhere, slot: u64) -> String {
+        let reference = &self.reference.name;
         let name = &self.name;
         let shown = crate::value::format_reference(slot);
         match why {
