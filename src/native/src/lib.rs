@@ -53,14 +53,14 @@ pub enum Error {
     #[error("program \"{program}\": {reason}")]
     Unsupported { program: String, reason: String },
     /// An instruction-list program with so many instructions native code leaves to the
-    /// interpreter (timers, counters, edges, calls, …) that handing them over would cost more
-    /// than native code saves: it runs on the interpreter, as intended ([`attach`] does not
-    /// report it).
+    /// interpreter (timers, counters, edges, calls, …, or all past the first
+    /// [`IL_MAX_COMPILED`] of a long program) that native code would not be faster: it runs
+    /// on the interpreter, as intended ([`attach`] does not report it).
     #[error(
-        "program \"{program}\": {handed_over} of its {compiled} instructions are the \
+        "program \"{program}\": {interpreted} of its {instructions} instructions are the \
          interpreter's: native code would be slower"
     )]
-    Slower { program: String, handed_over: usize, compiled: usize },
+    Slower { program: String, interpreted: usize, instructions: usize },
     /// Cranelift has no code generator for this processor.
     #[error("no code generator for this processor: {0}")]
     Host(String),
@@ -110,8 +110,8 @@ fn compile_with(
             if !analysis.worth_compiling() && !even_if_slower {
                 return Err(Error::Slower {
                     program: program.name.clone(),
-                    handed_over: analysis.handed_over,
-                    compiled: analysis.compiled,
+                    interpreted: analysis.interpreted(),
+                    instructions: analysis.instructions,
                 });
             }
             code::Shape::InstructionList(analysis)

@@ -2802,7 +2802,7 @@ fn attach_compiles_every_program_of_the_example_project() {
     let init = project.programs.iter().find(|p| p.name == "init").unwrap();
     let slower = plcd_native::compile(init);
     assert!(
-        matches!(slower, Err(plcd_native::Error::Slower { handed_over: 1, compiled: 4, .. })),
+        matches!(slower, Err(plcd_native::Error::Slower { interpreted: 1, instructions: 4, .. })),
         "{slower:?}"
     );
     assert!(plcd_native::compile_even_if_slower(init).is_ok());

@@ -43,6 +43,15 @@ pub(crate) const MAX_COMPILED: usize = 65_536;
 /// handed over).
 pub(crate) const HANDOVER_EVERY: usize = 16;
 
+/// Native code for a program whose compiled part is less than one instruction in this many
+/// of the whole (a program longer than [`MAX_COMPILED`] times this) would not be faster than
+/// the interpreter alone: the rest is interpreted whatever happens, and the compiled part,
+/// streamed out of the caches by the interpreted rest every scan, runs from cold code at
+/// about the interpreter's speed (BENCHMARKS.md, the scaling section: 10^6 steps of bit logic
+/// 1.13 ns a step with native code attached against 0.98 on the interpreter alone; 3·10^5
+/// steps, where the compiled part is more than a fifth, still gain 15 %).
+pub(crate) const COMPILED_SHARE_MIN: usize = 8;
+
 /// The analysis of one instruction-list program.
 pub(crate) struct Analysis {
     /// The instructions native code can be entered at, sorted: the start, every jump target
@@ -54,6 +63,8 @@ pub(crate) struct Analysis {
     pub words_end: u64,
     /// Instructions compiled: those from here on are the interpreter's.
     pub compiled: usize,
+    /// Instructions of the program, compiled or not.
+    pub instructions: usize,
     /// The pieces, each compiled as a function of its own: ranges of `leaders`, in order.
     pub pieces: Vec<std::ops::Range<usize>>,
     /// Instructions of the compiled part that the interpreter executes.
@@ -286,6 +297,7 @@ pub(crate) fn analyse(code: &[Op]) -> Analysis {
         leaders: all,
         words_end,
         compiled,
+        instructions: code.len(),
         pieces,
         handed_over,
         edges_end,
@@ -364,9 +376,18 @@ impl Analysis {
         })
     }
 
-    /// Whether native code would be faster than the interpreter (see [`HANDOVER_EVERY`]).
+    /// Whether native code would be faster than the interpreter: few enough hand-overs in
+    /// the compiled part ([`HANDOVER_EVERY`]), and a compiled part large enough a share of
+    /// the program ([`COMPILED_SHARE_MIN`]).
     pub fn worth_compiling(&self) -> bool {
         self.handed_over * HANDOVER_EVERY <= self.compiled
+            && self.compiled * COMPILED_SHARE_MIN >= self.instructions
+    }
+
+    /// Instructions the interpreter executes: those of the compiled part it is handed, and
+    /// every one past it.
+    pub fn interpreted(&self) -> usize {
+        self.handed_over + (self.instructions - self.compiled)
     }
 
     /// The piece whose range of instructions holds `pc` (the last for any pc past them): its
@@ -476,5 +497,18 @@ mod tests {
         assert_eq!(a.piece_holding(4096), 1);
         assert_eq!(a.piece_holding(u32::MAX), 15);
         assert_eq!(a.span(MAX_COMPILED as u32), u32::MAX);
+        assert!(a.worth_compiling());
+        assert_eq!(a.interpreted(), 100_001 - MAX_COMPILED);
+    }
+
+    #[test]
+    fn a_program_mostly_past_the_compiled_part_is_left_to_the_interpreter() {
+        let mut code = vec![Op::Out(bit(3)); MAX_COMPILED * COMPILED_SHARE_MIN - 1];
+        code.push(Op::End);
+        assert!(analyse(&code).worth_compiling(), "exactly one instruction in 8 compiled");
+        code.insert(0, Op::Out(bit(3)));
+        let a = analyse(&code);
+        assert!(!a.worth_compiling(), "less than one instruction in 8 compiled");
+        assert_eq!(a.interpreted(), MAX_COMPILED * (COMPILED_SHARE_MIN - 1) + 1);
     }
 }
