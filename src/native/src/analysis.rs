@@ -374,6 +374,7 @@ impl Analysis {
 
     /// The generated function that holds `pc`: its body's (the first for an instruction of
     /// no body, whose dispatch hands it to the interpreter).
+    #[inline]
     pub fn function_of(&self, pc: u32) -> usize {
         if self.functions.len() == 1 {
             return 0;

@@ -27,6 +27,7 @@ pub(crate) enum Shape {
 }
 
 impl Shape {
+    #[inline]
     fn words_end(&self) -> u64 {
         match self {
             Shape::StructuredText(a) => a.words_end,
@@ -44,6 +45,7 @@ impl Shape {
     /// The generated function to enter at `pc`: the Structured Text body that holds it, or
     /// the instruction-list piece whose range holds it (its dispatch hands a pc that is no
     /// leader to the interpreter).
+    #[inline]
     fn entry_index(&self, pc: u32) -> usize {
         match self {
             Shape::StructuredText(a) => a.function_of(pc),
@@ -61,6 +63,7 @@ impl Shape {
 
     /// Whether the VM gives the instruction list's state if the code needs it, with the edge
     /// slots, timers and counters the code reaches.
+    #[inline]
     fn fits(&self, memory: &NativeMemory<'_>) -> bool {
         match (self, memory.il.as_deref()) {
             (Shape::StructuredText(_), _) => true,
