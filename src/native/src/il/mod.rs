@@ -48,8 +48,9 @@ pub(crate) const HANDOVER_EVERY: usize = 16;
 /// the interpreter alone: the rest is interpreted whatever happens, and the compiled part,
 /// streamed out of the caches by the interpreted rest every scan, runs from cold code at
 /// about the interpreter's speed (BENCHMARKS.md, the scaling section: 10^6 steps of bit logic
-/// 1.13 ns a step with native code attached against 0.98 on the interpreter alone; 3·10^5
-/// steps, where the compiled part is more than a fifth, still gain 15 %).
+/// 1.08 ns a step with native code attached against 0.94 on the interpreter alone; from 5·10^5
+/// steps on, even either way; 3·10^5 steps, where the compiled part is more than a fifth,
+/// 2-15 % faster).
 pub(crate) const COMPILED_SHARE_MIN: usize = 8;
 
 /// The analysis of one instruction-list program.
