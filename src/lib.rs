@@ -12,8 +12,8 @@
 
 // The pure core.
 pub use plcd_core::{
-    config, device, diag, duration, engine, lang, project, st, stats, stimulus, timestamp, value,
-    vm,
+    config, device, diag, duration, engine, lang, project, st, stats, stimulus, symbols, timestamp,
+    value, vm,
 };
 
 // The edge of the process.

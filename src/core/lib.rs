@@ -17,6 +17,7 @@
 //! - [`config`]: the project's TOML config parsed into typed, range-checked structs;
 //! - [`lang`]: the instruction-list language, parse → check → compile into [`lang::Program`];
 //! - [`vm`]: executes compiled programs one instruction at a time, resumable between any two;
+//! - [`symbols`]: every named leaf of the variables, an array one entry whatever its size;
 //! - [`project`]: a config and all its programs, checked together;
 //! - [`engine`]: the task engine: what runs when;
 //! - [`stimulus`]: the simulation inputs file (timed device changes), parsed.
@@ -34,6 +35,7 @@ pub mod project;
 pub mod st;
 pub mod stats;
 pub mod stimulus;
+pub mod symbols;
 pub mod timestamp;
 pub mod value;
 pub mod vm;
