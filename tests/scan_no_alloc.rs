@@ -433,7 +433,7 @@ fn typed_programs_do_not_allocate() {
         initial: initial.into(),
         retained: vec![(10, 2)].into(),
         located_init: vec![(d("D00102"), Elem::I32, 7)].into(),
-        symbols: vec![],
+        symbols: Default::default(),
         referents: vec![],
         access: vec![],
     });

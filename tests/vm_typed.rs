@@ -536,7 +536,7 @@ fn run_start_initializes_variables_keeping_the_retained_ones_when_warm() {
         initial: (1..=16).collect::<Vec<u8>>().into(),
         retained: vec![(4, 4), (10, 2)].into(),
         located_init: vec![(Place::Word(d10), Elem::I32, 70_000)].into(),
-        symbols: vec![],
+        symbols: Default::default(),
         referents: vec![],
         access: vec![],
     });

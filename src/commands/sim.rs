@@ -10,6 +10,7 @@ use std::time::Instant;
 use crate::drivers::virtual_time::{self, timeline, trace::TraceWriter, SimOptions};
 use crate::engine::event::{message_kind, task_name, Event, EventSink, Recorder, TaskId};
 use crate::project::{split_names, Project, Watched};
+use crate::symbols::Symbols;
 use crate::value::ValueType;
 use crate::{duration, files};
 
@@ -169,7 +170,8 @@ pub fn run(args: &SimArgs, err: &mut impl Write) -> ExitCode {
     // so they are copied only when a reference is watched.
     let watches_reference =
         watch_types.iter().flatten().any(|ty| matches!(ty, ValueType::Reference { .. }));
-    let symbols = if watches_reference { project.variables.symbols.clone() } else { Vec::new() };
+    let symbols =
+        if watches_reference { project.variables.symbols.clone() } else { Symbols::default() };
     let mut writer =
         TraceWriter::new(BufWriter::new(out), names.clone(), watch_names, program_lines)
             .with_types(watch_types)

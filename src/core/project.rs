@@ -9,6 +9,8 @@ use crate::diag::{Diagnostic, Diagnostics, Warning};
 use crate::lang::ops::{Op, SystemRequest, Written};
 use crate::lang::{self, Context, DutySite, Program, Variables};
 use crate::st;
+pub(crate) use crate::symbols::names_match;
+use crate::symbols::Symbols;
 use crate::value::{Pointer, Space, Symbol, ValueType};
 
 mod access;
@@ -259,9 +261,8 @@ impl From<&Address> for Watched {
 
 impl Project {
     /// The Structured Text variable `name` (case-insensitive), one leaf.
-    pub fn variable(&self, name: &str) -> Option<&Symbol> {
-        let name = name.trim();
-        self.variables.symbols.iter().find(|s| names_match(&s.name, name))
+    pub fn variable(&self, name: &str) -> Option<Symbol> {
+        self.variables.symbols.find(name)
     }
 
     /// What `name` watches: a device address, a variable, or every variable under a
@@ -275,7 +276,7 @@ impl Project {
             return Ok(self.through(name)?.into_iter().map(Watched::Through).collect());
         }
         if let Some(symbol) = self.variable(name) {
-            return Ok(vec![Watched::Variable(symbol.clone())]);
+            return Ok(vec![Watched::Variable(symbol)]);
         }
         if let Some(found) = self.access_watched(name) {
             return found;
@@ -285,7 +286,7 @@ impl Project {
             .symbols
             .iter()
             .filter(|s| is_under(&s.name, name))
-            .map(|s| Watched::Variable(s.clone()))
+            .map(Watched::Variable)
             .collect();
         if under.is_empty() {
             Err(match Address::parse(name) {
@@ -318,23 +319,22 @@ impl Project {
                 None => format!("no variable `{base}`"),
             });
         };
-        let mut type_name = self.reference_type(base, &reference.ty)?;
+        let mut type_name = self.reference_type(base, &reference.ty)?.to_string();
         let mut spelled = reference.name.clone();
         let mut hops = Vec::new();
         for part in parts {
-            let target = self.referent(&spelled, type_name)?;
-            let Some(leaf) = target.iter().find(|s| names_match(&s.name, part)) else {
+            let target = self.referent(&spelled, &type_name)?;
+            let Some(leaf) = target.find(part) else {
                 return Err(format!(
                     "no variable `{name}`: a {type_name} points to no reference `{part}`"
                 ));
             };
             spelled = format!("{spelled}^{}", leaf.name);
-            type_name = self.reference_type(&spelled, &leaf.ty)?;
-            hops.push(Hop { name: spelled.clone(), leaf: leaf.clone() });
+            type_name = self.reference_type(&spelled, &leaf.ty)?.to_string();
+            hops.push(Hop { name: spelled.clone(), leaf });
         }
-        let target = self.referent(&spelled, type_name)?;
-        let mut found: Vec<&Symbol> =
-            target.iter().filter(|s| names_match(&s.name, rest)).collect();
+        let target = self.referent(&spelled, &type_name)?;
+        let mut found: Vec<Symbol> = target.find(rest).into_iter().collect();
         if found.is_empty() {
             found = target.iter().filter(|s| is_under(&s.name, rest)).collect();
         }
@@ -347,7 +347,7 @@ impl Project {
                 name: format!("{spelled}^{}", leaf.name),
                 reference: reference.clone(),
                 hops: hops.clone(),
-                target: leaf.clone(),
+                target: leaf,
             })
             .collect())
     }
@@ -365,7 +365,7 @@ impl Project {
     }
 
     /// The leaves of what a reference of type `type_name` (the type of `named`) points to.
-    fn referent(&self, named: &str, type_name: &str) -> Result<&[Symbol], String> {
+    fn referent(&self, named: &str, type_name: &str) -> Result<&Symbols, String> {
         match self.variables.referents.iter().find(|(n, _)| n == type_name) {
             Some((_, target)) => Ok(target),
             None => Err(format!("`{named}` is a {type_name}: what it points to has no names")),
@@ -396,22 +396,22 @@ impl Project {
 
     /// The variable name nearest to `name` (case-insensitive edit distance, at most about a
     /// quarter of its length), with its declaration's spelling.
-    pub fn closest_variable(&self, name: &str) -> Option<&str> {
+    pub fn closest_variable(&self, name: &str) -> Option<String> {
         let given: Vec<u8> = name
             .bytes()
             .filter(|c| !c.is_ascii_whitespace())
             .map(|c| c.to_ascii_lowercase())
             .collect();
         let limit = (given.len() / 4).clamp(1, 3);
-        let mut best: Option<(usize, &str)> = None;
+        let mut best: Option<(usize, String)> = None;
         for symbol in &self.variables.symbols {
             let declared = symbol.name.as_bytes();
             if declared.len().abs_diff(given.len()) > limit {
                 continue;
             }
             let distance = edit_distance(declared, &given);
-            if distance <= limit && best.is_none_or(|(d, _)| distance < d) {
-                best = Some((distance, &symbol.name));
+            if distance <= limit && best.as_ref().is_none_or(|(d, _)| distance < *d) {
+                best = Some((distance, symbol.name));
             }
         }
         best.map(|(_, name)| name)
@@ -432,19 +432,6 @@ fn edit_distance(a: &[u8], b: &[u8]) -> usize {
         }
     }
     row[b.len()]
-}
-
-/// Whether two variable names are the same: case-insensitive, spaces inside `[…]` ignored.
-fn names_match(declared: &str, given: &str) -> bool {
-    let mut a = declared.chars().filter(|c| !c.is_whitespace());
-    let mut b = given.chars().filter(|c| !c.is_whitespace());
-    loop {
-        match (a.next(), b.next()) {
-            (None, None) => return true,
-            (Some(x), Some(y)) if x.eq_ignore_ascii_case(&y) => {}
-            _ => return false,
-        }
-    }
 }
 
 /// Whether `name` is a variable inside `prefix` (`main.pid.out` is inside `main.pid` and

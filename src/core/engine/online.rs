@@ -23,6 +23,7 @@ use crate::device::Address;
 use crate::lang::ops::{EdgeMemory, Op};
 use crate::lang::Variables;
 use crate::project::Project;
+use crate::symbols::{ArraySymbol, Entry, Symbols};
 use crate::value::{Space, Symbol, ValueType};
 use crate::vm::EdgeInit;
 
@@ -136,23 +137,117 @@ pub fn prepare(
     Ok(OnlineChange { engine, edges: edges.into_boxed_slice() })
 }
 
-/// The Structured Text variables an online change keeps: each of the new project whose name
-/// (case-insensitive) and type are those of one of the old, as `(old offset, new offset,
-/// bytes)` in variable memory. Any other starts from its initial value.
+/// The Structured Text variables an online change keeps: each leaf of the new project whose
+/// name (case-insensitive) and type are those of a leaf of the old, as `(old offset, new
+/// offset, bytes)` in variable memory. Any other starts from its initial value.
+///
+/// An array whose element is declared the same in both (the same leaves at the same places)
+/// is matched as a whole: each element of the new bounds that the old bounds have keeps its
+/// leaves, neighbouring ones in one copy, without naming them; any other entry is matched
+/// leaf by leaf by name.
 pub fn kept_variables(old: &Variables, new: &Variables) -> Box<[(u32, u32, u32)]> {
-    let by_name: HashMap<String, &Symbol> =
-        old.symbols.iter().map(|s| (s.name.to_ascii_lowercase(), s)).collect();
-    new.symbols
+    let entry_name = |entry: &Entry| match entry {
+        Entry::Leaf(symbol) => symbol.name.to_ascii_lowercase(),
+        Entry::Array(array) => array.name.to_ascii_lowercase(),
+    };
+    let old_entries: HashMap<String, &Entry> =
+        old.symbols.entries().iter().map(|e| (entry_name(e), e)).collect();
+    // every old leaf by name, built only when an entry is matched leaf by leaf
+    let mut every_old: Option<HashMap<String, Symbol>> = None;
+    let mut kept = Vec::new();
+    for entry in new.symbols.entries() {
+        match (entry, old_entries.get(&entry_name(entry))) {
+            (Entry::Leaf(symbol), Some(Entry::Leaf(before))) => {
+                kept.extend(kept_leaf(before, symbol));
+            }
+            // no leaf of the old is named as a new leaf outside an array, or as a whole array
+            (Entry::Leaf(symbol), None) if !symbol.name.contains('[') => {}
+            (Entry::Leaf(_), Some(Entry::Array(_))) | (Entry::Array(_), Some(Entry::Leaf(_))) => {}
+            (Entry::Array(array), Some(Entry::Array(before)))
+                if before.dims.len() == array.dims.len() && before.element == array.element =>
+            {
+                keep_elements(before, array, &mut kept);
+            }
+            (entry, before) => {
+                let leaves = |symbols: Symbols| -> HashMap<String, Symbol> {
+                    symbols.iter().map(|s| (s.name.to_ascii_lowercase(), s)).collect()
+                };
+                let single = |entry: &Entry| {
+                    let mut symbols = Symbols::default();
+                    match entry {
+                        Entry::Leaf(symbol) => symbols.push(symbol.clone()),
+                        Entry::Array(array) => symbols.push_array(array.clone()),
+                    }
+                    symbols
+                };
+                // an old array of the same name holds every old leaf under that name
+                let own;
+                let by_name = match before {
+                    Some(before) => {
+                        own = leaves(single(before));
+                        &own
+                    }
+                    None => every_old.get_or_insert_with(|| leaves(old.symbols.clone())),
+                };
+                for symbol in single(entry).iter() {
+                    if let Some(before) = by_name.get(&symbol.name.to_ascii_lowercase()) {
+                        kept.extend(kept_leaf(before, &symbol));
+                    }
+                }
+            }
+        }
+    }
+    kept.into_boxed_slice()
+}
+
+/// `(old offset, new offset, bytes)` if `symbol` keeps the value of `before`, its namesake.
+fn kept_leaf(before: &Symbol, symbol: &Symbol) -> Option<(u32, u32, u32)> {
+    let in_vars = |s: &Symbol| s.at.space == Space::Var;
+    // A reference is not kept: its offset is one of the old layout of memory.
+    let reference = matches!(symbol.ty, ValueType::Reference { .. });
+    (before.ty == symbol.ty && in_vars(before) && in_vars(symbol) && !reference)
+        .then(|| (before.at.offset, symbol.at.offset, symbol.ty.bytes()))
+}
+
+/// The kept leaves of `array`, whose element is declared as `before`'s: each element whose
+/// indices are in both bounds, the leaves of one element kept as [`kept_leaf`] keeps them.
+fn keep_elements(before: &ArraySymbol, array: &ArraySymbol, kept: &mut Vec<(u32, u32, u32)>) {
+    if before.at.space != Space::Var || array.at.space != Space::Var {
+        return;
+    }
+    let places: Vec<(u32, u32)> = array
+        .element
         .iter()
-        .filter_map(|symbol| {
-            let before = by_name.get(&symbol.name.to_ascii_lowercase())?;
-            let in_vars = |s: &Symbol| s.at.space == Space::Var;
-            // A reference is not kept: its offset is one of the old layout of memory.
-            let reference = matches!(symbol.ty, ValueType::Reference { .. });
-            (before.ty == symbol.ty && in_vars(before) && in_vars(symbol) && !reference)
-                .then(|| (before.at.offset, symbol.at.offset, symbol.ty.bytes()))
-        })
-        .collect()
+        .filter(|s| s.at.space == Space::Var && !matches!(s.ty, ValueType::Reference { .. }))
+        .map(|s| (s.at.offset, s.ty.bytes()))
+        .collect();
+    let mut indices: Vec<i64> = array.dims.iter().map(|d| d.0).collect();
+    for k in 0..array.count() {
+        let mut old_k = Some(0u64);
+        for (&i, &(lo, hi)) in indices.iter().zip(&before.dims) {
+            old_k = old_k.filter(|_| lo <= i && i <= hi).map(|k| k * (hi - lo + 1) as u64);
+            old_k = old_k.map(|k| k + (i - lo) as u64);
+        }
+        if let Some(old_k) = old_k {
+            let from = before.at.offset.wrapping_add((old_k as u32).wrapping_mul(before.stride));
+            let to = array.at.offset.wrapping_add((k as u32).wrapping_mul(array.stride));
+            for &(at, len) in &places {
+                let (from, to) = (from.wrapping_add(at), to.wrapping_add(at));
+                match kept.last_mut() {
+                    // the next bytes in both: one copy
+                    Some((f, t, l)) if *f + *l == from && *t + *l == to => *l += len,
+                    _ => kept.push((from, to, len)),
+                }
+            }
+        }
+        for d in (0..indices.len()).rev() {
+            if indices[d] < array.dims[d].1 {
+                indices[d] += 1;
+                break;
+            }
+            indices[d] = array.dims[d].0;
+        }
+    }
 }
 
 /// The initial state of a changed program's edge slot: as if the instruction had executed in

@@ -53,9 +53,7 @@ impl SystemInfo {
     /// the project does not compile `Tc2_System`.
     pub(super) fn of(project: &Project, task_count: usize) -> Option<Box<SystemInfo>> {
         let symbols = &project.variables.symbols;
-        let find = |name: &str| -> Option<&Symbol> {
-            symbols.iter().find(|s| s.name.eq_ignore_ascii_case(name))
-        };
+        let find = |name: &str| -> Option<Symbol> { symbols.find(name) };
         let current = find("__TC2_CURRENT_TASK")?.at;
         let tasks = (0..task_count)
             .map(|id| {

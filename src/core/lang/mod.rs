@@ -15,7 +15,8 @@ use std::path::{Path, PathBuf};
 pub use check::{Context, DutySite};
 pub use ops::{Op, Place};
 
-use crate::value::{Elem, Pointer, Space, Symbol};
+use crate::symbols::Symbols;
+use crate::value::{Elem, Pointer, Space};
 
 use crate::diag::Diagnostics;
 
@@ -119,15 +120,16 @@ pub struct Variables {
     /// Located variables with an initial value: written to their devices at RUN start, after
     /// the device areas are cleared.
     pub located_init: Box<[(Place, Elem, u64)]>,
-    /// Every variable, one leaf each, in declaration order.
-    pub symbols: Vec<Symbol>,
+    /// Every variable's leaves, in declaration order, an array one entry
+    /// ([`crate::symbols`]).
+    pub symbols: Symbols,
     /// Each reference type of the variables (`REF_TO Axis`, as [`ValueType::Reference`]
     /// names it) with the leaves of what it points to, placed from the start of the target
     /// (`""` for an `INT`, `.pos` for a struct's member): what `main.r^` and `main.p^.pos`
     /// name ([`crate::project::Through`]).
     ///
     /// [`ValueType::Reference`]: crate::value::ValueType::Reference
-    pub referents: Vec<(String, Vec<Symbol>)>,
+    pub referents: Vec<(String, Symbols)>,
     /// The access paths of `VAR_ACCESS`: names clients give a variable or a device.
     pub access: Vec<AccessPath>,
 }
@@ -171,16 +173,11 @@ pub fn bool_variables(program: &Program) -> Vec<u32> {
 /// that place (`main.buf[2]`; `main.s+3` inside one, a STRING's character), else
 /// [`crate::device::format_reference`]'s text (`NULL`, `D00100`, `vars+120` for memory no
 /// named variable holds: a FUNCTION's frame, a constant).
-pub fn reference_text(symbols: &[Symbol], slot: u64) -> String {
+pub fn reference_text(symbols: &Symbols, slot: u64) -> String {
     if let Some(p) = Pointer::from_reference(slot).filter(|p| p.space == Space::Var) {
-        let holds = |s: &&Symbol| {
-            s.at.space == Space::Var
-                && s.at.offset <= p.offset
-                && p.offset - s.at.offset < s.ty.bytes()
-        };
-        if let Some(s) = symbols.iter().find(holds) {
+        if let Some(s) = symbols.holding(Space::Var, p.offset) {
             return match p.offset - s.at.offset {
-                0 => s.name.clone(),
+                0 => s.name,
                 inside => format!("{}+{inside}", s.name),
             };
         }

@@ -84,7 +84,7 @@ impl RetainedVariables {
     pub fn new(variables: &Variables) -> RetainedVariables {
         let size = variables.initial.len() as u64;
         // A reference is not saved: its offset means nothing to another layout of memory.
-        let retained = |s: &&Symbol| {
+        let retained = |s: &Symbol| {
             s.retain && s.at.space == Space::Var && !matches!(s.ty, ValueType::Reference { .. })
         };
         let mut leaves: Vec<RetainedLeaf> = variables
@@ -263,7 +263,7 @@ mod tests {
     }
 
     fn variables(symbols: Vec<Symbol>) -> Variables {
-        Variables { initial: vec![0; 64].into(), symbols, ..Variables::default() }
+        Variables { initial: vec![0; 64].into(), symbols: symbols.into(), ..Variables::default() }
     }
 
     #[test]

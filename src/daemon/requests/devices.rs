@@ -15,6 +15,7 @@ use crate::drivers::real_time::{
 use crate::drivers::virtual_time::trace::push_json_value;
 use crate::project::{Project, Step, Through, Watched};
 use crate::services::control::ClientId;
+use crate::symbols::Symbols;
 use crate::value::{self, Elem, Symbol, ValueType};
 use plcd_ipc::{ErrorKind as Kind, Failure, NamedValue, Reply, ResponseLine, Value};
 
@@ -304,7 +305,7 @@ fn checked_write(project: &Project, write: &NamedValue) -> Result<Pending, Failu
             }))
         }
     };
-    typed_write(symbol, write)
+    typed_write(&symbol, write)
 }
 
 /// `write`'s value read against `symbol`'s type, as one write of a `set`.
@@ -400,7 +401,7 @@ pub(super) fn captured(items: &[Item], snapshot: &Snapshot) -> bool {
 
 /// The answer to a `get`, from a capture that holds everything it reads; `symbols` name what
 /// a reference points to.
-pub(super) fn values(items: &[Item], snapshot: &Snapshot, symbols: &[Symbol]) -> ResponseLine {
+pub(super) fn values(items: &[Item], snapshot: &Snapshot, symbols: &Symbols) -> ResponseLine {
     let values = items
         .iter()
         .map(|item| match item {
@@ -418,7 +419,7 @@ pub(super) fn values(items: &[Item], snapshot: &Snapshot, symbols: &[Symbol]) ->
 
 /// A variable's value as the trace writes it (a number, 0/1, `"T#1s500ms"`, an enumeration
 /// value's name, a `STRING`'s characters), with its type.
-fn variable_value(symbol: &Symbol, snapshot: &Snapshot, symbols: &[Symbol]) -> NamedValue {
+fn variable_value(symbol: &Symbol, snapshot: &Snapshot, symbols: &Symbols) -> NamedValue {
     let value = match var_read(symbol) {
         VarRead::Text { at, cap } => {
             let chars = snapshot.text(at, cap).unwrap_or_default();
@@ -437,7 +438,7 @@ fn variable_value(symbol: &Symbol, snapshot: &Snapshot, symbols: &[Symbol]) -> N
 }
 
 /// A slot of `ty` as the protocol's value: the trace's JSON, read back.
-pub(super) fn json_value(ty: &ValueType, slot: u64, symbols: &[Symbol]) -> Value {
+pub(super) fn json_value(ty: &ValueType, slot: u64, symbols: &Symbols) -> Value {
     let mut json = String::new();
     push_json_value(&mut json, ty, slot, symbols);
     serde_json::from_str(&json).unwrap_or(Value::Text(json))
@@ -468,7 +469,7 @@ mod tests {
     use crate::value::Elem;
 
     fn json_value_of(ty: &ValueType, slot: u64) -> Value {
-        json_value(ty, slot, &[])
+        json_value(ty, slot, &Symbols::default())
     }
 
     #[test]

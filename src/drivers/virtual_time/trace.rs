@@ -11,7 +11,8 @@ use std::fmt::Write as _;
 use std::io::{self, Write};
 
 use crate::engine::event::{message_kind, task_name, Event, EventSink, TaskId};
-use crate::value::{Symbol, ValueType};
+use crate::symbols::Symbols;
+use crate::value::ValueType;
 
 /// Writes events as JSON Lines.
 ///
@@ -27,7 +28,7 @@ pub struct TraceWriter<W: Write> {
     /// The type of each watched variable (`None` for a device), to write its values.
     watch_types: Vec<Option<ValueType>>,
     /// The project's variables, to name what a watched reference points to.
-    symbols: Vec<Symbol>,
+    symbols: Symbols,
     program_lines: Vec<(String, Vec<u32>)>,
     line: String,
     error: Option<io::Error>,
@@ -49,7 +50,7 @@ impl<W: Write> TraceWriter<W> {
             task_names,
             watch_names,
             watch_types: Vec::new(),
-            symbols: Vec::new(),
+            symbols: Symbols::default(),
             program_lines,
             line: String::with_capacity(128),
             error: None,
@@ -65,7 +66,7 @@ impl<W: Write> TraceWriter<W> {
 
     /// The project's variables: a watched reference is written as the one it points to
     /// (`"main.buf[2]"`).
-    pub fn with_symbols(mut self, symbols: Vec<Symbol>) -> Self {
+    pub fn with_symbols(mut self, symbols: Symbols) -> Self {
         self.symbols = symbols;
         self
     }
@@ -228,7 +229,7 @@ fn watch_name(names: &[String], watch: u16) -> String {
 /// TIME, DATE, TOD, DT and their long forms (IEC literals) and for an enumeration (its value's
 /// name, or a number for a value that has none); for a reference, what it points to: one of
 /// `symbols` or a device ([`crate::lang::reference_text`]).
-pub fn push_json_value(line: &mut String, ty: &ValueType, slot: u64, symbols: &[Symbol]) {
+pub fn push_json_value(line: &mut String, ty: &ValueType, slot: u64, symbols: &Symbols) {
     let text = match ty {
         ValueType::Reference { .. } => crate::lang::reference_text(symbols, slot),
         _ => crate::value::format(ty, slot),
@@ -315,13 +316,14 @@ mod tests {
     #[test]
     fn a_reference_is_written_as_what_it_points_to() {
         let ty = ValueType::Reference { type_name: "POINTER TO INT".into() };
-        let symbols = vec![Symbol {
+        let symbols: Symbols = vec![crate::value::Symbol {
             name: "main.s".into(),
             ty: ValueType::String { cap: 10 },
             at: crate::value::Pointer { space: crate::value::Space::Var, offset: 100 },
             retain: false,
             constant: false,
-        }];
+        }]
+        .into();
         let json = |slot: u64| {
             let mut line = String::new();
             push_json_value(&mut line, &ty, slot, &symbols);
@@ -448,9 +450,19 @@ mod tests {
         use crate::value::Calendar;
         let mut line = String::new();
         // 2024-03-01 12:30:15 is 1709296215 s after 1970-01-01.
-        push_json_value(&mut line, &ValueType::Calendar(Calendar::Dt), 1_709_296_215, &[]);
+        push_json_value(
+            &mut line,
+            &ValueType::Calendar(Calendar::Dt),
+            1_709_296_215,
+            &Symbols::default(),
+        );
         line.push(' ');
-        push_json_value(&mut line, &ValueType::Calendar(Calendar::LTod), 1_500_000_000, &[]);
+        push_json_value(
+            &mut line,
+            &ValueType::Calendar(Calendar::LTod),
+            1_500_000_000,
+            &Symbols::default(),
+        );
         assert_eq!(line, r#""DT#2024-03-01-12:30:15" "LTOD#00:00:01.5""#);
     }
 
@@ -483,9 +495,9 @@ mod tests {
              {\"t_ns\":2,\"ev\":\"set\",\"dev\":\"D00010\",\"value\":\"Ω€\"}\n"
         );
         let mut line = String::new();
-        push_json_value(&mut line, &ValueType::Char, 0x80, &[]);
+        push_json_value(&mut line, &ValueType::Char, 0x80, &Symbols::default());
         line.push(' ');
-        push_json_value(&mut line, &ValueType::WChar, 0x3A9, &[]);
+        push_json_value(&mut line, &ValueType::WChar, 0x3A9, &Symbols::default());
         assert_eq!(line, r#""'$80'" "\"Ω\"""#);
     }
 

@@ -402,7 +402,7 @@ struct Outcome {
     /// The interpreter's VM at the end of the first budget, and the variables' symbols, for
     /// the tests' own checks of what the programs computed.
     vm: Option<Vm>,
-    symbols: Vec<plcd_core::value::Symbol>,
+    symbols: plcd_core::symbols::Symbols,
 }
 
 impl Outcome {
@@ -417,7 +417,7 @@ impl Outcome {
 
     /// The slot of variable `name` (`main.x`) at the end, on the interpreter.
     fn slot(&self, name: &str) -> u64 {
-        let symbol = self.symbols.iter().find(|s| s.name.eq_ignore_ascii_case(name));
+        let symbol = self.symbols.find(name);
         let symbol = symbol.unwrap_or_else(|| panic!("no variable {name}"));
         self.vm.as_ref().expect("a budget ran").read_value(symbol.at, symbol.ty.elem())
     }

@@ -109,6 +109,7 @@ use crate::diag::{Diagnostic, Diagnostics, Warning};
 use crate::lang::{Language, Op, Place, Program, Variables, EVAL_DEPTH, ST_CALL_DEPTH};
 use crate::st::ast::{PouKind, VarKind};
 use crate::st::dialect::{Dialect, Habit};
+use crate::symbols::{ArraySymbol, Symbols};
 use crate::value::{Pointer, Space, Symbol, ValueType};
 
 use ctx::{Ctx, Storage};
@@ -363,7 +364,7 @@ pub fn compile_in_namespaces(
     }
 
     let mut programs = Vec::new();
-    let mut symbols = Vec::new();
+    let mut symbols = Symbols::default();
     for g in 0..cx.globals.len() {
         let v = cx.globals[g].clone();
         let at = match v.storage {
@@ -845,7 +846,10 @@ fn device_pointer(storage: Storage) -> Option<Pointer> {
     })
 }
 
-/// One symbol per scalar leaf of a variable.
+/// The symbols of a variable's scalar leaves: an array one entry, with the leaves of one
+/// element placed from its start ([`crate::symbols`]), unless a leaf of the element is not
+/// placed relative to it (an FB's variable that `VAR_CONFIG` binds to a device), then one
+/// symbol per leaf of each element. True if every leaf is placed relative to `at`.
 fn leaves(
     cx: &Ctx<'_>,
     name: &str,
@@ -853,11 +857,11 @@ fn leaves(
     at: Pointer,
     retain: bool,
     constant: bool,
-    out: &mut Vec<Symbol>,
-) {
+    out: &mut Symbols,
+) -> bool {
     if let Some(vt) = value_type(cx, ty) {
         out.push(Symbol { name: name.to_string(), ty: vt, at, retain, constant });
-        return;
+        return true;
     }
     match ty {
         Ty::Array(a) => {
@@ -866,6 +870,16 @@ fn leaves(
                 Space::Bit | Space::Byte => 1,
                 _ => a.elem_size,
             };
+            let mut element = Symbols::default();
+            let start = Pointer { space: at.space, offset: 0 };
+            if leaves(cx, "", &a.of, start, retain, constant, &mut element) {
+                if !element.is_empty() {
+                    let dims = a.dims.clone();
+                    let name = name.to_string();
+                    out.push_array(ArraySymbol { name, dims, at, stride: unit, element });
+                }
+                return true;
+            }
             let count = a.count();
             let mut idx: Vec<i64> = a.dims.iter().map(|d| d.0).collect();
             for k in 0..count {
@@ -881,14 +895,19 @@ fn leaves(
                     idx[d] = a.dims[d].0;
                 }
             }
+            false
         }
         Ty::Struct(s) => {
+            let mut relative = true;
             for m in &cx.types.structs[*s].members {
                 let p = Pointer { space: at.space, offset: at.offset + m.offset };
-                leaves(cx, &format!("{name}.{}", m.name), &m.ty, p, retain, constant, out);
+                let name = format!("{name}.{}", m.name);
+                relative &= leaves(cx, &name, &m.ty, p, retain, constant, out);
             }
+            relative
         }
         Ty::Fb(p) => {
+            let mut relative = true;
             for v in &cx.pous[*p].vars {
                 if matches!(v.kind, VarKind::Temp | VarKind::External | VarKind::InOut) {
                     continue;
@@ -897,10 +916,14 @@ fn leaves(
                 // (`fb_config.rs`)
                 let ptr = match v.storage {
                     Storage::Inst(o) => Some(Pointer { space: at.space, offset: at.offset + o }),
-                    other => device_pointer(other),
+                    other => {
+                        let at = device_pointer(other);
+                        relative &= at.is_none();
+                        at
+                    }
                 };
                 if let Some(ptr) = ptr {
-                    leaves(
+                    relative &= leaves(
                         cx,
                         &format!("{name}.{}", v.name),
                         &v.ty,
@@ -911,7 +934,8 @@ fn leaves(
                     );
                 }
             }
+            relative
         }
-        _ => {}
+        _ => true,
     }
 }

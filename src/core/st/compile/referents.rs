@@ -7,12 +7,13 @@
 
 use super::ctx::Ctx;
 use super::types::Ty;
-use crate::value::{Pointer, Space, Symbol};
+use crate::symbols::Symbols;
+use crate::value::{Pointer, Space};
 
 /// Every reference type of the project's variables by its name (`REF_TO Axis`) with the
 /// leaves of its target, their places counted from the start of the target.
-pub(super) fn referents(cx: &Ctx<'_>) -> Vec<(String, Vec<Symbol>)> {
-    let mut found: Vec<(String, Vec<Symbol>)> = Vec::new();
+pub(super) fn referents(cx: &Ctx<'_>) -> Vec<(String, Symbols)> {
+    let mut found: Vec<(String, Symbols)> = Vec::new();
     let mut work: Vec<Ty> = cx.globals.iter().map(|v| v.ty.clone()).collect();
     work.extend(cx.pous.iter().flat_map(|p| p.vars.iter().map(|v| v.ty.clone())));
     while let Some(ty) = work.pop() {
@@ -23,7 +24,7 @@ pub(super) fn referents(cx: &Ctx<'_>) -> Vec<(String, Vec<Symbol>)> {
                     continue;
                 }
                 let start = Pointer { space: Space::Var, offset: 0 };
-                let mut target = Vec::new();
+                let mut target = Symbols::default();
                 super::leaves(cx, "", to, start, false, false, &mut target);
                 found.push((name, target));
                 // A reference inside the target (`next : REF_TO Node`) is named through too.
