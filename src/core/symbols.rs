@@ -66,6 +66,21 @@ pub struct ArraySymbol {
     pub element: Symbols,
 }
 
+impl Entry {
+    /// The name of the entry: the leaf's, or the array's (without indices).
+    pub fn name(&self) -> &str {
+        match self {
+            Entry::Leaf(symbol) => &symbol.name,
+            Entry::Array(array) => &array.name,
+        }
+    }
+
+    /// The leaves of this entry alone, as [`Symbols::iter`] yields them.
+    pub fn leaves(&self) -> Iter<'_> {
+        Iter { stack: vec![Frame::list(std::slice::from_ref(self))] }
+    }
+}
+
 impl ArraySymbol {
     /// How many elements the array has.
     pub fn count(&self) -> u64 {
@@ -139,14 +154,7 @@ impl Symbols {
 
     /// Every leaf, by value, in declaration order.
     pub fn iter(&self) -> Iter<'_> {
-        Iter {
-            stack: vec![Frame::List {
-                entries: &self.entries,
-                next: 0,
-                prefix: String::new(),
-                base: 0,
-            }],
-        }
+        Iter { stack: vec![Frame::list(&self.entries)] }
     }
 
     /// The leaf named `name` (case-insensitive, whitespace ignored), with its full name as
@@ -278,6 +286,13 @@ enum Frame<'a> {
     List { entries: &'a [Entry], next: usize, prefix: String, base: u32 },
     /// An array's elements in turn.
     Elements { array: &'a ArraySymbol, next: u64, prefix: String, base: u32 },
+}
+
+impl<'a> Frame<'a> {
+    /// Top-level entries: their names and places as they are.
+    fn list(entries: &'a [Entry]) -> Frame<'a> {
+        Frame::List { entries, next: 0, prefix: String::new(), base: 0 }
+    }
 }
 
 impl Iterator for Iter<'_> {

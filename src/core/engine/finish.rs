@@ -15,7 +15,8 @@
 
 use crate::clock::StepClock;
 use crate::project::Project;
-use crate::value::{Elem, Pointer};
+use crate::symbols::Entry;
+use crate::value::{Elem, Pointer, Symbol};
 use crate::vm::Exit;
 
 use super::Engine;
@@ -71,13 +72,32 @@ pub(super) struct CopiedGlobal {
     new_flag: (Pointer, Elem),
 }
 
+/// The leaves of `project` whose entry may lie under variable `var` (in lower case, without
+/// indices): an array whose name does not start with `var` holds none, and is not expanded.
+fn may_be_under<'a>(project: &'a Project, var: &'a str) -> impl Iterator<Item = Symbol> + 'a {
+    project
+        .variables
+        .symbols
+        .entries()
+        .iter()
+        .filter(move |e| match e {
+            Entry::Leaf(_) => true,
+            Entry::Array(a) => var.contains('[') || a.name.to_ascii_lowercase().starts_with(var),
+        })
+        .flat_map(Entry::leaves)
+}
+
+/// The leaves of `project` whose lower-case name contains `flag`: an array whose name does
+/// not contain it holds no flag that names a PROGRAM or global variable, and is not expanded.
+fn naming<'a>(project: &'a Project, flag: &'a str) -> impl Iterator<Item = Symbol> + 'a {
+    let entries = project.variables.symbols.entries().iter();
+    entries.filter(move |e| e.name().to_ascii_lowercase().contains(flag)).flat_map(Entry::leaves)
+}
+
 /// The leaves under variable `var` (in lower case) of `project`: their names after `var`, in
 /// lower case, and their types, sorted.
 fn leaves(project: &Project, var: &str) -> Vec<(String, crate::value::ValueType)> {
-    let mut found: Vec<(String, crate::value::ValueType)> = project
-        .variables
-        .symbols
-        .iter()
+    let mut found: Vec<(String, crate::value::ValueType)> = may_be_under(project, var)
         .filter_map(|s| {
             let name = s.name.to_ascii_lowercase();
             let rest = name.strip_prefix(var)?;
@@ -93,7 +113,7 @@ fn leaves(project: &Project, var: &str) -> Vec<(String, crate::value::ValueType)
 /// differs between `old` and `new` (not the same leaves, by name and type, under the global).
 pub(super) fn copied_globals(old: &Project, new: &Project) -> Box<[CopiedGlobal]> {
     let mut out = Vec::new();
-    for symbol in &new.variables.symbols {
+    for symbol in naming(new, GLOBAL_COPY_FLAG) {
         let lower = symbol.name.to_ascii_lowercase();
         let Some(var) = lower.strip_prefix(GLOBAL_COPY_FLAG) else { continue };
         let Some(before) = old.variable(&symbol.name) else { continue };
@@ -111,7 +131,7 @@ pub(super) fn copied_globals(old: &Project, new: &Project) -> Box<[CopiedGlobal]
 /// has, in a PROGRAM variable of a name `old` did not have: (new program, flag).
 pub(super) fn added_instances(old: &Project, new: &Project) -> Box<[(u16, (Pointer, Elem))]> {
     let mut out = Vec::new();
-    for symbol in &new.variables.symbols {
+    for symbol in naming(new, COPY_FLAG) {
         let lower = symbol.name.to_ascii_lowercase();
         let Some(at) = lower.find(COPY_FLAG) else { continue };
         let program = &lower[..at];
@@ -123,7 +143,7 @@ pub(super) fn added_instances(old: &Project, new: &Project) -> Box<[(u16, (Point
         let kept = old.programs.iter().any(|p| p.name.eq_ignore_ascii_case(program));
         let var = format!("{program}.{}", &lower[at + COPY_FLAG.len()..]);
         // the variable itself, or a leaf under it
-        let existed = old.variables.symbols.iter().any(|s| {
+        let existed = may_be_under(old, &var).any(|s| {
             let name = s.name.to_ascii_lowercase();
             name.strip_prefix(var.as_str())
                 .is_some_and(|rest| rest.is_empty() || rest.starts_with(['.', '[']))
@@ -145,7 +165,7 @@ pub(super) fn copied_instances(old: &Project, new: &Project) -> Box<[CopiedInsta
         project.programs.iter().position(|p| p.name.eq_ignore_ascii_case(name)).map(|i| i as u16)
     };
     let mut out = Vec::new();
-    for symbol in &new.variables.symbols {
+    for symbol in naming(new, COPY_FLAG) {
         let lower = symbol.name.to_ascii_lowercase();
         let Some(at) = lower.find(COPY_FLAG) else { continue };
         let (program, var) = (&lower[..at], &lower[at + COPY_FLAG.len()..]);

@@ -23,7 +23,7 @@ use crate::device::Address;
 use crate::lang::ops::{EdgeMemory, Op};
 use crate::lang::Variables;
 use crate::project::Project;
-use crate::symbols::{ArraySymbol, Entry, Symbols};
+use crate::symbols::{ArraySymbol, Entry};
 use crate::value::{Space, Symbol, ValueType};
 use crate::vm::EdgeInit;
 
@@ -146,10 +146,7 @@ pub fn prepare(
 /// leaves, neighbouring ones in one copy, without naming them; any other entry is matched
 /// leaf by leaf by name.
 pub fn kept_variables(old: &Variables, new: &Variables) -> Box<[(u32, u32, u32)]> {
-    let entry_name = |entry: &Entry| match entry {
-        Entry::Leaf(symbol) => symbol.name.to_ascii_lowercase(),
-        Entry::Array(array) => array.name.to_ascii_lowercase(),
-    };
+    let entry_name = |entry: &Entry| entry.name().to_ascii_lowercase();
     let old_entries: HashMap<String, &Entry> =
         old.symbols.entries().iter().map(|e| (entry_name(e), e)).collect();
     // every old leaf by name, built only when an entry is matched leaf by leaf
@@ -169,27 +166,19 @@ pub fn kept_variables(old: &Variables, new: &Variables) -> Box<[(u32, u32, u32)]
                 keep_elements(before, array, &mut kept);
             }
             (entry, before) => {
-                let leaves = |symbols: Symbols| -> HashMap<String, Symbol> {
-                    symbols.iter().map(|s| (s.name.to_ascii_lowercase(), s)).collect()
-                };
-                let single = |entry: &Entry| {
-                    let mut symbols = Symbols::default();
-                    match entry {
-                        Entry::Leaf(symbol) => symbols.push(symbol.clone()),
-                        Entry::Array(array) => symbols.push_array(array.clone()),
-                    }
-                    symbols
+                let by_leaf = |leaves: crate::symbols::Iter<'_>| -> HashMap<String, Symbol> {
+                    leaves.map(|s| (s.name.to_ascii_lowercase(), s)).collect()
                 };
                 // an old array of the same name holds every old leaf under that name
                 let own;
                 let by_name = match before {
                     Some(before) => {
-                        own = leaves(single(before));
+                        own = by_leaf(before.leaves());
                         &own
                     }
-                    None => every_old.get_or_insert_with(|| leaves(old.symbols.clone())),
+                    None => every_old.get_or_insert_with(|| by_leaf(old.symbols.iter())),
                 };
-                for symbol in single(entry).iter() {
+                for symbol in entry.leaves() {
                     if let Some(before) = by_name.get(&symbol.name.to_ascii_lowercase()) {
                         kept.extend(kept_leaf(before, &symbol));
                     }

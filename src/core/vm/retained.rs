@@ -8,6 +8,7 @@
 //! an elementary variable, an array element, a struct member, an FB instance's variable.
 
 use crate::lang::Variables;
+use crate::symbols::Entry;
 use crate::value::{Space, Symbol, ValueType};
 
 /// One retained leaf.
@@ -87,9 +88,17 @@ impl RetainedVariables {
         let retained = |s: &Symbol| {
             s.retain && s.at.space == Space::Var && !matches!(s.ty, ValueType::Reference { .. })
         };
+        // an array none of whose element's leaves is retained is not expanded
+        let holds_retained = |e: &&Entry| match e {
+            Entry::Leaf(s) => s.retain,
+            Entry::Array(a) => a.element.iter().any(|s| s.retain),
+        };
         let mut leaves: Vec<RetainedLeaf> = variables
             .symbols
+            .entries()
             .iter()
+            .filter(holds_retained)
+            .flat_map(Entry::leaves)
             .filter(retained)
             .map(|s| RetainedLeaf {
                 name: s.name.clone(),
