@@ -1104,38 +1104,39 @@ END_PROGRAM
     );
 }
 
-/// `[st] variable_memory_bytes` (compile/memory_limit.rs): an array of 67,123,200 bytes, just
-/// above the 64 MiB default, is refused by default with the setting named, compiles under a
-/// limit of 128 MiB and runs, its last element written and read. STRING[255] elements keep
-/// the symbols few (one per 256 bytes): the test stays at a few hundred MB and seconds.
+/// `[st] variable_memory_bytes` (compile/memory_limit.rs): an array of 134,217,800 bytes, just
+/// above the 128 MiB default, is refused by default with the setting named, compiles under a
+/// limit of 256 MiB and runs, its last element written and read. The array is one symbol
+/// entry whatever its size (`plcd_core::symbols`): the test costs a few times the array.
 #[test]
 fn an_array_above_the_default_limit_runs_under_a_raised_one() {
-    let src = "VAR_GLOBAL big : ARRAY [1..262200] OF STRING[255]; END_VAR
+    let src = "VAR_GLOBAL big : ARRAY [1..134217800] OF BYTE; END_VAR
 PROGRAM main
-VAR n : INT; last : STRING; END_VAR
-big[262200] := 'end';
-last := big[262200];
+VAR n : INT; last : BYTE; END_VAR
+big[134217800] := 42;
+last := big[134217800];
 n := n + 1;
 END_PROGRAM
 ";
     let Err(refused) = try_build(src) else { panic!("above the default limit, yet compiled") };
     assert!(
-        refused.contains("the array takes 67123200 bytes of variable memory")
-            && refused.contains("`[st] variable_memory_bytes` allows (67108864)"),
+        refused.contains("the array takes 134217800 bytes of variable memory")
+            && refused.contains("`[st] variable_memory_bytes` allows (134217728)"),
         "{refused}"
     );
-    let dialect = Dialect { variable_memory_bytes: 128 << 20, ..Dialect::default() };
+    let dialect = Dialect { variable_memory_bytes: 256 << 20, ..Dialect::default() };
     let c = try_build_with(src, None, dialect).unwrap_or_else(|e| panic!("{e}"));
-    assert!(c.variables.initial.len() > 67_123_200);
+    assert!(c.variables.initial.len() > 134_217_800);
     let mut vm = Vm::for_programs(&c.programs);
     vm.set_variables(&c.variables);
     vm.reset_for_run(&plcd_core::device::RetainSet::default(), false);
     let mut state = ExecState::with_frame(c.programs[0].frame_bytes);
     let clock = ManualClock::new(0);
     assert!(matches!(vm.run(&c.programs[0], &mut state, &clock, 1_000_000), Exit::End));
-    let last = c.variables.symbols.iter().find(|s| s.name.eq_ignore_ascii_case("main.last"));
-    let last = plcd_core::value::decode_str(&vm.read_string(last.expect("main.last").at));
-    assert_eq!(last, "end");
+    let last = c.variables.symbols.find("main.last").expect("main.last");
+    assert_eq!(vm.read_value(last.at, last.ty.elem()), 42);
+    let far = c.variables.symbols.find("big[134217800]").expect("the last element by name");
+    assert_eq!(vm.read_value(far.at, far.ty.elem()), 42);
 }
 
 /// `[st] variable_memory_bytes` bounds variable memory in all (compile/memory_limit.rs):

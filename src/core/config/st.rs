@@ -33,7 +33,7 @@ pub struct StConfig {
     pub system_libraries: SystemLibraries,
     /// `variable_memory_bytes`: the most variable memory the project may take in all (and so
     /// one array or one instance; docs/ST.md, "Limits and what is not supported"); default
-    /// 64 MiB, 1 MiB to 1 GiB.
+    /// 128 MiB, 1 MiB to 1 GiB.
     pub variable_memory_bytes: u32,
 }
 
@@ -43,11 +43,12 @@ pub const DEFAULT_HEAP_BYTES: u32 = 64 * 1024;
 /// The largest `heap_bytes`: 16 MiB.
 pub const MAX_HEAP_BYTES: u32 = 16 * 1024 * 1024;
 
-/// `variable_memory_bytes` when the config does not say: 64 MiB. Every byte is touched at
-/// load, several times over, and every scalar element has a symbol: TcUnit's default
-/// parameters (one results array of about 79 MB) cost `plcd sim` about 1.5 GB of memory, a
-/// price a project asks for by name rather than by default (docs/ST.md).
-pub const DEFAULT_VARIABLE_MEMORY_BYTES: u32 = 64 << 20;
+/// `variable_memory_bytes` when the config does not say: 128 MiB, so that TcUnit's default
+/// parameters (one results array of about 79 MB) load. The limit is a bound, not an
+/// allocation: memory is taken at the project's real size, a few times over (its images), and
+/// an array is one symbol whatever its size ([`crate::symbols`]), so a project pays for what it
+/// declares, never for the limit (docs/ST.md).
+pub const DEFAULT_VARIABLE_MEMORY_BYTES: u32 = 128 << 20;
 
 /// The smallest and largest `variable_memory_bytes`: 1 MiB and 1 GiB (variable memory is
 /// addressed with 32-bit offsets; a project near the top would cost gigabytes, docs/ST.md).
