@@ -149,8 +149,6 @@ pub fn kept_variables(old: &Variables, new: &Variables) -> Box<[(u32, u32, u32)]
     let entry_name = |entry: &Entry| entry.name().to_ascii_lowercase();
     let old_entries: HashMap<String, &Entry> =
         old.symbols.entries().iter().map(|e| (entry_name(e), e)).collect();
-    // every old leaf by name, built only when an entry is matched leaf by leaf
-    let mut every_old: Option<HashMap<String, Symbol>> = None;
     let mut kept = Vec::new();
     for entry in new.symbols.entries() {
         match (entry, old_entries.get(&entry_name(entry))) {
@@ -165,19 +163,22 @@ pub fn kept_variables(old: &Variables, new: &Variables) -> Box<[(u32, u32, u32)]
             {
                 keep_elements(before, array, &mut kept);
             }
-            (entry, before) => {
-                let by_leaf = |leaves: crate::symbols::Iter<'_>| -> HashMap<String, Symbol> {
-                    leaves.map(|s| (s.name.to_ascii_lowercase(), s)).collect()
-                };
-                // an old array of the same name holds every old leaf under that name
-                let own;
-                let by_name = match before {
-                    Some(before) => {
-                        own = by_leaf(before.leaves());
-                        &own
-                    }
-                    None => every_old.get_or_insert_with(|| by_leaf(old.symbols.iter())),
-                };
+            (entry, _) => {
+                // Every leaf's name starts with its entry's: an old entry shares a leaf with
+                // this one only if one's name starts with the other's (an array named alike,
+                // the old leaves of an array once expanded element by element).
+                let name = entry_name(entry);
+                let by_name: HashMap<String, Symbol> = old
+                    .symbols
+                    .entries()
+                    .iter()
+                    .filter(|old| {
+                        let old = entry_name(old);
+                        old.starts_with(&name) || name.starts_with(&old)
+                    })
+                    .flat_map(Entry::leaves)
+                    .map(|s| (s.name.to_ascii_lowercase(), s))
+                    .collect();
                 for symbol in entry.leaves() {
                     if let Some(before) = by_name.get(&symbol.name.to_ascii_lowercase()) {
                         kept.extend(kept_leaf(before, &symbol));
