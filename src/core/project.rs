@@ -284,7 +284,7 @@ impl Project {
         let under: Vec<Watched> = self
             .variables
             .symbols
-            .iter()
+            .may_start_with(name)
             .filter(|s| is_under(&s.name, name))
             .map(Watched::Variable)
             .collect();
@@ -336,7 +336,7 @@ impl Project {
         let target = self.referent(&spelled, &type_name)?;
         let mut found: Vec<Symbol> = target.find(rest).into_iter().collect();
         if found.is_empty() {
-            found = target.iter().filter(|s| is_under(&s.name, rest)).collect();
+            found = target.may_start_with(rest).filter(|s| is_under(&s.name, rest)).collect();
         }
         if found.is_empty() {
             return Err(format!("no variable `{name}`: a {type_name} points to no `{rest}`"));

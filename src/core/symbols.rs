@@ -157,6 +157,21 @@ impl Symbols {
         Iter { stack: vec![Frame::list(&self.entries)] }
     }
 
+    /// The leaves whose names may start with `prefix` (case-insensitive, whitespace ignored),
+    /// in declaration order: the leaves of every entry whose name starts with `prefix` or
+    /// begins it (a leaf's name starts with its entry's), so that an array elsewhere is not
+    /// expanded. A superset: the caller tests each leaf's name.
+    pub fn may_start_with<'a>(&'a self, prefix: &'a str) -> impl Iterator<Item = Symbol> + 'a {
+        let prefix: String = prefix.chars().filter(|c| !c.is_whitespace()).collect();
+        self.entries
+            .iter()
+            .filter(move |e| {
+                let name = e.name();
+                strip_name(&prefix, name).is_some() || strip_name(name, &prefix).is_some()
+            })
+            .flat_map(Entry::leaves)
+    }
+
     /// The leaf named `name` (case-insensitive, whitespace ignored), with its full name as
     /// declared.
     pub fn find(&self, name: &str) -> Option<Symbol> {
@@ -408,6 +423,18 @@ mod tests {
         }
         assert_eq!(symbols.find("main.a[+1,0].x"), None);
         assert_eq!(symbols.find("main.a[1,0].m[2]x"), None);
+    }
+
+    #[test]
+    fn expands_only_the_entries_a_prefix_may_name() {
+        let symbols = table();
+        let names = |prefix| -> Vec<String> {
+            symbols.may_start_with(prefix).map(|s| s.name).collect::<Vec<_>>()
+        };
+        assert_eq!(names("main.z"), ["main.z"]);
+        assert_eq!(names("MAIN.A [2,0]").len(), 18, "the whole array, which holds it");
+        assert_eq!(names("main").len(), symbols.len());
+        assert!(names("other").is_empty());
     }
 
     #[test]

@@ -72,21 +72,6 @@ pub(super) struct CopiedGlobal {
     new_flag: (Pointer, Elem),
 }
 
-/// The leaves of `project` whose entry may lie under variable `var` (in lower case, without
-/// indices): an array whose name does not start with `var` holds none, and is not expanded.
-fn may_be_under<'a>(project: &'a Project, var: &'a str) -> impl Iterator<Item = Symbol> + 'a {
-    project
-        .variables
-        .symbols
-        .entries()
-        .iter()
-        .filter(move |e| match e {
-            Entry::Leaf(_) => true,
-            Entry::Array(a) => var.contains('[') || a.name.to_ascii_lowercase().starts_with(var),
-        })
-        .flat_map(Entry::leaves)
-}
-
 /// The leaves of `project` whose lower-case name contains `flag`: an array whose name does
 /// not contain it holds no flag that names a PROGRAM or global variable, and is not expanded.
 fn naming<'a>(project: &'a Project, flag: &'a str) -> impl Iterator<Item = Symbol> + 'a {
@@ -97,7 +82,10 @@ fn naming<'a>(project: &'a Project, flag: &'a str) -> impl Iterator<Item = Symbo
 /// The leaves under variable `var` (in lower case) of `project`: their names after `var`, in
 /// lower case, and their types, sorted.
 fn leaves(project: &Project, var: &str) -> Vec<(String, crate::value::ValueType)> {
-    let mut found: Vec<(String, crate::value::ValueType)> = may_be_under(project, var)
+    let mut found: Vec<(String, crate::value::ValueType)> = project
+        .variables
+        .symbols
+        .may_start_with(var)
         .filter_map(|s| {
             let name = s.name.to_ascii_lowercase();
             let rest = name.strip_prefix(var)?;
@@ -143,7 +131,7 @@ pub(super) fn added_instances(old: &Project, new: &Project) -> Box<[(u16, (Point
         let kept = old.programs.iter().any(|p| p.name.eq_ignore_ascii_case(program));
         let var = format!("{program}.{}", &lower[at + COPY_FLAG.len()..]);
         // the variable itself, or a leaf under it
-        let existed = may_be_under(old, &var).any(|s| {
+        let existed = old.variables.symbols.may_start_with(&var).any(|s| {
             let name = s.name.to_ascii_lowercase();
             name.strip_prefix(var.as_str())
                 .is_some_and(|rest| rest.is_empty() || rest.starts_with(['.', '[']))
