@@ -25,6 +25,8 @@
 //!   leaves in turn), for the consumers that need them all (listings, the retain file);
 //! - [`Symbols::len`] counts the leaves without expanding them, [`Symbols::entries`] are the
 //!   entries themselves (online change matches an array as a whole by index range);
+//! - [`Symbols::may_start_with`] expands only the entries a prefix may name (watching
+//!   `main.pid` expands no array elsewhere);
 //! - [`Symbols::holding`] finds the leaf that holds a place (what a reference points to): the
 //!   element's index comes from the offset.
 //!
