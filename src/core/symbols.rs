@@ -91,15 +91,7 @@ impl ArraySymbol {
 
     /// The index text of element `k` (row-major, from 0): `[3]`, `[1,2]`.
     pub fn index_text(&self, k: u64) -> String {
-        let mut indices = vec![0i64; self.dims.len()];
-        let mut rest = k;
-        for (d, &(lo, hi)) in self.dims.iter().enumerate().rev() {
-            let len = (hi - lo + 1).max(1) as u64;
-            indices[d] = lo + (rest % len) as i64;
-            rest /= len;
-        }
-        let text: Vec<String> = indices.iter().map(i64::to_string).collect();
-        format!("[{}]", text.join(","))
+        index_text(&self.dims, k)
     }
 
     /// The offset of element `k` from the first.
@@ -235,6 +227,21 @@ impl Symbols {
         }
         None
     }
+}
+
+/// The index text of element `k` (row-major, from 0) of an array of dimensions `dims`
+/// (`(lo, hi)` each): `[3]`, `[1,2]`. The one spelling of element names, which
+/// [`Symbols::find`] parses back.
+pub fn index_text(dims: &[(i64, i64)], k: u64) -> String {
+    let mut indices = vec![0i64; dims.len()];
+    let mut rest = k;
+    for (d, &(lo, hi)) in dims.iter().enumerate().rev() {
+        let len = (hi - lo + 1).max(1) as u64;
+        indices[d] = lo + (rest % len) as i64;
+        rest /= len;
+    }
+    let text: Vec<String> = indices.iter().map(i64::to_string).collect();
+    format!("[{}]", text.join(","))
 }
 
 /// `s` of an element whose name starts `prefix` and whose place starts at `base`.

@@ -880,20 +880,10 @@ fn leaves(
                 }
                 return true;
             }
-            let count = a.count();
-            let mut idx: Vec<i64> = a.dims.iter().map(|d| d.0).collect();
-            for k in 0..count {
-                let text: Vec<String> = idx.iter().map(|i| i.to_string()).collect();
-                let el = format!("{name}[{}]", text.join(","));
+            for k in 0..a.count() {
+                let el = format!("{name}{}", crate::symbols::index_text(&a.dims, k));
                 let p = Pointer { space: at.space, offset: at.offset + k as u32 * unit };
                 leaves(cx, &el, &a.of, p, retain, constant, out);
-                for d in (0..idx.len()).rev() {
-                    if idx[d] < a.dims[d].1 {
-                        idx[d] += 1;
-                        break;
-                    }
-                    idx[d] = a.dims[d].0;
-                }
             }
             false
         }
