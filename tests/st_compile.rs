@@ -655,8 +655,9 @@ fn golden_diagnostics() {
                 Ok(compiled) => compiled.warnings.iter().map(|w| format!("{w}\n")).collect(),
                 Err(errors) => errors,
             }
-        } else if src.to_ascii_uppercase().contains("CONFIGURATION") {
-            // A configuration's instances are the project's: loaded as `plcd check` does.
+        } else if src.to_ascii_uppercase().contains("CONFIGURATION") || toml.contains("[iec.") {
+            // A configuration's instances are the project's, and the config's `[iec.variables]`
+            // and `[iec.addresses]` the config's: loaded as `plcd check` does.
             configured_project(dir, &toml).err().unwrap_or_default()
         } else {
             try_build_with(&src, pou.as_deref(), dialect).err().unwrap_or_default()
@@ -1151,7 +1152,7 @@ fn arrays_each_under_the_limit_are_refused_when_their_sum_crosses_it() {
         format!("VAR_GLOBAL\n{arrays}END_VAR\nPROGRAM main\na1[1] := 1;\nEND_PROGRAM\n")
     };
     let dialect = Dialect { variable_memory_bytes: 1 << 20, ..Dialect::default() };
-    let Err(refused) = try_build_with(&declare(3), None, dialect) else {
+    let Err(refused) = try_build_with(&declare(3), None, dialect.clone()) else {
         panic!("1,200,000 bytes under a limit of 1 MiB, yet compiled")
     };
     assert!(

@@ -181,22 +181,29 @@ const MESSAGES: &[(&str, &str)] = &[
         "access-path-temp",
     ),
     // var_config.rs: VAR_CONFIG
-    ("`{}` is not a PROGRAM instance of the configuration{}", "config-var-config-not-an-instance"),
+    ("`{}` is not a PROGRAM instance of {}{}", "config-var-config-not-an-instance"),
+    ("`{}` is not a PROGRAM instance of {}{}", "config-iec-variables-not-an-instance"),
     ("VAR_CONFIG names a variable of a program instance: `{}.variable`", "config-var-config-no-variable"),
     ("`{}` has no variable `{}`{}", "config-var-config-unknown-variable"),
+    ("`{}` has no variable `{}`{}", "config-iec-variables-unknown-variable"),
     (
-        "`{}` is `{}`: VAR_CONFIG binds a variable of a program instance or of a FUNCTION_BLOCK instance inside it, not a member of a struct or an element of an array",
+        "`{}` is `{}`: {} binds a variable of a program instance or of a FUNCTION_BLOCK instance inside it, not a member of a struct or an element of an array",
         "config-var-config-struct-member",
     ),
     (
-        "`{}` has {} instances in the project and actions: VAR_CONFIG binds a variable of a PROGRAM with actions for its only instance (the actions' code is shared by all)",
+        "`{}` has {} instances in the project and actions: {} binds a variable of a PROGRAM with actions for its only instance (the actions' code is shared by all)",
         "config-var-config-shared-program-with-actions",
     ),
     (
-        "`{}.{}` is not declared at a partly specified address (`AT %I*`, `%Q*`, `%M*`): VAR_CONFIG binds only such a variable",
+        "`{}` is not declared at a partly specified address (`AT %I*`, `%Q*`, `%M*`): {} binds only such a variable",
         "config-var-config-not-partly-specified",
     ),
+    (
+        "`{}` is not declared at a partly specified address (`AT %I*`, `%Q*`, `%M*`): {} binds only such a variable",
+        "config-iec-variables-not-partly-specified",
+    ),
     ("`%{}` does not fit `{}`, declared at `%{}`", "config-var-config-address-does-not-fit"),
+    ("`%{}` does not fit `{}`, declared at `%{}`", "config-iec-variables-does-not-fit"),
     ("`{}` is `{}`, not `{}`", "config-var-config-type"),
     (
         "VAR_CONFIG entry `{}` gives neither an address (`AT %QX0.1`) nor an initial value",
@@ -207,7 +214,9 @@ const MESSAGES: &[(&str, &str)] = &[
         "`{}` has no value of the instance's own: a VAR_TEMP, VAR_IN_OUT, VAR_EXTERNAL or VAR_STAT cannot be given one in VAR_CONFIG",
         "config-var-config-not-the-instances-own",
     ),
-    ("`{}` is already bound by VAR_CONFIG (line {})", "config-var-config-bound-twice"),
+    ("`{}` is already bound by {} ({})", "config-var-config-bound-twice"),
+    ("`{}` is already bound by {} ({})", "config-iec-variables-bound-by-var-config"),
+    ("`{}` is already bound by {} ({})", "config-iec-variables-bound-twice"),
     // fb_value.rs: function block instances as values
     (
         "type mismatch: `{}` cannot be assigned to the instance of `{}`: an instance is assigned an instance of the same function block only",
@@ -280,6 +289,8 @@ const MESSAGES: &[(&str, &str)] = &[
     ("the variables of `{}` need {} bytes of frame (limit 1 MiB)", "function-frame-too-large"),
     ("`{}` is `{}`: only elementary types and their arrays can be located", "located-struct"),
     ("`%{}` is a {}-bit location, `{}` is `{}`", "iec-size-mismatch"),
+    // a multi-level address `[iec.addresses]` places: its size letter's bits, as any address's
+    ("`%{}` is a {}-bit location, `{}` is `{}`", "iec-multi-level-placed-size"),
     ("`{}` needs {} bits from `{}`: past the end of its area", "bit-array-past-end"),
     ("`{}` needs {} words from `{}`: past the end of its area", "past-area-end"),
     ("`{}` needs {} bytes from `%{}`: past the end of its area", "bytes-past-area-end"),
@@ -778,7 +789,13 @@ const IEC_MESSAGES: &[(&str, &str)] = &[
     ("`%{}`: the openplc layout has no `%{}{}` (OpenPLC's inputs are %IX bits, %IB bytes and %IW words, its outputs %QX, %QB and %QW; `[iec] preset = \"codesys\"` has every size)", "st/iec-no-such-size"),
     ("`%{}` is past the end of the {} image: the {} layout's {} (`{}` to `{}`; `[iec] {}` moves it)", "st/iec-past-the-image"),
     ("`%{}`: bit {} of a byte: the {} layout numbers %{}X by byte and bit, the bit 0 to 7 (`%{}X{}.0` is the bit after `%{}X{}.7`; `[iec] preset = \"plcd\"` numbers P words and their bits 0 to 15)", "st/iec-bit-of-a-byte"),
-    ("`%{}` is a multi-level address ({} levels): Beremiz numbers an extension's I/O so (its channel, then the extension's own items), and what it names is that extension's; plcd has no such extension: wire the device in plcd's config (docs/CONFIG.md) and locate the variable at a device or at an address of the [iec] layout, or declare it `AT %{}{}*` and bind it with a CONFIGURATION's VAR_CONFIG", "st/iec-multi-level"),
+    ("`%{}` is a multi-level address ({} levels), as Beremiz numbers an extension's I/O (its channel, then the extension's own items), and the config does not place it: add `\"%{}\" = \"…\"` to `[iec.addresses]` in the config, an address of the [iec] layout or a device of P, M, K or D (docs/CONFIG.md), or declare the variable `AT %{}{}*` and bind it with VAR_CONFIG or `[iec.variables]`", "st/iec-multi-level"),
+    ("`{}` is not a device of P, M, K or D: an address is one of the [iec] layout or one of those devices", "config/iec-addresses-not-a-device-area"),
+    ("`%{}` is itself a multi-level address: an entry places one at an address of the [iec] layout or at a device of P, M, K or D", "config/iec-addresses-target-multi-level"),
+    ("`%{}` is a {}-bit location, `{}` a {}-bit one", "config/iec-addresses-size-mismatch"),
+    ("`{}` and the {} word(s) after it hold `{}`: past the end of {} ({})", "config/iec-addresses-past-the-area"),
+    ("`%{}` is not a multi-level address: an area letter (I, Q, M), a size letter (X, B, W, D, L), then numbers joined by dots, more than an address of the [iec] layout has (`%IX100.0.0`, `%IW100.0.1`, `%QW2.1`)", "config/iec-addresses-not-multi-level"),
+    ("iec.addresses {}: no declaration, VAR_CONFIG, configuration, access path or [iec.variables] entry of the project names `{}`", "config/warning-iec-address-unused"),
     ("`{}` is not a word of P, M, K or D (an image starts at a word: `P064`, `D10000`)", "config/iec-start-not-a-word"),
     ("the {} image needs {} words from `{}`: past the end of {} ({})", "config/iec-image-past-the-area"),
     ("the {} image (`{}`, {} words) overlaps the {} image (`{}` to `{}`, `iec.{}`)", "config/iec-images-overlap"),
@@ -799,6 +816,10 @@ const IEC_PARTS: &[&str] = &[
     " =>",
     " :=",
     "TASK {} {}",
+    // what `plcd check` shows of `[iec.variables]` and `[iec.addresses]`
+    "config: [iec.variables] {} AT %{} → {}",
+    "config: [iec.addresses] {} →{} {}",
+    " %{} →",
     "iec:   {}",
     "{} → {}..{} (iec.{})",
     "%{}X bytes are 0 to {}",
@@ -897,6 +918,12 @@ const PARTS: &[&str] = &[
     "{} {}",
     " (did you mean `{}`?)",
     "line {}",
+    // who bound a variable first (var_config.rs), and the key an error about the config's
+    // binding is about
+    "[iec.variables] {}",
+    "iec.variables {}: {}",
+    "the configuration",
+    "the project",
     "`{}` line {}",
     ", ",
     " and ",
@@ -1064,7 +1091,12 @@ fn every_row_case_reports_its_message() {
     let mut failures = Vec::new();
     for (template, case) in MESSAGES.iter().chain(DEVICE_MESSAGES).chain(STRICT_MESSAGES) {
         let messages = case_messages(case);
-        if !messages.iter().any(|m| matches_template(template, m)) {
+        // a message about an entry of the config's `[iec.variables]` starts with its key
+        let own = |m: &str| match m.strip_prefix("iec.variables \"") {
+            Some(rest) => rest.split_once("\": ").map_or(m.to_string(), |(_, m)| m.to_string()),
+            None => m.to_string(),
+        };
+        if !messages.iter().any(|m| matches_template(template, &own(m))) {
             failures.push(format!("{case}: no message of `{template}` in {messages:?}"));
         }
     }

@@ -523,3 +523,52 @@ fn an_online_change_keeps_var_inst_unions_wstrings_and_dates_by_name() {
     assert_eq!(at(&changed, "main.u.r"), at(&changed, "main.u.dw"), "one place");
     assert!(kept.iter().any(|k| k.1 == at(&changed, "main.c.Add.calls")));
 }
+
+/// The config's `[iec.variables]` binds the variables a `[[program]]` of no CONFIGURATION
+/// declares at partly specified addresses (OpenPLC's and CODESYS's way): one of the program,
+/// one inside a function block instance at a plcd device, and one at a Beremiz multi-level
+/// address `[iec.addresses]` places. The program, the devices and a client naming the variable
+/// (as `plcctl get` and `set` do, by the project's symbols) meet at the device.
+#[test]
+fn iec_variables_bind_a_programs_variables_to_devices() {
+    use harness::engine::Plc;
+    let config = "[[program]]\nfile = \"main.st\"\n\n[iec.variables]\n\
+                  \"main.lamp\" = \"%QX0.3\"\n\"main.tank.level\" = \"%D00100\"\n\
+                  \"main.start\" = \"%IX100.0.0\"\n\n[iec.addresses]\n\"%IX100.0.0\" = \"%P0002\"\n";
+    let main = "FUNCTION_BLOCK Tank
+  VAR level AT %MW* : INT; END_VAR
+  level := level + 1;
+END_FUNCTION_BLOCK
+PROGRAM main
+  VAR lamp AT %Q* : BOOL; start AT %IX* : BOOL; tank : Tank; seen : INT; END_VAR
+  IF start THEN seen := seen + 1; END_IF;
+  lamp := tank.level >= 3;
+  tank();
+END_PROGRAM
+";
+    let p = project(config, &[("main.st", main)]);
+    // the symbols name the devices: the tools read and write them by the variables' names
+    let level = p.variable("main.tank.level").unwrap();
+    let d100 = plcd::device::Address::parse("D00100").unwrap().as_word().unwrap();
+    assert_eq!((level.at.space, level.at.offset), (plcd::value::Space::Word, u32::from(d100.0)));
+    assert_eq!(p.variable("main.lamp").unwrap().at.space, plcd::value::Space::Bit);
+    let mut plc = Plc::new(&p);
+    plc.engine.set_mode(Mode::Run, 0, &mut plc.field, &mut plc.events);
+    plc.run_for(MS);
+    // the block's level counts at D00100, the lamp at %QX0.3 = P0643
+    let scans = plc.read("D00100");
+    assert!(scans >= 3, "{scans}");
+    assert!(plc.field.output("P0643"));
+    // a client writes the variable by its name: the device changes, the program counts on
+    plc.engine.write_value(level.at, level.ty.elem(), (-100i64) as u64);
+    assert_eq!(plc.read("D00100"), -100);
+    plc.run_for(MS);
+    assert!(plc.read("D00100") < 0, "counted on from -100");
+    assert!(!plc.field.output("P0643"), "level below 3: the lamp off");
+    // start is P0002 (%IX100.0.0): the program reads the input
+    let seen = p.variable("main.seen").unwrap();
+    assert_eq!(plc.engine.vm().read_value(seen.at, seen.ty.elem()), 0);
+    plc.field.input("P0002", true);
+    plc.run_for(MS);
+    assert!(plc.engine.vm().read_value(seen.at, seen.ty.elem()) > 0);
+}

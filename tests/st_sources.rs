@@ -1256,3 +1256,190 @@ fn a_configurations_access_paths_name_its_variables() {
     // a value that never changes is not traced: `CHARLIE` and `ABLE` are only resolved
     assert_eq!(last(&trace, "CHARLIE"), None, "{trace}");
 }
+
+/// `[iec.variables]` binds the partly specified variables of `[[program]]`s without a
+/// CONFIGURATION, as VAR_CONFIG binds a configuration's: two instances of one PROGRAM, one
+/// bound (it runs a copy of the PROGRAM's code of its own, with its function block's copy),
+/// the other keeping variable memory; `plcd check` notes each binding.
+#[test]
+fn iec_variables_bind_the_instances_of_programs_without_a_configuration() {
+    let dir = TempDir::new("st-iec-variables");
+    let toml = "[plc]\nscan_period_ms = 10\n\n[[program]]\nname = \"a\"\nfile = \"plc.st\"\n\n\
+                [[program]]\nname = \"b\"\nfile = \"plc.st\"\n\n[iec.variables]\n\
+                \"a.lamp\" = \"%QX0.3\"\n\"a.tank.level\" = \"%MW5\"\n\"a.alarm\" = \"%M0003\"\n";
+    write(dir.path(), "plcd.toml", toml);
+    let text = "FUNCTION_BLOCK Tank
+  VAR level AT %MW* : INT := 7; END_VAR
+  level := level + 1;
+END_FUNCTION_BLOCK
+
+PROGRAM blink
+  VAR
+    lamp AT %Q* : BOOL;
+    alarm AT %M* : BOOL;
+    tank : Tank;
+    n : INT;
+  END_VAR
+  n := n + 1;
+  lamp := n MOD 2 = 1;
+  alarm := tank.level > 8;
+  tank();
+END_PROGRAM
+";
+    write(dir.path(), "plc.st", text);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        stdout.lines().filter(|l| l.starts_with("  config:")).collect::<Vec<_>>(),
+        [
+            "  config: [iec.variables] a.lamp AT %QX0.3 → P0643",
+            "  config: [iec.variables] a.tank.level AT %MW5 → D14005",
+            "  config: [iec.variables] a.alarm AT %M0003 → M0003",
+        ]
+    );
+    let watch = "a.n,P0643,D14005,a.tank.level,b.tank.level,a.lamp,b.lamp,M0003,a.alarm";
+    let run = |engine: &[&str]| {
+        let mut args = vec!["sim", "--config", "plcd.toml", "--for", "25ms", "--watch", watch];
+        args.extend(["--trace", "-"]);
+        args.extend(engine);
+        let out = plcd(dir.path(), &args);
+        assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let trace = run(&[]);
+    // three scans: a's lamp at P0643 (n = 3, odd), its tank's level at D14005 from the
+    // declaration's 7, written at RUN start, one more a scan
+    assert_eq!(last(&trace, "a.n").as_deref(), Some("3"), "{trace}");
+    assert_eq!(last(&trace, "P0643").as_deref(), Some("1"));
+    assert_eq!(last(&trace, "D14005").as_deref(), Some("10"));
+    // the tools name the bound variables by their paths and reach the devices
+    assert_eq!(last(&trace, "a.tank.level").as_deref(), Some("10"));
+    assert_eq!(last(&trace, "a.lamp").as_deref(), Some("1"));
+    assert_eq!(last(&trace, "a.alarm").as_deref(), Some("1"));
+    assert_eq!(last(&trace, "M0003").as_deref(), Some("1"));
+    // b keeps its variables in memory, apart from the devices
+    assert_eq!(last(&trace, "b.tank.level").as_deref(), Some("10"));
+    assert_eq!(last(&trace, "b.lamp").as_deref(), Some("1"));
+    // the copies are ordinary code: the interpreter gives the native code's trace
+    assert_eq!(run(&["--interpreter"]), trace);
+}
+
+/// `[iec.variables]` next to a configuration's VAR_CONFIG: it binds what VAR_CONFIG leaves
+/// partly specified, its paths written from the resource or from the instance.
+#[test]
+fn iec_variables_bind_what_a_configuration_leaves_partly_specified() {
+    let dir = TempDir::new("st-iec-variables-configuration");
+    let toml =
+        "[[program]]\nfile = \"plc.st\"\n\n[iec.variables]\n\"Res0.inst.seen\" = \"%IX0.1\"\n";
+    write(dir.path(), "plcd.toml", toml);
+    write(dir.path(), "plc.st", VAR_CONFIG);
+    write(dir.path(), "inputs.csv", "15ms, P0001, 1\n");
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(1), "VAR_CONFIG binds inst.seen already");
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        "plcd.toml:5:1: error: iec.variables \"Res0.inst.seen\": `Res0.inst.seen` is already \
+         bound by VAR_CONFIG (plc.st:43)\nplcd.toml: 1 error(s)\n"
+    );
+    // without VAR_CONFIG's entry, the config's binds it
+    write(dir.path(), "plc.st", &VAR_CONFIG.replace("    inst.seen AT %IX0.1 : BOOL;\n", ""));
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("\n  config: [iec.variables] Res0.inst.seen AT %IX0.1 → P0001\n"));
+    let args = ["sim", "--config", "plcd.toml", "--for", "25ms", "--inputs", "inputs.csv"];
+    let mut args = args.to_vec();
+    args.extend(["--watch", "inst.copies", "--trace", "-"]);
+    let out = plcd(dir.path(), &args);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    // seen (P0001) read at the scan of 20 ms only
+    assert_eq!(last(&String::from_utf8_lossy(&out.stdout), "inst.copies").as_deref(), Some("1"));
+}
+
+/// Beremiz's multi-level addresses placed by `[iec.addresses]`: a declaration at one is a
+/// located variable at the entry's device, checked by the key's size letter as any address;
+/// `plcd check` notes each entry used and warns of one nothing names.
+#[test]
+fn iec_addresses_place_beremiz_multi_level_addresses() {
+    let dir = TempDir::new("st-iec-addresses");
+    let toml = "[[program]]\nfile = \"plc.st\"\n\n[iec.addresses]\n\
+                \"%IX100.0.0\" = \"%IX4.0\"\n\"%IW100.0.1\" = \"%D00100\"\n\
+                \"%QX100.1.0\" = \"%P0050\"\n\"%QW2.1\" = \"%QW7\"\n";
+    write(dir.path(), "plcd.toml", toml);
+    let text = "PROGRAM main
+  VAR
+    button AT %IX100.0.0 : BOOL;
+    speed AT %IW100.0.1 : INT;
+    lamp AT %QX100.1.0 : BOOL;
+    copy : INT;
+  END_VAR
+  lamp := button;
+  copy := speed;
+END_PROGRAM
+";
+    write(dir.path(), "plc.st", text);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let lines: Vec<&str> =
+        stdout.lines().filter(|l| l.starts_with("  config:") || l.contains(": main.")).collect();
+    assert_eq!(
+        lines,
+        [
+            "  iec: plc.st:3: main.button AT %IX100.0.0 → P0020",
+            "  iec: plc.st:4: main.speed AT %IW100.0.1 → D00100",
+            "  iec: plc.st:5: main.lamp AT %QX100.1.0 → P0050",
+            "  config: [iec.addresses] %IX100.0.0 → %IX4.0 → P0020",
+            "  config: [iec.addresses] %IW100.0.1 → D00100",
+            "  config: [iec.addresses] %QX100.1.0 → P0050",
+        ]
+    );
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        "plcd.toml:8:1: warning: iec.addresses \"%QW2.1\": no declaration, VAR_CONFIG, \
+         configuration, access path or [iec.variables] entry of the project names `%QW2.1`\n"
+    );
+    write(dir.path(), "inputs.csv", "5ms, P0020, 1\n5ms, D00100, 1234\n");
+    let args = ["sim", "--config", "plcd.toml", "--for", "10ms", "--inputs", "inputs.csv"];
+    let mut args = args.to_vec();
+    args.extend(["--watch", "P0050,plc.copy,plc.lamp", "--trace", "-"]);
+    let out = plcd(dir.path(), &args);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let trace = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(last(&trace, "P0050").as_deref(), Some("1"), "{trace}");
+    assert_eq!(last(&trace, "plc.lamp").as_deref(), Some("1"));
+    assert_eq!(last(&trace, "plc.copy").as_deref(), Some("1234"));
+}
+
+/// `[iec.variables]` inside a function block instance of a configuration's program instance,
+/// beside VAR_CONFIG's bindings in the same block's other instance: `P5.FB1` (the PROGRAM's
+/// other instance) gets a copy of the block of its own, as `P4.FB1` got for VAR_CONFIG; a
+/// variable VAR_CONFIG binds already is refused at the config's key, naming VAR_CONFIG's line.
+#[test]
+fn iec_variables_bind_inside_a_block_beside_var_config() {
+    let dir = TempDir::new("st-iec-variables-inside-a-block");
+    let toml = "[[program]]\nfile = \"plc.st\"\n\n[iec.variables]\n\
+                \"STATION_2.P5.FB1.C3\" = \"%QW5\"\n\"P4.FB1.C3\" = \"%QW6\"\n";
+    write(dir.path(), "plcd.toml", toml);
+    write(dir.path(), "plc.st", VAR_CONFIG_INSIDE_A_BLOCK);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(
+        String::from_utf8_lossy(&out.stderr),
+        "plcd.toml:6:1: error: iec.variables \"P4.FB1.C3\": `P4.FB1.C3` is already bound by \
+         VAR_CONFIG (plc.st:34)\nplcd.toml: 1 error(s)\n"
+    );
+    write(dir.path(), "plcd.toml", &toml.replace("\"P4.FB1.C3\" = \"%QW6\"\n", ""));
+    let watch = "D12003,D12005,P4.FB1.C3,P5.FB1.C3,P5.FB2.C3,P5.seen";
+    let args = ["sim", "--config", "plcd.toml", "--for", "25ms", "--watch", watch, "--trace", "-"];
+    let out = plcd(dir.path(), &args);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let trace = String::from_utf8_lossy(&out.stdout);
+    // three scans, 10 a call: P4's C3 at %QW3 (D12003) by VAR_CONFIG, P5's at %QW5 (D12005)
+    // by the config, each instance's own; P5.FB2 keeps variable memory
+    assert_eq!(last(&trace, "D12003").as_deref(), Some("30"), "{trace}");
+    assert_eq!(last(&trace, "D12005").as_deref(), Some("30"));
+    assert_eq!(last(&trace, "P5.FB1.C3").as_deref(), Some("30"));
+    assert_eq!(last(&trace, "P5.seen").as_deref(), Some("30"));
+    assert_eq!(last(&trace, "P5.FB2.C3").as_deref(), Some("3"));
+}

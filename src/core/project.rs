@@ -534,7 +534,14 @@ pub fn from_config_with(
             }
             compiled.variables
         }
-        None => Variables::default(),
+        None => {
+            if !config.programs.iter().any(|p| p.language == Language::StructuredText) {
+                // no Structured Text: nothing names the addresses [iec.addresses] places
+                let (_, unused) = st::iec_check::config_notes(&[], &config.iec, &config.path);
+                warnings.extend(unused);
+            }
+            Variables::default()
+        }
     };
     check_duty(&duty_sites, &mut diags);
     // Grouped by file, in line order, whatever the order they were found in.
@@ -691,6 +698,15 @@ where
     let entries: Vec<_> =
         config.programs.iter().filter(|p| p.language == Language::StructuredText).collect();
     if entries.is_empty() {
+        // what [iec.variables] binds is a Structured Text program's
+        for v in &config.iec.variables {
+            let msg = format!(
+                "{}: `{}` is not a PROGRAM instance of the project: it has no Structured Text program",
+                v.subject(),
+                v.path[0]
+            );
+            reader.diags.push(Diagnostic::new(&config.path, v.line, v.col, msg));
+        }
         return None;
     }
     let mut paths: Vec<(PathBuf, u32, u32, String)> = Vec::new();
@@ -763,17 +779,25 @@ where
         entries.iter().map(|entry| configured_declaration(entry, &files)).collect();
     let dialect = st::dialect::Dialect {
         strict: config.st.strict,
-        iec: config.iec.layout,
+        iec: config.iec.layout.clone(),
         heap_bytes: config.st.heap_bytes,
         libraries: config.st.system_libraries,
         variable_memory_bytes: config.st.variable_memory_bytes,
     };
     let base = config.path.parent().unwrap_or(Path::new(""));
     let shown = |path: &Path| path.strip_prefix(base).unwrap_or(path).display().to_string();
-    let iec_notes = st::iec_check::check_notes(&files, &config.iec.layout, shown);
+    let mut iec_notes = st::iec_check::check_notes(&files, &config.iec.layout, shown);
     let namespaces = &config.st.namespaces;
-    match st::compile_in_namespaces(&files, &instances, &configured, dialect, namespaces) {
-        Ok(compiled) => Some((compiled, iec_notes)),
+    let bindings = st::ConfigBindings { path: &config.path, variables: &config.iec.variables };
+    let compiled =
+        st::compile_project(&files, &instances, &configured, dialect, namespaces, Some(bindings));
+    match compiled {
+        Ok(mut compiled) => {
+            let (notes, warnings) = st::iec_check::config_notes(&files, &config.iec, &config.path);
+            iec_notes.extend(notes);
+            compiled.warnings.extend(warnings);
+            Some((compiled, iec_notes))
+        }
         Err(errors) => {
             reader.diags.extend(errors);
             None

@@ -75,7 +75,7 @@ use crate::device::Address;
 
 pub use change::ProjectChange;
 pub use control::ControlConfig;
-pub use iec::IecConfig;
+pub use iec::{IecAddress, IecConfig, IecVariable};
 pub use io::{Backend, Bias, IoConfig, IoLine, LineRef, LINE_NAME_MAX};
 pub use modbus::{ModbusConfig, ModbusRange, ModbusRtuConfig, ModbusTable};
 pub use plc::{OnFault, PlcConfig};
@@ -311,7 +311,7 @@ fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
     doc.retain = section(sink, sections.retain, "retain", &mut doc.failed.keys);
     doc.modbus = modbus::read(sink, sections.modbus);
     doc.st = section(sink, sections.st, "st", &mut doc.failed.keys);
-    doc.iec = section(sink, sections.iec, "iec", &mut doc.failed.keys);
+    doc.iec = iec::read(sink, sections.iec, &mut doc.failed.keys);
     doc.remotes = remote::read(sink, sections.remote);
     Some(doc)
 }

@@ -1941,3 +1941,89 @@ fn iec_layout_errors_name_their_key() {
         ["3:16: iec.memory_bytes: the plcd layout has no byte images to size"]
     );
 }
+
+#[test]
+fn iec_variables_and_addresses_parse_in_file_order_with_their_places() {
+    let c = config(&with_scan(
+        "[iec.variables]\n\"main.lamp\" = \"%QX0.3\"\n\"Res0.inst.fb.lvl\" = \"MW5\"\n\
+         \"main.start\" = \"%P0040\"\n\"main.x\" = \"%IX100.0.0\"\n\n[iec.addresses]\n\
+         \"%ix100.00.0\" = \"%IX4.0\"\n\"IW100.0.1\" = \"D00100\"\n",
+    ));
+    let v = &c.iec.variables;
+    assert_eq!(v.len(), 4);
+    assert_eq!((v[0].key.as_str(), v[0].path.join(" ")), ("main.lamp", "main lamp".into()));
+    assert_eq!((v[0].line, v[0].col, v[0].value_line, v[0].value_col), (2, 1, 2, 15));
+    assert_eq!(v[0].address, "QX0.3");
+    // the `%` may be left out; a path of any depth, from a resource
+    assert_eq!((v[1].path.len(), v[1].address.as_str()), (4, "MW5"));
+    assert_eq!(v[2].address, "P0040");
+    assert_eq!(v[0].subject(), "iec.variables \"main.lamp\"");
+    // an [iec.variables] value may be an address [iec.addresses] places
+    assert_eq!(v[3].address, "IX100.0.0");
+    let a = &c.iec.addresses;
+    assert_eq!(a.len(), 2);
+    assert_eq!((a[0].key.to_string(), a[0].written.as_str()), ("%IX100.0.0".into(), "%ix100.00.0"));
+    assert_eq!((a[0].target.as_str(), a[0].line, a[0].col), ("%IX4.0", 8, 1));
+    // placed in the layout: the compiler's addresses resolve through it
+    let placed = |t| c.iec.layout.resolve(t).unwrap().unwrap().to_string();
+    assert_eq!(placed("IX100.0.0"), "P0020");
+    assert_eq!(placed("IW100.0.1"), "D00100");
+    // none: none
+    assert_eq!(config(&with_scan("")).iec.variables, []);
+    assert_eq!(config(&with_scan("[iec]\n")).iec.addresses, []);
+}
+
+#[test]
+fn iec_variables_and_addresses_errors_name_their_key() {
+    assert_eq!(
+        errors(&with_scan(
+            "[iec.variables]\n\"lamp\" = \"%QX0.1\"\n\"main.2x\" = \"%QX0.1\"\n\"main.lamp\" = 3\n\
+             \"main.a\" = \"%QX0.9\"\n\"main.b\" = \"%T0001\"\n\"main.c\" = \"%IX9.9.9\"\n"
+        )),
+        [
+            "2:1: iec.variables \"lamp\": not a variable path: a program instance, then its variables and function block instances, names joined by dots (`main.lamp`, `main.fb.level`, `Res0.inst.lamp`)",
+            "3:1: iec.variables \"main.2x\": not a variable path: a program instance, then its variables and function block instances, names joined by dots (`main.lamp`, `main.fb.level`, `Res0.inst.lamp`)",
+            "4:15: iec.variables \"main.lamp\": expected a string, an address",
+            "5:12: iec.variables \"main.a\": `%QX0.9`: bit 9 of a byte: the openplc layout numbers %QX by byte and bit, the bit 0 to 7 (`%QX1.0` is the bit after `%QX0.7`; `[iec] preset = \"plcd\"` numbers P words and their bits 0 to 15)",
+            "6:12: iec.variables \"main.b\": `T0001` is not a device of P, M, K or D: an address is one of the [iec] layout or one of those devices",
+            "7:12: iec.variables \"main.c\": `%IX9.9.9` is a multi-level address (3 levels), as Beremiz numbers an extension's I/O (its channel, then the extension's own items), and the config does not place it: add `\"%IX9.9.9\" = \"…\"` to `[iec.addresses]` in the config, an address of the [iec] layout or a device of P, M, K or D (docs/CONFIG.md), or declare the variable `AT %IX*` and bind it with VAR_CONFIG or `[iec.variables]`",
+        ]
+    );
+    assert_eq!(
+        errors(&with_scan(
+            "[iec.addresses]\n\"%IX4.0\" = \"%IX5.0\"\n\"%IW1.2\" = \"%IX5.0\"\n\
+             \"%IX1.2.3\" = \"%IX4.0\"\n\"%ix1.2.03\" = \"%IX4.1\"\n\"%IX1.2.4\" = \"%IX1.2.5\"\n\
+             \"%IW1.3\" = \"%T0001\"\n\"%ML1.4\" = \"%D32766\"\n\"%IX1.2.6\" = \"%D00100\"\n\
+             \"%IW1.5\" = \"%P0040\"\n\"%IX1.2.7\" = 1\n"
+        )),
+        [
+            "2:1: iec.addresses \"%IX4.0\": `%IX4.0` is not a multi-level address: an area letter (I, Q, M), a size letter (X, B, W, D, L), then numbers joined by dots, more than an address of the [iec] layout has (`%IX100.0.0`, `%IW100.0.1`, `%QW2.1`)",
+            "3:12: iec.addresses \"%IW1.2\": `%IX5.0` is a 1-bit location, `%IW1.2` a 16-bit one",
+            "5:1: iec.addresses \"%ix1.2.03\": `%IX1.2.3` is placed already (line 4): an address is in one place",
+            "6:14: iec.addresses \"%IX1.2.4\": `%IX1.2.5` is itself a multi-level address: an entry places one at an address of the [iec] layout or at a device of P, M, K or D",
+            "7:12: iec.addresses \"%IW1.3\": `T0001` is not a device of P, M, K or D: an address is one of the [iec] layout or one of those devices",
+            "8:12: iec.addresses \"%ML1.4\": `D32766` and the 3 word(s) after it hold `%ML1.4`: past the end of D (D00000-D32767)",
+            "9:14: iec.addresses \"%IX1.2.6\": `D00100` is a word device, a bit is needed here",
+            "10:12: iec.addresses \"%IW1.5\": `P0040` is a bit device, a word is needed here",
+            "11:14: iec.addresses \"%IX1.2.7\": expected a string, an address",
+        ]
+    );
+    // a table each, not a value; and no other key in [iec]
+    assert_eq!(
+        errors(&with_scan("[iec]\nvariables = \"main.lamp\"\naddresses = []\n")),
+        [
+            "2:13: `iec.variables` must be a table, written [iec.variables]",
+            "3:13: `iec.addresses` must be a table, written [iec.addresses]",
+        ]
+    );
+    let unknown = errors(&with_scan("[iec]\nvariable = 1\n"));
+    assert!(unknown[0].contains("`variables`, `addresses`"), "{unknown:?}");
+    // the variables are checked whatever the addresses' errors
+    assert_eq!(
+        errors(&with_scan(
+            "[iec.addresses]\n\"%IX4.0\" = \"%IX5.0\"\n[iec.variables]\n\"x\" = \"%QX0.1\"\n"
+        ))
+        .len(),
+        2
+    );
+}

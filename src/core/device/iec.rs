@@ -242,7 +242,7 @@ impl std::fmt::Display for Direct {
 }
 
 /// The layout in effect: `[iec]`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct IecLayout {
     pub preset: Preset,
     /// Where each image starts, by [`Image::ALL`]'s order (the preset's defaults unless the
@@ -250,6 +250,8 @@ pub struct IecLayout {
     starts: [Start; 10],
     /// The sizes in bytes of the byte images `%I`, `%Q`, `%M` (`%IX`, `%QX`, `%MX`).
     bytes: [u32; 3],
+    /// The multi-level addresses the config places (`[iec.addresses]`), each at its device.
+    placed: Vec<(MultiLevel, Direct)>,
 }
 
 impl Default for IecLayout {
@@ -280,6 +282,7 @@ impl IecLayout {
                 d(13024),
             ],
             bytes: [128, 128, 512],
+            placed: Vec::new(),
         }
     }
 
@@ -300,6 +303,73 @@ impl IecLayout {
             *n = bytes;
         }
         self
+    }
+
+    /// The layout with the multi-level address `key` at `direct` (`[iec.addresses]`, checked
+    /// by [`IecLayout::place`]).
+    pub fn with_placed(mut self, key: MultiLevel, direct: Direct) -> IecLayout {
+        self.placed.push((key, direct));
+        self
+    }
+
+    /// The multi-level addresses placed, each with its device, in the config's order.
+    pub fn placed(&self) -> &[(MultiLevel, Direct)] {
+        &self.placed
+    }
+
+    /// What a full address the config writes names (`target` with or without its `%`): an
+    /// address of this layout (a multi-level one it places included), or a plcd device of P,
+    /// M, K or D, which means itself; why it names nothing.
+    pub fn full(&self, target: &str) -> Result<Full, String> {
+        let text = target.strip_prefix('%').unwrap_or(target);
+        if let Some(direct) = self.resolve(text)? {
+            return Ok(Full::Iec(direct));
+        }
+        let address = Address::parse(text).map_err(|e| e.to_string())?;
+        if !matches!(address.area, Area::P | Area::M | Area::K | Area::D) {
+            return Err(format!(
+                "`{text}` is not a device of P, M, K or D: an address is one of the [iec] layout or one of those devices"
+            ));
+        }
+        Ok(Full::Device(address))
+    }
+
+    /// Where the config places the multi-level address `key` (`[iec.addresses]`): at `target`,
+    /// an address of this layout (not multi-level) of the key's size, or a device of P, M, K
+    /// or D that fits it (a bit for an `X` key, a word and the words after it for the others,
+    /// an 8-bit type at a whole word as at any word device); why not.
+    pub fn place(&self, key: &MultiLevel, target: &str) -> Result<Direct, String> {
+        let text = target.strip_prefix('%').unwrap_or(target);
+        if MultiLevel::of(text).is_some() {
+            return Err(format!(
+                "`%{text}` is itself a multi-level address: an entry places one at an address of the [iec] layout or at a device of P, M, K or D"
+            ));
+        }
+        let bits = key.bits();
+        match self.full(text)? {
+            Full::Iec(direct) if direct.bits == bits => Ok(direct),
+            Full::Iec(direct) => Err(format!(
+                "`%{text}` is a {}-bit location, `{key}` a {bits}-bit one",
+                direct.bits
+            )),
+            Full::Device(address) => {
+                if key.size == 'X' {
+                    address.as_bit().map_err(|e| e.to_string())?;
+                    return Ok(Direct { address, bits });
+                }
+                address.as_word().map_err(|e| e.to_string())?;
+                let words = (bits / 16).max(1);
+                if address.number + words > address.area.word_count() {
+                    return Err(format!(
+                        "`{address}` and the {} word(s) after it hold `{key}`: past the end of {:?} ({})",
+                        words - 1,
+                        address.area,
+                        address.area.range_text()
+                    ));
+                }
+                Ok(Direct { address, bits })
+            }
+        }
     }
 
     /// The size of `image`: bytes for a byte image, elements for a word image.
@@ -424,8 +494,13 @@ impl IecLayout {
         // a bit has two levels, byte and bit; any other size one
         let levels = digits.split('.').count();
         let most = if bits == 1 { 2 } else { 1 };
-        if levels > most && digits.split('.').all(|n| n.parse::<u32>().is_ok()) {
-            return Err(multi_level(text, letter, size, levels));
+        if levels > most {
+            if let Some(key) = MultiLevel::of(text) {
+                return match self.placed.iter().find(|(k, _)| *k == key) {
+                    Some(&(_, direct)) => Ok(Some(direct)),
+                    None => Err(multi_level(text, letter, size, levels)),
+                };
+            }
         }
         let number = |s: &str| s.parse::<u32>().map_err(|_| bad());
         let (index, bit) = if bits == 1 {
@@ -519,14 +594,85 @@ impl IecLayout {
     }
 }
 
-/// Why a multi-level address (`%IX1.2.3`, `%QW2.1`) is refused: Beremiz numbers the I/O of its
-/// extensions so, the extension's channel path (`IEC_Channel` of each node of its tree) then the
-/// extension's own items, and what it names is that extension's runtime code, which plcd does
-/// not have; no layout gives such an address a device (docs/ST.md, "Direct addresses").
+/// Why a multi-level address (`%IX1.2.3`, `%QW2.1`) the config does not place is refused:
+/// Beremiz numbers the I/O of its extensions so, the extension's channel path (`IEC_Channel`
+/// of each node of its tree) then the extension's own items, and what it names is that
+/// extension's runtime code, which plcd does not have; `[iec.addresses]` says where it is
+/// (docs/ST.md, "Direct addresses").
 fn multi_level(text: &str, letter: char, size: char, levels: usize) -> String {
     format!(
-        "`%{text}` is a multi-level address ({levels} levels): Beremiz numbers an extension's I/O so (its channel, then the extension's own items), and what it names is that extension's; plcd has no such extension: wire the device in plcd's config (docs/CONFIG.md) and locate the variable at a device or at an address of the [iec] layout, or declare it `AT %{letter}{size}*` and bind it with a CONFIGURATION's VAR_CONFIG"
+        "`%{text}` is a multi-level address ({levels} levels), as Beremiz numbers an extension's I/O (its channel, then the extension's own items), and the config does not place it: add `\"%{text}\" = \"…\"` to `[iec.addresses]` in the config, an address of the [iec] layout or a device of P, M, K or D (docs/CONFIG.md), or declare the variable `AT %{letter}{size}*` and bind it with VAR_CONFIG or `[iec.variables]`"
     )
+}
+
+/// What a full address the config writes names ([`IecLayout::full`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Full {
+    /// An address of the layout: its device and size.
+    Iec(Direct),
+    /// A plcd device of P, M, K or D (`P0040`, `D00100`), which means itself.
+    Device(Address),
+}
+
+/// A multi-level address (`%IX100.0.0`, `%QW2.1`): an area letter, a size letter and more
+/// numbers than an address of a layout has (two for `X`, byte and bit; one for the other
+/// sizes), as Beremiz numbers the I/O of its extensions. Two are the same address when their
+/// letters and numbers are (`%ix100.00.0` is `%IX100.0.0`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MultiLevel {
+    /// `I`, `Q` or `M`.
+    pub letter: char,
+    /// `X`, `B`, `W`, `D` or `L`.
+    pub size: char,
+    pub levels: Vec<u32>,
+}
+
+impl MultiLevel {
+    /// The multi-level address `text` (what follows the `%`, any case) is; `None` for any other
+    /// text, an address of a layout's own (`IX0.1`) or a device (`P0040`) among them.
+    pub fn of(text: &str) -> Option<MultiLevel> {
+        let upper = text.to_ascii_uppercase();
+        let mut chars = upper.chars();
+        let letter @ ('I' | 'Q' | 'M') = chars.next()? else { return None };
+        let size @ ('X' | 'B' | 'W' | 'D' | 'L') = chars.next()? else { return None };
+        let levels = chars
+            .as_str()
+            .split('.')
+            .map(|n| n.bytes().all(|b| b.is_ascii_digit()).then(|| n.parse::<u32>().ok()).flatten())
+            .collect::<Option<Vec<u32>>>()?;
+        let most = if size == 'X' { 2 } else { 1 };
+        (levels.len() > most).then_some(MultiLevel { letter, size, levels })
+    }
+
+    /// [`MultiLevel::of`] for a key of `[iec.addresses]` (with or without its `%`), or why it
+    /// is none.
+    pub fn parse(text: &str) -> Result<MultiLevel, String> {
+        let bare = text.strip_prefix('%').unwrap_or(text);
+        MultiLevel::of(bare).ok_or_else(|| {
+            format!(
+                "`%{bare}` is not a multi-level address: an area letter (I, Q, M), a size letter (X, B, W, D, L), then numbers joined by dots, more than an address of the [iec] layout has (`%IX100.0.0`, `%IW100.0.1`, `%QW2.1`)"
+            )
+        })
+    }
+
+    /// The bits its size letter says: 1, 8, 16, 32 or 64.
+    pub fn bits(&self) -> u32 {
+        match self.size {
+            'X' => 1,
+            'B' => 8,
+            'W' => 16,
+            'D' => 32,
+            _ => 64,
+        }
+    }
+}
+
+impl std::fmt::Display for MultiLevel {
+    /// As the config and `plcd check` write it: `%IX100.0.0`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let levels: Vec<String> = self.levels.iter().map(u32::to_string).collect();
+        write!(f, "%{}{}{}", self.letter, self.size, levels.join("."))
+    }
 }
 
 /// plcd's own numbering (`[iec] preset = "plcd"`): `%IXa.b` and `%QXa.b` bit `b` (0..15) of P
@@ -669,6 +815,62 @@ mod tests {
         }
         let e = device(&IecLayout::default(), "QW2.1");
         assert!(e.contains("`AT %QW*`"), "{e}");
+    }
+
+    #[test]
+    fn an_unplaced_multi_level_address_names_the_key_to_add() {
+        let e = device(&IecLayout::default(), "IX100.0.0");
+        assert!(e.contains("add `\"%IX100.0.0\" = \"…\"` to `[iec.addresses]`"), "{e}");
+    }
+
+    #[test]
+    fn multi_level_addresses_are_letters_then_more_levels_than_the_layouts() {
+        let key = MultiLevel::parse("%ix100.00.0").unwrap();
+        assert_eq!(key, MultiLevel { letter: 'I', size: 'X', levels: vec![100, 0, 0] });
+        assert_eq!(key.to_string(), "%IX100.0.0");
+        assert_eq!(key.bits(), 1);
+        assert_eq!(MultiLevel::parse("QW2.1").unwrap().bits(), 16);
+        assert_eq!(MultiLevel::parse("%ML0.0.4096.0").unwrap().levels, [0, 0, 4096, 0]);
+        for text in ["%IX4.0", "%IW3", "%IX100.a.0", "%I100.0.0", "%P0040", "%IX1..0", "", "%"] {
+            let e = MultiLevel::parse(text).unwrap_err();
+            assert!(e.contains("is not a multi-level address"), "{text}: {e}");
+        }
+    }
+
+    #[test]
+    fn placed_multi_level_addresses_resolve_to_their_device() {
+        let l = IecLayout::default();
+        let key = |t| MultiLevel::parse(t).unwrap();
+        // an address of the layout of the key's size, or a device that fits it
+        let bit = l.place(&key("%IX100.0.0"), "%IX4.0").unwrap();
+        assert_eq!(bit.address.to_string(), "P0020");
+        let word = l.place(&key("%IW100.0.1"), "D00100").unwrap();
+        assert_eq!((word.address.to_string(), word.bits), ("D00100".to_string(), 16));
+        let dword = l.place(&key("%QD2.1"), "%D32766").unwrap();
+        assert_eq!(dword.bits, 32);
+        let byte = l.place(&key("%QB2.1.0"), "%QB3").unwrap();
+        assert!(byte.is_byte());
+        let l = l
+            .with_placed(key("%IX100.0.0"), bit)
+            .with_placed(key("%IW100.0.1"), word)
+            .with_placed(key("%QB2.1.0"), byte);
+        assert_eq!(device(&l, "ix100.0.0"), "P0020 1");
+        assert_eq!(device(&l, "IW100.0.01"), "D00100 16");
+        assert_eq!(l.resolve("QB2.1.0").unwrap().unwrap().to_string(), "D13025 (high byte)");
+        assert!(device(&l, "IX100.0.1").contains("is a multi-level address (3 levels)"));
+        assert_eq!(l.placed().len(), 3);
+        // each way a target does not fit
+        let e = |k, t| l.place(&key(k), t).unwrap_err();
+        assert!(e("%IX1.2.3", "%IX100.0.0").contains("is itself a multi-level address"));
+        assert!(
+            e("%IX1.2.3", "%IW4").contains("`%IW4` is a 16-bit location, `%IX1.2.3` a 1-bit one")
+        );
+        assert!(e("%IX1.2.3", "%D00100").contains("is a word device, a bit is needed here"));
+        assert!(e("%IW1.2", "%P0040").contains("is a bit device, a word is needed here"));
+        assert!(e("%IW1.2", "%T0001").contains("is not a device of P, M, K or D"));
+        assert!(e("%IW1.2", "%IX*").contains("is not a device address"));
+        assert!(e("%ML1.2", "%D32766").contains("past the end of D"));
+        assert!(e("%IX1.2.3", "%IX200.0").contains("past the end of the %IX image"));
     }
 
     #[test]

@@ -149,7 +149,9 @@ pub struct ConfigVar {
     pub path: Vec<Ident>,
     /// The text after `AT %`, with the place of the `%`.
     pub location: Option<Ident>,
-    pub ty: TypeRef,
+    /// The type written; `None` for an entry of the config's `[iec.variables]` (made into a
+    /// `ConfigVar` to be bound as `VAR_CONFIG`'s are), which takes the variable's own.
+    pub ty: Option<TypeRef>,
     pub init: Option<Init>,
     pub span: Span,
 }

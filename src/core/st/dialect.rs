@@ -10,7 +10,7 @@ use crate::st::ast::Span;
 
 /// How the project's Structured Text is read: `[st] strict`, `[iec]`'s layout of the direct
 /// addresses, `[st] heap_bytes` and `[st] variable_memory_bytes`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Dialect {
     /// Refuse every [`Habit`] (IEC 61131-3 only). Default `false`: accept them.
     pub strict: bool,

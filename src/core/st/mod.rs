@@ -24,6 +24,7 @@ pub mod syntax;
 pub mod twincat;
 
 pub use compile::{
-    compile, compile_configured, compile_in_namespaces, compile_with, Compiled, Instance,
+    compile, compile_configured, compile_in_namespaces, compile_project, compile_with, Compiled,
+    ConfigBindings, Instance,
 };
 pub use syntax::parse_file;

@@ -12,7 +12,8 @@
 //! PROGRAM it copies). Only an entry that fits is lowered: a variable of an instance's own
 //! (`VAR`, `VAR_INPUT`, `VAR_OUTPUT`) declared at a partly specified address the bound
 //! address fits; the compile checks every entry and reports the others
-//! (`var_config.rs`).
+//! (`var_config.rs`). The config's `[iec.variables]` entries are lowered the same way, after
+//! the configurations' (a plcd device may be their address), for any program instance.
 
 use std::borrow::Cow;
 
@@ -23,25 +24,39 @@ use super::generic_constants::actions_of;
 use super::Instance;
 
 /// One entry to lower: the path from the PROGRAM's variable on (`FB1.C2`), the address, the
-/// initial value.
-type Entry = (Vec<Ident>, Ident, Option<Init>);
+/// initial value, and whether the address may be a plcd device (the config's entries).
+type Entry = (Vec<Ident>, Ident, Option<Init>, bool);
 
 /// Lowers the entries of the configurations that declare `instances` (`declared(k)` is the
-/// declaration of the instance `k`, when a configuration declares it): the lowered sources,
-/// and for each instance the name of the copy of its PROGRAM it runs, when it runs one.
+/// declaration of the instance `k`, when a configuration declares it), then those of the
+/// config's `[iec.variables]` (`config`): the lowered sources, and for each instance the name
+/// of the copy of its PROGRAM it runs, when it runs one.
 pub(super) fn lower<'f, 'd>(
     mut files: Vec<Cow<'f, ast::File>>,
     instances: &[Instance<'_>],
     declared: impl Fn(usize) -> Option<&'d ast::ProgramDecl>,
     iec: &IecLayout,
+    config: &[ast::ConfigVar],
 ) -> (Vec<Cow<'f, ast::File>>, Vec<Option<String>>) {
     let mut renamed = vec![None; instances.len()];
+    // the resources a path of the config may start with: any configuration's
+    let resources: Vec<String> = files
+        .iter()
+        .flat_map(|f| &f.items)
+        .filter_map(|i| match i {
+            Item::Configuration(c) => Some(super::var_config::resources(c)),
+            _ => None,
+        })
+        .flatten()
+        .map(str::to_string)
+        .collect();
     for (k, inst) in instances.iter().enumerate() {
-        if declared(k).is_none() {
-            continue;
-        }
         let Some(f) = files.iter().position(|f| f.path == inst.file) else { continue };
-        let entries = entries_of(&files[f], inst.name);
+        let mut entries = match declared(k) {
+            Some(_) => entries_of(&files[f], inst.name),
+            None => Vec::new(),
+        };
+        entries.extend(inside(config, &resources, inst.name, true));
         if entries.is_empty() {
             continue;
         }
@@ -60,10 +75,11 @@ pub(super) fn lower<'f, 'd>(
         let Item::Pou(original) = &files[f].items[at] else { continue };
         let mut program = original.clone();
         let mut changed = false;
-        for (path, location, init) in &entries {
+        for (path, location, init, devices) in &entries {
             let prefix = inst.name.to_string();
+            let fit = (iec, *devices);
             changed |=
-                locate_inside(&mut files, &mut program.vars, path, location, init, prefix, iec);
+                locate_inside(&mut files, &mut program.vars, path, location, init, prefix, fit);
         }
         if !changed {
             continue;
@@ -100,19 +116,27 @@ fn entries_of(file: &ast::File, instance: &str) -> Vec<Entry> {
     }) else {
         return Vec::new();
     };
-    let mut entries: Vec<Entry> = Vec::new();
-    for entry in &conf.var_config {
+    let resources: Vec<String> = super::var_config::resources(conf).map(str::to_string).collect();
+    inside(&conf.var_config, &resources, instance, false)
+}
+
+/// The entries of `entries` that bind a variable inside a FUNCTION_BLOCK instance of the
+/// program instance `instance`, their paths starting with it or with one of `resources`.
+fn inside(
+    entries: &[ast::ConfigVar],
+    resources: &[String],
+    instance: &str,
+    devices: bool,
+) -> Vec<Entry> {
+    let mut out: Vec<Entry> = Vec::new();
+    for entry in entries {
         let Some(location) = &entry.location else { continue };
         // `Res0.P4.FB1.C2`, as IEC writes it, or `P4.FB1.C2`
         let path = match entry.path.split_first() {
             Some((first, rest))
                 if rest.len() >= 2
                     && !first.is(instance)
-                    && conf
-                        .resources
-                        .iter()
-                        .filter_map(|r| r.name.as_ref())
-                        .any(|r| r.is(&first.name)) =>
+                    && resources.iter().any(|r| first.is(r)) =>
             {
                 rest
             }
@@ -123,9 +147,9 @@ fn entries_of(file: &ast::File, instance: &str) -> Vec<Entry> {
         }
         // a path bound twice: the first entry that fits binds it, the compile reports the
         // others
-        entries.push((path[1..].to_vec(), location.clone(), entry.init.clone()));
+        out.push((path[1..].to_vec(), location.clone(), entry.init.clone(), devices));
     }
-    entries
+    out
 }
 
 /// Whether a variable of this block may be bound: one of the instance's own.
@@ -134,7 +158,8 @@ fn own(block: &VarBlock) -> bool {
 }
 
 /// Declares the variable `path` names in `vars` (through FUNCTION_BLOCK instances, each
-/// given a copy of its block named `Block$prefix.instance`) at `location`; whether it did.
+/// given a copy of its block named `Block$prefix.instance`) at `location`, when it fits by
+/// `fit` (the layout, and whether a plcd device does); whether it did.
 fn locate_inside(
     files: &mut [Cow<'_, ast::File>],
     vars: &mut [VarBlock],
@@ -142,7 +167,7 @@ fn locate_inside(
     location: &Ident,
     init: &Option<Init>,
     prefix: String,
-    iec: &IecLayout,
+    fit: (&IecLayout, bool),
 ) -> bool {
     let name = &path[0];
     let Some((b, d)) = vars.iter().enumerate().find_map(|(b, block)| {
@@ -157,7 +182,7 @@ fn locate_inside(
     if path.len() == 1 {
         let fits = decl.location.as_ref().is_some_and(|partial| {
             partial.name.ends_with('*')
-                && super::var_config::fits(&partial.name, &location.name, iec)
+                && super::var_config::fits(&partial.name, &location.name, fit.0, fit.1)
         });
         if !fits {
             return false;
@@ -189,7 +214,7 @@ fn locate_inside(
     let original = copy.name.name.clone();
     copy.name.name = copy_name.clone();
     let inner_prefix = format!("{prefix}.{}", name.name);
-    if !locate_inside(files, &mut copy.vars, &path[1..], location, init, inner_prefix, iec) {
+    if !locate_inside(files, &mut copy.vars, &path[1..], location, init, inner_prefix, fit) {
         return false;
     }
     let items = &mut files[f].to_mut().items;

@@ -183,7 +183,39 @@ pub fn compile_in_namespaces(
     dialect: Dialect,
     namespaces: &[String],
 ) -> Result<Compiled, Diagnostics> {
+    compile_project(files, instances, configured, dialect, namespaces, None)
+}
+
+/// What the config binds in a project's Structured Text: `[iec.variables]`, written in the
+/// config file `path`.
+#[derive(Debug, Clone, Copy)]
+pub struct ConfigBindings<'a> {
+    pub path: &'a Path,
+    pub variables: &'a [crate::config::IecVariable],
+}
+
+/// [`compile_in_namespaces`], with the variables the config binds (`bindings`): each bound as
+/// a configuration's `VAR_CONFIG … AT` entry binds it (`var_config`), after the
+/// configurations' own, its errors at the config's key.
+pub fn compile_project(
+    files: &[ast::File],
+    instances: &[Instance<'_>],
+    configured: &[Option<&ast::ProgramDecl>],
+    dialect: Dialect,
+    namespaces: &[String],
+    bindings: Option<ConfigBindings<'_>>,
+) -> Result<Compiled, Diagnostics> {
     let declaration = |k: usize| configured.get(k).copied().flatten();
+    let config_entries = bindings.map(|b| var_config::config_entries(b.variables));
+    let config_entries = config_entries.unwrap_or_default();
+    // the config as a file of no items, where the errors about its entries are
+    let config_file = ast::File {
+        path: bindings.map(|b| b.path.to_path_buf()).unwrap_or_default(),
+        items: Vec::new(),
+        habits: Vec::new(),
+        list_name: None,
+        qualified_only: Default::default(),
+    };
     let (prelude, prelude_diags) = super::syntax::parse_file(Path::new(PRELUDE_PATH), PRELUDE);
     let mut diags: Vec<Diagnostic> = prelude_diags.0;
     // the system libraries after the project's files: the project's declarations come first
@@ -199,7 +231,8 @@ pub fn compile_in_namespaces(
     let namespaces = &namespaces[..];
     let lowered = sfc::lower(files, &mut diags);
     let lowered = generic_constants::lower(lowered, namespaces, &mut diags);
-    let (lowered, program_copies) = fb_config::lower(lowered, instances, declaration, &dialect.iec);
+    let (lowered, program_copies) =
+        fb_config::lower(lowered, instances, declaration, &dialect.iec, &config_entries);
     let lowered = qualified::lower(lowered, namespaces, renamed, &mut diags);
     let lowered = method_vars::lower(lowered);
     let lowered = ref_init::lower(lowered, &mut diags);
@@ -212,6 +245,8 @@ pub fn compile_in_namespaces(
     let library_files = files.len() - libraries::file_count(shipped)..files.len();
     refs.push(&prelude);
     let prelude_file = refs.len() - 1;
+    refs.push(&config_file);
+    let config_at = refs.len() - 1;
     let mut cx = Ctx {
         files: refs,
         types: types::Types::default(),
@@ -292,7 +327,8 @@ pub fn compile_in_namespaces(
             configuration_files.push(f);
         }
     }
-    let mut access = Vec::new();
+    let mut sources: Vec<var_config::Bindings<'_>> = Vec::new();
+    let mut configurations = Vec::new();
     for f in configuration_files {
         let file: &ast::File = cx.files[f];
         let Some(conf) = file.items.iter().find_map(|i| match i {
@@ -305,7 +341,33 @@ pub fn compile_in_namespaces(
             .filter(|&k| declaration(k).is_some() && instances[k].file == file.path)
             .map(|k| (instances[k].name, k))
             .collect();
-        cx.apply_var_config(f, conf, &declared, &mut placed);
+        configurations.push((f, conf, declared.clone()));
+        sources.push(var_config::Bindings {
+            binder: var_config::Binder::VarConfig,
+            file: f,
+            entries: &conf.var_config,
+            resources: var_config::resources(conf).collect(),
+            declared,
+        });
+    }
+    if !config_entries.is_empty() {
+        // the config names any instance of the project, from any configuration's resource
+        let files: &[&ast::File] = &cx.files;
+        let resources = files.iter().flat_map(|f| &f.items).filter_map(|i| match i {
+            ast::Item::Configuration(c) => Some(var_config::resources(c)),
+            _ => None,
+        });
+        sources.push(var_config::Bindings {
+            binder: var_config::Binder::Config,
+            file: config_at,
+            entries: &config_entries,
+            resources: resources.flatten().collect(),
+            declared: instances.iter().enumerate().map(|(k, i)| (i.name, k)).collect(),
+        });
+    }
+    cx.apply_var_config(&sources, &mut placed);
+    let mut access = Vec::new();
+    for (f, conf, declared) in configurations {
         access.extend(cx.configuration_access_paths(f, conf, &declared, &placed));
     }
     access.extend(cx.program_access_paths(instances, &placed));

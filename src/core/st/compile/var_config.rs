@@ -17,20 +17,109 @@
 //!   device at RUN start.
 //!
 //! A path may start with the resource's name, as IEC writes it (`Res0.i.x`).
+//!
+//! The config's `[iec.variables]` (`"main.lamp" = "%QX0.3"`) is applied here too, its entries
+//! made into `ConfigVar`s with neither a type (the variable's is taken) nor an initial value
+//! ([`config_entries`]), after the configurations' `VAR_CONFIG`s: they bind the variables of
+//! any program instance of the project, a configuration's or a `[[program]]`'s, and may name a
+//! plcd device (`%P0040`); a variable both bind is an error at the config's key. Errors about
+//! them are at the config's keys and values, which the compile sees as a file of no items.
 
+use crate::config::IecVariable;
 use crate::device::iec::IecLayout;
-use crate::st::ast::{self, ConfigVar, Ident, PouKind, VarKind};
+use crate::device::Address;
+use crate::st::ast::{self, ConfigVar, Ident, PouKind, Span, VarKind};
 
 use super::ctx::{suggest, Ctx, Scope, Storage};
 use super::decl::iec_address;
 use super::types::Ty;
 
 /// Whether `full` is an IEC direct address (`QX0.1`) with the area letter and the size letter
-/// the partly specified address `partial` fixes (`Q*`: `Q` and any size; `QX*`: `Q` and `X`).
-pub(super) fn fits(partial: &str, full: &str, layout: &IecLayout) -> bool {
+/// the partly specified address `partial` fixes (`Q*`: `Q` and any size; `QX*`: `Q` and `X`),
+/// or, where `devices` (the config's bindings), a plcd device the size letter fits: a bit for
+/// `X`, a word for the others, either without one (`Q*`). Which of I, Q, M a device is, is no
+/// device's to say: the config's author names the device itself.
+pub(super) fn fits(partial: &str, full: &str, layout: &IecLayout, devices: bool) -> bool {
     let partial = partial.trim_end_matches('*').to_ascii_uppercase();
-    full.to_ascii_uppercase().starts_with(&partial)
-        && matches!(iec_address(full, layout), Ok(Some(_)))
+    match iec_address(full, layout) {
+        Ok(Some(_)) => full.to_ascii_uppercase().starts_with(&partial),
+        Ok(None) if devices => match (Address::parse(full), partial.chars().nth(1)) {
+            (Err(_), _) => false,
+            (Ok(_), None) => true,
+            (Ok(address), Some('X')) => address.bit.is_some(),
+            (Ok(address), Some(_)) => address.bit.is_none(),
+        },
+        _ => false,
+    }
+}
+
+/// Who binds an entry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Binder {
+    /// A configuration's `VAR_CONFIG`: IEC addresses only, its configuration's instances.
+    VarConfig,
+    /// The config's `[iec.variables]`: plcd devices too, every instance of the project.
+    Config,
+}
+
+impl Binder {
+    /// How messages name it.
+    fn name(self) -> &'static str {
+        match self {
+            Binder::VarConfig => "VAR_CONFIG",
+            Binder::Config => "[iec.variables]",
+        }
+    }
+
+    /// How messages name the instances its paths start with.
+    fn instances(self) -> &'static str {
+        match self {
+            Binder::VarConfig => "the configuration",
+            Binder::Config => "the project",
+        }
+    }
+}
+
+/// The entries of one configuration's `VAR_CONFIG`, or of the config's `[iec.variables]`, with
+/// what their paths may name.
+pub struct Bindings<'e> {
+    pub binder: Binder,
+    /// Where they are written: the configuration's file, or the config's.
+    pub file: usize,
+    pub entries: &'e [ConfigVar],
+    /// The resources a path may start with (`Res0.i.x`, as IEC writes it).
+    pub resources: Vec<&'e str>,
+    /// The program instances the paths name.
+    pub declared: Vec<Declared<'e>>,
+}
+
+/// The config's `[iec.variables]` as `VAR_CONFIG` entries: each name of the path and the entry
+/// itself at the key, the address at the value.
+pub(super) fn config_entries(variables: &[IecVariable]) -> Vec<ConfigVar> {
+    variables
+        .iter()
+        .map(|v| {
+            let key = Span { line: v.line, col: v.col };
+            let value = Span { line: v.value_line, col: v.value_col };
+            ConfigVar {
+                path: v.path.iter().map(|name| Ident { name: name.clone(), span: key }).collect(),
+                location: Some(Ident { name: v.address.clone(), span: value }),
+                ty: None,
+                init: None,
+                span: key,
+            }
+        })
+        .collect()
+}
+
+/// Where an entry bound a variable, for the message about a second one.
+#[derive(Debug, Clone)]
+struct Origin {
+    binder: Binder,
+    file: usize,
+    line: u32,
+    /// The path as written (`[iec.variables]`'s key).
+    key: String,
 }
 
 /// Whether a variable of this kind is the instance's own (not a VAR_TEMP, VAR_IN_OUT,
@@ -47,72 +136,97 @@ pub type Declared<'n> = (&'n str, usize);
 pub type Placed = [Option<(usize, u32)>];
 
 impl Ctx<'_> {
-    /// Applies the `VAR_CONFIG` entries of `conf`, written in `file`: `declared` are the
-    /// configuration's program instances, `placed` every instance's PROGRAM (a copy of it
-    /// replaces it for an instance that binds a variable its PROGRAM's other instances keep).
-    /// The bindings first, so that an initial value given a bound variable goes to its device.
-    pub fn apply_var_config(
-        &mut self,
-        file: usize,
-        conf: &ast::Configuration,
-        declared: &[Declared<'_>],
-        placed: &mut Placed,
-    ) {
-        let mut bound: Vec<(usize, usize, u32)> = Vec::new();
-        let mut bound_inside: Vec<(usize, String, u32)> = Vec::new();
-        for entry in conf.var_config.iter() {
-            let Some(location) = &entry.location else { continue };
-            let Some((k, p, v)) = self.bound_variable(
-                file,
-                conf,
-                (entry, location),
-                declared,
-                placed,
-                &mut bound_inside,
-            ) else {
-                continue;
-            };
-            if let Some(&(_, _, line)) = bound.iter().find(|b| (b.0, b.1) == (k, v)) {
-                let name = path_text(&entry.path);
-                let msg = format!("`{name}` is already bound by VAR_CONFIG (line {line})");
-                self.error(file, entry.path[0].span, msg);
-                continue;
-            }
-            bound.push((k, v, entry.span.line));
-            let shared = self.instances_of(p, placed) > 1;
-            let target = match placed[k] {
-                Some((q, base)) if shared && self.pous[q].copy_of.is_none() => {
-                    let mut copy = self.pous[q].clone();
-                    copy.copy_of = Some(q);
-                    self.pous.push(copy);
-                    placed[k] = Some((self.pous.len() - 1, base));
-                    self.pous.len() - 1
+    /// Applies the entries of `sources`, the configurations' `VAR_CONFIG`s and then the
+    /// config's `[iec.variables]`: `placed` is every instance's PROGRAM (a copy of it replaces
+    /// it for an instance that binds a variable its PROGRAM's other instances keep). The
+    /// bindings first, so that an initial value given a bound variable goes to its device.
+    pub fn apply_var_config(&mut self, sources: &[Bindings<'_>], placed: &mut Placed) {
+        let mut bound: Vec<(usize, usize, Origin)> = Vec::new();
+        let mut bound_inside: Vec<(usize, String, Origin)> = Vec::new();
+        for source in sources {
+            for entry in source.entries {
+                let Some(location) = &entry.location else { continue };
+                let before = self.diags.len();
+                let inside = &mut bound_inside;
+                self.bind_entry(source, (entry, location), placed, &mut bound, inside);
+                if source.binder == Binder::Config {
+                    // named by the key, as the config's own errors are
+                    let (key, config) = (path_text(&entry.path), self.path(source.file));
+                    for d in self.diags[before..].iter_mut().filter(|d| d.path == config) {
+                        d.message = format!("iec.variables {key:?}: {}", d.message);
+                    }
                 }
-                Some((q, _)) => q,
-                None => continue,
-            };
-            self.bind(file, entry, location, target, v);
+            }
         }
-        for entry in conf.var_config.iter().filter(|e| e.location.is_none()) {
-            self.initialize(file, conf, entry, declared, placed);
+        for source in sources {
+            for entry in source.entries.iter().filter(|e| e.location.is_none()) {
+                self.initialize(source, entry, placed);
+            }
         }
+    }
+
+    /// Binds the variable an entry with an address names, when it may be bound; `bound` and
+    /// `inside` hold those bound so far (of the instances, of their blocks' instances).
+    fn bind_entry(
+        &mut self,
+        source: &Bindings<'_>,
+        (entry, location): (&ConfigVar, &Ident),
+        placed: &mut Placed,
+        bound: &mut Vec<(usize, usize, Origin)>,
+        inside: &mut Vec<(usize, String, Origin)>,
+    ) {
+        let Some((k, p, v)) = self.bound_variable(source, (entry, location), placed, inside) else {
+            return;
+        };
+        if let Some((_, _, first)) = bound.iter().find(|b| (b.0, b.1) == (k, v)) {
+            let msg = self.already_bound(&entry.path, first, source.file);
+            self.error(source.file, entry.path[0].span, msg);
+            return;
+        }
+        bound.push((k, v, origin(source, entry)));
+        let shared = self.instances_of(p, placed) > 1;
+        let target = match placed[k] {
+            Some((q, base)) if shared && self.pous[q].copy_of.is_none() => {
+                let mut copy = self.pous[q].clone();
+                copy.copy_of = Some(q);
+                self.pous.push(copy);
+                placed[k] = Some((self.pous.len() - 1, base));
+                self.pous.len() - 1
+            }
+            Some((q, _)) => q,
+            None => return,
+        };
+        self.bind(source.file, entry, location, target, v);
+    }
+
+    /// The message about a second binding of the variable at `path`, which `first` bound,
+    /// written in `file`.
+    fn already_bound(&self, path: &[Ident], first: &Origin, file: usize) -> String {
+        let by = match first.binder {
+            Binder::VarConfig => first.binder.name().to_string(),
+            Binder::Config => format!("[iec.variables] {:?}", first.key),
+        };
+        let at = match first.file == file {
+            true => format!("line {}", first.line),
+            false => format!("{}:{}", self.path(first.file).display(), first.line),
+        };
+        format!("`{}` is already bound by {by} ({at})", path_text(path))
     }
 
     /// The instance an entry's path starts with: the path from it on, the instance's index,
     /// its PROGRAM and base.
     fn instance_of<'e>(
         &mut self,
-        file: usize,
-        conf: &ast::Configuration,
+        source: &Bindings<'_>,
         entry: &'e ConfigVar,
-        declared: &[Declared<'_>],
         placed: &Placed,
     ) -> Option<(&'e [Ident], usize, usize, u32)> {
+        let (file, declared) = (source.file, &source.declared);
         // IEC writes the path from the resource (`Res0.instance0.x`), CODESYS from the instance
         let path = match entry.path.split_first() {
             Some((first, rest))
                 if rest.len() >= 2
-                    && resource_named(conf, first)
+                    && source.resources.iter().any(|r| first.is(r))
                     && !declared.iter().any(|(name, _)| first.is(name)) =>
             {
                 rest
@@ -122,8 +236,8 @@ impl Ctx<'_> {
         let instance = &path[0];
         let Some(&(_, k)) = declared.iter().find(|(name, _)| instance.is(name)) else {
             let hint = suggest(&instance.name, declared.iter().map(|(name, _)| *name));
-            let msg =
-                format!("`{}` is not a PROGRAM instance of the configuration{hint}", instance.name);
+            let of = source.binder.instances();
+            let msg = format!("`{}` is not a PROGRAM instance of {of}{hint}", instance.name);
             self.error(file, instance.span, msg);
             return None;
         };
@@ -163,22 +277,20 @@ impl Ctx<'_> {
     /// bound (`fb_config.rs`) and which is checked here, `inside` holding those bound so far.
     fn bound_variable(
         &mut self,
-        file: usize,
-        conf: &ast::Configuration,
+        source: &Bindings<'_>,
         (entry, location): (&ConfigVar, &Ident),
-        declared: &[Declared<'_>],
         placed: &Placed,
-        inside: &mut Vec<(usize, String, u32)>,
+        inside: &mut Vec<(usize, String, Origin)>,
     ) -> Option<(usize, usize, usize)> {
-        let (path, k, p, _) = self.instance_of(file, conf, entry, declared, placed)?;
+        let (file, binder) = (source.file, source.binder);
+        let (path, k, p, _) = self.instance_of(source, entry, placed)?;
         if path.len() > 2 {
             let text = path_text(path).to_ascii_lowercase();
-            if let Some(&(_, _, line)) = inside.iter().find(|b| (b.0, &b.1) == (k, &text)) {
-                let name = path_text(&entry.path);
-                let msg = format!("`{name}` is already bound by VAR_CONFIG (line {line})");
+            if let Some((_, _, first)) = inside.iter().find(|b| (b.0, &b.1) == (k, &text)) {
+                let msg = self.already_bound(&entry.path, first, file);
                 self.error(file, entry.path[0].span, msg);
-            } else if self.check_bound_inside(file, (entry, location), path, p) {
-                inside.push((k, text, entry.span.line));
+            } else if self.check_bound_inside(source, (entry, location), path, p) {
+                inside.push((k, text, origin(source, entry)));
             }
             return None;
         }
@@ -191,10 +303,11 @@ impl Ctx<'_> {
         let actions = self.pous.iter().any(|a| a.action.is_some_and(|(_, owner)| owner == p));
         if count > 1 && actions {
             let msg = format!(
-                "`{}` has {count} instances in the project and actions: VAR_CONFIG binds a \
-                 variable of a PROGRAM with actions for its only instance (the actions' code is \
-                 shared by all)",
-                pou.name
+                "`{}` has {count} instances in the project and actions: {} binds a variable of \
+                 a PROGRAM with actions for its only instance (the actions' code is shared by \
+                 all)",
+                pou.name,
+                binder.name()
             );
             self.error(file, instance.span, msg);
             return None;
@@ -208,15 +321,11 @@ impl Ctx<'_> {
             .and_then(|d| d.location.as_ref())
             .filter(|l| l.name.ends_with('*'));
         let Some(partial) = partial.filter(|_| own(pou.vars[v].kind)) else {
-            let msg = format!(
-                "`{}.{}` is not declared at a partly specified address (`AT %I*`, `%Q*`, \
-                 `%M*`): VAR_CONFIG binds only such a variable",
-                instance.name, variable.name
-            );
+            let msg = not_partly_specified(&format!("{}.{}", instance.name, variable.name), binder);
             self.error(file, variable.span, msg);
             return None;
         };
-        if !fits(&partial.name, &location.name, &self.dialect.iec) {
+        if !fits(&partial.name, &location.name, &self.dialect.iec, binder == Binder::Config) {
             let msg = format!(
                 "`%{}` does not fit `{}`, declared at `%{}`",
                 location.name, variable.name, partial.name
@@ -234,11 +343,12 @@ impl Ctx<'_> {
     /// the entry binds it.
     fn check_bound_inside(
         &mut self,
-        file: usize,
+        source: &Bindings<'_>,
         (entry, location): (&ConfigVar, &Ident),
         path: &[Ident],
         p: usize,
     ) -> bool {
+        let (file, binder) = (source.file, source.binder);
         let Some(v) = self.program_variable(file, p, &path[1]) else { return false };
         let mut ty = self.pous[p].vars[v].ty.clone();
         for (at, id) in path.iter().enumerate().skip(2) {
@@ -248,10 +358,11 @@ impl Ctx<'_> {
                 other => {
                     let n = self.ty_name(&other);
                     let msg = format!(
-                        "`{}` is `{n}`: VAR_CONFIG binds a variable of a program instance or of a \
+                        "`{}` is `{n}`: {} binds a variable of a program instance or of a \
                          FUNCTION_BLOCK instance inside it, not a member of a struct or an \
                          element of an array",
-                        path_text(&path[..at])
+                        path_text(&path[..at]),
+                        binder.name()
                     );
                     self.error(file, id.span, msg);
                     return false;
@@ -298,24 +409,20 @@ impl Ctx<'_> {
                     self.error(file, location.span, msg);
                 }
                 None => {
-                    let msg = format!(
-                        "`{}.{}` is not declared at a partly specified address (`AT %I*`, `%Q*`, \
-                         `%M*`): VAR_CONFIG binds only such a variable",
-                        path_text(&path[..at]),
-                        id.name
-                    );
-                    self.error(file, id.span, msg);
+                    let name = format!("{}.{}", path_text(&path[..at]), id.name);
+                    self.error(file, id.span, not_partly_specified(&name, binder));
                 }
             }
         }
         false
     }
 
-    /// Whether the type `entry` gives is `ty`, the type of the variable at `path`; reported
-    /// when not.
+    /// Whether the type `entry` gives is `ty`, the type of the variable at `path` (an entry of
+    /// the config gives none: the variable's); reported when not.
     fn same_type(&mut self, file: usize, entry: &ConfigVar, path: &[Ident], ty: &Ty) -> bool {
+        let Some(written) = &entry.ty else { return true };
         let scope = Scope { pou: None, visible: 0, file };
-        let given = self.resolve_type_ref(&entry.ty, scope);
+        let given = self.resolve_type_ref(written, scope);
         if given.is_error() || ty.is_error() {
             return false;
         }
@@ -344,12 +451,12 @@ impl Ctx<'_> {
                 shared.retain = false;
             }
         }
-        match &entry.init {
-            Some(init) => {
+        match (&entry.init, &entry.ty) {
+            (Some(init), Some(written)) => {
                 let scope = Scope { pou: None, visible: 0, file };
-                self.located_init_for(storage, &var.ty, &entry.ty, Some(init), scope, &var.name);
+                self.located_init_for(storage, &var.ty, written, Some(init), scope, &var.name);
             }
-            None => {
+            _ => {
                 let pou = &self.pous[p];
                 let decl = pou
                     .ast
@@ -368,18 +475,13 @@ impl Ctx<'_> {
 
     /// Gives the variable an entry without an address names its initial value, in the
     /// instance's own image (or at its device).
-    fn initialize(
-        &mut self,
-        file: usize,
-        conf: &ast::Configuration,
-        entry: &ConfigVar,
-        declared: &[Declared<'_>],
-        placed: &Placed,
-    ) {
-        let Some((path, _, p, base)) = self.instance_of(file, conf, entry, declared, placed) else {
+    fn initialize(&mut self, source: &Bindings<'_>, entry: &ConfigVar, placed: &Placed) {
+        let file = source.file;
+        let Some((path, _, p, base)) = self.instance_of(source, entry, placed) else {
             return;
         };
-        let Some(init) = &entry.init else {
+        // an entry of the config has an address always: this is VAR_CONFIG's, typed
+        let (Some(init), Some(written)) = (&entry.init, &entry.ty) else {
             let msg = format!(
                 "VAR_CONFIG entry `{}` gives neither an address (`AT %QX0.1`) nor an initial value",
                 path_text(&entry.path)
@@ -446,14 +548,14 @@ impl Ctx<'_> {
         let name = path_text(path);
         match storage {
             Storage::Inst(offset) => {
-                let image = self.init_image(&ty, Some(&entry.ty), Some(init), scope, &name);
+                let image = self.init_image(&ty, Some(written), Some(init), scope, &name);
                 let at = (base + offset) as usize;
                 if let Some(slot) = self.image.get_mut(at..at + image.len()) {
                     slot.copy_from_slice(&image);
                 }
             }
             Storage::Bit(_) | Storage::Word(_) | Storage::Byte(_) => {
-                self.located_init_for(storage, &ty, &entry.ty, Some(init), scope, &name);
+                self.located_init_for(storage, &ty, written, Some(init), scope, &name);
             }
             Storage::Frame(_) | Storage::Global(_) => {}
         }
@@ -488,9 +590,25 @@ impl Ctx<'_> {
     }
 }
 
-/// Whether `name` is a RESOURCE of `conf`.
-fn resource_named(conf: &ast::Configuration, name: &Ident) -> bool {
-    conf.resources.iter().filter_map(|r| r.name.as_ref()).any(|r| r.is(&name.name))
+/// The names of the RESOURCEs of `conf`.
+pub(super) fn resources(conf: &ast::Configuration) -> impl Iterator<Item = &str> {
+    conf.resources.iter().filter_map(|r| r.name.as_ref()).map(|r| r.name.as_str())
+}
+
+/// Where `entry` of `source` is, for the message about a second binding of its variable.
+fn origin(source: &Bindings<'_>, entry: &ConfigVar) -> Origin {
+    let (binder, file, line) = (source.binder, source.file, entry.span.line);
+    Origin { binder, file, line, key: path_text(&entry.path) }
+}
+
+/// The message about a variable `name` not at a partly specified address, which `binder`
+/// cannot bind.
+fn not_partly_specified(name: &str, binder: Binder) -> String {
+    format!(
+        "`{name}` is not declared at a partly specified address (`AT %I*`, `%Q*`, `%M*`): {} \
+         binds only such a variable",
+        binder.name()
+    )
 }
 
 /// A path as written (`i.fb.x`).

@@ -1064,7 +1064,7 @@ impl<'a> Parser<'a> {
         }
         let location = self.at_location()?;
         self.expect_p(P::Colon, Want::Colon)?;
-        let ty = self.type_ref()?;
+        let ty = Some(self.type_ref()?);
         let init = if self.eat_p(P::Assign) { Some(self.init()?) } else { None };
         self.end_decl(Want::SemiAfterDecl);
         Ok(ConfigVar { path, location, ty, init, span })
