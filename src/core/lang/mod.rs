@@ -11,6 +11,7 @@ pub mod ops;
 pub mod parse;
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 pub use check::{Context, DutySite};
 pub use ops::{Op, Place};
@@ -113,8 +114,10 @@ impl Program {
 /// the located variables' initial values, and every variable by name.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Variables {
-    /// The memory's contents at RUN start; its length is the memory's size.
-    pub initial: Box<[u8]>,
+    /// The memory's contents at RUN start; its length is the memory's size. Shared: the VM
+    /// that runs the project and every clone of it read this one copy (a TcUnit project's
+    /// is 78 MB).
+    pub initial: Arc<[u8]>,
     /// `(offset, len)` of the `RETAIN` variables' bytes, kept over a warm restart.
     pub retained: Box<[(u32, u32)]>,
     /// Located variables with an initial value: written to their devices at RUN start, after

@@ -258,7 +258,8 @@ pub struct Vm {
     steps: u64,
     /// Structured Text's variable memory, and what RUN start sets it up from.
     vars: Box<[u8]>,
-    initial: Box<[u8]>,
+    /// The project's own image ([`Variables::initial`]), shared, not copied.
+    initial: std::sync::Arc<[u8]>,
     /// The byte ranges that are not retained, sorted: what a warm RUN start re-initializes.
     fresh: Box<[(u32, u32)]>,
     located_init: Box<[(crate::lang::Place, Elem, u64)]>,
@@ -276,7 +277,7 @@ impl Vm {
             edges: vec![false; edge_slots as usize].into_boxed_slice(),
             steps: 0,
             vars: Box::new([]),
-            initial: Box::new([]),
+            initial: std::sync::Arc::new([]),
             fresh: Box::new([]),
             located_init: Box::new([]),
         }
@@ -286,7 +287,7 @@ impl Vm {
     /// a warm RUN start keeps, the located variables' initial values.
     pub fn set_variables(&mut self, variables: &Variables) {
         self.initial = variables.initial.clone();
-        self.vars = variables.initial.clone();
+        self.vars = Box::from(&variables.initial[..]);
         let size = variables.initial.len() as u32;
         let mut kept: Vec<(u32, u32)> = variables
             .retained

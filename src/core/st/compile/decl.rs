@@ -1277,6 +1277,9 @@ impl<'a> Ctx<'a> {
         }
         let info = &mut self.pous[p];
         info.inst_size = inst.len() as u32;
+        // Grown by doubling: up to twice a large array's bytes, which every instance's copy
+        // and the compile's peak would carry.
+        inst.shrink_to_fit();
         info.image = inst;
         info.frame_vars = frame.len() as u32;
         info.frame_image = frame;

@@ -103,6 +103,7 @@ mod varlen;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use super::ast;
 use crate::diag::{Diagnostic, Diagnostics, Warning};
@@ -311,9 +312,13 @@ pub fn compile_project(
             None => pick_program(&mut cx, inst),
         };
         placed.push(pou.map(|p| {
-            let img = cx.pous[p].image.clone();
+            // Lent, not cloned: a PROGRAM's image is as large as its variables (a TcUnit
+            // results array: 78 MB), and a clone would be a third copy at the compile's peak.
+            let img = std::mem::take(&mut cx.pous[p].image);
             let (file, span) = (cx.pous[p].file, cx.pous[p].name_span());
-            (p, cx.alloc_var(&img, file, span))
+            let at = cx.alloc_var(&img, file, span);
+            cx.pous[p].image = img;
+            (p, at)
         }));
     }
 
@@ -497,12 +502,18 @@ pub fn compile_project(
         }
     }
     retained.sort_unstable();
+    let referents = referents::referents(&cx);
+    // The compile is over: the images of the POUs and types go before variable memory's own
+    // is moved into its shared allocation, so that a load's peak holds two images at most.
+    for pou in &mut cx.pous {
+        pou.image = Vec::new();
+    }
     let variables = Variables {
-        initial: cx.image.clone().into_boxed_slice(),
+        initial: Arc::from(std::mem::take(&mut cx.image)),
         retained: merge_ranges(retained).into_boxed_slice(),
         located_init: cx.located_init.clone().into_boxed_slice(),
         symbols,
-        referents: referents::referents(&cx),
+        referents,
         access,
     };
     let warnings = sorted(std::mem::take(&mut cx.warnings)).0.into_iter().map(Warning).collect();
