@@ -30,6 +30,7 @@ use std::borrow::Cow;
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
+use super::generic::system_type_name;
 use crate::diag::Diagnostic;
 use crate::st::ast::{
     Arg, ArrayInit, Expr, ExprKind, File, Ident, Init, Item, Pou, Stmt, StmtKind, TypeDef, TypeRef,
@@ -313,11 +314,13 @@ impl Lowering<'_, '_> {
         }
     }
 
-    /// `NS.Name` of a type, a base or an interface: `Name` when `NS` is a namespace.
+    /// `NS.Name` of a type, a base or an interface: `Name` when `NS` is a namespace (but for
+    /// CODESYS's `IBaseLibrary.TypeClass`, the checker's to read whole).
     fn type_name(&mut self, id: &mut Ident) {
         while let Some((first, rest)) = id.name.split_once('.') {
             if !self.names.namespaces.contains(&key(first))
                 || self.names.renamed.contains(&key(&id.name))
+                || system_type_name(&id.name).is_some()
             {
                 break;
             }
@@ -549,6 +552,11 @@ impl Lowering<'_, '_> {
         let q = key(&qualifier.name);
         if self.names.namespaces.contains(&q) {
             let whole = format!("{}.{}", qualifier.name, name.name);
+            if system_type_name(&whole).is_some() {
+                // `IBaseLibrary.TypeClass` is CODESYS's type classes, the checker's to read
+                // whole, also where a `.plcproj` names `IBaseLibrary` a namespace (TcUnit's)
+                return None;
+            }
             if self.names.renamed.contains(&key(&whole)) {
                 return Some(Ident { name: whole, ..name.clone() });
             }
