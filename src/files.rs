@@ -47,7 +47,7 @@ pub fn project(path: &Path) -> Result<Project, Diagnostics> {
 /// --interpreter`, to compare the two or to measure the interpreter itself).
 pub fn interpreted_project(path: &Path) -> Result<Project, Diagnostics> {
     let config = config(path)?;
-    project::from_config_with(config, source_text, source_files)
+    project::from_config_with(config, source_text, source_files, files_in)
 }
 
 /// A program or library file's text: UTF-8 (after a UTF-8 byte order mark, if any), or, when
@@ -65,7 +65,7 @@ fn source_text(path: &Path) -> std::io::Result<String> {
 }
 
 /// Every file in `dir` and its subfolders (an `[st] library` folder; the core keeps the
-/// Structured Text sources among them). Hidden entries (`.git`) are skipped; a symbolic link
+/// Structured Text sources and the `.plcproj` files among them). Hidden entries (`.git`) are skipped; a symbolic link
 /// to a file is a file, one to a folder is not entered (no loops).
 fn source_files(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
     let mut files = Vec::new();
@@ -83,6 +83,27 @@ fn source_files(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
             } else if kind.is_file() || path.is_file() {
                 files.push(path);
             }
+        }
+    }
+    Ok(files)
+}
+
+/// The files directly in `dir`, each as `dir` joined with its name (the empty path is the
+/// current folder, and its files are their bare names): where the core looks for the
+/// `.plcproj` of a program's TwinCAT file. Hidden entries are skipped, as in
+/// [`source_files`]; a symbolic link to a file is a file.
+fn files_in(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+    let listed = if dir.as_os_str().is_empty() { Path::new(".") } else { dir };
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(listed)? {
+        let entry = entry?;
+        let name = entry.file_name();
+        if name.to_string_lossy().starts_with('.') {
+            continue;
+        }
+        let path = dir.join(&name);
+        if entry.file_type()?.is_file() || entry.path().is_file() {
+            files.push(path);
         }
     }
     Ok(files)
@@ -124,6 +145,21 @@ mod tests {
         std::fs::remove_file(&path).unwrap();
         assert_eq!(utf8, "'Grüße €'");
         assert_eq!(cp1252, "'Grüße €'");
+    }
+
+    #[test]
+    fn files_in_lists_a_folders_own_files_without_its_subfolders_or_hidden_entries() {
+        let dir = std::env::temp_dir().join(format!("plcd-files-in-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("sub")).unwrap();
+        for file in ["App.plcproj", "MAIN.TcPOU", ".hidden.plcproj", "sub/Lib.plcproj"] {
+            std::fs::write(dir.join(file), "").unwrap();
+        }
+        let listed = files_in(&dir);
+        std::fs::remove_dir_all(&dir).unwrap();
+        let mut listed = listed.unwrap();
+        listed.sort();
+        assert_eq!(listed, [dir.join("App.plcproj"), dir.join("MAIN.TcPOU")]);
+        assert!(files_in(&dir).is_err(), "a folder that is gone cannot be listed");
     }
 
     #[test]

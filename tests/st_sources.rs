@@ -1073,6 +1073,103 @@ fn a_twincat_gvl_name_and_a_library_namespace_qualify_names() {
     assert_eq!(last(&trace, "main.nSeen").as_deref(), Some("3"), "{trace}");
 }
 
+/// `tests/twincat/plcproj` (its README): a TcUnit-shaped tree whose config lists no `[st]
+/// namespaces`; the library's `.plcproj` (in its `[st] library` folder) and the program's
+/// (the nearest one above `App/App/POUs/MAIN.TcPOU`) name `MyLib`, `Tc2_Standard`,
+/// `IBaseLibrary` and `App`, which `plcd check` shows with their places, and the program runs
+/// on `MyLib.FB_X`, `MyLib.GVL_Param_MyLib.nStep`, `Tc2_Standard.TON` and
+/// `IBaseLibrary.TypeClass`, with plcd's `Tc2_Standard` compiled (`plcd-tc2.toml`) or not: the
+/// same values either way.
+#[test]
+fn a_twincat_trees_plcproj_files_name_its_namespaces() {
+    let dir = Path::new("tests/twincat/plcproj");
+    for (config, hint) in [
+        (
+            "plcd.toml",
+            " (a library plcd ships: `[st] system_libraries = [\"Tc2_Standard\"]` compiles it)",
+        ),
+        ("plcd-tc2.toml", ""),
+    ] {
+        let out = plcd(dir, &["check", "--config", config]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "{config}: {stderr}");
+        assert_eq!(stderr, "", "{config}");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let notes: Vec<&str> = stdout.lines().skip(1).collect();
+        assert_eq!(
+            notes,
+            [
+                "  namespace MyLib, from MyLib/MyLib/MyLib.plcproj:8 <DefaultNamespace>, App/App/App.plcproj:20 <PlaceholderReference Include=\"MyLib\">".to_string(),
+                format!("  namespace Tc2_Standard, from MyLib/MyLib/MyLib.plcproj:28 <PlaceholderReference Include=\"Tc2_Standard\">, App/App/App.plcproj:24 <PlaceholderReference Include=\"Tc2_Standard\">{hint}"),
+                "  namespace IBaseLibrary, from MyLib/MyLib/MyLib.plcproj:33 <LibraryReference Include=\"Base Interfaces,newest,System\">".to_string(),
+                "  namespace App, from App/App/App.plcproj:7 <DefaultNamespace>".to_string(),
+            ],
+            "{config}"
+        );
+        let watch = "main.nScans,main.nCount,main.nTestCount,main.nCalls,main.bDone,main.bIntClass";
+        let args = ["sim", "--config", config, "--for", "3500us", "--watch", watch, "--trace", "-"];
+        let out = plcd(dir, &args);
+        assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+        let trace = String::from_utf8_lossy(&out.stdout);
+        // 4 scans (t = 0, 1, 2, 3 ms), each adding nLibStep / MyLib.GVL_Param_MyLib.nStep,
+        // 3 / 3 (nLibStep's initial value is the library's constant too)
+        assert_eq!(last(&trace, "main.nScans").as_deref(), Some("4"), "{config}: {trace}");
+        // fbX counts by 3 in each of the 4 scans
+        assert_eq!(last(&trace, "main.nCount").as_deref(), Some("12"), "{config}");
+        // Tc2_Standard.TON with PT 2 ms: Q from its call at t = 2 ms, after fbTest's call, so
+        // fbTest (FB_X_Test EXTENDS MyLib.FB_X) counts in the scans at 0, 1 and 2 ms, and is
+        // called in all 4
+        assert_eq!(last(&trace, "main.bDone").as_deref(), Some("1"), "{config}");
+        assert_eq!(last(&trace, "main.nTestCount").as_deref(), Some("9"), "{config}");
+        assert_eq!(last(&trace, "main.nCalls").as_deref(), Some("4"), "{config}");
+        // IBaseLibrary.TypeClass.TYPE_INT, also where IBaseLibrary is a namespace
+        assert_eq!(last(&trace, "main.bIntClass").as_deref(), Some("1"), "{config}");
+    }
+}
+
+/// A `.plcproj` naming a library plcd ships (`Tc2_System`) leaves its meaning as it was
+/// (docs/ST.md, "TwinCAT project files"): with `[st] system_libraries` naming it,
+/// `Tc2_System.T_MaxString` is the library's type even where the project declares its own
+/// `T_MaxString`; without, `Tc2_System` is one more namespace of the project, so it names the
+/// project's.
+#[test]
+fn a_shipped_librarys_name_from_a_plcproj_keeps_its_meaning() {
+    let dir = TempDir::new("st-sources-plcproj-shipped");
+    let d = dir.path();
+    write(
+        d,
+        "App.plcproj",
+        "\u{feff}<?xml version=\"1.0\" encoding=\"utf-8\"?>\r\n<Project DefaultTargets=\"Build\" xmlns=\"http://schemas.microsoft.com/developer/msbuild/2003\">\r\n  <ItemGroup>\r\n    <PlaceholderReference Include=\"Tc2_System\">\r\n      <DefaultResolution>Tc2_System, * (Beckhoff Automation GmbH)</DefaultResolution>\r\n      <Namespace>Tc2_System</Namespace>\r\n    </PlaceholderReference>\r\n  </ItemGroup>\r\n</Project>\r\n",
+    );
+    write(
+        d,
+        "lib/T_MaxString.TcDUT",
+        &tc("  <DUT Name=\"T_MaxString\" Id=\"{1}\">\r\n    <Declaration><![CDATA[TYPE T_MaxString : STRING(10); END_TYPE\r\n]]></Declaration>\r\n  </DUT>"),
+    );
+    write(
+        d,
+        "POUs/MAIN.TcPOU",
+        &pou(
+            "MAIN",
+            "PROGRAM MAIN\r\nVAR\r\n\town : T_MaxString;\r\n\tqualified : Tc2_System.T_MaxString;\r\n\tnOwn : INT;\r\n\tnQualified : INT;\r\nEND_VAR",
+            "own := 'abcdefghijklmnop';\r\nqualified := 'abcdefghijklmnop';\r\nnOwn := LEN(own);\r\nnQualified := LEN(qualified);",
+        ),
+    );
+    let base = "[plc]\nscan_period_ms = 1\n\n[[program]]\nname = \"main\"\nfile = \"POUs/MAIN.TcPOU\"\n\n[st]\nlibrary = [\"lib/\"]\n";
+    // the project's T_MaxString holds 10 characters of the 16, the library's 255
+    for (system, qualified) in [(true, "16"), (false, "10")] {
+        let shipped = if system { "system_libraries = [\"Tc2_System\"]\n" } else { "" };
+        write(d, "plcd.toml", &format!("{base}{shipped}"));
+        let trace = checked_trace(d, "500us", "main.nOwn,main.nQualified");
+        assert_eq!(last(&trace, "main.nOwn").as_deref(), Some("10"), "{system}: {trace}");
+        assert_eq!(
+            last(&trace, "main.nQualified").as_deref(),
+            Some(qualified),
+            "{system}: {trace}"
+        );
+    }
+}
+
 /// `--watch main.r^` follows the reference at every look (docs/ST.md, "Tools"): it shows
 /// what `a` holds while `r` points to `a`, then `b` once the program moves it there; a `NULL`
 /// reference shows 0.

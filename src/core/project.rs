@@ -14,6 +14,7 @@ use crate::symbols::Symbols;
 use crate::value::{Pointer, Space, Symbol, ValueType};
 
 mod access;
+mod namespaces;
 
 /// FX5: "The DUTY instruction can be used up to 5 times (points)".
 pub const MAX_DUTY: usize = 5;
@@ -28,7 +29,9 @@ pub struct Project {
     /// The Structured Text programs' variable memory and every variable by name (empty
     /// without Structured Text).
     pub variables: Variables,
-    /// What a `CONFIGURATION` was mapped to, a line each (`plcd check` and the log show them).
+    /// What a `CONFIGURATION` was mapped to, the namespaces the `.plcproj` files name, where
+    /// the `[iec]` layout puts the located variables and the access paths, a line each (`plcd
+    /// check` and the log show them).
     pub notes: Vec<String>,
     /// What the Structured Text compiler accepted with a warning, in file and line order
     /// (`plcd check` prints them, the daemon logs them).
@@ -465,22 +468,27 @@ pub fn split_names(list: &str) -> Vec<&str> {
 }
 
 /// Assembles the programs of an already parsed config; `read` supplies each program's text.
-/// A project with `[st] library` folders needs [`from_config_with`].
+/// A project with `[st] library` folders needs [`from_config_with`]; this one reads no
+/// `.plcproj` beside a TwinCAT program (it lists no folder).
 pub fn from_config(
     config: Config,
     read: impl Fn(&Path) -> std::io::Result<String>,
 ) -> Result<Project, Diagnostics> {
     let no_folders =
         |dir: &Path| Err(std::io::Error::other(format!("{} is not listed here", dir.display())));
-    from_config_with(config, read, no_folders)
+    from_config_with(config, read, no_folders, |_: &Path| Ok(Vec::new()))
 }
 
-/// [`from_config`], with `list` giving the Structured Text source files of an `[st] library`
-/// folder, in it and in its subfolders (the caller walks the file system).
+/// [`from_config`], with `list` giving every file of an `[st] library` folder, in it and in its
+/// subfolders (the caller walks the file system; the Structured Text sources and the
+/// `.plcproj` files among them are read), and `files_in` every file directly in a folder (the
+/// empty path: the current one), where the `.plcproj` of a `[[program]]`'s TwinCAT file is
+/// looked for (docs/ST.md, "TwinCAT project files").
 pub fn from_config_with(
     config: Config,
     read: impl Fn(&Path) -> std::io::Result<String>,
     list: impl Fn(&Path) -> std::io::Result<Vec<PathBuf>>,
+    files_in: impl Fn(&Path) -> std::io::Result<Vec<PathBuf>>,
 ) -> Result<Project, Diagnostics> {
     let mut diags = Diagnostics::default();
     let mut config = config;
@@ -490,7 +498,13 @@ pub fn from_config_with(
     let mut programs: Vec<Option<Program>> = Vec::with_capacity(config.programs.len());
     let mut duty_sites = Vec::new();
     let mut edge_base = 0u32;
-    let mut reader = Reader { config: &config, read: &read, list: &list, diags: &mut diags };
+    let mut reader = Reader {
+        config: &config,
+        read: &read,
+        list: &list,
+        files_in: &files_in,
+        diags: &mut diags,
+    };
     for entry in &config.programs {
         if entry.language == Language::StructuredText {
             // Compiled below, all together: the files share their declarations.
@@ -520,8 +534,8 @@ pub fn from_config_with(
     }
     let mut warnings = Vec::new();
     let variables = match compile_structured_text(&config, &mut reader, parsed) {
-        Some((compiled, iec_notes)) => {
-            notes.extend(iec_notes);
+        Some((compiled, st_notes)) => {
+            notes.extend(st_notes);
             notes.extend(compiled.variables.access.iter().map(access::note));
             warnings = compiled.warnings;
             check_task_numbers(&compiled.programs, &task_numbers, reader.diags);
@@ -629,25 +643,36 @@ fn expand_configurations(
 }
 
 /// Reads program files, a diagnostic at the config entry that names a file it cannot read.
-struct Reader<'a, R, L> {
+struct Reader<'a, R, L, F> {
     config: &'a Config,
     read: &'a R,
     list: &'a L,
+    files_in: &'a F,
     diags: &'a mut Diagnostics,
 }
 
-impl<R, L> Reader<'_, R, L>
+impl<R, L, F> Reader<'_, R, L, F>
 where
     R: Fn(&Path) -> std::io::Result<String>,
     L: Fn(&Path) -> std::io::Result<Vec<PathBuf>>,
+    F: Fn(&Path) -> std::io::Result<Vec<PathBuf>>,
 {
-    /// The source files of a library folder, sorted; none (after a diagnostic) when it cannot
-    /// be listed or holds none.
-    fn list(&mut self, dir: &Path, line: u32, col: u32, what: &str) -> Vec<PathBuf> {
+    /// The source files of a library folder, sorted, and its `.plcproj` files, sorted; no
+    /// sources (after a diagnostic) when it cannot be listed or holds none.
+    fn list(
+        &mut self,
+        dir: &Path,
+        line: u32,
+        col: u32,
+        what: &str,
+    ) -> (Vec<PathBuf>, Vec<PathBuf>) {
         match (self.list)(dir) {
-            Ok(mut files) => {
+            Ok(files) => {
+                let (mut projects, mut files): (Vec<PathBuf>, Vec<PathBuf>) =
+                    files.into_iter().partition(|f| crate::config::is_plcproj(f));
                 files.retain(|f| crate::config::is_st_source(f));
                 files.sort();
+                projects.sort();
                 if files.is_empty() {
                     let msg = format!(
                         "{what}: folder `{}` holds no `.st`, `.TcPOU`, `.TcDUT`, `.TcGVL` or `.TcIO` file",
@@ -655,12 +680,12 @@ where
                     );
                     self.diags.push(Diagnostic::new(&self.config.path, line, col, msg));
                 }
-                files
+                (files, projects)
             }
             Err(e) => {
                 let msg = format!("{what}: cannot list folder `{}`: {e}", dir.display());
                 self.diags.push(Diagnostic::new(&self.config.path, line, col, msg));
-                Vec::new()
+                (Vec::new(), Vec::new())
             }
         }
     }
@@ -682,18 +707,21 @@ where
 }
 
 /// Parses every `.st` file of the project (its Structured Text programs and `[st] library`),
-/// but those `parsed` already, and compiles one instance per Structured Text `[[program]]`, in
-/// config order, with what `plcd check` shows of the `[iec]` layout the files use. `None` when
-/// there is none, or on errors (in `reader.diags`): the syntax errors of every file, or, when
-/// every file parses, every error the compiler finds.
-fn compile_structured_text<R, L>(
+/// but those `parsed` already, reads the namespaces of its `.plcproj` files
+/// ([`namespaces`]), and compiles one instance per Structured Text `[[program]]`, in config
+/// order, with what `plcd check` shows of the namespaces learnt and of the `[iec]` layout the
+/// files use. `None` when there is none, or on errors (in `reader.diags`): the syntax errors of
+/// every file and the errors of the `.plcproj` files, or, when there are none, every error the
+/// compiler finds.
+fn compile_structured_text<R, L, F>(
     config: &Config,
-    reader: &mut Reader<'_, R, L>,
+    reader: &mut Reader<'_, R, L, F>,
     mut parsed: Vec<Parsed>,
 ) -> Option<(st::Compiled, Vec<String>)>
 where
     R: Fn(&Path) -> std::io::Result<String>,
     L: Fn(&Path) -> std::io::Result<Vec<PathBuf>>,
+    F: Fn(&Path) -> std::io::Result<Vec<PathBuf>>,
 {
     let entries: Vec<_> =
         config.programs.iter().filter(|p| p.language == Language::StructuredText).collect();
@@ -709,25 +737,31 @@ where
         }
         return None;
     }
-    let mut paths: Vec<(PathBuf, u32, u32, String)> = Vec::new();
+    let base = config.path.parent().unwrap_or(Path::new(""));
+    // each file, the config entry that names it, and whether it is a program's
+    let mut paths: Vec<(PathBuf, u32, u32, String, bool)> = Vec::new();
     for entry in &entries {
         let what = format!("program \"{}\"", entry.name);
-        paths.push((entry.resolved.clone(), entry.line, entry.col, what));
+        paths.push((entry.resolved.clone(), entry.line, entry.col, what, true));
     }
     let mut ok = true;
+    let mut learnt = namespaces::Learnt::default();
     for library in &config.st.library {
         let (line, col) = (library.line, library.col);
         let what = "st.library".to_string();
         if library.folder {
-            let files = reader.list(&library.resolved, line, col, &what);
+            let (files, projects) = reader.list(&library.resolved, line, col, &what);
             ok &= !files.is_empty();
-            paths.extend(files.into_iter().map(|f| (f, line, col, what.clone())));
+            for project in projects {
+                ok &= learnt.read(reader, &project, (line, col), &what);
+            }
+            paths.extend(files.into_iter().map(|f| (f, line, col, what.clone(), false)));
         } else {
-            paths.push((library.resolved.clone(), line, col, what));
+            paths.push((library.resolved.clone(), line, col, what, false));
         }
     }
     let mut files = Vec::new();
-    for (path, line, col, what) in paths {
+    for (path, line, col, what, program) in paths {
         if files.iter().any(|f: &st::ast::File| f.path == path) {
             continue;
         }
@@ -744,6 +778,10 @@ where
         };
         let mut list_name = None;
         if crate::config::is_twincat_source(&path) {
+            if program {
+                // the project the program belongs to names the libraries it uses
+                ok &= learnt.nearest(reader, &path, base, (line, col), &what);
+            }
             list_name = st::twincat::gvl_name(&text);
             match st::twincat::st_text(&text) {
                 Ok(st) => text = st,
@@ -784,19 +822,20 @@ where
         libraries: config.st.system_libraries,
         variable_memory_bytes: config.st.variable_memory_bytes,
     };
-    let base = config.path.parent().unwrap_or(Path::new(""));
     let shown = |path: &Path| path.strip_prefix(base).unwrap_or(path).display().to_string();
-    let mut iec_notes = st::iec_check::check_notes(&files, &config.iec.layout, shown);
-    let namespaces = &config.st.namespaces;
+    let mut notes = learnt.notes(shown, config.st.system_libraries);
+    notes.extend(st::iec_check::check_notes(&files, &config.iec.layout, shown));
+    let namespaces = learnt.with(&config.st.namespaces);
     let bindings = st::ConfigBindings { path: &config.path, variables: &config.iec.variables };
     let compiled =
-        st::compile_project(&files, &instances, &configured, dialect, namespaces, Some(bindings));
+        st::compile_project(&files, &instances, &configured, dialect, &namespaces, Some(bindings));
     match compiled {
         Ok(mut compiled) => {
-            let (notes, warnings) = st::iec_check::config_notes(&files, &config.iec, &config.path);
-            iec_notes.extend(notes);
+            let (iec_notes, warnings) =
+                st::iec_check::config_notes(&files, &config.iec, &config.path);
+            notes.extend(iec_notes);
             compiled.warnings.extend(warnings);
-            Some((compiled, iec_notes))
+            Some((compiled, notes))
         }
         Err(errors) => {
             reader.diags.extend(errors);

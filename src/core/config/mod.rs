@@ -89,8 +89,8 @@ pub use rt::{RtConfig, RtPolicy};
 pub use serial::{Parity, SerialLine};
 pub use sim::SimConfig;
 pub use st::{
-    is_st_source, is_twincat_source, LibraryFile, StConfig, DEFAULT_HEAP_BYTES,
-    DEFAULT_VARIABLE_MEMORY_BYTES, VARIABLE_MEMORY_BYTES_RANGE,
+    is_namespace, is_plcproj, is_st_source, is_twincat_source, LibraryFile, StConfig,
+    DEFAULT_HEAP_BYTES, DEFAULT_VARIABLE_MEMORY_BYTES, VARIABLE_MEMORY_BYTES_RANGE,
 };
 pub use switch::SwitchConfig;
 pub use system_libraries::{SystemLibraries, SystemLibrary};

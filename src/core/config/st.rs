@@ -97,6 +97,20 @@ pub fn is_twincat_source(file: &Path) -> bool {
     })
 }
 
+/// Whether `name` can be a namespace (`[st] namespaces`, a `.plcproj`'s, `st::plcproj`): an
+/// ASCII letter or `_`, then letters, digits and `_`, as an identifier is written.
+pub fn is_namespace(name: &str) -> bool {
+    let mut chars = name.chars();
+    chars.next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
+}
+
+/// Whether `file` is a TwinCAT PLC project file by its extension, `.plcproj` (any case), whose
+/// namespaces `st::plcproj` reads.
+pub fn is_plcproj(file: &Path) -> bool {
+    file.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("plcproj"))
+}
+
 /// `[st]` as written.
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -141,9 +155,7 @@ pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StC
     for entry in raw.namespaces.unwrap_or_default() {
         let at = entry.span().start;
         let name = entry.into_inner();
-        let mut chars = name.chars();
-        let first = chars.next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_');
-        if !first || !chars.all(|c| c.is_ascii_alphanumeric() || c == '_') {
+        if !is_namespace(&name) {
             let msg = format!(
                 "{}: `{name}` is not a name (letters, digits and `_`)",
                 ctx.key("namespaces")

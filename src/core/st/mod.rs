@@ -5,6 +5,7 @@
 //! - [`syntax`]: text → tree, with every syntax error of a file;
 //! - [`sfc`]: a POU's Sequential Function Chart, as parsed;
 //! - [`twincat`]: TwinCAT's `.TcPOU`/`.TcDUT`/`.TcGVL`/`.TcIO` files → ST text on the same lines;
+//! - [`plcproj`]: TwinCAT's `.plcproj` project files → the namespaces they name;
 //! - [`dialect`]: the CODESYS/TwinCAT habits accepted beyond the standard, and `strict`;
 //! - [`iec_check`]: what `plcd check` shows of the `[iec]` layout (the layouts are
 //!   [`crate::device::iec`]'s);
@@ -19,6 +20,7 @@ pub mod configuration;
 pub mod dialect;
 pub mod iec_check;
 pub mod libraries;
+pub mod plcproj;
 pub mod sfc;
 pub mod syntax;
 pub mod twincat;
