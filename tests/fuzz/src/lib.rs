@@ -7,6 +7,8 @@
 //!   few scans in virtual time (twice: the runs must agree event for event).
 //! - `st`: a Structured Text program, the same way.
 //! - `twincat`: a TwinCAT `.TcPOU` file (XML around Structured Text), the same way.
+//! - `plcproj`: a TwinCAT `.plcproj` file, its namespaces read alone and as the project files
+//!   of a library folder and of a `.TcPOU` program that names the library's block by them.
 //! - `config`: a `plcd.toml`, and, if accepted, its project (with stand-in programs) run.
 //! - `stimulus`: an inputs file, and, if accepted, played into a project.
 //! - `retain`: a retained-memory file: either restored exactly as written or refused.
@@ -40,6 +42,7 @@ pub const TARGETS: &[Target] = &[
     Target { name: "il", run: targets::il::run },
     Target { name: "st", run: targets::st::run },
     Target { name: "twincat", run: targets::twincat::run },
+    Target { name: "plcproj", run: targets::plcproj::run },
     Target { name: "config", run: targets::config::run },
     Target { name: "stimulus", run: targets::stimulus::run },
     Target { name: "retain", run: targets::retain::run },

@@ -62,6 +62,11 @@ fn twincat() {
 }
 
 #[test]
+fn plcproj() {
+    replay("plcproj");
+}
+
+#[test]
 fn st() {
     replay("st");
 }
