@@ -1016,7 +1016,7 @@ impl<'a> Ctx<'a> {
                         continue;
                     }
                     if kind == PouKind::Function
-                        && id.is(&pou.name.name)
+                        && super::libraries::is_own_name(id, &pou.name.name)
                         && member != Some(super::oop::Role::Set)
                     {
                         if pou.return_type.is_some() {

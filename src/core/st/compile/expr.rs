@@ -990,7 +990,7 @@ impl<'a> Ctx<'a> {
                 return TExpr { k: TK::Var { storage, by_ref: v.by_ref }, ty: v.ty, span };
             }
             if pou.kind == PouKind::Function
-                && id.is(&pou.ast.name.name)
+                && super::libraries::is_own_name(id, &pou.ast.name.name)
                 && scope.visible == pou.vars.len()
             {
                 let ty = pou.result.clone();

@@ -45,6 +45,13 @@ pub(super) fn with_libraries(
     Some((all, renamed))
 }
 
+/// Whether `id` names the result of the FUNCTION `function` in its own body: its name, or,
+/// for a library's FUNCTION renamed `Library.Name` above, the plain `Name` its source writes
+/// (`MEMSET := 0;` in `Tc2_System.MEMSET`); no project name has a dot.
+pub(super) fn is_own_name(id: &ast::Ident, function: &str) -> bool {
+    id.is(function) || function.rsplit_once('.').is_some_and(|(_, plain)| id.is(plain))
+}
+
 /// The names of a file's TYPEs, POUs and interfaces (`"t:name"`) and globals (`"g:name"`),
 /// lower case: a global may have a block's name (`GetCpuCounter : GETCPUCOUNTER`), as in
 /// TwinCAT, where variables and types are named apart.

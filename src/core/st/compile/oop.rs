@@ -771,8 +771,8 @@ impl<'a> Ctx<'a> {
             ExprKind::Name(id) => {
                 let p = scope.pou?;
                 // a variable, or the result of the method or GET being written
-                let result =
-                    self.pous[p].kind == PouKind::Function && id.is(&self.pous[p].ast.name.name);
+                let result = self.pous[p].kind == PouKind::Function
+                    && super::libraries::is_own_name(id, &self.pous[p].ast.name.name);
                 if self.pous[p].lookup(&id.name).is_some() || result {
                     return None;
                 }
