@@ -14,7 +14,7 @@ use std::fmt;
 
 use crate::config::is_namespace;
 use crate::st::ast::Span;
-use crate::st::twincat::XmlError;
+use crate::st::twincat::{parse_rooted, span_at, XmlError};
 
 /// Which element of a `.plcproj` names a namespace.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -58,27 +58,9 @@ pub struct Namespace {
 /// read. Errors, at their place in the file: XML that is not well formed (the one error then),
 /// a root other than `<Project>`, and every namespace that is not a name (all of them).
 pub fn namespaces(xml: &str) -> Result<Vec<Namespace>, Vec<XmlError>> {
-    let doc = roxmltree::Document::parse(xml).map_err(|e| {
-        let pos = e.pos();
-        vec![XmlError {
-            span: Span { line: pos.row, col: pos.col },
-            message: format!("not valid XML: {e}"),
-        }]
-    })?;
-    let at = |pos: usize| {
-        let p = doc.text_pos_at(pos);
-        Span { line: p.row, col: p.col }
-    };
+    let doc = parse_rooted(xml, "Project", "a TwinCAT PLC project").map_err(|e| vec![e])?;
+    let at = |pos: usize| span_at(&doc, pos);
     let root = doc.root_element();
-    if root.tag_name().name() != "Project" {
-        return Err(vec![XmlError {
-            span: at(root.range().start),
-            message: format!(
-                "`<{}>` is not a TwinCAT PLC project: `<Project>` expected",
-                root.tag_name().name()
-            ),
-        }]);
-    }
     let mut found = Vec::new();
     for group in elements(root) {
         match group.tag_name().name() {

@@ -27,8 +27,14 @@ pub struct XmlError {
     pub message: String,
 }
 
-/// The Structured Text of a TwinCAT source file, line for line and column for column.
-pub fn st_text(xml: &str) -> Result<String, XmlError> {
+/// `xml` parsed, its root element checked to be `<root>`: `what` names the kind of file the
+/// error says it is not (`"a TwinCAT source"`). The `.plcproj` reader shares it
+/// (`crate::st::plcproj`).
+pub(crate) fn parse_rooted<'x>(
+    xml: &'x str,
+    root: &str,
+    what: &str,
+) -> Result<roxmltree::Document<'x>, XmlError> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| {
         let pos = e.pos();
         XmlError {
@@ -36,20 +42,27 @@ pub fn st_text(xml: &str) -> Result<String, XmlError> {
             message: format!("not valid XML: {e}"),
         }
     })?;
-    let at = |pos: usize| {
-        let p = doc.text_pos_at(pos);
-        Span { line: p.row, col: p.col }
-    };
-    let root = doc.root_element();
-    if root.tag_name().name() != "TcPlcObject" {
+    let found = doc.root_element();
+    if found.tag_name().name() != root {
         return Err(XmlError {
-            span: at(root.range().start),
-            message: format!(
-                "`<{}>` is not a TwinCAT source: `<TcPlcObject>` expected",
-                root.tag_name().name()
-            ),
+            span: span_at(&doc, found.range().start),
+            message: format!("`<{}>` is not {what}: `<{root}>` expected", found.tag_name().name()),
         });
     }
+    Ok(doc)
+}
+
+/// The line and column of the byte at `pos` of `doc`'s text.
+pub(crate) fn span_at(doc: &roxmltree::Document<'_>, pos: usize) -> Span {
+    let p = doc.text_pos_at(pos);
+    Span { line: p.row, col: p.col }
+}
+
+/// The Structured Text of a TwinCAT source file, line for line and column for column.
+pub fn st_text(xml: &str) -> Result<String, XmlError> {
+    let doc = parse_rooted(xml, "TcPlcObject", "a TwinCAT source")?;
+    let at = |pos: usize| span_at(&doc, pos);
+    let root = doc.root_element();
     // The CDATA sections to keep, and the keywords to write among the blanks.
     let mut keep: Vec<Range<usize>> = Vec::new();
     let mut words: Vec<(usize, String)> = Vec::new();
