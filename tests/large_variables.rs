@@ -184,6 +184,30 @@ fn an_online_change_keeps_array_elements_by_index_when_the_bounds_change() {
     assert!(kept.iter().all(|&(_, t, l)| c < t || c >= t + l), "c is new");
 }
 
+/// A misspelled name next to a 1,000,000-element array is suggested from one element of it,
+/// the one whose index the name writes, not by spelling every element's name (20 MB).
+#[test]
+fn a_misspelled_name_is_suggested_without_expanding_an_array() {
+    let src = "TYPE Pt : STRUCT x : INT; y : INT; END_STRUCT; END_TYPE
+               PROGRAM Main VAR n : INT; pts : ARRAY[1..1000000] OF Pt; END_VAR
+                 n := n + 1;
+               END_PROGRAM";
+    let p = project(CONFIG, &[("main.st", src)]);
+    let before = ALLOCATED.load(Ordering::Relaxed);
+    WATCHED.with(|w| w.set(true));
+    let suggested = [
+        p.closest_variable("main.ptss[777777].y"),
+        p.closest_variable("MAIN.PTS[ 777777 ].z"),
+        p.closest_variable("main.pts[0].x"),
+        p.closest_variable("main.nn"),
+    ];
+    WATCHED.with(|w| w.set(false));
+    let allocated = ALLOCATED.load(Ordering::Relaxed) - before;
+    let names = suggested.map(|s| s.unwrap_or_default());
+    assert_eq!(names, ["main.pts[777777].y", "main.pts[777777].x", "main.pts[1].x", "main.n"]);
+    assert!(allocated < 64 << 10, "{allocated} bytes allocated to suggest four names");
+}
+
 /// Compiling a project with a 16 MiB array allocates a few times its size (its initial image
 /// and copies of it), not a symbol and a name per element (96 bytes and a name each), and
 /// holds at most two images of it at once.

@@ -400,41 +400,11 @@ impl Project {
     /// The variable name nearest to `name` (case-insensitive edit distance, at most about a
     /// quarter of its length), with its declaration's spelling.
     pub fn closest_variable(&self, name: &str) -> Option<String> {
-        let given: Vec<u8> = name
-            .bytes()
-            .filter(|c| !c.is_ascii_whitespace())
-            .map(|c| c.to_ascii_lowercase())
-            .collect();
+        let given: String =
+            name.chars().filter(|c| !c.is_whitespace()).map(|c| c.to_ascii_lowercase()).collect();
         let limit = (given.len() / 4).clamp(1, 3);
-        let mut best: Option<(usize, String)> = None;
-        for symbol in &self.variables.symbols {
-            let declared = symbol.name.as_bytes();
-            if declared.len().abs_diff(given.len()) > limit {
-                continue;
-            }
-            let distance = edit_distance(declared, &given);
-            if distance <= limit && best.as_ref().is_none_or(|(d, _)| distance < *d) {
-                best = Some((distance, symbol.name));
-            }
-        }
-        best.map(|(_, name)| name)
+        self.variables.symbols.closest(&given, limit).map(|(_, name)| name)
     }
-}
-
-/// Levenshtein distance, `a` compared case-insensitively with the lowercase `b`.
-fn edit_distance(a: &[u8], b: &[u8]) -> usize {
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, &x) in a.iter().enumerate() {
-        let mut diagonal = row[0];
-        row[0] = i + 1;
-        for (j, &y) in b.iter().enumerate() {
-            let above = row[j + 1];
-            let cost = usize::from(x.to_ascii_lowercase() != y);
-            row[j + 1] = (diagonal + cost).min(above + 1).min(row[j] + 1);
-            diagonal = above;
-        }
-    }
-    row[b.len()]
 }
 
 /// Whether `name` is a variable inside `prefix` (`main.pid.out` is inside `main.pid` and
@@ -966,7 +936,7 @@ mod tests {
         );
         assert!(p.resolve("D99999").unwrap_err().contains("out of range"));
         assert_eq!(p.resolve("_NOPE").unwrap_err(), "unknown flag `_NOPE`");
-        assert_eq!(edit_distance(b"Speed", b"spede"), 2);
-        assert_eq!(edit_distance(b"", b"ab"), 2);
+        assert_eq!(crate::symbols::edit_distance(b"Speed", b"spede"), 2);
+        assert_eq!(crate::symbols::edit_distance(b"", b"ab"), 2);
     }
 }

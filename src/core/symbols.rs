@@ -194,6 +194,54 @@ impl Symbols {
         None
     }
 
+    /// The name of the leaf nearest `given` (lowercase, whitespace removed) by
+    /// case-insensitive edit distance, at most `limit` apart, with the distance: the first in
+    /// declaration order at the least distance. Of an array, only one element is looked at:
+    /// the one whose index `given` writes after about the array's name, else the first, so that
+    /// a misspelled name costs a leaf per entry, not per element (a 10^7-element array would
+    /// spell 10^7 names).
+    pub fn closest(&self, given: &str, limit: usize) -> Option<(usize, String)> {
+        let mut best = None;
+        self.closest_in(given, limit, "", &mut best);
+        best
+    }
+
+    fn closest_in(
+        &self,
+        given: &str,
+        limit: usize,
+        prefix: &str,
+        best: &mut Option<(usize, String)>,
+    ) {
+        for entry in &self.entries {
+            match entry {
+                Entry::Leaf(s) => {
+                    let name = format!("{prefix}{}", s.name);
+                    if name.len().abs_diff(given.len()) > limit {
+                        continue;
+                    }
+                    let distance = edit_distance(name.as_bytes(), given.as_bytes());
+                    if distance <= limit && best.as_ref().is_none_or(|(d, _)| distance < *d) {
+                        *best = Some((distance, name));
+                    }
+                }
+                Entry::Array(a) => {
+                    let head = format!("{prefix}{}", a.name);
+                    // the index `given` writes where the array's name, misspelled by at
+                    // most `limit`, would end
+                    let from = head.len().saturating_sub(limit);
+                    let k = given
+                        .get(from..)
+                        .and_then(|tail| tail.find('[').filter(|&at| at <= 2 * limit))
+                        .and_then(|at| a.parse_index(&given[from + at..]))
+                        .map_or(0, |(k, _)| k);
+                    let prefix = format!("{head}{}", a.index_text(k));
+                    a.element.closest_in(given, limit, &prefix, best);
+                }
+            }
+        }
+    }
+
     /// The first leaf (in declaration order) of `space` whose bytes hold `offset`.
     pub fn holding(&self, space: Space, offset: u32) -> Option<Symbol> {
         self.holding_in(space, offset, "", 0)
@@ -242,6 +290,22 @@ pub fn index_text(dims: &[(i64, i64)], k: u64) -> String {
     }
     let text: Vec<String> = indices.iter().map(i64::to_string).collect();
     format!("[{}]", text.join(","))
+}
+
+/// Levenshtein distance, `a` compared case-insensitively with the lowercase `b`.
+pub(crate) fn edit_distance(a: &[u8], b: &[u8]) -> usize {
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, &x) in a.iter().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, &y) in b.iter().enumerate() {
+            let above = row[j + 1];
+            let cost = usize::from(x.to_ascii_lowercase() != y);
+            row[j + 1] = (diagonal + cost).min(above + 1).min(row[j] + 1);
+            diagonal = above;
+        }
+    }
+    row[b.len()]
 }
 
 /// `s` of an element whose name starts `prefix` and whose place starts at `base`.
