@@ -640,16 +640,25 @@ impl Gen<'_, '_> {
         self.b.switch_to_block(not_taken);
         self.go_on(pc + 1);
         self.b.switch_to_block(taken);
-        let depth = self.field32(offset_of!(NativeRegs, il_depth));
-        let full =
-            self.b.ins().icmp_imm_u(IntCC::UnsignedGreaterThanOrEqual, depth, CALL_DEPTH as i64);
-        let push = self.b.create_block();
-        let error = self.b.create_block();
-        self.b.set_cold_block(error);
-        self.b.ins().brif(full, error, &[], push, &[]);
-        self.b.switch_to_block(error);
-        self.give_back_and_exit(pc, pc + 1);
-        self.b.switch_to_block(push);
+        let depth = if (pc as u32) < self.analysis.main_end {
+            // the main routine's: at depth 0, whatever the context holds
+            self.b.ins().iconst(I32, 0)
+        } else {
+            let depth = self.field32(offset_of!(NativeRegs, il_depth));
+            let full = self.b.ins().icmp_imm_u(
+                IntCC::UnsignedGreaterThanOrEqual,
+                depth,
+                CALL_DEPTH as i64,
+            );
+            let push = self.b.create_block();
+            let error = self.b.create_block();
+            self.b.set_cold_block(error);
+            self.b.ins().brif(full, error, &[], push, &[]);
+            self.b.switch_to_block(error);
+            self.give_back_and_exit(pc, pc + 1);
+            self.b.switch_to_block(push);
+            depth
+        };
         let blocks = self.b.use_var(self.regs.blocks);
         let branches = self.b.use_var(self.regs.branches);
         let frame = Frame { return_pc: pc + 1, rung, blocks, branches };

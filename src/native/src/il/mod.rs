@@ -85,6 +85,11 @@ pub(crate) struct Analysis {
     /// return through the dispatch is an indirect jump to one of every caller's return
     /// addresses). Sorted by `CALL` target.
     pub subroutines: Vec<Subroutine>,
+    /// The main routine's end, its `END`: the instructions before it run at call depth 0
+    /// always (a `CALL` targets a `SBRT` after `END`, a `RET` returns to its caller's routine,
+    /// a `JMP` stays in its own: docs/LANGUAGE.md, "Flow"), so a `CALL` among them needs no
+    /// check of the depth and pushes the first frame.
+    pub main_end: u32,
 }
 
 /// A subroutine's own function: the blocks reachable from its first instruction without
@@ -304,6 +309,7 @@ pub(crate) fn analyse(code: &[Op]) -> Analysis {
         edges_end,
         timers_end,
         counters_end,
+        main_end: code.iter().position(|op| matches!(op, Op::End)).unwrap_or(0) as u32,
     };
     analysis.subroutines = subroutines(code, &analysis);
     analysis
