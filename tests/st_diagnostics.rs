@@ -70,7 +70,18 @@ const MESSAGES: &[(&str, &str)] = &[
     ("constant `{}` does not fit `{}`", "constant-does-not-fit"),
     ("`{}` has no value `{}`", "enum-init-no-value"),
     ("type `{}` is defined in terms of itself", "self-referential-type"),
-    ("a STRUCT member cannot be located", "located-struct-member"),
+    (
+        "a STRUCT member's address is partly specified (`AT %I*`, `%Q*`, `%M*`): VAR_CONFIG or [iec.variables] binds it for each variable",
+        "located-struct-member",
+    ),
+    (
+        "`{}.{}` is bound to a device (VAR_CONFIG, [iec.variables]): give its initial value in its binding or in the declaration of `{}`",
+        "struct-member-on-device-initializer",
+    ),
+    (
+        "`{}` has its member `{}` at a partly specified address: a {} cannot be of it (IEC 61131-3): declare the variable in VAR or VAR_OUTPUT",
+        "struct-partly-located-input",
+    ),
     ("`{}` is already declared in this STRUCT", "duplicate-struct-member"),
     // implicit.rs: CODESYS's implicit conversions that may change a value (a warning)
     (
@@ -187,7 +198,7 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` has no variable `{}`{}", "config-var-config-unknown-variable"),
     ("`{}` has no variable `{}`{}", "config-iec-variables-unknown-variable"),
     (
-        "`{}` is `{}`: {} binds a variable of a program instance or of a FUNCTION_BLOCK instance inside it, not a member of a struct or an element of an array",
+        "`{}` is `{}`: {} binds a variable of a program instance or of a FUNCTION_BLOCK instance inside it, or a member of a struct variable of one, not a member of a member or an element of an array",
         "config-var-config-struct-member",
     ),
     (
@@ -312,6 +323,10 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` is not an input or output of `{}`", "fb-no-input-or-output"),
     ("`{}` is a VAR_OUTPUT of `{}`: it cannot be written here", "fb-output-not-writable"),
     ("`{}` has no members (looking for `{}`)", "no-members"),
+    (
+        "`{}.{}` is bound to a device (VAR_CONFIG, [iec.variables]): `{}` can be used only member by member",
+        "struct-member-on-device-whole-use",
+    ),
     ("an array index must be an integer, not `{}`", "index-not-integer"),
     ("`{}` has {} dimension(s), {} index(es) given", "wrong-dimensions"),
     ("index {} is out of the bounds `{}..{}`", "index-out-of-bounds"),

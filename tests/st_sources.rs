@@ -780,6 +780,344 @@ fn var_config_binds_variables_inside_a_function_block_instance() {
     assert_eq!(run(&["--interpreter"]), trace);
 }
 
+/// IEC 61131-3 ed3's structured type with members at partly specified addresses: `VAR_CONFIG`
+/// binds the members of each variable of it (`R.main.hw.IN`, `main.fb.hw.OUT_VAR`), the
+/// variable given a copy of its type with the member at the address. Members not bound, and
+/// the variables no entry names, stay in variable memory.
+const VAR_CONFIG_STRUCT_MEMBERS: &str = "TYPE HW_COMP : STRUCT
+    IN      AT %I*  : BOOL;
+    OUT_VAR AT %Q*  : WORD := 200;
+    ITNL    : REAL;
+END_STRUCT; END_TYPE
+
+FUNCTION_BLOCK Unit
+  VAR hw : HW_COMP; END_VAR
+  hw.OUT_VAR := hw.OUT_VAR + 2;
+END_FUNCTION_BLOCK
+
+PROGRAM Main
+  VAR hw : HW_COMP; spare : HW_COMP; fb : Unit; seen : INT; END_VAR
+  IF hw.IN THEN seen := seen + 1; END_IF;
+  hw.OUT_VAR := hw.OUT_VAR + 1;
+  hw.ITNL := hw.ITNL + 0.5;
+  spare.OUT_VAR := spare.OUT_VAR + 1;
+  fb();
+END_PROGRAM
+
+CONFIGURATION C
+  RESOURCE R ON PLC
+    TASK t(INTERVAL := T#10ms, PRIORITY := 1);
+    PROGRAM main WITH t : Main;
+    PROGRAM other WITH t : Main;
+  END_RESOURCE
+  VAR_CONFIG
+    R.main.hw.IN AT %IX0.1 : BOOL;
+    main.hw.OUT_VAR AT %QW5 : WORD;
+    main.fb.hw.OUT_VAR AT %QW6 : WORD := 7;
+  END_VAR
+END_CONFIGURATION
+";
+
+#[test]
+fn var_config_binds_struct_members_at_partly_specified_addresses() {
+    let dir = TempDir::new("st-configuration-var-config-struct-members");
+    write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
+    write(dir.path(), "plc.st", VAR_CONFIG_STRUCT_MEMBERS);
+    // the input of `main.hw.IN` (%IX0.1, P0001) on from 15 ms: read by the scan of 20 ms
+    write(dir.path(), "inputs.csv", "15ms, P0001, 1\n");
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let bindings: Vec<&str> = stdout.lines().filter(|l| l.contains(": VAR_CONFIG ")).collect();
+    assert_eq!(
+        bindings,
+        [
+            "  configuration C: VAR_CONFIG R.main.hw.IN AT %IX0.1 → P0001",
+            "  configuration C: VAR_CONFIG main.hw.OUT_VAR AT %QW5 → D12005",
+            "  configuration C: VAR_CONFIG main.fb.hw.OUT_VAR AT %QW6 → D12006",
+        ]
+    );
+    let watch = "D12005,D12006,main.hw.IN,main.hw.OUT_VAR,main.hw.ITNL,main.seen,\
+                 main.spare.OUT_VAR,main.fb.hw.OUT_VAR,other.hw.OUT_VAR,other.fb.hw.OUT_VAR,\
+                 other.seen";
+    let run = |engine: &[&str]| {
+        let mut args = vec!["sim", "--config", "plcd.toml", "--for", "25ms", "--watch", watch];
+        args.extend(["--inputs", "inputs.csv", "--trace", "-"]);
+        args.extend(engine);
+        let out = plcd(dir.path(), &args);
+        assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let trace = run(&[]);
+    // three scans: main.hw.OUT_VAR at %QW5 (D12005) from the member's 200, one more a scan;
+    // main.fb.hw.OUT_VAR at %QW6 (D12006) from VAR_CONFIG's 7, two more a call
+    assert_eq!(last(&trace, "D12005").as_deref(), Some("203"), "{trace}");
+    assert_eq!(last(&trace, "D12006").as_deref(), Some("13"));
+    // the trace names a bound member by its path: its device
+    assert_eq!(last(&trace, "main.hw.OUT_VAR").as_deref(), Some("203"));
+    assert_eq!(last(&trace, "main.fb.hw.OUT_VAR").as_deref(), Some("13"));
+    // main.hw.IN at %IX0.1 (P0001), on for the scan of 20 ms only
+    assert_eq!(last(&trace, "main.hw.IN").as_deref(), Some("1"));
+    assert_eq!(last(&trace, "main.seen").as_deref(), Some("1"));
+    // the member no entry binds, the variable no entry names, and the PROGRAM's other
+    // instance keep variable memory: 200 and 7 their starts, no input seen
+    assert_eq!(last(&trace, "main.hw.ITNL").as_deref(), Some("1.5"));
+    assert_eq!(last(&trace, "main.spare.OUT_VAR").as_deref(), Some("203"));
+    assert_eq!(last(&trace, "other.hw.OUT_VAR").as_deref(), Some("203"));
+    assert_eq!(last(&trace, "other.fb.hw.OUT_VAR").as_deref(), Some("206"));
+    assert_eq!(last(&trace, "other.seen"), None);
+    // the copies are ordinary code: the interpreter gives the native code's trace
+    assert_eq!(run(&["--interpreter"]), trace);
+}
+
+#[test]
+fn var_config_gives_bound_struct_members_their_initial_values() {
+    // members declared together (`A, B, C AT %Q*`), bound one by one: the entry's initial value
+    // (77) before the variable's own (`(A := 5, C := 9)`), before the type's (200); a PROGRAM's
+    // action and a FUNCTION_BLOCK's VAR_OUTPUT read from outside reach the devices too
+    let dir = TempDir::new("st-configuration-var-config-struct-member-values");
+    write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
+    let text = "TYPE HW_COMP : STRUCT
+    A, B, C AT %Q* : WORD := 200;
+    ITNL : REAL;
+END_STRUCT; END_TYPE
+FUNCTION_BLOCK Unit
+  VAR_OUTPUT hw : HW_COMP; END_VAR
+  hw.B := hw.B + 2;
+END_FUNCTION_BLOCK
+PROGRAM Main
+  VAR hw : HW_COMP := (A := 5, B := 6, C := 9); fb : Unit; seen, rest : WORD; END_VAR
+  hw.A := hw.A + 1;
+  rest := hw.B * 1000 + fb.hw.A;
+  fb();
+  seen := fb.hw.B;
+  act();
+END_PROGRAM
+ACTION Main.act:
+  hw.C := hw.C + 10;
+END_ACTION
+CONFIGURATION C
+  RESOURCE R ON PLC
+    TASK t(INTERVAL := T#10ms, PRIORITY := 1);
+    PROGRAM main WITH t : Main;
+  END_RESOURCE
+  VAR_CONFIG
+    main.hw.A AT %QW5 : WORD := 77;
+    main.hw.C AT %QW7 : WORD;
+    main.fb.hw.B AT %QW6 : WORD;
+  END_VAR
+END_CONFIGURATION
+";
+    write(dir.path(), "plc.st", text);
+    let run = |engine: &[&str]| {
+        let watch = "D12005,D12006,D12007,main.seen,main.rest";
+        let mut args = vec!["sim", "--config", "plcd.toml", "--for", "25ms", "--watch", watch];
+        args.extend(["--trace", "-"]);
+        args.extend(engine);
+        let out = plcd(dir.path(), &args);
+        assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let trace = run(&[]);
+    let first = |name: &str| {
+        let key = format!("\"dev\":\"{name}\",\"value\":");
+        trace.lines().find_map(|l| l.split_once(&key)).map(|(_, v)| v.trim_end_matches('}'))
+    };
+    // at RUN start, before the first scan
+    assert_eq!(first("D12005"), Some("77"), "{trace}");
+    assert_eq!(first("D12007"), Some("9"));
+    assert_eq!(first("D12006"), Some("200"));
+    // three scans: one more, ten more, two more
+    assert_eq!(last(&trace, "D12005").as_deref(), Some("80"));
+    assert_eq!(last(&trace, "D12007").as_deref(), Some("39"));
+    assert_eq!(last(&trace, "D12006").as_deref(), Some("206"));
+    assert_eq!(last(&trace, "main.seen").as_deref(), Some("206"));
+    // B of main.hw, A of main.fb.hw: not bound, in memory with their initial values
+    assert_eq!(last(&trace, "main.rest").as_deref(), Some("6200"));
+    assert_eq!(run(&["--interpreter"]), trace);
+}
+
+#[test]
+fn iec_variables_bind_struct_members_to_iec_addresses_and_devices() {
+    let dir = TempDir::new("st-configuration-iec-variables-struct-members");
+    let toml = "[[program]]\nfile = \"plc.st\"\nname = \"main\"\n\n[iec.variables]\n\
+                \"main.hw.IN\" = \"%IX0.1\"\n\"main.hw.OUT_VAR\" = \"D00300\"\n";
+    write(dir.path(), "plcd.toml", toml);
+    let text = "TYPE HW_COMP : STRUCT IN AT %I* : BOOL; OUT_VAR AT %Q* : WORD; END_STRUCT; END_TYPE
+PROGRAM Main
+  VAR hw : HW_COMP; seen : INT; END_VAR
+  IF hw.IN THEN seen := seen + 1; END_IF;
+  hw.OUT_VAR := hw.OUT_VAR + 1;
+END_PROGRAM
+";
+    write(dir.path(), "plc.st", text);
+    write(dir.path(), "inputs.csv", "15ms, P0001, 1\n");
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let bindings: Vec<&str> = stdout.lines().filter(|l| l.contains("[iec.variables]")).collect();
+    assert_eq!(
+        bindings,
+        [
+            "  config: [iec.variables] main.hw.IN AT %IX0.1 → P0001",
+            "  config: [iec.variables] main.hw.OUT_VAR AT %D00300 → D00300",
+        ]
+    );
+    let run = |engine: &[&str]| {
+        let watch = "D00300,main.hw.IN,main.hw.OUT_VAR,main.seen";
+        let mut args = vec!["sim", "--config", "plcd.toml", "--for", "3ms", "--watch", watch];
+        args.extend(["--inputs", "inputs.csv", "--trace", "-"]);
+        args.extend(engine);
+        let out = plcd(dir.path(), &args);
+        assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let trace = run(&[]);
+    let scans = trace.matches("\"ev\":\"scan_end\"").count().to_string();
+    // OUT_VAR at the plcd device D00300, one more a scan; IN at P0001, never on in 3 ms
+    assert_eq!(last(&trace, "D00300").as_deref(), Some(scans.as_str()), "{trace}");
+    assert_eq!(last(&trace, "main.hw.OUT_VAR").as_deref(), Some(scans.as_str()));
+    assert_eq!(last(&trace, "main.seen"), None);
+    assert_eq!(run(&["--interpreter"]), trace);
+}
+
+#[test]
+fn a_struct_with_members_on_devices_is_used_member_by_member() {
+    // every whole use of `hw` is refused at its place, and none of `spare`'s (no member of it
+    // bound): its bytes in memory do not hold the bound member
+    let dir = TempDir::new("st-configuration-struct-members-whole-uses");
+    write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
+    let text = "TYPE HW_COMP : STRUCT IN AT %I* : BOOL; level : INT; END_STRUCT; END_TYPE
+FUNCTION take : BOOL VAR_IN_OUT x : INT; END_VAR take := TRUE; END_FUNCTION
+PROGRAM Main
+  VAR hw : HW_COMP; spare : HW_COMP; n : UDINT; p : POINTER TO HW_COMP;
+    r : REF_TO HW_COMP; END_VAR
+  spare := hw;
+  hw := spare;
+  n := SIZEOF(hw);
+  p := ADR(hw);
+  IF hw = spare THEN n := 1; END_IF;
+  r := REF(hw);
+  spare := spare;
+  take(hw.level);
+  n := SIZEOF(spare);
+END_PROGRAM
+CONFIGURATION C
+  PROGRAM main : Main;
+  VAR_CONFIG
+    main.hw.IN AT %IX0.1 : BOOL;
+    main.hw : HW_COMP := (level := 3, IN := TRUE);
+  END_VAR
+END_CONFIGURATION
+";
+    write(dir.path(), "plc.st", text);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let msg = "`hw.IN` is bound to a device (VAR_CONFIG, [iec.variables]): `hw` can be used only \
+               member by member";
+    let mut lines: Vec<String> = ["6:12", "7:3", "8:15", "9:12", "10:6", "11:12"]
+        .iter()
+        .map(|at| format!("plc.st:{at}: error: {msg}"))
+        .collect();
+    // an initial value of the whole struct would go to the member's bytes in memory
+    lines.push(
+        "plc.st:20:39: error: `main.hw.IN` is bound to a device (VAR_CONFIG, [iec.variables]): \
+         give its initial value in its binding or in the declaration of `main.hw`"
+            .to_string(),
+    );
+    let mut expected: Vec<&str> = lines.iter().map(String::as_str).collect();
+    expected.push("plcd.toml: 7 error(s)");
+    assert_eq!(stderr.lines().collect::<Vec<_>>(), expected, "{stderr}");
+}
+
+#[test]
+fn var_config_checks_each_struct_member_entry() {
+    // each entry that binds no member is reported at its place, and binds nothing: the
+    // program compiles as without it
+    let dir = TempDir::new("st-configuration-var-config-struct-member-errors");
+    write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
+    let text = "TYPE HW_COMP : STRUCT IN AT %I* : BOOL; OUT AT %QW* : WORD; level : INT; END_STRUCT; END_TYPE
+PROGRAM Main
+  VAR hw : HW_COMP; END_VAR
+  VAR CONSTANT k : HW_COMP; END_VAR
+  VAR_STAT st : HW_COMP; END_VAR
+  hw.OUT := hw.OUT + 1;
+END_PROGRAM
+CONFIGURATION C
+  PROGRAM main : Main;
+  VAR_CONFIG
+    main.hw.OUT AT %QX0.1 : WORD;
+    main.hw.level AT %MW1 : INT;
+    main.hw.NOPE AT %MW1 : INT;
+    main.hw.IN AT %IX0.1 : INT;
+    main.k.IN AT %IX0.1 : BOOL;
+    main.st.IN AT %IX0.1 : BOOL;
+    main.hw.IN AT %IX0.2 : BOOL;
+    main.hw.IN AT %IX0.3 : BOOL;
+  END_VAR
+END_CONFIGURATION
+";
+    write(dir.path(), "plc.st", text);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let not_partial = "is not declared at a partly specified address (`AT %I*`, `%Q*`, `%M*`): \
+                       VAR_CONFIG binds only such a variable";
+    let expected = [
+        "plc.st:11:20: error: `%QX0.1` does not fit `OUT`, declared at `%QW*`".to_string(),
+        format!("plc.st:12:13: error: `main.hw.level` {not_partial}"),
+        "plc.st:13:13: error: `HW_COMP` has no member `NOPE`".to_string(),
+        "plc.st:14:13: error: `main.hw.IN` is `BOOL`, not `INT`".to_string(),
+        "plc.st:15:10: error: `k` is CONSTANT: it cannot be written".to_string(),
+        format!("plc.st:16:13: error: `main.st.IN` {not_partial}"),
+        // the entry of line 14 binds `main.hw.IN`, its type reported
+        "plc.st:17:5: error: `main.hw.IN` is already bound by VAR_CONFIG (line 14)".to_string(),
+        "plc.st:18:5: error: `main.hw.IN` is already bound by VAR_CONFIG (line 14)".to_string(),
+        "plcd.toml: 8 error(s)".to_string(),
+    ];
+    assert_eq!(stderr.lines().collect::<Vec<_>>(), expected, "{stderr}");
+}
+
+#[test]
+fn a_struct_with_partly_specified_members_is_no_input_in_out_or_temp() {
+    // IEC 61131-3 ed3: only a variable of an instance's own has members a configuration binds;
+    // a VAR, a VAR_OUTPUT and a FUNCTION's VAR are accepted, their members in memory
+    let dir = TempDir::new("st-struct-partly-specified-members-kinds");
+    write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
+    let text = "TYPE HW_COMP : STRUCT level : INT; OUT AT %QW* : WORD; END_STRUCT; END_TYPE
+FUNCTION f : BOOL
+  VAR_INPUT a : HW_COMP; END_VAR
+  VAR_IN_OUT b : HW_COMP; END_VAR
+  VAR c : HW_COMP; END_VAR
+  f := TRUE;
+END_FUNCTION
+FUNCTION_BLOCK g
+  VAR_OUTPUT d : HW_COMP; END_VAR
+  VAR_TEMP e : HW_COMP; END_VAR
+  VAR h : HW_COMP; END_VAR
+END_FUNCTION_BLOCK
+PROGRAM Main VAR n : INT; END_VAR n := n + 1; END_PROGRAM
+";
+    write(dir.path(), "plc.st", text);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let message = |at: &str, block: &str| {
+        format!(
+            "plc.st:{at}: error: `HW_COMP` has its member `OUT` at a partly specified address: a \
+             {block} cannot be of it (IEC 61131-3): declare the variable in VAR or VAR_OUTPUT"
+        )
+    };
+    let expected = [
+        message("3:13", "VAR_INPUT"),
+        message("4:14", "VAR_IN_OUT"),
+        message("10:12", "VAR_TEMP"),
+        "plcd.toml: 3 error(s)".to_string(),
+    ];
+    assert_eq!(stderr.lines().collect::<Vec<_>>(), expected, "{stderr}");
+}
+
 #[test]
 fn var_config_binds_a_variable_of_a_nested_instance_and_checks_each_entry() {
     // the PROGRAM's one instance: its code rewritten, `o.inner` given a copy of `Inner` inside

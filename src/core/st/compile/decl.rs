@@ -517,10 +517,29 @@ impl<'a> Ctx<'a> {
                 self.type_decls[t].ty = Ty::Struct(index);
                 let mut out: Vec<Member> = Vec::new();
                 let mut img = Vec::new();
+                // a copy made for a variable whose members a binding places (`fb_config.rs`)
+                let copy = decl.name.name.contains('$');
                 for m in members {
                     let mty = self.member_type(&m.ty, scope);
-                    if let Some(loc) = &m.location {
-                        self.error(file, loc.span, "a STRUCT member cannot be located");
+                    let partial = m.location.as_ref().is_some_and(is_partial);
+                    let mut device = None;
+                    match &m.location {
+                        Some(loc) if !partial && !copy => {
+                            let msg = "a STRUCT member's address is partly specified (`AT %I*`, \
+                                       `%Q*`, `%M*`): VAR_CONFIG or [iec.variables] binds it \
+                                       for each variable";
+                            self.error(file, loc.span, msg);
+                        }
+                        Some(loc) if !partial => {
+                            let name = m.names.first().map_or("", |n| n.name.as_str());
+                            if let Some((storage, _)) = self.locate(file, loc, &mty, name) {
+                                // at RUN start, as any located variable's
+                                let init = m.init.as_ref();
+                                self.located_init_for(storage, &mty, &m.ty, init, scope, name);
+                                device = Some(storage);
+                            }
+                        }
+                        _ => {}
                     }
                     for id in &m.names {
                         if out.iter().any(|x| id.is(&x.name)) {
@@ -537,12 +556,17 @@ impl<'a> Ctx<'a> {
                             name: id.name.clone(),
                             ty: mty.clone(),
                             offset: img.len() as u32,
+                            partial: partial || device.is_some(),
+                            device,
                         });
                         img.extend_from_slice(&bytes);
                     }
                 }
+                // a copy is named as its type in messages (`fb_config.rs` names it after the
+                // variable too, for its declaration alone)
+                let name = decl.name.name.split('$').next().unwrap_or_default().to_string();
                 self.types.structs[index] = StructTy {
-                    name: decl.name.name.clone(),
+                    name,
                     members: out,
                     size: img.len() as u32,
                     image: img,
@@ -560,6 +584,37 @@ impl<'a> Ctx<'a> {
         entry.ty = ty.clone();
         entry.image = image;
         ty
+    }
+
+    /// The STRUCT type the struct `s` is a copy of, when a binding of its variable's members
+    /// made it (`fb_config.rs` names it `Type$instance.variable`).
+    pub(super) fn struct_copy_of(&self, s: usize) -> Option<Ty> {
+        let entry = self.type_decls.iter().find(|t| t.ty == Ty::Struct(s))?;
+        let (original, _) = entry.decl.name.name.split_once('$')?;
+        let &t = self.type_names.get(&key(original))?;
+        Some(self.type_decls[t].ty.clone())
+    }
+
+    /// Refuses a VAR_INPUT, VAR_IN_OUT or VAR_TEMP of a STRUCT type with members at partly
+    /// specified addresses, as IEC 61131-3 ed3 does: only a variable of an instance's own has
+    /// members a configuration binds.
+    fn refuse_partly_located(&mut self, ty: &Ty, kind: VarKind, file: usize, decl: &ast::VarDecl) {
+        let Ty::Struct(s) = ty else { return };
+        let block = match kind {
+            VarKind::Input => "VAR_INPUT",
+            VarKind::InOut => "VAR_IN_OUT",
+            VarKind::Temp => "VAR_TEMP",
+            _ => return,
+        };
+        let st = &self.types.structs[*s];
+        let Some(m) = st.members.iter().find(|m| m.partial) else { return };
+        let msg = format!(
+            "`{}` has its member `{}` at a partly specified address: a {block} cannot be of it \
+             (IEC 61131-3): declare the variable in VAR or VAR_OUTPUT",
+            st.name, m.name
+        );
+        let span = decl.names.first().map_or(decl.span, |n| n.span);
+        self.error(file, span, msg);
     }
 
     /// The default value of a type as bytes (a declared alias's own initial value included).
@@ -673,6 +728,18 @@ impl<'a> Ctx<'a> {
                     let found =
                         self.types.structs[*s].members.iter().find(|m| id.is(&m.name)).cloned();
                     match found {
+                        // the lowering moved the variable's own initializer of a bound member
+                        // to the member (`fb_config.rs`); one from around the variable would
+                        // go to its unused bytes
+                        Some(m) if m.device.is_some() => {
+                            let msg = format!(
+                                "`{what}.{}` is bound to a device (VAR_CONFIG, [iec.variables]): \
+                                 give its initial value in its binding or in the declaration of \
+                                 `{what}`",
+                                m.name
+                            );
+                            self.error(file, id.span, msg);
+                        }
                         Some(m) => {
                             self.write_init(img, at + m.offset as usize, &m.ty, v, scope, &m.name)
                         }
@@ -996,6 +1063,7 @@ impl<'a> Ctx<'a> {
                 if block.kind != VarKind::InOut {
                     self.check_instantiable(&ty, file, decl.span);
                 }
+                self.refuse_partly_located(&ty, block.kind, file, decl);
                 // a method's may (CODESYS): a fresh instance at each call, as its other VARs
                 if kind == PouKind::Function
                     && member.is_none()

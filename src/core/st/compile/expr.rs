@@ -538,12 +538,43 @@ impl<'a> Ctx<'a> {
         expected: Option<&Ty>,
     ) -> TExpr {
         // a `REFERENCE TO` (a variable, a member, an element) stands for what it refers to
+        let te = self.check_place_whole(e, scope, access, expected);
+        self.refuse_struct_on_devices(te, e, scope.file)
+    }
+
+    /// [`Ctx::check_place`], a struct some of whose members are at devices accepted: the base
+    /// of a member access.
+    fn check_place_whole(
+        &mut self,
+        e: &Expr,
+        scope: Scope,
+        access: Access,
+        expected: Option<&Ty>,
+    ) -> TExpr {
         let te = self.check_place_itself(e, scope, access, expected);
         let te = self.auto_deref(te);
         if access == Access::Ref {
             self.refuse_open_string_in_out(&te, scope.file);
         }
         te
+    }
+
+    /// Refuses a struct variable used whole (assigned, compared, passed, its address or size
+    /// taken) when a binding placed some of its members at devices: its bytes in memory do not
+    /// hold those members, so no whole use of it would be right.
+    fn refuse_struct_on_devices(&mut self, te: TExpr, e: &Expr, file: usize) -> TExpr {
+        let Ty::Struct(s) = te.ty else { return te };
+        let st = &self.types.structs[s];
+        let Some(m) = st.members.iter().find(|m| m.device.is_some()) else { return te };
+        let (name, span) = (m.name.clone(), te.span);
+        let msg = format!(
+            "`{}.{name}` is bound to a device (VAR_CONFIG, [iec.variables]): `{}` can be used \
+             only member by member",
+            expr_text(e),
+            expr_text(e)
+        );
+        self.error(file, span, msg);
+        TExpr::error(span)
     }
 
     /// [`Ctx::check_place`], a `REFERENCE TO` as itself.
@@ -574,7 +605,7 @@ impl<'a> Ctx<'a> {
                         return v;
                     }
                 }
-                let b = self.check_place(
+                let b = self.check_place_whole(
                     base,
                     scope,
                     if access == Access::Read { Access::Read } else { Access::Ref },
@@ -583,6 +614,19 @@ impl<'a> Ctx<'a> {
                 match b.ty.clone() {
                     Ty::Error => TExpr::error(span),
                     Ty::Iface(i) => self.interface_property(b, i, id, access, scope),
+                    // a member a binding placed at a device (`fb_config.rs`): the device, as
+                    // a located variable (the struct is one variable's, `b` has no effects)
+                    Ty::Struct(s)
+                        if self.types.structs[s]
+                            .members
+                            .iter()
+                            .any(|m| id.is(&m.name) && m.device.is_some()) =>
+                    {
+                        let st = &self.types.structs[s];
+                        let m = st.members.iter().find(|m| id.is(&m.name)).expect("found");
+                        let storage = m.device.expect("a device");
+                        TExpr { k: TK::Var { storage, by_ref: false }, ty: m.ty.clone(), span }
+                    }
                     Ty::Struct(s) => {
                         let st = &self.types.structs[s];
                         match st.members.iter().find(|m| id.is(&m.name)) {

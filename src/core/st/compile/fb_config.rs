@@ -14,6 +14,12 @@
 //! address fits; the compile checks every entry and reports the others
 //! (`var_config.rs`). The config's `[iec.variables]` entries are lowered the same way, after
 //! the configurations' (a plcd device may be their address), for any program instance.
+//!
+//! A member of a struct variable (`P4.hw.IN`, `P4.FB1.hw.IN`), declared at a partly specified
+//! address in its STRUCT type, is bound alike: the variable gets a copy of its type of its own
+//! (`HW_COMP$P4.hw`), in which the member is declared at the bound address (and with the
+//! entry's initial value), the other members as the type has them ([`locate_member`]); the
+//! compile reads the copy's located member as a device (`decl.rs`, `expr.rs`).
 
 use std::borrow::Cow;
 
@@ -198,6 +204,21 @@ fn locate_inside(
         return true;
     }
     let TypeRef::Named(block) = &decl.ty else { return false };
+    if path.len() == 2 {
+        if let Some((f, i)) = find_struct(files, &block.name) {
+            return locate_member(
+                files,
+                (f, i),
+                &mut vars[b],
+                d,
+                path,
+                location,
+                init,
+                prefix,
+                fit,
+            );
+        }
+    }
     // the declaration names the copy already when another entry bound a variable of it
     let copy_name = match block.name.contains('$') {
         true => block.name.clone(),
@@ -232,6 +253,111 @@ fn locate_inside(
     };
     split_off(&mut vars[b], d, name, retyped);
     true
+}
+
+/// Declares the member `path[1]` of the struct variable `path[0]`, declared by `vars.decls[d]`
+/// of a STRUCT type at `(f, i)`, at `location` when it fits by `fit`: the variable is given a
+/// copy of its type of its own, named `Type$prefix.variable`, with the member at the address
+/// (and the entry's initial value); whether it did.
+#[allow(clippy::too_many_arguments)]
+fn locate_member(
+    files: &mut [Cow<'_, ast::File>],
+    (f, i): (usize, usize),
+    vars: &mut VarBlock,
+    d: usize,
+    path: &[Ident],
+    location: &Ident,
+    init: &Option<Init>,
+    prefix: String,
+    fit: (&IecLayout, bool),
+) -> bool {
+    let (name, member) = (&path[0], &path[1]);
+    let decl = &vars.decls[d];
+    let TypeRef::Named(ty) = &decl.ty else { return false };
+    let copy_name = match ty.name.contains('$') {
+        true => ty.name.clone(),
+        false => format!("{}${prefix}.{}", ty.name, name.name),
+    };
+    let (f, i) = find_struct(files, &copy_name).unwrap_or((f, i));
+    let Item::Type(found) = &files[f].items[i] else { return false };
+    let mut copy = found.clone();
+    let fresh = !copy.name.is(&copy_name);
+    copy.name.name = copy_name.clone();
+    let ast::TypeDef::Struct { members } = &mut copy.def else { return false };
+    let Some(m) = members.iter().position(|m| m.names.iter().any(|n| n.is(&member.name))) else {
+        return false;
+    };
+    let fits = members[m].location.as_ref().is_some_and(|partial| {
+        partial.name.ends_with('*')
+            && super::var_config::fits(&partial.name, &location.name, fit.0, fit.1)
+    });
+    if !fits {
+        return false;
+    }
+    // the variable's own initializer of the member (`hw : T := (IN := TRUE)`) goes to the
+    // member's declaration, written to the device at RUN start, unless the entry gives one
+    let mut own_init = decl.init.clone();
+    let given = match &mut own_init {
+        Some(Init::Struct { members, .. }) => {
+            let at = members.iter().position(|(n, _)| n.is(&member.name));
+            at.map(|at| members.remove(at).1)
+        }
+        _ => None,
+    };
+    let old = &members[m];
+    let span = old.location.as_ref().map_or(location.span, |l| l.span);
+    let located = ast::VarDecl {
+        names: vec![member.clone()],
+        location: Some(Ident { name: location.name.clone(), span }),
+        init: init.clone().or(given).or_else(|| old.init.clone()),
+        ..old.clone()
+    };
+    // the member's own declaration, in place, so that the copy's layout is its type's
+    let at = &mut members[m];
+    if at.names.len() == 1 {
+        *at = located;
+    } else {
+        let place = at.names.iter().position(|n| n.is(&member.name)).expect("named");
+        at.names.remove(place);
+        let rest = members[m].clone();
+        let (before, after) = (
+            ast::VarDecl { names: rest.names[..place].to_vec(), ..rest.clone() },
+            ast::VarDecl { names: rest.names[place..].to_vec(), ..rest },
+        );
+        let mut split = Vec::new();
+        split.extend((!before.names.is_empty()).then_some(before));
+        split.push(located);
+        split.extend((!after.names.is_empty()).then_some(after));
+        members.splice(m..=m, split);
+    }
+    let items = &mut files[f].to_mut().items;
+    if fresh {
+        items.push(Item::Type(copy));
+    } else {
+        items[i] = Item::Type(copy);
+    }
+    let retyped = ast::VarDecl {
+        names: vec![name.clone()],
+        ty: TypeRef::Named(Ident { name: copy_name, span: ty.span }),
+        init: own_init,
+        ..decl.clone()
+    };
+    let name = name.clone();
+    split_off(vars, d, &name, retyped);
+    true
+}
+
+/// Where the STRUCT type `name` is: its file and item.
+fn find_struct(files: &[Cow<'_, ast::File>], name: &str) -> Option<(usize, usize)> {
+    files.iter().enumerate().find_map(|(f, file)| {
+        file.items
+            .iter()
+            .position(|i| {
+                matches!(i, Item::Type(t) if t.name.is(name)
+                    && matches!(t.def, ast::TypeDef::Struct { .. }))
+            })
+            .map(|i| (f, i))
+    })
 }
 
 /// Replaces `name` in the declaration `d` of `block` (`a, b : T;`) by a declaration of its

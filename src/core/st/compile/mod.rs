@@ -963,8 +963,20 @@ fn leaves(
         Ty::Struct(s) => {
             let mut relative = true;
             for m in &cx.types.structs[*s].members {
-                let p = Pointer { space: at.space, offset: at.offset + m.offset };
+                // a member a binding placed at a device (`fb_config.rs`) is there
+                let p = match m.device {
+                    Some(device) => {
+                        relative = false;
+                        match device_pointer(device) {
+                            Some(p) => p,
+                            None => continue,
+                        }
+                    }
+                    None => Pointer { space: at.space, offset: at.offset + m.offset },
+                };
                 let name = format!("{name}.{}", m.name);
+                // the device's own retention applies, as to any located variable
+                let retain = retain && m.device.is_none();
                 relative &= leaves(cx, &name, &m.ty, p, retain, constant, out);
             }
             relative

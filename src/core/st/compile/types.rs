@@ -356,6 +356,12 @@ pub struct Member {
     pub name: String,
     pub ty: Ty,
     pub offset: u32,
+    /// Declared at a partly specified address (`IN AT %I* : BOOL;`, IEC 61131-3 ed3).
+    pub partial: bool,
+    /// The device a binding (VAR_CONFIG, `[iec.variables]`) placed the member at, in the copy
+    /// of the type the bound variable was given (`fb_config.rs`): code reads and writes the
+    /// device, and the member's bytes in the struct are unused.
+    pub device: Option<super::ctx::Storage>,
 }
 
 #[derive(Debug, Clone, PartialEq)]

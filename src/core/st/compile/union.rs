@@ -97,7 +97,13 @@ impl<'a> Ctx<'a> {
                 if m.init.is_some() {
                     initialized = Some(&id.name);
                 }
-                out.push(Member { name: id.name.clone(), ty: ty.clone(), offset: 0 });
+                out.push(Member {
+                    name: id.name.clone(),
+                    ty: ty.clone(),
+                    offset: 0,
+                    partial: false,
+                    device: None,
+                });
             }
         }
         self.check_string_ends(&out, members, file);

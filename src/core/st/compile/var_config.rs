@@ -9,8 +9,9 @@
 //!   the PROGRAM of its own ([`PouInfo::copy_of`](super::ctx::PouInfo)), compiled with the
 //!   variable at the device; a PROGRAM with actions (which would need copies too) cannot be so
 //!   copied. A variable inside one of its FUNCTION_BLOCK instances (`i.fb.x`) is bound by a
-//!   lowering, which gives that instance a copy of its block (`fb_config.rs`); it is checked
-//!   here. The other cases are refused, each with its own message.
+//!   lowering, which gives that instance a copy of its block (`fb_config.rs`), and so is a
+//!   member of a struct variable (`i.hw.IN`, `i.fb.hw.IN`), the variable given a copy of its
+//!   type; both are checked here. The other cases are refused, each with its own message.
 //! - `i.fb.x : INT := v;` gives a variable of the instance, or of a FUNCTION_BLOCK instance or a
 //!   struct inside it, its initial value for that instance: written into the instance's own
 //!   initial image (each instance has its own memory), or for a located variable to its
@@ -350,17 +351,23 @@ impl Ctx<'_> {
     ) -> bool {
         let (file, binder) = (source.file, source.binder);
         let Some(v) = self.program_variable(file, p, &path[1]) else { return false };
-        let mut ty = self.pous[p].vars[v].ty.clone();
+        let var = &self.pous[p].vars[v];
+        let mut ty = var.ty.clone();
+        // the kind of the variable `ty` is of, and whether it is CONSTANT
+        let mut holder = (var.kind, var.constant);
         for (at, id) in path.iter().enumerate().skip(2) {
             let q = match ty {
                 Ty::Fb(q) => q,
                 Ty::Error => return false,
+                Ty::Struct(s) if at + 1 == path.len() => {
+                    return self.check_bound_member(source, (entry, location), path, s, holder);
+                }
                 other => {
                     let n = self.ty_name(&other);
                     let msg = format!(
                         "`{}` is `{n}`: {} binds a variable of a program instance or of a \
-                         FUNCTION_BLOCK instance inside it, not a member of a struct or an \
-                         element of an array",
+                         FUNCTION_BLOCK instance inside it, or a member of a struct variable \
+                         of one, not a member of a member or an element of an array",
                         path_text(&path[..at]),
                         binder.name()
                     );
@@ -377,6 +384,7 @@ impl Ctx<'_> {
             };
             if at + 1 < path.len() {
                 ty = fb.vars[m].ty.clone();
+                holder = (fb.vars[m].kind, fb.vars[m].constant);
                 continue;
             }
             let kind = fb.vars[m].kind;
@@ -417,6 +425,76 @@ impl Ctx<'_> {
         false
     }
 
+    /// Checks a binding of the member `path[last]` of a struct variable (its type the struct
+    /// `s`), which the lowering made when it fits (`fb_config.rs`): the variable then has a
+    /// copy of its type with the member at the entry's address. Whether the entry binds it.
+    fn check_bound_member(
+        &mut self,
+        source: &Bindings<'_>,
+        (entry, location): (&ConfigVar, &Ident),
+        path: &[Ident],
+        s: usize,
+        (kind, constant): (VarKind, bool),
+    ) -> bool {
+        let (file, binder) = (source.file, source.binder);
+        let id = &path[path.len() - 1];
+        // the lowering binds a member of a variable of the instance's own only, as a variable
+        if constant {
+            let variable = &path[path.len() - 2];
+            let msg = format!("`{}` is CONSTANT: it cannot be written", variable.name);
+            self.error(file, variable.span, msg);
+            return false;
+        }
+        if !own(kind) {
+            self.error(file, id.span, not_partly_specified(&path_text(path), binder));
+            return false;
+        }
+        let st = &self.types.structs[s];
+        let type_name = st.name.clone();
+        let Some(m) = st.members.iter().find(|m| id.is(&m.name)).cloned() else {
+            let hint = suggest(&id.name, st.members.iter().map(|m| m.name.as_str()));
+            let msg = format!("`{type_name}` has no member `{}`{hint}", id.name);
+            self.error(file, id.span, msg);
+            return false;
+        };
+        // the member's address as the type declares it: `ty` the copy or the type itself
+        let written = |ty: &Ty| {
+            self.type_decls.iter().find(|t| &t.ty == ty).and_then(|t| match &t.decl.def {
+                ast::TypeDef::Struct { members } => members
+                    .iter()
+                    .find(|d| d.names.iter().any(|n| n.is(&id.name)))
+                    .and_then(|d| d.location.clone()),
+                _ => None,
+            })
+        };
+        if m.device.is_some() {
+            let bound = written(&Ty::Struct(s))
+                .is_some_and(|l| l.name.eq_ignore_ascii_case(&location.name));
+            if bound {
+                // the lowering bound it by this entry, whose type is reported when wrong
+                self.same_type(file, entry, path, &m.ty);
+                return true;
+            }
+        }
+        // the type's own declaration, which the copy's (if any) is of
+        let original = self.type_decls.iter().find(|t| t.decl.name.is(&type_name));
+        let partial = original.map(|t| t.ty.clone()).and_then(|ty| written(&ty));
+        match partial.filter(|l| m.partial && l.name.ends_with('*')) {
+            Some(partial) => {
+                let msg = format!(
+                    "`%{}` does not fit `{}`, declared at `%{}`",
+                    location.name, id.name, partial.name
+                );
+                self.error(file, location.span, msg);
+            }
+            None => {
+                let name = path_text(path);
+                self.error(file, id.span, not_partly_specified(&name, binder));
+            }
+        }
+        false
+    }
+
     /// Whether the type `entry` gives is `ty`, the type of the variable at `path` (an entry of
     /// the config gives none: the variable's); reported when not.
     fn same_type(&mut self, file: usize, entry: &ConfigVar, path: &[Ident], ty: &Ty) -> bool {
@@ -426,7 +504,12 @@ impl Ctx<'_> {
         if given.is_error() || ty.is_error() {
             return false;
         }
-        if &given == ty {
+        // a struct variable whose members are bound has a copy of the type written
+        let copied = match ty {
+            Ty::Struct(s) => self.struct_copy_of(*s),
+            _ => None,
+        };
+        if &given == ty || copied.as_ref() == Some(&given) {
             return true;
         }
         let (given, declared) = (self.ty_name(&given), self.ty_name(ty));
@@ -525,6 +608,14 @@ impl Ctx<'_> {
                         );
                         return;
                     };
+                    let last = path.last().is_some_and(|l| std::ptr::eq(l, id));
+                    if let Some(device) = m.device.filter(|_| last) {
+                        // the member a binding placed at a device: its initial value there
+                        ty = m.ty;
+                        storage = device;
+                        checked = (id, VarKind::Local, false);
+                        break;
+                    }
                     (m.ty, m.offset, VarKind::Local, false)
                 }
                 other => {
