@@ -1086,6 +1086,7 @@ fn a_struct_with_partly_specified_members_is_no_input_in_out_or_temp() {
     let dir = TempDir::new("st-struct-partly-specified-members-kinds");
     write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
     let text = "TYPE HW_COMP : STRUCT level : INT; OUT AT %QW* : WORD; END_STRUCT; END_TYPE
+TYPE Board : STRUCT n : INT; hw : HW_COMP; END_STRUCT; END_TYPE
 FUNCTION f : BOOL
   VAR_INPUT a : HW_COMP; END_VAR
   VAR_IN_OUT b : HW_COMP; END_VAR
@@ -1096,6 +1097,8 @@ FUNCTION_BLOCK g
   VAR_OUTPUT d : HW_COMP; END_VAR
   VAR_TEMP e : HW_COMP; END_VAR
   VAR h : HW_COMP; END_VAR
+  VAR_INPUT inside : Board; END_VAR
+  VAR_IN_OUT many : ARRAY [1..2] OF HW_COMP; END_VAR
 END_FUNCTION_BLOCK
 PROGRAM Main VAR n : INT; END_VAR n := n + 1; END_PROGRAM
 ";
@@ -1109,11 +1112,14 @@ PROGRAM Main VAR n : INT; END_VAR n := n + 1; END_PROGRAM
              {block} cannot be of it (IEC 61131-3): declare the variable in VAR or VAR_OUTPUT"
         )
     };
+    // a struct or an array holding it too
     let expected = [
-        message("3:13", "VAR_INPUT"),
-        message("4:14", "VAR_IN_OUT"),
-        message("10:12", "VAR_TEMP"),
-        "plcd.toml: 3 error(s)".to_string(),
+        message("4:13", "VAR_INPUT"),
+        message("5:14", "VAR_IN_OUT"),
+        message("11:12", "VAR_TEMP"),
+        message("13:13", "VAR_INPUT"),
+        message("14:14", "VAR_IN_OUT"),
+        "plcd.toml: 5 error(s)".to_string(),
     ];
     assert_eq!(stderr.lines().collect::<Vec<_>>(), expected, "{stderr}");
 }

@@ -595,23 +595,36 @@ impl<'a> Ctx<'a> {
         Some(self.type_decls[t].ty.clone())
     }
 
+    /// The STRUCT type and the member of it at a partly specified address that `ty` holds: a
+    /// member of its own, or of a struct or an array element inside it.
+    fn partly_located(&self, ty: &Ty) -> Option<(String, String)> {
+        match ty {
+            Ty::Struct(s) => {
+                let st = &self.types.structs[*s];
+                match st.members.iter().find(|m| m.partial) {
+                    Some(m) => Some((st.name.clone(), m.name.clone())),
+                    None => st.members.iter().find_map(|m| self.partly_located(&m.ty)),
+                }
+            }
+            Ty::Array(a) => self.partly_located(&a.of),
+            _ => None,
+        }
+    }
+
     /// Refuses a VAR_INPUT, VAR_IN_OUT or VAR_TEMP of a STRUCT type with members at partly
     /// specified addresses, as IEC 61131-3 ed3 does: only a variable of an instance's own has
     /// members a configuration binds.
     fn refuse_partly_located(&mut self, ty: &Ty, kind: VarKind, file: usize, decl: &ast::VarDecl) {
-        let Ty::Struct(s) = ty else { return };
         let block = match kind {
             VarKind::Input => "VAR_INPUT",
             VarKind::InOut => "VAR_IN_OUT",
             VarKind::Temp => "VAR_TEMP",
             _ => return,
         };
-        let st = &self.types.structs[*s];
-        let Some(m) = st.members.iter().find(|m| m.partial) else { return };
+        let Some((st, m)) = self.partly_located(ty) else { return };
         let msg = format!(
-            "`{}` has its member `{}` at a partly specified address: a {block} cannot be of it \
-             (IEC 61131-3): declare the variable in VAR or VAR_OUTPUT",
-            st.name, m.name
+            "`{st}` has its member `{m}` at a partly specified address: a {block} cannot be of \
+             it (IEC 61131-3): declare the variable in VAR or VAR_OUTPUT"
         );
         let span = decl.names.first().map_or(decl.span, |n| n.span);
         self.error(file, span, msg);
