@@ -753,14 +753,7 @@ fn var_config_binds_variables_inside_a_function_block_instance() {
         ]
     );
     let watch = "P4.seen,P5.seen,D12003,D13036,P4.FB1.C3,P4.FB2.C2,P4.FB2.C3,P5.FB1.C2,P5.FB1.C3";
-    let run = |engine: &[&str]| {
-        let mut args = vec!["sim", "--config", "plcd.toml", "--for", "25ms", "--watch", watch];
-        args.extend(["--trace", "-"]);
-        args.extend(engine);
-        let out = plcd(dir.path(), &args);
-        assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-        String::from_utf8_lossy(&out.stdout).into_owned()
-    };
+    let run = |engine: &[&str]| sim_trace(dir.path(), "25ms", watch, engine);
     let trace = run(&[]);
     // three scans: P4.FB1's C3 at %QW3 (D12003), 10 a call, read back by the program; C2 at
     // %QB25, the high byte of D13036, from VAR_CONFIG's 16#10, one more a call: 16#13
@@ -841,12 +834,7 @@ fn var_config_binds_struct_members_at_partly_specified_addresses() {
                  main.spare.OUT_VAR,main.fb.hw.OUT_VAR,other.hw.OUT_VAR,other.fb.hw.OUT_VAR,\
                  other.seen";
     let run = |engine: &[&str]| {
-        let mut args = vec!["sim", "--config", "plcd.toml", "--for", "25ms", "--watch", watch];
-        args.extend(["--inputs", "inputs.csv", "--trace", "-"]);
-        args.extend(engine);
-        let out = plcd(dir.path(), &args);
-        assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-        String::from_utf8_lossy(&out.stdout).into_owned()
+        sim_trace(dir.path(), "25ms", watch, &[&["--inputs", "inputs.csv"], engine].concat())
     };
     let trace = run(&[]);
     // three scans: main.hw.OUT_VAR at %QW5 (D12005) from the member's 200, one more a scan;
@@ -909,15 +897,8 @@ CONFIGURATION C
 END_CONFIGURATION
 ";
     write(dir.path(), "plc.st", text);
-    let run = |engine: &[&str]| {
-        let watch = "D12005,D12006,D12007,main.seen,main.rest";
-        let mut args = vec!["sim", "--config", "plcd.toml", "--for", "25ms", "--watch", watch];
-        args.extend(["--trace", "-"]);
-        args.extend(engine);
-        let out = plcd(dir.path(), &args);
-        assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-        String::from_utf8_lossy(&out.stdout).into_owned()
-    };
+    let watch = "D12005,D12006,D12007,main.seen,main.rest";
+    let run = |engine: &[&str]| sim_trace(dir.path(), "25ms", watch, engine);
     let trace = run(&[]);
     let first = |name: &str| {
         let key = format!("\"dev\":\"{name}\",\"value\":");
@@ -963,14 +944,9 @@ END_PROGRAM
             "  config: [iec.variables] main.hw.OUT_VAR AT %D00300 → D00300",
         ]
     );
+    let watch = "D00300,main.hw.IN,main.hw.OUT_VAR,main.seen";
     let run = |engine: &[&str]| {
-        let watch = "D00300,main.hw.IN,main.hw.OUT_VAR,main.seen";
-        let mut args = vec!["sim", "--config", "plcd.toml", "--for", "3ms", "--watch", watch];
-        args.extend(["--inputs", "inputs.csv", "--trace", "-"]);
-        args.extend(engine);
-        let out = plcd(dir.path(), &args);
-        assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-        String::from_utf8_lossy(&out.stdout).into_owned()
+        sim_trace(dir.path(), "3ms", watch, &[&["--inputs", "inputs.csv"], engine].concat())
     };
     let trace = run(&[]);
     let scans = trace.matches("\"ev\":\"scan_end\"").count().to_string();
@@ -1231,14 +1207,7 @@ END_CONFIGURATION
 ";
     write(dir.path(), "plc.st", text);
     let watch = "D12003,P4.got,P5.got,P5.FB1.C3";
-    let run = |engine: &[&str]| {
-        let mut args = vec!["sim", "--config", "plcd.toml", "--for", "25ms", "--watch", watch];
-        args.extend(["--trace", "-"]);
-        args.extend(engine);
-        let out = plcd(dir.path(), &args);
-        assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-        String::from_utf8_lossy(&out.stdout).into_owned()
-    };
+    let run = |engine: &[&str]| sim_trace(dir.path(), "25ms", watch, engine);
     let trace = run(&[]);
     // three scans of 101: on the device for P4, in memory for P5
     assert_eq!(last(&trace, "D12003").as_deref(), Some("303"), "{trace}");
@@ -1740,14 +1709,7 @@ END_PROGRAM
         ]
     );
     let watch = "a.n,P0643,D14005,a.tank.level,b.tank.level,a.lamp,b.lamp,M0003,a.alarm";
-    let run = |engine: &[&str]| {
-        let mut args = vec!["sim", "--config", "plcd.toml", "--for", "25ms", "--watch", watch];
-        args.extend(["--trace", "-"]);
-        args.extend(engine);
-        let out = plcd(dir.path(), &args);
-        assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-        String::from_utf8_lossy(&out.stdout).into_owned()
-    };
+    let run = |engine: &[&str]| sim_trace(dir.path(), "25ms", watch, engine);
     let trace = run(&[]);
     // three scans: a's lamp at P0643 (n = 3, odd), its tank's level at D14005 from the
     // declaration's 7, written at RUN start, one more a scan
@@ -1883,4 +1845,16 @@ fn iec_variables_bind_inside_a_block_beside_var_config() {
     assert_eq!(last(&trace, "P5.FB1.C3").as_deref(), Some("30"));
     assert_eq!(last(&trace, "P5.seen").as_deref(), Some("30"));
     assert_eq!(last(&trace, "P5.FB2.C3").as_deref(), Some("3"));
+}
+
+/// The trace (JSON Lines) of `plcd sim` on the project in `dir` for `run_for` of virtual time,
+/// watching `watch`, with the options `more` (`--interpreter`, `--inputs`); the run must
+/// succeed.
+fn sim_trace(dir: &Path, run_for: &str, watch: &str, more: &[&str]) -> String {
+    let mut args = vec!["sim", "--config", "plcd.toml", "--for", run_for, "--watch", watch];
+    args.extend(["--trace", "-"]);
+    args.extend(more);
+    let out = plcd(dir, &args);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned()
 }
