@@ -186,11 +186,7 @@ fn locate_inside(
     }
     let decl = &vars[b].decls[d];
     if path.len() == 1 {
-        let fits = decl.location.as_ref().is_some_and(|partial| {
-            partial.name.ends_with('*')
-                && super::var_config::fits(&partial.name, &location.name, fit.0, fit.1)
-        });
-        if !fits {
+        if !binds(decl.location.as_ref(), location, fit) {
             return false;
         }
         let span = decl.location.as_ref().map_or(location.span, |l| l.span);
@@ -219,11 +215,7 @@ fn locate_inside(
             );
         }
     }
-    // the declaration names the copy already when another entry bound a variable of it
-    let copy_name = match block.name.contains('$') {
-        true => block.name.clone(),
-        false => format!("{}${prefix}.{}", block.name, name.name),
-    };
+    let copy_name = copy_name(&block.name, &prefix, &name.name);
     // the copy made for another variable of this instance, else the block
     let Some((f, i)) = find_block(files, &copy_name).or_else(|| find_block(files, &block.name))
     else {
@@ -274,10 +266,7 @@ fn locate_member(
     let (name, member) = (&path[0], &path[1]);
     let decl = &vars.decls[d];
     let TypeRef::Named(ty) = &decl.ty else { return false };
-    let copy_name = match ty.name.contains('$') {
-        true => ty.name.clone(),
-        false => format!("{}${prefix}.{}", ty.name, name.name),
-    };
+    let copy_name = copy_name(&ty.name, &prefix, &name.name);
     let (f, i) = find_struct(files, &copy_name).unwrap_or((f, i));
     let Item::Type(found) = &files[f].items[i] else { return false };
     let mut copy = found.clone();
@@ -287,11 +276,7 @@ fn locate_member(
     let Some(m) = members.iter().position(|m| m.names.iter().any(|n| n.is(&member.name))) else {
         return false;
     };
-    let fits = members[m].location.as_ref().is_some_and(|partial| {
-        partial.name.ends_with('*')
-            && super::var_config::fits(&partial.name, &location.name, fit.0, fit.1)
-    });
-    if !fits {
+    if !binds(members[m].location.as_ref(), location, fit) {
         return false;
     }
     // the variable's own initializer of the member (`hw : T := (IN := TRUE)`) goes to the
@@ -369,6 +354,25 @@ fn split_off(block: &mut VarBlock, d: usize, name: &Ident, own: ast::VarDecl) {
     } else {
         decl.names.retain(|n| !n.is(&name.name));
         block.decls.insert(d + 1, own);
+    }
+}
+
+/// Whether a variable declared at `partial` may be bound to `location`: `partial` is partly
+/// specified and `location` fits it by `fit` (the layout, and whether a plcd device does).
+fn binds(partial: Option<&Ident>, location: &Ident, fit: (&IecLayout, bool)) -> bool {
+    partial.is_some_and(|partial| {
+        partial.name.ends_with('*')
+            && super::var_config::fits(&partial.name, &location.name, fit.0, fit.1)
+    })
+}
+
+/// The name of the copy of the type `ty` (a FUNCTION_BLOCK or a STRUCT) a binding gives the
+/// variable `variable` of the instance `prefix`: `Type$prefix.variable`, or `ty` itself when
+/// the declaration names the copy already (another entry bound a variable of it).
+fn copy_name(ty: &str, prefix: &str, variable: &str) -> String {
+    match ty.contains('$') {
+        true => ty.to_string(),
+        false => format!("{ty}${prefix}.{variable}"),
     }
 }
 

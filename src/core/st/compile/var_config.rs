@@ -408,21 +408,34 @@ impl Ctx<'_> {
                 self.pous.iter().filter(|b| b.kind == PouKind::FunctionBlock).find(named)
             });
             let partial = written(block.map_or(fb.ast, |b| b.ast));
-            match partial.filter(|l| l.name.ends_with('*') && own(kind)) {
-                Some(partial) => {
-                    let msg = format!(
-                        "`%{}` does not fit `{}`, declared at `%{}`",
-                        location.name, id.name, partial.name
-                    );
-                    self.error(file, location.span, msg);
-                }
-                None => {
-                    let name = format!("{}.{}", path_text(&path[..at]), id.name);
-                    self.error(file, id.span, not_partly_specified(&name, binder));
-                }
-            }
+            let partial = partial.filter(|l| l.name.ends_with('*') && own(kind));
+            let name = format!("{}.{}", path_text(&path[..at]), id.name);
+            self.refuse_binding(file, (location, id), &name, partial, binder);
         }
         false
+    }
+
+    /// Reports why `location` does not bind the variable `name` (`id` the last name of its
+    /// path): its partly specified address `partial` does not fit (an error at the address),
+    /// or it has none (an error at the name).
+    fn refuse_binding(
+        &mut self,
+        file: usize,
+        (location, id): (&Ident, &Ident),
+        name: &str,
+        partial: Option<Ident>,
+        binder: Binder,
+    ) {
+        match partial {
+            Some(partial) => {
+                let msg = format!(
+                    "`%{}` does not fit `{}`, declared at `%{}`",
+                    location.name, id.name, partial.name
+                );
+                self.error(file, location.span, msg);
+            }
+            None => self.error(file, id.span, not_partly_specified(name, binder)),
+        }
     }
 
     /// Checks a binding of the member `path[last]` of a struct variable (its type the struct
@@ -479,19 +492,8 @@ impl Ctx<'_> {
         // the type's own declaration, which the copy's (if any) is of
         let original = self.type_decls.iter().find(|t| t.decl.name.is(&type_name));
         let partial = original.map(|t| t.ty.clone()).and_then(|ty| written(&ty));
-        match partial.filter(|l| m.partial && l.name.ends_with('*')) {
-            Some(partial) => {
-                let msg = format!(
-                    "`%{}` does not fit `{}`, declared at `%{}`",
-                    location.name, id.name, partial.name
-                );
-                self.error(file, location.span, msg);
-            }
-            None => {
-                let name = path_text(path);
-                self.error(file, id.span, not_partly_specified(&name, binder));
-            }
-        }
+        let partial = partial.filter(|l| m.partial && l.name.ends_with('*'));
+        self.refuse_binding(file, (location, id), &path_text(path), partial, binder);
         false
     }
 
