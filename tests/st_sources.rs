@@ -958,6 +958,52 @@ END_PROGRAM
 }
 
 #[test]
+fn iec_variables_bind_members_of_types_named_with_their_namespace() {
+    // `Lib.HW_COMP` and `Lib.Valve` are the project's HW_COMP and Valve (`[st] namespaces`):
+    // a binding of a member or of a block's variable goes through the qualified name as
+    // through the plain one (it was refused as "does not fit")
+    let dir = TempDir::new("st-configuration-iec-variables-qualified-types");
+    let toml =
+        "[[program]]\nfile = \"plc.st\"\nname = \"main\"\n\n[st]\nnamespaces = [\"Lib\"]\n\n\
+                [iec.variables]\n\"main.hw.IN\" = \"%IX0.1\"\n\"main.hw.OUT_VAR\" = \"%QW2\"\n\
+                \"main.valve.open\" = \"%QX0.3\"\n";
+    write(dir.path(), "plcd.toml", toml);
+    let text = "TYPE HW_COMP : STRUCT IN AT %I* : BOOL; OUT_VAR AT %Q* : WORD; END_STRUCT; END_TYPE
+FUNCTION_BLOCK Valve
+  VAR_INPUT cmd : BOOL; END_VAR
+  VAR open AT %Q* : BOOL; END_VAR
+  open := cmd;
+END_FUNCTION_BLOCK
+PROGRAM Main
+  VAR hw : Lib.HW_COMP; valve : Lib.Valve; END_VAR
+  hw.OUT_VAR := hw.OUT_VAR + 1;
+  valve(cmd := TRUE);
+END_PROGRAM
+";
+    write(dir.path(), "plc.st", text);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let bindings: Vec<&str> = stdout.lines().filter(|l| l.contains("[iec.variables]")).collect();
+    assert_eq!(
+        bindings,
+        [
+            "  config: [iec.variables] main.hw.IN AT %IX0.1 → P0001",
+            "  config: [iec.variables] main.hw.OUT_VAR AT %QW2 → D12002",
+            "  config: [iec.variables] main.valve.open AT %QX0.3 → P0643",
+        ]
+    );
+    let watch = "D12002,P0643,main.hw.OUT_VAR";
+    let run = |engine: &[&str]| sim_trace(dir.path(), "3ms", watch, engine);
+    let trace = run(&[]);
+    let scans = trace.matches("\"ev\":\"scan_end\"").count().to_string();
+    // OUT_VAR at %QW2, one more a scan; the valve's output at %QX0.3
+    assert_eq!(last(&trace, "D12002").as_deref(), Some(scans.as_str()), "{trace}");
+    assert_eq!(last(&trace, "P0643").as_deref(), Some("1"));
+    assert_eq!(run(&["--interpreter"]), trace);
+}
+
+#[test]
 fn a_struct_with_members_on_devices_is_used_member_by_member() {
     // every whole use of `hw` is refused at its place, and none of `spare`'s (no member of it
     // bound): its bytes in memory do not hold the bound member

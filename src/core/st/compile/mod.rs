@@ -232,9 +232,11 @@ pub fn compile_project(
     let namespaces = &namespaces[..];
     let lowered = sfc::lower(files, &mut diags);
     let lowered = generic_constants::lower(lowered, namespaces, &mut diags);
+    // qualified names first: a variable's type written `NS.T` is the `T` whose copy a binding
+    // of one of its members makes
+    let lowered = qualified::lower(lowered, namespaces, renamed, &mut diags);
     let (lowered, program_copies) =
         fb_config::lower(lowered, instances, declaration, &dialect.iec, &config_entries);
-    let lowered = qualified::lower(lowered, namespaces, renamed, &mut diags);
     let lowered = method_vars::lower(lowered);
     let lowered = ref_init::lower(lowered, &mut diags);
     let lowered = fb_exit::finish_program_temps(lowered);
