@@ -22,6 +22,7 @@
 mod harness;
 
 use harness::golden::compare_or_bless;
+use harness::parallel;
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Output;
@@ -169,7 +170,8 @@ fn one_golden_file_per_diagnostic() {
         let cases = cases(area);
         counted.push(format!("{area}: {}", cases.len()));
         assert!(!cases.is_empty(), "no cases under tests/golden/{area}");
-        failures.extend(cases.iter().filter_map(|dir| run_case(dir)));
+        // Hundreds of `plcd` runs: on every core (under qemu-user, a minute and more alone).
+        failures.extend(parallel::map(&cases, |dir| run_case(dir)).into_iter().flatten());
     }
     assert!(failures.is_empty(), "{}\n\n{}", failures.join("\n"), counted.join(", "));
 }

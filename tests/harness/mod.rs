@@ -11,6 +11,7 @@
 //! - [`vm`]: one program scanned by the VM alone, and the assembler's context;
 //! - [`golden`]: golden files compared, or rewritten with `PLCD_BLESS=1`;
 //! - [`modbus`]: Modbus PDUs built and taken apart by hand;
+//! - [`parallel`]: one test's independent cases run on every core;
 //! - [`gpiosim`]: whether the kernel's gpio-sim is here, and `require_gpiosim!` (include the
 //!   harness with `#[macro_use]` to use it).
 //!
@@ -29,6 +30,7 @@ pub mod gpiosim;
 pub mod log;
 pub mod modbus;
 pub mod nobody;
+pub mod parallel;
 pub mod runner;
 pub mod skip;
 pub mod tempdir;

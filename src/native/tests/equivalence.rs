@@ -43,6 +43,9 @@
 //! executes itself, and the targeted programs require a share of them, so a code generator
 //! that handed everything back to the interpreter would not pass for an equivalent one.
 
+#[path = "../../../tests/harness/parallel.rs"]
+mod parallel;
+
 use std::cell::Cell;
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -726,8 +729,9 @@ fn conformance_cases() -> Vec<PathBuf> {
 fn check_all(cases: Vec<(Programs, Scans)>) {
     let mut mismatches = Vec::new();
     let (mut steps, mut native_steps, mut whole, mut native_whole) = (0, 0, 0, 0);
-    for (case, scans) in &cases {
-        let outcome = compare(case, *scans, &BUDGETS);
+    // The cases are independent: on every core (under qemu-user the conformance cases alone
+    // took minutes one after the other).
+    for outcome in parallel::map(&cases, |(case, scans)| compare(case, *scans, &BUDGETS)) {
         mismatches.extend(outcome.mismatches);
         steps += outcome.steps;
         native_steps += outcome.native_steps;
