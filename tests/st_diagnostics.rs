@@ -198,8 +198,8 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` has no variable `{}`{}", "config-var-config-unknown-variable"),
     ("`{}` has no variable `{}`{}", "config-iec-variables-unknown-variable"),
     (
-        "`{}` is `{}`: {} binds a variable of a program instance or of a FUNCTION_BLOCK instance inside it, or a member of a struct variable of one, not a member of a member or an element of an array",
-        "config-var-config-struct-member",
+        "`{}` is `{}`: {} binds a variable of a program instance or of a FUNCTION_BLOCK instance inside it, or a member of a struct variable of one at any depth, not an element of an array",
+        "config-var-config-array-element",
     ),
     (
         "`{}` has {} instances in the project and actions: {} binds a variable of a PROGRAM with actions for its only instance (the actions' code is shared by all)",

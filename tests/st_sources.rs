@@ -919,6 +919,128 @@ END_CONFIGURATION
 }
 
 #[test]
+fn var_config_binds_members_of_members_at_any_depth() {
+    // `main.cell.axis.hw.OUT_VAR`: a member of a member of a member, each struct on the way
+    // copied for the variable (`Cell$main.cell`, `Axis$main.cell.axis`, …); a sibling bound by
+    // a second entry shares those copies; the other variable of the type and the other axis
+    // keep variable memory. Initial values: the entry's (40) before the variable's nested one
+    // (`(axis := (hw := (OUT_VAR := 30, IN_VAR := 31)))`, which gives IN_VAR its 31) before the
+    // type's (200); the spare axis' OUT_VAR keeps the type's 200.
+    let dir = TempDir::new("st-configuration-var-config-members-of-members");
+    write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
+    let text = "TYPE HW_COMP : STRUCT OUT_VAR, IN_VAR AT %Q* : WORD := 200; END_STRUCT; END_TYPE
+TYPE Axis : STRUCT hw : HW_COMP; pos : INT; END_STRUCT; END_TYPE
+TYPE Cell : STRUCT axis, spare : Axis; END_STRUCT; END_TYPE
+PROGRAM Main
+  VAR
+    cell : Cell := (axis := (hw := (OUT_VAR := 30, IN_VAR := 31)));
+    other : Cell;
+    sum : WORD;
+  END_VAR
+  cell.axis.hw.OUT_VAR := cell.axis.hw.OUT_VAR + 1;
+  cell.axis.hw.IN_VAR := cell.axis.hw.IN_VAR + 2;
+  cell.spare.hw.OUT_VAR := cell.spare.hw.OUT_VAR + 3;
+  other.axis.hw.OUT_VAR := other.axis.hw.OUT_VAR + 4;
+  sum := cell.axis.hw.OUT_VAR + cell.spare.hw.OUT_VAR;
+END_PROGRAM
+CONFIGURATION C
+  RESOURCE R ON PLC
+    TASK t(INTERVAL := T#10ms, PRIORITY := 1);
+    PROGRAM main WITH t : Main;
+  END_RESOURCE
+  VAR_CONFIG
+    main.cell.axis.hw.OUT_VAR AT %QW5 : WORD := 40;
+    R.main.cell.axis.hw.IN_VAR AT %QW6 : WORD;
+  END_VAR
+END_CONFIGURATION
+";
+    write(dir.path(), "plc.st", text);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let bindings: Vec<&str> = stdout.lines().filter(|l| l.contains(": VAR_CONFIG ")).collect();
+    assert_eq!(
+        bindings,
+        [
+            "  configuration C: VAR_CONFIG main.cell.axis.hw.OUT_VAR AT %QW5 → D12005",
+            "  configuration C: VAR_CONFIG R.main.cell.axis.hw.IN_VAR AT %QW6 → D12006",
+        ]
+    );
+    let watch = "D12005,D12006,main.cell.axis.hw.OUT_VAR,main.cell.spare.hw.OUT_VAR,\
+                 main.other.axis.hw.OUT_VAR,main.sum";
+    let run = |engine: &[&str]| sim_trace(dir.path(), "25ms", watch, engine);
+    let trace = run(&[]);
+    let first = |name: &str| {
+        let key = format!("\"dev\":\"{name}\",\"value\":");
+        trace.lines().find_map(|l| l.split_once(&key)).map(|(_, v)| v.trim_end_matches('}'))
+    };
+    // at RUN start, before the first scan
+    assert_eq!(first("D12005"), Some("40"), "{trace}");
+    assert_eq!(first("D12006"), Some("31"));
+    // three scans: one more, two more a scan at the devices, the trace naming them by path
+    assert_eq!(last(&trace, "D12005").as_deref(), Some("43"));
+    assert_eq!(last(&trace, "D12006").as_deref(), Some("37"));
+    assert_eq!(last(&trace, "main.cell.axis.hw.OUT_VAR").as_deref(), Some("43"));
+    // not bound: in variable memory from the type's 200
+    assert_eq!(last(&trace, "main.cell.spare.hw.OUT_VAR").as_deref(), Some("209"));
+    assert_eq!(last(&trace, "main.other.axis.hw.OUT_VAR").as_deref(), Some("212"));
+    assert_eq!(last(&trace, "main.sum").as_deref(), Some("252"));
+    assert_eq!(run(&["--interpreter"]), trace);
+}
+
+#[test]
+fn iec_variables_bind_a_member_of_a_member_to_a_device() {
+    let dir = TempDir::new("st-configuration-iec-variables-member-of-member");
+    let toml = "[[program]]\nfile = \"plc.st\"\nname = \"main\"\n\n[iec.variables]\n\
+                \"main.axis.hw.OUT_VAR\" = \"D00300\"\n";
+    write(dir.path(), "plcd.toml", toml);
+    let text = "TYPE HW_COMP : STRUCT OUT_VAR AT %Q* : WORD; END_STRUCT; END_TYPE
+TYPE Axis : STRUCT hw : HW_COMP; END_STRUCT; END_TYPE
+PROGRAM Main
+  VAR axis : Axis; END_VAR
+  axis.hw.OUT_VAR := axis.hw.OUT_VAR + 1;
+END_PROGRAM
+";
+    write(dir.path(), "plc.st", text);
+    let trace = sim_trace(dir.path(), "3ms", "D00300", &[]);
+    let scans = trace.matches("\"ev\":\"scan_end\"").count().to_string();
+    assert_eq!(last(&trace, "D00300").as_deref(), Some(scans.as_str()), "{trace}");
+}
+
+#[test]
+fn a_struct_holding_a_bound_member_of_a_member_is_used_member_by_member() {
+    // the variable and every struct member on the way to the bound member are refused whole,
+    // each naming the member (was "`Cell` cannot be assigned to `Cell`": the copies' names)
+    let dir = TempDir::new("st-configuration-member-of-member-whole");
+    let toml = "[[program]]\nfile = \"plc.st\"\nname = \"main\"\n\n[iec.variables]\n\
+                \"main.cell.axis.hw.OUT_VAR\" = \"D00300\"\n";
+    write(dir.path(), "plcd.toml", toml);
+    let text = "TYPE HW_COMP : STRUCT OUT_VAR AT %Q* : WORD; END_STRUCT; END_TYPE
+TYPE Axis : STRUCT hw : HW_COMP; END_STRUCT; END_TYPE
+TYPE Cell : STRUCT axis : Axis; END_STRUCT; END_TYPE
+PROGRAM Main
+  VAR cell, c2 : Cell; a : Axis; h : HW_COMP; END_VAR
+  c2 := cell;
+  a := cell.axis;
+  h := cell.axis.hw;
+  c2.axis := a;
+END_PROGRAM
+";
+    write(dir.path(), "plc.st", text);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let bound = "`cell.axis.hw.OUT_VAR` is bound to a device (VAR_CONFIG, [iec.variables])";
+    let expected = [
+        format!("plc.st:6:9: error: {bound}: `cell` can be used only member by member"),
+        format!("plc.st:7:8: error: {bound}: `cell.axis` can be used only member by member"),
+        format!("plc.st:8:8: error: {bound}: `cell.axis.hw` can be used only member by member"),
+        "plcd.toml: 3 error(s)".to_string(),
+    ];
+    assert_eq!(stderr.lines().collect::<Vec<_>>(), expected, "{stderr}");
+}
+
+#[test]
 fn iec_variables_bind_struct_members_to_iec_addresses_and_devices() {
     let dir = TempDir::new("st-configuration-iec-variables-struct-members");
     let toml = "[[program]]\nfile = \"plc.st\"\nname = \"main\"\n\n[iec.variables]\n\
@@ -1097,6 +1219,54 @@ END_CONFIGURATION
         "plc.st:17:5: error: `main.hw.IN` is already bound by VAR_CONFIG (line 14)".to_string(),
         "plc.st:18:5: error: `main.hw.IN` is already bound by VAR_CONFIG (line 14)".to_string(),
         "plcd.toml: 8 error(s)".to_string(),
+    ];
+    assert_eq!(stderr.lines().collect::<Vec<_>>(), expected, "{stderr}");
+}
+
+#[test]
+fn var_config_checks_each_entry_of_a_member_of_a_member() {
+    // the checks of a member's binding hold at any depth, each error at its place: a member
+    // missing on the way (with the near name), a CONSTANT variable (named, not its member), a
+    // member at no partly specified address, a type the entry gets wrong, an address that does
+    // not fit, a member of an array's element
+    let dir = TempDir::new("st-configuration-var-config-member-of-member-errors");
+    write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
+    let text = "TYPE HW_COMP : STRUCT IN AT %I* : BOOL; OUT AT %QW* : WORD; level : INT; END_STRUCT; END_TYPE
+TYPE Axis : STRUCT hw : HW_COMP; axes : ARRAY [1..2] OF HW_COMP; END_STRUCT; END_TYPE
+PROGRAM Main
+  VAR axis : Axis; END_VAR
+  VAR CONSTANT k : Axis; END_VAR
+  axis.hw.OUT := axis.hw.OUT + 1;
+END_PROGRAM
+CONFIGURATION C
+  PROGRAM main : Main;
+  VAR_CONFIG
+    main.axis.hx.IN AT %IX0.1 : BOOL;
+    main.k.hw.IN AT %IX0.1 : BOOL;
+    main.axis.hw.level AT %MW1 : INT;
+    main.axis.hw.IN AT %IX0.1 : INT;
+    main.axis.hw.OUT AT %QX0.1 : WORD;
+    main.axis.axes.IN AT %IX0.2 : BOOL;
+  END_VAR
+END_CONFIGURATION
+";
+    write(dir.path(), "plc.st", text);
+    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let not_partial = "is not declared at a partly specified address (`AT %I*`, `%Q*`, `%M*`): \
+                       VAR_CONFIG binds only such a variable";
+    let expected = [
+        "plc.st:11:15: error: `Axis` has no member `hx` (did you mean `hw`?)".to_string(),
+        "plc.st:12:10: error: `k` is CONSTANT: it cannot be written".to_string(),
+        format!("plc.st:13:18: error: `main.axis.hw.level` {not_partial}"),
+        "plc.st:14:18: error: `main.axis.hw.IN` is `BOOL`, not `INT`".to_string(),
+        "plc.st:15:25: error: `%QX0.1` does not fit `OUT`, declared at `%QW*`".to_string(),
+        "plc.st:16:20: error: `main.axis.axes` is `ARRAY [1..2] OF HW_COMP`: VAR_CONFIG binds a \
+         variable of a program instance or of a FUNCTION_BLOCK instance inside it, or a member \
+         of a struct variable of one at any depth, not an element of an array"
+            .to_string(),
+        "plcd.toml: 6 error(s)".to_string(),
     ];
     assert_eq!(stderr.lines().collect::<Vec<_>>(), expected, "{stderr}");
 }

@@ -564,9 +564,8 @@ impl<'a> Ctx<'a> {
     /// hold those members, so no whole use of it would be right.
     fn refuse_struct_on_devices(&mut self, te: TExpr, e: &Expr, file: usize) -> TExpr {
         let Ty::Struct(s) = te.ty else { return te };
-        let st = &self.types.structs[s];
-        let Some(m) = st.members.iter().find(|m| m.device.is_some()) else { return te };
-        let (name, span) = (m.name.clone(), te.span);
+        let Some(name) = self.member_on_device(s) else { return te };
+        let span = te.span;
         let msg = format!(
             "`{}.{name}` is bound to a device (VAR_CONFIG, [iec.variables]): `{}` can be used \
              only member by member",
@@ -575,6 +574,17 @@ impl<'a> Ctx<'a> {
         );
         self.error(file, span, msg);
         TExpr::error(span)
+    }
+
+    /// The path from a value of the struct `s` to a member of it a binding placed at a device:
+    /// one of its own (`IN`), or of a struct member at any depth (`axis.hw.IN`, a member of a
+    /// member bound).
+    fn member_on_device(&self, s: usize) -> Option<String> {
+        self.types.structs[s].members.iter().find_map(|m| match m.ty {
+            _ if m.device.is_some() => Some(m.name.clone()),
+            Ty::Struct(inner) => self.member_on_device(inner).map(|p| format!("{}.{p}", m.name)),
+            _ => None,
+        })
     }
 
     /// [`Ctx::check_place`], a `REFERENCE TO` as itself.

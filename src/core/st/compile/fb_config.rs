@@ -19,7 +19,8 @@
 //! address in its STRUCT type, is bound alike: the variable gets a copy of its type of its own
 //! (`HW_COMP$P4.hw`), in which the member is declared at the bound address (and with the
 //! entry's initial value), the other members as the type has them ([`locate_member`]); the
-//! compile reads the copy's located member as a device (`decl.rs`, `expr.rs`).
+//! compile reads the copy's located member as a device (`decl.rs`, `expr.rs`). A member of a
+//! member (`P4.hw.inner.IN`) copies each STRUCT type on the way (`INNER$P4.hw.inner`).
 
 use std::borrow::Cow;
 
@@ -200,20 +201,8 @@ fn locate_inside(
         return true;
     }
     let TypeRef::Named(block) = &decl.ty else { return false };
-    if path.len() == 2 {
-        if let Some((f, i)) = find_struct(files, &block.name) {
-            return locate_member(
-                files,
-                (f, i),
-                &mut vars[b],
-                d,
-                path,
-                location,
-                init,
-                prefix,
-                fit,
-            );
-        }
+    if let Some((f, i)) = find_struct(files, &block.name) {
+        return locate_member(files, (f, i), &mut vars[b], d, path, location, init, prefix, fit);
     }
     let copy_name = copy_name(&block.name, &prefix, &name.name);
     // the copy made for another variable of this instance, else the block
@@ -247,10 +236,12 @@ fn locate_inside(
     true
 }
 
-/// Declares the member `path[1]` of the struct variable `path[0]`, declared by `vars.decls[d]`
-/// of a STRUCT type at `(f, i)`, at `location` when it fits by `fit`: the variable is given a
-/// copy of its type of its own, named `Type$prefix.variable`, with the member at the address
-/// (and the entry's initial value); whether it did.
+/// Declares the member `path[1..]` of the struct variable `path[0]` (a member of a member at
+/// any depth: `s.inner.x`), declared by `vars.decls[d]` of a STRUCT type at `(f, i)`, at
+/// `location` when it fits by `fit`: the variable is given a copy of its type of its own,
+/// named `Type$prefix.variable`, with the member at the address (and the entry's initial
+/// value), and each struct member on the way a copy of its type likewise
+/// (`Inner$prefix.variable.inner`); whether it did.
 #[allow(clippy::too_many_arguments)]
 fn locate_member(
     files: &mut [Cow<'_, ast::File>],
@@ -263,26 +254,90 @@ fn locate_member(
     prefix: String,
     fit: (&IecLayout, bool),
 ) -> bool {
-    let (name, member) = (&path[0], &path[1]);
+    let name = &path[0];
     let decl = &vars.decls[d];
     let TypeRef::Named(ty) = &decl.ty else { return false };
-    let copy_name = copy_name(&ty.name, &prefix, &name.name);
+    let mut own_init = decl.init.clone();
+    let inner_prefix = format!("{prefix}.{}", name.name);
+    let Some(copy_name) = copy_struct(files, (f, i), ty, &prefix, &name.name, |files, members| {
+        locate_in_struct(
+            files,
+            members,
+            &path[1..],
+            location,
+            init,
+            &mut own_init,
+            inner_prefix,
+            fit,
+        )
+    }) else {
+        return false;
+    };
+    let retyped = ast::VarDecl {
+        names: vec![name.clone()],
+        ty: TypeRef::Named(Ident { name: copy_name, span: ty.span }),
+        init: own_init,
+        ..decl.clone()
+    };
+    let name = name.clone();
+    split_off(vars, d, &name, retyped);
+    true
+}
+
+/// Makes the copy of the STRUCT type `ty` (found at `(f, i)`) that the variable or member
+/// `variable` of `prefix` gets, or takes the one another binding made, lets `locate` declare
+/// the bound member in its members, and keeps it: the copy's name, or `None` when `locate`
+/// did not bind (nothing is kept).
+fn copy_struct(
+    files: &mut [Cow<'_, ast::File>],
+    (f, i): (usize, usize),
+    ty: &Ident,
+    prefix: &str,
+    variable: &str,
+    locate: impl FnOnce(&mut [Cow<'_, ast::File>], &mut Vec<ast::VarDecl>) -> bool,
+) -> Option<String> {
+    let copy_name = copy_name(&ty.name, prefix, variable);
     let (f, i) = find_struct(files, &copy_name).unwrap_or((f, i));
-    let Item::Type(found) = &files[f].items[i] else { return false };
+    let Item::Type(found) = &files[f].items[i] else { return None };
     let mut copy = found.clone();
     let fresh = !copy.name.is(&copy_name);
     copy.name.name = copy_name.clone();
-    let ast::TypeDef::Struct { members } = &mut copy.def else { return false };
+    let ast::TypeDef::Struct { members } = &mut copy.def else { return None };
+    if !locate(files, members) {
+        return None;
+    }
+    let items = &mut files[f].to_mut().items;
+    if fresh {
+        items.push(Item::Type(copy));
+    } else {
+        items[i] = Item::Type(copy);
+    }
+    Some(copy_name)
+}
+
+/// Declares the member `path[0]` of a STRUCT type's `members` at `location` (or, through a
+/// member of a STRUCT type, `path[1..]` of a copy of that type: [`copy_struct`]) when it fits
+/// by `fit`. `own_init` is the initializer the variable (or the member holding `members`)
+/// gives them: the member's part of it (`(x := TRUE)`, `(inner := (x := TRUE))`) moves to the
+/// member's declaration, written to the device at RUN start, unless the entry gives one.
+/// Whether it did.
+#[allow(clippy::too_many_arguments)]
+fn locate_in_struct(
+    files: &mut [Cow<'_, ast::File>],
+    members: &mut Vec<ast::VarDecl>,
+    path: &[Ident],
+    location: &Ident,
+    init: &Option<Init>,
+    own_init: &mut Option<Init>,
+    prefix: String,
+    fit: (&IecLayout, bool),
+) -> bool {
+    let member = &path[0];
     let Some(m) = members.iter().position(|m| m.names.iter().any(|n| n.is(&member.name))) else {
         return false;
     };
-    if !binds(members[m].location.as_ref(), location, fit) {
-        return false;
-    }
-    // the variable's own initializer of the member (`hw : T := (IN := TRUE)`) goes to the
-    // member's declaration, written to the device at RUN start, unless the entry gives one
-    let mut own_init = decl.init.clone();
-    let given = match &mut own_init {
+    // the member's part of the initializer of what holds it, taken out of it
+    let given = match own_init {
         Some(Init::Struct { members, .. }) => {
             let at = members.iter().position(|(n, _)| n.is(&member.name));
             at.map(|at| members.remove(at).1)
@@ -290,12 +345,34 @@ fn locate_member(
         _ => None,
     };
     let old = &members[m];
-    let span = old.location.as_ref().map_or(location.span, |l| l.span);
-    let located = ast::VarDecl {
-        names: vec![member.clone()],
-        location: Some(Ident { name: location.name.clone(), span }),
-        init: init.clone().or(given).or_else(|| old.init.clone()),
-        ..old.clone()
+    let located = if path.len() == 1 {
+        if !binds(old.location.as_ref(), location, fit) {
+            return false;
+        }
+        let span = old.location.as_ref().map_or(location.span, |l| l.span);
+        ast::VarDecl {
+            names: vec![member.clone()],
+            location: Some(Ident { name: location.name.clone(), span }),
+            init: init.clone().or(given).or_else(|| old.init.clone()),
+            ..old.clone()
+        }
+    } else {
+        let TypeRef::Named(ty) = &old.ty else { return false };
+        let Some(at) = find_struct(files, &ty.name) else { return false };
+        // the member's own initializer in the type, beneath what the holder gives it
+        let mut inner_init = given.or_else(|| old.init.clone());
+        let inner_prefix = format!("{prefix}.{}", member.name);
+        let copied = copy_struct(files, at, ty, &prefix, &member.name, |files, inner| {
+            let (rest, inner_prefix) = (&path[1..], inner_prefix);
+            locate_in_struct(files, inner, rest, location, init, &mut inner_init, inner_prefix, fit)
+        });
+        let Some(copy_name) = copied else { return false };
+        ast::VarDecl {
+            names: vec![member.clone()],
+            ty: TypeRef::Named(Ident { name: copy_name, span: ty.span }),
+            init: inner_init,
+            ..old.clone()
+        }
     };
     // the member's own declaration, in place, so that the copy's layout is its type's
     let at = &mut members[m];
@@ -315,20 +392,6 @@ fn locate_member(
         split.extend((!after.names.is_empty()).then_some(after));
         members.splice(m..=m, split);
     }
-    let items = &mut files[f].to_mut().items;
-    if fresh {
-        items.push(Item::Type(copy));
-    } else {
-        items[i] = Item::Type(copy);
-    }
-    let retyped = ast::VarDecl {
-        names: vec![name.clone()],
-        ty: TypeRef::Named(Ident { name: copy_name, span: ty.span }),
-        init: own_init,
-        ..decl.clone()
-    };
-    let name = name.clone();
-    split_off(vars, d, &name, retyped);
     true
 }
 

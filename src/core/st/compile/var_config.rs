@@ -355,19 +355,36 @@ impl Ctx<'_> {
         let mut ty = var.ty.clone();
         // the kind of the variable `ty` is of, and whether it is CONSTANT
         let mut holder = (var.kind, var.constant);
+        // where the struct variable is in the path, once one is met
+        let mut variable = None;
         for (at, id) in path.iter().enumerate().skip(2) {
             let q = match ty {
                 Ty::Fb(q) => q,
                 Ty::Error => return false,
                 Ty::Struct(s) if at + 1 == path.len() => {
-                    return self.check_bound_member(source, (entry, location), path, s, holder);
+                    let variable = variable.unwrap_or(at - 1);
+                    let bound = (entry, location);
+                    return self.check_bound_member(source, bound, path, variable, s, holder);
+                }
+                Ty::Struct(s) => {
+                    // a member of a member: the lowering copied each struct on the way
+                    variable.get_or_insert(at - 1);
+                    let st = &self.types.structs[s];
+                    let Some(m) = st.members.iter().find(|m| id.is(&m.name)) else {
+                        let hint = suggest(&id.name, st.members.iter().map(|m| m.name.as_str()));
+                        let msg = format!("`{}` has no member `{}`{hint}", st.name, id.name);
+                        self.error(file, id.span, msg);
+                        return false;
+                    };
+                    ty = m.ty.clone();
+                    continue;
                 }
                 other => {
                     let n = self.ty_name(&other);
                     let msg = format!(
                         "`{}` is `{n}`: {} binds a variable of a program instance or of a \
                          FUNCTION_BLOCK instance inside it, or a member of a struct variable \
-                         of one, not a member of a member or an element of an array",
+                         of one at any depth, not an element of an array",
                         path_text(&path[..at]),
                         binder.name()
                     );
@@ -438,14 +455,17 @@ impl Ctx<'_> {
         }
     }
 
-    /// Checks a binding of the member `path[last]` of a struct variable (its type the struct
-    /// `s`), which the lowering made when it fits (`fb_config.rs`): the variable then has a
-    /// copy of its type with the member at the entry's address. Whether the entry binds it.
+    /// Checks a binding of the member `path[last]` of the struct variable `path[variable]`, or
+    /// of a member of a member of it (`s.inner.x`), the struct holding it `s`, which the
+    /// lowering made when it fits (`fb_config.rs`): the variable then has a copy of its type
+    /// (and each member on the way one of its own) with the member at the entry's address.
+    /// Whether the entry binds it.
     fn check_bound_member(
         &mut self,
         source: &Bindings<'_>,
         (entry, location): (&ConfigVar, &Ident),
         path: &[Ident],
+        variable: usize,
         s: usize,
         (kind, constant): (VarKind, bool),
     ) -> bool {
@@ -453,7 +473,7 @@ impl Ctx<'_> {
         let id = &path[path.len() - 1];
         // the lowering binds a member of a variable of the instance's own only, as a variable
         if constant {
-            let variable = &path[path.len() - 2];
+            let variable = &path[variable];
             let msg = format!("`{}` is CONSTANT: it cannot be written", variable.name);
             self.error(file, variable.span, msg);
             return false;
