@@ -189,7 +189,7 @@ fn the_files_hold_them_and_a_changed_program_restores_those_of_unchanged_name_an
         "unchanged: not written again"
     );
     let g = retain::newest_in(dir.path()).unwrap();
-    assert_eq!(g.version, 3);
+    assert_eq!(g.version, 4);
     let names: Vec<(&str, &str)> =
         g.variables.iter().map(|v| (v.name.as_str(), v.ty.as_str())).collect();
     assert_eq!(
@@ -262,19 +262,14 @@ END_PROGRAM
         g.variables.iter().map(|v| (v.name.as_str(), v.ty.as_str())).collect();
     assert_eq!(
         names,
-        [
-            ("main.stamp", "DT"),
-            ("main.shift", "TOD"),
-            ("main.days[1]", "DATE"),
-            ("main.days[2]", "DATE")
-        ]
+        [("main.stamp", "DT"), ("main.shift", "TOD"), ("main.days", "ARRAY[1..2] OF DATE")]
     );
 
-    // The same program restores all four: DT#2024-03-01-12:30:15 is 1709296215 s.
+    // The same program restores all three: DT#2024-03-01-12:30:15 is 1709296215 s.
     let start = retain::startup(&Store::open(dir.path()).unwrap(), &set, Restart::Warm);
     let mut same = Plc::new(&p);
     let plan = same.engine.restore_retained_variables(&start.variables);
-    assert_eq!(plan.restore.len(), 4);
+    assert_eq!(plan.restore.len(), 3);
     assert_eq!(var(&same, &p, "main.stamp"), 1_709_296_215);
     assert_eq!(var(&same, &p, "main.shift"), 6 * 3_600_000);
 
@@ -429,4 +424,183 @@ END_PROGRAM
     assert_eq!(wide(&new), "äΩΩ");
     assert_eq!((var(&new, &p, "main.ch"), var(&new, &p, "main.wc")), (2, 2));
     assert_eq!(var(&new, &p, "main.free.Busy.X"), 0, "a chart not retained");
+}
+
+/// Retained arrays: of scalars, of two dimensions, of structs, of arrays, and one whose
+/// element type changes.
+const ARRAYS: &str = "
+TYPE Pt : STRUCT x : INT; y : DINT; END_STRUCT; END_TYPE
+PROGRAM Main
+VAR RETAIN buf : ARRAY[1..4] OF DINT; m : ARRAY[1..2, 1..3] OF INT; pts : ARRAY[1..3] OF Pt;
+    typed : ARRAY[1..2] OF INT; rows : ARRAY[1..2] OF ARRAY[1..2] OF INT; END_VAR
+VAR scans : DINT; i : INT; j : INT; END_VAR
+    scans := scans + 1;
+    FOR i := 1 TO 4 DO buf[i] := buf[i] + i; END_FOR;
+    FOR i := 1 TO 2 DO
+        FOR j := 1 TO 3 DO m[i, j] := m[i, j] + 10 * i + j; END_FOR;
+        rows[i][2] := rows[i][2] + i;
+    END_FOR;
+    FOR i := 1 TO 3 DO pts[i].x := pts[i].x + i; pts[i].y := pts[i].y + 100 * i; END_FOR;
+    typed[1] := typed[1] + 1;
+END_PROGRAM
+";
+
+/// The same arrays changed: `buf` shifted and shrunk (1..2 in common), `m` a row more and its
+/// columns shifted (rows 1..2, columns 2..3 in common), `pts` shifted and grown (2..3 in
+/// common), `typed` of DINT now, `rows` grown; a variable before them moves them all.
+const ARRAYS_CHANGED: &str = "
+TYPE Pt : STRUCT x : INT; y : DINT; END_STRUCT; END_TYPE
+PROGRAM Main
+VAR RETAIN first : DINT := 7; BUF : ARRAY[0..2] OF DINT := [3(5)]; m : ARRAY[1..3, 2..4] OF INT;
+    pts : ARRAY[2..5] OF Pt; typed : ARRAY[1..2] OF DINT := [2(9)];
+    rows : ARRAY[0..2] OF ARRAY[1..3] OF INT; END_VAR
+    ;
+END_PROGRAM
+";
+
+/// What `plc` (of `ARRAYS_CHANGED`, project `p`) holds after taking over `ARRAYS` after
+/// `scans` scans: the elements both have, by index; the others their initial values.
+fn assert_changed_arrays(plc: &Plc, p: &Project, scans: i64) {
+    let v = |name: &str| var(plc, p, name);
+    assert_eq!((v("main.buf[0]"), v("main.buf[1]"), v("main.buf[2]")), (5, scans, 2 * scans));
+    assert_eq!((v("main.m[1,2]"), v("main.m[1,3]")), (12 * scans, 13 * scans));
+    assert_eq!((v("main.m[2,2]"), v("main.m[2,3]")), (22 * scans, 23 * scans));
+    for new in ["main.m[1,4]", "main.m[2,4]", "main.m[3,2]", "main.m[3,3]"] {
+        assert_eq!(v(new), 0, "{new} is new");
+    }
+    assert_eq!((v("main.pts[2].x"), v("main.pts[2].y")), (2 * scans, 200 * scans));
+    assert_eq!((v("main.pts[3].x"), v("main.pts[3].y")), (3 * scans, 300 * scans));
+    assert_eq!((v("main.pts[4].x"), v("main.pts[5].y")), (0, 0));
+    assert_eq!((v("main.typed[1]"), v("main.typed[2]")), (9, 9), "another element type");
+    assert_eq!(v("main.first"), 7);
+    // an array of arrays: another inner bound is another element layout
+    assert_eq!((v("main.rows[1][2]"), v("main.rows[2][2]")), (0, 0));
+}
+
+#[test]
+fn retained_arrays_are_one_record_each_and_keep_the_elements_both_have() {
+    let dir = TempDir::new("retain-arrays");
+    let (old_p, new_p) = (st(ARRAYS), st(ARRAYS_CHANGED));
+    let mut old = Plc::new(&old_p);
+    old.set_mode(Mode::Run);
+    run_scans(&mut old, MS);
+    old.set_mode(Mode::Stop);
+    let scans = var(&old, &old_p, "main.scans");
+    assert!(scans > 1, "it ran: {scans}");
+
+    // A replacement engine (a reload, a load, an online change in STOP).
+    let mut new = Plc::new(&new_p);
+    new.engine.inherit_retained(&old.engine);
+    assert_changed_arrays(&new, &new_p, scans);
+
+    // The file: one record an array, its elements' bytes whole.
+    let set = old.engine.retain_set().clone();
+    let mut writer = Writer::new(Store::open(dir.path()).unwrap(), &set.words, 0, 1, None);
+    let mut words = Vec::new();
+    set.capture(old.engine.vm().mem.words(), &mut words);
+    let layout = old.engine.retained_variables();
+    let mut copy = Vec::new();
+    layout.copy(old.engine.vm().vars(), &mut copy);
+    assert!(writer.write_state(&mut words, Some((layout, &copy))).unwrap());
+    let g = retain::newest_in(dir.path()).unwrap();
+    let records: Vec<(&str, &str, usize)> =
+        g.variables.iter().map(|v| (v.name.as_str(), v.ty.as_str(), v.bytes.len())).collect();
+    assert_eq!(
+        records,
+        [
+            ("main.buf", "ARRAY[1..4] OF DINT", 16),
+            ("main.m", "ARRAY[1..2,1..3] OF INT", 12),
+            ("main.pts", "ARRAY[1..3] OF {.x@0:INT;.y@2:DINT;@6}", 18),
+            ("main.typed", "ARRAY[1..2] OF INT", 4),
+            ("main.rows", "ARRAY[1..2] OF ARRAY[1..2] OF INT", 8),
+        ]
+    );
+    assert_eq!(g.variables[0].bytes[12..], (4 * scans as i32).to_le_bytes(), "buf[4]");
+
+    // The same program restores every element; the changed one those both have, and says
+    // in one line each what it dropped.
+    let start = retain::startup(&Store::open(dir.path()).unwrap(), &set, Restart::Warm);
+    let mut same = Plc::new(&old_p);
+    let plan = same.engine.restore_retained_variables(&start.variables);
+    assert_eq!((plan.restore.len(), plan.dropped.len(), plan.new.len()), (5, 0, 0));
+    assert_eq!(var(&same, &old_p, "main.m[2,3]"), 23 * scans);
+    assert_eq!(var(&same, &old_p, "main.pts[3].y"), 300 * scans);
+    assert_eq!(var(&same, &old_p, "main.rows[2][2]"), 2 * scans);
+    let mut new = Plc::new(&new_p);
+    let plan = new.engine.restore_retained_variables(&start.variables);
+    assert_changed_arrays(&new, &new_p, scans);
+    assert_eq!(
+        plan.dropped,
+        [
+            "main.typed (ARRAY[1..2] OF INT): now ARRAY[1..2] OF DINT",
+            "main.rows (ARRAY[1..2] OF ARRAY[1..2] OF INT): now ARRAY[0..2] OF ARRAY[1..3] OF INT",
+        ]
+    );
+    assert_eq!(plan.new, ["main.first", "main.typed", "main.rows"]);
+}
+
+/// A version 3 file (written by earlier builds: an array element by element, `main.buf[3]`)
+/// restores each element record into its element of the array record.
+#[test]
+fn a_version_3_files_element_records_restore_into_the_arrays() {
+    use plcd::services::retain::format;
+    let dir = TempDir::new("retain-version-3");
+    let (old_p, new_p) = (st(ARRAYS), st(ARRAYS_CHANGED));
+    let mut old = Plc::new(&old_p);
+    old.set_mode(Mode::Run);
+    run_scans(&mut old, MS);
+    old.set_mode(Mode::Stop);
+    let scans = var(&old, &old_p, "main.scans");
+    // every retained leaf as its own record, as version 3 wrote them
+    let vars = old.engine.vm().vars();
+    let leaves: Vec<(String, String, Vec<u8>)> = old_p
+        .variables
+        .symbols
+        .iter()
+        .filter(|s| s.retain)
+        .map(|s| {
+            let (at, len) = (s.at.offset as usize, s.ty.bytes() as usize);
+            (s.name.clone(), plcd::vm::retained::type_text(&s.ty), vars[at..at + len].to_vec())
+        })
+        .collect();
+    assert_eq!(leaves.len(), 4 + 6 + 6 + 2 + 4);
+    assert_eq!((leaves[0].0.as_str(), leaves[10].0.as_str()), ("main.buf[1]", "main.pts[1].x"));
+    let mut section = Vec::new();
+    let records = leaves.iter().map(|(n, t, b)| (n.as_str(), t.as_str(), &b[..]));
+    format::encode_variables(records, &mut section);
+    let set = old.engine.retain_set().clone();
+    let mut words = Vec::new();
+    set.capture(old.engine.vm().mem.words(), &mut words);
+    let mut bytes = Vec::new();
+    format::encode(4, 0, &set.words, &words, &section, &mut bytes);
+    bytes[8] = 3;
+    let body = bytes.len() - 4;
+    let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI).checksum(&bytes[..body]);
+    bytes[body..].copy_from_slice(&crc.to_le_bytes());
+    std::fs::write(dir.path().join("retain-a.bin"), &bytes).unwrap();
+
+    let start = retain::startup(&Store::open(dir.path()).unwrap(), &set, Restart::Warm);
+    assert_eq!(start.version, 3);
+    let mut same = Plc::new(&old_p);
+    let plan = same.engine.restore_retained_variables(&start.variables);
+    assert_eq!((plan.restore.len(), plan.dropped.len(), plan.new.len()), (22, 0, 0));
+    assert_eq!(var(&same, &old_p, "main.pts[3].y"), 300 * scans);
+    assert_eq!(var(&same, &old_p, "main.m[2,3]"), 23 * scans);
+    assert_eq!(var(&same, &old_p, "main.rows[2][2]"), 2 * scans);
+
+    // Into the changed arrays: the elements the new bounds still have, of the same type.
+    let mut new = Plc::new(&new_p);
+    let plan = new.engine.restore_retained_variables(&start.variables);
+    let v = |name: &str| var(&new, &new_p, name);
+    assert_eq!((v("main.buf[0]"), v("main.buf[1]"), v("main.buf[2]")), (5, scans, 2 * scans));
+    assert_eq!((v("main.m[1,2]"), v("main.m[2,3]"), v("main.m[1,4]")), (12 * scans, 23 * scans, 0));
+    assert_eq!((v("main.pts[3].y"), v("main.pts[4].x")), (300 * scans, 0));
+    assert_eq!(v("main.typed[1]"), 9, "another element type");
+    // as version 3 kept them, leaf by leaf: rows[i][2] is still an INT of that name
+    assert_eq!((v("main.rows[1][2]"), v("main.rows[2][2]")), (scans, 2 * scans));
+    assert!(plan
+        .dropped
+        .contains(&"main.buf[3] (DINT): not a RETAIN variable of the program".into()));
+    assert!(plan.dropped.contains(&"main.typed[1] (INT): now DINT".into()));
+    assert_eq!(plan.new, ["main.first", "main.typed"]);
 }

@@ -671,23 +671,29 @@ fn the_scan_thread_does_not_allocate() {
 const ST_CONFIG: &str =
     "[plc]\nscan_period_ms = 1\n[[program]]\nname = \"main\"\nfile = \"main.st\"\n";
 
-/// Counts scans in a retained variable; a retained STRING too.
-const ST_SMALL: &str = "PROGRAM Main
-VAR RETAIN count : DINT; label : STRING[10] := 'abc'; END_VAR
-    count := count + 1;
+/// Counts scans in a retained variable, in an element of a retained array and in a member of
+/// an element of a retained array of structs whose other member, a reference, is not saved
+/// (the retained bytes not contiguous in memory); a retained STRING too.
+const ST_SMALL: &str = "TYPE Slot : STRUCT n : DINT; p : POINTER TO DINT; END_STRUCT; END_TYPE
+PROGRAM Main
+VAR RETAIN count : DINT; label : STRING[10] := 'abc'; extra : ARRAY [1..3] OF LINT;
+    ks : ARRAY [1..2] OF Slot; END_VAR
+    count := count + 1; extra[1] := extra[1] + 1; ks[2].n := ks[2].n + 1;
 END_PROGRAM";
 
-/// The same, with many more retained bytes: a new layout the mirror has no room for.
-const ST_LARGE: &str = "PROGRAM Main
-VAR RETAIN extra : ARRAY [1..40] OF LINT; count : DINT; END_VAR
-    count := count + 1; extra[1] := extra[1] + 1;
+/// The same, with many more retained bytes: a new layout the mirror has no room for; the
+/// arrays of other bounds (their common elements kept by index).
+const ST_LARGE: &str = "TYPE Slot : STRUCT n : DINT; p : POINTER TO DINT; END_STRUCT; END_TYPE
+PROGRAM Main
+VAR RETAIN extra : ARRAY [1..40] OF LINT; count : DINT; ks : ARRAY [0..3] OF Slot; END_VAR
+    count := count + 1; extra[1] := extra[1] + 1; ks[2].n := ks[2].n + 1;
 END_PROGRAM";
 
 /// The retain writer's copies of the retained ST variables: the scan thread copies them at scan
 /// boundaries, and takes over a reloaded project's (a larger layout: room to make) and a loaded
 /// one's (a smaller layout again: the replaced one to drop) without allocating or freeing —
 /// the writer thread makes the room and drops the layouts. The files hold the variables of
-/// each layout, and `count` counts on through both replacements.
+/// each layout, and `count`, `extra[1]` and `ks[2].n` count on through both replacements.
 #[test]
 fn retained_variables_are_copied_and_taken_over_without_allocating() {
     use plcd::device::RetainSet;
@@ -727,10 +733,16 @@ fn retained_variables_are_copied_and_taken_over_without_allocating() {
         });
         found.unwrap()
     };
-    let count = |g: &Generation| {
-        let v = g.variables.iter().find(|v| v.name == "main.count").expect("main.count saved");
-        i32::from_le_bytes(v.bytes[..4].try_into().unwrap())
+    let bytes = |g: &Generation, name: &str, at: usize, len: usize| {
+        let v = g.variables.iter().find(|v| v.name == name).expect("saved");
+        let mut number = [0u8; 8];
+        number[..len].copy_from_slice(&v.bytes[at..at + len]);
+        i64::from_le_bytes(number)
     };
+    let count = |g: &Generation| bytes(g, "main.count", 0, 4);
+    // extra[1], and ks[2].n: of the second element of ARRAY[1..2], the third of ARRAY[0..3]
+    let extra = |g: &Generation| bytes(g, "main.extra", 0, 8);
+    let kept = |g: &Generation, second: usize| bytes(g, "main.ks", 4 * second, 4);
     let has = |g: &Generation, name: &str| g.variables.iter().any(|v| v.name == name);
 
     command(Command::Mode(Mode::Run, Source::Startup));
@@ -741,8 +753,14 @@ fn retained_variables_are_copied_and_taken_over_without_allocating() {
         "the STRING's characters and their NUL"
     );
     command(Command::Replace(Box::new(Engine::new::<Address>(&large, &[]))));
-    let reloaded = wait_for("the large layout", &|g| has(g, "main.extra[40]") && count(g) > 0);
+    let large_layout = |g: &Generation| {
+        g.variables.iter().any(|v| v.name == "main.extra" && v.ty == "ARRAY[1..40] OF LINT")
+    };
+    let reloaded = wait_for("the large layout", &|g| large_layout(g) && count(g) > 0);
     assert!(count(&reloaded) > count(&first), "count kept over the reload and counting on");
+    assert!(extra(&reloaded) > extra(&first), "an array's element kept by index");
+    assert!(kept(&reloaded, 2) > kept(&first, 1), "a struct's member kept by index");
+    assert!(first.variables.iter().any(|v| v.ty == "ARRAY[1..2] OF {.n@0:DINT;@4}"));
     command(Command::Mode(Mode::Stop, Source::Signal));
     let load = ControlCommand::Load(Box::new(Engine::new::<Address>(&small, &[])));
     command(Command::Control(1, load));
@@ -750,7 +768,9 @@ fn retained_variables_are_copied_and_taken_over_without_allocating() {
     let loaded =
         wait_for("the small layout again", &|g| g.seq > reloaded.seq && has(g, "main.label"));
     assert!(count(&loaded) >= count(&reloaded), "count kept over the load");
-    assert_eq!(loaded.variables.len(), 2);
+    assert!(extra(&loaded) >= extra(&reloaded));
+    assert!(kept(&loaded, 1) >= kept(&reloaded, 2));
+    assert_eq!(loaded.variables.len(), 4);
 
     shared.request_shutdown();
     handle.join().unwrap();

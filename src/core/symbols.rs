@@ -102,20 +102,7 @@ impl ArraySymbol {
     /// Element `k` for the index text at the start of `given` (whitespace removed), and what
     /// follows it: the indices spelled as [`ArraySymbol::index_text`] spells them, in bounds.
     fn parse_index<'g>(&self, given: &'g str) -> Option<(u64, &'g str)> {
-        let mut rest = given.strip_prefix('[')?;
-        let mut k = 0u64;
-        for (d, &(lo, hi)) in self.dims.iter().enumerate() {
-            let last = d + 1 == self.dims.len();
-            let end = rest.find(if last { ']' } else { ',' })?;
-            let text = &rest[..end];
-            let index: i64 = text.parse().ok()?;
-            if index.to_string() != text || index < lo || index > hi {
-                return None;
-            }
-            k = k * (hi - lo + 1) as u64 + (index - lo) as u64;
-            rest = &rest[end + 1..];
-        }
-        Some((k, rest))
+        parse_index(&self.dims, given)
     }
 }
 
@@ -290,6 +277,27 @@ pub fn index_text(dims: &[(i64, i64)], k: u64) -> String {
     }
     let text: Vec<String> = indices.iter().map(i64::to_string).collect();
     format!("[{}]", text.join(","))
+}
+
+/// Element `k` (row-major, from 0) of an array of dimensions `dims` for the index text at the
+/// start of `given` (whitespace removed), and what follows it: the indices spelled as
+/// [`index_text`] spells them, in bounds. The retain files' element names of version 3
+/// (`main.buf[3]`) are read back with it.
+pub fn parse_index<'g>(dims: &[(i64, i64)], given: &'g str) -> Option<(u64, &'g str)> {
+    let mut rest = given.strip_prefix('[')?;
+    let mut k = 0u64;
+    for (d, &(lo, hi)) in dims.iter().enumerate() {
+        let last = d + 1 == dims.len();
+        let end = rest.find(if last { ']' } else { ',' })?;
+        let text = &rest[..end];
+        let index: i64 = text.parse().ok()?;
+        if index.to_string() != text || index < lo || index > hi {
+            return None;
+        }
+        k = k * (hi - lo + 1) as u64 + (index - lo) as u64;
+        rest = &rest[end + 1..];
+    }
+    Some((k, rest))
 }
 
 /// Levenshtein distance, `a` compared case-insensitively with the lowercase `b`.

@@ -158,8 +158,8 @@ pub struct Engine {
     retain: crate::device::RetainSet,
     /// Whether the retained devices hold values to keep, which the next RUN start honours.
     retained: Retained,
-    /// The retained Structured Text variables, leaf by leaf; shared with the retain writer's
-    /// copies.
+    /// The retained Structured Text variables, a record per leaf or array; shared with the
+    /// retain writer's copies.
     retained_variables: std::sync::Arc<crate::vm::retained::RetainedVariables>,
     /// The exit passes of the programs (`FB_exit`).
     finish: finish::Finish,
@@ -260,30 +260,29 @@ impl Engine {
             }
         }
         let vm = &mut self.vm;
-        self.retained_variables.for_each_same(&old.retained_variables, |new, was| {
-            vm.copy_variable_from(&old.vm, was.at, new.at, new.len)
+        self.retained_variables.for_each_same(&old.retained_variables, |new, was, len| {
+            vm.copy_variable_from(&old.vm, was, new, len)
         });
         // `old`'s programs may have written other bytes there (a UNION's)
         self.vm.canonicalize_bools(&self.bool_variables);
         self.retained = old.retained;
     }
 
-    /// The retained Structured Text variables (docs/RETAIN.md), leaf by leaf.
+    /// The retained Structured Text variables (docs/RETAIN.md), a record per leaf or array.
     pub fn retained_variables(&self) -> &std::sync::Arc<crate::vm::retained::RetainedVariables> {
         &self.retained_variables
     }
 
     /// Restores retained variables at start from `saved` (a retain file's, restored with its
-    /// device words by [`Engine::restore_retained`]): each into the leaf of the same name and
-    /// type. What was restored, dropped and left at its initial value, for the log.
+    /// device words by [`Engine::restore_retained`]): each into the variable of the same name
+    /// and type (an array: its elements at the indices both have). What was restored, dropped and left at its initial value, for the log.
     pub fn restore_retained_variables(
         &mut self,
         saved: &[crate::vm::retained::SavedVariable],
     ) -> crate::vm::retained::RestorePlan {
         let plan = self.retained_variables.plan_restore(saved);
-        for &(leaf, s) in &plan.restore {
-            self.vm.restore_variable(self.retained_variables.leaves()[leaf].at, &saved[s].bytes);
-        }
+        let vm = &mut self.vm;
+        self.retained_variables.restore(&plan, saved, |at, bytes| vm.restore_variable(at, bytes));
         self.vm.canonicalize_bools(&self.bool_variables);
         self.retained = Retained::Warm;
         plan

@@ -6,7 +6,7 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 8 | magic `PLCDRTN\0` |
-//! | 8 | 2 | format version, 3 (versions 1 and 2 are read too) |
+//! | 8 | 2 | format version, 4 (versions 1 to 3 are read too) |
 //! | 10 | 2 | n: the number of word ranges |
 //! | 12 | 4 | w: the number of payload words |
 //! | 16 | 8 | sequence number, one more for every write, across restarts |
@@ -19,10 +19,16 @@
 //! | end−4 | 4 | CRC-32C (Castagnoli) of every byte before it |
 //!
 //! The variables section: a u32 count, then for each variable its name, its type text and its
-//! bytes, each a u32 length followed by that many bytes (the name and the type in UTF-8).
+//! bytes, each a u32 length followed by that many bytes (the name and the type in UTF-8). A
+//! variable is a leaf or, since version 4, a whole array: `main.buf`, `ARRAY[1..3] OF INT`, its
+//! elements' bytes one after the other; an array of structs or FB instances states its
+//! element's retained leaves and their positions: `ARRAY[0..1] OF {.x@0:INT;.on@2:BOOL;@3}`
+//! ([`crate::vm::retained`], docs/RETAIN.md "The file"). An array's type text must account for
+//! exactly its bytes, or the section is malformed.
 //!
-//! Version 3 stores a `STRING`'s bytes as the VM does since: its characters, then NULs. A
-//! version 2 file stored a length byte, then the characters; they are read and converted.
+//! Version 3 wrote an array element by element (`main.buf[3]`, restored into the element
+//! since). Version 3 stores a `STRING`'s bytes as the VM does since: its characters, then NULs.
+//! A version 2 file stored a length byte, then the characters; they are read and converted.
 //!
 //! The ranges are the layout: a file is restored only if they and the device layout equal the
 //! configured ones exactly. Variables are restored by name and type
@@ -30,11 +36,13 @@
 
 use crate::device::layout;
 use crate::device::retained::{difference, RetainedWords};
-use crate::vm::retained::{RetainedVariables, SavedVariable};
+use crate::vm::retained::{well_formed, RetainedVariables, SavedVariable};
 
 pub const MAGIC: [u8; 8] = *b"PLCDRTN\0";
-/// The version this build writes.
-pub const VERSION: u16 = 3;
+/// The version this build writes: arrays as one record each.
+pub const VERSION: u16 = 4;
+/// The version that wrote an array element by element, still read (into the arrays).
+pub const VERSION_3: u16 = 3;
 /// The first version, without variables, still read.
 pub const VERSION_1: u16 = 1;
 /// The version whose `STRING`s had a length byte first, still read (and converted).
@@ -81,12 +89,15 @@ pub enum DecodeError {
 }
 
 /// The variables section of a file holding `variables` (name, type text, bytes each), into
-/// `out`.
+/// `out`, which is grown once to the section's size (a 16 MB array is not copied into 32 MB of
+/// doublings).
 pub fn encode_variables<'v>(
-    variables: impl ExactSizeIterator<Item = (&'v str, &'v str, &'v [u8])>,
+    variables: impl ExactSizeIterator<Item = (&'v str, &'v str, &'v [u8])> + Clone,
     out: &mut Vec<u8>,
 ) {
     out.clear();
+    let size = variables.clone().map(|(n, t, b)| 12 + n.len() + t.len() + b.len()).sum::<usize>();
+    out.reserve(4 + size);
     out.extend_from_slice(&(variables.len() as u32).to_le_bytes());
     for (name, ty, bytes) in variables {
         for field in [name.as_bytes(), ty.as_bytes(), bytes] {
@@ -96,11 +107,12 @@ pub fn encode_variables<'v>(
     }
 }
 
-/// The variables section of `layout`'s leaves, their bytes taken from `copy` (as
+/// The variables section of `layout`'s records, their bytes taken from `copy` (as
 /// [`RetainedVariables::copy`] made it), into `out`.
-pub fn encode_leaves(layout: &RetainedVariables, copy: &[u8], out: &mut Vec<u8>) {
-    let leaves = layout.leaves().iter();
-    encode_variables(leaves.map(|l| (l.name.as_str(), l.ty.as_str(), layout.leaf_in(l, copy))), out)
+pub fn encode_records(layout: &RetainedVariables, copy: &[u8], out: &mut Vec<u8>) {
+    let records = layout.records().iter();
+    let records = records.map(|r| (r.name.as_str(), r.ty.as_str(), layout.record_in(r, copy)));
+    encode_variables(records, out)
 }
 
 /// The variables section of saved variables (what a file held), into `out`.
@@ -120,6 +132,7 @@ pub fn encode(
     out: &mut Vec<u8>,
 ) {
     out.clear();
+    out.reserve(HEADER + 6 * ranges.len() + 2 * words.len() + variables.len() + 4);
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&VERSION.to_le_bytes());
     out.extend_from_slice(&(ranges.len() as u16).to_le_bytes());
@@ -162,7 +175,7 @@ pub fn decode(bytes: &[u8]) -> Result<Generation, DecodeError> {
         return Err(DecodeError::Magic);
     }
     let version = u16_at(bytes, 8);
-    if ![VERSION, VERSION_1, VERSION_2].contains(&version) {
+    if ![VERSION, VERSION_1, VERSION_2, VERSION_3].contains(&version) {
         return Err(DecodeError::Version(version));
     }
     let n = usize::from(u16_at(bytes, 10));
@@ -234,7 +247,7 @@ fn string_from_version_2(bytes: &[u8]) -> Vec<u8> {
 }
 
 /// The variables of a variables section, checked: every length within the section, names and
-/// types UTF-8, nothing left over.
+/// types UTF-8, an array's type text accounting for its bytes, nothing left over.
 pub fn decode_variables(section: &[u8]) -> Result<Vec<SavedVariable>, DecodeError> {
     let mut at = 0;
     let take = |at: &mut usize, len: usize| -> Result<&[u8], DecodeError> {
@@ -260,9 +273,13 @@ pub fn decode_variables(section: &[u8]) -> Result<Vec<SavedVariable>, DecodeErro
     }
     let mut variables = Vec::with_capacity(count);
     for _ in 0..count {
+        let start = at;
         let name = text(&mut at)?;
         let ty = text(&mut at)?;
         let len = length(&mut at)?;
+        if !well_formed(&ty, len) {
+            return Err(DecodeError::Variables(start));
+        }
         let bytes = take(&mut at, len)?.to_vec();
         variables.push(SavedVariable { name, ty, bytes });
     }
@@ -400,7 +417,7 @@ mod tests {
         let total = layout::TOTAL_WORDS.to_le_bytes();
         let mut expected: Vec<u8> = Vec::new();
         expected.extend(b"PLCDRTN\0");
-        expected.extend([3, 0, 1, 0, 2, 0, 0, 0]);
+        expected.extend([4, 0, 1, 0, 2, 0, 0, 0]);
         expected.extend([5, 0, 0, 0, 0, 0, 0, 0]);
         expected.extend(1_700_000_000_000u64.to_le_bytes());
         expected.extend(total);
@@ -418,7 +435,7 @@ mod tests {
         let decoded = decode(&bytes).unwrap();
         assert_eq!((decoded.seq, &decoded.words[..]), (5, &[0x1234, 0xBEEF][..]));
         assert_eq!(decoded.ranges, [K]);
-        assert_eq!(decoded.version, 3);
+        assert_eq!(decoded.version, 4);
         assert_eq!(decoded.variables, [saved("main.n", "INT", &[7, 0])]);
         assert_eq!(layout_difference(&decoded, &[K]), None);
     }
@@ -509,9 +526,77 @@ mod tests {
         assert_eq!(CRC.checksum(b"123456789"), 0xE306_9283);
     }
 
+    /// A file with a leaf and an array of blocks, as version 4 writes them.
+    fn with_an_array() -> Vec<u8> {
+        let pts = saved("main.pts", "ARRAY[1..2] OF {.x@0:INT;.on@2:BOOL;@3}", &[1, 0, 1, 2, 0, 0]);
+        file_with(9, &[1, 2], &[saved("main.n", "INT", &[7, 0]), pts])
+    }
+
+    /// `VAR RETAIN buf : ARRAY[1..3] OF INT; END_VAR` in `main`, byte for byte: one record,
+    /// its elements' bytes whole; what docs/RETAIN.md shows.
+    #[test]
+    fn the_bytes_of_an_array_record() {
+        let buf = saved("main.buf", "ARRAY[1..3] OF INT", &[1, 0, 2, 0, 0xFF, 0xFF]);
+        let bytes = file_with(5, &[0x1234, 0xBEEF], std::slice::from_ref(&buf));
+        let mut section: Vec<u8> = vec![1, 0, 0, 0, 8, 0, 0, 0];
+        section.extend(b"main.buf");
+        section.extend([18, 0, 0, 0]);
+        section.extend(b"ARRAY[1..3] OF INT");
+        section.extend([6, 0, 0, 0, 1, 0, 2, 0, 0xFF, 0xFF]);
+        assert_eq!(section.len(), 48);
+        assert_eq!(&bytes[36..40], &48u32.to_le_bytes());
+        assert_eq!(&bytes[HEADER + 6 + 4..bytes.len() - 4], &section[..]);
+        let decoded = decode(&bytes).unwrap();
+        assert_eq!((decoded.version, &decoded.variables[..]), (4, &[buf][..]));
+    }
+
+    #[test]
+    fn arrays_round_trip() {
+        let variables = [
+            saved("main.buf", "ARRAY[1..4] OF DINT", &[1; 16]),
+            saved("main.m", "ARRAY[1..2,-1..0] OF ARRAY[1..2] OF INT", &[2; 16]),
+            saved("main.pts", "ARRAY[0..1] OF {.x@0:INT;.m@2:ARRAY[1..2] OF BYTE;@4}", &[3; 8]),
+            saved("main.n", "INT", &[7, 0]),
+        ];
+        let decoded = decode(&file_with(3, &[9], &variables)).unwrap();
+        assert_eq!(decoded.variables, variables);
+        assert!(decode(&with_an_array()).is_ok());
+    }
+
+    /// A version 3 file (an array element by element) is read as it was written; the restore
+    /// puts each element record into its element (crate::vm::retained).
+    #[test]
+    fn a_version_3_file_is_still_read() {
+        let variables =
+            [saved("main.buf[1]", "DINT", &[1, 0, 0, 0]), saved("main.n", "INT", &[7, 0])];
+        let mut bytes = file_with(5, &[9], &variables);
+        bytes[8] = 3;
+        let body = bytes.len() - 4;
+        let crc = CRC.checksum(&bytes[..body]);
+        bytes[body..].copy_from_slice(&crc.to_le_bytes());
+        let decoded = decode(&bytes).unwrap();
+        assert_eq!((decoded.version, &decoded.variables[..]), (3, &variables[..]));
+    }
+
+    /// An array record whose type text does not account for its bytes is refused under a good
+    /// CRC: no writer writes one.
+    #[test]
+    fn an_array_record_of_other_bytes_than_its_text_states_is_rejected() {
+        for (ty, bytes) in [
+            ("ARRAY[1..4] OF DINT", &[0u8; 15][..]),
+            ("ARRAY[1..2] OF {.x@0:INT;@3}", &[0; 4][..]),
+            ("ARRAY[1..2] OF {.x@1:INT;@2}", &[0; 4][..]),
+            ("ARRAY[2..1] OF INT", &[][..]),
+        ] {
+            let file =
+                file_with(1, &[1], &[saved("main.n", "INT", &[7, 0]), saved("main.a", ty, bytes)]);
+            assert_eq!(decode(&file), Err(DecodeError::Variables(4 + 23)), "{ty}");
+        }
+    }
+
     #[test]
     fn every_truncation_is_rejected() {
-        let bytes = file_with(9, &[1, 2], &[saved("main.n", "INT", &[7, 0])]);
+        let bytes = with_an_array();
         for len in 0..bytes.len() {
             let error = decode(&bytes[..len]).unwrap_err();
             if len < HEADER + 4 {
@@ -527,7 +612,7 @@ mod tests {
 
     #[test]
     fn every_single_bit_flip_is_rejected() {
-        let bytes = file_with(9, &[1, 2], &[saved("main.n", "INT", &[7, 0])]);
+        let bytes = with_an_array();
         for bit in 0..bytes.len() * 8 {
             let mut flipped = bytes.clone();
             flipped[bit / 8] ^= 1 << (bit % 8);
@@ -541,8 +626,8 @@ mod tests {
         bytes[0] = b'X';
         assert_eq!(decode(&bytes), Err(DecodeError::Magic));
         let mut bytes = file(1, &[1]);
-        bytes[8] = 4;
-        assert_eq!(decode(&bytes), Err(DecodeError::Version(4)));
+        bytes[8] = 5;
+        assert_eq!(decode(&bytes), Err(DecodeError::Version(5)));
         let mut bytes = file(1, &[1]);
         bytes[8] = 0;
         assert_eq!(decode(&bytes), Err(DecodeError::Version(0)));

@@ -93,7 +93,7 @@ pub struct Startup {
 /// (nothing restored). Never fails: the PLC starts either way.
 pub fn startup(store: &Store, set: &RetainSet, restart: Restart) -> Startup {
     let began = Instant::now();
-    let slots: [Slot; 2] = [0, 1].map(|i| match store.read(i) {
+    let mut slots: [Slot; 2] = [0, 1].map(|i| match store.read(i) {
         Ok(slot) => slot,
         Err(e) => {
             log::error!("retain: {e}; using the other generation");
@@ -119,10 +119,13 @@ pub fn startup(store: &Store, set: &RetainSet, restart: Restart) -> Startup {
             Err(rename) => log::error!("retain: {e}; and it cannot be set aside: {rename}"),
         }
     }
-    let restored = choice.restore.and_then(|i| match &slots[i] {
-        Slot::Intact(g) => Some((i, g)),
-        _ => None,
-    });
+    let any_corrupt = slots.iter().any(|s| matches!(s, Slot::Corrupt(_)));
+    // Taken, not cloned: a generation's variables may be an array of many megabytes.
+    let restored =
+        choice.restore.and_then(|i| match std::mem::replace(&mut slots[i], Slot::Missing) {
+            Slot::Intact(g) => Some((i, g)),
+            _ => None,
+        });
     let mut startup = Startup {
         words: None,
         variables: Vec::new(),
@@ -134,8 +137,8 @@ pub fn startup(store: &Store, set: &RetainSet, restart: Restart) -> Startup {
     };
     match (restored, restart) {
         (Some((i, g)), Restart::Warm) => {
-            startup.words = Some(g.words.clone());
-            startup.variables = g.variables.clone();
+            startup.words = Some(g.words);
+            startup.variables = g.variables;
             startup.version = g.version;
             startup.from = Some((store.slot_path(i), g.seq));
         }
@@ -146,7 +149,7 @@ pub fn startup(store: &Store, set: &RetainSet, restart: Restart) -> Startup {
         (None, _) if !choice.mismatched.is_empty() => {
             log::error!("retain: nothing restored: the retained devices start cleared")
         }
-        (None, _) if slots.iter().any(|s| matches!(s, Slot::Corrupt(_))) => {
+        (None, _) if any_corrupt => {
             log::error!("retain: no intact generation: the retained devices start cleared")
         }
         (None, _) => log::info!(

@@ -85,7 +85,7 @@ impl Writer {
     }
 
     /// [`Writer::write_if_changed`] with the retained variables: `copy` (as
-    /// [`RetainedVariables::copy`] made it) of `layout`'s leaves.
+    /// [`RetainedVariables::copy`] made it) of `layout`'s records.
     pub fn write_state(
         &mut self,
         words: &mut [u16],
@@ -99,7 +99,9 @@ impl Writer {
             at += r.len();
         }
         match variables {
-            Some((layout, copy)) => super::format::encode_leaves(layout, copy, &mut self.variables),
+            Some((layout, copy)) => {
+                super::format::encode_records(layout, copy, &mut self.variables)
+            }
             None => super::format::encode_variables(std::iter::empty(), &mut self.variables),
         }
         if self.last.as_deref() == Some(&*words) && self.last_variables == self.variables {

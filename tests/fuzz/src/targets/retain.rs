@@ -11,7 +11,7 @@
 //!   older one exactly, or nothing if there is none.
 //! - odd: **raw.** The rest is a file, with a correct CRC-32C appended so that the fuzzer gets
 //!   past the checksum into the structure. What is accepted must encode back to the same bytes
-//!   (a version 2 file), and whatever is restored must fit the engine.
+//!   (a version 4 file), and whatever is restored must fit the engine.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -33,8 +33,15 @@ name = "main"
 file = "main.st"
 "#;
 
-const MAIN: &str = "PROGRAM main\nVAR RETAIN\n    count : DINT;\n    name : STRING[8];\n\
-                    level : LREAL;\n    on : BOOL;\nEND_VAR\n    count := count + 1;\nEND_PROGRAM\n";
+/// Leaves, and arrays as whole records (version 4): of scalars, of two dimensions, of blocks
+/// only one member of which is retained (its bytes packed), of arrays.
+const MAIN: &str = "FUNCTION_BLOCK Keeper\nVAR RETAIN kept : INT; END_VAR\nVAR lost : INT; END_VAR\n\
+                    lost := lost + 1;\nEND_FUNCTION_BLOCK\n\
+                    PROGRAM main\nVAR RETAIN\n    count : DINT;\n    name : STRING[8];\n\
+                    level : LREAL;\n    on : BOOL;\n    buf : ARRAY[1..3] OF INT;\n\
+                    grid : ARRAY[0..1, -1..0] OF SINT;\n    rows : ARRAY[1..2] OF ARRAY[1..2] OF INT;\n\
+                    END_VAR\nVAR keepers : ARRAY[1..2] OF Keeper; END_VAR\n\
+                    count := count + 1;\nEND_PROGRAM\n";
 
 const CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI);
 
@@ -81,7 +88,7 @@ pub fn run(data: &[u8]) {
 
 fn written_then_damaged(f: &Fixture, input: &mut Bytes<'_>) {
     let engine = Engine::new(&f.project, &[] as &[project::Watched]);
-    let leaves = engine.retained_variables().leaves().to_vec();
+    let leaves = engine.retained_variables().records().to_vec();
     let held = |input: &mut Bytes<'_>| Held {
         words: (0..f.set.word_count()).map(|_| input.u16()).collect(),
         variables: leaves
@@ -186,12 +193,13 @@ fn restore(f: &Fixture) -> Option<Held> {
     let plan = engine.restore_retained_variables(&startup.variables);
     let mut captured = Vec::new();
     f.set.capture(engine.vm().mem.words(), &mut captured);
-    let leaves = engine.retained_variables().leaves();
-    let vars = engine.vm().vars();
-    let variables = leaves
-        .iter()
-        .map(|l| (l.name.clone(), vars[l.at as usize..(l.at + l.len) as usize].to_vec()))
-        .collect();
-    assert!(plan.restore.len() <= leaves.len());
+    let layout = engine.retained_variables();
+    let mut copy = Vec::new();
+    layout.copy(engine.vm().vars(), &mut copy);
+    let records = layout.records();
+    let variables =
+        records.iter().map(|r| (r.name.clone(), layout.record_in(r, &copy).to_vec())).collect();
+    // A version 3 file restores its element records into an array record each.
+    assert!(startup.version < format::VERSION || plan.restore.len() <= records.len());
     Some(Held { words: captured, variables })
 }
