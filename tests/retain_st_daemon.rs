@@ -86,7 +86,7 @@ fn kill_9_restores_them_and_reset_cold_clears_them() {
     daemon.kill9();
     let acked = project.newest().unwrap();
     let scans = value(&acked, "main.scans").unwrap();
-    assert_eq!((acked.version, runs(&acked)), (3, 1));
+    assert_eq!((acked.version, runs(&acked)), (4, 1));
 
     let daemon = project.start();
     let g = project.wait_for_generation("the second RUN start", |g| g.seq > acked.seq);

@@ -44,7 +44,7 @@ pub struct RetainedRecord {
 
 /// An array record's shape.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ArrayLayout {
+struct ArrayLayout {
     /// `(lo, hi)` of each dimension, as declared.
     dims: Box<[(i64, i64)]>,
     /// Elements, at least one.
