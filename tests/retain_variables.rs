@@ -99,6 +99,52 @@ fn a_warm_run_start_keeps_them_a_cold_reset_sets_their_initial_values_at_once() 
     assert_eq!(var(&plc, &p, "main.count"), 100 + scans, "counted from the initial value");
 }
 
+/// FB instances with a RETAIN member in a plain array, in an array of arrays and in a struct:
+/// each instance's retained member is kept by a warm RUN start as a single instance's is.
+const KEEPERS: &str = "
+FUNCTION_BLOCK Keeper
+VAR RETAIN kept : INT; END_VAR
+VAR lost : INT; END_VAR
+    kept := kept + 1; lost := lost + 1;
+END_FUNCTION_BLOCK
+TYPE Cell : STRUCT k : Keeper; n : INT; END_STRUCT; END_TYPE
+PROGRAM Main
+VAR ks : ARRAY [1..2] OF Keeper; grid : ARRAY [0..1, 0..1] OF Keeper;
+    nested : ARRAY [1..2] OF ARRAY [1..2] OF Keeper; cell : Cell; scans : DINT; END_VAR
+    ks[1](); ks[2](); grid[1, 0](); nested[2][1](); cell.k(); cell.n := cell.n + 1;
+    scans := scans + 1;
+END_PROGRAM
+";
+
+#[test]
+fn a_warm_run_start_keeps_the_retain_members_of_instances_in_arrays_and_structs() {
+    let p = st(KEEPERS);
+    let mut plc = Plc::new(&p);
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    plc.set_mode(Mode::Stop);
+    let scans = var(&plc, &p, "main.scans");
+    assert!(scans > 5, "it ran: {scans}");
+    plc.set_mode(Mode::Run);
+    run_scans(&mut plc, MS);
+    plc.set_mode(Mode::Stop);
+    let again = var(&plc, &p, "main.scans");
+    assert!(again > 0 && again < scans + 10, "not retained: started over");
+    for kept in [
+        "main.ks[1].kept",
+        "main.ks[2].kept",
+        "main.grid[1,0].kept",
+        "main.nested[2][1].kept",
+        "main.cell.k.kept",
+    ] {
+        assert_eq!(var(&plc, &p, kept), scans + again, "{kept}: retained, counted on");
+    }
+    // the other elements and members were never called or are not RETAIN: started over
+    assert_eq!(var(&plc, &p, "main.grid[0,0].kept"), 0);
+    assert_eq!(var(&plc, &p, "main.ks[1].lost"), again);
+    assert_eq!(var(&plc, &p, "main.cell.n"), again);
+}
+
 const OLD: &str = "
 PROGRAM Main
 VAR RETAIN count : DINT; renamed : DINT; retyped : INT; removed : INT; END_VAR

@@ -542,7 +542,8 @@ fn merge_ranges(r: Vec<(u32, u32)>) -> Vec<(u32, u32)> {
     out
 }
 
-/// The byte ranges of RETAIN variables inside a value at `at` (all of it when `all`).
+/// The byte ranges of RETAIN variables inside a value at `at` (all of it when `all`): an FB
+/// instance's RETAIN members, in it, in a struct member or in an array element at any depth.
 fn retained_in(cx: &Ctx<'_>, ty: &Ty, at: u32, all: bool, out: &mut Vec<(u32, u32)>) {
     if all {
         out.push((at, cx.types.size(ty)));
@@ -558,8 +559,23 @@ fn retained_in(cx: &Ctx<'_>, ty: &Ty, at: u32, all: bool, out: &mut Vec<(u32, u3
                 }
             }
         }
-        Ty::Struct(_) | Ty::Array(_) => {
-            // retained only as a whole
+        // a struct's members and an array's elements may be FB instances with RETAIN members
+        Ty::Struct(s) => {
+            for m in &cx.types.structs[*s].members {
+                retained_in(cx, &m.ty, at + m.offset, false, out);
+            }
+        }
+        Ty::Array(a) => {
+            // the ranges of one element, repeated for each: none for an array of values
+            let mut element = Vec::new();
+            retained_in(cx, &a.of, 0, false, &mut element);
+            if element.is_empty() {
+                return;
+            }
+            for i in 0..a.count() as u32 {
+                let base = at + i * a.elem_size;
+                out.extend(element.iter().map(|&(o, len)| (base + o, len)));
+            }
         }
         _ => {}
     }
