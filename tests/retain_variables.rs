@@ -45,6 +45,17 @@ fn run_scans(plc: &mut Plc, ns: u64) {
     plc.engine.set_hold_at_end(false);
 }
 
+/// RUN for 1 ms of scans (every statement of the last one executed), then STOP: a warm RUN
+/// start each time but the first. The scans of this RUN, as `main.scans` counts them.
+fn run_1ms(plc: &mut Plc, p: &Project) -> i64 {
+    plc.set_mode(Mode::Run);
+    run_scans(plc, MS);
+    plc.set_mode(Mode::Stop);
+    let scans = var(plc, p, "main.scans");
+    assert!(scans > 5, "it ran: {scans}");
+    scans
+}
+
 /// Counts every scan in a retained and in a plain variable, and in a retained FB instance's
 /// counter, a retained global and an FB's own RETAIN member.
 const COUNTING: &str = "
@@ -67,22 +78,15 @@ END_PROGRAM
 fn a_warm_run_start_keeps_them_a_cold_reset_sets_their_initial_values_at_once() {
     let p = st(COUNTING);
     let mut plc = Plc::new(&p);
-    plc.set_mode(Mode::Run);
-    run_scans(&mut plc, MS);
-    plc.set_mode(Mode::Stop);
-    let scans = var(&plc, &p, "main.scans");
-    assert!(scans > 5, "it ran: {scans}");
+    let scans = run_1ms(&mut plc, &p);
     assert_eq!(var(&plc, &p, "main.count"), 100 + scans);
     assert_eq!(var(&plc, &p, "total"), 2 * scans);
     assert_eq!(var(&plc, &p, "main.k.kept"), scans);
     let cv = var(&plc, &p, "main.ctr.CV");
     assert!(cv > 0);
 
-    plc.set_mode(Mode::Run);
-    run_scans(&mut plc, MS);
-    plc.set_mode(Mode::Stop);
-    let again = var(&plc, &p, "main.scans");
-    assert!(again > 0 && again < scans + 10, "not retained: started over");
+    let again = run_1ms(&mut plc, &p);
+    assert!(again < scans + 10, "not retained: started over");
     assert_eq!(var(&plc, &p, "main.count"), 100 + scans + again, "retained: counted on");
     assert_eq!(var(&plc, &p, "total"), 2 * (scans + again), "a retained global");
     assert_eq!(var(&plc, &p, "main.k.kept"), scans + again, "an FB's RETAIN member");
@@ -120,16 +124,9 @@ END_PROGRAM
 fn a_warm_run_start_keeps_the_retain_members_of_instances_in_arrays_and_structs() {
     let p = st(KEEPERS);
     let mut plc = Plc::new(&p);
-    plc.set_mode(Mode::Run);
-    run_scans(&mut plc, MS);
-    plc.set_mode(Mode::Stop);
-    let scans = var(&plc, &p, "main.scans");
-    assert!(scans > 5, "it ran: {scans}");
-    plc.set_mode(Mode::Run);
-    run_scans(&mut plc, MS);
-    plc.set_mode(Mode::Stop);
-    let again = var(&plc, &p, "main.scans");
-    assert!(again > 0 && again < scans + 10, "not retained: started over");
+    let scans = run_1ms(&mut plc, &p);
+    let again = run_1ms(&mut plc, &p);
+    assert!(again < scans + 10, "not retained: started over");
     for kept in [
         "main.ks[1].kept",
         "main.ks[2].kept",
