@@ -14,7 +14,9 @@ use cranelift_codegen::isa::{CallConv, TargetIsa};
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_jit::{JITBuilder, JITModule};
 use cranelift_module::{default_libcall_names, FuncId, Linkage, Module, ModuleReloc};
-use plcd_core::lang::native::{IlFrame, NativeCode, NativeExit, NativeMemory, NativeRegs, StFrame};
+use plcd_core::lang::native::{
+    IlFrame, IlMemory, NativeCode, NativeExit, NativeMemory, NativeRegs, StFrame,
+};
 use plcd_core::lang::Program;
 use plcd_core::vm::Clock;
 
@@ -27,11 +29,20 @@ pub(crate) enum Shape {
 }
 
 impl Shape {
-    #[inline]
     fn words_end(&self) -> u64 {
         match self {
             Shape::StructuredText(a) => a.words_end,
             Shape::InstructionList(a) => a.words_end,
+        }
+    }
+
+    /// What the instruction list's state must hold for the code (`None` for Structured Text).
+    fn il_needs(&self) -> Option<IlNeeds> {
+        match self {
+            Shape::StructuredText(_) => None,
+            Shape::InstructionList(a) => {
+                Some(IlNeeds { edges: a.edges_end, timers: a.timers_end, counters: a.counters_end })
+            }
         }
     }
 
@@ -61,26 +72,27 @@ impl Shape {
         }
     }
 
-    /// Whether the VM gives the instruction list's state if the code needs it, with the edge
-    /// slots, timers and counters the code reaches.
-    #[inline]
-    fn fits(&self, memory: &NativeMemory<'_>) -> bool {
-        match (self, memory.il.as_deref()) {
-            (Shape::StructuredText(_), _) => true,
-            (Shape::InstructionList(a), Some(il)) => {
-                il.edges.len() as u64 >= a.edges_end
-                    && il.timers.len() as u64 >= a.timers_end
-                    && il.counters.len() as u64 >= a.counters_end
-            }
-            (Shape::InstructionList(_), None) => false,
-        }
-    }
-
     fn blocks(&self) -> usize {
         match self {
             Shape::StructuredText(a) => a.leaders.len(),
             Shape::InstructionList(a) => a.leaders.len(),
         }
+    }
+}
+
+/// The edge slots, timers and counters instruction-list code reaches at its fixed operands.
+struct IlNeeds {
+    edges: u64,
+    timers: u64,
+    counters: u64,
+}
+
+impl IlNeeds {
+    /// Whether `il` holds them all.
+    fn fit(&self, il: &IlMemory<'_>) -> bool {
+        il.edges.len() as u64 >= self.edges
+            && il.timers.len() as u64 >= self.timers
+            && il.counters.len() as u64 >= self.counters
     }
 }
 
@@ -151,6 +163,32 @@ pub(crate) struct IlContext<'a> {
     pub clock: *const (dyn Clock + 'a),
 }
 
+impl<'a> IlContext<'a> {
+    /// The raw parts of `il`, and what the code computes the time from.
+    fn new(il: &'a mut IlMemory<'a>) -> IlContext<'a> {
+        let linear = il.clock.linear();
+        IlContext {
+            calls: il.calls.as_mut_ptr(),
+            edges: il.edges.as_mut_ptr().cast::<u8>(),
+            counters: il.counters.address(),
+            timers: il.timers.address(),
+            stop: il.stop,
+            linear: u64::from(linear.is_some()),
+            origin_ns: linear.map_or(0, |c| c.origin_ns),
+            origin_steps: linear.map_or(0, |c| c.origin_steps),
+            step_ns: linear.map_or(0, |c| c.step_ns),
+            fast_below: linear
+                .filter(|c| il.stop >= c.origin_steps)
+                .map_or(0, |c| (il.stop - c.origin_steps).saturating_add(1)),
+            stop_ns: linear.map_or(0, |c| {
+                c.origin_ns
+                    .wrapping_add(il.stop.wrapping_sub(c.origin_steps).wrapping_mul(c.step_ns))
+            }),
+            clock: il.clock,
+        }
+    }
+}
+
 /// What the generated function returns.
 pub(crate) const RETURN_END: u32 = 0;
 pub(crate) const RETURN_INTERPRET: u32 = 1;
@@ -209,9 +247,15 @@ pub(crate) struct Code {
     /// instruction-list program ([`il::Analysis::pieces`]), then one per subroutine
     /// ([`il::Analysis::subroutines`]), which only generated code calls.
     entries: Vec<Entry>,
+    /// The function to enter at pc 0, where every scan starts: found once, here.
+    start: Entry,
     shape: Shape,
     /// Bytes of variable memory the code reaches unchecked (`codegen::generate`).
     vars_need: u64,
+    /// Device words the code reaches unchecked (its analysis' `words_end`).
+    words_need: u64,
+    /// The instruction list's state the code reaches unchecked; `None` for Structured Text.
+    il_needs: Option<IlNeeds>,
     /// Bytes of machine stack the code may use ([`NATIVE_STACK`]).
     stack: u64,
     /// Bytes of that stack kept free under the last call generated code may make: its
@@ -311,7 +355,7 @@ impl Code {
         module
             .finalize_definitions()
             .map_err(|e| Error::Memory { program: name.clone(), message: format!("{e:#}") })?;
-        let entries = ids
+        let entries: Vec<Entry> = ids
             .into_iter()
             .map(|id| {
                 let address = module.get_finalized_function(id);
@@ -322,8 +366,20 @@ impl Code {
                 unsafe { std::mem::transmute::<*const u8, Entry>(address) }
             })
             .collect();
+        let start = entries[shape.entry_index(0)];
         let stack_reserve = deepest + HELPER_STACK;
-        Ok(Code { module: Some(module), entries, shape, vars_need, stack, stack_reserve, name })
+        Ok(Code {
+            module: Some(module),
+            entries,
+            start,
+            words_need: shape.words_end(),
+            il_needs: shape.il_needs(),
+            shape,
+            vars_need,
+            stack,
+            stack_reserve,
+            name,
+        })
     }
 }
 
@@ -404,34 +460,18 @@ impl NativeCode for Code {
         // The fixed operands of the code, and the arrays at fixed places, are checked against
         // these sizes once, here.
         if (memory.vars.len() as u64) < self.vars_need
-            || (memory.words.len() as u64) < self.shape.words_end()
-            || !self.shape.fits(&memory)
+            || (memory.words.len() as u64) < self.words_need
         {
             return NativeExit::Interpret;
         }
-        let regs_pc = regs.pc;
-        let il = memory.il.map(|il| {
-            let linear = il.clock.linear();
-            IlContext {
-                calls: il.calls.as_mut_ptr(),
-                edges: il.edges.as_mut_ptr().cast::<u8>(),
-                counters: il.counters.address(),
-                timers: il.timers.address(),
-                stop: il.stop,
-                linear: u64::from(linear.is_some()),
-                origin_ns: linear.map_or(0, |c| c.origin_ns),
-                origin_steps: linear.map_or(0, |c| c.origin_steps),
-                step_ns: linear.map_or(0, |c| c.step_ns),
-                fast_below: linear
-                    .filter(|c| il.stop >= c.origin_steps)
-                    .map_or(0, |c| (il.stop - c.origin_steps).saturating_add(1)),
-                stop_ns: linear.map_or(0, |c| {
-                    c.origin_ns
-                        .wrapping_add(il.stop.wrapping_sub(c.origin_steps).wrapping_mul(c.step_ns))
-                }),
-                clock: il.clock,
-            }
-        });
+        // The instruction list's state, built only for instruction-list code (Structured Text
+        // has no use for it, and does not pay for it).
+        let il = match (&self.il_needs, memory.il) {
+            (None, _) => None,
+            (Some(needs), Some(il)) if needs.fit(il) => Some(IlContext::new(il)),
+            (Some(_), _) => return NativeExit::Interpret,
+        };
+        let pc = regs.pc;
         let mut context = Context {
             regs,
             vars: memory.vars.as_mut_ptr(),
@@ -448,7 +488,7 @@ impl NativeCode for Code {
         // The floor is measured from this frame, which the generated code runs below.
         let here = std::ptr::addr_of!(context) as u64;
         context.stack_floor = here.saturating_sub(self.stack) + self.stack_reserve;
-        let mut entry = self.entries[self.shape.entry_index(regs_pc)];
+        let mut entry = if pc == 0 { self.start } else { self.entries[self.shape.entry_index(pc)] };
         let status = loop {
             // SAFETY: every pointer of `context` comes from `regs` or a slice of `memory`,
             // mutably borrowed for this call, with its length beside it. The generated code

@@ -3330,3 +3330,83 @@ END_PROGRAM
     let outcome = targeted("unions_jumps_dates", source, Scans::new(12), 95);
     assert!(outcome.errors.is_empty(), "AND_THEN and OR_ELSE skipped the division");
 }
+
+/// Native code checks the memory a run gives it against what it reaches without a check (the
+/// variables and device words of its fixed operands, the instruction list's edge slots), and
+/// leaves a run on memory too small to the interpreter with the registers untouched; on memory
+/// large enough it runs the program to `END`.
+#[test]
+fn native_code_refuses_memory_smaller_than_it_reaches() {
+    use plcd_core::lang::native::{IlFrame, IlMemory, RawSlice, StFrame};
+    use plcd_core::lang::{CALL_DEPTH, EVAL_DEPTH, ST_CALL_DEPTH};
+    use plcd_core::value::Pointer;
+
+    const START: NativeRegs = NativeRegs {
+        pc: 0,
+        st_depth: 0,
+        base: 0,
+        error: 0,
+        this: Pointer::DISCARD.to_slot(),
+        left: 1_000,
+        sp: 0,
+        rung: 1,
+        blocks: 0,
+        branches: 0,
+        il_depth: 0,
+        loop_depth: 0,
+    };
+    let words_len = plcd_core::device::Memory::new().words().len();
+    // One run on `vars` bytes of variable memory, `words` device words and, for the
+    // instruction list, its state with `edges` edge slots (`None`: no state at all).
+    let run = |code: &dyn NativeCode, vars: usize, words: usize, edges: Option<usize>| {
+        let (mut vars, mut words) = (vec![0u8; vars], vec![0u16; words]);
+        let (mut eval, mut calls) = ([0u64; EVAL_DEPTH], [StFrame::default(); ST_CALL_DEPTH]);
+        let mut il_calls = [IlFrame::default(); CALL_DEPTH];
+        let mut edges = edges.map(|n| vec![false; n]);
+        let (mut timers, mut counters) = (vec![0u64; 4096], vec![0u64; 4096]);
+        let clock = plcd_core::vm::ManualClock::new(0);
+        let mut il = edges.as_mut().map(|edges| IlMemory {
+            calls: &mut il_calls,
+            edges,
+            counters: RawSlice::new(&mut counters),
+            timers: RawSlice::new(&mut timers),
+            clock: &clock,
+            stop: 1_000,
+        });
+        let memory = NativeMemory {
+            vars: &mut vars,
+            words: &mut words,
+            frame: &mut [],
+            eval: &mut eval,
+            calls: &mut calls,
+            il: il.as_mut(),
+        };
+        let mut regs = START;
+        let exit = code.run(memory, &mut regs);
+        (exit, regs)
+    };
+
+    let st = Programs::inline(
+        "sizes",
+        "PROGRAM Main\nVAR a, b : DINT; END_VAR\n    b := a + 1;\nEND_PROGRAM\n",
+    );
+    let code = plcd_native::compile_even_if_slower(&st.programs[0]).unwrap();
+    let need = st.variables.initial.len();
+    assert!(need >= 8, "two DINTs: {need} bytes");
+    assert_eq!(run(&*code, need - 1, words_len, None), (NativeExit::Interpret, START));
+    let (exit, regs) = run(&*code, need, words_len, None);
+    assert_eq!(exit, NativeExit::End);
+    assert!(regs.left < START.left, "it ran: {regs:?}");
+
+    let il = Programs::il("sizes", &[("main", "LOADP M0000\nOUT M0001\nEND\n")]);
+    let program = &il.programs[0];
+    let code = plcd_native::compile_even_if_slower(program).unwrap();
+    let edges = (program.edge_base + program.edge_slots) as usize;
+    assert!(edges >= 1);
+    assert_eq!(run(&*code, 0, words_len, None), (NativeExit::Interpret, START));
+    assert_eq!(run(&*code, 0, words_len, Some(edges - 1)), (NativeExit::Interpret, START));
+    assert_eq!(run(&*code, 0, 0, Some(edges)), (NativeExit::Interpret, START));
+    let (exit, regs) = run(&*code, 0, words_len, Some(edges));
+    assert_eq!(exit, NativeExit::End);
+    assert!(regs.left < START.left, "it ran: {regs:?}");
+}
