@@ -56,9 +56,11 @@ pub struct IlFrame {
 pub struct NativeRegs {
     /// The next instruction: where native code starts, and where it stopped.
     pub pc: u32,
-    /// Structured Text calls under way (entries of [`NativeMemory::calls`]).
+    /// Structured Text calls under way (entries of the call stack,
+    /// [`NativeMemoryOffsets::calls`]).
     pub st_depth: u32,
-    /// The current frame's base, a byte offset into [`NativeMemory::frame`].
+    /// The current frame's base, a byte offset into the frame area
+    /// ([`NativeMemoryOffsets::frame`]).
     pub base: u32,
     /// The operation error's code, when native code returns [`NativeExit::OperationError`].
     pub error: u32,
@@ -66,7 +68,8 @@ pub struct NativeRegs {
     pub this: u64,
     /// Instructions left in the step budget.
     pub left: u64,
-    /// The evaluation stack's next free slot (an index into [`NativeMemory::eval`]).
+    /// The evaluation stack's next free slot (an index into the ring,
+    /// [`NativeMemoryOffsets::eval`]).
     pub sp: u64,
     /// The instruction list's rung result: 0 or 1.
     pub rung: u32,
@@ -80,23 +83,118 @@ pub struct NativeRegs {
     pub loop_depth: u32,
 }
 
-/// The memory native code works on, borrowed for one call.
+/// The memory native code works on, borrowed for one call, as the raw parts its code reads at
+/// fixed offsets ([`NativeMemory::OFFSETS`]): `repr(C)`, built once by the VM for each call of
+/// [`NativeCode::run`] and handed to the code in place (no copy of it into another layout).
+///
+/// The memory's addresses and lengths are private: a `NativeMemory` holds only slices
+/// [`NativeMemory::new`] borrowed for its lifetime, which the code may rely on. The public
+/// fields are native code's own: [`NativeCode::run`] sets them before it enters its code, and
+/// nothing reads what they held before.
+///
+/// No two fields that are neighbours in the slices they come from are neighbours here (an
+/// address and its length): a compiler copying such a pair with one 16-byte load of what was
+/// just written 8 bytes at a time makes the processor stall (measured, when native code copied
+/// the memory into a layout of its own).
+#[repr(C)]
+#[derive(Debug)]
 pub struct NativeMemory<'a> {
-    /// Variable memory (program instances and globals).
-    pub vars: &'a mut [u8],
+    /// The activation's registers: [`NativeCode::run`] points this at its `regs`.
+    pub regs: *mut NativeRegs,
+    vars: *mut u8,
+    eval: *mut u64,
+    words: *mut u16,
+    calls: *mut StFrame,
+    frame: *mut u8,
+    vars_len: u64,
+    words_len: u64,
+    frame_len: u64,
+    /// What instruction-list code reads its state from, set by [`NativeCode::run`] (null for
+    /// Structured Text).
+    pub il: *const u8,
+    /// The lowest machine stack address a Structured Text call of native code may start from,
+    /// set by [`NativeCode::run`].
+    pub stack_floor: u64,
+    borrow: PhantomData<&'a mut [u8]>,
+}
+
+/// The byte offsets of [`NativeMemory`]'s fields, where native code reads them.
+#[derive(Debug, Clone, Copy)]
+pub struct NativeMemoryOffsets {
+    pub regs: usize,
+    /// Variable memory (program instances and globals): its address and length in bytes.
+    pub vars: usize,
+    pub vars_len: usize,
+    /// The evaluation stack, a ring of [`EVAL_DEPTH`] slots indexed modulo its length.
+    pub eval: usize,
+    /// Device memory's words: the address and the length in words.
+    pub words: usize,
+    pub words_len: usize,
+    /// The Structured Text call stack, [`ST_CALL_DEPTH`] entries.
+    pub calls: usize,
+    /// The activation's frame area: the address and the length in bytes.
+    pub frame: usize,
+    pub frame_len: usize,
+    pub il: usize,
+    pub stack_floor: usize,
+}
+
+impl<'a> NativeMemory<'a> {
+    /// Where native code reads each field.
+    pub const OFFSETS: NativeMemoryOffsets = NativeMemoryOffsets {
+        regs: std::mem::offset_of!(NativeMemory<'static>, regs),
+        vars: std::mem::offset_of!(NativeMemory<'static>, vars),
+        vars_len: std::mem::offset_of!(NativeMemory<'static>, vars_len),
+        eval: std::mem::offset_of!(NativeMemory<'static>, eval),
+        words: std::mem::offset_of!(NativeMemory<'static>, words),
+        words_len: std::mem::offset_of!(NativeMemory<'static>, words_len),
+        calls: std::mem::offset_of!(NativeMemory<'static>, calls),
+        frame: std::mem::offset_of!(NativeMemory<'static>, frame),
+        frame_len: std::mem::offset_of!(NativeMemory<'static>, frame_len),
+        il: std::mem::offset_of!(NativeMemory<'static>, il),
+        stack_floor: std::mem::offset_of!(NativeMemory<'static>, stack_floor),
+    };
+
+    /// Variable memory, device memory's words, the activation's frame area, its evaluation
+    /// stack and its Structured Text call stack, borrowed for the call.
+    #[inline]
+    pub fn new(
+        vars: &'a mut [u8],
+        words: &'a mut [u16],
+        frame: &'a mut [u8],
+        eval: &'a mut [u64; EVAL_DEPTH],
+        calls: &'a mut [StFrame; ST_CALL_DEPTH],
+    ) -> NativeMemory<'a> {
+        NativeMemory {
+            regs: std::ptr::null_mut(),
+            vars: vars.as_mut_ptr(),
+            eval: eval.as_mut_ptr(),
+            words: words.as_mut_ptr(),
+            calls: calls.as_mut_ptr(),
+            frame: frame.as_mut_ptr(),
+            vars_len: vars.len() as u64,
+            words_len: words.len() as u64,
+            frame_len: frame.len() as u64,
+            il: std::ptr::null(),
+            stack_floor: 0,
+            borrow: PhantomData,
+        }
+    }
+
+    /// Bytes of variable memory.
+    pub fn vars_len(&self) -> u64 {
+        self.vars_len
+    }
+
     /// Device memory's words.
-    pub words: &'a mut [u16],
-    /// The activation's frame area.
-    pub frame: &'a mut [u8],
-    /// The evaluation stack, a ring indexed modulo [`EVAL_DEPTH`].
-    pub eval: &'a mut [u64; EVAL_DEPTH],
-    /// The Structured Text call stack.
-    pub calls: &'a mut [StFrame; ST_CALL_DEPTH],
-    /// The instruction list's state besides device memory; `None` for a Structured Text
-    /// program (which does not pay for building it).
-    /// (By reference: the memory is passed by value at every call, and a Structured Text
-    /// program's call then copies one word for it instead of ten.)
-    pub il: Option<&'a mut IlMemory<'a>>,
+    pub fn words_len(&self) -> u64 {
+        self.words_len
+    }
+
+    /// Bytes of frame area.
+    pub fn frame_len(&self) -> u64 {
+        self.frame_len
+    }
 }
 
 /// The instruction list's state besides device memory, borrowed for one call.
@@ -163,9 +261,16 @@ pub enum NativeExit {
 
 /// Native code of one program.
 pub trait NativeCode: Send + Sync + std::fmt::Debug {
-    /// Executes the program from `regs` until `END`, an operation error, an instruction it
-    /// hands to the interpreter or the end of the budget, and updates `regs`.
-    fn run(&self, memory: NativeMemory<'_>, regs: &mut NativeRegs) -> NativeExit;
+    /// Executes the program from `regs` on `memory` (and `il`, the instruction list's state
+    /// besides device memory: `None` for a Structured Text program, which does not pay for
+    /// building it) until `END`, an operation error, an instruction it hands to the interpreter
+    /// or the end of the budget, and updates `regs`.
+    fn run(
+        &self,
+        memory: &mut NativeMemory<'_>,
+        il: Option<&mut IlMemory<'_>>,
+        regs: &mut NativeRegs,
+    ) -> NativeExit;
 
     /// How many instructions from `pc` on the interpreter may execute before native code can
     /// take over again (at least 1).

@@ -542,15 +542,14 @@ impl Vm {
                 }),
                 Language::StructuredText => None,
             };
-            let memory = native::NativeMemory {
-                vars: &mut self.vars,
-                words: self.mem.words_mut(),
-                frame: &mut state.frame,
-                eval: state.eval.slots_mut(),
-                calls: &mut state.st_calls,
-                il: il_memory.as_mut(),
-            };
-            let exit = native.run(memory, &mut state.regs);
+            let mut memory = native::NativeMemory::new(
+                &mut self.vars,
+                self.mem.words_mut(),
+                &mut state.frame,
+                state.eval.slots_mut(),
+                &mut state.st_calls,
+            );
+            let exit = native.run(&mut memory, il_memory.as_mut(), &mut state.regs);
             state.eval.set_sp(state.regs.sp as usize);
             self.steps = stop - state.regs.left.min(left);
             match exit {

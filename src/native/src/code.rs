@@ -15,7 +15,7 @@ use cranelift_codegen::settings::{self, Configurable};
 use cranelift_jit::{JITBuilder, JITModule};
 use cranelift_module::{default_libcall_names, FuncId, Linkage, Module, ModuleReloc};
 use plcd_core::lang::native::{
-    IlFrame, IlMemory, NativeCode, NativeExit, NativeMemory, NativeRegs, StFrame,
+    IlFrame, IlMemory, NativeCode, NativeExit, NativeMemory, NativeMemoryOffsets, NativeRegs,
 };
 use plcd_core::lang::Program;
 use plcd_core::vm::Clock;
@@ -96,33 +96,13 @@ impl IlNeeds {
     }
 }
 
-/// What the generated function works on: the registers, and the memory of the call as raw
-/// parts. `repr(C)`: the generated code reads and writes its fields at their offsets. The
-/// registers stay where the caller keeps them (copying them in and out would read whole
-/// what the caller and the code write field by field, which processors forward slowly).
-///
-/// No two fields that are neighbours in [`NativeMemory`] are neighbours here: the compiler
-/// would copy such a pair with one 16-byte load of what the caller has just written 8 bytes at
-/// a time, and a processor forwards such stores to a load only after a stall (a third of the
-/// cost of a short program's call, measured).
-#[repr(C)]
-pub(crate) struct Context<'a> {
-    pub regs: *mut NativeRegs,
-    pub vars: *mut u8,
-    pub eval: *mut u64,
-    pub words: *mut u16,
-    pub calls: *mut StFrame,
-    pub frame: *mut u8,
-    pub vars_len: u64,
-    pub words_len: u64,
-    pub frame_len: u64,
-    /// The instruction list's state (null for Structured Text).
-    pub il: *const IlContext<'a>,
-    /// The lowest machine stack address a Structured Text call may start from (the
-    /// interpreter makes a call deeper than that): [`NATIVE_STACK`] below [`Code::run`]'s
-    /// frame, with room for the deepest function's frame.
-    pub stack_floor: u64,
-}
+/// What the generated function works on: the VM's [`NativeMemory`] of the call, in place
+/// (its fields where [`CONTEXT`] says), with the registers, the instruction list's
+/// [`IlContext`] and the stack floor [`Code::run`] sets in it.
+pub(crate) type Context<'a> = NativeMemory<'a>;
+
+/// The offsets of the [`Context`]'s fields.
+pub(crate) const CONTEXT: NativeMemoryOffsets = NativeMemory::OFFSETS;
 
 /// Bytes of machine stack the generated code of one [`Code::run`] may use: its calls nest
 /// up to `ST_CALL_DEPTH` deep, each in a frame of its function's size. The real-time threads
@@ -164,8 +144,10 @@ pub(crate) struct IlContext<'a> {
 }
 
 impl<'a> IlContext<'a> {
-    /// The raw parts of `il`, and what the code computes the time from.
-    fn new(il: &'a mut IlMemory<'a>) -> IlContext<'a> {
+    /// The raw parts of `il`, and what the code computes the time from. Inlined: built in
+    /// place in [`Code::run`]'s frame, not returned and copied there.
+    #[inline]
+    fn new(il: &mut IlMemory<'a>) -> IlContext<'a> {
         let linear = il.clock.linear();
         IlContext {
             calls: il.calls.as_mut_ptr(),
@@ -236,7 +218,7 @@ pub(crate) extern "C" fn il_now(context: *const Context<'_>, steps: u64) -> u64 
     // SAFETY: only instruction-list code calls this, with the `Context` of the call under way,
     // whose `il` points to the `IlContext` on `Code::run`'s stack, whose `clock` is the
     // `&dyn Clock` of the `IlMemory` borrowed for that call.
-    unsafe { (*(*(*context).il).clock).now_ns(steps) }
+    unsafe { (*(*(*context).il.cast::<IlContext<'_>>()).clock).now_ns(steps) }
 }
 
 /// A program's native code.
@@ -456,58 +438,53 @@ fn compile_functions(
 }
 
 impl NativeCode for Code {
-    fn run(&self, memory: NativeMemory<'_>, regs: &mut NativeRegs) -> NativeExit {
+    fn run(
+        &self,
+        memory: &mut NativeMemory<'_>,
+        il: Option<&mut IlMemory<'_>>,
+        regs: &mut NativeRegs,
+    ) -> NativeExit {
         // The fixed operands of the code, and the arrays at fixed places, are checked against
         // these sizes once, here.
-        if (memory.vars.len() as u64) < self.vars_need
-            || (memory.words.len() as u64) < self.words_need
-        {
+        if memory.vars_len() < self.vars_need || memory.words_len() < self.words_need {
             return NativeExit::Interpret;
         }
         // The instruction list's state, built only for instruction-list code (Structured Text
         // has no use for it, and does not pay for it).
-        let il = match (&self.il_needs, memory.il) {
+        let il = match (&self.il_needs, il) {
             (None, _) => None,
             (Some(needs), Some(il)) if needs.fit(il) => Some(IlContext::new(il)),
             (Some(_), _) => return NativeExit::Interpret,
         };
         let pc = regs.pc;
-        let mut context = Context {
-            regs,
-            vars: memory.vars.as_mut_ptr(),
-            eval: memory.eval.as_mut_ptr(),
-            words: memory.words.as_mut_ptr(),
-            calls: memory.calls.as_mut_ptr(),
-            frame: memory.frame.as_mut_ptr(),
-            vars_len: memory.vars.len() as u64,
-            words_len: memory.words.len() as u64,
-            frame_len: memory.frame.len() as u64,
-            il: il.as_ref().map_or(std::ptr::null(), |il| il as *const IlContext<'_>),
-            stack_floor: 0,
-        };
-        // The floor is measured from this frame, which the generated code runs below.
-        let here = std::ptr::addr_of!(context) as u64;
-        context.stack_floor = here.saturating_sub(self.stack) + self.stack_reserve;
+        memory.regs = regs;
+        memory.il = il.as_ref().map_or(std::ptr::null(), |il| (il as *const IlContext<'_>).cast());
+        // The floor is measured from the memory, in the caller's frame: the generated code runs
+        // below it (and below this function's frame, which the bound then covers too).
+        let here = std::ptr::addr_of!(*memory) as u64;
+        memory.stack_floor = here.saturating_sub(self.stack) + self.stack_reserve;
+        let context: *mut Context<'_> = memory;
         let mut entry = if pc == 0 { self.start } else { self.entries[self.shape.entry_index(pc)] };
         let status = loop {
-            // SAFETY: every pointer of `context` comes from `regs` or a slice of `memory`,
-            // mutably borrowed for this call, with its length beside it. The generated code
-            // reads and writes only inside those lengths: the fixed operands were checked
-            // against them just above, the frame and FB-instance operands are checked at each
-            // block's entry, pointers are checked before each access, the evaluation stack is
-            // indexed modulo its length and the call stack below `ST_CALL_DEPTH` (codegen.rs);
-            // instruction-list code reaches device words, edge slots, timers and counters only
-            // at the fixed operands checked above, and its call stack below `CALL_DEPTH`
-            // (il/codegen.rs). It keeps no pointer after it returns.
-            let status = unsafe { entry(&mut context, FROM_VM, 0, 0, 0, 0, 0) };
+            // SAFETY: `context` is the caller's `NativeMemory`, whose pointers come from slices
+            // it borrows for its lifetime, with their lengths beside them, and `regs`, borrowed
+            // for this call; its `il` is the `IlContext` above, built from `il`, borrowed for
+            // this call too. The generated code reads and writes only inside those lengths: the
+            // fixed operands were checked against them just above, the frame and FB-instance
+            // operands are checked at each block's entry, pointers are checked before each
+            // access, the evaluation stack is indexed modulo its length and the call stack below
+            // `ST_CALL_DEPTH` (codegen.rs); instruction-list code reaches device words, edge
+            // slots, timers and counters only at the fixed operands checked above, and its call
+            // stack below `CALL_DEPTH` (il/codegen.rs). It keeps no pointer after it returns.
+            let status = unsafe { entry(context, FROM_VM, 0, 0, 0, 0, 0) };
             if status != RETURN_CONTINUE {
                 break status;
             }
             // An instruction-list piece went on into another: that one's code, with the budget
             // the first left (it is checked at each block).
-            // SAFETY: the generated code has returned; `context.regs` is `regs`, borrowed for
-            // this call, and nothing else refers to it now.
-            let pc = unsafe { (*context.regs).pc };
+            // SAFETY: the generated code has returned; the context's `regs` is `regs`, borrowed
+            // for this call, and nothing else refers to it now.
+            let pc = unsafe { (*(*context).regs).pc };
             entry = self.entries[self.shape.entry_index(pc)];
         };
         match status {

@@ -2,8 +2,8 @@
 //! FUNCTION's and FUNCTION_BLOCK's), each `fn(*mut Context) -> u32`.
 //!
 //! The shape of a function:
-//! - the entry loads the registers from the [`Context`], checks that the frame and the FB
-//!   instance hold every operand of the body (else the interpreter goes on), and goes
+//! - the entry loads the registers from the [`Context`](code::Context), checks that the frame
+//!   and the FB instance hold every operand of the body (else the interpreter goes on), and goes
 //!   straight to the body's first block when entered at its start (a call, a scan), else to
 //!   the dispatch;
 //! - the dispatch is a switch on the program counter over the body's entry points (the
@@ -67,7 +67,7 @@ use plcd_core::vm::{ERR_DIVIDE_BY_ZERO, ERR_INDEX_RANGE, ERR_REF_NULL};
 
 use crate::analysis::{is_native, Analysis, BlockRoles};
 use crate::carry::{self, in_bytes, Key, Reach, Writes};
-use crate::code::{self, Context, RETURN_CONTINUE, RETURN_END, RETURN_ERROR, RETURN_INTERPRET};
+use crate::code::{self, RETURN_CONTINUE, RETURN_END, RETURN_ERROR, RETURN_INTERPRET};
 use crate::helpers;
 use crate::inline::{self, Inlined};
 
@@ -117,7 +117,7 @@ pub(crate) fn import_function(b: &mut FunctionBuilder, name: u32, signature: Sig
     })
 }
 
-/// The [`Context`] and the stacks' slots: aligned.
+/// The [`Context`](code::Context) and the stacks' slots: aligned.
 pub(crate) fn own() -> MemFlagsData {
     MemFlagsData::trusted()
 }
@@ -281,7 +281,8 @@ struct Gen<'a, 'f> {
     b: FunctionBuilder<'f>,
     program: &'a Program,
     analysis: &'a Analysis,
-    /// The [`Context`], the function's first parameter (passed on to the bodies it calls).
+    /// The [`Context`](code::Context), the function's first parameter (passed on to the
+    /// bodies it calls).
     context: Value,
     /// The function's first block, where the context's fields are loaded.
     entry: Block,
@@ -523,7 +524,7 @@ impl<'a> Gen<'a, '_> {
         }
 
         self.b.switch_to_block(from_vm);
-        let ctx = self.field(offset_of!(Context, regs));
+        let ctx = self.field(code::CONTEXT.regs);
         let load32 = |b: &mut FunctionBuilder, offset: usize| {
             let v = b.ins().load(types::I32, own(), ctx, reg(offset));
             b.ins().uextend(I64, v)
@@ -565,7 +566,7 @@ impl<'a> Gen<'a, '_> {
         self.b.switch_to_block(join);
         // The frame's address, if the body reaches into its frame.
         let frame_at = if self.analysis.bodies[&self.body].uses_frame {
-            let frame = self.field(offset_of!(Context, frame));
+            let frame = self.field(code::CONTEXT.frame);
             self.b.ins().iadd(frame, base)
         } else {
             self.b.ins().iconst(I64, 0)
@@ -609,8 +610,7 @@ impl<'a> Gen<'a, '_> {
         // The pointers the body works on are loaded here, before its first block; the others
         // (the registers, the stacks, the lengths for checks) may move to where they are used,
         // mostly the cold ways out.
-        let hot =
-            [offset_of!(Context, vars), offset_of!(Context, words), offset_of!(Context, frame)];
+        let hot = [code::CONTEXT.vars, code::CONTEXT.words, code::CONTEXT.frame];
         let flags =
             if hot.contains(&offset) { own() } else { own().with_readonly().with_can_move() };
         let value = cursor.ins().load(I64, flags, self.context, offset as i32);
@@ -714,11 +714,11 @@ impl<'a> Gen<'a, '_> {
         let mut refused = None;
         if frame_end > 0 {
             let end = self.b.ins().iadd_imm_s(base, frame_end as i64);
-            let frame_len = self.field(offset_of!(Context, frame_len));
+            let frame_len = self.field(code::CONTEXT.frame_len);
             refused = Some(self.b.ins().icmp(IntCC::UnsignedGreaterThan, end, frame_len));
         }
         let this_at = if this_end > 0 && this_in_vars {
-            let vars = self.field(offset_of!(Context, vars));
+            let vars = self.field(code::CONTEXT.vars);
             self.b.ins().iadd(vars, this)
         } else if this_end > 0 {
             let (address, inside) = self.reach(this, this_end);
@@ -759,7 +759,7 @@ impl<'a> Gen<'a, '_> {
         let index = self.b.ins().iadd_imm_s(sb, i64::from(slot));
         let index = self.b.ins().band_imm_s(index, MASK);
         let offset = self.b.ins().ishl_imm_s(index, 3);
-        let eval = self.field(offset_of!(Context, eval));
+        let eval = self.field(code::CONTEXT.eval);
         self.b.ins().iadd(eval, offset)
     }
 
@@ -776,7 +776,7 @@ impl<'a> Gen<'a, '_> {
     }
 
     fn store_registers(&mut self, r: Registers) {
-        let ctx = self.field(offset_of!(Context, regs));
+        let ctx = self.field(code::CONTEXT.regs);
         let pc = self.b.ins().ireduce(types::I32, r.pc);
         self.b.ins().store(own(), pc, ctx, reg(offset_of!(NativeRegs, pc)));
         self.b.ins().store(own(), r.left, ctx, reg(offset_of!(NativeRegs, left)));
@@ -843,7 +843,7 @@ impl<'a> Gen<'a, '_> {
         let result = self.b.ins().iconst(I64, result);
         self.b.def_var(self.stack[depth as usize - 1], result);
         let code = self.b.ins().iconst(types::I32, i64::from(code));
-        let regs = self.field(offset_of!(Context, regs));
+        let regs = self.field(code::CONTEXT.regs);
         self.b.ins().store(own(), code, regs, reg(offset_of!(NativeRegs, error)));
         let left = self.b.use_var(self.regs.left);
         let left = self.b.ins().iadd_imm_s(left, i64::from(at.len - at.index - 1));
@@ -1115,11 +1115,11 @@ impl<'a> Gen<'a, '_> {
         let offset = self.b.ins().band_imm_s(pointer, LOW32);
         let is_var = self.b.ins().icmp_imm_s(IntCC::Equal, space, Space::Var as i64);
         let is_frame = self.b.ins().icmp_imm_s(IntCC::Equal, space, Space::Frame as i64);
-        let vars_len = self.field(offset_of!(Context, vars_len));
-        let frame_len = self.field(offset_of!(Context, frame_len));
+        let vars_len = self.field(code::CONTEXT.vars_len);
+        let frame_len = self.field(code::CONTEXT.frame_len);
         let limit = self.b.ins().select(is_var, vars_len, frame_len);
-        let vars = self.field(offset_of!(Context, vars));
-        let frame = self.field(offset_of!(Context, frame));
+        let vars = self.field(code::CONTEXT.vars);
+        let frame = self.field(code::CONTEXT.frame);
         let start = self.b.ins().select(is_var, vars, frame);
         let end = self.b.ins().iadd_imm_s(offset, bytes as i64);
         let inside = self.b.ins().icmp(IntCC::UnsignedLessThanOrEqual, end, limit);
@@ -1147,7 +1147,7 @@ impl<'a> Gen<'a, '_> {
         let reach = self.info[index as usize].known?;
         self.vars_need = self.vars_need.max(reach.most + u64::from(bytes));
         let pointer = self.slot(index);
-        let vars = self.field(offset_of!(Context, vars));
+        let vars = self.field(code::CONTEXT.vars);
         Some((self.b.ins().iadd(vars, pointer), reach))
     }
 
@@ -1480,7 +1480,7 @@ impl<'a> Gen<'a, '_> {
                 self.b.ins().brif(self.activation.called, to_caller, &[], to_vm, &[]);
                 self.b.switch_to_block(to_caller);
                 let left = self.b.use_var(self.regs.left);
-                let regs = self.field(offset_of!(Context, regs));
+                let regs = self.field(code::CONTEXT.regs);
                 self.b.ins().store(own(), left, regs, reg(offset_of!(NativeRegs, left)));
                 self.ret(RETURN_CONTINUE);
                 // To the VM: the caller's frame popped, its registers to the context; its
@@ -1515,7 +1515,7 @@ impl<'a> Gen<'a, '_> {
     /// The address of call frame `index`.
     fn call_frame(&mut self, index: Value) -> Value {
         let offset = self.b.ins().imul_imm_s(index, std::mem::size_of::<StFrame>() as i64);
-        let calls = self.field(offset_of!(Context, calls));
+        let calls = self.field(code::CONTEXT.calls);
         self.b.ins().iadd(calls, offset)
     }
 
@@ -1536,7 +1536,7 @@ impl<'a> Gen<'a, '_> {
         if inline.is_none() {
             // The machine stack: below the context's floor, the interpreter makes the call.
             let stack = self.b.ins().get_stack_pointer(I64);
-            let floor = self.field(offset_of!(Context, stack_floor));
+            let floor = self.field(code::CONTEXT.stack_floor);
             let low = self.b.ins().icmp(IntCC::UnsignedLessThan, stack, floor);
             self.bail_if(low, at, d);
         }
@@ -1565,7 +1565,7 @@ impl<'a> Gen<'a, '_> {
         if let Some(planned) = inline {
             let function = self.plan[planned].function;
             let frame_at = if self.analysis.bodies[&target].uses_frame {
-                let frame = self.field(offset_of!(Context, frame));
+                let frame = self.field(code::CONTEXT.frame);
                 self.b.ins().iadd(frame, callee_base)
             } else {
                 self.b.ins().iconst(I64, 0)
@@ -1601,7 +1601,7 @@ impl<'a> Gen<'a, '_> {
             let callee = self.callee(target);
             let args = [self.context, callee_base, this, depth, sp, left, this_at];
             call_or_pass_on(&mut self.b, callee, &args, RETURN_CONTINUE);
-            let regs = self.field(offset_of!(Context, regs));
+            let regs = self.field(code::CONTEXT.regs);
             let left = self.b.ins().load(I64, own(), regs, reg(offset_of!(NativeRegs, left)));
             self.b.def_var(self.regs.left, left);
         }
@@ -1779,7 +1779,7 @@ impl<'a> Gen<'a, '_> {
             if end > self.analysis.bodies[&self.body].frame_end {
                 let base = self.activation.base;
                 let end = self.b.ins().iadd_imm_s(base, end as i64);
-                let frame_len = self.field(offset_of!(Context, frame_len));
+                let frame_len = self.field(code::CONTEXT.frame_len);
                 let out = self.b.ins().icmp(IntCC::UnsignedGreaterThan, end, frame_len);
                 self.bail_if(out, at, depth);
             }
@@ -1804,7 +1804,7 @@ impl<'a> Gen<'a, '_> {
     /// The address and offset of a byte-space place.
     fn byte_place(&mut self, place: Place) -> Option<(Value, i32)> {
         match place {
-            Place::Var(offset) => Some((self.field(offset_of!(Context, vars)), offset as i32)),
+            Place::Var(offset) => Some((self.field(code::CONTEXT.vars), offset as i32)),
             Place::Frame(offset) => Some((self.activation.frame_at, offset as i32)),
             Place::This(offset) => Some((self.activation.this_at, offset as i32)),
             Place::Word(_) | Place::Bit(_) | Place::Byte(_) => None,
@@ -1817,7 +1817,7 @@ impl<'a> Gen<'a, '_> {
         {
             // 0 or 1 already: the compiler proved that no code writes another type over it,
             // and the engine rewrites it after copying bytes in (`Program::var_bools_canonical`)
-            let vars = self.field(offset_of!(Context, vars));
+            let vars = self.field(code::CONTEXT.vars);
             return self.b.ins().uload8(I64, data(), vars, offset as i32);
         }
         if let Some((address, offset)) = self.byte_place(place) {
@@ -1826,7 +1826,7 @@ impl<'a> Gen<'a, '_> {
         match place {
             Place::Word(w) => {
                 let offset = i32::from(w.0) * 2;
-                let words = self.field(offset_of!(Context, words));
+                let words = self.field(code::CONTEXT.words);
                 let raw = match elem.words() {
                     1 => self.b.ins().uload16(I64, data(), words, offset),
                     2 => self.b.ins().uload32(data(), words, offset),
@@ -1836,14 +1836,14 @@ impl<'a> Gen<'a, '_> {
             }
             Place::Bit(b) => {
                 let bit = b.mask.trailing_zeros().min(15);
-                let words = self.field(offset_of!(Context, words));
+                let words = self.field(code::CONTEXT.words);
                 let word = self.b.ins().uload16(I64, data(), words, i32::from(b.word) * 2);
                 let shifted = self.b.ins().ushr_imm_s(word, i64::from(bit));
                 self.b.ins().band_imm_s(shifted, 1)
             }
             Place::Byte(n) => {
                 // the word's half, as the interpreter reads it (whatever the host's byte order)
-                let words = self.field(offset_of!(Context, words));
+                let words = self.field(code::CONTEXT.words);
                 let word = self.b.ins().uload16(I64, data(), words, (n / 2) as i32 * 2);
                 let shifted = self.b.ins().ushr_imm_s(word, i64::from(8 * (n % 2)));
                 let byte = self.b.ins().band_imm_s(shifted, 0xFF);
@@ -1861,7 +1861,7 @@ impl<'a> Gen<'a, '_> {
             Place::Word(w) => {
                 let offset = i32::from(w.0) * 2;
                 let v = if elem == Elem::Bool { self.truth(v) } else { v };
-                let words = self.field(offset_of!(Context, words));
+                let words = self.field(code::CONTEXT.words);
                 match elem.words() {
                     1 => self.b.ins().istore16(data(), v, words, offset),
                     2 => self.b.ins().istore32(data(), v, words, offset),
@@ -1872,7 +1872,7 @@ impl<'a> Gen<'a, '_> {
                 let bit = b.mask.trailing_zeros().min(15);
                 let mask = 1i64 << bit;
                 let offset = i32::from(b.word) * 2;
-                let words = self.field(offset_of!(Context, words));
+                let words = self.field(code::CONTEXT.words);
                 let word = self.b.ins().uload16(I64, data(), words, offset);
                 let set = self.b.ins().bor_imm_s(word, mask);
                 let cleared = self.b.ins().band_imm_s(word, !mask);
@@ -1884,7 +1884,7 @@ impl<'a> Gen<'a, '_> {
                 // the low 8 bits of the value into the word's half, the other half kept
                 let shift = i64::from(8 * (n % 2));
                 let offset = (n / 2) as i32 * 2;
-                let words = self.field(offset_of!(Context, words));
+                let words = self.field(code::CONTEXT.words);
                 let word = self.b.ins().uload16(I64, data(), words, offset);
                 let kept = self.b.ins().band_imm_s(word, !(0xFF << shift));
                 let byte = self.b.ins().band_imm_s(v, 0xFF);

@@ -54,7 +54,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 use plcd_core::device::RetainSet;
-use plcd_core::lang::native::{NativeCode, NativeExit, NativeMemory, NativeRegs};
+use plcd_core::lang::native::{IlMemory, NativeCode, NativeExit, NativeMemory, NativeRegs};
 use plcd_core::lang::{Language, Program, Variables};
 use plcd_core::st::{compile, parse_file, Instance};
 use plcd_core::value::Space;
@@ -261,9 +261,14 @@ struct Counted {
 }
 
 impl NativeCode for Counted {
-    fn run(&self, memory: NativeMemory<'_>, regs: &mut NativeRegs) -> NativeExit {
+    fn run(
+        &self,
+        memory: &mut NativeMemory<'_>,
+        il: Option<&mut IlMemory<'_>>,
+        regs: &mut NativeRegs,
+    ) -> NativeExit {
         let before = regs.left;
-        let exit = self.code.run(memory, regs);
+        let exit = self.code.run(memory, il, regs);
         self.steps.fetch_add(before.saturating_sub(regs.left), Ordering::Relaxed);
         exit
     }
@@ -3337,7 +3342,7 @@ END_PROGRAM
 /// large enough it runs the program to `END`.
 #[test]
 fn native_code_refuses_memory_smaller_than_it_reaches() {
-    use plcd_core::lang::native::{IlFrame, IlMemory, RawSlice, StFrame};
+    use plcd_core::lang::native::{IlFrame, RawSlice, StFrame};
     use plcd_core::lang::{CALL_DEPTH, EVAL_DEPTH, ST_CALL_DEPTH};
     use plcd_core::value::Pointer;
 
@@ -3373,16 +3378,9 @@ fn native_code_refuses_memory_smaller_than_it_reaches() {
             clock: &clock,
             stop: 1_000,
         });
-        let memory = NativeMemory {
-            vars: &mut vars,
-            words: &mut words,
-            frame: &mut [],
-            eval: &mut eval,
-            calls: &mut calls,
-            il: il.as_mut(),
-        };
+        let mut memory = NativeMemory::new(&mut vars, &mut words, &mut [], &mut eval, &mut calls);
         let mut regs = START;
-        let exit = code.run(memory, &mut regs);
+        let exit = code.run(&mut memory, il.as_mut(), &mut regs);
         (exit, regs)
     };
 

@@ -2,9 +2,9 @@
 //!
 //! The shape of the function:
 //! - the entry loads the registers (the rung, the block and `MPUSH` stacks, the budget) from
-//!   the [`Context`]'s [`NativeRegs`] and goes to the dispatch, which finds the program
-//!   counter's block in the piece's table ([`Analysis::dispatch`]) and jumps to it through a
-//!   jump table (a `Switch` over thousands of leaders was a binary search of a dozen
+//!   the [`Context`](code::Context)'s [`NativeRegs`] and goes to the dispatch, which finds the
+//!   program counter's block in the piece's table ([`Analysis::dispatch`]) and jumps to it
+//!   through a jump table (a `Switch` over thousands of leaders was a binary search of a dozen
 //!   unpredictable branches, at every `RET`); any other program counter goes back to
 //!   [`Code::run`](crate::code::Code): to the interpreter if it is in this piece's range, to
 //!   the piece that has it if not (a `RET` dispatches on its return address too);
@@ -62,7 +62,7 @@ use plcd_core::vm::{counter, timer};
 
 use super::{is_native, Analysis};
 use crate::code::{
-    self, Context, IlContext, RETURN_CONTINUE, RETURN_END, RETURN_INTERPRET, RETURN_RETURNED,
+    self, IlContext, RETURN_CONTINUE, RETURN_END, RETURN_INTERPRET, RETURN_RETURNED,
 };
 use crate::codegen::{data, own};
 
@@ -101,9 +101,9 @@ pub(crate) fn generate(
     // function uses: a call costs fewer instructions than loading them again.
     let piece = function < pieces;
     let (regs_at, words, il) = if piece {
-        let regs_at = field(&mut b, offset_of!(Context<'static>, regs));
-        let words = field(&mut b, offset_of!(Context<'static>, words));
-        (regs_at, words, field(&mut b, offset_of!(Context<'static>, il)))
+        let regs_at = field(&mut b, code::CONTEXT.regs);
+        let words = field(&mut b, code::CONTEXT.words);
+        (regs_at, words, field(&mut b, code::CONTEXT.il))
     } else {
         (params[2], params[3], params[4])
     };
@@ -169,7 +169,8 @@ pub(crate) fn generate(
 }
 
 /// A load from a dispatch table (never written while the code lives, always inside it), or of
-/// a field of the [`Context`] or its [`IlContext`] (never written while the code runs).
+/// a field of the [`Context`](code::Context) or its [`IlContext`] (never written while the code
+/// runs).
 fn readonly() -> MemFlagsData {
     MemFlagsData::trusted().with_readonly()
 }
@@ -225,7 +226,7 @@ struct Gen<'a, 'f> {
     b: FunctionBuilder<'f>,
     code: &'a [Op],
     analysis: &'a Analysis,
-    /// The [`Context`] of the call.
+    /// The [`Context`](code::Context) of the call.
     ctx: Value,
     /// Its [`IlContext`].
     il: Value,
@@ -772,12 +773,7 @@ impl Gen<'_, '_> {
     fn machine_call(&mut self, sub: usize, target: u32, frame: Frame) {
         // The machine stack: below the context's floor, the call goes through the dispatch.
         let stack = self.b.ins().get_stack_pointer(I64);
-        let floor = self.b.ins().load(
-            I64,
-            readonly(),
-            self.ctx,
-            offset_of!(Context<'static>, stack_floor) as i32,
-        );
+        let floor = self.b.ins().load(I64, readonly(), self.ctx, code::CONTEXT.stack_floor as i32);
         let room = self.b.ins().icmp(IntCC::UnsignedGreaterThanOrEqual, stack, floor);
         self.unless(room, |g| g.enter_by_dispatch(target));
         let left = self.b.use_var(self.regs.left);
@@ -900,7 +896,8 @@ impl Gen<'_, '_> {
         self.b.ins().jump(done, &[computed.into()]);
         self.b.switch_to_block(ask);
         self.b.set_cold_block(ask);
-        let function = code::il_now as extern "C" fn(*const Context<'static>, u64) -> u64 as usize;
+        let function =
+            code::il_now as extern "C" fn(*const code::Context<'static>, u64) -> u64 as usize;
         let callee = self.b.ins().iconst(I64, function as i64);
         let call = self.b.ins().call_indirect(self.now_sig, callee, &[self.ctx, steps]);
         let asked = self.b.inst_results(call)[0];
