@@ -39,6 +39,21 @@ fn last(trace: &str, name: &str) -> Option<String> {
         .map(|(_, v)| v.trim_end_matches('}').to_string())
 }
 
+/// The first value the trace gives `name` (at RUN start, for a device a binding writes then).
+fn first(trace: &str, name: &str) -> Option<String> {
+    let key = format!("\"dev\":\"{name}\",\"value\":");
+    trace.lines().find_map(|l| l.split_once(&key)).map(|(_, v)| v.trim_end_matches('}').to_string())
+}
+
+/// `plcd check` of the project in `dir` passes; the lines of its report holding `marker`
+/// (`": VAR_CONFIG "`, `"[iec.variables]"`: what each binding was mapped to).
+fn check_lines(dir: &Path, marker: &str) -> Vec<String> {
+    let out = plcd(dir, &["check", "--config", "plcd.toml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    stdout.lines().filter(|l| l.contains(marker)).map(str::to_string).collect()
+}
+
 /// `plcd check` of the project in `dir` passes, then `plcd sim --for <duration> --watch
 /// <watch> --trace -`: its trace.
 fn checked_trace(dir: &Path, duration: &str, watch: &str) -> String {
@@ -741,10 +756,7 @@ fn var_config_binds_variables_inside_a_function_block_instance() {
     let dir = TempDir::new("st-configuration-var-config-inside-a-block");
     write(dir.path(), "plcd.toml", "[[program]]\nfile = \"plc.st\"\n");
     write(dir.path(), "plc.st", VAR_CONFIG_INSIDE_A_BLOCK);
-    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let bindings: Vec<&str> = stdout.lines().filter(|l| l.contains(": VAR_CONFIG ")).collect();
+    let bindings = check_lines(dir.path(), ": VAR_CONFIG ");
     assert_eq!(
         bindings,
         [
@@ -818,10 +830,7 @@ fn var_config_binds_struct_members_at_partly_specified_addresses() {
     write(dir.path(), "plc.st", VAR_CONFIG_STRUCT_MEMBERS);
     // the input of `main.hw.IN` (%IX0.1, P0001) on from 15 ms: read by the scan of 20 ms
     write(dir.path(), "inputs.csv", "15ms, P0001, 1\n");
-    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let bindings: Vec<&str> = stdout.lines().filter(|l| l.contains(": VAR_CONFIG ")).collect();
+    let bindings = check_lines(dir.path(), ": VAR_CONFIG ");
     assert_eq!(
         bindings,
         [
@@ -900,14 +909,10 @@ END_CONFIGURATION
     let watch = "D12005,D12006,D12007,main.seen,main.rest";
     let run = |engine: &[&str]| sim_trace(dir.path(), "25ms", watch, engine);
     let trace = run(&[]);
-    let first = |name: &str| {
-        let key = format!("\"dev\":\"{name}\",\"value\":");
-        trace.lines().find_map(|l| l.split_once(&key)).map(|(_, v)| v.trim_end_matches('}'))
-    };
     // at RUN start, before the first scan
-    assert_eq!(first("D12005"), Some("77"), "{trace}");
-    assert_eq!(first("D12007"), Some("9"));
-    assert_eq!(first("D12006"), Some("200"));
+    assert_eq!(first(&trace, "D12005").as_deref(), Some("77"), "{trace}");
+    assert_eq!(first(&trace, "D12007").as_deref(), Some("9"));
+    assert_eq!(first(&trace, "D12006").as_deref(), Some("200"));
     // three scans: one more, ten more, two more
     assert_eq!(last(&trace, "D12005").as_deref(), Some("80"));
     assert_eq!(last(&trace, "D12007").as_deref(), Some("39"));
@@ -955,10 +960,7 @@ CONFIGURATION C
 END_CONFIGURATION
 ";
     write(dir.path(), "plc.st", text);
-    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let bindings: Vec<&str> = stdout.lines().filter(|l| l.contains(": VAR_CONFIG ")).collect();
+    let bindings = check_lines(dir.path(), ": VAR_CONFIG ");
     assert_eq!(
         bindings,
         [
@@ -970,13 +972,9 @@ END_CONFIGURATION
                  main.other.axis.hw.OUT_VAR,main.sum";
     let run = |engine: &[&str]| sim_trace(dir.path(), "25ms", watch, engine);
     let trace = run(&[]);
-    let first = |name: &str| {
-        let key = format!("\"dev\":\"{name}\",\"value\":");
-        trace.lines().find_map(|l| l.split_once(&key)).map(|(_, v)| v.trim_end_matches('}'))
-    };
     // at RUN start, before the first scan
-    assert_eq!(first("D12005"), Some("40"), "{trace}");
-    assert_eq!(first("D12006"), Some("31"));
+    assert_eq!(first(&trace, "D12005").as_deref(), Some("40"), "{trace}");
+    assert_eq!(first(&trace, "D12006").as_deref(), Some("31"));
     // three scans: one more, two more a scan at the devices, the trace naming them by path
     assert_eq!(last(&trace, "D12005").as_deref(), Some("43"));
     assert_eq!(last(&trace, "D12006").as_deref(), Some("37"));
@@ -1055,10 +1053,7 @@ END_PROGRAM
 ";
     write(dir.path(), "plc.st", text);
     write(dir.path(), "inputs.csv", "15ms, P0001, 1\n");
-    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let bindings: Vec<&str> = stdout.lines().filter(|l| l.contains("[iec.variables]")).collect();
+    let bindings = check_lines(dir.path(), "[iec.variables]");
     assert_eq!(
         bindings,
         [
@@ -1103,10 +1098,7 @@ PROGRAM Main
 END_PROGRAM
 ";
     write(dir.path(), "plc.st", text);
-    let out = plcd(dir.path(), &["check", "--config", "plcd.toml"]);
-    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let bindings: Vec<&str> = stdout.lines().filter(|l| l.contains("[iec.variables]")).collect();
+    let bindings = check_lines(dir.path(), "[iec.variables]");
     assert_eq!(
         bindings,
         [
