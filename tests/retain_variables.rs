@@ -46,11 +46,16 @@ fn run_scans(plc: &mut Plc, ns: u64) {
 }
 
 /// RUN for 1 ms of scans (every statement of the last one executed), then STOP: a warm RUN
-/// start each time but the first. The scans of this RUN, as `main.scans` counts them.
-fn run_1ms(plc: &mut Plc, p: &Project) -> i64 {
+/// start each time but the first.
+fn run_then_stop(plc: &mut Plc) {
     plc.set_mode(Mode::Run);
     run_scans(plc, MS);
     plc.set_mode(Mode::Stop);
+}
+
+/// [`run_then_stop`]; the scans of this RUN, as `main.scans` counts them.
+fn run_1ms(plc: &mut Plc, p: &Project) -> i64 {
+    run_then_stop(plc);
     let scans = var(plc, p, "main.scans");
     assert!(scans > 5, "it ran: {scans}");
     scans
@@ -173,9 +178,7 @@ fn assert_changed_program(plc: &Plc, p: &Project, count: i64) {
 fn a_replacement_engine_keeps_those_of_unchanged_name_and_type() {
     let (old_p, new_p) = (st(OLD), st(NEW));
     let mut old = Plc::new(&old_p);
-    old.set_mode(Mode::Run);
-    run_scans(&mut old, MS);
-    old.set_mode(Mode::Stop);
+    run_then_stop(&mut old);
     let count = var(&old, &old_p, "main.count");
     assert!(count > 5);
     let mut new = Plc::new(&new_p);
@@ -211,9 +214,7 @@ fn the_files_hold_them_and_a_changed_program_restores_those_of_unchanged_name_an
     let dir = TempDir::new("retain-variables");
     let (old_p, new_p) = (st(OLD), st(NEW));
     let mut old = Plc::new(&old_p);
-    old.set_mode(Mode::Run);
-    run_scans(&mut old, MS);
-    old.set_mode(Mode::Stop);
+    run_then_stop(&mut old);
     let count = var(&old, &old_p, "main.count");
 
     // What the writer writes: the device words and the variables, in one generation.
@@ -287,9 +288,7 @@ VAR RETAIN stamp : DT; shift : TOD := TOD#06:00:00; days : ARRAY [1..2] OF DATE;
 END_PROGRAM
 ");
     let mut old = Plc::new(&p);
-    old.set_mode(Mode::Run);
-    run_scans(&mut old, MS);
-    old.set_mode(Mode::Stop);
+    run_then_stop(&mut old);
     let set = old.engine.retain_set().clone();
     let start = retain::startup(&Store::open(dir.path()).unwrap(), &set, Restart::Warm);
     let mut writer =
@@ -336,14 +335,10 @@ VAR n : DINT; was_null : BOOL; END_VAR
 END_PROGRAM
 ");
     let mut plc = Plc::new(&p);
-    plc.set_mode(Mode::Run);
-    run_scans(&mut plc, MS);
-    plc.set_mode(Mode::Stop);
+    run_then_stop(&mut plc);
     let scans = var(&plc, &p, "main.n");
     assert!(scans > 1, "it ran: {scans}");
-    plc.set_mode(Mode::Run);
-    run_scans(&mut plc, MS);
-    plc.set_mode(Mode::Stop);
+    run_then_stop(&mut plc);
     assert_eq!(var(&plc, &p, "main.was_null"), 0, "kept over the warm start");
     assert!(var(&plc, &p, "main.n") > 0, "n counts again from 0 through p");
 }
@@ -364,17 +359,13 @@ END_PROGRAM
 ";
     let p = st(source);
     let mut plc = Plc::new(&p);
-    plc.set_mode(Mode::Run);
-    run_scans(&mut plc, MS);
-    plc.set_mode(Mode::Stop);
+    run_then_stop(&mut plc);
     let scans = var(&plc, &p, "main.scans");
     assert!(scans > 5, "it ran: {scans}");
     // byte 3 is 16#3F each scan, the low bytes count the scans
     assert_eq!(var(&plc, &p, "main.u.dw"), 0x3F00_0000 + scans);
 
-    plc.set_mode(Mode::Run);
-    run_scans(&mut plc, MS);
-    plc.set_mode(Mode::Stop);
+    run_then_stop(&mut plc);
     let again = var(&plc, &p, "main.scans");
     assert!(again > 0 && again < scans + 10, "not retained: started over");
     assert_eq!(var(&plc, &p, "main.u.dw"), 0x3F00_0000 + scans + again, "retained: counted on");
@@ -421,9 +412,7 @@ END_PROGRAM
 ";
     let p = st(source);
     let mut plc = Plc::new(&p);
-    plc.set_mode(Mode::Run);
-    run_scans(&mut plc, MS);
-    plc.set_mode(Mode::Stop);
+    run_then_stop(&mut plc);
     let scans = var(&plc, &p, "main.scans");
     assert!(scans > 3, "it ran: {scans}");
     assert_eq!(var(&plc, &p, "main.c.Add.calls"), scans);
@@ -525,9 +514,7 @@ fn retained_arrays_are_one_record_each_and_keep_the_elements_both_have() {
     let dir = TempDir::new("retain-arrays");
     let (old_p, new_p) = (st(ARRAYS), st(ARRAYS_CHANGED));
     let mut old = Plc::new(&old_p);
-    old.set_mode(Mode::Run);
-    run_scans(&mut old, MS);
-    old.set_mode(Mode::Stop);
+    run_then_stop(&mut old);
     let scans = var(&old, &old_p, "main.scans");
     assert!(scans > 1, "it ran: {scans}");
 
@@ -590,9 +577,7 @@ fn a_version_3_files_element_records_restore_into_the_arrays() {
     let dir = TempDir::new("retain-version-3");
     let (old_p, new_p) = (st(ARRAYS), st(ARRAYS_CHANGED));
     let mut old = Plc::new(&old_p);
-    old.set_mode(Mode::Run);
-    run_scans(&mut old, MS);
-    old.set_mode(Mode::Stop);
+    run_then_stop(&mut old);
     let scans = var(&old, &old_p, "main.scans");
     // every retained leaf as its own record, as version 3 wrote them
     let vars = old.engine.vm().vars();
