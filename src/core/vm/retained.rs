@@ -157,19 +157,21 @@ fn leaf_record(s: &Symbol) -> RetainedRecord {
     }
 }
 
+/// The record of an entry: a retained leaf's, or an array's holding a retained leaf.
+fn record_of(entry: &Entry) -> Option<RetainedRecord> {
+    match entry {
+        Entry::Leaf(s) if retained(s) => Some(leaf_record(s)),
+        Entry::Leaf(_) => None,
+        Entry::Array(a) => array_record(a),
+    }
+}
+
 /// The retained parts of an element's entries (names and places relative), packed from 0.
 fn parts_of(entries: &[Entry]) -> Option<Vec<RetainedRecord>> {
     let mut parts = Vec::new();
     let mut pos = 0u32;
     for entry in entries {
-        let part = match entry {
-            Entry::Leaf(s) if retained(s) => leaf_record(s),
-            Entry::Leaf(_) => continue,
-            Entry::Array(a) => match array_record(a) {
-                Some(part) => part,
-                None => continue,
-            },
-        };
+        let Some(part) = record_of(entry) else { continue };
         let end = pos.checked_add(part.len)?;
         parts.push(RetainedRecord { pos, ..part });
         pos = end;
@@ -519,14 +521,7 @@ impl RetainedVariables {
         let mut records = Vec::new();
         let mut pos = 0u32;
         for entry in variables.symbols.entries() {
-            let record = match entry {
-                Entry::Leaf(s) if retained(s) => leaf_record(s),
-                Entry::Leaf(_) => continue,
-                Entry::Array(a) => match array_record(a) {
-                    Some(record) => record,
-                    None => continue,
-                },
-            };
+            let Some(record) = record_of(entry) else { continue };
             if extent(&record, 0) > size {
                 continue;
             }
