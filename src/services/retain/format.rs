@@ -372,6 +372,17 @@ mod tests {
         out
     }
 
+    /// [`file_with`] labelled an earlier `version`, its CRC made again: the layout of versions
+    /// 2 and 3, which differ from this build's in how a record's bytes are read.
+    fn file_of_version(version: u8, variables: &[SavedVariable]) -> Vec<u8> {
+        let mut bytes = file_with(5, &[9], variables);
+        bytes[8] = version;
+        let body = bytes.len() - 4;
+        let crc = CRC.checksum(&bytes[..body]);
+        bytes[body..].copy_from_slice(&crc.to_le_bytes());
+        bytes
+    }
+
     /// A version 1 file, as the builds before variables wrote it.
     fn version_1_file(seq: u64, words: &[u16]) -> Vec<u8> {
         let mut bytes = file(seq, words);
@@ -461,12 +472,7 @@ mod tests {
             saved("main.full", "STRING[2]", &[2, b'x', b'y']),
             saved("main.n", "INT", &[2, 0]),
         ];
-        let mut bytes = file_with(5, &[9], &variables);
-        bytes[8] = 2;
-        let body = bytes.len() - 4;
-        let crc = CRC.checksum(&bytes[..body]);
-        bytes[body..].copy_from_slice(&crc.to_le_bytes());
-        let decoded = decode(&bytes).unwrap();
+        let decoded = decode(&file_of_version(2, &variables)).unwrap();
         assert_eq!(decoded.version, 2);
         let got: Vec<&[u8]> = decoded.variables.iter().map(|v| &v.bytes[..]).collect();
         assert_eq!(got, [&b"ab\0\0"[..], &b"xy\0"[..], &[2, 0][..]]);
@@ -569,12 +575,7 @@ mod tests {
     fn a_version_3_file_is_still_read() {
         let variables =
             [saved("main.buf[1]", "DINT", &[1, 0, 0, 0]), saved("main.n", "INT", &[7, 0])];
-        let mut bytes = file_with(5, &[9], &variables);
-        bytes[8] = 3;
-        let body = bytes.len() - 4;
-        let crc = CRC.checksum(&bytes[..body]);
-        bytes[body..].copy_from_slice(&crc.to_le_bytes());
-        let decoded = decode(&bytes).unwrap();
+        let decoded = decode(&file_of_version(3, &variables)).unwrap();
         assert_eq!((decoded.version, &decoded.variables[..]), (3, &variables[..]));
     }
 
