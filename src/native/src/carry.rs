@@ -12,7 +12,10 @@
 //! and the wait of each load for the store just before it. A block receives the value of a
 //! place when every block that jumps to it holds it at its end: an intersection over the
 //! predecessors, iterated to a fixed point over the body's blocks (the loops' back edges), as
-//! for available expressions. A block entered only from the dispatch (the body's start, the
+//! for available expressions. A block outside any loop receives its integer values only
+//! when they are few ([`JOIN_INTEGERS`]; floats always): there each is equal to memory, and
+//! reloading it where used costs no more than the spill of one value too many held in
+//! registers across the join. A block entered only from the dispatch (the body's start, the
 //! return sites of machine calls) receives nothing; after a call compiled inline (`inline`),
 //! the return site receives what the caller held but the callee may have changed
 //! ([`callee_writes`]). The loader of a block that receives values loads them from memory, so
@@ -384,6 +387,22 @@ fn wants(code: &[Op], start: usize, inlined: &[(u32, &Writes)], this_in_vars: bo
     Wants { fetched, stores: Some(stores) }
 }
 
+/// At most this many values of integers (BOOLs, pointers) go on in registers into a block
+/// outside any loop ([`carried`]): a block that would receive more receives none of them.
+/// REALs and LREALs are not counted: they take float registers, of which x86-64 has 16, none
+/// saved by the callee.
+///
+/// Outside a loop every store is written through at once, so a value received there is one
+/// memory holds too: receiving it spares one load where it is used, for a register held across
+/// the join and every block before that use. Once the values held outnumber the free registers
+/// (x86-64 has 14 general ones, of which the body's pointers, its budget and the expressions'
+/// temporaries take most), the register allocator spills them to the stack, a store and a load
+/// for the load spared, or takes callee-saved registers, each saved and restored on every call.
+/// `bit` (benches/st/bit.st: 24 rungs and three IFs) carried 15 BOOLs across its joins: 22
+/// spill moves and 5 callee-saved registers a scan, against a load each where used. A few
+/// values (a CASE's selector and counters in `state_machine`) still go on in registers.
+pub(crate) const JOIN_INTEGERS: usize = 4;
+
 /// An order of keys, so that two sets of them compare equal when they hold the same keys.
 fn rank((place, elem): Key) -> (u8, u32, u8) {
     let (space, offset) = match place {
@@ -430,12 +449,14 @@ impl Jumps {
 /// The values each of a body's blocks receives, by the block's index in its [`Jumps`];
 /// `inlined`: its calls compiled
 /// inline (their pcs), whose blocks go on after them knowing what their callees may change;
-/// `this_in_vars` as for [`may_change`].
+/// `this_in_vars` as for [`may_change`]; `in_loop`: [`in_loops`], outside which a block
+/// receives at most [`JOIN_INTEGERS`] integer values.
 pub(crate) fn carried(
     program: &Program,
     jumps: &Jumps,
     inlined: &[(u32, &Writes)],
     this_in_vars: bool,
+    in_loop: &[bool],
 ) -> Vec<Vec<Key>> {
     let code = &program.code;
     let Jumps { blocks, successors, predecessors } = jumps;
@@ -495,6 +516,15 @@ pub(crate) fn carried(
                 let mut held = out[first].clone();
                 for &other in rest {
                     held.retain(|key| out[other].contains(key));
+                }
+                if !in_loop[index] {
+                    // (A block outside loops is on no cycle of jumps: what it receives depends
+                    // on the blocks before it only, and the iteration still ends.)
+                    held.retain(|key| wanted[index].contains(key));
+                    let integers = held.iter().filter(|key| !key.1.is_float()).count();
+                    if integers > JOIN_INTEGERS {
+                        held.retain(|key| key.1.is_float());
+                    }
                 }
                 into[index] = held;
             }
@@ -598,4 +628,73 @@ pub(crate) fn in_loops(jumps: &Jumps) -> Vec<bool> {
             depth > 0
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use plcd_core::st::{compile, parse_file, Instance};
+
+    use super::*;
+    use crate::analysis::analyse;
+
+    /// The blocks of the PROGRAM of `source` (its only body) that several blocks jump to: in a
+    /// loop or not, and the values each receives, as (integers, floats).
+    fn joins(source: &str) -> Vec<(bool, usize, usize)> {
+        let path = Path::new("carry.st");
+        let (file, diags) = parse_file(path, source);
+        assert!(diags.is_empty(), "{diags}");
+        let main = Instance { name: "main", pou: None, file: path, config: path, line: 1, col: 1 };
+        let program =
+            compile(&[file], &[main]).unwrap_or_else(|d| panic!("{d}")).programs.remove(0);
+        let analysis = analyse(&program).expect("analysed");
+        assert_eq!(analysis.functions.len(), 1, "one body");
+        let jumps = Jumps::of(&program, &analysis, &analysis.function_leaders[0]);
+        let in_loop = in_loops(&jumps);
+        let carried = carried(&program, &jumps, &[], false, &in_loop);
+        (0..jumps.blocks.len())
+            .filter(|&index| jumps.predecessors[index].len() > 1)
+            .map(|index| {
+                let floats = carried[index].iter().filter(|key| key.1.is_float()).count();
+                (in_loop[index], carried[index].len() - floats, floats)
+            })
+            .collect()
+    }
+
+    /// `n` variables of `ty` fetched before an IF and after it, in a loop or not.
+    fn across_an_if(ty: &str, n: usize, in_a_loop: bool) -> String {
+        let names: Vec<String> = (0..n).map(|k| format!("v{k}")).collect();
+        let (op, zero) = if ty == "BOOL" { ("AND", "FALSE") } else { ("+", "0") };
+        let sum = names.join(&format!(" {op} "));
+        let body = format!("x := {sum}; IF x = {zero} THEN x := {zero}; END_IF; x := {sum};");
+        let body = if in_a_loop { format!("FOR i := 1 TO 10 DO {body} END_FOR;") } else { body };
+        format!(
+            "PROGRAM Main VAR {names} : {ty}; x : {ty}; i : INT; END_VAR {body} END_PROGRAM",
+            names = names.join(", ")
+        )
+    }
+
+    #[test]
+    fn a_join_outside_loops_receives_a_few_integers_or_none() {
+        // (x is stored again before it is fetched: not received.)
+        let few = joins(&across_an_if("BOOL", JOIN_INTEGERS, false));
+        assert_eq!(few, vec![(false, JOIN_INTEGERS, 0)]);
+        let many = joins(&across_an_if("BOOL", JOIN_INTEGERS + 1, false));
+        assert_eq!(many, vec![(false, 0, 0)], "one more than JOIN_INTEGERS: none");
+        let dints = joins(&across_an_if("DINT", 8, false));
+        assert_eq!(dints, vec![(false, 0, 0)]);
+    }
+
+    #[test]
+    fn a_join_outside_loops_receives_every_float() {
+        assert_eq!(joins(&across_an_if("REAL", 8, false)), vec![(false, 0, 8)]);
+        assert_eq!(joins(&across_an_if("LREAL", 8, false)), vec![(false, 0, 8)]);
+    }
+
+    #[test]
+    fn a_join_in_a_loop_receives_every_value() {
+        let joins = joins(&across_an_if("BOOL", 8, true));
+        assert!(joins.contains(&(true, 9, 0)), "the BOOLs and i: {joins:?}");
+    }
 }

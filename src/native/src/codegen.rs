@@ -170,8 +170,8 @@ pub(crate) fn generate(
     let plan = inline::plan(program, analysis, body, leaders);
     let calls: Vec<(u32, &Writes)> = plan.iter().map(|call| (call.pc, &call.writes)).collect();
     let jumps = carry::Jumps::of(program, analysis, leaders);
-    let carried = carry::carried(program, &jumps, &calls, false);
     let in_loop = carry::in_loops(&jumps);
+    let carried = carry::carried(program, &jumps, &calls, false, &in_loop);
     let unwritten = carry::unwritten(program, &jumps, &carried, &in_loop);
     let mut g = Gen {
         b,
@@ -1647,8 +1647,8 @@ impl<'a> Gen<'a, '_> {
         let blocks = leaders.iter().map(|_| self.b.create_block()).collect();
         let stack = (0..self.stack.len()).map(|_| self.b.declare_var(I64)).collect();
         let jumps = carry::Jumps::of(self.program, self.analysis, leaders);
-        let carried = carry::carried(self.program, &jumps, &[], this_in_vars);
         let in_loop = carry::in_loops(&jumps);
+        let carried = carry::carried(self.program, &jumps, &[], this_in_vars, &in_loop);
         let unwritten = carry::unwritten(self.program, &jumps, &carried, &in_loop);
         let mut scope = Scope {
             body: target,
