@@ -27,7 +27,10 @@
 //! - every way out stores the registers and the live stack slots back, exactly as the
 //!   interpreter leaves them: at `END`, after an operation error, before an instruction it
 //!   hands to the interpreter (a pointer outside variable memory and the frame, a full call
-//!   stack, a machine stack used down to the context's floor).
+//!   stack, a machine stack used down to the context's floor); but a program's body that
+//!   makes no machine call leaves `sp` as the VM stored it where it goes out with the stack it
+//!   came in with, and the entry's loads of registers nothing uses are dropped
+//!   ([`drop_unused`]).
 //!
 //! A call pushes a [`StFrame`] as the interpreter does, stores the caller's stack slots (a
 //! callee's slots are numbered from its own start) and the callee's registers to memory, and
@@ -180,6 +183,8 @@ pub(crate) fn generate(
         context: ctx,
         entry,
         fields: Vec::new(),
+        entry_loads: Vec::new(),
+        sp_stores: Vec::new(),
         regs,
         activation: Activation {
             pc: unset,
@@ -228,9 +233,75 @@ pub(crate) fn generate(
     g.entry(&params);
     g.body();
     let vars_need = g.vars_need;
+    let mut entry_loads = std::mem::take(&mut g.entry_loads);
+    let sp_stores = std::mem::take(&mut g.sp_stores);
+    let sp = g.activation.sp;
     g.b.seal_all_blocks();
     g.b.finalize(isa.frontend_config());
+    // A program's body is entered by the VM only, with `sp` in the context; if it makes no
+    // machine call, nothing else stores there while it runs. A way out at depth 0 from the
+    // stack base it came in with stores the same `sp` (but for the mask, which the VM applies
+    // on reading it back): that store is left out, and the `sp` loaded only for it.
+    let calls = func.layout.blocks().any(|block| {
+        func.layout.block_insts(block).any(|inst| func.dfg.insts[inst].opcode().is_call())
+    });
+    let mut unused = Vec::new();
+    if !calls {
+        for (stored, sb) in sp_stores {
+            if func.dfg.resolve_aliases(sb) == func.dfg.resolve_aliases(sp) {
+                func.layout.remove_inst(stored.store);
+                unused.extend([stored.masked, stored.sum]);
+            }
+        }
+        // (After every widening and sum it feeds.)
+        entry_loads.push(sp);
+    }
+    unused.extend(entry_loads);
+    drop_unused(func, &unused);
     vars_need
+}
+
+/// A store of `sp` to the context ([`Gen::store_registers`]): the store, the value stored
+/// (masked) and the sum it masks.
+#[derive(Clone, Copy)]
+struct SpStore {
+    store: cranelift_codegen::ir::Inst,
+    masked: Value,
+    sum: Value,
+}
+
+/// Removes the instructions that define `values` (the entry's loads of registers, their
+/// widenings after them) where nothing uses their results. Cranelift keeps every load that is
+/// not read-only, used or not (a register allocated and an instruction run on each entry); these
+/// cannot be read-only: a call stores the callee's registers at the same places.
+fn drop_unused(func: &mut Function, values: &[Value]) {
+    let mut uses: std::collections::HashMap<Value, u32> = Default::default();
+    for block in func.layout.blocks() {
+        for inst in func.layout.block_insts(block) {
+            for value in func.dfg.inst_values(inst) {
+                *uses.entry(func.dfg.resolve_aliases(value)).or_default() += 1;
+            }
+        }
+    }
+    // In order: a widening before the load it widens.
+    for &value in values {
+        let value = func.dfg.resolve_aliases(value);
+        let ValueDef::Result(inst, _) = func.dfg.value_def(value) else { continue };
+        let unused = uses.get(&value).is_none_or(|&n| n == 0);
+        if !unused
+            || func.layout.inst_block(inst).is_none()
+            || func.dfg.inst_results(inst).len() != 1
+        {
+            continue;
+        }
+        let args: Vec<Value> = func.dfg.inst_values(inst).collect();
+        for arg in args {
+            if let Some(n) = uses.get_mut(&func.dfg.resolve_aliases(arg)) {
+                *n -= 1;
+            }
+        }
+        func.layout.remove_inst(inst);
+    }
 }
 
 /// The registers that change inside an activation, as SSA variables: the budget left, and
@@ -288,6 +359,12 @@ struct Gen<'a, 'f> {
     entry: Block,
     /// The context's fields loaded so far, by offset ([`Gen::field`]).
     fields: Vec<(usize, Value)>,
+    /// The entry's loads of registers a body may not use, with their widenings, for
+    /// [`drop_unused`].
+    entry_loads: Vec<Value>,
+    /// The stores of `sp` on the ways out of a program's body at depth 0 from its `sb`, for
+    /// [`drop_unused`].
+    sp_stores: Vec<(SpStore, Value)>,
     regs: Regs,
     activation: Activation,
     /// The evaluation stack's slots of the current activation, by depth.
@@ -538,6 +615,16 @@ impl<'a> Gen<'a, '_> {
         };
         let base = load32(&mut self.b, offset_of!(NativeRegs, base));
         let this = self.b.ins().load(I64, own(), ctx, reg(offset_of!(NativeRegs, this)));
+        // The frame's base and the FB instance: a program's body without operands in either
+        // uses neither (`drop_unused`).
+        for value in [base, this] {
+            self.entry_loads.push(value);
+            if let ValueDef::Result(inst, _) = self.b.func.dfg.value_def(value) {
+                if self.b.func.dfg.insts[inst].opcode() == Opcode::Uextend {
+                    self.entry_loads.push(self.b.func.dfg.inst_args(inst)[0]);
+                }
+            }
+        }
         let left = self.b.ins().load(I64, own(), ctx, reg(offset_of!(NativeRegs, left)));
         let sp = self.b.ins().load(I64, own(), ctx, reg(offset_of!(NativeRegs, sp)));
         let (refused, this_at) = self.body_pointers(self.body, base, this, false);
@@ -683,7 +770,12 @@ impl<'a> Gen<'a, '_> {
                 self.b.switch_to_block(load);
             }
             let depth = self.depth(leader);
-            let sb = self.b.ins().iadd_imm_s(self.activation.sp, -i64::from(depth));
+            // (At depth 0 the very value loaded, the same on every way: [`drop_unused`]
+            // finds the `sp` stored on the way out equal to it.)
+            let sb = match depth {
+                0 => self.activation.sp,
+                _ => self.b.ins().iadd_imm_s(self.activation.sp, -i64::from(depth)),
+            };
             self.b.def_var(self.regs.sb, sb);
             for slot in 0..depth {
                 let address = self.slot_address(sb, slot);
@@ -772,17 +864,22 @@ impl<'a> Gen<'a, '_> {
         // (Not the same `sp` as on the way in when it came in inside an expression.)
         let sp = self.b.ins().iadd_imm_s(sb, i64::from(depth));
         let frame = (!vm_only).then_some(FrameRegisters { base, this, depth: calls });
-        self.store_registers(Registers { pc, sp, left, frame });
+        let stored = self.store_registers(Registers { pc, sp, left, frame });
+        if vm_only && depth == 0 {
+            self.sp_stores.push((stored, sb));
+        }
     }
 
-    fn store_registers(&mut self, r: Registers) {
+    /// Stores the registers; returns the store of `sp`.
+    fn store_registers(&mut self, r: Registers) -> SpStore {
         let ctx = self.field(code::CONTEXT.regs);
         let pc = self.b.ins().ireduce(types::I32, r.pc);
         self.b.ins().store(own(), pc, ctx, reg(offset_of!(NativeRegs, pc)));
         self.b.ins().store(own(), r.left, ctx, reg(offset_of!(NativeRegs, left)));
         let sp = self.b.ins().band_imm_s(r.sp, MASK);
-        self.b.ins().store(own(), sp, ctx, reg(offset_of!(NativeRegs, sp)));
-        let Some(frame) = r.frame else { return };
+        let store = self.b.ins().store(own(), sp, ctx, reg(offset_of!(NativeRegs, sp)));
+        let stored = SpStore { store, masked: sp, sum: r.sp };
+        let Some(frame) = r.frame else { return stored };
         for (value, offset) in [
             (frame.base, offset_of!(NativeRegs, base)),
             (frame.depth, offset_of!(NativeRegs, st_depth)),
@@ -791,6 +888,7 @@ impl<'a> Gen<'a, '_> {
             self.b.ins().store(own(), value, ctx, reg(offset));
         }
         self.b.ins().store(own(), frame.this, ctx, reg(offset_of!(NativeRegs, this)));
+        stored
     }
 
     fn ret(&mut self, status: u32) {
@@ -1497,7 +1595,7 @@ impl<'a> Gen<'a, '_> {
                 let sp = self.b.use_var(self.regs.sb);
                 let left = self.b.use_var(self.regs.left);
                 let frame = Some(FrameRegisters { base, this, depth });
-                self.store_registers(Registers { pc, sp, left, frame });
+                let _ = self.store_registers(Registers { pc, sp, left, frame });
                 self.ret(RETURN_CONTINUE);
                 return false;
             }
@@ -2478,5 +2576,98 @@ fn float_type(elem: Elem) -> Type {
         types::F32
     } else {
         types::F64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use cranelift_codegen::settings::{self, Configurable};
+    use plcd_core::st::{compile, parse_file, Instance};
+
+    use super::*;
+    use crate::analysis::analyse;
+
+    /// The PROGRAM of `source`'s body as generated: what it loads from the registers in the
+    /// context and what it stores there, as (is a store, offset in `NativeRegs`).
+    fn register_accesses(source: &str) -> Vec<(bool, usize)> {
+        let path = Path::new("codegen.st");
+        let (file, diags) = parse_file(path, source);
+        assert!(diags.is_empty(), "{diags}");
+        let main = Instance { name: "main", pou: None, file: path, config: path, line: 1, col: 1 };
+        let program =
+            compile(&[file], &[main]).unwrap_or_else(|d| panic!("{d}")).programs.remove(0);
+        let analysis = analyse(&program).expect("analysed");
+        let roles = analysis.block_roles(&program.code);
+        let mut flags = settings::builder();
+        flags.set("opt_level", "speed").expect("a flag");
+        let isa = cranelift_native::builder()
+            .expect("a host ISA")
+            .finish(settings::Flags::new(flags))
+            .expect("an ISA");
+        let names: Vec<u32> = (0..analysis.functions.len() as u32).collect();
+        let function = (analysis.functions.iter())
+            .position(|body| analysis.bodies[body].return_sites.is_empty())
+            .expect("the program's body");
+        let mut func = Function::new();
+        generate(&program, &analysis, &roles, function, &names, &*isa, &mut func);
+        let insts: Vec<_> =
+            func.layout.blocks().flat_map(|block| func.layout.block_insts(block)).collect();
+        let context = func.dfg.block_params(func.layout.entry_block().expect("an entry"))[0];
+        let regs = insts
+            .iter()
+            .find_map(|&inst| match func.dfg.insts[inst] {
+                InstructionData::Load { arg, offset, .. }
+                    if arg == context && i32::from(offset) == code::CONTEXT.regs as i32 =>
+                {
+                    Some(func.dfg.first_result(inst))
+                }
+                _ => None,
+            })
+            .expect("the registers' address");
+        let regs = func.dfg.resolve_aliases(regs);
+        let mut accesses: Vec<(bool, usize)> = (insts.iter())
+            .filter_map(|&inst| {
+                let (store, address, offset) = match func.dfg.insts[inst] {
+                    InstructionData::Load { arg, offset, .. } => (false, arg, offset),
+                    InstructionData::Store { args, offset, .. } => (true, args[1], offset),
+                    _ => return None,
+                };
+                let at = func.dfg.resolve_aliases(address) == regs;
+                at.then(|| (store, i32::from(offset) as usize))
+            })
+            .collect();
+        accesses.sort_unstable();
+        accesses.dedup();
+        accesses
+    }
+
+    const SP: usize = offset_of!(NativeRegs, sp);
+
+    #[test]
+    fn a_program_without_calls_neither_loads_nor_stores_sp_nor_loads_its_frame_and_instance() {
+        let accesses = register_accesses(
+            "PROGRAM Main VAR a, b : BOOL; n : INT; END_VAR
+             n := n + 1; IF a THEN b := NOT b; END_IF; END_PROGRAM",
+        );
+        for field in [SP, offset_of!(NativeRegs, base), offset_of!(NativeRegs, this)] {
+            assert!(!accesses.iter().any(|&(_, at)| at == field), "{field}: {accesses:?}");
+        }
+        // The pc and the budget, loaded and stored.
+        for field in [offset_of!(NativeRegs, pc), offset_of!(NativeRegs, left)] {
+            assert!(accesses.contains(&(false, field)) && accesses.contains(&(true, field)));
+        }
+    }
+
+    #[test]
+    fn a_program_that_makes_a_machine_call_stores_sp() {
+        // (`f` calls `g`: it is not inlined.)
+        let accesses = register_accesses(
+            "FUNCTION g : INT VAR_INPUT x : INT; END_VAR g := x * 2; END_FUNCTION
+             FUNCTION f : INT VAR_INPUT x : INT; END_VAR f := g(x) + 1; END_FUNCTION
+             PROGRAM Main VAR n : INT; END_VAR n := f(n); END_PROGRAM",
+        );
+        assert!(accesses.contains(&(false, SP)) && accesses.contains(&(true, SP)), "{accesses:?}");
     }
 }
