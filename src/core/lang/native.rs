@@ -49,8 +49,13 @@ pub struct IlFrame {
 /// An activation's registers as native code reads and writes them: the [`ExecState`] keeps
 /// them so, and [`Vm::run`] passes them to native code in place.
 ///
+/// The activation's registers come first, those a program starts with at zero together; then
+/// a run's own (`left`, `sp`, `error`), which a run sets before it reads them, so that
+/// [`ExecState::restart`] writes only the first 40 bytes.
+///
 /// [`Vm::run`]: crate::vm::Vm::run
 /// [`ExecState`]: crate::vm::ExecState
+/// [`ExecState::restart`]: crate::vm::ExecState::restart
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(C)]
 pub struct NativeRegs {
@@ -62,8 +67,16 @@ pub struct NativeRegs {
     /// The current frame's base, a byte offset into the frame area
     /// ([`NativeMemoryOffsets::frame`]).
     pub base: u32,
-    /// The operation error's code, when native code returns [`NativeExit::OperationError`].
-    pub error: u32,
+    /// Instruction-list calls under way (entries of [`IlMemory::calls`]).
+    pub il_depth: u32,
+    /// The instruction list's block stack (`AND LOAD`/`OR LOAD`), one bit a level, top in bit 0.
+    pub blocks: u32,
+    /// The instruction list's `MPUSH` stack, one bit a level, top in bit 0.
+    pub branches: u32,
+    /// Instruction-list `FOR` loops under way (a `CALL` keeps it, `RET` restores it).
+    pub loop_depth: u32,
+    /// The instruction list's rung result: 0 or 1.
+    pub rung: u32,
     /// The current FB instance (a [`crate::value::Pointer`] slot).
     pub this: u64,
     /// Instructions left in the step budget.
@@ -71,16 +84,8 @@ pub struct NativeRegs {
     /// The evaluation stack's next free slot (an index into the ring,
     /// [`NativeMemoryOffsets::eval`]).
     pub sp: u64,
-    /// The instruction list's rung result: 0 or 1.
-    pub rung: u32,
-    /// The instruction list's block stack (`AND LOAD`/`OR LOAD`), one bit a level, top in bit 0.
-    pub blocks: u32,
-    /// The instruction list's `MPUSH` stack, one bit a level, top in bit 0.
-    pub branches: u32,
-    /// Instruction-list calls under way (entries of [`IlMemory::calls`]).
-    pub il_depth: u32,
-    /// Instruction-list `FOR` loops under way (a `CALL` keeps it, `RET` restores it).
-    pub loop_depth: u32,
+    /// The operation error's code, when native code returns [`NativeExit::OperationError`].
+    pub error: u32,
 }
 
 /// The memory native code works on, borrowed for one call, as the raw parts its code reads at
@@ -89,8 +94,9 @@ pub struct NativeRegs {
 ///
 /// The memory's addresses and lengths are private: a `NativeMemory` holds only slices
 /// [`NativeMemory::new`] borrowed for its lifetime, which the code may rely on. The public
-/// fields are native code's own: [`NativeCode::run`] sets them before it enters its code, and
-/// nothing reads what they held before.
+/// fields are native code's own: [`NativeCode::run`] sets those its code reads before it enters
+/// it (`il` stays the null `new` puts there for code that does not read it), and nothing reads
+/// what they held before.
 ///
 /// No two fields that are neighbours in the slices they come from are neighbours here (an
 /// address and its length): a compiler copying such a pair with one 16-byte load of what was
@@ -109,8 +115,8 @@ pub struct NativeMemory<'a> {
     vars_len: u64,
     words_len: u64,
     frame_len: u64,
-    /// What instruction-list code reads its state from, set by [`NativeCode::run`] (null for
-    /// Structured Text).
+    /// What instruction-list code reads its state from, set by [`NativeCode::run`] (null, as
+    /// [`NativeMemory::new`] leaves it, for Structured Text).
     pub il: *const u8,
     /// The lowest machine stack address a Structured Text call of native code may start from,
     /// set by [`NativeCode::run`].
@@ -246,17 +252,19 @@ impl<'a> RawSlice<'a> {
     }
 }
 
-/// Why native code returned.
+/// Why native code returned. The discriminants are fixed: a code generator may number its
+/// functions' returns alike, and map one to the other by the number.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
 pub enum NativeExit {
     /// It executed `END`.
-    End,
+    End = 0,
     /// The interpreter is to execute the instruction at `pc` (and at most
     /// [`NativeCode::interpret_span`] of them), or the budget is spent (`left` is 0).
     Interpret,
     /// An operation error (its code in [`NativeRegs::error`]); `pc` is after the instruction
     /// that raised it. Native code does not set `_ERR`: [`Vm::run`](crate::vm::Vm::run) does.
-    OperationError,
+    OperationError = 2,
 }
 
 /// Native code of one program.

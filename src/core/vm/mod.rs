@@ -152,7 +152,19 @@ impl ExecState {
 
     /// Back to the first instruction, for the next execution of the program.
     pub fn restart(&mut self) {
-        self.regs = START;
+        // The registers as `START` has them, but a run's own (`left`, `sp`, `error`), which
+        // each run sets before it reads them: `NativeRegs` keeps those after the others, and
+        // the others' zeros together, so that this is a few stores.
+        let regs = &mut self.regs;
+        regs.pc = START.pc;
+        regs.st_depth = START.st_depth;
+        regs.base = START.base;
+        regs.il_depth = START.il_depth;
+        regs.blocks = START.blocks;
+        regs.branches = START.branches;
+        regs.loop_depth = START.loop_depth;
+        regs.rung = START.rung;
+        regs.this = START.this;
         self.finished = false;
         self.eval.clear();
     }
@@ -514,6 +526,12 @@ impl Vm {
 
     /// [`Vm::run`] of a program with native code: native code runs as far as it can, and the
     /// interpreter executes what it hands back, a few instructions at a time ([`native`]).
+    ///
+    /// Most runs are one call of native code to `END` (a scan from its start): that call is
+    /// here, inlined into [`Vm::run`]'s caller; a run that native code hands back goes on in
+    /// [`Vm::run_native_on`], a call of its own, so that what the first call keeps in registers
+    /// is only what it needs.
+    #[inline(always)]
     fn run_native<C: Clock>(
         &mut self,
         native: &dyn native::NativeCode,
@@ -523,58 +541,113 @@ impl Vm {
         max_steps: u64,
     ) -> Exit {
         let stop = self.steps.saturating_add(max_steps);
+        let left = stop - self.steps;
+        if left == 0 {
+            return Exit::Budget;
+        }
+        match self.native_call(native, program, state, clock, stop, left) {
+            native::NativeExit::End => {
+                state.finished = true;
+                Exit::End
+            }
+            native::NativeExit::OperationError => self.native_error(state),
+            native::NativeExit::Interpret => self.run_native_on(program, state, clock, stop),
+        }
+    }
+
+    /// The rest of [`Vm::run_native`] after native code handed the next instruction to the
+    /// interpreter: the interpreter executes a few ([`native::NativeCode::interpret_span`]),
+    /// native code the rest, in turns, until `END`, an operation error, a system instruction
+    /// or step `stop`. It finds the native code in `program` again, so that the first call
+    /// keeps no more of it than the call needs.
+    #[inline(never)]
+    fn run_native_on<C: Clock>(
+        &mut self,
+        program: &Program,
+        state: &mut ExecState,
+        clock: &C,
+        stop: u64,
+    ) -> Exit {
+        let Some(native) = program.native.as_deref() else {
+            // Not after `run_native`, which ran the native code; the interpreter alone then.
+            return self.interpret(program, state, clock, stop - self.steps);
+        };
         loop {
             let left = stop - self.steps;
             if left == 0 {
                 return Exit::Budget;
             }
-            state.regs.left = left;
-            state.regs.sp = state.eval.sp() as u64;
-            state.regs.error = 0;
-            let mut il_memory = match program.language {
-                Language::InstructionList => Some(native::IlMemory {
+            let span = u64::from(native.interpret_span(state.regs.pc).max(1));
+            match self.interpret(program, state, clock, left.min(span)) {
+                Exit::Budget => {}
+                exit => return exit,
+            }
+            let left = stop - self.steps;
+            if left == 0 {
+                return Exit::Budget;
+            }
+            match self.native_call(native, program, state, clock, stop, left) {
+                native::NativeExit::End => {
+                    state.finished = true;
+                    return Exit::End;
+                }
+                native::NativeExit::OperationError => return self.native_error(state),
+                native::NativeExit::Interpret => {}
+            }
+        }
+    }
+
+    /// One call of native code from `state` with `left` (not 0) of the budget that ends at
+    /// step `stop`: the registers it reads set, its memory lent, the steps it executed
+    /// counted.
+    #[inline(always)]
+    fn native_call<C: Clock>(
+        &mut self,
+        native: &dyn native::NativeCode,
+        program: &Program,
+        state: &mut ExecState,
+        clock: &C,
+        stop: u64,
+        left: u64,
+    ) -> native::NativeExit {
+        state.regs.left = left;
+        state.regs.sp = state.eval.sp() as u64;
+        let mut memory = native::NativeMemory::new(
+            &mut self.vars,
+            self.mem.words_mut(),
+            &mut state.frame,
+            state.eval.slots_mut(),
+            &mut state.st_calls,
+        );
+        // Native code sets `error` when it returns `OperationError`, the only time it is read.
+        let exit = match program.language {
+            // Structured Text has no instruction-list state, and does not pay for building it.
+            Language::StructuredText => native.run(&mut memory, None, &mut state.regs),
+            Language::InstructionList => {
+                let mut il = native::IlMemory {
                     calls: &mut state.calls,
                     edges: &mut self.edges,
                     counters: native::RawSlice::new(&mut self.counters),
                     timers: native::RawSlice::new(&mut self.timers),
                     clock,
                     stop,
-                }),
-                Language::StructuredText => None,
-            };
-            let mut memory = native::NativeMemory::new(
-                &mut self.vars,
-                self.mem.words_mut(),
-                &mut state.frame,
-                state.eval.slots_mut(),
-                &mut state.st_calls,
-            );
-            let exit = native.run(&mut memory, il_memory.as_mut(), &mut state.regs);
-            state.eval.set_sp(state.regs.sp as usize);
-            self.steps = stop - state.regs.left.min(left);
-            match exit {
-                native::NativeExit::End => {
-                    state.finished = true;
-                    return Exit::End;
-                }
-                native::NativeExit::OperationError => {
-                    let code = state.regs.error as u16;
-                    self.mem.raise_operation_error(code);
-                    return Exit::OperationError { code, pc: state.regs.pc.wrapping_sub(1) };
-                }
-                native::NativeExit::Interpret => {
-                    let left = stop - self.steps;
-                    if left == 0 {
-                        return Exit::Budget;
-                    }
-                    let span = u64::from(native.interpret_span(state.regs.pc).max(1));
-                    match self.interpret(program, state, clock, left.min(span)) {
-                        Exit::Budget => {}
-                        exit => return exit,
-                    }
-                }
+                };
+                native.run(&mut memory, Some(&mut il), &mut state.regs)
             }
-        }
+        };
+        state.eval.set_sp(state.regs.sp as usize);
+        self.steps = stop - state.regs.left.min(left);
+        exit
+    }
+
+    /// The operation error native code returned with: `_ERR` set, the exit at the instruction
+    /// that raised it.
+    #[cold]
+    #[inline(never)]
+    fn native_error(&mut self, state: &ExecState) -> Exit {
+        let code = state.regs.error as u16;
+        self.mem.raise_operation_error(code);
+        Exit::OperationError { code, pc: state.regs.pc.wrapping_sub(1) }
     }
 
     /// [`Vm::run`] on the interpreter alone.
@@ -1462,6 +1535,78 @@ mod tests {
         for budget in [1, 2, 3, 5, 8, 13] {
             assert!(trace(&program, budget) == whole, "budget {budget} differs");
         }
+    }
+
+    /// Native code that hands every instruction to the interpreter: a run with it attached
+    /// takes `Vm::run`'s native path, and its hand-backs, at every step.
+    #[derive(Debug)]
+    struct Interpreting;
+
+    impl native::NativeCode for Interpreting {
+        fn run(
+            &self,
+            _memory: &mut native::NativeMemory<'_>,
+            _il: Option<&mut native::IlMemory<'_>>,
+            _regs: &mut native::NativeRegs,
+        ) -> native::NativeExit {
+            native::NativeExit::Interpret
+        }
+
+        fn interpret_span(&self, _pc: u32) -> u32 {
+            1
+        }
+    }
+
+    #[test]
+    fn native_code_that_hands_everything_back_runs_as_the_interpreter() {
+        let program = assemble(EVERYTHING);
+        let whole = trace(&program, u64::MAX);
+        let mut handing = program.clone();
+        handing.native = Some(std::sync::Arc::new(Interpreting));
+        for budget in [u64::MAX, 1, 2, 3, 5, 8, 13] {
+            assert!(trace(&handing, budget) == whole, "budget {budget} differs");
+        }
+    }
+
+    #[test]
+    fn the_rest_of_a_native_run_without_native_code_is_the_interpreters() {
+        let program = assemble(EVERYTHING);
+        let whole = {
+            let mut vm = Vm::for_programs([&program]);
+            let mut state = ExecState::new();
+            let exit = vm.run(&program, &mut state, &ManualClock::new(0), 7);
+            (exit, state.pc(), vm.steps())
+        };
+        let mut vm = Vm::for_programs([&program]);
+        let mut state = ExecState::new();
+        let exit = vm.run_native_on(&program, &mut state, &ManualClock::new(0), 7);
+        assert_eq!((exit, state.pc(), vm.steps()), whole);
+    }
+
+    #[test]
+    fn restart_brings_back_the_registers_a_program_starts_with() {
+        // Stopped inside the subroutine, in a FOR loop of its caller's, a block open: the
+        // activation's registers all away from their start.
+        let program = assemble(
+            "LOAD _ON\nFOR 2\nLOAD _ON\nCALL 1\nNEXT\nEND\n\
+             SBRT 1\nLOAD _ON\nLOAD _ON\nMPUSH\nNOP\nNOP\nNOP\nMPOP\nOR LOAD\nOUT M0001\nRET\n",
+        );
+        let mut vm = Vm::for_programs([&program]);
+        let mut state = ExecState::new();
+        assert_eq!(vm.run(&program, &mut state, &ManualClock::new(0), 8), Exit::Budget);
+        let moved = state.regs;
+        assert!(moved.pc != 0 && moved.il_depth == 1 && moved.loop_depth == 1, "{moved:?}");
+        assert!(moved.blocks != 0 && moved.branches != 0, "{moved:?}");
+        state.st_calls[0] = StFrame { return_pc: 3, base: 8, this: 5 };
+        state.regs.st_depth = 1;
+        state.regs.base = 8;
+        state.regs.this = 5;
+        state.regs.rung = 0;
+        state.restart();
+        // All but a run's own, which each run sets before it reads them.
+        let own = native::NativeRegs { left: 0, sp: 0, error: 0, ..state.regs };
+        assert_eq!(own, native::NativeRegs { left: 0, sp: 0, error: 0, ..START });
+        assert_eq!((state.is_finished(), state.eval_depth()), (false, 0));
     }
 
     #[test]

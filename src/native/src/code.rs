@@ -171,7 +171,8 @@ impl<'a> IlContext<'a> {
     }
 }
 
-/// What the generated function returns.
+/// What the generated function returns: the first three numbered as [`NativeExit`]'s
+/// variants (checked below), so that telling the VM is no more than the number.
 pub(crate) const RETURN_END: u32 = 0;
 pub(crate) const RETURN_INTERPRET: u32 = 1;
 pub(crate) const RETURN_ERROR: u32 = 2;
@@ -183,6 +184,12 @@ pub(crate) const RETURN_CONTINUE: u32 = 3;
 /// of native code, goes on after the `CALL` with the budget in the registers. Never returned
 /// to the VM, which enters only pieces.
 pub(crate) const RETURN_RETURNED: u32 = 4;
+
+const _: () = assert!(
+    NativeExit::End as u32 == RETURN_END
+        && NativeExit::Interpret as u32 == RETURN_INTERPRET
+        && NativeExit::OperationError as u32 == RETURN_ERROR
+);
 
 /// A generated function: the context, then a Structured Text body's registers when a native
 /// caller calls it (`base`, `this`, call depth, stack pointer, budget left, the FB instance's
@@ -365,6 +372,99 @@ impl Code {
     }
 }
 
+impl Code {
+    /// [`NativeCode::run`] of instruction-list code, once the sizes of `memory` are checked:
+    /// the instruction list's state checked and built, in this frame, for the code to read.
+    /// A call of its own, so that Structured Text's entry keeps none of it in its frame.
+    #[inline(never)]
+    fn run_il(
+        &self,
+        memory: &mut NativeMemory<'_>,
+        il: Option<&mut IlMemory<'_>>,
+        regs: &mut NativeRegs,
+        needs: &IlNeeds,
+    ) -> NativeExit {
+        match il {
+            Some(il) if needs.fit(il) => {
+                let il = IlContext::new(il);
+                memory.il = (&il as *const IlContext<'_>).cast();
+                // `il` lives in this frame until `enter` has returned.
+                self.enter(memory, regs)
+            }
+            _ => NativeExit::Interpret,
+        }
+    }
+
+    /// Runs the code on `memory` from `regs`, once the sizes the code relies on are checked
+    /// (and, for instruction-list code, its state is in `memory.il`), until it returns to the
+    /// VM. Inlined into its callers: one call a run, none of its own.
+    #[inline(always)]
+    fn enter(&self, memory: &mut NativeMemory<'_>, regs: &mut NativeRegs) -> NativeExit {
+        let pc = regs.pc;
+        memory.regs = regs;
+        // The floor is measured from the memory, in the caller's frame: the generated code runs
+        // below it (and below this function's frame, which the bound then covers too).
+        let here = std::ptr::addr_of!(*memory) as u64;
+        memory.stack_floor = here.saturating_sub(self.stack) + self.stack_reserve;
+        let context: *mut Context<'_> = memory;
+        let entry = if pc == 0 { self.start } else { self.entries[self.shape.entry_index(pc)] };
+        // SAFETY: `context` is the caller's `NativeMemory`, whose pointers come from slices it
+        // borrows for its lifetime, with their lengths beside them, and `regs`, borrowed for
+        // this call; its `il` is null for Structured Text code, which does not read it, and for
+        // instruction-list code the `IlContext` `run_il` built from the `IlMemory` borrowed for
+        // this call, in its frame, which lives until this returns. The generated code reads
+        // and writes only inside those lengths: the fixed operands were checked against them
+        // before (`NativeCode::run`), the frame and FB-instance operands are checked at each
+        // block's entry, pointers are checked before each access, the evaluation stack is
+        // indexed modulo its length and the call stack below `ST_CALL_DEPTH` (codegen.rs);
+        // instruction-list code reaches device words, edge slots, timers and counters only at
+        // the fixed operands checked before, and its call stack below `CALL_DEPTH`
+        // (il/codegen.rs). It keeps no pointer after it returns.
+        let status = unsafe { entry(context, FROM_VM, 0, 0, 0, 0, 0) };
+        if status == RETURN_CONTINUE {
+            return self.go_on(context);
+        }
+        exit_of(status)
+    }
+
+    /// After a generated function returned [`RETURN_CONTINUE`]: the function that holds the
+    /// registers' `pc`, and so on until one returns something else. Not inlined: most runs
+    /// (every Structured Text scan without a `RETURN` to the VM) never come here.
+    #[inline(never)]
+    fn go_on(&self, context: *mut Context<'_>) -> NativeExit {
+        loop {
+            // An instruction-list piece went on into another, or a Structured Text `RETURN`
+            // returned to a caller that is not native: that one's code, with the budget the
+            // first left (it is checked at each block).
+            // SAFETY: the generated code has returned; the context is `enter`'s, whose `regs`
+            // is the `NativeRegs` borrowed for the call of `NativeCode::run` under way, and
+            // nothing else refers to it now.
+            let pc = unsafe { (*(*context).regs).pc };
+            let entry = self.entries[self.shape.entry_index(pc)];
+            // SAFETY: as in `enter`, whose context this is, during the same call of
+            // `NativeCode::run` (its `IlContext`, if any, in `run_il`'s frame, still there).
+            let status = unsafe { entry(context, FROM_VM, 0, 0, 0, 0, 0) };
+            if status != RETURN_CONTINUE {
+                return exit_of(status);
+            }
+        }
+    }
+}
+
+/// What the VM is told of a generated function's return `status` (not [`RETURN_CONTINUE`]):
+/// the three statuses it may see are numbered as [`NativeExit`]'s variants, so this is the
+/// status itself where it is one of them.
+#[inline(always)]
+fn exit_of(status: u32) -> NativeExit {
+    match status {
+        RETURN_END => NativeExit::End,
+        RETURN_INTERPRET => NativeExit::Interpret,
+        RETURN_ERROR => NativeExit::OperationError,
+        // What no generated function returns to the VM.
+        _ => NativeExit::Interpret,
+    }
+}
+
 /// Generates and compiles the functions `ids` (`generate` fills function `i` and returns
 /// what it reaches unchecked), on up to [`COMPILE_THREADS`] threads; the results in the order
 /// of `ids`.
@@ -449,48 +549,11 @@ impl NativeCode for Code {
         if memory.vars_len() < self.vars_need || memory.words_len() < self.words_need {
             return NativeExit::Interpret;
         }
-        // The instruction list's state, built only for instruction-list code (Structured Text
-        // has no use for it, and does not pay for it).
-        let il = match (&self.il_needs, il) {
-            (None, _) => None,
-            (Some(needs), Some(il)) if needs.fit(il) => Some(IlContext::new(il)),
-            (Some(_), _) => return NativeExit::Interpret,
-        };
-        let pc = regs.pc;
-        memory.regs = regs;
-        memory.il = il.as_ref().map_or(std::ptr::null(), |il| (il as *const IlContext<'_>).cast());
-        // The floor is measured from the memory, in the caller's frame: the generated code runs
-        // below it (and below this function's frame, which the bound then covers too).
-        let here = std::ptr::addr_of!(*memory) as u64;
-        memory.stack_floor = here.saturating_sub(self.stack) + self.stack_reserve;
-        let context: *mut Context<'_> = memory;
-        let mut entry = if pc == 0 { self.start } else { self.entries[self.shape.entry_index(pc)] };
-        let status = loop {
-            // SAFETY: `context` is the caller's `NativeMemory`, whose pointers come from slices
-            // it borrows for its lifetime, with their lengths beside them, and `regs`, borrowed
-            // for this call; its `il` is the `IlContext` above, built from `il`, borrowed for
-            // this call too. The generated code reads and writes only inside those lengths: the
-            // fixed operands were checked against them just above, the frame and FB-instance
-            // operands are checked at each block's entry, pointers are checked before each
-            // access, the evaluation stack is indexed modulo its length and the call stack below
-            // `ST_CALL_DEPTH` (codegen.rs); instruction-list code reaches device words, edge
-            // slots, timers and counters only at the fixed operands checked above, and its call
-            // stack below `CALL_DEPTH` (il/codegen.rs). It keeps no pointer after it returns.
-            let status = unsafe { entry(context, FROM_VM, 0, 0, 0, 0, 0) };
-            if status != RETURN_CONTINUE {
-                break status;
-            }
-            // An instruction-list piece went on into another: that one's code, with the budget
-            // the first left (it is checked at each block).
-            // SAFETY: the generated code has returned; the context's `regs` is `regs`, borrowed
-            // for this call, and nothing else refers to it now.
-            let pc = unsafe { (*(*context).regs).pc };
-            entry = self.entries[self.shape.entry_index(pc)];
-        };
-        match status {
-            RETURN_END => NativeExit::End,
-            RETURN_ERROR => NativeExit::OperationError,
-            _ => NativeExit::Interpret,
+        match &self.il_needs {
+            // Structured Text code reads no instruction-list state: the memory's `il` stays
+            // the null `NativeMemory::new` put there, and nothing is built for it.
+            None => self.enter(memory, regs),
+            Some(needs) => self.run_il(memory, il, regs, needs),
         }
     }
 
