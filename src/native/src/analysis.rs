@@ -87,6 +87,21 @@ fn reach(at: Place, elem: Elem) -> (u64, u64) {
     }
 }
 
+/// The program of `source`, a file named `file` whose PROGRAM `main` is its only instance,
+/// compiled, and its analysis: where the units of the stages after the analysis (`carry`,
+/// `codegen`) start from.
+#[cfg(test)]
+pub(crate) fn analysed_test_program(file: &str, source: &str) -> (Program, Analysis) {
+    use plcd_core::st::{compile, parse_file, Instance};
+    let path = std::path::Path::new(file);
+    let (file, diags) = parse_file(path, source);
+    assert!(diags.is_empty(), "{diags}");
+    let main = Instance { name: "main", pou: None, file: path, config: path, line: 1, col: 1 };
+    let program = compile(&[file], &[main]).unwrap_or_else(|d| panic!("{d}")).programs.remove(0);
+    let analysis = analyse(&program).expect("analysed");
+    (program, analysis)
+}
+
 pub(crate) fn analyse(program: &Program) -> Result<Analysis, String> {
     let code = &program.code;
     let len = code.len();

@@ -632,23 +632,13 @@ pub(crate) fn in_loops(jumps: &Jumps) -> Vec<bool> {
 
 #[cfg(test)]
 mod tests {
-    use std::path::Path;
-
-    use plcd_core::st::{compile, parse_file, Instance};
-
     use super::*;
-    use crate::analysis::analyse;
+    use crate::analysis::analysed_test_program;
 
     /// The blocks of the PROGRAM of `source` (its only body) that several blocks jump to: in a
     /// loop or not, and the values each receives, as (integers, floats).
     fn joins(source: &str) -> Vec<(bool, usize, usize)> {
-        let path = Path::new("carry.st");
-        let (file, diags) = parse_file(path, source);
-        assert!(diags.is_empty(), "{diags}");
-        let main = Instance { name: "main", pou: None, file: path, config: path, line: 1, col: 1 };
-        let program =
-            compile(&[file], &[main]).unwrap_or_else(|d| panic!("{d}")).programs.remove(0);
-        let analysis = analyse(&program).expect("analysed");
+        let (program, analysis) = analysed_test_program("carry.st", source);
         assert_eq!(analysis.functions.len(), 1, "one body");
         let jumps = Jumps::of(&program, &analysis, &analysis.function_leaders[0]);
         let in_loop = in_loops(&jumps);

@@ -2581,24 +2581,14 @@ fn float_type(elem: Elem) -> Type {
 
 #[cfg(test)]
 mod tests {
-    use std::path::Path;
-
-    use cranelift_codegen::settings::{self, Configurable};
-    use plcd_core::st::{compile, parse_file, Instance};
-
     use super::*;
-    use crate::analysis::analyse;
+    use crate::analysis::analysed_test_program;
+    use cranelift_codegen::settings::{self, Configurable};
 
     /// The PROGRAM of `source`'s body as generated: what it loads from the registers in the
     /// context and what it stores there, as (is a store, offset in `NativeRegs`).
     fn register_accesses(source: &str) -> Vec<(bool, usize)> {
-        let path = Path::new("codegen.st");
-        let (file, diags) = parse_file(path, source);
-        assert!(diags.is_empty(), "{diags}");
-        let main = Instance { name: "main", pou: None, file: path, config: path, line: 1, col: 1 };
-        let program =
-            compile(&[file], &[main]).unwrap_or_else(|d| panic!("{d}")).programs.remove(0);
-        let analysis = analyse(&program).expect("analysed");
+        let (program, analysis) = analysed_test_program("codegen.st", source);
         let roles = analysis.block_roles(&program.code);
         let mut flags = settings::builder();
         flags.set("opt_level", "speed").expect("a flag");
