@@ -545,13 +545,10 @@ impl Vm {
         if left == 0 {
             return Exit::Budget;
         }
-        match self.native_call(native, program, state, clock, stop, left) {
-            native::NativeExit::End => {
-                state.finished = true;
-                Exit::End
-            }
-            native::NativeExit::OperationError => self.native_error(state),
-            native::NativeExit::Interpret => self.run_native_on(program, state, clock, stop),
+        let exit = self.native_call(native, program, state, clock, stop, left);
+        match self.native_end(exit, state) {
+            Some(exit) => exit,
+            None => self.run_native_on(program, state, clock, stop),
         }
     }
 
@@ -586,14 +583,24 @@ impl Vm {
             if left == 0 {
                 return Exit::Budget;
             }
-            match self.native_call(native, program, state, clock, stop, left) {
-                native::NativeExit::End => {
-                    state.finished = true;
-                    return Exit::End;
-                }
-                native::NativeExit::OperationError => return self.native_error(state),
-                native::NativeExit::Interpret => {}
+            let exit = self.native_call(native, program, state, clock, stop, left);
+            if let Some(exit) = self.native_end(exit, state) {
+                return exit;
             }
+        }
+    }
+
+    /// How a call of native code that returned `exit` ends the run: `None` where the
+    /// interpreter is to go on.
+    #[inline(always)]
+    fn native_end(&mut self, exit: native::NativeExit, state: &mut ExecState) -> Option<Exit> {
+        match exit {
+            native::NativeExit::End => {
+                state.finished = true;
+                Some(Exit::End)
+            }
+            native::NativeExit::OperationError => Some(self.native_error(state)),
+            native::NativeExit::Interpret => None,
         }
     }
 
