@@ -7,7 +7,7 @@
 //! - `super::super::…` never climbs out of a unit into a sibling.
 //! - The crates' manifests keep the core pure (no crate that reaches the kernel), the protocol
 //!   serde-only, and plcctl clear of the daemon; the core's sources open no files, threads,
-//!   sockets or processes and read no clock.
+//!   sockets or processes, read no clock and draw no random numbers.
 //! - `unsafe` lives in two modules, `drivers::real_time::sys` (system calls) and `plcd-native`'s
 //!   `code` (executable memory), every block with a `// SAFETY:`.
 //!
@@ -267,6 +267,10 @@ fn the_core_opens_no_files_threads_sockets_or_clocks() {
         "std::io::stdin",
         "std::io::stdout",
         "std::io::stderr",
+        // Random numbers: salts are the caller's (`plcd user`), the core has no random source.
+        "OsRng",
+        "getrandom",
+        "thread_rng",
     ];
     let src = root().join("src/core");
     let mut found = Vec::new();

@@ -20,7 +20,9 @@
 //! - [`symbols`]: every named leaf of the variables, an array one entry whatever its size;
 //! - [`project`]: a config and all its programs, checked together;
 //! - [`engine`]: the task engine: what runs when;
-//! - [`stimulus`]: the simulation inputs file (timed device changes), parsed.
+//! - [`stimulus`]: the simulation inputs file (timed device changes), parsed;
+//! - [`users`]: the users of the network services, their password hashes and roles, and login
+//!   throttling.
 #![forbid(unsafe_code)]
 
 pub mod clock;
@@ -37,5 +39,6 @@ pub mod stats;
 pub mod stimulus;
 pub mod symbols;
 pub mod timestamp;
+pub mod users;
 pub mod value;
 pub mod vm;

@@ -55,7 +55,7 @@ const fn section(
 /// online change take a new value of it. The online column is what the running engine can take
 /// over; what a load refuses never reaches it.
 #[rustfmt::skip]
-const SECTIONS: [Section; 13] = [
+const SECTIONS: [Section; 14] = [
     //       section      differs                              reload  load   online
     section("[plc]",     |a, b| a.plc != b.plc,              [true,  true,  false]),
     // Read by `plcd sim` alone.
@@ -76,6 +76,9 @@ const SECTIONS: [Section; 13] = [
     // Where the IEC direct addresses are: an online change would carry the located variables'
     // values over to other devices and leave the old ones (outputs among them) as they were.
     section("[iec]",     |a, b| a.iec != b.iec,              [true,  true,  false]),
+    // The services that take named logins open the users file they were started with; they
+    // read its lines again on a reload (docs/USERS.md), but another file takes a restart.
+    section("[users]",   |a, b| a.users != b.users,          [false, false, true ]),
     // Not a section but what the field was opened for: the edge detection of the contacts io
     // tasks start on (an online change refuses any task change on its own, task by task).
     section("the contacts and edges io tasks start on",
@@ -152,6 +155,7 @@ mod tests {
         new.retain.interval_ms += 1;
         new.modbus.unit_id += 1;
         new.iec.layout = crate::device::iec::IecLayout::of(crate::device::iec::Preset::Codesys);
+        new.users.file = Some("users".into());
         new.remotes = parse(
             &format!(
                 "{PROGRAM}[[remote]]\nname = \"a\"\ntransport = \"tcp\"\n\
@@ -164,11 +168,29 @@ mod tests {
         .remotes;
         assert_eq!(
             old.refused_sections(&new, ProjectChange::Reload),
-            ["[io]", "[rt]", "[control]", "[switch]", "[retain]", "[modbus]", "[[remote]]"]
+            [
+                "[io]",
+                "[rt]",
+                "[control]",
+                "[switch]",
+                "[retain]",
+                "[modbus]",
+                "[[remote]]",
+                "[users]"
+            ]
         );
         assert_eq!(
             old.refused_sections(&new, ProjectChange::Load),
-            ["[io]", "[rt]", "[control]", "[switch]", "[retain]", "[modbus]", "[[remote]]"]
+            [
+                "[io]",
+                "[rt]",
+                "[control]",
+                "[switch]",
+                "[retain]",
+                "[modbus]",
+                "[[remote]]",
+                "[users]"
+            ]
         );
         assert_eq!(
             old.refused_sections(&new, ProjectChange::Online),

@@ -6,7 +6,7 @@
 //! program is, and loading it is the project loader's job.
 //!
 //! The config is split by section, one file each (`plc`, `sim`, `timers`, `program`, `task`,
-//! `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `remote`, `st`, `iec`): its typed struct with the
+//! `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `remote`, `st`, `iec`, `users`): its typed struct with the
 //! key's defaults and ranges, its raw form as serde reads it, and its checks. How the wiring
 //! maps onto GPIO line requests, the kernel's limits included, is [`wiring`]. What every
 //! section shares is `common`, and `serial` the keys of a serial line that `[modbus.rtu]` and
@@ -46,6 +46,7 @@ mod switch;
 mod system_libraries;
 mod task;
 mod timers;
+mod users;
 pub mod wiring;
 
 #[cfg(test)]
@@ -96,6 +97,7 @@ pub use switch::SwitchConfig;
 pub use system_libraries::{SystemLibraries, SystemLibrary};
 pub use task::{DeviceCondition, Edge, TaskConfig, TaskKind, TASK_NUMBERS};
 pub use timers::TimerConfig;
+pub use users::UsersConfig;
 
 /// A whole, valid configuration.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -133,6 +135,8 @@ pub struct Config {
     pub iec: IecConfig,
     /// `[[remote]]`: Modbus devices polled as remote I/O, in file order. Names are unique.
     pub remotes: Vec<RemoteDevice>,
+    /// `[users]`: the users file of the network services (docs/USERS.md).
+    pub users: UsersConfig,
 }
 
 impl Config {
@@ -217,6 +221,7 @@ struct RawDoc {
     pub remotes: remote::RawRemotes,
     pub st: Option<st::RawSt>,
     pub iec: Option<iec::RawIec>,
+    pub users: Option<users::RawUsers>,
     pub failed: Failed,
 }
 
@@ -234,7 +239,7 @@ struct Failed {
 }
 
 const TOP_LEVEL: &str = "`plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`, `control`, \
-                         `switch`, `retain`, `modbus`, `st`, `iec`, `remote`";
+                         `switch`, `retain`, `modbus`, `st`, `iec`, `remote`, `users`";
 
 /// Pass 1. `None` if the TOML itself is malformed (the syntax errors are in `sink`).
 fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
@@ -272,6 +277,7 @@ fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
             "st" => &mut sections.st,
             "iec" => &mut sections.iec,
             "remote" => &mut sections.remote,
+            "users" => &mut sections.users,
             other => {
                 let message = format!("unknown key `{other}`, expected one of {TOP_LEVEL}");
                 sink.error(key.span().start, message);
@@ -313,6 +319,7 @@ fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
     doc.st = section(sink, sections.st, "st", &mut doc.failed.keys);
     doc.iec = iec::read(sink, sections.iec, &mut doc.failed.keys);
     doc.remotes = remote::read(sink, sections.remote);
+    doc.users = section(sink, sections.users, "users", &mut doc.failed.keys);
     Some(doc)
 }
 
@@ -333,6 +340,7 @@ struct Sections<'i> {
     st: Option<Spanned<DeValue<'i>>>,
     iec: Option<Spanned<DeValue<'i>>>,
     remote: Option<Spanned<DeValue<'i>>>,
+    users: Option<Spanned<DeValue<'i>>>,
 }
 
 /// Pass 2. `None` if anything is wrong (and then `sink` says what).
@@ -382,6 +390,7 @@ fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
     let modbus = modbus::validate(sink, doc.modbus);
     let st = st::validate(sink, doc.st.unwrap_or_default(), &path);
     let iec = doc.iec.and_then(|raw| iec::validate(sink, raw));
+    let users = doc.users.and_then(|raw| users::validate(sink, raw, &path));
     if let Some((io, inputs, outputs)) =
         io.as_ref().filter(|(io, ..)| io.backend == Backend::Gpiocdev)
     {
@@ -406,5 +415,6 @@ fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
         st: st?,
         iec: iec?,
         remotes: remotes?,
+        users: users?,
     })
 }

@@ -221,6 +221,7 @@ fn the_contract_example_parses_to_its_defaults() {
         st: StConfig::default(),
         iec: IecConfig::default(),
         remotes: Vec::new(),
+        users: UsersConfig::default(),
     };
     assert_eq!(config, expected);
 }
@@ -457,7 +458,7 @@ fn unknown_keys_are_errors_at_the_key() {
     assert_eq!(
         errors(&with_scan("[plcc]\n")),
         ["1:2: unknown key `plcc`, expected one of `plc`, `sim`, `timers`, `program`, `task`, \
-          `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `st`, `iec`, `remote`"]
+          `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `st`, `iec`, `remote`, `users`"]
     );
     assert_eq!(
         errors(&with_scan("[plc]\nwatchdog = 5\n")),
@@ -2025,5 +2026,23 @@ fn iec_variables_and_addresses_errors_name_their_key() {
         ))
         .len(),
         2
+    );
+}
+
+#[test]
+fn users_names_a_file_resolved_against_the_config() {
+    let config = |text: &str| parse(&with_scan(text), Path::new("/etc/plcd/plcd.toml"));
+    assert_eq!(config("").unwrap().users.file, None);
+    let users = config("[users]\nfile = \"users\"\n").unwrap().users;
+    assert_eq!(users.file.as_deref(), Some(Path::new("/etc/plcd/users")));
+    let users = config("[users]\nfile = \"/var/lib/plcd/users\"\n").unwrap().users;
+    assert_eq!(users.file.as_deref(), Some(Path::new("/var/lib/plcd/users")));
+    assert_eq!(
+        errors(&with_scan("[users]\nfile = \" \"\n")),
+        ["2:8: users.file must not be empty"]
+    );
+    assert_eq!(
+        errors(&with_scan("[users]\npath = \"users\"\n")),
+        ["2:1: [users]: unknown key `path`, expected `file`"]
     );
 }
