@@ -1,5 +1,5 @@
 //! Reading a project's files from disk: the config, the programs it names, a simulation inputs
-//! file. The core parses text and never opens a file; this is where the text comes from. A file
+//! file, the users file. The core parses text and never opens a file; this is where the text comes from. A file
 //! that cannot be read is a diagnostic like any other (line 0: the whole file), so a caller
 //! reports it with the rest and keeps what it was running.
 
@@ -9,6 +9,7 @@ use crate::config::{self, Config};
 use crate::diag::{Diagnostic, Diagnostics};
 use crate::project::{self, Project};
 use crate::stimulus::{self, Stimulus};
+use crate::users::UsersFile;
 
 /// Reads the config file at `path` and parses it ([`config::parse`]).
 pub fn config(path: &Path) -> Result<Config, Diagnostics> {
@@ -120,6 +121,15 @@ fn read_stimulus(path: &Path) -> Result<String, Diagnostics> {
     std::fs::read_to_string(path).map_err(|e| {
         Diagnostics(vec![Diagnostic::new(path, 0, 0, format!("cannot read the inputs file: {e}"))])
     })
+}
+
+/// Reads and parses the users file at `path` ([`UsersFile::parse`]): `plcd check` and `plcd
+/// user` read it through this.
+pub fn users(path: &Path) -> Result<UsersFile, Diagnostics> {
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        Diagnostics(vec![Diagnostic::new(path, 0, 0, format!("cannot read the users file: {e}"))])
+    })?;
+    UsersFile::parse(&text, path)
 }
 
 #[cfg(test)]

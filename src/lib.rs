@@ -13,7 +13,7 @@
 // The pure core.
 pub use plcd_core::{
     config, device, diag, duration, engine, lang, project, st, stats, stimulus, symbols, timestamp,
-    value, vm,
+    users, value, vm,
 };
 
 // The edge of the process.

@@ -3,12 +3,13 @@
 //!
 //! - Every error at once: each `.il` under `tests/golden/lang` produces exactly the lines of its
 //!   `.expected` file, and `plcd check` on `tests/golden/config`, `tests/golden/remote` (remote
-//!   I/O) and `tests/golden/project` exactly their `expected.stderr`.
+//!   I/O), `tests/golden/project` and `tests/golden/users` (a users file, and a program, with
+//!   errors) exactly their `expected.stderr`.
 //! - One case per diagnostic: each directory `tests/golden/<area>/<diagnostic>/` is a minimal
 //!   project that makes the real binary report that one diagnostic and nothing else, with its
 //!   stderr in `expected.stderr`. The areas are where the message comes from: `lang` (the
-//!   assembler), `config` (the config file), `project` (the rules across programs) and
-//!   `stimulus` (an inputs file). A case is `plcd check --config plcd.toml` run in its
+//!   assembler), `config` (the config file), `project` (the rules across programs),
+//!   `stimulus` (an inputs file) and `users` (the users file of `[users] file`). A case is `plcd check --config plcd.toml` run in its
 //!   directory, or `plcd sim --config plcd.toml --for 1ms --inputs inputs.csv` when it has an
 //!   `inputs.csv`; either must exit 1 with nothing on stdout.
 //!
@@ -28,7 +29,7 @@ use std::path::{Path, PathBuf};
 use std::process::Output;
 
 /// The directories of one case per diagnostic, by where the messages come from.
-const AREAS: [&str; 5] = ["lang", "config", "project", "stimulus", "st"];
+const AREAS: [&str; 6] = ["lang", "config", "project", "stimulus", "st", "users"];
 
 /// The cases whose diagnostic never comes alone, and how many diagnostics they report.
 const NOT_ALONE: &[(&str, usize)] = &[
@@ -99,6 +100,11 @@ fn check_reports_every_config_error() {
 #[test]
 fn check_reports_every_remote_io_error() {
     check_golden("remote");
+}
+
+#[test]
+fn check_reports_every_users_file_error_with_the_programs_errors() {
+    check_golden("users");
 }
 
 /// The case directories of one area, sorted.
