@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 use plcd::commands::bench::BenchArgs;
 use plcd::commands::run::RunArgs;
 use plcd::commands::sim::SimArgs;
+use plcd::commands::user::UserArgs;
 
 #[derive(Parser)]
 #[command(name = "plcd", version, about = "A real-time soft-PLC for Linux")]
@@ -29,6 +30,8 @@ enum Command {
     Sim(SimArgs),
     /// Measure the real-time driver on this machine: cycle-task and edge latency.
     Bench(BenchArgs),
+    /// The users of the network services: add (password without echo), remove, list.
+    User(UserArgs),
 }
 
 fn main() -> ExitCode {
@@ -41,6 +44,9 @@ fn main() -> ExitCode {
         Command::Sim(args) => plcd::commands::sim::run(&args, &mut std::io::stderr()),
         Command::Bench(args) => {
             plcd::commands::bench::run(&args, &mut std::io::stdout(), &mut std::io::stderr())
+        }
+        Command::User(args) => {
+            plcd::commands::user::run(&args, &mut std::io::stdout(), &mut std::io::stderr())
         }
     }
 }

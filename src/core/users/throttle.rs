@@ -3,9 +3,10 @@
 //! reading, from any origin), so every rule is tested with explicit times.
 //!
 //! The rules (docs/USERS.md, "Throttling"):
-//! - a source's first [`ThrottlePolicy::free_failures`] failures cost nothing; each failure
-//!   after them makes the source wait before its next attempt is even verified: the first
-//!   delay, doubled with each further failure, at most [`ThrottlePolicy::max_delay`];
+//! - a source may fail [`ThrottlePolicy::free_failures`] times without waiting; the last of
+//!   those failures, and each one after it, makes the source wait before its next attempt is
+//!   even verified: [`ThrottlePolicy::first_delay`], doubled with each further failure, at
+//!   most [`ThrottlePolicy::max_delay`];
 //! - a success, or [`ThrottlePolicy::forget_after`] without a failure, ends the source's run
 //!   of failures and forgets it;
 //! - the table holds at most [`ThrottlePolicy::capacity`] sources; a new one beyond that
@@ -21,9 +22,9 @@ use std::time::Duration;
 /// The numbers of the rules.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ThrottlePolicy {
-    /// Failures a source may have before it must wait; default 3.
+    /// Failures a source may have without waiting for its next attempt; default 3.
     pub free_failures: u32,
-    /// The wait after the first failure past the free ones; default 1 s.
+    /// The wait the last of those failures earns; default 1 s.
     pub first_delay: Duration,
     /// The longest wait; default 60 s.
     pub max_delay: Duration,
