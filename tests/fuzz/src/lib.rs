@@ -20,6 +20,8 @@
 //!   frame as the server handles it.
 //! - `remote`: an answer to the remote I/O client's request (TCP or RTU), checked as the poller
 //!   checks it; whatever it accepts holds exactly the values the frame carries.
+//! - `users`: a users file: rejected with located diagnostics that quote no hash, or accepted
+//!   with every user as its line says and each removable alone.
 //!
 //! Where an input must describe several things (a request and its answer, bytes and the gaps
 //! between them), [`Bytes`] takes them off the front of the input, so that every input is
@@ -50,6 +52,7 @@ pub const TARGETS: &[Target] = &[
     Target { name: "modbus_tcp", run: targets::modbus_tcp::run },
     Target { name: "modbus_rtu", run: targets::modbus_rtu::run },
     Target { name: "remote", run: targets::remote::run },
+    Target { name: "users", run: targets::users::run },
 ];
 
 /// The target called `name`.

@@ -105,3 +105,8 @@ fn modbus_rtu() {
 fn remote() {
     replay("remote");
 }
+
+#[test]
+fn users() {
+    replay("users");
+}

@@ -11,6 +11,7 @@ pub mod retain;
 pub mod st;
 pub mod stimulus;
 pub mod twincat;
+pub mod users;
 
 use std::path::Path;
 
