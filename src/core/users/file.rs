@@ -1,6 +1,7 @@
 //! The users file: one `name:role:hash` line per user, `#` comment lines and blank lines;
 //! parsed with every bad line reported at once, verified against, and edited line by line.
 
+use std::collections::BTreeMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
@@ -91,6 +92,8 @@ impl UsersFile {
     pub fn parse(text: &str, path: &Path) -> Result<UsersFile, Diagnostics> {
         let lines: Vec<String> = text.split_inclusive('\n').map(str::to_string).collect();
         let mut users: Vec<User> = Vec::new();
+        // Each name's first line, for the duplicates: a map, so a long file costs no square.
+        let mut seen: BTreeMap<&str, u32> = BTreeMap::new();
         let mut diags = Diagnostics::default();
         for (index, raw) in lines.iter().enumerate() {
             let number = index as u32 + 1;
@@ -119,12 +122,11 @@ impl UsersFile {
                 let offset = start + name.char_indices().nth(at).map_or(0, |(i, _)| i);
                 error(offset, reason);
                 ok = false;
-            } else if let Some(first) = users.iter().find(|u| u.name == name) {
-                error(
-                    start,
-                    format!("user `{name}` is defined again (first on line {})", first.line),
-                );
+            } else if let Some(first) = seen.get(name) {
+                error(start, format!("user `{name}` is defined again (first on line {first})"));
                 ok = false;
+            } else {
+                seen.insert(name, number);
             }
             // The role is not quoted: a line written wrong may hold a password in its place.
             let role = role.parse::<Role>().map_err(|_| {
@@ -180,7 +182,7 @@ impl UsersFile {
     /// other line stays as it was. The role they had, if they were in the file.
     pub fn set(&mut self, name: &str, role: Role, phc: &str) -> Result<Option<Role>, UsersError> {
         check_name(name)?;
-        hash::check(phc).map_err(UsersError::Hash)?;
+        hash::check(phc).map_err(UsersError::BadHash)?;
         let line = format!("{name}:{role}:{phc}");
         let previous = self.user(name).map(|u| (u.line, u.role));
         match previous {
@@ -344,7 +346,7 @@ mod tests {
         // What the file cannot hold is refused, and the file is unchanged.
         let before = file.text();
         assert!(matches!(file.set("no name", Role::Viewer, &a), Err(UsersError::BadName { .. })));
-        assert!(matches!(file.set("erin", Role::Viewer, "plain"), Err(UsersError::Hash(_))));
+        assert!(matches!(file.set("erin", Role::Viewer, "plain"), Err(UsersError::BadHash(_))));
         assert_eq!(file.text(), before);
     }
 

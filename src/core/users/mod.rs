@@ -47,6 +47,10 @@ pub enum UsersError {
     /// An empty password: nobody may log in with one.
     #[error("the password is empty")]
     EmptyPassword,
+    /// A string given as a hash that the file would not accept (the reason quotes no part of
+    /// it).
+    #[error("not a hash plcd accepts: {0}")]
+    BadHash(String),
     /// The hash could not be computed (the argon2 crate's reason; never the password).
     #[error("cannot hash the password: {0}")]
     Hash(String),
