@@ -162,13 +162,18 @@ impl UsersFile {
     /// whose hash has those costs (`plcd user` writes every hash with them): the time tells
     /// nothing about which names exist.
     pub fn verify(&self, name: &str, password: &[u8]) -> Option<Role> {
+        let (phc, role) = self.hash_for(name);
+        // Computed whether or not the name exists: the same work makes the same time.
+        let matched = hash::matches(phc, password);
+        role.filter(|_| matched)
+    }
+
+    /// The hash a login as `name` is checked against and the role it opens: the user's, or,
+    /// for a name the file does not have, the dummy hash, which opens nothing.
+    fn hash_for(&self, name: &str) -> (&str, Option<Role>) {
         match self.user(name) {
-            Some(user) => hash::matches(&user.hash, password).then_some(user.role),
-            None => {
-                // The result is thrown away; the work is what counts.
-                let _ = hash::matches(DUMMY, password);
-                None
-            }
+            Some(user) => (&user.hash, Some(user.role)),
+            None => (DUMMY, None),
         }
     }
 
@@ -274,6 +279,21 @@ mod tests {
         assert_eq!(file.verify("bob", b""), None);
         assert_eq!(file.verify("mallory", b"a"), None);
         assert_eq!(file.verify("Alice", b"a"), None, "names are case-sensitive");
+    }
+
+    /// An unknown name is checked against the dummy hash, whose costs are the default ones
+    /// (`hash::tests`): the same work as a wrong password of a user hashed by `plcd user`, so
+    /// the time of a refusal tells nothing about which names exist. Tested by what is
+    /// computed, not by a clock: a timing test would fail on a loaded machine.
+    #[test]
+    fn an_unknown_name_is_checked_against_the_dummy_hash_which_opens_nothing() {
+        let a = phc("a", 1);
+        let file = parse(&format!("alice:engineer:{a}\n")).unwrap();
+        assert_eq!(file.hash_for("alice"), (a.as_str(), Some(Role::Engineer)));
+        assert_eq!(file.hash_for("mallory"), (DUMMY, None));
+        // The dummy's own password (it has one, as every hash) opens nothing either.
+        assert!(hash::matches(DUMMY, b"secret"));
+        assert_eq!(file.verify("mallory", b"secret"), None);
     }
 
     #[test]

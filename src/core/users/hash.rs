@@ -41,8 +41,9 @@ impl HashCosts {
 /// A verify against this hash costs what a verify against a hash of [`HashCosts::DEFAULT`]
 /// does: [`super::UsersFile::verify`] checks an unknown user's password against it, so that
 /// the answer takes as long as for a known user with a wrong password and the time tells an
-/// attacker nothing about which names exist. Its result is thrown away: no password opens it.
-/// (A unit test checks that its costs are the default ones.)
+/// attacker nothing about which names exist. Its result is thrown away: no password opens a
+/// login with it. (It is the hash of `secret`; a unit test checks that its costs are the
+/// default ones.)
 pub(super) const DUMMY: &str = "$argon2id$v=19$m=32768,t=3,p=1$BwcHBwcHBwcHBwcHBwcHBw$\
                                 F9r++iKxX8tAKGz04Sxqt9sOeEoc6eMGuefbYC4h3R0";
 
