@@ -309,6 +309,30 @@ fn two_different_passwords_or_ctrl_c_write_nothing_and_restore_the_terminal() {
 }
 
 #[test]
+fn a_signal_at_the_prompt_restores_the_terminal_first() {
+    use nix::sys::signal::{kill, Signal};
+    use nix::unistd::Pid;
+    let dir = TempDir::new("user-tty-signal");
+    for signal in [Signal::SIGTERM, Signal::SIGINT] {
+        let mut tty = Terminal::open();
+        let args = ["user", "add", "alice", "--role", "viewer", "--file", "users"];
+        let mut child = tty.spawn(&dir, &args);
+        tty.wait_for("password for alice: ");
+        tty.type_in("half");
+        kill(Pid::from_raw(child.id() as i32), signal).unwrap();
+        let status = wait_bounded(&mut child, patience(), &format!("plcd user add, {signal}"));
+        tty.wait_for("interrupted; nothing written");
+        assert_eq!(status.code(), Some(130), "{signal}");
+        let flags = tty.echo();
+        assert!(
+            flags.contains(LocalFlags::ECHO | LocalFlags::ICANON | LocalFlags::ISIG),
+            "{flags:?}"
+        );
+    }
+    assert_eq!(dir.entries(), Vec::<String>::new());
+}
+
+#[test]
 fn a_password_is_not_read_from_a_terminal_that_echoes() {
     let dir = TempDir::new("user-tty-echo");
     let mut tty = Terminal::open();

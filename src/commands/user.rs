@@ -355,9 +355,9 @@ fn password_from_terminal(
     Ok(first)
 }
 
-/// SIGTERM, SIGHUP and SIGQUIT while the terminal does not echo: noted instead of ending the
-/// process, so that the terminal is restored first (Ctrl-C arrives as a byte: the terminal
-/// sends no signals meanwhile).
+/// SIGTERM, SIGHUP, SIGQUIT and SIGINT while the terminal does not echo: noted instead of
+/// ending the process, so that the terminal is restored first. (Ctrl-C arrives as a byte: the
+/// terminal sends no signals meanwhile; these come from `kill` or a closed session.)
 struct Signals {
     caught: Arc<AtomicBool>,
     ids: Vec<signal_hook::SigId>,
@@ -365,10 +365,10 @@ struct Signals {
 
 impl Signals {
     fn register() -> Result<Signals, UserError> {
-        use signal_hook::consts::{SIGHUP, SIGQUIT, SIGTERM};
+        use signal_hook::consts::{SIGHUP, SIGINT, SIGQUIT, SIGTERM};
         let caught = Arc::new(AtomicBool::new(false));
         let mut ids = Vec::new();
-        for signal in [SIGTERM, SIGHUP, SIGQUIT] {
+        for signal in [SIGTERM, SIGHUP, SIGQUIT, SIGINT] {
             let id = signal_hook::flag::register(signal, Arc::clone(&caught)).map_err(|e| {
                 UserError::Terminal {
                     call: "sigaction",
