@@ -1555,6 +1555,120 @@ END_PROGRAM
     assert_eq!(outcome.slot("main.arr[3]"), 6);
 }
 
+#[test]
+fn counted_loops_stop_where_the_interpreter_does_at_every_budget() {
+    // FOR loops of many shapes, with every budget from 1 to 160 steps a call: the budget's end
+    // falls at every place of each loop's first and last rounds, where native code checks
+    // it once a round (a loop's first block). The loops: a bound whose variable the body
+    // changes (FOR evaluated it once), nested loops, a step of -1, no round, an empty body, a
+    // division by zero in round `zero_at`, an EXIT, bounds at the ends of DINT, INT, USINT and
+    // UDINT (the counter wraps after the last round), a counter the body writes, stores into
+    // an array's elements, and an index out of bounds in the last round.
+    let source = "
+PROGRAM Main
+VAR
+    n : DINT := 6;
+    i, j, k, acc, sum, nested, down, empty, q, exited, big, small, written, wide : DINT;
+    zero_at : DINT := 2;
+    si : INT; us : USINT; ud : UDINT;
+    arr : ARRAY [0..9] OF DINT;
+    last, e : INT := 9;
+END_VAR
+    sum := 0;
+    FOR i := 1 TO n DO
+        sum := sum + i * 3;
+        n := n - 1;
+    END_FOR;
+    n := 6;
+    nested := 0;
+    FOR i := 1 TO 4 DO
+        FOR j := i TO 5 DO
+            nested := nested + i * j;
+        END_FOR;
+    END_FOR;
+    down := 0;
+    FOR i := 10 TO -3 BY -1 DO
+        down := down + i;
+    END_FOR;
+    FOR i := 1 TO 0 DO
+        empty := empty + 100;
+    END_FOR;
+    FOR i := 1 TO 7 DO
+    END_FOR;
+    empty := empty + i;
+    q := 0;
+    FOR j := 1 TO 6 DO
+        q := q + 60 / (j - zero_at);
+    END_FOR;
+    zero_at := zero_at MOD 6 + 1;
+    exited := 0;
+    FOR j := 1 TO 100 DO
+        exited := exited + j;
+        IF exited > 20 THEN
+            EXIT;
+        END_IF;
+    END_FOR;
+    big := 0;
+    FOR i := 2147483643 TO 2147483647 DO
+        big := big + i MOD 10;
+    END_FOR;
+    FOR k := -2147483644 TO -2147483648 BY -1 DO
+        small := small + 1;
+    END_FOR;
+    acc := 0;
+    FOR si := 32763 TO 32767 DO
+        acc := acc + si;
+    END_FOR;
+    FOR us := 251 TO 255 DO
+        acc := acc + us;
+    END_FOR;
+    wide := 0;
+    FOR ud := 4294967292 TO 4294967295 DO
+        wide := wide + 1;
+    END_FOR;
+    written := 0;
+    FOR k := 1 TO 10 DO
+        written := written + k;
+        k := k + 1;
+    END_FOR;
+    FOR e := 0 TO 9 DO
+        arr[e] := arr[e] + e;
+    END_FOR;
+    FOR e := 0 TO last + 1 DO
+        arr[e] := arr[e] - 1;
+    END_FOR;
+END_PROGRAM
+";
+    let case = Programs::inline("counted loops", source);
+    let every = if budgets().len() == BUDGETS.len() { 1 } else { 7 };
+    let budgets: Vec<Budget> = [Budget::Fixed(u64::MAX), Budget::Varying]
+        .into_iter()
+        .chain((1..=160).step_by(every).map(Budget::Fixed))
+        .collect();
+    let outcome = compare(&case, Scans::new(3), &budgets);
+    outcome.assert_equivalent();
+    outcome.assert_native_share("counted loops", 80);
+    let slot = |name: &str| outcome.slot(&format!("main.{name}")) as i32;
+    assert_eq!(slot("sum"), 3 * (1 + 2 + 3 + 4 + 5 + 6), "the bound is n as it was");
+    assert_eq!(slot("nested"), (1..=4).flat_map(|i| (i..=5).map(move |j| i * j)).sum::<i32>());
+    assert_eq!(slot("down"), (-3..=10).sum::<i32>());
+    assert_eq!(slot("empty"), 3 * 8, "the counter one past 7 after each scan's empty loop");
+    // Scan 3: the zero in round 4 (zero_at 2, 3, 4 in scans 1 to 3).
+    assert_eq!(slot("q"), -20 - 30 - 60 + 60 + 30, "60 / (j - 4) for j = 1 to 6 but 4");
+    assert_eq!(slot("exited"), 1 + 2 + 3 + 4 + 5 + 6);
+    assert_eq!(slot("big"), 3 + 4 + 5 + 6 + 7);
+    assert_eq!(slot("i"), i32::MIN, "the counter wrapped past the last round");
+    assert_eq!((slot("small"), slot("k") as i16), (3 * 5, 11));
+    assert_eq!(slot("acc"), (32763..=32767).sum::<i32>() + (251..=255).sum::<i32>());
+    assert_eq!(slot("wide"), 4);
+    assert_eq!(slot("written"), 1 + 3 + 5 + 7 + 9);
+    // Whole budget, each scan: one division by zero, and `arr[10]` out of bounds twice (read,
+    // then written).
+    assert_eq!(outcome.errors_with_whole_budget(ERR_DIVIDE_BY_ZERO), 3);
+    assert_eq!(outcome.errors_with_whole_budget(ERR_INDEX_RANGE), 2 * 3);
+    assert_eq!((slot("arr[0]"), slot("arr[3]"), slot("arr[9]")), (-3, 6, 24));
+}
+
 /// A chain of `depth` FUNCTIONs, each calling the next inside an expression, and a PROGRAM
 /// calling the first twice.
 fn function_chain(depth: usize) -> String {
