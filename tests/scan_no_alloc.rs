@@ -497,7 +497,10 @@ fn the_scan_thread_does_not_allocate() {
     let io = SimulatedIo::new(&[Address::parse("P0000").unwrap()], &[0], None);
     let watch = project.output_bits();
     let d0 = Address::parse("D00000").unwrap().as_word().unwrap().0;
-    let mirror = Arc::new(Mirror::new(std::iter::once(d0..d0 + 3)));
+    // The OPC UA server's kind: the words and the whole variable memory, made room for at start.
+    let mirror = Arc::new(Mirror::with_all_variables(std::iter::once(d0..d0 + 3)));
+    let engine = Box::new(Engine::new(&project, &watch));
+    mirror.prepare(engine.retained_variables(), engine.vm().vars().len());
     let Rig {
         field,
         shared,
@@ -509,7 +512,7 @@ fn the_scan_thread_does_not_allocate() {
         snapshot,
         handle,
         _remote,
-    } = Rig::start(Box::new(Engine::new(&project, &watch)), io, &mirror);
+    } = Rig::start(engine, io, &mirror);
     let command = |commands: &mut rtrb::Producer<Command>, c: Command| {
         assert!(commands.push(c).is_ok());
         shared.signal(pending::COMMAND);
@@ -607,7 +610,7 @@ fn the_scan_thread_does_not_allocate() {
             shared.signal(pending::COMMAND);
         }
         if i % 10 == 7 {
-            // The retain writer and the Modbus server ask for their mirrors like this.
+            // The retain writer, the Modbus and the OPC UA server ask for their mirrors so.
             mirror.request();
             shared.signal(pending::MIRROR);
         }
@@ -666,6 +669,13 @@ fn the_scan_thread_does_not_allocate() {
     let image = mirror.lock();
     assert!(image.generation > 10, "mirrors were copied: {}", image.generation);
     assert!(image.words[1] > 0, "D00001 counts the tick task's runs: {:?}", image.words);
+    let offset = match n.space {
+        plcd::value::Space::Var => n.offset as usize,
+        other => panic!("vars.n is in variable memory, not {other:?}"),
+    };
+    let counted = i32::from_le_bytes(image.vars[offset..offset + 4].try_into().unwrap());
+    assert!(counted > 0, "the whole variable memory was copied: vars.n = {counted}");
+    assert_eq!(image.vars.len(), engine.vm().vars().len());
 }
 
 const ST_CONFIG: &str =
@@ -706,7 +716,7 @@ fn retained_variables_are_copied_and_taken_over_without_allocating() {
     let set = RetainSet::k_only();
     let mirror = Arc::new(Mirror::with_variables(set.words.iter().map(|w| w.range())));
     let engine = Box::new(Engine::new::<Address>(&small, &[]));
-    mirror.prepare(engine.retained_variables());
+    mirror.prepare(engine.retained_variables(), 0);
     let io = SimulatedIo::new(&[], &[], None);
     let Rig { shared, mut commands, mut reports, mut completions, handle, .. } =
         Rig::start(engine, io, &mirror);

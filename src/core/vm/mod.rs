@@ -328,6 +328,25 @@ impl Vm {
         &self.vars
     }
 
+    /// The value of `elem` at `p` in copies of device memory (`words`, from word 0) and of
+    /// variable memory (`vars`), read as [`Vm::read_value`] reads the VM's own: for the
+    /// services that read a mirror taken at a scan boundary. A place outside the copies reads 0.
+    pub fn read_value_in(words: &[u16], vars: &[u8], p: Pointer, elem: Elem) -> u64 {
+        typed::load(words, vars, &[], p, elem)
+    }
+
+    /// The characters of the `STRING` at `p` in a copy of variable memory (see
+    /// [`Vm::read_value_in`]).
+    pub fn string_bytes_in(vars: &[u8], p: Pointer) -> &[u8] {
+        typed::string_chars(vars, p)
+    }
+
+    /// The code units' bytes (little-endian) of the `WSTRING` at `p` in a copy of variable
+    /// memory (see [`Vm::read_value_in`]).
+    pub fn wstring_bytes_in(vars: &[u8], p: Pointer) -> &[u8] {
+        wide::wstring_bytes(vars, p)
+    }
+
     /// The value of `elem` at `p`, for tools (a pointer into a frame reads 0: frames belong to
     /// the tasks).
     pub fn read_value(&self, p: Pointer, elem: Elem) -> u64 {

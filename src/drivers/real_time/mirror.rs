@@ -1,5 +1,5 @@
 //! Copies of chosen device words for the threads off the real-time path (the retain writer,
-//! the Modbus server), taken by the scan thread at a scan boundary.
+//! the Modbus server, the OPC UA server), taken by the scan thread at a scan boundary.
 //!
 //! A consumer asks for a copy ([`Mirror::request`]) and wakes the scan thread
 //! ([`super::Shared::signal`] with [`super::pending::MIRROR`]); at the next scan boundary (after
@@ -18,21 +18,39 @@
 //! a larger buffer, or would drop the last reference to a replaced layout, is not taken; the
 //! image says why ([`MirrorImage::waiting_for_reader`]) and the consumer, woken, makes room or
 //! drops the replaced layout ([`MirrorImage::serve_reader`]) and asks again.
+//!
+//! A mirror made [`Mirror::with_all_variables`] (the OPC UA server's) copies the whole variable
+//! memory instead, as bytes, so that every Structured Text variable, struct and array of one
+//! image is as of the same scan boundary; the same rules keep the scan thread from allocating
+//! (room for a larger memory) and from freeing (the replaced engine's layout, which tells the
+//! consumer that the engine, and maybe its variables' places, changed). Every image also
+//! carries the engine's error and key switch, for the status the OPC UA server shows.
 
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
-use crate::engine::event::Mode;
+use crate::engine::event::{ErrorKind, Mode};
 use crate::engine::Engine;
+use crate::io::SwitchPosition;
 use crate::vm::retained::RetainedVariables;
+
+/// Which Structured Text variables a mirror copies besides its words.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Variables {
+    None,
+    /// The retained ones ([`RetainedVariables::copy`]).
+    Retained,
+    /// The whole variable memory, byte for byte.
+    All,
+}
 
 /// A set of device word ranges copied at scan boundaries on request.
 pub struct Mirror {
     ranges: Box<[Range<u16>]>,
-    /// Copies the retained variables too.
-    variables: bool,
+    /// The variables it copies too.
+    variables: Variables,
     wanted: AtomicBool,
     image: Mutex<MirrorImage>,
     fresh: Condvar,
@@ -48,12 +66,19 @@ pub struct MirrorImage {
     /// Scans since RUN at that boundary.
     pub scans: u64,
     pub mode: Mode,
+    /// The engine's error as `plcctl status` shows it: the latched one in ERROR, else the
+    /// last operation error since RUN.
+    pub error: Option<ErrorKind>,
+    /// The key switch's position, with a `[switch]`.
+    pub switch: Option<SwitchPosition>,
     /// The words of every range, range after range, in the order given to [`Mirror::new`].
     pub words: Box<[u16]>,
     /// The retained variables' bytes ([`RetainedVariables::copy`]) of a mirror made
-    /// [`Mirror::with_variables`]; empty for the others.
+    /// [`Mirror::with_variables`], the whole variable memory of one made
+    /// [`Mirror::with_all_variables`]; empty for the others.
     pub vars: Vec<u8>,
-    /// The layout of `vars`: the copied engine's retained variables.
+    /// The layout of `vars`: the copied engine's retained variables (for a mirror of all
+    /// variables: which engine they are of).
     pub layout: Option<Arc<RetainedVariables>>,
     /// The layout a copy replaced, for the consumer to drop (the scan thread never frees).
     pub replaced: Option<Arc<RetainedVariables>>,
@@ -83,13 +108,15 @@ impl Mirror {
         let len = ranges.iter().map(|r| r.len()).sum::<usize>();
         Mirror {
             ranges,
-            variables: false,
+            variables: Variables::None,
             wanted: AtomicBool::new(false),
             image: Mutex::new(MirrorImage {
                 generation: 0,
                 at_ns: 0,
                 scans: 0,
                 mode: Mode::Stop,
+                error: None,
+                switch: None,
                 words: vec![0; len].into_boxed_slice(),
                 vars: Vec::new(),
                 layout: None,
@@ -103,14 +130,22 @@ impl Mirror {
 
     /// A mirror of `ranges` and of the engine's retained variables (the retain writer's).
     pub fn with_variables(ranges: impl IntoIterator<Item = Range<u16>>) -> Mirror {
-        Mirror { variables: true, ..Mirror::new(ranges) }
+        Mirror { variables: Variables::Retained, ..Mirror::new(ranges) }
+    }
+
+    /// A mirror of `ranges` and of the engine's whole variable memory (the OPC UA server's).
+    pub fn with_all_variables(ranges: impl IntoIterator<Item = Range<u16>>) -> Mirror {
+        Mirror { variables: Variables::All, ..Mirror::new(ranges) }
     }
 
     /// Before the scan thread starts: room for `layout`'s copies, and `layout` as the image's,
     /// so that the first copies need nothing from the consumer.
-    pub fn prepare(&self, layout: &Arc<RetainedVariables>) {
+    pub fn prepare(&self, layout: &Arc<RetainedVariables>, variable_bytes: usize) {
         let mut image = self.lock();
-        let need = layout.bytes();
+        let need = match self.variables {
+            Variables::All => variable_bytes,
+            Variables::Retained | Variables::None => layout.bytes(),
+        };
         let len = image.vars.len();
         image.vars.reserve(need.saturating_sub(len));
         image.layout = Some(Arc::clone(layout));
@@ -167,7 +202,13 @@ impl Mirror {
         let (vm, layout) = (engine.vm(), engine.retained_variables());
         let variables = Some((layout, vm.vars()));
         let words = vm.mem.words();
-        self.capture_with_variables(words, variables, engine.scan_count(), engine.mode(), now_ns)
+        let mode = engine.mode();
+        let error = match mode {
+            Mode::Error => engine.latched_error(),
+            _ => engine.last_operation_error(),
+        };
+        let status = Status { scans: engine.scan_count(), mode, error, switch: engine.switch() };
+        self.capture_status(words, variables, status, now_ns)
     }
 
     /// [`Mirror::capture`] with the retained variables `variables` (their layout and variable
@@ -182,18 +223,35 @@ impl Mirror {
         mode: Mode,
         now_ns: u64,
     ) -> bool {
+        let status = Status { scans, mode, error: None, switch: None };
+        self.capture_status(words, variables, status, now_ns)
+    }
+
+    fn capture_status(
+        &self,
+        words: &[u16],
+        variables: Option<(&Arc<RetainedVariables>, &[u8])>,
+        status: Status,
+        now_ns: u64,
+    ) -> bool {
         if !self.wanted.load(Ordering::Acquire) {
             return false;
         }
         let Ok(mut image) = self.image.try_lock() else {
             return false;
         };
-        if let (true, Some((layout, vars))) = (self.variables, variables) {
+        if let (Variables::Retained | Variables::All, Some((layout, vars))) =
+            (self.variables, variables)
+        {
+            let need = match self.variables {
+                Variables::All => vars.len(),
+                Variables::Retained | Variables::None => layout.bytes(),
+            };
             let new_layout = !image.layout.as_ref().is_some_and(|l| Arc::ptr_eq(l, layout));
-            if layout.bytes() > image.vars.capacity() || (new_layout && image.replaced.is_some()) {
+            if need > image.vars.capacity() || (new_layout && image.replaced.is_some()) {
                 // Not without allocating or freeing: the consumer makes room first, then asks
                 // again (the request is withdrawn, so the scan thread does not spin on it).
-                image.room = image.room.max(layout.bytes());
+                image.room = image.room.max(need);
                 image.waiting_for_reader = true;
                 self.wanted.store(false, Ordering::Release);
                 drop(image);
@@ -204,7 +262,11 @@ impl Mirror {
                 image.replaced = image.layout.replace(Arc::clone(layout));
             }
             image.vars.clear();
-            layout.copy(vars, &mut image.vars);
+            match self.variables {
+                // Within the capacity checked above: no allocation.
+                Variables::All => image.vars.extend_from_slice(vars),
+                Variables::Retained | Variables::None => layout.copy(vars, &mut image.vars),
+            }
         }
         let mut at = 0;
         for range in self.ranges.iter() {
@@ -214,13 +276,24 @@ impl Mirror {
         }
         image.generation += 1;
         image.at_ns = now_ns;
-        image.scans = scans;
-        image.mode = mode;
+        image.scans = status.scans;
+        image.mode = status.mode;
+        image.error = status.error;
+        image.switch = status.switch;
         self.wanted.store(false, Ordering::Release);
         drop(image);
         self.fresh.notify_all();
         true
     }
+}
+
+/// What an image records of the engine besides memory.
+#[derive(Clone, Copy)]
+struct Status {
+    scans: u64,
+    mode: Mode,
+    error: Option<ErrorKind>,
+    switch: Option<SwitchPosition>,
 }
 
 #[cfg(test)]
@@ -262,7 +335,7 @@ mod tests {
     fn copies_the_retained_variables_with_the_words() {
         let mirror = Mirror::with_variables(std::iter::once(1..2));
         let one = layout(&["a", "b"]);
-        mirror.prepare(&one);
+        mirror.prepare(&one, 0);
         let vars: Vec<u8> = (10..26).collect();
         mirror.request();
         assert!(mirror.capture_with_variables(&[5, 6], Some((&one, &vars)), 1, Mode::Run, 1));
@@ -283,7 +356,7 @@ mod tests {
         let mirror = Mirror::with_variables(std::iter::once(0..1));
         let (one, two, three) =
             (layout(&["a"]), layout(&["a", "b", "c", "d", "e"]), layout(&["c"]));
-        mirror.prepare(&one);
+        mirror.prepare(&one, 0);
         let vars: Vec<u8> = (0..16).collect();
         let copy = |l: &Arc<RetainedVariables>| {
             mirror.request();
@@ -312,6 +385,27 @@ mod tests {
         assert_eq!(Arc::strong_count(&one), 1, "dropped by the reader");
         assert!(copy(&three));
         assert_eq!(&mirror.lock().vars[..], &[0, 1]);
+    }
+
+    #[test]
+    fn a_mirror_of_all_variables_copies_the_whole_memory_and_waits_for_room() {
+        let mirror = Mirror::with_all_variables(std::iter::once(0..1));
+        let one = layout(&["a"]);
+        mirror.prepare(&one, 4);
+        let copy = |vars: &[u8]| {
+            mirror.request();
+            mirror.capture_with_variables(&[7], Some((&one, vars)), 1, Mode::Run, 1)
+        };
+        assert!(copy(&[1, 2, 3, 4]));
+        let image = mirror.lock();
+        assert_eq!((&image.vars[..], image.words[0]), (&[1, 2, 3, 4][..], 7));
+        drop(image);
+        // A larger memory (another engine's) than the room made: the reader makes room first.
+        assert!(!copy(&[9; 100]));
+        assert_eq!(mirror.lock().room, 100);
+        assert!(mirror.lock().serve_reader());
+        assert!(copy(&[9; 100]));
+        assert_eq!(&mirror.lock().vars[..], &[9; 100]);
     }
 
     #[test]

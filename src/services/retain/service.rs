@@ -78,7 +78,7 @@ impl Persistence {
     /// Before the driver starts the engine: the restored words and variables, if any; the
     /// mirror made ready for the engine's retained variables.
     pub fn restore_into(&self, engine: &mut Engine) {
-        self.mirror.prepare(engine.retained_variables());
+        self.mirror.prepare(engine.retained_variables(), 0);
         let Some(startup) = &self.startup else { return };
         let (Some(words), Some((path, seq))) = (&startup.words, &startup.from) else { return };
         engine.restore_retained(words);
