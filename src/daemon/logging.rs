@@ -83,7 +83,7 @@ impl Log for StderrLogger {
         if metadata.target().starts_with("cranelift") {
             return metadata.level() <= Level::Warn && metadata.level() <= self.level;
         }
-        metadata.level() <= self.level
+        effective_level(metadata) <= self.level
     }
 
     fn log(&self, record: &Record) {
@@ -105,6 +105,18 @@ impl Log for StderrLogger {
 
     fn flush(&self) {
         let _ = io::stderr().lock().flush();
+    }
+}
+
+/// The level a record is shown at. The OPC UA stack (`async-opcua`, through `tracing`) logs
+/// every connection, handshake and session at info: those show at debug; its warnings and
+/// errors (a certificate rejected, a session refused) as they are.
+fn effective_level(metadata: &Metadata) -> Level {
+    let target = metadata.target();
+    let stack = target.starts_with("opcua") || target.starts_with("tracing::span");
+    match metadata.level() {
+        Level::Info if stack => Level::Debug,
+        level => level,
     }
 }
 
@@ -174,6 +186,18 @@ mod tests {
     /// 2026-11-21T10:46:48.123Z
     fn at() -> SystemTime {
         UNIX_EPOCH + Duration::from_millis(1_795_258_008_123) + Duration::from_micros(999)
+    }
+
+    #[test]
+    fn the_opc_ua_stacks_info_lines_show_at_debug() {
+        let at = |target: &str, level: Level| {
+            effective_level(&Metadata::builder().target(target).level(level).build())
+        };
+        assert_eq!(at("opcua_server::session::manager", Level::Info), Level::Debug);
+        assert_eq!(at("tracing::span", Level::Info), Level::Debug);
+        assert_eq!(at("opcua_crypto::certificate_store", Level::Error), Level::Error);
+        assert_eq!(at("opcua_server::server", Level::Warn), Level::Warn);
+        assert_eq!(at("plcd::services::opcua::server", Level::Info), Level::Info);
     }
 
     #[test]

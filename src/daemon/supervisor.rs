@@ -50,6 +50,12 @@ pub enum DaemonError {
     Control(#[from] ServerError),
     #[error(transparent)]
     Modbus(#[from] crate::services::modbus::ModbusError),
+    #[cfg(feature = "opcua")]
+    #[error("opcua: {0}")]
+    Opcua(#[from] crate::services::opcua::OpcuaError),
+    #[cfg(not(feature = "opcua"))]
+    #[error("[opcua] listen is set, but this plcd was built without its `opcua` feature")]
+    NoOpcua,
 }
 
 /// The daemon's options from the command line.
@@ -80,6 +86,8 @@ struct Daemon {
     control: Option<ControlThread>,
     /// The Modbus servers (`[modbus] listen`, `[modbus.rtu]`).
     modbus: Option<crate::services::modbus::RunningServer>,
+    /// The OPC UA server (`[opcua] listen`).
+    opcua: Option<Opcua>,
     log_outputs: log::Level,
     notifier: Option<Notifier>,
     started: Instant,
@@ -99,11 +107,19 @@ impl Daemon {
     fn start(config_path: &Path, project: Project) -> Result<Daemon, DaemonError> {
         // Bound before the real-time threads start: a port in use stops the start.
         let modbus = crate::services::modbus::ModbusServer::bind(&project.config.modbus)?;
+        let opcua = bind_opcua(&project)?;
         let mut retain = crate::services::retain::service::Persistence::open(&project.config);
         let mut mirrors = retain.mirrors();
         mirrors.extend(modbus.iter().map(|m| m.mirror()));
-        let mut driver =
-            Driver::start_with(&project, mirrors, |engine| retain.restore_into(engine))?;
+        #[cfg(feature = "opcua")]
+        mirrors.extend(opcua.iter().map(|o| o.mirror()));
+        let mut driver = Driver::start_with(&project, mirrors, |engine| {
+            retain.restore_into(engine);
+            #[cfg(feature = "opcua")]
+            if let Some(opcua) = &opcua {
+                opcua.prepare(engine);
+            }
+        })?;
         retain.start(Arc::clone(&driver.shared));
         if !driver.problems.is_empty() {
             log::warn!(
@@ -150,6 +166,15 @@ impl Daemon {
             }
             None => None,
         };
+        #[cfg(feature = "opcua")]
+        let opcua = match opcua {
+            Some(server) => {
+                let server = server.start(Arc::clone(&shared))?;
+                log::info!("opcua: serving {}", server.serving());
+                Some(server)
+            }
+            None => None,
+        };
         let control = start_control(&control_config, links)?;
         let daemon = Daemon {
             config_path: config_path.to_path_buf(),
@@ -158,6 +183,7 @@ impl Daemon {
             shared,
             control,
             modbus,
+            opcua,
             log_outputs,
             notifier: Notifier::from_env(),
             started: Instant::now(),
@@ -406,6 +432,9 @@ impl Daemon {
         if let Some(modbus) = self.modbus.take() {
             modbus.stop();
         }
+        if let Some(opcua) = self.opcua.take() {
+            stop_opcua(opcua);
+        }
         let Some(driver) = &mut self.driver else { return Ok(()) };
         self.retain.stop_writer();
         let engine = driver.stop();
@@ -421,6 +450,48 @@ impl Daemon {
         log::info!("stopped; outputs off");
         Ok(())
     }
+}
+
+/// The OPC UA server, running.
+#[cfg(feature = "opcua")]
+type Opcua = crate::services::opcua::RunningOpcua;
+/// Without the `opcua` feature there is none ([`bind_opcua`] refuses a config that asks).
+#[cfg(not(feature = "opcua"))]
+type Opcua = std::convert::Infallible;
+
+/// Binds `[opcua] listen` before the real-time threads start (a port in use stops the start);
+/// its certificates go to `[opcua] pki_dir`, else `opcua-pki` in the retain directory
+/// (`[retain] dir`, else `$STATE_DIRECTORY`).
+#[cfg(feature = "opcua")]
+fn bind_opcua(
+    project: &Project,
+) -> Result<Option<crate::services::opcua::OpcuaServer>, DaemonError> {
+    let config = &project.config;
+    let pki_dir = config.opcua.pki_dir.clone().or_else(|| {
+        let state_directory = std::env::var("STATE_DIRECTORY").ok();
+        crate::services::retain::directory(&config.retain, state_directory.as_deref())
+            .map(|dir| dir.join("opcua-pki"))
+    });
+    let symbols = &project.variables.symbols;
+    Ok(crate::services::opcua::OpcuaServer::bind(&config.opcua, pki_dir, symbols)?)
+}
+
+#[cfg(not(feature = "opcua"))]
+fn bind_opcua(project: &Project) -> Result<Option<Opcua>, DaemonError> {
+    match project.config.opcua.listen {
+        Some(_) => Err(DaemonError::NoOpcua),
+        None => Ok(None),
+    }
+}
+
+#[cfg(feature = "opcua")]
+fn stop_opcua(opcua: Opcua) {
+    opcua.stop();
+}
+
+#[cfg(not(feature = "opcua"))]
+fn stop_opcua(opcua: Opcua) {
+    match opcua {}
 }
 
 /// The control socket's server thread.

@@ -55,7 +55,7 @@ const fn section(
 /// online change take a new value of it. The online column is what the running engine can take
 /// over; what a load refuses never reaches it.
 #[rustfmt::skip]
-const SECTIONS: [Section; 14] = [
+const SECTIONS: [Section; 15] = [
     //       section      differs                              reload  load   online
     section("[plc]",     |a, b| a.plc != b.plc,              [true,  true,  false]),
     // Read by `plcd sim` alone.
@@ -69,6 +69,8 @@ const SECTIONS: [Section; 14] = [
     section("[switch]",  |a, b| a.switch != b.switch,        [false, false, false]),
     section("[retain]",  |a, b| a.retain != b.retain,        [false, false, false]),
     section("[modbus]",  |a, b| a.modbus != b.modbus,        [false, false, true ]),
+    // The OPC UA server's socket, certificates and limits are set up at start.
+    section("[opcua]",   |a, b| a.opcua != b.opcua,          [false, false, true ]),
     // The poller threads and their links are set up at start.
     section("[[remote]]", |a, b| a.remotes != b.remotes,     [false, false, true ]),
     // Program code, like `[[program]]`: an online change keeps the variables it can.
@@ -154,6 +156,7 @@ mod tests {
         new.control.max_clients += 1;
         new.retain.interval_ms += 1;
         new.modbus.unit_id += 1;
+        new.opcua.max_sessions += 1;
         new.iec.layout = crate::device::iec::IecLayout::of(crate::device::iec::Preset::Codesys);
         new.users.file = Some("users".into());
         new.remotes = parse(
@@ -166,32 +169,20 @@ mod tests {
         )
         .unwrap()
         .remotes;
-        assert_eq!(
-            old.refused_sections(&new, ProjectChange::Reload),
-            [
-                "[io]",
-                "[rt]",
-                "[control]",
-                "[switch]",
-                "[retain]",
-                "[modbus]",
-                "[[remote]]",
-                "[users]"
-            ]
-        );
-        assert_eq!(
-            old.refused_sections(&new, ProjectChange::Load),
-            [
-                "[io]",
-                "[rt]",
-                "[control]",
-                "[switch]",
-                "[retain]",
-                "[modbus]",
-                "[[remote]]",
-                "[users]"
-            ]
-        );
+        // What only a restart takes: the same for a reload and a load.
+        let restart_only = [
+            "[io]",
+            "[rt]",
+            "[control]",
+            "[switch]",
+            "[retain]",
+            "[modbus]",
+            "[opcua]",
+            "[[remote]]",
+            "[users]",
+        ];
+        assert_eq!(old.refused_sections(&new, ProjectChange::Reload), restart_only);
+        assert_eq!(old.refused_sections(&new, ProjectChange::Load), restart_only);
         assert_eq!(
             old.refused_sections(&new, ProjectChange::Online),
             ["[plc]", "[timers]", "[io]", "[rt]", "[switch]", "[retain]", "[iec]"]

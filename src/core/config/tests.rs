@@ -218,6 +218,7 @@ fn the_contract_example_parses_to_its_defaults() {
         switch: None,
         retain: RetainConfig::default(),
         modbus: crate::config::ModbusConfig::default(),
+        opcua: crate::config::OpcuaConfig::default(),
         st: StConfig::default(),
         iec: IecConfig::default(),
         remotes: Vec::new(),
@@ -458,7 +459,7 @@ fn unknown_keys_are_errors_at_the_key() {
     assert_eq!(
         errors(&with_scan("[plcc]\n")),
         ["1:2: unknown key `plcc`, expected one of `plc`, `sim`, `timers`, `program`, `task`, \
-          `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `st`, `iec`, `remote`, `users`"]
+          `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `opcua`, `st`, `iec`, `remote`, `users`"]
     );
     assert_eq!(
         errors(&with_scan("[plc]\nwatchdog = 5\n")),

@@ -1,0 +1,386 @@
+//! `[opcua]`: the OPC UA server of `plcd run` (docs/OPCUA.md): what it listens on, the security
+//! it offers, the limits it enforces and where its certificates live.
+//!
+//! ```toml
+//! [opcua]
+//! listen = "127.0.0.1:4840"      # no listen: no server (the default)
+//! security_policies = ["Basic256Sha256"]
+//! anonymous = "none"
+//! ```
+//!
+//! The keys' ranges and defaults are the constants of [`OpcuaConfig`]; the server
+//! (`services::opcua`) hands them to the OPC UA stack's own limits where it has them.
+
+use std::net::SocketAddr;
+use std::ops::RangeInclusive;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::common::{int_or, resolve, widen, Ctx};
+use super::Sink;
+
+/// `[opcua]`: off unless `listen` is given.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct OpcuaConfig {
+    /// `listen`: the IP address and TCP port to serve, `"127.0.0.1:4840"`; port 0 takes any
+    /// free port (the log names it). Default `None`: no server.
+    pub listen: Option<SocketAddr>,
+    /// `endpoint_host`: the host name in the endpoint URL (`opc.tcp://HOST:PORT/`), not empty;
+    /// default `None`: the IP address of `listen`.
+    pub endpoint_host: Option<String>,
+    /// `security_policies`: the policies offered, each with Sign and SignAndEncrypt (`None`
+    /// with no message security at all), in the order written, no duplicates, at least one;
+    /// default [`OpcuaConfig::DEFAULT_POLICIES`].
+    pub security_policies: Vec<OpcuaPolicy>,
+    /// `anonymous`: what a session without a user identity may do; default
+    /// [`Anonymous::None`].
+    pub anonymous: Anonymous,
+    /// `max_sessions`: sessions at once, [`OpcuaConfig::MAX_SESSIONS`]; default 10.
+    pub max_sessions: u32,
+    /// `max_subscriptions_per_session`: [`OpcuaConfig::MAX_SUBSCRIPTIONS`]; default 10.
+    pub max_subscriptions_per_session: u32,
+    /// `max_monitored_items_per_session`: [`OpcuaConfig::MAX_MONITORED_ITEMS`]; default
+    /// 10000. Each subscription may hold this divided by `max_subscriptions_per_session`
+    /// (at least 1), so that no session holds more.
+    pub max_monitored_items_per_session: u32,
+    /// `max_request_bytes`: the longest message a client may send (or be sent), all its
+    /// chunks together, [`OpcuaConfig::MAX_REQUEST_BYTES`]; default 4 MiB.
+    pub max_request_bytes: u32,
+    /// `min_sampling_interval_ms`: the shortest sampling and publishing interval granted, and
+    /// how often the variables are copied at a scan boundary while a client is connected,
+    /// [`OpcuaConfig::MIN_SAMPLING_INTERVAL_MS`]; default 100.
+    pub min_sampling_interval_ms: u32,
+    /// `max_nodes`: the variables served at most, [`OpcuaConfig::MAX_NODES`]; default 10000.
+    /// Beyond it the rest are left out and the log says how many.
+    pub max_nodes: u32,
+    /// `pki_dir`: the server's certificate and key, the trusted and the rejected client
+    /// certificates, resolved against the config file's directory; default `None`:
+    /// `opcua-pki` in the retain directory (`[retain] dir`, else `$STATE_DIRECTORY`).
+    pub pki_dir: Option<PathBuf>,
+}
+
+/// An OPC UA security policy `security_policies` may name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize)]
+pub enum OpcuaPolicy {
+    /// No signing, no encryption: everything, the session's identity included, in clear.
+    None,
+    Basic256Sha256,
+    #[serde(rename = "Aes128_Sha256_RsaOaep")]
+    Aes128Sha256RsaOaep,
+    #[serde(rename = "Aes256_Sha256_RsaPss")]
+    Aes256Sha256RsaPss,
+}
+
+impl OpcuaPolicy {
+    /// The name as the config and OPC UA write it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            OpcuaPolicy::None => "None",
+            OpcuaPolicy::Basic256Sha256 => "Basic256Sha256",
+            OpcuaPolicy::Aes128Sha256RsaOaep => "Aes128_Sha256_RsaOaep",
+            OpcuaPolicy::Aes256Sha256RsaPss => "Aes256_Sha256_RsaPss",
+        }
+    }
+}
+
+/// `opcua.anonymous`: what a session without a user identity may do.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Anonymous {
+    /// `"none"` (default): no anonymous session at all.
+    #[default]
+    None,
+    /// `"viewer"`: anonymous sessions browse, read and subscribe.
+    Viewer,
+}
+
+impl OpcuaConfig {
+    pub const DEFAULT_POLICIES: [OpcuaPolicy; 3] = [
+        OpcuaPolicy::Basic256Sha256,
+        OpcuaPolicy::Aes128Sha256RsaOaep,
+        OpcuaPolicy::Aes256Sha256RsaPss,
+    ];
+    pub const MAX_SESSIONS: RangeInclusive<u32> = 1..=1000;
+    pub const MAX_SUBSCRIPTIONS: RangeInclusive<u32> = 1..=1000;
+    pub const MAX_MONITORED_ITEMS: RangeInclusive<u32> = 1..=1_000_000;
+    /// 64 KiB (the smallest buffer the stack negotiates) .. 64 MiB.
+    pub const MAX_REQUEST_BYTES: RangeInclusive<u32> = 65_536..=67_108_864;
+    pub const MIN_SAMPLING_INTERVAL_MS: RangeInclusive<u32> = 10..=60_000;
+    pub const MAX_NODES: RangeInclusive<u32> = 1..=1_000_000;
+
+    /// The monitored items one subscription may hold: the session's share.
+    pub fn monitored_items_per_subscription(&self) -> u32 {
+        (self.max_monitored_items_per_session / self.max_subscriptions_per_session).max(1)
+    }
+}
+
+impl Default for OpcuaConfig {
+    fn default() -> Self {
+        OpcuaConfig {
+            listen: None,
+            endpoint_host: None,
+            security_policies: Self::DEFAULT_POLICIES.to_vec(),
+            anonymous: Anonymous::None,
+            max_sessions: 10,
+            max_subscriptions_per_session: 10,
+            max_monitored_items_per_session: 10_000,
+            max_request_bytes: 4 * 1024 * 1024,
+            min_sampling_interval_ms: 100,
+            max_nodes: 10_000,
+            pki_dir: None,
+        }
+    }
+}
+
+/// `[opcua]` as written.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawOpcua {
+    pub listen: Option<Spanned<String>>,
+    pub endpoint_host: Option<Spanned<String>>,
+    pub security_policies: Option<Spanned<Vec<Spanned<OpcuaPolicy>>>>,
+    #[serde(default)]
+    pub anonymous: Anonymous,
+    pub max_sessions: Option<Spanned<i64>>,
+    pub max_subscriptions_per_session: Option<Spanned<i64>>,
+    pub max_monitored_items_per_session: Option<Spanned<i64>>,
+    pub max_request_bytes: Option<Spanned<i64>>,
+    pub min_sampling_interval_ms: Option<Spanned<i64>>,
+    pub max_nodes: Option<Spanned<i64>>,
+    pub pki_dir: Option<Spanned<String>>,
+}
+
+/// Pass 2 of `[opcua]`; `config` is the config file, for `pki_dir`.
+pub(super) fn validate(sink: &mut Sink, raw: RawOpcua, config: &Path) -> Option<OpcuaConfig> {
+    let ctx = Ctx::Section("opcua");
+    let default = OpcuaConfig::default();
+    let mut ok = true;
+    let listen = match raw.listen {
+        None => None,
+        Some(listen) => match listen.get_ref().trim().parse::<SocketAddr>() {
+            Ok(addr) => Some(addr),
+            Err(_) => {
+                sink.error(
+                    listen.span().start,
+                    format!(
+                        "{} {:?} is not an IP address and port (\"127.0.0.1:4840\", \
+                         \"0.0.0.0:4840\", \"[::1]:4840\"); leave it out to turn the server off",
+                        ctx.key("listen"),
+                        listen.get_ref()
+                    ),
+                );
+                ok = false;
+                None
+            }
+        },
+    };
+    let endpoint_host = match raw.endpoint_host {
+        None => None,
+        Some(host) => {
+            let text = host.get_ref().trim();
+            if text.is_empty() || text.contains(['/', ' ', ':']) {
+                let message = format!(
+                    "{} {:?} must be a host name or IPv4 address, without port or path",
+                    ctx.key("endpoint_host"),
+                    host.get_ref()
+                );
+                sink.error(host.span().start, message);
+                ok = false;
+            }
+            Some(text.to_string())
+        }
+    };
+    let mut security_policies = Vec::new();
+    match raw.security_policies {
+        None => security_policies = default.security_policies.clone(),
+        Some(list) => {
+            let at = list.span().start;
+            for policy in list.into_inner() {
+                if security_policies.contains(policy.get_ref()) {
+                    let message = format!(
+                        "{}: {} is listed twice",
+                        ctx.key("security_policies"),
+                        policy.get_ref().as_str()
+                    );
+                    sink.error(policy.span().start, message);
+                    ok = false;
+                } else {
+                    security_policies.push(*policy.get_ref());
+                }
+            }
+            if security_policies.is_empty() && ok {
+                let message = format!(
+                    "{} must list at least one policy; leave `listen` out to turn the server off",
+                    ctx.key("security_policies")
+                );
+                sink.error(at, message);
+                ok = false;
+            }
+        }
+    }
+    let range = |sink: &mut Sink, key, value, range, default| {
+        int_or::<u32>(sink, &ctx, key, value, widen(range), default)
+    };
+    let max_sessions = range(
+        sink,
+        "max_sessions",
+        raw.max_sessions,
+        OpcuaConfig::MAX_SESSIONS,
+        default.max_sessions,
+    );
+    let max_subscriptions_per_session = range(
+        sink,
+        "max_subscriptions_per_session",
+        raw.max_subscriptions_per_session,
+        OpcuaConfig::MAX_SUBSCRIPTIONS,
+        default.max_subscriptions_per_session,
+    );
+    let max_monitored_items_per_session = range(
+        sink,
+        "max_monitored_items_per_session",
+        raw.max_monitored_items_per_session,
+        OpcuaConfig::MAX_MONITORED_ITEMS,
+        default.max_monitored_items_per_session,
+    );
+    let max_request_bytes = range(
+        sink,
+        "max_request_bytes",
+        raw.max_request_bytes,
+        OpcuaConfig::MAX_REQUEST_BYTES,
+        default.max_request_bytes,
+    );
+    let min_sampling_interval_ms = range(
+        sink,
+        "min_sampling_interval_ms",
+        raw.min_sampling_interval_ms,
+        OpcuaConfig::MIN_SAMPLING_INTERVAL_MS,
+        default.min_sampling_interval_ms,
+    );
+    let max_nodes =
+        range(sink, "max_nodes", raw.max_nodes, OpcuaConfig::MAX_NODES, default.max_nodes);
+    let pki_dir = match raw.pki_dir {
+        None => None,
+        Some(dir) if dir.get_ref().trim().is_empty() => {
+            sink.error(dir.span().start, format!("{} must not be empty", ctx.key("pki_dir")));
+            ok = false;
+            None
+        }
+        Some(dir) => Some(resolve(config, dir.get_ref())),
+    };
+    let opcua = OpcuaConfig {
+        listen,
+        endpoint_host,
+        security_policies,
+        anonymous: raw.anonymous,
+        max_sessions: max_sessions?,
+        max_subscriptions_per_session: max_subscriptions_per_session?,
+        max_monitored_items_per_session: max_monitored_items_per_session?,
+        max_request_bytes: max_request_bytes?,
+        min_sampling_interval_ms: min_sampling_interval_ms?,
+        max_nodes: max_nodes?,
+        pki_dir,
+    };
+    ok.then_some(opcua)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::parse;
+
+    const PROGRAM: &str = "[[program]]\nfile = \"main.il\"\n";
+
+    fn opcua(section: &str) -> OpcuaConfig {
+        let text = format!("{PROGRAM}{section}");
+        match parse(&text, Path::new("/p/plcd.toml")) {
+            Ok(config) => config.opcua,
+            Err(e) => panic!("{e}"),
+        }
+    }
+
+    fn errors(section: &str) -> Vec<String> {
+        let text = format!("{PROGRAM}{section}");
+        match parse(&text, Path::new("/p/plcd.toml")) {
+            Ok(_) => panic!("accepted: {section}"),
+            Err(diagnostics) => diagnostics.iter().map(|d| d.to_string()).collect(),
+        }
+    }
+
+    #[test]
+    fn off_by_default_with_secure_defaults() {
+        let off = opcua("");
+        assert_eq!(off, OpcuaConfig::default());
+        assert_eq!(off.listen, None);
+        assert_eq!(opcua("[opcua]\nmax_sessions = 3\n").listen, None, "no listen: off");
+        assert_eq!(off.anonymous, Anonymous::None);
+        assert_eq!(off.security_policies, OpcuaConfig::DEFAULT_POLICIES);
+        assert!(!off.security_policies.contains(&OpcuaPolicy::None), "None only if listed");
+        assert_eq!(
+            (off.max_sessions, off.max_subscriptions_per_session, off.min_sampling_interval_ms),
+            (10, 10, 100)
+        );
+        assert_eq!((off.max_nodes, off.max_monitored_items_per_session), (10_000, 10_000));
+        assert_eq!(off.monitored_items_per_subscription(), 1000);
+    }
+
+    #[test]
+    fn every_key_is_read() {
+        let config = opcua(
+            "[opcua]\nlisten = \"127.0.0.1:0\"\nendpoint_host = \"plc1.example\"\n\
+             security_policies = [\"None\", \"Aes256_Sha256_RsaPss\"]\nanonymous = \"viewer\"\n\
+             max_sessions = 2\nmax_subscriptions_per_session = 3\n\
+             max_monitored_items_per_session = 10\nmax_request_bytes = 65536\n\
+             min_sampling_interval_ms = 10\nmax_nodes = 5\npki_dir = \"pki\"\n",
+        );
+        assert_eq!(config.listen, Some("127.0.0.1:0".parse().unwrap()));
+        assert_eq!(config.endpoint_host.as_deref(), Some("plc1.example"));
+        assert_eq!(config.security_policies, [OpcuaPolicy::None, OpcuaPolicy::Aes256Sha256RsaPss]);
+        assert_eq!(config.anonymous, Anonymous::Viewer);
+        assert_eq!((config.max_sessions, config.max_subscriptions_per_session), (2, 3));
+        assert_eq!(config.monitored_items_per_subscription(), 3, "10 / 3 subscriptions");
+        assert_eq!((config.max_request_bytes, config.min_sampling_interval_ms), (65536, 10));
+        assert_eq!(config.max_nodes, 5);
+        assert_eq!(config.pki_dir, Some(PathBuf::from("/p/pki")), "relative to the config");
+    }
+
+    #[test]
+    fn errors_name_the_key() {
+        assert_eq!(
+            errors(
+                "[opcua]\nlisten = \"localhost:4840\"\nmax_sessions = 0\n\
+                 min_sampling_interval_ms = 5\nmax_request_bytes = 100\nmax_nodes = 0\n\
+                 max_subscriptions_per_session = 1001\nmax_monitored_items_per_session = 0\n"
+            ),
+            [
+                "/p/plcd.toml:4:10: error: opcua.listen \"localhost:4840\" is not an IP address and \
+                 port (\"127.0.0.1:4840\", \"0.0.0.0:4840\", \"[::1]:4840\"); leave it out to \
+                 turn the server off",
+                "/p/plcd.toml:5:16: error: opcua.max_sessions 0 out of range 1..=1000",
+                "/p/plcd.toml:6:28: error: opcua.min_sampling_interval_ms 5 out of range 10..=60000",
+                "/p/plcd.toml:7:21: error: opcua.max_request_bytes 100 out of range 65536..=67108864",
+                "/p/plcd.toml:8:13: error: opcua.max_nodes 0 out of range 1..=1000000",
+                "/p/plcd.toml:9:33: error: opcua.max_subscriptions_per_session 1001 out of range \
+                 1..=1000",
+                "/p/plcd.toml:10:35: error: opcua.max_monitored_items_per_session 0 out of range \
+                 1..=1000000",
+            ]
+        );
+        let policy = errors("[opcua]\nsecurity_policies = [\"Basic128Rsa15\"]\n");
+        assert!(
+            policy[0].contains("opcua.security_policies") && policy[0].contains("Basic128Rsa15"),
+            "{policy:?}"
+        );
+        assert_eq!(
+            errors("[opcua]\nsecurity_policies = [\"None\", \"None\"]\n"),
+            ["/p/plcd.toml:4:30: error: opcua.security_policies: None is listed twice"]
+        );
+        assert!(errors("[opcua]\nsecurity_policies = []\n")[0]
+            .contains("opcua.security_policies must list at least one policy"));
+        assert!(errors("[opcua]\nanonymous = \"guest\"\n")[0].contains("opcua.anonymous"));
+        assert!(errors("[opcua]\npki_dir = \" \"\n")[0].contains("opcua.pki_dir must not be empty"));
+        assert!(errors("[opcua]\nendpoint_host = \"a:1\"\n")[0].contains("opcua.endpoint_host"));
+        assert!(errors("[opcua]\nport = 4840\n")[0].contains("[opcua]: unknown key `port`"));
+    }
+}

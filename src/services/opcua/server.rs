@@ -1,0 +1,607 @@
+//! The OPC UA server: its socket bound at start, the `async-opcua` stack on a small tokio runtime
+//! of its own (two worker threads named `plcd-opcua`, ordinary scheduling), the certificate
+//! store in `pki_dir`, the access rules, the address space and the sampler thread.
+//!
+//! The sampler (`plcd-opcua-sample`) asks the mirror for a copy every
+//! `min_sampling_interval_ms`, waits for the scan boundary that takes it, reads every served
+//! variable out of the copy and hands the stack the values that changed; the stack answers
+//! reads from them and notifies subscriptions. All the values of one hand-over are of one scan
+//! boundary: no struct or array is ever torn.
+
+use std::net::SocketAddr;
+use std::os::unix::fs::{DirBuilderExt, PermissionsExt};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, Condvar, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use opcua::crypto::SecurityPolicy;
+use opcua::nodes::{AccessLevel, ObjectBuilder, VariableBuilder};
+use opcua::server::authenticator::AuthManager;
+use opcua::server::diagnostics::NamespaceMetadata;
+use opcua::server::node_manager::memory::{simple_node_manager, SimpleNodeManager};
+use opcua::server::{ServerBuilder, ServerEndpoint, ServerHandle, ANONYMOUS_USER_TOKEN_ID};
+use opcua::types::{
+    DataTypeId, DataValue, MessageSecurityMode, NodeId, ObjectId, QualifiedName, StatusCode,
+    UAString, UserTokenPolicy, UserTokenType, Variant,
+};
+
+use super::nodes::{self, Plan};
+use super::OpcuaError;
+use crate::config::{Anonymous, OpcuaConfig, OpcuaPolicy};
+use crate::drivers::real_time::mirror::Mirror;
+use crate::drivers::real_time::{pending, Shared, PLAIN_THREAD_STACK};
+use crate::engine::event::ErrorKind;
+use crate::engine::Engine;
+use crate::symbols::Symbols;
+use crate::value::{Pointer, ValueType};
+use crate::vm::retained::RetainedVariables;
+
+/// plcd's namespace URI: its index in the server's namespace array is 2 (0 is OPC UA's, 1 the
+/// server's own, which the stack's diagnostics use).
+pub const NAMESPACE_URI: &str = "urn:plcd:plc";
+/// The application URI in the server's certificate and description.
+pub const APPLICATION_URI: &str = "urn:plcd:server";
+/// The server certificate (DER) and its private key (PEM, mode 0600), in `pki_dir`.
+pub const CERTIFICATE: &str = "own/cert.der";
+pub const PRIVATE_KEY: &str = "private/private.pem";
+
+/// The status variables, `Status.<name>`, and their types.
+pub const STATUS_NODES: [(&str, DataTypeId); 7] = [
+    ("Mode", DataTypeId::String),
+    ("ErrorCode", DataTypeId::String),
+    ("ScanTimeLast", DataTypeId::Double),
+    ("ScanTimeMin", DataTypeId::Double),
+    ("ScanTimeMax", DataTypeId::Double),
+    ("Scans", DataTypeId::UInt64),
+    ("KeySwitch", DataTypeId::String),
+];
+
+/// How long the sampler waits for a scan boundary before it tries again: longer than any scan
+/// within its watchdog.
+const BOUNDARY_WAIT: Duration = Duration::from_secs(2);
+
+/// The server, bound, before the real-time threads start.
+pub struct OpcuaServer {
+    listener: std::net::TcpListener,
+    addr: SocketAddr,
+    config: OpcuaConfig,
+    pki_dir: PathBuf,
+    plan: Plan,
+    mirror: Arc<Mirror>,
+    /// The layout of the engine the plan was made for (set by [`OpcuaServer::prepare`]): a copy
+    /// of another engine's variables is not served.
+    layout: Mutex<Option<Arc<RetainedVariables>>>,
+}
+
+impl OpcuaServer {
+    /// Binds `[opcua] listen`; `None` when it is not set. `pki_dir` is where the certificates
+    /// live (`[opcua] pki_dir`, else `opcua-pki` in the retain directory: the daemon says);
+    /// `symbols` are the project's variables.
+    pub fn bind(
+        config: &OpcuaConfig,
+        pki_dir: Option<PathBuf>,
+        symbols: &Symbols,
+    ) -> Result<Option<OpcuaServer>, OpcuaError> {
+        let Some(addr) = config.listen else {
+            return Ok(None);
+        };
+        let pki_dir = pki_dir.ok_or(OpcuaError::NoPkiDir)?;
+        let listener = std::net::TcpListener::bind(addr)
+            .and_then(|l| l.set_nonblocking(true).map(|()| l))
+            .map_err(|source| OpcuaError::Bind { addr, source })?;
+        let addr = listener.local_addr().map_err(|source| OpcuaError::Bind { addr, source })?;
+        let plan = Plan::of(symbols, config.max_nodes as usize);
+        // Device words from word 0 up to the last a located variable reads, so that a place
+        // indexes the copy as it indexes device memory.
+        let words = plan.leaves.iter().filter_map(device_end).max().unwrap_or(0);
+        let mirror = Arc::new(Mirror::with_all_variables(std::iter::once(0..words)));
+        Ok(Some(OpcuaServer {
+            listener,
+            addr,
+            config: config.clone(),
+            pki_dir,
+            plan,
+            mirror,
+            layout: Mutex::new(None),
+        }))
+    }
+
+    /// The mirror the scan thread copies for it.
+    pub fn mirror(&self) -> Arc<Mirror> {
+        Arc::clone(&self.mirror)
+    }
+
+    /// Before the scan thread starts: room for `engine`'s variable memory in the mirror, and
+    /// its layout as the one served.
+    pub fn prepare(&self, engine: &Engine) {
+        let layout = engine.retained_variables();
+        self.mirror.prepare(layout, engine.vm().vars().len());
+        *self.layout.lock().unwrap_or_else(|e| e.into_inner()) = Some(Arc::clone(layout));
+    }
+
+    /// The address bound (with the port taken when `listen` asked for port 0).
+    pub fn local_addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// Starts the runtime, the stack and the sampler.
+    pub fn start(self, shared: Arc<Shared>) -> Result<RunningOpcua, OpcuaError> {
+        let OpcuaServer { listener, addr, config, pki_dir, plan, mirror, layout } = self;
+        prepare_pki(&pki_dir)?;
+        let host = config.endpoint_host.clone().unwrap_or_else(|| addr.ip().to_string());
+        let url = format!("opc.tcp://{}:{}/", url_host(&host), addr.port());
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .max_blocking_threads(2)
+            .thread_name("plcd-opcua")
+            .enable_all()
+            .build()
+            .map_err(|source| OpcuaError::Runtime { source })?;
+        // The stack starts its own tasks as it is built: inside the runtime.
+        let _runtime = runtime.enter();
+        let (server, handle) =
+            builder(&config, &pki_dir, &host, addr.port()).build().map_err(OpcuaError::Stack)?;
+        secure_key(&pki_dir)?;
+        let Some(manager) = handle.node_managers().get_of_type::<SimpleNodeManager>() else {
+            return Err(OpcuaError::Stack("plcd's node manager is missing".into()));
+        };
+        let ns = handle
+            .get_namespace_index(NAMESPACE_URI)
+            .ok_or_else(|| OpcuaError::Stack(format!("namespace {NAMESPACE_URI} is missing")))?;
+        let served = Served::new(ns, &plan);
+        populate(&manager, ns, &plan, &served);
+        let listener = tokio::net::TcpListener::from_std(listener)
+            .map_err(|source| OpcuaError::Bind { addr, source })?;
+        let stack = runtime.spawn(async move {
+            if let Err(e) = server.run_with(listener).await {
+                log::error!("opcua: the server stopped: {e}");
+            }
+        });
+        let stop = Arc::new(Stop::default());
+        let layout = layout.lock().unwrap_or_else(|e| e.into_inner()).take();
+        let sampler = Sampler {
+            mirror,
+            shared,
+            manager,
+            handle: handle.clone(),
+            served,
+            interval: Duration::from_millis(u64::from(config.min_sampling_interval_ms)),
+            layout,
+            stop: Arc::clone(&stop),
+            words: Vec::new(),
+            vars: Vec::new(),
+            last: Vec::new(),
+            told_changed: false,
+            leaves: plan.leaves.iter().map(|leaf| (leaf.ty.clone(), leaf.at)).collect(),
+        };
+        let thread = std::thread::Builder::new()
+            .name("plcd-opcua-sample".into())
+            .stack_size(PLAIN_THREAD_STACK)
+            .spawn(move || sampler.run())
+            .map_err(|source| OpcuaError::Spawn { source })?;
+        if plan.left_out > 0 {
+            log::warn!(
+                "opcua: {} variables left out: more than [opcua] max_nodes = {}",
+                plan.left_out,
+                config.max_nodes
+            );
+        }
+        if plan.unserved > 0 {
+            log::info!(
+                "opcua: {} variables not served (references, or a node id another node has)",
+                plan.unserved
+            );
+        }
+        Ok(RunningOpcua { runtime, handle, stack, sampler: thread, stop, url, addr })
+    }
+}
+
+/// The last device word a located leaf reads, plus one.
+fn device_end(leaf: &nodes::Leaf) -> Option<u16> {
+    use crate::value::Space;
+    let end = match leaf.at.space {
+        Space::Word => leaf.at.offset + leaf.ty.elem().words(),
+        Space::Bit => leaf.at.offset / 16 + 1,
+        Space::Byte => leaf.at.offset / 2 + 1,
+        Space::Var | Space::Frame | Space::Discard => return None,
+    };
+    Some(end.min(u32::from(u16::MAX)) as u16)
+}
+
+/// An IPv6 address in a URL is written in brackets.
+fn url_host(host: &str) -> String {
+    if host.contains(':') {
+        format!("[{host}]")
+    } else {
+        host.to_string()
+    }
+}
+
+/// The PKI directory and its `private` directory, mode 0700, so that the key the stack writes
+/// is never readable by others, not even before [`secure_key`] makes it 0600.
+fn prepare_pki(dir: &Path) -> Result<(), OpcuaError> {
+    let error = |source| OpcuaError::Pki { dir: dir.to_path_buf(), source };
+    let mut builder = std::fs::DirBuilder::new();
+    builder.recursive(true).mode(0o700);
+    builder.create(dir.join("private")).map_err(error)?;
+    for sub in ["own", "trusted", "rejected"] {
+        builder.create(dir.join(sub)).map_err(error)?;
+    }
+    std::fs::set_permissions(dir.join("private"), std::fs::Permissions::from_mode(0o700))
+        .map_err(error)
+}
+
+/// After the stack created or read the certificate and key: both there, the key 0600.
+fn secure_key(dir: &Path) -> Result<(), OpcuaError> {
+    let (cert, key) = (dir.join(CERTIFICATE), dir.join(PRIVATE_KEY));
+    if !cert.is_file() || !key.is_file() {
+        return Err(OpcuaError::Certificate { dir: dir.to_path_buf() });
+    }
+    std::fs::set_permissions(&key, std::fs::Permissions::from_mode(0o600))
+        .map_err(|source| OpcuaError::Pki { dir: dir.to_path_buf(), source })
+}
+
+/// The stack's configuration from `[opcua]`.
+fn builder(config: &OpcuaConfig, pki_dir: &Path, host: &str, port: u16) -> ServerBuilder {
+    let anonymous = config.anonymous == Anonymous::Viewer;
+    let tokens: Vec<String> =
+        if anonymous { vec![ANONYMOUS_USER_TOKEN_ID.to_string()] } else { Vec::new() };
+    let mut builder = ServerBuilder::new()
+        .application_name("plcd")
+        .application_uri(APPLICATION_URI)
+        .product_uri("urn:plcd")
+        .create_sample_keypair(true)
+        .certificate_path(CERTIFICATE)
+        .private_key_path(PRIVATE_KEY)
+        .pki_dir(pki_dir)
+        // Only the certificates an administrator moved to trusted/ (docs/OPCUA.md).
+        .trust_client_certs(false)
+        .check_cert_time(true)
+        .host(host)
+        .port(port)
+        .discovery_urls(vec!["/".to_string()])
+        .max_sessions(config.max_sessions as usize)
+        .max_message_size(config.max_request_bytes as usize)
+        .with_authenticator(Arc::new(Access { anonymous }))
+        .with_node_manager(simple_node_manager(
+            NamespaceMetadata { namespace_uri: NAMESPACE_URI.to_string(), ..Default::default() },
+            "plcd",
+        ));
+    {
+        let limits = builder.limits_mut();
+        let subscriptions = &mut limits.subscriptions;
+        subscriptions.max_subscriptions_per_session = config.max_subscriptions_per_session as usize;
+        subscriptions.max_monitored_items_per_sub =
+            config.monitored_items_per_subscription() as usize;
+        subscriptions.min_sampling_interval_ms = f64::from(config.min_sampling_interval_ms);
+        subscriptions.min_publishing_interval_ms = f64::from(config.min_sampling_interval_ms);
+    }
+    for policy in &config.security_policies {
+        let (policy, name) = match policy {
+            OpcuaPolicy::None => {
+                let endpoint = ServerEndpoint::new(
+                    "/",
+                    SecurityPolicy::None,
+                    MessageSecurityMode::None,
+                    &tokens,
+                );
+                builder = builder.add_endpoint("none", endpoint);
+                continue;
+            }
+            OpcuaPolicy::Basic256Sha256 => (SecurityPolicy::Basic256Sha256, "basic256sha256"),
+            OpcuaPolicy::Aes128Sha256RsaOaep => {
+                (SecurityPolicy::Aes128Sha256RsaOaep, "aes128sha256rsaoaep")
+            }
+            OpcuaPolicy::Aes256Sha256RsaPss => {
+                (SecurityPolicy::Aes256Sha256RsaPss, "aes256sha256rsapss")
+            }
+        };
+        for (mode, suffix) in [
+            (MessageSecurityMode::Sign, "sign"),
+            (MessageSecurityMode::SignAndEncrypt, "sign_encrypt"),
+        ] {
+            let endpoint = ServerEndpoint::new("/", policy, mode, &tokens);
+            builder = builder.add_endpoint(format!("{name}_{suffix}"), endpoint);
+        }
+    }
+    builder
+}
+
+/// Who may open a session: anonymous sessions with `anonymous = "viewer"`, nobody else yet
+/// (user names come with the users file, docs/OPCUA.md "Not yet"). The address space is
+/// read-only, so a session may do what a viewer does.
+struct Access {
+    anonymous: bool,
+}
+
+#[async_trait::async_trait]
+impl AuthManager for Access {
+    async fn authenticate_anonymous_token(
+        &self,
+        _endpoint: &ServerEndpoint,
+    ) -> Result<(), opcua::types::Error> {
+        if self.anonymous {
+            Ok(())
+        } else {
+            Err(opcua::types::Error::new(
+                StatusCode::BadIdentityTokenRejected,
+                "anonymous sessions are refused ([opcua] anonymous = \"none\")",
+            ))
+        }
+    }
+
+    fn user_token_policies(&self, _endpoint: &ServerEndpoint) -> Vec<UserTokenPolicy> {
+        if !self.anonymous {
+            return Vec::new();
+        }
+        vec![UserTokenPolicy {
+            policy_id: UAString::from("anonymous"),
+            token_type: UserTokenType::Anonymous,
+            issued_token_type: UAString::null(),
+            issuer_endpoint_url: UAString::null(),
+            security_policy_uri: UAString::null(),
+        }]
+    }
+}
+
+/// The node ids the sampler updates, in the order of its values: the status variables, then
+/// the plan's leaves.
+struct Served {
+    status: Vec<NodeId>,
+    leaves: Vec<NodeId>,
+}
+
+impl Served {
+    fn new(ns: u16, plan: &Plan) -> Served {
+        Served {
+            status: STATUS_NODES.iter().map(|(name, _)| id(ns, &nodes::status_id(name))).collect(),
+            leaves: plan.leaves.iter().map(|leaf| id(ns, &leaf.id)).collect(),
+        }
+    }
+}
+
+fn id(ns: u16, text: &str) -> NodeId {
+    NodeId::new(ns, text.to_string())
+}
+
+/// Objects/PLC, its Status and Programs folders, the status variables and the plan's nodes;
+/// every variable read-only.
+fn populate(manager: &SimpleNodeManager, ns: u16, plan: &Plan, served: &Served) {
+    let mut space = manager.address_space().write();
+    let plc = id(ns, nodes::PLC);
+    let name = |text: &str| QualifiedName::new(ns, text);
+    ObjectBuilder::new(&plc, name(nodes::PLC), nodes::PLC)
+        .organized_by(ObjectId::ObjectsFolder)
+        .insert(&mut *space);
+    for folder in [nodes::STATUS, nodes::PROGRAMS] {
+        ObjectBuilder::new(&id(ns, folder), name(folder), folder)
+            .is_folder()
+            .organized_by(plc.clone())
+            .insert(&mut *space);
+    }
+    let read_only = AccessLevel::CURRENT_READ;
+    let status_folder = id(ns, nodes::STATUS);
+    for ((label, ty), node) in STATUS_NODES.iter().zip(&served.status) {
+        VariableBuilder::new(node, name(label), *label)
+            .data_type(*ty)
+            .value(initial(*ty))
+            .access_level(read_only)
+            .user_access_level(read_only)
+            .organized_by(status_folder.clone())
+            .insert(&mut *space);
+    }
+    for object in &plan.objects {
+        ObjectBuilder::new(&id(ns, &object.id), name(&object.browse), object.browse.as_str())
+            .organized_by(id(ns, &object.parent))
+            .insert(&mut *space);
+    }
+    for (leaf, node) in plan.leaves.iter().zip(&served.leaves) {
+        let Some(ty) = nodes::data_type(&leaf.ty) else { continue };
+        VariableBuilder::new(node, name(&leaf.browse), leaf.browse.as_str())
+            .data_type(ty)
+            .value(initial(ty))
+            .access_level(read_only)
+            .user_access_level(read_only)
+            .organized_by(id(ns, &leaf.parent))
+            .insert(&mut *space);
+    }
+}
+
+/// A value of the type until the first copy.
+fn initial(ty: DataTypeId) -> Variant {
+    match ty {
+        DataTypeId::Boolean => Variant::Boolean(false),
+        DataTypeId::SByte => Variant::SByte(0),
+        DataTypeId::Byte => Variant::Byte(0),
+        DataTypeId::Int16 => Variant::Int16(0),
+        DataTypeId::UInt16 => Variant::UInt16(0),
+        DataTypeId::Int32 => Variant::Int32(0),
+        DataTypeId::UInt32 => Variant::UInt32(0),
+        DataTypeId::Int64 => Variant::Int64(0),
+        DataTypeId::UInt64 => Variant::UInt64(0),
+        DataTypeId::Float => Variant::Float(0.0),
+        DataTypeId::Double | DataTypeId::Duration => Variant::Double(0.0),
+        DataTypeId::String => Variant::from(String::new()),
+        _ => Variant::Empty,
+    }
+}
+
+/// How the sampler is told to stop.
+#[derive(Default)]
+struct Stop {
+    stopped: Mutex<bool>,
+    wake: Condvar,
+}
+
+impl Stop {
+    /// Sleeps `timeout` or until stopped; true if stopped.
+    fn sleep(&self, timeout: Duration) -> bool {
+        let stopped = self.stopped.lock().unwrap_or_else(|e| e.into_inner());
+        let (stopped, _) = self
+            .wake
+            .wait_timeout_while(stopped, timeout, |stopped| !*stopped)
+            .unwrap_or_else(|e| e.into_inner());
+        *stopped
+    }
+
+    fn stop(&self) {
+        *self.stopped.lock().unwrap_or_else(|e| e.into_inner()) = true;
+        self.wake.notify_all();
+    }
+}
+
+/// The sampler thread's state.
+struct Sampler {
+    mirror: Arc<Mirror>,
+    shared: Arc<Shared>,
+    manager: Arc<SimpleNodeManager>,
+    handle: ServerHandle,
+    served: Served,
+    interval: Duration,
+    /// The layout of the engine the plan is of.
+    layout: Option<Arc<RetainedVariables>>,
+    stop: Arc<Stop>,
+    /// The last copy, taken out of the image so that the lock is held for a copy only.
+    words: Vec<u16>,
+    vars: Vec<u8>,
+    /// The values last handed over: the status's, then the leaves'.
+    last: Vec<Option<Variant>>,
+    /// The engine changed and the variables were marked bad (logged once).
+    told_changed: bool,
+    /// The plan's leaves' types and places, in `served.leaves` order.
+    leaves: Vec<(ValueType, Pointer)>,
+}
+
+impl Sampler {
+    fn run(mut self) {
+        let plan_leaves = std::mem::take(&mut self.leaves);
+        let mut generation = 0;
+        // At a fixed rate, so that the copies are one interval apart whatever they waited for.
+        let mut next = Instant::now();
+        loop {
+            self.mirror.request();
+            self.shared.signal(pending::MIRROR);
+            let (fresh, same_engine, error, switch) = {
+                let mut image = self.mirror.wait_newer(generation, BOUNDARY_WAIT);
+                // Room for a larger engine's memory, and the replaced engine's layout dropped
+                // here, never on the scan thread.
+                image.serve_reader();
+                let fresh = image.generation > generation;
+                generation = image.generation;
+                self.words.clear();
+                self.words.extend_from_slice(&image.words);
+                self.vars.clear();
+                self.vars.extend_from_slice(&image.vars);
+                let same = match (&self.layout, &image.layout) {
+                    (Some(served), Some(copied)) => Arc::ptr_eq(served, copied),
+                    _ => false,
+                };
+                (fresh, same, image.error, image.switch)
+            };
+            if fresh {
+                self.hand_over(&plan_leaves, same_engine, error, switch);
+            }
+            next += self.interval;
+            let now = Instant::now();
+            if next < now {
+                // Late (a long wait for a boundary): start again from now, without a burst.
+                next = now;
+            }
+            if self.stop.sleep(next - now) {
+                return;
+            }
+        }
+    }
+
+    /// Hands the stack the values that changed since the last copy.
+    fn hand_over(
+        &mut self,
+        leaves: &[(ValueType, Pointer)],
+        same_engine: bool,
+        error: Option<ErrorKind>,
+        switch: Option<crate::io::SwitchPosition>,
+    ) {
+        let shared = &self.shared;
+        let ms = |ns: u64| ns as f64 / 1e6;
+        let code = error.map(|e| e.describe(&[], &[]).0).unwrap_or_default();
+        let status = [
+            Variant::from(shared.mode().as_str().to_string()),
+            Variant::from(code),
+            Variant::Double(ms(shared.scan_last_ns.load(Ordering::Relaxed))),
+            Variant::Double(ms(shared.scan_min_ns.load(Ordering::Relaxed))),
+            Variant::Double(ms(shared.scan_max_ns.load(Ordering::Relaxed))),
+            Variant::UInt64(shared.scans.load(Ordering::Relaxed)),
+            Variant::from(switch.map(|s| s.as_str()).unwrap_or_default().to_string()),
+        ];
+        let count = status.len() + leaves.len();
+        self.last.resize(count, None);
+        if !same_engine && !self.told_changed {
+            log::warn!(
+                "opcua: the running project is not the one plcd started with (a reload, a load \
+                 or an online change); the program variables read BadOutOfService until plcd \
+                 restarts (docs/OPCUA.md, \"Not yet\")"
+            );
+            self.told_changed = true;
+        }
+        let mut changed: Vec<(&NodeId, DataValue)> = Vec::new();
+        for (i, (value, node)) in status.into_iter().zip(&self.served.status).enumerate() {
+            if self.last[i].as_ref() != Some(&value) {
+                self.last[i] = Some(value.clone());
+                changed.push((node, DataValue::new_now(value)));
+            }
+        }
+        for (k, ((ty, at), node)) in leaves.iter().zip(&self.served.leaves).enumerate() {
+            let i = STATUS_NODES.len() + k;
+            if same_engine {
+                let value = nodes::read(ty, *at, &self.words, &self.vars);
+                if self.last[i].as_ref() != Some(&value) {
+                    self.last[i] = Some(value.clone());
+                    changed.push((node, DataValue::new_now(value)));
+                }
+            } else if self.last[i].is_some() {
+                self.last[i] = None;
+                let bad = DataValue::new_now_status(Variant::Empty, StatusCode::BadOutOfService);
+                changed.push((node, bad));
+            }
+        }
+        if changed.is_empty() {
+            return;
+        }
+        let subscriptions = self.handle.subscriptions();
+        let values = changed.into_iter().map(|(node, value)| (node, None, value));
+        if let Err(status) = self.manager.set_values(subscriptions, values) {
+            log::error!("opcua: values not handed to the server: {status}");
+        }
+    }
+}
+
+/// The server, running.
+pub struct RunningOpcua {
+    runtime: tokio::runtime::Runtime,
+    handle: ServerHandle,
+    stack: tokio::task::JoinHandle<()>,
+    sampler: JoinHandle<()>,
+    stop: Arc<Stop>,
+    url: String,
+    addr: SocketAddr,
+}
+
+impl RunningOpcua {
+    /// What it serves, for the log: `opc.tcp://127.0.0.1:4840/ (bound 127.0.0.1:4840)`.
+    pub fn serving(&self) -> String {
+        format!("{} (bound {})", self.url, self.addr)
+    }
+
+    /// Stops the sampler, closes the sessions and the socket, and ends the runtime's threads.
+    pub fn stop(self) {
+        self.stop.stop();
+        let _ = self.sampler.join();
+        self.handle.cancel();
+        let RunningOpcua { runtime, stack, .. } = self;
+        let _ =
+            runtime.block_on(async { tokio::time::timeout(Duration::from_secs(5), stack).await });
+        runtime.shutdown_timeout(Duration::from_secs(2));
+    }
+}

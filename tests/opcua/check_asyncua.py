@@ -1,0 +1,433 @@
+#!/usr/bin/env python3
+"""plcd's OPC UA server against a client nobody here wrote: python asyncua (with cryptography
+for the secure channels). Started by tests/opcua/run-asyncua, which makes the venv and builds
+plcd.
+
+Starts `plcd run` on copies of tests/opcua/project, each on a free port with its own [opcua]
+keys and pki_dir, and checks: browsing finds the status and the program's variables; reads
+give the program's values (a counter that moves, a struct's members of one scan, an array's
+element, a STRING, a located word, a TIME, an enumeration); a subscription's data changes come
+at most two sampling intervals apart; the security rules (the None policy refused unless
+listed; a client certificate refused and put in rejected/ until it is moved to trusted/, then a
+Basic256Sha256 SignAndEncrypt session works; anonymous sessions refused with anonymous =
+"none"); the certificate made at the first start and reused, its key 0600; a port in use stops
+the start. Prints one line per check and `N passed, M failed`; exits 1 unless all passed.
+Every wait is bounded; the daemons are killed on any failure.
+"""
+
+import argparse
+import asyncio
+import os
+import re
+import shutil
+import signal
+import socket
+import stat
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+from asyncua import Client, ua
+from asyncua.crypto import security_policies
+from asyncua.crypto.cert_gen import setup_self_signed_certificate
+from cryptography.x509.oid import ExtendedKeyUsageOID
+
+PATIENCE = 20.0
+# The server's min_sampling_interval_ms in these checks, and the interval subscribed with.
+SAMPLING_MS = 100
+# What a change may take beyond two sampling intervals (see `subscribe`).
+SLACK_MS = 40
+NS = "urn:plcd:plc"
+CLIENT_URI = "urn:plcd:tests:asyncua"
+passed = 0
+failed = []
+
+
+def check(name, ok, detail=""):
+    global passed
+    if ok:
+        passed += 1
+        print(f"ok    {name}")
+    else:
+        failed.append(name)
+        print(f"FAIL  {name}: {detail}")
+
+
+class Daemon:
+    """`plcd run` on a copy of `project` (or in `dir`, kept from an earlier daemon), its
+    [opcua] section replaced by `opcua` with listen on a free port and pki_dir = "pki"."""
+
+    def __init__(self, plcd, project, opcua, dir=None, port=0):
+        self.dir = dir or tempfile.mkdtemp(prefix="plcd-asyncua-")
+        for name in os.listdir(project):
+            shutil.copy(os.path.join(project, name), self.dir)
+        config = os.path.join(self.dir, "plcd.toml")
+        with open(config) as f:
+            text = f.read()
+        section = f'[opcua]\nlisten = "127.0.0.1:{port}"\npki_dir = "pki"\n{opcua}\n'
+        with open(config, "w") as f:
+            # The project's [opcua] section is its last.
+            f.write(text.split("\n[opcua]\n")[0] + "\n" + section)
+        self.pki = Path(self.dir) / "pki"
+        self.log = []
+        self.proc = subprocess.Popen(
+            [plcd, "run", "--config", config],
+            stderr=subprocess.PIPE,
+            stdout=subprocess.DEVNULL,
+            text=True,
+            env={k: v for k, v in os.environ.items()
+                 if k not in ("NOTIFY_SOCKET", "WATCHDOG_USEC", "JOURNAL_STREAM", "STATE_DIRECTORY")},
+        )
+        self.reader = threading.Thread(target=self._read_log, daemon=True)
+        self.reader.start()
+        self.url = None
+
+    def _read_log(self):
+        for line in self.proc.stderr:
+            self.log.append(line.rstrip("\n"))
+
+    def serving(self):
+        """The endpoint URL once the log says it serves, or None if it did not in time."""
+        until = time.monotonic() + PATIENCE
+        while time.monotonic() < until:
+            for line in list(self.log):
+                m = re.search(r"opcua: serving (opc\.tcp://\S+)", line)
+                if m:
+                    self.url = m.group(1)
+                    return self.url
+            if self.proc.poll() is not None:
+                return None
+            time.sleep(0.02)
+        return None
+
+    def exited(self):
+        """The exit status once the daemon ended by itself, or None."""
+        try:
+            return self.proc.wait(timeout=PATIENCE)
+        except subprocess.TimeoutExpired:
+            return None
+
+    def stop(self):
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(timeout=PATIENCE)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        self.reader.join(timeout=PATIENCE)
+
+    def kill(self):
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+
+
+async def bounded(what, coroutine):
+    return await asyncio.wait_for(coroutine, PATIENCE)
+
+
+def client(url):
+    c = Client(url, timeout=5)
+    c.application_uri = CLIENT_URI
+    c.session_timeout = 30000
+    return c
+
+
+async def child_names(node):
+    return {(await n.read_browse_name()).Name: n for n in await node.get_children()}
+
+
+async def browse_and_read(url):
+    c = client(url)
+    async with c:
+        ns = await c.get_namespace_index(NS)
+        check("plcd's namespace is index 2", ns == 2, f"{ns}")
+        objects = await child_names(c.nodes.objects)
+        check("Objects holds PLC", "PLC" in objects, f"{sorted(objects)}")
+        plc = await child_names(c.get_node(f"ns={ns};s=PLC"))
+        check("PLC holds Status and Programs", {"Status", "Programs"} <= set(plc), f"{sorted(plc)}")
+        status = await child_names(plc["Status"])
+        expected = {"Mode", "ErrorCode", "ScanTimeLast", "ScanTimeMin", "ScanTimeMax", "Scans",
+                    "KeySwitch"}
+        check("Status holds the status variables", expected <= set(status), f"{sorted(status)}")
+        programs = await child_names(plc["Programs"])
+        check("Programs holds the instance main", "main" in programs, f"{sorted(programs)}")
+        main = await child_names(programs["main"])
+        check("main holds its variables by name",
+              {"counter", "axis", "table[1]", "label", "level", "elapsed", "phase"} <= set(main),
+              f"{sorted(main)}")
+        axis = await child_names(main["axis"])
+        check("a struct is an object of its members", {"pos", "steps", "ok"} <= set(axis),
+              f"{sorted(axis)}")
+        check("browse names are in plcd's namespace",
+              (await main["counter"].read_browse_name()).NamespaceIndex == ns)
+
+        node = lambda name: c.get_node(f"ns={ns};s={name}")
+        mode = await node("Status.Mode").read_value()
+        check("Status.Mode reads RUN", mode == "RUN", f"{mode!r}")
+        scans = await node("Status.Scans").read_value()
+        check("Status.Scans counts", isinstance(scans, int) and scans > 0, f"{scans!r}")
+        scan_max = await node("Status.ScanTimeMax").read_value()
+        check("Status.ScanTimeMax is milliseconds in a Double",
+              isinstance(scan_max, float) and 0 < scan_max < 10_000, f"{scan_max!r}")
+        error = await node("Status.ErrorCode").read_value()
+        check("Status.ErrorCode is empty without an error", error == "", f"{error!r}")
+
+        first = await node("main.counter").read_value()
+        moved = None
+        until = time.monotonic() + PATIENCE
+        while time.monotonic() < until:
+            moved = await node("main.counter").read_value()
+            if moved > first:
+                break
+            await asyncio.sleep(0.02)
+        check("main.counter moves", moved is not None and moved > first, f"{first} then {moved}")
+        variant = await node("main.counter").read_data_type_as_variant_type()
+        check("a DINT is an Int32", variant == ua.VariantType.Int32, f"{variant}")
+        # One Read of both members: of one scan boundary, so they agree (never torn).
+        torn = []
+        for _ in range(20):
+            pos, steps = await c.read_values([node("main.axis.pos"), node("main.axis.steps")])
+            if pos != steps * 0.5:
+                torn.append((pos, steps))
+            await asyncio.sleep(0.01)
+        check("a struct's members are of one scan", not torn, f"{torn[:3]}")
+        check("a struct member (LREAL) reads", isinstance(pos, float) and pos > 0, f"{pos!r}")
+        values = await c.read_values([node(n) for n in
+                                      ("main.table[2]", "main.table[4]", "main.label",
+                                       "main.level", "main.elapsed", "main.phase",
+                                       "main.axis.ok")])
+        check("an array's elements read", values[:2] == [20, 40], f"{values[:2]}")
+        check("a STRING reads", values[2] == "plcd", f"{values[2]!r}")
+        check("a located INT reads its device word", values[3] == 7, f"{values[3]!r}")
+        check("a TIME is a Duration in milliseconds", values[4] == 1500.0, f"{values[4]!r}")
+        check("an enumeration reads as its integer", values[5] == 5, f"{values[5]!r}")
+        check("a BOOL reads", values[6] is True, f"{values[6]!r}")
+        level_type = await node("main.level").read_data_type_as_variant_type()
+        check("an INT is an Int16", level_type == ua.VariantType.Int16, f"{level_type}")
+
+        # A write is refused: the address space is read-only this round.
+        try:
+            await node("main.counter").write_value(ua.DataValue(ua.Variant(1, ua.VariantType.Int32)))
+            check("a write is refused", False, "accepted")
+        except ua.UaStatusCodeError as e:
+            check("a write is refused", "NotWritable" in type(e).__name__ or "Denied" in type(e).__name__,
+                  type(e).__name__)
+
+        await subscribe(c, node("main.counter"))
+
+
+class Changes:
+    def __init__(self):
+        self.stamps = []
+        self.values = []
+
+    def datachange_notification(self, node, value, data):
+        self.values.append(value)
+        self.stamps.append(data.monitored_item.Value.SourceTimestamp)
+
+
+async def subscribe(c, counter):
+    handler = Changes()
+    subscription = await c.create_subscription(SAMPLING_MS, handler)
+    await subscription.subscribe_data_change(counter, sampling_interval=SAMPLING_MS)
+    until = time.monotonic() + PATIENCE
+    while len(handler.values) < 6 and time.monotonic() < until:
+        await asyncio.sleep(0.02)
+    check("a subscription's data changes arrive", len(handler.values) >= 6,
+          f"{len(handler.values)} changes")
+    rising = all(b > a for a, b in zip(handler.values, handler.values[1:]))
+    check("the changes follow the counter", rising, f"{handler.values}")
+    # The server stamps each value when it takes it from a scan boundary's copy: consecutive
+    # changes of a counter that moves every scan are at most two sampling intervals apart (a
+    # copy every interval, sampled by the item every interval), plus what a copy waits for
+    # its scan boundary (a 10 ms scan) and the server's threads, which are not real time:
+    # SLACK_MS. Server-side stamps, so that the client's own scheduling does not count.
+    gaps = [(b - a).total_seconds() * 1000 for a, b in zip(handler.stamps, handler.stamps[1:])]
+    check(f"data changes come within two sampling intervals ({2 * SAMPLING_MS} ms + {SLACK_MS})",
+          gaps and max(gaps) <= 2 * SAMPLING_MS + SLACK_MS, f"gaps {gaps} ms")
+    await subscription.delete()
+
+
+async def refused(what, coroutine, because):
+    """Checks that `coroutine` (a connection) fails with an error naming `because` (an OPC UA
+    status code's name)."""
+    try:
+        await asyncio.wait_for(coroutine, PATIENCE)
+    except asyncio.TimeoutError:
+        check(what, False, "timed out instead of being refused")
+        return
+    except Exception as e:  # noqa: BLE001 - the status code's name says which refusal
+        text = f"{type(e).__name__}: {e}"
+        check(what, because in text, text)
+        return
+    check(what, False, "accepted")
+
+
+async def none_refused(url):
+    """The None policy, not listed: the server offers no such endpoint, and a client that
+    opens a session over a None channel anyway is refused when it activates it."""
+    c = client(url)
+    endpoints = await bounded("endpoints", c.connect_and_get_server_endpoints())
+    policies = {e.SecurityPolicyUri.rsplit("#", 1)[-1] for e in endpoints}
+    check("the endpoints offer the default policies and not None",
+          policies == {"Basic256Sha256", "Aes128_Sha256_RsaOaep", "Aes256_Sha256_RsaPss"},
+          f"{sorted(policies)}")
+    modes = {e.SecurityMode for e in endpoints}
+    check("each with Sign and SignAndEncrypt",
+          modes == {ua.MessageSecurityMode.Sign, ua.MessageSecurityMode.SignAndEncrypt},
+          f"{modes}")
+
+    async def forced():
+        # asyncua itself refuses a policy the server does not offer: it is made to take the
+        # first endpoint, so that the server's own check is what refuses.
+        find_endpoint = Client.find_endpoint
+        Client.find_endpoint = staticmethod(lambda endpoints, mode, uri: endpoints[0])
+        try:
+            await c.connect_socket()
+            await c.send_hello()
+            await c.open_secure_channel()
+            await c.create_session()
+            await c.activate_session()
+        finally:
+            Client.find_endpoint = find_endpoint
+            c.disconnect_socket()
+
+    await refused("a session over the None policy, not listed, is refused", forced(),
+                  "BadTcpEndpointUrlInvalid")
+
+
+async def connect_and_read(url, secure=None):
+    c = client(url)
+    if secure:
+        cert, key = secure
+        await c.set_security(security_policies.SecurityPolicyBasic256Sha256, str(cert), str(key),
+                             mode=ua.MessageSecurityMode.SignAndEncrypt)
+    async with c:
+        ns = await c.get_namespace_index(NS)
+        return await c.get_node(f"ns={ns};s=main.counter").read_value()
+
+
+async def client_certificate(dir):
+    cert, key = Path(dir) / "client.der", Path(dir) / "client.pem"
+    await setup_self_signed_certificate(key, cert, CLIENT_URI, "localhost",
+                                        [ExtendedKeyUsageOID.CLIENT_AUTH], {"commonName": "plcd asyncua"})
+    return cert, key
+
+
+def wait_file(directory, patience=PATIENCE):
+    until = time.monotonic() + patience
+    while time.monotonic() < until:
+        files = list(directory.glob("*")) if directory.is_dir() else []
+        if files:
+            return files
+        time.sleep(0.02)
+    return []
+
+
+async def main_checks(plcd, project, work):
+    daemons = []
+
+    def start(opcua, **kw):
+        d = Daemon(plcd, project, opcua, **kw)
+        daemons.append(d)
+        return d
+
+    try:
+        # 1. Anonymous viewers over the None policy, listed: browse, read, subscribe.
+        open_daemon = start(f'security_policies = ["None", "Basic256Sha256"]\nanonymous = "viewer"\n'
+                            f"min_sampling_interval_ms = {SAMPLING_MS}")
+        url = open_daemon.serving()
+        check("the log names the endpoint", url is not None, "\n".join(open_daemon.log[-20:]))
+        if url is None:
+            return
+        await bounded("browse and read", browse_and_read(url))
+        key = open_daemon.pki / "private" / "private.pem"
+        mode = stat.S_IMODE(key.stat().st_mode) if key.exists() else None
+        check("the server's key is mode 0600", mode == 0o600, f"{mode and oct(mode)}")
+        cert = open_daemon.pki / "own" / "cert.der"
+        first_cert = cert.read_bytes() if cert.exists() else None
+        open_daemon.stop()
+        again = start('security_policies = ["None"]\nanonymous = "viewer"', dir=open_daemon.dir)
+        check("a restart serves again", again.serving() is not None, "\n".join(again.log[-20:]))
+        check("the certificate made at the first start is reused",
+              first_cert is not None and cert.read_bytes() == first_cert)
+        again.stop()
+
+        # 2. The default policies: None refused; a client certificate rejected until trusted.
+        secure = start('anonymous = "viewer"')
+        url = secure.serving()
+        check("the secure server serves", url is not None, "\n".join(secure.log[-20:]))
+        if url is None:
+            return
+        await none_refused(url)
+        certificate = await client_certificate(work)
+        await refused("an untrusted client certificate is refused",
+                      connect_and_read(url, secure=certificate), "BadCertificateUntrusted")
+        rejected = wait_file(secure.pki / "rejected")
+        check("the refused certificate lands in rejected/", len(rejected) == 1,
+              f"{[p.name for p in rejected]}")
+        for path in rejected:
+            shutil.move(str(path), str(secure.pki / "trusted" / path.name))
+        try:
+            counter = await bounded("secure read", connect_and_read(url, secure=certificate))
+            check("Basic256Sha256 SignAndEncrypt works once the certificate is trusted",
+                  isinstance(counter, int) and counter > 0, f"{counter!r}")
+        except Exception as e:  # noqa: BLE001
+            check("Basic256Sha256 SignAndEncrypt works once the certificate is trusted", False,
+                  repr(e))
+        secure.stop()
+
+        # 3. anonymous = "none" (the default): every session refused, secure or not.
+        closed = start('security_policies = ["None", "Basic256Sha256"]', dir=secure.dir)
+        url = closed.serving()
+        check("the closed server serves", url is not None, "\n".join(closed.log[-20:]))
+        if url is None:
+            return
+        await refused("an anonymous session is refused with anonymous = \"none\"",
+                      connect_and_read(url), "BadIdentityToken")
+        await refused("a secure anonymous session is refused too",
+                      connect_and_read(url, secure=certificate), "BadIdentityToken")
+        closed.stop()
+
+        # 4. A port in use stops the start, with the key named.
+        with socket.socket() as taken:
+            taken.bind(("127.0.0.1", 0))
+            taken.listen(1)
+            port = taken.getsockname()[1]
+            busy = start('anonymous = "viewer"', port=port)
+            status = busy.exited()
+            log = "\n".join(busy.log)
+            check("a port in use stops the start", status not in (None, 0), f"status {status}")
+            check("the error names [opcua] listen", "[opcua] listen" in log, log[-500:])
+    finally:
+        for d in daemons:
+            d.kill()
+            if any("panicked" in line for line in d.log):
+                check("no daemon panicked", False, "\n".join(d.log[-30:]))
+        for d in daemons:
+            shutil.rmtree(d.dir, ignore_errors=True)
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--plcd", required=True)
+    parser.add_argument("--project", required=True)
+    args = parser.parse_args()
+    work = tempfile.mkdtemp(prefix="plcd-asyncua-client-")
+    try:
+        asyncio.run(main_checks(os.path.abspath(args.plcd), args.project, work))
+    except Exception as e:  # noqa: BLE001 - any escape is a failure, reported as one
+        check("the checks ran to the end", False, repr(e))
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    print(f"{passed} passed, {len(failed)} failed")
+    sys.exit(1 if failed else 0)
+
+
+if __name__ == "__main__":
+    main()
