@@ -473,7 +473,13 @@ fn bind_opcua(
             .map(|dir| dir.join("opcua-pki"))
     });
     let symbols = &project.variables.symbols;
-    Ok(crate::services::opcua::OpcuaServer::bind(&config.opcua, pki_dir, symbols)?)
+    // The named logins: the users file, read once here (a file with errors stops the start, as
+    // `plcd check` would have said).
+    let users = match (&config.opcua.listen, &config.users.file) {
+        (Some(_), Some(path)) => Some(files::users(path).map_err(DaemonError::Invalid)?),
+        _ => None,
+    };
+    Ok(crate::services::opcua::OpcuaServer::bind(&config.opcua, pki_dir, symbols, users)?)
 }
 
 #[cfg(not(feature = "opcua"))]

@@ -301,8 +301,11 @@ async def none_refused(url):
                   "BadTcpEndpointUrlInvalid")
 
 
-async def connect_and_read(url, secure=None):
+async def connect_and_read(url, secure=None, user=None):
     c = client(url)
+    if user:
+        c.set_user(user[0])
+        c.set_password(user[1])
     if secure:
         cert, key = secure
         await c.set_security(security_policies.SecurityPolicyBasic256Sha256, str(cert), str(key),
@@ -393,6 +396,47 @@ async def main_checks(plcd, project, work):
         await refused("a secure anonymous session is refused too",
                       connect_and_read(url, secure=certificate), "BadIdentityToken")
         closed.stop()
+
+        # 3b. Named logins from the users file (made with `plcd user add`), anonymous refused.
+        users_file = Path(secure.dir) / "users"
+        made = subprocess.run([plcd, "user", "add", "alice", "--role", "viewer", "--file",
+                               str(users_file), "--password-stdin"], input="correct horse\n",
+                              capture_output=True, text=True, timeout=PATIENCE)
+        check("plcd user add writes the users file", made.returncode == 0, made.stderr)
+        named = start('security_policies = ["None", "Basic256Sha256"]\n[users]\nfile = "users"',
+                      dir=secure.dir)
+        url = named.serving()
+        check("the server with a users file serves", url is not None, "\n".join(named.log[-20:]))
+        if url is None:
+            return
+        alice = ("alice", "correct horse")
+        try:
+            counter = await bounded("named read", connect_and_read(url, certificate, alice))
+            check("a user of the file logs in (Basic256Sha256 SignAndEncrypt) and reads",
+                  isinstance(counter, int), f"{counter!r}")
+        except Exception as e:  # noqa: BLE001
+            check("a user of the file logs in (Basic256Sha256 SignAndEncrypt) and reads", False,
+                  repr(e))
+        endpoints = await bounded("endpoints", client(url).connect_and_get_server_endpoints())
+        plain = [e for e in endpoints if e.SecurityMode == ua.MessageSecurityMode.None_]
+        names = [t for e in plain for t in e.UserIdentityTokens
+                 if t.TokenType == ua.UserTokenType.UserName]
+        check("the None endpoint takes no user name (no password in clear)",
+              plain and not names, f"{len(plain)} None endpoints, {len(names)} user-name policies")
+        await refused("an unknown user is refused", connect_and_read(url, certificate, ("bob", "x")),
+                      "BadUserAccessDenied")
+        # 3 failures earn a wait of 1 s, and each attempt during it (counted too) doubles it:
+        # after 6, at least 8 s, longer than any connection here takes.
+        for _ in range(6):
+            await refused("a wrong password is refused",
+                          connect_and_read(url, certificate, ("alice", "wrong")),
+                          "BadUserAccessDenied")
+        await refused("after 6 failures the right password waits (throttled per user name)",
+                      connect_and_read(url, certificate, alice), "BadUserAccessDenied")
+        warned = [line for line in named.log if "failed login for user name \"alice\"" in line]
+        check("the failed logins of one name are logged once", len(warned) == 1,
+              "\n".join(named.log[-20:]))
+        named.stop()
 
         # 4. A port in use stops the start, with the key named.
         with socket.socket() as taken:

@@ -1,6 +1,8 @@
 //! The OPC UA server of `plcd run` (docs/OPCUA.md): SCADA, MES, historians and UaExpert browse,
 //! read and subscribe to the PLC's status and its Structured Text variables by name.
 //!
+//! - [`access`]: who may open a session: anonymous as `[opcua] anonymous` says, user names from
+//!   the users file, throttled per name;
 //! - [`nodes`]: the address space's plan: node ids from the variables' full names, IEC types as
 //!   OPC UA built-in types, values read out of a mirror's copies;
 //! - [`server`]: the OPC UA stack (the `async-opcua` crate) on a small tokio runtime of its own
@@ -10,9 +12,11 @@
 //!
 //! The scan never waits for either: it copies the mirror at a scan boundary when the sampler
 //! asks, at most once per `min_sampling_interval_ms`, with `try_lock` only and nothing
-//! allocated (`tests/scan_no_alloc.rs`). This round serves reads, browsing and subscriptions;
-//! writes, methods, user names and roles are not served yet (docs/OPCUA.md, "Not yet").
+//! allocated (`tests/scan_no_alloc.rs`). This round serves reads, browsing and subscriptions to
+//! anonymous and named sessions; writes, methods and the roles that decide them are not served
+//! yet (docs/OPCUA.md, "Not yet").
 
+pub mod access;
 pub mod nodes;
 pub mod server;
 

@@ -18,15 +18,15 @@ use std::time::{Duration, Instant};
 
 use opcua::crypto::SecurityPolicy;
 use opcua::nodes::{AccessLevel, ObjectBuilder, VariableBuilder};
-use opcua::server::authenticator::AuthManager;
 use opcua::server::diagnostics::NamespaceMetadata;
 use opcua::server::node_manager::memory::{simple_node_manager, SimpleNodeManager};
 use opcua::server::{ServerBuilder, ServerEndpoint, ServerHandle, ANONYMOUS_USER_TOKEN_ID};
 use opcua::types::{
     DataTypeId, DataValue, MessageSecurityMode, NodeId, ObjectId, QualifiedName, StatusCode,
-    UAString, UserTokenPolicy, UserTokenType, Variant,
+    Variant,
 };
 
+use super::access::Access;
 use super::nodes::{self, Plan};
 use super::OpcuaError;
 use crate::config::{Anonymous, OpcuaConfig, OpcuaPolicy};
@@ -35,6 +35,7 @@ use crate::drivers::real_time::{pending, Shared, PLAIN_THREAD_STACK};
 use crate::engine::event::ErrorKind;
 use crate::engine::Engine;
 use crate::symbols::Symbols;
+use crate::users::UsersFile;
 use crate::value::{Pointer, ValueType};
 use crate::vm::retained::RetainedVariables;
 
@@ -69,6 +70,8 @@ pub struct OpcuaServer {
     config: OpcuaConfig,
     pki_dir: PathBuf,
     plan: Plan,
+    /// The users file (`[users] file`), read at start: the named logins.
+    users: Option<Arc<UsersFile>>,
     mirror: Arc<Mirror>,
     /// The layout of the engine the plan was made for (set by [`OpcuaServer::prepare`]): a copy
     /// of another engine's variables is not served.
@@ -78,11 +81,13 @@ pub struct OpcuaServer {
 impl OpcuaServer {
     /// Binds `[opcua] listen`; `None` when it is not set. `pki_dir` is where the certificates
     /// live (`[opcua] pki_dir`, else `opcua-pki` in the retain directory: the daemon says);
-    /// `symbols` are the project's variables.
+    /// `symbols` are the project's variables, `users` the users file's users (`[users] file`,
+    /// read by the daemon), if any.
     pub fn bind(
         config: &OpcuaConfig,
         pki_dir: Option<PathBuf>,
         symbols: &Symbols,
+        users: Option<UsersFile>,
     ) -> Result<Option<OpcuaServer>, OpcuaError> {
         let Some(addr) = config.listen else {
             return Ok(None);
@@ -103,6 +108,7 @@ impl OpcuaServer {
             config: config.clone(),
             pki_dir,
             plan,
+            users: users.map(Arc::new),
             mirror,
             layout: Mutex::new(None),
         }))
@@ -128,7 +134,7 @@ impl OpcuaServer {
 
     /// Starts the runtime, the stack and the sampler.
     pub fn start(self, shared: Arc<Shared>) -> Result<RunningOpcua, OpcuaError> {
-        let OpcuaServer { listener, addr, config, pki_dir, plan, mirror, layout } = self;
+        let OpcuaServer { listener, addr, config, pki_dir, plan, users, mirror, layout } = self;
         prepare_pki(&pki_dir)?;
         let host = config.endpoint_host.clone().unwrap_or_else(|| addr.ip().to_string());
         let url = format!("opc.tcp://{}:{}/", url_host(&host), addr.port());
@@ -141,8 +147,9 @@ impl OpcuaServer {
             .map_err(|source| OpcuaError::Runtime { source })?;
         // The stack starts its own tasks as it is built: inside the runtime.
         let _runtime = runtime.enter();
-        let (server, handle) =
-            builder(&config, &pki_dir, &host, addr.port()).build().map_err(OpcuaError::Stack)?;
+        let (server, handle) = builder(&config, &pki_dir, &host, addr.port(), users)
+            .build()
+            .map_err(OpcuaError::Stack)?;
         secure_key(&pki_dir)?;
         let Some(manager) = handle.node_managers().get_of_type::<SimpleNodeManager>() else {
             return Err(OpcuaError::Stack("plcd's node manager is missing".into()));
@@ -244,7 +251,13 @@ fn secure_key(dir: &Path) -> Result<(), OpcuaError> {
 }
 
 /// The stack's configuration from `[opcua]`.
-fn builder(config: &OpcuaConfig, pki_dir: &Path, host: &str, port: u16) -> ServerBuilder {
+fn builder(
+    config: &OpcuaConfig,
+    pki_dir: &Path,
+    host: &str,
+    port: u16,
+    users: Option<Arc<UsersFile>>,
+) -> ServerBuilder {
     let anonymous = config.anonymous == Anonymous::Viewer;
     let tokens: Vec<String> =
         if anonymous { vec![ANONYMOUS_USER_TOKEN_ID.to_string()] } else { Vec::new() };
@@ -264,7 +277,7 @@ fn builder(config: &OpcuaConfig, pki_dir: &Path, host: &str, port: u16) -> Serve
         .discovery_urls(vec!["/".to_string()])
         .max_sessions(config.max_sessions as usize)
         .max_message_size(config.max_request_bytes as usize)
-        .with_authenticator(Arc::new(Access { anonymous }))
+        .with_authenticator(Arc::new(Access::new(anonymous, users)))
         .with_node_manager(simple_node_manager(
             NamespaceMetadata { namespace_uri: NAMESPACE_URI.to_string(), ..Default::default() },
             "plcd",
@@ -307,43 +320,6 @@ fn builder(config: &OpcuaConfig, pki_dir: &Path, host: &str, port: u16) -> Serve
         }
     }
     builder
-}
-
-/// Who may open a session: anonymous sessions with `anonymous = "viewer"`, nobody else yet
-/// (user names come with the users file, docs/OPCUA.md "Not yet"). The address space is
-/// read-only, so a session may do what a viewer does.
-struct Access {
-    anonymous: bool,
-}
-
-#[async_trait::async_trait]
-impl AuthManager for Access {
-    async fn authenticate_anonymous_token(
-        &self,
-        _endpoint: &ServerEndpoint,
-    ) -> Result<(), opcua::types::Error> {
-        if self.anonymous {
-            Ok(())
-        } else {
-            Err(opcua::types::Error::new(
-                StatusCode::BadIdentityTokenRejected,
-                "anonymous sessions are refused ([opcua] anonymous = \"none\")",
-            ))
-        }
-    }
-
-    fn user_token_policies(&self, _endpoint: &ServerEndpoint) -> Vec<UserTokenPolicy> {
-        if !self.anonymous {
-            return Vec::new();
-        }
-        vec![UserTokenPolicy {
-            policy_id: UAString::from("anonymous"),
-            token_type: UserTokenType::Anonymous,
-            issued_token_type: UAString::null(),
-            issuer_endpoint_url: UAString::null(),
-            security_policy_uri: UAString::null(),
-        }]
-    }
 }
 
 /// The node ids the sampler updates, in the order of its values: the status variables, then

@@ -1,0 +1,248 @@
+//! Who may open an OPC UA session: anonymous sessions as `[opcua] anonymous` says, and user
+//! names with their passwords from the users file (`[users] file`, docs/USERS.md), verified
+//! off the stack's worker threads and throttled per user name.
+//!
+//! The address space is read-only this round, so every role (viewer and up) may do what a
+//! session can do; the role is kept with the session's token for the writes and methods that
+//! come with later rounds (docs/OPCUA.md, "Not yet").
+//!
+//! Throttled per **user name**, not per client address: the stack hands its authenticator the
+//! endpoint, the name and the password, not the peer's address. A name that keeps failing waits
+//! ([`plcd_core::users::ThrottlePolicy`]: after 3 failures 1 s, doubling, at most 60 s) before
+//! its next attempt is even verified, and an attempt during the wait counts as one more failure,
+//! so a guesser gets a handful of tries a minute; the cost is that the same guesser delays the
+//! name's owner as long. Each run of failures is logged twice:
+//! at its first failure and when it ends, with the count.
+
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use opcua::crypto::SecurityPolicy;
+use opcua::server::authenticator::{
+    user_pass_security_policy_id, AuthManager, Password, UserToken,
+};
+use opcua::server::ServerEndpoint;
+use opcua::types::{StatusCode, UAString, UserTokenPolicy, UserTokenType};
+
+use crate::users::{Role, Throttle, ThrottlePolicy, UsersFile};
+
+/// The stack's authenticator.
+pub struct Access {
+    /// `[opcua] anonymous = "viewer"`.
+    anonymous: bool,
+    /// The users file read at start; `None` without `[users] file`: no named login.
+    users: Option<Arc<UsersFile>>,
+    throttle: Mutex<Throttle<String>>,
+    /// The origin of the throttle's times.
+    started: Instant,
+}
+
+impl Access {
+    pub fn new(anonymous: bool, users: Option<Arc<UsersFile>>) -> Access {
+        Access {
+            anonymous,
+            users,
+            throttle: Mutex::new(Throttle::new(ThrottlePolicy::default())),
+            started: Instant::now(),
+        }
+    }
+
+    fn throttle(&self) -> std::sync::MutexGuard<'_, Throttle<String>> {
+        self.throttle.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Records a failed login of `username` at `now`, and logs the run's first failure and a
+    /// run it ended.
+    fn failed(&self, username: &str, now: std::time::Duration) {
+        let failure = self.throttle().failure(username.to_string(), now);
+        if failure.first_of_run {
+            log::warn!(
+                "opcua: failed login for user name {username:?} (logged once until it succeeds \
+                 or stays quiet for 15 minutes)"
+            );
+        }
+        if let Some(ended) = failure.ended {
+            log::info!(
+                "opcua: {} failed logins for user name {:?} ended",
+                ended.failures,
+                ended.source
+            );
+        }
+    }
+
+    /// Whether `endpoint` takes user names: never where the channel has no security (the
+    /// password would cross the network as the client chose to send it, possibly in clear).
+    fn takes_names(&self, endpoint: &ServerEndpoint) -> bool {
+        self.users.is_some() && endpoint.security_policy() != SecurityPolicy::None
+    }
+}
+
+fn refused(text: &'static str) -> opcua::types::Error {
+    opcua::types::Error::new(StatusCode::BadUserAccessDenied, text)
+}
+
+#[async_trait::async_trait]
+impl AuthManager for Access {
+    async fn authenticate_anonymous_token(
+        &self,
+        _endpoint: &ServerEndpoint,
+    ) -> Result<(), opcua::types::Error> {
+        if self.anonymous {
+            Ok(())
+        } else {
+            Err(opcua::types::Error::new(
+                StatusCode::BadIdentityTokenRejected,
+                "anonymous sessions are refused ([opcua] anonymous = \"none\")",
+            ))
+        }
+    }
+
+    async fn authenticate_username_identity_token(
+        &self,
+        endpoint: &ServerEndpoint,
+        username: &str,
+        password: &Password,
+    ) -> Result<UserToken, opcua::types::Error> {
+        let Some(users) = self.users.as_ref().filter(|_| self.takes_names(endpoint)) else {
+            return Err(opcua::types::Error::new(
+                StatusCode::BadIdentityTokenRejected,
+                "no user names on this endpoint",
+            ));
+        };
+        let now = self.started.elapsed();
+        if self.throttle().check(&username.to_string(), now).is_err() {
+            // An attempt while the name waits counts as a failure too (unverified): it lengthens
+            // the wait, so that guessing faster than the wait gains nothing.
+            self.failed(username, now);
+            return Err(refused("too many failed logins for this user name: wait"));
+        }
+        // Argon2 takes tens of milliseconds by design: on a blocking thread, not on one of the
+        // two workers that serve every session.
+        let (file, name, secret) =
+            (Arc::clone(users), username.to_string(), password.get().to_string());
+        let role: Option<Role> =
+            tokio::task::spawn_blocking(move || file.verify(&name, secret.as_bytes()))
+                .await
+                .unwrap_or(None);
+        let now = self.started.elapsed();
+        match role {
+            Some(role) => {
+                if let Some(ended) = self.throttle().success(&username.to_string()) {
+                    log::info!(
+                        "opcua: user {:?} logged in after {} failed attempts",
+                        ended.source,
+                        ended.failures
+                    );
+                }
+                log::debug!("opcua: user {username:?} ({}) logged in", role.name());
+                Ok(UserToken(username.to_string()))
+            }
+            None => {
+                self.failed(username, now);
+                Err(refused("wrong user name or password"))
+            }
+        }
+    }
+
+    fn user_token_policies(&self, endpoint: &ServerEndpoint) -> Vec<UserTokenPolicy> {
+        let mut policies = Vec::new();
+        if self.anonymous {
+            policies.push(UserTokenPolicy {
+                policy_id: UAString::from("anonymous"),
+                token_type: UserTokenType::Anonymous,
+                issued_token_type: UAString::null(),
+                issuer_endpoint_url: UAString::null(),
+                security_policy_uri: UAString::null(),
+            });
+        }
+        if self.takes_names(endpoint) {
+            policies.push(UserTokenPolicy {
+                policy_id: user_pass_security_policy_id(endpoint),
+                token_type: UserTokenType::UserName,
+                issued_token_type: UAString::null(),
+                issuer_endpoint_url: UAString::null(),
+                security_policy_uri: UAString::null(),
+            });
+        }
+        policies
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use opcua::types::MessageSecurityMode;
+    use plcd_core::users::{hash_password, HashCosts};
+    use std::path::Path;
+
+    /// Small costs: the tests check who gets in, not the hash's strength.
+    const COSTS: HashCosts = HashCosts { memory_kib: 64, passes: 1, lanes: 1 };
+
+    fn users() -> Arc<UsersFile> {
+        let phc = hash_password(b"correct horse", &[7; plcd_core::users::SALT_LEN], COSTS).unwrap();
+        let text = format!("alice:operator:{phc}\n");
+        Arc::new(UsersFile::parse(&text, Path::new("users")).unwrap())
+    }
+
+    fn secure() -> ServerEndpoint {
+        ServerEndpoint::new(
+            "/",
+            SecurityPolicy::Basic256Sha256,
+            MessageSecurityMode::SignAndEncrypt,
+            &[],
+        )
+    }
+
+    fn kinds(access: &Access, endpoint: &ServerEndpoint) -> Vec<UserTokenType> {
+        access.user_token_policies(endpoint).iter().map(|p| p.token_type).collect()
+    }
+
+    fn login(access: &Access, name: &str, password: &str) -> Result<UserToken, StatusCode> {
+        let runtime = tokio::runtime::Builder::new_current_thread().build().unwrap();
+        runtime
+            .block_on(access.authenticate_username_identity_token(
+                &secure(),
+                name,
+                &Password::new(password.to_string()),
+            ))
+            .map_err(|e| e.status())
+    }
+
+    #[test]
+    fn user_names_are_offered_only_with_a_users_file_and_a_secure_channel() {
+        let none = ServerEndpoint::new_none("/", &[]);
+        let named = Access::new(false, Some(users()));
+        assert_eq!(kinds(&named, &secure()), [UserTokenType::UserName]);
+        assert_eq!(kinds(&named, &none), []);
+        let open = Access::new(true, None);
+        assert_eq!(kinds(&open, &secure()), [UserTokenType::Anonymous]);
+        assert_eq!(kinds(&open, &none), [UserTokenType::Anonymous]);
+        assert_eq!(kinds(&Access::new(false, None), &secure()), []);
+    }
+
+    #[test]
+    fn a_user_of_the_file_logs_in_and_a_wrong_password_or_name_does_not() {
+        let access = Access::new(false, Some(users()));
+        assert_eq!(login(&access, "alice", "correct horse"), Ok(UserToken("alice".into())));
+        assert_eq!(login(&access, "alice", "wrong"), Err(StatusCode::BadUserAccessDenied));
+        assert_eq!(login(&access, "bob", "correct horse"), Err(StatusCode::BadUserAccessDenied));
+        let without = Access::new(false, None);
+        assert_eq!(
+            login(&without, "alice", "correct horse"),
+            Err(StatusCode::BadIdentityTokenRejected)
+        );
+    }
+
+    #[test]
+    fn a_name_that_failed_three_times_waits_even_with_the_right_password() {
+        let access = Access::new(false, Some(users()));
+        for _ in 0..3 {
+            assert_eq!(login(&access, "alice", "wrong"), Err(StatusCode::BadUserAccessDenied));
+        }
+        // The wait (1 s) has not passed: refused before the password is looked at, and the
+        // attempt counts, so the wait grows.
+        assert_eq!(login(&access, "alice", "correct horse"), Err(StatusCode::BadUserAccessDenied));
+        let wait = access.throttle().check(&"alice".to_string(), access.started.elapsed());
+        assert!(wait.is_err_and(|left| left > std::time::Duration::from_secs(1)), "{wait:?}");
+    }
+}
