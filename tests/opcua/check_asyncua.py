@@ -104,11 +104,14 @@ class Daemon:
         return None
 
     def exited(self):
-        """The exit status once the daemon ended by itself, or None."""
+        """The exit status once the daemon ended by itself, or None; its log read to the end."""
         try:
-            return self.proc.wait(timeout=PATIENCE)
+            status = self.proc.wait(timeout=PATIENCE)
         except subprocess.TimeoutExpired:
             return None
+        # The reader thread may not have taken the last lines yet: it ends at end of file.
+        self.reader.join(timeout=PATIENCE)
+        return status
 
     def stop(self):
         if self.proc.poll() is None:
@@ -167,6 +170,12 @@ async def browse_and_read(url):
               (await main["counter"].read_browse_name()).NamespaceIndex == ns)
 
         node = lambda name: c.get_node(f"ns={ns};s={name}")
+        # The status nodes hold what the sampler last copied: until its first copy after the
+        # first scan (one sampling interval after the start, longer on a loaded machine), the
+        # initial STOP and zeros. Wait for that copy, bounded.
+        until = time.monotonic() + PATIENCE
+        while time.monotonic() < until and not await node("Status.Scans").read_value():
+            await asyncio.sleep(0.02)
         mode = await node("Status.Mode").read_value()
         check("Status.Mode reads RUN", mode == "RUN", f"{mode!r}")
         scans = await node("Status.Scans").read_value()
