@@ -23,7 +23,7 @@ use std::time::{Duration, Instant};
 use nix::sys::eventfd::{EfdFlags, EventFd};
 use plcd::config::ControlConfig;
 use plcd::services::control::server::{ControlServer, ServerError, Stopper};
-use plcd::services::control::{ClientId, Handler, Peer};
+use plcd::services::control::{Caller, ClientId, Handler};
 use plcd_ipc::{
     self, DebugState, ErrorKind, ModeName, NamedValue, Outcome, Reply, Request, ResponseLine,
 };
@@ -79,7 +79,7 @@ impl Handler for Fake {
     fn request(
         &mut self,
         client: ClientId,
-        _peer: &Peer,
+        _caller: &Caller,
         request: Request,
     ) -> Option<ResponseLine> {
         match request {
@@ -168,7 +168,7 @@ fn start_with(config: &ControlConfig, use_wake_fd: bool) -> Running {
         pending: VecDeque::new(),
         seen: seen_tx,
     };
-    let path = server.path().to_path_buf();
+    let path = server.path().expect("a socket").to_path_buf();
     let stopper = server.stopper();
     let thread = std::thread::spawn(move || {
         let result = server.serve(&mut fake);
@@ -655,7 +655,7 @@ fn a_client_that_does_not_read_its_answers_is_dropped() {
 fn the_socket_is_0660() {
     let dir = dir("mode");
     let server = ControlServer::bind(&dir.config()).unwrap();
-    assert_eq!(server.path(), dir.socket());
+    assert_eq!(server.path(), Some(dir.socket().as_path()));
     let meta = fs::symlink_metadata(dir.socket()).unwrap();
     assert!(meta.file_type().is_socket());
     assert_eq!(meta.mode() & 0o7777, 0o660);

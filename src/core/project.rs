@@ -397,6 +397,67 @@ impl Project {
         })
     }
 
+    /// The variables `[opcua] writable` makes writable, by their full names with the spelling
+    /// of their declarations: each name as `plcctl set` resolves it, a struct, FB instance or
+    /// array standing for its variables, less its `CONSTANT`s. A name that is a device, names
+    /// through a reference, or names no variable (or `CONSTANT`s only) is an error at the
+    /// config's line and column.
+    pub fn opcua_writable(&self) -> Result<std::collections::BTreeSet<String>, Vec<Diagnostic>> {
+        let mut names = std::collections::BTreeSet::new();
+        let mut errors = Vec::new();
+        for entry in &self.config.opcua.writable {
+            let error = |message: String| {
+                Diagnostic::new(
+                    &self.config.path,
+                    entry.line,
+                    entry.col,
+                    format!("opcua.writable: {message}"),
+                )
+            };
+            let name = entry.name.as_str();
+            if Address::parse(name).is_ok() {
+                errors.push(error(format!(
+                    "`{name}` is a device: the OPC UA server serves the programs' variables"
+                )));
+                continue;
+            }
+            if name.contains('^') {
+                errors.push(error(format!(
+                    "`{name}` names a variable through a reference, which changes as the \
+                     program runs: name the variable itself"
+                )));
+                continue;
+            }
+            let leaves = match self.resolve(name) {
+                Ok(leaves) => leaves,
+                Err(e) => {
+                    errors.push(error(e));
+                    continue;
+                }
+            };
+            let mut any = false;
+            for leaf in leaves {
+                if let Watched::Variable(symbol) = leaf {
+                    if !symbol.constant && !matches!(symbol.ty, ValueType::Reference { .. }) {
+                        any = true;
+                        names.insert(symbol.name);
+                    }
+                }
+            }
+            if !any {
+                errors.push(error(format!(
+                    "`{name}` holds no variable a client could write (CONSTANTs and references \
+                     are never written)"
+                )));
+            }
+        }
+        if errors.is_empty() {
+            Ok(names)
+        } else {
+            Err(errors)
+        }
+    }
+
     /// The variable name nearest to `name` (case-insensitive edit distance, at most about a
     /// quarter of its length), with its declaration's spelling.
     pub fn closest_variable(&self, name: &str) -> Option<String> {
@@ -530,11 +591,14 @@ pub fn from_config_with(
     check_duty(&duty_sites, &mut diags);
     // Grouped by file, in line order, whatever the order they were found in.
     diags.0.sort();
-    if diags.is_empty() {
-        let programs = programs.into_iter().flatten().collect();
-        Ok(Project { config, programs, variables, notes, warnings })
-    } else {
-        Err(diags)
+    if !diags.is_empty() {
+        return Err(diags);
+    }
+    let programs = programs.into_iter().flatten().collect();
+    let project = Project { config, programs, variables, notes, warnings };
+    match project.opcua_writable() {
+        Ok(_) => Ok(project),
+        Err(errors) => Err(Diagnostics(errors)),
     }
 }
 

@@ -166,16 +166,28 @@ impl Daemon {
             }
             None => None,
         };
+        // The OPC UA server's writes and methods go to the request handler, as plcctl's do,
+        // through the control server's in-process door.
+        let (door, inbox) = match &opcua {
+            Some(_) => {
+                let (door, inbox) = crate::drivers::real_time::door::door()
+                    .map_err(|source| DaemonError::Spawn { thread: "control", source })?;
+                (Some(door), Some(inbox))
+            }
+            None => (None, None),
+        };
         #[cfg(feature = "opcua")]
-        let opcua = match opcua {
-            Some(server) => {
-                let server = server.start(Arc::clone(&shared))?;
+        let opcua = match (opcua, door) {
+            (Some(server), Some(door)) => {
+                let server = server.start(Arc::clone(&shared), door)?;
                 log::info!("opcua: serving {}", server.serving());
                 Some(server)
             }
-            None => None,
+            _ => None,
         };
-        let control = start_control(&control_config, links)?;
+        #[cfg(not(feature = "opcua"))]
+        drop(door);
+        let control = start_control(&control_config, links, inbox)?;
         let daemon = Daemon {
             config_path: config_path.to_path_buf(),
             running,
@@ -479,7 +491,15 @@ fn bind_opcua(
         (Some(_), Some(path)) => Some(files::users(path).map_err(DaemonError::Invalid)?),
         _ => None,
     };
-    Ok(crate::services::opcua::OpcuaServer::bind(&config.opcua, pki_dir, symbols, users)?)
+    // Checked when the project was built; a project built otherwise is checked again here.
+    let writable = project.opcua_writable().map_err(|e| DaemonError::Invalid(Diagnostics(e)))?;
+    Ok(crate::services::opcua::OpcuaServer::bind(
+        &config.opcua,
+        pki_dir,
+        symbols,
+        &writable,
+        users,
+    )?)
 }
 
 #[cfg(not(feature = "opcua"))]
@@ -515,16 +535,37 @@ impl ControlThread {
 }
 
 /// Binds the control socket and starts its thread; `None` when `[control] enabled = false`.
+/// The control thread: the control socket's server, with `inbox`, the in-process door of the
+/// services that act through the request handler, if any; without the socket
+/// (`[control] enabled = false`), the door's server alone, or nothing.
 fn start_control(
     config: &ControlConfig,
     links: RequestLinks,
+    inbox: Option<crate::drivers::real_time::door::LocalInbox>,
 ) -> Result<Option<ControlThread>, DaemonError> {
-    if !config.enabled {
-        log::info!("control socket disabled ([control] enabled = false)");
-        return Ok(None);
-    }
-    let mut server = ControlServer::bind(config)?;
-    log::info!("control socket {}", server.path().display());
+    let mut server = match (config.enabled, inbox) {
+        (true, inbox) => {
+            let server = ControlServer::bind(config)?;
+            if let Some(path) = server.path() {
+                log::info!("control socket {}", path.display());
+            }
+            match inbox {
+                Some(inbox) => server.with_local(inbox),
+                None => server,
+            }
+        }
+        (false, Some(inbox)) => {
+            log::info!(
+                "control socket disabled ([control] enabled = false); the request handler serves \
+                 the OPC UA server's writes and methods alone"
+            );
+            ControlServer::local_only(inbox)?
+        }
+        (false, None) => {
+            log::info!("control socket disabled ([control] enabled = false)");
+            return Ok(None);
+        }
+    };
     let stopper = server.stopper();
     let handle = std::thread::Builder::new()
         .name("plcd-control".into())

@@ -10,8 +10,11 @@ element, a STRING, a located word, a TIME, an enumeration); a subscription's dat
 at most two sampling intervals apart; the security rules (the None policy refused unless
 listed; a client certificate refused and put in rejected/ until it is moved to trusted/, then a
 Basic256Sha256 SignAndEncrypt session works; anonymous sessions refused with anonymous =
-"none"); the certificate made at the first start and reused, its key 0600; a port in use stops
-the start. Prints one line per check and `N passed, M failed`; exits 1 unless all passed.
+"none"); the certificate made at the first start and reused, its key 0600; writes (applied at
+a scan boundary and answered after it, the program sees them, refused with the right status code
+for a variable not writable, a wrong type, a STRING too long, and for a viewer) and the RUN, STOP
+and Reset methods under the mode rules (RUN refused in ERROR), with the control socket off too;
+a port in use stops the start. Prints one line per check and `N passed, M failed`; exits 1 unless all passed.
 Every wait is bounded; the daemons are killed on any failure.
 """
 
@@ -60,7 +63,7 @@ class Daemon:
     """`plcd run` on a copy of `project` (or in `dir`, kept from an earlier daemon), its
     [opcua] section replaced by `opcua` with listen on a free port and pki_dir = "pki"."""
 
-    def __init__(self, plcd, project, opcua, dir=None, port=0):
+    def __init__(self, plcd, project, opcua, dir=None, port=0, control=True):
         self.dir = dir or tempfile.mkdtemp(prefix="plcd-asyncua-")
         for name in os.listdir(project):
             shutil.copy(os.path.join(project, name), self.dir)
@@ -68,6 +71,8 @@ class Daemon:
         with open(config) as f:
             text = f.read()
         section = f'[opcua]\nlisten = "127.0.0.1:{port}"\npki_dir = "pki"\n{opcua}\n'
+        if not control:
+            text = text.replace('[control]\nsocket = "plcd.sock"', "[control]\nenabled = false")
         with open(config, "w") as f:
             # The project's [opcua] section is its last.
             f.write(text.split("\n[opcua]\n")[0] + "\n" + section)
@@ -228,6 +233,7 @@ async def browse_and_read(url):
                   type(e).__name__)
 
         await subscribe(c, node("main.counter"))
+        await deadband(c, node("main.counter"))
 
 
 class Changes:
@@ -259,6 +265,148 @@ async def subscribe(c, counter):
     gaps = [(b - a).total_seconds() * 1000 for a, b in zip(handler.stamps, handler.stamps[1:])]
     check(f"data changes come within two sampling intervals ({2 * SAMPLING_MS} ms + {SLACK_MS})",
           gaps and max(gaps) <= 2 * SAMPLING_MS + SLACK_MS, f"gaps {gaps} ms")
+    await subscription.delete()
+
+
+async def wait_value(node, wanted, patience=PATIENCE):
+    """Reads `node` until it is `wanted` (bounded); the last value read."""
+    until = time.monotonic() + patience
+    value = None
+    while time.monotonic() < until:
+        value = await node.read_value()
+        if value == wanted:
+            break
+        await asyncio.sleep(0.02)
+    return value
+
+
+async def status_of(coroutine):
+    """The OPC UA status code's name a refused call or write raised; None if it succeeded."""
+    try:
+        await bounded("a service", coroutine)
+        return None
+    except asyncio.TimeoutError:
+        return "timed out"
+    except ua.UaStatusCodeError as e:
+        return type(e).__name__
+
+
+async def writes_and_methods(url, daemon, control):
+    """An anonymous operator (anonymous = "operator") writes the writable variables and calls
+    the PLC's methods; `control` says whether the control socket is on (the door serves the
+    writes either way)."""
+    suffix = "" if control else " (control socket off)"
+    async with client(url) as c:
+        ns = await c.get_namespace_index(NS)
+        node = lambda name: c.get_node(f"ns={ns};s={name}")  # noqa: E731
+        setpoint, echo, mode = node("main.setpoint"), node("main.echo"), node("Status.Mode")
+        await setpoint.write_value(ua.Variant(37, ua.VariantType.Int16))
+        check("a write is answered once applied: read at once, it is the new value" + suffix,
+              await setpoint.read_value() == 37)
+        check("the program sees the written value" + suffix, await wait_value(echo, 37) == 37)
+        if not control:
+            return
+        access = (await setpoint.read_attribute(ua.AttributeIds.AccessLevel)).Value.Value
+        check("a writable variable's AccessLevel has CurrentWrite", access & 2 == 2, f"{access}")
+        counter_access = (await node("main.counter").read_attribute(ua.AttributeIds.AccessLevel)).Value.Value
+        check("a variable not in writable has no CurrentWrite", counter_access & 2 == 0,
+              f"{counter_access}")
+        # The members of a struct in one Write request: applied at the same scan boundary.
+        pos, steps = node("main.recipe.pos"), node("main.recipe.steps")
+        params = ua.WriteParameters()
+        for n, v in ((pos, ua.Variant(2.5, ua.VariantType.Double)),
+                     (steps, ua.Variant(-9, ua.VariantType.Int32))):
+            wv = ua.WriteValue()
+            wv.NodeId = n.nodeid
+            wv.AttributeId = ua.AttributeIds.Value
+            wv.Value = ua.DataValue(v)
+            params.NodesToWrite.append(wv)
+        results = await bounded("a write of two", c.uaclient.write(params))
+        check("two values in one Write are both Good", [r.is_good() for r in results] == [True, True],
+              f"{results}")
+        check("both read back", [await pos.read_value(), await steps.read_value()] == [2.5, -9])
+        note = node("main.note")
+        await note.write_value(ua.Variant("hé", ua.VariantType.String))
+        check("a STRING is written (Windows-1252 characters)", await note.read_value() == "hé")
+        code = await status_of(note.write_value(ua.Variant("far too long", ua.VariantType.String)))
+        check("a STRING longer than declared is BadOutOfRange", code == "BadOutOfRange", f"{code}")
+        check("and the value stays", await note.read_value() == "hé")
+        code = await status_of(node("main.counter").write_value(ua.Variant(1, ua.VariantType.Int32)))
+        check("a variable not in writable is BadNotWritable", code == "BadNotWritable", f"{code}")
+        code = await status_of(setpoint.write_value(ua.Variant(5, ua.VariantType.Int32)))
+        check("an Int32 for an INT is BadTypeMismatch", code == "BadTypeMismatch", f"{code}")
+        logged = any("control: set from opcua anonymous session" in line for line in daemon.log)
+        check("the log says who wrote", logged, "\n".join(daemon.log[-10:]))
+
+        plc = node("PLC")
+        await bounded("Stop", plc.call_method(f"{ns}:Stop"))
+        check("the Stop method stops the PLC", await wait_value(mode, "STOP") == "STOP")
+        await bounded("Run", plc.call_method(f"{ns}:Run"))
+        check("the Run method runs it again", await wait_value(mode, "RUN") == "RUN")
+        # An overrun scan: the watchdog stops the PLC with an error; RUN is then refused.
+        await node("main.spin").write_value(ua.Variant(True, ua.VariantType.Boolean))
+        check("a scan that never ends puts the PLC in ERROR", await wait_value(mode, "ERROR") == "ERROR")
+        check("Status.ErrorCode says WDT", await node("Status.ErrorCode").read_value() == "WDT")
+        code = await status_of(plc.call_method(f"{ns}:Run"))
+        check("Run in ERROR is BadInvalidState (the mode rules)", code == "BadInvalidState", f"{code}")
+        await node("main.spin").write_value(ua.Variant(False, ua.VariantType.Boolean))
+        code = await status_of(plc.call_method(f"{ns}:Reset"))
+        check("Reset without its argument is refused", code == "BadArgumentsMissing", f"{code}")
+        await bounded("Reset", plc.call_method(f"{ns}:Reset", ua.Variant(False, ua.VariantType.Boolean)))
+        check("Reset clears the error: STOP", await wait_value(mode, "STOP") == "STOP")
+        await bounded("Run", plc.call_method(f"{ns}:Run"))
+        check("and Run runs again", await wait_value(mode, "RUN") == "RUN")
+
+
+async def viewer_refused(url):
+    """An anonymous viewer: the writable variable is not writable for it, nor are the methods."""
+    async with client(url) as c:
+        ns = await c.get_namespace_index(NS)
+        setpoint = c.get_node(f"ns={ns};s=main.setpoint")
+        level = (await setpoint.read_attribute(ua.AttributeIds.UserAccessLevel)).Value.Value
+        check("a viewer's UserAccessLevel has no CurrentWrite", level & 2 == 0, f"{level}")
+        code = await status_of(setpoint.write_value(ua.Variant(1, ua.VariantType.Int16)))
+        check("a viewer's write is BadUserAccessDenied", code == "BadUserAccessDenied", f"{code}")
+        code = await status_of(c.get_node(f"ns={ns};s=PLC").call_method(f"{ns}:Stop"))
+        check("a viewer's Stop is BadUserAccessDenied", code == "BadUserAccessDenied", f"{code}")
+        mode = await c.get_node(f"ns={ns};s=Status.Mode").read_value()
+        check("and the PLC still runs", mode == "RUN", f"{mode}")
+
+
+async def deadband(c, counter):
+    """An absolute deadband filter: a change is notified only once the value moved more than
+    the deadband from the last one notified. The counter moves by one every 10 ms scan, so
+    about 10 between two samples: with a deadband of 50, every notified change is more than 50
+    from the one before. A percent deadband needs an EURange, which plcd's variables do not
+    have: refused."""
+    handler = Changes()
+    subscription = await c.create_subscription(SAMPLING_MS, handler)
+    params = ua.MonitoredItemCreateRequest()
+    params.ItemToMonitor = ua.ReadValueId(NodeId=counter.nodeid, AttributeId=ua.AttributeIds.Value)
+    params.MonitoringMode = ua.MonitoringMode.Reporting
+    params.RequestedParameters = ua.MonitoringParameters(
+        ClientHandle=1, SamplingInterval=SAMPLING_MS, QueueSize=10, DiscardOldest=True,
+        Filter=ua.DataChangeFilter(Trigger=ua.DataChangeTrigger.StatusValue,
+                                   DeadbandType=ua.DeadbandType.Absolute, DeadbandValue=50.0))
+    results = await subscription.create_monitored_items([params])
+    check("an absolute deadband filter is accepted", results and isinstance(results[0], int),
+          f"{results}")
+    until = time.monotonic() + PATIENCE
+    while len(handler.values) < 4 and time.monotonic() < until:
+        await asyncio.sleep(0.02)
+    steps = [b - a for a, b in zip(handler.values, handler.values[1:])]
+    check("with a deadband of 50, each notified change moved more than 50",
+          len(steps) >= 3 and min(steps) > 50, f"{handler.values}")
+    params.RequestedParameters.ClientHandle = 2
+    params.RequestedParameters.Filter = ua.DataChangeFilter(
+        Trigger=ua.DataChangeTrigger.StatusValue, DeadbandType=ua.DeadbandType.Percent,
+        DeadbandValue=10.0)
+    try:
+        result = (await subscription.create_monitored_items([params]))[0]
+        text = result.name if isinstance(result, ua.StatusCode) else repr(result)
+    except ua.UaStatusCodeError as e:
+        text = type(e).__name__
+    check("a percent deadband is refused (no EURange)", text.startswith("Bad"), text)
     await subscription.delete()
 
 
@@ -446,6 +594,32 @@ async def main_checks(plcd, project, work):
         check("the failed logins of one name are logged once", len(warned) == 1,
               "\n".join(named.log[-20:]))
         named.stop()
+
+        # 3c. Writes and methods: an anonymous operator, then an anonymous viewer; and the
+        # writes with the control socket off.
+        writable = 'writable = ["main.setpoint", "main.recipe", "main.note", "main.spin"]'
+        operator = start(f'security_policies = ["None"]\nanonymous = "operator"\n{writable}')
+        url = operator.serving()
+        check("the server with writable variables serves", url is not None,
+              "\n".join(operator.log[-20:]))
+        if url is None:
+            return
+        await bounded("writes and methods", writes_and_methods(url, operator, True))
+        operator.stop()
+        viewer = start(f'security_policies = ["None"]\nanonymous = "viewer"\n{writable}',
+                       dir=operator.dir)
+        url = viewer.serving()
+        if url is not None:
+            await bounded("a viewer", viewer_refused(url))
+        viewer.stop()
+        alone = start(f'security_policies = ["None"]\nanonymous = "operator"\n{writable}',
+                      dir=operator.dir, control=False)
+        url = alone.serving()
+        check("the server serves with the control socket off", url is not None,
+              "\n".join(alone.log[-20:]))
+        if url is not None:
+            await bounded("writes without the socket", writes_and_methods(url, alone, False))
+        alone.stop()
 
         # 4. A port in use stops the start, with the key named.
         with socket.socket() as taken:

@@ -6,6 +6,7 @@
 //! listen = "127.0.0.1:4840"      # no listen: no server (the default)
 //! security_policies = ["Basic256Sha256"]
 //! anonymous = "none"
+//! writable = ["main.setpoint", "main.recipe"]
 //! ```
 //!
 //! The keys' ranges and defaults are the constants of [`OpcuaConfig`]; the server
@@ -20,6 +21,7 @@ use toml::Spanned;
 
 use super::common::{int_or, resolve, widen, Ctx};
 use super::Sink;
+use crate::diag::Diagnostic;
 
 /// `[opcua]`: off unless `listen` is given.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -59,6 +61,20 @@ pub struct OpcuaConfig {
     /// certificates, resolved against the config file's directory; default `None`:
     /// `opcua-pki` in the retain directory (`[retain] dir`, else `$STATE_DIRECTORY`).
     pub pki_dir: Option<PathBuf>,
+    /// `writable`: the variables sessions of the operator role and up may write, by name as
+    /// `plcctl set` names them (a struct, an FB instance or an array stands for all its
+    /// variables), at most [`OpcuaConfig::MAX_WRITABLE`]; default none: everything read-only.
+    /// Checked against the programs when the project is built
+    /// (`crate::project::Project::opcua_writable`).
+    pub writable: Vec<WritableName>,
+}
+
+/// A name of `opcua.writable`, with where it is written for the project's diagnostics.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct WritableName {
+    pub name: String,
+    pub line: u32,
+    pub col: u32,
 }
 
 /// An OPC UA security policy `security_policies` may name.
@@ -94,6 +110,21 @@ pub enum Anonymous {
     None,
     /// `"viewer"`: anonymous sessions browse, read and subscribe.
     Viewer,
+    /// `"operator"`: anonymous sessions also write the `writable` variables and call RUN,
+    /// STOP and reset: for a closed network where the channel's certificate is the access
+    /// control.
+    Operator,
+}
+
+impl Anonymous {
+    /// The role of an anonymous session; `None`: no anonymous session.
+    pub fn role(self) -> Option<crate::users::Role> {
+        match self {
+            Anonymous::None => None,
+            Anonymous::Viewer => Some(crate::users::Role::Viewer),
+            Anonymous::Operator => Some(crate::users::Role::Operator),
+        }
+    }
 }
 
 impl OpcuaConfig {
@@ -109,6 +140,8 @@ impl OpcuaConfig {
     pub const MAX_REQUEST_BYTES: RangeInclusive<u32> = 65_536..=67_108_864;
     pub const MIN_SAMPLING_INTERVAL_MS: RangeInclusive<u32> = 10..=60_000;
     pub const MAX_NODES: RangeInclusive<u32> = 1..=1_000_000;
+    /// Names `writable` may list.
+    pub const MAX_WRITABLE: usize = 10_000;
 
     /// The monitored items one subscription may hold: the session's share.
     pub fn monitored_items_per_subscription(&self) -> u32 {
@@ -130,6 +163,7 @@ impl Default for OpcuaConfig {
             min_sampling_interval_ms: 100,
             max_nodes: 10_000,
             pki_dir: None,
+            writable: Vec::new(),
         }
     }
 }
@@ -150,6 +184,7 @@ pub(super) struct RawOpcua {
     pub min_sampling_interval_ms: Option<Spanned<i64>>,
     pub max_nodes: Option<Spanned<i64>>,
     pub pki_dir: Option<Spanned<String>>,
+    pub writable: Option<Spanned<Vec<Spanned<String>>>>,
 }
 
 /// Pass 2 of `[opcua]`; `config` is the config file, for `pki_dir`.
@@ -269,6 +304,36 @@ pub(super) fn validate(sink: &mut Sink, raw: RawOpcua, config: &Path) -> Option<
         }
         Some(dir) => Some(resolve(config, dir.get_ref())),
     };
+    let mut writable: Vec<WritableName> = Vec::new();
+    if let Some(list) = raw.writable {
+        let at = list.span().start;
+        let list = list.into_inner();
+        if list.len() > OpcuaConfig::MAX_WRITABLE {
+            let message = format!(
+                "{} lists {} names, at most {}: name a struct, an FB instance or an array for \
+                 all its variables",
+                ctx.key("writable"),
+                list.len(),
+                OpcuaConfig::MAX_WRITABLE
+            );
+            sink.error(at, message);
+            ok = false;
+        }
+        for name in list {
+            let (line, col) = Diagnostic::line_col(sink.text, name.span().start);
+            let text = name.get_ref().trim();
+            if text.is_empty() {
+                sink.error(name.span().start, format!("{}: a name is empty", ctx.key("writable")));
+                ok = false;
+            } else if writable.iter().any(|w| w.name.eq_ignore_ascii_case(text)) {
+                let message = format!("{}: `{text}` is listed twice", ctx.key("writable"));
+                sink.error(name.span().start, message);
+                ok = false;
+            } else {
+                writable.push(WritableName { name: text.to_string(), line, col });
+            }
+        }
+    }
     let opcua = OpcuaConfig {
         listen,
         endpoint_host,
@@ -281,6 +346,7 @@ pub(super) fn validate(sink: &mut Sink, raw: RawOpcua, config: &Path) -> Option<
         min_sampling_interval_ms: min_sampling_interval_ms?,
         max_nodes: max_nodes?,
         pki_dir,
+        writable,
     };
     ok.then_some(opcua)
 }
@@ -343,6 +409,25 @@ mod tests {
         assert_eq!((config.max_request_bytes, config.min_sampling_interval_ms), (65536, 10));
         assert_eq!(config.max_nodes, 5);
         assert_eq!(config.pki_dir, Some(PathBuf::from("/p/pki")), "relative to the config");
+    }
+
+    #[test]
+    fn writable_names_keep_their_place_and_anonymous_may_operate() {
+        let config = opcua(
+            "[opcua]\nanonymous = \"operator\"\nwritable = [\"main.setpoint\", \" main.recipe \"]\n",
+        );
+        assert_eq!(config.anonymous, Anonymous::Operator);
+        assert_eq!(config.anonymous.role(), Some(crate::users::Role::Operator));
+        assert_eq!(Anonymous::None.role(), None);
+        let names: Vec<(&str, u32, u32)> =
+            config.writable.iter().map(|w| (w.name.as_str(), w.line, w.col)).collect();
+        assert_eq!(names, [("main.setpoint", 5, 13), ("main.recipe", 5, 30)], "trimmed");
+        assert!(opcua("").writable.is_empty(), "read-only by default");
+        let many: Vec<String> =
+            (0..=OpcuaConfig::MAX_WRITABLE).map(|i| format!("\"main.v{i}\"")).collect();
+        let too_many = errors(&format!("[opcua]\nwritable = [{}]\n", many.join(", ")));
+        assert_eq!(too_many.len(), 1, "{too_many:?}");
+        assert!(too_many[0].contains("opcua.writable lists 10001 names, at most 10000"));
     }
 
     #[test]

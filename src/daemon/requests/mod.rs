@@ -34,7 +34,7 @@ use crate::drivers::real_time::snapshot::{Snapshot, MAX_READ_WORDS};
 use crate::drivers::real_time::{Command, Completion, Shared};
 use crate::engine::ModeRequest;
 use crate::project::Project;
-use crate::services::control::{ClientId, Handler, Peer};
+use crate::services::control::{Caller, ClientId, Handler};
 use plcd_ipc::{ErrorKind as Kind, Request, ResponseLine};
 use waiting::{Then, Waiting};
 
@@ -133,9 +133,14 @@ impl RequestHandler {
 }
 
 impl Handler for RequestHandler {
-    fn request(&mut self, client: ClientId, peer: &Peer, request: Request) -> Option<ResponseLine> {
+    fn request(
+        &mut self,
+        client: ClientId,
+        caller: &Caller,
+        request: Request,
+    ) -> Option<ResponseLine> {
         if !matches!(request, Request::Status | Request::Get { .. } | Request::Forces) {
-            log::info!("control: {} from uid {} (pid {})", request.name(), peer.uid, peer.pid);
+            log::info!("control: {} from {caller}", request.name());
         }
         self.handle(client, request)
     }

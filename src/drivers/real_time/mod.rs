@@ -24,11 +24,15 @@
 //! allocated at start. The command queue has several producers (the supervisor, the control
 //! socket's requests, the Modbus server, the stimulus player): they share its producer end
 //! behind a mutex, which the scan thread, its consumer, never takes. The snapshot and the
-//! mirrors sit behind mutexes the scan thread only `try_lock`s. So the scan path neither
+//! mirrors sit behind mutexes the scan thread only `try_lock`s. The [`door`] is not the scan
+//! thread's: it carries the control protocol's requests of this process's services (the OPC UA
+//! server's writes and methods) to the control thread, which queues them as any `plcctl`
+//! request's commands. So the scan path neither
 //! allocates nor waits for a lock (the rare exceptions are named where they are: an engine
 //! dropped when the report queue is full, and the log line of an output that cannot be
 //! switched off).
 
+pub mod door;
 pub mod driver;
 pub mod events;
 pub mod io;

@@ -16,7 +16,7 @@ use nix::errno::Errno;
 use nix::poll::PollFlags;
 use nix::sys::socket::{self, MsgFlags};
 
-use super::{ClientId, Handler, Peer};
+use super::{Caller, ClientId, Handler, Peer};
 use plcd_ipc::{self as protocol, ErrorKind, ResponseLine};
 
 /// The most answer bytes kept for a client that does not read them; past this it is dropped
@@ -160,7 +160,11 @@ impl Client {
             }
             match protocol::parse_request(&line) {
                 Err(failure) => self.answer(&ResponseLine::failure(failure), now, idle)?,
-                Ok(request) => match handler.request(id, &self.peer, request) {
+                Ok(request) => match handler.request(
+                    id,
+                    &Caller::Socket { uid: self.peer.uid, pid: self.peer.pid },
+                    request,
+                ) {
                     Some(response) => self.answer(&response, now, idle)?,
                     None => {
                         self.outstanding = true;

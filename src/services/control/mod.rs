@@ -9,6 +9,10 @@
 //! - `access`: who may connect (root, the daemon's user, one group);
 //! - `client`: one connection: its buffers, the line framing, the bounds and deadlines.
 //!
+//! The server also takes the requests of this process's other services (the OPC UA server's
+//! writes and methods) from the in-process door ([`crate::drivers::real_time::door`]), and
+//! hands them to the same handler, under the same rules.
+//!
 //! Nothing here runs on a real-time thread. The server never waits for the scan thread: a
 //! request the daemon cannot answer at once (it is applied at the next END) is answered later,
 //! through [`Handler::completions`], while the server goes on serving the other clients.
@@ -21,6 +25,7 @@ mod socket;
 use std::os::fd::BorrowedFd;
 use std::time::Duration;
 
+pub use crate::drivers::real_time::door::Caller;
 use plcd_ipc::{Request, ResponseLine};
 
 /// A connection of the control server, unique for the server's lifetime.
@@ -36,10 +41,15 @@ pub struct Peer {
 
 /// What answers the requests of admitted clients.
 pub trait Handler {
-    /// A request from `client`. `Some`: the answer, sent at once. `None`: the answer comes
+    /// A request from `client`, sent by `caller`. `Some`: the answer, sent at once. `None`: the answer comes
     /// later through [`Handler::completions`]; until then the server reads nothing more from
     /// that client (one outstanding request per client bounds what can queue up).
-    fn request(&mut self, client: ClientId, peer: &Peer, request: Request) -> Option<ResponseLine>;
+    fn request(
+        &mut self,
+        client: ClientId,
+        caller: &Caller,
+        request: Request,
+    ) -> Option<ResponseLine>;
     /// Appends the answers that became ready. Called when [`Handler::wake_fd`] is readable and
     /// at least every [`Handler::tick`] while answers are outstanding. It must drain the wake
     /// fd, or the server's poll returns at once again.

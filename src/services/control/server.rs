@@ -11,10 +11,15 @@
 //! The rooms around the loop: `socket` places the socket file (path, directory, mode, group,
 //! stale sockets, removal), `access` decides who is admitted, and `client` holds one
 //! connection's buffers, framing and bounds.
+//!
+//! The loop also serves the in-process door ([`crate::drivers::real_time::door`]): the requests of this process's
+//! other services go to the same handler, each under an id of its own, and their answers to the
+//! callback they came with. With `[control] enabled = false` and a service that needs the door,
+//! the server runs without a socket ([`ControlServer::local_only`]).
 
 use std::collections::BTreeMap;
 use std::io;
-use std::os::fd::{AsFd, AsRawFd};
+use std::os::fd::{AsFd, AsRawFd, BorrowedFd};
 use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -30,6 +35,7 @@ use super::client::{Client, Close};
 use super::socket::{self as socket_file, SocketFile};
 use super::{ClientId, Handler, Peer};
 use crate::config::ControlConfig;
+use crate::drivers::real_time::door::{LocalInbox, Reply};
 use plcd_ipc::{self as protocol, ErrorKind, ResponseLine};
 
 /// The most read from one client per wake, so that one fast sender cannot starve the others.
@@ -39,6 +45,11 @@ const READ_CHUNK: usize = 64 * 1024;
 const ACCEPT_PAUSE: Duration = Duration::from_millis(100);
 /// The most connections accepted per wake, for the same fairness as [`READ_CHUNK`].
 const ACCEPTS_PER_WAKE: usize = 64;
+/// The in-process door's requests get ids from here up, apart from the socket's clients'.
+const FIRST_LOCAL_ID: ClientId = 1 << 63;
+/// The in-process door's requests parked for a scan boundary at once, at most: past it a
+/// request is answered `busy` (the services bound their own requests too).
+pub const MAX_LOCAL_OUTSTANDING: usize = 256;
 
 /// Why the server could not start, or had to stop. Each names what it was working on.
 #[derive(Debug, thiserror::Error)]
@@ -123,14 +134,24 @@ fn revents(fd: &PollFd) -> PollFlags {
     fd.revents().unwrap_or(PollFlags::empty())
 }
 
+/// The in-process door's parked requests: where each answer goes.
+#[derive(Default)]
+struct Locals(BTreeMap<ClientId, Reply>);
+
+impl std::fmt::Debug for Locals {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} parked", self.0.len())
+    }
+}
+
 const GONE: PollFlags = PollFlags::POLLHUP.union(PollFlags::POLLERR);
 
 /// The control socket server. See the module docs.
 #[derive(Debug)]
 pub struct ControlServer {
     /// Removes the socket file when the server is dropped; first, so that the file goes before
-    /// the rest is torn down.
-    socket: SocketFile,
+    /// the rest is torn down. `None`: the in-process door alone.
+    socket: Option<SocketFile>,
     stop: Arc<EventFd>,
     policy: Policy,
     max_clients: usize,
@@ -139,6 +160,11 @@ pub struct ControlServer {
     clients: BTreeMap<ClientId, Client>,
     next_id: ClientId,
     accept_paused_until: Option<Instant>,
+    /// The in-process door, if a service uses it.
+    local: Option<LocalInbox>,
+    /// The door's requests parked until the handler answers them.
+    locals: Locals,
+    next_local: ClientId,
 }
 
 impl ControlServer {
@@ -152,7 +178,7 @@ impl ControlServer {
             .map_err(io_error(&bound.path, "eventfd"))?;
         let allowed_gid = group.unwrap_or_else(nix::unistd::getegid).as_raw();
         Ok(ControlServer {
-            socket: SocketFile::new(bound),
+            socket: Some(SocketFile::new(bound)),
             stop: Arc::new(stop),
             policy: Policy { daemon_uid: euid, allowed_gid },
             max_clients: config.max_clients.max(1) as usize,
@@ -162,12 +188,42 @@ impl ControlServer {
             clients: BTreeMap::new(),
             next_id: 1,
             accept_paused_until: None,
+            local: None,
+            locals: Locals::default(),
+            next_local: FIRST_LOCAL_ID,
         })
     }
 
-    /// The socket's path.
-    pub fn path(&self) -> &Path {
-        self.socket.path()
+    /// A server of the in-process door alone, without a socket (`[control] enabled = false`).
+    pub fn local_only(inbox: LocalInbox) -> Result<ControlServer, ServerError> {
+        let stop = EventFd::from_flags(EfdFlags::EFD_NONBLOCK | EfdFlags::EFD_CLOEXEC)
+            .map_err(|source| ServerError::Serve { call: "eventfd", source })?;
+        let euid = nix::unistd::geteuid().as_raw();
+        Ok(ControlServer {
+            socket: None,
+            stop: Arc::new(stop),
+            policy: Policy { daemon_uid: euid, allowed_gid: nix::unistd::getegid().as_raw() },
+            max_clients: 0,
+            max_request: 0,
+            idle: None,
+            clients: BTreeMap::new(),
+            next_id: 1,
+            accept_paused_until: None,
+            local: Some(inbox),
+            locals: Locals::default(),
+            next_local: FIRST_LOCAL_ID,
+        })
+    }
+
+    /// Serves the in-process door `inbox` too.
+    pub fn with_local(mut self, inbox: LocalInbox) -> ControlServer {
+        self.local = Some(inbox);
+        self
+    }
+
+    /// The socket's path; `None` for a server of the in-process door alone.
+    pub fn path(&self) -> Option<&Path> {
+        self.socket.as_ref().map(SocketFile::path)
     }
 
     /// A handle whose [`Stopper::stop`] makes [`ControlServer::serve`] return promptly.
@@ -182,26 +238,34 @@ impl ControlServer {
         let mut events: Vec<(ClientId, PollFlags)> = Vec::new();
         loop {
             let now = Instant::now();
-            let outstanding = self.clients.values().any(|c| c.outstanding);
+            let outstanding =
+                !self.locals.0.is_empty() || self.clients.values().any(|c| c.outstanding);
             let timeout = timeout_until(now, self.next_deadline(now, outstanding, handler.tick()));
             if self.accept_paused_until.is_some_and(|until| now >= until) {
                 self.accept_paused_until = None;
             }
             events.clear();
-            let (stopped, acceptable, woken) = {
-                let mut fds = Vec::with_capacity(self.clients.len() + 3);
+            let (stopped, acceptable, woken, submitted) = {
+                let mut fds = Vec::with_capacity(self.clients.len() + 4);
                 let listen = if self.accept_paused_until.is_none() {
                     PollFlags::POLLIN
                 } else {
                     PollFlags::empty()
                 };
                 fds.push(PollFd::new(self.stop.as_fd(), PollFlags::POLLIN));
-                fds.push(PollFd::new(self.socket.listener().as_fd(), listen));
-                let wake = handler.wake_fd();
-                let has_wake = wake.is_some();
-                if let Some(fd) = wake {
-                    fds.push(PollFd::new(fd, PollFlags::POLLIN));
+                // The index of each optional fd in `fds`.
+                fn at<'f>(fds: &mut Vec<PollFd<'f>>, fd: Option<BorrowedFd<'f>>) -> Option<usize> {
+                    fd.map(|fd| {
+                        fds.push(PollFd::new(fd, PollFlags::POLLIN));
+                        fds.len() - 1
+                    })
                 }
+                let listener = at(&mut fds, self.socket.as_ref().map(|s| s.listener().as_fd()));
+                if let Some(i) = listener {
+                    fds[i].set_events(listen);
+                }
+                let wake = at(&mut fds, handler.wake_fd());
+                let local = at(&mut fds, self.local.as_ref().map(LocalInbox::fd));
                 let first_client = fds.len();
                 fds.extend(
                     self.clients.values().map(|c| PollFd::new(c.stream.as_fd(), c.interest())),
@@ -216,11 +280,8 @@ impl ControlServer {
                         events.push((*id, revents(fd)));
                     }
                 }
-                (
-                    !revents(&fds[0]).is_empty(),
-                    !revents(&fds[1]).is_empty(),
-                    has_wake && !revents(&fds[2]).is_empty(),
-                )
+                let ready = |i: Option<usize>| i.is_some_and(|i| !revents(&fds[i]).is_empty());
+                (!revents(&fds[0]).is_empty(), ready(listener), ready(wake), ready(local))
             };
             if stopped {
                 let _ = self.stop.read();
@@ -230,6 +291,9 @@ impl ControlServer {
             // Clients first: a slot freed by a hang-up is free for a connection in the same wake.
             for &(id, revents) in &events {
                 self.service(id, revents, handler, &mut scratch, now);
+            }
+            if submitted {
+                self.take_local(handler);
             }
             if woken || outstanding {
                 self.complete(handler, now);
@@ -295,12 +359,40 @@ impl ControlServer {
         }
     }
 
+    /// Hands the in-process door's requests to the handler; answers at once what it answers
+    /// at once, and parks the rest until [`ControlServer::complete`] has their answers.
+    fn take_local(&mut self, handler: &mut impl Handler) {
+        let Some(local) = &self.local else { return };
+        for submitted in local.take() {
+            if self.locals.0.len() >= MAX_LOCAL_OUTSTANDING {
+                let message = format!(
+                    "{MAX_LOCAL_OUTSTANDING} requests of this process's services wait for the \
+                     scan thread; try again"
+                );
+                (submitted.reply)(ResponseLine::error(ErrorKind::Busy, message));
+                continue;
+            }
+            let id = self.next_local;
+            self.next_local += 1;
+            match handler.request(id, &submitted.caller, submitted.request) {
+                Some(response) => (submitted.reply)(response),
+                None => {
+                    self.locals.0.insert(id, submitted.reply);
+                }
+            }
+        }
+    }
+
     /// Delivers the answers that became ready, and goes on with those clients' next lines.
     fn complete(&mut self, handler: &mut impl Handler, now: Instant) {
         let mut ready = Vec::new();
         handler.completions(&mut ready);
         let (limit, idle) = (self.max_request, self.idle);
         for (id, response) in ready {
+            if let Some(reply) = self.locals.0.remove(&id) {
+                reply(response);
+                continue;
+            }
             let Some(client) = self.clients.get_mut(&id) else {
                 // It hung up; the handler was told through gone().
                 continue;
@@ -326,7 +418,8 @@ impl ControlServer {
         now: Instant,
     ) -> Result<(), ServerError> {
         for _ in 0..ACCEPTS_PER_WAKE {
-            let stream = match self.socket.listener().accept() {
+            let Some(socket) = &self.socket else { return Ok(()) };
+            let stream = match socket.listener().accept() {
                 Ok((stream, _)) => stream,
                 Err(e) => match e.raw_os_error().map(Errno::from_raw) {
                     Some(Errno::EAGAIN) => return Ok(()),

@@ -1,10 +1,13 @@
-//! Who may open an OPC UA session: anonymous sessions as `[opcua] anonymous` says, and user
-//! names with their passwords from the users file (`[users] file`, docs/USERS.md), verified
-//! off the stack's worker threads and throttled per user name.
+//! Who may open an OPC UA session and what it may do: anonymous sessions as `[opcua]
+//! anonymous` says, and user names with their passwords from the users file (`[users] file`,
+//! docs/USERS.md), verified off the stack's worker threads and throttled per user name. A
+//! session's role (`plcd_core::users::Role`) decides, through the stack's questions, whether it
+//! may write the variables the config makes writable (`Action::Write`: the write bit of each
+//! node's user access level) and call the PLC's methods (`Action::ChangeMode` for RUN and
+//! STOP, `Action::Reset` for reset).
 //!
-//! The address space is read-only this round, so every role (viewer and up) may do what a
-//! session can do; the role is kept with the session's token for the writes and methods that
-//! come with later rounds (docs/OPCUA.md, "Not yet").
+//! A named session's token is `user:NAME` (`:` is never part of a user name), so no user can
+//! be taken for the stack's anonymous token.
 //!
 //! Throttled per **user name**, not per client address: the stack hands its authenticator the
 //! endpoint, the name and the password, not the peer's address. A name that keeps failing waits
@@ -18,18 +21,29 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use opcua::crypto::SecurityPolicy;
+use opcua::nodes::AccessLevel;
 use opcua::server::authenticator::{
     user_pass_security_policy_id, AuthManager, Password, UserToken,
 };
 use opcua::server::ServerEndpoint;
-use opcua::types::{StatusCode, UAString, UserTokenPolicy, UserTokenType};
+use opcua::types::{Identifier, NodeId, StatusCode, UAString, UserTokenPolicy, UserTokenType};
 
-use crate::users::{Role, Throttle, ThrottlePolicy, UsersFile};
+use crate::users::{Action, Role, Throttle, ThrottlePolicy, UsersFile};
+
+/// How a named session's token begins; the user's name follows.
+const USER_TOKEN: &str = "user:";
+
+/// The PLC's methods (their node ids' strings) and what each asks of a role.
+pub const METHODS: [(&str, Action); 3] = [
+    ("PLC.Run", Action::ChangeMode),
+    ("PLC.Stop", Action::ChangeMode),
+    ("PLC.Reset", Action::Reset),
+];
 
 /// The stack's authenticator.
 pub struct Access {
-    /// `[opcua] anonymous = "viewer"`.
-    anonymous: bool,
+    /// The role of an anonymous session (`[opcua] anonymous`); `None`: refused.
+    anonymous: Option<Role>,
     /// The users file read at start; `None` without `[users] file`: no named login.
     users: Option<Arc<UsersFile>>,
     throttle: Mutex<Throttle<String>>,
@@ -38,13 +52,36 @@ pub struct Access {
 }
 
 impl Access {
-    pub fn new(anonymous: bool, users: Option<Arc<UsersFile>>) -> Access {
+    pub fn new(anonymous: Option<Role>, users: Option<Arc<UsersFile>>) -> Access {
         Access {
             anonymous,
             users,
             throttle: Mutex::new(Throttle::new(ThrottlePolicy::default())),
             started: Instant::now(),
         }
+    }
+
+    /// The role of the session `token` stands for; `None` for a token of no session this
+    /// server opens (or of a user no longer in the file).
+    pub fn role(&self, token: &UserToken) -> Option<Role> {
+        if token.is_anonymous() {
+            return self.anonymous;
+        }
+        let name = token.0.strip_prefix(USER_TOKEN)?;
+        self.users.as_ref()?.user(name).map(|user| user.role)
+    }
+
+    /// Who a session is, for the log: `opcua user "alice"`, `opcua anonymous session`.
+    pub fn caller(token: &UserToken) -> String {
+        match token.0.strip_prefix(USER_TOKEN) {
+            Some(name) if !token.is_anonymous() => format!("opcua user {name:?}"),
+            _ => "opcua anonymous session".to_string(),
+        }
+    }
+
+    /// Whether the session of `token` may do `action`.
+    pub fn may(&self, token: &UserToken, action: Action) -> bool {
+        self.role(token).is_some_and(|role| role.may(action))
     }
 
     fn throttle(&self) -> std::sync::MutexGuard<'_, Throttle<String>> {
@@ -87,7 +124,7 @@ impl AuthManager for Access {
         &self,
         _endpoint: &ServerEndpoint,
     ) -> Result<(), opcua::types::Error> {
-        if self.anonymous {
+        if self.anonymous.is_some() {
             Ok(())
         } else {
             Err(opcua::types::Error::new(
@@ -135,7 +172,7 @@ impl AuthManager for Access {
                     );
                 }
                 log::debug!("opcua: user {username:?} ({}) logged in", role.name());
-                Ok(UserToken(username.to_string()))
+                Ok(UserToken(format!("{USER_TOKEN}{username}")))
             }
             None => {
                 self.failed(username, now);
@@ -144,9 +181,33 @@ impl AuthManager for Access {
         }
     }
 
+    /// A node's write bit for the session: only for a role that may write (the node has it
+    /// only if the config makes its variable writable).
+    fn effective_user_access_level(
+        &self,
+        token: &UserToken,
+        user_access_level: AccessLevel,
+        _node_id: &NodeId,
+    ) -> AccessLevel {
+        if self.may(token, Action::Write) {
+            user_access_level
+        } else {
+            user_access_level - AccessLevel::CURRENT_WRITE
+        }
+    }
+
+    /// The PLC's methods for the roles that may do what they do; no other method is served.
+    fn is_user_executable(&self, token: &UserToken, method_id: &NodeId) -> bool {
+        let Identifier::String(id) = &method_id.identifier else { return false };
+        METHODS
+            .iter()
+            .find(|(name, _)| id.as_ref() == *name)
+            .is_some_and(|(_, action)| self.may(token, *action))
+    }
+
     fn user_token_policies(&self, endpoint: &ServerEndpoint) -> Vec<UserTokenPolicy> {
         let mut policies = Vec::new();
-        if self.anonymous {
+        if self.anonymous.is_some() {
             policies.push(UserTokenPolicy {
                 policy_id: UAString::from("anonymous"),
                 token_type: UserTokenType::Anonymous,
@@ -211,22 +272,22 @@ mod tests {
     #[test]
     fn user_names_are_offered_only_with_a_users_file_and_a_secure_channel() {
         let none = ServerEndpoint::new_none("/", &[]);
-        let named = Access::new(false, Some(users()));
+        let named = Access::new(None, Some(users()));
         assert_eq!(kinds(&named, &secure()), [UserTokenType::UserName]);
         assert_eq!(kinds(&named, &none), []);
-        let open = Access::new(true, None);
+        let open = Access::new(Some(Role::Viewer), None);
         assert_eq!(kinds(&open, &secure()), [UserTokenType::Anonymous]);
         assert_eq!(kinds(&open, &none), [UserTokenType::Anonymous]);
-        assert_eq!(kinds(&Access::new(false, None), &secure()), []);
+        assert_eq!(kinds(&Access::new(None, None), &secure()), []);
     }
 
     #[test]
     fn a_user_of_the_file_logs_in_and_a_wrong_password_or_name_does_not() {
-        let access = Access::new(false, Some(users()));
-        assert_eq!(login(&access, "alice", "correct horse"), Ok(UserToken("alice".into())));
+        let access = Access::new(None, Some(users()));
+        assert_eq!(login(&access, "alice", "correct horse"), Ok(UserToken("user:alice".into())));
         assert_eq!(login(&access, "alice", "wrong"), Err(StatusCode::BadUserAccessDenied));
         assert_eq!(login(&access, "bob", "correct horse"), Err(StatusCode::BadUserAccessDenied));
-        let without = Access::new(false, None);
+        let without = Access::new(None, None);
         assert_eq!(
             login(&without, "alice", "correct horse"),
             Err(StatusCode::BadIdentityTokenRejected)
@@ -234,8 +295,32 @@ mod tests {
     }
 
     #[test]
+    fn roles_decide_writes_and_methods() {
+        let access = Access::new(Some(Role::Viewer), Some(users()));
+        let alice = UserToken("user:alice".into());
+        let anonymous = UserToken(opcua::server::ANONYMOUS_USER_TOKEN_ID.into());
+        let node = NodeId::new(2, "main.setpoint");
+        let rw = AccessLevel::CURRENT_READ | AccessLevel::CURRENT_WRITE;
+        let level = |token: &UserToken| access.effective_user_access_level(token, rw, &node).bits();
+        assert_eq!(level(&alice), rw.bits(), "an operator");
+        assert_eq!(level(&anonymous), AccessLevel::CURRENT_READ.bits(), "an anonymous viewer");
+        let run = NodeId::new(2, "PLC.Run");
+        assert!(access.is_user_executable(&alice, &run));
+        assert!(access.is_user_executable(&alice, &NodeId::new(2, "PLC.Reset")));
+        assert!(!access.is_user_executable(&anonymous, &run));
+        assert!(!access.is_user_executable(&alice, &NodeId::new(2, "PLC.Load")), "not a method");
+        // A token of no user of the file, and a user name that spells the anonymous token.
+        assert_eq!(access.role(&UserToken("user:mallory".into())), None);
+        assert_eq!(access.role(&UserToken("alice".into())), None);
+        let open = Access::new(Some(Role::Operator), None);
+        assert!(open.is_user_executable(&anonymous, &NodeId::new(2, "PLC.Stop")));
+        assert_eq!(Access::caller(&alice), "opcua user \"alice\"");
+        assert_eq!(Access::caller(&anonymous), "opcua anonymous session");
+    }
+
+    #[test]
     fn a_name_that_failed_three_times_waits_even_with_the_right_password() {
-        let access = Access::new(false, Some(users()));
+        let access = Access::new(None, Some(users()));
         for _ in 0..3 {
             assert_eq!(login(&access, "alice", "wrong"), Err(StatusCode::BadUserAccessDenied));
         }

@@ -1,10 +1,15 @@
 //! The OPC UA server of `plcd run` (docs/OPCUA.md): SCADA, MES, historians and UaExpert browse,
-//! read and subscribe to the PLC's status and its Structured Text variables by name.
+//! read, subscribe to and write the PLC's status and its Structured Text variables by name, and
+//! call its RUN, STOP and reset methods.
 //!
-//! - [`access`]: who may open a session: anonymous as `[opcua] anonymous` says, user names from
-//!   the users file, throttled per name;
-//! - [`nodes`]: the address space's plan: node ids from the variables' full names, IEC types as
-//!   OPC UA built-in types, values read out of a mirror's copies;
+//! - [`access`]: who may open a session (anonymous as `[opcua] anonymous` says, user names from
+//!   the users file, throttled per name) and what its role lets it do;
+//! - [`nodes`]: the address space's plan: node ids from the variables' full names, which are
+//!   writable;
+//! - [`values`]: IEC values as OPC UA values, read out of a mirror's copies and written back as
+//!   the text `plcctl set` takes;
+//! - [`manager`]: plcd's node manager in the stack: writes and method calls, handed to the
+//!   request handler through the control server's in-process door, as `plcctl`'s are;
 //! - [`server`]: the OPC UA stack (the `async-opcua` crate) on a small tokio runtime of its own
 //!   threads, never real time, and the sampler thread that copies the variables at scan
 //!   boundaries through a [`crate::drivers::real_time::mirror::Mirror`] of the whole variable
@@ -12,13 +17,15 @@
 //!
 //! The scan never waits for either: it copies the mirror at a scan boundary when the sampler
 //! asks, at most once per `min_sampling_interval_ms`, with `try_lock` only and nothing
-//! allocated (`tests/scan_no_alloc.rs`). This round serves reads, browsing and subscriptions to
-//! anonymous and named sessions; writes, methods and the roles that decide them are not served
-//! yet (docs/OPCUA.md, "Not yet").
+//! allocated (`tests/scan_no_alloc.rs`); writes and method calls reach the PLC through the
+//! command queue, at a scan boundary, as `plcctl`'s do. What is not served yet is listed in
+//! docs/OPCUA.md, "Not yet".
 
 pub mod access;
+pub mod manager;
 pub mod nodes;
 pub mod server;
+pub mod values;
 
 pub use server::{OpcuaServer, RunningOpcua};
 

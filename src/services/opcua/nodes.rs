@@ -1,19 +1,16 @@
 //! The address space's plan, independent of the OPC UA stack's node store: which node every
-//! Structured Text variable becomes (its node id, its parent, its browse name), which OPC UA
-//! built-in type an IEC type is served as, and a value read out of a mirror's copy of device and
-//! variable memory as that type (docs/OPCUA.md, "Node ids" and "Types").
+//! Structured Text variable becomes (its node id, its parent, its browse name, whether clients
+//! may write it) (docs/OPCUA.md, "Node ids"). How its values look is [`super::values`]'s.
 //!
 //! Node ids are strings of the variable's full name as `plcctl get` names it
 //! (`main.counter`, `main.axis.pos`, `main.buf[3]`), in plcd's namespace: they depend on the
 //! names alone, so they are the same after a restart and in every project that keeps the name.
 
-use std::collections::HashSet;
+use std::collections::{BTreeSet, HashSet};
 
-use opcua::types::{DataTypeId, DateTime, Variant};
-
+use super::values::data_type;
 use crate::symbols::Symbols;
-use crate::value::{self, Elem, Pointer, ValueType};
-use crate::vm::Vm;
+use crate::value::{Pointer, ValueType};
 
 /// The node id of the folder of the program instances.
 pub const PROGRAMS: &str = "Programs";
@@ -33,6 +30,8 @@ pub struct Leaf {
     pub browse: String,
     pub ty: ValueType,
     pub at: Pointer,
+    /// `[opcua] writable` names it: sessions of the operator role and up may write it.
+    pub writable: bool,
 }
 
 /// An object node: a program instance, a struct or FB instance, an array's element of structs.
@@ -57,8 +56,10 @@ pub struct Plan {
 }
 
 impl Plan {
-    /// The plan of `symbols`, at most `max_nodes` variables, in declaration order.
-    pub fn of(symbols: &Symbols, max_nodes: usize) -> Plan {
+    /// The plan of `symbols`, at most `max_nodes` variables, in declaration order; the
+    /// variables of `writable` (full names, as [`crate::project::Project::opcua_writable`]
+    /// gives them) writable.
+    pub fn of(symbols: &Symbols, max_nodes: usize, writable: &BTreeSet<String>) -> Plan {
         let mut plan = Plan::default();
         let mut taken: HashSet<String> =
             [PLC, PROGRAMS, STATUS].iter().map(|s| s.to_string()).collect();
@@ -102,6 +103,7 @@ impl Plan {
                 browse: last.to_string(),
                 ty: symbol.ty.clone(),
                 at: symbol.at,
+                writable: writable.contains(&symbol.name),
             });
         }
         plan
@@ -134,120 +136,10 @@ pub fn split(name: &str) -> Vec<&str> {
     parts
 }
 
-/// The OPC UA built-in type an IEC type is served as; `None`: not served (references).
-pub fn data_type(ty: &ValueType) -> Option<DataTypeId> {
-    Some(match ty {
-        ValueType::Bool => DataTypeId::Boolean,
-        ValueType::Signed(e) | ValueType::Unsigned(e) | ValueType::Real(e) => elem_type(*e),
-        ValueType::Enum { base, .. } => elem_type(*base),
-        ValueType::Time => DataTypeId::Duration,
-        ValueType::Calendar(calendar) => match calendar.kind() {
-            value::CalendarKind::Tod => DataTypeId::Duration,
-            value::CalendarKind::Date | value::CalendarKind::Dt => DataTypeId::DateTime,
-        },
-        ValueType::Char | ValueType::WChar => DataTypeId::String,
-        ValueType::String { .. } | ValueType::WString { .. } => DataTypeId::String,
-        ValueType::Reference { .. } => return None,
-    })
-}
-
-fn elem_type(elem: Elem) -> DataTypeId {
-    match elem {
-        Elem::Bool => DataTypeId::Boolean,
-        Elem::I8 => DataTypeId::SByte,
-        Elem::I16 => DataTypeId::Int16,
-        Elem::I32 => DataTypeId::Int32,
-        Elem::I64 => DataTypeId::Int64,
-        Elem::U8 => DataTypeId::Byte,
-        Elem::U16 => DataTypeId::UInt16,
-        Elem::U32 => DataTypeId::UInt32,
-        Elem::U64 => DataTypeId::UInt64,
-        Elem::F32 => DataTypeId::Float,
-        Elem::F64 => DataTypeId::Double,
-    }
-}
-
-/// The value of a variable of type `ty` at `at`, read out of copies of device memory (`words`,
-/// from word 0) and variable memory (`vars`), as its OPC UA type ([`data_type`]).
-pub fn read(ty: &ValueType, at: Pointer, words: &[u16], vars: &[u8]) -> Variant {
-    match ty {
-        ValueType::String { .. } => Variant::from(value::decode_str(Vm::string_bytes_in(vars, at))),
-        ValueType::WString { .. } => {
-            let bytes = Vm::wstring_bytes_in(vars, at);
-            let units = bytes.chunks_exact(2).map(|u| u16::from_le_bytes([u[0], u[1]]));
-            let text: String = char::decode_utf16(units).map(|c| c.unwrap_or('\u{FFFD}')).collect();
-            Variant::from(text)
-        }
-        _ => slot_variant(ty, Vm::read_value_in(words, vars, at, ty.elem())),
-    }
-}
-
-/// A slot (as the VM stores a value of `ty`) as its OPC UA value.
-pub fn slot_variant(ty: &ValueType, slot: u64) -> Variant {
-    match ty {
-        ValueType::Bool => Variant::from(slot != 0),
-        ValueType::Signed(e) | ValueType::Unsigned(e) | ValueType::Real(e) => {
-            elem_variant(*e, slot)
-        }
-        ValueType::Enum { base, .. } => elem_variant(*base, slot),
-        // Nanoseconds, served as OPC UA's Duration: milliseconds in a Double.
-        ValueType::Time => Variant::Double(slot as i64 as f64 / 1e6),
-        ValueType::Calendar(calendar) => calendar_variant(*calendar, slot),
-        ValueType::Char => Variant::from(value::decode_byte(slot as u8).to_string()),
-        ValueType::WChar => {
-            let c = char::decode_utf16([slot as u16]).next().and_then(Result::ok);
-            Variant::from(c.unwrap_or('\u{FFFD}').to_string())
-        }
-        ValueType::String { .. } | ValueType::WString { .. } | ValueType::Reference { .. } => {
-            Variant::Empty
-        }
-    }
-}
-
-fn elem_variant(elem: Elem, slot: u64) -> Variant {
-    match elem {
-        Elem::Bool => Variant::Boolean(slot != 0),
-        Elem::I8 => Variant::SByte(slot as i8),
-        Elem::I16 => Variant::Int16(slot as i16),
-        Elem::I32 => Variant::Int32(slot as i32),
-        Elem::I64 => Variant::Int64(slot as i64),
-        Elem::U8 => Variant::Byte(slot as u8),
-        Elem::U16 => Variant::UInt16(slot as u16),
-        Elem::U32 => Variant::UInt32(slot as u32),
-        Elem::U64 => Variant::UInt64(slot),
-        Elem::F32 => Variant::Float(f32::from_bits(slot as u32)),
-        Elem::F64 => Variant::Double(f64::from_bits(slot)),
-    }
-}
-
-/// `DATE` and `DT` (seconds since 1970; their long forms nanoseconds) as a DateTime; `TOD`
-/// (milliseconds since midnight; `LTOD` nanoseconds) as a Duration in milliseconds.
-fn calendar_variant(calendar: value::Calendar, slot: u64) -> Variant {
-    let ns = if calendar.is_long() {
-        slot as i64
-    } else {
-        match calendar.kind() {
-            value::CalendarKind::Tod => (slot as u32 as i64).saturating_mul(1_000_000),
-            value::CalendarKind::Date | value::CalendarKind::Dt => {
-                (slot as u32 as i64).saturating_mul(1_000_000_000)
-            }
-        }
-    };
-    match calendar.kind() {
-        value::CalendarKind::Tod => Variant::Double(ns as f64 / 1e6),
-        value::CalendarKind::Date | value::CalendarKind::Dt => {
-            // OPC UA's DateTime counts 100 ns ticks from 1601-01-01.
-            const TICKS_1601_TO_1970: i64 = 116_444_736_000_000_000;
-            let ticks = (ns / 100).saturating_add(TICKS_1601_TO_1970);
-            Variant::DateTime(Box::new(DateTime::from(ticks)))
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::value::{Space, Symbol};
+    use crate::value::{Elem, Space, Symbol};
 
     fn symbol(name: &str, ty: ValueType, offset: u32) -> Symbol {
         Symbol {
@@ -275,7 +167,7 @@ mod tests {
         symbols.push(symbol("main.axis.ok", ValueType::Bool, 16));
         symbols.push(symbol("main.p", ValueType::Reference { type_name: "REF_TO INT".into() }, 24));
         symbols.push(symbol("other.buf[1]", ValueType::Unsigned(Elem::U8), 32));
-        let plan = Plan::of(&symbols, 100);
+        let plan = Plan::of(&symbols, 100, &BTreeSet::new());
         let ids: Vec<(&str, &str, &str)> = plan
             .leaves
             .iter()
@@ -301,7 +193,19 @@ mod tests {
         // The same names give the same ids, whatever else the project holds.
         let mut fewer = Symbols::default();
         fewer.push(symbol("main.axis.pos", ValueType::Real(Elem::F64), 0));
-        assert_eq!(Plan::of(&fewer, 100).leaves[0].id, "main.axis.pos");
+        assert_eq!(Plan::of(&fewer, 100, &BTreeSet::new()).leaves[0].id, "main.axis.pos");
+    }
+
+    #[test]
+    fn the_writable_names_and_no_other_are_writable() {
+        let mut symbols = Symbols::default();
+        symbols.push(symbol("main.setpoint", ValueType::Signed(Elem::I16), 0));
+        symbols.push(symbol("main.level", ValueType::Signed(Elem::I16), 2));
+        let writable = BTreeSet::from(["main.setpoint".to_string()]);
+        let plan = Plan::of(&symbols, 10, &writable);
+        let flags: Vec<(&str, bool)> =
+            plan.leaves.iter().map(|l| (l.id.as_str(), l.writable)).collect();
+        assert_eq!(flags, [("main.setpoint", true), ("main.level", false)]);
     }
 
     #[test]
@@ -310,7 +214,7 @@ mod tests {
         for i in 0..5 {
             symbols.push(symbol(&format!("main.v{i}"), ValueType::Bool, i));
         }
-        let plan = Plan::of(&symbols, 3);
+        let plan = Plan::of(&symbols, 3, &BTreeSet::new());
         assert_eq!((plan.leaves.len(), plan.left_out), (3, 2));
     }
 
@@ -319,78 +223,12 @@ mod tests {
         let mut symbols = Symbols::default();
         symbols.push(symbol("Status.Mode", ValueType::Bool, 0));
         symbols.push(symbol("Status.other", ValueType::Bool, 1));
-        let plan = Plan::of(&symbols, 10);
+        let plan = Plan::of(&symbols, 10, &BTreeSet::new());
         assert_eq!(plan.unserved, 1);
         assert_eq!(plan.leaves.len(), 1);
         assert_eq!(plan.leaves[0].id, "Status.other");
         // Its object would be the status folder's id: it hangs under the folder it names.
         assert!(plan.objects.is_empty());
         assert_eq!(plan.leaves[0].parent, "Status");
-    }
-
-    #[test]
-    fn iec_types_map_to_opc_ua_built_in_types() {
-        use ValueType as T;
-        let cases = [
-            (T::Bool, DataTypeId::Boolean),
-            (T::Signed(Elem::I8), DataTypeId::SByte),
-            (T::Signed(Elem::I16), DataTypeId::Int16),
-            (T::Signed(Elem::I32), DataTypeId::Int32),
-            (T::Signed(Elem::I64), DataTypeId::Int64),
-            (T::Unsigned(Elem::U8), DataTypeId::Byte),
-            (T::Unsigned(Elem::U16), DataTypeId::UInt16),
-            (T::Unsigned(Elem::U32), DataTypeId::UInt32),
-            (T::Unsigned(Elem::U64), DataTypeId::UInt64),
-            (T::Real(Elem::F32), DataTypeId::Float),
-            (T::Real(Elem::F64), DataTypeId::Double),
-            (T::String { cap: 10 }, DataTypeId::String),
-            (T::WString { cap: 10 }, DataTypeId::String),
-            (T::Time, DataTypeId::Duration),
-            (T::Calendar(value::Calendar::Dt), DataTypeId::DateTime),
-            (T::Calendar(value::Calendar::Tod), DataTypeId::Duration),
-            (T::Enum { type_name: "E".into(), values: vec![], base: Elem::I16 }, DataTypeId::Int16),
-        ];
-        for (ty, expected) in cases {
-            assert_eq!(data_type(&ty), Some(expected), "{ty:?}");
-        }
-        assert_eq!(data_type(&T::Reference { type_name: "REF_TO INT".into() }), None);
-    }
-
-    #[test]
-    fn slots_become_their_opc_ua_values() {
-        use ValueType as T;
-        assert_eq!(slot_variant(&T::Bool, 1), Variant::Boolean(true));
-        assert_eq!(slot_variant(&T::Signed(Elem::I16), 0xFFFF), Variant::Int16(-1));
-        assert_eq!(slot_variant(&T::Unsigned(Elem::U64), u64::MAX), Variant::UInt64(u64::MAX));
-        assert_eq!(slot_variant(&T::Real(Elem::F32), 2.5f32.to_bits().into()), Variant::Float(2.5));
-        assert_eq!(slot_variant(&T::Time, 1_500_000_000), Variant::Double(1500.0), "T#1s500ms");
-        let mode = T::Enum { type_name: "M".into(), values: vec![], base: Elem::I32 };
-        assert_eq!(slot_variant(&mode, 5), Variant::Int32(5), "an enumeration as its integer");
-        assert_eq!(slot_variant(&T::Char, u64::from(b'A')), Variant::from("A".to_string()));
-        // DT#1970-01-02-00:00:00: one day of seconds after 1970.
-        let Variant::DateTime(dt) = slot_variant(&T::Calendar(value::Calendar::Dt), 86_400) else {
-            panic!("a DateTime")
-        };
-        assert_eq!(dt.as_chrono().timestamp(), 86_400);
-    }
-
-    #[test]
-    fn values_are_read_out_of_the_copies() {
-        let mut vars = vec![0u8; 16];
-        vars[0..4].copy_from_slice(&42i32.to_le_bytes());
-        // A STRING's characters up to their NUL.
-        vars[4..7].copy_from_slice(b"abc");
-        let at = |offset| Pointer { space: Space::Var, offset };
-        assert_eq!(read(&ValueType::Signed(Elem::I32), at(0), &[], &vars), Variant::Int32(42));
-        assert_eq!(
-            read(&ValueType::String { cap: 8 }, at(4), &[], &vars),
-            Variant::from("abc".to_string())
-        );
-        // A located variable reads its device words, low word first.
-        let word = Pointer { space: Space::Word, offset: 1 };
-        assert_eq!(
-            read(&ValueType::Signed(Elem::I32), word, &[0, 0x5678, 0x1234], &vars),
-            Variant::Int32(0x1234_5678)
-        );
     }
 }

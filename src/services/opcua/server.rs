@@ -17,19 +17,21 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use opcua::crypto::SecurityPolicy;
-use opcua::nodes::{AccessLevel, ObjectBuilder, VariableBuilder};
+use opcua::nodes::{AccessLevel, MethodBuilder, ObjectBuilder, VariableBuilder};
 use opcua::server::diagnostics::NamespaceMetadata;
-use opcua::server::node_manager::memory::{simple_node_manager, SimpleNodeManager};
+use opcua::server::node_manager::memory::{InMemoryNodeManager, InMemoryNodeManagerBuilder};
 use opcua::server::{ServerBuilder, ServerEndpoint, ServerHandle, ANONYMOUS_USER_TOKEN_ID};
 use opcua::types::{
-    DataTypeId, DataValue, MessageSecurityMode, NodeId, ObjectId, QualifiedName, StatusCode,
-    Variant,
+    Argument, DataTypeId, DataValue, LocalizedText, MessageSecurityMode, NodeId, ObjectId,
+    QualifiedName, StatusCode, UAString, Variant,
 };
 
 use super::access::Access;
+use super::manager::{Forget, PlcNodes, PlcNodesBuilder, Target};
 use super::nodes::{self, Plan};
-use super::OpcuaError;
+use super::{values, OpcuaError};
 use crate::config::{Anonymous, OpcuaConfig, OpcuaPolicy};
+use crate::drivers::real_time::door::LocalDoor;
 use crate::drivers::real_time::mirror::Mirror;
 use crate::drivers::real_time::{pending, Shared, PLAIN_THREAD_STACK};
 use crate::engine::event::ErrorKind;
@@ -81,12 +83,14 @@ pub struct OpcuaServer {
 impl OpcuaServer {
     /// Binds `[opcua] listen`; `None` when it is not set. `pki_dir` is where the certificates
     /// live (`[opcua] pki_dir`, else `opcua-pki` in the retain directory: the daemon says);
-    /// `symbols` are the project's variables, `users` the users file's users (`[users] file`,
-    /// read by the daemon), if any.
+    /// `symbols` are the project's variables, `writable` the full names of those clients may
+    /// write ([`crate::project::Project::opcua_writable`]), `users` the users file's users
+    /// (`[users] file`, read by the daemon), if any.
     pub fn bind(
         config: &OpcuaConfig,
         pki_dir: Option<PathBuf>,
         symbols: &Symbols,
+        writable: &std::collections::BTreeSet<String>,
         users: Option<UsersFile>,
     ) -> Result<Option<OpcuaServer>, OpcuaError> {
         let Some(addr) = config.listen else {
@@ -97,7 +101,7 @@ impl OpcuaServer {
             .and_then(|l| l.set_nonblocking(true).map(|()| l))
             .map_err(|source| OpcuaError::Bind { addr, source })?;
         let addr = listener.local_addr().map_err(|source| OpcuaError::Bind { addr, source })?;
-        let plan = Plan::of(symbols, config.max_nodes as usize);
+        let plan = Plan::of(symbols, config.max_nodes as usize, writable);
         // Device words from word 0 up to the last a located variable reads, so that a place
         // indexes the copy as it indexes device memory.
         let words = plan.leaves.iter().filter_map(device_end).max().unwrap_or(0);
@@ -132,8 +136,9 @@ impl OpcuaServer {
         self.addr
     }
 
-    /// Starts the runtime, the stack and the sampler.
-    pub fn start(self, shared: Arc<Shared>) -> Result<RunningOpcua, OpcuaError> {
+    /// Starts the runtime, the stack and the sampler; writes and method calls go through
+    /// `door` to the request handler.
+    pub fn start(self, shared: Arc<Shared>, door: LocalDoor) -> Result<RunningOpcua, OpcuaError> {
         let OpcuaServer { listener, addr, config, pki_dir, plan, users, mirror, layout } = self;
         prepare_pki(&pki_dir)?;
         let host = config.endpoint_host.clone().unwrap_or_else(|| addr.ip().to_string());
@@ -147,11 +152,29 @@ impl OpcuaServer {
             .map_err(|source| OpcuaError::Runtime { source })?;
         // The stack starts its own tasks as it is built: inside the runtime.
         let _runtime = runtime.enter();
-        let (server, handle) = builder(&config, &pki_dir, &host, addr.port(), users)
+        let access = Arc::new(Access::new(config.anonymous.role(), users));
+        let forget = Arc::new(Mutex::new(Forget::default()));
+        let targets = plan
+            .leaves
+            .iter()
+            .enumerate()
+            .filter(|(_, leaf)| leaf.writable)
+            .map(|(leaf, l)| (l.id.clone(), Target { leaf, ty: l.ty.clone() }))
+            .collect();
+        let nodes = PlcNodesBuilder {
+            namespace: NamespaceMetadata {
+                namespace_uri: NAMESPACE_URI.to_string(),
+                ..Default::default()
+            },
+            targets,
+            door,
+            forget: Arc::clone(&forget),
+        };
+        let (server, handle) = builder(&config, &pki_dir, &host, addr.port(), access, nodes)
             .build()
             .map_err(OpcuaError::Stack)?;
         secure_key(&pki_dir)?;
-        let Some(manager) = handle.node_managers().get_of_type::<SimpleNodeManager>() else {
+        let Some(manager) = handle.node_managers().get_of_type::<PlcManager>() else {
             return Err(OpcuaError::Stack("plcd's node manager is missing".into()));
         };
         let ns = handle
@@ -176,6 +199,7 @@ impl OpcuaServer {
             served,
             interval: Duration::from_millis(u64::from(config.min_sampling_interval_ms)),
             layout,
+            forget,
             stop: Arc::clone(&stop),
             words: Vec::new(),
             vars: Vec::new(),
@@ -204,6 +228,9 @@ impl OpcuaServer {
         Ok(RunningOpcua { runtime, handle, stack, sampler: thread, stop, url, addr })
     }
 }
+
+/// plcd's node manager as the stack holds it.
+type PlcManager = InMemoryNodeManager<PlcNodes>;
 
 /// The last device word a located leaf reads, plus one.
 fn device_end(leaf: &nodes::Leaf) -> Option<u16> {
@@ -256,9 +283,10 @@ fn builder(
     pki_dir: &Path,
     host: &str,
     port: u16,
-    users: Option<Arc<UsersFile>>,
+    access: Arc<Access>,
+    nodes: PlcNodesBuilder,
 ) -> ServerBuilder {
-    let anonymous = config.anonymous == Anonymous::Viewer;
+    let anonymous = config.anonymous != Anonymous::None;
     let tokens: Vec<String> =
         if anonymous { vec![ANONYMOUS_USER_TOKEN_ID.to_string()] } else { Vec::new() };
     let mut builder = ServerBuilder::new()
@@ -277,11 +305,8 @@ fn builder(
         .discovery_urls(vec!["/".to_string()])
         .max_sessions(config.max_sessions as usize)
         .max_message_size(config.max_request_bytes as usize)
-        .with_authenticator(Arc::new(Access::new(anonymous, users)))
-        .with_node_manager(simple_node_manager(
-            NamespaceMetadata { namespace_uri: NAMESPACE_URI.to_string(), ..Default::default() },
-            "plcd",
-        ));
+        .with_authenticator(access)
+        .with_node_manager(InMemoryNodeManagerBuilder::new(nodes));
     {
         let limits = builder.limits_mut();
         let subscriptions = &mut limits.subscriptions;
@@ -342,15 +367,37 @@ fn id(ns: u16, text: &str) -> NodeId {
     NodeId::new(ns, text.to_string())
 }
 
-/// Objects/PLC, its Status and Programs folders, the status variables and the plan's nodes;
-/// every variable read-only.
-fn populate(manager: &SimpleNodeManager, ns: u16, plan: &Plan, served: &Served) {
+/// Objects/PLC, its methods, its Status and Programs folders, the status variables and the
+/// plan's nodes; the variables read-only but for the writable ones.
+fn populate(manager: &PlcManager, ns: u16, plan: &Plan, served: &Served) {
     let mut space = manager.address_space().write();
     let plc = id(ns, nodes::PLC);
     let name = |text: &str| QualifiedName::new(ns, text);
     ObjectBuilder::new(&plc, name(nodes::PLC), nodes::PLC)
         .organized_by(ObjectId::ObjectsFolder)
         .insert(&mut *space);
+    for (method, _) in super::access::METHODS {
+        let browse = method.trim_start_matches("PLC.");
+        let node = id(ns, method);
+        let mut builder = MethodBuilder::new(&node, name(browse), browse)
+            .component_of(plc.clone())
+            .executable(true)
+            .user_executable(true);
+        if browse == "Reset" {
+            let cold = Argument {
+                name: UAString::from("Cold"),
+                data_type: DataTypeId::Boolean.into(),
+                value_rank: -1,
+                array_dimensions: None,
+                description: LocalizedText::new(
+                    "",
+                    "true: a cold restart (clears the retained memory too); false: warm",
+                ),
+            };
+            builder = builder.input_args(&mut *space, &id(ns, "PLC.Reset.InputArguments"), &[cold]);
+        }
+        builder.insert(&mut *space);
+    }
     for folder in [nodes::STATUS, nodes::PROGRAMS] {
         ObjectBuilder::new(&id(ns, folder), name(folder), folder)
             .is_folder()
@@ -373,13 +420,15 @@ fn populate(manager: &SimpleNodeManager, ns: u16, plan: &Plan, served: &Served) 
             .organized_by(id(ns, &object.parent))
             .insert(&mut *space);
     }
+    let read_write = AccessLevel::CURRENT_READ | AccessLevel::CURRENT_WRITE;
     for (leaf, node) in plan.leaves.iter().zip(&served.leaves) {
-        let Some(ty) = nodes::data_type(&leaf.ty) else { continue };
+        let Some(ty) = values::data_type(&leaf.ty) else { continue };
+        let access = if leaf.writable { read_write } else { read_only };
         VariableBuilder::new(node, name(&leaf.browse), leaf.browse.as_str())
             .data_type(ty)
             .value(initial(ty))
-            .access_level(read_only)
-            .user_access_level(read_only)
+            .access_level(access)
+            .user_access_level(access)
             .organized_by(id(ns, &leaf.parent))
             .insert(&mut *space);
     }
@@ -432,12 +481,14 @@ impl Stop {
 struct Sampler {
     mirror: Arc<Mirror>,
     shared: Arc<Shared>,
-    manager: Arc<SimpleNodeManager>,
+    manager: Arc<PlcManager>,
     handle: ServerHandle,
     served: Served,
     interval: Duration,
     /// The layout of the engine the plan is of.
     layout: Option<Arc<RetainedVariables>>,
+    /// The leaves written since the last hand-over.
+    forget: Arc<Mutex<Forget>>,
     stop: Arc<Stop>,
     /// The last copy, taken out of the image so that the lock is held for a copy only.
     words: Vec<u16>,
@@ -513,6 +564,19 @@ impl Sampler {
         ];
         let count = status.len() + leaves.len();
         self.last.resize(count, None);
+        {
+            // A write replaced these values in the address space: hand the copy's over.
+            let mut forget = self.forget.lock().unwrap_or_else(|e| e.into_inner());
+            if forget.all {
+                self.last[STATUS_NODES.len()..].fill(None);
+            }
+            for &leaf in &forget.leaves {
+                if let Some(last) = self.last.get_mut(STATUS_NODES.len() + leaf) {
+                    *last = None;
+                }
+            }
+            *forget = Forget::default();
+        }
         if !same_engine && !self.told_changed {
             log::warn!(
                 "opcua: the running project is not the one plcd started with (a reload, a load \
@@ -531,7 +595,7 @@ impl Sampler {
         for (k, ((ty, at), node)) in leaves.iter().zip(&self.served.leaves).enumerate() {
             let i = STATUS_NODES.len() + k;
             if same_engine {
-                let value = nodes::read(ty, *at, &self.words, &self.vars);
+                let value = values::read(ty, *at, &self.words, &self.vars);
                 if self.last[i].as_ref() != Some(&value) {
                     self.last[i] = Some(value.clone());
                     changed.push((node, DataValue::new_now(value)));
