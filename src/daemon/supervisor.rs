@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use super::notify::{self, Notifier};
 use super::report;
-use super::requests::{RequestHandler, RequestLinks, Running};
+use super::requests::{Announce, RequestHandler, RequestLinks, Running};
 use crate::config::{Backend, ControlConfig, ProjectChange};
 use crate::diag::Diagnostics;
 use crate::drivers::real_time::driver::{Driver, DriverError};
@@ -88,6 +88,8 @@ struct Daemon {
     modbus: Option<crate::services::modbus::RunningServer>,
     /// The OPC UA server (`[opcua] listen`).
     opcua: Option<Opcua>,
+    /// Who is told of each engine a reload queues (the OPC UA server's address space).
+    announce: Option<Announce>,
     log_outputs: log::Level,
     notifier: Option<Notifier>,
     started: Instant,
@@ -135,6 +137,7 @@ impl Daemon {
             log::Level::Debug
         };
         let shared = Arc::clone(&driver.shared);
+        let announce = announcer(&opcua);
 
         let signals = Signals::register()?;
         let has_switch = project.config.switch.is_some();
@@ -150,6 +153,7 @@ impl Daemon {
             snapshot: Arc::clone(&driver.snapshot),
             running: Arc::clone(&running),
             remote: driver.remote_board(),
+            announce: announce.clone(),
         };
         // On an error, dropping the driver stops the threads.
         let modbus = match modbus {
@@ -196,6 +200,7 @@ impl Daemon {
             control,
             modbus,
             opcua,
+            announce,
             log_outputs,
             notifier: Notifier::from_env(),
             started: Instant::now(),
@@ -409,6 +414,9 @@ impl Daemon {
                 } else {
                     let watch = new.output_bits();
                     let engine = Box::new(Engine::new(&new, &watch));
+                    if let Some(announce) = &self.announce {
+                        announce(&engine, &new);
+                    }
                     // Queued first, with the running project held: the project the control
                     // thread names things by changes only if the engine will change too.
                     let queued =
@@ -508,6 +516,23 @@ fn bind_opcua(project: &Project) -> Result<Option<Opcua>, DaemonError> {
         Some(_) => Err(DaemonError::NoOpcua),
         None => Ok(None),
     }
+}
+
+/// How the OPC UA server hears of each engine the daemon queues, so that its address space
+/// follows the running project.
+#[cfg(feature = "opcua")]
+fn announcer(opcua: &Option<crate::services::opcua::OpcuaServer>) -> Option<Announce> {
+    let following = opcua.as_ref()?.following();
+    Some(Arc::new(move |engine: &Engine, project: &Project| {
+        // A project that reached a queue was built, and so checked: its names resolve.
+        let writable = project.opcua_writable().unwrap_or_default();
+        following.announce(engine.retained_variables(), &project.variables.symbols, &writable);
+    }))
+}
+
+#[cfg(not(feature = "opcua"))]
+fn announcer(_: &Option<Opcua>) -> Option<Announce> {
+    None
 }
 
 #[cfg(feature = "opcua")]

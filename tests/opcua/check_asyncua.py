@@ -240,10 +240,12 @@ class Changes:
     def __init__(self):
         self.stamps = []
         self.values = []
+        self.statuses = []
 
     def datachange_notification(self, node, value, data):
         self.values.append(value)
         self.stamps.append(data.monitored_item.Value.SourceTimestamp)
+        self.statuses.append(data.monitored_item.Value.StatusCode.name)
 
 
 async def subscribe(c, counter):
@@ -273,7 +275,11 @@ async def wait_value(node, wanted, patience=PATIENCE):
     until = time.monotonic() + patience
     value = None
     while time.monotonic() < until:
-        value = await node.read_value()
+        try:
+            value = await node.read_value()
+        except ua.UaStatusCodeError as e:
+            # not there yet (a node the address space is about to get)
+            value = type(e).__name__
         if value == wanted:
             break
         await asyncio.sleep(0.02)
@@ -356,6 +362,81 @@ async def writes_and_methods(url, daemon, control):
         check("Reset clears the error: STOP", await wait_value(mode, "STOP") == "STOP")
         await bounded("Run", plc.call_method(f"{ns}:Run"))
         check("and Run runs again", await wait_value(mode, "RUN") == "RUN")
+
+
+async def follows_a_reload(url, daemon):
+    """A SIGHUP reload of a changed program: the address space becomes the new project's. A
+    subscription to a variable both projects have goes on (the counter starts again from 0: the
+    programs restart), a new variable is there, a removed one's subscriber is told
+    BadNodeIdUnknown and its node is gone."""
+    async with client(url) as c:
+        ns = await c.get_namespace_index(NS)
+        node = lambda name: c.get_node(f"ns={ns};s={name}")  # noqa: E731
+        counter_changes, phase_changes = Changes(), Changes()
+        subscription = await c.create_subscription(SAMPLING_MS, counter_changes)
+        await subscription.subscribe_data_change(node("main.counter"), sampling_interval=SAMPLING_MS)
+        other = await c.create_subscription(SAMPLING_MS, phase_changes)
+        await other.subscribe_data_change(node("main.phase"), sampling_interval=SAMPLING_MS)
+        until = time.monotonic() + PATIENCE
+        while len(counter_changes.values) < 3 and time.monotonic() < until:
+            await asyncio.sleep(0.02)
+        before = len(counter_changes.values)
+        highest = max(counter_changes.values, default=0)
+        program = Path(daemon.dir) / "main.st"
+        text = program.read_text()
+        # `phase` removed, `extra` added, `label` longer (a STRING keeps its node).
+        text = text.replace("    phase : Phase := Moving;\n", "    extra : INT := 42;\n")
+        program.write_text(text.replace("label : STRING[20]", "label : STRING[40]"))
+        daemon.proc.send_signal(signal.SIGHUP)
+        until = time.monotonic() + PATIENCE
+        followed = False
+        while time.monotonic() < until and not followed:
+            followed = any("address space follows the new project" in line for line in daemon.log)
+            await asyncio.sleep(0.02)
+        check("a reload: the log says the address space follows", followed,
+              "\n".join(daemon.log[-10:]))
+        check("a new variable is served", await wait_value(node("main.extra"), 42) == 42)
+        code = await status_of(node("main.phase").read_value())
+        check("a removed variable's node is gone", code == "BadNodeIdUnknown", f"{code}")
+        until = time.monotonic() + PATIENCE
+        while time.monotonic() < until and not any(v is not None and v < highest for v in counter_changes.values[before:]):
+            await asyncio.sleep(0.02)
+        after = [v for v in counter_changes.values[before:] if v is not None]
+        check("a subscription to a kept variable goes on (the counter restarted)",
+              any(v < highest for v in after), f"{highest} before, then {after[:8]}")
+        check("a removed variable's subscriber is told BadNodeIdUnknown",
+              "BadNodeIdUnknown" in phase_changes.statuses, f"{phase_changes.statuses}")
+        check("a kept STRING reads", await node("main.label").read_value() == "plcd")
+
+
+async def follows_an_online_change(url, daemon, plcctl):
+    """`plcctl load --online` of a program with one more variable: the address space follows,
+    and a subscription to the counter goes on without a restart (an online change keeps the
+    values)."""
+    async with client(url) as c:
+        ns = await c.get_namespace_index(NS)
+        node = lambda name: c.get_node(f"ns={ns};s={name}")  # noqa: E731
+        changes = Changes()
+        subscription = await c.create_subscription(SAMPLING_MS, changes)
+        await subscription.subscribe_data_change(node("main.counter"), sampling_interval=SAMPLING_MS)
+        program = Path(daemon.dir) / "main.st"
+        program.write_text(program.read_text().replace(
+            "    extra : INT := 42;\n", "    extra : INT := 42;\n    more : INT := 7;\n"))
+        config = str(Path(daemon.dir) / "plcd.toml")
+        done = subprocess.run([plcctl, "--socket", str(Path(daemon.dir) / "plcd.sock"), "load",
+                               "--online", "--config", config],
+                              capture_output=True, text=True, timeout=PATIENCE)
+        check("plcctl load --online is accepted", done.returncode == 0, done.stdout + done.stderr)
+        check("an online change: the new variable is served",
+              await wait_value(node("main.more"), 7) == 7)
+        followed = [line for line in daemon.log if "address space follows the new project" in line]
+        check("the log says so again", len(followed) == 2, "\n".join(daemon.log[-10:]))
+        until = time.monotonic() + PATIENCE
+        while len(changes.values) < 8 and time.monotonic() < until:
+            await asyncio.sleep(0.02)
+        values = [v for v in changes.values if v is not None]
+        check("the counter's subscription goes on, never restarting",
+              len(values) >= 8 and all(b > a for a, b in zip(values, values[1:])), f"{values}")
 
 
 async def viewer_refused(url):
@@ -489,7 +570,7 @@ def wait_file(directory, patience=PATIENCE):
     return []
 
 
-async def main_checks(plcd, project, work):
+async def main_checks(plcd, plcctl, project, work):
     daemons = []
 
     def start(opcua, **kw):
@@ -605,6 +686,8 @@ async def main_checks(plcd, project, work):
         if url is None:
             return
         await bounded("writes and methods", writes_and_methods(url, operator, True))
+        await bounded("a reload", follows_a_reload(url, operator))
+        await bounded("an online change", follows_an_online_change(url, operator, plcctl))
         operator.stop()
         viewer = start(f'security_policies = ["None"]\nanonymous = "viewer"\n{writable}',
                        dir=operator.dir)
@@ -643,11 +726,13 @@ async def main_checks(plcd, project, work):
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--plcd", required=True)
+    parser.add_argument("--plcctl", required=True)
     parser.add_argument("--project", required=True)
     args = parser.parse_args()
     work = tempfile.mkdtemp(prefix="plcd-asyncua-client-")
     try:
-        asyncio.run(main_checks(os.path.abspath(args.plcd), args.project, work))
+        asyncio.run(main_checks(os.path.abspath(args.plcd), os.path.abspath(args.plcctl),
+                                args.project, work))
     except Exception as e:  # noqa: BLE001 - any escape is a failure, reported as one
         check("the checks ran to the end", False, repr(e))
     finally:

@@ -552,6 +552,7 @@ mod tests {
                 project,
             ))),
             remote: Default::default(),
+            announce: None,
         };
         Bench { handler: RequestHandler::new(links), commands, completions, dir }
     }

@@ -70,9 +70,17 @@ impl RequestHandler {
             ));
         }
         let watch = new.output_bits();
+        let announce = |engine: &Engine| {
+            if let Some(announce) = &self.links.announce {
+                announce(engine, &new);
+            }
+        };
         let command = if running_now {
             match online::prepare(&running.project, &new, &watch) {
-                Ok(change) => ControlCommand::Online(Box::new(change)),
+                Ok(change) => {
+                    announce(&change.engine);
+                    ControlCommand::Online(Box::new(change))
+                }
                 Err(reasons) => {
                     return Some(ResponseLine::failure(
                         Failure::new(
@@ -84,7 +92,9 @@ impl RequestHandler {
                 }
             }
         } else {
-            ControlCommand::Load(Box::new(Engine::new(&new, &watch)))
+            let engine = Engine::new(&new, &watch);
+            announce(&engine);
+            ControlCommand::Load(Box::new(engine))
         };
         let (programs, tasks) = (new.programs.len(), new.config.tasks.len());
         // The new project is the running one from now on (the supervisor names the new

@@ -65,6 +65,11 @@ impl Running {
     }
 }
 
+/// Told of every engine the daemon is about to queue (a load, an online change, a reload),
+/// with its project, before the scan thread can take it: how the OPC UA server's address space
+/// follows the running project (`services::opcua::follow`).
+pub type Announce = Arc<dyn Fn(&crate::engine::Engine, &Project) + Send + Sync>;
+
 /// The queues and shared state the handler works with.
 pub struct RequestLinks {
     pub shared: Arc<Shared>,
@@ -74,6 +79,8 @@ pub struct RequestLinks {
     pub running: Arc<Mutex<Running>>,
     /// The remote I/O devices' counters.
     pub remote: crate::io::remote::RemoteBoard,
+    /// Who is told of each engine a `load` queues.
+    pub announce: Option<Announce>,
 }
 
 /// Answers the control socket's requests. See the module docs.

@@ -73,7 +73,7 @@ impl Forget {
 pub struct PlcNodesBuilder {
     pub namespace: NamespaceMetadata,
     /// The writable variables by their node ids' strings.
-    pub targets: HashMap<String, Target>,
+    pub targets: Targets,
     pub door: LocalDoor,
     pub forget: Arc<Mutex<Forget>>,
 }
@@ -97,10 +97,17 @@ impl InMemoryNodeManagerImplBuilder for PlcNodesBuilder {
     }
 }
 
+/// plcd's node manager as the stack holds it.
+pub type PlcManager = opcua::server::node_manager::memory::InMemoryNodeManager<PlcNodes>;
+
+/// The writable variables by their node ids' strings: replaced when the running project
+/// changes ([`super::follow`]).
+pub type Targets = Arc<std::sync::RwLock<HashMap<String, Target>>>;
+
 /// The node manager. See the module docs.
 pub struct PlcNodes {
     namespace: NamespaceMetadata,
-    targets: HashMap<String, Target>,
+    targets: Targets,
     door: LocalDoor,
     forget: Arc<Mutex<Forget>>,
 }
@@ -115,12 +122,13 @@ struct Checked {
 
 impl PlcNodes {
     /// The writable variable `node` is, if it is one.
-    fn target(&self, node: &NodeId) -> Option<&Target> {
+    fn target(&self, node: &NodeId) -> Option<Target> {
         if node.namespace != self.namespace.namespace_index {
             return None;
         }
         let Identifier::String(id) = &node.identifier else { return None };
-        self.targets.get(id.as_ref())
+        let targets = self.targets.read().unwrap_or_else(|e| e.into_inner());
+        targets.get(id.as_ref()).cloned()
     }
 
     /// `request` through the door for the session of `token`: its reply, or the status code
@@ -223,7 +231,7 @@ impl InMemoryNodeManagerImpl for PlcNodes {
                     node.set_status(status);
                     continue;
                 }
-                let status = match (value.attribute_id, target) {
+                let status = match (value.attribute_id, &target) {
                     (AttributeId::Value, Some(_)) if value.index_range != NumericRange::None => {
                         Err(StatusCode::BadWriteNotSupported)
                     }

@@ -10,6 +10,10 @@
 //!   the text `plcctl set` takes;
 //! - [`manager`]: plcd's node manager in the stack: writes and method calls, handed to the
 //!   request handler through the control server's in-process door, as `plcctl`'s are;
+//! - [`space`]: the address space in the stack's node store, built from a plan and changed
+//!   from one plan to the next;
+//! - [`follow`]: the plans of the engines the daemon queues (a reload, a load, an online
+//!   change), so that the address space follows the running project;
 //! - [`server`]: the OPC UA stack (the `async-opcua` crate) on a small tokio runtime of its own
 //!   threads, never real time, and the sampler thread that copies the variables at scan
 //!   boundaries through a [`crate::drivers::real_time::mirror::Mirror`] of the whole variable
@@ -22,9 +26,11 @@
 //! docs/OPCUA.md, "Not yet".
 
 pub mod access;
+pub mod follow;
 pub mod manager;
 pub mod nodes;
 pub mod server;
+pub mod space;
 pub mod values;
 
 pub use server::{OpcuaServer, RunningOpcua};

@@ -8,9 +8,22 @@
 
 use std::collections::{BTreeSet, HashSet};
 
+use opcua::types::DataTypeId;
+
 use super::values::data_type;
 use crate::symbols::Symbols;
 use crate::value::{Pointer, ValueType};
+
+/// The status variables, `Status.<name>`, and their types.
+pub const STATUS_NODES: [(&str, DataTypeId); 7] = [
+    ("Mode", DataTypeId::String),
+    ("ErrorCode", DataTypeId::String),
+    ("ScanTimeLast", DataTypeId::Double),
+    ("ScanTimeMin", DataTypeId::Double),
+    ("ScanTimeMax", DataTypeId::Double),
+    ("Scans", DataTypeId::UInt64),
+    ("KeySwitch", DataTypeId::String),
+];
 
 /// The node id of the folder of the program instances.
 pub const PROGRAMS: &str = "Programs";
@@ -63,7 +76,7 @@ impl Plan {
         let mut plan = Plan::default();
         let mut taken: HashSet<String> =
             [PLC, PROGRAMS, STATUS].iter().map(|s| s.to_string()).collect();
-        taken.extend(super::server::STATUS_NODES.iter().map(|(name, _)| status_id(name)));
+        taken.extend(STATUS_NODES.iter().map(|(name, _)| status_id(name)));
         for symbol in symbols.iter() {
             if data_type(&symbol.ty).is_none() {
                 plan.unserved += 1;
@@ -108,6 +121,74 @@ impl Plan {
         }
         plan
     }
+}
+
+/// What changes in the address space from one plan to the next (a reload, a `plcctl load`, an
+/// online change): the nodes of the names both plans have stay as they are, so a client's node
+/// ids and subscriptions of a variable the new project keeps go on working.
+#[derive(Debug, Default, PartialEq)]
+pub struct Changes {
+    /// Variables gone, or changed in their OPC UA type or in being writable (they come back in
+    /// `add_leaves`).
+    pub remove_leaves: Vec<String>,
+    /// Objects gone, children before their parents.
+    pub remove_objects: Vec<String>,
+    /// New objects, parents before their children.
+    pub add_objects: Vec<Object>,
+    pub add_leaves: Vec<Leaf>,
+}
+
+impl Plan {
+    /// The changes from this plan to `new`.
+    pub fn changes_to(&self, new: &Plan) -> Changes {
+        use std::collections::HashMap;
+        let same = |a: &Leaf, b: &Leaf| {
+            data_type(&a.ty) == data_type(&b.ty) && a.writable == b.writable && a.parent == b.parent
+        };
+        let old_leaves: HashMap<&str, &Leaf> =
+            self.leaves.iter().map(|l| (l.id.as_str(), l)).collect();
+        let new_leaves: HashMap<&str, &Leaf> =
+            new.leaves.iter().map(|l| (l.id.as_str(), l)).collect();
+        let old_objects: HashSet<&str> = self.objects.iter().map(|o| o.id.as_str()).collect();
+        let new_objects: HashSet<&str> = new.objects.iter().map(|o| o.id.as_str()).collect();
+        let mut remove_objects: Vec<&Object> =
+            self.objects.iter().filter(|o| !new_objects.contains(o.id.as_str())).collect();
+        // Parents come before their children in a plan: reversed, children first.
+        remove_objects.reverse();
+        Changes {
+            remove_leaves: self
+                .leaves
+                .iter()
+                .filter(|l| !new_leaves.get(l.id.as_str()).is_some_and(|n| same(l, n)))
+                .map(|l| l.id.clone())
+                .collect(),
+            remove_objects: remove_objects.into_iter().map(|o| o.id.clone()).collect(),
+            add_objects: new
+                .objects
+                .iter()
+                .filter(|o| !old_objects.contains(o.id.as_str()))
+                .cloned()
+                .collect(),
+            add_leaves: new
+                .leaves
+                .iter()
+                .filter(|l| !old_leaves.get(l.id.as_str()).is_some_and(|o| same(o, l)))
+                .cloned()
+                .collect(),
+        }
+    }
+}
+
+/// The last device word a located leaf reads, plus one; `None` for a leaf in variable memory.
+pub fn device_end(leaf: &Leaf) -> Option<u16> {
+    use crate::value::Space;
+    let end = match leaf.at.space {
+        Space::Word => leaf.at.offset + leaf.ty.elem().words(),
+        Space::Bit => leaf.at.offset / 16 + 1,
+        Space::Byte => leaf.at.offset / 2 + 1,
+        Space::Var | Space::Frame | Space::Discard => return None,
+    };
+    Some(end.min(u32::from(u16::MAX)) as u16)
 }
 
 /// The node id string of a status variable: `Status.Mode`.
@@ -194,6 +275,50 @@ mod tests {
         let mut fewer = Symbols::default();
         fewer.push(symbol("main.axis.pos", ValueType::Real(Elem::F64), 0));
         assert_eq!(Plan::of(&fewer, 100, &BTreeSet::new()).leaves[0].id, "main.axis.pos");
+    }
+
+    #[test]
+    fn a_new_plan_keeps_the_nodes_of_the_names_it_keeps() {
+        let plan = |list: &[(&str, ValueType, bool)]| {
+            let mut symbols = Symbols::default();
+            let mut writable = BTreeSet::new();
+            for (i, (name, ty, w)) in list.iter().enumerate() {
+                symbols.push(symbol(name, ty.clone(), 8 * i as u32));
+                if *w {
+                    writable.insert(name.to_string());
+                }
+            }
+            Plan::of(&symbols, 100, &writable)
+        };
+        let int = ValueType::Signed(Elem::I16);
+        let old = plan(&[
+            ("main.kept", int.clone(), false),
+            ("main.axis.pos", ValueType::Real(Elem::F64), false),
+            ("main.retyped", int.clone(), false),
+            ("main.now_writable", int.clone(), false),
+            ("main.gone", int.clone(), false),
+            ("main.text", ValueType::String { cap: 10 }, false),
+        ]);
+        let new = plan(&[
+            ("main.text", ValueType::String { cap: 80 }, false),
+            ("main.kept", int.clone(), false),
+            ("main.retyped", ValueType::Signed(Elem::I32), false),
+            ("main.now_writable", int.clone(), true),
+            ("main.added", int.clone(), false),
+            ("other.x.y", int.clone(), false),
+        ]);
+        let changes = old.changes_to(&new);
+        assert_eq!(
+            changes.remove_leaves,
+            ["main.axis.pos", "main.retyped", "main.now_writable", "main.gone"],
+            "a STRING's new length and a new place keep the node: the type served is the same"
+        );
+        assert_eq!(changes.remove_objects, ["main.axis"]);
+        let added: Vec<&str> = changes.add_objects.iter().map(|o| o.id.as_str()).collect();
+        assert_eq!(added, ["other", "other.x"], "parents first");
+        let added: Vec<&str> = changes.add_leaves.iter().map(|l| l.id.as_str()).collect();
+        assert_eq!(added, ["main.retyped", "main.now_writable", "main.added", "other.x.y"]);
+        assert_eq!(new.changes_to(&new), Changes::default(), "the same plan changes nothing");
     }
 
     #[test]

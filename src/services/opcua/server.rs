@@ -17,18 +17,16 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use opcua::crypto::SecurityPolicy;
-use opcua::nodes::{AccessLevel, MethodBuilder, ObjectBuilder, VariableBuilder};
 use opcua::server::diagnostics::NamespaceMetadata;
-use opcua::server::node_manager::memory::{InMemoryNodeManager, InMemoryNodeManagerBuilder};
+use opcua::server::node_manager::memory::InMemoryNodeManagerBuilder;
 use opcua::server::{ServerBuilder, ServerEndpoint, ServerHandle, ANONYMOUS_USER_TOKEN_ID};
-use opcua::types::{
-    Argument, DataTypeId, DataValue, LocalizedText, MessageSecurityMode, NodeId, ObjectId,
-    QualifiedName, StatusCode, UAString, Variant,
-};
+use opcua::types::{DataValue, MessageSecurityMode, NodeId, StatusCode, Variant};
 
 use super::access::Access;
-use super::manager::{Forget, PlcNodes, PlcNodesBuilder, Target};
-use super::nodes::{self, Plan};
+use super::follow::Following;
+use super::manager::{Forget, PlcManager, PlcNodesBuilder, Target, Targets};
+use super::nodes::{self, Plan, STATUS_NODES};
+use super::space::{self, id};
 use super::{values, OpcuaError};
 use crate::config::{Anonymous, OpcuaConfig, OpcuaPolicy};
 use crate::drivers::real_time::door::LocalDoor;
@@ -50,17 +48,6 @@ pub const APPLICATION_URI: &str = "urn:plcd:server";
 pub const CERTIFICATE: &str = "own/cert.der";
 pub const PRIVATE_KEY: &str = "private/private.pem";
 
-/// The status variables, `Status.<name>`, and their types.
-pub const STATUS_NODES: [(&str, DataTypeId); 7] = [
-    ("Mode", DataTypeId::String),
-    ("ErrorCode", DataTypeId::String),
-    ("ScanTimeLast", DataTypeId::Double),
-    ("ScanTimeMin", DataTypeId::Double),
-    ("ScanTimeMax", DataTypeId::Double),
-    ("Scans", DataTypeId::UInt64),
-    ("KeySwitch", DataTypeId::String),
-];
-
 /// How long the sampler waits for a scan boundary before it tries again: longer than any scan
 /// within its watchdog.
 const BOUNDARY_WAIT: Duration = Duration::from_secs(2);
@@ -72,6 +59,8 @@ pub struct OpcuaServer {
     config: OpcuaConfig,
     pki_dir: PathBuf,
     plan: Plan,
+    /// The plans of the engines the daemon announces.
+    following: Arc<Following>,
     /// The users file (`[users] file`), read at start: the named logins.
     users: Option<Arc<UsersFile>>,
     mirror: Arc<Mirror>,
@@ -101,10 +90,11 @@ impl OpcuaServer {
             .and_then(|l| l.set_nonblocking(true).map(|()| l))
             .map_err(|source| OpcuaError::Bind { addr, source })?;
         let addr = listener.local_addr().map_err(|source| OpcuaError::Bind { addr, source })?;
-        let plan = Plan::of(symbols, config.max_nodes as usize, writable);
-        // Device words from word 0 up to the last a located variable reads, so that a place
-        // indexes the copy as it indexes device memory.
-        let words = plan.leaves.iter().filter_map(device_end).max().unwrap_or(0);
+        // All of device memory (at most 64 Ki words), so that a place indexes the copy as it
+        // indexes device memory, and a located variable of a project loaded later is in it too.
+        let words = crate::device::layout::TOTAL_WORDS as u16;
+        let following = Arc::new(Following::new(config.max_nodes as usize, words));
+        let plan = following.plan(symbols, writable);
         let mirror = Arc::new(Mirror::with_all_variables(std::iter::once(0..words)));
         Ok(Some(OpcuaServer {
             listener,
@@ -112,6 +102,7 @@ impl OpcuaServer {
             config: config.clone(),
             pki_dir,
             plan,
+            following,
             users: users.map(Arc::new),
             mirror,
             layout: Mutex::new(None),
@@ -121,6 +112,12 @@ impl OpcuaServer {
     /// The mirror the scan thread copies for it.
     pub fn mirror(&self) -> Arc<Mirror> {
         Arc::clone(&self.mirror)
+    }
+
+    /// Where the daemon announces each engine it queues (a reload, a load, an online change),
+    /// so that the address space follows the running project.
+    pub fn following(&self) -> Arc<Following> {
+        Arc::clone(&self.following)
     }
 
     /// Before the scan thread starts: room for `engine`'s variable memory in the mirror, and
@@ -139,7 +136,8 @@ impl OpcuaServer {
     /// Starts the runtime, the stack and the sampler; writes and method calls go through
     /// `door` to the request handler.
     pub fn start(self, shared: Arc<Shared>, door: LocalDoor) -> Result<RunningOpcua, OpcuaError> {
-        let OpcuaServer { listener, addr, config, pki_dir, plan, users, mirror, layout } = self;
+        let OpcuaServer { listener, addr, config, pki_dir, plan, following, users, mirror, layout } =
+            self;
         prepare_pki(&pki_dir)?;
         let host = config.endpoint_host.clone().unwrap_or_else(|| addr.ip().to_string());
         let url = format!("opc.tcp://{}:{}/", url_host(&host), addr.port());
@@ -154,19 +152,13 @@ impl OpcuaServer {
         let _runtime = runtime.enter();
         let access = Arc::new(Access::new(config.anonymous.role(), users));
         let forget = Arc::new(Mutex::new(Forget::default()));
-        let targets = plan
-            .leaves
-            .iter()
-            .enumerate()
-            .filter(|(_, leaf)| leaf.writable)
-            .map(|(leaf, l)| (l.id.clone(), Target { leaf, ty: l.ty.clone() }))
-            .collect();
+        let targets: Targets = Arc::new(std::sync::RwLock::new(targets_of(&plan)));
         let nodes = PlcNodesBuilder {
             namespace: NamespaceMetadata {
                 namespace_uri: NAMESPACE_URI.to_string(),
                 ..Default::default()
             },
-            targets,
+            targets: Arc::clone(&targets),
             door,
             forget: Arc::clone(&forget),
         };
@@ -180,8 +172,7 @@ impl OpcuaServer {
         let ns = handle
             .get_namespace_index(NAMESPACE_URI)
             .ok_or_else(|| OpcuaError::Stack(format!("namespace {NAMESPACE_URI} is missing")))?;
-        let served = Served::new(ns, &plan);
-        populate(&manager, ns, &plan, &served);
+        space::populate(&manager, ns, &plan);
         let listener = tokio::net::TcpListener::from_std(listener)
             .map_err(|source| OpcuaError::Bind { addr, source })?;
         let stack = runtime.spawn(async move {
@@ -191,12 +182,18 @@ impl OpcuaServer {
         });
         let stop = Arc::new(Stop::default());
         let layout = layout.lock().unwrap_or_else(|e| e.into_inner()).take();
+        report(&plan, &config);
         let sampler = Sampler {
             mirror,
             shared,
             manager,
             handle: handle.clone(),
-            served,
+            ns,
+            served: Served::new(ns, &plan),
+            leaves: plan.leaves.iter().map(|leaf| (leaf.ty.clone(), leaf.at)).collect(),
+            plan: Arc::new(plan),
+            following,
+            targets,
             interval: Duration::from_millis(u64::from(config.min_sampling_interval_ms)),
             layout,
             forget,
@@ -205,43 +202,41 @@ impl OpcuaServer {
             vars: Vec::new(),
             last: Vec::new(),
             told_changed: false,
-            leaves: plan.leaves.iter().map(|leaf| (leaf.ty.clone(), leaf.at)).collect(),
         };
         let thread = std::thread::Builder::new()
             .name("plcd-opcua-sample".into())
             .stack_size(PLAIN_THREAD_STACK)
             .spawn(move || sampler.run())
             .map_err(|source| OpcuaError::Spawn { source })?;
-        if plan.left_out > 0 {
-            log::warn!(
-                "opcua: {} variables left out: more than [opcua] max_nodes = {}",
-                plan.left_out,
-                config.max_nodes
-            );
-        }
-        if plan.unserved > 0 {
-            log::info!(
-                "opcua: {} variables not served (references, or a node id another node has)",
-                plan.unserved
-            );
-        }
         Ok(RunningOpcua { runtime, handle, stack, sampler: thread, stop, url, addr })
     }
 }
 
-/// plcd's node manager as the stack holds it.
-type PlcManager = InMemoryNodeManager<PlcNodes>;
+/// The writable variables of `plan`, by their node ids' strings.
+fn targets_of(plan: &Plan) -> std::collections::HashMap<String, Target> {
+    plan.leaves
+        .iter()
+        .enumerate()
+        .filter(|(_, leaf)| leaf.writable)
+        .map(|(leaf, l)| (l.id.clone(), Target { leaf, ty: l.ty.clone() }))
+        .collect()
+}
 
-/// The last device word a located leaf reads, plus one.
-fn device_end(leaf: &nodes::Leaf) -> Option<u16> {
-    use crate::value::Space;
-    let end = match leaf.at.space {
-        Space::Word => leaf.at.offset + leaf.ty.elem().words(),
-        Space::Bit => leaf.at.offset / 16 + 1,
-        Space::Byte => leaf.at.offset / 2 + 1,
-        Space::Var | Space::Frame | Space::Discard => return None,
-    };
-    Some(end.min(u32::from(u16::MAX)) as u16)
+/// What of a plan's variables is not served, for the log.
+fn report(plan: &Plan, config: &OpcuaConfig) {
+    if plan.left_out > 0 {
+        log::warn!(
+            "opcua: {} variables left out: more than [opcua] max_nodes = {}",
+            plan.left_out,
+            config.max_nodes
+        );
+    }
+    if plan.unserved > 0 {
+        log::info!(
+            "opcua: {} variables not served (references, or a node id another node has)",
+            plan.unserved
+        );
+    }
 }
 
 /// An IPv6 address in a URL is written in brackets.
@@ -363,96 +358,6 @@ impl Served {
     }
 }
 
-fn id(ns: u16, text: &str) -> NodeId {
-    NodeId::new(ns, text.to_string())
-}
-
-/// Objects/PLC, its methods, its Status and Programs folders, the status variables and the
-/// plan's nodes; the variables read-only but for the writable ones.
-fn populate(manager: &PlcManager, ns: u16, plan: &Plan, served: &Served) {
-    let mut space = manager.address_space().write();
-    let plc = id(ns, nodes::PLC);
-    let name = |text: &str| QualifiedName::new(ns, text);
-    ObjectBuilder::new(&plc, name(nodes::PLC), nodes::PLC)
-        .organized_by(ObjectId::ObjectsFolder)
-        .insert(&mut *space);
-    for (method, _) in super::access::METHODS {
-        let browse = method.trim_start_matches("PLC.");
-        let node = id(ns, method);
-        let mut builder = MethodBuilder::new(&node, name(browse), browse)
-            .component_of(plc.clone())
-            .executable(true)
-            .user_executable(true);
-        if browse == "Reset" {
-            let cold = Argument {
-                name: UAString::from("Cold"),
-                data_type: DataTypeId::Boolean.into(),
-                value_rank: -1,
-                array_dimensions: None,
-                description: LocalizedText::new(
-                    "",
-                    "true: a cold restart (clears the retained memory too); false: warm",
-                ),
-            };
-            builder = builder.input_args(&mut *space, &id(ns, "PLC.Reset.InputArguments"), &[cold]);
-        }
-        builder.insert(&mut *space);
-    }
-    for folder in [nodes::STATUS, nodes::PROGRAMS] {
-        ObjectBuilder::new(&id(ns, folder), name(folder), folder)
-            .is_folder()
-            .organized_by(plc.clone())
-            .insert(&mut *space);
-    }
-    let read_only = AccessLevel::CURRENT_READ;
-    let status_folder = id(ns, nodes::STATUS);
-    for ((label, ty), node) in STATUS_NODES.iter().zip(&served.status) {
-        VariableBuilder::new(node, name(label), *label)
-            .data_type(*ty)
-            .value(initial(*ty))
-            .access_level(read_only)
-            .user_access_level(read_only)
-            .organized_by(status_folder.clone())
-            .insert(&mut *space);
-    }
-    for object in &plan.objects {
-        ObjectBuilder::new(&id(ns, &object.id), name(&object.browse), object.browse.as_str())
-            .organized_by(id(ns, &object.parent))
-            .insert(&mut *space);
-    }
-    let read_write = AccessLevel::CURRENT_READ | AccessLevel::CURRENT_WRITE;
-    for (leaf, node) in plan.leaves.iter().zip(&served.leaves) {
-        let Some(ty) = values::data_type(&leaf.ty) else { continue };
-        let access = if leaf.writable { read_write } else { read_only };
-        VariableBuilder::new(node, name(&leaf.browse), leaf.browse.as_str())
-            .data_type(ty)
-            .value(initial(ty))
-            .access_level(access)
-            .user_access_level(access)
-            .organized_by(id(ns, &leaf.parent))
-            .insert(&mut *space);
-    }
-}
-
-/// A value of the type until the first copy.
-fn initial(ty: DataTypeId) -> Variant {
-    match ty {
-        DataTypeId::Boolean => Variant::Boolean(false),
-        DataTypeId::SByte => Variant::SByte(0),
-        DataTypeId::Byte => Variant::Byte(0),
-        DataTypeId::Int16 => Variant::Int16(0),
-        DataTypeId::UInt16 => Variant::UInt16(0),
-        DataTypeId::Int32 => Variant::Int32(0),
-        DataTypeId::UInt32 => Variant::UInt32(0),
-        DataTypeId::Int64 => Variant::Int64(0),
-        DataTypeId::UInt64 => Variant::UInt64(0),
-        DataTypeId::Float => Variant::Float(0.0),
-        DataTypeId::Double | DataTypeId::Duration => Variant::Double(0.0),
-        DataTypeId::String => Variant::from(String::new()),
-        _ => Variant::Empty,
-    }
-}
-
 /// How the sampler is told to stop.
 #[derive(Default)]
 struct Stop {
@@ -483,7 +388,16 @@ struct Sampler {
     shared: Arc<Shared>,
     manager: Arc<PlcManager>,
     handle: ServerHandle,
+    /// plcd's namespace index.
+    ns: u16,
     served: Served,
+    /// The plan served, and its leaves' types and places in `served.leaves` order.
+    plan: Arc<Plan>,
+    leaves: Vec<(ValueType, Pointer)>,
+    /// The plans of the engines the daemon announced.
+    following: Arc<Following>,
+    /// The writable variables the node manager looks up: the plan's.
+    targets: Targets,
     interval: Duration,
     /// The layout of the engine the plan is of.
     layout: Option<Arc<RetainedVariables>>,
@@ -495,15 +409,13 @@ struct Sampler {
     vars: Vec<u8>,
     /// The values last handed over: the status's, then the leaves'.
     last: Vec<Option<Variant>>,
-    /// The engine changed and the variables were marked bad (logged once).
+    /// The engine changed to one nobody announced and the variables were marked bad (logged
+    /// once).
     told_changed: bool,
-    /// The plan's leaves' types and places, in `served.leaves` order.
-    leaves: Vec<(ValueType, Pointer)>,
 }
 
 impl Sampler {
     fn run(mut self) {
-        let plan_leaves = std::mem::take(&mut self.leaves);
         let mut generation = 0;
         // At a fixed rate, so that the copies are one interval apart whatever they waited for.
         let mut next = Instant::now();
@@ -525,10 +437,13 @@ impl Sampler {
                     (Some(served), Some(copied)) => Arc::ptr_eq(served, copied),
                     _ => false,
                 };
-                (fresh, same, image.error, image.switch)
+                let copied = if same { None } else { image.layout.clone() };
+                (fresh, (same, copied), image.error, image.switch)
             };
+            let (same, copied) = same_engine;
+            let same_engine = same || self.follow(copied);
             if fresh {
-                self.hand_over(&plan_leaves, same_engine, error, switch);
+                self.hand_over(same_engine, error, switch);
             }
             next += self.interval;
             let now = Instant::now();
@@ -542,10 +457,34 @@ impl Sampler {
         }
     }
 
+    /// A copy of another engine than the plan's: the address space changed to the plan the
+    /// daemon announced for it. False if there is none (an engine nobody announced).
+    fn follow(&mut self, copied: Option<Arc<RetainedVariables>>) -> bool {
+        let Some(layout) = copied else { return false };
+        let Some(plan) = self.following.plan_of(&layout) else { return false };
+        let changes = self.plan.changes_to(&plan);
+        space::change(&self.manager, self.handle.subscriptions(), self.ns, &changes);
+        *self.targets.write().unwrap_or_else(|e| e.into_inner()) = targets_of(&plan);
+        log::info!(
+            "opcua: the address space follows the new project: {} variables, {} removed or \
+             changed, {} added",
+            plan.leaves.len(),
+            changes.remove_leaves.len(),
+            changes.add_leaves.len()
+        );
+        self.served = Served::new(self.ns, &plan);
+        self.leaves = plan.leaves.iter().map(|leaf| (leaf.ty.clone(), leaf.at)).collect();
+        self.plan = plan;
+        self.layout = Some(layout);
+        // Every value handed over again: the kept nodes may have new places.
+        self.last.clear();
+        self.told_changed = false;
+        true
+    }
+
     /// Hands the stack the values that changed since the last copy.
     fn hand_over(
         &mut self,
-        leaves: &[(ValueType, Pointer)],
         same_engine: bool,
         error: Option<ErrorKind>,
         switch: Option<crate::io::SwitchPosition>,
@@ -562,7 +501,7 @@ impl Sampler {
             Variant::UInt64(shared.scans.load(Ordering::Relaxed)),
             Variant::from(switch.map(|s| s.as_str()).unwrap_or_default().to_string()),
         ];
-        let count = status.len() + leaves.len();
+        let count = status.len() + self.leaves.len();
         self.last.resize(count, None);
         {
             // A write replaced these values in the address space: hand the copy's over.
@@ -579,9 +518,8 @@ impl Sampler {
         }
         if !same_engine && !self.told_changed {
             log::warn!(
-                "opcua: the running project is not the one plcd started with (a reload, a load \
-                 or an online change); the program variables read BadOutOfService until plcd \
-                 restarts (docs/OPCUA.md, \"Not yet\")"
+                "opcua: the running engine is not one the daemon announced; the program \
+                 variables read BadOutOfService until the next reload or load"
             );
             self.told_changed = true;
         }
@@ -592,7 +530,7 @@ impl Sampler {
                 changed.push((node, DataValue::new_now(value)));
             }
         }
-        for (k, ((ty, at), node)) in leaves.iter().zip(&self.served.leaves).enumerate() {
+        for (k, ((ty, at), node)) in self.leaves.iter().zip(&self.served.leaves).enumerate() {
             let i = STATUS_NODES.len() + k;
             if same_engine {
                 let value = values::read(ty, *at, &self.words, &self.vars);

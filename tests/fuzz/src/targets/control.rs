@@ -113,6 +113,7 @@ fn daemon() -> &'static Daemon {
             snapshot: Arc::clone(&driver.snapshot),
             remote: driver.remote_board(),
             running: Arc::new(Mutex::new(Running::new(&config, project.clone()))),
+            announce: None,
         };
         let mut server = ControlServer::bind(&project.config.control).expect("the socket");
         std::thread::spawn(move || {
