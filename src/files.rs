@@ -132,6 +132,99 @@ pub fn users(path: &Path) -> Result<UsersFile, Diagnostics> {
     UsersFile::parse(&text, path)
 }
 
+/// How often [`LiveUsers::refresh`] looks at the file at most.
+pub const USERS_LOOK_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
+
+/// The users file of `[users] file` as a network service holds it: read at start (a file with
+/// errors stops the start), and read again when it changed on disk, so that `plcd user add`
+/// and `plcd user remove` take effect at the next login without a restart. A changed file with
+/// errors is not taken: the users read before stay, and the log says why once for that
+/// version of the file.
+pub struct LiveUsers {
+    path: PathBuf,
+    state: std::sync::Mutex<LiveState>,
+}
+
+struct LiveState {
+    users: std::sync::Arc<UsersFile>,
+    /// The file as last read or refused: its modification time, length and inode.
+    stamp: Option<(std::time::SystemTime, u64, u64)>,
+    looked: std::time::Instant,
+}
+
+fn stamp(path: &Path) -> Option<(std::time::SystemTime, u64, u64)> {
+    use std::os::unix::fs::MetadataExt;
+    let meta = std::fs::metadata(path).ok()?;
+    Some((meta.modified().ok()?, meta.len(), meta.ino()))
+}
+
+impl LiveUsers {
+    /// Reads the users file at `path`.
+    pub fn open(path: &Path) -> Result<LiveUsers, Diagnostics> {
+        let stamp = stamp(path);
+        let users = std::sync::Arc::new(users(path)?);
+        let looked = std::time::Instant::now();
+        let state = std::sync::Mutex::new(LiveState { users, stamp, looked });
+        Ok(LiveUsers { path: path.to_path_buf(), state })
+    }
+
+    fn state(&self) -> std::sync::MutexGuard<'_, LiveState> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The users as last read; no file is looked at.
+    pub fn current(&self) -> std::sync::Arc<UsersFile> {
+        std::sync::Arc::clone(&self.state().users)
+    }
+
+    /// The users, read again first if the file changed since (looked at once per
+    /// [`USERS_LOOK_EVERY`] at most). Blocking file I/O: call it where blocking is allowed.
+    pub fn refresh(&self) -> std::sync::Arc<UsersFile> {
+        let now = std::time::Instant::now();
+        {
+            let mut state = self.state();
+            if now.duration_since(state.looked) < USERS_LOOK_EVERY {
+                return std::sync::Arc::clone(&state.users);
+            }
+            state.looked = now;
+        }
+        let seen = stamp(&self.path);
+        if seen.is_none() || seen == self.state().stamp {
+            // Gone (an editor's rename in progress, or removed: the users stay), or unchanged.
+            return self.current();
+        }
+        let read = users(&self.path);
+        let mut state = self.state();
+        state.stamp = seen;
+        match read {
+            Ok(users) => {
+                log::info!(
+                    "users file {} read again: {} users",
+                    self.path.display(),
+                    users.users().len()
+                );
+                state.users = std::sync::Arc::new(users);
+            }
+            Err(diagnostics) => {
+                let first = diagnostics.iter().next().map(ToString::to_string).unwrap_or_default();
+                log::warn!(
+                    "users file {} changed and has {} error(s), first {first}; the users read \
+                     before stay until it is fixed",
+                    self.path.display(),
+                    diagnostics.len()
+                );
+            }
+        }
+        std::sync::Arc::clone(&state.users)
+    }
+
+    /// Makes the next [`LiveUsers::refresh`] look at the file whatever the time (tests).
+    pub fn look_now(&self) {
+        let mut state = self.state();
+        state.looked = state.looked.checked_sub(USERS_LOOK_EVERY).unwrap_or(state.looked);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -235,5 +328,39 @@ mod tests {
             "{}",
             d.message
         );
+    }
+
+    #[test]
+    fn live_users_follow_the_file_and_keep_the_last_good_one() {
+        use crate::users::{hash_password, HashCosts, SALT_LEN};
+        let costs = HashCosts { memory_kib: 64, passes: 1, lanes: 1 };
+        let phc = hash_password(b"pw", &[3; SALT_LEN], costs).unwrap();
+        let dir = std::env::temp_dir().join(format!("plcd-live-users-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("users");
+        // Written as `plcd user` writes: a new file renamed over the old one.
+        let write = |text: &str| {
+            std::fs::write(dir.join("users.new"), text).unwrap();
+            std::fs::rename(dir.join("users.new"), &path).unwrap();
+        };
+        write(&format!("alice:viewer:{phc}\n"));
+        let live = LiveUsers::open(&path).unwrap();
+        let names = |users: &UsersFile| -> Vec<String> {
+            users.users().iter().map(|u| u.name.clone()).collect()
+        };
+        assert_eq!(names(&live.refresh()), ["alice"], "within a second: not looked at");
+        write(&format!("alice:viewer:{phc}\nbob:operator:{phc}\n"));
+        assert_eq!(names(&live.refresh()), ["alice"], "still within the second");
+        live.look_now();
+        assert_eq!(names(&live.refresh()), ["alice", "bob"], "read again");
+        assert_eq!(names(&live.current()), ["alice", "bob"]);
+        write("alice:nobody:x\n");
+        live.look_now();
+        assert_eq!(names(&live.refresh()), ["alice", "bob"], "a broken file: the last good one");
+        std::fs::remove_file(&path).unwrap();
+        live.look_now();
+        assert_eq!(names(&live.refresh()), ["alice", "bob"], "gone: the last good one");
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert!(LiveUsers::open(&path).is_err(), "a file that cannot be read at start");
     }
 }

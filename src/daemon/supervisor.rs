@@ -493,10 +493,10 @@ fn bind_opcua(
             .map(|dir| dir.join("opcua-pki"))
     });
     let symbols = &project.variables.symbols;
-    // The named logins: the users file, read once here (a file with errors stops the start, as
-    // `plcd check` would have said).
+    // The named logins: the users file, read here (a file with errors stops the start, as
+    // `plcd check` would have said), and again when it changes (`files::LiveUsers`).
     let users = match (&config.opcua.listen, &config.users.file) {
-        (Some(_), Some(path)) => Some(files::users(path).map_err(DaemonError::Invalid)?),
+        (Some(_), Some(path)) => Some(files::LiveUsers::open(path).map_err(DaemonError::Invalid)?),
         _ => None,
     };
     // Checked when the project was built; a project built otherwise is checked again here.

@@ -663,6 +663,22 @@ async def main_checks(plcd, plcctl, project, work):
               plain and not names, f"{len(plain)} None endpoints, {len(names)} user-name policies")
         await refused("an unknown user is refused", connect_and_read(url, certificate, ("bob", "x")),
                       "BadUserAccessDenied")
+        # A user added while the server runs logs in without a restart (the file is looked at
+        # once a second at most, when a login comes).
+        made = subprocess.run([plcd, "user", "add", "carol", "--role", "operator", "--file",
+                               str(users_file), "--password-stdin"], input="battery staple\n",
+                              capture_output=True, text=True, timeout=PATIENCE)
+        check("plcd user add while the server runs", made.returncode == 0, made.stderr)
+        await asyncio.sleep(1.1)
+        try:
+            counter = await bounded("a new user", connect_and_read(url, certificate,
+                                                                   ("carol", "battery staple")))
+            check("a user added while the server runs logs in", isinstance(counter, int),
+                  f"{counter!r}")
+        except Exception as e:  # noqa: BLE001
+            check("a user added while the server runs logs in", False, repr(e))
+        read_again = any("users file" in line and "read again" in line for line in named.log)
+        check("the log says the users file was read again", read_again, "\n".join(named.log[-10:]))
         # 3 failures earn a wait of 1 s, and each attempt during it (counted too) doubles it:
         # after 6, at least 8 s, longer than any connection here takes.
         for _ in range(6):

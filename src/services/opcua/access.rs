@@ -28,7 +28,8 @@ use opcua::server::authenticator::{
 use opcua::server::ServerEndpoint;
 use opcua::types::{Identifier, NodeId, StatusCode, UAString, UserTokenPolicy, UserTokenType};
 
-use crate::users::{Action, Role, Throttle, ThrottlePolicy, UsersFile};
+use crate::files::LiveUsers;
+use crate::users::{Action, Role, Throttle, ThrottlePolicy};
 
 /// How a named session's token begins; the user's name follows.
 const USER_TOKEN: &str = "user:";
@@ -44,15 +45,16 @@ pub const METHODS: [(&str, Action); 3] = [
 pub struct Access {
     /// The role of an anonymous session (`[opcua] anonymous`); `None`: refused.
     anonymous: Option<Role>,
-    /// The users file read at start; `None` without `[users] file`: no named login.
-    users: Option<Arc<UsersFile>>,
+    /// The users file, read again when it changes; `None` without `[users] file`: no named
+    /// login.
+    users: Option<Arc<LiveUsers>>,
     throttle: Mutex<Throttle<String>>,
     /// The origin of the throttle's times.
     started: Instant,
 }
 
 impl Access {
-    pub fn new(anonymous: Option<Role>, users: Option<Arc<UsersFile>>) -> Access {
+    pub fn new(anonymous: Option<Role>, users: Option<Arc<LiveUsers>>) -> Access {
         Access {
             anonymous,
             users,
@@ -68,7 +70,8 @@ impl Access {
             return self.anonymous;
         }
         let name = token.0.strip_prefix(USER_TOKEN)?;
-        self.users.as_ref()?.user(name).map(|user| user.role)
+        // As the file is now: a user removed since the login can do nothing more.
+        self.users.as_ref()?.current().user(name).map(|user| user.role)
     }
 
     /// Who a session is, for the log: `opcua user "alice"`, `opcua anonymous session`.
@@ -153,12 +156,12 @@ impl AuthManager for Access {
             self.failed(username, now);
             return Err(refused("too many failed logins for this user name: wait"));
         }
-        // Argon2 takes tens of milliseconds by design: on a blocking thread, not on one of the
-        // two workers that serve every session.
-        let (file, name, secret) =
+        // Argon2 takes tens of milliseconds by design, and the file may be read again: on a
+        // blocking thread, not on one of the two workers that serve every session.
+        let (live, name, secret) =
             (Arc::clone(users), username.to_string(), password.get().to_string());
         let role: Option<Role> =
-            tokio::task::spawn_blocking(move || file.verify(&name, secret.as_bytes()))
+            tokio::task::spawn_blocking(move || live.refresh().verify(&name, secret.as_bytes()))
                 .await
                 .unwrap_or(None);
         let now = self.started.elapsed();
@@ -234,15 +237,21 @@ mod tests {
     use super::*;
     use opcua::types::MessageSecurityMode;
     use plcd_core::users::{hash_password, HashCosts};
-    use std::path::Path;
 
     /// Small costs: the tests check who gets in, not the hash's strength.
     const COSTS: HashCosts = HashCosts { memory_kib: 64, passes: 1, lanes: 1 };
 
-    fn users() -> Arc<UsersFile> {
+    fn users() -> Arc<LiveUsers> {
         let phc = hash_password(b"correct horse", &[7; plcd_core::users::SALT_LEN], COSTS).unwrap();
-        let text = format!("alice:operator:{phc}\n");
-        Arc::new(UsersFile::parse(&text, Path::new("users")).unwrap())
+        let path = std::env::temp_dir().join(format!(
+            "plcd-opcua-users-{}-{:?}",
+            std::process::id(),
+            std::thread::current().id()
+        ));
+        std::fs::write(&path, format!("alice:operator:{phc}\n")).unwrap();
+        let live = LiveUsers::open(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        Arc::new(live)
     }
 
     fn secure() -> ServerEndpoint {

@@ -34,8 +34,8 @@ use crate::drivers::real_time::mirror::Mirror;
 use crate::drivers::real_time::{pending, Shared, PLAIN_THREAD_STACK};
 use crate::engine::event::ErrorKind;
 use crate::engine::Engine;
+use crate::files::LiveUsers;
 use crate::symbols::Symbols;
-use crate::users::UsersFile;
 use crate::value::{Pointer, ValueType};
 use crate::vm::retained::RetainedVariables;
 
@@ -61,8 +61,8 @@ pub struct OpcuaServer {
     plan: Plan,
     /// The plans of the engines the daemon announces.
     following: Arc<Following>,
-    /// The users file (`[users] file`), read at start: the named logins.
-    users: Option<Arc<UsersFile>>,
+    /// The users file (`[users] file`): the named logins.
+    users: Option<Arc<LiveUsers>>,
     mirror: Arc<Mirror>,
     /// The layout of the engine the plan was made for (set by [`OpcuaServer::prepare`]): a copy
     /// of another engine's variables is not served.
@@ -80,7 +80,7 @@ impl OpcuaServer {
         pki_dir: Option<PathBuf>,
         symbols: &Symbols,
         writable: &std::collections::BTreeSet<String>,
-        users: Option<UsersFile>,
+        users: Option<LiveUsers>,
     ) -> Result<Option<OpcuaServer>, OpcuaError> {
         let Some(addr) = config.listen else {
             return Ok(None);
