@@ -190,6 +190,19 @@ async def browse_and_read(url):
               isinstance(scan_max, float) and 0 < scan_max < 10_000, f"{scan_max!r}")
         error = await node("Status.ErrorCode").read_value()
         check("Status.ErrorCode is empty without an error", error == "", f"{error!r}")
+        # The daemon's status answer: percentiles, counters, each task (here the scan task).
+        p99 = await wait_until(lambda: node("Status.ScanTimeP99").read_value(), lambda v: v > 0)
+        check("Status.ScanTimeP99 is milliseconds from the daemon's histogram",
+              isinstance(p99, float) and 0 < p99 < 10_000, f"{p99!r}")
+        check("Status.WatchdogTrips reads 0", await node("Status.WatchdogTrips").read_value() == 0)
+        tasks = await child_names(node("Status.Tasks"))
+        check("Status.Tasks holds the scan task", "scan" in tasks, f"{sorted(tasks)}")
+        runs = await node("Status.Tasks.scan.Runs").read_value() if "scan" in tasks else None
+        check("a task's Runs count", isinstance(runs, int) and runs > 0, f"{runs!r}")
+        kind = await node("Status.Tasks.scan.Kind").read_value() if "scan" in tasks else None
+        check("a task's Kind", kind == "scan", f"{kind!r}")
+        remote = await child_names(node("Status.Remote"))
+        check("Status.Remote is empty without [[remote]]", not remote, f"{sorted(remote)}")
 
         first = await node("main.counter").read_value()
         moved = None
@@ -282,6 +295,21 @@ async def wait_value(node, wanted, patience=PATIENCE):
             value = type(e).__name__
         if value == wanted:
             break
+        await asyncio.sleep(0.02)
+    return value
+
+
+async def wait_until(read, ok, patience=PATIENCE):
+    """`read()` until `ok(value)` (bounded); the last value read, None if every read failed."""
+    until = time.monotonic() + patience
+    value = None
+    while time.monotonic() < until:
+        try:
+            value = await read()
+            if value is not None and ok(value):
+                break
+        except ua.UaStatusCodeError:
+            pass
         await asyncio.sleep(0.02)
     return value
 

@@ -12,6 +12,8 @@
 //!   request handler through the control server's in-process door, as `plcctl`'s are;
 //! - [`space`]: the address space in the stack's node store, built from a plan and changed
 //!   from one plan to the next;
+//! - [`status`]: the figures of the daemon's status answer (percentiles, health counters, tasks,
+//!   remote devices), asked through the door once per sampling interval;
 //! - [`follow`]: the plans of the engines the daemon queues (a reload, a load, an online
 //!   change), so that the address space follows the running project;
 //! - [`server`]: the OPC UA stack (the `async-opcua` crate) on a small tokio runtime of its own
@@ -31,6 +33,7 @@ pub mod manager;
 pub mod nodes;
 pub mod server;
 pub mod space;
+pub mod status;
 pub mod values;
 
 pub use server::{OpcuaServer, RunningOpcua};

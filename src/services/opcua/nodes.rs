@@ -91,7 +91,10 @@ impl Plan {
                 plan.unserved += 1;
                 continue;
             };
-            if taken.contains(&symbol.name) {
+            // A program instance named as one of plcd's own objects (`Status`, `PLC`,
+            // `Programs`) would put its variables among the PLC's: not served.
+            let reserved = [PLC, PROGRAMS, STATUS].iter().any(|r| parts[0] == *r);
+            if reserved || taken.contains(&symbol.name) {
                 plan.unserved += 1;
                 continue;
             }
@@ -344,16 +347,15 @@ mod tests {
     }
 
     #[test]
-    fn a_status_node_id_is_not_taken_by_a_variable() {
+    fn a_program_named_as_plcds_own_objects_is_not_served() {
         let mut symbols = Symbols::default();
         symbols.push(symbol("Status.Mode", ValueType::Bool, 0));
         symbols.push(symbol("Status.other", ValueType::Bool, 1));
+        symbols.push(symbol("PLC.x", ValueType::Bool, 2));
+        symbols.push(symbol("main.x", ValueType::Bool, 3));
         let plan = Plan::of(&symbols, 10, &BTreeSet::new());
-        assert_eq!(plan.unserved, 1);
-        assert_eq!(plan.leaves.len(), 1);
-        assert_eq!(plan.leaves[0].id, "Status.other");
-        // Its object would be the status folder's id: it hangs under the folder it names.
-        assert!(plan.objects.is_empty());
-        assert_eq!(plan.leaves[0].parent, "Status");
+        assert_eq!(plan.unserved, 3);
+        let ids: Vec<&str> = plan.leaves.iter().map(|l| l.id.as_str()).collect();
+        assert_eq!(ids, ["main.x"]);
     }
 }

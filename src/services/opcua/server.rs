@@ -27,6 +27,7 @@ use super::follow::Following;
 use super::manager::{Forget, PlcManager, PlcNodesBuilder, Target, Targets};
 use super::nodes::{self, Plan, STATUS_NODES};
 use super::space::{self, id};
+use super::status::StatusNodes;
 use super::{values, OpcuaError};
 use crate::config::{Anonymous, OpcuaConfig, OpcuaPolicy};
 use crate::drivers::real_time::door::LocalDoor;
@@ -159,7 +160,7 @@ impl OpcuaServer {
                 ..Default::default()
             },
             targets: Arc::clone(&targets),
-            door,
+            door: door.clone(),
             forget: Arc::clone(&forget),
         };
         let (server, handle) = builder(&config, &pki_dir, &host, addr.port(), access, nodes)
@@ -173,6 +174,7 @@ impl OpcuaServer {
             .get_namespace_index(NAMESPACE_URI)
             .ok_or_else(|| OpcuaError::Stack(format!("namespace {NAMESPACE_URI} is missing")))?;
         space::populate(&manager, ns, &plan);
+        let status = StatusNodes::new(&manager, ns, door);
         let listener = tokio::net::TcpListener::from_std(listener)
             .map_err(|source| OpcuaError::Bind { addr, source })?;
         let stack = runtime.spawn(async move {
@@ -189,6 +191,7 @@ impl OpcuaServer {
             manager,
             handle: handle.clone(),
             ns,
+            status,
             served: Served::new(ns, &plan),
             leaves: plan.leaves.iter().map(|leaf| (leaf.ty.clone(), leaf.at)).collect(),
             plan: Arc::new(plan),
@@ -390,6 +393,8 @@ struct Sampler {
     handle: ServerHandle,
     /// plcd's namespace index.
     ns: u16,
+    /// The figures of the daemon's status answer.
+    status: StatusNodes,
     served: Served,
     /// The plan served, and its leaves' types and places in `served.leaves` order.
     plan: Arc<Plan>,
@@ -445,6 +450,7 @@ impl Sampler {
             if fresh {
                 self.hand_over(same_engine, error, switch);
             }
+            self.status.sample(&self.manager, self.handle.subscriptions());
             next += self.interval;
             let now = Instant::now();
             if next < now {

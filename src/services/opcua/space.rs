@@ -116,7 +116,7 @@ pub fn change(manager: &PlcManager, subscriptions: &SubscriptionCache, ns: u16, 
 }
 
 /// A value of the type until the first copy.
-fn initial(ty: DataTypeId) -> Variant {
+pub fn initial(ty: DataTypeId) -> Variant {
     match ty {
         DataTypeId::Boolean => Variant::Boolean(false),
         DataTypeId::SByte => Variant::SByte(0),
