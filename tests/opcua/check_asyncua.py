@@ -233,6 +233,18 @@ async def browse_and_read(url):
         check("a located INT reads its device word", values[3] == 7, f"{values[3]!r}")
         check("a TIME is a Duration in milliseconds", values[4] == 1500.0, f"{values[4]!r}")
         check("an enumeration reads as its integer", values[5] == 5, f"{values[5]!r}")
+        phase = node("main.phase")
+        definition = await phase.read_type_definition()
+        check("an enumeration is a MultiStateValueDiscreteType",
+              definition == ua.NodeId(ua.ObjectIds.MultiStateValueDiscreteType), f"{definition}")
+        properties = {(await p.read_browse_name()).Name: p for p in await phase.get_properties()}
+        names = ([(v.Value, v.DisplayName.Text) for v in await properties["EnumValues"].read_value()]
+                 if "EnumValues" in properties else None)
+        check("its EnumValues name its values", names == [(0, "Idle"), (5, "Moving")], f"{names}")
+        text = await wait_until(lambda: properties["ValueAsText"].read_value(),
+                                lambda v: v.Text == "Moving") if "ValueAsText" in properties else None
+        check("its ValueAsText is the current value's name",
+              text is not None and text.Text == "Moving", f"{text}")
         check("a BOOL reads", values[6] is True, f"{values[6]!r}")
         level_type = await node("main.level").read_data_type_as_variant_type()
         check("an INT is an Int16", level_type == ua.VariantType.Int16, f"{level_type}")

@@ -145,8 +145,17 @@ impl Plan {
     /// The changes from this plan to `new`.
     pub fn changes_to(&self, new: &Plan) -> Changes {
         use std::collections::HashMap;
+        // The same node: the same OPC UA type (an enumeration: the same names too, which its
+        // node carries), as writable, in the same object.
+        let names = |l: &Leaf| match &l.ty {
+            ValueType::Enum { values, .. } => Some(values.clone()),
+            _ => None,
+        };
         let same = |a: &Leaf, b: &Leaf| {
-            data_type(&a.ty) == data_type(&b.ty) && a.writable == b.writable && a.parent == b.parent
+            data_type(&a.ty) == data_type(&b.ty)
+                && names(a) == names(b)
+                && a.writable == b.writable
+                && a.parent == b.parent
         };
         let old_leaves: HashMap<&str, &Leaf> =
             self.leaves.iter().map(|l| (l.id.as_str(), l)).collect();

@@ -20,7 +20,7 @@ use opcua::crypto::SecurityPolicy;
 use opcua::server::diagnostics::NamespaceMetadata;
 use opcua::server::node_manager::memory::InMemoryNodeManagerBuilder;
 use opcua::server::{ServerBuilder, ServerEndpoint, ServerHandle, ANONYMOUS_USER_TOKEN_ID};
-use opcua::types::{DataValue, MessageSecurityMode, NodeId, StatusCode, Variant};
+use opcua::types::{DataValue, LocalizedText, MessageSecurityMode, NodeId, StatusCode, Variant};
 
 use super::access::Access;
 use super::follow::Following;
@@ -350,13 +350,20 @@ fn builder(
 struct Served {
     status: Vec<NodeId>,
     leaves: Vec<NodeId>,
+    /// An enumeration leaf's ValueAsText property, in `leaves` order.
+    texts: Vec<Option<NodeId>>,
 }
 
 impl Served {
     fn new(ns: u16, plan: &Plan) -> Served {
+        let text = |leaf: &nodes::Leaf| match leaf.ty {
+            ValueType::Enum { .. } => Some(id(ns, &space::value_as_text_id(&leaf.id))),
+            _ => None,
+        };
         Served {
             status: STATUS_NODES.iter().map(|(name, _)| id(ns, &nodes::status_id(name))).collect(),
             leaves: plan.leaves.iter().map(|leaf| id(ns, &leaf.id)).collect(),
+            texts: plan.leaves.iter().map(text).collect(),
         }
     }
 }
@@ -541,6 +548,12 @@ impl Sampler {
             if same_engine {
                 let value = values::read(ty, *at, &self.words, &self.vars);
                 if self.last[i].as_ref() != Some(&value) {
+                    if let (Some(text), Some(name)) =
+                        (&self.served.texts[k], values::enum_text(ty, &value))
+                    {
+                        let name = LocalizedText::new("", &name);
+                        changed.push((text, DataValue::new_now(Variant::from(name))));
+                    }
                     self.last[i] = Some(value.clone());
                     changed.push((node, DataValue::new_now(value)));
                 }

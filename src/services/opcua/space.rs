@@ -5,13 +5,14 @@
 use opcua::nodes::{AccessLevel, MethodBuilder, ObjectBuilder, VariableBuilder};
 use opcua::server::SubscriptionCache;
 use opcua::types::{
-    Argument, DataTypeId, DataValue, LocalizedText, NodeId, ObjectId, QualifiedName, StatusCode,
-    UAString, Variant,
+    Argument, DataTypeId, DataValue, EnumValueType, ExtensionObject, LocalizedText, NodeId,
+    ObjectId, QualifiedName, StatusCode, UAString, VariableTypeId, Variant,
 };
 
 use super::manager::PlcManager;
 use super::nodes::{self, Changes, Leaf, Object, Plan, STATUS_NODES};
 use super::values;
+use crate::value::ValueType;
 
 pub fn id(ns: u16, text: &str) -> NodeId {
     NodeId::new(ns, text.to_string())
@@ -58,6 +59,7 @@ pub fn populate(manager: &PlcManager, ns: u16, plan: &Plan) {
     let status_folder = id(ns, nodes::STATUS);
     for (label, ty) in STATUS_NODES.iter() {
         VariableBuilder::new(&id(ns, &nodes::status_id(label)), name(label), *label)
+            .has_type_definition(VariableTypeId::BaseDataVariableType)
             .data_type(*ty)
             .value(initial(*ty))
             .access_level(read_only)
@@ -83,14 +85,65 @@ fn add(manager: &PlcManager, ns: u16, objects: &[Object], leaves: &[Leaf]) {
     for leaf in leaves {
         let Some(ty) = values::data_type(&leaf.ty) else { continue };
         let access = if leaf.writable { read_write } else { AccessLevel::CURRENT_READ };
-        VariableBuilder::new(&id(ns, &leaf.id), name(&leaf.browse), leaf.browse.as_str())
+        let node = id(ns, &leaf.id);
+        let builder = VariableBuilder::new(&node, name(&leaf.browse), leaf.browse.as_str())
             .data_type(ty)
             .value(initial(ty))
             .access_level(access)
             .user_access_level(access)
-            .organized_by(id(ns, &leaf.parent))
+            .organized_by(id(ns, &leaf.parent));
+        let ValueType::Enum { values, .. } = &leaf.ty else {
+            builder.has_type_definition(VariableTypeId::BaseDataVariableType).insert(&mut *space);
+            continue;
+        };
+        // An enumeration: a MultiStateValueDiscrete variable (OPC UA Part 8), its value the
+        // integer, its names in EnumValues and the current one in ValueAsText.
+        builder
+            .has_type_definition(VariableTypeId::MultiStateValueDiscreteType)
             .insert(&mut *space);
+        let names: Vec<ExtensionObject> = values
+            .iter()
+            .map(|(name, value)| {
+                ExtensionObject::from_message(EnumValueType {
+                    value: *value,
+                    display_name: LocalizedText::new("", name),
+                    description: LocalizedText::null(),
+                })
+            })
+            .collect();
+        let enum_values = id(ns, &enum_values_id(&leaf.id));
+        VariableBuilder::new(&enum_values, QualifiedName::new(0, "EnumValues"), "EnumValues")
+            .data_type(DataTypeId::EnumValueType)
+            .value_rank(1)
+            .value(names)
+            .access_level(AccessLevel::CURRENT_READ)
+            .user_access_level(AccessLevel::CURRENT_READ)
+            .has_type_definition(VariableTypeId::PropertyType)
+            .property_of(node.clone())
+            .insert(&mut *space);
+        VariableBuilder::new(
+            &id(ns, &value_as_text_id(&leaf.id)),
+            QualifiedName::new(0, "ValueAsText"),
+            "ValueAsText",
+        )
+        .data_type(DataTypeId::LocalizedText)
+        .value(LocalizedText::new("", ""))
+        .access_level(AccessLevel::CURRENT_READ)
+        .user_access_level(AccessLevel::CURRENT_READ)
+        .has_type_definition(VariableTypeId::PropertyType)
+        .property_of(node)
+        .insert(&mut *space);
     }
+}
+
+/// The node id of an enumeration variable's EnumValues property.
+pub fn enum_values_id(leaf: &str) -> String {
+    format!("{leaf}.EnumValues")
+}
+
+/// The node id of an enumeration variable's ValueAsText property: the sampler keeps it.
+pub fn value_as_text_id(leaf: &str) -> String {
+    format!("{leaf}.ValueAsText")
 }
 
 /// Changes the address space from one plan to the next: the removed variables' subscribers get
@@ -105,8 +158,11 @@ pub fn change(manager: &PlcManager, subscriptions: &SubscriptionCache, ns: u16, 
     }
     {
         let mut space = manager.address_space().write();
-        for node in &gone {
+        for (node, leaf) in gone.iter().zip(&changes.remove_leaves) {
             space.delete(node, true);
+            // An enumeration's properties (absent for other variables).
+            space.delete(&id(ns, &enum_values_id(leaf)), true);
+            space.delete(&id(ns, &value_as_text_id(leaf)), true);
         }
         for object in &changes.remove_objects {
             space.delete(&id(ns, object), true);

@@ -236,6 +236,7 @@ fn variable(
     parent: &NodeId,
 ) {
     VariableBuilder::new(&id(ns, node), QualifiedName::new(ns, browse), browse)
+        .has_type_definition(opcua::types::VariableTypeId::BaseDataVariableType)
         .data_type(ty)
         .value(super::space::initial(ty))
         .access_level(AccessLevel::CURRENT_READ)

@@ -123,6 +123,13 @@ fn calendar_variant(calendar: value::Calendar, slot: u64) -> Variant {
     }
 }
 
+/// The name of an enumeration's value as served (its integer in `variant`), as `plcctl get`
+/// shows it (the number when no value has it); `None` for a variable of another type.
+pub fn enum_text(ty: &ValueType, variant: &Variant) -> Option<String> {
+    let ValueType::Enum { base, .. } = ty else { return None };
+    Some(value::format(ty, elem_slot(*base, variant).ok()?))
+}
+
 /// The value a client writes to a variable of type `ty`, as the text `plcctl set` takes for it
 /// (what `plcctl get` shows). `BadTypeMismatch`: a variant of another type than [`data_type`]
 /// serves `ty` as; `BadOutOfRange`: a value no variable of the type can hold (a `TIME` beyond
@@ -332,6 +339,18 @@ mod tests {
             let same = |slot| value::normalize(ty.elem(), slot);
             assert_eq!(same(back), same(slot), "{ty:?}: {variant:?} written as {text}");
         }
+    }
+
+    #[test]
+    fn an_enumeration_s_value_has_its_name() {
+        let mode = ValueType::Enum {
+            type_name: "MODE".into(),
+            values: vec![("IDLE".into(), 0), ("RUN".into(), 5)],
+            base: Elem::I32,
+        };
+        assert_eq!(enum_text(&mode, &Variant::Int32(5)).as_deref(), Some("RUN"));
+        assert_eq!(enum_text(&mode, &Variant::Int32(7)).as_deref(), Some("7"), "no name");
+        assert_eq!(enum_text(&ValueType::Bool, &Variant::Boolean(true)), None);
     }
 
     #[test]
