@@ -229,6 +229,8 @@ async def browse_and_read(url):
                                        "main.level", "main.elapsed", "main.phase",
                                        "main.axis.ok")])
         check("an array's elements read", values[:2] == [20, 40], f"{values[:2]}")
+        table = await node("main.table").read_value()
+        check("an array is an array variable too", table == [10, 20, 30, 40], f"{table!r}")
         check("a STRING reads", values[2] == "plcd", f"{values[2]!r}")
         check("a located INT reads its device word", values[3] == 7, f"{values[3]!r}")
         check("a TIME is a Duration in milliseconds", values[4] == 1500.0, f"{values[4]!r}")
@@ -377,6 +379,12 @@ async def writes_and_methods(url, daemon, control):
         code = await status_of(note.write_value(ua.Variant("far too long", ua.VariantType.String)))
         check("a STRING longer than declared is BadOutOfRange", code == "BadOutOfRange", f"{code}")
         check("and the value stays", await note.read_value() == "hé")
+        table = node("main.table")
+        await table.write_value(ua.Variant([1, 2, 3, 4], ua.VariantType.Int16))
+        check("an array is written whole", await table.read_value() == [1, 2, 3, 4])
+        check("and its elements with it", await wait_value(node("main.table[3]"), 3) == 3)
+        code = await status_of(table.write_value(ua.Variant([1, 2], ua.VariantType.Int16)))
+        check("an array of another length is BadOutOfRange", code == "BadOutOfRange", f"{code}")
         code = await status_of(node("main.counter").write_value(ua.Variant(1, ua.VariantType.Int32)))
         check("a variable not in writable is BadNotWritable", code == "BadNotWritable", f"{code}")
         code = await status_of(setpoint.write_value(ua.Variant(5, ua.VariantType.Int32)))
@@ -734,7 +742,7 @@ async def main_checks(plcd, plcctl, project, work):
 
         # 3c. Writes and methods: an anonymous operator, then an anonymous viewer; and the
         # writes with the control socket off.
-        writable = 'writable = ["main.setpoint", "main.recipe", "main.note", "main.spin"]'
+        writable = 'writable = ["main.setpoint", "main.recipe", "main.note", "main.spin", "main.table"]'
         operator = start(f'security_policies = ["None"]\nanonymous = "operator"\n{writable}')
         url = operator.serving()
         check("the server with writable variables serves", url is not None,

@@ -37,11 +37,14 @@ use crate::value::ValueType;
 /// own wait for the scan thread (10 s), so that its answer, not this, says what went wrong.
 pub const ANSWER_WAIT: Duration = Duration::from_secs(12);
 
-/// A writable variable: its leaf's index in the sampler's order, and its type.
+/// A writable variable: one element (its leaf's index in the sampler's order) or an array's
+/// elements (each with its node id's string), and the type of each.
 #[derive(Debug, Clone)]
 pub struct Target {
-    pub leaf: usize,
     pub ty: ValueType,
+    pub elements: Vec<(String, usize)>,
+    /// An array variable: a value of `elements.len()` values written element by element.
+    pub array: bool,
 }
 
 /// Leaves whose last value the sampler is to forget, so that it hands the next copy's value
@@ -116,8 +119,12 @@ pub struct PlcNodes {
 /// variable's name and value as `set` takes them.
 struct Checked {
     index: usize,
-    leaf: usize,
-    write: NamedValue,
+    /// The leaf written, with what `set` takes for it; `None` for an array variable's own
+    /// entry, whose elements come as entries of their own.
+    write: Option<(usize, NamedValue)>,
+    /// The node and the value it holds once applied.
+    node: NodeId,
+    value: Variant,
 }
 
 impl PlcNodes {
@@ -245,13 +252,8 @@ impl InMemoryNodeManagerImpl for PlcNodes {
                     }
                     (AttributeId::Value, Some(target)) => match &value.value.value {
                         None => Err(StatusCode::BadTypeMismatch),
-                        Some(variant) => values::written(&target.ty, variant).map(|text| {
-                            checked.push(Checked {
-                                index,
-                                leaf: target.leaf,
-                                write: NamedValue::write(id_text(&value.node_id), text),
-                            })
-                        }),
+                        Some(variant) => check(target, index, &value.node_id, variant)
+                            .map(|entries| checked.extend(entries)),
                     },
                     _ => Err(StatusCode::BadNotWritable),
                 };
@@ -263,7 +265,8 @@ impl InMemoryNodeManagerImpl for PlcNodes {
         if checked.is_empty() {
             return Ok(());
         }
-        let writes = checked.iter().map(|c| c.write.clone()).collect();
+        let writes =
+            checked.iter().filter_map(|c| c.write.as_ref().map(|(_, w)| w.clone())).collect();
         let status = match self.ask(&context.token, Request::Set { writes }).await {
             Ok(_) => StatusCode::Good,
             Err(status) => status,
@@ -272,7 +275,7 @@ impl InMemoryNodeManagerImpl for PlcNodes {
             nodes_to_write[c.index].set_status(status);
         }
         if status.is_good() {
-            self.written(context, address_space, nodes_to_write, &checked);
+            self.written(context, address_space, &checked);
         }
         Ok(())
     }
@@ -328,35 +331,59 @@ impl PlcNodes {
         &self,
         context: &RequestContext,
         address_space: &RwLock<AddressSpace>,
-        nodes_to_write: &[&mut WriteNode],
         checked: &[Checked],
     ) {
         {
             let mut forget = self.forget.lock().unwrap_or_else(|e| e.into_inner());
-            for c in checked {
-                forget.add(c.leaf);
+            for (leaf, _) in checked.iter().filter_map(|c| c.write.as_ref()) {
+                forget.add(*leaf);
             }
         }
         let mut space = address_space.write();
         for c in checked {
-            let value = nodes_to_write[c.index].value();
-            let Some(NodeType::Variable(node)) = space.find_mut(&value.node_id) else { continue };
-            let Some(variant) = value.value.value.clone() else { continue };
-            let now = DataValue::new_now(variant);
+            let Some(NodeType::Variable(node)) = space.find_mut(&c.node) else { continue };
+            let now = DataValue::new_now(c.value.clone());
             node.set_data_value(now.clone());
             context
                 .subscriptions
-                .notify_data_change([(now, &value.node_id, AttributeId::Value)].into_iter());
+                .notify_data_change([(now, &c.node, AttributeId::Value)].into_iter());
         }
     }
 }
 
-/// A node id's string (a variable's full name).
-fn id_text(node: &NodeId) -> String {
-    match &node.identifier {
-        Identifier::String(id) => id.as_ref().to_string(),
-        other => other.to_string(),
+/// The entries of a write of `variant` to `target` (the node `node`, item `index` of the
+/// request): one for a variable; for an array variable, one per element (the value must hold
+/// them all) and one for the array node itself.
+fn check(
+    target: &Target,
+    index: usize,
+    node: &NodeId,
+    variant: &Variant,
+) -> Result<Vec<Checked>, StatusCode> {
+    let entry = |(name, leaf): &(String, usize), value: &Variant| {
+        values::written(&target.ty, value).map(|text| Checked {
+            index,
+            write: Some((*leaf, NamedValue::write(name.clone(), text))),
+            node: NodeId::new(node.namespace, name.clone()),
+            value: value.clone(),
+        })
+    };
+    if !target.array {
+        return target.elements.iter().map(|element| entry(element, variant)).collect();
     }
+    let Variant::Array(array) = variant else { return Err(StatusCode::BadTypeMismatch) };
+    if array.values.len() != target.elements.len() {
+        // The whole array or nothing: its length is the declared one.
+        return Err(StatusCode::BadOutOfRange);
+    }
+    let mut entries: Vec<Checked> = target
+        .elements
+        .iter()
+        .zip(&array.values)
+        .map(|(element, value)| entry(element, value))
+        .collect::<Result<_, _>>()?;
+    entries.push(Checked { index, write: None, node: node.clone(), value: variant.clone() });
+    Ok(entries)
 }
 
 #[cfg(test)]

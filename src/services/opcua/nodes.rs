@@ -55,12 +55,27 @@ pub struct Object {
     pub browse: String,
 }
 
+/// A one-dimensional array of elementary values as one variable (`main.table`, an Int16[4]),
+/// beside the variables of its elements (`main.table[1]` …), which it is read from and written
+/// through.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ArrayNode {
+    pub id: String,
+    pub parent: String,
+    pub browse: String,
+    /// Its elements' indices in [`Plan::leaves`], in index order.
+    pub elements: Vec<usize>,
+    /// Every element writable.
+    pub writable: bool,
+}
+
 /// The nodes of a project's variables.
 #[derive(Debug, Default)]
 pub struct Plan {
     /// Parents before their children.
     pub objects: Vec<Object>,
     pub leaves: Vec<Leaf>,
+    pub arrays: Vec<ArrayNode>,
     /// Variables left out past `max_nodes`.
     pub left_out: usize,
     /// Variables not served at all: references (a place in memory means nothing to a client)
@@ -122,8 +137,62 @@ impl Plan {
                 writable: writable.contains(&symbol.name),
             });
         }
+        plan.arrays = arrays(&plan.leaves, &taken);
         plan
     }
+}
+
+/// The one-dimensional arrays of elementary values among `leaves`: runs of consecutive leaves
+/// of one parent named `base[index]` (one index), of one type; `taken` are the node ids in use.
+fn arrays(leaves: &[Leaf], taken: &HashSet<String>) -> Vec<ArrayNode> {
+    let base = |leaf: &Leaf| -> Option<String> {
+        let (base, index) = leaf.browse.strip_suffix(']')?.split_once('[')?;
+        (!index.contains([',', '[', ']']) && !base.is_empty()).then(|| base.to_string())
+    };
+    let mut arrays: Vec<ArrayNode> = Vec::new();
+    let mut run: Option<(String, Vec<usize>)> = None;
+    let close = |run: Option<(String, Vec<usize>)>, arrays: &mut Vec<ArrayNode>| {
+        let Some((base, elements)) = run else { return };
+        let first = &leaves[elements[0]];
+        let id = if first.parent == PROGRAMS {
+            base.clone()
+        } else {
+            format!("{}.{base}", first.parent)
+        };
+        if taken.contains(&id) {
+            return;
+        }
+        arrays.push(ArrayNode {
+            id,
+            parent: first.parent.clone(),
+            browse: base,
+            writable: elements.iter().all(|&e| leaves[e].writable),
+            elements,
+        });
+    };
+    for (i, leaf) in leaves.iter().enumerate() {
+        let name = base(leaf);
+        let continues = match (&run, &name) {
+            (Some((b, elements)), Some(n)) => {
+                let last = &leaves[*elements.last().unwrap_or(&i)];
+                b == n
+                    && last.parent == leaf.parent
+                    && last.ty == leaf.ty
+                    && elements.last() == Some(&(i - 1))
+            }
+            _ => false,
+        };
+        if continues {
+            if let Some((_, elements)) = &mut run {
+                elements.push(i);
+            }
+            continue;
+        }
+        close(run.take(), &mut arrays);
+        run = name.map(|n| (n, vec![i]));
+    }
+    close(run, &mut arrays);
+    arrays
 }
 
 /// What changes in the address space from one plan to the next (a reload, a `plcctl load`, an
@@ -139,6 +208,10 @@ pub struct Changes {
     /// New objects, parents before their children.
     pub add_objects: Vec<Object>,
     pub add_leaves: Vec<Leaf>,
+    /// Array variables gone or changed (length, type, writable), and new ones (with the new
+    /// plan's element indices).
+    pub remove_arrays: Vec<String>,
+    pub add_arrays: Vec<ArrayNode>,
 }
 
 impl Plan {
@@ -167,7 +240,25 @@ impl Plan {
             self.objects.iter().filter(|o| !new_objects.contains(o.id.as_str())).collect();
         // Parents come before their children in a plan: reversed, children first.
         remove_objects.reverse();
+        let array_key = |plan: &Plan, a: &ArrayNode| {
+            let first = &plan.leaves[a.elements[0]];
+            (a.id.clone(), a.elements.len(), data_type(&first.ty), names(first), a.writable)
+        };
+        let old_arrays: HashSet<_> = self.arrays.iter().map(|a| array_key(self, a)).collect();
+        let new_arrays: HashSet<_> = new.arrays.iter().map(|a| array_key(new, a)).collect();
         Changes {
+            remove_arrays: self
+                .arrays
+                .iter()
+                .filter(|a| !new_arrays.contains(&array_key(self, a)))
+                .map(|a| a.id.clone())
+                .collect(),
+            add_arrays: new
+                .arrays
+                .iter()
+                .filter(|a| !old_arrays.contains(&array_key(new, a)))
+                .cloned()
+                .collect(),
             remove_leaves: self
                 .leaves
                 .iter()
@@ -331,6 +422,64 @@ mod tests {
         let added: Vec<&str> = changes.add_leaves.iter().map(|l| l.id.as_str()).collect();
         assert_eq!(added, ["main.retyped", "main.now_writable", "main.added", "other.x.y"]);
         assert_eq!(new.changes_to(&new), Changes::default(), "the same plan changes nothing");
+    }
+
+    #[test]
+    fn one_dimensional_arrays_of_values_are_array_variables_too() {
+        let int = ValueType::Signed(Elem::I16);
+        let mut symbols = Symbols::default();
+        for (i, name) in [
+            "main.buf[1]",
+            "main.buf[2]",
+            "main.buf[3]",
+            "main.grid[1,1]",
+            "main.grid[1,2]",
+            "main.slots[1].n",
+            "main.slots[2].n",
+            "main.m[1][1]",
+            "main.alone[0]",
+            "other.buf[5]",
+            "other.buf[6]",
+        ]
+        .iter()
+        .enumerate()
+        {
+            symbols.push(symbol(name, int.clone(), 2 * i as u32));
+        }
+        let writable = BTreeSet::from(["main.buf[1]".to_string(), "main.buf[2]".to_string()]);
+        let plan = Plan::of(&symbols, 100, &writable);
+        let arrays: Vec<(&str, &str, &str, &[usize], bool)> = plan
+            .arrays
+            .iter()
+            .map(|a| {
+                (
+                    a.id.as_str(),
+                    a.parent.as_str(),
+                    a.browse.as_str(),
+                    a.elements.as_slice(),
+                    a.writable,
+                )
+            })
+            .collect();
+        assert_eq!(
+            arrays,
+            [
+                ("main.buf", "main", "buf", &[0, 1, 2][..], false),
+                ("main.alone", "main", "alone", &[8][..], false),
+                ("other.buf", "other", "buf", &[9, 10][..], false),
+            ],
+            "not the two-dimensional, the arrays of structs or of arrays; writable if all are"
+        );
+        let all = BTreeSet::from(["other.buf[5]".to_string(), "other.buf[6]".to_string()]);
+        assert!(Plan::of(&symbols, 100, &all).arrays[2].writable);
+        // A changed length replaces the array's node.
+        let mut shorter = Symbols::default();
+        shorter.push(symbol("main.buf[1]", int.clone(), 0));
+        shorter.push(symbol("main.buf[2]", int, 2));
+        let changes =
+            Plan::of(&symbols, 100, &writable).changes_to(&Plan::of(&shorter, 100, &writable));
+        assert!(changes.remove_arrays.contains(&"main.buf".to_string()));
+        assert_eq!(changes.add_arrays.len(), 1);
     }
 
     #[test]

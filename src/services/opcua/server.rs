@@ -215,14 +215,18 @@ impl OpcuaServer {
     }
 }
 
-/// The writable variables of `plan`, by their node ids' strings.
+/// The writable variables of `plan`, by their node ids' strings: its leaves and its arrays.
 fn targets_of(plan: &Plan) -> std::collections::HashMap<String, Target> {
-    plan.leaves
-        .iter()
-        .enumerate()
-        .filter(|(_, leaf)| leaf.writable)
-        .map(|(leaf, l)| (l.id.clone(), Target { leaf, ty: l.ty.clone() }))
-        .collect()
+    let leaves = plan.leaves.iter().enumerate().filter(|(_, leaf)| leaf.writable).map(|(i, l)| {
+        let target = Target { ty: l.ty.clone(), elements: vec![(l.id.clone(), i)], array: false };
+        (l.id.clone(), target)
+    });
+    let arrays = plan.arrays.iter().filter(|a| a.writable).map(|a| {
+        let elements = a.elements.iter().map(|&e| (plan.leaves[e].id.clone(), e)).collect();
+        let ty = plan.leaves[a.elements[0]].ty.clone();
+        (a.id.clone(), Target { ty, elements, array: true })
+    });
+    leaves.chain(arrays).collect()
 }
 
 /// What of a plan's variables is not served, for the log.
@@ -352,6 +356,8 @@ struct Served {
     leaves: Vec<NodeId>,
     /// An enumeration leaf's ValueAsText property, in `leaves` order.
     texts: Vec<Option<NodeId>>,
+    /// The array variables and their elements' indices in `leaves`.
+    arrays: Vec<(NodeId, Vec<usize>)>,
 }
 
 impl Served {
@@ -364,6 +370,7 @@ impl Served {
             status: STATUS_NODES.iter().map(|(name, _)| id(ns, &nodes::status_id(name))).collect(),
             leaves: plan.leaves.iter().map(|leaf| id(ns, &leaf.id)).collect(),
             texts: plan.leaves.iter().map(text).collect(),
+            arrays: plan.arrays.iter().map(|a| (id(ns, &a.id), a.elements.clone())).collect(),
         }
     }
 }
@@ -476,7 +483,7 @@ impl Sampler {
         let Some(layout) = copied else { return false };
         let Some(plan) = self.following.plan_of(&layout) else { return false };
         let changes = self.plan.changes_to(&plan);
-        space::change(&self.manager, self.handle.subscriptions(), self.ns, &changes);
+        space::change(&self.manager, self.handle.subscriptions(), self.ns, &changes, &plan);
         *self.targets.write().unwrap_or_else(|e| e.into_inner()) = targets_of(&plan);
         log::info!(
             "opcua: the address space follows the new project: {} variables, {} removed or \
@@ -543,8 +550,10 @@ impl Sampler {
                 changed.push((node, DataValue::new_now(value)));
             }
         }
+        let mut moved = vec![false; self.leaves.len()];
         for (k, ((ty, at), node)) in self.leaves.iter().zip(&self.served.leaves).enumerate() {
             let i = STATUS_NODES.len() + k;
+            moved[k] = true;
             if same_engine {
                 let value = values::read(ty, *at, &self.words, &self.vars);
                 if self.last[i].as_ref() != Some(&value) {
@@ -556,12 +565,33 @@ impl Sampler {
                     }
                     self.last[i] = Some(value.clone());
                     changed.push((node, DataValue::new_now(value)));
+                } else {
+                    moved[k] = false;
                 }
             } else if self.last[i].is_some() {
                 self.last[i] = None;
                 let bad = DataValue::new_now_status(Variant::Empty, StatusCode::BadOutOfService);
                 changed.push((node, bad));
+            } else {
+                moved[k] = false;
             }
+        }
+        // An array whose element moved: all its elements of this copy, as one value.
+        for (node, elements) in &self.served.arrays {
+            if !elements.iter().any(|&e| moved[e]) {
+                continue;
+            }
+            let value = if same_engine {
+                let values: Option<Vec<Variant>> =
+                    elements.iter().map(|&e| self.last[STATUS_NODES.len() + e].clone()).collect();
+                values.and_then(values::array).map(DataValue::new_now)
+            } else {
+                None
+            };
+            let value = value.unwrap_or_else(|| {
+                DataValue::new_now_status(Variant::Empty, StatusCode::BadOutOfService)
+            });
+            changed.push((node, value));
         }
         if changed.is_empty() {
             return;

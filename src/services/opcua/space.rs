@@ -10,7 +10,7 @@ use opcua::types::{
 };
 
 use super::manager::PlcManager;
-use super::nodes::{self, Changes, Leaf, Object, Plan, STATUS_NODES};
+use super::nodes::{self, ArrayNode, Changes, Leaf, Object, Plan, STATUS_NODES};
 use super::values;
 use crate::value::ValueType;
 
@@ -69,6 +69,39 @@ pub fn populate(manager: &PlcManager, ns: u16, plan: &Plan) {
     }
     drop(space);
     add(manager, ns, &plan.objects, &plan.leaves);
+    add_arrays(manager, ns, &plan.arrays, &plan.leaves);
+}
+
+/// Adds the array variables of `arrays` (their elements in `leaves`): an array of the elements'
+/// type, its length as its one dimension.
+fn add_arrays(manager: &PlcManager, ns: u16, arrays: &[ArrayNode], leaves: &[Leaf]) {
+    let mut space = manager.address_space().write();
+    for array in arrays {
+        let first = &leaves[array.elements[0]];
+        let Some(ty) = values::data_type(&first.ty) else { continue };
+        let access = if array.writable {
+            AccessLevel::CURRENT_READ | AccessLevel::CURRENT_WRITE
+        } else {
+            AccessLevel::CURRENT_READ
+        };
+        let len = array.elements.len();
+        let initial: Vec<Variant> = (0..len).map(|_| initial(ty)).collect();
+        let Some(value) = values::array(initial) else { continue };
+        VariableBuilder::new(
+            &id(ns, &array.id),
+            QualifiedName::new(ns, array.browse.as_str()),
+            array.browse.as_str(),
+        )
+        .has_type_definition(VariableTypeId::BaseDataVariableType)
+        .data_type(ty)
+        .value_rank(1)
+        .array_dimensions(&[len as u32])
+        .value(value)
+        .access_level(access)
+        .user_access_level(access)
+        .organized_by(id(ns, &array.parent))
+        .insert(&mut *space);
+    }
 }
 
 /// Adds `objects` (parents first) and the variables of `leaves` to the address space; a leaf
@@ -149,7 +182,13 @@ pub fn value_as_text_id(leaf: &str) -> String {
 /// Changes the address space from one plan to the next: the removed variables' subscribers get
 /// a last value with `BadNodeIdUnknown`, then the nodes go; the new ones come with a value of
 /// their type until the next copy. The nodes of the variables both plans have are not touched.
-pub fn change(manager: &PlcManager, subscriptions: &SubscriptionCache, ns: u16, changes: &Changes) {
+pub fn change(
+    manager: &PlcManager,
+    subscriptions: &SubscriptionCache,
+    ns: u16,
+    changes: &Changes,
+    new: &Plan,
+) {
     let gone: Vec<NodeId> = changes.remove_leaves.iter().map(|leaf| id(ns, leaf)).collect();
     let last = DataValue::new_now_status(Variant::Empty, StatusCode::BadNodeIdUnknown);
     let values = gone.iter().map(|node| (node, None, last.clone()));
@@ -164,11 +203,15 @@ pub fn change(manager: &PlcManager, subscriptions: &SubscriptionCache, ns: u16, 
             space.delete(&id(ns, &enum_values_id(leaf)), true);
             space.delete(&id(ns, &value_as_text_id(leaf)), true);
         }
+        for array in &changes.remove_arrays {
+            space.delete(&id(ns, array), true);
+        }
         for object in &changes.remove_objects {
             space.delete(&id(ns, object), true);
         }
     }
     add(manager, ns, &changes.add_objects, &changes.add_leaves);
+    add_arrays(manager, ns, &changes.add_arrays, &new.leaves);
 }
 
 /// A value of the type until the first copy.

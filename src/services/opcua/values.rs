@@ -123,6 +123,14 @@ fn calendar_variant(calendar: value::Calendar, slot: u64) -> Variant {
     }
 }
 
+/// An array variable's value: `elements` (each as [`read`] gives it) as one OPC UA array;
+/// `None` without elements or if they are not all of one type.
+pub fn array(elements: Vec<Variant>) -> Option<Variant> {
+    let scalar = elements.first()?.scalar_type_id()?;
+    let array = opcua::types::Array::new(scalar, elements).ok()?;
+    Some(Variant::Array(Box::new(array)))
+}
+
 /// The name of an enumeration's value as served (its integer in `variant`), as `plcctl get`
 /// shows it (the number when no value has it); `None` for a variable of another type.
 pub fn enum_text(ty: &ValueType, variant: &Variant) -> Option<String> {
