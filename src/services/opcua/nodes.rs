@@ -55,7 +55,7 @@ pub struct Object {
     pub browse: String,
 }
 
-/// A one-dimensional array of elementary values as one variable (`main.table`, an Int16[4]),
+/// A one-dimensional array of elementary values as one variable (`main.table`, an `Int16[4]`),
 /// beside the variables of its elements (`main.table[1]` …), which it is read from and written
 /// through.
 #[derive(Debug, Clone, PartialEq, Eq)]
