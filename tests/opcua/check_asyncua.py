@@ -385,6 +385,17 @@ async def writes_and_methods(url, daemon, control):
         check("and its elements with it", await wait_value(node("main.table[3]"), 3) == 3)
         code = await status_of(table.write_value(ua.Variant([1, 2], ua.VariantType.Int16)))
         check("an array of another length is BadOutOfRange", code == "BadOutOfRange", f"{code}")
+        devices = await child_names(node("Devices"))
+        check("the device ranges are in the Devices folder",
+              set(devices) == {"D00100", "D00101", "M0000", "M0001", "M0002", "M0003"},
+              f"{sorted(devices)}")
+        check("a device word reads (the located variable's)",
+              await wait_value(node("Devices.D00100"), 7) == 7)
+        await node("Devices.D00101").write_value(ua.Variant(-9, ua.VariantType.Int16))
+        check("a writable device word is written", await node("Devices.D00101").read_value() == -9)
+        check("a device bit reads as a Boolean", await node("Devices.M0001").read_value() is False)
+        code = await status_of(node("Devices.M0001").write_value(ua.Variant(True, ua.VariantType.Boolean)))
+        check("a device of a range not writable is BadNotWritable", code == "BadNotWritable", f"{code}")
         code = await status_of(node("main.counter").write_value(ua.Variant(1, ua.VariantType.Int32)))
         check("a variable not in writable is BadNotWritable", code == "BadNotWritable", f"{code}")
         code = await status_of(setpoint.write_value(ua.Variant(5, ua.VariantType.Int32)))
@@ -742,7 +753,9 @@ async def main_checks(plcd, plcctl, project, work):
 
         # 3c. Writes and methods: an anonymous operator, then an anonymous viewer; and the
         # writes with the control socket off.
-        writable = 'writable = ["main.setpoint", "main.recipe", "main.note", "main.spin", "main.table"]'
+        writable = ('writable = ["main.setpoint", "main.recipe", "main.note", "main.spin", "main.table"]\n'
+                    '[[opcua.devices]]\ndevice = "D00100"\ncount = 2\nwritable = true\n'
+                    '[[opcua.devices]]\ndevice = "M0000"\ncount = 4\n')
         operator = start(f'security_policies = ["None"]\nanonymous = "operator"\n{writable}')
         url = operator.serving()
         check("the server with writable variables serves", url is not None,

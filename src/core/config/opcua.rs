@@ -7,6 +7,10 @@
 //! security_policies = ["Basic256Sha256"]
 //! anonymous = "none"
 //! writable = ["main.setpoint", "main.recipe"]
+//!
+//! [[opcua.devices]]              # device ranges, as the Modbus map chooses them
+//! device = "D00100"
+//! count = 16
 //! ```
 //!
 //! The keys' ranges and defaults are the constants of [`OpcuaConfig`]; the server
@@ -21,6 +25,7 @@ use toml::Spanned;
 
 use super::common::{int_or, resolve, widen, Ctx};
 use super::Sink;
+use crate::device::{Address, Area};
 use crate::diag::Diagnostic;
 
 /// `[opcua]`: off unless `listen` is given.
@@ -67,6 +72,35 @@ pub struct OpcuaConfig {
     /// Checked against the programs when the project is built
     /// (`crate::project::Project::opcua_writable`).
     pub writable: Vec<WritableName>,
+    /// `[[opcua.devices]]`: device ranges served beside the variables, in the order written;
+    /// default none.
+    pub devices: Vec<OpcuaDevices>,
+}
+
+/// One `[[opcua.devices]]` entry: `count` consecutive devices of one area from `device`, words
+/// (`D00100`, `M010`) or bits (`M0100`, `D00100.3`) as `device` is written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OpcuaDevices {
+    /// `device`: the first device, of P, M, K or D; required.
+    pub first: Address,
+    /// `count`: how many devices, [`OpcuaConfig::MAX_DEVICES`], within the area; required.
+    pub count: u32,
+    /// `writable`: sessions of the operator role and up may write them; default false.
+    pub writable: bool,
+}
+
+impl OpcuaDevices {
+    /// The devices, in order.
+    pub fn addresses(&self) -> impl Iterator<Item = Address> + '_ {
+        let first = self.first;
+        (0..self.count).map(move |k| match first.bit {
+            None => Address { number: first.number + k, ..first },
+            Some(bit) => {
+                let index = first.number * 16 + u32::from(bit) + k;
+                Address { number: index / 16, bit: Some((index % 16) as u8), ..first }
+            }
+        })
+    }
 }
 
 /// A name of `opcua.writable`, with where it is written for the project's diagnostics.
@@ -142,6 +176,8 @@ impl OpcuaConfig {
     pub const MAX_NODES: RangeInclusive<u32> = 1..=1_000_000;
     /// Names `writable` may list.
     pub const MAX_WRITABLE: usize = 10_000;
+    /// Devices one `[[opcua.devices]]` entry may serve.
+    pub const MAX_DEVICES: RangeInclusive<u32> = 1..=4096;
 
     /// The monitored items one subscription may hold: the session's share.
     pub fn monitored_items_per_subscription(&self) -> u32 {
@@ -164,6 +200,7 @@ impl Default for OpcuaConfig {
             max_nodes: 10_000,
             pki_dir: None,
             writable: Vec::new(),
+            devices: Vec::new(),
         }
     }
 }
@@ -185,6 +222,71 @@ pub(super) struct RawOpcua {
     pub max_nodes: Option<Spanned<i64>>,
     pub pki_dir: Option<Spanned<String>>,
     pub writable: Option<Spanned<Vec<Spanned<String>>>>,
+    pub devices: Option<Vec<Spanned<RawDevices>>>,
+}
+
+/// `[[opcua.devices]]` as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawDevices {
+    pub device: Spanned<String>,
+    pub count: Spanned<i64>,
+    pub writable: Option<Spanned<bool>>,
+}
+
+/// One `[[opcua.devices]]` entry checked: P, M, K or D, within its area, writable only where a
+/// client may write.
+fn devices(sink: &mut Sink, raw: &Spanned<RawDevices>) -> Option<OpcuaDevices> {
+    let ctx = Ctx::Section("opcua.devices");
+    let raw = raw.get_ref();
+    let at = raw.device.span().start;
+    let first = match Address::parse(raw.device.get_ref()) {
+        Ok(first) => first,
+        Err(e) => {
+            sink.error(at, format!("{}: {e}", ctx.key("device")));
+            return None;
+        }
+    };
+    if !matches!(first.area, Area::P | Area::M | Area::K | Area::D) {
+        let message = format!(
+            "{}: {first}: the OPC UA server serves ranges of P, M, K and D devices (the system's \
+             are in its Status folder)",
+            ctx.key("device")
+        );
+        sink.error(at, message);
+        return None;
+    }
+    let count = *raw.count.get_ref();
+    if !(i64::from(*OpcuaConfig::MAX_DEVICES.start())..=i64::from(*OpcuaConfig::MAX_DEVICES.end()))
+        .contains(&count)
+    {
+        let message = format!(
+            "{} {count} out of range {}..={}",
+            ctx.key("count"),
+            OpcuaConfig::MAX_DEVICES.start(),
+            OpcuaConfig::MAX_DEVICES.end()
+        );
+        sink.error(raw.count.span().start, message);
+        return None;
+    }
+    let count = count as u32;
+    let words = first.area.word_count();
+    let (start, room) = match first.bit {
+        None => (first.number, words),
+        Some(bit) => (first.number * 16 + u32::from(bit), words * 16),
+    };
+    if start + count > room {
+        let message = format!(
+            "{} {count} from {first} runs past the end of its area ({}): at most {}",
+            ctx.key("count"),
+            first.area.range_text(),
+            room - start
+        );
+        sink.error(raw.count.span().start, message);
+        return None;
+    }
+    let writable = raw.writable.as_ref().is_some_and(|w| *w.get_ref());
+    Some(OpcuaDevices { first, count, writable })
 }
 
 /// Pass 2 of `[opcua]`; `config` is the config file, for `pki_dir`.
@@ -334,6 +436,13 @@ pub(super) fn validate(sink: &mut Sink, raw: RawOpcua, config: &Path) -> Option<
             }
         }
     }
+    let mut device_ranges = Vec::new();
+    for raw in raw.devices.iter().flatten() {
+        match devices(sink, raw) {
+            Some(range) => device_ranges.push(range),
+            None => ok = false,
+        }
+    }
     let opcua = OpcuaConfig {
         listen,
         endpoint_host,
@@ -347,6 +456,7 @@ pub(super) fn validate(sink: &mut Sink, raw: RawOpcua, config: &Path) -> Option<
         max_nodes: max_nodes?,
         pki_dir,
         writable,
+        devices: device_ranges,
     };
     ok.then_some(opcua)
 }
@@ -428,6 +538,38 @@ mod tests {
         let too_many = errors(&format!("[opcua]\nwritable = [{}]\n", many.join(", ")));
         assert_eq!(too_many.len(), 1, "{too_many:?}");
         assert!(too_many[0].contains("opcua.writable lists 10001 names, at most 10000"));
+    }
+
+    #[test]
+    fn device_ranges_are_words_or_bits_within_their_area() {
+        let config = opcua(
+            "[opcua]\n[[opcua.devices]]\ndevice = \"D00100\"\ncount = 2\nwritable = true\n\
+             [[opcua.devices]]\ndevice = \"M000E\"\ncount = 3\n",
+        );
+        let names: Vec<Vec<String>> = config
+            .devices
+            .iter()
+            .map(|range| range.addresses().map(|a| a.to_string()).collect())
+            .collect();
+        assert_eq!(names, [vec!["D00100", "D00101"], vec!["M000E", "M000F", "M0010"]]);
+        assert_eq!(
+            config.devices.iter().map(|d| d.writable).collect::<Vec<_>>(),
+            [true, false],
+            "read-only by default"
+        );
+        let last = opcua("[opcua]\n[[opcua.devices]]\ndevice = \"D32767\"\ncount = 1\n");
+        assert_eq!(last.devices[0].addresses().last().unwrap().to_string(), "D32767");
+        let errors = errors(
+            "[opcua]\n[[opcua.devices]]\ndevice = \"T0005\"\ncount = 1\n\
+             [[opcua.devices]]\ndevice = \"D32767\"\ncount = 2\n\
+             [[opcua.devices]]\ndevice = \"D0\"\ncount = 0\n\
+             [[opcua.devices]]\ndevice = \"X1\"\ncount = 1\n",
+        );
+        assert_eq!(errors.len(), 4, "{errors:?}");
+        assert!(errors[0].contains("T0005: the OPC UA server serves ranges of P, M, K and D"));
+        assert!(errors[1].contains("count 2 from D32767 runs past the end of its area"));
+        assert!(errors[2].contains("opcua.devices.count 0 out of range 1..=4096"));
+        assert!(errors[3].contains("opcua.devices.device: `X1` is not a device address"));
     }
 
     #[test]

@@ -23,21 +23,27 @@ pub const KEPT: usize = 4;
 /// The plans of the engines the daemon announced.
 pub struct Following {
     max_nodes: usize,
+    /// `[[opcua.devices]]`: the same in every plan.
+    devices: Vec<crate::config::OpcuaDevices>,
     /// The device words the mirror copies: a located variable past them is not served.
     words: u16,
     plans: Mutex<VecDeque<(Arc<RetainedVariables>, Arc<Plan>)>>,
 }
 
 impl Following {
-    pub fn new(max_nodes: usize, words: u16) -> Following {
-        Following { max_nodes, words, plans: Mutex::new(VecDeque::new()) }
+    pub fn new(
+        max_nodes: usize,
+        words: u16,
+        devices: Vec<crate::config::OpcuaDevices>,
+    ) -> Following {
+        Following { max_nodes, devices, words, plans: Mutex::new(VecDeque::new()) }
     }
 
     /// The plan of `symbols` for a server whose mirror copies `words` device words: at most
     /// `max_nodes` variables, the located ones within the copy; `writable` as
     /// [`crate::project::Project::opcua_writable`] gives it.
     pub fn plan(&self, symbols: &Symbols, writable: &BTreeSet<String>) -> Plan {
-        let mut plan = Plan::of(symbols, self.max_nodes, writable);
+        let mut plan = Plan::of(symbols, self.max_nodes, writable).with_devices(&self.devices);
         let before = plan.leaves.len();
         plan.leaves.retain(|leaf| nodes::device_end(leaf).is_none_or(|end| end <= self.words));
         plan.unserved += before - plan.leaves.len();
@@ -89,7 +95,7 @@ mod tests {
 
     #[test]
     fn an_engine_is_found_by_its_layout_once_and_old_announcements_go() {
-        let following = Following::new(100, 10);
+        let following = Following::new(100, 10, Vec::new());
         let layouts: Vec<Arc<RetainedVariables>> =
             (0..=KEPT).map(|_| Arc::new(RetainedVariables::default())).collect();
         let names = symbols(&[("main.a", Space::Var, 0)]);
@@ -105,7 +111,7 @@ mod tests {
 
     #[test]
     fn a_located_variable_past_the_copied_words_is_not_served() {
-        let following = Following::new(100, 10);
+        let following = Following::new(100, 10, Vec::new());
         let names = symbols(&[
             ("main.in_copy", Space::Word, 9),
             ("main.past", Space::Word, 10),

@@ -45,6 +45,9 @@ pub struct Target {
     pub elements: Vec<(String, usize)>,
     /// An array variable: a value of `elements.len()` values written element by element.
     pub array: bool,
+    /// A device of `[[opcua.devices]]` (its element's name is the device's): written as a
+    /// device, a word's signed value or a bit's 0 or 1.
+    pub device: bool,
 }
 
 /// Leaves whose last value the sampler is to forget, so that it hands the next copy's value
@@ -361,10 +364,21 @@ fn check(
     variant: &Variant,
 ) -> Result<Vec<Checked>, StatusCode> {
     let entry = |(name, leaf): &(String, usize), value: &Variant| {
-        values::written(&target.ty, value).map(|text| Checked {
+        let write = if target.device {
+            let word = match value {
+                Variant::Int16(v) => i32::from(*v),
+                Variant::Boolean(b) => i32::from(*b),
+                _ => return Err(StatusCode::BadTypeMismatch),
+            };
+            NamedValue::device(name.clone(), word)
+        } else {
+            NamedValue::write(name.clone(), values::written(&target.ty, value)?)
+        };
+        let id = if target.device { super::nodes::device_id(name) } else { name.clone() };
+        Ok(Checked {
             index,
-            write: Some((*leaf, NamedValue::write(name.clone(), text))),
-            node: NodeId::new(node.namespace, name.clone()),
+            write: Some((*leaf, write)),
+            node: NodeId::new(node.namespace, id),
             value: value.clone(),
         })
     };

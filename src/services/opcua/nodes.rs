@@ -31,6 +31,9 @@ pub const PROGRAMS: &str = "Programs";
 pub const STATUS: &str = "Status";
 /// The node id of the PLC object under Objects.
 pub const PLC: &str = "PLC";
+/// The node id of the folder of the device ranges (`[[opcua.devices]]`); a device's is
+/// `Devices.D00100`.
+pub const DEVICES: &str = "Devices";
 
 /// One variable node of a program's variable.
 #[derive(Debug, Clone, PartialEq)]
@@ -43,8 +46,11 @@ pub struct Leaf {
     pub browse: String,
     pub ty: ValueType,
     pub at: Pointer,
-    /// `[opcua] writable` names it: sessions of the operator role and up may write it.
+    /// `[opcua] writable` names it (or its `[[opcua.devices]]` range is writable): sessions of
+    /// the operator role and up may write it.
     pub writable: bool,
+    /// A device of `[[opcua.devices]]`, not a program's variable: written as a device.
+    pub device: bool,
 }
 
 /// An object node: a program instance, a struct or FB instance, an array's element of structs.
@@ -90,7 +96,7 @@ impl Plan {
     pub fn of(symbols: &Symbols, max_nodes: usize, writable: &BTreeSet<String>) -> Plan {
         let mut plan = Plan::default();
         let mut taken: HashSet<String> =
-            [PLC, PROGRAMS, STATUS].iter().map(|s| s.to_string()).collect();
+            [PLC, PROGRAMS, STATUS, DEVICES].iter().map(|s| s.to_string()).collect();
         taken.extend(STATUS_NODES.iter().map(|(name, _)| status_id(name)));
         for symbol in symbols.iter() {
             if data_type(&symbol.ty).is_none() {
@@ -108,7 +114,7 @@ impl Plan {
             };
             // A program instance named as one of plcd's own objects (`Status`, `PLC`,
             // `Programs`) would put its variables among the PLC's: not served.
-            let reserved = [PLC, PROGRAMS, STATUS].iter().any(|r| parts[0] == *r);
+            let reserved = [PLC, PROGRAMS, STATUS, DEVICES].iter().any(|r| parts[0] == *r);
             if reserved || taken.contains(&symbol.name) {
                 plan.unserved += 1;
                 continue;
@@ -135,11 +141,51 @@ impl Plan {
                 ty: symbol.ty.clone(),
                 at: symbol.at,
                 writable: writable.contains(&symbol.name),
+                device: false,
             });
         }
         plan.arrays = arrays(&plan.leaves, &taken);
         plan
     }
+}
+
+impl Plan {
+    /// The devices of `ranges` as variables of the `Devices` folder (after the program
+    /// variables): a word an `INT`, a bit a `BOOL`, read from the device memory of the copy.
+    pub fn with_devices(mut self, ranges: &[crate::config::OpcuaDevices]) -> Plan {
+        use crate::value::Space;
+        for range in ranges {
+            for address in range.addresses() {
+                let (ty, at) = match (address.as_word(), address.as_bit()) {
+                    (Ok(word), _) => {
+                        let at = Pointer { space: Space::Word, offset: u32::from(word.0) };
+                        (ValueType::Signed(crate::value::Elem::I16), at)
+                    }
+                    (_, Ok(bit)) => {
+                        let offset = u32::from(bit.word) * 16 + bit.mask.trailing_zeros();
+                        (ValueType::Bool, Pointer { space: Space::Bit, offset })
+                    }
+                    _ => continue,
+                };
+                let name = address.to_string();
+                self.leaves.push(Leaf {
+                    id: device_id(&name),
+                    parent: DEVICES.to_string(),
+                    browse: name,
+                    ty,
+                    at,
+                    writable: range.writable,
+                    device: true,
+                });
+            }
+        }
+        self
+    }
+}
+
+/// The node id string of a device: `Devices.D00100`.
+pub fn device_id(device: &str) -> String {
+    format!("{DEVICES}.{device}")
 }
 
 /// The one-dimensional arrays of elementary values among `leaves`: runs of consecutive leaves
@@ -480,6 +526,36 @@ mod tests {
             Plan::of(&symbols, 100, &writable).changes_to(&Plan::of(&shorter, 100, &writable));
         assert!(changes.remove_arrays.contains(&"main.buf".to_string()));
         assert_eq!(changes.add_arrays.len(), 1);
+    }
+
+    #[test]
+    fn device_ranges_are_variables_of_the_devices_folder() {
+        use crate::config::OpcuaDevices;
+        use crate::device::Address;
+        let ranges = [
+            OpcuaDevices { first: Address::parse("D00100").unwrap(), count: 2, writable: true },
+            OpcuaDevices { first: Address::parse("M000F").unwrap(), count: 2, writable: false },
+        ];
+        let plan = Plan::of(&Symbols::default(), 10, &BTreeSet::new()).with_devices(&ranges);
+        let leaves: Vec<(&str, &str, &ValueType, Pointer, bool, bool)> = plan
+            .leaves
+            .iter()
+            .map(|l| (l.id.as_str(), l.browse.as_str(), &l.ty, l.at, l.writable, l.device))
+            .collect();
+        let d = crate::device::layout::D;
+        let m = crate::device::layout::M;
+        let word = |offset| Pointer { space: Space::Word, offset };
+        let bit = |offset| Pointer { space: Space::Bit, offset };
+        let int = ValueType::Signed(Elem::I16);
+        assert_eq!(
+            leaves,
+            [
+                ("Devices.D00100", "D00100", &int, word(d + 100), true, true),
+                ("Devices.D00101", "D00101", &int, word(d + 101), true, true),
+                ("Devices.M000F", "M000F", &ValueType::Bool, bit(m * 16 + 15), false, true),
+                ("Devices.M0010", "M0010", &ValueType::Bool, bit(m * 16 + 16), false, true),
+            ]
+        );
     }
 
     #[test]

@@ -94,7 +94,8 @@ impl OpcuaServer {
         // All of device memory (at most 64 Ki words), so that a place indexes the copy as it
         // indexes device memory, and a located variable of a project loaded later is in it too.
         let words = crate::device::layout::TOTAL_WORDS as u16;
-        let following = Arc::new(Following::new(config.max_nodes as usize, words));
+        let following =
+            Arc::new(Following::new(config.max_nodes as usize, words, config.devices.clone()));
         let plan = following.plan(symbols, writable);
         let mirror = Arc::new(Mirror::with_all_variables(std::iter::once(0..words)));
         Ok(Some(OpcuaServer {
@@ -218,13 +219,16 @@ impl OpcuaServer {
 /// The writable variables of `plan`, by their node ids' strings: its leaves and its arrays.
 fn targets_of(plan: &Plan) -> std::collections::HashMap<String, Target> {
     let leaves = plan.leaves.iter().enumerate().filter(|(_, leaf)| leaf.writable).map(|(i, l)| {
-        let target = Target { ty: l.ty.clone(), elements: vec![(l.id.clone(), i)], array: false };
+        // A device is written by its name (`D00100`), a variable by its node id's (its name).
+        let name = if l.device { l.browse.clone() } else { l.id.clone() };
+        let target =
+            Target { ty: l.ty.clone(), elements: vec![(name, i)], array: false, device: l.device };
         (l.id.clone(), target)
     });
     let arrays = plan.arrays.iter().filter(|a| a.writable).map(|a| {
         let elements = a.elements.iter().map(|&e| (plan.leaves[e].id.clone(), e)).collect();
         let ty = plan.leaves[a.elements[0]].ty.clone();
-        (a.id.clone(), Target { ty, elements, array: true })
+        (a.id.clone(), Target { ty, elements, array: true, device: false })
     });
     leaves.chain(arrays).collect()
 }

@@ -49,7 +49,7 @@ pub fn populate(manager: &PlcManager, ns: u16, plan: &Plan) {
         }
         builder.insert(&mut *space);
     }
-    for folder in [nodes::STATUS, nodes::PROGRAMS] {
+    for folder in [nodes::STATUS, nodes::PROGRAMS, nodes::DEVICES] {
         ObjectBuilder::new(&id(ns, folder), name(folder), folder)
             .is_folder()
             .organized_by(plc.clone())
