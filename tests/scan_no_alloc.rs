@@ -501,6 +501,10 @@ fn the_scan_thread_does_not_allocate() {
     let mirror = Arc::new(Mirror::with_all_variables(std::iter::once(d0..d0 + 3)));
     let engine = Box::new(Engine::new(&project, &watch));
     mirror.prepare(engine.retained_variables(), engine.vm().vars().len());
+    // And the bytes it serves, for this engine: copying those alone is a scan-thread path too
+    // (the engines of the online changes below are copied whole).
+    let served = plcd::drivers::real_time::mirror::byte_ranges([(n.offset, 8), (pos.offset, 8)], 0);
+    mirror.serve_only(engine.retained_variables(), served);
     let Rig {
         field,
         shared,

@@ -509,7 +509,8 @@ async def viewer_refused(url):
         check("a viewer's write is BadUserAccessDenied", code == "BadUserAccessDenied", f"{code}")
         code = await status_of(c.get_node(f"ns={ns};s=PLC").call_method(f"{ns}:Stop"))
         check("a viewer's Stop is BadUserAccessDenied", code == "BadUserAccessDenied", f"{code}")
-        mode = await c.get_node(f"ns={ns};s=Status.Mode").read_value()
+        # (read until RUN, bounded: a daemon just started shows STOP until its first scan)
+        mode = await wait_value(c.get_node(f"ns={ns};s=Status.Mode"), "RUN")
         check("and the PLC still runs", mode == "RUN", f"{mode}")
 
 

@@ -19,9 +19,11 @@
 //! image says why ([`MirrorImage::waiting_for_reader`]) and the consumer, woken, makes room or
 //! drops the replaced layout ([`MirrorImage::serve_reader`]) and asks again.
 //!
-//! A mirror made [`Mirror::with_all_variables`] (the OPC UA server's) copies the whole variable
-//! memory instead, as bytes, so that every Structured Text variable, struct and array of one
-//! image is as of the same scan boundary; the same rules keep the scan thread from allocating
+//! A mirror made [`Mirror::with_all_variables`] (the OPC UA server's) copies the variable memory
+//! instead, as bytes at their own offsets, so that every Structured Text variable, struct and
+//! array of one image is as of the same scan boundary: the whole of it, or, once the consumer
+//! said which bytes it reads for the engine that runs ([`Mirror::serve_only`]), those bytes
+//! alone (the rest of the image keeps what an earlier copy left); the same rules keep the scan thread from allocating
 //! (room for a larger memory) and from freeing (the replaced engine's layout, which tells the
 //! consumer that the engine, and maybe its variables' places, changed). Every image also
 //! carries the engine's error and key switch, for the status the OPC UA server shows.
@@ -84,6 +86,9 @@ pub struct MirrorImage {
     pub replaced: Option<Arc<RetainedVariables>>,
     /// Bytes `vars` must have room for before the next copy can be taken (0: enough).
     pub room: usize,
+    /// For a mirror of all variables: the byte ranges of variable memory to copy for the engine
+    /// of this layout ([`Mirror::serve_only`]); for another engine the whole memory is copied.
+    pub served: Option<(Arc<RetainedVariables>, Arc<[Range<u32>]>)>,
     /// A copy was not taken until the consumer serves the image ([`MirrorImage::serve_reader`]).
     pub waiting_for_reader: bool,
 }
@@ -122,6 +127,7 @@ impl Mirror {
                 layout: None,
                 replaced: None,
                 room: 0,
+                served: None,
                 waiting_for_reader: false,
             }),
             fresh: Condvar::new(),
@@ -149,6 +155,13 @@ impl Mirror {
         let len = image.vars.len();
         image.vars.reserve(need.saturating_sub(len));
         image.layout = Some(Arc::clone(layout));
+    }
+
+    /// Consumer side: for the engine of `layout`, copy only the bytes `ranges` of variable
+    /// memory (sorted, not overlapping: [`byte_ranges`] makes them). Taken by the copies from the
+    /// next scan boundary of that engine on.
+    pub fn serve_only(&self, layout: &Arc<RetainedVariables>, ranges: Arc<[Range<u32>]>) {
+        self.lock().served = Some((Arc::clone(layout), ranges));
     }
 
     pub fn ranges(&self) -> &[Range<u16>] {
@@ -261,11 +274,34 @@ impl Mirror {
             if new_layout {
                 image.replaced = image.layout.replace(Arc::clone(layout));
             }
-            image.vars.clear();
-            match self.variables {
+            let only = match &image.served {
+                Some((served, ranges)) if Arc::ptr_eq(served, layout) => Some(Arc::clone(ranges)),
+                _ => None,
+            };
+            match (self.variables, only) {
+                (Variables::All, Some(ranges)) => {
+                    // The consumer's bytes alone, at their own offsets. Within the capacity
+                    // checked above: no allocation; the `Arc` clone is a count, and the image
+                    // still holds it, so nothing is freed here.
+                    if image.vars.len() != vars.len() {
+                        image.vars.clear();
+                        image.vars.resize(vars.len(), 0);
+                    }
+                    for range in ranges.iter() {
+                        let end = (range.end as usize).min(vars.len());
+                        let start = (range.start as usize).min(end);
+                        image.vars[start..end].copy_from_slice(&vars[start..end]);
+                    }
+                }
                 // Within the capacity checked above: no allocation.
-                Variables::All => image.vars.extend_from_slice(vars),
-                Variables::Retained | Variables::None => layout.copy(vars, &mut image.vars),
+                (Variables::All, None) => {
+                    image.vars.clear();
+                    image.vars.extend_from_slice(vars);
+                }
+                (Variables::Retained | Variables::None, _) => {
+                    image.vars.clear();
+                    layout.copy(vars, &mut image.vars);
+                }
             }
         }
         let mut at = 0;
@@ -285,6 +321,25 @@ impl Mirror {
         self.fresh.notify_all();
         true
     }
+}
+
+/// Byte ranges of variable memory covering `pieces` (start, length), sorted, merged where they
+/// touch or lie closer than `gap` bytes (one copy of a few bytes more is cheaper than two), for
+/// [`Mirror::serve_only`].
+pub fn byte_ranges(pieces: impl IntoIterator<Item = (u32, u32)>, gap: u32) -> Arc<[Range<u32>]> {
+    let mut pieces: Vec<Range<u32>> =
+        pieces.into_iter().map(|(start, len)| start..start.saturating_add(len)).collect();
+    pieces.sort_by_key(|r| r.start);
+    let mut merged: Vec<Range<u32>> = Vec::with_capacity(pieces.len());
+    for piece in pieces {
+        match merged.last_mut() {
+            Some(last) if piece.start <= last.end.saturating_add(gap) => {
+                last.end = last.end.max(piece.end)
+            }
+            _ => merged.push(piece),
+        }
+    }
+    merged.into()
 }
 
 /// What an image records of the engine besides memory.
@@ -406,6 +461,34 @@ mod tests {
         assert!(mirror.lock().serve_reader());
         assert!(copy(&[9; 100]));
         assert_eq!(&mirror.lock().vars[..], &[9; 100]);
+    }
+
+    #[test]
+    fn a_mirror_of_all_variables_copies_only_the_served_bytes_of_their_engine() {
+        let mirror = Mirror::with_all_variables(std::iter::empty());
+        let (one, two) = (layout(&["a"]), layout(&["b"]));
+        mirror.prepare(&one, 8);
+        mirror.serve_only(&one, byte_ranges([(1, 2), (6, 1)], 0));
+        let copy = |layout: &Arc<RetainedVariables>, vars: &[u8]| {
+            mirror.request();
+            mirror.capture_with_variables(&[], Some((layout, vars)), 1, Mode::Run, 1)
+        };
+        assert!(copy(&one, &[1, 2, 3, 4, 5, 6, 7, 8]));
+        assert_eq!(&mirror.lock().vars[..], &[0, 2, 3, 0, 0, 0, 7, 0], "at their own offsets");
+        assert!(copy(&one, &[9; 8]));
+        assert_eq!(&mirror.lock().vars[..], &[0, 9, 9, 0, 0, 0, 9, 0], "the rest left as it was");
+        // Another engine: the whole memory, until the reader says which bytes it reads.
+        mirror.lock().serve_reader();
+        assert!(copy(&two, &[5; 8]));
+        assert_eq!(&mirror.lock().vars[..], &[5; 8]);
+    }
+
+    #[test]
+    fn byte_ranges_are_sorted_and_merged_across_small_gaps() {
+        let ranges = byte_ranges([(100, 4), (0, 2), (3, 1), (40, 8), (104, 2)], 2);
+        assert_eq!(&ranges[..], &[0..4, 40..48, 100..106]);
+        assert_eq!(&byte_ranges([(0, 2), (3, 1)], 0)[..], &[0..2, 3..4], "a gap kept");
+        assert!(byte_ranges([], 64).is_empty());
     }
 
     #[test]

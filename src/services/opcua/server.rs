@@ -127,6 +127,7 @@ impl OpcuaServer {
     pub fn prepare(&self, engine: &Engine) {
         let layout = engine.retained_variables();
         self.mirror.prepare(layout, engine.vm().vars().len());
+        self.mirror.serve_only(layout, variable_bytes(&self.plan));
         *self.layout.lock().unwrap_or_else(|e| e.into_inner()) = Some(Arc::clone(layout));
     }
 
@@ -231,6 +232,19 @@ fn targets_of(plan: &Plan) -> std::collections::HashMap<String, Target> {
         (a.id.clone(), Target { ty, elements, array: true, device: false })
     });
     leaves.chain(arrays).collect()
+}
+
+/// The bytes of variable memory `plan`'s variables are read from: what the scan thread copies
+/// for the server, instead of the whole memory (docs/OPCUA.md, "Off the scan path").
+fn variable_bytes(plan: &Plan) -> Arc<[std::ops::Range<u32>]> {
+    use crate::value::Space;
+    let pieces = plan
+        .leaves
+        .iter()
+        .filter(|leaf| leaf.at.space == Space::Var)
+        .map(|leaf| (leaf.at.offset, leaf.ty.bytes()));
+    // Pieces closer than 64 bytes are copied as one.
+    crate::drivers::real_time::mirror::byte_ranges(pieces, 64)
 }
 
 /// What of a plan's variables is not served, for the log.
@@ -499,6 +513,8 @@ impl Sampler {
         self.served = Served::new(self.ns, &plan);
         self.leaves = plan.leaves.iter().map(|leaf| (leaf.ty.clone(), leaf.at)).collect();
         self.plan = plan;
+        // From the next copy on, the new plan's bytes only.
+        self.mirror.serve_only(&layout, variable_bytes(&self.plan));
         self.layout = Some(layout);
         // Every value handed over again: the kept nodes may have new places.
         self.last.clear();
