@@ -48,6 +48,9 @@ enum Variables {
     All,
 }
 
+/// Byte ranges of variable memory, sorted, not overlapping ([`byte_ranges`]).
+pub type ServedBytes = Arc<[Range<u32>]>;
+
 /// A set of device word ranges copied at scan boundaries on request.
 pub struct Mirror {
     ranges: Box<[Range<u16>]>,
@@ -88,7 +91,7 @@ pub struct MirrorImage {
     pub room: usize,
     /// For a mirror of all variables: the byte ranges of variable memory to copy for the engine
     /// of this layout ([`Mirror::serve_only`]); for another engine the whole memory is copied.
-    pub served: Option<(Arc<RetainedVariables>, Arc<[Range<u32>]>)>,
+    pub served: Option<(Arc<RetainedVariables>, ServedBytes)>,
     /// A copy was not taken until the consumer serves the image ([`MirrorImage::serve_reader`]).
     pub waiting_for_reader: bool,
 }
@@ -160,7 +163,7 @@ impl Mirror {
     /// Consumer side: for the engine of `layout`, copy only the bytes `ranges` of variable
     /// memory (sorted, not overlapping: [`byte_ranges`] makes them). Taken by the copies from the
     /// next scan boundary of that engine on.
-    pub fn serve_only(&self, layout: &Arc<RetainedVariables>, ranges: Arc<[Range<u32>]>) {
+    pub fn serve_only(&self, layout: &Arc<RetainedVariables>, ranges: ServedBytes) {
         self.lock().served = Some((Arc::clone(layout), ranges));
     }
 
@@ -326,7 +329,7 @@ impl Mirror {
 /// Byte ranges of variable memory covering `pieces` (start, length), sorted, merged where they
 /// touch or lie closer than `gap` bytes (one copy of a few bytes more is cheaper than two), for
 /// [`Mirror::serve_only`].
-pub fn byte_ranges(pieces: impl IntoIterator<Item = (u32, u32)>, gap: u32) -> Arc<[Range<u32>]> {
+pub fn byte_ranges(pieces: impl IntoIterator<Item = (u32, u32)>, gap: u32) -> ServedBytes {
     let mut pieces: Vec<Range<u32>> =
         pieces.into_iter().map(|(start, len)| start..start.saturating_add(len)).collect();
     pieces.sort_by_key(|r| r.start);
