@@ -141,8 +141,9 @@ pub fn enum_text(ty: &ValueType, variant: &Variant) -> Option<String> {
 /// The value a client writes to a variable of type `ty`, as the text `plcctl set` takes for it
 /// (what `plcctl get` shows). `BadTypeMismatch`: a variant of another type than [`data_type`]
 /// serves `ty` as; `BadOutOfRange`: a value no variable of the type can hold (a `TIME` beyond
-/// ±292 years, a `TOD` past midnight, a character a `STRING` cannot store). What `set` itself
-/// refuses (a `STRING` too long, a number no enumeration value has) it refuses with its reason.
+/// ±292 years, a `TOD` past midnight, a date before 1970, a character a `STRING` cannot
+/// store). What `set` itself refuses (a `STRING` too long, a number no enumeration value has)
+/// it refuses with its reason.
 pub fn written(ty: &ValueType, variant: &Variant) -> Result<plcd_ipc::Value, StatusCode> {
     let text = match (ty, variant) {
         (ValueType::String { .. }, Variant::String(text)) => {
@@ -200,7 +201,8 @@ fn variant_slot(ty: &ValueType, variant: &Variant) -> Result<u64, StatusCode> {
                     .and_then(|ticks| ticks.checked_mul(100))
                     .ok_or(out_of_range)?;
                 if calendar.is_long() {
-                    Ok(ns as u64)
+                    // Unsigned from 1970: a date before it is no value of the type.
+                    u64::try_from(ns).map_err(|_| out_of_range)
                 } else {
                     let seconds = ns.div_euclid(1_000_000_000);
                     u32::try_from(seconds).map(u64::from).map_err(|_| out_of_range)
@@ -387,5 +389,24 @@ mod tests {
         assert_eq!(written(&T::Char, &Variant::from("ab".to_string())), range);
         assert_eq!(written(&T::Char, &Variant::from("\u{3042}".to_string())), range, "not 1252");
         assert_eq!(written(&T::String { cap: 4 }, &Variant::from("\u{3042}".to_string())), range);
+    }
+
+    #[test]
+    fn a_date_before_1970_is_out_of_range_of_every_calendar_type() {
+        // The calendar types count from 1970 unsigned: a second before is no value of them,
+        // for the long ones too (it was stored wrapped, as a date in 2554).
+        let at = |ticks: i64| Variant::DateTime(Box::new(DateTime::from(ticks)));
+        let second = 10_000_000;
+        for calendar in value::Calendar::ALL {
+            if calendar.kind() == value::CalendarKind::Tod {
+                continue;
+            }
+            let ty = ValueType::Calendar(calendar);
+            let before = at(TICKS_1601_TO_1970 - second);
+            assert_eq!(written(&ty, &before), Err(StatusCode::BadOutOfRange), "{ty:?}");
+            let epoch = written(&ty, &at(TICKS_1601_TO_1970)).expect("1970-01-01 is a value");
+            let plcd_ipc::Value::Text(text) = epoch else { panic!("a text") };
+            assert_eq!(value::parse(&ty, &text), Ok(0), "{ty:?}: {text}");
+        }
     }
 }
