@@ -22,6 +22,10 @@
 //!   checks it; whatever it accepts holds exactly the values the frame carries.
 //! - `users`: a users file: rejected with located diagnostics that quote no hash, or accepted
 //!   with every user as its line says and each removable alone.
+//! - `opcua`: a byte stream to the OPC UA server: the stack's framing, secure channel (the None
+//!   policy) and decoding, with plcd's limits; every request round-trips through the stack's
+//!   encoding, and every value a Write or a Call carries is converted by plcd's
+//!   `values::written` for every IEC type into a refusal or a text `plcctl set` reads back.
 //!
 //! Where an input must describe several things (a request and its answer, bytes and the gaps
 //! between them), [`Bytes`] takes them off the front of the input, so that every input is
@@ -53,6 +57,7 @@ pub const TARGETS: &[Target] = &[
     Target { name: "modbus_rtu", run: targets::modbus_rtu::run },
     Target { name: "remote", run: targets::remote::run },
     Target { name: "users", run: targets::users::run },
+    Target { name: "opcua", run: targets::opcua::run },
 ];
 
 /// The target called `name`.
