@@ -12,13 +12,18 @@
 //!
 //! What must hold: no chunk, message, array or string larger than the limits; a decoded request
 //! encodes to as many bytes as its `byte_len` says, no more than it was decoded from, and those
-//! decode to an equal request (the stack's encoding round-trips). Then plcd's own code on what
-//! the client sent: every value of a Write and every argument of a Call (`PLC.Reset`'s `Cold`
-//! among them), and each element of an array of them, is converted by
-//! `services::opcua::values::written` for every IEC type plcd serves, which must refuse it as
-//! `BadTypeMismatch` or `BadOutOfRange` or give a text that `plcctl set`'s parser takes back to
-//! the same text; the one exception is an enumeration's number that no value of it has,
-//! written as that number, which `set` refuses by design (docs/OPCUA.md).
+//! decode to an equal request (the stack's encoding round-trips), but for a DateTime outside
+//! 1601..9999, which the stack decodes as sent and encodes as the range's end: then the
+//! request is the same from its second decoding on (`tests/fuzz/crashes/opcua/`). Then plcd's own code on what
+//! the client sent: every value of a Write and every argument of a Call, and each element of
+//! an array of them, is converted by `services::opcua::values::written` for every IEC type
+//! plcd serves, which must refuse it as `BadTypeMismatch` or `BadOutOfRange` or give a text
+//! that `plcctl set`'s parser takes back to the same text, and to the variant written when
+//! served again (`values::slot_variant`; within what the type holds: a `DATE` drops the time of
+//! day, a `DT` the fraction of a second); the one exception is an enumeration's number that no
+//! value of it has, written as that number, which `set` refuses by design (`BadOutOfRange`,
+//! docs/OPCUA.md). `PLC.Reset`'s `Cold` is decided in the node manager's `call` (a slice
+//! pattern, no conversion): here it is one more argument through `written`.
 
 use std::io::Cursor;
 use std::path::Path;
@@ -35,7 +40,7 @@ use opcua::core::{Message as _, RequestMessage};
 use opcua::crypto::{CertificateStore, SecurityPolicy};
 use opcua::sync::RwLock;
 use opcua::types::{
-    BinaryDecodable, BinaryEncodable, ContextOwned, DecodingOptions, NamespaceMap, NodeId,
+    BinaryDecodable, BinaryEncodable, Context, ContextOwned, DecodingOptions, NamespaceMap, NodeId,
     StatusCode, TypeLoaderCollection, Variant,
 };
 use plcd::config::OpcuaConfig;
@@ -218,29 +223,25 @@ fn check(channel: &SecureChannel, request: &RequestMessage, size: usize) {
     let options = channel.decoding_options();
     let owned = channel.context();
     let ctx = owned.context();
-    // Encoded as the stack encodes a message: its encoding id, then the request.
-    let mut bytes = Vec::new();
-    let id = request.type_id();
-    id.encode(&mut bytes, &ctx).expect("a node id encodes");
-    let head = bytes.len();
-    request.encode(&mut bytes, &ctx).expect("a decoded request encodes");
-    assert_eq!(bytes.len() - head, request.byte_len(&ctx), "byte_len of {}", request.type_name());
+    let (bytes, again) = round_trip(request, &ctx);
+    assert_eq!(bytes.len() - id_len(request, &ctx), request.byte_len(&ctx), "byte_len");
     assert!(bytes.len() <= size, "{}: {} bytes from {size}", request.type_name(), bytes.len());
-    let mut stream = Cursor::new(&bytes[..]);
-    let again = NodeId::decode(&mut stream, &ctx).expect("the node id decodes again");
-    assert_eq!(again, id);
-    let object = again.as_object_id().expect("an object id");
-    let again = RequestMessage::decode_by_object_id(&mut stream, object, &ctx)
-        .unwrap_or_else(|e| panic!("{} does not decode again: {e}", request.type_name()));
-    assert_eq!(stream.position() as usize, bytes.len(), "bytes left after {}", request.type_name());
-    // NaN is not equal to itself: then the texts must be.
-    if again != *request {
-        assert_eq!(
-            format!("{again:?}"),
-            format!("{request:?}"),
-            "a request changed by a round trip"
-        );
-    }
+    // The request as first decoded, but for a DateTime before 1601 or after 9999, which the
+    // stack decodes as sent and encodes as the range's end (OPC UA Part 6, 5.2.2.5); NaN is
+    // not equal to itself, so then the texts must be equal.
+    let same =
+        |a: &RequestMessage, b: &RequestMessage| a == b || format!("{a:?}") == format!("{b:?}");
+    assert!(
+        same(request, &again) || out_of_range_date(&format!("{request:?}")),
+        "a request changed by a round trip:\n{request:?}\n{again:?}"
+    );
+    // From then on the same value. Not the same bytes: a DateTime of i64::MAX ticks (after
+    // 9999) decodes as 9999-12-31 23:59:59, which encodes as its own ticks.
+    let (_, third) = round_trip(&again, &ctx);
+    assert!(
+        same(&again, &third),
+        "a request changed by a second round trip:\n{again:?}\n{third:?}"
+    );
 
     let most = options.max_array_length;
     let arrays = match request {
@@ -280,6 +281,39 @@ fn check(channel: &SecureChannel, request: &RequestMessage, size: usize) {
             }
         }
     }
+}
+
+/// A request encoded as the stack encodes a message (its encoding id, then the request), and
+/// decoded again from those bytes, which it must be, to their end.
+fn round_trip(request: &RequestMessage, ctx: &Context<'_>) -> (Vec<u8>, RequestMessage) {
+    let mut bytes = Vec::new();
+    let id = request.type_id();
+    id.encode(&mut bytes, ctx).expect("a node id encodes");
+    request.encode(&mut bytes, ctx).expect("a decoded request encodes");
+    let mut stream = Cursor::new(&bytes[..]);
+    let again = NodeId::decode(&mut stream, ctx).expect("the node id decodes again");
+    assert_eq!(again, id);
+    let object = again.as_object_id().expect("an object id");
+    let again = RequestMessage::decode_by_object_id(&mut stream, object, ctx)
+        .unwrap_or_else(|e| panic!("{} does not decode again: {e}", request.type_name()));
+    assert_eq!(stream.position() as usize, bytes.len(), "bytes left after {}", request.type_name());
+    (bytes, again)
+}
+
+/// The bytes of a request's encoding id.
+fn id_len(request: &RequestMessage, ctx: &Context<'_>) -> usize {
+    request.type_id().byte_len(ctx)
+}
+
+/// Whether a value's debug text holds a DateTime that OPC UA's binary encoding cannot: before
+/// 1601-01-01 (a year with a sign or below 1601) or after 9999-12-31 23:59:59.
+fn out_of_range_date(debug: &str) -> bool {
+    debug.split("date_time: ").skip(1).any(|at| {
+        let year: Option<u32> = at.get(..4).and_then(|y| y.parse().ok());
+        at.starts_with(['+', '-'])
+            || year.is_none_or(|y| y < 1601)
+            || (at.starts_with("9999-12-31T23:59:59") && !at.starts_with("9999-12-31T23:59:59Z"))
+    })
 }
 
 /// A variant as written to a variable of every type: refused as `set` would never see it, or a
