@@ -37,7 +37,7 @@ use crate::engine::event::ErrorKind;
 use crate::engine::Engine;
 use crate::files::LiveUsers;
 use crate::symbols::Symbols;
-use crate::value::{Pointer, ValueType};
+use crate::value::ValueType;
 use crate::vm::retained::RetainedVariables;
 
 /// plcd's namespace URI: its index in the server's namespace array is 2 (0 is OPC UA's, 1 the
@@ -195,7 +195,6 @@ impl OpcuaServer {
             ns,
             status,
             served: Served::new(ns, &plan),
-            leaves: plan.leaves.iter().map(|leaf| (leaf.ty.clone(), leaf.at)).collect(),
             plan: Arc::new(plan),
             following,
             targets,
@@ -428,9 +427,8 @@ struct Sampler {
     /// The figures of the daemon's status answer.
     status: StatusNodes,
     served: Served,
-    /// The plan served, and its leaves' types and places in `served.leaves` order.
+    /// The plan served: its leaves in `served.leaves` order.
     plan: Arc<Plan>,
-    leaves: Vec<(ValueType, Pointer)>,
     /// The plans of the engines the daemon announced.
     following: Arc<Following>,
     /// The writable variables the node manager looks up: the plan's.
@@ -511,7 +509,6 @@ impl Sampler {
             changes.add_leaves.len()
         );
         self.served = Served::new(self.ns, &plan);
-        self.leaves = plan.leaves.iter().map(|leaf| (leaf.ty.clone(), leaf.at)).collect();
         self.plan = plan;
         // From the next copy on, the new plan's bytes only.
         self.mirror.serve_only(&layout, variable_bytes(&self.plan));
@@ -541,7 +538,7 @@ impl Sampler {
             Variant::UInt64(shared.scans.load(Ordering::Relaxed)),
             Variant::from(switch.map(|s| s.as_str()).unwrap_or_default().to_string()),
         ];
-        let count = status.len() + self.leaves.len();
+        let count = status.len() + self.plan.leaves.len();
         self.last.resize(count, None);
         {
             // A write replaced these values in the address space: hand the copy's over.
@@ -570,8 +567,9 @@ impl Sampler {
                 changed.push((node, DataValue::new_now(value)));
             }
         }
-        let mut moved = vec![false; self.leaves.len()];
-        for (k, ((ty, at), node)) in self.leaves.iter().zip(&self.served.leaves).enumerate() {
+        let mut moved = vec![false; self.plan.leaves.len()];
+        for (k, (leaf, node)) in self.plan.leaves.iter().zip(&self.served.leaves).enumerate() {
+            let (ty, at) = (&leaf.ty, &leaf.at);
             let i = STATUS_NODES.len() + k;
             moved[k] = true;
             if same_engine {

@@ -179,11 +179,11 @@ impl StatusNodes {
         let tasks: Vec<String> = status.tasks.iter().map(|t| t.name.clone()).collect();
         let remotes: Vec<String> = status.remotes.iter().map(|r| r.name.clone()).collect();
         if tasks != self.tasks {
-            self.replace(manager, TASKS, &self.tasks.clone(), &tasks, &TASK);
+            self.replace(manager, TASKS, &self.tasks, &tasks, &TASK);
             self.tasks = tasks;
         }
         if remotes != self.remotes {
-            self.replace(manager, REMOTES, &self.remotes.clone(), &remotes, &REMOTE);
+            self.replace(manager, REMOTES, &self.remotes, &remotes, &REMOTE);
             self.remotes = remotes;
         }
         let values: Vec<(NodeId, DataValue)> = values(status)
