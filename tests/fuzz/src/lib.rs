@@ -57,6 +57,7 @@ pub const TARGETS: &[Target] = &[
     Target { name: "modbus_rtu", run: targets::modbus_rtu::run },
     Target { name: "remote", run: targets::remote::run },
     Target { name: "users", run: targets::users::run },
+    #[cfg(feature = "opcua")]
     Target { name: "opcua", run: targets::opcua::run },
 ];
 

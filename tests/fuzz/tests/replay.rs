@@ -111,6 +111,7 @@ fn users() {
     replay("users");
 }
 
+#[cfg(feature = "opcua")]
 #[test]
 fn opcua() {
     replay("opcua");
@@ -118,6 +119,7 @@ fn opcua() {
 
 /// The `opcua` seeds are what a real client sends (`tests/fuzz/opcua-seeds`): the target must
 /// decode from them every service plcd's server is asked for, or it fuzzes only the framing.
+#[cfg(feature = "opcua")]
 #[test]
 fn opcua_seeds_reach_every_service() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
