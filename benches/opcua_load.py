@@ -54,7 +54,9 @@ def project(dir):
         "[[task]]\nname = \"tick\"\nkind = \"cycle\"\nnumber = 0\npriority = 3\ninterval_ms = 1\n"
         "[opcua]\nlisten = \"127.0.0.1:0\"\npki_dir = \"pki\"\nsecurity_policies = [\"None\"]\n"
         "anonymous = \"viewer\"\nmin_sampling_interval_ms = %d\nmax_sessions = %d\n"
-        % (SAMPLING_MS, CLIENTS + 5)
+        # Every client comes from 127.0.0.1.
+        "max_connections = %d\nmax_connections_per_address = %d\n"
+        % (SAMPLING_MS, CLIENTS + 5, CLIENTS + 5, CLIENTS + 5)
     )
     for name, text in [("plcd.toml", config), ("main.il", main), ("data.st", data),
                        ("tick.il", "INC D00001\nEND\n")]:

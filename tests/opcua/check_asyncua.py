@@ -20,6 +20,7 @@ Every wait is bounded; the daemons are killed on any failure.
 
 import argparse
 import asyncio
+import logging
 import os
 import re
 import shutil
@@ -613,6 +614,132 @@ async def connect_and_read(url, secure=None, user=None):
         return await c.get_node(f"ns={ns};s=main.counter").read_value()
 
 
+def raw(port, source="127.0.0.1"):
+    """A plain TCP connection to the server from `source` (any 127.x.y.z is this machine)."""
+    sock = socket.socket()
+    sock.settimeout(PATIENCE)
+    sock.bind((source, 0))
+    sock.connect(("127.0.0.1", port))
+    return sock
+
+
+def closed_within(sock, seconds):
+    """True if the server closes `sock` within `seconds` (what it sends before is read away)."""
+    until = time.monotonic() + seconds
+    while time.monotonic() < until:
+        sock.settimeout(max(0.01, until - time.monotonic()))
+        try:
+            if sock.recv(65536) == b"":
+                return True
+        except socket.timeout:
+            return False
+        except (ConnectionResetError, BrokenPipeError):
+            return True
+    return False
+
+
+def logged(daemon, text):
+    """The log lines holding `text`, once the log has one (bounded)."""
+    until = time.monotonic() + PATIENCE
+    while time.monotonic() < until:
+        lines = [line for line in list(daemon.log) if text in line]
+        if lines:
+            # A second line for the same address and kind would come at once: give it time.
+            time.sleep(0.2)
+            return [line for line in list(daemon.log) if text in line]
+        time.sleep(0.02)
+    return []
+
+
+async def the_front(url, daemon):
+    """The limits of the server's public side (max_connections 4, 3 per address, 20 requests a
+    second, io_timeout_ms 500, max_request_bytes 65536): each refusal or cut-off logged once per
+    address, and the server unharmed: a client connects and reads after each."""
+    port = int(url.rsplit(":", 1)[1].strip("/"))
+
+    async def still_serves(after):
+        try:
+            value = await bounded("a read", connect_and_read(url))
+            check(f"after {after}, a client still connects and reads", isinstance(value, int),
+                  f"{value!r}")
+        except Exception as e:  # noqa: BLE001 - any failure is the check's
+            check(f"after {after}, a client still connects and reads", False, repr(e))
+
+    # Connections: 3 from 127.0.0.1, a 4th from there refused; one from 127.0.0.2 makes 4 in
+    # all, and one from 127.0.0.3 is then refused by max_connections.
+    held = [raw(port) for _ in range(3)]
+    fourth = raw(port)
+    check("a 4th connection from one address is closed at once", closed_within(fourth, 5))
+    again = raw(port)
+    check("and a 5th", closed_within(again, 5))
+    held.append(raw(port, "127.0.0.2"))
+    check("a connection from another address is kept", not closed_within(held[-1], 0.3))
+    beyond = raw(port, "127.0.0.3")
+    check("past max_connections, any address is closed at once", closed_within(beyond, 5))
+    lines = logged(daemon, "client 127.0.0.1: connection refused: 3 connections open from this")
+    check("refusals from one address are logged once", len(lines) == 1, "\n".join(daemon.log[-10:]))
+    check("the refusal past max_connections is logged, naming the key",
+          len(logged(daemon, "client 127.0.0.3: connection refused: 4 connections open "
+                             "([opcua] max_connections)")) == 1, "\n".join(daemon.log[-10:]))
+    for sock in held + [fourth, again, beyond]:
+        sock.close()
+    await still_serves("the connections were closed")
+
+    # A chunk begun and not finished: cut off after io_timeout_ms.
+    stalled = raw(port)
+    stalled.sendall(b"HELF")
+    check("a client stalling in a chunk is cut off", closed_within(stalled, 5))
+    stalled.close()
+    check("the stall is logged", len(logged(daemon, "did not arrive whole within 500 ms")) == 1,
+          "\n".join(daemon.log[-10:]))
+
+    # A chunk longer than max_request_bytes: cut off before the stack sees it.
+    long = raw(port)
+    long.sendall(b"MSGF" + (70000).to_bytes(4, "little") + bytes(100))
+    check("a message longer than max_request_bytes is cut off", closed_within(long, 5))
+    long.close()
+    check("the long message is logged",
+          len(logged(daemon, "a message longer than 65536 bytes")) == 1,
+          "\n".join(daemon.log[-10:]))
+
+    # Bytes that are not OPC UA.
+    http = raw(port)
+    http.sendall(b"GET / HTTP/1.1\r\nHost: plc\r\n\r\n")
+    check("an HTTP request is cut off", closed_within(http, 5))
+    http.close()
+
+    # A flood of reads from a real client. (asyncio warns once for each send to the closed
+    # socket: quiet while it lasts.)
+    asyncio_log = logging.getLogger("asyncio")
+    asyncio_log.setLevel(logging.ERROR)
+    c = client(url)
+    outcome = "no error"
+    try:
+        await bounded("connect", c.connect())
+        ns = await c.get_namespace_index(NS)
+        counter = c.get_node(f"ns={ns};s=main.counter")
+        results = await asyncio.wait_for(
+            asyncio.gather(*[counter.read_value() for _ in range(300)], return_exceptions=True),
+            PATIENCE)
+        errors = [r for r in results if isinstance(r, Exception)]
+        outcome = f"{len(errors)} of 300 reads failed"
+        check("a client sending 300 reads at once is cut off", errors, outcome)
+    except Exception as e:  # noqa: BLE001 - being cut off may surface anywhere
+        check("a client sending 300 reads at once is cut off", True)
+        outcome = repr(e)
+    finally:
+        try:
+            await asyncio.wait_for(c.disconnect(), 5)
+        except Exception:  # noqa: BLE001 - the connection is gone
+            pass
+        asyncio_log.setLevel(logging.NOTSET)
+    check("the flood is logged once",
+          len(logged(daemon, "cut off: more than 20 requests a second")) == 1,
+          outcome + "\n" + "\n".join(daemon.log[-10:]))
+    await still_serves("a flood")
+    check("the daemon still runs", daemon.proc.poll() is None)
+
+
 async def client_certificate(dir):
     cert, key = Path(dir) / "client.der", Path(dir) / "client.pem"
     await setup_self_signed_certificate(key, cert, CLIENT_URI, "localhost",
@@ -781,6 +908,17 @@ async def main_checks(plcd, plcctl, project, work):
         if url is not None:
             await bounded("writes without the socket", writes_and_methods(url, alone, False))
         alone.stop()
+
+        # 3d. The server's public side: connections per address and in all, a flood, a stall,
+        # a message too long, bytes that are not OPC UA.
+        front = start('security_policies = ["None"]\nanonymous = "viewer"\nmax_connections = 4\n'
+                      'max_connections_per_address = 3\nmax_requests_per_second = 20\n'
+                      'io_timeout_ms = 500\nmax_request_bytes = 65536')
+        url = front.serving()
+        check("the server with tight limits serves", url is not None, "\n".join(front.log[-20:]))
+        if url is not None:
+            await asyncio.wait_for(the_front(url, front), 3 * PATIENCE)
+        front.stop()
 
         # 4. A port in use stops the start, with the key named.
         with socket.socket() as taken:

@@ -55,6 +55,20 @@ pub struct OpcuaConfig {
     /// `max_request_bytes`: the longest message a client may send (or be sent), all its
     /// chunks together, [`OpcuaConfig::MAX_REQUEST_BYTES`]; default 4 MiB.
     pub max_request_bytes: u32,
+    /// `max_connections`: TCP connections at once, from all addresses,
+    /// [`OpcuaConfig::MAX_CONNECTIONS`]; default 20. One more is closed at once.
+    pub max_connections: u32,
+    /// `max_connections_per_address`: TCP connections at once from one IP address,
+    /// [`OpcuaConfig::MAX_CONNECTIONS`]; default 10.
+    pub max_connections_per_address: u32,
+    /// `max_requests_per_second`: messages one connection may send a second, and at once,
+    /// [`OpcuaConfig::MAX_REQUESTS_PER_SECOND`]; default 200. A client that sends more is cut
+    /// off.
+    pub max_requests_per_second: u32,
+    /// `io_timeout_ms`: how long a chunk begun may take to arrive whole, and a client to take
+    /// what the server sends, [`OpcuaConfig::IO_TIMEOUT_MS`]; default 10000. Past it the client
+    /// is cut off.
+    pub io_timeout_ms: u32,
     /// `min_sampling_interval_ms`: the shortest sampling and publishing interval granted, and
     /// how often the variables are copied at a scan boundary while a client is connected,
     /// [`OpcuaConfig::MIN_SAMPLING_INTERVAL_MS`]; default 100.
@@ -173,6 +187,9 @@ impl OpcuaConfig {
     /// 64 KiB (the smallest buffer the stack negotiates) .. 64 MiB.
     pub const MAX_REQUEST_BYTES: RangeInclusive<u32> = 65_536..=67_108_864;
     pub const MIN_SAMPLING_INTERVAL_MS: RangeInclusive<u32> = 10..=60_000;
+    pub const MAX_CONNECTIONS: RangeInclusive<u32> = 1..=10_000;
+    pub const MAX_REQUESTS_PER_SECOND: RangeInclusive<u32> = 1..=100_000;
+    pub const IO_TIMEOUT_MS: RangeInclusive<u32> = 100..=600_000;
     pub const MAX_NODES: RangeInclusive<u32> = 1..=1_000_000;
     /// Names `writable` may list.
     pub const MAX_WRITABLE: usize = 10_000;
@@ -196,6 +213,10 @@ impl Default for OpcuaConfig {
             max_subscriptions_per_session: 10,
             max_monitored_items_per_session: 10_000,
             max_request_bytes: 4 * 1024 * 1024,
+            max_connections: 20,
+            max_connections_per_address: 10,
+            max_requests_per_second: 200,
+            io_timeout_ms: 10_000,
             min_sampling_interval_ms: 100,
             max_nodes: 10_000,
             pki_dir: None,
@@ -218,6 +239,10 @@ pub(super) struct RawOpcua {
     pub max_subscriptions_per_session: Option<Spanned<i64>>,
     pub max_monitored_items_per_session: Option<Spanned<i64>>,
     pub max_request_bytes: Option<Spanned<i64>>,
+    pub max_connections: Option<Spanned<i64>>,
+    pub max_connections_per_address: Option<Spanned<i64>>,
+    pub max_requests_per_second: Option<Spanned<i64>>,
+    pub io_timeout_ms: Option<Spanned<i64>>,
     pub min_sampling_interval_ms: Option<Spanned<i64>>,
     pub max_nodes: Option<Spanned<i64>>,
     pub pki_dir: Option<Spanned<String>>,
@@ -388,6 +413,34 @@ pub(super) fn validate(sink: &mut Sink, raw: RawOpcua, config: &Path) -> Option<
         OpcuaConfig::MAX_REQUEST_BYTES,
         default.max_request_bytes,
     );
+    let max_connections = range(
+        sink,
+        "max_connections",
+        raw.max_connections,
+        OpcuaConfig::MAX_CONNECTIONS,
+        default.max_connections,
+    );
+    let max_connections_per_address = range(
+        sink,
+        "max_connections_per_address",
+        raw.max_connections_per_address,
+        OpcuaConfig::MAX_CONNECTIONS,
+        default.max_connections_per_address,
+    );
+    let max_requests_per_second = range(
+        sink,
+        "max_requests_per_second",
+        raw.max_requests_per_second,
+        OpcuaConfig::MAX_REQUESTS_PER_SECOND,
+        default.max_requests_per_second,
+    );
+    let io_timeout_ms = range(
+        sink,
+        "io_timeout_ms",
+        raw.io_timeout_ms,
+        OpcuaConfig::IO_TIMEOUT_MS,
+        default.io_timeout_ms,
+    );
     let min_sampling_interval_ms = range(
         sink,
         "min_sampling_interval_ms",
@@ -452,6 +505,10 @@ pub(super) fn validate(sink: &mut Sink, raw: RawOpcua, config: &Path) -> Option<
         max_subscriptions_per_session: max_subscriptions_per_session?,
         max_monitored_items_per_session: max_monitored_items_per_session?,
         max_request_bytes: max_request_bytes?,
+        max_connections: max_connections?,
+        max_connections_per_address: max_connections_per_address?,
+        max_requests_per_second: max_requests_per_second?,
+        io_timeout_ms: io_timeout_ms?,
         min_sampling_interval_ms: min_sampling_interval_ms?,
         max_nodes: max_nodes?,
         pki_dir,
@@ -498,6 +555,8 @@ mod tests {
             (10, 10, 100)
         );
         assert_eq!((off.max_nodes, off.max_monitored_items_per_session), (10_000, 10_000));
+        assert_eq!((off.max_connections, off.max_connections_per_address), (20, 10));
+        assert_eq!((off.max_requests_per_second, off.io_timeout_ms), (200, 10_000));
         assert_eq!(off.monitored_items_per_subscription(), 1000);
     }
 
@@ -508,8 +567,12 @@ mod tests {
              security_policies = [\"None\", \"Aes256_Sha256_RsaPss\"]\nanonymous = \"viewer\"\n\
              max_sessions = 2\nmax_subscriptions_per_session = 3\n\
              max_monitored_items_per_session = 10\nmax_request_bytes = 65536\n\
-             min_sampling_interval_ms = 10\nmax_nodes = 5\npki_dir = \"pki\"\n",
+             min_sampling_interval_ms = 10\nmax_nodes = 5\npki_dir = \"pki\"\n\
+             max_connections = 7\nmax_connections_per_address = 3\n\
+             max_requests_per_second = 50\nio_timeout_ms = 250\n",
         );
+        assert_eq!((config.max_connections, config.max_connections_per_address), (7, 3));
+        assert_eq!((config.max_requests_per_second, config.io_timeout_ms), (50, 250));
         assert_eq!(config.listen, Some("127.0.0.1:0".parse().unwrap()));
         assert_eq!(config.endpoint_host.as_deref(), Some("plc1.example"));
         assert_eq!(config.security_policies, [OpcuaPolicy::None, OpcuaPolicy::Aes256Sha256RsaPss]);

@@ -16,6 +16,8 @@
 //!   remote devices), asked through the door once per sampling interval;
 //! - [`follow`]: the plans of the engines the daemon queues (a reload, a load, an online
 //!   change), so that the address space follows the running project;
+//! - [`front`]: the public socket in front of the stack: connections admitted per address,
+//!   messages bounded whole and in rate, stalled clients cut off, each logged once per address;
 //! - [`server`]: the OPC UA stack (the `async-opcua` crate) on a small tokio runtime of its own
 //!   threads, never real time, and the sampler thread that copies the variables at scan
 //!   boundaries through a [`crate::drivers::real_time::mirror::Mirror`] of the whole variable
@@ -29,6 +31,7 @@
 
 pub mod access;
 pub mod follow;
+pub mod front;
 pub mod manager;
 pub mod nodes;
 pub mod server;
@@ -64,6 +67,11 @@ pub enum OpcuaError {
         .dir.display()
     )]
     Certificate { dir: std::path::PathBuf },
+    #[error("cannot listen on the loopback interface for the OPC UA stack: {source}")]
+    Loopback {
+        #[source]
+        source: std::io::Error,
+    },
     #[error("cannot start the OPC UA runtime: {source}")]
     Runtime {
         #[source]

@@ -24,6 +24,7 @@ use opcua::types::{DataValue, LocalizedText, MessageSecurityMode, NodeId, Status
 
 use super::access::Access;
 use super::follow::Following;
+use super::front::{self, Front};
 use super::manager::{Forget, PlcManager, PlcNodesBuilder, Target, Targets};
 use super::nodes::{self, Plan, STATUS_NODES};
 use super::space::{self, id};
@@ -177,13 +178,29 @@ impl OpcuaServer {
             .ok_or_else(|| OpcuaError::Stack(format!("namespace {NAMESPACE_URI} is missing")))?;
         space::populate(&manager, ns, &plan);
         let status = StatusNodes::new(&manager, ns, door);
+        // The stack listens on the loopback interface only; the public socket is the front's
+        // (front.rs: the limits the stack has no hook for).
+        let loopback = (std::net::Ipv4Addr::LOCALHOST, 0);
+        let inner = std::net::TcpListener::bind(loopback)
+            .and_then(|l| l.set_nonblocking(true).map(|()| l))
+            .and_then(tokio::net::TcpListener::from_std)
+            .map_err(|source| OpcuaError::Loopback { source })?;
+        let inner_addr = inner.local_addr().map_err(|source| OpcuaError::Loopback { source })?;
         let listener = tokio::net::TcpListener::from_std(listener)
             .map_err(|source| OpcuaError::Bind { addr, source })?;
         let stack = runtime.spawn(async move {
-            if let Err(e) = server.run_with(listener).await {
+            if let Err(e) = server.run_with(inner).await {
                 log::error!("opcua: the server stopped: {e}");
             }
         });
+        let front = Arc::new(Front::new(front::Limits::of(&config)));
+        runtime.spawn(front::serve(
+            listener,
+            inner_addr,
+            Arc::clone(&front),
+            Arc::clone(handle.info()),
+            addr.port(),
+        ));
         let stop = Arc::new(Stop::default());
         let layout = layout.lock().unwrap_or_else(|e| e.into_inner()).take();
         report(&plan, &config);

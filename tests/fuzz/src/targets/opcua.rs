@@ -44,7 +44,7 @@ use opcua::types::{
     StatusCode, TypeLoaderCollection, Variant,
 };
 use plcd::config::OpcuaConfig;
-use plcd::services::opcua::values;
+use plcd::services::opcua::{front, values};
 use plcd::value::{self, Calendar, Elem, ValueType};
 use tokio_util::codec::Decoder;
 
@@ -104,12 +104,45 @@ pub fn run(data: &[u8]) {
     requests(data, check);
 }
 
+/// What the server's public side (`services::opcua::front`, with `[opcua]`'s default limits)
+/// lets through of `data`, all arriving at once: whole chunks, none longer than
+/// `max_request_bytes`, no message longer either, at most `max_requests_per_second` messages.
+fn through_the_front(data: &[u8]) -> &[u8] {
+    let limits = front::Limits::of(&OpcuaConfig::default());
+    let (passed, _) = front::passed(data, &limits);
+    assert!(passed <= data.len());
+    let (mut at, mut message, mut requests) = (0, 0u64, 0u32);
+    while at < passed {
+        let size = u32::from_le_bytes(data[at + 4..at + 8].try_into().expect("4 bytes"));
+        assert!(size >= 8 && size <= limits.message_bytes, "a chunk of {size} passed");
+        if matches!(&data[at..at + 3], b"MSG" | b"OPN" | b"CLO") {
+            message += u64::from(size);
+            assert!(message <= u64::from(limits.message_bytes), "a message of {message} passed");
+            match data[at + 3] {
+                b'C' => {}
+                b'A' => message = 0,
+                _ => {
+                    message = 0;
+                    requests += 1;
+                }
+            }
+        } else {
+            requests += 1;
+        }
+        at += size as usize;
+    }
+    assert_eq!(at, passed, "the front passed part of a chunk");
+    assert!(requests <= limits.requests_per_second, "{requests} requests at once");
+    &data[..passed]
+}
+
 /// Reads `data` as the server reads a connection's bytes, calling `each` with the channel and
 /// every request the server would handle, and the bytes of the chunk bodies it came from.
 pub fn requests(data: &[u8], mut each: impl FnMut(&SecureChannel, &RequestMessage, usize)) {
     let options = options();
     let mut codec = TcpCodec::new(options.clone());
-    let mut buf = BytesMut::from(data);
+    // The stack sees what the front lets through.
+    let mut buf = BytesMut::from(through_the_front(data));
     // The Hello first (`TcpConnector::connect_inner`).
     let Ok(Some(Message::Hello(hello))) = codec.decode(&mut buf) else { return };
     let url = hello.endpoint_url.value().as_ref().map_or(0, String::len);
