@@ -613,6 +613,61 @@ mod tests {
         assert_eq!(passed(&flood, &limits()), (200, Some(Cut::Flood)), "10 at once");
     }
 
+    /// Relays one connection to a stand-in stack that sends without end, the client doing
+    /// `client` (then holding its socket): how the relay ended, as the tally counted it.
+    fn relayed<F: std::future::Future<Output = ()> + Send + 'static>(
+        client: impl FnOnce(TcpStream) -> F,
+    ) -> Option<Cut> {
+        let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
+        runtime.block_on(async {
+            let stack = TcpListener::bind("127.0.0.1:0").await.unwrap();
+            let inner = stack.local_addr().unwrap();
+            tokio::spawn(async move {
+                let (mut to_front, _) = stack.accept().await.unwrap();
+                let block = vec![0u8; 64 * 1024];
+                while to_front.write_all(&block).await.is_ok() {}
+            });
+            let public = TcpListener::bind("127.0.0.1:0").await.unwrap();
+            let socket = TcpStream::connect(public.local_addr().unwrap()).await.unwrap();
+            let (accepted, peer) = public.accept().await.unwrap();
+            let limits = Limits { io_timeout: Duration::from_millis(100), ..limits() };
+            let front = Arc::new(Front::new(limits));
+            let ticket = front.admit(peer.ip()).unwrap();
+            let client = tokio::spawn(client(socket));
+            tokio::time::timeout(Duration::from_secs(20), relay(accepted, peer, inner, ticket))
+                .await
+                .expect("the relay ends within 20 s");
+            client.abort();
+            assert_eq!(front.open(), 0, "the connection released");
+            let tally = front.tally.lock().unwrap();
+            tally.counts.keys().find(|(ip, _)| *ip == peer.ip()).map(|(_, cut)| *cut)
+        })
+    }
+
+    #[test]
+    fn a_client_that_takes_nothing_is_cut_off() {
+        // The client reads nothing and keeps its socket: the stack's bytes fill the buffers.
+        let cut = relayed(|socket| async move {
+            tokio::time::sleep(Duration::from_secs(30)).await;
+            drop(socket);
+        });
+        assert_eq!(cut, Some(Cut::NotReading));
+    }
+
+    #[test]
+    fn a_chunk_begun_and_not_finished_is_cut_off() {
+        let cut = relayed(|mut socket| async move {
+            socket.write_all(b"HEL").await.unwrap();
+            // Read what the stack sends, so that only the stall can end the relay.
+            let mut sink = vec![0u8; 64 * 1024];
+            let _ = tokio::time::timeout(Duration::from_secs(30), async {
+                while socket.read(&mut sink).await.is_ok_and(|n| n > 0) {}
+            })
+            .await;
+        });
+        assert_eq!(cut, Some(Cut::Stalled));
+    }
+
     #[test]
     fn the_log_says_the_first_and_every_power_of_ten() {
         let mut tally = Tally::default();
