@@ -405,10 +405,12 @@ async fn relay(client: TcpStream, peer: SocketAddr, inner: SocketAddr, ticket: T
     tokio::pin!(up, down);
     let end = tokio::select! {
         end = &mut up => match end {
-            // The client closed its side: what the server still sends goes to it, for a while.
-            End::Closed => tokio::time::timeout(limits.io_timeout, &mut down)
-                .await
-                .unwrap_or(End::Closed),
+            // The client closed its side: its place is free at once (it sends no more
+            // requests); what the server still sends goes to it, for a while.
+            End::Closed => {
+                drop(ticket);
+                tokio::time::timeout(limits.io_timeout, &mut down).await.unwrap_or(End::Closed)
+            }
             cut => cut,
         },
         end = &mut down => end,
@@ -416,7 +418,6 @@ async fn relay(client: TcpStream, peer: SocketAddr, inner: SocketAddr, ticket: T
     if let End::Cut(cut) = end {
         front.note(peer, cut);
     }
-    drop(ticket);
 }
 
 /// Client to stack, chunk by chunk through the [`Meter`]. The first byte of a chunk may take
