@@ -232,6 +232,36 @@ async def browse_and_read(url):
         check("an array's elements read", values[:2] == [20, 40], f"{values[:2]}")
         table = await node("main.table").read_value()
         check("an array is an array variable too", table == [10, 20, 30, 40], f"{table!r}")
+        grid = node("main.grid")
+        value = await grid.read_value()
+        check("a 2-D array reads as rows", value == [[1, 2, 3], [4, 5, 6]], f"{value!r}")
+        rank, dims = await grid.read_value_rank(), await grid.read_array_dimensions()
+        check("its ValueRank and ArrayDimensions are 2 and [2, 3]", (rank, dims) == (2, [2, 3]),
+              f"{rank}, {dims}")
+        part = (await grid.read_attribute(ua.AttributeIds.Value, "1,0:1")).Value.Value
+        check("an index range of two dimensions reads the sub-array", part == [[4, 5]],
+              f"{part!r}")
+        part = (await node("main.table").read_attribute(ua.AttributeIds.Value, "1:2")).Value.Value
+        check("an index range of one dimension reads the elements", part == [20, 30], f"{part!r}")
+        code = await status_of(grid.read_attribute(ua.AttributeIds.Value, "2,0"))
+        check("an index range past the end reads BadIndexRangeNoData",
+              code == "BadIndexRangeNoData", f"{code}")
+        element = await node("main.grid[2,3]").read_value()
+        check("a 2-D array's element reads by its name", element == 6, f"{element!r}")
+        subscription = await c.create_subscription(SAMPLING_MS, Changes())
+        items = []
+        for name, index_range in (("main.table", "1:2"), ("main.grid", "1,0:1")):
+            item = subscription._make_monitored_item_request(
+                node(name), ua.AttributeIds.Value, None, 1, ua.MonitoringMode.Reporting,
+                SAMPLING_MS)
+            item.ItemToMonitor.IndexRange = index_range
+            items.append(item)
+        one, two = await bounded("create monitored items", subscription.create_monitored_items(items))
+        check("a subscription to a range of one dimension is created", isinstance(one, int),
+              f"{one!r}")
+        check("one to a range of two dimensions is BadIndexRangeInvalid",
+              getattr(two, "name", two) == "BadIndexRangeInvalid", f"{two!r}")
+        await bounded("delete the subscription", subscription.delete())
         check("a STRING reads", values[2] == "plcd", f"{values[2]!r}")
         check("a located INT reads its device word", values[3] == 7, f"{values[3]!r}")
         check("a TIME is a Duration in milliseconds", values[4] == 1500.0, f"{values[4]!r}")
@@ -386,6 +416,40 @@ async def writes_and_methods(url, daemon, control):
         check("and its elements with it", await wait_value(node("main.table[3]"), 3) == 3)
         code = await status_of(table.write_value(ua.Variant([1, 2], ua.VariantType.Int16)))
         check("an array of another length is BadOutOfRange", code == "BadOutOfRange", f"{code}")
+
+        def part(values, dims=None):
+            return ua.DataValue(ua.Variant(values, ua.VariantType.Int16, Dimensions=dims))
+
+        await table.write_attribute(ua.AttributeIds.Value, part([21, 22]), "1:2")
+        value = await table.read_value()
+        check("an index range writes those elements alone", value == [1, 21, 22, 4], f"{value!r}")
+        check("and the program has them", await wait_value(node("main.table[3]"), 22) == 22)
+        grid = node("main.grid")
+        await grid.write_value(ua.Variant([[6, 5, 4], [3, 2, 1]], ua.VariantType.Int16))
+        value = await grid.read_value()
+        check("a 2-D array is written whole", value == [[6, 5, 4], [3, 2, 1]], f"{value!r}")
+        check("and its elements with it", await wait_value(node("main.grid[2,1]"), 3) == 3)
+        await grid.write_attribute(ua.AttributeIds.Value, part([[8, 9]], [1, 2]), "0,1:2")
+        value = await grid.read_value()
+        check("an index range of two dimensions writes the sub-array",
+              value == [[6, 8, 9], [3, 2, 1]], f"{value!r}")
+        check("and the program has it", await wait_value(node("main.grid[1,3]"), 9) == 9)
+        code = await status_of(grid.write_attribute(ua.AttributeIds.Value, part([1], [1, 1]),
+                                                    "2,0"))
+        check("a write past the end is BadIndexRangeNoData", code == "BadIndexRangeNoData",
+              f"{code}")
+        code = await status_of(grid.write_attribute(ua.AttributeIds.Value, part([1]), "1"))
+        check("a write with one index into a 2-D array is BadIndexRangeInvalid",
+              code == "BadIndexRangeInvalid", f"{code}")
+        code = await status_of(grid.write_attribute(ua.AttributeIds.Value, part([1, 2]), "0,0"))
+        check("a write of more values than the range holds is BadOutOfRange",
+              code == "BadOutOfRange", f"{code}")
+        code = await status_of(node("main.note").write_attribute(
+            ua.AttributeIds.Value, ua.DataValue(ua.Variant("x", ua.VariantType.String)), "0"))
+        check("an index range into a STRING is BadWriteNotSupported",
+              code == "BadWriteNotSupported", f"{code}")
+        value = await grid.read_value()
+        check("and refused writes change nothing", value == [[6, 8, 9], [3, 2, 1]], f"{value!r}")
         devices = await child_names(node("Devices"))
         check("the device ranges are in the Devices folder",
               set(devices) == {"D00100", "D00101", "M0000", "M0001", "M0002", "M0003"},
@@ -658,12 +722,22 @@ async def the_front(url, daemon):
     port = int(url.rsplit(":", 1)[1].strip("/"))
 
     async def still_serves(after):
-        try:
-            value = await bounded("a read", connect_and_read(url))
-            check(f"after {after}, a client still connects and reads", isinstance(value, int),
-                  f"{value!r}")
-        except Exception as e:  # noqa: BLE001 - any failure is the check's
-            check(f"after {after}, a client still connects and reads", False, repr(e))
+        # A place is freed when the front has seen the client's close, which may come after
+        # the next connection's accept: a refused client tries again, for up to 5 s.
+        value, outcome = None, "no try"
+        for _ in range(10):
+            try:
+                value = await bounded("a read", connect_and_read(url))
+                outcome = repr(value)
+                break
+            except ConnectionError as e:
+                outcome = repr(e)
+                await asyncio.sleep(0.5)
+            except Exception as e:  # noqa: BLE001 - any other failure is the check's
+                outcome = repr(e)
+                break
+        check(f"after {after}, a client still connects and reads", isinstance(value, int),
+              outcome)
 
     # Connections: 3 from 127.0.0.1, a 4th from there refused; one from 127.0.0.2 makes 4 in
     # all, and one from 127.0.0.3 is then refused by max_connections.
@@ -881,7 +955,8 @@ async def main_checks(plcd, plcctl, project, work):
 
         # 3c. Writes and methods: an anonymous operator, then an anonymous viewer; and the
         # writes with the control socket off.
-        writable = ('writable = ["main.setpoint", "main.recipe", "main.note", "main.spin", "main.table"]\n'
+        writable = ('writable = ["main.setpoint", "main.recipe", "main.note", "main.spin", '
+                    '"main.table", "main.grid"]\n'
                     '[[opcua.devices]]\ndevice = "D00100"\ncount = 2\nwritable = true\n'
                     '[[opcua.devices]]\ndevice = "M0000"\ncount = 4\n')
         operator = start(f'security_policies = ["None"]\nanonymous = "operator"\n{writable}')

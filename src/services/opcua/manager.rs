@@ -23,9 +23,15 @@ use opcua::server::diagnostics::NamespaceMetadata;
 use opcua::server::node_manager::memory::{
     InMemoryNodeManagerImpl, InMemoryNodeManagerImplBuilder,
 };
-use opcua::server::node_manager::{MethodCall, RequestContext, ServerContext, WriteNode};
+use opcua::server::node_manager::{
+    MethodCall, ParsedReadValueId, RequestContext, ServerContext, WriteNode,
+};
+use opcua::server::CreateMonitoredItem;
 use opcua::sync::RwLock;
-use opcua::types::{AttributeId, DataValue, Identifier, NodeId, NumericRange, StatusCode, Variant};
+use opcua::types::{
+    AttributeId, DataValue, Identifier, NodeId, NumericRange, StatusCode, TimestampsToReturn,
+    Variant,
+};
 use plcd_ipc::{ErrorKind, NamedValue, Outcome, Reply, Request};
 
 use super::access::Access;
@@ -38,13 +44,14 @@ use crate::value::ValueType;
 pub const ANSWER_WAIT: Duration = Duration::from_secs(12);
 
 /// A writable variable: one element (its leaf's index in the sampler's order) or an array's
-/// elements (each with its node id's string), and the type of each.
+/// elements (each with its node id's string, row-major), and the type of each.
 #[derive(Debug, Clone)]
 pub struct Target {
     pub ty: ValueType,
     pub elements: Vec<(String, usize)>,
-    /// An array variable: a value of `elements.len()` values written element by element.
-    pub array: bool,
+    /// An array variable's dimensions: its value, or the part of it an index range selects,
+    /// is written element by element.
+    pub dimensions: Option<Vec<u32>>,
     /// A device of `[[opcua.devices]]` (its element's name is the device's): written as a
     /// device, a word's signed value or a bit's 0 or 1.
     pub device: bool,
@@ -127,7 +134,16 @@ struct Checked {
     write: Option<(usize, NamedValue)>,
     /// The node and the value it holds once applied.
     node: NodeId,
-    value: Variant,
+    value: Held,
+}
+
+/// What a node holds once a write is applied.
+enum Held {
+    /// The value written.
+    Whole(Variant),
+    /// An array variable written through an index range: these of its elements (row-major
+    /// positions) now hold these values; the others keep theirs.
+    Part(Vec<(usize, Variant)>),
 }
 
 impl PlcNodes {
@@ -207,6 +223,62 @@ impl InMemoryNodeManagerImpl for PlcNodes {
         vec![self.namespace.clone()]
     }
 
+    /// Values as the stack reads them, except an index range of several dimensions, which
+    /// the stack would read as a list of one-dimensional ranges: it selects the sub-array.
+    async fn read_values(
+        &self,
+        context: &RequestContext,
+        address_space: &RwLock<AddressSpace>,
+        nodes: &[&ParsedReadValueId],
+        max_age: f64,
+        timestamps_to_return: TimestampsToReturn,
+    ) -> Vec<DataValue> {
+        let space = address_space.read();
+        nodes
+            .iter()
+            .map(|&node| {
+                let NumericRange::MultipleRanges(_) = node.index_range else {
+                    return space.read(context, node, max_age, timestamps_to_return);
+                };
+                let whole = ParsedReadValueId { index_range: NumericRange::None, ..node.clone() };
+                let mut value = space.read(context, &whole, max_age, timestamps_to_return);
+                match value.value.take() {
+                    Some(Variant::Array(array)) => match sub_array(&array, &node.index_range) {
+                        Ok(part) => value.value = Some(part),
+                        Err(status) => value.status = Some(status),
+                    },
+                    // Not an array: the stack's answer (a STRING's range is one-dimensional).
+                    _ => return space.read(context, node, max_age, timestamps_to_return),
+                }
+                value
+            })
+            .collect()
+    }
+
+    /// Monitored items as the stack creates them, except one with an index range of several
+    /// dimensions: the stack would sample it as a list of one-dimensional ranges, so it is
+    /// refused (`BadIndexRangeInvalid`); the whole array, or a read, gives the part.
+    async fn create_value_monitored_items(
+        &self,
+        context: &RequestContext,
+        address_space: &RwLock<AddressSpace>,
+        items: &mut [&mut &mut CreateMonitoredItem],
+    ) {
+        let to_read: Vec<_> = items.iter().map(|item| item.item_to_monitor()).collect();
+        let values =
+            self.read_values(context, address_space, &to_read, 0.0, TimestampsToReturn::Both).await;
+        for (value, item) in values.into_iter().zip(items.iter_mut()) {
+            if let NumericRange::MultipleRanges(_) = item.item_to_monitor().index_range {
+                item.set_status(StatusCode::BadIndexRangeInvalid);
+                continue;
+            }
+            if value.status() != StatusCode::BadAttributeIdInvalid {
+                item.set_initial_value(value);
+            }
+            item.set_status(StatusCode::Good);
+        }
+    }
+
     async fn write(
         &self,
         context: &RequestContext,
@@ -242,7 +314,11 @@ impl InMemoryNodeManagerImpl for PlcNodes {
                     continue;
                 }
                 let status = match (value.attribute_id, &target) {
-                    (AttributeId::Value, Some(_)) if value.index_range != NumericRange::None => {
+                    // An index range selects elements of an array; a substring of a STRING or
+                    // some bits of a word are not written alone.
+                    (AttributeId::Value, Some(t))
+                        if t.dimensions.is_none() && value.index_range.has_range() =>
+                    {
                         Err(StatusCode::BadWriteNotSupported)
                     }
                     // plcd keeps values, not their status: a value written as bad is refused.
@@ -255,8 +331,10 @@ impl InMemoryNodeManagerImpl for PlcNodes {
                     }
                     (AttributeId::Value, Some(target)) => match &value.value.value {
                         None => Err(StatusCode::BadTypeMismatch),
-                        Some(variant) => check(target, index, &value.node_id, variant)
-                            .map(|entries| checked.extend(entries)),
+                        Some(variant) => {
+                            check(target, index, &value.node_id, &value.index_range, variant)
+                                .map(|entries| checked.extend(entries))
+                        }
                     },
                     _ => Err(StatusCode::BadNotWritable),
                 };
@@ -345,7 +423,28 @@ impl PlcNodes {
         let mut space = address_space.write();
         for c in checked {
             let Some(NodeType::Variable(node)) = space.find_mut(&c.node) else { continue };
-            let now = DataValue::new_now(c.value.clone());
+            let value = match &c.value {
+                Held::Whole(value) => value.clone(),
+                Held::Part(elements) => match node.value(
+                    TimestampsToReturn::Neither,
+                    &NumericRange::None,
+                    &opcua::types::DataEncoding::Binary,
+                    0.0,
+                ) {
+                    DataValue { value: Some(Variant::Array(mut array)), .. } => {
+                        for (position, value) in elements {
+                            if let Some(slot) = array.values.get_mut(*position) {
+                                *slot = value.clone();
+                            }
+                        }
+                        Variant::Array(array)
+                    }
+                    // No value yet: the next copy brings the whole array (its written
+                    // elements are forgotten by the sampler).
+                    _ => continue,
+                },
+            };
+            let now = DataValue::new_now(value);
             node.set_data_value(now.clone());
             context
                 .subscriptions
@@ -355,12 +454,14 @@ impl PlcNodes {
 }
 
 /// The entries of a write of `variant` to `target` (the node `node`, item `index` of the
-/// request): one for a variable; for an array variable, one per element (the value must hold
-/// them all) and one for the array node itself.
+/// request): one for a variable; for an array variable, one per element `range` selects (all
+/// without one; the value must hold them all, in the selection's shape) and one for the array
+/// node itself.
 fn check(
     target: &Target,
     index: usize,
     node: &NodeId,
+    range: &NumericRange,
     variant: &Variant,
 ) -> Result<Vec<Checked>, StatusCode> {
     let entry = |(name, leaf): &(String, usize), value: &Variant| {
@@ -379,25 +480,96 @@ fn check(
             index,
             write: Some((*leaf, write)),
             node: NodeId::new(node.namespace, id),
-            value: value.clone(),
+            value: Held::Whole(value.clone()),
         })
     };
-    if !target.array {
+    let Some(dimensions) = &target.dimensions else {
         return target.elements.iter().map(|element| entry(element, variant)).collect();
-    }
+    };
+    let (positions, shape) = selected(dimensions, range)?;
     let Variant::Array(array) = variant else { return Err(StatusCode::BadTypeMismatch) };
-    if array.values.len() != target.elements.len() {
-        // The whole array or nothing: its length is the declared one.
+    if array.values.len() != positions.len() {
+        // The whole selection or nothing: its length is the declared one.
         return Err(StatusCode::BadOutOfRange);
     }
-    let mut entries: Vec<Checked> = target
-        .elements
+    // Dimensions, when the value has its own, are the selection's (a flat value of the
+    // right length is taken row-major).
+    if array.dimensions.as_ref().is_some_and(|d| d.len() > 1 && *d != shape) {
+        return Err(StatusCode::BadTypeMismatch);
+    }
+    let mut entries: Vec<Checked> = positions
         .iter()
         .zip(&array.values)
-        .map(|(element, value)| entry(element, value))
+        .map(|(&position, value)| entry(&target.elements[position], value))
         .collect::<Result<_, _>>()?;
-    entries.push(Checked { index, write: None, node: node.clone(), value: variant.clone() });
+    let value = if range.has_range() {
+        Held::Part(positions.into_iter().zip(array.values.iter().cloned()).collect())
+    } else {
+        Held::Whole(variant.clone())
+    };
+    entries.push(Checked { index, write: None, node: node.clone(), value });
     Ok(entries)
+}
+
+/// The elements of an array of `dimensions` that `range` selects, as row-major positions,
+/// and the selection's own dimensions. One index or `first:last` per dimension (OPC UA's
+/// indices count from 0 whatever the array's declared bounds); a selection past the array's
+/// end is refused whole (a write is not cut to fit).
+fn selected(
+    dimensions: &[u32],
+    range: &NumericRange,
+) -> Result<(Vec<usize>, Vec<u32>), StatusCode> {
+    let bounds: Vec<(u32, u32)> = match range {
+        NumericRange::None => dimensions.iter().map(|&d| (0, d.saturating_sub(1))).collect(),
+        NumericRange::Index(_) | NumericRange::Range(..) => vec![bound(range)?],
+        NumericRange::MultipleRanges(ranges) => {
+            ranges.iter().map(bound).collect::<Result<_, _>>()?
+        }
+    };
+    if bounds.len() != dimensions.len() {
+        return Err(StatusCode::BadIndexRangeInvalid);
+    }
+    if bounds.iter().zip(dimensions).any(|(&(_, last), &d)| last >= d) {
+        return Err(StatusCode::BadIndexRangeNoData);
+    }
+    let shape: Vec<u32> = bounds.iter().map(|&(first, last)| last - first + 1).collect();
+    // Row-major: the last dimension varies fastest.
+    let mut positions = vec![0usize];
+    for (&(first, last), &d) in bounds.iter().zip(dimensions) {
+        positions = positions
+            .iter()
+            .flat_map(|&p| (first..=last).map(move |i| p * d as usize + i as usize))
+            .collect();
+    }
+    Ok((positions, shape))
+}
+
+/// The part of `array` that `range` selects (see [`selected`]), with its own dimensions.
+fn sub_array(array: &opcua::types::Array, range: &NumericRange) -> Result<Variant, StatusCode> {
+    let dimensions = match &array.dimensions {
+        Some(dimensions) => dimensions.clone(),
+        None => vec![array.values.len() as u32],
+    };
+    let (positions, shape) = selected(&dimensions, range)?;
+    // An array of dimensions that do not hold its values is none of plcd's: refused, not read.
+    let values: Vec<Variant> = positions
+        .iter()
+        .map(|&p| array.values.get(p).cloned().ok_or(StatusCode::BadInternalError))
+        .collect::<Result<_, _>>()?;
+    let part = match shape.as_slice() {
+        [_] => opcua::types::Array::new(array.value_type, values),
+        _ => opcua::types::Array::new_multi(array.value_type, values, shape),
+    };
+    part.map(|part| Variant::Array(Box::new(part))).map_err(|_| StatusCode::BadInternalError)
+}
+
+/// One dimension's `(first, last)` index of a range.
+fn bound(range: &NumericRange) -> Result<(u32, u32), StatusCode> {
+    match *range {
+        NumericRange::Index(i) => Ok((i, i)),
+        NumericRange::Range(first, last) if first < last => Ok((first, last)),
+        _ => Err(StatusCode::BadIndexRangeInvalid),
+    }
 }
 
 #[cfg(test)]
@@ -410,6 +582,95 @@ mod tests {
         assert_eq!(status_of(ErrorKind::Invalid), StatusCode::BadOutOfRange);
         assert_eq!(status_of(ErrorKind::Busy), StatusCode::BadResourceUnavailable);
         assert_eq!(status_of(ErrorKind::Unavailable), StatusCode::BadTimeout);
+    }
+
+    fn range(text: &str) -> NumericRange {
+        NumericRange::new(text).unwrap()
+    }
+
+    #[test]
+    fn an_index_range_selects_row_major_positions_and_a_shape() {
+        // A 2 x 3 array: positions 0 1 2 / 3 4 5.
+        assert_eq!(selected(&[2, 3], &NumericRange::None), Ok(((0..6).collect(), vec![2, 3])));
+        assert_eq!(selected(&[2, 3], &range("1,0:1")), Ok((vec![3, 4], vec![1, 2])));
+        assert_eq!(selected(&[2, 3], &range("0:1,2")), Ok((vec![2, 5], vec![2, 1])));
+        assert_eq!(selected(&[5], &range("1:3")), Ok((vec![1, 2, 3], vec![3])));
+        assert_eq!(selected(&[5], &range("4")), Ok((vec![4], vec![1])));
+        assert_eq!(selected(&[2, 2, 2], &range("1,1,0:1")), Ok((vec![6, 7], vec![1, 1, 2])));
+    }
+
+    #[test]
+    fn an_index_range_of_the_wrong_rank_or_past_the_end_is_refused() {
+        assert_eq!(selected(&[2, 3], &range("1")), Err(StatusCode::BadIndexRangeInvalid));
+        assert_eq!(selected(&[5], &range("1,2")), Err(StatusCode::BadIndexRangeInvalid));
+        assert_eq!(selected(&[5], &range("3:5")), Err(StatusCode::BadIndexRangeNoData));
+        assert_eq!(selected(&[2, 3], &range("0,3")), Err(StatusCode::BadIndexRangeNoData));
+    }
+
+    fn ints(values: &[i16]) -> Vec<Variant> {
+        values.iter().map(|&v| Variant::Int16(v)).collect()
+    }
+
+    fn grid() -> Target {
+        let elements = (0..6).map(|i| (format!("main.grid[{},{}]", i / 3 + 1, i % 3 + 1), i));
+        Target {
+            ty: ValueType::Signed(crate::value::Elem::I16),
+            elements: elements.collect(),
+            dimensions: Some(vec![2, 3]),
+            device: false,
+        }
+    }
+
+    fn array_of(values: &[i16], dimensions: &[u32]) -> Variant {
+        let scalar = opcua::types::VariantScalarTypeId::Int16;
+        let array = match dimensions {
+            [] => opcua::types::Array::new(scalar, ints(values)),
+            _ => opcua::types::Array::new_multi(scalar, ints(values), dimensions.to_vec()),
+        };
+        Variant::Array(Box::new(array.unwrap()))
+    }
+
+    fn names(entries: &[Checked]) -> Vec<String> {
+        entries.iter().filter_map(|c| c.write.as_ref().map(|(_, w)| w.dev.clone())).collect()
+    }
+
+    #[test]
+    fn a_part_of_an_array_is_written_element_by_element() {
+        let node = NodeId::new(2, "main.grid");
+        let entries = check(&grid(), 0, &node, &range("1,1:2"), &array_of(&[7, 8], &[1, 2]));
+        let entries = entries.unwrap();
+        assert_eq!(names(&entries), ["main.grid[2,2]", "main.grid[2,3]"]);
+        let Held::Part(held) = &entries.last().unwrap().value else { panic!("a part") };
+        assert_eq!(held, &[(4, Variant::Int16(7)), (5, Variant::Int16(8))]);
+        // A flat value of the selection's length is taken row-major.
+        let flat = check(&grid(), 0, &node, &range("0:1,0"), &array_of(&[1, 2], &[]));
+        assert_eq!(names(&flat.unwrap()), ["main.grid[1,1]", "main.grid[2,1]"]);
+        // The whole array, with its dimensions.
+        let whole = check(&grid(), 0, &node, &NumericRange::None, &array_of(&[0; 6], &[2, 3]));
+        assert_eq!(whole.unwrap().len(), 7, "six elements and the array node");
+    }
+
+    #[test]
+    fn a_part_of_another_shape_or_length_is_refused() {
+        let node = NodeId::new(2, "main.grid");
+        let wrong_shape = check(&grid(), 0, &node, &range("1,0:1"), &array_of(&[1, 2], &[2, 1]));
+        assert_eq!(wrong_shape.err(), Some(StatusCode::BadTypeMismatch));
+        let too_short = check(&grid(), 0, &node, &range("1,0:2"), &array_of(&[1, 2], &[]));
+        assert_eq!(too_short.err(), Some(StatusCode::BadOutOfRange));
+        let scalar = check(&grid(), 0, &node, &range("1,1"), &Variant::Int16(1));
+        assert_eq!(scalar.err(), Some(StatusCode::BadTypeMismatch));
+        let past = check(&grid(), 0, &node, &range("2,0"), &array_of(&[1], &[]));
+        assert_eq!(past.err(), Some(StatusCode::BadIndexRangeNoData));
+    }
+
+    #[test]
+    fn a_read_of_several_dimensions_is_the_sub_array() {
+        let Variant::Array(array) = array_of(&[0, 1, 2, 3, 4, 5], &[2, 3]) else { panic!() };
+        let part = sub_array(&array, &range("0:1,1:2")).unwrap();
+        assert_eq!(part, array_of(&[1, 2, 4, 5], &[2, 2]));
+        let row = sub_array(&array, &range("1,0:2")).unwrap();
+        assert_eq!(row, array_of(&[3, 4, 5], &[1, 3]));
+        assert_eq!(sub_array(&array, &range("2,0")), Err(StatusCode::BadIndexRangeNoData));
     }
 
     #[test]

@@ -61,16 +61,20 @@ pub struct Object {
     pub browse: String,
 }
 
-/// A one-dimensional array of elementary values as one variable (`main.table`, an `Int16[4]`),
-/// beside the variables of its elements (`main.table[1]` …), which it is read from and written
+/// An array of elementary values as one variable (`main.table`, an `Int16[4]`; `main.grid`, an
+/// `Int16[2,3]`; an array of arrays as the array of its dimensions), beside the variables of
+/// its elements (`main.table[1]`, `main.grid[1,2]` …), which it is read from and written
 /// through.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ArrayNode {
     pub id: String,
     pub parent: String,
     pub browse: String,
-    /// Its elements' indices in [`Plan::leaves`], in index order.
+    /// Its elements' indices in [`Plan::leaves`], in index order (row-major: the last index
+    /// varies fastest, as OPC UA flattens a multi-dimensional array).
     pub elements: Vec<usize>,
+    /// The length of each dimension: one for a one-dimensional array.
+    pub dimensions: Vec<u32>,
     /// Every element writable.
     pub writable: bool,
 }
@@ -188,20 +192,60 @@ pub fn device_id(device: &str) -> String {
     format!("{DEVICES}.{device}")
 }
 
-/// The one-dimensional arrays of elementary values among `leaves`: runs of consecutive leaves
-/// of one parent named `base[index]` (one index), of one type; `taken` are the node ids in use.
+/// An element's name split into its array's name and its indices: `grid[1,2]` and `aa[1][2]`
+/// are `grid`, `aa` and `[1, 2]`.
+fn element_indices(browse: &str) -> Option<(&str, Vec<i64>)> {
+    let (base, index) = browse.strip_suffix(']')?.split_once('[')?;
+    if base.is_empty() {
+        return None;
+    }
+    let indices: Option<Vec<i64>> =
+        index.split("][").flat_map(|part| part.split(',')).map(|i| i.parse().ok()).collect();
+    Some((base, indices?))
+}
+
+/// The lengths of the dimensions of an array whose elements, in order, have `indices`: `None`
+/// unless they are every index of those dimensions, row-major, each once.
+fn dimensions_of(indices: &[Vec<i64>]) -> Option<Vec<u32>> {
+    let first = indices.first()?;
+    let mut dims = Vec::with_capacity(first.len());
+    for d in 0..first.len() {
+        let hi = indices.iter().map(|i| i[d]).max()?;
+        dims.push(u32::try_from(hi - first[d] + 1).ok()?);
+    }
+    let count: u64 = dims.iter().map(|&d| u64::from(d)).product();
+    if count != indices.len() as u64 {
+        return None;
+    }
+    // Element k of a row-major array: its index in each dimension from k.
+    let row_major = indices.iter().enumerate().all(|(k, index)| {
+        let mut rest = k as u64;
+        (0..dims.len()).rev().all(|d| {
+            let len = u64::from(dims[d]);
+            let at = first[d] + (rest % len) as i64;
+            rest /= len;
+            index[d] == at
+        })
+    });
+    row_major.then_some(dims)
+}
+
+/// The arrays of elementary values among `leaves`: runs of consecutive leaves of one parent
+/// named `base[indices]` with as many indices each, of one type, holding every index of their
+/// dimensions in row-major order; `taken` are the node ids in use.
 fn arrays(leaves: &[Leaf], taken: &HashSet<String>) -> Vec<ArrayNode> {
-    let base = |leaf: &Leaf| -> Option<String> {
-        let (base, index) = leaf.browse.strip_suffix(']')?.split_once('[')?;
-        (!index.contains([',', '[', ']']) && !base.is_empty()).then(|| base.to_string())
-    };
+    struct Run<'a> {
+        base: &'a str,
+        elements: Vec<usize>,
+        indices: Vec<Vec<i64>>,
+    }
     let mut arrays: Vec<ArrayNode> = Vec::new();
-    let mut run: Option<(String, Vec<usize>)> = None;
-    let close = |run: Option<(String, Vec<usize>)>, arrays: &mut Vec<ArrayNode>| {
-        let Some((base, elements)) = run else { return };
+    let close = |run: Option<Run>, arrays: &mut Vec<ArrayNode>| {
+        let Some(Run { base, elements, indices }) = run else { return };
+        let Some(dimensions) = dimensions_of(&indices) else { return };
         let first = &leaves[elements[0]];
         let id = if first.parent == PROGRAMS {
-            base.clone()
+            base.to_string()
         } else {
             format!("{}.{base}", first.parent)
         };
@@ -211,31 +255,35 @@ fn arrays(leaves: &[Leaf], taken: &HashSet<String>) -> Vec<ArrayNode> {
         arrays.push(ArrayNode {
             id,
             parent: first.parent.clone(),
-            browse: base,
+            browse: base.to_string(),
             writable: elements.iter().all(|&e| leaves[e].writable),
             elements,
+            dimensions,
         });
     };
+    let mut run: Option<Run> = None;
     for (i, leaf) in leaves.iter().enumerate() {
-        let name = base(leaf);
-        let continues = match (&run, &name) {
-            (Some((b, elements)), Some(n)) => {
-                let last = &leaves[*elements.last().unwrap_or(&i)];
-                b == n
+        let named = element_indices(&leaf.browse);
+        let continues = match (&run, &named) {
+            (Some(r), Some((base, index))) => {
+                let last = &leaves[*r.elements.last().unwrap_or(&i)];
+                r.base == *base
+                    && r.indices[0].len() == index.len()
                     && last.parent == leaf.parent
                     && last.ty == leaf.ty
-                    && elements.last() == Some(&(i - 1))
+                    && r.elements.last() == Some(&(i - 1))
             }
             _ => false,
         };
         if continues {
-            if let Some((_, elements)) = &mut run {
-                elements.push(i);
+            if let (Some(r), Some((_, index))) = (&mut run, named) {
+                r.elements.push(i);
+                r.indices.push(index);
             }
             continue;
         }
         close(run.take(), &mut arrays);
-        run = name.map(|n| (n, vec![i]));
+        run = named.map(|(base, index)| Run { base, elements: vec![i], indices: vec![index] });
     }
     close(run, &mut arrays);
     arrays
@@ -288,7 +336,7 @@ impl Plan {
         remove_objects.reverse();
         let array_key = |plan: &Plan, a: &ArrayNode| {
             let first = &plan.leaves[a.elements[0]];
-            (a.id.clone(), a.elements.len(), data_type(&first.ty), names(first), a.writable)
+            (a.id.clone(), a.dimensions.clone(), data_type(&first.ty), names(first), a.writable)
         };
         let old_arrays: HashSet<_> = self.arrays.iter().map(|a| array_key(self, a)).collect();
         let new_arrays: HashSet<_> = new.arrays.iter().map(|a| array_key(new, a)).collect();
@@ -471,61 +519,79 @@ mod tests {
     }
 
     #[test]
-    fn one_dimensional_arrays_of_values_are_array_variables_too() {
+    fn arrays_of_values_are_array_variables_too() {
         let int = ValueType::Signed(Elem::I16);
         let mut symbols = Symbols::default();
-        for (i, name) in [
+        let names = [
             "main.buf[1]",
             "main.buf[2]",
             "main.buf[3]",
             "main.grid[1,1]",
             "main.grid[1,2]",
+            "main.grid[1,3]",
+            "main.grid[2,1]",
+            "main.grid[2,2]",
+            "main.grid[2,3]",
             "main.slots[1].n",
             "main.slots[2].n",
+            "main.m[1][0]",
             "main.m[1][1]",
+            "main.m[2][0]",
+            "main.m[2][1]",
             "main.alone[0]",
+            "main.cut[1,1]",
+            "main.cut[1,2]",
+            "main.cut[2,1]",
             "other.buf[5]",
             "other.buf[6]",
-        ]
-        .iter()
-        .enumerate()
-        {
+        ];
+        for (i, name) in names.iter().enumerate() {
             symbols.push(symbol(name, int.clone(), 2 * i as u32));
         }
         let writable = BTreeSet::from(["main.buf[1]".to_string(), "main.buf[2]".to_string()]);
         let plan = Plan::of(&symbols, 100, &writable);
-        let arrays: Vec<(&str, &str, &str, &[usize], bool)> = plan
+        // (id, browse name, elements, dimensions, writable)
+        type Seen<'a> = (&'a str, &'a str, Vec<usize>, &'a [u32], bool);
+        let arrays: Vec<Seen> = plan
             .arrays
             .iter()
             .map(|a| {
-                (
-                    a.id.as_str(),
-                    a.parent.as_str(),
-                    a.browse.as_str(),
-                    a.elements.as_slice(),
-                    a.writable,
-                )
+                let (id, browse) = (a.id.as_str(), a.browse.as_str());
+                assert_eq!(a.parent, id.split('.').next().unwrap());
+                (id, browse, a.elements.clone(), a.dimensions.as_slice(), a.writable)
             })
             .collect();
         assert_eq!(
             arrays,
             [
-                ("main.buf", "main", "buf", &[0, 1, 2][..], false),
-                ("main.alone", "main", "alone", &[8][..], false),
-                ("other.buf", "other", "buf", &[9, 10][..], false),
+                ("main.buf", "buf", vec![0, 1, 2], &[3][..], false),
+                ("main.grid", "grid", (3..9).collect(), &[2, 3][..], false),
+                ("main.m", "m", (11..15).collect(), &[2, 2][..], false),
+                ("main.alone", "alone", vec![15], &[1][..], false),
+                ("other.buf", "buf", vec![19, 20], &[2][..], false),
             ],
-            "not the two-dimensional, the arrays of structs or of arrays; writable if all are"
+            "not the arrays of structs, nor one missing an element (max_nodes); writable if all are"
         );
         let all = BTreeSet::from(["other.buf[5]".to_string(), "other.buf[6]".to_string()]);
-        assert!(Plan::of(&symbols, 100, &all).arrays[2].writable);
-        // A changed length replaces the array's node.
+        assert!(Plan::of(&symbols, 100, &all).arrays[4].writable);
+        // A changed length, or a changed shape of as many elements, replaces the array's node.
         let mut shorter = Symbols::default();
         shorter.push(symbol("main.buf[1]", int.clone(), 0));
-        shorter.push(symbol("main.buf[2]", int, 2));
+        shorter.push(symbol("main.buf[2]", int.clone(), 2));
+        for (i, name) in ["main.grid[1,1]", "main.grid[1,2]", "main.grid[2,1]", "main.grid[2,2]"]
+            .iter()
+            .chain(&["main.grid[3,1]", "main.grid[3,2]"])
+            .enumerate()
+        {
+            shorter.push(symbol(name, int.clone(), 10 + 2 * i as u32));
+        }
         let changes =
             Plan::of(&symbols, 100, &writable).changes_to(&Plan::of(&shorter, 100, &writable));
         assert!(changes.remove_arrays.contains(&"main.buf".to_string()));
-        assert_eq!(changes.add_arrays.len(), 1);
+        assert!(changes.remove_arrays.contains(&"main.grid".to_string()), "2x3 to 3x2");
+        let added: Vec<&[u32]> =
+            changes.add_arrays.iter().map(|a| a.dimensions.as_slice()).collect();
+        assert_eq!(added, [&[2][..], &[3, 2][..]]);
     }
 
     #[test]

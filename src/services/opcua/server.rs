@@ -238,14 +238,19 @@ fn targets_of(plan: &Plan) -> std::collections::HashMap<String, Target> {
     let leaves = plan.leaves.iter().enumerate().filter(|(_, leaf)| leaf.writable).map(|(i, l)| {
         // A device is written by its name (`D00100`), a variable by its node id's (its name).
         let name = if l.device { l.browse.clone() } else { l.id.clone() };
-        let target =
-            Target { ty: l.ty.clone(), elements: vec![(name, i)], array: false, device: l.device };
+        let target = Target {
+            ty: l.ty.clone(),
+            elements: vec![(name, i)],
+            dimensions: None,
+            device: l.device,
+        };
         (l.id.clone(), target)
     });
     let arrays = plan.arrays.iter().filter(|a| a.writable).map(|a| {
         let elements = a.elements.iter().map(|&e| (plan.leaves[e].id.clone(), e)).collect();
         let ty = plan.leaves[a.elements[0]].ty.clone();
-        (a.id.clone(), Target { ty, elements, array: true, device: false })
+        let dimensions = Some(a.dimensions.clone());
+        (a.id.clone(), Target { ty, elements, dimensions, device: false })
     });
     leaves.chain(arrays).collect()
 }
@@ -390,8 +395,8 @@ struct Served {
     leaves: Vec<NodeId>,
     /// An enumeration leaf's ValueAsText property, in `leaves` order.
     texts: Vec<Option<NodeId>>,
-    /// The array variables and their elements' indices in `leaves`.
-    arrays: Vec<(NodeId, Vec<usize>)>,
+    /// The array variables, their elements' indices in `leaves` and their dimensions.
+    arrays: Vec<(NodeId, Vec<usize>, Vec<u32>)>,
 }
 
 impl Served {
@@ -404,7 +409,11 @@ impl Served {
             status: STATUS_NODES.iter().map(|(name, _)| id(ns, &nodes::status_id(name))).collect(),
             leaves: plan.leaves.iter().map(|leaf| id(ns, &leaf.id)).collect(),
             texts: plan.leaves.iter().map(text).collect(),
-            arrays: plan.arrays.iter().map(|a| (id(ns, &a.id), a.elements.clone())).collect(),
+            arrays: plan
+                .arrays
+                .iter()
+                .map(|a| (id(ns, &a.id), a.elements.clone(), a.dimensions.clone()))
+                .collect(),
         }
     }
 }
@@ -612,14 +621,14 @@ impl Sampler {
             }
         }
         // An array whose element moved: all its elements of this copy, as one value.
-        for (node, elements) in &self.served.arrays {
+        for (node, elements, dimensions) in &self.served.arrays {
             if !elements.iter().any(|&e| moved[e]) {
                 continue;
             }
             let value = if same_engine {
                 let values: Option<Vec<Variant>> =
                     elements.iter().map(|&e| self.last[STATUS_NODES.len() + e].clone()).collect();
-                values.and_then(values::array).map(DataValue::new_now)
+                values.and_then(|v| values::array(v, dimensions)).map(DataValue::new_now)
             } else {
                 None
             };

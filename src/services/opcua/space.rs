@@ -73,7 +73,7 @@ pub fn populate(manager: &PlcManager, ns: u16, plan: &Plan) {
 }
 
 /// Adds the array variables of `arrays` (their elements in `leaves`): an array of the elements'
-/// type, its length as its one dimension.
+/// type, of the array's dimensions (its ValueRank their number).
 fn add_arrays(manager: &PlcManager, ns: u16, arrays: &[ArrayNode], leaves: &[Leaf]) {
     let mut space = manager.address_space().write();
     for array in arrays {
@@ -86,7 +86,7 @@ fn add_arrays(manager: &PlcManager, ns: u16, arrays: &[ArrayNode], leaves: &[Lea
         };
         let len = array.elements.len();
         let initial: Vec<Variant> = (0..len).map(|_| initial(ty)).collect();
-        let Some(value) = values::array(initial) else { continue };
+        let Some(value) = values::array(initial, &array.dimensions) else { continue };
         VariableBuilder::new(
             &id(ns, &array.id),
             QualifiedName::new(ns, array.browse.as_str()),
@@ -94,8 +94,8 @@ fn add_arrays(manager: &PlcManager, ns: u16, arrays: &[ArrayNode], leaves: &[Lea
         )
         .has_type_definition(VariableTypeId::BaseDataVariableType)
         .data_type(ty)
-        .value_rank(1)
-        .array_dimensions(&[len as u32])
+        .value_rank(array.dimensions.len() as i32)
+        .array_dimensions(&array.dimensions)
         .value(value)
         .access_level(access)
         .user_access_level(access)

@@ -123,11 +123,15 @@ fn calendar_variant(calendar: value::Calendar, slot: u64) -> Variant {
     }
 }
 
-/// An array variable's value: `elements` (each as [`read`] gives it) as one OPC UA array;
-/// `None` without elements or if they are not all of one type.
-pub fn array(elements: Vec<Variant>) -> Option<Variant> {
+/// An array variable's value: `elements` (each as [`read`] gives it, row-major) as one OPC UA
+/// array of `dimensions` (one: a one-dimensional array, without dimensions of its own); `None`
+/// without elements, if they are not all of one type or not as many as the dimensions hold.
+pub fn array(elements: Vec<Variant>, dimensions: &[u32]) -> Option<Variant> {
     let scalar = elements.first()?.scalar_type_id()?;
-    let array = opcua::types::Array::new(scalar, elements).ok()?;
+    let array = match dimensions {
+        [_] => opcua::types::Array::new(scalar, elements).ok()?,
+        _ => opcua::types::Array::new_multi(scalar, elements, dimensions).ok()?,
+    };
     Some(Variant::Array(Box::new(array)))
 }
 
