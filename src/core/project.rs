@@ -19,6 +19,16 @@ mod namespaces;
 /// FX5: "The DUTY instruction can be used up to 5 times (points)".
 pub const MAX_DUTY: usize = 5;
 
+/// The program variables the config names for the OPC UA server, by their full names with the
+/// spelling of their declarations ([`Project::opcua_names`]).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct OpcuaNames {
+    /// `[opcua] writable`: sessions of the operator role and up may write them.
+    pub writable: std::collections::BTreeSet<String>,
+    /// `[[opcua.analog]]`: served as analog items with this engineering range.
+    pub analog: std::collections::BTreeMap<String, crate::config::EuRange>,
+}
+
 /// A loaded, fully checked project.
 #[derive(Debug, Clone)]
 pub struct Project {
@@ -397,12 +407,90 @@ impl Project {
         })
     }
 
+    /// The variables the config names for the OPC UA server: `[opcua] writable` and
+    /// `[[opcua.analog]]`, every error of both at once.
+    pub fn opcua_names(&self) -> Result<OpcuaNames, Vec<Diagnostic>> {
+        match (self.opcua_writable(), self.opcua_analog()) {
+            (Ok(writable), Ok(analog)) => Ok(OpcuaNames { writable, analog }),
+            (writable, analog) => {
+                Err(writable.err().into_iter().chain(analog.err()).flatten().collect())
+            }
+        }
+    }
+
+    /// The variables `[[opcua.analog]]` gives an engineering range, by their full names: each
+    /// entry's name as `plcctl get` resolves it, a struct, FB instance or array standing for
+    /// its numeric variables. A name that is a device, names through a reference, or holds no
+    /// number (a `BOOL`, a `STRING`, an enumeration, a `TIME`) is an error at the config's
+    /// line and column.
+    fn opcua_analog(
+        &self,
+    ) -> Result<std::collections::BTreeMap<String, crate::config::EuRange>, Vec<Diagnostic>> {
+        let mut ranges = std::collections::BTreeMap::new();
+        let mut errors = Vec::new();
+        for entry in &self.config.opcua.analog {
+            let at = &entry.variable;
+            let error = |message: String| {
+                Diagnostic::new(
+                    &self.config.path,
+                    at.line,
+                    at.col,
+                    format!("opcua.analog: {message}"),
+                )
+            };
+            let name = at.name.as_str();
+            if Address::parse(name).is_ok() {
+                errors.push(error(format!(
+                    "`{name}` is a device: the OPC UA server serves the programs' variables"
+                )));
+                continue;
+            }
+            if name.contains('^') {
+                errors.push(error(format!(
+                    "`{name}` names a variable through a reference, which changes as the \
+                     program runs: name the variable itself"
+                )));
+                continue;
+            }
+            let leaves = match self.resolve(name) {
+                Ok(leaves) => leaves,
+                Err(e) => {
+                    errors.push(error(e));
+                    continue;
+                }
+            };
+            let mut any = false;
+            for leaf in leaves {
+                if let Watched::Variable(symbol) = leaf {
+                    if matches!(
+                        symbol.ty,
+                        ValueType::Signed(_) | ValueType::Unsigned(_) | ValueType::Real(_)
+                    ) {
+                        any = true;
+                        ranges.insert(symbol.name, entry.range);
+                    }
+                }
+            }
+            if !any {
+                errors.push(error(format!(
+                    "`{name}` holds no number (an integer or a REAL): an engineering range is \
+                     for numbers"
+                )));
+            }
+        }
+        if errors.is_empty() {
+            Ok(ranges)
+        } else {
+            Err(errors)
+        }
+    }
+
     /// The variables `[opcua] writable` makes writable, by their full names with the spelling
     /// of their declarations: each name as `plcctl set` resolves it, a struct, FB instance or
     /// array standing for its variables, less its `CONSTANT`s. A name that is a device, names
     /// through a reference, or names no variable (or `CONSTANT`s only) is an error at the
     /// config's line and column.
-    pub fn opcua_writable(&self) -> Result<std::collections::BTreeSet<String>, Vec<Diagnostic>> {
+    fn opcua_writable(&self) -> Result<std::collections::BTreeSet<String>, Vec<Diagnostic>> {
         let mut names = std::collections::BTreeSet::new();
         let mut errors = Vec::new();
         for entry in &self.config.opcua.writable {
@@ -596,9 +684,12 @@ pub fn from_config_with(
     }
     let programs = programs.into_iter().flatten().collect();
     let project = Project { config, programs, variables, notes, warnings };
-    match project.opcua_writable() {
+    match project.opcua_names() {
         Ok(_) => Ok(project),
-        Err(errors) => Err(Diagnostics(errors)),
+        Err(mut errors) => {
+            errors.sort();
+            Err(Diagnostics(errors))
+        }
     }
 }
 

@@ -500,14 +500,8 @@ fn bind_opcua(
         _ => None,
     };
     // Checked when the project was built; a project built otherwise is checked again here.
-    let writable = project.opcua_writable().map_err(|e| DaemonError::Invalid(Diagnostics(e)))?;
-    Ok(crate::services::opcua::OpcuaServer::bind(
-        &config.opcua,
-        pki_dir,
-        symbols,
-        &writable,
-        users,
-    )?)
+    let names = project.opcua_names().map_err(|e| DaemonError::Invalid(Diagnostics(e)))?;
+    Ok(crate::services::opcua::OpcuaServer::bind(&config.opcua, pki_dir, symbols, &names, users)?)
 }
 
 #[cfg(not(feature = "opcua"))]
@@ -525,8 +519,8 @@ fn announcer(opcua: &Option<crate::services::opcua::OpcuaServer>) -> Option<Anno
     let following = opcua.as_ref()?.following();
     Some(Arc::new(move |engine: &Engine, project: &Project| {
         // A project that reached a queue was built, and so checked: its names resolve.
-        let writable = project.opcua_writable().unwrap_or_default();
-        following.announce(engine.retained_variables(), &project.variables.symbols, &writable);
+        let names = project.opcua_names().unwrap_or_default();
+        following.announce(engine.retained_variables(), &project.variables.symbols, &names);
     }))
 }
 

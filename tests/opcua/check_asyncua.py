@@ -291,7 +291,7 @@ async def browse_and_read(url):
                   type(e).__name__)
 
         await subscribe(c, node("main.counter"))
-        await deadband(c, node("main.counter"))
+        await deadband(c, node("main.counter"), node("main.axis.steps"))
 
 
 class Changes:
@@ -528,6 +528,10 @@ async def follows_a_reload(url, daemon):
         after = [v for v in counter_changes.values[before:] if v is not None]
         check("a subscription to a kept variable goes on (the counter restarted)",
               any(v < highest for v in after), f"{highest} before, then {after[:8]}")
+        # Told at the subscription's next publish, which may come after the counter's.
+        until = time.monotonic() + PATIENCE
+        while time.monotonic() < until and "BadNodeIdUnknown" not in phase_changes.statuses:
+            await asyncio.sleep(0.02)
         check("a removed variable's subscriber is told BadNodeIdUnknown",
               "BadNodeIdUnknown" in phase_changes.statuses, f"{phase_changes.statuses}")
         check("a kept STRING reads", await node("main.label").read_value() == "plcd")
@@ -579,12 +583,12 @@ async def viewer_refused(url):
         check("and the PLC still runs", mode == "RUN", f"{mode}")
 
 
-async def deadband(c, counter):
+async def deadband(c, counter, plain):
     """An absolute deadband filter: a change is notified only once the value moved more than
     the deadband from the last one notified. The counter moves by one every 10 ms scan, so
     about 10 between two samples: with a deadband of 50, every notified change is more than 50
-    from the one before. A percent deadband needs an EURange, which plcd's variables do not
-    have: refused."""
+    from the one before. A percent deadband is of the variable's EURange: 1 % of the counter's
+    0..5000 ([[opcua.analog]]) is 50 again; `plain`, without one, refuses it."""
     handler = Changes()
     subscription = await c.create_subscription(SAMPLING_MS, handler)
     params = ua.MonitoredItemCreateRequest()
@@ -603,16 +607,40 @@ async def deadband(c, counter):
     steps = [b - a for a, b in zip(handler.values, handler.values[1:])]
     check("with a deadband of 50, each notified change moved more than 50",
           len(steps) >= 3 and min(steps) > 50, f"{handler.values}")
+    definition = await counter.read_type_definition()
+    check("a variable of [[opcua.analog]] is an AnalogItemType",
+          definition == ua.NodeId(ua.ObjectIds.AnalogItemType), f"{definition}")
+    properties = {(await p.read_browse_name()).Name: p for p in await counter.get_properties()}
+    eu = await properties["EURange"].read_value() if "EURange" in properties else None
+    check("its EURange is the config's", eu is not None and (eu.Low, eu.High) == (0.0, 5000.0),
+          f"{eu!r}")
+    percent = Changes()
+    by_percent = await c.create_subscription(SAMPLING_MS, percent)
     params.RequestedParameters.ClientHandle = 2
     params.RequestedParameters.Filter = ua.DataChangeFilter(
         Trigger=ua.DataChangeTrigger.StatusValue, DeadbandType=ua.DeadbandType.Percent,
-        DeadbandValue=10.0)
+        DeadbandValue=1.0)
+    results = await by_percent.create_monitored_items([params])
+    check("a percent deadband on it is accepted", results and isinstance(results[0], int),
+          f"{results}")
+    until = time.monotonic() + PATIENCE
+    while len(percent.values) < 4 and time.monotonic() < until:
+        await asyncio.sleep(0.02)
+    moves = [b - a for a, b in zip(percent.values, percent.values[1:])]
+    # The stack compares fractions of the range in floating point: a move of exactly 1 % may
+    # pass by rounding (331 to 381 did), so at least 50, where the absolute deadband is past it.
+    check("with 1 % of 0..5000, each notified change moved at least 50",
+          len(moves) >= 3 and min(moves) >= 50, f"{percent.values}")
+    await by_percent.delete()
+    params.ItemToMonitor = ua.ReadValueId(NodeId=plain.nodeid, AttributeId=ua.AttributeIds.Value)
+    params.RequestedParameters.ClientHandle = 3
     try:
         result = (await subscription.create_monitored_items([params]))[0]
         text = result.name if isinstance(result, ua.StatusCode) else repr(result)
     except ua.UaStatusCodeError as e:
         text = type(e).__name__
-    check("a percent deadband is refused (no EURange)", text.startswith("Bad"), text)
+    check("a percent deadband on a variable without EURange is refused", text.startswith("Bad"),
+          text)
     await subscription.delete()
 
 
@@ -842,7 +870,8 @@ async def main_checks(plcd, plcctl, project, work):
     try:
         # 1. Anonymous viewers over the None policy, listed: browse, read, subscribe.
         open_daemon = start(f'security_policies = ["None", "Basic256Sha256"]\nanonymous = "viewer"\n'
-                            f"min_sampling_interval_ms = {SAMPLING_MS}")
+                            f"min_sampling_interval_ms = {SAMPLING_MS}\n"
+                            '[[opcua.analog]]\nvariable = "main.counter"\nlow = 0\nhigh = 5000')
         url = open_daemon.serving()
         check("the log names the endpoint", url is not None, "\n".join(open_daemon.log[-20:]))
         if url is None:

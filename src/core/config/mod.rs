@@ -80,7 +80,9 @@ pub use control::ControlConfig;
 pub use iec::{IecAddress, IecConfig, IecVariable};
 pub use io::{Backend, Bias, IoConfig, IoLine, LineRef, LINE_NAME_MAX};
 pub use modbus::{ModbusConfig, ModbusRange, ModbusRtuConfig, ModbusTable};
-pub use opcua::{Anonymous, OpcuaConfig, OpcuaDevices, OpcuaPolicy, WritableName};
+pub use opcua::{
+    Anonymous, EuRange, OpcuaAnalog, OpcuaConfig, OpcuaDevices, OpcuaPolicy, WritableName,
+};
 pub use plc::{OnFault, PlcConfig};
 pub use program::{Language, ProgramConfig, TaskRef};
 pub use remote::{

@@ -11,6 +11,11 @@
 //! [[opcua.devices]]              # device ranges, as the Modbus map chooses them
 //! device = "D00100"
 //! count = 16
+//!
+//! [[opcua.analog]]               # an EURange, for percent deadbands
+//! variable = "main.temperature"
+//! low = 0.0
+//! high = 150.0
 //! ```
 //!
 //! The keys' ranges and defaults are the constants of [`OpcuaConfig`]; the server
@@ -89,7 +94,33 @@ pub struct OpcuaConfig {
     /// `[[opcua.devices]]`: device ranges served beside the variables, in the order written;
     /// default none.
     pub devices: Vec<OpcuaDevices>,
+    /// `[[opcua.analog]]`: numeric variables served as analog items, with the range of values
+    /// they are expected to take (their `EURange`), in the order written, at most
+    /// [`OpcuaConfig::MAX_ANALOG`]; default none. Checked against the programs when the project
+    /// is built (`crate::project::Project::opcua_names`).
+    pub analog: Vec<OpcuaAnalog>,
 }
+
+/// One `[[opcua.analog]]` entry: a variable (or a struct, FB instance or array standing for its
+/// numeric variables) and its engineering range.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct OpcuaAnalog {
+    /// `variable`: by name, as `plcctl get` names it; required.
+    pub variable: WritableName,
+    /// `low`, `high`: finite, `low` below `high`; required.
+    pub range: EuRange,
+}
+
+/// An analog item's engineering range (OPC UA Part 8 `EURange`): what a percent deadband is a
+/// percentage of.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EuRange {
+    pub low: f64,
+    pub high: f64,
+}
+
+// Both ends are finite numbers (the config refuses NaN): equality is total.
+impl Eq for EuRange {}
 
 /// One `[[opcua.devices]]` entry: `count` consecutive devices of one area from `device`, words
 /// (`D00100`, `M010`) or bits (`M0100`, `D00100.3`) as `device` is written.
@@ -117,7 +148,8 @@ impl OpcuaDevices {
     }
 }
 
-/// A name of `opcua.writable`, with where it is written for the project's diagnostics.
+/// A name of `opcua.writable` or `[[opcua.analog]]`, with where it is written for the
+/// project's diagnostics.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct WritableName {
     pub name: String,
@@ -195,6 +227,8 @@ impl OpcuaConfig {
     pub const MAX_WRITABLE: usize = 10_000;
     /// Devices one `[[opcua.devices]]` entry may serve.
     pub const MAX_DEVICES: RangeInclusive<u32> = 1..=4096;
+    /// `[[opcua.analog]]` entries.
+    pub const MAX_ANALOG: usize = 10_000;
 
     /// The monitored items one subscription may hold: the session's share.
     pub fn monitored_items_per_subscription(&self) -> u32 {
@@ -222,6 +256,7 @@ impl Default for OpcuaConfig {
             pki_dir: None,
             writable: Vec::new(),
             devices: Vec::new(),
+            analog: Vec::new(),
         }
     }
 }
@@ -248,6 +283,97 @@ pub(super) struct RawOpcua {
     pub pki_dir: Option<Spanned<String>>,
     pub writable: Option<Spanned<Vec<Spanned<String>>>>,
     pub devices: Option<Vec<Spanned<RawDevices>>>,
+    pub analog: Option<Spanned<Vec<Spanned<RawAnalog>>>>,
+}
+
+/// `[[opcua.analog]]` as written.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawAnalog {
+    pub variable: Spanned<String>,
+    pub low: Spanned<Number>,
+    pub high: Spanned<Number>,
+}
+
+/// A number as TOML writes it: `0` or `0.0`.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(untagged)]
+pub(super) enum Number {
+    Integer(i64),
+    Float(f64),
+}
+
+impl Number {
+    fn value(self) -> f64 {
+        match self {
+            Number::Integer(i) => i as f64,
+            Number::Float(f) => f,
+        }
+    }
+}
+
+/// The `[[opcua.analog]]` entries checked: a variable named once, finite ends, `low` below
+/// `high`.
+fn analog(sink: &mut Sink, raw: Spanned<Vec<Spanned<RawAnalog>>>) -> Option<Vec<OpcuaAnalog>> {
+    let ctx = Ctx::Section("opcua.analog");
+    let mut ok = true;
+    let mut entries: Vec<OpcuaAnalog> = Vec::new();
+    let at = raw.span().start;
+    let raw = raw.into_inner();
+    if raw.len() > OpcuaConfig::MAX_ANALOG {
+        let message = format!(
+            "{} entries, at most {}: name a struct, an FB instance or an array for all its              variables",
+            raw.len(),
+            OpcuaConfig::MAX_ANALOG
+        );
+        sink.error(at, format!("opcua.analog: {message}"));
+        return None;
+    }
+    for entry in raw {
+        let entry = entry.into_inner();
+        let name = &entry.variable;
+        let text = name.get_ref().trim();
+        let (line, col) = Diagnostic::line_col(sink.text, name.span().start);
+        if text.is_empty() {
+            sink.error(name.span().start, format!("{} is empty", ctx.key("variable")));
+            ok = false;
+            continue;
+        }
+        if entries.iter().any(|e| e.variable.name.eq_ignore_ascii_case(text)) {
+            sink.error(
+                name.span().start,
+                format!("{} `{text}` is listed twice", ctx.key("variable")),
+            );
+            ok = false;
+            continue;
+        }
+        let (low, high) = (entry.low.get_ref().value(), entry.high.get_ref().value());
+        let mut finite = true;
+        for (key, value, span) in
+            [("low", low, entry.low.span()), ("high", high, entry.high.span())]
+        {
+            if !value.is_finite() {
+                sink.error(span.start, format!("{} {value} is not a finite number", ctx.key(key)));
+                finite = false;
+            }
+        }
+        if !finite {
+            ok = false;
+            continue;
+        }
+        if low >= high {
+            let message = format!(
+                "{} {low} must be below high {high} (the range a percent deadband is a percentage of)",
+                ctx.key("low")
+            );
+            sink.error(entry.low.span().start, message);
+            ok = false;
+            continue;
+        }
+        let variable = WritableName { name: text.to_string(), line, col };
+        entries.push(OpcuaAnalog { variable, range: EuRange { low, high } });
+    }
+    ok.then_some(entries)
 }
 
 /// `[[opcua.devices]]` as written.
@@ -496,6 +622,10 @@ pub(super) fn validate(sink: &mut Sink, raw: RawOpcua, config: &Path) -> Option<
             None => ok = false,
         }
     }
+    let analog_entries = match raw.analog {
+        None => Some(Vec::new()),
+        Some(raw) => analog(sink, raw),
+    };
     let opcua = OpcuaConfig {
         listen,
         endpoint_host,
@@ -514,6 +644,7 @@ pub(super) fn validate(sink: &mut Sink, raw: RawOpcua, config: &Path) -> Option<
         pki_dir,
         writable,
         devices: device_ranges,
+        analog: analog_entries?,
     };
     ok.then_some(opcua)
 }
@@ -582,6 +713,22 @@ mod tests {
         assert_eq!((config.max_request_bytes, config.min_sampling_interval_ms), (65536, 10));
         assert_eq!(config.max_nodes, 5);
         assert_eq!(config.pki_dir, Some(PathBuf::from("/p/pki")), "relative to the config");
+    }
+
+    #[test]
+    fn analog_ranges_take_integers_and_floats_in_their_order() {
+        let config = opcua(
+            "[[opcua.analog]]\nvariable = \" main.temp \"\nlow = -20\nhigh = 150.5\n\
+             [[opcua.analog]]\nvariable = \"main.level\"\nlow = 0.0\nhigh = 1\n",
+        );
+        let read: Vec<(&str, f64, f64, u32)> = config
+            .analog
+            .iter()
+            .map(|a| (a.variable.name.as_str(), a.range.low, a.range.high, a.variable.line))
+            .collect();
+        // Lines of the whole file: PROGRAM's two, then each table's header.
+        assert_eq!(read, [("main.temp", -20.0, 150.5, 4), ("main.level", 0.0, 1.0, 8)]);
+        assert!(OpcuaConfig::default().analog.is_empty(), "none by default");
     }
 
     #[test]

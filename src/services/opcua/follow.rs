@@ -10,10 +10,11 @@
 //! announced plan ([`Following::plan_of`], then `space::change`). A queued engine the scan
 //! thread refuses is never copied; its plan is dropped after [`KEPT`] newer ones.
 
-use std::collections::{BTreeSet, VecDeque};
+use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 
 use super::nodes::{self, Plan};
+use crate::project::OpcuaNames;
 use crate::symbols::Symbols;
 use crate::vm::retained::RetainedVariables;
 
@@ -40,10 +41,10 @@ impl Following {
     }
 
     /// The plan of `symbols` for a server whose mirror copies `words` device words: at most
-    /// `max_nodes` variables, the located ones within the copy; `writable` as
-    /// [`crate::project::Project::opcua_writable`] gives it.
-    pub fn plan(&self, symbols: &Symbols, writable: &BTreeSet<String>) -> Plan {
-        let mut plan = Plan::of(symbols, self.max_nodes, writable).with_devices(&self.devices);
+    /// `max_nodes` variables, the located ones within the copy; `names` as
+    /// [`crate::project::Project::opcua_names`] gives them.
+    pub fn plan(&self, symbols: &Symbols, names: &OpcuaNames) -> Plan {
+        let mut plan = Plan::of(symbols, self.max_nodes, names).with_devices(&self.devices);
         let before = plan.leaves.len();
         plan.leaves.retain(|leaf| nodes::device_end(leaf).is_none_or(|end| end <= self.words));
         plan.unserved += before - plan.leaves.len();
@@ -51,14 +52,9 @@ impl Following {
     }
 
     /// An engine the daemon is about to queue: `layout` is its
-    /// [`crate::engine::Engine::retained_variables`], `symbols` and `writable` its project's.
-    pub fn announce(
-        &self,
-        layout: &Arc<RetainedVariables>,
-        symbols: &Symbols,
-        writable: &BTreeSet<String>,
-    ) {
-        let plan = Arc::new(self.plan(symbols, writable));
+    /// [`crate::engine::Engine::retained_variables`], `symbols` and `names` its project's.
+    pub fn announce(&self, layout: &Arc<RetainedVariables>, symbols: &Symbols, names: &OpcuaNames) {
+        let plan = Arc::new(self.plan(symbols, names));
         let mut plans = self.plans.lock().unwrap_or_else(|e| e.into_inner());
         if plans.len() >= KEPT {
             plans.pop_front();
@@ -100,7 +96,7 @@ mod tests {
             (0..=KEPT).map(|_| Arc::new(RetainedVariables::default())).collect();
         let names = symbols(&[("main.a", Space::Var, 0)]);
         for layout in &layouts {
-            following.announce(layout, &names, &BTreeSet::new());
+            following.announce(layout, &names, &OpcuaNames::default());
         }
         assert!(following.plan_of(&layouts[0]).is_none(), "dropped after {KEPT} newer ones");
         let plan = following.plan_of(&layouts[KEPT]).expect("announced");
@@ -117,7 +113,7 @@ mod tests {
             ("main.past", Space::Word, 10),
             ("main.var", Space::Var, 0),
         ]);
-        let plan = following.plan(&names, &BTreeSet::new());
+        let plan = following.plan(&names, &OpcuaNames::default());
         let ids: Vec<&str> = plan.leaves.iter().map(|l| l.id.as_str()).collect();
         assert_eq!(ids, ["main.in_copy", "main.var"]);
         assert_eq!(plan.unserved, 1);

@@ -6,11 +6,13 @@
 //! (`main.counter`, `main.axis.pos`, `main.buf[3]`), in plcd's namespace: they depend on the
 //! names alone, so they are the same after a restart and in every project that keeps the name.
 
-use std::collections::{BTreeSet, HashSet};
+use std::collections::HashSet;
 
 use opcua::types::DataTypeId;
 
 use super::values::data_type;
+use crate::config::EuRange;
+use crate::project::OpcuaNames;
 use crate::symbols::Symbols;
 use crate::value::{Pointer, ValueType};
 
@@ -51,6 +53,9 @@ pub struct Leaf {
     pub writable: bool,
     /// A device of `[[opcua.devices]]`, not a program's variable: written as a device.
     pub device: bool,
+    /// `[[opcua.analog]]` gives it an engineering range: an analog item (OPC UA Part 8
+    /// `AnalogItemType`) with an `EURange` property, which percent deadbands need.
+    pub range: Option<EuRange>,
 }
 
 /// An object node: a program instance, a struct or FB instance, an array's element of structs.
@@ -95,9 +100,9 @@ pub struct Plan {
 
 impl Plan {
     /// The plan of `symbols`, at most `max_nodes` variables, in declaration order; the
-    /// variables of `writable` (full names, as [`crate::project::Project::opcua_writable`]
-    /// gives them) writable.
-    pub fn of(symbols: &Symbols, max_nodes: usize, writable: &BTreeSet<String>) -> Plan {
+    /// variables `names` makes writable writable, those it gives an engineering range analog
+    /// items ([`crate::project::Project::opcua_names`]).
+    pub fn of(symbols: &Symbols, max_nodes: usize, names: &OpcuaNames) -> Plan {
         let mut plan = Plan::default();
         let mut taken: HashSet<String> =
             [PLC, PROGRAMS, STATUS, DEVICES].iter().map(|s| s.to_string()).collect();
@@ -144,8 +149,9 @@ impl Plan {
                 browse: last.to_string(),
                 ty: symbol.ty.clone(),
                 at: symbol.at,
-                writable: writable.contains(&symbol.name),
+                writable: names.writable.contains(&symbol.name),
                 device: false,
+                range: names.analog.get(&symbol.name).copied(),
             });
         }
         plan.arrays = arrays(&plan.leaves, &taken);
@@ -180,6 +186,7 @@ impl Plan {
                     at,
                     writable: range.writable,
                     device: true,
+                    range: None,
                 });
             }
         }
@@ -313,7 +320,7 @@ impl Plan {
     pub fn changes_to(&self, new: &Plan) -> Changes {
         use std::collections::HashMap;
         // The same node: the same OPC UA type (an enumeration: the same names too, which its
-        // node carries), as writable, in the same object.
+        // node carries), as writable, with the same engineering range, in the same object.
         let names = |l: &Leaf| match &l.ty {
             ValueType::Enum { values, .. } => Some(values.clone()),
             _ => None,
@@ -322,6 +329,7 @@ impl Plan {
             data_type(&a.ty) == data_type(&b.ty)
                 && names(a) == names(b)
                 && a.writable == b.writable
+                && a.range == b.range
                 && a.parent == b.parent
         };
         let old_leaves: HashMap<&str, &Leaf> =
@@ -417,6 +425,12 @@ pub fn split(name: &str) -> Vec<&str> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::collections::BTreeSet;
+
+    /// The names of a config whose `writable` lists `names`.
+    fn writing(names: &BTreeSet<String>) -> OpcuaNames {
+        OpcuaNames { writable: names.clone(), ..OpcuaNames::default() }
+    }
     use crate::value::{Elem, Space, Symbol};
 
     fn symbol(name: &str, ty: ValueType, offset: u32) -> Symbol {
@@ -445,7 +459,7 @@ mod tests {
         symbols.push(symbol("main.axis.ok", ValueType::Bool, 16));
         symbols.push(symbol("main.p", ValueType::Reference { type_name: "REF_TO INT".into() }, 24));
         symbols.push(symbol("other.buf[1]", ValueType::Unsigned(Elem::U8), 32));
-        let plan = Plan::of(&symbols, 100, &BTreeSet::new());
+        let plan = Plan::of(&symbols, 100, &OpcuaNames::default());
         let ids: Vec<(&str, &str, &str)> = plan
             .leaves
             .iter()
@@ -471,7 +485,7 @@ mod tests {
         // The same names give the same ids, whatever else the project holds.
         let mut fewer = Symbols::default();
         fewer.push(symbol("main.axis.pos", ValueType::Real(Elem::F64), 0));
-        assert_eq!(Plan::of(&fewer, 100, &BTreeSet::new()).leaves[0].id, "main.axis.pos");
+        assert_eq!(Plan::of(&fewer, 100, &OpcuaNames::default()).leaves[0].id, "main.axis.pos");
     }
 
     #[test]
@@ -485,7 +499,7 @@ mod tests {
                     writable.insert(name.to_string());
                 }
             }
-            Plan::of(&symbols, 100, &writable)
+            Plan::of(&symbols, 100, &writing(&writable))
         };
         let int = ValueType::Signed(Elem::I16);
         let old = plan(&[
@@ -549,7 +563,7 @@ mod tests {
             symbols.push(symbol(name, int.clone(), 2 * i as u32));
         }
         let writable = BTreeSet::from(["main.buf[1]".to_string(), "main.buf[2]".to_string()]);
-        let plan = Plan::of(&symbols, 100, &writable);
+        let plan = Plan::of(&symbols, 100, &writing(&writable));
         // (id, browse name, elements, dimensions, writable)
         type Seen<'a> = (&'a str, &'a str, Vec<usize>, &'a [u32], bool);
         let arrays: Vec<Seen> = plan
@@ -573,7 +587,7 @@ mod tests {
             "not the arrays of structs, nor one missing an element (max_nodes); writable if all are"
         );
         let all = BTreeSet::from(["other.buf[5]".to_string(), "other.buf[6]".to_string()]);
-        assert!(Plan::of(&symbols, 100, &all).arrays[4].writable);
+        assert!(Plan::of(&symbols, 100, &writing(&all)).arrays[4].writable);
         // A changed length, or a changed shape of as many elements, replaces the array's node.
         let mut shorter = Symbols::default();
         shorter.push(symbol("main.buf[1]", int.clone(), 0));
@@ -585,8 +599,11 @@ mod tests {
         {
             shorter.push(symbol(name, int.clone(), 10 + 2 * i as u32));
         }
-        let changes =
-            Plan::of(&symbols, 100, &writable).changes_to(&Plan::of(&shorter, 100, &writable));
+        let changes = Plan::of(&symbols, 100, &writing(&writable)).changes_to(&Plan::of(
+            &shorter,
+            100,
+            &writing(&writable),
+        ));
         assert!(changes.remove_arrays.contains(&"main.buf".to_string()));
         assert!(changes.remove_arrays.contains(&"main.grid".to_string()), "2x3 to 3x2");
         let added: Vec<&[u32]> =
@@ -602,7 +619,7 @@ mod tests {
             OpcuaDevices { first: Address::parse("D00100").unwrap(), count: 2, writable: true },
             OpcuaDevices { first: Address::parse("M000F").unwrap(), count: 2, writable: false },
         ];
-        let plan = Plan::of(&Symbols::default(), 10, &BTreeSet::new()).with_devices(&ranges);
+        let plan = Plan::of(&Symbols::default(), 10, &OpcuaNames::default()).with_devices(&ranges);
         let leaves: Vec<(&str, &str, &ValueType, Pointer, bool, bool)> = plan
             .leaves
             .iter()
@@ -630,10 +647,30 @@ mod tests {
         symbols.push(symbol("main.setpoint", ValueType::Signed(Elem::I16), 0));
         symbols.push(symbol("main.level", ValueType::Signed(Elem::I16), 2));
         let writable = BTreeSet::from(["main.setpoint".to_string()]);
-        let plan = Plan::of(&symbols, 10, &writable);
+        let plan = Plan::of(&symbols, 10, &writing(&writable));
         let flags: Vec<(&str, bool)> =
             plan.leaves.iter().map(|l| (l.id.as_str(), l.writable)).collect();
         assert_eq!(flags, [("main.setpoint", true), ("main.level", false)]);
+    }
+
+    #[test]
+    fn an_engineering_range_makes_an_analog_item_and_its_change_a_new_node() {
+        use crate::config::EuRange;
+        let mut symbols = Symbols::default();
+        symbols.push(symbol("main.temp", ValueType::Real(Elem::F32), 0));
+        symbols.push(symbol("main.level", ValueType::Signed(Elem::I16), 4));
+        let ranged = |high: f64| OpcuaNames {
+            analog: [("main.temp".to_string(), EuRange { low: 0.0, high })].into(),
+            ..OpcuaNames::default()
+        };
+        let plan = Plan::of(&symbols, 10, &ranged(150.0));
+        let ranges: Vec<_> = plan.leaves.iter().map(|l| (l.id.as_str(), l.range)).collect();
+        let range = Some(EuRange { low: 0.0, high: 150.0 });
+        assert_eq!(ranges, [("main.temp", range), ("main.level", None)]);
+        // A changed range is a changed node (its property and type definition go with it).
+        let changes = plan.changes_to(&Plan::of(&symbols, 10, &ranged(200.0)));
+        assert_eq!(changes.remove_leaves, ["main.temp"]);
+        assert!(plan.changes_to(&Plan::of(&symbols, 10, &ranged(150.0))).remove_leaves.is_empty());
     }
 
     #[test]
@@ -642,7 +679,7 @@ mod tests {
         for i in 0..5 {
             symbols.push(symbol(&format!("main.v{i}"), ValueType::Bool, i));
         }
-        let plan = Plan::of(&symbols, 3, &BTreeSet::new());
+        let plan = Plan::of(&symbols, 3, &OpcuaNames::default());
         assert_eq!((plan.leaves.len(), plan.left_out), (3, 2));
     }
 
@@ -653,7 +690,7 @@ mod tests {
         symbols.push(symbol("Status.other", ValueType::Bool, 1));
         symbols.push(symbol("PLC.x", ValueType::Bool, 2));
         symbols.push(symbol("main.x", ValueType::Bool, 3));
-        let plan = Plan::of(&symbols, 10, &BTreeSet::new());
+        let plan = Plan::of(&symbols, 10, &OpcuaNames::default());
         assert_eq!(plan.unserved, 3);
         let ids: Vec<&str> = plan.leaves.iter().map(|l| l.id.as_str()).collect();
         assert_eq!(ids, ["main.x"]);

@@ -37,6 +37,7 @@ use crate::drivers::real_time::{pending, Shared, PLAIN_THREAD_STACK};
 use crate::engine::event::ErrorKind;
 use crate::engine::Engine;
 use crate::files::LiveUsers;
+use crate::project::OpcuaNames;
 use crate::symbols::Symbols;
 use crate::value::ValueType;
 use crate::vm::retained::RetainedVariables;
@@ -74,14 +75,14 @@ pub struct OpcuaServer {
 impl OpcuaServer {
     /// Binds `[opcua] listen`; `None` when it is not set. `pki_dir` is where the certificates
     /// live (`[opcua] pki_dir`, else `opcua-pki` in the retain directory: the daemon says);
-    /// `symbols` are the project's variables, `writable` the full names of those clients may
-    /// write ([`crate::project::Project::opcua_writable`]), `users` the users file's users
+    /// `symbols` are the project's variables, `names` those clients may write and those with
+    /// an engineering range ([`crate::project::Project::opcua_names`]), `users` the users file's users
     /// (`[users] file`, read by the daemon), if any.
     pub fn bind(
         config: &OpcuaConfig,
         pki_dir: Option<PathBuf>,
         symbols: &Symbols,
-        writable: &std::collections::BTreeSet<String>,
+        names: &OpcuaNames,
         users: Option<LiveUsers>,
     ) -> Result<Option<OpcuaServer>, OpcuaError> {
         let Some(addr) = config.listen else {
@@ -97,7 +98,7 @@ impl OpcuaServer {
         let words = crate::device::layout::TOTAL_WORDS as u16;
         let following =
             Arc::new(Following::new(config.max_nodes as usize, words, config.devices.clone()));
-        let plan = following.plan(symbols, writable);
+        let plan = following.plan(symbols, names);
         let mirror = Arc::new(Mirror::with_all_variables(std::iter::once(0..words)));
         Ok(Some(OpcuaServer {
             listener,

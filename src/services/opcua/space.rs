@@ -6,7 +6,7 @@ use opcua::nodes::{AccessLevel, MethodBuilder, ObjectBuilder, VariableBuilder};
 use opcua::server::SubscriptionCache;
 use opcua::types::{
     Argument, DataTypeId, DataValue, EnumValueType, ExtensionObject, LocalizedText, NodeId,
-    ObjectId, QualifiedName, StatusCode, UAString, VariableTypeId, Variant,
+    ObjectId, QualifiedName, Range, StatusCode, UAString, VariableTypeId, Variant,
 };
 
 use super::manager::PlcManager;
@@ -125,6 +125,25 @@ fn add(manager: &PlcManager, ns: u16, objects: &[Object], leaves: &[Leaf]) {
             .access_level(access)
             .user_access_level(access)
             .organized_by(id(ns, &leaf.parent));
+        if let Some(range) = leaf.range {
+            // An analog item (OPC UA Part 8): its EURange is what a percent deadband is a
+            // percentage of (the stack reads it when a monitored item asks for one).
+            builder.has_type_definition(VariableTypeId::AnalogItemType).insert(&mut *space);
+            let eu_range = Range { low: range.low, high: range.high };
+            VariableBuilder::new(
+                &id(ns, &eu_range_id(&leaf.id)),
+                QualifiedName::new(0, "EURange"),
+                "EURange",
+            )
+            .data_type(DataTypeId::Range)
+            .value(ExtensionObject::from_message(eu_range))
+            .access_level(AccessLevel::CURRENT_READ)
+            .user_access_level(AccessLevel::CURRENT_READ)
+            .has_type_definition(VariableTypeId::PropertyType)
+            .property_of(node)
+            .insert(&mut *space);
+            continue;
+        }
         let ValueType::Enum { values, .. } = &leaf.ty else {
             builder.has_type_definition(VariableTypeId::BaseDataVariableType).insert(&mut *space);
             continue;
@@ -169,6 +188,11 @@ fn add(manager: &PlcManager, ns: u16, objects: &[Object], leaves: &[Leaf]) {
     }
 }
 
+/// The node id of an analog item's EURange property.
+pub fn eu_range_id(leaf: &str) -> String {
+    format!("{leaf}.EURange")
+}
+
 /// The node id of an enumeration variable's EnumValues property.
 pub fn enum_values_id(leaf: &str) -> String {
     format!("{leaf}.EnumValues")
@@ -199,9 +223,10 @@ pub fn change(
         let mut space = manager.address_space().write();
         for (node, leaf) in gone.iter().zip(&changes.remove_leaves) {
             space.delete(node, true);
-            // An enumeration's properties (absent for other variables).
+            // An enumeration's or an analog item's properties (absent for other variables).
             space.delete(&id(ns, &enum_values_id(leaf)), true);
             space.delete(&id(ns, &value_as_text_id(leaf)), true);
+            space.delete(&id(ns, &eu_range_id(leaf)), true);
         }
         for array in &changes.remove_arrays {
             space.delete(&id(ns, array), true);
