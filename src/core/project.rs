@@ -439,20 +439,7 @@ impl Project {
                 )
             };
             let name = at.name.as_str();
-            if Address::parse(name).is_ok() {
-                errors.push(error(format!(
-                    "`{name}` is a device: the OPC UA server serves the programs' variables"
-                )));
-                continue;
-            }
-            if name.contains('^') {
-                errors.push(error(format!(
-                    "`{name}` names a variable through a reference, which changes as the \
-                     program runs: name the variable itself"
-                )));
-                continue;
-            }
-            let leaves = match self.resolve(name) {
+            let leaves = match self.opcua_leaves(name) {
                 Ok(leaves) => leaves,
                 Err(e) => {
                     errors.push(error(e));
@@ -485,6 +472,23 @@ impl Project {
         }
     }
 
+    /// What a name of the `[opcua]` config stands for, as `plcctl` resolves it; not a device,
+    /// nor a name through a reference (it changes as the program runs).
+    fn opcua_leaves(&self, name: &str) -> Result<Vec<Watched>, String> {
+        if Address::parse(name).is_ok() {
+            return Err(format!(
+                "`{name}` is a device: the OPC UA server serves the programs' variables"
+            ));
+        }
+        if name.contains('^') {
+            return Err(format!(
+                "`{name}` names a variable through a reference, which changes as the program \
+                 runs: name the variable itself"
+            ));
+        }
+        self.resolve(name)
+    }
+
     /// The variables `[opcua] writable` makes writable, by their full names with the spelling
     /// of their declarations: each name as `plcctl set` resolves it, a struct, FB instance or
     /// array standing for its variables, less its `CONSTANT`s. A name that is a device, names
@@ -503,20 +507,7 @@ impl Project {
                 )
             };
             let name = entry.name.as_str();
-            if Address::parse(name).is_ok() {
-                errors.push(error(format!(
-                    "`{name}` is a device: the OPC UA server serves the programs' variables"
-                )));
-                continue;
-            }
-            if name.contains('^') {
-                errors.push(error(format!(
-                    "`{name}` names a variable through a reference, which changes as the \
-                     program runs: name the variable itself"
-                )));
-                continue;
-            }
-            let leaves = match self.resolve(name) {
+            let leaves = match self.opcua_leaves(name) {
                 Ok(leaves) => leaves,
                 Err(e) => {
                     errors.push(error(e));
