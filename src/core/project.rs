@@ -428,41 +428,14 @@ impl Project {
     ) -> Result<std::collections::BTreeMap<String, crate::config::EuRange>, Vec<Diagnostic>> {
         let mut ranges = std::collections::BTreeMap::new();
         let mut errors = Vec::new();
+        let number = |s: &Symbol| {
+            matches!(s.ty, ValueType::Signed(_) | ValueType::Unsigned(_) | ValueType::Real(_))
+        };
+        let none = "number (an integer or a REAL): an engineering range is for numbers";
         for entry in &self.config.opcua.analog {
-            let at = &entry.variable;
-            let error = |message: String| {
-                Diagnostic::new(
-                    &self.config.path,
-                    at.line,
-                    at.col,
-                    format!("opcua.analog: {message}"),
-                )
-            };
-            let name = at.name.as_str();
-            let leaves = match self.opcua_leaves(name) {
-                Ok(leaves) => leaves,
-                Err(e) => {
-                    errors.push(error(e));
-                    continue;
-                }
-            };
-            let mut any = false;
-            for leaf in leaves {
-                if let Watched::Variable(symbol) = leaf {
-                    if matches!(
-                        symbol.ty,
-                        ValueType::Signed(_) | ValueType::Unsigned(_) | ValueType::Real(_)
-                    ) {
-                        any = true;
-                        ranges.insert(symbol.name, entry.range);
-                    }
-                }
-            }
-            if !any {
-                errors.push(error(format!(
-                    "`{name}` holds no number (an integer or a REAL): an engineering range is \
-                     for numbers"
-                )));
+            match self.opcua_variables("opcua.analog", &entry.variable, number, none) {
+                Ok(names) => ranges.extend(names.into_iter().map(|name| (name, entry.range))),
+                Err(error) => errors.push(error),
             }
         }
         if errors.is_empty() {
@@ -470,23 +443,6 @@ impl Project {
         } else {
             Err(errors)
         }
-    }
-
-    /// What a name of the `[opcua]` config stands for, as `plcctl` resolves it; not a device,
-    /// nor a name through a reference (it changes as the program runs).
-    fn opcua_leaves(&self, name: &str) -> Result<Vec<Watched>, String> {
-        if Address::parse(name).is_ok() {
-            return Err(format!(
-                "`{name}` is a device: the OPC UA server serves the programs' variables"
-            ));
-        }
-        if name.contains('^') {
-            return Err(format!(
-                "`{name}` names a variable through a reference, which changes as the program \
-                 runs: name the variable itself"
-            ));
-        }
-        self.resolve(name)
     }
 
     /// The variables `[opcua] writable` makes writable, by their full names with the spelling
@@ -497,37 +453,12 @@ impl Project {
     fn opcua_writable(&self) -> Result<std::collections::BTreeSet<String>, Vec<Diagnostic>> {
         let mut names = std::collections::BTreeSet::new();
         let mut errors = Vec::new();
+        let written = |s: &Symbol| !s.constant && !matches!(s.ty, ValueType::Reference { .. });
+        let none = "variable a client could write (CONSTANTs and references are never written)";
         for entry in &self.config.opcua.writable {
-            let error = |message: String| {
-                Diagnostic::new(
-                    &self.config.path,
-                    entry.line,
-                    entry.col,
-                    format!("opcua.writable: {message}"),
-                )
-            };
-            let name = entry.name.as_str();
-            let leaves = match self.opcua_leaves(name) {
-                Ok(leaves) => leaves,
-                Err(e) => {
-                    errors.push(error(e));
-                    continue;
-                }
-            };
-            let mut any = false;
-            for leaf in leaves {
-                if let Watched::Variable(symbol) = leaf {
-                    if !symbol.constant && !matches!(symbol.ty, ValueType::Reference { .. }) {
-                        any = true;
-                        names.insert(symbol.name);
-                    }
-                }
-            }
-            if !any {
-                errors.push(error(format!(
-                    "`{name}` holds no variable a client could write (CONSTANTs and references \
-                     are never written)"
-                )));
+            match self.opcua_variables("opcua.writable", entry, written, none) {
+                Ok(variables) => names.extend(variables),
+                Err(error) => errors.push(error),
             }
         }
         if errors.is_empty() {
@@ -535,6 +466,47 @@ impl Project {
         } else {
             Err(errors)
         }
+    }
+
+    /// The full names of the variables a name of the `[opcua]` config (of `key`) stands for,
+    /// as `plcctl` resolves it, that `keep` takes. An error at the name's line and column if
+    /// it is a device, names through a reference (which changes as the program runs), resolves
+    /// to nothing, or holds none that `keep` takes (it holds no `none`).
+    fn opcua_variables(
+        &self,
+        key: &str,
+        entry: &crate::config::WritableName,
+        keep: impl Fn(&Symbol) -> bool,
+        none: &str,
+    ) -> Result<Vec<String>, Diagnostic> {
+        let error = |message: String| {
+            Diagnostic::new(&self.config.path, entry.line, entry.col, format!("{key}: {message}"))
+        };
+        let name = entry.name.as_str();
+        if Address::parse(name).is_ok() {
+            return Err(error(format!(
+                "`{name}` is a device: the OPC UA server serves the programs' variables"
+            )));
+        }
+        if name.contains('^') {
+            return Err(error(format!(
+                "`{name}` names a variable through a reference, which changes as the program \
+                 runs: name the variable itself"
+            )));
+        }
+        let variables: Vec<String> = self
+            .resolve(name)
+            .map_err(error)?
+            .into_iter()
+            .filter_map(|leaf| match leaf {
+                Watched::Variable(symbol) if keep(&symbol) => Some(symbol.name),
+                _ => None,
+            })
+            .collect();
+        if variables.is_empty() {
+            return Err(error(format!("`{name}` holds no {none}")));
+        }
+        Ok(variables)
     }
 
     /// The variable name nearest to `name` (case-insensitive edit distance, at most about a
