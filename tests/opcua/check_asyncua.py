@@ -306,13 +306,18 @@ class Changes:
         self.statuses.append(data.monitored_item.Value.StatusCode.name)
 
 
+async def notified(changes, count):
+    """Waits, bounded by PATIENCE, until `changes` holds `count` values (or fewer at the end)."""
+    until = time.monotonic() + PATIENCE
+    while len(changes.values) < count and time.monotonic() < until:
+        await asyncio.sleep(0.02)
+
+
 async def subscribe(c, counter):
     handler = Changes()
     subscription = await c.create_subscription(SAMPLING_MS, handler)
     await subscription.subscribe_data_change(counter, sampling_interval=SAMPLING_MS)
-    until = time.monotonic() + PATIENCE
-    while len(handler.values) < 6 and time.monotonic() < until:
-        await asyncio.sleep(0.02)
+    await notified(handler, 6)
     check("a subscription's data changes arrive", len(handler.values) >= 6,
           f"{len(handler.values)} changes")
     rising = all(b > a for a, b in zip(handler.values, handler.values[1:]))
@@ -501,9 +506,7 @@ async def follows_a_reload(url, daemon):
         await subscription.subscribe_data_change(node("main.counter"), sampling_interval=SAMPLING_MS)
         other = await c.create_subscription(SAMPLING_MS, phase_changes)
         await other.subscribe_data_change(node("main.phase"), sampling_interval=SAMPLING_MS)
-        until = time.monotonic() + PATIENCE
-        while len(counter_changes.values) < 3 and time.monotonic() < until:
-            await asyncio.sleep(0.02)
+        await notified(counter_changes, 3)
         before = len(counter_changes.values)
         highest = max(counter_changes.values, default=0)
         program = Path(daemon.dir) / "main.st"
@@ -559,9 +562,7 @@ async def follows_an_online_change(url, daemon, plcctl):
               await wait_value(node("main.more"), 7) == 7)
         followed = [line for line in daemon.log if "address space follows the new project" in line]
         check("the log says so again", len(followed) == 2, "\n".join(daemon.log[-10:]))
-        until = time.monotonic() + PATIENCE
-        while len(changes.values) < 8 and time.monotonic() < until:
-            await asyncio.sleep(0.02)
+        await notified(changes, 8)
         values = [v for v in changes.values if v is not None]
         check("the counter's subscription goes on, never restarting",
               len(values) >= 8 and all(b > a for a, b in zip(values, values[1:])), f"{values}")
@@ -589,22 +590,28 @@ async def deadband(c, counter, plain):
     about 10 between two samples: with a deadband of 50, every notified change is more than 50
     from the one before. A percent deadband is of the variable's EURange: 1 % of the counter's
     0..5000 ([[opcua.analog]]) is 50 again; `plain`, without one, refuses it."""
+    def item(node, handle, kind, value):
+        params = ua.MonitoredItemCreateRequest()
+        params.ItemToMonitor = ua.ReadValueId(NodeId=node.nodeid, AttributeId=ua.AttributeIds.Value)
+        params.MonitoringMode = ua.MonitoringMode.Reporting
+        params.RequestedParameters = ua.MonitoringParameters(
+            ClientHandle=handle, SamplingInterval=SAMPLING_MS, QueueSize=10, DiscardOldest=True,
+            Filter=ua.DataChangeFilter(Trigger=ua.DataChangeTrigger.StatusValue,
+                                       DeadbandType=kind, DeadbandValue=value))
+        return params
+
+    async def moves(subscription, handler, params, what):
+        """The item created in `subscription` (checked accepted) and, once `handler` has four
+        notified values, the moves between them."""
+        results = await subscription.create_monitored_items([params])
+        check(f"{what} is accepted", results and isinstance(results[0], int), f"{results}")
+        await notified(handler, 4)
+        return [b - a for a, b in zip(handler.values, handler.values[1:])]
+
     handler = Changes()
     subscription = await c.create_subscription(SAMPLING_MS, handler)
-    params = ua.MonitoredItemCreateRequest()
-    params.ItemToMonitor = ua.ReadValueId(NodeId=counter.nodeid, AttributeId=ua.AttributeIds.Value)
-    params.MonitoringMode = ua.MonitoringMode.Reporting
-    params.RequestedParameters = ua.MonitoringParameters(
-        ClientHandle=1, SamplingInterval=SAMPLING_MS, QueueSize=10, DiscardOldest=True,
-        Filter=ua.DataChangeFilter(Trigger=ua.DataChangeTrigger.StatusValue,
-                                   DeadbandType=ua.DeadbandType.Absolute, DeadbandValue=50.0))
-    results = await subscription.create_monitored_items([params])
-    check("an absolute deadband filter is accepted", results and isinstance(results[0], int),
-          f"{results}")
-    until = time.monotonic() + PATIENCE
-    while len(handler.values) < 4 and time.monotonic() < until:
-        await asyncio.sleep(0.02)
-    steps = [b - a for a, b in zip(handler.values, handler.values[1:])]
+    steps = await moves(subscription, handler, item(counter, 1, ua.DeadbandType.Absolute, 50.0),
+                        "an absolute deadband filter")
     check("with a deadband of 50, each notified change moved more than 50",
           len(steps) >= 3 and min(steps) > 50, f"{handler.values}")
     definition = await counter.read_type_definition()
@@ -616,25 +623,15 @@ async def deadband(c, counter, plain):
           f"{eu!r}")
     percent = Changes()
     by_percent = await c.create_subscription(SAMPLING_MS, percent)
-    params.RequestedParameters.ClientHandle = 2
-    params.RequestedParameters.Filter = ua.DataChangeFilter(
-        Trigger=ua.DataChangeTrigger.StatusValue, DeadbandType=ua.DeadbandType.Percent,
-        DeadbandValue=1.0)
-    results = await by_percent.create_monitored_items([params])
-    check("a percent deadband on it is accepted", results and isinstance(results[0], int),
-          f"{results}")
-    until = time.monotonic() + PATIENCE
-    while len(percent.values) < 4 and time.monotonic() < until:
-        await asyncio.sleep(0.02)
-    moves = [b - a for a, b in zip(percent.values, percent.values[1:])]
+    by_one_percent = item(counter, 2, ua.DeadbandType.Percent, 1.0)
+    steps = await moves(by_percent, percent, by_one_percent, "a percent deadband on it")
     # The stack compares fractions of the range in floating point: a move of exactly 1 % may
     # pass by rounding (331 to 381 did), so at least 50, where the absolute deadband is past it.
     check("with 1 % of 0..5000, each notified change moved at least 50",
-          len(moves) >= 3 and min(moves) >= 50, f"{percent.values}")
+          len(steps) >= 3 and min(steps) >= 50, f"{percent.values}")
     await by_percent.delete()
-    params.ItemToMonitor = ua.ReadValueId(NodeId=plain.nodeid, AttributeId=ua.AttributeIds.Value)
-    params.RequestedParameters.ClientHandle = 3
     try:
+        params = item(plain, 3, ua.DeadbandType.Percent, 1.0)
         result = (await subscription.create_monitored_items([params]))[0]
         text = result.name if isinstance(result, ua.StatusCode) else repr(result)
     except ua.UaStatusCodeError as e:
