@@ -400,3 +400,68 @@ fn the_checks_see_what_they_must() {
     assert!(code_lines("a // crate::daemon\n#[cfg(test)]\nb")[2].2);
     assert_eq!(module_path(Path::new("drivers/real_time/mod.rs")), ["drivers", "real_time"]);
 }
+
+/// The features `cargo tree` says each package of `plcd`'s graph is built with, by
+/// "name version", for the kinds of dependencies in `edges`: a set, as a package built for the
+/// host (a build script's or a procedural macro's dependency) may have other features. Bounded: `cargo tree` reads the
+/// lock file and the local registry (offline), and is stopped after two minutes.
+fn built_features(edges: &str) -> BTreeMap<String, std::collections::BTreeSet<String>> {
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+    let out = std::env::temp_dir().join(format!("plcd-tree-{}-{edges}", std::process::id()));
+    let mut child = Command::new(env!("CARGO"))
+        .args(["tree", "--locked", "--offline", "--package", "plcd", "--prefix", "none"])
+        .args(["--edges", edges, "--format", "{p} {f}"])
+        .current_dir(root())
+        .stdin(Stdio::null())
+        .stdout(std::fs::File::create(&out).unwrap())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("cargo tree starts");
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("cargo tree --edges {edges} took more than 120 s");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let text = std::fs::read_to_string(&out).unwrap();
+    let _ = std::fs::remove_file(&out);
+    assert!(status.success(), "cargo tree --edges {edges}: {status}");
+    let mut features: BTreeMap<String, std::collections::BTreeSet<String>> = BTreeMap::new();
+    for line in text.lines() {
+        let mut words = line.split_whitespace();
+        let (Some(name), Some(version)) = (words.next(), words.next()) else { continue };
+        let enabled = words.next().filter(|w| !w.starts_with('(')).unwrap_or("");
+        features.entry(format!("{name} {version}")).or_default().insert(enabled.to_string());
+    }
+    assert!(features.len() > 50, "cargo tree --edges {edges} listed {} packages", features.len());
+    features
+}
+
+/// The release build of the binaries (no dev-dependencies) and the bench build (with them)
+/// share their compiled dependencies only where every package has the same features in both:
+/// Cargo.toml asks for those the dev-dependencies would add (its "feature unification" entries).
+#[test]
+fn builds_with_and_without_dev_dependencies_share_their_dependencies() {
+    let without = built_features("normal,build");
+    let with = built_features("normal,build,dev");
+    let differing: Vec<String> = without
+        .iter()
+        .filter_map(|(package, features)| {
+            let other = with.get(package)?;
+            (other != features).then(|| format!("{package}: {features:?} without, {other:?} with"))
+        })
+        .collect();
+    assert!(
+        differing.is_empty(),
+        "packages built with other features when the dev-dependencies are in (add them to \
+         plcd's feature unification entries in Cargo.toml):\n{}",
+        differing.join("\n")
+    );
+}
