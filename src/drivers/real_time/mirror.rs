@@ -51,6 +51,19 @@ enum Variables {
 /// Byte ranges of variable memory, sorted, not overlapping ([`byte_ranges`]).
 pub type ServedBytes = Arc<[Range<u32>]>;
 
+/// Engines whose served bytes a mirror keeps ([`MirrorImage::served`]): the one served now and
+/// four announced.
+pub const SERVED_KEPT: usize = 5;
+
+/// Drops the oldest announcements (after the first entry, the engine served now) beyond
+/// [`SERVED_KEPT`] entries. Consumer side: what it drops is freed there, never on the scan
+/// thread.
+fn keep_served_bounded(served: &mut Vec<(Arc<RetainedVariables>, ServedBytes)>) {
+    while served.len() > SERVED_KEPT {
+        served.remove(1);
+    }
+}
+
 /// A set of device word ranges copied at scan boundaries on request.
 pub struct Mirror {
     ranges: Box<[Range<u16>]>,
@@ -89,9 +102,11 @@ pub struct MirrorImage {
     pub replaced: Option<Arc<RetainedVariables>>,
     /// Bytes `vars` must have room for before the next copy can be taken (0: enough).
     pub room: usize,
-    /// For a mirror of all variables: the byte ranges of variable memory to copy for the engine
-    /// of this layout ([`Mirror::serve_only`]); for another engine the whole memory is copied.
-    pub served: Option<(Arc<RetainedVariables>, ServedBytes)>,
+    /// For a mirror of all variables: the byte ranges of variable memory to copy for the engines
+    /// of these layouts, the one served first ([`Mirror::serve_only`]), then engines announced
+    /// and not yet served ([`Mirror::serve_also`]), at most [`SERVED_KEPT`] in all; for
+    /// another engine the whole memory is copied.
+    pub served: Vec<(Arc<RetainedVariables>, ServedBytes)>,
     /// A copy was not taken until the consumer serves the image ([`MirrorImage::serve_reader`]).
     pub waiting_for_reader: bool,
 }
@@ -130,7 +145,7 @@ impl Mirror {
                 layout: None,
                 replaced: None,
                 room: 0,
-                served: None,
+                served: Vec::new(),
                 waiting_for_reader: false,
             }),
             fresh: Condvar::new(),
@@ -160,11 +175,32 @@ impl Mirror {
         image.layout = Some(Arc::clone(layout));
     }
 
-    /// Consumer side: for the engine of `layout`, copy only the bytes `ranges` of variable
-    /// memory (sorted, not overlapping: [`byte_ranges`] makes them). Taken by the copies from the
-    /// next scan boundary of that engine on.
+    /// Consumer side: for the engine of `layout`, the one the consumer serves now, copy only the
+    /// bytes `ranges` of variable memory (sorted, not overlapping: [`byte_ranges`] makes them).
+    /// Taken by the copies from the next scan boundary of that engine on. Engines announced
+    /// after it ([`Mirror::serve_also`]) keep their ranges; the others' are dropped.
     pub fn serve_only(&self, layout: &Arc<RetainedVariables>, ranges: ServedBytes) {
-        self.lock().served = Some((Arc::clone(layout), ranges));
+        let mut image = self.lock();
+        let served = &mut image.served;
+        // Those before it: the engine served until now, and announcements older than this one's.
+        let announced_after =
+            served.iter().position(|(l, _)| Arc::ptr_eq(l, layout)).map_or(0, |at| at + 1);
+        served.drain(..announced_after);
+        served.insert(0, (Arc::clone(layout), ranges));
+        keep_served_bounded(served);
+    }
+
+    /// Consumer side: for the engine of `layout`, announced and not yet running, copy only the
+    /// bytes `ranges` from its first scan boundary on (without it, the copies of a new engine
+    /// take its whole variable memory until the consumer has seen one and called
+    /// [`Mirror::serve_only`]). The oldest announcement goes beyond [`SERVED_KEPT`] entries;
+    /// the engine served now stays.
+    pub fn serve_also(&self, layout: &Arc<RetainedVariables>, ranges: ServedBytes) {
+        let mut image = self.lock();
+        let served = &mut image.served;
+        served.retain(|(l, _)| !Arc::ptr_eq(l, layout));
+        served.push((Arc::clone(layout), ranges));
+        keep_served_bounded(served);
     }
 
     pub fn ranges(&self) -> &[Range<u16>] {
@@ -277,10 +313,11 @@ impl Mirror {
             if new_layout {
                 image.replaced = image.layout.replace(Arc::clone(layout));
             }
-            let only = match &image.served {
-                Some((served, ranges)) if Arc::ptr_eq(served, layout) => Some(Arc::clone(ranges)),
-                _ => None,
-            };
+            let only = image
+                .served
+                .iter()
+                .find(|(served, _)| Arc::ptr_eq(served, layout))
+                .map(|(_, ranges)| Arc::clone(ranges));
             match (self.variables, only) {
                 (Variables::All, Some(ranges)) => {
                     // The consumer's bytes alone, at their own offsets. Within the capacity
@@ -484,6 +521,50 @@ mod tests {
         mirror.lock().serve_reader();
         assert!(copy(&two, &[5; 8]));
         assert_eq!(&mirror.lock().vars[..], &[5; 8]);
+    }
+
+    #[test]
+    fn an_engine_announced_before_it_runs_is_copied_by_its_served_bytes_from_its_first_copy() {
+        let mirror = Mirror::with_all_variables(std::iter::empty());
+        let (one, two) = (layout(&["a"]), layout(&["b"]));
+        mirror.prepare(&one, 8);
+        mirror.serve_only(&one, byte_ranges([(0, 1)], 0));
+        mirror.serve_also(&two, byte_ranges([(7, 1)], 0));
+        let copy = |layout: &Arc<RetainedVariables>, vars: &[u8]| {
+            mirror.request();
+            mirror.capture_with_variables(&[], Some((layout, vars)), 1, Mode::Run, 1)
+        };
+        assert!(copy(&one, &[1; 8]));
+        assert_eq!(&mirror.lock().vars[..], &[1, 0, 0, 0, 0, 0, 0, 0], "the served engine's");
+        mirror.lock().serve_reader();
+        assert!(copy(&two, &[2; 8]));
+        assert_eq!(&mirror.lock().vars[..], &[1, 0, 0, 0, 0, 0, 0, 2], "the announced one's");
+        // Served now: the engine before it goes, as would older announcements.
+        mirror.serve_only(&two, byte_ranges([(7, 1)], 0));
+        let served: Vec<_> = mirror.lock().served.iter().map(|(l, _)| Arc::clone(l)).collect();
+        assert_eq!(served.len(), 1);
+        assert!(Arc::ptr_eq(&served[0], &two));
+    }
+
+    #[test]
+    fn served_bytes_are_kept_for_the_served_engine_and_the_newest_announcements() {
+        let mirror = Mirror::with_all_variables(std::iter::empty());
+        let layouts: Vec<_> = (0..8).map(|i| layout(&[&format!("v{i}")])).collect();
+        mirror.serve_only(&layouts[0], byte_ranges([(0, 1)], 0));
+        for announced in &layouts[1..] {
+            mirror.serve_also(announced, byte_ranges([(0, 1)], 0));
+        }
+        let served: Vec<_> = mirror.lock().served.iter().map(|(l, _)| Arc::clone(l)).collect();
+        assert_eq!(served.len(), SERVED_KEPT);
+        assert!(Arc::ptr_eq(&served[0], &layouts[0]), "the engine served now stays");
+        for (kept, announced) in served[1..].iter().zip(&layouts[4..]) {
+            assert!(Arc::ptr_eq(kept, announced), "the newest announcements, in order");
+        }
+        // Announced again: moved to the newest place, not kept twice.
+        mirror.serve_also(&layouts[5], byte_ranges([(0, 1)], 0));
+        let served: Vec<_> = mirror.lock().served.iter().map(|(l, _)| Arc::clone(l)).collect();
+        assert_eq!(served.len(), SERVED_KEPT);
+        assert!(Arc::ptr_eq(&served[SERVED_KEPT - 1], &layouts[5]));
     }
 
     #[test]

@@ -8,12 +8,15 @@
 //! thread. The sampler recognises the engine in a mirror copy by its layout (the `Arc` of its
 //! retained variables, which every engine has its own of) and changes the address space to the
 //! announced plan ([`Following::plan_of`], then `space::change`). A queued engine the scan
-//! thread refuses is never copied; its plan is dropped after [`KEPT`] newer ones.
+//! thread refuses is never copied; its plan is dropped after [`KEPT`] newer ones. The mirror
+//! learns the announced engine's bytes at once ([`Mirror::serve_also`]), so that even its first
+//! copies take the served variables' bytes only, not its whole variable memory.
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 
 use super::nodes::{self, Plan};
+use crate::drivers::real_time::mirror::{byte_ranges, Mirror, ServedBytes};
 use crate::project::OpcuaNames;
 use crate::symbols::Symbols;
 use crate::vm::retained::RetainedVariables;
@@ -29,6 +32,21 @@ pub struct Following {
     /// The device words the mirror copies: a located variable past them is not served.
     words: u16,
     plans: Mutex<VecDeque<(Arc<RetainedVariables>, Arc<Plan>)>>,
+    /// The server's mirror, told each announced engine's bytes.
+    mirror: Arc<Mirror>,
+}
+
+/// The bytes of variable memory `plan`'s variables are read from: what the scan thread copies
+/// for the server, instead of the whole memory (docs/OPCUA.md, "Off the scan path").
+pub fn variable_bytes(plan: &Plan) -> ServedBytes {
+    use crate::value::Space;
+    let pieces = plan
+        .leaves
+        .iter()
+        .filter(|leaf| leaf.at.space == Space::Var)
+        .map(|leaf| (leaf.at.offset, leaf.ty.bytes()));
+    // Pieces closer than 64 bytes are copied as one.
+    byte_ranges(pieces, 64)
 }
 
 impl Following {
@@ -36,8 +54,9 @@ impl Following {
         max_nodes: usize,
         words: u16,
         devices: Vec<crate::config::OpcuaDevices>,
+        mirror: Arc<Mirror>,
     ) -> Following {
-        Following { max_nodes, devices, words, plans: Mutex::new(VecDeque::new()) }
+        Following { max_nodes, devices, words, plans: Mutex::new(VecDeque::new()), mirror }
     }
 
     /// The plan of `symbols` for a server whose mirror copies `words` device words: at most
@@ -55,6 +74,7 @@ impl Following {
     /// [`crate::engine::Engine::retained_variables`], `symbols` and `names` its project's.
     pub fn announce(&self, layout: &Arc<RetainedVariables>, symbols: &Symbols, names: &OpcuaNames) {
         let plan = Arc::new(self.plan(symbols, names));
+        self.mirror.serve_also(layout, variable_bytes(&plan));
         let mut plans = self.plans.lock().unwrap_or_else(|e| e.into_inner());
         if plans.len() >= KEPT {
             plans.pop_front();
@@ -89,9 +109,27 @@ mod tests {
         symbols
     }
 
+    fn following() -> (Following, Arc<Mirror>) {
+        let mirror = Arc::new(Mirror::with_all_variables(std::iter::empty()));
+        (Following::new(100, 10, Vec::new(), Arc::clone(&mirror)), mirror)
+    }
+
+    #[test]
+    fn an_announced_engine_s_bytes_are_told_to_the_mirror_at_once() {
+        let (following, mirror) = following();
+        let layout = Arc::new(RetainedVariables::default());
+        let names = symbols(&[("main.a", Space::Var, 100), ("main.w", Space::Word, 3)]);
+        following.announce(&layout, &names, &OpcuaNames::default());
+        let image = mirror.lock();
+        let (served, bytes) = image.served.last().expect("told");
+        assert!(Arc::ptr_eq(served, &layout));
+        let expected = std::iter::once(100..102).collect::<Vec<_>>();
+        assert_eq!(&bytes[..], &expected[..], "the variable's bytes, not the device word's");
+    }
+
     #[test]
     fn an_engine_is_found_by_its_layout_once_and_old_announcements_go() {
-        let following = Following::new(100, 10, Vec::new());
+        let (following, _) = following();
         let layouts: Vec<Arc<RetainedVariables>> =
             (0..=KEPT).map(|_| Arc::new(RetainedVariables::default())).collect();
         let names = symbols(&[("main.a", Space::Var, 0)]);
@@ -107,7 +145,7 @@ mod tests {
 
     #[test]
     fn a_located_variable_past_the_copied_words_is_not_served() {
-        let following = Following::new(100, 10, Vec::new());
+        let (following, _) = following();
         let names = symbols(&[
             ("main.in_copy", Space::Word, 9),
             ("main.past", Space::Word, 10),

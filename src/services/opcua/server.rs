@@ -23,7 +23,7 @@ use opcua::server::{ServerBuilder, ServerEndpoint, ServerHandle, ANONYMOUS_USER_
 use opcua::types::{DataValue, LocalizedText, MessageSecurityMode, NodeId, StatusCode, Variant};
 
 use super::access::Access;
-use super::follow::Following;
+use super::follow::{variable_bytes, Following};
 use super::front::{self, Front};
 use super::manager::{Forget, PlcManager, PlcNodesBuilder, Target, Targets};
 use super::nodes::{self, Plan, STATUS_NODES};
@@ -96,10 +96,14 @@ impl OpcuaServer {
         // All of device memory (at most 64 Ki words), so that a place indexes the copy as it
         // indexes device memory, and a located variable of a project loaded later is in it too.
         let words = crate::device::layout::TOTAL_WORDS as u16;
-        let following =
-            Arc::new(Following::new(config.max_nodes as usize, words, config.devices.clone()));
-        let plan = following.plan(symbols, names);
         let mirror = Arc::new(Mirror::with_all_variables(std::iter::once(0..words)));
+        let following = Arc::new(Following::new(
+            config.max_nodes as usize,
+            words,
+            config.devices.clone(),
+            Arc::clone(&mirror),
+        ));
+        let plan = following.plan(symbols, names);
         Ok(Some(OpcuaServer {
             listener,
             addr,
@@ -254,19 +258,6 @@ fn targets_of(plan: &Plan) -> std::collections::HashMap<String, Target> {
         (a.id.clone(), Target { ty, elements, dimensions, device: false })
     });
     leaves.chain(arrays).collect()
-}
-
-/// The bytes of variable memory `plan`'s variables are read from: what the scan thread copies
-/// for the server, instead of the whole memory (docs/OPCUA.md, "Off the scan path").
-fn variable_bytes(plan: &Plan) -> Arc<[std::ops::Range<u32>]> {
-    use crate::value::Space;
-    let pieces = plan
-        .leaves
-        .iter()
-        .filter(|leaf| leaf.at.space == Space::Var)
-        .map(|leaf| (leaf.at.offset, leaf.ty.bytes()));
-    // Pieces closer than 64 bytes are copied as one.
-    crate::drivers::real_time::mirror::byte_ranges(pieces, 64)
 }
 
 /// What of a plan's variables is not served, for the log.
