@@ -13,8 +13,15 @@
 //!
 //! The checks read text: a `crate::` path in a comment is not an import and is skipped.
 
-use std::collections::BTreeMap;
+mod harness;
+
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use harness::runner::wait_bounded;
+use harness::tempdir::TempDir;
 
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -403,12 +410,12 @@ fn the_checks_see_what_they_must() {
 
 /// The features `cargo tree` says each package of `plcd`'s graph is built with, by
 /// "name version", for the kinds of dependencies in `edges`: a set, as a package built for the
-/// host (a build script's or a procedural macro's dependency) may have other features. Bounded: `cargo tree` reads the
-/// lock file and the local registry (offline), and is stopped after two minutes.
-fn built_features(edges: &str) -> BTreeMap<String, std::collections::BTreeSet<String>> {
-    use std::process::{Command, Stdio};
-    use std::time::{Duration, Instant};
-    let out = std::env::temp_dir().join(format!("plcd-tree-{}-{edges}", std::process::id()));
+/// host (a build script's or a procedural macro's dependency) may have other features.
+/// Bounded: `cargo tree` reads the lock file and the local registry (offline), and is stopped
+/// after two minutes.
+fn built_features(edges: &str) -> BTreeMap<String, BTreeSet<String>> {
+    let dir = TempDir::new("architecture-tree");
+    let out = dir.join("tree.txt");
     let mut child = Command::new(env!("CARGO"))
         .args(["tree", "--locked", "--offline", "--package", "plcd", "--prefix", "none"])
         .args(["--edges", edges, "--format", "{p} {f}"])
@@ -418,29 +425,17 @@ fn built_features(edges: &str) -> BTreeMap<String, std::collections::BTreeSet<St
         .stderr(Stdio::inherit())
         .spawn()
         .expect("cargo tree starts");
-    let deadline = Instant::now() + Duration::from_secs(120);
-    let status = loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            break status;
-        }
-        if Instant::now() > deadline {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("cargo tree --edges {edges} took more than 120 s");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let text = std::fs::read_to_string(&out).unwrap();
-    let _ = std::fs::remove_file(&out);
-    assert!(status.success(), "cargo tree --edges {edges}: {status}");
-    let mut features: BTreeMap<String, std::collections::BTreeSet<String>> = BTreeMap::new();
-    for line in text.lines() {
+    let what = format!("cargo tree --edges {edges}");
+    let status = wait_bounded(&mut child, Duration::from_secs(120), &what);
+    assert!(status.success(), "{what}: {status}");
+    let mut features: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for line in std::fs::read_to_string(&out).unwrap().lines() {
         let mut words = line.split_whitespace();
         let (Some(name), Some(version)) = (words.next(), words.next()) else { continue };
         let enabled = words.next().filter(|w| !w.starts_with('(')).unwrap_or("");
         features.entry(format!("{name} {version}")).or_default().insert(enabled.to_string());
     }
-    assert!(features.len() > 50, "cargo tree --edges {edges} listed {} packages", features.len());
+    assert!(features.len() > 50, "{what} listed {} packages", features.len());
     features
 }
 

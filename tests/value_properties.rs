@@ -361,12 +361,15 @@ fn elem() -> impl Strategy<Value = Elem> {
 
 fn same_bits(a: u64, b: u64, elem: Elem) -> bool {
     // NaNs of either payload are the same value.
+    a == b || (is_nan(elem, a) && is_nan(elem, b))
+}
+
+/// Whether the slot `bits` of type `elem` holds a NaN (never, for an integer type).
+fn is_nan(elem: Elem, bits: u64) -> bool {
     match elem {
-        Elem::F32 => {
-            a == b || (f32::from_bits(a as u32).is_nan() && f32::from_bits(b as u32).is_nan())
-        }
-        Elem::F64 => a == b || (f64::from_bits(a).is_nan() && f64::from_bits(b).is_nan()),
-        _ => a == b,
+        Elem::F32 => f32::from_bits(bits as u32).is_nan(),
+        Elem::F64 => f64::from_bits(bits).is_nan(),
+        _ => false,
     }
 }
 
@@ -534,12 +537,7 @@ fn two_different_nans(stack: &[(Elem, u64)]) -> bool {
     let (elem, a) = stack[stack.len() - 2];
     let (from, b) = stack[stack.len() - 1];
     let b = if from == elem { b } else { ref_convert(from, elem, b) };
-    let nan = |v: u64| match elem {
-        Elem::F32 => f32::from_bits(v as u32).is_nan(),
-        Elem::F64 => f64::from_bits(v).is_nan(),
-        _ => false,
-    };
-    nan(a) && nan(b) && a != b
+    is_nan(elem, a) && is_nan(elem, b) && a != b
 }
 
 fn program(code: Vec<Op>, consts: Vec<u64>) -> Program {
