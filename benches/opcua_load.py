@@ -330,6 +330,8 @@ def main():
 
     def ms(seconds):
         return f"{seconds * 1000:.1f} ms"
+
+    peak_kib = max(r["hwm"] for phases in runs.values() for r in phases)
     out = [
         "Command: `benches/opcua-load`  ",
         f"Machine: {machine()}  ",
@@ -347,7 +349,7 @@ def main():
         "scan boundary: the program sees the value in the next scan) and then the notification "
         "carrying the number back, from the answer (the program changed it within one 1 ms scan "
         "period of the answer); the probe runs at nice -10, above the load's clients"
-        + (f", which run at nice {args.clients_nice}." if args.clients_nice else ".") ,
+        + (f", which run at nice {args.clients_nice}." if args.clients_nice else "."),
         "",
         f"| figure | no clients | {CLIENTS} clients × {VARIABLES} items | ratio |",
         "|---|---|---|---|",
@@ -366,7 +368,7 @@ def main():
     out += [
         "",
         f"- probes: {len(quiet['writes'])} without clients, {len(loaded['writes'])} with them; "
-        f"the daemon's peak resident memory (VmHWM): {max(r['hwm'] for c in runs for r in runs[c]) / 1024:.1f} MiB",
+        f"the daemon's peak resident memory (VmHWM): {peak_kib / 1024:.1f} MiB",
         f"- OPC UA threads' CPU: {quiet['cpu'] * 100:.1f} % of one CPU without clients, "
         f"{loaded['cpu'] * 100:.1f} % with them",
         f"- data changes the clients received: {loaded['changes']:.0f}/s "
