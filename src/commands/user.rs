@@ -4,7 +4,10 @@
 //! atomically: a temporary file in the same folder, fsync, rename, fsync of the folder; mode
 //! 0600 when it is created, the mode and owner it had otherwise), the salt (from the OS random
 //! source) and the password, read from the terminal without echo, twice, or from standard input
-//! with `--password-stdin`. The file's format, the roles and the hash are `plcd_core::users`'s.
+//! with `--password-stdin`. Two runs that change one file at once take turns: each reads,
+//! changes and writes the file holding an exclusive lock on a lock file beside it, taken after
+//! the password is read (so nobody waits on a prompt), and waits [`LOCK_WAIT`] at most for it.
+//! The file's format, the roles and the hash are `plcd_core::users`'s.
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{Read, Write};
@@ -14,8 +17,10 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use nix::errno::Errno;
+use nix::fcntl::{Flock, FlockArg};
 use nix::poll::{PollFd, PollFlags, PollTimeout};
 use nix::sys::termios::{self, LocalFlags, SetArg, SpecialCharacterIndices, Termios};
 use password_hash::rand_core::{OsRng, RngCore};
@@ -27,6 +32,10 @@ use crate::users::{self, HashCosts, Role, UsersError, UsersFile, SALT_LEN};
 /// The longest password read, in bytes: far beyond any passphrase, short of a file piped in by
 /// mistake.
 pub const PASSWORD_MAX: usize = 1024;
+
+/// How long a change waits for another run changing the same file: far beyond the few
+/// milliseconds a change holds the lock (the password's hash is made before it is taken).
+pub const LOCK_WAIT: Duration = Duration::from_secs(10);
 
 /// The command's arguments.
 #[derive(Debug, Clone, clap::Args)]
@@ -91,6 +100,12 @@ pub enum UserError {
     Read { path: PathBuf, source: std::io::Error },
     #[error("cannot write the users file {path}: {what}: {source}")]
     Write { path: PathBuf, what: &'static str, source: std::io::Error },
+    #[error(
+        "the users file {path} is being changed by another process (it has held {lock} for \
+         {} s); nothing written",
+        LOCK_WAIT.as_secs()
+    )]
+    Busy { path: PathBuf, lock: PathBuf },
     #[error("{0}")]
     Users(#[from] UsersError),
     #[error(
@@ -180,7 +195,8 @@ fn add(
     // Everything that can be refused is refused before the password is asked for.
     users::check_name(name)?;
     let path = users_path(args)?;
-    let existing = read(&path)?;
+    // A file with errors is refused now; the change reads it again under the lock.
+    let _ = read(&path)?;
     let stdin = std::io::stdin();
     let password = if password_stdin {
         password_from_stdin(stdin.as_fd())?
@@ -190,13 +206,7 @@ fn add(
     let mut salt = [0u8; SALT_LEN];
     OsRng.fill_bytes(&mut salt);
     let hash = users::hash_password(&password.0, &salt, HashCosts::DEFAULT)?;
-    let created = existing.is_none();
-    let mut file = match existing {
-        Some(file) => file,
-        None => UsersFile::parse("", &path).map_err(UserError::Diagnostics)?,
-    };
-    let previous = file.set(name, role, &hash)?;
-    write_atomically(&path, &file.text(), created)?;
+    let previous = change(&path, LOCK_WAIT, |file| file.set(name, role, &hash))?;
     let _ = match previous {
         None => writeln!(out, "{}: added {name} ({role})", path.display()),
         Some(was) => writeln!(out, "{}: new password for {name} ({was} → {role})", path.display()),
@@ -206,11 +216,74 @@ fn add(
 
 fn remove(name: &str, args: &FileArgs, out: &mut impl Write) -> Result<(), UserError> {
     let path = users_path(args)?;
-    let mut file = read_existing(&path)?;
-    let role = file.remove(name)?;
-    write_atomically(&path, &file.text(), false)?;
+    // A missing file is its own error, not "no such user"; the change reads it again.
+    let _ = read_existing(&path)?;
+    let role = change(&path, LOCK_WAIT, |file| file.remove(name))?;
     let _ = writeln!(out, "{}: removed {name} ({role})", path.display());
     Ok(())
+}
+
+/// Reads the file at `path` (none yet: an empty one, created by the write), applies `edit` and
+/// writes the result, holding the file's change lock throughout ([`lock`], waiting `wait` at
+/// most), so that a change made by another run between its read and its write is never lost.
+fn change<T>(
+    path: &Path,
+    wait: Duration,
+    edit: impl FnOnce(&mut UsersFile) -> Result<T, UsersError>,
+) -> Result<T, UserError> {
+    let _lock = lock(path, wait)?;
+    let existing = read(path)?;
+    let created = existing.is_none();
+    let mut file = match existing {
+        Some(file) => file,
+        None => UsersFile::parse("", path).map_err(UserError::Diagnostics)?,
+    };
+    let result = edit(&mut file)?;
+    write_atomically(path, &file.text(), created)?;
+    Ok(result)
+}
+
+/// The lock file of the users file at `path`: `.NAME.plcd-user.lock` beside the file (beside
+/// the target of a symbolic link, which is what a change replaces). The users file itself cannot
+/// carry the lock: a change replaces it by a rename, and a lock on the old file would not keep
+/// another run from reading the new one.
+fn lock_path(path: &Path) -> PathBuf {
+    let target = fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+    let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    target.with_file_name(format!(".{name}.plcd-user.lock"))
+}
+
+/// Takes the exclusive lock of the users file at `path` (`flock` on [`lock_path`], created mode
+/// 0600 and left in place: removing it would let two runs lock two different files), trying
+/// again every 20 ms until `wait` has passed; released when dropped.
+fn lock(path: &Path, wait: Duration) -> Result<Flock<File>, UserError> {
+    let lock = lock_path(path);
+    let failed = |source: std::io::Error| UserError::Write {
+        path: path.to_path_buf(),
+        what: "open its lock file",
+        source,
+    };
+    let deadline = Instant::now() + wait;
+    let mut file = OpenOptions::new()
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .mode(0o600)
+        .open(&lock)
+        .map_err(failed)?;
+    loop {
+        match Flock::lock(file, FlockArg::LockExclusiveNonblock) {
+            Ok(locked) => return Ok(locked),
+            Err((back, Errno::EWOULDBLOCK | Errno::EINTR)) if Instant::now() < deadline => {
+                file = back;
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            Err((_, Errno::EWOULDBLOCK)) => {
+                return Err(UserError::Busy { path: path.to_path_buf(), lock })
+            }
+            Err((_, errno)) => return Err(failed(errno.into())),
+        }
+    }
 }
 
 fn list(args: &FileArgs, out: &mut impl Write) -> Result<(), UserError> {
@@ -552,6 +625,57 @@ mod tests {
         let error = write_atomically(&path, "# new\n", false).unwrap_err();
         assert!(error.to_string().contains("create a temporary file"), "{error}");
         assert_eq!(fs::read_to_string(&path).unwrap(), "# old\n");
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A valid hash, made cheaply (the file takes any costs up to the maximum).
+    fn cheap_hash() -> String {
+        let costs = HashCosts { memory_kib: 8, passes: 1, lanes: 1 };
+        users::hash_password(b"pw", &[7; SALT_LEN], costs).unwrap()
+    }
+
+    #[test]
+    fn a_change_waits_for_the_lock_and_gives_up_after_its_wait() {
+        let dir = temp_dir("busy");
+        let path = dir.join("users");
+        let hash = cheap_hash();
+        let held = lock(&path, Duration::ZERO).unwrap();
+        let started = Instant::now();
+        let error =
+            change(&path, Duration::from_millis(100), |f| f.set("ann", Role::Viewer, &hash))
+                .unwrap_err();
+        assert!(matches!(error, UserError::Busy { .. }), "{error}");
+        assert!(started.elapsed() >= Duration::from_millis(100), "it waited its wait");
+        assert!(error.to_string().contains(".users.plcd-user.lock"), "{error}");
+        assert!(!path.exists(), "nothing written");
+        drop(held);
+        change(&path, Duration::ZERO, |f| f.set("ann", Role::Viewer, &hash)).unwrap();
+        assert_eq!(read_existing(&path).unwrap().users().len(), 1);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn changes_at_once_from_many_threads_lose_nothing() {
+        let dir = temp_dir("together");
+        let path = dir.join("users");
+        let hash = cheap_hash();
+        // Each lock is its own open file description, so threads exclude each other as
+        // processes do. Without the lock two changes read the same file and the later write
+        // drops the earlier one's user.
+        std::thread::scope(|scope| {
+            for t in 0..8 {
+                let (path, hash) = (&path, &hash);
+                scope.spawn(move || {
+                    for k in 0..5 {
+                        let name = format!("u{t}_{k}");
+                        change(path, LOCK_WAIT, |f| f.set(&name, Role::Operator, hash)).unwrap();
+                    }
+                });
+            }
+        });
+        assert_eq!(read_existing(&path).unwrap().users().len(), 40);
+        let lock_file = dir.join(".users.plcd-user.lock");
+        assert_eq!(fs::metadata(&lock_file).unwrap().permissions().mode() & 0o7777, 0o600);
         fs::remove_dir_all(&dir).unwrap();
     }
 }
