@@ -349,8 +349,10 @@ impl IecLayout {
         match self.full(text)? {
             Full::Iec(direct) if direct.bits == bits => Ok(direct),
             Full::Iec(direct) => Err(format!(
-                "`%{text}` is a {}-bit location, `{key}` a {bits}-bit one",
-                direct.bits
+                "`%{text}` is {} {}-bit location, `{key}` {} {bits}-bit one",
+                sized(direct.bits),
+                direct.bits,
+                sized(bits)
             )),
             Full::Device(address) => {
                 if key.size == 'X' {
@@ -696,6 +698,15 @@ fn plcd_address(
     };
     let address = Address::parse(&device).map_err(|e| e.to_string())?;
     Ok(Direct { address, bits })
+}
+
+/// The article of a size in bits, for messages: "an 8-bit location", "a 16-bit location".
+pub fn sized(bits: u32) -> &'static str {
+    if bits == 8 {
+        "an"
+    } else {
+        "a"
+    }
 }
 
 #[cfg(test)]

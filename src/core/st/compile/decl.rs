@@ -5,7 +5,7 @@
 use std::collections::HashMap;
 use std::rc::Rc;
 
-use crate::device::iec::IecLayout;
+use crate::device::iec::{sized, IecLayout};
 use crate::device::{Address, BitRef, Writer};
 use crate::lang::Place;
 use crate::st::ast::{self, ArrayInit, Init, Item, PouKind, Span, TypeDef, TypeRef, VarKind};
@@ -1433,11 +1433,17 @@ impl<'a> Ctx<'a> {
         let prim = elem_ty.prim(&self.types).expect("scalar");
         if let Some(bits) = size_bits {
             if bits != prim.bits() && !(bits == 1 && prim == Prim::Bool) {
-                self.error(
-                    file,
-                    loc.span,
-                    format!("`%{text}` is a {bits}-bit location, `{name}` is `{}`", prim.name()),
-                );
+                let (a, ty) = (sized(bits), prim.name());
+                let message = if name.starts_with('%') {
+                    // A variable without a name (`AT %QB2 : WORD;`) goes by its address.
+                    format!(
+                        "`%{text}` is {a} {bits}-bit location, `{ty}` a {}-bit type",
+                        prim.bits()
+                    )
+                } else {
+                    format!("`%{text}` is {a} {bits}-bit location, `{name}` is `{ty}`")
+                };
+                self.error(file, loc.span, message);
                 return None;
             }
         }
