@@ -480,7 +480,16 @@ impl IecLayout {
         let upper = text.to_ascii_uppercase();
         let mut chars = upper.chars();
         let Some(letter @ ('I' | 'Q' | 'M')) = chars.next() else { return Ok(None) };
-        let Some(size @ ('X' | 'B' | 'W' | 'D' | 'L')) = chars.next() else { return Ok(None) };
+        let rest = chars.as_str();
+        // No size prefix is a bit (IEC 61131-3, "Directly represented variables": `%I0.0` is
+        // `%IX0.0`). plcd has no device I or Q; an `M` without a size is plcd's M device
+        // (`%M0003`) unless it has the bit level, which plcd's addresses never have (`%M1.2`).
+        let bare =
+            rest.starts_with(|c: char| c.is_ascii_digit()) && (letter != 'M' || rest.contains('.'));
+        let size = if bare { 'X' } else { chars.next().unwrap_or(' ') };
+        if !matches!(size, 'X' | 'B' | 'W' | 'D' | 'L') {
+            return Ok(None);
+        }
         let digits = chars.as_str();
         if !digits.starts_with(|c: char| c.is_ascii_digit()) {
             return Ok(None);

@@ -1754,6 +1754,13 @@ mod tests {
         for layout in [plcd, openplc] {
             assert_eq!(iec_address("D00100", &layout).unwrap(), None);
             assert_eq!(iec_address("M0010", &layout).unwrap(), None);
+            // No size prefix is a bit (IEC 61131-3; IEC's Annex F writes `%I0.0`): `%I` and
+            // `%Q` always (plcd has no such devices), `%M` with the bit level only.
+            for (bare, sized) in [("I0.3", "IX0.3"), ("q12.7", "QX12.7"), ("M1.2", "MX1.2")] {
+                assert_eq!(iec_address(bare, &layout), iec_address(sized, &layout), "{bare}");
+                assert!(iec_address(bare, &layout).unwrap().is_some(), "{bare}");
+            }
+            assert_eq!(iec_address("I*", &layout).unwrap(), None);
         }
     }
 }
