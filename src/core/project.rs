@@ -840,6 +840,9 @@ where
         if library.folder {
             let (files, projects) = reader.list(&library.resolved, line, col, &what);
             ok &= !files.is_empty();
+            if projects.is_empty() {
+                learnt.folder(reader, &library.resolved, base);
+            }
             for project in projects {
                 ok &= learnt.read(reader, &project, (line, col), &what);
             }

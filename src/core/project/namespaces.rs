@@ -13,7 +13,10 @@
 //!
 //! A `[[program]]`'s `.st` file is no TwinCAT project's and looks for none, and neither does an
 //! `[st] library` entry that is a file: a plain ST project keeps the namespaces its config
-//! lists.
+//! lists. An `[st] library` folder that holds no `.plcproj` and is in none (a library's sources
+//! copied without their project) is a namespace named after the folder, where its name is one a
+//! namespace may have: TwinCAT's `<DefaultNamespace>` is the project's name, and its folder has
+//! that name (`TcUnit/`).
 
 use std::path::{Component, Path, PathBuf};
 
@@ -31,12 +34,13 @@ pub(super) struct Learnt {
     read: Vec<PathBuf>,
 }
 
-/// Where a `.plcproj` names a namespace.
+/// Where a namespace was named: an element of a `.plcproj`, or a library folder's name.
 #[derive(Debug)]
 struct Place {
+    /// The `.plcproj`, or the folder.
     file: PathBuf,
-    line: u32,
-    origin: Origin,
+    /// The element of the `.plcproj` and its line; `None` for a folder.
+    element: Option<(u32, Origin)>,
 }
 
 impl Learnt {
@@ -62,12 +66,8 @@ impl Learnt {
         match plcproj::namespaces(&text) {
             Ok(found) => {
                 for ns in found {
-                    let place =
-                        Place { file: path.to_path_buf(), line: ns.span.line, origin: ns.origin };
-                    match self.names.iter_mut().find(|(n, _)| n.eq_ignore_ascii_case(&ns.name)) {
-                        Some((_, places)) => places.push(place),
-                        None => self.names.push((ns.name, vec![place])),
-                    }
+                    let element = Some((ns.span.line, ns.origin));
+                    self.add(ns.name, Place { file: path.to_path_buf(), element });
                 }
                 true
             }
@@ -77,6 +77,38 @@ impl Learnt {
                 }
                 false
             }
+        }
+    }
+
+    /// The library folder `dir`, which holds no `.plcproj`: its name is a namespace, if it is one
+    /// a namespace may have and no folder above it up to the config file's (`base`) holds a
+    /// `.plcproj` (then it is a part of that project, `App/Tests/`, and no library of its own;
+    /// a folder that cannot be listed counts as one that does). The module's doc says why.
+    pub(super) fn folder<R, L, F>(&mut self, reader: &Reader<'_, R, L, F>, dir: &Path, base: &Path)
+    where
+        R: Fn(&Path) -> std::io::Result<String>,
+        L: Fn(&Path) -> std::io::Result<Vec<PathBuf>>,
+        F: Fn(&Path) -> std::io::Result<Vec<PathBuf>>,
+    {
+        let name = dir.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+        if !crate::config::is_namespace(name) {
+            return;
+        }
+        let mut above = dir.parent();
+        while let Some(folder) = above.filter(|f| inside(f, base)) {
+            match (reader.files_in)(folder) {
+                Ok(files) if !files.iter().any(|f| crate::config::is_plcproj(f)) => {}
+                _ => return,
+            }
+            above = folder.parent();
+        }
+        self.add(name.to_string(), Place { file: dir.to_path_buf(), element: None });
+    }
+
+    fn add(&mut self, name: String, place: Place) {
+        match self.names.iter_mut().find(|(n, _)| n.eq_ignore_ascii_case(&name)) {
+            Some((_, places)) => places.push(place),
+            None => self.names.push((name, vec![place])),
         }
     }
 
@@ -154,7 +186,13 @@ impl Learnt {
             .map(|(name, places)| {
                 let from: Vec<String> = places
                     .iter()
-                    .map(|p| format!("{}:{} {}", shown(&p.file), p.line, p.origin))
+                    .map(|p| match &p.element {
+                        Some((line, origin)) => format!("{}:{line} {origin}", shown(&p.file)),
+                        None => format!(
+                            "{}/ (the library folder's name: it holds no .plcproj)",
+                            shown(&p.file)
+                        ),
+                    })
                     .collect();
                 let hint = match SystemLibrary::from_name(name) {
                     Some(library) if !shipped.contains(library) => format!(
@@ -266,6 +304,36 @@ mod tests {
         assert!(load(&without_lib, &[]).0.is_ok());
         without_app.remove(Path::new("/p/Lib/MyLib.plcproj"));
         let error = load(&without_app, &[]).0.unwrap_err();
+        assert_eq!(error, "/p/App/POUs/MAIN.TcPOU:3:9: error: unknown type `MyLib.FB_X`\n");
+    }
+
+    #[test]
+    fn a_library_folder_without_a_plcproj_is_a_namespace_of_its_name() {
+        // TcUnit's sources copied without their project: `MyLib/` is the namespace `MyLib`.
+        let mut files: BTreeMap<PathBuf, String> = tree()
+            .into_iter()
+            .filter(|(path, _)| !crate::config::is_plcproj(path))
+            .map(|(path, text)| match path.strip_prefix("/p/Lib") {
+                Ok(rest) => (Path::new("/p/MyLib").join(rest), text),
+                Err(_) => (path, text),
+            })
+            .collect();
+        let config = files.get_mut(Path::new("/p/plcd.toml")).unwrap();
+        *config = config.replace("\"Lib/\"", "\"MyLib/\"");
+        let project = load(&files, &[]).0.unwrap();
+        assert_eq!(
+            project.notes,
+            ["namespace MyLib, from MyLib/ (the library folder's name: it holds no .plcproj)"]
+        );
+        // A name no namespace may have is none (and the qualified type stays unknown).
+        let renamed: BTreeMap<PathBuf, String> = files
+            .into_iter()
+            .map(|(path, text)| match path.strip_prefix("/p/MyLib") {
+                Ok(rest) => (Path::new("/p/My-Lib").join(rest), text),
+                Err(_) => (path, text.replace("\"MyLib/\"", "\"My-Lib/\"")),
+            })
+            .collect();
+        let error = load(&renamed, &[]).0.unwrap_err();
         assert_eq!(error, "/p/App/POUs/MAIN.TcPOU:3:9: error: unknown type `MyLib.FB_X`\n");
     }
 
