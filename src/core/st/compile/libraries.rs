@@ -108,12 +108,19 @@ pub(super) fn file_count(libraries: SystemLibraries) -> usize {
     libraries.iter().map(|l| libraries::sources(l).len()).sum()
 }
 
-/// `[st] namespaces` and the names of the libraries and their inner namespaces.
+/// The namespace of CODESYS's Base Interfaces library, whose part plcd has built in, the type
+/// classes (`IBaseLibrary.TypeClass`, `IBaseLibrary.TYPE_BIT`): a namespace of every project,
+/// as every TwinCAT project references the library, whether a `.plcproj` says so or not.
+const BASE_INTERFACES: &str = "IBaseLibrary";
+
+/// `[st] namespaces`, the names of the libraries and their inner namespaces, and
+/// [`BASE_INTERFACES`].
 pub(super) fn namespaces(project: &[String], libraries: SystemLibraries) -> Vec<String> {
     let mut all = project.to_vec();
-    for name in libraries.iter().flat_map(libraries::namespaces) {
+    let shipped = libraries.iter().flat_map(libraries::namespaces).copied();
+    for name in shipped.chain([BASE_INTERFACES]) {
         if !all.iter().any(|n| n.eq_ignore_ascii_case(name)) {
-            all.push((*name).to_string());
+            all.push(name.to_string());
         }
     }
     all
