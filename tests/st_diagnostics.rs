@@ -713,6 +713,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "`TIME()` is CODESYS's clock, not IEC 61131-3: measure durations with the standard timers (`TON`) (`[st] strict` is on)",
         "strict-time-clock",
     ),
+    (
+        "the duration is beyond `LTIME`'s signed 64-bit nanoseconds (IEC 61131-3; CODESYS's and TwinCAT's unsigned `LTIME` goes to `LTIME#213503d23h34m33s709ms551us615ns`; `[st] strict` is on)",
+        "strict-unsigned-ltime",
+    ),
     ("`SIZEOF` is not IEC 61131-3 (`[st] strict` is on)", "strict-sizeof"),
     (
         "`{}` is TwinCAT's and CODESYS's dynamic memory; IEC 61131-3 has none: declare the instances, an array of them for a list (`[st] strict` is on)",

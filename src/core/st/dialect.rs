@@ -76,6 +76,10 @@ pub enum Habit {
     IntegerExpt,
     /// `TIME()`: the PLC's clock as a `TIME`.
     TimeClock,
+    /// A duration literal beyond the signed 64-bit nanoseconds of plcd's `TIME`/`LTIME`, up to
+    /// CODESYS's and TwinCAT's unsigned `LTIME` maximum (`LTIME#213503d23h34m33s709ms551us615ns`,
+    /// 2^64 − 1 ns): its 64 bits, as those runtimes hold it.
+    UnsignedLtime,
     /// `SIZEOF(x)`: the bytes a variable or a type takes.
     Sizeof,
     /// `__NEW(T, n)` or `__DELETE(p)` (TwinCAT, CODESYS): dynamic memory (compile/heap.rs);
@@ -184,6 +188,7 @@ impl Habit {
             Habit::BitShiftCount => "IEC 61131-3 counts a shift with an integer: `SHR(w, BYTE_TO_USINT(n))` (`[st] strict` is on)".to_string(),
             Habit::IntegerExpt => "IEC 61131-3 raises a `REAL` or `LREAL` base only: `EXPT(INT_TO_REAL(i), n)` (`[st] strict` is on)".to_string(),
             Habit::TimeClock => "`TIME()` is CODESYS's clock, not IEC 61131-3: measure durations with the standard timers (`TON`) (`[st] strict` is on)".to_string(),
+            Habit::UnsignedLtime => "the duration is beyond `LTIME`'s signed 64-bit nanoseconds (IEC 61131-3; CODESYS's and TwinCAT's unsigned `LTIME` goes to `LTIME#213503d23h34m33s709ms551us615ns`; `[st] strict` is on)".to_string(),
             Habit::Sizeof => "`SIZEOF` is not IEC 61131-3 (`[st] strict` is on)".to_string(),
             Habit::DynamicMemory(op) => format!("`{op}` is TwinCAT's and CODESYS's dynamic memory; IEC 61131-3 has none: declare the instances, an array of them for a list (`[st] strict` is on)"),
             Habit::Bit => "`BIT` is CODESYS and TwinCAT, not IEC 61131-3: declare a `BOOL` (`[st] strict` is on)".to_string(),

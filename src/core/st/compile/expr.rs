@@ -430,11 +430,18 @@ impl<'a> Ctx<'a> {
                     Some(Prim::LTime) => Prim::LTime,
                     _ => Prim::Time,
                 };
-                if !fits(Prim::LInt, *ns) {
-                    self.error(file, span, "the duration does not fit `TIME`");
-                    return TExpr::error(span);
+                let mut ns = *ns;
+                if !fits(Prim::LInt, ns) {
+                    if !fits(Prim::ULInt, ns) {
+                        self.error(file, span, "the duration does not fit `TIME`");
+                        return TExpr::error(span);
+                    }
+                    // CODESYS's and TwinCAT's LTIME is unsigned: its 64 bits (TcUnit's tests
+                    // write the maximum), which plcd's signed LTIME reads as negative.
+                    self.habit(Habit::UnsignedLtime, file, span);
+                    ns -= 1 << 64;
                 }
-                TExpr::konst(Cv::Int(*ns), Ty::Prim(p), span)
+                TExpr::konst(Cv::Int(ns), Ty::Prim(p), span)
             }
             Literal::Calendar(cal, count) => {
                 TExpr::konst(Cv::Int(i128::from(*count)), Ty::Prim(Prim::Cal(*cal)), span)

@@ -784,7 +784,8 @@ pub(crate) enum DurationError {
     NoUnit(String),
     /// Not a number where one must be: what is there instead (`` `x` `` or `nothing`).
     NoNumber(String),
-    /// More nanoseconds than an `i64` holds.
+    /// Fewer nanoseconds than an `i64` holds, or more than a `u64` does (between the two: the
+    /// compiler's to judge, CODESYS's unsigned `LTIME`).
     Range,
 }
 
@@ -853,12 +854,12 @@ pub(crate) fn parse_duration(body: &str) -> Result<i128, DurationError> {
             value += i128::from(b - b'0') * part;
         }
         total = total.checked_add(value).ok_or(DurationError::Range)?;
-        if total > i128::from(i64::MAX) + 1 {
+        if total > i128::from(u64::MAX) {
             return Err(DurationError::Range);
         }
     }
     let total = if negative { -total } else { total };
-    if total < i128::from(i64::MIN) || total > i128::from(i64::MAX) {
+    if total < i128::from(i64::MIN) {
         return Err(DurationError::Range);
     }
     Ok(total)

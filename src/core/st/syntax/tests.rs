@@ -384,15 +384,24 @@ fn reports_bad_durations() {
         lex_errors("x := T#;"),
         ["1:6: `T#` is not a duration: expected a number, found nothing"]
     );
-    // i64 nanoseconds hold about 106,751 days.
-    assert_eq!(lex_errors("T#106751d"), Vec::<String>::new());
-    assert_eq!(lex_errors("T#106752d"), ["1:1: `T#106752d` is out of range"]);
+    // u64 nanoseconds hold about 213,503 days: beyond i64's 106,751 the compiler judges (CODESYS's
+    // unsigned LTIME, a habit); beyond u64 the lexer refuses.
+    assert_eq!(lex_errors("T#106752d"), Vec::<String>::new());
+    assert_eq!(lex_errors("LTIME#213503D23H34M33S709MS551US615NS"), Vec::<String>::new());
+    assert_eq!(
+        lex_errors("LTIME#213503D23H34M33S709MS551US616NS"),
+        ["1:1: `LTIME#213503D23H34M33S709MS551US616NS` is out of range"]
+    );
+    assert_eq!(lex_errors("T#213504d"), ["1:1: `T#213504d` is out of range"]);
+    assert_eq!(lex_errors("T#-106752d"), ["1:1: `T#-106752d` is out of range"]);
     assert_eq!(
         lex_errors("T#99999999999999999999999999999999999999999d"),
         ["1:1: `T#99999999999999999999999999999999999999999d` is out of range"]
     );
     assert_eq!(parse_duration("-9223372036854775808ns"), Ok(i128::from(i64::MIN)));
-    assert_eq!(parse_duration("9223372036854775808ns"), Err(DurationError::Range));
+    assert_eq!(parse_duration("-9223372036854775809ns"), Err(DurationError::Range));
+    assert_eq!(parse_duration("18446744073709551615ns"), Ok(i128::from(u64::MAX)));
+    assert_eq!(parse_duration("18446744073709551616ns"), Err(DurationError::Range));
     assert_eq!(parse_duration("1s_2ms_"), Ok(1_002_000_000));
 }
 
