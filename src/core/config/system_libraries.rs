@@ -13,6 +13,8 @@ pub enum SystemLibrary {
     /// TwinCAT's `Tc2_Standard`: the WSTRING function `WLEN` (its standard blocks are the
     /// prelude's).
     Tc2Standard,
+    /// TwinCAT's `Tc2_Math`: rounding and modulo functions on `LREAL` (`FLOOR`, `MODABS` …).
+    Tc2Math,
     /// CODESYS's `SysFile` (with its `SysTypes` and `SysDir`'s `CmpErrors`): declared so that
     /// code using files compiles; plcd gives programs no file system, every call fails.
     SysFile,
@@ -20,10 +22,11 @@ pub enum SystemLibrary {
 
 impl SystemLibrary {
     /// Every library, in the order their names are listed in messages.
-    pub const ALL: [SystemLibrary; 4] = [
+    pub const ALL: [SystemLibrary; 5] = [
         SystemLibrary::Tc2System,
         SystemLibrary::Tc2Utilities,
         SystemLibrary::Tc2Standard,
+        SystemLibrary::Tc2Math,
         SystemLibrary::SysFile,
     ];
 
@@ -33,6 +36,7 @@ impl SystemLibrary {
             SystemLibrary::Tc2System => "Tc2_System",
             SystemLibrary::Tc2Utilities => "Tc2_Utilities",
             SystemLibrary::Tc2Standard => "Tc2_Standard",
+            SystemLibrary::Tc2Math => "Tc2_Math",
             SystemLibrary::SysFile => "SysFile",
         }
     }

@@ -1,11 +1,11 @@
 //! The system libraries plcd ships (`[st] system_libraries`, docs/ST.md "System libraries"):
-//! the declarations of TwinCAT's `Tc2_System`, `Tc2_Utilities` and `Tc2_Standard` and of
+//! the declarations of TwinCAT's `Tc2_System`, `Tc2_Utilities`, `Tc2_Standard` and `Tc2_Math` and of
 //! CODESYS's `SysFile` that public TwinCAT code calls, written in Structured Text and embedded in the binary as the
 //! prelude is.
 //!
 //! This folder owns those sources, one folder per library (`tc2_system/*.st`, …). Every line is
 //! plcd's own, written from the interface each vendor documents (Beckhoff Infosys, "TwinCAT 3
-//! PLC Lib: Tc2_System", "Tc2_Utilities" and "Tc2_Standard"; the CODESYS online help of `SysFile` and
+//! PLC Lib: Tc2_System", "Tc2_Utilities", "Tc2_Standard" and "Tc2_Math"; the CODESYS online help of `SysFile` and
 //! `CmpErrors`); each file says which pages it follows.
 //!
 //! A library named in the config is compiled after the project's own files and before the
@@ -28,6 +28,7 @@ pub fn namespaces(library: SystemLibrary) -> &'static [&'static str] {
         SystemLibrary::Tc2System => &["Tc2_System"],
         SystemLibrary::Tc2Utilities => &["Tc2_Utilities"],
         SystemLibrary::Tc2Standard => &["Tc2_Standard"],
+        SystemLibrary::Tc2Math => &["Tc2_Math"],
         SystemLibrary::SysFile => &["SysFile", "SysTypes", "SysDir", "CmpErrors"],
     }
 }
@@ -59,6 +60,7 @@ pub fn sources(library: SystemLibrary) -> &'static [Source] {
         SystemLibrary::Tc2Standard => {
             &[("<Tc2_Standard>/wstring.st", include_str!("tc2_standard/wstring.st"))]
         }
+        SystemLibrary::Tc2Math => &[("<Tc2_Math>/math.st", include_str!("tc2_math/math.st"))],
         SystemLibrary::SysFile => &[
             ("<SysFile>/Errors.st", include_str!("sysfile/Errors.st")),
             ("<SysFile>/sysfile.st", include_str!("sysfile/sysfile.st")),
