@@ -661,7 +661,7 @@ mod tests {
         let hash = cheap_hash();
         // Each lock is its own open file description, so threads exclude each other as
         // processes do. Without the lock two changes read the same file and the later write
-        // drops the earlier one's user.
+        // drops the earlier one's user (and, in one process, their temporary files collide).
         std::thread::scope(|scope| {
             for t in 0..8 {
                 let (path, hash) = (&path, &hash);
