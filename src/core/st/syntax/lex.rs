@@ -5,7 +5,7 @@
 //! nanoseconds) and strings with their `$` escapes. A malformed literal is reported and still
 //! yields a token, so that the parser goes on without a second error for the same mistake.
 
-use super::Msg;
+use super::{Msg, DESCRIPTION, DESCRIPTION_END};
 use crate::st::ast::Span;
 use crate::value::{calendar_body, Calendar, CalendarKind};
 
@@ -422,7 +422,13 @@ impl Lexer<'_> {
         while let Some(b) = self.peek() {
             match (b, self.peek_at(1)) {
                 (b' ' | b'\t' | b'\r' | b'\n' | b'\x0c', _) => self.bump(),
-                (b'(', Some(b'*')) => self.block_comment(b"(*", b"*)"),
+                (b'(', Some(b'*')) => {
+                    let (line, start) = (self.line, self.pos);
+                    self.block_comment(b"(*", b"*)");
+                    if self.text[start..self.pos].eq_ignore_ascii_case(DESCRIPTION) {
+                        self.description(line);
+                    }
+                }
                 (b'/', Some(b'*')) => self.block_comment(b"/*", b"*/"),
                 (b'/', Some(b'/')) => {
                     while self.peek().is_some_and(|b| b != b'\n') {
@@ -445,6 +451,25 @@ impl Lexer<'_> {
                 }
                 _ => return,
             }
+        }
+    }
+
+    /// The free text of a POU's description in the ST files KW-Software's MULTIPROG (Phoenix
+    /// Contact's PC WORX) exports, after its `(*@KEY@:DESCRIPTION*)`, which `line` opens: up to
+    /// and with `(*@KEY@:END_DESCRIPTION*)`, skipped as a comment (the text between is the
+    /// description, written without comment brackets).
+    fn description(&mut self, line: u32) {
+        let rest = &self.text[self.pos..];
+        let end = rest.to_ascii_uppercase().find(DESCRIPTION_END);
+        let target = self.pos + end.map_or(rest.len(), |at| at + DESCRIPTION_END.len());
+        while self.pos < target {
+            // one character at a time, so that lines are counted
+            self.bump();
+        }
+        if end.is_none() {
+            let span = self.span();
+            self.error(span, Msg::UnterminatedDescription { line: line.to_string() });
+            self.eof_in_comment = true;
         }
     }
 

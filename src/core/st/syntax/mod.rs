@@ -311,6 +311,10 @@ pub(crate) enum Msg {
     UnterminatedPragma {
         line: String,
     },
+    /// `(*@KEY@:DESCRIPTION*)` without its `(*@KEY@:END_DESCRIPTION*)`.
+    UnterminatedDescription {
+        line: String,
+    },
     UnterminatedString,
     NotANumber {
         text: String,
@@ -354,6 +358,12 @@ pub(crate) enum Msg {
 /// How deeply expressions, statements and initial values may nest.
 pub(crate) const MAX_DEPTH: usize = 64;
 
+/// The comment that opens a POU's description in KW-Software MULTIPROG's ST export (Phoenix
+/// Contact PC WORX), free text up to [`DESCRIPTION_END`] (`lex`).
+pub(crate) const DESCRIPTION: &str = "(*@KEY@:DESCRIPTION*)";
+/// The comment that ends such a description.
+pub(crate) const DESCRIPTION_END: &str = "(*@KEY@:END_DESCRIPTION*)";
+
 impl Msg {
     /// One message of each kind, its varying parts `{}`.
     pub(crate) fn templates() -> Vec<Msg> {
@@ -369,6 +379,7 @@ impl Msg {
         all.extend([
             Msg::UnterminatedComment { line: h() },
             Msg::UnterminatedPragma { line: h() },
+            Msg::UnterminatedDescription { line: h() },
             Msg::UnterminatedString,
             Msg::NotANumber { text: h() },
             Msg::OutOfRange { text: h() },
@@ -409,6 +420,10 @@ impl std::fmt::Display for Msg {
             Msg::UnterminatedPragma { line } => {
                 write!(f, "unterminated pragma (opened at line {line})")
             }
+            Msg::UnterminatedDescription { line } => write!(
+                f,
+                "no `{DESCRIPTION_END}` closes the description `{DESCRIPTION}` opened at line {line}"
+            ),
             Msg::UnterminatedString => write!(f, "unterminated string"),
             Msg::NotANumber { text } => write!(f, "`{text}` is not a number"),
             Msg::OutOfRange { text } => write!(f, "`{text}` is out of range"),

@@ -459,6 +459,26 @@ fn skips_comments_and_pragmas() {
 }
 
 #[test]
+fn skips_a_multiprog_description_as_a_comment() {
+    // KW-Software MULTIPROG's (PC WORX's) ST export: a POU's description is free text between
+    // two comments; IronPLC's oscat.st test file has one.
+    let text =
+        "(*@KEY@:DESCRIPTION*)\nversion 1.0\tgarret's é\n(* x *)\n(*@KEY@:END_DESCRIPTION*) a\nb";
+    let lexed = lex(text);
+    assert!(lexed.errors.is_empty(), "{:?}", lexed.errors);
+    let spans: Vec<(u32, u32)> = lexed.tokens.iter().map(|t| (t.span.line, t.span.col)).collect();
+    assert_eq!(spans, [(4, 27), (5, 1), (5, 2)], "a, b and the end, on the lines they are");
+    // any case, as the other keywords
+    assert_eq!(toks("(*@key@:description*) x + 1 (*@Key@:End_Description*) a"), vec![Tok::Ident]);
+    // another comment is just a comment
+    assert_eq!(toks("(*@KEY@:OTHER*) a"), vec![Tok::Ident]);
+    assert_eq!(
+        lex_errors("a\n(*@KEY@:DESCRIPTION*) text"),
+        ["2:27: no `(*@KEY@:END_DESCRIPTION*)` closes the description `(*@KEY@:DESCRIPTION*)` opened at line 2"]
+    );
+}
+
+#[test]
 fn reports_unexpected_characters() {
     assert_eq!(lex_errors("a @ b"), ["1:3: unexpected character `@`"]);
     assert_eq!(lex_errors("a\n ü"), ["2:2: unexpected character `ü`"]);
@@ -1441,7 +1461,7 @@ fn templates_are_distinct_and_well_formed() {
     sorted.dedup();
     assert_eq!(sorted.len(), all.len());
     let calendar = crate::value::CalendarError::TEMPLATES.len();
-    assert_eq!(all.len(), Want::ALL.len() + Closer::ALL.len() + 14 + calendar);
+    assert_eq!(all.len(), Want::ALL.len() + Closer::ALL.len() + 15 + calendar);
     for t in &all {
         assert!(
             t.starts_with(|c: char| !c.is_ascii_uppercase() || t.starts_with("WSTRING")),
