@@ -459,9 +459,12 @@ impl Lexer<'_> {
     /// and with `(*@KEY@:END_DESCRIPTION*)`, skipped as a comment (the text between is the
     /// description, written without comment brackets).
     fn description(&mut self, line: u32) {
-        let rest = &self.text[self.pos..];
-        let end = rest.to_ascii_uppercase().find(DESCRIPTION_END);
-        let target = self.pos + end.map_or(rest.len(), |at| at + DESCRIPTION_END.len());
+        let rest = &self.text.as_bytes()[self.pos..];
+        // looked for in place, any case: a copy of the rest of the file for each of a library
+        // export's hundreds of descriptions would make the file's lexing quadratic
+        let closer = DESCRIPTION_END.as_bytes();
+        let end = rest.windows(closer.len()).position(|w| w.eq_ignore_ascii_case(closer));
+        let target = self.pos + end.map_or(rest.len(), |at| at + closer.len());
         while self.pos < target {
             // one character at a time, so that lines are counted
             self.bump();
