@@ -6,7 +6,7 @@
 //! program is, and loading it is the project loader's job.
 //!
 //! The config is split by section, one file each (`plc`, `sim`, `timers`, `program`, `task`,
-//! `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `opcua`, `remote`, `st`, `iec`, `users`): its typed struct with the
+//! `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `opcua`, `mqtt`, `remote`, `st`, `iec`, `users`): its typed struct with the
 //! key's defaults and ranges, its raw form as serde reads it, and its checks. How the wiring
 //! maps onto GPIO line requests, the kernel's limits included, is [`wiring`]. What every
 //! section shares is `common`, and `serial` the keys of a serial line that `[modbus.rtu]` and
@@ -34,6 +34,7 @@ mod control;
 mod iec;
 mod io;
 mod modbus;
+mod mqtt;
 mod opcua;
 mod plc;
 mod program;
@@ -80,6 +81,7 @@ pub use control::ControlConfig;
 pub use iec::{IecAddress, IecConfig, IecVariable};
 pub use io::{Backend, Bias, IoConfig, IoLine, LineRef, LINE_NAME_MAX};
 pub use modbus::{ModbusConfig, ModbusRange, ModbusRtuConfig, ModbusTable};
+pub use mqtt::{BrokerUrl, MqttConfig, MqttDeadband, MqttDevice};
 pub use opcua::{
     Anonymous, EuRange, OpcuaAnalog, OpcuaConfig, OpcuaDevices, OpcuaPolicy, WritableName,
 };
@@ -135,6 +137,8 @@ pub struct Config {
     pub modbus: ModbusConfig,
     /// `[opcua]`: the OPC UA server (off unless `listen` is given).
     pub opcua: OpcuaConfig,
+    /// `[mqtt]`: the MQTT Sparkplug B edge node (off unless `brokers` is given).
+    pub mqtt: MqttConfig,
     /// `[st]`: the Structured Text declaration files.
     pub st: StConfig,
     /// `[iec]`: what the direct addresses of Structured Text (`%IX0.0`) name.
@@ -224,6 +228,7 @@ struct RawDoc {
     /// `[modbus]` and its tables; `None` when the document has none.
     pub modbus: Option<modbus::RawModbusDoc>,
     pub opcua: Option<opcua::RawOpcua>,
+    pub mqtt: Option<mqtt::RawMqtt>,
     /// `[[remote]]` and the tables of each.
     pub remotes: remote::RawRemotes,
     pub st: Option<st::RawSt>,
@@ -246,7 +251,8 @@ struct Failed {
 }
 
 const TOP_LEVEL: &str = "`plc`, `sim`, `timers`, `program`, `task`, `io`, `rt`, `control`, \
-                         `switch`, `retain`, `modbus`, `opcua`, `st`, `iec`, `remote`, `users`";
+                         `switch`, `retain`, `modbus`, `opcua`, `mqtt`, `st`, `iec`, `remote`, \
+                         `users`";
 
 /// Pass 1. `None` if the TOML itself is malformed (the syntax errors are in `sink`).
 fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
@@ -282,6 +288,7 @@ fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
             "retain" => &mut sections.retain,
             "modbus" => &mut sections.modbus,
             "opcua" => &mut sections.opcua,
+            "mqtt" => &mut sections.mqtt,
             "st" => &mut sections.st,
             "iec" => &mut sections.iec,
             "remote" => &mut sections.remote,
@@ -325,6 +332,7 @@ fn read(text: &str, sink: &mut Sink) -> Option<RawDoc> {
     doc.retain = section(sink, sections.retain, "retain", &mut doc.failed.keys);
     doc.modbus = modbus::read(sink, sections.modbus);
     doc.opcua = section(sink, sections.opcua, "opcua", &mut doc.failed.keys);
+    doc.mqtt = section(sink, sections.mqtt, "mqtt", &mut doc.failed.keys);
     doc.st = section(sink, sections.st, "st", &mut doc.failed.keys);
     doc.iec = iec::read(sink, sections.iec, &mut doc.failed.keys);
     doc.remotes = remote::read(sink, sections.remote);
@@ -347,6 +355,7 @@ struct Sections<'i> {
     retain: Option<Spanned<DeValue<'i>>>,
     modbus: Option<Spanned<DeValue<'i>>>,
     opcua: Option<Spanned<DeValue<'i>>>,
+    mqtt: Option<Spanned<DeValue<'i>>>,
     st: Option<Spanned<DeValue<'i>>>,
     iec: Option<Spanned<DeValue<'i>>>,
     remote: Option<Spanned<DeValue<'i>>>,
@@ -399,6 +408,7 @@ fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
     let programs = program::validate(sink, doc.programs, &task_names, &doc.failed, &path);
     let modbus = modbus::validate(sink, doc.modbus);
     let opcua = doc.opcua.and_then(|raw| opcua::validate(sink, raw, &path));
+    let mqtt = doc.mqtt.and_then(|raw| mqtt::validate(sink, raw, &path));
     let st = st::validate(sink, doc.st.unwrap_or_default(), &path);
     let iec = doc.iec.and_then(|raw| iec::validate(sink, raw));
     let users = doc.users.and_then(|raw| users::validate(sink, raw, &path));
@@ -424,6 +434,7 @@ fn validate(doc: RawDoc, sink: &mut Sink) -> Option<Config> {
         retain: retain?,
         modbus: modbus?,
         opcua: opcua?,
+        mqtt: mqtt?,
         st: st?,
         iec: iec?,
         remotes: remotes?,

@@ -21,6 +21,7 @@
 //! The keys' ranges and defaults are the constants of [`OpcuaConfig`]; the server
 //! (`services::opcua`) hands them to the OPC UA stack's own limits where it has them.
 
+use std::collections::BTreeSet;
 use std::net::SocketAddr;
 use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
@@ -304,7 +305,7 @@ pub(super) enum Number {
 }
 
 impl Number {
-    fn value(self) -> f64 {
+    pub(super) fn value(self) -> f64 {
         match self {
             Number::Integer(i) => i as f64,
             Number::Float(f) => f,
@@ -318,35 +319,14 @@ fn analog(sink: &mut Sink, raw: Spanned<Vec<Spanned<RawAnalog>>>) -> Option<Vec<
     let ctx = Ctx::Section("opcua.analog");
     let mut ok = true;
     let mut entries: Vec<OpcuaAnalog> = Vec::new();
-    let at = raw.span().start;
-    let raw = raw.into_inner();
-    if raw.len() > OpcuaConfig::MAX_ANALOG {
-        let message = format!(
-            "{} entries, at most {}: name a struct, an FB instance or an array for all its              variables",
-            raw.len(),
-            OpcuaConfig::MAX_ANALOG
-        );
-        sink.error(at, format!("opcua.analog: {message}"));
-        return None;
-    }
+    let raw = at_most(sink, "opcua.analog", raw, OpcuaConfig::MAX_ANALOG)?;
+    let mut seen = BTreeSet::new();
     for entry in raw {
         let entry = entry.into_inner();
-        let name = &entry.variable;
-        let text = name.get_ref().trim();
-        let (line, col) = Diagnostic::line_col(sink.text, name.span().start);
-        if text.is_empty() {
-            sink.error(name.span().start, format!("{} is empty", ctx.key("variable")));
+        let Some(variable) = entry_variable(sink, &ctx, &entry.variable, &mut seen) else {
             ok = false;
             continue;
-        }
-        if entries.iter().any(|e| e.variable.name.eq_ignore_ascii_case(text)) {
-            sink.error(
-                name.span().start,
-                format!("{} `{text}` is listed twice", ctx.key("variable")),
-            );
-            ok = false;
-            continue;
-        }
+        };
         let (low, high) = (entry.low.get_ref().value(), entry.high.get_ref().value());
         let mut finite = true;
         for (key, value, span) in
@@ -370,10 +350,91 @@ fn analog(sink: &mut Sink, raw: Spanned<Vec<Spanned<RawAnalog>>>) -> Option<Vec<
             ok = false;
             continue;
         }
-        let variable = WritableName { name: text.to_string(), line, col };
         entries.push(OpcuaAnalog { variable, range: EuRange { low, high } });
     }
     ok.then_some(entries)
+}
+
+/// The entries of an array of tables that names variables (`[[opcua.analog]]`, `section`), if
+/// there are at most `max` of them; else an error at the array.
+pub(super) fn at_most<T>(
+    sink: &mut Sink,
+    section: &str,
+    raw: Spanned<Vec<T>>,
+    max: usize,
+) -> Option<Vec<T>> {
+    let at = raw.span().start;
+    let raw = raw.into_inner();
+    if raw.len() > max {
+        let message = format!(
+            "{section}: {} entries, at most {max}: name a struct, an FB instance or an array for \
+             all its variables",
+            raw.len(),
+        );
+        sink.error(at, message);
+        return None;
+    }
+    Some(raw)
+}
+
+/// The `variable` of one entry of an array of tables (`[[opcua.analog]]`), trimmed, with
+/// where it is written: an error if it is empty or `seen` (lower-cased) has it already.
+pub(super) fn entry_variable(
+    sink: &mut Sink,
+    ctx: &Ctx,
+    name: &Spanned<String>,
+    seen: &mut BTreeSet<String>,
+) -> Option<WritableName> {
+    let text = name.get_ref().trim();
+    let (line, col) = Diagnostic::line_col(sink.text, name.span().start);
+    if text.is_empty() {
+        sink.error(name.span().start, format!("{} is empty", ctx.key("variable")));
+        return None;
+    }
+    if !seen.insert(text.to_ascii_lowercase()) {
+        let message = format!("{} `{text}` is listed twice", ctx.key("variable"));
+        sink.error(name.span().start, message);
+        return None;
+    }
+    Some(WritableName { name: text.to_string(), line, col })
+}
+
+/// A list of variable names (`opcua.writable`, of `key`), trimmed, each once
+/// (case-insensitive), at most `max`; every error reported, and then `None`.
+pub(super) fn writable_names(
+    sink: &mut Sink,
+    key: &str,
+    list: Spanned<Vec<Spanned<String>>>,
+    max: usize,
+) -> Option<Vec<WritableName>> {
+    let mut ok = true;
+    let at = list.span().start;
+    let list = list.into_inner();
+    if list.len() > max {
+        let message = format!(
+            "{key} lists {} names, at most {max}: name a struct, an FB instance or an array for \
+             all its variables",
+            list.len(),
+        );
+        sink.error(at, message);
+        ok = false;
+    }
+    let mut names: Vec<WritableName> = Vec::new();
+    let mut seen = BTreeSet::new();
+    for name in list {
+        let (line, col) = Diagnostic::line_col(sink.text, name.span().start);
+        let text = name.get_ref().trim();
+        if text.is_empty() {
+            sink.error(name.span().start, format!("{key}: a name is empty"));
+            ok = false;
+        } else if !seen.insert(text.to_ascii_lowercase()) {
+            sink.error(name.span().start, format!("{key}: `{text}` is listed twice"));
+            ok = false;
+        } else {
+            names.push(WritableName { name: text.to_string(), line, col });
+        }
+    }
+    ok.then_some(names)
 }
 
 /// `[[opcua.devices]]` as written.
@@ -385,10 +446,20 @@ pub(super) struct RawDevices {
     pub writable: Option<Spanned<bool>>,
 }
 
-/// One `[[opcua.devices]]` entry checked: P, M, K or D, within its area, writable only where a
-/// client may write.
-fn devices(sink: &mut Sink, raw: &Spanned<RawDevices>) -> Option<OpcuaDevices> {
-    let ctx = Ctx::Section("opcua.devices");
+/// The OPC UA server's refusal of a device range of another area than P, M, K and D.
+const OPCUA_AREAS: &str =
+    "the OPC UA server serves ranges of P, M, K and D devices (the system's are in its Status \
+     folder)";
+
+/// One entry of device ranges (`[[opcua.devices]]`, `section`) checked: P, M, K or D (else
+/// the error says `areas`), within its area, writable only where a client may write.
+pub(super) fn device_range(
+    sink: &mut Sink,
+    section: &'static str,
+    areas: &str,
+    raw: &Spanned<RawDevices>,
+) -> Option<OpcuaDevices> {
+    let ctx = Ctx::Section(section);
     let raw = raw.get_ref();
     let at = raw.device.span().start;
     let first = match Address::parse(raw.device.get_ref()) {
@@ -399,11 +470,7 @@ fn devices(sink: &mut Sink, raw: &Spanned<RawDevices>) -> Option<OpcuaDevices> {
         }
     };
     if !matches!(first.area, Area::P | Area::M | Area::K | Area::D) {
-        let message = format!(
-            "{}: {first}: the OPC UA server serves ranges of P, M, K and D devices (the system's \
-             are in its Status folder)",
-            ctx.key("device")
-        );
+        let message = format!("{}: {first}: {areas}", ctx.key("device"));
         sink.error(at, message);
         return None;
     }
@@ -585,39 +652,17 @@ pub(super) fn validate(sink: &mut Sink, raw: RawOpcua, config: &Path) -> Option<
         }
         Some(dir) => Some(resolve(config, dir.get_ref())),
     };
-    let mut writable: Vec<WritableName> = Vec::new();
-    if let Some(list) = raw.writable {
-        let at = list.span().start;
-        let list = list.into_inner();
-        if list.len() > OpcuaConfig::MAX_WRITABLE {
-            let message = format!(
-                "{} lists {} names, at most {}: name a struct, an FB instance or an array for \
-                 all its variables",
-                ctx.key("writable"),
-                list.len(),
-                OpcuaConfig::MAX_WRITABLE
-            );
-            sink.error(at, message);
-            ok = false;
-        }
-        for name in list {
-            let (line, col) = Diagnostic::line_col(sink.text, name.span().start);
-            let text = name.get_ref().trim();
-            if text.is_empty() {
-                sink.error(name.span().start, format!("{}: a name is empty", ctx.key("writable")));
+    let writable = match raw.writable {
+        None => Vec::new(),
+        Some(list) => writable_names(sink, &ctx.key("writable"), list, OpcuaConfig::MAX_WRITABLE)
+            .unwrap_or_else(|| {
                 ok = false;
-            } else if writable.iter().any(|w| w.name.eq_ignore_ascii_case(text)) {
-                let message = format!("{}: `{text}` is listed twice", ctx.key("writable"));
-                sink.error(name.span().start, message);
-                ok = false;
-            } else {
-                writable.push(WritableName { name: text.to_string(), line, col });
-            }
-        }
-    }
+                Vec::new()
+            }),
+    };
     let mut device_ranges = Vec::new();
     for raw in raw.devices.iter().flatten() {
-        match devices(sink, raw) {
+        match device_range(sink, "opcua.devices", OPCUA_AREAS, raw) {
             Some(range) => device_ranges.push(range),
             None => ok = false,
         }

@@ -219,6 +219,7 @@ fn the_contract_example_parses_to_its_defaults() {
         retain: RetainConfig::default(),
         modbus: crate::config::ModbusConfig::default(),
         opcua: crate::config::OpcuaConfig::default(),
+        mqtt: crate::config::MqttConfig::default(),
         st: StConfig::default(),
         iec: IecConfig::default(),
         remotes: Vec::new(),
@@ -459,7 +460,8 @@ fn unknown_keys_are_errors_at_the_key() {
     assert_eq!(
         errors(&with_scan("[plcc]\n")),
         ["1:2: unknown key `plcc`, expected one of `plc`, `sim`, `timers`, `program`, `task`, \
-          `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `opcua`, `st`, `iec`, `remote`, `users`"]
+          `io`, `rt`, `control`, `switch`, `retain`, `modbus`, `opcua`, `mqtt`, `st`, `iec`, \
+          `remote`, `users`"]
     );
     assert_eq!(
         errors(&with_scan("[plc]\nwatchdog = 5\n")),
