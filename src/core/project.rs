@@ -1,9 +1,10 @@
 //! A project: the config and every program it names, loaded and checked together, with the
 //! rules that span programs (the DUTY limits of the FX5 manual, edge memory, `DI n` numbers).
 
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-use crate::config::{Config, Language, ProgramConfig, TaskRef};
+use crate::config::{Config, Language, ProgramConfig, TaskRef, WritableName};
 use crate::device::{layout, Address, AddressError, Area};
 use crate::diag::{Diagnostic, Diagnostics, Warning};
 use crate::lang::ops::{Op, SystemRequest, Written};
@@ -24,10 +25,26 @@ pub const MAX_DUTY: usize = 5;
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct OpcuaNames {
     /// `[opcua] writable`: sessions of the operator role and up may write them.
-    pub writable: std::collections::BTreeSet<String>,
+    pub writable: BTreeSet<String>,
     /// `[[opcua.analog]]`: served as analog items with this engineering range.
-    pub analog: std::collections::BTreeMap<String, crate::config::EuRange>,
+    pub analog: BTreeMap<String, crate::config::EuRange>,
 }
+
+/// The program variables the config names for the MQTT edge node, by their full names with the
+/// spelling of their declarations ([`Project::mqtt_names`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MqttNames {
+    /// `[mqtt] writable`: a command (NCMD, DCMD) may write them.
+    pub writable: BTreeSet<String>,
+    /// `[[mqtt.deadbands]]`: sent only when they moved by at least this much.
+    pub deadbands: BTreeMap<String, f64>,
+    /// `[[mqtt.devices]]`: each device's name and its variables, in the order the config lists
+    /// them, each once per device.
+    pub devices: Vec<(String, Vec<String>)>,
+}
+
+// The deadbands are finite numbers (the config refuses NaN): equality is total.
+impl Eq for MqttNames {}
 
 /// A loaded, fully checked project.
 #[derive(Debug, Clone)]
@@ -410,7 +427,10 @@ impl Project {
     /// The variables the config names for the OPC UA server: `[opcua] writable` and
     /// `[[opcua.analog]]`, every error of both at once.
     pub fn opcua_names(&self) -> Result<OpcuaNames, Vec<Diagnostic>> {
-        match (self.opcua_writable(), self.opcua_analog()) {
+        let opcua = &self.config.opcua;
+        let writable = self.writable_variables("opcua.writable", &opcua.writable);
+        let ranges = opcua.analog.iter().map(|a| (&a.variable, a.range));
+        match (writable, self.numeric_variables("opcua.analog", "an engineering range", ranges)) {
             (Ok(writable), Ok(analog)) => Ok(OpcuaNames { writable, analog }),
             (writable, analog) => {
                 Err(writable.err().into_iter().chain(analog.err()).flatten().collect())
@@ -418,64 +438,113 @@ impl Project {
         }
     }
 
-    /// The variables `[[opcua.analog]]` gives an engineering range, by their full names: each
-    /// entry's name as `plcctl get` resolves it, a struct, FB instance or array standing for
-    /// its numeric variables. A name that is a device, names through a reference, or holds no
-    /// number (a `BOOL`, a `STRING`, an enumeration, a `TIME`) is an error at the config's
-    /// line and column.
-    fn opcua_analog(
-        &self,
-    ) -> Result<std::collections::BTreeMap<String, crate::config::EuRange>, Vec<Diagnostic>> {
-        let mut ranges = std::collections::BTreeMap::new();
+    /// The variables the config names for the MQTT edge node: `[mqtt] writable`,
+    /// `[[mqtt.deadbands]]` and `[[mqtt.devices]]`, every error of the three at once.
+    pub fn mqtt_names(&self) -> Result<MqttNames, Vec<Diagnostic>> {
+        let mqtt = &self.config.mqtt;
+        let writable = self.writable_variables("mqtt.writable", &mqtt.writable);
+        let deadbands = mqtt.deadbands.iter().map(|d| (&d.variable, d.value));
+        let deadbands = self.numeric_variables("mqtt.deadbands", "a deadband", deadbands);
+        let mut devices = Vec::new();
         let mut errors = Vec::new();
+        let published = |s: &Symbol| !matches!(s.ty, ValueType::Reference { .. });
+        let none = "variable that is not a reference (references are not published)";
+        for device in &mqtt.devices {
+            let entries = device.variables.iter().map(|v| (v, ()));
+            match self.config_variables("mqtt.devices", entries, published, none) {
+                Ok(found) => {
+                    let mut seen = BTreeSet::new();
+                    let names = found.into_iter().flat_map(|(names, ())| names);
+                    let names = names.filter(|name| seen.insert(name.clone())).collect();
+                    devices.push((device.name.clone(), names));
+                }
+                Err(e) => errors.extend(e),
+            }
+        }
+        match (writable, deadbands) {
+            (Ok(writable), Ok(deadbands)) if errors.is_empty() => {
+                Ok(MqttNames { writable, deadbands, devices })
+            }
+            (writable, deadbands) => Err(writable
+                .err()
+                .into_iter()
+                .chain(deadbands.err())
+                .flatten()
+                .chain(errors)
+                .collect()),
+        }
+    }
+
+    /// The variables a list of names (`[opcua] writable`, of `key`) makes writable, by their
+    /// full names with the spelling of their declarations: each name as `plcctl set` resolves
+    /// it, a struct, FB instance or array standing for its variables, less its `CONSTANT`s. A
+    /// name that is a device, names through a reference, or names no variable (or
+    /// `CONSTANT`s only) is an error at the config's line and column.
+    fn writable_variables(
+        &self,
+        key: &str,
+        names: &[WritableName],
+    ) -> Result<BTreeSet<String>, Vec<Diagnostic>> {
+        let written = |s: &Symbol| !s.constant && !matches!(s.ty, ValueType::Reference { .. });
+        let none = "variable a client could write (CONSTANTs and references are never written)";
+        let found = self.config_variables(key, names.iter().map(|n| (n, ())), written, none)?;
+        Ok(found.into_iter().flat_map(|(names, ())| names).collect())
+    }
+
+    /// The numeric variables entries of the config (`[[opcua.analog]]`, of `key`) give a value
+    /// (`what`: an engineering range), by their full names: each entry's name as `plcctl get`
+    /// resolves it, a struct, FB instance or array standing for its numeric variables. A name
+    /// that is a device, names through a reference, or holds no number (a `BOOL`, a `STRING`,
+    /// an enumeration, a `TIME`) is an error at the config's line and column.
+    fn numeric_variables<'a, T: Copy>(
+        &self,
+        key: &str,
+        what: &str,
+        entries: impl IntoIterator<Item = (&'a WritableName, T)>,
+    ) -> Result<BTreeMap<String, T>, Vec<Diagnostic>> {
         let number = |s: &Symbol| {
             matches!(s.ty, ValueType::Signed(_) | ValueType::Unsigned(_) | ValueType::Real(_))
         };
-        let none = "number (an integer or a REAL): an engineering range is for numbers";
-        for entry in &self.config.opcua.analog {
-            match self.opcua_variables("opcua.analog", &entry.variable, number, none) {
-                Ok(names) => ranges.extend(names.into_iter().map(|name| (name, entry.range))),
-                Err(error) => errors.push(error),
-            }
-        }
-        if errors.is_empty() {
-            Ok(ranges)
-        } else {
-            Err(errors)
-        }
+        let none = format!("number (an integer or a REAL): {what} is for numbers");
+        let found = self.config_variables(key, entries, number, &none)?;
+        Ok(found
+            .into_iter()
+            .flat_map(|(names, value)| names.into_iter().map(move |name| (name, value)))
+            .collect())
     }
 
-    /// The variables `[opcua] writable` makes writable, by their full names with the spelling
-    /// of their declarations: each name as `plcctl set` resolves it, a struct, FB instance or
-    /// array standing for its variables, less its `CONSTANT`s. A name that is a device, names
-    /// through a reference, or names no variable (or `CONSTANT`s only) is an error at the
-    /// config's line and column.
-    fn opcua_writable(&self) -> Result<std::collections::BTreeSet<String>, Vec<Diagnostic>> {
-        let mut names = std::collections::BTreeSet::new();
-        let mut errors = Vec::new();
-        let written = |s: &Symbol| !s.constant && !matches!(s.ty, ValueType::Reference { .. });
-        let none = "variable a client could write (CONSTANTs and references are never written)";
-        for entry in &self.config.opcua.writable {
-            match self.opcua_variables("opcua.writable", entry, written, none) {
-                Ok(variables) => names.extend(variables),
-                Err(error) => errors.push(error),
-            }
-        }
-        if errors.is_empty() {
-            Ok(names)
-        } else {
-            Err(errors)
-        }
-    }
-
-    /// The full names of the variables a name of the `[opcua]` config (of `key`) stands for,
-    /// as `plcctl` resolves it, that `keep` takes. An error at the name's line and column if
-    /// it is a device, names through a reference (which changes as the program runs), resolves
-    /// to nothing, or holds none that `keep` takes (it holds no `none`).
-    fn opcua_variables(
+    /// The full names of the variables each of `entries` (names of the config, of `key`)
+    /// stands for, with the entry's value, as `plcctl` resolves them, that `keep` takes: every
+    /// entry's error at once, at the name's line and column, for a device, a name through a
+    /// reference (which changes as the program runs), one that resolves to nothing, or one
+    /// that holds none that `keep` takes (it holds no `none`).
+    fn config_variables<'a, T>(
         &self,
         key: &str,
-        entry: &crate::config::WritableName,
+        entries: impl IntoIterator<Item = (&'a WritableName, T)>,
+        keep: impl Fn(&Symbol) -> bool,
+        none: &str,
+    ) -> Result<Vec<(Vec<String>, T)>, Vec<Diagnostic>> {
+        let mut found = Vec::new();
+        let mut errors = Vec::new();
+        for (entry, value) in entries {
+            match self.config_variable(key, entry, &keep, none) {
+                Ok(names) => found.push((names, value)),
+                Err(error) => errors.push(error),
+            }
+        }
+        if errors.is_empty() {
+            Ok(found)
+        } else {
+            Err(errors)
+        }
+    }
+
+    /// [`Project::config_variables`] of one name.
+    fn config_variable(
+        &self,
+        key: &str,
+        entry: &WritableName,
         keep: impl Fn(&Symbol) -> bool,
         none: &str,
     ) -> Result<Vec<String>, Diagnostic> {
@@ -484,9 +553,11 @@ impl Project {
         };
         let name = entry.name.as_str();
         if Address::parse(name).is_ok() {
-            return Err(error(format!(
-                "`{name}` is a device: the OPC UA server serves the programs' variables"
-            )));
+            let serves = match key.split('.').next() {
+                Some("mqtt") => "the MQTT edge node publishes",
+                _ => "the OPC UA server serves",
+            };
+            return Err(error(format!("`{name}` is a device: {serves} the programs' variables")));
         }
         if name.contains('^') {
             return Err(error(format!(
@@ -647,12 +718,16 @@ pub fn from_config_with(
     }
     let programs = programs.into_iter().flatten().collect();
     let project = Project { config, programs, variables, notes, warnings };
-    match project.opcua_names() {
-        Ok(_) => Ok(project),
-        Err(mut errors) => {
-            errors.sort();
-            Err(Diagnostics(errors))
-        }
+    let mut errors: Vec<Diagnostic> = [project.opcua_names().err(), project.mqtt_names().err()]
+        .into_iter()
+        .flatten()
+        .flatten()
+        .collect();
+    if errors.is_empty() {
+        Ok(project)
+    } else {
+        errors.sort();
+        Err(Diagnostics(errors))
     }
 }
 
@@ -1059,5 +1134,92 @@ mod tests {
         assert_eq!(p.resolve("_NOPE").unwrap_err(), "unknown flag `_NOPE`");
         assert_eq!(crate::symbols::edit_distance(b"Speed", b"spede"), 2);
         assert_eq!(crate::symbols::edit_distance(b"", b"ab"), 2);
+    }
+
+    const MQTT_MAIN: &str = "TYPE Axis : STRUCT pos : REAL; on : BOOL; END_STRUCT END_TYPE
+    PROGRAM Main
+    VAR
+        axis : Axis;
+        speed : INT;
+        name : STRING;
+        r : REF_TO INT;
+    END_VAR
+    VAR CONSTANT
+        limit : INT := 100;
+    END_VAR
+        speed := speed;
+    END_PROGRAM
+    ";
+
+    /// A project of [`MQTT_MAIN`] and `config` (its `[[program]]` added).
+    fn with_mqtt(config: &str) -> Result<Project, String> {
+        let text = format!("{config}\n[[program]]\nname = \"main\"\nfile = \"main.st\"\n");
+        let config =
+            crate::config::parse(&text, Path::new("/p/plcd.toml")).map_err(|e| e.to_string())?;
+        from_config(config, |_| Ok(MQTT_MAIN.to_string())).map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn mqtt_names_resolve_to_full_variable_names() {
+        let project = with_mqtt(
+            "[mqtt]\nwritable = [\"main.axis\", \"MAIN.SPEED\"]\n\
+             [[mqtt.devices]]\nname = \"press\"\nvariables = [\"main.speed\", \"main.axis\", \"main.axis.pos\"]\n\
+             [[mqtt.devices]]\nname = \"all\"\nvariables = [\"main\"]\n\
+             [[mqtt.deadbands]]\nvariable = \"main.axis\"\nvalue = 0.5\n\
+             [[mqtt.deadbands]]\nvariable = \"main.speed\"\nvalue = 2\n",
+        )
+        .unwrap();
+        let names = project.mqtt_names().unwrap();
+        // A struct stands for its variables.
+        let writable: Vec<&str> = names.writable.iter().map(String::as_str).collect();
+        assert_eq!(writable, ["main.axis.on", "main.axis.pos", "main.speed"]);
+        // Numbers only: the struct's BOOL has no deadband.
+        let deadbands: Vec<(&str, f64)> =
+            names.deadbands.iter().map(|(name, value)| (name.as_str(), *value)).collect();
+        assert_eq!(deadbands, [("main.axis.pos", 0.5), ("main.speed", 2.0)]);
+        // In the order listed, each once; a program instance stands for every variable but the
+        // reference, its CONSTANTs included.
+        let devices: Vec<(&str, Vec<&str>)> = names
+            .devices
+            .iter()
+            .map(|(device, names)| (device.as_str(), names.iter().map(String::as_str).collect()))
+            .collect();
+        assert_eq!(
+            devices,
+            [
+                ("press", vec!["main.speed", "main.axis.pos", "main.axis.on"]),
+                (
+                    "all",
+                    vec!["main.limit", "main.axis.pos", "main.axis.on", "main.speed", "main.name"]
+                ),
+            ]
+        );
+        let none = with_mqtt("").unwrap().mqtt_names().unwrap();
+        assert_eq!(none, MqttNames::default());
+    }
+
+    #[test]
+    fn mqtt_names_report_every_error_at_its_name() {
+        let errors = with_mqtt(
+            "[mqtt]\nwritable = [\"D00100\", \"main.limit\"]\n\
+             [[mqtt.devices]]\nname = \"d\"\nvariables = [\"main.r^\", \"main.r\", \"main.nope\"]\n\
+             [[mqtt.deadbands]]\nvariable = \"main.name\"\nvalue = 1\n",
+        )
+        .unwrap_err();
+        assert_eq!(
+            errors,
+            "/p/plcd.toml:2:13: error: mqtt.writable: `D00100` is a device: the MQTT edge node \
+             publishes the programs' variables\n\
+             /p/plcd.toml:2:23: error: mqtt.writable: `main.limit` holds no variable a client could \
+             write (CONSTANTs and references are never written)\n\
+             /p/plcd.toml:5:14: error: mqtt.devices: `main.r^` names a variable through a reference, \
+             which changes as the program runs: name the variable itself\n\
+             /p/plcd.toml:5:25: error: mqtt.devices: `main.r` holds no variable that is not a \
+             reference (references are not published)\n\
+             /p/plcd.toml:5:35: error: mqtt.devices: no device or variable `main.nope` (did \
+             you mean `main.name`?)\n\
+             /p/plcd.toml:7:12: error: mqtt.deadbands: `main.name` holds no number (an integer or a \
+             REAL): a deadband is for numbers\n"
+        );
     }
 }

@@ -90,7 +90,7 @@ pub struct OpcuaConfig {
     /// `plcctl set` names them (a struct, an FB instance or an array stands for all its
     /// variables), at most [`OpcuaConfig::MAX_WRITABLE`]; default none: everything read-only.
     /// Checked against the programs when the project is built
-    /// (`crate::project::Project::opcua_writable`).
+    /// (`crate::project::Project::opcua_names`).
     pub writable: Vec<WritableName>,
     /// `[[opcua.devices]]`: device ranges served beside the variables, in the order written;
     /// default none.
@@ -149,8 +149,8 @@ impl OpcuaDevices {
     }
 }
 
-/// A name of `opcua.writable` or `[[opcua.analog]]`, with where it is written for the
-/// project's diagnostics.
+/// A name of `opcua.writable`, `[[opcua.analog]]`, `mqtt.writable`, `[[mqtt.devices]]` or
+/// `[[mqtt.deadbands]]`, with where it is written for the project's diagnostics.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct WritableName {
     pub name: String,
