@@ -356,9 +356,10 @@ fn id(
     let bad = text.chars().find(|&c| matches!(c, '/' | '+' | '#') || c.is_control());
     if let Some(c) = bad.filter(|_| topic) {
         let message = format!(
-            "{} {text:?} holds {c:?}: a Sparkplug id is a level of the MQTT topics, without `/`, \
+            "{} {text:?} holds `{}`: a Sparkplug id is a level of the MQTT topics, without `/`, \
              `+`, `#` or control characters",
-            ctx.key(key)
+            ctx.key(key),
+            c.escape_debug()
         );
         sink.error(at, message);
         return None;
@@ -533,7 +534,7 @@ pub(super) fn validate(sink: &mut Sink, raw: RawMqtt, config: &Path) -> Option<M
     let password_file = file(sink, &ctx, "password_file", &raw.password_file, config);
     if let (Some(password), None) = (&raw.password_file, &raw.username) {
         let message =
-            format!("{} needs `username`: the password is a login's", ctx.key("password_file"));
+            format!("{} needs `username`: a password is for a login", ctx.key("password_file"));
         sink.error(password.span().start, message);
         ok = false;
     }
@@ -824,13 +825,13 @@ mod tests {
         );
         assert_eq!(
             error(&format!("{ON}primary_host = \"a/b\"\n")),
-            "mqtt.primary_host \"a/b\" holds '/': a Sparkplug id is a level of the MQTT topics, \
+            "mqtt.primary_host \"a/b\" holds `/`: a Sparkplug id is a level of the MQTT topics, \
              without `/`, `+`, `#` or control characters"
         );
         let on = "[mqtt]\nbrokers = [\"mqtt://b\"]\nedge_node_id = \"n\"\n";
-        assert!(error(&format!("{on}group_id = \"a+\"\n")).contains("holds '+'"));
-        assert!(error(&format!("{on}group_id = \"#\"\n")).contains("holds '#'"));
-        assert!(error(&format!("{on}group_id = \"a\\tb\"\n")).contains("holds '\\t'"));
+        assert!(error(&format!("{on}group_id = \"a+\"\n")).contains("holds `+`"));
+        assert!(error(&format!("{on}group_id = \"#\"\n")).contains("holds `#`"));
+        assert!(error(&format!("{on}group_id = \"a\\tb\"\n")).contains("holds `\\t`"));
         assert_eq!(error(&format!("{on}group_id = \" \"\n")), "mqtt.group_id must not be empty");
         let long = "x".repeat(MqttConfig::MAX_ID_BYTES + 1);
         assert_eq!(
@@ -845,7 +846,7 @@ mod tests {
     fn login_and_tls_files() {
         assert_eq!(
             error(&format!("{ON}password_file = \"pw\"\n")),
-            "mqtt.password_file needs `username`: the password is a login's"
+            "mqtt.password_file needs `username`: a password is for a login"
         );
         assert_eq!(
             error("[mqtt]\nbrokers = [\"mqtts://b\"]\ngroup_id = \"g\"\nedge_node_id = \"n\"\nclient_key = \"k\"\n"),
@@ -941,7 +942,7 @@ mod tests {
             "mqtt.devices.variables: `Main.X` is listed twice"
         );
         assert!(error("[[mqtt.devices]]\nname = \"a/b\"\nvariables = [\"main.x\"]\n")
-            .starts_with("mqtt.devices.name \"a/b\" holds '/'"));
+            .starts_with("mqtt.devices.name \"a/b\" holds `/`"));
         assert!(error("[[mqtt.devices]]\nname = \"a\"\n").contains("missing key `variables`"));
     }
 
