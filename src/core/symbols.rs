@@ -437,6 +437,39 @@ impl Iterator for Iter<'_> {
     }
 }
 
+/// A full name's parts, split at the dots outside brackets: `main.a[1,2].x` is `main`,
+/// `a[1,2]`, `x` (the services name their nodes and metrics by them).
+pub fn name_parts(name: &str) -> Vec<&str> {
+    let mut parts = Vec::new();
+    let (mut depth, mut start) = (0usize, 0usize);
+    for (i, c) in name.char_indices() {
+        match c {
+            '[' => depth += 1,
+            ']' => depth = depth.saturating_sub(1),
+            '.' if depth == 0 => {
+                parts.push(&name[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    parts.push(&name[start..]);
+    parts.retain(|p| !p.is_empty());
+    parts
+}
+
+/// The last device word a located variable of type `ty` at `at` reads, plus one; `None` for a
+/// variable in variable memory (a service's copy of device memory must reach it).
+pub fn device_words_end(ty: &crate::value::ValueType, at: Pointer) -> Option<u16> {
+    let end = match at.space {
+        Space::Word => at.offset + ty.elem().words(),
+        Space::Bit => at.offset / 16 + 1,
+        Space::Byte => at.offset / 2 + 1,
+        Space::Var | Space::Frame | Space::Discard => return None,
+    };
+    Some(end.min(u32::from(u16::MAX)) as u16)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

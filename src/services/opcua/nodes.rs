@@ -386,14 +386,7 @@ impl Plan {
 
 /// The last device word a located leaf reads, plus one; `None` for a leaf in variable memory.
 pub fn device_end(leaf: &Leaf) -> Option<u16> {
-    use crate::value::Space;
-    let end = match leaf.at.space {
-        Space::Word => leaf.at.offset + leaf.ty.elem().words(),
-        Space::Bit => leaf.at.offset / 16 + 1,
-        Space::Byte => leaf.at.offset / 2 + 1,
-        Space::Var | Space::Frame | Space::Discard => return None,
-    };
-    Some(end.min(u32::from(u16::MAX)) as u16)
+    crate::symbols::device_words_end(&leaf.ty, leaf.at)
 }
 
 /// The node id string of a status variable: `Status.Mode`.
@@ -401,25 +394,9 @@ pub fn status_id(name: &str) -> String {
     format!("{STATUS}.{name}")
 }
 
-/// A full name's parts: split at the dots outside brackets (`main.a[1,2].x` is `main`,
-/// `a[1,2]`, `x`).
+/// A full name's parts ([`crate::symbols::name_parts`]).
 pub fn split(name: &str) -> Vec<&str> {
-    let mut parts = Vec::new();
-    let (mut depth, mut start) = (0usize, 0usize);
-    for (i, c) in name.char_indices() {
-        match c {
-            '[' => depth += 1,
-            ']' => depth = depth.saturating_sub(1),
-            '.' if depth == 0 => {
-                parts.push(&name[start..i]);
-                start = i + 1;
-            }
-            _ => {}
-        }
-    }
-    parts.push(&name[start..]);
-    parts.retain(|p| !p.is_empty());
-    parts
+    crate::symbols::name_parts(name)
 }
 
 #[cfg(test)]
