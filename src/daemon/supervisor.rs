@@ -56,6 +56,12 @@ pub enum DaemonError {
     #[cfg(not(feature = "opcua"))]
     #[error("[opcua] listen is set, but this plcd was built without its `opcua` feature")]
     NoOpcua,
+    #[cfg(feature = "mqtt")]
+    #[error("mqtt: {0}")]
+    Mqtt(#[from] crate::services::mqtt::MqttError),
+    #[cfg(not(feature = "mqtt"))]
+    #[error("[mqtt] brokers is set, but this plcd was built without its `mqtt` feature")]
+    NoMqtt,
 }
 
 /// The daemon's options from the command line.
@@ -88,6 +94,8 @@ struct Daemon {
     modbus: Option<crate::services::modbus::RunningServer>,
     /// The OPC UA server (`[opcua] listen`).
     opcua: Option<Opcua>,
+    /// The Sparkplug B edge node (`[mqtt] brokers`).
+    mqtt: Option<Mqtt>,
     /// Who is told of each engine a reload queues (the OPC UA server's address space).
     announce: Option<Announce>,
     log_outputs: log::Level,
@@ -110,16 +118,23 @@ impl Daemon {
         // Bound before the real-time threads start: a port in use stops the start.
         let modbus = crate::services::modbus::ModbusServer::bind(&project.config.modbus)?;
         let opcua = bind_opcua(&project)?;
+        let mqtt = bind_mqtt(&project)?;
         let mut retain = crate::services::retain::service::Persistence::open(&project.config);
         let mut mirrors = retain.mirrors();
         mirrors.extend(modbus.iter().map(|m| m.mirror()));
         #[cfg(feature = "opcua")]
         mirrors.extend(opcua.iter().map(|o| o.mirror()));
+        #[cfg(feature = "mqtt")]
+        mirrors.extend(mqtt.iter().map(|m| m.mirror()));
         let mut driver = Driver::start_with(&project, mirrors, |engine| {
             retain.restore_into(engine);
             #[cfg(feature = "opcua")]
             if let Some(opcua) = &opcua {
                 opcua.prepare(engine);
+            }
+            #[cfg(feature = "mqtt")]
+            if let Some(mqtt) = &mqtt {
+                mqtt.prepare(engine);
             }
         })?;
         retain.start(Arc::clone(&driver.shared));
@@ -137,7 +152,7 @@ impl Daemon {
             log::Level::Debug
         };
         let shared = Arc::clone(&driver.shared);
-        let announce = announcer(&opcua);
+        let announce = announcer(&opcua, &mqtt);
 
         let signals = Signals::register()?;
         let has_switch = project.config.switch.is_some();
@@ -172,13 +187,22 @@ impl Daemon {
         };
         // The OPC UA server's writes and methods go to the request handler, as plcctl's do,
         // through the control server's in-process door.
-        let (door, inbox) = match &opcua {
-            Some(_) => {
+        let (door, inbox) = match (&opcua, &mqtt) {
+            (None, None) => (None, None),
+            _ => {
                 let (door, inbox) = crate::drivers::real_time::door::door()
                     .map_err(|source| DaemonError::Spawn { thread: "control", source })?;
                 (Some(door), Some(inbox))
             }
-            None => (None, None),
+        };
+        #[cfg(feature = "mqtt")]
+        let mqtt = match (mqtt, &door) {
+            (Some(node), Some(door)) => {
+                let node = node.start(Arc::clone(&shared), door.clone())?;
+                log::info!("mqtt: edge node {} connecting", node.serving());
+                Some(node)
+            }
+            _ => None,
         };
         #[cfg(feature = "opcua")]
         let opcua = match (opcua, door) {
@@ -200,6 +224,7 @@ impl Daemon {
             control,
             modbus,
             opcua,
+            mqtt,
             announce,
             log_outputs,
             notifier: Notifier::from_env(),
@@ -455,6 +480,9 @@ impl Daemon {
         if let Some(opcua) = self.opcua.take() {
             stop_opcua(opcua);
         }
+        if let Some(mqtt) = self.mqtt.take() {
+            stop_mqtt(mqtt);
+        }
         let Some(driver) = &mut self.driver else { return Ok(()) };
         self.retain.stop_writer();
         let engine = driver.stop();
@@ -512,21 +540,78 @@ fn bind_opcua(project: &Project) -> Result<Option<Opcua>, DaemonError> {
     }
 }
 
-/// How the OPC UA server hears of each engine the daemon queues, so that its address space
-/// follows the running project.
-#[cfg(feature = "opcua")]
-fn announcer(opcua: &Option<crate::services::opcua::OpcuaServer>) -> Option<Announce> {
-    let following = opcua.as_ref()?.following();
+/// How the OPC UA server and the MQTT edge node hear of each engine the daemon queues, so that
+/// their address space and metrics follow the running project.
+fn announcer(opcua: &Option<OpcuaServer>, mqtt: &Option<MqttNode>) -> Option<Announce> {
+    #[cfg(feature = "opcua")]
+    let opcua = opcua.as_ref().map(|server| server.following());
+    #[cfg(not(feature = "opcua"))]
+    let opcua: Option<()> = opcua.as_ref().map(|never| match *never {});
+    #[cfg(feature = "mqtt")]
+    let mqtt = mqtt.as_ref().map(|node| node.following());
+    #[cfg(not(feature = "mqtt"))]
+    let mqtt: Option<()> = mqtt.as_ref().map(|never| match *never {});
+    if opcua.is_none() && mqtt.is_none() {
+        return None;
+    }
     Some(Arc::new(move |engine: &Engine, project: &Project| {
         // A project that reached a queue was built, and so checked: its names resolve.
-        let names = project.opcua_names().unwrap_or_default();
-        following.announce(engine.retained_variables(), &project.variables.symbols, &names);
+        #[cfg(feature = "opcua")]
+        if let Some(following) = &opcua {
+            let names = project.opcua_names().unwrap_or_default();
+            following.announce(engine.retained_variables(), &project.variables.symbols, &names);
+        }
+        #[cfg(feature = "mqtt")]
+        if let Some(following) = &mqtt {
+            let names = project.mqtt_names().unwrap_or_default();
+            following.announce(engine.retained_variables(), &project.variables.symbols, &names);
+        }
+        // Without a feature, its service is never there.
+        let _ = (engine, project, &opcua, &mqtt);
     }))
 }
 
+/// The Sparkplug B edge node, running.
+#[cfg(feature = "mqtt")]
+type Mqtt = crate::services::mqtt::RunningMqtt;
+/// Without the `mqtt` feature there is none ([`bind_mqtt`] refuses a config that asks).
+#[cfg(not(feature = "mqtt"))]
+type Mqtt = std::convert::Infallible;
+#[cfg(feature = "mqtt")]
+type MqttNode = crate::services::mqtt::MqttNode;
+#[cfg(not(feature = "mqtt"))]
+type MqttNode = std::convert::Infallible;
+#[cfg(feature = "opcua")]
+type OpcuaServer = crate::services::opcua::OpcuaServer;
 #[cfg(not(feature = "opcua"))]
-fn announcer(_: &Option<Opcua>) -> Option<Announce> {
-    None
+type OpcuaServer = std::convert::Infallible;
+
+/// The edge node of `[mqtt]`, set up before the real-time threads start: a password or TLS
+/// file that cannot be read stops the start.
+#[cfg(feature = "mqtt")]
+fn bind_mqtt(project: &Project) -> Result<Option<MqttNode>, DaemonError> {
+    // Checked when the project was built; a project built otherwise is checked again here.
+    let names = project.mqtt_names().map_err(|e| DaemonError::Invalid(Diagnostics(e)))?;
+    let symbols = &project.variables.symbols;
+    Ok(crate::services::mqtt::MqttNode::new(&project.config.mqtt, symbols, &names)?)
+}
+
+#[cfg(not(feature = "mqtt"))]
+fn bind_mqtt(project: &Project) -> Result<Option<MqttNode>, DaemonError> {
+    match project.config.mqtt.enabled() {
+        true => Err(DaemonError::NoMqtt),
+        false => Ok(None),
+    }
+}
+
+#[cfg(feature = "mqtt")]
+fn stop_mqtt(mqtt: Mqtt) {
+    mqtt.stop();
+}
+
+#[cfg(not(feature = "mqtt"))]
+fn stop_mqtt(mqtt: Mqtt) {
+    match mqtt {}
 }
 
 #[cfg(feature = "opcua")]
