@@ -16,6 +16,7 @@
 //! asks, once per sampling interval, with `try_lock` only and nothing allocated; commands reach
 //! the PLC through the control server's in-process door, as `plcctl set` does.
 
+#[cfg(feature = "mqtt")]
 pub mod client;
 pub mod edge;
 pub mod metrics;
@@ -26,6 +27,7 @@ pub mod metrics;
 #[allow(clippy::all, clippy::pedantic, missing_docs)]
 pub mod sparkplug_b;
 
+#[cfg(feature = "mqtt")]
 pub use client::{MqttNode, RunningMqtt};
 
 /// Why the edge node could not start.
