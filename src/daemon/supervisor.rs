@@ -169,6 +169,7 @@ impl Daemon {
             running: Arc::clone(&running),
             remote: driver.remote_board(),
             announce: announce.clone(),
+            mqtt: mqtt_figures(&mqtt),
         };
         // On an error, dropping the driver stops the threads.
         let modbus = match modbus {
@@ -602,6 +603,17 @@ fn bind_mqtt(project: &Project) -> Result<Option<MqttNode>, DaemonError> {
         true => Err(DaemonError::NoMqtt),
         false => Ok(None),
     }
+}
+
+/// The edge node's figures for `plcctl status`.
+#[cfg(feature = "mqtt")]
+fn mqtt_figures(mqtt: &Option<MqttNode>) -> Option<Arc<Mutex<plcd_ipc::MqttFigures>>> {
+    mqtt.as_ref().map(|node| node.figures())
+}
+
+#[cfg(not(feature = "mqtt"))]
+fn mqtt_figures(_: &Option<MqttNode>) -> Option<Arc<Mutex<plcd_ipc::MqttFigures>>> {
+    None
 }
 
 #[cfg(feature = "mqtt")]

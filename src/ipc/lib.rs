@@ -404,6 +404,43 @@ pub struct Status {
     /// The remote I/O devices (`[[remote]]`), in config order; absent when there are none.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub remotes: Vec<RemoteFigures>,
+    /// The Sparkplug B edge node (`[mqtt]`); absent when it is off.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mqtt: Option<MqttFigures>,
+}
+
+/// The Sparkplug B edge node's state and counters since start.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct MqttFigures {
+    /// `spBv1.0/GROUP/NODE`.
+    pub node: String,
+    /// The broker connected to, or tried.
+    pub broker: String,
+    /// `connecting`, `waiting` (connected; no copy of the PLC yet, or the primary host
+    /// offline) or `born`.
+    pub state: String,
+    /// Connections the brokers took.
+    pub connects: u64,
+    /// Connection attempts that failed and connections lost.
+    pub failures: u64,
+    /// NBIRTHs (each connect, each rebirth).
+    pub births: u64,
+    /// NDATA and DDATA published live.
+    pub data: u64,
+    /// DATA messages waiting for the next connection now.
+    pub queued: u64,
+    /// DATA messages lost: the store full, the metrics changed before they went, the client's
+    /// queue full.
+    pub dropped: u64,
+    /// Commands taken.
+    pub commands: u64,
+    /// Writes refused (not writable, unknown, wrong type, or by the request handler).
+    pub refused: u64,
+    /// Commands and STATE messages that were not understood or too long.
+    pub malformed: u64,
+    /// The connection failure under way, as logged; absent while a broker is connected.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub last_error: Option<String>,
 }
 
 /// One remote I/O device's figures since start.
@@ -696,6 +733,21 @@ mod tests {
                 last_error_age_ms: Some(1500),
                 round_trip: Percentiles { p50_ns: 1, p99_ns: 2, p999_ns: 3, max_ns: 4 },
             }],
+            mqtt: Some(MqttFigures {
+                node: "spBv1.0/plant/press7".into(),
+                broker: "mqtt://127.0.0.1:1883".into(),
+                state: "born".into(),
+                connects: 2,
+                failures: 1,
+                births: 3,
+                data: 100,
+                queued: 0,
+                dropped: 4,
+                commands: 5,
+                refused: 1,
+                malformed: 0,
+                last_error: Some("connection refused".into()),
+            }),
         };
         for reply in [
             Reply::Status(Box::new(status)),

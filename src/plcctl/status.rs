@@ -1,6 +1,6 @@
 //! `status`: the daemon's figures for a human.
 
-use plcd_ipc::{RemoteFigures, Status, SwitchName};
+use plcd_ipc::{MqttFigures, RemoteFigures, Status, SwitchName};
 
 use super::debug;
 use super::format::{self, human_ns, Align, Table};
@@ -96,6 +96,34 @@ pub fn render(status: &Status) -> String {
         text.push('\n');
         text.push_str(&remotes(&status.remotes));
     }
+    if let Some(mqtt) = &status.mqtt {
+        text.push('\n');
+        text.push_str(&mqtt_lines(mqtt));
+    }
+    text
+}
+
+/// The Sparkplug B edge node: its state, its counters, its last connection failure.
+fn mqtt_lines(mqtt: &MqttFigures) -> String {
+    let mut text = format!(
+        "mqtt: {} {} on {}: connects {}, failures {}, births {}, data {}, queued {}, dropped {}, \
+         commands {}, refused {}, malformed {}\n",
+        mqtt.node,
+        mqtt.state,
+        mqtt.broker,
+        mqtt.connects,
+        mqtt.failures,
+        mqtt.births,
+        mqtt.data,
+        mqtt.queued,
+        mqtt.dropped,
+        mqtt.commands,
+        mqtt.refused,
+        mqtt.malformed
+    );
+    if let Some(error) = &mqtt.last_error {
+        text.push_str(&format!("mqtt: last error: {error}\n"));
+    }
     text
 }
 
@@ -148,7 +176,33 @@ fn remotes(remotes: &[RemoteFigures]) -> String {
 
 #[cfg(test)]
 mod tests {
-    use plcd_ipc::{Percentiles, RemoteFigures};
+    use plcd_ipc::{MqttFigures, Percentiles, RemoteFigures};
+
+    #[test]
+    fn the_edge_node_shows_its_state_counters_and_last_error() {
+        let figures = MqttFigures {
+            node: "spBv1.0/plant/press7".into(),
+            broker: "mqtts://broker:8883".into(),
+            state: "connecting".into(),
+            connects: 2,
+            failures: 5,
+            births: 3,
+            data: 1200,
+            queued: 40,
+            dropped: 1,
+            commands: 7,
+            refused: 2,
+            malformed: 0,
+            last_error: Some("mqtts://broker:8883: I/O: connection refused".into()),
+        };
+        let text = super::mqtt_lines(&figures);
+        assert_eq!(
+            text,
+            "mqtt: spBv1.0/plant/press7 connecting on mqtts://broker:8883: connects 2, failures 5, \
+             births 3, data 1200, queued 40, dropped 1, commands 7, refused 2, malformed 0\n\
+             mqtt: last error: mqtts://broker:8883: I/O: connection refused\n"
+        );
+    }
 
     #[test]
     fn remote_devices_show_their_state_counters_and_last_error() {

@@ -36,6 +36,8 @@ import pysparkplug as sp
 from pysparkplug import _protobuf as pb
 
 PATIENCE = 20.0
+# The plcctl binary (--plcctl).
+PLCCTL = "plcctl"
 SAMPLING_MS = 100
 passed = 0
 failed = []
@@ -358,6 +360,14 @@ def births_and_data(plcd, project, port):
         check("the daemon logged the refusals",
               d.logged(r"refused", timeout=1.0) or True)
 
+        # plcctl status shows the node, its state and counters.
+        sock = os.path.join(d.dir, "plcd.sock")
+        shown = subprocess.run([PLCCTL, "--socket", sock, "status"], capture_output=True, text=True, timeout=PATIENCE)
+        line = [l for l in shown.stdout.splitlines() if l.startswith("mqtt: ")]
+        check("plcctl status: the edge node born, its commands and refusals counted",
+              line and re.search(rf"spBv1\.0/plant/press7 born on mqtt://127\.0\.0\.1:{port}: .*commands [4-9], refused [2-9]", line[0]),
+              shown.stdout[-400:] + shown.stderr)
+
         # Node control.
         start = host.mark()
         command(host, NODE.format("NCMD"), [write("Node Control/Rebirth", sp.DataType.BOOLEAN, True)], sp.NCmd)
@@ -381,6 +391,25 @@ def births_and_data(plcd, project, port):
         check("seq goes on by one from the rebirth", ok, detail)
         check("every payload decoded by pysparkplug", not [x for x in host.since() if isinstance(x[4], Exception)],
               [x[4] for x in host.since() if isinstance(x[4], Exception)][:3])
+
+        # A new project (the instance renamed): the old device dies, the node is born again.
+        with open(d.config) as f:
+            renamed = f.read().replace('name = "main"', 'name = "cell"').replace("main.setpoint", "cell.setpoint")
+        with open(os.path.join(d.dir, "renamed.toml"), "w") as f:
+            f.write(renamed)
+        start = host.mark()
+        for args in (["stop"], ["load", "--config", os.path.join(d.dir, "renamed.toml")], ["run"]):
+            done = subprocess.run([PLCCTL, "--socket", sock, *args], capture_output=True, text=True, timeout=PATIENCE)
+            check(f"plcctl {args[0]}", done.returncode == 0, done.stdout + done.stderr)
+        ddeath = host.wait(lambda t, k, dd: t == DEVICE.format("DDEATH"), start)
+        reborn = host.wait(lambda t, k, dd: t == NODE.format("NBIRTH"), start)
+        cell = host.wait(lambda t, k, dd: t == "spBv1.0/plant/DBIRTH/press7/cell", start)
+        order = [x[1] for x in host.since(start) if x[2] in ("DDEATH", "NBIRTH", "DBIRTH")]
+        check("a load that drops the instance: DDEATH of its device, then NBIRTH and the new device's DBIRTH",
+              ddeath and reborn and cell and order[:3] == [DEVICE.format("DDEATH"), NODE.format("NBIRTH"),
+                                                         "spBv1.0/plant/DBIRTH/press7/cell"], order[:4])
+        data = host.wait(lambda t, k, dd: t == "spBv1.0/plant/DDATA/press7/cell" and "ticks" in metrics_of(dd), start)
+        check("and the new device's data follows", data, [x[1] for x in host.since(start)][-4:])
 
         # A clean stop: the NDEATH with the session's bdSeq.
         start = host.mark()
@@ -422,7 +451,9 @@ def will_and_outage(plcd, project, broker_dir):
         check("after the broker restarts: a new NBIRTH with the next bdSeq (one per CONNECT sent)",
               bd_seq == 1, bd_seq)
         check("the log says it is back", d.logged(r"mqtt: edge node .* after \d+ failed attempts", timeout=5), d.log[-3:])
-        history = wait_until(lambda: [x for x in host.since() if x[2] == "DDATA" and any(m.is_historical for m in x[4].metrics)], 5)
+        # Live data comes after the stored data: once it is there, the history is all in.
+        live = wait_until(lambda: [x for x in host.since() if x[2] == "DDATA" and not any(m.is_historical for m in x[4].metrics)], 5)
+        history = [x for x in host.since() if x[2] == "DDATA" and any(m.is_historical for m in x[4].metrics)]
         order = [x[2] for x in host.since()]
         check("the changes of the outage follow the births, flagged historical",
               history and order.index("NBIRTH") < order.index("DBIRTH") <= min(i for i, x in enumerate(host.since()) if x in history),
@@ -430,8 +461,8 @@ def will_and_outage(plcd, project, broker_dir):
         stamps = [x[4].timestamp for x in history or []]
         ticks = [metrics_of(x[4])["ticks"].value for x in history or [] if "ticks" in metrics_of(x[4])]
         check("stored in order of time, several of them", len(stamps) >= 5 and stamps == sorted(stamps) and ticks == sorted(ticks), stamps[:5])
-        live = wait_until(lambda: [x for x in host.since() if x[2] == "DDATA" and not any(m.is_historical for m in x[4].metrics)], 5)
-        check("then live data again", live, len(host.since()))
+        check("then live data again", live and history and host.since().index(live[0]) > host.since().index(history[-1]),
+              len(host.since()))
         # kill -9: the broker publishes the will.
         start = host.mark()
         d.kill()
@@ -529,8 +560,11 @@ def primary_host(plcd, project, broker_dir):
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--plcd", required=True)
+    parser.add_argument("--plcctl", required=True)
     parser.add_argument("--project", required=True)
     args = parser.parse_args()
+    global PLCCTL
+    PLCCTL = args.plcctl
     broker_dir = tempfile.mkdtemp(prefix="plcd-mosquitto-")
     port = free_port()
     broker = Broker(broker_dir, port)

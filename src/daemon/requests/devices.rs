@@ -553,6 +553,7 @@ mod tests {
             ))),
             remote: Default::default(),
             announce: None,
+            mqtt: None,
         };
         Bench { handler: RequestHandler::new(links), commands, completions, dir }
     }

@@ -81,6 +81,8 @@ pub struct RequestLinks {
     pub remote: crate::io::remote::RemoteBoard,
     /// Who is told of each engine a `load` queues.
     pub announce: Option<Announce>,
+    /// The Sparkplug B edge node's figures, kept up to date by its connection thread.
+    pub mqtt: Option<Arc<Mutex<plcd_ipc::MqttFigures>>>,
 }
 
 /// Answers the control socket's requests. See the module docs.

@@ -134,6 +134,11 @@ impl RequestHandler {
             forces: forces_of(snapshot),
             debug: (mode == Mode::Debug).then(|| debug_state_with(snapshot, &running)),
             remotes: self.links.remote.reports().into_iter().map(remote_figures).collect(),
+            mqtt: self
+                .links
+                .mqtt
+                .as_ref()
+                .map(|figures| figures.lock().unwrap_or_else(|e| e.into_inner()).clone()),
         }
     }
 }

@@ -17,7 +17,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use plcd_ipc::{Outcome, Request, ResponseLine};
+use plcd_ipc::{MqttFigures, Outcome, Request, ResponseLine};
 use rumqttc::{
     AsyncClient, ConnectionError, Event, EventLoop, LastWill, MqttOptions, Packet, QoS, Transport,
 };
@@ -89,6 +89,7 @@ pub struct MqttNode {
     password: Option<String>,
     tls: Option<Arc<rustls::ClientConfig>>,
     layout: Mutex<Option<Arc<RetainedVariables>>>,
+    figures: Arc<Mutex<MqttFigures>>,
 }
 
 impl MqttNode {
@@ -118,6 +119,12 @@ impl MqttNode {
             mirror: Arc::clone(&mirror),
         });
         let plan = following.plan(symbols, names);
+        let figures = MqttFigures {
+            node: format!("{}/{}/{}", super::edge::NAMESPACE, config.group_id, config.edge_node_id),
+            broker: config.brokers[0].to_string(),
+            state: "connecting".into(),
+            ..MqttFigures::default()
+        };
         Ok(Some(MqttNode {
             config: config.clone(),
             plan,
@@ -126,12 +133,18 @@ impl MqttNode {
             password,
             tls,
             layout: Mutex::new(None),
+            figures: Arc::new(Mutex::new(figures)),
         }))
     }
 
     /// The mirror the scan thread copies for it.
     pub fn mirror(&self) -> Arc<Mirror> {
         Arc::clone(&self.mirror)
+    }
+
+    /// Its state and counters, for `plcctl status`, kept up to date by the connection.
+    pub fn figures(&self) -> Arc<Mutex<MqttFigures>> {
+        Arc::clone(&self.figures)
     }
 
     /// Where the daemon announces the engines it queues.
@@ -150,7 +163,7 @@ impl MqttNode {
 
     /// Starts the sampler and the connection.
     pub fn start(self, shared: Arc<Shared>, door: LocalDoor) -> Result<RunningMqtt, MqttError> {
-        let MqttNode { config, plan, following, mirror, password, tls, layout } = self;
+        let MqttNode { config, plan, following, mirror, password, tls, layout, figures } = self;
         let layout = layout.into_inner().unwrap_or_else(|e| e.into_inner());
         log::info!(
             "mqtt: {} metrics in {} devices{}",
@@ -206,7 +219,10 @@ impl MqttNode {
             stop: Arc::clone(&stop),
             told: None,
             failures: 0,
+            connects: 0,
+            failed: 0,
             node: node.clone(),
+            figures,
         };
         let thread_stop = Arc::clone(&stop);
         let thread = std::thread::Builder::new()
@@ -333,6 +349,11 @@ struct Connection {
     failures: u32,
     /// `spBv1.0/GROUP/NODE`, for the log.
     node: String,
+    /// Connections the brokers took, and attempts failed or connections lost, since start.
+    connects: u64,
+    failed: u64,
+    /// What `plcctl status` shows.
+    figures: Arc<Mutex<MqttFigures>>,
 }
 
 /// What ended a connection.
@@ -351,8 +372,10 @@ impl Connection {
         let mut backoff = min;
         loop {
             let url = self.config.brokers[broker].clone();
+            self.report(&url);
             let ended = self.connection(&url, &replies_tx, &mut replies).await;
             self.edge.disconnected();
+            self.report(&url);
             let wait = match ended {
                 Ended::Stopped => return,
                 Ended::NextServer => Duration::ZERO,
@@ -362,6 +385,7 @@ impl Connection {
                         backoff = min;
                     }
                     self.failures += 1;
+                    self.failed += 1;
                     let line = format!("{url}: {why}");
                     if self.told.as_deref() != Some(line.as_str()) {
                         log::warn!("mqtt: {line}; trying again, the next broker first");
@@ -404,6 +428,7 @@ impl Connection {
         let (client, mut events): (AsyncClient, EventLoop) = AsyncClient::new(options, REQUESTS);
         let mut acknowledged = false;
         loop {
+            self.report(url);
             tokio::select! {
                 event = events.poll() => match event {
                     Ok(Event::Incoming(Packet::ConnAck(_))) => {
@@ -417,6 +442,7 @@ impl Connection {
                             None => log::info!("mqtt: edge node {node} on {url}"),
                         }
                         self.failures = 0;
+                        self.connects += 1;
                         let topics = self.edge.topics().subscriptions(self.edge.primary());
                         for topic in topics {
                             let _ = client.try_subscribe(topic, QoS::AtLeastOnce);
@@ -463,6 +489,7 @@ impl Connection {
                     }
                 },
                 _ = self.stop.notify.notified() => {
+                    self.report(url);
                     // A clean disconnect does not send the will: the NDEATH is published.
                     let death = self.edge.death();
                     let _ = client.try_publish(death.topic, QoS::AtMostOnce, false, death.payload);
@@ -470,6 +497,29 @@ impl Connection {
                 },
             }
         }
+    }
+
+    /// Hands `plcctl status` the node's state and counters now.
+    fn report(&self, url: &BrokerUrl) {
+        let counters = &self.edge.counters;
+        let state = match (self.edge.is_connected(), self.edge.is_born()) {
+            (_, true) => "born",
+            (true, false) => "waiting",
+            (false, false) => "connecting",
+        };
+        let mut figures = self.figures.lock().unwrap_or_else(|e| e.into_inner());
+        figures.broker = url.to_string();
+        figures.state = state.into();
+        figures.connects = self.connects;
+        figures.failures = self.failed;
+        figures.births = counters.births;
+        figures.data = counters.data;
+        figures.queued = self.edge.stored() as u64;
+        figures.dropped = counters.dropped;
+        figures.commands = counters.commands;
+        figures.refused = counters.refused;
+        figures.malformed = counters.malformed;
+        figures.last_error.clone_from(&self.told);
     }
 
     /// Disconnects cleanly (what was published goes first), waiting at most [`STOP_WAIT`].

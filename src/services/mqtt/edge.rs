@@ -235,6 +235,11 @@ impl Edge {
         self.scan_rate_ms
     }
 
+    /// Connected to a broker (births or not).
+    pub fn is_connected(&self) -> bool {
+        self.connected
+    }
+
     /// Births are out on a connection: data goes to the broker, not to the store.
     pub fn is_born(&self) -> bool {
         self.born

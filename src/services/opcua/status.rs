@@ -295,6 +295,7 @@ mod tests {
                 last_error_age_ms: None,
                 round_trip: Percentiles::default(),
             }],
+            mqtt: None,
         };
         let values = values(&status);
         let get = |node: &str| values.iter().find(|(n, _)| n == node).map(|(_, v)| v.clone());

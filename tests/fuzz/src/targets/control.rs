@@ -114,6 +114,7 @@ fn daemon() -> &'static Daemon {
             remote: driver.remote_board(),
             running: Arc::new(Mutex::new(Running::new(&config, project.clone()))),
             announce: None,
+            mqtt: None,
         };
         let mut server = ControlServer::bind(&project.config.control).expect("the socket");
         std::thread::spawn(move || {
