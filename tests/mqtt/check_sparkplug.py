@@ -427,8 +427,11 @@ def will_and_outage(plcd, project, broker_dir):
     port = free_port()
     broker = Broker(broker_dir, port)
     host = Host(port)
+    spool = os.path.join(broker_dir, "spool")
+    # Five messages in memory: the rest of the outage goes through the disk.
     config = (f'brokers = ["mqtt://127.0.0.1:{port}"]\ngroup_id = "plant"\nedge_node_id = "press7"\n'
-              f'reconnect_min_ms = 200\nreconnect_max_ms = 1000\nsample_interval_ms = {SAMPLING_MS}\n')
+              f'reconnect_min_ms = 200\nreconnect_max_ms = 1000\nsample_interval_ms = {SAMPLING_MS}\n'
+              f'store_forward_messages = 5\nstore_forward_dir = "{spool}"\n')
     d = Daemon(plcd, project, config)
     try:
         first = host.wait(lambda t, k, dd: t == NODE.format("NBIRTH"))
@@ -460,7 +463,8 @@ def will_and_outage(plcd, project, broker_dir):
               order[:6])
         stamps = [x[4].timestamp for x in history or []]
         ticks = [metrics_of(x[4])["ticks"].value for x in history or [] if "ticks" in metrics_of(x[4])]
-        check("stored in order of time, several of them", len(stamps) >= 5 and stamps == sorted(stamps) and ticks == sorted(ticks), stamps[:5])
+        check("stored in order of time, more than the memory's 5: through the disk", len(stamps) > 10 and stamps == sorted(stamps) and ticks == sorted(ticks), stamps[:5])
+        check("the disk's segments deleted once sent", wait_until(lambda: not os.listdir(spool), 5) is not None, os.listdir(spool))
         check("then live data again", live and history and host.since().index(live[0]) > host.since().index(history[-1]),
               len(host.since()))
         # kill -9: the broker publishes the will.

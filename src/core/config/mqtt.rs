@@ -105,6 +105,14 @@ pub struct MqttConfig {
     /// `store_forward_messages`: DATA messages kept while disconnected,
     /// [`MqttConfig::STORE_FORWARD_MESSAGES`]; default 10000. 0: none kept.
     pub store_forward_messages: u32,
+    /// `store_forward_dir`: where DATA messages go on disk when `store_forward_messages` are
+    /// kept in memory already, resolved against the config file's directory; emptied at each
+    /// start (its messages' aliases belong to the births of the run that stored them). Default
+    /// `None`: memory only.
+    pub store_forward_dir: Option<PathBuf>,
+    /// `store_forward_disk_bytes`: what the messages in `store_forward_dir` may take, the
+    /// oldest dropped first, [`MqttConfig::STORE_FORWARD_DISK_BYTES`]; default 64 MiB.
+    pub store_forward_disk_bytes: u64,
     /// `reconnect_min_ms`: the first wait before connecting again,
     /// [`MqttConfig::RECONNECT_MS`]; default 500.
     pub reconnect_min_ms: u32,
@@ -232,6 +240,8 @@ impl MqttConfig {
     /// `[[mqtt.deadbands]]` entries.
     pub const MAX_DEADBANDS: usize = 10_000;
     pub const STORE_FORWARD_MESSAGES: RangeInclusive<u32> = 0..=1_000_000;
+    /// 64 KiB .. 64 GiB.
+    pub const STORE_FORWARD_DISK_BYTES: RangeInclusive<u64> = 65_536..=68_719_476_736;
     /// `reconnect_min_ms` and `reconnect_max_ms`.
     pub const RECONNECT_MS: RangeInclusive<u32> = 100..=600_000;
     /// 1 KiB .. 16 MiB.
@@ -272,6 +282,8 @@ impl Default for MqttConfig {
             deadbands: Vec::new(),
             ranges: Vec::new(),
             store_forward_messages: 10_000,
+            store_forward_dir: None,
+            store_forward_disk_bytes: 64 * 1024 * 1024,
             reconnect_min_ms: 500,
             reconnect_max_ms: 30_000,
             max_message_bytes: 262_144,
@@ -301,6 +313,8 @@ pub(super) struct RawMqtt {
     pub deadbands: Option<Spanned<Vec<Spanned<RawDeadband>>>>,
     pub ranges: Option<Vec<Spanned<RawDevices>>>,
     pub store_forward_messages: Option<Spanned<i64>>,
+    pub store_forward_dir: Option<Spanned<String>>,
+    pub store_forward_disk_bytes: Option<Spanned<i64>>,
     pub reconnect_min_ms: Option<Spanned<i64>>,
     pub reconnect_max_ms: Option<Spanned<i64>>,
     pub max_message_bytes: Option<Spanned<i64>>,
@@ -596,6 +610,18 @@ pub(super) fn validate(sink: &mut Sink, raw: RawMqtt, config: &Path) -> Option<M
         MqttConfig::STORE_FORWARD_MESSAGES,
         default.store_forward_messages,
     );
+    let store_forward_dir = file(sink, &ctx, "store_forward_dir", &raw.store_forward_dir, config);
+    let store_forward_disk_bytes = int_or::<u64>(
+        sink,
+        &ctx,
+        "store_forward_disk_bytes",
+        raw.store_forward_disk_bytes,
+        {
+            let bytes = &MqttConfig::STORE_FORWARD_DISK_BYTES;
+            (*bytes.start() as i64)..=(*bytes.end() as i64)
+        },
+        default.store_forward_disk_bytes,
+    );
     let (min_at, max_at) = (raw.reconnect_min_ms.as_ref(), raw.reconnect_max_ms.as_ref());
     let min_at = min_at.map(|v| v.span().start);
     let max_at = max_at.map(|v| v.span().start);
@@ -665,6 +691,8 @@ pub(super) fn validate(sink: &mut Sink, raw: RawMqtt, config: &Path) -> Option<M
         deadbands: deadbands?,
         ranges,
         store_forward_messages: store_forward_messages?,
+        store_forward_dir: store_forward_dir?,
+        store_forward_disk_bytes: store_forward_disk_bytes?,
         reconnect_min_ms: reconnect_min_ms?,
         reconnect_max_ms: reconnect_max_ms?,
         max_message_bytes: max_message_bytes?,

@@ -25,6 +25,7 @@ use tokio::sync::{mpsc, Notify};
 
 use super::edge::{Action, Edge, MetricRef, Settings, Status, Topics};
 use super::metrics::Plan;
+use super::store::DiskBacklog;
 use super::MqttError;
 use crate::config::{BrokerUrl, MqttConfig};
 use crate::drivers::real_time::door::{Caller, LocalDoor};
@@ -90,6 +91,8 @@ pub struct MqttNode {
     tls: Option<Arc<rustls::ClientConfig>>,
     layout: Mutex<Option<Arc<RetainedVariables>>>,
     figures: Arc<Mutex<MqttFigures>>,
+    /// `store_forward_dir`'s messages.
+    disk: Option<DiskBacklog>,
 }
 
 impl MqttNode {
@@ -119,6 +122,13 @@ impl MqttNode {
             mirror: Arc::clone(&mirror),
         });
         let plan = following.plan(symbols, names);
+        let disk = match &config.store_forward_dir {
+            Some(dir) => Some(
+                DiskBacklog::open(dir, config.store_forward_disk_bytes)
+                    .map_err(|source| MqttError::Store { path: dir.clone(), source })?,
+            ),
+            None => None,
+        };
         let figures = MqttFigures {
             node: format!("{}/{}/{}", super::edge::NAMESPACE, config.group_id, config.edge_node_id),
             broker: config.brokers[0].to_string(),
@@ -134,6 +144,7 @@ impl MqttNode {
             tls,
             layout: Mutex::new(None),
             figures: Arc::new(Mutex::new(figures)),
+            disk,
         }))
     }
 
@@ -163,7 +174,8 @@ impl MqttNode {
 
     /// Starts the sampler and the connection.
     pub fn start(self, shared: Arc<Shared>, door: LocalDoor) -> Result<RunningMqtt, MqttError> {
-        let MqttNode { config, plan, following, mirror, password, tls, layout, figures } = self;
+        let MqttNode { config, plan, following, mirror, password, tls, layout, figures, disk } =
+            self;
         let layout = layout.into_inner().unwrap_or_else(|e| e.into_inner());
         log::info!(
             "mqtt: {} metrics in {} devices{}",
@@ -205,8 +217,12 @@ impl MqttNode {
         };
         let node =
             format!("{}/{}/{}", super::edge::NAMESPACE, config.group_id, config.edge_node_id);
+        let mut edge = Edge::new(settings, plan);
+        if let Some(disk) = disk {
+            edge.set_overflow(Box::new(disk));
+        }
         let connection = Connection {
-            edge: Edge::new(settings, plan),
+            edge,
             config,
             password,
             tls,

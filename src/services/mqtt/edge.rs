@@ -124,12 +124,28 @@ pub struct Counters {
     pub malformed: u64,
 }
 
-/// A DATA message kept while offline: the node's or a device's metrics, sequence number and
-/// all to be given when it is sent.
-#[derive(Debug, Clone)]
-struct Stored {
-    device: Option<usize>,
-    payload: Payload,
+/// A DATA message kept while offline: the node's (`device` `None`) or a device's metrics, its
+/// sequence number to be given when it is sent.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stored {
+    pub device: Option<usize>,
+    pub payload: Payload,
+}
+
+/// Where the DATA messages go that the memory store has no room for (the disk, in the
+/// client): older than every message in memory, so sent before them. First in, first out.
+pub trait Backlog: Send {
+    /// Keeps `stored` after the others; the number of older messages dropped to make room
+    /// (or 1 if `stored` itself could not be kept).
+    fn push(&mut self, stored: Stored) -> u64;
+    /// The oldest message, taken.
+    fn pop(&mut self) -> Option<Stored>;
+    fn len(&self) -> usize;
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Drops every message (the metrics changed); how many there were.
+    fn clear(&mut self) -> u64;
 }
 
 /// The edge node's state.
@@ -163,6 +179,8 @@ pub struct Edge {
     status: Status,
     stored: VecDeque<Stored>,
     store_limit: usize,
+    /// Beyond `store_limit`: the older messages, on disk.
+    overflow: Option<Box<dyn Backlog>>,
     pub counters: Counters,
 }
 
@@ -198,6 +216,7 @@ impl Edge {
             status: Status::default(),
             stored: VecDeque::new(),
             store_limit: settings.store_limit,
+            overflow: None,
             counters: Counters::default(),
         };
         edge.set_plan(plan);
@@ -247,7 +266,12 @@ impl Edge {
 
     /// DATA messages waiting for the next connection.
     pub fn stored(&self) -> usize {
-        self.stored.len()
+        self.stored.len() + self.overflow.as_ref().map_or(0, |o| o.len())
+    }
+
+    /// Where what the memory store has no room for goes (the disk), instead of being dropped.
+    pub fn set_overflow(&mut self, overflow: Box<dyn Backlog>) {
+        self.overflow = Some(overflow);
     }
 
     fn flat(&self, metric: MetricRef) -> usize {
@@ -337,7 +361,10 @@ impl Edge {
             actions.push(self.publish(topic, metrics, now_ms));
         }
         self.sent.clone_from(&self.current);
-        while let Some(stored) = self.stored.pop_front() {
+        // The oldest first: those that overflowed, then the memory's.
+        let overflowed = std::iter::from_fn(|| self.overflow.as_mut().and_then(|o| o.pop()));
+        let backlog: Vec<Stored> = overflowed.collect();
+        for stored in backlog.into_iter().chain(std::mem::take(&mut self.stored)) {
             let topic = self.data_topic(stored.device);
             let mut payload = stored.payload;
             payload.seq = Some(self.next_seq());
@@ -508,22 +535,27 @@ impl Edge {
             return None;
         }
         if historical {
-            if self.store_limit == 0 {
-                self.counters.dropped += 1;
-                return None;
-            }
-            if self.stored.len() >= self.store_limit {
-                self.stored.pop_front();
-                self.counters.dropped += 1;
-            }
             let payload = Payload { timestamp: Some(now_ms), metrics: wire, ..Payload::default() };
-            self.stored.push_back(Stored { device, payload });
             self.counters.stored += 1;
+            self.store(Stored { device, payload });
             return None;
         }
         self.counters.data += 1;
         let topic = self.data_topic(device);
         Some(self.publish(topic, wire, now_ms))
+    }
+
+    /// Keeps `stored` for the next connection: in memory, the oldest moving to the overflow
+    /// (or dropped, without one) when the memory holds `store_limit` messages.
+    fn store(&mut self, stored: Stored) {
+        self.stored.push_back(stored);
+        while self.stored.len() > self.store_limit {
+            let Some(oldest) = self.stored.pop_front() else { break };
+            self.counters.dropped += match &mut self.overflow {
+                Some(overflow) => overflow.push(oldest),
+                None => 1,
+            };
+        }
     }
 
     /// A message on one of the node's command topics (or the primary host's STATE).
@@ -692,6 +724,9 @@ impl Edge {
             .collect();
         self.counters.dropped += self.stored.len() as u64;
         self.stored.clear();
+        if let Some(overflow) = &mut self.overflow {
+            self.counters.dropped += overflow.clear();
+        }
         self.set_plan(plan);
         if born {
             out.extend(self.births(now_ms));

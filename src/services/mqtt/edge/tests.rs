@@ -3,6 +3,7 @@ use crate::config::MqttConfig;
 use crate::project::MqttNames;
 use crate::symbols::Symbols;
 use crate::value::{Elem, Pointer, Space, ValueType};
+use std::collections::VecDeque;
 
 /// Device `main`: `count` (INT at byte 0, writable), `temp` (REAL at byte 4, deadband 0.5),
 /// `label` (STRING[10] at byte 8, read-only).
@@ -401,4 +402,53 @@ fn a_new_project_kills_the_devices_it_drops_and_is_born_again() {
             "spBv1.0/plant/DBIRTH/press7/cell"
         ]
     );
+}
+
+/// A backlog in memory, for the tests.
+#[derive(Default)]
+struct Overflow(VecDeque<Stored>);
+
+impl Backlog for Overflow {
+    fn push(&mut self, stored: Stored) -> u64 {
+        self.0.push_back(stored);
+        0
+    }
+    fn pop(&mut self) -> Option<Stored> {
+        self.0.pop_front()
+    }
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    fn clear(&mut self) -> u64 {
+        let n = self.0.len() as u64;
+        self.0.clear();
+        n
+    }
+}
+
+#[test]
+fn what_the_memory_has_no_room_for_overflows_and_goes_first() {
+    let mut edge = Edge::new(settings(None, 2), plan());
+    edge.set_overflow(Box::<Overflow>::default());
+    sample(&mut edge, &vars(0, 20.0, ""), 0);
+    edge.will();
+    edge.connected(1);
+    edge.disconnected();
+    for count in 1..=5 {
+        sample(&mut edge, &vars(count, 20.0, ""), count as u64);
+    }
+    assert_eq!((edge.stored(), edge.counters.dropped), (5, 0), "none lost");
+    edge.will();
+    let out = published(&edge.connected(10));
+    let values: Vec<_> = out[2..].iter().map(|(_, p)| p.metrics[0].value.clone()).collect();
+    let expected: Vec<_> = (1..=5).map(|v| Some(Wire::IntValue(v))).collect();
+    assert_eq!(values, expected, "the overflow's (older) first, then the memory's");
+    assert_eq!(edge.stored(), 0);
+    // A new project: what is stored is dropped, overflow too.
+    edge.disconnected();
+    for count in 6..=9 {
+        sample(&mut edge, &vars(count, 20.0, ""), count as u64);
+    }
+    edge.replan(plan(), 20);
+    assert_eq!((edge.stored(), edge.counters.dropped), (0, 4));
 }
