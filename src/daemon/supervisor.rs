@@ -199,7 +199,7 @@ impl Daemon {
         #[cfg(feature = "mqtt")]
         let mqtt = match (mqtt, &door) {
             (Some(node), Some(door)) => {
-                let node = node.start(Arc::clone(&shared), door.clone())?;
+                let node = node.start(Arc::clone(&shared), door.clone(), driver.remote_board())?;
                 log::info!("mqtt: edge node {} connecting", node.serving());
                 Some(node)
             }
@@ -594,7 +594,8 @@ fn bind_mqtt(project: &Project) -> Result<Option<MqttNode>, DaemonError> {
     // Checked when the project was built; a project built otherwise is checked again here.
     let names = project.mqtt_names().map_err(|e| DaemonError::Invalid(Diagnostics(e)))?;
     let symbols = &project.variables.symbols;
-    Ok(crate::services::mqtt::MqttNode::new(&project.config.mqtt, symbols, &names)?)
+    let remotes: Vec<String> = project.config.remotes.iter().map(|r| r.name.clone()).collect();
+    Ok(crate::services::mqtt::MqttNode::new(&project.config.mqtt, &remotes, symbols, &names)?)
 }
 
 #[cfg(not(feature = "mqtt"))]

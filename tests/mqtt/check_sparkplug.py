@@ -561,6 +561,92 @@ def primary_host(plcd, project, broker_dir):
         broker.stop()
 
 
+class ModbusServer:
+    """The least Modbus TCP server a remote I/O device needs: every holding-register read
+    answered with zeros, on `port`, until `stop` closes it and every connection."""
+
+    def __init__(self, port):
+        self.listener = socket.socket()
+        self.listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.listener.bind(("127.0.0.1", port))
+        self.listener.listen()
+        self.conns = []
+        self.thread = threading.Thread(target=self._accept, daemon=True)
+        self.thread.start()
+
+    def _accept(self):
+        while True:
+            try:
+                conn, _ = self.listener.accept()
+            except OSError:
+                return
+            self.conns.append(conn)
+            threading.Thread(target=self._serve, args=(conn,), daemon=True).start()
+
+    def _serve(self, conn):
+        try:
+            while True:
+                head = conn.recv(7)
+                if len(head) < 7:
+                    return
+                length = int.from_bytes(head[4:6], "big")
+                pdu = conn.recv(length - 1)
+                count = int.from_bytes(pdu[3:5], "big") if pdu[:1] == b"\x03" else 0
+                body = bytes([3, 2 * count]) + bytes(2 * count)
+                conn.sendall(head[:4] + (len(body) + 1).to_bytes(2, "big") + head[6:7] + body)
+        except OSError:
+            return
+
+    def stop(self):
+        # shutdown first: a close alone leaves the socket listening while accept() waits on it.
+        try:
+            self.listener.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+        self.listener.close()
+        for conn in self.conns:
+            try:
+                conn.shutdown(socket.SHUT_RDWR)
+                conn.close()
+            except OSError:
+                pass
+
+
+def remote_device(plcd, project, broker_dir):
+    """A remote I/O device is a Sparkplug device: it dies while it is lost, and is born again."""
+    port = free_port()
+    broker = Broker(broker_dir, port)
+    host = Host(port, name="remote")
+    modbus_port = free_port()
+    server = ModbusServer(modbus_port)
+    remote = (f'\n[[remote]]\nname = "rack"\ntransport = "tcp"\naddress = "127.0.0.1:{modbus_port}"\n'
+              'unit_id = 1\nperiod_ms = 25\ntimeout_ms = 200\nreconnect_ms = 20\nreconnect_max_ms = 160\n'
+              '\n[[remote.read]]\ntable = "holding_registers"\naddress = 0\ncount = 1\ndevice = "D00100"\n')
+    d = Daemon(plcd, project, f'brokers = ["mqtt://127.0.0.1:{port}"]\ngroup_id = "plant"\nedge_node_id = "press7"\n'
+               + remote)
+    topic = "spBv1.0/plant/{}/press7/remote-rack"
+    try:
+        birth = host.wait(lambda t, k, dd: t == topic.format("DBIRTH"))
+        check("a remote I/O device has its Sparkplug device, remote-rack", birth and "State" in metrics_of(birth[4]), d.log[-3:])
+        online = host.wait(lambda t, k, dd: t in (topic.format("DBIRTH"), topic.format("DDATA"))
+                           and metrics_of(dd).get("State") and metrics_of(dd)["State"].value == "online")
+        check("its State is online while it answers", online, [x[1] for x in host.since()][-4:])
+        start = host.mark()
+        server.stop()
+        death = host.wait(lambda t, k, dd: t == topic.format("DDEATH"), start)
+        check("the device lost: its DDEATH", death, d.log[-3:])
+        server = ModbusServer(modbus_port)
+        again = host.wait(lambda t, k, dd: t == topic.format("DBIRTH"), start)
+        check("the device back: its DBIRTH again, State online",
+              again and metrics_of(again[4])["State"].value == "online" and metrics_of(again[4])["Losses"].value >= 1,
+              again and {n: m.value for n, m in metrics_of(again[4]).items()})
+    finally:
+        server.stop()
+        d.kill()
+        host.close()
+        broker.stop()
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--plcd", required=True)
@@ -579,6 +665,7 @@ def main():
     will_and_outage(args.plcd, args.project, broker_dir)
     tls_and_logins(args.plcd, args.project, broker_dir)
     primary_host(args.plcd, args.project, broker_dir)
+    remote_device(args.plcd, args.project, broker_dir)
     print(f"{passed} passed, {len(failed)} failed")
     if failed:
         print("failed: " + ", ".join(failed))

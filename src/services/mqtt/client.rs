@@ -23,7 +23,7 @@ use rumqttc::{
 };
 use tokio::sync::{mpsc, Notify};
 
-use super::edge::{Action, Edge, MetricRef, Settings, Status, Topics};
+use super::edge::{Action, Edge, MetricRef, RemoteState, Settings, Status, Topics};
 use super::metrics::Plan;
 use super::store::DiskBacklog;
 use super::MqttError;
@@ -32,6 +32,7 @@ use crate::drivers::real_time::door::{Caller, LocalDoor};
 use crate::drivers::real_time::mirror::Mirror;
 use crate::drivers::real_time::{pending, Shared, PLAIN_THREAD_STACK};
 use crate::engine::Engine;
+use crate::io::remote::RemoteBoard;
 use crate::project::MqttNames;
 use crate::symbols::Symbols;
 use crate::vm::retained::RetainedVariables;
@@ -49,6 +50,8 @@ const STOP_WAIT: Duration = Duration::from_secs(2);
 /// the node is born again with the new project's metrics when a copy shows its engine.
 pub struct Following {
     config: MqttConfig,
+    /// The `[[remote]]` devices' names: fixed while the daemon runs.
+    remotes: Vec<String>,
     words: u16,
     plans: Mutex<VecDeque<(Arc<RetainedVariables>, Plan)>>,
     mirror: Arc<Mirror>,
@@ -56,7 +59,7 @@ pub struct Following {
 
 impl Following {
     fn plan(&self, symbols: &Symbols, names: &MqttNames) -> Plan {
-        Plan::of(symbols, &self.config, names, self.words)
+        Plan::of(symbols, &self.config, names, self.words).with_remotes(&self.remotes)
     }
 
     /// An engine the daemon is about to queue: `layout` is its
@@ -96,10 +99,12 @@ pub struct MqttNode {
 }
 
 impl MqttNode {
-    /// The node of `config`; `None` unless `brokers` is set. Reads the password file and the
-    /// TLS files now, so that a missing one stops the start.
+    /// The node of `config`, with a Sparkplug device for each remote I/O device of `remotes`
+    /// (the `[[remote]]` names); `None` unless `brokers` is set. Reads the password file and
+    /// the TLS files now, so that a missing one stops the start.
     pub fn new(
         config: &MqttConfig,
+        remotes: &[String],
         symbols: &Symbols,
         names: &MqttNames,
     ) -> Result<Option<MqttNode>, MqttError> {
@@ -117,6 +122,7 @@ impl MqttNode {
         let mirror = Arc::new(Mirror::with_all_variables(std::iter::once(0..words)));
         let following = Arc::new(Following {
             config: config.clone(),
+            remotes: remotes.to_vec(),
             words,
             plans: Mutex::new(VecDeque::new()),
             mirror: Arc::clone(&mirror),
@@ -172,8 +178,13 @@ impl MqttNode {
         *self.layout.lock().unwrap_or_else(|e| e.into_inner()) = Some(Arc::clone(layout));
     }
 
-    /// Starts the sampler and the connection.
-    pub fn start(self, shared: Arc<Shared>, door: LocalDoor) -> Result<RunningMqtt, MqttError> {
+    /// Starts the sampler and the connection; `board` has the remote I/O devices' states.
+    pub fn start(
+        self,
+        shared: Arc<Shared>,
+        door: LocalDoor,
+        board: RemoteBoard,
+    ) -> Result<RunningMqtt, MqttError> {
         let MqttNode { config, plan, following, mirror, password, tls, layout, figures, disk } =
             self;
         let layout = layout.into_inner().unwrap_or_else(|e| e.into_inner());
@@ -193,6 +204,8 @@ impl MqttNode {
         let stop = Arc::new(Stopping::default());
         let (samples_tx, samples) = mpsc::channel(2);
         let sampler = Sampler {
+            remotes: following.remotes.clone(),
+            board,
             mirror: Arc::clone(&mirror),
             shared: Arc::clone(&shared),
             rate: Arc::clone(&rate),
@@ -291,10 +304,15 @@ struct Copied {
     vars: Vec<u8>,
     status: Status,
     layout: Option<Arc<RetainedVariables>>,
+    /// The remote I/O devices' states, in `[[remote]]` order.
+    remotes: Vec<RemoteState>,
 }
 
 /// The sampler thread: a copy at a scan boundary every scan-rate interval.
 struct Sampler {
+    /// The `[[remote]]` names, in config order, and their counters.
+    remotes: Vec<String>,
+    board: RemoteBoard,
     mirror: Arc<Mirror>,
     shared: Arc<Shared>,
     rate: Arc<AtomicU32>,
@@ -303,6 +321,23 @@ struct Sampler {
 }
 
 impl Sampler {
+    /// The remote devices' states now, in `[[remote]]` order.
+    fn remote_states(&self) -> Vec<RemoteState> {
+        let reports = self.board.reports();
+        self.remotes
+            .iter()
+            .map(|name| match reports.iter().find(|r| &r.name == name) {
+                Some(report) => RemoteState {
+                    state: report.stats.state.as_str().to_string(),
+                    requests: report.stats.requests,
+                    failures: report.stats.failures,
+                    losses: report.stats.losses,
+                },
+                None => RemoteState::default(),
+            })
+            .collect()
+    }
+
     fn run(self) {
         let mut generation = 0;
         let mut next = Instant::now();
@@ -325,8 +360,10 @@ impl Sampler {
                         scan_ms: self.shared.scan_last_ns.load(Ordering::Relaxed) as f64 / 1e6,
                     },
                     layout: image.layout.clone(),
+                    remotes: Vec::new(),
                 })
             };
+            let copied = copied.map(|copied| Copied { remotes: self.remote_states(), ..copied });
             if let Some(copied) = copied {
                 // A connection busy with a slow broker takes the next copy instead: the values
                 // of one copy are compared with what was sent, so none is lost but the
@@ -442,11 +479,25 @@ impl Connection {
         let options =
             self.options(url, LastWill::new(will.topic, will.payload, QoS::AtMostOnce, false));
         let (client, mut events): (AsyncClient, EventLoop) = AsyncClient::new(options, REQUESTS);
+        // rumqttc's connect (TCP, TLS, CONNECT, CONNACK) inside `poll` is not cancel safe: a
+        // copy arriving in the middle of it must not drop it (the broker would publish the
+        // will of a session that was never born). It is awaited whole; only a stop cuts it.
+        let first = tokio::select! {
+            _ = self.stop.notify.notified() => return Ended::Stopped,
+            event = events.poll() => event,
+        };
+        let mut first = Some(first);
         let mut acknowledged = false;
         loop {
             self.report(url);
+            let event = async {
+                match first.take() {
+                    Some(event) => event,
+                    None => events.poll().await,
+                }
+            };
             tokio::select! {
-                event = events.poll() => match event {
+                event = event => match event {
                     Ok(Event::Incoming(Packet::ConnAck(_))) => {
                         acknowledged = true;
                         let node = &self.node;
@@ -571,6 +622,7 @@ impl Connection {
             self.layout = Some(layout);
             actions.extend(self.edge.replan(plan, copied.at_ms));
         }
+        actions.extend(self.edge.remotes(copied.remotes.clone(), copied.at_ms));
         let sample = super::edge::Sample {
             at_ms: copied.at_ms,
             words: &copied.words,

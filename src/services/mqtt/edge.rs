@@ -96,6 +96,23 @@ pub struct Status {
     pub scan_ms: f64,
 }
 
+/// A remote I/O device's state and counters, as its Sparkplug device publishes them.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct RemoteState {
+    /// `starting`, `online`, `lost`.
+    pub state: String,
+    pub requests: u64,
+    pub failures: u64,
+    pub losses: u64,
+}
+
+impl RemoteState {
+    /// A lost device's Sparkplug device is dead.
+    fn alive(&self) -> bool {
+        self.state != "lost"
+    }
+}
+
 /// A copy of the PLC taken at a scan boundary.
 #[derive(Debug, Clone, Copy)]
 pub struct Sample<'a> {
@@ -181,6 +198,10 @@ pub struct Edge {
     store_limit: usize,
     /// Beyond `store_limit`: the older messages, on disk.
     overflow: Option<Box<dyn Backlog>>,
+    /// The remote I/O devices' last states, in `[[remote]]` order.
+    remotes: Vec<RemoteState>,
+    /// Each device is alive (a remote one dies while it is lost), in the plan's order.
+    alive: Vec<bool>,
     pub counters: Counters,
 }
 
@@ -217,6 +238,8 @@ impl Edge {
             stored: VecDeque::new(),
             store_limit: settings.store_limit,
             overflow: None,
+            remotes: Vec::new(),
+            alive: Vec::new(),
             counters: Counters::default(),
         };
         edge.set_plan(plan);
@@ -234,6 +257,11 @@ impl Edge {
             })
             .collect();
         self.sent = vec![None; plan.len()];
+        self.alive = plan
+            .devices
+            .iter()
+            .map(|d| d.remote.is_none_or(|i| self.remotes.get(i).is_none_or(RemoteState::alive)))
+            .collect();
         self.current = vec![None; plan.len()];
         self.plan = plan;
     }
@@ -354,11 +382,9 @@ impl Edge {
             .collect();
         actions.push(self.publish(self.topics.node("NBIRTH"), node, now_ms));
         for d in 0..self.plan.devices.len() {
-            let metrics: Vec<WireMetric> = (0..self.plan.devices[d].metrics.len())
-                .map(|index| self.birth_metric(MetricRef { device: Some(d), index }, now_ms))
-                .collect();
-            let topic = self.topics.device("DBIRTH", &self.plan.devices[d].name);
-            actions.push(self.publish(topic, metrics, now_ms));
+            if self.alive[d] {
+                actions.push(self.device_birth(d, now_ms));
+            }
         }
         self.sent.clone_from(&self.current);
         // The oldest first: those that overflowed, then the memory's.
@@ -371,6 +397,65 @@ impl Edge {
             actions.push(Action::Publish(Message { topic, payload: payload.encode_to_vec() }));
         }
         actions
+    }
+
+    /// The DBIRTH of device `d`.
+    fn device_birth(&mut self, d: usize, now_ms: u64) -> Action {
+        let metrics: Vec<WireMetric> = (0..self.plan.devices[d].metrics.len())
+            .map(|index| self.birth_metric(MetricRef { device: Some(d), index }, now_ms))
+            .collect();
+        let topic = self.topics.device("DBIRTH", &self.plan.devices[d].name);
+        self.publish(topic, metrics, now_ms)
+    }
+
+    /// The DDEATH of device `d`.
+    fn device_death(&mut self, d: usize, now_ms: u64) -> Action {
+        let topic = self.topics.device("DDEATH", &self.plan.devices[d].name);
+        self.publish(topic, Vec::new(), now_ms)
+    }
+
+    /// The remote I/O devices' states now (`[[remote]]` order), before the copy they go with
+    /// ([`Edge::sample`]): the Sparkplug device of one that is lost dies (DDEATH), and is born
+    /// again (DBIRTH) when it is back, if the node is born.
+    pub fn remotes(&mut self, states: Vec<RemoteState>, now_ms: u64) -> Vec<Action> {
+        self.remotes = states;
+        let mut actions = Vec::new();
+        for d in 0..self.plan.devices.len() {
+            let Some(index) = self.plan.devices[d].remote else { continue };
+            let alive = self.remotes.get(index).is_none_or(RemoteState::alive);
+            if alive == self.alive[d] {
+                continue;
+            }
+            self.alive[d] = alive;
+            if !self.born {
+                // The next births say it.
+                continue;
+            }
+            if alive {
+                for index in 0..self.plan.devices[d].metrics.len() {
+                    let r = MetricRef { device: Some(d), index };
+                    let flat = self.flat(r);
+                    self.current[flat] = self.remote_value(self.metric(r));
+                    self.sent[flat] = self.current[flat].clone();
+                }
+                actions.push(self.device_birth(d, now_ms));
+            } else {
+                actions.push(self.device_death(d, now_ms));
+            }
+        }
+        actions
+    }
+
+    /// A remote device's figure, from the last states.
+    fn remote_value(&self, metric: &Metric) -> Option<Value> {
+        let Source::Remote { index, field } = metric.source else { return None };
+        let state = self.remotes.get(index)?;
+        Some(match field {
+            metrics::RemoteField::State => Value::Text(state.state.clone()),
+            metrics::RemoteField::Requests => Value::UInt(state.requests),
+            metrics::RemoteField::Failures => Value::UInt(state.failures),
+            metrics::RemoteField::Losses => Value::UInt(state.losses),
+        })
     }
 
     /// A payload of `metrics` on `topic`, stamped `now_ms`, with the next `seq`.
@@ -436,6 +521,7 @@ impl Edge {
     /// The value of `metric` in `sample`.
     fn read(&self, metric: &Metric, sample: &Sample) -> Option<Value> {
         Some(match &metric.source {
+            Source::Remote { .. } => return self.remote_value(metric),
             Source::Variable { ty, at, .. } => metrics::read(ty, *at, sample.words, sample.vars),
             Source::Mode => Value::Text(sample.status.mode.clone()),
             Source::Error => Value::Text(sample.status.error.clone()),
@@ -473,7 +559,9 @@ impl Edge {
                 (None, Some(_)) => true,
                 _ => false,
             };
-            if moved {
+            // A dead device sends nothing: its birth carries its values when it is back.
+            let dead = r.device.is_some_and(|d| !self.alive[d]);
+            if moved && !dead {
                 changed[r.device.map_or(0, |d| d + 1)].push(r.index);
             }
         }

@@ -93,6 +93,31 @@ pub enum Source {
     Scans,
     /// `Status/Scan Time`: the last scan, ms.
     ScanTime,
+    /// A figure of remote I/O device `index` (of `[[remote]]`, in config order).
+    Remote { index: usize, field: RemoteField },
+}
+
+/// The figures of a remote I/O device its Sparkplug device publishes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RemoteField {
+    /// `starting`, `online`, `lost`.
+    State,
+    Requests,
+    Failures,
+    Losses,
+}
+
+/// The metrics of a remote I/O device's Sparkplug device, in alias order.
+const REMOTE_METRICS: [(&str, DataType, RemoteField); 4] = [
+    ("State", DataType::String, RemoteField::State),
+    ("Requests", DataType::UInt64, RemoteField::Requests),
+    ("Failures", DataType::UInt64, RemoteField::Failures),
+    ("Losses", DataType::UInt64, RemoteField::Losses),
+];
+
+/// The Sparkplug device of remote I/O device `name`: `remote-NAME`.
+pub fn remote_device(name: &str) -> String {
+    format!("remote-{name}")
 }
 
 /// One metric.
@@ -113,6 +138,8 @@ pub struct Metric {
 pub struct Device {
     pub name: String,
     pub metrics: Vec<Metric>,
+    /// A remote I/O device's (its index in `[[remote]]`): it dies while the device is lost.
+    pub remote: Option<usize>,
 }
 
 /// The metrics of a project.
@@ -206,7 +233,11 @@ impl Plan {
                     continue;
                 }
                 let device = *devices.entry(instance.to_string()).or_insert_with(|| {
-                    plan.devices.push(Device { name: instance.to_string(), metrics: Vec::new() });
+                    plan.devices.push(Device {
+                        name: instance.to_string(),
+                        metrics: Vec::new(),
+                        remote: None,
+                    });
                     plan.devices.len() - 1
                 });
                 add(&mut plan, device, rest.join("/"), &symbol);
@@ -215,7 +246,7 @@ impl Plan {
             let by_name: HashMap<String, value::Symbol> =
                 symbols.iter().map(|s| (s.name.clone(), s)).collect();
             for (name, variables) in &names.devices {
-                plan.devices.push(Device { name: name.clone(), metrics: Vec::new() });
+                plan.devices.push(Device { name: name.clone(), metrics: Vec::new(), remote: None });
                 let device = plan.devices.len() - 1;
                 for variable in variables {
                     if let Some(symbol) = by_name.get(variable) {
@@ -225,6 +256,31 @@ impl Plan {
             }
         }
         plan
+    }
+
+    /// The plan with a Sparkplug device for each remote I/O device of `remotes` (the
+    /// `[[remote]]` names, in config order) after the others: `remote-NAME`, with its state
+    /// and counters, which dies while the device is lost.
+    pub fn with_remotes(mut self, remotes: &[String]) -> Plan {
+        let mut alias = self.all().map(|(_, m)| m.alias + 1).max().unwrap_or(0);
+        for (index, name) in remotes.iter().enumerate() {
+            let metrics = REMOTE_METRICS
+                .iter()
+                .map(|&(metric, datatype, field)| {
+                    alias += 1;
+                    Metric {
+                        name: metric.into(),
+                        alias: alias - 1,
+                        datatype,
+                        source: Source::Remote { index, field },
+                        writable: false,
+                        deadband: 0.0,
+                    }
+                })
+                .collect();
+            self.devices.push(Device { name: remote_device(name), metrics, remote: Some(index) });
+        }
+        self
     }
 
     /// Every metric, the node's then each device's, with its device (`None`: the node).

@@ -31,7 +31,7 @@ fn plan() -> Plan {
         metric("temp", ValueType::Real(Elem::F32), 4, false, 0.5),
         metric("label", ValueType::String { cap: 10 }, 8, false, 0.0),
     ];
-    plan.devices.push(metrics::Device { name: "main".into(), metrics });
+    plan.devices.push(metrics::Device { name: "main".into(), metrics, remote: None });
     plan
 }
 
@@ -451,4 +451,36 @@ fn what_the_memory_has_no_room_for_overflows_and_goes_first() {
     }
     edge.replan(plan(), 20);
     assert_eq!((edge.stored(), edge.counters.dropped), (0, 4));
+}
+
+fn remote(state: &str, requests: u64) -> RemoteState {
+    RemoteState { state: state.into(), requests, failures: 0, losses: u64::from(state == "lost") }
+}
+
+#[test]
+fn a_lost_remote_device_dies_and_is_born_again_when_it_is_back() {
+    let mut edge = Edge::new(settings(None, 100), plan().with_remotes(&["rack".into()]));
+    assert!(edge.remotes(vec![remote("online", 1)], 0).is_empty());
+    sample(&mut edge, &vars(5, 20.0, "abc"), 1);
+    edge.will();
+    let births = published(&edge.connected(2));
+    let topics: Vec<&str> = births.iter().map(|(t, _)| t.as_str()).collect();
+    assert_eq!(topics[2], "spBv1.0/plant/DBIRTH/press7/remote-rack");
+    assert_eq!(metric_named(&births[2].1, "State").value, Some(Wire::StringValue("online".into())));
+    let death = published(&edge.remotes(vec![remote("lost", 9)], 3));
+    assert_eq!(death.len(), 1);
+    assert_eq!(death[0].0, "spBv1.0/plant/DDEATH/press7/remote-rack");
+    assert!(death[0].1.seq.is_some(), "a DDEATH has a seq");
+    let data = published(&sample(&mut edge, &vars(6, 20.0, "abc"), 4));
+    assert!(data.iter().all(|(t, _)| !t.contains("remote-rack")), "nothing from a dead device");
+    // Born again while it is lost: no DBIRTH for it.
+    edge.disconnected();
+    edge.will();
+    let births = published(&edge.connected(5));
+    assert!(births.iter().all(|(t, _)| !t.contains("remote-rack")), "{births:?}");
+    let back = published(&edge.remotes(vec![remote("online", 20)], 6));
+    assert_eq!(back.len(), 1);
+    assert_eq!(back[0].0, "spBv1.0/plant/DBIRTH/press7/remote-rack");
+    assert_eq!(metric_named(&back[0].1, "Requests").value, Some(Wire::LongValue(20)));
+    assert_eq!(metric_named(&back[0].1, "Losses").value, Some(Wire::LongValue(0)));
 }
