@@ -43,6 +43,8 @@ const BOUNDARY_WAIT: Duration = Duration::from_secs(2);
 const REQUESTS: usize = 1024;
 /// Plans kept for engines announced and not yet seen in a copy.
 const KEPT: usize = 4;
+/// Connection faults remembered as logged (one per broker and reason).
+const TOLD_KEPT: usize = 64;
 /// How long a clean stop waits for its NDEATH to be sent.
 const STOP_WAIT: Duration = Duration::from_secs(2);
 
@@ -246,7 +248,7 @@ impl MqttNode {
             rate,
             samples,
             stop: Arc::clone(&stop),
-            told: None,
+            told: Vec::new(),
             failures: 0,
             connects: 0,
             failed: 0,
@@ -396,8 +398,9 @@ struct Connection {
     rate: Arc<AtomicU32>,
     samples: mpsc::Receiver<Copied>,
     stop: Arc<Stopping>,
-    /// The last fault logged, so that a broker that stays down is one line.
-    told: Option<String>,
+    /// The faults logged since the last connection, one per broker and reason, the last the
+    /// newest: a broker that stays down is one line, however many brokers are tried in turn.
+    told: Vec<String>,
     /// Connection attempts failed in a row (0 once the broker took one).
     failures: u32,
     /// `spBv1.0/GROUP/NODE`, for the log.
@@ -440,9 +443,13 @@ impl Connection {
                     self.failures += 1;
                     self.failed += 1;
                     let line = format!("{url}: {why}");
-                    if self.told.as_deref() != Some(line.as_str()) {
+                    if !self.told.contains(&line) {
                         log::warn!("mqtt: {line}; trying again, the next broker first");
-                        self.told = Some(line);
+                    }
+                    self.told.retain(|told| told != &line);
+                    self.told.push(line);
+                    if self.told.len() > TOLD_KEPT {
+                        self.told.remove(0);
                     }
                     let wait = jitter(backoff);
                     backoff = (backoff * 2).min(max);
@@ -501,7 +508,7 @@ impl Connection {
                     Ok(Event::Incoming(Packet::ConnAck(_))) => {
                         acknowledged = true;
                         let node = &self.node;
-                        match self.told.take() {
+                        match std::mem::take(&mut self.told).last() {
                             Some(_) => log::info!(
                                 "mqtt: edge node {node} on {url}, after {} failed attempts",
                                 self.failures
@@ -586,7 +593,7 @@ impl Connection {
         figures.commands = counters.commands;
         figures.refused = counters.refused;
         figures.malformed = counters.malformed;
-        figures.last_error.clone_from(&self.told);
+        figures.last_error = self.told.last().cloned();
     }
 
     /// Disconnects cleanly (what was published goes first), waiting at most [`STOP_WAIT`].
