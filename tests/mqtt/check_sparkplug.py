@@ -277,7 +277,7 @@ def value_of(host, start, metric, kind="DDATA"):
 def births_and_data(plcd, project, port):
     host = Host(port)
     d = Daemon(plcd, project, f'brokers = ["mqtt://127.0.0.1:{port}"]\ngroup_id = "plant"\n'
-               f'edge_node_id = "press7"\nwritable = ["main.setpoint"]\n'
+               f'edge_node_id = "press7"\nwritable = ["main.setpoint", "main.label"]\n'
                f'sample_interval_ms = {SAMPLING_MS}\n')
     try:
         nbirth = host.wait(lambda t, k, d: t == NODE.format("NBIRTH"))
@@ -315,8 +315,9 @@ def births_and_data(plcd, project, port):
         raw = pb.Payload.FromString(dbirth[3])
         read_only = {m.name: m.properties.values[0].boolean_value for m in raw.metrics
                      if list(m.properties.keys) == ["readOnly"]}
-        check("readOnly is false for the writable metric alone",
-              read_only.get("setpoint") is False and read_only.get("limit") is True
+        check("readOnly is false for the writable metrics alone",
+              read_only.get("setpoint") is False and read_only.get("label") is False
+              and read_only.get("limit") is True
               and len(read_only) == len(raw.metrics), read_only)
 
         # Data by alias, on change, paced by the sampling interval.
@@ -354,6 +355,13 @@ def births_and_data(plcd, project, port):
         command(host, DEVICE.format("DCMD"), [write("setpoint", sp.DataType.STRING, "x")], sp.DCmd)
         v = value_of(host, start, "setpoint")
         check("a write of another data type is refused: the value the PLC holds is sent", v == -7, v)
+        start_long = host.mark()
+        command(host, DEVICE.format("DCMD"), [write("label", sp.DataType.STRING, "x" * 30)], sp.DCmd)
+        v = value_of(host, start_long, "label")
+        check("a write the request handler refuses (a STRING[20] of 30 characters): the value sent again",
+              v == "press", v)
+        check("and the refusal is logged with the handler's reason",
+              d.logged(r"mqtt: a command's write was refused: .*", timeout=5), d.log[-2:])
         time.sleep(0.3)
         echo = [metrics_of(x[4])["echo"].value for x in host.since(start) if "echo" in metrics_of(x[4])]
         check("a refused write does not reach the program", not echo, echo)
@@ -394,7 +402,7 @@ def births_and_data(plcd, project, port):
 
         # A new project (the instance renamed): the old device dies, the node is born again.
         with open(d.config) as f:
-            renamed = f.read().replace('name = "main"', 'name = "cell"').replace("main.setpoint", "cell.setpoint")
+            renamed = f.read().replace('name = "main"', 'name = "cell"').replace("main.setpoint", "cell.setpoint").replace("main.label", "cell.label")
         with open(os.path.join(d.dir, "renamed.toml"), "w") as f:
             f.write(renamed)
         start = host.mark()
