@@ -761,6 +761,10 @@ impl Edge {
             return actions;
         }
         for (device, list) in by_device {
+            // A dead device sends nothing: its birth carries its values when it is back.
+            if device.is_some_and(|d| !self.alive[d]) {
+                continue;
+            }
             actions.extend(self.data(device, &list, now_ms));
         }
         actions

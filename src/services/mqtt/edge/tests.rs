@@ -484,3 +484,20 @@ fn a_lost_remote_device_dies_and_is_born_again_when_it_is_back() {
     assert_eq!(metric_named(&back[0].1, "Requests").value, Some(Wire::LongValue(20)));
     assert_eq!(metric_named(&back[0].1, "Losses").value, Some(Wire::LongValue(0)));
 }
+
+/// Found by the `mqtt` fuzz target: a refused write to a lost remote device's metric sent its
+/// value again in a DDATA after the device's DDEATH.
+#[test]
+fn a_command_to_a_lost_remote_device_sends_nothing_of_it() {
+    let mut edge = Edge::new(settings(None, 100), plan().with_remotes(&["rack".into()]));
+    edge.remotes(vec![remote("online", 1)], 0);
+    sample(&mut edge, &vars(5, 20.0, "abc"), 1);
+    edge.will();
+    edge.connected(2);
+    let death = published(&edge.remotes(vec![remote("lost", 9)], 3));
+    assert_eq!(death[0].0, "spBv1.0/plant/DDEATH/press7/remote-rack");
+    let dcmd = "spBv1.0/plant/DCMD/press7/remote-rack";
+    let actions = command(&mut edge, dcmd, vec![by_name("State", Wire::StringValue("on".into()))]);
+    assert!(actions.is_empty(), "nothing of a dead device: {actions:?}");
+    assert_eq!(edge.counters.refused, 1, "refused all the same");
+}
