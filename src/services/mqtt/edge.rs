@@ -391,6 +391,12 @@ impl Edge {
         let overflowed = std::iter::from_fn(|| self.overflow.as_mut().and_then(|o| o.pop()));
         let backlog: Vec<Stored> = overflowed.collect();
         for stored in backlog.into_iter().chain(std::mem::take(&mut self.stored)) {
+            // A device dead now has no birth to go after: its DBIRTH, when it is back,
+            // carries its values.
+            if stored.device.is_some_and(|d| !self.alive[d]) {
+                self.counters.dropped += 1;
+                continue;
+            }
             let topic = self.data_topic(stored.device);
             let mut payload = stored.payload;
             payload.seq = Some(self.next_seq());

@@ -501,3 +501,25 @@ fn a_command_to_a_lost_remote_device_sends_nothing_of_it() {
     assert!(actions.is_empty(), "nothing of a dead device: {actions:?}");
     assert_eq!(edge.counters.refused, 1, "refused all the same");
 }
+
+/// Found by the `mqtt` fuzz target: what an outage stored of a remote device that was lost by
+/// the next births went out after them, a DDATA of a device without its DBIRTH.
+#[test]
+fn what_was_stored_of_a_remote_device_lost_since_is_not_sent() {
+    let mut edge = Edge::new(settings(None, 100), plan().with_remotes(&["rack".into()]));
+    edge.remotes(vec![remote("online", 1)], 0);
+    sample(&mut edge, &vars(5, 20.0, "abc"), 1);
+    edge.will();
+    edge.connected(2);
+    edge.disconnected();
+    edge.remotes(vec![remote("online", 2)], 3);
+    sample(&mut edge, &vars(5, 20.0, "abc"), 3);
+    assert_eq!(edge.stored(), 1, "the rack's requests");
+    edge.remotes(vec![remote("lost", 2)], 4);
+    sample(&mut edge, &vars(5, 20.0, "abc"), 4);
+    edge.will();
+    let out = published(&edge.connected(5));
+    let topics: Vec<&str> = out.iter().map(|(t, _)| t.as_str()).collect();
+    assert_eq!(topics, ["spBv1.0/plant/NBIRTH/press7", "spBv1.0/plant/DBIRTH/press7/main"]);
+    assert_eq!(edge.counters.dropped, 1);
+}
