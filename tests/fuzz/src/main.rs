@@ -8,5 +8,6 @@ fn main() {
         eprintln!("usage: plcd-fuzz TARGET (one of: {})", names.join(", "));
         std::process::exit(2);
     };
+    plcd_fuzz::prepare(&name);
     afl::fuzz!(|data: &[u8]| (target.run)(data));
 }

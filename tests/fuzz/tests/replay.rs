@@ -111,6 +111,41 @@ fn users() {
     replay("users");
 }
 
+#[test]
+fn mqtt() {
+    replay("mqtt");
+}
+
+/// The `mqtt` seeds are what a host application sends (`examples/mqtt-seeds.rs`): from them the
+/// target must reach every kind of command and event, or it fuzzes only the payload decoding.
+#[test]
+fn mqtt_seeds_reach_every_kind_of_message() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut seen = plcd_fuzz::targets::mqtt::Seen::new();
+    for path in inputs(&root.join("corpus/mqtt")) {
+        let data = std::fs::read(path).expect("an input");
+        plcd_fuzz::targets::mqtt::steps(&data, &mut seen);
+    }
+    for kind in [
+        "NCMD set",
+        "DCMD set",
+        "refused and sent again",
+        "rebirth",
+        "scan rate",
+        "next server",
+        "malformed",
+        "data",
+        "connection lost",
+        "stored",
+        "history",
+        "overflowed",
+        "remote lost",
+        "remote back",
+    ] {
+        assert!(seen.contains(kind), "no {kind} reached from the seeds: {seen:?}");
+    }
+}
+
 #[cfg(feature = "opcua")]
 #[test]
 fn opcua() {

@@ -5,6 +5,7 @@ pub mod control;
 pub mod il;
 pub mod modbus_rtu;
 pub mod modbus_tcp;
+pub mod mqtt;
 #[cfg(feature = "opcua")]
 pub mod opcua;
 pub mod plcproj;
