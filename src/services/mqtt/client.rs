@@ -647,6 +647,9 @@ impl Connection {
         actions: Vec<Action>,
         replies_tx: &mpsc::UnboundedSender<(Vec<MetricRef>, ResponseLine)>,
     ) -> Option<Ended> {
+        // A move to the next broker is carried out after the rest of the list: the writes of
+        // the same NCMD still go to the request handler.
+        let mut moving = None;
         for action in actions {
             match action {
                 Action::Publish(message) => {
@@ -679,18 +682,19 @@ impl Connection {
                         }
                     }
                 }
-                Action::NextServer(death) => {
-                    let _ = client.try_publish(death.topic, QoS::AtMostOnce, false, death.payload);
-                    log::info!("mqtt: moving to the next broker (Node Control/Next Server or the primary host offline)");
-                    return Some(Ended::NextServer);
-                }
+                Action::NextServer(death) => moving = Some(death),
                 Action::ScanRate(ms) => {
                     self.rate.store(ms, Ordering::Relaxed);
                     log::info!("mqtt: scan rate {ms} ms (Node Control/Scan Rate)");
                 }
             }
         }
-        None
+        let death = moving?;
+        let _ = client.try_publish(death.topic, QoS::AtMostOnce, false, death.payload);
+        log::info!(
+            "mqtt: moving to the next broker (Node Control/Next Server or the primary host offline)"
+        );
+        Some(Ended::NextServer)
     }
 
     /// The MQTT options of a connection to `url` with `will`.
