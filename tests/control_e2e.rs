@@ -410,3 +410,23 @@ fn the_key_switch_rules_remote_mode_changes() {
         );
     }
 }
+
+/// A `load` compiles the new project on the control thread, and builds its engine there: a
+/// program nested as deep as the parser takes (63 levels of parentheses, in an IF 1 deep)
+/// loads online, and the daemon answers on (its stack, `CONTROL_THREAD_STACK`, had overflowed
+/// once a debug build's frames grew).
+#[test]
+fn a_program_nested_as_deep_as_the_parser_takes_loads_on_the_control_thread() {
+    let st = |depth: usize| {
+        let nested = format!("{}x + 1{}", "(".repeat(depth), ")".repeat(depth));
+        format!("PROGRAM main\nVAR x : INT; END_VAR\nIF TRUE THEN\n  x := {nested};\nEND_IF;\nEND_PROGRAM\n")
+    };
+    let config = "[plc]\nscan_period_ms = 5\n[[program]]\nfile = \"main.st\"\n\
+        [control]\nsocket = \"plcd.sock\"\n";
+    let plc = Plc::start("deep", &[("plcd.toml", config), ("main.st", &st(1))]);
+    plc.project.write("deep.st", &st(60));
+    plc.project.write("deep.toml", &config.replace("main.st", "deep.st"));
+    let deep = plc.project.path("deep.toml");
+    assert!(plc.ok(&["load", "--config", deep.to_str().unwrap(), "--online"]).contains("online"));
+    assert_eq!(plc.status()["mode"], "RUN", "answering after the load");
+}

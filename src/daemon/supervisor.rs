@@ -20,7 +20,6 @@ use crate::config::{Backend, ControlConfig, ProjectChange};
 use crate::diag::Diagnostics;
 use crate::drivers::real_time::driver::{Driver, DriverError};
 use crate::drivers::real_time::sys::{self, SysError};
-use crate::drivers::real_time::PLAIN_THREAD_STACK;
 use crate::drivers::real_time::{Command, Report, Shared, Source};
 use crate::engine::event::{Event, Mode};
 use crate::engine::Engine;
@@ -686,7 +685,7 @@ fn start_control(
     let stopper = server.stopper();
     let handle = std::thread::Builder::new()
         .name("plcd-control".into())
-        .stack_size(PLAIN_THREAD_STACK)
+        .stack_size(crate::drivers::real_time::CONTROL_THREAD_STACK)
         .spawn(move || {
             let mut handler = RequestHandler::new(links);
             if let Err(e) = server.serve(&mut handler) {

@@ -432,6 +432,14 @@ pub const THREAD_STACK: usize = 512 * 1024;
 /// need (none of them recurses or keeps large buffers on its stack).
 pub const PLAIN_THREAD_STACK: usize = 256 * 1024;
 
+/// Stack size of the control thread, which does more than serve: a `load` compiles the new
+/// project there (the parser nests up to 64 levels, and native code is generated) and builds
+/// its engine. A debug build's frames are large: 256 KiB, [`PLAIN_THREAD_STACK`], overflowed
+/// building a plain project's engine once `Config` grew by 400 bytes (copies of it sit in
+/// several frames of the load); a program nested 63 levels deep loads with this one in a debug
+/// build (`tests/control_e2e.rs`).
+pub const CONTROL_THREAD_STACK: usize = 2 * 1024 * 1024;
+
 /// Why a thread runs without what `[rt]` asked for.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("{thread} thread: {error}")]
