@@ -19,7 +19,8 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use plcd_ipc::{MqttFigures, Outcome, Request, ResponseLine};
 use rumqttc::{
-    AsyncClient, ConnectionError, Event, EventLoop, LastWill, MqttOptions, Packet, QoS, Transport,
+    AsyncClient, ConnectionError, Event, EventLoop, LastWill, MqttOptions, NetworkOptions, Packet,
+    QoS, Transport,
 };
 use tokio::sync::{mpsc, Notify};
 
@@ -486,6 +487,12 @@ impl Connection {
         let options =
             self.options(url, LastWill::new(will.topic, will.payload, QoS::AtMostOnce, false));
         let (client, mut events): (AsyncClient, EventLoop) = AsyncClient::new(options, REQUESTS);
+        // Each DATA is a small message sent at once: without TCP_NODELAY, Nagle's algorithm held
+        // one back until the broker's delayed ACK (about 40 ms) whenever a host sent commands
+        // (BENCHMARKS.md, "MQTT").
+        let mut network = NetworkOptions::new();
+        network.set_tcp_nodelay(true);
+        events.set_network_options(network);
         // rumqttc's connect (TCP, TLS, CONNECT, CONNACK) inside `poll` is not cancel safe: a
         // copy arriving in the middle of it must not drop it (the broker would publish the
         // will of a session that was never born). It is awaited whole; only a stop cuts it.
