@@ -228,14 +228,10 @@ def plant(plcd, project, port):
               [n for n in daemons if not any(m[1] == f"spBv1.0/{GROUP}/NDEATH/{n}" for m in host.since(stop_mark))])
         check("one NDEATH per node after its birth, with the birth's bdSeq (0)", not deaths_bad, deaths_bad)
         check("nothing from a node after its NDEATH", not after_death, after_death)
-        if early_deaths:
-            # Not counted: plcd's connection loop drops rumqttc's poll future in a select! when a
-            # copy comes in during a connect, and rumqttc connects again (the same will), so a
-            # connect slower than the sampling interval is dropped once or more, each time with an
-            # NDEATH from the broker (the will of the CONNECT it had taken) before the NBIRTH.
-            # Reported; make this a check once the edge node waits out its connects.
-            print(f"note  an NDEATH before the NBIRTH from {len(early_deaths)} nodes "
-                  f"(a connect dropped and made again): {early_deaths}")
+        # The edge node awaits its connect whole: a connect is never dropped half made, so no
+        # broker publishes the will of a session that was never born.
+        check("no NDEATH before a node's NBIRTH (no connect dropped half made)", not early_deaths,
+              early_deaths)
         check("every daemon stopped cleanly (exit 0)", all(c == 0 for c in exits.values()),
               {n: c for n, c in exits.items() if c != 0})
     finally:
