@@ -102,6 +102,14 @@ pub fn format_ns(ns: u64) -> String {
     best.expect("ns >= 1 has a representation in ns")
 }
 
+/// Milliseconds as a client writes them (a Double: OPC UA's Duration, a Sparkplug metric) in
+/// whole nanoseconds, rounded; `None` for what is not a number or does not fit an `i64`.
+pub fn ms_to_ns(ms: f64) -> Option<i64> {
+    let ns = (ms * 1e6).round();
+    // i64::MAX as f64 rounds up to 2^63, itself out of range: hence the strict bound.
+    (ns.is_finite() && ns >= i64::MIN as f64 && ns < i64::MAX as f64).then_some(ns as i64)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

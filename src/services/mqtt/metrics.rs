@@ -8,6 +8,7 @@ use std::collections::HashMap;
 
 use super::sparkplug_b::payload::metric::Value as Wire;
 use crate::config::{MqttConfig, OpcuaDevices};
+use crate::duration::ms_to_ns;
 use crate::project::MqttNames;
 use crate::symbols::{device_words_end, name_parts, Symbols};
 use crate::value::{self, Elem, Pointer, Space, ValueType};
@@ -620,12 +621,6 @@ fn calendar_slot(calendar: value::Calendar, wire: &Wire) -> Option<Result<u64, R
             }
         }
     })
-}
-
-/// Milliseconds as whole nanoseconds; `None` past what an `i64` holds or not a number.
-fn ms_to_ns(ms: f64) -> Option<i64> {
-    let ns = (ms * 1e6).round();
-    (ns.is_finite() && ns >= i64::MIN as f64 && ns < i64::MAX as f64).then_some(ns as i64)
 }
 
 #[cfg(test)]

@@ -9,6 +9,7 @@
 
 use opcua::types::{DataTypeId, DateTime, StatusCode, Variant};
 
+use crate::duration::ms_to_ns;
 use crate::value::{self, Elem, Pointer, ValueType};
 use crate::vm::Vm;
 
@@ -220,14 +221,6 @@ fn variant_slot(ty: &ValueType, variant: &Variant) -> Result<u64, StatusCode> {
         | ValueType::WString { .. }
         | ValueType::Reference { .. } => Err(StatusCode::BadTypeMismatch),
     }
-}
-
-/// Milliseconds (a Duration) as whole nanoseconds; `None` past what an `i64` holds or not a
-/// number.
-fn ms_to_ns(ms: f64) -> Option<i64> {
-    let ns = (ms * 1e6).round();
-    // i64::MAX as f64 rounds up to 2^63, itself out of range: hence the strict bound.
-    (ns.is_finite() && ns >= i64::MIN as f64 && ns < i64::MAX as f64).then_some(ns as i64)
 }
 
 fn elem_slot(elem: Elem, variant: &Variant) -> Result<u64, StatusCode> {
