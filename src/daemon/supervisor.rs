@@ -564,7 +564,9 @@ fn announcer(opcua: &Option<OpcuaServer>, mqtt: &Option<MqttNode>) -> Option<Ann
         #[cfg(feature = "mqtt")]
         if let Some(following) = &mqtt {
             let names = project.mqtt_names().unwrap_or_default();
-            following.announce(engine.retained_variables(), &project.variables.symbols, &names);
+            let ranges = project.opcua_names().map(|n| n.analog).unwrap_or_default();
+            let symbols = &project.variables.symbols;
+            following.announce(engine.retained_variables(), symbols, &names, &ranges);
         }
         // Without a feature, its service is never there.
         let _ = (engine, project, &opcua, &mqtt);
@@ -594,7 +596,10 @@ fn bind_mqtt(project: &Project) -> Result<Option<MqttNode>, DaemonError> {
     let names = project.mqtt_names().map_err(|e| DaemonError::Invalid(Diagnostics(e)))?;
     let symbols = &project.variables.symbols;
     let remotes: Vec<String> = project.config.remotes.iter().map(|r| r.name.clone()).collect();
-    Ok(crate::services::mqtt::MqttNode::new(&project.config.mqtt, &remotes, symbols, &names)?)
+    // The engineering ranges of `[[opcua.analog]]`, published as the metrics' properties.
+    let ranges = project.opcua_names().map(|n| n.analog).unwrap_or_default();
+    let config = &project.config.mqtt;
+    Ok(crate::services::mqtt::MqttNode::new(config, &remotes, symbols, &names, &ranges)?)
 }
 
 #[cfg(not(feature = "mqtt"))]

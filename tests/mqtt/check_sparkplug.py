@@ -314,7 +314,7 @@ def births_and_data(plcd, project, port):
               None not in aliases and len(set(aliases)) == len(aliases), aliases)
         raw = pb.Payload.FromString(dbirth[3])
         read_only = {m.name: m.properties.values[0].boolean_value for m in raw.metrics
-                     if list(m.properties.keys) == ["readOnly"]}
+                     if list(m.properties.keys)[:1] == ["readOnly"]}
         check("readOnly is false for the writable metrics alone",
               read_only.get("setpoint") is False and read_only.get("label") is False
               and read_only.get("limit") is True
@@ -638,10 +638,18 @@ def remote_device(plcd, project, broker_dir):
     remote = (f'\n[[remote]]\nname = "rack"\ntransport = "tcp"\naddress = "127.0.0.1:{modbus_port}"\n'
               'unit_id = 1\nperiod_ms = 25\ntimeout_ms = 200\nreconnect_ms = 20\nreconnect_max_ms = 160\n'
               '\n[[remote.read]]\ntable = "holding_registers"\naddress = 0\ncount = 1\ndevice = "D00100"\n')
+    # An engineering range (the OPC UA server off): published as engLow/engHigh.
+    analog = '\n[[opcua.analog]]\nvariable = "main.axis.pos"\nlow = -10.0\nhigh = 250.5\n'
     d = Daemon(plcd, project, f'brokers = ["mqtt://127.0.0.1:{port}"]\ngroup_id = "plant"\nedge_node_id = "press7"\n'
-               + remote)
+               + remote + analog)
     topic = "spBv1.0/plant/{}/press7/remote-rack"
     try:
+        dbirth = host.wait(lambda t, k, dd: t == DEVICE.format("DBIRTH"))
+        pos = [m for m in pb.Payload.FromString(dbirth[3]).metrics if m.name == "axis/pos"] if dbirth else []
+        eng = {k: v.double_value for k, v in zip(pos[0].properties.keys, pos[0].properties.values)
+               if k.startswith("eng")} if pos else None
+        check("a variable's engineering range in its birth (engLow, engHigh)",
+              eng == {"engLow": -10.0, "engHigh": 250.5}, eng)
         birth = host.wait(lambda t, k, dd: t == topic.format("DBIRTH"))
         check("a remote I/O device has its Sparkplug device, remote-rack", birth and "State" in metrics_of(birth[4]), d.log[-3:])
         online = host.wait(lambda t, k, dd: t in (topic.format("DBIRTH"), topic.format("DDATA"))

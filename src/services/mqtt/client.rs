@@ -49,6 +49,9 @@ const TOLD_KEPT: usize = 64;
 /// How long a clean stop waits for its NDEATH to be sent.
 const STOP_WAIT: Duration = Duration::from_secs(2);
 
+/// The engineering ranges of variables, by full name (`[[opcua.analog]]`).
+pub type Ranges = std::collections::BTreeMap<String, crate::config::EuRange>;
+
 /// The plans of the engines the daemon announced (a reload, a load, an online change), so that
 /// the node is born again with the new project's metrics when a copy shows its engine.
 pub struct Following {
@@ -61,14 +64,22 @@ pub struct Following {
 }
 
 impl Following {
-    fn plan(&self, symbols: &Symbols, names: &MqttNames) -> Plan {
-        Plan::of(symbols, &self.config, names, self.words).with_remotes(&self.remotes)
+    fn plan(&self, symbols: &Symbols, names: &MqttNames, ranges: &Ranges) -> Plan {
+        Plan::of(symbols, &self.config, names, self.words)
+            .with_ranges(ranges)
+            .with_remotes(&self.remotes)
     }
 
     /// An engine the daemon is about to queue: `layout` is its
-    /// [`Engine::retained_variables`], `symbols` and `names` its project's.
-    pub fn announce(&self, layout: &Arc<RetainedVariables>, symbols: &Symbols, names: &MqttNames) {
-        let plan = self.plan(symbols, names);
+    /// [`Engine::retained_variables`], `symbols`, `names` and `ranges` its project's.
+    pub fn announce(
+        &self,
+        layout: &Arc<RetainedVariables>,
+        symbols: &Symbols,
+        names: &MqttNames,
+        ranges: &Ranges,
+    ) {
+        let plan = self.plan(symbols, names, ranges);
         self.mirror.serve_also(layout, plan.variable_bytes());
         let mut plans = self.plans.lock().unwrap_or_else(|e| e.into_inner());
         if plans.len() >= KEPT {
@@ -103,13 +114,15 @@ pub struct MqttNode {
 
 impl MqttNode {
     /// The node of `config`, with a Sparkplug device for each remote I/O device of `remotes`
-    /// (the `[[remote]]` names); `None` unless `brokers` is set. Reads the password file and
-    /// the TLS files now, so that a missing one stops the start.
+    /// (the `[[remote]]` names) and the engineering `ranges` of the variables that have one;
+    /// `None` unless `brokers` is set. Reads the password file and the TLS files now, so that a
+    /// missing one stops the start.
     pub fn new(
         config: &MqttConfig,
         remotes: &[String],
         symbols: &Symbols,
         names: &MqttNames,
+        ranges: &Ranges,
     ) -> Result<Option<MqttNode>, MqttError> {
         if !config.enabled() {
             return Ok(None);
@@ -130,7 +143,7 @@ impl MqttNode {
             plans: Mutex::new(VecDeque::new()),
             mirror: Arc::clone(&mirror),
         });
-        let plan = following.plan(symbols, names);
+        let plan = following.plan(symbols, names, ranges);
         let disk = match &config.store_forward_dir {
             Some(dir) => Some(
                 DiskBacklog::open(dir, config.store_forward_disk_bytes)

@@ -493,21 +493,27 @@ impl Edge {
     fn birth_metric(&self, metric: MetricRef, now_ms: u64) -> WireMetric {
         let m = self.metric(metric);
         let value = self.value_now(metric);
-        let read_only = PropertyValue {
-            r#type: Some(DataType::Boolean.code()),
-            value: Some(property_value::Value::BooleanValue(!m.writable)),
+        let property = |ty: DataType, value: property_value::Value| PropertyValue {
+            r#type: Some(ty.code()),
+            value: Some(value),
             ..PropertyValue::default()
         };
+        let mut keys = vec!["readOnly".to_string()];
+        let mut values =
+            vec![property(DataType::Boolean, property_value::Value::BooleanValue(!m.writable))];
+        if let Some(range) = m.range {
+            // Engineering metadata, under the names Sparkplug host applications read.
+            keys.extend(["engLow".to_string(), "engHigh".to_string()]);
+            values.push(property(DataType::Double, property_value::Value::DoubleValue(range.low)));
+            values.push(property(DataType::Double, property_value::Value::DoubleValue(range.high)));
+        }
         WireMetric {
             name: Some(m.name.clone()),
             alias: Some(m.alias),
             timestamp: Some(now_ms),
             datatype: Some(m.datatype.code()),
             is_null: value.is_none().then_some(true),
-            properties: Some(PropertySet {
-                keys: vec!["readOnly".into()],
-                values: vec![read_only],
-            }),
+            properties: Some(PropertySet { keys, values }),
             value: value.map(|v| metrics::wire(m.datatype, &v)),
             ..WireMetric::default()
         }

@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 
 use super::sparkplug_b::payload::metric::Value as Wire;
-use crate::config::{MqttConfig, OpcuaDevices};
+use crate::config::{EuRange, MqttConfig, OpcuaDevices};
 use crate::duration::ms_to_ns;
 use crate::project::MqttNames;
 use crate::symbols::{device_words_end, name_parts, Symbols};
@@ -132,6 +132,9 @@ pub struct Metric {
     pub writable: bool,
     /// A number's change smaller than this is not published (0: every change).
     pub deadband: f64,
+    /// The engineering range `[[opcua.analog]]` gives the variable: its birth carries it as
+    /// the properties `engLow` and `engHigh`.
+    pub range: Option<EuRange>,
 }
 
 /// A Sparkplug device: a program instance or a `[[mqtt.devices]]` entry.
@@ -186,6 +189,7 @@ impl Plan {
                 source,
                 writable,
                 deadband: 0.0,
+                range: None,
             };
             plan.node.push(metric);
         }
@@ -221,6 +225,7 @@ impl Plan {
                     },
                     writable: names.writable.contains(&symbol.name),
                     deadband: names.deadbands.get(&symbol.name).copied().unwrap_or(0.0),
+                    range: None,
                 });
             };
         if names.devices.is_empty() {
@@ -259,6 +264,20 @@ impl Plan {
         plan
     }
 
+    /// The plan with the engineering ranges of `ranges` (variables by full name, as
+    /// [`crate::project::Project::opcua_names`] gives those of `[[opcua.analog]]`) on their
+    /// metrics.
+    pub fn with_ranges(mut self, ranges: &std::collections::BTreeMap<String, EuRange>) -> Plan {
+        for device in &mut self.devices {
+            for metric in &mut device.metrics {
+                if let Source::Variable { name, device: false, .. } = &metric.source {
+                    metric.range = ranges.get(name).copied();
+                }
+            }
+        }
+        self
+    }
+
     /// The plan with a Sparkplug device for each remote I/O device of `remotes` (the
     /// `[[remote]]` names, in config order) after the others: `remote-NAME`, with its state
     /// and counters, which dies while the device is lost.
@@ -276,6 +295,7 @@ impl Plan {
                         source: Source::Remote { index, field },
                         writable: false,
                         deadband: 0.0,
+                        range: None,
                     }
                 })
                 .collect();
@@ -342,6 +362,7 @@ fn range_metrics(range: &OpcuaDevices, next: &mut impl FnMut() -> u64) -> Vec<Me
             source: Source::Variable { name, ty, at, device: true },
             writable: range.writable,
             deadband: 0.0,
+            range: None,
         });
     }
     metrics

@@ -24,6 +24,7 @@ fn plan() -> Plan {
             },
             writable,
             deadband,
+            range: None,
         }
     };
     let metrics = vec![
@@ -169,6 +170,28 @@ fn a_birth_names_every_metric_with_its_alias_type_value_and_access() {
     assert_eq!(read_only(temp), Some(property_value::Value::BooleanValue(true)));
     assert_eq!(temp.value, Some(Wire::FloatValue(20.5)));
     assert_eq!(metric_named(&dbirth.1, "label").value, Some(Wire::StringValue("abc".into())));
+}
+
+#[test]
+fn a_birth_carries_a_variable_s_engineering_range() {
+    let ranges = [("main.temp".to_string(), crate::config::EuRange { low: -20.0, high: 150.0 })];
+    let mut edge =
+        Edge::new(settings(None, 100), plan().with_ranges(&ranges.into_iter().collect()));
+    sample(&mut edge, &vars(5, 20.0, "abc"), 1);
+    edge.will();
+    let births = published(&edge.connected(2));
+    let temp = metric_named(&births[1].1, "temp").properties.clone().unwrap();
+    assert_eq!(temp.keys, ["readOnly", "engLow", "engHigh"]);
+    let values: Vec<_> = temp.values.iter().map(|v| v.value.clone()).collect();
+    assert_eq!(
+        values[1..],
+        [
+            Some(property_value::Value::DoubleValue(-20.0)),
+            Some(property_value::Value::DoubleValue(150.0))
+        ]
+    );
+    let count = metric_named(&births[1].1, "count").properties.clone().unwrap();
+    assert_eq!(count.keys, ["readOnly"], "no range, no engineering properties");
 }
 
 #[test]
