@@ -14,12 +14,14 @@ the value the PLC holds; a rebirth on request; the scan rate changed; NDEATH wit
 bdSeq on a clean stop and as the will on `kill -9`; the broker restarted: reconnection with the
 next bdSeq, a new birth, and the changes of the outage sent after it in order, flagged
 historical; TLS with a password; a wrong password refused while the PLC runs on; the primary
-host's STATE. Prints one line per check and `N passed, M failed`; exits 1 unless all passed.
+host's STATE; a remote I/O device's death and birth; a network partition (the scan goes on, the
+will once the keep alive runs out, a new birth when it heals). Prints one line per check and `N passed, M failed`; exits 1 unless all passed.
 Every wait is bounded; brokers and daemons are killed on any failure.
 """
 
 import argparse
 import getpass
+import json
 import os
 import re
 import shutil
@@ -671,6 +673,107 @@ def remote_device(plcd, project, broker_dir):
         broker.stop()
 
 
+class StallingProxy:
+    """A TCP proxy to the broker that can stop forwarding while it keeps its connections open:
+    a network partition, or a broker that stops reading, as the edge node sees it."""
+
+    def __init__(self, port, broker_port):
+        self.broker_port = broker_port
+        self.stalled = threading.Event()
+        self.listener = socket.socket()
+        self.listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.listener.bind(("127.0.0.1", port))
+        self.listener.listen()
+        self.conns = []
+        threading.Thread(target=self._accept, daemon=True).start()
+
+    def _accept(self):
+        while True:
+            try:
+                client, _ = self.listener.accept()
+            except OSError:
+                return
+            if self.stalled.is_set():
+                # A partition: nothing gets through, not even a new connection.
+                self.conns.append(client)
+                continue
+            upstream = socket.create_connection(("127.0.0.1", self.broker_port))
+            self.conns += [client, upstream]
+            for a, b in ((client, upstream), (upstream, client)):
+                threading.Thread(target=self._pump, args=(a, b), daemon=True).start()
+
+    def _pump(self, source, sink):
+        try:
+            while True:
+                data = source.recv(65536)
+                if not data:
+                    break
+                while self.stalled.is_set():
+                    time.sleep(0.05)
+                sink.sendall(data)
+        except OSError:
+            pass
+        for s in (source, sink):
+            try:
+                s.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+
+    def close(self):
+        try:
+            self.listener.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+        self.listener.close()
+        for conn in self.conns:
+            try:
+                conn.close()
+            except OSError:
+                pass
+
+
+def partition(plcd, project, broker_dir):
+    """A network partition between the edge node and its broker: the scan goes on, the broker
+    sends the will once the keep alive runs out, and the node is born again when it heals."""
+    port = free_port()
+    broker = Broker(broker_dir, port)
+    host = Host(port, name="partition")
+    proxy_port = free_port()
+    proxy = StallingProxy(proxy_port, port)
+    d = Daemon(plcd, project, f'brokers = ["mqtt://127.0.0.1:{proxy_port}"]\ngroup_id = "plant"\n'
+               'edge_node_id = "press7"\nkeep_alive_s = 5\nreconnect_min_ms = 200\nreconnect_max_ms = 1000\n')
+    sock = os.path.join(d.dir, "plcd.sock")
+
+    def scans():
+        shown = subprocess.run([PLCCTL, "--socket", sock, "--json", "status"], capture_output=True,
+                               text=True, timeout=PATIENCE)
+        status = json.loads(shown.stdout)
+        return status["scan"]["count"], status.get("mqtt", {})
+    try:
+        birth = host.wait(lambda t, k, dd: t == NODE.format("NBIRTH"))
+        check("through the proxy: born", birth, d.log[-3:])
+        start = host.mark()
+        before, _ = scans()
+        proxy.stalled.set()
+        death = host.wait(lambda t, k, dd: t == NODE.format("NDEATH"), start, timeout=30)
+        check("a partition: the broker sends the will once the keep alive runs out",
+              death and death[4].bd_seq_metric.value == 0, death and death[4].bd_seq_metric)
+        after, mqtt = scans()
+        check("the scan went on through the partition (the client's wait is not the scan's)",
+              after - before > 500, (before, after))
+        check("plcctl status counts the lost connection",
+              wait_until(lambda: scans()[1].get("failures", 0) >= 1, 15), scans()[1])
+        proxy.stalled.clear()
+        reborn = host.wait(lambda t, k, dd: t == NODE.format("NBIRTH"), start, timeout=30)
+        check("healed: born again with the next bdSeq", reborn and metrics_of(reborn[4])["bdSeq"].value >= 1,
+              reborn and metrics_of(reborn[4])["bdSeq"].value)
+    finally:
+        proxy.close()
+        d.kill()
+        host.close()
+        broker.stop()
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--plcd", required=True)
@@ -690,6 +793,7 @@ def main():
     tls_and_logins(args.plcd, args.project, broker_dir)
     primary_host(args.plcd, args.project, broker_dir)
     remote_device(args.plcd, args.project, broker_dir)
+    partition(args.plcd, args.project, broker_dir)
     print(f"{passed} passed, {len(failed)} failed")
     if failed:
         print("failed: " + ", ".join(failed))
