@@ -816,6 +816,37 @@ pub fn format_string(chars: &[u8]) -> String {
     text
 }
 
+/// A client's text that a variable of a text type cannot hold: a character a one-byte
+/// `STRING` or `CHAR` has not, a `CHAR` or `WCHAR` of other than one character.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TextNotHeld;
+
+/// The text `plcctl set` takes for a variable of the text type `ty` (`STRING`, `WSTRING`,
+/// `CHAR`, `WCHAR`) that a client (OPC UA, MQTT) writes `text` to; `None` when `ty` is no text
+/// type. What `set` itself refuses (a string longer than the variable) it refuses then.
+pub fn text_written(ty: &ValueType, text: &str) -> Option<Result<String, TextNotHeld>> {
+    Some(match ty {
+        ValueType::String { .. } => {
+            encode_str(text).map(|bytes| format_string(&bytes)).map_err(|_| TextNotHeld)
+        }
+        ValueType::WString { .. } => Ok(format_wstring(&text.encode_utf16().collect::<Vec<u16>>())),
+        ValueType::Char => {
+            let mut chars = text.chars();
+            match (chars.next(), chars.next()) {
+                (Some(c), None) => {
+                    encode_char(c).map(|byte| format(ty, u64::from(byte))).ok_or(TextNotHeld)
+                }
+                _ => Err(TextNotHeld),
+            }
+        }
+        ValueType::WChar => match text.encode_utf16().collect::<Vec<u16>>().as_slice() {
+            [unit] => Ok(format(ty, u64::from(*unit))),
+            _ => Err(TextNotHeld),
+        },
+        _ => return None,
+    })
+}
+
 /// The code units of a `WSTRING` as an IEC literal: `"abc"`, with `$"`, `$$`, `$N`, `$R`,
 /// `$T` and `$hhhh` (four hex digits) for the quote, the dollar and the units that are no
 /// printable character (controls, halves of a surrogate pair); other characters as they are.
@@ -1593,6 +1624,21 @@ pub fn calendar_from_text(cal: Calendar, text: &str) -> Result<u64, CalendarErro
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_client_s_text_becomes_what_set_takes_or_is_not_held() {
+        let written = |ty: &ValueType, text: &str| text_written(ty, text);
+        assert_eq!(written(&ValueType::String { cap: 8 }, "it's"), Some(Ok("'it$'s'".into())));
+        assert_eq!(written(&ValueType::String { cap: 8 }, "\u{3042}"), Some(Err(TextNotHeld)));
+        assert_eq!(
+            written(&ValueType::WString { cap: 8 }, "\u{3042}"),
+            Some(Ok("\"\u{3042}\"".into()))
+        );
+        assert_eq!(written(&ValueType::Char, "ä"), Some(Ok(format(&ValueType::Char, 0xE4))));
+        assert_eq!(written(&ValueType::Char, "ab"), Some(Err(TextNotHeld)));
+        assert_eq!(written(&ValueType::WChar, ""), Some(Err(TextNotHeld)));
+        assert_eq!(written(&ValueType::Bool, "TRUE"), None, "no text type");
+    }
 
     #[test]
     fn string_bytes_are_windows_1252_characters_both_ways() {

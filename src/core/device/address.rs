@@ -70,6 +70,24 @@ pub enum UseError {
 }
 
 impl Address {
+    /// The type and place a service serves this device as beside the variables (a device
+    /// range of OPC UA or MQTT): a word an `INT`, a bit a `BOOL`; `None` for a device that is
+    /// neither (a timer, a counter).
+    pub fn served(&self) -> Option<(crate::value::ValueType, crate::value::Pointer)> {
+        use crate::value::{Elem, Pointer, Space, ValueType};
+        match (self.as_word(), self.as_bit()) {
+            (Ok(word), _) => {
+                let at = Pointer { space: Space::Word, offset: u32::from(word.0) };
+                Some((ValueType::Signed(Elem::I16), at))
+            }
+            (_, Ok(bit)) => {
+                let offset = u32::from(bit.word) * 16 + bit.mask.trailing_zeros();
+                Some((ValueType::Bool, Pointer { space: Space::Bit, offset }))
+            }
+            _ => None,
+        }
+    }
+
     /// Parses an address, case-insensitively. Leading zeros may be left out of T, C, D, SD and
     /// SM numbers (`D10` is `D00010`); P, M and K use the digit count to tell bits from words:
     /// four characters (three decimal word digits and one hex bit digit) name a bit, up to three
@@ -273,6 +291,20 @@ fn parse_flag(upper: &str) -> Option<Address> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_served_device_is_an_int_word_or_a_bool_bit() {
+        use crate::value::{Elem, Pointer, Space, ValueType};
+        let served = |text: &str| Address::parse(text).unwrap().served();
+        let word = Pointer {
+            space: Space::Word,
+            offset: u32::from(Address::parse("D00100").unwrap().as_word().unwrap().0),
+        };
+        assert_eq!(served("D00100"), Some((ValueType::Signed(Elem::I16), word)));
+        let bit = Address::parse("M0103").unwrap().as_bit().unwrap();
+        let at = Pointer { space: Space::Bit, offset: u32::from(bit.word) * 16 + 3 };
+        assert_eq!(served("M0103"), Some((ValueType::Bool, at)));
+    }
 
     fn parse(s: &str) -> Address {
         Address::parse(s).unwrap_or_else(|e| panic!("{s}: {e}"))

@@ -347,6 +347,23 @@ impl Vm {
         wide::wstring_bytes(vars, p)
     }
 
+    /// The characters of the `STRING` or `WSTRING` of type `ty` at `p` in a copy of variable
+    /// memory, as the services serve them (a `WSTRING`'s unpaired surrogate as U+FFFD);
+    /// `None` for a variable of another type.
+    pub fn text_in(ty: &crate::value::ValueType, vars: &[u8], p: Pointer) -> Option<String> {
+        match ty {
+            crate::value::ValueType::String { .. } => {
+                Some(crate::value::decode_str(Self::string_bytes_in(vars, p)))
+            }
+            crate::value::ValueType::WString { .. } => {
+                let bytes = Self::wstring_bytes_in(vars, p);
+                let units = bytes.chunks_exact(2).map(|u| u16::from_le_bytes([u[0], u[1]]));
+                Some(char::decode_utf16(units).map(|c| c.unwrap_or('\u{FFFD}')).collect())
+            }
+            _ => None,
+        }
+    }
+
     /// The value of `elem` at `p`, for tools (a pointer into a frame reads 0: frames belong to
     /// the tasks).
     pub fn read_value(&self, p: Pointer, elem: Elem) -> u64 {

@@ -342,17 +342,7 @@ impl Plan {
 fn range_metrics(range: &OpcuaDevices, next: &mut impl FnMut() -> u64) -> Vec<Metric> {
     let mut metrics = Vec::new();
     for address in range.addresses() {
-        let (ty, at) = match (address.as_word(), address.as_bit()) {
-            (Ok(word), _) => (
-                ValueType::Signed(Elem::I16),
-                Pointer { space: Space::Word, offset: u32::from(word.0) },
-            ),
-            (_, Ok(bit)) => {
-                let offset = u32::from(bit.word) * 16 + bit.mask.trailing_zeros();
-                (ValueType::Bool, Pointer { space: Space::Bit, offset })
-            }
-            _ => continue,
-        };
+        let Some((ty, at)) = address.served() else { continue };
         let name = address.to_string();
         let datatype = DataType::of(&ty).unwrap_or(DataType::Int16);
         metrics.push(Metric {
@@ -443,14 +433,9 @@ pub fn wire(datatype: DataType, value: &Value) -> Wire {
 /// The value of a variable of type `ty` at `at`, read out of copies of device memory (`words`,
 /// from word 0) and variable memory (`vars`).
 pub fn read(ty: &ValueType, at: Pointer, words: &[u16], vars: &[u8]) -> Value {
-    match ty {
-        ValueType::String { .. } => Value::Text(value::decode_str(Vm::string_bytes_in(vars, at))),
-        ValueType::WString { .. } => {
-            let bytes = Vm::wstring_bytes_in(vars, at);
-            let units = bytes.chunks_exact(2).map(|u| u16::from_le_bytes([u[0], u[1]]));
-            Value::Text(char::decode_utf16(units).map(|c| c.unwrap_or('\u{FFFD}')).collect())
-        }
-        _ => slot_value(ty, Vm::read_value_in(words, vars, at, ty.elem())),
+    match Vm::text_in(ty, vars, at) {
+        Some(text) => Value::Text(text),
+        None => slot_value(ty, Vm::read_value_in(words, vars, at, ty.elem())),
     }
 }
 
@@ -510,31 +495,15 @@ pub enum Refusal {
 /// The value a host application writes to a variable of type `ty` (published as `datatype`),
 /// as the text `plcctl set` takes for it (what `plcctl get` shows).
 pub fn written(ty: &ValueType, datatype: DataType, wire: Option<&Wire>) -> Result<String, Refusal> {
-    let mismatch = || Refusal::TypeMismatch(datatype);
-    let wire = wire.ok_or_else(mismatch)?;
-    let range = |shown: String| Refusal::OutOfRange(shown);
-    match (ty, wire) {
-        (ValueType::String { .. }, Wire::StringValue(text)) => {
-            let bytes = value::encode_str(text).map_err(|_| range(format!("{text:?}")))?;
-            Ok(value::format_string(&bytes))
-        }
-        (ValueType::WString { .. }, Wire::StringValue(text)) => {
-            Ok(value::format_wstring(&text.encode_utf16().collect::<Vec<u16>>()))
-        }
-        (ValueType::Char, Wire::StringValue(text)) => {
-            let mut chars = text.chars();
-            let (Some(c), None) = (chars.next(), chars.next()) else {
-                return Err(range(format!("{text:?}")));
-            };
-            let byte = value::encode_char(c).ok_or_else(|| range(format!("{text:?}")))?;
-            Ok(value::format(ty, u64::from(byte)))
-        }
-        (ValueType::WChar, Wire::StringValue(text)) => {
-            let units: Vec<u16> = text.encode_utf16().collect();
-            let [unit] = units.as_slice() else { return Err(range(format!("{text:?}"))) };
-            Ok(value::format(ty, u64::from(*unit)))
-        }
-        _ => Ok(value::format(ty, wire_slot(ty, datatype, wire)?)),
+    let wire = wire.ok_or(Refusal::TypeMismatch(datatype))?;
+    let written = match wire {
+        Wire::StringValue(text) => value::text_written(ty, text)
+            .map(|written| written.map_err(|_| Refusal::OutOfRange(format!("{text:?}")))),
+        _ => None,
+    };
+    match written {
+        Some(text) => text,
+        None => Ok(value::format(ty, wire_slot(ty, datatype, wire)?)),
     }
 }
 

@@ -163,20 +163,9 @@ impl Plan {
     /// The devices of `ranges` as variables of the `Devices` folder (after the program
     /// variables): a word an `INT`, a bit a `BOOL`, read from the device memory of the copy.
     pub fn with_devices(mut self, ranges: &[crate::config::OpcuaDevices]) -> Plan {
-        use crate::value::Space;
         for range in ranges {
             for address in range.addresses() {
-                let (ty, at) = match (address.as_word(), address.as_bit()) {
-                    (Ok(word), _) => {
-                        let at = Pointer { space: Space::Word, offset: u32::from(word.0) };
-                        (ValueType::Signed(crate::value::Elem::I16), at)
-                    }
-                    (_, Ok(bit)) => {
-                        let offset = u32::from(bit.word) * 16 + bit.mask.trailing_zeros();
-                        (ValueType::Bool, Pointer { space: Space::Bit, offset })
-                    }
-                    _ => continue,
-                };
+                let Some((ty, at)) = address.served() else { continue };
                 let name = address.to_string();
                 self.leaves.push(Leaf {
                     id: device_id(&name),

@@ -52,15 +52,9 @@ fn elem_type(elem: Elem) -> DataTypeId {
 /// The value of a variable of type `ty` at `at`, read out of copies of device memory (`words`,
 /// from word 0) and variable memory (`vars`), as its OPC UA type ([`data_type`]).
 pub fn read(ty: &ValueType, at: Pointer, words: &[u16], vars: &[u8]) -> Variant {
-    match ty {
-        ValueType::String { .. } => Variant::from(value::decode_str(Vm::string_bytes_in(vars, at))),
-        ValueType::WString { .. } => {
-            let bytes = Vm::wstring_bytes_in(vars, at);
-            let units = bytes.chunks_exact(2).map(|u| u16::from_le_bytes([u[0], u[1]]));
-            let text: String = char::decode_utf16(units).map(|c| c.unwrap_or('\u{FFFD}')).collect();
-            Variant::from(text)
-        }
-        _ => slot_variant(ty, Vm::read_value_in(words, vars, at, ty.elem())),
+    match Vm::text_in(ty, vars, at) {
+        Some(text) => Variant::from(text),
+        None => slot_variant(ty, Vm::read_value_in(words, vars, at, ty.elem())),
     }
 }
 
@@ -150,28 +144,13 @@ pub fn enum_text(ty: &ValueType, variant: &Variant) -> Option<String> {
 /// store). What `set` itself refuses (a `STRING` too long, a number no enumeration value has)
 /// it refuses with its reason.
 pub fn written(ty: &ValueType, variant: &Variant) -> Result<plcd_ipc::Value, StatusCode> {
-    let text = match (ty, variant) {
-        (ValueType::String { .. }, Variant::String(text)) => {
-            let bytes = value::encode_str(text.as_ref()).map_err(|_| StatusCode::BadOutOfRange)?;
-            value::format_string(&bytes)
-        }
-        (ValueType::WString { .. }, Variant::String(text)) => {
-            value::format_wstring(&text.as_ref().encode_utf16().collect::<Vec<u16>>())
-        }
-        (ValueType::Char, Variant::String(text)) => {
-            let mut chars = text.as_ref().chars();
-            let (Some(c), None) = (chars.next(), chars.next()) else {
-                return Err(StatusCode::BadOutOfRange);
-            };
-            let byte = value::encode_char(c).ok_or(StatusCode::BadOutOfRange)?;
-            value::format(ty, u64::from(byte))
-        }
-        (ValueType::WChar, Variant::String(text)) => {
-            let units: Vec<u16> = text.as_ref().encode_utf16().collect();
-            let [unit] = units.as_slice() else { return Err(StatusCode::BadOutOfRange) };
-            value::format(ty, u64::from(*unit))
-        }
-        _ => value::format(ty, variant_slot(ty, variant)?),
+    let written = match variant {
+        Variant::String(text) => value::text_written(ty, text.as_ref()),
+        _ => None,
+    };
+    let text = match written {
+        Some(text) => text.map_err(|_| StatusCode::BadOutOfRange)?,
+        None => value::format(ty, variant_slot(ty, variant)?),
     };
     Ok(plcd_ipc::Value::Text(text))
 }
