@@ -807,25 +807,16 @@ impl Edge {
     /// die, and the node is born again with the new metrics, if it is born now. What was
     /// stored for the old metrics is dropped (its aliases mean nothing to the new births).
     pub fn replan(&mut self, plan: Plan, now_ms: u64) -> Vec<Action> {
-        let mut actions = Vec::new();
         let born = self.born;
+        let mut out = Vec::new();
         if born {
-            for device in &self.plan.devices {
-                if !plan.devices.iter().any(|d| d.name == device.name) {
-                    let topic = self.topics.device("DDEATH", &device.name);
-                    let payload =
-                        Payload { timestamp: Some(now_ms), seq: None, ..Payload::default() };
-                    actions.push((topic, payload));
+            for d in 0..self.plan.devices.len() {
+                let name = &self.plan.devices[d].name;
+                if !plan.devices.iter().any(|new| &new.name == name) {
+                    out.push(self.device_death(d, now_ms));
                 }
             }
         }
-        let mut out: Vec<Action> = actions
-            .into_iter()
-            .map(|(topic, mut payload)| {
-                payload.seq = Some(self.next_seq());
-                Action::Publish(Message { topic, payload: payload.encode_to_vec() })
-            })
-            .collect();
         self.counters.dropped += self.stored.len() as u64;
         self.stored.clear();
         if let Some(overflow) = &mut self.overflow {
