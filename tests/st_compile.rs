@@ -1163,3 +1163,53 @@ fn arrays_each_under_the_limit_are_refused_when_their_sum_crosses_it() {
     assert_eq!(refused.matches("variable memory takes").count(), 1, "{refused}");
     try_build_with(&declare(2), None, dialect).unwrap_or_else(|e| panic!("{e}"));
 }
+
+// ---------------------------------------------------------------------------------------------
+// Recursion: refused where the calls prove it, bounded at run time where dispatch decides it.
+
+/// An interface with one method, and a block `B` that implements it and calls it on another
+/// instance; `extra` is more of `B` (its body may call `A`) and more POUs.
+fn dispatched_cycle(extra_body: &str, extra: &str) -> String {
+    format!(
+        "INTERFACE I METHOD M END_METHOD END_INTERFACE
+         FUNCTION_BLOCK B IMPLEMENTS I
+         VAR_INPUT next : I; END_VAR
+         METHOD M
+             IF next <> 0 THEN next.M(); END_IF
+         END_METHOD
+         {extra_body}
+         END_FUNCTION_BLOCK
+         {extra}
+         PROGRAM main VAR x, y : B; END_VAR x.next := y; x.M(); x(); END_PROGRAM"
+    )
+}
+
+#[test]
+fn a_cycle_through_an_interface_call_is_no_recursion_error() {
+    assert_eq!(errors(&dispatched_cycle("", "")), "");
+}
+
+#[test]
+fn a_cycle_of_direct_calls_is_refused_beside_a_cycle_through_dispatch() {
+    // M calls N through the interface first (a cycle M → N → M through dispatch), then Z,
+    // which calls N directly, which calls M directly: the cycle M → Z → N → M is refused
+    // whatever order the check meets the calls in.
+    let src = "INTERFACE I METHOD N END_METHOD END_INTERFACE
+         FUNCTION_BLOCK B IMPLEMENTS I
+         VAR_INPUT next : I; END_VAR
+         METHOD M
+             IF next <> 0 THEN next.N(); END_IF
+             Z();
+         END_METHOD
+         METHOD Z
+             N();
+         END_METHOD
+         METHOD N
+             M();
+         END_METHOD
+         END_FUNCTION_BLOCK
+         PROGRAM main VAR x : B; END_VAR x.M(); END_PROGRAM";
+    let errors = errors(src);
+    assert!(errors.contains("recursive call: `B.M` → `B.Z` → `B.N` → `B.M`"), "{errors}");
+    assert_eq!(errors.matches("recursive call").count(), 1, "{errors}");
+}

@@ -99,8 +99,8 @@ pub struct PouInfo<'a> {
     /// VAR_INPUT and VAR_IN_OUT in declaration order (positional arguments).
     pub positional: Vec<usize>,
     pub body: Option<Body>,
-    /// The POUs its body calls, with the first call's place.
-    pub callees: Vec<(usize, Span)>,
+    /// The POUs its body calls, each once, with the first call's place.
+    pub callees: Vec<Callee>,
     /// Whether the body has been checked (diagnostics given once).
     pub checked: bool,
     /// An action: its declaration and the POU it belongs to, whose variables it shares (`ast`
@@ -383,4 +383,17 @@ mod tests {
         assert_eq!(suggest("spead", ["speed", "count"]), " (did you mean `speed`?)");
         assert_eq!(suggest("xyz", ["speed"]), "");
     }
+}
+
+/// A POU a body calls ([`PouInfo::callees`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Callee {
+    pub pou: usize,
+    /// The first call's place.
+    pub span: Span,
+    /// Reached only as one of the bodies a call dispatches to at run time (a method through an
+    /// interface, a method or action a derived block may replace): whether this callee runs
+    /// is the receiver's to decide, so a cycle of calls through such an edge is no recursion
+    /// the check can prove (`check_recursion`).
+    pub dispatched: bool,
 }

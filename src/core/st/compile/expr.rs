@@ -11,7 +11,7 @@ use crate::st::dialect::Habit;
 use crate::value::{BinOp, UnOp};
 
 use super::codesys;
-use super::ctx::{suggest, Ctx, Cv, Scope, Storage, VarInfo};
+use super::ctx::{suggest, Callee, Ctx, Cv, Scope, Storage, VarInfo};
 use super::stdlib::Std;
 use super::types::{fits, int_slot, real_slot, wrap, Prim, Ty};
 
@@ -1800,12 +1800,45 @@ impl<'a> Ctx<'a> {
         }
     }
 
+    /// Records that the body of `scope` calls `callee` (each callee once, at its first call).
     pub(super) fn record_call(&mut self, scope: Scope, callee: usize, span: Span) {
-        if let Some(p) = scope.pou {
-            let calls = &mut self.pous[p].callees;
-            if !calls.iter().any(|(c, _)| *c == callee) {
-                calls.push((callee, span));
-            }
+        self.record_callee(scope, callee, span, false);
+    }
+
+    /// Records the bodies a call may dispatch to at run time ([`Callee::dispatched`]).
+    pub(super) fn record_dispatch(
+        &mut self,
+        scope: Scope,
+        dispatch: &[(Option<u32>, usize)],
+        span: Span,
+    ) {
+        for &(_, callee) in dispatch {
+            self.record_callee(scope, callee, span, true);
+        }
+    }
+
+    /// Records a call of `callee` that runs one of `dispatch` when there are any (`callee`'s
+    /// own body among them), else `callee` itself.
+    pub(super) fn record_call_of(
+        &mut self,
+        scope: Scope,
+        callee: usize,
+        dispatch: &[(Option<u32>, usize)],
+        span: Span,
+    ) {
+        match dispatch {
+            [] => self.record_call(scope, callee, span),
+            _ => self.record_dispatch(scope, dispatch, span),
+        }
+    }
+
+    fn record_callee(&mut self, scope: Scope, callee: usize, span: Span, dispatched: bool) {
+        let Some(p) = scope.pou else { return };
+        let calls = &mut self.pous[p].callees;
+        match calls.iter_mut().find(|c| c.pou == callee) {
+            // a callee called directly once is called directly
+            Some(known) => known.dispatched &= dispatched,
+            None => calls.push(Callee { pou: callee, span, dispatched }),
         }
     }
 
@@ -1871,12 +1904,9 @@ impl<'a> Ctx<'a> {
             self.error(file, span, format!("`{name}` is an action: it takes no arguments"));
             return Some(None);
         }
-        self.record_call(scope, action, span);
         // a derived block's action of the same name replaces it (compile/action_dispatch.rs)
         let dispatch = self.action_candidates(&inst, own, fb, action);
-        for &(_, a) in &dispatch {
-            self.record_call(scope, a, span);
-        }
+        self.record_call_of(scope, action, &dispatch, span);
         Some(Some((
             inst,
             CallT {
@@ -1907,13 +1937,11 @@ impl<'a> Ctx<'a> {
                 if self.class_called(p, file, span) {
                     return None;
                 }
-                self.record_call(scope, p, span);
+                let dispatch = self.body_candidates(&inst, p);
+                self.record_call_of(scope, p, &dispatch, span);
                 let mut call = self.bind_args(p, args, span, scope)?;
                 self.rebind_omitted(&inst, p, &mut call);
-                call.dispatch = self.body_candidates(&inst, p);
-                for &(_, c) in &call.dispatch {
-                    self.record_call(scope, c, span);
-                }
+                call.dispatch = dispatch;
                 Some((inst, call))
             }
             _ => {

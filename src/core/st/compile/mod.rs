@@ -390,7 +390,7 @@ pub fn compile_project(
     let mut i = 0;
     while i < cx.pous.len() {
         // the prelude's and the libraries' POUs that user code calls, transitively
-        let used = cx.pous.iter().any(|q| q.checked && q.callees.iter().any(|(c, _)| *c == i));
+        let used = cx.pous.iter().any(|q| q.checked && q.callees.iter().any(|c| c.pou == i));
         if used && !cx.pous[i].checked {
             checked.push((i, check(&mut cx, i)));
             i = 0;
@@ -640,34 +640,50 @@ fn pick_program(cx: &mut Ctx<'_>, inst: &Instance<'_>) -> Option<usize> {
     }
 }
 
-/// Reports each cycle of calls once, at the call that closes it; checks the static depth.
+/// Reports each cycle of direct calls once, at the call that closes it; checks the static
+/// depth.
+///
+/// A cycle through a call dispatched at run time (a method through an interface, a method or
+/// action a derived block replaces: [`ctx::Callee::dispatched`]) is not refused: whether it
+/// recurs is the receivers' to decide (the observer's `next.Notify()` calls the same method
+/// of another instance), as in CODESYS. The VM bounds it at run time: a call deeper than
+/// [`ST_CALL_DEPTH`] is operation error 4210H, and the frames and evaluation stack are sized
+/// for that depth (`link`, [`eval_stack_need`]).
 fn check_recursion(cx: &mut Ctx<'_>) {
-    let n = cx.pous.len();
-    let mut state = vec![0u8; n]; // 0 new, 1 on the path, 2 done
-    let mut depth = vec![0usize; n];
+    const NEW: u8 = 0;
+    const ON_PATH: u8 = 1;
+    const DONE: u8 = 2;
+    /// A depth-first walk from `p` over the calls `follow` takes: the longest chain of calls
+    /// below each POU in `depth` (a call back into the path counts nothing), each call back
+    /// into the path reported when `report`.
+    #[allow(clippy::too_many_arguments)]
     fn visit(
         cx: &mut Ctx<'_>,
         p: usize,
+        follow: fn(&ctx::Callee) -> bool,
+        report: bool,
         state: &mut [u8],
         depth: &mut [usize],
         path: &mut Vec<usize>,
     ) {
-        state[p] = 1;
+        state[p] = ON_PATH;
         path.push(p);
         let callees = cx.pous[p].callees.clone();
         let mut d = 0;
-        for (c, span) in callees {
+        for callee in callees.iter().filter(|c| follow(c)) {
+            let c = callee.pou;
             match state[c] {
-                1 => {
+                ON_PATH if report => {
                     let from = path.iter().position(|&x| x == c).unwrap_or(0);
                     let mut names: Vec<String> =
                         path[from..].iter().map(|&x| format!("`{}`", cx.pous[x].name)).collect();
                     names.push(format!("`{}`", cx.pous[c].name));
                     let file = cx.pous[p].file;
-                    cx.error(file, span, format!("recursive call: {}", names.join(" → ")));
+                    cx.error(file, callee.span, format!("recursive call: {}", names.join(" → ")));
                 }
-                0 => {
-                    visit(cx, c, state, depth, path);
+                ON_PATH => {}
+                NEW => {
+                    visit(cx, c, follow, report, state, depth, path);
                     d = d.max(depth[c]);
                 }
                 _ => d = d.max(depth[c]),
@@ -675,13 +691,21 @@ fn check_recursion(cx: &mut Ctx<'_>) {
         }
         depth[p] = d + usize::from(cx.pous[p].kind != PouKind::Program);
         path.pop();
-        state[p] = 2;
+        state[p] = DONE;
     }
-    for p in 0..n {
-        if state[p] == 0 {
-            visit(cx, p, &mut state, &mut depth, &mut Vec::new());
+    let n = cx.pous.len();
+    let walk = |cx: &mut Ctx<'_>, follow: fn(&ctx::Callee) -> bool, report: bool| {
+        let (mut state, mut depth) = (vec![NEW; n], vec![0usize; n]);
+        for p in 0..n {
+            if state[p] == NEW {
+                visit(cx, p, follow, report, &mut state, &mut depth, &mut Vec::new());
+            }
         }
-    }
+        depth
+    };
+    // the recursion a check can prove: cycles of direct calls
+    walk(cx, |c| !c.dispatched, true);
+    let depth = walk(cx, |_| true, false);
     for (p, &d) in depth.iter().enumerate() {
         if cx.pous[p].kind == PouKind::Program && d > ST_CALL_DEPTH {
             let (file, span, name) =
@@ -709,9 +733,9 @@ fn link(
     let mut order = vec![p];
     let mut i = 0;
     while i < order.len() {
-        for (c, _) in &cx.pous[order[i]].callees {
-            if !order.contains(c) {
-                order.push(*c);
+        for c in &cx.pous[order[i]].callees {
+            if !order.contains(&c.pou) {
+                order.push(c.pou);
             }
         }
         i += 1;
@@ -789,20 +813,30 @@ fn link(
             };
         }
     }
-    // the deepest chain of frames
+    // The deepest chain of frames, of at most `calls` calls below `q`: a chain of calls
+    // dispatched at run time may come back to a body (`check_recursion`), and the VM makes no
+    // call deeper than ST_CALL_DEPTH.
     fn need<'b>(
         cx: &Ctx<'_>,
         q: usize,
+        calls: usize,
         body_of: &dyn Fn(usize) -> &'b emit::Body,
-        memo: &mut HashMap<usize, u32>,
+        memo: &mut HashMap<(usize, usize), u32>,
     ) -> u32 {
-        if let Some(&n) = memo.get(&q) {
+        if let Some(&n) = memo.get(&(q, calls)) {
             return n;
         }
-        let deepest =
-            cx.pous[q].callees.iter().map(|(c, _)| need(cx, *c, body_of, memo)).max().unwrap_or(0);
-        let n = body_of(q).frame + deepest;
-        memo.insert(q, n);
+        let deepest = match calls {
+            0 => 0,
+            _ => cx.pous[q]
+                .callees
+                .iter()
+                .map(|c| need(cx, c.pou, calls - 1, body_of, memo))
+                .max()
+                .unwrap_or(0),
+        };
+        let n = body_of(q).frame.saturating_add(deepest);
+        memo.insert((q, calls), n);
         n
     }
     // What the program's chains of calls need, refused at the program's name.
@@ -810,7 +844,7 @@ fn link(
     let at_program = |message: String| {
         Diagnostic::new(cx.path(pou.file), pou.name_span().line, pou.name_span().col, message)
     };
-    let frame_bytes = need(cx, p, &body_of, &mut HashMap::new());
+    let frame_bytes = need(cx, p, ST_CALL_DEPTH, &body_of, &mut HashMap::new());
     if frame_bytes > decl::MAX_FRAME {
         return Err(at_program(format!(
             "`{}` needs {frame_bytes} bytes of frame with its calls (limit 1 MiB)",
@@ -891,20 +925,28 @@ fn eval_stack_need(code: &[Op]) -> u32 {
         }
         bodies.insert(start, (deepest, calls));
     }
-    // The call graph has no cycles (recursion is refused before code is emitted).
-    fn need(body: usize, bodies: &Bodies, memo: &mut HashMap<usize, u32>) -> u32 {
-        if let Some(&n) = memo.get(&body) {
+    // Chains of at most ST_CALL_DEPTH calls: calls dispatched at run time may come back to a
+    // body (`check_recursion`), and the VM makes no deeper call.
+    fn need(
+        body: usize,
+        depth: usize,
+        bodies: &Bodies,
+        memo: &mut HashMap<(usize, usize), u32>,
+    ) -> u32 {
+        if let Some(&n) = memo.get(&(body, depth)) {
             return n;
         }
         let (deepest, calls) = &bodies[&body];
         let mut n = *deepest;
-        for &(held, callee) in calls {
-            n = n.max(held + need(callee, bodies, memo));
+        if depth > 0 {
+            for &(held, callee) in calls {
+                n = n.max(held.saturating_add(need(callee, depth - 1, bodies, memo)));
+            }
         }
-        memo.insert(body, n);
+        memo.insert((body, depth), n);
         n
     }
-    need(0, &bodies, &mut HashMap::new())
+    need(0, ST_CALL_DEPTH, &bodies, &mut HashMap::new())
 }
 
 fn value_type(cx: &Ctx<'_>, ty: &Ty) -> Option<ValueType> {

@@ -717,10 +717,7 @@ impl<'a> Ctx<'a> {
             self.error(scope.file, span, format!("`{name}` is ABSTRACT: it has no body to call"));
             return TExpr::error(span);
         }
-        self.record_call(scope, m, span);
-        for &(_, c) in &dispatch {
-            self.record_call(scope, c, span);
-        }
+        self.record_call_of(scope, m, &dispatch, span);
         let Some(mut call) = self.bind_args(m, args, span, scope) else {
             return TExpr::error(span);
         };
@@ -1123,9 +1120,7 @@ impl<'a> Ctx<'a> {
         scope: Scope,
     ) -> TExpr {
         let dispatch = self.interface_candidates(itf, m);
-        for &(_, c) in &dispatch {
-            self.record_call(scope, c, span);
-        }
+        self.record_dispatch(scope, &dispatch, span);
         let Some(mut call) = self.bind_args(m, args, span, scope) else {
             return TExpr::error(span);
         };
