@@ -56,6 +56,7 @@ pub fn sources(library: SystemLibrary) -> &'static [Source] {
             ("<Tc2_Utilities>/format.st", include_str!("tc2_utilities/format.st")),
             ("<Tc2_Utilities>/fmtstr.st", include_str!("tc2_utilities/fmtstr.st")),
             ("<Tc2_Utilities>/time.st", include_str!("tc2_utilities/time.st")),
+            ("<Tc2_Utilities>/syminfo.st", include_str!("tc2_utilities/syminfo.st")),
         ],
         SystemLibrary::Tc2Standard => {
             &[("<Tc2_Standard>/wstring.st", include_str!("tc2_standard/wstring.st"))]
