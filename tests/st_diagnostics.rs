@@ -511,7 +511,6 @@ const MESSAGES: &[(&str, &str)] = &[
     ("`{}` is PRIVATE: only the code of `{}` may use it", "private-setter-written"),
     // qualified.rs: a global variable list's name and a library's namespace before a name
     ("the global variable list `{}` declares no `{}`", "gvl-declares-no-variable"),
-    ("`{}.{}` names a global that the POU's own `{}` hides: rename the POU's variable", "gvl-variable-hidden"),
     ("`{}` is a global of the list `{}`, which is {}: name it `{}`", "gvl-qualified-only"),
     ("`.{}` names a global, and no global is called `{}`", "global-scope-no-global"),
     ("`{}` is ambiguous: {} global variable lists declare it; name one, {}", "gvl-name-ambiguous"),

@@ -12,8 +12,9 @@
 //! `VAR_GLOBAL` blocks (CODESYS's plain ST has no list names); a namespace is one of
 //! `[st] namespaces`. A name qualifies only when it is none of the scope's variables, no
 //! global, no POU and no type: `a.b` keeps its meaning wherever `a` is declared (an
-//! enumeration's `E.Value` included). `Gvl.x` where the POU declares its own `x` is an error,
-//! as the global would be hidden from the checker.
+//! enumeration's `E.Value` included). `Gvl.x` (and `NS.x` of a global) where the POU declares
+//! its own `x` is the global, as CODESYS resolves it: lowered to `.x`, the form of the global
+//! scope operator, which the checker looks up among the globals only.
 //!
 //! A name two lists declare is each list's own global: its declarations are renamed
 //! `Gvl.x` (the checker's one namespace of globals then holds both, and tools name them so),
@@ -541,8 +542,8 @@ impl Lowering<'_, '_> {
         self.error(name, msg);
     }
 
-    /// The name `Q.x` stands for when `Q` is a namespace or a global variable list; an error
-    /// when `x` is another list's global, or the scope's own `x` hides the list's.
+    /// The name `Q.x` stands for when `Q` is a namespace or a global variable list (`.x` where
+    /// the scope declares its own `x`); an error when `x` is another list's global.
     fn unqualified(&mut self, e: &Expr, scope: &HashSet<String>) -> Option<Ident> {
         let ExprKind::Member(base, name) = &e.kind else { return None };
         let ExprKind::Name(qualifier) = &base.kind else { return None };
@@ -560,7 +561,7 @@ impl Lowering<'_, '_> {
             if self.names.renamed.contains(&key(&whole)) {
                 return Some(Ident { name: whole, ..name.clone() });
             }
-            return Some(name.clone());
+            return Some(past_scope(name, scope, &self.names.globals));
         }
         let list = self.names.lists.get(&q)?;
         let x = key(&name.name);
@@ -579,13 +580,21 @@ impl Lowering<'_, '_> {
                 qualifier.name, name.name
             );
             self.error(name, msg);
-        } else if list.contains(&x) && scope.contains(&x) {
-            let msg = format!(
-                "`{}.{}` names a global that the POU's own `{}` hides: rename the POU's variable",
-                qualifier.name, name.name, name.name
-            );
-            self.error(name, msg);
+        } else if list.contains(&x) {
+            // the qualifier names the list, so the list's `x` even where the POU declares its
+            // own `x`, as CODESYS resolves it
+            return Some(past_scope(name, scope, &self.names.globals));
         }
         Some(name.clone())
     }
+}
+
+/// `x` as the name of the global `x`: `.x` (the global scope operator's form, which the checker
+/// looks up among the globals only) where the scope declares its own `x`, else plainly.
+fn past_scope(name: &Ident, scope: &HashSet<String>, globals: &HashSet<String>) -> Ident {
+    let x = key(&name.name);
+    if scope.contains(&x) && globals.contains(&x) {
+        return Ident { name: format!(".{}", name.name), ..name.clone() };
+    }
+    name.clone()
 }
