@@ -88,6 +88,14 @@ const MESSAGES: &[(&str, &str)] = &[
         "`{}` converted implicitly to `{}`: the value wraps to {} bits ({} becomes {}); write `{}_TO_{}(…)` to say so",
         "warning-lossy-conversion",
     ),
+    (
+        "`{}` converted implicitly to `{}`: the value is rounded to the nearest `{}` ({} becomes {}); write `{}_TO_{}(…)` to say so",
+        "warning-lossy-real-conversion",
+    ),
+    (
+        "`{}` converted implicitly to `{}`: the value is rounded to the nearest `{}` ({} becomes {}); write `{}_TO_{}(…)` to say so",
+        "warning-lossy-integer-to-real",
+    ),
     // varlen.rs: ARRAY [*] and LOWER_BOUND / UPPER_BOUND
     (
         "`ARRAY [*]` is only the type of a VAR_IN_OUT of a FUNCTION, FUNCTION_BLOCK or METHOD",
@@ -773,6 +781,14 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
     (
         "IEC 61131-3 converts `{}` to `{}` only explicitly, as the value may change: `{}_TO_{}(…)` (`[st] strict` is on)",
         "strict-lossy-conversion",
+    ),
+    (
+        "IEC 61131-3 converts `{}` to `{}` only explicitly, as the value may change: `{}_TO_{}(…)` (`[st] strict` is on)",
+        "strict-lossy-real-conversion",
+    ),
+    (
+        "IEC 61131-3 converts `{}` to `{}` only explicitly, as the value may change: `{}_TO_{}(…)` (`[st] strict` is on)",
+        "strict-lossy-integer-to-real",
     ),
     (
         "IEC 61131-3 gives an enumeration's value no number to convert to: test the value, `CASE e OF E#A: i := 0; …` (`[st] strict` is on)",

@@ -1417,6 +1417,12 @@ impl<'a> Ctx<'a> {
                 Some((a, b, Ty::RealLit))
             }
             (x, y) if lit(x) && !lit(y) => {
+                // a real constant beside an integer: the integer converts (`implicit`)
+                if let Some(w) = self.real_beside(&a, y) {
+                    let b = self.conv(b, w, Ty::Prim(w));
+                    let a = self.coerce(a, &Ty::Prim(w), file);
+                    return Some((a, b, Ty::Prim(w)));
+                }
                 if let Some(w) = self.widened_for(&a, y) {
                     self.habit(Habit::WidenedLiteral, file, a.span);
                     let b = self.conv(b, w, Ty::Prim(w));
@@ -1432,6 +1438,12 @@ impl<'a> Ctx<'a> {
                 Some((a, b, ty))
             }
             (x, y) if !lit(x) && lit(y) => {
+                // a real constant beside an integer: the integer converts (`implicit`)
+                if let Some(w) = self.real_beside(&b, x) {
+                    let a = self.conv(a, w, Ty::Prim(w));
+                    let b = self.coerce(b, &Ty::Prim(w), file);
+                    return Some((a, b, Ty::Prim(w)));
+                }
                 if let Some(w) = self.widened_for(&b, x) {
                     self.habit(Habit::WidenedLiteral, file, b.span);
                     let a = self.conv(a, w, Ty::Prim(w));

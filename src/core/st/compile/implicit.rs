@@ -12,7 +12,13 @@
 //! [`Habit`](crate::st::dialect::Habit), so `[st] strict` refuses it, and otherwise warns with
 //! the conversion to write (docs/ST.md, "Implicit conversions").
 //!
-//! A `REAL` or `LREAL` never converts implicitly to an integer: that stays an error.
+//! The same habit converts an `LREAL` where a `REAL` is wanted (`r := l * 2.0`), and an
+//! integer where a real that does not hold all its values is wanted (`r := d` with a DINT `d`,
+//! CODESYS's C0197 "implicit conversion from 'DINT' to 'REAL': possible loss of information"):
+//! to the nearest value of the target, as `LREAL_TO_REAL` and `DINT_TO_REAL` convert.
+//!
+//! A `REAL` or `LREAL` never converts implicitly to an integer: that stays an error (no
+//! vendor's documentation says CODESYS accepts it, nor how it would round).
 
 use super::codesys;
 use super::ctx::Ctx;
@@ -23,22 +29,35 @@ use crate::st::dialect::Habit;
 
 /// Whether CODESYS converts a `from` value implicitly to `to` where plcd's lossless rules do
 /// not: both integers or bit strings (`BOOL` is neither), the target of another sign or
-/// narrower.
+/// narrower; an `LREAL` to a `REAL`; an integer (not a bit string) to a real that does not
+/// hold all its values.
 pub fn lossy(from: Prim, to: Prim) -> bool {
-    from != to
-        && from.is_integral()
-        && to.is_integral()
-        && !from.widens_to(to)
-        && !codesys::implicit_bits(from, to)
+    if from == to || from.widens_to(to) {
+        return false;
+    }
+    let integers = from.is_integral() && to.is_integral() && !codesys::implicit_bits(from, to);
+    integers || (from == Prim::LReal && to == Prim::Real) || (from.is_int() && to.is_real())
 }
 
 /// The warning for a lossy conversion from `from` to `to`, with a value it changes: −1 when
-/// `from` has negative values and `to` none, else the first value above `to`'s range.
+/// `from` has negative values and `to` none, else the first value above `to`'s range; to a
+/// real, a value the target holds only rounded.
 pub fn warning(from: Prim, to: Prim) -> String {
+    let (f, t) = (from.name(), to.name());
+    if to.is_real() {
+        let (given, becomes) = match (from, to) {
+            (Prim::LReal, _) => ("0.1".to_string(), format!("{}", f64::from(0.1f32))),
+            // 2^24 + 1 and 2^53 + 1: the first integers a REAL and an LREAL do not hold
+            (_, Prim::Real) => ("16777217".to_string(), "16777216".to_string()),
+            _ => ("9007199254740993".to_string(), "9007199254740992".to_string()),
+        };
+        return format!(
+            "`{f}` converted implicitly to `{t}`: the value is rounded to the nearest `{t}` ({given} becomes {becomes}); write `{f}_TO_{t}(…)` to say so"
+        );
+    }
     let (from_lo, _) = from.range().expect("an integer type");
     let (to_lo, to_hi) = to.range().expect("an integer type");
     let changed = if from_lo < 0 && to_lo == 0 { -1 } else { to_hi + 1 };
-    let (f, t) = (from.name(), to.name());
     format!(
         "`{f}` converted implicitly to `{t}`: the value wraps to {} bits ({changed} becomes {}); write `{f}_TO_{t}(…)` to say so",
         to.bits(),
@@ -92,6 +111,24 @@ impl Ctx<'_> {
 }
 
 impl Ctx<'_> {
+    /// The type of an operation between a real constant and an integer (`i > 0.0`, `n * 0.5`):
+    /// the real type the integer converts to without a loss (IEC 61131-3's implicit
+    /// conversions; a constant takes its type from the other operand, and an integer no real
+    /// type): `REAL` for `SINT` … `INT`, `USINT`, `UINT`, when the constant is within `REAL`'s
+    /// range, else `LREAL`. `None` when `literal` is no real constant, `other` no integer, or
+    /// no real holds all its values (`LINT`, `ULINT`).
+    pub(super) fn real_beside(&self, literal: &TExpr, other: &Ty) -> Option<Prim> {
+        let super::expr::TK::Const(super::ctx::Cv::Real(v)) = literal.k else { return None };
+        if literal.ty != Ty::RealLit || matches!(other, Ty::Enum(_)) {
+            return None;
+        }
+        let p = other.prim(&self.types).filter(|p| p.is_int())?;
+        let in_real = v.is_finite() && v.abs() <= f64::from(f32::MAX);
+        [Prim::Real, Prim::LReal]
+            .into_iter()
+            .find(|w| p.widens_to(*w) && (*w == Prim::LReal || in_real))
+    }
+
     /// Whether `ty` is an integer or bit string type that is no enumeration (what an
     /// enumeration's value converts to beside it).
     pub(super) fn plain_integer(&self, ty: &Ty) -> bool {
@@ -120,9 +157,18 @@ mod tests {
         assert!(!lossy(Byte, Int));
         assert!(!lossy(Int, Word));
         assert!(!lossy(Int, Int));
+        // reals: LREAL to REAL, an integer to a real that does not hold it
+        assert!(lossy(LReal, Real));
+        assert!(lossy(DInt, Real));
+        assert!(lossy(UDInt, Real));
+        assert!(lossy(LInt, LReal));
+        assert!(!lossy(Real, LReal));
+        assert!(!lossy(Int, Real));
+        assert!(!lossy(DInt, LReal));
+        assert!(!lossy(DWord, Real), "a bit string to a real stays an error");
         // not integers
         assert!(!lossy(Real, Int));
-        assert!(!lossy(Int, Real));
+        assert!(!lossy(LReal, DInt));
         assert!(!lossy(Bool, Int));
         assert!(!lossy(Time, DInt));
     }
@@ -139,5 +185,11 @@ mod tests {
         assert!(warning(UDInt, UInt).contains("(65536 becomes 0)"));
         assert!(warning(Int, UDInt).contains("(-1 becomes 4294967295)"));
         assert!(warning(Word, SInt).contains("8 bits (128 becomes -128)"));
+        assert_eq!(
+            warning(LReal, Real),
+            "`LREAL` converted implicitly to `REAL`: the value is rounded to the nearest `REAL` (0.1 becomes 0.10000000149011612); write `LREAL_TO_REAL(…)` to say so"
+        );
+        assert!(warning(DInt, Real).contains("(16777217 becomes 16777216)"));
+        assert!(warning(LInt, LReal).contains("(9007199254740993 becomes 9007199254740992)"));
     }
 }
