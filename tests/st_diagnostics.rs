@@ -791,6 +791,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "strict-lossy-integer-to-real",
     ),
     (
+        "IEC 61131-3 adds a `TIME` to a `TOD` or a `DT`, not to a `DATE`: go through a `DT`, `DT_TO_DATE(ADD_DT_TIME(DATE_TO_DT(d), t))` (SUB_DT_TIME to subtract) (`[st] strict` is on)",
+        "strict-date-arithmetic",
+    ),
+    (
         "IEC 61131-3 gives an enumeration's value no number to convert to: test the value, `CASE e OF E#A: i := 0; …` (`[st] strict` is on)",
         "strict-enum-to-integer",
     ),

@@ -106,6 +106,9 @@ pub enum Habit {
     LossyConversion { from: &'static str, to: &'static str },
     /// An enumeration's value where an integer is wanted (`i := eState`): its number.
     EnumToInteger,
+    /// A `DATE` plus or minus a `TIME` (`dat + t#1d`, OSCAT): the day of the instant
+    /// (`compile::calendar`).
+    DateArithmetic,
     /// An integer where CODESYS's type class is wanted (`ExpectedTypeClass :=
     /// UDINT_TO_INT(Expected.TypeClass)`, TcUnit): its number (`compile::type_class_int`).
     IntegerToTypeClass,
@@ -195,6 +198,7 @@ impl Habit {
             Habit::GenericInput => "a VAR_INPUT of a generic type (`ANY…`) is CODESYS: IEC 61131-3 keeps generic types to its standard functions; write one POU per type (`[st] strict` is on)".to_string(),
             Habit::ImplicitConversion => "IEC 61131-3 converts between bit strings and integers only explicitly: `BYTE_TO_INT(b)` (`[st] strict` is on)".to_string(),
             Habit::LossyConversion { from, to } => format!("IEC 61131-3 converts `{from}` to `{to}` only explicitly, as the value may change: `{from}_TO_{to}(…)` (`[st] strict` is on)"),
+            Habit::DateArithmetic => "IEC 61131-3 adds a `TIME` to a `TOD` or a `DT`, not to a `DATE`: go through a `DT`, `DT_TO_DATE(ADD_DT_TIME(DATE_TO_DT(d), t))` (SUB_DT_TIME to subtract) (`[st] strict` is on)".to_string(),
             Habit::EnumToInteger => "IEC 61131-3 gives an enumeration's value no number to convert to: test the value, `CASE e OF E#A: i := 0; …` (`[st] strict` is on)".to_string(),
             Habit::IntegerToTypeClass => "IEC 61131-3 converts no integer to an enumeration: give one of `__SYSTEM.TYPE_CLASS`'s values (`[st] strict` is on)".to_string(),
             Habit::InstanceInitialValue => "an initial value is a constant expression in IEC 61131-3, and an instance's place is none: assign the instance in the block's code or in FB_init (`[st] strict` is on)".to_string(),

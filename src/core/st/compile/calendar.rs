@@ -15,6 +15,7 @@ use crate::value::{BinOp, Calendar, CalendarKind, DAY_NS};
 use super::ctx::{Ctx, Cv};
 use super::expr::{op_text, TExpr};
 use super::types::{Prim, Ty};
+use crate::st::dialect::Habit;
 
 /// The calendar functions of IEC 61131-3 ed3 table 36 that are one operation on two values:
 /// the name, the operation and the types of the two inputs.
@@ -123,6 +124,15 @@ impl Ctx<'_> {
         if let (true, Some(cal), BinaryOp::Add) = (time(pa), shifts(pb), op) {
             return self.shift(op, cal, b, a, span, file);
         }
+        // a date and a duration, CODESYS's and TwinCAT's habit (OSCAT's `dat + t#1d`)
+        let date =
+            |p: Option<Prim>| p.and_then(Prim::calendar).filter(|c| c.kind() == CalendarKind::Date);
+        if let (Some(cal), true) = (date(pa), time(pb)) {
+            return self.date_shift(op, cal, a, b, span, file);
+        }
+        if let (true, Some(cal), BinaryOp::Add) = (time(pa), date(pb), op) {
+            return self.date_shift(op, cal, b, a, span, file);
+        }
         if let (Some(x), Some(y), BinaryOp::Sub) =
             (pa.and_then(Prim::calendar), pb.and_then(Prim::calendar), op)
         {
@@ -158,6 +168,37 @@ impl Ctx<'_> {
         let value = TExpr { ty: ty.clone(), ..value };
         let bop = if op == BinaryOp::Add { BinOp::Add } else { BinOp::Sub };
         self.make_bin(bop, value, count, ty, span, file)
+    }
+
+    /// `date ± duration` (`Habit::DateArithmetic`): the day of the instant the duration moves
+    /// the date's midnight to, as `DT_TO_DATE(DATE_TO_DT(date) ± duration)` gives it: the
+    /// duration in the date's unit cut toward zero, then the count cut to its day (a result
+    /// before 1970 wraps as the count does).
+    fn date_shift(
+        &mut self,
+        op: BinaryOp,
+        cal: Calendar,
+        value: TExpr,
+        duration: TExpr,
+        span: Span,
+        file: usize,
+    ) -> TExpr {
+        self.habit(Habit::DateArithmetic, file, span);
+        let lint = Ty::Prim(Prim::LInt);
+        let konst = |n: u64| TExpr::konst(Cv::Int(i128::from(n)), Ty::Prim(Prim::LInt), span);
+        let ns = TExpr { ty: lint.clone(), ..duration };
+        let moved = if cal.unit_ns() == 1 {
+            ns
+        } else {
+            self.make_bin(BinOp::Div, ns, konst(cal.unit_ns()), lint.clone(), span, file)
+        };
+        let count = self.conv(value, Prim::LInt, lint.clone());
+        let bop = if op == BinaryOp::Add { BinOp::Add } else { BinOp::Sub };
+        let sum = self.make_bin(bop, count, moved, lint.clone(), span, file);
+        let day = DAY_NS / cal.unit_ns();
+        let days = self.make_bin(BinOp::Div, sum, konst(day), lint.clone(), span, file);
+        let midnight = self.make_bin(BinOp::Mul, days, konst(day), lint, span, file);
+        self.conv(midnight, Prim::Cal(cal), Ty::Prim(Prim::Cal(cal)))
     }
 
     /// `a - b` of one calendar type: the `TIME` (`LTIME` for a long form) from `b` to `a`.
