@@ -108,6 +108,65 @@ fn a_warm_run_start_keeps_them_a_cold_reset_sets_their_initial_values_at_once() 
     assert_eq!(var(&plc, &p, "main.count"), 100 + scans, "counted from the initial value");
 }
 
+/// PERSISTENT variables (TwinCAT, CODESYS) beside RETAIN ones: a program's, a global, an FB's
+/// own, one in an instance inside an array, a VAR_STAT.
+const PERSISTENT: &str = "
+VAR_GLOBAL PERSISTENT hours : DINT := 1000; END_VAR
+VAR_GLOBAL RETAIN starts : DINT; END_VAR
+FUNCTION_BLOCK Meter
+VAR PERSISTENT kept : INT; END_VAR
+VAR RETAIN warm : INT; END_VAR
+VAR_STAT PERSISTENT calls : DINT; END_VAR
+    kept := kept + 1; warm := warm + 1; calls := calls + 1;
+END_FUNCTION_BLOCK
+PROGRAM Main
+VAR PERSISTENT count : DINT := 100; END_VAR
+VAR RETAIN PERSISTENT both : DINT; END_VAR
+VAR RETAIN count_retain : DINT := 100; END_VAR
+VAR scans : DINT; m : Meter; ms : ARRAY [1..2] OF Meter; END_VAR
+    count := count + 1; both := both + 1; count_retain := count_retain + 1;
+    hours := hours + 1; starts := starts + 1; scans := scans + 1;
+    m(); ms[2]();
+END_PROGRAM
+";
+
+#[test]
+fn a_cold_reset_keeps_the_persistent_ones_and_sets_the_retain_ones_to_their_initial_values() {
+    let p = st(PERSISTENT);
+    let mut plc = Plc::new(&p);
+    let scans = run_1ms(&mut plc, &p);
+    let again = run_1ms(&mut plc, &p);
+    let both = scans + again;
+    assert_eq!(var(&plc, &p, "main.count"), 100 + both, "a warm RUN start keeps them");
+    assert_eq!(var(&plc, &p, "main.count_retain"), 100 + both);
+
+    plc.request(ModeRequest::Reset { cold: true }).unwrap();
+    // TwinCAT's and CODESYS's Reset cold: every variable but the PERSISTENT ones
+    assert_eq!(var(&plc, &p, "main.count"), 100 + both, "PERSISTENT: kept, already in STOP");
+    assert_eq!(var(&plc, &p, "main.both"), both, "RETAIN PERSISTENT: kept");
+    assert_eq!(var(&plc, &p, "hours"), 1000 + both, "a PERSISTENT global: kept");
+    assert_eq!(var(&plc, &p, "main.m.kept"), both, "an FB's PERSISTENT member: kept");
+    assert_eq!(var(&plc, &p, "main.ms[2].kept"), both, "in an array element: kept");
+    assert_eq!(var(&plc, &p, "Meter.calls"), 2 * both, "a VAR_STAT PERSISTENT: kept");
+    assert_eq!(var(&plc, &p, "main.count_retain"), 100, "RETAIN: its initial value");
+    assert_eq!(var(&plc, &p, "starts"), 0, "a RETAIN global: its initial value");
+    assert_eq!(var(&plc, &p, "main.m.warm"), 0, "an FB's RETAIN member: its initial value");
+    assert_eq!(var(&plc, &p, "main.ms[1].kept"), 0, "never called: still its initial value");
+
+    // The RUN start after a cold reset is cold, and still keeps them.
+    let third = run_1ms(&mut plc, &p);
+    assert_eq!(var(&plc, &p, "main.count"), 100 + both + third, "counted on");
+    assert_eq!(var(&plc, &p, "main.m.kept"), both + third);
+    assert_eq!(var(&plc, &p, "main.count_retain"), 100 + third, "counted from 100");
+    assert_eq!(var(&plc, &p, "main.m.warm"), third);
+
+    // A replacement engine (a reload, `plcctl load`) keeps them, as it keeps RETAIN ones.
+    let mut new = Plc::new(&p);
+    new.engine.inherit_retained(&plc.engine);
+    assert_eq!(var(&new, &p, "main.count"), 100 + both + third);
+    assert_eq!(var(&new, &p, "hours"), 1000 + both + third);
+}
+
 /// FB instances with a RETAIN member in a plain array, in an array of arrays and in a struct:
 /// each instance's retained member is kept by a warm RUN start as a single instance's is.
 const KEEPERS: &str = "

@@ -120,6 +120,9 @@ pub struct Variables {
     pub initial: Arc<[u8]>,
     /// `(offset, len)` of the `RETAIN` variables' bytes, kept over a warm restart.
     pub retained: Box<[(u32, u32)]>,
+    /// `(offset, len)` of the `PERSISTENT` variables' bytes (among `retained`), kept over a
+    /// cold reset too.
+    pub persistent: Box<[(u32, u32)]>,
     /// Located variables with an initial value: written to their devices at RUN start, after
     /// the device areas are cleared.
     pub located_init: Box<[(Place, Elem, u64)]>,

@@ -321,8 +321,11 @@ pub struct VarBlock {
     pub kind: VarKind,
     /// `CONSTANT`
     pub constant: bool,
-    /// `RETAIN` (`NON_RETAIN` is the default and parses as `false`).
+    /// `RETAIN` (`NON_RETAIN` is the default and parses as `false`); `true` for a
+    /// `PERSISTENT` block too.
     pub retain: bool,
+    /// `PERSISTENT` (TwinCAT, CODESYS): retained, and kept by a cold reset as well.
+    pub persistent: bool,
     pub span: Span,
     pub decls: Vec<VarDecl>,
 }

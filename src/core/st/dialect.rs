@@ -54,6 +54,9 @@ pub enum Habit {
     VarStat,
     /// `VAR_INST`: a variable kept in the function block's instance.
     VarInst,
+    /// `PERSISTENT` on a variable block (`VAR PERSISTENT`, `VAR_GLOBAL RETAIN PERSISTENT`,
+    /// TwinCAT and CODESYS): retained, and kept by a cold reset too.
+    Persistent,
     /// `VAR_INPUT CONSTANT`: an input the POU's body may not write.
     ConstantInput,
     /// An FB instance's internal variable read from outside.
@@ -181,6 +184,7 @@ impl Habit {
             Habit::NoSemicolonAfterType => "`;` expected after the type's declaration (IEC 61131-3 ends every type declaration with `;`; `[st] strict` is on)".to_string(),
             Habit::VarStat => "`VAR_STAT` is not IEC 61131-3: declare the variable in `VAR` of a PROGRAM, or as a VAR_GLOBAL (`[st] strict` is on)".to_string(),
             Habit::VarInst => "`VAR_INST` is not IEC 61131-3: declare the variable in the function block's `VAR` (`[st] strict` is on)".to_string(),
+            Habit::Persistent => "`PERSISTENT` is TwinCAT's and CODESYS's: IEC 61131-3 writes `RETAIN` (`[st] strict` is on)".to_string(),
             Habit::ConstantInput => "`VAR_INPUT CONSTANT` is not IEC 61131-3: write `VAR_INPUT` (`[st] strict` is on)".to_string(),
             Habit::ReadFbInternal => "IEC 61131-3 reads only an instance's inputs and outputs from outside: pass the value out through a VAR_OUTPUT (`[st] strict` is on)".to_string(),
             Habit::InOutThroughInstance => "IEC 61131-3 names a VAR_IN_OUT only inside its function block's body: use the variable the call binds to it (`[st] strict` is on)".to_string(),

@@ -274,7 +274,32 @@ pub struct Vm {
     initial: std::sync::Arc<[u8]>,
     /// The byte ranges that are not retained, sorted: what a warm RUN start re-initializes.
     fresh: Box<[(u32, u32)]>,
+    /// The byte ranges that are not `PERSISTENT`, sorted: what a cold reset and a cold RUN
+    /// start re-initialize (all of memory without PERSISTENT variables).
+    fresh_cold: Box<[(u32, u32)]>,
     located_init: Box<[(crate::lang::Place, Elem, u64)]>,
+}
+
+/// The complement in `0..size` of `ranges` (`(offset, len)`, any order), as sorted
+/// `(start, end)`.
+fn complement(ranges: &[(u32, u32)], size: u32) -> Box<[(u32, u32)]> {
+    let mut kept: Vec<(u32, u32)> = ranges
+        .iter()
+        .map(|&(offset, len)| (offset.min(size), offset.saturating_add(len).min(size)))
+        .collect();
+    kept.sort_unstable();
+    let mut out = Vec::new();
+    let mut at = 0;
+    for (start, end) in kept {
+        if start > at {
+            out.push((at, start));
+        }
+        at = at.max(end);
+    }
+    if at < size {
+        out.push((at, size));
+    }
+    out.into_boxed_slice()
 }
 
 impl Vm {
@@ -291,6 +316,7 @@ impl Vm {
             vars: Box::new([]),
             initial: std::sync::Arc::new([]),
             fresh: Box::new([]),
+            fresh_cold: Box::new([]),
             located_init: Box::new([]),
         }
     }
@@ -301,25 +327,8 @@ impl Vm {
         self.initial = variables.initial.clone();
         self.vars = Box::from(&variables.initial[..]);
         let size = variables.initial.len() as u32;
-        let mut kept: Vec<(u32, u32)> = variables
-            .retained
-            .iter()
-            .map(|&(offset, len)| (offset.min(size), offset.saturating_add(len).min(size)))
-            .collect();
-        kept.sort_unstable();
-        // The complement of the retained ranges, as (start, end).
-        let mut fresh = Vec::new();
-        let mut at = 0;
-        for (start, end) in kept {
-            if start > at {
-                fresh.push((at, start));
-            }
-            at = at.max(end);
-        }
-        if at < size {
-            fresh.push((at, size));
-        }
-        self.fresh = fresh.into_boxed_slice();
+        self.fresh = complement(&variables.retained, size);
+        self.fresh_cold = complement(&variables.persistent, size);
         self.located_init = variables.located_init.clone();
     }
 
@@ -475,10 +484,17 @@ impl Vm {
         }
     }
 
-    /// A cold reset: every variable back to its initial value, the retained ones too.
+    /// A cold reset: every variable back to its initial value, the retained ones too, but the
+    /// `PERSISTENT` ones (as TwinCAT's and CODESYS's Reset cold).
     pub fn reset_variables(&mut self) {
-        let n = self.vars.len().min(self.initial.len());
-        self.vars[..n].copy_from_slice(&self.initial[..n]);
+        for &(start, end) in self.fresh_cold.iter() {
+            let range = start as usize..end as usize;
+            if let (Some(to), Some(from)) =
+                (self.vars.get_mut(range.clone()), self.initial.get(range))
+            {
+                to.copy_from_slice(from);
+            }
+        }
     }
 
     /// Instructions executed since the VM was created.
@@ -519,8 +535,7 @@ impl Vm {
                 }
             }
         } else {
-            let n = self.vars.len().min(self.initial.len());
-            self.vars[..n].copy_from_slice(&self.initial[..n]);
+            self.reset_variables();
         }
         for &(at, elem, value) in self.located_init.iter() {
             let p = typed::pointer(at, 0, Pointer::DISCARD.to_slot());

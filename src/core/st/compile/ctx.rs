@@ -52,6 +52,9 @@ pub struct VarInfo {
     pub ty: Ty,
     pub constant: bool,
     pub retain: bool,
+    /// `PERSISTENT` (TwinCAT, CODESYS): retained (`retain` is set too), and kept by a cold
+    /// reset.
+    pub persistent: bool,
     pub storage: Storage,
     /// VAR_IN_OUT: the storage holds a pointer to the value.
     pub by_ref: bool,
@@ -245,6 +248,8 @@ pub struct Ctx<'a> {
     pub image: Vec<u8>,
     /// `(offset, len)` of RETAIN bytes.
     pub retained: Vec<(u32, u32)>,
+    /// `(offset, len)` of PERSISTENT bytes, among the RETAIN ones.
+    pub persistent: Vec<(u32, u32)>,
     pub located_init: Vec<(Place, Elem, u64)>,
     /// The total of variable memory crossed `[st] variable_memory_bytes` (reported once).
     pub memory_exceeded: bool,

@@ -918,6 +918,9 @@ impl<'a> Ctx<'a> {
                         if block.retain {
                             self.retained.push((at, img.len() as u32));
                         }
+                        if block.persistent {
+                            self.persistent.push((at, img.len() as u32));
+                        }
                         Storage::Global(at)
                     }
                 };
@@ -933,6 +936,7 @@ impl<'a> Ctx<'a> {
                     ty: ty.clone(),
                     constant: block.constant,
                     retain: block.retain,
+                    persistent: block.persistent,
                     storage,
                     by_ref: false,
                     value,
@@ -1061,8 +1065,19 @@ impl<'a> Ctx<'a> {
                 self.error(file, block.span, "VAR_GLOBAL belongs outside the POUs: declare globals at the top level of a file");
                 continue;
             }
-            if kind == PouKind::Function && block.retain {
-                self.error(file, block.span, "a FUNCTION's variables cannot be RETAIN");
+            let remanent = if block.persistent { "PERSISTENT" } else { "RETAIN" };
+            if block.persistent && member == Some(super::oop::Role::Method) {
+                // A method's variables live in its frame, for one call, as a FUNCTION's
+                // (TwinCAT and CODESYS keep nothing of them either)
+                self.error(file, block.span, "a METHOD's variables cannot be PERSISTENT: declare the variable in its function block's `VAR PERSISTENT`");
+            } else if kind == PouKind::Function && block.retain {
+                self.error(
+                    file,
+                    block.span,
+                    format!("a FUNCTION's variables cannot be {remanent}"),
+                );
+            } else if block.persistent && block.kind == VarKind::Temp {
+                self.error(file, block.span, "a VAR_TEMP is set at every call and cannot be PERSISTENT: declare the variable in `VAR PERSISTENT`");
             }
             if member.is_some_and(|m| m != super::oop::Role::Method)
                 && block.kind == VarKind::Instance
@@ -1167,6 +1182,7 @@ impl<'a> Ctx<'a> {
                         ty: ty.clone(),
                         constant: block.constant,
                         retain: block.retain,
+                        persistent: block.persistent,
                         storage: Storage::Inst(0),
                         by_ref: block.kind == VarKind::InOut,
                         value: None,
@@ -1272,6 +1288,9 @@ impl<'a> Ctx<'a> {
                             let at = self.alloc_var(&img, file, id.span);
                             if block.retain {
                                 self.retained.push((at, img.len() as u32));
+                            }
+                            if block.persistent {
+                                self.persistent.push((at, img.len() as u32));
                             }
                             info.storage = Storage::Global(at);
                         } else if in_frame {

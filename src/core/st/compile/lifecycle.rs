@@ -128,7 +128,7 @@ pub(super) fn bool_decl(n: &str, span: Span) -> VarDecl {
 }
 
 pub(super) fn block(kind: VarKind, retain: bool, decls: Vec<VarDecl>, span: Span) -> VarBlock {
-    VarBlock { kind, constant: false, retain, span, decls }
+    VarBlock { kind, constant: false, retain, persistent: false, span, decls }
 }
 
 /// The hidden DINT loop counters `{prefix}1` … `{prefix}{counters}`, if any.

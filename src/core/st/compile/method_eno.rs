@@ -57,6 +57,7 @@ impl Ctx<'_> {
             ty: Ty::Prim(Prim::Bool),
             constant: false,
             retain: false,
+            persistent: false,
             storage,
             by_ref: false,
             value: None,

@@ -264,6 +264,7 @@ pub fn compile_project(
         global_blocks: Vec::new(),
         image: Vec::new(),
         retained: Vec::new(),
+        persistent: Vec::new(),
         located_init: Vec::new(),
         memory_exceeded: false,
         enum_values: HashMap::new(),
@@ -491,6 +492,7 @@ pub fn compile_project(
         program.var_bools_canonical = canonical;
     }
     let mut retained = cx.retained.clone();
+    let mut persistent = cx.persistent.clone();
     for (inst, placed) in instances.iter().zip(&placed) {
         let _ = inst;
         let (p, base) = placed.expect("no errors");
@@ -499,11 +501,13 @@ pub fn compile_project(
                 if v.kind == VarKind::Temp || v.by_ref {
                     continue;
                 }
-                retained_in(&cx, &v.ty, base + o, v.retain, &mut retained);
+                retained_in(&cx, &v.ty, base + o, v.retain, |v| v.retain, &mut retained);
+                retained_in(&cx, &v.ty, base + o, v.persistent, |v| v.persistent, &mut persistent);
             }
         }
     }
     retained.sort_unstable();
+    persistent.sort_unstable();
     let referents = referents::referents(&cx);
     // The compile is over: the images of the POUs and types go before variable memory's own
     // is moved into its shared allocation, so that a load's peak holds two images at most.
@@ -513,6 +517,7 @@ pub fn compile_project(
     let variables = Variables {
         initial: Arc::from(std::mem::take(&mut cx.image)),
         retained: merge_ranges(retained).into_boxed_slice(),
+        persistent: merge_ranges(persistent).into_boxed_slice(),
         located_init: cx.located_init.clone().into_boxed_slice(),
         symbols,
         referents,
@@ -544,7 +549,15 @@ fn merge_ranges(r: Vec<(u32, u32)>) -> Vec<(u32, u32)> {
 
 /// The byte ranges of RETAIN variables inside a value at `at` (all of it when `all`): an FB
 /// instance's RETAIN members, in it, in a struct member or in an array element at any depth.
-fn retained_in(cx: &Ctx<'_>, ty: &Ty, at: u32, all: bool, out: &mut Vec<(u32, u32)>) {
+/// `kept` says which variables: RETAIN ones (`PERSISTENT` ones are too), or `PERSISTENT` ones.
+fn retained_in(
+    cx: &Ctx<'_>,
+    ty: &Ty,
+    at: u32,
+    all: bool,
+    kept: fn(&ctx::VarInfo) -> bool,
+    out: &mut Vec<(u32, u32)>,
+) {
     if all {
         out.push((at, cx.types.size(ty)));
         return;
@@ -554,7 +567,7 @@ fn retained_in(cx: &Ctx<'_>, ty: &Ty, at: u32, all: bool, out: &mut Vec<(u32, u3
             for v in &cx.pous[*p].vars {
                 if let Storage::Inst(o) = v.storage {
                     if v.kind != VarKind::Temp && !v.by_ref {
-                        retained_in(cx, &v.ty, at + o, v.retain, out);
+                        retained_in(cx, &v.ty, at + o, kept(v), kept, out);
                     }
                 }
             }
@@ -562,13 +575,13 @@ fn retained_in(cx: &Ctx<'_>, ty: &Ty, at: u32, all: bool, out: &mut Vec<(u32, u3
         // a struct's members and an array's elements may be FB instances with RETAIN members
         Ty::Struct(s) => {
             for m in &cx.types.structs[*s].members {
-                retained_in(cx, &m.ty, at + m.offset, false, out);
+                retained_in(cx, &m.ty, at + m.offset, false, kept, out);
             }
         }
         Ty::Array(a) => {
             // the ranges of one element, repeated for each: none for an array of values
             let mut element = Vec::new();
-            retained_in(cx, &a.of, 0, false, &mut element);
+            retained_in(cx, &a.of, 0, false, kept, &mut element);
             if element.is_empty() {
                 return;
             }

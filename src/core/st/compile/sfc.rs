@@ -720,6 +720,7 @@ fn generate(
         kind,
         constant: false,
         retain: false,
+        persistent: false,
         span: steps.first().map_or(Span::default(), |s| s.span),
         decls,
     };

@@ -859,6 +859,7 @@ impl<'a> Parser<'a> {
                     kind: VarKind::Input,
                     constant: false,
                     retain: false,
+                    persistent: false,
                     span: name.span,
                     decls: vec![input],
                 };
@@ -1191,7 +1192,7 @@ impl<'a> Parser<'a> {
             self.text_of(at)
         }
         .to_ascii_uppercase();
-        let (mut constant, mut retain) = (false, false);
+        let (mut constant, mut retain, mut persistent) = (false, false, false);
         loop {
             if self.at_kw(Kw::Constant) {
                 if kind == VarKind::Input {
@@ -1201,6 +1202,11 @@ impl<'a> Parser<'a> {
                 constant = true;
             } else if self.eat_kw(Kw::Retain) {
                 retain = true;
+            } else if self.at_persistent() {
+                // `PERSISTENT` is a word, not a keyword: a variable may be called so
+                self.habit(Habit::Persistent);
+                self.bump();
+                (retain, persistent) = (true, true);
             } else if !self.eat_kw(Kw::NonRetain) {
                 break;
             }
@@ -1230,7 +1236,15 @@ impl<'a> Parser<'a> {
                 self.sync_decl();
             }
         }
-        VarBlock { kind, constant, retain, span, decls }
+        VarBlock { kind, constant, retain, persistent, span, decls }
+    }
+
+    /// `PERSISTENT` among a block's qualifiers: the word, not followed by what makes it the
+    /// name of a declaration (`persistent : BOOL;`, `persistent, b : INT;`).
+    fn at_persistent(&self) -> bool {
+        self.at_word("PERSISTENT")
+            && !matches!(self.tok_at(1), Tok::P(P::Colon | P::Comma))
+            && *self.tok_at(1) != Tok::Kw(Kw::At)
     }
 
     /// Whether a declaration starts here: a name not followed by `:=`, `(`, `[` or `.` (which

@@ -891,6 +891,31 @@ fn var_block_qualifiers_come_in_any_order() {
     }
 }
 
+#[test]
+fn persistent_is_a_retain_qualifier_in_any_order_and_still_a_name() {
+    for (q, constant, persistent) in [
+        ("PERSISTENT", false, true),
+        ("RETAIN PERSISTENT", false, true),
+        ("PERSISTENT RETAIN", false, true),
+        ("persistent CONSTANT", true, true),
+        ("CONSTANT PERSISTENT RETAIN", true, true),
+        ("RETAIN", false, false),
+    ] {
+        let p = pou(&format!("PROGRAM p VAR {q} x : INT; END_VAR END_PROGRAM"));
+        let b = &p.vars[0];
+        assert_eq!((b.constant, b.retain, b.persistent), (constant, true, persistent), "{q}");
+        assert_eq!(b.decls[0].names[0].name, "x", "{q}");
+    }
+    // a variable called `persistent`, alone or first of several, or located
+    for decl in ["persistent : BOOL;", "persistent, b : BOOL;", "persistent AT %MX0.0 : BOOL;"] {
+        let p = pou(&format!("PROGRAM p VAR {decl} END_VAR END_PROGRAM"));
+        assert!(!p.vars[0].persistent && !p.vars[0].retain, "{decl}");
+        assert!(p.vars[0].decls[0].names[0].is("persistent"), "{decl}");
+    }
+    let text = "VAR_GLOBAL PERSISTENT g : INT; END_VAR\nPROGRAM p END_PROGRAM\n";
+    assert_eq!(habits(text), ["1:12: Persistent"]);
+}
+
 fn decls(text: &str) -> Vec<VarDecl> {
     let mut p = pou(&format!("PROGRAM p\nVAR\n{text}\nEND_VAR\nEND_PROGRAM"));
     p.vars.remove(0).decls
