@@ -57,6 +57,11 @@ pub enum Habit {
     /// `PERSISTENT` on a variable block (`VAR PERSISTENT`, `VAR_GLOBAL RETAIN PERSISTENT`,
     /// TwinCAT and CODESYS): retained, and kept by a cold reset too.
     Persistent,
+    /// A `;` alone in a variable block (`a : LREAL := 630.0;;`): an empty declaration.
+    EmptyDeclaration,
+    /// An argument without a value, as TwinCAT's input assistant writes them: `ET => ` binds
+    /// nothing (`output`), `IN := ` is the input left out.
+    EmptyArgument { output: bool },
     /// `VAR_INPUT CONSTANT`: an input the POU's body may not write.
     ConstantInput,
     /// An FB instance's internal variable read from outside.
@@ -185,6 +190,9 @@ impl Habit {
             Habit::VarStat => "`VAR_STAT` is not IEC 61131-3: declare the variable in `VAR` of a PROGRAM, or as a VAR_GLOBAL (`[st] strict` is on)".to_string(),
             Habit::VarInst => "`VAR_INST` is not IEC 61131-3: declare the variable in the function block's `VAR` (`[st] strict` is on)".to_string(),
             Habit::Persistent => "`PERSISTENT` is TwinCAT's and CODESYS's: IEC 61131-3 writes `RETAIN` (`[st] strict` is on)".to_string(),
+            Habit::EmptyDeclaration => "an empty declaration (a `;` alone) is not IEC 61131-3: remove the `;` (`[st] strict` is on)".to_string(),
+            Habit::EmptyArgument { output: true } => "`=>` without a variable is not IEC 61131-3: leave out the outputs the call does not read (`[st] strict` is on)".to_string(),
+            Habit::EmptyArgument { output: false } => "`:=` without a value is not IEC 61131-3: leave out the inputs the call does not give (`[st] strict` is on)".to_string(),
             Habit::ConstantInput => "`VAR_INPUT CONSTANT` is not IEC 61131-3: write `VAR_INPUT` (`[st] strict` is on)".to_string(),
             Habit::ReadFbInternal => "IEC 61131-3 reads only an instance's inputs and outputs from outside: pass the value out through a VAR_OUTPUT (`[st] strict` is on)".to_string(),
             Habit::InOutThroughInstance => "IEC 61131-3 names a VAR_IN_OUT only inside its function block's body: use the variable the call binds to it (`[st] strict` is on)".to_string(),

@@ -1222,6 +1222,10 @@ impl<'a> Parser<'a> {
             } else if *tok == Tok::Kw(Kw::EndVar) {
                 self.bump();
                 break;
+            } else if *tok == Tok::P(P::Semi) {
+                // `a : LREAL := 630.0;;` or a `;` on a line of its own: an empty declaration
+                self.habit(Habit::EmptyDeclaration);
+                self.bump();
             } else if *tok == Tok::Ident
                 || is_top(tok)
                 || is_stmt_keyword(tok)
@@ -2146,28 +2150,52 @@ impl<'a> Parser<'a> {
                 (Tok::Ident, Tok::P(P::Assign), _) => {
                     let name = self.ident()?;
                     self.bump();
-                    Arg::Input { name, value: self.expr()? }
+                    if self.empty_argument(&name, false) {
+                        None
+                    } else {
+                        Some(Arg::Input { name, value: self.expr()? })
+                    }
                 }
                 (Tok::Ident, Tok::P(P::Arrow), _) => {
                     let name = self.ident()?;
                     self.bump();
-                    Arg::Output { name, target: self.expr()?, negated: false }
+                    if self.empty_argument(&name, true) {
+                        None
+                    } else {
+                        Some(Arg::Output { name, target: self.expr()?, negated: false })
+                    }
                 }
                 (Tok::Kw(Kw::Not), Tok::Ident, Tok::P(P::Arrow)) => {
                     self.bump();
                     let name = self.ident()?;
                     self.bump();
-                    Arg::Output { name, target: self.expr()?, negated: true }
+                    if self.empty_argument(&name, true) {
+                        None
+                    } else {
+                        Some(Arg::Output { name, target: self.expr()?, negated: true })
+                    }
                 }
-                _ => Arg::Positional(self.expr()?),
+                _ => Some(Arg::Positional(self.expr()?)),
             };
-            args.push(arg);
+            args.extend(arg);
             if self.eat_p(P::Comma) {
                 continue;
             }
             self.expect_p(P::RParen, Want::CommaOrRParen)?;
             return Ok(args);
         }
+    }
+
+    /// Whether the argument after `:=` or `=>` is empty (`ET => )`, `A := ,`), as TwinCAT's
+    /// input assistant writes them: noted, and left out of the call, so that an empty input
+    /// is one not given (its default, or the instance's value) and an empty output binds
+    /// nothing. Its name is not looked up: it names nothing the call does.
+    fn empty_argument(&mut self, name: &Ident, output: bool) -> bool {
+        let empty = matches!(self.tok(), Tok::P(P::Comma | P::RParen));
+        if empty {
+            self.habits.push(Noted { span: name.span, habit: Habit::EmptyArgument { output } });
+        }
+        empty
     }
 
     fn primary(&mut self) -> PResult<Expr> {

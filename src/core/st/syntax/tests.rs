@@ -916,6 +916,51 @@ fn persistent_is_a_retain_qualifier_in_any_order_and_still_a_name() {
     assert_eq!(habits(text), ["1:12: Persistent"]);
 }
 
+#[test]
+fn a_semicolon_alone_in_a_var_block_is_an_empty_declaration() {
+    let text =
+        "PROGRAM p\nVAR\n    a : LREAL := 630.0;;\n    ;\n    b : INT;\nEND_VAR\nEND_PROGRAM\n";
+    assert_eq!(habits(text), ["3:24: EmptyDeclaration", "4:5: EmptyDeclaration"]);
+    let p = pou(text);
+    let names: Vec<&str> = p.vars[0].decls.iter().map(|d| d.names[0].name.as_str()).collect();
+    assert_eq!(names, ["a", "b"]);
+}
+
+#[test]
+fn an_empty_argument_is_left_out_of_the_call() {
+    let text = "PROGRAM p\nt(IN := x, PT := , Q => q, ET => );\nn := F(A := , B := 1);\n\
+                u(NOT Q => , CU := c);\nEND_PROGRAM\n";
+    assert_eq!(
+        habits(text),
+        [
+            "2:12: EmptyArgument { output: false }",
+            "2:28: EmptyArgument { output: true }",
+            "3:8: EmptyArgument { output: false }",
+            "4:7: EmptyArgument { output: true }",
+        ]
+    );
+    let p = pou(text);
+    let args = |i: usize| -> Vec<String> {
+        let e = match &p.body[i].kind {
+            StmtKind::Call(e) => e,
+            StmtKind::Assign { value, .. } => value,
+            other => panic!("{other:?}"),
+        };
+        let ExprKind::Call { args, .. } = &e.kind else { panic!("{e:?}") };
+        args.iter()
+            .map(|a| match a {
+                Arg::Input { name, .. } | Arg::Output { name, .. } => name.name.clone(),
+                Arg::Positional(_) => "_".into(),
+            })
+            .collect()
+    };
+    assert_eq!(args(0), ["IN", "Q"]);
+    assert_eq!(args(1), ["B"]);
+    assert_eq!(args(2), ["CU"]);
+    // a value that is missing elsewhere is still an error
+    assert!(!errors("PROGRAM p\nt(IN := + );\nEND_PROGRAM\n").is_empty());
+}
+
 fn decls(text: &str) -> Vec<VarDecl> {
     let mut p = pou(&format!("PROGRAM p\nVAR\n{text}\nEND_VAR\nEND_PROGRAM"));
     p.vars.remove(0).decls
