@@ -432,6 +432,7 @@ fn typed_programs_do_not_allocate() {
     vm.set_variables(&Variables {
         initial: initial.into(),
         retained: vec![(10, 2)].into(),
+        persistent: vec![].into(),
         located_init: vec![(d("D00102"), Elem::I32, 7)].into(),
         symbols: Default::default(),
         referents: vec![],

@@ -535,6 +535,7 @@ fn run_start_initializes_variables_keeping_the_retained_ones_when_warm() {
     vm.set_variables(&Variables {
         initial: (1..=16).collect::<Vec<u8>>().into(),
         retained: vec![(4, 4), (10, 2)].into(),
+        persistent: vec![(10, 2)].into(),
         located_init: vec![(Place::Word(d10), Elem::I32, 70_000)].into(),
         symbols: Default::default(),
         referents: vec![],
@@ -555,7 +556,13 @@ fn run_start_initializes_variables_keeping_the_retained_ones_when_warm() {
         70_000
     );
     vm.reset_for_run(&none, false);
-    assert_eq!(vm.vars(), (1..=16).collect::<Vec<u8>>(), "cold: all initial");
+    let expected: Vec<u8> = (1..=16).map(|b| if (11..=12).contains(&b) { 0 } else { b }).collect();
+    assert_eq!(vm.vars(), expected, "cold: all initial but the PERSISTENT bytes");
+    for offset in 0..16 {
+        vm.write_value(Pointer { space: Space::Var, offset }, Elem::U8, 0);
+    }
+    vm.reset_variables();
+    assert_eq!(vm.vars(), expected, "a cold reset: the same");
 }
 
 #[test]
