@@ -760,7 +760,7 @@ fn expand_configurations(
             continue;
         };
         if !parsed.iter().any(|(f, _)| f.path == entry.resolved) {
-            parsed.push(st::parse_file(&entry.resolved, &text));
+            parsed.push(st::parse_file_with(&entry.resolved, &text, &config.st.defines));
         }
         let (file, _) = parsed.iter().find(|(f, _)| f.path == entry.resolved).expect("parsed");
         let conf = match configuration::of_file(file, &entry.resolved) {
@@ -959,7 +959,7 @@ where
                 }
             }
         }
-        let (mut file, errors) = st::parse_file(&path, &text);
+        let (mut file, errors) = st::parse_file_with(&path, &text, &config.st.defines);
         file.list_name = list_name;
         ok &= errors.is_empty();
         reader.diags.extend(errors);

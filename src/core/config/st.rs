@@ -35,6 +35,10 @@ pub struct StConfig {
     /// one array or one instance; docs/ST.md, "Limits and what is not supported"); default
     /// 128 MiB, 1 MiB to 1 GiB.
     pub variable_memory_bytes: u32,
+    /// `defines`: names defined in every source for its conditional pragmas (`{IF defined
+    /// (name)}`, as a TwinCAT project's compiler defines; docs/ST.md, "Pragmas"); default
+    /// none.
+    pub defines: Vec<String>,
 }
 
 /// `heap_bytes` when the config does not say: 64 KiB.
@@ -63,6 +67,7 @@ impl Default for StConfig {
             heap_bytes: DEFAULT_HEAP_BYTES,
             system_libraries: SystemLibraries::NONE,
             variable_memory_bytes: DEFAULT_VARIABLE_MEMORY_BYTES,
+            defines: Vec::new(),
         }
     }
 }
@@ -121,6 +126,7 @@ pub(super) struct RawSt {
     pub heap_bytes: Option<Spanned<i64>>,
     pub system_libraries: Option<Vec<Spanned<String>>>,
     pub variable_memory_bytes: Option<Spanned<i64>>,
+    pub defines: Option<Vec<Spanned<String>>>,
 }
 
 pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StConfig> {
@@ -169,6 +175,21 @@ pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StC
             namespaces.push(name);
         }
     }
+    let mut defines: Vec<String> = Vec::new();
+    for entry in raw.defines.unwrap_or_default() {
+        let at = entry.span().start;
+        let name = entry.into_inner();
+        if !is_namespace(&name) {
+            let key = ctx.key("defines");
+            sink.error(at, format!("{key}: `{name}` is not a name (letters, digits and `_`)"));
+            ok = false;
+        } else if defines.iter().any(|n| n.eq_ignore_ascii_case(&name)) {
+            sink.error(at, format!("{}: `{name}` is listed twice", ctx.key("defines")));
+            ok = false;
+        } else {
+            defines.push(name);
+        }
+    }
     let mut system_libraries = SystemLibraries::NONE;
     for entry in raw.system_libraries.unwrap_or_default() {
         let at = entry.span().start;
@@ -210,5 +231,6 @@ pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StC
         heap_bytes,
         system_libraries,
         variable_memory_bytes,
+        defines,
     })
 }

@@ -1870,6 +1870,20 @@ fn st_strict_is_off_unless_set() {
 }
 
 #[test]
+fn st_defines_are_names_listed_once_each() {
+    assert!(config(&with_scan("")).st.defines.is_empty());
+    let c = config(&with_scan("[st]\ndefines = [\"plant_b\", \"WithLog\"]\n"));
+    assert_eq!(c.st.defines, ["plant_b", "WithLog"]);
+    assert_eq!(
+        errors(&with_scan("[st]\ndefines = [\"a b\", \"x\", \"X\"]\n")),
+        [
+            "2:12: st.defines: `a b` is not a name (letters, digits and `_`)",
+            "2:24: st.defines: `X` is listed twice"
+        ]
+    );
+}
+
+#[test]
 fn iec_layout_is_openplc_unless_set_and_images_move() {
     use crate::device::iec::{IecLayout, Image, Preset, Start};
     use crate::device::Area;

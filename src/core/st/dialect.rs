@@ -54,6 +54,9 @@ pub enum Habit {
     VarStat,
     /// `VAR_INST`: a variable kept in the function block's instance.
     VarInst,
+    /// Conditional compilation (CODESYS, TwinCAT; `syntax::cond`): noted at each `{define x}`,
+    /// `{undefine x}` and `{IF defined (x)}` (its `{ELSIF}`, `{ELSE}` and `{END_IF}` go with it).
+    ConditionalPragma,
     /// `PERSISTENT` on a variable block (`VAR PERSISTENT`, `VAR_GLOBAL RETAIN PERSISTENT`,
     /// TwinCAT and CODESYS): retained, and kept by a cold reset too.
     Persistent,
@@ -189,6 +192,7 @@ impl Habit {
             Habit::NoSemicolonAfterType => "`;` expected after the type's declaration (IEC 61131-3 ends every type declaration with `;`; `[st] strict` is on)".to_string(),
             Habit::VarStat => "`VAR_STAT` is not IEC 61131-3: declare the variable in `VAR` of a PROGRAM, or as a VAR_GLOBAL (`[st] strict` is on)".to_string(),
             Habit::VarInst => "`VAR_INST` is not IEC 61131-3: declare the variable in the function block's `VAR` (`[st] strict` is on)".to_string(),
+            Habit::ConditionalPragma => "conditional compilation (`{IF defined (x)}`, `{define x}`) is CODESYS's and TwinCAT's: IEC 61131-3 gives a pragma no meaning; keep the variant wanted (`[st] strict` is on)".to_string(),
             Habit::Persistent => "`PERSISTENT` is TwinCAT's and CODESYS's: IEC 61131-3 writes `RETAIN` (`[st] strict` is on)".to_string(),
             Habit::EmptyDeclaration => "an empty declaration (a `;` alone) is not IEC 61131-3: remove the `;` (`[st] strict` is on)".to_string(),
             Habit::EmptyArgument { output: true } => "`=>` without a variable is not IEC 61131-3: leave out the outputs the call does not read (`[st] strict` is on)".to_string(),

@@ -29,4 +29,4 @@ pub use compile::{
     compile, compile_configured, compile_in_namespaces, compile_project, compile_with, Compiled,
     ConfigBindings, Instance,
 };
-pub use syntax::parse_file;
+pub use syntax::{parse_file, parse_file_with};

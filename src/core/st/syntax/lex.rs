@@ -1,12 +1,16 @@
 //! The lexer: text → tokens with their 1-based line and column (columns count characters).
 //!
-//! Comments (`(* *)` and `/* */`, both nestable, and `// …`) and pragmas (`{ … }`) are skipped.
+//! Comments (`(* *)` and `/* */`, both nestable, and `// …`) and pragmas (`{ … }`) are skipped;
+//! the conditional pragmas (`{IF defined (x)}` … `{END_IF}`) decide which tokens are kept
+//! (`super::cond`).
 //! Literals are decoded here: integers in bases 2, 8, 10 and 16, reals, durations (in
 //! nanoseconds) and strings with their `$` escapes. A malformed literal is reported and still
 //! yields a token, so that the parser goes on without a second error for the same mistake.
 
+use super::cond::{Conditions, Pragma};
 use super::{Msg, DESCRIPTION, DESCRIPTION_END};
 use crate::st::ast::Span;
+use crate::st::dialect::{Habit, Noted};
 use crate::value::{calendar_body, Calendar, CalendarKind};
 
 /// The keywords, recognised whatever their case.
@@ -278,10 +282,19 @@ pub(crate) struct Lexed {
     /// The tokens a `{attribute 'qualified_only'}` pragma stands before, in order: the one
     /// pragma that has an effect (see `compile::qualified`).
     pub qualified_only: Vec<usize>,
+    /// The conditional pragmas (`{IF …}`, `{define …}`), noted for `[st] strict`.
+    pub habits: Vec<Noted>,
 }
 
 /// Splits `text` into tokens; the last is [`Tok::Eof`].
+#[cfg(test)]
 pub(crate) fn lex(text: &str) -> Lexed {
+    lex_with(text, &[])
+}
+
+/// Splits `text` into tokens, `defines` defined for its conditional pragmas (`[st] defines`,
+/// [`super::cond`]); the last token is [`Tok::Eof`].
+pub(crate) fn lex_with(text: &str, defines: &[String]) -> Lexed {
     let mut lexer = Lexer {
         text,
         bytes: text.as_bytes(),
@@ -293,6 +306,8 @@ pub(crate) fn lex(text: &str) -> Lexed {
         eof_in_comment: false,
         quiet: Vec::new(),
         qualified_only: Vec::new(),
+        cond: Conditions::new(defines),
+        habits: Vec::new(),
     };
     lexer.run();
     Lexed {
@@ -301,6 +316,7 @@ pub(crate) fn lex(text: &str) -> Lexed {
         eof_in_comment: lexer.eof_in_comment,
         quiet: lexer.quiet,
         qualified_only: lexer.qualified_only,
+        habits: lexer.habits,
     }
 }
 
@@ -315,6 +331,8 @@ struct Lexer<'a> {
     eof_in_comment: bool,
     quiet: Vec<usize>,
     qualified_only: Vec<usize>,
+    cond: Conditions,
+    habits: Vec<Noted>,
 }
 
 /// Whether a pragma's text (between `{` and `}`) is `attribute 'qualified_only'`, spaced and
@@ -384,9 +402,12 @@ impl Lexer<'_> {
             self.skip_trivia();
             let (start, span) = (self.pos, self.span());
             let Some(b) = self.peek() else {
+                self.cond.finish(&mut self.errors);
                 self.push(Tok::Eof, span, start);
                 return;
             };
+            // the text a conditional pragma leaves out is lexed, then dropped
+            let kept = (self.tokens.len(), self.errors.len(), self.quiet.len());
             match b {
                 b'a'..=b'z' | b'A'..=b'Z' | b'_' => self.word(start, span),
                 b'0'..=b'9' => self.number(start, span),
@@ -414,6 +435,11 @@ impl Lexer<'_> {
                     }
                 },
             }
+            if !self.cond.active() {
+                self.tokens.truncate(kept.0);
+                self.errors.truncate(kept.1);
+                self.quiet.truncate(kept.2);
+            }
         }
     }
 
@@ -436,7 +462,7 @@ impl Lexer<'_> {
                     }
                 }
                 (b'{', _) => {
-                    let (line, start) = (self.line, self.pos + 1);
+                    let (line, start, at) = (self.line, self.pos + 1, self.span());
                     while self.peek().is_some_and(|b| b != b'}') {
                         self.bump();
                     }
@@ -444,8 +470,14 @@ impl Lexer<'_> {
                         let span = self.span();
                         self.error(span, Msg::UnterminatedPragma { line: line.to_string() });
                         self.eof_in_comment = true;
-                    } else if is_qualified_only(&self.text[start..self.pos]) {
-                        self.qualified_only.push(self.tokens.len());
+                    } else {
+                        let text = &self.text[start..self.pos];
+                        let active = self.cond.active();
+                        if self.cond.pragma(text, at, &mut self.errors) == Pragma::Conditional {
+                            self.habits.push(Noted { span: at, habit: Habit::ConditionalPragma });
+                        } else if active && is_qualified_only(text) {
+                            self.qualified_only.push(self.tokens.len());
+                        }
                     }
                     self.bump();
                 }

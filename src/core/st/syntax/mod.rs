@@ -4,6 +4,7 @@
 //! parser can emit is a `Msg`; [`message_templates`] lists them all with `{}` for the parts
 //! that vary, and the golden cases under `tests/golden/st-syntax` cover each template.
 
+mod cond;
 mod lex;
 mod parse;
 #[cfg(test)]
@@ -16,12 +17,19 @@ use crate::st::ast;
 
 /// Parses one file: the tree of everything that parsed, and every syntax error.
 pub fn parse_file(path: &Path, text: &str) -> (ast::File, Diagnostics) {
+    parse_file_with(path, text, &[])
+}
+
+/// [`parse_file`] with `defines` defined for the file's conditional pragmas (`[st] defines`).
+pub fn parse_file_with(path: &Path, text: &str, defines: &[String]) -> (ast::File, Diagnostics) {
     // a byte order mark is no character of the source (editors show none)
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    let lexed = lex::lex(text);
+    let lexed = lex::lex_with(text, defines);
     let qualified_only = qualified_only(text, &lexed);
-    let (items, habits, mut errors) =
+    let (items, mut habits, mut errors) =
         parse::parse(text, lexed.tokens, lexed.eof_in_comment, lexed.quiet);
+    habits.extend(lexed.habits);
+    habits.sort_by_key(|n| (n.span.line, n.span.col));
     errors.extend(lexed.errors);
     errors.sort_by_key(|(span, _)| (span.line, span.col));
     let mut diags = Diagnostics::default();
@@ -353,6 +361,27 @@ pub(crate) enum Msg {
     TooDeep,
     /// A METHOD or PROPERTY at the top level after no FUNCTION_BLOCK or PROGRAM.
     MemberOutside,
+    /// `{define}` or `{undefine}` (as written) without a name.
+    CondName {
+        directive: String,
+    },
+    /// `{ELSIF}`, `{ELSE}` or `{END_IF}` (as written) with no `{IF}` open.
+    CondStray {
+        directive: String,
+    },
+    /// `{ELSIF}` or `{ELSE}` after the `{ELSE}` of its `{IF}`.
+    CondAfterElse {
+        directive: String,
+    },
+    /// A condition that is not `defined (name)` joined with NOT, AND, OR and parentheses.
+    CondExpr,
+    /// A predicate of CODESYS's conditions plcd does not evaluate (`hasvalue`, `defined
+    /// (variable: …)`).
+    CondPredicate {
+        predicate: String,
+    },
+    /// An `{IF}` without its `{END_IF}` at the end of the file.
+    CondUnclosed,
 }
 
 /// How deeply expressions, statements and initial values may nest.
@@ -392,6 +421,12 @@ impl Msg {
             Msg::BitTooLarge { text: h() },
             Msg::TooDeep,
             Msg::MemberOutside,
+            Msg::CondName { directive: h() },
+            Msg::CondStray { directive: h() },
+            Msg::CondAfterElse { directive: h() },
+            Msg::CondExpr,
+            Msg::CondPredicate { predicate: h() },
+            Msg::CondUnclosed,
         ]);
         all.extend(crate::value::CalendarError::TEMPLATES.iter().map(|why| Msg::Calendar {
             text: h(),
@@ -446,6 +481,20 @@ impl std::fmt::Display for Msg {
                 f,
                 "a METHOD or PROPERTY belongs to a FUNCTION_BLOCK: write it inside one, or right after its END_FUNCTION_BLOCK"
             ),
+            Msg::CondName { directive } => write!(f, "`{{{directive}}}` needs a name: `{{{directive} name}}`"),
+            Msg::CondStray { directive } => write!(f, "`{{{directive}}}` without an `{{IF}}` open"),
+            Msg::CondAfterElse { directive } => {
+                write!(f, "`{{{directive}}}` after the `{{ELSE}}` of its `{{IF}}`")
+            }
+            Msg::CondExpr => write!(
+                f,
+                "expected a condition: `defined (name)`, with NOT, AND, OR and parentheses"
+            ),
+            Msg::CondPredicate { predicate } => write!(
+                f,
+                "`{predicate}` is not supported in a conditional pragma: plcd tests `defined (name)` of `{{define}}` and `[st] defines`"
+            ),
+            Msg::CondUnclosed => write!(f, "`{{IF}}` without its `{{END_IF}}`"),
         }
     }
 }

@@ -1531,7 +1531,7 @@ fn templates_are_distinct_and_well_formed() {
     sorted.dedup();
     assert_eq!(sorted.len(), all.len());
     let calendar = crate::value::CalendarError::TEMPLATES.len();
-    assert_eq!(all.len(), Want::ALL.len() + Closer::ALL.len() + 15 + calendar);
+    assert_eq!(all.len(), Want::ALL.len() + Closer::ALL.len() + 21 + calendar);
     for t in &all {
         assert!(
             t.starts_with(|c: char| !c.is_ascii_uppercase() || t.starts_with("WSTRING")),
@@ -1817,4 +1817,82 @@ fn var_access_in_a_configuration_and_a_program() {
     let counts: Vec<Vec<usize>> =
         c.access[2].subscripts.iter().map(|g| g.iter().map(Vec::len).collect()).collect();
     assert_eq!(counts, [vec![], vec![2], vec![1, 1]]);
+}
+
+// ----- conditional pragmas -----
+
+/// The names of `text`'s tokens with their places, `defines` defined.
+fn kept(text: &str, defines: &[&str]) -> Vec<String> {
+    let defines: Vec<String> = defines.iter().map(|d| d.to_string()).collect();
+    let lexed = super::lex::lex_with(text, &defines);
+    lexed
+        .tokens
+        .iter()
+        .filter(|t| t.kind == Tok::Ident)
+        .map(|t| {
+            format!("{}:{}:{}", &text[t.start as usize..t.end as usize], t.span.line, t.span.col)
+        })
+        .collect()
+}
+
+fn cond_errors(text: &str) -> Vec<String> {
+    super::lex::lex_with(text, &[])
+        .errors
+        .iter()
+        .map(|(s, m)| format!("{}:{}: {m}", s.line, s.col))
+        .collect()
+}
+
+#[test]
+fn conditional_pragmas_keep_one_branch_and_the_places_of_what_follows() {
+    let text =
+        "{IF defined (a)}\nx\n{ELSIF defined (b) AND NOT defined (c)}\ny\n{ELSE}\nz\n{END_IF} w";
+    assert_eq!(kept(text, &[]), ["z:6:1", "w:7:10"]);
+    assert_eq!(kept(text, &["A"]), ["x:2:1", "w:7:10"], "names are case-insensitive");
+    assert_eq!(kept(text, &["b"]), ["y:4:1", "w:7:10"]);
+    assert_eq!(kept(text, &["b", "c"]), ["z:6:1", "w:7:10"]);
+    // nested, inside a left-out branch: nothing of it, whatever it says
+    let text = "{IF defined (a)}{IF NOT defined (a)}x{ELSE}y{END_IF}{ELSE}z{END_IF}";
+    assert_eq!(kept(text, &[]), ["z:1:59"]);
+    assert_eq!(kept(text, &["a"]), ["y:1:44"]);
+    // {define} and {undefine} from their place on; left out, they define nothing
+    let text = "{IF defined (a)}{define b}{END_IF}{define c}{undefine c}\
+                {IF defined (b) OR defined (c)}x{ELSE}y{END_IF}";
+    assert_eq!(kept(text, &[]), ["y:1:95"]);
+    // what looks like a pragma in a comment or a string of a left-out branch is theirs
+    let text = "{IF defined (a)} (* {END_IF} *) '{END_IF}' x {END_IF} y";
+    assert_eq!(kept(text, &[]), ["y:1:55"]);
+    // and a left-out branch's lexical errors are not reported
+    assert!(cond_errors("{IF defined (a)} 16#G $ {END_IF}").is_empty());
+    let text = "VAR_GLOBAL {define x} g : INT; END_VAR\n";
+    assert_eq!(habits(text), ["1:12: ConditionalPragma"]);
+}
+
+#[test]
+fn conditional_pragmas_report_what_plcd_cannot_read() {
+    assert_eq!(cond_errors("{define}"), ["1:1: `{define}` needs a name: `{define name}`"]);
+    assert_eq!(cond_errors("x {END_IF}"), ["1:3: `{END_IF}` without an `{IF}` open"]);
+    assert_eq!(
+        cond_errors("{IF defined (a)}{ELSE}{ELSIF defined (b)}{END_IF}"),
+        ["1:23: `{ELSIF}` after the `{ELSE}` of its `{IF}`"]
+    );
+    assert_eq!(
+        cond_errors("{IF defined (a) AND}{END_IF}"),
+        ["1:1: expected a condition: `defined (name)`, with NOT, AND, OR and parentheses"]
+    );
+    let unsupported = |predicate: &str| {
+        format!("1:1: `{predicate}` is not supported in a conditional pragma: plcd tests `defined (name)` of `{{define}}` and `[st] defines`")
+    };
+    assert_eq!(cond_errors("{IF hasvalue (a, '1')}{END_IF}"), [unsupported("hasvalue")]);
+    assert_eq!(
+        cond_errors("{IF defined (variable: x)}{END_IF}"),
+        [unsupported("defined (variable: …)")]
+    );
+    assert_eq!(
+        cond_errors("{IF defined (IsLittleEndian)}{END_IF}"),
+        [unsupported("defined (IsLittleEndian)")]
+    );
+    assert_eq!(cond_errors("\n  {IF defined (a)}\nx"), ["2:3: `{IF}` without its `{END_IF}`"]);
+    // other pragmas are no conditions
+    assert!(cond_errors("{attribute 'qualified_only'} {warning 'x'} {IFX}").is_empty());
 }
