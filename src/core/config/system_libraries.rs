@@ -18,16 +18,20 @@ pub enum SystemLibrary {
     /// CODESYS's `SysFile` (with its `SysTypes` and `SysDir`'s `CmpErrors`): declared so that
     /// code using files compiles; plcd gives programs no file system, every call fails.
     SysFile,
+    /// TwinCAT's `Tc2_TcpIp` (TF6310's TCP/IP Connection Server): declared so that code using
+    /// sockets compiles; plcd has no ADS router, every block answers error 6.
+    Tc2TcpIp,
 }
 
 impl SystemLibrary {
     /// Every library, in the order their names are listed in messages.
-    pub const ALL: [SystemLibrary; 5] = [
+    pub const ALL: [SystemLibrary; 6] = [
         SystemLibrary::Tc2System,
         SystemLibrary::Tc2Utilities,
         SystemLibrary::Tc2Standard,
         SystemLibrary::Tc2Math,
         SystemLibrary::SysFile,
+        SystemLibrary::Tc2TcpIp,
     ];
 
     /// The name the config and the project's code write, as the vendor spells it.
@@ -38,6 +42,7 @@ impl SystemLibrary {
             SystemLibrary::Tc2Standard => "Tc2_Standard",
             SystemLibrary::Tc2Math => "Tc2_Math",
             SystemLibrary::SysFile => "SysFile",
+            SystemLibrary::Tc2TcpIp => "Tc2_TcpIp",
         }
     }
 
@@ -73,9 +78,9 @@ impl SystemLibraries {
     }
 
     /// The set with the libraries its libraries use: `Tc2_Utilities` uses `Tc2_System`'s
-    /// types and MEMCPY, as TwinCAT's does.
+    /// types and MEMCPY, `Tc2_TcpIp` its `T_AmsNetID` and `T_IPv4Addr`, as TwinCAT's do.
     pub fn with_dependencies(self) -> SystemLibraries {
-        if self.contains(SystemLibrary::Tc2Utilities) {
+        if self.contains(SystemLibrary::Tc2Utilities) || self.contains(SystemLibrary::Tc2TcpIp) {
             self.with(SystemLibrary::Tc2System)
         } else {
             self
@@ -106,5 +111,28 @@ impl SystemLibraries {
 impl FromIterator<SystemLibrary> for SystemLibraries {
     fn from_iter<I: IntoIterator<Item = SystemLibrary>>(iter: I) -> SystemLibraries {
         iter.into_iter().fold(SystemLibraries::NONE, SystemLibraries::with)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_any_case_and_dependencies() {
+        assert_eq!(SystemLibrary::from_name("tc2_tcpip"), Some(SystemLibrary::Tc2TcpIp));
+        assert_eq!(
+            SystemLibrary::from_name("Tc2_TcpIp").map(SystemLibrary::name),
+            Some("Tc2_TcpIp")
+        );
+        assert_eq!(SystemLibrary::from_name("Tc3_EventLogger"), None);
+        // Tc2_TcpIp and Tc2_Utilities bring Tc2_System; the others bring nothing.
+        for lib in [SystemLibrary::Tc2TcpIp, SystemLibrary::Tc2Utilities] {
+            let set = SystemLibraries::NONE.with(lib).with_dependencies();
+            assert!(set.contains(SystemLibrary::Tc2System) && set.contains(lib));
+        }
+        let math = SystemLibraries::NONE.with(SystemLibrary::Tc2Math).with_dependencies();
+        assert_eq!(math.iter().collect::<Vec<_>>(), vec![SystemLibrary::Tc2Math]);
+        assert!(SystemLibraries::known_names().ends_with("`SysFile`, `Tc2_TcpIp`"));
     }
 }

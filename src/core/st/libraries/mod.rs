@@ -1,11 +1,11 @@
 //! The system libraries plcd ships (`[st] system_libraries`, docs/ST.md "System libraries"):
-//! the declarations of TwinCAT's `Tc2_System`, `Tc2_Utilities`, `Tc2_Standard` and `Tc2_Math` and of
+//! the declarations of TwinCAT's `Tc2_System`, `Tc2_Utilities`, `Tc2_Standard`, `Tc2_Math` and `Tc2_TcpIp` and of
 //! CODESYS's `SysFile` that public TwinCAT code calls, written in Structured Text and embedded in the binary as the
 //! prelude is.
 //!
 //! This folder owns those sources, one folder per library (`tc2_system/*.st`, …). Every line is
 //! plcd's own, written from the interface each vendor documents (Beckhoff Infosys, "TwinCAT 3
-//! PLC Lib: Tc2_System", "Tc2_Utilities", "Tc2_Standard" and "Tc2_Math"; the CODESYS online help of `SysFile` and
+//! PLC Lib: Tc2_System", "Tc2_Utilities", "Tc2_Standard" and "Tc2_Math", "TF6310 TC3 TCP/IP"; the CODESYS online help of `SysFile` and
 //! `CmpErrors`); each file says which pages it follows.
 //!
 //! A library named in the config is compiled after the project's own files and before the
@@ -30,6 +30,7 @@ pub fn namespaces(library: SystemLibrary) -> &'static [&'static str] {
         SystemLibrary::Tc2Standard => &["Tc2_Standard"],
         SystemLibrary::Tc2Math => &["Tc2_Math"],
         SystemLibrary::SysFile => &["SysFile", "SysTypes", "SysDir", "CmpErrors"],
+        SystemLibrary::Tc2TcpIp => &["Tc2_TcpIp"],
     }
 }
 
@@ -66,5 +67,6 @@ pub fn sources(library: SystemLibrary) -> &'static [Source] {
             ("<SysFile>/Errors.st", include_str!("sysfile/Errors.st")),
             ("<SysFile>/sysfile.st", include_str!("sysfile/sysfile.st")),
         ],
+        SystemLibrary::Tc2TcpIp => &[("<Tc2_TcpIp>/tcpip.st", include_str!("tc2_tcpip/tcpip.st"))],
     }
 }
