@@ -293,7 +293,7 @@ const MESSAGES: &[(&str, &str)] = &[
         "VAR_GLOBAL belongs outside the POUs: declare globals at the top level of a file",
         "global-in-pou",
     ),
-    ("a FUNCTION's variables cannot be RETAIN", "function-retain"),
+    ("a FUNCTION's variables cannot be {}", "function-retain"),
     ("`{}` is the FUNCTION's own name", "function-own-name"),
     ("VAR_EXTERNAL `{}` is `{}` but the VAR_GLOBAL is `{}`", "external-type-differs"),
     ("VAR_EXTERNAL `{}` must be CONSTANT like its VAR_GLOBAL", "external-not-constant"),
@@ -598,6 +598,15 @@ const MESSAGES: &[(&str, &str)] = &[
         "a statement in the body of `{}`, which is a sequential function chart: a body is statements or a chart, not both (put the statements in an ACTION)",
         "sfc-statement-beside-chart",
     ),
+    (
+        "a METHOD's variables cannot be PERSISTENT: declare the variable in its function block's `VAR PERSISTENT`",
+        "method-persistent",
+    ),
+    ("a FUNCTION's variables cannot be {}", "function-persistent"),
+    (
+        "a VAR_TEMP is set at every call and cannot be PERSISTENT: declare the variable in `VAR PERSISTENT`",
+        "temp-persistent",
+    ),
     ("step `{}` is already declared at line {}", "sfc-step-already-declared"),
     ("transition `{}` is already declared at line {}", "sfc-transition-already-declared"),
     ("step `{}` is named twice in this transition", "sfc-step-named-twice-in-transition"),
@@ -627,6 +636,26 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
     (
         "generic constants (`VAR_GENERIC CONSTANT`, `FB_Log<20>`) are TwinCAT 3.1.4026, not IEC 61131-3: declare one function block per size, or a constant the block's variables are sized by (`[st] strict` is on)",
         "strict-generic-constants",
+    ),
+    (
+        "conditional compilation (`{}`, `{}`) is CODESYS's and TwinCAT's: IEC 61131-3 gives a pragma no meaning; keep the variant wanted (`[st] strict` is on)",
+        "strict-conditional-pragma",
+    ),
+    (
+        "`PERSISTENT` is TwinCAT's and CODESYS's: IEC 61131-3 writes `RETAIN` (`[st] strict` is on)",
+        "strict-persistent",
+    ),
+    (
+        "an empty declaration (a `;` alone) is not IEC 61131-3: remove the `;` (`[st] strict` is on)",
+        "strict-empty-declaration",
+    ),
+    (
+        "`=>` without a variable is not IEC 61131-3: leave out the outputs the call does not read (`[st] strict` is on)",
+        "strict-empty-output",
+    ),
+    (
+        "`:=` without a value is not IEC 61131-3: leave out the inputs the call does not give (`[st] strict` is on)",
+        "strict-empty-input",
     ),
     (
         "`;` expected after `{}` (IEC 61131-3 ends every statement with `;`; `[st] strict` is on)",
