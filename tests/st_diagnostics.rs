@@ -658,6 +658,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "strict-empty-input",
     ),
     (
+        "a `,` after the last argument is not IEC 61131-3: remove it (`[st] strict` is on)",
+        "strict-trailing-comma",
+    ),
+    (
         "`;` expected after `{}` (IEC 61131-3 ends every statement with `;`; `[st] strict` is on)",
         "strict-no-semicolon-after-end",
     ),

@@ -65,6 +65,9 @@ pub enum Habit {
     /// An argument without a value, as TwinCAT's input assistant writes them: `ET => ` binds
     /// nothing (`output`), `IN := ` is the input left out.
     EmptyArgument { output: bool },
+    /// A `,` after a call's last argument (`fb(IN := x, Q => q, );`, as TwinCAT projects
+    /// write it): nothing after it.
+    TrailingComma,
     /// `VAR_INPUT CONSTANT`: an input the POU's body may not write.
     ConstantInput,
     /// An FB instance's internal variable read from outside.
@@ -197,6 +200,7 @@ impl Habit {
             Habit::EmptyDeclaration => "an empty declaration (a `;` alone) is not IEC 61131-3: remove the `;` (`[st] strict` is on)".to_string(),
             Habit::EmptyArgument { output: true } => "`=>` without a variable is not IEC 61131-3: leave out the outputs the call does not read (`[st] strict` is on)".to_string(),
             Habit::EmptyArgument { output: false } => "`:=` without a value is not IEC 61131-3: leave out the inputs the call does not give (`[st] strict` is on)".to_string(),
+            Habit::TrailingComma => "a `,` after the last argument is not IEC 61131-3: remove it (`[st] strict` is on)".to_string(),
             Habit::ConstantInput => "`VAR_INPUT CONSTANT` is not IEC 61131-3: write `VAR_INPUT` (`[st] strict` is on)".to_string(),
             Habit::ReadFbInternal => "IEC 61131-3 reads only an instance's inputs and outputs from outside: pass the value out through a VAR_OUTPUT (`[st] strict` is on)".to_string(),
             Habit::InOutThroughInstance => "IEC 61131-3 names a VAR_IN_OUT only inside its function block's body: use the variable the call binds to it (`[st] strict` is on)".to_string(),

@@ -2178,7 +2178,14 @@ impl<'a> Parser<'a> {
                 _ => Some(Arg::Positional(self.expr()?)),
             };
             args.extend(arg);
+            let comma = self.span();
             if self.eat_p(P::Comma) {
+                // `fb(IN := x, Q => q, );`: a `,` and then the end of the call
+                if matches!(self.tok(), Tok::P(P::RParen)) {
+                    self.habits.push(Noted { span: comma, habit: Habit::TrailingComma });
+                    self.bump();
+                    return Ok(args);
+                }
                 continue;
             }
             self.expect_p(P::RParen, Want::CommaOrRParen)?;

@@ -927,6 +927,14 @@ fn a_semicolon_alone_in_a_var_block_is_an_empty_declaration() {
 }
 
 #[test]
+fn a_comma_after_the_last_argument_ends_the_call() {
+    let text = "PROGRAM p\nfb(a := x,\n   b => y, );\nn := F(1, );\nEND_PROGRAM\n";
+    assert_eq!(habits(text), ["3:10: TrailingComma", "4:9: TrailingComma"]);
+    let p = pou(text);
+    assert_eq!(p.body.len(), 2);
+}
+
+#[test]
 fn an_empty_argument_is_left_out_of_the_call() {
     let text = "PROGRAM p\nt(IN := x, PT := , Q => q, ET => );\nn := F(A := , B := 1);\n\
                 u(NOT Q => , CU := c);\nEND_PROGRAM\n";
