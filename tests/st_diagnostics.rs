@@ -662,6 +662,10 @@ const STRICT_MESSAGES: &[(&str, &str)] = &[
         "strict-trailing-comma",
     ),
     (
+        "an initial value is a constant expression in IEC 61131-3: assign the variable at the start of the body (`[st] strict` is on)",
+        "strict-variable-initial-value",
+    ),
+    (
         "`;` expected after `{}` (IEC 61131-3 ends every statement with `;`; `[st] strict` is on)",
         "strict-no-semicolon-after-end",
     ),

@@ -133,6 +133,9 @@ pub enum Habit {
     /// instance the block declares before (`Logger : I_Logger := fbLogger;`, TcUnit): set at
     /// the start of the block's `FB_init` (`compile::instance_init`).
     InstanceInitialValue,
+    /// A FUNCTION's or method's `VAR`, or a `VAR_TEMP`, initialised from the call's or the
+    /// instance's variables (`pTest : I_Element := pList[Index];`, compile/local_init.rs).
+    VariableInitialValue,
     /// The FOR variable written in the loop's body: the loop goes on from the value written
     /// (`compile::for_written`).
     ForVariableWritten,
@@ -222,6 +225,7 @@ impl Habit {
             Habit::EnumToInteger => "IEC 61131-3 gives an enumeration's value no number to convert to: test the value, `CASE e OF E#A: i := 0; …` (`[st] strict` is on)".to_string(),
             Habit::IntegerToTypeClass => "IEC 61131-3 converts no integer to an enumeration: give one of `__SYSTEM.TYPE_CLASS`'s values (`[st] strict` is on)".to_string(),
             Habit::InstanceInitialValue => "an initial value is a constant expression in IEC 61131-3, and an instance's place is none: assign the instance in the block's code or in FB_init (`[st] strict` is on)".to_string(),
+            Habit::VariableInitialValue => "an initial value is a constant expression in IEC 61131-3: assign the variable at the start of the body (`[st] strict` is on)".to_string(),
             Habit::ConstantInstanceCalled => "IEC 61131-3 calls no CONSTANT function block instance, as a call writes it: pass it as a plain VAR_IN_OUT (`[st] strict` is on)".to_string(),
             Habit::ForVariableWritten => "IEC 61131-3 forbids writing the FOR variable in the loop: count with a WHILE loop and a variable of its own (`[st] strict` is on)".to_string(),
             Habit::ForElement => "IEC 61131-3 counts in a variable named alone, not in an element or a member: count in a local variable and copy it (`[st] strict` is on)".to_string(),

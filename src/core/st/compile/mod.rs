@@ -79,6 +79,7 @@ mod instance_init;
 mod jumps;
 mod libraries;
 mod lifecycle;
+mod local_init;
 mod memory_limit;
 mod method_eno;
 mod method_vars;
@@ -238,6 +239,7 @@ pub fn compile_project(
     let (lowered, program_copies) =
         fb_config::lower(lowered, instances, declaration, &dialect.iec, &config_entries);
     let lowered = method_vars::lower(lowered);
+    let (lowered, local_values) = local_init::lower(lowered);
     let lowered = ref_init::lower(lowered, &mut diags);
     let lowered = fb_exit::finish_program_temps(lowered);
     let (lowered, instance_values) = instance_init::lower(lowered);
@@ -287,6 +289,9 @@ pub fn compile_project(
     }
     for (f, span) in instance_values {
         cx.habit(Habit::InstanceInitialValue, f, span);
+    }
+    for (f, span) in local_values {
+        cx.habit(Habit::VariableInitialValue, f, span);
     }
     cx.collect();
     // the PROGRAMs copied for a binding inside a FUNCTION_BLOCK instance (fb_config.rs)
