@@ -156,18 +156,24 @@ impl Ctx<'_> {
         span: Span,
         file: usize,
     ) -> TExpr {
-        let ns = TExpr { ty: Ty::Prim(Prim::LInt), ..duration };
-        let unit = TExpr::konst(Cv::Int(i128::from(cal.unit_ns())), Ty::Prim(Prim::LInt), span);
-        let count = if cal.unit_ns() == 1 {
-            ns
-        } else {
-            self.make_bin(BinOp::Div, ns, unit, Ty::Prim(Prim::LInt), span, file)
-        };
+        let count = self.in_units(cal, duration, span, file);
         let ty = Ty::Prim(Prim::Cal(cal));
         let count = self.conv(count, Prim::Cal(cal), ty.clone());
         let value = TExpr { ty: ty.clone(), ..value };
         let bop = if op == BinaryOp::Add { BinOp::Add } else { BinOp::Sub };
         self.make_bin(bop, value, count, ty, span, file)
+    }
+
+    /// `duration` (a `TIME` or `LTIME`: nanoseconds) in `cal`'s unit, cut toward zero, an
+    /// `LINT`.
+    fn in_units(&mut self, cal: Calendar, duration: TExpr, span: Span, file: usize) -> TExpr {
+        let lint = Ty::Prim(Prim::LInt);
+        let ns = TExpr { ty: lint.clone(), ..duration };
+        if cal.unit_ns() == 1 {
+            return ns;
+        }
+        let unit = TExpr::konst(Cv::Int(i128::from(cal.unit_ns())), lint.clone(), span);
+        self.make_bin(BinOp::Div, ns, unit, lint, span, file)
     }
 
     /// `date ± duration` (`Habit::DateArithmetic`): the day of the instant the duration moves
@@ -186,12 +192,7 @@ impl Ctx<'_> {
         self.habit(Habit::DateArithmetic, file, span);
         let lint = Ty::Prim(Prim::LInt);
         let konst = |n: u64| TExpr::konst(Cv::Int(i128::from(n)), Ty::Prim(Prim::LInt), span);
-        let ns = TExpr { ty: lint.clone(), ..duration };
-        let moved = if cal.unit_ns() == 1 {
-            ns
-        } else {
-            self.make_bin(BinOp::Div, ns, konst(cal.unit_ns()), lint.clone(), span, file)
-        };
+        let moved = self.in_units(cal, duration, span, file);
         let count = self.conv(value, Prim::LInt, lint.clone());
         let bop = if op == BinaryOp::Add { BinOp::Add } else { BinOp::Sub };
         let sum = self.make_bin(bop, count, moved, lint.clone(), span, file);
