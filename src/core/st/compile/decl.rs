@@ -1696,7 +1696,8 @@ fn walk_stmts(body: &[ast::Stmt], f: &mut impl FnMut(&ast::Expr)) {
     }
 }
 
-fn walk_expr(e: &ast::Expr, f: &mut impl FnMut(&ast::Expr)) {
+/// Calls `f` on `e` and on every expression inside it, outer first.
+pub(super) fn walk_expr(e: &ast::Expr, f: &mut impl FnMut(&ast::Expr)) {
     use ast::ExprKind as K;
     f(e);
     match &e.kind {

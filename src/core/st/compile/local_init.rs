@@ -15,7 +15,7 @@
 use std::borrow::Cow;
 use std::collections::HashSet;
 
-use crate::st::ast::{self, Arg, Expr, ExprKind, Init, Item, Pou, PouKind, Stmt, StmtKind};
+use crate::st::ast::{self, Expr, ExprKind, Init, Item, Pou, PouKind, Stmt, StmtKind};
 use crate::st::ast::{VarBlock, VarKind};
 
 use super::lifecycle::{name, stmt};
@@ -110,24 +110,10 @@ fn take(p: &mut Pou, outer: &HashSet<String>, method: bool) -> Vec<ast::Span> {
 
 /// Whether `e` names one of `names` (a variable, or the base of a member, element or call).
 fn reads(e: &Expr, names: &HashSet<String>) -> bool {
-    match &e.kind {
-        ExprKind::Literal(_) => false,
-        ExprKind::Name(id) => names.contains(&id.name.to_ascii_lowercase()),
-        ExprKind::Member(base, _)
-        | ExprKind::Bit(base, _)
-        | ExprKind::Part(base, _, _)
-        | ExprKind::Deref(base)
-        | ExprKind::Unary(_, base) => reads(base, names),
-        ExprKind::Index(base, indices) => {
-            reads(base, names) || indices.iter().any(|i| reads(i, names))
-        }
-        ExprKind::Binary(_, a, b) | ExprKind::Assign(a, b) => reads(a, names) || reads(b, names),
-        ExprKind::Call { callee, args } => {
-            reads(callee, names)
-                || args.iter().any(|a| match a {
-                    Arg::Positional(v) | Arg::Input { value: v, .. } => reads(v, names),
-                    Arg::Output { target, .. } => reads(target, names),
-                })
-        }
-    }
+    let mut found = false;
+    super::decl::walk_expr(e, &mut |x| {
+        found |=
+            matches!(&x.kind, ExprKind::Name(id) if names.contains(&id.name.to_ascii_lowercase()));
+    });
+    found
 }
