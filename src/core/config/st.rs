@@ -157,39 +157,8 @@ pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StC
         let (line, col) = Diagnostic::line_col(sink.text, at);
         library.push(LibraryFile { file: PathBuf::from(file), resolved, folder, line, col });
     }
-    let mut namespaces: Vec<String> = Vec::new();
-    for entry in raw.namespaces.unwrap_or_default() {
-        let at = entry.span().start;
-        let name = entry.into_inner();
-        if !is_namespace(&name) {
-            let msg = format!(
-                "{}: `{name}` is not a name (letters, digits and `_`)",
-                ctx.key("namespaces")
-            );
-            sink.error(at, msg);
-            ok = false;
-        } else if namespaces.iter().any(|n| n.eq_ignore_ascii_case(&name)) {
-            sink.error(at, format!("{}: `{name}` is listed twice", ctx.key("namespaces")));
-            ok = false;
-        } else {
-            namespaces.push(name);
-        }
-    }
-    let mut defines: Vec<String> = Vec::new();
-    for entry in raw.defines.unwrap_or_default() {
-        let at = entry.span().start;
-        let name = entry.into_inner();
-        if !is_namespace(&name) {
-            let key = ctx.key("defines");
-            sink.error(at, format!("{key}: `{name}` is not a name (letters, digits and `_`)"));
-            ok = false;
-        } else if defines.iter().any(|n| n.eq_ignore_ascii_case(&name)) {
-            sink.error(at, format!("{}: `{name}` is listed twice", ctx.key("defines")));
-            ok = false;
-        } else {
-            defines.push(name);
-        }
-    }
+    let namespaces = names(sink, &ctx, "namespaces", raw.namespaces, &mut ok);
+    let defines = names(sink, &ctx, "defines", raw.defines, &mut ok);
     let mut system_libraries = SystemLibraries::NONE;
     for entry in raw.system_libraries.unwrap_or_default() {
         let at = entry.span().start;
@@ -233,4 +202,31 @@ pub(super) fn validate(sink: &mut Sink, raw: RawSt, config: &Path) -> Option<StC
         variable_memory_bytes,
         defines,
     })
+}
+
+/// The names of list `key` (`namespaces`, `defines`): each a name (letters, digits and `_`),
+/// at most once whatever its case; each that is not an error at its place, which clears `ok`.
+fn names(
+    sink: &mut Sink,
+    ctx: &Ctx,
+    key: &str,
+    entries: Option<Vec<Spanned<String>>>,
+    ok: &mut bool,
+) -> Vec<String> {
+    let mut names: Vec<String> = Vec::new();
+    for entry in entries.unwrap_or_default() {
+        let at = entry.span().start;
+        let name = entry.into_inner();
+        if !is_namespace(&name) {
+            let msg = format!("{}: `{name}` is not a name (letters, digits and `_`)", ctx.key(key));
+            sink.error(at, msg);
+            *ok = false;
+        } else if names.iter().any(|n| n.eq_ignore_ascii_case(&name)) {
+            sink.error(at, format!("{}: `{name}` is listed twice", ctx.key(key)));
+            *ok = false;
+        } else {
+            names.push(name);
+        }
+    }
+    names
 }
